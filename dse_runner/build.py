@@ -1,0 +1,131 @@
+"""Build FMUs from our C sources with the system C compiler.
+
+An FMU source folder holds ``modelDescription.xml`` and the model's ``*.c``;
+the shared FMI layer lives in ``fmus/common``. The built ``.fmu`` is cached
+under a name that includes a hash of every input, so an edit to any source
+rebuilds and an unchanged source is never rebuilt. The FMU carries its own
+sources (``sources/``), as FMI 2.0 allows, so it can be rebuilt elsewhere.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+import zipfile
+from pathlib import Path
+
+import fmpy
+
+from .errors import DseError
+
+COMMON_DIR_NAME = "common"
+CFLAGS = ("-O2", "-std=c11", "-fPIC", "-shared", "-Wall", "-Wextra", "-fvisibility=default")
+PLATFORM_DIR = "binaries/linux64"
+
+
+class BuildError(DseError):
+    """An FMU's C sources did not compile."""
+
+
+def default_cache_dir() -> Path:
+    """Where built FMUs are kept: $DSE_RUNNER_CACHE or ~/.cache/dse-runner."""
+    root = os.environ.get("DSE_RUNNER_CACHE") or Path.home() / ".cache" / "dse-runner"
+    return Path(root) / "fmus"
+
+
+def fmi_headers_dir() -> Path:
+    """FMPy ships the FMI 2.0 headers; we compile against those."""
+    return Path(fmpy.__file__).parent / "c-code"
+
+
+def is_source_dir(path: Path) -> bool:
+    return path.is_dir() and (path / "modelDescription.xml").is_file() and any(path.glob("*.c"))
+
+
+def source_files(source_dir: Path) -> list[Path]:
+    """The model's own C files followed by the shared FMI layer's."""
+    common = source_dir.parent / COMMON_DIR_NAME
+    if not (common / "slave.c").is_file():
+        raise BuildError(f"{source_dir}: the shared FMI layer {common}/slave.c is missing")
+    own = sorted(source_dir.glob("*.c")) + sorted(source_dir.glob("*.h"))
+    return own + sorted(common.glob("*.c")) + sorted(common.glob("*.h"))
+
+
+def model_identifier(source_dir: Path) -> str:
+    from fmpy.model_description import read_model_description
+
+    md = read_model_description(str(source_dir / "modelDescription.xml"), validate=False)
+    if md.coSimulation is None:
+        raise BuildError(f"{source_dir}/modelDescription.xml declares no <CoSimulation>")
+    return md.coSimulation.modelIdentifier
+
+
+def source_hash(source_dir: Path) -> str:
+    """Hash of everything that determines the binary: sources, description, flags."""
+    digest = hashlib.sha256()
+    for path in [source_dir / "modelDescription.xml", *source_files(source_dir)]:
+        digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+    digest.update(" ".join(CFLAGS).encode())
+    return digest.hexdigest()[:16]
+
+
+def compiler() -> str:
+    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
+    if not cc:
+        raise BuildError("no C compiler found: install gcc (Debian: apt-get install gcc) or set CC")
+    return cc
+
+
+def build_fmu(source_dir: str | Path, cache_dir: Path | None = None) -> Path:
+    """Return the path of the built FMU for ``source_dir``, compiling it if needed."""
+    source_dir = Path(source_dir).resolve()
+    if not is_source_dir(source_dir):
+        raise BuildError(f"{source_dir} is not an FMU source folder (modelDescription.xml and *.c)")
+    identifier = model_identifier(source_dir)
+    cache_dir = Path(cache_dir or default_cache_dir())
+    target = cache_dir / f"{identifier}-{source_hash(source_dir)}.fmu"
+    if target.is_file():
+        return target
+    cache_dir.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix=f"build-{identifier}-") as tmp:
+        library = Path(tmp) / f"{identifier}.so"
+        sources = source_files(source_dir)
+        command = [
+            compiler(), *CFLAGS,
+            f"-I{fmi_headers_dir()}", f"-I{source_dir.parent / COMMON_DIR_NAME}",
+            "-o", str(library), *[str(p) for p in sources if p.suffix == ".c"], "-lm",
+        ]
+        done = subprocess.run(command, capture_output=True, text=True)
+        if done.returncode != 0:
+            raise BuildError(f"compiling {source_dir.name} failed:\n{done.stderr.strip()}")
+        # Zip beside the target, then rename: a concurrent builder never sees half a zip.
+        handle, partial = tempfile.mkstemp(dir=cache_dir, prefix=f".{identifier}-", suffix=".partial")
+        os.close(handle)
+        with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as fmu:
+            fmu.write(source_dir / "modelDescription.xml", "modelDescription.xml")
+            fmu.write(library, f"{PLATFORM_DIR}/{identifier}.so")
+            for path in sources:
+                fmu.write(path, f"sources/{path.name}")
+        os.replace(partial, target)
+    return target
+
+
+def find_source_dirs(root: str | Path) -> list[Path]:
+    """Every FMU source folder directly under ``root`` (e.g. the repository's fmus/)."""
+    root = Path(root)
+    if not root.is_dir():
+        raise BuildError(f"{root} is not a folder of FMU sources")
+    return [p for p in sorted(root.iterdir()) if p.name != COMMON_DIR_NAME and is_source_dir(p)]
+
+
+def resolve_fmu(path: str | Path, cache_dir: Path | None = None) -> Path:
+    """An FMU reference is a built ``.fmu`` or a source folder, built on first use."""
+    path = Path(path)
+    if path.is_dir():
+        return build_fmu(path, cache_dir)
+    if path.is_file():
+        return path
+    raise DseError(f"FMU not found: {path}")

@@ -1,0 +1,163 @@
+"""The multi-model file: which FMUs, how they connect, which values they get.
+
+Our YAML form::
+
+    fmus:                      # instance name -> FMU (a .fmu or a source folder)
+      controller: ../../fmus/replay_controller
+      vehicle: ../../fmus/robotti_vehicle
+    connections:               # output -> [inputs]
+      controller.velocity: [vehicle.velocity]
+    parameters:                # fixed values
+      vehicle.mass: 1500
+    scenario:                  # values taken from each scenario
+      controller.file: steering_inputs
+      vehicle.theta0: initial_pose.theta
+    track: {x: vehicle.x, y: vehicle.y}   # the outputs compared with GPS
+    step: null                 # communication step [s]; default: the control log's period
+
+INTO-CPS's ``mm.json`` (keys like ``{fmu}.instance.variable``) is read too and
+converted into the same model, so the rest of the tool sees one format.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationError, field_validator
+
+from .errors import DseError
+from .scenario import ScenarioField
+
+Value = float | int | bool | str
+
+
+def split_ref(ref: str) -> tuple[str, str]:
+    """'vehicle.mass' -> ('vehicle', 'mass'); variable names may hold dots themselves."""
+    instance, dot, variable = ref.partition(".")
+    if not dot or not instance or not variable:
+        raise ValueError(f"{ref!r} is not of the form instance.variable")
+    return instance, variable
+
+
+def _check_ref(ref: str) -> str:
+    split_ref(ref)
+    return ref
+
+
+class TrackOutputs(BaseModel):
+    """The FMU outputs that are the simulated position compared with GPS fixes."""
+
+    model_config = ConfigDict(extra="forbid")
+    x: str
+    y: str
+
+    @field_validator("x", "y")
+    @classmethod
+    def _refs(cls, ref: str) -> str:
+        return _check_ref(ref)
+
+
+class MultiModel(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    fmus: dict[str, str] = Field(min_length=1)
+    connections: dict[str, list[str]] = {}
+    parameters: dict[str, Value] = {}
+    scenario: dict[str, ScenarioField] = {}
+    track: TrackOutputs | None = None
+    step: PositiveFloat | None = None
+    # Relative FMU paths are relative to the file's folder.
+    base_dir: Path = Field(default=Path("."), exclude=True)
+
+    @field_validator("fmus")
+    @classmethod
+    def _instance_names(cls, fmus: dict[str, str]) -> dict[str, str]:
+        for name in fmus:
+            if not name or "." in name:
+                raise ValueError(f"instance name {name!r} must be non-empty and contain no '.'")
+        return fmus
+
+    @field_validator("connections")
+    @classmethod
+    def _connection_refs(cls, connections: dict[str, list[str]]) -> dict[str, list[str]]:
+        for source, targets in connections.items():
+            _check_ref(source)
+            for target in targets:
+                _check_ref(target)
+        return connections
+
+    @field_validator("parameters", "scenario")
+    @classmethod
+    def _value_refs(cls, values: dict[str, Any]) -> dict[str, Any]:
+        for ref in values:
+            _check_ref(ref)
+        return values
+
+    def fmu_path(self, instance: str) -> Path:
+        path = Path(self.fmus[instance])
+        return path if path.is_absolute() else (self.base_dir / path).resolve()
+
+
+def from_into_cps(data: dict[str, Any]) -> dict[str, Any]:
+    """Convert INTO-CPS's mm.json shape into our multi-model's fields."""
+
+    def local(ref: str) -> tuple[str, str]:
+        key, dot, rest = ref.partition("}.")
+        if not ref.startswith("{") or not dot:
+            raise DseError(f"mm.json: {ref!r} is not of the form {{fmu}}.instance.variable")
+        instance, variable = split_ref(rest)
+        fmu_key = key + "}"
+        if fmu_key not in data.get("fmus", {}):
+            raise DseError(f"mm.json: {ref!r} names FMU {fmu_key}, which 'fmus' does not list")
+        instances.setdefault(instance, data["fmus"][fmu_key])
+        return instance, variable
+
+    instances: dict[str, str] = {}
+    connections = {
+        ".".join(local(src)): [".".join(local(dst)) for dst in dsts]
+        for src, dsts in data.get("connections", {}).items()
+    }
+    parameters = {".".join(local(ref)): v for ref, v in data.get("parameters", {}).items()}
+    ours = {k: v for k, v in data.items() if k in ("scenario", "track", "step")}
+    return {"fmus": instances, "connections": connections, "parameters": parameters, **ours}
+
+
+def is_into_cps(data: dict[str, Any]) -> bool:
+    return any(str(k).startswith("{") for k in data.get("fmus", {}))
+
+
+def parse_multimodel(data: Any, source: str, base_dir: Path) -> MultiModel:
+    """Validate already-parsed multi-model data; errors name ``source`` and the key path."""
+    if not isinstance(data, dict):
+        raise DseError(f"{source}: expected a mapping with 'fmus', 'connections', 'parameters'")
+    if is_into_cps(data):
+        data = from_into_cps(data)
+    try:
+        return MultiModel.model_validate({**data, "base_dir": base_dir})
+    except ValidationError as e:
+        raise DseError(format_validation_error(source, e)) from None
+
+
+def load_multimodel(path: str | Path) -> MultiModel:
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as e:
+        raise DseError(f"cannot read multi-model {path}: {e.strerror}") from None
+    try:
+        data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
+    except (json.JSONDecodeError, yaml.YAMLError) as e:
+        raise DseError(f"{path}: not valid {'JSON' if path.suffix == '.json' else 'YAML'}: {e}") from None
+    return parse_multimodel(data, str(path), path.parent.resolve())
+
+
+def format_validation_error(source: str, error: ValidationError) -> str:
+    """One line per problem: file, key path, reason."""
+    lines = []
+    for problem in error.errors():
+        where = ".".join(str(p) for p in problem["loc"]) or "(top level)"
+        lines.append(f"{source}: {where}: {problem['msg']}")
+    return "\n".join(lines)

@@ -1,0 +1,93 @@
+"""Objectives: how far a simulated track is from the recorded GPS fixes.
+
+Every objective is a function ``(trajectory, scenario) -> float``. The
+built-in ones all start from the same distances: for each recorded fix, the
+Euclidean distance to the simulated position at the fix's time, linearly
+interpolated between communication points. The paper's Equation 1 (its
+"mean cross-track error") is their mean. Users add their own objectives by
+import path, ``"package.module:function"``, with the same signature.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+
+import numpy as np
+
+from .cosim import Trajectory
+from .errors import DseError
+from .scenario import Scenario
+
+Objective = Callable[[Trajectory, Scenario], float]
+
+
+def fix_distances(trajectory: Trajectory, scenario: Scenario) -> np.ndarray:
+    """Distance from each GPS fix within the simulated time span to the simulated position."""
+    gps = scenario.gps
+    x, y = trajectory.xy()
+    time = trajectory.time
+    inside = (gps.time >= time[0]) & (gps.time <= time[-1] + 1e-9)
+    if not inside.any():
+        raise DseError(f"scenario {scenario.name}: no GPS fix lies within the simulated time "
+                       f"{time[0]:g}..{time[-1]:g} s")
+    t = gps.time[inside]
+    return np.hypot(gps.x[inside] - np.interp(t, time, x), gps.y[inside] - np.interp(t, time, y))
+
+
+def cross_track_error(trajectory: Trajectory, scenario: Scenario) -> float:
+    """The paper's Equation 1: mean distance over the recorded fixes [m]."""
+    return float(np.mean(fix_distances(trajectory, scenario)))
+
+
+def max_error(trajectory: Trajectory, scenario: Scenario) -> float:
+    """Largest distance to any fix [m]."""
+    return float(np.max(fix_distances(trajectory, scenario)))
+
+
+def rms_error(trajectory: Trajectory, scenario: Scenario) -> float:
+    """Root mean square of the distances [m]."""
+    return float(np.sqrt(np.mean(fix_distances(trajectory, scenario) ** 2)))
+
+
+def final_error(trajectory: Trajectory, scenario: Scenario) -> float:
+    """Distance at the last recorded fix [m]."""
+    return float(fix_distances(trajectory, scenario)[-1])
+
+
+BUILTIN: dict[str, Objective] = {
+    "cross_track_error": cross_track_error,
+    "max_error": max_error,
+    "rms_error": rms_error,
+    "final_error": final_error,
+}
+DEFAULT = tuple(BUILTIN)
+
+
+def resolve(name: str) -> Objective:
+    """A built-in objective's name, or ``module:function`` for a user's own."""
+    if name in BUILTIN:
+        return BUILTIN[name]
+    module_name, colon, function_name = name.partition(":")
+    if not colon:
+        raise DseError(f"unknown objective {name!r}: use one of {', '.join(BUILTIN)} "
+                       "or an import path 'module:function'")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as e:
+        raise DseError(f"objective {name!r}: cannot import {module_name!r}: {e}") from None
+    function = getattr(module, function_name, None)
+    if not callable(function):
+        raise DseError(f"objective {name!r}: {module_name} has no function {function_name!r}")
+    return function
+
+
+def evaluate(names: tuple[str, ...], trajectory: Trajectory, scenario: Scenario) -> dict[str, float]:
+    results = {}
+    for name in names:
+        value = resolve(name)(trajectory, scenario)
+        try:
+            results[name] = float(value)
+        except (TypeError, ValueError):
+            raise DseError(f"objective {name!r} returned {value!r}, not a number") from None
+    return results
