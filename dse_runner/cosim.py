@@ -111,7 +111,8 @@ def lookup(fmu_paths: dict[str, Path], ref: str, purpose: str) -> Variable:
     by_name = {v.name: v for v in variables}
     v = by_name.get(name)
     if v is None:
-        raise DseError(f"{purpose}: unknown variable {ref!r}: {fmu_paths[instance].name} has no "
+        model = fmus.describe(fmu_paths[instance]).modelName
+        raise DseError(f"{purpose}: unknown variable {ref!r}: instance {instance!r} ({model}) has no "
                        f"variable {name!r}{_did_you_mean(name, by_name)}")
     return Variable(instance, name, v.valueReference, v.type, v.causality)
 
@@ -285,7 +286,7 @@ def _resolve_values(plan: Plan, values: dict[str, Value]) -> dict[str, list[tupl
     """Group values by instance, each checked against its variable's type."""
     grouped: dict[str, list[tuple[Variable, Value]]] = {}
     for ref, value in values.items():
-        variable = plan.variable(ref, "value")
+        variable = plan.variable(ref, "setting")
         check_settable(variable)
         grouped.setdefault(variable.instance, []).append((variable, _coerce(variable, value)))
     return grouped
