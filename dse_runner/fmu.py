@@ -11,6 +11,7 @@ say what the FMU said.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import os
 import shutil
 import tempfile
@@ -107,12 +108,27 @@ class Instance:
     messages: deque = field(default_factory=lambda: deque(maxlen=20))
     used: bool = False
     callbacks: fmi2CallbackFunctions | None = None
-    _logger: object = None
 
     def explain(self, what: str) -> str:
         """An error message naming the instance, the FMU and what it logged."""
         said = "; ".join(self.messages)
-        return f"{self.name} ({self.fmu.path.name}): {what}" + (f": {said}" if said else "")
+        return f"{self.name} ({self.fmu.description.modelName}): {what}" + (f": {said}" if said else "")
+
+
+def _log(environment, instance_name, status, category, message) -> None:
+    """The one logger of this process: FMPy's varargs proxy keeps a single Python target,
+    so messages are routed to their instance by the component environment."""
+    instance = _BY_ENVIRONMENT.get(environment or 0)
+    if instance is None:
+        return
+    text = message.decode("utf-8", "replace") if message else ""
+    level = STATUS_NAMES[status] if 0 <= status < len(STATUS_NAMES) else str(status)
+    instance.messages.append(text if status >= 3 else f"[{level}] {text}")
+
+
+_LOGGER = fmi2CallbackLoggerTYPE(_log)
+_ENVIRONMENTS = itertools.count(1)
+_BY_ENVIRONMENT: dict[int, "Instance"] = {}
 
 
 def _instantiate(name: str, fmu: LoadedFmu) -> Instance:
@@ -124,17 +140,13 @@ def _instantiate(name: str, fmu: LoadedFmu) -> Instance:
         instanceName=name,
     )
     instance = Instance(name, fmu, slave)
-
-    def log(env, instance_name, status, category, message):  # called from C
-        text = message.decode("utf-8", "replace") if message else ""
-        level = STATUS_NAMES[status] if 0 <= status < len(STATUS_NAMES) else str(status)
-        instance.messages.append(text if status >= 3 else f"[{level}] {text}")
-
-    instance._logger = fmi2CallbackLoggerTYPE(log)
+    environment = next(_ENVIRONMENTS)
+    _BY_ENVIRONMENT[environment] = instance
     callbacks = fmi2CallbackFunctions()
-    callbacks.logger = instance._logger
+    callbacks.logger = _LOGGER
     callbacks.allocateMemory = defaultCallbacks.allocateMemory
     callbacks.freeMemory = defaultCallbacks.freeMemory
+    callbacks.componentEnvironment = environment
     addLoggerProxy(byref(callbacks))  # formats the C varargs before Python sees the message
     instance.callbacks = callbacks
     try:
@@ -167,6 +179,8 @@ def acquire(name: str, fmu: LoadedFmu) -> Instance:
 def discard(instance: Instance) -> None:
     """Drop an instance an error left in an unknown state; the next run gets a new one."""
     _INSTANCES.pop((instance.fmu.sha, instance.name), None)
+    if instance.callbacks is not None:
+        _BY_ENVIRONMENT.pop(instance.callbacks.componentEnvironment, None)
     try:
         instance.slave.freeInstance()
     except Exception:

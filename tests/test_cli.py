@@ -1,0 +1,54 @@
+"""The dse-runner command as a user runs it: a real subprocess."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+from conftest import MULTIMODEL, REPO, SCENARIOS
+
+
+def dse_runner(*args, cwd=REPO):
+    return subprocess.run([sys.executable, "-m", "dse_runner.cli", *map(str, args)],
+                          capture_output=True, text=True, cwd=cwd)
+
+
+def test_simulate_json_prints_only_json_and_writes_track(tmp_path):
+    done = dse_runner("simulate", MULTIMODEL, "--scenario", SCENARIOS / "sin1",
+                      "--set", "vehicle.mass=1500", "--out", tmp_path, "--json")
+    assert done.returncode == 0, done.stderr
+    report = json.loads(done.stdout)
+    assert set(report["objectives"]) == {"cross_track_error", "max_error", "rms_error", "final_error"}
+    assert report["values"]["vehicle.mass"] == 1500.0
+    assert 0 < report["objectives"]["cross_track_error"] <= report["objectives"]["max_error"]
+    header = (tmp_path / "trajectory.csv").read_text().splitlines()[0]
+    assert header.startswith("time,") and "vehicle.x" in header
+    assert (tmp_path / "track.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_simulate_prints_objectives(tmp_path):
+    done = dse_runner("simulate", MULTIMODEL, "-s", SCENARIOS / "speed_step2", "--out", tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "cross_track_error" in done.stdout and "trajectory:" in done.stdout
+
+
+def test_unknown_set_variable_exits_2_naming_it(tmp_path):
+    done = dse_runner("simulate", MULTIMODEL, "-s", SCENARIOS / "sin1", "--set", "vehicle.cAlpha=1",
+                      "--out", tmp_path, "--json")
+    assert done.returncode == 2
+    assert done.stdout == ""
+    assert "unknown variable 'vehicle.cAlpha'" in done.stderr and "cAlphaF" in done.stderr
+
+
+def test_missing_multimodel(tmp_path):
+    done = dse_runner("simulate", tmp_path / "none.yaml", "-s", SCENARIOS / "sin1")
+    assert done.returncode == 2 and "cannot read multi-model" in done.stderr
+
+
+def test_build_fmus_json(tmp_path):
+    done = dse_runner("build-fmus", REPO / "fmus", "--out", tmp_path, "--json")
+    assert done.returncode == 0, done.stderr
+    built = json.loads(done.stdout)["fmus"]
+    assert set(built) == {"robotti_vehicle", "replay_controller"}
+    assert all((tmp_path / f"{name}.fmu").is_file() for name in built)

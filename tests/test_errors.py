@@ -1,0 +1,112 @@
+"""Bad input gets a clear error that names the culprit."""
+
+from __future__ import annotations
+
+import pytest
+import yaml
+from conftest import MULTIMODEL, SCENARIOS
+
+from dse_runner import DseError
+from dse_runner.simulate import simulate
+
+
+def write_multimodel(tmp_path, **changes):
+    data = yaml.safe_load(MULTIMODEL.read_text())
+    data["fmus"] = {k: str((MULTIMODEL.parent / v).resolve()) for k, v in data["fmus"].items()}
+    data.update(changes)
+    path = tmp_path / "mm.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def test_missing_fmu(tmp_path):
+    path = write_multimodel(tmp_path, fmus={"controller": "nowhere/replay.fmu",
+                                            "vehicle": str(MULTIMODEL.parent / "../../fmus/robotti_vehicle")})
+    with pytest.raises(DseError, match=r"FMU not found: .*nowhere/replay\.fmu"):
+        simulate(path, SCENARIOS / "sin1")
+
+
+def test_unknown_variable_in_connection(tmp_path):
+    path = write_multimodel(tmp_path, connections={"controller.velocity": ["vehicle.velocty"]})
+    with pytest.raises(DseError, match=r"unknown variable 'vehicle\.velocty'.*did you mean velocity"):
+        simulate(path, SCENARIOS / "sin1")
+
+
+def test_unknown_instance_in_connection(tmp_path):
+    path = write_multimodel(tmp_path, connections={"controler.velocity": ["vehicle.velocity"]})
+    with pytest.raises(DseError, match=r"'controler\.velocity' names instance 'controler'.*did you mean controller"):
+        simulate(path, SCENARIOS / "sin1")
+
+
+def test_unknown_variable_in_set(plan):
+    with pytest.raises(DseError, match=r"unknown variable 'vehicle\.mas'.*did you mean mass"):
+        simulate(plan, SCENARIOS / "sin1", {"vehicle.mas": 1500})
+
+
+def test_output_cannot_be_set(plan):
+    with pytest.raises(DseError, match=r"'vehicle\.x' is a output.*cannot be set"):
+        simulate(plan, SCENARIOS / "sin1", {"vehicle.x": 3})
+
+
+def test_wrong_value_type(plan):
+    with pytest.raises(DseError, match=r"vehicle\.mass: 'heavy' is not a valid Real"):
+        simulate(plan, SCENARIOS / "sin1", {"vehicle.mass": "heavy"})
+
+
+def test_bad_multimodel_key(tmp_path):
+    path = write_multimodel(tmp_path, stepsize=0.1)
+    with pytest.raises(DseError, match=r"mm\.yaml: stepsize: Extra inputs are not permitted"):
+        simulate(path, SCENARIOS / "sin1")
+
+
+def damage(scenario_dir, line_number: int, text: str):
+    path = scenario_dir / "steering_inputs.csv"
+    lines = path.read_text().splitlines()
+    lines[line_number - 1] = text
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_malformed_csv_read_by_the_controller_fmu(plan, scenario_copy):
+    """With the step given, only the FMU reads the log: its error reaches the user."""
+    folder = scenario_copy("sin1")
+    path = damage(folder, 7, "0.30,fast,0.0")
+    with pytest.raises(DseError, match=rf"controller \(.*\): fmi2EnterInitializationMode failed.*"
+                                       rf"{path} line 7: field 2 is not a number"):
+        simulate(plan, folder, step=0.05)
+
+
+def test_malformed_csv_read_for_the_control_period(plan, scenario_copy):
+    folder = scenario_copy("sin1")
+    path = damage(folder, 9, "0.40,1.0")
+    with pytest.raises(DseError, match=rf"{path} line 9: expected 3 numbers"):
+        simulate(plan, folder)
+
+
+def test_csv_without_expected_column(plan, scenario_copy):
+    folder = scenario_copy("sin1")
+    path = damage(folder, 1, "time,speed,delta_f")
+    with pytest.raises(DseError, match=rf"{path} line 1: header has no 'velocity' column"):
+        simulate(plan, folder, step=0.05)
+
+
+def test_missing_steering_file_named_by_the_fmu(plan, scenario_copy):
+    folder = scenario_copy("sin1")
+    with pytest.raises(DseError, match=r"cannot open /nonexistent/steer\.csv: No such file"):
+        simulate(plan, folder, {"controller.file": "/nonexistent/steer.csv"}, step=0.05)
+
+
+def test_missing_scenario_file(plan, scenario_copy):
+    folder = scenario_copy("sin1")
+    (folder / "gps_position.csv").unlink()
+    with pytest.raises(DseError, match=r"missing gps_position\.csv"):
+        simulate(plan, folder)
+
+
+def test_diverging_fmu_is_reported_and_instance_recovers(plan):
+    with pytest.raises(DseError, match=r"vehicle .*diverged"):
+        simulate(plan, SCENARIOS / "sin1", {"vehicle.rk4_step": 0.05, "vehicle.r_gyr": 0.001,
+                                            "vehicle.cAlphaF": 1e9, "vehicle.cAlphaR": 1e9,
+                                            "vehicle.mu": 1e6})
+    # The failed instance was replaced: the next run is normal.
+    assert simulate(plan, SCENARIOS / "sin1").objectives["cross_track_error"] < 100
