@@ -79,3 +79,38 @@ def test_into_cps_mm_json_gives_the_same_result(tmp_path, plan):
     from_yaml = simulate(plan, SCENARIOS / "sin3", {"vehicle.mass": 1800})
     assert from_json.trajectory.track == ("vehicle.x", "vehicle.y")  # found without a 'track' key
     assert np.allclose(from_json.trajectory.xy(), from_yaml.trajectory.xy(), atol=1e-12)
+
+
+def test_instances_are_created_once_per_process_and_reused(plan):
+    from dse_runner import fmu as fmus
+
+    simulate(plan, SCENARIOS / "sin1")
+    before = {key: id(instance) for key, instance in fmus._INSTANCES.items()}
+    extracted = dict(fmus._LOADED)
+    simulate(plan, SCENARIOS / "speed_ramp2", CALIBRATED)
+    assert {key: id(instance) for key, instance in fmus._INSTANCES.items()} == before
+    assert fmus._LOADED == extracted
+
+
+def test_three_fmus_two_instances_of_one(tmp_path, plan):
+    """One controller drives two vehicles, a light and a heavy one, in the same co-simulation."""
+    fmus_dir = MULTIMODEL.parent.parent.parent / "fmus"
+    mm = {
+        "fmus": {"controller": str(fmus_dir / "replay_controller"),
+                 "light": str(fmus_dir / "robotti_vehicle"), "heavy": str(fmus_dir / "robotti_vehicle")},
+        "connections": {"controller.velocity": ["light.velocity", "heavy.velocity"],
+                        "controller.delta_f": ["light.delta_f", "heavy.delta_f"]},
+        "parameters": {"light.mass": 1000, "heavy.mass": 3000, "light.mu": 0.3, "heavy.mu": 0.3},
+        "scenario": {"controller.file": "steering_inputs"},
+        "track": {"x": "heavy.x", "y": "heavy.y"},
+    }
+    path = tmp_path / "three.yaml"
+    path.write_text(json.dumps(mm))  # JSON is YAML
+    both = simulate(path, SCENARIOS / "sin1")
+    for name, mass in (("light", 1000.0), ("heavy", 3000.0)):
+        alone = simulate(plan, SCENARIOS / "sin1", {"vehicle.mass": mass, "vehicle.mu": 0.3,
+                                                    "vehicle.theta0": 0.0})
+        for axis in ("x", "y"):
+            assert np.allclose(both.trajectory.column(f"{name}.{axis}"),
+                               alone.trajectory.column(f"vehicle.{axis}"), atol=1e-12)
+    assert not np.allclose(both.trajectory.column("light.x"), both.trajectory.column("heavy.x"))
