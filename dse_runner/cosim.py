@@ -18,6 +18,7 @@ from __future__ import annotations
 import ctypes
 import difflib
 import math
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -222,8 +223,12 @@ class _Stepper:
         return CosimError(self.instance.explain(f"{call} failed at t={t:.6g}"), self.instance.name)
 
 
-def run(plan: Plan, values: dict[str, Value], start: float, stop: float, step: float) -> Trajectory:
-    """Co-simulate ``plan`` from ``start`` to ``stop`` with communication step ``step``."""
+def run(plan: Plan, values: dict[str, Value], start: float, stop: float, step: float,
+        timeout: float | None = None) -> Trajectory:
+    """Co-simulate ``plan`` from ``start`` to ``stop`` with communication step ``step``.
+
+    ``timeout`` bounds the wall time of the step loop in seconds; it is checked
+    between steps, so it stops a slow simulation, not one hung inside an FMU."""
     if not (stop > start):
         raise DseError(f"stop time {stop} must be after start time {start}")
     if not (step > 0 and math.isfinite(step)):
@@ -264,7 +269,8 @@ def run(plan: Plan, values: dict[str, Value], start: float, stop: float, step: f
         current = None
         _exchange(steppers, signals, start, inputs=False)
         record[0] = signals
-        _step_loop(steppers, times, signals, record)
+        deadline = time.perf_counter() + timeout if timeout else math.inf
+        _step_loop(steppers, times, signals, record, deadline)
         for instance in instances.values():
             current = instance
             instance.slave.terminate()
@@ -306,13 +312,15 @@ def _exchange(steppers: list[_Stepper], signals: np.ndarray, t: float, inputs: b
 
 
 def _step_loop(steppers: list[_Stepper], times: np.ndarray, signals: np.ndarray,
-               record: np.ndarray) -> None:
+               record: np.ndarray, deadline: float) -> None:
     """The hot loop: no buffer is created here, only FMI calls through prepared ones."""
     feeding = [s for s in steppers if s.n_in]
     reading = [s for s in steppers if s.n_out]
-    take = np.take
+    take, clock = np.take, time.perf_counter
     for k, (t, t_next) in enumerate(zip(times[:-1].tolist(), times[1:].tolist()), start=1):
         h = t_next - t
+        if not k & 63 and clock() > deadline:
+            raise CosimError(f"timeout: the simulation was stopped at t={t:.6g} of {times[-1]:.6g} s")
         for s in feeding:
             take(signals, s.gather, out=s.in_view)
             if s.set_real(s.component, s.in_vr, s.n_in, s.in_values) > FMI_WARNING:

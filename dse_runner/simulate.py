@@ -45,6 +45,7 @@ def simulate(
     overrides: dict[str, Value] | None = None,
     objectives: tuple[str, ...] = objs.DEFAULT,
     step: float | None = None,
+    timeout: float | None = None,
 ) -> SimulationResult:
     """Co-simulate ``multimodel`` on ``scenario`` with ``overrides`` and score it."""
     plan = as_plan(multimodel)
@@ -52,6 +53,6 @@ def simulate(
         scenario = load_scenario(scenario)
     values = {**plan.multimodel.parameters, **scenario_values(plan.multimodel, scenario), **(overrides or {})}
     step = step or plan.multimodel.step or scenario.control_period
-    trajectory = run(plan, values, 0.0, scenario.info.duration, step)
+    trajectory = run(plan, values, 0.0, scenario.info.duration, step, timeout)
     scores = objs.evaluate(objectives, trajectory, scenario)
     return SimulationResult(scenario, values, step, trajectory, scores)

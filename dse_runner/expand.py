@@ -1,0 +1,71 @@
+"""Expansion of a design space into (parameter point, scenario) tasks with stable ids.
+
+A task id is a hash of what determines its result: the model (the FMUs'
+contents, the multi-model's wiring and values, the objectives), the point's
+values, and the scenario's recorded data. The same task therefore has the
+same id in every run, which is what lets a re-run skip finished work, and a
+changed FMU or recording gives new ids instead of stale results.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from typing import Any
+
+from .cosim import Plan
+from .fmu import content_hash
+from .scenario import GPS_FILE, INFO_FILE, STEERING_FILE, Scenario
+from .search import strategy
+
+
+@dataclass(frozen=True)
+class Task:
+    task_id: str
+    scenario: str
+    point: tuple[tuple[str, Any], ...]  # sorted (name, value) pairs: hashable and picklable
+
+
+def _digest(*parts: Any) -> str:
+    text = json.dumps(parts, sort_keys=True, default=str, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def model_hash(plan: Plan, objectives: tuple[str, ...]) -> str:
+    """What the model is, independent of where its files lie."""
+    mm = plan.multimodel.model_dump(mode="json", exclude={"fmus", "base_dir"})
+    fmus = {name: content_hash(path) for name, path in sorted(plan.fmu_paths.items())}
+    return _digest(fmus, mm, list(objectives))[:32]
+
+
+def scenario_hash(scenario: Scenario) -> str:
+    info = scenario.info.model_dump(mode="json")
+    files = [content_hash(scenario.directory / name) for name in (STEERING_FILE, GPS_FILE, INFO_FILE)]
+    return _digest(info, files)[:32]
+
+
+def task_id(model: str, point: dict[str, Any], scenario: str) -> str:
+    return _digest(model, sorted(point.items()), scenario)[:24]
+
+
+def expand(space, plan: Plan) -> Iterator[Task]:
+    """Tasks scenario by scenario, so a chunk of consecutive tasks mostly shares one scenario."""
+    model = model_hash(plan, space.objectives)
+    points = strategy(space.spec.search.strategy)
+    for scenario in space.scenarios:
+        data = scenario_hash(scenario)
+        for point in points(space):  # regenerated per scenario: no list of all points is kept
+            yield Task(task_id(model, point, data), scenario.name, tuple(sorted(point.items())))
+
+
+def chunked(tasks: Iterable[Task], size: int) -> Iterator[list[Task]]:
+    chunk: list[Task] = []
+    for task in tasks:
+        chunk.append(task)
+        if len(chunk) == size:
+            yield chunk
+            chunk = []
+    if chunk:
+        yield chunk

@@ -1,0 +1,214 @@
+"""The design-space spec (``space.yaml``): what to simulate, how to score and rank, where.
+
+Loading checks everything that can be checked before a single task runs: the
+file's shape (pydantic; errors give file, key path and reason), the scenario
+globs, the constraint expressions, the objectives, and every FMU variable the
+spec names against the FMUs' model descriptions.
+"""
+
+from __future__ import annotations
+
+import glob
+import math
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, PositiveInt, ValidationError, model_validator
+
+from . import objectives as objs
+from .constraints import compile_constraint
+from .errors import DseError
+from .multimodel import MultiModel, format_validation_error, load_multimodel, parse_multimodel, split_ref
+from .scenario import Scenario, load_scenario
+from .search import strategy
+
+Strict = ConfigDict(extra="forbid")
+
+
+class Range(BaseModel):
+    """``{start, stop, step}`` (stop included when the steps land on it) or ``{start, stop, num}``."""
+
+    model_config = Strict
+    start: float
+    stop: float
+    step: PositiveFloat | None = None
+    num: PositiveInt | None = None
+    log: bool = False
+
+    @model_validator(mode="after")
+    def _one_of_step_or_num(self) -> "Range":
+        if (self.step is None) == (self.num is None):
+            raise ValueError("give exactly one of 'step' or 'num'")
+        if self.log and (self.step is not None or self.start <= 0 or self.stop <= 0):
+            raise ValueError("a log range needs 'num' and positive 'start' and 'stop'")
+        if self.stop < self.start:
+            raise ValueError("'stop' must not be below 'start'")
+        return self
+
+    def values(self) -> list[float]:
+        if self.log:
+            return [float(v) for v in np.geomspace(self.start, self.stop, self.num)]
+        if self.num is not None:
+            return [float(v) for v in np.linspace(self.start, self.stop, self.num)]
+        count = math.floor((self.stop - self.start) / self.step + 1e-9) + 1
+        # round() keeps 0.1-steps free of 0.30000000000000004 in tables and ids
+        return [round(self.start + i * self.step, 12) for i in range(count)]
+
+
+ParameterValues = Annotated[list[float | int | bool | str], Field(min_length=1)] | Range
+
+
+class ScenarioSource(BaseModel):
+    model_config = Strict
+    path: str  # a folder or a glob of folders, relative to the spec
+    group: str | None = None  # overrides the group in scenario.yaml
+
+
+class Direction(BaseModel):
+    model_config = Strict
+    objective: str
+    goal: Literal["min", "max"] = "min"
+
+
+class Ranking(BaseModel):
+    model_config = Strict
+    objective: str = "cross_track_error"  # summed over scenarios (the paper's Equation 2)
+    goal: Literal["min", "max"] = "min"
+    pareto: list[Direction | str] = []  # objectives of the Pareto front, each "name" or {objective, goal}
+    weights: dict[str, float] = {}  # weighted sum of per-point totals
+
+
+class Search(BaseModel):
+    model_config = Strict
+    strategy: str = "exhaustive"  # built-in or a plugin's (see search.py)
+
+
+class Cluster(BaseModel):
+    model_config = Strict
+    address: str | None = None  # an existing scheduler; default: an embedded local cluster
+    n_workers: PositiveInt | None = None  # local cluster size; default: the number of cores
+    threads_per_worker: PositiveInt = 1
+
+
+class SpaceSpec(BaseModel):
+    model_config = Strict
+    name: str = Field(pattern=r"^[A-Za-z0-9_.-]+$")
+    multimodel: str | dict[str, Any]  # a path relative to the spec, or the multi-model inline
+    scenarios: list[ScenarioSource | str] = Field(min_length=1)
+    parameters: dict[str, ParameterValues] = Field(min_length=1)
+    constraints: list[str] = []
+    objectives: list[str] = list(objs.DEFAULT)
+    ranking: Ranking = Ranking()
+    search: Search = Search()
+    output: str = "out"  # results folder, relative to the spec
+    cluster: Cluster = Cluster()
+    keep_trajectories: int = Field(default=3, ge=0)  # best points whose tracks are kept
+    timeout: PositiveFloat = 600.0  # seconds one simulation may take
+    chunk_seconds: PositiveFloat = 2.0  # target wall time of one chunk of tasks
+
+
+def _normal(value: Any) -> Any:
+    """Numbers as floats, so 1000 and 1000.0 are one point (and one task id)."""
+    return float(value) if isinstance(value, int) and not isinstance(value, bool) else value
+
+
+class Space:
+    """A loaded, checked spec with everything resolved: the unit the rest of the tool works on."""
+
+    def __init__(self, spec: SpaceSpec, path: Path, multimodel: MultiModel, scenarios: list[Scenario]):
+        self.spec = spec
+        self.path = path
+        self.multimodel = multimodel
+        self.scenarios = scenarios
+        self.parameters = {name: [_normal(x) for x in (v.values() if isinstance(v, Range) else v)]
+                           for name, v in spec.parameters.items()}
+        self.constraints = []
+        for index, text in enumerate(spec.constraints):
+            try:
+                self.constraints.append(compile_constraint(text, set(self.parameters)))
+            except DseError as e:
+                raise DseError(f"{path}: constraints.{index}: {e}") from None
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    @property
+    def objectives(self) -> tuple[str, ...]:
+        return tuple(self.spec.objectives)
+
+    @property
+    def output(self) -> Path:
+        out = Path(self.spec.output)
+        return out if out.is_absolute() else (self.path.parent / out).resolve()
+
+    def admits(self, point: dict[str, Any]) -> bool:
+        return all(check(point) for check in self.constraints)
+
+
+def _scenarios(spec: SpaceSpec, base: Path, source: str) -> list[Scenario]:
+    found: dict[str, Scenario] = {}
+    for index, entry in enumerate(spec.scenarios):
+        entry = ScenarioSource(path=entry) if isinstance(entry, str) else entry
+        pattern = entry.path if Path(entry.path).is_absolute() else str(base / entry.path)
+        folders = sorted(p for p in glob.glob(pattern) if Path(p).is_dir())
+        if not folders:
+            raise DseError(f"{source}: scenarios.{index}.path: {entry.path!r} matches no folder")
+        for folder in folders:
+            scenario = load_scenario(folder)
+            if entry.group is not None:
+                scenario = Scenario(scenario.directory, scenario.info.model_copy(update={"group": entry.group}))
+            if scenario.name in found and found[scenario.name].directory != scenario.directory:
+                raise DseError(f"{source}: two scenarios are named {scenario.name!r}: "
+                               f"{found[scenario.name].directory} and {scenario.directory}")
+            found[scenario.name] = scenario
+    return list(found.values())
+
+
+def _check_names(space: Space, source: str) -> None:
+    """Every name the spec uses must exist: FMU variables, objectives."""
+    from .cosim import check_settable, make_plan
+
+    plan = make_plan(space.multimodel)
+    for ref in space.parameters:
+        try:
+            split_ref(ref)
+            check_settable(plan.variable(ref, f"{source}: parameters"))
+        except ValueError as e:
+            raise DseError(f"{source}: parameters: {e}") from None
+    for name in space.objectives:
+        objs.resolve(name)
+    strategy(space.spec.search.strategy)
+    ranking = space.spec.ranking
+    used = [ranking.objective, *[d if isinstance(d, str) else d.objective for d in ranking.pareto],
+            *ranking.weights]
+    for name in used:
+        if name not in space.objectives:
+            raise DseError(f"{source}: ranking uses objective {name!r}, which 'objectives' does not list "
+                           f"({', '.join(space.objectives)})")
+
+
+def load_space(path: str | Path) -> Space:
+    """Read, validate and resolve a space.yaml; every error names the file."""
+    path = Path(path).resolve()
+    source = str(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except OSError as e:
+        raise DseError(f"cannot read spec {path}: {e.strerror}") from None
+    except yaml.YAMLError as e:
+        raise DseError(f"{source}: not valid YAML: {e}") from None
+    try:
+        spec = SpaceSpec.model_validate(data if data is not None else {})
+    except ValidationError as e:
+        raise DseError(format_validation_error(source, e)) from None
+    if isinstance(spec.multimodel, str):
+        mm_path = Path(spec.multimodel)
+        multimodel = load_multimodel(mm_path if mm_path.is_absolute() else path.parent / mm_path)
+    else:
+        multimodel = parse_multimodel(spec.multimodel, f"{source}: multimodel", path.parent)
+    space = Space(spec, path, multimodel, _scenarios(spec, path.parent, source))
+    _check_names(space, source)
+    return space
