@@ -121,6 +121,133 @@ def simulate(
         typer.echo(f"plot:       {png_path}")
 
 
+def _print_table1(ranking) -> None:
+    typer.echo(f"Table 1: {ranking.objective} per scenario ({len(ranking.totals)} points)")
+    typer.echo(f"  {'scenario':<14}{'min':>9}{'max':>9}{'average':>9}{'best':>9}{'diff':>10}")
+    for row in ranking.table1.itertuples():
+        typer.echo(f"  {row.scenario:<14}{row.min_error:9.3f}{row.max_error:9.3f}{row.average_error:9.3f}"
+                   f"{row.computed:9.3f}{row.difference:+10.3f}")
+    best = ", ".join(f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}" for k, v in ranking.best.items())
+    typer.echo(f"best: {best}  (total {ranking.objective} {ranking.best_total:.3f})")
+
+
+@app.command()
+def submit(
+    spec: Annotated[Path, typer.Argument(help="Design-space spec (space.yaml).")],
+    out: Annotated[Path | None, typer.Option(help="Results folder (overrides the spec's 'output').")] = None,
+    workers: Annotated[int | None, typer.Option(help="Local cluster workers (overrides the spec).")] = None,
+    scheduler: Annotated[str | None, typer.Option(help="Address of an existing Dask scheduler.")] = None,
+    as_json: JsonFlag = False,
+) -> None:
+    """Run every (parameter point, scenario) task of SPEC on Dask; resume if run again; rank."""
+    from .rank import rank, write_ranking
+    from .spec import load_space
+    from .sweep import submit as run_sweep
+
+    try:
+        space = load_space(spec).with_overrides(out, scheduler, workers)
+        with _progress_bar(disabled=False) as progress:
+            report = run_sweep(space, progress=progress)
+    except DseError as e:
+        fail(e)
+    except KeyboardInterrupt:
+        typer.echo("interrupted before the sweep started; nothing was lost", err=True)
+        raise typer.Exit(130)
+    if report.interrupted:
+        typer.echo(f"interrupted: {report.skipped + report.ran} of {report.total} tasks have results in "
+                   f"{report.output}; run the same command again to finish the rest", err=True)
+        raise typer.Exit(130)
+    try:
+        ranking = rank(report.output, report.sweep)
+        files = write_ranking(ranking, report.output / "ranking" / report.sweep)
+    except DseError as e:
+        fail(e)
+    summary = {
+        "sweep": report.sweep, "output": str(report.output), "tasks": report.total,
+        "skipped": report.skipped, "ran": report.ran, "ok": report.ok, "failed": report.failed,
+        "seconds": round(report.seconds, 3), "workers": report.workers, "chunk_size": report.chunk_size,
+        "errors": report.errors, "ranking": str(files["json"]),
+        "best": ranking.best, "best_total": ranking.best_total,
+    }
+    if as_json:
+        emit_json(summary)
+        return
+    typer.echo(f"{report.sweep}: {report.total} tasks, {report.skipped} already done, ran {report.ran} "
+               f"({report.failed} failed) in {report.seconds:.1f} s on {report.workers} workers")
+    for error in report.errors:
+        typer.echo(f"  failed: {error.splitlines()[0]}")
+    _print_table1(ranking)
+    typer.echo(f"ranking: {files['json'].parent}")
+
+
+class _progress_bar:
+    """A terminal progress bar with rate and ETA, on stderr so --json output stays clean."""
+
+    def __init__(self, disabled: bool):
+        from rich.console import Console
+        from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn,
+                                   TimeRemainingColumn)
+
+        self.bar = Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                            TextColumn("{task.fields[rate]} sim/s"), TextColumn("{task.fields[failed]} failed"),
+                            TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
+                            console=Console(stderr=True), disable=disabled, transient=False)
+        self.task = None
+
+    def __enter__(self):
+        self.bar.__enter__()
+        return self
+
+    def __exit__(self, *exc):
+        return self.bar.__exit__(*exc)
+
+    def __call__(self, report) -> None:
+        if self.task is None:
+            if report.dashboard:
+                self.bar.console.print(f"Dask dashboard: {report.dashboard}")
+            self.task = self.bar.add_task(report.sweep, total=report.total - report.skipped,
+                                          rate="-", failed=0)
+        rate = report.ran / report.seconds if report.seconds > 0 else 0.0
+        self.bar.update(self.task, completed=report.ran, rate=f"{rate:.1f}", failed=report.failed)
+
+
+@app.command("rank")
+def rank_command(
+    results: Annotated[Path, typer.Argument(help="A sweep's output folder.")],
+    sweep: Annotated[str | None, typer.Option(help="Which sweep, if the folder holds several.")] = None,
+    objective: Annotated[str | None, typer.Option(help="Rank by this objective instead of the spec's.")] = None,
+    as_json: JsonFlag = False,
+) -> None:
+    """Aggregate a sweep's results: totals, Table 1, Pareto front, group and weighted rankings."""
+    from .rank import load_sweep_spec, rank, write_ranking
+    from .store import sweeps
+
+    try:
+        settings = None
+        if objective is not None:
+            names = [sweep] if sweep else sweeps(results)
+            if not names:
+                raise DseError(f"{results}: no results")
+            settings = load_sweep_spec(results, names[0]).ranking.model_copy(update={"objective": objective})
+        ranking = rank(results, sweep, settings)
+        files = write_ranking(ranking, results / "ranking" / ranking.sweep)
+    except DseError as e:
+        fail(e)
+    if as_json:
+        emit_json({**ranking.to_json(), "files": {k: str(v) for k, v in files.items()}})
+        return
+    _print_table1(ranking)
+    if len(ranking.pareto):
+        typer.echo(f"Pareto front: {len(ranking.pareto)} points (pareto.csv)")
+    for row in ranking.groups.to_dict("records"):
+        point = ", ".join(f"{p}={row[p]:g}" for p in ranking.parameters)
+        typer.echo(f"  best in {row['group']:<12} {point}  ({row[f'{ranking.objective}_total']:.3f})")
+    if ranking.incomplete_points or ranking.failed_rows:
+        typer.echo(f"not ranked: {ranking.incomplete_points} points without an ok row for every scenario "
+                   f"({ranking.failed_rows} failed rows)")
+    typer.echo(f"written: {files['json'].parent}")
+
+
 @app.command()
 def version() -> None:
     """Print the version."""

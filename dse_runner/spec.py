@@ -144,6 +144,19 @@ class Space:
         out = Path(self.spec.output)
         return out if out.is_absolute() else (self.path.parent / out).resolve()
 
+    def with_overrides(self, output: Path | None = None, address: str | None = None,
+                       n_workers: int | None = None) -> "Space":
+        """The same space with the CLI's --out, --scheduler or --workers applied."""
+        update: dict[str, Any] = {}
+        if output is not None:
+            update["output"] = str(Path(output).resolve())
+        if address is not None or n_workers is not None:
+            cluster = self.spec.cluster.model_copy(update={k: v for k, v in
+                                                           {"address": address, "n_workers": n_workers}.items()
+                                                           if v is not None})
+            update["cluster"] = cluster
+        return Space(self.spec.model_copy(update=update), self.path, self.multimodel, self.scenarios)
+
     def admits(self, point: dict[str, Any]) -> bool:
         return all(check(point) for check in self.constraints)
 

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import pandas as pd
 import pyarrow as pa
 
 from . import store
@@ -30,6 +31,7 @@ from .cosim import Plan, make_plan
 from .errors import DseError
 from .expand import Task, chunked, expand, model_hash
 from .multimodel import MultiModel
+from .rank import rank, save_sweep_spec
 from .scenario import Scenario
 from .simulate import simulate
 from .spec import Space
@@ -175,6 +177,7 @@ def submit(space: Space, progress: Progress | None = None, client=None) -> Sweep
     started = time.perf_counter()
     plan = make_plan(space.multimodel)
     output = space.output
+    save_sweep_spec(output, space.spec)
     done = store.finished_task_ids(output, space.name)
     total = skipped = 0
     for task in expand(space, plan):
@@ -182,14 +185,21 @@ def submit(space: Space, progress: Progress | None = None, client=None) -> Sweep
         skipped += task.task_id in done
     report = SweepReport(space.name, output, total, skipped)
     pending = total - skipped
-    if pending == 0:
+    if pending == 0 and _trajectories_kept(space):
         report.seconds = time.perf_counter() - started
         return report
-    per_task = probe_seconds(plan, space)
+    per_task = probe_seconds(plan, space) if pending else 0.0
     if client is None:
         with connect(space.spec.cluster) as own:
             return _run(space, plan, own, done, per_task, pending, report, progress, started)
     return _run(space, plan, client, done, per_task, pending, report, progress, started)
+
+
+def _trajectories_kept(space: Space) -> bool:
+    wanted = space.spec.keep_trajectories
+    return not wanted or all(
+        (store.partition_dir(space.output, store.TRAJECTORIES, space.name, s.name) / f"rank-{wanted}.parquet").is_file()
+        for s in space.scenarios)
 
 
 def _run(space: Space, plan: Plan, client, done: set[str], per_task: float, pending: int,
@@ -199,7 +209,7 @@ def _run(space: Space, plan: Plan, client, done: set[str], per_task: float, pend
     threads = total_threads(client)
     report.workers = len(client.scheduler_info()["workers"])
     report.dashboard = client.dashboard_link
-    report.chunk_size = chunk_size(per_task, space.spec.chunk_seconds, pending, threads)
+    report.chunk_size = chunk_size(per_task, space.spec.chunk_seconds, pending, threads) if pending else 0
     jobs = _jobs(space, plan, done, report.chunk_size)
     in_flight = as_completed()
     try:
@@ -223,8 +233,35 @@ def _run(space: Space, plan: Plan, client, done: set[str], per_task: float, pend
         report.interrupted = True
         for future in list(in_flight.futures):
             future.cancel()
+    if not report.interrupted and space.spec.keep_trajectories:
+        keep_trajectories(space, plan, client, space.spec.keep_trajectories)
     report.seconds = time.perf_counter() - started
     return report
+
+
+def _trajectory(multimodel: MultiModel, model_key: str, scenario: Scenario, point: dict[str, Any],
+                output: Path, sweep: str, place: int) -> Path:
+    plan = _PLANS.get(model_key) or _PLANS.setdefault(model_key, make_plan(multimodel))
+    result = simulate(plan, scenario, point)
+    frame = pd.DataFrame(result.trajectory.values, columns=list(result.trajectory.names))
+    frame.insert(0, "time", result.trajectory.time)
+    for name, value in point.items():
+        frame[f"point:{name}"] = value
+    return store.write_trajectory(output, sweep, scenario.name, place, frame)
+
+
+def keep_trajectories(space: Space, plan: Plan, client, count: int) -> list[Path]:
+    """Simulate the ``count`` best points again on every scenario and keep their tracks."""
+    try:
+        ranking = rank(space.output, space.name)
+    except DseError:
+        return []  # nothing complete to rank: no best points
+    key = model_hash(plan, space.objectives)
+    best = ranking.totals.head(count)[ranking.parameters].to_dict("records")
+    futures = [client.submit(_trajectory, space.multimodel, key, scenario, point, space.output, space.name,
+                             place, pure=False)
+               for place, point in enumerate(best, start=1) for scenario in space.scenarios]
+    return client.gather(futures)
 
 
 def _jobs(space: Space, plan: Plan, done: set[str], size: int) -> Iterator[ChunkJob]:
