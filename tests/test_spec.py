@@ -1,0 +1,96 @@
+"""space.yaml: validation messages, expansion, stable task ids, constraints."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+from conftest import SCENARIOS, write_space
+
+from dse_runner import DseError
+from dse_runner.constraints import compile_constraint
+from dse_runner.expand import expand
+from dse_runner.rank import pareto_mask
+from dse_runner.simulate import as_plan
+from dse_runner.spec import load_space
+
+
+def test_the_papers_grid():
+    from conftest import REPO
+
+    space = load_space(REPO / "jobs" / "robotti" / "space.yaml")
+    assert space.parameters["vehicle.cAlphaF"] == [20000.0, 24500.0, 29000.0, 33500.0, 38000.0]
+    assert space.parameters["vehicle.mass"] == [1000.0, 1500.0, 2000.0, 2500.0, 3000.0]
+    assert space.parameters["vehicle.mu"] == [0.3, 0.4, 0.5, 0.6, 0.7]
+    assert len(space.scenarios) == 12
+    assert sum(1 for _ in expand(space, as_plan(space.multimodel))) == 1500
+
+
+def test_ranges_counts_and_logs(tmp_path):
+    space = load_space(write_space(tmp_path, parameters={
+        "vehicle.mass": {"start": 1000, "stop": 2000, "num": 3},
+        "vehicle.cAlphaF": {"start": 1000, "stop": 100000, "num": 3, "log": True},
+        "vehicle.mu": [0.5]}))
+    assert space.parameters["vehicle.mass"] == [1000.0, 1500.0, 2000.0]
+    assert space.parameters["vehicle.cAlphaF"] == pytest.approx([1000.0, 10000.0, 100000.0])
+
+
+def test_constraints_filter_points(tmp_path):
+    space = load_space(write_space(tmp_path, constraints=["vehicle.mass / 1000 < 2.5 and vehicle.cAlphaF > 20000"]))
+    points = {dict(t.point)["vehicle.mass"] for t in expand(space, as_plan(space.multimodel))}
+    assert points == {1000.0, 2000.0}
+    assert sum(1 for _ in expand(space, as_plan(space.multimodel))) == 4  # 2 points x 2 scenarios
+
+
+def test_task_ids_are_stable_and_follow_the_data(tmp_path):
+    space = load_space(write_space(tmp_path))
+    plan = as_plan(space.multimodel)
+    ids = [t.task_id for t in expand(space, plan)]
+    assert ids == [t.task_id for t in expand(load_space(write_space(tmp_path)), plan)]
+    assert len(set(ids)) == len(ids)
+    # A changed recording gives new ids for that scenario only.
+    copy = tmp_path / "data" / "sin1"
+    shutil.copytree(SCENARIOS / "sin1", copy)
+    with open(copy / "gps_position.csv", "a") as f:
+        f.write("84.10,1.0,1.0\n")
+    changed = load_space(write_space(tmp_path, scenarios=[str(copy), str(SCENARIOS / "speed_step2")]))
+    new = [t.task_id for t in expand(changed, plan)]
+    assert set(new[:6]).isdisjoint(ids) and new[6:] == ids[6:]
+
+
+@pytest.mark.parametrize("changes, message", [
+    ({"paramters": {}}, r"space\.yaml: paramters: Extra inputs are not permitted"),
+    ({"parameters": {"vehicle.mass": {"start": 1, "stop": 2, "step": 1, "num": 2}}},
+     r"space\.yaml: parameters\.vehicle\.mass\..*exactly one of 'step' or 'num'"),
+    ({"parameters": {"vehicle.mass": {"start": 3, "stop": 2, "num": 2}}}, r"'stop' must not be below 'start'"),
+    ({"scenarios": ["nowhere/*"]}, r"space\.yaml: scenarios\.0\.path: 'nowhere/\*' matches no folder"),
+    ({"parameters": {"vehicle.masss": [1]}}, r"space\.yaml: parameters: unknown variable 'vehicle\.masss'.*mass"),
+    ({"parameters": {"vehicle.x": [1]}}, r"'vehicle\.x' is a output"),
+    ({"constraints": ["__import__('os').system('true')"]}, r"constraints\.0: .*Call .* is not allowed"),
+    ({"constraints": ["vehicle.mu > 0.3"]}, r"'vehicle\.mu' is not a swept parameter"),
+    ({"objectives": ["cross_track_eror"]}, r"unknown objective 'cross_track_eror'"),
+    ({"ranking": {"objective": "max_error"}, "objectives": ["cross_track_error"]},
+     r"ranking uses objective 'max_error', which 'objectives' does not list"),
+    ({"search": {"strategy": "genetic"}}, r"unknown search strategy 'genetic': available are exhaustive"),
+    ({"name": "a b"}, r"space\.yaml: name: String should match pattern"),
+])
+def test_bad_specs_name_file_key_and_reason(tmp_path, changes, message):
+    with pytest.raises(DseError, match=message):
+        load_space(write_space(tmp_path, **changes))
+
+
+def test_constraint_grammar():
+    check = compile_constraint("abs(a.x - 2) <= max(a.y, 1) or not a.y", {"a.x", "a.y"})
+    assert check({"a.x": 2.5, "a.y": 0}) and not check({"a.x": 5, "a.y": 2})
+    for bad in ["a.x.__class__", "[a.x]", "a.x if a.y else 1", "lambda: 1"]:
+        with pytest.raises(DseError, match="not"):
+            compile_constraint(bad, {"a.x", "a.y"})
+
+
+def test_pareto_mask_min_and_max():
+    import numpy as np
+
+    values = np.array([[1, 5], [2, 2], [3, 1], [3, 3], [1, 5]], dtype=float)
+    assert pareto_mask(values, ["min", "min"]).tolist() == [True, True, True, False, True]
+    # Maximising the second objective: only the points with the largest second value for their first.
+    assert pareto_mask(values, ["min", "max"]).tolist() == [True, False, False, False, True]

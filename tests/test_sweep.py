@@ -1,0 +1,136 @@
+"""Sweeps on a real cluster: a Dask scheduler process and two worker processes."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pandas as pd
+import pytest
+from conftest import REPO, SCENARIOS, write_space
+
+from dse_runner import store
+from dse_runner.rank import rank
+from dse_runner.simulate import simulate
+from dse_runner.spec import load_space
+from dse_runner.sweep import submit
+
+
+def test_rows_equal_direct_simulations(tmp_path, dask_scheduler, plan):
+    space = load_space(write_space(tmp_path, cluster={"address": dask_scheduler}))
+    report = submit(space)
+    assert (report.total, report.ok, report.failed, report.workers) == (12, 12, 0, 2)
+    rows = store.read_results(space.output, "small", columns=[*space.parameters, *space.objectives, "worker"])
+    assert len(rows) == 12 and rows["task_id"].is_unique
+    assert set(rows["worker"]) == {"worker-0", "worker-1"}  # both worker processes took chunks
+    for _, row in rows.sample(4, random_state=1).iterrows():
+        point = {name: row[name] for name in space.parameters}
+        direct = simulate(plan, SCENARIOS / row["scenario"], point)
+        for name in space.objectives:
+            assert row[name] == pytest.approx(direct.objectives[name], rel=1e-12, abs=1e-12)
+    # The best point's tracks were kept for plotting, one per scenario.
+    best = rank(space.output).best
+    track = store.read_trajectory(space.output, "small", "sin1", 1)
+    assert {f"point:{k}": v for k, v in best.items()} == {c: track[c].iloc[0] for c in track if c.startswith("point:")}
+    assert len(track) == 1681 and {"time", "vehicle.x", "vehicle.y"} <= set(track.columns)
+
+
+def test_resubmitting_a_finished_sweep_runs_nothing(tmp_path, dask_scheduler):
+    space = load_space(write_space(tmp_path, cluster={"address": dask_scheduler}))
+    first = submit(space)
+    files = {p: p.stat().st_mtime_ns for p in (space.output / "results").rglob("*.parquet")}
+    second = submit(space)
+    assert (first.ran, second.ran, second.skipped) == (12, 0, 12)
+    assert {p: p.stat().st_mtime_ns for p in (space.output / "results").rglob("*.parquet")} == files
+
+
+def test_failing_simulations_become_failed_rows(tmp_path, dask_scheduler):
+    path = write_space(tmp_path, cluster={"address": dask_scheduler},
+                       parameters={"vehicle.mass": [1500, -5], "vehicle.rk4_step": [0.001]})
+    report = submit(load_space(path))
+    assert (report.ok, report.failed) == (2, 2)
+    rows = store.read_results(tmp_path / "out", "small", columns=["vehicle.mass", "status", "error",
+                                                                  "cross_track_error"])
+    failed = rows[rows["status"] == "failed"]
+    assert set(failed["vehicle.mass"]) == {-5.0}
+    assert failed["error"].str.contains(r"vehicle \(robotti_vehicle\).*parameter mass must be > 0").all()
+    assert failed["cross_track_error"].isna().all()
+    assert rows.loc[rows["status"] == "ok", "cross_track_error"].gt(0).all()
+
+
+def test_timeout_becomes_a_failed_row(tmp_path, dask_scheduler):
+    path = write_space(tmp_path, cluster={"address": dask_scheduler}, timeout=0.05,
+                       parameters={"vehicle.rk4_step": [0.001, 0.00002]}, scenarios=[str(SCENARIOS / "sin1")])
+    report = submit(load_space(path))
+    rows = store.read_results(tmp_path / "out", "small", columns=["vehicle.rk4_step", "status", "error"])
+    slow = rows[rows["vehicle.rk4_step"] == 0.00002].iloc[0]
+    assert slow["status"] == "failed" and slow["error"].startswith("timeout: the simulation was stopped at t=")
+    assert report.failed == 1
+
+
+def test_interrupted_sweep_resumes_without_repeating_work(tmp_path):
+    """Ctrl-C (SIGINT to the whole process group, as a terminal sends it) keeps finished chunks;
+    submitting again runs exactly the missing tasks."""
+    path = write_space(tmp_path, scenarios=[str(SCENARIOS / "*")], chunk_seconds=0.2,
+                       parameters={"vehicle.mass": [1000, 2000, 3000], "vehicle.cAlphaF": [20000, 30000],
+                                   "vehicle.rk4_step": [0.0002]},
+                       cluster={"n_workers": 2})
+    command = [sys.executable, "-m", "dse_runner.cli", "submit", str(path), "--json"]
+    first = subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             start_new_session=True)
+    results = tmp_path / "out" / "results"
+    deadline = time.time() + 120
+    while len(list(results.rglob("part-*.parquet"))) < 3 and time.time() < deadline and first.poll() is None:
+        time.sleep(0.05)
+    os.killpg(first.pid, signal.SIGINT)
+    _, err = first.communicate(timeout=120)
+    assert first.returncode == 130, err
+    assert "run the same command again" in err
+    before = store.read_results(tmp_path / "out", "small", columns=[])
+    kept = {p: p.stat().st_mtime_ns for p in results.rglob("part-*.parquet")}
+    assert 0 < len(before) < 72
+    assert not list(results.rglob("*.partial"))  # no half-written file is left visible
+
+    second = subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=300)
+    assert second.returncode == 0, second.stderr
+    report = json.loads(second.stdout)
+    assert report["skipped"] == len(before) and report["ran"] == 72 - len(before)
+    after = store.read_results(tmp_path / "out", "small", columns=[])
+    assert len(after) == 72 and after["task_id"].is_unique
+    assert all(p.stat().st_mtime_ns == m for p, m in kept.items())  # finished chunks not recomputed
+    raw = pd.concat(pd.read_parquet(p, columns=["task_id"]) for p in results.rglob("part-*.parquet"))
+    assert len(raw) == 72  # every task exactly once on disk, not merely after de-duplication
+
+
+def test_rank_matches_a_plain_pandas_computation(tmp_path, dask_scheduler):
+    space = load_space(write_space(tmp_path, cluster={"address": dask_scheduler},
+                                   ranking={"objective": "cross_track_error",
+                                            "pareto": ["cross_track_error", {"objective": "final_error"}],
+                                            "weights": {"cross_track_error": 1.0, "max_error": 0.5}}))
+    submit(space)
+    ranking = rank(space.output)
+    rows = pd.concat(pd.read_parquet(p).assign(scenario=p.parent.name.removeprefix("scenario="))
+                     for p in (space.output / "results").rglob("*.parquet"))
+    params = list(space.parameters)
+    totals = rows.groupby(params)[["cross_track_error", "max_error", "final_error"]].sum()
+    best = totals["cross_track_error"].idxmin()
+    assert tuple(ranking.best.values()) == best
+    assert ranking.best_total == pytest.approx(totals["cross_track_error"].min())
+    weighted = (totals["cross_track_error"] + 0.5 * totals["max_error"]).sort_values()
+    assert ranking.weighted.loc[0, "weighted"] == pytest.approx(weighted.iloc[0])
+    sin1 = rows[rows["scenario"] == "sin1"].set_index(params)["cross_track_error"]
+    table = ranking.table1.set_index("scenario")
+    assert table.loc["sin1", "min_error"] == pytest.approx(sin1.min())
+    assert table.loc["sin1", "average_error"] == pytest.approx(sin1.mean())
+    assert table.loc["sin1", "computed"] == pytest.approx(sin1.loc[best])
+    # Pareto: no front point is dominated by any point.
+    front = ranking.pareto[["cross_track_error", "final_error"]].to_numpy()
+    every = totals[["cross_track_error", "final_error"]].to_numpy()
+    for f in front:
+        assert not np.any(np.all(every <= f, axis=1) & np.any(every < f, axis=1))
+    assert len(ranking.groups) == 2 and set(ranking.groups["group"]) == {"sin", "speed_step"}
