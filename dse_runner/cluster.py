@@ -16,11 +16,25 @@ from .errors import DseError
 from .spec import Cluster
 
 
+# distributed keeps the last N messages each connection sent, for debugging; a sweep's
+# messages carry chunks of tasks, so the default (1000) would hold a large sweep's tasks in
+# the client. A short log keeps the client's memory flat.
+MESSAGE_LOG_LENGTH = 20
+
+
 @contextmanager
 def connect(cluster: Cluster) -> Iterator["distributed.Client"]:  # noqa: F821
+    import dask
     from distributed import Client, LocalCluster
 
     logging.getLogger("distributed").setLevel(logging.ERROR)
+    with dask.config.set({"distributed.admin.low-level-log-length": MESSAGE_LOG_LENGTH}):
+        with _client(cluster, Client, LocalCluster) as client:
+            yield client
+
+
+@contextmanager
+def _client(cluster: Cluster, Client, LocalCluster) -> Iterator["distributed.Client"]:  # noqa: F821
     if cluster.address:
         try:
             client = Client(cluster.address, timeout="20s")

@@ -15,6 +15,8 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from .cosim import Plan
 from .fmu import content_hash
 from .scenario import GPS_FILE, INFO_FILE, STEERING_FILE, Scenario
@@ -58,6 +60,40 @@ def expand(space, plan: Plan) -> Iterator[Task]:
         data = scenario_hash(scenario)
         for point in points(space):  # regenerated per scenario: no list of all points is kept
             yield Task(task_id(model, point, data), scenario.name, tuple(sorted(point.items())))
+
+
+@dataclass(frozen=True)
+class TaskBatch:
+    """A chunk of tasks stored as columns: ~40 bytes a task instead of ~900 as objects.
+
+    Dask's scheduler keeps a submitted task's arguments for a while after it
+    finishes; with compact batches that bookkeeping stays small even for
+    100,000-task sweeps."""
+
+    parameters: tuple[str, ...]
+    scenarios: tuple[str, ...]
+    task_ids: np.ndarray  # fixed-width bytes
+    scenario_index: np.ndarray  # into ``scenarios``
+    values: np.ndarray  # tasks x parameters; float64 when every value is a float
+
+    @classmethod
+    def of(cls, tasks: list[Task]) -> "TaskBatch":
+        parameters = tuple(name for name, _ in tasks[0].point)
+        scenarios = tuple(dict.fromkeys(t.scenario for t in tasks))
+        rows = [[value for _, value in t.point] for t in tasks]
+        numeric = all(type(v) is float for row in rows for v in row)
+        return cls(parameters, scenarios,
+                   np.array([t.task_id.encode() for t in tasks]),
+                   np.array([scenarios.index(t.scenario) for t in tasks], dtype=np.int32),
+                   np.array(rows, dtype=np.float64 if numeric else object).reshape(len(tasks), len(parameters)))
+
+    def __len__(self) -> int:
+        return len(self.task_ids)
+
+    def __iter__(self) -> Iterator[Task]:
+        for task_id, scenario, row in zip(self.task_ids, self.scenario_index, self.values):
+            point = tuple(zip(self.parameters, (v.item() if hasattr(v, "item") else v for v in row)))
+            yield Task(task_id.decode(), self.scenarios[scenario], point)
 
 
 def chunked(tasks: Iterable[Task], size: int) -> Iterator[list[Task]]:

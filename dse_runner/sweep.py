@@ -29,7 +29,7 @@ from . import store
 from .cluster import connect, total_threads
 from .cosim import Plan, make_plan
 from .errors import DseError
-from .expand import Task, chunked, expand, model_hash
+from .expand import Task, TaskBatch, chunked, expand, model_hash
 from .multimodel import MultiModel
 from .rank import rank, save_sweep_spec
 from .scenario import Scenario
@@ -48,7 +48,7 @@ class ChunkJob:
     model_key: str
     multimodel: MultiModel
     scenarios: dict[str, Scenario]
-    tasks: list[Task]
+    tasks: TaskBatch
     objectives: tuple[str, ...]
     output: Path
     schema: pa.Schema
@@ -271,7 +271,7 @@ def _jobs(space: Space, plan: Plan, done: set[str], size: int) -> Iterator[Chunk
     todo = (t for t in expand(space, plan) if t.task_id not in done)
     for tasks in chunked(todo, size):
         used = {t.scenario: scenarios[t.scenario] for t in tasks}
-        yield ChunkJob(space.name, _chunk_id(tasks), key, space.multimodel, used, tasks, space.objectives,
+        yield ChunkJob(space.name, _chunk_id(tasks), key, space.multimodel, used, TaskBatch.of(tasks), space.objectives,
                        space.output, schema, space.spec.timeout)
 
 
