@@ -157,25 +157,28 @@ def submit(
         typer.echo(f"interrupted: {report.skipped + report.ran} of {report.total} tasks have results in "
                    f"{report.output}; run the same command again to finish the rest", err=True)
         raise typer.Exit(130)
-    try:
-        ranking = rank(report.output, report.sweep)
-        files = write_ranking(ranking, report.output / "ranking" / report.sweep)
-    except DseError as e:
-        fail(e)
     summary = {
         "sweep": report.sweep, "output": str(report.output), "tasks": report.total,
         "skipped": report.skipped, "ran": report.ran, "ok": report.ok, "failed": report.failed,
         "seconds": round(report.seconds, 3), "workers": report.workers, "chunk_size": report.chunk_size,
-        "errors": report.errors, "ranking": str(files["json"]),
-        "best": ranking.best, "best_total": ranking.best_total,
+        "errors": report.errors,
     }
+    if not as_json:
+        typer.echo(f"{report.sweep}: {report.total} tasks, {report.skipped} already done, ran {report.ran} "
+                   f"({report.failed} failed) in {report.seconds:.1f} s on {report.workers} workers")
+        for error in report.errors:
+            typer.echo(f"  failed: {error.splitlines()[0]}")
+    try:
+        ranking = rank(report.output, report.sweep)
+        files = write_ranking(ranking, report.output / "ranking" / report.sweep)
+    except DseError as e:
+        if as_json:
+            emit_json({**summary, "ranking": None, "best": None, "best_total": None})
+        typer.echo(f"error: no ranking: {e}", err=True)
+        raise typer.Exit(1)
     if as_json:
-        emit_json(summary)
+        emit_json({**summary, "ranking": str(files["json"]), "best": ranking.best, "best_total": ranking.best_total})
         return
-    typer.echo(f"{report.sweep}: {report.total} tasks, {report.skipped} already done, ran {report.ran} "
-               f"({report.failed} failed) in {report.seconds:.1f} s on {report.workers} workers")
-    for error in report.errors:
-        typer.echo(f"  failed: {error.splitlines()[0]}")
     _print_table1(ranking)
     typer.echo(f"ranking: {files['json'].parent}")
 

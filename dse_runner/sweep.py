@@ -147,23 +147,30 @@ class SweepReport:
 Progress = Callable[[SweepReport], None]
 
 
-def probe_seconds(plan: Plan, space: Space) -> float:
-    """Time one simulation in the client: a chunk-size estimate, and an early, clear
-    failure if the model cannot run at all."""
+def probe_seconds(plan: Plan, space: Space) -> float | None:
+    """Time one simulation in the client to size chunks; None if it failed (that point
+    will fail on a worker too and become a failed row, which must not stop the sweep)."""
     from .search import strategy
 
     point = next(iter(strategy(space.spec.search.strategy)(space)), None)
     if point is None:
         raise DseError(f"{space.path}: the constraints exclude every parameter point")
     start = time.perf_counter()
-    simulate(plan, space.scenarios[0], point, space.objectives, timeout=space.spec.timeout)
+    try:
+        simulate(plan, space.scenarios[0], point, space.objectives, timeout=space.spec.timeout)
+    except Exception:
+        return None
     return time.perf_counter() - start
 
 
-def chunk_size(seconds_per_task: float, target_seconds: float, pending: int, threads: int) -> int:
+UNKNOWN_TASK_SECONDS = 0.1  # when the probe failed: a guess that keeps chunks small
+
+
+def chunk_size(seconds_per_task: float | None, target_seconds: float, pending: int, threads: int) -> int:
     """Tasks per chunk: long enough that Dask's per-task cost (~ms) is under 1-5% of the
     chunk, short enough that every thread gets several chunks to balance the load."""
-    by_time = max(1, round(target_seconds / max(seconds_per_task, 1e-6)))
+    per_task = UNKNOWN_TASK_SECONDS if seconds_per_task is None else max(seconds_per_task, 1e-6)
+    by_time = max(1, round(target_seconds / per_task))
     by_balance = max(1, math.ceil(pending / (4 * threads)))
     return min(by_time, by_balance)
 
@@ -188,7 +195,7 @@ def submit(space: Space, progress: Progress | None = None, client=None) -> Sweep
     if pending == 0 and _trajectories_kept(space):
         report.seconds = time.perf_counter() - started
         return report
-    per_task = probe_seconds(plan, space) if pending else 0.0
+    per_task = probe_seconds(plan, space) if pending else None
     if client is None:
         with connect(space.spec.cluster) as own:
             return _run(space, plan, own, done, per_task, pending, report, progress, started)
@@ -202,7 +209,7 @@ def _trajectories_kept(space: Space) -> bool:
         for s in space.scenarios)
 
 
-def _run(space: Space, plan: Plan, client, done: set[str], per_task: float, pending: int,
+def _run(space: Space, plan: Plan, client, done: set[str], per_task: float | None, pending: int,
          report: SweepReport, progress: Progress | None, started: float) -> SweepReport:
     from distributed import as_completed
 

@@ -134,3 +134,45 @@ def test_rank_matches_a_plain_pandas_computation(tmp_path, dask_scheduler):
     for f in front:
         assert not np.any(np.all(every <= f, axis=1) & np.any(every < f, axis=1))
     assert len(ranking.groups) == 2 and set(ranking.groups["group"]) == {"sin", "speed_step"}
+
+
+def test_a_transient_failure_is_retried_once(tmp_path, monkeypatch):
+    """The first attempt of every task fails, the retry succeeds: every row is ok.
+    A task that fails both times is a failed row with its message."""
+    (tmp_path / "flaky_objectives.py").write_text(
+        "import os\n"
+        "def flaky(trajectory, scenario):\n"
+        "    marker = os.path.join(os.path.dirname(__file__), f'seen-{os.getpid()}-{trajectory.values.sum()}')\n"
+        "    if not os.path.exists(marker):\n"
+        "        open(marker, 'w').close()\n"
+        "        raise RuntimeError('transient failure')\n"
+        "    return 1.0\n"
+        "def broken(trajectory, scenario):\n"
+        "    raise RuntimeError('always broken')\n")
+    monkeypatch.setenv("PYTHONPATH", str(tmp_path))  # the local cluster's workers import it
+    monkeypatch.syspath_prepend(str(tmp_path))
+    space = load_space(write_space(tmp_path, objectives=["flaky_objectives:flaky"],
+                                   ranking={"objective": "flaky_objectives:flaky"},
+                                   cluster={"n_workers": 1}, keep_trajectories=0))
+    report = submit(space)
+    assert (report.ok, report.failed) == (12, 0)
+    broken = load_space(write_space(tmp_path, name="broken", objectives=["flaky_objectives:broken"],
+                                    ranking={"objective": "flaky_objectives:broken"},
+                                    cluster={"n_workers": 1}, keep_trajectories=0))
+    report = submit(broken)
+    assert (report.ok, report.failed) == (0, 12)
+    rows = store.read_results(broken.output, "broken", columns=["status", "error"])
+    assert rows["error"].str.contains("RuntimeError: always broken").all()
+
+
+def test_rank_command_json(tmp_path, dask_scheduler):
+    space = load_space(write_space(tmp_path, cluster={"address": dask_scheduler}))
+    submit(space)
+    done = subprocess.run([sys.executable, "-m", "dse_runner.cli", "rank", str(space.output), "--json"],
+                          capture_output=True, text=True, cwd=REPO)
+    assert done.returncode == 0, done.stderr
+    report = json.loads(done.stdout)
+    assert set(report["best"]) == set(space.parameters)
+    assert report["best_total"] == pytest.approx(rank(space.output).best_total)
+    assert len(report["table1"]) == 2
+    assert (space.output / "ranking" / "small" / "table1.csv").is_file()
