@@ -33,6 +33,7 @@ from .expand import Task, TaskBatch, chunked, expand, model_hash
 from .multimodel import MultiModel
 from .rank import rank, save_sweep_spec
 from .scenario import Scenario
+from .search import strategy
 from .simulate import simulate
 from .spec import Space
 
@@ -67,11 +68,11 @@ class ChunkSummary:
 _PLANS: dict[str, Plan] = {}
 
 
-def _plan(job: ChunkJob) -> Plan:
+def _plan(model_key: str, multimodel: MultiModel) -> Plan:
     """One plan per model per worker process."""
-    plan = _PLANS.get(job.model_key)
+    plan = _PLANS.get(model_key)
     if plan is None:
-        plan = _PLANS[job.model_key] = make_plan(job.multimodel)
+        plan = _PLANS[model_key] = make_plan(multimodel)
     return plan
 
 
@@ -101,7 +102,7 @@ def run_task(plan: Plan, task: Task, scenario: Scenario, objectives: tuple[str, 
 
 def run_chunk(job: ChunkJob) -> ChunkSummary:
     """Simulate a chunk on a worker and write its rows; return only counts."""
-    plan = _plan(job)
+    plan = _plan(job.model_key, job.multimodel)
     worker, rows, errors = _worker_name(), [], []
     started = time.perf_counter()
     for task in job.tasks:
@@ -150,8 +151,6 @@ Progress = Callable[[SweepReport], None]
 def probe_seconds(plan: Plan, space: Space) -> float | None:
     """Time one simulation in the client to size chunks; None if it failed (that point
     will fail on a worker too and become a failed row, which must not stop the sweep)."""
-    from .search import strategy
-
     point = next(iter(strategy(space.spec.search.strategy)(space)), None)
     if point is None:
         raise DseError(f"{space.path}: the constraints exclude every parameter point")
@@ -248,8 +247,7 @@ def _run(space: Space, plan: Plan, client, done: set[str], per_task: float | Non
 
 def _trajectory(multimodel: MultiModel, model_key: str, scenario: Scenario, point: dict[str, Any],
                 output: Path, sweep: str, place: int) -> Path:
-    plan = _PLANS.get(model_key) or _PLANS.setdefault(model_key, make_plan(multimodel))
-    result = simulate(plan, scenario, point)
+    result = simulate(_plan(model_key, multimodel), scenario, point, objectives=())
     frame = pd.DataFrame(result.trajectory.values, columns=list(result.trajectory.names))
     frame.insert(0, "time", result.trajectory.time)
     for name, value in point.items():
