@@ -31,7 +31,7 @@ sys.path.insert(0, str(REPO))
 
 from dse_runner.cluster import connect  # noqa: E402
 from dse_runner.expand import expand  # noqa: E402
-from dse_runner.simulate import as_plan, simulate  # noqa: E402
+from dse_runner.simulate import simulate  # noqa: E402
 from dse_runner.spec import Cluster, Space, load_space  # noqa: E402
 from dse_runner.sweep import submit  # noqa: E402
 
@@ -39,7 +39,7 @@ from dse_runner.sweep import submit  # noqa: E402
 def fresh(space: Space, output: Path) -> Space:
     shutil.rmtree(output, ignore_errors=True)
     return Space(space.spec.model_copy(update={"output": str(output), "keep_trajectories": 0}),
-                 space.path, space.multimodel, space.scenarios)
+                 space.path, space.plan, space.scenarios)
 
 
 def timed_sweep(space: Space, workers: int, on_progress=None) -> tuple[float, object]:
@@ -52,9 +52,9 @@ def timed_sweep(space: Space, workers: int, on_progress=None) -> tuple[float, ob
 
 def plain_loop(space: Space, limit: int | None = None) -> tuple[float, int]:
     """What a user's own loop would do: simulate every task in one process."""
-    plan = as_plan(space.multimodel)
+    plan = space.plan
     scenarios = {s.name: s for s in space.scenarios}
-    tasks = list(expand(space, plan))[:limit]
+    tasks = list(expand(space))[:limit]
     simulate(plan, scenarios[tasks[0].scenario], dict(tasks[0].point), space.objectives)  # warm-up
     start = time.perf_counter()
     for task in tasks:

@@ -60,6 +60,8 @@ class Plan:
 
     multimodel: MultiModel
     fmu_paths: dict[str, Path]
+    variables: dict[str, dict[str, Variable]]  # instance -> name -> variable, read once
+    models: dict[str, str]  # instance -> model name, for messages
     outputs: dict[str, tuple[Variable, ...]]  # Real outputs per instance: recorded and connectable
     connections: tuple[tuple[Variable, Variable], ...]
     track: tuple[str, str] | None
@@ -69,7 +71,7 @@ class Plan:
         return tuple(v.ref for vs in self.outputs.values() for v in vs)
 
     def variable(self, ref: str, purpose: str) -> Variable:
-        return lookup(self.fmu_paths, ref, purpose)
+        return lookup(self.variables, self.models, ref, purpose)
 
 
 @dataclass(frozen=True)
@@ -99,23 +101,21 @@ class Trajectory:
                    comments="", fmt="%.10g")
 
 
-def lookup(fmu_paths: dict[str, Path], ref: str, purpose: str) -> Variable:
+def lookup(variables: dict[str, dict[str, Variable]], models: dict[str, str], ref: str,
+           purpose: str) -> Variable:
     """Resolve ``instance.variable``; the error names it and suggests near names."""
     try:
         instance, name = split_ref(ref)
     except ValueError as e:
         raise DseError(f"{purpose}: {e}") from None
-    if instance not in fmu_paths:
+    if instance not in variables:
         raise DseError(f"{purpose}: {ref!r} names instance {instance!r}, but the multi-model has "
-                       f"{', '.join(sorted(fmu_paths))}{_did_you_mean(instance, fmu_paths)}")
-    variables = fmus.describe(fmu_paths[instance]).modelVariables
-    by_name = {v.name: v for v in variables}
-    v = by_name.get(name)
-    if v is None:
-        model = fmus.describe(fmu_paths[instance]).modelName
-        raise DseError(f"{purpose}: unknown variable {ref!r}: instance {instance!r} ({model}) has no "
-                       f"variable {name!r}{_did_you_mean(name, by_name)}")
-    return Variable(instance, name, v.valueReference, v.type, v.causality)
+                       f"{', '.join(sorted(variables))}{_did_you_mean(instance, variables)}")
+    variable = variables[instance].get(name)
+    if variable is None:
+        raise DseError(f"{purpose}: unknown variable {ref!r}: instance {instance!r} ({models[instance]}) "
+                       f"has no variable {name!r}{_did_you_mean(name, variables[instance])}")
+    return variable
 
 
 def _did_you_mean(name: str, options) -> str:
@@ -126,20 +126,21 @@ def _did_you_mean(name: str, options) -> str:
 def make_plan(multimodel: MultiModel) -> Plan:
     """Build FMUs if needed and check every name the multi-model uses."""
     fmu_paths = {name: resolve_fmu(multimodel.fmu_path(name)) for name in multimodel.fmus}
-    outputs = {
-        name: tuple(Variable(name, v.name, v.valueReference, v.type, v.causality)
-                    for v in fmus.describe(path).modelVariables
-                    if v.causality == "output" and v.type == "Real")
-        for name, path in fmu_paths.items()
-    }
+    descriptions = {name: fmus.describe(path) for name, path in fmu_paths.items()}
+    variables = {name: {v.name: Variable(name, v.name, v.valueReference, v.type, v.causality)
+                        for v in d.modelVariables}
+                 for name, d in descriptions.items()}
+    models = {name: d.modelName for name, d in descriptions.items()}
+    outputs = {name: tuple(v for v in vs.values() if v.causality == "output" and v.type == "Real")
+               for name, vs in variables.items()}
     connections, fed = [], {}
     for source_ref, target_refs in multimodel.connections.items():
-        source = lookup(fmu_paths, source_ref, "connection")
+        source = lookup(variables, models, source_ref, "connection")
         if source.causality != "output" or source.type != "Real":
             raise DseError(f"connection: {source_ref!r} must be a Real output (it is a "
                            f"{source.type} {source.causality})")
         for target_ref in target_refs:
-            target = lookup(fmu_paths, target_ref, "connection")
+            target = lookup(variables, models, target_ref, "connection")
             if target.causality != "input" or target.type != "Real":
                 raise DseError(f"connection {source_ref} -> {target_ref}: the target must be a Real "
                                f"input (it is a {target.type} {target.causality})")
@@ -149,17 +150,17 @@ def make_plan(multimodel: MultiModel) -> Plan:
             fed[target_ref] = source_ref
             connections.append((source, target))
     for ref in [*multimodel.parameters, *multimodel.scenario]:
-        check_settable(lookup(fmu_paths, ref, "parameters"))
-    track = _track(multimodel, fmu_paths, outputs)
-    return Plan(multimodel, fmu_paths, outputs, tuple(connections), track)
+        check_settable(lookup(variables, models, ref, "parameters"))
+    track = _track(multimodel, variables, models, outputs)
+    return Plan(multimodel, fmu_paths, variables, models, outputs, tuple(connections), track)
 
 
-def _track(multimodel: MultiModel, fmu_paths, outputs) -> tuple[str, str] | None:
+def _track(multimodel: MultiModel, variables, models, outputs) -> tuple[str, str] | None:
     """The declared track outputs, or the only instance with Real outputs x and y."""
     if multimodel.track is not None:
         refs = (multimodel.track.x, multimodel.track.y)
         for ref in refs:
-            if lookup(fmu_paths, ref, "track").causality != "output":
+            if lookup(variables, models, ref, "track").causality != "output":
                 raise DseError(f"track: {ref!r} is not an output")
         return refs
     candidates = [name for name, vs in outputs.items() if {"x", "y"} <= {v.name for v in vs}]

@@ -52,9 +52,9 @@ def task_id(model: str, point: dict[str, Any], scenario: str) -> str:
     return _digest(model, sorted(point.items()), scenario)[:24]
 
 
-def expand(space, plan: Plan) -> Iterator[Task]:
+def expand(space) -> Iterator[Task]:
     """Tasks scenario by scenario, so a chunk of consecutive tasks mostly shares one scenario."""
-    model = model_hash(plan, space.objectives)
+    model = model_hash(space.plan, space.objectives)
     points = strategy(space.spec.search.strategy)
     for scenario in space.scenarios:
         data = scenario_hash(scenario)

@@ -24,7 +24,7 @@ from pathlib import Path
 from fmpy import extract
 from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.logging import addLoggerProxy
-from fmpy.model_description import ModelDescription, ScalarVariable, read_model_description
+from fmpy.model_description import ModelDescription, read_model_description
 
 from .errors import DseError
 
@@ -53,7 +53,6 @@ class LoadedFmu:
     sha: str
     unzip_dir: Path
     description: ModelDescription
-    variables: dict[str, ScalarVariable]
 
 
 _LOADED: dict[str, LoadedFmu] = {}
@@ -93,8 +92,7 @@ def load(path: Path) -> LoadedFmu:
             partial = Path(tempfile.mkdtemp(dir=extract_root(), prefix=f".{sha}-"))
             extract(str(path), str(partial))
             os.replace(partial, unzip_dir)
-        variables = {v.name: v for v in description.modelVariables}
-        loaded = _LOADED[sha] = LoadedFmu(path, sha, unzip_dir, description, variables)
+        loaded = _LOADED[sha] = LoadedFmu(path, sha, unzip_dir, description)
     return loaded
 
 

@@ -112,8 +112,8 @@ def rank(output: str | Path, sweep: str | None = None, settings: RankingSpec | N
     settings = settings or spec.ranking
     parameters = list(spec.parameters)
     objectives = list(spec.objectives)
-    pareto = [(d, "min") if isinstance(d, str) else (d.objective, d.goal) for d in settings.pareto]
-    for name in [settings.objective, *(n for n, _ in pareto), *settings.weights]:
+    pareto = settings.pareto_goals()
+    for name in settings.objectives_used():
         if name not in objectives:
             raise DseError(f"ranking: objective {name!r} is not among the sweep's ({', '.join(objectives)})")
 

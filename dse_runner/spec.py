@@ -20,7 +20,8 @@ from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, PositiveInt, V
 from . import objectives as objs
 from .constraints import compile_constraint
 from .errors import DseError
-from .multimodel import MultiModel, format_validation_error, load_multimodel, parse_multimodel, split_ref
+from .cosim import Plan, check_settable, make_plan
+from .multimodel import MultiModel, format_validation_error, load_multimodel, parse_multimodel
 from .scenario import Scenario, load_scenario
 from .search import strategy
 
@@ -79,6 +80,13 @@ class Ranking(BaseModel):
     pareto: list[Direction | str] = []  # objectives of the Pareto front, each "name" or {objective, goal}
     weights: dict[str, float] = {}  # weighted sum of per-point totals
 
+    def pareto_goals(self) -> list[tuple[str, str]]:
+        """(objective, "min" | "max") for each Pareto objective."""
+        return [(d, "min") if isinstance(d, str) else (d.objective, d.goal) for d in self.pareto]
+
+    def objectives_used(self) -> list[str]:
+        return [self.objective, *(name for name, _ in self.pareto_goals()), *self.weights]
+
 
 class Search(BaseModel):
     model_config = Strict
@@ -117,10 +125,10 @@ def _normal(value: Any) -> Any:
 class Space:
     """A loaded, checked spec with everything resolved: the unit the rest of the tool works on."""
 
-    def __init__(self, spec: SpaceSpec, path: Path, multimodel: MultiModel, scenarios: list[Scenario]):
+    def __init__(self, spec: SpaceSpec, path: Path, plan: Plan, scenarios: list[Scenario]):
         self.spec = spec
         self.path = path
-        self.multimodel = multimodel
+        self.plan = plan  # the multi-model with every name checked against its FMUs
         self.scenarios = scenarios
         self.parameters = {name: [_normal(x) for x in (v.values() if isinstance(v, Range) else v)]
                            for name, v in spec.parameters.items()}
@@ -134,6 +142,10 @@ class Space:
     @property
     def name(self) -> str:
         return self.spec.name
+
+    @property
+    def multimodel(self) -> MultiModel:
+        return self.plan.multimodel
 
     @property
     def objectives(self) -> tuple[str, ...]:
@@ -155,7 +167,7 @@ class Space:
                                                            {"address": address, "n_workers": n_workers}.items()
                                                            if v is not None})
             update["cluster"] = cluster
-        return Space(self.spec.model_copy(update=update), self.path, self.multimodel, self.scenarios)
+        return Space(self.spec.model_copy(update=update), self.path, self.plan, self.scenarios)
 
     def admits(self, point: dict[str, Any]) -> bool:
         return all(check(point) for check in self.constraints)
@@ -181,23 +193,13 @@ def _scenarios(spec: SpaceSpec, base: Path, source: str) -> list[Scenario]:
 
 
 def _check_names(space: Space, source: str) -> None:
-    """Every name the spec uses must exist: FMU variables, objectives."""
-    from .cosim import check_settable, make_plan
-
-    plan = make_plan(space.multimodel)
+    """Every name the spec uses must exist: FMU variables, objectives, the strategy."""
     for ref in space.parameters:
-        try:
-            split_ref(ref)
-            check_settable(plan.variable(ref, f"{source}: parameters"))
-        except ValueError as e:
-            raise DseError(f"{source}: parameters: {e}") from None
+        check_settable(space.plan.variable(ref, f"{source}: parameters"))
     for name in space.objectives:
         objs.resolve(name)
     strategy(space.spec.search.strategy)
-    ranking = space.spec.ranking
-    used = [ranking.objective, *[d if isinstance(d, str) else d.objective for d in ranking.pareto],
-            *ranking.weights]
-    for name in used:
+    for name in space.spec.ranking.objectives_used():
         if name not in space.objectives:
             raise DseError(f"{source}: ranking uses objective {name!r}, which 'objectives' does not list "
                            f"({', '.join(space.objectives)})")
@@ -222,6 +224,6 @@ def load_space(path: str | Path) -> Space:
         multimodel = load_multimodel(mm_path if mm_path.is_absolute() else path.parent / mm_path)
     else:
         multimodel = parse_multimodel(spec.multimodel, f"{source}: multimodel", path.parent)
-    space = Space(spec, path, multimodel, _scenarios(spec, path.parent, source))
+    space = Space(spec, path, make_plan(multimodel), _scenarios(spec, path.parent, source))
     _check_names(space, source)
     return space

@@ -23,6 +23,8 @@ import pyarrow as pa
 import pyarrow.dataset as ds
 import pyarrow.parquet as pq
 
+from .errors import DseError
+
 RESULTS = "results"
 TRAJECTORIES = "trajectories"
 PARTITIONING = ds.partitioning(pa.schema([("sweep", pa.string()), ("scenario", pa.string())]), flavor="hive")
@@ -90,8 +92,6 @@ def read_results(root: Path, sweep: str | None = None, columns: list[str] | None
         wanted = list(dict.fromkeys(["task_id", "sweep", "scenario", *columns]))
         missing = [c for c in wanted if c not in dataset.schema.names]
         if missing:
-            from .errors import DseError
-
             raise DseError(f"{root}: the results have no column {', '.join(missing)} "
                            f"(columns: {', '.join(dataset.schema.names)})")
     where = (ds.field("sweep") == sweep) if sweep is not None else None

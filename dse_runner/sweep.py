@@ -148,7 +148,7 @@ class SweepReport:
 Progress = Callable[[SweepReport], None]
 
 
-def probe_seconds(plan: Plan, space: Space) -> float | None:
+def probe_seconds(space: Space) -> float | None:
     """Time one simulation in the client to size chunks; None if it failed (that point
     will fail on a worker too and become a failed row, which must not stop the sweep)."""
     point = next(iter(strategy(space.spec.search.strategy)(space)), None)
@@ -156,7 +156,7 @@ def probe_seconds(plan: Plan, space: Space) -> float | None:
         raise DseError(f"{space.path}: the constraints exclude every parameter point")
     start = time.perf_counter()
     try:
-        simulate(plan, space.scenarios[0], point, space.objectives, timeout=space.spec.timeout)
+        simulate(space.plan, space.scenarios[0], point, space.objectives, timeout=space.spec.timeout)
     except Exception:
         return None
     return time.perf_counter() - start
@@ -181,12 +181,11 @@ def _chunk_id(tasks: list[Task]) -> str:
 def submit(space: Space, progress: Progress | None = None, client=None) -> SweepReport:
     """Run every task of ``space`` that has no row yet; returns counts, never raises on failed tasks."""
     started = time.perf_counter()
-    plan = make_plan(space.multimodel)
     output = space.output
     save_sweep_spec(output, space.spec)
     done = store.finished_task_ids(output, space.name)
     total = skipped = 0
-    for task in expand(space, plan):
+    for task in expand(space):
         total += 1
         skipped += task.task_id in done
     report = SweepReport(space.name, output, total, skipped)
@@ -194,11 +193,11 @@ def submit(space: Space, progress: Progress | None = None, client=None) -> Sweep
     if pending == 0 and _trajectories_kept(space):
         report.seconds = time.perf_counter() - started
         return report
-    per_task = probe_seconds(plan, space) if pending else None
+    per_task = probe_seconds(space) if pending else None
     if client is None:
         with connect(space.spec.cluster) as own:
-            return _run(space, plan, own, done, per_task, pending, report, progress, started)
-    return _run(space, plan, client, done, per_task, pending, report, progress, started)
+            return _run(space, own, done, per_task, pending, report, progress, started)
+    return _run(space, client, done, per_task, pending, report, progress, started)
 
 
 def _trajectories_kept(space: Space) -> bool:
@@ -208,7 +207,7 @@ def _trajectories_kept(space: Space) -> bool:
         for s in space.scenarios)
 
 
-def _run(space: Space, plan: Plan, client, done: set[str], per_task: float | None, pending: int,
+def _run(space: Space, client, done: set[str], per_task: float | None, pending: int,
          report: SweepReport, progress: Progress | None, started: float) -> SweepReport:
     from distributed import as_completed
 
@@ -216,7 +215,7 @@ def _run(space: Space, plan: Plan, client, done: set[str], per_task: float | Non
     report.workers = len(client.scheduler_info()["workers"])
     report.dashboard = client.dashboard_link
     report.chunk_size = chunk_size(per_task, space.spec.chunk_seconds, pending, threads) if pending else 0
-    jobs = _jobs(space, plan, done, report.chunk_size)
+    jobs = _jobs(space, done, report.chunk_size)
     in_flight = as_completed()
     try:
         for job in _take(jobs, 2 * threads + 2):
@@ -240,7 +239,7 @@ def _run(space: Space, plan: Plan, client, done: set[str], per_task: float | Non
         for future in list(in_flight.futures):
             future.cancel()
     if not report.interrupted and space.spec.keep_trajectories:
-        keep_trajectories(space, plan, client, space.spec.keep_trajectories)
+        keep_trajectories(space, client, space.spec.keep_trajectories)
     report.seconds = time.perf_counter() - started
     return report
 
@@ -255,13 +254,13 @@ def _trajectory(multimodel: MultiModel, model_key: str, scenario: Scenario, poin
     return store.write_trajectory(output, sweep, scenario.name, place, frame)
 
 
-def keep_trajectories(space: Space, plan: Plan, client, count: int) -> list[Path]:
+def keep_trajectories(space: Space, client, count: int) -> list[Path]:
     """Simulate the ``count`` best points again on every scenario and keep their tracks."""
     try:
         ranking = rank(space.output, space.name)
     except DseError:
         return []  # nothing complete to rank: no best points
-    key = model_hash(plan, space.objectives)
+    key = model_hash(space.plan, space.objectives)
     best = ranking.totals.head(count)[ranking.parameters].to_dict("records")
     futures = [client.submit(_trajectory, space.multimodel, key, scenario, point, space.output, space.name,
                              place, pure=False)
@@ -269,11 +268,11 @@ def keep_trajectories(space: Space, plan: Plan, client, count: int) -> list[Path
     return client.gather(futures)
 
 
-def _jobs(space: Space, plan: Plan, done: set[str], size: int) -> Iterator[ChunkJob]:
-    key = model_hash(plan, space.objectives)
+def _jobs(space: Space, done: set[str], size: int) -> Iterator[ChunkJob]:
+    key = model_hash(space.plan, space.objectives)
     schema = store.results_schema(space.parameters, space.objectives)
     scenarios = {s.name: s for s in space.scenarios}
-    todo = (t for t in expand(space, plan) if t.task_id not in done)
+    todo = (t for t in expand(space) if t.task_id not in done)
     for tasks in chunked(todo, size):
         used = {t.scenario: scenarios[t.scenario] for t in tasks}
         yield ChunkJob(space.name, _chunk_id(tasks), key, space.multimodel, used, TaskBatch.of(tasks), space.objectives,

@@ -11,7 +11,6 @@ from dse_runner import DseError
 from dse_runner.constraints import compile_constraint
 from dse_runner.expand import expand
 from dse_runner.rank import pareto_mask
-from dse_runner.simulate import as_plan
 from dse_runner.spec import load_space
 
 
@@ -23,7 +22,7 @@ def test_the_papers_grid():
     assert space.parameters["vehicle.mass"] == [1000.0, 1500.0, 2000.0, 2500.0, 3000.0]
     assert space.parameters["vehicle.mu"] == [0.3, 0.4, 0.5, 0.6, 0.7]
     assert len(space.scenarios) == 12
-    assert sum(1 for _ in expand(space, as_plan(space.multimodel))) == 1500
+    assert sum(1 for _ in expand(space)) == 1500
 
 
 def test_ranges_counts_and_logs(tmp_path):
@@ -37,16 +36,15 @@ def test_ranges_counts_and_logs(tmp_path):
 
 def test_constraints_filter_points(tmp_path):
     space = load_space(write_space(tmp_path, constraints=["vehicle.mass / 1000 < 2.5 and vehicle.cAlphaF > 20000"]))
-    points = {dict(t.point)["vehicle.mass"] for t in expand(space, as_plan(space.multimodel))}
+    points = {dict(t.point)["vehicle.mass"] for t in expand(space)}
     assert points == {1000.0, 2000.0}
-    assert sum(1 for _ in expand(space, as_plan(space.multimodel))) == 4  # 2 points x 2 scenarios
+    assert sum(1 for _ in expand(space)) == 4  # 2 points x 2 scenarios
 
 
 def test_task_ids_are_stable_and_follow_the_data(tmp_path):
     space = load_space(write_space(tmp_path))
-    plan = as_plan(space.multimodel)
-    ids = [t.task_id for t in expand(space, plan)]
-    assert ids == [t.task_id for t in expand(load_space(write_space(tmp_path)), plan)]
+    ids = [t.task_id for t in expand(space)]
+    assert ids == [t.task_id for t in expand(load_space(write_space(tmp_path)))]
     assert len(set(ids)) == len(ids)
     # A changed recording gives new ids for that scenario only.
     copy = tmp_path / "data" / "sin1"
@@ -54,7 +52,7 @@ def test_task_ids_are_stable_and_follow_the_data(tmp_path):
     with open(copy / "gps_position.csv", "a") as f:
         f.write("84.10,1.0,1.0\n")
     changed = load_space(write_space(tmp_path, scenarios=[str(copy), str(SCENARIOS / "speed_step2")]))
-    new = [t.task_id for t in expand(changed, plan)]
+    new = [t.task_id for t in expand(changed)]
     assert set(new[:6]).isdisjoint(ids) and new[6:] == ids[6:]
 
 
