@@ -146,7 +146,7 @@ def submit(
 
     try:
         space = load_space(spec).with_overrides(out, scheduler, workers)
-        with _progress_bar(disabled=False) as progress:
+        with ProgressBar() as progress:
             report = run_sweep(space, progress=progress)
     except DseError as e:
         fail(e)
@@ -183,10 +183,10 @@ def submit(
     typer.echo(f"ranking: {files['json'].parent}")
 
 
-class _progress_bar:
+class ProgressBar:
     """A terminal progress bar with rate and ETA, on stderr so --json output stays clean."""
 
-    def __init__(self, disabled: bool):
+    def __init__(self) -> None:
         from rich.console import Console
         from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn,
                                    TimeRemainingColumn)
@@ -194,7 +194,7 @@ class _progress_bar:
         self.bar = Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
                             TextColumn("{task.fields[rate]} sim/s"), TextColumn("{task.fields[failed]} failed"),
                             TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
-                            console=Console(stderr=True), disable=disabled, transient=False)
+                            console=Console(stderr=True), transient=False)
         self.task = None
 
     def __enter__(self):

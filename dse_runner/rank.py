@@ -130,8 +130,7 @@ def rank(output: str | Path, sweep: str | None = None, settings: RankingSpec | N
     complete = _best_first(complete, settings.objective, settings.goal)
     best = {p: _plain(complete.loc[0, p]) for p in parameters}
 
-    table1 = _table1(ok, parameters, settings.objective, best)
-    front = complete
+    table1 = _table1(ok, settings.objective, best)
     if pareto:
         cols = [n for n, _ in pareto]
         front = complete[pareto_mask(complete[cols].to_numpy(float), [g for _, g in pareto])]
@@ -154,7 +153,7 @@ def _plain(value: Any) -> Any:
     return value.item() if hasattr(value, "item") else value
 
 
-def _table1(ok: pd.DataFrame, parameters: list[str], objective: str, best: dict[str, Any]) -> pd.DataFrame:
+def _table1(ok: pd.DataFrame, objective: str, best: dict[str, Any]) -> pd.DataFrame:
     at_best = np.logical_and.reduce([ok[p] == v for p, v in best.items()])
     stats = ok.groupby(["scenario", "group"])[objective].agg(["min", "max", "mean"])
     stats = stats.rename(columns={"min": "min_error", "max": "max_error", "mean": "average_error"})
