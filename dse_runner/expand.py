@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -52,13 +52,18 @@ def task_id(model: str, point: dict[str, Any], scenario: str) -> str:
     return _digest(model, sorted(point.items()), scenario)[:24]
 
 
-def expand(space) -> Iterator[Task]:
+def points_of(space, points: list[dict[str, Any]] | None = None) -> Callable[[Any], Iterable[dict[str, Any]]]:
+    """The space's search strategy, or the given points (an optimiser's next round)."""
+    return strategy(space.spec.search.strategy) if points is None else (lambda _: points)
+
+
+def expand(space, points: list[dict[str, Any]] | None = None) -> Iterator[Task]:
     """Tasks scenario by scenario, so a chunk of consecutive tasks mostly shares one scenario."""
     model = model_hash(space.plan, space.objectives)
-    points = strategy(space.spec.search.strategy)
+    visit = points_of(space, points)
     for scenario in space.scenarios:
         data = scenario_hash(scenario)
-        for point in points(space):  # regenerated per scenario: no list of all points is kept
+        for point in visit(space):  # regenerated per scenario: no list of all points is kept
             yield Task(task_id(model, point, data), scenario.name, tuple(sorted(point.items())))
 
 

@@ -6,6 +6,10 @@ Euclidean distance to the simulated position at the fix's time, linearly
 interpolated between communication points. The paper's Equation 1 (its
 "mean cross-track error") is their mean. Users add their own objectives by
 import path, ``"package.module:function"``, with the same signature.
+
+A vector objective returns one number per fix instead: ``fix_residuals``
+keeps what least-squares fitting (fit.py) needs, and is stored as a list
+column; rankings use only scalar objectives.
 """
 
 from __future__ import annotations
@@ -22,8 +26,8 @@ from .scenario import Scenario
 Objective = Callable[[Trajectory, Scenario], float]
 
 
-def fix_distances(trajectory: Trajectory, scenario: Scenario) -> np.ndarray:
-    """Distance from each GPS fix within the simulated time span to the simulated position."""
+def fix_offsets(trajectory: Trajectory, scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
+    """Simulated minus recorded x and y at each GPS fix within the simulated time span."""
     gps = scenario.gps
     x, y = trajectory.xy()
     time = trajectory.time
@@ -32,7 +36,17 @@ def fix_distances(trajectory: Trajectory, scenario: Scenario) -> np.ndarray:
         raise DseError(f"scenario {scenario.name}: no GPS fix lies within the simulated time "
                        f"{time[0]:g}..{time[-1]:g} s")
     t = gps.time[inside]
-    return np.hypot(gps.x[inside] - np.interp(t, time, x), gps.y[inside] - np.interp(t, time, y))
+    return np.interp(t, time, x) - gps.x[inside], np.interp(t, time, y) - gps.y[inside]
+
+
+def fix_distances(trajectory: Trajectory, scenario: Scenario) -> np.ndarray:
+    """Distance from each GPS fix within the simulated time span to the simulated position."""
+    return np.hypot(*fix_offsets(trajectory, scenario))
+
+
+def fix_residuals(trajectory: Trajectory, scenario: Scenario) -> np.ndarray:
+    """The x offsets of every fix, then the y offsets [m]: a vector objective."""
+    return np.concatenate(fix_offsets(trajectory, scenario))
 
 
 def cross_track_error(trajectory: Trajectory, scenario: Scenario) -> float:
@@ -62,15 +76,20 @@ BUILTIN: dict[str, Objective] = {
     "final_error": final_error,
 }
 DEFAULT = tuple(BUILTIN)
+VECTOR: dict[str, Objective] = {"fix_residuals": fix_residuals}
+
+
+def is_vector(name: str) -> bool:
+    return name in VECTOR
 
 
 def resolve(name: str) -> Objective:
     """A built-in objective's name, or ``module:function`` for a user's own."""
-    if name in BUILTIN:
-        return BUILTIN[name]
+    if name in BUILTIN or name in VECTOR:
+        return BUILTIN.get(name) or VECTOR[name]
     module_name, colon, function_name = name.partition(":")
     if not colon:
-        raise DseError(f"unknown objective {name!r}: use one of {', '.join(BUILTIN)} "
+        raise DseError(f"unknown objective {name!r}: use one of {', '.join([*BUILTIN, *VECTOR])} "
                        "or an import path 'module:function'")
     try:
         module = importlib.import_module(module_name)
@@ -82,10 +101,13 @@ def resolve(name: str) -> Objective:
     return function
 
 
-def evaluate(names: tuple[str, ...], trajectory: Trajectory, scenario: Scenario) -> dict[str, float]:
-    results = {}
+def evaluate(names: tuple[str, ...], trajectory: Trajectory, scenario: Scenario) -> dict[str, float | list[float]]:
+    results: dict[str, float | list[float]] = {}
     for name in names:
         value = resolve(name)(trajectory, scenario)
+        if is_vector(name):
+            results[name] = np.asarray(value, dtype=float).tolist()
+            continue
         try:
             results[name] = float(value)
         except (TypeError, ValueError):

@@ -25,6 +25,7 @@ import pandas as pd
 
 from . import store
 from .errors import DseError
+from .objectives import is_vector
 from .spec import Ranking as RankingSpec
 from .spec import SpaceSpec
 
@@ -111,7 +112,7 @@ def rank(output: str | Path, sweep: str | None = None, settings: RankingSpec | N
     spec = load_sweep_spec(output, sweep)
     settings = settings or spec.ranking
     parameters = list(spec.parameters)
-    objectives = list(spec.objectives)
+    objectives = [name for name in spec.objectives if not is_vector(name)]  # lists are not summed
     pareto = settings.pareto_goals()
     for name in settings.objectives_used():
         if name not in objectives:

@@ -203,6 +203,8 @@ def _check_names(space: Space, source: str) -> None:
         if name not in space.objectives:
             raise DseError(f"{source}: ranking uses objective {name!r}, which 'objectives' does not list "
                            f"({', '.join(space.objectives)})")
+        if objs.is_vector(name):
+            raise DseError(f"{source}: ranking uses {name!r}, a vector objective; rankings need one number per task")
 
 
 def load_space(path: str | Path) -> Space:

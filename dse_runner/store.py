@@ -24,6 +24,7 @@ import pyarrow.dataset as ds
 import pyarrow.parquet as pq
 
 from .errors import DseError
+from .objectives import is_vector
 
 RESULTS = "results"
 TRAJECTORIES = "trajectories"
@@ -57,7 +58,7 @@ def results_schema(parameters: dict[str, list[Any]], objectives: tuple[str, ...]
     return pa.schema(
         [("task_id", pa.string()), ("group", pa.string())]
         + [(name, kind(values)) for name, values in parameters.items()]
-        + [(name, pa.float64()) for name in objectives]
+        + [(name, pa.list_(pa.float64()) if is_vector(name) else pa.float64()) for name in objectives]
         + [("status", pa.string()), ("error", pa.string()), ("wall_time", pa.float64()), ("worker", pa.string())]
     )
 
@@ -95,6 +96,17 @@ def read_results(root: Path, sweep: str | None = None, columns: list[str] | None
             raise DseError(f"{root}: the results have no column {', '.join(missing)} "
                            f"(columns: {', '.join(dataset.schema.names)})")
     where = (ds.field("sweep") == sweep) if sweep is not None else None
+    frame = dataset.to_table(columns=wanted, filter=where).to_pandas()
+    return frame.drop_duplicates("task_id", keep="first").reset_index(drop=True)
+
+
+def read_tasks(root: Path, sweep: str, task_ids: list[str], columns: list[str]) -> pd.DataFrame:
+    """The rows of just these tasks: what an optimiser reads back after each round."""
+    dataset = _dataset(root, RESULTS)
+    if dataset is None:
+        return pd.DataFrame(columns=["task_id", "sweep", "scenario", *columns])
+    where = (ds.field("sweep") == sweep) & ds.field("task_id").isin(task_ids)
+    wanted = list(dict.fromkeys(["task_id", "sweep", "scenario", *columns]))
     frame = dataset.to_table(columns=wanted, filter=where).to_pandas()
     return frame.drop_duplicates("task_id", keep="first").reset_index(drop=True)
 

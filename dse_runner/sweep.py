@@ -29,11 +29,11 @@ from . import store
 from .cluster import connect, total_threads
 from .cosim import Plan, make_plan
 from .errors import DseError
-from .expand import Task, TaskBatch, chunked, expand, model_hash
+from .expand import Task, TaskBatch, chunked, expand, model_hash, points_of
 from .multimodel import MultiModel
 from .rank import rank, save_sweep_spec
 from .scenario import Scenario
-from .search import strategy
+from .search import Point
 from .simulate import simulate
 from .spec import Space
 
@@ -148,10 +148,10 @@ class SweepReport:
 Progress = Callable[[SweepReport], None]
 
 
-def probe_seconds(space: Space) -> float | None:
+def probe_seconds(space: Space, points: list[Point] | None = None) -> float | None:
     """Time one simulation in the client to size chunks; None if it failed (that point
     will fail on a worker too and become a failed row, which must not stop the sweep)."""
-    point = next(iter(strategy(space.spec.search.strategy)(space)), None)
+    point = next(iter(points_of(space, points)(space)), None)
     if point is None:
         raise DseError(f"{space.path}: the constraints exclude every parameter point")
     start = time.perf_counter()
@@ -178,14 +178,18 @@ def _chunk_id(tasks: list[Task]) -> str:
     return hashlib.sha256("".join(t.task_id for t in tasks).encode()).hexdigest()[:20]
 
 
-def submit(space: Space, progress: Progress | None = None, client=None) -> SweepReport:
-    """Run every task of ``space`` that has no row yet; returns counts, never raises on failed tasks."""
+def submit(space: Space, progress: Progress | None = None, client=None,
+           points: list[Point] | None = None) -> SweepReport:
+    """Run every task of ``space`` that has no row yet; returns counts, never raises on failed tasks.
+
+    ``points`` replaces the space's search strategy with a given list: how an
+    optimiser (fit.py) runs each of its rounds as a sweep into the same store."""
     started = time.perf_counter()
     output = space.output
     save_sweep_spec(output, space.spec)
     done = store.finished_task_ids(output, space.name)
     total = skipped = 0
-    for task in expand(space):
+    for task in expand(space, points):
         total += 1
         skipped += task.task_id in done
     report = SweepReport(space.name, output, total, skipped)
@@ -193,11 +197,11 @@ def submit(space: Space, progress: Progress | None = None, client=None) -> Sweep
     if pending == 0 and _trajectories_kept(space):
         report.seconds = time.perf_counter() - started
         return report
-    per_task = probe_seconds(space) if pending else None
+    per_task = probe_seconds(space, points) if pending else None
     if client is None:
         with connect(space.spec.cluster) as own:
-            return _run(space, own, done, per_task, pending, report, progress, started)
-    return _run(space, client, done, per_task, pending, report, progress, started)
+            return _run(space, own, done, per_task, pending, report, progress, started, points)
+    return _run(space, client, done, per_task, pending, report, progress, started, points)
 
 
 def _trajectories_kept(space: Space) -> bool:
@@ -208,14 +212,14 @@ def _trajectories_kept(space: Space) -> bool:
 
 
 def _run(space: Space, client, done: set[str], per_task: float | None, pending: int,
-         report: SweepReport, progress: Progress | None, started: float) -> SweepReport:
+         report: SweepReport, progress: Progress | None, started: float, points: list[Point] | None) -> SweepReport:
     from distributed import as_completed
 
     threads = total_threads(client)
     report.workers = len(client.scheduler_info()["workers"])
     report.dashboard = client.dashboard_link
     report.chunk_size = chunk_size(per_task, space.spec.chunk_seconds, pending, threads) if pending else 0
-    jobs = _jobs(space, done, report.chunk_size)
+    jobs = _jobs(space, done, report.chunk_size, points)
     in_flight = as_completed()
     try:
         for job in _take(jobs, 2 * threads + 2):
@@ -268,11 +272,11 @@ def keep_trajectories(space: Space, client, count: int) -> list[Path]:
     return client.gather(futures)
 
 
-def _jobs(space: Space, done: set[str], size: int) -> Iterator[ChunkJob]:
+def _jobs(space: Space, done: set[str], size: int, points: list[Point] | None) -> Iterator[ChunkJob]:
     key = model_hash(space.plan, space.objectives)
     schema = store.results_schema(space.parameters, space.objectives)
     scenarios = {s.name: s for s in space.scenarios}
-    todo = (t for t in expand(space) if t.task_id not in done)
+    todo = (t for t in expand(space, points) if t.task_id not in done)
     for tasks in chunked(todo, size):
         used = {t.scenario: scenarios[t.scenario] for t in tasks}
         yield ChunkJob(space.name, _chunk_id(tasks), key, space.multimodel, used, TaskBatch.of(tasks), space.objectives,

@@ -40,10 +40,10 @@ def test_compile_error_is_reported(tmp_path):
     sources = tmp_path / "fmus"
     shutil.copytree(FMU_SOURCES, sources)
     model = sources / "robotti_vehicle" / "model.c"
-    model.write_text(model.read_text().replace("static double clamp", "static double clamp oops"))
+    model.write_text(model.read_text().replace("static Bicycle bicycle_of", "static Bicycle oops bicycle_of"))
     with pytest.raises(BuildError, match=r"(?s)compiling robotti_vehicle failed:.*model\.c:\d+"):
         build_fmu(sources / "robotti_vehicle", tmp_path / "cache")
 
 
 def test_source_folders_are_found():
-    assert [p.name for p in find_source_dirs(FMU_SOURCES)] == ["replay_controller", "robotti_vehicle"]
+    assert [p.name for p in find_source_dirs(FMU_SOURCES)] == ["replay_controller", "robotti_vehicle", "robotti_vehicle_effects"]

@@ -6,8 +6,7 @@
  * Value references are the indices of enum Real; modelDescription.xml lists
  * the same variables in the same order.
  */
-#include <math.h>
-
+#include "bicycle.h"
 #include "slave.h"
 
 enum Real {
@@ -27,53 +26,39 @@ static const double DEFAULTS[N_REALS] = {
     [X0] = 0.0, [Y0] = 0.0, [THETA0] = 0.0, [RK4_STEP] = 0.001,
 };
 
-enum State { SX, SY, SPSI, SVX, SVY, SR, N_STATES };
+/* The model's parameters as the shared bicycle model takes them. */
+static Bicycle bicycle_of(const double *p) {
+    return (Bicycle){p[MASS], p[C_ALPHA_F], p[C_ALPHA_R], p[MU], p[LF], p[LR], p[R_GYR], p[KV], p[V_MIN], p[G]};
+}
 
-static double clamp(double v, double lo, double hi) { return v < lo ? lo : v > hi ? hi : v; }
+typedef struct {
+    Bicycle bicycle;
+    double velocity, delta_f; /* inputs, held over the communication step */
+} Step;
 
-/* Right-hand side of the model's equations; p is the real-variable array. */
-static void derivatives(const double *p, const double *z, double velocity, double delta_f,
-                        double *dz) {
-    const double m = p[MASS], mu = p[MU], g = p[G], lf = p[LF], lr = p[LR];
-    const double L = lf + lr, iz = m * p[R_GYR] * p[R_GYR];
-    const double delta = -delta_f; /* counter-clockwise steering angle */
-    const double vx = z[SVX], vy = z[SVY], r = z[SR], psi = z[SPSI];
-
-    const double f_drive = clamp(p[KV] * (velocity - vx), -mu * m * g, mu * m * g);
-    const double fade = fmin(1.0, fmax(vx, 0.0) / p[V_MIN]);
-    const double v_s = fmax(vx, p[V_MIN]);
-    const double alpha_f = delta - atan((vy + lf * r) / v_s);
-    const double alpha_r = -atan((vy - lr * r) / v_s);
-    const double fzf = m * g * lr / L, fzr = m * g * lf / L;
-    const double fyf = fade * clamp(p[C_ALPHA_F] * alpha_f, -mu * fzf, mu * fzf);
-    const double fyr = fade * clamp(p[C_ALPHA_R] * alpha_r, -mu * fzr, mu * fzr);
-    const double cd = cos(delta), sd = sin(delta), cp = cos(psi), sp = sin(psi);
-
-    dz[SVX] = (f_drive - fyf * sd) / m + vy * r;
-    dz[SVY] = (fyf * cd + fyr) / m - vx * r;
-    dz[SR] = (lf * fyf * cd - lr * fyr) / iz;
-    dz[SX] = vx * cp - vy * sp;
-    dz[SY] = vx * sp + vy * cp;
-    dz[SPSI] = r;
+static void rhs(const void *ctx, double t, const double *z, double *dz) {
+    const Step *step = ctx;
+    (void)t;
+    bicycle_derivatives(&step->bicycle, 0, z, step->velocity, step->delta_f, dz);
 }
 
 static void publish(Slave *s, const double *z) {
     double *p = s->r;
-    p[X] = z[SX];
-    p[Y] = z[SY];
-    p[THETA] = z[SPSI];
-    p[VX] = z[SVX];
-    p[VY] = z[SVY];
-    p[YAW_RATE] = z[SR];
+    p[X] = z[B_X];
+    p[Y] = z[B_Y];
+    p[THETA] = z[B_PSI];
+    p[VX] = z[B_VX];
+    p[VY] = z[B_VY];
+    p[YAW_RATE] = z[B_R];
 }
 
 /* The initial pose comes from parameters; the vehicle starts at rest. */
 static int start_at_rest(Slave *s) {
     double *z = s->state;
-    for (int i = 0; i < N_STATES; i++) z[i] = 0.0;
-    z[SX] = s->r[X0];
-    z[SY] = s->r[Y0];
-    z[SPSI] = s->r[THETA0];
+    for (int i = 0; i < BICYCLE_STATES; i++) z[i] = 0.0;
+    z[B_X] = s->r[X0];
+    z[B_Y] = s->r[Y0];
+    z[B_PSI] = s->r[THETA0];
     publish(s, z);
     return 0;
 }
@@ -95,31 +80,16 @@ static int check_parameters(Slave *s) {
 
 static int do_step(Slave *s, double t, double h) {
     const double *p = s->r;
-    const double velocity = p[VELOCITY], delta_f = p[DELTA_F];
+    const Step step = {bicycle_of(p), p[VELOCITY], p[DELTA_F]};
     double *z = s->state;
-    double k1[N_STATES], k2[N_STATES], k3[N_STATES], k4[N_STATES], tmp[N_STATES];
-
-    /* Whole RK4 steps of at most rk4_step that end exactly at t + h. */
-    const int n = (int)ceil(h / p[RK4_STEP] - 1e-9);
-    const double dt = h / (n > 0 ? n : 1);
-    for (int step = 0; step < n; step++) {
-        derivatives(p, z, velocity, delta_f, k1);
-        for (int i = 0; i < N_STATES; i++) tmp[i] = z[i] + 0.5 * dt * k1[i];
-        derivatives(p, tmp, velocity, delta_f, k2);
-        for (int i = 0; i < N_STATES; i++) tmp[i] = z[i] + 0.5 * dt * k2[i];
-        derivatives(p, tmp, velocity, delta_f, k3);
-        for (int i = 0; i < N_STATES; i++) tmp[i] = z[i] + dt * k3[i];
-        derivatives(p, tmp, velocity, delta_f, k4);
-        for (int i = 0; i < N_STATES; i++) z[i] += dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+    rk4_advance(rhs, &step, BICYCLE_STATES, z, t, h, p[RK4_STEP]);
+    if (!all_finite(z, BICYCLE_STATES)) {
+        slave_log(s, fmi2Error, "logStatusError",
+                  "vehicle state diverged (non-finite) during the step from t=%.6g to t=%.6g; "
+                  "try a smaller rk4_step",
+                  t, t + h);
+        return 1;
     }
-    for (int i = 0; i < N_STATES; i++)
-        if (!isfinite(z[i])) {
-            slave_log(s, fmi2Error, "logStatusError",
-                      "vehicle state diverged (non-finite) during the step from t=%.6g to t=%.6g; "
-                      "try a smaller rk4_step",
-                      t, t + h);
-            return 1;
-        }
     publish(s, z);
     return 0;
 }
@@ -130,7 +100,7 @@ const ModelInfo MODEL = {
     .real_defaults = DEFAULTS,
     .n_strings = 0,
     .string_defaults = 0,
-    .state_size = N_STATES * sizeof(double),
+    .state_size = BICYCLE_STATES * sizeof(double),
     .enter_initialization = start_at_rest,
     .exit_initialization = check_parameters,
     .do_step = do_step,
