@@ -252,6 +252,47 @@ def rank_command(
 
 
 @app.command()
+def diagnose(
+    scenarios: Annotated[Path, typer.Option("--scenarios", help="Folder of recorded runs (field-data format).")],
+    multimodel: Annotated[Path | None, typer.Option(help="Multi-model to diagnose (default: the space's).")] = None,
+    space: Annotated[Path | None, typer.Option(
+        help="Calibration design space: its parameters and ranges (default: jobs/robotti/space.yaml).")] = None,
+    out: Annotated[Path, typer.Option(help="Folder for results, the new model and the report.")] = Path("out/diagnosis"),
+    folds: Annotated[int, typer.Option(help="Cross-validation folds across runs.")] = 3,
+    workers: Annotated[int | None, typer.Option(help="Local cluster workers (overrides the space).")] = None,
+    scheduler: Annotated[str | None, typer.Option(help="Address of an existing Dask scheduler.")] = None,
+    as_json: JsonFlag = False,
+) -> None:
+    """Calibrate, locate the mismatch, name the missing physics, model it and show the fit improve."""
+    from .diagnose import Settings
+    from .diagnose import diagnose as run_diagnosis
+
+    def say(message: str) -> None:
+        typer.echo(message, err=True)
+
+    try:
+        result = run_diagnosis(scenarios, multimodel, space, out, Settings(folds=folds), progress=say,
+                               n_workers=workers, address=scheduler)
+    except DseError as e:
+        fail(e)
+    except KeyboardInterrupt:
+        typer.echo(f"interrupted: finished simulations are kept in {out}; run again to resume", err=True)
+        raise typer.Exit(130)
+    if as_json:
+        emit_json(result.to_json())
+        return
+    for effect in result.effects:
+        values = ", ".join(f"{k} = {v:.4g} [{effect['interval'][k][0]:.4g}, {effect['interval'][k][1]:.4g}]"
+                           for k, v in effect["parameters"].items())
+        typer.echo(f"{effect['id']}: {effect['name']}" + (f": {values}" if values else ""))
+    typer.echo(f"held-out mean cross-track error: {result.cross_track_before:.3f} m before, "
+               f"{result.cross_track_after:.3f} m after")
+    for name in ("multimodel", "space", "report"):
+        if name in result.files:
+            typer.echo(f"{name}: {result.files[name]}")
+
+
+@app.command()
 def version() -> None:
     """Print the version."""
     typer.echo(__version__)

@@ -221,6 +221,13 @@ def load_space(path: str | Path) -> Space:
         spec = SpaceSpec.model_validate(data if data is not None else {})
     except ValidationError as e:
         raise DseError(format_validation_error(source, e)) from None
+    return resolve_space(spec, path)
+
+
+def resolve_space(spec: SpaceSpec, path: Path) -> Space:
+    """A validated spec made a Space: its multi-model, FMUs and scenarios found and every name
+    checked. ``path`` is where relative paths start from (the spec file's folder)."""
+    source = str(path)
     if isinstance(spec.multimodel, str):
         mm_path = Path(spec.multimodel)
         multimodel = load_multimodel(mm_path if mm_path.is_absolute() else path.parent / mm_path)

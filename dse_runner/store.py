@@ -73,11 +73,12 @@ def write_rows(root: Path, sweep: str, chunk: str, rows: list[dict[str, Any]], s
             for scenario, group in by_scenario.items()]
 
 
-def _dataset(root: Path, kind: str) -> ds.Dataset | None:
+def _dataset(root: Path, kind: str, sweep: str | None = None) -> ds.Dataset | None:
+    """The files of one sweep (sweeps of one store may have different columns), or of all."""
     folder = Path(root) / kind
     if not folder.is_dir():
         return None
-    files = [str(p) for p in folder.rglob("*.parquet")]
+    files = [str(p) for p in (folder / f"sweep={sweep}" if sweep is not None else folder).rglob("*.parquet")]
     if not files:
         return None
     return ds.dataset(files, format="parquet", partitioning=PARTITIONING, partition_base_dir=str(folder))
@@ -85,7 +86,7 @@ def _dataset(root: Path, kind: str) -> ds.Dataset | None:
 
 def read_results(root: Path, sweep: str | None = None, columns: list[str] | None = None) -> pd.DataFrame:
     """Rows of finished tasks, reading only ``columns`` (plus the keys); no trajectories."""
-    dataset = _dataset(root, RESULTS)
+    dataset = _dataset(root, RESULTS, sweep)
     if dataset is None:
         return pd.DataFrame(columns=["task_id", "sweep", "scenario", *(columns or [])])
     wanted = None
@@ -102,7 +103,7 @@ def read_results(root: Path, sweep: str | None = None, columns: list[str] | None
 
 def read_tasks(root: Path, sweep: str, task_ids: list[str], columns: list[str]) -> pd.DataFrame:
     """The rows of just these tasks: what an optimiser reads back after each round."""
-    dataset = _dataset(root, RESULTS)
+    dataset = _dataset(root, RESULTS, sweep)
     if dataset is None:
         return pd.DataFrame(columns=["task_id", "sweep", "scenario", *columns])
     where = (ds.field("sweep") == sweep) & ds.field("task_id").isin(task_ids)

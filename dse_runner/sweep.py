@@ -272,6 +272,16 @@ def keep_trajectories(space: Space, client, count: int) -> list[Path]:
     return client.gather(futures)
 
 
+def trajectories_of(space: Space, client, point: dict[str, Any], sweep: str) -> dict[str, pd.DataFrame]:
+    """Simulate one point on every scenario on the cluster, keep the tracks as ``sweep``'s rank 1,
+    and return them by scenario."""
+    key = model_hash(space.plan, space.objectives)
+    futures = [client.submit(_trajectory, space.multimodel, key, scenario, point, space.output, sweep, 1, pure=False)
+               for scenario in space.scenarios]
+    client.gather(futures)
+    return {s.name: store.read_trajectory(space.output, sweep, s.name) for s in space.scenarios}
+
+
 def _jobs(space: Space, done: set[str], size: int, points: list[Point] | None) -> Iterator[ChunkJob]:
     key = model_hash(space.plan, space.objectives)
     schema = store.results_schema(space.parameters, space.objectives)

@@ -1,0 +1,74 @@
+"""Recordings from a richer truth model, for blind tests of discrepancy diagnosis.
+
+The truth is the vehicle's effects variant with vehicle parameters the
+calibration must find and one effect (or none) switched on. It replays the
+steering logs of the bundled runs and records the GPS antenna at 10 Hz with
+receiver noise and dropouts, in the field-data format: the diagnosis sees
+only these files, never the truth.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from dse_runner.multimodel import parse_multimodel
+from dse_runner.scenario import load_scenario
+from dse_runner.simulate import as_plan, simulate
+
+REPO = Path(__file__).resolve().parents[1]
+SOURCES = REPO / "scenarios" / "robotti"
+TRUTH_VEHICLE = {"vehicle.mass": 1800.0, "vehicle.cAlphaF": 26000.0}
+
+# Each library effect at a size a field engineer would care about.
+EFFECTS = {
+    "wheel_slip": {"wheel_slip": 0.08},
+    "steering_lag": {"steering_lag": 0.4},
+    "speed_lag": {"speed_lag": 0.8},
+    "steering_offset": {"steering_offset": 0.02},
+    "time_offset": {"time_offset": 0.4},
+    "antenna_offset": {"antenna_x": 0.6, "antenna_y": -0.3},
+    "terrain_slope": {"grade_x": 0.04, "grade_y": -0.03},
+    "none": {},
+}
+
+
+def truth_plan():
+    data = yaml.safe_load((REPO / "jobs" / "robotti" / "multimodel.yaml").read_text())
+    data["fmus"] = {"controller": str(REPO / "fmus" / "replay_controller"),
+                    "vehicle": str(REPO / "fmus" / "robotti_vehicle_effects")}
+    data["track"] = {"x": "vehicle.gps_x", "y": "vehicle.gps_y"}
+    return as_plan(parse_multimodel(data, "truth", REPO))
+
+
+def record(folder: Path, effect: str, runs: list[str], seconds: float, noise: float = 0.02,
+           dropout: float = 0.03, seed: int = 0) -> Path:
+    """Write ``runs`` (names of bundled runs, cut to ``seconds``) as recorded by the truth with ``effect``."""
+    rng = np.random.default_rng(seed)
+    plan = truth_plan()
+    overrides = {**TRUTH_VEHICLE, **{f"vehicle.{k}": v for k, v in EFFECTS[effect].items()}}
+    for name in runs:
+        source = load_scenario(SOURCES / name)
+        target = folder / name
+        target.mkdir(parents=True, exist_ok=True)
+        duration = min(seconds, source.info.duration)
+        lines = (SOURCES / name / "steering_inputs.csv").read_text().splitlines()
+        kept = [lines[0]] + [line for line in lines[1:] if float(line.split(",")[0]) <= duration + 1e-9]
+        (target / "steering_inputs.csv").write_text("\n".join(kept) + "\n")
+        info = source.info.model_dump(mode="json") | {"duration": duration}
+        (target / "scenario.yaml").write_text(yaml.safe_dump(info, sort_keys=False))
+        (target / "gps_position.csv").write_text("time,x,y\n0,0,0\n")  # replaced below
+        run = simulate(plan, load_scenario(target), overrides, objectives=(), step=0.05)
+        fixes = np.round(np.arange(0.0, duration + 1e-9, 0.1), 2)
+        x, y = run.trajectory.xy()
+        gx = np.interp(fixes, run.trajectory.time, x) + rng.normal(0, noise, fixes.size)
+        gy = np.interp(fixes, run.trajectory.time, y) + rng.normal(0, noise, fixes.size)
+        keep = rng.random(fixes.size) >= dropout
+        start = rng.integers(fixes.size // 4, fixes.size // 2)  # and one outage of 2 s
+        keep[start:start + 20] = False
+        keep[0] = True
+        rows = [f"{t:.2f},{a:.4f},{b:.4f}" for t, a, b in zip(fixes[keep], gx[keep], gy[keep])]
+        (target / "gps_position.csv").write_text("time,x,y\n" + "\n".join(rows) + "\n")
+    return folder
