@@ -18,6 +18,7 @@ too narrow.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -68,8 +69,13 @@ class FitResult:
     iterations: int
     converged: bool
     standard_error: dict[str, float]  # cluster-robust; inf when the data do not determine it
-    at_bound: list[str]
+    at_bound: list[str]  # determined by the data, and pinned at a bound
     point: Point  # the full point: fitted values and the fixed ones
+
+    @property
+    def undetermined(self) -> list[str]:
+        """Parameters no residual responds to: any value fits equally well."""
+        return [n for n in self.names if math.isinf(self.standard_error[n])]
 
     def interval(self, z: float = 1.96) -> dict[str, tuple[float, float]]:
         """About 95 % intervals, clipped to nothing: an unbounded side stays infinite."""
@@ -199,8 +205,8 @@ class LevenbergMarquardt:
             raise DseError(f"fit {self.problem.label} has not started")
         names = [p.name for p in self.params]
         error = robust_standard_errors(self.jacobian, self.r)
-        at_bound = [n for n, v, lo, hi, st in zip(names, self.x, self.lower, self.upper, self.steps)
-                    if v - lo < 1e-3 * st or hi - v < 1e-3 * st]
+        at_bound = [n for n, v, lo, hi, st, e in zip(names, self.x, self.lower, self.upper, self.steps, error)
+                    if (v - lo < 1e-3 * st or hi - v < 1e-3 * st) and np.isfinite(e)]
         return FitResult(self.problem.label, names, {n: float(v) for n, v in zip(names, self.x)}, self.sse,
                          int(sum(len(r) for r in self.r)), self.iterations, self.converged,
                          dict(zip(names, error)), at_bound, self.point(self.x))

@@ -328,8 +328,10 @@ def _diagnose(calibration: Space, out: Path, settings: Settings, client, say: Pr
     baseline = next(c for c in scored if not c.ids)
     diagnosis = Diagnosis(out, {
         "sweep": calibration.name, "vehicle": vehicle, "grid_best": grid.best,
-        "grid_at_bound": [p.name for p in base if grid.best[p.name] in (p.lower, p.upper)],
+        "grid_at_bound": [p.name for p in base if grid.best[p.name] in (p.lower, p.upper)
+                          and p.name not in baseline.full.undetermined],
         "refined": baseline.full.values, "refined_at_bound": baseline.full.at_bound,
+        "no_effect": baseline.full.undetermined,
         "insensitive_scenarios": locate.insensitive_scenarios(grid.table1),
         "folds": chain.folds,
     }, explain.ranked(scored), chosen, baseline, settings)

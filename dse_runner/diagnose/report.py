@@ -193,6 +193,8 @@ def _markdown(diagnosis: "Diagnosis", located: dict[str, pd.DataFrame], sig: dic
               f"{', '.join(cal['grid_at_bound']) or 'none'}.",
               f"Refined by least squares within the design space: {_point(cal['refined'])}; at a bound: "
               f"{', '.join(cal['refined_at_bound']) or 'none'}.",
+              "Parameters no run responds to (any value fits equally well): "
+              f"{', '.join(cal['no_effect']) or 'none'}.",
               "Runs no tuned parameter can improve (every grid point within 5 % of the calibrated error): "
               f"{', '.join(cal['insensitive_scenarios']) or 'none'}.", "",
               "Residuals of the calibrated model, by scenario group:", "", _table(located["by_group"]), "",

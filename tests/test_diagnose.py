@@ -1,0 +1,118 @@
+"""Discrepancy diagnosis, proven blind: recordings from a richer truth model (tests/blind.py)
+with each library effect concealed in turn, and with none, go through the whole chain on a
+real multi-process Dask cluster. The diagnosis must name the concealed effect first, size it
+within 25 %, at least halve the held-out cross-track error, and report nothing when there is
+nothing to find."""
+
+from __future__ import annotations
+
+import json
+
+import blind
+import pytest
+from conftest import MULTIMODEL, SCENARIOS
+from test_cli import dse_runner
+
+from dse_runner.diagnose import Settings, diagnose
+from dse_runner.diagnose.hypotheses import LIBRARY
+from dse_runner.rank import rank
+from dse_runner.spec import load_space
+from dse_runner.sweep import submit
+
+RUNS = ["sin1", "sin2", "speed_step1", "speed_step2", "turn_ramp1", "turn_ramp2", "speed_ramp1", "speed_ramp2"]
+SECONDS = 40.0  # of each run: enough for every manoeuvre, short enough for CI
+
+
+def calibration_space(folder):
+    """The paper's design space, coarser: cAlphaF x mass, 4 x 3 points."""
+    import yaml
+
+    path = folder / "calibration.yaml"
+    path.write_text(yaml.safe_dump({
+        "name": "blind-calibration", "multimodel": str(MULTIMODEL), "scenarios": [str(SCENARIOS / "sin1")],
+        "parameters": {"vehicle.cAlphaF": {"start": 20000, "stop": 38000, "step": 6000},
+                       "vehicle.mass": {"start": 1000, "stop": 3000, "step": 1000}},
+        "objectives": ["cross_track_error"],
+    }))
+    return path
+
+
+@pytest.fixture(scope="module")
+def cases(tmp_path_factory, dask_scheduler):
+    """Each effect's recordings and diagnosis, made once for the module's tests."""
+    from distributed import Client
+
+    made: dict = {}
+    with Client(dask_scheduler) as client:
+        def case(effect: str):
+            if effect not in made:
+                root = tmp_path_factory.mktemp(effect)
+                runs = blind.record(root / "runs", effect, RUNS, SECONDS, seed=sorted(blind.EFFECTS).index(effect))
+                space = calibration_space(root)
+                result = diagnose(runs, space=space, out=root / "out", settings=Settings(folds=2), client=client)
+                made[effect] = (root, runs, space, result)
+            return made[effect]
+
+        yield case
+
+
+@pytest.mark.parametrize("effect", [e for e in blind.EFFECTS if e != "none"])
+def test_a_concealed_effect_is_named_sized_and_fixed(cases, effect):
+    _, _, _, result = cases(effect)
+    named = [e["id"] for e in result.effects]
+    assert named[0] == effect, f"named {named}, candidates {[c.label for c in result.candidates]}"
+    truth = LIBRARY[effect].magnitude(blind.EFFECTS[effect])
+    assert result.effects[0]["magnitude"] == pytest.approx(truth, rel=0.25)
+    assert result.cross_track_after <= 0.5 * result.cross_track_before
+    low, high = zip(*result.effects[0]["interval"].values())
+    assert all(lo <= v <= hi for lo, v, hi in zip(low, result.effects[0]["parameters"].values(), high))
+
+
+def test_noise_only_reports_nothing_missing(cases):
+    _, _, _, result = cases("none")
+    assert [e["id"] for e in result.effects] == ["none"]
+    assert result.cross_track_after == result.cross_track_before
+    assert "multimodel" not in result.files
+
+
+def test_written_space_recalibrates_with_the_effect(cases, dask_scheduler):
+    root, runs, _, result = cases("steering_lag")
+    space = load_space(result.files["space"]).with_overrides(address=dask_scheduler)
+    assert "vehicle.steering_lag" in space.parameters
+    assert sorted(s.name for s in space.scenarios) == sorted(RUNS)
+    report = submit(space)
+    assert report.failed == 0 and report.ran == report.total
+    before = rank(result.out, "blind-calibration").best_total
+    after = rank(space.output, space.name)
+    assert after.best["vehicle.steering_lag"] > 0
+    assert after.best_total < 0.5 * before
+
+
+def test_report_and_figures_are_written(cases):
+    _, _, _, result = cases("antenna_offset")
+    text = result.files["report"].read_text()
+    for section in ("## 1. Locate", "## 2. Explain", "## 3. Model", "## 4. Show"):
+        assert section in text
+    assert "antenna_offset" in text
+    for name in ("figure_residuals", "figure_tracks", "figure_held_out"):
+        assert result.files[name].stat().st_size > 10_000
+    saved = json.loads((result.out / "report" / "diagnosis.json").read_text())
+    assert saved["effects"][0]["id"] == "antenna_offset"
+
+
+def test_cli_json_resumes_from_the_store(cases, dask_scheduler):
+    root, runs, space, result = cases("time_offset")
+    done = dse_runner("diagnose", "--scenarios", runs, "--space", space, "--out", root / "out", "--folds", "2",
+                      "--scheduler", dask_scheduler, "--json")
+    assert done.returncode == 0, done.stderr
+    printed = json.loads(done.stdout)
+    assert [e["id"] for e in printed["effects"]] == [e["id"] for e in result.effects]
+    assert printed["cross_track_before"] == pytest.approx(result.cross_track_before)
+    assert printed["cross_track_after"] == pytest.approx(result.cross_track_after)
+    assert set(printed["effects"][0]) >= {"id", "parameters", "interval"}
+
+
+def test_a_missing_scenarios_folder_is_named(tmp_path):
+    done = dse_runner("diagnose", "--scenarios", tmp_path / "nowhere", "--out", tmp_path / "out")
+    assert done.returncode == 2
+    assert "nowhere" in done.stderr
