@@ -20,6 +20,8 @@ from dse_runner.simulate import as_plan, simulate
 
 REPO = Path(__file__).resolve().parents[1]
 SOURCES = REPO / "scenarios" / "robotti"
+RUNS = ["sin1", "sin2", "speed_step1", "speed_step2", "turn_ramp1", "turn_ramp2", "speed_ramp1", "speed_ramp2"]
+SECONDS = 40.0  # of each run: enough for every manoeuvre, short enough for CI
 TRUTH_VEHICLE = {"vehicle.mass": 1800.0, "vehicle.cAlphaF": 26000.0}
 
 # Each library effect at a size a field engineer would care about.
@@ -72,3 +74,27 @@ def record(folder: Path, effect: str, runs: list[str], seconds: float, noise: fl
         rows = [f"{t:.2f},{a:.4f},{b:.4f}" for t, a, b in zip(fixes[keep], gx[keep], gy[keep])]
         (target / "gps_position.csv").write_text("time,x,y\n" + "\n".join(rows) + "\n")
     return folder
+
+
+def calibration_space(folder: Path) -> Path:
+    """The paper's design space, coarser: cAlphaF x mass, 4 x 3 points (the truth lies between them)."""
+    path = folder / "calibration.yaml"
+    path.write_text(yaml.safe_dump({
+        "name": "blind-calibration", "multimodel": str(REPO / "jobs" / "robotti" / "multimodel.yaml"),
+        "scenarios": [str(SOURCES / "sin1")],  # replaced by the recordings under test
+        "parameters": {"vehicle.cAlphaF": {"start": 20000, "stop": 38000, "step": 6000},
+                       "vehicle.mass": {"start": 1000, "stop": 3000, "step": 1000}},
+        "objectives": ["cross_track_error"],
+    }))
+    return path
+
+
+def run_case(effect: str, root: Path, client=None, address: str | None = None):
+    """Record ``effect`` under ``root`` and diagnose it; returns (runs folder, calibration space, Diagnosis)."""
+    from dse_runner.diagnose import Settings, diagnose
+
+    runs = record(root / "runs", effect, RUNS, SECONDS, seed=sorted(EFFECTS).index(effect))
+    space = calibration_space(root)
+    result = diagnose(runs, space=space, out=root / "out", settings=Settings(folds=2), client=client,
+                      address=address)
+    return runs, space, result

@@ -10,31 +10,12 @@ import json
 
 import blind
 import pytest
-from conftest import MULTIMODEL, SCENARIOS
 from test_cli import dse_runner
 
-from dse_runner.diagnose import Settings, diagnose
 from dse_runner.diagnose.hypotheses import LIBRARY
 from dse_runner.rank import rank
 from dse_runner.spec import load_space
 from dse_runner.sweep import submit
-
-RUNS = ["sin1", "sin2", "speed_step1", "speed_step2", "turn_ramp1", "turn_ramp2", "speed_ramp1", "speed_ramp2"]
-SECONDS = 40.0  # of each run: enough for every manoeuvre, short enough for CI
-
-
-def calibration_space(folder):
-    """The paper's design space, coarser: cAlphaF x mass, 4 x 3 points."""
-    import yaml
-
-    path = folder / "calibration.yaml"
-    path.write_text(yaml.safe_dump({
-        "name": "blind-calibration", "multimodel": str(MULTIMODEL), "scenarios": [str(SCENARIOS / "sin1")],
-        "parameters": {"vehicle.cAlphaF": {"start": 20000, "stop": 38000, "step": 6000},
-                       "vehicle.mass": {"start": 1000, "stop": 3000, "step": 1000}},
-        "objectives": ["cross_track_error"],
-    }))
-    return path
 
 
 @pytest.fixture(scope="module")
@@ -47,10 +28,7 @@ def cases(tmp_path_factory, dask_scheduler):
         def case(effect: str):
             if effect not in made:
                 root = tmp_path_factory.mktemp(effect)
-                runs = blind.record(root / "runs", effect, RUNS, SECONDS, seed=sorted(blind.EFFECTS).index(effect))
-                space = calibration_space(root)
-                result = diagnose(runs, space=space, out=root / "out", settings=Settings(folds=2), client=client)
-                made[effect] = (root, runs, space, result)
+                made[effect] = (root, *blind.run_case(effect, root, client))
             return made[effect]
 
         yield case
@@ -79,7 +57,7 @@ def test_written_space_recalibrates_with_the_effect(cases, dask_scheduler):
     root, runs, _, result = cases("steering_lag")
     space = load_space(result.files["space"]).with_overrides(address=dask_scheduler)
     assert "vehicle.steering_lag" in space.parameters
-    assert sorted(s.name for s in space.scenarios) == sorted(RUNS)
+    assert sorted(s.name for s in space.scenarios) == sorted(blind.RUNS)
     report = submit(space)
     assert report.failed == 0 and report.ran == report.total
     before = rank(result.out, "blind-calibration").best_total

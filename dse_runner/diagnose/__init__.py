@@ -12,6 +12,7 @@ zero when absent.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -124,16 +125,25 @@ def vehicle_of(multimodel: MultiModel) -> str:
     return split_ref(multimodel.track.x)[0]
 
 
-def effects_multimodel(multimodel: MultiModel, vehicle: str) -> dict[str, Any]:
-    """The multi-model with ``vehicle`` replaced by the effects variant, tracked at the GPS antenna."""
+def effects_multimodel(multimodel: MultiModel, vehicle: str, folder: Path) -> dict[str, Any]:
+    """The multi-model with ``vehicle`` replaced by the effects variant, tracked at the GPS antenna,
+    to be written into ``folder`` (FMU paths relative to it)."""
     variant = REPO / "fmus" / EFFECTS_FMU
     if not variant.is_dir():
         raise DseError(f"the effects variant of the vehicle is missing: {variant}")
     data = multimodel.model_dump(mode="json")
-    data["fmus"] = {name: str(multimodel.fmu_path(name)) for name in multimodel.fmus}
-    data["fmus"][vehicle] = str(variant)
+    data["fmus"] = {name: _relative(multimodel.fmu_path(name), folder) for name in multimodel.fmus}
+    data["fmus"][vehicle] = _relative(variant, folder)
     data["track"] = {"x": f"{vehicle}.gps_x", "y": f"{vehicle}.gps_y"}
     return data
+
+
+def _relative(path: Path, folder: Path) -> str:
+    """``path`` relative to ``folder`` where that is possible, so written files can move with the repository."""
+    try:
+        return os.path.relpath(path, folder)
+    except ValueError:  # another drive
+        return str(path)
 
 
 def _write_yaml(path: Path, data: dict[str, Any], header: str = "") -> Path:
@@ -158,7 +168,7 @@ def base_parameters(calibration: Space, best: dict[str, Any]) -> tuple[Parameter
 
 def fits_space(calibration: Space, vehicle: str, out: Path) -> Space:
     """A space over the effects multi-model whose rounds are given points (fit.py)."""
-    mm_path = _write_yaml(out / "effects-multimodel.yaml", effects_multimodel(calibration.multimodel, vehicle),
+    mm_path = _write_yaml(out / "effects-multimodel.yaml", effects_multimodel(calibration.multimodel, vehicle, out),
                           "# The multi-model diagnosis fits: the vehicle replaced by its effects variant.\n")
     parameters = {name: values for name, values in calibration.parameters.items()}
     parameters.update({f"{vehicle}.{v}": [0.0] for v in effect_variables()})
@@ -252,16 +262,16 @@ def choose(chain: Chain, start: dict[str, float]) -> tuple[Candidate, list[Candi
     return chosen, scored
 
 
-def write_model(diagnosis: Diagnosis, calibration: Space, effects_mm: Path) -> dict[str, Path]:
+def write_model(diagnosis: Diagnosis, calibration: Space) -> dict[str, Path]:
     """The chosen effects as a multi-model and a space.yaml that re-calibrates with them."""
     if not diagnosis.chosen.ids:
         return {}
     out, vehicle = diagnosis.out, diagnosis.calibration["vehicle"]
     names = ", ".join(diagnosis.chosen.ids)
-    mm_path = out / "augmented-multimodel.yaml"
-    mm_path.write_text(f"# Written by dse-runner diagnose: the vehicle's effects variant, for {names}.\n"
-                       + effects_mm.read_text())
-    spec = calibration.spec.model_dump(mode="json", exclude={"output", "keep_trajectories"})
+    mm_path = _write_yaml(out / "augmented-multimodel.yaml",
+                          effects_multimodel(calibration.multimodel, vehicle, out),
+                          f"# Written by dse-runner diagnose: the vehicle's effects variant, for {names}.\n")
+    spec = calibration.spec.model_dump(mode="json", exclude={"output", "keep_trajectories"}, exclude_none=True)
     parameters = dict(spec["parameters"])
     fit = diagnosis.chosen.full
     interval = fit.interval()
@@ -272,8 +282,9 @@ def write_model(diagnosis: Diagnosis, calibration: Space, effects_mm: Path) -> d
             if not (math.isfinite(low) and math.isfinite(high)) or high <= low:
                 low, high = p.lower, p.upper
             parameters[ref] = Range(start=round(low, 6), stop=round(high, 6), num=3).model_dump(exclude_none=True)
+    scenarios = [_relative(Path(s), out) if isinstance(s, str) else s for s in spec["scenarios"]]
     spec.update(name=f"{calibration.name}-with-{'-'.join(diagnosis.chosen.ids)}", multimodel=mm_path.name,
-                parameters=parameters, output="recalibration")
+                scenarios=scenarios, parameters=parameters, output="recalibration")
     space_path = _write_yaml(out / "space.yaml", spec,
                              f"# Written by dse-runner diagnose: the calibration with {names} added,\n"
                              "# each effect parameter over its fitted ~95 % interval. Run: dse-runner submit space.yaml\n")
@@ -339,6 +350,6 @@ def _diagnose(calibration: Space, out: Path, settings: Settings, client, say: Pr
     before = trajectories_of(space, client, baseline.full.point, BEFORE)
     after = trajectories_of(space, client, chosen.full.point, AFTER)
     frames = {"before": _locate(space, vehicle, before), "after": _locate(space, vehicle, after)}
-    diagnosis.files.update(write_model(diagnosis, calibration, out / "effects-multimodel.yaml"))
+    diagnosis.files.update(write_model(diagnosis, calibration))
     diagnosis.files.update(report.write(diagnosis, space, frames, before, after))
     return diagnosis
