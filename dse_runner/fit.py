@@ -142,7 +142,7 @@ class LevenbergMarquardt:
         self.x, self.r, self.sse = self.candidate, found, sse
         self.jacobian = self._jacobian(residuals)
         self.damping = max(self.damping / 3.0, 1e-9)
-        if self.x is not None and gain < self.problem.tolerance:
+        if gain < self.problem.tolerance:
             self._finish(converged=True)
             return
         self._next()

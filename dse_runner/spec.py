@@ -210,6 +210,11 @@ def _check_names(space: Space, source: str) -> None:
 def load_space(path: str | Path) -> Space:
     """Read, validate and resolve a space.yaml; every error names the file."""
     path = Path(path).resolve()
+    return resolve_space(read_spec(path), path)
+
+
+def read_spec(path: Path) -> SpaceSpec:
+    """Read and validate a space.yaml without resolving anything it names."""
     source = str(path)
     try:
         data = yaml.safe_load(path.read_text())
@@ -221,7 +226,7 @@ def load_space(path: str | Path) -> Space:
         spec = SpaceSpec.model_validate(data if data is not None else {})
     except ValidationError as e:
         raise DseError(format_validation_error(source, e)) from None
-    return resolve_space(spec, path)
+    return spec
 
 
 def resolve_space(spec: SpaceSpec, path: Path) -> Space:

@@ -25,7 +25,7 @@ from ..errors import DseError
 from ..fit import FitProblem, FitResult, Parameter, evaluate_points, fit_all
 from ..multimodel import MultiModel, split_ref
 from ..rank import rank
-from ..spec import Range, Space, SpaceSpec, load_space, resolve_space
+from ..spec import Range, Space, SpaceSpec, read_spec, resolve_space
 from ..sweep import submit, trajectories_of
 from . import explain, locate
 from .explain import Candidate
@@ -65,14 +65,15 @@ class Diagnosis:
         """The chosen hypotheses with their fitted parameters and ~95 % intervals; [none] if nothing."""
         if not self.chosen.ids:
             return [{"id": "none", "name": LIBRARY["none"].name, "parameters": {}, "interval": {}}]
-        fit, interval = self.chosen.full, self.chosen.full.interval()
-        return [{
-            "id": hid, "name": LIBRARY[hid].name,
-            "parameters": {v: fit.values[_vehicle_ref(self, v)] for v in LIBRARY[hid].variables},
-            "interval": {v: list(interval[_vehicle_ref(self, v)]) for v in LIBRARY[hid].variables},
-            "magnitude": LIBRARY[hid].magnitude({v: fit.values[_vehicle_ref(self, v)]
-                                                 for v in LIBRARY[hid].variables}),
-        } for hid in self.chosen.ids]
+        return [self._effect(hid) for hid in self.chosen.ids]
+
+    def _effect(self, hid: str) -> dict[str, Any]:
+        h, fit = LIBRARY[hid], self.chosen.full
+        refs = {v: f"{self.calibration['vehicle']}.{v}" for v in h.variables}
+        values = {v: fit.values[ref] for v, ref in refs.items()}
+        interval = fit.interval()
+        return {"id": hid, "name": h.name, "parameters": values,
+                "interval": {v: list(interval[ref]) for v, ref in refs.items()}, "magnitude": h.magnitude(values)}
 
     @property
     def cross_track_before(self) -> float:
@@ -97,25 +98,18 @@ class Diagnosis:
         }
 
 
-def _vehicle_ref(diagnosis: Diagnosis, variable: str) -> str:
-    return f"{diagnosis.calibration['vehicle']}.{variable}"
-
-
 def calibration_space(space: str | Path, scenarios: str | Path, multimodel: str | Path | None, out: Path,
                       n_workers: int | None = None, address: str | None = None) -> Space:
     """The calibration's design space (parameters and their ranges) on the given runs, results in ``out``."""
-    base = load_space(space)
+    path = Path(space).resolve()
     folder = Path(scenarios).resolve()
     if not folder.is_dir():
         raise DseError(f"--scenarios {scenarios}: not a folder")
     update: dict[str, Any] = {"scenarios": [str(folder / "*")], "output": str(out), "keep_trajectories": 0}
     if multimodel is not None:
         update["multimodel"] = str(Path(multimodel).resolve())
-    elif isinstance(base.spec.multimodel, str) and not Path(base.spec.multimodel).is_absolute():
-        update["multimodel"] = str((base.path.parent / base.spec.multimodel).resolve())
-    spec = base.spec.model_copy(update=update)
-    space_ = resolve_space(spec, base.path)
-    return space_.with_overrides(address=address, n_workers=n_workers)
+    spec = read_spec(path).model_copy(update=update)
+    return resolve_space(spec, path).with_overrides(address=address, n_workers=n_workers)
 
 
 def vehicle_of(multimodel: MultiModel) -> str:
