@@ -78,7 +78,7 @@ def test_interrupted_sweep_resumes_without_repeating_work(tmp_path):
     submitting again runs exactly the missing tasks."""
     path = write_space(tmp_path, scenarios=[str(SCENARIOS / "*")], chunk_seconds=0.2,
                        parameters={"vehicle.mass": [1000, 2000, 3000], "vehicle.cAlphaF": [20000, 30000],
-                                   "vehicle.rk4_step": [0.0002]},
+                                   "vehicle.rk4_step": [0.00005]},  # slow: the interrupt lands mid-sweep
                        cluster={"n_workers": 2})
     command = [sys.executable, "-m", "dse_runner.cli", "submit", str(path), "--json"]
     first = subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
