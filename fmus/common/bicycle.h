@@ -9,6 +9,8 @@
 
 #include <math.h>
 
+#include "slave.h"
+
 typedef struct {
     double m, c_alpha_f, c_alpha_r, mu, lf, lr, r_gyr, kv, v_min, g;
 } Bicycle;
@@ -84,11 +86,27 @@ static inline void rk4_advance(Rhs f, const void *ctx, int n, double *z, double 
     }
 }
 
-/* 0 if every state is finite. */
-static inline int all_finite(const double *z, int n) {
+/* The six outputs x, y, theta, vx, vy, yaw_rate, consecutive from out[0]. */
+static inline void bicycle_publish(double *out, const double *z) {
+    out[0] = z[B_X];
+    out[1] = z[B_Y];
+    out[2] = z[B_PSI];
+    out[3] = z[B_VX];
+    out[4] = z[B_VY];
+    out[5] = z[B_R];
+}
+
+/* 0 if every state is finite; otherwise logs the step that diverged and returns 1. */
+static inline int check_finite(Slave *s, const double *z, int n, double t, double h) {
     for (int i = 0; i < n; i++)
-        if (!isfinite(z[i])) return 0;
-    return 1;
+        if (!isfinite(z[i])) {
+            slave_log(s, fmi2Error, "logStatusError",
+                      "vehicle state diverged (non-finite) during the step from t=%.6g to t=%.6g; "
+                      "try a smaller rk4_step",
+                      t, t + h);
+            return 1;
+        }
+    return 0;
 }
 
 #endif

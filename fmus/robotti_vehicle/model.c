@@ -44,12 +44,7 @@ static void rhs(const void *ctx, double t, const double *z, double *dz) {
 
 static void publish(Slave *s, const double *z) {
     double *p = s->r;
-    p[X] = z[B_X];
-    p[Y] = z[B_Y];
-    p[THETA] = z[B_PSI];
-    p[VX] = z[B_VX];
-    p[VY] = z[B_VY];
-    p[YAW_RATE] = z[B_R];
+    bicycle_publish(&p[X], z); /* X, Y, THETA, VX, VY, YAW_RATE are consecutive */
 }
 
 /* The initial pose comes from parameters; the vehicle starts at rest. */
@@ -83,13 +78,7 @@ static int do_step(Slave *s, double t, double h) {
     const Step step = {bicycle_of(p), p[VELOCITY], p[DELTA_F]};
     double *z = s->state;
     rk4_advance(rhs, &step, BICYCLE_STATES, z, t, h, p[RK4_STEP]);
-    if (!all_finite(z, BICYCLE_STATES)) {
-        slave_log(s, fmi2Error, "logStatusError",
-                  "vehicle state diverged (non-finite) during the step from t=%.6g to t=%.6g; "
-                  "try a smaller rk4_step",
-                  t, t + h);
-        return 1;
-    }
+    if (check_finite(s, z, BICYCLE_STATES, t, h) != 0) return 1;
     publish(s, z);
     return 0;
 }

@@ -135,12 +135,7 @@ static void rhs(const void *ctx, double t, const double *z, double *dz) {
 static void publish(Slave *s, const double *z) {
     double *p = s->r;
     const double c = cos(z[B_PSI]), sn = sin(z[B_PSI]);
-    p[X] = z[B_X];
-    p[Y] = z[B_Y];
-    p[THETA] = z[B_PSI];
-    p[VX] = z[B_VX];
-    p[VY] = z[B_VY];
-    p[YAW_RATE] = z[B_R];
+    bicycle_publish(&p[X], z); /* X, Y, THETA, VX, VY, YAW_RATE are consecutive */
     p[GPS_X] = z[B_X] + p[ANTENNA_X] * c - p[ANTENNA_Y] * sn;
     p[GPS_Y] = z[B_Y] + p[ANTENNA_X] * sn + p[ANTENNA_Y] * c;
 }
@@ -189,13 +184,7 @@ static int do_step(Slave *s, double t, double h) {
         {p[WHEEL_SLIP], p[GRADE_X], p[GRADE_Y]}, &st->history,
     };
     rk4_advance(rhs, &step, N_STATES, st->z, t, h, p[RK4_STEP]);
-    if (!all_finite(st->z, N_STATES)) {
-        slave_log(s, fmi2Error, "logStatusError",
-                  "vehicle state diverged (non-finite) during the step from t=%.6g to t=%.6g; "
-                  "try a smaller rk4_step",
-                  t, t + h);
-        return 1;
-    }
+    if (check_finite(s, st->z, N_STATES, t, h) != 0) return 1;
     publish(s, st->z);
     return 0;
 }
