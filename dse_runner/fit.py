@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -239,8 +239,6 @@ def fit_all(space: Space, problems: list[FitProblem], client, progress: Progress
     ``fix_residuals``) over the union of the points the fits ask for."""
     if RESIDUALS not in space.objectives:
         raise DseError(f"space {space.name}: fitting needs the objective {RESIDUALS!r}")
-    model = model_hash(space.plan, space.objectives)
-    scenario_ids = {s.name: scenario_hash(s) for s in space.scenarios}
     solvers = [LevenbergMarquardt(p) for p in problems]
     round_ = 0
     while True:
@@ -251,41 +249,26 @@ def fit_all(space: Space, problems: list[FitProblem], client, progress: Progress
         round_ += 1
         if progress:
             progress(round_, len(asked), len(points))
-        submit(space, client=client, points=points)
-        residuals = _read_round(space, model, scenario_ids, points)
+        rows = evaluate_points(space, points, client, [RESIDUALS])
+
+        def residuals(point: Point, scenario: str) -> np.ndarray | None:
+            row = rows.get((key_of(point), scenario))
+            return np.asarray(row[RESIDUALS], dtype=float) if row and row["status"] == "ok" else None
+
         for solver in solvers:
             if id(solver) in asked:
-                solver.tell(lambda point, scenario: residuals.get((key_of(point), scenario)))
+                solver.tell(residuals)
     return {s.problem.label: s.result() for s in solvers}
 
 
-def _read_round(space: Space, model: str, scenario_ids: dict[str, str],
-                points: list[Point]) -> dict[tuple[Key, str], np.ndarray | None]:
-    ids: dict[str, tuple[Key, str]] = {}
-    for point in points:
-        for scenario, data in scenario_ids.items():
-            ids[task_id(model, point, data)] = (key_of(point), scenario)
-    rows = store.read_tasks(space.output, space.name, list(ids), columns=["status", RESIDUALS])
-    found: dict[tuple[Key, str], np.ndarray | None] = {key: None for key in ids.values()}
-    for tid, status, values in zip(rows["task_id"], rows["status"], rows[RESIDUALS]):
-        found[ids[tid]] = np.asarray(values, dtype=float) if status == "ok" else None
-    return found
+Rows = dict[tuple[Key, str], dict[str, Any]]  # (point, scenario) -> its result row
 
 
-@dataclass
-class Evaluation:
-    """Objectives of given points on every scenario, read back from a sweep."""
-
-    rows: dict[tuple[Key, str], dict[str, Any]] = field(default_factory=dict)
-
-    def get(self, point: Point, scenario: str) -> dict[str, Any] | None:
-        return self.rows.get((key_of(point), scenario))
-
-
-def evaluate_points(space: Space, points: list[Point], client, columns: list[str]) -> Evaluation:
-    """Run ``points`` on every scenario of ``space`` as one sweep and return their rows."""
+def evaluate_points(space: Space, points: list[Point], client, columns: list[str]) -> Rows:
+    """Run ``points`` on every scenario of ``space`` as one sweep (skipping finished tasks) and
+    return their rows with ``status`` and ``columns``."""
     submit(space, client=client, points=points)
     model = model_hash(space.plan, space.objectives)
-    ids = {task_id(model, p, scenario_hash(s)): (key_of(p), s.name) for p in points for s in space.scenarios}
+    ids = {task_id(model, p, scenario_hash(s)): (key_of(p), s.name) for s in space.scenarios for p in points}
     rows = store.read_tasks(space.output, space.name, list(ids), columns=["status", *columns])
-    return Evaluation({ids[r["task_id"]]: r for r in rows.to_dict("records")})
+    return {ids[r["task_id"]]: r for r in rows.to_dict("records")}

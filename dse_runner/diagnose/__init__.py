@@ -22,7 +22,7 @@ import yaml
 
 from ..cluster import connect
 from ..errors import DseError
-from ..fit import FitProblem, FitResult, Parameter, evaluate_points, fit_all
+from ..fit import FitProblem, FitResult, Parameter, evaluate_points, fit_all, key_of
 from ..multimodel import MultiModel, split_ref
 from ..rank import rank
 from ..spec import Range, Space, SpaceSpec, read_spec, resolve_space
@@ -223,7 +223,7 @@ class Chain:
                 fit = by_fold[f"{labels[ids]}/fold{k}"]
                 candidate.folds.append(fit)
                 for scenario in fold:
-                    row = rows.get(fit.point, scenario)
+                    row = rows.get((key_of(fit.point), scenario))
                     candidate.held_out[scenario] = (float(row["cross_track_error"])
                                                     if row and row["status"] == "ok" else math.inf)
             result.append(candidate)
