@@ -30,6 +30,7 @@ from .spec import Ranking as RankingSpec
 from .spec import SpaceSpec
 
 SWEEP_FILE = "sweep.json"  # the spec a sweep ran with, saved beside its results
+MODEL_FILE = "model"  # the hash of the model it last ran
 
 
 @dataclass
@@ -64,9 +65,16 @@ class Ranking:
         }
 
 
-def save_sweep_spec(output: Path, spec: SpaceSpec) -> None:
+def save_sweep_spec(output: Path, spec: SpaceSpec, model: str) -> None:
+    """The spec a sweep runs with, and the hash of its model, whose rows rankings use."""
     Path(output).mkdir(parents=True, exist_ok=True)
     (Path(output) / f"{spec.name}.{SWEEP_FILE}").write_text(spec.model_dump_json(indent=2))
+    (Path(output) / f"{spec.name}.{MODEL_FILE}").write_text(model + "\n")
+
+
+def current_model(output: Path, sweep: str) -> str | None:
+    path = Path(output) / f"{sweep}.{MODEL_FILE}"
+    return path.read_text().strip() if path.is_file() else None
 
 
 def load_sweep_spec(output: Path, sweep: str) -> SpaceSpec:
@@ -118,7 +126,10 @@ def rank(output: str | Path, sweep: str | None = None, settings: RankingSpec | N
         if name not in objectives:
             raise DseError(f"ranking: objective {name!r} is not among the sweep's ({', '.join(objectives)})")
 
-    rows = store.read_results(output, sweep, columns=["group", "status", *parameters, *objectives])
+    rows = store.read_results(output, sweep, columns=["model", "group", "status", *parameters, *objectives])
+    model = current_model(output, sweep)
+    if model is not None:  # rows of an earlier version of the model (a changed FMU) are not ranked
+        rows = rows[rows["model"] == model]
     if rows.empty:
         raise DseError(f"{output}: sweep {sweep!r} has no rows yet")
     ok = rows[rows["status"] == "ok"]

@@ -3,7 +3,9 @@
     <output>/results/sweep=<name>/scenario=<scenario>/part-<chunk>.parquet
     <output>/trajectories/sweep=<name>/scenario=<scenario>/rank-<k>.parquet
 
-One row per task: ``task_id``, the parameter values (one column each, named
+One row per task: ``task_id``, ``model`` (the hash of the model that produced
+it: a changed FMU gives new rows beside the old, and rankings use the current
+model's), the parameter values (one column each, named
 ``instance.variable``), ``group``, every objective, ``status`` (ok/failed),
 ``error``, ``wall_time`` and ``worker``; ``sweep`` and ``scenario`` come from
 the folder names. Each chunk's file is written under a temporary name and
@@ -56,7 +58,7 @@ def results_schema(parameters: dict[str, list[Any]], objectives: tuple[str, ...]
         return pa.string()
 
     return pa.schema(
-        [("task_id", pa.string()), ("group", pa.string())]
+        [("task_id", pa.string()), ("model", pa.string()), ("group", pa.string())]
         + [(name, kind(values)) for name, values in parameters.items()]
         + [(name, pa.list_(pa.float64()) if is_vector(name) else pa.float64()) for name in objectives]
         + [("status", pa.string()), ("error", pa.string()), ("wall_time", pa.float64()), ("worker", pa.string())]
@@ -84,6 +86,14 @@ def _dataset(root: Path, kind: str, sweep: str | None = None) -> ds.Dataset | No
     return ds.dataset(files, format="parquet", partitioning=PARTITIONING, partition_base_dir=str(folder))
 
 
+def _with_every_column(dataset: ds.Dataset) -> ds.Dataset:
+    """The dataset with the union of its files' columns: a sweep re-run with more objectives has files
+    of both shapes, and the dataset otherwise takes its columns from whichever file comes first."""
+    schema = pa.unify_schemas([pq.read_schema(f) for f in dataset.files] + [PARTITIONING.schema])
+    return ds.dataset(dataset.files, schema=schema, format="parquet", partitioning=PARTITIONING,
+                      partition_base_dir=str(Path(dataset.files[0]).parents[2]))
+
+
 def read_results(root: Path, sweep: str | None = None, columns: list[str] | None = None) -> pd.DataFrame:
     """Rows of finished tasks, reading only ``columns`` (plus the keys); no trajectories."""
     dataset = _dataset(root, RESULTS, sweep)
@@ -92,6 +102,8 @@ def read_results(root: Path, sweep: str | None = None, columns: list[str] | None
     wanted = None
     if columns is not None:
         wanted = list(dict.fromkeys(["task_id", "sweep", "scenario", *columns]))
+        if any(c not in dataset.schema.names for c in wanted):
+            dataset = _with_every_column(dataset)
         missing = [c for c in wanted if c not in dataset.schema.names]
         if missing:
             raise DseError(f"{root}: the results have no column {', '.join(missing)} "

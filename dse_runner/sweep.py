@@ -112,7 +112,8 @@ def run_chunk(job: ChunkJob) -> ChunkSummary:
         if error and len(errors) < 3:
             errors.append(f"{task.scenario} {dict(task.point)}: {error}")
         rows.append({
-            "task_id": task.task_id, "scenario": task.scenario, "group": scenario.group, **dict(task.point),
+            "task_id": task.task_id, "model": job.model_key, "scenario": task.scenario, "group": scenario.group,
+            **dict(task.point),
             **(scores or {name: None for name in job.objectives}),
             "status": "ok" if error is None else "failed", "error": error,
             "wall_time": time.perf_counter() - t0, "worker": worker,
@@ -186,7 +187,7 @@ def submit(space: Space, progress: Progress | None = None, client=None,
     optimiser (fit.py) runs each of its rounds as a sweep into the same store."""
     started = time.perf_counter()
     output = space.output
-    save_sweep_spec(output, space.spec)
+    save_sweep_spec(output, space.spec, model_hash(space.plan, space.objectives))
     done = store.finished_task_ids(output, space.name)
     total = skipped = 0
     for task in expand(space, points):

@@ -176,3 +176,17 @@ def test_rank_command_json(tmp_path, dask_scheduler):
     assert report["best_total"] == pytest.approx(rank(space.output).best_total)
     assert len(report["table1"]) == 2
     assert (space.output / "ranking" / "small" / "table1.csv").is_file()
+
+
+def test_a_changed_model_is_ranked_on_its_own_rows(tmp_path, dask_scheduler):
+    """Re-running a sweep after its model changed (here its objectives; equally a rebuilt FMU) adds the new
+    model's rows beside the old; the ranking uses only the new ones."""
+    first = load_space(write_space(tmp_path, objectives=["cross_track_error"])).with_overrides(address=dask_scheduler)
+    submit(first)
+    second = load_space(write_space(tmp_path, objectives=["cross_track_error", "max_error"])
+                        ).with_overrides(address=dask_scheduler)
+    report = submit(second)
+    assert report.skipped == 0 and report.ran == report.total
+    assert len(store.read_results(second.output, "small", columns=[])) == 2 * report.total
+    ranking = rank(second.output, "small")
+    assert len(ranking.totals) == report.total // len(second.scenarios)  # every point complete, once
