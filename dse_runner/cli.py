@@ -134,9 +134,11 @@ def _print_table1(ranking) -> None:
 @app.command()
 def submit(
     spec: Annotated[Path, typer.Argument(help="Design-space spec (space.yaml).")],
-    out: Annotated[Path | None, typer.Option(help="Results folder (overrides the spec's 'output').")] = None,
-    workers: Annotated[int | None, typer.Option(help="Local cluster workers (overrides the spec).")] = None,
-    scheduler: Annotated[str | None, typer.Option(help="Address of an existing Dask scheduler.")] = None,
+    out: Annotated[str | None, typer.Option(help="Results folder or fsspec URL (overrides the spec's 'output').")] = None,
+    workers: Annotated[int | None, typer.Option(help="Workers to start (overrides the spec).")] = None,
+    scheduler: Annotated[str | None, typer.Option(help="Address of an existing Dask scheduler (tcp:// or tls://).")] = None,
+    cluster: Annotated[str | None, typer.Option(help="Start a cluster of this kind: local, htcondor, kubernetes "
+                                                     "or a plugin's (overrides the spec).")] = None,
     as_json: JsonFlag = False,
 ) -> None:
     """Run every (parameter point, scenario) task of SPEC on Dask; resume if run again; rank."""
@@ -145,7 +147,7 @@ def submit(
     from .sweep import submit as run_sweep
 
     try:
-        space = load_space(spec).with_overrides(out, scheduler, workers)
+        space = load_space(spec).with_overrides(out, scheduler, workers, cluster)
         with ProgressBar() as progress:
             report = run_sweep(space, progress=progress)
     except DseError as e:
@@ -170,7 +172,7 @@ def submit(
             typer.echo(f"  failed: {error.splitlines()[0]}")
     try:
         ranking = rank(report.output, report.sweep)
-        files = write_ranking(ranking, report.output / "ranking" / report.sweep)
+        files = write_ranking(ranking, report.output, report.sweep)
     except DseError as e:
         if as_json:
             emit_json({**summary, "ranking": None, "best": None, "best_total": None})
@@ -180,7 +182,7 @@ def submit(
         emit_json({**summary, "ranking": str(files["json"]), "best": ranking.best, "best_total": ranking.best_total})
         return
     _print_table1(ranking)
-    typer.echo(f"ranking: {files['json'].parent}")
+    typer.echo(f"ranking: {files['json'].rsplit('/', 1)[0]}")
 
 
 class ProgressBar:
@@ -216,7 +218,7 @@ class ProgressBar:
 
 @app.command("rank")
 def rank_command(
-    results: Annotated[Path, typer.Argument(help="A sweep's output folder.")],
+    results: Annotated[str, typer.Argument(help="A sweep's store: output folder or URL.")],
     sweep: Annotated[str | None, typer.Option(help="Which sweep, if the folder holds several.")] = None,
     objective: Annotated[str | None, typer.Option(help="Rank by this objective instead of the spec's.")] = None,
     as_json: JsonFlag = False,
@@ -233,7 +235,7 @@ def rank_command(
                 raise DseError(f"{results}: no results")
             settings = load_sweep_spec(results, names[0]).ranking.model_copy(update={"objective": objective})
         ranking = rank(results, sweep, settings)
-        files = write_ranking(ranking, results / "ranking" / ranking.sweep)
+        files = write_ranking(ranking, results, ranking.sweep)
     except DseError as e:
         fail(e)
     if as_json:
@@ -248,7 +250,7 @@ def rank_command(
     if ranking.incomplete_points or ranking.failed_rows:
         typer.echo(f"not ranked: {ranking.incomplete_points} points without an ok row for every scenario "
                    f"({ranking.failed_rows} failed rows)")
-    typer.echo(f"written: {files['json'].parent}")
+    typer.echo(f"written: {files['json'].rsplit('/', 1)[0]}")
 
 
 @app.command()

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -65,23 +64,22 @@ class Ranking:
         }
 
 
-def save_sweep_spec(output: Path, spec: SpaceSpec, model: str) -> None:
+def save_sweep_spec(output: store.Root, spec: SpaceSpec, model: str) -> None:
     """The spec a sweep runs with, and the hash of its model, whose rows rankings use."""
-    Path(output).mkdir(parents=True, exist_ok=True)
-    (Path(output) / f"{spec.name}.{SWEEP_FILE}").write_text(spec.model_dump_json(indent=2))
-    (Path(output) / f"{spec.name}.{MODEL_FILE}").write_text(model + "\n")
+    store.write_text(output, f"{spec.name}.{SWEEP_FILE}", spec.model_dump_json(indent=2))
+    store.write_text(output, f"{spec.name}.{MODEL_FILE}", model + "\n")
 
 
-def current_model(output: Path, sweep: str) -> str | None:
-    path = Path(output) / f"{sweep}.{MODEL_FILE}"
-    return path.read_text().strip() if path.is_file() else None
+def current_model(output: store.Root, sweep: str) -> str | None:
+    text = store.read_text(output, f"{sweep}.{MODEL_FILE}")
+    return text.strip() if text is not None else None
 
 
-def load_sweep_spec(output: Path, sweep: str) -> SpaceSpec:
-    path = Path(output) / f"{sweep}.{SWEEP_FILE}"
-    if not path.is_file():
-        raise DseError(f"{output}: no {path.name}; is this the output folder of a dse-runner submit?")
-    return SpaceSpec.model_validate_json(path.read_text())
+def load_sweep_spec(output: store.Root, sweep: str) -> SpaceSpec:
+    text = store.read_text(output, f"{sweep}.{SWEEP_FILE}")
+    if text is None:
+        raise DseError(f"{output}: no {sweep}.{SWEEP_FILE}; is this the output folder of a dse-runner submit?")
+    return SpaceSpec.model_validate_json(text)
 
 
 def _sign(goal: str) -> float:
@@ -107,9 +105,8 @@ def _best_first(frame: pd.DataFrame, column: str, goal: str) -> pd.DataFrame:
     return frame.sort_values(column, ascending=(goal == "min"), kind="stable").reset_index(drop=True)
 
 
-def rank(output: str | Path, sweep: str | None = None, settings: RankingSpec | None = None) -> Ranking:
+def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | None = None) -> Ranking:
     """Rank the results in ``output`` with the sweep's own ranking settings unless given others."""
-    output = Path(output)
     names = store.sweeps(output)
     if not names:
         raise DseError(f"{output}: no results (expected {store.RESULTS}/sweep=NAME/...)")
@@ -191,13 +188,11 @@ def _groups(ok: pd.DataFrame, parameters: list[str], objective: str, goal: str,
     return pd.DataFrame(result)
 
 
-def write_ranking(ranking: Ranking, folder: Path) -> dict[str, Path]:
-    """CSV files and one JSON file, for people and for scripts."""
-    folder.mkdir(parents=True, exist_ok=True)
+def write_ranking(ranking: Ranking, output: store.Root, sweep: str) -> dict[str, str]:
+    """CSV files and one JSON file in ``<output>/ranking/<sweep>/``, for people and for scripts."""
     paths = {}
     for name in ("totals", "table1", "pareto", "groups", "weighted"):
-        paths[name] = folder / f"{name}.csv"
-        getattr(ranking, name).to_csv(paths[name], index=False)
-    paths["json"] = folder / "ranking.json"
-    paths["json"].write_text(json.dumps(ranking.to_json(), indent=2))
+        paths[name] = store.write_text(output, f"ranking/{sweep}/{name}.csv",
+                                       getattr(ranking, name).to_csv(index=False))
+    paths["json"] = store.write_text(output, f"ranking/{sweep}/ranking.json", json.dumps(ranking.to_json(), indent=2))
     return paths

@@ -24,6 +24,7 @@ from .cosim import Plan, check_settable, make_plan
 from .multimodel import MultiModel, format_validation_error, load_multimodel, parse_multimodel
 from .scenario import Scenario, load_scenario
 from .search import strategy
+from .store import is_url
 
 Strict = ConfigDict(extra="forbid")
 
@@ -93,11 +94,60 @@ class Search(BaseModel):
     strategy: str = "exhaustive"  # built-in or a plugin's (see search.py)
 
 
-class Cluster(BaseModel):
+class Tls(BaseModel):
+    """Certificates for a TLS scheduler (distributed's Security); paths relative to the spec."""
+
     model_config = Strict
-    address: str | None = None  # an existing scheduler; default: an embedded local cluster
-    n_workers: PositiveInt | None = None  # local cluster size; default: the number of cores
+    ca_file: str  # the authority that signed the scheduler's and workers' certificates
+    cert: str  # this client's certificate
+    key: str  # its private key
+
+
+class HTCondor(BaseModel):
+    """dask-jobqueue's HTCondorCluster: one HTCondor job per worker."""
+
+    model_config = Strict
+    cores: PositiveInt = 1  # per job; each core runs one single-threaded worker process
+    memory: str = "2GiB"  # per job
+    disk: str = "1GiB"  # per job: extracted FMUs and scenario files, a few MB
+    job_extra: dict[str, str] = {}  # extra submit-description lines, e.g. {"+ProjectName": '"robotti"'}
+    prologue: list[str] = []  # shell lines before the worker starts, e.g. activating an environment
+    python: str | None = None  # the worker's Python on the execute nodes; default: this one
+    interface: str | None = None  # network interface the scheduler listens on, e.g. eth0
+
+
+class Kubernetes(BaseModel):
+    """The dask-kubernetes operator's KubeCluster: a DaskCluster resource in a namespace."""
+
+    model_config = Strict
+    image: str = "ghcr.io/dse-runner/dse-runner:latest"  # see deploy/Dockerfile
+    namespace: str | None = None  # default: the current kube context's
+    resources: dict[str, dict[str, str]] = {"requests": {"cpu": "1", "memory": "2Gi"},
+                                             "limits": {"cpu": "1", "memory": "2Gi"}}
+    env: dict[str, str] = {}
+
+
+class Cluster(BaseModel):
+    """Where tasks run: ``address`` of an existing scheduler, or a cluster of ``kind`` started for the sweep."""
+
+    model_config = Strict
+    kind: str = "local"  # local, htcondor, kubernetes, or a plugin's (see cluster.py)
+    address: str | None = None  # tcp://host:8786 or tls://host:8786: use this scheduler, start nothing
+    n_workers: PositiveInt | None = None  # workers to start; local default: the number of cores
     threads_per_worker: PositiveInt = 1
+    tls: Tls | None = None
+    dashboard_address: str = "127.0.0.1:0"  # of a scheduler we start; loopback unless asked otherwise
+    connect_timeout: PositiveFloat = 30.0  # seconds to reach a scheduler and see its first worker
+    htcondor: HTCondor = HTCondor()
+    kubernetes: Kubernetes = Kubernetes()
+
+    @model_validator(mode="after")
+    def _address_or_kind(self) -> "Cluster":
+        if self.address is not None and self.kind != "local":
+            raise ValueError(f"give either 'address' (an existing scheduler) or 'kind: {self.kind}', not both")
+        if self.address is not None and not self.address.startswith(("tcp://", "tls://", "ucx://", "inproc://")):
+            raise ValueError(f"address {self.address!r} needs a protocol: tcp://host:port or tls://host:port")
+        return self
 
 
 class SpaceSpec(BaseModel):
@@ -110,7 +160,7 @@ class SpaceSpec(BaseModel):
     objectives: list[str] = list(objs.DEFAULT)
     ranking: Ranking = Ranking()
     search: Search = Search()
-    output: str = "out"  # results folder, relative to the spec
+    output: str = "out"  # results store: a folder relative to the spec, or an fsspec URL (s3://bucket/prefix)
     cluster: Cluster = Cluster()
     keep_trajectories: int = Field(default=3, ge=0)  # best points whose tracks are kept
     timeout: PositiveFloat = 600.0  # seconds one simulation may take
@@ -152,21 +202,28 @@ class Space:
         return tuple(self.spec.objectives)
 
     @property
-    def output(self) -> Path:
+    def output(self) -> Path | str:
+        """The results store: a local folder (relative to the spec) or an fsspec URL."""
+        if is_url(self.spec.output):
+            return self.spec.output
         out = Path(self.spec.output)
         return out if out.is_absolute() else (self.path.parent / out).resolve()
 
-    def with_overrides(self, output: Path | None = None, address: str | None = None,
-                       n_workers: int | None = None) -> "Space":
-        """The same space with the CLI's --out, --scheduler or --workers applied."""
+    def with_overrides(self, output: str | Path | None = None, address: str | None = None,
+                       n_workers: int | None = None, kind: str | None = None) -> "Space":
+        """The same space with the CLI's --out, --scheduler, --cluster or --workers applied."""
         update: dict[str, Any] = {}
         if output is not None:
-            update["output"] = str(Path(output).resolve())
-        if address is not None or n_workers is not None:
-            cluster = self.spec.cluster.model_copy(update={k: v for k, v in
-                                                           {"address": address, "n_workers": n_workers}.items()
-                                                           if v is not None})
-            update["cluster"] = cluster
+            update["output"] = output if is_url(str(output)) else str(Path(output).resolve())
+        cluster: dict[str, Any] = {}
+        if address is not None:
+            cluster.update(address=address, kind="local")
+        if kind is not None:
+            cluster.update(kind=kind, address=None)
+        if n_workers is not None:
+            cluster["n_workers"] = n_workers
+        if cluster:
+            update["cluster"] = Cluster.model_validate({**self.spec.cluster.model_dump(), **cluster})
         return Space(self.spec.model_copy(update=update), self.path, self.plan, self.scenarios)
 
     def admits(self, point: dict[str, Any]) -> bool:

@@ -1,16 +1,23 @@
-"""Results on disk: a Parquet dataset partitioned by sweep and scenario.
+"""Results in a store: a Parquet dataset partitioned by sweep and scenario.
 
-    <output>/results/sweep=<name>/scenario=<scenario>/part-<chunk>.parquet
-    <output>/trajectories/sweep=<name>/scenario=<scenario>/rank-<k>.parquet
+    <store>/results/sweep=<name>/scenario=<scenario>/part-<chunk>.parquet
+    <store>/trajectories/sweep=<name>/scenario=<scenario>/rank-<k>.parquet
+    <store>/<name>.sweep.json, <name>.model      (written by rank.save_sweep_spec)
+
+A store is a local folder or any fsspec URL the workers can reach
+(``s3://bucket/prefix``, ``gs://…``, ``abfs://…``; credentials come the way
+that file system's library takes them, e.g. AWS_* variables for S3). Workers
+write their chunks' files themselves, so the client never holds a sweep's rows.
 
 One row per task: ``task_id``, ``model`` (the hash of the model that produced
 it: a changed FMU gives new rows beside the old, and rankings use the current
 model's), the parameter values (one column each, named
 ``instance.variable``), ``group``, every objective, ``status`` (ok/failed),
 ``error``, ``wall_time`` and ``worker``; ``sweep`` and ``scenario`` come from
-the folder names. Each chunk's file is written under a temporary name and
-renamed into place, so a crash never leaves half a file, and readers drop
-any repeated ``task_id``, so a result is never counted twice.
+the folder names. A chunk's file appears whole or not at all (a local file is
+written under a temporary name and renamed; an object store's PUT is atomic),
+and its name is the chunk's id, so a chunk run twice replaces its own file and
+readers drop any repeated ``task_id``: a result is never counted twice.
 """
 
 from __future__ import annotations
@@ -20,10 +27,12 @@ import uuid
 from pathlib import Path
 from typing import Any
 
+import fsspec
 import pandas as pd
 import pyarrow as pa
 import pyarrow.dataset as ds
 import pyarrow.parquet as pq
+from fsspec.implementations.local import LocalFileSystem
 
 from .errors import DseError
 from .objectives import is_vector
@@ -32,18 +41,81 @@ RESULTS = "results"
 TRAJECTORIES = "trajectories"
 PARTITIONING = ds.partitioning(pa.schema([("sweep", pa.string()), ("scenario", pa.string())]), flavor="hive")
 
-
-def partition_dir(root: Path, kind: str, sweep: str, scenario: str) -> Path:
-    return Path(root) / kind / f"sweep={sweep}" / f"scenario={scenario}"
+Root = str | Path  # a local folder or an fsspec URL
 
 
-def write_atomically(table: pa.Table, path: Path) -> Path:
-    """Write ``table`` to ``path`` so that readers see all of it or nothing."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_name(f".{path.name}.{uuid.uuid4().hex}.partial")
-    pq.write_table(table, partial)
-    os.replace(partial, path)
-    return path
+def is_url(text: str) -> bool:
+    """``s3://bucket/x`` is a URL; ``/data/out`` and ``C:/out`` are not."""
+    protocol, sep, _ = text.partition("://")
+    return bool(sep) and len(protocol) > 1
+
+
+def _fs(root: Root) -> tuple[fsspec.AbstractFileSystem, str]:
+    """The file system of ``root`` and its path within it."""
+    if not is_url(str(root)):
+        return LocalFileSystem(), str(Path(root).resolve())
+    try:
+        fs, path = fsspec.core.url_to_fs(str(root))
+    except (ImportError, ValueError) as e:
+        raise DseError(f"store {root}: {e}") from None
+    return fs, path.rstrip("/")
+
+
+def _arrow_fs(fs: fsspec.AbstractFileSystem) -> Any:
+    """None (pyarrow's own, faster local file system) for local folders, else the fsspec one."""
+    return None if isinstance(fs, LocalFileSystem) else fs
+
+
+def _join(*parts: str) -> str:
+    return "/".join(p.strip("/") if i else p.rstrip("/") for i, p in enumerate(parts))
+
+
+def _partition(kind: str, sweep: str, scenario: str) -> str:
+    return f"{kind}/sweep={sweep}/scenario={scenario}"
+
+
+def check_reachable(root: Root) -> None:
+    """Fail early, naming the store, if it cannot be created or written."""
+    fs, path = _fs(root)
+    try:
+        fs.makedirs(path, exist_ok=True)
+        probe = _join(path, f".probe-{uuid.uuid4().hex}")
+        fs.pipe_file(probe, b"")
+        fs.rm_file(probe)
+    except Exception as e:  # each file system raises its own errors
+        raise DseError(f"cannot write to the store {root}: {type(e).__name__}: {e}") from None
+
+
+def write_text(root: Root, name: str, text: str) -> str:
+    """Write a small file (``name`` may hold folders); returns where it went."""
+    fs, path = _fs(root)
+    target = _join(path, name)
+    fs.makedirs(target.rsplit("/", 1)[0], exist_ok=True)
+    fs.pipe_file(target, text.encode())
+    return target if is_url(str(root)) else target
+
+
+def read_text(root: Root, name: str) -> str | None:
+    """The file's text, or None if it does not exist."""
+    fs, path = _fs(root)
+    try:
+        return fs.cat_file(_join(path, name)).decode()
+    except FileNotFoundError:
+        return None
+
+
+def write_table(table: pa.Table, root: Root, relative: str) -> str:
+    """Write ``table`` so that readers see all of it or nothing."""
+    fs, path = _fs(root)
+    target = _join(path, relative)
+    if isinstance(fs, LocalFileSystem):
+        Path(target).parent.mkdir(parents=True, exist_ok=True)
+        partial = Path(target).with_name(f".{Path(target).name}.{uuid.uuid4().hex}.partial")
+        pq.write_table(table, partial)
+        os.replace(partial, target)
+    else:
+        pq.write_table(table, target, filesystem=fs)
+    return target
 
 
 def results_schema(parameters: dict[str, list[Any]], objectives: tuple[str, ...]) -> pa.Schema:
@@ -65,36 +137,39 @@ def results_schema(parameters: dict[str, list[Any]], objectives: tuple[str, ...]
     )
 
 
-def write_rows(root: Path, sweep: str, chunk: str, rows: list[dict[str, Any]], schema: pa.Schema) -> list[Path]:
+def write_rows(root: Root, sweep: str, chunk: str, rows: list[dict[str, Any]], schema: pa.Schema) -> list[str]:
     """Write one chunk's rows, one file per scenario partition."""
     by_scenario: dict[str, list[dict[str, Any]]] = {}
     for row in rows:
         by_scenario.setdefault(row["scenario"], []).append({k: v for k, v in row.items() if k != "scenario"})
-    return [write_atomically(pa.Table.from_pylist(group, schema=schema), partition_dir(root, RESULTS, sweep, scenario) /
-                             f"part-{chunk}.parquet")
+    return [write_table(pa.Table.from_pylist(group, schema=schema), root,
+                        f"{_partition(RESULTS, sweep, scenario)}/part-{chunk}.parquet")
             for scenario, group in by_scenario.items()]
 
 
-def _dataset(root: Path, kind: str, sweep: str | None = None) -> ds.Dataset | None:
+def _dataset(root: Root, kind: str, sweep: str | None = None) -> ds.Dataset | None:
     """The files of one sweep (sweeps of one store may have different columns), or of all."""
-    folder = Path(root) / kind
-    if not folder.is_dir():
-        return None
-    files = [str(p) for p in (folder / f"sweep={sweep}" if sweep is not None else folder).rglob("*.parquet")]
+    fs, path = _fs(root)
+    folder = _join(path, kind)
+    where = _join(folder, f"sweep={sweep}") if sweep is not None else folder
+    files = sorted(f for f in fs.find(where) if f.endswith(".parquet") and not Path(f).name.startswith("."))
     if not files:
         return None
-    return ds.dataset(files, format="parquet", partitioning=PARTITIONING, partition_base_dir=str(folder))
+    return ds.dataset(files, format="parquet", partitioning=PARTITIONING, partition_base_dir=folder,
+                      filesystem=_arrow_fs(fs))
 
 
-def _with_every_column(dataset: ds.Dataset) -> ds.Dataset:
+def _with_every_column(dataset: ds.Dataset, root: Root, kind: str) -> ds.Dataset:
     """The dataset with the union of its files' columns: a sweep re-run with more objectives has files
     of both shapes, and the dataset otherwise takes its columns from whichever file comes first."""
-    schema = pa.unify_schemas([pq.read_schema(f) for f in dataset.files] + [PARTITIONING.schema])
+    fs, path = _fs(root)
+    schemas = [pq.read_schema(f, filesystem=_arrow_fs(fs)) for f in dataset.files]
+    schema = pa.unify_schemas(schemas + [PARTITIONING.schema])
     return ds.dataset(dataset.files, schema=schema, format="parquet", partitioning=PARTITIONING,
-                      partition_base_dir=str(Path(dataset.files[0]).parents[2]))
+                      partition_base_dir=_join(path, kind), filesystem=_arrow_fs(fs))
 
 
-def read_results(root: Path, sweep: str | None = None, columns: list[str] | None = None) -> pd.DataFrame:
+def read_results(root: Root, sweep: str | None = None, columns: list[str] | None = None) -> pd.DataFrame:
     """Rows of finished tasks, reading only ``columns`` (plus the keys); no trajectories."""
     dataset = _dataset(root, RESULTS, sweep)
     if dataset is None:
@@ -103,7 +178,7 @@ def read_results(root: Path, sweep: str | None = None, columns: list[str] | None
     if columns is not None:
         wanted = list(dict.fromkeys(["task_id", "sweep", "scenario", *columns]))
         if any(c not in dataset.schema.names for c in wanted):
-            dataset = _with_every_column(dataset)
+            dataset = _with_every_column(dataset, root, RESULTS)
         missing = [c for c in wanted if c not in dataset.schema.names]
         if missing:
             raise DseError(f"{root}: the results have no column {', '.join(missing)} "
@@ -113,7 +188,7 @@ def read_results(root: Path, sweep: str | None = None, columns: list[str] | None
     return frame.drop_duplicates("task_id", keep="first").reset_index(drop=True)
 
 
-def read_tasks(root: Path, sweep: str, task_ids: list[str], columns: list[str]) -> pd.DataFrame:
+def read_tasks(root: Root, sweep: str, task_ids: list[str], columns: list[str]) -> pd.DataFrame:
     """The rows of just these tasks: what an optimiser reads back after each round."""
     dataset = _dataset(root, RESULTS, sweep)
     if dataset is None:
@@ -124,20 +199,32 @@ def read_tasks(root: Path, sweep: str, task_ids: list[str], columns: list[str]) 
     return frame.drop_duplicates("task_id", keep="first").reset_index(drop=True)
 
 
-def finished_task_ids(root: Path, sweep: str) -> set[str]:
+def finished_task_ids(root: Root, sweep: str) -> set[str]:
     """Ids of every task with a row, ok or failed: what a re-run skips."""
     return set(read_results(root, sweep, columns=[])["task_id"])
 
 
-def sweeps(root: Path) -> list[str]:
-    folder = Path(root) / RESULTS
-    return sorted(p.name.removeprefix("sweep=") for p in folder.glob("sweep=*")) if folder.is_dir() else []
+def sweeps(root: Root) -> list[str]:
+    fs, path = _fs(root)
+    folder = _join(path, RESULTS)
+    if not fs.isdir(folder):
+        return []
+    return sorted(Path(p).name.removeprefix("sweep=") for p in fs.glob(_join(folder, "sweep=*")))
 
 
-def write_trajectory(root: Path, sweep: str, scenario: str, rank: int, frame: pd.DataFrame) -> Path:
-    path = partition_dir(root, TRAJECTORIES, sweep, scenario) / f"rank-{rank}.parquet"
-    return write_atomically(pa.Table.from_pandas(frame, preserve_index=False), path)
+def _trajectory_file(sweep: str, scenario: str, rank: int) -> str:
+    return f"{_partition(TRAJECTORIES, sweep, scenario)}/rank-{rank}.parquet"
 
 
-def read_trajectory(root: Path, sweep: str, scenario: str, rank: int = 1) -> pd.DataFrame:
-    return pd.read_parquet(partition_dir(root, TRAJECTORIES, sweep, scenario) / f"rank-{rank}.parquet")
+def write_trajectory(root: Root, sweep: str, scenario: str, rank: int, frame: pd.DataFrame) -> str:
+    return write_table(pa.Table.from_pandas(frame, preserve_index=False), root, _trajectory_file(sweep, scenario, rank))
+
+
+def has_trajectory(root: Root, sweep: str, scenario: str, rank: int) -> bool:
+    fs, path = _fs(root)
+    return fs.isfile(_join(path, _trajectory_file(sweep, scenario, rank)))
+
+
+def read_trajectory(root: Root, sweep: str, scenario: str, rank: int = 1) -> pd.DataFrame:
+    fs, path = _fs(root)
+    return pd.read_parquet(_join(path, _trajectory_file(sweep, scenario, rank)), filesystem=_arrow_fs(fs))

@@ -1,12 +1,22 @@
 """Running a design space on Dask: chunks of tasks in, Parquet partitions out.
 
 The client expands the space lazily, skips tasks that already have a row,
-and keeps a bounded number of chunks in flight. Each chunk runs on a worker
-(:func:`run_chunk`), which simulates its tasks with the worker's cached FMU
-instances, writes the rows itself and returns only a small summary, so the
-client's memory does not grow with the sweep. A failing simulation becomes a
-failed row after one retry; it never stops the sweep. Interrupting leaves
-every finished chunk on disk; submitting again finishes the rest.
+ships the FMUs and recordings to the workers (ship.py) and keeps a bounded
+number of chunks in flight. Each chunk runs on a worker (:func:`run_chunk`),
+which simulates its tasks with the worker's cached FMU instances, writes the
+rows to the store itself and returns only a small summary, so the client's
+memory does not grow with the sweep.
+
+What can go wrong, and what happens:
+
+- a simulation fails or diverges: a failed row after one retry; the sweep goes on;
+- a worker dies (killed, out of memory): Dask runs its chunk again elsewhere;
+- a chunk keeps killing workers (an FMU that segfaults): it is split in halves
+  until the task that crashes is alone, and that task gets a failed row;
+- the scheduler restarts: the client reconnects, re-reads the store and runs
+  what is missing;
+- the client is interrupted or killed: finished chunks are in the store;
+  submitting again runs the rest.
 """
 
 from __future__ import annotations
@@ -17,43 +27,57 @@ import os
 import socket
 import time
 import traceback
+from collections import deque
+from concurrent.futures import CancelledError
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import pandas as pd
 import pyarrow as pa
 
-from . import store
+from . import ship, store
 from .cluster import connect, total_threads
-from .cosim import Plan, make_plan
 from .errors import DseError
 from .expand import Task, TaskBatch, chunked, expand, model_hash, points_of
-from .multimodel import MultiModel
 from .rank import rank, save_sweep_spec
 from .scenario import Scenario
+from .cosim import Plan
 from .search import Point
 from .simulate import simulate
 from .spec import Space
 
 ATTEMPTS = 2  # a failing simulation is retried once
+CRASH_ATTEMPTS = 2  # a lone task whose worker died under it this often (beyond Dask's own retries) has failed
 
 
 @dataclass(frozen=True)
 class ChunkJob:
-    """Everything a worker needs for one chunk; small, picklable."""
+    """Everything a worker needs for one chunk besides the shipment; small, picklable."""
 
     sweep: str
     chunk_id: str
+    shipment: str  # key of the ship.Shipment that holds the model and recordings
     model_key: str
-    multimodel: MultiModel
-    scenarios: dict[str, Scenario]
     tasks: TaskBatch
     objectives: tuple[str, ...]
-    output: Path
+    output: store.Root
     schema: pa.Schema
     timeout: float
+    crashes: int = 0  # times Dask gave up on this chunk because workers died running it
+
+    @property
+    def key(self) -> str:
+        return f"chunk-{self.chunk_id}-{self.crashes}"
+
+    def after_crash(self) -> list["ChunkJob"]:
+        """What to run after workers kept dying under this chunk: its halves, or the lone task again."""
+        tasks = list(self.tasks)
+        if len(tasks) == 1:
+            return [replace(self, crashes=self.crashes + 1)] if self.crashes + 1 < CRASH_ATTEMPTS else []
+        middle = len(tasks) // 2
+        return [replace(self, chunk_id=_chunk_id(part), tasks=TaskBatch.of(part), crashes=0)
+                for part in (tasks[:middle], tasks[middle:])]
 
 
 @dataclass
@@ -63,17 +87,6 @@ class ChunkSummary:
     failed: int
     seconds: float  # wall time of the simulations
     errors: list[str] = field(default_factory=list)  # first few failure messages
-
-
-_PLANS: dict[str, Plan] = {}
-
-
-def _plan(model_key: str, multimodel: MultiModel) -> Plan:
-    """One plan per model per worker process."""
-    plan = _PLANS.get(model_key)
-    if plan is None:
-        plan = _PLANS[model_key] = make_plan(multimodel)
-    return plan
 
 
 def _worker_name() -> str:
@@ -102,32 +115,47 @@ def run_task(plan: Plan, task: Task, scenario: Scenario, objectives: tuple[str, 
 
 def run_chunk(job: ChunkJob) -> ChunkSummary:
     """Simulate a chunk on a worker and write its rows; return only counts."""
-    plan = _plan(job.model_key, job.multimodel)
+    unpacked = ship.received(job.shipment)
     worker, rows, errors = _worker_name(), [], []
     started = time.perf_counter()
     for task in job.tasks:
-        scenario = job.scenarios[task.scenario]
+        scenario = unpacked.scenarios[task.scenario]
         t0 = time.perf_counter()
-        scores, error = run_task(plan, task, scenario, job.objectives, job.timeout)
+        scores, error = run_task(unpacked.plan, task, scenario, job.objectives, job.timeout)
         if error and len(errors) < 3:
             errors.append(f"{task.scenario} {dict(task.point)}: {error}")
-        rows.append({
-            "task_id": task.task_id, "model": job.model_key, "scenario": task.scenario, "group": scenario.group,
-            **dict(task.point),
-            **(scores or {name: None for name in job.objectives}),
-            "status": "ok" if error is None else "failed", "error": error,
-            "wall_time": time.perf_counter() - t0, "worker": worker,
-        })
+        rows.append(_row(job, task, scenario.group, scores, error, time.perf_counter() - t0, worker))
     seconds = time.perf_counter() - started
     store.write_rows(job.output, job.sweep, job.chunk_id, rows, job.schema)
     failed = sum(r["status"] == "failed" for r in rows)
     return ChunkSummary(job.chunk_id, len(rows) - failed, failed, seconds, errors)
 
 
+def _row(job: ChunkJob, task: Task, group: str, scores: dict[str, Any] | None, error: str | None,
+         wall_time: float, worker: str) -> dict[str, Any]:
+    return {
+        "task_id": task.task_id, "model": job.model_key, "scenario": task.scenario, "group": group,
+        **dict(task.point),
+        **(scores or {name: None for name in job.objectives}),
+        "status": "ok" if error is None else "failed", "error": error,
+        "wall_time": wall_time, "worker": worker,
+    }
+
+
+def record_crash(job: ChunkJob, groups: dict[str, str], reason: str) -> ChunkSummary:
+    """The failed row of a task that kept killing its worker; written by the client."""
+    (task,) = job.tasks
+    error = (f"the worker process died each time it ran this task ({reason}): the FMU crashed "
+             "(e.g. a segmentation fault) or the process ran out of memory")
+    rows = [_row(job, task, groups[task.scenario], None, error, 0.0, "")]
+    store.write_rows(job.output, job.sweep, job.chunk_id, rows, job.schema)
+    return ChunkSummary(job.chunk_id, 0, 1, 0.0, [f"{task.scenario} {dict(task.point)}: {error}"])
+
+
 @dataclass
 class SweepReport:
     sweep: str
-    output: Path
+    output: store.Root
     total: int  # tasks in the space
     skipped: int  # already had a row
     ok: int = 0
@@ -139,6 +167,8 @@ class SweepReport:
     workers: int = 0
     dashboard: str | None = None
     interrupted: bool = False
+    crashed_chunks: int = 0  # chunks Dask gave up on because workers died running them; split and rerun
+    reconnects: int = 0  # times the scheduler went away and the sweep resumed from the store
     errors: list[str] = field(default_factory=list)
 
     @property
@@ -187,6 +217,7 @@ def submit(space: Space, progress: Progress | None = None, client=None,
     optimiser (fit.py) runs each of its rounds as a sweep into the same store."""
     started = time.perf_counter()
     output = space.output
+    store.check_reachable(output)
     save_sweep_spec(output, space.spec, model_hash(space.plan, space.objectives))
     done = store.finished_task_ids(output, space.name)
     total = skipped = 0
@@ -199,100 +230,173 @@ def submit(space: Space, progress: Progress | None = None, client=None,
         report.seconds = time.perf_counter() - started
         return report
     per_task = probe_seconds(space, points) if pending else None
+    shipment = ship.pack(space.plan, space.scenarios)
+    run = Run(space, shipment, points, report, progress, started)
     if client is None:
-        with connect(space.spec.cluster) as own:
-            return _run(space, own, done, per_task, pending, report, progress, started, points)
-    return _run(space, client, done, per_task, pending, report, progress, started, points)
+        with connect(space.spec.cluster, space.path.parent) as own:
+            return run.until_done(own, done, per_task, pending)
+    return run.until_done(client, done, per_task, pending)
 
 
 def _trajectories_kept(space: Space) -> bool:
     wanted = space.spec.keep_trajectories
-    return not wanted or all(
-        (store.partition_dir(space.output, store.TRAJECTORIES, space.name, s.name) / f"rank-{wanted}.parquet").is_file()
-        for s in space.scenarios)
+    return not wanted or all(store.has_trajectory(space.output, space.name, s.name, wanted) for s in space.scenarios)
 
 
-def _run(space: Space, client, done: set[str], per_task: float | None, pending: int,
-         report: SweepReport, progress: Progress | None, started: float, points: list[Point] | None) -> SweepReport:
-    from distributed import as_completed
-
-    threads = total_threads(client)
-    report.workers = len(client.scheduler_info()["workers"])
-    report.dashboard = client.dashboard_link
-    report.chunk_size = chunk_size(per_task, space.spec.chunk_seconds, pending, threads) if pending else 0
-    jobs = _jobs(space, done, report.chunk_size, points)
-    in_flight = as_completed()
-    try:
-        for job in _take(jobs, 2 * threads + 2):
-            in_flight.add(client.submit(run_chunk, job, key=f"chunk-{job.chunk_id}", pure=False))
-        if progress:
-            progress(report)
-        for future in in_flight:
-            summary: ChunkSummary = future.result()
-            report.ok += summary.ok
-            report.failed += summary.failed
-            report.chunks += 1
-            report.simulation_seconds += summary.seconds
-            report.errors.extend(summary.errors[: max(0, 5 - len(report.errors))])
-            report.seconds = time.perf_counter() - started
-            for job in _take(jobs, 1):
-                in_flight.add(client.submit(run_chunk, job, key=f"chunk-{job.chunk_id}", pure=False))
-            if progress:
-                progress(report)
-    except KeyboardInterrupt:
-        report.interrupted = True
-        for future in list(in_flight.futures):
-            future.cancel()
-    if not report.interrupted and space.spec.keep_trajectories:
-        keep_trajectories(space, client, space.spec.keep_trajectories)
-    report.seconds = time.perf_counter() - started
-    return report
+class SchedulerLost(Exception):
+    """The client's connection to the scheduler broke mid-sweep."""
 
 
-def _trajectory(multimodel: MultiModel, model_key: str, scenario: Scenario, point: dict[str, Any],
-                output: Path, sweep: str, place: int) -> Path:
-    result = simulate(_plan(model_key, multimodel), scenario, point, objectives=())
+@dataclass
+class Run:
+    """One submission: keeps chunks in flight, handles crashed chunks, and resumes after a scheduler restart."""
+
+    space: Space
+    shipment: ship.Shipment
+    points: list[Point] | None
+    report: SweepReport
+    progress: Progress | None
+    started: float
+
+    def until_done(self, client, done: set[str], per_task: float | None, pending: int) -> SweepReport:
+        report = self.report
+        report.chunk_size = (chunk_size(per_task, self.space.spec.chunk_seconds, pending, total_threads(client))
+                             if pending else 0)
+        while True:
+            try:
+                ship.send(client, self.shipment)
+                self._chunks(client, done)
+                break
+            except SchedulerLost:
+                self._reconnect(client)
+                done = store.finished_task_ids(self.space.output, self.space.name)
+        if not report.interrupted and self.space.spec.keep_trajectories:
+            keep_trajectories(self.space, client, self.space.spec.keep_trajectories, self.shipment)
+        report.seconds = time.perf_counter() - self.started
+        return report
+
+    def _chunks(self, client, done: set[str]) -> None:
+        from distributed import as_completed
+        from distributed.scheduler import KilledWorker
+
+        report, threads = self.report, total_threads(client)
+        report.workers = len(client.scheduler_info()["workers"])
+        report.dashboard = client.dashboard_link
+        jobs = _jobs(self.space, self.shipment.key, done, report.chunk_size, self.points)
+        again: deque[ChunkJob] = deque()  # halves of crashed chunks go first
+        launched: dict[str, ChunkJob] = {}
+        in_flight = as_completed()
+
+        def launch(n: int) -> None:
+            while n > 0 and (again or (job := next(jobs, None)) is not None):
+                job = again.popleft() if again else job
+                launched[job.key] = job
+                in_flight.add(client.submit(run_chunk, job, key=job.key, pure=False))
+                n -= 1
+
+        try:
+            launch(2 * threads + 2)
+            self._tell()
+            for future in in_flight:
+                job = launched.pop(future.key)
+                try:
+                    self._count(future.result())
+                except KilledWorker as e:
+                    report.crashed_chunks += 1
+                    again.extend(job.after_crash())
+                    if len(job.tasks) == 1 and not job.after_crash():
+                        self._count(record_crash(job, {s.name: s.group for s in self.space.scenarios}, str(e)))
+                except CancelledError:
+                    if client.status in ("running", "connecting") and self._scheduler_gone(client):
+                        raise SchedulerLost from None
+                    raise DseError(f"chunk {job.chunk_id} was cancelled on the scheduler {client.scheduler.address}"
+                                   " by someone else; submit again to finish the sweep") from None
+                launch(1 + len(again) if again else 1)
+                self._tell()
+        except KeyboardInterrupt:
+            report.interrupted = True
+            for future in list(in_flight.futures):
+                future.cancel()
+
+    def _count(self, summary: ChunkSummary) -> None:
+        report = self.report
+        report.ok += summary.ok
+        report.failed += summary.failed
+        report.chunks += 1
+        report.simulation_seconds += summary.seconds
+        report.errors.extend(summary.errors[: max(0, 5 - len(report.errors))])
+
+    def _tell(self) -> None:
+        self.report.seconds = time.perf_counter() - self.started
+        if self.progress:
+            self.progress(self.report)
+
+    @staticmethod
+    def _scheduler_gone(client) -> bool:
+        """After a cancellation: did the connection drop (as opposed to someone cancelling our chunk)?"""
+        return client.status != "running" or client.scheduler_comm is None or client.scheduler_comm.comm is None \
+            or client.scheduler_comm.comm.closed()
+
+    def _reconnect(self, client) -> None:
+        """Wait for the client to reconnect to a restarted scheduler and for a worker to join it."""
+        timeout = self.space.spec.cluster.connect_timeout
+        address = client.scheduler.address
+        deadline = time.monotonic() + max(timeout, 10 * 60 if self.report.reconnects == 0 else timeout)
+        while client.status != "running" and time.monotonic() < deadline:
+            time.sleep(0.5)
+        try:
+            if client.status != "running":
+                raise TimeoutError
+            client.wait_for_workers(1, timeout=max(1.0, deadline - time.monotonic()))
+        except (TimeoutError, OSError):
+            raise DseError(f"lost the Dask scheduler at {address} and it did not come back; every finished "
+                           f"chunk is in {self.report.output}: submit again to run the rest") from None
+        self.report.reconnects += 1
+
+
+def _trajectory(shipment: str, model_key: str, scenario: str, point: dict[str, Any], output: store.Root,
+                sweep: str, place: int) -> str:
+    unpacked = ship.received(shipment)
+    result = simulate(unpacked.plan, unpacked.scenarios[scenario], point, objectives=())
     frame = pd.DataFrame(result.trajectory.values, columns=list(result.trajectory.names))
     frame.insert(0, "time", result.trajectory.time)
     for name, value in point.items():
         frame[f"point:{name}"] = value
-    return store.write_trajectory(output, sweep, scenario.name, place, frame)
+    return store.write_trajectory(output, sweep, scenario, place, frame)
 
 
-def keep_trajectories(space: Space, client, count: int) -> list[Path]:
+def keep_trajectories(space: Space, client, count: int, shipment: ship.Shipment) -> list[str]:
     """Simulate the ``count`` best points again on every scenario and keep their tracks."""
     try:
         ranking = rank(space.output, space.name)
     except DseError:
         return []  # nothing complete to rank: no best points
-    key = model_hash(space.plan, space.objectives)
     best = ranking.totals.head(count)[ranking.parameters].to_dict("records")
-    futures = [client.submit(_trajectory, space.multimodel, key, scenario, point, space.output, space.name,
-                             place, pure=False)
-               for place, point in enumerate(best, start=1) for scenario in space.scenarios]
+    return _trajectories(space, client, shipment, [(place, point) for place, point in enumerate(best, start=1)],
+                         space.name)
+
+
+def _trajectories(space: Space, client, shipment: ship.Shipment, places: list[tuple[int, dict[str, Any]]],
+                  sweep: str) -> list[str]:
+    ship.send(client, shipment)
+    key = model_hash(space.plan, space.objectives)
+    futures = [client.submit(_trajectory, shipment.key, key, scenario.name, point, space.output, sweep, place,
+                             pure=False)
+               for place, point in places for scenario in space.scenarios]
     return client.gather(futures)
 
 
 def trajectories_of(space: Space, client, point: dict[str, Any], sweep: str) -> dict[str, pd.DataFrame]:
     """Simulate one point on every scenario on the cluster, keep the tracks as ``sweep``'s rank 1,
     and return them by scenario."""
-    key = model_hash(space.plan, space.objectives)
-    futures = [client.submit(_trajectory, space.multimodel, key, scenario, point, space.output, sweep, 1, pure=False)
-               for scenario in space.scenarios]
-    client.gather(futures)
+    _trajectories(space, client, ship.pack(space.plan, space.scenarios), [(1, point)], sweep)
     return {s.name: store.read_trajectory(space.output, sweep, s.name) for s in space.scenarios}
 
 
-def _jobs(space: Space, done: set[str], size: int, points: list[Point] | None) -> Iterator[ChunkJob]:
+def _jobs(space: Space, shipment: str, done: set[str], size: int, points: list[Point] | None) -> Iterator[ChunkJob]:
     key = model_hash(space.plan, space.objectives)
     schema = store.results_schema(space.parameters, space.objectives)
-    scenarios = {s.name: s for s in space.scenarios}
     todo = (t for t in expand(space, points) if t.task_id not in done)
     for tasks in chunked(todo, size):
-        used = {t.scenario: scenarios[t.scenario] for t in tasks}
-        yield ChunkJob(space.name, _chunk_id(tasks), key, space.multimodel, used, TaskBatch.of(tasks), space.objectives,
+        yield ChunkJob(space.name, _chunk_id(tasks), shipment, key, TaskBatch.of(tasks), space.objectives,
                        space.output, schema, space.spec.timeout)
-
-
-def _take(iterator: Iterator[Any], n: int) -> list[Any]:
-    return [job for _, job in zip(range(n), iterator)]

@@ -314,7 +314,7 @@ def diagnose(scenarios: str | Path, multimodel: str | Path | None = None, space:
     calibration = calibration_space(space or DEFAULT_SPACE, scenarios, multimodel, out, n_workers, address)
     say = progress or (lambda message: None)
     if client is None:
-        with connect(calibration.spec.cluster) as own:
+        with connect(calibration.spec.cluster, calibration.path.parent) as own:
             return _diagnose(calibration, out, settings, own, say)
     return _diagnose(calibration, out, settings, client, say)
 
