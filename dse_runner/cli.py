@@ -213,7 +213,8 @@ class ProgressBar:
             self.task = self.bar.add_task(report.sweep, total=report.total - report.skipped,
                                           rate="-", failed=0)
         rate = report.ran / report.seconds if report.seconds > 0 else 0.0
-        self.bar.update(self.task, completed=report.ran, rate=f"{rate:.1f}", failed=report.failed)
+        self.bar.update(self.task, completed=report.ran, rate=f"{rate:.1f}", failed=report.failed,
+                        description=report.waiting or report.sweep)
 
 
 @app.command("rank")

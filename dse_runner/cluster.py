@@ -129,7 +129,6 @@ def connect(spec: Cluster, base: Path | None = None) -> Iterator["distributed.Cl
     """A client of the spec's scheduler, with at least one worker; the cluster is closed afterwards
     if we started it. ``base`` is the folder relative certificate paths start from."""
     import dask
-    from distributed import Client
 
     logging.getLogger("distributed").setLevel(logging.ERROR)
     sec = security(spec, base)
@@ -160,7 +159,7 @@ def _client(target: Any, sec: Any, timeout: float, wait: float) -> Iterator[Any]
     where = target if isinstance(target, str) else type(target).__name__
     try:
         client = Client(target, security=sec, timeout=f"{timeout}s")
-    except (OSError, TimeoutError) as e:
+    except (OSError, TimeoutError, TypeError) as e:  # TypeError: distributed's word for "tls:// without TLS"
         hint = " (a tls:// scheduler needs cluster.tls)" if str(target).startswith("tls://") and sec is None else ""
         raise DseError(f"cannot reach the Dask scheduler at {where}{hint}: {e}") from None
     try:

@@ -169,6 +169,7 @@ class SweepReport:
     interrupted: bool = False
     crashed_chunks: int = 0  # chunks Dask gave up on because workers died running them; split and rerun
     reconnects: int = 0  # times the scheduler went away and the sweep resumed from the store
+    waiting: str | None = None  # what the sweep is waiting for, if it is not running tasks
     errors: list[str] = field(default_factory=list)
 
     @property
@@ -179,15 +180,21 @@ class SweepReport:
 Progress = Callable[[SweepReport], None]
 
 
-def probe_seconds(space: Space, points: list[Point] | None = None) -> float | None:
-    """Time one simulation in the client to size chunks; None if it failed (that point
-    will fail on a worker too and become a failed row, which must not stop the sweep)."""
+def first_point(space: Space, points: list[Point] | None = None) -> Point:
     point = next(iter(points_of(space, points)(space)), None)
     if point is None:
         raise DseError(f"{space.path}: the constraints exclude every parameter point")
+    return point
+
+
+def probe(shipment: str, scenario: str, point: Point, objectives: tuple[str, ...], timeout: float) -> float | None:
+    """Seconds one simulation takes on a worker, to size chunks; None if it failed (that point will
+    fail in its chunk too and become a failed row, which must not stop the sweep). It runs on a worker,
+    not in the client, so that an FMU that crashes its process takes down a worker, not the user's shell."""
+    unpacked = ship.received(shipment)
     start = time.perf_counter()
     try:
-        simulate(space.plan, space.scenarios[0], point, space.objectives, timeout=space.spec.timeout)
+        simulate(unpacked.plan, unpacked.scenarios[scenario], point, objectives, timeout=timeout)
     except Exception:
         return None
     return time.perf_counter() - start
@@ -229,13 +236,12 @@ def submit(space: Space, progress: Progress | None = None, client=None,
     if pending == 0 and _trajectories_kept(space):
         report.seconds = time.perf_counter() - started
         return report
-    per_task = probe_seconds(space, points) if pending else None
-    shipment = ship.pack(space.plan, space.scenarios)
-    run = Run(space, shipment, points, report, progress, started)
+    point = first_point(space, points)
+    run = Run(space, ship.pack(space.plan, space.scenarios), points, report, progress, started)
     if client is None:
         with connect(space.spec.cluster, space.path.parent) as own:
-            return run.until_done(own, done, per_task, pending)
-    return run.until_done(client, done, per_task, pending)
+            return run.until_done(own, done, point, pending)
+    return run.until_done(client, done, point, pending)
 
 
 def _trajectories_kept(space: Space) -> bool:
@@ -258,10 +264,12 @@ class Run:
     progress: Progress | None
     started: float
 
-    def until_done(self, client, done: set[str], per_task: float | None, pending: int) -> SweepReport:
+    def until_done(self, client, done: set[str], point: Point, pending: int) -> SweepReport:
         report = self.report
-        report.chunk_size = (chunk_size(per_task, self.space.spec.chunk_seconds, pending, total_threads(client))
-                             if pending else 0)
+        if pending:
+            ship.send(client, self.shipment)
+            report.chunk_size = chunk_size(self._probe(client, point), self.space.spec.chunk_seconds, pending,
+                                           total_threads(client))
         while True:
             try:
                 ship.send(client, self.shipment)
@@ -307,7 +315,7 @@ class Run:
                     if len(job.tasks) == 1 and not job.after_crash():
                         self._count(record_crash(job, {s.name: s.group for s in self.space.scenarios}, str(e)))
                 except CancelledError:
-                    if client.status in ("running", "connecting") and self._scheduler_gone(client):
+                    if client.status != "running":  # the connection to the scheduler broke
                         raise SchedulerLost from None
                     raise DseError(f"chunk {job.chunk_id} was cancelled on the scheduler {client.scheduler.address}"
                                    " by someone else; submit again to finish the sweep") from None
@@ -317,6 +325,17 @@ class Run:
             report.interrupted = True
             for future in list(in_flight.futures):
                 future.cancel()
+
+    def _probe(self, client, point: Point) -> float | None:
+        from distributed.scheduler import KilledWorker
+
+        spec = self.space.spec
+        future = client.submit(probe, self.shipment.key, self.space.scenarios[0].name, point, self.space.objectives,
+                               spec.timeout, pure=False)
+        try:
+            return future.result()
+        except KilledWorker:
+            return None
 
     def _count(self, summary: ChunkSummary) -> None:
         report = self.report
@@ -331,27 +350,29 @@ class Run:
         if self.progress:
             self.progress(self.report)
 
-    @staticmethod
-    def _scheduler_gone(client) -> bool:
-        """After a cancellation: did the connection drop (as opposed to someone cancelling our chunk)?"""
-        return client.status != "running" or client.scheduler_comm is None or client.scheduler_comm.comm is None \
-            or client.scheduler_comm.comm.closed()
-
     def _reconnect(self, client) -> None:
-        """Wait for the client to reconnect to a restarted scheduler and for a worker to join it."""
+        """Wait for the client to reconnect to a restarted scheduler and for a worker to join it.
+
+        distributed's client retries the scheduler's address for ``connect_timeout`` seconds; workers
+        exit when their scheduler goes, so their supervisor (HTCondor, Kubernetes, systemd) must start
+        new ones, for which we wait as long again."""
         timeout = self.space.spec.cluster.connect_timeout
         address = client.scheduler.address
-        deadline = time.monotonic() + max(timeout, 10 * 60 if self.report.reconnects == 0 else timeout)
-        while client.status != "running" and time.monotonic() < deadline:
-            time.sleep(0.5)
+        self.report.waiting = f"scheduler {address} lost; waiting for it"
+        self._tell()
+        deadline = time.monotonic() + timeout
+        while client.status == "connecting" and time.monotonic() < deadline:
+            time.sleep(0.2)
         try:
             if client.status != "running":
                 raise TimeoutError
-            client.wait_for_workers(1, timeout=max(1.0, deadline - time.monotonic()))
+            client.wait_for_workers(1, timeout=timeout)
         except (TimeoutError, OSError):
-            raise DseError(f"lost the Dask scheduler at {address} and it did not come back; every finished "
-                           f"chunk is in {self.report.output}: submit again to run the rest") from None
+            raise DseError(f"lost the Dask scheduler at {address} and it did not come back with a worker within "
+                           f"{timeout:g} s (cluster.connect_timeout); every finished chunk is in "
+                           f"{self.report.output}: submit again to run the rest") from None
         self.report.reconnects += 1
+        self.report.waiting = None
 
 
 def _trajectory(shipment: str, model_key: str, scenario: str, point: dict[str, Any], output: store.Root,

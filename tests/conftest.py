@@ -53,39 +53,11 @@ def all_scenarios() -> list[str]:
 @pytest.fixture(scope="session")
 def dask_scheduler(tmp_path_factory, fresh_fmu_cache):
     """A real cluster: `dask scheduler` and two single-threaded `dask worker` processes on loopback."""
-    import subprocess
-    import sys
-    import time
+    from cluster import CliCluster
 
-    folder = tmp_path_factory.mktemp("dask")
-    scheduler_file = folder / "scheduler.json"
-    env = {**os.environ, "DSE_RUNNER_CACHE": str(fresh_fmu_cache)}
-    dask = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
-    procs = [subprocess.Popen([*dask, "--host", "127.0.0.1", "--port", "0", "--dashboard-address", "127.0.0.1:0",
-                               "--scheduler-file", str(scheduler_file)], env=env, cwd=folder,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
-    deadline = time.time() + 60
-    while not scheduler_file.exists() and time.time() < deadline:
-        time.sleep(0.1)
-    for i in range(2):
-        procs.append(subprocess.Popen(
-            [sys.executable, "-m", "distributed.cli.dask_worker", "--scheduler-file", str(scheduler_file),
-             "--nthreads", "1", "--nworkers", "1", "--name", f"worker-{i}", "--no-dashboard"],
-            env=env, cwd=folder, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-    from distributed import Client
-
-    client = Client(scheduler_file=str(scheduler_file), timeout="30s")
-    client.wait_for_workers(2, timeout=60)
-    address = client.scheduler.address
-    client.close()
-    yield address
-    for proc in reversed(procs):
-        proc.terminate()
-    for proc in procs:
-        try:
-            proc.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+    cluster = CliCluster(tmp_path_factory.mktemp("dask"), workers=2)
+    yield cluster.address
+    cluster.close()
 
 
 def write_space(folder: Path, **changes) -> Path:

@@ -1,0 +1,164 @@
+"""A real Dask cluster for tests: `dask scheduler` and `dask worker` started through their command lines.
+
+Options cover what the cluster tests need: TLS certificates, a fixed port (so
+a restarted scheduler comes back at the same address), and workers that see
+none of the client's files (each started in its own mount namespace, with
+tmpfs laid over the folders to hide).
+"""
+
+from __future__ import annotations
+
+import datetime
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+DASK_SCHEDULER = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
+DASK_WORKER = [sys.executable, "-m", "distributed.cli.dask_worker"]
+
+
+@dataclass(frozen=True)
+class Certs:
+    ca_file: Path
+    cert: Path
+    key: Path
+
+    def flags(self) -> list[str]:
+        return ["--tls-ca-file", str(self.ca_file), "--tls-cert", str(self.cert), "--tls-key", str(self.key)]
+
+
+def make_certs(folder: Path) -> Certs:
+    """A throw-away certificate authority and one certificate for 127.0.0.1 that it signed."""
+    import ipaddress
+
+    from cryptography import x509
+    from cryptography.hazmat.primitives import hashes, serialization
+    from cryptography.hazmat.primitives.asymmetric import ec
+    from cryptography.x509.oid import NameOID
+
+    now = datetime.datetime.now(datetime.timezone.utc)
+    window = (now - datetime.timedelta(days=1), now + datetime.timedelta(days=2))
+
+    def certificate(subject: str, key, issuer: str, issuer_key, ca: bool) -> x509.Certificate:
+        builder = (x509.CertificateBuilder()
+                   .subject_name(x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, subject)]))
+                   .issuer_name(x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, issuer)]))
+                   .public_key(key.public_key()).serial_number(x509.random_serial_number())
+                   .not_valid_before(window[0]).not_valid_after(window[1])
+                   .add_extension(x509.BasicConstraints(ca=ca, path_length=None), critical=True))
+        if not ca:
+            builder = builder.add_extension(x509.SubjectAlternativeName(
+                [x509.DNSName("localhost"), x509.IPAddress(ipaddress.ip_address("127.0.0.1"))]), critical=False)
+        return builder.sign(issuer_key, hashes.SHA256())
+
+    ca_key, key = ec.generate_private_key(ec.SECP256R1()), ec.generate_private_key(ec.SECP256R1())
+    ca = certificate("dse-runner test CA", ca_key, "dse-runner test CA", ca_key, ca=True)
+    leaf = certificate("127.0.0.1", key, "dse-runner test CA", ca_key, ca=False)
+    folder.mkdir(parents=True, exist_ok=True)
+    certs = Certs(folder / "ca.pem", folder / "cert.pem", folder / "key.pem")
+    certs.ca_file.write_bytes(ca.public_bytes(serialization.Encoding.PEM))
+    certs.cert.write_bytes(leaf.public_bytes(serialization.Encoding.PEM))
+    certs.key.write_bytes(key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8,
+                                            serialization.NoEncryption()))
+    return certs
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def can_hide_folders() -> bool:
+    """Whether this machine lets us start a process in its own mount namespace (needs root)."""
+    if shutil.which("unshare") is None:
+        return False
+    probe = subprocess.run(["unshare", "-m", "sh", "-c", "mount -t tmpfs none /mnt"], capture_output=True)
+    return probe.returncode == 0
+
+
+class CliCluster:
+    """A scheduler and ``workers`` single-threaded workers on loopback, each its own process."""
+
+    def __init__(self, folder: Path, workers: int = 2, certs: Certs | None = None, hide: tuple[Path, ...] = ()):
+        self.folder, self.certs, self.hide = folder, certs, hide
+        self.port = free_port()
+        self.protocol = "tls" if certs else "tcp"
+        self.address = f"{self.protocol}://127.0.0.1:{self.port}"
+        self.env = dict(os.environ)
+        self.scheduler: subprocess.Popen | None = None
+        self.workers: list[subprocess.Popen] = []
+        self.start_scheduler()
+        for _ in range(workers):
+            self.start_worker()
+        self.wait_for_workers(workers)
+
+    def _popen(self, command: list[str], log: str) -> subprocess.Popen:
+        with open(self.folder / log, "ab") as out:
+            return subprocess.Popen(command, env=self.env, cwd=self.folder, stdout=out, stderr=subprocess.STDOUT)
+
+    def start_scheduler(self) -> None:
+        tls = self.certs.flags() if self.certs else []
+        self.scheduler = self._popen([*DASK_SCHEDULER, "--protocol", self.protocol, "--host", "127.0.0.1",
+                                      "--port", str(self.port), "--dashboard-address", "127.0.0.1:0", *tls],
+                                     "scheduler.log")
+        deadline = time.time() + 60
+        while time.time() < deadline:
+            with socket.socket() as s:
+                if s.connect_ex(("127.0.0.1", self.port)) == 0:
+                    return
+            time.sleep(0.1)
+        raise RuntimeError(f"dask scheduler did not start; see {self.folder / 'scheduler.log'}")
+
+    def start_worker(self) -> None:
+        index = len(self.workers)
+        tls = self.certs.flags() if self.certs else []
+        command = [*DASK_WORKER, self.address, "--nthreads", "1", "--name", f"worker-{index}", "--no-dashboard", *tls]
+        if self.hide:
+            mounts = " && ".join(f"mount -t tmpfs none '{p}'" for p in self.hide)
+            command = ["unshare", "-m", "sh", "-c", f'{mounts} && exec "$@"', "sh", *command]
+        self.workers.append(self._popen(command, f"worker-{index}.log"))
+
+    def client(self, timeout: str = "30s"):
+        from distributed import Client
+        from distributed.security import Security
+
+        security = None
+        if self.certs:
+            c = self.certs
+            security = Security(tls_ca_file=str(c.ca_file), tls_client_cert=str(c.cert), tls_client_key=str(c.key),
+                                require_encryption=True)
+        return Client(self.address, security=security, timeout=timeout)
+
+    def wait_for_workers(self, n: int) -> None:
+        with self.client() as client:
+            client.wait_for_workers(n, timeout=120)
+
+    def kill_scheduler(self) -> None:
+        """SIGKILL the scheduler; its workers exit on their own when they lose it."""
+        self.scheduler.send_signal(signal.SIGKILL)
+        self.scheduler.wait(timeout=30)
+        for worker in self.workers:
+            try:
+                worker.wait(timeout=60)
+            except subprocess.TimeoutExpired:
+                worker.kill()
+        self.workers = []
+
+    def close(self) -> None:
+        for proc in [*self.workers, self.scheduler]:
+            if proc is not None and proc.poll() is None:
+                proc.terminate()
+        for proc in [*self.workers, self.scheduler]:
+            if proc is None:
+                continue
+            try:
+                proc.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                proc.kill()

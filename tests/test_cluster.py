@@ -1,0 +1,268 @@
+"""Sweeps on real clusters, and what happens when parts of them die.
+
+Each test starts its own `dask scheduler` / `dask worker` processes through
+their command lines (tests/cluster.py) unless it needs the embedded cluster.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from urllib.parse import urlparse
+
+import pandas as pd
+import pytest
+import yaml
+
+from cluster import CliCluster, can_hide_folders, make_certs
+from conftest import FMU_SOURCES, MULTIMODEL, REPO, SCENARIOS, write_space
+from dse_runner import store
+from dse_runner.cluster import connect, make_htcondor
+from dse_runner.errors import DseError
+from dse_runner.rank import rank
+from dse_runner.spec import Cluster, load_space
+from dse_runner.sweep import submit
+
+SLOW = {"vehicle.mass": [1000, 1500, 2000, 2500, 3000], "vehicle.cAlphaF": [20000, 30000],
+        "vehicle.rk4_step": [0.0001]}  # 10 points x 12 scenarios, slow enough to be hit mid-sweep
+
+
+def raw_task_ids(output: Path) -> pd.Series:
+    """Every task id in every result file, without the readers' de-duplication."""
+    files = list((output / "results").rglob("part-*.parquet"))
+    return pd.concat(pd.read_parquet(f, columns=["task_id"]) for f in files)["task_id"]
+
+
+def reachable(host: str, port: int) -> bool:
+    with socket.socket() as s:
+        s.settimeout(2)
+        return s.connect_ex((host, port)) == 0
+
+
+def wait_for_files(output: Path, n: int, timeout: float = 120) -> None:
+    deadline = time.time() + timeout
+    while len(list((output / "results").rglob("part-*.parquet"))) < n:
+        assert time.time() < deadline, f"fewer than {n} result files after {timeout} s"
+        time.sleep(0.05)
+
+
+@pytest.fixture
+def cli_cluster(tmp_path):
+    clusters: list[CliCluster] = []
+
+    def start(**options) -> CliCluster:
+        folder = tmp_path / f"dask-{len(clusters)}"
+        folder.mkdir()
+        clusters.append(CliCluster(folder, **options))
+        return clusters[-1]
+
+    yield start
+    for cluster in clusters:
+        cluster.close()
+
+
+@pytest.mark.skipif(not can_hide_folders(), reason="needs mount namespaces (unshare -m as root)")
+def test_workers_need_no_shared_file_system(tmp_path, cli_cluster, fresh_fmu_cache):
+    """Workers that cannot see the spec, the FMU sources, the built FMUs or the recordings still run
+    the sweep: everything they need arrives through Dask."""
+    hidden = (SCENARIOS, FMU_SOURCES, fresh_fmu_cache, MULTIMODEL.parent)
+    cluster = cli_cluster(hide=hidden)
+    with cluster.client() as client:
+        sees = client.run(lambda: [os.path.exists(p) and bool(os.listdir(p)) for p in map(str, hidden)])
+    assert all(not any(seen) for seen in sees.values()), sees  # the workers really see nothing there
+    space = load_space(write_space(tmp_path, cluster={"address": cluster.address}))
+    report = submit(space)
+    assert (report.ok, report.failed) == (12, 0), report.errors
+    assert len(store.read_results(space.output, "small", columns=[])) == 12
+    assert all(store.has_trajectory(space.output, "small", s.name, 1) for s in space.scenarios)
+
+
+def test_sigkilled_worker_loses_no_task_and_repeats_none(tmp_path, cli_cluster):
+    cluster = cli_cluster()
+    space = load_space(write_space(tmp_path, scenarios=[str(SCENARIOS / "*")], parameters=SLOW, chunk_seconds=0.5,
+                                   keep_trajectories=0, cluster={"address": cluster.address}))
+    killed: list[str] = []
+    with cluster.client() as client:
+        def kill_a_busy_worker(report) -> None:
+            if killed or report.chunks < 1:
+                return
+            busy = [w for w, keys in client.processing().items() if keys]
+            if busy:
+                pid = client.run(os.getpid, workers=busy[:1])[busy[0]]
+                os.kill(pid, signal.SIGKILL)  # mid-chunk: the chunk's file is never written
+                killed.append(busy[0])
+
+        report = submit(space, progress=kill_a_busy_worker, client=client)
+        assert killed and killed[0] not in client.scheduler_info()["workers"]
+    assert (report.ok, report.failed) == (120, 0), report.errors
+    ids = raw_task_ids(space.output)
+    assert len(ids) == 120 and ids.is_unique  # each task exactly once on disk
+
+
+def test_killed_client_resumes_on_submit(tmp_path, cli_cluster):
+    cluster = cli_cluster()
+    path = write_space(tmp_path, scenarios=[str(SCENARIOS / "*")], parameters=SLOW, chunk_seconds=0.5,
+                       keep_trajectories=0)
+    command = [sys.executable, "-m", "dse_runner.cli", "submit", str(path), "--scheduler", cluster.address, "--json"]
+    first = subprocess.Popen(command, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    wait_for_files(tmp_path / "out", 3)
+    first.send_signal(signal.SIGKILL)
+    first.wait(timeout=30)
+    time.sleep(2)  # chunks already running on workers finish and write; the scheduler forgets the rest
+    before = len(store.read_results(tmp_path / "out", "small", columns=[]))
+    second = subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert second.returncode == 0, second.stderr
+    report = json.loads(second.stdout)
+    assert report["skipped"] >= before > 0 and report["skipped"] + report["ran"] == 120
+    after = store.read_results(tmp_path / "out", "small", columns=["status"])
+    assert len(after) == 120 and (after["status"] == "ok").all()
+
+
+def test_scheduler_restart_resumes_from_the_store(tmp_path, cli_cluster):
+    cluster = cli_cluster()
+    space = load_space(write_space(tmp_path, scenarios=[str(SCENARIOS / "*")], parameters=SLOW, chunk_seconds=0.5,
+                                   keep_trajectories=0,
+                                   cluster={"address": cluster.address, "connect_timeout": 60}))
+    outcome: dict = {}
+    thread = threading.Thread(target=lambda: outcome.update(report=submit(space)), daemon=True)
+    thread.start()
+    wait_for_files(space.output, 3)
+    cluster.kill_scheduler()  # its workers exit too, as they do in distributed
+    done_when_killed = len(store.read_results(space.output, "small", columns=[]))
+    cluster.start_scheduler()  # same address; a supervisor would also restart the workers
+    cluster.start_worker()
+    cluster.start_worker()
+    thread.join(timeout=600)
+    report = outcome["report"]
+    assert report.reconnects == 1
+    assert report.ok + report.skipped >= 120 - done_when_killed
+    rows = store.read_results(space.output, "small", columns=["status"])
+    assert len(rows) == 120 and (rows["status"] == "ok").all()
+
+
+CRASH_AT = 13.0
+
+
+def crasher_space(tmp_path: Path) -> Path:
+    """A multi-model whose FMU segfaults for one parameter point of forty."""
+    sources = tmp_path / "fmus"
+    shutil.copytree(REPO / "tests" / "fmus" / "crasher", sources / "crasher")
+    shutil.copytree(FMU_SOURCES / "common", sources / "common")
+    multimodel = {
+        "fmus": {"controller": str(FMU_SOURCES / "replay_controller"), "crasher": str(sources / "crasher")},
+        "connections": {"controller.velocity": ["crasher.velocity"]},
+        "parameters": {"crasher.crash_at": CRASH_AT},
+        "scenario": {"controller.file": "steering_inputs"},
+        "track": {"x": "crasher.x", "y": "crasher.y"},
+    }
+    (tmp_path / "crasher.yaml").write_text(yaml.safe_dump(multimodel))
+    return write_space(tmp_path, multimodel=str(tmp_path / "crasher.yaml"), scenarios=[str(SCENARIOS / "sin1")],
+                       parameters={"crasher.k": {"start": 0, "stop": 39, "step": 1}}, chunk_seconds=100,
+                       keep_trajectories=0, cluster={"n_workers": 2})
+
+
+def test_segfaulting_fmu_fails_only_its_point(tmp_path):
+    space = load_space(crasher_space(tmp_path))
+    report = submit(space)
+    assert report.chunk_size > 1 and report.crashed_chunks >= 2  # a chunk was split down to the culprit
+    assert (report.ok, report.failed) == (39, 1)
+    rows = store.read_results(space.output, "small", columns=["crasher.k", "status", "error"])
+    failed = rows[rows["status"] == "failed"]
+    assert list(failed["crasher.k"]) == [CRASH_AT]
+    assert "worker process died" in failed["error"].iloc[0]
+    ids = raw_task_ids(space.output)
+    assert len(ids) == 40 and ids.is_unique
+
+
+def test_tls_scheduler(tmp_path, cli_cluster):
+    certs = make_certs(tmp_path / "certs")
+    cluster = cli_cluster(certs=certs)
+    assert cluster.address.startswith("tls://")
+    tls = {"ca_file": "certs/ca.pem", "cert": "certs/cert.pem", "key": "certs/key.pem"}  # relative to the spec
+    space = load_space(write_space(tmp_path, cluster={"address": cluster.address, "tls": tls}))
+    report = submit(space)
+    assert (report.ok, report.failed, report.workers) == (12, 0, 2)
+    with pytest.raises(DseError, match="needs cluster.tls"):
+        with connect(Cluster(address=cluster.address, connect_timeout=5)):
+            pass
+
+
+def test_htcondor_job_script(tmp_path):
+    """No HTCondor pool exists here: check the submit description dask-jobqueue renders from our spec."""
+    spec = Cluster.model_validate({"kind": "htcondor", "htcondor": {
+        "cores": 4, "memory": "8GiB", "disk": "2GiB", "job_extra": {"+ProjectName": '"robotti"'},
+        "prologue": ["source /opt/venvs/dse/bin/activate"], "python": "/opt/venvs/dse/bin/python"}})
+    cluster = make_htcondor(spec, None)
+    try:
+        script = cluster.job_script()
+        link = urlparse(cluster.dashboard_link)  # named by the host's address, but bound to loopback only
+        assert reachable("127.0.0.1", link.port) and (link.hostname == "127.0.0.1" or not reachable(link.hostname,
+                                                                                                   link.port))
+    finally:
+        cluster.close()
+    assert "RequestCpus = MY.DaskWorkerCores" in script and "MY.DaskWorkerCores = 4" in script
+    assert "MY.DaskWorkerMemory = 8589934592" in script and "MY.DaskWorkerDisk = 2147483648" in script
+    assert '+ProjectName = "robotti"' in script
+    assert "source /opt/venvs/dse/bin/activate" in script
+    assert "/opt/venvs/dse/bin/python -m distributed.cli.dask_worker" in script
+    assert "--nworkers 4" in script and "--nthreads 1" in script  # four single-threaded workers per job
+
+
+def test_cluster_choice_errors(tmp_path):
+    with pytest.raises(DseError, match="not both"):
+        load_space(write_space(tmp_path, cluster={"kind": "htcondor", "address": "tcp://127.0.0.1:8786"}))
+    with pytest.raises(DseError, match="needs a protocol"):
+        load_space(write_space(tmp_path, cluster={"address": "127.0.0.1:8786"}))
+    space = load_space(write_space(tmp_path, cluster={"kind": "slurm"}))
+    with pytest.raises(DseError, match=r"cluster.kind 'slurm' is unknown \(known: htcondor, kubernetes, local"):
+        submit(space)
+    space = load_space(write_space(tmp_path, cluster={"address": "tls://127.0.0.1:1",
+                                                      "tls": {"ca_file": "x", "cert": "y", "key": "z"}}))
+    with pytest.raises(DseError, match="cluster.tls.ca_file: no file"):
+        submit(space)
+    overridden = load_space(write_space(tmp_path, cluster={"kind": "htcondor"})).with_overrides(
+        address="tcp://127.0.0.1:8786")
+    assert (overridden.spec.cluster.kind, overridden.spec.cluster.address) == ("local", "tcp://127.0.0.1:8786")
+
+
+def test_unreachable_scheduler_names_it(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "dse_runner.cli", "submit", str(write_space(tmp_path)),
+                             "--scheduler", "tcp://127.0.0.1:9"], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2
+    assert "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in result.stderr
+
+
+def test_store_at_an_s3_url(tmp_path, monkeypatch):
+    """Results written by the workers straight to an S3 bucket (moto's S3 server on loopback), ranked from there."""
+    boto3 = pytest.importorskip("boto3")
+    from moto.server import ThreadedMotoServer
+
+    server = ThreadedMotoServer(ip_address="127.0.0.1", port=0)
+    server.start()
+    try:
+        host, port = server.get_host_and_port()
+        endpoint = f"http://{host}:{port}"
+        for name, value in {"AWS_ACCESS_KEY_ID": "test", "AWS_SECRET_ACCESS_KEY": "test",
+                            "AWS_DEFAULT_REGION": "us-east-1", "AWS_ENDPOINT_URL": endpoint}.items():
+            monkeypatch.setenv(name, value)  # the local cluster's workers inherit these
+        boto3.client("s3", endpoint_url=endpoint).create_bucket(Bucket="sweeps")
+        space = load_space(write_space(tmp_path, output="s3://sweeps/robotti", cluster={"n_workers": 2}))
+        report = submit(space)
+        assert (report.ok, report.failed) == (12, 0), report.errors
+        keys = [o["Key"] for o in boto3.client("s3", endpoint_url=endpoint).list_objects_v2(
+            Bucket="sweeps", Prefix="robotti/results/")["Contents"]]
+        assert keys and all(k.endswith(".parquet") for k in keys)
+        assert not (tmp_path / "s3:").exists() and not (tmp_path / "sweeps").exists()  # nothing landed locally
+        ranking = rank("s3://sweeps/robotti")
+        assert len(ranking.totals) == 6
+        assert store.read_trajectory("s3://sweeps/robotti", "small", "sin1", 1)["time"].size > 0
+    finally:
+        server.stop()
