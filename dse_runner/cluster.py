@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import logging
 import os
+import uuid
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from importlib.metadata import entry_points
@@ -96,6 +97,24 @@ def make_htcondor(spec: Cluster, sec: Any) -> Any:
     )
 
 
+KUBERNETES_IDLE_TIMEOUT = 600  # seconds: the operator deletes a cluster its crashed client left behind
+
+
+def kubernetes_cluster_spec(spec: Cluster, name: str) -> dict[str, Any]:
+    """The DaskCluster resource for the operator: our image, one single-threaded worker per pod."""
+    from dask_kubernetes.operator import make_cluster_spec
+
+    k = spec.kubernetes
+    resource = make_cluster_spec(name=name, image=k.image, n_workers=0, resources=k.resources, env=dict(k.env),
+                                 worker_command=["dask", "worker", "--nthreads", str(spec.threads_per_worker)],
+                                 idle_timeout=KUBERNETES_IDLE_TIMEOUT)
+    # make_cluster_spec still starts the scheduler with `dask-scheduler`, a command distributed
+    # removed in 2026.6; `dask scheduler` is the same program under its current name.
+    (scheduler,) = resource["spec"]["scheduler"]["spec"]["containers"]
+    scheduler["args"] = ["dask", "scheduler", *scheduler["args"][1:]]
+    return resource
+
+
 def make_kubernetes(spec: Cluster, sec: Any) -> Any:
     """A DaskCluster resource, served by the dask-kubernetes operator running in the cluster."""
     try:
@@ -105,9 +124,8 @@ def make_kubernetes(spec: Cluster, sec: Any) -> Any:
     if sec is not None:
         raise DseError("cluster.tls: the dask-kubernetes operator does not set up TLS; keep the scheduler inside "
                        "the cluster network and reach it by port-forward (deploy/kubernetes/README.md)")
-    k = spec.kubernetes
-    return KubeCluster(name="dse-runner", image=k.image, namespace=k.namespace, n_workers=0,
-                       resources=k.resources, env=dict(k.env), worker_command=["dask", "worker"])
+    name = f"dse-runner-{uuid.uuid4().hex[:8]}"  # two sweeps in one namespace get two clusters
+    return KubeCluster(custom_cluster_spec=kubernetes_cluster_spec(spec, name), namespace=spec.kubernetes.namespace)
 
 
 MAKERS: dict[str, Maker] = {"local": make_local, "htcondor": make_htcondor, "kubernetes": make_kubernetes}

@@ -25,7 +25,7 @@ import yaml
 from cluster import CliCluster, can_hide_folders, make_certs
 from conftest import FMU_SOURCES, MULTIMODEL, REPO, SCENARIOS, write_space
 from dse_runner import store
-from dse_runner.cluster import connect, make_htcondor
+from dse_runner.cluster import connect, kubernetes_cluster_spec, make_htcondor
 from dse_runner.errors import DseError
 from dse_runner.rank import rank
 from dse_runner.spec import Cluster, load_space
@@ -214,6 +214,22 @@ def test_htcondor_job_script(tmp_path):
     assert "source /opt/venvs/dse/bin/activate" in script
     assert "/opt/venvs/dse/bin/python -m distributed.cli.dask_worker" in script
     assert "--nworkers 4" in script and "--nthreads 1" in script  # four single-threaded workers per job
+
+
+def test_kubernetes_cluster_resource():
+    """No Kubernetes cluster exists here: check the DaskCluster resource the operator would be given."""
+    pytest.importorskip("dask_kubernetes")
+    spec = Cluster.model_validate({"kind": "kubernetes", "threads_per_worker": 1, "kubernetes": {
+        "image": "registry.example/dse-runner:1", "env": {"AWS_ENDPOINT_URL": "http://minio:9000"}}})
+    resource = kubernetes_cluster_spec(spec, "dse-runner-test")
+    (scheduler,) = resource["spec"]["scheduler"]["spec"]["containers"]
+    (worker,) = resource["spec"]["worker"]["spec"]["containers"]
+    assert scheduler["args"][:2] == ["dask", "scheduler"]  # the command distributed still has
+    assert worker["args"][:4] == ["dask", "worker", "--nthreads", "1"]
+    assert worker["image"] == scheduler["image"] == "registry.example/dse-runner:1"
+    assert {"name": "AWS_ENDPOINT_URL", "value": "http://minio:9000"} in worker["env"]
+    assert worker["resources"]["limits"] == {"cpu": "1", "memory": "2Gi"}
+    assert resource["spec"]["idleTimeout"] > 0  # a crashed client's cluster is removed
 
 
 def test_cluster_choice_errors(tmp_path):
