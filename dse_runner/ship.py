@@ -19,6 +19,7 @@ from __future__ import annotations
 import hashlib
 import os
 import tempfile
+import uuid
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -97,7 +98,7 @@ def _write_once(path: Path, data: bytes) -> Path:
     """Write under a temporary name and rename, so a path that exists is always complete."""
     if not path.is_file():
         path.parent.mkdir(parents=True, exist_ok=True)
-        partial = path.with_name(f".{path.name}.partial")
+        partial = path.with_name(f".{path.name}.{uuid.uuid4().hex}.partial")  # threads of one worker may race
         partial.write_bytes(data)
         os.replace(partial, path)
     return path

@@ -270,14 +270,14 @@ class Run:
             ship.send(client, self.shipment)
             report.chunk_size = chunk_size(self._probe(client, point), self.space.spec.chunk_seconds, pending,
                                            total_threads(client))
-        while True:
-            try:
-                ship.send(client, self.shipment)
-                self._chunks(client, done)
-                break
-            except SchedulerLost:
-                self._reconnect(client)
-                done = store.finished_task_ids(self.space.output, self.space.name)
+            while True:
+                try:
+                    self._chunks(client, done)
+                    break
+                except SchedulerLost:
+                    self._reconnect(client)  # a new scheduler knows neither our plugin nor our chunks
+                    ship.send(client, self.shipment)
+                    done = store.finished_task_ids(self.space.output, self.space.name)
         if not report.interrupted and self.space.spec.keep_trajectories:
             keep_trajectories(self.space, client, self.space.spec.keep_trajectories, self.shipment)
         report.seconds = time.perf_counter() - self.started
@@ -296,11 +296,12 @@ class Run:
         in_flight = as_completed()
 
         def launch(n: int) -> None:
-            while n > 0 and (again or (job := next(jobs, None)) is not None):
-                job = again.popleft() if again else job
+            for _ in range(n):
+                job = again.popleft() if again else next(jobs, None)
+                if job is None:
+                    return
                 launched[job.key] = job
                 in_flight.add(client.submit(run_chunk, job, key=job.key, pure=False))
-                n -= 1
 
         try:
             launch(2 * threads + 2)
@@ -311,15 +312,16 @@ class Run:
                     self._count(future.result())
                 except KilledWorker as e:
                     report.crashed_chunks += 1
-                    again.extend(job.after_crash())
-                    if len(job.tasks) == 1 and not job.after_crash():
+                    retry = job.after_crash()
+                    again.extend(retry)
+                    if not retry:  # a lone task, out of attempts
                         self._count(record_crash(job, {s.name: s.group for s in self.space.scenarios}, str(e)))
                 except CancelledError:
                     if client.status != "running":  # the connection to the scheduler broke
                         raise SchedulerLost from None
                     raise DseError(f"chunk {job.chunk_id} was cancelled on the scheduler {client.scheduler.address}"
                                    " by someone else; submit again to finish the sweep") from None
-                launch(1 + len(again) if again else 1)
+                launch(max(1, len(again)))  # a split chunk's halves take its place and one more
                 self._tell()
         except KeyboardInterrupt:
             report.interrupted = True
