@@ -70,6 +70,11 @@ def _join(*parts: str) -> str:
     return "/".join(p.strip("/") if i else p.rstrip("/") for i, p in enumerate(parts))
 
 
+def _where(fs: fsspec.AbstractFileSystem, path: str) -> str:
+    """A path to show users: local as is, remote as a full URL."""
+    return path if isinstance(fs, LocalFileSystem) else fs.unstrip_protocol(path)
+
+
 def _partition(kind: str, sweep: str, scenario: str) -> str:
     return f"{kind}/sweep={sweep}/scenario={scenario}"
 
@@ -92,7 +97,7 @@ def write_text(root: Root, name: str, text: str) -> str:
     target = _join(path, name)
     fs.makedirs(target.rsplit("/", 1)[0], exist_ok=True)
     fs.pipe_file(target, text.encode())
-    return target if is_url(str(root)) else target
+    return _where(fs, target)
 
 
 def read_text(root: Root, name: str) -> str | None:
@@ -115,7 +120,7 @@ def write_table(table: pa.Table, root: Root, relative: str) -> str:
         os.replace(partial, target)
     else:
         pq.write_table(table, target, filesystem=fs)
-    return target
+    return _where(fs, target)
 
 
 def results_schema(parameters: dict[str, list[Any]], objectives: tuple[str, ...]) -> pa.Schema:
