@@ -26,6 +26,7 @@ projection to 100 and 1,000 workers, measured side by side in one run.
 from __future__ import annotations
 
 import argparse
+import atexit
 import json
 import math
 import os
@@ -324,6 +325,19 @@ def slope(xs: list[float], ys: list[float]) -> float:
     return sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sum((x - mx) ** 2 for x in xs)
 
 
+def machine_speed(space: Space, repeats: int = 20) -> float:
+    """Milliseconds of one sin1 simulation in this process: to see whether the machine's speed moved
+    during the run (on a shared virtual machine it does)."""
+    from dse_runner.simulate import simulate
+
+    sin1 = next(s for s in space.scenarios if s.name == "sin1")
+    simulate(space.plan, sin1, {}, space.objectives)
+    start = time.perf_counter()
+    for _ in range(repeats):
+        simulate(space.plan, sin1, {}, space.objectives)
+    return (time.perf_counter() - start) / repeats * 1e3
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true")
@@ -335,9 +349,11 @@ def main() -> None:
     say = (lambda *a: None) if args.json else (lambda *a: print(*a, flush=True))
 
     work = Path(tempfile.mkdtemp(prefix="dse-scaling-"))
+    atexit.register(shutil.rmtree, work, ignore_errors=True)  # also when a step fails
     paper = load_space(REPO / "jobs" / "robotti" / "space.yaml")
     f: dict = {"machine": {"cores": os.cpu_count(), "memory_gib": round(psutil.virtual_memory().total / 2**30, 1),
                            "python": sys.version.split()[0]}}
+    f["sin1_ms_at_start"] = machine_speed(paper)
 
     # 1. throughput against workers, and overhead against chunk size
     say("1. real sweep (600 tasks: the paper's space with mu in {0.3, 0.5}), embedded local cluster; "
@@ -443,13 +459,13 @@ def main() -> None:
     f["chunk_size_for_5pct_here_marginal"] = math.ceil(marginal / (OVERHEAD_TARGET * t)) if marginal > 0 else 1
     f["default_chunk_size_here"] = {"this_600_task_sweep": r2["chunk_size"],
                                     "paper_1500_task_sweep": chunk_size(t, 2.0, 1500, 2)}
-    shutil.rmtree(work, ignore_errors=True)
+    f["sin1_ms_at_end"] = machine_speed(paper)
     if args.json:
         print(json.dumps(f, indent=2))
         return
 
-    print(f"4. PROJECTION to 100 and 1,000 workers from figures measured on this {os.cpu_count()}-core machine; "
-          "only the W=2 row's inputs were measured at that size")
+    print(f"4. PROJECTION, not a measurement: no sweep ran on 100 or 1,000 workers; every input below was "
+          f"measured on this {os.cpu_count()}-core machine (2 working workers; 10 idle ones for the heartbeat)")
     print(f"   inputs: t = {t * 1e3:.1f} ms per simulation; o = {o * 1e3:.0f} ms worker-side overhead per chunk; "
           f"s = {s * 1e3:.2f} ms scheduler CPU per chunk task;")
     print(f"   heartbeat {heartbeat_s * 1e3:.3f} ms scheduler CPU each (W / heartbeat_interval(W) a second); "
@@ -485,6 +501,8 @@ def main() -> None:
     print(f"   dse-runner chose {r2['chunk_size']} for this 600-task sweep (chunk_seconds 2.0 over the probe's time, "
           f"capped at pending / (4 x threads)); it would choose {chunk_size(t, 2.0, 1500, 2)} for the paper's 1500 "
           f"at t = {t * 1e3:.1f} ms")
+    print(f"machine speed: one sin1 simulation took {f['sin1_ms_at_start']:.1f} ms at the start of this run and "
+          f"{f['sin1_ms_at_end']:.1f} ms at the end")
 
 
 if __name__ == "__main__":
