@@ -27,14 +27,16 @@ import os
 import socket
 import time
 import traceback
+from pathlib import Path
 from collections import deque
 from concurrent.futures import CancelledError
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, Literal
 
 import pandas as pd
 import pyarrow as pa
+from pydantic import BaseModel, Field
 
 from . import ship, store
 from .cluster import connect, total_threads
@@ -152,12 +154,30 @@ def record_crash(job: ChunkJob, groups: dict[str, str], reason: str) -> ChunkSum
     return ChunkSummary(job.chunk_id, 0, 1, 0.0, [f"{task.scenario} {dict(task.point)}: {error}"])
 
 
-@dataclass
-class SweepReport:
+class WorkerActivity(BaseModel):
+    """One Dask worker as the dashboard shows it."""
+
+    name: str
+    threads: int
+    executing: int = 0  # tasks running on it now
+    cpu: float = 0.0  # percent
+    memory: int = 0  # bytes
+
+
+class SweepReport(BaseModel):
+    """What a submission has done so far: returned by :func:`submit`, shown by the progress bar,
+    and saved beside the results as ``<sweep>.status.json`` for the dashboard (also when it runs
+    in another process than the sweep)."""
+
     sweep: str
-    output: store.Root
+    output: str | Path
     total: int  # tasks in the space
     skipped: int  # already had a row
+    spec: str = ""  # the space.yaml the sweep ran from, to find its recordings again
+    scenarios: dict[str, str] = {}  # scenario -> group
+    state: Literal["running", "finished", "interrupted"] = "running"
+    started_at: float = Field(default_factory=time.time)  # Unix time
+    updated_at: float = Field(default_factory=time.time)
     ok: int = 0
     failed: int = 0
     seconds: float = 0.0  # wall time of this submission
@@ -165,16 +185,53 @@ class SweepReport:
     chunk_size: int = 0
     chunks: int = 0
     workers: int = 0
-    dashboard: str | None = None
+    activity: list[WorkerActivity] = []
+    dashboard: str | None = None  # Dask's
     interrupted: bool = False
     crashed_chunks: int = 0  # chunks Dask gave up on because workers died running them; split and rerun
     reconnects: int = 0  # times the scheduler went away and the sweep resumed from the store
     waiting: str | None = None  # what the sweep is waiting for, if it is not running tasks
-    errors: list[str] = field(default_factory=list)
+    errors: list[str] = []
 
     @property
     def ran(self) -> int:
         return self.ok + self.failed
+
+    @property
+    def remaining(self) -> int:
+        return max(0, self.total - self.skipped - self.ran)
+
+    @property
+    def rate(self) -> float:
+        """Simulations per second in this submission."""
+        return self.ran / self.seconds if self.seconds > 0 else 0.0
+
+    @property
+    def eta_seconds(self) -> float | None:
+        return self.remaining / self.rate if self.rate > 0 else None
+
+
+STATUS_FILE = "status.json"
+STATUS_SECONDS = 1.0  # how often a running sweep saves its status
+
+
+def save_status(report: SweepReport) -> None:
+    report.updated_at = time.time()
+    store.write_text(report.output, f"{report.sweep}.{STATUS_FILE}", report.model_dump_json(indent=1))
+
+
+def load_status(output: store.Root, sweep: str) -> SweepReport | None:
+    """The last status a submission saved, or None if no submission of ``sweep`` saved one."""
+    text = store.read_text(output, f"{sweep}.{STATUS_FILE}")
+    return SweepReport.model_validate_json(text) if text is not None else None
+
+
+def worker_activity(client) -> list[WorkerActivity]:
+    workers = client.scheduler_info()["workers"].values()
+    return [WorkerActivity(name=str(w.get("name", w.get("id", "?"))), threads=w["nthreads"],
+                           executing=w["metrics"].get("task_counts", {}).get("executing", 0),
+                           cpu=w["metrics"].get("cpu", 0.0), memory=w["metrics"].get("memory", 0))
+            for w in workers]
 
 
 Progress = Callable[[SweepReport], None]
@@ -217,11 +274,13 @@ def _chunk_id(tasks: list[Task]) -> str:
 
 
 def submit(space: Space, progress: Progress | None = None, client=None,
-           points: list[Point] | None = None) -> SweepReport:
+           points: list[Point] | None = None, on_connect: Callable[[Any], None] | None = None) -> SweepReport:
     """Run every task of ``space`` that has no row yet; returns counts, never raises on failed tasks.
 
     ``points`` replaces the space's search strategy with a given list: how an
-    optimiser (fit.py) runs each of its rounds as a sweep into the same store."""
+    optimiser (fit.py) runs each of its rounds as a sweep into the same store.
+    ``on_connect(client)`` runs each time the sweep (re)connects to a scheduler: how the
+    CLI links its dashboard from Dask's (dashboard.link_from_dask)."""
     started = time.perf_counter()
     output = space.output
     store.check_reachable(output)
@@ -231,13 +290,17 @@ def submit(space: Space, progress: Progress | None = None, client=None,
     for task in expand(space, points):
         total += 1
         skipped += task.task_id in done
-    report = SweepReport(space.name, output, total, skipped)
+    report = SweepReport(sweep=space.name, output=output, total=total, skipped=skipped, spec=str(space.path),
+                         scenarios={s.name: s.group for s in space.scenarios})
     pending = total - skipped
     if pending == 0 and _trajectories_kept(space):
         report.seconds = time.perf_counter() - started
+        report.state = "finished"
+        save_status(report)
         return report
     point = first_point(space, points)
-    run = Run(space, ship.pack(space.plan, space.scenarios), points, report, progress, started)
+    run = Run(space, ship.pack(space.plan, space.scenarios), points, report, progress, started, on_connect)
+    save_status(report)
     if client is None:
         with connect(space.spec.cluster, space.path.parent) as own:
             return run.until_done(own, done, point, pending)
@@ -263,11 +326,14 @@ class Run:
     report: SweepReport
     progress: Progress | None
     started: float
+    on_connect: Callable[[Any], None] | None = None
+    saved: float = 0.0  # when the status file was last written (monotonic)
 
     def until_done(self, client, done: set[str], point: Point, pending: int) -> SweepReport:
         report = self.report
         if pending:
             ship.send(client, self.shipment)
+            self._connected(client)
             report.chunk_size = chunk_size(self._probe(client, point), self.space.spec.chunk_seconds, pending,
                                            total_threads(client))
             while True:
@@ -277,19 +343,26 @@ class Run:
                 except SchedulerLost:
                     self._reconnect(client)  # a new scheduler knows neither our plugin nor our chunks
                     ship.send(client, self.shipment)
+                    self._connected(client)
                     done = store.finished_task_ids(self.space.output, self.space.name)
         if not report.interrupted and self.space.spec.keep_trajectories:
             keep_trajectories(self.space, client, self.space.spec.keep_trajectories, self.shipment)
         report.seconds = time.perf_counter() - self.started
+        report.state = "interrupted" if report.interrupted else "finished"
+        save_status(report)
         return report
+
+    def _connected(self, client) -> None:
+        self.report.workers = len(client.scheduler_info()["workers"])
+        self.report.dashboard = client.dashboard_link
+        if self.on_connect:
+            self.on_connect(client)
 
     def _chunks(self, client, done: set[str]) -> None:
         from distributed import as_completed
         from distributed.scheduler import KilledWorker
 
         report, threads = self.report, total_threads(client)
-        report.workers = len(client.scheduler_info()["workers"])
-        report.dashboard = client.dashboard_link
         jobs = _jobs(self.space, self.shipment.key, done, report.chunk_size, self.points)
         again: deque[ChunkJob] = deque()  # halves of crashed chunks go first
         launched: dict[str, ChunkJob] = {}
@@ -305,7 +378,7 @@ class Run:
 
         try:
             launch(2 * threads + 2)
-            self._tell()
+            self._tell(client)
             for future in in_flight:
                 job = launched.pop(future.key)
                 try:
@@ -322,7 +395,7 @@ class Run:
                     raise DseError(f"chunk {job.chunk_id} was cancelled on the scheduler {client.scheduler.address}"
                                    " by someone else; submit again to finish the sweep") from None
                 launch(max(1, len(again)))  # a split chunk's halves take its place and one more
-                self._tell()
+                self._tell(client)
         except KeyboardInterrupt:
             report.interrupted = True
             for future in list(in_flight.futures):
@@ -347,10 +420,18 @@ class Run:
         report.simulation_seconds += summary.seconds
         report.errors.extend(summary.errors[: max(0, 5 - len(report.errors))])
 
-    def _tell(self) -> None:
-        self.report.seconds = time.perf_counter() - self.started
+    def _tell(self, client) -> None:
+        """Show progress; save the status for the dashboard at most every STATUS_SECONDS."""
+        report = self.report
+        report.seconds = time.perf_counter() - self.started
         if self.progress:
-            self.progress(self.report)
+            self.progress(report)
+        if time.monotonic() - self.saved >= STATUS_SECONDS:
+            if client.status == "running":
+                report.activity = worker_activity(client)
+                report.workers = len(report.activity)
+            save_status(report)
+            self.saved = time.monotonic()
 
     def _reconnect(self, client) -> None:
         """Wait for the client to reconnect to a restarted scheduler and for a worker to join it.
@@ -361,7 +442,7 @@ class Run:
         timeout = self.space.spec.cluster.connect_timeout
         address = client.scheduler.address
         self.report.waiting = f"scheduler {address} lost; waiting for it"
-        self._tell()
+        self._tell(client)
         deadline = time.monotonic() + timeout
         while client.status == "connecting" and time.monotonic() < deadline:
             time.sleep(0.2)
