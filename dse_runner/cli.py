@@ -25,6 +25,9 @@ app = typer.Typer(
 )
 
 JsonFlag = Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout, nothing else.")]
+DashboardAddress = Annotated[str, typer.Option(
+    help="host:port the dashboard listens on (port 0: any free one). Loopback by default: the page has no "
+         "login; reach it from elsewhere through an SSH tunnel.")]
 
 
 def fail(error: Exception) -> None:
@@ -139,6 +142,8 @@ def submit(
     scheduler: Annotated[str | None, typer.Option(help="Address of an existing Dask scheduler (tcp:// or tls://).")] = None,
     cluster: Annotated[str | None, typer.Option(help="Start a cluster of this kind: local, htcondor, kubernetes "
                                                      "or a plugin's (overrides the spec).")] = None,
+    dashboard: Annotated[bool, typer.Option(help="Serve the live dashboard while the sweep runs.")] = True,
+    dashboard_address: DashboardAddress = "127.0.0.1:0",
     as_json: JsonFlag = False,
 ) -> None:
     """Run every (parameter point, scenario) task of SPEC on Dask; resume if run again; rank."""
@@ -146,15 +151,21 @@ def submit(
     from .spec import load_space
     from .sweep import submit as run_sweep
 
+    board = None
     try:
         space = load_space(spec).with_overrides(out, scheduler, workers, cluster)
+        if dashboard:
+            board = _start_dashboard(space, dashboard_address)
         with ProgressBar() as progress:
-            report = run_sweep(space, progress=progress)
+            report = run_sweep(space, progress=progress, on_connect=board.link if board else None)
     except DseError as e:
         fail(e)
     except KeyboardInterrupt:
         typer.echo("interrupted before the sweep started; nothing was lost", err=True)
         raise typer.Exit(130)
+    finally:
+        if board is not None:
+            board.server.stop()
     if report.interrupted:
         typer.echo(f"interrupted: {report.skipped + report.ran} of {report.total} tasks have results in "
                    f"{report.output}; run the same command again to finish the rest", err=True)
@@ -183,6 +194,74 @@ def submit(
         return
     _print_table1(ranking)
     typer.echo(f"ranking: {files['json'].rsplit('/', 1)[0]}")
+    typer.echo(f"report: dse-runner report {report.output} -o report.html; "
+               f"dashboard: dse-runner dashboard {report.output}")
+
+
+class _Board:
+    """The dashboard a submit serves, and how it links itself from Dask's dashboard."""
+
+    def __init__(self, server) -> None:
+        self.server = server
+
+    def link(self, client) -> None:
+        from .dashboard import link_from_dask
+
+        page = link_from_dask(client, self.server.url)
+        if page:
+            typer.echo(f"linked from Dask's dashboard: {page}", err=True)
+
+
+def _start_dashboard(space, address: str) -> _Board:
+    from .dashboard import serve
+
+    server = serve(space.output, space.name, address, space)
+    typer.echo(f"dse-runner dashboard: {server.url}", err=True)
+    return _Board(server)
+
+
+@app.command("dashboard")
+def dashboard_command(
+    results: Annotated[str, typer.Argument(help="A sweep's store: output folder or URL.")],
+    sweep: Annotated[str | None, typer.Option(help="Which sweep, if the folder holds several.")] = None,
+    address: DashboardAddress = "127.0.0.1:0",
+) -> None:
+    """Serve the live dashboard of a running or finished sweep until interrupted (Ctrl-C)."""
+    import time
+
+    from .dashboard import serve
+    from .rank import pick_sweep
+
+    try:
+        server = serve(results, pick_sweep(results, sweep), address)
+    except DseError as e:
+        fail(e)
+    typer.echo(f"dse-runner dashboard: {server.url}  (Ctrl-C to stop)")
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        server.stop()
+
+
+@app.command("report")
+def report_command(
+    results: Annotated[str, typer.Argument(help="A sweep's store: output folder or URL.")],
+    output: Annotated[Path, typer.Option("-o", "--output", help="The HTML file to write.")] = Path("report.html"),
+    sweep: Annotated[str | None, typer.Option(help="Which sweep, if the folder holds several.")] = None,
+    as_json: JsonFlag = False,
+) -> None:
+    """Write one self-contained HTML file (opens offline): Table 1, rankings, Pareto front, figures, spec."""
+    from .report import write_report
+
+    try:
+        path = write_report(results, output, sweep)
+    except DseError as e:
+        fail(e)
+    if as_json:
+        emit_json({"report": str(path), "bytes": path.stat().st_size})
+    else:
+        typer.echo(f"report: {path} ({path.stat().st_size / 1e6:.1f} MB)")
 
 
 class ProgressBar:

@@ -105,15 +105,21 @@ def _best_first(frame: pd.DataFrame, column: str, goal: str) -> pd.DataFrame:
     return frame.sort_values(column, ascending=(goal == "min"), kind="stable").reset_index(drop=True)
 
 
-def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | None = None) -> Ranking:
-    """Rank the results in ``output`` with the sweep's own ranking settings unless given others."""
+def pick_sweep(output: store.Root, sweep: str | None) -> str:
+    """``sweep``, or the one sweep ``output`` holds results of."""
+    if sweep is not None:
+        return sweep
     names = store.sweeps(output)
     if not names:
         raise DseError(f"{output}: no results (expected {store.RESULTS}/sweep=NAME/...)")
-    if sweep is None:
-        if len(names) > 1:
-            raise DseError(f"{output} holds several sweeps ({', '.join(names)}): name one with --sweep")
-        sweep = names[0]
+    if len(names) > 1:
+        raise DseError(f"{output} holds several sweeps ({', '.join(names)}): name one with --sweep")
+    return names[0]
+
+
+def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | None = None) -> Ranking:
+    """Rank the results in ``output`` with the sweep's own ranking settings unless given others."""
+    sweep = pick_sweep(output, sweep)
     spec = load_sweep_spec(output, sweep)
     settings = settings or spec.ranking
     parameters = list(spec.parameters)
@@ -137,7 +143,7 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
     if complete.empty:
         raise DseError(f"sweep {sweep!r}: no parameter point has an ok result for all {n_scenarios} scenarios")
     complete = _best_first(complete, settings.objective, settings.goal)
-    best = {p: _plain(complete.loc[0, p]) for p in parameters}
+    best = {p: plain(complete.loc[0, p]) for p in parameters}
 
     table1 = _table1(ok, settings.objective, best)
     if pareto:
@@ -158,7 +164,20 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
                    failed_rows=int((rows["status"] != "ok").sum()))
 
 
-def _plain(value: Any) -> Any:
+def standings(ok: pd.DataFrame, parameters: list[str], objective: str, goal: str) -> pd.DataFrame:
+    """The best-so-far ranking of a running sweep: the points that have finished the most scenarios
+    first (tasks run scenario by scenario, so these have finished the same ones and compare like with
+    like), each group by its mean ``objective``. Once every point has finished every scenario the
+    order is that of :func:`rank` (the total is the mean times the number of scenarios)."""
+    if ok.empty:
+        return pd.DataFrame(columns=[*parameters, "scenarios", "mean", "total"])
+    per_point = ok.groupby(parameters, dropna=False)[objective]
+    table = pd.DataFrame({"scenarios": per_point.size(), "mean": per_point.mean(), "total": per_point.sum()})
+    return table.reset_index().sort_values(["scenarios", "mean"], ascending=[False, goal == "min"],
+                                           kind="stable").reset_index(drop=True)
+
+
+def plain(value: Any) -> Any:
     return value.item() if hasattr(value, "item") else value
 
 
@@ -183,7 +202,7 @@ def _groups(ok: pd.DataFrame, parameters: list[str], objective: str, goal: str,
         if per_point.empty:
             continue
         top = _best_first(per_point, "sum", goal).iloc[0]
-        result.append({"group": group, "scenarios": n, **{p: _plain(top[p]) for p in parameters},
+        result.append({"group": group, "scenarios": n, **{p: plain(top[p]) for p in parameters},
                        f"{objective}_total": float(top["sum"])})
     return pd.DataFrame(result)
 
