@@ -82,6 +82,14 @@ class Feed:
         return Snapshot(load_status(self.output, self.sweep), ok, len(rows), int((rows["status"] != "ok").sum()),
                         standings(ok, self.parameters, self.objective, self.goal))
 
+    def scenarios(self, snap: Snapshot) -> dict[str, str]:
+        """Scenario -> group: from the space if this process has it, else the status, else the rows."""
+        if self._space is not None:
+            return {s.name: s.group for s in self._space.scenarios}
+        if snap.status is not None and snap.status.scenarios:
+            return dict(snap.status.scenarios)
+        return dict(zip(snap.ok["scenario"], snap.ok["group"]))
+
     def space(self) -> tuple[Space | None, str]:
         """The sweep's space, to simulate tracks; or None and why not."""
         if self._space_note == "":
@@ -177,8 +185,7 @@ class Page:
 
         self.feed, self.doc, self.shown = feed, doc, -1.0
         snap = feed.snapshot()
-        self.scenarios = dict(snap.status.scenarios) if snap.status and snap.status.scenarios else \
-            dict(zip(snap.ok["scenario"], snap.ok["group"]))
+        self.scenarios = feed.scenarios(snap)
         p, objective = feed.parameters, feed.objective
         dask = snap.status.dashboard if snap.status else None
         links = f' · <a href="{html.escape(dask)}" target="_blank">Dask dashboard</a>' if dask else ""
@@ -237,7 +244,7 @@ class Page:
 
     def _track(self, snap: Snapshot, force: bool = False) -> None:
         if snap.standings.empty or not self.select.value:
-            self.track_note.text = "The track of the best point appears with the first results."
+            self.track_note.text = "<span id='dse-track'>The best point's track appears with the first results.</span>"
             return
         point = {p: plain(snap.standings.iloc[0][p]) for p in self.feed.parameters}
         key = (self.select.value, tuple(sorted(point.items())))
@@ -247,11 +254,11 @@ class Page:
         try:
             gps, simulated, value = self.feed.track(self.select.value, point)
         except DseError as e:
-            self.track_note.text = f"<span id='dse-track-note'>No track: {html.escape(str(e))}</span>"
+            self.track_note.text = f"<span id='dse-track'>No track: {html.escape(str(e))}</span>"
             return
-        self.track_note.text = ""
-        self.track.update(gps, simulated, f"{self.select.value}: best point so far, {self.feed.objective} "
-                                          f"{value:.4f}")
+        caption = f"{self.select.value}: best point so far, {self.feed.objective} {value:.4f}"
+        self.track_note.text = f"<span id='dse-track'>{html.escape(caption)}</span>"
+        self.track.update(gps, simulated, caption)
 
 
 # --- serving -------------------------------------------------------------------------------------

@@ -117,7 +117,7 @@ def build_report(output: store.Root, sweep: str | None = None) -> str:
     status = load_status(output, sweep)
     feed = Feed(output, sweep)
     ok = feed.snapshot().ok
-    scenarios = dict(zip(ok["scenario"], ok["group"]))
+    scenarios = feed.scenarios(feed.snapshot())
     parameters = ranking.parameters
 
     figures: dict[str, object] = {}

@@ -1,0 +1,241 @@
+"""The live dashboard and the HTML report, in a real headless Chromium (Debian's) driven by Playwright.
+
+One sweep runs on the real multi-process cluster while a browser watches its dashboard;
+the tests below check what that browser saw, then the report and the stand-alone
+``dse-runner dashboard`` on the finished results.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from conftest import SCENARIOS, write_space
+
+SWEEP_SCENARIOS = ["sin1", "speed_ramp1", "speed_step1", "turn_ramp1"]
+PARAMETERS = {"vehicle.cAlphaF": {"start": 20000, "stop": 38000, "num": 5},
+              "vehicle.mass": {"start": 1000, "stop": 3000, "num": 5},
+              "vehicle.mu": [0.3, 0.4, 0.5, 0.7]}
+TASKS = 4 * 5 * 5 * 4
+
+
+def chromium(playwright):
+    """Debian's Chromium: what .ci/install puts on the machine (apt-get install chromium)."""
+    path = shutil.which("chromium") or shutil.which("chromium-browser")
+    assert path, "no chromium on PATH: install Debian's (apt-get install chromium), as .ci/install does"
+    return playwright.chromium.launch(executable_path=path)
+
+
+@dataclass
+class Watched:
+    """What the browser saw while the sweep ran."""
+
+    output: Path
+    url: str
+    total: int = 0
+    done: list[int] = field(default_factory=list)  # each new "done" count, in order
+    best: list[str] = field(default_factory=list)  # each new best-so-far line, in order
+    final_state: str = ""
+    final_done: str = ""
+    errors: list[str] = field(default_factory=list)  # console errors and uncaught exceptions
+    dask_page_went_to: str = ""
+    dask_nav_has_link: bool = False
+    track_title: str = ""
+
+
+def _watch_errors(page, errors: list[str]) -> None:
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.on("pageerror", lambda e: errors.append(str(e)))
+
+
+def _text(page, element: str) -> str:
+    return page.locator(f"#dse-{element}").inner_text()
+
+
+@pytest.fixture(scope="module")
+def watched(tmp_path_factory, dask_scheduler) -> Watched:
+    from distributed import Client
+    from playwright.sync_api import sync_playwright
+
+    from dse_runner.dashboard import link_from_dask, serve
+    from dse_runner.spec import load_space
+    from dse_runner.sweep import submit
+
+    folder = tmp_path_factory.mktemp("dashboard")
+    space = load_space(write_space(folder, name="watched", scenarios=[str(SCENARIOS / s) for s in SWEEP_SCENARIOS],
+                                   parameters=PARAMETERS, chunk_seconds=0.3))
+    server = serve(space.output, space.name, "127.0.0.1:0", space)
+    seen = Watched(Path(space.output), server.url)
+    client = Client(dask_scheduler)
+    links: list[str | None] = []
+    outcome: dict = {}
+
+    def run() -> None:
+        try:
+            outcome["report"] = submit(space, client=client, on_connect=lambda c: links.append(
+                link_from_dask(c, server.url)))
+        except BaseException as e:  # noqa: BLE001 - reported by the test
+            outcome["error"] = e
+
+    with sync_playwright() as playwright:
+        browser = chromium(playwright)
+        page = browser.new_page(viewport={"width": 1300, "height": 1600})
+        _watch_errors(page, seen.errors)
+        page.goto(server.url)
+        page.wait_for_selector("#dse-done", timeout=30_000)
+        sweep = threading.Thread(target=run)
+        sweep.start()
+
+        def look() -> None:
+            match = re.match(r"(\d+) of (\d+)", _text(page, "done"))
+            if match and (not seen.done or int(match[1]) != seen.done[-1]):
+                seen.done.append(int(match[1]))
+                seen.total = int(match[2])
+            best = _text(page, "best")
+            if not seen.best or best != seen.best[-1]:
+                seen.best.append(best)
+
+        while sweep.is_alive():
+            look()
+            time.sleep(0.25)
+        sweep.join()
+        deadline = time.monotonic() + 15
+        while time.monotonic() < deadline and _text(page, "state") != "finished":
+            time.sleep(0.25)
+        look()
+        seen.final_state, seen.final_done = _text(page, "state"), _text(page, "done")
+        seen.track_title = _text(page, "track")
+        if links and links[0]:
+            dask = browser.new_page()
+            _watch_errors(dask, seen.errors)
+            dask.goto(client.dashboard_link)
+            seen.dask_nav_has_link = dask.locator("a[href='dse-runner']").count() == 1
+            dask.goto(links[0])
+            seen.dask_page_went_to = dask.url
+        browser.close()
+    client.close()
+    server.stop()
+    if "error" in outcome:
+        raise outcome["error"]
+    assert outcome["report"].ok == TASKS, outcome["report"].errors
+    return seen
+
+
+def test_progress_advances_while_the_sweep_runs(watched):
+    assert watched.total == TASKS
+    assert len(watched.done) >= 3, f"the page showed only these counts: {watched.done}"
+    assert watched.done == sorted(watched.done)
+    assert any(0 < n < TASKS for n in watched.done), watched.done  # seen mid-sweep, not just before and after
+    assert watched.final_done == f"{TASKS} of {TASKS}" and watched.final_state == "finished"
+
+
+def test_the_best_so_far_ranking_updates(watched):
+    shown = [b for b in watched.best if b.startswith("best so far")]
+    assert len(set(shown)) >= 2, watched.best
+    assert "over 4 of 4 scenarios" in watched.best[-1]
+
+
+def test_the_page_has_no_console_errors(watched):
+    assert watched.errors == []
+
+
+def test_the_best_track_is_drawn(watched):
+    assert "best point so far" in watched.track_title
+
+
+def test_dask_dashboard_links_to_it(watched):
+    assert watched.dask_nav_has_link
+    assert watched.dask_page_went_to == watched.url
+
+
+def test_the_final_page_shows_the_rank_commands_best_point(watched):
+    from dse_runner.rank import rank
+
+    ranking = rank(watched.output, "watched")
+    best = ", ".join(f"{k} = {v:g}" for k, v in ranking.best.items())
+    assert best in watched.best[-1]
+
+
+def test_the_report_opens_offline(watched, tmp_path):
+    from playwright.sync_api import sync_playwright
+
+    from dse_runner.rank import rank
+
+    report = tmp_path / "report.html"
+    done = subprocess.run([sys.executable, "-m", "dse_runner.cli", "report", str(watched.output), "-o", str(report)],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    ranking = rank(watched.output, "watched")
+    errors: list[str] = []
+    requests: list[str] = []
+    with sync_playwright() as playwright:
+        browser = chromium(playwright)
+        context = browser.new_context(offline=True)
+        page = context.new_page()
+        _watch_errors(page, errors)
+        page.on("request", lambda r: requests.append(r.url))
+        page.goto(report.as_uri())
+        page.wait_for_selector("canvas", timeout=30_000)
+        page.wait_for_timeout(1000)
+        canvases = page.locator("canvas").count()
+        text = page.locator("body").inner_text()
+        browser.close()
+    assert errors == []
+    assert [r for r in requests if not r.startswith("file:")] == []
+    assert canvases >= 3 + 4 + 1 + len(SWEEP_SCENARIOS)  # Figure 5, Figure 6, Pareto, a track per scenario
+    for scenario in SWEEP_SCENARIOS:  # Table 1 has every scenario with the rank command's figures
+        row = ranking.table1.set_index("scenario").loc[scenario]
+        assert re.search(rf"{scenario}\s+\S+\s+{row['min_error']:.6g}\s+{row['max_error']:.6g}", text), scenario
+    assert "name: watched" in text and "vehicle.cAlphaF" in text  # the spec
+    assert f"{ranking.best_total:.4f}" in text
+
+
+def test_dashboard_command_serves_a_finished_sweep(watched):
+    from playwright.sync_api import sync_playwright
+
+    server = subprocess.Popen([sys.executable, "-m", "dse_runner.cli", "dashboard", str(watched.output)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = server.stdout.readline()
+        match = re.search(r"http://127\.0\.0\.1:\d+/", line)
+        assert match, line + server.stderr.read()
+        errors: list[str] = []
+        with sync_playwright() as playwright:
+            browser = chromium(playwright)
+            page = browser.new_page()
+            _watch_errors(page, errors)
+            page.goto(match[0])
+            page.wait_for_selector("#dse-done", timeout=30_000)
+            state, done = _text(page, "state"), _text(page, "done")
+            browser.close()
+    finally:
+        server.terminate()
+        server.wait(timeout=10)
+    assert (state, done, errors) == ("finished", f"{TASKS} of {TASKS}", [])
+
+
+def test_standings_put_the_furthest_points_first():
+    from dse_runner.rank import standings
+
+    ok = pd.DataFrame({"a": [1.0, 1.0, 2.0, 3.0, 3.0], "scenario": ["s", "t", "s", "s", "t"],
+                       "e": [5.0, 1.0, 0.5, 2.0, 2.0]})
+    table = standings(ok, ["a"], "e", "min")
+    assert table["a"].tolist() == [3.0, 1.0, 2.0]  # a=3 (mean 2) and a=1 (mean 3) have 2 scenarios
+    assert table["scenarios"].tolist() == [2, 2, 1]
+
+
+def test_dashboard_address_errors_name_the_address():
+    from dse_runner.dashboard import parse_address
+    from dse_runner.errors import DseError
+
+    assert parse_address("127.0.0.1:0") == ("127.0.0.1", 0)
+    with pytest.raises(DseError, match="8790x"):
+        parse_address("8790x")
