@@ -239,3 +239,25 @@ def test_dashboard_address_errors_name_the_address():
     assert parse_address("127.0.0.1:0") == ("127.0.0.1", 0)
     with pytest.raises(DseError, match="8790x"):
         parse_address("8790x")
+
+
+def test_report_of_a_folder_without_results_names_it(tmp_path):
+    done = subprocess.run([sys.executable, "-m", "dse_runner.cli", "report", str(tmp_path), "-o",
+                           str(tmp_path / "r.html")], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2
+    assert str(tmp_path) in done.stderr and "no results" in done.stderr
+    assert not (tmp_path / "r.html").exists()
+
+
+def test_submit_prints_the_dashboard_url_and_its_dask_link(tmp_path, dask_scheduler):
+    import json
+
+    command = [sys.executable, "-m", "dse_runner.cli", "submit", str(write_space(tmp_path, keep_trajectories=0)),
+               "--scheduler", dask_scheduler, "--json"]
+    shown = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert shown.returncode == 0, shown.stderr
+    assert json.loads(shown.stdout)["ok"] == 12  # stdout stays one JSON object
+    assert re.search(r"dse-runner dashboard: http://127\.0\.0\.1:\d+/", shown.stderr), shown.stderr
+    assert re.search(r"linked from Dask's dashboard: http://\S+/dse-runner", shown.stderr), shown.stderr
+    quiet = subprocess.run([*command, "--no-dashboard"], capture_output=True, text=True, timeout=300)
+    assert quiet.returncode == 0 and "dashboard:" not in quiet.stderr
