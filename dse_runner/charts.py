@@ -10,17 +10,18 @@ is drawn (which means, which lines) is computed here from result rows with panda
   one line per scenario (the paper's Figure 6);
 - :class:`TrackChart`: a simulated track over the recorded GPS fixes;
 - :class:`ParetoChart`: the complete points on two objectives, the front joined;
-- :func:`table`: a live table over a data frame (ranking, workers).
+- :func:`html_table`: a data frame as an HTML table (ranking, workers, Table 1).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 import pandas as pd
 from bokeh.layouts import column, row
-from bokeh.models import ColumnDataSource, DataTable, HoverTool, NumberFormatter, TableColumn
+from bokeh.models import ColumnDataSource, HoverTool
 from bokeh.palettes import Category10
 from bokeh.plotting import figure
 
@@ -159,18 +160,16 @@ class ParetoChart:
         self.front.data = {self.x: ordered[self.x].to_numpy(), self.y: ordered[self.y].to_numpy()}
 
 
-def table(columns: dict[str, str], formats: dict[str, str] | None = None, width: int = 2 * WIDTH,
-          height: int = 260) -> tuple[ColumnDataSource, DataTable]:
-    """A DataTable over ``columns`` (field -> title); ``formats`` gives numbro formats by field
-    (``0.0000`` four decimals, ``0.[00]`` up to two). Refill it with ``source.data = columns_of(...)``."""
-    source = ColumnDataSource({field: [] for field in columns})
-    formats = formats or {}
-    widget = DataTable(source=source, width=width, height=height, index_position=None, sortable=False,
-                       columns=[TableColumn(field=f, title=t, formatter=NumberFormatter(format=formats[f]))
-                                if f in formats else TableColumn(field=f, title=t) for f, t in columns.items()])
-    return source, widget
+def html_table(frame: pd.DataFrame, table_id: str | None = None,
+               formats: dict[str, Callable[[Any], str]] | None = None) -> str:
+    """``frame`` as a plain HTML table (class ``frame``): what the report prints and the dashboard
+    refreshes (Bokeh 3.9's DataTable does not redraw rows whose data were replaced)."""
+    return frame.to_html(index=False, border=0, classes="frame", table_id=table_id, formatters=formats,
+                         float_format=lambda v: f"{v:.6g}", na_rep="–")
 
 
-def columns_of(frame: pd.DataFrame, fields: Sequence[str]) -> dict[str, np.ndarray]:
-    """``frame``'s ``fields`` as a ColumnDataSource's data."""
-    return {f: frame[f].to_numpy() for f in fields}
+TABLE_STYLE = """<style>
+table.frame { border-collapse: collapse; font: 13px sans-serif; margin: 8px 0 }
+table.frame th, table.frame td { padding: 3px 10px; text-align: right; border-bottom: 1px solid #eee }
+table.frame th { background: #f4f4f4 }
+</style>"""

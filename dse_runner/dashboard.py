@@ -167,6 +167,27 @@ def best_html(snap: Snapshot, parameters: list[str], objective: str, scenarios: 
             f'over {int(top["scenarios"])} of {scenarios or "?"} scenarios</span>')
 
 
+def title_html(feed: Feed, status: SweepReport | None) -> str:
+    dask = status.dashboard if status else None
+    link = f' · <a href="{html.escape(dask)}" target="_blank">Dask dashboard</a>' if dask else ""
+    return (f"<h2 style='font-family:sans-serif;margin:0'>{html.escape(feed.sweep)}</h2>"
+            f"<div style='font-family:sans-serif'>results in {html.escape(str(feed.output))}{link}</div>")
+
+
+def ranking_html(top: pd.DataFrame, objective: str) -> str:
+    four = "{:.4f}".format
+    table = top.rename(columns={"mean": f"mean {objective}", "total": f"total {objective}"})
+    table.insert(0, "#", range(1, len(table) + 1))
+    return charts.html_table(table, "dse-ranking", {f"mean {objective}": four, f"total {objective}": four})
+
+
+def workers_html(status: SweepReport) -> str:
+    table = pd.DataFrame([{"worker": w.name, "threads": w.threads, "running": w.executing, "CPU %": round(w.cpu),
+                           "memory [MB]": round(w.memory / 2**20)} for w in status.activity],
+                         columns=["worker", "threads", "running", "CPU %", "memory [MB]"])
+    return charts.html_table(table, "dse-workers")
+
+
 STYLE = """<style>
 .bar {height: 14px; background: #e8e8e8; border-radius: 7px; overflow: hidden; width: 760px}
 .fill {height: 100%; background: #1f77b4; transition: width .5s}
@@ -187,18 +208,11 @@ class Page:
         snap = feed.snapshot()
         self.scenarios = feed.scenarios(snap)
         p, objective = feed.parameters, feed.objective
-        dask = snap.status.dashboard if snap.status else None
-        links = f' · <a href="{html.escape(dask)}" target="_blank">Dask dashboard</a>' if dask else ""
-        title = Div(text=f"<h2 style='font-family:sans-serif;margin:0'>{html.escape(feed.sweep)}</h2>"
-                         f"<div style='font-family:sans-serif'>results in {html.escape(str(feed.output))}{links}</div>")
+        self.title = Div(width=800)
         self.progress = Div(text=STYLE, width=800)
         self.best = Div(width=800)
-        self.ranking, ranking_table = charts.table(
-            {"rank": "#", **{n: n for n in p}, "scenarios": "scenarios", "mean": f"mean {objective}",
-             "total": f"total {objective}"}, {**{n: "0.[0000]" for n in p}, "mean": "0.0000", "total": "0.0000"})
-        self.workers, workers_table = charts.table(
-            {"name": "worker", "threads": "threads", "executing": "running", "cpu": "CPU %",
-             "memory_mb": "memory [MB]"}, {"cpu": "0", "memory_mb": "0"}, width=charts.WIDTH)
+        self.ranking = Div(width=2 * charts.WIDTH)
+        self.workers = Div(width=charts.WIDTH)
         self.fig5 = charts.ObjectiveByParameter(p, objective, sorted(set(self.scenarios.values())))
         self.fig6 = charts.ErrorByGroup(p, objective, self.scenarios)
         names = sorted(self.scenarios)
@@ -213,8 +227,8 @@ class Page:
 
         doc.title = f"dse-runner: {feed.sweep}"
         doc.add_root(column(
-            title, self.progress, self.best,
-            row(column(heading("Best so far"), ranking_table), column(heading("Workers"), workers_table)),
+            self.title, self.progress, self.best,
+            row(column(heading("Best so far"), self.ranking), column(heading("Workers"), self.workers)),
             heading(f"{objective} against each parameter (paper's Figure 5)"), self.fig5.layout,
             heading(f"{objective} per scenario group at each parameter point, points sorted by "
                     f"{', '.join(p)} (paper's Figure 6)"), self.fig6.layout,
@@ -224,20 +238,15 @@ class Page:
 
     def update(self) -> None:
         snap = self.feed.snapshot()
+        self.title.text = title_html(self.feed, snap.status)
         self.progress.text = STYLE + progress_html(snap, time.time())
         if snap.status:
-            self.workers.data = {
-                "name": [w.name for w in snap.status.activity], "threads": [w.threads for w in snap.status.activity],
-                "executing": [w.executing for w in snap.status.activity],
-                "cpu": [w.cpu for w in snap.status.activity],
-                "memory_mb": [w.memory / 2**20 for w in snap.status.activity]}
+            self.workers.text = charts.TABLE_STYLE + workers_html(snap.status)
         if snap.taken == self.shown:
             return  # the rows have not been read again since
         self.shown = snap.taken
         self.best.text = best_html(snap, self.feed.parameters, self.feed.objective, len(self.scenarios))
-        top = snap.standings.head(TOP)
-        self.ranking.data = {"rank": list(range(1, len(top) + 1)),
-                             **charts.columns_of(top, [*self.feed.parameters, "scenarios", "mean", "total"])}
+        self.ranking.text = charts.TABLE_STYLE + ranking_html(snap.standings.head(TOP), self.feed.objective)
         self.fig5.update(snap.ok)
         self.fig6.update(snap.ok)
         self._track(snap)

@@ -12,7 +12,6 @@ import html
 import time
 from pathlib import Path
 
-import pandas as pd
 import yaml
 from jinja2 import Template
 
@@ -30,12 +29,10 @@ PAGE = Template("""<!DOCTYPE html>
 <meta charset="utf-8">
 <title>dse-runner report: {{ sweep }}</title>
 {{ bokeh_resources }}
+{{ table_style }}
 <style>
 body { font-family: sans-serif; margin: 24px 40px; color: #222; max-width: 1300px }
 h1 { margin-bottom: 4px } h2 { margin-top: 36px; border-bottom: 1px solid #ddd; padding-bottom: 4px }
-table.frame { border-collapse: collapse; font-size: 13px; margin: 8px 0 }
-table.frame th, table.frame td { padding: 3px 10px; text-align: right; border-bottom: 1px solid #eee }
-table.frame th { background: #f4f4f4 }
 .summary td { padding: 2px 16px 2px 0 } .note { color: #666; font-size: 13px }
 pre { background: #f7f7f7; padding: 12px; font-size: 12px; overflow-x: auto }
 </style>
@@ -83,10 +80,6 @@ value and "difference" its distance from the average (the paper's Table 1).</p>
 </body>
 </html>
 """)
-
-
-def _frame_html(frame: pd.DataFrame) -> str:
-    return frame.to_html(index=False, classes="frame", border=0, float_format=lambda v: f"{v:.6g}", na_rep="–")
 
 
 def _tracks(feed: Feed, ranking: Ranking, scenarios: list[str]) -> tuple[object | None, str]:
@@ -148,13 +141,13 @@ def build_report(output: store.Root, sweep: str | None = None) -> str:
         sweep=sweep, output=html.escape(str(output)), generated=time.strftime("%Y-%m-%d %H:%M %Z"),
         summary=[(name, html.escape(value)) for name, value in summary], objective=ranking.objective, top=TOP, points=len(ranking.totals),
         parameters=", ".join(parameters),
-        table1=_frame_html(ranking.table1), totals=_frame_html(ranking.totals.head(TOP)),
-        pareto=_frame_html(ranking.pareto) if not ranking.pareto.empty else "",
-        groups=_frame_html(ranking.groups) if not ranking.groups.empty else "",
-        weighted=_frame_html(ranking.weighted.head(10)) if not ranking.weighted.empty else "",
+        table1=charts.html_table(ranking.table1), totals=charts.html_table(ranking.totals.head(TOP)),
+        pareto=charts.html_table(ranking.pareto) if not ranking.pareto.empty else "",
+        groups=charts.html_table(ranking.groups) if not ranking.groups.empty else "",
+        weighted=charts.html_table(ranking.weighted.head(10)) if not ranking.weighted.empty else "",
         plots=divs, track_note=track_note,
         spec=html.escape(yaml.safe_dump(spec.model_dump(mode="json"), sort_keys=False)),
-        bokeh_resources=Resources(mode="inline", components=["bokeh"]).render(), bokeh_script=script)
+        table_style=charts.TABLE_STYLE, bokeh_resources=Resources(mode="inline", components=["bokeh"]).render(), bokeh_script=script)
 
 
 def write_report(output: store.Root, path: Path, sweep: str | None = None) -> Path:

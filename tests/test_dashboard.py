@@ -43,6 +43,7 @@ class Watched:
     total: int = 0
     done: list[int] = field(default_factory=list)  # each new "done" count, in order
     best: list[str] = field(default_factory=list)  # each new best-so-far line, in order
+    top_rows: list[str] = field(default_factory=list)  # each new first row of the ranking table
     final_state: str = ""
     final_done: str = ""
     errors: list[str] = field(default_factory=list)  # console errors and uncaught exceptions
@@ -99,9 +100,10 @@ def watched(tmp_path_factory, dask_scheduler) -> Watched:
             if match and (not seen.done or int(match[1]) != seen.done[-1]):
                 seen.done.append(int(match[1]))
                 seen.total = int(match[2])
-            best = _text(page, "best")
-            if not seen.best or best != seen.best[-1]:
-                seen.best.append(best)
+            for shown, now in ((seen.best, _text(page, "best")),
+                               (seen.top_rows, page.locator("#dse-ranking tbody tr").first.inner_text())):
+                if not shown or now != shown[-1]:
+                    shown.append(now)
 
         while sweep.is_alive():
             look()
@@ -141,6 +143,7 @@ def test_the_best_so_far_ranking_updates(watched):
     shown = [b for b in watched.best if b.startswith("best so far")]
     assert len(set(shown)) >= 2, watched.best
     assert "over 4 of 4 scenarios" in watched.best[-1]
+    assert len(set(watched.top_rows)) >= 3, watched.top_rows  # the table refreshes, not only the line above it
 
 
 def test_the_page_has_no_console_errors(watched):
@@ -162,6 +165,9 @@ def test_the_final_page_shows_the_rank_commands_best_point(watched):
     ranking = rank(watched.output, "watched")
     best = ", ".join(f"{k} = {v:g}" for k, v in ranking.best.items())
     assert best in watched.best[-1]
+    top = watched.top_rows[-1].split()  # '#', the parameters, scenarios, mean, total
+    assert [float(v) for v in top[1:4]] == list(ranking.best.values())
+    assert float(top[-1]) == pytest.approx(ranking.best_total, abs=1e-4)
 
 
 def test_the_report_opens_offline(watched, tmp_path):
