@@ -204,7 +204,7 @@ class Page:
         from bokeh.layouts import column, row
         from bokeh.models import Div, Select
 
-        self.feed, self.doc, self.shown = feed, doc, -1.0
+        self.feed, self.shown = feed, -1.0
         snap = feed.snapshot()
         self.scenarios = feed.scenarios(snap)
         p, objective = feed.parameters, feed.objective
