@@ -27,11 +27,11 @@ import os
 import socket
 import time
 import traceback
-from pathlib import Path
 from collections import deque
-from concurrent.futures import CancelledError
 from collections.abc import Callable, Iterator
+from concurrent.futures import CancelledError
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any, Literal
 
 import pandas as pd
@@ -40,11 +40,11 @@ from pydantic import BaseModel, Field
 
 from . import ship, store
 from .cluster import connect, total_threads
+from .cosim import Plan
 from .errors import DseError
 from .expand import Task, TaskBatch, chunked, expand, model_hash, points_of
 from .rank import rank, save_sweep_spec
 from .scenario import Scenario
-from .cosim import Plan
 from .search import Point
 from .simulate import simulate
 from .spec import Space
@@ -175,7 +175,7 @@ class SweepReport(BaseModel):
     skipped: int  # already had a row
     spec: str = ""  # the space.yaml the sweep ran from, to find its recordings again
     scenarios: dict[str, str] = {}  # scenario -> group
-    state: Literal["running", "finished", "interrupted"] = "running"
+    state: Literal["running", "finished", "interrupted", "failed"] = "running"  # failed: submit raised
     started_at: float = Field(default_factory=time.time)  # Unix time
     updated_at: float = Field(default_factory=time.time)
     ok: int = 0
@@ -301,10 +301,15 @@ def submit(space: Space, progress: Progress | None = None, client=None,
     point = first_point(space, points)
     run = Run(space, ship.pack(space.plan, space.scenarios), points, report, progress, started, on_connect)
     save_status(report)
-    if client is None:
-        with connect(space.spec.cluster, space.path.parent) as own:
-            return run.until_done(own, done, point, pending)
-    return run.until_done(client, done, point, pending)
+    try:
+        if client is None:
+            with connect(space.spec.cluster, space.path.parent) as own:
+                return run.until_done(own, done, point, pending)
+        return run.until_done(client, done, point, pending)
+    except DseError:
+        report.state = "failed"  # so a dashboard does not wait for a sweep that has stopped
+        save_status(report)
+        raise
 
 
 def _trajectories_kept(space: Space) -> bool:

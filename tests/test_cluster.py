@@ -29,7 +29,7 @@ from dse_runner.cluster import connect, kubernetes_cluster_spec, make_htcondor
 from dse_runner.errors import DseError
 from dse_runner.rank import rank
 from dse_runner.spec import Cluster, load_space
-from dse_runner.sweep import submit
+from dse_runner.sweep import load_status, submit
 
 SLOW = {"vehicle.mass": [1000, 1500, 2000, 2500, 3000], "vehicle.cAlphaF": [20000, 30000],
         "vehicle.rk4_step": [0.0001]}  # 10 points x 12 scenarios, slow enough to be hit mid-sweep
@@ -254,6 +254,7 @@ def test_unreachable_scheduler_names_it(tmp_path):
                              "--scheduler", "tcp://127.0.0.1:9"], capture_output=True, text=True, timeout=120)
     assert result.returncode == 2
     assert "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in result.stderr
+    assert load_status(tmp_path / "out", "small").state == "failed"  # a dashboard must not wait for it
 
 
 def test_store_at_an_s3_url(tmp_path, monkeypatch):
