@@ -50,6 +50,7 @@ class Watched:
     dask_page_went_to: str = ""
     dask_nav_has_link: bool = False
     track_title: str = ""
+    chosen_track: str = ""  # the caption after choosing another scenario
 
 
 def _watch_errors(page, errors: list[str]) -> None:
@@ -115,6 +116,11 @@ def watched(tmp_path_factory, dask_scheduler) -> Watched:
         look()
         seen.final_state, seen.final_done = _text(page, "state"), _text(page, "done")
         seen.track_title = _text(page, "track")
+        page.locator("select").select_option("turn_ramp1")
+        deadline = time.monotonic() + 15
+        while time.monotonic() < deadline and not _text(page, "track").startswith("turn_ramp1"):
+            time.sleep(0.25)
+        seen.chosen_track = _text(page, "track")
         if links and links[0]:
             dask = browser.new_page()
             _watch_errors(dask, seen.errors)
@@ -150,8 +156,13 @@ def test_the_page_has_no_console_errors(watched):
     assert watched.errors == []
 
 
-def test_the_best_track_is_drawn(watched):
-    assert "best point so far" in watched.track_title
+def test_the_best_track_is_drawn_for_the_chosen_scenario(watched):
+    from dse_runner.rank import rank
+
+    assert watched.track_title.startswith("sin1: best point so far")
+    assert watched.chosen_track.startswith("turn_ramp1: best point so far")
+    table1 = rank(watched.output, "watched").table1.set_index("scenario")
+    assert watched.chosen_track.endswith(f"{table1.loc['turn_ramp1', 'computed']:.4f}")  # the sweep's own figure
 
 
 def test_dask_dashboard_links_to_it(watched):
