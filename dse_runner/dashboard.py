@@ -30,7 +30,7 @@ from distributed.diagnostics.plugin import SchedulerPlugin
 from . import charts, store
 from .errors import DseError
 from .expand import model_hash
-from .rank import current_model, load_sweep_spec, plain, standings
+from .rank import current_model, format_point, load_sweep_spec, plain, standings
 from .spec import Space, load_space
 from .sweep import SweepReport, load_status
 
@@ -162,7 +162,7 @@ def best_html(snap: Snapshot, parameters: list[str], objective: str, scenarios: 
     if snap.standings.empty:
         return '<span id="dse-best">no results yet</span>'
     top = snap.standings.iloc[0]
-    values = ", ".join(f"{p} = {top[p]:g}" if isinstance(top[p], float) else f"{p} = {top[p]}" for p in parameters)
+    values = format_point({p: top[p] for p in parameters})
     return (f'<span id="dse-best">best so far: {html.escape(values)}; mean {objective} {top["mean"]:.4f} '
             f'over {int(top["scenarios"])} of {scenarios or "?"} scenarios</span>')
 

@@ -181,6 +181,12 @@ def plain(value: Any) -> Any:
     return value.item() if hasattr(value, "item") else value
 
 
+def format_point(point: dict[str, Any]) -> str:
+    """``vehicle.mass = 3000, vehicle.mu = 0.3``: a point as people read it."""
+    return ", ".join(f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}"
+                     for k, v in ((k, plain(v)) for k, v in point.items()))
+
+
 def _table1(ok: pd.DataFrame, objective: str, best: dict[str, Any]) -> pd.DataFrame:
     at_best = np.logical_and.reduce([ok[p] == v for p, v in best.items()])
     stats = ok.groupby(["scenario", "group"])[objective].agg(["min", "max", "mean"])

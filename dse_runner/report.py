@@ -18,7 +18,7 @@ from jinja2 import Template
 from . import charts, store
 from .dashboard import Feed
 from .errors import DseError
-from .rank import Ranking, load_sweep_spec, pick_sweep, plain, rank
+from .rank import Ranking, format_point, load_sweep_spec, pick_sweep, plain, rank
 from .sweep import load_status
 
 TOP = 20  # points listed in the ranking
@@ -109,8 +109,8 @@ def build_report(output: store.Root, sweep: str | None = None) -> str:
     spec = load_sweep_spec(output, sweep)
     status = load_status(output, sweep)
     feed = Feed(output, sweep)
-    ok = feed.snapshot().ok
-    scenarios = feed.scenarios(feed.snapshot())
+    snap = feed.snapshot()
+    ok, scenarios = snap.ok, feed.scenarios(snap)
     parameters = ranking.parameters
 
     figures: dict[str, object] = {}
@@ -130,8 +130,7 @@ def build_report(output: store.Root, sweep: str | None = None) -> str:
         figures["tracks"] = tracks
     script, divs = components(figures)
 
-    best = ", ".join(f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}" for k, v in ranking.best.items())
-    summary = [("best point", best), (f"total {ranking.objective}", f"{ranking.best_total:.4f}"),
+    summary = [("best point", format_point(ranking.best)), (f"total {ranking.objective}", f"{ranking.best_total:.4f}"),
                ("points ranked", str(len(ranking.totals))), ("incomplete points", str(ranking.incomplete_points)),
                ("failed tasks", str(ranking.failed_rows)), ("scenarios", str(len(scenarios)))]
     if status is not None:
