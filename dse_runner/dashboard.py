@@ -30,7 +30,7 @@ from distributed.diagnostics.plugin import SchedulerPlugin
 from . import charts, store
 from .errors import DseError
 from .expand import model_hash
-from .rank import current_model, format_point, load_sweep_spec, plain, standings
+from .rank import current_model, current_rows, format_point, load_sweep_spec, plain, standings
 from .spec import Space, load_space
 from .sweep import SweepReport, load_status
 
@@ -61,7 +61,8 @@ class Feed:
         self.output, self.sweep = output, sweep
         self.parameters = list(spec.parameters)
         self.objective, self.goal = spec.ranking.objective, spec.ranking.goal
-        self._space, self._space_note = space, None if space is not None else ""
+        self._space, self._space_note = space, ""  # no space, and why not (once looked for)
+        self._looked_for_space = space is not None
         self._lock = threading.Lock()
         self._snapshot: Snapshot | None = None
         self._tracks: dict[tuple, tuple] = {}
@@ -73,11 +74,7 @@ class Feed:
             return self._snapshot
 
     def _read(self) -> Snapshot:
-        rows = store.read_results(self.output, self.sweep,
-                                  columns=["model", "group", "status", *self.parameters, self.objective])
-        model = current_model(self.output, self.sweep)
-        if model is not None:
-            rows = rows[rows["model"] == model]
+        rows = current_rows(self.output, self.sweep, ["group", "status", *self.parameters, self.objective])
         ok = rows[rows["status"] == "ok"]
         return Snapshot(load_status(self.output, self.sweep), ok, len(rows), int((rows["status"] != "ok").sum()),
                         standings(ok, self.parameters, self.objective, self.goal))
@@ -92,11 +89,12 @@ class Feed:
 
     def space(self) -> tuple[Space | None, str]:
         """The sweep's space, to simulate tracks; or None and why not."""
-        if self._space_note == "":
+        if not self._looked_for_space:
             self._space, self._space_note = self._load_space()
-        return self._space, self._space_note or ""
+            self._looked_for_space = True
+        return self._space, self._space_note
 
-    def _load_space(self) -> tuple[Space | None, str | None]:
+    def _load_space(self) -> tuple[Space | None, str]:
         status = self.snapshot().status
         if status is None or not status.spec:
             return None, "no status file names the sweep's spec, so its recordings are unknown"
@@ -108,7 +106,7 @@ class Feed:
             return None, f"cannot load the sweep's spec: {e}"
         if model_hash(space.plan, space.objectives) != current_model(self.output, self.sweep):
             return None, f"{status.spec} has changed since the sweep ran; its tracks would not be the sweep's"
-        return space, None
+        return space, ""
 
     def track(self, scenario: str, point: dict[str, Any]) -> tuple[tuple, tuple, float]:
         """Recorded GPS (x, y), the simulated track (x, y) and the objective of ``point`` on ``scenario``."""
@@ -204,7 +202,7 @@ class Page:
         from bokeh.layouts import column, row
         from bokeh.models import Div, Select
 
-        self.feed, self.shown = feed, -1.0
+        self.feed, self.shown = feed, -1  # rows shown: they only ever grow, so a count tells news
         snap = feed.snapshot()
         self.scenarios = feed.scenarios(snap)
         p, objective = feed.parameters, feed.objective
@@ -242,9 +240,9 @@ class Page:
         self.progress.text = STYLE + progress_html(snap, time.time())
         if snap.status:
             self.workers.text = charts.TABLE_STYLE + workers_html(snap.status)
-        if snap.taken == self.shown:
-            return  # the rows have not been read again since
-        self.shown = snap.taken
+        if snap.done == self.shown:
+            return  # no new rows since the last refill
+        self.shown = snap.done
         self.best.text = best_html(snap, self.feed.parameters, self.feed.objective, len(self.scenarios))
         self.ranking.text = charts.TABLE_STYLE + ranking_html(snap.standings.head(TOP), self.feed.objective)
         self.fig5.update(snap.ok)
@@ -299,7 +297,6 @@ class DashboardServer:
     """A dashboard served from a background thread; ``stop()`` ends it."""
 
     url: str
-    feed: Feed
     _loop: Any
     _thread: threading.Thread
 
@@ -347,7 +344,7 @@ def serve(output: store.Root, sweep: str, address: str = "127.0.0.1:0", space: S
     if "error" in ready:
         raise DseError(f"cannot serve the dashboard at {host}:{port}: {ready['error'].strerror}")
     shown = f"[{host}]" if ":" in host else host
-    return DashboardServer(f"http://{shown}:{port}/", feed, ready["loop"], thread)
+    return DashboardServer(f"http://{shown}:{port}/", ready["loop"], thread)
 
 
 # --- the link from Dask's dashboard -------------------------------------------------------------

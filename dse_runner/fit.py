@@ -27,7 +27,7 @@ import numpy as np
 
 from . import store
 from .errors import DseError
-from .expand import model_hash, scenario_hash, task_id
+from .expand import expand
 from .spec import Space
 from .sweep import submit
 
@@ -268,7 +268,6 @@ def evaluate_points(space: Space, points: list[Point], client, columns: list[str
     """Run ``points`` on every scenario of ``space`` as one sweep (skipping finished tasks) and
     return their rows with ``status`` and ``columns``."""
     submit(space, client=client, points=points)
-    model = model_hash(space.plan, space.objectives)
-    ids = {task_id(model, p, scenario_hash(s)): (key_of(p), s.name) for s in space.scenarios for p in points}
-    rows = store.read_tasks(space.output, space.name, list(ids), columns=["status", *columns])
+    ids = {task.task_id: (task.point, task.scenario) for task in expand(space, points)}
+    rows = store.read_results(space.output, space.name, ["status", *columns], task_ids=list(ids))
     return {ids[r["task_id"]]: r for r in rows.to_dict("records")}

@@ -13,7 +13,6 @@ from __future__ import annotations
 import hashlib
 import itertools
 import os
-import shutil
 import tempfile
 from collections import deque
 from ctypes import byref
@@ -183,11 +182,3 @@ def discard(instance: Instance) -> None:
         instance.slave.freeInstance()
     except Exception:
         pass
-
-
-def forget_all() -> None:
-    """Free every instance and extraction of this process (tests, shutdown)."""
-    for instance in list(_INSTANCES.values()):
-        discard(instance)
-    _LOADED.clear()
-    shutil.rmtree(extract_root(), ignore_errors=True)

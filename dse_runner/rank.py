@@ -105,6 +105,14 @@ def _best_first(frame: pd.DataFrame, column: str, goal: str) -> pd.DataFrame:
     return frame.sort_values(column, ascending=(goal == "min"), kind="stable").reset_index(drop=True)
 
 
+def current_rows(output: store.Root, sweep: str, columns: list[str]) -> pd.DataFrame:
+    """The sweep's rows of its current model: rows of an earlier version of the model (a changed
+    FMU or objective list) are neither ranked nor shown."""
+    rows = store.read_results(output, sweep, columns=["model", *columns])
+    model = current_model(output, sweep)
+    return rows if model is None else rows[rows["model"] == model]
+
+
 def pick_sweep(output: store.Root, sweep: str | None) -> str:
     """``sweep``, or the one sweep ``output`` holds results of."""
     if sweep is not None:
@@ -129,10 +137,7 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
         if name not in objectives:
             raise DseError(f"ranking: objective {name!r} is not among the sweep's ({', '.join(objectives)})")
 
-    rows = store.read_results(output, sweep, columns=["model", "group", "status", *parameters, *objectives])
-    model = current_model(output, sweep)
-    if model is not None:  # rows of an earlier version of the model (a changed FMU) are not ranked
-        rows = rows[rows["model"] == model]
+    rows = current_rows(output, sweep, ["group", "status", *parameters, *objectives])
     if rows.empty:
         raise DseError(f"{output}: sweep {sweep!r} has no rows yet")
     ok = rows[rows["status"] == "ok"]
@@ -181,9 +186,10 @@ def plain(value: Any) -> Any:
     return value.item() if hasattr(value, "item") else value
 
 
-def format_point(point: dict[str, Any]) -> str:
-    """``vehicle.mass = 3000, vehicle.mu = 0.3``: a point as people read it."""
-    return ", ".join(f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}"
+def format_point(point: dict[str, Any], digits: int = 6) -> str:
+    """``vehicle.mass = 3000, vehicle.mu = 0.3``: a point as people read it, numbers to ``digits``
+    significant digits."""
+    return ", ".join(f"{k} = {v:.{digits}g}" if isinstance(v, float) else f"{k} = {v}"
                      for k, v in ((k, plain(v)) for k, v in point.items()))
 
 

@@ -174,8 +174,10 @@ def _with_every_column(dataset: ds.Dataset, root: Root, kind: str) -> ds.Dataset
                       partition_base_dir=_join(path, kind), filesystem=_arrow_fs(fs))
 
 
-def read_results(root: Root, sweep: str | None = None, columns: list[str] | None = None) -> pd.DataFrame:
-    """Rows of finished tasks, reading only ``columns`` (plus the keys); no trajectories."""
+def read_results(root: Root, sweep: str | None = None, columns: list[str] | None = None,
+                 task_ids: list[str] | None = None) -> pd.DataFrame:
+    """Rows of finished tasks (of just ``task_ids`` if given: what an optimiser reads back after
+    each round), reading only ``columns`` (plus the keys); no trajectories."""
     dataset = _dataset(root, RESULTS, sweep)
     if dataset is None:
         return pd.DataFrame(columns=["task_id", "sweep", "scenario", *(columns or [])])
@@ -189,17 +191,9 @@ def read_results(root: Root, sweep: str | None = None, columns: list[str] | None
             raise DseError(f"{root}: the results have no column {', '.join(missing)} "
                            f"(columns: {', '.join(dataset.schema.names)})")
     where = (ds.field("sweep") == sweep) if sweep is not None else None
-    frame = dataset.to_table(columns=wanted, filter=where).to_pandas()
-    return frame.drop_duplicates("task_id", keep="first").reset_index(drop=True)
-
-
-def read_tasks(root: Root, sweep: str, task_ids: list[str], columns: list[str]) -> pd.DataFrame:
-    """The rows of just these tasks: what an optimiser reads back after each round."""
-    dataset = _dataset(root, RESULTS, sweep)
-    if dataset is None:
-        return pd.DataFrame(columns=["task_id", "sweep", "scenario", *columns])
-    where = (ds.field("sweep") == sweep) & ds.field("task_id").isin(task_ids)
-    wanted = list(dict.fromkeys(["task_id", "sweep", "scenario", *columns]))
+    if task_ids is not None:
+        chosen = ds.field("task_id").isin(task_ids)
+        where = chosen if where is None else where & chosen
     frame = dataset.to_table(columns=wanted, filter=where).to_pandas()
     return frame.drop_duplicates("task_id", keep="first").reset_index(drop=True)
 

@@ -25,7 +25,7 @@ def test_agrees_with_libcosim(plan, name):
     assert len(theirs.time) >= len(ours.trajectory.time) - 2  # all but the start and a partial last step
     for column in ("vehicle.x", "vehicle.y"):
         gap = np.abs(ours.trajectory.column(column)[at] - theirs.column(column))
-        assert gap.max() < 1e-3, f"{column} differs by {gap.max():.3g} m"
+        assert gap.max() < 1e-9, f"{column} differs by {gap.max():.3g} m"
     moved = np.hypot(*(c[-1] - c[0] for c in ours.trajectory.xy()))
     assert moved > 5.0  # the comparison is over a real drive, not a vehicle at rest
 

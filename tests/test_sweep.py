@@ -15,6 +15,7 @@ import pytest
 from conftest import REPO, SCENARIOS, write_space
 
 from dse_runner import store
+from dse_runner.expand import expand
 from dse_runner.rank import rank
 from dse_runner.simulate import simulate
 from dse_runner.spec import load_space
@@ -190,3 +191,16 @@ def test_a_changed_model_is_ranked_on_its_own_rows(tmp_path, dask_scheduler):
     assert len(store.read_results(second.output, "small", columns=[])) == 2 * report.total
     ranking = rank(second.output, "small")
     assert len(ranking.totals) == report.total // len(second.scenarios)  # every point complete, once
+
+
+def test_an_optimisers_read_back_finds_columns_only_newer_files_have(tmp_path, dask_scheduler):
+    """What fit.py reads after each round: just the round's task ids, and a column the first run's files lack."""
+    first = load_space(write_space(tmp_path, objectives=["cross_track_error"])).with_overrides(address=dask_scheduler)
+    submit(first)
+    second = load_space(write_space(tmp_path, objectives=["cross_track_error", "max_error"])
+                        ).with_overrides(address=dask_scheduler)
+    submit(second)
+    ids = [task.task_id for task in expand(second)][:3]
+    rows = store.read_results(second.output, "small", ["max_error"], task_ids=ids)
+    assert sorted(rows["task_id"]) == sorted(ids)
+    assert rows["max_error"].notna().all()

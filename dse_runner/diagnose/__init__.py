@@ -241,11 +241,11 @@ def choose(chain: Chain, start: dict[str, float]) -> tuple[Candidate, list[Candi
         return baseline, scored
     chosen = winners[0]
     partners = [c.ids[0] for c in winners[1:1 + chain.settings.partners]]
+    single = {c.ids[0]: c.full.values for c in scored if len(c.ids) == 1}
     while len(chosen.ids) < chain.settings.max_effects:
         sets = [chosen.ids + (p,) for p in partners if p not in chosen.ids]
         if not sets:
             break
-        single = {c.ids[0]: c.full.values for c in scored if len(c.ids) == 1}
         starts = {ids: {**single[ids[-1]], **chosen.full.values} for ids in sets}
         combos = chain.candidates(sets, starts)
         scored.extend(combos)

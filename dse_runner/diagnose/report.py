@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
+from ..rank import format_point
 from ..spec import Space
 from . import locate
 from .explain import Candidate
@@ -189,9 +190,9 @@ def _markdown(diagnosis: "Diagnosis", located: dict[str, pd.DataFrame], sig: dic
                   f"(held-out mean cross-track error {diagnosis.cross_track_before:.3f} m). Nothing is added.", ""]
 
     lines += ["## 1. Locate", "",
-              f"Calibration grid best point: {_point(cal['grid_best'])}; parameters at a bound of the design space: "
+              f"Calibration grid best point: {format_point(cal['grid_best'], 5)}; parameters at a bound of the design space: "
               f"{', '.join(cal['grid_at_bound']) or 'none'}.",
-              f"Refined by least squares within the design space: {_point(cal['refined'])}; at a bound: "
+              f"Refined by least squares within the design space: {format_point(cal['refined'], 5)}; at a bound: "
               f"{', '.join(cal['refined_at_bound']) or 'none'}.",
               "Parameters no run responds to (any value fits equally well): "
               f"{', '.join(cal['no_effect']) or 'none'}.",
@@ -225,6 +226,3 @@ def _markdown(diagnosis: "Diagnosis", located: dict[str, pd.DataFrame], sig: dic
               f"![held-out errors]({figures['held_out']})", "", f"![tracks]({figures['tracks']})", ""]
     return "\n".join(lines)
 
-
-def _point(point: dict[str, Any]) -> str:
-    return ", ".join(f"{k} = {v:.5g}" if isinstance(v, float) else f"{k} = {v}" for k, v in point.items())
