@@ -365,6 +365,7 @@ class Run:
 
     def _chunks(self, client, done: set[str]) -> None:
         from distributed import as_completed
+        from distributed.comm.core import CommClosedError
         from distributed.scheduler import KilledWorker
 
         report, threads = self.report, total_threads(client)
@@ -394,6 +395,8 @@ class Run:
                     again.extend(retry)
                     if not retry:  # a lone task, out of attempts
                         self._count(record_crash(job, {s.name: s.group for s in self.space.scenarios}, str(e)))
+                except CommClosedError:  # the scheduler went while we fetched this chunk's result
+                    raise SchedulerLost from None
                 except CancelledError:
                     if client.status != "running":  # the connection to the scheduler broke
                         raise SchedulerLost from None
@@ -432,9 +435,12 @@ class Run:
         if self.progress:
             self.progress(report)
         if time.monotonic() - self.saved >= STATUS_SECONDS:
-            if client.status == "running":
-                report.activity = worker_activity(client)
-                report.workers = len(report.activity)
+            try:
+                if client.status == "running":
+                    report.activity = worker_activity(client)
+                    report.workers = len(report.activity)
+            except OSError:  # the scheduler went just now: keep the last activity; the sweep deals with it
+                pass
             save_status(report)
             self.saved = time.monotonic()
 
