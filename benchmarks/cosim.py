@@ -30,6 +30,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from dse_runner import bundled  # noqa: E402
 from dse_runner.build import fmi_headers_dir  # noqa: E402
 from dse_runner.crosscheck import run_libcosim  # noqa: E402
 from dse_runner.fmu import describe  # noqa: E402
@@ -97,7 +98,7 @@ def main() -> None:
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
 
-    plan = as_plan(REPO / "jobs" / "robotti" / "multimodel.yaml")
+    plan = as_plan(bundled.bundled_path("bundled:robotti/multimodel.yaml"))
     scenario = load_scenario(REPO / "scenarios" / "robotti" / args.scenario)
     reference = simulate(plan, scenario, CALIBRATED)
     values, step = reference.values, reference.step

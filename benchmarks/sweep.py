@@ -76,7 +76,7 @@ def cheap_space(folder: Path, n_tasks: int) -> Space:
     side = max(1, round((n_tasks / 10) ** 0.5))
     spec = folder / "cheap.yaml"
     spec.write_text(json.dumps({
-        "name": "cheap", "multimodel": str(REPO / "jobs" / "robotti" / "multimodel.yaml"),
+        "name": "cheap", "multimodel": "bundled:robotti/multimodel.yaml",
         "scenarios": [str(scenario)],
         "parameters": {"vehicle.mass": {"start": 1000, "stop": 3000, "num": side},
                        "vehicle.cAlphaF": {"start": 20000, "stop": 38000, "num": side},

@@ -1,7 +1,8 @@
 """Build FMUs from our C sources with the system C compiler.
 
 An FMU source folder holds ``modelDescription.xml`` and the model's ``*.c``;
-the shared FMI layer lives in ``fmus/common``. The built ``.fmu`` is cached
+the shared FMI layer is the ``common`` folder beside it, or else the one the
+package bundles (``bundled:fmus/common``), so a user's own model.c needs no copy. The built ``.fmu`` is cached
 under a name that includes a hash of every input, so an edit to any source
 rebuilds and an unchanged source is never rebuilt. The FMU carries its own
 sources (``sources/``), as FMI 2.0 allows, so it can be rebuilt elsewhere.
@@ -19,6 +20,7 @@ from pathlib import Path
 
 import fmpy
 
+from . import bundled
 from .errors import DseError
 
 COMMON_DIR_NAME = "common"
@@ -45,9 +47,20 @@ def is_source_dir(path: Path) -> bool:
     return path.is_dir() and (path / "modelDescription.xml").is_file() and any(path.glob("*.c"))
 
 
+def common_dir(source_dir: Path) -> Path:
+    """The shared FMI layer a source folder compiles with: its sibling ``common``, else the bundled one."""
+    beside = source_dir.parent / COMMON_DIR_NAME
+    return beside if (beside / "slave.c").is_file() else bundled_sources() / COMMON_DIR_NAME
+
+
+def bundled_sources() -> Path:
+    """The FMU source folders that ship inside the package."""
+    return bundled.root() / "fmus"
+
+
 def source_files(source_dir: Path) -> list[Path]:
     """The model's own C files followed by the shared FMI layer's."""
-    common = source_dir.parent / COMMON_DIR_NAME
+    common = common_dir(source_dir)
     if not (common / "slave.c").is_file():
         raise BuildError(f"{source_dir}: the shared FMI layer {common}/slave.c is missing")
     own = sorted(source_dir.glob("*.c")) + sorted(source_dir.glob("*.h"))
@@ -95,7 +108,7 @@ def build_fmu(source_dir: str | Path, cache_dir: Path | None = None) -> Path:
         sources = source_files(source_dir)
         command = [
             compiler(), *CFLAGS,
-            f"-I{fmi_headers_dir()}", f"-I{source_dir.parent / COMMON_DIR_NAME}",
+            f"-I{fmi_headers_dir()}", f"-I{common_dir(source_dir)}",
             "-o", str(library), *[str(p) for p in sources if p.suffix == ".c"], "-lm",
         ]
         done = subprocess.run(command, capture_output=True, text=True)
@@ -113,9 +126,9 @@ def build_fmu(source_dir: str | Path, cache_dir: Path | None = None) -> Path:
     return target
 
 
-def find_source_dirs(root: str | Path) -> list[Path]:
-    """Every FMU source folder directly under ``root`` (e.g. the repository's fmus/)."""
-    root = Path(root)
+def find_source_dirs(root: str | Path | None = None) -> list[Path]:
+    """Every FMU source folder directly under ``root`` (default: the bundled ones)."""
+    root = Path(root) if root is not None else bundled_sources()
     if not root.is_dir():
         raise BuildError(f"{root} is not a folder of FMU sources")
     return [p for p in sorted(root.iterdir()) if p.name != COMMON_DIR_NAME and is_source_dir(p)]

@@ -54,7 +54,8 @@ def parse_assignment(text: str) -> tuple[str, Any]:
 
 @app.command("build-fmus")
 def build_fmus(
-    sources: Annotated[Path, typer.Argument(help="Folder of FMU source folders.")] = Path("fmus"),
+    sources: Annotated[Path | None, typer.Argument(
+        help="Folder of FMU source folders. Default: the FMUs bundled with dse-runner.")] = None,
     out: Annotated[Path | None, typer.Option(help="Copy the built .fmu files here.")] = None,
     as_json: JsonFlag = False,
 ) -> None:
@@ -66,7 +67,7 @@ def build_fmus(
     try:
         built = {d.name: build_fmu(d) for d in find_source_dirs(sources)}
         if not built:
-            raise DseError(f"no FMU source folders (modelDescription.xml + *.c) under {sources}")
+            raise DseError(f"no FMU source folders (modelDescription.xml + *.c) under {sources or 'the bundle'}")
         if out is not None:
             out.mkdir(parents=True, exist_ok=True)
             built = {name: Path(shutil.copy(path, out / f"{name}.fmu")) for name, path in built.items()}

@@ -2,9 +2,9 @@
 
 Our YAML form::
 
-    fmus:                      # instance name -> FMU (a .fmu or a source folder)
-      controller: ../../fmus/replay_controller
-      vehicle: ../../fmus/robotti_vehicle
+    fmus:                      # instance name -> FMU: a .fmu or a source folder, relative to
+      controller: bundled:fmus/replay_controller   # this file, or one dse-runner ships (bundled:)
+      vehicle: my-fmus/vehicle.fmu
     connections:               # output -> [inputs]
       controller.velocity: [vehicle.velocity]
     parameters:                # fixed values
@@ -28,6 +28,7 @@ from typing import Any
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationError, field_validator
 
+from . import bundled
 from .errors import DseError
 from .scenario import ScenarioField
 
@@ -69,7 +70,7 @@ class MultiModel(BaseModel):
     scenario: dict[str, ScenarioField] = {}
     track: TrackOutputs | None = None
     step: PositiveFloat | None = None
-    # Relative FMU paths are relative to the file's folder.
+    # Relative FMU paths are relative to the file's folder; ``bundled:`` ones name the package's own.
     base_dir: Path = Field(default=Path("."), exclude=True)
 
     @field_validator("fmus")
@@ -97,8 +98,7 @@ class MultiModel(BaseModel):
         return values
 
     def fmu_path(self, instance: str) -> Path:
-        path = Path(self.fmus[instance])
-        return path if path.is_absolute() else (self.base_dir / path).resolve()
+        return bundled.resolve(self.fmus[instance], self.base_dir)
 
 
 def from_into_cps(data: dict[str, Any]) -> dict[str, Any]:

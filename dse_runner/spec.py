@@ -17,6 +17,7 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, PositiveInt, ValidationError, model_validator
 
+from . import bundled
 from . import objectives as objs
 from .constraints import compile_constraint
 from .errors import DseError
@@ -153,8 +154,8 @@ class Cluster(BaseModel):
 class SpaceSpec(BaseModel):
     model_config = Strict
     name: str = Field(pattern=r"^[A-Za-z0-9_.-]+$")
-    multimodel: str | dict[str, Any]  # a path relative to the spec, or the multi-model inline
-    scenarios: list[ScenarioSource | str] = Field(min_length=1)
+    multimodel: str | dict[str, Any]  # a path relative to the spec or bundled:..., or the multi-model inline
+    scenarios: list[ScenarioSource | str] = []  # at least one when resolved; diagnose supplies its own
     parameters: dict[str, ParameterValues] = Field(min_length=1)
     constraints: list[str] = []
     objectives: list[str] = list(objs.DEFAULT)
@@ -231,6 +232,8 @@ class Space:
 
 
 def _scenarios(spec: SpaceSpec, base: Path, source: str) -> list[Scenario]:
+    if not spec.scenarios:
+        raise DseError(f"{source}: scenarios: give at least one scenario folder or glob")
     found: dict[str, Scenario] = {}
     for index, entry in enumerate(spec.scenarios):
         entry = ScenarioSource(path=entry) if isinstance(entry, str) else entry
@@ -291,8 +294,7 @@ def resolve_space(spec: SpaceSpec, path: Path) -> Space:
     checked. ``path`` is where relative paths start from (the spec file's folder)."""
     source = str(path)
     if isinstance(spec.multimodel, str):
-        mm_path = Path(spec.multimodel)
-        multimodel = load_multimodel(mm_path if mm_path.is_absolute() else path.parent / mm_path)
+        multimodel = load_multimodel(bundled.resolve(spec.multimodel, path.parent))
     else:
         multimodel = parse_multimodel(spec.multimodel, f"{source}: multimodel", path.parent)
     space = Space(spec, path, make_plan(multimodel), _scenarios(spec, path.parent, source))

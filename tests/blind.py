@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from dse_runner import bundled
 from dse_runner.multimodel import parse_multimodel
 from dse_runner.scenario import load_scenario
 from dse_runner.simulate import as_plan, simulate
@@ -38,9 +39,8 @@ EFFECTS = {
 
 
 def truth_plan():
-    data = yaml.safe_load((REPO / "jobs" / "robotti" / "multimodel.yaml").read_text())
-    data["fmus"] = {"controller": str(REPO / "fmus" / "replay_controller"),
-                    "vehicle": str(REPO / "fmus" / "robotti_vehicle_effects")}
+    data = yaml.safe_load(bundled.bundled_path("bundled:robotti/multimodel.yaml").read_text())
+    data["fmus"] = {"controller": "bundled:fmus/replay_controller", "vehicle": "bundled:fmus/robotti_vehicle_effects"}
     data["track"] = {"x": "vehicle.gps_x", "y": "vehicle.gps_y"}
     return as_plan(parse_multimodel(data, "truth", REPO))
 
@@ -80,7 +80,7 @@ def calibration_space(folder: Path) -> Path:
     """The paper's design space, coarser: cAlphaF x mass, 4 x 3 points (the truth lies between them)."""
     path = folder / "calibration.yaml"
     path.write_text(yaml.safe_dump({
-        "name": "blind-calibration", "multimodel": str(REPO / "jobs" / "robotti" / "multimodel.yaml"),
+        "name": "blind-calibration", "multimodel": "bundled:robotti/multimodel.yaml",
         "scenarios": [str(SOURCES / "sin1")],  # replaced by the recordings under test
         "parameters": {"vehicle.cAlphaF": {"start": 20000, "stop": 38000, "step": 6000},
                        "vehicle.mass": {"start": 1000, "stop": 3000, "step": 1000}},

@@ -8,10 +8,12 @@ from pathlib import Path
 
 import pytest
 
+from dse_runner import bundled
+
 REPO = Path(__file__).resolve().parents[1]
-MULTIMODEL = REPO / "jobs" / "robotti" / "multimodel.yaml"
+MULTIMODEL = bundled.root() / "robotti" / "multimodel.yaml"
 SCENARIOS = REPO / "scenarios" / "robotti"
-FMU_SOURCES = REPO / "fmus"
+FMU_SOURCES = bundled.root() / "fmus"
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -47,7 +47,7 @@ def test_missing_multimodel(tmp_path):
 
 
 def test_build_fmus_json(tmp_path):
-    done = dse_runner("build-fmus", REPO / "fmus", "--out", tmp_path, "--json")
+    done = dse_runner("build-fmus", "--out", tmp_path, "--json")
     assert done.returncode == 0, done.stderr
     built = json.loads(done.stdout)["fmus"]
     assert set(built) == {"robotti_vehicle", "robotti_vehicle_effects", "replay_controller"}

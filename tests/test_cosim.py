@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import MULTIMODEL, SCENARIOS, all_scenarios
+from conftest import FMU_SOURCES, MULTIMODEL, SCENARIOS, all_scenarios
 
 from dse_runner.crosscheck import run_libcosim
 from dse_runner.scenario import load_scenario
@@ -63,8 +63,7 @@ def test_replayed_commands_are_held_from_their_row_time(plan):
 
 def test_into_cps_mm_json_gives_the_same_result(tmp_path, plan):
     mm = {
-        "fmus": {"{ctrl}": str(MULTIMODEL.parent / "../../fmus/replay_controller"),
-                 "{veh}": str(MULTIMODEL.parent / "../../fmus/robotti_vehicle")},
+        "fmus": {"{ctrl}": str(FMU_SOURCES / "replay_controller"), "{veh}": str(FMU_SOURCES / "robotti_vehicle")},
         "connections": {
             "{ctrl}.controller.velocity": ["{veh}.vehicle.velocity"],
             "{ctrl}.controller.delta_f": ["{veh}.vehicle.delta_f"],
@@ -94,7 +93,7 @@ def test_instances_are_created_once_per_process_and_reused(plan):
 
 def test_three_fmus_two_instances_of_one(tmp_path, plan):
     """One controller drives two vehicles, a light and a heavy one, in the same co-simulation."""
-    fmus_dir = MULTIMODEL.parent.parent.parent / "fmus"
+    fmus_dir = FMU_SOURCES
     mm = {
         "fmus": {"controller": str(fmus_dir / "replay_controller"),
                  "light": str(fmus_dir / "robotti_vehicle"), "heavy": str(fmus_dir / "robotti_vehicle")},

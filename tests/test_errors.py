@@ -21,7 +21,7 @@ def write_multimodel(tmp_path, **changes):
 
 def test_missing_fmu(tmp_path):
     path = write_multimodel(tmp_path, fmus={"controller": "nowhere/replay.fmu",
-                                            "vehicle": str(MULTIMODEL.parent / "../../fmus/robotti_vehicle")})
+                                            "vehicle": "bundled:fmus/robotti_vehicle"})
     with pytest.raises(DseError, match=r"FMU not found: .*nowhere/replay\.fmu"):
         simulate(path, SCENARIOS / "sin1")
 

@@ -20,6 +20,7 @@ from typing import Any
 
 import yaml
 
+from .. import bundled
 from ..cluster import connect
 from ..errors import DseError
 from ..fit import FitProblem, FitResult, Parameter, evaluate_points, fit_all, key_of
@@ -31,8 +32,7 @@ from . import explain, locate
 from .explain import Candidate
 from .hypotheses import EFFECTS_FMU, LIBRARY, effect_variables, hypothesis
 
-REPO = Path(__file__).resolve().parents[2]
-DEFAULT_SPACE = REPO / "jobs" / "robotti" / "space.yaml"
+DEFAULT_SPACE = "bundled:robotti/calibration.yaml"  # the Robotti baseline's calibration grid
 FITS = "diagnosis-fits"  # the sweep every fit's rounds go to
 BEFORE, AFTER = "diagnosis-before", "diagnosis-after"  # sweeps holding the tracks of the report
 
@@ -101,7 +101,7 @@ class Diagnosis:
 def calibration_space(space: str | Path, scenarios: str | Path, multimodel: str | Path | None, out: Path,
                       n_workers: int | None = None, address: str | None = None) -> Space:
     """The calibration's design space (parameters and their ranges) on the given runs, results in ``out``."""
-    path = Path(space).resolve()
+    path = bundled.resolve(space, Path.cwd())
     folder = Path(scenarios).resolve()
     if not folder.is_dir():
         raise DseError(f"--scenarios {scenarios}: not a folder")
@@ -121,13 +121,12 @@ def vehicle_of(multimodel: MultiModel) -> str:
 
 def effects_multimodel(multimodel: MultiModel, vehicle: str, folder: Path) -> dict[str, Any]:
     """The multi-model with ``vehicle`` replaced by the effects variant, tracked at the GPS antenna,
-    to be written into ``folder`` (FMU paths relative to it)."""
-    variant = REPO / "fmus" / EFFECTS_FMU
-    if not variant.is_dir():
-        raise DseError(f"the effects variant of the vehicle is missing: {variant}")
+    to be written into ``folder`` (FMU paths relative to it, bundled ones as ``bundled:``)."""
+    bundled.bundled_path(EFFECTS_FMU)  # it ships with the package; an error names it if not
     data = multimodel.model_dump(mode="json")
-    data["fmus"] = {name: _relative(multimodel.fmu_path(name), folder) for name in multimodel.fmus}
-    data["fmus"][vehicle] = _relative(variant, folder)
+    data["fmus"] = {name: ref if bundled.is_bundled(ref) else _relative(multimodel.fmu_path(name), folder)
+                    for name, ref in multimodel.fmus.items()}
+    data["fmus"][vehicle] = EFFECTS_FMU
     data["track"] = {"x": f"{vehicle}.gps_x", "y": f"{vehicle}.gps_y"}
     return data
 
@@ -309,7 +308,7 @@ def diagnose(scenarios: str | Path, multimodel: str | Path | None = None, space:
     """Calibrate -> locate -> explain -> model -> re-calibrate on a folder of recorded runs.
 
     ``space`` gives the calibration's parameters and ranges (default: the bundled Robotti
-    calibration, jobs/robotti/space.yaml); ``multimodel`` replaces its multi-model."""
+    calibration, bundled:robotti/calibration.yaml); ``multimodel`` replaces its multi-model."""
     out = Path(out or "out/diagnosis").resolve()
     calibration = calibration_space(space or DEFAULT_SPACE, scenarios, multimodel, out, n_workers, address)
     say = progress or (lambda message: None)

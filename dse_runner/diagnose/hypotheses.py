@@ -2,7 +2,7 @@
 
 Each hypothesis has a stable id, a physical name, a paragraph on the physics,
 the residual signature it leaves, and its parameterised model: parameters of
-the vehicle's effects variant (``fmus/robotti_vehicle_effects``), each zero
+the vehicle's effects variant (``bundled:fmus/robotti_vehicle_effects``), each zero
 when the effect is absent, so that every hypothesis, and every combination of
 them, is one point of one multi-model. ``none`` has no parameters: the
 residual is receiver noise.
@@ -16,7 +16,7 @@ from pydantic import BaseModel, ConfigDict
 
 from ..errors import DseError
 
-EFFECTS_FMU = "robotti_vehicle_effects"  # the folder under fmus/ holding the variant's sources
+EFFECTS_FMU = "bundled:fmus/robotti_vehicle_effects"  # the variant's C sources, shipped in the package
 
 
 class EffectParameter(BaseModel):
