@@ -6,8 +6,8 @@ object on stdout and nothing else; errors go to stderr with exit code 2.
 
 from __future__ import annotations
 
-import json
 import sys
+import traceback
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -30,13 +30,32 @@ DashboardAddress = Annotated[str, typer.Option(
          "login; reach it from elsewhere through an SSH tunnel.")]
 
 
+class Options:
+    """Options of the whole command, given before the subcommand."""
+
+    debug = False  # show tracebacks
+
+
+@app.callback()
+def options(debug: Annotated[bool, typer.Option(
+        "--debug", help="Show the traceback behind an error message.")] = False) -> None:
+    """Design-space exploration for FMI co-simulation."""
+    Options.debug = debug
+
+
 def fail(error: Exception) -> None:
+    """A user's error: one line naming the culprit on stderr, exit code 2 (the traceback with --debug)."""
+    if Options.debug:
+        traceback.print_exc()
     typer.echo(f"error: {error}", err=True)
     raise typer.Exit(2)
 
 
 def emit_json(data: dict[str, Any]) -> None:
-    sys.stdout.write(json.dumps(data, indent=2, default=str) + "\n")
+    """One strict JSON object on stdout: missing numbers are null, never NaN."""
+    from .strict_json import dumps
+
+    sys.stdout.write(dumps(data) + "\n")
 
 
 def parse_assignment(text: str) -> tuple[str, Any]:
@@ -112,6 +131,7 @@ def simulate(
             "step": result.step,
             "values": result.values,
             "objectives": result.objectives,
+            "dropouts": result.scenario.gps.dropouts,
             "trajectory": str(csv_path),
             "plot": str(png_path) if png_path else None,
         })
@@ -120,6 +140,8 @@ def simulate(
                f"step {result.step:g} s)")
     for name, value in result.objectives.items():
         typer.echo(f"  {name:<20} {value:10.4f}")
+    if result.scenario.gps.dropouts:
+        typer.echo(f"  ({result.scenario.gps.dropouts} GPS dropouts skipped: empty or NaN fixes)")
     typer.echo(f"trajectory: {csv_path}")
     if png_path:
         typer.echo(f"plot:       {png_path}")
@@ -176,13 +198,16 @@ def submit(
         "sweep": report.sweep, "output": str(report.output), "tasks": report.total,
         "skipped": report.skipped, "ran": report.ran, "ok": report.ok, "failed": report.failed,
         "seconds": round(report.seconds, 3), "workers": report.workers, "chunk_size": report.chunk_size,
-        "errors": report.errors,
+        "errors": report.errors, "dropouts": dropouts_of(space),
     }
     if not as_json:
         typer.echo(f"{report.sweep}: {report.total} tasks, {report.skipped} already done, ran {report.ran} "
                    f"({report.failed} failed) in {report.seconds:.1f} s on {report.workers} workers")
         for error in report.errors:
             typer.echo(f"  failed: {error.splitlines()[0]}")
+        if summary["dropouts"]:
+            typer.echo("  GPS dropouts skipped (empty or NaN fixes): "
+                       + ", ".join(f"{name} {count}" for name, count in summary["dropouts"].items()))
     try:
         ranking = rank(report.output, report.sweep)
         files = write_ranking(ranking, report.output, report.sweep)
@@ -198,6 +223,11 @@ def submit(
     typer.echo(f"ranking: {files['json'].rsplit('/', 1)[0]}")
     typer.echo(f"report: dse-runner report {report.output} -o report.html; "
                f"dashboard: dse-runner dashboard {report.output}")
+
+
+def dropouts_of(space) -> dict[str, int]:
+    """Recorded fixes skipped as dropouts, per scenario that has any."""
+    return {s.name: s.gps.dropouts for s in space.scenarios if s.gps.dropouts}
 
 
 class _Board:
@@ -382,5 +412,16 @@ def version() -> None:
     typer.echo(__version__)
 
 
+def main() -> None:
+    """The console script: a bug's exception is one line too, unless --debug asks for the traceback."""
+    try:
+        app()
+    except Exception as e:  # anything the commands did not turn into a DseError
+        if Options.debug:
+            raise
+        typer.echo(f"error: unexpected {type(e).__name__}: {e} (run with --debug for the traceback)", err=True)
+        sys.exit(1)
+
+
 if __name__ == "__main__":
-    app()
+    main()

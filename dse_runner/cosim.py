@@ -48,6 +48,8 @@ class Variable:
     vr: int
     type: str  # Real, Integer, Boolean, String
     causality: str
+    low: float | None = None  # the declared min and max, if any
+    high: float | None = None
 
     @property
     def ref(self) -> str:
@@ -127,9 +129,7 @@ def make_plan(multimodel: MultiModel) -> Plan:
     """Build FMUs if needed and check every name the multi-model uses."""
     fmu_paths = {name: resolve_fmu(multimodel.fmu_path(name)) for name in multimodel.fmus}
     descriptions = {name: fmus.describe(path) for name, path in fmu_paths.items()}
-    variables = {name: {v.name: Variable(name, v.name, v.valueReference, v.type, v.causality)
-                        for v in d.modelVariables}
-                 for name, d in descriptions.items()}
+    variables = {name: {v.name: _variable(name, v) for v in d.modelVariables} for name, d in descriptions.items()}
     models = {name: d.modelName for name, d in descriptions.items()}
     outputs = {name: tuple(v for v in vs.values() if v.causality == "output" and v.type == "Real")
                for name, vs in variables.items()}
@@ -149,10 +149,23 @@ def make_plan(multimodel: MultiModel) -> Plan:
                                f"and {source_ref}")
             fed[target_ref] = source_ref
             connections.append((source, target))
-    for ref in [*multimodel.parameters, *multimodel.scenario]:
-        check_settable(lookup(variables, models, ref, "parameters"))
+    for ref in multimodel.scenario:
+        check_settable(lookup(variables, models, ref, "scenario"))
+    for ref, value in multimodel.parameters.items():
+        check_value(lookup(variables, models, ref, "parameters"), value)
     track = _track(multimodel, variables, models, outputs)
     return Plan(multimodel, fmu_paths, variables, models, outputs, tuple(connections), track)
+
+
+def _variable(instance: str, v) -> Variable:
+    """Our record of an FMPy ScalarVariable: what setting and checking a value needs."""
+    declared = v.declaredType
+
+    def bound(name: str) -> float | None:
+        text = getattr(v, name, None) or (getattr(declared, name, None) if declared is not None else None)
+        return float(text) if text not in (None, "") else None
+
+    return Variable(instance, v.name, v.valueReference, v.type, v.causality, bound("min"), bound("max"))
 
 
 def _track(multimodel: MultiModel, variables, models, outputs) -> tuple[str, str] | None:
@@ -173,6 +186,19 @@ def check_settable(variable: Variable) -> None:
                        "it cannot be set")
 
 
+def check_value(variable: Variable, value: Value) -> Value:
+    """``value`` as the FMU takes it, checked: settable, of the variable's type, within its declared
+    min and max. Errors name the variable, the value and the rule."""
+    check_settable(variable)
+    value = _coerce(variable, value)
+    if variable.type in ("Real", "Integer"):
+        if variable.low is not None and value < variable.low:
+            raise DseError(f"{variable.ref} = {value:g} is below its declared min {variable.low:g}")
+        if variable.high is not None and value > variable.high:
+            raise DseError(f"{variable.ref} = {value:g} is above its declared max {variable.high:g}")
+    return value
+
+
 def _coerce(variable: Variable, value: Value) -> Value:
     """Check a value against the variable's type, so the FMU never sees a wrong one."""
     kind = variable.type
@@ -184,10 +210,12 @@ def _coerce(variable: Variable, value: Value) -> Value:
         except ValueError:
             raise DseError(f"{variable.ref}: {value!r} is not a valid {kind}") from None
     if kind == "Real":
+        if not math.isfinite(float(value)):
+            raise DseError(f"{variable.ref}: {value!r} is not a finite number")
         return float(value)
     if kind == "Boolean":
         return bool(value)
-    if float(value) != int(value):
+    if not math.isfinite(float(value)) or float(value) != int(value):
         raise DseError(f"{variable.ref}: {value!r} is not an Integer")
     return int(value)
 
@@ -294,8 +322,7 @@ def _resolve_values(plan: Plan, values: dict[str, Value]) -> dict[str, list[tupl
     grouped: dict[str, list[tuple[Variable, Value]]] = {}
     for ref, value in values.items():
         variable = plan.variable(ref, "setting")
-        check_settable(variable)
-        grouped.setdefault(variable.instance, []).append((variable, _coerce(variable, value)))
+        grouped.setdefault(variable.instance, []).append((variable, check_value(variable, value)))
     return grouped
 
 

@@ -1,5 +1,28 @@
 """The one exception type users catch: every message names its culprit."""
 
+from __future__ import annotations
+
+from pydantic import ValidationError
+
 
 class DseError(Exception):
     """A problem with the user's input or model, with a message meant for them."""
+
+
+def format_validation_error(source: str, error: ValidationError) -> str:
+    """One line per problem: file, key path, reason."""
+    lines = []
+    for problem in error.errors():
+        where = ".".join(str(p) for p in problem["loc"]) or "(top level)"
+        lines.append(f"{source}: {where}: {problem['msg']}")
+    return "\n".join(lines)
+
+
+def format_syntax_error(source: str, kind: str, error: Exception) -> str:
+    """A YAML or JSON parser's complaint as one line: file, line, column, problem."""
+    mark = getattr(error, "problem_mark", None)  # PyYAML
+    if mark is not None:
+        return f"{source} line {mark.line + 1}, column {mark.column + 1}: not valid {kind}: {error.problem}"
+    if hasattr(error, "lineno"):  # json.JSONDecodeError
+        return f"{source} line {error.lineno}, column {error.colno}: not valid {kind}: {error.msg}"
+    return f"{source}: not valid {kind}: {' '.join(str(error).split())}"

@@ -14,13 +14,14 @@ import hashlib
 import itertools
 import os
 import tempfile
+import zipfile
 from collections import deque
 from ctypes import byref
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
-from fmpy import extract
+from fmpy import extract, platform
 from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.logging import addLoggerProxy
 from fmpy.model_description import ModelDescription, read_model_description
@@ -65,10 +66,29 @@ def extract_root() -> Path:
 
 @lru_cache(maxsize=256)
 def _description(path: str, sha: str) -> ModelDescription:
+    if not zipfile.is_zipfile(path):
+        raise DseError(f"{path}: not an FMU: an FMU is a zip archive, and this file is not one")
     try:
-        return read_model_description(path, validate=False)
+        description = read_model_description(path, validate=False)
     except Exception as e:  # FMPy raises plain exceptions for bad archives and XML
         raise DseError(f"{path}: cannot read modelDescription.xml: {e}") from None
+    if description.coSimulation is not None:
+        _check_binary(path, description.coSimulation.modelIdentifier)
+    return description
+
+
+def _check_binary(path: str, identifier: str) -> None:
+    """The FMU must carry a binary this machine can load, named as FMI requires."""
+    with zipfile.ZipFile(path) as archive:
+        names = archive.namelist()
+    extension = {"linux64": ".so", "darwin64": ".dylib", "win64": ".dll", "win32": ".dll"}.get(platform, ".so")
+    if f"binaries/{platform}/{identifier}{extension}" in names:
+        return
+    platforms = sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") >= 2
+                        and not n.endswith("/")})
+    has = f"it has binaries for {', '.join(platforms)}" if platforms else "it has no binaries"
+    raise DseError(f"{path}: no binary for this platform: binaries/{platform}/{identifier}{extension} is "
+                   f"missing ({has})")
 
 
 def describe(path: Path) -> ModelDescription:

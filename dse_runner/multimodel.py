@@ -22,17 +22,29 @@ converted into the same model, so the rest of the tool sees one format.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationError, field_validator
+from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, PositiveFloat, ValidationError,
+                      field_validator)
 
 from . import bundled
-from .errors import DseError
+from .errors import DseError, format_syntax_error, format_validation_error
 from .scenario import ScenarioField
 
 Value = float | int | bool | str
+
+
+def _finite(value: Any) -> Any:
+    """NaN and infinity are no value to give an FMU (checked before the union, for one clear message)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ValueError(f"{value} is not a finite number")
+    return value
+
+
+FiniteValue = Annotated[Value, BeforeValidator(_finite)]  # a value as files give it
 
 
 def split_ref(ref: str) -> tuple[str, str]:
@@ -62,11 +74,11 @@ class TrackOutputs(BaseModel):
 
 
 class MultiModel(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     fmus: dict[str, str] = Field(min_length=1)
     connections: dict[str, list[str]] = {}
-    parameters: dict[str, Value] = {}
+    parameters: dict[str, FiniteValue] = {}
     scenario: dict[str, ScenarioField] = {}
     track: TrackOutputs | None = None
     step: PositiveFloat | None = None
@@ -150,14 +162,5 @@ def load_multimodel(path: str | Path) -> MultiModel:
     try:
         data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
     except (json.JSONDecodeError, yaml.YAMLError) as e:
-        raise DseError(f"{path}: not valid {'JSON' if path.suffix == '.json' else 'YAML'}: {e}") from None
+        raise DseError(format_syntax_error(str(path), "JSON" if path.suffix == ".json" else "YAML", e)) from None
     return parse_multimodel(data, str(path), path.parent.resolve())
-
-
-def format_validation_error(source: str, error: ValidationError) -> str:
-    """One line per problem: file, key path, reason."""
-    lines = []
-    for problem in error.errors():
-        where = ".".join(str(p) for p in problem["loc"]) or "(top level)"
-        lines.append(f"{source}: {where}: {problem['msg']}")
-    return "\n".join(lines)

@@ -102,14 +102,17 @@ def resolve(name: str) -> Objective:
 
 
 def evaluate(names: tuple[str, ...], trajectory: Trajectory, scenario: Scenario) -> dict[str, float | list[float]]:
+    """Every objective's value; a value that is not a finite number is an error naming the objective,
+    so a NaN never reaches a result row with an ok status."""
     results: dict[str, float | list[float]] = {}
     for name in names:
         value = resolve(name)(trajectory, scenario)
-        if is_vector(name):
-            results[name] = np.asarray(value, dtype=float).tolist()
-            continue
         try:
-            results[name] = float(value)
+            number = np.asarray(value, dtype=float) if is_vector(name) else float(value)
         except (TypeError, ValueError):
             raise DseError(f"objective {name!r} returned {value!r}, not a number") from None
+        if not np.all(np.isfinite(number)):
+            raise DseError(f"objective {name!r} is not a finite number on scenario {scenario.name} "
+                           f"({value!r:.80})")
+        results[name] = number.tolist() if is_vector(name) else number
     return results

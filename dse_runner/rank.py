@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from . import store
+from . import store, strict_json
 from .errors import DseError
 from .objectives import is_vector
 from .spec import Ranking as RankingSpec
@@ -225,5 +225,5 @@ def write_ranking(ranking: Ranking, output: store.Root, sweep: str) -> dict[str,
     for name in ("totals", "table1", "pareto", "groups", "weighted"):
         paths[name] = store.write_text(output, f"ranking/{sweep}/{name}.csv",
                                        getattr(ranking, name).to_csv(index=False))
-    paths["json"] = store.write_text(output, f"ranking/{sweep}/ranking.json", json.dumps(ranking.to_json(), indent=2))
+    paths["json"] = store.write_text(output, f"ranking/{sweep}/ranking.json", strict_json.dumps(ranking.to_json()))
     return paths

@@ -3,6 +3,13 @@
     <scenario>/scenario.yaml        name, group, duration, initial_pose {x, y, theta}
     <scenario>/steering_inputs.csv  time,velocity,delta_f (the controller's recorded outputs)
     <scenario>/gps_position.csv     time,x,y (recorded fixes; dropouts are missing rows)
+
+Recordings are never silently wrong (docs/recordings.md): every value must be
+a finite number, except that a GPS fix whose x or y is empty or NaN is a
+*dropout*, skipped like a missing row and counted. Anything else (text, an
+infinite value, a missing time, a time that does not increase) is an error
+naming the file, the line and the column. Both files are checked when the
+scenario is loaded, before any FMU reads them.
 """
 
 from __future__ import annotations
@@ -16,7 +23,7 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, PositiveFloat, ValidationError
 
-from .errors import DseError
+from .errors import DseError, format_syntax_error, format_validation_error
 
 STEERING_FILE = "steering_inputs.csv"
 GPS_FILE = "gps_position.csv"
@@ -29,8 +36,11 @@ ScenarioField = Literal[
 ]
 
 
+Finite = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
 class Pose(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = Finite
     x: float
     y: float
     theta: float
@@ -39,7 +49,7 @@ class Pose(BaseModel):
 class ScenarioInfo(BaseModel):
     """The contents of scenario.yaml."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = Finite
     name: str
     group: str
     duration: PositiveFloat
@@ -48,11 +58,12 @@ class ScenarioInfo(BaseModel):
 
 @dataclass(frozen=True)
 class Track:
-    """Recorded GPS fixes: time [s], x [m], y [m]."""
+    """Recorded GPS fixes: time [s], x [m], y [m]; ``dropouts`` fixes were skipped (empty or NaN)."""
 
     time: np.ndarray
     x: np.ndarray
     y: np.ndarray
+    dropouts: int = 0
 
 
 @dataclass(frozen=True)
@@ -78,14 +89,20 @@ class Scenario:
 
     @cached_property
     def gps(self) -> Track:
-        columns = read_csv_columns(self.gps_position, ("time", "x", "y"))
-        return Track(*columns)
+        table = read_table(self.gps_position, ("time", "x", "y"), may_drop=("x", "y"))
+        if not table.columns[0].size:
+            raise DseError(f"{self.gps_position}: no GPS fix (every row is empty or a dropout)")
+        return Track(*table.columns, dropouts=len(table.dropped))
+
+    @cached_property
+    def steering(self) -> list[np.ndarray]:
+        """The steering log's time, velocity and delta_f columns, every value checked."""
+        return read_table(self.steering_inputs, ("time", "velocity", "delta_f")).columns
 
     @cached_property
     def control_period(self) -> float:
         """The steering log's sampling period: the default communication step."""
-        (time,) = read_csv_columns(self.steering_inputs, ("time",))
-        steps = np.diff(time)
+        steps = np.diff(self.steering[0])
         if steps.size == 0:
             raise DseError(f"{self.steering_inputs}: needs at least two rows to tell its period")
         return float(f"{np.median(steps):.12g}")  # 0.05, not 0.04999999999999982
@@ -101,12 +118,28 @@ class Scenario:
         return getattr(self.info.initial_pose, name.removeprefix("initial_pose."))
 
 
-def read_csv_columns(path: Path, names: tuple[str, ...]) -> list[np.ndarray]:
-    """Named numeric columns of a headed CSV; errors name the file and line."""
+@dataclass(frozen=True)
+class Table:
+    """Named columns read from a recording, and the lines skipped as dropouts."""
+
+    columns: list[np.ndarray]
+    dropped: list[int]
+
+
+DROPOUT_TEXT = ("", "nan")  # how a missing measurement is written, lower-cased
+
+
+def read_table(path: Path, names: tuple[str, ...], may_drop: tuple[str, ...] = ()) -> Table:
+    """Named numeric columns of a headed CSV whose first column is time.
+
+    Every value must be a finite number; a row where a ``may_drop`` column is empty or NaN is
+    skipped and its line counted as a dropout. Errors name the file, the line and the column."""
     try:
         lines = path.read_text().splitlines()
     except OSError as e:
         raise DseError(f"cannot read {path}: {e.strerror}") from None
+    except UnicodeDecodeError:
+        raise DseError(f"{path}: not a text file") from None
     if not lines:
         raise DseError(f"{path}: the file is empty")
     header = [h.strip() for h in lines[0].split(",")]
@@ -114,19 +147,42 @@ def read_csv_columns(path: Path, names: tuple[str, ...]) -> list[np.ndarray]:
     if missing:
         raise DseError(f"{path} line 1: no column {', '.join(missing)} (header: {lines[0]!r})")
     index = [header.index(n) for n in names]
-    rows = []
+    rows, numbers, dropped = [], [], []
     for number, line in enumerate(lines[1:], start=2):
         if not line.strip():
             continue
         fields = line.split(",")
-        try:
-            if len(fields) != len(header):
-                raise ValueError
-            rows.append([float(fields[i]) for i in index])
-        except ValueError:
-            raise DseError(f"{path} line {number}: expected {len(header)} numbers, got {line!r}") from None
+        if len(fields) != len(header):
+            raise DseError(f"{path} line {number}: expected {len(header)} fields, got {line!r}")
+        texts = {name: fields[i].strip() for name, i in zip(names, index)}
+        if any(texts[n].lower() in DROPOUT_TEXT for n in may_drop):
+            dropped.append(number)
+            continue
+        rows.append([_number(path, number, name, text) for name, text in texts.items()])
+        numbers.append(number)
     data = np.array(rows, dtype=float).reshape(-1, len(names))
-    return [data[:, i].copy() for i in range(len(names))]
+    _check_increasing(path, names[0], data[:, 0], numbers)
+    return Table([data[:, i].copy() for i in range(len(names))], dropped)
+
+
+def _number(path: Path, line: int, column: str, text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = None
+    if value is None or not np.isfinite(value):
+        what = "is empty" if not text else f"{text!r} is not a finite number"
+        raise DseError(f"{path} line {line}, column {column}: {what}")
+    return value
+
+
+def _check_increasing(path: Path, column: str, time: np.ndarray, lines: list[int]) -> None:
+    """Times must increase: interpolation and the step loop rely on it."""
+    bad = np.flatnonzero(np.diff(time) <= 0)
+    if bad.size:
+        k = bad[0] + 1
+        raise DseError(f"{path} line {lines[k]}, column {column}: {time[k]:g} does not increase on the "
+                       f"previous row's {time[k - 1]:g}")
 
 
 def load_scenario(directory: str | Path) -> Scenario:
@@ -139,6 +195,10 @@ def load_scenario(directory: str | Path) -> Scenario:
             raise DseError(f"scenario {directory}: missing {required.name}")
     try:
         info = ScenarioInfo.model_validate(yaml.safe_load(info_path.read_text()))
-    except (ValidationError, yaml.YAMLError) as e:
-        raise DseError(f"{info_path}: {e}") from None
-    return Scenario(directory.resolve(), info)
+    except ValidationError as e:
+        raise DseError(format_validation_error(str(info_path), e)) from None
+    except yaml.YAMLError as e:
+        raise DseError(format_syntax_error(str(info_path), "YAML", e)) from None
+    scenario = Scenario(directory.resolve(), info)
+    scenario.steering, scenario.gps  # read and check both recordings now, before any FMU reads them
+    return scenario

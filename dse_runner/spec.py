@@ -15,19 +15,20 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, PositiveInt, ValidationError, model_validator
+from pydantic import (BaseModel, ConfigDict, Discriminator, Field, PositiveFloat, PositiveInt, Tag, ValidationError,
+                      model_validator)
 
 from . import bundled
 from . import objectives as objs
 from .constraints import compile_constraint
-from .errors import DseError
-from .cosim import Plan, check_settable, make_plan
-from .multimodel import MultiModel, format_validation_error, load_multimodel, parse_multimodel
+from .errors import DseError, format_syntax_error, format_validation_error
+from .cosim import Plan, check_value, make_plan
+from .multimodel import FiniteValue, MultiModel, load_multimodel, parse_multimodel
 from .scenario import Scenario, load_scenario
 from .search import strategy
 from .store import is_url
 
-Strict = ConfigDict(extra="forbid")
+Strict = ConfigDict(extra="forbid", allow_inf_nan=False)  # unknown keys, NaN and infinity are errors
 
 
 class Range(BaseModel):
@@ -60,7 +61,15 @@ class Range(BaseModel):
         return [round(self.start + i * self.step, 12) for i in range(count)]
 
 
-ParameterValues = Annotated[list[float | int | bool | str], Field(min_length=1)] | Range
+def _values_or_range(value: Any) -> str | None:
+    return "range" if isinstance(value, (dict, Range)) else "values" if isinstance(value, list) else None
+
+
+# A list of values or a Range; the discriminator makes a wrong one give one message, not one per kind.
+ParameterValues = Annotated[
+    Annotated[Annotated[list[FiniteValue], Field(min_length=1)], Tag("values")] | Annotated[Range, Tag("range")],
+    Discriminator(_values_or_range, custom_error_type="parameter_values",
+                  custom_error_message="expected a list of values or a range {start, stop, step or num}")]
 
 
 class ScenarioSource(BaseModel):
@@ -254,8 +263,13 @@ def _scenarios(spec: SpaceSpec, base: Path, source: str) -> list[Scenario]:
 
 def _check_names(space: Space, source: str) -> None:
     """Every name the spec uses must exist: FMU variables, objectives, the strategy."""
-    for ref in space.parameters:
-        check_settable(space.plan.variable(ref, f"{source}: parameters"))
+    for ref, values in space.parameters.items():
+        variable = space.plan.variable(ref, f"{source}: parameters")
+        for value in values:
+            try:
+                check_value(variable, value)
+            except DseError as e:
+                raise DseError(f"{source}: parameters.{ref}: {e}") from None
     for name in space.objectives:
         objs.resolve(name)
     strategy(space.spec.search.strategy)
@@ -281,7 +295,7 @@ def read_spec(path: Path) -> SpaceSpec:
     except OSError as e:
         raise DseError(f"cannot read spec {path}: {e.strerror}") from None
     except yaml.YAMLError as e:
-        raise DseError(f"{source}: not valid YAML: {e}") from None
+        raise DseError(format_syntax_error(source, "YAML", e)) from None
     try:
         spec = SpaceSpec.model_validate(data if data is not None else {})
     except ValidationError as e:

@@ -48,6 +48,16 @@ def scenario_copy(tmp_path):
     return copy
 
 
+def strict_loads(text: str):
+    """json.loads that refuses NaN and Infinity, which are not JSON: what every --json output must pass."""
+    import json
+
+    def refuse(constant: str):
+        raise ValueError(f"not strict JSON: {constant}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
 def all_scenarios() -> list[str]:
     return sorted(p.name for p in SCENARIOS.iterdir() if p.is_dir())
 

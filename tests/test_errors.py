@@ -67,27 +67,28 @@ def damage(scenario_dir, line_number: int, text: str):
     return path
 
 
-def test_malformed_csv_read_by_the_controller_fmu(plan, scenario_copy):
-    """With the step given, only the FMU reads the log: its error reaches the user."""
+def test_malformed_csv_read_by_the_controller_fmu(plan, scenario_copy, tmp_path):
+    """A log given straight to the FMU (not through the scenario, which checks its files on
+    loading) is read by the FMU alone: its error reaches the user."""
     folder = scenario_copy("sin1")
-    path = damage(folder, 7, "0.30,fast,0.0")
+    path = damage(folder, 7, "0.30,fast,0.0").rename(tmp_path / "steer.csv")
     with pytest.raises(DseError, match=rf"controller \(.*\): fmi2EnterInitializationMode failed.*"
                                        rf"{path} line 7: field 2 is not a number"):
-        simulate(plan, folder, step=0.05)
+        simulate(plan, SCENARIOS / "sin1", {"controller.file": str(path)}, step=0.05)
 
 
-def test_malformed_csv_read_for_the_control_period(plan, scenario_copy):
+def test_csv_without_expected_column_read_by_the_controller_fmu(plan, scenario_copy, tmp_path):
+    folder = scenario_copy("sin1")
+    path = damage(folder, 1, "time,speed,delta_f").rename(tmp_path / "steer.csv")
+    with pytest.raises(DseError, match=rf"{path} line 1: header has no 'velocity' column"):
+        simulate(plan, SCENARIOS / "sin1", {"controller.file": str(path)}, step=0.05)
+
+
+def test_malformed_csv_read_when_the_scenario_loads(plan, scenario_copy):
     folder = scenario_copy("sin1")
     path = damage(folder, 9, "0.40,1.0")
-    with pytest.raises(DseError, match=rf"{path} line 9: expected 3 numbers"):
+    with pytest.raises(DseError, match=rf"{path} line 9: expected 3 fields"):
         simulate(plan, folder)
-
-
-def test_csv_without_expected_column(plan, scenario_copy):
-    folder = scenario_copy("sin1")
-    path = damage(folder, 1, "time,speed,delta_f")
-    with pytest.raises(DseError, match=rf"{path} line 1: header has no 'velocity' column"):
-        simulate(plan, folder, step=0.05)
 
 
 def test_missing_steering_file_named_by_the_fmu(plan, scenario_copy):

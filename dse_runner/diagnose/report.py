@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
+from .. import strict_json
 from ..rank import format_point
 from ..spec import Space
 from . import locate
@@ -159,16 +160,8 @@ def write(diagnosis: "Diagnosis", space: Space, frames: dict[str, pd.DataFrame],
     files = {"report": report, **{f"figure_{k}": p for k, p in figures.items()}}
     diagnosis.files.update(files)
     summary = folder / "diagnosis.json"
-    summary.write_text(json.dumps(diagnosis.to_json() | {"located": diagnosis.located}, indent=2, default=_plain))
+    summary.write_text(strict_json.dumps(diagnosis.to_json() | {"located": diagnosis.located}))
     return {**files, "json": summary}
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, (np.floating, np.integer)):
-        return value.item()
-    if isinstance(value, Path):
-        return str(value)
-    raise TypeError(f"not JSON: {type(value).__name__}")
 
 
 def _markdown(diagnosis: "Diagnosis", located: dict[str, pd.DataFrame], sig: dict[str, Any],

@@ -1,0 +1,245 @@
+"""Bad input, tried as a user would through the command: every case gives one line naming the
+culprit on stderr, exit code 2 and no traceback (unless --debug). docs/bad-inputs.md lists
+each case with its message; the ids below are the ones the table names.
+
+Recordings follow one policy (docs/recordings.md): an empty or NaN GPS fix is a dropout,
+skipped like a missing row and counted; any other value that is not a finite number is an
+error naming the file, the line and the column.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+import yaml
+from conftest import MULTIMODEL, REPO, SCENARIOS, strict_loads, write_space
+from typer.testing import CliRunner
+
+from dse_runner.build import build_fmu
+from dse_runner.cli import app
+
+SLEEPER = REPO / "tests" / "fmus" / "sleeper"
+
+
+def run(*args) -> tuple[int, str, str]:
+    """The command in this process (a subprocess per case would triple the time)."""
+    done = CliRunner().invoke(app, [str(a) for a in args])
+    return done.exit_code, done.stdout, done.stderr
+
+
+def one_line_error(code: int, err: str) -> str:
+    lines = err.strip().splitlines()
+    assert code == 2, err
+    assert len(lines) == 1 and lines[0].startswith("error: "), err
+    assert "Traceback" not in err
+    return lines[0]
+
+
+# ---- recordings -----------------------------------------------------------------------------
+
+def edit(folder: Path, file: str, line: int, text: str) -> Path:
+    path = folder / file
+    lines = path.read_text().splitlines()
+    lines[line - 1] = text
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("file, line, text, message", [
+    ("gps_position.csv", 5, "0.80,abc,1.0", r"gps_position\.csv line 5, column x: 'abc' is not a finite number"),
+    ("gps_position.csv", 6, "1.00,inf,1.0", r"gps_position\.csv line 6, column x: 'inf' is not a finite number"),
+    ("gps_position.csv", 7, "nan,1.0,1.0", r"gps_position\.csv line 7, column time: 'nan' is not a finite number"),
+    ("gps_position.csv", 8, ",1.0,1.0", r"gps_position\.csv line 8, column time: is empty"),
+    ("gps_position.csv", 9, "1.6,1.0", r"gps_position\.csv line 9: expected 3 fields"),
+    ("gps_position.csv", 10, "0.1,1.0,1.0", r"gps_position\.csv line 10, column time: 0\.1 does not increase"),
+    ("steering_inputs.csv", 5, "0.20,nan,0.0", r"steering_inputs\.csv line 5, column velocity: 'nan' is not a finite"),
+    ("steering_inputs.csv", 6, "0.25,1.0,-inf", r"steering_inputs\.csv line 6, column delta_f: '-inf' is not a finite"),
+    ("steering_inputs.csv", 7, "0.30,,0.0", r"steering_inputs\.csv line 7, column velocity: is empty"),
+    ("scenario.yaml", 3, "duration: .nan", r"scenario\.yaml: duration: Input should be a finite number"),
+    ("scenario.yaml", 4, "initial_pose: {x: 0.0, y: .inf, theta: 0}",
+     r"scenario\.yaml: initial_pose\.y: Input should be a finite number"),
+], ids=["gps-text", "gps-inf", "gps-time-nan", "gps-time-empty", "gps-fields", "gps-time-order",
+        "steering-nan", "steering-inf", "steering-empty", "yaml-duration-nan", "yaml-pose-inf"])
+def test_a_wrong_recorded_value_names_file_line_and_column(scenario_copy, tmp_path, file, line, text, message):
+    folder = scenario_copy("sin1")
+    edit(folder, file, line, text)
+    code, out, err = run("simulate", MULTIMODEL, "-s", folder, "--out", tmp_path / "out")
+    assert out == ""
+    assert re.search(message, one_line_error(code, err)), err
+
+
+def test_gps_dropouts_are_skipped_like_missing_rows_and_counted(scenario_copy, tmp_path):
+    """NaN and empty fixes give the same objectives as deleting those rows, and are counted."""
+    dropped = scenario_copy("sin1")
+    for line, text in [(5, "0.80,nan,1.0"), (9, "1.60,NaN,NaN"), (12, "2.20,1.0,"), (20, "3.80,,")]:
+        edit(dropped, "gps_position.csv", line, text)
+    deleted = tmp_path / "deleted"
+    shutil.copytree(SCENARIOS / "sin1", deleted)
+    lines = (deleted / "gps_position.csv").read_text().splitlines()
+    (deleted / "gps_position.csv").write_text("\n".join(t for i, t in enumerate(lines, 1) if i not in (5, 9, 12, 20)))
+
+    code, out, err = run("simulate", MULTIMODEL, "-s", dropped, "--out", tmp_path / "a", "--json")
+    assert code == 0, err
+    with_dropouts = strict_loads(out)
+    code, out, err = run("simulate", MULTIMODEL, "-s", deleted, "--out", tmp_path / "b", "--json")
+    without_rows = strict_loads(out)
+    assert with_dropouts["dropouts"] == 4 and without_rows["dropouts"] == 0
+    assert with_dropouts["objectives"] == without_rows["objectives"]
+    code, out, err = run("simulate", MULTIMODEL, "-s", dropped, "--out", tmp_path / "c")
+    assert "4 GPS dropouts skipped" in out
+
+
+def test_a_recording_of_only_dropouts_is_an_error(scenario_copy, tmp_path):
+    folder = scenario_copy("sin1")
+    (folder / "gps_position.csv").write_text("time,x,y\n0.0,nan,nan\n0.2,,\n")
+    code, _, err = run("simulate", MULTIMODEL, "-s", folder, "--out", tmp_path / "out")
+    assert "gps_position.csv: no GPS fix" in one_line_error(code, err)
+
+
+def test_an_objective_that_is_not_finite_fails_its_row_with_a_message(tmp_path):
+    """A user's objective returning NaN: simulate refuses it, naming the objective."""
+    (tmp_path / "nan_objective.py").write_text("def score(trajectory, scenario):\n    return float('nan')\n")
+    done = subprocess.run([sys.executable, "-m", "dse_runner.cli", "simulate", str(MULTIMODEL), "-s",
+                           str(SCENARIOS / "sin1"), "--objective", "nan_objective:score", "--out",
+                           str(tmp_path / "out"), "--json"], capture_output=True, text=True, cwd=tmp_path,
+                          env={**os.environ, "PYTHONPATH": str(tmp_path)})
+    assert done.stdout == ""
+    assert "objective 'nan_objective:score' is not a finite number on scenario sin1" in \
+        one_line_error(done.returncode, done.stderr)
+
+
+# ---- FMUs -------------------------------------------------------------------------------------
+
+def sleeper_multimodel(folder: Path, sleeper: Path | str) -> Path:
+    """The bundled replay controller driving a test FMU (a .fmu or a source folder)."""
+    path = folder / "sleeper.yaml"
+    path.write_text(yaml.safe_dump({
+        "fmus": {"controller": "bundled:fmus/replay_controller", "sleeper": str(sleeper)},
+        "connections": {"controller.velocity": ["sleeper.velocity"]},
+        "scenario": {"controller.file": "steering_inputs"},
+        "track": {"x": "sleeper.x", "y": "sleeper.y"},
+    }))
+    return path
+
+
+def test_an_fmu_that_is_not_a_zip(tmp_path):
+    fake = tmp_path / "model.fmu"
+    fake.write_text("not a zip")
+    code, _, err = run("simulate", sleeper_multimodel(tmp_path, fake), "-s", SCENARIOS / "sin1")
+    assert f"{fake}: not an FMU: an FMU is a zip archive" in one_line_error(code, err)
+
+
+def test_an_fmu_without_a_binary_for_this_platform(tmp_path):
+    built = build_fmu(SLEEPER)
+    foreign = tmp_path / "foreign.fmu"
+    with zipfile.ZipFile(built) as source, zipfile.ZipFile(foreign, "w") as target:
+        for item in source.infolist():
+            name = item.filename.replace("binaries/linux64/sleeper.so", "binaries/win64/sleeper.dll")
+            target.writestr(name, source.read(item))
+    code, _, err = run("simulate", sleeper_multimodel(tmp_path, foreign), "-s", SCENARIOS / "sin1")
+    line = one_line_error(code, err)
+    assert "no binary for this platform: binaries/linux64/sleeper.so is missing (it has binaries for win64)" in line
+
+
+def test_an_fmu_whose_instantiate_returns_null(tmp_path):
+    """The sleeper's sources with another GUID in modelDescription.xml: our FMI layer refuses to
+    instantiate (returns NULL) and logs why."""
+    sources = tmp_path / "sleeper"
+    shutil.copytree(SLEEPER, sources)
+    description = sources / "modelDescription.xml"
+    description.write_text(description.read_text().replace("{0b7d8f3e", "{ffffffff"))
+    code, _, err = run("simulate", sleeper_multimodel(tmp_path, sources), "-s", SCENARIOS / "sin1")
+    line = one_line_error(code, err)
+    assert "sleeper (sleeper): fmi2Instantiate failed: GUID does not match" in line
+
+
+def test_a_value_outside_its_declared_min_or_max(tmp_path):
+    mm = sleeper_multimodel(tmp_path, SLEEPER)
+    code, _, err = run("simulate", mm, "-s", SCENARIOS / "sin1", "--set", "sleeper.pause=20")
+    assert "sleeper.pause = 20 is above its declared max 10" in one_line_error(code, err)
+    space = write_space(tmp_path, multimodel=str(mm), parameters={"sleeper.pause": [0, -1]})
+    code, _, err = run("submit", space, "--no-dashboard")
+    assert "space.yaml: parameters.sleeper.pause: sleeper.pause = -1 is below its declared min 0" in \
+        one_line_error(code, err)
+
+
+# ---- specs and multi-models -------------------------------------------------------------------
+
+@pytest.mark.parametrize("changes, message", [
+    ({"parameters": {"vehicle.mass": {"start": float("nan"), "stop": 2, "num": 2}}},
+     r"space\.yaml: parameters\.vehicle\.mass\.range\.start: Input should be a finite number"),
+    ({"parameters": {"vehicle.mass": [1000, float("inf")]}},
+     r"space\.yaml: parameters\.vehicle\.mass\.values\.1: Value error, inf is not a finite number"),
+    ({"timeout": -1}, r"space\.yaml: timeout: Input should be greater than 0"),
+    ({"chunk_seconds": "fast"}, r"space\.yaml: chunk_seconds: Input should be a valid number"),
+    ({"parameters": {"vehicle.mass": "heavy"}},
+     r"space\.yaml: parameters\.vehicle\.mass: expected a list of values or a range"),
+    ({"parameters": {"vehicle.mass": ["heavy"]}}, r"parameters\.vehicle\.mass: vehicle\.mass: 'heavy' is not a valid Real"),
+    ({"scenarios": []}, r"space\.yaml: scenarios: give at least one scenario folder"),
+    ({"multimodel": "nowhere.yaml"}, r"cannot read multi-model .*nowhere\.yaml"),
+    ({"multimodel": "bundled:nothing.yaml"}, r"'bundled:nothing\.yaml': dse-runner bundles no such file"),
+], ids=["range-nan", "list-inf", "timeout-negative", "chunk-text", "values-not-list", "value-type",
+        "no-scenarios", "multimodel-missing", "bundled-missing"])
+def test_a_bad_spec_value(tmp_path, changes, message):
+    code, out, err = run("submit", write_space(tmp_path, **changes), "--no-dashboard", "--json")
+    assert out == ""
+    assert re.search(message, one_line_error(code, err)), err
+
+
+@pytest.mark.parametrize("changes, message", [
+    ({"parameters": {"vehicle.mass": float("nan")}}, r"mm\.yaml: parameters\.vehicle\.mass.*finite number"),
+    ({"parameters": {"vehicle.mass": -1e400}}, r"mm\.yaml: parameters\.vehicle\.mass.*finite number"),
+    ({"fmus": {}}, r"mm\.yaml: fmus: Dictionary should have at least 1 item"),
+    ({"connections": {"controller.velocity": "vehicle.velocity"}},
+     r"mm\.yaml: connections\.controller\.velocity: Input should be a valid list"),
+    ({"step": 0}, r"mm\.yaml: step: Input should be greater than 0"),
+    ({"scenario": {"controller.file": "steering"}}, r"mm\.yaml: scenario\.controller\.file: Input should be"),
+    ({"parameters": {"vehicle": 1}}, r"mm\.yaml: parameters: Value error, 'vehicle' is not of the form"),
+], ids=["parameter-nan", "parameter-inf", "no-fmus", "connection-not-list", "step-zero", "scenario-field",
+        "parameter-ref"])
+def test_a_bad_multimodel_value(tmp_path, changes, message):
+    data = yaml.safe_load(MULTIMODEL.read_text())
+    data["fmus"] = {k: str((MULTIMODEL.parent / v).resolve()) for k, v in data["fmus"].items()}
+    data.update(changes)
+    path = tmp_path / "mm.yaml"
+    path.write_text(yaml.safe_dump(data))
+    code, _, err = run("simulate", path, "-s", SCENARIOS / "sin1", "--out", tmp_path / "out")
+    assert re.search(message, one_line_error(code, err)), err
+
+
+def test_a_multimodel_that_is_not_yaml(tmp_path):
+    path = tmp_path / "mm.yaml"
+    path.write_text("fmus: [unclosed\n")
+    code, _, err = run("simulate", path, "-s", SCENARIOS / "sin1")
+    assert f"{path} line 2, column 1: not valid YAML: expected ',' or ']'" in one_line_error(code, err)
+
+
+# ---- the real command: exit code, one line, --debug ---------------------------------------------
+
+def test_the_installed_command_prints_one_line_and_the_traceback_only_with_debug(tmp_path):
+    fake = tmp_path / "model.fmu"
+    fake.write_text("not a zip")
+    mm = sleeper_multimodel(tmp_path, fake)
+    command = [sys.executable, "-m", "dse_runner.cli"]
+    quiet = subprocess.run([*command, "simulate", str(mm), "-s", str(SCENARIOS / "sin1")], capture_output=True,
+                           text=True)
+    assert "not an FMU" in one_line_error(quiet.returncode, quiet.stderr)
+    loud = subprocess.run([*command, "--debug", "simulate", str(mm), "-s", str(SCENARIOS / "sin1")],
+                          capture_output=True, text=True)
+    assert loud.returncode == 2 and "Traceback" in loud.stderr and loud.stderr.strip().endswith(
+        quiet.stderr.strip())
+
+
+def test_json_output_rejects_nan_and_infinity():
+    """The check every --json test uses: Python's json would accept NaN; ours must not."""
+    with pytest.raises(ValueError):
+        strict_loads('{"a": NaN}')
+    assert json.loads('{"a": NaN}')["a"] != 0
