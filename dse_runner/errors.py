@@ -14,7 +14,7 @@ def format_validation_error(source: str, error: ValidationError) -> str:
     lines = []
     for problem in error.errors():
         where = ".".join(str(p) for p in problem["loc"]) or "(top level)"
-        lines.append(f"{source}: {where}: {problem['msg']}")
+        lines.append(f"{source}: {where}: {problem['msg'].removeprefix('Value error, ')}")
     return "\n".join(lines)
 
 

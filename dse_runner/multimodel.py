@@ -154,7 +154,8 @@ def parse_multimodel(data: Any, source: str, base_dir: Path) -> MultiModel:
 
 
 def load_multimodel(path: str | Path) -> MultiModel:
-    path = Path(path)
+    """Read a multi-model file: a path, or ``bundled:robotti/multimodel.yaml`` for one that ships with us."""
+    path = bundled.bundled_path(str(path)) if bundled.is_bundled(path) else Path(path)
     try:
         text = path.read_text()
     except OSError as e:
