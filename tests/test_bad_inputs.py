@@ -243,3 +243,17 @@ def test_json_output_rejects_nan_and_infinity():
     with pytest.raises(ValueError):
         strict_loads('{"a": NaN}')
     assert json.loads('{"a": NaN}')["a"] != 0
+
+
+def test_submit_counts_dropouts_and_keeps_its_json_strict(scenario_copy, tmp_path, dask_scheduler):
+    folder = scenario_copy("sin1")
+    for line, text in [(5, "0.80,nan,1.0"), (9, "1.60,,")]:
+        edit(folder, "gps_position.csv", line, text)
+    space = write_space(tmp_path, scenarios=[str(folder)], cluster={"address": dask_scheduler},
+                        parameters={"vehicle.mass": [1000, 3000]})
+    code, out, err = run("submit", space, "--no-dashboard", "--json")
+    assert code == 0, err
+    report = strict_loads(out)
+    assert report["dropouts"] == {"sin1": 2} and (report["ok"], report["failed"]) == (2, 0)
+    code, out, err = run("submit", space, "--no-dashboard")
+    assert "GPS dropouts skipped (empty or NaN fixes): sin1 2" in out

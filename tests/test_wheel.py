@@ -28,8 +28,8 @@ def installed(tmp_path_factory) -> dict:
     for name in ("pyproject.toml", "README.md"):
         shutil.copy(REPO / name, source / name)
     shutil.copytree(REPO / "dse_runner", source / "dse_runner", ignore=shutil.ignore_patterns("__pycache__"))
-    subprocess.run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "-w", str(root / "dist"),
-                    str(source)], check=True, capture_output=True, text=True)
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "--no-build-isolation", "-w",
+                    str(root / "dist"), str(source)], check=True, capture_output=True, text=True)
     (wheel,) = (root / "dist").glob("dse_runner-*.whl")
     # The dependencies come from this interpreter's site-packages; dse-runner itself only from the wheel.
     venv = root / "venv"
