@@ -33,7 +33,8 @@ def main() -> None:
     with connect(Cluster(n_workers=args.workers)) as client:
         for effect in blind.EFFECTS:
             started = time.perf_counter()
-            _, _, result = blind.run_case(effect, (args.out / effect).resolve(), client)
+            _, _, result = blind.run_case(effect, (args.out / effect).resolve(), client,
+                                          seconds=blind.BENCHMARK_SECONDS)
             seconds = time.perf_counter() - started
             first = result.effects[0]
             truth = LIBRARY[effect].magnitude(blind.EFFECTS[effect])

@@ -373,6 +373,8 @@ def diagnose(
         help="Calibration design space: its parameters and ranges (default: jobs/robotti/space.yaml).")] = None,
     out: Annotated[Path, typer.Option(help="Folder for results, the new model and the report.")] = Path("out/diagnosis"),
     folds: Annotated[int, typer.Option(help="Cross-validation folds across runs.")] = 3,
+    hypothesis: Annotated[list[str] | None, typer.Option(
+        "--hypothesis", help="Try only this hypothesis of the library (repeatable). Default: every one.")] = None,
     workers: Annotated[int | None, typer.Option(help="Local cluster workers (overrides the space).")] = None,
     scheduler: Annotated[str | None, typer.Option(help="Address of an existing Dask scheduler.")] = None,
     as_json: JsonFlag = False,
@@ -385,8 +387,9 @@ def diagnose(
         typer.echo(message, err=True)
 
     try:
-        result = run_diagnosis(scenarios, multimodel, space, out, Settings(folds=folds), progress=say,
-                               n_workers=workers, address=scheduler)
+        settings = Settings(folds=folds, hypotheses=tuple(hypothesis or ()))
+        result = run_diagnosis(scenarios, multimodel, space, out, settings, progress=say, n_workers=workers,
+                               address=scheduler)
     except DseError as e:
         fail(e)
     except KeyboardInterrupt:

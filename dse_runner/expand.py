@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Collection, Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -57,14 +57,22 @@ def points_of(space, points: list[dict[str, Any]] | None = None) -> Callable[[An
     return strategy(space.spec.search.strategy) if points is None else (lambda _: points)
 
 
-def expand(space, points: list[dict[str, Any]] | None = None) -> Iterator[Task]:
-    """Tasks scenario by scenario, so a chunk of consecutive tasks mostly shares one scenario."""
+def expand(space, points: list[dict[str, Any]] | None = None,
+           only: list[Collection[str]] | None = None) -> Iterator[Task]:
+    """Tasks scenario by scenario, so a chunk of consecutive tasks mostly shares one scenario.
+
+    ``only`` (with ``points``) names, for each point, the scenarios it is wanted on: an
+    optimiser fitting some runs need not simulate the others. Without it, every point
+    runs on every scenario."""
+    if only is not None and (points is None or len(only) != len(points)):
+        raise ValueError("expand: `only` needs one collection of scenario names per given point")
     model = model_hash(space.plan, space.objectives)
     visit = points_of(space, points)
     for scenario in space.scenarios:
         data = scenario_hash(scenario)
-        for point in visit(space):  # regenerated per scenario: no list of all points is kept
-            yield Task(task_id(model, point, data), scenario.name, tuple(sorted(point.items())))
+        for k, point in enumerate(visit(space)):  # regenerated per scenario: no list of all points is kept
+            if only is None or scenario.name in only[k]:
+                yield Task(task_id(model, point, data), scenario.name, tuple(sorted(point.items())))
 
 
 @dataclass(frozen=True)

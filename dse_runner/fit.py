@@ -19,7 +19,7 @@ too narrow.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Collection, Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -231,7 +231,7 @@ def robust_standard_errors(jacobian: list[np.ndarray], residuals: list[np.ndarra
     return errors
 
 
-Progress = Callable[[int, int, int], None]  # (round, active fits, points this round)
+Progress = Callable[[int, int, int, int], None]  # (round, active fits, points, simulations this round)
 
 
 def fit_all(space: Space, problems: list[FitProblem], client, progress: Progress | None = None) -> dict[str, FitResult]:
@@ -245,11 +245,11 @@ def fit_all(space: Space, problems: list[FitProblem], client, progress: Progress
         asked = {id(s): s.ask() for s in solvers if not s.done}
         if not asked:
             break
-        points = list({key_of(p): p for ps in asked.values() for p in ps}.values())
+        points, only = wanted((p, s.problem.scenarios) for s in solvers if id(s) in asked for p in asked[id(s)])
         round_ += 1
         if progress:
-            progress(round_, len(asked), len(points))
-        rows = evaluate_points(space, points, client, [RESIDUALS])
+            progress(round_, len(asked), len(points), sum(len(s) for s in only))
+        rows = evaluate_points(space, points, client, [RESIDUALS], only)
 
         def residuals(point: Point, scenario: str) -> np.ndarray | None:
             row = rows.get((key_of(point), scenario))
@@ -264,10 +264,23 @@ def fit_all(space: Space, problems: list[FitProblem], client, progress: Progress
 Rows = dict[tuple[Key, str], dict[str, Any]]  # (point, scenario) -> its result row
 
 
-def evaluate_points(space: Space, points: list[Point], client, columns: list[str]) -> Rows:
-    """Run ``points`` on every scenario of ``space`` as one sweep (skipping finished tasks) and
-    return their rows with ``status`` and ``columns``."""
-    submit(space, client=client, points=points)
-    ids = {task.task_id: (task.point, task.scenario) for task in expand(space, points)}
+def wanted(requests: Iterable[tuple[Point, Iterable[str]]]) -> tuple[list[Point], list[set[str]]]:
+    """Distinct points, each with the union of the scenarios asked of it.
+
+    A fit on some runs (a cross-validation fold) needs its points simulated on those runs
+    only; fits that ask for the same point share its simulations."""
+    by_key: dict[Key, tuple[Point, set[str]]] = {}
+    for point, scenarios in requests:
+        by_key.setdefault(key_of(point), (point, set()))[1].update(scenarios)
+    return [p for p, _ in by_key.values()], [s for _, s in by_key.values()]
+
+
+def evaluate_points(space: Space, points: list[Point], client, columns: list[str],
+                    only: list[Collection[str]] | None = None) -> Rows:
+    """Run ``points`` on every scenario of ``space`` (or, with ``only``, each point on the scenarios
+    named for it) as one sweep, skipping finished tasks, and return their rows with ``status``
+    and ``columns``."""
+    submit(space, client=client, points=points, only=only)
+    ids = {task.task_id: (task.point, task.scenario) for task in expand(space, points, only)}
     rows = store.read_results(space.output, space.name, ["status", *columns], task_ids=list(ids))
     return {ids[r["task_id"]]: r for r in rows.to_dict("records")}

@@ -152,16 +152,62 @@ def write_rows(root: Root, sweep: str, chunk: str, rows: list[dict[str, Any]], s
             for scenario, group in by_scenario.items()]
 
 
-def _dataset(root: Root, kind: str, sweep: str | None = None) -> ds.Dataset | None:
-    """The files of one sweep (sweeps of one store may have different columns), or of all."""
-    fs, path = _fs(root)
+def _files(fs: fsspec.AbstractFileSystem, path: str, kind: str, sweep: str | None = None) -> list[str]:
+    """The finished files of one sweep (sweeps of one store may have different columns), or of all."""
     folder = _join(path, kind)
     where = _join(folder, f"sweep={sweep}") if sweep is not None else folder
-    files = sorted(f for f in fs.find(where) if f.endswith(".parquet") and not Path(f).name.startswith("."))
+    return sorted(f for f in fs.find(where) if f.endswith(".parquet") and not Path(f).name.startswith("."))
+
+
+def _dataset(root: Root, kind: str, sweep: str | None = None, files: list[str] | None = None) -> ds.Dataset | None:
+    """A dataset of ``files`` (default: every file of the sweep, or of all sweeps)."""
+    fs, path = _fs(root)
+    files = _files(fs, path, kind, sweep) if files is None else files
     if not files:
         return None
-    return ds.dataset(files, format="parquet", partitioning=PARTITIONING, partition_base_dir=folder,
+    return ds.dataset(files, format="parquet", partitioning=PARTITIONING, partition_base_dir=_join(path, kind),
                       filesystem=_arrow_fs(fs))
+
+
+class _TaskIdCache:
+    """Task ids per local file, keyed by (size, mtime): a chunk's file does not change once written
+    (a chunk run again replaces it whole, with a new modification time). Bounded, so a process
+    that scans a huge sweep re-reads it rather than holding every id."""
+
+    limit = 500_000  # ids, ~50 MB
+
+    def __init__(self) -> None:
+        self.files: dict[str, tuple[tuple[int, int], frozenset[str]]] = {}
+        self.count = 0
+
+    def ids(self, name: str) -> frozenset[str]:
+        stat = os.stat(name)
+        version = (stat.st_size, stat.st_mtime_ns)
+        cached = self.files.get(name)
+        if cached is not None and cached[0] == version:
+            return cached[1]
+        ids = frozenset(pq.read_table(name, columns=["task_id"]).column("task_id").to_pylist())
+        if cached is not None:
+            self.count -= len(self.files.pop(name)[1])
+        if self.count + len(ids) > self.limit:
+            self.files.clear()
+            self.count = 0
+        self.files[name] = (version, ids)
+        self.count += len(ids)
+        return ids
+
+
+_IDS = _TaskIdCache()
+
+
+def _task_ids_by_file(fs: fsspec.AbstractFileSystem, files: list[str]) -> dict[str, frozenset[str]] | None:
+    """The task ids in each of ``files``, or None for a remote store.
+
+    An optimiser reads the store after every one of its many small rounds (fit.py); with the
+    ids of each local file remembered, a round opens only the files written since the last."""
+    if not isinstance(fs, LocalFileSystem):
+        return None
+    return {name: _IDS.ids(name) for name in files}
 
 
 def _with_every_column(dataset: ds.Dataset, root: Root, kind: str) -> ds.Dataset:
@@ -177,8 +223,17 @@ def _with_every_column(dataset: ds.Dataset, root: Root, kind: str) -> ds.Dataset
 def read_results(root: Root, sweep: str | None = None, columns: list[str] | None = None,
                  task_ids: list[str] | None = None) -> pd.DataFrame:
     """Rows of finished tasks (of just ``task_ids`` if given: what an optimiser reads back after
-    each round), reading only ``columns`` (plus the keys); no trajectories."""
-    dataset = _dataset(root, RESULTS, sweep)
+    each round, from only the files that hold them), reading only ``columns`` (plus the keys);
+    no trajectories."""
+    files = None
+    if task_ids is not None:
+        fs, path = _fs(root)
+        files = _files(fs, path, RESULTS, sweep)
+        by_file = _task_ids_by_file(fs, files)
+        if by_file is not None:
+            wanted_ids = set(task_ids)
+            files = [f for f in files if not by_file[f].isdisjoint(wanted_ids)]
+    dataset = _dataset(root, RESULTS, sweep, files)
     if dataset is None:
         return pd.DataFrame(columns=["task_id", "sweep", "scenario", *(columns or [])])
     wanted = None
@@ -200,7 +255,11 @@ def read_results(root: Root, sweep: str | None = None, columns: list[str] | None
 
 def finished_task_ids(root: Root, sweep: str) -> set[str]:
     """Ids of every task with a row, ok or failed: what a re-run skips."""
-    return set(read_results(root, sweep, columns=[])["task_id"])
+    fs, path = _fs(root)
+    by_file = _task_ids_by_file(fs, _files(fs, path, RESULTS, sweep))
+    if by_file is None:
+        return set(read_results(root, sweep, columns=[])["task_id"])
+    return set().union(*by_file.values())
 
 
 def sweeps(root: Root) -> list[str]:

@@ -28,7 +28,7 @@ import socket
 import time
 import traceback
 from collections import deque
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Collection, Iterator
 from concurrent.futures import CancelledError
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -258,6 +258,7 @@ def probe(shipment: str, scenario: str, point: Point, objectives: tuple[str, ...
 
 
 UNKNOWN_TASK_SECONDS = 0.1  # when the probe failed: a guess that keeps chunks small
+_COST: dict[tuple[str, tuple[str, ...]], float] = {}  # (shipment, objectives) -> seconds per task, measured
 
 
 def chunk_size(seconds_per_task: float | None, target_seconds: float, pending: int, threads: int) -> int:
@@ -274,11 +275,13 @@ def _chunk_id(tasks: list[Task]) -> str:
 
 
 def submit(space: Space, progress: Progress | None = None, client=None,
-           points: list[Point] | None = None, on_connect: Callable[[Any], None] | None = None) -> SweepReport:
+           points: list[Point] | None = None, on_connect: Callable[[Any], None] | None = None,
+           only: list[Collection[str]] | None = None) -> SweepReport:
     """Run every task of ``space`` that has no row yet; returns counts, never raises on failed tasks.
 
     ``points`` replaces the space's search strategy with a given list: how an
-    optimiser (fit.py) runs each of its rounds as a sweep into the same store.
+    optimiser (fit.py) runs each of its rounds as a sweep into the same store;
+    ``only`` then names, per point, the scenarios it is wanted on (expand.expand).
     ``on_connect(client)`` runs each time the sweep (re)connects to a scheduler: how the
     CLI links its dashboard from Dask's (dashboard.link_from_dask)."""
     started = time.perf_counter()
@@ -287,7 +290,7 @@ def submit(space: Space, progress: Progress | None = None, client=None,
     save_sweep_spec(output, space.spec, model_hash(space.plan, space.objectives))
     done = store.finished_task_ids(output, space.name)
     total = skipped = 0
-    for task in expand(space, points):
+    for task in expand(space, points, only):
         total += 1
         skipped += task.task_id in done
     report = SweepReport(sweep=space.name, output=output, total=total, skipped=skipped, spec=str(space.path),
@@ -299,7 +302,8 @@ def submit(space: Space, progress: Progress | None = None, client=None,
         save_status(report)
         return report
     point = first_point(space, points)
-    run = Run(space, ship.pack(space.plan, space.scenarios), points, report, progress, started, on_connect)
+    run = Run(space, ship.pack(space.plan, space.scenarios), points, report, progress, started, on_connect,
+              only=only)
     save_status(report)
     try:
         if client is None:
@@ -333,14 +337,15 @@ class Run:
     started: float
     on_connect: Callable[[Any], None] | None = None
     saved: float = 0.0  # when the status file was last written (monotonic)
+    only: list[Collection[str]] | None = None  # per given point, the scenarios it runs on
 
     def until_done(self, client, done: set[str], point: Point, pending: int) -> SweepReport:
         report = self.report
         if pending:
             ship.send(client, self.shipment)
             self._connected(client)
-            report.chunk_size = chunk_size(self._probe(client, point), self.space.spec.chunk_seconds, pending,
-                                           total_threads(client))
+            report.chunk_size = chunk_size(self._seconds_per_task(client, point), self.space.spec.chunk_seconds,
+                                           pending, total_threads(client))
             while True:
                 try:
                     self._chunks(client, done)
@@ -350,6 +355,7 @@ class Run:
                     ship.send(client, self.shipment)
                     self._connected(client)
                     done = store.finished_task_ids(self.space.output, self.space.name)
+            self._remember_cost()
         if not report.interrupted and self.space.spec.keep_trajectories:
             keep_trajectories(self.space, client, self.space.spec.keep_trajectories, self.shipment)
         report.seconds = time.perf_counter() - self.started
@@ -369,7 +375,7 @@ class Run:
         from distributed.scheduler import KilledWorker
 
         report, threads = self.report, total_threads(client)
-        jobs = _jobs(self.space, self.shipment.key, done, report.chunk_size, self.points)
+        jobs = _jobs(self.space, self.shipment.key, done, report.chunk_size, self.points, self.only)
         again: deque[ChunkJob] = deque()  # halves of crashed chunks go first
         launched: dict[str, ChunkJob] = {}
         in_flight = as_completed()
@@ -408,6 +414,23 @@ class Run:
             report.interrupted = True
             for future in list(in_flight.futures):
                 future.cancel()
+
+    def _seconds_per_task(self, client, point: Point) -> float | None:
+        """What one task costs: measured by an earlier submission of the same shipment and
+        objectives in this process (the rounds of a fit are many small sweeps of one model, and
+        a probe each would add a serial simulation to every round), else by a probe."""
+        known = _COST.get(self._cost_key())
+        return known if known is not None else self._probe(client, point)
+
+    def _cost_key(self) -> tuple[str, tuple[str, ...]]:
+        return self.shipment.key, self.space.objectives
+
+    def _remember_cost(self) -> None:
+        """The mean wall time of this submission's simulations, on warm workers and over many tasks:
+        a better estimate for the next submission than one probe."""
+        report = self.report
+        if report.ok and not report.failed:
+            _COST[self._cost_key()] = report.simulation_seconds / report.ok
 
     def _probe(self, client, point: Point) -> float | None:
         from distributed.scheduler import KilledWorker
@@ -508,10 +531,11 @@ def trajectories_of(space: Space, client, point: dict[str, Any], sweep: str) -> 
     return {s.name: store.read_trajectory(space.output, sweep, s.name) for s in space.scenarios}
 
 
-def _jobs(space: Space, shipment: str, done: set[str], size: int, points: list[Point] | None) -> Iterator[ChunkJob]:
+def _jobs(space: Space, shipment: str, done: set[str], size: int, points: list[Point] | None,
+          only: list[Collection[str]] | None = None) -> Iterator[ChunkJob]:
     key = model_hash(space.plan, space.objectives)
     schema = store.results_schema(space.parameters, space.objectives)
-    todo = (t for t in expand(space, points) if t.task_id not in done)
+    todo = (t for t in expand(space, points, only) if t.task_id not in done)
     for tasks in chunked(todo, size):
         yield ChunkJob(space.name, _chunk_id(tasks), shipment, key, TaskBatch.of(tasks), space.objectives,
                        space.output, schema, space.spec.timeout)

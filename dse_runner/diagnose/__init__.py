@@ -23,7 +23,7 @@ import yaml
 from .. import bundled
 from ..cluster import connect
 from ..errors import DseError
-from ..fit import FitProblem, FitResult, Parameter, evaluate_points, fit_all, key_of
+from ..fit import FitProblem, FitResult, Parameter, evaluate_points, fit_all, key_of, wanted
 from ..multimodel import MultiModel, split_ref
 from ..rank import rank
 from ..spec import Range, Space, SpaceSpec, read_spec, resolve_space
@@ -47,6 +47,15 @@ class Settings:
     min_gain: float = explain.MIN_GAIN
     bic_margin: float = explain.BIC_MARGIN
     max_iterations: int = 15
+    hypotheses: tuple[str, ...] = ()  # the library's ids to try; () tries them all
+
+    def singles(self) -> list[tuple[str, ...]]:
+        """The hypotheses fitted alone: the chosen ids of the library, each checked."""
+        unknown = [h for h in self.hypotheses if h not in LIBRARY or h == "none"]
+        if unknown:
+            raise DseError(f"unknown hypothesis {', '.join(map(repr, unknown))}: the library has "
+                           f"{', '.join(h for h in LIBRARY if h != 'none')}")
+        return [(hid,) for hid in self.hypotheses or LIBRARY if hid != "none"]
 
 
 @dataclass
@@ -198,8 +207,8 @@ class Chain:
         return FitProblem(label, params, fixed, scenarios, self.settings.max_iterations)
 
     def _fit(self, problems: list[FitProblem], what: str) -> dict[str, FitResult]:
-        def report(round_: int, active: int, points: int) -> None:
-            self.say(f"{what}: round {round_}, {active} fits, {points} points x {len(self.all)} runs")
+        def report(round_: int, active: int, points: int, simulations: int) -> None:
+            self.say(f"{what}: round {round_}, {active} fits, {points} points, {simulations} simulations")
 
         return fit_all(self.space, problems, self.client, report)
 
@@ -213,8 +222,9 @@ class Chain:
                                  tuple(s for s in self.all if s not in fold))
                     for ids in sets for k, fold in enumerate(self.folds)]
         by_fold = self._fit(problems, "cross-validating")
-        points = [r.point for r in by_fold.values()]
-        rows = evaluate_points(self.space, points, self.client, ["cross_track_error"])
+        points, only = wanted((by_fold[f"{labels[ids]}/fold{k}"].point, fold)
+                              for ids in sets for k, fold in enumerate(self.folds))  # each on the runs it held out
+        rows = evaluate_points(self.space, points, self.client, ["cross_track_error"], only)
         result = []
         for ids in sets:
             candidate = Candidate(ids, full[labels[ids]])
@@ -231,7 +241,7 @@ class Chain:
 
 def choose(chain: Chain, start: dict[str, float]) -> tuple[Candidate, list[Candidate]]:
     """Fit every hypothesis alone, then grow the best by the partners that still beat it."""
-    singles = [(hid,) for hid in LIBRARY if hid != "none"]
+    singles = chain.settings.singles()
     scored = chain.candidates([(), *singles], {ids: start for ids in [(), *singles]})
     baseline = next(c for c in scored if not c.ids)
     winners = [c for c in explain.ranked(scored) if c.ids and explain.beats(c, baseline, chain.settings.min_gain,
@@ -310,6 +320,7 @@ def diagnose(scenarios: str | Path, multimodel: str | Path | None = None, space:
     ``space`` gives the calibration's parameters and ranges (default: the bundled Robotti
     calibration, bundled:robotti/calibration.yaml); ``multimodel`` replaces its multi-model."""
     out = Path(out or "out/diagnosis").resolve()
+    settings.singles()  # an unknown hypothesis is named before anything runs
     calibration = calibration_space(space or DEFAULT_SPACE, scenarios, multimodel, out, n_workers, address)
     say = progress or (lambda message: None)
     if client is None:
