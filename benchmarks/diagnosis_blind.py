@@ -34,7 +34,7 @@ def main() -> None:
         for effect in blind.EFFECTS:
             started = time.perf_counter()
             _, _, result = blind.run_case(effect, (args.out / effect).resolve(), client,
-                                          seconds=blind.BENCHMARK_SECONDS)
+                                          seconds=blind.BENCHMARK_SECONDS, runs=blind.BENCHMARK_RUNS)
             seconds = time.perf_counter() - started
             first = result.effects[0]
             truth = LIBRARY[effect].magnitude(blind.EFFECTS[effect])

@@ -15,14 +15,14 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 import yaml
-from pydantic import (BaseModel, ConfigDict, Discriminator, Field, PositiveFloat, PositiveInt, Tag, ValidationError,
-                      model_validator)
+from pydantic import (BaseModel, ConfigDict, Discriminator, Field, PositiveFloat, PositiveInt, Tag,
+                      ValidationError, model_validator)
 
 from . import bundled
 from . import objectives as objs
 from .constraints import compile_constraint
-from .errors import DseError, format_syntax_error, format_validation_error
 from .cosim import Plan, check_value, make_plan
+from .errors import DseError, format_syntax_error, format_validation_error
 from .multimodel import FiniteValue, MultiModel, load_multimodel, parse_multimodel
 from .scenario import Scenario, load_scenario
 from .search import strategy

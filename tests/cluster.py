@@ -101,7 +101,9 @@ class CliCluster:
 
     def _popen(self, command: list[str], log: str) -> subprocess.Popen:
         with open(self.folder / log, "ab") as out:
-            return subprocess.Popen(command, env=self.env, cwd=self.folder, stdout=out, stderr=subprocess.STDOUT)
+            # Each process leads its own process group, so that close() can kill a nanny and its worker at once.
+            return subprocess.Popen(command, env=self.env, cwd=self.folder, stdout=out, stderr=subprocess.STDOUT,
+                                    start_new_session=True)
 
     def start_scheduler(self) -> None:
         tls = self.certs.flags() if self.certs else []
@@ -152,13 +154,14 @@ class CliCluster:
         self.workers = []
 
     def close(self) -> None:
+        """SIGKILL every process group: a test cluster has nothing to save, and a graceful close waits
+        seconds for each worker (the nanny's grace period)."""
         for proc in [*self.workers, self.scheduler]:
             if proc is not None and proc.poll() is None:
-                proc.terminate()
+                try:
+                    os.killpg(proc.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
         for proc in [*self.workers, self.scheduler]:
-            if proc is None:
-                continue
-            try:
-                proc.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                proc.kill()
+            if proc is not None:
+                proc.wait(timeout=30)

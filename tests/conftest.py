@@ -48,6 +48,23 @@ def scenario_copy(tmp_path):
     return copy
 
 
+SLEEPER = REPO / "tests" / "fmus" / "sleeper"  # a test FMU that sleeps `pause` s of wall time in every step
+
+
+def sleeper_multimodel(folder: Path, sleeper: Path | str = SLEEPER) -> Path:
+    """The bundled replay controller driving a sleeper FMU (a .fmu or a source folder), tracked at its x, y."""
+    import yaml
+
+    path = folder / "sleeper.yaml"
+    path.write_text(yaml.safe_dump({
+        "fmus": {"controller": "bundled:fmus/replay_controller", "sleeper": str(sleeper)},
+        "connections": {"controller.velocity": ["sleeper.velocity"]},
+        "scenario": {"controller.file": "steering_inputs"},
+        "track": {"x": "sleeper.x", "y": "sleeper.y"},
+    }))
+    return path
+
+
 def strict_loads(text: str):
     """json.loads that refuses NaN and Infinity, which are not JSON: what every --json output must pass."""
     import json

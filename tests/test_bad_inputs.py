@@ -20,13 +20,11 @@ from pathlib import Path
 
 import pytest
 import yaml
-from conftest import MULTIMODEL, REPO, SCENARIOS, strict_loads, write_space
+from conftest import MULTIMODEL, SCENARIOS, SLEEPER, sleeper_multimodel, strict_loads, write_space
 from typer.testing import CliRunner
 
 from dse_runner.build import build_fmu
 from dse_runner.cli import app
-
-SLEEPER = REPO / "tests" / "fmus" / "sleeper"
 
 
 def run(*args) -> tuple[int, str, str]:
@@ -118,18 +116,6 @@ def test_an_objective_that_is_not_finite_fails_its_row_with_a_message(tmp_path):
 
 # ---- FMUs -------------------------------------------------------------------------------------
 
-def sleeper_multimodel(folder: Path, sleeper: Path | str) -> Path:
-    """The bundled replay controller driving a test FMU (a .fmu or a source folder)."""
-    path = folder / "sleeper.yaml"
-    path.write_text(yaml.safe_dump({
-        "fmus": {"controller": "bundled:fmus/replay_controller", "sleeper": str(sleeper)},
-        "connections": {"controller.velocity": ["sleeper.velocity"]},
-        "scenario": {"controller.file": "steering_inputs"},
-        "track": {"x": "sleeper.x", "y": "sleeper.y"},
-    }))
-    return path
-
-
 def test_an_fmu_that_is_not_a_zip(tmp_path):
     fake = tmp_path / "model.fmu"
     fake.write_text("not a zip")
@@ -207,7 +193,6 @@ def test_a_bad_spec_value(tmp_path, changes, message):
         "parameter-ref"])
 def test_a_bad_multimodel_value(tmp_path, changes, message):
     data = yaml.safe_load(MULTIMODEL.read_text())
-    data["fmus"] = {k: str((MULTIMODEL.parent / v).resolve()) for k, v in data["fmus"].items()}
     data.update(changes)
     path = tmp_path / "mm.yaml"
     path.write_text(yaml.safe_dump(data))

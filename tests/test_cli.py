@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 
-from conftest import MULTIMODEL, REPO, SCENARIOS
+from conftest import MULTIMODEL, REPO, SCENARIOS, strict_loads
 
 
 def dse_runner(*args, cwd=REPO):
@@ -18,7 +17,7 @@ def test_simulate_json_prints_only_json_and_writes_track(tmp_path):
     done = dse_runner("simulate", MULTIMODEL, "--scenario", SCENARIOS / "sin1",
                       "--set", "vehicle.mass=1500", "--out", tmp_path, "--json")
     assert done.returncode == 0, done.stderr
-    report = json.loads(done.stdout)
+    report = strict_loads(done.stdout)
     assert set(report["objectives"]) == {"cross_track_error", "max_error", "rms_error", "final_error"}
     assert report["values"]["vehicle.mass"] == 1500.0
     assert 0 < report["objectives"]["cross_track_error"] <= report["objectives"]["max_error"]
@@ -49,6 +48,6 @@ def test_missing_multimodel(tmp_path):
 def test_build_fmus_json(tmp_path):
     done = dse_runner("build-fmus", "--out", tmp_path, "--json")
     assert done.returncode == 0, done.stderr
-    built = json.loads(done.stdout)["fmus"]
+    built = strict_loads(done.stdout)["fmus"]
     assert set(built) == {"robotti_vehicle", "robotti_vehicle_effects", "replay_controller"}
     assert all((tmp_path / f"{name}.fmu").is_file() for name in built)

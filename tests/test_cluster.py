@@ -6,7 +6,6 @@ their command lines (tests/cluster.py) unless it needs the embedded cluster.
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import signal
@@ -21,9 +20,9 @@ from urllib.parse import urlparse
 import pandas as pd
 import pytest
 import yaml
-
 from cluster import CliCluster, can_hide_folders, make_certs
-from conftest import FMU_SOURCES, MULTIMODEL, REPO, SCENARIOS, write_space
+from conftest import FMU_SOURCES, MULTIMODEL, REPO, SCENARIOS, strict_loads, write_space
+
 from dse_runner import store
 from dse_runner.cluster import connect, kubernetes_cluster_spec, make_htcondor
 from dse_runner.errors import DseError
@@ -31,8 +30,10 @@ from dse_runner.rank import rank
 from dse_runner.spec import Cluster, load_space
 from dse_runner.sweep import load_status, submit
 
-SLOW = {"vehicle.mass": [1000, 1500, 2000, 2500, 3000], "vehicle.cAlphaF": [20000, 30000],
-        "vehicle.rk4_step": [0.0001]}  # 10 points x 12 scenarios, slow enough to be hit mid-sweep
+# 2 points x 12 scenarios at a tenth of the default integration step (~0.1-0.3 s a task, 2 tasks a chunk):
+# a dozen chunks, so that a kill after the first few lands mid-sweep however busy the machine is.
+SLOW = {"vehicle.mass": [1000, 3000], "vehicle.rk4_step": [0.0001]}
+SLOW_TASKS = 2 * 12
 
 
 def raw_task_ids(output: Path) -> pd.Series:
@@ -102,37 +103,57 @@ def test_sigkilled_worker_loses_no_task_and_repeats_none(tmp_path, cli_cluster):
 
         report = submit(space, progress=kill_a_busy_worker, client=client)
         assert killed and killed[0] not in client.scheduler_info()["workers"]
-    assert (report.ok, report.failed) == (120, 0), report.errors
+    assert (report.ok, report.failed) == (SLOW_TASKS, 0), report.errors
     ids = raw_task_ids(space.output)
-    assert len(ids) == 120 and ids.is_unique  # each task exactly once on disk
+    assert len(ids) == SLOW_TASKS and ids.is_unique  # each task exactly once on disk
 
 
-def test_killed_client_resumes_on_submit(tmp_path, cli_cluster):
-    cluster = cli_cluster()
+def wait_until_idle(address: str, timeout: float = 120) -> None:
+    """Until the scheduler at ``address`` holds no task and none of its workers runs one: a dead client's
+    chunks are forgotten, except those already running, which run on to their end."""
+    from distributed import Client
+
+    with Client(address, timeout="30s") as client:
+        deadline = time.time() + timeout
+        while (client.run_on_scheduler(lambda dask_scheduler: len(dask_scheduler.tasks))
+               or any(client.run(lambda dask_worker: len(dask_worker.active_threads)).values())):
+            assert time.time() < deadline, f"workers still busy after {timeout} s"
+            time.sleep(0.1)
+
+
+def test_killed_client_resumes_on_submit(tmp_path, dask_scheduler):
     path = write_space(tmp_path, scenarios=[str(SCENARIOS / "*")], parameters=SLOW, chunk_seconds=0.5,
                        keep_trajectories=0)
-    command = [sys.executable, "-m", "dse_runner.cli", "submit", str(path), "--scheduler", cluster.address, "--json"]
+    command = [sys.executable, "-m", "dse_runner.cli", "submit", str(path), "--scheduler", dask_scheduler, "--json"]
     first = subprocess.Popen(command, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     wait_for_files(tmp_path / "out", 3)
     first.send_signal(signal.SIGKILL)
     first.wait(timeout=30)
-    time.sleep(2)  # chunks already running on workers finish and write; the scheduler forgets the rest
+    wait_until_idle(dask_scheduler)  # chunks running on workers finish and write; the scheduler forgets the rest
     before = len(store.read_results(tmp_path / "out", "small", columns=[]))
+    assert 0 < before < SLOW_TASKS  # the client died mid-sweep
     second = subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=600)
     assert second.returncode == 0, second.stderr
-    report = json.loads(second.stdout)
-    assert report["skipped"] >= before > 0 and report["skipped"] + report["ran"] == 120
+    report = strict_loads(second.stdout)
+    assert report["skipped"] >= before and report["skipped"] + report["ran"] == SLOW_TASKS
     after = store.read_results(tmp_path / "out", "small", columns=["status"])
-    assert len(after) == 120 and (after["status"] == "ok").all()
+    assert len(after) == SLOW_TASKS and (after["status"] == "ok").all()
 
 
 def test_scheduler_restart_resumes_from_the_store(tmp_path, cli_cluster):
     cluster = cli_cluster()
     space = load_space(write_space(tmp_path, scenarios=[str(SCENARIOS / "*")], parameters=SLOW, chunk_seconds=0.5,
                                    keep_trajectories=0,
-                                   cluster={"address": cluster.address, "connect_timeout": 60}))
+                                   cluster={"address": cluster.address, "connect_timeout": 120}))
     outcome: dict = {}
-    thread = threading.Thread(target=lambda: outcome.update(report=submit(space)), daemon=True)
+
+    def run() -> None:
+        try:
+            outcome["report"] = submit(space)
+        except BaseException as e:  # noqa: BLE001 - raised by the test below
+            outcome["error"] = e
+
+    thread = threading.Thread(target=run, daemon=True)
     thread.start()
     wait_for_files(space.output, 3)
     cluster.kill_scheduler()  # its workers exit too, as they do in distributed
@@ -141,18 +162,21 @@ def test_scheduler_restart_resumes_from_the_store(tmp_path, cli_cluster):
     cluster.start_worker()
     cluster.start_worker()
     thread.join(timeout=600)
+    if "error" in outcome:
+        raise outcome["error"]
     report = outcome["report"]
     assert report.reconnects == 1
-    assert report.ok + report.skipped >= 120 - done_when_killed
+    assert report.ok + report.skipped >= SLOW_TASKS - done_when_killed
     rows = store.read_results(space.output, "small", columns=["status"])
-    assert len(rows) == 120 and (rows["status"] == "ok").all()
+    assert len(rows) == SLOW_TASKS and (rows["status"] == "ok").all()
 
 
 CRASH_AT = 13.0
 
 
 def crasher_space(tmp_path: Path) -> Path:
-    """A multi-model whose FMU segfaults for one parameter point of forty."""
+    """A multi-model whose FMU segfaults for one parameter point of sixteen: with two workers, chunks of two
+    points, so the culprit's chunk is split once and the culprit then runs alone."""
     sources = tmp_path / "fmus"
     shutil.copytree(REPO / "tests" / "fmus" / "crasher", sources / "crasher")
     shutil.copytree(FMU_SOURCES / "common", sources / "common")
@@ -165,7 +189,7 @@ def crasher_space(tmp_path: Path) -> Path:
     }
     (tmp_path / "crasher.yaml").write_text(yaml.safe_dump(multimodel))
     return write_space(tmp_path, multimodel=str(tmp_path / "crasher.yaml"), scenarios=[str(SCENARIOS / "sin1")],
-                       parameters={"crasher.k": {"start": 0, "stop": 39, "step": 1}}, chunk_seconds=100,
+                       parameters={"crasher.k": {"start": 0, "stop": 15, "step": 1}}, chunk_seconds=100,
                        keep_trajectories=0, cluster={"n_workers": 2})
 
 
@@ -173,13 +197,13 @@ def test_segfaulting_fmu_fails_only_its_point(tmp_path):
     space = load_space(crasher_space(tmp_path))
     report = submit(space)
     assert report.chunk_size > 1 and report.crashed_chunks >= 2  # a chunk was split down to the culprit
-    assert (report.ok, report.failed) == (39, 1)
+    assert (report.ok, report.failed) == (15, 1)
     rows = store.read_results(space.output, "small", columns=["crasher.k", "status", "error"])
     failed = rows[rows["status"] == "failed"]
     assert list(failed["crasher.k"]) == [CRASH_AT]
     assert "worker process died" in failed["error"].iloc[0]
     ids = raw_task_ids(space.output)
-    assert len(ids) == 40 and ids.is_unique
+    assert len(ids) == 16 and ids.is_unique
 
 
 def test_tls_scheduler(tmp_path, cli_cluster):
@@ -250,7 +274,8 @@ def test_cluster_choice_errors(tmp_path):
 
 
 def test_unreachable_scheduler_names_it(tmp_path):
-    result = subprocess.run([sys.executable, "-m", "dse_runner.cli", "submit", str(write_space(tmp_path)),
+    spec = write_space(tmp_path, cluster={"connect_timeout": 3})  # refused at once, retried for 3 s, not 30
+    result = subprocess.run([sys.executable, "-m", "dse_runner.cli", "submit", str(spec),
                              "--scheduler", "tcp://127.0.0.1:9"], capture_output=True, text=True, timeout=120)
     assert result.returncode == 2
     assert "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in result.stderr

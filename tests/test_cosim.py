@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import FMU_SOURCES, MULTIMODEL, SCENARIOS, all_scenarios
+from conftest import FMU_SOURCES, SCENARIOS, all_scenarios
 
 from dse_runner.crosscheck import run_libcosim
 from dse_runner.scenario import load_scenario

@@ -6,10 +6,9 @@ nothing to find."""
 
 from __future__ import annotations
 
-import json
-
 import blind
 import pytest
+from conftest import strict_loads
 from test_cli import dse_runner
 
 from dse_runner.diagnose.hypotheses import LIBRARY
@@ -74,7 +73,7 @@ def test_report_and_figures_are_written(cases):
     assert "antenna_offset" in text
     for name in ("figure_residuals", "figure_tracks", "figure_held_out"):
         assert result.files[name].stat().st_size > 10_000
-    saved = json.loads((result.out / "report" / "diagnosis.json").read_text())
+    saved = strict_loads((result.out / "report" / "diagnosis.json").read_text())
     assert saved["effects"][0]["id"] == "antenna_offset"
 
 
@@ -83,7 +82,7 @@ def test_cli_json_resumes_from_the_store(cases, dask_scheduler):
     done = dse_runner("diagnose", "--scenarios", runs, "--space", space, "--out", root / "out", "--folds", "2",
                       "--scheduler", dask_scheduler, "--json")
     assert done.returncode == 0, done.stderr
-    printed = json.loads(done.stdout)
+    printed = strict_loads(done.stdout)
     assert [e["id"] for e in printed["effects"]] == [e["id"] for e in result.effects]
     assert printed["cross_track_before"] == pytest.approx(result.cross_track_before)
     assert printed["cross_track_after"] == pytest.approx(result.cross_track_after)

@@ -12,7 +12,6 @@ from dse_runner.simulate import simulate
 
 def write_multimodel(tmp_path, **changes):
     data = yaml.safe_load(MULTIMODEL.read_text())
-    data["fmus"] = {k: str((MULTIMODEL.parent / v).resolve()) for k, v in data["fmus"].items()}
     data.update(changes)
     path = tmp_path / "mm.yaml"
     path.write_text(yaml.safe_dump(data))

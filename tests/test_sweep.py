@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -12,7 +12,7 @@ import time
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import REPO, SCENARIOS, write_space
+from conftest import REPO, SCENARIOS, sleeper_multimodel, strict_loads, write_space
 
 from dse_runner import store
 from dse_runner.expand import expand
@@ -64,23 +64,36 @@ def test_failing_simulations_become_failed_rows(tmp_path, dask_scheduler):
     assert rows.loc[rows["status"] == "ok", "cross_track_error"].gt(0).all()
 
 
+def sleeper_space(tmp_path, pauses: list[float], timeout: float):
+    return write_space(tmp_path, multimodel=str(sleeper_multimodel(tmp_path)), scenarios=[str(SCENARIOS / "sin1")],
+                       parameters={"sleeper.pause": pauses}, timeout=timeout, keep_trajectories=0)
+
+
 def test_timeout_becomes_a_failed_row(tmp_path, dask_scheduler):
-    path = write_space(tmp_path, cluster={"address": dask_scheduler}, timeout=0.05,
-                       parameters={"vehicle.rk4_step": [0.001, 0.00002]}, scenarios=[str(SCENARIOS / "sin1")])
-    report = submit(load_space(path))
-    rows = store.read_results(tmp_path / "out", "small", columns=["vehicle.rk4_step", "status", "error"])
-    slow = rows[rows["vehicle.rk4_step"] == 0.00002].iloc[0]
+    """sin1 is 1680 steps of 0.05 s: at pause 0.02 a run would take 34 s of wall time, 34 times its limit, and it
+    is stopped at the first check past the limit (every 64 steps: 1.3 s); at pause 0 it takes milliseconds."""
+    path = sleeper_space(tmp_path, pauses=[0, 0.02], timeout=1.0)
+    report = submit(load_space(path).with_overrides(address=dask_scheduler))
+    assert (report.ok, report.failed) == (1, 1), report.errors
+    rows = store.read_results(tmp_path / "out", "small", columns=["sleeper.pause", "status", "error"])
+    slow = rows[rows["sleeper.pause"] == 0.02].iloc[0]
     assert slow["status"] == "failed" and slow["error"].startswith("timeout: the simulation was stopped at t=")
-    assert report.failed == 1
+    stopped_at = float(re.match(r"timeout: the simulation was stopped at t=(\S+) of 84 s", slow["error"])[1])
+    assert 0 < stopped_at < 84
+    fast = rows[rows["sleeper.pause"] == 0].iloc[0]
+    assert fast["status"] == "ok" and pd.isna(fast["error"])
 
 
 def test_interrupted_sweep_resumes_without_repeating_work(tmp_path):
     """Ctrl-C (SIGINT to the whole process group, as a terminal sends it) keeps finished chunks;
     submitting again runs exactly the missing tasks."""
-    path = write_space(tmp_path, scenarios=[str(SCENARIOS / "*")], chunk_seconds=0.2,
-                       parameters={"vehicle.mass": [1000, 2000, 3000], "vehicle.cAlphaF": [20000, 30000],
-                                   "vehicle.rk4_step": [0.00005]},  # slow: the interrupt lands mid-sweep
-                       cluster={"n_workers": 2})
+    tasks = 12
+    # One point on the 12 recorded runs at a twentieth of the default integration step (0.2-0.5 s a task), one
+    # task a chunk: when the third file appears nine tasks remain for two workers, so the interrupt lands
+    # mid-sweep however busy the machine is.
+    path = write_space(tmp_path, scenarios=[str(SCENARIOS / "*")], chunk_seconds=0.05,
+                       parameters={"vehicle.mass": [1500], "vehicle.rk4_step": [0.00005]},
+                       keep_trajectories=0, cluster={"n_workers": 2})
     command = [sys.executable, "-m", "dse_runner.cli", "submit", str(path), "--json"]
     first = subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                              start_new_session=True)
@@ -94,18 +107,18 @@ def test_interrupted_sweep_resumes_without_repeating_work(tmp_path):
     assert "run the same command again" in err
     before = store.read_results(tmp_path / "out", "small", columns=[])
     kept = {p: p.stat().st_mtime_ns for p in results.rglob("part-*.parquet")}
-    assert 0 < len(before) < 72
+    assert 0 < len(before) < tasks
     assert not list(results.rglob("*.partial"))  # no half-written file is left visible
 
     second = subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=300)
     assert second.returncode == 0, second.stderr
-    report = json.loads(second.stdout)
-    assert report["skipped"] == len(before) and report["ran"] == 72 - len(before)
+    report = strict_loads(second.stdout)
+    assert report["skipped"] == len(before) and report["ran"] == tasks - len(before)
     after = store.read_results(tmp_path / "out", "small", columns=[])
-    assert len(after) == 72 and after["task_id"].is_unique
+    assert len(after) == tasks and after["task_id"].is_unique
     assert all(p.stat().st_mtime_ns == m for p, m in kept.items())  # finished chunks not recomputed
     raw = pd.concat(pd.read_parquet(p, columns=["task_id"]) for p in results.rglob("part-*.parquet"))
-    assert len(raw) == 72  # every task exactly once on disk, not merely after de-duplication
+    assert len(raw) == tasks  # every task exactly once on disk, not merely after de-duplication
 
 
 def test_rank_matches_a_plain_pandas_computation(tmp_path, dask_scheduler):
@@ -172,7 +185,7 @@ def test_rank_command_json(tmp_path, dask_scheduler):
     done = subprocess.run([sys.executable, "-m", "dse_runner.cli", "rank", str(space.output), "--json"],
                           capture_output=True, text=True, cwd=REPO)
     assert done.returncode == 0, done.stderr
-    report = json.loads(done.stdout)
+    report = strict_loads(done.stdout)
     assert set(report["best"]) == set(space.parameters)
     assert report["best_total"] == pytest.approx(rank(space.output).best_total)
     assert len(report["table1"]) == 2

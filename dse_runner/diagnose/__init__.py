@@ -274,7 +274,7 @@ def write_model(diagnosis: Diagnosis, calibration: Space) -> dict[str, Path]:
     mm_path = _write_yaml(out / "augmented-multimodel.yaml",
                           effects_multimodel(calibration.multimodel, vehicle, out),
                           f"# Written by dse-runner diagnose: the vehicle's effects variant, for {names}.\n")
-    spec = calibration.spec.model_dump(mode="json", exclude={"output", "keep_trajectories"}, exclude_none=True)
+    spec = calibration.spec.model_dump(mode="json", exclude={"output", "keep_trajectories"}, exclude_defaults=True)
     parameters = dict(spec["parameters"])
     fit = diagnosis.chosen.full
     interval = fit.interval()
