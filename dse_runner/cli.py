@@ -44,8 +44,11 @@ def options(debug: Annotated[bool, typer.Option(
 
 
 def fail(error: Exception) -> None:
-    """A user's error: one line naming the culprit on stderr, exit code 2 (the traceback with --debug)."""
+    """A user's error: one line naming the culprit on stderr, exit code 2 (the traceback with --debug,
+    and that of the exception behind it: our messages are raised ``from None``)."""
     if Options.debug:
+        if error.__context__ is not None:
+            traceback.print_exception(error.__context__)
         traceback.print_exc()
     typer.echo(f"error: {error}", err=True)
     raise typer.Exit(2)
@@ -172,6 +175,7 @@ def submit(
 ) -> None:
     """Run every (parameter point, scenario) task of SPEC on Dask; resume if run again; rank."""
     from .rank import rank, write_ranking
+    from .scenario import dropouts
     from .spec import load_space
     from .sweep import submit as run_sweep
 
@@ -198,7 +202,7 @@ def submit(
         "sweep": report.sweep, "output": str(report.output), "tasks": report.total,
         "skipped": report.skipped, "ran": report.ran, "ok": report.ok, "failed": report.failed,
         "seconds": round(report.seconds, 3), "workers": report.workers, "chunk_size": report.chunk_size,
-        "errors": report.errors, "dropouts": dropouts_of(space),
+        "errors": report.errors, "dropouts": dropouts(space.scenarios),
     }
     if not as_json:
         typer.echo(f"{report.sweep}: {report.total} tasks, {report.skipped} already done, ran {report.ran} "
@@ -206,8 +210,7 @@ def submit(
         for error in report.errors:
             typer.echo(f"  failed: {error.splitlines()[0]}")
         if summary["dropouts"]:
-            typer.echo("  GPS dropouts skipped (empty or NaN fixes): "
-                       + ", ".join(f"{name} {count}" for name, count in summary["dropouts"].items()))
+            typer.echo(f"  {_dropouts_line(summary['dropouts'])}")
     try:
         ranking = rank(report.output, report.sweep)
         files = write_ranking(ranking, report.output, report.sweep)
@@ -225,9 +228,8 @@ def submit(
                f"dashboard: dse-runner dashboard {report.output}")
 
 
-def dropouts_of(space) -> dict[str, int]:
-    """Recorded fixes skipped as dropouts, per scenario that has any."""
-    return {s.name: s.gps.dropouts for s in space.scenarios if s.gps.dropouts}
+def _dropouts_line(counts: dict[str, int]) -> str:
+    return "GPS dropouts skipped (empty or NaN fixes): " + ", ".join(f"{name} {n}" for name, n in counts.items())
 
 
 class _Board:
@@ -301,8 +303,14 @@ class ProgressBar:
 
     def __init__(self) -> None:
         from rich.console import Console
-        from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn,
-                                   TimeRemainingColumn)
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
 
         self.bar = Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
                             TextColumn("{task.fields[rate]} sim/s"), TextColumn("{task.fields[failed]} failed"),
@@ -370,7 +378,7 @@ def diagnose(
     scenarios: Annotated[Path, typer.Option("--scenarios", help="Folder of recorded runs (field-data format).")],
     multimodel: Annotated[Path | None, typer.Option(help="Multi-model to diagnose (default: the space's).")] = None,
     space: Annotated[Path | None, typer.Option(
-        help="Calibration design space: its parameters and ranges (default: jobs/robotti/space.yaml).")] = None,
+        help="Calibration design space: its parameters and ranges (default: bundled:robotti/calibration.yaml).")] = None,
     out: Annotated[Path, typer.Option(help="Folder for results, the new model and the report.")] = Path("out/diagnosis"),
     folds: Annotated[int, typer.Option(help="Cross-validation folds across runs.")] = 3,
     hypothesis: Annotated[list[str] | None, typer.Option(
@@ -404,6 +412,8 @@ def diagnose(
         typer.echo(f"{effect['id']}: {effect['name']}" + (f": {values}" if values else ""))
     typer.echo(f"held-out mean cross-track error: {result.cross_track_before:.3f} m before, "
                f"{result.cross_track_after:.3f} m after")
+    if result.dropouts:
+        typer.echo(_dropouts_line(result.dropouts))
     for name in ("multimodel", "space", "report"):
         if name in result.files:
             typer.echo(f"{name}: {result.files[name]}")

@@ -10,12 +10,12 @@ class DseError(Exception):
 
 
 def format_validation_error(source: str, error: ValidationError) -> str:
-    """One line per problem: file, key path, reason."""
-    lines = []
+    """One line: the file, then each problem's key path and reason."""
+    problems = []
     for problem in error.errors():
         where = ".".join(str(p) for p in problem["loc"]) or "(top level)"
-        lines.append(f"{source}: {where}: {problem['msg'].removeprefix('Value error, ')}")
-    return "\n".join(lines)
+        problems.append(f"{where}: {problem['msg'].removeprefix('Value error, ')}")
+    return f"{source}: " + "; ".join(problems)
 
 
 def format_syntax_error(source: str, kind: str, error: Exception) -> str:

@@ -240,7 +240,7 @@ def fit_all(space: Space, problems: list[FitProblem], client, progress: Progress
     if RESIDUALS not in space.objectives:
         raise DseError(f"space {space.name}: fitting needs the objective {RESIDUALS!r}")
     solvers = [LevenbergMarquardt(p) for p in problems]
-    round_ = 0
+    round_, cost = 0, None  # cost: seconds per task, measured by the last round
     while True:
         asked = {id(s): s.ask() for s in solvers if not s.done}
         if not asked:
@@ -249,7 +249,7 @@ def fit_all(space: Space, problems: list[FitProblem], client, progress: Progress
         round_ += 1
         if progress:
             progress(round_, len(asked), len(points), sum(len(s) for s in only))
-        rows = evaluate_points(space, points, client, [RESIDUALS], only)
+        rows, cost = evaluate_points(space, points, client, [RESIDUALS], only, cost)
 
         def residuals(point: Point, scenario: str) -> np.ndarray | None:
             row = rows.get((key_of(point), scenario))
@@ -276,11 +276,12 @@ def wanted(requests: Iterable[tuple[Point, Iterable[str]]]) -> tuple[list[Point]
 
 
 def evaluate_points(space: Space, points: list[Point], client, columns: list[str],
-                    only: list[Collection[str]] | None = None) -> Rows:
+                    only: list[Collection[str]] | None = None, seconds_per_task: float | None = None
+                    ) -> tuple[Rows, float | None]:
     """Run ``points`` on every scenario of ``space`` (or, with ``only``, each point on the scenarios
-    named for it) as one sweep, skipping finished tasks, and return their rows with ``status``
-    and ``columns``."""
-    submit(space, client=client, points=points, only=only)
+    named for it) as one sweep, skipping finished tasks. Returns their rows with ``status`` and
+    ``columns``, and what a task cost (for the next round's ``seconds_per_task``, see sweep.submit)."""
+    report = submit(space, client=client, points=points, only=only, seconds_per_task=seconds_per_task)
     ids = {task.task_id: (task.point, task.scenario) for task in expand(space, points, only)}
     rows = store.read_results(space.output, space.name, ["status", *columns], task_ids=list(ids))
-    return {ids[r["task_id"]]: r for r in rows.to_dict("records")}
+    return {ids[r["task_id"]]: r for r in rows.to_dict("records")}, report.seconds_per_task or seconds_per_task

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
-from fmpy import extract, platform
+from fmpy import extract, platform, sharedLibraryExtension
 from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.logging import addLoggerProxy
 from fmpy.model_description import ModelDescription, read_model_description
@@ -72,23 +72,21 @@ def _description(path: str, sha: str) -> ModelDescription:
         description = read_model_description(path, validate=False)
     except Exception as e:  # FMPy raises plain exceptions for bad archives and XML
         raise DseError(f"{path}: cannot read modelDescription.xml: {e}") from None
-    if description.coSimulation is not None:
-        _check_binary(path, description.coSimulation.modelIdentifier)
     return description
 
 
-def _check_binary(path: str, identifier: str) -> None:
-    """The FMU must carry a binary this machine can load, named as FMI requires."""
+def _check_binary(path: Path, identifier: str) -> None:
+    """The FMU must carry a binary this process can load, named as FMI requires. Checked where the FMU
+    is loaded, not where it is described: a client may plan for workers of another platform."""
     with zipfile.ZipFile(path) as archive:
         names = archive.namelist()
-    extension = {"linux64": ".so", "darwin64": ".dylib", "win64": ".dll", "win32": ".dll"}.get(platform, ".so")
-    if f"binaries/{platform}/{identifier}{extension}" in names:
+    if f"binaries/{platform}/{identifier}{sharedLibraryExtension}" in names:
         return
     platforms = sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") >= 2
                         and not n.endswith("/")})
     has = f"it has binaries for {', '.join(platforms)}" if platforms else "it has no binaries"
-    raise DseError(f"{path}: no binary for this platform: binaries/{platform}/{identifier}{extension} is "
-                   f"missing ({has})")
+    raise DseError(f"{path}: no binary for this platform: binaries/{platform}/{identifier}{sharedLibraryExtension} "
+                   f"is missing ({has})")
 
 
 def describe(path: Path) -> ModelDescription:
@@ -106,6 +104,7 @@ def load(path: Path) -> LoadedFmu:
         description = describe(path)
         if description.coSimulation is None:
             raise DseError(f"{path}: not a co-simulation FMU")
+        _check_binary(path, description.coSimulation.modelIdentifier)
         unzip_dir = extract_root() / sha
         if not unzip_dir.is_dir():
             partial = Path(tempfile.mkdtemp(dir=extract_root(), prefix=f".{sha}-"))

@@ -14,6 +14,7 @@ scenario is loaded, before any FMU reads them.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -126,14 +127,17 @@ class Table:
     dropped: list[int]
 
 
-DROPOUT_TEXT = ("", "nan")  # how a missing measurement is written, lower-cased
+def is_dropout_text(text: str) -> bool:
+    """How a missing measurement is written: nothing, or NaN in any case and sign (printf writes -nan)."""
+    return text == "" or text.lstrip("+-").lower() == "nan"
 
 
 def read_table(path: Path, names: tuple[str, ...], may_drop: tuple[str, ...] = ()) -> Table:
     """Named numeric columns of a headed CSV whose first column is time.
 
     Every value must be a finite number; a row where a ``may_drop`` column is empty or NaN is
-    skipped and its line counted as a dropout. Errors name the file, the line and the column."""
+    skipped and its line counted as a dropout (its time, and its other ``may_drop`` values unless
+    they are missing too, are still checked). Errors name the file, the line and the column."""
     try:
         lines = path.read_text().splitlines()
     except OSError as e:
@@ -147,7 +151,7 @@ def read_table(path: Path, names: tuple[str, ...], may_drop: tuple[str, ...] = (
     if missing:
         raise DseError(f"{path} line 1: no column {', '.join(missing)} (header: {lines[0]!r})")
     index = [header.index(n) for n in names]
-    rows, numbers, dropped = [], [], []
+    rows, times, dropped = [], [], []
     for number, line in enumerate(lines[1:], start=2):
         if not line.strip():
             continue
@@ -155,13 +159,15 @@ def read_table(path: Path, names: tuple[str, ...], may_drop: tuple[str, ...] = (
         if len(fields) != len(header):
             raise DseError(f"{path} line {number}: expected {len(header)} fields, got {line!r}")
         texts = {name: fields[i].strip() for name, i in zip(names, index)}
-        if any(texts[n].lower() in DROPOUT_TEXT for n in may_drop):
+        gaps = {n for n in may_drop if is_dropout_text(texts[n])}
+        values = [math.nan if name in gaps else _number(path, number, name, text) for name, text in texts.items()]
+        times.append((values[0], number))
+        if gaps:
             dropped.append(number)
-            continue
-        rows.append([_number(path, number, name, text) for name, text in texts.items()])
-        numbers.append(number)
+        else:
+            rows.append(values)
+    _check_increasing(path, names[0], times)
     data = np.array(rows, dtype=float).reshape(-1, len(names))
-    _check_increasing(path, names[0], data[:, 0], numbers)
     return Table([data[:, i].copy() for i in range(len(names))], dropped)
 
 
@@ -176,13 +182,17 @@ def _number(path: Path, line: int, column: str, text: str) -> float:
     return value
 
 
-def _check_increasing(path: Path, column: str, time: np.ndarray, lines: list[int]) -> None:
-    """Times must increase: interpolation and the step loop rely on it."""
-    bad = np.flatnonzero(np.diff(time) <= 0)
-    if bad.size:
-        k = bad[0] + 1
-        raise DseError(f"{path} line {lines[k]}, column {column}: {time[k]:g} does not increase on the "
-                       f"previous row's {time[k - 1]:g}")
+def _check_increasing(path: Path, column: str, times: list[tuple[float, int]]) -> None:
+    """Times (of every row, dropouts included) must increase: interpolation and the step loop rely on it."""
+    for (previous, _), (time, line) in zip(times, times[1:]):
+        if not time > previous:
+            raise DseError(f"{path} line {line}, column {column}: {time:g} does not increase on the "
+                           f"previous row's {previous:g}")
+
+
+def dropouts(scenarios: list[Scenario]) -> dict[str, int]:
+    """GPS fixes skipped as dropouts, per scenario that has any: what the commands report."""
+    return {s.name: s.gps.dropouts for s in scenarios if s.gps.dropouts}
 
 
 def load_scenario(directory: str | Path) -> Scenario:

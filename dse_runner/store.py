@@ -188,7 +188,7 @@ class _TaskIdCache:
             return cached[1]
         ids = frozenset(pq.read_table(name, columns=["task_id"]).column("task_id").to_pylist())
         if cached is not None:
-            self.count -= len(self.files.pop(name)[1])
+            self.count -= len(self.files.pop(name, (None, frozenset()))[1])
         if self.count + len(ids) > self.limit:
             self.files.clear()
             self.count = 0

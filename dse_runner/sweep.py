@@ -210,6 +210,11 @@ class SweepReport(BaseModel):
     def eta_seconds(self) -> float | None:
         return self.remaining / self.rate if self.rate > 0 else None
 
+    @property
+    def seconds_per_task(self) -> float | None:
+        """The mean wall time of this submission's simulations on the workers, if all went well."""
+        return self.simulation_seconds / self.ok if self.ok and not self.failed else None
+
 
 STATUS_FILE = "status.json"
 STATUS_SECONDS = 1.0  # how often a running sweep saves its status
@@ -258,7 +263,6 @@ def probe(shipment: str, scenario: str, point: Point, objectives: tuple[str, ...
 
 
 UNKNOWN_TASK_SECONDS = 0.1  # when the probe failed: a guess that keeps chunks small
-_COST: dict[tuple[str, tuple[str, ...]], float] = {}  # (shipment, objectives) -> seconds per task, measured
 
 
 def chunk_size(seconds_per_task: float | None, target_seconds: float, pending: int, threads: int) -> int:
@@ -276,12 +280,14 @@ def _chunk_id(tasks: list[Task]) -> str:
 
 def submit(space: Space, progress: Progress | None = None, client=None,
            points: list[Point] | None = None, on_connect: Callable[[Any], None] | None = None,
-           only: list[Collection[str]] | None = None) -> SweepReport:
+           only: list[Collection[str]] | None = None, seconds_per_task: float | None = None) -> SweepReport:
     """Run every task of ``space`` that has no row yet; returns counts, never raises on failed tasks.
 
     ``points`` replaces the space's search strategy with a given list: how an
     optimiser (fit.py) runs each of its rounds as a sweep into the same store;
-    ``only`` then names, per point, the scenarios it is wanted on (expand.expand).
+    ``only`` then names, per point, the scenarios it is wanted on (expand.expand), and
+    ``seconds_per_task`` what a task cost in the last round (its report's ``seconds_per_task``),
+    which sizes chunks without a probe: a serial simulation every round would add up.
     ``on_connect(client)`` runs each time the sweep (re)connects to a scheduler: how the
     CLI links its dashboard from Dask's (dashboard.link_from_dask)."""
     started = time.perf_counter()
@@ -303,7 +309,7 @@ def submit(space: Space, progress: Progress | None = None, client=None,
         return report
     point = first_point(space, points)
     run = Run(space, ship.pack(space.plan, space.scenarios), points, report, progress, started, on_connect,
-              only=only)
+              only=only, seconds_per_task=seconds_per_task)
     save_status(report)
     try:
         if client is None:
@@ -338,13 +344,15 @@ class Run:
     on_connect: Callable[[Any], None] | None = None
     saved: float = 0.0  # when the status file was last written (monotonic)
     only: list[Collection[str]] | None = None  # per given point, the scenarios it runs on
+    seconds_per_task: float | None = None  # known from an earlier round; else probed
 
     def until_done(self, client, done: set[str], point: Point, pending: int) -> SweepReport:
         report = self.report
         if pending:
             ship.send(client, self.shipment)
             self._connected(client)
-            report.chunk_size = chunk_size(self._seconds_per_task(client, point), self.space.spec.chunk_seconds,
+            cost = self.seconds_per_task or self._probe(client, point)
+            report.chunk_size = chunk_size(cost, self.space.spec.chunk_seconds,
                                            pending, total_threads(client))
             while True:
                 try:
@@ -355,7 +363,6 @@ class Run:
                     ship.send(client, self.shipment)
                     self._connected(client)
                     done = store.finished_task_ids(self.space.output, self.space.name)
-            self._remember_cost()
         if not report.interrupted and self.space.spec.keep_trajectories:
             keep_trajectories(self.space, client, self.space.spec.keep_trajectories, self.shipment)
         report.seconds = time.perf_counter() - self.started
@@ -414,23 +421,6 @@ class Run:
             report.interrupted = True
             for future in list(in_flight.futures):
                 future.cancel()
-
-    def _seconds_per_task(self, client, point: Point) -> float | None:
-        """What one task costs: measured by an earlier submission of the same shipment and
-        objectives in this process (the rounds of a fit are many small sweeps of one model, and
-        a probe each would add a serial simulation to every round), else by a probe."""
-        known = _COST.get(self._cost_key())
-        return known if known is not None else self._probe(client, point)
-
-    def _cost_key(self) -> tuple[str, tuple[str, ...]]:
-        return self.shipment.key, self.space.objectives
-
-    def _remember_cost(self) -> None:
-        """The mean wall time of this submission's simulations, on warm workers and over many tasks:
-        a better estimate for the next submission than one probe."""
-        report = self.report
-        if report.ok and not report.failed:
-            _COST[self._cost_key()] = report.simulation_seconds / report.ok
 
     def _probe(self, client, point: Point) -> float | None:
         from distributed.scheduler import KilledWorker

@@ -10,6 +10,7 @@ error naming the file, the line and the column.
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import shutil
@@ -18,11 +19,14 @@ import sys
 import zipfile
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 import yaml
 from conftest import MULTIMODEL, SCENARIOS, SLEEPER, sleeper_multimodel, strict_loads, write_space
 from typer.testing import CliRunner
 
+from dse_runner import store, strict_json
 from dse_runner.build import build_fmu
 from dse_runner.cli import app
 
@@ -52,19 +56,22 @@ def edit(folder: Path, file: str, line: int, text: str) -> Path:
 
 
 @pytest.mark.parametrize("file, line, text, message", [
-    ("gps_position.csv", 5, "0.80,abc,1.0", r"gps_position\.csv line 5, column x: 'abc' is not a finite number"),
-    ("gps_position.csv", 6, "1.00,inf,1.0", r"gps_position\.csv line 6, column x: 'inf' is not a finite number"),
+    ("gps_position.csv", 5, "0.30,abc,1.0", r"gps_position\.csv line 5, column x: 'abc' is not a finite number"),
+    ("gps_position.csv", 6, "0.40,inf,1.0", r"gps_position\.csv line 6, column x: 'inf' is not a finite number"),
     ("gps_position.csv", 7, "nan,1.0,1.0", r"gps_position\.csv line 7, column time: 'nan' is not a finite number"),
     ("gps_position.csv", 8, ",1.0,1.0", r"gps_position\.csv line 8, column time: is empty"),
-    ("gps_position.csv", 9, "1.6,1.0", r"gps_position\.csv line 9: expected 3 fields"),
+    ("gps_position.csv", 9, "0.7,1.0", r"gps_position\.csv line 9: expected 3 fields"),
+    ("gps_position.csv", 11, "0.90,nan,abc", r"gps_position\.csv line 11, column y: 'abc' is not a finite number"),
+    ("gps_position.csv", 12, "nan,nan,nan", r"gps_position\.csv line 12, column time: 'nan' is not a finite number"),
     ("gps_position.csv", 10, "0.1,1.0,1.0", r"gps_position\.csv line 10, column time: 0\.1 does not increase"),
-    ("steering_inputs.csv", 5, "0.20,nan,0.0", r"steering_inputs\.csv line 5, column velocity: 'nan' is not a finite"),
-    ("steering_inputs.csv", 6, "0.25,1.0,-inf", r"steering_inputs\.csv line 6, column delta_f: '-inf' is not a finite"),
-    ("steering_inputs.csv", 7, "0.30,,0.0", r"steering_inputs\.csv line 7, column velocity: is empty"),
+    ("steering_inputs.csv", 5, "0.15,nan,0.0", r"steering_inputs\.csv line 5, column velocity: 'nan' is not a finite"),
+    ("steering_inputs.csv", 6, "0.20,1.0,-inf", r"steering_inputs\.csv line 6, column delta_f: '-inf' is not a finite"),
+    ("steering_inputs.csv", 7, "0.25,,0.0", r"steering_inputs\.csv line 7, column velocity: is empty"),
     ("scenario.yaml", 3, "duration: .nan", r"scenario\.yaml: duration: Input should be a finite number"),
     ("scenario.yaml", 4, "initial_pose: {x: 0.0, y: .inf, theta: 0}",
      r"scenario\.yaml: initial_pose\.y: Input should be a finite number"),
-], ids=["gps-text", "gps-inf", "gps-time-nan", "gps-time-empty", "gps-fields", "gps-time-order",
+], ids=["gps-text", "gps-inf", "gps-time-nan", "gps-time-empty", "gps-fields", "gps-dropout-with-text",
+        "gps-dropout-time-nan", "gps-time-order",
         "steering-nan", "steering-inf", "steering-empty", "yaml-duration-nan", "yaml-pose-inf"])
 def test_a_wrong_recorded_value_names_file_line_and_column(scenario_copy, tmp_path, file, line, text, message):
     folder = scenario_copy("sin1")
@@ -77,7 +84,7 @@ def test_a_wrong_recorded_value_names_file_line_and_column(scenario_copy, tmp_pa
 def test_gps_dropouts_are_skipped_like_missing_rows_and_counted(scenario_copy, tmp_path):
     """NaN and empty fixes give the same objectives as deleting those rows, and are counted."""
     dropped = scenario_copy("sin1")
-    for line, text in [(5, "0.80,nan,1.0"), (9, "1.60,NaN,NaN"), (12, "2.20,1.0,"), (20, "3.80,,")]:
+    for line, text in [(5, "0.30,nan,1.0"), (9, "0.70,NaN,-nan"), (12, "1.00,1.0,"), (20, "1.80,,")]:
         edit(dropped, "gps_position.csv", line, text)
     deleted = tmp_path / "deleted"
     shutil.copytree(SCENARIOS / "sin1", deleted)
@@ -223,16 +230,39 @@ def test_the_installed_command_prints_one_line_and_the_traceback_only_with_debug
         quiet.stderr.strip())
 
 
-def test_json_output_rejects_nan_and_infinity():
-    """The check every --json test uses: Python's json would accept NaN; ours must not."""
+def test_json_we_write_has_null_where_python_would_write_nan():
+    """Missing numbers of every kind we hold (float, numpy, pandas, 0-d arrays) become null."""
+    data = {"nan": float("nan"), "inf": -math.inf, "numpy": np.float32("nan"), "array": np.array([1.0, np.inf]),
+            "scalar": np.array(2.5), "na": pd.NA, "frame": pd.Series([1.0, None]).to_list(), "ok": np.int64(3)}
+    assert "NaN" in json.dumps(data, default=str)  # what Python's json would print
+    assert strict_loads(strict_json.dumps(data)) == {"nan": None, "inf": None, "numpy": None, "array": [1.0, None],
+                                                      "scalar": 2.5, "na": None, "frame": [1.0, None], "ok": 3}
     with pytest.raises(ValueError):
-        strict_loads('{"a": NaN}')
-    assert json.loads('{"a": NaN}')["a"] != 0
+        strict_loads('{"a": NaN}')  # and the check every --json test uses refuses NaN
+
+
+def test_a_sweep_row_whose_objective_is_not_finite_fails_with_its_message(tmp_path, monkeypatch):
+    """On real workers (started with the user's module on their path): the row is failed with the
+    message, never ok with NaN; the other objective's rows are ok."""
+    (tmp_path / "nan_objective.py").write_text(
+        "def score(trajectory, scenario):\n    return float('nan') if scenario.name == 'sin1' else 1.0\n")
+    monkeypatch.setenv("PYTHONPATH", str(tmp_path))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    space = write_space(tmp_path, objectives=["cross_track_error", "nan_objective:score"], cluster={"n_workers": 1},
+                        parameters={"vehicle.mass": [1500]}, keep_trajectories=0)
+    code, out, err = run("submit", space, "--no-dashboard", "--json")
+    report = strict_loads(out)
+    assert (report["ok"], report["failed"]) == (1, 1), err
+    rows = store.read_results(tmp_path / "out", "small", columns=["status", "error", "nan_objective:score"])
+    failed = rows[rows["scenario"] == "sin1"].iloc[0]
+    assert failed["status"] == "failed" and pd.isna(failed["nan_objective:score"])
+    assert "objective 'nan_objective:score' is not a finite number on scenario sin1" in failed["error"]
+    assert rows[rows["scenario"] == "speed_step2"].iloc[0]["status"] == "ok"
 
 
 def test_submit_counts_dropouts_and_keeps_its_json_strict(scenario_copy, tmp_path, dask_scheduler):
     folder = scenario_copy("sin1")
-    for line, text in [(5, "0.80,nan,1.0"), (9, "1.60,,")]:
+    for line, text in [(5, "0.30,nan,1.0"), (9, "0.70,,")]:
         edit(folder, "gps_position.csv", line, text)
     space = write_space(tmp_path, scenarios=[str(folder)], cluster={"address": dask_scheduler},
                         parameters={"vehicle.mass": [1000, 3000]})

@@ -34,7 +34,8 @@ def installed(tmp_path_factory) -> dict:
     # The dependencies come from this interpreter's site-packages; dse-runner itself only from the wheel.
     venv = root / "venv"
     subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True)
-    subprocess.run([venv / "bin" / "python", "-m", "pip", "install", "--quiet", "--no-deps", str(wheel)],
+    subprocess.run([venv / "bin" / "python", "-m", "pip", "install", "--quiet", "--no-deps", "--ignore-installed",
+                    str(wheel)],
                    check=True, capture_output=True, text=True)
     work = root / "empty"  # the user's folder: nothing of the checkout in it
     work.mkdir()

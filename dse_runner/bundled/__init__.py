@@ -37,7 +37,8 @@ def bundled_path(reference: str) -> Path:
 
 def listing() -> list[Path]:
     """The bundled FMU source folders and example files, for messages and `build-fmus`."""
-    fmus = [p for p in sorted((root() / "fmus").iterdir()) if (p / "modelDescription.xml").is_file()]
+    folder = root() / "fmus"
+    fmus = [p for p in sorted(folder.iterdir()) if (p / "modelDescription.xml").is_file()] if folder.is_dir() else []
     examples = sorted(p for p in root().glob("*/*.yaml"))
     return fmus + examples
 

@@ -26,6 +26,7 @@ from ..errors import DseError
 from ..fit import FitProblem, FitResult, Parameter, evaluate_points, fit_all, key_of, wanted
 from ..multimodel import MultiModel, split_ref
 from ..rank import rank
+from ..scenario import dropouts
 from ..spec import Range, Space, SpaceSpec, read_spec, resolve_space
 from ..sweep import submit, trajectories_of
 from . import explain, locate
@@ -51,11 +52,11 @@ class Settings:
 
     def singles(self) -> list[tuple[str, ...]]:
         """The hypotheses fitted alone: the chosen ids of the library, each checked."""
-        unknown = [h for h in self.hypotheses if h not in LIBRARY or h == "none"]
+        unknown = [h for h in self.hypotheses if h not in LIBRARY]
         if unknown:
             raise DseError(f"unknown hypothesis {', '.join(map(repr, unknown))}: the library has "
-                           f"{', '.join(h for h in LIBRARY if h != 'none')}")
-        return [(hid,) for hid in self.hypotheses or LIBRARY if hid != "none"]
+                           f"{', '.join(h for h in LIBRARY if h != 'none')} (and none, always tried)")
+        return [(hid,) for hid in dict.fromkeys(self.hypotheses or LIBRARY) if hid != "none"]
 
 
 @dataclass
@@ -68,6 +69,7 @@ class Diagnosis:
     settings: Settings = Settings()
     located: dict[str, Any] = field(default_factory=dict)  # locate's tables, before and after
     files: dict[str, Path] = field(default_factory=dict)
+    dropouts: dict[str, int] = field(default_factory=dict)  # GPS fixes skipped per run (scenario.dropouts)
 
     @property
     def effects(self) -> list[dict[str, Any]]:
@@ -103,6 +105,7 @@ class Diagnosis:
                             "parameters": c.full.values, "at_bound": c.full.at_bound}
                            for c in self.candidates],
             "calibration": self.calibration,
+            "dropouts": self.dropouts,
             "files": {k: str(v) for k, v in self.files.items()},
         }
 
@@ -224,7 +227,7 @@ class Chain:
         by_fold = self._fit(problems, "cross-validating")
         points, only = wanted((by_fold[f"{labels[ids]}/fold{k}"].point, fold)
                               for ids in sets for k, fold in enumerate(self.folds))  # each on the runs it held out
-        rows = evaluate_points(self.space, points, self.client, ["cross_track_error"], only)
+        rows, _ = evaluate_points(self.space, points, self.client, ["cross_track_error"], only)
         result = []
         for ids in sets:
             candidate = Candidate(ids, full[labels[ids]])
@@ -349,7 +352,7 @@ def _diagnose(calibration: Space, out: Path, settings: Settings, client, say: Pr
         "no_effect": baseline.full.undetermined,
         "insensitive_scenarios": locate.insensitive_scenarios(grid.table1),
         "folds": chain.folds,
-    }, explain.ranked(scored), chosen, baseline, settings)
+    }, explain.ranked(scored), chosen, baseline, settings, dropouts=dropouts(calibration.scenarios))
     say("locating: the residuals of the calibrated model and of the chosen one")
     before = trajectories_of(space, client, baseline.full.point, BEFORE)
     after = trajectories_of(space, client, chosen.full.point, AFTER)
