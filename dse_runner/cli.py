@@ -128,6 +128,8 @@ def simulate(
         png_path = track_plot(result, folder / "track.png") if result.trajectory.track else None
     except DseError as e:
         fail(e)
+    except OSError as e:  # the output folder: not writable, or a file of that name
+        fail(DseError(f"cannot write {e.filename}: {e.strerror}"))
     if as_json:
         emit_json({
             "scenario": result.scenario.name,

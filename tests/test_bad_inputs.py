@@ -207,6 +207,12 @@ def test_a_bad_multimodel_value(tmp_path, changes, message):
     assert re.search(message, one_line_error(code, err)), err
 
 
+def test_an_output_folder_that_is_a_file(tmp_path):
+    (tmp_path / "taken").write_text("")
+    code, _, err = run("simulate", MULTIMODEL, "-s", SCENARIOS / "sin1", "--out", tmp_path / "taken")
+    assert f"cannot write {tmp_path / 'taken'}: File exists" in one_line_error(code, err)
+
+
 def test_a_multimodel_that_is_not_yaml(tmp_path):
     path = tmp_path / "mm.yaml"
     path.write_text("fmus: [unclosed\n")
