@@ -146,7 +146,7 @@ def simulate(
     for name, value in result.objectives.items():
         typer.echo(f"  {name:<20} {value:10.4f}")
     if result.scenario.gps.dropouts:
-        typer.echo(f"  ({result.scenario.gps.dropouts} GPS dropouts skipped: empty or NaN fixes)")
+        typer.echo(f"  {_dropouts_line({result.scenario.name: result.scenario.gps.dropouts})}")
     typer.echo(f"trajectory: {csv_path}")
     if png_path:
         typer.echo(f"plot:       {png_path}")
@@ -305,14 +305,8 @@ class ProgressBar:
 
     def __init__(self) -> None:
         from rich.console import Console
-        from rich.progress import (
-            BarColumn,
-            MofNCompleteColumn,
-            Progress,
-            TextColumn,
-            TimeElapsedColumn,
-            TimeRemainingColumn,
-        )
+        from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn,
+                                   TimeRemainingColumn)
 
         self.bar = Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
                             TextColumn("{task.fields[rate]} sim/s"), TextColumn("{task.fields[failed]} failed"),

@@ -27,15 +27,8 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import yaml
-from pydantic import (
-    BaseModel,
-    BeforeValidator,
-    ConfigDict,
-    Field,
-    PositiveFloat,
-    ValidationError,
-    field_validator,
-)
+from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, PositiveFloat, ValidationError,
+                      field_validator)
 
 from . import bundled
 from .errors import DseError, format_syntax_error, format_validation_error

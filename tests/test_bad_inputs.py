@@ -99,7 +99,7 @@ def test_gps_dropouts_are_skipped_like_missing_rows_and_counted(scenario_copy, t
     assert with_dropouts["dropouts"] == 4 and without_rows["dropouts"] == 0
     assert with_dropouts["objectives"] == without_rows["objectives"]
     code, out, err = run("simulate", MULTIMODEL, "-s", dropped, "--out", tmp_path / "c")
-    assert "4 GPS dropouts skipped" in out
+    assert "GPS dropouts skipped (empty or NaN fixes): sin1 4" in out
 
 
 def test_a_recording_of_only_dropouts_is_an_error(scenario_copy, tmp_path):

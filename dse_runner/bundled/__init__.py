@@ -36,7 +36,7 @@ def bundled_path(reference: str) -> Path:
 
 
 def listing() -> list[Path]:
-    """The bundled FMU source folders and example files, for messages and `build-fmus`."""
+    """The bundled FMU source folders and example files: what an error about a bundled name lists."""
     folder = root() / "fmus"
     fmus = [p for p in sorted(folder.iterdir()) if (p / "modelDescription.xml").is_file()] if folder.is_dir() else []
     examples = sorted(p for p in root().glob("*/*.yaml"))
