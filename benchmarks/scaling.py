@@ -328,7 +328,7 @@ def slope(xs: list[float], ys: list[float]) -> float:
 def machine_speed(space: Space, repeats: int = 20) -> float:
     """Milliseconds of one sin1 simulation in this process: to see whether the machine's speed moved
     during the run (on a shared virtual machine it does)."""
-    from dse_runner.simulate import simulate
+    from dse_runner.simulation import simulate
 
     sin1 = next(s for s in space.scenarios if s.name == "sin1")
     simulate(space.plan, sin1, {}, space.objectives)

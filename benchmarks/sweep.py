@@ -31,7 +31,7 @@ sys.path.insert(0, str(REPO))
 
 from dse_runner.cluster import connect  # noqa: E402
 from dse_runner.expand import expand  # noqa: E402
-from dse_runner.simulate import simulate  # noqa: E402
+from dse_runner.simulation import simulate  # noqa: E402
 from dse_runner.spec import Cluster, Space, load_space  # noqa: E402
 from dse_runner.sweep import submit  # noqa: E402
 

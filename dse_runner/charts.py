@@ -121,22 +121,24 @@ class ErrorByGroup:
 
 
 class TrackChart:
-    """A simulated track over the recorded GPS fixes, equal axes."""
+    """A simulation over its recording (comparison.py): a track over GPS fixes, or a signal over time."""
 
     def __init__(self, title: str = "", width: int = 2 * WIDTH, height: int = int(1.6 * HEIGHT)):
-        self.gps = ColumnDataSource({"x": [], "y": []})
+        self.recorded = ColumnDataSource({"x": [], "y": []})
         self.simulated = ColumnDataSource({"x": [], "y": []})
         self.figure = figure(title=title, width=width, height=height, match_aspect=True,
-                             x_axis_label="x [m]", y_axis_label="y [m]",
                              tools="pan,wheel_zoom,box_zoom,reset,save", toolbar_location="above")
-        self.figure.scatter("x", "y", source=self.gps, size=3, color="#777777", legend_label="recorded GPS")
+        self.figure.scatter("x", "y", source=self.recorded, size=3, color="#777777", legend_label="recorded")
         self.figure.line("x", "y", source=self.simulated, line_width=2, color=PALETTE[0], legend_label="simulated")
         self.figure.legend.location = "top_left"
 
-    def update(self, gps_xy: tuple[np.ndarray, np.ndarray], simulated_xy: tuple[np.ndarray, np.ndarray],
-               title: str) -> None:
-        self.gps.data = {"x": gps_xy[0], "y": gps_xy[1]}
-        self.simulated.data = {"x": simulated_xy[0], "y": simulated_xy[1]}
+    def update(self, comparison, title: str) -> None:
+        recorded = comparison.recorded or (np.array([]), np.array([]))
+        self.recorded.data = {"x": recorded[0], "y": recorded[1]}
+        self.simulated.data = {"x": comparison.simulated[0], "y": comparison.simulated[1]}
+        self.figure.xaxis.axis_label = comparison.x_label
+        self.figure.yaxis.axis_label = comparison.y_label
+        self.figure.match_aspect = comparison.equal_axes
         self.figure.title.text = title
 
 

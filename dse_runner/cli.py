@@ -104,52 +104,68 @@ def build_fmus(
 
 @app.command()
 def simulate(
-    multimodel: Annotated[Path, typer.Argument(help="Multi-model file (YAML, or INTO-CPS mm.json).")],
-    scenario: Annotated[Path, typer.Option("--scenario", "-s", help="Scenario folder (field-data format).")],
-    set_: Annotated[list[str] | None, typer.Option("--set", help="instance.variable=value; repeatable.")] = None,
+    model: Annotated[Path, typer.Argument(help="An .fmu file, or a multi-model file (YAML, or INTO-CPS mm.json).")],
+    scenario: Annotated[Path | None, typer.Option(
+        "--scenario", "-s", help="Scenario folder (scenario.yaml, or a kind's format such as field data).")] = None,
+    set_: Annotated[list[str] | None, typer.Option(
+        "--set", help="instance.variable=value (for one .fmu: variable=value); repeatable.")] = None,
+    start_time: Annotated[float | None, typer.Option(help="Start time [s]. Default: the scenario's, the FMU's, 0.")] = None,
+    stop_time: Annotated[float | None, typer.Option(help="Stop time [s]. Default: the scenario's or the FMU's.")] = None,
+    step: Annotated[float | None, typer.Option(help="Communication step [s]. Default: see docs/space.md.")] = None,
+    interface: Annotated[str | None, typer.Option(
+        help="cs or me: run every FMU through this interface. Default: co-simulation when offered.")] = None,
     objective: Annotated[list[str] | None, typer.Option(
-        "--objective", help="Built-in name or module:function; repeatable. Default: all built-ins.")] = None,
-    step: Annotated[float | None, typer.Option(help="Communication step [s]. Default: the control log's period.")] = None,
-    out: Annotated[Path | None, typer.Option(help="Folder for trajectory.csv and track.png. Default: out/<scenario>.")] = None,
+        "--objective", help="A registered objective or module:function; repeatable. Default: the scenario "
+                            "kind's (field data: the GPS objectives).")] = None,
+    csv: Annotated[Path | None, typer.Option(help="Write every output here: time, then one column per output.")] = None,
+    out: Annotated[Path | None, typer.Option(help="Folder for trajectory.csv and a plot (plot.png).")] = None,
     as_json: JsonFlag = False,
 ) -> None:
-    """Co-simulate MULTIMODEL on one recorded scenario; print the objectives, write the track."""
-    from . import objectives as objs
-    from .plots import track_plot
-    from .simulate import simulate as run_simulation
+    """Simulate MODEL once (on a scenario if given); print the objectives and final outputs."""
+    from .plots import result_plot
+    from .simulation import simulate as run_simulation
+    from .simulation import summary, write_csv
 
+    files: dict[str, Path] = {}
     try:
-        overrides = dict(parse_assignment(a) for a in set_ or [])
-        result = run_simulation(multimodel, scenario, overrides, tuple(objective or objs.DEFAULT), step)
-        folder = out or Path("out") / result.scenario.name
-        folder.mkdir(parents=True, exist_ok=True)
-        csv_path = folder / "trajectory.csv"
-        result.trajectory.to_csv(csv_path)
-        png_path = track_plot(result, folder / "track.png") if result.trajectory.track else None
+        if interface not in (None, "cs", "me"):
+            raise DseError(f"--interface {interface!r}: use cs (co-simulation) or me (model exchange)")
+        values = dict(parse_assignment(a) for a in set_ or [])
+        result = run_simulation(model, scenario, values, start_time, stop_time, step,
+                                objectives=list(objective) if objective else None, interface=interface)
+        bare = model.suffix.lower() == ".fmu"  # one FMU: its variables' own names
+        if csv is not None:
+            files["csv"] = write_csv(result, csv, bare)
+        if out is not None:
+            out.mkdir(parents=True, exist_ok=True)
+            files["trajectory"] = write_csv(result, out / "trajectory.csv", bare)
+            files["plot"] = result_plot(result, out / "plot.png")
     except DseError as e:
         fail(e)
-    except OSError as e:  # the output folder: not writable, or a file of that name
+    except OSError as e:  # an output file: not writable, or a folder of that name
         fail(DseError(f"cannot write {e.filename}: {e.strerror}"))
+    final = summary(result, bare)
     if as_json:
-        emit_json({
-            "scenario": result.scenario.name,
-            "step": result.step,
-            "values": result.values,
-            "objectives": result.objectives,
-            "dropouts": result.scenario.gps.dropouts,
-            "trajectory": str(csv_path),
-            "plot": str(png_path) if png_path else None,
-        })
+        emit_json({**final, **{name: str(path) for name, path in files.items()}})
         return
-    typer.echo(f"scenario {result.scenario.name}  ({result.scenario.group}, {result.scenario.info.duration:g} s, "
+    typer.echo(f"scenario {result.scenario.name}  ({result.scenario.group}, {result.times.start:g}..{result.times.stop:g} s, "
                f"step {result.step:g} s)")
     for name, value in result.objectives.items():
-        typer.echo(f"  {name:<20} {value:10.4f}")
-    if result.scenario.gps.dropouts:
-        typer.echo(f"  {_dropouts_line({result.scenario.name: result.scenario.gps.dropouts})}")
-    typer.echo(f"trajectory: {csv_path}")
-    if png_path:
-        typer.echo(f"plot:       {png_path}")
+        shown = f"{value:10.4f}" if isinstance(value, float) else f"[{len(value)} values]"
+        typer.echo(f"  {name:<20} {shown}")
+    if final["final"]:
+        typer.echo("final values:")
+        for name, value in list(final["final"].items())[:MAX_PRINTED]:
+            typer.echo(f"  {name:<28} {value:.6g}" if isinstance(value, float) else f"  {name:<28} {value!r}")
+        if len(final["final"]) > MAX_PRINTED:
+            typer.echo(f"  ... and {len(final['final']) - MAX_PRINTED} more (--json or --csv has them all)")
+    if result.scenario.dropouts:
+        typer.echo(f"  {_dropouts_line({result.scenario.name: result.scenario.dropouts})}")
+    for label, path in files.items():
+        typer.echo(f"{label + ':':<12}{path}")
+
+
+MAX_PRINTED = 30  # final values printed as text
 
 
 def _print_table1(ranking) -> None:
@@ -231,7 +247,7 @@ def submit(
 
 
 def _dropouts_line(counts: dict[str, int]) -> str:
-    return "GPS dropouts skipped (empty or NaN fixes): " + ", ".join(f"{name} {n}" for name, n in counts.items())
+    return "recorded values skipped as dropouts (empty or NaN): " + ", ".join(f"{name} {n}" for name, n in counts.items())
 
 
 class _Board:

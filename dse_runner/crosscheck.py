@@ -12,7 +12,7 @@ import numpy as np
 
 from .cosim import Plan, Trajectory
 from .errors import DseError
-from .multimodel import Value
+from .variables import Value
 
 
 def _libcosim():
@@ -63,4 +63,4 @@ def run_libcosim(plan: Plan, values: dict[str, Value], stop: float, step: float)
         time_ns, _, samples = observer.time_series_real_samples(index[v.instance], v.vr, 1, n_steps)
         columns.append(samples)
         time = np.asarray(time_ns, dtype=float) * 1e-9
-    return Trajectory(time, plan.recorded, np.column_stack(columns), plan.track)
+    return Trajectory(time, plan.recorded, np.column_stack(columns))

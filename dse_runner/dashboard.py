@@ -23,13 +23,12 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pandas as pd
 from distributed.diagnostics.plugin import SchedulerPlugin
 
 from . import charts, store
+from .comparison import Comparison, compare
 from .errors import DseError
-from .expand import model_hash
 from .rank import current_model, current_rows, format_point, load_sweep_spec, plain, standings
 from .spec import Space, load_space
 from .sweep import SweepReport, load_status
@@ -104,13 +103,13 @@ class Feed:
             space = load_space(status.spec)
         except DseError as e:
             return None, f"cannot load the sweep's spec: {e}"
-        if model_hash(space.plan, space.objectives) != current_model(self.output, self.sweep):
+        if space.model_key != current_model(self.output, self.sweep):
             return None, f"{status.spec} has changed since the sweep ran; its tracks would not be the sweep's"
         return space, ""
 
-    def track(self, scenario: str, point: dict[str, Any]) -> tuple[tuple, tuple, float]:
-        """Recorded GPS (x, y), the simulated track (x, y) and the objective of ``point`` on ``scenario``."""
-        from .simulate import simulate
+    def track(self, scenario: str, point: dict[str, Any]) -> tuple[Comparison, float]:
+        """``point`` simulated on ``scenario`` next to its recording (comparison.py), and the objective."""
+        from .simulation import simulate
 
         key = (scenario, tuple(sorted(point.items())))
         if key not in self._tracks:
@@ -118,10 +117,10 @@ class Feed:
             if space is None:
                 raise DseError(note)
             recording = next(s for s in space.scenarios if s.name == scenario)
-            result = simulate(space.plan, recording, point, (self.objective,), timeout=space.spec.timeout)
-            gps = recording.gps
-            self._tracks[key] = ((np.asarray(gps.x), np.asarray(gps.y)), result.trajectory.xy(),
-                                 result.objectives[self.objective])
+            objective = space.objectives[self.objective]
+            result = simulate(space.plan, recording, point, objectives={self.objective: objective},
+                              timeout=space.spec.timeout, experiment=space.experiment)
+            self._tracks[key] = (compare(result, objective), result.objectives[self.objective])
         return self._tracks[key]
 
 
@@ -259,13 +258,13 @@ class Page:
             return
         self.track_shown = key
         try:
-            gps, simulated, value = self.feed.track(self.select.value, point)
+            comparison, value = self.feed.track(self.select.value, point)
         except DseError as e:
             self.track_note.text = f"<span id='dse-track'>No track: {html.escape(str(e))}</span>"
             return
         caption = f"{self.select.value}: best point so far, {self.feed.objective} {value:.4f}"
         self.track_note.text = f"<span id='dse-track'>{html.escape(caption)}</span>"
-        self.track.update(gps, simulated, caption)
+        self.track.update(comparison, caption)
 
 
 # --- serving -------------------------------------------------------------------------------------

@@ -17,9 +17,10 @@ from typing import Any
 
 import numpy as np
 
+from . import objectives as objs
 from .cosim import Plan
 from .fmu import content_hash
-from .scenario import GPS_FILE, INFO_FILE, STEERING_FILE, Scenario
+from .scenario import Scenario, Series
 from .search import strategy
 
 
@@ -35,17 +36,24 @@ def _digest(*parts: Any) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def model_hash(plan: Plan, objectives: tuple[str, ...]) -> str:
-    """What the model is, independent of where its files lie."""
+def model_hash(plan: Plan, objectives: dict[str, objs.ObjectiveSpec], experiment: Any = None) -> str:
+    """What the model is, independent of where its files lie: FMUs, wiring, experiment, objectives."""
     mm = plan.multimodel.model_dump(mode="json", exclude={"fmus", "base_dir"})
     fmus = {name: content_hash(path) for name, path in sorted(plan.fmu_paths.items())}
-    return _digest(fmus, mm, list(objectives))[:32]
+    scored = {name: spec if isinstance(spec, str) else spec.model_dump(mode="json") for name, spec in objectives.items()}
+    times = experiment.model_dump(mode="json", exclude_none=True) if experiment is not None else {}
+    return _digest(fmus, mm, scored, *([times] if times else []))[:32]
 
 
 def scenario_hash(scenario: Scenario) -> str:
-    info = scenario.info.model_dump(mode="json")
-    files = [content_hash(scenario.directory / name) for name in (STEERING_FILE, GPS_FILE, INFO_FILE)]
-    return _digest(info, files)[:32]
+    """What a scenario is: its settings and the contents of every file it was read from."""
+    settings = {
+        "kind": scenario.kind, "group": scenario.group, "parameters": dict(scenario.parameters),
+        "fields": dict(scenario.fields), "options": dict(scenario.options),
+        "inputs": {ref: "series" if isinstance(v, Series) else v for ref, v in scenario.inputs.items()},
+        "times": [scenario.start_time, scenario.stop_time, scenario.step, scenario.natural_step],
+    }
+    return _digest(settings, [content_hash(path) for path in scenario.sources])[:32]
 
 
 def task_id(model: str, point: dict[str, Any], scenario: str) -> str:
@@ -66,7 +74,7 @@ def expand(space, points: list[dict[str, Any]] | None = None,
     runs on every scenario."""
     if only is not None and (points is None or len(only) != len(points)):
         raise ValueError("expand: `only` needs one collection of scenario names per given point")
-    model = model_hash(space.plan, space.objectives)
+    model = space.model_key
     visit = points_of(space, points)
     for scenario in space.scenarios:
         data = scenario_hash(scenario)

@@ -1,19 +1,22 @@
 """The multi-model file: which FMUs, how they connect, which values they get.
 
-Our YAML form::
+Our YAML form (docs/multimodel.md)::
 
     fmus:                      # instance name -> FMU: a .fmu or a source folder, relative to
       controller: bundled:fmus/replay_controller   # this file, or one dse-runner ships (bundled:)
       vehicle: my-fmus/vehicle.fmu
-    connections:               # output -> [inputs]
+    connections:               # output -> [inputs]; an input may say how to convert
       controller.velocity: [vehicle.velocity]
+      ctrl.valve: [tank.valvecontrol]              # Boolean -> Real: 0/1
+      plant.level: [{input: ctrl.level_int, round: true}]
     parameters:                # fixed values
       vehicle.mass: 1500
-    scenario:                  # values taken from each scenario
+    scenario:                  # values each scenario supplies, by the scenario's field names
       controller.file: steering_inputs
       vehicle.theta0: initial_pose.theta
-    track: {x: vehicle.x, y: vehicle.y}   # the outputs compared with GPS
-    step: null                 # communication step [s]; default: the control log's period
+    instances:                 # how an instance runs, when not as it comes
+      plant: {interface: me, solver: cvode, tolerance: 1.0e-6}
+    step: null                 # communication step [s]; default: the experiment's or the scenario's
 
 INTO-CPS's ``mm.json`` (keys like ``{fmu}.instance.variable``) is read too and
 converted into the same model, so the rest of the tool sees one format.
@@ -22,37 +25,17 @@ converted into the same model, so the rest of the tool sees one format.
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Any, Literal
 
 import yaml
-from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, PositiveFloat, ValidationError,
-                      field_validator)
+from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationError, field_validator
 
 from . import bundled
 from .errors import DseError, format_syntax_error, format_validation_error
-from .scenario import ScenarioField
+from .variables import FiniteValue, split_ref
 
-Value = float | int | bool | str
-
-
-def _finite(value: Any) -> Any:
-    """NaN and infinity are no value to give an FMU (checked before the union, for one clear message)."""
-    if isinstance(value, float) and not math.isfinite(value):
-        raise ValueError(f"{value} is not a finite number")
-    return value
-
-
-FiniteValue = Annotated[Value, BeforeValidator(_finite)]  # a value as files give it
-
-
-def split_ref(ref: str) -> tuple[str, str]:
-    """'vehicle.mass' -> ('vehicle', 'mass'); variable names may hold dots themselves."""
-    instance, dot, variable = ref.partition(".")
-    if not dot or not instance or not variable:
-        raise ValueError(f"{ref!r} is not of the form instance.variable")
-    return instance, variable
+Strict = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 def _check_ref(ref: str) -> str:
@@ -60,27 +43,38 @@ def _check_ref(ref: str) -> str:
     return ref
 
 
-class TrackOutputs(BaseModel):
-    """The FMU outputs that are the simulated position compared with GPS fixes."""
+class Target(BaseModel):
+    """A connection's input with a conversion the rules do not make by themselves (docs/multimodel.md)."""
 
-    model_config = ConfigDict(extra="forbid")
-    x: str
-    y: str
+    model_config = Strict
+    input: str
+    round: bool = False  # a number feeding an integer: round to the nearest
+    threshold: float | None = None  # a number feeding a Boolean: true above this
 
-    @field_validator("x", "y")
+    @field_validator("input")
     @classmethod
-    def _refs(cls, ref: str) -> str:
+    def _ref(cls, ref: str) -> str:
         return _check_ref(ref)
 
 
+class InstanceSettings(BaseModel):
+    """How one instance runs: its interface and, for model exchange, the integrator."""
+
+    model_config = Strict
+    interface: Literal["cs", "me"] | None = None  # default: co-simulation when the FMU offers it
+    solver: Literal["cvode", "euler"] = "cvode"  # model exchange: FMPy's CVode, or forward Euler
+    tolerance: PositiveFloat | None = None  # relative tolerance (CVode; co-simulation FMUs get it too)
+    euler_step: PositiveFloat | None = None  # euler: the integration step; default: the communication step
+
+
 class MultiModel(BaseModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    model_config = Strict
 
     fmus: dict[str, str] = Field(min_length=1)
-    connections: dict[str, list[str]] = {}
+    connections: dict[str, list[str | Target]] = {}
     parameters: dict[str, FiniteValue] = {}
-    scenario: dict[str, ScenarioField] = {}
-    track: TrackOutputs | None = None
+    scenario: dict[str, str] = {}  # instance.variable -> a field of each scenario
+    instances: dict[str, InstanceSettings] = {}
     step: PositiveFloat | None = None
     # Relative FMU paths are relative to the file's folder; ``bundled:`` ones name the package's own.
     base_dir: Path = Field(default=Path("."), exclude=True)
@@ -95,11 +89,12 @@ class MultiModel(BaseModel):
 
     @field_validator("connections")
     @classmethod
-    def _connection_refs(cls, connections: dict[str, list[str]]) -> dict[str, list[str]]:
+    def _connection_refs(cls, connections: dict[str, list[str | Target]]) -> dict[str, list[str | Target]]:
         for source, targets in connections.items():
             _check_ref(source)
             for target in targets:
-                _check_ref(target)
+                if isinstance(target, str):
+                    _check_ref(target)
         return connections
 
     @field_validator("parameters", "scenario")
@@ -109,8 +104,24 @@ class MultiModel(BaseModel):
             _check_ref(ref)
         return values
 
+    @field_validator("instances")
+    @classmethod
+    def _settings_name_instances(cls, instances: dict[str, InstanceSettings], info) -> dict[str, InstanceSettings]:
+        unknown = sorted(set(instances) - set(info.data.get("fmus", {})))
+        if unknown:
+            raise ValueError(f"{', '.join(unknown)} is not an instance of 'fmus'")
+        return instances
+
     def fmu_path(self, instance: str) -> Path:
         return bundled.resolve(self.fmus[instance], self.base_dir)
+
+    def targets(self) -> list[tuple[str, Target]]:
+        """Every connection as (source, target with its conversion options)."""
+        return [(source, Target(input=t) if isinstance(t, str) else t)
+                for source, targets in self.connections.items() for t in targets]
+
+    def settings(self, instance: str) -> InstanceSettings:
+        return self.instances.get(instance) or InstanceSettings()
 
 
 def from_into_cps(data: dict[str, Any]) -> dict[str, Any]:
@@ -133,7 +144,7 @@ def from_into_cps(data: dict[str, Any]) -> dict[str, Any]:
         for src, dsts in data.get("connections", {}).items()
     }
     parameters = {".".join(local(ref)): v for ref, v in data.get("parameters", {}).items()}
-    ours = {k: v for k, v in data.items() if k in ("scenario", "track", "step")}
+    ours = {k: v for k, v in data.items() if k in ("scenario", "instances", "step")}
     return {"fmus": instances, "connections": connections, "parameters": parameters, **ours}
 
 

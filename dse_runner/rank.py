@@ -24,7 +24,7 @@ import pandas as pd
 
 from . import store, strict_json
 from .errors import DseError
-from .objectives import is_vector
+from .objectives import is_vector, normalise
 from .spec import Ranking as RankingSpec
 from .spec import SpaceSpec
 
@@ -131,7 +131,7 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
     spec = load_sweep_spec(output, sweep)
     settings = settings or spec.ranking
     parameters = list(spec.parameters)
-    objectives = [name for name in spec.objectives if not is_vector(name)]  # lists are not summed
+    objectives = [name for name, o in normalise(spec.objectives or []).items() if not is_vector(o)]  # lists are not summed
     pareto = settings.pareto_goals()
     for name in settings.objectives_used():
         if name not in objectives:

@@ -90,11 +90,11 @@ def _tracks(feed: Feed, ranking: Ranking, scenarios: list[str]) -> tuple[object 
     panels = []
     for scenario in scenarios:
         try:
-            gps, simulated, value = feed.track(scenario, best)
+            comparison, value = feed.track(scenario, best)
         except DseError as e:
             return None, f"No tracks: {e}"
         chart = charts.TrackChart(width=charts.WIDTH, height=charts.HEIGHT)
-        chart.update(gps, simulated, f"{scenario}: {ranking.objective} {value:.3f}")
+        chart.update(comparison, f"{scenario}: {ranking.objective} {value:.3f}")
         panels.append(chart.figure)
     return gridplot(panels, ncols=3, toolbar_location="right"), ""
 

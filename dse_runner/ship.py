@@ -1,8 +1,10 @@
 """Getting a sweep's FMUs and recordings to workers that share no file system with the client.
 
 The client packs a :class:`Shipment`: the bytes of every FMU (keyed by
-content hash), the multi-model pointing at those hashes, and the files of
-every scenario. It travels inside a Dask worker plugin, which is how
+content hash), the multi-model pointing at those hashes, the scenarios as
+read and checked (their signals and recordings travel with them), and the
+files scenarios hand to FMUs by path (a steering log the replay controller
+reads). It travels inside a Dask worker plugin, which is how
 ``distributed`` hands state to workers: the scheduler keeps the plugin and
 gives it to every worker that joins later, so a worker restarted after a
 crash, or one added by an HTCondor job that started late, has the model too.
@@ -18,6 +20,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import pickle
 import tempfile
 import uuid
 from dataclasses import dataclass
@@ -28,15 +31,7 @@ from distributed.diagnostics.plugin import WorkerPlugin
 from .cosim import Plan, make_plan
 from .errors import DseError
 from .multimodel import MultiModel
-from .scenario import GPS_FILE, INFO_FILE, STEERING_FILE, Scenario, ScenarioInfo
-
-SCENARIO_FILES = (INFO_FILE, STEERING_FILE, GPS_FILE)
-
-
-@dataclass(frozen=True)
-class PackedScenario:
-    info: ScenarioInfo
-    files: dict[str, bytes]  # file name -> contents
+from .scenario import Scenario
 
 
 @dataclass(frozen=True)
@@ -46,34 +41,40 @@ class Shipment:
     key: str
     multimodel: MultiModel  # its ``fmus`` name content hashes, not paths
     fmus: dict[str, bytes]  # content hash -> .fmu archive
-    scenarios: dict[str, PackedScenario]
+    scenarios: dict[str, Scenario]  # read and checked on the client; their data travel with them
+    files: dict[str, bytes]  # content hash -> a file an FMU reads by path (a scenario's ``files``)
 
 
 def _sha(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()[:16]
 
 
+def _read(scenario: Scenario, path: Path) -> bytes:
+    try:
+        return path.read_bytes()
+    except OSError as e:
+        raise DseError(f"scenario {scenario.name}: cannot read {e.filename}: {e.strerror}") from None
+
+
 def pack(plan: Plan, scenarios: list[Scenario]) -> Shipment:
-    """Read the built FMUs and the recordings into one shipment."""
+    """Read the built FMUs and the files scenarios hand to FMUs into one shipment."""
     archives = {name: Path(path).read_bytes() for name, path in plan.fmu_paths.items()}
     fmus = {_sha(data): data for data in archives.values()}
     multimodel = plan.multimodel.model_copy(update={"fmus": {name: _sha(data) for name, data in archives.items()}})
+    files: dict[str, bytes] = {}
     packed = {}
     for scenario in scenarios:
-        try:
-            files = {name: (scenario.directory / name).read_bytes() for name in SCENARIO_FILES}
-        except OSError as e:
-            raise DseError(f"scenario {scenario.name}: cannot read {e.filename}: {e.strerror}") from None
-        packed[scenario.name] = PackedScenario(scenario.info, files)
+        contents = {name: _read(scenario, path) for name, path in scenario.files.items()}
+        files.update({_sha(data): data for data in contents.values()})
+        # the scenario's files become content hashes, as the multi-model's FMUs do
+        packed[scenario.name] = scenario.with_files({name: Path(_sha(data)) for name, data in contents.items()})
     digest = hashlib.sha256()
     digest.update(multimodel.model_dump_json().encode())
-    for sha in sorted(fmus):
+    for sha in sorted(fmus) + sorted(files):
         digest.update(sha.encode())
     for name in sorted(packed):
-        digest.update(packed[name].info.model_dump_json().encode())
-        for file in SCENARIO_FILES:
-            digest.update(_sha(packed[name].files[file]).encode())
-    return Shipment(digest.hexdigest()[:24], multimodel, fmus, packed)
+        digest.update(pickle.dumps(packed[name]))
+    return Shipment(digest.hexdigest()[:24], multimodel, fmus, packed, files)
 
 
 @dataclass
@@ -113,12 +114,9 @@ def unpack(shipment: Shipment) -> Unpacked:
     paths = {sha: _write_once(root / "fmus" / f"{sha}.fmu", data) for sha, data in shipment.fmus.items()}
     multimodel = shipment.multimodel.model_copy(
         update={"fmus": {name: str(paths[sha]) for name, sha in shipment.multimodel.fmus.items()}})
-    scenarios = {}
-    for name, packed in shipment.scenarios.items():
-        folder = root / "scenarios" / _sha(b"".join(packed.files[f] for f in SCENARIO_FILES))
-        for file, data in packed.files.items():
-            _write_once(folder / file, data)
-        scenarios[name] = Scenario(folder, packed.info)
+    files = {sha: _write_once(root / "files" / sha, data) for sha, data in shipment.files.items()}
+    scenarios = {name: s.with_files({field: files[str(sha)] for field, sha in s.files.items()})
+                 for name, s in shipment.scenarios.items()}
     done = _UNPACKED[shipment.key] = Unpacked(make_plan(multimodel), scenarios)
     return done
 

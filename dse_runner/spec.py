@@ -2,8 +2,14 @@
 
 Loading checks everything that can be checked before a single task runs: the
 file's shape (pydantic; errors give file, key path and reason), the scenario
-globs, the constraint expressions, the objectives, and every FMU variable the
-spec names against the FMUs' model descriptions.
+globs and files, the constraint expressions, the objectives, and every FMU
+variable the spec names against the FMUs' model descriptions.
+
+A spec without ``scenarios`` runs its experiment once per point, as the one
+scenario ``nominal``. Objectives a spec leaves out are its scenarios' kind's
+(field data: the GPS objectives); the ranking objective it leaves out is the
+first objective. The loaded :class:`Space` carries the spec with both filled
+in, which is what a sweep saves beside its results.
 """
 
 from __future__ import annotations
@@ -30,12 +36,15 @@ from pydantic import (
 from . import bundled
 from . import objectives as objs
 from .constraints import compile_constraint
-from .cosim import Plan, check_value, make_plan
+from .cosim import Plan, make_plan
 from .errors import DseError, format_syntax_error, format_validation_error
-from .multimodel import FiniteValue, MultiModel, load_multimodel, parse_multimodel
-from .scenario import Scenario, load_scenario
+from .experiment import Experiment
+from .multimodel import MultiModel, load_multimodel, parse_multimodel
+from .scenario import Scenario, ScenarioSpec, kind, load_scenario, nominal, parse_scenario
 from .search import strategy
+from .simulation import qualify
 from .store import is_url
+from .variables import FiniteValue, check_value
 
 Strict = ConfigDict(extra="forbid", allow_inf_nan=False)  # unknown keys, NaN and infinity are errors
 
@@ -82,9 +91,25 @@ ParameterValues = Annotated[
 
 
 class ScenarioSource(BaseModel):
-    model_config = Strict
+    """Scenario folders: ``{path: runs/*, group: .., kind: ..}`` plus the kind's own options."""
+
+    model_config = ConfigDict(extra="allow", allow_inf_nan=False)  # the rest goes to the kind
     path: str  # a folder or a glob of folders, relative to the spec
-    group: str | None = None  # overrides the group in scenario.yaml
+    group: str | None = None  # overrides the scenario's own group
+    kind: str | None = None  # default: the first installed kind that recognises the folder
+
+
+def _source_or_inline(value: Any) -> str | None:
+    if isinstance(value, (str, ScenarioSource)) or (isinstance(value, dict) and "path" in value):
+        return "source"
+    return "inline" if isinstance(value, (dict, ScenarioSpec)) else None
+
+
+# A folder (or glob), {path: ...} with options, or a scenario written inline ({name: ..., inputs: ...}).
+ScenarioEntry = Annotated[
+    Annotated[str | ScenarioSource, Tag("source")] | Annotated[ScenarioSpec, Tag("inline")],
+    Discriminator(_source_or_inline, custom_error_type="scenario_entry",
+                  custom_error_message="expected a folder or glob, {path: ...}, or an inline scenario {name: ...}")]
 
 
 class Direction(BaseModel):
@@ -95,7 +120,7 @@ class Direction(BaseModel):
 
 class Ranking(BaseModel):
     model_config = Strict
-    objective: str = "cross_track_error"  # summed over scenarios (the paper's Equation 2)
+    objective: str | None = None  # summed over scenarios (the paper's Equation 2); default: the first
     goal: Literal["min", "max"] = "min"
     pareto: list[Direction | str] = []  # objectives of the Pareto front, each "name" or {objective, goal}
     weights: dict[str, float] = {}  # weighted sum of per-point totals
@@ -173,10 +198,11 @@ class SpaceSpec(BaseModel):
     model_config = Strict
     name: str = Field(pattern=r"^[A-Za-z0-9_.-]+$")
     multimodel: str | dict[str, Any]  # a path relative to the spec or bundled:..., or the multi-model inline
-    scenarios: list[ScenarioSource | str] = []  # at least one when resolved; diagnose supplies its own
+    experiment: Experiment = Experiment()
+    scenarios: list[ScenarioEntry] = []  # none: the experiment alone, as scenario "nominal"
     parameters: dict[str, ParameterValues] = Field(min_length=1)
     constraints: list[str] = []
-    objectives: list[str] = list(objs.DEFAULT)
+    objectives: list[str] | dict[str, objs.ObjectiveSpec] | None = None  # default: the scenarios' kind's
     ranking: Ranking = Ranking()
     search: Search = Search()
     output: str = "out"  # results store: a folder relative to the spec, or an fsspec URL (s3://bucket/prefix)
@@ -217,8 +243,20 @@ class Space:
         return self.plan.multimodel
 
     @property
-    def objectives(self) -> tuple[str, ...]:
-        return tuple(self.spec.objectives)
+    def objectives(self) -> dict[str, objs.ObjectiveSpec]:
+        """name -> declared objective, in the spec's order."""
+        return objs.normalise(self.spec.objectives or [])
+
+    @property
+    def experiment(self) -> Experiment:
+        return self.spec.experiment
+
+    @property
+    def model_key(self) -> str:
+        """The hash of what determines results besides the point and scenario (expand.model_hash)."""
+        from .expand import model_hash
+
+        return model_hash(self.plan, self.objectives, self.experiment)
 
     @property
     def output(self) -> Path | str:
@@ -250,24 +288,46 @@ class Space:
 
 
 def _scenarios(spec: SpaceSpec, base: Path, source: str) -> list[Scenario]:
+    """Every scenario the spec names, read and checked; the nominal one when it names none."""
     if not spec.scenarios:
-        raise DseError(f"{source}: scenarios: give at least one scenario folder or glob")
+        return [nominal()]
     found: dict[str, Scenario] = {}
     for index, entry in enumerate(spec.scenarios):
-        entry = ScenarioSource(path=entry) if isinstance(entry, str) else entry
-        pattern = entry.path if Path(entry.path).is_absolute() else str(base / entry.path)
-        folders = sorted(p for p in glob.glob(pattern) if Path(p).is_dir())
-        if not folders:
-            raise DseError(f"{source}: scenarios.{index}.path: {entry.path!r} matches no folder")
-        for folder in folders:
-            scenario = load_scenario(folder)
-            if entry.group is not None:
-                scenario = Scenario(scenario.directory, scenario.info.model_copy(update={"group": entry.group}))
-            if scenario.name in found and found[scenario.name].directory != scenario.directory:
-                raise DseError(f"{source}: two scenarios are named {scenario.name!r}: "
-                               f"{found[scenario.name].directory} and {scenario.directory}")
+        for scenario in _entry(entry, index, base, source):
+            if scenario.name in found and found[scenario.name].sources != scenario.sources:
+                raise DseError(f"{source}: two scenarios are named {scenario.name!r}")
             found[scenario.name] = scenario
     return list(found.values())
+
+
+def _entry(entry: ScenarioSpec | ScenarioSource | str, index: int, base: Path, source: str) -> list[Scenario]:
+    if isinstance(entry, ScenarioSpec):
+        return [parse_scenario(entry.model_dump(), f"{source}: scenarios.{index}", base)]
+    entry = ScenarioSource(path=entry) if isinstance(entry, str) else entry
+    pattern = entry.path if Path(entry.path).is_absolute() else str(base / entry.path)
+    folders = sorted(p for p in glob.glob(pattern) if Path(p).is_dir())
+    if not folders:
+        raise DseError(f"{source}: scenarios.{index}.path: {entry.path!r} matches no folder")
+    scenarios = [load_scenario(folder, entry.kind, entry.model_extra) for folder in folders]
+    return [s.with_group(entry.group) if entry.group is not None else s for s in scenarios]
+
+
+def _resolved(spec: SpaceSpec, scenarios: list[Scenario], source: str) -> SpaceSpec:
+    """The spec with its default objectives and ranking objective filled in."""
+    objectives = spec.objectives
+    if objectives is None:
+        defaults = {name: None for s in scenarios for name in kind(s.kind).default_objectives}
+        if not defaults:
+            raise DseError(f"{source}: objectives: name at least one, e.g. "
+                           "{level_max: {signal: tank.level, reduce: max}}")
+        objectives = list(defaults)
+    scalar = [name for name, o in objs.normalise(objectives).items() if not objs.is_vector(o)]
+    ranking = spec.ranking
+    if ranking.objective is None:
+        if not scalar:
+            raise DseError(f"{source}: ranking needs an objective with one number per task")
+        ranking = ranking.model_copy(update={"objective": scalar[0]})
+    return spec.model_copy(update={"objectives": objectives, "ranking": ranking})
 
 
 def _check_names(space: Space, source: str) -> None:
@@ -279,15 +339,40 @@ def _check_names(space: Space, source: str) -> None:
                 check_value(variable, value)
             except DseError as e:
                 raise DseError(f"{source}: parameters.{ref}: {e}") from None
-    for name in space.objectives:
-        objs.resolve(name)
+    for scenario in space.scenarios:
+        for ref, field in space.multimodel.scenario.items():
+            try:
+                scenario.value_of(field)
+            except DseError as e:
+                raise DseError(f"{source}: the multi-model binds {ref} to {field!r}: {e}") from None
+    for name, objective in space.objectives.items():
+        _check_objective(space, name, objective, source)
     strategy(space.spec.search.strategy)
     for name in space.spec.ranking.objectives_used():
         if name not in space.objectives:
             raise DseError(f"{source}: ranking uses objective {name!r}, which 'objectives' does not list "
                            f"({', '.join(space.objectives)})")
-        if objs.is_vector(name):
+        if objs.is_vector(space.objectives[name]):
             raise DseError(f"{source}: ranking uses {name!r}, a vector objective; rankings need one number per task")
+
+
+def _check_objective(space: Space, name: str, objective: objs.ObjectiveSpec, source: str) -> None:
+    """A declared objective's signal must exist and its recorded column be in every scenario."""
+    where = f"{source}: objectives.{name}"
+    if isinstance(objective, str):
+        objs.function(objective)
+        return
+    variable = space.plan.variable(qualify(space.plan, objective.signal), where)
+    if not variable.numeric:
+        raise DseError(f"{where}: {variable.ref!r} is a {variable.type}, not a number one can score")
+    if isinstance(objective, objs.Fit):
+        for scenario in space.scenarios:
+            if scenario.recorded is None:
+                raise DseError(f"{where}: compares with recorded {objective.recorded!r}, but scenario "
+                               f"{scenario.name} has no recording")
+            if objective.recorded not in scenario.recorded.columns:
+                raise DseError(f"{where}: scenario {scenario.name}'s recording {scenario.recorded.path} has no "
+                               f"column {objective.recorded!r} (it has {', '.join(scenario.recorded.columns)})")
 
 
 def load_space(path: str | Path) -> Space:
@@ -320,6 +405,7 @@ def resolve_space(spec: SpaceSpec, path: Path) -> Space:
         multimodel = load_multimodel(bundled.resolve(spec.multimodel, path.parent))
     else:
         multimodel = parse_multimodel(spec.multimodel, f"{source}: multimodel", path.parent)
-    space = Space(spec, path, make_plan(multimodel), _scenarios(spec, path.parent, source))
+    scenarios = _scenarios(spec, path.parent, source)
+    space = Space(_resolved(spec, scenarios, source), path, make_plan(multimodel), scenarios)
     _check_names(space, source)
     return space

@@ -35,7 +35,7 @@ import pyarrow.parquet as pq
 from fsspec.implementations.local import LocalFileSystem
 
 from .errors import DseError
-from .objectives import is_vector
+from .objectives import ObjectiveSpec, is_vector
 
 RESULTS = "results"
 TRAJECTORIES = "trajectories"
@@ -123,7 +123,7 @@ def write_table(table: pa.Table, root: Root, relative: str) -> str:
     return _where(fs, target)
 
 
-def results_schema(parameters: dict[str, list[Any]], objectives: tuple[str, ...]) -> pa.Schema:
+def results_schema(parameters: dict[str, list[Any]], objectives: dict[str, ObjectiveSpec]) -> pa.Schema:
     """Column types fixed up front, so every file of a sweep has the same schema
     (a chunk whose tasks all failed has no objective values to infer types from)."""
 
@@ -137,7 +137,7 @@ def results_schema(parameters: dict[str, list[Any]], objectives: tuple[str, ...]
     return pa.schema(
         [("task_id", pa.string()), ("model", pa.string()), ("group", pa.string())]
         + [(name, kind(values)) for name, values in parameters.items()]
-        + [(name, pa.list_(pa.float64()) if is_vector(name) else pa.float64()) for name in objectives]
+        + [(name, pa.list_(pa.float64()) if is_vector(spec) else pa.float64()) for name, spec in objectives.items()]
         + [("status", pa.string()), ("error", pa.string()), ("wall_time", pa.float64()), ("worker", pa.string())]
     )
 

@@ -42,11 +42,13 @@ from . import ship, store
 from .cluster import connect, total_threads
 from .cosim import Plan
 from .errors import DseError
-from .expand import Task, TaskBatch, chunked, expand, model_hash, points_of
+from .expand import Task, TaskBatch, chunked, expand, points_of
+from .experiment import Experiment
+from .objectives import ObjectiveSpec
 from .rank import rank, save_sweep_spec
 from .scenario import Scenario
 from .search import Point
-from .simulate import simulate
+from .simulation import simulate
 from .spec import Space
 
 ATTEMPTS = 2  # a failing simulation is retried once
@@ -62,10 +64,11 @@ class ChunkJob:
     shipment: str  # key of the ship.Shipment that holds the model and recordings
     model_key: str
     tasks: TaskBatch
-    objectives: tuple[str, ...]
+    objectives: dict[str, ObjectiveSpec]
     output: store.Root
     schema: pa.Schema
     timeout: float
+    experiment: Experiment | None = None
     crashes: int = 0  # times Dask gave up on this chunk because workers died running it
 
     @property
@@ -100,13 +103,14 @@ def _worker_name() -> str:
         return f"{socket.gethostname()}:{os.getpid()}"
 
 
-def run_task(plan: Plan, task: Task, scenario: Scenario, objectives: tuple[str, ...],
-             timeout: float) -> tuple[dict[str, float] | None, str | None]:
+def run_task(plan: Plan, task: Task, scenario: Scenario, objectives: dict[str, ObjectiveSpec],
+             timeout: float, experiment: Experiment | None = None) -> tuple[dict[str, float] | None, str | None]:
     """Objectives, or the error message after the retry."""
     error = None
     for _ in range(ATTEMPTS):
         try:
-            result = simulate(plan, scenario, dict(task.point), objectives, timeout=timeout)
+            result = simulate(plan, scenario, dict(task.point), objectives=objectives, timeout=timeout,
+                              experiment=experiment)
             return result.objectives, None
         except DseError as e:
             error = str(e)
@@ -123,7 +127,7 @@ def run_chunk(job: ChunkJob) -> ChunkSummary:
     for task in job.tasks:
         scenario = unpacked.scenarios[task.scenario]
         t0 = time.perf_counter()
-        scores, error = run_task(unpacked.plan, task, scenario, job.objectives, job.timeout)
+        scores, error = run_task(unpacked.plan, task, scenario, job.objectives, job.timeout, job.experiment)
         if error and len(errors) < 3:
             errors.append(f"{task.scenario} {dict(task.point)}: {error}")
         rows.append(_row(job, task, scenario.group, scores, error, time.perf_counter() - t0, worker))
@@ -249,14 +253,16 @@ def first_point(space: Space, points: list[Point] | None = None) -> Point:
     return point
 
 
-def probe(shipment: str, scenario: str, point: Point, objectives: tuple[str, ...], timeout: float) -> float | None:
+def probe(shipment: str, scenario: str, point: Point, objectives: dict[str, ObjectiveSpec], timeout: float,
+          experiment: Experiment | None = None) -> float | None:
     """Seconds one simulation takes on a worker, to size chunks; None if it failed (that point will
     fail in its chunk too and become a failed row, which must not stop the sweep). It runs on a worker,
     not in the client, so that an FMU that crashes its process takes down a worker, not the user's shell."""
     unpacked = ship.received(shipment)
     start = time.perf_counter()
     try:
-        simulate(unpacked.plan, unpacked.scenarios[scenario], point, objectives, timeout=timeout)
+        simulate(unpacked.plan, unpacked.scenarios[scenario], point, objectives=objectives, timeout=timeout,
+                 experiment=experiment)
     except Exception:
         return None
     return time.perf_counter() - start
@@ -293,7 +299,7 @@ def submit(space: Space, progress: Progress | None = None, client=None,
     started = time.perf_counter()
     output = space.output
     store.check_reachable(output)
-    save_sweep_spec(output, space.spec, model_hash(space.plan, space.objectives))
+    save_sweep_spec(output, space.spec, space.model_key)
     done = store.finished_task_ids(output, space.name)
     total = skipped = 0
     for task in expand(space, points, only):
@@ -427,7 +433,7 @@ class Run:
 
         spec = self.space.spec
         future = client.submit(probe, self.shipment.key, self.space.scenarios[0].name, point, self.space.objectives,
-                               spec.timeout, pure=False)
+                               spec.timeout, self.space.experiment, pure=False)
         try:
             return future.result()
         except KilledWorker:
@@ -483,9 +489,9 @@ class Run:
 
 
 def _trajectory(shipment: str, model_key: str, scenario: str, point: dict[str, Any], output: store.Root,
-                sweep: str, place: int) -> str:
+                sweep: str, place: int, experiment: Experiment | None = None) -> str:
     unpacked = ship.received(shipment)
-    result = simulate(unpacked.plan, unpacked.scenarios[scenario], point, objectives=())
+    result = simulate(unpacked.plan, unpacked.scenarios[scenario], point, objectives={}, experiment=experiment)
     frame = pd.DataFrame(result.trajectory.values, columns=list(result.trajectory.names))
     frame.insert(0, "time", result.trajectory.time)
     for name, value in point.items():
@@ -507,9 +513,9 @@ def keep_trajectories(space: Space, client, count: int, shipment: ship.Shipment)
 def _trajectories(space: Space, client, shipment: ship.Shipment, places: list[tuple[int, dict[str, Any]]],
                   sweep: str) -> list[str]:
     ship.send(client, shipment)
-    key = model_hash(space.plan, space.objectives)
+    key = space.model_key
     futures = [client.submit(_trajectory, shipment.key, key, scenario.name, point, space.output, sweep, place,
-                             pure=False)
+                             space.experiment, pure=False)
                for place, point in places for scenario in space.scenarios]
     return client.gather(futures)
 
@@ -523,9 +529,9 @@ def trajectories_of(space: Space, client, point: dict[str, Any], sweep: str) -> 
 
 def _jobs(space: Space, shipment: str, done: set[str], size: int, points: list[Point] | None,
           only: list[Collection[str]] | None = None) -> Iterator[ChunkJob]:
-    key = model_hash(space.plan, space.objectives)
+    key = space.model_key
     schema = store.results_schema(space.parameters, space.objectives)
     todo = (t for t in expand(space, points, only) if t.task_id not in done)
     for tasks in chunked(todo, size):
         yield ChunkJob(space.name, _chunk_id(tasks), shipment, key, TaskBatch.of(tasks), space.objectives,
-                       space.output, schema, space.spec.timeout)
+                       space.output, schema, space.spec.timeout, space.experiment)

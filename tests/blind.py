@@ -17,7 +17,7 @@ import yaml
 from dse_runner import bundled
 from dse_runner.multimodel import parse_multimodel
 from dse_runner.scenario import load_scenario
-from dse_runner.simulate import as_plan, simulate
+from dse_runner.simulation import as_plan, simulate
 
 REPO = Path(__file__).resolve().parents[1]
 SOURCES = REPO / "scenarios" / "robotti"

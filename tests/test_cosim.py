@@ -10,7 +10,7 @@ from conftest import FMU_SOURCES, SCENARIOS, all_scenarios
 
 from dse_runner.crosscheck import run_libcosim
 from dse_runner.scenario import load_scenario
-from dse_runner.simulate import simulate
+from dse_runner.simulation import simulate
 
 CALIBRATED = {"vehicle.mass": 1000.0, "vehicle.cAlphaF": 38000.0, "vehicle.mu": 0.3}
 

@@ -17,7 +17,7 @@ from conftest import REPO, SCENARIOS, sleeper_multimodel, strict_loads, write_sp
 from dse_runner import store
 from dse_runner.expand import expand
 from dse_runner.rank import rank
-from dse_runner.simulate import simulate
+from dse_runner.simulation import simulate
 from dse_runner.spec import load_space
 from dse_runner.sweep import submit
 

@@ -20,7 +20,7 @@ from typing import Any
 
 import yaml
 
-from .. import bundled
+from .. import bundled, fielddata
 from ..cluster import connect
 from ..errors import DseError
 from ..fit import FitProblem, FitResult, Parameter, evaluate_points, fit_all, key_of, wanted
@@ -124,22 +124,29 @@ def calibration_space(space: str | Path, scenarios: str | Path, multimodel: str 
     return resolve_space(spec, path).with_overrides(address=address, n_workers=n_workers)
 
 
-def vehicle_of(multimodel: MultiModel) -> str:
-    """The instance whose outputs are the track: where the effects act."""
-    if multimodel.track is None:
-        raise DseError("diagnosis needs the multi-model's 'track' (the vehicle's x and y outputs)")
-    return split_ref(multimodel.track.x)[0]
+def vehicle_of(calibration: Space) -> str:
+    """The instance whose outputs are the position compared with GPS: where the effects act."""
+    if not calibration.scenarios or calibration.scenarios[0].kind != fielddata.KIND:
+        raise DseError("diagnosis needs recorded runs in the field-data format (GPS fixes)")
+    x, _ = fielddata.position_of(calibration.plan.recorded, calibration.scenarios[0])
+    return split_ref(x)[0]
+
+
+def at_antenna(entries: list[Any], vehicle: str) -> list[dict[str, Any]]:
+    """Scenario entries whose runs are compared with GPS at the antenna's outputs (gps_x, gps_y)."""
+    position = {"x": f"{vehicle}.gps_x", "y": f"{vehicle}.gps_y"}
+    return [{"path": e, "position": position} if isinstance(e, str) else {**e, "position": position}
+            for e in entries]
 
 
 def effects_multimodel(multimodel: MultiModel, vehicle: str, folder: Path) -> dict[str, Any]:
-    """The multi-model with ``vehicle`` replaced by the effects variant, tracked at the GPS antenna,
-    to be written into ``folder`` (FMU paths relative to it, bundled ones as ``bundled:``)."""
+    """The multi-model with ``vehicle`` replaced by the effects variant, to be written into ``folder``
+    (FMU paths relative to it, bundled ones as ``bundled:``)."""
     bundled.bundled_path(EFFECTS_FMU)  # it ships with the package; an error names it if not
     data = multimodel.model_dump(mode="json")
     data["fmus"] = {name: ref if bundled.is_bundled(ref) else _relative(multimodel.fmu_path(name), folder)
                     for name, ref in multimodel.fmus.items()}
     data["fmus"][vehicle] = EFFECTS_FMU
-    data["track"] = {"x": f"{vehicle}.gps_x", "y": f"{vehicle}.gps_y"}
     return data
 
 
@@ -177,7 +184,8 @@ def fits_space(calibration: Space, vehicle: str, out: Path) -> Space:
                           "# The multi-model diagnosis fits: the vehicle replaced by its effects variant.\n")
     parameters = {name: values for name, values in calibration.parameters.items()}
     parameters.update({f"{vehicle}.{v}": [0.0] for v in effect_variables()})
-    spec = SpaceSpec(name=FITS, multimodel=str(mm_path), scenarios=calibration.spec.scenarios,
+    entries = [e if isinstance(e, str) else e.model_dump() for e in calibration.spec.scenarios]
+    spec = SpaceSpec(name=FITS, multimodel=str(mm_path), scenarios=at_antenna(entries, vehicle),
                      parameters=parameters, objectives=["cross_track_error", "fix_residuals"],
                      output=str(out), cluster=calibration.spec.cluster, keep_trajectories=0,
                      timeout=calibration.spec.timeout, chunk_seconds=calibration.spec.chunk_seconds)
@@ -288,7 +296,8 @@ def write_model(diagnosis: Diagnosis, calibration: Space) -> dict[str, Path]:
             if not (math.isfinite(low) and math.isfinite(high)) or high <= low:
                 low, high = p.lower, p.upper
             parameters[ref] = Range(start=round(low, 6), stop=round(high, 6), num=3).model_dump(exclude_none=True)
-    scenarios = [_relative(Path(s), out) if isinstance(s, str) else s for s in spec["scenarios"]]
+    scenarios = at_antenna([_relative(Path(s), out) if isinstance(s, str) else s for s in spec["scenarios"]],
+                           vehicle)
     spec.update(name=f"{calibration.name}-with-{'-'.join(diagnosis.chosen.ids)}", multimodel=mm_path.name,
                 scenarios=scenarios, parameters=parameters, output="recalibration")
     space_path = _write_yaml(out / "space.yaml", spec,
@@ -338,7 +347,7 @@ def _diagnose(calibration: Space, out: Path, settings: Settings, client, say: Pr
     say(f"calibrating: the {calibration.name} grid on {len(calibration.scenarios)} runs")
     submit(calibration, client=client)
     grid = rank(out, calibration.name)
-    vehicle = vehicle_of(calibration.multimodel)
+    vehicle = vehicle_of(calibration)
     base = base_parameters(calibration, grid.best)
     space = fits_space(calibration, vehicle, out)
     chain = Chain(space, vehicle, base, client, settings, say)

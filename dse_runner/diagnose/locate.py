@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from .. import fielddata
 from ..scenario import Scenario
 
 FEATURES = ["speed", "acceleration", "steering", "steering_rate", "lateral_acceleration",
@@ -60,7 +61,7 @@ def _growth(time: np.ndarray, values: np.ndarray) -> np.ndarray:
 def residual_frame(trajectory: pd.DataFrame, scenario: Scenario, signals: Signals) -> pd.DataFrame:
     """One row per GPS fix within the simulation: residual components and the motion there."""
     t = trajectory["time"].to_numpy()
-    gps = scenario.gps
+    gps = fielddata.gps(scenario)
     inside = (gps.time >= t[0]) & (gps.time <= t[-1] + 1e-9)
     ft = gps.time[inside]
 

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
-from .. import strict_json
+from .. import fielddata, strict_json
 from ..rank import format_point
 from ..spec import Space
 from . import locate
@@ -108,7 +108,7 @@ def _figures(folder: Path, space: Space, frames: dict[str, pd.DataFrame], tracks
     rows = math.ceil(len(names) / cols)
     fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 3.2 * rows), squeeze=False)
     for ax, scenario in zip(axes.flat, space.scenarios):
-        gps = scenario.gps
+        gps = fielddata.gps(scenario)
         ax.plot(gps.x, gps.y, ".", color="k", ms=1.5, label="GPS")
         for key, colour in (("before", "tab:red"), ("after", "tab:blue")):
             frame = tracks[key][scenario.name]

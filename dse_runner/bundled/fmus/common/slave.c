@@ -47,6 +47,11 @@ static char *copy_string(const char *text) {
 static void load_defaults(Slave *s) {
     const ModelInfo *m = s->info;
     memcpy(s->r, m->real_defaults, m->n_reals * sizeof(double));
+    /* A model without defaults for a type starts those variables at 0 / false. */
+    for (size_t i = 0; i < m->n_integers; i++)
+        s->i[i] = m->integer_defaults ? m->integer_defaults[i] : 0;
+    for (size_t i = 0; i < m->n_booleans; i++)
+        s->b[i] = m->boolean_defaults && m->boolean_defaults[i] ? fmi2True : fmi2False;
     for (size_t i = 0; i < m->n_strings; i++) {
         free(s->str[i]);
         s->str[i] = copy_string(m->string_defaults[i]);
@@ -110,8 +115,10 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
     s->instance_name = copy_string(name);
     s->r = calloc(m->n_reals ? m->n_reals : 1, sizeof(double));
     s->str = calloc(m->n_strings ? m->n_strings : 1, sizeof(char *));
+    s->i = calloc(m->n_integers ? m->n_integers : 1, sizeof(fmi2Integer));
+    s->b = calloc(m->n_booleans ? m->n_booleans : 1, sizeof(fmi2Boolean));
     s->state = calloc(1, m->state_size ? m->state_size : 1);
-    if (!s->instance_name || !s->r || !s->str || !s->state) {
+    if (!s->instance_name || !s->r || !s->str || !s->i || !s->b || !s->state) {
         fmi2FreeInstance(s);
         return NULL;
     }
@@ -127,6 +134,8 @@ void fmi2FreeInstance(fmi2Component c) {
         for (size_t i = 0; i < s->info->n_strings; i++) free(s->str[i]);
     free(s->str);
     free(s->r);
+    free(s->i);
+    free(s->b);
     free(s->state);
     free(s->instance_name);
     free(s);
@@ -253,36 +262,40 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
     return fmi2OK;
 }
 
-/* Our FMUs have no Integer or Boolean variables: any reference is unknown. */
-static fmi2Status no_such_variable(fmi2Component c, const char *function, size_t n) {
+fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer v[]) {
     Slave *s = c;
-    if (!s) return fmi2Error;
-    if (n == 0) return fmi2OK;
-    slave_log(s, fmi2Error, "logStatusError", "%s: this FMU has no such variables", function);
-    return fail(s);
+    if (!allowed(s, "fmi2GetInteger", ANY_PHASE)) return fmi2Error;
+    if (!check_vrs(s, "fmi2GetInteger", vr, n, s->info->n_integers)) return fail(s);
+    for (size_t i = 0; i < n; i++) v[i] = s->i[vr[i]];
+    return fmi2OK;
 }
 
-fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer v[]) {
-    (void)vr;
-    (void)v;
-    return no_such_variable(c, "fmi2GetInteger", n);
-}
 fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n,
                           const fmi2Integer v[]) {
-    (void)vr;
-    (void)v;
-    return no_such_variable(c, "fmi2SetInteger", n);
+    Slave *s = c;
+    if (!allowed(s, "fmi2SetInteger", SETTABLE)) return fmi2Error;
+    if (!check_vrs(s, "fmi2SetInteger", vr, n, s->info->n_integers)) return fail(s);
+    for (size_t i = 0; i < n; i++) s->i[vr[i]] = v[i];
+    return fmi2OK;
 }
+
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean v[]) {
-    (void)vr;
-    (void)v;
-    return no_such_variable(c, "fmi2GetBoolean", n);
+    Slave *s = c;
+    if (!allowed(s, "fmi2GetBoolean", ANY_PHASE)) return fmi2Error;
+    if (!check_vrs(s, "fmi2GetBoolean", vr, n, s->info->n_booleans)) return fail(s);
+    for (size_t i = 0; i < n; i++) v[i] = s->b[vr[i]];
+    return fmi2OK;
 }
+
+/* fmi2Boolean is an int: any non-zero value is stored as fmi2True, so a model
+ * can compare against fmi2True and an importer reads back 0 or 1. */
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n,
                           const fmi2Boolean v[]) {
-    (void)vr;
-    (void)v;
-    return no_such_variable(c, "fmi2SetBoolean", n);
+    Slave *s = c;
+    if (!allowed(s, "fmi2SetBoolean", SETTABLE)) return fmi2Error;
+    if (!check_vrs(s, "fmi2SetBoolean", vr, n, s->info->n_booleans)) return fail(s);
+    for (size_t i = 0; i < n; i++) s->b[vr[i]] = v[i] ? fmi2True : fmi2False;
+    return fmi2OK;
 }
 
 /* ---- optional capabilities this FMU declares it does not have ---------- */

@@ -3,9 +3,11 @@
  *
  * slave.c implements every fmi2* function once: the state machine, value
  * access by value reference, logging and memory.  A model (model.c of each
- * FMU) only describes its variables and supplies three callbacks.  Real and
- * string variables each use value references 0..n-1, in the order of the
- * model's default arrays; modelDescription.xml lists the same order.
+ * FMU) only describes its variables and supplies three callbacks.  Real,
+ * Integer, Boolean and String variables each use value references 0..n-1 (FMI
+ * 2.0 scopes a value reference to its type), in the order of the model's
+ * default arrays; modelDescription.xml lists the same order.  An enumeration
+ * is an Integer variable.
  */
 #ifndef DSE_SLAVE_H
 #define DSE_SLAVE_H
@@ -25,6 +27,10 @@ typedef struct {
     const double *real_defaults;        /* start values, value reference = index */
     size_t n_strings;
     const char *const *string_defaults;
+    size_t n_integers;                  /* Integer and enumeration variables */
+    const int *integer_defaults;
+    size_t n_booleans;
+    const int *boolean_defaults;        /* 0 or 1 */
     size_t state_size;                  /* bytes of model-private state */
     SlaveHook enter_initialization;     /* parameters are final from here on */
     SlaveHook exit_initialization;
@@ -41,6 +47,8 @@ struct Slave {
     double time;
     double *r;                          /* real variables */
     char **str;                         /* string variables (owned copies) */
+    fmi2Integer *i;                     /* integer variables */
+    fmi2Boolean *b;                     /* boolean variables, always fmi2False or fmi2True */
     void *state;                        /* model-private, state_size bytes, zeroed on reset */
 };
 

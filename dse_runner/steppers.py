@@ -1,0 +1,190 @@
+"""Steppers: one FMU instance as the master loop drives it, whatever its FMI version and interface.
+
+The master (cosim.py) asks every instance for the same few things: set
+values, enter and exit initialization, step from one communication point to
+the next, read and write typed values through prepared buffers, terminate.
+Each FMI version and interface answers in its own small class, side by side
+as FMPy keeps ``simulateCS`` and ``simulateME``:
+
+* :class:`CoSimulation2`: FMI 2.0 co-simulation, ``fmi2DoStep``;
+* :class:`CoSimulation3`: FMI 3.0 co-simulation, ``fmi3DoStep``;
+* :class:`ModelExchange`: FMI 2.0 or 3.0 model exchange, integrated over each
+  communication step by FMPy's solvers (model_exchange.py).
+
+The hot loop calls ``step.call(*step.before, t, h, *step.after)`` and the
+typed accessors' ctypes functions directly: no Python method sits between
+the loop and the FMU for co-simulation.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from fmpy.fmi2 import fmi2True
+
+from .fmu import Instance
+from .variables import Value, Variable
+
+FMI_WARNING = 1  # statuses above this are failures, in FMI 2 and 3 alike
+
+# FMI 2 reads and writes one C type per family.
+_FMI2 = {"float": ("Real", ctypes.c_double), "integer": ("Integer", ctypes.c_int),
+         "boolean": ("Boolean", ctypes.c_int), "string": ("String", ctypes.c_char_p)}
+
+# FMI 3 has a function and a C type per type; enumerations travel as Int64.
+_FMI3 = {"Float64": ctypes.c_double, "Float32": ctypes.c_float, "Int8": ctypes.c_int8,
+         "UInt8": ctypes.c_uint8, "Int16": ctypes.c_int16, "UInt16": ctypes.c_uint16,
+         "Int32": ctypes.c_int32, "UInt32": ctypes.c_uint32, "Int64": ctypes.c_int64,
+         "UInt64": ctypes.c_uint64, "Boolean": ctypes.c_bool, "String": ctypes.c_char_p}
+
+
+@dataclass(frozen=True)
+class Access:
+    """How to read and write one group of variables of one C type: functions, arguments and buffer."""
+
+    get: Callable[..., int]
+    set: Callable[..., int]
+    ctype: Any
+    name: str  # for messages: fmi2GetReal, fmi3GetFloat64...
+
+
+class Stepper:
+    """The contract: what the master needs of an instance (subclasses fill it per FMI version)."""
+
+    call: Callable[..., int]  # the step function: call(*before, t, h, *after) -> status
+    before: tuple = ()
+    after: tuple = ()
+    step_name = "doStep"
+
+    def __init__(self, instance: Instance, tolerance: float | None = None):
+        self.instance = instance
+        self.name = instance.name
+        self.tolerance = tolerance
+
+    def access(self, variable: Variable) -> Access:
+        raise NotImplementedError
+
+    def handle(self) -> Any:
+        return self.instance.slave.component
+
+    def args(self, access: Access, vrs, n: int, buffer) -> tuple:
+        """The arguments of a get or set call on ``n`` values."""
+        return (self.handle(), vrs, n, buffer)
+
+    def set_values(self, values: list[tuple[Variable, Value]]) -> None:
+        """Values before initialization (parameters, start values), through FMPy's typed setters."""
+        for variable, value in values:
+            access = self.access(variable)
+            vrs = (ctypes.c_uint32 * 1)(variable.vr)
+            if access.ctype is ctypes.c_char_p:
+                value = str(value).encode("utf-8")
+            buffer = (access.ctype * 1)(value)
+            if access.set(*self.args(access, vrs, 1, buffer)) > FMI_WARNING:
+                raise RuntimeError(f"{access.name.replace('Get', 'Set')} of {variable.name} = {value!r} failed")
+
+    def enter_initialization(self, start: float, stop: float) -> None:
+        raise NotImplementedError
+
+    def exit_initialization(self) -> None:
+        self.instance.slave.exitInitializationMode()
+
+    def check_step(self, t: float) -> str | None:
+        """After a step that returned OK: a reason to stop, if the FMU gave one another way."""
+        return None
+
+    def terminate(self) -> None:
+        self.instance.slave.terminate()
+
+
+class CoSimulation2(Stepper):
+    """FMI 2.0 co-simulation."""
+
+    def __init__(self, instance: Instance, tolerance: float | None = None):
+        super().__init__(instance, tolerance)
+        dll = instance.slave.dll
+        self.call = dll.fmi2DoStep  # FMPy set its ctypes signature
+        self.before, self.after = (instance.slave.component,), (fmi2True,)
+        self.step_name = "fmi2DoStep"
+
+    def access(self, variable: Variable) -> Access:
+        kind, ctype = _FMI2[variable.family]
+        dll = self.instance.slave.dll
+        return Access(getattr(dll, f"fmi2Get{kind}"), getattr(dll, f"fmi2Set{kind}"), ctype, f"fmi2Get{kind}")
+
+    def enter_initialization(self, start: float, stop: float) -> None:
+        self.instance.slave.setupExperiment(tolerance=self.tolerance, startTime=start)
+        self.instance.slave.enterInitializationMode()
+
+
+class CoSimulation3(Stepper):
+    """FMI 3.0 co-simulation: typed access per type, and doStep reports a request to terminate."""
+
+    def __init__(self, instance: Instance, tolerance: float | None = None):
+        super().__init__(instance, tolerance)
+        slave = instance.slave
+        self.flags = [ctypes.c_bool(), ctypes.c_bool(), ctypes.c_bool(), ctypes.c_double()]
+        self.call = slave.dll.fmi3DoStep
+        self.before = (slave.component,)
+        self.after = (True, *(ctypes.byref(f) for f in self.flags))
+        self.step_name = "fmi3DoStep"
+
+    def access(self, variable: Variable) -> Access:
+        kind = "Int64" if variable.type == "Enumeration" else variable.type
+        dll = self.instance.slave.dll
+        return Access(getattr(dll, f"fmi3Get{kind}"), getattr(dll, f"fmi3Set{kind}"), _FMI3[kind], f"fmi3Get{kind}")
+
+    def args(self, access: Access, vrs, n: int, buffer) -> tuple:
+        return (self.handle(), vrs, n, buffer, n)  # FMI 3 also counts values (arrays)
+
+    def enter_initialization(self, start: float, stop: float) -> None:
+        self.instance.slave.enterInitializationMode(tolerance=self.tolerance, startTime=start, stopTime=stop)
+
+    def check_step(self, t: float) -> str | None:
+        return "the FMU asked to terminate the simulation" if self.flags[1].value else None
+
+
+class ModelExchange(Stepper):
+    """FMI 2.0 or 3.0 model exchange: each communication step is integrated by FMPy's solvers."""
+
+    def __init__(self, instance: Instance, tolerance: float | None = None, solver: str = "cvode",
+                 euler_step: float | None = None):
+        super().__init__(instance, tolerance)
+        from .model_exchange import ModelExchangeStepper
+
+        self.integrator = ModelExchangeStepper(instance.slave, instance.fmu.description, solver=solver,
+                                               tolerance=tolerance, euler_step=euler_step)
+        self.call = self._do_step
+        self.step_name = "the integration"
+        self._typed = CoSimulation2 if instance.fmu.version == 2 else CoSimulation3
+
+    def _do_step(self, t: float, h: float) -> int:
+        self.integrator.do_step(t, h)  # raises ModelExchangeError with what went wrong
+        return 0
+
+    def access(self, variable: Variable) -> Access:
+        return self._typed.access(self, variable)  # the same get/set functions as co-simulation
+
+    def args(self, access: Access, vrs, n: int, buffer) -> tuple:
+        return self._typed.args(self, access, vrs, n, buffer)
+
+    def enter_initialization(self, start: float, stop: float) -> None:
+        self.integrator.enter_initialization(start, stop)
+
+    def exit_initialization(self) -> None:
+        self.integrator.exit_initialization()
+
+    def terminate(self) -> None:
+        self.integrator.terminate()
+
+
+def stepper(instance: Instance, settings) -> Stepper:
+    """The stepper for an instance's FMI version and interface, with its multi-model settings."""
+    tolerance = settings.tolerance if settings is not None else None
+    if instance.fmu.interface == "me":
+        solver = settings.solver if settings is not None else "cvode"
+        euler_step = settings.euler_step if settings is not None else None
+        return ModelExchange(instance, tolerance, solver, euler_step)
+    return (CoSimulation2 if instance.fmu.version == 2 else CoSimulation3)(instance, tolerance)
