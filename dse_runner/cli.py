@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import sys
 import traceback
+import warnings
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -41,6 +42,13 @@ def options(debug: Annotated[bool, typer.Option(
         "--debug", help="Show the traceback behind an error message.")] = False) -> None:
     """Design-space exploration for FMI co-simulation."""
     Options.debug = debug
+    warnings.showwarning = _one_line_warning
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning is one line on stderr, ``warning: ...``, like an error (the source line with --debug)."""
+    where = f" ({filename}:{lineno})" if Options.debug else ""
+    typer.echo(f"warning: {message}{where}", err=True)
 
 
 def fail(error: Exception) -> None:

@@ -68,6 +68,7 @@ def content_hash(path: Path) -> str:
 def _description(path: str, sha: str) -> ModelDescription:
     if not zipfile.is_zipfile(path):
         raise DseError(f"{path}: not an FMU: an FMU is a zip archive, and this file is not one")
+    check_version(path, _declared_version(path))  # before FMPy, whose reader fails obscurely on FMI 1.0 layouts
     try:
         return read_model_description(path, validate=True)
     except Exception as strict:  # FMPy's ValidationError, or a plain exception for broken XML
@@ -78,9 +79,30 @@ def _description(path: str, sha: str) -> ModelDescription:
         raise DseError(f"{path}: cannot read modelDescription.xml: {e}") from None
     if problems:
         more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        first = " ".join(str(problems[0]).split()).rstrip(".")  # one line, whatever FMPy's text
         warnings.warn(FmuWarning(f"{Path(path).name}: modelDescription.xml breaks the FMI standard: "
-                                 f"{problems[0]}{more}; loaded anyway"), stacklevel=2)
+                                 f"{first}{more}; loaded anyway"), stacklevel=2)
     return description
+
+
+def _declared_version(path: str) -> str:
+    """The root's fmiVersion attribute, read without interpreting the rest of the XML."""
+    from xml.etree.ElementTree import ParseError, iterparse
+
+    try:
+        with zipfile.ZipFile(path) as archive, archive.open("modelDescription.xml") as xml:
+            _, root = next(iterparse(xml, events=("start",)))
+    except (KeyError, ParseError, StopIteration) as e:
+        raise DseError(f"{path}: cannot read modelDescription.xml: {e}") from None
+    return root.get("fmiVersion") or "?"
+
+
+def check_version(path, version: str | None) -> None:
+    """FMI 2.0 and 3.0 only: FMI 1.0's API differs and FMPy's 1.0 support is not wired in."""
+    version = version or "?"
+    if not version.startswith(("2.", "3.")):
+        raise DseError(f"{path}: FMI {version}: dse-runner runs FMI 2.0 and 3.0 FMUs; export this model "
+                       "as FMI 2.0 or 3.0")
 
 
 def describe(path: Path) -> ModelDescription:
@@ -93,10 +115,7 @@ def describe(path: Path) -> ModelDescription:
 def choose_interface(path: Path, description: ModelDescription, wanted: Interface | None) -> Interface:
     """Co-simulation when the FMU offers it, unless model exchange is asked for; an error if the
     FMU cannot be run the way asked."""
-    version = description.fmiVersion or "?"
-    if not version.startswith(("2.", "3.")):
-        raise DseError(f"{path}: FMI {version}: dse-runner runs FMI 2.0 and 3.0 FMUs; export this model "
-                       "as FMI 2.0 or 3.0")
+    check_version(path, description.fmiVersion)
     offered = [i for i, part in (("cs", description.coSimulation), ("me", description.modelExchange)) if part]
     if not offered:
         raise DseError(f"{path}: offers neither co-simulation nor model exchange")
@@ -177,9 +196,7 @@ def load(path: Path, interface: Interface | None = None) -> LoadedFmu:
     chosen = choose_interface(path, description, interface)
     loaded = _LOADED.get((sha, chosen))
     if loaded is None:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", FmuWarning)  # the plan warned once already
-            member = binary_in_archive(path, description, chosen)
+        member = binary_in_archive(path, description, chosen)  # warns once per process: loads are kept
         unzip_dir = extract_root() / sha
         if not unzip_dir.is_dir():
             partial = Path(tempfile.mkdtemp(dir=extract_root(), prefix=f".{sha}-"))

@@ -5,8 +5,10 @@ In space.yaml an objective is one of (docs/space.md):
 * ``{signal: tank.level, reduce: max}``: a reduction of one recorded signal
   over the simulated time: final, min, max, mean (time average), integral,
   rms, changes (how often the value changes), time_above / time_below a
-  ``threshold``, or settling_time (when it last enters a band around a
-  ``target``, by default its final value);
+  ``threshold``, or settling_time (when it last enters a band around its
+  target). With ``target: 1.5`` the reduction applies to the signal's
+  deviation from 1.5 (``{signal: tank.level, target: 1.5, reduce: rms}`` is
+  the rms deviation); settling_time's target is by default the final value;
 * ``{signal: msd.x, recorded: x, metric: rmse}``: a signal against a column
   of the scenario's recording, at the recorded sample times: rmse, mae or
   max_abs;
@@ -52,7 +54,7 @@ class Reduce(BaseModel):
     signal: str
     reduce: Reduction
     threshold: float | None = None  # time_above, time_below
-    target: float | None = None  # settling_time; default: the final value
+    target: float | None = None  # reduce signal - target; settling_time's default: the final value
     tolerance: float = 0.02  # settling_time: the band is tolerance x |target - initial value| ...
     band: float | None = None  # ... unless an absolute half-width is given
 
@@ -62,8 +64,10 @@ class Reduce(BaseModel):
             raise ValueError(f"reduce: {self.reduce} needs a 'threshold'")
         if self.threshold is not None and self.reduce not in ("time_above", "time_below"):
             raise ValueError(f"'threshold' applies to time_above and time_below, not {self.reduce}")
-        if self.reduce != "settling_time" and (self.target is not None or self.band is not None):
-            raise ValueError(f"'target' and 'band' apply to settling_time, not {self.reduce}")
+        if self.reduce != "settling_time" and self.band is not None:
+            raise ValueError(f"'band' applies to settling_time, not {self.reduce}")
+        if self.reduce in ("time_above", "time_below", "changes") and self.target is not None:
+            raise ValueError(f"'target' does not apply to {self.reduce}")
         return self
 
 
@@ -133,7 +137,10 @@ METRICS: dict[str, Callable[[np.ndarray], float]] = {
 
 
 def reduce(spec: Reduce, trajectory, scenario) -> float:
-    return REDUCTIONS[spec.reduce](trajectory.time, trajectory.column(spec.signal), spec)
+    values = trajectory.column(spec.signal)
+    if spec.target is not None and spec.reduce != "settling_time":
+        values = values - spec.target
+    return REDUCTIONS[spec.reduce](trajectory.time, values, spec)
 
 
 def fit(spec: Fit, trajectory, scenario) -> float:

@@ -23,7 +23,9 @@ def test_simulate_json_prints_only_json_and_writes_track(tmp_path):
     assert 0 < report["objectives"]["cross_track_error"] <= report["objectives"]["max_error"]
     header = (tmp_path / "trajectory.csv").read_text().splitlines()[0]
     assert header.startswith("time,") and "vehicle.x" in header
-    assert (tmp_path / "track.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (tmp_path / "plot.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"  # field data: the track
+    assert (report["trajectory"], report["plot"]) == (str(tmp_path / "trajectory.csv"), str(tmp_path / "plot.png"))
+    assert report["scenario"] == "sin1" and report["dropouts"] == 0 and "vehicle.x" in report["final"]
 
 
 def test_simulate_prints_objectives(tmp_path):

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from dse_runner import DseError
+from dse_runner import fielddata
 from dse_runner import objectives as objs
 from dse_runner.cosim import Trajectory
 from dse_runner.scenario import load_scenario
@@ -28,13 +29,18 @@ def recorded(tmp_path):
 
 def track(time, x, y):
     values = np.column_stack([x, y])
-    return Trajectory(np.asarray(time, float), ("v.x", "v.y"), values, ("v.x", "v.y"))
+    return Trajectory(np.asarray(time, float), ("v.x", "v.y"), values)
+
+
+def test_the_position_is_the_only_instance_with_x_and_y(recorded):
+    assert recorded.kind == "field_data"
+    assert fielddata.position_refs(track([0.0, 4.0], [0.0, 4.0], [0.0, 0.0]), recorded) == ("v.x", "v.y")
 
 
 def test_constant_offset(recorded):
     t = np.linspace(0, 4, 9)
     traj = track(t, t + 3.0, np.full_like(t, 4.0))  # 5 m from every fix
-    scores = objs.evaluate(objs.DEFAULT, traj, recorded)
+    scores = objs.evaluate(objs.normalise(list(fielddata.FieldData.default_objectives)), traj, recorded)
     assert scores == pytest.approx({"cross_track_error": 5.0, "max_error": 5.0,
                                     "rms_error": 5.0, "final_error": 5.0})
 
@@ -42,17 +48,17 @@ def test_constant_offset(recorded):
 def test_distances_interpolate_between_communication_points(recorded):
     # Simulated positions only at t = 0 and 4; the fix at t = 1 is compared with (1, 1).
     traj = track([0.0, 4.0], [0.0, 4.0], [0.0, 4.0])
-    distances = objs.fix_distances(traj, recorded)
+    distances = fielddata.fix_distances(traj, recorded)
     assert distances == pytest.approx([0.0, 1.0, 3.0, 4.0])
-    assert objs.cross_track_error(traj, recorded) == pytest.approx(2.0)  # Equation 1: the mean
-    assert objs.rms_error(traj, recorded) == pytest.approx(np.sqrt((0 + 1 + 9 + 16) / 4))
-    assert objs.max_error(traj, recorded) == pytest.approx(4.0)
-    assert objs.final_error(traj, recorded) == pytest.approx(4.0)
+    assert fielddata.cross_track_error(traj, recorded) == pytest.approx(2.0)  # Equation 1: the mean
+    assert fielddata.rms_error(traj, recorded) == pytest.approx(np.sqrt((0 + 1 + 9 + 16) / 4))
+    assert fielddata.max_error(traj, recorded) == pytest.approx(4.0)
+    assert fielddata.final_error(traj, recorded) == pytest.approx(4.0)
 
 
 def test_fixes_after_the_simulation_are_not_counted(recorded):
     traj = track([0.0, 1.0], [0.0, 1.0], [0.0, 0.0])
-    assert len(objs.fix_distances(traj, recorded)) == 2
+    assert len(fielddata.fix_distances(traj, recorded)) == 2
 
 
 def test_user_objective_by_import_path(tmp_path, monkeypatch, recorded):
@@ -62,7 +68,7 @@ def test_user_objective_by_import_path(tmp_path, monkeypatch, recorded):
     """))
     monkeypatch.syspath_prepend(str(tmp_path))
     traj = track([0.0, 4.0], [0.0, 7.5], [0.0, 0.0])
-    assert objs.evaluate(("my_objectives:final_x",), traj, recorded) == {"my_objectives:final_x": 7.5}
+    assert objs.evaluate(objs.normalise(["my_objectives:final_x"]), traj, recorded) == {"my_objectives:final_x": 7.5}
     sys.modules.pop("my_objectives", None)
 
 
@@ -73,4 +79,4 @@ def test_user_objective_by_import_path(tmp_path, monkeypatch, recorded):
 ])
 def test_bad_objective_names(name, message, recorded):
     with pytest.raises(DseError, match=message):
-        objs.resolve(name)
+        objs.function(name)

@@ -1,0 +1,120 @@
+"""The general examples under jobs/: a study without recordings (water tank) and a model-exchange
+calibration against a recording (mass-spring-damper), each run as a user would, on the real cluster."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+
+import numpy as np
+import pytest
+import yaml
+from conftest import REPO
+
+from dse_runner import store
+from dse_runner.rank import rank
+from dse_runner.report import write_report
+from dse_runner.simulation import simulate
+from dse_runner.spec import load_space
+from dse_runner.sweep import submit
+
+WATERTANK = REPO / "jobs" / "watertank"
+MSD = REPO / "jobs" / "msd"
+
+
+def _job_space(job, tmp_path, **changes):
+    """The job's space.yaml beside its own files (relative paths kept), with ``changes`` applied."""
+    spec = yaml.safe_load((job / "space.yaml").read_text()) | changes
+    path = job / f".test-space-{tmp_path.name}.yaml"
+    path.write_text(yaml.safe_dump(spec, sort_keys=False))
+    return path
+
+
+@pytest.fixture
+def job_space(tmp_path):
+    written = []
+
+    def make(job, **changes):
+        path = _job_space(job, tmp_path, output=str(tmp_path / "out"), **changes)
+        written.append(path)
+        return load_space(path)
+
+    yield make
+    for path in written:
+        path.unlink(missing_ok=True)
+
+
+def test_watertank_sweeps_the_levels_under_its_constraint_and_ranks_a_pareto_front(job_space, dask_scheduler,
+                                                                                     tmp_path):
+    parameters = {"controller.minlevel": [0.8, 1.0, 1.2], "controller.maxlevel": [1.0, 1.6, 2.2]}
+    space = job_space(WATERTANK, parameters=parameters, cluster={"address": dask_scheduler})
+    assert [s.name for s in space.scenarios] == ["nominal"]  # no scenarios: the experiment alone
+    report = submit(space)
+    assert (report.total, report.failed) == (7, 0)  # 9 points, 2 excluded by maxlevel > minlevel
+    rows = store.read_results(space.output, space.name, columns=[*parameters, "level_deviation", "switches"])
+    assert (rows["controller.maxlevel"] > rows["controller.minlevel"]).all()
+
+    # Each row is what a direct simulation of its point gives: the Boolean valve drives the tank.
+    row = rows.iloc[0]
+    point = {name: row[name] for name in parameters}
+    direct = simulate(space.plan, None, point, objectives=space.objectives, experiment=space.experiment)
+    valve = direct.trajectory.column("controller.valve")
+    assert set(np.unique(valve)) == {0.0, 1.0}
+    assert row["switches"] == np.count_nonzero(np.diff(valve)) == direct.objectives["switches"]
+    level = direct.trajectory.column("tank.level")
+    assert row["level_deviation"] == pytest.approx(
+        np.sqrt(np.trapezoid((level - 1.5) ** 2, direct.time) / 100.0), rel=1e-12)
+
+    ranking = rank(space.output, space.name)
+    assert list(ranking.table1["scenario"]) == ["nominal"]  # Table 1 has a single row
+    front = ranking.pareto[["level_deviation", "switches"]].to_numpy()
+    assert len(front) >= 2
+    for a in front:  # nothing on the front is dominated by any ranked point
+        others = ranking.totals[["level_deviation", "switches"]].to_numpy()
+        assert not ((others <= a).all(axis=1) & (others < a).any(axis=1)).any()
+    # The trade-off the front shows: its best-tracking point switches more than its calmest one.
+    assert front[front[:, 0].argmin(), 1] > front[front[:, 1].argmin(), 1]
+
+    page = write_report(space.output, tmp_path / "report.html", space.name)
+    assert "nominal" in page.read_text()
+
+
+def _recording_script():
+    """jobs/msd/make_recording.py, which says what truth and noise made the recording."""
+    spec = importlib.util.spec_from_file_location("make_recording", MSD / "make_recording.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_msd_model_exchange_calibration_finds_the_recordings_truth(job_space, dask_scheduler):
+    script = _recording_script()
+    truth = script.TRUTH
+    grid = {"msd.k": [truth["k"] - 2, truth["k"], truth["k"] + 2],
+            "msd.c": [truth["c"] - 0.3, truth["c"], truth["c"] + 0.3]}
+    space = job_space(MSD, parameters=grid, cluster={"address": dask_scheduler})
+    assert space.plan.interfaces == {"msd": "me"}
+    report = submit(space)
+    assert (report.total, report.failed) == (9, 0)
+    best = rank(space.output, space.name).best
+    assert best == {"msd.k": truth["k"], "msd.c": truth["c"]}
+    # The recording is the truth plus sensor noise: the best fit's error is the noise's size.
+    fit = simulate(space.plan, space.scenarios[0], best, objectives=space.objectives, experiment=space.experiment)
+    assert 0.5 * script.NOISE_SIGMA < fit.objectives["position_rmse"] < 1.5 * script.NOISE_SIGMA
+
+
+def test_the_jobs_run_from_the_cli_as_their_readme_says(tmp_path, dask_scheduler):
+    from typer.testing import CliRunner
+
+    from dse_runner.cli import app
+
+    path = _job_space(WATERTANK, tmp_path, output=str(tmp_path / "out"),
+                      parameters={"controller.minlevel": [1.0], "controller.maxlevel": [2.0, 2.2]})
+    try:
+        result = CliRunner().invoke(app, ["submit", str(path), "--scheduler", dask_scheduler, "--no-dashboard",
+                                          "--json"])
+    finally:
+        path.unlink()
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.stdout)
+    assert summary["ok"] == 2 and summary["best"]["controller.maxlevel"] in (2.0, 2.2)
