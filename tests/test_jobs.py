@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -44,19 +47,32 @@ def job_space(tmp_path):
         path.unlink(missing_ok=True)
 
 
-def test_watertank_sweeps_the_levels_under_its_constraint_and_ranks_a_pareto_front(job_space, dask_scheduler,
-                                                                                     tmp_path):
-    parameters = {"controller.minlevel": [0.8, 1.0, 1.2], "controller.maxlevel": [1.0, 1.6, 2.2]}
-    space = job_space(WATERTANK, parameters=parameters, cluster={"address": dask_scheduler})
+WATERTANK_GRID = {"controller.minlevel": [0.8, 1.0, 1.2], "controller.maxlevel": [1.0, 1.6, 2.2]}
+
+
+@pytest.fixture(scope="module")
+def watertank(tmp_path_factory, dask_scheduler):
+    """The water-tank job on a small grid, run once on the real cluster for the tests below."""
+    folder = tmp_path_factory.mktemp("watertank")
+    path = _job_space(WATERTANK, folder, output=str(folder / "out"), parameters=WATERTANK_GRID,
+                      cluster={"address": dask_scheduler})
+    try:
+        space = load_space(path)
+        yield space, submit(space)
+    finally:
+        path.unlink()  # kept until the dashboard test has simulated the best point from it
+
+
+def test_watertank_sweeps_the_levels_under_its_constraint_and_ranks_a_pareto_front(watertank):
+    space, report = watertank
     assert [s.name for s in space.scenarios] == ["nominal"]  # no scenarios: the experiment alone
-    report = submit(space)
     assert (report.total, report.failed) == (7, 0)  # 9 points, 2 excluded by maxlevel > minlevel
-    rows = store.read_results(space.output, space.name, columns=[*parameters, "level_deviation", "switches"])
+    rows = store.read_results(space.output, space.name, columns=[*WATERTANK_GRID, "level_deviation", "switches"])
     assert (rows["controller.maxlevel"] > rows["controller.minlevel"]).all()
 
     # Each row is what a direct simulation of its point gives: the Boolean valve drives the tank.
     row = rows.iloc[0]
-    point = {name: row[name] for name in parameters}
+    point = {name: row[name] for name in WATERTANK_GRID}
     direct = simulate(space.plan, None, point, objectives=space.objectives, experiment=space.experiment)
     valve = direct.trajectory.column("controller.valve")
     assert set(np.unique(valve)) == {0.0, 1.0}
@@ -69,14 +85,45 @@ def test_watertank_sweeps_the_levels_under_its_constraint_and_ranks_a_pareto_fro
     assert list(ranking.table1["scenario"]) == ["nominal"]  # Table 1 has a single row
     front = ranking.pareto[["level_deviation", "switches"]].to_numpy()
     assert len(front) >= 2
+    others = ranking.totals[["level_deviation", "switches"]].to_numpy()
     for a in front:  # nothing on the front is dominated by any ranked point
-        others = ranking.totals[["level_deviation", "switches"]].to_numpy()
         assert not ((others <= a).all(axis=1) & (others < a).any(axis=1)).any()
     # The trade-off the front shows: its best-tracking point switches more than its calmest one.
     assert front[front[:, 0].argmin(), 1] > front[front[:, 1].argmin(), 1]
 
-    page = write_report(space.output, tmp_path / "report.html", space.name)
-    assert "nominal" in page.read_text()
+
+def test_watertank_report_and_dashboard_show_the_one_scenario(watertank, tmp_path):
+    from playwright.sync_api import expect, sync_playwright
+    from test_dashboard import chromium
+
+    space, report = watertank
+    ranking = rank(space.output, space.name)
+    page_file = write_report(space.output, tmp_path / "report.html", space.name)
+    errors: list[str] = []
+    server = subprocess.Popen([sys.executable, "-m", "dse_runner.cli", "dashboard", str(space.output)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        match = re.search(r"http://127\.0\.0\.1:\d+/", server.stdout.readline())
+        assert match, server.stderr.read()
+        with sync_playwright() as playwright:
+            browser = chromium(playwright)
+            page = browser.new_page(viewport={"width": 1300, "height": 1600})
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+            page.goto(match[0])
+            page.wait_for_selector("#dse-done", timeout=30_000)
+            expect(page.locator("#dse-track")).to_have_text(re.compile(r"^nominal: best point"), timeout=60_000)
+            done, track = page.locator("#dse-done").inner_text(), page.locator("#dse-track").inner_text()
+            page.goto(page_file.as_uri())
+            text = page.locator("body").inner_text()
+            browser.close()
+    finally:
+        server.terminate()
+        server.wait(timeout=10)
+    assert errors == []
+    assert done.startswith(f"{report.total} of {report.total}")
+    assert track.endswith(f"{ranking.best_total:.4f}")  # the best point's level deviation, simulated again
+    assert re.search(r"nominal\s+\S+\s+[\d.]+", text) and f"{ranking.best_total:.4f}" in text
 
 
 def _recording_script():
