@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import ctypes
 import difflib
+import functools
 import math
 import time
 from collections.abc import Callable, Iterable, Mapping
@@ -39,7 +40,7 @@ from .multimodel import MultiModel
 from .scenario import Series
 from .steppers import FMI_WARNING, Stepper, stepper
 from .variables import (Conversion, Value, Variable, check_settable, check_value, conversion, describe_variable,
-                        split_ref)
+                        split_ref, with_article)
 
 
 class CosimError(DseError):
@@ -90,7 +91,8 @@ class Plan:
         for ref in refs:
             variable = self.variable(ref, purpose)
             if variable.family == "string" or not variable.numeric:
-                raise DseError(f"{purpose}: {ref!r} is a {variable.type}, not a number one can score")
+                raise DseError(f"{purpose}: {ref!r} is {with_article(variable.type)}, not a number one can "
+                               "score")
             if variable not in outputs[variable.instance]:
                 outputs[variable.instance].append(variable)
         return replace(self, outputs={name: tuple(vs) for name, vs in outputs.items()})
@@ -131,7 +133,9 @@ class Trajectory:
                           {rename(n): v for n, v in self.texts.items()})
 
     def to_csv(self, path: Path) -> None:
-        """``time`` then one column per signal; text values are quoted."""
+        """``time`` then one column per signal; text values are quoted. Sixteen significant digits
+        keep integers exact up to 2^53 (Int64 counters, millisecond stamps) and still print
+        0.1 * 3 as 0.3."""
         import csv
 
         with open(path, "w", newline="") as f:
@@ -139,7 +143,7 @@ class Trajectory:
             writer.writerow(["time", *self.names, *self.texts])
             numbers = np.column_stack([self.time, self.values])
             for k, row in enumerate(numbers):
-                writer.writerow([f"{v:.10g}" for v in row] + [v[k] for v in self.texts.values()])
+                writer.writerow([f"{v:.16g}" for v in row] + [v[k] for v in self.texts.values()])
 
 
 def lookup(variables: dict[str, dict[str, Variable]], models: dict[str, str], ref: str,
@@ -308,19 +312,43 @@ def _feeds(step: Stepper, links: list[tuple[Variable, int, Conversion]], signals
         buffer = (access.ctype * n)()
         view, gather = _buffer_view(buffer, access.ctype), np.array([i for _, i in members], dtype=np.intp)
         feeds.append(_Feed(access.set, step.args(access, vrs, n, buffer), access.name.replace("Get", "Set"),
-                           _filler(signals, gather, view, conv)))
+                           _filler(signals, gather, view, conv, [t for t, _ in members])))
     return feeds
 
 
-def _filler(signals: np.ndarray, gather: np.ndarray, view: np.ndarray, conv: Conversion) -> Callable[[], Any]:
+class _Unfit(Exception):
+    """A rounded value its integer target's C type cannot hold; the caller adds the time."""
+
+
+def _filler(signals: np.ndarray, gather: np.ndarray, view: np.ndarray, conv: Conversion,
+            targets: list[Variable]) -> Callable[[], Any]:
     """The cheapest way to move the sources' values into the buffer with the conversion asked for."""
     if conv.kind == "round":
-        return lambda: view.__setitem__(slice(None), np.rint(signals[gather]))
+        return _rounder(signals, gather, view, targets)
     if conv.kind == "threshold":
         return lambda: view.__setitem__(slice(None), signals[gather] > conv.threshold)
     if view.dtype == np.float64:
-        return lambda: np.take(signals, gather, out=view)
+        return functools.partial(np.take, signals, gather, out=view)  # no Python frame per call
     return lambda: view.__setitem__(slice(None), signals[gather])
+
+
+def _rounder(signals: np.ndarray, gather: np.ndarray, view: np.ndarray,
+             targets: list[Variable]) -> Callable[[], None]:
+    """Round into an integer buffer, refusing what its C type cannot hold: numpy would wrap it (or
+    NaN) into a wrong value silently."""
+    limits = np.iinfo(view.dtype)
+    low, above = float(limits.min), limits.max + 1.0  # not max: Int64's rounds up to 2^63 as a float
+
+    def fill() -> None:
+        rounded = np.rint(signals[gather])
+        fits = (rounded >= low) & (rounded < above)
+        if not fits.all():
+            j = int(np.argmin(fits))
+            raise _Unfit(f"{targets[j].ref} is fed {signals[gather[j]]:g}, which rounded does not fit "
+                         f"{with_article(targets[j].type)}")
+        view[:] = rounded
+
+    return fill
 
 
 def run(plan: Plan, values: Mapping[str, Value], start: float, stop: float, step: float,
@@ -447,7 +475,10 @@ def _read(unit: _Unit, t: float, texts: dict[str, list[str]] | None) -> None:
 
 def _feed(unit: _Unit, t: float) -> None:
     for feed in unit.feeds:
-        feed.fill()
+        try:
+            feed.fill()
+        except _Unfit as e:
+            raise CosimError(f"{e} at t={t:.6g}") from None
         if feed.call(*feed.args) > FMI_WARNING:
             raise unit.fail(feed.name, t)
 
@@ -476,7 +507,10 @@ def _step_loop(units: list[_Unit], times: np.ndarray, signals: np.ndarray, exter
         if plain:
             for unit in units:
                 for feed in unit.feeds:
-                    feed.fill()
+                    try:
+                        feed.fill()
+                    except _Unfit as e:  # no cost in the loop until raised
+                        raise CosimError(f"{e} at t={t:.6g}") from None
                     if feed.call(*feed.args) > FMI_WARNING:
                         raise unit.fail(feed.name, t)
         else:

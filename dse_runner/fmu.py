@@ -21,6 +21,7 @@ import hashlib
 import itertools
 import os
 import shutil
+import sys
 import tempfile
 import warnings
 import zipfile
@@ -68,7 +69,7 @@ def content_hash(path: Path) -> str:
 def _description(path: str, sha: str) -> ModelDescription:
     if not zipfile.is_zipfile(path):
         raise DseError(f"{path}: not an FMU: an FMU is a zip archive, and this file is not one")
-    check_version(path, _declared_version(path))  # before FMPy, whose reader fails obscurely on FMI 1.0 layouts
+    check_version(path, _declared_version(path))  # first: FMPy's reader fails obscurely on other layouts
     try:
         return read_model_description(path, validate=True)
     except Exception as strict:  # FMPy's ValidationError, or a plain exception for broken XML
@@ -237,10 +238,17 @@ class Instance:
 
 def _log2(environment, instance_name, status, category, message) -> None:
     """The one FMI 2 logger of this process: FMPy's varargs proxy keeps a single Python target,
-    so messages are routed to their instance by the component environment."""
+    so messages are routed to their instance by the component environment. Messages of FMUs that
+    FMPy itself instantiated (simulate_fmu, default callbacks), or that give no environment, are
+    printed as FMPy would, but on stderr: stdout may be carrying ``--json``."""
     instance = _BY_ENVIRONMENT.get(environment or 0)
     if instance is not None:
         instance.note(status, message)
+    else:
+        level = STATUS_NAMES[status] if 0 <= status < len(STATUS_NAMES) else str(status)
+        name = instance_name.decode("utf-8", "replace") if instance_name else "?"
+        text = message.decode("utf-8", "replace") if message else ""
+        print(f"[{level}] {name}: {text}", file=sys.stderr)
 
 
 _LOGGER2 = fmi2CallbackLoggerTYPE(_log2)
@@ -301,8 +309,8 @@ def acquire(name: str, fmu: LoadedFmu) -> Instance:
 def discard(instance: Instance) -> None:
     """Drop an instance an error left in an unknown state; the next run gets a new one."""
     _INSTANCES.pop((instance.fmu.sha, instance.name, instance.fmu.interface), None)
-    _BY_ENVIRONMENT.pop(instance.environment, None)
     try:
         instance.slave.freeInstance()
     except Exception:
         pass
+    _BY_ENVIRONMENT.pop(instance.environment, None)  # after: what it logs while freed is not printed

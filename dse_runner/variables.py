@@ -45,6 +45,19 @@ FAMILIES = {
 }
 SETTABLE = ("parameter", "input")
 
+# What the C type of each integer type holds: ctypes would silently wrap anything else. FMI 2's
+# Integer is 32-bit; enumerations are taken as FMI 3's Int64.
+RANGES = {
+    "Integer": (-2**31, 2**31 - 1), "Enumeration": (-2**63, 2**63 - 1),
+    **{f"Int{bits}": (-2**(bits - 1), 2**(bits - 1) - 1) for bits in (8, 16, 32, 64)},
+    **{f"UInt{bits}": (0, 2**bits - 1) for bits in (8, 16, 32, 64)},
+}
+
+
+def with_article(type_name: str) -> str:
+    """'a Real', 'an Integer', 'a UInt16': the article a type's name needs in a message."""
+    return f"{'an' if type_name[:1] in 'AEIO' else 'a'} {type_name}"
+
 
 def _finite(value: Any) -> Any:
     """NaN and infinity are no value to give an FMU (checked before the union, for one clear message)."""
@@ -115,7 +128,7 @@ def check_settable(variable: Variable) -> None:
     if variable.causality not in SETTABLE:
         raise DseError(f"{variable.ref!r} is a {variable.causality}, not a parameter or input: it cannot be set")
     if variable.family is None:
-        what = "an array" if not variable.scalar else f"a {variable.type}"
+        what = "an array" if not variable.scalar else with_article(variable.type)
         raise DseError(f"{variable.ref!r} is {what}, which dse-runner cannot set")
 
 
@@ -143,23 +156,31 @@ def coerce(variable: Variable, value: Value) -> Value:
         if value in (0, 1):  # True, False, 0, 1, 0.0, 1.0
             return bool(value)
         raise DseError(f"{variable.ref}: {value!r} is not a Boolean (true, false, 0 or 1)")
-    if not math.isfinite(float(value)):
+    if isinstance(value, float) and not math.isfinite(value):
         raise DseError(f"{variable.ref}: {value!r} is not a finite number")
     if family == "float":
         return float(value)
-    if float(value) != int(value):
-        raise DseError(f"{variable.ref}: {value!r} is not a whole number, as an {variable.type} must be")
-    return int(value)
+    if isinstance(value, float) and not value.is_integer():  # an int stays exact: Int64 goes past 2^53
+        raise DseError(f"{variable.ref}: {value!r} is not a whole number, as "
+                       f"{with_article(variable.type)} must be")
+    value = int(value)
+    low, high = RANGES.get(variable.type, (value, value))
+    if not low <= value <= high:
+        raise DseError(f"{variable.ref} = {value} does not fit {with_article(variable.type)} "
+                       f"({low} to {high})")
+    return value
 
 
 def _parse(variable: Variable, text: str) -> Value:
     lowered = text.strip().lower()
     if variable.family == "boolean" and lowered in ("true", "false"):
         return lowered == "true"
-    try:
-        return float(text)
-    except ValueError:
-        raise DseError(f"{variable.ref}: {text!r} is not a valid {variable.type}") from None
+    for number in (int, float):  # int first: float() would round a large Int64
+        try:
+            return number(text)
+        except ValueError:
+            pass
+    raise DseError(f"{variable.ref}: {text!r} is not a valid {variable.type}")
 
 
 @dataclass(frozen=True)
@@ -177,23 +198,24 @@ def conversion(source: Variable, target: Variable, round_: bool = False,
     where = f"connection {source.ref} -> {target.ref}"
     if s is None or t is None:
         bad = source if s is None else target
-        raise DseError(f"{where}: {bad.ref} is {'an array' if not bad.scalar else 'a ' + bad.type}, "
+        raise DseError(f"{where}: {bad.ref} is {'an array' if not bad.scalar else with_article(bad.type)}, "
                        "which dse-runner cannot connect")
     if round_ and threshold is not None:
         raise DseError(f"{where}: give either 'round' or 'threshold', not both")
     if "string" in (s, t):
         if s != t:
-            raise DseError(f"{where}: a {source.type} cannot feed a {target.type}: strings connect only to strings")
+            raise DseError(f"{where}: {with_article(source.type)} cannot feed {with_article(target.type)}: "
+                           "strings connect only to strings")
         return _no_option(where, round_, threshold)
     if t == "boolean" and s != "boolean":
         if threshold is None:
-            raise DseError(f"{where}: a {source.type} feeds a Boolean only through a threshold: "
+            raise DseError(f"{where}: {with_article(source.type)} feeds a Boolean only through a threshold: "
                            "write {input: " + target.ref + ", threshold: 0.5} (true above it)")
         return Conversion("threshold", float(threshold))
     if t == "integer" and s == "float":
         if not round_:
-            raise DseError(f"{where}: a {source.type} feeds an {target.type} only when rounded: "
-                           "write {input: " + target.ref + ", round: true}")
+            raise DseError(f"{where}: {with_article(source.type)} feeds {with_article(target.type)} only "
+                           "when rounded: write {input: " + target.ref + ", round: true}")
         return Conversion("round")
     return _no_option(where, round_, threshold)
 

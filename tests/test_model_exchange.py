@@ -109,7 +109,7 @@ def test_calls_outside_their_mode_fail(msd, capsys):
     model = instantiate(msd)
     with pytest.raises(FMICallException, match="fmi2SetContinuousStates"):
         model.setContinuousStates(cast((c_double * 2)(), POINTER(c_double)), 2)
-    assert "fmi2SetContinuousStates is not allowed in instantiated" in capsys.readouterr().out
+    assert "fmi2SetContinuousStates is not allowed in instantiated" in capsys.readouterr().err
     model.freeInstance()
 
 
@@ -261,7 +261,7 @@ def test_a_bad_parameter_fails_initialization_with_the_fmus_reason(msd, capsys):
     with pytest.raises(ModelExchangeError, match=r"^exiting initialization mode at t=0: "
                                                  r"fmi2ExitInitializationMode failed"):
         run(msd, model, params={"m": 0.0})
-    assert "mass m must be finite and > 0, got 0" in capsys.readouterr().out
+    assert "mass m must be finite and > 0, got 0" in capsys.readouterr().err
     model.freeInstance()
 
 
@@ -270,7 +270,7 @@ def test_derivatives_blowing_up_inside_cvode_name_the_fmu_error_and_time(msd, ca
     with pytest.raises(ModelExchangeError, match=r"^fmi2GetDerivatives failed with status 3 \(error\) "
                                                  r"while integrating from t=0\.\d+ to t=0\.\d+$"):
         run(msd, model, params={"k": -1e6})  # grows as exp(1000 t) until der(v) overflows
-    assert "der(v) is inf at t=0.6" in capsys.readouterr().out
+    assert "der(v) is inf at t=0.6" in capsys.readouterr().err
     model.freeInstance()
 
 
