@@ -53,13 +53,13 @@ def median_time(run, repeats: int) -> float:
 def time_simulate_fmu(plan, scenario, values, step: float, repeats: int) -> float:
     from fmpy import simulate_fmu
 
-    log = np.loadtxt(scenario.steering_inputs, delimiter=",", skiprows=1)
+    log = np.loadtxt(scenario.files["steering_inputs"], delimiter=",", skiprows=1)
     signals = np.array([tuple(row) for row in log],
                        dtype=[("time", float), ("velocity", float), ("delta_f", float)])
     start_values = {ref.split(".", 1)[1]: v for ref, v in values.items() if ref.startswith("vehicle.")}
 
     def run():
-        simulate_fmu(str(plan.fmu_paths["vehicle"]), stop_time=scenario.info.duration, step_size=step,
+        simulate_fmu(str(plan.fmu_paths["vehicle"]), stop_time=scenario.stop_time, step_size=step,
                      output_interval=step, start_values=start_values, input=signals, output=["x", "y"])
 
     return median_time(run, repeats)
@@ -84,8 +84,8 @@ def time_c_floor(plan, scenario, values, step: float, repeats: int, work: Path) 
     file_vr = plan.variable("controller.file", "set").vr
     done = subprocess.run(
         [str(binary), str(libraries["vehicle"]), guids["vehicle"], str(libraries["controller"]),
-         guids["controller"], repr(scenario.info.duration), repr(step), str(repeats), str(file_vr),
-         str(scenario.steering_inputs), c2v, v2c, sets],
+         guids["controller"], repr(scenario.stop_time), repr(step), str(repeats), str(file_vr),
+         str(scenario.files["steering_inputs"]), c2v, v2c, sets],
         capture_output=True, text=True, check=True)
     seconds, last_x = map(float, done.stdout.split())
     return seconds, last_x
@@ -107,7 +107,7 @@ def main() -> None:
         c_floor, c_last_x = time_c_floor(plan, scenario, values, step, args.repeats, Path(tmp))
     figures = {
         "dse_runner": median_time(lambda: simulate(plan, scenario, CALIBRATED), args.repeats),
-        "libcosim": median_time(lambda: run_libcosim(plan, values, scenario.info.duration, step), args.repeats),
+        "libcosim": median_time(lambda: run_libcosim(plan, values, scenario.stop_time, step), args.repeats),
         "simulate_fmu": time_simulate_fmu(plan, scenario, values, step, args.repeats),
         "c_floor": c_floor,
     }

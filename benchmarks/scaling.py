@@ -269,7 +269,8 @@ def shipment_size(space: Space) -> dict:
             "plugin_bytes": len(dask_dumps(ship.ShipmentPlugin(shipment))),
             "zlib_bytes": len(zlib.compress(pickle.dumps(shipment))),
             "fmu_bytes": sum(len(b) for b in shipment.fmus.values()),
-            "recording_bytes": sum(len(b) for p in shipment.scenarios.values() for b in p.files.values())}
+            "recording_bytes": sum(len(b) for b in shipment.files.values()),  # the files FMUs read by path
+            "scenarios_bytes": len(pickle.dumps(shipment.scenarios))}  # checked scenarios, their recordings inside
 
 
 def client_per_task(space: Space, repeats: int = 5) -> tuple[float, float]:
@@ -331,10 +332,10 @@ def machine_speed(space: Space, repeats: int = 20) -> float:
     from dse_runner.simulation import simulate
 
     sin1 = next(s for s in space.scenarios if s.name == "sin1")
-    simulate(space.plan, sin1, {}, space.objectives)
+    simulate(space.plan, sin1, {}, objectives=space.objectives, experiment=space.experiment)
     start = time.perf_counter()
     for _ in range(repeats):
-        simulate(space.plan, sin1, {}, space.objectives)
+        simulate(space.plan, sin1, {}, objectives=space.objectives, experiment=space.experiment)
     return (time.perf_counter() - start) / repeats * 1e3
 
 
@@ -439,7 +440,7 @@ def main() -> None:
     say(f"3. shipment (ship.pack of the Robotti space), sent once to every worker through the scheduler: "
         f"{sh['pickle_bytes']:,} bytes pickled ({sh['distributed_dumps_bytes']:,} with distributed's dumps, "
         f"{sh['plugin_bytes']:,} as the plugin, {sh['zlib_bytes']:,} zlib-compressed; "
-        f"FMUs {sh['fmu_bytes']:,}, recordings {sh['recording_bytes']:,})")
+        f"FMUs {sh['fmu_bytes']:,}, recorded files {sh['recording_bytes']:,}, scenarios {sh['scenarios_bytes']:,})")
 
     # 4. projection
     t = r2["seconds_per_simulation"]

@@ -55,10 +55,11 @@ def plain_loop(space: Space, limit: int | None = None) -> tuple[float, int]:
     plan = space.plan
     scenarios = {s.name: s for s in space.scenarios}
     tasks = list(expand(space))[:limit]
-    simulate(plan, scenarios[tasks[0].scenario], dict(tasks[0].point), space.objectives)  # warm-up
+    settings = {"objectives": space.objectives, "experiment": space.experiment}  # as the sweep's workers do
+    simulate(plan, scenarios[tasks[0].scenario], dict(tasks[0].point), **settings)  # warm-up
     start = time.perf_counter()
     for task in tasks:
-        simulate(plan, scenarios[task.scenario], dict(task.point), space.objectives)
+        simulate(plan, scenarios[task.scenario], dict(task.point), **settings)
     return time.perf_counter() - start, len(tasks)
 
 

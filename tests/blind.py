@@ -15,8 +15,9 @@ import numpy as np
 import yaml
 
 from dse_runner import bundled
+from dse_runner.fielddata import read_info
 from dse_runner.multimodel import parse_multimodel
-from dse_runner.scenario import load_scenario
+from dse_runner.scenario import INFO_FILE, load_scenario
 from dse_runner.simulation import as_plan, simulate
 
 REPO = Path(__file__).resolve().parents[1]
@@ -43,7 +44,6 @@ EFFECTS = {
 def truth_plan():
     data = yaml.safe_load(bundled.bundled_path("bundled:robotti/multimodel.yaml").read_text())
     data["fmus"] = {"controller": "bundled:fmus/replay_controller", "vehicle": "bundled:fmus/robotti_vehicle_effects"}
-    data["track"] = {"x": "vehicle.gps_x", "y": "vehicle.gps_y"}
     return as_plan(parse_multimodel(data, "truth", REPO))
 
 
@@ -54,19 +54,19 @@ def record(folder: Path, effect: str, runs: list[str], seconds: float, noise: fl
     plan = truth_plan()
     overrides = {**TRUTH_VEHICLE, **{f"vehicle.{k}": v for k, v in EFFECTS[effect].items()}}
     for name in runs:
-        source = load_scenario(SOURCES / name)
+        info = read_info(SOURCES / name / INFO_FILE)
         target = folder / name
         target.mkdir(parents=True, exist_ok=True)
-        duration = min(seconds, source.info.duration)
+        duration = min(seconds, info.duration)
         lines = (SOURCES / name / "steering_inputs.csv").read_text().splitlines()
         kept = [lines[0]] + [line for line in lines[1:] if float(line.split(",")[0]) <= duration + 1e-9]
         (target / "steering_inputs.csv").write_text("\n".join(kept) + "\n")
-        info = source.info.model_dump(mode="json") | {"duration": duration}
-        (target / "scenario.yaml").write_text(yaml.safe_dump(info, sort_keys=False))
+        (target / INFO_FILE).write_text(yaml.safe_dump(info.model_dump(mode="json") | {"duration": duration},
+                                                       sort_keys=False))
         (target / "gps_position.csv").write_text("time,x,y\n0,0,0\n")  # replaced below
         run = simulate(plan, load_scenario(target), overrides, objectives=(), step=0.05)
         fixes = np.round(np.arange(0.0, duration + 1e-9, 0.1), 2)
-        x, y = run.trajectory.xy()
+        x, y = run.trajectory.column("vehicle.gps_x"), run.trajectory.column("vehicle.gps_y")  # the antenna
         gx = np.interp(fixes, run.trajectory.time, x) + rng.normal(0, noise, fixes.size)
         gy = np.interp(fixes, run.trajectory.time, y) + rng.normal(0, noise, fixes.size)
         keep = rng.random(fixes.size) >= dropout

@@ -99,7 +99,7 @@ def test_gps_dropouts_are_skipped_like_missing_rows_and_counted(scenario_copy, t
     assert with_dropouts["dropouts"] == 4 and without_rows["dropouts"] == 0
     assert with_dropouts["objectives"] == without_rows["objectives"]
     code, out, err = run("simulate", MULTIMODEL, "-s", dropped, "--out", tmp_path / "c")
-    assert "GPS dropouts skipped (empty or NaN fixes): sin1 4" in out
+    assert "recorded values skipped as dropouts (empty or NaN): sin1 4" in out
 
 
 def test_a_recording_of_only_dropouts_is_an_error(scenario_copy, tmp_path):
@@ -151,7 +151,8 @@ def test_an_fmu_whose_instantiate_returns_null(tmp_path):
     description.write_text(description.read_text().replace("{0b7d8f3e", "{ffffffff"))
     code, _, err = run("simulate", sleeper_multimodel(tmp_path, sources), "-s", SCENARIOS / "sin1")
     line = one_line_error(code, err)
-    assert "sleeper (sleeper): fmi2Instantiate failed: GUID does not match" in line
+    assert re.search(r"^error: sleeper \(sleeper\): instantiating it failed \(sleeper-[0-9a-f]+\.fmu\): "
+                     r"GUID does not match this FMU's modelDescription\.xml$", line), line
 
 
 def test_a_value_outside_its_declared_min_or_max(tmp_path):
@@ -176,11 +177,19 @@ def test_a_value_outside_its_declared_min_or_max(tmp_path):
     ({"parameters": {"vehicle.mass": "heavy"}},
      r"space\.yaml: parameters\.vehicle\.mass: expected a list of values or a range"),
     ({"parameters": {"vehicle.mass": ["heavy"]}}, r"parameters\.vehicle\.mass: vehicle\.mass: 'heavy' is not a valid Real"),
-    ({"scenarios": []}, r"space\.yaml: scenarios: give at least one scenario folder"),
+    # no scenarios: the one scenario "nominal", which has no kind's default objectives ...
+    ({"scenarios": []}, r"space\.yaml: objectives: name at least one, e\.g\. "),
+    # ... nor the fields the multi-model binds: checked when the space loads
+    ({"scenarios": [], "objectives": {"x_final": {"signal": "vehicle.x", "reduce": "final"}}},
+     r"space\.yaml: the multi-model binds controller\.file to 'steering_inputs': scenario nominal: "
+     r"no field 'steering_inputs' \(a signals scenario has no fields\)"),
+    ({"multimodel": {**yaml.safe_load(MULTIMODEL.read_text()), "scenario": {"controller.file": "steering"}}},
+     r"space\.yaml: the multi-model binds controller\.file to 'steering': scenario sin1: no field 'steering'; "
+     r"it has duration, gps_position, initial_pose\.theta, initial_pose\.x, initial_pose\.y, steering_inputs"),
     ({"multimodel": "nowhere.yaml"}, r"cannot read multi-model .*nowhere\.yaml"),
     ({"multimodel": "bundled:nothing.yaml"}, r"'bundled:nothing\.yaml': dse-runner bundles no such file"),
 ], ids=["range-nan", "list-inf", "timeout-negative", "chunk-text", "values-not-list", "value-type",
-        "no-scenarios", "multimodel-missing", "bundled-missing"])
+        "no-scenarios", "no-scenarios-bound-field", "scenario-field", "multimodel-missing", "bundled-missing"])
 def test_a_bad_spec_value(tmp_path, changes, message):
     code, out, err = run("submit", write_space(tmp_path, **changes), "--no-dashboard", "--json")
     assert out == ""
@@ -194,7 +203,10 @@ def test_a_bad_spec_value(tmp_path, changes, message):
     ({"connections": {"controller.velocity": "vehicle.velocity"}},
      r"mm\.yaml: connections\.controller\.velocity: Input should be a valid list"),
     ({"step": 0}, r"mm\.yaml: step: Input should be greater than 0"),
-    ({"scenario": {"controller.file": "steering"}}, r"mm\.yaml: scenario\.controller\.file: Input should be"),
+    # a binding to a field no scenario has: checked against the scenario at simulate
+    ({"scenario": {"controller.file": "steering"}},
+     r"scenario sin1: no field 'steering'; it has duration, gps_position, initial_pose\.theta, initial_pose\.x, "
+     r"initial_pose\.y, steering_inputs$"),
     ({"parameters": {"vehicle": 1}}, r"mm\.yaml: parameters: 'vehicle' is not of the form"),
 ], ids=["parameter-nan", "parameter-inf", "no-fmus", "connection-not-list", "step-zero", "scenario-field",
         "parameter-ref"])
@@ -277,4 +289,4 @@ def test_submit_counts_dropouts_and_keeps_its_json_strict(scenario_copy, tmp_pat
     report = strict_loads(out)
     assert report["dropouts"] == {"sin1": 2} and (report["ok"], report["failed"]) == (2, 0)
     code, out, err = run("submit", space, "--no-dashboard")
-    assert "GPS dropouts skipped (empty or NaN fixes): sin1 2" in out
+    assert "recorded values skipped as dropouts (empty or NaN): sin1 2" in out

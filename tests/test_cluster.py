@@ -185,7 +185,6 @@ def crasher_space(tmp_path: Path) -> Path:
         "connections": {"controller.velocity": ["crasher.velocity"]},
         "parameters": {"crasher.crash_at": CRASH_AT},
         "scenario": {"controller.file": "steering_inputs"},
-        "track": {"x": "crasher.x", "y": "crasher.y"},
     }
     (tmp_path / "crasher.yaml").write_text(yaml.safe_dump(multimodel))
     return write_space(tmp_path, multimodel=str(tmp_path / "crasher.yaml"), scenarios=[str(SCENARIOS / "sin1")],

@@ -69,12 +69,16 @@ def test_simulate_a_multimodel_of_its_own_fmus(installed):
     model = yaml.safe_load(MULTIMODEL.read_text())
     model["fmus"] = {"controller": "fmus/replay_controller.fmu", "vehicle": "fmus/robotti_vehicle.fmu"}
     (installed["work"] / "mm.yaml").write_text(yaml.safe_dump(model))
-    done = command(installed, "simulate", "mm.yaml", "--scenario", "sin1", "--set", "vehicle.mass=1500", "--json")
+    done = command(installed, "simulate", "mm.yaml", "--scenario", "sin1", "--set", "vehicle.mass=1500", "--json",
+                   "--out", "out/sin1")
     assert done.returncode == 0, done.stderr
     printed = strict_loads(done.stdout)
     here = simulate(MULTIMODEL, SCENARIOS / "sin1", {"vehicle.mass": 1500})
+    # the field-data objectives come from the wheel's own entry points (the kind is a plug-in)
+    assert set(printed["objectives"]) == {"cross_track_error", "max_error", "rms_error", "final_error"}
     assert printed["objectives"] == pytest.approx(here.objectives, rel=1e-12)
     assert (installed["work"] / "out" / "sin1" / "trajectory.csv").is_file()
+    assert (installed["work"] / printed["trajectory"]).samefile(installed["work"] / "out" / "sin1" / "trajectory.csv")
 
 
 def test_diagnose_three_bundled_runs_with_a_small_grid(installed):
