@@ -346,11 +346,14 @@ def kinds() -> dict[str, Kind]:
     return found
 
 
+@cache
 def kind(name: str) -> Kind:
-    available = kinds()
-    if name not in available:
-        raise DseError(f"unknown scenario kind {name!r}: installed are {', '.join(sorted(available))}")
-    return available[name]
+    """One kind by name, loading only its plug-in (a plain study never imports field data's)."""
+    if name == SignalsKind.name:
+        return SignalsKind()
+    for entry in entry_points(group="dse_runner.scenarios", name=name):
+        return entry.load()
+    raise DseError(f"unknown scenario kind {name!r}: installed are {', '.join(sorted(kinds()))}")
 
 
 def load_scenario(folder: str | Path, kind_name: str | None = None,
