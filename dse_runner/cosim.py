@@ -198,11 +198,11 @@ def _links(multimodel: MultiModel, variables, models) -> tuple[Link, ...]:
     for source_ref, target in multimodel.targets():
         source = lookup(variables, models, source_ref, "connection")
         if source.causality != "output":
-            raise DseError(f"connection: {source_ref!r} must be an output (it is a {source.causality})")
+            raise DseError(f"connection: {source_ref!r} must be an output (it is {with_article(source.causality)})")
         sink = lookup(variables, models, target.input, "connection")
         if sink.causality != "input":
             raise DseError(f"connection {source_ref} -> {target.input}: the target must be an input "
-                           f"(it is a {sink.causality})")
+                           f"(it is {with_article(sink.causality)})")
         if target.input in fed:
             raise DseError(f"connection: input {target.input!r} is fed by both {fed[target.input]} and {source_ref}")
         fed[target.input] = source_ref
@@ -564,7 +564,7 @@ def _resolve_inputs(plan: Plan, inputs: Mapping[str, Series], times: np.ndarray)
     for ref, series in inputs.items():
         variable = plan.variable(ref, "scenario input")
         if variable.causality != "input":
-            raise DseError(f"scenario input {ref!r} is a {variable.causality}, not an input: give it as a "
+            raise DseError(f"scenario input {ref!r} is {with_article(variable.causality)}, not an input: give it as a "
                            "parameter instead")
         values = series.at(times)
         if variable.family == "string":

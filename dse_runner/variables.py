@@ -55,8 +55,8 @@ RANGES = {
 
 
 def with_article(type_name: str) -> str:
-    """'a Real', 'an Integer', 'a UInt16': the article a type's name needs in a message."""
-    return f"{'an' if type_name[:1] in 'AEIO' else 'a'} {type_name}"
+    """'a Real', 'an Integer', 'a UInt16', 'an output': the article a name needs in a message."""
+    return f"{'an' if type_name[:1] in 'AEIOaeiou' else 'a'} {type_name}"
 
 
 def _finite(value: Any) -> Any:
@@ -126,7 +126,7 @@ def describe_variable(instance: str, v) -> Variable:
 
 def check_settable(variable: Variable) -> None:
     if variable.causality not in SETTABLE:
-        raise DseError(f"{variable.ref!r} is a {variable.causality}, not a parameter or input: it cannot be set")
+        raise DseError(f"{variable.ref!r} is {with_article(variable.causality)}, not a parameter or input: it cannot be set")
     if variable.family is None:
         what = "an array" if not variable.scalar else with_article(variable.type)
         raise DseError(f"{variable.ref!r} is {what}, which dse-runner cannot set")

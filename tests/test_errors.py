@@ -43,7 +43,7 @@ def test_unknown_variable_in_set(plan):
 
 
 def test_output_cannot_be_set(plan):
-    with pytest.raises(DseError, match=r"'vehicle\.x' is a output.*cannot be set"):
+    with pytest.raises(DseError, match=r"'vehicle\.x' is an output.*cannot be set"):
         simulate(plan, SCENARIOS / "sin1", {"vehicle.x": 3})
 
 

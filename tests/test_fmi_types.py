@@ -229,7 +229,7 @@ def test_every_fmi3_type_round_trips(fmus, as_text):
     ("types2", "bool_in", 2, "types2.bool_in: 2 is not a Boolean"),
     ("types2", "bool_in", "yes", "types2.bool_in: 'yes' is not a valid Boolean"),
     ("types2", "real_gain", 11, "types2.real_gain = 11 is above its declared max 10"),
-    ("types2", "real_out", 1.0, "'types2.real_out' is a output, not a parameter or input"),
+    ("types2", "real_out", 1.0, "'types2.real_out' is an output, not a parameter or input"),
 ])
 def test_a_value_its_type_cannot_hold_is_refused(fmus, name, variable, value, message):
     with pytest.raises(DseError, match=re.escape(message)):

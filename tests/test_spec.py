@@ -63,7 +63,7 @@ def test_task_ids_are_stable_and_follow_the_data(tmp_path):
     ({"parameters": {"vehicle.mass": {"start": 3, "stop": 2, "num": 2}}}, r"'stop' must not be below 'start'"),
     ({"scenarios": ["nowhere/*"]}, r"space\.yaml: scenarios\.0\.path: 'nowhere/\*' matches no folder"),
     ({"parameters": {"vehicle.masss": [1]}}, r"space\.yaml: parameters: unknown variable 'vehicle\.masss'.*mass"),
-    ({"parameters": {"vehicle.x": [1]}}, r"'vehicle\.x' is a output"),
+    ({"parameters": {"vehicle.x": [1]}}, r"'vehicle\.x' is an output"),
     ({"constraints": ["__import__('os').system('true')"]}, r"constraints\.0: .*Call .* is not allowed"),
     ({"constraints": ["vehicle.mu > 0.3"]}, r"'vehicle\.mu' is not a swept parameter"),
     ({"objectives": ["cross_track_eror"]}, r"unknown objective 'cross_track_eror'"),
