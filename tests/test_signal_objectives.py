@@ -105,3 +105,37 @@ def test_a_non_finite_value_fails_naming_the_objective():
     trajectory = Trajectory(TIME, ("x",), np.array([0.0, 1.0, np.inf, 1.0, 0.0])[:, None])
     with pytest.raises(DseError, match="objective 'peak' is not a finite number on scenario nominal"):
         objs.evaluate({"peak": objs.Reduce(signal="x", reduce="max")}, trajectory, PLAIN)
+
+
+def _space(tmp_path, **spec):
+    import yaml
+    from conftest import REPO
+
+    from dse_runner.spec import load_space
+
+    base = {"name": "s", "multimodel": str(REPO / "jobs" / "msd" / "multimodel.yaml"), "experiment": {"step": 0.05},
+            "parameters": {"msd.k": [14]}}
+    path = tmp_path / "space.yaml"
+    path.write_text(yaml.safe_dump(base | spec))
+    return lambda: load_space(path)
+
+
+def test_a_space_names_an_objectives_unknown_signal(tmp_path):
+    load = _space(tmp_path, experiment={"stop_time": 1, "step": 0.1}, objectives={"m": {"signal": "msd.xx", "reduce": "max"}})
+    with pytest.raises(DseError, match=r"space\.yaml: objectives\.m: unknown variable 'msd\.xx'.*did you mean x"):
+        load()
+
+
+def test_a_space_names_a_recorded_column_its_recording_lacks(tmp_path):
+    from conftest import REPO
+
+    recording = REPO / "jobs" / "msd" / "recording" / "position.csv"
+    load = _space(tmp_path, scenarios=[{"name": "r", "recorded": str(recording), "stop_time": 10}],
+                  objectives={"fit": {"signal": "msd.x", "recorded": "position"}})
+    with pytest.raises(DseError, match=r"objectives\.fit: scenario r's recording .*position\.csv has no column "
+                                       r"'position' \(it has x\)"):
+        load()
+    nothing = _space(tmp_path, experiment={"stop_time": 1, "step": 0.1},
+                     objectives={"fit": {"signal": "msd.x", "recorded": "x"}})
+    with pytest.raises(DseError, match="compares with recorded 'x', but scenario nominal has no recording"):
+        nothing()
