@@ -269,7 +269,7 @@ def _instantiate(name: str, fmu: LoadedFmu) -> Instance:
             instance.keep = lambda env, status, category, message: instance.note(status, message)
             slave.instantiate(logMessage=instance.keep)
     except Exception:
-        raise DseError(instance.explain(f"instantiating it failed ({fmu.path.name})")) from None
+        raise DseError(instance.explain(f"fmi{fmu.version}Instantiate failed ({fmu.path.name})")) from None
     return instance
 
 

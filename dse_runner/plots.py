@@ -27,7 +27,7 @@ def result_plot(result: SimulationResult, path: Path) -> Path:
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
-    return path
+    return Path(path).resolve()
 
 
 def _shown(result: SimulationResult) -> list[str]:

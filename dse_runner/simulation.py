@@ -20,6 +20,7 @@ from . import objectives as objs
 from .cosim import Plan, Trajectory, make_plan, run
 from .experiment import Experiment, Times, resolve_times
 from .multimodel import MultiModel, load_multimodel
+from .errors import DseError
 from .scenario import Scenario, Series, kind, load_scenario, nominal
 from .variables import Value, split_ref
 
@@ -87,7 +88,12 @@ def default_objectives(scenario: Scenario) -> dict[str, objs.ObjectiveSpec]:
 
 def scenario_values(plan: Plan, scenario: Scenario) -> dict[str, Value]:
     """The values a scenario gives: bound fields, its parameters and its constant inputs."""
-    bound = {ref: scenario.value_of(name) for ref, name in plan.multimodel.scenario.items()}
+    try:
+        bound = {ref: scenario.value_of(name) for ref, name in plan.multimodel.scenario.items()}
+    except DseError as e:
+        ref, name = next((r, n) for r, n in plan.multimodel.scenario.items() if n not in
+                         {*scenario.fields, *scenario.files})
+        raise DseError(f"the multi-model binds {ref} to {name!r}: {e}") from None
     constants = {ref: v for ref, v in scenario.inputs.items() if not isinstance(v, Series)}
     return {**bound, **scenario.parameters, **constants}
 
@@ -139,7 +145,7 @@ def write_csv(result: SimulationResult, path: Path, bare: bool = False) -> Path:
     single FMU, its variable's own name)."""
     trajectory = result.trajectory.renamed(lambda n: n.partition(".")[2]) if bare else result.trajectory
     trajectory.to_csv(Path(path))
-    return Path(path)
+    return Path(path).resolve()
 
 
 def summary(result: SimulationResult, bare: bool = False) -> dict:

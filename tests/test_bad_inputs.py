@@ -151,7 +151,7 @@ def test_an_fmu_whose_instantiate_returns_null(tmp_path):
     description.write_text(description.read_text().replace("{0b7d8f3e", "{ffffffff"))
     code, _, err = run("simulate", sleeper_multimodel(tmp_path, sources), "-s", SCENARIOS / "sin1")
     line = one_line_error(code, err)
-    assert re.search(r"^error: sleeper \(sleeper\): instantiating it failed \(sleeper-[0-9a-f]+\.fmu\): "
+    assert re.search(r"^error: sleeper \(sleeper\): fmi2Instantiate failed \(sleeper-[0-9a-f]+\.fmu\): "
                      r"GUID does not match this FMU's modelDescription\.xml$", line), line
 
 
@@ -205,8 +205,8 @@ def test_a_bad_spec_value(tmp_path, changes, message):
     ({"step": 0}, r"mm\.yaml: step: Input should be greater than 0"),
     # a binding to a field no scenario has: checked against the scenario at simulate
     ({"scenario": {"controller.file": "steering"}},
-     r"scenario sin1: no field 'steering'; it has duration, gps_position, initial_pose\.theta, initial_pose\.x, "
-     r"initial_pose\.y, steering_inputs$"),
+     r"error: the multi-model binds controller\.file to 'steering': scenario sin1: no field 'steering'; it has "
+     r"duration, gps_position, initial_pose\.theta, initial_pose\.x, initial_pose\.y, steering_inputs$"),
     ({"parameters": {"vehicle": 1}}, r"mm\.yaml: parameters: 'vehicle' is not of the form"),
 ], ids=["parameter-nan", "parameter-inf", "no-fmus", "connection-not-list", "step-zero", "scenario-field",
         "parameter-ref"])
