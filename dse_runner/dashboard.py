@@ -213,7 +213,7 @@ class Page:
         self.fig5 = charts.ObjectiveByParameter(p, objective, sorted(set(self.scenarios.values())))
         self.fig6 = charts.ErrorByGroup(p, objective, self.scenarios)
         names = sorted(self.scenarios)
-        self.select = Select(title="scenario of the track", value=names[0] if names else "", options=names)
+        self.select = Select(title="scenario", value=names[0] if names else "", options=names)
         self.select.on_change("value", lambda attr, old, new: self._track(feed.snapshot(), force=True))
         self.track = charts.TrackChart()
         self.track_note = Div(width=800)
@@ -229,7 +229,7 @@ class Page:
             heading(f"{objective} against each parameter (paper's Figure 5)"), self.fig5.layout,
             heading(f"{objective} per scenario group at each parameter point, points sorted by "
                     f"{', '.join(p)} (paper's Figure 6)"), self.fig6.layout,
-            heading("Best candidate's track"), self.select, self.track_note, self.track.figure))
+            heading("Best candidate against the scenario's recording"), self.select, self.track_note, self.track.figure))
         self.update()
         doc.add_periodic_callback(self.update, int(REFRESH_SECONDS * 1000))
 

@@ -71,7 +71,7 @@ value and "difference" its distance from the average (the paper's Table 1).</p>
 <p class="note">At every parameter point, sorted by {{ parameters }} (the paper's Figure 6).</p>
 {{ plots.by_group }}
 
-<h2>The best point's tracks</h2>
+<h2>The best point against each scenario's recording</h2>
 {% if plots.tracks %}{{ plots.tracks }}{% else %}<p class="note">{{ track_note }}</p>{% endif %}
 
 <h2>The spec</h2>
