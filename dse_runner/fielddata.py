@@ -28,7 +28,7 @@ entry-point group ``dse_runner.scenarios`` and the objectives in
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -95,11 +95,6 @@ def gps(scenario: Scenario) -> Track:
         raise DseError(f"scenario {scenario.name} is a {scenario.kind} scenario, not recorded field data with GPS fixes")
     recorded = scenario.recorded
     return Track(recorded.time, recorded.columns["x"], recorded.columns["y"], recorded.missing)
-
-
-def steering(scenario: Scenario) -> list[np.ndarray]:
-    """The steering log's time, velocity and delta_f columns, every value checked."""
-    return read_table(scenario.files["steering_inputs"], ("time", "velocity", "delta_f")).columns
 
 
 def _control_period(path: Path, time: np.ndarray) -> float:
@@ -181,11 +176,6 @@ class FieldData:
 
 
 FIELD_DATA = FieldData()
-
-
-def with_position(scenario: Scenario, x: str, y: str) -> Scenario:
-    """The scenario compared at other outputs (diagnosis compares at the GPS antenna)."""
-    return replace(scenario, options={**scenario.options, "position": {"x": x, "y": y}})
 
 
 # ---- objectives --------------------------------------------------------------------------------
