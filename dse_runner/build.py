@@ -9,7 +9,7 @@ sources (``sources/``), as FMI allows, so it can be rebuilt elsewhere.
 
 ``common`` holds one layer per kind of FMU and the description picks it (see ``layer_of``):
 FMI 2.0 co-simulation (``slave.c``), FMI 2.0 model exchange (``me2.c``), FMI 3.0 co-simulation
-(``slave3.c``). Only the chosen layer's files, with common's shared headers, are compiled, hashed
+(``slave3.c``), FMI 3.0 model exchange (``me3.c``). Only the chosen layer's files, with common's shared headers, are compiled, hashed
 and shipped.
 """
 
@@ -47,7 +47,8 @@ class Layer:
 CS2 = Layer("slave", "CoSimulation", PLATFORM_DIR)
 ME2 = Layer("me2", "ModelExchange", PLATFORM_DIR)
 CS3 = Layer("slave3", "CoSimulation", PLATFORM_DIR_FMI3)
-LAYERS = (CS2, ME2, CS3)
+ME3 = Layer("me3", "ModelExchange", PLATFORM_DIR_FMI3)
+LAYERS = (CS2, ME2, CS3, ME3)
 
 
 class BuildError(DseError):
@@ -79,13 +80,15 @@ def read_description(source_dir: Path):
 
 
 def layer_of(source_dir: Path) -> Layer:
-    """The layer the description asks for: FMI 3.0 -> slave3; 2.0 with only <ModelExchange> -> me2;
-    else slave."""
+    """The layer the description asks for: FMI 3.0 -> slave3, or me3 with only <ModelExchange>;
+    2.0 with only <ModelExchange> -> me2; else slave."""
     md = read_description(source_dir)
     if md.fmiVersion == "3.0":
+        if md.coSimulation is None and md.modelExchange is not None:
+            return ME3
         if md.coSimulation is None:
-            raise BuildError(f"{source_dir}/modelDescription.xml: FMI 3.0 sources must declare <CoSimulation>"
-                             " (there is no FMI 3.0 model-exchange layer)")
+            raise BuildError(f"{source_dir}/modelDescription.xml declares neither <CoSimulation>"
+                             " nor <ModelExchange>")
         return CS3
     if md.fmiVersion != "2.0":
         raise BuildError(f"{source_dir}/modelDescription.xml: fmiVersion {md.fmiVersion!r} is not built here"

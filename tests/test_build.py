@@ -73,9 +73,10 @@ def test_missing_layer_is_a_clear_build_error(tmp_path, monkeypatch):
         build_fmu(source, tmp_path / "cache")
 
 
-def test_fmi3_model_exchange_is_refused(tmp_path):
-    with pytest.raises(BuildError, match="FMI 3.0 sources must declare <CoSimulation>"):
-        build_fmu(me_only_source(tmp_path, "3.0"), tmp_path / "cache")
+def test_fmi3_model_exchange_sources_get_the_fmi3_me_layer(tmp_path):
+    from dse_runner import build
+
+    assert build.layer_of(me_only_source(tmp_path, "3.0")) is build.ME3
 
 
 def test_build_is_cached_by_source_hash(tmp_path):
