@@ -31,11 +31,11 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from dse_runner import bundled  # noqa: E402
-from dse_runner.build import fmi_headers_dir  # noqa: E402
-from dse_runner.crosscheck import run_libcosim  # noqa: E402
-from dse_runner.fmu import describe  # noqa: E402
-from dse_runner.scenario import load_scenario  # noqa: E402
-from dse_runner.simulation import as_plan, simulate  # noqa: E402
+from dse_runner.simulation.build import fmi_headers_dir  # noqa: E402
+from dse_runner.simulation.crosscheck import run_libcosim  # noqa: E402
+from dse_runner.simulation.fmu import describe  # noqa: E402
+from dse_runner.simulation.scenario import load_scenario  # noqa: E402
+from dse_runner.simulation.run import as_plan, simulate  # noqa: E402
 
 CALIBRATED = {"vehicle.mass": 1000.0, "vehicle.cAlphaF": 38000.0, "vehicle.mu": 0.3}
 

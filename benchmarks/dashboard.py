@@ -21,10 +21,10 @@ from pathlib import Path
 
 from playwright.sync_api import sync_playwright
 
-from dse_runner.dashboard import Feed, serve
-from dse_runner.report import build_report
-from dse_runner.spec import load_space
-from dse_runner.sweep import submit
+from dse_runner.interfaces.dashboard import Feed, serve
+from dse_runner.interfaces.report import build_report
+from dse_runner.sweeps.spec import load_space
+from dse_runner.sweeps.sweep import submit
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -18,9 +18,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import blind  # noqa: E402
 
-from dse_runner.cluster import connect  # noqa: E402
-from dse_runner.diagnose.hypotheses import LIBRARY  # noqa: E402
-from dse_runner.spec import Cluster  # noqa: E402
+from dse_runner.sweeps.cluster import connect  # noqa: E402
+from dse_runner.analysis.diagnose.hypotheses import LIBRARY  # noqa: E402
+from dse_runner.sweeps.spec import Cluster  # noqa: E402
 
 
 def main() -> None:

@@ -51,10 +51,10 @@ from distributed.protocol.pickle import dumps as dask_dumps  # noqa: E402
 from distributed.scheduler import heartbeat_interval  # noqa: E402
 
 from dse_runner import ship, store  # noqa: E402
-from dse_runner.cluster import connect  # noqa: E402
-from dse_runner.expand import expand  # noqa: E402
-from dse_runner.spec import Space, load_space  # noqa: E402
-from dse_runner.sweep import _jobs, chunk_size, submit  # noqa: E402
+from dse_runner.sweeps.cluster import connect  # noqa: E402
+from dse_runner.sweeps.expand import expand  # noqa: E402
+from dse_runner.sweeps.spec import Space, load_space  # noqa: E402
+from dse_runner.sweeps.sweep import _jobs, chunk_size, submit  # noqa: E402
 
 MU = [0.3, 0.5]  # of the paper's five: 5 x 5 x 2 points x 12 scenarios = 600 tasks
 OVERHEAD_TARGET = 0.05  # worker-side overhead, as a fraction of simulation time
@@ -329,7 +329,7 @@ def slope(xs: list[float], ys: list[float]) -> float:
 def machine_speed(space: Space, repeats: int = 20) -> float:
     """Milliseconds of one sin1 simulation in this process: to see whether the machine's speed moved
     during the run (on a shared virtual machine it does)."""
-    from dse_runner.simulation import simulate
+    from dse_runner.simulation.run import simulate
 
     sin1 = next(s for s in space.scenarios if s.name == "sin1")
     simulate(space.plan, sin1, {}, objectives=space.objectives, experiment=space.experiment)

@@ -29,11 +29,11 @@ import psutil
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from dse_runner.cluster import connect  # noqa: E402
-from dse_runner.expand import expand  # noqa: E402
-from dse_runner.simulation import simulate  # noqa: E402
-from dse_runner.spec import Cluster, Space, load_space  # noqa: E402
-from dse_runner.sweep import submit  # noqa: E402
+from dse_runner.sweeps.cluster import connect  # noqa: E402
+from dse_runner.sweeps.expand import expand  # noqa: E402
+from dse_runner.simulation.run import simulate  # noqa: E402
+from dse_runner.sweeps.spec import Cluster, Space, load_space  # noqa: E402
+from dse_runner.sweeps.sweep import submit  # noqa: E402
 
 
 def fresh(space: Space, output: Path) -> Space:

@@ -18,10 +18,10 @@ from pathlib import Path
 
 from playwright.sync_api import sync_playwright
 
-from dse_runner.dashboard import link_from_dask, serve
-from dse_runner.report import write_report
-from dse_runner.spec import load_space
-from dse_runner.sweep import submit
+from dse_runner.interfaces.dashboard import link_from_dask, serve
+from dse_runner.interfaces.report import write_report
+from dse_runner.sweeps.spec import load_space
+from dse_runner.sweeps.sweep import submit
 
 REPO = Path(__file__).resolve().parents[1]
 IMAGES = REPO / "docs" / "images"

@@ -19,7 +19,7 @@ __all__ = ["DseError", "__version__", "simulate"]
 def __getattr__(name: str) -> Any:
     """``simulate`` is imported on first use: the CLI's start-up need not load FMPy."""
     if name == "simulate":
-        from .simulation import simulate
+        from .simulation.run import simulate
 
         return simulate
     raise AttributeError(f"module 'dse_runner' has no attribute {name!r}")

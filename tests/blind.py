@@ -15,10 +15,10 @@ import numpy as np
 import yaml
 
 from dse_runner import bundled
-from dse_runner.fielddata import read_info
-from dse_runner.multimodel import parse_multimodel
-from dse_runner.scenario import INFO_FILE, load_scenario
-from dse_runner.simulation import as_plan, simulate
+from dse_runner.cases.fielddata import read_info
+from dse_runner.simulation.multimodel import parse_multimodel
+from dse_runner.simulation.scenario import INFO_FILE, load_scenario
+from dse_runner.simulation.run import as_plan, simulate
 
 REPO = Path(__file__).resolve().parents[1]
 SOURCES = REPO / "scenarios" / "robotti"
@@ -95,7 +95,7 @@ def run_case(effect: str, root: Path, client=None, address: str | None = None, s
              seed: int = 0, runs: list[str] = RUNS):
     """Record ``effect`` on ``runs`` under ``root`` and diagnose it; returns (runs folder, calibration space,
     Diagnosis). ``seed`` shifts every case's noise, to check that a pass is not luck."""
-    from dse_runner.diagnose import Settings, diagnose
+    from dse_runner.analysis.diagnose import Settings, diagnose
 
     runs = record(root / "runs", effect, runs, seconds, seed=sorted(EFFECTS).index(effect) + seed)
     space = calibration_space(root)

@@ -31,7 +31,7 @@ def fresh_fmu_cache(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def plan():
-    from dse_runner.simulation import as_plan
+    from dse_runner.simulation.run import as_plan
 
     return as_plan(MULTIMODEL)
 

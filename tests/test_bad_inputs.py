@@ -26,9 +26,11 @@ import yaml
 from conftest import MULTIMODEL, SCENARIOS, SLEEPER, sleeper_multimodel, strict_loads, write_space
 from typer.testing import CliRunner
 
-from dse_runner import store, strict_json
-from dse_runner.build import build_fmu
-from dse_runner.cli import app
+from dse_runner.sweeps import store
+
+from dse_runner import strict_json
+from dse_runner.simulation.build import build_fmu
+from dse_runner.interfaces.cli import app
 
 
 def run(*args) -> tuple[int, str, str]:
@@ -112,7 +114,7 @@ def test_a_recording_of_only_dropouts_is_an_error(scenario_copy, tmp_path):
 def test_an_objective_that_is_not_finite_fails_its_row_with_a_message(tmp_path):
     """A user's objective returning NaN: simulate refuses it, naming the objective."""
     (tmp_path / "nan_objective.py").write_text("def score(trajectory, scenario):\n    return float('nan')\n")
-    done = subprocess.run([sys.executable, "-m", "dse_runner.cli", "simulate", str(MULTIMODEL), "-s",
+    done = subprocess.run([sys.executable, "-m", "dse_runner", "simulate", str(MULTIMODEL), "-s",
                            str(SCENARIOS / "sin1"), "--objective", "nan_objective:score", "--out",
                            str(tmp_path / "out"), "--json"], capture_output=True, text=True, cwd=tmp_path,
                           env={**os.environ, "PYTHONPATH": str(tmp_path)})
@@ -238,7 +240,7 @@ def test_the_installed_command_prints_one_line_and_the_traceback_only_with_debug
     fake = tmp_path / "model.fmu"
     fake.write_text("not a zip")
     mm = sleeper_multimodel(tmp_path, fake)
-    command = [sys.executable, "-m", "dse_runner.cli"]
+    command = [sys.executable, "-m", "dse_runner"]
     quiet = subprocess.run([*command, "simulate", str(mm), "-s", str(SCENARIOS / "sin1")], capture_output=True,
                            text=True)
     assert "not an FMU" in one_line_error(quiet.returncode, quiet.stderr)

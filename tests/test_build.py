@@ -9,8 +9,8 @@ import pytest
 from conftest import FMU_SOURCES
 from fmpy.validation import validate_fmu
 
-from dse_runner import build
-from dse_runner.build import BuildError, build_fmu, find_source_dirs
+from dse_runner.simulation import build
+from dse_runner.simulation.build import BuildError, build_fmu, find_source_dirs
 
 REPO = FMU_SOURCES.parents[2]
 
@@ -74,7 +74,7 @@ def test_missing_layer_is_a_clear_build_error(tmp_path, monkeypatch):
 
 
 def test_fmi3_model_exchange_sources_get_the_fmi3_me_layer(tmp_path):
-    from dse_runner import build
+    from dse_runner.simulation import build
 
     assert build.layer_of(me_only_source(tmp_path, "3.0")) is build.ME3
 

@@ -9,7 +9,7 @@ from conftest import MULTIMODEL, REPO, SCENARIOS, strict_loads
 
 
 def dse_runner(*args, cwd=REPO):
-    return subprocess.run([sys.executable, "-m", "dse_runner.cli", *map(str, args)],
+    return subprocess.run([sys.executable, "-m", "dse_runner", *map(str, args)],
                           capture_output=True, text=True, cwd=cwd)
 
 

@@ -23,12 +23,12 @@ import yaml
 from cluster import CliCluster, can_hide_folders, make_certs
 from conftest import FMU_SOURCES, MULTIMODEL, REPO, SCENARIOS, strict_loads, write_space
 
-from dse_runner import store
-from dse_runner.cluster import connect, kubernetes_cluster_spec, make_htcondor
+from dse_runner.sweeps import store
+from dse_runner.sweeps.cluster import connect, kubernetes_cluster_spec, make_htcondor
 from dse_runner.errors import DseError
-from dse_runner.rank import rank
-from dse_runner.spec import Cluster, load_space
-from dse_runner.sweep import load_status, submit
+from dse_runner.analysis.rank import rank
+from dse_runner.sweeps.spec import Cluster, load_space
+from dse_runner.sweeps.sweep import load_status, submit
 
 # 2 points x 12 scenarios at a tenth of the default integration step (~0.1-0.3 s a task, 2 tasks a chunk):
 # a dozen chunks, so that a kill after the first few lands mid-sweep however busy the machine is.
@@ -124,7 +124,7 @@ def wait_until_idle(address: str, timeout: float = 120) -> None:
 def test_killed_client_resumes_on_submit(tmp_path, dask_scheduler):
     path = write_space(tmp_path, scenarios=[str(SCENARIOS / "*")], parameters=SLOW, chunk_seconds=0.5,
                        keep_trajectories=0)
-    command = [sys.executable, "-m", "dse_runner.cli", "submit", str(path), "--scheduler", dask_scheduler, "--json"]
+    command = [sys.executable, "-m", "dse_runner", "submit", str(path), "--scheduler", dask_scheduler, "--json"]
     first = subprocess.Popen(command, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     wait_for_files(tmp_path / "out", 3)
     first.send_signal(signal.SIGKILL)
@@ -274,7 +274,7 @@ def test_cluster_choice_errors(tmp_path):
 
 def test_unreachable_scheduler_names_it(tmp_path):
     spec = write_space(tmp_path, cluster={"connect_timeout": 3})  # refused at once, retried for 3 s, not 30
-    result = subprocess.run([sys.executable, "-m", "dse_runner.cli", "submit", str(spec),
+    result = subprocess.run([sys.executable, "-m", "dse_runner", "submit", str(spec),
                              "--scheduler", "tcp://127.0.0.1:9"], capture_output=True, text=True, timeout=120)
     assert result.returncode == 2
     assert "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in result.stderr

@@ -9,10 +9,10 @@ import pytest
 from conftest import FMU_SOURCES, SCENARIOS, all_scenarios
 
 from dse_runner import DseError
-from dse_runner.crosscheck import run_libcosim
-from dse_runner.fielddata import position_refs, simulated_xy
-from dse_runner.scenario import load_scenario
-from dse_runner.simulation import simulate
+from dse_runner.simulation.crosscheck import run_libcosim
+from dse_runner.cases.fielddata import position_refs, simulated_xy
+from dse_runner.simulation.scenario import load_scenario
+from dse_runner.simulation.run import simulate
 
 CALIBRATED = {"vehicle.mass": 1000.0, "vehicle.cAlphaF": 38000.0, "vehicle.mu": 0.3}
 
@@ -87,7 +87,7 @@ def test_into_cps_mm_json_gives_the_same_result(tmp_path, plan):
 
 
 def test_instances_are_created_once_per_process_and_reused(plan):
-    from dse_runner import fmu as fmus
+    from dse_runner.simulation import fmu as fmus
 
     simulate(plan, SCENARIOS / "sin1")
     before = {key: id(instance) for key, instance in fmus._INSTANCES.items()}

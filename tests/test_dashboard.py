@@ -68,9 +68,9 @@ def watched(tmp_path_factory, dask_scheduler) -> Watched:
     from distributed import Client
     from playwright.sync_api import sync_playwright
 
-    from dse_runner.dashboard import link_from_dask, serve
-    from dse_runner.spec import load_space
-    from dse_runner.sweep import submit
+    from dse_runner.interfaces.dashboard import link_from_dask, serve
+    from dse_runner.sweeps.spec import load_space
+    from dse_runner.sweeps.sweep import submit
 
     folder = tmp_path_factory.mktemp("dashboard")
     # Chunks of one task (a simulation takes more than 0.02 s): the sweep keeps 2 * 2 + 2 chunks in flight,
@@ -176,7 +176,7 @@ def test_the_page_has_no_console_errors(watched):
 
 
 def test_the_best_track_is_drawn_for_the_chosen_scenario(watched):
-    from dse_runner.rank import rank
+    from dse_runner.analysis.rank import rank
 
     assert watched.track_title.startswith("sin1: best point so far")
     assert watched.chosen_track.startswith("turn_ramp1: best point so far")
@@ -190,7 +190,7 @@ def test_dask_dashboard_links_to_it(watched):
 
 
 def test_the_final_page_shows_the_rank_commands_best_point(watched):
-    from dse_runner.rank import rank
+    from dse_runner.analysis.rank import rank
 
     ranking = rank(watched.output, "watched")
     best = ", ".join(f"{k} = {v:g}" for k, v in ranking.best.items())
@@ -204,10 +204,10 @@ def test_the_report_opens_offline(watched, tmp_path):
     from playwright.sync_api import TimeoutError as PlaywrightTimeout
     from playwright.sync_api import sync_playwright
 
-    from dse_runner.rank import rank
+    from dse_runner.analysis.rank import rank
 
     report = tmp_path / "report.html"
-    done = subprocess.run([sys.executable, "-m", "dse_runner.cli", "report", str(watched.output), "-o", str(report)],
+    done = subprocess.run([sys.executable, "-m", "dse_runner", "report", str(watched.output), "-o", str(report)],
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     ranking = rank(watched.output, "watched")
@@ -241,7 +241,7 @@ def test_the_report_opens_offline(watched, tmp_path):
 def test_dashboard_command_serves_a_finished_sweep(watched):
     from playwright.sync_api import sync_playwright
 
-    server = subprocess.Popen([sys.executable, "-m", "dse_runner.cli", "dashboard", str(watched.output)],
+    server = subprocess.Popen([sys.executable, "-m", "dse_runner", "dashboard", str(watched.output)],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         line = server.stdout.readline()
@@ -263,7 +263,7 @@ def test_dashboard_command_serves_a_finished_sweep(watched):
 
 
 def test_standings_put_the_furthest_points_first():
-    from dse_runner.rank import standings
+    from dse_runner.analysis.rank import standings
 
     ok = pd.DataFrame({"a": [1.0, 1.0, 2.0, 3.0, 3.0], "scenario": ["s", "t", "s", "s", "t"],
                        "e": [5.0, 1.0, 0.5, 2.0, 2.0]})
@@ -273,7 +273,7 @@ def test_standings_put_the_furthest_points_first():
 
 
 def test_dashboard_address_errors_name_the_address():
-    from dse_runner.dashboard import parse_address
+    from dse_runner.interfaces.dashboard import parse_address
     from dse_runner.errors import DseError
 
     assert parse_address("127.0.0.1:0") == ("127.0.0.1", 0)
@@ -282,7 +282,7 @@ def test_dashboard_address_errors_name_the_address():
 
 
 def test_report_of_a_folder_without_results_names_it(tmp_path):
-    done = subprocess.run([sys.executable, "-m", "dse_runner.cli", "report", str(tmp_path), "-o",
+    done = subprocess.run([sys.executable, "-m", "dse_runner", "report", str(tmp_path), "-o",
                            str(tmp_path / "r.html")], capture_output=True, text=True, timeout=120)
     assert done.returncode == 2
     assert str(tmp_path) in done.stderr and "no results" in done.stderr
@@ -291,7 +291,7 @@ def test_report_of_a_folder_without_results_names_it(tmp_path):
 
 def test_submit_prints_the_dashboard_url_and_its_dask_link(tmp_path, dask_scheduler):
 
-    command = [sys.executable, "-m", "dse_runner.cli", "submit", str(write_space(tmp_path, keep_trajectories=0)),
+    command = [sys.executable, "-m", "dse_runner", "submit", str(write_space(tmp_path, keep_trajectories=0)),
                "--scheduler", dask_scheduler, "--json"]
     shown = subprocess.run(command, capture_output=True, text=True, timeout=300)
     assert shown.returncode == 0, shown.stderr

@@ -11,10 +11,10 @@ import pytest
 from conftest import strict_loads
 from test_cli import dse_runner
 
-from dse_runner.diagnose.hypotheses import LIBRARY
-from dse_runner.rank import rank
-from dse_runner.spec import load_space
-from dse_runner.sweep import submit
+from dse_runner.analysis.diagnose.hypotheses import LIBRARY
+from dse_runner.analysis.rank import rank
+from dse_runner.sweeps.spec import load_space
+from dse_runner.sweeps.sweep import submit
 
 
 @pytest.fixture(scope="module")

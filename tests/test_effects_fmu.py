@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from conftest import FMU_SOURCES
 
-from dse_runner.cosim import make_plan, run
+from dse_runner.simulation.cosim import make_plan, run
 from dse_runner.errors import DseError
-from dse_runner.multimodel import MultiModel
+from dse_runner.simulation.multimodel import MultiModel
 
 
 def plan_of(fmu: str):

@@ -7,7 +7,7 @@ import yaml
 from conftest import MULTIMODEL, SCENARIOS
 
 from dse_runner import DseError
-from dse_runner.simulation import simulate
+from dse_runner.simulation.run import simulate
 
 
 def write_multimodel(tmp_path, **changes):

@@ -10,9 +10,11 @@ import numpy as np
 from conftest import FMU_SOURCES
 from fmpy.validation import validate_fmu
 
-from dse_runner import build, simulate
-from dse_runner.build import build_fmu
-from dse_runner.simulation import as_plan
+from dse_runner.simulation import build
+
+from dse_runner import simulate
+from dse_runner.simulation.build import build_fmu
+from dse_runner.simulation.run import as_plan
 
 REPO = FMU_SOURCES.parents[2]
 MSD3 = REPO / "tests" / "fmus" / "msd3"

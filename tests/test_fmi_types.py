@@ -29,14 +29,14 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 from typer.testing import CliRunner
 
-from dse_runner import cosim
-from dse_runner.build import build_fmu
-from dse_runner.cli import app
+from dse_runner.simulation import cosim
+from dse_runner.simulation.build import build_fmu
+from dse_runner.interfaces.cli import app
 from dse_runner.errors import DseError
-from dse_runner.fmu import FmuWarning
-from dse_runner.multimodel import MultiModel
-from dse_runner.simulation import as_plan, simulate
-from dse_runner.variables import check_value
+from dse_runner.simulation.fmu import FmuWarning
+from dse_runner.simulation.multimodel import MultiModel
+from dse_runner.simulation.run import as_plan, simulate
+from dse_runner.simulation.variables import check_value
 
 REPO = Path(__file__).resolve().parents[1]
 SOURCES = {

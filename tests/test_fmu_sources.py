@@ -20,7 +20,7 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
-from dse_runner.build import build_fmu
+from dse_runner.simulation.build import build_fmu
 
 REPO = Path(__file__).resolve().parents[1]
 TYPES2 = REPO / "tests" / "fmus" / "types2"

@@ -14,12 +14,12 @@ import pytest
 import yaml
 from conftest import REPO
 
-from dse_runner import store
-from dse_runner.rank import rank
-from dse_runner.report import write_report
-from dse_runner.simulation import simulate
-from dse_runner.spec import load_space
-from dse_runner.sweep import submit
+from dse_runner.sweeps import store
+from dse_runner.analysis.rank import rank
+from dse_runner.interfaces.report import write_report
+from dse_runner.simulation.run import simulate
+from dse_runner.sweeps.spec import load_space
+from dse_runner.sweeps.sweep import submit
 
 WATERTANK = REPO / "jobs" / "watertank"
 MSD = REPO / "jobs" / "msd"
@@ -100,7 +100,7 @@ def test_watertank_report_and_dashboard_show_the_one_scenario(watertank, tmp_pat
     ranking = rank(space.output, space.name)
     page_file = write_report(space.output, tmp_path / "report.html", space.name)
     errors: list[str] = []
-    server = subprocess.Popen([sys.executable, "-m", "dse_runner.cli", "dashboard", str(space.output)],
+    server = subprocess.Popen([sys.executable, "-m", "dse_runner", "dashboard", str(space.output)],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         match = re.search(r"http://127\.0\.0\.1:\d+/", server.stdout.readline())
@@ -153,7 +153,7 @@ def test_msd_model_exchange_calibration_finds_the_recordings_truth(job_space, da
 def test_the_jobs_run_from_the_cli_as_their_readme_says(tmp_path, dask_scheduler):
     from typer.testing import CliRunner
 
-    from dse_runner.cli import app
+    from dse_runner.interfaces.cli import app
 
     path = _job_space(WATERTANK, tmp_path, output=str(tmp_path / "out"),
                       parameters={"controller.minlevel": [1.0], "controller.maxlevel": [2.0, 2.2]})

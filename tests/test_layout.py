@@ -70,10 +70,28 @@ def test_a_plain_fmu_study_runs_without_loading_the_case(tmp_path):
 
     script = f"""
 import sys
-from dse_runner.simulation import simulate
+from dse_runner.simulation.run import simulate
 result = simulate({str(REPO / 'jobs' / 'watertank' / 'multimodel.yaml')!r}, stop_time=5, step=0.1)
 print(sorted(m for m in sys.modules if m.startswith("dse_runner")))
 """
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert "fielddata" not in done.stdout
+
+
+LAYERS = ["simulation", "sweeps", "analysis", "interfaces"]
+ALLOWED = {("sweeps", "analysis")}  # a sweep ranks its results to keep the best points' signals
+
+
+def test_each_layer_imports_only_the_layers_before_it():
+    offenders = []
+    for position, layer in enumerate(LAYERS):
+        later = set(LAYERS[position + 1:]) | {"cases"}
+        for path in (PACKAGE / layer).rglob("*.py"):
+            for node in ast.walk(ast.parse(path.read_text())):
+                if isinstance(node, ast.ImportFrom) and node.level and node.module:
+                    target = node.module.split(".")[0]
+                    case_analysis = target == "cases" and MAY_IMPORT_CASES & set(path.parts)
+                    if target in later and (layer, target) not in ALLOWED and not case_analysis:
+                        offenders.append(f"{path.relative_to(PACKAGE)} imports {node.module}")
+    assert offenders == []

@@ -17,8 +17,8 @@ from fmpy.fmi2 import FMU2Model
 from fmpy.fmi3 import FMU3Model
 from fmpy.validation import validate_fmu
 
-from dse_runner.build import build_fmu
-from dse_runner.model_exchange import ModelExchangeError, ModelExchangeStepper
+from dse_runner.simulation.build import build_fmu
+from dse_runner.simulation.model_exchange import ModelExchangeError, ModelExchangeStepper
 
 REPO = Path(__file__).resolve().parents[1]
 MSD = REPO / "jobs" / "msd" / "fmus" / "msd"

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from dse_runner import DseError
-from dse_runner import fielddata
-from dse_runner import objectives as objs
-from dse_runner.cosim import Trajectory
-from dse_runner.scenario import load_scenario
+from dse_runner.cases import fielddata
+from dse_runner.simulation import objectives as objs
+from dse_runner.simulation.cosim import Trajectory
+from dse_runner.simulation.scenario import load_scenario
 
 
 @pytest.fixture

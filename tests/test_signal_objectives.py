@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from dse_runner import objectives as objs
-from dse_runner.cosim import Trajectory
+from dse_runner.simulation import objectives as objs
+from dse_runner.simulation.cosim import Trajectory
 from dse_runner.errors import DseError
-from dse_runner.scenario import Recording, Scenario
+from dse_runner.simulation.scenario import Recording, Scenario
 
 TIME = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
 LEVEL = np.array([0.0, 2.0, 1.0, 3.0, 3.0])
@@ -111,7 +111,7 @@ def _space(tmp_path, **spec):
     import yaml
     from conftest import REPO
 
-    from dse_runner.spec import load_space
+    from dse_runner.sweeps.spec import load_space
 
     base = {"name": "s", "multimodel": str(REPO / "jobs" / "msd" / "multimodel.yaml"), "experiment": {"step": 0.05},
             "parameters": {"msd.k": [14]}}

@@ -8,10 +8,10 @@ import pytest
 from conftest import SCENARIOS, write_space
 
 from dse_runner import DseError
-from dse_runner.constraints import compile_constraint
-from dse_runner.expand import expand
-from dse_runner.rank import pareto_mask
-from dse_runner.spec import load_space
+from dse_runner.sweeps.constraints import compile_constraint
+from dse_runner.sweeps.expand import expand
+from dse_runner.analysis.rank import pareto_mask
+from dse_runner.sweeps.spec import load_space
 
 
 def test_the_papers_grid():

@@ -14,12 +14,12 @@ import pandas as pd
 import pytest
 from conftest import REPO, SCENARIOS, sleeper_multimodel, strict_loads, write_space
 
-from dse_runner import store
-from dse_runner.expand import expand
-from dse_runner.rank import rank
-from dse_runner.simulation import simulate
-from dse_runner.spec import load_space
-from dse_runner.sweep import submit
+from dse_runner.sweeps import store
+from dse_runner.sweeps.expand import expand
+from dse_runner.analysis.rank import rank
+from dse_runner.simulation.run import simulate
+from dse_runner.sweeps.spec import load_space
+from dse_runner.sweeps.sweep import submit
 
 
 def test_rows_equal_direct_simulations(tmp_path, dask_scheduler, plan):
@@ -94,7 +94,7 @@ def test_interrupted_sweep_resumes_without_repeating_work(tmp_path):
     path = write_space(tmp_path, scenarios=[str(SCENARIOS / "*")], chunk_seconds=0.05,
                        parameters={"vehicle.mass": [1500], "vehicle.rk4_step": [0.00005]},
                        keep_trajectories=0, cluster={"n_workers": 2})
-    command = [sys.executable, "-m", "dse_runner.cli", "submit", str(path), "--json"]
+    command = [sys.executable, "-m", "dse_runner", "submit", str(path), "--json"]
     first = subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                              start_new_session=True)
     results = tmp_path / "out" / "results"
@@ -182,7 +182,7 @@ def test_a_transient_failure_is_retried_once(tmp_path, monkeypatch):
 def test_rank_command_json(tmp_path, dask_scheduler):
     space = load_space(write_space(tmp_path, cluster={"address": dask_scheduler}))
     submit(space)
-    done = subprocess.run([sys.executable, "-m", "dse_runner.cli", "rank", str(space.output), "--json"],
+    done = subprocess.run([sys.executable, "-m", "dse_runner", "rank", str(space.output), "--json"],
                           capture_output=True, text=True, cwd=REPO)
     assert done.returncode == 0, done.stderr
     report = strict_loads(done.stdout)

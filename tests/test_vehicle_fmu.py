@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from conftest import FMU_SOURCES
 
-from dse_runner.cosim import make_plan, run
-from dse_runner.multimodel import MultiModel
+from dse_runner.simulation.cosim import make_plan, run
+from dse_runner.simulation.multimodel import MultiModel
 
 
 @pytest.fixture(scope="module")
@@ -86,7 +86,7 @@ def test_left_turn_is_counter_clockwise(vehicle):
 
 def test_start_values_match_model_description(vehicle):
     """modelDescription.xml and the C defaults describe the same FMU."""
-    from dse_runner import fmu as fmus
+    from dse_runner.simulation import fmu as fmus
 
     loaded = fmus.load(vehicle.fmu_paths["vehicle"])
     instance = fmus.acquire("vehicle", loaded)

@@ -14,7 +14,7 @@ import pytest
 import yaml
 from conftest import MULTIMODEL, REPO, SCENARIOS, strict_loads
 
-from dse_runner.simulation import simulate
+from dse_runner.simulation.run import simulate
 
 RUNS = ["speed_step1", "speed_step3", "turn_ramp1"]  # three of the bundled runs
 

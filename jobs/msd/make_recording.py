@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from fmpy import simulate_fmu
 
-from dse_runner.build import build_fmu
+from dse_runner.simulation.build import build_fmu
 
 HERE = Path(__file__).resolve().parent
 TRUTH = {"m": 1.0, "k": 14.0, "c": 0.8, "x0": 0.1, "v0": 0.0}

@@ -1,0 +1,1 @@
+"""dse-runner's analysis of results: rankings, comparisons, diagnosis."""

@@ -1,0 +1,39 @@
+"""What the dashboard and the report show of one simulation next to its scenario's recording.
+
+A scenario's kind may say (field data: the simulated track over the GPS
+fixes, x against y); otherwise it is the signal the ranking objective reads,
+against time, over the recorded column it is compared with if any.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..simulation import objectives as objs
+from ..simulation.scenario import kind
+
+
+@dataclass(frozen=True)
+class Comparison:
+    recorded: tuple[np.ndarray, np.ndarray] | None  # x and y of the recorded points, if any
+    simulated: tuple[np.ndarray, np.ndarray]
+    x_label: str
+    y_label: str
+    equal_axes: bool = False  # a track on a map, not a signal over time
+
+
+def compare(result, objective: objs.ObjectiveSpec | None = None) -> Comparison:
+    """The kind's comparison, or the objective's signal over time."""
+    own = getattr(kind(result.scenario.kind), "compare", None)
+    if own is not None:
+        return own(result)
+    signal = objective.signal if isinstance(objective, (objs.Reduce, objs.Fit)) else None
+    signal = signal or (result.trajectory.names[0] if result.trajectory.names else None)
+    if signal is None:
+        return Comparison(None, (result.time, np.zeros_like(result.time)), "time [s]", "no numeric output")
+    recorded = None
+    if isinstance(objective, objs.Fit) and result.scenario.recorded is not None:
+        recorded = result.scenario.recorded.samples(objective.recorded)
+    return Comparison(recorded, (result.time, result.trajectory.column(signal)), "time [s]", signal)

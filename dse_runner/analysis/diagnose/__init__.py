@@ -1,0 +1,372 @@
+"""Discrepancy diagnosis: calibrate, locate the mismatch, explain it, model it, show the fit improve.
+
+:func:`diagnose` runs the whole chain on a folder of runs in the field-data
+format. Every simulation is a task of a sweep on the Dask cluster, with rows
+in the Parquet store under ``out``: the calibration grid is an ordinary
+sweep, and each fit (fit.py) runs its rounds as sweeps of the *effects*
+multi-model, the user's multi-model with the vehicle replaced by its effects
+variant, in which every hypothesis of the library is a parameter that is
+zero when absent.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from ... import bundled
+from ...cases import fielddata
+from ...errors import DseError
+from ...simulation.multimodel import MultiModel, split_ref
+from ...simulation.scenario import dropouts
+from ...sweeps.cluster import connect
+from ...sweeps.fit import FitProblem, FitResult, Parameter, evaluate_points, fit_all, key_of, wanted
+from ...sweeps.spec import Range, Space, SpaceSpec, read_spec, resolve_space
+from ...sweeps.sweep import submit, trajectories_of
+from ..rank import rank
+from . import explain, locate
+from .explain import Candidate
+from .hypotheses import EFFECTS_FMU, LIBRARY, effect_variables, hypothesis
+
+DEFAULT_SPACE = "bundled:robotti/calibration.yaml"  # the Robotti baseline's calibration grid
+FITS = "diagnosis-fits"  # the sweep every fit's rounds go to
+BEFORE, AFTER = "diagnosis-before", "diagnosis-after"  # sweeps holding the tracks of the report
+
+Progress = Callable[[str], None]
+
+
+@dataclass(frozen=True)
+class Settings:
+    folds: int = 3
+    max_effects: int = 3
+    partners: int = 3  # best single effects tried in combination with those chosen
+    min_gain: float = explain.MIN_GAIN
+    bic_margin: float = explain.BIC_MARGIN
+    max_iterations: int = 15
+    hypotheses: tuple[str, ...] = ()  # the library's ids to try; () tries them all
+
+    def singles(self) -> list[tuple[str, ...]]:
+        """The hypotheses fitted alone: the chosen ids of the library, each checked."""
+        unknown = [h for h in self.hypotheses if h not in LIBRARY]
+        if unknown:
+            raise DseError(f"unknown hypothesis {', '.join(map(repr, unknown))}: the library has "
+                           f"{', '.join(h for h in LIBRARY if h != 'none')} (and none, always tried)")
+        return [(hid,) for hid in dict.fromkeys(self.hypotheses or LIBRARY) if hid != "none"]
+
+
+@dataclass
+class Diagnosis:
+    out: Path
+    calibration: dict[str, Any]  # best grid point, parameters at a bound, insensitive scenarios
+    candidates: list[Candidate]  # every candidate fitted, best first
+    chosen: Candidate  # the baseline when nothing is missing
+    baseline: Candidate
+    settings: Settings = Settings()
+    located: dict[str, Any] = field(default_factory=dict)  # locate's tables, before and after
+    files: dict[str, Path] = field(default_factory=dict)
+    dropouts: dict[str, int] = field(default_factory=dict)  # GPS fixes skipped per run (scenario.dropouts)
+
+    @property
+    def effects(self) -> list[dict[str, Any]]:
+        """The chosen hypotheses with their fitted parameters and ~95 % intervals; [none] if nothing."""
+        if not self.chosen.ids:
+            return [{"id": "none", "name": LIBRARY["none"].name, "parameters": {}, "interval": {}}]
+        return [self._effect(hid) for hid in self.chosen.ids]
+
+    def _effect(self, hid: str) -> dict[str, Any]:
+        h, fit = LIBRARY[hid], self.chosen.full
+        refs = {v: f"{self.calibration['vehicle']}.{v}" for v in h.variables}
+        values = {v: fit.values[ref] for v, ref in refs.items()}
+        interval = fit.interval()
+        return {"id": hid, "name": h.name, "parameters": values,
+                "interval": {v: list(interval[ref]) for v, ref in refs.items()}, "magnitude": h.magnitude(values)}
+
+    @property
+    def cross_track_before(self) -> float:
+        return self.baseline.cross_validated
+
+    @property
+    def cross_track_after(self) -> float:
+        return self.chosen.cross_validated
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "effects": self.effects,
+            "cross_track_before": self.cross_track_before,
+            "cross_track_after": self.cross_track_after,
+            "held_out": [{"scenario": s, "before": self.baseline.held_out[s], "after": self.chosen.held_out[s]}
+                         for s in sorted(self.baseline.held_out)],
+            "candidates": [{"id": c.label, "cross_track_held_out": c.cross_validated, "bic": c.bic,
+                            "parameters": c.full.values, "at_bound": c.full.at_bound}
+                           for c in self.candidates],
+            "calibration": self.calibration,
+            "dropouts": self.dropouts,
+            "files": {k: str(v) for k, v in self.files.items()},
+        }
+
+
+def calibration_space(space: str | Path, scenarios: str | Path, multimodel: str | Path | None, out: Path,
+                      n_workers: int | None = None, address: str | None = None) -> Space:
+    """The calibration's design space (parameters and their ranges) on the given runs, results in ``out``."""
+    path = bundled.resolve(space, Path.cwd())
+    folder = Path(scenarios).resolve()
+    if not folder.is_dir():
+        raise DseError(f"--scenarios {scenarios}: not a folder")
+    update: dict[str, Any] = {"scenarios": [str(folder / "*")], "output": str(out), "keep_trajectories": 0}
+    if multimodel is not None:
+        update["multimodel"] = str(Path(multimodel).resolve())
+    spec = read_spec(path).model_copy(update=update)
+    return resolve_space(spec, path).with_overrides(address=address, n_workers=n_workers)
+
+
+def vehicle_of(calibration: Space) -> str:
+    """The instance whose outputs are the position compared with GPS: where the effects act."""
+    if not calibration.scenarios or calibration.scenarios[0].kind != fielddata.KIND:
+        raise DseError("diagnosis needs recorded runs in the field-data format (GPS fixes)")
+    x, _ = fielddata.position_of(calibration.plan.recorded, calibration.scenarios[0])
+    return split_ref(x)[0]
+
+
+def at_antenna(entries: list[Any], vehicle: str) -> list[dict[str, Any]]:
+    """Scenario entries whose runs are compared with GPS at the antenna's outputs (gps_x, gps_y)."""
+    position = {"x": f"{vehicle}.gps_x", "y": f"{vehicle}.gps_y"}
+    return [{"path": e, "position": position} if isinstance(e, str) else {**e, "position": position}
+            for e in entries]
+
+
+def effects_multimodel(multimodel: MultiModel, vehicle: str, folder: Path) -> dict[str, Any]:
+    """The multi-model with ``vehicle`` replaced by the effects variant, to be written into ``folder``
+    (FMU paths relative to it, bundled ones as ``bundled:``)."""
+    bundled.bundled_path(EFFECTS_FMU)  # it ships with the package; an error names it if not
+    data = multimodel.model_dump(mode="json")
+    data["fmus"] = {name: ref if bundled.is_bundled(ref) else _relative(multimodel.fmu_path(name), folder)
+                    for name, ref in multimodel.fmus.items()}
+    data["fmus"][vehicle] = EFFECTS_FMU
+    return data
+
+
+def _relative(path: Path, folder: Path) -> str:
+    """``path`` relative to ``folder`` where that is possible, so written files can move with the repository."""
+    try:
+        return os.path.relpath(path, folder)
+    except ValueError:  # another drive
+        return str(path)
+
+
+def _write_yaml(path: Path, data: dict[str, Any], header: str = "") -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(header + yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def base_parameters(calibration: Space, best: dict[str, Any]) -> tuple[Parameter, ...]:
+    """The calibration's numeric parameters with more than one value, bounded by their range,
+    starting from the grid's best point."""
+    params = []
+    for name, values in calibration.parameters.items():
+        numbers = [v for v in values if isinstance(v, float)]
+        if len(numbers) == len(values) and len(set(numbers)) > 1:
+            lower, upper = min(numbers), max(numbers)
+            params.append(Parameter(name, float(best[name]), lower, upper, 0.01 * (upper - lower)))
+    if not params:
+        raise DseError(f"{calibration.path}: no numeric parameter with a range to calibrate")
+    return tuple(params)
+
+
+def fits_space(calibration: Space, vehicle: str, out: Path) -> Space:
+    """A space over the effects multi-model whose rounds are given points (fit.py)."""
+    mm_path = _write_yaml(out / "effects-multimodel.yaml", effects_multimodel(calibration.multimodel, vehicle, out),
+                          "# The multi-model diagnosis fits: the vehicle replaced by its effects variant.\n")
+    parameters = {name: values for name, values in calibration.parameters.items()}
+    parameters.update({f"{vehicle}.{v}": [0.0] for v in effect_variables()})
+    entries = [e if isinstance(e, str) else e.model_dump() for e in calibration.spec.scenarios]
+    spec = SpaceSpec(name=FITS, multimodel=str(mm_path), scenarios=at_antenna(entries, vehicle),
+                     parameters=parameters, objectives=["cross_track_error", "fix_residuals"],
+                     output=str(out), cluster=calibration.spec.cluster, keep_trajectories=0,
+                     timeout=calibration.spec.timeout, chunk_seconds=calibration.spec.chunk_seconds)
+    return resolve_space(spec, out / f"{FITS}.yaml")
+
+
+def _effect_parameters(ids: tuple[str, ...], vehicle: str, start: dict[str, float]) -> tuple[Parameter, ...]:
+    return tuple(Parameter(f"{vehicle}.{p.variable}", start.get(f"{vehicle}.{p.variable}", 0.0), p.lower, p.upper,
+                           p.step)
+                 for hid in ids for p in hypothesis(hid).parameters)
+
+
+class Chain:
+    """The state of one diagnosis between its steps."""
+
+    def __init__(self, space: Space, vehicle: str, base: tuple[Parameter, ...], client, settings: Settings,
+                 progress: Progress):
+        self.space, self.vehicle, self.base, self.client = space, vehicle, base, client
+        self.settings, self.say = settings, progress
+        self.fixed = {name: values[0] for name, values in space.parameters.items()}
+        self.folds = explain.folds(space.scenarios, settings.folds)
+        self.all = tuple(s.name for s in space.scenarios)
+
+    def problem(self, label: str, ids: tuple[str, ...], start: dict[str, float], scenarios: tuple[str, ...]
+                ) -> FitProblem:
+        base = tuple(Parameter(p.name, start.get(p.name, p.start), p.lower, p.upper, p.step) for p in self.base)
+        params = base + _effect_parameters(ids, self.vehicle, start)
+        names = {p.name for p in params}
+        fixed = {k: v for k, v in self.fixed.items() if k not in names}
+        return FitProblem(label, params, fixed, scenarios, self.settings.max_iterations)
+
+    def _fit(self, problems: list[FitProblem], what: str) -> dict[str, FitResult]:
+        def report(round_: int, active: int, points: int, simulations: int) -> None:
+            self.say(f"{what}: round {round_}, {active} fits, {points} points, {simulations} simulations")
+
+        return fit_all(self.space, problems, self.client, report)
+
+    def candidates(self, sets: list[tuple[str, ...]], starts: dict[tuple[str, ...], dict[str, float]]
+                   ) -> list[Candidate]:
+        """Fit each set of hypotheses on every run, then on each fold, and score it on the held-out runs."""
+        labels = {ids: "+".join(ids) or "none" for ids in sets}
+        full = self._fit([self.problem(labels[ids], ids, starts[ids], self.all) for ids in sets],
+                         f"fitting {', '.join(labels.values())}")
+        problems = [self.problem(f"{labels[ids]}/fold{k}", ids, full[labels[ids]].values,
+                                 tuple(s for s in self.all if s not in fold))
+                    for ids in sets for k, fold in enumerate(self.folds)]
+        by_fold = self._fit(problems, "cross-validating")
+        points, only = wanted((by_fold[f"{labels[ids]}/fold{k}"].point, fold)
+                              for ids in sets for k, fold in enumerate(self.folds))  # each on the runs it held out
+        rows, _ = evaluate_points(self.space, points, self.client, ["cross_track_error"], only)
+        result = []
+        for ids in sets:
+            candidate = Candidate(ids, full[labels[ids]])
+            for k, fold in enumerate(self.folds):
+                fit = by_fold[f"{labels[ids]}/fold{k}"]
+                candidate.folds.append(fit)
+                for scenario in fold:
+                    row = rows.get((key_of(fit.point), scenario))
+                    candidate.held_out[scenario] = (float(row["cross_track_error"])
+                                                    if row and row["status"] == "ok" else math.inf)
+            result.append(candidate)
+        return result
+
+
+def choose(chain: Chain, start: dict[str, float]) -> tuple[Candidate, list[Candidate]]:
+    """Fit every hypothesis alone, then grow the best by the partners that still beat it."""
+    singles = chain.settings.singles()
+    scored = chain.candidates([(), *singles], {ids: start for ids in [(), *singles]})
+    baseline = next(c for c in scored if not c.ids)
+    winners = [c for c in explain.ranked(scored) if c.ids and explain.beats(c, baseline, chain.settings.min_gain,
+                                                                            chain.settings.bic_margin)]
+    if not winners:
+        return baseline, scored
+    chosen = winners[0]
+    partners = [c.ids[0] for c in winners[1:1 + chain.settings.partners]]
+    single = {c.ids[0]: c.full.values for c in scored if len(c.ids) == 1}
+    while len(chosen.ids) < chain.settings.max_effects:
+        sets = [chosen.ids + (p,) for p in partners if p not in chosen.ids]
+        if not sets:
+            break
+        starts = {ids: {**single[ids[-1]], **chosen.full.values} for ids in sets}
+        combos = chain.candidates(sets, starts)
+        scored.extend(combos)
+        best = explain.ranked(combos)[0]
+        if not explain.beats(best, chosen, chain.settings.min_gain, chain.settings.bic_margin):
+            break
+        chosen = best
+    return chosen, scored
+
+
+def write_model(diagnosis: Diagnosis, calibration: Space) -> dict[str, Path]:
+    """The chosen effects as a multi-model and a space.yaml that re-calibrates with them."""
+    if not diagnosis.chosen.ids:
+        return {}
+    out, vehicle = diagnosis.out, diagnosis.calibration["vehicle"]
+    names = ", ".join(diagnosis.chosen.ids)
+    mm_path = _write_yaml(out / "augmented-multimodel.yaml",
+                          effects_multimodel(calibration.multimodel, vehicle, out),
+                          f"# Written by dse-runner diagnose: the vehicle's effects variant, for {names}.\n")
+    spec = calibration.spec.model_dump(mode="json", exclude={"output", "keep_trajectories"}, exclude_defaults=True)
+    parameters = dict(spec["parameters"])
+    fit = diagnosis.chosen.full
+    interval = fit.interval()
+    for hid in diagnosis.chosen.ids:
+        for p in hypothesis(hid).parameters:
+            ref = f"{vehicle}.{p.variable}"
+            low, high = (max(p.lower, interval[ref][0]), min(p.upper, interval[ref][1]))
+            if not (math.isfinite(low) and math.isfinite(high)) or high <= low:
+                low, high = p.lower, p.upper
+            parameters[ref] = Range(start=round(low, 6), stop=round(high, 6), num=3).model_dump(exclude_none=True)
+    scenarios = at_antenna([_relative(Path(s), out) if isinstance(s, str) else s for s in spec["scenarios"]],
+                           vehicle)
+    spec.update(name=f"{calibration.name}-with-{'-'.join(diagnosis.chosen.ids)}", multimodel=mm_path.name,
+                scenarios=scenarios, parameters=parameters, output="recalibration")
+    space_path = _write_yaml(out / "space.yaml", spec,
+                             f"# Written by dse-runner diagnose: the calibration with {names} added,\n"
+                             "# each effect parameter over its fitted ~95 % interval. Run: dse-runner submit space.yaml\n")
+    return {"multimodel": mm_path, "space": space_path}
+
+
+def steering_source(multimodel: MultiModel, vehicle: str) -> str:
+    """The output that drives the vehicle's steering input, as recorded in trajectories."""
+    for source, targets in multimodel.connections.items():
+        if f"{vehicle}.delta_f" in targets:
+            return source
+    raise DseError(f"diagnosis needs a connection into {vehicle}.delta_f (the steering command)")
+
+
+def _locate(space: Space, vehicle: str, tracks: dict[str, Any]) -> Any:
+    import pandas as pd
+
+    signals = locate.Signals(f"{vehicle}.gps_x", f"{vehicle}.gps_y", f"{vehicle}.theta", f"{vehicle}.vx",
+                             f"{vehicle}.yaw_rate", steering_source(space.multimodel, vehicle))
+    return pd.concat([locate.residual_frame(tracks[s.name], s, signals) for s in space.scenarios],
+                     ignore_index=True)
+
+
+def diagnose(scenarios: str | Path, multimodel: str | Path | None = None, space: str | Path | None = None,
+             out: str | Path | None = None, settings: Settings = Settings(), client=None,
+             progress: Progress | None = None, n_workers: int | None = None,
+             address: str | None = None) -> Diagnosis:
+    """Calibrate -> locate -> explain -> model -> re-calibrate on a folder of recorded runs.
+
+    ``space`` gives the calibration's parameters and ranges (default: the bundled Robotti
+    calibration, bundled:robotti/calibration.yaml); ``multimodel`` replaces its multi-model."""
+    out = Path(out or "out/diagnosis").resolve()
+    settings.singles()  # an unknown hypothesis is named before anything runs
+    calibration = calibration_space(space or DEFAULT_SPACE, scenarios, multimodel, out, n_workers, address)
+    say = progress or (lambda message: None)
+    if client is None:
+        with connect(calibration.spec.cluster, calibration.path.parent) as own:
+            return _diagnose(calibration, out, settings, own, say)
+    return _diagnose(calibration, out, settings, client, say)
+
+
+def _diagnose(calibration: Space, out: Path, settings: Settings, client, say: Progress) -> Diagnosis:
+    from . import report
+
+    say(f"calibrating: the {calibration.name} grid on {len(calibration.scenarios)} runs")
+    submit(calibration, client=client)
+    grid = rank(out, calibration.name)
+    vehicle = vehicle_of(calibration)
+    base = base_parameters(calibration, grid.best)
+    space = fits_space(calibration, vehicle, out)
+    chain = Chain(space, vehicle, base, client, settings, say)
+    chosen, scored = choose(chain, {p.name: p.start for p in base})
+    baseline = next(c for c in scored if not c.ids)
+    diagnosis = Diagnosis(out, {
+        "sweep": calibration.name, "vehicle": vehicle, "grid_best": grid.best,
+        "grid_at_bound": [p.name for p in base if grid.best[p.name] in (p.lower, p.upper)
+                          and p.name not in baseline.full.undetermined],
+        "refined": baseline.full.values, "refined_at_bound": baseline.full.at_bound,
+        "no_effect": baseline.full.undetermined,
+        "insensitive_scenarios": locate.insensitive_scenarios(grid.table1),
+        "folds": chain.folds,
+    }, explain.ranked(scored), chosen, baseline, settings, dropouts=dropouts(calibration.scenarios))
+    say("locating: the residuals of the calibrated model and of the chosen one")
+    before = trajectories_of(space, client, baseline.full.point, BEFORE)
+    after = trajectories_of(space, client, chosen.full.point, AFTER)
+    frames = {"before": _locate(space, vehicle, before), "after": _locate(space, vehicle, after)}
+    diagnosis.files.update(write_model(diagnosis, calibration))
+    diagnosis.files.update(report.write(diagnosis, space, frames, before, after))
+    return diagnosis

@@ -1,0 +1,222 @@
+"""Show: the diagnosis as a Markdown report with figures and a JSON twin.
+
+    <out>/report/report.md        locate, explain, model, show (held-out Table 1)
+    <out>/report/diagnosis.json   what ``dse-runner diagnose --json`` prints
+    <out>/report/figures/*.png    residual signatures, tracks, held-out errors
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pandas as pd
+
+from ... import strict_json
+from ...cases import fielddata
+from ...sweeps.spec import Space
+from ..rank import format_point
+from . import locate
+from .explain import Candidate
+from .hypotheses import LIBRARY
+
+if TYPE_CHECKING:
+    from ...diagnose import Diagnosis
+
+
+def _table(frame: pd.DataFrame, digits: int = 3) -> str:
+    """A DataFrame as a Markdown table (pandas' to_markdown needs tabulate, which we do not ship)."""
+    def cell(v: Any) -> str:
+        if isinstance(v, float):
+            return "inf" if math.isinf(v) else f"{v:.{digits}g}" if abs(v) < 1e-3 and v != 0 else f"{v:.{digits}f}"
+        return str(v)
+
+    head = "| " + " | ".join(map(str, frame.columns)) + " |"
+    rule = "|" + "---|" * len(frame.columns)
+    rows = ["| " + " | ".join(cell(v) for v in row) + " |" for row in frame.itertuples(index=False)]
+    return "\n".join([head, rule, *rows])
+
+
+def _candidates(diagnosis: "Diagnosis") -> pd.DataFrame:
+    base = diagnosis.baseline
+    rows = []
+    for c in diagnosis.candidates:
+        effect = {k.split(".", 1)[1]: v for k, v in c.full.values.items()
+                  if k.split(".", 1)[1] in {p for hid in c.ids for p in LIBRARY[hid].variables}}
+        rows.append({"candidate": c.label, "held-out error [m]": c.cross_validated,
+                     "vs none": f"{(c.cross_validated / base.cross_validated - 1) * 100:+.1f} %",
+                     "ΔBIC vs none": c.bic - base.bic,
+                     "effect parameters": ", ".join(f"{k} = {v:.4g}" for k, v in effect.items()) or "-",
+                     "chosen": "yes" if c is diagnosis.chosen else ""})
+    return pd.DataFrame(rows)
+
+
+def held_out_table(baseline: Candidate, chosen: Candidate, space: Space) -> pd.DataFrame:
+    """The paper's Table 1 style, on runs each fit did not see: before and after per scenario."""
+    groups = {s.name: s.group for s in space.scenarios}
+    rows = [{"scenario": s, "group": groups[s], "before [m]": baseline.held_out[s], "after [m]": chosen.held_out[s],
+             "change": f"{(chosen.held_out[s] / baseline.held_out[s] - 1) * 100:+.1f} %"}
+            for s in sorted(baseline.held_out, key=lambda n: (groups[n], n))]
+    return pd.DataFrame(rows)
+
+
+def signature(frames: dict[str, pd.DataFrame]) -> dict[str, Any]:
+    """What changed between the calibrated model's residuals and the chosen model's."""
+    before, after = (locate.by_segment(frames[k]).set_index("segment") for k in ("before", "after"))
+    columns = ["along_rms", "cross_rms", "along_growth_rms", "cross_growth_rms"]
+    drop = (before[columns] - after[columns].reindex(before.index)).stack()
+    (segment, component), amount = drop.idxmax(), float(drop.max())
+    return {"segment": segment, "component": component, "before": float(before.loc[segment, component]),
+            "after": float(before.loc[segment, component] - amount),
+            "correlations": locate.strongest(locate.correlations(frames["before"]))}
+
+
+def _figures(folder: Path, space: Space, frames: dict[str, pd.DataFrame], tracks: dict[str, dict[str, pd.DataFrame]],
+             x: str, y: str, held_out: pd.DataFrame, chosen_label: str) -> dict[str, Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    folder.mkdir(parents=True, exist_ok=True)
+    names = [s.name for s in space.scenarios]
+    files = {}
+
+    fig, axes = plt.subplots(len(names), 2, figsize=(11, 1.9 * len(names)), sharex="row", squeeze=False)
+    for row, name in enumerate(names):
+        for col, component in enumerate(["along", "cross"]):
+            ax = axes[row][col]
+            for key, colour in (("before", "tab:red"), ("after", "tab:blue")):
+                part = frames[key][frames[key]["scenario"] == name]
+                label = "calibrated baseline" if key == "before" else chosen_label
+                ax.plot(part["time"], part[component], color=colour, lw=1, label=label)
+            ax.axhline(0, color="0.6", lw=0.5)
+            ax.set_ylabel(f"{name}\n{component} [m]", fontsize=8)
+    axes[0][0].set_title("along-track residual (recorded ahead of model > 0)", fontsize=9)
+    axes[0][1].set_title("cross-track residual (recorded left of model > 0)", fontsize=9)
+    axes[0][1].legend(fontsize=7, loc="upper left")
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]")
+    fig.tight_layout()
+    files["residuals"] = folder / "residuals.png"
+    fig.savefig(files["residuals"], dpi=80)
+    plt.close(fig)
+
+    cols = 4
+    rows = math.ceil(len(names) / cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 3.2 * rows), squeeze=False)
+    for ax, scenario in zip(axes.flat, space.scenarios):
+        gps = fielddata.gps(scenario)
+        ax.plot(gps.x, gps.y, ".", color="k", ms=1.5, label="GPS")
+        for key, colour in (("before", "tab:red"), ("after", "tab:blue")):
+            frame = tracks[key][scenario.name]
+            ax.plot(frame[x], frame[y], color=colour, lw=1,
+                    label="calibrated baseline" if key == "before" else chosen_label)
+        ax.set_title(scenario.name, fontsize=9)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.tick_params(labelsize=7)
+    for ax in list(axes.flat)[len(names):]:
+        ax.axis("off")
+    axes[0][0].legend(fontsize=7)
+    fig.tight_layout()
+    files["tracks"] = folder / "tracks.png"
+    fig.savefig(files["tracks"], dpi=80)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(max(6, 0.6 * len(names)), 3.2))
+    index = np.arange(len(held_out))
+    ax.bar(index - 0.2, held_out["before [m]"], 0.4, color="tab:red", label="calibrated baseline")
+    ax.bar(index + 0.2, held_out["after [m]"], 0.4, color="tab:blue", label=chosen_label)
+    ax.set_xticks(index, held_out["scenario"], rotation=45, ha="right", fontsize=8)
+    ax.set_ylabel("held-out cross-track error [m]")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    files["held_out"] = folder / "held_out.png"
+    fig.savefig(files["held_out"], dpi=80)
+    plt.close(fig)
+    return files
+
+
+def write(diagnosis: "Diagnosis", space: Space, frames: dict[str, pd.DataFrame], before: dict[str, pd.DataFrame],
+          after: dict[str, pd.DataFrame]) -> dict[str, Path]:
+    folder = diagnosis.out / "report"
+    vehicle = diagnosis.calibration["vehicle"]
+    held_out = held_out_table(diagnosis.baseline, diagnosis.chosen, space)
+    chosen_label = "with " + diagnosis.chosen.label if diagnosis.chosen.ids else "calibrated baseline (no effect)"
+    figures = _figures(folder / "figures", space, frames, {"before": before, "after": after},
+                       f"{vehicle}.gps_x", f"{vehicle}.gps_y", held_out, chosen_label)
+    sig = signature(frames)
+    located = {
+        "by_group": locate.by_group(frames["before"]), "by_segment": locate.by_segment(frames["before"]),
+        "by_scenario": locate.by_scenario(frames["before"]), "correlations": locate.correlations(frames["before"]),
+    }
+    diagnosis.located = {k: json.loads(v.to_json(orient="split")) for k, v in located.items()}
+    diagnosis.located["signature"] = sig
+    text = _markdown(diagnosis, located, sig, held_out, {k: p.relative_to(folder) for k, p in figures.items()})
+    report = folder / "report.md"
+    report.write_text(text)
+    files = {"report": report, **{f"figure_{k}": p for k, p in figures.items()}}
+    diagnosis.files.update(files)
+    summary = folder / "diagnosis.json"
+    summary.write_text(strict_json.dumps(diagnosis.to_json() | {"located": diagnosis.located}))
+    return {**files, "json": summary}
+
+
+def _markdown(diagnosis: "Diagnosis", located: dict[str, pd.DataFrame], sig: dict[str, Any],
+              held_out: pd.DataFrame, figures: dict[str, Path]) -> str:
+    cal = diagnosis.calibration
+    chosen = diagnosis.chosen
+    lines = [f"# Discrepancy diagnosis: {cal['sweep']}", "",
+             f"Runs: {len(held_out)} in {held_out['group'].nunique()} groups; cross-validation folds: "
+             + "; ".join(", ".join(f) for f in cal["folds"]) + ".", ""]
+    if chosen.ids:
+        lines += ["**Finding:** " + "; ".join(
+            f"`{e['id']}` ({e['name']}): " + ", ".join(
+                f"{k} = {v:.4g} [{e['interval'][k][0]:.4g}, {e['interval'][k][1]:.4g}]"
+                for k, v in e["parameters"].items()) for e in diagnosis.effects)
+            + f". Held-out mean cross-track error {diagnosis.cross_track_before:.3f} m → "
+            f"{diagnosis.cross_track_after:.3f} m.", ""]
+    else:
+        lines += [f"**Finding:** `none`: no hypothesis of the library explains the residual beyond noise "
+                  f"(held-out mean cross-track error {diagnosis.cross_track_before:.3f} m). Nothing is added.", ""]
+
+    lines += ["## 1. Locate", "",
+              f"Calibration grid best point: {format_point(cal['grid_best'], 5)}; parameters at a bound of the design space: "
+              f"{', '.join(cal['grid_at_bound']) or 'none'}.",
+              f"Refined by least squares within the design space: {format_point(cal['refined'], 5)}; at a bound: "
+              f"{', '.join(cal['refined_at_bound']) or 'none'}.",
+              "Parameters no run responds to (any value fits equally well): "
+              f"{', '.join(cal['no_effect']) or 'none'}.",
+              "Runs no tuned parameter can improve (every grid point within 5 % of the calibrated error): "
+              f"{', '.join(cal['insensitive_scenarios']) or 'none'}.", "",
+              "Residuals of the calibrated model, by scenario group:", "", _table(located["by_group"]), "",
+              "By segment of the motion:", "", _table(located["by_segment"]), "",
+              "Correlation of the residuals and of their growth rates with the motion:", "",
+              _table(located["correlations"].reset_index().rename(columns={"index": "residual"}), 2), "",
+              "Strongest: " + "; ".join(f"{c} with {f} (r = {r:+.2f})" for c, f, r in sig["correlations"]) + ".", "",
+              f"![residual signatures]({figures['residuals']})", "",
+              "## 2. Explain", "",
+              "Every hypothesis of the library fitted jointly with the calibrated parameters; held-out error is the "
+              "mean Equation 1 error of each run predicted by the fit on the other folds. A candidate is chosen "
+              "only if it lowers the held-out error by at least "
+              f"{diagnosis.settings.min_gain:.0%} and the BIC by at least {diagnosis.settings.bic_margin:g} "
+              "against the simpler model.", "",
+              _table(_candidates(diagnosis)), ""]
+    for e in diagnosis.effects:
+        h = LIBRARY[e["id"]]
+        lines += [f"### `{h.id}`: {h.name}", "", h.explanation, "", f"Expected signature: {h.signature}.", ""]
+    if chosen.ids:
+        lines += [f"Observed: the residual fell most in {sig['component']} on {sig['segment']} segments, "
+                  f"from {sig['before']:.3f} to {sig['after']:.3f} (rms).", "",
+                  "## 3. Model", "",
+                  f"The chosen effect is part of the vehicle's effects variant (`bundled:fmus/robotti_vehicle_effects`, in the package's `dse_runner/bundled/fmus/`). "
+                  f"Written: `{diagnosis.files['multimodel'].name}` and `{diagnosis.files['space'].name}` "
+                  "(the calibration with the effect's parameters added); `dse-runner submit space.yaml` "
+                  "re-calibrates with it.", ""]
+    lines += ["## 4. Show: held-out runs before and after", "", _table(held_out), "",
+              f"![held-out errors]({figures['held_out']})", "", f"![tracks]({figures['tracks']})", ""]
+    return "\n".join(lines)
+

@@ -1,0 +1,230 @@
+"""The reducer: from result rows to rankings.
+
+* totals: each objective summed over a point's scenarios (the paper's
+  Equation 2 / Algorithm 2); the best point minimises (or maximises) the
+  ranking objective's total. Only points with an ok row for every scenario
+  are ranked; the others are counted as incomplete.
+* Table 1 (the paper's): per scenario, min, max and average over points,
+  and the value at the best point with its difference from the average.
+* the Pareto front over any number of objectives, each minimised or maximised;
+* the best point within each scenario group;
+* weighted sums of the objectives' totals.
+
+Only the columns needed are read from Parquet; trajectories are never loaded.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from .. import strict_json
+from ..errors import DseError
+from ..simulation.objectives import is_vector, normalise
+from ..sweeps import store
+from ..sweeps.spec import Ranking as RankingSpec
+from ..sweeps.spec import SpaceSpec
+
+SWEEP_FILE = "sweep.json"  # the spec a sweep ran with, saved beside its results
+MODEL_FILE = "model"  # the hash of the model it last ran
+
+
+@dataclass
+class Ranking:
+    sweep: str
+    parameters: list[str]
+    objective: str
+    goal: str
+    best: dict[str, Any]
+    best_total: float
+    totals: pd.DataFrame  # one row per complete point, best first
+    table1: pd.DataFrame
+    pareto: pd.DataFrame
+    groups: pd.DataFrame
+    weighted: pd.DataFrame
+    incomplete_points: int
+    failed_rows: int
+
+    def to_json(self) -> dict[str, Any]:
+        def records(frame: pd.DataFrame, limit: int | None = None) -> list[dict[str, Any]]:
+            return json.loads(frame.head(limit).to_json(orient="records")) if limit else \
+                json.loads(frame.to_json(orient="records"))
+
+        return {
+            "sweep": self.sweep, "objective": self.objective, "goal": self.goal,
+            "best": self.best, "best_total": self.best_total,
+            "points": len(self.totals), "incomplete_points": self.incomplete_points,
+            "failed_rows": self.failed_rows,
+            "table1": records(self.table1), "pareto": records(self.pareto),
+            "groups": records(self.groups), "weighted": records(self.weighted, 10),
+            "top": records(self.totals, 10),
+        }
+
+
+def save_sweep_spec(output: store.Root, spec: SpaceSpec, model: str) -> None:
+    """The spec a sweep runs with, and the hash of its model, whose rows rankings use."""
+    store.write_text(output, f"{spec.name}.{SWEEP_FILE}", spec.model_dump_json(indent=2))
+    store.write_text(output, f"{spec.name}.{MODEL_FILE}", model + "\n")
+
+
+def current_model(output: store.Root, sweep: str) -> str | None:
+    text = store.read_text(output, f"{sweep}.{MODEL_FILE}")
+    return text.strip() if text is not None else None
+
+
+def load_sweep_spec(output: store.Root, sweep: str) -> SpaceSpec:
+    text = store.read_text(output, f"{sweep}.{SWEEP_FILE}")
+    if text is None:
+        raise DseError(f"{output}: no {sweep}.{SWEEP_FILE}; is this the output folder of a dse-runner submit?")
+    return SpaceSpec.model_validate_json(text)
+
+
+def _sign(goal: str) -> float:
+    return 1.0 if goal == "min" else -1.0
+
+
+def pareto_mask(values: np.ndarray, goals: list[str]) -> np.ndarray:
+    """Rows not dominated by any other row; ``values`` is points x objectives."""
+    costs = values * np.array([_sign(g) for g in goals])  # everything minimised
+    order = np.lexsort(costs.T[::-1])
+    front: list[int] = []
+    for i in order:
+        c = costs[i]
+        if not any(np.all(costs[j] <= c) and np.any(costs[j] < c) for j in front):
+            front = [j for j in front if not (np.all(c <= costs[j]) and np.any(c < costs[j]))]
+            front.append(i)
+    mask = np.zeros(len(costs), dtype=bool)
+    mask[front] = True
+    return mask
+
+
+def _best_first(frame: pd.DataFrame, column: str, goal: str) -> pd.DataFrame:
+    return frame.sort_values(column, ascending=(goal == "min"), kind="stable").reset_index(drop=True)
+
+
+def current_rows(output: store.Root, sweep: str, columns: list[str]) -> pd.DataFrame:
+    """The sweep's rows of its current model: rows of an earlier version of the model (a changed
+    FMU or objective list) are neither ranked nor shown."""
+    rows = store.read_results(output, sweep, columns=["model", *columns])
+    model = current_model(output, sweep)
+    return rows if model is None else rows[rows["model"] == model]
+
+
+def pick_sweep(output: store.Root, sweep: str | None) -> str:
+    """``sweep``, or the one sweep ``output`` holds results of."""
+    if sweep is not None:
+        return sweep
+    names = store.sweeps(output)
+    if not names:
+        raise DseError(f"{output}: no results (expected {store.RESULTS}/sweep=NAME/...)")
+    if len(names) > 1:
+        raise DseError(f"{output} holds several sweeps ({', '.join(names)}): name one with --sweep")
+    return names[0]
+
+
+def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | None = None) -> Ranking:
+    """Rank the results in ``output`` with the sweep's own ranking settings unless given others."""
+    sweep = pick_sweep(output, sweep)
+    spec = load_sweep_spec(output, sweep)
+    settings = settings or spec.ranking
+    parameters = list(spec.parameters)
+    objectives = [name for name, o in normalise(spec.objectives or []).items() if not is_vector(o)]  # lists are not summed
+    pareto = settings.pareto_goals()
+    for name in settings.objectives_used():
+        if name not in objectives:
+            raise DseError(f"ranking: objective {name!r} is not among the sweep's ({', '.join(objectives)})")
+
+    rows = current_rows(output, sweep, ["group", "status", *parameters, *objectives])
+    if rows.empty:
+        raise DseError(f"{output}: sweep {sweep!r} has no rows yet")
+    ok = rows[rows["status"] == "ok"]
+    n_scenarios = rows["scenario"].nunique()
+    per_point = ok.groupby(parameters, dropna=False)
+    totals = per_point[objectives].sum().join(per_point.size().rename("scenarios")).reset_index()
+    complete = totals[totals["scenarios"] == n_scenarios].drop(columns="scenarios")
+    if complete.empty:
+        raise DseError(f"sweep {sweep!r}: no parameter point has an ok result for all {n_scenarios} scenarios")
+    complete = _best_first(complete, settings.objective, settings.goal)
+    best = {p: plain(complete.loc[0, p]) for p in parameters}
+
+    table1 = _table1(ok, settings.objective, best)
+    if pareto:
+        cols = [n for n, _ in pareto]
+        front = complete[pareto_mask(complete[cols].to_numpy(float), [g for _, g in pareto])]
+        front = front.sort_values(cols[0], ascending=pareto[0][1] == "min").reset_index(drop=True)
+    else:
+        front = complete.iloc[0:0]
+    groups = _groups(ok, parameters, settings.objective, settings.goal, rows)
+    weighted = complete.iloc[0:0].assign(weighted=pd.Series(dtype=float))
+    if settings.weights:
+        score = sum(weight * complete[name] for name, weight in settings.weights.items())
+        weighted = _best_first(complete.assign(weighted=score), "weighted", settings.goal)
+
+    return Ranking(sweep, parameters, settings.objective, settings.goal, best,
+                   float(complete.loc[0, settings.objective]), complete, table1, front, groups, weighted,
+                   incomplete_points=len(totals) - len(complete),
+                   failed_rows=int((rows["status"] != "ok").sum()))
+
+
+def standings(ok: pd.DataFrame, parameters: list[str], objective: str, goal: str) -> pd.DataFrame:
+    """The best-so-far ranking of a running sweep: the points that have finished the most scenarios
+    first (tasks run scenario by scenario, so these have finished the same ones and compare like with
+    like), each group by its mean ``objective``. Once every point has finished every scenario the
+    order is that of :func:`rank` (the total is the mean times the number of scenarios)."""
+    if ok.empty:
+        return pd.DataFrame(columns=[*parameters, "scenarios", "mean", "total"])
+    per_point = ok.groupby(parameters, dropna=False)[objective]
+    table = pd.DataFrame({"scenarios": per_point.size(), "mean": per_point.mean(), "total": per_point.sum()})
+    return table.reset_index().sort_values(["scenarios", "mean"], ascending=[False, goal == "min"],
+                                           kind="stable").reset_index(drop=True)
+
+
+def plain(value: Any) -> Any:
+    return value.item() if hasattr(value, "item") else value
+
+
+def format_point(point: dict[str, Any], digits: int = 6) -> str:
+    """``vehicle.mass = 3000, vehicle.mu = 0.3``: a point as people read it, numbers to ``digits``
+    significant digits."""
+    return ", ".join(f"{k} = {v:.{digits}g}" if isinstance(v, float) else f"{k} = {v}"
+                     for k, v in ((k, plain(v)) for k, v in point.items()))
+
+
+def _table1(ok: pd.DataFrame, objective: str, best: dict[str, Any]) -> pd.DataFrame:
+    at_best = np.logical_and.reduce([ok[p] == v for p, v in best.items()])
+    stats = ok.groupby(["scenario", "group"])[objective].agg(["min", "max", "mean"])
+    stats = stats.rename(columns={"min": "min_error", "max": "max_error", "mean": "average_error"})
+    computed = ok[at_best].set_index(["scenario", "group"])[objective].rename("computed")
+    table = stats.join(computed).reset_index()
+    table["difference"] = table["computed"] - table["average_error"]
+    return table
+
+
+def _groups(ok: pd.DataFrame, parameters: list[str], objective: str, goal: str,
+            rows: pd.DataFrame) -> pd.DataFrame:
+    """The best point within each scenario group, by the group's total."""
+    result = []
+    for group, members in ok.groupby("group"):
+        n = rows.loc[rows["group"] == group, "scenario"].nunique()
+        per_point = members.groupby(parameters)[objective].agg(["sum", "size"]).reset_index()
+        per_point = per_point[per_point["size"] == n]
+        if per_point.empty:
+            continue
+        top = _best_first(per_point, "sum", goal).iloc[0]
+        result.append({"group": group, "scenarios": n, **{p: plain(top[p]) for p in parameters},
+                       f"{objective}_total": float(top["sum"])})
+    return pd.DataFrame(result)
+
+
+def write_ranking(ranking: Ranking, output: store.Root, sweep: str) -> dict[str, str]:
+    """CSV files and one JSON file in ``<output>/ranking/<sweep>/``, for people and for scripts."""
+    paths = {}
+    for name in ("totals", "table1", "pareto", "groups", "weighted"):
+        paths[name] = store.write_text(output, f"ranking/{sweep}/{name}.csv",
+                                       getattr(ranking, name).to_csv(index=False))
+    paths["json"] = store.write_text(output, f"ranking/{sweep}/ranking.json", strict_json.dumps(ranking.to_json()))
+    return paths

@@ -1,0 +1,1 @@
+"""dse-runner's what users touch: the command, the dashboard, the report, figures."""

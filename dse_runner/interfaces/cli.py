@@ -1,0 +1,466 @@
+"""The ``dse-runner`` command: a thin shell over the Python API.
+
+Every command that reports results takes ``--json`` and then prints one JSON
+object on stdout and nothing else; errors go to stderr with exit code 2.
+"""
+
+from __future__ import annotations
+
+import sys
+import traceback
+import warnings
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from .. import __version__
+from ..errors import DseError
+
+app = typer.Typer(
+    name="dse-runner",
+    help="Design-space exploration for FMI co-simulation.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+JsonFlag = Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout, nothing else.")]
+DashboardAddress = Annotated[str, typer.Option(
+    help="host:port the dashboard listens on (port 0: any free one). Loopback by default: the page has no "
+         "login; reach it from elsewhere through an SSH tunnel.")]
+
+
+class Options:
+    """Options of the whole command, given before the subcommand."""
+
+    debug = False  # show tracebacks
+
+
+@app.callback()
+def options(debug: Annotated[bool, typer.Option(
+        "--debug", help="Show the traceback behind an error message.")] = False) -> None:
+    """Design-space exploration for FMI co-simulation."""
+    Options.debug = debug
+    warnings.showwarning = _one_line_warning
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning is one line on stderr, ``warning: ...``, like an error (the source line with --debug)."""
+    where = f" ({filename}:{lineno})" if Options.debug else ""
+    typer.echo(f"warning: {message}{where}", err=True)
+
+
+def fail(error: Exception) -> None:
+    """A user's error: one line naming the culprit on stderr, exit code 2 (the traceback with --debug,
+    and that of the exception behind it: our messages are raised ``from None``)."""
+    if Options.debug:
+        if error.__context__ is not None:
+            traceback.print_exception(error.__context__)
+        traceback.print_exc()
+    typer.echo(f"error: {error}", err=True)
+    raise typer.Exit(2)
+
+
+def emit_json(data: dict[str, Any]) -> None:
+    """One strict JSON object on stdout: missing numbers are null, never NaN."""
+    from ..strict_json import dumps
+
+    sys.stdout.write(dumps(data) + "\n")
+
+
+def parse_assignment(text: str) -> tuple[str, Any]:
+    """``vehicle.mass=1500`` -> ('vehicle.mass', 1500.0); non-numbers stay strings."""
+    ref, eq, raw = text.partition("=")
+    if not eq or not ref.strip():
+        raise DseError(f"--set {text!r}: expected instance.variable=value")
+    raw = raw.strip()
+    try:
+        value: Any = float(raw)
+    except ValueError:
+        value = {"true": True, "false": False}.get(raw.lower(), raw)
+    return ref.strip(), value
+
+
+@app.command("build-fmus")
+def build_fmus(
+    sources: Annotated[Path | None, typer.Argument(
+        help="Folder of FMU source folders. Default: the FMUs bundled with dse-runner.")] = None,
+    out: Annotated[Path | None, typer.Option(help="Copy the built .fmu files here.")] = None,
+    as_json: JsonFlag = False,
+) -> None:
+    """Compile every FMU under SOURCES with the system C compiler (cached by source hash)."""
+    import shutil
+
+    from ..simulation.build import build_fmu, find_source_dirs
+
+    try:
+        built = {d.name: build_fmu(d) for d in find_source_dirs(sources)}
+        if not built:
+            raise DseError(f"no FMU source folders (modelDescription.xml + *.c) under {sources or 'the bundle'}")
+        if out is not None:
+            out.mkdir(parents=True, exist_ok=True)
+            built = {name: Path(shutil.copy(path, out / f"{name}.fmu")) for name, path in built.items()}
+    except DseError as e:
+        fail(e)
+    if as_json:
+        emit_json({"fmus": {name: str(path) for name, path in built.items()}})
+    else:
+        for name, path in built.items():
+            typer.echo(f"{name}: {path}")
+
+
+@app.command()
+def simulate(
+    model: Annotated[Path, typer.Argument(help="An .fmu file, or a multi-model file (YAML, or INTO-CPS mm.json).")],
+    scenario: Annotated[Path | None, typer.Option(
+        "--scenario", "-s", help="Scenario folder (scenario.yaml, or a kind's format such as field data).")] = None,
+    set_: Annotated[list[str] | None, typer.Option(
+        "--set", help="instance.variable=value (for one .fmu: variable=value); repeatable.")] = None,
+    start_time: Annotated[float | None, typer.Option(help="Start time [s]. Default: the scenario's, the FMU's, 0.")] = None,
+    stop_time: Annotated[float | None, typer.Option(help="Stop time [s]. Default: the scenario's or the FMU's.")] = None,
+    step: Annotated[float | None, typer.Option(help="Communication step [s]. Default: see docs/space.md.")] = None,
+    interface: Annotated[str | None, typer.Option(
+        help="cs or me: run every FMU through this interface. Default: co-simulation when offered.")] = None,
+    objective: Annotated[list[str] | None, typer.Option(
+        "--objective", help="A registered objective or module:function; repeatable. Default: the scenario "
+                            "kind's (field data: the GPS objectives).")] = None,
+    csv: Annotated[Path | None, typer.Option(help="Write every output here: time, then one column per output.")] = None,
+    out: Annotated[Path | None, typer.Option(help="Folder for trajectory.csv and a plot (plot.png).")] = None,
+    as_json: JsonFlag = False,
+) -> None:
+    """Simulate MODEL once (on a scenario if given); print the objectives and final outputs."""
+    from ..simulation.run import simulate as run_simulation
+    from ..simulation.run import summary, write_csv
+    from .plots import result_plot
+
+    files: dict[str, Path] = {}
+    try:
+        if interface not in (None, "cs", "me"):
+            raise DseError(f"--interface {interface!r}: use cs (co-simulation) or me (model exchange)")
+        values = dict(parse_assignment(a) for a in set_ or [])
+        result = run_simulation(model, scenario, values, start_time, stop_time, step,
+                                objectives=list(objective) if objective else None, interface=interface)
+        bare = model.suffix.lower() == ".fmu"  # one FMU: its variables' own names
+        if csv is not None:
+            files["csv"] = write_csv(result, csv, bare)
+        if out is not None:
+            out.mkdir(parents=True, exist_ok=True)
+            files["trajectory"] = write_csv(result, out / "trajectory.csv", bare)
+            files["plot"] = result_plot(result, out / "plot.png")
+    except DseError as e:
+        fail(e)
+    except OSError as e:  # an output file: not writable, or a folder of that name
+        fail(DseError(f"cannot write {e.filename}: {e.strerror}"))
+    final = summary(result, bare)
+    if as_json:
+        emit_json({**final, **{name: str(path) for name, path in files.items()}})
+        return
+    typer.echo(f"scenario {result.scenario.name}  ({result.scenario.group}, {result.times.start:g}..{result.times.stop:g} s, "
+               f"step {result.step:g} s)")
+    for name, value in result.objectives.items():
+        shown = f"{value:10.4f}" if isinstance(value, float) else f"[{len(value)} values]"
+        typer.echo(f"  {name:<20} {shown}")
+    if final["final"]:
+        typer.echo("final values:")
+        for name, value in list(final["final"].items())[:MAX_PRINTED]:
+            typer.echo(f"  {name:<28} {value:.6g}" if isinstance(value, float) else f"  {name:<28} {value!r}")
+        if len(final["final"]) > MAX_PRINTED:
+            typer.echo(f"  ... and {len(final['final']) - MAX_PRINTED} more (--json or --csv has them all)")
+    if result.scenario.dropouts:
+        typer.echo(f"  {_dropouts_line({result.scenario.name: result.scenario.dropouts})}")
+    for label, path in files.items():
+        typer.echo(f"{label + ':':<12}{path}")
+
+
+MAX_PRINTED = 30  # final values printed as text
+
+
+def _print_table1(ranking) -> None:
+    from ..analysis.rank import format_point
+
+    typer.echo(f"Table 1: {ranking.objective} per scenario ({len(ranking.totals)} points)")
+    typer.echo(f"  {'scenario':<14}{'min':>9}{'max':>9}{'average':>9}{'best':>9}{'diff':>10}")
+    for row in ranking.table1.itertuples():
+        typer.echo(f"  {row.scenario:<14}{row.min_error:9.3f}{row.max_error:9.3f}{row.average_error:9.3f}"
+                   f"{row.computed:9.3f}{row.difference:+10.3f}")
+    typer.echo(f"best: {format_point(ranking.best)}  (total {ranking.objective} {ranking.best_total:.3f})")
+
+
+@app.command()
+def submit(
+    spec: Annotated[Path, typer.Argument(help="Design-space spec (space.yaml).")],
+    out: Annotated[str | None, typer.Option(help="Results folder or fsspec URL (overrides the spec's 'output').")] = None,
+    workers: Annotated[int | None, typer.Option(help="Workers to start (overrides the spec).")] = None,
+    scheduler: Annotated[str | None, typer.Option(help="Address of an existing Dask scheduler (tcp:// or tls://).")] = None,
+    cluster: Annotated[str | None, typer.Option(help="Start a cluster of this kind: local, htcondor, kubernetes "
+                                                     "or a plugin's (overrides the spec).")] = None,
+    dashboard: Annotated[bool, typer.Option(help="Serve the live dashboard while the sweep runs.")] = True,
+    dashboard_address: DashboardAddress = "127.0.0.1:0",
+    as_json: JsonFlag = False,
+) -> None:
+    """Run every (parameter point, scenario) task of SPEC on Dask; resume if run again; rank."""
+    from ..analysis.rank import rank, write_ranking
+    from ..simulation.scenario import dropouts
+    from ..sweeps.spec import load_space
+    from ..sweeps.sweep import submit as run_sweep
+
+    board = None
+    try:
+        space = load_space(spec).with_overrides(out, scheduler, workers, cluster)
+        if dashboard:
+            board = _start_dashboard(space, dashboard_address)
+        with ProgressBar() as progress:
+            report = run_sweep(space, progress=progress, on_connect=board.link if board else None)
+    except DseError as e:
+        fail(e)
+    except KeyboardInterrupt:
+        typer.echo("interrupted before the sweep started; nothing was lost", err=True)
+        raise typer.Exit(130)
+    finally:
+        if board is not None:
+            board.server.stop()
+    if report.interrupted:
+        typer.echo(f"interrupted: {report.skipped + report.ran} of {report.total} tasks have results in "
+                   f"{report.output}; run the same command again to finish the rest", err=True)
+        raise typer.Exit(130)
+    summary = {
+        "sweep": report.sweep, "output": str(report.output), "tasks": report.total,
+        "skipped": report.skipped, "ran": report.ran, "ok": report.ok, "failed": report.failed,
+        "seconds": round(report.seconds, 3), "workers": report.workers, "chunk_size": report.chunk_size,
+        "errors": report.errors, "dropouts": dropouts(space.scenarios),
+    }
+    if not as_json:
+        typer.echo(f"{report.sweep}: {report.total} tasks, {report.skipped} already done, ran {report.ran} "
+                   f"({report.failed} failed) in {report.seconds:.1f} s on {report.workers} workers")
+        for error in report.errors:
+            typer.echo(f"  failed: {error.splitlines()[0]}")
+        if summary["dropouts"]:
+            typer.echo(f"  {_dropouts_line(summary['dropouts'])}")
+    try:
+        ranking = rank(report.output, report.sweep)
+        files = write_ranking(ranking, report.output, report.sweep)
+    except DseError as e:
+        if as_json:
+            emit_json({**summary, "ranking": None, "best": None, "best_total": None})
+        typer.echo(f"error: no ranking: {e}", err=True)
+        raise typer.Exit(1)
+    if as_json:
+        emit_json({**summary, "ranking": str(files["json"]), "best": ranking.best, "best_total": ranking.best_total})
+        return
+    _print_table1(ranking)
+    typer.echo(f"ranking: {files['json'].rsplit('/', 1)[0]}")
+    typer.echo(f"report: dse-runner report {report.output} -o report.html; "
+               f"dashboard: dse-runner dashboard {report.output}")
+
+
+def _dropouts_line(counts: dict[str, int]) -> str:
+    return "recorded values skipped as dropouts (empty or NaN): " + ", ".join(f"{name} {n}" for name, n in counts.items())
+
+
+class _Board:
+    """The dashboard a submit serves, and how it links itself from Dask's dashboard."""
+
+    def __init__(self, server) -> None:
+        self.server = server
+
+    def link(self, client) -> None:
+        from .dashboard import link_from_dask
+
+        page = link_from_dask(client, self.server.url)
+        if page:
+            typer.echo(f"linked from Dask's dashboard: {page}", err=True)
+
+
+def _start_dashboard(space, address: str) -> _Board:
+    from .dashboard import serve
+
+    server = serve(space.output, space.name, address, space)
+    typer.echo(f"dse-runner dashboard: {server.url}", err=True)
+    return _Board(server)
+
+
+@app.command("dashboard")
+def dashboard_command(
+    results: Annotated[str, typer.Argument(help="A sweep's store: output folder or URL.")],
+    sweep: Annotated[str | None, typer.Option(help="Which sweep, if the folder holds several.")] = None,
+    address: DashboardAddress = "127.0.0.1:0",
+) -> None:
+    """Serve the live dashboard of a running or finished sweep until interrupted (Ctrl-C)."""
+    import time
+
+    from ..analysis.rank import pick_sweep
+    from .dashboard import serve
+
+    try:
+        server = serve(results, pick_sweep(results, sweep), address)
+    except DseError as e:
+        fail(e)
+    typer.echo(f"dse-runner dashboard: {server.url}  (Ctrl-C to stop)")
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        server.stop()
+
+
+@app.command("report")
+def report_command(
+    results: Annotated[str, typer.Argument(help="A sweep's store: output folder or URL.")],
+    output: Annotated[Path, typer.Option("-o", "--output", help="The HTML file to write.")] = Path("report.html"),
+    sweep: Annotated[str | None, typer.Option(help="Which sweep, if the folder holds several.")] = None,
+    as_json: JsonFlag = False,
+) -> None:
+    """Write one self-contained HTML file (opens offline): Table 1, rankings, Pareto front, figures, spec."""
+    from .report import write_report
+
+    try:
+        path = write_report(results, output, sweep)
+    except DseError as e:
+        fail(e)
+    if as_json:
+        emit_json({"report": str(path), "bytes": path.stat().st_size})
+    else:
+        typer.echo(f"report: {path} ({path.stat().st_size / 1e6:.1f} MB)")
+
+
+class ProgressBar:
+    """A terminal progress bar with rate and ETA, on stderr so --json output stays clean."""
+
+    def __init__(self) -> None:
+        from rich.console import Console
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
+
+        self.bar = Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                            TextColumn("{task.fields[rate]} sim/s"), TextColumn("{task.fields[failed]} failed"),
+                            TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
+                            console=Console(stderr=True), transient=False)
+        self.task = None
+
+    def __enter__(self):
+        self.bar.__enter__()
+        return self
+
+    def __exit__(self, *exc):
+        return self.bar.__exit__(*exc)
+
+    def __call__(self, report) -> None:
+        if self.task is None:
+            if report.dashboard:
+                self.bar.console.print(f"Dask dashboard: {report.dashboard}")
+            self.task = self.bar.add_task(report.sweep, total=report.total - report.skipped,
+                                          rate="-", failed=0)
+        rate = report.ran / report.seconds if report.seconds > 0 else 0.0
+        self.bar.update(self.task, completed=report.ran, rate=f"{rate:.1f}", failed=report.failed,
+                        description=report.waiting or report.sweep)
+
+
+@app.command("rank")
+def rank_command(
+    results: Annotated[str, typer.Argument(help="A sweep's store: output folder or URL.")],
+    sweep: Annotated[str | None, typer.Option(help="Which sweep, if the folder holds several.")] = None,
+    objective: Annotated[str | None, typer.Option(help="Rank by this objective instead of the spec's.")] = None,
+    as_json: JsonFlag = False,
+) -> None:
+    """Aggregate a sweep's results: totals, Table 1, Pareto front, group and weighted rankings."""
+    from ..analysis.rank import load_sweep_spec, rank, write_ranking
+    from ..sweeps.store import sweeps
+
+    try:
+        settings = None
+        if objective is not None:
+            names = [sweep] if sweep else sweeps(results)
+            if not names:
+                raise DseError(f"{results}: no results")
+            settings = load_sweep_spec(results, names[0]).ranking.model_copy(update={"objective": objective})
+        ranking = rank(results, sweep, settings)
+        files = write_ranking(ranking, results, ranking.sweep)
+    except DseError as e:
+        fail(e)
+    if as_json:
+        emit_json({**ranking.to_json(), "files": {k: str(v) for k, v in files.items()}})
+        return
+    _print_table1(ranking)
+    if len(ranking.pareto):
+        typer.echo(f"Pareto front: {len(ranking.pareto)} points (pareto.csv)")
+    for row in ranking.groups.to_dict("records"):
+        point = ", ".join(f"{p}={row[p]:g}" for p in ranking.parameters)
+        typer.echo(f"  best in {row['group']:<12} {point}  ({row[f'{ranking.objective}_total']:.3f})")
+    if ranking.incomplete_points or ranking.failed_rows:
+        typer.echo(f"not ranked: {ranking.incomplete_points} points without an ok row for every scenario "
+                   f"({ranking.failed_rows} failed rows)")
+    typer.echo(f"written: {files['json'].rsplit('/', 1)[0]}")
+
+
+@app.command()
+def diagnose(
+    scenarios: Annotated[Path, typer.Option("--scenarios", help="Folder of recorded runs (field-data format).")],
+    multimodel: Annotated[Path | None, typer.Option(help="Multi-model to diagnose (default: the space's).")] = None,
+    space: Annotated[Path | None, typer.Option(
+        help="Calibration design space: its parameters and ranges (default: bundled:robotti/calibration.yaml).")] = None,
+    out: Annotated[Path, typer.Option(help="Folder for results, the new model and the report.")] = Path("out/diagnosis"),
+    folds: Annotated[int, typer.Option(help="Cross-validation folds across runs.")] = 3,
+    hypothesis: Annotated[list[str] | None, typer.Option(
+        "--hypothesis", help="Try only this hypothesis of the library (repeatable). Default: every one.")] = None,
+    workers: Annotated[int | None, typer.Option(help="Local cluster workers (overrides the space).")] = None,
+    scheduler: Annotated[str | None, typer.Option(help="Address of an existing Dask scheduler.")] = None,
+    as_json: JsonFlag = False,
+) -> None:
+    """Calibrate, locate the mismatch, name the missing physics, model it and show the fit improve."""
+    from ..analysis.diagnose import Settings
+    from ..analysis.diagnose import diagnose as run_diagnosis
+
+    def say(message: str) -> None:
+        typer.echo(message, err=True)
+
+    try:
+        settings = Settings(folds=folds, hypotheses=tuple(hypothesis or ()))
+        result = run_diagnosis(scenarios, multimodel, space, out, settings, progress=say, n_workers=workers,
+                               address=scheduler)
+    except DseError as e:
+        fail(e)
+    except KeyboardInterrupt:
+        typer.echo(f"interrupted: finished simulations are kept in {out}; run again to resume", err=True)
+        raise typer.Exit(130)
+    if as_json:
+        emit_json(result.to_json())
+        return
+    for effect in result.effects:
+        values = ", ".join(f"{k} = {v:.4g} [{effect['interval'][k][0]:.4g}, {effect['interval'][k][1]:.4g}]"
+                           for k, v in effect["parameters"].items())
+        typer.echo(f"{effect['id']}: {effect['name']}" + (f": {values}" if values else ""))
+    typer.echo(f"held-out mean cross-track error: {result.cross_track_before:.3f} m before, "
+               f"{result.cross_track_after:.3f} m after")
+    if result.dropouts:
+        typer.echo(_dropouts_line(result.dropouts))
+    for name in ("multimodel", "space", "report"):
+        if name in result.files:
+            typer.echo(f"{name}: {result.files[name]}")
+
+
+@app.command()
+def version() -> None:
+    """Print the version."""
+    typer.echo(__version__)
+
+
+def main() -> None:
+    """The console script: a bug's exception is one line too, unless --debug asks for the traceback."""
+    try:
+        app()
+    except Exception as e:  # anything the commands did not turn into a DseError
+        if Options.debug:
+            raise
+        typer.echo(f"error: unexpected {type(e).__name__}: {e} (run with --debug for the traceback)", err=True)
+        sys.exit(1)
+
+
+if __name__ == "__main__":
+    main()

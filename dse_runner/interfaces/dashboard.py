@@ -1,0 +1,395 @@
+"""The live dashboard: a Bokeh server page over one sweep's store, beside Dask's own dashboard.
+
+It reads only what any process can read: the result rows, the spec the sweep ran with
+(``<sweep>.sweep.json``) and the status the submitting process saves every second
+(``<sweep>.status.json``, see sweep.save_status). So one page serves a sweep running in
+this process (``submit`` starts it), one running elsewhere (``dse-runner dashboard
+RESULTS``) and a finished one. The best point's track is simulated here, on demand, from
+the sweep's own spec and recordings: one co-simulation takes tens of milliseconds.
+
+``link_from_dask`` adds a "dse-runner" page to Dask's dashboard that redirects here,
+through a scheduler plugin, the way distributed extends itself.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import html
+import socket
+import threading
+import time
+from dataclasses import dataclass, field
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+from distributed.diagnostics.plugin import SchedulerPlugin
+
+from ..analysis.comparison import Comparison, compare
+from ..analysis.rank import current_model, current_rows, format_point, load_sweep_spec, plain, standings
+from ..errors import DseError
+from ..sweeps import store
+from ..sweeps.spec import Space, load_space
+from ..sweeps.sweep import SweepReport, load_status
+from . import charts
+
+REFRESH_SECONDS = 1.0  # how often pages refresh, and how stale the shared snapshot may be
+STALE_SECONDS = 30.0  # a running sweep whose status is older than this has probably lost its client
+TOP = 15  # rows of the best-so-far ranking shown
+DASK_PAGE = "dse-runner"  # the page added to Dask's dashboard
+
+
+@dataclass
+class Snapshot:
+    """The sweep as read from the store at one moment."""
+
+    status: SweepReport | None
+    ok: pd.DataFrame  # ok rows of the current model: parameters, scenario, group, objective
+    done: int  # tasks with a row (ok or failed)
+    failed: int
+    standings: pd.DataFrame  # best so far first
+    taken: float = field(default_factory=time.monotonic)
+
+
+class Feed:
+    """What every page of one sweep shows: read from the store at most once per REFRESH_SECONDS
+    and shared by all open pages, plus the tracks they ask for."""
+
+    def __init__(self, output: store.Root, sweep: str, space: Space | None = None):
+        spec = space.spec if space is not None else load_sweep_spec(output, sweep)
+        self.output, self.sweep = output, sweep
+        self.parameters = list(spec.parameters)
+        self.objective, self.goal = spec.ranking.objective, spec.ranking.goal
+        self._space, self._space_note = space, ""  # no space, and why not (once looked for)
+        self._looked_for_space = space is not None
+        self._lock = threading.Lock()
+        self._snapshot: Snapshot | None = None
+        self._tracks: dict[tuple, tuple] = {}
+
+    def snapshot(self) -> Snapshot:
+        with self._lock:
+            if self._snapshot is None or time.monotonic() - self._snapshot.taken >= REFRESH_SECONDS:
+                self._snapshot = self._read()
+            return self._snapshot
+
+    def _read(self) -> Snapshot:
+        rows = current_rows(self.output, self.sweep, ["group", "status", *self.parameters, self.objective])
+        ok = rows[rows["status"] == "ok"]
+        return Snapshot(load_status(self.output, self.sweep), ok, len(rows), int((rows["status"] != "ok").sum()),
+                        standings(ok, self.parameters, self.objective, self.goal))
+
+    def scenarios(self, snap: Snapshot) -> dict[str, str]:
+        """Scenario -> group: from the space if this process has it, else the status, else the rows."""
+        if self._space is not None:
+            return {s.name: s.group for s in self._space.scenarios}
+        if snap.status is not None and snap.status.scenarios:
+            return dict(snap.status.scenarios)
+        return dict(zip(snap.ok["scenario"], snap.ok["group"]))
+
+    def space(self) -> tuple[Space | None, str]:
+        """The sweep's space, to simulate tracks; or None and why not."""
+        if not self._looked_for_space:
+            self._space, self._space_note = self._load_space()
+            self._looked_for_space = True
+        return self._space, self._space_note
+
+    def _load_space(self) -> tuple[Space | None, str]:
+        status = self.snapshot().status
+        if status is None or not status.spec:
+            return None, "no status file names the sweep's spec, so its recordings are unknown"
+        if not Path(status.spec).is_file():
+            return None, f"the sweep's spec {status.spec} is not on this machine"
+        try:
+            space = load_space(status.spec)
+        except DseError as e:
+            return None, f"cannot load the sweep's spec: {e}"
+        if space.model_key != current_model(self.output, self.sweep):
+            return None, f"{status.spec} has changed since the sweep ran; its tracks would not be the sweep's"
+        return space, ""
+
+    def track(self, scenario: str, point: dict[str, Any]) -> tuple[Comparison, float]:
+        """``point`` simulated on ``scenario`` next to its recording (comparison.py), and the objective."""
+        from ..simulation.run import simulate
+
+        key = (scenario, tuple(sorted(point.items())))
+        if key not in self._tracks:
+            space, note = self.space()
+            if space is None:
+                raise DseError(note)
+            recording = next(s for s in space.scenarios if s.name == scenario)
+            objective = space.objectives[self.objective]
+            result = simulate(space.plan, recording, point, objectives={self.objective: objective},
+                              timeout=space.spec.timeout, experiment=space.experiment)
+            self._tracks[key] = (compare(result, objective), result.objectives[self.objective])
+        return self._tracks[key]
+
+
+def _duration(seconds: float | None) -> str:
+    if seconds is None:
+        return "–"
+    seconds = int(round(seconds))
+    hours, rest = divmod(seconds, 3600)
+    return f"{hours}h {rest // 60:02d}m" if hours else f"{rest // 60}m {rest % 60:02d}s" if rest >= 60 else f"{rest}s"
+
+
+def progress_html(snap: Snapshot, now: float) -> str:
+    """The progress line: done, failed, remaining, rate and ETA, as HTML with ids the tests read."""
+    status = snap.status
+    total = status.total if status else None
+    remaining = max(0, total - snap.done) if total is not None else None
+    state = status.state if status else "unknown"
+    if status and state == "running" and now - status.updated_at > STALE_SECONDS:
+        state = f"no news for {_duration(now - status.updated_at)} (is the submitting process still running?)"
+    elif status and status.waiting:
+        state = status.waiting
+    share = 100.0 * snap.done / total if total else 0.0
+    cells = [("done", f"{snap.done}" + (f" of {total}" if total is not None else "")),
+             ("failed", str(snap.failed)),
+             ("remaining", "–" if remaining is None else str(remaining)),
+             ("rate", f"{status.rate:.1f} simulations/s" if status else "–"),
+             ("eta", _duration(status.eta_seconds) if status and status.state == "running" else "–"),
+             ("state", state)]
+    items = "".join(f'<div class="cell"><div class="label">{name}</div>'
+                    f'<div class="value" id="dse-{name}">{html.escape(value)}</div></div>' for name, value in cells)
+    return (f'<div class="bar"><div class="fill" style="width:{share:.1f}%"></div></div>'
+            f'<div class="cells">{items}</div>')
+
+
+def best_html(snap: Snapshot, parameters: list[str], objective: str, scenarios: int) -> str:
+    if snap.standings.empty:
+        return '<span id="dse-best">no results yet</span>'
+    top = snap.standings.iloc[0]
+    values = format_point({p: top[p] for p in parameters})
+    return (f'<span id="dse-best">best so far: {html.escape(values)}; mean {objective} {top["mean"]:.4f} '
+            f'over {int(top["scenarios"])} of {scenarios or "?"} scenarios</span>')
+
+
+def title_html(feed: Feed, status: SweepReport | None) -> str:
+    dask = status.dashboard if status else None
+    link = f' · <a href="{html.escape(dask)}" target="_blank">Dask dashboard</a>' if dask else ""
+    return (f"<h2 style='font-family:sans-serif;margin:0'>{html.escape(feed.sweep)}</h2>"
+            f"<div style='font-family:sans-serif'>results in {html.escape(str(feed.output))}{link}</div>")
+
+
+def ranking_html(top: pd.DataFrame, objective: str) -> str:
+    four = "{:.4f}".format
+    table = top.rename(columns={"mean": f"mean {objective}", "total": f"total {objective}"})
+    table.insert(0, "#", range(1, len(table) + 1))
+    return charts.html_table(table, "dse-ranking", {f"mean {objective}": four, f"total {objective}": four})
+
+
+def workers_html(status: SweepReport) -> str:
+    table = pd.DataFrame([{"worker": w.name, "threads": w.threads, "running": w.executing, "CPU %": round(w.cpu),
+                           "memory [MB]": round(w.memory / 2**20)} for w in status.activity],
+                         columns=["worker", "threads", "running", "CPU %", "memory [MB]"])
+    return charts.html_table(table, "dse-workers")
+
+
+STYLE = """<style>
+.bar {height: 14px; background: #e8e8e8; border-radius: 7px; overflow: hidden; width: 760px}
+.fill {height: 100%; background: #1f77b4; transition: width .5s}
+.cells {display: flex; gap: 28px; margin-top: 8px; font-family: sans-serif}
+.label {font-size: 11px; color: #666; text-transform: uppercase}
+.value {font-size: 17px}
+</style>"""
+
+
+class Page:
+    """One browser tab: Bokeh models refilled from the shared feed every REFRESH_SECONDS."""
+
+    def __init__(self, feed: Feed, doc):
+        from bokeh.layouts import column, row
+        from bokeh.models import Div, Select
+
+        self.feed, self.shown = feed, -1  # rows shown: they only ever grow, so a count tells news
+        snap = feed.snapshot()
+        self.scenarios = feed.scenarios(snap)
+        p, objective = feed.parameters, feed.objective
+        self.title = Div(width=800)
+        self.progress = Div(text=STYLE, width=800)
+        self.best = Div(width=800)
+        self.ranking = Div(width=2 * charts.WIDTH)
+        self.workers = Div(width=charts.WIDTH)
+        self.fig5 = charts.ObjectiveByParameter(p, objective, sorted(set(self.scenarios.values())))
+        self.fig6 = charts.ErrorByGroup(p, objective, self.scenarios)
+        names = sorted(self.scenarios)
+        self.select = Select(title="scenario", value=names[0] if names else "", options=names)
+        self.select.on_change("value", lambda attr, old, new: self._track(feed.snapshot(), force=True))
+        self.track = charts.TrackChart()
+        self.track_note = Div(width=800)
+        self.track_shown: tuple | None = None
+
+        def heading(text: str) -> Div:
+            return Div(text=f"<h3 style='font-family:sans-serif;margin:12px 0 0'>{text}</h3>")
+
+        doc.title = f"dse-runner: {feed.sweep}"
+        doc.add_root(column(
+            self.title, self.progress, self.best,
+            row(column(heading("Best so far"), self.ranking), column(heading("Workers"), self.workers)),
+            heading(f"{objective} against each parameter (paper's Figure 5)"), self.fig5.layout,
+            heading(f"{objective} per scenario group at each parameter point, points sorted by "
+                    f"{', '.join(p)} (paper's Figure 6)"), self.fig6.layout,
+            heading("Best candidate against the scenario's recording"), self.select, self.track_note, self.track.figure))
+        self.update()
+        doc.add_periodic_callback(self.update, int(REFRESH_SECONDS * 1000))
+
+    def update(self) -> None:
+        snap = self.feed.snapshot()
+        self.title.text = title_html(self.feed, snap.status)
+        self.progress.text = STYLE + progress_html(snap, time.time())
+        if snap.status:
+            self.workers.text = charts.TABLE_STYLE + workers_html(snap.status)
+        if snap.done == self.shown:
+            return  # no new rows since the last refill
+        self.shown = snap.done
+        self.best.text = best_html(snap, self.feed.parameters, self.feed.objective, len(self.scenarios))
+        self.ranking.text = charts.TABLE_STYLE + ranking_html(snap.standings.head(TOP), self.feed.objective)
+        self.fig5.update(snap.ok)
+        self.fig6.update(snap.ok)
+        self._track(snap)
+
+    def _track(self, snap: Snapshot, force: bool = False) -> None:
+        if snap.standings.empty or not self.select.value:
+            self.track_note.text = "<span id='dse-track'>The best point's track appears with the first results.</span>"
+            return
+        point = {p: plain(snap.standings.iloc[0][p]) for p in self.feed.parameters}
+        key = (self.select.value, tuple(sorted(point.items())))
+        if key == self.track_shown and not force:
+            return
+        self.track_shown = key
+        try:
+            comparison, value = self.feed.track(self.select.value, point)
+        except DseError as e:
+            self.track_note.text = f"<span id='dse-track'>No track: {html.escape(str(e))}</span>"
+            return
+        caption = f"{self.select.value}: best point so far, {self.feed.objective} {value:.4f}"
+        self.track_note.text = f"<span id='dse-track'>{html.escape(caption)}</span>"
+        self.track.update(comparison, caption)
+
+
+# --- serving -------------------------------------------------------------------------------------
+
+def parse_address(text: str) -> tuple[str, int]:
+    """``host:port`` (port 0 for any free one) -> (host, port)."""
+    host, colon, port = text.rpartition(":")
+    if not colon or not host or not port.isdigit():
+        raise DseError(f"dashboard address {text!r}: expected host:port, e.g. 127.0.0.1:8790 (port 0 for any)")
+    return host, int(port)
+
+
+def _free_port(host: str) -> int:
+    with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as s:
+        s.bind((host, 0))
+        return s.getsockname()[1]
+
+
+def _origins(host: str, port: int) -> list[str]:
+    """Pages whose websocket Bokeh accepts: the names a browser may use for this address."""
+    names = {host, "localhost", "127.0.0.1"}
+    if host not in ("127.0.0.1", "localhost", "::1"):
+        names |= {socket.gethostname(), socket.getfqdn()}
+    return sorted(f"{name}:{port}" for name in names)
+
+
+@dataclass
+class DashboardServer:
+    """A dashboard served from a background thread; ``stop()`` ends it."""
+
+    url: str
+    _loop: Any
+    _thread: threading.Thread
+
+    def stop(self) -> None:
+        self._loop.add_callback(self._loop.stop)
+        self._thread.join(timeout=10)
+
+
+def serve(output: store.Root, sweep: str, address: str = "127.0.0.1:0", space: Space | None = None) -> DashboardServer:
+    """Serve the dashboard of ``sweep`` in ``output`` at ``address`` (loopback by default: the page
+    shows file paths and has no login) from a daemon thread."""
+    from bokeh.application import Application
+    from bokeh.application.handlers.function import FunctionHandler
+    from bokeh.server.server import Server
+    from tornado.ioloop import IOLoop
+
+    host, port = parse_address(address)
+    try:
+        port = port or _free_port(host)
+    except OSError as e:
+        raise DseError(f"dashboard address {address}: {e.strerror}") from None
+    feed = Feed(output, sweep, space)
+    ready: dict[str, Any] = {}
+    started = threading.Event()
+
+    def run() -> None:
+        asyncio.set_event_loop(asyncio.new_event_loop())
+        loop = IOLoop.current()
+        try:
+            server = Server({"/": Application(FunctionHandler(partial(Page, feed)))}, io_loop=loop,
+                            address=host, port=port, allow_websocket_origin=_origins(host, port))
+            server.start()
+        except OSError as e:
+            ready["error"] = e
+            started.set()
+            return
+        ready["loop"] = loop
+        started.set()
+        loop.start()
+        server.stop()
+
+    thread = threading.Thread(target=run, name="dse-runner-dashboard", daemon=True)
+    thread.start()
+    started.wait()
+    if "error" in ready:
+        raise DseError(f"cannot serve the dashboard at {host}:{port}: {ready['error'].strerror}")
+    shown = f"[{host}]" if ":" in host else host
+    return DashboardServer(f"http://{shown}:{port}/", ready["loop"], thread)
+
+
+# --- the link from Dask's dashboard -------------------------------------------------------------
+
+_TARGET: dict[str, str] = {}  # in the scheduler's process: where its dse-runner page redirects
+
+
+class DaskLink(SchedulerPlugin):
+    """Adds a "dse-runner" page to Dask's dashboard that redirects to our dashboard."""
+
+    name = "dse-runner-dashboard"
+
+    def __init__(self, url: str):
+        self.url = url
+
+    async def start(self, scheduler) -> None:
+        from tornado import web
+
+        first = not _TARGET
+        _TARGET["url"] = self.url
+        app = getattr(scheduler, "http_application", None)
+        if app is None or not first:
+            return
+
+        class Redirect(web.RequestHandler):
+            def get(self) -> None:
+                self.redirect(_TARGET["url"])
+
+        app.add_handlers(r".*", [(rf"/{DASK_PAGE}/?", Redirect)])
+        try:  # the link in the navigation bar of Dask's own pages
+            from distributed.dashboard.scheduler import template_variables
+
+            pages = template_variables(scheduler)["pages"]
+            if DASK_PAGE not in pages:
+                pages.append(DASK_PAGE)
+        except ImportError:  # no bokeh on the scheduler: no Dask pages to link from
+            pass
+
+
+def link_from_dask(client, url: str) -> str | None:
+    """Make Dask's dashboard link to ``url``; the address of the linking page, or None if the
+    scheduler cannot take the plugin (no dse-runner installed beside it, say)."""
+    try:
+        client.register_plugin(DaskLink(url))
+    except Exception:  # the scheduler could not unpickle or start it: the link is a convenience
+        return None
+    dask = client.dashboard_link
+    return dask.rsplit("/", 1)[0] + f"/{DASK_PAGE}" if dask else None

@@ -1,0 +1,156 @@
+"""The sweep report: one self-contained HTML file to send to a colleague.
+
+It holds Table 1, the rankings, the Pareto front, the dashboard's figures (drawn by the
+same chart classes, filled once), the best point's track on every scenario, and the spec
+that produced them. BokehJS is inlined (its core only, 1.3 MB: the report has no widgets),
+so the file opens offline and from an e-mail.
+"""
+
+from __future__ import annotations
+
+import html
+import time
+from pathlib import Path
+
+import yaml
+from jinja2 import Template
+
+from ..analysis.rank import Ranking, format_point, load_sweep_spec, pick_sweep, plain, rank
+from ..errors import DseError
+from ..sweeps import store
+from ..sweeps.sweep import load_status
+from . import charts
+from .dashboard import Feed
+
+TOP = 20  # points listed in the ranking
+
+PAGE = Template("""<!DOCTYPE html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<title>dse-runner report: {{ sweep }}</title>
+{{ bokeh_resources }}
+{{ table_style }}
+<style>
+body { font-family: sans-serif; margin: 24px 40px; color: #222; max-width: 1300px }
+h1 { margin-bottom: 4px } h2 { margin-top: 36px; border-bottom: 1px solid #ddd; padding-bottom: 4px }
+.summary td { padding: 2px 16px 2px 0 } .note { color: #666; font-size: 13px }
+pre { background: #f7f7f7; padding: 12px; font-size: 12px; overflow-x: auto }
+</style>
+</head>
+<body>
+<h1>Sweep {{ sweep }}</h1>
+<div class="note">generated {{ generated }} by dse-runner from {{ output }}</div>
+<table class="summary">
+{% for name, value in summary %}<tr><td>{{ name }}</td><td id="summary-{{ loop.index }}">{{ value }}</td></tr>
+{% endfor %}</table>
+
+<h2>Table 1: {{ objective }} per scenario</h2>
+<p class="note">Over all ranked points: min, max and average per scenario; "computed" is the best point's
+value and "difference" its distance from the average (the paper's Table 1).</p>
+{{ table1 }}
+
+<h2>Ranking by total {{ objective }}</h2>
+<p class="note">The {{ top }} best of {{ points }} points, each objective summed over the scenarios.</p>
+{{ totals }}
+
+{% if pareto %}<h2>Pareto front</h2>
+{{ plots.pareto }}
+{{ pareto }}{% endif %}
+
+{% if groups %}<h2>Best point per scenario group</h2>
+{{ groups }}{% endif %}
+
+{% if weighted %}<h2>Weighted ranking</h2>
+{{ weighted }}{% endif %}
+
+<h2>{{ objective }} against each parameter</h2>
+<p class="note">Mean over the other parameters, one line per scenario coloured by group (the paper's Figure 5).</p>
+{{ plots.by_parameter }}
+
+<h2>{{ objective }} per scenario group</h2>
+<p class="note">At every parameter point, sorted by {{ parameters }} (the paper's Figure 6).</p>
+{{ plots.by_group }}
+
+<h2>The best point against each scenario's recording</h2>
+{% if plots.tracks %}{{ plots.tracks }}{% else %}<p class="note">{{ track_note }}</p>{% endif %}
+
+<h2>The spec</h2>
+<pre>{{ spec }}</pre>
+{{ bokeh_script }}
+</body>
+</html>
+""")
+
+
+def _tracks(feed: Feed, ranking: Ranking, scenarios: list[str]) -> tuple[object | None, str]:
+    """A small track chart per scenario for the best point; or None and why not."""
+    from bokeh.layouts import gridplot
+
+    best = {p: plain(v) for p, v in ranking.best.items()}
+    panels = []
+    for scenario in scenarios:
+        try:
+            comparison, value = feed.track(scenario, best)
+        except DseError as e:
+            return None, f"No tracks: {e}"
+        chart = charts.TrackChart(width=charts.WIDTH, height=charts.HEIGHT)
+        chart.update(comparison, f"{scenario}: {ranking.objective} {value:.3f}")
+        panels.append(chart.figure)
+    return gridplot(panels, ncols=3, toolbar_location="right"), ""
+
+
+def build_report(output: store.Root, sweep: str | None = None) -> str:
+    """The report of ``sweep`` in ``output`` as one HTML string."""
+    from bokeh.embed import components
+    from bokeh.resources import Resources
+
+    sweep = pick_sweep(output, sweep)
+    ranking = rank(output, sweep)
+    spec = load_sweep_spec(output, sweep)
+    status = load_status(output, sweep)
+    feed = Feed(output, sweep)
+    snap = feed.snapshot()
+    ok, scenarios = snap.ok, feed.scenarios(snap)
+    parameters = ranking.parameters
+
+    figures: dict[str, object] = {}
+    by_parameter = charts.ObjectiveByParameter(parameters, ranking.objective, sorted(set(scenarios.values())))
+    by_parameter.update(ok)
+    figures["by_parameter"] = by_parameter.layout
+    by_group = charts.ErrorByGroup(parameters, ranking.objective, scenarios)
+    by_group.update(ok)
+    figures["by_group"] = by_group.layout
+    goals = spec.ranking.pareto_goals()
+    if len(goals) >= 2 and not ranking.pareto.empty:
+        pareto = charts.ParetoChart(goals[0][0], goals[1][0], parameters)
+        pareto.update(ranking.totals, ranking.pareto)
+        figures["pareto"] = pareto.figure
+    tracks, track_note = _tracks(feed, ranking, sorted(scenarios))
+    if tracks is not None:
+        figures["tracks"] = tracks
+    script, divs = components(figures)
+
+    summary = [("best point", format_point(ranking.best)), (f"total {ranking.objective}", f"{ranking.best_total:.4f}"),
+               ("points ranked", str(len(ranking.totals))), ("incomplete points", str(ranking.incomplete_points)),
+               ("failed tasks", str(ranking.failed_rows)), ("scenarios", str(len(scenarios)))]
+    if status is not None:
+        summary.append(("last submission", f"{status.state}: ran {status.ran} tasks in {status.seconds:.1f} s "
+                                           f"on {status.workers} workers"))
+    return PAGE.render(
+        sweep=sweep, output=html.escape(str(output)), generated=time.strftime("%Y-%m-%d %H:%M %Z"),
+        summary=[(name, html.escape(value)) for name, value in summary], objective=ranking.objective, top=TOP, points=len(ranking.totals),
+        parameters=", ".join(parameters),
+        table1=charts.html_table(ranking.table1), totals=charts.html_table(ranking.totals.head(TOP)),
+        pareto=charts.html_table(ranking.pareto) if not ranking.pareto.empty else "",
+        groups=charts.html_table(ranking.groups) if not ranking.groups.empty else "",
+        weighted=charts.html_table(ranking.weighted.head(10)) if not ranking.weighted.empty else "",
+        plots=divs, track_note=track_note,
+        spec=html.escape(yaml.safe_dump(spec.model_dump(mode="json"), sort_keys=False)),
+        table_style=charts.TABLE_STYLE, bokeh_resources=Resources(mode="inline", components=["bokeh"]).render(), bokeh_script=script)
+
+
+def write_report(output: store.Root, path: Path, sweep: str | None = None) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(build_report(output, sweep))
+    return path

@@ -1,0 +1,1 @@
+"""dse-runner's one simulation: FMUs, the master, experiments, scenarios and objectives."""

@@ -1,0 +1,596 @@
+"""The co-simulation master: fixed-step Jacobi over any number of FMUs of any FMI version and interface.
+
+Two stages, so that checking is done once and running is cheap:
+
+* :func:`make_plan` resolves a multi-model against its FMUs' model
+  descriptions: every ``instance.variable`` named in connections and values
+  is checked (unknown names get close matches suggested), each connection's
+  conversion is fixed by the rules of variables.py, and value references are
+  looked up once.
+* :func:`run` co-simulates a plan with given values (and input signals)
+  from ``start`` to ``stop``. At each communication point every FMU's
+  connected inputs are set from the outputs of the previous point, then
+  every FMU steps. This is the same Jacobi scheme libcosim's fixed-step
+  algorithm uses. The step loop only calls the FMUs through buffers prepared
+  before it starts; a connection that needs no conversion costs none.
+
+Every output of a numeric type (and every other variable an objective asks
+for) is recorded as a float64 column; booleans as 0/1. String outputs are
+recorded as text.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import difflib
+import functools
+import math
+import time
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import DseError
+from . import fmu as fmus
+from .build import resolve_fmu
+from .multimodel import MultiModel
+from .scenario import Series
+from .steppers import FMI_WARNING, Stepper, stepper
+from .variables import (
+    Conversion,
+    Value,
+    Variable,
+    check_settable,
+    check_value,
+    conversion,
+    describe_variable,
+    split_ref,
+    with_article,
+)
+
+
+class CosimError(DseError):
+    """An FMU failed or diverged during a co-simulation."""
+
+    def __init__(self, message: str, instance: str | None = None):
+        super().__init__(message)
+        self.instance = instance  # the instance that failed, when one did
+
+
+@dataclass(frozen=True)
+class Link:
+    """A connection, resolved: which output feeds which input, converted how."""
+
+    source: Variable
+    target: Variable
+    conversion: Conversion = Conversion()
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A multi-model whose every name has been checked against its FMUs."""
+
+    multimodel: MultiModel
+    fmu_paths: dict[str, Path]
+    interfaces: dict[str, str]  # instance -> "cs" | "me"
+    variables: dict[str, dict[str, Variable]]  # instance -> name -> variable, read once
+    models: dict[str, str]  # instance -> model name, for messages
+    outputs: dict[str, tuple[Variable, ...]]  # numeric variables recorded, per instance
+    texts: dict[str, tuple[Variable, ...]]  # string outputs recorded, per instance
+    links: tuple[Link, ...]
+    defaults: tuple[float | None, float | None, float | None] = (None, None, None)  # one FMU's experiment
+
+    @property
+    def recorded(self) -> tuple[str, ...]:
+        return tuple(v.ref for vs in self.outputs.values() for v in vs)
+
+    @property
+    def connections(self) -> tuple[tuple[Variable, Variable], ...]:
+        return tuple((link.source, link.target) for link in self.links)
+
+    def variable(self, ref: str, purpose: str) -> Variable:
+        return lookup(self.variables, self.models, ref, purpose)
+
+    def recording(self, refs: Iterable[str], purpose: str = "objective") -> "Plan":
+        """The plan also recording ``refs`` (e.g. a local variable an objective reads)."""
+        outputs = {name: list(vs) for name, vs in self.outputs.items()}
+        for ref in refs:
+            variable = self.variable(ref, purpose)
+            if variable.family == "string" or not variable.numeric:
+                raise DseError(f"{purpose}: {ref!r} is {with_article(variable.type)}, not a number one can "
+                               "score")
+            if variable not in outputs[variable.instance]:
+                outputs[variable.instance].append(variable)
+        return replace(self, outputs={name: tuple(vs) for name, vs in outputs.items()})
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Recorded values at the communication points: ``values[k, j]`` is ``names[j]`` at ``time[k]``."""
+
+    time: np.ndarray
+    names: tuple[str, ...]
+    values: np.ndarray
+    texts: dict[str, list[str]] = field(default_factory=dict)  # string outputs, one value per point
+
+    def column(self, name: str) -> np.ndarray:
+        try:
+            return self.values[:, self.names.index(name)]
+        except ValueError:
+            if name in self.texts:
+                return np.array(self.texts[name], dtype=object)
+            have = ", ".join((*self.names, *self.texts))
+            raise DseError(f"no recorded signal {name!r}{_did_you_mean(name, self.names)}; "
+                           f"recorded are {have}") from None
+
+    @property
+    def outputs(self) -> dict[str, np.ndarray]:
+        """Every recorded signal by name."""
+        return {**{n: self.values[:, j] for j, n in enumerate(self.names)},
+                **{n: np.array(v, dtype=object) for n, v in self.texts.items()}}
+
+    def final(self) -> dict[str, Value]:
+        """Every recorded signal's last value."""
+        numbers = {n: float(self.values[-1, j]) for j, n in enumerate(self.names)}
+        return {**numbers, **{n: v[-1] for n, v in self.texts.items()}}
+
+    def renamed(self, rename: Callable[[str], str]) -> "Trajectory":
+        return Trajectory(self.time, tuple(map(rename, self.names)), self.values,
+                          {rename(n): v for n, v in self.texts.items()})
+
+    def to_csv(self, path: Path) -> None:
+        """``time`` then one column per signal; text values are quoted. Sixteen significant digits
+        keep integers exact up to 2^53 (Int64 counters, millisecond stamps) and still print
+        0.1 * 3 as 0.3."""
+        import csv
+
+        with open(path, "w", newline="") as f:
+            writer = csv.writer(f)
+            writer.writerow(["time", *self.names, *self.texts])
+            numbers = np.column_stack([self.time, self.values])
+            for k, row in enumerate(numbers):
+                writer.writerow([f"{v:.16g}" for v in row] + [v[k] for v in self.texts.values()])
+
+
+def lookup(variables: dict[str, dict[str, Variable]], models: dict[str, str], ref: str,
+           purpose: str) -> Variable:
+    """Resolve ``instance.variable``; the error names it and suggests near names."""
+    try:
+        instance, name = split_ref(ref)
+    except ValueError as e:
+        raise DseError(f"{purpose}: {e}") from None
+    if instance not in variables:
+        raise DseError(f"{purpose}: {ref!r} names instance {instance!r}, but the multi-model has "
+                       f"{', '.join(sorted(variables))}{_did_you_mean(instance, variables)}")
+    variable = variables[instance].get(name)
+    if variable is None:
+        raise DseError(f"{purpose}: unknown variable {ref!r}: instance {instance!r} ({models[instance]}) "
+                       f"has no variable {name!r}{_did_you_mean(name, variables[instance])}")
+    return variable
+
+
+def _did_you_mean(name: str, options) -> str:
+    close = difflib.get_close_matches(name, list(options), n=3)
+    return f" (did you mean {', '.join(close)}?)" if close else ""
+
+
+# ---- planning ------------------------------------------------------------------------------------
+
+def make_plan(multimodel: MultiModel, interface: str | None = None) -> Plan:
+    """Build FMUs if needed and check every name the multi-model uses. ``interface`` ("cs" or "me")
+    overrides every instance's."""
+    fmu_paths = {name: resolve_fmu(multimodel.fmu_path(name)) for name in multimodel.fmus}
+    descriptions = {name: fmus.describe(path) for name, path in fmu_paths.items()}
+    interfaces = {name: fmus.choose_interface(fmu_paths[name], d, interface or multimodel.settings(name).interface)
+                  for name, d in descriptions.items()}
+    variables = {name: {v.name: describe_variable(name, v) for v in d.modelVariables}
+                 for name, d in descriptions.items()}
+    models = {name: d.modelName for name, d in descriptions.items()}
+    outputs = {name: tuple(v for v in vs.values() if v.causality == "output" and v.numeric)
+               for name, vs in variables.items()}
+    texts = {name: tuple(v for v in vs.values() if v.causality == "output" and v.family == "string")
+             for name, vs in variables.items()}
+    links = _links(multimodel, variables, models)
+    for ref in multimodel.scenario:
+        check_settable(lookup(variables, models, ref, "scenario"))
+    for ref, value in multimodel.parameters.items():
+        check_value(lookup(variables, models, ref, "parameters"), value)
+    defaults = _defaults(next(iter(descriptions.values())) if len(descriptions) == 1 else None)
+    return Plan(multimodel, fmu_paths, interfaces, variables, models, outputs, texts, links, defaults)
+
+
+def _links(multimodel: MultiModel, variables, models) -> tuple[Link, ...]:
+    links, fed = [], {}
+    for source_ref, target in multimodel.targets():
+        source = lookup(variables, models, source_ref, "connection")
+        if source.causality != "output":
+            raise DseError(f"connection: {source_ref!r} must be an output (it is {with_article(source.causality)})")
+        sink = lookup(variables, models, target.input, "connection")
+        if sink.causality != "input":
+            raise DseError(f"connection {source_ref} -> {target.input}: the target must be an input "
+                           f"(it is {with_article(sink.causality)})")
+        if target.input in fed:
+            raise DseError(f"connection: input {target.input!r} is fed by both {fed[target.input]} and {source_ref}")
+        fed[target.input] = source_ref
+        links.append(Link(source, sink, conversion(source, sink, target.round, target.threshold)))
+    return tuple(links)
+
+
+def _defaults(description) -> tuple[float | None, float | None, float | None]:
+    """A single FMU's default experiment: start, stop and step, where it gives them."""
+    experiment = description.defaultExperiment if description is not None else None
+    if experiment is None:
+        return (None, None, None)
+
+    def number(text) -> float | None:
+        return float(text) if text not in (None, "") else None
+
+    return number(experiment.startTime), number(experiment.stopTime), number(experiment.stepSize)
+
+
+# ---- running -------------------------------------------------------------------------------------
+
+@dataclass
+class _Read:
+    """One group of outputs of one C type, read after each step into ``signals``."""
+
+    call: Callable[..., int]
+    args: tuple
+    name: str
+    copy: Callable[[], Any] | None  # moves values into ``signals`` when the buffer is not a view of it
+
+
+@dataclass
+class _Feed:
+    """One group of inputs of one C type and conversion, written before each step."""
+
+    call: Callable[..., int]
+    args: tuple
+    name: str
+    fill: Callable[[], Any]  # gathers (and converts) the sources' values into the buffer
+
+
+@dataclass
+class _Texts:
+    """String outputs of one instance, and the string inputs they feed."""
+
+    call: Callable[..., int]
+    args: tuple
+    buffer: Any
+    names: list[str]
+    feeds: list[tuple[Stepper, Variable, int]]  # target, its variable, index into ``buffer``
+
+
+@dataclass
+class _Unit:
+    stepper: Stepper
+    reads: list[_Read]
+    feeds: list[_Feed]
+    texts: _Texts | None = None
+
+    def fail(self, call: str, t: float) -> CosimError:
+        instance = self.stepper.instance
+        return CosimError(instance.explain(f"{call} failed at t={t:.6g}"), instance.name)
+
+
+def _buffer_view(buffer, ctype) -> np.ndarray:
+    return np.ctypeslib.as_array(buffer) if ctype is not ctypes.c_bool else np.frombuffer(buffer, dtype=np.bool_)
+
+
+def _reads(step: Stepper, variables: tuple[Variable, ...], signals: np.ndarray, offset: int) -> list[_Read]:
+    """Output groups by C type; float64 ones are read straight into ``signals``."""
+    reads = []
+    for group in _by_access(step, variables):
+        access, members = group
+        n = len(members)
+        vrs = (ctypes.c_uint32 * n)(*[v.vr for v in members])
+        columns = [offset + variables.index(v) for v in members]
+        contiguous = columns == list(range(columns[0], columns[0] + n))
+        if access.ctype is ctypes.c_double and contiguous:
+            buffer = (ctypes.c_double * n).from_address(signals.ctypes.data + columns[0] * signals.itemsize)
+            copy = None
+        else:
+            buffer = (access.ctype * n)()
+            view, where = _buffer_view(buffer, access.ctype), np.array(columns)
+            copy = lambda view=view, where=where: signals.__setitem__(where, view)  # noqa: E731
+        reads.append(_Read(access.get, step.args(access, vrs, n, buffer), access.name, copy))
+    return reads
+
+
+def _by_access(step: Stepper, variables: Iterable[Variable]) -> list[tuple[Any, list[Variable]]]:
+    groups: dict[str, tuple[Any, list[Variable]]] = {}
+    for v in variables:
+        access = step.access(v)
+        groups.setdefault(access.name, (access, []))[1].append(v)
+    return list(groups.values())
+
+
+def _feeds(step: Stepper, links: list[tuple[Variable, int, Conversion]], signals: np.ndarray) -> list[_Feed]:
+    """Input groups by C type and conversion; a plain float64 group is one ndarray.take into the buffer."""
+    groups: dict[tuple, list[tuple[Variable, int]]] = {}
+    for target, index, conv in links:
+        groups.setdefault((step.access(target).name, conv), []).append((target, index))
+    feeds = []
+    for (_, conv), members in groups.items():
+        access = step.access(members[0][0])
+        n = len(members)
+        vrs = (ctypes.c_uint32 * n)(*[t.vr for t, _ in members])
+        buffer = (access.ctype * n)()
+        view, gather = _buffer_view(buffer, access.ctype), np.array([i for _, i in members], dtype=np.intp)
+        feeds.append(_Feed(access.set, step.args(access, vrs, n, buffer), access.name.replace("Get", "Set"),
+                           _filler(signals, gather, view, conv, [t for t, _ in members])))
+    return feeds
+
+
+class _Unfit(Exception):
+    """A rounded value its integer target's C type cannot hold; the caller adds the time."""
+
+
+def _filler(signals: np.ndarray, gather: np.ndarray, view: np.ndarray, conv: Conversion,
+            targets: list[Variable]) -> Callable[[], Any]:
+    """The cheapest way to move the sources' values into the buffer with the conversion asked for."""
+    if conv.kind == "round":
+        return _rounder(signals, gather, view, targets)
+    if conv.kind == "threshold":
+        return lambda: view.__setitem__(slice(None), signals[gather] > conv.threshold)
+    if view.dtype == np.float64:
+        return functools.partial(signals.take, gather, out=view)  # ndarray.take: no Python frame per call
+    return lambda: view.__setitem__(slice(None), signals[gather])
+
+
+def _rounder(signals: np.ndarray, gather: np.ndarray, view: np.ndarray,
+             targets: list[Variable]) -> Callable[[], None]:
+    """Round into an integer buffer, refusing what its C type cannot hold: numpy would wrap it (or
+    NaN) into a wrong value silently."""
+    limits = np.iinfo(view.dtype)
+    low, above = float(limits.min), limits.max + 1.0  # not max: Int64's rounds up to 2^63 as a float
+
+    def fill() -> None:
+        rounded = np.rint(signals[gather])
+        fits = (rounded >= low) & (rounded < above)
+        if not fits.all():
+            j = int(np.argmin(fits))
+            raise _Unfit(f"{targets[j].ref} is fed {signals[gather[j]]:g}, which rounded does not fit "
+                         f"{with_article(targets[j].type)}")
+        view[:] = rounded
+
+    return fill
+
+
+def run(plan: Plan, values: Mapping[str, Value], start: float, stop: float, step: float,
+        timeout: float | None = None, inputs: Mapping[str, Series] | None = None) -> Trajectory:
+    """Co-simulate ``plan`` from ``start`` to ``stop`` with communication step ``step``.
+
+    ``values`` are set before initialization; ``inputs`` are signals fed to
+    input variables at every communication point. ``timeout`` bounds the wall
+    time of the step loop in seconds; it is checked between steps, so it stops
+    a slow simulation, not one hung inside an FMU."""
+    times = _time_grid(start, stop, step)
+    settings = _resolve_values(plan, values)
+    series = _resolve_inputs(plan, inputs or {}, times)
+    names = plan.recorded
+    sources = {ref: i for i, ref in enumerate(names)}
+    sources.update({ref: len(names) + j for j, ref in enumerate(series)})
+    signals = np.zeros(len(names) + len(series))
+    external = np.column_stack(list(series.values())) if series else None
+
+    instances = {name: fmus.acquire(name, fmus.load(path, plan.interfaces[name]))
+                 for name, path in plan.fmu_paths.items()}
+    units = _units(plan, instances, signals, sources, series)
+    texts = {v.ref: [] for vs in plan.texts.values() for v in vs}
+    record = np.empty((len(times), len(names)))
+    current = None
+    try:
+        for unit in units:
+            current = unit
+            unit.stepper.set_values(settings.get(unit.stepper.name, []))
+            unit.stepper.enter_initialization(start, stop)
+        _exchange(units, signals, external, 0, texts, start, feed=True)
+        for unit in units:
+            current = unit
+            unit.stepper.exit_initialization()
+        current = None
+        _exchange(units, signals, external, 0, texts, start, feed=False)
+        record[0] = signals[: len(names)]
+        deadline = time.perf_counter() + timeout if timeout else math.inf
+        _step_loop(units, times, signals, external, record, texts, deadline)
+        for unit in units:
+            current = unit
+            unit.stepper.terminate()
+    except CosimError as e:
+        if e.instance is not None:
+            fmus.discard(instances[e.instance])
+        raise
+    except Exception as e:  # FMPy's FMICallException from a set-up call, or the integrator's error
+        if current is None:
+            raise
+        message = current.stepper.instance.explain(str(e).rstrip("."))
+        fmus.discard(current.stepper.instance)
+        raise CosimError(message, current.stepper.name) from None
+    _check_finite(plan, names, times, record)
+    return Trajectory(times, names, record, texts)
+
+
+def _time_grid(start: float, stop: float, step: float) -> np.ndarray:
+    if not (math.isfinite(start) and math.isfinite(stop) and stop > start):
+        raise DseError(f"stop time {stop} must be after start time {start}")
+    if not (step > 0 and math.isfinite(step)):
+        raise DseError(f"communication step must be > 0, got {step}")
+    n_steps = max(1, math.ceil((stop - start) / step - 1e-9))
+    times = start + step * np.arange(n_steps + 1)
+    times[-1] = stop
+    return times
+
+
+def _units(plan: Plan, instances: dict[str, fmus.Instance], signals: np.ndarray, sources: dict[str, int],
+           series: dict[str, np.ndarray]) -> list[_Unit]:
+    """Every instance's stepper with its prepared reads and feeds."""
+    steppers = {name: stepper(instance, plan.multimodel.settings(name)) for name, instance in instances.items()}
+    feeds: dict[str, list[tuple[Variable, int, Conversion]]] = {name: [] for name in instances}
+    for link in plan.links:
+        if link.source.family != "string":
+            feeds[link.target.instance].append((link.target, sources[link.source.ref], link.conversion))
+    for ref in series:
+        target = plan.variable(ref, "scenario input")
+        feeds[target.instance].append((target, sources[ref], Conversion()))
+    units, offset = [], 0
+    for name, step in steppers.items():
+        reads = _reads(step, plan.outputs[name], signals, offset) if plan.outputs[name] else []
+        units.append(_Unit(step, reads, _feeds(step, feeds[name], signals)))
+        offset += len(plan.outputs[name])
+    for unit in units:
+        unit.texts = _text_unit(unit.stepper, plan, steppers)
+    return units
+
+
+def _text_unit(step: Stepper, plan: Plan, steppers: dict[str, Stepper]) -> _Texts | None:
+    outputs = plan.texts[step.name]
+    if not outputs:
+        return None
+    access = step.access(outputs[0])
+    n = len(outputs)
+    vrs = (ctypes.c_uint32 * n)(*[v.vr for v in outputs])
+    buffer = (ctypes.c_char_p * n)()
+    feeds = [(steppers[link.target.instance], link.target, outputs.index(link.source))
+             for link in plan.links if link.source in outputs]
+    return _Texts(access.get, step.args(access, vrs, n, buffer), buffer, [v.ref for v in outputs], feeds)
+
+
+def _exchange(units: list[_Unit], signals: np.ndarray, external: np.ndarray | None, k: int,
+              texts: dict[str, list[str]], t: float, feed: bool) -> None:
+    """Outside the loop: read every output, and with ``feed`` also set every connected input."""
+    for unit in units:
+        _read(unit, t, texts if not feed else None)
+    if feed:
+        _feed_all(units, signals, external, k, t)
+
+
+def _read(unit: _Unit, t: float, texts: dict[str, list[str]] | None) -> None:
+    for read in unit.reads:
+        if read.call(*read.args) > FMI_WARNING:
+            raise unit.fail(read.name, t)
+        if read.copy is not None:
+            read.copy()
+    if unit.texts is not None:
+        if unit.texts.call(*unit.texts.args) > FMI_WARNING:
+            raise unit.fail("getString", t)
+        if texts is not None:
+            for name, raw in zip(unit.texts.names, unit.texts.buffer):
+                texts[name].append((raw or b"").decode("utf-8", "replace"))
+
+
+def _feed(unit: _Unit, t: float) -> None:
+    for feed in unit.feeds:
+        try:
+            feed.fill()
+        except _Unfit as e:
+            raise CosimError(f"{e} at t={t:.6g}") from None
+        if feed.call(*feed.args) > FMI_WARNING:
+            raise unit.fail(feed.name, t)
+
+
+def _feed_texts(texts: _Texts, t: float) -> None:
+    """String connections: the source's last value, copied before the target steps."""
+    for target, variable, index in texts.feeds:
+        try:
+            target.set_values([(variable, (texts.buffer[index] or b"").decode("utf-8", "replace"))])
+        except RuntimeError as e:
+            raise CosimError(target.instance.explain(f"{e} at t={t:.6g}"), target.name) from None
+
+
+def _step_loop(units: list[_Unit], times: np.ndarray, signals: np.ndarray, external: np.ndarray | None,
+               record: np.ndarray, texts: dict[str, list[str]], deadline: float) -> None:
+    """The hot loop: no buffer is created here, only FMI calls through prepared ones, read from flat
+    lists so that a step costs no Python call beyond the FMI calls and the fills that need one."""
+    n = record.shape[1]
+    steppers = [u.stepper for u in units]
+    watched = [s for s in steppers if type(s).check_step is not Stepper.check_step]
+    plain = external is None and all(u.texts is None for u in units)  # only numeric connections to feed
+    feeds = [(f.fill, f.call, f.args, unit, f.name) for unit in units for f in unit.feeds]
+    reads = [(r.call, r.args, r.copy, unit, r.name) for unit in units for r in unit.reads]
+    clock = time.perf_counter
+    for k, (t, t_next) in enumerate(zip(times[:-1].tolist(), times[1:].tolist()), start=1):
+        h = t_next - t
+        if not k & 63 and clock() > deadline:
+            raise CosimError(f"timeout: the simulation was stopped at t={t:.6g} of {times[-1]:.6g} s")
+        if plain:
+            for fill, call, args, unit, name in feeds:
+                try:
+                    fill()
+                except _Unfit as e:  # no cost in the loop until raised
+                    raise CosimError(f"{e} at t={t:.6g}") from None
+                if call(*args) > FMI_WARNING:
+                    raise unit.fail(name, t)
+        else:
+            _feed_all(units, signals, external, k - 1, t)
+        for s in steppers:
+            if s.call(*s.before, t, h, *s.after) > FMI_WARNING:
+                raise _fail_step(units, s, t)
+        for s in watched:
+            reason = s.check_step(t)
+            if reason:
+                raise CosimError(s.instance.explain(f"{reason} at t={t_next:.6g}"), s.name)
+        if plain:
+            for call, args, copy, unit, name in reads:
+                if call(*args) > FMI_WARNING:
+                    raise unit.fail(name, t_next)
+                if copy is not None:
+                    copy()
+        else:
+            for unit in units:
+                _read(unit, t_next, texts)
+        record[k] = signals[:n]
+
+
+def _feed_all(units: list[_Unit], signals: np.ndarray, external: np.ndarray | None, k: int, t: float) -> None:
+    if external is not None:
+        signals[-external.shape[1]:] = external[k]
+    for unit in units:
+        _feed(unit, t)
+        if unit.texts is not None:
+            _feed_texts(unit.texts, t)
+
+
+def _fail_step(units: list[_Unit], s: Stepper, t: float) -> CosimError:
+    return next(u for u in units if u.stepper is s).fail(s.step_name, t)
+
+
+def _resolve_values(plan: Plan, values: Mapping[str, Value]) -> dict[str, list[tuple[Variable, Value]]]:
+    """Group values by instance, each checked against its variable's type."""
+    grouped: dict[str, list[tuple[Variable, Value]]] = {}
+    for ref, value in values.items():
+        variable = plan.variable(ref, "setting")
+        grouped.setdefault(variable.instance, []).append((variable, check_value(variable, value)))
+    return grouped
+
+
+def _resolve_inputs(plan: Plan, inputs: Mapping[str, Series], times: np.ndarray) -> dict[str, np.ndarray]:
+    """Each input signal sampled at the communication points, checked against its variable."""
+    sampled = {}
+    for ref, series in inputs.items():
+        variable = plan.variable(ref, "scenario input")
+        if variable.causality != "input":
+            raise DseError(f"scenario input {ref!r} is {with_article(variable.causality)}, not an input: give it as a "
+                           "parameter instead")
+        values = series.at(times)
+        if variable.family == "string":
+            raise DseError(f"scenario input {ref!r} is a String; a CSV signal can feed numbers only")
+        if variable.family != "float":
+            for value in np.unique(values):
+                check_value(variable, float(value))
+        sampled[ref] = values
+    for link in plan.links:
+        if link.target.ref in sampled:
+            raise DseError(f"scenario input {link.target.ref!r} is already fed by the connection from "
+                           f"{link.source.ref}")
+    return sampled
+
+
+def _check_finite(plan: Plan, names: tuple[str, ...], times: np.ndarray, record: np.ndarray) -> None:
+    bad = ~np.isfinite(record)
+    if bad.any():
+        row, column = np.argwhere(bad)[0]
+        raise CosimError(f"{names[column]} became non-finite at t={times[row]:.6g}: the simulation diverged")

@@ -1,0 +1,178 @@
+"""The multi-model file: which FMUs, how they connect, which values they get.
+
+Our YAML form (docs/multimodel.md)::
+
+    fmus:                      # instance name -> FMU: a .fmu or a source folder, relative to
+      controller: bundled:fmus/replay_controller   # this file, or one dse-runner ships (bundled:)
+      vehicle: my-fmus/vehicle.fmu
+    connections:               # output -> [inputs]; an input may say how to convert
+      controller.velocity: [vehicle.velocity]
+      ctrl.valve: [tank.valvecontrol]              # Boolean -> Real: 0/1
+      plant.level: [{input: ctrl.level_int, round: true}]
+    parameters:                # fixed values
+      vehicle.mass: 1500
+    scenario:                  # values each scenario supplies, by the scenario's field names
+      controller.file: steering_inputs
+      vehicle.theta0: initial_pose.theta
+    instances:                 # how an instance runs, when not as it comes
+      plant: {interface: me, solver: cvode, tolerance: 1.0e-6}
+    step: null                 # communication step [s]; default: the experiment's or the scenario's
+
+INTO-CPS's ``mm.json`` (keys like ``{fmu}.instance.variable``) is read too and
+converted into the same model, so the rest of the tool sees one format.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationError, field_validator
+
+from .. import bundled
+from ..errors import DseError, format_syntax_error, format_validation_error
+from .variables import FiniteValue, split_ref
+
+Strict = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+def _check_ref(ref: str) -> str:
+    split_ref(ref)
+    return ref
+
+
+class Target(BaseModel):
+    """A connection's input with a conversion the rules do not make by themselves (docs/multimodel.md)."""
+
+    model_config = Strict
+    input: str
+    round: bool = False  # a number feeding an integer: round to the nearest
+    threshold: float | None = None  # a number feeding a Boolean: true above this
+
+    @field_validator("input")
+    @classmethod
+    def _ref(cls, ref: str) -> str:
+        return _check_ref(ref)
+
+
+class InstanceSettings(BaseModel):
+    """How one instance runs: its interface and, for model exchange, the integrator."""
+
+    model_config = Strict
+    interface: Literal["cs", "me"] | None = None  # default: co-simulation when the FMU offers it
+    solver: Literal["cvode", "euler"] = "cvode"  # model exchange: FMPy's CVode, or forward Euler
+    tolerance: PositiveFloat | None = None  # relative tolerance (CVode; co-simulation FMUs get it too)
+    euler_step: PositiveFloat | None = None  # euler: the integration step; default: the communication step
+
+
+class MultiModel(BaseModel):
+    model_config = Strict
+
+    fmus: dict[str, str] = Field(min_length=1)
+    connections: dict[str, list[str | Target]] = {}
+    parameters: dict[str, FiniteValue] = {}
+    scenario: dict[str, str] = {}  # instance.variable -> a field of each scenario
+    instances: dict[str, InstanceSettings] = {}
+    step: PositiveFloat | None = None
+    # Relative FMU paths are relative to the file's folder; ``bundled:`` ones name the package's own.
+    base_dir: Path = Field(default=Path("."), exclude=True)
+
+    @field_validator("fmus")
+    @classmethod
+    def _instance_names(cls, fmus: dict[str, str]) -> dict[str, str]:
+        for name in fmus:
+            if not name or "." in name:
+                raise ValueError(f"instance name {name!r} must be non-empty and contain no '.'")
+        return fmus
+
+    @field_validator("connections")
+    @classmethod
+    def _connection_refs(cls, connections: dict[str, list[str | Target]]) -> dict[str, list[str | Target]]:
+        for source, targets in connections.items():
+            _check_ref(source)
+            for target in targets:
+                if isinstance(target, str):
+                    _check_ref(target)
+        return connections
+
+    @field_validator("parameters", "scenario")
+    @classmethod
+    def _value_refs(cls, values: dict[str, Any]) -> dict[str, Any]:
+        for ref in values:
+            _check_ref(ref)
+        return values
+
+    @field_validator("instances")
+    @classmethod
+    def _settings_name_instances(cls, instances: dict[str, InstanceSettings], info) -> dict[str, InstanceSettings]:
+        unknown = sorted(set(instances) - set(info.data.get("fmus", {})))
+        if unknown:
+            raise ValueError(f"{', '.join(unknown)} is not an instance of 'fmus'")
+        return instances
+
+    def fmu_path(self, instance: str) -> Path:
+        return bundled.resolve(self.fmus[instance], self.base_dir)
+
+    def targets(self) -> list[tuple[str, Target]]:
+        """Every connection as (source, target with its conversion options)."""
+        return [(source, Target(input=t) if isinstance(t, str) else t)
+                for source, targets in self.connections.items() for t in targets]
+
+    def settings(self, instance: str) -> InstanceSettings:
+        return self.instances.get(instance) or InstanceSettings()
+
+
+def from_into_cps(data: dict[str, Any]) -> dict[str, Any]:
+    """Convert INTO-CPS's mm.json shape into our multi-model's fields."""
+
+    def local(ref: str) -> tuple[str, str]:
+        key, dot, rest = ref.partition("}.")
+        if not ref.startswith("{") or not dot:
+            raise DseError(f"mm.json: {ref!r} is not of the form {{fmu}}.instance.variable")
+        instance, variable = split_ref(rest)
+        fmu_key = key + "}"
+        if fmu_key not in data.get("fmus", {}):
+            raise DseError(f"mm.json: {ref!r} names FMU {fmu_key}, which 'fmus' does not list")
+        instances.setdefault(instance, data["fmus"][fmu_key])
+        return instance, variable
+
+    instances: dict[str, str] = {}
+    connections = {
+        ".".join(local(src)): [".".join(local(dst)) for dst in dsts]
+        for src, dsts in data.get("connections", {}).items()
+    }
+    parameters = {".".join(local(ref)): v for ref, v in data.get("parameters", {}).items()}
+    ours = {k: v for k, v in data.items() if k in ("scenario", "instances", "step")}
+    return {"fmus": instances, "connections": connections, "parameters": parameters, **ours}
+
+
+def is_into_cps(data: dict[str, Any]) -> bool:
+    return any(str(k).startswith("{") for k in data.get("fmus", {}))
+
+
+def parse_multimodel(data: Any, source: str, base_dir: Path) -> MultiModel:
+    """Validate already-parsed multi-model data; errors name ``source`` and the key path."""
+    if not isinstance(data, dict):
+        raise DseError(f"{source}: expected a mapping with 'fmus', 'connections', 'parameters'")
+    if is_into_cps(data):
+        data = from_into_cps(data)
+    try:
+        return MultiModel.model_validate({**data, "base_dir": base_dir})
+    except ValidationError as e:
+        raise DseError(format_validation_error(source, e)) from None
+
+
+def load_multimodel(path: str | Path) -> MultiModel:
+    """Read a multi-model file: a path, or ``bundled:robotti/multimodel.yaml`` for one that ships with us."""
+    path = bundled.bundled_path(str(path)) if bundled.is_bundled(path) else Path(path)
+    try:
+        text = path.read_text()
+    except OSError as e:
+        raise DseError(f"cannot read multi-model {path}: {e.strerror}") from None
+    try:
+        data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
+    except (json.JSONDecodeError, yaml.YAMLError) as e:
+        raise DseError(format_syntax_error(str(path), "JSON" if path.suffix == ".json" else "YAML", e)) from None
+    return parse_multimodel(data, str(path), path.parent.resolve())

@@ -1,0 +1,218 @@
+"""Objectives: the numbers a simulation is scored by, declared as data.
+
+In space.yaml an objective is one of (docs/space.md):
+
+* ``{signal: tank.level, reduce: max}``: a reduction of one recorded signal
+  over the simulated time: final, min, max, mean (time average), integral,
+  rms, changes (how often the value changes), time_above / time_below a
+  ``threshold``, or settling_time (when it last enters a band around its
+  target). With ``target: 1.5`` the reduction applies to the signal's
+  deviation from 1.5 (``{signal: tank.level, target: 1.5, reduce: rms}`` is
+  the rms deviation); settling_time's target is by default the final value;
+* ``{signal: msd.x, recorded: x, metric: rmse}``: a signal against a column
+  of the scenario's recording, at the recorded sample times: rmse, mae or
+  max_abs;
+* a name: an objective a plug-in registers in the entry-point group
+  ``dse_runner.objectives`` (the field-data kind registers the paper's
+  ``cross_track_error`` and its kin), or ``module:function``.
+
+A function objective is called as ``function(trajectory, scenario)`` with
+the whole result: ``trajectory.time``, ``trajectory.column(name)`` for every
+recorded output, and the scenario (its inputs, parameters and recording). It
+returns a number, or, marked ``function.vector = True``, one number per
+sample (stored as a list; rankings cannot use it).
+
+Every value must be a finite number: anything else fails the task with a
+message naming the objective, never a result row holding NaN.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable, Mapping
+from functools import cache
+from importlib.metadata import entry_points
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, model_validator
+
+from ..errors import DseError
+
+Function = Callable[[Any, Any], Any]  # (trajectory, scenario) -> number or vector
+
+Strict = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+Reduction = Literal["final", "min", "max", "mean", "integral", "rms", "changes",
+                    "time_above", "time_below", "settling_time"]
+
+
+class Reduce(BaseModel):
+    """One signal reduced to a number over the simulated time."""
+
+    model_config = Strict
+    signal: str
+    reduce: Reduction
+    threshold: float | None = None  # time_above, time_below
+    target: float | None = None  # reduce signal - target; settling_time's default: the final value
+    tolerance: float = 0.02  # settling_time: the band is tolerance x |target - initial value| ...
+    band: float | None = None  # ... unless an absolute half-width is given
+
+    @model_validator(mode="after")
+    def _options(self) -> "Reduce":
+        if self.reduce in ("time_above", "time_below") and self.threshold is None:
+            raise ValueError(f"reduce: {self.reduce} needs a 'threshold'")
+        if self.threshold is not None and self.reduce not in ("time_above", "time_below"):
+            raise ValueError(f"'threshold' applies to time_above and time_below, not {self.reduce}")
+        if self.reduce != "settling_time" and self.band is not None:
+            raise ValueError(f"'band' applies to settling_time, not {self.reduce}")
+        if self.reduce in ("time_above", "time_below", "changes") and self.target is not None:
+            raise ValueError(f"'target' does not apply to {self.reduce}")
+        return self
+
+
+class Fit(BaseModel):
+    """One signal against a recorded column, at the recorded times within the simulation."""
+
+    model_config = Strict
+    signal: str
+    recorded: str
+    metric: Literal["rmse", "mae", "max_abs"] = "rmse"
+
+
+ObjectiveSpec = Reduce | Fit | str
+
+
+def normalise(objectives: list[str] | Mapping[str, ObjectiveSpec]) -> dict[str, ObjectiveSpec]:
+    """name -> spec; a plain list names registered objectives or import paths by themselves."""
+    if isinstance(objectives, Mapping):
+        return dict(objectives)
+    return {name: name for name in objectives}
+
+
+# ---- reductions ----------------------------------------------------------------------------------
+
+def _span(time: np.ndarray) -> float:
+    return float(time[-1] - time[0])
+
+
+def _integral(time: np.ndarray, values: np.ndarray) -> float:
+    return float(np.trapezoid(values, time))
+
+
+def _time_where(time: np.ndarray, holds: np.ndarray) -> float:
+    """Time during which a condition holds, each value held until the next communication point."""
+    return float(np.sum(np.diff(time)[holds[:-1]]))
+
+
+def _settling_time(time: np.ndarray, values: np.ndarray, spec: Reduce) -> float:
+    """Time from the start until the signal last enters its band and stays; the whole span if it never does."""
+    target = values[-1] if spec.target is None else spec.target
+    band = spec.band if spec.band is not None else spec.tolerance * abs(target - values[0])
+    outside = np.flatnonzero(np.abs(values - target) > band)
+    if outside.size == 0:
+        return 0.0
+    last = outside[-1]
+    return _span(time) if last == len(values) - 1 else float(time[last + 1] - time[0])
+
+
+REDUCTIONS: dict[str, Callable[[np.ndarray, np.ndarray, Reduce], float]] = {
+    "final": lambda t, v, s: float(v[-1]),
+    "min": lambda t, v, s: float(np.min(v)),
+    "max": lambda t, v, s: float(np.max(v)),
+    "mean": lambda t, v, s: _integral(t, v) / _span(t),
+    "integral": lambda t, v, s: _integral(t, v),
+    "rms": lambda t, v, s: float(np.sqrt(_integral(t, v * v) / _span(t))),
+    "changes": lambda t, v, s: float(np.count_nonzero(np.diff(v))),
+    "time_above": lambda t, v, s: _time_where(t, v > s.threshold),
+    "time_below": lambda t, v, s: _time_where(t, v < s.threshold),
+    "settling_time": _settling_time,
+}
+
+METRICS: dict[str, Callable[[np.ndarray], float]] = {
+    "rmse": lambda e: float(np.sqrt(np.mean(e * e))),
+    "mae": lambda e: float(np.mean(np.abs(e))),
+    "max_abs": lambda e: float(np.max(np.abs(e))),
+}
+
+
+def reduce(spec: Reduce, trajectory, scenario) -> float:
+    values = trajectory.column(spec.signal)
+    if spec.target is not None and spec.reduce != "settling_time":
+        values = values - spec.target
+    return REDUCTIONS[spec.reduce](trajectory.time, values, spec)
+
+
+def fit(spec: Fit, trajectory, scenario) -> float:
+    if scenario.recorded is None:
+        raise DseError(f"scenario {scenario.name} has no recording to compare {spec.signal} with")
+    t, recorded = scenario.recorded.samples(spec.recorded)
+    time = trajectory.time
+    inside = (t >= time[0]) & (t <= time[-1] + 1e-9)
+    if not inside.any():
+        raise DseError(f"scenario {scenario.name}: no recorded {spec.recorded} sample lies within the "
+                       f"simulated time {time[0]:g}..{time[-1]:g} s")
+    errors = np.interp(t[inside], time, trajectory.column(spec.signal)) - recorded[inside]
+    return METRICS[spec.metric](errors)
+
+
+# ---- named objectives: plug-ins and import paths --------------------------------------------------
+
+@cache
+def registered() -> dict[str, Function]:
+    """Objectives installed packages register (entry-point group ``dse_runner.objectives``)."""
+    return {entry.name: entry.load() for entry in entry_points(group="dse_runner.objectives")}
+
+
+def function(name: str) -> Function:
+    """A registered objective's name, or ``module:function`` for a user's own."""
+    if name in registered():
+        return registered()[name]
+    module_name, colon, function_name = name.partition(":")
+    if not colon:
+        available = ", ".join(registered()) or "none installed"
+        raise DseError(f"unknown objective {name!r}: use {{signal, reduce}}, {{signal, recorded, metric}}, "
+                       f"a registered name ({available}) or an import path 'module:function'")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as e:
+        raise DseError(f"objective {name!r}: cannot import {module_name!r}: {e}") from None
+    found = getattr(module, function_name, None)
+    if not callable(found):
+        raise DseError(f"objective {name!r}: {module_name} has no function {function_name!r}")
+    return found
+
+
+def is_vector(spec: ObjectiveSpec) -> bool:
+    return isinstance(spec, str) and bool(getattr(function(spec), "vector", False))
+
+
+def signals(spec: ObjectiveSpec) -> tuple[str, ...]:
+    """The signals a declared objective reads: they must be recorded."""
+    return (spec.signal,) if isinstance(spec, (Reduce, Fit)) else ()
+
+
+def compute(spec: ObjectiveSpec, trajectory, scenario) -> Any:
+    if isinstance(spec, Reduce):
+        return reduce(spec, trajectory, scenario)
+    if isinstance(spec, Fit):
+        return fit(spec, trajectory, scenario)
+    return function(spec)(trajectory, scenario)
+
+
+def evaluate(objectives: Mapping[str, ObjectiveSpec], trajectory, scenario) -> dict[str, float | list[float]]:
+    """Every objective's value; a value that is not a finite number is an error naming the objective,
+    so a NaN never reaches a result row with an ok status."""
+    results: dict[str, float | list[float]] = {}
+    for name, spec in objectives.items():
+        value = compute(spec, trajectory, scenario)
+        vector = is_vector(spec)
+        try:
+            number = np.asarray(value, dtype=float) if vector else float(value)
+        except (TypeError, ValueError):
+            raise DseError(f"objective {name!r} returned {value!r}, not a number") from None
+        if not np.all(np.isfinite(number)):
+            raise DseError(f"objective {name!r} is not a finite number on scenario {scenario.name} "
+                           f"({value!r:.80})")
+        results[name] = number.tolist() if vector else number
+    return results

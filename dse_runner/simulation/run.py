@@ -1,0 +1,165 @@
+"""One simulation of a model on a scenario, scored: the unit of work a sweep repeats.
+
+``simulate(model)`` takes an ``.fmu`` file, a multi-model file or object, or a
+checked :class:`~dse_runner.simulation.cosim.Plan`. Values come in layers, later ones
+winning: the multi-model's parameters, the scenario's bound fields
+(multi-model ``scenario:``), the scenario's parameters and constant inputs,
+then ``values`` (a sweep's parameter point). Times follow experiment.py.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DseError
+from . import objectives as objs
+from .cosim import Plan, Trajectory, make_plan, run
+from .experiment import Experiment, Times, resolve_times
+from .multimodel import MultiModel, load_multimodel
+from .scenario import Scenario, Series, kind, load_scenario, nominal
+from .variables import Value, split_ref
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    scenario: Scenario
+    values: dict[str, Value]
+    times: Times
+    trajectory: Trajectory
+    objectives: dict[str, float | list[float]]
+
+    @property
+    def step(self) -> float:
+        return self.times.step
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.trajectory.time
+
+    @property
+    def outputs(self) -> dict[str, np.ndarray]:
+        return self.trajectory.outputs
+
+
+def single_fmu(path: str | Path) -> MultiModel:
+    """A multi-model of one FMU, its instance named after the file."""
+    path = Path(path).resolve()
+    name = re.sub(r"[^A-Za-z0-9_]", "_", path.stem) or "model"
+    return MultiModel(fmus={name: str(path)}, base_dir=path.parent)
+
+
+def as_plan(model: Plan | MultiModel | str | Path, interface: str | None = None) -> Plan:
+    """A checked plan from an ``.fmu`` file, a multi-model file or object, or a plan."""
+    if isinstance(model, Plan):
+        return model
+    if not isinstance(model, MultiModel):
+        model = single_fmu(model) if str(model).lower().endswith(".fmu") else load_multimodel(model)
+    return make_plan(model, interface)
+
+
+def qualify(plan: Plan, ref: str) -> str:
+    """``mass`` -> ``model.mass`` when the plan has one instance and ``ref`` names none of its."""
+    if len(plan.variables) == 1:
+        instance = next(iter(plan.variables))
+        try:
+            named = split_ref(ref)[0]
+        except ValueError:
+            named = None
+        if named != instance:
+            return f"{instance}.{ref}"
+    return ref
+
+
+def as_scenario(scenario: Scenario | str | Path | None) -> Scenario:
+    if scenario is None:
+        return nominal()
+    return scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+
+
+def default_objectives(scenario: Scenario) -> dict[str, objs.ObjectiveSpec]:
+    """What a scenario's kind scores when nothing is asked (field data: the GPS objectives)."""
+    return objs.normalise(list(kind(scenario.kind).default_objectives))
+
+
+def scenario_values(plan: Plan, scenario: Scenario) -> dict[str, Value]:
+    """The values a scenario gives: bound fields, its parameters and its constant inputs."""
+    try:
+        bound = {ref: scenario.value_of(name) for ref, name in plan.multimodel.scenario.items()}
+    except DseError as e:
+        ref, name = next((r, n) for r, n in plan.multimodel.scenario.items() if n not in
+                         {*scenario.fields, *scenario.files})
+        raise DseError(f"the multi-model binds {ref} to {name!r}: {e}") from None
+    constants = {ref: v for ref, v in scenario.inputs.items() if not isinstance(v, Series)}
+    return {**bound, **scenario.parameters, **constants}
+
+
+def simulate(
+    model: Plan | MultiModel | str | Path,
+    scenario: Scenario | str | Path | None = None,
+    values: Mapping[str, Value] | None = None,
+    start_time: float | None = None,
+    stop_time: float | None = None,
+    step: float | None = None,
+    objectives: Mapping[str, objs.ObjectiveSpec] | list[str] | None = None,
+    timeout: float | None = None,
+    experiment: Experiment | None = None,
+    interface: str | None = None,
+) -> SimulationResult:
+    """Co-simulate ``model`` on ``scenario`` (none: the nominal one) with ``values`` and score it.
+
+    ``objectives`` default to those of the scenario's kind (none for a plain scenario)."""
+    plan = as_plan(model, interface)
+    scenario = as_scenario(scenario)
+    specs = objs.normalise(objectives) if objectives is not None else default_objectives(scenario)
+    specs = {name: _qualified(plan, spec) for name, spec in specs.items()}
+    plan = _recording(plan, specs)
+    values = {**plan.multimodel.parameters, **scenario_values(plan, scenario),
+              **{qualify(plan, ref): v for ref, v in (values or {}).items()}}
+    times = resolve_times(plan, scenario, experiment, start_time, stop_time, step)
+    inputs = {ref: s for ref, s in scenario.inputs.items() if isinstance(s, Series)}
+    trajectory = run(plan, values, times.start, times.stop, times.step, timeout, inputs)
+    return SimulationResult(scenario, values, times, trajectory, objs.evaluate(specs, trajectory, scenario))
+
+
+def _qualified(plan: Plan, spec: objs.ObjectiveSpec) -> objs.ObjectiveSpec:
+    """A declared objective's signal as the trajectory names it (one FMU's may be written bare)."""
+    if isinstance(spec, (objs.Reduce, objs.Fit)):
+        return spec.model_copy(update={"signal": qualify(plan, spec.signal)})
+    return spec
+
+
+def _recording(plan: Plan, specs: Mapping[str, objs.ObjectiveSpec]) -> Plan:
+    """The plan, also recording whatever signal an objective reads that is not an output."""
+    wanted = [ref for spec in specs.values() for ref in objs.signals(spec)]
+    missing = [ref for ref in wanted if ref not in plan.recorded]
+    return plan.recording(missing) if missing else plan
+
+
+def write_csv(result: SimulationResult, path: Path, bare: bool = False) -> Path:
+    """Every recorded signal: ``time``, then a column per output, ``instance.variable`` (or, for a
+    single FMU, its variable's own name)."""
+    trajectory = result.trajectory.renamed(lambda n: n.partition(".")[2]) if bare else result.trajectory
+    trajectory.to_csv(Path(path))
+    return Path(path).resolve()
+
+
+def summary(result: SimulationResult, bare: bool = False) -> dict:
+    """What ``simulate --json`` prints: the run's settings, objectives and every output's final value."""
+    final = result.trajectory.final()
+    if bare:
+        final = {name.partition(".")[2]: value for name, value in final.items()}
+    return {
+        "scenario": result.scenario.name,
+        "start_time": result.times.start,
+        "stop_time": result.times.stop,
+        "step": result.times.step,
+        "values": result.values,
+        "objectives": result.objectives,
+        "final": final,
+        "dropouts": result.scenario.dropouts,
+    }

@@ -1,0 +1,372 @@
+"""Scenarios: the named conditions a simulation runs under.
+
+A scenario is, in general (docs/space.md):
+
+* input signals: ``instance.variable`` fed from a CSV time series (held or
+  linearly interpolated) or a constant;
+* parameter overrides: ``instance.variable`` -> value;
+* optionally a recording: CSV columns the objectives compare signals with;
+* optionally its own start time, stop time and step;
+* named fields a multi-model's ``scenario:`` section binds to FMU variables
+  (how a recording's own format hands over, e.g., a file an FMU reads).
+
+It is written inline in space.yaml or as ``scenario.yaml`` in a folder
+(kind ``signals``, this module). Other formats are *kinds*, plug-ins in the
+entry-point group ``dse_runner.scenarios`` that turn a folder into the same
+:class:`Scenario`; the field-data format (``dse_runner/cases/fielddata.py``) is one.
+
+Recorded values are never silently wrong (docs/recordings.md): every value is
+checked when the scenario loads, and errors name the file, line and column.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from functools import cache
+from importlib.metadata import entry_points
+from pathlib import Path
+from typing import Any, Literal, Protocol
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationError
+
+from ..errors import DseError, format_syntax_error, format_validation_error
+from .variables import FiniteValue, Value, split_ref
+
+INFO_FILE = "scenario.yaml"
+DEFAULT_GROUP = "all"
+NOMINAL = "nominal"  # the one scenario of a space that names none
+
+Strict = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+# ---- recorded tables ---------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Table:
+    """Named columns read from a recording, and the lines skipped as dropouts."""
+
+    columns: list[np.ndarray]
+    dropped: list[int]
+
+
+def is_dropout_text(text: str) -> bool:
+    """How a missing measurement is written: nothing, or NaN in any case and sign (printf writes -nan)."""
+    return text == "" or text.lstrip("+-").lower() == "nan"
+
+
+def read_header(path: Path) -> list[str]:
+    """The column names of a headed CSV."""
+    lines = _lines(path)
+    return [h.strip() for h in lines[0].split(",")]
+
+
+def _lines(path: Path) -> list[str]:
+    try:
+        lines = path.read_text().splitlines()
+    except OSError as e:
+        raise DseError(f"cannot read {path}: {e.strerror}") from None
+    except UnicodeDecodeError:
+        raise DseError(f"{path}: not a text file") from None
+    if not lines:
+        raise DseError(f"{path}: the file is empty")
+    return lines
+
+
+def read_table(path: Path, names: tuple[str, ...], may_drop: tuple[str, ...] = (),
+               drop_rows: bool = True) -> Table:
+    """Named numeric columns of a headed CSV whose first named column is time.
+
+    Every value must be a finite number; a ``may_drop`` value that is empty or NaN is a dropout:
+    with ``drop_rows`` its whole row is skipped, otherwise the value stays NaN. Either way its line
+    is counted. Times must increase. Errors name the file, the line and the column."""
+    lines = _lines(path)
+    header = [h.strip() for h in lines[0].split(",")]
+    missing = [n for n in names if n not in header]
+    if missing:
+        raise DseError(f"{path} line 1: no column {', '.join(missing)} (header: {lines[0]!r})")
+    index = [header.index(n) for n in names]
+    rows, times, dropped = [], [], []
+    for number, line in enumerate(lines[1:], start=2):
+        if not line.strip():
+            continue
+        fields = line.split(",")
+        if len(fields) != len(header):
+            raise DseError(f"{path} line {number}: expected {len(header)} fields, got {line!r}")
+        texts = {name: fields[i].strip() for name, i in zip(names, index)}
+        gaps = {n for n in may_drop if is_dropout_text(texts[n])}
+        values = [math.nan if name in gaps else _number(path, number, name, text) for name, text in texts.items()]
+        times.append((values[0], number))
+        if gaps:
+            dropped.append(number)
+        if not (gaps and drop_rows):
+            rows.append(values)
+    _check_increasing(path, names[0], times)
+    data = np.array(rows, dtype=float).reshape(-1, len(names))
+    return Table([data[:, i].copy() for i in range(len(names))], dropped)
+
+
+def _number(path: Path, line: int, column: str, text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = None
+    if value is None or not np.isfinite(value):
+        what = "is empty" if not text else f"{text!r} is not a finite number"
+        raise DseError(f"{path} line {line}, column {column}: {what}")
+    return value
+
+
+def _check_increasing(path: Path, column: str, times: list[tuple[float, int]]) -> None:
+    """Times (of every row, dropouts included) must increase: interpolation and the step loop rely on it."""
+    for (previous, _), (time, line) in zip(times, times[1:]):
+        if not time > previous:
+            raise DseError(f"{path} line {line}, column {column}: {time:g} does not increase on the "
+                           f"previous row's {previous:g}")
+
+
+# ---- what a scenario holds ---------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Series:
+    """An input signal sampled at ``time``: held from sample to sample, or interpolated linearly.
+    Before the first sample it has the first value, after the last the last one."""
+
+    time: np.ndarray
+    values: np.ndarray
+    interpolation: Literal["hold", "linear"] = "linear"
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        if self.interpolation == "linear":
+            return np.interp(t, self.time, self.values)
+        index = np.searchsorted(self.time, t, side="right") - 1
+        return self.values[np.clip(index, 0, len(self.values) - 1)]
+
+
+@dataclass(frozen=True)
+class Recording:
+    """Recorded signals to compare simulated ones with: NaN where a sample is missing."""
+
+    path: Path
+    time: np.ndarray
+    columns: dict[str, np.ndarray]
+    missing: int = 0  # samples (field data: whole rows) skipped as dropouts
+
+    def samples(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """The times and values of column ``name`` where it has a value."""
+        if name not in self.columns:
+            raise DseError(f"{self.path}: no recorded column {name!r}; it has {', '.join(self.columns)}")
+        values = self.columns[name]
+        present = np.isfinite(values)
+        return self.time[present], values[present]
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One scenario in the general form every kind produces; picklable, so it travels to workers."""
+
+    name: str
+    group: str = DEFAULT_GROUP
+    kind: str = "signals"
+    inputs: Mapping[str, Series | Value] = field(default_factory=dict)  # instance.variable -> signal
+    parameters: Mapping[str, Value] = field(default_factory=dict)  # instance.variable -> value
+    fields: Mapping[str, Value] = field(default_factory=dict)  # what a multi-model's `scenario:` binds
+    files: Mapping[str, Path] = field(default_factory=dict)  # fields that are files FMUs read by path
+    recorded: Recording | None = None
+    start_time: float | None = None
+    stop_time: float | None = None
+    step: float | None = None
+    natural_step: float | None = None  # the data's own period: the step when nothing else sets one
+    sources: tuple[Path, ...] = ()  # every file it was read from: task ids hash them
+    options: Mapping[str, Any] = field(default_factory=dict)  # the kind's own settings
+
+    @property
+    def dropouts(self) -> int:
+        return self.recorded.missing if self.recorded is not None else 0
+
+    def value_of(self, name: str) -> Value:
+        """A named field: a file's local path, or a value."""
+        if name in self.files:
+            return str(self.files[name])
+        if name in self.fields:
+            return self.fields[name]
+        have = sorted({*self.fields, *self.files})
+        raise DseError(f"scenario {self.name}: no field {name!r}"
+                       + (f"; it has {', '.join(have)}" if have else f" (a {self.kind} scenario has no fields)"))
+
+    def with_files(self, files: Mapping[str, Path]) -> "Scenario":
+        """The same scenario reading its files from elsewhere (a worker's copies)."""
+        return replace(self, files=dict(files))
+
+    def with_group(self, group: str) -> "Scenario":
+        return replace(self, group=group)
+
+
+def nominal() -> Scenario:
+    """The scenario of a space that names none: the experiment as it is."""
+    return Scenario(NOMINAL)
+
+
+def dropouts(scenarios: list[Scenario]) -> dict[str, int]:
+    """Recorded samples skipped as dropouts, per scenario that has any: what the commands report."""
+    return {s.name: s.dropouts for s in scenarios if s.dropouts}
+
+
+# ---- the general file format (kind "signals") --------------------------------------------------
+
+class SeriesSpec(BaseModel):
+    """An input from a CSV: ``{csv: inflow.csv, column: q, interpolation: hold}``."""
+
+    model_config = Strict
+    csv: str  # relative to the file that names it
+    column: str | None = None  # default: the variable's name
+    time: str = "time"
+    interpolation: Literal["hold", "linear"] = "linear"
+
+
+class RecordedSpec(BaseModel):
+    """A recording to compare with: every column of a CSV but its time column."""
+
+    model_config = Strict
+    csv: str
+    time: str = "time"
+
+
+class ScenarioSpec(BaseModel):
+    """A scenario written inline in space.yaml, or as a folder's scenario.yaml."""
+
+    model_config = Strict
+    name: str = Field(pattern=r"^[A-Za-z0-9_.-]+$")
+    group: str = DEFAULT_GROUP
+    inputs: dict[str, SeriesSpec | FiniteValue] = {}
+    parameters: dict[str, FiniteValue] = {}
+    recorded: RecordedSpec | str | None = None  # a CSV path, or {csv, time}
+    start_time: float | None = None
+    stop_time: PositiveFloat | None = None
+    step: PositiveFloat | None = None
+
+
+def from_spec(spec: ScenarioSpec, base: Path, source: str) -> Scenario:
+    """Read the CSVs a scenario spec names; relative paths start at ``base``."""
+    inputs: dict[str, Series | Value] = {}
+    sources: list[Path] = []
+    for ref, given in spec.inputs.items():
+        try:
+            split_ref(ref)
+        except ValueError as e:
+            raise DseError(f"{source}: inputs: {e}") from None
+        if isinstance(given, SeriesSpec):
+            path = _file(base, given.csv, f"{source}: inputs.{ref}")
+            column = given.column or split_ref(ref)[1]
+            table = read_table(path, (given.time, column))
+            if table.columns[0].size == 0:
+                raise DseError(f"{path}: no rows")
+            inputs[ref] = Series(*table.columns, given.interpolation)
+            sources.append(path)
+        else:
+            inputs[ref] = given
+    recorded = None
+    if spec.recorded is not None:
+        recorded_spec = RecordedSpec(csv=spec.recorded) if isinstance(spec.recorded, str) else spec.recorded
+        path = _file(base, recorded_spec.csv, f"{source}: recorded")
+        recorded = read_recording(path, recorded_spec.time)
+        sources.append(path)
+    return Scenario(spec.name, spec.group, "signals", inputs, dict(spec.parameters), recorded=recorded,
+                    start_time=spec.start_time, stop_time=spec.stop_time, step=spec.step, sources=tuple(sources))
+
+
+def read_recording(path: Path, time: str = "time") -> Recording:
+    """Every column of a CSV as recorded signals; an empty or NaN value is a missing sample."""
+    names = [n for n in read_header(path) if n != time]
+    if not names:
+        raise DseError(f"{path}: a recording needs a column besides {time!r}")
+    table = read_table(path, (time, *names), may_drop=tuple(names), drop_rows=False)
+    missing = sum(int(np.isnan(c).sum()) for c in table.columns[1:])
+    return Recording(path, table.columns[0], dict(zip(names, table.columns[1:])), missing)
+
+
+def _file(base: Path, name: str, where: str) -> Path:
+    path = Path(name) if Path(name).is_absolute() else base / name
+    if not path.is_file():
+        raise DseError(f"{where}: file not found: {path}")
+    return path.resolve()
+
+
+def parse_scenario(data: Any, source: str, base: Path) -> Scenario:
+    """An inline scenario (a mapping in space.yaml)."""
+    try:
+        spec = ScenarioSpec.model_validate(data)
+    except ValidationError as e:
+        raise DseError(format_validation_error(source, e)) from None
+    return from_spec(spec, base, source)
+
+
+class SignalsKind:
+    """The general kind: a folder whose scenario.yaml is a :class:`ScenarioSpec`."""
+
+    name = "signals"
+    default_objectives: tuple[str, ...] = ()
+
+    def detect(self, folder: Path) -> bool:
+        return (folder / INFO_FILE).is_file()
+
+    def load(self, folder: Path, options: Mapping[str, Any] | None = None) -> Scenario:
+        if options:
+            raise DseError(f"scenario {folder}: a signals scenario takes no options ({', '.join(options)})")
+        path = folder / INFO_FILE
+        try:
+            data = yaml.safe_load(path.read_text())
+        except yaml.YAMLError as e:
+            raise DseError(format_syntax_error(str(path), "YAML", e)) from None
+        scenario = parse_scenario(data, str(path), folder)
+        return replace(scenario, sources=(path.resolve(), *scenario.sources))
+
+
+# ---- kinds: plug-ins that read other formats ----------------------------------------------------
+
+class Kind(Protocol):
+    """A scenario format: recognises its folders and reads them (see SignalsKind, fielddata.FieldData)."""
+
+    name: str
+    default_objectives: tuple[str, ...]  # what a space of such scenarios scores when it names none
+
+    def detect(self, folder: Path) -> bool: ...
+
+    def load(self, folder: Path, options: Mapping[str, Any] | None = None) -> Scenario: ...
+
+
+@cache
+def kinds() -> dict[str, Kind]:
+    """Installed kinds (entry-point group ``dse_runner.scenarios``), then the general one."""
+    found = {entry.name: entry.load() for entry in entry_points(group="dse_runner.scenarios")}
+    found.setdefault(SignalsKind.name, SignalsKind())
+    return found
+
+
+@cache
+def kind(name: str) -> Kind:
+    """One kind by name, loading only its plug-in (a plain study never imports field data's)."""
+    if name == SignalsKind.name:
+        return SignalsKind()
+    for entry in entry_points(group="dse_runner.scenarios", name=name):
+        return entry.load()
+    raise DseError(f"unknown scenario kind {name!r}: installed are {', '.join(sorted(kinds()))}")
+
+
+def load_scenario(folder: str | Path, kind_name: str | None = None,
+                  options: Mapping[str, Any] | None = None) -> Scenario:
+    """Read a scenario folder with the named kind, or the first kind that recognises it; ``options``
+    are the kind's own settings (e.g. field data's ``position``)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise DseError(f"scenario folder not found: {folder}")
+    if kind_name is not None:
+        return kind(kind_name).load(folder, options)
+    for candidate in kinds().values():
+        if candidate.detect(folder):
+            return candidate.load(folder, options)
+    raise DseError(f"scenario {folder}: no scenario.yaml, and no installed kind "
+                   f"({', '.join(kinds())}) recognises the folder")

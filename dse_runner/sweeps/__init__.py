@@ -1,0 +1,1 @@
+"""dse-runner's sweeps and search: specs, tasks, Dask, the store, fits."""

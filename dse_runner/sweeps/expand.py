@@ -1,0 +1,128 @@
+"""Expansion of a design space into (parameter point, scenario) tasks with stable ids.
+
+A task id is a hash of what determines its result: the model (the FMUs'
+contents, the multi-model's wiring and values, the objectives), the point's
+values, and the scenario's recorded data. The same task therefore has the
+same id in every run, which is what lets a re-run skip finished work, and a
+changed FMU or recording gives new ids instead of stale results.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Callable, Collection, Iterable, Iterator
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..simulation import objectives as objs
+from ..simulation.cosim import Plan
+from ..simulation.fmu import content_hash
+from ..simulation.scenario import Scenario, Series
+from .search import strategy
+
+
+@dataclass(frozen=True)
+class Task:
+    task_id: str
+    scenario: str
+    point: tuple[tuple[str, Any], ...]  # sorted (name, value) pairs: hashable and picklable
+
+
+def _digest(*parts: Any) -> str:
+    text = json.dumps(parts, sort_keys=True, default=str, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def model_hash(plan: Plan, objectives: dict[str, objs.ObjectiveSpec], experiment: Any = None) -> str:
+    """What the model is, independent of where its files lie: FMUs, wiring, experiment, objectives."""
+    mm = plan.multimodel.model_dump(mode="json", exclude={"fmus", "base_dir"})
+    fmus = {name: content_hash(path) for name, path in sorted(plan.fmu_paths.items())}
+    scored = {name: spec if isinstance(spec, str) else spec.model_dump(mode="json") for name, spec in objectives.items()}
+    times = experiment.model_dump(mode="json", exclude_none=True) if experiment is not None else {}
+    return _digest(fmus, mm, scored, *([times] if times else []))[:32]
+
+
+def scenario_hash(scenario: Scenario) -> str:
+    """What a scenario is: its settings and the contents of every file it was read from."""
+    settings = {
+        "kind": scenario.kind, "group": scenario.group, "parameters": dict(scenario.parameters),
+        "fields": dict(scenario.fields), "options": dict(scenario.options),
+        "inputs": {ref: "series" if isinstance(v, Series) else v for ref, v in scenario.inputs.items()},
+        "times": [scenario.start_time, scenario.stop_time, scenario.step, scenario.natural_step],
+    }
+    return _digest(settings, [content_hash(path) for path in scenario.sources])[:32]
+
+
+def task_id(model: str, point: dict[str, Any], scenario: str) -> str:
+    return _digest(model, sorted(point.items()), scenario)[:24]
+
+
+def points_of(space, points: list[dict[str, Any]] | None = None) -> Callable[[Any], Iterable[dict[str, Any]]]:
+    """The space's search strategy, or the given points (an optimiser's next round)."""
+    return strategy(space.spec.search.strategy) if points is None else (lambda _: points)
+
+
+def expand(space, points: list[dict[str, Any]] | None = None,
+           only: list[Collection[str]] | None = None) -> Iterator[Task]:
+    """Tasks scenario by scenario, so a chunk of consecutive tasks mostly shares one scenario.
+
+    ``only`` (with ``points``) names, for each point, the scenarios it is wanted on: an
+    optimiser fitting some runs need not simulate the others. Without it, every point
+    runs on every scenario."""
+    if only is not None and (points is None or len(only) != len(points)):
+        raise ValueError("expand: `only` needs one collection of scenario names per given point")
+    model = space.model_key
+    visit = points_of(space, points)
+    for scenario in space.scenarios:
+        data = scenario_hash(scenario)
+        for k, point in enumerate(visit(space)):  # regenerated per scenario: no list of all points is kept
+            if only is None or scenario.name in only[k]:
+                yield Task(task_id(model, point, data), scenario.name, tuple(sorted(point.items())))
+
+
+@dataclass(frozen=True)
+class TaskBatch:
+    """A chunk of tasks stored as columns: ~40 bytes a task instead of ~900 as objects.
+
+    Dask's scheduler keeps a submitted task's arguments for a while after it
+    finishes; with compact batches that bookkeeping stays small even for
+    100,000-task sweeps."""
+
+    parameters: tuple[str, ...]
+    scenarios: tuple[str, ...]
+    task_ids: np.ndarray  # fixed-width bytes
+    scenario_index: np.ndarray  # into ``scenarios``
+    values: np.ndarray  # tasks x parameters; float64 when every value is a float
+
+    @classmethod
+    def of(cls, tasks: list[Task]) -> "TaskBatch":
+        parameters = tuple(name for name, _ in tasks[0].point)
+        scenarios = tuple(dict.fromkeys(t.scenario for t in tasks))
+        rows = [[value for _, value in t.point] for t in tasks]
+        numeric = all(type(v) is float for row in rows for v in row)
+        return cls(parameters, scenarios,
+                   np.array([t.task_id.encode() for t in tasks]),
+                   np.array([scenarios.index(t.scenario) for t in tasks], dtype=np.int32),
+                   np.array(rows, dtype=np.float64 if numeric else object).reshape(len(tasks), len(parameters)))
+
+    def __len__(self) -> int:
+        return len(self.task_ids)
+
+    def __iter__(self) -> Iterator[Task]:
+        for task_id, scenario, row in zip(self.task_ids, self.scenario_index, self.values):
+            point = tuple(zip(self.parameters, (v.item() if hasattr(v, "item") else v for v in row)))
+            yield Task(task_id.decode(), self.scenarios[scenario], point)
+
+
+def chunked(tasks: Iterable[Task], size: int) -> Iterator[list[Task]]:
+    chunk: list[Task] = []
+    for task in tasks:
+        chunk.append(task)
+        if len(chunk) == size:
+            yield chunk
+            chunk = []
+    if chunk:
+        yield chunk

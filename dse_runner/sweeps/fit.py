@@ -1,0 +1,287 @@
+"""Least-squares fitting of parameters to recordings, run as sweeps.
+
+A fit minimises the sum of squared position offsets at every GPS fix (the
+``fix_residuals`` vector objective) over some parameters, by
+Levenberg-Marquardt with forward-difference Jacobians. A fit never simulates
+anything itself: it *asks* for points and is *told* their residuals
+(:class:`LevenbergMarquardt`), and :func:`fit_all` advances any number of
+fits in lockstep, running each round's points as one sweep on the Dask
+cluster into the Parquet store. Fits that ask for the same point (every fit
+starts from the same calibrated point) share its simulations, and a re-run
+finds every finished round in the store.
+
+The interval of a fitted parameter comes from the cluster-robust ("sandwich")
+covariance with scenarios as clusters: residuals within a run are strongly
+correlated, so treating every fix as independent would give intervals far
+too narrow.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Collection, Iterable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..errors import DseError
+from . import store
+from .expand import expand
+from .spec import Space
+from .sweep import submit
+
+RESIDUALS = "fix_residuals"
+Point = dict[str, float]
+Key = tuple[tuple[str, float], ...]
+
+
+def key_of(point: Point) -> Key:
+    return tuple(sorted(point.items()))
+
+
+@dataclass(frozen=True)
+class Parameter:
+    name: str  # instance.variable
+    start: float
+    lower: float
+    upper: float
+    step: float  # finite-difference step, in the parameter's units
+
+
+@dataclass(frozen=True)
+class FitProblem:
+    label: str
+    parameters: tuple[Parameter, ...]
+    fixed: dict[str, float]  # values of the space's other swept variables
+    scenarios: tuple[str, ...]  # whose residuals are fitted
+    max_iterations: int = 15
+    tolerance: float = 1e-4  # stop when an accepted step gains less than this fraction of the SSE
+
+
+@dataclass
+class FitResult:
+    label: str
+    names: list[str]
+    values: dict[str, float]
+    sse: float
+    residual_count: int
+    iterations: int
+    converged: bool
+    standard_error: dict[str, float]  # cluster-robust; inf when the data do not determine it
+    at_bound: list[str]  # determined by the data, and pinned at a bound
+    point: Point  # the full point: fitted values and the fixed ones
+
+    @property
+    def undetermined(self) -> list[str]:
+        """Parameters no residual responds to: any value fits equally well."""
+        return [n for n in self.names if math.isinf(self.standard_error[n])]
+
+    def interval(self, z: float = 1.96) -> dict[str, tuple[float, float]]:
+        """About 95 % intervals, clipped to nothing: an unbounded side stays infinite."""
+        return {n: (self.values[n] - z * self.standard_error[n], self.values[n] + z * self.standard_error[n])
+                for n in self.names}
+
+
+Residuals = Callable[[Point, str], np.ndarray | None]  # (point, scenario) -> residual vector, None if failed
+
+
+class LevenbergMarquardt:
+    """One fit as an ask/tell state machine: :meth:`ask` the points whose residuals
+    it needs next (a candidate and its perturbations), :meth:`tell` it them."""
+
+    def __init__(self, problem: FitProblem):
+        self.problem = problem
+        self.params = problem.parameters
+        self.lower = np.array([p.lower for p in self.params])
+        self.upper = np.array([p.upper for p in self.params])
+        self.steps = np.array([p.step for p in self.params])
+        start = np.clip([p.start for p in self.params], self.lower, self.upper)
+        self.x: np.ndarray | None = None  # accepted point
+        self.r: list[np.ndarray] = []  # its residuals per scenario
+        self.jacobian: list[np.ndarray] = []  # per scenario, fixes x parameters
+        self.sse = np.inf
+        self.damping = 1e-3
+        self.iterations = 0
+        self.done = False
+        self.converged = False
+        self.candidate = start
+        self.perturbed = self._perturbations(start)
+
+    def point(self, x: np.ndarray) -> Point:
+        return {**self.problem.fixed, **{p.name: float(v) for p, v in zip(self.params, x)}}
+
+    def _perturbations(self, x: np.ndarray) -> list[np.ndarray]:
+        """x moved by one step in each parameter, inward at an upper bound."""
+        moved = []
+        for i in range(len(x)):
+            y = x.copy()
+            y[i] += self.steps[i] if x[i] + self.steps[i] <= self.upper[i] else -self.steps[i]
+            moved.append(y)
+        return moved
+
+    def ask(self) -> list[Point]:
+        if self.done:
+            return []
+        return [self.point(self.candidate)] + [self.point(y) for y in self.perturbed]
+
+    def tell(self, residuals: Residuals) -> None:
+        scenarios = self.problem.scenarios
+        found = [residuals(self.point(self.candidate), s) for s in scenarios]
+        if any(r is None for r in found):
+            if self.x is None:
+                raise DseError(f"fit {self.problem.label}: the start point {self.point(self.candidate)} "
+                               "fails to simulate")
+            self._reject()
+            return
+        sse = float(sum(np.dot(r, r) for r in found))
+        if self.x is not None and not sse < self.sse:
+            self._reject()
+            return
+        gain = (self.sse - sse) / self.sse if np.isfinite(self.sse) and self.sse > 0 else np.inf
+        self.x, self.r, self.sse = self.candidate, found, sse
+        self.jacobian = self._jacobian(residuals)
+        self.damping = max(self.damping / 3.0, 1e-9)
+        if gain < self.problem.tolerance:
+            self._finish(converged=True)
+            return
+        self._next()
+
+    def _jacobian(self, residuals: Residuals) -> list[np.ndarray]:
+        """Per scenario, d residual / d parameter; a failed perturbation gives a zero column."""
+        columns: list[list[np.ndarray]] = [[] for _ in self.problem.scenarios]
+        for y in self.perturbed:
+            delta = y - self.x
+            i = int(np.flatnonzero(delta)[0])
+            for k, scenario in enumerate(self.problem.scenarios):
+                moved = residuals(self.point(y), scenario)
+                columns[k].append(np.zeros_like(self.r[k]) if moved is None else (moved - self.r[k]) / delta[i])
+        return [np.column_stack(c) if c else np.zeros((len(r), 0)) for c, r in zip(columns, self.r)]
+
+    def _reject(self) -> None:
+        self.damping *= 4.0
+        if self.damping > 1e8:
+            self._finish(converged=True)  # no downhill step left at any damping
+        else:
+            self._next()
+
+    def _next(self) -> None:
+        self.iterations += 1
+        if self.iterations > self.problem.max_iterations or not len(self.params):
+            self._finish(converged=not len(self.params))
+            return
+        step = self._step()
+        candidate = np.clip(self.x + step, self.lower, self.upper)
+        if np.all(np.abs(candidate - self.x) < 1e-3 * self.steps):
+            self._finish(converged=True)
+            return
+        self.candidate = candidate
+        self.perturbed = self._perturbations(candidate)
+
+    def _step(self) -> np.ndarray:
+        """Marquardt's step; parameters pinned at a bound the step pushes against are held."""
+        J = np.vstack(self.jacobian)
+        r = np.concatenate(self.r)
+        free = np.ones(len(self.params), dtype=bool)
+        for _ in range(len(self.params) + 1):
+            step = np.zeros(len(self.params))
+            A = J[:, free].T @ J[:, free]
+            g = J[:, free].T @ r
+            scale = np.diag(A).copy()
+            scale[scale <= 0] = 1e-12 * max(float(scale.max(initial=0.0)), 1e-300)
+            step[free] = np.linalg.solve(A + self.damping * np.diag(scale), -g)
+            pushing = ((self.x <= self.lower) & (step < 0)) | ((self.x >= self.upper) & (step > 0))
+            if not (pushing & free).any():
+                return step
+            free &= ~pushing
+        return np.zeros(len(self.params))
+
+    def _finish(self, converged: bool) -> None:
+        self.done = True
+        self.converged = converged
+
+    def result(self) -> FitResult:
+        if self.x is None:
+            raise DseError(f"fit {self.problem.label} has not started")
+        names = [p.name for p in self.params]
+        error = robust_standard_errors(self.jacobian, self.r)
+        at_bound = [n for n, v, lo, hi, st, e in zip(names, self.x, self.lower, self.upper, self.steps, error)
+                    if (v - lo < 1e-3 * st or hi - v < 1e-3 * st) and np.isfinite(e)]
+        return FitResult(self.problem.label, names, {n: float(v) for n, v in zip(names, self.x)}, self.sse,
+                         int(sum(len(r) for r in self.r)), self.iterations, self.converged,
+                         dict(zip(names, error)), at_bound, self.point(self.x))
+
+
+def robust_standard_errors(jacobian: list[np.ndarray], residuals: list[np.ndarray]) -> np.ndarray:
+    """Sandwich covariance with each scenario a cluster: (J'J)^-1 (sum_s J_s' r_s r_s' J_s) (J'J)^-1."""
+    if not jacobian or jacobian[0].shape[1] == 0:
+        return np.zeros(0)
+    J = np.vstack(jacobian)
+    bread = J.T @ J
+    identifiable = np.diag(bread) > 1e-12 * max(float(np.diag(bread).max()), 1e-300)
+    errors = np.full(J.shape[1], np.inf)
+    if not identifiable.any():
+        return errors
+    inverse = np.linalg.pinv(bread[np.ix_(identifiable, identifiable)])
+    meat = sum(np.outer(Js[:, identifiable].T @ rs, Js[:, identifiable].T @ rs) for Js, rs in zip(jacobian, residuals))
+    clusters = len(jacobian)
+    correction = clusters / (clusters - 1) if clusters > 1 else 1.0
+    covariance = correction * inverse @ meat @ inverse
+    errors[identifiable] = np.sqrt(np.maximum(np.diag(covariance), 0.0))
+    return errors
+
+
+Progress = Callable[[int, int, int, int], None]  # (round, active fits, points, simulations this round)
+
+
+def fit_all(space: Space, problems: list[FitProblem], client, progress: Progress | None = None) -> dict[str, FitResult]:
+    """Run fits in lockstep, each round one sweep of ``space`` (whose objectives must include
+    ``fix_residuals``) over the union of the points the fits ask for."""
+    if RESIDUALS not in space.objectives:
+        raise DseError(f"space {space.name}: fitting needs the objective {RESIDUALS!r}")
+    solvers = [LevenbergMarquardt(p) for p in problems]
+    round_, cost = 0, None  # cost: seconds per task, measured by the last round
+    while True:
+        asked = {id(s): s.ask() for s in solvers if not s.done}
+        if not asked:
+            break
+        points, only = wanted((p, s.problem.scenarios) for s in solvers if id(s) in asked for p in asked[id(s)])
+        round_ += 1
+        if progress:
+            progress(round_, len(asked), len(points), sum(len(s) for s in only))
+        rows, cost = evaluate_points(space, points, client, [RESIDUALS], only, cost)
+
+        def residuals(point: Point, scenario: str) -> np.ndarray | None:
+            row = rows.get((key_of(point), scenario))
+            return np.asarray(row[RESIDUALS], dtype=float) if row and row["status"] == "ok" else None
+
+        for solver in solvers:
+            if id(solver) in asked:
+                solver.tell(residuals)
+    return {s.problem.label: s.result() for s in solvers}
+
+
+Rows = dict[tuple[Key, str], dict[str, Any]]  # (point, scenario) -> its result row
+
+
+def wanted(requests: Iterable[tuple[Point, Iterable[str]]]) -> tuple[list[Point], list[set[str]]]:
+    """Distinct points, each with the union of the scenarios asked of it.
+
+    A fit on some runs (a cross-validation fold) needs its points simulated on those runs
+    only; fits that ask for the same point share its simulations."""
+    by_key: dict[Key, tuple[Point, set[str]]] = {}
+    for point, scenarios in requests:
+        by_key.setdefault(key_of(point), (point, set()))[1].update(scenarios)
+    return [p for p, _ in by_key.values()], [s for _, s in by_key.values()]
+
+
+def evaluate_points(space: Space, points: list[Point], client, columns: list[str],
+                    only: list[Collection[str]] | None = None, seconds_per_task: float | None = None
+                    ) -> tuple[Rows, float | None]:
+    """Run ``points`` on every scenario of ``space`` (or, with ``only``, each point on the scenarios
+    named for it) as one sweep, skipping finished tasks. Returns their rows with ``status`` and
+    ``columns``, and what a task cost (for the next round's ``seconds_per_task``, see sweep.submit)."""
+    report = submit(space, client=client, points=points, only=only, seconds_per_task=seconds_per_task)
+    ids = {task.task_id: (task.point, task.scenario) for task in expand(space, points, only)}
+    rows = store.read_results(space.output, space.name, ["status", *columns], task_ids=list(ids))
+    return {ids[r["task_id"]]: r for r in rows.to_dict("records")}, report.seconds_per_task or seconds_per_task

@@ -1,0 +1,411 @@
+"""The design-space spec (``space.yaml``): what to simulate, how to score and rank, where.
+
+Loading checks everything that can be checked before a single task runs: the
+file's shape (pydantic; errors give file, key path and reason), the scenario
+globs and files, the constraint expressions, the objectives, and every FMU
+variable the spec names against the FMUs' model descriptions.
+
+A spec without ``scenarios`` runs its experiment once per point, as the one
+scenario ``nominal``. Objectives a spec leaves out are its scenarios' kind's
+(field data: the GPS objectives); the ranking objective it leaves out is the
+first objective. The loaded :class:`Space` carries the spec with both filled
+in, which is what a sweep saves beside its results.
+"""
+
+from __future__ import annotations
+
+import glob
+import math
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import numpy as np
+import yaml
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Discriminator,
+    Field,
+    PositiveFloat,
+    PositiveInt,
+    Tag,
+    ValidationError,
+    model_validator,
+)
+
+from .. import bundled
+from ..errors import DseError, format_syntax_error, format_validation_error
+from ..simulation import objectives as objs
+from ..simulation.cosim import Plan, make_plan
+from ..simulation.experiment import Experiment
+from ..simulation.multimodel import MultiModel, load_multimodel, parse_multimodel
+from ..simulation.run import qualify
+from ..simulation.scenario import Scenario, ScenarioSpec, kind, load_scenario, nominal, parse_scenario
+from ..simulation.variables import FiniteValue, check_value
+from .constraints import compile_constraint
+from .search import strategy
+from .store import is_url
+
+Strict = ConfigDict(extra="forbid", allow_inf_nan=False)  # unknown keys, NaN and infinity are errors
+
+
+class Range(BaseModel):
+    """``{start, stop, step}`` (stop included when the steps land on it) or ``{start, stop, num}``."""
+
+    model_config = Strict
+    start: float
+    stop: float
+    step: PositiveFloat | None = None
+    num: PositiveInt | None = None
+    log: bool = False
+
+    @model_validator(mode="after")
+    def _one_of_step_or_num(self) -> "Range":
+        if (self.step is None) == (self.num is None):
+            raise ValueError("give exactly one of 'step' or 'num'")
+        if self.log and (self.step is not None or self.start <= 0 or self.stop <= 0):
+            raise ValueError("a log range needs 'num' and positive 'start' and 'stop'")
+        if self.stop < self.start:
+            raise ValueError("'stop' must not be below 'start'")
+        return self
+
+    def values(self) -> list[float]:
+        if self.log:
+            return [float(v) for v in np.geomspace(self.start, self.stop, self.num)]
+        if self.num is not None:
+            return [float(v) for v in np.linspace(self.start, self.stop, self.num)]
+        count = math.floor((self.stop - self.start) / self.step + 1e-9) + 1
+        # round() keeps 0.1-steps free of 0.30000000000000004 in tables and ids
+        return [round(self.start + i * self.step, 12) for i in range(count)]
+
+
+def _values_or_range(value: Any) -> str | None:
+    return "range" if isinstance(value, (dict, Range)) else "values" if isinstance(value, list) else None
+
+
+# A list of values or a Range; the discriminator makes a wrong one give one message, not one per kind.
+ParameterValues = Annotated[
+    Annotated[Annotated[list[FiniteValue], Field(min_length=1)], Tag("values")] | Annotated[Range, Tag("range")],
+    Discriminator(_values_or_range, custom_error_type="parameter_values",
+                  custom_error_message="expected a list of values or a range {start, stop, step or num}")]
+
+
+class ScenarioSource(BaseModel):
+    """Scenario folders: ``{path: runs/*, group: .., kind: ..}`` plus the kind's own options."""
+
+    model_config = ConfigDict(extra="allow", allow_inf_nan=False)  # the rest goes to the kind
+    path: str  # a folder or a glob of folders, relative to the spec
+    group: str | None = None  # overrides the scenario's own group
+    kind: str | None = None  # default: the first installed kind that recognises the folder
+
+
+def _source_or_inline(value: Any) -> str | None:
+    if isinstance(value, (str, ScenarioSource)) or (isinstance(value, dict) and "path" in value):
+        return "source"
+    return "inline" if isinstance(value, (dict, ScenarioSpec)) else None
+
+
+# A folder (or glob), {path: ...} with options, or a scenario written inline ({name: ..., inputs: ...}).
+ScenarioEntry = Annotated[
+    Annotated[str | ScenarioSource, Tag("source")] | Annotated[ScenarioSpec, Tag("inline")],
+    Discriminator(_source_or_inline, custom_error_type="scenario_entry",
+                  custom_error_message="expected a folder or glob, {path: ...}, or an inline scenario {name: ...}")]
+
+
+class Direction(BaseModel):
+    model_config = Strict
+    objective: str
+    goal: Literal["min", "max"] = "min"
+
+
+class Ranking(BaseModel):
+    model_config = Strict
+    objective: str | None = None  # summed over scenarios (the paper's Equation 2); default: the first
+    goal: Literal["min", "max"] = "min"
+    pareto: list[Direction | str] = []  # objectives of the Pareto front, each "name" or {objective, goal}
+    weights: dict[str, float] = {}  # weighted sum of per-point totals
+
+    def pareto_goals(self) -> list[tuple[str, str]]:
+        """(objective, "min" | "max") for each Pareto objective."""
+        return [(d, "min") if isinstance(d, str) else (d.objective, d.goal) for d in self.pareto]
+
+    def objectives_used(self) -> list[str]:
+        return [self.objective, *(name for name, _ in self.pareto_goals()), *self.weights]
+
+
+class Search(BaseModel):
+    model_config = Strict
+    strategy: str = "exhaustive"  # built-in or a plugin's (see search.py)
+
+
+class Tls(BaseModel):
+    """Certificates for a TLS scheduler (distributed's Security); paths relative to the spec."""
+
+    model_config = Strict
+    ca_file: str  # the authority that signed the scheduler's and workers' certificates
+    cert: str  # this client's certificate
+    key: str  # its private key
+
+
+class HTCondor(BaseModel):
+    """dask-jobqueue's HTCondorCluster: one HTCondor job per worker."""
+
+    model_config = Strict
+    cores: PositiveInt = 1  # per job; each core runs one single-threaded worker process
+    memory: str = "2GiB"  # per job
+    disk: str = "1GiB"  # per job: extracted FMUs and scenario files, a few MB
+    job_extra: dict[str, str] = {}  # extra submit-description lines, e.g. {"+ProjectName": '"robotti"'}
+    prologue: list[str] = []  # shell lines before the worker starts, e.g. activating an environment
+    python: str | None = None  # the worker's Python on the execute nodes; default: this one
+    interface: str | None = None  # network interface the scheduler listens on, e.g. eth0
+
+
+class Kubernetes(BaseModel):
+    """The dask-kubernetes operator's KubeCluster: a DaskCluster resource in a namespace."""
+
+    model_config = Strict
+    image: str = "ghcr.io/dse-runner/dse-runner:latest"  # see deploy/Dockerfile
+    namespace: str | None = None  # default: the current kube context's
+    resources: dict[str, dict[str, str]] = {"requests": {"cpu": "1", "memory": "2Gi"},
+                                             "limits": {"cpu": "1", "memory": "2Gi"}}
+    env: dict[str, str] = {}
+
+
+class Cluster(BaseModel):
+    """Where tasks run: ``address`` of an existing scheduler, or a cluster of ``kind`` started for the sweep."""
+
+    model_config = Strict
+    kind: str = "local"  # local, htcondor, kubernetes, or a plugin's (see cluster.py)
+    address: str | None = None  # tcp://host:8786 or tls://host:8786: use this scheduler, start nothing
+    n_workers: PositiveInt | None = None  # workers to start; local default: the number of cores
+    threads_per_worker: PositiveInt = 1
+    tls: Tls | None = None
+    dashboard_address: str = "127.0.0.1:0"  # of a scheduler we start; loopback unless asked otherwise
+    connect_timeout: PositiveFloat = 30.0  # seconds to reach a scheduler, or get it back after a restart
+    htcondor: HTCondor = HTCondor()
+    kubernetes: Kubernetes = Kubernetes()
+
+    @model_validator(mode="after")
+    def _address_or_kind(self) -> "Cluster":
+        if self.address is not None and self.kind != "local":
+            raise ValueError(f"give either 'address' (an existing scheduler) or 'kind: {self.kind}', not both")
+        if self.address is not None and not self.address.startswith(("tcp://", "tls://", "ucx://", "inproc://")):
+            raise ValueError(f"address {self.address!r} needs a protocol: tcp://host:port or tls://host:port")
+        return self
+
+
+class SpaceSpec(BaseModel):
+    model_config = Strict
+    name: str = Field(pattern=r"^[A-Za-z0-9_.-]+$")
+    multimodel: str | dict[str, Any]  # a path relative to the spec or bundled:..., or the multi-model inline
+    experiment: Experiment = Experiment()
+    scenarios: list[ScenarioEntry] = []  # none: the experiment alone, as scenario "nominal"
+    parameters: dict[str, ParameterValues] = Field(min_length=1)
+    constraints: list[str] = []
+    objectives: list[str] | dict[str, objs.ObjectiveSpec] | None = None  # default: the scenarios' kind's
+    ranking: Ranking = Ranking()
+    search: Search = Search()
+    output: str = "out"  # results store: a folder relative to the spec, or an fsspec URL (s3://bucket/prefix)
+    cluster: Cluster = Cluster()
+    keep_trajectories: int = Field(default=3, ge=0)  # best points whose tracks are kept
+    timeout: PositiveFloat = 600.0  # seconds one simulation may take
+    chunk_seconds: PositiveFloat = 2.0  # target wall time of one chunk of tasks
+
+
+def _normal(value: Any) -> Any:
+    """Numbers as floats, so 1000 and 1000.0 are one point (and one task id)."""
+    return float(value) if isinstance(value, int) and not isinstance(value, bool) else value
+
+
+class Space:
+    """A loaded, checked spec with everything resolved: the unit the rest of the tool works on."""
+
+    def __init__(self, spec: SpaceSpec, path: Path, plan: Plan, scenarios: list[Scenario]):
+        self.spec = spec
+        self.path = path
+        self.plan = plan  # the multi-model with every name checked against its FMUs
+        self.scenarios = scenarios
+        self.parameters = {name: [_normal(x) for x in (v.values() if isinstance(v, Range) else v)]
+                           for name, v in spec.parameters.items()}
+        self.constraints = []
+        for index, text in enumerate(spec.constraints):
+            try:
+                self.constraints.append(compile_constraint(text, set(self.parameters)))
+            except DseError as e:
+                raise DseError(f"{path}: constraints.{index}: {e}") from None
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    @property
+    def multimodel(self) -> MultiModel:
+        return self.plan.multimodel
+
+    @property
+    def objectives(self) -> dict[str, objs.ObjectiveSpec]:
+        """name -> declared objective, in the spec's order."""
+        return objs.normalise(self.spec.objectives or [])
+
+    @property
+    def experiment(self) -> Experiment:
+        return self.spec.experiment
+
+    @property
+    def model_key(self) -> str:
+        """The hash of what determines results besides the point and scenario (expand.model_hash)."""
+        from .expand import model_hash
+
+        return model_hash(self.plan, self.objectives, self.experiment)
+
+    @property
+    def output(self) -> Path | str:
+        """The results store: a local folder (relative to the spec) or an fsspec URL."""
+        if is_url(self.spec.output):
+            return self.spec.output
+        out = Path(self.spec.output)
+        return out if out.is_absolute() else (self.path.parent / out).resolve()
+
+    def with_overrides(self, output: str | Path | None = None, address: str | None = None,
+                       n_workers: int | None = None, kind: str | None = None) -> "Space":
+        """The same space with the CLI's --out, --scheduler, --cluster or --workers applied."""
+        update: dict[str, Any] = {}
+        if output is not None:
+            update["output"] = output if is_url(str(output)) else str(Path(output).resolve())
+        cluster: dict[str, Any] = {}
+        if address is not None:
+            cluster.update(address=address, kind="local")
+        if kind is not None:
+            cluster.update(kind=kind, address=None)
+        if n_workers is not None:
+            cluster["n_workers"] = n_workers
+        if cluster:
+            update["cluster"] = Cluster.model_validate({**self.spec.cluster.model_dump(), **cluster})
+        return Space(self.spec.model_copy(update=update), self.path, self.plan, self.scenarios)
+
+    def admits(self, point: dict[str, Any]) -> bool:
+        return all(check(point) for check in self.constraints)
+
+
+def _scenarios(spec: SpaceSpec, base: Path, source: str) -> list[Scenario]:
+    """Every scenario the spec names, read and checked; the nominal one when it names none."""
+    if not spec.scenarios:
+        return [nominal()]
+    found: dict[str, Scenario] = {}
+    for index, entry in enumerate(spec.scenarios):
+        for scenario in _entry(entry, index, base, source):
+            if scenario.name in found and found[scenario.name].sources != scenario.sources:
+                raise DseError(f"{source}: two scenarios are named {scenario.name!r}")
+            found[scenario.name] = scenario
+    return list(found.values())
+
+
+def _entry(entry: ScenarioSpec | ScenarioSource | str, index: int, base: Path, source: str) -> list[Scenario]:
+    if isinstance(entry, ScenarioSpec):
+        return [parse_scenario(entry.model_dump(), f"{source}: scenarios.{index}", base)]
+    entry = ScenarioSource(path=entry) if isinstance(entry, str) else entry
+    pattern = entry.path if Path(entry.path).is_absolute() else str(base / entry.path)
+    folders = sorted(p for p in glob.glob(pattern) if Path(p).is_dir())
+    if not folders:
+        raise DseError(f"{source}: scenarios.{index}.path: {entry.path!r} matches no folder")
+    scenarios = [load_scenario(folder, entry.kind, entry.model_extra) for folder in folders]
+    return [s.with_group(entry.group) if entry.group is not None else s for s in scenarios]
+
+
+def _resolved(spec: SpaceSpec, scenarios: list[Scenario], source: str) -> SpaceSpec:
+    """The spec with its default objectives and ranking objective filled in."""
+    objectives = spec.objectives
+    if objectives is None:
+        defaults = {name: None for s in scenarios for name in kind(s.kind).default_objectives}
+        if not defaults:
+            raise DseError(f"{source}: objectives: name at least one, e.g. "
+                           "{level_max: {signal: tank.level, reduce: max}}")
+        objectives = list(defaults)
+    scalar = [name for name, o in objs.normalise(objectives).items() if not objs.is_vector(o)]
+    ranking = spec.ranking
+    if ranking.objective is None:
+        if not scalar:
+            raise DseError(f"{source}: ranking needs an objective with one number per task")
+        ranking = ranking.model_copy(update={"objective": scalar[0]})
+    return spec.model_copy(update={"objectives": objectives, "ranking": ranking})
+
+
+def _check_names(space: Space, source: str) -> None:
+    """Every name the spec uses must exist: FMU variables, objectives, the strategy."""
+    for ref, values in space.parameters.items():
+        variable = space.plan.variable(ref, f"{source}: parameters")
+        for value in values:
+            try:
+                check_value(variable, value)
+            except DseError as e:
+                raise DseError(f"{source}: parameters.{ref}: {e}") from None
+    for scenario in space.scenarios:
+        for ref, field in space.multimodel.scenario.items():
+            try:
+                scenario.value_of(field)
+            except DseError as e:
+                raise DseError(f"{source}: the multi-model binds {ref} to {field!r}: {e}") from None
+    for name, objective in space.objectives.items():
+        _check_objective(space, name, objective, source)
+    strategy(space.spec.search.strategy)
+    for name in space.spec.ranking.objectives_used():
+        if name not in space.objectives:
+            raise DseError(f"{source}: ranking uses objective {name!r}, which 'objectives' does not list "
+                           f"({', '.join(space.objectives)})")
+        if objs.is_vector(space.objectives[name]):
+            raise DseError(f"{source}: ranking uses {name!r}, a vector objective; rankings need one number per task")
+
+
+def _check_objective(space: Space, name: str, objective: objs.ObjectiveSpec, source: str) -> None:
+    """A declared objective's signal must exist and its recorded column be in every scenario."""
+    where = f"{source}: objectives.{name}"
+    if isinstance(objective, str):
+        objs.function(objective)
+        return
+    variable = space.plan.variable(qualify(space.plan, objective.signal), where)
+    if not variable.numeric:
+        raise DseError(f"{where}: {variable.ref!r} is a {variable.type}, not a number one can score")
+    if isinstance(objective, objs.Fit):
+        for scenario in space.scenarios:
+            if scenario.recorded is None:
+                raise DseError(f"{where}: compares with recorded {objective.recorded!r}, but scenario "
+                               f"{scenario.name} has no recording")
+            if objective.recorded not in scenario.recorded.columns:
+                raise DseError(f"{where}: scenario {scenario.name}'s recording {scenario.recorded.path} has no "
+                               f"column {objective.recorded!r} (it has {', '.join(scenario.recorded.columns)})")
+
+
+def load_space(path: str | Path) -> Space:
+    """Read, validate and resolve a space.yaml; every error names the file."""
+    path = Path(path).resolve()
+    return resolve_space(read_spec(path), path)
+
+
+def read_spec(path: Path) -> SpaceSpec:
+    """Read and validate a space.yaml without resolving anything it names."""
+    source = str(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except OSError as e:
+        raise DseError(f"cannot read spec {path}: {e.strerror}") from None
+    except yaml.YAMLError as e:
+        raise DseError(format_syntax_error(source, "YAML", e)) from None
+    try:
+        spec = SpaceSpec.model_validate(data if data is not None else {})
+    except ValidationError as e:
+        raise DseError(format_validation_error(source, e)) from None
+    return spec
+
+
+def resolve_space(spec: SpaceSpec, path: Path) -> Space:
+    """A validated spec made a Space: its multi-model, FMUs and scenarios found and every name
+    checked. ``path`` is where relative paths start from (the spec file's folder)."""
+    source = str(path)
+    if isinstance(spec.multimodel, str):
+        multimodel = load_multimodel(bundled.resolve(spec.multimodel, path.parent))
+    else:
+        multimodel = parse_multimodel(spec.multimodel, f"{source}: multimodel", path.parent)
+    scenarios = _scenarios(spec, path.parent, source)
+    space = Space(_resolved(spec, scenarios, source), path, make_plan(multimodel), scenarios)
+    _check_names(space, source)
+    return space

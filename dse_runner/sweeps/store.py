@@ -1,0 +1,288 @@
+"""Results in a store: a Parquet dataset partitioned by sweep and scenario.
+
+    <store>/results/sweep=<name>/scenario=<scenario>/part-<chunk>.parquet
+    <store>/trajectories/sweep=<name>/scenario=<scenario>/rank-<k>.parquet
+    <store>/<name>.sweep.json, <name>.model      (written by rank.save_sweep_spec)
+
+A store is a local folder or any fsspec URL the workers can reach
+(``s3://bucket/prefix``, ``gs://…``, ``abfs://…``; credentials come the way
+that file system's library takes them, e.g. AWS_* variables for S3). Workers
+write their chunks' files themselves, so the client never holds a sweep's rows.
+
+One row per task: ``task_id``, ``model`` (the hash of the model that produced
+it: a changed FMU gives new rows beside the old, and rankings use the current
+model's), the parameter values (one column each, named
+``instance.variable``), ``group``, every objective, ``status`` (ok/failed),
+``error``, ``wall_time`` and ``worker``; ``sweep`` and ``scenario`` come from
+the folder names. A chunk's file appears whole or not at all (a local file is
+written under a temporary name and renamed; an object store's PUT is atomic),
+and its name is the chunk's id, so a chunk run twice replaces its own file and
+readers drop any repeated ``task_id``: a result is never counted twice.
+"""
+
+from __future__ import annotations
+
+import os
+import uuid
+from pathlib import Path
+from typing import Any
+
+import fsspec
+import pandas as pd
+import pyarrow as pa
+import pyarrow.dataset as ds
+import pyarrow.parquet as pq
+from fsspec.implementations.local import LocalFileSystem
+
+from ..errors import DseError
+from ..simulation.objectives import ObjectiveSpec, is_vector
+
+RESULTS = "results"
+TRAJECTORIES = "trajectories"
+PARTITIONING = ds.partitioning(pa.schema([("sweep", pa.string()), ("scenario", pa.string())]), flavor="hive")
+
+Root = str | Path  # a local folder or an fsspec URL
+
+
+def is_url(text: str) -> bool:
+    """``s3://bucket/x`` is a URL; ``/data/out`` and ``C:/out`` are not."""
+    protocol, sep, _ = text.partition("://")
+    return bool(sep) and len(protocol) > 1
+
+
+def _fs(root: Root) -> tuple[fsspec.AbstractFileSystem, str]:
+    """The file system of ``root`` and its path within it."""
+    if not is_url(str(root)):
+        return LocalFileSystem(), str(Path(root).resolve())
+    try:
+        fs, path = fsspec.core.url_to_fs(str(root))
+    except (ImportError, ValueError) as e:
+        raise DseError(f"store {root}: {e}") from None
+    return fs, path.rstrip("/")
+
+
+def _arrow_fs(fs: fsspec.AbstractFileSystem) -> Any:
+    """None (pyarrow's own, faster local file system) for local folders, else the fsspec one."""
+    return None if isinstance(fs, LocalFileSystem) else fs
+
+
+def _join(*parts: str) -> str:
+    return "/".join(p.strip("/") if i else p.rstrip("/") for i, p in enumerate(parts))
+
+
+def _where(fs: fsspec.AbstractFileSystem, path: str) -> str:
+    """A path to show users: local as is, remote as a full URL."""
+    return path if isinstance(fs, LocalFileSystem) else fs.unstrip_protocol(path)
+
+
+def _partition(kind: str, sweep: str, scenario: str) -> str:
+    return f"{kind}/sweep={sweep}/scenario={scenario}"
+
+
+def check_reachable(root: Root) -> None:
+    """Fail early, naming the store, if it cannot be created or written."""
+    fs, path = _fs(root)
+    try:
+        fs.makedirs(path, exist_ok=True)
+        probe = _join(path, f".probe-{uuid.uuid4().hex}")
+        fs.pipe_file(probe, b"")
+        fs.rm_file(probe)
+    except Exception as e:  # each file system raises its own errors
+        raise DseError(f"cannot write to the store {root}: {type(e).__name__}: {e}") from None
+
+
+def write_text(root: Root, name: str, text: str) -> str:
+    """Write a small file (``name`` may hold folders); returns where it went."""
+    fs, path = _fs(root)
+    target = _join(path, name)
+    fs.makedirs(target.rsplit("/", 1)[0], exist_ok=True)
+    fs.pipe_file(target, text.encode())
+    return _where(fs, target)
+
+
+def read_text(root: Root, name: str) -> str | None:
+    """The file's text, or None if it does not exist."""
+    fs, path = _fs(root)
+    try:
+        return fs.cat_file(_join(path, name)).decode()
+    except FileNotFoundError:
+        return None
+
+
+def write_table(table: pa.Table, root: Root, relative: str) -> str:
+    """Write ``table`` so that readers see all of it or nothing."""
+    fs, path = _fs(root)
+    target = _join(path, relative)
+    if isinstance(fs, LocalFileSystem):
+        Path(target).parent.mkdir(parents=True, exist_ok=True)
+        partial = Path(target).with_name(f".{Path(target).name}.{uuid.uuid4().hex}.partial")
+        pq.write_table(table, partial)
+        os.replace(partial, target)
+    else:
+        pq.write_table(table, target, filesystem=fs)
+    return _where(fs, target)
+
+
+def results_schema(parameters: dict[str, list[Any]], objectives: dict[str, ObjectiveSpec]) -> pa.Schema:
+    """Column types fixed up front, so every file of a sweep has the same schema
+    (a chunk whose tasks all failed has no objective values to infer types from)."""
+
+    def kind(values: list[Any]) -> pa.DataType:
+        if all(isinstance(v, bool) for v in values):
+            return pa.bool_()
+        if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+            return pa.float64()
+        return pa.string()
+
+    return pa.schema(
+        [("task_id", pa.string()), ("model", pa.string()), ("group", pa.string())]
+        + [(name, kind(values)) for name, values in parameters.items()]
+        + [(name, pa.list_(pa.float64()) if is_vector(spec) else pa.float64()) for name, spec in objectives.items()]
+        + [("status", pa.string()), ("error", pa.string()), ("wall_time", pa.float64()), ("worker", pa.string())]
+    )
+
+
+def write_rows(root: Root, sweep: str, chunk: str, rows: list[dict[str, Any]], schema: pa.Schema) -> list[str]:
+    """Write one chunk's rows, one file per scenario partition."""
+    by_scenario: dict[str, list[dict[str, Any]]] = {}
+    for row in rows:
+        by_scenario.setdefault(row["scenario"], []).append({k: v for k, v in row.items() if k != "scenario"})
+    return [write_table(pa.Table.from_pylist(group, schema=schema), root,
+                        f"{_partition(RESULTS, sweep, scenario)}/part-{chunk}.parquet")
+            for scenario, group in by_scenario.items()]
+
+
+def _files(fs: fsspec.AbstractFileSystem, path: str, kind: str, sweep: str | None = None) -> list[str]:
+    """The finished files of one sweep (sweeps of one store may have different columns), or of all."""
+    folder = _join(path, kind)
+    where = _join(folder, f"sweep={sweep}") if sweep is not None else folder
+    return sorted(f for f in fs.find(where) if f.endswith(".parquet") and not Path(f).name.startswith("."))
+
+
+def _dataset(root: Root, kind: str, sweep: str | None = None, files: list[str] | None = None) -> ds.Dataset | None:
+    """A dataset of ``files`` (default: every file of the sweep, or of all sweeps)."""
+    fs, path = _fs(root)
+    files = _files(fs, path, kind, sweep) if files is None else files
+    if not files:
+        return None
+    return ds.dataset(files, format="parquet", partitioning=PARTITIONING, partition_base_dir=_join(path, kind),
+                      filesystem=_arrow_fs(fs))
+
+
+class _TaskIdCache:
+    """Task ids per local file, keyed by (size, mtime): a chunk's file does not change once written
+    (a chunk run again replaces it whole, with a new modification time). Bounded, so a process
+    that scans a huge sweep re-reads it rather than holding every id."""
+
+    limit = 500_000  # ids, ~50 MB
+
+    def __init__(self) -> None:
+        self.files: dict[str, tuple[tuple[int, int], frozenset[str]]] = {}
+        self.count = 0
+
+    def ids(self, name: str) -> frozenset[str]:
+        stat = os.stat(name)
+        version = (stat.st_size, stat.st_mtime_ns)
+        cached = self.files.get(name)
+        if cached is not None and cached[0] == version:
+            return cached[1]
+        ids = frozenset(pq.read_table(name, columns=["task_id"]).column("task_id").to_pylist())
+        if cached is not None:
+            self.count -= len(self.files.pop(name, (None, frozenset()))[1])
+        if self.count + len(ids) > self.limit:
+            self.files.clear()
+            self.count = 0
+        self.files[name] = (version, ids)
+        self.count += len(ids)
+        return ids
+
+
+_IDS = _TaskIdCache()
+
+
+def _task_ids_by_file(fs: fsspec.AbstractFileSystem, files: list[str]) -> dict[str, frozenset[str]] | None:
+    """The task ids in each of ``files``, or None for a remote store.
+
+    An optimiser reads the store after every one of its many small rounds (fit.py); with the
+    ids of each local file remembered, a round opens only the files written since the last."""
+    if not isinstance(fs, LocalFileSystem):
+        return None
+    return {name: _IDS.ids(name) for name in files}
+
+
+def _with_every_column(dataset: ds.Dataset, root: Root, kind: str) -> ds.Dataset:
+    """The dataset with the union of its files' columns: a sweep re-run with more objectives has files
+    of both shapes, and the dataset otherwise takes its columns from whichever file comes first."""
+    fs, path = _fs(root)
+    schemas = [pq.read_schema(f, filesystem=_arrow_fs(fs)) for f in dataset.files]
+    schema = pa.unify_schemas(schemas + [PARTITIONING.schema])
+    return ds.dataset(dataset.files, schema=schema, format="parquet", partitioning=PARTITIONING,
+                      partition_base_dir=_join(path, kind), filesystem=_arrow_fs(fs))
+
+
+def read_results(root: Root, sweep: str | None = None, columns: list[str] | None = None,
+                 task_ids: list[str] | None = None) -> pd.DataFrame:
+    """Rows of finished tasks (of just ``task_ids`` if given: what an optimiser reads back after
+    each round, from only the files that hold them), reading only ``columns`` (plus the keys);
+    no trajectories."""
+    files = None
+    if task_ids is not None:
+        fs, path = _fs(root)
+        files = _files(fs, path, RESULTS, sweep)
+        by_file = _task_ids_by_file(fs, files)
+        if by_file is not None:
+            wanted_ids = set(task_ids)
+            files = [f for f in files if not by_file[f].isdisjoint(wanted_ids)]
+    dataset = _dataset(root, RESULTS, sweep, files)
+    if dataset is None:
+        return pd.DataFrame(columns=["task_id", "sweep", "scenario", *(columns or [])])
+    wanted = None
+    if columns is not None:
+        wanted = list(dict.fromkeys(["task_id", "sweep", "scenario", *columns]))
+        if any(c not in dataset.schema.names for c in wanted):
+            dataset = _with_every_column(dataset, root, RESULTS)
+        missing = [c for c in wanted if c not in dataset.schema.names]
+        if missing:
+            raise DseError(f"{root}: the results have no column {', '.join(missing)} "
+                           f"(columns: {', '.join(dataset.schema.names)})")
+    where = (ds.field("sweep") == sweep) if sweep is not None else None
+    if task_ids is not None:
+        chosen = ds.field("task_id").isin(task_ids)
+        where = chosen if where is None else where & chosen
+    frame = dataset.to_table(columns=wanted, filter=where).to_pandas()
+    return frame.drop_duplicates("task_id", keep="first").reset_index(drop=True)
+
+
+def finished_task_ids(root: Root, sweep: str) -> set[str]:
+    """Ids of every task with a row, ok or failed: what a re-run skips."""
+    fs, path = _fs(root)
+    by_file = _task_ids_by_file(fs, _files(fs, path, RESULTS, sweep))
+    if by_file is None:
+        return set(read_results(root, sweep, columns=[])["task_id"])
+    return set().union(*by_file.values())
+
+
+def sweeps(root: Root) -> list[str]:
+    fs, path = _fs(root)
+    folder = _join(path, RESULTS)
+    if not fs.isdir(folder):
+        return []
+    return sorted(Path(p).name.removeprefix("sweep=") for p in fs.glob(_join(folder, "sweep=*")))
+
+
+def _trajectory_file(sweep: str, scenario: str, rank: int) -> str:
+    return f"{_partition(TRAJECTORIES, sweep, scenario)}/rank-{rank}.parquet"
+
+
+def write_trajectory(root: Root, sweep: str, scenario: str, rank: int, frame: pd.DataFrame) -> str:
+    return write_table(pa.Table.from_pandas(frame, preserve_index=False), root, _trajectory_file(sweep, scenario, rank))
+
+
+def has_trajectory(root: Root, sweep: str, scenario: str, rank: int) -> bool:
+    fs, path = _fs(root)
+    return fs.isfile(_join(path, _trajectory_file(sweep, scenario, rank)))
+
+
+def read_trajectory(root: Root, sweep: str, scenario: str, rank: int = 1) -> pd.DataFrame:
+    fs, path = _fs(root)
+    return pd.read_parquet(_join(path, _trajectory_file(sweep, scenario, rank)), filesystem=_arrow_fs(fs))
