@@ -10,7 +10,7 @@ from conftest import FMU_SOURCES, SCENARIOS, all_scenarios
 
 from dse_runner import DseError
 from dse_runner.simulation.crosscheck import run_libcosim
-from dse_runner.cases.fielddata import position_refs, simulated_xy
+from dse_runner.cases.fielddata import position_of, simulated_xy
 from dse_runner.simulation.scenario import load_scenario
 from dse_runner.simulation.run import simulate
 
@@ -80,7 +80,7 @@ def test_into_cps_mm_json_gives_the_same_result(tmp_path, plan):
     from_json = simulate(path, SCENARIOS / "sin3")
     from_yaml = simulate(plan, SCENARIOS / "sin3", {"vehicle.mass": 1800})
     # the position compared with GPS: the only instance with outputs x and y, found without being named
-    assert position_refs(from_json.trajectory, from_json.scenario) == ("vehicle.x", "vehicle.y")
+    assert position_of(from_json.trajectory.names, from_json.scenario) == ("vehicle.x", "vehicle.y")
     assert np.allclose(simulated_xy(from_json.trajectory, from_json.scenario),
                        simulated_xy(from_yaml.trajectory, from_yaml.scenario), atol=1e-12)
     assert from_json.objectives == pytest.approx(from_yaml.objectives, abs=1e-12)

@@ -34,7 +34,7 @@ def track(time, x, y):
 
 def test_the_position_is_the_only_instance_with_x_and_y(recorded):
     assert recorded.kind == "field_data"
-    assert fielddata.position_refs(track([0.0, 4.0], [0.0, 4.0], [0.0, 0.0]), recorded) == ("v.x", "v.y")
+    assert fielddata.position_of(track([0.0, 4.0], [0.0, 4.0], [0.0, 0.0]).names, recorded) == ("v.x", "v.y")
 
 
 def test_constant_offset(recorded):

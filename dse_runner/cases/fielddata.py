@@ -180,11 +180,6 @@ FIELD_DATA = FieldData()
 
 # ---- objectives --------------------------------------------------------------------------------
 
-def position_refs(trajectory, scenario: Scenario) -> tuple[str, str]:
-    """The simulated position's outputs in a trajectory (see :func:`position_of`)."""
-    return position_of(trajectory.names, scenario)
-
-
 def position_of(names, scenario: Scenario) -> tuple[str, str]:
     """The simulated position among recorded ``names``: the scenario's ``position`` option, or the
     only instance with outputs x and y."""
@@ -204,7 +199,7 @@ def position_of(names, scenario: Scenario) -> tuple[str, str]:
 def fix_offsets(trajectory, scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
     """Simulated minus recorded x and y at each GPS fix within the simulated time span."""
     fixes = gps(scenario)
-    x_ref, y_ref = position_refs(trajectory, scenario)
+    x_ref, y_ref = position_of(trajectory.names, scenario)
     x, y = trajectory.column(x_ref), trajectory.column(y_ref)
     time = trajectory.time
     inside = (fixes.time >= time[0]) & (fixes.time <= time[-1] + 1e-9)
@@ -217,7 +212,7 @@ def fix_offsets(trajectory, scenario: Scenario) -> tuple[np.ndarray, np.ndarray]
 
 def simulated_xy(trajectory, scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
     """The simulated position over the whole run, for plots."""
-    x_ref, y_ref = position_refs(trajectory, scenario)
+    x_ref, y_ref = position_of(trajectory.names, scenario)
     return trajectory.column(x_ref), trajectory.column(y_ref)
 
 

@@ -410,7 +410,7 @@ def run(plan: Plan, values: Mapping[str, Value], start: float, stop: float, step
         message = current.stepper.instance.explain(str(e).rstrip("."))
         fmus.discard(current.stepper.instance)
         raise CosimError(message, current.stepper.name) from None
-    _check_finite(plan, names, times, record)
+    _check_finite(names, times, record)
     return Trajectory(times, names, record, texts)
 
 
@@ -589,7 +589,7 @@ def _resolve_inputs(plan: Plan, inputs: Mapping[str, Series], times: np.ndarray)
     return sampled
 
 
-def _check_finite(plan: Plan, names: tuple[str, ...], times: np.ndarray, record: np.ndarray) -> None:
+def _check_finite(names: tuple[str, ...], times: np.ndarray, record: np.ndarray) -> None:
     bad = ~np.isfinite(record)
     if bad.any():
         row, column = np.argwhere(bad)[0]

@@ -86,16 +86,22 @@ def default_objectives(scenario: Scenario) -> dict[str, objs.ObjectiveSpec]:
     return objs.normalise(list(kind(scenario.kind).default_objectives))
 
 
+def bound_fields(multimodel: MultiModel, scenario: Scenario) -> dict[str, Value]:
+    """The values the multi-model's ``scenario:`` section takes from this scenario; a field the
+    scenario lacks is an error naming the binding."""
+    bound = {}
+    for ref, name in multimodel.scenario.items():
+        try:
+            bound[ref] = scenario.value_of(name)
+        except DseError as e:
+            raise DseError(f"the multi-model binds {ref} to {name!r}: {e}") from None
+    return bound
+
+
 def scenario_values(plan: Plan, scenario: Scenario) -> dict[str, Value]:
     """The values a scenario gives: bound fields, its parameters and its constant inputs."""
-    try:
-        bound = {ref: scenario.value_of(name) for ref, name in plan.multimodel.scenario.items()}
-    except DseError as e:
-        ref, name = next((r, n) for r, n in plan.multimodel.scenario.items() if n not in
-                         {*scenario.fields, *scenario.files})
-        raise DseError(f"the multi-model binds {ref} to {name!r}: {e}") from None
     constants = {ref: v for ref, v in scenario.inputs.items() if not isinstance(v, Series)}
-    return {**bound, **scenario.parameters, **constants}
+    return {**bound_fields(plan.multimodel, scenario), **scenario.parameters, **constants}
 
 
 def simulate(

@@ -86,7 +86,6 @@ class Variable:
     vr: int
     type: str  # FMPy's type name: Real, Float64, Int32, Boolean, String, Enumeration...
     causality: str
-    variability: str | None = None
     low: float | None = None  # the declared min and max, if any
     high: float | None = None
     scalar: bool = True  # FMI 3 arrays are not
@@ -120,13 +119,14 @@ def describe_variable(instance: str, v) -> Variable:
             return None
 
     scalar = not getattr(v, "dimensions", None)
-    return Variable(instance, v.name, v.valueReference, v.type, v.causality, v.variability,
+    return Variable(instance, v.name, v.valueReference, v.type, v.causality,
                     bound("min"), bound("max"), scalar)
 
 
 def check_settable(variable: Variable) -> None:
     if variable.causality not in SETTABLE:
-        raise DseError(f"{variable.ref!r} is {with_article(variable.causality)}, not a parameter or input: it cannot be set")
+        raise DseError(f"{variable.ref!r} is {with_article(variable.causality)}, not a parameter or input: "
+                       "it cannot be set")
     if variable.family is None:
         what = "an array" if not variable.scalar else with_article(variable.type)
         raise DseError(f"{variable.ref!r} is {what}, which dse-runner cannot set")

@@ -39,7 +39,7 @@ from ..simulation import objectives as objs
 from ..simulation.cosim import Plan, make_plan
 from ..simulation.experiment import Experiment
 from ..simulation.multimodel import MultiModel, load_multimodel, parse_multimodel
-from ..simulation.run import qualify
+from ..simulation.run import bound_fields, qualify
 from ..simulation.scenario import Scenario, ScenarioSpec, kind, load_scenario, nominal, parse_scenario
 from ..simulation.variables import FiniteValue, check_value
 from .constraints import compile_constraint
@@ -340,11 +340,10 @@ def _check_names(space: Space, source: str) -> None:
             except DseError as e:
                 raise DseError(f"{source}: parameters.{ref}: {e}") from None
     for scenario in space.scenarios:
-        for ref, field in space.multimodel.scenario.items():
-            try:
-                scenario.value_of(field)
-            except DseError as e:
-                raise DseError(f"{source}: the multi-model binds {ref} to {field!r}: {e}") from None
+        try:
+            bound_fields(space.multimodel, scenario)
+        except DseError as e:
+            raise DseError(f"{source}: {e}") from None
     for name, objective in space.objectives.items():
         _check_objective(space, name, objective, source)
     strategy(space.spec.search.strategy)
