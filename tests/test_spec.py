@@ -69,7 +69,10 @@ def test_task_ids_are_stable_and_follow_the_data(tmp_path):
     ({"objectives": ["cross_track_eror"]}, r"unknown objective 'cross_track_eror'"),
     ({"ranking": {"objective": "max_error"}, "objectives": ["cross_track_error"]},
      r"ranking uses objective 'max_error', which 'objectives' does not list"),
-    ({"search": {"strategy": "genetic"}}, r"unknown search strategy 'genetic': available are exhaustive"),
+    ({"search": {"strategy": "simulated_annealing"}}, r"unknown search strategy 'simulated_annealing': available are cmaes, exhaustive, genetic"),
+    ({"parameters": {"vehicle.mass": {"low": 1000, "high": 3000}}}, r"search: exhaustive needs a list or a grid .* vehicle.mass is an interval"),
+    ({"search": {"strategy": "tpe", "n_startup": 3}}, r"search.n_startup: .*not permitted|search.n_startup"),
+    ({"parameters": {"vehicle.mass": {"low": 3000, "high": 1000}}}, r"parameters.vehicle.mass: .*'high' must be above 'low'"),
     ({"name": "a b"}, r"space\.yaml: name: String should match pattern"),
 ])
 def test_bad_specs_name_file_key_and_reason(tmp_path, changes, message):

@@ -10,8 +10,8 @@ In space.yaml an objective is one of (docs/space.md):
   deviation from 1.5 (``{signal: tank.level, target: 1.5, reduce: rms}`` is
   the rms deviation); settling_time's target is by default the final value;
 * ``{signal: msd.x, recorded: x, metric: rmse}``: a signal against a column
-  of the scenario's recording, at the recorded sample times: rmse, mae or
-  max_abs;
+  of the scenario's recording, at the recorded sample times: rmse, mae,
+  max_abs, or residuals (every error, a vector: what least squares fits);
 * a name: an objective a plug-in registers in the entry-point group
   ``dse_runner.objectives`` (the field-data kind registers the paper's
   ``cross_track_error`` and its kin), or ``module:function``.
@@ -77,7 +77,7 @@ class Fit(BaseModel):
     model_config = Strict
     signal: str
     recorded: str
-    metric: Literal["rmse", "mae", "max_abs"] = "rmse"
+    metric: Literal["rmse", "mae", "max_abs", "residuals"] = "rmse"  # residuals: every error, a vector
 
 
 ObjectiveSpec = Reduce | Fit | str
@@ -133,6 +133,7 @@ METRICS: dict[str, Callable[[np.ndarray], float]] = {
     "rmse": lambda e: float(np.sqrt(np.mean(e * e))),
     "mae": lambda e: float(np.mean(np.abs(e))),
     "max_abs": lambda e: float(np.max(np.abs(e))),
+    "residuals": lambda e: e,  # simulated minus recorded at each sample: what least squares fits
 }
 
 
@@ -184,6 +185,8 @@ def function(name: str) -> Function:
 
 
 def is_vector(spec: ObjectiveSpec) -> bool:
+    if isinstance(spec, Fit):
+        return spec.metric == "residuals"
     return isinstance(spec, str) and bool(getattr(function(spec), "vector", False))
 
 

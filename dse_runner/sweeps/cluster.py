@@ -143,7 +143,7 @@ def maker(kind: str) -> Maker:
 
 
 @contextmanager
-def connect(spec: Cluster, base: Path | None = None) -> Iterator["distributed.Client"]:  # noqa: F821
+def connect(spec: Cluster, base: Path | None = None) -> Iterator[distributed.Client]:  # noqa: F821
     """A client of the spec's scheduler, with at least one worker; the cluster is closed afterwards
     if we started it. ``base`` is the folder relative certificate paths start from."""
     import dask

@@ -21,7 +21,7 @@ from ..simulation import objectives as objs
 from ..simulation.cosim import Plan
 from ..simulation.fmu import content_hash
 from ..simulation.scenario import Scenario, Series
-from .search import strategy
+from .search import points as search_points
 
 
 @dataclass(frozen=True)
@@ -61,8 +61,8 @@ def task_id(model: str, point: dict[str, Any], scenario: str) -> str:
 
 
 def points_of(space, points: list[dict[str, Any]] | None = None) -> Callable[[Any], Iterable[dict[str, Any]]]:
-    """The space's search strategy, or the given points (an optimiser's next round)."""
-    return strategy(space.spec.search.strategy) if points is None else (lambda _: points)
+    """The space's grid strategy's points, or the given points (a search strategy's)."""
+    return (lambda s: search_points(s.strategy)) if points is None else (lambda _: points)
 
 
 def expand(space, points: list[dict[str, Any]] | None = None,
@@ -98,7 +98,7 @@ class TaskBatch:
     values: np.ndarray  # tasks x parameters; float64 when every value is a float
 
     @classmethod
-    def of(cls, tasks: list[Task]) -> "TaskBatch":
+    def of(cls, tasks: list[Task]) -> TaskBatch:
         parameters = tuple(name for name, _ in tasks[0].point)
         scenarios = tuple(dict.fromkeys(t.scenario for t in tasks))
         rows = [[value for _, value in t.point] for t in tasks]

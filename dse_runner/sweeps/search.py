@@ -1,53 +1,163 @@
-"""Search strategies: which parameter points a sweep visits.
+"""Search strategies: which parameter points a sweep visits, as ask/tell plug-ins.
 
-A strategy is a function ``(space) -> iterator of points`` (a point maps each
-swept ``instance.variable`` to a value). ``exhaustive`` is built in; others
-plug in without touching this module, the way ``distributed`` takes plugins:
-a package declares an entry point in the group ``dse_runner.search``, e.g. in
-its pyproject.toml::
+A strategy is a class built from a :class:`Problem` (the dimensions, the
+objectives to optimise, the budget and its own options). The runner *asks*
+it for a point whenever a worker frees up and *tells* it each point's
+:class:`Evaluation` when the point's simulations finish, the way Optuna's
+``study.ask``/``study.tell`` work. A strategy never simulates anything, so the
+same strategy runs on a laptop or a cluster, and a search can be replayed
+from its stored history (history.py).
+
+``exhaustive`` is the grid strategy: it asks every point up front without
+needing results (``closed_loop = False``), and the sweep runs it in large
+chunks. The others (strategies/) wrap Optuna, scipy and pymoo. More plug in
+without touching this module, the way ``distributed`` takes plug-ins: a
+package declares an entry point in the group ``dse_runner.search``::
 
     [project.entry-points."dse_runner.search"]
-    latin_hypercube = "my_package.search:latin_hypercube"
+    my_search = "my_package.search:MySearch"   # a subclass of dse_runner.sweeps.search.Strategy
 """
 
 from __future__ import annotations
 
+import importlib
 import itertools
-from collections.abc import Callable, Iterator
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
 from importlib.metadata import entry_points
-from typing import TYPE_CHECKING, Any
+from typing import Any, ClassVar, Literal
+
+from pydantic import BaseModel, ConfigDict, ValidationError
 
 from ..errors import DseError
-
-if TYPE_CHECKING:
-    from .spec import Space
-
-Point = dict[str, Any]
-Strategy = Callable[["Space"], Iterator[Point]]
+from .domain import Dimension, Point
 
 
-def exhaustive(space: "Space") -> Iterator[Point]:
+@dataclass(frozen=True)
+class Problem:
+    """What a strategy is told about the search before it starts."""
+
+    label: str  # the sweep's name, for messages
+    dimensions: tuple[Dimension, ...]
+    objective: tuple[str, str]  # (name, "min" | "max"): the ranking objective
+    pareto: tuple[tuple[str, str], ...]  # the ranking's Pareto objectives, for multi-objective strategies
+    scenarios: tuple[str, ...]
+    vectors: tuple[str, ...]  # objectives that give one number per sample (least squares fits them)
+    max_points: int
+    seed: int
+    batch: int  # points in flight at once
+    options: Mapping[str, Any] = field(default_factory=dict)  # the strategy's own, from space.yaml's search:
+    admits: Callable[[Point], bool] = lambda point: True  # the spec's constraints
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """What became of one asked point."""
+
+    state: Literal["ok", "failed", "infeasible"]  # infeasible: the constraints reject it; never simulated
+    values: Mapping[str, float] = field(default_factory=dict)  # each scalar objective reduced over scenarios
+    scores: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)  # scenario -> objective -> value (ok tasks)
+    error: str | None = None
+
+    def value(self, name: str) -> float:
+        return self.values[name]
+
+
+class Options(BaseModel):
+    """A strategy's own options (keys under ``search:`` besides the common ones); none by default."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, populate_by_name=True)
+
+
+class Strategy(ABC):
+    """Ask for points, be told how they did. Subclasses set ``Options`` to take options of their own."""
+
+    closed_loop: ClassVar[bool] = True  # False: every point is known without results (a grid)
+    multi_objective: ClassVar[bool] = False  # optimises the ranking's Pareto objectives
+    Options: ClassVar[type[BaseModel]] = Options
+
+    def __init__(self, problem: Problem):
+        self.problem = problem
+        self.options = parse_options(type(self), problem.options)
+
+    @abstractmethod
+    def ask(self) -> Point | None:
+        """The next point to evaluate; None when there is none for now (waiting for results) or any more."""
+
+    def tell(self, point: Point, evaluation: Evaluation) -> None:
+        """How an asked point did; strategies that learn nothing from results ignore it."""
+
+
+def parse_options(kind: type[Strategy], options: Mapping[str, Any]) -> BaseModel:
+    try:
+        return kind.Options.model_validate(dict(options))
+    except ValidationError as e:
+        problem = e.errors()[0]
+        where = ".".join(str(p) for p in problem["loc"])
+        raise DseError(f"search.{where}: {problem['msg'].lower()} (strategy {kind.__name__})") from None
+
+
+class Exhaustive(Strategy):
     """Every combination of the parameters' values that satisfies the constraints."""
-    names = list(space.parameters)
-    for values in itertools.product(*(space.parameters[n] for n in names)):
-        point = dict(zip(names, values))
-        if space.admits(point):
-            yield point
+
+    closed_loop = False
+
+    def __init__(self, problem: Problem):
+        super().__init__(problem)
+        continuous = [d.name for d in problem.dimensions if d.grid() is None]
+        if continuous:
+            raise DseError(f"search: exhaustive needs a list or a grid {{start, stop, step}} for every parameter; "
+                           f"{', '.join(continuous)} is an interval {{low, high}}: give a grid, or a search "
+                           "strategy such as tpe")
+        names = [d.name for d in problem.dimensions]
+        grids = [d.grid() for d in problem.dimensions]
+        self._points: Iterator[Point] = (p for p in (dict(zip(names, v)) for v in itertools.product(*grids))
+                                         if problem.admits(p))
+
+    def ask(self) -> Point | None:
+        return next(self._points, None)
 
 
-BUILTIN: dict[str, Strategy] = {"exhaustive": exhaustive}
+STRATEGIES = "dse_runner.sweeps.strategies"
+BUILTIN: dict[str, str] = {  # loaded on first use: Optuna, pymoo and torch are imported only when chosen
+    "exhaustive": f"{__name__}:Exhaustive",
+    "random": f"{STRATEGIES}.sampling:RandomSampling",
+    "sobol": f"{STRATEGIES}.sampling:Sobol",
+    "lhs": f"{STRATEGIES}.sampling:LatinHypercube",
+    "tpe": f"{STRATEGIES}.optuna_samplers:Tpe",
+    "gp": f"{STRATEGIES}.optuna_samplers:GaussianProcess",
+    "cmaes": f"{STRATEGIES}.optuna_samplers:CmaEs",
+    "nsga2": f"{STRATEGIES}.optuna_samplers:Nsga2",
+    "genetic": f"{STRATEGIES}.genetic:Genetic",
+    "least_squares": f"{STRATEGIES}.least_squares:LeastSquares",
+}
 
 
-def strategies() -> dict[str, Strategy]:
-    """Built-in strategies and those installed packages declare."""
+def available() -> dict[str, str]:
+    """Strategy name -> import path: the built-in ones and those installed packages declare."""
     found = dict(BUILTIN)
     for entry in entry_points(group="dse_runner.search"):
-        found.setdefault(entry.name, entry.load())
+        found.setdefault(entry.name, entry.value)
     return found
 
 
-def strategy(name: str) -> Strategy:
-    available = strategies()
-    if name not in available:
-        raise DseError(f"unknown search strategy {name!r}: available are {', '.join(sorted(available))}")
-    return available[name]
+def strategy(name: str) -> type[Strategy]:
+    """The strategy class of ``name``; importing it only now."""
+    paths = available()
+    if name not in paths:
+        raise DseError(f"unknown search strategy {name!r}: available are {', '.join(sorted(paths))}")
+    module_name, _, attribute = paths[name].partition(":")
+    try:
+        found = getattr(importlib.import_module(module_name), attribute)
+    except ImportError as e:
+        raise DseError(f"search strategy {name!r} needs a package that is not installed: {e}") from None
+    if not (isinstance(found, type) and issubclass(found, Strategy)):
+        raise DseError(f"search strategy {name!r} ({paths[name]}) is not a dse_runner Strategy class")
+    return found
+
+
+def points(make: Callable[[], Strategy]) -> Iterator[Point]:
+    """Every point an open-loop strategy asks for."""
+    chosen = make()
+    return iter(chosen.ask, None)

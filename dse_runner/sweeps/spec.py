@@ -43,7 +43,8 @@ from ..simulation.run import bound_fields, qualify
 from ..simulation.scenario import Scenario, ScenarioSpec, kind, load_scenario, nominal, parse_scenario
 from ..simulation.variables import FiniteValue, check_value
 from .constraints import compile_constraint
-from .search import strategy
+from .domain import Dimension
+from .search import Problem, Strategy, parse_options, strategy
 from .store import is_url
 
 Strict = ConfigDict(extra="forbid", allow_inf_nan=False)  # unknown keys, NaN and infinity are errors
@@ -60,7 +61,7 @@ class Range(BaseModel):
     log: bool = False
 
     @model_validator(mode="after")
-    def _one_of_step_or_num(self) -> "Range":
+    def _one_of_step_or_num(self) -> Range:
         if (self.step is None) == (self.num is None):
             raise ValueError("give exactly one of 'step' or 'num'")
         if self.log and (self.step is not None or self.start <= 0 or self.stop <= 0):
@@ -79,15 +80,40 @@ class Range(BaseModel):
         return [round(self.start + i * self.step, 12) for i in range(count)]
 
 
-def _values_or_range(value: Any) -> str | None:
+class Interval(BaseModel):
+    """``{low, high}``: every value between, for search strategies; ``log: true`` samples the
+    logarithm uniformly, ``integer: true`` takes whole numbers only."""
+
+    model_config = Strict
+    low: float
+    high: float
+    log: bool = False
+    integer: bool = False
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Interval:
+        if not self.high > self.low:
+            raise ValueError("'high' must be above 'low'")
+        if self.log and self.low <= 0:
+            raise ValueError("a log interval needs a positive 'low'")
+        if self.integer and not (self.low.is_integer() and self.high.is_integer()):
+            raise ValueError("an integer interval needs whole-number 'low' and 'high'")
+        return self
+
+
+def _parameter_kind(value: Any) -> str | None:
+    if isinstance(value, Interval) or (isinstance(value, dict) and ("low" in value or "high" in value)):
+        return "interval"
     return "range" if isinstance(value, (dict, Range)) else "values" if isinstance(value, list) else None
 
 
-# A list of values or a Range; the discriminator makes a wrong one give one message, not one per kind.
+# A list of values, a grid or an interval; the discriminator makes a wrong one give one message, not one per kind.
 ParameterValues = Annotated[
-    Annotated[Annotated[list[FiniteValue], Field(min_length=1)], Tag("values")] | Annotated[Range, Tag("range")],
-    Discriminator(_values_or_range, custom_error_type="parameter_values",
-                  custom_error_message="expected a list of values or a range {start, stop, step or num}")]
+    Annotated[Annotated[list[FiniteValue], Field(min_length=1)], Tag("values")] | Annotated[Range, Tag("range")]
+    | Annotated[Interval, Tag("interval")],
+    Discriminator(_parameter_kind, custom_error_type="parameter_values",
+                  custom_error_message="expected a list of values, a grid {start, stop, step or num} "
+                                       "or an interval {low, high}")]
 
 
 class ScenarioSource(BaseModel):
@@ -120,8 +146,9 @@ class Direction(BaseModel):
 
 class Ranking(BaseModel):
     model_config = Strict
-    objective: str | None = None  # summed over scenarios (the paper's Equation 2); default: the first
+    objective: str | None = None  # reduced over scenarios (by default summed: the paper's Equation 2); default: the first
     goal: Literal["min", "max"] = "min"
+    over_scenarios: Literal["sum", "mean", "max", "min"] = "sum"  # max: the worst case of a minimised objective
     pareto: list[Direction | str] = []  # objectives of the Pareto front, each "name" or {objective, goal}
     weights: dict[str, float] = {}  # weighted sum of per-point totals
 
@@ -134,8 +161,18 @@ class Ranking(BaseModel):
 
 
 class Search(BaseModel):
-    model_config = Strict
-    strategy: str = "exhaustive"  # built-in or a plugin's (see search.py)
+    """How points are chosen (search.py). Keys besides these are the strategy's own options."""
+
+    model_config = ConfigDict(extra="allow", allow_inf_nan=False)
+    strategy: str = "exhaustive"  # built-in or a plug-in's (see search.py)
+    max_points: PositiveInt = 100  # a search stops after this many simulated points (not for exhaustive)
+    max_seconds: PositiveFloat | None = None  # ... or when this submission has run this long
+    seed: int = 0  # the same seed and results give the same points
+    batch: PositiveInt | None = None  # points in flight at once; default: worker threads + 1
+
+    @property
+    def options(self) -> dict[str, Any]:
+        return dict(self.model_extra or {})
 
 
 class Tls(BaseModel):
@@ -186,7 +223,7 @@ class Cluster(BaseModel):
     kubernetes: Kubernetes = Kubernetes()
 
     @model_validator(mode="after")
-    def _address_or_kind(self) -> "Cluster":
+    def _address_or_kind(self) -> Cluster:
         if self.address is not None and self.kind != "local":
             raise ValueError(f"give either 'address' (an existing scheduler) or 'kind: {self.kind}', not both")
         if self.address is not None and not self.address.startswith(("tcp://", "tls://", "ucx://", "inproc://")):
@@ -217,6 +254,16 @@ def _normal(value: Any) -> Any:
     return float(value) if isinstance(value, int) and not isinstance(value, bool) else value
 
 
+def dimension(name: str, values: list[Any] | Range | Interval) -> Dimension:
+    """How a search strategy sees one parameter (domain.py)."""
+    if isinstance(values, Interval):
+        return Dimension(name, values.low, values.high, log=values.log, integer=values.integer)
+    if isinstance(values, Range) and values.step is not None and not values.log:
+        return Dimension(name, values.start, values.values()[-1], step=values.step)
+    listed = values.values() if isinstance(values, Range) else values
+    return Dimension(name, choices=tuple(dict.fromkeys(_normal(v) for v in listed)))
+
+
 class Space:
     """A loaded, checked spec with everything resolved: the unit the rest of the tool works on."""
 
@@ -225,8 +272,9 @@ class Space:
         self.path = path
         self.plan = plan  # the multi-model with every name checked against its FMUs
         self.scenarios = scenarios
-        self.parameters = {name: [_normal(x) for x in (v.values() if isinstance(v, Range) else v)]
-                           for name, v in spec.parameters.items()}
+        self.dimensions = [dimension(name, v) for name, v in spec.parameters.items()]
+        # every value of a grid or list; an interval's two ends (what the type and bound checks need)
+        self.parameters = {d.name: d.extremes() for d in self.dimensions}
         self.constraints = []
         for index, text in enumerate(spec.constraints):
             try:
@@ -267,7 +315,7 @@ class Space:
         return out if out.is_absolute() else (self.path.parent / out).resolve()
 
     def with_overrides(self, output: str | Path | None = None, address: str | None = None,
-                       n_workers: int | None = None, kind: str | None = None) -> "Space":
+                       n_workers: int | None = None, kind: str | None = None) -> Space:
         """The same space with the CLI's --out, --scheduler, --cluster or --workers applied."""
         update: dict[str, Any] = {}
         if output is not None:
@@ -285,6 +333,19 @@ class Space:
 
     def admits(self, point: dict[str, Any]) -> bool:
         return all(check(point) for check in self.constraints)
+
+    def problem(self, threads: int = 1) -> Problem:
+        """What the search strategy is told (search.py); ``threads``: the cluster's, for the default batch."""
+        search, ranking = self.spec.search, self.spec.ranking
+        return Problem(label=self.name, dimensions=tuple(self.dimensions),
+                       objective=(ranking.objective, ranking.goal), pareto=tuple(ranking.pareto_goals()),
+                       scenarios=tuple(s.name for s in self.scenarios),
+                       vectors=tuple(n for n, o in self.objectives.items() if objs.is_vector(o)),
+                       max_points=search.max_points, seed=search.seed, batch=search.batch or threads + 1,
+                       options=search.options, admits=self.admits)
+
+    def strategy(self, threads: int = 1) -> Strategy:
+        return strategy(self.spec.search.strategy)(self.problem(threads))
 
 
 def _scenarios(spec: SpaceSpec, base: Path, source: str) -> list[Scenario]:
@@ -346,13 +407,28 @@ def _check_names(space: Space, source: str) -> None:
             raise DseError(f"{source}: {e}") from None
     for name, objective in space.objectives.items():
         _check_objective(space, name, objective, source)
-    strategy(space.spec.search.strategy)
+    _check_search(space, source)
     for name in space.spec.ranking.objectives_used():
         if name not in space.objectives:
             raise DseError(f"{source}: ranking uses objective {name!r}, which 'objectives' does not list "
                            f"({', '.join(space.objectives)})")
         if objs.is_vector(space.objectives[name]):
             raise DseError(f"{source}: ranking uses {name!r}, a vector objective; rankings need one number per task")
+
+
+def _check_search(space: Space, source: str) -> None:
+    """The strategy exists, takes its options and suits the parameters and the ranking."""
+    search = space.spec.search
+    try:
+        kind = strategy(search.strategy)
+        parse_options(kind, search.options)
+        if kind.multi_objective and len(space.spec.ranking.pareto) < 2:
+            raise DseError(f"search: {search.strategy} optimises several objectives: list two or more "
+                           "under ranking.pareto")
+        if not kind.closed_loop:
+            kind(space.problem())  # a grid strategy checks that every parameter has a grid
+    except DseError as e:
+        raise DseError(f"{source}: {e}") from None
 
 
 def _check_objective(space: Space, name: str, objective: objs.ObjectiveSpec, source: str) -> None:

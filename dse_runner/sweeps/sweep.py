@@ -1,6 +1,6 @@
 """Running a design space on Dask: chunks of tasks in, Parquet partitions out.
 
-The client expands the space lazily, skips tasks that already have a row,
+The client expands the space lazily (or, for a closed-loop search, asks its strategy: closed_loop.py), skips tasks that already have a row,
 ships the FMUs and recordings to the workers (ship.py) and keeps a bounded
 number of chunks in flight. Each chunk runs on a worker (:func:`run_chunk`),
 which simulates its tasks with the worker's cached FMU instances, writes the
@@ -21,141 +21,30 @@ What can go wrong, and what happens:
 
 from __future__ import annotations
 
-import hashlib
 import math
-import os
-import socket
 import time
-import traceback
 from collections import deque
 from collections.abc import Callable, Collection, Iterator
 from concurrent.futures import CancelledError
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, Protocol
 
 import pandas as pd
-import pyarrow as pa
 from pydantic import BaseModel, Field
 
 from ..analysis.rank import rank, save_sweep_spec
 from ..errors import DseError
-from ..simulation.cosim import Plan
 from ..simulation.experiment import Experiment
-from ..simulation.objectives import ObjectiveSpec
 from ..simulation.run import simulate
-from ..simulation.scenario import Scenario
 from . import ship, store
+from .chunks import ChunkJob, ChunkSummary, chunk_id_of, probe, record_crash, run_chunk
+from .closed_loop import SearchSource, SearchStatus
 from .cluster import connect, total_threads
-from .expand import Task, TaskBatch, chunked, expand, points_of
-from .search import Point
+from .domain import Point
+from .expand import TaskBatch, chunked, expand, points_of
+from .search import strategy
 from .spec import Space
-
-ATTEMPTS = 2  # a failing simulation is retried once
-CRASH_ATTEMPTS = 2  # a lone task whose worker died under it this often (beyond Dask's own retries) has failed
-
-
-@dataclass(frozen=True)
-class ChunkJob:
-    """Everything a worker needs for one chunk besides the shipment; small, picklable."""
-
-    sweep: str
-    chunk_id: str
-    shipment: str  # key of the ship.Shipment that holds the model and recordings
-    model_key: str
-    tasks: TaskBatch
-    objectives: dict[str, ObjectiveSpec]
-    output: store.Root
-    schema: pa.Schema
-    timeout: float
-    experiment: Experiment | None = None
-    crashes: int = 0  # times Dask gave up on this chunk because workers died running it
-
-    @property
-    def key(self) -> str:
-        return f"chunk-{self.chunk_id}-{self.crashes}"
-
-    def after_crash(self) -> list["ChunkJob"]:
-        """What to run after workers kept dying under this chunk: its halves, or the lone task again."""
-        tasks = list(self.tasks)
-        if len(tasks) == 1:
-            return [replace(self, crashes=self.crashes + 1)] if self.crashes + 1 < CRASH_ATTEMPTS else []
-        middle = len(tasks) // 2
-        return [replace(self, chunk_id=_chunk_id(part), tasks=TaskBatch.of(part), crashes=0)
-                for part in (tasks[:middle], tasks[middle:])]
-
-
-@dataclass
-class ChunkSummary:
-    chunk_id: str
-    ok: int
-    failed: int
-    seconds: float  # wall time of the simulations
-    errors: list[str] = field(default_factory=list)  # first few failure messages
-
-
-def _worker_name() -> str:
-    try:
-        from distributed import get_worker
-
-        return str(get_worker().name)
-    except (ImportError, ValueError):
-        return f"{socket.gethostname()}:{os.getpid()}"
-
-
-def run_task(plan: Plan, task: Task, scenario: Scenario, objectives: dict[str, ObjectiveSpec],
-             timeout: float, experiment: Experiment | None = None) -> tuple[dict[str, float] | None, str | None]:
-    """Objectives, or the error message after the retry."""
-    error = None
-    for _ in range(ATTEMPTS):
-        try:
-            result = simulate(plan, scenario, dict(task.point), objectives=objectives, timeout=timeout,
-                              experiment=experiment)
-            return result.objectives, None
-        except DseError as e:
-            error = str(e)
-        except Exception as e:  # a bug or an FMU misbehaving in a way we did not foresee
-            error = f"{type(e).__name__}: {e}\n{traceback.format_exc(limit=3)}"
-    return None, error
-
-
-def run_chunk(job: ChunkJob) -> ChunkSummary:
-    """Simulate a chunk on a worker and write its rows; return only counts."""
-    unpacked = ship.received(job.shipment)
-    worker, rows, errors = _worker_name(), [], []
-    started = time.perf_counter()
-    for task in job.tasks:
-        scenario = unpacked.scenarios[task.scenario]
-        t0 = time.perf_counter()
-        scores, error = run_task(unpacked.plan, task, scenario, job.objectives, job.timeout, job.experiment)
-        if error and len(errors) < 3:
-            errors.append(f"{task.scenario} {dict(task.point)}: {error}")
-        rows.append(_row(job, task, scenario.group, scores, error, time.perf_counter() - t0, worker))
-    seconds = time.perf_counter() - started
-    store.write_rows(job.output, job.sweep, job.chunk_id, rows, job.schema)
-    failed = sum(r["status"] == "failed" for r in rows)
-    return ChunkSummary(job.chunk_id, len(rows) - failed, failed, seconds, errors)
-
-
-def _row(job: ChunkJob, task: Task, group: str, scores: dict[str, Any] | None, error: str | None,
-         wall_time: float, worker: str) -> dict[str, Any]:
-    return {
-        "task_id": task.task_id, "model": job.model_key, "scenario": task.scenario, "group": group,
-        **dict(task.point),
-        **(scores or {name: None for name in job.objectives}),
-        "status": "ok" if error is None else "failed", "error": error,
-        "wall_time": wall_time, "worker": worker,
-    }
-
-
-def record_crash(job: ChunkJob, groups: dict[str, str], reason: str) -> ChunkSummary:
-    """The failed row of a task that kept killing its worker; written by the client."""
-    (task,) = job.tasks
-    error = (f"the worker process died each time it ran this task ({reason}): the FMU crashed "
-             "(e.g. a segmentation fault) or the process ran out of memory")
-    rows = [_row(job, task, groups[task.scenario], None, error, 0.0, "")]
-    store.write_rows(job.output, job.sweep, job.chunk_id, rows, job.schema)
-    return ChunkSummary(job.chunk_id, 0, 1, 0.0, [f"{task.scenario} {dict(task.point)}: {error}"])
 
 
 class WorkerActivity(BaseModel):
@@ -196,6 +85,7 @@ class SweepReport(BaseModel):
     reconnects: int = 0  # times the scheduler went away and the sweep resumed from the store
     waiting: str | None = None  # what the sweep is waiting for, if it is not running tasks
     errors: list[str] = []
+    search: SearchStatus | None = None  # a closed-loop search's progress
 
     @property
     def ran(self) -> int:
@@ -253,21 +143,6 @@ def first_point(space: Space, points: list[Point] | None = None) -> Point:
     return point
 
 
-def probe(shipment: str, scenario: str, point: Point, objectives: dict[str, ObjectiveSpec], timeout: float,
-          experiment: Experiment | None = None) -> float | None:
-    """Seconds one simulation takes on a worker, to size chunks; None if it failed (that point will
-    fail in its chunk too and become a failed row, which must not stop the sweep). It runs on a worker,
-    not in the client, so that an FMU that crashes its process takes down a worker, not the user's shell."""
-    unpacked = ship.received(shipment)
-    start = time.perf_counter()
-    try:
-        simulate(unpacked.plan, unpacked.scenarios[scenario], point, objectives=objectives, timeout=timeout,
-                 experiment=experiment)
-    except Exception:
-        return None
-    return time.perf_counter() - start
-
-
 UNKNOWN_TASK_SECONDS = 0.1  # when the probe failed: a guess that keeps chunks small
 
 
@@ -280,14 +155,11 @@ def chunk_size(seconds_per_task: float | None, target_seconds: float, pending: i
     return min(by_time, by_balance)
 
 
-def _chunk_id(tasks: list[Task]) -> str:
-    return hashlib.sha256("".join(t.task_id for t in tasks).encode()).hexdigest()[:20]
-
-
 def submit(space: Space, progress: Progress | None = None, client=None,
            points: list[Point] | None = None, on_connect: Callable[[Any], None] | None = None,
            only: list[Collection[str]] | None = None, seconds_per_task: float | None = None) -> SweepReport:
-    """Run every task of ``space`` that has no row yet; returns counts, never raises on failed tasks.
+    """Run ``space``: every task of a grid strategy that has no row yet, or a closed-loop search
+    (closed_loop.py) until its budget; returns counts, never raises on failed tasks.
 
     ``points`` replaces the space's search strategy with a given list: how an
     optimiser (fit.py) runs each of its rounds as a sweep into the same store;
@@ -301,27 +173,33 @@ def submit(space: Space, progress: Progress | None = None, client=None,
     store.check_reachable(output)
     save_sweep_spec(output, space.spec, space.model_key)
     done = store.finished_task_ids(output, space.name)
-    total = skipped = 0
-    for task in expand(space, points, only):
-        total += 1
-        skipped += task.task_id in done
-    report = SweepReport(sweep=space.name, output=output, total=total, skipped=skipped, spec=str(space.path),
+    shipment = ship.pack(space.plan, space.scenarios)
+    report = SweepReport(sweep=space.name, output=output, total=0, skipped=0, spec=str(space.path),
                          scenarios={s.name: s.group for s in space.scenarios})
-    pending = total - skipped
-    if pending == 0 and _trajectories_kept(space):
-        report.seconds = time.perf_counter() - started
-        report.state = "finished"
-        save_status(report)
-        return report
-    point = first_point(space, points)
-    run = Run(space, ship.pack(space.plan, space.scenarios), points, report, progress, started, on_connect,
-              only=only, seconds_per_task=seconds_per_task)
+    if points is None and strategy(space.spec.search.strategy).closed_loop:
+        search = space.spec.search
+        report.search = SearchStatus(strategy=search.strategy, objective=space.spec.ranking.objective,
+                                     goal=space.spec.ranking.goal, max_points=search.max_points,
+                                     max_seconds=search.max_seconds)
+        report.total = search.max_points * len(space.scenarios)
+        source: JobSource = SearchSource(space, shipment.key, report.search)
+    else:
+        for task in expand(space, points, only):
+            report.total += 1
+            report.skipped += task.task_id in done
+        if report.total == report.skipped and _trajectories_kept(space):
+            report.seconds = time.perf_counter() - started
+            report.state = "finished"
+            save_status(report)
+            return report
+        source = GridSource(space, shipment.key, report, points, only, seconds_per_task)
+    run = Run(space, shipment, source, report, progress, started, on_connect)
     save_status(report)
     try:
         if client is None:
             with connect(space.spec.cluster, space.path.parent) as own:
-                return run.until_done(own, done, point, pending)
-        return run.until_done(client, done, point, pending)
+                return run.until_done(own, done)
+        return run.until_done(client, done)
     except DseError:
         report.state = "failed"  # so a dashboard does not wait for a sweep that has stopped
         save_status(report)
@@ -337,38 +215,93 @@ class SchedulerLost(Exception):
     """The client's connection to the scheduler broke mid-sweep."""
 
 
+class JobSource(Protocol):
+    """Where a run's chunks come from: a grid's chunks (GridSource) or a search's points (SearchSource)."""
+
+    def start(self, threads: int, done: set[str]) -> None:
+        """(Re)connected to a cluster of ``threads`` worker threads; ``done``: task ids with a row."""
+
+    def next(self, in_flight: int) -> ChunkJob | None:
+        """The next chunk to send while ``in_flight`` run; None: none for now."""
+
+    def finished(self, job: ChunkJob, summary: ChunkSummary) -> None:
+        """A chunk's result."""
+
+    def save(self) -> None:
+        """Keep what the source needs to resume (the end of a run, or an interruption)."""
+
+
+@dataclass
+class GridSource:
+    """Chunks of the grid's tasks that have no row, sized by a probe to ``chunk_seconds``."""
+
+    space: Space
+    shipment: str
+    report: SweepReport
+    points: list[Point] | None = None
+    only: list[Collection[str]] | None = None
+    seconds_per_task: float | None = None  # known from an earlier round; else probed
+    client: Any = None
+    jobs: Iterator[ChunkJob] | None = None
+    capacity: int = 1
+
+    def start(self, threads: int, done: set[str]) -> None:
+        pending = self.report.total - self.report.skipped - self.report.ran
+        cost = self.seconds_per_task or self.probe(first_point(self.space, self.points))
+        self.report.chunk_size = chunk_size(cost, self.space.spec.chunk_seconds, pending, threads)
+        self.jobs = _jobs(self.space, self.shipment, done, self.report.chunk_size, self.points, self.only)
+        self.capacity = 2 * threads + 2
+
+    def next(self, in_flight: int) -> ChunkJob | None:
+        return next(self.jobs, None) if self.jobs is not None and in_flight < self.capacity else None
+
+    def finished(self, job: ChunkJob, summary: ChunkSummary) -> None:
+        pass
+
+    def save(self) -> None:
+        pass  # the rows are all a grid needs
+
+    def probe(self, point: Point) -> float | None:
+        from distributed.scheduler import KilledWorker
+
+        spec = self.space.spec
+        future = self.client.submit(probe, self.shipment, self.space.scenarios[0].name, point,
+                                    self.space.objectives, spec.timeout, self.space.experiment, pure=False)
+        try:
+            return future.result()
+        except KilledWorker:
+            return None
+
+
 @dataclass
 class Run:
     """One submission: keeps chunks in flight, handles crashed chunks, and resumes after a scheduler restart."""
 
     space: Space
     shipment: ship.Shipment
-    points: list[Point] | None
+    source: JobSource
     report: SweepReport
     progress: Progress | None
     started: float
     on_connect: Callable[[Any], None] | None = None
     saved: float = 0.0  # when the status file was last written (monotonic)
-    only: list[Collection[str]] | None = None  # per given point, the scenarios it runs on
-    seconds_per_task: float | None = None  # known from an earlier round; else probed
 
-    def until_done(self, client, done: set[str], point: Point, pending: int) -> SweepReport:
+    def until_done(self, client, done: set[str]) -> SweepReport:
         report = self.report
-        if pending:
+        if report.search is not None or report.total > report.skipped:
             ship.send(client, self.shipment)
             self._connected(client)
-            cost = self.seconds_per_task or self._probe(client, point)
-            report.chunk_size = chunk_size(cost, self.space.spec.chunk_seconds,
-                                           pending, total_threads(client))
+            self._start(client, done)
             while True:
                 try:
-                    self._chunks(client, done)
+                    self._chunks(client)
                     break
                 except SchedulerLost:
                     self._reconnect(client)  # a new scheduler knows neither our plugin nor our chunks
                     ship.send(client, self.shipment)
                     self._connected(client)
-                    done = store.finished_task_ids(self.space.output, self.space.name)
+                    self._start(client, store.finished_task_ids(self.space.output, self.space.name))
+        self.source.save()
         if not report.interrupted and self.space.spec.keep_trajectories:
             keep_trajectories(self.space, client, self.space.spec.keep_trajectories, self.shipment)
         report.seconds = time.perf_counter() - self.started
@@ -376,44 +309,49 @@ class Run:
         save_status(report)
         return report
 
+    def _start(self, client, done: set[str]) -> None:
+        if isinstance(self.source, GridSource):
+            self.source.client = client
+        self.source.start(total_threads(client), done)
+
     def _connected(self, client) -> None:
         self.report.workers = len(client.scheduler_info()["workers"])
         self.report.dashboard = client.dashboard_link
         if self.on_connect:
             self.on_connect(client)
 
-    def _chunks(self, client, done: set[str]) -> None:
+    def _chunks(self, client) -> None:
         from distributed import as_completed
         from distributed.comm.core import CommClosedError
         from distributed.scheduler import KilledWorker
 
-        report, threads = self.report, total_threads(client)
-        jobs = _jobs(self.space, self.shipment.key, done, report.chunk_size, self.points, self.only)
+        report, source = self.report, self.source
         again: deque[ChunkJob] = deque()  # halves of crashed chunks go first
         launched: dict[str, ChunkJob] = {}
         in_flight = as_completed()
 
-        def launch(n: int) -> None:
-            for _ in range(n):
-                job = again.popleft() if again else next(jobs, None)
+        def fill() -> None:
+            while True:
+                job = again.popleft() if again else source.next(len(launched))
                 if job is None:
                     return
                 launched[job.key] = job
                 in_flight.add(client.submit(run_chunk, job, key=job.key, pure=False))
 
         try:
-            launch(2 * threads + 2)
+            fill()
             self._tell(client)
             for future in in_flight:
                 job = launched.pop(future.key)
                 try:
-                    self._count(future.result())
+                    self._count(job, future.result())
                 except KilledWorker as e:
                     report.crashed_chunks += 1
                     retry = job.after_crash()
                     again.extend(retry)
                     if not retry:  # a lone task, out of attempts
-                        self._count(record_crash(job, {s.name: s.group for s in self.space.scenarios}, str(e)))
+                        self._count(job, record_crash(job, {s.name: s.group for s in self.space.scenarios},
+                                                      str(e)))
                 except CommClosedError:  # the scheduler went while we fetched this chunk's result
                     raise SchedulerLost from None
                 except CancelledError:
@@ -421,25 +359,17 @@ class Run:
                         raise SchedulerLost from None
                     raise DseError(f"chunk {job.chunk_id} was cancelled on the scheduler {client.scheduler.address}"
                                    " by someone else; submit again to finish the sweep") from None
-                launch(max(1, len(again)))  # a split chunk's halves take its place and one more
+                fill()  # a split chunk's halves go first
                 self._tell(client)
         except KeyboardInterrupt:
             report.interrupted = True
+            if report.search is not None:
+                report.search.stopped = "interrupted"
             for future in list(in_flight.futures):
                 future.cancel()
 
-    def _probe(self, client, point: Point) -> float | None:
-        from distributed.scheduler import KilledWorker
-
-        spec = self.space.spec
-        future = client.submit(probe, self.shipment.key, self.space.scenarios[0].name, point, self.space.objectives,
-                               spec.timeout, self.space.experiment, pure=False)
-        try:
-            return future.result()
-        except KilledWorker:
-            return None
-
-    def _count(self, summary: ChunkSummary) -> None:
+    def _count(self, job: ChunkJob, summary: ChunkSummary) -> None:
+        self.source.finished(job, summary)
         report = self.report
         report.ok += summary.ok
         report.failed += summary.failed
@@ -533,5 +463,5 @@ def _jobs(space: Space, shipment: str, done: set[str], size: int, points: list[P
     schema = store.results_schema(space.parameters, space.objectives)
     todo = (t for t in expand(space, points, only) if t.task_id not in done)
     for tasks in chunked(todo, size):
-        yield ChunkJob(space.name, _chunk_id(tasks), shipment, key, TaskBatch.of(tasks), space.objectives,
+        yield ChunkJob(space.name, chunk_id_of(tasks), shipment, key, TaskBatch.of(tasks), space.objectives,
                        space.output, schema, space.spec.timeout, space.experiment)

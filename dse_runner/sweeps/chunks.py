@@ -1,0 +1,172 @@
+"""The worker's side of a sweep: run one chunk of (point, scenario) tasks and write its rows.
+
+A chunk is a :class:`ChunkJob`: small and picklable, naming the shipment
+(ship.py) that holds the model and scenarios. :func:`run_chunk` simulates
+its tasks with the worker's cached FMU instances, writes the rows to the
+store itself and returns only a :class:`ChunkSummary`, so the client's memory
+does not grow with the sweep. A search (closed_loop.py) also wants each
+task's objective values back, to tell its strategy.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import socket
+import time
+import traceback
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import pyarrow as pa
+
+from ..errors import DseError
+from ..simulation.cosim import Plan
+from ..simulation.experiment import Experiment
+from ..simulation.objectives import ObjectiveSpec
+from ..simulation.run import simulate
+from ..simulation.scenario import Scenario
+from . import ship, store
+from .domain import Point
+from .expand import Task, TaskBatch
+
+ATTEMPTS = 2  # a failing simulation is retried once
+CRASH_ATTEMPTS = 2  # a lone task whose worker died under it this often (beyond Dask's own retries) has failed
+
+
+@dataclass(frozen=True)
+class ChunkJob:
+    """Everything a worker needs for one chunk besides the shipment; small, picklable."""
+
+    sweep: str
+    chunk_id: str
+    shipment: str  # key of the ship.Shipment that holds the model and recordings
+    model_key: str
+    tasks: TaskBatch
+    objectives: dict[str, ObjectiveSpec]
+    output: store.Root
+    schema: pa.Schema
+    timeout: float
+    experiment: Experiment | None = None
+    crashes: int = 0  # times Dask gave up on this chunk because workers died running it
+    with_scores: bool = False  # return every task's objectives in the summary (a search tells them)
+    point: int | None = None  # a search's point number (closed_loop.py); kept by the halves of a crashed chunk
+
+    @property
+    def key(self) -> str:
+        return f"chunk-{self.chunk_id}-{self.crashes}"
+
+    def after_crash(self) -> list[ChunkJob]:
+        """What to run after workers kept dying under this chunk: its halves, or the lone task again."""
+        tasks = list(self.tasks)
+        if len(tasks) == 1:
+            return [replace(self, crashes=self.crashes + 1)] if self.crashes + 1 < CRASH_ATTEMPTS else []
+        middle = len(tasks) // 2
+        return [replace(self, chunk_id=chunk_id_of(part), tasks=TaskBatch.of(part), crashes=0)
+                for part in (tasks[:middle], tasks[middle:])]
+
+
+@dataclass(frozen=True)
+class TaskScores:
+    """One task's outcome as a search needs it."""
+
+    task_id: str
+    scenario: str
+    objectives: dict[str, Any] | None  # None: the task failed
+    error: str | None = None
+
+
+@dataclass
+class ChunkSummary:
+    chunk_id: str
+    ok: int
+    failed: int
+    seconds: float  # wall time of the simulations
+    errors: list[str] = field(default_factory=list)  # first few failure messages
+    scores: list[TaskScores] = field(default_factory=list)  # with_scores: one per task
+
+
+def _worker_name() -> str:
+    try:
+        from distributed import get_worker
+
+        return str(get_worker().name)
+    except (ImportError, ValueError):
+        return f"{socket.gethostname()}:{os.getpid()}"
+
+
+def run_task(plan: Plan, task: Task, scenario: Scenario, objectives: dict[str, ObjectiveSpec],
+             timeout: float, experiment: Experiment | None = None) -> tuple[dict[str, float] | None, str | None]:
+    """Objectives, or the error message after the retry."""
+    error = None
+    for _ in range(ATTEMPTS):
+        try:
+            result = simulate(plan, scenario, dict(task.point), objectives=objectives, timeout=timeout,
+                              experiment=experiment)
+            return result.objectives, None
+        except DseError as e:
+            error = str(e)
+        except Exception as e:  # a bug or an FMU misbehaving in a way we did not foresee
+            error = f"{type(e).__name__}: {e}\n{traceback.format_exc(limit=3)}"
+    return None, error
+
+
+def run_chunk(job: ChunkJob) -> ChunkSummary:
+    """Simulate a chunk on a worker and write its rows; return only counts."""
+    unpacked = ship.received(job.shipment)
+    worker, rows, errors, told = _worker_name(), [], [], []
+    started = time.perf_counter()
+    for task in job.tasks:
+        scenario = unpacked.scenarios[task.scenario]
+        t0 = time.perf_counter()
+        scores, error = run_task(unpacked.plan, task, scenario, job.objectives, job.timeout, job.experiment)
+        if error and len(errors) < 3:
+            errors.append(f"{task.scenario} {dict(task.point)}: {error}")
+        rows.append(_row(job, task, scenario.group, scores, error, time.perf_counter() - t0, worker))
+        if job.with_scores:
+            told.append(TaskScores(task.task_id, task.scenario, scores, error))
+    seconds = time.perf_counter() - started
+    store.write_rows(job.output, job.sweep, job.chunk_id, rows, job.schema)
+    failed = sum(r["status"] == "failed" for r in rows)
+    return ChunkSummary(job.chunk_id, len(rows) - failed, failed, seconds, errors, told)
+
+
+def _row(job: ChunkJob, task: Task, group: str, scores: dict[str, Any] | None, error: str | None,
+         wall_time: float, worker: str) -> dict[str, Any]:
+    return {
+        "task_id": task.task_id, "model": job.model_key, "scenario": task.scenario, "group": group,
+        **dict(task.point),
+        **(scores or {name: None for name in job.objectives}),
+        "status": "ok" if error is None else "failed", "error": error,
+        "wall_time": wall_time, "worker": worker,
+    }
+
+
+def record_crash(job: ChunkJob, groups: dict[str, str], reason: str) -> ChunkSummary:
+    """The failed row of a task that kept killing its worker; written by the client."""
+    (task,) = job.tasks
+    error = (f"the worker process died each time it ran this task ({reason}): the FMU crashed "
+             "(e.g. a segmentation fault) or the process ran out of memory")
+    rows = [_row(job, task, groups[task.scenario], None, error, 0.0, "")]
+    store.write_rows(job.output, job.sweep, job.chunk_id, rows, job.schema)
+    return ChunkSummary(job.chunk_id, 0, 1, 0.0, [f"{task.scenario} {dict(task.point)}: {error}"],
+                        [TaskScores(task.task_id, task.scenario, None, error)])
+
+
+def chunk_id_of(tasks: list[Task]) -> str:
+    return hashlib.sha256("".join(t.task_id for t in tasks).encode()).hexdigest()[:20]
+
+
+def probe(shipment: str, scenario: str, point: Point, objectives: dict[str, ObjectiveSpec], timeout: float,
+          experiment: Experiment | None = None) -> float | None:
+    """Seconds one simulation takes on a worker, to size chunks; None if it failed (that point will
+    fail in its chunk too and become a failed row, which must not stop the sweep). It runs on a worker,
+    not in the client, so that an FMU that crashes its process takes down a worker, not the user's shell."""
+    unpacked = ship.received(shipment)
+    start = time.perf_counter()
+    try:
+        simulate(unpacked.plan, unpacked.scenarios[scenario], point, objectives=objectives, timeout=timeout,
+                 experiment=experiment)
+    except Exception:
+        return None
+    return time.perf_counter() - start

@@ -1,0 +1,84 @@
+"""The design space as search strategies see it: one :class:`Dimension` per swept variable.
+
+space.yaml gives a parameter as a list of values, a grid ``{start, stop, step | num}``
+or an interval ``{low, high}`` (optionally ``log: true`` or ``integer: true``).
+A grid strategy (``exhaustive``) needs the first two; a search strategy takes
+all three: an interval is continuous, a grid with a step is a stepped interval,
+and a list (or a grid without a step) is a set of choices.
+
+Libraries that work on the unit cube (scipy's quasi-Monte Carlo, pymoo) map
+``u`` in [0, 1] to a value with :meth:`Dimension.from_unit`; Optuna gets its
+own distributions from these fields.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+Point = dict[str, Any]
+
+
+@dataclass(frozen=True)
+class Dimension:
+    name: str  # instance.variable
+    low: float | None = None  # intervals and stepped grids
+    high: float | None = None
+    log: bool = False
+    integer: bool = False
+    step: float | None = None  # a stepped grid: low, low + step, ..., high
+    choices: tuple[Any, ...] | None = None  # a list, or a grid given by num
+
+    @property
+    def continuous(self) -> bool:
+        return self.choices is None and self.step is None and not self.integer
+
+    def grid(self) -> list[Any] | None:
+        """Every value, or None for a continuous interval (a grid strategy cannot enumerate it)."""
+        if self.choices is not None:
+            return list(self.choices)
+        if self.step is not None:
+            count = math.floor((self.high - self.low) / self.step + 1e-9) + 1
+            return [round(self.low + i * self.step, 12) for i in range(count)]
+        if self.integer:
+            return [float(v) for v in range(int(self.low), int(self.high) + 1)]
+        return None
+
+    def extremes(self) -> list[Any]:
+        """Values at the edges: what the spec check tests against the variable's type and bounds."""
+        grid = self.grid()
+        return grid if grid is not None else [self.low, self.high]
+
+    def from_unit(self, u: float) -> Any:
+        """The value at ``u`` in [0, 1]: uniform (or log-uniform) over an interval, one cell per choice."""
+        u = min(max(float(u), 0.0), 1.0)
+        if self.choices is not None:
+            return self.choices[min(int(u * len(self.choices)), len(self.choices) - 1)]
+        if self.step is not None:
+            count = math.floor((self.high - self.low) / self.step + 1e-9) + 1
+            return round(self.low + min(int(u * count), count - 1) * self.step, 12)
+        if self.integer:
+            span = int(self.high) - int(self.low) + 1
+            return float(int(self.low) + min(int(u * span), span - 1))
+        if self.log:
+            return float(math.exp(math.log(self.low) + u * (math.log(self.high) - math.log(self.low))))
+        return float(self.low + u * (self.high - self.low))
+
+    def to_unit(self, value: Any) -> float:
+        """The inverse of :meth:`from_unit` (the middle of the value's cell for discrete values)."""
+        if self.choices is not None:
+            return (self.choices.index(value) + 0.5) / len(self.choices)
+        if self.step is not None:
+            count = math.floor((self.high - self.low) / self.step + 1e-9) + 1
+            return (round((value - self.low) / self.step) + 0.5) / count
+        if self.integer:
+            return (value - int(self.low) + 0.5) / (int(self.high) - int(self.low) + 1)
+        if self.log:
+            return (math.log(value) - math.log(self.low)) / (math.log(self.high) - math.log(self.low))
+        return (value - self.low) / (self.high - self.low)
+
+
+def from_units(dimensions: list[Dimension], units: Any) -> Point:
+    """A point from one row of unit-cube coordinates, in the dimensions' order."""
+    return {d.name: d.from_unit(u) for d, u in zip(dimensions, units)}

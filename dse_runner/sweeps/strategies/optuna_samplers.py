@@ -1,0 +1,138 @@
+"""Optuna's samplers as strategies: tpe, gp (Bayesian optimisation), cmaes, nsga2 (multi-objective).
+
+Each wraps an in-memory Optuna study driven by ``study.ask``/``study.tell``,
+Optuna's own interface for optimisation loops it does not run itself. Trials
+in flight are Optuna's "running" trials, which TPE (constant liar), CMA-ES
+and NSGA-II take into account, so points can be asked while others still
+simulate. A failed or infeasible point is a failed trial.
+
+The strategy's options are the sampler's own keyword arguments, e.g.
+``search: {strategy: tpe, n_startup_trials: 5}``; ``seed`` is the search's.
+"""
+
+from __future__ import annotations
+
+import inspect
+import warnings
+from collections import defaultdict, deque
+from typing import Any, ClassVar
+
+import optuna
+from optuna.distributions import BaseDistribution, CategoricalDistribution, FloatDistribution, IntDistribution
+from optuna.trial import TrialState
+from pydantic import BaseModel, ConfigDict
+
+from ...errors import DseError
+from ..domain import Dimension, Point
+from ..search import Evaluation, Problem, Strategy
+
+NOT_OPTIONS = {"self", "seed", "constraints_func", "independent_sampler", "source_trials", "gamma", "weights",
+               "mutation", "crossover", "elite_population_selection_strategy", "child_generation_strategy",
+               "after_trial_strategy"}  # set by us, or not expressible in YAML
+
+
+class SamplerOptions(BaseModel):
+    model_config = ConfigDict(extra="allow", allow_inf_nan=False)
+
+
+def distribution(dimension: Dimension) -> BaseDistribution:
+    d = dimension
+    if d.choices is not None:
+        return CategoricalDistribution(list(d.choices))
+    if d.step is not None:
+        return FloatDistribution(d.low, d.high, step=d.step)
+    if d.integer:
+        return IntDistribution(int(d.low), int(d.high), log=d.log)
+    return FloatDistribution(d.low, d.high, log=d.log)
+
+
+def _key(point: Point) -> tuple:
+    return tuple(sorted(point.items()))
+
+
+class OptunaStrategy(Strategy):
+    """An Optuna sampler asked and told through an in-memory study."""
+
+    sampler: ClassVar[type[optuna.samplers.BaseSampler]]
+    Options = SamplerOptions
+
+    def __init__(self, problem: Problem):
+        super().__init__(problem)
+        accepted = set(inspect.signature(self.sampler.__init__).parameters) - NOT_OPTIONS
+        options = dict(self.options.model_extra or {})
+        for name in options:
+            if name not in accepted:
+                raise DseError(f"search.{name}: {self.sampler.__name__} has no option {name!r} "
+                               f"(it takes {', '.join(sorted(accepted))})")
+        optuna.logging.set_verbosity(optuna.logging.WARNING)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+            sampler = self.sampler(seed=problem.seed, **{**self.defaults(), **options})
+        self.goals = list(problem.pareto) if self.multi_objective else [problem.objective]
+        self.study = optuna.create_study(
+            sampler=sampler, directions=["minimize" if g == "min" else "maximize" for _, g in self.goals])
+        self.distributions = {d.name: distribution(d) for d in problem.dimensions}
+        self.trials: defaultdict[tuple, deque[optuna.Trial]] = defaultdict(deque)
+
+    def defaults(self) -> dict[str, Any]:
+        """Keyword arguments of ours that the user's options may override."""
+        return {}
+
+    def ask(self) -> Point | None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+            trial = self.study.ask(self.distributions)
+        point = {name: float(v) if isinstance(v, int) and not isinstance(v, bool) else v
+                 for name, v in trial.params.items()}
+        self.trials[_key(point)].append(trial)
+        return point
+
+    def tell(self, point: Point, evaluation: Evaluation) -> None:
+        trial = self.trials[_key(point)].popleft()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+            if evaluation.state == "ok":
+                self.study.tell(trial, [evaluation.value(name) for name, _ in self.goals])
+            else:
+                self.study.tell(trial, state=TrialState.FAIL)
+
+
+class Tpe(OptunaStrategy):
+    """Tree-structured Parzen estimator: Optuna's default Bayesian optimiser."""
+
+    sampler = optuna.samplers.TPESampler
+
+    def defaults(self) -> dict[str, Any]:
+        return {"multivariate": True}  # models the parameters jointly: they interact in a calibration
+
+
+class GaussianProcess(OptunaStrategy):
+    """Gaussian-process Bayesian optimisation (Optuna's GPSampler; needs PyTorch)."""
+
+    sampler = optuna.samplers.GPSampler
+
+    def __init__(self, problem: Problem):
+        try:
+            import torch  # noqa: F401
+        except ImportError:
+            raise DseError("search strategy 'gp' needs PyTorch: pip install 'dse-runner[gp]'") from None
+        super().__init__(problem)
+
+
+class CmaEs(OptunaStrategy):
+    """CMA-ES (Optuna's CmaEsSampler over the cmaes package)."""
+
+    sampler = optuna.samplers.CmaEsSampler
+
+    def defaults(self) -> dict[str, Any]:
+        return {"warn_independent_sampling": False}
+
+
+class Nsga2(OptunaStrategy):
+    """NSGA-II over the ranking's Pareto objectives."""
+
+    sampler = optuna.samplers.NSGAIISampler
+    multi_objective = True
+
+    def defaults(self) -> dict[str, Any]:
+        return {"population_size": 20}
