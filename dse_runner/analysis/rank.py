@@ -1,7 +1,8 @@
 """The reducer: from result rows to rankings.
 
 * totals: each objective summed over a point's scenarios (the paper's
-  Equation 2 / Algorithm 2); the best point minimises (or maximises) the
+  Equation 2 / Algorithm 2), or their mean, worst or best as
+  ``ranking.over_scenarios`` says; the best point minimises (or maximises) the
   ranking objective's total. Only points with an ok row for every scenario
   are ranked; the others are counted as incomplete.
 * Table 1 (the paper's): per scenario, min, max and average over points,
@@ -88,18 +89,30 @@ def _sign(goal: str) -> float:
 
 
 def pareto_mask(values: np.ndarray, goals: list[str]) -> np.ndarray:
-    """Rows not dominated by any other row; ``values`` is points x objectives."""
-    costs = values * np.array([_sign(g) for g in goals])  # everything minimised
-    order = np.lexsort(costs.T[::-1])
-    front: list[int] = []
-    for i in order:
-        c = costs[i]
-        if not any(np.all(costs[j] <= c) and np.any(costs[j] < c) for j in front):
-            front = [j for j in front if not (np.all(c <= costs[j]) and np.any(c < costs[j]))]
-            front.append(i)
-    mask = np.zeros(len(costs), dtype=bool)
-    mask[front] = True
-    return mask
+    """Rows not dominated by any other row; ``values`` is points x objectives. Vectorised: a sort
+    and a running minimum for two objectives, O(n log n); for more, each front point found in
+    lexicographic order removes what it dominates in one numpy pass. Equal rows share their fate."""
+    costs = np.asarray(values, dtype=float) * np.array([_sign(g) for g in goals])  # everything minimised
+    if len(costs) == 0:
+        return np.zeros(0, dtype=bool)
+    unique, inverse = np.unique(costs, axis=0, return_inverse=True)  # sorted lexicographically
+    if unique.shape[1] == 1:
+        front = unique[:, 0] == unique[0, 0]
+    elif unique.shape[1] == 2:
+        # rows are unique and sorted by the first objective: one is dominated exactly when an earlier
+        # row is no worse in the second
+        best_before = np.minimum.accumulate(np.concatenate([[np.inf], unique[:-1, 1]]))
+        front = unique[:, 1] < best_before
+    else:
+        front = np.zeros(len(unique), dtype=bool)
+        remaining = np.arange(len(unique))
+        while remaining.size:
+            first = remaining[0]  # lexicographically smallest: nothing left dominates it
+            front[first] = True
+            rest = unique[remaining[1:]]
+            dominated = np.all(rest >= unique[first], axis=1)  # rows are unique: >= everywhere is dominated
+            remaining = remaining[1:][~dominated]
+    return front[inverse.ravel()]
 
 
 def _best_first(frame: pd.DataFrame, column: str, goal: str) -> pd.DataFrame:
@@ -144,7 +157,8 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
     ok = rows[rows["status"] == "ok"]
     n_scenarios = rows["scenario"].nunique()
     per_point = ok.groupby(parameters, dropna=False)
-    totals = per_point[objectives].sum().join(per_point.size().rename("scenarios")).reset_index()
+    totals = per_point[objectives].agg(settings.over_scenarios).join(per_point.size().rename("scenarios"))
+    totals = totals.reset_index()
     complete = totals[totals["scenarios"] == n_scenarios].drop(columns="scenarios")
     if complete.empty:
         raise DseError(f"sweep {sweep!r}: no parameter point has an ok result for all {n_scenarios} scenarios")

@@ -197,9 +197,14 @@ def submit(
                                                      "or a plugin's (overrides the spec).")] = None,
     dashboard: Annotated[bool, typer.Option(help="Serve the live dashboard while the sweep runs.")] = True,
     dashboard_address: DashboardAddress = "127.0.0.1:0",
+    max_points: Annotated[int | None, typer.Option(min=1, help="A search's budget of points (overrides the "
+                                                              "spec's search.max_points).")] = None,
+    max_seconds: Annotated[float | None, typer.Option(min=0.001, help="Stop asking for points after this long "
+                                                                      "(overrides search.max_seconds).")] = None,
     as_json: JsonFlag = False,
 ) -> None:
-    """Run every (parameter point, scenario) task of SPEC on Dask; resume if run again; rank."""
+    """Run SPEC on Dask: every (point, scenario) task of a grid, or a search until its budget; resume if
+    run again (a search goes on from where it stopped); rank."""
     from ..analysis.rank import rank, write_ranking
     from ..simulation.scenario import dropouts
     from ..sweeps.spec import load_space
@@ -207,7 +212,7 @@ def submit(
 
     board = None
     try:
-        space = load_space(spec).with_overrides(out, scheduler, workers, cluster)
+        space = load_space(spec).with_overrides(out, scheduler, workers, cluster, max_points, max_seconds)
         if dashboard:
             board = _start_dashboard(space, dashboard_address)
         with ProgressBar() as progress:
@@ -229,12 +234,16 @@ def submit(
         "skipped": report.skipped, "ran": report.ran, "ok": report.ok, "failed": report.failed,
         "seconds": round(report.seconds, 3), "workers": report.workers, "chunk_size": report.chunk_size,
         "errors": report.errors, "dropouts": dropouts(space.scenarios),
+        "search": report.search.model_dump(mode="json") if report.search else None,
     }
     if not as_json:
-        typer.echo(f"{report.sweep}: {report.total} tasks, {report.skipped} already done, ran {report.ran} "
+        done = "" if report.search else f"{report.total} tasks, {report.skipped} already done, "
+        typer.echo(f"{report.sweep}: {done}ran {report.ran} simulations "
                    f"({report.failed} failed) in {report.seconds:.1f} s on {report.workers} workers")
         for error in report.errors:
             typer.echo(f"  failed: {error.splitlines()[0]}")
+        if report.search is not None:
+            _print_search(report.search)
         if summary["dropouts"]:
             typer.echo(f"  {_dropouts_line(summary['dropouts'])}")
     try:
@@ -252,6 +261,20 @@ def submit(
     typer.echo(f"ranking: {files['json'].rsplit('/', 1)[0]}")
     typer.echo(f"report: dse-runner report {report.output} -o report.html; "
                f"dashboard: dse-runner dashboard {report.output}")
+
+
+def _print_search(search) -> None:
+    from ..analysis.rank import format_point
+
+    typer.echo(f"  search {search.strategy}: {search.points} of {search.max_points} points "
+               f"({search.reused} told from the store, {search.infeasible} infeasible, {search.failed} failed); "
+               f"stopped: {search.stopped or '-'}")
+    if search.best is not None:
+        typer.echo(f"  best {search.objective} {search.best:.6g} at {format_point(search.best_point)}")
+    if search.utilisation is not None:
+        typer.echo(f"  worker utilisation {100 * search.utilisation:.0f}% of {search.threads} threads")
+    for note in search.notes:
+        typer.echo(f"  note: {note}")
 
 
 def _dropouts_line(counts: dict[str, int]) -> str:
@@ -358,6 +381,12 @@ class ProgressBar:
             self.task = self.bar.add_task(report.sweep, total=report.total - report.skipped,
                                           rate="-", failed=0)
         rate = report.ran / report.seconds if report.seconds > 0 else 0.0
+        search = report.search
+        if search is not None:  # a search counts points, and shows the best so far
+            best = f"best {search.best:.6g}" if search.best is not None else "no result yet"
+            self.bar.update(self.task, total=search.max_points, completed=search.points, rate=f"{rate:.1f}",
+                            failed=search.failed, description=report.waiting or f"{report.sweep} ({best})")
+            return
         self.bar.update(self.task, completed=report.ran, rate=f"{rate:.1f}", failed=report.failed,
                         description=report.waiting or report.sweep)
 

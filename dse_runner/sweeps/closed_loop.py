@@ -46,7 +46,7 @@ class SearchStatus(BaseModel):
     max_points: int
     max_seconds: float | None = None
     points: int = 0  # simulated points told to the strategy, in all submissions
-    reused: int = 0  # of which told from the store without simulating, in this submission
+    reused: int = 0  # of which told from the store without simulating (a replay), in this submission
     infeasible: int = 0  # points the constraints rejected: never simulated
     failed: int = 0  # points with a failed task
     best: float | None = None  # the best reduced objective so far
@@ -144,7 +144,7 @@ class SearchSource:
             evaluation = self._from_store(asked.point) if asked.state != "infeasible" else Evaluation("infeasible")
             if evaluation is None:
                 return self._afresh(threads, f"the results of {asked.point} are no longer in the store")
-            self._tell(asked.number, evaluation, reused=False)
+            self._tell(asked.number, evaluation, reused=True)
         self.requeue.extend(self.history.outstanding())
         self.status.replayed = True
 

@@ -315,9 +315,14 @@ class Space:
         return out if out.is_absolute() else (self.path.parent / out).resolve()
 
     def with_overrides(self, output: str | Path | None = None, address: str | None = None,
-                       n_workers: int | None = None, kind: str | None = None) -> Space:
-        """The same space with the CLI's --out, --scheduler, --cluster or --workers applied."""
+                       n_workers: int | None = None, kind: str | None = None, max_points: int | None = None,
+                       max_seconds: float | None = None) -> Space:
+        """The same space with the CLI's --out, --scheduler, --cluster, --workers, --max-points or
+        --max-seconds applied."""
         update: dict[str, Any] = {}
+        budget = {k: v for k, v in (("max_points", max_points), ("max_seconds", max_seconds)) if v is not None}
+        if budget:
+            update["search"] = Search.model_validate({**self.spec.search.model_dump(), **budget})
         if output is not None:
             update["output"] = output if is_url(str(output)) else str(Path(output).resolve())
         cluster: dict[str, Any] = {}
