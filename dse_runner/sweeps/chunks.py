@@ -84,6 +84,7 @@ class ChunkSummary:
     seconds: float  # wall time of the simulations
     errors: list[str] = field(default_factory=list)  # first few failure messages
     scores: list[TaskScores] = field(default_factory=list)  # with_scores: one per task
+    busy: float = 0.0  # wall time of the whole chunk on the worker: simulations, unpacking, writing rows
 
 
 def _worker_name() -> str:
@@ -113,6 +114,7 @@ def run_task(plan: Plan, task: Task, scenario: Scenario, objectives: dict[str, O
 
 def run_chunk(job: ChunkJob) -> ChunkSummary:
     """Simulate a chunk on a worker and write its rows; return only counts."""
+    began = time.perf_counter()
     unpacked = ship.received(job.shipment)
     worker, rows, errors, told = _worker_name(), [], [], []
     started = time.perf_counter()
@@ -128,7 +130,8 @@ def run_chunk(job: ChunkJob) -> ChunkSummary:
     seconds = time.perf_counter() - started
     store.write_rows(job.output, job.sweep, job.chunk_id, rows, job.schema)
     failed = sum(r["status"] == "failed" for r in rows)
-    return ChunkSummary(job.chunk_id, len(rows) - failed, failed, seconds, errors, told)
+    return ChunkSummary(job.chunk_id, len(rows) - failed, failed, seconds, errors, told,
+                        busy=time.perf_counter() - began)
 
 
 def _row(job: ChunkJob, task: Task, group: str, scores: dict[str, Any] | None, error: str | None,

@@ -52,7 +52,7 @@ class SearchStatus(BaseModel):
     best: float | None = None  # the best reduced objective so far
     best_point: dict[str, Any] | None = None
     threads: int = 0
-    busy_seconds: float = 0.0  # simulation time on the workers in this submission
+    busy_seconds: float = 0.0  # time the workers spent on this submission's chunks (simulating, writing rows)
     window_seconds: float = 0.0  # from the first point sent to the last result
     replayed: bool = False  # the strategy's state was rebuilt from the history
     stopped: str | None = None  # why the search ended: budget, time, strategy, interrupted
@@ -61,7 +61,7 @@ class SearchStatus(BaseModel):
     @computed_field
     @property
     def utilisation(self) -> float | None:
-        """Share of the workers' time spent simulating while the search ran."""
+        """Share of the worker threads' time spent on the search's chunks while it ran."""
         if self.window_seconds <= 0 or not self.threads:
             return None
         return min(1.0, self.busy_seconds / (self.window_seconds * self.threads))
@@ -223,7 +223,7 @@ class SearchSource:
                         with_scores=True, point=number)
 
     def finished(self, job: ChunkJob, summary: ChunkSummary) -> None:
-        self.status.busy_seconds += summary.seconds
+        self.status.busy_seconds += summary.busy
         self.last_result = time.monotonic()
         self.status.window_seconds = self.last_result - self.first_sent
         results = self.running.get(job.point)
