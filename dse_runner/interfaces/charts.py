@@ -10,20 +10,28 @@ is drawn (which means, which lines) is computed here from result rows with panda
   one line per scenario (the paper's Figure 6);
 - :class:`TrackChart`: a simulated track over the recorded GPS fixes;
 - :class:`ParetoChart`: the complete points on two objectives, the front joined;
+- :class:`BestSoFarChart`: a closed-loop search's best value against simulations run
+  (:func:`best_so_far`);
+- :class:`ParetoGrowthChart`: a search's points on two objectives coloured by tell order, with
+  the front as it stood at a few stages (:func:`pareto_stages`);
 - :func:`html_table`: a data frame as an HTML table (ranking, workers, Table 1).
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 import pandas as pd
 from bokeh.layouts import column, row
-from bokeh.models import ColumnDataSource, HoverTool
-from bokeh.palettes import Category10
+from bokeh.models import ColorBar, ColumnDataSource, HoverTool, LinearColorMapper
+from bokeh.palettes import Category10, Viridis256
 from bokeh.plotting import figure
+
+from ..analysis.rank import pareto_mask
+from ..sweeps.history import Asked, SearchHistory
 
 PALETTE = Category10[10]
 WIDTH, HEIGHT = 380, 300
@@ -39,6 +47,14 @@ def _figure(title: str, x_label: str, y_label: str, **options) -> figure:
                  tools="pan,wheel_zoom,box_zoom,reset,save", toolbar_location="above", **options)
     fig.title.text_font_size = "11pt"
     return fig
+
+
+def _legend_below(fig: figure) -> None:
+    """The legend in a row under the plot, where it hides no point."""
+    legend = fig.legend[0]
+    legend.orientation, legend.label_text_font_size = "horizontal", "8pt"
+    fig.add_layout(legend, "below")
+    fig.height += 30
 
 
 def _empty_lines() -> dict[str, list]:
@@ -160,6 +176,145 @@ class ParetoChart:
         self.points.data = {c: totals[c].to_numpy() for c in (self.x, self.y, *self.parameters)}
         ordered = front.sort_values(self.x)
         self.front.data = {self.x: ordered[self.x].to_numpy(), self.y: ordered[self.y].to_numpy()}
+
+
+# --- a closed-loop search's history (sweeps/history.py) ------------------------------------------
+
+def told_in_order(history: SearchHistory) -> list[Asked]:
+    """The points the strategy has been told about, in the order it was told."""
+    return sorted((p for p in history.points if p.told is not None), key=lambda p: p.told)
+
+
+def _key(point: dict[str, Any]) -> str:
+    return json.dumps(point, sort_keys=True, default=str)
+
+
+def best_so_far(history: SearchHistory, objective: str, goal: str, n_scenarios: int) -> pd.DataFrame:
+    """The search's progress, one row per point told with a result (ok or failed), in tell order.
+
+    Columns: ``told`` (place among the tells), ``number`` (ask order), ``state``, ``simulated``
+    (False for a point asked again after an earlier copy was told: the search took its result from
+    the store), ``simulations`` (run up to and including this point: one per scenario for each
+    simulated point; infeasible points cost none and have no row), ``value`` (the point's
+    ``objective`` reduced over scenarios; NaN unless ok) and ``best`` (the best ok value so far by
+    ``goal``; NaN before the first ok point)."""
+    told = told_in_order(history)
+    first_told: dict[str, int] = {}
+    for p in told:
+        first_told.setdefault(_key(p.point), p.told)
+    rows = [p for p in told if p.state in ("ok", "failed")]
+    simulated = np.array([first_told[_key(p.point)] >= p.asked_after for p in rows], dtype=bool)
+    value = np.array([p.values.get(objective, np.nan) if p.state == "ok" else np.nan for p in rows], dtype=float)
+    sign = 1.0 if goal == "min" else -1.0
+    best = sign * np.minimum.accumulate(np.where(np.isnan(value), np.inf, sign * value)) if rows else np.zeros(0)
+    return pd.DataFrame({"told": np.array([p.told for p in rows], dtype=int),
+                         "number": np.array([p.number for p in rows], dtype=int),
+                         "state": [p.state for p in rows], "simulated": simulated,
+                         "simulations": np.cumsum(simulated) * max(1, n_scenarios),
+                         "value": value, "best": np.where(np.isinf(best), np.nan, best)})
+
+
+STAGES = (0.25, 0.5, 0.75, 1.0)  # shares of the told points after which the growing front is drawn
+STAGE_COLOURS = ("#c6dbef", "#6baed6", "#2171b5", "#08306b")  # light (early) to dark (all points)
+
+
+def search_points(history: SearchHistory, objectives: Sequence[str]) -> pd.DataFrame:
+    """The told ok points with every one of ``objectives``, in tell order: ``order`` (0, 1, ...: their
+    place among these points), ``told``, ``number``, the objectives and the point's parameters."""
+    rows = [p for p in told_in_order(history)
+            if p.state == "ok" and all(np.isfinite(p.values.get(o, np.nan)) for o in objectives)]
+    frame = pd.DataFrame([{"told": p.told, "number": p.number, **{o: p.values[o] for o in objectives}, **p.point}
+                          for p in rows], columns=None if rows else ["told", "number", *objectives])
+    frame.insert(0, "order", np.arange(len(frame), dtype=int))
+    return frame
+
+
+def pareto_stages(points: pd.DataFrame, goals: Sequence[tuple[str, str]],
+                  stages: Sequence[float] = STAGES) -> list[tuple[int, pd.DataFrame]]:
+    """The front as it grew: for each share in ``stages``, (n, the non-dominated rows among the first
+    n of ``points``), n = ceil(share * len(points)); fronts sorted by the first objective. ``points``
+    in tell order, as :func:`search_points` gives them; ``goals`` (objective, "min" | "max")."""
+    names, directions = [n for n, _ in goals], [g for _, g in goals]
+    fronts = []
+    for share in stages:
+        n = int(np.ceil(share * len(points) - 1e-9))
+        first = points.iloc[:n]
+        front = first[pareto_mask(first[names].to_numpy(float), directions)] if n else first
+        fronts.append((n, front.sort_values(names[0], kind="stable").reset_index(drop=True)))
+    return fronts
+
+
+class BestSoFarChart:
+    """A search's best ``objective`` so far against the simulations run, each point's value a faint dot."""
+
+    def __init__(self, objective: str, goal: str, n_scenarios: int):
+        self.objective, self.goal, self.n_scenarios = objective, goal, n_scenarios
+        self.best = ColumnDataSource({"simulations": [], "best": []}, name="dse-best-so-far-line")
+        self.points = ColumnDataSource({"simulations": [], "value": [], "number": []}, name="dse-best-so-far-points")
+        self.figure = _figure(f"best {objective} so far", "simulations", f"{objective} ({goal})",
+                              name="dse-best-so-far")
+        self.figure.width = int(1.4 * WIDTH)
+        dots = self.figure.scatter("simulations", "value", source=self.points, size=5, color=PALETTE[0], alpha=0.3,
+                                   legend_label="each point")
+        self.figure.step("simulations", "best", source=self.best, mode="after", line_width=2, color=PALETTE[3],
+                         legend_label="best so far")
+        self.figure.add_tools(HoverTool(renderers=[dots], tooltips=[("point #", "@number"),
+                                                                    ("simulations", "@simulations"),
+                                                                    (objective, "@value")]))
+        _legend_below(self.figure)
+
+    def update(self, history: SearchHistory) -> pd.DataFrame:
+        progress = best_so_far(history, self.objective, self.goal, self.n_scenarios)
+        ok = progress[progress["state"] == "ok"]
+        self.points.data = {"simulations": ok["simulations"].to_numpy(), "value": ok["value"].to_numpy(),
+                            "number": ok["number"].to_numpy()}
+        shown = progress[progress["best"].notna()]
+        self.best.data = {"simulations": shown["simulations"].to_numpy(), "best": shown["best"].to_numpy()}
+        return progress
+
+
+class ParetoGrowthChart:
+    """A search's points on its first two Pareto objectives, coloured by tell order, with the front
+    after 25, 50, 75 and 100% of them drawn as steps: how the front grew."""
+
+    def __init__(self, goals: Sequence[tuple[str, str]], parameters: list[str]):
+        self.goals = list(goals[:2])
+        (x, x_goal), (y, y_goal) = self.goals
+        self.x, self.y, self.parameters = x, y, parameters
+        self.points = ColumnDataSource({"x": [], "y": [], "order": [], **{p: [] for p in parameters}},
+                                       name="dse-front-growth-points")
+        self.mapper = LinearColorMapper(palette=Viridis256, low=0, high=1)
+        self.figure = _figure("Pareto front as the search went", f"{x} ({x_goal})", f"{y} ({y_goal})",
+                              name="dse-front-growth")
+        self.figure.width = int(1.4 * WIDTH)
+        dots = self.figure.scatter("x", "y", source=self.points, size=6, alpha=0.8,
+                                   color={"field": "order", "transform": self.mapper})
+        self.figure.add_tools(HoverTool(renderers=[dots], tooltips=[("told #", "@order"),
+                                                                    *((p, f"@{{{p}}}") for p in parameters)]))
+        # sorted by x, the front holds each y until the next point: rightwards if x is minimised
+        mode = "after" if x_goal == "min" else "before"
+        self.fronts = []
+        for share, colour in zip(STAGES, STAGE_COLOURS):
+            source = ColumnDataSource({"x": [], "y": []}, name=f"dse-front-growth-{share:.0%}".rstrip("%"))
+            label = f"front after {share:.0%}" if share == STAGES[0] else f"{share:.0%} of points" if share == 1 \
+                else f"{share:.0%}"
+            self.figure.step("x", "y", source=source, mode=mode, line_width=2 if share == 1 else 1.5,
+                             color=colour, legend_label=label)
+            self.fronts.append(source)
+        self.figure.add_layout(ColorBar(color_mapper=self.mapper, title="tell order", width=8), "right")
+        _legend_below(self.figure)
+
+    def update(self, history: SearchHistory) -> list[tuple[int, pd.DataFrame]]:
+        points = search_points(history, [self.x, self.y])
+        self.points.data = {"x": points[self.x].to_numpy(float), "y": points[self.y].to_numpy(float),
+                            "order": points["order"].to_numpy(),
+                            **{p: points[p].to_numpy() if p in points else np.full(len(points), np.nan)
+                               for p in self.parameters}}
+        self.mapper.high = max(1, len(points) - 1)
+        stages = pareto_stages(points, self.goals)
+        for source, (_, front) in zip(self.fronts, stages):
+            source.data = {"x": front[self.x].to_numpy(float), "y": front[self.y].to_numpy(float)}
+        return stages
 
 
 def html_table(frame: pd.DataFrame, table_id: str | None = None,

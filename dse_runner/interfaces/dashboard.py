@@ -7,6 +7,10 @@ this process (``submit`` starts it), one running elsewhere (``dse-runner dashboa
 RESULTS``) and a finished one. The best point's track is simulated here, on demand, from
 the sweep's own spec and recordings: one co-simulation takes tens of milliseconds.
 
+For a closed-loop search the page also reads the search's history (``<sweep>.search.json``,
+history.py) and shows a line of its figures, best so far against simulations, and, with two
+or more Pareto objectives, the front as it grew (charts.BestSoFarChart, ParetoGrowthChart).
+
 ``link_from_dask`` adds a "dse-runner" page to Dask's dashboard that redirects here,
 through a scheduler plugin, the way distributed extends itself.
 """
@@ -25,11 +29,15 @@ from typing import Any
 
 import pandas as pd
 from distributed.diagnostics.plugin import SchedulerPlugin
+from pydantic import ValidationError
 
 from ..analysis.comparison import Comparison, compare
 from ..analysis.rank import current_model, current_rows, format_point, load_sweep_spec, plain, standings
 from ..errors import DseError
 from ..sweeps import store
+from ..sweeps.closed_loop import SearchStatus
+from ..sweeps.history import SearchHistory, load_history
+from ..sweeps.search import strategy
 from ..sweeps.spec import Space, load_space
 from ..sweeps.sweep import SweepReport, load_status
 from . import charts
@@ -49,6 +57,7 @@ class Snapshot:
     done: int  # tasks with a row (ok or failed)
     failed: int
     standings: pd.DataFrame  # best so far first
+    history: SearchHistory | None = None  # a closed-loop search's (history.py); None for a grid
     taken: float = field(default_factory=time.monotonic)
 
 
@@ -61,6 +70,12 @@ class Feed:
         self.output, self.sweep = output, sweep
         self.parameters = list(spec.parameters)
         self.objective, self.goal = spec.ranking.objective, spec.ranking.goal
+        self.pareto_goals = spec.ranking.pareto_goals()
+        self.max_points, self.strategy = spec.search.max_points, spec.search.strategy
+        try:  # a closed-loop search writes a history the pages draw; a grid has none to look for
+            self.closed_loop = strategy(spec.search.strategy).closed_loop
+        except DseError:  # a plug-in strategy this process does not have: look for its history anyway
+            self.closed_loop = True
         self._space, self._space_note = space, ""  # no space, and why not (once looked for)
         self._looked_for_space = space is not None
         self._lock = threading.Lock()
@@ -76,8 +91,16 @@ class Feed:
     def _read(self) -> Snapshot:
         rows = current_rows(self.output, self.sweep, ["group", "status", *self.parameters, self.objective])
         ok = rows[rows["status"] == "ok"]
-        return Snapshot(load_status(self.output, self.sweep), ok, len(rows), int((rows["status"] != "ok").sum()),
-                        standings(ok, self.parameters, self.objective, self.goal))
+        last = self._snapshot
+        status = _reread(load_status, self.output, self.sweep, last.status if last else None)
+        history = _reread(load_history, self.output, self.sweep, last.history if last else None) \
+            if self.closed_loop or (last is not None and last.history is not None) else None
+        return Snapshot(status, ok, len(rows), int((rows["status"] != "ok").sum()),
+                        standings(ok, self.parameters, self.objective, self.goal), history)
+
+    def searching(self, snap: Snapshot) -> bool:
+        """Whether the pages show a search's progress: its strategy asks for points, or it left a history."""
+        return self.closed_loop or snap.history is not None
 
     def scenarios(self, snap: Snapshot) -> dict[str, str]:
         """Scenario -> group: from the space if this process has it, else the status, else the rows."""
@@ -125,6 +148,15 @@ class Feed:
         return self._tracks[key]
 
 
+def _reread(load, output: store.Root, sweep: str, last):
+    """``load(output, sweep)``, or ``last`` if the file was caught half rewritten (the submitting
+    process rewrites it in place every second)."""
+    try:
+        return load(output, sweep)
+    except (ValidationError, ValueError, UnicodeDecodeError):
+        return last
+
+
 def _duration(seconds: float | None) -> str:
     if seconds is None:
         return "–"
@@ -138,12 +170,14 @@ def progress_html(snap: Snapshot, now: float) -> str:
     status = snap.status
     total = status.total if status else None
     remaining = max(0, total - snap.done) if total is not None else None
+    if status and status.search is not None and status.state != "running":
+        remaining = 0  # a search's total is its budget, which points told from the store do not spend
     state = status.state if status else "unknown"
     if status and state == "running" and now - status.updated_at > STALE_SECONDS:
         state = f"no news for {_duration(now - status.updated_at)} (is the submitting process still running?)"
     elif status and status.waiting:
         state = status.waiting
-    share = 100.0 * snap.done / total if total else 0.0
+    share = 100.0 * (total - remaining) / total if total and remaining is not None else 0.0
     cells = [("done", f"{snap.done}" + (f" of {total}" if total is not None else "")),
              ("failed", str(snap.failed)),
              ("remaining", "–" if remaining is None else str(remaining)),
@@ -163,6 +197,41 @@ def best_html(snap: Snapshot, parameters: list[str], objective: str, scenarios: 
     values = format_point({p: top[p] for p in parameters})
     return (f'<span id="dse-best">best so far: {html.escape(values)}; mean {objective} {top["mean"]:.4f} '
             f'over {int(top["scenarios"])} of {scenarios or "?"} scenarios</span>')
+
+
+def search_summary(search: SearchStatus | None, history: SearchHistory | None, objective: str, goal: str,
+                   max_points: int, strategy_name: str = "–") -> list[tuple[str, str]]:
+    """A closed-loop search's figures as (name, text): from the status the submitting process saves
+    (``search``) if it has them, else counted from the history."""
+    if search is not None:
+        best = search.best
+        cells = [("strategy", search.strategy), ("points", f"{search.points} of {search.max_points}"),
+                 (f"best {objective}", "–" if best is None else f"{best:.6g}"),
+                 ("infeasible", str(search.infeasible)), ("failed", str(search.failed)),
+                 ("utilisation", "–" if search.utilisation is None else f"{search.utilisation:.0%}")]
+        if search.reused:
+            cells.append(("reused", str(search.reused)))
+        if search.stopped:
+            cells.append(("stopped", search.stopped))
+        return cells
+    if history is None:
+        return [("strategy", strategy_name), ("points", f"0 of {max_points}")]
+    values = [p.values[objective] for p in history.points if p.state == "ok" and objective in p.values]
+    best = (min if goal == "min" else max)(values) if values else None
+    return [("strategy", history.strategy), ("points", f"{history.simulated()} of {max_points}"),
+            (f"best {objective}", "–" if best is None else f"{best:.6g}"),
+            ("infeasible", str(sum(p.state == "infeasible" for p in history.points))),
+            ("failed", str(sum(p.state == "failed" for p in history.points))), ("utilisation", "–")]
+
+
+def search_html(cells: list[tuple[str, str]]) -> str:
+    """The search line: ``tpe · 23 of 30 points · best rmse 0.0092 · ...``, one span with id dse-search."""
+    parts = [value if name == "strategy" else
+             f"{value} points" if name == "points" else
+             f"{name} {value}" if name.startswith("best") or name in ("utilisation", "stopped") else
+             f"{value} {name}" for name, value in cells]
+    return (f'<div style="font-family:sans-serif;font-size:15px;margin:6px 0">search: '
+            f'<span id="dse-search">{html.escape(" · ".join(parts))}</span></div>')
 
 
 def title_html(feed: Feed, status: SweepReport | None) -> str:
@@ -219,14 +288,27 @@ class Page:
         self.track = charts.TrackChart()
         self.track_note = Div(width=800)
         self.track_shown: tuple | None = None
+        self.search = self.search_chart = self.front_chart = None  # a closed-loop search's progress
+        self.search_shown: tuple | None = None
+        searching = feed.searching(snap)
+        if searching:
+            self.search = Div(width=800)
+            self.search_chart = charts.BestSoFarChart(objective, feed.goal, len(self.scenarios))
+            if len(feed.pareto_goals) >= 2:
+                self.front_chart = charts.ParetoGrowthChart(feed.pareto_goals, p)
 
         def heading(text: str) -> Div:
             return Div(text=f"<h3 style='font-family:sans-serif;margin:12px 0 0'>{text}</h3>")
 
         doc.title = f"dse-runner: {feed.sweep}"
+        search = [] if not searching else [
+            heading(f"Search: best {objective} against simulations"
+                    + (", and the Pareto front as it grew" if self.front_chart else "")),
+            row(*(c.figure for c in (self.search_chart, self.front_chart) if c is not None))]
         doc.add_root(column(
-            self.title, self.progress, self.best,
+            self.title, self.progress, *([self.search] if self.search else []), self.best,
             row(column(heading("Best so far"), self.ranking), column(heading("Workers"), self.workers)),
+            *search,
             heading(f"{objective} against each parameter (paper's Figure 5)"), self.fig5.layout,
             heading(f"{objective} per scenario group at each parameter point, points sorted by "
                     f"{', '.join(p)} (paper's Figure 6)"), self.fig6.layout,
@@ -240,6 +322,8 @@ class Page:
         self.progress.text = STYLE + progress_html(snap, time.time())
         if snap.status:
             self.workers.text = charts.TABLE_STYLE + workers_html(snap.status)
+        if self.search is not None:
+            self._search(snap)
         if snap.done == self.shown:
             return  # no new rows since the last refill
         self.shown = snap.done
@@ -248,6 +332,18 @@ class Page:
         self.fig5.update(snap.ok)
         self.fig6.update(snap.ok)
         self._track(snap)
+
+    def _search(self, snap: Snapshot) -> None:
+        feed, history = self.feed, snap.history
+        self.search.text = search_html(search_summary(snap.status.search if snap.status else None, history,
+                                                      feed.objective, feed.goal, feed.max_points, feed.strategy))
+        shown = None if history is None else (history.settings, history.tells, len(history.points))
+        if history is None or shown == self.search_shown:
+            return  # nothing told since the last refill
+        self.search_shown = shown
+        self.search_chart.update(history)
+        if self.front_chart is not None:
+            self.front_chart.update(history)
 
     def _track(self, snap: Snapshot, force: bool = False) -> None:
         if snap.standings.empty or not self.select.value:

@@ -2,8 +2,9 @@
 
 It holds Table 1, the rankings, the Pareto front, the dashboard's figures (drawn by the
 same chart classes, filled once), the best point's track on every scenario, and the spec
-that produced them. BokehJS is inlined (its core only, 1.3 MB: the report has no widgets),
-so the file opens offline and from an e-mail.
+that produced them; for a closed-loop search also its progress (best so far against
+simulations, the Pareto front as it grew) from the search's history. BokehJS is inlined (its
+core only, 1.3 MB: the report has no widgets), so the file opens offline and from an e-mail.
 """
 
 from __future__ import annotations
@@ -18,9 +19,10 @@ from jinja2 import Template
 from ..analysis.rank import Ranking, format_point, load_sweep_spec, pick_sweep, plain, rank
 from ..errors import DseError
 from ..sweeps import store
+from ..sweeps.history import load_history
 from ..sweeps.sweep import load_status
 from . import charts
-from .dashboard import Feed
+from .dashboard import Feed, search_summary
 
 TOP = 20  # points listed in the ranking
 
@@ -45,13 +47,25 @@ pre { background: #f7f7f7; padding: 12px; font-size: 12px; overflow-x: auto }
 {% for name, value in summary %}<tr><td>{{ name }}</td><td id="summary-{{ loop.index }}">{{ value }}</td></tr>
 {% endfor %}</table>
 
+{% if search %}<h2>Search: best {{ objective }} against simulations</h2>
+<p class="note">Each point the strategy was told about costs one simulation per scenario (infeasible points,
+and points asked again after their first copy was told, cost none); the line is the best {{ objective }} so far, the dots each point's.{% if plots.front_growth %} The
+second chart has every point on the first two Pareto objectives, coloured by the order the strategy was told
+them, and the front after a quarter, half, three quarters and all of them.{% endif %}</p>
+<table class="summary" id="search">
+{% for name, value in search %}<tr><td>{{ name }}</td><td>{{ value }}</td></tr>
+{% endfor %}</table>
+<div style="display:flex;gap:24px;flex-wrap:wrap">{{ plots.best_so_far }}
+{% if plots.front_growth %}{{ plots.front_growth }}{% endif %}</div>{% endif %}
+
 <h2>Table 1: {{ objective }} per scenario</h2>
 <p class="note">Over all ranked points: min, max and average per scenario; "computed" is the best point's
 value and "difference" its distance from the average (the paper's Table 1).</p>
 {{ table1 }}
 
 <h2>Ranking by total {{ objective }}</h2>
-<p class="note">The {{ top }} best of {{ points }} points, each objective summed over the scenarios.</p>
+<p class="note">The {{ top }} best of {{ points }} points, each objective {{ "summed" if over == "sum" else
+"reduced by its " ~ over }} over the scenarios.</p>
 {{ totals }}
 
 {% if pareto %}<h2>Pareto front</h2>
@@ -126,6 +140,18 @@ def build_report(output: store.Root, sweep: str | None = None) -> str:
         pareto = charts.ParetoChart(goals[0][0], goals[1][0], parameters)
         pareto.update(ranking.totals, ranking.pareto)
         figures["pareto"] = pareto.figure
+    history = load_history(output, sweep)
+    search: list[tuple[str, str]] = []
+    if history is not None:
+        search = search_summary(status.search if status else None, history, ranking.objective, ranking.goal,
+                                spec.search.max_points, spec.search.strategy)
+        best = charts.BestSoFarChart(ranking.objective, ranking.goal, len(scenarios))
+        best.update(history)
+        figures["best_so_far"] = best.figure
+        if len(goals) >= 2:
+            growth = charts.ParetoGrowthChart(goals, parameters)
+            growth.update(history)
+            figures["front_growth"] = growth.figure
     tracks, track_note = _tracks(feed, ranking, sorted(scenarios))
     if tracks is not None:
         figures["tracks"] = tracks
@@ -145,7 +171,7 @@ def build_report(output: store.Root, sweep: str | None = None) -> str:
         pareto=charts.html_table(ranking.pareto) if not ranking.pareto.empty else "",
         groups=charts.html_table(ranking.groups) if not ranking.groups.empty else "",
         weighted=charts.html_table(ranking.weighted.head(10)) if not ranking.weighted.empty else "",
-        plots=divs, track_note=track_note,
+        plots=divs, track_note=track_note, over=spec.ranking.over_scenarios, search=[(name, html.escape(value)) for name, value in search],
         spec=html.escape(yaml.safe_dump(spec.model_dump(mode="json"), sort_keys=False)),
         table_style=charts.TABLE_STYLE, bokeh_resources=Resources(mode="inline", components=["bokeh"]).render(), bokeh_script=script)
 

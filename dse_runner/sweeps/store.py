@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import os
 import uuid
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -91,12 +92,24 @@ def check_reachable(root: Root) -> None:
         raise DseError(f"cannot write to the store {root}: {type(e).__name__}: {e}") from None
 
 
+def _replace_whole(target: str, write: Callable[[Path], object]) -> None:
+    """Write a local file beside ``target`` and rename it into place: readers never see half of it."""
+    Path(target).parent.mkdir(parents=True, exist_ok=True)
+    partial = Path(target).with_name(f".{Path(target).name}.{uuid.uuid4().hex}.partial")
+    write(partial)
+    os.replace(partial, target)
+
+
 def write_text(root: Root, name: str, text: str) -> str:
-    """Write a small file (``name`` may hold folders); returns where it went."""
+    """Write a small file (``name`` may hold folders) so that readers see all of it or the old one
+    (a dashboard reads status and history files while a sweep rewrites them); returns where it went."""
     fs, path = _fs(root)
     target = _join(path, name)
-    fs.makedirs(target.rsplit("/", 1)[0], exist_ok=True)
-    fs.pipe_file(target, text.encode())
+    if isinstance(fs, LocalFileSystem):
+        _replace_whole(target, lambda partial: partial.write_bytes(text.encode()))
+    else:  # object stores replace an object whole
+        fs.makedirs(target.rsplit("/", 1)[0], exist_ok=True)
+        fs.pipe_file(target, text.encode())
     return _where(fs, target)
 
 
@@ -114,10 +127,7 @@ def write_table(table: pa.Table, root: Root, relative: str) -> str:
     fs, path = _fs(root)
     target = _join(path, relative)
     if isinstance(fs, LocalFileSystem):
-        Path(target).parent.mkdir(parents=True, exist_ok=True)
-        partial = Path(target).with_name(f".{Path(target).name}.{uuid.uuid4().hex}.partial")
-        pq.write_table(table, partial)
-        os.replace(partial, target)
+        _replace_whole(target, lambda partial: pq.write_table(table, partial))
     else:
         pq.write_table(table, target, filesystem=fs)
     return _where(fs, target)
