@@ -95,7 +95,8 @@ def parse_options(kind: type[Strategy], options: Mapping[str, Any]) -> BaseModel
     except ValidationError as e:
         problem = e.errors()[0]
         where = ".".join(str(p) for p in problem["loc"])
-        raise DseError(f"search.{where}: {problem['msg'].lower()} (strategy {kind.__name__})") from None
+        raise DseError(f"search.{where}: {problem['msg'][:1].lower()}{problem['msg'][1:]} "
+                       f"(an option of {kind.__name__})") from None
 
 
 class Exhaustive(Strategy):
