@@ -63,6 +63,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 import dask
+import numpy as np
 import optuna
 from distributed import Client
 
@@ -258,6 +259,39 @@ def plain_optuna(space: Space, points: int) -> dict[str, Any]:
     return {"wall_s": wall, "cpu_s": cpu, "points": len(study.trials), "best_total": best}
 
 
+def _simulate_points(spec: str, points: list[dict[str, float]]) -> float:
+    """Seconds per simulation of ``points`` on every scenario, in this (worker) process."""
+    space = load_space(spec)
+    settings = {"objectives": space.objectives, "experiment": space.experiment}
+    for scenario in space.scenarios:  # warm-up: FMUs loaded and instantiated, off the clock
+        simulate(space.plan, scenario, points[0], **settings)
+    start = time.perf_counter()
+    for point in points:
+        for scenario in space.scenarios:
+            simulate(space.plan, scenario, point, **settings)
+    return (time.perf_counter() - start) / (len(points) * len(space.scenarios))
+
+
+def parallel_ceiling(space: Space, count: int = 10) -> dict[str, float]:
+    """What two processes can gain on this machine at all, with no Dask and no strategy: the same
+    simulations timed in one process, then in two at once (2 x one / two-at-once seconds per
+    simulation). Two cores that share caches, memory bandwidth or a host's other load give less than
+    2, and no distributed runner can beat this figure."""
+    from concurrent.futures import ProcessPoolExecutor
+    from multiprocessing import get_context
+
+    rng = np.random.default_rng(0)
+    dims = space.dimensions
+    points = [{d.name: float(d.from_unit(u)) for d, u in zip(dims, row)} for row in rng.random((count, len(dims)))]
+    context = get_context("spawn")
+    with ProcessPoolExecutor(1, mp_context=context) as one:
+        alone = one.submit(_simulate_points, str(space.path), points).result()
+    with ProcessPoolExecutor(2, mp_context=context) as two:
+        pair = list(two.map(_simulate_points, [str(space.path)] * 2, [points, points]))
+    return {"one_process_s_per_simulation": alone, "two_processes_s_per_simulation": statistics.mean(pair),
+            "ceiling": 2 * alone / statistics.mean(pair)}
+
+
 # --- the run --------------------------------------------------------------------------------------
 
 def main() -> None:
@@ -389,6 +423,10 @@ def measure(figures: dict[str, Any], client, base: dict[str, Any], work: Path, s
     }
     figures["speedup_vs_plain_optuna"] = plain_wall / dse["wall_s"]
     say(f"speedup vs plain Optuna ({baseline}): {figures['speedup_vs_plain_optuna']:.2f}x")
+    ceiling = parallel_ceiling(search_space(base, work, baseline, 0, args.points, "ceiling-"))
+    figures["parallel_ceiling"] = ceiling
+    say(f"two processes without Dask: {ceiling['ceiling']:.2f}x one ({1000 * ceiling['one_process_s_per_simulation']:.1f}"
+        f" ms per simulation alone, {1000 * ceiling['two_processes_s_per_simulation']:.1f} ms two at once)")
 
 
 def summarise(runs: list[dict[str, Any]], errors: list[str]) -> dict[str, Any]:
@@ -474,6 +512,10 @@ def print_table(figures: dict[str, Any]) -> None:
               f"(best total {plain['best_total']:.4f}); dse-runner on 2 workers: {plain['dse_runner_wall_s']:.1f} s")
         print(f"speedup_vs_plain_optuna {speedup:.2f}x (target >= {TARGETS['speedup']}) "
               f"{mark(speedup >= TARGETS['speedup'])}")
+        ceiling = figures.get("parallel_ceiling")
+        if ceiling:
+            print(f"this machine's ceiling for 2 processes (the same simulations, no Dask): {ceiling['ceiling']:.2f}x; "
+                  f"dse-runner reaches {speedup / ceiling['ceiling'] * 100:.0f}% of it")
         ratio = plain["dse_runner_cpu_s"] / plain["cpu_s"]
         print(f"CPU seconds: dse-runner {plain['dse_runner_cpu_s']:.1f} s (client, scheduler and workers), plain "
               f"{plain['cpu_s']:.1f} s; ratio {ratio:.2f}, so at most {2 / ratio:.2f}x on 2 cores (Dask's idle "
