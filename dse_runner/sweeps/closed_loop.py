@@ -47,6 +47,7 @@ class SearchStatus(BaseModel):
     max_seconds: float | None = None
     points: int = 0  # simulated points told to the strategy, in all submissions
     reused: int = 0  # of which told from the store without simulating (a replay), in this submission
+    repeats: int = 0  # points asked again after (or while) an equal one ran: told its result, not counted
     infeasible: int = 0  # points the constraints rejected: never simulated
     failed: int = 0  # points with a failed task
     best: float | None = None  # the best reduced objective so far
@@ -97,9 +98,12 @@ class SearchSource:
         self.stored: dict[str, TaskScores] = {}
         self.requeue: deque[int] = deque()  # points to (re)submit before asking for new ones
         self.running: dict[int, dict[str, TaskScores]] = {}  # point number -> its task results so far
+        self.followers: dict[int, list[int]] = {}  # a running point -> later asks of the same point, told with it
         self.started = self.first_sent = self.last_result = 0.0
         self.saved = 0.0
         self.batch = 1
+        self.told: set[tuple] = set()  # points told a simulation result: asking one again is a repeat
+        self.replaying = False  # the history is not saved while it is replayed
 
     # ---- starting and replaying ----------------------------------------------------------------
 
@@ -134,6 +138,13 @@ class SearchSource:
     def _replay(self, old: SearchHistory, threads: int) -> None:
         """Ask and tell a fresh strategy in the recorded order, with stored results; on any mismatch
         start afresh (the strategy is not deterministic, or rows have gone)."""
+        self.replaying = True
+        try:
+            self._replay_events(old, threads)
+        finally:
+            self.replaying = False
+
+    def _replay_events(self, old: SearchHistory, threads: int) -> None:
         for kind, asked in old.events():
             if kind == "ask":
                 point = self.strategy.ask()
@@ -154,8 +165,9 @@ class SearchSource:
         self.strategy = self.space.strategy(threads)
         self.history = SearchHistory(sweep=self.space.name, strategy=self.history.strategy,
                                      settings=self.history.settings)
-        self.status.points = self.status.failed = self.status.infeasible = 0
+        self.status.points = self.status.failed = self.status.infeasible = self.status.repeats = 0
         self.status.best = self.status.best_point = None
+        self.told.clear()
 
     def _stored_scores(self) -> dict[str, TaskScores]:
         """Every stored task result of the current model, by task id."""
@@ -195,6 +207,9 @@ class SearchSource:
         if status.points + len(self.running) >= search.max_points:
             status.stopped = "budget"
             return True
+        if status.repeats >= search.max_points:  # a converged strategy that only proposes what it has had
+            status.stopped = "repeats"
+            return True
         if search.max_seconds is not None and time.monotonic() - self.started >= search.max_seconds:
             status.stopped = "time"
             return True
@@ -213,6 +228,10 @@ class SearchSource:
         missing = [t for t in tasks if t.task_id not in known]
         if not missing:
             self._tell(number, evaluation_of(list(known.values()), self.scalar, self._how()), reused=True)
+            return None
+        leader = next((n for n in self.running if self.history.points[n].point == point), None)
+        if leader is not None:  # asked again while it runs (a discrete space): told when it finishes
+            self.followers.setdefault(leader, []).append(number)
             return None
         self.running[number] = known
         if not self.first_sent:
@@ -247,13 +266,17 @@ class SearchSource:
 
     def _tell(self, number: int, evaluation: Evaluation, reused: bool) -> None:
         point = self.history.points[number].point
+        key = tuple(sorted(point.items()))
         self.strategy.tell(point, evaluation)
         state: State = evaluation.state
         self.history.tell(number, state, dict(evaluation.values))
         status = self.status
         if state == "infeasible":
             status.infeasible += 1
+        elif key in self.told:
+            status.repeats += 1
         else:
+            self.told.add(key)
             status.points += 1
             status.reused += reused
             status.failed += state == "failed"
@@ -262,18 +285,17 @@ class SearchSource:
             better = status.best is None or (value < status.best if status.goal == "min" else value > status.best)
             if better:
                 status.best, status.best_point = value, dict(point)
+        for follower in self.followers.pop(number, []):
+            self._tell(follower, evaluation, reused=True)
         self.save(force=False)
 
     def save(self, force: bool = True) -> None:
         """The history, at most every HISTORY_SECONDS unless forced (at the end)."""
-        if self.history is None or (not force and time.monotonic() - self.saved < HISTORY_SECONDS):
+        recent = time.monotonic() - self.saved < HISTORY_SECONDS
+        if self.history is None or self.replaying or (not force and recent):
             return
         save_history(self.space.output, self.history)
         self.saved = time.monotonic()
-
-    @property
-    def done(self) -> bool:
-        return self.strategy is not None and not self.running and not self.requeue
 
 
 def _plain(value: Any) -> Any:

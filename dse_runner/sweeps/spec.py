@@ -430,8 +430,10 @@ def _check_search(space: Space, source: str) -> None:
         if kind.multi_objective and len(space.spec.ranking.pareto) < 2:
             raise DseError(f"search: {search.strategy} optimises several objectives: list two or more "
                            "under ranking.pareto")
-        if not kind.closed_loop:
-            kind(space.problem())  # a grid strategy checks that every parameter has a grid
+        # Built once here, so what only its constructor checks fails now, not after the cluster starts:
+        # a grid needs every parameter on a grid, Optuna's samplers take only their own keyword
+        # arguments, least squares needs a vector objective.
+        kind(space.problem())
     except DseError as e:
         raise DseError(f"{source}: {e}") from None
 
