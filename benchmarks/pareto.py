@@ -94,7 +94,7 @@ def main() -> None:
     for r in results:
         print(f"{r['objectives']:>10}{r['points']:>9}{r['front']:>7}{r['rank_s']:>9.2f}{r['pareto_mask_s']:>9.2f}"
               f"{r['pairwise_loop_s_estimated']:>21.0f}{r['pairwise_loop_s_estimated'] / r['rank_s']:>8.0f}"
-              f"{str(r['same_front_on_subsample']):>6}")
+              f"{r['same_front_on_subsample']!s:>6}")
     print("rank s: the whole reducer from the Parquet store; front s: the non-dominated sort alone;")
     print(f"the loop is timed on {SUBSAMPLE} points and scaled by (n / {SUBSAMPLE})^2")
 

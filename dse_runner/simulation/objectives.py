@@ -59,7 +59,7 @@ class Reduce(BaseModel):
     band: float | None = None  # ... unless an absolute half-width is given
 
     @model_validator(mode="after")
-    def _options(self) -> "Reduce":
+    def _options(self) -> Reduce:
         if self.reduce in ("time_above", "time_below") and self.threshold is None:
             raise ValueError(f"reduce: {self.reduce} needs a 'threshold'")
         if self.threshold is not None and self.reduce not in ("time_above", "time_below"):

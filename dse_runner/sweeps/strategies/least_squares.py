@@ -24,7 +24,7 @@ from ..search import Evaluation, Options, Problem, Strategy
 
 class LeastSquaresOptions(Options):
     residuals: str | None = None  # the vector objective; default: the space's first
-    start: dict[str, float] = {}  # default: the middle of each interval
+    start: dict[str, float] = Field(default_factory=dict)  # default: the middle of each interval
     relative_step: PositiveFloat = Field(0.01, le=0.5)  # finite-difference step, as a fraction of the range
     max_iterations: PositiveInt = 15
     tolerance: PositiveFloat = 1e-4  # stop when a step gains less than this fraction of the sum of squares
