@@ -35,6 +35,7 @@ from .search import Evaluation, Strategy
 from .spec import Space
 
 HISTORY_SECONDS = 1.0  # how often a running search saves its history
+MAX_REJECTED = 1000  # infeasible points in a row after which a search gives up asking
 
 
 class SearchStatus(BaseModel):
@@ -103,6 +104,8 @@ class SearchSource:
         self.saved = 0.0
         self.batch = 1
         self.told: set[tuple] = set()  # points told a simulation result: asking one again is a repeat
+        self.rejected_in_a_row = 0
+        self.stopping = False
         self.replaying = False  # the history is not saved while it is replayed
 
     # ---- starting and replaying ----------------------------------------------------------------
@@ -196,7 +199,15 @@ class SearchSource:
                 number = self.history.ask(point)
                 if not self.space.admits(point):
                     self._tell(number, Evaluation("infeasible"), reused=False)
+                    self.rejected_in_a_row += 1
+                    if self.rejected_in_a_row >= MAX_REJECTED:
+                        self.status.stopped = "infeasible"
+                        self.status.notes.append(f"the strategy proposed {MAX_REJECTED} points in a row that the "
+                                                 "constraints reject; loosen them or narrow the parameters' ranges")
+                        self.stopping = True
+                        return None
                     continue
+                self.rejected_in_a_row = 0
                 job = self._job(number)
             if job is not None:
                 return job
@@ -204,6 +215,8 @@ class SearchSource:
 
     def _should_stop(self) -> bool:
         status, search = self.status, self.space.spec.search
+        if self.stopping:
+            return True
         if status.points + len(self.running) >= search.max_points:
             status.stopped = "budget"
             return True

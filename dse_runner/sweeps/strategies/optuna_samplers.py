@@ -4,7 +4,11 @@ Each wraps an in-memory Optuna study driven by ``study.ask``/``study.tell``,
 Optuna's own interface for optimisation loops it does not run itself. Trials
 in flight are Optuna's "running" trials, which TPE (constant liar), CMA-ES
 and NSGA-II take into account, so points can be asked while others still
-simulate. A failed or infeasible point is a failed trial.
+simulate. A failed point is a failed trial. A point the constraints reject
+is a complete trial with the worst value seen so far, marked infeasible
+through Optuna's own ``constraints_func`` where the sampler has one (TPE, GP,
+NSGA-II), so the sampler learns where the feasible region is instead of
+proposing the same infeasible region again and again.
 
 The strategy's options are the sampler's own keyword arguments, e.g.
 ``search: {strategy: tpe, n_startup_trials: 5}``; ``seed`` is the search's.
@@ -46,6 +50,14 @@ def distribution(dimension: Dimension) -> BaseDistribution:
     return FloatDistribution(d.low, d.high, log=d.log)
 
 
+VIOLATION = "dse_runner_violation"  # user attribute: > 0 where the constraints reject the point
+
+
+def _violation(trial: optuna.trial.FrozenTrial) -> tuple[float]:
+    """Optuna's constraints_func: what we marked on the trial when telling it."""
+    return (float(trial.user_attrs.get(VIOLATION, 0.0)),)
+
+
 def _key(point: Point) -> tuple:
     return tuple(sorted(point.items()))
 
@@ -65,14 +77,18 @@ class OptunaStrategy(Strategy):
                 raise DseError(f"search.{name}: {self.sampler.__name__} has no option {name!r} "
                                f"(it takes {', '.join(sorted(accepted))})")
         optuna.logging.set_verbosity(optuna.logging.WARNING)
+        ours = dict(self.defaults())
+        if "constraints_func" in inspect.signature(self.sampler.__init__).parameters:
+            ours["constraints_func"] = _violation
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-            sampler = self.sampler(seed=problem.seed, **{**self.defaults(), **options})
+            sampler = self.sampler(seed=problem.seed, **{**ours, **options})
         self.goals = list(problem.pareto) if self.multi_objective else [problem.objective]
         self.study = optuna.create_study(
             sampler=sampler, directions=["minimize" if g == "min" else "maximize" for _, g in self.goals])
         self.distributions = {d.name: distribution(d) for d in problem.dimensions}
         self.trials: defaultdict[tuple, deque[optuna.Trial]] = defaultdict(deque)
+        self.worst: list[float] | None = None  # the worst value of each objective so far: an infeasible point's
 
     def defaults(self) -> dict[str, Any]:
         """Keyword arguments of ours that the user's options may override."""
@@ -92,9 +108,19 @@ class OptunaStrategy(Strategy):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
             if evaluation.state == "ok":
-                self.study.tell(trial, [evaluation.value(name) for name, _ in self.goals])
-            else:
+                values = [evaluation.value(name) for name, _ in self.goals]
+                self._remember(values)
+                trial.set_user_attr(VIOLATION, 0.0)
+                self.study.tell(trial, values)
+            elif evaluation.state == "infeasible" and self.worst is not None:
+                trial.set_user_attr(VIOLATION, 1.0)
+                self.study.tell(trial, list(self.worst))
+            else:  # a failed simulation, or infeasible before any result to penalise it with
                 self.study.tell(trial, state=TrialState.FAIL)
+
+    def _remember(self, values: list[float]) -> None:
+        worse = [max if goal == "min" else min for _, goal in self.goals]
+        self.worst = values if self.worst is None else [w(a, b) for w, a, b in zip(worse, self.worst, values)]
 
 
 class Tpe(OptunaStrategy):
