@@ -5,10 +5,10 @@ Optuna's own interface for optimisation loops it does not run itself. Trials
 in flight are Optuna's "running" trials, which TPE (constant liar), CMA-ES
 and NSGA-II take into account, so points can be asked while others still
 simulate. A failed point is a failed trial. A point the constraints reject
-is a complete trial with the worst value seen so far, marked infeasible
-through Optuna's own ``constraints_func`` where the sampler has one (TPE, GP,
-NSGA-II), so the sampler learns where the feasible region is instead of
-proposing the same infeasible region again and again.
+is a complete trial with the worst value seen so far, marked infeasible with
+Optuna's own ``Trial.set_constraint``, which TPE, GP and NSGA-II read, so the
+sampler learns where the feasible region is instead of proposing the same
+infeasible region again and again.
 
 The strategy's options are the sampler's own keyword arguments, e.g.
 ``search: {strategy: tpe, n_startup_trials: 5}``; ``seed`` is the search's.
@@ -50,12 +50,7 @@ def distribution(dimension: Dimension) -> BaseDistribution:
     return FloatDistribution(d.low, d.high, log=d.log)
 
 
-VIOLATION = "dse_runner_violation"  # user attribute: > 0 where the constraints reject the point
-
-
-def _violation(trial: optuna.trial.FrozenTrial) -> tuple[float]:
-    """Optuna's constraints_func: what we marked on the trial when telling it."""
-    return (float(trial.user_attrs.get(VIOLATION, 0.0)),)
+VIOLATION = "space.yaml constraints"  # the trial's constraint value: > 0 where the constraints reject the point
 
 
 def _key(point: Point) -> tuple:
@@ -66,6 +61,7 @@ class OptunaStrategy(Strategy):
     """An Optuna sampler asked and told through an in-memory study."""
 
     sampler: ClassVar[type[optuna.samplers.BaseSampler]]
+    reads_constraints: ClassVar[bool] = True  # the sampler uses Trial.set_constraint
     Options = SamplerOptions
 
     def __init__(self, problem: Problem):
@@ -77,12 +73,9 @@ class OptunaStrategy(Strategy):
                 raise DseError(f"search.{name}: {self.sampler.__name__} has no option {name!r} "
                                f"(it takes {', '.join(sorted(accepted))})")
         optuna.logging.set_verbosity(optuna.logging.WARNING)
-        ours = dict(self.defaults())
-        if "constraints_func" in inspect.signature(self.sampler.__init__).parameters:
-            ours["constraints_func"] = _violation
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-            sampler = self.sampler(seed=problem.seed, **{**ours, **options})
+            sampler = self.sampler(seed=problem.seed, **{**self.defaults(), **options})
         self.goals = list(problem.pareto) if self.multi_objective else [problem.objective]
         self.study = optuna.create_study(
             sampler=sampler, directions=["minimize" if g == "min" else "maximize" for _, g in self.goals])
@@ -110,13 +103,17 @@ class OptunaStrategy(Strategy):
             if evaluation.state == "ok":
                 values = [evaluation.value(name) for name, _ in self.goals]
                 self._remember(values)
-                trial.set_user_attr(VIOLATION, 0.0)
+                self._mark(trial, 0.0)
                 self.study.tell(trial, values)
             elif evaluation.state == "infeasible" and self.worst is not None:
-                trial.set_user_attr(VIOLATION, 1.0)
+                self._mark(trial, 1.0)
                 self.study.tell(trial, list(self.worst))
             else:  # a failed simulation, or infeasible before any result to penalise it with
                 self.study.tell(trial, state=TrialState.FAIL)
+
+    def _mark(self, trial: optuna.Trial, violation: float) -> None:
+        if self.reads_constraints:
+            trial.set_constraint(VIOLATION, violation)
 
     def _remember(self, values: list[float]) -> None:
         worse = [max if goal == "min" else min for _, goal in self.goals]
@@ -149,6 +146,7 @@ class CmaEs(OptunaStrategy):
     """CMA-ES (Optuna's CmaEsSampler over the cmaes package)."""
 
     sampler = optuna.samplers.CmaEsSampler
+    reads_constraints = False  # it ranks an infeasible point by its penalty value alone
 
     def defaults(self) -> dict[str, Any]:
         return {"warn_independent_sampling": False}
