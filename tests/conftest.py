@@ -106,3 +106,34 @@ def write_space(folder: Path, **changes) -> Path:
     path = folder / "space.yaml"
     path.write_text(yaml.safe_dump(spec, sort_keys=False))
     return path
+
+
+MSD = REPO / "jobs" / "msd"
+
+
+def write_msd_search(folder: Path, search: dict, **changes) -> Path:
+    """The mass-spring-damper calibration (jobs/msd) over continuous k and c, as a search;
+    ``changes`` replace top-level keys (e.g. cluster, objectives, ranking)."""
+    spec = {
+        "name": "msd-search",
+        "multimodel": str(MSD / "multimodel.yaml"),
+        "experiment": {"step": 0.05},
+        "scenarios": [{"name": "ringdown", "recorded": str(MSD / "recording" / "position.csv"), "stop_time": 10}],
+        "parameters": {"msd.k": {"low": 5, "high": 25}, "msd.c": {"low": 0.2, "high": 2.0}},
+        "objectives": {"position_rmse": {"signal": "msd.x", "recorded": "x", "metric": "rmse"},
+                       "position_residuals": {"signal": "msd.x", "recorded": "x", "metric": "residuals"}},
+        "search": search,
+        "output": str(folder / "out"),
+        "keep_trajectories": 0,
+    }
+    return write_yaml(folder, {**spec, **changes})
+
+
+def write_yaml(folder: Path, spec: dict) -> Path:
+    """``spec`` as ``folder``/space.yaml."""
+    import yaml
+
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / "space.yaml"
+    path.write_text(yaml.safe_dump(spec, sort_keys=False))
+    return path

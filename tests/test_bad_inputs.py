@@ -177,7 +177,8 @@ def test_a_value_outside_its_declared_min_or_max(tmp_path):
     ({"timeout": -1}, r"space\.yaml: timeout: Input should be greater than 0"),
     ({"chunk_seconds": "fast"}, r"space\.yaml: chunk_seconds: Input should be a valid number"),
     ({"parameters": {"vehicle.mass": "heavy"}},
-     r"space\.yaml: parameters\.vehicle\.mass: expected a list of values or a range"),
+     r"space\.yaml: parameters\.vehicle\.mass: expected a list of values, a grid \{start, stop, step or num\} "
+     r"or an interval \{low, high\}"),
     ({"parameters": {"vehicle.mass": ["heavy"]}}, r"parameters\.vehicle\.mass: vehicle\.mass: 'heavy' is not a valid Real"),
     # no scenarios: the one scenario "nominal", which has no kind's default objectives ...
     ({"scenarios": []}, r"space\.yaml: objectives: name at least one, e\.g\. "),

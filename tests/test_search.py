@@ -17,8 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-import yaml
-from conftest import REPO, strict_loads
+from conftest import REPO, strict_loads, write_msd_search, write_yaml
 
 from dse_runner.analysis.rank import rank
 from dse_runner.errors import DseError
@@ -36,24 +35,7 @@ NOISE = 0.002  # m: the recording's noise sigma, the floor of the rmse
 
 def msd_space(folder: Path, search: dict, address: str, **changes) -> Path:
     """The msd calibration over continuous k and c, as a search; ``changes`` replace top-level keys."""
-    spec = {
-        "name": "msd-search",
-        "multimodel": str(MSD / "multimodel.yaml"),
-        "experiment": {"step": 0.05},
-        "scenarios": [{"name": "ringdown", "recorded": str(MSD / "recording" / "position.csv"), "stop_time": 10}],
-        "parameters": {"msd.k": {"low": 5, "high": 25}, "msd.c": {"low": 0.2, "high": 2.0}},
-        "objectives": {"position_rmse": {"signal": "msd.x", "recorded": "x", "metric": "rmse"},
-                       "position_residuals": {"signal": "msd.x", "recorded": "x", "metric": "residuals"}},
-        "search": search,
-        "output": str(folder / "out"),
-        "cluster": {"address": address},
-        "keep_trajectories": 0,
-    }
-    spec.update(changes)
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / "space.yaml"
-    path.write_text(yaml.safe_dump(spec, sort_keys=False))
-    return path
+    return write_msd_search(folder, search, cluster={"address": address}, **changes)
 
 
 def cliff_space(folder: Path, search: dict, address: str, **changes) -> Path:
@@ -68,11 +50,7 @@ def cliff_space(folder: Path, search: dict, address: str, **changes) -> Path:
         "cluster": {"address": address},
         "keep_trajectories": 0,
     }
-    spec.update(changes)
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / "space.yaml"
-    path.write_text(yaml.safe_dump(spec, sort_keys=False))
-    return path
+    return write_yaml(folder, {**spec, **changes})
 
 
 def results(space, *columns: str) -> pd.DataFrame:
@@ -284,7 +262,7 @@ def test_search_spec_errors_are_found_when_the_spec_loads(tmp_path, search, chan
 def test_submit_json_reports_the_search(tmp_path, dask_scheduler):
     path = msd_space(tmp_path, {"strategy": "least_squares", "max_points": 40}, dask_scheduler)
     done = subprocess.run([sys.executable, "-m", "dse_runner", "submit", str(path), "--no-dashboard", "--json"],
-                          capture_output=True, text=True, timeout=300)
+                          check=False, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     summary = strict_loads(done.stdout)
     search = summary["search"]

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-import yaml
+from conftest import write_msd_search
 
 from dse_runner.interfaces import charts
 from dse_runner.interfaces.dashboard import search_html, search_summary
@@ -164,22 +164,11 @@ def test_search_line_from_the_status_or_else_the_history():
 
 def write_search(folder: Path) -> Path:
     """The mass-spring-damper calibration as a tpe search over continuous k and c, two objectives."""
-    spec = {
-        "name": "msd-search",
-        "multimodel": str(MSD / "multimodel.yaml"),
-        "experiment": {"step": 0.05},
-        "scenarios": [{"name": "ringdown", "recorded": str(MSD / "recording" / "position.csv"), "stop_time": 10}],
-        "parameters": {"msd.k": {"low": 5, "high": 25}, "msd.c": {"low": 0.2, "high": 2.0}},
-        "objectives": {"position_rmse": {"signal": "msd.x", "recorded": "x", "metric": "rmse"},
-                       "position_max": {"signal": "msd.x", "recorded": "x", "metric": "max_abs"}},
-        "ranking": {"objective": "position_rmse", "pareto": ["position_rmse", "position_max"]},
-        "search": {"strategy": "tpe", "max_points": POINTS, "seed": 1},
-        "output": str(folder / "out"),
-        "keep_trajectories": 1,
-    }
-    path = folder / "space.yaml"
-    path.write_text(yaml.safe_dump(spec, sort_keys=False))
-    return path
+    return write_msd_search(
+        folder, {"strategy": "tpe", "max_points": POINTS, "seed": 1}, keep_trajectories=1,
+        objectives={"position_rmse": {"signal": "msd.x", "recorded": "x", "metric": "rmse"},
+                    "position_max": {"signal": "msd.x", "recorded": "x", "metric": "max_abs"}},
+        ranking={"objective": "position_rmse", "pareto": ["position_rmse", "position_max"]})
 
 
 def drawn(page, name: str, column: str) -> int:
