@@ -292,16 +292,18 @@ class Run:
             ship.send(client, self.shipment)
             self._connected(client)
             self._start(client, done)
-            while True:
-                try:
-                    self._chunks(client)
-                    break
-                except SchedulerLost:
-                    self._reconnect(client)  # a new scheduler knows neither our plugin nor our chunks
-                    ship.send(client, self.shipment)
-                    self._connected(client)
-                    self._start(client, store.finished_task_ids(self.space.output, self.space.name))
-        self.source.save()
+            try:
+                while True:
+                    try:
+                        self._chunks(client)
+                        break
+                    except SchedulerLost:
+                        self._reconnect(client)  # a new scheduler knows neither our plugin nor our chunks
+                        ship.send(client, self.shipment)
+                        self._connected(client)
+                        self._start(client, store.finished_task_ids(self.space.output, self.space.name))
+            finally:
+                self.source.save()  # also when the run fails: what was told stays replayable
         if not report.interrupted and self.space.spec.keep_trajectories:
             keep_trajectories(self.space, client, self.space.spec.keep_trajectories, self.shipment)
         report.seconds = time.perf_counter() - self.started

@@ -75,7 +75,11 @@ class OptunaStrategy(Strategy):
         optuna.logging.set_verbosity(optuna.logging.WARNING)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-            sampler = self.sampler(seed=problem.seed, **{**self.defaults(), **options})
+            try:
+                sampler = self.sampler(seed=problem.seed, **{**self.defaults(), **options})
+            except (TypeError, ValueError) as e:  # a value of the wrong type or range, as Optuna says
+                raise DseError(f"search: {self.sampler.__name__} refuses the options "
+                               f"{', '.join(f'{k}={v!r}' for k, v in options.items())}: {e}") from None
         self.goals = list(problem.pareto) if self.multi_objective else [problem.objective]
         self.study = optuna.create_study(
             sampler=sampler, directions=["minimize" if g == "min" else "maximize" for _, g in self.goals])
@@ -90,7 +94,12 @@ class OptunaStrategy(Strategy):
     def ask(self) -> Point | None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-            trial = self.study.ask(self.distributions)
+            try:
+                trial = self.study.ask(self.distributions)
+            except (TypeError, ValueError) as e:  # an option Optuna took but cannot use, e.g. a text sigma0
+                options = ", ".join(f"{k}={v!r}" for k, v in (self.options.model_extra or {}).items())
+                raise DseError(f"search: {self.sampler.__name__} failed to propose a point with the options "
+                               f"{options or '(none)'}: {type(e).__name__}: {e}") from None
         point = {name: float(v) if isinstance(v, int) and not isinstance(v, bool) else v
                  for name, v in trial.params.items()}
         self.trials[_key(point)].append(trial)
