@@ -1,0 +1,170 @@
+"""INTO-CPS's file formats, read as they are (issue 15; the translation into a space comes next).
+
+An INTO-CPS project keeps a DSE config ``DSEs/<name>/<name>.dse.json``, a
+multi-model ``Multi-models/<mm>/<mm>.mm.json`` (or ``mm.json``) and a
+co-simulation config ``Multi-models/<mm>/<config>/<config>.coe.json``. These
+pydantic models are the single source of truth for what dse-runner reads from
+them; docs/research/intocps-formats.md records where each field was learnt
+from INTO-CPS's own sources. Names follow INTO-CPS's JSON keys, so the models
+read like the files.
+
+Every id in these files is ``{fmuKey}.instance.variable``; :func:`split_id`
+takes one apart. The variable may itself contain dots (Modelica names).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, field_validator
+
+from ..errors import DseError, format_validation_error
+
+Loose = ConfigDict(extra="allow", allow_inf_nan=False)  # INTO-CPS writes keys we read past (graphs, livestream...)
+Strict = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+Value = bool | int | float | str
+
+
+def split_id(ref: str) -> tuple[str, str, str]:
+    """``{fmu}.instance.variable`` -> (fmu key with braces, instance, variable)."""
+    if not ref.startswith("{") or "}." not in ref:
+        raise DseError(f"{ref!r} is not an INTO-CPS id {{fmu}}.instance.variable")
+    key, _, rest = ref.partition("}.")
+    instance, dot, variable = rest.partition(".")
+    if not instance or not dot or not variable:
+        raise DseError(f"{ref!r} is not an INTO-CPS id {{fmu}}.instance.variable")
+    return key + "}", instance, variable
+
+
+# ---- *.dse.json ------------------------------------------------------------------------------------
+
+class Algorithm(BaseModel):
+    """``{"type": "exhaustive"}`` or ``{"type": "genetic", ...options}``; missing or ``{}`` is exhaustive."""
+
+    model_config = Loose
+    type: str = "exhaustive"
+
+    @property
+    def options(self) -> dict[str, Any]:
+        return dict(self.model_extra or {})
+
+
+class InternalFunction(BaseModel):
+    """An objective INTO-CPS computes itself: max, min or mean of one results column."""
+
+    model_config = Strict
+    columnID: str
+    objectiveType: Literal["max", "min", "mean"]
+
+
+class ExternalScript(BaseModel):
+    """A user's Python script in ``userMetricScripts/``; its parameters are passed in key order."""
+
+    model_config = Strict
+    scriptFile: str
+    scriptParameters: dict[str, str] = {}
+
+    @field_validator("scriptParameters", mode="before")
+    @classmethod
+    def _as_text(cls, value: Any) -> Any:
+        """INTO-CPS passes every parameter as text on the command line."""
+        return {str(k): str(v) for k, v in value.items()} if isinstance(value, dict) else value
+
+
+class ObjectiveDefinitions(BaseModel):
+    model_config = Strict
+    internalFunctions: dict[str, InternalFunction] = {}
+    externalScripts: dict[str, ExternalScript] = {}
+
+
+class DseConfig(BaseModel):
+    """A ``*.dse.json``."""
+
+    model_config = Loose  # e.g. "simulation", which INTO-CPS itself ignores (the coe.json decides)
+    algorithm: Algorithm = Algorithm()
+    parameters: dict[str, Annotated[list[Value], Field(min_length=1)]]
+    parameterConstraints: list[str] = []
+    objectiveDefinitions: ObjectiveDefinitions = ObjectiveDefinitions()
+    objectiveConstraints: list[str] = []
+    ranking: dict[str, dict[str, Literal["+", "-"]]] = {}  # {"pareto": {objective: "-" (min) | "+" (max)}}
+    scenarios: list[str] = []  # folders of userMetricScripts/ handed to the external scripts
+    geneticArguments: dict[str, Any] | None = None
+
+    @field_validator("objectiveConstraints", mode="before")
+    @classmethod
+    def _empty_object(cls, value: Any) -> Any:
+        """INTO-CPS writes an empty ``{}`` as often as ``[]``."""
+        return [] if value == {} else value
+
+    @field_validator("algorithm", mode="before")
+    @classmethod
+    def _empty_algorithm(cls, value: Any) -> Any:
+        return {} if value is None else value
+
+
+# ---- *.mm.json -------------------------------------------------------------------------------------
+
+class MultiModelConfig(BaseModel):
+    """A ``*.mm.json``: FMU paths (relative to the project's ``FMUs/``), connections, parameters."""
+
+    model_config = Loose
+    fmus: dict[str, str]
+    connections: dict[str, list[str]] = {}
+    parameters: dict[str, Value] = {}
+
+
+# ---- *.coe.json ------------------------------------------------------------------------------------
+
+class FixedStep(BaseModel):
+    model_config = Loose
+    type: Literal["fixed-step"]
+    size: float = Field(gt=0)
+
+
+class VariableStep(BaseModel):
+    """INTO-CPS's variable-step algorithm; dse-runner steps at a fixed size and says so."""
+
+    model_config = Loose
+    type: Literal["var-step"]
+    initsize: float = Field(gt=0)
+    size: tuple[float, float]
+    constraints: dict[str, Any] = {}
+
+
+def _step_kind(value: Any) -> str | None:
+    kind = value.get("type") if isinstance(value, dict) else getattr(value, "type", None)
+    return kind if kind in ("fixed-step", "var-step") else None
+
+
+StepAlgorithm = Annotated[
+    Annotated[FixedStep, Tag("fixed-step")] | Annotated[VariableStep, Tag("var-step")],
+    Discriminator(_step_kind, custom_error_type="algorithm",
+                  custom_error_message="expected {type: fixed-step, size} or {type: var-step, initsize, size}")]
+
+
+class CoeConfig(BaseModel):
+    """A ``*.coe.json``: the experiment's times and step, and (in newer files) where the mm.json is."""
+
+    model_config = Loose
+    startTime: float = 0.0
+    endTime: float
+    algorithm: StepAlgorithm
+    multimodel_path: str | None = None  # relative to the project; older files do not have it
+
+
+def read(path: str | Path, model: type[BaseModel]) -> Any:
+    """One INTO-CPS file, validated; errors name the file, the key path and the reason."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except OSError as e:
+        raise DseError(f"cannot read {path}: {e.strerror}") from None
+    except json.JSONDecodeError as e:
+        raise DseError(f"{path} line {e.lineno}, column {e.colno}: not JSON: {e.msg}") from None
+    try:
+        return model.model_validate(data)
+    except ValidationError as e:
+        raise DseError(format_validation_error(str(path), e)) from None
