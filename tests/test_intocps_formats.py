@@ -13,11 +13,10 @@ from dse_runner.interfaces.intocps import (
     CoeConfig,
     DseConfig,
     FixedStep,
-    MultiModelConfig,
     VariableStep,
     read,
-    split_id,
 )
+from dse_runner.simulation.multimodel import split_into_cps_id
 
 
 def write(folder: Path, name: str, data) -> Path:
@@ -50,12 +49,7 @@ def test_a_dse_config_with_every_field_reads(tmp_path):
                 DseConfig).algorithm.type == "exhaustive"
 
 
-def test_multimodel_and_coe_configs_read(tmp_path):
-    mm = read(write(tmp_path, "wt.mm.json", {
-        "fmus": {"{tank}": "tank.fmu", "{ctrl}": "ctrl.fmu"},
-        "connections": {"{ctrl}.ctrl.valve": ["{tank}.tank.valvecontrol"]},
-        "parameters": {"{ctrl}.ctrl.minlevel": 1.0, "{ctrl}.ctrl.on": True}}), MultiModelConfig)
-    assert mm.connections["{ctrl}.ctrl.valve"] == ["{tank}.tank.valvecontrol"]
+def test_coe_configs_read(tmp_path):
     fixed = read(write(tmp_path, "a.coe.json", {"startTime": 0, "endTime": 30, "multimodel_path": "Multi-models/wt/wt.mm.json",
                                                "algorithm": {"type": "fixed-step", "size": 0.1}, "visible": False}),
                  CoeConfig)
@@ -67,9 +61,9 @@ def test_multimodel_and_coe_configs_read(tmp_path):
 
 
 def test_ids_split_into_fmu_instance_and_variable():
-    assert split_id("{bodyFMU}.body.Demux.robot_x") == ("{bodyFMU}", "body", "Demux.robot_x")
-    with pytest.raises(DseError, match="not an INTO-CPS id"):
-        split_id("body.robot_x")
+    assert split_into_cps_id("{bodyFMU}.body.Demux.robot_x") == ("{bodyFMU}", "body", "Demux.robot_x")
+    with pytest.raises(DseError, match=r"'body\.robot_x' is not of the form \{fmu\}\.instance\.variable"):
+        split_into_cps_id("body.robot_x")
 
 
 @pytest.mark.parametrize(("name", "text", "model", "message"), [

@@ -2,14 +2,14 @@
 
 An INTO-CPS project keeps a DSE config ``DSEs/<name>/<name>.dse.json``, a
 multi-model ``Multi-models/<mm>/<mm>.mm.json`` (or ``mm.json``) and a
-co-simulation config ``Multi-models/<mm>/<config>/<config>.coe.json``. These
-pydantic models are the single source of truth for what dse-runner reads from
-them; docs/research/intocps-formats.md records where each field was learnt
-from INTO-CPS's own sources. Names follow INTO-CPS's JSON keys, so the models
-read like the files.
-
-Every id in these files is ``{fmuKey}.instance.variable``; :func:`split_id`
-takes one apart. The variable may itself contain dots (Modelica names).
+co-simulation config ``Multi-models/<mm>/<config>/<config>.coe.json``. The
+mm.json is read where every multi-model is (simulation/multimodel.py,
+``from_into_cps``); the two others are these pydantic models, the single
+source of truth for what dse-runner reads from them.
+docs/research/intocps-formats.md records where each field was learnt from
+INTO-CPS's own sources. Names follow INTO-CPS's JSON keys, so the models read
+like the files. Ids are ``{fmuKey}.instance.variable``
+(multimodel.split_into_cps_id takes one apart).
 """
 
 from __future__ import annotations
@@ -26,17 +26,6 @@ Loose = ConfigDict(extra="allow", allow_inf_nan=False)  # INTO-CPS writes keys w
 Strict = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 Value = bool | int | float | str
-
-
-def split_id(ref: str) -> tuple[str, str, str]:
-    """``{fmu}.instance.variable`` -> (fmu key with braces, instance, variable)."""
-    if not ref.startswith("{") or "}." not in ref:
-        raise DseError(f"{ref!r} is not an INTO-CPS id {{fmu}}.instance.variable")
-    key, _, rest = ref.partition("}.")
-    instance, dot, variable = rest.partition(".")
-    if not instance or not dot or not variable:
-        raise DseError(f"{ref!r} is not an INTO-CPS id {{fmu}}.instance.variable")
-    return key + "}", instance, variable
 
 
 # ---- *.dse.json ------------------------------------------------------------------------------------
@@ -103,17 +92,6 @@ class DseConfig(BaseModel):
     @classmethod
     def _empty_algorithm(cls, value: Any) -> Any:
         return {} if value is None else value
-
-
-# ---- *.mm.json -------------------------------------------------------------------------------------
-
-class MultiModelConfig(BaseModel):
-    """A ``*.mm.json``: FMU paths (relative to the project's ``FMUs/``), connections, parameters."""
-
-    model_config = Loose
-    fmus: dict[str, str]
-    connections: dict[str, list[str]] = {}
-    parameters: dict[str, Value] = {}
 
 
 # ---- *.coe.json ------------------------------------------------------------------------------------

@@ -124,15 +124,26 @@ class MultiModel(BaseModel):
         return self.instances.get(instance) or InstanceSettings()
 
 
+def split_into_cps_id(ref: str) -> tuple[str, str, str]:
+    """INTO-CPS's ``{fmu}.instance.variable`` -> (``{fmu}``, instance, variable); the variable may hold dots."""
+    key, dot, rest = ref.partition("}.")
+    try:
+        if not ref.startswith("{") or not dot:
+            raise ValueError
+        instance, variable = split_ref(rest)
+    except ValueError:
+        raise DseError(f"{ref!r} is not of the form {{fmu}}.instance.variable") from None
+    return key + "}", instance, variable
+
+
 def from_into_cps(data: dict[str, Any]) -> dict[str, Any]:
     """Convert INTO-CPS's mm.json shape into our multi-model's fields."""
 
     def local(ref: str) -> tuple[str, str]:
-        key, dot, rest = ref.partition("}.")
-        if not ref.startswith("{") or not dot:
-            raise DseError(f"mm.json: {ref!r} is not of the form {{fmu}}.instance.variable")
-        instance, variable = split_ref(rest)
-        fmu_key = key + "}"
+        try:
+            fmu_key, instance, variable = split_into_cps_id(ref)
+        except DseError as e:
+            raise DseError(f"mm.json: {e}") from None
         if fmu_key not in data.get("fmus", {}):
             raise DseError(f"mm.json: {ref!r} names FMU {fmu_key}, which 'fmus' does not list")
         instances.setdefault(instance, data["fmus"][fmu_key])
