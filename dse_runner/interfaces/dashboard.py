@@ -29,7 +29,6 @@ from typing import Any
 
 import pandas as pd
 from distributed.diagnostics.plugin import SchedulerPlugin
-from pydantic import ValidationError
 
 from ..analysis.comparison import Comparison, compare
 from ..analysis.rank import current_model, current_rows, format_point, load_sweep_spec, plain, standings
@@ -92,8 +91,8 @@ class Feed:
         rows = current_rows(self.output, self.sweep, ["group", "status", *self.parameters, self.objective])
         ok = rows[rows["status"] == "ok"]
         last = self._snapshot
-        status = _reread(load_status, self.output, self.sweep, last.status if last else None)
-        history = _reread(load_history, self.output, self.sweep, last.history if last else None) \
+        status = load_status(self.output, self.sweep)
+        history = load_history(self.output, self.sweep) \
             if self.closed_loop or (last is not None and last.history is not None) else None
         return Snapshot(status, ok, len(rows), int((rows["status"] != "ok").sum()),
                         standings(ok, self.parameters, self.objective, self.goal), history)
@@ -146,15 +145,6 @@ class Feed:
                               timeout=space.spec.timeout, experiment=space.experiment)
             self._tracks[key] = (compare(result, objective), result.objectives[self.objective])
         return self._tracks[key]
-
-
-def _reread(load, output: store.Root, sweep: str, last):
-    """``load(output, sweep)``, or ``last`` if the file was caught half rewritten (the submitting
-    process rewrites it in place every second)."""
-    try:
-        return load(output, sweep)
-    except (ValidationError, ValueError, UnicodeDecodeError):
-        return last
 
 
 def _duration(seconds: float | None) -> str:

@@ -171,7 +171,8 @@ def build_report(output: store.Root, sweep: str | None = None) -> str:
         pareto=charts.html_table(ranking.pareto) if not ranking.pareto.empty else "",
         groups=charts.html_table(ranking.groups) if not ranking.groups.empty else "",
         weighted=charts.html_table(ranking.weighted.head(10)) if not ranking.weighted.empty else "",
-        plots=divs, track_note=track_note, over=spec.ranking.over_scenarios, search=[(name, html.escape(value)) for name, value in search],
+        plots=divs, track_note=track_note, over=spec.ranking.over_scenarios,
+        search=[(name, html.escape(value)) for name, value in search],
         spec=html.escape(yaml.safe_dump(spec.model_dump(mode="json"), sort_keys=False)),
         table_style=charts.TABLE_STYLE, bokeh_resources=Resources(mode="inline", components=["bokeh"]).render(), bokeh_script=script)
 

@@ -28,6 +28,7 @@ from pydantic import BaseModel, computed_field
 from ..simulation.objectives import is_vector
 from . import store
 from .chunks import ChunkJob, ChunkSummary, TaskScores, chunk_id_of
+from .cluster import total_threads
 from .domain import Point
 from .expand import Task, TaskBatch, scenario_hash, task_id
 from .history import SearchHistory, State, load_history, save_history, settings_digest
@@ -100,7 +101,7 @@ class SearchSource:
         self.requeue: deque[int] = deque()  # points to (re)submit before asking for new ones
         self.running: dict[int, dict[str, TaskScores]] = {}  # point number -> its task results so far
         self.followers: dict[int, list[int]] = {}  # a running point -> later asks of the same point, told with it
-        self.started = self.first_sent = self.last_result = 0.0
+        self.started = self.first_sent = 0.0
         self.saved = 0.0
         self.batch = 1
         self.told: set[tuple] = set()  # points told a simulation result: asking one again is a repeat
@@ -110,9 +111,11 @@ class SearchSource:
 
     # ---- starting and replaying ----------------------------------------------------------------
 
-    def start(self, threads: int, done: set[str]) -> None:
+    def start(self, client, done: set[str]) -> None:
         """Called when the run (re)connects: the first time build and replay the strategy; after a
-        scheduler restart send the points that were in flight again (or tell them from the store)."""
+        scheduler restart send the points that were in flight again (or tell them from the store).
+        ``done`` is not needed: a search reads the stored results themselves, not only their ids."""
+        threads = total_threads(client)
         self.stored = self._stored_scores()
         self.status.threads = threads
         if self.strategy is not None:
@@ -256,8 +259,7 @@ class SearchSource:
 
     def finished(self, job: ChunkJob, summary: ChunkSummary) -> None:
         self.status.busy_seconds += summary.busy
-        self.last_result = time.monotonic()
-        self.status.window_seconds = self.last_result - self.first_sent
+        self.status.window_seconds = time.monotonic() - self.first_sent
         results = self.running.get(job.point)
         if results is None:
             return  # told already (a chunk that finished twice, around a scheduler restart)

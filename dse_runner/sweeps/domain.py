@@ -31,16 +31,16 @@ class Dimension:
     choices: tuple[Any, ...] | None = None  # a list, or a grid given by num
 
     @property
-    def continuous(self) -> bool:
-        return self.choices is None and self.step is None and not self.integer
+    def steps(self) -> int:
+        """How many values a stepped grid has (its ends included when a step lands on the end)."""
+        return math.floor((self.high - self.low) / self.step + 1e-9) + 1
 
     def grid(self) -> list[Any] | None:
         """Every value, or None for a continuous interval (a grid strategy cannot enumerate it)."""
         if self.choices is not None:
             return list(self.choices)
         if self.step is not None:
-            count = math.floor((self.high - self.low) / self.step + 1e-9) + 1
-            return [round(self.low + i * self.step, 12) for i in range(count)]
+            return [round(self.low + i * self.step, 12) for i in range(self.steps)]
         if self.integer:
             return [float(v) for v in range(int(self.low), int(self.high) + 1)]
         return None
@@ -56,27 +56,13 @@ class Dimension:
         if self.choices is not None:
             return self.choices[min(int(u * len(self.choices)), len(self.choices) - 1)]
         if self.step is not None:
-            count = math.floor((self.high - self.low) / self.step + 1e-9) + 1
-            return round(self.low + min(int(u * count), count - 1) * self.step, 12)
+            return round(self.low + min(int(u * self.steps), self.steps - 1) * self.step, 12)
         if self.integer:
             span = int(self.high) - int(self.low) + 1
             return float(int(self.low) + min(int(u * span), span - 1))
         if self.log:
             return float(math.exp(math.log(self.low) + u * (math.log(self.high) - math.log(self.low))))
         return float(self.low + u * (self.high - self.low))
-
-    def to_unit(self, value: Any) -> float:
-        """The inverse of :meth:`from_unit` (the middle of the value's cell for discrete values)."""
-        if self.choices is not None:
-            return (self.choices.index(value) + 0.5) / len(self.choices)
-        if self.step is not None:
-            count = math.floor((self.high - self.low) / self.step + 1e-9) + 1
-            return (round((value - self.low) / self.step) + 0.5) / count
-        if self.integer:
-            return (value - int(self.low) + 0.5) / (int(self.high) - int(self.low) + 1)
-        if self.log:
-            return (math.log(value) - math.log(self.low)) / (math.log(self.high) - math.log(self.low))
-        return (value - self.low) / (self.high - self.low)
 
 
 def from_units(dimensions: list[Dimension], units: Any) -> Point:

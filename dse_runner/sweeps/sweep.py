@@ -1,8 +1,10 @@
 """Running a design space on Dask: chunks of tasks in, Parquet partitions out.
 
-The client expands the space lazily (or, for a closed-loop search, asks its strategy: closed_loop.py), skips tasks that already have a row,
+The client expands the space lazily, skips tasks that already have a row,
 ships the FMUs and recordings to the workers (ship.py) and keeps a bounded
-number of chunks in flight. Each chunk runs on a worker (:func:`run_chunk`),
+number of chunks in flight; for a closed-loop search the chunks come from
+its strategy instead (closed_loop.py). Each chunk runs on a worker
+(chunks.run_chunk),
 which simulates its tasks with the worker's cached FMU instances, writes the
 rows to the store itself and returns only a small summary, so the client's
 memory does not grow with the sweep.
@@ -218,8 +220,8 @@ class SchedulerLost(Exception):
 class JobSource(Protocol):
     """Where a run's chunks come from: a grid's chunks (GridSource) or a search's points (SearchSource)."""
 
-    def start(self, threads: int, done: set[str]) -> None:
-        """(Re)connected to a cluster of ``threads`` worker threads; ``done``: task ids with a row."""
+    def start(self, client, done: set[str]) -> None:
+        """(Re)connected to the cluster of ``client``; ``done``: task ids with a row."""
 
     def next(self, in_flight: int) -> ChunkJob | None:
         """The next chunk to send while ``in_flight`` run; None: none for now."""
@@ -241,13 +243,13 @@ class GridSource:
     points: list[Point] | None = None
     only: list[Collection[str]] | None = None
     seconds_per_task: float | None = None  # known from an earlier round; else probed
-    client: Any = None
     jobs: Iterator[ChunkJob] | None = None
     capacity: int = 1
 
-    def start(self, threads: int, done: set[str]) -> None:
+    def start(self, client, done: set[str]) -> None:
+        threads = total_threads(client)
         pending = self.report.total - self.report.skipped - self.report.ran
-        cost = self.seconds_per_task or self.probe(first_point(self.space, self.points))
+        cost = self.seconds_per_task or self.probe(client, first_point(self.space, self.points))
         self.report.chunk_size = chunk_size(cost, self.space.spec.chunk_seconds, pending, threads)
         self.jobs = _jobs(self.space, self.shipment, done, self.report.chunk_size, self.points, self.only)
         self.capacity = 2 * threads + 2
@@ -261,12 +263,12 @@ class GridSource:
     def save(self) -> None:
         pass  # the rows are all a grid needs
 
-    def probe(self, point: Point) -> float | None:
+    def probe(self, client, point: Point) -> float | None:
         from distributed.scheduler import KilledWorker
 
         spec = self.space.spec
-        future = self.client.submit(probe, self.shipment, self.space.scenarios[0].name, point,
-                                    self.space.objectives, spec.timeout, self.space.experiment, pure=False)
+        future = client.submit(probe, self.shipment, self.space.scenarios[0].name, point,
+                               self.space.objectives, spec.timeout, self.space.experiment, pure=False)
         try:
             return future.result()
         except KilledWorker:
@@ -291,7 +293,7 @@ class Run:
         if report.search is not None or report.total > report.skipped:
             ship.send(client, self.shipment)
             self._connected(client)
-            self._start(client, done)
+            self.source.start(client, done)
             try:
                 while True:
                     try:
@@ -301,7 +303,7 @@ class Run:
                         self._reconnect(client)  # a new scheduler knows neither our plugin nor our chunks
                         ship.send(client, self.shipment)
                         self._connected(client)
-                        self._start(client, store.finished_task_ids(self.space.output, self.space.name))
+                        self.source.start(client, store.finished_task_ids(self.space.output, self.space.name))
             finally:
                 self.source.save()  # also when the run fails: what was told stays replayable
         if not report.interrupted and self.space.spec.keep_trajectories:
@@ -310,11 +312,6 @@ class Run:
         report.state = "interrupted" if report.interrupted else "finished"
         save_status(report)
         return report
-
-    def _start(self, client, done: set[str]) -> None:
-        if isinstance(self.source, GridSource):
-            self.source.client = client
-        self.source.start(total_threads(client), done)
 
     def _connected(self, client) -> None:
         self.report.workers = len(client.scheduler_info()["workers"])
