@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from dse_runner.errors import DseError
-from dse_runner.interfaces.intocps import (
+from dse_runner.interfaces.intocps.formats import (
     CoeConfig,
     DseConfig,
     FixedStep,

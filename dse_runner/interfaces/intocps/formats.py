@@ -20,7 +20,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, field_validator
 
-from ..errors import DseError, format_validation_error
+from ...errors import DseError, format_validation_error
 
 Loose = ConfigDict(extra="allow", allow_inf_nan=False)  # INTO-CPS writes keys we read past (graphs, livestream...)
 Strict = ConfigDict(extra="forbid", allow_inf_nan=False)
