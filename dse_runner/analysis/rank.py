@@ -27,6 +27,7 @@ from .. import strict_json
 from ..errors import DseError
 from ..simulation.objectives import is_vector, normalise
 from ..sweeps import store
+from ..sweeps.constraints import compile_constraint
 from ..sweeps.spec import Ranking as RankingSpec
 from ..sweeps.spec import SpaceSpec
 
@@ -49,6 +50,7 @@ class Ranking:
     weighted: pd.DataFrame
     incomplete_points: int
     failed_rows: int
+    excluded_points: int = 0  # complete points that break one of the ranking's constraints
 
     def to_json(self) -> dict[str, Any]:
         def records(frame: pd.DataFrame, limit: int | None = None) -> list[dict[str, Any]]:
@@ -59,7 +61,7 @@ class Ranking:
             "sweep": self.sweep, "objective": self.objective, "goal": self.goal,
             "best": self.best, "best_total": self.best_total,
             "points": len(self.totals), "incomplete_points": self.incomplete_points,
-            "failed_rows": self.failed_rows,
+            "excluded_points": self.excluded_points, "failed_rows": self.failed_rows,
             "table1": records(self.table1), "pareto": records(self.pareto),
             "groups": records(self.groups), "weighted": records(self.weighted, 10),
             "top": records(self.totals, 10),
@@ -148,6 +150,12 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
     complete = totals[totals["scenarios"] == n_scenarios].drop(columns="scenarios")
     if complete.empty:
         raise DseError(f"sweep {sweep!r}: no parameter point has an ok result for all {n_scenarios} scenarios")
+    admitted = admits(complete, settings.constraints, objectives)
+    excluded = int((~admitted).sum())
+    complete = complete[admitted]
+    if complete.empty:
+        raise DseError(f"sweep {sweep!r}: every complete point breaks a ranking constraint "
+                       f"({'; '.join(settings.constraints)})")
     complete = _best_first(complete, settings.objective, settings.goal)
     best = {p: plain(complete.loc[0, p]) for p in parameters}
 
@@ -166,8 +174,15 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
 
     return Ranking(sweep, parameters, settings.objective, settings.goal, best,
                    float(complete.loc[0, settings.objective]), complete, table1, front, groups, weighted,
-                   incomplete_points=len(totals) - len(complete),
-                   failed_rows=int((rows["status"] != "ok").sum()))
+                   incomplete_points=len(totals) - len(complete) - excluded,
+                   failed_rows=int((rows["status"] != "ok").sum()), excluded_points=excluded)
+
+
+def admits(totals: pd.DataFrame, constraints: list[str], objectives: list[str]) -> np.ndarray:
+    """Which points' objective totals meet every ranking constraint."""
+    checks = [compile_constraint(text, set(objectives), "objective") for text in constraints]
+    records = totals[objectives].to_dict("records")
+    return np.array([all(check(r) for check in checks) for r in records], dtype=bool)
 
 
 def standings(ok: pd.DataFrame, parameters: list[str], objective: str, goal: str) -> pd.DataFrame:

@@ -189,7 +189,12 @@ def _print_table1(ranking) -> None:
 
 @app.command()
 def submit(
-    spec: Annotated[Path, typer.Argument(help="Design-space spec (space.yaml).")],
+    spec: Annotated[Path, typer.Argument(help="Design-space spec (space.yaml), or an INTO-CPS DSE config "
+                                              "(NAME.dse.json) run as it is.")],
+    multimodel: Annotated[Path | None, typer.Option(
+        "--multimodel", help="INTO-CPS only: the mm.json (default: the co-simulation config's).")] = None,
+    coe: Annotated[Path | None, typer.Option(
+        "--coe", help="INTO-CPS only: the coe.json (default: found in the project's Multi-models folder).")] = None,
     out: Annotated[str | None, typer.Option(help="Results folder or fsspec URL (overrides the spec's 'output').")] = None,
     workers: Annotated[int | None, typer.Option(help="Workers to start (overrides the spec).")] = None,
     scheduler: Annotated[str | None, typer.Option(help="Address of an existing Dask scheduler (tcp:// or tls://).")] = None,
@@ -207,12 +212,12 @@ def submit(
     run again (a search goes on from where it stopped); rank."""
     from ..analysis.rank import rank, write_ranking
     from ..simulation.scenario import dropouts
-    from ..sweeps.spec import load_space
     from ..sweeps.sweep import submit as run_sweep
 
     board = None
     try:
-        space = load_space(spec).with_overrides(out, scheduler, workers, cluster, max_points, max_seconds)
+        space = _load(spec, multimodel, coe).with_overrides(out, scheduler, workers, cluster, max_points,
+                                                            max_seconds)
         if dashboard:
             board = _start_dashboard(space, dashboard_address)
         with ProgressBar() as progress:
@@ -261,6 +266,41 @@ def submit(
     typer.echo(f"ranking: {files['json'].rsplit('/', 1)[0]}")
     typer.echo(f"report: dse-runner report {report.output} -o report.html; "
                f"dashboard: dse-runner dashboard {report.output}")
+
+
+def _load(spec: Path, multimodel: Path | None, coe: Path | None):
+    """A space.yaml, or an INTO-CPS DSE config with its multi-model and co-simulation config."""
+    from . import intocps
+    from ..sweeps.spec import load_space
+
+    if intocps.is_dse_config(spec):
+        return intocps.load_space(spec, multimodel, coe)
+    if multimodel is not None or coe is not None:
+        raise DseError(f"--multimodel and --coe go with an INTO-CPS DSE config (NAME.dse.json), not {spec}")
+    return load_space(spec)
+
+
+@app.command("convert-intocps")
+def convert_intocps(
+    dse: Annotated[Path, typer.Argument(help="An INTO-CPS DSE config (NAME.dse.json) in its project.")],
+    output: Annotated[Path, typer.Option("-o", "--output", help="The space.yaml to write.")] = Path("space.yaml"),
+    multimodel: Annotated[Path | None, typer.Option(
+        "--multimodel", help="The mm.json (default: the co-simulation config's).")] = None,
+    coe: Annotated[Path | None, typer.Option(
+        "--coe", help="The coe.json (default: found in the project's Multi-models folder).")] = None,
+    as_json: JsonFlag = False,
+) -> None:
+    """Write the space.yaml equivalent to an INTO-CPS DSE config, paths relative to where it is written."""
+    from . import intocps
+
+    try:
+        path = intocps.convert(dse, output, multimodel, coe)
+    except DseError as e:
+        fail(e)
+    if as_json:
+        emit_json({"space": str(path)})
+    else:
+        typer.echo(f"space: {path}\nrun it: dse-runner submit {path}")
 
 
 def _print_search(search) -> None:

@@ -136,25 +136,46 @@ def split_into_cps_id(ref: str) -> tuple[str, str, str]:
     return key + "}", instance, variable
 
 
-def from_into_cps(data: dict[str, Any]) -> dict[str, Any]:
-    """Convert INTO-CPS's mm.json shape into our multi-model's fields."""
-
-    def local(ref: str) -> tuple[str, str]:
+def into_cps_instances(data: dict[str, Any]) -> dict[str, str]:
+    """instance -> the ``{fmu}`` key it is named under, for every id of an mm.json. Our names drop the
+    key (``instance.variable``), so an instance name may belong to one FMU key only."""
+    keys: dict[str, str] = {}
+    refs = [*data.get("connections", {}), *(t for ts in data.get("connections", {}).values() for t in ts),
+            *data.get("parameters", {})]
+    for ref in refs:
         try:
-            fmu_key, instance, variable = split_into_cps_id(ref)
+            fmu_key, instance, _ = split_into_cps_id(ref)
         except DseError as e:
             raise DseError(f"mm.json: {e}") from None
         if fmu_key not in data.get("fmus", {}):
             raise DseError(f"mm.json: {ref!r} names FMU {fmu_key}, which 'fmus' does not list")
-        instances.setdefault(instance, data["fmus"][fmu_key])
-        return instance, variable
+        known = keys.setdefault(instance, fmu_key)
+        if known != fmu_key:
+            raise DseError(f"mm.json: instance {instance!r} belongs to two FMUs, {known} and {fmu_key}; "
+                           "dse-runner names variables instance.variable, so rename one instance")
+    return keys
 
-    instances: dict[str, str] = {}
-    connections = {
-        ".".join(local(src)): [".".join(local(dst)) for dst in dsts]
-        for src, dsts in data.get("connections", {}).items()
-    }
-    parameters = {".".join(local(ref)): v for ref, v in data.get("parameters", {}).items()}
+
+def _into_cps_fmu(path: str, base_dir: Path) -> str:
+    """INTO-CPS keeps FMUs in the project's ``FMUs`` folder and names them relative to it."""
+    if Path(path).is_absolute():
+        return path
+    for folder in (base_dir, *list(base_dir.parents)[:3]):
+        if (folder / "FMUs" / path).exists():
+            return str((folder / "FMUs" / path).resolve())
+    return path
+
+
+def from_into_cps(data: dict[str, Any], base_dir: Path = Path(".")) -> dict[str, Any]:
+    """Convert INTO-CPS's mm.json shape into our multi-model's fields."""
+    keys = into_cps_instances(data)
+
+    def local(ref: str) -> str:
+        return ".".join(split_into_cps_id(ref)[1:])
+
+    instances = {instance: _into_cps_fmu(data["fmus"][key], base_dir) for instance, key in keys.items()}
+    connections = {local(src): [local(dst) for dst in dsts] for src, dsts in data.get("connections", {}).items()}
+    parameters = {local(ref): v for ref, v in data.get("parameters", {}).items()}
     ours = {k: v for k, v in data.items() if k in ("scenario", "instances", "step")}
     return {"fmus": instances, "connections": connections, "parameters": parameters, **ours}
 
@@ -168,7 +189,7 @@ def parse_multimodel(data: Any, source: str, base_dir: Path) -> MultiModel:
     if not isinstance(data, dict):
         raise DseError(f"{source}: expected a mapping with 'fmus', 'connections', 'parameters'")
     if is_into_cps(data):
-        data = from_into_cps(data)
+        data = from_into_cps(data, base_dir)
     try:
         return MultiModel.model_validate({**data, "base_dir": base_dir})
     except ValidationError as e:

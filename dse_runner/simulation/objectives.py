@@ -3,7 +3,8 @@
 In space.yaml an objective is one of (docs/space.md):
 
 * ``{signal: tank.level, reduce: max}``: a reduction of one recorded signal
-  over the simulated time: final, min, max, mean (time average), integral,
+  over the simulated time: final, min, max, mean (time average),
+  sample_mean (the mean of the communication-point samples, as INTO-CPS computes it), integral,
   rms, changes (how often the value changes), time_above / time_below a
   ``threshold``, or settling_time (when it last enters a band around its
   target). With ``target: 1.5`` the reduction applies to the signal's
@@ -12,6 +13,8 @@ In space.yaml an objective is one of (docs/space.md):
 * ``{signal: msd.x, recorded: x, metric: rmse}``: a signal against a column
   of the scenario's recording, at the recorded sample times: rmse, mae,
   max_abs, or residuals (every error, a vector: what least squares fits);
+* ``{script: metrics/settle.py, args: [...]}``: a Python 3 script run in a
+  subprocess with INTO-CPS's calling convention (scripts.py);
 * a name: an objective a plug-in registers in the entry-point group
   ``dse_runner.objectives`` (the field-data kind registers the paper's
   ``cross_track_error`` and its kin), or ``module:function``.
@@ -32,18 +35,20 @@ import importlib
 from collections.abc import Callable, Mapping
 from functools import cache
 from importlib.metadata import entry_points
+from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, model_validator
 
 from ..errors import DseError
+from .scripts import Script, run_scripts
 
 Function = Callable[[Any, Any], Any]  # (trajectory, scenario) -> number or vector
 
 Strict = ConfigDict(extra="forbid", allow_inf_nan=False)
 
-Reduction = Literal["final", "min", "max", "mean", "integral", "rms", "changes",
+Reduction = Literal["final", "min", "max", "mean", "sample_mean", "integral", "rms", "changes",
                     "time_above", "time_below", "settling_time"]
 
 
@@ -80,7 +85,7 @@ class Fit(BaseModel):
     metric: Literal["rmse", "mae", "max_abs", "residuals"] = "rmse"  # residuals: every error, a vector
 
 
-ObjectiveSpec = Reduce | Fit | str
+ObjectiveSpec = Reduce | Fit | Script | str
 
 
 def normalise(objectives: list[str] | Mapping[str, ObjectiveSpec]) -> dict[str, ObjectiveSpec]:
@@ -121,6 +126,7 @@ REDUCTIONS: dict[str, Callable[[np.ndarray, np.ndarray, Reduce], float]] = {
     "min": lambda t, v, s: float(np.min(v)),
     "max": lambda t, v, s: float(np.max(v)),
     "mean": lambda t, v, s: _integral(t, v) / _span(t),
+    "sample_mean": lambda t, v, s: float(np.mean(v)),
     "integral": lambda t, v, s: _integral(t, v),
     "rms": lambda t, v, s: float(np.sqrt(_integral(t, v * v) / _span(t))),
     "changes": lambda t, v, s: float(np.count_nonzero(np.diff(v))),
@@ -192,7 +198,15 @@ def is_vector(spec: ObjectiveSpec) -> bool:
 
 def signals(spec: ObjectiveSpec) -> tuple[str, ...]:
     """The signals a declared objective reads: they must be recorded."""
+    if isinstance(spec, Script):
+        return tuple(spec.columns.values())
     return (spec.signal,) if isinstance(spec, (Reduce, Fit)) else ()
+
+
+def load_scripts(objectives: Mapping[str, ObjectiveSpec], base: Path, source: str) -> dict[str, ObjectiveSpec]:
+    """The objectives with every script read (relative to ``base``), so that they travel to workers."""
+    return {name: spec.loaded(base, f"{source}: objectives.{name}") if isinstance(spec, Script) else spec
+            for name, spec in objectives.items()}
 
 
 def compute(spec: ObjectiveSpec, trajectory, scenario) -> Any:
@@ -205,9 +219,13 @@ def compute(spec: ObjectiveSpec, trajectory, scenario) -> Any:
 
 def evaluate(objectives: Mapping[str, ObjectiveSpec], trajectory, scenario) -> dict[str, float | list[float]]:
     """Every objective's value; a value that is not a finite number is an error naming the objective,
-    so a NaN never reaches a result row with an ok status."""
+    so a NaN never reaches a result row with an ok status. Scripts run last, all in one folder,
+    and see the other values in its objectives.json."""
     results: dict[str, float | list[float]] = {}
+    scripts = {name: spec for name, spec in objectives.items() if isinstance(spec, Script)}
     for name, spec in objectives.items():
+        if name in scripts:
+            continue
         value = compute(spec, trajectory, scenario)
         vector = is_vector(spec)
         try:
@@ -218,4 +236,6 @@ def evaluate(objectives: Mapping[str, ObjectiveSpec], trajectory, scenario) -> d
             raise DseError(f"objective {name!r} is not a finite number on scenario {scenario.name} "
                            f"({value!r:.80})")
         results[name] = number.tolist() if vector else number
-    return results
+    if scripts:
+        results.update(run_scripts(scripts, trajectory, scenario.data, results))
+    return {name: results[name] for name in objectives}

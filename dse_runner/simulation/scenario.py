@@ -8,7 +8,8 @@ A scenario is, in general (docs/space.md):
 * optionally a recording: CSV columns the objectives compare signals with;
 * optionally its own start time, stop time and step;
 * named fields a multi-model's ``scenario:`` section binds to FMU variables
-  (how a recording's own format hands over, e.g., a file an FMU reads).
+  (how a recording's own format hands over, e.g., a file an FMU reads);
+* optionally a data folder, whose files script objectives read (scripts.py).
 
 It is written inline in space.yaml or as ``scenario.yaml`` in a folder
 (kind ``signals``, this module). Other formats are *kinds*, plug-ins in the
@@ -175,6 +176,7 @@ class Scenario:
     parameters: Mapping[str, Value] = field(default_factory=dict)  # instance.variable -> value
     fields: Mapping[str, Value] = field(default_factory=dict)  # what a multi-model's `scenario:` binds
     files: Mapping[str, Path] = field(default_factory=dict)  # fields that are files FMUs read by path
+    data: Mapping[str, Path] = field(default_factory=dict)  # a data folder's files by relative name, for scripts
     recorded: Recording | None = None
     start_time: float | None = None
     stop_time: float | None = None
@@ -200,6 +202,10 @@ class Scenario:
     def with_files(self, files: Mapping[str, Path]) -> "Scenario":
         """The same scenario reading its files from elsewhere (a worker's copies)."""
         return replace(self, files=dict(files))
+
+    def with_data(self, data: Mapping[str, Path]) -> "Scenario":
+        """The same scenario with its data files elsewhere (a worker's copies)."""
+        return replace(self, data=dict(data))
 
     def with_group(self, group: str) -> "Scenario":
         return replace(self, group=group)
@@ -247,6 +253,14 @@ class ScenarioSpec(BaseModel):
     start_time: float | None = None
     stop_time: PositiveFloat | None = None
     step: PositiveFloat | None = None
+    data: str | None = None  # a folder of files script objectives read (INTO-CPS: userMetricScripts/<scenario>)
+
+
+def read_data_folder(folder: Path, where: str) -> dict[str, Path]:
+    """Every file under ``folder`` by its path relative to it."""
+    if not folder.is_dir():
+        raise DseError(f"{where}: data folder not found: {folder}")
+    return {p.relative_to(folder).as_posix(): p.resolve() for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
 def from_spec(spec: ScenarioSpec, base: Path, source: str) -> Scenario:
@@ -274,8 +288,14 @@ def from_spec(spec: ScenarioSpec, base: Path, source: str) -> Scenario:
         path = _file(base, recorded_spec.csv, f"{source}: recorded")
         recorded = read_recording(path, recorded_spec.time)
         sources.append(path)
+    data = {}
+    if spec.data is not None:
+        data = read_data_folder(Path(spec.data) if Path(spec.data).is_absolute() else base / spec.data,
+                                f"{source}: data")
+        sources.extend(data.values())
     return Scenario(spec.name, spec.group, "signals", inputs, dict(spec.parameters), recorded=recorded,
-                    start_time=spec.start_time, stop_time=spec.stop_time, step=spec.step, sources=tuple(sources))
+                    start_time=spec.start_time, stop_time=spec.stop_time, step=spec.step, sources=tuple(sources),
+                    data=data)
 
 
 def read_recording(path: Path, time: str = "time") -> Recording:

@@ -42,7 +42,7 @@ class Shipment:
     multimodel: MultiModel  # its ``fmus`` name content hashes, not paths
     fmus: dict[str, bytes]  # content hash -> .fmu archive
     scenarios: dict[str, Scenario]  # read and checked on the client; their data travel with them
-    files: dict[str, bytes]  # content hash -> a file an FMU reads by path (a scenario's ``files``)
+    files: dict[str, bytes]  # content hash -> a file an FMU or a script reads (a scenario's ``files``, ``data``)
 
 
 def _sha(data: bytes) -> str:
@@ -65,9 +65,11 @@ def pack(plan: Plan, scenarios: list[Scenario]) -> Shipment:
     packed = {}
     for scenario in scenarios:
         contents = {name: _read(scenario, path) for name, path in scenario.files.items()}
-        files.update({_sha(data): data for data in contents.values()})
+        data = {name: _read(scenario, path) for name, path in scenario.data.items()}
+        files.update({_sha(content): content for content in (*contents.values(), *data.values())})
         # the scenario's files become content hashes, as the multi-model's FMUs do
-        packed[scenario.name] = scenario.with_files({name: Path(_sha(data)) for name, data in contents.items()})
+        packed[scenario.name] = (scenario.with_files({name: Path(_sha(c)) for name, c in contents.items()})
+                                 .with_data({name: Path(_sha(c)) for name, c in data.items()}))
     digest = hashlib.sha256()
     digest.update(multimodel.model_dump_json().encode())
     for sha in sorted(fmus) + sorted(files):
@@ -116,6 +118,7 @@ def unpack(shipment: Shipment) -> Unpacked:
         update={"fmus": {name: str(paths[sha]) for name, sha in shipment.multimodel.fmus.items()}})
     files = {sha: _write_once(root / "files" / sha, data) for sha, data in shipment.files.items()}
     scenarios = {name: s.with_files({field: files[str(sha)] for field, sha in s.files.items()})
+                 .with_data({file: files[str(sha)] for file, sha in s.data.items()})
                  for name, s in shipment.scenarios.items()}
     done = _UNPACKED[shipment.key] = Unpacked(make_plan(multimodel), scenarios)
     return done

@@ -151,6 +151,7 @@ class Ranking(BaseModel):
     over_scenarios: Literal["sum", "mean", "max", "min"] = "sum"  # max: the worst case of a minimised objective
     pareto: list[Direction | str] = []  # objectives of the Pareto front, each "name" or {objective, goal}
     weights: dict[str, float] = {}  # weighted sum of per-point totals
+    constraints: list[str] = []  # on objective totals, e.g. "level_max < 2.4": points breaking one are not ranked
 
     def pareto_goals(self) -> list[tuple[str, str]]:
         """(objective, "min" | "max") for each Pareto objective."""
@@ -231,6 +232,15 @@ class Cluster(BaseModel):
         return self
 
 
+class Origin(BaseModel):
+    """What a space was converted from, so that reports also write that tool's result files."""
+
+    model_config = Strict
+    format: Literal["intocps"]
+    path: str  # the file converted: an INTO-CPS DSE config
+    fmu_keys: dict[str, str] = {}  # instance -> the FMU key its tool names it under ({tank})
+
+
 class SpaceSpec(BaseModel):
     model_config = Strict
     name: str = Field(pattern=r"^[A-Za-z0-9_.-]+$")
@@ -247,6 +257,7 @@ class SpaceSpec(BaseModel):
     keep_trajectories: int = Field(default=3, ge=0)  # best points whose tracks are kept
     timeout: PositiveFloat = 600.0  # seconds one simulation may take
     chunk_seconds: PositiveFloat = 2.0  # target wall time of one chunk of tasks
+    origin: Origin | None = None  # set when converted from another tool's files (interfaces/intocps)
 
 
 def _normal(value: Any) -> Any:
@@ -273,6 +284,8 @@ class Space:
         self.plan = plan  # the multi-model with every name checked against its FMUs
         self.scenarios = scenarios
         self.dimensions = [dimension(name, v) for name, v in spec.parameters.items()]
+        # name -> declared objective, in the spec's order; scripts read, to travel to the workers
+        self.objectives = objs.load_scripts(objs.normalise(spec.objectives or []), path.parent, str(path))
         # every value of a grid or list; an interval's two ends (what the type and bound checks need)
         self.parameters = {d.name: d.extremes() for d in self.dimensions}
         self.constraints = []
@@ -289,11 +302,6 @@ class Space:
     @property
     def multimodel(self) -> MultiModel:
         return self.plan.multimodel
-
-    @property
-    def objectives(self) -> dict[str, objs.ObjectiveSpec]:
-        """name -> declared objective, in the spec's order."""
-        return objs.normalise(self.spec.objectives or [])
 
     @property
     def experiment(self) -> Experiment:
@@ -419,6 +427,11 @@ def _check_names(space: Space, source: str) -> None:
                            f"({', '.join(space.objectives)})")
         if objs.is_vector(space.objectives[name]):
             raise DseError(f"{source}: ranking uses {name!r}, a vector objective; rankings need one number per task")
+    for index, text in enumerate(space.spec.ranking.constraints):
+        try:
+            compile_constraint(text, set(space.objectives), "objective")
+        except DseError as e:
+            raise DseError(f"{source}: ranking.constraints.{index}: {e}") from None
 
 
 def _check_search(space: Space, source: str) -> None:
@@ -439,14 +452,15 @@ def _check_search(space: Space, source: str) -> None:
 
 
 def _check_objective(space: Space, name: str, objective: objs.ObjectiveSpec, source: str) -> None:
-    """A declared objective's signal must exist and its recorded column be in every scenario."""
+    """A declared objective's signals must exist and its recorded column be in every scenario."""
     where = f"{source}: objectives.{name}"
     if isinstance(objective, str):
         objs.function(objective)
         return
-    variable = space.plan.variable(qualify(space.plan, objective.signal), where)
-    if not variable.numeric:
-        raise DseError(f"{where}: {variable.ref!r} is a {variable.type}, not a number one can score")
+    for signal in objs.signals(objective):
+        variable = space.plan.variable(qualify(space.plan, signal), where)
+        if not variable.numeric:
+            raise DseError(f"{where}: {variable.ref!r} is a {variable.type}, not a number one can score")
     if isinstance(objective, objs.Fit):
         for scenario in space.scenarios:
             if scenario.recorded is None:

@@ -9,3 +9,45 @@
 * results.py: INTO-CPS's result files (dseResults.csv, results.html,
   ranking.json, graphs/pareto.png) written from our ranking.
 """
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+
+from ...sweeps.spec import Space, resolve_space
+from .convert import IntoCpsWarning, to_spec
+from .project import locate
+
+__all__ = ["IntoCpsWarning", "convert", "is_dse_config", "load_space"]
+
+
+def is_dse_config(path: str | Path) -> bool:
+    """INTO-CPS names its DSE configs ``<name>.dse.json``."""
+    return str(path).lower().endswith(".dse.json")
+
+
+def load_space(dse: str | Path, multimodel: str | Path | None = None, coe: str | Path | None = None) -> Space:
+    """An INTO-CPS DSE config as a checked space, ready to submit; paths relative to its folder."""
+    located = locate(Path(dse), _path(multimodel), _path(coe))
+    return resolve_space(to_spec(located, located.dse.parent), located.dse)
+
+
+def convert(dse: str | Path, output: str | Path, multimodel: str | Path | None = None,
+            coe: str | Path | None = None) -> Path:
+    """Write the space.yaml equivalent to an INTO-CPS DSE config; it is loaded once to check it."""
+    output = Path(output).resolve()
+    output.parent.mkdir(parents=True, exist_ok=True)
+    located = locate(Path(dse), _path(multimodel), _path(coe))
+    spec = to_spec(located, output.parent)
+    resolve_space(spec, output)
+    data = spec.model_dump(mode="json", exclude_none=True, exclude_defaults=True)
+    header = (f"# Converted from the INTO-CPS DSE config {located.dse.name} by dse-runner convert-intocps\n"
+              f"# (multi-model {located.multimodel.name}, co-simulation config {located.coe.name}).\n")
+    output.write_text(header + yaml.safe_dump(data, sort_keys=False, width=110))
+    return output
+
+
+def _path(value: str | Path | None) -> Path | None:
+    return Path(value) if value is not None else None

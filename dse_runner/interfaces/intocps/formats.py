@@ -1,4 +1,4 @@
-"""INTO-CPS's file formats, read as they are (issue 15; the translation into a space comes next).
+"""INTO-CPS's file formats, read as they are (convert.py makes them a space).
 
 An INTO-CPS project keeps a DSE config ``DSEs/<name>/<name>.dse.json``, a
 multi-model ``Multi-models/<mm>/<mm>.mm.json`` (or ``mm.json``) and a
@@ -133,15 +133,20 @@ class CoeConfig(BaseModel):
     multimodel_path: str | None = None  # relative to the project; older files do not have it
 
 
-def read(path: str | Path, model: type[BaseModel]) -> Any:
-    """One INTO-CPS file, validated; errors name the file, the key path and the reason."""
+def read_json(path: str | Path) -> Any:
+    """An INTO-CPS file's JSON; errors name the file (and the line and column)."""
     path = Path(path)
     try:
-        data = json.loads(path.read_text())
+        return json.loads(path.read_text())
     except OSError as e:
         raise DseError(f"cannot read {path}: {e.strerror}") from None
     except json.JSONDecodeError as e:
         raise DseError(f"{path} line {e.lineno}, column {e.colno}: not JSON: {e.msg}") from None
+
+
+def read(path: str | Path, model: type[BaseModel]) -> Any:
+    """One INTO-CPS file, validated; errors name the file, the key path and the reason."""
+    data = read_json(path)
     try:
         return model.model_validate(data)
     except ValidationError as e:

@@ -1,0 +1,150 @@
+"""Script objectives: a user's Python 3 script scores a simulation in a subprocess.
+
+The calling convention is INTO-CPS's (its DSE ``externalScripts``), so scripts
+written for INTO-CPS run unchanged once they are Python 3::
+
+    python SCRIPT FOLDER NAME DATA ARG...
+
+* ``FOLDER`` holds ``results.csv`` (columns ``time``, ``step-size``, then every
+  recorded signal, also under the names ``columns`` gives it) and
+  ``objectives.json`` (the other objectives' values so far);
+* ``NAME`` is the objective's name: the script writes its value under that key
+  in ``objectives.json``;
+* ``DATA`` is the scenario's data folder (its files, in a folder of their own on
+  the worker), or an empty folder;
+* the ``args`` follow, as text.
+
+A script runs on the worker with the worker's own Python, in a subprocess, so
+it cannot take the worker down. A script that exits non-zero, runs past its
+timeout, or writes no number under its name fails the task; the failed row
+holds its message and the end of its stderr. The script's text travels with
+the objective (read when the spec loads), so workers need no shared files.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import subprocess
+import sys
+import tempfile
+from collections.abc import Mapping
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, PositiveFloat, PrivateAttr
+
+from ..errors import DseError
+
+FAULT_TAIL = 600  # characters of a failing script's stderr kept in its task's error
+
+
+class Script(BaseModel):
+    """``{script: metrics/settle.py, args: [...], columns: {header: signal}}`` (paths relative to the spec)."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    script: str
+    args: list[str] = []
+    columns: dict[str, str] = {}  # results.csv header -> recorded signal (INTO-CPS: {fmu}.instance.variable)
+    timeout: PositiveFloat = 60.0  # seconds one run of the script may take
+    digest: str | None = None  # the script's sha256, filled when loaded: a changed script is a changed model
+    _code: str | None = PrivateAttr(None)  # its text, which travels to the workers
+
+    def loaded(self, base: Path, where: str) -> Script:
+        """This objective with its script read: path made absolute, digest and text filled in."""
+        path = Path(self.script) if Path(self.script).is_absolute() else base / self.script
+        try:
+            code = path.read_text()
+        except OSError as e:
+            raise DseError(f"{where}: cannot read script {path}: {e.strerror}") from None
+        loaded = self.model_copy(update={"script": str(path.resolve()),
+                                         "digest": hashlib.sha256(code.encode()).hexdigest()[:16]})
+        loaded._code = code
+        return loaded
+
+    def code(self) -> str:
+        if self._code is None:  # made through the API, not loaded from a spec
+            return self.loaded(Path.cwd(), "objective")._code
+        return self._code
+
+
+def write_results(path: Path, trajectory, columns: Mapping[str, str]) -> None:
+    """``results.csv`` as INTO-CPS's co-simulation writes it: time, step-size, then the signals."""
+    time = trajectory.time
+    steps = np.diff(time, append=time[-1] + (time[-1] - time[-2] if len(time) > 1 else 0.0))
+    names = [*trajectory.names, *columns]
+    data = np.column_stack([time, steps, trajectory.values,
+                            *(trajectory.column(signal) for signal in columns.values())])
+    with open(path, "w", newline="") as f:
+        writer = csv.writer(f, lineterminator="\n")
+        writer.writerow(["time", "step-size", *names])
+        writer.writerows([f"{v:.16g}" for v in row] for row in data)
+
+
+@cache
+def _data_folder(files: tuple[tuple[str, Path], ...]) -> Path:
+    """A scenario's data files laid out under their own names, once per process."""
+    folder = Path(tempfile.mkdtemp(prefix="dse-runner-data-"))
+    for name, source in files:
+        target = folder / name
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.symlink_to(Path(source).resolve())
+    return folder
+
+
+def _script_file(spec: Script, folder: Path) -> Path:
+    """The script where it was written when this machine has it unchanged (its own imports work),
+    else a copy of the text it travelled with."""
+    original = Path(spec.script)
+    code = spec.code()
+    if original.is_file() and original.read_text() == code:
+        return original
+    copy = folder / original.name
+    copy.write_text(code)
+    return copy
+
+
+def _value(name: str, spec: Script, objectives: Path, result: subprocess.CompletedProcess) -> float:
+    """The number the script wrote under ``name``; anything else is an error quoting the script."""
+    what = f"objective {name!r}: script {Path(spec.script).name}"
+    if result.returncode != 0:
+        tail = result.stderr.strip()[-FAULT_TAIL:] or "(nothing on stderr)"
+        raise DseError(f"{what} failed (exit code {result.returncode}): {tail}")
+    try:
+        written = json.loads(objectives.read_text())
+    except (OSError, json.JSONDecodeError) as e:
+        raise DseError(f"{what} left objectives.json unreadable: {e}") from None
+    if name not in written:
+        raise DseError(f"{what} wrote no value for {name!r} in objectives.json")
+    value = written[name]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+        raise DseError(f"{what} wrote {value!r}, not a finite number")  # INTO-CPS's fault strings land here
+    return float(value)
+
+
+def run_scripts(scripts: Mapping[str, Script], trajectory, data: Mapping[str, Path],
+                known: Mapping[str, Any]) -> dict[str, float]:
+    """Run every script objective of one simulation in one folder; ``known``: the values computed so far."""
+    columns = {header: signal for spec in scripts.values() for header, signal in spec.columns.items()}
+    values: dict[str, float] = {}
+    with tempfile.TemporaryDirectory(prefix="dse-runner-script-") as work:
+        folder = Path(work) / "simulation"
+        folder.mkdir()
+        write_results(folder / "results.csv", trajectory, columns)
+        objectives = folder / "objectives.json"
+        objectives.write_text(json.dumps({k: v for k, v in known.items() if isinstance(v, float)}))
+        data_folder = _data_folder(tuple(sorted(data.items())))
+        for name, spec in scripts.items():
+            argv = [sys.executable, str(_script_file(spec, Path(work))), str(folder), name, str(data_folder),
+                    *spec.args]
+            try:
+                result = subprocess.run(argv, capture_output=True, text=True, timeout=spec.timeout,
+                                        cwd=Path(argv[1]).parent)  # INTO-CPS runs scripts from their folder
+            except subprocess.TimeoutExpired:
+                raise DseError(f"objective {name!r}: script {Path(spec.script).name} ran past its timeout of "
+                               f"{spec.timeout:g} s") from None
+            values[name] = _value(name, spec, objectives, result)
+    return values
