@@ -374,17 +374,28 @@ def report_command(
     sweep: Annotated[str | None, typer.Option(help="Which sweep, if the folder holds several.")] = None,
     as_json: JsonFlag = False,
 ) -> None:
-    """Write one self-contained HTML file (opens offline): Table 1, rankings, Pareto front, figures, spec."""
+    """Write one self-contained HTML file (opens offline): Table 1, rankings, Pareto front, figures, spec.
+    A sweep of an INTO-CPS DSE config also gets INTO-CPS's result files, in a folder beside it."""
+    from . import intocps
+    from ..analysis.rank import load_sweep_spec, pick_sweep
     from .report import write_report
 
     try:
         path = write_report(results, output, sweep)
+        name = pick_sweep(results, sweep)
+        legacy = None
+        if load_sweep_spec(results, name).origin is not None:
+            folder = path.parent / f"{name}-intocps"
+            legacy = intocps.write_result_files(results, folder, name)
     except DseError as e:
         fail(e)
     if as_json:
-        emit_json({"report": str(path), "bytes": path.stat().st_size})
-    else:
-        typer.echo(f"report: {path} ({path.stat().st_size / 1e6:.1f} MB)")
+        emit_json({"report": str(path), "bytes": path.stat().st_size,
+                   "intocps": str(folder) if legacy else None})
+        return
+    typer.echo(f"report: {path} ({path.stat().st_size / 1e6:.1f} MB)")
+    if legacy:
+        typer.echo(f"INTO-CPS results: {folder} (dseResults.csv, results.html, ranking.json, graphs/pareto.png)")
 
 
 class ProgressBar:

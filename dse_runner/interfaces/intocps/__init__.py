@@ -16,11 +16,16 @@ from pathlib import Path
 
 import yaml
 
-from ...sweeps.spec import Space, resolve_space
+from ...analysis.rank import current_rows, load_sweep_spec, pick_sweep, rank
+from ...errors import DseError
+from ...simulation.objectives import is_vector, normalise
+from ...sweeps import store
+from ...sweeps.spec import Space, SpaceSpec, resolve_space
 from .convert import IntoCpsWarning, to_spec
 from .project import locate
+from .results import write_results
 
-__all__ = ["IntoCpsWarning", "convert", "is_dse_config", "load_space"]
+__all__ = ["IntoCpsWarning", "convert", "is_dse_config", "load_space", "write_result_files"]
 
 
 def is_dse_config(path: str | Path) -> bool:
@@ -51,3 +56,29 @@ def convert(dse: str | Path, output: str | Path, multimodel: str | Path | None =
 
 def _path(value: str | Path | None) -> Path | None:
     return Path(value) if value is not None else None
+
+
+def write_result_files(output: store.Root, folder: Path, sweep: str | None = None) -> dict[str, Path]:
+    """INTO-CPS's result files (results.py) of a sweep converted from a DSE config, into ``folder``."""
+    sweep = pick_sweep(output, sweep)
+    spec = load_sweep_spec(output, sweep)
+    if spec.origin is None or spec.origin.format != "intocps":
+        raise DseError(f"sweep {sweep!r} was not converted from an INTO-CPS DSE config: no INTO-CPS result files")
+    ranking = rank(output, sweep)
+    ids = _ids(spec)
+    objectives = [name for name, o in normalise(spec.objectives or []).items() if not is_vector(o)]
+    rows = current_rows(output, sweep, ["status", *spec.parameters])
+    failed = rows.loc[rows["status"] != "ok", list(spec.parameters)].drop_duplicates()
+    fixed = {ids(ref): value for ref, value in _multimodel_parameters(spec).items() if ref not in spec.parameters}
+    return write_results(Path(folder), ranking.totals, {ref: ids(ref) for ref in spec.parameters}, objectives,
+                         spec.ranking.pareto_goals() or [(ranking.objective, ranking.goal)], fixed, failed)
+
+
+def _ids(spec: SpaceSpec):
+    """``instance.variable`` -> INTO-CPS's ``{fmu}.instance.variable``."""
+    keys = spec.origin.fmu_keys if spec.origin else {}
+    return lambda ref: f"{keys.get(ref.split('.')[0], '{' + ref.split('.')[0] + '}')}.{ref}"
+
+
+def _multimodel_parameters(spec: SpaceSpec) -> dict:
+    return dict(spec.multimodel.get("parameters", {})) if isinstance(spec.multimodel, dict) else {}

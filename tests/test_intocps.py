@@ -1,0 +1,256 @@
+"""INTO-CPS projects run unchanged: jobs/intocps-watertank, an INTO-CPS-shaped project of our own
+(our water-tank FMUs, Python 3 user scripts), submitted as its dse.json on the real cluster and
+compared with the same study written as space.yaml; conversion, discovery and bad input."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from conftest import REPO, strict_loads
+
+from dse_runner.errors import DseError
+from dse_runner.interfaces import intocps
+from dse_runner.simulation.objectives import Reduce
+from dse_runner.simulation.run import simulate
+from dse_runner.sweeps import store
+from dse_runner.sweeps.spec import load_space
+
+PROJECT = REPO / "jobs" / "intocps-watertank"
+DSE = Path("DSEs/levels/levels.dse.json")
+
+
+def dse_runner(*args, cwd=REPO):
+    return subprocess.run([sys.executable, "-m", "dse_runner", *map(str, args)],
+                          capture_output=True, text=True, cwd=cwd)
+
+
+def copy_project(folder: Path) -> Path:
+    """The project and the water-tank FMU sources its mm.json names (../../watertank/fmus/...)."""
+    shutil.copytree(PROJECT, folder / "jobs" / "intocps-watertank", ignore=shutil.ignore_patterns("out"))
+    shutil.copytree(REPO / "jobs" / "watertank" / "fmus", folder / "jobs" / "watertank" / "fmus")
+    return folder / "jobs" / "intocps-watertank"
+
+
+def edit_json(path: Path, change) -> None:
+    data = json.loads(path.read_text())
+    change(data)
+    path.write_text(json.dumps(data, indent=2))
+
+
+def submit(spec: Path, out: Path, scheduler: str, *more) -> dict:
+    done = dse_runner("submit", spec, "--out", out, "--scheduler", scheduler, "--no-dashboard", "--json", *more)
+    assert done.returncode in (0, 1), done.stderr
+    return strict_loads(done.stdout)
+
+
+@pytest.fixture(scope="module")
+def project(tmp_path_factory) -> Path:
+    return copy_project(tmp_path_factory.mktemp("intocps"))
+
+
+@pytest.fixture(scope="module")
+def both(project, dask_scheduler, tmp_path_factory):
+    """The DSE config and its hand-written space.yaml, each run once on the cluster."""
+    out = tmp_path_factory.mktemp("intocps-out")
+    dse = submit(project / DSE, out / "dse", dask_scheduler)
+    yaml = submit(project / "space.yaml", out / "yaml", dask_scheduler)
+    return dse, yaml
+
+
+def totals(summary: dict) -> pd.DataFrame:
+    return pd.read_csv(Path(summary["ranking"]).parent / "totals.csv")
+
+
+def test_the_dse_config_ranks_as_the_same_study_written_as_space_yaml(both):
+    dse, yaml = both
+    assert dse["ok"] == dse["ran"] == yaml["ran"] > 0 and dse["failed"] == 0
+    ours, theirs = totals(dse), totals(yaml)
+    assert list(ours.columns) == list(theirs.columns)
+    pd.testing.assert_frame_equal(ours, theirs)  # every point, every objective, the same order
+    front = [json.loads(Path(s["ranking"]).read_text())["pareto"] for s in both]
+    assert front[0] == front[1] and len(front[0]) >= 2
+    assert dse["best"] == yaml["best"]
+
+
+def test_parameter_and_objective_constraints_hold(both, project):
+    dse, _ = both
+    rows = store.read_results(dse["output"], "levels")
+    assert (rows["controller.maxlevel"] - rows["controller.minlevel"] >= 0.6 - 1e-12).all()
+    assert len(rows) < 16  # the constraint left grid points out, unsimulated
+    ranking = json.loads(Path(dse["ranking"]).read_text())
+    ranked = totals(dse)
+    assert (ranked["levelMax"] < 2.1).all()
+    assert ranking["excluded_points"] == (rows["levelMax"] >= 2.1).sum() > 0
+    assert ranking["points"] + ranking["excluded_points"] == len(rows)
+
+
+def test_internal_functions_and_scripts_compute_what_intocps_would(project):
+    """INTO-CPS's mean is that of the samples; the scripts read results.csv by INTO-CPS's column ids."""
+    space = intocps.load_space(project / DSE)
+    point = {"controller.minlevel": 0.8, "controller.maxlevel": 1.8}
+    result = simulate(space.plan, space.scenarios[0], point, objectives={
+        **space.objectives, "changes": Reduce(signal="controller.valve", reduce="changes")},
+        experiment=space.experiment)
+    level = result.trajectory.column("tank.level")
+    scores = result.objectives
+    assert scores["levelMean"] == pytest.approx(np.mean(level), rel=1e-12)
+    assert (scores["levelMax"], scores["levelMin"]) == (level.max(), level.min())
+    assert scores["switches"] == scores["changes"] > 0
+    target = json.loads((project / "userMetricScripts/target/target.json").read_text())["level"]
+    assert scores["deviation"] == pytest.approx(np.sqrt(np.mean((level - target) ** 2)), rel=1e-12)
+
+
+def test_convert_writes_a_space_yaml_that_runs_where_it_is_written(project, tmp_path):
+    done = dse_runner("convert-intocps", project / DSE, "-o", tmp_path / "moved" / "space.yaml", "--json")
+    assert done.returncode == 0, done.stderr
+    path = Path(strict_loads(done.stdout)["space"])
+    converted, original = load_space(path), intocps.load_space(project / DSE)
+    assert converted.spec.parameters == original.spec.parameters
+    assert converted.spec.constraints == ["controller.maxlevel - controller.minlevel >= 0.6"]
+    assert converted.spec.ranking == original.spec.ranking
+    point = {"controller.minlevel": 1.0, "controller.maxlevel": 2.0}
+    runs = [simulate(s.plan, s.scenarios[0], point, objectives=s.objectives, experiment=s.experiment)
+            for s in (converted, original)]
+    assert runs[0].objectives == runs[1].objectives
+
+
+def test_report_writes_intocps_result_files(both, tmp_path):
+    dse, _ = both
+    done = dse_runner("report", dse["output"], "-o", tmp_path / "report.html", "--json")
+    assert done.returncode == 0, done.stderr
+    folder = Path(strict_loads(done.stdout)["intocps"])
+    ranked = totals(dse)
+    rows = list(pd.read_csv(folder / "dseResults.csv").itertuples())
+    assert len(rows) == len(ranked) and rows[0].Rank == 1
+    assert [r.Rank for r in rows] == sorted(r.Rank for r in rows)
+    ranking = json.loads((folder / "ranking.json").read_text())
+    front = json.loads(Path(dse["ranking"]).read_text())["pareto"]
+    assert len(ranking["pareto"]["1"]) == len(front)
+    assert "<h1>pareto</h1>" in (folder / "results.html").read_text()
+    assert (folder / "graphs" / "pareto.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_a_failing_script_gives_failed_rows_with_its_stderr(tmp_path, dask_scheduler):
+    project = copy_project(tmp_path)
+    (project / "userMetricScripts" / "switches.py").write_text(
+        "import sys\nsys.exit('switches.py: no valve column in ' + sys.argv[1])\n")
+    summary = submit(project / DSE, tmp_path / "out", dask_scheduler)
+    assert summary["failed"] == summary["ran"] > 0 and summary["ranking"] is None
+    errors = store.read_results(summary["output"], "levels")["error"]
+    assert errors.str.contains(r"objective 'switches': script switches.py failed \(exit code 1\): "
+                               r"switches.py: no valve column in").all()
+
+
+def test_a_script_that_writes_no_value_fails_its_task(project):
+    space = intocps.load_space(project / DSE)
+    script = space.objectives["switches"].model_copy(update={"script": str(project / "FMUs" / "README.md")})
+    script._code = "print('forgot to write objectives.json')\n"
+    with pytest.raises(DseError, match=r"objective 'switches': script README.md wrote no value for 'switches'"):
+        simulate(space.plan, space.scenarios[0], {}, objectives={"switches": script}, experiment=space.experiment)
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    (lambda d: d.update(algorithm={"type": "simulated-annealing"}),
+     r"algorithm 'simulated-annealing' is not one INTO-CPS or dse-runner runs \(exhaustive, genetic\)"),
+    (lambda d: d["objectiveDefinitions"]["externalScripts"]["switches"].update(scriptFile="gone.py"),
+     r"objectiveDefinitions\.externalScripts\.switches: script not found: .*userMetricScripts/gone\.py"),
+    (lambda d: d["parameters"].update({"{controllerFMU}.controller.minlevle": [1]}),
+     r"parameters: unknown variable 'controller\.minlevle': .* \(did you mean minlevel"),
+    (lambda d: d.update(parameterConstraints=["math.sqrt({controllerFMU}.controller.maxlevel) > 1"]),
+     r"parameterConstraints\.0: cannot translate 'math\.sqrt\(\{controllerFMU\}\.controller\.maxlevel\) > 1'"),
+    (lambda d: d.update(objectiveConstraints=["levelMax < __import__('os').getpid()"]),
+     r"objectiveConstraints\.0: cannot translate \"levelMax < __import__\('os'\)\.getpid\(\)\""),
+    (lambda d: d.update(ranking={"weighted": {"levelMax": "-"}}), r"ranking 'weighted' is not a ranking"),
+    (lambda d: d.update(ranking={"pareto": {"lapTime": "-"}}), r"ranking\.pareto names 'lapTime'"),
+])
+def test_bad_intocps_input_gives_one_line_naming_it(tmp_path, change, message):
+    project = copy_project(tmp_path)
+    edit_json(project / DSE, change)
+    done = dse_runner("submit", project / DSE, "--no-dashboard")
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), done.stderr
+    assert __import__("re").search(message, lines[0]), lines[0]
+
+
+def test_the_coe_json_is_found_as_the_application_finds_it(tmp_path):
+    project = copy_project(tmp_path)
+    mm_folder = project / "Multi-models" / "watertank"
+    located = intocps.project.locate(project / DSE)
+    assert located.coe == (mm_folder / "experiment" / "experiment.coe.json").resolve()
+    # a results copy (R_<date>/coe.json) is not a candidate; an old coe without multimodel_path is
+    # associated by its folder
+    (mm_folder / "experiment" / "R_2026_11_23-10_00_00_000").mkdir()
+    shutil.copy(mm_folder / "experiment" / "experiment.coe.json", mm_folder / "experiment" / "R_2026_11_23-10_00_00_000")
+    edit_json(mm_folder / "experiment" / "experiment.coe.json", lambda d: d.pop("multimodel_path"))
+    assert intocps.project.locate(project / DSE).multimodel == (mm_folder / "watertank.mm.json").resolve()
+    # a second multi-model whose FMUs the DSE does not name is passed over
+    other = project / "Multi-models" / "other"
+    (other / "run").mkdir(parents=True)
+    (other / "other.mm.json").write_text(json.dumps({"fmus": {"{x}": "x.fmu"}}))
+    (other / "run" / "coe.json").write_text(json.dumps({"endTime": 1, "algorithm": {"type": "fixed-step", "size": 1}}))
+    assert intocps.project.locate(project / DSE).coe == (mm_folder / "experiment" / "experiment.coe.json").resolve()
+    # two that both fit: the error lists them, and --coe chooses
+    shutil.copytree(mm_folder / "experiment", mm_folder / "fast", ignore=shutil.ignore_patterns("R_*"))
+    with pytest.raises(DseError, match=r"several co-simulation configs could run this DSE \(.*experiment.coe.json, "
+                                       r".*fast/experiment.coe.json\); choose one with --coe"):
+        intocps.project.locate(project / DSE)
+    chosen = intocps.project.locate(project / DSE, coe=mm_folder / "fast" / "experiment.coe.json")
+    assert chosen.multimodel == (mm_folder / "watertank.mm.json").resolve()
+
+
+def test_a_variable_step_config_runs_at_its_initial_step_with_a_warning(tmp_path):
+    project = copy_project(tmp_path)
+    coe = project / "Multi-models/watertank/experiment/experiment.coe.json"
+    edit_json(coe, lambda d: d.update(algorithm={"type": "var-step", "initsize": 0.05, "size": [0.1, 1],
+                                                 "constraints": {"max": {"type": "fmumaxstepsize"}}}))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        space = intocps.load_space(project / DSE)
+    assert space.experiment.step == 0.1  # the initial size, clamped into the size range
+    assert any("variable-step algorithm becomes a fixed step of 0.1 s" in str(w.message)
+               and "constraints (max)" in str(w.message) for w in caught)
+
+
+def test_genetic_becomes_nsga2_for_a_pareto_ranking_and_genetic_for_one_objective(tmp_path, dask_scheduler):
+    project = copy_project(tmp_path)
+    edit_json(project / DSE, lambda d: d.update(algorithm={
+        "type": "genetic", "initialPopulation": 4, "initialPopulationDistribution": "random",
+        "mutationProbability": 20, "parentSelectionStrategy": "random", "maxGenerationsWithoutImprovement": 3}))
+    search = intocps.load_space(project / DSE).spec.search
+    assert search.strategy == "nsga2" and search.options == {"population_size": 4, "mutation_prob": 0.2}
+    summary = submit(project / DSE, tmp_path / "out", dask_scheduler, "--max-points", "8")
+    assert summary["search"]["strategy"] == "nsga2" and summary["search"]["points"] == 8
+    edit_json(project / DSE, lambda d: d.update(ranking={"pareto": {"deviation": "-"}}))
+    search = intocps.load_space(project / DSE).spec.search
+    assert search.strategy == "genetic" and search.options == {
+        "population": 4, "mutation_probability": 0.2, "max_generations_without_improvement": 3}
+
+
+def test_mm_json_connections_of_every_type(tmp_path):
+    """Integer and Boolean connections as INTO-CPS writes them, through an FMU with every FMI 2 type."""
+    types2 = REPO / "tests" / "fmus" / "types2"
+    mm = tmp_path / "types.mm.json"
+    mm.write_text(json.dumps({
+        "fmus": {"{t}": str(types2)},
+        "connections": {"{t}.a.int_out": ["{t}.b.int_in"], "{t}.a.bool_out": ["{t}.b.bool_in"],
+                        "{t}.a.real_out": ["{t}.b.real_in"]},
+        "parameters": {"{t}.a.int_offset": 3, "{t}.b.int_offset": 4, "{t}.b.invert": True},
+    }))
+    out = simulate(mm, stop_time=1, step=0.5).trajectory.outputs  # int_out = int_in + int_offset + steps
+    assert (out["a.int_out"] == 3 + out["a.steps"]).all()
+    # b's inputs are a's outputs of the communication point before
+    assert (out["b.int_out"][1:] == out["a.int_out"][:-1] + 4 + out["b.steps"][1:]).all()
+    assert (out["b.bool_out"][1:] == 1 - out["a.bool_out"][:-1]).all()  # bool_out = bool_in XOR invert
+    mm.write_text(json.dumps({"fmus": {"{t}": str(types2), "{u}": str(types2)},
+                              "connections": {"{t}.a.int_out": ["{u}.a.int_in"]}}))
+    with pytest.raises(DseError, match=r"instance 'a' belongs to two FMUs, \{t\} and \{u\}"):
+        simulate(mm, stop_time=1, step=0.5)
