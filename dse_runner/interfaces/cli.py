@@ -270,8 +270,8 @@ def submit(
 
 def _load(spec: Path, multimodel: Path | None, coe: Path | None):
     """A space.yaml, or an INTO-CPS DSE config with its multi-model and co-simulation config."""
-    from . import intocps
     from ..sweeps.spec import load_space
+    from . import intocps
 
     if intocps.is_dse_config(spec):
         return intocps.load_space(spec, multimodel, coe)
@@ -376,8 +376,8 @@ def report_command(
 ) -> None:
     """Write one self-contained HTML file (opens offline): Table 1, rankings, Pareto front, figures, spec.
     A sweep of an INTO-CPS DSE config also gets INTO-CPS's result files, in a folder beside it."""
-    from . import intocps
     from ..analysis.rank import load_sweep_spec, pick_sweep
+    from . import intocps
     from .report import write_report
 
     try:

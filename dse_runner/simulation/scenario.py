@@ -199,15 +199,15 @@ class Scenario:
         raise DseError(f"scenario {self.name}: no field {name!r}"
                        + (f"; it has {', '.join(have)}" if have else f" (a {self.kind} scenario has no fields)"))
 
-    def with_files(self, files: Mapping[str, Path]) -> "Scenario":
+    def with_files(self, files: Mapping[str, Path]) -> Scenario:
         """The same scenario reading its files from elsewhere (a worker's copies)."""
         return replace(self, files=dict(files))
 
-    def with_data(self, data: Mapping[str, Path]) -> "Scenario":
+    def with_data(self, data: Mapping[str, Path]) -> Scenario:
         """The same scenario with its data files elsewhere (a worker's copies)."""
         return replace(self, data=dict(data))
 
-    def with_group(self, group: str) -> "Scenario":
+    def with_group(self, group: str) -> Scenario:
         return replace(self, group=group)
 
 

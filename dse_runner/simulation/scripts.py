@@ -141,7 +141,7 @@ def run_scripts(scripts: Mapping[str, Script], trajectory, data: Mapping[str, Pa
             argv = [sys.executable, str(_script_file(spec, Path(work))), str(folder), name, str(data_folder),
                     *spec.args]
             try:
-                result = subprocess.run(argv, capture_output=True, text=True, timeout=spec.timeout,
+                result = subprocess.run(argv, capture_output=True, text=True, timeout=spec.timeout, check=False,
                                         cwd=Path(argv[1]).parent)  # INTO-CPS runs scripts from their folder
             except subprocess.TimeoutExpired:
                 raise DseError(f"objective {name!r}: script {Path(spec.script).name} ran past its timeout of "
