@@ -1,28 +1,49 @@
-"""Per-simulation wall time of one Robotti scenario with four FMI masters, side by side.
+"""Per-simulation wall time of five FMI masters on two cases, side by side: what our master costs.
 
     python benchmarks/cosim.py [--scenario sin1] [--repeats 15] [--json]
 
-* ``dse_runner``: our master, instances reused across runs as in a sweep;
-* ``libcosim``: the Open Simulation Platform's libcosim through libcosimpy;
-* ``simulate_fmu``: FMPy's ``simulate_fmu`` per run, as a user would write it
-  (the vehicle FMU fed the recorded inputs as an input table);
-* ``c_floor``: a minimal C program (cosim_floor.c) driving the same two FMUs
-  through their C API with the same step: the floor for FMI co-simulation here.
+Two cases (issue 16):
 
-Each figure is the median over the repeats. Targets: dse_runner within 2x of
-c_floor, and faster than libcosim and simulate_fmu.
+* ``robotti``: one Robotti scenario (default sin1), the replay controller and the
+  vehicle FMU, calibrated values: a realistic run, where the FMUs' own work counts;
+* ``cheap``: the vanderpol FMU (benchmarks/fmus/vanderpol, the shape of the Reference
+  FMU VanDerPol) alone, 0..20 s at its 1e-2 s step (2000 steps, as the Reference FMU's
+  default experiment), mu set per run, x0 and x1 recorded every step: the FMU costs
+  almost nothing, so what is left is the master's overhead per step.
+
+Each case times, per simulation:
+
+* ``dse_runner``: our master with its native C step loop (``simulate(..., loop="native")``),
+  the plan and FMU instances reused across runs as in a sweep;
+* ``python_loop``: the same master with its Python reference loop (``loop="python"``);
+* ``simulate_fmu``: FMPy's ``simulate_fmu`` per run, as a user would write it (Robotti: the
+  vehicle FMU fed the recorded inputs as an input table);
+* ``libcosim``: the Open Simulation Platform's libcosim through libcosimpy;
+* ``c_floor``: a minimal C program driving the same FMUs through their C API with the same
+  step (cosim_floor.c for Robotti, cosim_floor_single.c for the cheap case): the floor for
+  FMI co-simulation on this machine.
+
+Each figure is the median over the repeats, in seconds per simulation in the JSON
+(``--json``: ``{"robotti": {master: s}, "cheap": {...}, "ratios": {...}, "steps": {...},
+"repeats": n, ...}``). Targets, reported beside the measured ratios (not asserted):
+Robotti native within 1.15x of the C floor; cheap native within 2x of the C floor and at
+least 10x faster than the Python loop. The final x (Robotti) / x0 (cheap) of the C floor
+and of our master are printed side by side as a check that they computed the same thing.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import operator
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
 import zipfile
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -31,16 +52,38 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from dse_runner import bundled  # noqa: E402
-from dse_runner.simulation.build import fmi_headers_dir  # noqa: E402
+from dse_runner.simulation.build import build_fmu, fmi_headers_dir  # noqa: E402
+from dse_runner.simulation.cosim import Plan  # noqa: E402
 from dse_runner.simulation.crosscheck import run_libcosim  # noqa: E402
 from dse_runner.simulation.fmu import describe  # noqa: E402
-from dse_runner.simulation.scenario import load_scenario  # noqa: E402
-from dse_runner.simulation.run import as_plan, simulate  # noqa: E402
+from dse_runner.simulation.run import SimulationResult, as_plan, simulate  # noqa: E402
+from dse_runner.simulation.scenario import Scenario, load_scenario  # noqa: E402
 
 CALIBRATED = {"vehicle.mass": 1000.0, "vehicle.cAlphaF": 38000.0, "vehicle.mu": 0.3}
+CHEAP_FMU = REPO / "benchmarks" / "fmus" / "vanderpol"
+CHEAP_VALUES = {"mu": 1.5}  # set per run, so every run pays for a parameter as a sweep's does
+MASTERS = ("dse_runner", "python_loop", "simulate_fmu", "libcosim", "c_floor")
+# (case, ratio, comparison, bound): what issue 16 asks of the native loop
+TARGETS = (
+    ("robotti", "dse_runner_over_c_floor", "<=", 1.15),
+    ("cheap", "dse_runner_over_c_floor", "<=", 2.0),
+    ("cheap", "python_loop_over_dse_runner", ">=", 10.0),
+)
+COMPARE = {"<=": operator.le, ">=": operator.ge}
 
 
-def median_time(run, repeats: int) -> float:
+@dataclass(frozen=True)
+class Case:
+    """One case's figures (seconds per simulation) and the check that the masters agree."""
+
+    figures: dict[str, float]
+    steps: int
+    step: float
+    signal: str  # the output whose final value is compared
+    final: dict[str, float]  # master -> that output's final value
+
+
+def median_time(run: Callable[[], object], repeats: int) -> float:
     run()  # warm-up: builds, extraction, first instantiation
     samples = []
     for _ in range(repeats):
@@ -50,7 +93,76 @@ def median_time(run, repeats: int) -> float:
     return statistics.median(samples)
 
 
-def time_simulate_fmu(plan, scenario, values, step: float, repeats: int) -> float:
+def final_value(result: SimulationResult, suffix: str) -> float:
+    """The last sample of the recorded output ``<instance>.<suffix>``."""
+    (name,) = [n for n in result.outputs if n.endswith(f".{suffix}")]
+    return float(result.outputs[name][-1])
+
+
+# ---- the C floors ---------------------------------------------------------------------------------------
+
+
+def compile_floor(source: str, work: Path) -> Path:
+    """A floor program compiled with the system C compiler against FMPy's FMI headers."""
+    work.mkdir(parents=True, exist_ok=True)
+    binary = work / Path(source).stem
+    subprocess.run(["cc", "-O2", "-std=c11", f"-I{fmi_headers_dir()}", "-o", str(binary),
+                    str(REPO / "benchmarks" / source), "-ldl", "-lm"], check=True)
+    return binary
+
+
+def extract_library(path: Path, work: Path, name: str) -> tuple[Path, str]:
+    """An FMU's Linux shared library, unzipped for dlopen, and its GUID."""
+    description = describe(path)
+    identifier = description.coSimulation.modelIdentifier
+    with zipfile.ZipFile(path) as fmu:
+        fmu.extract(f"binaries/linux64/{identifier}.so", work / name)
+    return work / name / "binaries" / "linux64" / f"{identifier}.so", description.guid
+
+
+def real_sets(plan: Plan, values: dict, instance: str) -> str:
+    """The real values set on ``instance``, as the floors take them: "vr=value,..."."""
+    return ",".join(f"{plan.variable(ref, 'set').vr}={float(v)!r}"
+                    for ref, v in values.items() if ref.startswith(f"{instance}."))
+
+
+def time_c_floor(plan: Plan, scenario: Scenario, values: dict, step: float, repeats: int,
+                 work: Path) -> tuple[float, float]:
+    """Robotti through cosim_floor.c: (median seconds, final vehicle x)."""
+    binary = compile_floor("cosim_floor.c", work)
+    libraries = {name: extract_library(path, work, name) for name, path in plan.fmu_paths.items()}
+    c2v = ",".join(f"{s.vr}:{t.vr}" for s, t in plan.connections if s.instance == "controller")
+    v2c = ",".join(f"{s.vr}:{t.vr}" for s, t in plan.connections if s.instance == "vehicle")
+    file_vr = plan.variable("controller.file", "set").vr
+    done = subprocess.run(
+        [str(binary), str(libraries["vehicle"][0]), libraries["vehicle"][1], str(libraries["controller"][0]),
+         libraries["controller"][1], repr(scenario.stop_time), repr(step), str(repeats), str(file_vr),
+         str(scenario.files["steering_inputs"]), c2v, v2c, real_sets(plan, values, "vehicle")],
+        capture_output=True, text=True, check=True)
+    seconds, last_x = map(float, done.stdout.split())
+    return seconds, last_x
+
+
+def time_c_floor_single(plan: Plan, values: dict, stop: float, step: float, repeats: int,
+                        work: Path) -> tuple[float, float]:
+    """One FMU through cosim_floor_single.c, recording every output: (median seconds, final first output)."""
+    binary = compile_floor("cosim_floor_single.c", work)
+    (instance, path), = plan.fmu_paths.items()
+    library, guid = extract_library(path, work, instance)
+    outputs = ",".join(str(v.vr) for v in plan.outputs[instance])
+    done = subprocess.run(
+        [str(binary), str(library), guid, repr(stop), repr(step), str(repeats), outputs,
+         real_sets(plan, values, instance)],
+        capture_output=True, text=True, check=True)
+    seconds, last = map(float, done.stdout.split())
+    return seconds, last
+
+
+# ---- FMPy's simulate_fmu --------------------------------------------------------------------------------
+
+
+def time_simulate_fmu(plan: Plan, scenario: Scenario, values: dict, step: float, repeats: int) -> float:
+    """Robotti's vehicle alone, fed the recorded inputs as FMPy's input table."""
     from fmpy import simulate_fmu
 
     log = np.loadtxt(scenario.files["steering_inputs"], delimiter=",", skiprows=1)
@@ -65,30 +177,102 @@ def time_simulate_fmu(plan, scenario, values, step: float, repeats: int) -> floa
     return median_time(run, repeats)
 
 
-def time_c_floor(plan, scenario, values, step: float, repeats: int, work: Path) -> tuple[float, float]:
-    binary = work / "cosim_floor"
-    subprocess.run(["cc", "-O2", "-std=c11", f"-I{fmi_headers_dir()}", "-o", str(binary),
-                    str(REPO / "benchmarks" / "cosim_floor.c"), "-ldl", "-lm"], check=True)
-    libraries, guids = {}, {}
-    for name, path in plan.fmu_paths.items():
-        description = describe(path)
-        identifier = description.coSimulation.modelIdentifier
-        with zipfile.ZipFile(path) as fmu:
-            fmu.extract(f"binaries/linux64/{identifier}.so", work / name)
-        libraries[name] = work / name / "binaries" / "linux64" / f"{identifier}.so"
-        guids[name] = description.guid
-    c2v = ",".join(f"{s.vr}:{t.vr}" for s, t in plan.connections if s.instance == "controller")
-    v2c = ",".join(f"{s.vr}:{t.vr}" for s, t in plan.connections if s.instance == "vehicle")
-    sets = ",".join(f"{plan.variable(ref, 'set').vr}={float(v)!r}"
-                    for ref, v in values.items() if ref.startswith("vehicle."))
-    file_vr = plan.variable("controller.file", "set").vr
-    done = subprocess.run(
-        [str(binary), str(libraries["vehicle"]), guids["vehicle"], str(libraries["controller"]),
-         guids["controller"], repr(scenario.stop_time), repr(step), str(repeats), str(file_vr),
-         str(scenario.files["steering_inputs"]), c2v, v2c, sets],
-        capture_output=True, text=True, check=True)
-    seconds, last_x = map(float, done.stdout.split())
-    return seconds, last_x
+def time_simulate_fmu_single(path: Path, values: dict, stop: float, step: float, outputs: list[str],
+                             repeats: int) -> float:
+    """One FMU, its outputs recorded every step, as a user would call simulate_fmu."""
+    from fmpy import simulate_fmu
+
+    def run():
+        simulate_fmu(str(path), stop_time=stop, step_size=step, output_interval=step,
+                     start_values=values, output=outputs)
+
+    return median_time(run, repeats)
+
+
+# ---- the cases ------------------------------------------------------------------------------------------
+
+
+def robotti_case(scenario_name: str, repeats: int, work: Path) -> Case:
+    plan = as_plan(bundled.bundled_path("bundled:robotti/multimodel.yaml"))
+    scenario = load_scenario(REPO / "scenarios" / "robotti" / scenario_name)
+    reference = simulate(plan, scenario, CALIBRATED, loop="native")
+    python = simulate(plan, scenario, CALIBRATED, loop="python")
+    values, step = reference.values, reference.step
+    c_floor, c_last_x = time_c_floor(plan, scenario, values, step, repeats, work)
+    figures = {
+        "dse_runner": median_time(lambda: simulate(plan, scenario, CALIBRATED, loop="native"), repeats),
+        "python_loop": median_time(lambda: simulate(plan, scenario, CALIBRATED, loop="python"), repeats),
+        "simulate_fmu": time_simulate_fmu(plan, scenario, values, step, repeats),
+        "libcosim": median_time(lambda: run_libcosim(plan, values, scenario.stop_time, step), repeats),
+        "c_floor": c_floor,
+    }
+    final = {"dse_runner": final_value(reference, "x"), "python_loop": final_value(python, "x"),
+             "c_floor": c_last_x}
+    return Case(figures, len(reference.time) - 1, step, "x", final)
+
+
+def cheap_case(repeats: int, work: Path) -> Case:
+    path = build_fmu(CHEAP_FMU)
+    plan = as_plan(path)
+    reference = simulate(plan, values=CHEAP_VALUES, loop="native")  # its default experiment: 0..20 s by 1e-2
+    python = simulate(plan, values=CHEAP_VALUES, loop="python")
+    values, times = reference.values, reference.times
+    outputs = [v.name for vs in plan.outputs.values() for v in vs]
+    c_floor, c_last_x0 = time_c_floor_single(plan, values, times.stop, times.step, repeats, work)
+
+    def ours(loop: str) -> Callable[[], object]:
+        return lambda: simulate(plan, values=CHEAP_VALUES, stop_time=times.stop, step=times.step, loop=loop)
+
+    figures = {
+        "dse_runner": median_time(ours("native"), repeats),
+        "python_loop": median_time(ours("python"), repeats),
+        "simulate_fmu": time_simulate_fmu_single(path, CHEAP_VALUES, times.stop, times.step, outputs,
+                                                 repeats),
+        "libcosim": median_time(lambda: run_libcosim(plan, values, times.stop, times.step), repeats),
+        "c_floor": c_floor,
+    }
+    final = {"dse_runner": final_value(reference, "x0"), "python_loop": final_value(python, "x0"),
+             "c_floor": c_last_x0}
+    return Case(figures, len(reference.time) - 1, times.step, "x0", final)
+
+
+# ---- the report -----------------------------------------------------------------------------------------
+
+
+def ratios(figures: dict[str, float]) -> dict[str, float]:
+    """Ours against the floor, and the other masters against ours (> 1: ours is faster)."""
+    ours = figures["dse_runner"]
+    return {
+        "dse_runner_over_c_floor": ours / figures["c_floor"],
+        "python_loop_over_dse_runner": figures["python_loop"] / ours,
+        "libcosim_over_dse_runner": figures["libcosim"] / ours,
+        "simulate_fmu_over_dse_runner": figures["simulate_fmu"] / ours,
+    }
+
+
+def targets(all_ratios: dict[str, dict[str, float]]) -> list[dict]:
+    """Each target with the measured ratio and whether it is met."""
+    return [{"case": case, "ratio": name, "target": f"{comparison} {bound:g}",
+             "measured": all_ratios[case][name], "met": COMPARE[comparison](all_ratios[case][name], bound)}
+            for case, name, comparison, bound in TARGETS]
+
+
+def duration(seconds: float) -> str:
+    """ms from a millisecond up, µs below."""
+    return f"{seconds * 1e3:9.2f} ms" if seconds >= 1e-3 else f"{seconds * 1e6:9.1f} µs"
+
+
+def print_case(name: str, case: Case, case_ratios: dict[str, float], title: str) -> None:
+    print(f"{name}: {title}: {case.steps} steps of {case.step:g} s")
+    for master, seconds in case.figures.items():
+        per_step = seconds / case.steps * 1e6
+        print(f"  {master:<14} {duration(seconds)} per simulation  {per_step:8.3f} µs per step")
+    for ratio, value in case_ratios.items():
+        print(f"  {ratio:<30} {value:7.2f}x")
+    ours = case.final["dse_runner"]
+    floor, python = (abs(case.final[master] - ours) for master in ("c_floor", "python_loop"))
+    print(f"  final {case.signal}: dse_runner {ours:.12g}; the C floor differs by {floor:.2e},"
+          f" the Python loop by {python:.2e}")
 
 
 def main() -> None:
@@ -98,36 +282,31 @@ def main() -> None:
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
 
-    plan = as_plan(bundled.bundled_path("bundled:robotti/multimodel.yaml"))
-    scenario = load_scenario(REPO / "scenarios" / "robotti" / args.scenario)
-    reference = simulate(plan, scenario, CALIBRATED)
-    values, step = reference.values, reference.step
-
     with tempfile.TemporaryDirectory() as tmp:
-        c_floor, c_last_x = time_c_floor(plan, scenario, values, step, args.repeats, Path(tmp))
-    figures = {
-        "dse_runner": median_time(lambda: simulate(plan, scenario, CALIBRATED), args.repeats),
-        "libcosim": median_time(lambda: run_libcosim(plan, values, scenario.stop_time, step), args.repeats),
-        "simulate_fmu": time_simulate_fmu(plan, scenario, values, step, args.repeats),
-        "c_floor": c_floor,
-    }
-    ours_last_x = float(reference.trajectory.column("vehicle.x")[-1])
-    ratios = {
-        "dse_runner_over_c_floor": figures["dse_runner"] / figures["c_floor"],
-        "libcosim_over_dse_runner": figures["libcosim"] / figures["dse_runner"],
-        "simulate_fmu_over_dse_runner": figures["simulate_fmu"] / figures["dse_runner"],
-    }
+        cases = {"robotti": robotti_case(args.scenario, args.repeats, Path(tmp) / "robotti"),
+                 "cheap": cheap_case(args.repeats, Path(tmp) / "cheap")}
+    all_ratios = {name: ratios(case.figures) for name, case in cases.items()}
+    checked = targets(all_ratios)
     if args.json:
-        print(json.dumps({**figures, "ratios": ratios, "scenario": args.scenario, "repeats": args.repeats,
-                          "c_floor_final_x_minus_ours": c_last_x - ours_last_x}, indent=2))
+        print(json.dumps({
+            **{name: case.figures for name, case in cases.items()},
+            "ratios": all_ratios,
+            "steps": {name: case.steps for name, case in cases.items()},
+            "repeats": args.repeats,
+            "scenario": args.scenario,
+            "targets": checked,
+            "final": {name: {"signal": case.signal, **case.final} for name, case in cases.items()},
+        }, indent=2, allow_nan=False))
         return
-    print(f"scenario {args.scenario}: {len(reference.trajectory.time) - 1} steps of {step:g} s, "
-          f"median of {args.repeats} runs")
-    for name, seconds in figures.items():
-        print(f"  {name:<14} {seconds * 1e3:9.2f} ms")
-    for name, ratio in ratios.items():
-        print(f"  {name:<30} {ratio:6.2f}x")
-    print(f"  (C floor and dse_runner end at x differing by {abs(c_last_x - ours_last_x):.2e} m)")
+    print(f"median of {args.repeats} runs per master")
+    titles = {"robotti": f"Robotti scenario {args.scenario}, controller + vehicle",
+              "cheap": f"vanderpol alone, mu = {CHEAP_VALUES['mu']:g}, x0 and x1 recorded"}
+    for name, case in cases.items():
+        print_case(name, case, all_ratios[name], titles[name])
+    print("targets (native loop):")
+    for t in checked:
+        mark = "✔" if t["met"] else "✘"
+        print(f"  {t['case']:<8} {t['ratio']:<30} {t['target']:>7}: {t['measured']:7.2f}x {mark}")
 
 
 if __name__ == "__main__":

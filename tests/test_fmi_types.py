@@ -516,7 +516,7 @@ def test_simulate_an_fmu_writes_bare_names_and_strict_json(fmus, tmp_path):
 # ---- 7. conversions cost only where a connection needs them -------------------------------------
 
 def captured_units(monkeypatch, path, **kwargs) -> dict[str, cosim._Unit]:
-    """The prepared units a run's step loop gets, by instance."""
+    """The prepared units the Python step loop gets, by instance (the native loop takes the same units)."""
     seen = {}
     original = cosim._step_loop
 
@@ -525,7 +525,7 @@ def captured_units(monkeypatch, path, **kwargs) -> dict[str, cosim._Unit]:
         return original(units, *args)
 
     monkeypatch.setattr(cosim, "_step_loop", spy)
-    simulate(path, **kwargs)
+    simulate(path, loop="python", **kwargs)
     return seen
 
 

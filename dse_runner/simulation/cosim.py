@@ -25,6 +25,7 @@ import ctypes
 import difflib
 import functools
 import math
+import os
 import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field, replace
@@ -38,7 +39,8 @@ from . import fmu as fmus
 from .build import resolve_fmu
 from .multimodel import MultiModel
 from .scenario import Series
-from .steppers import FMI_WARNING, Stepper, stepper
+from . import native
+from .steppers import FMI_WARNING, CoSimulation2, CoSimulation3, Stepper, stepper
 from .variables import (
     Conversion,
     Value,
@@ -241,6 +243,8 @@ class _Read:
     args: tuple
     name: str
     copy: Callable[[], Any] | None  # moves values into ``signals`` when the buffer is not a view of it
+    ctype: Any = None
+    columns: np.ndarray | None = None  # where ``copy`` moves them (native.py does the same in C)
 
 
 @dataclass
@@ -251,6 +255,10 @@ class _Feed:
     args: tuple
     name: str
     fill: Callable[[], Any]  # gathers (and converts) the sources' values into the buffer
+    ctype: Any = None
+    gather: np.ndarray | None = None  # which signals ``fill`` gathers (native.py does the same in C)
+    conversion: Conversion = Conversion()
+    targets: tuple[Variable, ...] = ()
 
 
 @dataclass
@@ -291,12 +299,12 @@ def _reads(step: Stepper, variables: tuple[Variable, ...], signals: np.ndarray, 
         contiguous = columns == list(range(columns[0], columns[0] + n))
         if access.ctype is ctypes.c_double and contiguous:
             buffer = (ctypes.c_double * n).from_address(signals.ctypes.data + columns[0] * signals.itemsize)
-            copy = None
+            copy, where = None, None
         else:
             buffer = (access.ctype * n)()
-            view, where = _buffer_view(buffer, access.ctype), np.array(columns)
+            view, where = _buffer_view(buffer, access.ctype), np.array(columns, dtype=np.int64)
             copy = lambda view=view, where=where: signals.__setitem__(where, view)  # noqa: E731
-        reads.append(_Read(access.get, step.args(access, vrs, n, buffer), access.name, copy))
+        reads.append(_Read(access.get, step.args(access, vrs, n, buffer), access.name, copy, access.ctype, where))
     return reads
 
 
@@ -319,9 +327,10 @@ def _feeds(step: Stepper, links: list[tuple[Variable, int, Conversion]], signals
         n = len(members)
         vrs = (ctypes.c_uint32 * n)(*[t.vr for t, _ in members])
         buffer = (access.ctype * n)()
-        view, gather = _buffer_view(buffer, access.ctype), np.array([i for _, i in members], dtype=np.intp)
+        view, gather = _buffer_view(buffer, access.ctype), np.array([i for _, i in members], dtype=np.int64)
+        targets = tuple(t for t, _ in members)
         feeds.append(_Feed(access.set, step.args(access, vrs, n, buffer), access.name.replace("Get", "Set"),
-                           _filler(signals, gather, view, conv, [t for t, _ in members])))
+                           _filler(signals, gather, view, conv, list(targets)), access.ctype, gather, conv, targets))
     return feeds
 
 
@@ -353,21 +362,27 @@ def _rounder(signals: np.ndarray, gather: np.ndarray, view: np.ndarray,
         fits = (rounded >= low) & (rounded < above)
         if not fits.all():
             j = int(np.argmin(fits))
-            raise _Unfit(f"{targets[j].ref} is fed {signals[gather[j]]:g}, which rounded does not fit "
-                         f"{with_article(targets[j].type)}")
+            raise _Unfit(unfit_message(targets[j], signals[gather[j]]))
         view[:] = rounded
 
     return fill
 
 
+def unfit_message(target: Variable, value: float) -> str:
+    return f"{target.ref} is fed {value:g}, which rounded does not fit {with_article(target.type)}"
+
+
 def run(plan: Plan, values: Mapping[str, Value], start: float, stop: float, step: float,
-        timeout: float | None = None, inputs: Mapping[str, Series] | None = None) -> Trajectory:
+        timeout: float | None = None, inputs: Mapping[str, Series] | None = None,
+        loop: str | None = None) -> Trajectory:
     """Co-simulate ``plan`` from ``start`` to ``stop`` with communication step ``step``.
 
     ``values`` are set before initialization; ``inputs`` are signals fed to
     input variables at every communication point. ``timeout`` bounds the wall
     time of the step loop in seconds; it is checked between steps, so it stops
-    a slow simulation, not one hung inside an FMU."""
+    a slow simulation, not one hung inside an FMU. ``loop``: "native" (the C
+    loop, native.py; the default) or "python" (the reference); default: the
+    environment's ``DSE_RUNNER_LOOP``, else native."""
     times = _time_grid(start, stop, step)
     settings = _resolve_values(plan, values)
     series = _resolve_inputs(plan, inputs or {}, times)
@@ -395,8 +410,13 @@ def run(plan: Plan, values: Mapping[str, Value], start: float, stop: float, step
         current = None
         _exchange(units, signals, external, 0, texts, start, feed=False)
         record[0] = signals[: len(names)]
-        deadline = time.perf_counter() + timeout if timeout else math.inf
-        _step_loop(units, times, signals, external, record, texts, deadline)
+        if _native(units, loop):
+            program = native.Program(units)
+            outcome = native.step_loop(program, times, signals, len(names), external, record, texts, timeout)
+            _raise_where_stopped(outcome, program, units, times, names, record, texts)
+        else:
+            deadline = time.perf_counter() + timeout if timeout else math.inf
+            _step_loop(units, times, signals, external, record, texts, deadline)
         for unit in units:
             current = unit
             unit.stepper.terminate()
@@ -412,6 +432,50 @@ def run(plan: Plan, values: Mapping[str, Value], start: float, stop: float, step
         raise CosimError(message, current.stepper.name) from None
     _check_finite(names, times, record)
     return Trajectory(times, names, record, texts)
+
+
+LOOPS = ("native", "python")
+
+
+def _native(units: list[_Unit], loop: str | None) -> bool:
+    """Whether the C loop runs: asked for (or by default), built, and every instance co-simulation."""
+    loop = loop or os.environ.get("DSE_RUNNER_LOOP") or "native"
+    if loop not in LOOPS:
+        raise DseError(f"loop {loop!r}: expected one of {', '.join(LOOPS)} (DSE_RUNNER_LOOP)")
+    return (loop == "native" and all(isinstance(u.stepper, (CoSimulation2, CoSimulation3)) for u in units)
+            and native.library() is not None)
+
+
+def _raise_where_stopped(outcome, program, units: list[_Unit], times: np.ndarray, names: tuple[str, ...],
+                         record: np.ndarray, texts: dict[str, list[str]]) -> None:
+    """The error the Python loop raises where the C loop stopped, if it stopped early."""
+    code, k, t = outcome.code, outcome.k, outcome.t
+    if code == native.TIMEOUT:
+        raise CosimError(f"timeout: the simulation was stopped at t={t:.6g} of {times[-1]:.6g} s")
+    if code == native.DIVERGED:
+        _check_finite(names, times[: k + 1], record[: k + 1])
+    if code in (native.FEED_FAILED, native.UNFIT):
+        i, feed = program.feeds[outcome.group]
+        if code == native.UNFIT:
+            raise CosimError(f"{unfit_message(feed.targets[outcome.element], outcome.value)} at t={t:.6g}")
+        raise units[i].fail(feed.name, t)
+    if code == native.READ_FAILED:
+        i, read = program.reads[outcome.group]
+        raise units[i].fail(read.name, t)
+    if code == native.STEP_FAILED:
+        raise units[outcome.unit].fail(units[outcome.unit].stepper.step_name, t)
+    if code == native.TERMINATE:
+        step = units[outcome.unit].stepper
+        raise CosimError(step.instance.explain(f"the FMU asked to terminate the simulation at t={t:.6g}"), step.name)
+    if code == native.TEXT_READ_FAILED:
+        raise units[outcome.unit].fail("getString", t)
+    if code == native.TEXT_FEED_FAILED:
+        source, target, variable = program.text_feeds[outcome.group]
+        value = texts[program.text_source_names[outcome.group]][-1].encode("utf-8")
+        failed = f"{target.access(variable).name.replace('Get', 'Set')} of {variable.name} = {value!r} failed"
+        raise CosimError(target.instance.explain(f"{failed} at t={t:.6g}"), target.name)
+    if code != native.DONE:
+        raise CosimError(f"the native loop ran out of memory at t={t:.6g}")
 
 
 def _time_grid(start: float, stop: float, step: float) -> np.ndarray:

@@ -115,10 +115,12 @@ def simulate(
     timeout: float | None = None,
     experiment: Experiment | None = None,
     interface: str | None = None,
+    loop: str | None = None,
 ) -> SimulationResult:
     """Co-simulate ``model`` on ``scenario`` (none: the nominal one) with ``values`` and score it.
 
-    ``objectives`` default to those of the scenario's kind (none for a plain scenario)."""
+    ``objectives`` default to those of the scenario's kind (none for a plain scenario); ``loop``
+    chooses the master's step loop (cosim.run: native C, or the Python reference)."""
     plan = as_plan(model, interface)
     scenario = as_scenario(scenario)
     specs = objs.normalise(objectives) if objectives is not None else default_objectives(scenario)
@@ -128,7 +130,7 @@ def simulate(
               **{qualify(plan, ref): v for ref, v in (values or {}).items()}}
     times = resolve_times(plan, scenario, experiment, start_time, stop_time, step)
     inputs = {ref: s for ref, s in scenario.inputs.items() if isinstance(s, Series)}
-    trajectory = run(plan, values, times.start, times.stop, times.step, timeout, inputs)
+    trajectory = run(plan, values, times.start, times.stop, times.step, timeout, inputs, loop)
     return SimulationResult(scenario, values, times, trajectory, objs.evaluate(specs, trajectory, scenario))
 
 

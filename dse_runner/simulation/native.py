@@ -1,0 +1,213 @@
+"""The master's step loop in C: one call per simulation instead of Python per step.
+
+A design study runs the same co-simulation thousands of times, and with
+cheap FMUs the Python loop (cosim.py) costs far more per step than the FMUs
+do. ``native_loop.c`` does the same steps in the same order through the same
+FMU functions, so the trajectories are bit-identical; cosim.py still loads,
+instantiates, initialises, terminates and words every error, and hands this
+module its prepared reads and feeds.
+
+The library is compiled with the system C compiler on first use and cached by
+a hash of its source, as our FMUs are (build.py). Without a compiler the
+Python loop runs instead, after a one-line notice. Model-exchange instances
+keep FMPy's solvers, so a plan with one runs in the Python loop.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+import warnings
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .build import default_cache_dir
+
+SOURCE = Path(__file__).with_name("native_loop.c")
+CFLAGS = ("-O2", "-std=c11", "-fPIC", "-shared")
+
+# C type codes of native_loop.c, by the ctypes type a buffer holds (FMI 2's Integer and Boolean are int).
+CTYPES = {ctypes.c_double: 0, ctypes.c_float: 1, ctypes.c_int8: 2, ctypes.c_uint8: 3, ctypes.c_int16: 4,
+          ctypes.c_uint16: 5, ctypes.c_int32: 6, ctypes.c_uint32: 7, ctypes.c_int64: 8, ctypes.c_uint64: 9,
+          ctypes.c_bool: 10, ctypes.c_int: 11}
+CONVERSIONS = {"none": 0, "round": 1, "threshold": 2}
+(DONE, FEED_FAILED, STEP_FAILED, READ_FAILED, TIMEOUT, DIVERGED, UNFIT, TERMINATE, TEXT_READ_FAILED,
+ TEXT_FEED_FAILED, NO_MEMORY) = range(11)
+
+
+class NativeLoopWarning(UserWarning):
+    """The native loop cannot be built here; the Python loop runs instead."""
+
+
+class Group(ctypes.Structure):
+    _fields_ = [("fn", ctypes.c_void_p), ("component", ctypes.c_void_p), ("version", ctypes.c_int32),
+                ("ctype", ctypes.c_int32), ("conv", ctypes.c_int32), ("unit", ctypes.c_int32),
+                ("threshold", ctypes.c_double), ("low", ctypes.c_double), ("above", ctypes.c_double),
+                ("n", ctypes.c_int64), ("vrs", ctypes.c_void_p), ("index", ctypes.c_void_p),
+                ("buffer", ctypes.c_void_p)]
+
+
+class Unit(ctypes.Structure):
+    _fields_ = [("step", ctypes.c_void_p), ("component", ctypes.c_void_p), ("version", ctypes.c_int32),
+                ("unit", ctypes.c_int32)]
+
+
+class TextRead(ctypes.Structure):
+    _fields_ = [("fn", ctypes.c_void_p), ("component", ctypes.c_void_p), ("version", ctypes.c_int32),
+                ("unit", ctypes.c_int32), ("n", ctypes.c_int64), ("vrs", ctypes.c_void_p),
+                ("buffer", ctypes.c_void_p), ("first", ctypes.c_int64)]
+
+
+class TextFeed(ctypes.Structure):
+    _fields_ = [("fn", ctypes.c_void_p), ("component", ctypes.c_void_p), ("version", ctypes.c_int32),
+                ("unit", ctypes.c_int32), ("vr", ctypes.c_uint32), ("target", ctypes.c_int32),
+                ("source", ctypes.c_int64)]
+
+
+class Outcome(ctypes.Structure):
+    _fields_ = [("code", ctypes.c_int32), ("unit", ctypes.c_int32), ("group", ctypes.c_int32),
+                ("element", ctypes.c_int32), ("k", ctypes.c_int64), ("t", ctypes.c_double),
+                ("value", ctypes.c_double), ("arena", ctypes.c_void_p), ("arena_used", ctypes.c_int64)]
+
+
+def _compiler() -> str | None:
+    return os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
+
+
+def _build(compiler: str, target: Path) -> None:
+    """Compile under a temporary name and rename: processes building at once never load half a file."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=target.parent) as work:
+        partial = Path(work) / target.name
+        done = subprocess.run([compiler, *CFLAGS, "-o", str(partial), str(SOURCE), "-lm"],
+                              capture_output=True, text=True, check=False)
+        if done.returncode != 0:
+            raise OSError(done.stderr.strip().splitlines()[-1] if done.stderr.strip() else "the compiler failed")
+        os.replace(partial, target)
+
+
+@cache
+def library() -> ctypes.CDLL | None:
+    """The compiled loop (built on first use, cached by source hash), or None after a notice."""
+    compiler = _compiler()
+    if compiler is None:
+        warnings.warn("no C compiler (cc) found: the co-simulation master runs its Python loop, several times "
+                      "slower on cheap FMUs", NativeLoopWarning, stacklevel=2)
+        return None
+    try:
+        digest = hashlib.sha256(SOURCE.read_bytes() + " ".join(CFLAGS).encode()).hexdigest()[:16]
+        path = default_cache_dir().parent / "native" / f"loop-{digest}.so"
+        if not path.is_file():
+            _build(compiler, path)
+        lib = ctypes.CDLL(str(path))
+    except OSError as e:
+        warnings.warn(f"the native co-simulation loop could not be built ({e}): the master runs its Python loop",
+                      NativeLoopWarning, stacklevel=2)
+        return None
+    pointer, count, size = ctypes.c_void_p, ctypes.c_int32, ctypes.c_int64
+    lib.dse_loop.argtypes = [pointer, count, pointer, count, pointer, count, pointer, count, pointer, count,
+                             pointer, size, pointer, size, pointer, size, pointer, size, pointer, pointer,
+                             ctypes.c_double, pointer]
+    lib.dse_loop.restype = ctypes.c_int
+    lib.dse_free.argtypes = [ctypes.c_void_p]
+    lib.dse_free.restype = None
+    return lib
+
+
+def _address(obj: Any) -> int | None:
+    """The C address of a ctypes array or function, or of a numpy array."""
+    if obj is None:
+        return None
+    if isinstance(obj, np.ndarray):
+        return obj.ctypes.data
+    if isinstance(obj, ctypes.Array):
+        return ctypes.addressof(obj)
+    return ctypes.cast(obj, ctypes.c_void_p).value
+
+
+def _version(stepper) -> int:
+    return 3 if type(stepper).__name__ == "CoSimulation3" else 2
+
+
+def _limits(ctype) -> tuple[float, float]:
+    """[low, above): the whole numbers a rounded value may take in an integer buffer (cosim._rounder)."""
+    if ctype in (ctypes.c_double, ctypes.c_float, ctypes.c_bool):
+        return 0.0, 0.0
+    limits = np.iinfo(np.dtype(ctype))
+    return float(limits.min), limits.max + 1.0
+
+
+def _group(call, args: tuple, unit: int, version: int, ctype, index: np.ndarray | None, conversion=None) -> Group:
+    low, above = _limits(ctype)
+    return Group(fn=_address(call), component=args[0], version=version, ctype=CTYPES[ctype],
+                 conv=CONVERSIONS[conversion.kind] if conversion is not None else 0,
+                 unit=unit, threshold=conversion.threshold if conversion is not None else 0.0,
+                 low=low, above=above, n=args[2], vrs=_address(args[1]), index=_address(index),
+                 buffer=_address(args[3]))
+
+
+class Program:
+    """A plan's units as the C loop takes them: flat arrays of structures, made once per run."""
+
+    def __init__(self, units: list) -> None:
+        self.units = units
+        self.steps = (Unit * len(units))(*[
+            Unit(step=_address(u.stepper.call), component=u.stepper.before[0], version=_version(u.stepper), unit=i)
+            for i, u in enumerate(units)])
+        self.feeds = [(i, f) for i, u in enumerate(units) for f in u.feeds]
+        self.reads = [(i, r) for i, u in enumerate(units) for r in u.reads]
+        self.feed_groups = (Group * len(self.feeds))(*[
+            _group(f.call, f.args, i, _version(units[i].stepper), f.ctype, f.gather, f.conversion)
+            for i, f in self.feeds])
+        self.read_groups = (Group * len(self.reads))(*[
+            _group(r.call, r.args, i, _version(units[i].stepper), r.ctype, r.columns) for i, r in self.reads])
+        self.texts = [(i, u.texts) for i, u in enumerate(units) if u.texts is not None]
+        firsts = np.cumsum([0] + [len(x.names) for _, x in self.texts])
+        self.text_names = [name for _, x in self.texts for name in x.names]
+        self.text_reads = (TextRead * len(self.texts))(*[
+            TextRead(fn=_address(x.call), component=x.args[0], version=_version(units[i].stepper), unit=i,
+                     n=x.args[2], vrs=_address(x.args[1]), buffer=_address(x.buffer), first=int(firsts[j]))
+            for j, (i, x) in enumerate(self.texts)])
+        index = {id(u.stepper): i for i, u in enumerate(units)}
+        self.text_feeds = [(i, target, variable) for j, (i, x) in enumerate(self.texts)
+                           for target, variable, _ in x.feeds]
+        self.text_source_names = [x.names[k] for _, x in self.texts for _, _, k in x.feeds]
+        self.text_feed_structs = (TextFeed * len(self.text_feeds))(*[
+            TextFeed(fn=_address(target.access(variable).set), component=target.handle(), version=_version(target),
+                     unit=i, vr=variable.vr, target=index[id(target)], source=int(firsts[j]) + k)
+            for j, (i, x) in enumerate(self.texts) for target, variable, k in x.feeds])
+
+
+def step_loop(program: Program, times: np.ndarray, signals: np.ndarray, n_recorded: int,
+              external: np.ndarray | None, record: np.ndarray, texts: dict[str, list[str]],
+              timeout: float | None) -> Outcome:
+    """Run points 1.. of ``times`` in C; the string outputs are appended to ``texts``."""
+    lib = library()
+    n_texts = len(program.text_names)
+    initial = [texts[name][-1].encode("utf-8") for name in program.text_names]
+    initial_array = (ctypes.c_char_p * max(n_texts, 1))(*initial)
+    offsets = np.zeros((len(times), max(n_texts, 1)), dtype=np.int64)
+    external = np.ascontiguousarray(external) if external is not None else None
+    outcome = Outcome()
+    lib.dse_loop(_address(program.steps), len(program.units), _address(program.feed_groups), len(program.feeds),
+                 _address(program.read_groups), len(program.reads), _address(program.text_reads), len(program.texts),
+                 _address(program.text_feed_structs), len(program.text_feeds), _address(initial_array), n_texts,
+                 _address(times), len(times), _address(signals), n_recorded, _address(external),
+                 external.shape[1] if external is not None else 0, _address(record), _address(offsets),
+                 timeout or 0.0, ctypes.addressof(outcome))
+    try:
+        if n_texts:
+            arena = ctypes.string_at(outcome.arena, outcome.arena_used)
+            rows = offsets[1:outcome.k + (outcome.code == DONE)]
+            for j, name in enumerate(program.text_names):
+                texts[name].extend(arena[o:arena.index(b"\0", o)].decode("utf-8", "replace") for o in rows[:, j])
+    finally:
+        lib.dse_free(outcome.arena)
+    return outcome

@@ -1,0 +1,304 @@
+/*
+ * native_loop.c: the master's fixed-step loop in C (dse_runner/simulation/native.py).
+ *
+ * Python loads, instantiates and initialises the FMUs (FMPy), resolves every
+ * connection into groups of one C type and conversion, and hands this loop
+ * the FMUs' own function pointers with prepared buffers.  Each step does what
+ * cosim.py's Python loop does, in the same order, so the trajectories are
+ * bit-identical:
+ *
+ *   1. external input signals of this point into the signal vector;
+ *   2. per unit: its input groups gathered from the signals (converted: copy,
+ *      round half to even, threshold), set; then the string outputs it feeds;
+ *   3. every unit steps from t to t + h (fmi2DoStep / fmi3DoStep);
+ *   4. an FMI 3.0 unit that asked to terminate stops the loop;
+ *   5. per unit: its output groups got and scattered into the signals; its
+ *      string outputs got and copied into an arena;
+ *   6. the recorded signals of this point are stored, and checked finite.
+ *
+ * It stops at the first failure and says where (Outcome); Python words the
+ * message as the Python loop does.  No FMI header is needed: only the calling
+ * conventions of the four FMI function shapes are used.
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <math.h>
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+enum { F64, F32, I8, U8, I16, U16, I32, U32, I64, U64, BOOL8, CINT };  /* CINT: FMI 2's Integer and Boolean */
+enum { COPY, ROUND, THRESHOLD };
+enum { DONE, FEED_FAILED, STEP_FAILED, READ_FAILED, TIMEOUT, DIVERGED, UNFIT, TERMINATE,
+       TEXT_READ_FAILED, TEXT_FEED_FAILED, NO_MEMORY };
+
+#define FMI_WARNING 1  /* statuses above this are failures, in FMI 2 and 3 alike */
+
+typedef int (*Access2)(void *, const uint32_t *, size_t, void *);
+typedef int (*Access3)(void *, const uint32_t *, size_t, void *, size_t);
+typedef int (*Step2)(void *, double, double, int);
+typedef int (*Step3)(void *, double, double, bool, bool *, bool *, bool *, double *);
+
+typedef struct {          /* one group of values of one C type: an FMU's inputs or outputs */
+    void *fn;             /* fmi2SetReal, fmi3GetInt64, ... */
+    void *component;
+    int32_t version;      /* 2 or 3 */
+    int32_t ctype;
+    int32_t conv;         /* inputs only */
+    int32_t unit;
+    double threshold;     /* THRESHOLD: true above this */
+    double low, above;    /* ROUND: what the C type holds, [low, above) */
+    int64_t n;
+    const uint32_t *vrs;
+    const int64_t *index; /* signals gathered (inputs) or scattered to (outputs); NULL: buffer is the signals */
+    void *buffer;
+} Group;
+
+typedef struct {
+    void *step;
+    void *component;
+    int32_t version;
+    int32_t unit;
+} Unit;
+
+typedef struct {          /* the string outputs of one unit */
+    void *fn;             /* fmi2GetString or fmi3GetString */
+    void *component;
+    int32_t version;
+    int32_t unit;
+    int64_t n;
+    const uint32_t *vrs;
+    const char **buffer;
+    int64_t first;        /* index of its first output among all string outputs */
+} TextRead;
+
+typedef struct {          /* a string output feeding a string input */
+    void *fn;             /* the target's fmi2SetString or fmi3SetString */
+    void *component;
+    int32_t version;
+    int32_t unit;         /* the source's unit: fed right after that unit's inputs */
+    uint32_t vr;
+    int32_t target;       /* the target's unit, for messages */
+    int64_t source;       /* index among all string outputs */
+} TextFeed;
+
+typedef struct {          /* where the loop stopped, and the strings it recorded */
+    int32_t code;
+    int32_t unit;
+    int32_t group;
+    int32_t element;
+    int64_t k;            /* the communication point reached */
+    double t;
+    double value;         /* UNFIT: the value that did not fit */
+    char *arena;          /* every string recorded, NUL-terminated; free with dse_free */
+    int64_t arena_used;
+} Outcome;
+
+static double now(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static int call(const Group *g) {
+    if (g->version == 3) return ((Access3)g->fn)(g->component, g->vrs, (size_t)g->n, g->buffer, (size_t)g->n);
+    return ((Access2)g->fn)(g->component, g->vrs, (size_t)g->n, g->buffer);
+}
+
+/* Stores x into element i of a buffer of C type ctype, as numpy's assignment does. */
+static void store(void *buffer, int ctype, int64_t i, double x) {
+    switch (ctype) {
+    case F64: ((double *)buffer)[i] = x; break;
+    case F32: ((float *)buffer)[i] = (float)x; break;
+    case I8: ((int8_t *)buffer)[i] = (int8_t)x; break;
+    case U8: ((uint8_t *)buffer)[i] = (uint8_t)x; break;
+    case I16: ((int16_t *)buffer)[i] = (int16_t)x; break;
+    case U16: ((uint16_t *)buffer)[i] = (uint16_t)x; break;
+    case I32: ((int32_t *)buffer)[i] = (int32_t)x; break;
+    case U32: ((uint32_t *)buffer)[i] = (uint32_t)x; break;
+    case I64: ((int64_t *)buffer)[i] = (int64_t)x; break;
+    case U64: ((uint64_t *)buffer)[i] = (uint64_t)x; break;
+    case BOOL8: ((bool *)buffer)[i] = x != 0.0; break;
+    default: ((int *)buffer)[i] = (int)x; break;
+    }
+}
+
+static double load(const void *buffer, int ctype, int64_t i) {
+    switch (ctype) {
+    case F64: return ((const double *)buffer)[i];
+    case F32: return (double)((const float *)buffer)[i];
+    case I8: return (double)((const int8_t *)buffer)[i];
+    case U8: return (double)((const uint8_t *)buffer)[i];
+    case I16: return (double)((const int16_t *)buffer)[i];
+    case U16: return (double)((const uint16_t *)buffer)[i];
+    case I32: return (double)((const int32_t *)buffer)[i];
+    case U32: return (double)((const uint32_t *)buffer)[i];
+    case I64: return (double)((const int64_t *)buffer)[i];
+    case U64: return (double)((const uint64_t *)buffer)[i];
+    case BOOL8: return ((const bool *)buffer)[i] ? 1.0 : 0.0;
+    default: return (double)((const int *)buffer)[i];
+    }
+}
+
+/* Gathers a group's inputs from the signals into its buffer; -1 or the element that does not fit. */
+static int64_t fill(const Group *g, const double *signals, double *bad) {
+    if (g->conv == COPY && g->ctype == F64) {
+        double *b = g->buffer;
+        for (int64_t i = 0; i < g->n; i++) b[i] = signals[g->index[i]];
+        return -1;
+    }
+    for (int64_t i = 0; i < g->n; i++) {
+        double x = signals[g->index[i]];
+        if (g->conv == THRESHOLD) {
+            store(g->buffer, g->ctype, i, x > g->threshold ? 1.0 : 0.0);
+        } else if (g->conv == ROUND) {
+            double r = nearbyint(x);  /* half to even, as numpy's rint */
+            if (!(r >= g->low && r < g->above)) {
+                *bad = x;
+                return i;
+            }
+            store(g->buffer, g->ctype, i, r);
+        } else {
+            store(g->buffer, g->ctype, i, x);
+        }
+    }
+    return -1;
+}
+
+static void scatter(const Group *g, double *signals) {
+    if (g->index == NULL) return;  /* float64 outputs read straight into the signals */
+    for (int64_t i = 0; i < g->n; i++) signals[g->index[i]] = load(g->buffer, g->ctype, i);
+}
+
+typedef struct {
+    char *data;
+    int64_t used, size;
+} Arena;
+
+/* Appends a string and its NUL; its offset, or -1 without memory. */
+static int64_t keep(Arena *a, const char *text) {
+    size_t length = strlen(text ? text : "") + 1;
+    if (a->used + (int64_t)length > a->size) {
+        int64_t size = a->size ? a->size : 4096;
+        while (size < a->used + (int64_t)length) size *= 2;
+        char *data = realloc(a->data, (size_t)size);
+        if (!data) return -1;
+        a->data = data;
+        a->size = size;
+    }
+    memcpy(a->data + a->used, text ? text : "", length);
+    a->used += (int64_t)length;
+    return a->used - (int64_t)length;
+}
+
+static int stop(Outcome *out, Arena *arena, int code, int64_t k, double t, int unit, int group) {
+    out->code = code;
+    out->k = k;
+    out->t = t;
+    out->unit = unit;
+    out->group = group;
+    out->arena = arena->data;
+    out->arena_used = arena->used;
+    return code;
+}
+
+/*
+ * Runs points 1 .. n_times - 1.  signals holds n_recorded recorded values, then n_external
+ * external inputs; record is n_times x n_recorded, row 0 already filled; external is
+ * n_times x n_external.  text_offsets is n_times x n_texts (row 0 unused): each recorded
+ * string's offset in the arena; initial_texts the string outputs at point 0.
+ */
+int dse_loop(const Unit *units, int32_t n_units, const Group *feeds, int32_t n_feeds,
+             const Group *reads, int32_t n_reads, const TextRead *text_reads, int32_t n_text_reads,
+             const TextFeed *text_feeds, int32_t n_text_feeds, const char **initial_texts, int64_t n_texts,
+             const double *times, int64_t n_times, double *signals, int64_t n_recorded,
+             const double *external, int64_t n_external, double *record, int64_t *text_offsets,
+             double seconds, Outcome *out) {
+    Arena arena = {0};
+    int64_t *latest = n_texts ? malloc((size_t)n_texts * sizeof *latest) : NULL;
+    if (n_texts && !latest) return stop(out, &arena, NO_MEMORY, 0, times[0], -1, -1);
+    for (int64_t j = 0; j < n_texts; j++) {
+        if ((latest[j] = keep(&arena, initial_texts[j])) < 0) {
+            free(latest);
+            return stop(out, &arena, NO_MEMORY, 0, times[0], -1, -1);
+        }
+    }
+    bool *asked = n_units ? calloc((size_t)n_units, sizeof *asked) : NULL;  /* terminateSimulation, per unit */
+    if (n_units && !asked) { free(latest); return stop(out, &arena, NO_MEMORY, 0, times[0], -1, -1); }
+    double deadline = seconds > 0 ? now() + seconds : INFINITY;
+    bool event, early;
+    double last_time;
+    int code = DONE;
+    int64_t k;
+    for (k = 1; k < n_times; k++) {
+        double t = times[k - 1], t_next = times[k], h = t_next - t;
+        if (!(k & 63) && now() > deadline) { code = stop(out, &arena, TIMEOUT, k, t, -1, -1); goto done; }
+        for (int64_t j = 0; j < n_external; j++) signals[n_recorded + j] = external[(k - 1) * n_external + j];
+        int32_t f = 0, tf = 0;
+        for (int32_t u = 0; u < n_units; u++) {
+            for (; f < n_feeds && feeds[f].unit == u; f++) {
+                double bad = 0.0;
+                int64_t unfit = fill(&feeds[f], signals, &bad);
+                if (unfit >= 0) {
+                    out->element = (int32_t)unfit;
+                    out->value = bad;
+                    code = stop(out, &arena, UNFIT, k, t, u, f);
+                    goto done;
+                }
+                if (call(&feeds[f]) > FMI_WARNING) { code = stop(out, &arena, FEED_FAILED, k, t, u, f); goto done; }
+            }
+            for (; tf < n_text_feeds && text_feeds[tf].unit == u; tf++) {
+                const TextFeed *x = &text_feeds[tf];
+                const char *value = arena.data + latest[x->source];
+                int status = x->version == 3
+                    ? ((Access3)x->fn)(x->component, &x->vr, 1, (void *)&value, 1)
+                    : ((Access2)x->fn)(x->component, &x->vr, 1, (void *)&value);
+                if (status > FMI_WARNING) { code = stop(out, &arena, TEXT_FEED_FAILED, k, t, x->target, tf); goto done; }
+            }
+        }
+        for (int32_t u = 0; u < n_units; u++) {
+            const Unit *s = &units[u];
+            int status = s->version == 3
+                ? ((Step3)s->step)(s->component, t, h, true, &event, &asked[u], &early, &last_time)
+                : ((Step2)s->step)(s->component, t, h, 1);
+            if (status > FMI_WARNING) { code = stop(out, &arena, STEP_FAILED, k, t, u, -1); goto done; }
+        }
+        for (int32_t u = 0; u < n_units; u++)  /* after every unit has stepped, as the Python loop checks */
+            if (asked[u]) { code = stop(out, &arena, TERMINATE, k, t_next, u, -1); goto done; }
+        int32_t r = 0, tr = 0;
+        for (int32_t u = 0; u < n_units; u++) {
+            for (; r < n_reads && reads[r].unit == u; r++) {
+                if (call(&reads[r]) > FMI_WARNING) { code = stop(out, &arena, READ_FAILED, k, t_next, u, r); goto done; }
+                scatter(&reads[r], signals);
+            }
+            for (; tr < n_text_reads && text_reads[tr].unit == u; tr++) {
+                const TextRead *x = &text_reads[tr];
+                int status = x->version == 3
+                    ? ((Access3)x->fn)(x->component, x->vrs, (size_t)x->n, (void *)x->buffer, (size_t)x->n)
+                    : ((Access2)x->fn)(x->component, x->vrs, (size_t)x->n, (void *)x->buffer);
+                if (status > FMI_WARNING) { code = stop(out, &arena, TEXT_READ_FAILED, k, t_next, u, tr); goto done; }
+                for (int64_t j = 0; j < x->n; j++) {
+                    int64_t at = keep(&arena, x->buffer[j]);
+                    if (at < 0) { code = stop(out, &arena, NO_MEMORY, k, t_next, u, tr); goto done; }
+                    latest[x->first + j] = text_offsets[k * n_texts + x->first + j] = at;
+                }
+            }
+        }
+        double *row = record + k * n_recorded;
+        bool finite = true;
+        for (int64_t j = 0; j < n_recorded; j++) {
+            row[j] = signals[j];
+            finite = finite && isfinite(signals[j]);
+        }
+        if (!finite) { code = stop(out, &arena, DIVERGED, k, t_next, -1, -1); goto done; }
+    }
+    code = stop(out, &arena, DONE, n_times - 1, times[n_times - 1], -1, -1);
+done:
+    free(latest);
+    free(asked);
+    return code;
+}
+
+void dse_free(char *arena) { free(arena); }
