@@ -40,7 +40,7 @@ from .build import resolve_fmu
 from .multimodel import MultiModel
 from .scenario import Series
 from . import native
-from .steppers import FMI_WARNING, CoSimulation2, CoSimulation3, Stepper, stepper
+from .steppers import FMI_WARNING, Stepper, stepper
 from .variables import (
     Conversion,
     Value,
@@ -387,14 +387,11 @@ def run(plan: Plan, values: Mapping[str, Value], start: float, stop: float, step
     settings = _resolve_values(plan, values)
     series = _resolve_inputs(plan, inputs or {}, times)
     names = plan.recorded
-    sources = {ref: i for i, ref in enumerate(names)}
-    sources.update({ref: len(names) + j for j, ref in enumerate(series)})
-    signals = np.zeros(len(names) + len(series))
     external = np.column_stack(list(series.values())) if series else None
-
     instances = {name: fmus.acquire(name, fmus.load(path, plan.interfaces[name]))
                  for name, path in plan.fmu_paths.items()}
-    units = _units(plan, instances, signals, sources, series)
+    prepared = _prepare(plan, instances, series, _native(plan, loop))
+    units, signals, program = prepared.units, prepared.signals, prepared.program
     texts = {v.ref: [] for vs in plan.texts.values() for v in vs}
     record = np.empty((len(times), len(names)))
     current = None
@@ -410,8 +407,7 @@ def run(plan: Plan, values: Mapping[str, Value], start: float, stop: float, step
         current = None
         _exchange(units, signals, external, 0, texts, start, feed=False)
         record[0] = signals[: len(names)]
-        if _native(units, loop):
-            program = native.Program(units)
+        if program is not None:
             outcome = native.step_loop(program, times, signals, len(names), external, record, texts, timeout)
             _raise_where_stopped(outcome, program, units, times, names, record, texts)
         else:
@@ -430,20 +426,58 @@ def run(plan: Plan, values: Mapping[str, Value], start: float, stop: float, step
         message = current.stepper.instance.explain(str(e).rstrip("."))
         fmus.discard(current.stepper.instance)
         raise CosimError(message, current.stepper.name) from None
-    _check_finite(names, times, record)
+    _check_finite(names, times, record if program is None else record[:1])  # the C loop checked the rest
     return Trajectory(times, names, record, texts)
 
 
 LOOPS = ("native", "python")
 
 
-def _native(units: list[_Unit], loop: str | None) -> bool:
-    """Whether the C loop runs: asked for (or by default), built, and every instance co-simulation."""
+def _native(plan: Plan, loop: str | None) -> bool:
+    """Whether the C loop runs: asked for (or by default), built, and every instance co-simulation
+    (model exchange keeps FMPy's solvers, in the Python loop)."""
     loop = loop or os.environ.get("DSE_RUNNER_LOOP") or "native"
     if loop not in LOOPS:
         raise DseError(f"loop {loop!r}: expected one of {', '.join(LOOPS)} (DSE_RUNNER_LOOP)")
-    return (loop == "native" and all(isinstance(u.stepper, (CoSimulation2, CoSimulation3)) for u in units)
-            and native.library() is not None)
+    return loop == "native" and all(i == "cs" for i in plan.interfaces.values()) and native.library() is not None
+
+
+@dataclass
+class _Prepared:
+    """A plan's units laid out for one set of instances, and the signals they read and write."""
+
+    plan: Plan
+    instances: tuple[fmus.Instance, ...]
+    units: list[_Unit]
+    signals: np.ndarray
+    program: native.Program | None  # the C loop's view of the units; None: the Python loop runs
+
+
+_PREPARED: dict[tuple, _Prepared] = {}
+KEEP_PREPARED = 16  # plans x instance sets a process keeps laid out
+
+
+def _prepare(plan: Plan, instances: dict[str, fmus.Instance], series: dict[str, np.ndarray],
+             use_native: bool) -> _Prepared:
+    """The units of this plan and these instances: laid out once for the native loop and reused while
+    the instances are (a sweep runs one plan thousands of times), so a cheap run costs little Python."""
+    key = (id(plan), tuple(map(id, instances.values())), tuple(series), use_native)
+    kept = _PREPARED.get(key)
+    if kept is not None and kept.plan is plan and all(a is b for a, b in zip(kept.instances, instances.values())):
+        kept.signals[:] = 0.0
+        return kept
+    names = plan.recorded
+    sources = {ref: i for i, ref in enumerate(names)}
+    sources.update({ref: len(names) + j for j, ref in enumerate(series)})
+    signals = np.zeros(len(names) + len(series))
+    units = _units(plan, instances, signals, sources, series)
+    prepared = _Prepared(plan, tuple(instances.values()), units, signals,
+                         native.Program(units) if use_native else None)
+    if use_native:  # model-exchange steppers hold an integrator's state: those are made anew each run
+        while len(_PREPARED) >= KEEP_PREPARED:
+            _PREPARED.pop(next(iter(_PREPARED)))
+        _PREPARED[key] = prepared
+    return prepared
 
 
 def _raise_where_stopped(outcome, program, units: list[_Unit], times: np.ndarray, names: tuple[str, ...],
@@ -478,7 +512,9 @@ def _raise_where_stopped(outcome, program, units: list[_Unit], times: np.ndarray
         raise CosimError(f"the native loop ran out of memory at t={t:.6g}")
 
 
+@functools.lru_cache(maxsize=64)
 def _time_grid(start: float, stop: float, step: float) -> np.ndarray:
+    """The communication points, made once per (start, stop, step) and read-only: trajectories share it."""
     if not (math.isfinite(start) and math.isfinite(stop) and stop > start):
         raise DseError(f"stop time {stop} must be after start time {start}")
     if not (step > 0 and math.isfinite(step)):
@@ -486,6 +522,7 @@ def _time_grid(start: float, stop: float, step: float) -> np.ndarray:
     n_steps = max(1, math.ceil((stop - start) / step - 1e-9))
     times = start + step * np.arange(n_steps + 1)
     times[-1] = stop
+    times.flags.writeable = False
     return times
 
 
@@ -654,6 +691,8 @@ def _resolve_inputs(plan: Plan, inputs: Mapping[str, Series], times: np.ndarray)
 
 
 def _check_finite(names: tuple[str, ...], times: np.ndarray, record: np.ndarray) -> None:
+    if np.isfinite(record).all():
+        return
     bad = ~np.isfinite(record)
     if bad.any():
         row, column = np.argwhere(bad)[0]

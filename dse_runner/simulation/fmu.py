@@ -190,8 +190,26 @@ def extract_root() -> Path:
     return root
 
 
+_LAST: dict[tuple[str, Interface | None], tuple[tuple[int, int], LoadedFmu]] = {}
+
+
 def load(path: Path, interface: Interface | None = None) -> LoadedFmu:
-    """Extract ``path`` once per process, keyed by content hash; check it can run as asked."""
+    """Extract ``path`` once per process, keyed by content hash; check it can run as asked. The same
+    file unchanged (size and modification time) is found again with one ``stat``: a sweep loads its
+    FMUs for every run."""
+    try:
+        stat = os.stat(path)
+    except OSError:
+        raise DseError(f"FMU not found: {path}") from None
+    last = _LAST.get((str(path), interface))
+    if last is not None and last[0] == (stat.st_size, stat.st_mtime_ns):
+        return last[1]
+    loaded = _load(path, interface)
+    _LAST[(str(path), interface)] = ((stat.st_size, stat.st_mtime_ns), loaded)
+    return loaded
+
+
+def _load(path: Path, interface: Interface | None) -> LoadedFmu:
     sha = content_hash(path)
     description = describe(path)
     chosen = choose_interface(path, description, interface)

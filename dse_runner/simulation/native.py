@@ -183,31 +183,39 @@ class Program:
             TextFeed(fn=_address(target.access(variable).set), component=target.handle(), version=_version(target),
                      unit=i, vr=variable.vr, target=index[id(target)], source=int(firsts[j]) + k)
             for j, (i, x) in enumerate(self.texts) for target, variable, k in x.feeds])
+        # the arguments that stay the same run after run
+        self.fixed = (_address(self.steps), len(units), _address(self.feed_groups), len(self.feeds),
+                      _address(self.read_groups), len(self.reads), _address(self.text_reads), len(self.texts),
+                      _address(self.text_feed_structs), len(self.text_feeds))
+        self.outcome = Outcome()
+        self.no_offsets = np.zeros((1, 1), dtype=np.int64)
 
 
 def step_loop(program: Program, times: np.ndarray, signals: np.ndarray, n_recorded: int,
               external: np.ndarray | None, record: np.ndarray, texts: dict[str, list[str]],
               timeout: float | None) -> Outcome:
     """Run points 1.. of ``times`` in C; the string outputs are appended to ``texts``."""
-    lib = library()
     n_texts = len(program.text_names)
-    initial = [texts[name][-1].encode("utf-8") for name in program.text_names]
-    initial_array = (ctypes.c_char_p * max(n_texts, 1))(*initial)
-    offsets = np.zeros((len(times), max(n_texts, 1)), dtype=np.int64)
+    initial = (ctypes.c_char_p * n_texts)(*[texts[name][-1].encode("utf-8") for name in program.text_names]) \
+        if n_texts else None
+    offsets = np.zeros((len(times), n_texts), dtype=np.int64) if n_texts else program.no_offsets
     external = np.ascontiguousarray(external) if external is not None else None
-    outcome = Outcome()
-    lib.dse_loop(_address(program.steps), len(program.units), _address(program.feed_groups), len(program.feeds),
-                 _address(program.read_groups), len(program.reads), _address(program.text_reads), len(program.texts),
-                 _address(program.text_feed_structs), len(program.text_feeds), _address(initial_array), n_texts,
-                 _address(times), len(times), _address(signals), n_recorded, _address(external),
-                 external.shape[1] if external is not None else 0, _address(record), _address(offsets),
-                 timeout or 0.0, ctypes.addressof(outcome))
-    try:
-        if n_texts:
-            arena = ctypes.string_at(outcome.arena, outcome.arena_used)
-            rows = offsets[1:outcome.k + (outcome.code == DONE)]
-            for j, name in enumerate(program.text_names):
-                texts[name].extend(arena[o:arena.index(b"\0", o)].decode("utf-8", "replace") for o in rows[:, j])
-    finally:
-        lib.dse_free(outcome.arena)
+    outcome = program.outcome
+    library().dse_loop(*program.fixed, _address(initial), n_texts, times.ctypes.data, len(times), signals.ctypes.data,
+                       n_recorded, _address(external), external.shape[1] if external is not None else 0,
+                       record.ctypes.data, offsets.ctypes.data, timeout or 0.0, ctypes.addressof(outcome))
+    if outcome.arena:
+        try:
+            if n_texts:
+                _decode(program, outcome, offsets, texts)
+        finally:
+            library().dse_free(outcome.arena)
     return outcome
+
+
+def _decode(program: Program, outcome: Outcome, offsets: np.ndarray, texts: dict[str, list[str]]) -> None:
+    """The string outputs the loop kept, one per communication point, appended to ``texts``."""
+    arena = ctypes.string_at(outcome.arena, outcome.arena_used)
+    rows = offsets[1:outcome.k + (outcome.code == DONE)]
+    for j, name in enumerate(program.text_names):
+        texts[name].extend(arena[o:arena.index(b"\0", o)].decode("utf-8", "replace") for o in rows[:, j])

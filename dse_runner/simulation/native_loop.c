@@ -204,6 +204,62 @@ static int stop(Outcome *out, Arena *arena, int code, int64_t k, double t, int u
     return code;
 }
 
+/* Copies the signals of point k into its row of the record; false if one is not finite. */
+static bool keep_row(double *row, const double *signals, int64_t n) {
+    bool finite = true;
+    for (int64_t j = 0; j < n; j++) {
+        row[j] = signals[j];
+        finite &= isfinite(signals[j]) != 0;
+    }
+    return finite;
+}
+
+/*
+ * The loop of a plan with only numeric connections and no input signals (most studies): the
+ * same steps as dse_loop below, without the per-unit interleaving that strings and input signals
+ * need (for numbers it changes nothing: every input is set before any unit steps).
+ */
+static int plain_loop(const Unit *units, int32_t n_units, const Group *feeds, int32_t n_feeds,
+                      const Group *reads, int32_t n_reads, bool fmi3, const double *times, int64_t n_times,
+                      double *signals, int64_t n_recorded, double *record, double seconds, bool *asked,
+                      Arena *arena, Outcome *out) {
+    const double deadline = seconds > 0 ? now() + seconds : INFINITY;
+    bool event, early;
+    double last_time;
+    for (int64_t k = 1; k < n_times; k++) {
+        const double t = times[k - 1], t_next = times[k], h = t_next - t;
+        if (!(k & 63) && now() > deadline) return stop(out, arena, TIMEOUT, k, t, -1, -1);
+        for (int32_t f = 0; f < n_feeds; f++) {
+            const Group *g = &feeds[f];
+            double bad = 0.0;
+            int64_t unfit = fill(g, signals, &bad);
+            if (unfit >= 0) {
+                out->element = (int32_t)unfit;
+                out->value = bad;
+                return stop(out, arena, UNFIT, k, t, g->unit, f);
+            }
+            if (call(g) > FMI_WARNING) return stop(out, arena, FEED_FAILED, k, t, g->unit, f);
+        }
+        for (int32_t u = 0; u < n_units; u++) {
+            const Unit *s = &units[u];
+            int status = s->version == 3
+                ? ((Step3)s->step)(s->component, t, h, true, &event, &asked[u], &early, &last_time)
+                : ((Step2)s->step)(s->component, t, h, 1);
+            if (status > FMI_WARNING) return stop(out, arena, STEP_FAILED, k, t, u, -1);
+        }
+        if (fmi3)
+            for (int32_t u = 0; u < n_units; u++)
+                if (asked[u]) return stop(out, arena, TERMINATE, k, t_next, u, -1);
+        for (int32_t r = 0; r < n_reads; r++) {
+            if (call(&reads[r]) > FMI_WARNING) return stop(out, arena, READ_FAILED, k, t_next, reads[r].unit, r);
+            scatter(&reads[r], signals);
+        }
+        if (!keep_row(record + k * n_recorded, signals, n_recorded))
+            return stop(out, arena, DIVERGED, k, t_next, -1, -1);
+    }
+    return stop(out, arena, DONE, n_times - 1, times[n_times - 1], -1, -1);
+}
+
 /*
  * Runs points 1 .. n_times - 1.  signals holds n_recorded recorded values, then n_external
  * external inputs; record is n_times x n_recorded, row 0 already filled; external is
@@ -225,12 +281,19 @@ int dse_loop(const Unit *units, int32_t n_units, const Group *feeds, int32_t n_f
             return stop(out, &arena, NO_MEMORY, 0, times[0], -1, -1);
         }
     }
+    int code = DONE;
     bool *asked = n_units ? calloc((size_t)n_units, sizeof *asked) : NULL;  /* terminateSimulation, per unit */
     if (n_units && !asked) { free(latest); return stop(out, &arena, NO_MEMORY, 0, times[0], -1, -1); }
+    if (n_texts == 0 && n_external == 0) {
+        bool fmi3 = false;
+        for (int32_t u = 0; u < n_units; u++) fmi3 |= units[u].version == 3;
+        code = plain_loop(units, n_units, feeds, n_feeds, reads, n_reads, fmi3, times, n_times, signals,
+                          n_recorded, record, seconds, asked, &arena, out);
+        goto done;
+    }
     double deadline = seconds > 0 ? now() + seconds : INFINITY;
     bool event, early;
     double last_time;
-    int code = DONE;
     int64_t k;
     for (k = 1; k < n_times; k++) {
         double t = times[k - 1], t_next = times[k], h = t_next - t;
@@ -286,13 +349,10 @@ int dse_loop(const Unit *units, int32_t n_units, const Group *feeds, int32_t n_f
                 }
             }
         }
-        double *row = record + k * n_recorded;
-        bool finite = true;
-        for (int64_t j = 0; j < n_recorded; j++) {
-            row[j] = signals[j];
-            finite = finite && isfinite(signals[j]);
+        if (!keep_row(record + k * n_recorded, signals, n_recorded)) {
+            code = stop(out, &arena, DIVERGED, k, t_next, -1, -1);
+            goto done;
         }
-        if (!finite) { code = stop(out, &arena, DIVERGED, k, t_next, -1, -1); goto done; }
     }
     code = stop(out, &arena, DONE, n_times - 1, times[n_times - 1], -1, -1);
 done:

@@ -77,13 +77,20 @@ class Stepper:
     def set_values(self, values: list[tuple[Variable, Value]]) -> None:
         """Values before initialization (parameters, start values), through FMPy's typed setters."""
         for variable, value in values:
-            access = self.access(variable)
-            vrs = (ctypes.c_uint32 * 1)(variable.vr)
+            access, vrs = self._setter(variable)
             if access.ctype is ctypes.c_char_p:
                 value = str(value).encode("utf-8")
             buffer = (access.ctype * 1)(value)
             if access.set(*self.args(access, vrs, 1, buffer)) > FMI_WARNING:
                 raise RuntimeError(f"{access.name.replace('Get', 'Set')} of {variable.name} = {value!r} failed")
+
+    def _setter(self, variable: Variable) -> tuple[Access, Any]:
+        """A variable's access and value-reference array, made once: a sweep sets the same ones every run."""
+        setters = self.__dict__.setdefault("_setters", {})
+        found = setters.get(variable)
+        if found is None:
+            found = setters[variable] = (self.access(variable), (ctypes.c_uint32 * 1)(variable.vr))
+        return found
 
     def enter_initialization(self, start: float, stop: float) -> None:
         raise NotImplementedError
