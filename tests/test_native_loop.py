@@ -161,10 +161,10 @@ def test_the_loop_is_chosen_by_argument_or_environment(monkeypatch):
 
 
 @pytest.mark.parametrize(("env", "notice"), [
-    ({"CC": "/nonexistent/cc"}, r"warning: the native co-simulation loop could not be built \(.*\): the master "
-                                r"runs its Python loop"),
-    ({"PATH": "/nonexistent"}, r"warning: no C compiler \(cc\) found: the co-simulation master runs its Python "
-                               r"loop, .*"),
+    ({"CC": "/nonexistent/cc"}, (r"warning: the native co-simulation loop could not be built \(.*\): the master "
+                                 r"runs its Python loop")),
+    ({"PATH": "/nonexistent"}, (r"warning: no C compiler \(cc\) found: the co-simulation master runs its Python "
+                                r"loop, .*")),
 ])
 def test_without_a_compiler_the_python_loop_runs_after_one_notice(tmp_path, env, notice):
     fmu = tmp_path / "vanderpol.fmu"

@@ -36,10 +36,10 @@ import numpy as np
 
 from ..errors import DseError
 from . import fmu as fmus
+from . import native
 from .build import resolve_fmu
 from .multimodel import MultiModel
 from .scenario import Series
-from . import native
 from .steppers import FMI_WARNING, Stepper, stepper
 from .variables import (
     Conversion,
@@ -257,7 +257,7 @@ class _Feed:
     fill: Callable[[], Any]  # gathers (and converts) the sources' values into the buffer
     ctype: Any = None
     gather: np.ndarray | None = None  # which signals ``fill`` gathers (native.py does the same in C)
-    conversion: Conversion = Conversion()
+    conversion: Conversion = field(default_factory=Conversion)
     targets: tuple[Variable, ...] = ()
 
 
@@ -504,7 +504,7 @@ def _raise_where_stopped(outcome, program, units: list[_Unit], times: np.ndarray
     if code == native.TEXT_READ_FAILED:
         raise units[outcome.unit].fail("getString", t)
     if code == native.TEXT_FEED_FAILED:
-        source, target, variable = program.text_feeds[outcome.group]
+        _, target, variable = program.text_feeds[outcome.group]
         value = texts[program.text_source_names[outcome.group]][-1].encode("utf-8")
         failed = f"{target.access(variable).name.replace('Get', 'Set')} of {variable.name} = {value!r} failed"
         raise CosimError(target.instance.explain(f"{failed} at t={t:.6g}"), target.name)

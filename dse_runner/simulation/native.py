@@ -132,10 +132,6 @@ def _address(obj: Any) -> int | None:
     return ctypes.cast(obj, ctypes.c_void_p).value
 
 
-def _version(stepper) -> int:
-    return 3 if type(stepper).__name__ == "CoSimulation3" else 2
-
-
 def _limits(ctype) -> tuple[float, float]:
     """[low, above): the whole numbers a rounded value may take in an integer buffer (cosim._rounder)."""
     if ctype in (ctypes.c_double, ctypes.c_float, ctypes.c_bool):
@@ -154,25 +150,26 @@ def _group(call, args: tuple, unit: int, version: int, ctype, index: np.ndarray 
 
 
 class Program:
-    """A plan's units as the C loop takes them: flat arrays of structures, made once per run."""
+    """A plan's units as the C loop takes them: flat arrays of C structures pointing at the units'
+    functions and buffers; made once per set of FMU instances (cosim._prepare) and reused."""
 
     def __init__(self, units: list) -> None:
         self.units = units
         self.steps = (Unit * len(units))(*[
-            Unit(step=_address(u.stepper.call), component=u.stepper.before[0], version=_version(u.stepper), unit=i)
+            Unit(step=_address(u.stepper.call), component=u.stepper.before[0], version=u.stepper.fmi_version, unit=i)
             for i, u in enumerate(units)])
         self.feeds = [(i, f) for i, u in enumerate(units) for f in u.feeds]
         self.reads = [(i, r) for i, u in enumerate(units) for r in u.reads]
         self.feed_groups = (Group * len(self.feeds))(*[
-            _group(f.call, f.args, i, _version(units[i].stepper), f.ctype, f.gather, f.conversion)
+            _group(f.call, f.args, i, units[i].stepper.fmi_version, f.ctype, f.gather, f.conversion)
             for i, f in self.feeds])
         self.read_groups = (Group * len(self.reads))(*[
-            _group(r.call, r.args, i, _version(units[i].stepper), r.ctype, r.columns) for i, r in self.reads])
+            _group(r.call, r.args, i, units[i].stepper.fmi_version, r.ctype, r.columns) for i, r in self.reads])
         self.texts = [(i, u.texts) for i, u in enumerate(units) if u.texts is not None]
         firsts = np.cumsum([0] + [len(x.names) for _, x in self.texts])
         self.text_names = [name for _, x in self.texts for name in x.names]
         self.text_reads = (TextRead * len(self.texts))(*[
-            TextRead(fn=_address(x.call), component=x.args[0], version=_version(units[i].stepper), unit=i,
+            TextRead(fn=_address(x.call), component=x.args[0], version=units[i].stepper.fmi_version, unit=i,
                      n=x.args[2], vrs=_address(x.args[1]), buffer=_address(x.buffer), first=int(firsts[j]))
             for j, (i, x) in enumerate(self.texts)])
         index = {id(u.stepper): i for i, u in enumerate(units)}
@@ -180,7 +177,7 @@ class Program:
                            for target, variable, _ in x.feeds]
         self.text_source_names = [x.names[k] for _, x in self.texts for _, _, k in x.feeds]
         self.text_feed_structs = (TextFeed * len(self.text_feeds))(*[
-            TextFeed(fn=_address(target.access(variable).set), component=target.handle(), version=_version(target),
+            TextFeed(fn=_address(target.access(variable).set), component=target.handle(), version=target.fmi_version,
                      unit=i, vr=variable.vr, target=index[id(target)], source=int(firsts[j]) + k)
             for j, (i, x) in enumerate(self.texts) for target, variable, k in x.feeds])
         # the arguments that stay the same run after run

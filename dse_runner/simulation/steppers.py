@@ -55,6 +55,7 @@ class Stepper:
     """The contract: what the master needs of an instance (subclasses fill it per FMI version)."""
 
     call: Callable[..., int]  # the step function: call(*before, t, h, *after) -> status
+    fmi_version = 2  # the calling convention of its functions (the native loop calls them)
     before: tuple = ()
     after: tuple = ()
     step_name = "doStep"
@@ -128,6 +129,8 @@ class CoSimulation2(Stepper):
 
 class CoSimulation3(Stepper):
     """FMI 3.0 co-simulation: typed access per type, and doStep reports a request to terminate."""
+
+    fmi_version = 3
 
     def __init__(self, instance: Instance, tolerance: float | None = None):
         super().__init__(instance, tolerance)
