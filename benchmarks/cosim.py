@@ -30,6 +30,9 @@ a millisecond each, 20 times as many), in seconds per simulation in the JSON
 Robotti native within 1.15x of the C floor; cheap native within 2x of the C floor and at
 least 10x faster than the Python loop. The final x (Robotti) / x0 (cheap) of the C floor
 and of our master are printed side by side as a check that they computed the same thing.
+The cheap case is also run 10 times longer by ours (native) and the C floor, which splits each
+one's time into a fixed cost per simulation and a marginal cost per step (``split`` in the JSON):
+where the remaining time goes.
 """
 
 from __future__ import annotations
@@ -82,6 +85,7 @@ class Case:
     step: float
     signal: str  # the output whose final value is compared
     final: dict[str, float]  # master -> that output's final value
+    split: dict[str, dict[str, float]] | None = None  # master -> fixed and per-step cost (cost_split)
 
 
 def median_time(run: Callable[[], object], repeats: int) -> float:
@@ -238,7 +242,22 @@ def cheap_case(repeats: int, work: Path) -> Case:
     }
     final = {"dse_runner": final_value(reference, "x0"), "python_loop": final_value(python, "x0"),
              "c_floor": c_last_x0}
-    return Case(figures, len(reference.time) - 1, times.step, "x0", final)
+    long_stop = times.start + LONGER * (times.stop - times.start)
+    long_runs = {"dse_runner": median_time(lambda: simulate(plan, values=CHEAP_VALUES, stop_time=long_stop,
+                                                             step=times.step, loop="native"), fast),
+                 "c_floor": time_c_floor_single(plan, values, long_stop, times.step, fast, work)[0]}
+    steps = len(reference.time) - 1
+    split = {master: cost_split(figures[master], long_runs[master], steps, LONGER * steps) for master in long_runs}
+    return Case(figures, steps, times.step, "x0", final, split)
+
+
+LONGER = 10  # the cheap case is also run this many times longer, to split fixed from per-step cost
+
+
+def cost_split(short: float, long: float, short_steps: int, long_steps: int) -> dict[str, float]:
+    """A master's fixed cost per simulation and marginal cost per step, from runs of two lengths."""
+    per_step = (long - short) / (long_steps - short_steps)
+    return {"fixed_seconds": short - per_step * short_steps, "seconds_per_step": per_step}
 
 
 # ---- the report -----------------------------------------------------------------------------------------
@@ -278,6 +297,9 @@ def print_case(name: str, case: Case, case_ratios: dict[str, float], title: str)
     floor, python = (abs(case.final[master] - ours) for master in ("c_floor", "python_loop"))
     print(f"  final {case.signal}: dse_runner {ours:.12g}; the C floor differs by {floor:.2e},"
           f" the Python loop by {python:.2e}")
+    for master, cost in (case.split or {}).items():
+        print(f"  {master:<14} fixed {cost['fixed_seconds'] * 1e6:7.1f} µs per simulation,"
+              f" {cost['seconds_per_step'] * 1e9:6.1f} ns per step (runs of {case.steps} and {LONGER * case.steps} steps)")
 
 
 def main() -> None:
@@ -301,6 +323,7 @@ def main() -> None:
             "scenario": args.scenario,
             "targets": checked,
             "final": {name: {"signal": case.signal, **case.final} for name, case in cases.items()},
+            "split": {name: case.split for name, case in cases.items() if case.split},
         }, indent=2, allow_nan=False))
         return
     print(f"median of {args.repeats} runs per master")

@@ -31,7 +31,7 @@ import numpy as np
 from .build import default_cache_dir
 
 SOURCE = Path(__file__).with_name("native_loop.c")
-CFLAGS = ("-O2", "-std=c11", "-fPIC", "-shared")
+CFLAGS = ("-O3", "-std=c11", "-fPIC", "-shared")  # -O3: unswitches the loop's invariant branches
 
 # C type codes of native_loop.c, by the ctypes type a buffer holds (FMI 2's Integer and Boolean are int).
 CTYPES = {ctypes.c_double: 0, ctypes.c_float: 1, ctypes.c_int8: 2, ctypes.c_uint8: 3, ctypes.c_int16: 4,

@@ -160,16 +160,24 @@ def chunk_id_of(tasks: list[Task]) -> str:
     return hashlib.sha256("".join(t.task_id for t in tasks).encode()).hexdigest()[:20]
 
 
+WARM_PROBE_SECONDS = 1.0  # a first simulation shorter than this is run again, warm, to be timed
+
+
 def probe(shipment: str, scenario: str, point: Point, objectives: dict[str, ObjectiveSpec], timeout: float,
           experiment: Experiment | None = None) -> float | None:
-    """Seconds one simulation takes on a worker, to size chunks; None if it failed (that point will
+    """Seconds one warm simulation takes on a worker, to size the first chunks; None if it failed (that point will
     fail in its chunk too and become a failed row, which must not stop the sweep). It runs on a worker,
     not in the client, so that an FMU that crashes its process takes down a worker, not the user's shell."""
     unpacked = ship.received(shipment)
-    start = time.perf_counter()
-    try:
+
+    def timed() -> float:
+        start = time.perf_counter()
         simulate(unpacked.plan, unpacked.scenarios[scenario], point, objectives=objectives, timeout=timeout,
                  experiment=experiment)
+        return time.perf_counter() - start
+
+    try:
+        first = timed()  # pays for loading the FMUs, which the chunk's tasks will not
+        return timed() if first < WARM_PROBE_SECONDS else first
     except Exception:
         return None
-    return time.perf_counter() - start

@@ -31,9 +31,11 @@ class Task:
     point: tuple[tuple[str, Any], ...]  # sorted (name, value) pairs: hashable and picklable
 
 
+_CANONICAL = json.JSONEncoder(sort_keys=True, default=str, separators=(",", ":"))  # made once: ids of 100,000s
+
+
 def _digest(*parts: Any) -> str:
-    text = json.dumps(parts, sort_keys=True, default=str, separators=(",", ":"))
-    return hashlib.sha256(text.encode()).hexdigest()
+    return hashlib.sha256(_CANONICAL.encode(parts).encode()).hexdigest()
 
 
 def model_hash(plan: Plan, objectives: dict[str, objs.ObjectiveSpec], experiment: Any = None) -> str:
@@ -83,6 +85,18 @@ def expand(space, points: list[dict[str, Any]] | None = None,
                 yield Task(task_id(model, point, data), scenario.name, tuple(sorted(point.items())))
 
 
+def count(space, done: Collection[str], points: list[dict[str, Any]] | None = None,
+          only: list[Collection[str]] | None = None) -> tuple[int, int]:
+    """(tasks, tasks with a row in ``done``): ids are computed only if some tasks are done, since
+    hashing every task of a large fresh sweep would keep the workers waiting for the client."""
+    if done:
+        ids = [task.task_id for task in expand(space, points, only)]
+        return len(ids), sum(task_id in done for task_id in ids)
+    if only is not None:
+        return sum(scenario.name in wanted for scenario in space.scenarios for wanted in only), 0
+    return sum(1 for _ in points_of(space, points)(space)) * len(space.scenarios), 0
+
+
 @dataclass(frozen=True)
 class TaskBatch:
     """A chunk of tasks stored as columns: ~40 bytes a task instead of ~900 as objects.
@@ -117,12 +131,17 @@ class TaskBatch:
             yield Task(task_id.decode(), self.scenarios[scenario], point)
 
 
-def chunked(tasks: Iterable[Task], size: int) -> Iterator[list[Task]]:
+def chunked(tasks: Iterable[Task], size: int | Callable[[], int]) -> Iterator[list[Task]]:
+    """Lists of ``size`` tasks; a callable size is asked before each chunk, so a sweep can re-size its
+    chunks from what the finished ones cost."""
+    size_now = size if callable(size) else lambda: size
     chunk: list[Task] = []
+    wanted = size_now()
     for task in tasks:
         chunk.append(task)
-        if len(chunk) == size:
+        if len(chunk) >= wanted:
             yield chunk
             chunk = []
+            wanted = size_now()
     if chunk:
         yield chunk

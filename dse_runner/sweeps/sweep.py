@@ -44,7 +44,7 @@ from .chunks import ChunkJob, ChunkSummary, chunk_id_of, probe, record_crash, ru
 from .closed_loop import SearchSource, SearchStatus
 from .cluster import connect, total_threads
 from .domain import Point
-from .expand import TaskBatch, chunked, expand, points_of
+from .expand import TaskBatch, chunked, count, expand, points_of
 from .search import strategy
 from .spec import Space
 
@@ -146,6 +146,7 @@ def first_point(space: Space, points: list[Point] | None = None) -> Point:
 
 
 UNKNOWN_TASK_SECONDS = 0.1  # when the probe failed: a guess that keeps chunks small
+SMALLEST_CHUNK_PART = 20  # the smallest chunk holds this part of chunk_seconds of work
 
 
 def chunk_size(seconds_per_task: float | None, target_seconds: float, pending: int, threads: int) -> int:
@@ -153,7 +154,8 @@ def chunk_size(seconds_per_task: float | None, target_seconds: float, pending: i
     chunk, short enough that every thread gets several chunks to balance the load."""
     per_task = UNKNOWN_TASK_SECONDS if seconds_per_task is None else max(seconds_per_task, 1e-6)
     by_time = max(1, round(target_seconds / per_task))
-    by_balance = max(1, math.ceil(pending / (4 * threads)))
+    at_least = max(1, round(target_seconds / SMALLEST_CHUNK_PART / per_task))  # the last chunks still pay
+    by_balance = max(1, math.ceil(pending / (4 * threads)), at_least)
     return min(by_time, by_balance)
 
 
@@ -186,9 +188,7 @@ def submit(space: Space, progress: Progress | None = None, client=None,
         report.total = search.max_points * len(space.scenarios)
         source: JobSource = SearchSource(space, shipment.key, report.search)
     else:
-        for task in expand(space, points, only):
-            report.total += 1
-            report.skipped += task.task_id in done
+        report.total, report.skipped = count(space, done, points, only)
         if report.total == report.skipped and _trajectories_kept(space):
             report.seconds = time.perf_counter() - started
             report.state = "finished"
@@ -235,30 +235,48 @@ class JobSource(Protocol):
 
 @dataclass
 class GridSource:
-    """Chunks of the grid's tasks that have no row, sized by a probe to ``chunk_seconds``."""
+    """Chunks of the grid's tasks that have no row, of about ``chunk_seconds`` each: sized first by a probe,
+    then by what finished chunks cost, and smaller towards the end."""
 
     space: Space
     shipment: str
     report: SweepReport
     points: list[Point] | None = None
     only: list[Collection[str]] | None = None
-    seconds_per_task: float | None = None  # known from an earlier round; else probed
+    seconds_per_task: float | None = None  # known from an earlier round, else probed; then measured
     jobs: Iterator[ChunkJob] | None = None
     capacity: int = 1
+    threads: int = 1
+    unassigned: int = 0  # tasks not yet in a chunk
 
     def start(self, client, done: set[str]) -> None:
-        threads = total_threads(client)
-        pending = self.report.total - self.report.skipped - self.report.ran
-        cost = self.seconds_per_task or self.probe(client, first_point(self.space, self.points))
-        self.report.chunk_size = chunk_size(cost, self.space.spec.chunk_seconds, pending, threads)
-        self.jobs = _jobs(self.space, self.shipment, done, self.report.chunk_size, self.points, self.only)
-        self.capacity = 2 * threads + 2
+        self.threads = total_threads(client)
+        self.unassigned = self.report.remaining
+        self.seconds_per_task = self.seconds_per_task or self.probe(client, first_point(self.space, self.points))
+        self.jobs = _jobs(self.space, self.shipment, done, self._size, self.points, self.only)
+        self.capacity = 2 * self.threads + 2
 
     def next(self, in_flight: int) -> ChunkJob | None:
-        return next(self.jobs, None) if self.jobs is not None and in_flight < self.capacity else None
+        if self.jobs is None or in_flight >= self.capacity:
+            return None
+        job = next(self.jobs, None)
+        if job is not None:
+            self.unassigned -= len(job.tasks)
+        return job
 
     def finished(self, job: ChunkJob, summary: ChunkSummary) -> None:
-        pass
+        """Chunks adapt: the next ones are sized by what this one cost on its worker (its whole time,
+        rows written included), which a probe of one cold simulation can only guess."""
+        tasks = summary.ok + summary.failed
+        if tasks and summary.busy > 0:
+            self.seconds_per_task = summary.busy / tasks
+
+    def _size(self) -> int:
+        """The next chunk's size: by the latest cost per task, and by the tasks not yet handed out, so
+        chunks shrink towards the end and no worker idles long while another finishes a big one."""
+        self.report.chunk_size = chunk_size(self.seconds_per_task, self.space.spec.chunk_seconds,
+                                            self.unassigned, self.threads)
+        return self.report.chunk_size
 
     def save(self) -> None:
         pass  # the rows are all a grid needs
@@ -456,7 +474,7 @@ def trajectories_of(space: Space, client, point: dict[str, Any], sweep: str) -> 
     return {s.name: store.read_trajectory(space.output, sweep, s.name) for s in space.scenarios}
 
 
-def _jobs(space: Space, shipment: str, done: set[str], size: int, points: list[Point] | None,
+def _jobs(space: Space, shipment: str, done: set[str], size: Callable[[], int], points: list[Point] | None,
           only: list[Collection[str]] | None = None) -> Iterator[ChunkJob]:
     key = space.model_key
     schema = store.results_schema(space.parameters, space.objectives)
