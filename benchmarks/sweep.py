@@ -27,11 +27,14 @@ strict JSON instead of the table.
    - ``cheap_worker_ms_per_task``: simulation time per task on the workers (the chunks' loop
      around each simulation included), against the plain loop's;
    - ``cheap_chunk_size``, ``cheap_chunks`` and ``cheap_chunk_simulation_seconds`` (simulation
-     time per chunk): what the sweep's adaptive chunking chose, against ``chunk_seconds`` (2 s);
+     time per chunk): what the sweep's adaptive chunking chose (the largest chunk), against ``chunk_seconds`` (2 s);
    - ``cheap_dask_overhead_fraction``: as ``dask_overhead_fraction`` (target < 0.05);
    - not reported: the workers' time inside chunks but not simulating (Parquet, unpacking), which
      would separate chunking's own cost from Dask's; SweepReport sums only the chunks' simulation
      seconds, not their ``busy`` time (ChunkSummary.busy);
+   - ``client_cpu_seconds``: CPU time of the client process during the sweep (expanding and hashing
+     tasks, and the local scheduler, which runs in the same process): on a 2-core machine it is
+     taken from the workers;
    - ``client_rss_mb``: the client's resident memory sampled during the sweep (start, peak, end).
 """
 
@@ -127,10 +130,10 @@ def paper_figures(work: Path, say: Callable[..., None]) -> Figures:
     loop_seconds, loop_tasks = plain_loop(paper)
     say(f"plain loop: {loop_tasks} simulations in {loop_seconds:.2f} s")
     one, report_one = timed_sweep(fresh(paper, work / "w1"), 1)
-    say(f"sweep, 1 worker:  {one:.2f} s ({report_one.ok} ok, chunk size {report_one.chunk_size}, "
+    say(f"sweep, 1 worker:  {one:.2f} s ({report_one.ok} ok, largest chunk {report_one.chunk_size}, "
         f"{report_one.chunks} chunks)")
     two, report_two = timed_sweep(fresh(paper, work / "w2"), WORKERS)
-    say(f"sweep, 2 workers: {two:.2f} s ({report_two.ok} ok, chunk size {report_two.chunk_size}, "
+    say(f"sweep, 2 workers: {two:.2f} s ({report_two.ok} ok, largest chunk {report_two.chunk_size}, "
         f"{report_two.chunks} chunks)")
     return {
         "plain_loop_seconds": loop_seconds,
@@ -154,10 +157,12 @@ def cheap_figures(work: Path, n_tasks: int, loop_tasks: int, say: Callable[..., 
     def sample(report: SweepReport) -> None:
         rss.append(process.memory_info().rss)
 
+    cpu_before = sum(process.cpu_times()[:2])
     wall, report = timed_sweep(cheap, WORKERS, on_progress=sample)  # the native loop: the default
+    client_cpu = sum(process.cpu_times()[:2]) - cpu_before  # the local scheduler runs in this process too
     rss.append(process.memory_info().rss)
     ran = report.ran
-    say(f"cheap sweep: {ran} tasks ({report.ok} ok) in {wall:.2f} s on {WORKERS} workers; chunk size "
+    say(f"cheap sweep: {ran} tasks ({report.ok} ok) in {wall:.2f} s on {WORKERS} workers; largest chunk "
         f"{report.chunk_size}, {report.chunks} chunks; {report.simulation_seconds:.2f} s simulating "
         f"({report.simulation_seconds / ran * 1e3:.3f} ms a task on the workers)")
     return {
@@ -175,6 +180,7 @@ def cheap_figures(work: Path, n_tasks: int, loop_tasks: int, say: Callable[..., 
         "cheap_dask_overhead_fraction": dask_share(wall, WORKERS, report),
         # The fairer split, the workers' time inside chunks but not simulating (Parquet, unpacking),
         # needs the chunks' summed ChunkSummary.busy, which SweepReport does not keep: not reported.
+        "client_cpu_seconds": client_cpu,
         "client_rss_mb": {"start": rss[0] / 2**20, "peak": max(rss) / 2**20, "end": rss[-1] / 2**20,
                           "samples": len(rss)},
     }
@@ -205,11 +211,14 @@ def print_table(figures: Figures) -> None:
          "(simulation time on the workers)")
     line("per_task_overhead_ms", f"{f['per_task_overhead_ms']:.3f} ms",
          f"(wall x {WORKERS} workers - plain loop, per task)")
-    line("cheap_chunk_size", str(f["cheap_chunk_size"]), f"({f['cheap_chunks']} chunks)")
+    line("cheap_chunk_size", str(f["cheap_chunk_size"]), f"(the largest; {f['cheap_chunks']} chunks)")
     line("cheap_chunk_simulation_seconds", f"{f['cheap_chunk_simulation_seconds']:.3f} s",
          f"(chunk_seconds: {f['chunk_seconds']:g} s)")
     line("cheap_dask_overhead_fraction", f"{f['cheap_dask_overhead_fraction'] * 100:.1f}%", "(target < 5%)",
          f["cheap_dask_overhead_fraction"] < MAX_DASK_SHARE)
+    line("client_cpu_seconds", f"{f['client_cpu_seconds']:.2f} s",
+         f"(client and scheduler during the cheap sweep: {f['client_cpu_seconds'] / f['cheap_sweep_seconds'] * 100:.0f}%"
+         " of a core, taken from the workers' 2 cores here)")
     m = f["client_rss_mb"]
     line("client_rss_mb", f"{m['peak']:.0f} MB", f"(peak; start {m['start']:.0f} MB, end {m['end']:.0f} MB, "
          f"{m['samples']} samples)")

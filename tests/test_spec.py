@@ -56,6 +56,25 @@ def test_task_ids_are_stable_and_follow_the_data(tmp_path):
     assert set(new[:6]).isdisjoint(ids) and new[6:] == ids[6:]
 
 
+def test_variants_run_each_folder_once_per_parameter_set(tmp_path):
+    plants = [{"name": "light", "parameters": {"vehicle.mass": 1200}},
+              {"name": "heavy", "parameters": {"vehicle.mass": 2500, "vehicle.mu": 0.4}}]
+    space = load_space(write_space(tmp_path, scenarios=[{"path": str(SCENARIOS / "sin1"), "variants": plants}]))
+    by_name = {s.name: s for s in space.scenarios}
+    assert sorted(by_name) == ["sin1-heavy", "sin1-light"]
+    assert by_name["sin1-heavy"].parameters == {"vehicle.mass": 2500, "vehicle.mu": 0.4}
+    assert by_name["sin1-light"].files == by_name["sin1-heavy"].files  # the same recorded run
+    tasks = list(expand(space))
+    assert len(tasks) == 2 * len({t.point for t in tasks})  # every point on both plants
+    assert len({t.task_id for t in tasks}) == len(tasks)
+
+
+def test_a_variant_naming_an_unknown_variable_names_it(tmp_path):
+    plants = [{"name": "typo", "parameters": {"vehicle.mas": 1200}}]
+    with pytest.raises(DseError, match=r"scenario sin1-typo: parameters: unknown variable 'vehicle\.mas'.*did you mean mass"):
+        load_space(write_space(tmp_path, scenarios=[{"path": str(SCENARIOS / "sin1"), "variants": plants}]))
+
+
 @pytest.mark.parametrize("changes, message", [
     ({"paramters": {}}, r"space\.yaml: paramters: Extra inputs are not permitted"),
     ({"parameters": {"vehicle.mass": {"start": 1, "stop": 2, "step": 1, "num": 2}}},

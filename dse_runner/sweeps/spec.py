@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import glob
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -116,13 +117,30 @@ ParameterValues = Annotated[
                                        "or an interval {low, high}")]
 
 
+class Variant(BaseModel):
+    """One variant of every scenario of a source: ``{name: heavy, parameters: {vehicle.mass: 2000}}``."""
+
+    model_config = Strict
+    name: str = Field(pattern=r"^[A-Za-z0-9_.]+$")
+    parameters: dict[str, FiniteValue] = Field(min_length=1)
+
+
 class ScenarioSource(BaseModel):
-    """Scenario folders: ``{path: runs/*, group: .., kind: ..}`` plus the kind's own options."""
+    """Scenario folders: ``{path: runs/*, group: .., kind: .., variants: [..]}`` plus the kind's own options."""
 
     model_config = ConfigDict(extra="allow", allow_inf_nan=False)  # the rest goes to the kind
     path: str  # a folder or a glob of folders, relative to the spec
     group: str | None = None  # overrides the scenario's own group
     kind: str | None = None  # default: the first installed kind that recognises the folder
+    # Each folder runs once per variant, as scenario <name>-<variant> with the variant's parameters on top of
+    # its own: a design evaluated over several plants (a robust objective: ranking.over_scenarios max or mean).
+    variants: list[Variant] = []
+
+
+def varied(scenario: Scenario, variant: Variant) -> Scenario:
+    """``scenario`` with ``variant``'s parameters, named for both."""
+    return replace(scenario, name=f"{scenario.name}-{variant.name}",
+                   parameters={**scenario.parameters, **variant.parameters})
 
 
 def _source_or_inline(value: Any) -> str | None:
@@ -383,7 +401,8 @@ def _entry(entry: ScenarioSpec | ScenarioSource | str, index: int, base: Path, s
     if not folders:
         raise DseError(f"{source}: scenarios.{index}.path: {entry.path!r} matches no folder")
     scenarios = [load_scenario(folder, entry.kind, entry.model_extra) for folder in folders]
-    return [s.with_group(entry.group) if entry.group is not None else s for s in scenarios]
+    scenarios = [s.with_group(entry.group) if entry.group is not None else s for s in scenarios]
+    return [varied(s, v) for s in scenarios for v in entry.variants] if entry.variants else scenarios
 
 
 def _resolved(spec: SpaceSpec, scenarios: list[Scenario], source: str) -> SpaceSpec:
@@ -418,6 +437,13 @@ def _check_names(space: Space, source: str) -> None:
             bound_fields(space.multimodel, scenario)
         except DseError as e:
             raise DseError(f"{source}: {e}") from None
+        where = f"{source}: scenario {scenario.name}: parameters"
+        for ref, value in scenario.parameters.items():
+            variable = space.plan.variable(qualify(space.plan, ref), where)
+            try:
+                check_value(variable, value)
+            except DseError as e:
+                raise DseError(f"{where}.{ref}: {e}") from None
     for name, objective in space.objectives.items():
         _check_objective(space, name, objective, source)
     _check_search(space, source)

@@ -77,7 +77,7 @@ class SweepReport(BaseModel):
     failed: int = 0
     seconds: float = 0.0  # wall time of this submission
     simulation_seconds: float = 0.0  # summed on the workers
-    chunk_size: int = 0
+    chunk_size: int = 0  # tasks in the largest chunk handed out (chunks adapt, and shrink towards the end)
     chunks: int = 0
     workers: int = 0
     activity: list[WorkerActivity] = []
@@ -274,9 +274,9 @@ class GridSource:
     def _size(self) -> int:
         """The next chunk's size: by the latest cost per task, and by the tasks not yet handed out, so
         chunks shrink towards the end and no worker idles long while another finishes a big one."""
-        self.report.chunk_size = chunk_size(self.seconds_per_task, self.space.spec.chunk_seconds,
-                                            self.unassigned, self.threads)
-        return self.report.chunk_size
+        size = chunk_size(self.seconds_per_task, self.space.spec.chunk_seconds, self.unassigned, self.threads)
+        self.report.chunk_size = max(self.report.chunk_size, size)
+        return size
 
     def save(self) -> None:
         pass  # the rows are all a grid needs
