@@ -12,7 +12,7 @@ from pathlib import Path
 import dse_runner
 
 PACKAGE = Path(dse_runner.__file__).parent
-CASE_MODULES = {"fielddata"}  # the Robotti field-data kind and its GPS objectives
+CASE_MODULES = {"fielddata", "paths"}  # the Robotti field-data kind and GPS objectives; the path kind
 MAY_IMPORT_CASES = {"diagnose"}  # the Robotti diagnosis: a case's own analysis
 
 
@@ -67,7 +67,7 @@ def test_gps_words_stay_in_the_case():
 
 
 def test_a_plain_fmu_study_runs_without_loading_the_case(tmp_path):
-    """Simulating a plain multi-model, scored by its default objectives, never loads the field-data module."""
+    """Simulating a plain multi-model, scored by its default objectives, never loads a case's module."""
     from conftest import REPO
 
     script = f"""
@@ -78,7 +78,7 @@ print(sorted(m for m in sys.modules if m.startswith("dse_runner")))
 """
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
-    assert "fielddata" not in done.stdout
+    assert "fielddata" not in done.stdout and "cases.paths" not in done.stdout
 
 
 LAYERS = ["simulation", "sweeps", "analysis", "interfaces"]

@@ -151,9 +151,12 @@ class FieldData:
     default_objectives = ("cross_track_error", "max_error", "rms_error", "final_error")
 
     def detect(self, folder: Path) -> bool:
-        """Either recording, or a scenario.yaml with an initial pose: then a missing file is named."""
+        """Either recording, or a scenario.yaml with an initial pose and no CSV at all: then a missing
+        file is named. A folder with other CSVs beside such a scenario.yaml is another kind's."""
         if (folder / STEERING_FILE).is_file() or (folder / GPS_FILE).is_file():
             return True
+        if any(folder.glob("*.csv")):
+            return False
         try:
             info = yaml.safe_load((folder / INFO_FILE).read_text())
         except (OSError, yaml.YAMLError):

@@ -52,6 +52,7 @@ class Table:
 
     columns: list[np.ndarray]
     dropped: list[int]
+    lines: list[int] = field(default_factory=list)  # each kept row's line number, for later messages
 
 
 def is_dropout_text(text: str) -> bool:
@@ -78,19 +79,20 @@ def _lines(path: Path) -> list[str]:
 
 
 def read_table(path: Path, names: tuple[str, ...], may_drop: tuple[str, ...] = (),
-               drop_rows: bool = True) -> Table:
-    """Named numeric columns of a headed CSV whose first named column is time.
+               drop_rows: bool = True, ordered: bool = True) -> Table:
+    """Named numeric columns of a headed CSV whose first named column is time (if ``ordered``).
 
     Every value must be a finite number; a ``may_drop`` value that is empty or NaN is a dropout:
     with ``drop_rows`` its whole row is skipped, otherwise the value stays NaN. Either way its line
-    is counted. Times must increase. Errors name the file, the line and the column."""
+    is counted. Times must increase, unless ``ordered`` is false (a table that is not a time
+    series, such as a list of waypoints). Errors name the file, the line and the column."""
     lines = _lines(path)
     header = [h.strip() for h in lines[0].split(",")]
     missing = [n for n in names if n not in header]
     if missing:
         raise DseError(f"{path} line 1: no column {', '.join(missing)} (header: {lines[0]!r})")
     index = [header.index(n) for n in names]
-    rows, times, dropped = [], [], []
+    rows, times, dropped, kept = [], [], [], []
     for number, line in enumerate(lines[1:], start=2):
         if not line.strip():
             continue
@@ -105,9 +107,11 @@ def read_table(path: Path, names: tuple[str, ...], may_drop: tuple[str, ...] = (
             dropped.append(number)
         if not (gaps and drop_rows):
             rows.append(values)
-    _check_increasing(path, names[0], times)
+            kept.append(number)
+    if ordered:
+        _check_increasing(path, names[0], times)
     data = np.array(rows, dtype=float).reshape(-1, len(names))
-    return Table([data[:, i].copy() for i in range(len(names))], dropped)
+    return Table([data[:, i].copy() for i in range(len(names))], dropped, kept)
 
 
 def _number(path: Path, line: int, column: str, text: str) -> float:
