@@ -103,4 +103,5 @@ def test_compile_error_is_reported(tmp_path):
 
 
 def test_source_folders_are_found():
-    assert [p.name for p in find_source_dirs(FMU_SOURCES)] == ["replay_controller", "robotti_vehicle", "robotti_vehicle_effects"]
+    assert [p.name for p in find_source_dirs(FMU_SOURCES)] == ["path_controller", "replay_controller", "robotti_vehicle",
+                                                                "robotti_vehicle_effects"]

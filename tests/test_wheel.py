@@ -64,7 +64,7 @@ def test_simulate_a_multimodel_of_its_own_fmus(installed):
     built = command(installed, "build-fmus", "--out", "fmus", "--json")
     assert built.returncode == 0, built.stderr
     fmus = strict_loads(built.stdout)["fmus"]
-    assert set(fmus) == {"replay_controller", "robotti_vehicle", "robotti_vehicle_effects"}
+    assert set(fmus) == {"path_controller", "replay_controller", "robotti_vehicle", "robotti_vehicle_effects"}
     shutil.copytree(SCENARIOS / "sin1", installed["work"] / "sin1")
     model = yaml.safe_load(MULTIMODEL.read_text())
     model["fmus"] = {"controller": "fmus/replay_controller.fmu", "vehicle": "fmus/robotti_vehicle.fmu"}
