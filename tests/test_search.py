@@ -202,6 +202,26 @@ def test_constraints_are_never_violated(tmp_path, dask_scheduler, name):
         assert search.infeasible == 0
 
 
+@pytest.mark.parametrize("name", ["tpe", "genetic"])
+def test_objective_constraints_steer_the_search_and_its_best(tmp_path, dask_scheduler, name):
+    """A ranking constraint on the objectives (here: keep out of a disc of radius 1 around the free optimum
+    y = 0) is told to constrained strategies, and the search's best is the best point that keeps it."""
+    options = {"population": 10} if name == "genetic" else {}
+    space = load_space(cliff_space(tmp_path, {"strategy": name, "max_points": 40, "seed": 3, **options},
+                                   dask_scheduler, parameters={"cliff.a": {"low": 0, "high": 6},
+                                                               "cliff.b": {"low": 0, "high": 2}},
+                                   ranking={"objective": "y", "constraints": ["y >= 1"]}))
+    search = submit(space).search
+    rows = results(space, "y")
+    kept = rows[rows["y"] >= 1]
+    assert search.best == kept["y"].min() and search.best >= 1  # never the free optimum
+    assert (rows["y"] < 1).any() or name == "genetic"  # TPE does try inside the disc ...
+    told = sorted((p for p in load_history(space.output, space.name).points if p.state == "ok"), key=lambda p: p.told)
+    late = told[len(told) // 2:]
+    assert sum(p.values["y"] >= 1 for p in late) >= 0.6 * len(late)  # ... and learns to keep out of it
+    assert search.best < 1.6  # near the disc's edge: the constrained optimum is 1
+
+
 # ---- failed simulations -----------------------------------------------------------------------------
 
 @pytest.mark.parametrize("name", ["tpe", "genetic", "random"])

@@ -117,6 +117,9 @@ def simulate(
         "--scenario", "-s", help="Scenario folder (scenario.yaml, or a kind's format such as field data).")] = None,
     set_: Annotated[list[str] | None, typer.Option(
         "--set", help="instance.variable=value (for one .fmu: variable=value); repeatable.")] = None,
+    values_file: Annotated[Path | None, typer.Option(
+        "--values", help="A YAML file of instance.variable: value lines (e.g. rank --best-values); --set "
+                         "overrides it.")] = None,
     start_time: Annotated[float | None, typer.Option(help="Start time [s]. Default: the scenario's, the FMU's, 0.")] = None,
     stop_time: Annotated[float | None, typer.Option(help="Stop time [s]. Default: the scenario's or the FMU's.")] = None,
     step: Annotated[float | None, typer.Option(help="Communication step [s]. Default: see docs/space.md.")] = None,
@@ -132,13 +135,15 @@ def simulate(
     """Simulate MODEL once (on a scenario if given); print the objectives and final outputs."""
     from ..simulation.run import simulate as run_simulation
     from ..simulation.run import summary, write_csv
+    from ..simulation.values import read_values
     from .plots import result_plot
 
     files: dict[str, Path] = {}
     try:
         if interface not in (None, "cs", "me"):
             raise DseError(f"--interface {interface!r}: use cs (co-simulation) or me (model exchange)")
-        values = dict(parse_assignment(a) for a in set_ or [])
+        values = {**(read_values(values_file) if values_file is not None else {}),
+                  **dict(parse_assignment(a) for a in set_ or [])}
         result = run_simulation(model, scenario, values, start_time, stop_time, step,
                                 objectives=list(objective) if objective else None, interface=interface)
         bare = model.suffix.lower() == ".fmu"  # one FMU: its variables' own names
@@ -447,10 +452,13 @@ def rank_command(
     results: Annotated[str, typer.Argument(help="A sweep's store: output folder or URL.")],
     sweep: Annotated[str | None, typer.Option(help="Which sweep, if the folder holds several.")] = None,
     objective: Annotated[str | None, typer.Option(help="Rank by this objective instead of the spec's.")] = None,
+    best_values: Annotated[Path | None, typer.Option(
+        help="Also write the best point here as a values file (instance.variable: value), for simulate --values.")] = None,
     as_json: JsonFlag = False,
 ) -> None:
     """Aggregate a sweep's results: totals, Table 1, Pareto front, group and weighted rankings."""
     from ..analysis.rank import load_sweep_spec, rank, write_ranking
+    from ..simulation.values import write_values
     from ..sweeps.store import sweeps
 
     try:
@@ -462,8 +470,14 @@ def rank_command(
             settings = load_sweep_spec(results, names[0]).ranking.model_copy(update={"objective": objective})
         ranking = rank(results, sweep, settings)
         files = write_ranking(ranking, results, ranking.sweep)
+        if best_values is not None:
+            files["best_values"] = write_values(best_values, ranking.best, (
+                f"The best point of sweep {ranking.sweep} by {ranking.objective} ({ranking.goal}imised "
+                f"{ranking.best_total:.6g}), written by dse-runner rank."))
     except DseError as e:
         fail(e)
+    except OSError as e:
+        fail(DseError(f"cannot write {e.filename}: {e.strerror}"))
     if as_json:
         emit_json({**ranking.to_json(), "files": {k: str(v) for k, v in files.items()}})
         return
@@ -477,6 +491,8 @@ def rank_command(
         typer.echo(f"not ranked: {ranking.incomplete_points} points without an ok row for every scenario "
                    f"({ranking.failed_rows} failed rows)")
     typer.echo(f"written: {files['json'].rsplit('/', 1)[0]}")
+    if best_values is not None:
+        typer.echo(f"best values: {files['best_values']}")
 
 
 @app.command()

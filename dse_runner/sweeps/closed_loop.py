@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import time
 from collections import deque
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 import numpy as np
@@ -29,6 +29,7 @@ from ..simulation.objectives import is_vector
 from . import store
 from .chunks import ChunkJob, ChunkSummary, TaskScores, chunk_id_of
 from .cluster import total_threads
+from .constraints import compile_constraint
 from .domain import Point
 from .expand import Task, TaskBatch, scenario_hash, task_id
 from .history import SearchHistory, State, load_history, save_history, settings_digest
@@ -75,14 +76,18 @@ def reduce_over_scenarios(values: Iterable[float], how: str) -> float:
     return float({"sum": np.sum, "mean": np.mean, "max": np.max, "min": np.min}[how](array))
 
 
-def evaluation_of(scores: list[TaskScores], scalar: list[str], how: str) -> Evaluation:
-    """A point's evaluation from its tasks: failed if any task failed, else each objective reduced."""
+Check = tuple[str, Callable[[Mapping[str, float]], bool]]  # a ranking constraint's text and its test
+
+
+def evaluation_of(scores: list[TaskScores], scalar: list[str], how: str, checks: list[Check] = ()) -> Evaluation:
+    """A point's evaluation from its tasks: failed if any task failed, else each objective reduced, and
+    the ranking constraints (``checks``) those values break, which constrained strategies learn from."""
     failed = [s for s in scores if s.objectives is None]
     if failed:
         return Evaluation("failed", error=f"{failed[0].scenario}: {failed[0].error}")
     per = {s.scenario: s.objectives for s in scores}
     values = {name: reduce_over_scenarios((o[name] for o in per.values()), how) for name in scalar}
-    return Evaluation("ok", values=values, scores=per)
+    return Evaluation("ok", values=values, scores=per, breaks=tuple(text for text, holds in checks if not holds(values)))
 
 
 class SearchSource:
@@ -93,6 +98,8 @@ class SearchSource:
         self.shipment = shipment
         self.status = status
         self.scalar = [n for n, o in space.objectives.items() if not is_vector(o)]
+        self.checks: list[Check] = [(text, compile_constraint(text, set(self.scalar), "objective"))
+                                    for text in space.spec.ranking.constraints]
         self.schema = store.results_schema(space.parameters, space.objectives)
         self.hashes = {s.name: scenario_hash(s) for s in space.scenarios}
         self.strategy: Strategy | None = None
@@ -268,7 +275,8 @@ class SearchSource:
             self.stored[scores.task_id] = scores
         if len(results) == len(self.space.scenarios):
             del self.running[job.point]
-            self._tell(job.point, evaluation_of(list(results.values()), self.scalar, self._how()), reused=False)
+            self._tell(job.point, evaluation_of(list(results.values()), self.scalar, self._how(), self.checks),
+                       reused=False)
 
     def _how(self) -> str:
         return self.space.spec.ranking.over_scenarios
@@ -277,7 +285,7 @@ class SearchSource:
         tasks = self.tasks(point)
         if not all(t.task_id in self.stored for t in tasks):
             return None
-        return evaluation_of([self.stored[t.task_id] for t in tasks], self.scalar, self._how())
+        return evaluation_of([self.stored[t.task_id] for t in tasks], self.scalar, self._how(), self.checks)
 
     def _tell(self, number: int, evaluation: Evaluation, reused: bool) -> None:
         point = self.history.points[number].point
@@ -295,7 +303,7 @@ class SearchSource:
             status.points += 1
             status.reused += reused
             status.failed += state == "failed"
-        if state == "ok":
+        if evaluation.feasible:  # the best the ranking may choose
             value = evaluation.values[status.objective]
             better = status.best is None or (value < status.best if status.goal == "min" else value > status.best)
             if better:

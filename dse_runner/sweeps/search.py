@@ -59,6 +59,12 @@ class Evaluation:
     values: Mapping[str, float] = field(default_factory=dict)  # each scalar objective reduced over scenarios
     scores: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)  # scenario -> objective -> value (ok tasks)
     error: str | None = None
+    breaks: tuple[str, ...] = ()  # ok, but these ranking constraints on its objectives fail: ranked never
+
+    @property
+    def feasible(self) -> bool:
+        """Simulated, and within the ranking's constraints: a point the ranking may choose."""
+        return self.state == "ok" and not self.breaks
 
     def value(self, name: str) -> float:
         return self.values[name]

@@ -30,6 +30,7 @@ from pydantic import (
     PositiveFloat,
     PositiveInt,
     Tag,
+    TypeAdapter,
     ValidationError,
     model_validator,
 )
@@ -134,7 +135,22 @@ class ScenarioSource(BaseModel):
     kind: str | None = None  # default: the first installed kind that recognises the folder
     # Each folder runs once per variant, as scenario <name>-<variant> with the variant's parameters on top of
     # its own: a design evaluated over several plants (a robust objective: ranking.over_scenarios max or mean).
-    variants: list[Variant] = []
+    # A string is a YAML file holding the list, relative to the spec.
+    variants: list[Variant] | str = []
+
+
+def read_variants(path: Path) -> list[Variant]:
+    """A variants file: a YAML list of ``{name, parameters}``; errors name the file."""
+    try:
+        data = yaml.safe_load(path.read_text())
+    except OSError as e:
+        raise DseError(f"cannot read variants file {path}: {e.strerror}") from None
+    except yaml.YAMLError as e:
+        raise DseError(format_syntax_error(str(path), "YAML", e)) from None
+    try:
+        return TypeAdapter(list[Variant]).validate_python(data)
+    except ValidationError as e:
+        raise DseError(format_validation_error(str(path), e)) from None
 
 
 def varied(scenario: Scenario, variant: Variant) -> Scenario:
@@ -402,7 +418,8 @@ def _entry(entry: ScenarioSpec | ScenarioSource | str, index: int, base: Path, s
         raise DseError(f"{source}: scenarios.{index}.path: {entry.path!r} matches no folder")
     scenarios = [load_scenario(folder, entry.kind, entry.model_extra) for folder in folders]
     scenarios = [s.with_group(entry.group) if entry.group is not None else s for s in scenarios]
-    return [varied(s, v) for s in scenarios for v in entry.variants] if entry.variants else scenarios
+    variants = read_variants(base / entry.variants) if isinstance(entry.variants, str) else entry.variants
+    return [varied(s, v) for s in scenarios for v in variants] if variants else scenarios
 
 
 def _resolved(spec: SpaceSpec, scenarios: list[Scenario], source: str) -> SpaceSpec:

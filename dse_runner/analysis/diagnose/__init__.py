@@ -95,6 +95,14 @@ class Diagnosis:
     def cross_track_after(self) -> float:
         return self.chosen.cross_validated
 
+    @property
+    def fitted(self) -> dict[str, Any]:
+        """Every parameter of the chosen model as fitted jointly (calibrated ones and effects), with ~95 %
+        intervals: what a later study on the diagnosed plant starts from, e.g. plants drawn for robustness."""
+        fit = self.chosen.full
+        return {"parameters": dict(fit.values), "interval": {k: list(v) for k, v in fit.interval().items()},
+                "at_bound": list(fit.at_bound)}
+
     def to_json(self) -> dict[str, Any]:
         return {
             "effects": self.effects,
@@ -105,6 +113,7 @@ class Diagnosis:
             "candidates": [{"id": c.label, "cross_track_held_out": c.cross_validated, "bic": c.bic,
                             "parameters": c.full.values, "at_bound": c.full.at_bound}
                            for c in self.candidates],
+            "fitted": self.fitted,
             "calibration": self.calibration,
             "dropouts": self.dropouts,
             "files": {k: str(v) for k, v in self.files.items()},

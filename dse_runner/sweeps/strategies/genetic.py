@@ -117,6 +117,7 @@ class Genetic(Strategy):
         index = self.waiting[tuple(sorted(point.items()))].popleft()
         if evaluation.state == "ok":
             self.F[index, 0] = self.sign * evaluation.value(self.problem.objective[0])
+            self.G[index, 0] = float(len(evaluation.breaks))  # ranking constraints broken: not selected over one that keeps them
         else:
             self.G[index, 0] = 1.0  # infeasible or failed: never selected over a feasible point
         self.told += 1

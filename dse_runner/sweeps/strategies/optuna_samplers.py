@@ -112,8 +112,11 @@ class OptunaStrategy(Strategy):
             if evaluation.state == "ok":
                 values = [evaluation.value(name) for name, _ in self.goals]
                 self._remember(values)
-                self._mark(trial, 0.0)
-                self.study.tell(trial, values)
+                if evaluation.breaks and not self.reads_constraints:  # it learns only from a penalty
+                    self.study.tell(trial, list(self.worst))
+                else:
+                    self._mark(trial, float(len(evaluation.breaks)))  # > 0: breaks ranking constraints
+                    self.study.tell(trial, values)
             elif evaluation.state == "infeasible" and self.worst is not None:
                 self._mark(trial, 1.0)
                 self.study.tell(trial, list(self.worst))
