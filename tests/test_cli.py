@@ -51,5 +51,5 @@ def test_build_fmus_json(tmp_path):
     done = dse_runner("build-fmus", "--out", tmp_path, "--json")
     assert done.returncode == 0, done.stderr
     built = strict_loads(done.stdout)["fmus"]
-    assert set(built) == {"robotti_vehicle", "robotti_vehicle_effects", "replay_controller"}
+    assert set(built) == {"robotti_vehicle", "robotti_vehicle_effects", "replay_controller", "path_controller"}
     assert all((tmp_path / f"{name}.fmu").is_file() for name in built)

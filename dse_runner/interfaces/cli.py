@@ -185,9 +185,10 @@ def _print_table1(ranking) -> None:
     from ..analysis.rank import format_point
 
     typer.echo(f"Table 1: {ranking.objective} per scenario ({len(ranking.totals)} points)")
-    typer.echo(f"  {'scenario':<14}{'min':>9}{'max':>9}{'average':>9}{'best':>9}{'diff':>10}")
+    width = max([14, *(len(s) + 1 for s in ranking.table1["scenario"])])  # names of variants run long
+    typer.echo(f"  {'scenario':<{width}}{'min':>9}{'max':>9}{'average':>9}{'best':>9}{'diff':>10}")
     for row in ranking.table1.itertuples():
-        typer.echo(f"  {row.scenario:<14}{row.min_error:9.3f}{row.max_error:9.3f}{row.average_error:9.3f}"
+        typer.echo(f"  {row.scenario:<{width}}{row.min_error:9.3f}{row.max_error:9.3f}{row.average_error:9.3f}"
                    f"{row.computed:9.3f}{row.difference:+10.3f}")
     typer.echo(f"best: {format_point(ranking.best)}  (total {ranking.objective} {ranking.best_total:.3f})")
 
