@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import datetime
 import os
+import random
 import shutil
 import signal
 import socket
@@ -69,10 +70,29 @@ def make_certs(folder: Path) -> Certs:
     return certs
 
 
+def _ephemeral_ports() -> range:
+    try:
+        low, high = map(int, Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split())
+    except (OSError, ValueError):
+        low, high = 32768, 60999
+    return range(low, high + 1)
+
+
 def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+    """A free port outside the kernel's ephemeral range: a scheduler restarted on it must find it free,
+    and while it is down the client's reconnection attempts (or any other connection) could otherwise
+    be given that very port as their source port, a self-connection that keeps the port taken."""
+    ephemeral = _ephemeral_ports()
+    for port in random.sample(range(20000, 32768), 200):
+        if port in ephemeral:
+            continue
+        with socket.socket() as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+            return port
+    raise OSError("no free port below the ephemeral range")
 
 
 def can_hide_folders() -> bool:
