@@ -136,7 +136,7 @@ def test_a_u_turn_parallel_to_the_path_at_offset_d(d):
     along, to within the chords' 1.3 mm sag, and the match moves only forwards."""
     t = np.linspace(0, 1, 3001)
     s = t * (60 + 6 * math.pi)
-    row1, bend, row2 = s < 30, (s >= 30) & (s <= 30 + 6 * math.pi), s > 30 + 6 * math.pi
+    row1, bend = s < 30, (s >= 30) & (s <= 30 + 6 * math.pi)  # the rest is the row back
     angle = (s - 30) / 6
     x = np.where(row1, s, np.where(bend, 30 + (6 + d) * np.sin(angle), 30 - (s - 30 - 6 * math.pi)))
     y = np.where(row1, -d, np.where(bend, 6 - (6 + d) * np.cos(angle), 12 + d))

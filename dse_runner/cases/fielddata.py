@@ -36,9 +36,10 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, PositiveFloat, ValidationError
 
-from ..errors import DseError, format_syntax_error, format_validation_error
+from ..errors import DseError, format_validation_error
 from ..simulation.scenario import INFO_FILE, Recording, Scenario, read_table
 from ..simulation.variables import split_ref
+from ..yamlfile import read_yaml
 
 STEERING_FILE = "steering_inputs.csv"
 GPS_FILE = "gps_position.csv"
@@ -105,12 +106,7 @@ def _control_period(path: Path, time: np.ndarray) -> float:
 
 
 def read_info(path: Path) -> RunInfo:
-    try:
-        return RunInfo.model_validate(yaml.safe_load(path.read_text()))
-    except ValidationError as e:
-        raise DseError(format_validation_error(str(path), e)) from None
-    except yaml.YAMLError as e:
-        raise DseError(format_syntax_error(str(path), "YAML", e)) from None
+    return read_yaml(path, RunInfo, "scenario file")
 
 
 def load_run(folder: str | Path, options: Mapping[str, Any] | None = None) -> Scenario:

@@ -38,12 +38,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, NonNegativeFloat, PositiveFloat, ValidationError
 
-from ..errors import DseError, format_syntax_error, format_validation_error
+from ..errors import DseError, format_validation_error
 from ..simulation.scenario import INFO_FILE, Scenario, read_table
 from ..simulation.variables import split_ref
+from ..yamlfile import read_yaml
 
 PATH_FILE = "path.csv"
 KIND = "path"
@@ -193,12 +193,7 @@ def lateral_step(path: Polyline, at: float, where: str) -> Step:
 # ---- the kind ----------------------------------------------------------------------------------
 
 def read_info(path: Path) -> PathInfo:
-    try:
-        return PathInfo.model_validate(yaml.safe_load(path.read_text()))
-    except ValidationError as e:
-        raise DseError(format_validation_error(str(path), e)) from None
-    except yaml.YAMLError as e:
-        raise DseError(format_syntax_error(str(path), "YAML", e)) from None
+    return read_yaml(path, PathInfo, "scenario file")
 
 
 def load_path(folder: str | Path, options: Mapping[str, Any] | None = None) -> Scenario:

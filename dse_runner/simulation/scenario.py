@@ -31,10 +31,10 @@ from pathlib import Path
 from typing import Any, Literal, Protocol
 
 import numpy as np
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationError
 
-from ..errors import DseError, format_syntax_error, format_validation_error
+from ..errors import DseError, format_validation_error
+from ..yamlfile import load_yaml
 from .variables import FiniteValue, Value, split_ref
 
 INFO_FILE = "scenario.yaml"
@@ -341,11 +341,7 @@ class SignalsKind:
         if options:
             raise DseError(f"scenario {folder}: a signals scenario takes no options ({', '.join(options)})")
         path = folder / INFO_FILE
-        try:
-            data = yaml.safe_load(path.read_text())
-        except yaml.YAMLError as e:
-            raise DseError(format_syntax_error(str(path), "YAML", e)) from None
-        scenario = parse_scenario(data, str(path), folder)
+        scenario = parse_scenario(load_yaml(path, "scenario file"), str(path), folder)
         return replace(scenario, sources=(path.resolve(), *scenario.sources))
 
 

@@ -11,9 +11,9 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import yaml
-from pydantic import RootModel, ValidationError
+from pydantic import RootModel
 
-from ..errors import DseError, format_syntax_error, format_validation_error
+from ..yamlfile import read_yaml
 from .variables import FiniteValue, Value
 
 
@@ -23,21 +23,7 @@ class ValuesFile(RootModel[dict[str, FiniteValue]]):
 
 def read_values(path: str | Path) -> dict[str, Value]:
     """The values of a values file; errors name the file and the key."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise DseError(f"cannot read values file {path}: {e.strerror}") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        raise DseError(format_syntax_error(str(path), "YAML", e)) from None
-    if not isinstance(data, dict):
-        raise DseError(f"{path}: expected lines of instance.variable: value")
-    try:
-        return ValuesFile.model_validate(data).root
-    except ValidationError as e:
-        raise DseError(format_validation_error(str(path), e)) from None
+    return read_yaml(Path(path), ValuesFile, "values file").root
 
 
 def write_values(path: str | Path, values: Mapping[str, Value], header: str = "") -> Path:

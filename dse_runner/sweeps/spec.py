@@ -21,7 +21,6 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-import yaml
 from pydantic import (
     BaseModel,
     ConfigDict,
@@ -30,13 +29,11 @@ from pydantic import (
     PositiveFloat,
     PositiveInt,
     Tag,
-    TypeAdapter,
-    ValidationError,
     model_validator,
 )
 
 from .. import bundled
-from ..errors import DseError, format_syntax_error, format_validation_error
+from ..errors import DseError
 from ..simulation import objectives as objs
 from ..simulation.cosim import Plan, make_plan
 from ..simulation.experiment import Experiment
@@ -44,6 +41,7 @@ from ..simulation.multimodel import MultiModel, load_multimodel, parse_multimode
 from ..simulation.run import bound_fields, qualify
 from ..simulation.scenario import Scenario, ScenarioSpec, kind, load_scenario, nominal, parse_scenario
 from ..simulation.variables import FiniteValue, check_value
+from ..yamlfile import read_yaml
 from .constraints import compile_constraint
 from .domain import Dimension
 from .search import Problem, Strategy, parse_options, strategy
@@ -141,16 +139,7 @@ class ScenarioSource(BaseModel):
 
 def read_variants(path: Path) -> list[Variant]:
     """A variants file: a YAML list of ``{name, parameters}``; errors name the file."""
-    try:
-        data = yaml.safe_load(path.read_text())
-    except OSError as e:
-        raise DseError(f"cannot read variants file {path}: {e.strerror}") from None
-    except yaml.YAMLError as e:
-        raise DseError(format_syntax_error(str(path), "YAML", e)) from None
-    try:
-        return TypeAdapter(list[Variant]).validate_python(data)
-    except ValidationError as e:
-        raise DseError(format_validation_error(str(path), e)) from None
+    return read_yaml(path, list[Variant], "variants file")
 
 
 def varied(scenario: Scenario, variant: Variant) -> Scenario:
@@ -522,18 +511,7 @@ def load_space(path: str | Path) -> Space:
 
 def read_spec(path: Path) -> SpaceSpec:
     """Read and validate a space.yaml without resolving anything it names."""
-    source = str(path)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except OSError as e:
-        raise DseError(f"cannot read spec {path}: {e.strerror}") from None
-    except yaml.YAMLError as e:
-        raise DseError(format_syntax_error(source, "YAML", e)) from None
-    try:
-        spec = SpaceSpec.model_validate(data if data is not None else {})
-    except ValidationError as e:
-        raise DseError(format_validation_error(source, e)) from None
-    return spec
+    return read_yaml(path, SpaceSpec, "spec", empty={})
 
 
 def resolve_space(spec: SpaceSpec, path: Path) -> Space:

@@ -1,0 +1,47 @@
+"""Our YAML files read into their pydantic models, every error one line naming the file.
+
+The models are the formats (space.yaml, scenario.yaml, values and variants files); this is the one
+way they are read, so a missing file, bad YAML and a bad value are worded alike everywhere.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+from pathlib import Path
+from typing import Any, TypeVar
+
+import yaml
+from pydantic import TypeAdapter, ValidationError
+
+from .errors import DseError, format_syntax_error, format_validation_error
+
+T = TypeVar("T")
+
+
+def load_yaml(path: Path, what: str = "file") -> Any:
+    """The file's YAML data (None for an empty file); ``what`` names it in the error for an unreadable file."""
+    try:
+        return yaml.safe_load(Path(path).read_text())
+    except OSError as e:
+        raise DseError(f"cannot read {what} {path}: {e.strerror}") from None
+    except yaml.YAMLError as e:
+        raise DseError(format_syntax_error(str(path), "YAML", e)) from None
+
+
+@cache
+def _adapter(shape: Any) -> TypeAdapter:
+    return TypeAdapter(shape)
+
+
+def validated(data: Any, shape: type[T], source: str) -> T:
+    """``data`` as ``shape`` (a pydantic model or any type pydantic validates), errors naming ``source``."""
+    try:
+        return _adapter(shape).validate_python(data)
+    except ValidationError as e:
+        raise DseError(format_validation_error(source, e)) from None
+
+
+def read_yaml(path: Path, shape: type[T], what: str = "file", empty: Any = None) -> T:
+    """A YAML file validated as ``shape``; an empty file counts as ``empty``."""
+    data = load_yaml(path, what)
+    return validated(empty if data is None else data, shape, str(path))
