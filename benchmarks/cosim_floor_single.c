@@ -3,8 +3,8 @@
  * this machine.  It runs the FMU through its C API with a fixed step, reading
  * the given outputs into a buffer after every step, with nothing else around
  * it, and prints the median wall time of one run (reset, set-up, set the
- * reals, initialise, step to the end, terminate) in seconds, and the final
- * value of the first output.  benchmarks/cosim.py compares dse-runner's
+ * reals, initialise, step to the end, terminate) in seconds, the final
+ * value of the first output, and the fastest run's time.  benchmarks/cosim.py compares dse-runner's
  * master against it on a cheap FMU, where the master's overhead is all there
  * is to see.
  *
@@ -134,7 +134,7 @@ int main(int argc, char **argv) {
     const double last = record[(size_t)n_steps * n_out];
     free_instance(c);
     qsort(times, repeats, sizeof(double), by_value);
-    printf("%.9f %.17g\n", times[repeats / 2], last);
+    printf("%.9f %.17g %.9f\n", times[repeats / 2], last, times[0]);
     free(record);
     free(times);
     return 0;
