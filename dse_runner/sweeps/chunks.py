@@ -165,9 +165,10 @@ WARM_PROBE_SECONDS = 1.0  # a first simulation shorter than this is run again, w
 
 def probe(shipment: str, scenario: str, point: Point, objectives: dict[str, ObjectiveSpec], timeout: float,
           experiment: Experiment | None = None) -> float | None:
-    """Seconds one warm simulation takes on a worker, to size the first chunks; None if it failed (that point will
-    fail in its chunk too and become a failed row, which must not stop the sweep). It runs on a worker,
-    not in the client, so that an FMU that crashes its process takes down a worker, not the user's shell."""
+    """Seconds one warm simulation takes on a worker, to size the first chunks; None if it failed (that
+    point will fail in its chunk too and become a failed row, which must not stop the sweep). It runs on a
+    worker, not in the client, so that an FMU that crashes its process takes down a worker, not the user's
+    shell."""
     unpacked = ship.received(shipment)
 
     def timed() -> float:

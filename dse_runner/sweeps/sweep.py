@@ -266,7 +266,7 @@ class GridSource:
 
     def finished(self, job: ChunkJob, summary: ChunkSummary) -> None:
         """Chunks adapt: the next ones are sized by what this one cost on its worker (its whole time,
-        rows written included), which a probe of one cold simulation can only guess."""
+        rows written included), which the probe of one simulation can only estimate."""
         tasks = summary.ok + summary.failed
         if tasks and summary.busy > 0:
             self.seconds_per_task = summary.busy / tasks
