@@ -26,6 +26,7 @@ RUNS = ["sin1", "sin2", "speed_step1", "speed_step2", "turn_ramp1", "turn_ramp2"
 BENCHMARK_RUNS = [*RUNS, "speed_ramp1", "speed_ramp2"]  # benchmarks/diagnosis_blind.py
 SECONDS = 20.0  # of each run in the tests: a start, speed steps, a full steering swing on the sin runs
 BENCHMARK_SECONDS = 40.0  # benchmarks/diagnosis_blind.py: every manoeuvre, braking included
+NOISE = 0.02  # m, the receiver's noise per axis
 TRUTH_VEHICLE = {"vehicle.mass": 1800.0, "vehicle.cAlphaF": 26000.0}
 
 # Each library effect at a size a field engineer would care about.
@@ -47,7 +48,7 @@ def truth_plan():
     return as_plan(parse_multimodel(data, "truth", REPO))
 
 
-def record(folder: Path, effect: str, runs: list[str], seconds: float, noise: float = 0.02,
+def record(folder: Path, effect: str, runs: list[str], seconds: float, noise: float = NOISE,
            dropout: float = 0.03, seed: int = 0) -> Path:
     """Write ``runs`` (names of bundled runs, cut to ``seconds``) as recorded by the truth with ``effect``."""
     rng = np.random.default_rng(seed)

@@ -43,6 +43,7 @@ def test_a_concealed_effect_is_named_sized_and_fixed(cases, effect):
     assert result.cross_track_after <= 0.5 * result.cross_track_before
     low, high = zip(*result.effects[0]["interval"].values())
     assert all(lo <= v <= hi for lo, v, hi in zip(low, result.effects[0]["parameters"].values(), high))
+    assert result.verdict == "explained" and not result.effects[0]["partial"]  # down to the 2 cm noise
 
 
 def test_noise_only_reports_nothing_missing(cases):
@@ -50,6 +51,8 @@ def test_noise_only_reports_nothing_missing(cases):
     assert [e["id"] for e in result.effects] == ["none"]
     assert result.cross_track_after == result.cross_track_before
     assert "multimodel" not in result.files
+    assert result.verdict == "none"
+    assert result.floor.sigma == pytest.approx(blind.NOISE, rel=0.10)  # from the files alone
 
 
 def test_written_space_recalibrates_with_the_effect(cases, dask_scheduler):
@@ -75,6 +78,8 @@ def test_report_and_figures_are_written(cases):
         assert result.files[name].stat().st_size > 10_000
     saved = strict_loads((result.out / "report" / "diagnosis.json").read_text())
     assert saved["effects"][0]["id"] == "antenna_offset"
+    assert "**Verdict: explained.**" in text and "### Noise floor" in text and "overstates" in text
+    assert saved["verdict"] == "explained" and saved["noise_floor"]["method"] in ("close_fixes", "at_rest")
 
 
 def test_cli_json_resumes_from_the_store(cases, dask_scheduler):
@@ -86,7 +91,10 @@ def test_cli_json_resumes_from_the_store(cases, dask_scheduler):
     assert [e["id"] for e in printed["effects"]] == [e["id"] for e in result.effects]
     assert printed["cross_track_before"] == pytest.approx(result.cross_track_before)
     assert printed["cross_track_after"] == pytest.approx(result.cross_track_after)
-    assert set(printed["effects"][0]) >= {"id", "parameters", "interval"}
+    assert set(printed["effects"][0]) >= {"id", "parameters", "interval", "partial"}
+    assert printed["verdict"] == result.verdict
+    assert printed["noise_floor"]["cross_track"] == pytest.approx(result.floor.cross_track)
+    assert printed["runner_up"]["runs_better"].endswith("/6")
 
 
 def test_a_missing_scenarios_folder_is_named(tmp_path):

@@ -506,6 +506,9 @@ def diagnose(
     folds: Annotated[int, typer.Option(help="Cross-validation folds across runs.")] = 3,
     hypothesis: Annotated[list[str] | None, typer.Option(
         "--hypothesis", help="Try only this hypothesis of the library (repeatable). Default: every one.")] = None,
+    noise_factor: Annotated[float, typer.Option(
+        help="Held-out error above this many noise floors (estimated from the GPS fixes) is a residual the "
+             "library leaves unexplained: verdict partial or unexplained.")] = 2.0,
     workers: Annotated[int | None, typer.Option(help="Local cluster workers (overrides the space).")] = None,
     scheduler: Annotated[str | None, typer.Option(help="Address of an existing Dask scheduler.")] = None,
     as_json: JsonFlag = False,
@@ -518,7 +521,7 @@ def diagnose(
         typer.echo(message, err=True)
 
     try:
-        settings = Settings(folds=folds, hypotheses=tuple(hypothesis or ()))
+        settings = Settings(folds=folds, hypotheses=tuple(hypothesis or ()), noise_factor=noise_factor)
         result = run_diagnosis(scenarios, multimodel, space, out, settings, progress=say, n_workers=workers,
                                address=scheduler)
     except DseError as e:
@@ -535,6 +538,11 @@ def diagnose(
         typer.echo(f"{effect['id']}: {effect['name']}" + (f": {values}" if values else ""))
     typer.echo(f"held-out mean cross-track error: {result.cross_track_before:.3f} m before, "
                f"{result.cross_track_after:.3f} m after")
+    if result.floor_ratio is not None:
+        typer.echo(f"verdict: {result.verdict} ({result.floor_ratio:.1f}× the noise floor of "
+                   f"{result.floor.cross_track:.3f} m, {result.floor.method})")
+    else:
+        typer.echo(f"verdict: {result.verdict} (no noise floor could be estimated)")
     if result.dropouts:
         typer.echo(_dropouts_line(result.dropouts))
     for name in ("multimodel", "space", "report"):

@@ -30,9 +30,10 @@ from ...sweeps.fit import FitProblem, FitResult, Parameter, evaluate_points, fit
 from ...sweeps.spec import Range, Space, SpaceSpec, read_spec, resolve_space
 from ...sweeps.sweep import submit, trajectories_of
 from ..rank import rank
-from . import explain, locate
+from . import explain, locate, noise
 from .explain import Candidate
 from .hypotheses import EFFECTS_FMU, LIBRARY, effect_variables, hypothesis
+from .noise import NoiseFloor
 
 DEFAULT_SPACE = "bundled:robotti/calibration.yaml"  # the Robotti baseline's calibration grid
 FITS = "diagnosis-fits"  # the sweep every fit's rounds go to
@@ -50,6 +51,12 @@ class Settings:
     bic_margin: float = explain.BIC_MARGIN
     max_iterations: int = 15
     hypotheses: tuple[str, ...] = ()  # the library's ids to try; () tries them all
+    noise_factor: float = explain.NOISE_FACTOR  # held-out error above this many noise floors is unexplained
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.noise_factor) and self.noise_factor > 0):
+            raise DseError(f"noise factor {self.noise_factor!r}: must be a positive number (default "
+                           f"{explain.NOISE_FACTOR:g}: held-out error above twice the noise floor is a residual)")
 
     def singles(self) -> list[tuple[str, ...]]:
         """The hypotheses fitted alone: the chosen ids of the library, each checked."""
@@ -71,13 +78,43 @@ class Diagnosis:
     located: dict[str, Any] = field(default_factory=dict)  # locate's tables, before and after
     files: dict[str, Path] = field(default_factory=dict)
     dropouts: dict[str, int] = field(default_factory=dict)  # GPS fixes skipped per run (scenario.dropouts)
+    floor: NoiseFloor = noise.UNKNOWN  # the GPS noise floor, estimated from the recordings alone
+
+    @property
+    def verdict(self) -> str:
+        """none, explained, partial or unexplained: the chosen model's held-out error against the noise floor."""
+        floor = self.floor.cross_track if self.floor.available else None
+        return explain.verdict(self.cross_track_after, floor, self.settings.noise_factor, bool(self.chosen.ids))
+
+    @property
+    def partial(self) -> bool:
+        """Whether the chosen effects leave a residual well above the noise: they are at most part of the cause."""
+        return self.verdict == explain.PARTIAL
+
+    @property
+    def floor_ratio(self) -> float | None:
+        """The chosen model's held-out error as a multiple of the noise floor (None without a floor)."""
+        return self.cross_track_after / self.floor.cross_track if self.floor.available else None
+
+    @property
+    def runner_up(self) -> explain.Evidence | None:
+        """The best real alternative to the chosen candidate, with the evidence against it."""
+        other = explain.runner_up(self.chosen, self.candidates)
+        return explain.evidence(self.chosen, other) if other is not None else None
+
+    @property
+    def noise_floor(self) -> dict[str, Any]:
+        """The floor as JSON, with the factor the verdict used and the chosen model's ratio to it."""
+        return {**self.floor.to_json(), "factor": self.settings.noise_factor, "ratio": self.floor_ratio}
 
     @property
     def effects(self) -> list[dict[str, Any]]:
-        """The chosen hypotheses with their fitted parameters and ~95 % intervals; [none] if nothing."""
+        """The chosen hypotheses with their fitted parameters and ~95 % intervals; [none] if nothing.
+        Each says whether it is ``partial``: chosen, but leaving a residual well above the noise."""
         if not self.chosen.ids:
-            return [{"id": "none", "name": LIBRARY["none"].name, "parameters": {}, "interval": {}}]
-        return [self._effect(hid) for hid in self.chosen.ids]
+            return [{"id": "none", "name": LIBRARY["none"].name, "parameters": {}, "interval": {},
+                     "partial": False}]
+        return [self._effect(hid) | {"partial": self.partial} for hid in self.chosen.ids]
 
     def _effect(self, hid: str) -> dict[str, Any]:
         h, fit = LIBRARY[hid], self.chosen.full
@@ -104,10 +141,14 @@ class Diagnosis:
                 "at_bound": list(fit.at_bound)}
 
     def to_json(self) -> dict[str, Any]:
+        up = self.runner_up
         return {
             "effects": self.effects,
             "cross_track_before": self.cross_track_before,
             "cross_track_after": self.cross_track_after,
+            "verdict": self.verdict,
+            "noise_floor": self.noise_floor,
+            "runner_up": up.to_json() if up is not None else None,
             "held_out": [{"scenario": s, "before": self.baseline.held_out[s], "after": self.chosen.held_out[s]}
                          for s in sorted(self.baseline.held_out)],
             "candidates": [{"id": c.label, "cross_track_held_out": c.cross_validated, "bic": c.bic,
@@ -354,6 +395,10 @@ def diagnose(scenarios: str | Path, multimodel: str | Path | None = None, space:
 def _diagnose(calibration: Space, out: Path, settings: Settings, client, say: Progress) -> Diagnosis:
     from . import report
 
+    floor = noise.estimate_noise(calibration.scenarios)  # from the files alone, before any model is fitted
+    if floor.available:
+        say(f"noise floor: GPS sigma {floor.sigma:.4f} m ({floor.method}, {floor.fixes} fixes), "
+            f"{floor.cross_track:.4f} m of cross-track error")
     say(f"calibrating: the {calibration.name} grid on {len(calibration.scenarios)} runs")
     submit(calibration, client=client)
     grid = rank(out, calibration.name)
@@ -371,7 +416,7 @@ def _diagnose(calibration: Space, out: Path, settings: Settings, client, say: Pr
         "no_effect": baseline.full.undetermined,
         "insensitive_scenarios": locate.insensitive_scenarios(grid.table1),
         "folds": chain.folds,
-    }, explain.ranked(scored), chosen, baseline, settings, dropouts=dropouts(calibration.scenarios))
+    }, explain.ranked(scored), chosen, baseline, settings, dropouts=dropouts(calibration.scenarios), floor=floor)
     say("locating: the residuals of the calibrated model and of the chosen one")
     before = trajectories_of(space, client, baseline.full.point, BEFORE)
     after = trajectories_of(space, client, chosen.full.point, AFTER)

@@ -19,9 +19,10 @@ from ... import strict_json
 from ...cases import fielddata
 from ...sweeps.spec import Space
 from ..rank import format_point
-from . import locate
+from . import explain, locate
 from .explain import Candidate
 from .hypotheses import LIBRARY
+from .noise import AT_REST, CLOSE_FIXES, MAX_SPACING
 
 if TYPE_CHECKING:
     from ...diagnose import Diagnosis
@@ -180,8 +181,9 @@ def _markdown(diagnosis: "Diagnosis", located: dict[str, pd.DataFrame], sig: dic
             + f". Held-out mean cross-track error {diagnosis.cross_track_before:.3f} m → "
             f"{diagnosis.cross_track_after:.3f} m.", ""]
     else:
-        lines += [f"**Finding:** `none`: no hypothesis of the library explains the residual beyond noise "
-                  f"(held-out mean cross-track error {diagnosis.cross_track_before:.3f} m). Nothing is added.", ""]
+        lines += [f"**Finding:** `none`: no hypothesis of the library passes the test against the calibrated "
+                  f"model (held-out mean cross-track error {diagnosis.cross_track_before:.3f} m). Nothing is added.", ""]
+    lines += [verdict_text(diagnosis), ""]
 
     lines += ["## 1. Locate", "",
               f"Calibration grid best point: {format_point(cal['grid_best'], 5)}; parameters at a bound of the design space: "
@@ -205,6 +207,10 @@ def _markdown(diagnosis: "Diagnosis", located: dict[str, pd.DataFrame], sig: dic
               f"{diagnosis.settings.min_gain:.0%} and the BIC by at least {diagnosis.settings.bic_margin:g} "
               "against the simpler model.", "",
               _table(_candidates(diagnosis)), ""]
+    lines += ["### Noise floor", "", noise_text(diagnosis), ""]
+    up = diagnosis.runner_up
+    lines += ["### Runner-up", "", runner_up_text(up, diagnosis.chosen.label, diagnosis.settings) if up else
+              "No other candidate was fitted that is not part of the chosen one.", ""]
     for e in diagnosis.effects:
         h = LIBRARY[e["id"]]
         lines += [f"### `{h.id}`: {h.name}", "", h.explanation, "", f"Expected signature: {h.signature}.", ""]
@@ -220,3 +226,83 @@ def _markdown(diagnosis: "Diagnosis", located: dict[str, pd.DataFrame], sig: dic
               f"![held-out errors]({figures['held_out']})", "", f"![tracks]({figures['tracks']})", ""]
     return "\n".join(lines)
 
+
+
+def _ids(label: str) -> str:
+    return " + ".join(f"`{h}`" for h in label.split("+"))
+
+
+def verdict_text(diagnosis: "Diagnosis") -> str:
+    """The verdict in an engineer's words: the chosen model's held-out error against the noise floor."""
+    verdict, floor = diagnosis.verdict, diagnosis.floor
+    after = diagnosis.cross_track_after
+    factor = diagnosis.settings.noise_factor
+    chosen = _ids(diagnosis.chosen.label) if diagnosis.chosen.ids else ""
+    if not floor.available:
+        return (f"**Verdict: {verdict}.** The GPS noise could not be estimated from these recordings (no three "
+                "consecutive close fixes and no stop), so the residual is not weighed against it: read the "
+                "finding as the best of the library, not as proof that nothing else is missing.")
+    level = (f"{after:.3f} m, {diagnosis.floor_ratio:.1f}× the noise floor of {floor.cross_track:.3f} m")
+    remains = after - floor.cross_track
+    if verdict == explain.EXPLAINED:
+        return (f"**Verdict: explained.** With {chosen} the held-out error is {level}; up to {factor:g}× counts "
+                "as noise, so what remains is receiver noise or too close to it to tell apart.")
+    if verdict == explain.PARTIAL:
+        return (f"**Verdict: partial.** The runs support {chosen}, but it is not the whole story: after it the "
+                f"held-out error is {level}, above the {factor:g}× that counts as noise. The library does not "
+                f"explain the residual: about {remains:.3f} m of mean cross-track error remains above the noise. "
+                "Read the effect as part of the cause, not as the cause.")
+    if verdict == explain.UNEXPLAINED:
+        return (f"**Verdict: unexplained.** No hypothesis of the library explains the residual, and it is not noise: "
+                f"the calibrated model's held-out error is {level}, above the {factor:g}× that counts as noise; "
+                f"about {remains:.3f} m of mean cross-track error remains unexplained.")
+    return (f"**Verdict: none.** Nothing is missing: the calibrated model's held-out error is {level}, within "
+            f"the {factor:g}× that counts as noise.")
+
+
+def noise_text(diagnosis: "Diagnosis") -> str:
+    """How the floor was estimated, from the recordings alone."""
+    floor = diagnosis.floor
+    if not floor.available:
+        return ("Not available: no run has three consecutive fixes at most "
+                f"{MAX_SPACING:g} s apart, nor a stop with enough fixes.")
+    parts = []
+    close, rest = floor.estimates.get(CLOSE_FIXES), floor.estimates.get(AT_REST)
+    if close:
+        parts.append(f"σ = {close.sigma:.4f} m per axis from the second differences at {close.fixes} fixes whose "
+                     "neighbours are equally close with no dropout between them (robust median absolute deviation, "
+                     "pooled over x, y and runs; speed cancels, and acceleration adds at most millimetres)")
+    if rest:
+        colour = ("" if floor.rho1 is None else
+                  f"; lag-1 autocorrelation {floor.rho1:.2f}, " + ("coloured noise, which second differences "
+                                                                   "under-estimate" if floor.rho1 > 0.3 else "white"))
+        parts.append(f"σ = {rest.sigma:.4f} m from the spread of {rest.fixes} fixes while the commanded speed was 0 "
+                     f"and the vehicle stood still{colour}")
+    per_run = list(floor.per_run.values())
+    spread = f" Per run, σ lies between {min(per_run):.4f} and {max(per_run):.4f} m." if per_run else ""
+    method = {CLOSE_FIXES: "close fixes", AT_REST: "fixes at rest"}.get(floor.method, floor.method)
+    ratio = diagnosis.floor_ratio
+    return ("The GPS noise, estimated from the recordings alone, never from a model: " + "; and ".join(parts) + ". "
+            f"The larger, from {method}, sets the floor: a perfect model would still show a mean cross-track error "
+            f"of σ·√(π/2) = {floor.cross_track:.3f} m." + spread
+            + f" The chosen model's held-out error, {diagnosis.cross_track_after:.3f} m, is {ratio:.1f}× that floor; "
+            f"above {diagnosis.settings.noise_factor:g}× (`--noise-factor`) a residual counts as more than noise "
+            "(verdict partial, or unexplained when nothing was chosen).")
+
+
+def runner_up_text(up: explain.Evidence, chosen: str, settings: Any) -> str:
+    """The best real alternative to the chosen candidate and the evidence between them."""
+    if math.isfinite(up.delta_held_out) and abs(up.delta_held_out) <= explain.TIE:
+        held = f"its held-out error, {up.other_held_out:.4f} m, is the chosen model's (within 0.1 mm)"
+    elif math.isfinite(up.delta_held_out) and up.delta_held_out > 0:
+        held = (f"its held-out error, {up.other_held_out:.4f} m, is {up.delta_held_out:.4f} m "
+                f"({up.delta_held_out_percent:+.1f} %) above the chosen model's")
+    else:
+        held = (f"its held-out error, {up.other_held_out:.4f} m, is {-up.delta_held_out:.4f} m lower, "
+                f"yet it did not pass the rule (at least {settings.min_gain:.0%} lower held-out error and "
+                f"{settings.bic_margin:g} lower BIC than the simpler model)")
+    tied = f" ({up.runs_tied} equal within 0.1 mm)" if up.runs_tied else ""
+    return (f"{_ids(up.other)}: {held}; the chosen model (`{chosen}`) predicts {up.runs_better_text} held-out "
+            f"runs better{tied}; ΔBIC = {up.delta_bic:+.1f} (positive favours the chosen model). ΔBIC treats every fix "
+            "as independent, but successive fixes are strongly correlated, so it overstates the evidence: the "
+            "held-out difference and the count of runs are the figures to weigh.")

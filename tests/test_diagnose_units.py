@@ -1,0 +1,249 @@
+"""Fast unit tests of the diagnosis' pure parts, no simulation: the noise floor estimated from
+synthetic fixes written here, and the verdict, partial flag and runner-up on constructed candidates."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from conftest import strict_loads
+
+from dse_runner import strict_json
+from dse_runner.analysis.diagnose import Diagnosis, Settings, explain, noise
+from dse_runner.analysis.diagnose.explain import Candidate
+from dse_runner.cases.fielddata import load_run
+from dse_runner.errors import DseError
+from dse_runner.sweeps.fit import FitResult
+
+PERIOD = 0.1  # s between fixes, as the bundled receiver
+
+
+def commands(duration: float, rest_start: float, rest_end: float) -> tuple[np.ndarray, np.ndarray]:
+    """A 20 Hz speed log: standing, then driving at 1.5 m/s, then standing for the last ``rest_end`` s."""
+    t = np.round(np.arange(0.0, duration + 1e-9, 0.05), 2)
+    v = np.where((t >= rest_start) & (t < duration - rest_end), 1.5, 0.0)
+    return t, v
+
+
+def truth(t: np.ndarray, cmd_t: np.ndarray, cmd_v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The path: a circle of 12 m radius (0.19 m/s² of lateral acceleration) at the commanded speed."""
+    v = np.interp(t, cmd_t, cmd_v)  # stops are exact: no motion at all while the command is 0
+    s = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+    return 12.0 * np.sin(s / 12.0), 12.0 * (1 - np.cos(s / 12.0))
+
+
+def write_run(folder: Path, name: str, sigma: float, seed: int, dropout: float = 0.1, outage: float = 5.0,
+              duration: float = 60.0, rest_start: float = 2.0, rest_end: float = 6.0, colour: float = 0.0) -> Path:
+    """A run in the field-data format: noisy fixes at 10 Hz with random dropouts and one outage.
+    ``colour`` makes the noise AR(1) with that coefficient (same marginal σ)."""
+    rng = np.random.default_rng(seed)
+    run = folder / name
+    run.mkdir(parents=True)
+    cmd_t, cmd_v = commands(duration, rest_start, rest_end)
+    (run / "steering_inputs.csv").write_text(
+        "time,velocity,delta_f\n" + "".join(f"{t:.2f},{v:.3f},0.0000\n" for t, v in zip(cmd_t, cmd_v)))
+    (run / "scenario.yaml").write_text(yaml.safe_dump({
+        "name": name, "group": "synthetic", "duration": duration,
+        "initial_pose": {"x": 0.0, "y": 0.0, "theta": 0.0}}))
+    t = np.round(np.arange(0.0, duration + 1e-9, PERIOD), 2)
+    x, y = truth(t, cmd_t, cmd_v)
+    white = rng.normal(0.0, sigma, (2, t.size))
+    if colour:
+        noise_xy = np.empty_like(white)
+        noise_xy[:, 0] = white[:, 0]
+        for k in range(1, t.size):
+            noise_xy[:, k] = colour * noise_xy[:, k - 1] + math.sqrt(1 - colour ** 2) * white[:, k]
+        white = noise_xy
+    keep = rng.random(t.size) >= dropout
+    start = int(rng.integers(t.size // 4, t.size // 2))
+    keep[start:start + int(round(outage / PERIOD))] = False
+    keep[0] = True
+    rows = []
+    for k in range(t.size):  # a dropout is a missing row or an empty row: both occur in the field
+        if keep[k]:
+            rows.append(f"{t[k]:.2f},{x[k] + white[0, k]:.4f},{y[k] + white[1, k]:.4f}")
+        elif k % 2:
+            rows.append(f"{t[k]:.2f},,")
+    (run / "gps_position.csv").write_text("time,x,y\n" + "\n".join(rows) + "\n")
+    return run
+
+
+def scenarios(folder: Path, sigma: float, runs: int = 4, **options) -> list:
+    return [load_run(write_run(folder, f"run{k}", sigma, seed=100 * k + int(sigma * 1000), **options))
+            for k in range(runs)]
+
+
+@pytest.mark.parametrize("sigma", [0.02, 0.05])
+def test_noise_is_recovered_from_fixes_with_dropouts_and_an_outage(tmp_path, sigma):
+    floor = noise.estimate_noise(scenarios(tmp_path, sigma))
+    assert floor.available
+    assert floor.sigma == pytest.approx(sigma, rel=0.10)
+    for method in (noise.CLOSE_FIXES, noise.AT_REST):  # each estimator alone, too
+        assert floor.estimates[method].sigma == pytest.approx(sigma, rel=0.10), method
+    assert floor.cross_track == pytest.approx(floor.sigma * math.sqrt(math.pi / 2))
+    assert floor.method in (noise.CLOSE_FIXES, noise.AT_REST)
+    assert floor.fixes == floor.estimates[floor.method].fixes > 0
+    assert sorted(floor.per_run) == ["run0", "run1", "run2", "run3"]
+    assert all(v == pytest.approx(sigma, rel=0.25) for v in floor.per_run.values())
+    assert abs(floor.rho1) < 0.3  # white
+
+
+def test_heavy_noise_with_long_outages(tmp_path):
+    """5 cm, 10 % dropouts and a 10 s outage per run, only 2 s of rest at the start and none at the end."""
+    floor = noise.estimate_noise(scenarios(tmp_path, 0.05, outage=10.0, rest_end=0.0))
+    assert floor.sigma == pytest.approx(0.05, rel=0.10)
+
+
+def test_coloured_noise_is_caught_at_rest(tmp_path):
+    """Second differences cancel slowly wandering noise; the spread at rest does not, and decides."""
+    floor = noise.estimate_noise(scenarios(tmp_path, 0.03, colour=0.8, rest_start=5.0, rest_end=10.0))
+    assert floor.estimates[noise.CLOSE_FIXES].sigma < 0.75 * 0.03
+    assert floor.method == noise.AT_REST
+    assert floor.rho1 > 0.3
+    assert floor.sigma == pytest.approx(0.03, rel=0.2)
+
+
+def test_second_differences_skip_triples_across_a_dropout():
+    t = np.array([0.0, 0.1, 0.2, 0.3, 0.5, 0.6, 0.7])  # 0.4 missing
+    x = np.array([0.0, 0.0, 0.0, 0.0, 9.0, 9.0, 9.0])  # a jump hidden in the gap must not show
+    d2 = noise.second_differences(t, x, np.zeros_like(x))
+    assert d2.size == 2 * 3  # middles at 0.1, 0.2 and 0.6, for x and y
+    assert np.all(d2 == 0)
+    assert noise.second_differences(t[:2], x[:2], x[:2]).size == 0
+    slow = np.arange(0.0, 5.0, 0.5)  # fixes 0.5 s apart: motion would leak in, so none are used
+    assert noise.second_differences(slow, slow, slow).size == 0
+
+
+def test_rest_windows():
+    t = np.round(np.arange(0.0, 20.0, 0.05), 2)
+    v = np.where((t >= 1.0) & (t < 10.0), 1.0, 0.0)  # 1 s at rest first: too short
+    v[(t >= 12.0) & (t < 13.0)] = 1.0  # a 2 s stop from 10 to 12 s
+    windows = noise.rest_windows(t, v, end=20.0)
+    assert windows == [(pytest.approx(10.5), pytest.approx(12.0)), (pytest.approx(13.5), pytest.approx(20.0))]
+    assert noise.rest_windows(t, np.zeros_like(t), end=20.0) == [(0.0, 20.0)]  # at rest from the start: no settling
+
+
+def test_no_estimate_without_usable_fixes():
+    run = noise.Run(np.array([0.0, 1.0]), np.zeros(2), np.zeros(2), np.array([0.0]), np.array([1.0]))
+    floor = noise.estimate({"a": run})
+    assert not floor.available and floor.method == noise.UNAVAILABLE
+    assert strict_loads(strict_json.dumps(floor.to_json()))["sigma"] is None
+
+
+# ---- verdicts, partial and runner-up on constructed candidates ---------------------------------------
+
+@pytest.mark.parametrize("held_out, floor, chosen, expected", [
+    (0.03, 0.02, False, "none"),
+    (0.05, 0.02, False, "unexplained"),
+    (0.04, 0.02, True, "explained"),  # exactly at 2x: still noise
+    (0.041, 0.02, True, "partial"),
+    (0.5, None, True, "explained"),  # no floor: claim no more than the library's rule
+    (0.5, None, False, "none"),
+])
+def test_verdict(held_out, floor, chosen, expected):
+    assert explain.verdict(held_out, floor, 2.0, chosen) == expected
+
+
+def candidate(ids: tuple[str, ...], held_out: list[float], sse: float, values: dict[str, float] | None = None
+              ) -> Candidate:
+    names = ["vehicle.mass", *(values or {})]
+    allv = {"vehicle.mass": 1800.0, **(values or {})}
+    fit = FitResult("+".join(ids) or "none", names, allv, sse, 1000, 5, True, {n: 0.001 for n in names}, [], {})
+    return Candidate(ids, fit, held_out={f"run{k}": v for k, v in enumerate(held_out)})
+
+
+def table() -> list[Candidate]:
+    return explain.ranked([
+        candidate((), [1.0, 1.2, 0.9, 1.1], 400.0),
+        candidate(("wheel_slip",), [0.12, 0.13, 0.11, 0.12], 20.0, {"vehicle.wheel_slip": 0.08}),
+        candidate(("time_offset",), [0.30, 0.35, 0.10, 0.31], 60.0, {"vehicle.time_offset": 0.3}),
+        candidate(("wheel_slip", "antenna_offset"), [0.118, 0.129, 0.112, 0.119], 19.0,
+                  {"vehicle.wheel_slip": 0.08, "vehicle.antenna_x": 0.01, "vehicle.antenna_y": 0.0}),
+    ])
+
+
+def test_runner_up_is_the_best_candidate_that_is_no_subset_of_the_chosen():
+    cands = table()
+    slip = next(c for c in cands if c.ids == ("wheel_slip",))
+    up = explain.runner_up(slip, cands)
+    assert up.ids == ("wheel_slip", "antenna_offset")  # ranked first of the rest; none is a subset
+    pair = next(c for c in cands if len(c.ids) == 2)
+    assert explain.runner_up(pair, cands).ids == ("time_offset",)  # wheel_slip alone is part of the pair
+    baseline = next(c for c in cands if not c.ids)
+    assert explain.runner_up(baseline, cands).ids == ("wheel_slip", "antenna_offset")
+    assert explain.runner_up(slip, [slip, baseline]) is None
+
+
+def test_evidence():
+    cands = table()
+    slip = next(c for c in cands if c.ids == ("wheel_slip",))
+    other = next(c for c in cands if c.ids == ("time_offset",))
+    e = explain.evidence(slip, other)
+    assert e.other == "time_offset"
+    assert e.delta_held_out == pytest.approx(0.265 - 0.12)
+    assert e.delta_held_out_percent == pytest.approx(100 * (0.265 - 0.12) / 0.12)
+    assert e.delta_bic == pytest.approx(other.bic - slip.bic) and e.delta_bic > 0
+    assert e.runs_better_text == "3/4"  # run2: time_offset predicts 0.10 against 0.11
+
+
+def diagnosis(chosen_ids: tuple[str, ...], floor: float, factor: float = 2.0) -> Diagnosis:
+    cands = table()
+    chosen = next(c for c in cands if c.ids == chosen_ids)
+    baseline = next(c for c in cands if not c.ids)
+    sigma = floor / noise.MEAN_DISTANCE
+    nf = noise.NoiseFloor(sigma, floor, noise.CLOSE_FIXES, 5000, {"run0": sigma},
+                          {noise.CLOSE_FIXES: noise.Estimate(sigma, 5000)}, 0.02)
+    return Diagnosis(Path("/nowhere"), {"vehicle": "vehicle"}, cands, chosen, baseline, Settings(noise_factor=factor),
+                     floor=nf)
+
+
+def test_json_verdict_partial_and_runner_up():
+    explained = strict_loads(strict_json.dumps(diagnosis(("wheel_slip",), floor=0.1).to_json()))
+    assert explained["verdict"] == "explained"
+    assert [e["partial"] for e in explained["effects"]] == [False]
+    assert explained["cross_track_after"] == pytest.approx(0.12)  # the existing keys keep their meaning
+    assert explained["noise_floor"] | {"per_run": None, "estimates": None} == {
+        "sigma": pytest.approx(0.1 / noise.MEAN_DISTANCE), "cross_track": 0.1, "method": "close_fixes",
+        "fixes": 5000, "rho1": 0.02, "factor": 2.0, "ratio": pytest.approx(1.2), "per_run": None, "estimates": None}
+    assert explained["runner_up"]["id"] == "wheel_slip+antenna_offset"
+    assert explained["runner_up"]["runs_better"] == "1/4"  # run2 only: the pair is a hair better elsewhere
+    assert explained["runner_up"]["delta_held_out"] < 0
+
+    partial = diagnosis(("wheel_slip",), floor=0.025).to_json()
+    assert partial["verdict"] == "partial" and partial["effects"][0]["partial"] is True
+    assert diagnosis(("wheel_slip",), floor=0.025, factor=5.0).to_json()["verdict"] == "explained"
+
+    unexplained = diagnosis((), floor=0.025).to_json()
+    assert unexplained["verdict"] == "unexplained"
+    assert unexplained["effects"] == [{"id": "none", "name": unexplained["effects"][0]["name"], "parameters": {},
+                                       "interval": {}, "partial": False}]
+
+
+def test_report_words(tmp_path):
+    from dse_runner.analysis.diagnose import report
+
+    text = report.verdict_text(diagnosis(("wheel_slip",), floor=0.025))
+    assert "partial" in text and "does not explain the residual" in text and "4.8×" in text
+    assert "caused by" not in text
+    d = diagnosis(("wheel_slip",), floor=0.1)
+    assert "explained" in report.verdict_text(d)
+    words = report.runner_up_text(d.runner_up, d.chosen.label, d.settings)
+    assert "overstates" in words and "did not pass the rule" in words and "1/4" in words
+    assert "0.100 m" in report.noise_text(d)
+
+
+def test_a_bad_noise_factor_is_refused():
+    with pytest.raises(DseError, match="noise factor"):
+        Settings(noise_factor=0.0)
+
+
+def test_an_effect_fitted_to_nothing_ties_rather_than_wins_runs():
+    """A superset whose extra effect is fitted to ~0 predicts the same: its runs are ties, not evidence."""
+    chosen = candidate(("wheel_slip",), [0.12, 0.13, 0.11, 0.12], 20.0)
+    same = candidate(("wheel_slip", "time_offset"), [0.12 + 1e-11, 0.13 - 1e-11, 0.11, 0.12 + 2e-4], 19.9)
+    e = explain.evidence(chosen, same)
+    assert (e.runs_better, e.runs_tied, e.runs) == (1, 3, 4)
+    assert e.to_json()["runs_tied"] == 3
