@@ -217,3 +217,19 @@ def test_an_optimisers_read_back_finds_columns_only_newer_files_have(tmp_path, d
     rows = store.read_results(second.output, "small", ["max_error"], task_ids=ids)
     assert sorted(rows["task_id"]) == sorted(ids)
     assert rows["max_error"].notna().all()
+
+
+def test_a_chunk_given_up_on_loses_the_rows_it_wrote_and_only_those(tmp_path):
+    """A chunk can finish and write its rows on a worker that then dies before the result is fetched; Dask
+    gives up on it and the sweep runs its halves again: its own rows must go first, or they stand twice."""
+    schema = store.results_schema({"vehicle.mass": [1000.0]}, {"cross_track_error": None})
+
+    def rows(ids, scenario):
+        return [{"task_id": i, "scenario": scenario, "status": "ok", "error": None, "vehicle.mass": 1000.0,
+                 "cross_track_error": 1.0} for i in ids]
+
+    store.write_rows(tmp_path, "s", "gone", rows(["a", "b"], "sin1") + rows(["c"], "sin2"), schema)
+    store.write_rows(tmp_path, "s", "kept", rows(["d"], "sin1"), schema)
+    assert store.remove_chunk(tmp_path, "s", "gone") == 2
+    assert store.remove_chunk(tmp_path, "s", "never-written") == 0
+    assert set(store.finished_task_ids(tmp_path, "s")) == {"d"}

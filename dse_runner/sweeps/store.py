@@ -162,6 +162,17 @@ def write_rows(root: Root, sweep: str, chunk: str, rows: list[dict[str, Any]], s
             for scenario, group in by_scenario.items()]
 
 
+def remove_chunk(root: Root, sweep: str, chunk: str) -> int:
+    """Delete the rows one chunk wrote (every scenario partition); how many files went. For a chunk Dask gave
+    up on after it had written them on a worker that died before its result was fetched: it is run again
+    in halves, whose rows would otherwise stand beside these."""
+    fs, path = _fs(root)
+    files = fs.glob(_join(path, f"{RESULTS}/sweep={sweep}/scenario=*/part-{chunk}.parquet"))
+    for file in files:
+        fs.rm(file)
+    return len(files)
+
+
 def _files(fs: fsspec.AbstractFileSystem, path: str, kind: str, sweep: str | None = None) -> list[str]:
     """The finished files of one sweep (sweeps of one store may have different columns), or of all."""
     folder = _join(path, kind)

@@ -364,6 +364,7 @@ class Run:
                     self._count(job, future.result())
                 except KilledWorker as e:
                     report.crashed_chunks += 1
+                    store.remove_chunk(job.output, job.sweep, job.chunk_id)  # if it finished before its worker died
                     retry = job.after_crash()
                     again.extend(retry)
                     if not retry:  # a lone task, out of attempts
