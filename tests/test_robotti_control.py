@@ -59,6 +59,7 @@ def test_the_defaults_written_as_best_values_run_again_from_the_cli(tmp_path, da
     submit(space)
     written = cli("rank", str(space.output), "--best-values", str(tmp_path / "best.yaml"))
     assert written.returncode == 0, written.stderr
+    assert "(mean path_error_mean " in written.stdout  # reduced by over_scenarios: mean, not summed
     assert read_values(tmp_path / "best.yaml") == {ref: values[0] for ref, values in space.parameters.items()}
     runs = []
     for values in ([], ["--values", str(tmp_path / "best.yaml")], ["--values", str(JOB / "tuned.yaml")]):

@@ -35,6 +35,9 @@ SWEEP_FILE = "sweep.json"  # the spec a sweep ran with, saved beside its results
 MODEL_FILE = "model"  # the hash of the model it last ran
 
 
+REDUCED = {"sum": "total", "mean": "mean", "max": "largest", "min": "smallest"}  # ranking.over_scenarios
+
+
 @dataclass
 class Ranking:
     sweep: str
@@ -51,6 +54,12 @@ class Ranking:
     incomplete_points: int
     failed_rows: int
     excluded_points: int = 0  # complete points that break one of the ranking's constraints
+    over_scenarios: str = "sum"  # how each objective was reduced over the scenarios
+
+    @property
+    def reduced(self) -> str:
+        """How the ranked figures came from the scenarios, for labels: 'total', 'mean', 'largest', 'smallest'."""
+        return REDUCED[self.over_scenarios]
 
     def to_json(self) -> dict[str, Any]:
         def records(frame: pd.DataFrame, limit: int | None = None) -> list[dict[str, Any]]:
@@ -175,7 +184,8 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
     return Ranking(sweep, parameters, settings.objective, settings.goal, best,
                    float(complete.loc[0, settings.objective]), complete, table1, front, groups, weighted,
                    incomplete_points=len(totals) - len(complete) - excluded,
-                   failed_rows=int((rows["status"] != "ok").sum()), excluded_points=excluded)
+                   failed_rows=int((rows["status"] != "ok").sum()), excluded_points=excluded,
+                   over_scenarios=settings.over_scenarios)
 
 
 def admits(totals: pd.DataFrame, constraints: list[str], objectives: list[str]) -> np.ndarray:

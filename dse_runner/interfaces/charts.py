@@ -161,11 +161,11 @@ class TrackChart:
 class ParetoChart:
     """Every complete point on the first two Pareto objectives (totals), the front joined."""
 
-    def __init__(self, x: str, y: str, parameters: list[str]):
+    def __init__(self, x: str, y: str, parameters: list[str], reduced: str = "total"):
         self.x, self.y, self.parameters = x, y, parameters
         self.points = ColumnDataSource({x: [], y: [], **{p: [] for p in parameters}})
         self.front = ColumnDataSource({x: [], y: []})
-        self.figure = _figure("Pareto front", f"total {x}", f"total {y}")
+        self.figure = _figure("Pareto front", f"{reduced} {x}", f"{reduced} {y}")
         dots = self.figure.scatter(x, y, source=self.points, size=6, color="#9a9a9a", legend_label="points")
         self.figure.line(x, y, source=self.front, color=PALETTE[3], line_width=2, legend_label="front")
         self.figure.scatter(x, y, source=self.front, size=8, color=PALETTE[3])

@@ -190,7 +190,7 @@ def _print_table1(ranking) -> None:
     for row in ranking.table1.itertuples():
         typer.echo(f"  {row.scenario:<{width}}{row.min_error:9.3f}{row.max_error:9.3f}{row.average_error:9.3f}"
                    f"{row.computed:9.3f}{row.difference:+10.3f}")
-    typer.echo(f"best: {format_point(ranking.best)}  (total {ranking.objective} {ranking.best_total:.3f})")
+    typer.echo(f"best: {format_point(ranking.best)}  ({ranking.reduced} {ranking.objective} {ranking.best_total:.3f})")
 
 
 @app.command()

@@ -63,7 +63,7 @@ them, and the front after a quarter, half, three quarters and all of them.{% end
 value and "difference" its distance from the average (the paper's Table 1).</p>
 {{ table1 }}
 
-<h2>Ranking by total {{ objective }}</h2>
+<h2>Ranking by {{ reduced }} {{ objective }}</h2>
 <p class="note">The {{ top }} best of {{ points }} points, each objective {{ "summed" if over == "sum" else
 "reduced by its " ~ over }} over the scenarios.</p>
 {{ totals }}
@@ -137,7 +137,7 @@ def build_report(output: store.Root, sweep: str | None = None) -> str:
     figures["by_group"] = by_group.layout
     goals = spec.ranking.pareto_goals()
     if len(goals) >= 2 and not ranking.pareto.empty:
-        pareto = charts.ParetoChart(goals[0][0], goals[1][0], parameters)
+        pareto = charts.ParetoChart(goals[0][0], goals[1][0], parameters, ranking.reduced)
         pareto.update(ranking.totals, ranking.pareto)
         figures["pareto"] = pareto.figure
     history = load_history(output, sweep)
@@ -157,7 +157,7 @@ def build_report(output: store.Root, sweep: str | None = None) -> str:
         figures["tracks"] = tracks
     script, divs = components(figures)
 
-    summary = [("best point", format_point(ranking.best)), (f"total {ranking.objective}", f"{ranking.best_total:.4f}"),
+    summary = [("best point", format_point(ranking.best)), (f"{ranking.reduced} {ranking.objective}", f"{ranking.best_total:.4f}"),
                ("points ranked", str(len(ranking.totals))), ("incomplete points", str(ranking.incomplete_points)),
                ("failed tasks", str(ranking.failed_rows)), ("scenarios", str(len(scenarios)))]
     if status is not None:
@@ -171,7 +171,7 @@ def build_report(output: store.Root, sweep: str | None = None) -> str:
         pareto=charts.html_table(ranking.pareto) if not ranking.pareto.empty else "",
         groups=charts.html_table(ranking.groups) if not ranking.groups.empty else "",
         weighted=charts.html_table(ranking.weighted.head(10)) if not ranking.weighted.empty else "",
-        plots=divs, track_note=track_note, over=spec.ranking.over_scenarios,
+        plots=divs, track_note=track_note, over=spec.ranking.over_scenarios, reduced=ranking.reduced,
         search=[(name, html.escape(value)) for name, value in search],
         spec=html.escape(yaml.safe_dump(spec.model_dump(mode="json"), sort_keys=False)),
         table_style=charts.TABLE_STYLE, bokeh_resources=Resources(mode="inline", components=["bokeh"]).render(), bokeh_script=script)
