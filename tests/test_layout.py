@@ -12,7 +12,7 @@ from pathlib import Path
 import dse_runner
 
 PACKAGE = Path(dse_runner.__file__).parent
-CASE_MODULES = {"fielddata", "paths"}  # the Robotti field-data kind and GPS objectives; the path kind
+CASE_MODULES = {"fielddata", "paths", "runinfo"}  # the Robotti field-data kind and GPS objectives; the path kind; their shared header
 MAY_IMPORT_CASES = {"diagnose"}  # the Robotti diagnosis: a case's own analysis
 
 

@@ -34,44 +34,17 @@ from typing import Any
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, PositiveFloat, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError
 
 from ..errors import DseError, format_validation_error
 from ..simulation.scenario import INFO_FILE, Recording, Scenario, read_table
 from ..simulation.variables import split_ref
 from ..yamlfile import read_yaml
+from .runinfo import Position, RunInfo
 
 STEERING_FILE = "steering_inputs.csv"
 GPS_FILE = "gps_position.csv"
 KIND = "field_data"
-
-Finite = ConfigDict(extra="forbid", allow_inf_nan=False)
-
-
-class Pose(BaseModel):
-    model_config = Finite
-    x: float
-    y: float
-    theta: float
-
-
-class RunInfo(BaseModel):
-    """The contents of a run's scenario.yaml."""
-
-    model_config = Finite
-    name: str
-    group: str
-    duration: PositiveFloat
-    initial_pose: Pose
-
-
-class Position(BaseModel):
-    """The outputs that are the simulated position compared with the fixes."""
-
-    model_config = ConfigDict(extra="forbid")
-    x: str
-    y: str
-
 
 class Options(BaseModel):
     """What a space may say about field-data scenarios: ``{path: runs/*, position: {x: .., y: ..}}``."""

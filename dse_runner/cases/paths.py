@@ -38,12 +38,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, NonNegativeFloat, PositiveFloat, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, NonNegativeFloat, ValidationError
 
 from ..errors import DseError, format_validation_error
 from ..simulation.scenario import INFO_FILE, Scenario, read_table
 from ..simulation.variables import split_ref
 from ..yamlfile import read_yaml
+from .runinfo import Position, RunInfo
 
 PATH_FILE = "path.csv"
 KIND = "path"
@@ -54,31 +55,11 @@ MAX_JUMP = 5.0  # ... and starts within 5 m of path after step_at ...
 MIN_OFFSET = 0.01  # ... and lies more than 1 cm to the side
 SETTLE_FRACTION = 0.1  # settled: within 10% of the step size of the new line
 
-Finite = ConfigDict(extra="forbid", allow_inf_nan=False)
+class PathInfo(RunInfo):
+    """The contents of a path's scenario.yaml: a run's, and where a lateral step starts."""
 
-
-class Pose(BaseModel):
-    model_config = Finite
-    x: float
-    y: float
-    theta: float
-
-
-class PathInfo(BaseModel):
-    """The contents of a path's scenario.yaml."""
-
-    model_config = Finite
     name: str = Field(pattern=r"^[A-Za-z0-9_.-]+$")
-    group: str
-    duration: PositiveFloat
-    initial_pose: Pose
     step_at: NonNegativeFloat | None = None  # arc length [m] where a lateral step starts
-
-
-class Position(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    x: str
-    y: str
 
 
 class Options(BaseModel):

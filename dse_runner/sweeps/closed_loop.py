@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import time
 from collections import deque
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -79,7 +79,7 @@ def reduce_over_scenarios(values: Iterable[float], how: str) -> float:
 Check = tuple[str, Callable[[Mapping[str, float]], bool]]  # a ranking constraint's text and its test
 
 
-def evaluation_of(scores: list[TaskScores], scalar: list[str], how: str, checks: list[Check] = ()) -> Evaluation:
+def evaluation_of(scores: list[TaskScores], scalar: list[str], how: str, checks: Sequence[Check] = ()) -> Evaluation:
     """A point's evaluation from its tasks: failed if any task failed, else each objective reduced, and
     the ranking constraints (``checks``) those values break, which constrained strategies learn from."""
     failed = [s for s in scores if s.objectives is None]
