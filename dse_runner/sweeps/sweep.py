@@ -416,22 +416,25 @@ class Run:
 
         distributed's client retries the scheduler's address for ``connect_timeout`` seconds; workers
         exit when their scheduler goes, so their supervisor (HTCondor, Kubernetes, systemd) must start
-        new ones, for which we wait as long again."""
+        new ones, for which we wait as long again. The client may not yet have noticed the loss when we
+        get here (its status still says running): a call that fails on the dead connection is retried."""
         timeout = self.space.spec.cluster.connect_timeout
         address = client.scheduler.address
         self.report.waiting = f"scheduler {address} lost; waiting for it"
         self._tell(client)
-        deadline = time.monotonic() + timeout
-        while client.status == "connecting" and time.monotonic() < deadline:
+        deadline = time.monotonic() + 2 * timeout
+        while client.status in ("running", "connecting") and time.monotonic() < deadline:
+            if client.status == "running":
+                try:
+                    client.wait_for_workers(1, timeout=max(1.0, deadline - time.monotonic()))
+                    break
+                except OSError:  # the old connection, not yet seen closed; or no worker in time
+                    pass
             time.sleep(0.2)
-        try:
-            if client.status != "running":
-                raise TimeoutError
-            client.wait_for_workers(1, timeout=timeout)
-        except (TimeoutError, OSError):
+        else:
             raise DseError(f"lost the Dask scheduler at {address} and it did not come back with a worker within "
-                           f"{timeout:g} s (cluster.connect_timeout); every finished chunk is in "
-                           f"{self.report.output}: submit again to run the rest") from None
+                           f"{2 * timeout:g} s (twice cluster.connect_timeout); every finished chunk is in "
+                           f"{self.report.output}: submit again to run the rest")
         self.report.reconnects += 1
         self.report.waiting = None
 
