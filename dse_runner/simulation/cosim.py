@@ -85,7 +85,11 @@ class Plan:
     links: tuple[Link, ...]
     defaults: tuple[float | None, float | None, float | None] = (None, None, None)  # one FMU's experiment
 
-    @property
+    @functools.cached_property
+    def cosimulation_only(self) -> bool:
+        return all(i == "cs" for i in self.interfaces.values())
+
+    @functools.cached_property
     def recorded(self) -> tuple[str, ...]:
         return tuple(v.ref for vs in self.outputs.values() for v in vs)
 
@@ -94,7 +98,11 @@ class Plan:
         return tuple((link.source, link.target) for link in self.links)
 
     def variable(self, ref: str, purpose: str) -> Variable:
-        return lookup(self.variables, self.models, ref, purpose)
+        found = self.__dict__.setdefault("_found", {})  # a sweep looks up the same names every run
+        variable = found.get(ref)
+        if variable is None:
+            variable = found[ref] = lookup(self.variables, self.models, ref, purpose)
+        return variable
 
     def recording(self, refs: Iterable[str], purpose: str = "objective") -> "Plan":
         """The plan also recording ``refs`` (e.g. a local variable an objective reads)."""
@@ -382,52 +390,77 @@ def run(plan: Plan, values: Mapping[str, Value], start: float, stop: float, step
     time of the step loop in seconds; it is checked between steps, so it stops
     a slow simulation, not one hung inside an FMU. ``loop``: "native" (the C
     loop, native.py; the default) or "python" (the reference); default: the
-    environment's ``DSE_RUNNER_LOOP``, else native."""
+    environment's ``DSE_RUNNER_LOOP``, else native. Running the same experiment
+    many times, :func:`prepare` it once and call :meth:`Runner.run`."""
+    return prepare(plan, start, stop, step, inputs).run(values, timeout, loop)
+
+
+def prepare(plan: Plan, start: float, stop: float, step: float,
+            inputs: Mapping[str, Series] | None = None) -> "Runner":
+    """``plan`` on one time grid with its input signals sampled and checked: ready to run with any values."""
     times = _time_grid(start, stop, step)
-    settings = _resolve_values(plan, values)
     series = _resolve_inputs(plan, inputs or {}, times)
-    names = plan.recorded
     external = np.column_stack(list(series.values())) if series else None
-    instances = {name: fmus.acquire(name, fmus.load(path, plan.interfaces[name]))
-                 for name, path in plan.fmu_paths.items()}
-    prepared = _prepare(plan, instances, series, _native(plan, loop))
-    units, signals, program = prepared.units, prepared.signals, prepared.program
-    texts = {v.ref: [] for vs in plan.texts.values() for v in vs}
-    record = np.empty((len(times), len(names)))
-    current = None
-    try:
-        for unit in units:
-            current = unit
-            unit.stepper.set_values(settings.get(unit.stepper.name, []))
-            unit.stepper.enter_initialization(start, stop)
-        _exchange(units, signals, external, 0, texts, start, feed=True)
-        for unit in units:
-            current = unit
-            unit.stepper.exit_initialization()
+    return Runner(plan, times, series, external)
+
+
+@dataclass(frozen=True)
+class Runner:
+    """One experiment of a plan (time grid and input signals), run again and again with new values:
+    what a sweep does, so everything that does not depend on the values is done once, in :func:`prepare`."""
+
+    plan: Plan
+    times: np.ndarray
+    series: dict[str, np.ndarray]  # input signals at the communication points
+    external: np.ndarray | None  # the same, one column each, as the loops read them
+
+    def run(self, values: Mapping[str, Value], timeout: float | None = None, loop: str | None = None) -> Trajectory:
+        """Co-simulate with ``values`` set before initialization (see :func:`run`)."""
+        plan, times, external = self.plan, self.times, self.external
+        settings = _resolve_values(plan, values)
+        names = plan.recorded
+        instances = {name: fmus.acquire(name, fmus.load(path, plan.interfaces[name]))
+                     for name, path in plan.fmu_paths.items()}
+        prepared = _prepare(plan, instances, self.series, _native(plan, loop))
+        units, signals, program = prepared.units, prepared.signals, prepared.program
+        texts = {v.ref: [] for vs in plan.texts.values() for v in vs}
+        record = np.empty((len(times), len(names)))
+        start, stop = float(times[0]), float(times[-1])
         current = None
-        _exchange(units, signals, external, 0, texts, start, feed=False)
-        record[0] = signals[: len(names)]
-        if program is not None:
-            outcome = native.step_loop(program, times, signals, len(names), external, record, texts, timeout)
-            _raise_where_stopped(outcome, program, units, times, names, record, texts)
-        else:
-            deadline = time.perf_counter() + timeout if timeout else math.inf
-            _step_loop(units, times, signals, external, record, texts, deadline)
-        for unit in units:
-            current = unit
-            unit.stepper.terminate()
-    except CosimError as e:
-        if e.instance is not None:
-            fmus.discard(instances[e.instance])
-        raise
-    except Exception as e:  # FMPy's FMICallException from a set-up call, or the integrator's error
-        if current is None:
+        try:
+            for unit in units:
+                current = unit
+                unit.stepper.set_values(settings.get(unit.stepper.name, ()))
+                unit.stepper.enter_initialization(start, stop)
+            _exchange(units, signals, external, 0, texts, start, feed=True)
+            for unit in units:
+                current = unit
+                unit.stepper.exit_initialization()
+            current = None
+            _exchange(units, signals, external, 0, texts, start, feed=False)
+            record[0] = signals[: len(names)]
+            if program is not None:
+                outcome = native.step_loop(program, times, external, record, texts, timeout)
+                _raise_where_stopped(outcome, program, units, times, names, record, texts)
+            else:
+                deadline = time.perf_counter() + timeout if timeout else math.inf
+                _step_loop(units, times, signals, external, record, texts, deadline)
+            for unit in units:
+                current = unit
+                unit.stepper.terminate()
+        except CosimError as e:
+            if e.instance is not None:
+                fmus.discard(instances[e.instance])
             raise
-        message = current.stepper.instance.explain(str(e).rstrip("."))
-        fmus.discard(current.stepper.instance)
-        raise CosimError(message, current.stepper.name) from None
-    _check_finite(names, times, record if program is None else record[:1])  # the C loop checked the rest
-    return Trajectory(times, names, record, texts)
+        except Exception as e:  # FMPy's FMICallException from a set-up call, or the integrator's error
+            if current is None:
+                raise
+            message = current.stepper.instance.explain(str(e).rstrip("."))
+            fmus.discard(current.stepper.instance)
+            raise CosimError(message, current.stepper.name) from None
+        if program is None:  # the C loop checked every point
+            _check_finite(names, times, record)
+        return Trajectory(times, names, record, texts)
 
 
 LOOPS = ("native", "python")
@@ -439,7 +472,7 @@ def _native(plan: Plan, loop: str | None) -> bool:
     loop = loop or os.environ.get("DSE_RUNNER_LOOP") or "native"
     if loop not in LOOPS:
         raise DseError(f"loop {loop!r}: expected one of {', '.join(LOOPS)} (DSE_RUNNER_LOOP)")
-    return loop == "native" and all(i == "cs" for i in plan.interfaces.values()) and native.library() is not None
+    return loop == "native" and plan.cosimulation_only and native.library() is not None
 
 
 @dataclass
@@ -472,7 +505,7 @@ def _prepare(plan: Plan, instances: dict[str, fmus.Instance], series: dict[str, 
     signals = np.zeros(len(names) + len(series))
     units = _units(plan, instances, signals, sources, series)
     prepared = _Prepared(plan, tuple(instances.values()), units, signals,
-                         native.Program(units) if use_native else None)
+                         native.Program(units, signals, len(names)) if use_native else None)
     if use_native:  # model-exchange steppers hold an integrator's state: those are made anew each run
         while len(_PREPARED) >= KEEP_PREPARED:
             _PREPARED.pop(next(iter(_PREPARED)))

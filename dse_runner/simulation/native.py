@@ -71,6 +71,19 @@ class TextFeed(ctypes.Structure):
                 ("source", ctypes.c_int64)]
 
 
+class Call(ctypes.Structure):
+    """dse_loop's arguments in one block (native_loop.c): the fixed ones are filled once per Program."""
+
+    _fields_ = [("units", ctypes.c_void_p), ("feeds", ctypes.c_void_p), ("reads", ctypes.c_void_p),
+                ("text_reads", ctypes.c_void_p), ("text_feeds", ctypes.c_void_p), ("initial_texts", ctypes.c_void_p),
+                ("times", ctypes.c_void_p), ("external", ctypes.c_void_p), ("signals", ctypes.c_void_p),
+                ("record", ctypes.c_void_p), ("text_offsets", ctypes.c_void_p), ("out", ctypes.c_void_p),
+                ("seconds", ctypes.c_double), ("n_texts", ctypes.c_int64), ("n_times", ctypes.c_int64),
+                ("n_recorded", ctypes.c_int64), ("n_external", ctypes.c_int64), ("n_units", ctypes.c_int32),
+                ("n_feeds", ctypes.c_int32), ("n_reads", ctypes.c_int32), ("n_text_reads", ctypes.c_int32),
+                ("n_text_feeds", ctypes.c_int32)]
+
+
 class Outcome(ctypes.Structure):
     _fields_ = [("code", ctypes.c_int32), ("unit", ctypes.c_int32), ("group", ctypes.c_int32),
                 ("element", ctypes.c_int32), ("k", ctypes.c_int64), ("t", ctypes.c_double),
@@ -111,11 +124,8 @@ def library() -> ctypes.CDLL | None:
         warnings.warn(f"the native co-simulation loop could not be built ({e}): the master runs its Python loop",
                       NativeLoopWarning, stacklevel=2)
         return None
-    pointer, count, size = ctypes.c_void_p, ctypes.c_int32, ctypes.c_int64
-    lib.dse_loop.argtypes = [pointer, count, pointer, count, pointer, count, pointer, count, pointer, count,
-                             pointer, size, pointer, size, pointer, size, pointer, size, pointer, pointer,
-                             ctypes.c_double, pointer]
-    lib.dse_loop.restype = ctypes.c_int
+    lib.dse_run.argtypes = [ctypes.c_void_p]
+    lib.dse_run.restype = ctypes.c_int
     lib.dse_free.argtypes = [ctypes.c_void_p]
     lib.dse_free.restype = None
     return lib
@@ -151,9 +161,10 @@ def _group(call, args: tuple, unit: int, version: int, ctype, index: np.ndarray 
 
 class Program:
     """A plan's units as the C loop takes them: flat arrays of C structures pointing at the units'
-    functions and buffers; made once per set of FMU instances (cosim._prepare) and reused."""
+    functions and buffers, and the call's arguments in one block; made once per set of FMU instances
+    (cosim._prepare) and reused, so that a run fills in only its own arguments."""
 
-    def __init__(self, units: list) -> None:
+    def __init__(self, units: list, signals: np.ndarray, n_recorded: int) -> None:
         self.units = units
         self.steps = (Unit * len(units))(*[
             Unit(step=_address(u.stepper.call), component=u.stepper.before[0], version=u.stepper.fmi_version, unit=i)
@@ -180,27 +191,40 @@ class Program:
             TextFeed(fn=_address(target.access(variable).set), component=target.handle(), version=target.fmi_version,
                      unit=i, vr=variable.vr, target=index[id(target)], source=int(firsts[j]) + k)
             for j, (i, x) in enumerate(self.texts) for target, variable, k in x.feeds])
-        # the arguments that stay the same run after run
-        self.fixed = (_address(self.steps), len(units), _address(self.feed_groups), len(self.feeds),
-                      _address(self.read_groups), len(self.reads), _address(self.text_reads), len(self.texts),
-                      _address(self.text_feed_structs), len(self.text_feeds))
+        self.signals = signals
         self.outcome = Outcome()
-        self.no_offsets = np.zeros((1, 1), dtype=np.int64)
+        self.call = Call(
+            units=_address(self.steps), n_units=len(units), feeds=_address(self.feed_groups), n_feeds=len(self.feeds),
+            reads=_address(self.read_groups), n_reads=len(self.reads), text_reads=_address(self.text_reads),
+            n_text_reads=len(self.texts), text_feeds=_address(self.text_feed_structs),
+            n_text_feeds=len(self.text_feeds), n_texts=len(self.text_names), signals=_address(signals),
+            n_recorded=n_recorded, out=ctypes.addressof(self.outcome))
+        self.call_address = ctypes.addressof(self.call)
+        self._times: np.ndarray | None = None  # the time grid and input signals the block points at now
+        self._external: np.ndarray | None = None
 
 
-def step_loop(program: Program, times: np.ndarray, signals: np.ndarray, n_recorded: int,
-              external: np.ndarray | None, record: np.ndarray, texts: dict[str, list[str]],
-              timeout: float | None) -> Outcome:
-    """Run points 1.. of ``times`` in C; the string outputs are appended to ``texts``."""
-    n_texts = len(program.text_names)
-    initial = (ctypes.c_char_p * n_texts)(*[texts[name][-1].encode("utf-8") for name in program.text_names]) \
-        if n_texts else None
-    offsets = np.zeros((len(times), n_texts), dtype=np.int64) if n_texts else program.no_offsets
-    external = np.ascontiguousarray(external) if external is not None else None
+def step_loop(program: Program, times: np.ndarray, external: np.ndarray | None, record: np.ndarray,
+              texts: dict[str, list[str]], timeout: float | None) -> Outcome:
+    """Run points 1.. of ``times`` in C into ``record``; the string outputs are appended to ``texts``.
+    ``times`` and ``external`` must be C-contiguous float64 and stay unchanged while the program uses
+    them: a sweep passes the same arrays run after run, and their addresses are taken only when they
+    change (numpy's ``.ctypes`` costs about a microsecond each)."""
+    call = program.call
+    if times is not program._times:
+        call.times, call.n_times, program._times = times.ctypes.data, len(times), times
+    if external is not program._external:
+        call.external = _address(external)
+        call.n_external = external.shape[1] if external is not None else 0
+        program._external = external
+    n_texts = call.n_texts
+    if n_texts:
+        initial = (ctypes.c_char_p * n_texts)(*[texts[name][-1].encode("utf-8") for name in program.text_names])
+        offsets = np.zeros((len(times), n_texts), dtype=np.int64)
+        call.initial_texts, call.text_offsets = _address(initial), offsets.ctypes.data
+    call.record, call.seconds = record.ctypes.data, timeout or 0.0
+    library().dse_run(program.call_address)
     outcome = program.outcome
-    library().dse_loop(*program.fixed, _address(initial), n_texts, times.ctypes.data, len(times), signals.ctypes.data,
-                       n_recorded, _address(external), external.shape[1] if external is not None else 0,
-                       record.ctypes.data, offsets.ctypes.data, timeout or 0.0, ctypes.addressof(outcome))
     if outcome.arena:
         try:
             if n_texts:

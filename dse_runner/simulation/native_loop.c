@@ -214,6 +214,12 @@ static bool keep_row(double *row, const double *signals, int64_t n) {
     return finite;
 }
 
+static bool finite_row(const double *row, int64_t n) {
+    bool finite = true;
+    for (int64_t j = 0; j < n; j++) finite &= isfinite(row[j]) != 0;
+    return finite;
+}
+
 /*
  * The loop of a plan with only numeric connections and no input signals (most studies): the
  * same steps as dse_loop below, without the per-unit interleaving that strings and input signals
@@ -261,7 +267,7 @@ static int plain_loop(const Unit *units, int32_t n_units, const Group *feeds, in
 }
 
 /*
- * Runs points 1 .. n_times - 1.  signals holds n_recorded recorded values, then n_external
+ * Checks point 0 (row 0 of record, filled by Python) and runs points 1 .. n_times - 1.  signals holds n_recorded recorded values, then n_external
  * external inputs; record is n_times x n_recorded, row 0 already filled; external is
  * n_times x n_external.  text_offsets is n_times x n_texts (row 0 unused): each recorded
  * string's offset in the arena; initial_texts the string outputs at point 0.
@@ -273,6 +279,7 @@ int dse_loop(const Unit *units, int32_t n_units, const Group *feeds, int32_t n_f
              const double *external, int64_t n_external, double *record, int64_t *text_offsets,
              double seconds, Outcome *out) {
     Arena arena = {0};
+    if (!finite_row(record, n_recorded)) return stop(out, &arena, DIVERGED, 0, times[0], -1, -1);
     int64_t *latest = n_texts ? malloc((size_t)n_texts * sizeof *latest) : NULL;
     if (n_texts && !latest) return stop(out, &arena, NO_MEMORY, 0, times[0], -1, -1);
     for (int64_t j = 0; j < n_texts; j++) {
@@ -359,6 +366,31 @@ done:
     free(latest);
     free(asked);
     return code;
+}
+
+/*
+ * dse_loop's arguments in one block: Python fills the fixed ones once per set of FMU instances
+ * (native.Program) and only the run's own before each call, so a call converts one pointer, not 22.
+ */
+typedef struct {
+    const Unit *units;
+    const Group *feeds, *reads;
+    const TextRead *text_reads;
+    const TextFeed *text_feeds;
+    const char **initial_texts;
+    const double *times, *external;
+    double *signals, *record;
+    int64_t *text_offsets;
+    Outcome *out;
+    double seconds;
+    int64_t n_texts, n_times, n_recorded, n_external;
+    int32_t n_units, n_feeds, n_reads, n_text_reads, n_text_feeds;
+} Call;
+
+int dse_run(const Call *c) {
+    return dse_loop(c->units, c->n_units, c->feeds, c->n_feeds, c->reads, c->n_reads, c->text_reads, c->n_text_reads,
+                    c->text_feeds, c->n_text_feeds, c->initial_texts, c->n_texts, c->times, c->n_times, c->signals,
+                    c->n_recorded, c->external, c->n_external, c->record, c->text_offsets, c->seconds, c->out);
 }
 
 void dse_free(char *arena) { free(arena); }

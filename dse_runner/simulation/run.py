@@ -11,14 +11,15 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass
+import copy
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import DseError
 from . import objectives as objs
-from .cosim import Plan, Trajectory, make_plan, run
+from .cosim import Plan, Runner, Trajectory, make_plan, prepare
 from .experiment import Experiment, Times, resolve_times
 from .multimodel import MultiModel, load_multimodel
 from .scenario import Scenario, Series, kind, load_scenario, nominal
@@ -120,18 +121,69 @@ def simulate(
     """Co-simulate ``model`` on ``scenario`` (none: the nominal one) with ``values`` and score it.
 
     ``objectives`` default to those of the scenario's kind (none for a plain scenario); ``loop``
-    chooses the master's step loop (cosim.run: native C, or the Python reference)."""
+    chooses the master's step loop (cosim.run: native C, or the Python reference). Called again with
+    the same plan, scenario, objectives and experiment (a sweep), it reuses what it worked out from
+    them: plans and scenarios are immutable; objectives are compared by value."""
+    recipe = _recipe(model, scenario, objectives, experiment, (start_time, stop_time, step), interface)
+    values = recipe.layered(values or {})
+    trajectory = recipe.runner.run(values, timeout, loop)
+    return SimulationResult(recipe.scenario, values, recipe.times, trajectory,
+                            objs.evaluate(recipe.specs, trajectory, recipe.scenario))
+
+
+@dataclass
+class _Recipe:
+    """What simulate() works out from everything but the values: the same for every run of a sweep."""
+
+    given: tuple  # the arguments it was made from (kept, so that their ids stay theirs)
+    objectives: object  # a copy of the objectives given, to notice one changed in place
+    scenario: Scenario
+    specs: dict[str, objs.ObjectiveSpec]
+    base: dict[str, Value]  # the multi-model's parameters and the scenario's values
+    times: Times
+    runner: Runner
+    names: dict[str, str] = field(default_factory=dict)  # a value's name as given -> as the plan has it
+
+    def layered(self, values: Mapping[str, Value]) -> dict[str, Value]:
+        """The run's values: ``base``, then ``values`` (module docstring)."""
+        names, plan = self.names, self.runner.plan
+        layered = dict(self.base)
+        for ref, value in values.items():
+            name = names.get(ref)
+            if name is None:
+                name = names[ref] = qualify(plan, ref)
+            layered[name] = value
+        return layered
+
+
+_RECIPES: dict[tuple, _Recipe] = {}
+KEEP_RECIPES = 16
+
+
+def _recipe(model, scenario, objectives, experiment: Experiment | None, times: tuple, interface) -> _Recipe:
+    """The recipe of these arguments: made anew unless the model is a plan and the scenario one too
+    (files may have changed since)."""
+    given = (model, scenario, objectives, experiment, interface)
+    key = (*map(id, given), times)
+    reusable = isinstance(model, Plan) and (scenario is None or isinstance(scenario, Scenario))
+    kept = _RECIPES.get(key) if reusable else None
+    if kept is not None and kept.objectives == objectives:
+        return kept
     plan = as_plan(model, interface)
     scenario = as_scenario(scenario)
     specs = objs.normalise(objectives) if objectives is not None else default_objectives(scenario)
     specs = {name: _qualified(plan, spec) for name, spec in specs.items()}
     plan = _recording(plan, specs)
-    values = {**plan.multimodel.parameters, **scenario_values(plan, scenario),
-              **{qualify(plan, ref): v for ref, v in (values or {}).items()}}
-    times = resolve_times(plan, scenario, experiment, start_time, stop_time, step)
+    base = {**plan.multimodel.parameters, **scenario_values(plan, scenario)}
+    resolved = resolve_times(plan, scenario, experiment, *times)
     inputs = {ref: s for ref, s in scenario.inputs.items() if isinstance(s, Series)}
-    trajectory = run(plan, values, times.start, times.stop, times.step, timeout, inputs, loop)
-    return SimulationResult(scenario, values, times, trajectory, objs.evaluate(specs, trajectory, scenario))
+    runner = prepare(plan, resolved.start, resolved.stop, resolved.step, inputs)
+    recipe = _Recipe(given, copy.deepcopy(objectives), scenario, specs, base, resolved, runner)
+    if reusable:
+        while len(_RECIPES) >= KEEP_RECIPES:
+            _RECIPES.pop(next(iter(_RECIPES)))
+        _RECIPES[key] = recipe
+    return recipe
 
 
 def _qualified(plan: Plan, spec: objs.ObjectiveSpec) -> objs.ObjectiveSpec:
