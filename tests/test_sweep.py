@@ -233,3 +233,25 @@ def test_a_chunk_given_up_on_loses_the_rows_it_wrote_and_only_those(tmp_path):
     assert store.remove_chunk(tmp_path, "s", "gone") == 2
     assert store.remove_chunk(tmp_path, "s", "never-written") == 0
     assert set(store.finished_task_ids(tmp_path, "s")) == {"d"}
+
+
+@pytest.mark.parametrize("value", [0.5, -0.0, 1e300, 5e-324, 1 / 3, float("nan"), float("inf"), -float("inf"),
+                                   3, -7, 2**70, True, False, np.float64(0.25), "fast", None])
+def test_task_ids_do_not_depend_on_how_they_are_written(value):
+    """Plain numbers have their JSON written directly (fast); every value must give the id the json
+    module gives, or a re-run would not find the rows of an earlier run."""
+    from dse_runner.sweeps.expand import _digest, task_id
+
+    point = {"b.x": value, "a.ü \"q\"": 1.5}
+    assert task_id("m" * 32, point, "s" * 32) == _digest("m" * 32, sorted(point.items()), "s" * 32)[:24]
+
+
+def test_chunks_ramp_up_from_the_smallest_then_follow_the_work_left():
+    from dse_runner.sweeps.sweep import SMALLEST_CHUNK_PART, chunk_size
+
+    per_task, target, pending, threads = 1e-4, 2.0, 100_000, 2
+    smallest = round(target / SMALLEST_CHUNK_PART / per_task)
+    sizes = [chunk_size(per_task, target, pending, threads, r) for r in range(8)]
+    assert sizes[0] == smallest and sizes[1] == 2 * smallest  # each round doubles ...
+    assert max(sizes) == chunk_size(per_task, target, pending, threads) == pending // (4 * threads)  # ... up to this
+    assert chunk_size(per_task, target, 10, threads, 0) == smallest  # the last chunks keep the smallest size

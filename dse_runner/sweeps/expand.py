@@ -11,8 +11,10 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from collections.abc import Callable, Collection, Iterable, Iterator
 from dataclasses import dataclass
+from json.encoder import encode_basestring_ascii
 from typing import Any
 
 import numpy as np
@@ -59,7 +61,44 @@ def scenario_hash(scenario: Scenario) -> str:
 
 
 def task_id(model: str, point: dict[str, Any], scenario: str) -> str:
-    return _digest(model, sorted(point.items()), scenario)[:24]
+    return _task_id(model, tuple(sorted(point.items())), scenario)
+
+
+def _task_id(model: str, items: tuple[tuple[str, Any], ...], scenario: str) -> str:
+    """The id of sorted (name, value) pairs: ``_digest(model, items, scenario)``, with the JSON written
+    directly when every value is a plain number (a large sweep hashes hundreds of thousands)."""
+    text = _plain_json(model, items, scenario)
+    if text is None:
+        return _digest(model, items, scenario)[:24]
+    return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+
+_JSON_STRINGS: dict[str, str] = {}  # names and hashes, as JSON writes them
+_NUMBERS: dict[type, Callable[[Any], str]] = {
+    float: lambda v: float.__repr__(v) if math.isfinite(v) else "NaN" if v != v else "Infinity" if v > 0
+    else "-Infinity",
+    int: int.__repr__,
+    bool: lambda v: "true" if v else "false",
+}
+
+
+def _plain_json(model: str, items: tuple[tuple[str, Any], ...], scenario: str) -> str | None:
+    """What _CANONICAL writes for [model, items, scenario], or None if a value is not a float, int or bool
+    (their JSON is written as the json module writes it: tests/test_sweep.py checks the two agree)."""
+    strings = _JSON_STRINGS
+    parts = []
+    for name, value in items:
+        number = _NUMBERS.get(type(value))
+        if number is None:
+            return None
+        quoted = strings.get(name)
+        if quoted is None:
+            quoted = strings[name] = encode_basestring_ascii(name)
+        parts.append(f"[{quoted},{number(value)}]")
+    for text in (model, scenario):
+        if text not in strings:
+            strings[text] = encode_basestring_ascii(text)
+    return f"[{strings[model]},[{','.join(parts)}],{strings[scenario]}]"
 
 
 def points_of(space, points: list[dict[str, Any]] | None = None) -> Callable[[Any], Iterable[dict[str, Any]]]:
@@ -82,7 +121,8 @@ def expand(space, points: list[dict[str, Any]] | None = None,
         data = scenario_hash(scenario)
         for k, point in enumerate(visit(space)):  # regenerated per scenario: no list of all points is kept
             if only is None or scenario.name in only[k]:
-                yield Task(task_id(model, point, data), scenario.name, tuple(sorted(point.items())))
+                items = tuple(sorted(point.items()))
+                yield Task(_task_id(model, items, data), scenario.name, items)
 
 
 def count(space, done: Collection[str], points: list[dict[str, Any]] | None = None,

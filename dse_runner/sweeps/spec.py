@@ -368,7 +368,10 @@ class Space:
         return Space(self.spec.model_copy(update=update), self.path, self.plan, self.scenarios)
 
     def admits(self, point: dict[str, Any]) -> bool:
-        return all(check(point) for check in self.constraints)
+        for check in self.constraints:  # a loop, not all(...): a large grid asks this of every point
+            if not check(point):
+                return False
+        return True
 
     def problem(self, threads: int = 1) -> Problem:
         """What the search strategy is told (search.py); ``threads``: the cluster's, for the default batch."""

@@ -149,14 +149,19 @@ UNKNOWN_TASK_SECONDS = 0.1  # when the probe failed: a guess that keeps chunks s
 SMALLEST_CHUNK_PART = 20  # the smallest chunk holds this part of chunk_seconds of work
 
 
-def chunk_size(seconds_per_task: float | None, target_seconds: float, pending: int, threads: int) -> int:
+def chunk_size(seconds_per_task: float | None, target_seconds: float, pending: int, threads: int,
+               round_: int | None = None) -> int:
     """Tasks per chunk: long enough that Dask's per-task cost (~ms) is under 1-5% of the
-    chunk, short enough that every thread gets several chunks to balance the load."""
+    chunk, short enough that every thread gets several chunks to balance the load. Chunks of
+    the ``round_`` (0, 1, ...) since the sweep (re)started ramp up from the smallest size,
+    doubling each round: with cheap tasks, making a chunk takes the client a while, and so
+    each round is made while the workers run the last, and the first starts at once."""
     per_task = UNKNOWN_TASK_SECONDS if seconds_per_task is None else max(seconds_per_task, 1e-6)
     by_time = max(1, round(target_seconds / per_task))
     at_least = max(1, round(target_seconds / SMALLEST_CHUNK_PART / per_task))  # the last chunks still pay
     by_balance = max(1, math.ceil(pending / (4 * threads)), at_least)
-    return min(by_time, by_balance)
+    ramp = at_least * 2 ** min(round_, 30) if round_ is not None else by_balance
+    return min(by_time, by_balance, ramp)
 
 
 def submit(space: Space, progress: Progress | None = None, client=None,
@@ -248,6 +253,7 @@ class GridSource:
     capacity: int = 1
     threads: int = 1
     unassigned: int = 0  # tasks not yet in a chunk
+    sent: int = 0  # chunks handed out since the last (re)connection
 
     def start(self, client, done: set[str]) -> None:
         self.threads = total_threads(client)
@@ -255,6 +261,7 @@ class GridSource:
         self.seconds_per_task = self.seconds_per_task or self.probe(client, first_point(self.space, self.points))
         self.jobs = _jobs(self.space, self.shipment, done, self._size, self.points, self.only)
         self.capacity = 2 * self.threads + 2
+        self.sent = 0
 
     def next(self, in_flight: int) -> ChunkJob | None:
         if self.jobs is None or in_flight >= self.capacity:
@@ -274,7 +281,9 @@ class GridSource:
     def _size(self) -> int:
         """The next chunk's size: by the latest cost per task, and by the tasks not yet handed out, so
         chunks shrink towards the end and no worker idles long while another finishes a big one."""
-        size = chunk_size(self.seconds_per_task, self.space.spec.chunk_seconds, self.unassigned, self.threads)
+        size = chunk_size(self.seconds_per_task, self.space.spec.chunk_seconds, self.unassigned, self.threads,
+                          self.sent // self.threads)
+        self.sent += 1
         self.report.chunk_size = max(self.report.chunk_size, size)
         return size
 
