@@ -26,6 +26,7 @@ TYPES2, TYPES3 = REPO / "tests" / "fmus" / "types2", REPO / "tests" / "fmus" / "
 WATERTANK = REPO / "jobs" / "watertank" / "fmus"
 VANDERPOL = REPO / "benchmarks" / "fmus" / "vanderpol"
 CLIFF = REPO / "tests" / "fmus" / "cliff"
+BLOWUP = REPO / "tests" / "fmus" / "blowup"
 
 
 def both(model, *args, **kwargs):
@@ -138,6 +139,20 @@ def test_a_diverging_simulation_gives_the_same_message(tmp_path):
     assert messages[0] == messages[1]
     assert re.fullmatch(r"[ab]\.real_out became non-finite at t=\S+: the simulation diverged", messages[1])
     assert not messages[1].endswith("t=0: the simulation diverged")  # in the loop, not at the start
+
+
+def test_one_fmu_that_diverges_without_an_error_gives_the_same_message():
+    """One FMU alone runs the C loop's single-unit path, which checks rows finite in blocks: it must
+    still name the first non-finite point (y = exp(1000 t) overflows at t = 0.71)."""
+    messages = failures(build_fmu(BLOWUP), stop_time=2.0, step=0.01)
+    assert messages[0] == messages[1]
+    assert re.fullmatch(r"\S+\.y became non-finite at t=0\.71: the simulation diverged", messages[1])
+
+
+def test_fmus_feeding_nothing_to_each_other_diverge_with_the_same_message(tmp_path):
+    path = write_multimodel(tmp_path, {"a": BLOWUP, "b": BLOWUP}, {})
+    messages = failures(path, values={"a.rate": 10.0, "b.rate": 1000.0}, stop_time=2.0, step=0.01)
+    assert messages[0] == messages[1] == "b.y became non-finite at t=0.71: the simulation diverged"
 
 
 def test_a_slow_simulation_stops_at_its_timeout(tmp_path):

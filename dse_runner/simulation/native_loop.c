@@ -225,7 +225,7 @@ static bool finite_row(const double *row, int64_t n) {
  * same steps as dse_loop below, without the per-unit interleaving that strings and input signals
  * need (for numbers it changes nothing: every input is set before any unit steps).
  */
-static int plain_loop(const Unit *units, int32_t n_units, const Group *feeds, int32_t n_feeds,
+__attribute__((noinline)) static int plain_loop(const Unit *units, int32_t n_units, const Group *feeds, int32_t n_feeds,
                       const Group *reads, int32_t n_reads, bool fmi3, const double *times, int64_t n_times,
                       double *signals, int64_t n_recorded, double *record, double seconds, bool *asked,
                       Arena *arena, Outcome *out) {
@@ -266,6 +266,122 @@ static int plain_loop(const Unit *units, int32_t n_units, const Group *feeds, in
     return stop(out, arena, DONE, n_times - 1, times[n_times - 1], -1, -1);
 }
 
+/* The first row in [from, to) of the record with a non-finite value, or -1. */
+static int64_t first_nonfinite(const double *record, int64_t from, int64_t to, int64_t n) {
+    for (int64_t k = from; k < to; k++)
+        if (!finite_row(record + k * n, n)) return k;
+    return -1;
+}
+
+/* Stops with ``code`` at point k, unless a row written before it (from ``checked`` on) is non-finite:
+ * then the divergence, where it began, is what stopped the run. */
+static int halt(Outcome *out, Arena *arena, const double *record, const double *times, int64_t n_recorded,
+                int64_t checked, int code, int64_t k, double t, int unit, int group) {
+    int64_t bad = first_nonfinite(record, checked, k, n_recorded);
+    if (bad >= 0) return stop(out, arena, DIVERGED, bad, times[bad], -1, -1);
+    return stop(out, arena, code, k, t, unit, group);
+}
+
+/*
+ * The loop of a plan whose units feed nothing to each other and whose outputs are all float64 read
+ * straight into the signals (one FMU, as in most studies of one model): each output group's getter
+ * writes into the record's row itself, the place its signals would be copied to, and the rows are
+ * checked finite 64 at a time, off the steps' path. Those two save a few ns a step, as much as a
+ * cheap FMU's own step costs. A run still stops at the first non-finite point, as reported; the
+ * FMUs may have stepped up to 63 points beyond it (the Python loop checks only at the end).
+ */
+__attribute__((noinline)) static int direct_loop(const Unit *units, int32_t n_units, const Group *reads, int32_t n_reads, bool fmi3,
+                       const double *times, int64_t n_times, const double *signals, int64_t n_recorded,
+                       double *record, double seconds, bool *asked, Arena *arena, Outcome *out) {
+    const double deadline = seconds > 0 ? now() + seconds : INFINITY;
+    bool event, early;
+    double last_time;
+    int64_t checked = 1;  /* rows before this are finite */
+    for (int64_t k = 1; k < n_times; k++) {
+        const double t = times[k - 1], t_next = times[k], h = t_next - t;
+        if (!(k & 63)) {
+            int64_t bad = first_nonfinite(record, checked, k, n_recorded);
+            if (bad >= 0) return stop(out, arena, DIVERGED, bad, times[bad], -1, -1);
+            checked = k;
+            if (now() > deadline) return stop(out, arena, TIMEOUT, k, t, -1, -1);
+        }
+        for (int32_t u = 0; u < n_units; u++) {
+            const Unit *s = &units[u];
+            int status = s->version == 3
+                ? ((Step3)s->step)(s->component, t, h, true, &event, &asked[u], &early, &last_time)
+                : ((Step2)s->step)(s->component, t, h, 1);
+            if (status > FMI_WARNING)
+                return halt(out, arena, record, times, n_recorded, checked, STEP_FAILED, k, t, u, -1);
+        }
+        if (fmi3)
+            for (int32_t u = 0; u < n_units; u++)
+                if (asked[u]) return halt(out, arena, record, times, n_recorded, checked, TERMINATE, k, t_next, u, -1);
+        double *row = record + k * n_recorded;
+        for (int32_t r = 0; r < n_reads; r++) {
+            const Group *g = &reads[r];
+            double *into = row + ((const double *)g->buffer - signals);
+            int status = g->version == 3
+                ? ((Access3)g->fn)(g->component, g->vrs, (size_t)g->n, into, (size_t)g->n)
+                : ((Access2)g->fn)(g->component, g->vrs, (size_t)g->n, into);
+            if (status > FMI_WARNING)
+                return halt(out, arena, record, times, n_recorded, checked, READ_FAILED, k, t_next, g->unit, r);
+        }
+    }
+    int64_t bad = first_nonfinite(record, checked, n_times, n_recorded);
+    if (bad >= 0) return stop(out, arena, DIVERGED, bad, times[bad], -1, -1);
+    return stop(out, arena, DONE, n_times - 1, times[n_times - 1], -1, -1);
+}
+
+/*
+ * direct_loop for one unit with one output group (a single FMU, the commonest study), with its
+ * functions and arguments held in locals: the general loops reload them from their structures after
+ * every call into an FMU (which could have changed them, as far as the compiler knows), and that
+ * costs a cheap FMU about half again its own step.
+ */
+static inline __attribute__((always_inline)) int single_steps(
+    const bool fmi3, const Unit *unit, const Group *read, const double *times, int64_t n_times,
+    const double *signals, int64_t n_recorded, double *record, double seconds, Arena *arena, Outcome *out) {
+    const double deadline = seconds > 0 ? now() + seconds : INFINITY;
+    void *const component = unit->component, *const reader = read->component;
+    const Step2 step2 = (Step2)unit->step;
+    const Step3 step3 = (Step3)unit->step;
+    const Access2 get2 = (Access2)read->fn;
+    const Access3 get3 = (Access3)read->fn;
+    const uint32_t *const vrs = read->vrs;
+    const size_t n = (size_t)read->n;
+    const int64_t offset = (const double *)read->buffer - signals;
+    bool event, asked = false, early;
+    double last_time;
+    int64_t checked = 1;  /* rows before this are finite */
+    for (int64_t k = 1; k < n_times; k++) {
+        const double t = times[k - 1], t_next = times[k], h = t_next - t;
+        if (!(k & 63)) {
+            int64_t bad = first_nonfinite(record, checked, k, n_recorded);
+            if (bad >= 0) return stop(out, arena, DIVERGED, bad, times[bad], -1, -1);
+            checked = k;
+            if (now() > deadline) return stop(out, arena, TIMEOUT, k, t, -1, -1);
+        }
+        int status = fmi3 ? step3(component, t, h, true, &event, &asked, &early, &last_time) : step2(component, t, h, 1);
+        if (status > FMI_WARNING) return halt(out, arena, record, times, n_recorded, checked, STEP_FAILED, k, t, 0, -1);
+        if (asked) return halt(out, arena, record, times, n_recorded, checked, TERMINATE, k, t_next, 0, -1);
+        double *into = record + k * n_recorded + offset;
+        status = fmi3 ? get3(reader, vrs, n, into, n) : get2(reader, vrs, n, into);
+        if (status > FMI_WARNING) return halt(out, arena, record, times, n_recorded, checked, READ_FAILED, k, t_next, 0, 0);
+    }
+    int64_t bad = first_nonfinite(record, checked, n_times, n_recorded);
+    if (bad >= 0) return stop(out, arena, DIVERGED, bad, times[bad], -1, -1);
+    return stop(out, arena, DONE, n_times - 1, times[n_times - 1], -1, -1);
+}
+
+/* single_steps made twice, for FMI 2 and for FMI 3, so that neither tests the version at each step. */
+__attribute__((noinline)) static int single_loop(const Unit *unit, const Group *read, const double *times,
+                                                 int64_t n_times, const double *signals, int64_t n_recorded,
+                                                 double *record, double seconds, Arena *arena, Outcome *out) {
+    return unit->version == 3
+        ? single_steps(true, unit, read, times, n_times, signals, n_recorded, record, seconds, arena, out)
+        : single_steps(false, unit, read, times, n_times, signals, n_recorded, record, seconds, arena, out);
+}
+
 /*
  * Checks point 0 (row 0 of record, filled by Python) and runs points 1 .. n_times - 1.  signals holds n_recorded recorded values, then n_external
  * external inputs; record is n_times x n_recorded, row 0 already filled; external is
@@ -294,8 +410,15 @@ int dse_loop(const Unit *units, int32_t n_units, const Group *feeds, int32_t n_f
     if (n_texts == 0 && n_external == 0) {
         bool fmi3 = false;
         for (int32_t u = 0; u < n_units; u++) fmi3 |= units[u].version == 3;
-        code = plain_loop(units, n_units, feeds, n_feeds, reads, n_reads, fmi3, times, n_times, signals,
-                          n_recorded, record, seconds, asked, &arena, out);
+        bool direct = n_feeds == 0;
+        for (int32_t r = 0; r < n_reads; r++) direct &= reads[r].index == NULL;  /* float64, into the signals */
+        code = direct && n_units == 1 && n_reads == 1
+            ? single_loop(units, reads, times, n_times, signals, n_recorded, record, seconds, &arena, out)
+            : direct
+            ? direct_loop(units, n_units, reads, n_reads, fmi3, times, n_times, signals, n_recorded, record, seconds,
+                          asked, &arena, out)
+            : plain_loop(units, n_units, feeds, n_feeds, reads, n_reads, fmi3, times, n_times, signals,
+                         n_recorded, record, seconds, asked, &arena, out);
         goto done;
     }
     double deadline = seconds > 0 ? now() + seconds : INFINITY;
