@@ -76,21 +76,23 @@ class Stepper:
         return (self.handle(), vrs, n, buffer)
 
     def set_values(self, values: list[tuple[Variable, Value]]) -> None:
-        """Values before initialization (parameters, start values), through FMPy's typed setters."""
+        """Values before initialization (parameters, start values), through the FMU's typed setters."""
         for variable, value in values:
-            access, vrs = self._setter(variable)
-            if access.ctype is ctypes.c_char_p:
-                value = str(value).encode("utf-8")
-            buffer = (access.ctype * 1)(value)
-            if access.set(*self.args(access, vrs, 1, buffer)) > FMI_WARNING:
+            access, buffer, args = self._setter(variable)
+            buffer[0] = str(value).encode("utf-8") if access.ctype is ctypes.c_char_p else value
+            if access.set(*args) > FMI_WARNING:
                 raise RuntimeError(f"{access.name.replace('Get', 'Set')} of {variable.name} = {value!r} failed")
 
-    def _setter(self, variable: Variable) -> tuple[Access, Any]:
-        """A variable's access and value-reference array, made once: a sweep sets the same ones every run."""
+    def _setter(self, variable: Variable) -> tuple[Access, Any, tuple]:
+        """A variable's access, one-value buffer and call arguments, made once: a sweep sets the same
+        ones every run."""
         setters = self.__dict__.setdefault("_setters", {})
         found = setters.get(variable)
         if found is None:
-            found = setters[variable] = (self.access(variable), (ctypes.c_uint32 * 1)(variable.vr))
+            access = self.access(variable)
+            buffer = (access.ctype * 1)()
+            found = setters[variable] = (access, buffer, self.args(access, (ctypes.c_uint32 * 1)(variable.vr), 1,
+                                                                   buffer))
         return found
 
     def enter_initialization(self, start: float, stop: float) -> None:
