@@ -122,6 +122,16 @@ def test_an_fmu_error_in_a_step_gives_the_same_message(tmp_path):
     assert "is over the cliff" in messages[1]  # what the FMU logged
 
 
+def test_an_fmu_refusing_to_initialise_gives_the_same_message_and_the_next_run_works():
+    """The C call also sets the units up; a refusal there is worded as FMPy words it, and the instance
+    it left half set up is replaced for the next run."""
+    messages = failures(MULTIMODEL, SCENARIOS / "sin1", {"vehicle.mass": 0.0})
+    assert messages[0] == messages[1]
+    assert messages[1] == ("vehicle (robotti_vehicle): fmi2ExitInitializationMode failed with status 3 (error): "
+                           "parameter mass must be > 0, got 0")
+    assert_identical(*both(MULTIMODEL, SCENARIOS / "sin1", {"vehicle.mass": 1000.0}))
+
+
 def test_a_rounded_value_that_stops_fitting_mid_run_gives_the_same_message(tmp_path):
     path = write_multimodel(tmp_path, {"a": TYPES2, "b": TYPES2}, {"a.real_out": [{"input": "b.int_in", "round": True}]})
     messages = failures(path, values={"a.real_in": 2147483646.0, "a.real_gain": 1.0}, stop_time=3.0, step=0.25)

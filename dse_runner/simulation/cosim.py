@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from fmpy.fmi1 import FMICallException
 
 from ..errors import DseError
 from . import fmu as fmus
@@ -428,6 +429,14 @@ class Runner:
         start, stop = float(times[0]), float(times[-1])
         current = None
         try:
+            if program is not None and program.sets_up:  # the C call sets up, runs and ends the units
+                for unit in units:
+                    current = unit
+                    unit.stepper.set_values(settings.get(unit.stepper.name, ()))
+                current = None
+                outcome = native.step_loop(program, times, external, record, texts, timeout)
+                _raise_where_stopped(outcome, program, units, times, names, record, texts)
+                return Trajectory(times, names, record, texts)
             for unit in units:
                 current = unit
                 unit.stepper.set_values(settings.get(unit.stepper.name, ()))
@@ -541,6 +550,11 @@ def _raise_where_stopped(outcome, program, units: list[_Unit], times: np.ndarray
         value = texts[program.text_source_names[outcome.group]][-1].encode("utf-8")
         failed = f"{target.access(variable).name.replace('Get', 'Set')} of {variable.name} = {value!r} failed"
         raise CosimError(target.instance.explain(f"{failed} at t={t:.6g}"), target.name)
+    if code == native.LIFECYCLE_FAILED:
+        step = units[outcome.unit].stepper
+        call = native.LIFECYCLE[step.fmi_version][outcome.group]
+        failed = str(FMICallException(function=call, status=outcome.element)).rstrip(".")  # as FMPy words it
+        raise CosimError(step.instance.explain(failed), step.name)
     if code != native.DONE:
         raise CosimError(f"the native loop ran out of memory at t={t:.6g}")
 

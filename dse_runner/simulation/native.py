@@ -39,7 +39,10 @@ CTYPES = {ctypes.c_double: 0, ctypes.c_float: 1, ctypes.c_int8: 2, ctypes.c_uint
           ctypes.c_bool: 10, ctypes.c_int: 11}
 CONVERSIONS = {"none": 0, "round": 1, "threshold": 2}
 (DONE, FEED_FAILED, STEP_FAILED, READ_FAILED, TIMEOUT, DIVERGED, UNFIT, TERMINATE, TEXT_READ_FAILED,
- TEXT_FEED_FAILED, NO_MEMORY) = range(11)
+ TEXT_FEED_FAILED, NO_MEMORY, LIFECYCLE_FAILED) = range(12)
+# The FMI functions of a unit's set-up and end (LIFECYCLE_FAILED's group indexes these), by FMI version.
+LIFECYCLE = {2: ("fmi2SetupExperiment", "fmi2EnterInitializationMode", "fmi2ExitInitializationMode", "fmi2Terminate"),
+             3: (None, "fmi3EnterInitializationMode", "fmi3ExitInitializationMode", "fmi3Terminate")}
 
 
 class NativeLoopWarning(UserWarning):
@@ -59,6 +62,11 @@ class Unit(ctypes.Structure):
                 ("unit", ctypes.c_int32)]
 
 
+class Lifecycle(ctypes.Structure):
+    _fields_ = [("setup", ctypes.c_void_p), ("enter", ctypes.c_void_p), ("exit", ctypes.c_void_p),
+                ("terminate", ctypes.c_void_p), ("tolerance_defined", ctypes.c_int32), ("tolerance", ctypes.c_double)]
+
+
 class TextRead(ctypes.Structure):
     _fields_ = [("fn", ctypes.c_void_p), ("component", ctypes.c_void_p), ("version", ctypes.c_int32),
                 ("unit", ctypes.c_int32), ("n", ctypes.c_int64), ("vrs", ctypes.c_void_p),
@@ -74,7 +82,8 @@ class TextFeed(ctypes.Structure):
 class Call(ctypes.Structure):
     """dse_loop's arguments in one block (native_loop.c): the fixed ones are filled once per Program."""
 
-    _fields_ = [("units", ctypes.c_void_p), ("feeds", ctypes.c_void_p), ("reads", ctypes.c_void_p),
+    _fields_ = [("units", ctypes.c_void_p), ("lifecycle", ctypes.c_void_p), ("feeds", ctypes.c_void_p),
+                ("reads", ctypes.c_void_p),
                 ("text_reads", ctypes.c_void_p), ("text_feeds", ctypes.c_void_p), ("initial_texts", ctypes.c_void_p),
                 ("times", ctypes.c_void_p), ("external", ctypes.c_void_p), ("signals", ctypes.c_void_p),
                 ("record", ctypes.c_void_p), ("text_offsets", ctypes.c_void_p), ("out", ctypes.c_void_p),
@@ -192,9 +201,12 @@ class Program:
                      unit=i, vr=variable.vr, target=index[id(target)], source=int(firsts[j]) + k)
             for j, (i, x) in enumerate(self.texts) for target, variable, k in x.feeds])
         self.signals = signals
+        # Without strings (whose first values Python keeps), the loop also sets the units up and ends them.
+        self.sets_up = not self.text_names
+        self.lifecycle = (Lifecycle * len(units))(*[_lifecycle(u.stepper) for u in units]) if self.sets_up else None
         self.outcome = Outcome()
         self.call = Call(
-            units=_address(self.steps), n_units=len(units), feeds=_address(self.feed_groups), n_feeds=len(self.feeds),
+            units=_address(self.steps), lifecycle=_address(self.lifecycle), n_units=len(units), feeds=_address(self.feed_groups), n_feeds=len(self.feeds),
             reads=_address(self.read_groups), n_reads=len(self.reads), text_reads=_address(self.text_reads),
             n_text_reads=len(self.texts), text_feeds=_address(self.text_feed_structs),
             n_text_feeds=len(self.text_feeds), n_texts=len(self.text_names), signals=_address(signals),
@@ -207,7 +219,8 @@ class Program:
 def step_loop(program: Program, times: np.ndarray, external: np.ndarray | None, record: np.ndarray,
               texts: dict[str, list[str]], timeout: float | None) -> Outcome:
     """Run points 1.. of ``times`` in C into ``record``; the string outputs are appended to ``texts``.
-    ``times`` and ``external`` must be C-contiguous float64 and stay unchanged while the program uses
+    With ``program.sets_up``, the C call also sets the units up (point 0, row 0 of ``record``) before
+    and terminates them after, as cosim.py's Python otherwise does. ``times`` and ``external`` must be C-contiguous float64 and stay unchanged while the program uses
     them: a sweep passes the same arrays run after run, and their addresses are taken only when they
     change (numpy's ``.ctypes`` costs about a microsecond each)."""
     call = program.call
@@ -232,6 +245,16 @@ def step_loop(program: Program, times: np.ndarray, external: np.ndarray | None, 
         finally:
             library().dse_free(outcome.arena)
     return outcome
+
+
+def _lifecycle(stepper) -> Lifecycle:
+    """A co-simulation unit's set-up and end functions, from the library FMPy loaded."""
+    dll = stepper.instance.slave.dll
+    setup, enter, exit_, terminate = (_address(getattr(dll, name)) if name else None
+                                      for name in LIFECYCLE[stepper.fmi_version])
+    tolerance = stepper.tolerance
+    return Lifecycle(setup=setup, enter=enter, exit=exit_, terminate=terminate,
+                     tolerance_defined=tolerance is not None, tolerance=tolerance or 0.0)
 
 
 def _decode(program: Program, outcome: Outcome, offsets: np.ndarray, texts: dict[str, list[str]]) -> None:

@@ -32,7 +32,8 @@
 enum { F64, F32, I8, U8, I16, U16, I32, U32, I64, U64, BOOL8, CINT };  /* CINT: FMI 2's Integer and Boolean */
 enum { COPY, ROUND, THRESHOLD };
 enum { DONE, FEED_FAILED, STEP_FAILED, READ_FAILED, TIMEOUT, DIVERGED, UNFIT, TERMINATE,
-       TEXT_READ_FAILED, TEXT_FEED_FAILED, NO_MEMORY };
+       TEXT_READ_FAILED, TEXT_FEED_FAILED, NO_MEMORY, LIFECYCLE_FAILED };
+enum { SETUP, ENTER, EXIT, END };  /* Lifecycle calls, as LIFECYCLE_FAILED's group */
 
 #define FMI_WARNING 1  /* statuses above this are failures, in FMI 2 and 3 alike */
 
@@ -40,6 +41,9 @@ typedef int (*Access2)(void *, const uint32_t *, size_t, void *);
 typedef int (*Access3)(void *, const uint32_t *, size_t, void *, size_t);
 typedef int (*Step2)(void *, double, double, int);
 typedef int (*Step3)(void *, double, double, bool, bool *, bool *, bool *, double *);
+typedef int (*Setup2)(void *, int, double, double, int, double);
+typedef int (*Enter3)(void *, bool, double, double, bool, double);
+typedef int (*Call1)(void *);
 
 typedef struct {          /* one group of values of one C type: an FMU's inputs or outputs */
     void *fn;             /* fmi2SetReal, fmi3GetInt64, ... */
@@ -62,6 +66,13 @@ typedef struct {
     int32_t version;
     int32_t unit;
 } Unit;
+
+typedef struct {          /* a unit's set-up and end, when the loop does them (Call.lifecycle) */
+    void *setup;          /* fmi2SetupExperiment; NULL in FMI 3, whose enter takes the times */
+    void *enter, *exit, *terminate;
+    int32_t tolerance_defined;
+    double tolerance;
+} Lifecycle;
 
 typedef struct {          /* the string outputs of one unit */
     void *fn;             /* fmi2GetString or fmi3GetString */
@@ -497,6 +508,7 @@ done:
  */
 typedef struct {
     const Unit *units;
+    const Lifecycle *lifecycle;  /* NULL: Python sets the units up and terminates them */
     const Group *feeds, *reads;
     const TextRead *text_reads;
     const TextFeed *text_feeds;
@@ -510,10 +522,84 @@ typedef struct {
     int32_t n_units, n_feeds, n_reads, n_text_reads, n_text_feeds;
 } Call;
 
+/* Every output group read into the signals at point k (time t). */
+static int read_all(const Call *c, int64_t k, double t) {
+    for (int32_t r = 0; r < c->n_reads; r++) {
+        if (call(&c->reads[r]) > FMI_WARNING) return stop(c->out, &(Arena){0}, READ_FAILED, k, t, c->reads[r].unit, r);
+        scatter(&c->reads[r], c->signals);
+    }
+    return DONE;
+}
+
+/* The input signals of point 0 into the signals, then every input group set from them. */
+static int feed_all(const Call *c, double t) {
+    for (int64_t j = 0; j < c->n_external; j++) c->signals[c->n_recorded + j] = c->external[j];
+    for (int32_t f = 0; f < c->n_feeds; f++) {
+        const Group *g = &c->feeds[f];
+        double bad = 0.0;
+        int64_t unfit = fill(g, c->signals, &bad);
+        if (unfit >= 0) {
+            c->out->element = (int32_t)unfit;
+            c->out->value = bad;
+            return stop(c->out, &(Arena){0}, UNFIT, 0, t, g->unit, f);
+        }
+        if (call(g) > FMI_WARNING) return stop(c->out, &(Arena){0}, FEED_FAILED, 0, t, g->unit, f);
+    }
+    return DONE;
+}
+
+/* A lifecycle call's status: LIFECYCLE_FAILED names the unit, the call (group) and the status (element). */
+static int lifecycle_status(const Call *c, int status, int32_t unit, int which, double t) {
+    if (status <= FMI_WARNING) return DONE;
+    c->out->element = status;
+    return stop(c->out, &(Arena){0}, LIFECYCLE_FAILED, 0, t, unit, which);
+}
+
+/*
+ * What cosim.py's Python does around the loop, when Call.lifecycle is given: every unit set up and
+ * in initialization mode, outputs read and inputs fed once, initialization left, outputs read again
+ * into row 0 of the record (the values were set by Python just before).
+ */
+static int initialise(const Call *c) {
+    const double start = c->times[0], stop_time = c->times[c->n_times - 1];
+    for (int32_t u = 0; u < c->n_units; u++) {
+        const Unit *unit = &c->units[u];
+        const Lifecycle *l = &c->lifecycle[u];
+        int code;
+        if (unit->version == 3) {
+            code = lifecycle_status(c, ((Enter3)l->enter)(unit->component, l->tolerance_defined != 0, l->tolerance,
+                                                          start, true, stop_time), u, ENTER, start);
+        } else {
+            code = lifecycle_status(c, ((Setup2)l->setup)(unit->component, l->tolerance_defined, l->tolerance, start, 0,
+                                                          0.0), u, SETUP, start);
+            if (code == DONE) code = lifecycle_status(c, ((Call1)l->enter)(unit->component), u, ENTER, start);
+        }
+        if (code != DONE) return code;
+    }
+    int code = read_all(c, 0, start);
+    if (code == DONE) code = feed_all(c, start);
+    for (int32_t u = 0; u < c->n_units && code == DONE; u++)
+        code = lifecycle_status(c, ((Call1)c->lifecycle[u].exit)(c->units[u].component), u, EXIT, start);
+    if (code == DONE) code = read_all(c, 0, start);
+    if (code == DONE) memcpy(c->record, c->signals, (size_t)c->n_recorded * sizeof *c->record);
+    return code;
+}
+
 int dse_run(const Call *c) {
-    return dse_loop(c->units, c->n_units, c->feeds, c->n_feeds, c->reads, c->n_reads, c->text_reads, c->n_text_reads,
-                    c->text_feeds, c->n_text_feeds, c->initial_texts, c->n_texts, c->times, c->n_times, c->signals,
-                    c->n_recorded, c->external, c->n_external, c->record, c->text_offsets, c->seconds, c->out);
+    if (c->lifecycle) {
+        int code = initialise(c);
+        if (code != DONE) return code;
+    }
+    int code = dse_loop(c->units, c->n_units, c->feeds, c->n_feeds, c->reads, c->n_reads, c->text_reads,
+                        c->n_text_reads, c->text_feeds, c->n_text_feeds, c->initial_texts, c->n_texts, c->times,
+                        c->n_times, c->signals, c->n_recorded, c->external, c->n_external, c->record,
+                        c->text_offsets, c->seconds, c->out);
+    for (int32_t u = 0; c->lifecycle && code == DONE && u < c->n_units; u++) {
+        double end = c->times[c->n_times - 1];
+        code = lifecycle_status(c, ((Call1)c->lifecycle[u].terminate)(c->units[u].component), u, END, end);
+        if (code != DONE) c->out->k = c->n_times - 1;
+    }
+    return code;
 }
 
 void dse_free(char *arena) { free(arena); }
