@@ -41,6 +41,22 @@ EFFECTS = {
     "none": {},
 }
 
+# Effects concealed together, each at its single size: a pair is named "a+b". The issue's case (slip and a
+# steering lag) comes first; the other pairs follow in the plan's later steps.
+PAIRS = {
+    "wheel_slip+steering_lag": {**EFFECTS["wheel_slip"], **EFFECTS["steering_lag"]},
+}
+
+
+def truth_of(case: str) -> dict[str, float]:
+    """The effect parameters a case switches on in the truth: a single effect's, or a pair's."""
+    return EFFECTS[case] if case in EFFECTS else PAIRS[case]
+
+
+def seed_of(case: str) -> int:
+    """Each case's own noise: singles keep the seeds they always had, pairs take the next ones."""
+    return sorted(EFFECTS).index(case) if case in EFFECTS else len(EFFECTS) + sorted(PAIRS).index(case)
+
 
 def truth_plan():
     data = yaml.safe_load(bundled.bundled_path("bundled:robotti/multimodel.yaml").read_text())
@@ -50,10 +66,11 @@ def truth_plan():
 
 def record(folder: Path, effect: str, runs: list[str], seconds: float, noise: float = NOISE,
            dropout: float = 0.03, seed: int = 0) -> Path:
-    """Write ``runs`` (names of bundled runs, cut to ``seconds``) as recorded by the truth with ``effect``."""
+    """Write ``runs`` (names of bundled runs, cut to ``seconds``) as recorded by the truth with ``effect``
+    (a key of EFFECTS or PAIRS)."""
     rng = np.random.default_rng(seed)
     plan = truth_plan()
-    overrides = {**TRUTH_VEHICLE, **{f"vehicle.{k}": v for k, v in EFFECTS[effect].items()}}
+    overrides = {**TRUTH_VEHICLE, **{f"vehicle.{k}": v for k, v in truth_of(effect).items()}}
     for name in runs:
         info = read_info(SOURCES / name / INFO_FILE)
         target = folder / name
@@ -98,7 +115,7 @@ def run_case(effect: str, root: Path, client=None, address: str | None = None, s
     Diagnosis). ``seed`` shifts every case's noise, to check that a pass is not luck."""
     from dse_runner.analysis.diagnose import Settings, diagnose
 
-    runs = record(root / "runs", effect, runs, seconds, seed=sorted(EFFECTS).index(effect) + seed)
+    runs = record(root / "runs", effect, runs, seconds, seed=seed_of(effect) + seed)
     space = calibration_space(root)
     result = diagnose(runs, space=space, out=root / "out", settings=Settings(folds=2), client=client,
                       address=address)

@@ -12,11 +12,12 @@ import yaml
 from conftest import strict_loads
 
 from dse_runner import strict_json
-from dse_runner.analysis.diagnose import Diagnosis, Settings, explain, noise
+from dse_runner.analysis.diagnose import Diagnosis, Settings, explain, noise, screen
 from dse_runner.analysis.diagnose.explain import Candidate
+from dse_runner.analysis.diagnose.hypotheses import LIBRARY
 from dse_runner.cases.fielddata import load_run
 from dse_runner.errors import DseError
-from dse_runner.sweeps.fit import FitResult
+from dse_runner.sweeps.fit import FitProblem, FitResult, LevenbergMarquardt, Parameter
 
 PERIOD = 0.1  # s between fixes, as the bundled receiver
 
@@ -238,6 +239,10 @@ def test_report_words(tmp_path):
 def test_a_bad_noise_factor_is_refused():
     with pytest.raises(DseError, match="noise factor"):
         Settings(noise_factor=0.0)
+    with pytest.raises(DseError, match="pairs = -1"):
+        Settings(pairs=-1)
+    with pytest.raises(DseError, match="floor stop"):
+        Settings(floor_stop=float("nan"))
 
 
 def test_an_effect_fitted_to_nothing_ties_rather_than_wins_runs():
@@ -247,3 +252,152 @@ def test_an_effect_fitted_to_nothing_ties_rather_than_wins_runs():
     e = explain.evidence(chosen, same)
     assert (e.runs_better, e.runs_tied, e.runs) == (1, 3, 4)
     assert e.to_json()["runs_tied"] == 3
+
+
+# ---- the screen and the selection --------------------------------------------------------------------------
+
+BASE = (Parameter("vehicle.mass", 2400.0, 1000.0, 3000.0, 20.0),
+        Parameter("vehicle.cAlphaF", 30000.0, 20000.0, 38000.0, 180.0))
+SCREENED = ("wheel_slip", "steering_lag", "speed_lag", "steering_offset", "time_offset")
+TRUTH = {"vehicle.mass": 1800.0, "vehicle.cAlphaF": 26000.0, "vehicle.wheel_slip": 0.08, "vehicle.steering_lag": 0.4}
+
+
+def masked_residuals(runs: int = 3, fixes: int = 150, seed: int = 7):
+    """Residuals linear in every parameter, for ``runs`` runs of ``fixes`` fixes (x offsets then y offsets),
+    in which slip and a steering lag mask each other: each one's signature is mostly a large common part ``w``
+    that the other cancels, so either alone explains almost nothing, and both together explain it all.
+    Returns the residual function (fit.Residuals) and the scenario names."""
+    rng = np.random.default_rng(seed)
+    rows = 2 * fixes
+    names = [p.name for p in BASE] + [f"vehicle.{v}" for h in SCREENED for v in LIBRARY[h].variables]
+    columns = {}
+    for s in range(runs):
+        w, e1, e2 = rng.normal(0, 1.0, rows), rng.normal(0, 0.05, rows), rng.normal(0, 0.05, rows)
+        per_unit = {n: rng.normal(0, 1.0, rows) / 1000 for n in names}  # m per unit: mass, cAlphaF alike
+        per_unit["vehicle.cAlphaF"] = rng.normal(0, 1.0, rows) / 8000
+        per_unit["vehicle.wheel_slip"] = (w + e1) / TRUTH["vehicle.wheel_slip"]
+        per_unit["vehicle.steering_lag"] = (-w + e2) / TRUTH["vehicle.steering_lag"]
+        columns[f"run{s}"] = (np.column_stack([per_unit[n] for n in names]), rng.normal(0, 0.02, rows))
+
+    def residuals(point: dict[str, float], scenario: str) -> np.ndarray:
+        jacobian, noise_ = columns[scenario]
+        offset = np.array([point.get(n, 0.0) - TRUTH.get(n, 0.0) for n in names])
+        return jacobian @ offset + noise_
+
+    return residuals, tuple(columns), names
+
+
+def fitted(ids: tuple[str, ...], residuals, scenarios) -> FitResult:
+    """A real Levenberg-Marquardt fit (fit.py's ask/tell machine), told the synthetic residuals."""
+    params = BASE + tuple(Parameter(f"vehicle.{p.variable}", 0.0, p.lower, p.upper, p.step)
+                          for h in ids for p in LIBRARY[h].parameters)
+    fixed = {f"vehicle.{v}": 0.0 for h in SCREENED for v in LIBRARY[h].variables
+             if h not in ids}
+    solver = LevenbergMarquardt(FitProblem("+".join(ids) or "none", params, fixed, scenarios, 30))
+    while not solver.done:
+        solver.ask()
+        solver.tell(residuals)
+    return solver.result()
+
+
+def test_the_screen_finds_a_masked_pair_neither_effect_of_which_passes_alone():
+    residuals, scenarios, _ = masked_residuals()
+    fits = {ids: fitted(ids, residuals, scenarios) for ids in [(), *((h,) for h in SCREENED)]}
+    none = fits[()]
+    for hid in ("wheel_slip", "steering_lag"):  # masked: neither passes the BIC half of the gate alone
+        assert explain.bic(fits[(hid,)]) > explain.bic(none) - explain.BIC_MARGIN
+    # the fit exposes its final Jacobian: on linear residuals, exactly the model's columns
+    assert len(none.jacobian) == len(scenarios) and none.jacobian[0].shape == (300, len(BASE))
+    moved = dict(none.point, **{"vehicle.mass": none.point["vehicle.mass"] + 1.0})
+    assert np.allclose(none.jacobian[0][:, 0], residuals(moved, scenarios[0]) - residuals(none.point, scenarios[0]))
+    assert np.allclose(np.concatenate(none.residuals) @ np.concatenate(none.residuals), none.sse)
+
+    asked: list[int] = []
+
+    def evaluate(points):
+        asked.append(len(points))
+        return residuals
+
+    anchors = screen.anchors(fits)
+    entries = screen.catalogue(BASE, "vehicle", SCREENED)
+    seen = screen.screen(anchors, SCREENED, entries, scenarios, evaluate)
+    assert len(asked) == 2  # one sweep of probes, one of trials
+    assert asked[0] == sum(len(screen.extra_parameters(a, entries)) for a in anchors)
+    assert {x.ids for x in seen if len(x.ids) == 2} == set(screen.pairs_of(SCREENED))  # every pair
+    best = seen[0]
+    assert best.ids == ("wheel_slip", "steering_lag")
+    assert best.sse == pytest.approx(best.predicted_sse, rel=1e-6)  # linear: the check confirms the prediction
+    assert best.start["vehicle.wheel_slip"] == pytest.approx(0.08, rel=0.02)
+    assert best.start["vehicle.steering_lag"] == pytest.approx(0.4, rel=0.02)
+    assert best.sse < 0.2 * none.sse and best.bic < explain.bic(none) - explain.BIC_MARGIN
+    short = screen.shortlist(seen, pairs=4, triples=2, limit=10)
+    labels = [x.label for x in short]
+    assert labels[0] == "wheel_slip+steering_lag" and len(short) <= 10
+    assert "wheel_slip+time_offset" in labels  # the lag's look-alike is fitted beside it
+    assert all(x in short for x in [x for x in seen if len(x.ids) == 3][:2])  # the two best triples
+
+
+def test_the_prediction_keeps_to_the_bounds():
+    residuals, scenarios, _ = masked_residuals(seed=3)
+    fits = {ids: fitted(ids, residuals, scenarios) for ids in [(), ("wheel_slip",)]}
+    entries = screen.catalogue(BASE, "vehicle", ("wheel_slip", "steering_lag"))
+    lin = screen.linearise(screen.Anchor((), fits[()]), entries, scenarios, residuals)
+    negative = dict(lin.point, **{"vehicle.wheel_slip": 0.0})
+    flipped = screen.Linearisation(lin.anchor, negative, lin.names, lin.owners, -lin.jacobian, lin.residuals)
+    delta, _ = screen.predict(flipped, ("wheel_slip", "steering_lag"), entries)
+    assert delta["vehicle.wheel_slip"] >= 0.0 and delta["vehicle.steering_lag"] >= 0.0  # slip and lag are >= 0
+    assert all(entries[n][1].lower <= lin.point[n] + d <= entries[n][1].upper for n, d in delta.items())
+
+
+def test_select_demands_that_every_member_pays_its_way():
+    none = candidate((), [1.0, 1.0, 1.0, 1.0], 400.0)
+    slip = candidate(("wheel_slip",), [0.98, 0.99, 0.97, 0.99], 399.0)  # masked: fails alone
+    lag = candidate(("steering_lag",), [0.99, 1.0, 0.98, 0.97], 398.0)
+    pair = candidate(("wheel_slip", "steering_lag"), [0.03, 0.03, 0.02, 0.03], 5.0)
+    triple = candidate(("wheel_slip", "steering_lag", "time_offset"), [0.029, 0.03, 0.02, 0.029], 4.9)
+    cands = [none, slip, lag, pair, triple]
+    assert not explain.beats(slip, none) and not explain.beats(lag, none)
+    assert explain.select(cands, none) is pair  # the triple's extra member does not pay its way
+    assert explain.beats_subsets(pair, cands) and not explain.beats_subsets(triple, cands)
+    assert explain.select([none, slip, lag], none) is none
+    other = candidate(("time_offset",), [0.031, 0.031, 0.021, 0.031], 6.0)  # within 5 %: fewer effects win
+    assert explain.select([*cands, other], none) is other
+    unvalidated = candidate(("antenna_offset",), [], 1.0)  # fitted on every run only: never the answer
+    assert explain.select([none, unvalidated], none) is none
+    assert explain.runner_up(pair, [*cands, unvalidated]).ids == triple.ids
+
+
+def test_the_bic_gate_and_the_order_of_effects():
+    none = candidate((), [1.0, 1.0, 1.0, 1.0], 400.0)
+    slip = candidate(("wheel_slip",), [0.5, 0.5, 0.5, 0.5], 100.0)
+    lag = candidate(("steering_lag",), [0.9, 0.9, 0.9, 0.9], 300.0)
+    pair = candidate(("wheel_slip", "steering_lag"), [], 5.0)
+    weak = candidate(("wheel_slip", "time_offset"), [], 99.9)  # no better than slip alone
+    gated = explain.bic_gate([pair, weak], [none, slip, lag, pair, weak], slip, explain.BIC_MARGIN, 3)
+    assert gated == [pair]
+    assert explain.bic_gate([pair], [none, slip, lag, pair], slip, explain.BIC_MARGIN, 0) == []
+    pair.held_out.update({f"run{k}": 0.03 for k in range(4)})
+    assert explain.removal_order(pair, [none, slip, lag, pair]) == ("wheel_slip", "steering_lag")
+    swapped = candidate(("steering_lag", "wheel_slip"), [0.03] * 4, 5.0)
+    assert explain.removal_order(swapped, [none, slip, lag, swapped]) == ("wheel_slip", "steering_lag")
+
+
+def test_fitted_error_is_equation_1_on_the_fitted_runs():
+    fit = FitResult("x", [], {}, 0.0, 4, 1, True, {}, [], {},
+                    residuals=[np.array([3.0, 0.0, 4.0, 1.0]), np.array([0.0, 2.0])])
+    assert explain.fitted_error(fit) == pytest.approx(((5.0 + 1.0) / 2 + 2.0) / 2)
+
+
+def test_the_stop_rule_screens_only_when_a_fit_leaves_more_than_noise():
+    from dse_runner.analysis.diagnose import worth_screening
+
+    def fitted_to(error: float) -> Candidate:  # every fix off by ``error`` along x
+        fit = FitResult("x", [], {}, 0.0, 4, 1, True, {}, [], {}, residuals=[np.array([error, error, 0.0, 0.0])])
+        return Candidate((), fit)
+
+    floor, settings = 0.025, Settings()
+    assert not worth_screening([fitted_to(0.09), fitted_to(1.2 * floor)], floor, settings)
+    assert worth_screening([fitted_to(0.09), fitted_to(1.3 * floor)], floor, settings)
+    assert worth_screening([fitted_to(0.0)], None, settings)  # no floor: nothing to stop at
+    assert not worth_screening([fitted_to(0.09)], floor, Settings(max_effects=1))
+    assert not worth_screening([fitted_to(0.09)], floor, Settings(hypotheses=("wheel_slip",)))

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Collection, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -71,6 +71,11 @@ class FitResult:
     standard_error: dict[str, float]  # cluster-robust; inf when the data do not determine it
     at_bound: list[str]  # determined by the data, and pinned at a bound
     point: Point  # the full point: fitted values and the fixed ones
+    # At the final point, per scenario of the problem (in its order): d residual / d parameter (columns in
+    # ``names`` order) and the residuals. Kept so a screen can extrapolate from the fit without simulating
+    # it again; in memory only, never written.
+    jacobian: list[np.ndarray] = field(default_factory=list, repr=False, compare=False)
+    residuals: list[np.ndarray] = field(default_factory=list, repr=False, compare=False)
 
     @property
     def undetermined(self) -> list[str]:
@@ -209,7 +214,7 @@ class LevenbergMarquardt:
                     if (v - lo < 1e-3 * st or hi - v < 1e-3 * st) and np.isfinite(e)]
         return FitResult(self.problem.label, names, {n: float(v) for n, v in zip(names, self.x)}, self.sse,
                          int(sum(len(r) for r in self.r)), self.iterations, self.converged,
-                         dict(zip(names, error)), at_bound, self.point(self.x))
+                         dict(zip(names, error)), at_bound, self.point(self.x), list(self.jacobian), list(self.r))
 
 
 def robust_standard_errors(jacobian: list[np.ndarray], residuals: list[np.ndarray]) -> np.ndarray:

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 
 from ... import bundled
@@ -26,11 +27,22 @@ from ...errors import DseError
 from ...simulation.multimodel import MultiModel, split_ref
 from ...simulation.scenario import dropouts
 from ...sweeps.cluster import connect
-from ...sweeps.fit import FitProblem, FitResult, Parameter, evaluate_points, fit_all, key_of, wanted
+from ...sweeps.fit import (
+    RESIDUALS,
+    FitProblem,
+    FitResult,
+    Parameter,
+    Point,
+    Residuals,
+    evaluate_points,
+    fit_all,
+    key_of,
+    wanted,
+)
 from ...sweeps.spec import Range, Space, SpaceSpec, read_spec, resolve_space
 from ...sweeps.sweep import submit, trajectories_of
 from ..rank import rank
-from . import explain, locate, noise
+from . import explain, locate, noise, screen
 from .explain import Candidate
 from .hypotheses import EFFECTS_FMU, LIBRARY, effect_variables, hypothesis
 from .noise import NoiseFloor
@@ -46,17 +58,29 @@ Progress = Callable[[str], None]
 class Settings:
     folds: int = 3
     max_effects: int = 3
-    partners: int = 3  # best single effects tried in combination with those chosen
+    pairs: int = 4  # best screened pairs fitted for real
+    triples: int = 2  # best screened triples fitted for real
+    shortlist: int = 10  # most sets fitted for real after the screen: those pairs and triples, then look-alikes
+    survivors: int = 3  # most combinations cross-validated: the best by BIC of those passing its gate
     min_gain: float = explain.MIN_GAIN
     bic_margin: float = explain.BIC_MARGIN
     max_iterations: int = 15
     hypotheses: tuple[str, ...] = ()  # the library's ids to try; () tries them all
     noise_factor: float = explain.NOISE_FACTOR  # held-out error above this many noise floors is unexplained
+    floor_stop: float = explain.FLOOR_STOP  # no combination is screened when a fit is within this many floors
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.noise_factor) and self.noise_factor > 0):
             raise DseError(f"noise factor {self.noise_factor!r}: must be a positive number (default "
                            f"{explain.NOISE_FACTOR:g}: held-out error above twice the noise floor is a residual)")
+        if not (math.isfinite(self.floor_stop) and self.floor_stop > 0):
+            raise DseError(f"floor stop {self.floor_stop!r}: must be a positive number (default "
+                           f"{explain.FLOOR_STOP:g})")
+        counts = {"pairs": self.pairs, "triples": self.triples, "shortlist": self.shortlist,
+                  "survivors": self.survivors, "max_effects": self.max_effects}
+        bad = [f"{k} = {v!r}" for k, v in counts.items() if not (isinstance(v, int) and v >= 0)]
+        if bad:
+            raise DseError(f"diagnosis settings {', '.join(bad)}: each must be a whole number, 0 or more")
 
     def singles(self) -> list[tuple[str, ...]]:
         """The hypotheses fitted alone: the chosen ids of the library, each checked."""
@@ -79,6 +103,8 @@ class Diagnosis:
     files: dict[str, Path] = field(default_factory=dict)
     dropouts: dict[str, int] = field(default_factory=dict)  # GPS fixes skipped per run (scenario.dropouts)
     floor: NoiseFloor = noise.UNKNOWN  # the GPS noise floor, estimated from the recordings alone
+    screened: list[screen.Screened] = field(default_factory=list)  # every combination the screen tried, best first
+    shortlisted: list[str] = field(default_factory=list)  # the labels of those then fitted for real
 
     @property
     def verdict(self) -> str:
@@ -114,7 +140,8 @@ class Diagnosis:
         if not self.chosen.ids:
             return [{"id": "none", "name": LIBRARY["none"].name, "parameters": {}, "interval": {},
                      "partial": False}]
-        return [self._effect(hid) | {"partial": self.partial} for hid in self.chosen.ids]
+        order = explain.removal_order(self.chosen, self.candidates)
+        return [self._effect(hid) | {"partial": self.partial} for hid in order]
 
     def _effect(self, hid: str) -> dict[str, Any]:
         h, fit = LIBRARY[hid], self.chosen.full
@@ -152,8 +179,11 @@ class Diagnosis:
             "held_out": [{"scenario": s, "before": self.baseline.held_out[s], "after": self.chosen.held_out[s]}
                          for s in sorted(self.baseline.held_out)],
             "candidates": [{"id": c.label, "cross_track_held_out": c.cross_validated, "bic": c.bic,
-                            "parameters": c.full.values, "at_bound": c.full.at_bound}
+                            "cross_validated": c.validated, "parameters": c.full.values, "at_bound": c.full.at_bound}
                            for c in self.candidates],
+            "screen": [{"id": x.label, "from": "+".join(x.anchor) or "none", "predicted_sse": x.predicted_sse,
+                        "sse": x.sse, "bic": x.bic, "shortlisted": x.label in self.shortlisted}
+                       for x in self.screened],
             "fitted": self.fitted,
             "calibration": self.calibration,
             "dropouts": self.dropouts,
@@ -268,63 +298,109 @@ class Chain:
         fixed = {k: v for k, v in self.fixed.items() if k not in names}
         return FitProblem(label, params, fixed, scenarios, self.settings.max_iterations)
 
-    def _fit(self, problems: list[FitProblem], what: str) -> dict[str, FitResult]:
+    def full(self, ids: tuple[str, ...], start: dict[str, float]) -> FitProblem:
+        """The fit of a set on every run."""
+        return self.problem("+".join(ids) or "none", ids, start, self.all)
+
+    def by_fold(self, candidate: Candidate) -> list[FitProblem]:
+        """The fits of a set on the runs outside each fold, each from the set's fit on every run."""
+        return [self.problem(f"{candidate.label}/fold{k}", candidate.ids, candidate.full.values,
+                             tuple(s for s in self.all if s not in fold)) for k, fold in enumerate(self.folds)]
+
+    def fit(self, problems: list[FitProblem], what: str) -> dict[str, FitResult]:
+        """Every problem in one lockstep batch: each round one sweep."""
         def report(round_: int, active: int, points: int, simulations: int) -> None:
             self.say(f"{what}: round {round_}, {active} fits, {points} points, {simulations} simulations")
 
-        return fit_all(self.space, problems, self.client, report)
+        return fit_all(self.space, problems, self.client, report) if problems else {}
 
-    def candidates(self, sets: list[tuple[str, ...]], starts: dict[tuple[str, ...], dict[str, float]]
-                   ) -> list[Candidate]:
-        """Fit each set of hypotheses on every run, then on each fold, and score it on the held-out runs."""
-        labels = {ids: "+".join(ids) or "none" for ids in sets}
-        full = self._fit([self.problem(labels[ids], ids, starts[ids], self.all) for ids in sets],
-                         f"fitting {', '.join(labels.values())}")
-        problems = [self.problem(f"{labels[ids]}/fold{k}", ids, full[labels[ids]].values,
-                                 tuple(s for s in self.all if s not in fold))
-                    for ids in sets for k, fold in enumerate(self.folds)]
-        by_fold = self._fit(problems, "cross-validating")
-        points, only = wanted((by_fold[f"{labels[ids]}/fold{k}"].point, fold)
-                              for ids in sets for k, fold in enumerate(self.folds))  # each on the runs it held out
+    def score(self, candidates: list[Candidate], fits: dict[str, FitResult]) -> None:
+        """Attach each candidate's fold fits and predict every run it held out with the fit that did not
+        see it, all in one sweep."""
+        points, only = wanted((fits[f"{c.label}/fold{k}"].point, fold)
+                              for c in candidates for k, fold in enumerate(self.folds))
         rows, _ = evaluate_points(self.space, points, self.client, ["cross_track_error"], only)
-        result = []
-        for ids in sets:
-            candidate = Candidate(ids, full[labels[ids]])
+        for c in candidates:
             for k, fold in enumerate(self.folds):
-                fit = by_fold[f"{labels[ids]}/fold{k}"]
-                candidate.folds.append(fit)
+                fit = fits[f"{c.label}/fold{k}"]
+                c.folds.append(fit)
                 for scenario in fold:
                     row = rows.get((key_of(fit.point), scenario))
-                    candidate.held_out[scenario] = (float(row["cross_track_error"])
-                                                    if row and row["status"] == "ok" else math.inf)
-            result.append(candidate)
-        return result
+                    c.held_out[scenario] = (float(row["cross_track_error"])
+                                            if row and row["status"] == "ok" else math.inf)
+
+    def evaluate(self, points: list[Point]) -> Residuals:
+        """The fix residuals of ``points`` on every run, as one sweep: the screen's probes and trials."""
+        points, only = wanted((p, self.all) for p in points)
+        rows, _ = evaluate_points(self.space, points, self.client, [RESIDUALS], only)
+
+        def residuals(point: Point, scenario: str) -> Any:
+            row = rows.get((key_of(point), scenario))
+            return np.asarray(row[RESIDUALS], dtype=float) if row and row["status"] == "ok" else None
+
+        return residuals
 
 
-def choose(chain: Chain, start: dict[str, float]) -> tuple[Candidate, list[Candidate]]:
-    """Fit every hypothesis alone, then grow the best by the partners that still beat it."""
-    singles = chain.settings.singles()
-    scored = chain.candidates([(), *singles], {ids: start for ids in [(), *singles]})
-    baseline = next(c for c in scored if not c.ids)
-    winners = [c for c in explain.ranked(scored) if c.ids and explain.beats(c, baseline, chain.settings.min_gain,
-                                                                            chain.settings.bic_margin)]
-    if not winners:
-        return baseline, scored
-    chosen = winners[0]
-    partners = [c.ids[0] for c in winners[1:1 + chain.settings.partners]]
-    single = {c.ids[0]: c.full.values for c in scored if len(c.ids) == 1}
-    while len(chosen.ids) < chain.settings.max_effects:
-        sets = [chosen.ids + (p,) for p in partners if p not in chosen.ids]
-        if not sets:
-            break
-        starts = {ids: {**single[ids[-1]], **chosen.full.values} for ids in sets}
-        combos = chain.candidates(sets, starts)
-        scored.extend(combos)
-        best = explain.ranked(combos)[0]
-        if not explain.beats(best, chosen, chain.settings.min_gain, chain.settings.bic_margin):
-            break
-        chosen = best
-    return chosen, scored
+def worth_screening(candidates: list[Candidate], floor: float | None, settings: Settings) -> bool:
+    """Whether combinations could still explain something: not when a fit already leaves no more than
+    ``floor_stop`` noise floors of error (on the runs it saw), nor when one effect at a time is the most
+    allowed. Without a floor the screen always runs."""
+    if settings.max_effects < 2 or len(settings.singles()) < 2:
+        return False
+    if floor is None or not (math.isfinite(floor) and floor > 0):
+        return True
+    return min(explain.fitted_error(c.full) for c in candidates) > settings.floor_stop * floor
+
+
+def screen_combinations(chain: Chain, candidates: list[Candidate]) -> list[screen.Screened]:
+    """Every pair, and triples of the best pairs, predicted from none and the best single fits, each checked
+    by simulation (screen.py): best verified BIC first."""
+    settings = chain.settings
+    ids = [c.ids[0] for c in candidates if len(c.ids) == 1]
+    anchors = screen.anchors({c.ids: c.full for c in candidates})
+    entries = screen.catalogue(chain.base, chain.vehicle, ids)
+    pairs = len(ids) * (len(ids) - 1) // 2
+    chain.say(f"screening {pairs} pair{'s' * (pairs != 1)} from {', '.join(a.fit.label for a in anchors)}")
+    return screen.screen(anchors, ids, entries, chain.all, chain.evaluate, triples=settings.max_effects >= 3)
+
+
+@dataclass
+class Choice:
+    chosen: Candidate  # the baseline when nothing is missing
+    candidates: list[Candidate]  # every set fitted: none, the singles, the shortlisted combinations
+    screened: list[screen.Screened]  # every combination the screen tried, best first; [] when it did not run
+    shortlisted: list[screen.Screened]  # those fitted for real
+
+
+def choose(chain: Chain, start: dict[str, float], floor: float | None = None) -> Choice:
+    """Fit none and every hypothesis alone; unless one already fits to the noise, screen every combination
+    and fit the short list for real in the same batch as the singles' folds; cross-validate the combinations
+    that pass the BIC gate; choose (explain.select)."""
+    settings = chain.settings
+    sets = [(), *settings.singles()]
+    full = chain.fit([chain.full(ids, start) for ids in sets], "fitting none and each hypothesis")
+    candidates = [Candidate(ids, full["+".join(ids) or "none"]) for ids in sets]
+    screened, short = [], []
+    if worth_screening(candidates, floor, settings):
+        screened = screen_combinations(chain, candidates)
+        short = screen.shortlist(screened, settings.pairs, settings.triples if settings.max_effects >= 3 else 0,
+                                 settings.shortlist)
+    else:
+        chain.say("no combination screened: a fit is already within "
+                  f"{settings.floor_stop:g}x the noise floor, or the settings allow one effect at a time")
+    problems = [p for c in candidates for p in chain.by_fold(c)] + [chain.full(x.ids, x.start) for x in short]
+    fits = chain.fit(problems, "cross-validating" + (f" and fitting {len(short)} combinations" if short else ""))
+    chain.score(candidates, fits)
+    baseline = next(c for c in candidates if not c.ids)
+    current = explain.select(candidates, baseline, settings.min_gain, settings.bic_margin)
+    combinations = [Candidate(x.ids, fits[x.label]) for x in short]
+    everything = candidates + combinations
+    survivors = explain.bic_gate(combinations, everything, current, settings.bic_margin, settings.survivors)
+    if survivors:
+        chain.score(survivors, chain.fit([p for c in survivors for p in chain.by_fold(c)],
+                                         f"cross-validating {', '.join(c.label for c in survivors)}"))
+    return Choice(explain.select(everything, baseline, settings.min_gain, settings.bic_margin), everything,
+                  screened, short)
 
 
 def write_model(diagnosis: Diagnosis, calibration: Space) -> dict[str, Path]:
@@ -406,8 +482,9 @@ def _diagnose(calibration: Space, out: Path, settings: Settings, client, say: Pr
     base = base_parameters(calibration, grid.best)
     space = fits_space(calibration, vehicle, out)
     chain = Chain(space, vehicle, base, client, settings, say)
-    chosen, scored = choose(chain, {p.name: p.start for p in base})
-    baseline = next(c for c in scored if not c.ids)
+    choice = choose(chain, {p.name: p.start for p in base}, floor.cross_track if floor.available else None)
+    chosen = choice.chosen
+    baseline = next(c for c in choice.candidates if not c.ids)
     diagnosis = Diagnosis(out, {
         "sweep": calibration.name, "vehicle": vehicle, "grid_best": grid.best,
         "grid_at_bound": [p.name for p in base if grid.best[p.name] in (p.lower, p.upper)
@@ -416,7 +493,8 @@ def _diagnose(calibration: Space, out: Path, settings: Settings, client, say: Pr
         "no_effect": baseline.full.undetermined,
         "insensitive_scenarios": locate.insensitive_scenarios(grid.table1),
         "folds": chain.folds,
-    }, explain.ranked(scored), chosen, baseline, settings, dropouts=dropouts(calibration.scenarios), floor=floor)
+    }, explain.ranked(choice.candidates), chosen, baseline, settings, dropouts=dropouts(calibration.scenarios),
+        floor=floor, screened=choice.screened, shortlisted=[x.label for x in choice.shortlisted])
     say("locating: the residuals of the calibrated model and of the chosen one")
     before = trajectories_of(space, client, baseline.full.point, BEFORE)
     after = trajectories_of(space, client, chosen.full.point, AFTER)

@@ -12,13 +12,17 @@ parameters. It is judged two ways:
 
 A candidate beats a simpler one only if it lowers the held-out error by a
 clear margin *and* lowers the BIC: improvement on fitted runs alone is what
-an extra parameter always buys, and is no evidence of physics.
+an extra parameter always buys, and is no evidence of physics. A combination
+is chosen only if it beats every fitted part of it: each member has to pay
+its way.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+
+import numpy as np
 
 from ...simulation.scenario import Scenario
 from ...sweeps.fit import FitResult
@@ -34,9 +38,22 @@ def folds(scenarios: list[Scenario], count: int) -> list[list[str]]:
     return [[s.name for s in ordered[k::count]] for k in range(count)]
 
 
+def bic_of(sse: float, n: int, k: int) -> float:
+    """n ln(SSE/n) + k ln n: the fit's misfit, charged ln n for each of its k parameters."""
+    n = max(n, 1)
+    return n * math.log(max(sse, 1e-300) / n) + k * math.log(n) if math.isfinite(sse) else math.inf
+
+
 def bic(fit: FitResult) -> float:
-    n = max(fit.residual_count, 1)
-    return n * math.log(max(fit.sse, 1e-300) / n) + len(fit.names) * math.log(n)
+    return bic_of(fit.sse, fit.residual_count, len(fit.names))
+
+
+def fitted_error(fit: FitResult) -> float:
+    """Equation 1 on the runs the fit saw (the mean distance at each run's fixes, averaged over runs), from
+    its residuals (x offsets, then y offsets: fielddata.fix_residuals). The same units as held-out error
+    and the noise floor, at no cost: optimistic, but by little with a few parameters and many fixes."""
+    runs = [np.hypot(*np.split(r, 2)).mean() for r in fit.residuals if len(r) >= 2 and len(r) % 2 == 0]
+    return float(np.mean(runs)) if runs else math.inf
 
 
 @dataclass
@@ -49,6 +66,11 @@ class Candidate:
     @property
     def label(self) -> str:
         return "+".join(self.ids) or "none"
+
+    @property
+    def validated(self) -> bool:
+        """Whether it was cross-validated: a combination that fails the BIC gate is fitted on all runs only."""
+        return bool(self.held_out)
 
     @property
     def cross_validated(self) -> float:
@@ -71,10 +93,66 @@ def ranked(candidates: list[Candidate]) -> list[Candidate]:
     return sorted(candidates, key=lambda c: (c.cross_validated, c.bic))
 
 
+def subsets(candidate: Candidate, candidates: list[Candidate]) -> list[Candidate]:
+    """The fitted candidates that are a proper part of ``candidate``, ``none`` included."""
+    inside = set(candidate.ids)
+    return [c for c in candidates if set(c.ids) < inside]
+
+
+def beats_subsets(candidate: Candidate, candidates: list[Candidate], min_gain: float = MIN_GAIN,
+                  bic_margin: float = BIC_MARGIN) -> bool:
+    """Whether ``candidate`` beats every fitted proper subset of it: every member pays its way. A subset
+    that was not cross-validated (it failed the BIC gate) is beaten on BIC alone."""
+    return all(beats(candidate, s, min_gain, bic_margin) for s in subsets(candidate, candidates))
+
+
+def select(candidates: list[Candidate], baseline: Candidate, min_gain: float = MIN_GAIN,
+           bic_margin: float = BIC_MARGIN) -> Candidate:
+    """The answer: of the cross-validated candidates that beat ``none`` and every fitted part of
+    themselves, the lowest held-out error, except that one within ``min_gain`` of it with fewer effects
+    wins (no test could tell them apart, and the simpler claim is the one to make). ``baseline`` if none."""
+    eligible = [c for c in candidates if c.ids and c.validated and beats(c, baseline, min_gain, bic_margin)
+                and beats_subsets(c, candidates, min_gain, bic_margin)]
+    if not eligible:
+        return baseline
+    best = min(eligible, key=lambda c: (c.cross_validated, c.bic))
+    tied = [c for c in eligible if best.cross_validated > (1.0 - min_gain) * c.cross_validated]
+    return min(tied, key=lambda c: (len(c.ids), c.cross_validated, c.bic))
+
+
+def bic_gate(combinations: list[Candidate], candidates: list[Candidate], reference: Candidate, bic_margin: float,
+             count: int) -> list[Candidate]:
+    """The combinations worth cross-validating, at most ``count``, best BIC first: those whose BIC is
+    ``bic_margin`` below the current answer's and below every fitted part of them. No other one could be
+    chosen over the answer (the choice demands the BIC margin too), so their folds would be wasted."""
+    passing = [c for c in combinations if c.bic <= reference.bic - bic_margin
+               and all(c.bic <= s.bic - bic_margin for s in subsets(c, candidates))]
+    return sorted(passing, key=lambda c: c.bic)[:count]
+
+
+def removal_order(chosen: Candidate, candidates: list[Candidate]) -> tuple[str, ...]:
+    """The chosen effects, the one whose removal costs most first: by the held-out error of the chosen set
+    without it, or by the SSE of that fit when one of them was not cross-validated. Left as they are when
+    a part was never fitted."""
+    if len(chosen.ids) < 2:
+        return chosen.ids
+    without = {}
+    for hid in chosen.ids:
+        rest = set(chosen.ids) - {hid}
+        part = next((c for c in candidates if set(c.ids) == rest), None)
+        if part is None:
+            return chosen.ids
+        without[hid] = part
+    use_held_out = all(c.validated for c in without.values())
+    return tuple(sorted(chosen.ids, key=lambda h: -(without[h].cross_validated if use_held_out
+                                                    else without[h].full.sse)))
+
+
 # ---- verdicts: the answer judged against the noise floor ----------------------------------------
 
 NONE, EXPLAINED, PARTIAL, UNEXPLAINED = "none", "explained", "partial", "unexplained"
 NOISE_FACTOR = 2.0  # held-out error above this many noise floors is a residual the model leaves unexplained
+FLOOR_STOP = 1.25  # a fit within this many noise floors leaves nothing a combination could clearly explain
 TIE = 1e-4  # m: held-out errors of one run closer than this are equal (an effect fitted to ~0 changes nothing)
 
 
@@ -97,10 +175,10 @@ def verdict(held_out: float, floor: float | None, factor: float, chosen: bool) -
 
 
 def runner_up(chosen: Candidate, candidates: list[Candidate]) -> Candidate | None:
-    """The best-ranked real alternative: not the chosen set and not a subset of it (a subset is the
-    chosen answer with less in it, not a different explanation)."""
+    """The best-ranked real alternative: cross-validated, not the chosen set and not a subset of it (a
+    subset is the chosen answer with less in it, not a different explanation)."""
     inside = set(chosen.ids)
-    return next((c for c in ranked(candidates) if not set(c.ids) <= inside), None)
+    return next((c for c in ranked(candidates) if c.validated and not set(c.ids) <= inside), None)
 
 
 @dataclass(frozen=True)

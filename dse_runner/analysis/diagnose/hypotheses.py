@@ -120,6 +120,18 @@ LIBRARY: dict[str, Hypothesis] = {h.id: h for h in [
 ]}
 
 
+# Effects whose residual signatures are alike on ordinary manoeuvres, so a fit can take one for the other: a
+# delay of every command against a steering lag or a speed lag, slip (attenuation, no phase) against a speed
+# lag (phase, no steady error). The screen fits a shortlisted set's twins beside it, so the evidence between
+# them comes from real fits, not from a linearisation's ranking.
+LOOK_ALIKES: dict[str, tuple[str, ...]] = {
+    "time_offset": ("steering_lag", "speed_lag"),
+    "steering_lag": ("time_offset",),
+    "wheel_slip": ("speed_lag",),
+    "speed_lag": ("wheel_slip", "time_offset"),
+}
+
+
 def hypothesis(hid: str) -> Hypothesis:
     if hid not in LIBRARY:
         raise DseError(f"unknown hypothesis {hid!r}: the library has {', '.join(LIBRARY)}")

@@ -47,8 +47,10 @@ def _candidates(diagnosis: "Diagnosis") -> pd.DataFrame:
     for c in diagnosis.candidates:
         effect = {k.split(".", 1)[1]: v for k, v in c.full.values.items()
                   if k.split(".", 1)[1] in {p for hid in c.ids for p in LIBRARY[hid].variables}}
-        rows.append({"candidate": c.label, "held-out error [m]": c.cross_validated,
-                     "vs none": f"{(c.cross_validated / base.cross_validated - 1) * 100:+.1f} %",
+        validated = c.validated and math.isfinite(c.cross_validated)
+        rows.append({"candidate": c.label,
+                     "held-out error [m]": c.cross_validated if validated else "not cross-validated",
+                     "vs none": f"{(c.cross_validated / base.cross_validated - 1) * 100:+.1f} %" if validated else "-",
                      "ΔBIC vs none": c.bic - base.bic,
                      "effect parameters": ", ".join(f"{k} = {v:.4g}" for k, v in effect.items()) or "-",
                      "chosen": "yes" if c is diagnosis.chosen else ""})
@@ -205,8 +207,15 @@ def _markdown(diagnosis: "Diagnosis", located: dict[str, pd.DataFrame], sig: dic
               "mean Equation 1 error of each run predicted by the fit on the other folds. A candidate is chosen "
               "only if it lowers the held-out error by at least "
               f"{diagnosis.settings.min_gain:.0%} and the BIC by at least {diagnosis.settings.bic_margin:g} "
-              "against the simpler model.", "",
+              "against `none` and against every fitted part of it (each member has to pay its way); of those, the "
+              f"lowest held-out error wins, and one within {diagnosis.settings.min_gain:.0%} of it with fewer "
+              "effects wins over it. Combinations fitted on every run but not cross-validated failed the BIC gate: "
+              f"their BIC was not {diagnosis.settings.bic_margin:g} below the best single answer's and each "
+              "fitted part's, so they could not be chosen.", "",
               _table(_candidates(diagnosis)), ""]
+    lines += ["### Screen of combinations", "", screen_text(diagnosis), ""]
+    if diagnosis.screened:
+        lines += [_table(_screened(diagnosis)), ""]
     lines += ["### Noise floor", "", noise_text(diagnosis), ""]
     up = diagnosis.runner_up
     lines += ["### Runner-up", "", runner_up_text(up, diagnosis.chosen.label, diagnosis.settings) if up else
@@ -226,6 +235,34 @@ def _markdown(diagnosis: "Diagnosis", located: dict[str, pd.DataFrame], sig: dic
               f"![held-out errors]({figures['held_out']})", "", f"![tracks]({figures['tracks']})", ""]
     return "\n".join(lines)
 
+
+
+def _screened(diagnosis: "Diagnosis", rows: int = 12) -> pd.DataFrame:
+    """The best screened sets, and every shortlisted one: predicted against simulated SSE."""
+    shown = [x for k, x in enumerate(diagnosis.screened) if k < rows or x.label in diagnosis.shortlisted]
+    return pd.DataFrame([{"set": x.label, "linearised at": "+".join(x.anchor) or "none",
+                          "predicted SSE [m²]": x.predicted_sse, "simulated SSE [m²]": x.sse, "BIC": x.bic,
+                          "fitted": "yes" if x.label in diagnosis.shortlisted else ""} for x in shown])
+
+
+def screen_text(diagnosis: "Diagnosis") -> str:
+    """What the screen did, or why it did not run."""
+    settings = diagnosis.settings
+    if not diagnosis.screened:
+        return ("No combination was screened: a fit of none or of one effect already left at most "
+                f"{settings.floor_stop:g}× the noise floor of error on the runs it was fitted to (nothing a "
+                "combination could clearly add), or the settings allow one effect at a time.")
+    pairs = sum(len(x.ids) == 2 for x in diagnosis.screened)
+    triples = len(diagnosis.screened) - pairs
+    return (f"{pairs} pairs and {triples} triples (those extending the best predicted pairs) were screened without "
+            "fitting them: from the Jacobian of the fix residuals at `none` and at the two best single fits (taken "
+            "whether or not they passed alone, as masked effects do not), the bounded linear least-squares step "
+            "for each set, calibrated parameters free too, predicts its SSE; simulating that step and half of it "
+            "gives the SSE it really reaches. Ranked by the BIC of that SSE, the best "
+            f"{settings.pairs} pairs and {settings.triples} triples, and the sets in which a member is swapped for "
+            f"its look-alike, were fitted for real (at most {settings.shortlist}; two more pairs when the best set's "
+            "simulated SSE was over twice its prediction): "
+            + ", ".join(f"`{label}`" for label in diagnosis.shortlisted) + ".")
 
 
 def _ids(label: str) -> str:
