@@ -155,8 +155,8 @@ def results_schema(parameters: dict[str, list[Any]], objectives: dict[str, Objec
 def write_rows(root: Root, sweep: str, chunk: str, rows: list[dict[str, Any]], schema: pa.Schema) -> list[str]:
     """Write one chunk's rows, one file per scenario partition."""
     by_scenario: dict[str, list[dict[str, Any]]] = {}
-    for row in rows:
-        by_scenario.setdefault(row["scenario"], []).append({k: v for k, v in row.items() if k != "scenario"})
+    for row in rows:  # "scenario" is the partition: from_pylist takes the schema's columns and no others
+        by_scenario.setdefault(row["scenario"], []).append(row)
     return [write_table(pa.Table.from_pylist(group, schema=schema), root,
                         f"{_partition(RESULTS, sweep, scenario)}/part-{chunk}.parquet")
             for scenario, group in by_scenario.items()]
