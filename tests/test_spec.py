@@ -10,7 +10,7 @@ from conftest import SCENARIOS, write_space
 from dse_runner import DseError
 from dse_runner.analysis.rank import pareto_mask
 from dse_runner.sweeps.constraints import compile_constraint
-from dse_runner.sweeps.expand import expand
+from dse_runner.sweeps.expand import count, expand
 from dse_runner.sweeps.spec import load_space
 
 
@@ -39,6 +39,13 @@ def test_constraints_filter_points(tmp_path):
     points = {dict(t.point)["vehicle.mass"] for t in expand(space)}
     assert points == {1000.0, 2000.0}
     assert sum(1 for _ in expand(space)) == 4  # 2 points x 2 scenarios
+
+
+@pytest.mark.parametrize("constraints", [[], ["vehicle.mass / 1000 < 2.5 and vehicle.cAlphaF > 20000"]])
+def test_a_sweep_counts_the_tasks_it_expands(tmp_path, constraints):
+    """An unconstrained grid is counted without walking it; a constrained one by walking it."""
+    space = load_space(write_space(tmp_path, constraints=constraints))
+    assert count(space, set()) == (len(list(expand(space))), 0) == ((4 if constraints else 12), 0)
 
 
 def test_task_ids_are_stable_and_follow_the_data(tmp_path):

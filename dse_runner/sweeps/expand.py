@@ -23,6 +23,7 @@ from ..simulation import objectives as objs
 from ..simulation.cosim import Plan
 from ..simulation.fmu import content_hash
 from ..simulation.scenario import Scenario, Series
+from .search import count as count_points
 from .search import points as search_points
 
 
@@ -134,7 +135,7 @@ def count(space, done: Collection[str], points: list[dict[str, Any]] | None = No
         return len(ids), sum(task_id in done for task_id in ids)
     if only is not None:
         return sum(scenario.name in wanted for scenario in space.scenarios for wanted in only), 0
-    return sum(1 for _ in points_of(space, points)(space)) * len(space.scenarios), 0
+    return (len(points) if points is not None else count_points(space.strategy)) * len(space.scenarios), 0
 
 
 @dataclass(frozen=True)
@@ -155,12 +156,13 @@ class TaskBatch:
     def of(cls, tasks: list[Task]) -> TaskBatch:
         parameters = tuple(name for name, _ in tasks[0].point)
         scenarios = tuple(dict.fromkeys(t.scenario for t in tasks))
-        rows = [[value for _, value in t.point] for t in tasks]
-        numeric = all(type(v) is float for row in rows for v in row)
+        values = [value for t in tasks for _, value in t.point]
+        numeric = all(type(v) is float for v in values)
+        index = {name: k for k, name in enumerate(scenarios)}
         return cls(parameters, scenarios,
                    np.array([t.task_id.encode() for t in tasks]),
-                   np.array([scenarios.index(t.scenario) for t in tasks], dtype=np.int32),
-                   np.array(rows, dtype=np.float64 if numeric else object).reshape(len(tasks), len(parameters)))
+                   np.array([index[t.scenario] for t in tasks], dtype=np.int32),
+                   np.array(values, dtype=np.float64 if numeric else object).reshape(len(tasks), len(parameters)))
 
     def __len__(self) -> int:
         return len(self.task_ids)

@@ -20,8 +20,10 @@ package declares an entry point in the group ``dse_runner.search``::
 
 from __future__ import annotations
 
+import functools
 import importlib
 import itertools
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
@@ -49,6 +51,7 @@ class Problem:
     batch: int  # points in flight at once
     options: Mapping[str, Any] = field(default_factory=dict)  # the strategy's own, from space.yaml's search:
     admits: Callable[[Point], bool] = lambda point: True  # the spec's constraints
+    constrained: bool = False  # whether ``admits`` can refuse a point
 
 
 @dataclass(frozen=True)
@@ -82,6 +85,8 @@ class Strategy(ABC):
     closed_loop: ClassVar[bool] = True  # False: every point is known without results (a grid)
     multi_objective: ClassVar[bool] = False  # optimises the ranking's Pareto objectives
     Options: ClassVar[type[BaseModel]] = Options
+
+    size: int | None = None  # open loop: how many points it will ask, where known without asking them
 
     def __init__(self, problem: Problem):
         self.problem = problem
@@ -119,8 +124,13 @@ class Exhaustive(Strategy):
                            "strategy such as tpe")
         names = [d.name for d in problem.dimensions]
         grids = [d.grid() for d in problem.dimensions]
-        self._points: Iterator[Point] = (p for p in (dict(zip(names, v)) for v in itertools.product(*grids))
-                                         if problem.admits(p))
+        combinations = itertools.product(*grids)
+        if problem.constrained:
+            admits = problem.admits
+            self._points: Iterator[Point] = (p for v in combinations if admits(p := dict(zip(names, v))))
+        else:  # a large grid: one generator, and its size without walking it
+            self._points = (dict(zip(names, v)) for v in combinations)
+            self.size = math.prod(len(g) for g in grids)
 
     def ask(self) -> Point | None:
         return next(self._points, None)
@@ -143,10 +153,17 @@ BUILTIN: dict[str, str] = {  # loaded on first use: Optuna, pymoo and torch are 
 
 def available() -> dict[str, str]:
     """Strategy name -> import path: the built-in ones and those installed packages declare."""
+    return dict(_available())
+
+
+@functools.cache
+def _available() -> tuple[tuple[str, str], ...]:
+    """Read once per process: scanning the installed packages' entry points takes tens of ms, and a
+    sweep asks for its strategy several times as it starts."""
     found = dict(BUILTIN)
     for entry in entry_points(group="dse_runner.search"):
         found.setdefault(entry.name, entry.value)
-    return found
+    return tuple(found.items())
 
 
 def strategy(name: str) -> type[Strategy]:
@@ -168,3 +185,9 @@ def points(make: Callable[[], Strategy]) -> Iterator[Point]:
     """Every point an open-loop strategy asks for."""
     chosen = make()
     return iter(chosen.ask, None)
+
+
+def count(make: Callable[[], Strategy]) -> int:
+    """How many points an open-loop strategy asks for: its ``size``, else by asking them all."""
+    chosen = make()
+    return chosen.size if chosen.size is not None else sum(1 for _ in iter(chosen.ask, None))

@@ -381,7 +381,7 @@ class Space:
                        scenarios=tuple(s.name for s in self.scenarios),
                        vectors=tuple(n for n, o in self.objectives.items() if objs.is_vector(o)),
                        max_points=search.max_points, seed=search.seed, batch=search.batch or threads + 1,
-                       options=search.options, admits=self.admits)
+                       options=search.options, admits=self.admits, constrained=bool(self.constraints))
 
     def strategy(self, threads: int = 1) -> Strategy:
         return strategy(self.spec.search.strategy)(self.problem(threads))

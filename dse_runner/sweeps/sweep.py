@@ -77,6 +77,7 @@ class SweepReport(BaseModel):
     failed: int = 0
     seconds: float = 0.0  # wall time of this submission
     simulation_seconds: float = 0.0  # summed on the workers
+    chunk_seconds: float = 0.0  # the chunks' whole time on the workers, summed: simulations, unpacking, writing rows
     chunk_size: int = 0  # tasks in the largest chunk handed out (chunks adapt, and shrink towards the end)
     chunks: int = 0
     workers: int = 0
@@ -402,6 +403,7 @@ class Run:
         report.failed += summary.failed
         report.chunks += 1
         report.simulation_seconds += summary.seconds
+        report.chunk_seconds += summary.busy
         report.errors.extend(summary.errors[: max(0, 5 - len(report.errors))])
 
     def _tell(self, client) -> None:
