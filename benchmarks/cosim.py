@@ -28,7 +28,10 @@ a millisecond each, 20 times as many), in seconds per simulation in the JSON
 (``--json``: ``{"robotti": {master: s}, "cheap": {...}, "ratios": {...}, "steps": {...},
 "repeats": n, ...}``). Targets, reported beside the measured ratios (not asserted):
 Robotti native within 1.15x of the C floor; cheap native within 2x of the C floor and at
-least 10x faster than the Python loop. The final x (Robotti) / x0 (cheap) of the C floor
+least 10x faster than the Python loop. The cheap case's ratio to the floor is given twice: by
+medians, and by each master's fastest run (``dse_runner_over_c_floor_fastest``; the floor's from
+the fastest of 3 processes), since two sub-millisecond medians timed one after the other move
+with whatever else a shared machine runs. The final x (Robotti) / x0 (cheap) of the C floor
 and of our master are printed side by side as a check that they computed the same thing.
 The cheap case is also run 10 times longer by ours (native) and the C floor, which splits each
 one's time into a fixed cost per simulation and a marginal cost per step (``split`` in the JSON),
@@ -73,6 +76,7 @@ MASTERS = ("dse_runner", "python_loop", "simulate_fmu", "libcosim", "c_floor")
 TARGETS = (
     ("robotti", "dse_runner_over_c_floor", "<=", 1.15),
     ("cheap", "dse_runner_over_c_floor", "<=", 2.0),
+    ("cheap", "dse_runner_over_c_floor_fastest", "<=", 2.0),
     ("cheap", "python_loop_over_dse_runner", ">=", 10.0),
 )
 COMPARE = {"<=": operator.le, ">=": operator.ge}
@@ -88,6 +92,7 @@ class Case:
     signal: str  # the output whose final value is compared
     final: dict[str, float]  # master -> that output's final value
     split: dict[str, dict[str, float]] | None = None  # master -> fixed and per-step cost (cost_split)
+    fastest: dict[str, float] | None = None  # master -> its fastest run of ``steps`` steps
 
 
 def times_of(run: Callable[[], object], repeats: int) -> list[float]:
@@ -263,7 +268,8 @@ def cheap_case(repeats: int, work: Path) -> Case:
                                for _ in range(FLOOR_PROCESSES)) for stop in (times.stop, long_stop)]}
     steps = len(reference.time) - 1
     split = {master: cost_split(*fastest[master], steps, LONGER * steps) for master in fastest}
-    return Case(figures, steps, times.step, "x0", final, split)
+    return Case(figures, steps, times.step, "x0", final, split,
+                {master: runs[0] for master, runs in fastest.items()})
 
 
 LONGER = 10  # the cheap case is also run this many times longer, to split fixed from per-step cost
@@ -279,15 +285,21 @@ def cost_split(short: float, long: float, short_steps: int, long_steps: int) -> 
 # ---- the report -----------------------------------------------------------------------------------------
 
 
-def ratios(figures: dict[str, float]) -> dict[str, float]:
-    """Ours against the floor, and the other masters against ours (> 1: ours is faster)."""
+def ratios(case: Case) -> dict[str, float]:
+    """Ours against the floor, and the other masters against ours (> 1: ours is faster). Where the
+    fastest runs were kept, also ours against the floor by those: sub-millisecond medians of two
+    programs timed one after the other move with whatever else the machine runs, fastest runs far less."""
+    figures = case.figures
     ours = figures["dse_runner"]
-    return {
+    found = {
         "dse_runner_over_c_floor": ours / figures["c_floor"],
         "python_loop_over_dse_runner": figures["python_loop"] / ours,
         "libcosim_over_dse_runner": figures["libcosim"] / ours,
         "simulate_fmu_over_dse_runner": figures["simulate_fmu"] / ours,
     }
+    if case.fastest:
+        found["dse_runner_over_c_floor_fastest"] = case.fastest["dse_runner"] / case.fastest["c_floor"]
+    return found
 
 
 def targets(all_ratios: dict[str, dict[str, float]]) -> list[dict]:
@@ -355,7 +367,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         cases = {"robotti": robotti_case(args.scenario, args.repeats, Path(tmp) / "robotti"),
                  "cheap": cheap_case(args.repeats, Path(tmp) / "cheap")}
-    all_ratios = {name: ratios(case.figures) for name, case in cases.items()}
+    all_ratios = {name: ratios(case) for name, case in cases.items()}
     checked = targets(all_ratios)
     if args.json:
         print(json.dumps({
