@@ -105,7 +105,7 @@ class Plan:
             variable = found[ref] = lookup(self.variables, self.models, ref, purpose)
         return variable
 
-    def recording(self, refs: Iterable[str], purpose: str = "objective") -> "Plan":
+    def recording(self, refs: Iterable[str], purpose: str = "objective") -> Plan:
         """The plan also recording ``refs`` (e.g. a local variable an objective reads)."""
         outputs = {name: list(vs) for name, vs in self.outputs.items()}
         for ref in refs:
@@ -148,7 +148,7 @@ class Trajectory:
         numbers = {n: float(self.values[-1, j]) for j, n in enumerate(self.names)}
         return {**numbers, **{n: v[-1] for n, v in self.texts.items()}}
 
-    def renamed(self, rename: Callable[[str], str]) -> "Trajectory":
+    def renamed(self, rename: Callable[[str], str]) -> Trajectory:
         return Trajectory(self.time, tuple(map(rename, self.names)), self.values,
                           {rename(n): v for n, v in self.texts.items()})
 
@@ -397,7 +397,7 @@ def run(plan: Plan, values: Mapping[str, Value], start: float, stop: float, step
 
 
 def prepare(plan: Plan, start: float, stop: float, step: float,
-            inputs: Mapping[str, Series] | None = None) -> "Runner":
+            inputs: Mapping[str, Series] | None = None) -> Runner:
     """``plan`` on one time grid with its input signals sampled and checked: ready to run with any values."""
     times = _time_grid(start, stop, step)
     series = _resolve_inputs(plan, inputs or {}, times)

@@ -32,6 +32,7 @@ message naming the objective, never a result row holding NaN.
 from __future__ import annotations
 
 import importlib
+import math
 from collections.abc import Callable, Mapping
 from functools import cache
 from importlib.metadata import entry_points
@@ -123,8 +124,8 @@ def _settling_time(time: np.ndarray, values: np.ndarray, spec: Reduce) -> float:
 
 REDUCTIONS: dict[str, Callable[[np.ndarray, np.ndarray, Reduce], float]] = {
     "final": lambda t, v, s: float(v[-1]),
-    "min": lambda t, v, s: float(np.min(v)),
-    "max": lambda t, v, s: float(np.max(v)),
+    "min": lambda t, v, s: float(v.min()),
+    "max": lambda t, v, s: float(v.max()),
     "mean": lambda t, v, s: _integral(t, v) / _span(t),
     "sample_mean": lambda t, v, s: float(np.mean(v)),
     "integral": lambda t, v, s: _integral(t, v),
@@ -232,7 +233,7 @@ def evaluate(objectives: Mapping[str, ObjectiveSpec], trajectory, scenario) -> d
             number = np.asarray(value, dtype=float) if vector else float(value)
         except (TypeError, ValueError):
             raise DseError(f"objective {name!r} returned {value!r}, not a number") from None
-        if not np.all(np.isfinite(number)):
+        if not (np.all(np.isfinite(number)) if vector else math.isfinite(number)):
             raise DseError(f"objective {name!r} is not a finite number on scenario {scenario.name} "
                            f"({value!r:.80})")
         results[name] = number.tolist() if vector else number

@@ -9,9 +9,9 @@ then ``values`` (a sweep's parameter point). Times follow experiment.py.
 
 from __future__ import annotations
 
+import copy
 import re
 from collections.abc import Mapping
-import copy
 from dataclasses import dataclass, field
 from pathlib import Path
 

@@ -76,7 +76,7 @@ def _task_id(model: str, items: tuple[tuple[str, Any], ...], scenario: str) -> s
 
 _JSON_STRINGS: dict[str, str] = {}  # names and hashes, as JSON writes them
 _NUMBERS: dict[type, Callable[[Any], str]] = {
-    float: lambda v: float.__repr__(v) if math.isfinite(v) else "NaN" if v != v else "Infinity" if v > 0
+    float: lambda v: float.__repr__(v) if math.isfinite(v) else "NaN" if math.isnan(v) else "Infinity" if v > 0
     else "-Infinity",
     int: int.__repr__,
     bool: lambda v: "true" if v else "false",
