@@ -7,6 +7,7 @@ their command lines (tests/cluster.py) unless it needs the embedded cluster.
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import signal
 import socket
@@ -23,6 +24,7 @@ import yaml
 from cluster import CliCluster, can_hide_folders, make_certs
 from conftest import FMU_SOURCES, MULTIMODEL, REPO, SCENARIOS, strict_loads, write_space
 
+import dse_runner
 from dse_runner.sweeps import store
 from dse_runner.sweeps.cluster import connect, kubernetes_cluster_spec, make_htcondor
 from dse_runner.errors import DseError
@@ -84,6 +86,18 @@ def test_workers_need_no_shared_file_system(tmp_path, cli_cluster, fresh_fmu_cac
     assert (report.ok, report.failed) == (12, 0), report.errors
     assert len(store.read_results(space.output, "small", columns=[])) == 12
     assert all(store.has_trajectory(space.output, "small", s.name, 1) for s in space.scenarios)
+
+
+@pytest.mark.skipif(not can_hide_folders(), reason="needs mount namespaces (unshare -m as root)")
+@pytest.mark.skipif(not Path(dse_runner.__file__).is_relative_to(REPO), reason="dse_runner is installed, not this folder")
+def test_workers_without_dse_runner_are_named_as_the_cause(tmp_path, cli_cluster):
+    """A scheduler whose workers lack the package: one clear line at once, and the sweep marked failed."""
+    cluster = cli_cluster(workers=1, hide=(Path(dse_runner.__file__).parent,))
+    space = load_space(write_space(tmp_path, cluster={"address": cluster.address}))
+    with pytest.raises(DseError, match=rf"^the Dask workers of {re.escape(cluster.address)} cannot import "
+                                       r"dse_runner \(.*No module named 'dse_runner'.*\): install dse-runner"):
+        submit(space)
+    assert load_status(space.output, "small").state == "failed"
 
 
 def test_sigkilled_worker_loses_no_task_and_repeats_none(tmp_path, cli_cluster):

@@ -157,5 +157,12 @@ def plugin_name(key: str) -> str:
 
 
 def send(client, shipment: Shipment) -> None:
-    """Register the shipment with the scheduler (once per scheduler) and so with every worker."""
-    client.register_plugin(ShipmentPlugin(shipment), name=plugin_name(shipment.key))
+    """Register the shipment with the scheduler (once per scheduler) and so with every worker. The
+    workers unpickle it first thing: one that cannot import dse_runner fails here, and says so."""
+    try:
+        client.register_plugin(ShipmentPlugin(shipment), name=plugin_name(shipment.key))
+    except Exception as e:  # noqa: BLE001 - distributed re-raises the worker's error, whatever it was
+        if "dse_runner" not in str(e):
+            raise
+        raise DseError(f"the Dask workers of {client.scheduler.address} cannot import dse_runner ({e}): "
+                       "install dse-runner, the same version as here, where the workers run") from None
