@@ -284,6 +284,25 @@ static int64_t first_nonfinite(const double *record, int64_t from, int64_t to, i
     return -1;
 }
 
+/* Every 64 points of the loops that check rows in blocks: the rows since ``*checked`` are finite
+ * and the deadline has not passed. DONE to go on, else the code the run stopped with. */
+static inline int checkpoint(Outcome *out, Arena *arena, const double *record, const double *times,
+                             int64_t n_recorded, int64_t *checked, int64_t k, double deadline) {
+    int64_t bad = first_nonfinite(record, *checked, k, n_recorded);
+    if (bad >= 0) return stop(out, arena, DIVERGED, bad, times[bad], -1, -1);
+    *checked = k;
+    if (now() > deadline) return stop(out, arena, TIMEOUT, k, times[k - 1], -1, -1);
+    return DONE;
+}
+
+/* The end of those loops: the last rows checked, then done. */
+static int finish(Outcome *out, Arena *arena, const double *record, const double *times, int64_t n_recorded,
+                  int64_t checked, int64_t n_times) {
+    int64_t bad = first_nonfinite(record, checked, n_times, n_recorded);
+    if (bad >= 0) return stop(out, arena, DIVERGED, bad, times[bad], -1, -1);
+    return stop(out, arena, DONE, n_times - 1, times[n_times - 1], -1, -1);
+}
+
 /* Stops with ``code`` at point k, unless a row written before it (from ``checked`` on) is non-finite:
  * then the divergence, where it began, is what stopped the run. */
 static int halt(Outcome *out, Arena *arena, const double *record, const double *times, int64_t n_recorded,
@@ -311,10 +330,8 @@ __attribute__((noinline)) static int direct_loop(const Unit *units, int32_t n_un
     for (int64_t k = 1; k < n_times; k++) {
         const double t = times[k - 1], t_next = times[k], h = t_next - t;
         if (!(k & 63)) {
-            int64_t bad = first_nonfinite(record, checked, k, n_recorded);
-            if (bad >= 0) return stop(out, arena, DIVERGED, bad, times[bad], -1, -1);
-            checked = k;
-            if (now() > deadline) return stop(out, arena, TIMEOUT, k, t, -1, -1);
+            int code = checkpoint(out, arena, record, times, n_recorded, &checked, k, deadline);
+            if (code != DONE) return code;
         }
         for (int32_t u = 0; u < n_units; u++) {
             const Unit *s = &units[u];
@@ -338,9 +355,7 @@ __attribute__((noinline)) static int direct_loop(const Unit *units, int32_t n_un
                 return halt(out, arena, record, times, n_recorded, checked, READ_FAILED, k, t_next, g->unit, r);
         }
     }
-    int64_t bad = first_nonfinite(record, checked, n_times, n_recorded);
-    if (bad >= 0) return stop(out, arena, DIVERGED, bad, times[bad], -1, -1);
-    return stop(out, arena, DONE, n_times - 1, times[n_times - 1], -1, -1);
+    return finish(out, arena, record, times, n_recorded, checked, n_times);
 }
 
 /*
@@ -367,10 +382,8 @@ static inline __attribute__((always_inline)) int single_steps(
     for (int64_t k = 1; k < n_times; k++) {
         const double t = times[k - 1], t_next = times[k], h = t_next - t;
         if (!(k & 63)) {
-            int64_t bad = first_nonfinite(record, checked, k, n_recorded);
-            if (bad >= 0) return stop(out, arena, DIVERGED, bad, times[bad], -1, -1);
-            checked = k;
-            if (now() > deadline) return stop(out, arena, TIMEOUT, k, t, -1, -1);
+            int code = checkpoint(out, arena, record, times, n_recorded, &checked, k, deadline);
+            if (code != DONE) return code;
         }
         int status = fmi3 ? step3(component, t, h, true, &event, &asked, &early, &last_time) : step2(component, t, h, 1);
         if (status > FMI_WARNING) return halt(out, arena, record, times, n_recorded, checked, STEP_FAILED, k, t, 0, -1);
@@ -379,9 +392,7 @@ static inline __attribute__((always_inline)) int single_steps(
         status = fmi3 ? get3(reader, vrs, n, into, n) : get2(reader, vrs, n, into);
         if (status > FMI_WARNING) return halt(out, arena, record, times, n_recorded, checked, READ_FAILED, k, t_next, 0, 0);
     }
-    int64_t bad = first_nonfinite(record, checked, n_times, n_recorded);
-    if (bad >= 0) return stop(out, arena, DIVERGED, bad, times[bad], -1, -1);
-    return stop(out, arena, DONE, n_times - 1, times[n_times - 1], -1, -1);
+    return finish(out, arena, record, times, n_recorded, checked, n_times);
 }
 
 /* single_steps made twice, for FMI 2 and for FMI 3, so that neither tests the version at each step. */
