@@ -107,6 +107,24 @@ def test_a_cheap_fmu_is_bit_identical():
                            {f"{next(iter(plan.variables))}.mu": 1.5}))
 
 
+def test_a_repeated_simulation_notices_objectives_or_an_experiment_changed_in_place():
+    """simulate() keeps what it worked out for a plan, scenario, objectives and experiment across calls
+    (a sweep's runs); the same objects changed in place between calls must not give stale results."""
+    from dse_runner.simulation.experiment import Experiment
+    from dse_runner.simulation.objectives import Reduce
+
+    plan = as_plan(build_fmu(VANDERPOL))
+    x0 = f"{next(iter(plan.variables))}.x0"
+    objectives = {"top": Reduce(signal=x0, reduce="max")}
+    experiment = Experiment(stop_time=1.0, step=0.01)
+    assert simulate(plan, objectives=objectives, experiment=experiment).times.stop == 1.0
+    experiment.stop_time = 20.0
+    assert simulate(plan, objectives=objectives, experiment=experiment).times.stop == 20.0
+    objectives["top"] = Reduce(signal=x0, reduce="min")
+    third = simulate(plan, objectives=objectives, experiment=experiment)
+    assert third.objectives["top"] == pytest.approx(float(third.trajectory.column(x0).min()))
+
+
 def test_a_pythonfmu_export_is_bit_identical(tmp_path):
     pytest.importorskip("pythonfmu")
     if not sysconfig.get_config_var("Py_ENABLE_SHARED"):

@@ -123,7 +123,7 @@ def simulate(
     ``objectives`` default to those of the scenario's kind (none for a plain scenario); ``loop``
     chooses the master's step loop (cosim.run: native C, or the Python reference). Called again with
     the same plan, scenario, objectives and experiment (a sweep), it reuses what it worked out from
-    them: plans and scenarios are immutable; objectives are compared by value."""
+    them: plans and scenarios are immutable; objectives and the experiment are compared by value."""
     recipe = _recipe(model, scenario, objectives, experiment, (start_time, stop_time, step), interface)
     values = recipe.layered(values or {})
     trajectory = recipe.runner.run(values, timeout, loop)
@@ -136,7 +136,8 @@ class _Recipe:
     """What simulate() works out from everything but the values: the same for every run of a sweep."""
 
     given: tuple  # the arguments it was made from (kept, so that their ids stay theirs)
-    objectives: object  # a copy of the objectives given, to notice one changed in place
+    objectives: object  # copies of the objectives and experiment given, to notice one changed in place
+    experiment: Experiment | None
     scenario: Scenario
     specs: dict[str, objs.ObjectiveSpec]
     base: dict[str, Value]  # the multi-model's parameters and the scenario's values
@@ -167,7 +168,7 @@ def _recipe(model, scenario, objectives, experiment: Experiment | None, times: t
     key = (*map(id, given), times)
     reusable = isinstance(model, Plan) and (scenario is None or isinstance(scenario, Scenario))
     kept = _RECIPES.get(key) if reusable else None
-    if kept is not None and kept.objectives == objectives:
+    if kept is not None and kept.objectives == objectives and kept.experiment == experiment:
         return kept
     plan = as_plan(model, interface)
     scenario = as_scenario(scenario)
@@ -178,7 +179,8 @@ def _recipe(model, scenario, objectives, experiment: Experiment | None, times: t
     resolved = resolve_times(plan, scenario, experiment, *times)
     inputs = {ref: s for ref, s in scenario.inputs.items() if isinstance(s, Series)}
     runner = prepare(plan, resolved.start, resolved.stop, resolved.step, inputs)
-    recipe = _Recipe(given, copy.deepcopy(objectives), scenario, specs, base, resolved, runner)
+    recipe = _Recipe(given, copy.deepcopy(objectives), copy.deepcopy(experiment), scenario, specs, base, resolved,
+                     runner)
     if reusable:
         while len(_RECIPES) >= KEEP_RECIPES:
             _RECIPES.pop(next(iter(_RECIPES)))
