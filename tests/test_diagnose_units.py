@@ -37,9 +37,11 @@ def truth(t: np.ndarray, cmd_t: np.ndarray, cmd_v: np.ndarray) -> tuple[np.ndarr
 
 
 def write_run(folder: Path, name: str, sigma: float, seed: int, dropout: float = 0.1, outage: float = 5.0,
-              duration: float = 60.0, rest_start: float = 2.0, rest_end: float = 6.0, colour: float = 0.0) -> Path:
+              duration: float = 60.0, rest_start: float = 2.0, rest_end: float = 6.0, colour: float = 0.0,
+              creep: float = 0.0) -> Path:
     """A run in the field-data format: noisy fixes at 10 Hz with random dropouts and one outage.
-    ``colour`` makes the noise AR(1) with that coefficient (same marginal σ)."""
+    ``colour`` makes the noise AR(1) with that coefficient (same marginal σ); ``creep`` [m/s] moves the
+    vehicle along x while its speed command is 0, as a slope does against the drive's hold."""
     rng = np.random.default_rng(seed)
     run = folder / name
     run.mkdir(parents=True)
@@ -51,6 +53,8 @@ def write_run(folder: Path, name: str, sigma: float, seed: int, dropout: float =
         "initial_pose": {"x": 0.0, "y": 0.0, "theta": 0.0}}))
     t = np.round(np.arange(0.0, duration + 1e-9, PERIOD), 2)
     x, y = truth(t, cmd_t, cmd_v)
+    still = np.interp(t, cmd_t, cmd_v) == 0
+    x = x + creep * np.concatenate([[0.0], np.cumsum(still[1:] * np.diff(t))])
     white = rng.normal(0.0, sigma, (2, t.size))
     if colour:
         noise_xy = np.empty_like(white)
@@ -105,6 +109,14 @@ def test_coloured_noise_is_caught_at_rest(tmp_path):
     assert floor.method == noise.AT_REST
     assert floor.rho1 > 0.3
     assert floor.sigma == pytest.approx(0.03, rel=0.2)
+
+
+def test_a_vehicle_creeping_while_commanded_to_stop_is_not_counted_as_noise(tmp_path):
+    """On a slope the vehicle creeps while its speed command is 0: the spread at rest is taken about a
+    straight line in time, or 4 cm/s of creep over 6 s would triple the noise."""
+    floor = noise.estimate_noise(scenarios(tmp_path, 0.02, creep=0.04))
+    assert floor.estimates[noise.AT_REST].sigma == pytest.approx(0.02, rel=0.10)
+    assert floor.sigma == pytest.approx(0.02, rel=0.10)
 
 
 def test_second_differences_skip_triples_across_a_dropout():

@@ -10,9 +10,12 @@ tuned by what is being judged. Two estimators, each blind to a different failure
   for white noise its variance is 6σ², and motion adds only a·Δt² (≤ 5 mm at 10 Hz). The median
   absolute deviation pooled over x, y and runs makes it robust to jumps. Coloured noise (a slowly
   wandering fix) is largely cancelled too, so this alone can under-estimate σ;
-* **at rest**: where the commanded speed has been 0 long enough, the vehicle stands still and
-  the spread of the fixes about their mean *is* the noise, coloured or not. The lag-1
-  autocorrelation there tells how coloured it is.
+* **at rest**: where the commanded speed has been 0 long enough, the vehicle stands still (or
+  creeps at a steady speed, held on a slope by its drive) and the spread of the fixes about a
+  straight line in time *is* the noise, coloured or not. The lag-1 autocorrelation there tells
+  how coloured it is. (About their mean instead, a creep counts as noise: in the blind cases on a
+  slope the floor came out 6.5 times too high; about a line it is still about twice too high,
+  since the creep is not yet steady where a stop begins.)
 
 σ̂ is the larger of the available estimates. Equation 1 is a mean distance, and for isotropic
 Gaussian noise of σ per axis the mean distance is σ·√(π/2) ≈ 1.25 σ: that is the floor in
@@ -144,21 +147,24 @@ def rest_windows(command_time: np.ndarray, command_speed: np.ndarray, end: float
 
 def rest_deviations(time: np.ndarray, x: np.ndarray, y: np.ndarray, windows: Iterable[tuple[float, float]],
                     min_fixes: int = REST_MIN_FIXES) -> list[np.ndarray]:
-    """The fixes of each stop with at least ``min_fixes``, about their own mean: an (n, 2) array each."""
+    """The fixes of each stop with at least ``min_fixes``, about a straight line in time fitted to them
+    (position and a steady creep): an (n, 2) array each."""
     time = np.asarray(time, float)
     out = []
     for start, stop in windows:
         inside = (time >= start) & (time < stop)
         if inside.sum() >= min_fixes:
             points = np.column_stack([np.asarray(x, float)[inside], np.asarray(y, float)[inside]])
-            out.append(points - points.mean(axis=0))
+            design = np.column_stack([np.ones(int(inside.sum())), time[inside] - time[inside].mean()])
+            fitted = design @ np.linalg.lstsq(design, points, rcond=None)[0]
+            out.append(points - fitted)
     return out
 
 
 def sigma_at_rest(deviations: list[np.ndarray]) -> float:
-    """Pooled within-stop standard deviation per axis (each stop's mean costs one degree of freedom)."""
+    """Pooled within-stop standard deviation per axis (each stop's line costs two degrees of freedom an axis)."""
     squares = sum(float(np.sum(d ** 2)) for d in deviations)
-    dof = sum(2 * (len(d) - 1) for d in deviations)
+    dof = sum(2 * (len(d) - 2) for d in deviations)
     return math.sqrt(squares / dof) if dof > 0 else math.nan
 
 

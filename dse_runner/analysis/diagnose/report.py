@@ -314,7 +314,8 @@ def noise_text(diagnosis: "Diagnosis") -> str:
                   f"; lag-1 autocorrelation {floor.rho1:.2f}, " + ("coloured noise, which second differences "
                                                                    "under-estimate" if floor.rho1 > 0.3 else "white"))
         parts.append(f"σ = {rest.sigma:.4f} m from the spread of {rest.fixes} fixes while the commanded speed was 0 "
-                     f"and the vehicle stood still{colour}")
+                     f"and the vehicle stood still (or crept at a steady speed: the spread is taken about a straight line "
+                     f"in time){colour}")
     per_run = list(floor.per_run.values())
     spread = f" Per run, σ lies between {min(per_run):.4f} and {max(per_run):.4f} m." if per_run else ""
     method = {CLOSE_FIXES: "close fixes", AT_REST: "fixes at rest"}.get(floor.method, floor.method)
