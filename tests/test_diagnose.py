@@ -117,6 +117,19 @@ def test_cli_json_resumes_from_the_store(cases, dask_scheduler):
     assert printed["runner_up"]["runs_better"].endswith("/6")
 
 
+def test_look_alikes_are_weighed_where_they_differ(cases):
+    """The steering lag's twin (a delay of every command) is weighed segment by segment at no extra simulation:
+    the evidence favours the concealed lag, and the answer's shape alone cannot tell a lag from a delay
+    without steering steps (the bundled manoeuvres have none)."""
+    _, _, _, result = cases("steering_lag")
+    look = next(x for x in result.lookalikes if set(x.members) == {"steering_lag", "time_offset"})
+    assert look.favoured == "steering_lag" and abs(look.evidence.llr) >= 5
+    assert look.shape["favours"] is None and look.shape["fixes"] == 0
+    saved = strict_loads((result.out / "report" / "diagnosis.json").read_text())
+    assert saved["lookalikes"][0]["pair"][0] == "steering_lag"
+    assert "### Look-alikes" in result.files["report"].read_text()
+
+
 def test_a_missing_scenarios_folder_is_named(tmp_path):
     done = dse_runner("diagnose", "--scenarios", tmp_path / "nowhere", "--out", tmp_path / "out")
     assert done.returncode == 2

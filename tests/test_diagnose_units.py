@@ -413,3 +413,135 @@ def test_the_stop_rule_screens_only_when_a_fit_leaves_more_than_noise():
     assert worth_screening([fitted_to(0.0)], None, settings)  # no floor: nothing to stop at
     assert not worth_screening([fitted_to(0.09)], floor, Settings(max_effects=1))
     assert not worth_screening([fitted_to(0.09)], floor, Settings(hypotheses=("wheel_slip",)))
+
+
+# ---- look-alikes: segments, kinematics, the LLR between twins, response fits -------------------------
+
+from dse_runner.analysis.diagnose import kinematics, lookalike, segments
+
+
+def command_log() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A 20 Hz log with one of each kind: standing, a speed step, a steering step and back, a steering ramp
+    to a held turn, a speed ramp, cruising."""
+    t = np.round(np.arange(0.0, 40.0 + 1e-9, 0.05), 2)
+    speed = np.where(t >= 1.0, 1.2, 0.0) + np.clip((t - 25.0) / 5.0, 0.0, 1.0) * 0.8
+    steering = np.where((t >= 5.0) & (t < 10.0), 0.1, 0.0) + np.clip((t - 15.0) / 5.0, 0.0, 1.0) * 0.1
+    steering = np.where(t >= 25.0, 0.0, steering)  # straightened in one step at 25 s
+    return t, speed, steering
+
+
+@pytest.mark.parametrize("time, kind", [(0.5, "rest"), (2.0, "speed_step"), (4.5, "cruise"), (6.0, "steer_step"),
+                                        (9.0, "steer_hold"), (11.0, "steer_step"), (14.0, "cruise"),
+                                        (17.0, "steer_ramp"), (24.0, "steer_hold"), (26.0, "steer_step"),
+                                        (29.0, "speed_ramp"), (38.0, "cruise")])
+def test_segments_come_from_the_command_log(time, kind):
+    t, speed, steering = command_log()
+    table = segments.command_segments(t, speed, steering)
+    assert segments.kinds_at(table, np.array([time]))[0] == kind
+    assert np.allclose(table["start"].to_numpy()[1:], table["end"].to_numpy()[:-1])  # a partition of the run
+    assert table["end"].iloc[-1] == pytest.approx(t[-1])
+
+
+def test_a_fast_sine_is_a_ramp_not_a_step():
+    t = np.round(np.arange(0.0, 60.0 + 1e-9, 0.05), 2)
+    table = segments.command_segments(t, np.full(t.size, 1.5), 0.32 * np.sin(2 * np.pi * t / 20.0))
+    kinds = set(table["kind"])
+    assert "steer_step" not in kinds and "steer_ramp" in kinds
+
+
+def test_kinematics_recover_speed_and_yaw_rate_through_noise_and_dropouts():
+    rng = np.random.default_rng(5)
+    t = np.round(np.arange(0.0, 60.0, PERIOD), 2)
+    keep = rng.random(t.size) >= 0.1
+    keep[(t >= 20.0) & (t < 25.0)] = False  # a 5 s outage
+    t = t[keep]
+    speed, radius = 1.5, 12.0
+    x = radius * np.sin(speed * t / radius) + rng.normal(0, 0.02, t.size)
+    y = radius * (1 - np.cos(speed * t / radius)) + rng.normal(0, 0.02, t.size)
+    kin = kinematics.gps_kinematics(t, x, y)
+    assert np.nanmedian(np.abs(kin.speed - speed)) < 0.03
+    assert np.nanmean(kin.yaw_rate) == pytest.approx(speed / radius, abs=0.01)
+    assert np.nanmean(kin.acceleration) == pytest.approx(0.0, abs=0.01)
+    assert np.isnan(kin.speed[(t > 19.8) & (t < 25.2)]).all()  # nothing invented across the outage
+    assert np.isfinite(kin.speed).mean() > 0.8
+
+
+def test_the_llr_favours_the_set_whose_residual_is_noise_where_the_twins_differ():
+    rng = np.random.default_rng(2)
+    sigma, m = 0.02, 400
+    kinds = np.array(["cruise"] * 200 + ["steer_step"] * 50 + ["cruise"] * 150, dtype=object)
+    bump = np.where(kinds == "steer_step", 0.03 * np.sin(np.linspace(0, np.pi, m)) + 0.02, 0.0)
+    noise_xy = rng.normal(0, sigma, (3, 2 * m))
+    right = [noise_xy[0], noise_xy[1]]
+    wrong = [noise_xy[0] + np.concatenate([bump, 0 * bump]), noise_xy[1] + np.concatenate([bump, bump])]
+    e = lookalike.segment_evidence(right, wrong, [kinds, kinds], sigma)
+    assert e.llr >= lookalike.DECISIVE and e.tau == pytest.approx(1.0, abs=0.3)
+    assert abs(e.by_kind["steer_step"]) > 0.9 * abs(e.llr)  # where they differ
+    assert lookalike.segment_evidence(wrong, right, [kinds, kinds], sigma).llr == pytest.approx(-e.llr)
+    same = lookalike.segment_evidence(right, [r + 0.0 for r in right], [kinds, kinds], sigma)
+    assert same.llr == 0.0 and lookalike.decision(*table()[:2], same.llr) != lookalike.DECIDED_BY_LLR
+
+
+def test_correlated_residuals_count_for_fewer_fixes():
+    rng = np.random.default_rng(4)
+    white = rng.normal(0, 1, 20000)
+    assert lookalike.autocorrelation_time([white]) == pytest.approx(1.0, abs=0.1)
+    rho = 0.8
+    coloured = np.empty_like(white)
+    coloured[0] = white[0]
+    for k in range(1, white.size):
+        coloured[k] = rho * coloured[k - 1] + white[k]
+    assert lookalike.autocorrelation_time([coloured]) == pytest.approx((1 + rho) / (1 - rho), rel=0.15)
+
+
+def speed_channel(form: str, size: float, seed: int) -> lookalike.Channel:
+    """Recorded speed = the model's speed steps through a delay or a lag of ``size`` s, as GPS would show it."""
+    t, speed, steering = command_log()
+    truth = lookalike.delayed(t, speed, size) if form == "delay" else lookalike.lagged(t, speed, size)
+    rng = np.random.default_rng(seed)
+    fixes = np.round(np.arange(0.0, 40.0, PERIOD), 2)
+    fixes = fixes[rng.random(fixes.size) >= 0.05]
+    operator = kinematics.local_operator(fixes, kinematics.VELOCITY_WINDOW, 1)[1]
+    recorded = kinematics.smoothed_like(operator, 1, t, truth, fixes) + rng.normal(0, 0.005, fixes.size)
+    kinds = segments.kinds_at(segments.command_segments(t, speed, steering), fixes)
+    return lookalike.Channel(fixes, recorded, kinds, operator, 1, t, speed)
+
+
+@pytest.mark.parametrize("form", ["delay", "lag"])
+def test_the_response_fit_tells_a_delay_from_a_lag(form):
+    fits = {r.kind: r for r in lookalike.response_fit([speed_channel(form, 0.5, 1)], lookalike.SPEED)}
+    step = fits["speed_step"]
+    assert step.best == form
+    assert (step.delay if form == "delay" else step.lag) == pytest.approx(0.5, abs=0.05)
+    assert step.gain_sse > min(step.delay_sse, step.lag_sse)
+    assert fits["cruise"].gain == pytest.approx(1.0, abs=0.02)  # a phase, no attenuation
+
+
+def look(decision: str, llr: float, kinds: dict[str, float]) -> lookalike.LookAlike:
+    e = lookalike.SegmentEvidence(llr, kinds, {k: 100 for k in kinds}, 1.3, 0.015)
+    return lookalike.LookAlike(("steering_lag", "time_offset"), ("steering_lag", "time_offset"), e, decision,
+                               "steering_lag", lookalike.telling("steering_lag", "time_offset"))
+
+
+def test_twins_are_found_by_a_swap_of_look_alikes():
+    assert lookalike.swapped(("wheel_slip", "steering_lag"), ("wheel_slip", "time_offset")) == (
+        "steering_lag", "time_offset")
+    assert lookalike.swapped(("wheel_slip",), ("speed_lag",)) == ("wheel_slip", "speed_lag")
+    assert lookalike.swapped(("wheel_slip",), ("steering_lag",)) is None
+    assert lookalike.swapped(("wheel_slip", "steering_lag"), ("speed_lag", "time_offset")) is None
+
+
+def test_lookalikes_in_json_and_words():
+    from dse_runner.analysis.diagnose import report
+
+    d = diagnosis(("wheel_slip",), floor=0.1)
+    d.lookalikes = [look(lookalike.CANNOT_TELL, 1.2, {"steer_ramp": 1.0, "cruise": 0.2})]
+    saved = strict_loads(strict_json.dumps(d.to_json()))["lookalikes"][0]
+    assert saved["pair"] == ["steering_lag", "time_offset"] and saved["decision"] == "cannot_tell"
+    assert saved["by_segment"]["steer_ramp"] == {"llr": 1.0, "fixes": 100} and saved["telling_fixes"] == 0
+    words = report.twins_sentence(d.lookalikes[0])
+    assert "`steering_lag` or its look-alike `time_offset`" in words
+    assert "cannot tell on these runs" in words and "a run with steering steps would" in words
+    decided = report.twins_sentence(look(lookalike.DECIDED_BY_LLR, -7.5, {"steer_step": -7.0, "cruise": -0.5}))
+    assert decided.startswith("**Look-alikes:** `time_offset` rather than its look-alike `steering_lag`")
+    assert "steering steps" in decided

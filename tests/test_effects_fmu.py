@@ -93,3 +93,144 @@ def test_impossible_effect_values_are_refused_by_name(effects, name, value):
         drive(effects, 1.0, **{name: value})
 
 
+
+
+# The correction block (docs/research/diagnosis-beyond-library.md §4.3): corr_* coefficients, zero = off.
+
+EFFECTS_SOURCE = FMU_SOURCES / "robotti_vehicle_effects"
+
+
+def test_every_correction_term_is_a_parameter_of_the_fmu_in_order():
+    """correction.TERMS, model.c's CORR_TERMS and modelDescription.xml name the same terms in the same order,
+    after gps_y, with value references that are their indices in model.c's enum Real."""
+    import re
+    import xml.etree.ElementTree as ET
+
+    from dse_runner.analysis.diagnose import correction
+
+    root = ET.parse(EFFECTS_SOURCE / "modelDescription.xml").getroot()
+    described = [(v.get("name"), int(v.get("valueReference")), v.get("causality"), v.find("Real").get("start"))
+                 for v in root.iter("ScalarVariable")]
+    gps_y = next(vr for name, vr, *_ in described if name == "gps_y")
+    corr = [(name, vr, causality, start) for name, vr, causality, start in described if name.startswith("corr_")]
+    assert [name for name, *_ in corr] == correction.variables()
+    assert [vr for _, vr, *_ in corr] == list(range(gps_y + 1, gps_y + 1 + len(correction.TERMS)))
+    assert {(causality, float(start)) for *_, causality, start in corr} == {("parameter", 0.0)}
+    assert [vr for _, vr, *_ in described] == list(range(len(described)))  # no existing reference moved
+    in_c = re.findall(r'X\(\w+, "(corr_\w+)"\)', (EFFECTS_SOURCE / "model.c").read_text())
+    assert in_c == correction.variables()
+    assert len({t.variable for t in correction.TERMS}) == len(correction.TERMS)
+
+
+def test_a_steering_term_of_one_is_the_steering_offset_bit_for_bit(effects):
+    """corr_steer_1 adds to the steering angle where steering_offset does: (δ + 0) + c and (δ + c) + 0 round alike."""
+    inputs = {"velocity": 2.0, "delta_f": 0.1, "steering_lag": 0.3, "wheel_slip": 0.05, "theta0": 0.4}
+    offset = drive(effects, 20.0, steering_offset=0.03, **inputs)
+    corrected = drive(effects, 20.0, corr_steer_1=0.03, **inputs)
+    for name in ("x", "y", "theta", "vx", "vy", "yaw_rate", "gps_x", "gps_y"):
+        assert np.array_equal(offset.column(f"vehicle.{name}"), corrected.column(f"vehicle.{name}"))
+
+
+def test_antenna_terms_of_one_are_the_antenna_offset_bit_for_bit(effects):
+    inputs = {"velocity": 2.0, "delta_f": -0.1, "theta0": 0.4}
+    lever = drive(effects, 10.0, antenna_x=0.7, antenna_y=-0.3, **inputs)
+    corrected = drive(effects, 10.0, corr_gps_along_1=0.7, corr_gps_cross_1=-0.3, **inputs)
+    for name in ("x", "y", "theta", "vx", "gps_x", "gps_y"):
+        assert np.array_equal(lever.column(f"vehicle.{name}"), corrected.column(f"vehicle.{name}"))
+
+
+def test_a_drive_force_term_of_one_doubles_the_drive_gain_bit_for_bit(effects):
+    """d(vx)/dt += 1·F_drive/m on a straight line, below the friction limit, is Kv doubled: 2F/m rounds as F/m + F/m.
+    This pins model.c's copy of the drive force to bicycle.h's."""
+    doubled = drive(effects, 10.0, velocity=0.3, Kv=16000.0)
+    corrected = drive(effects, 10.0, velocity=0.3, Kv=8000.0, corr_acc_fdrive=1.0)
+    assert np.array_equal(doubled.column("vehicle.vx"), corrected.column("vehicle.vx"))
+    assert np.array_equal(doubled.column("vehicle.x"), corrected.column("vehicle.x"))
+
+
+def test_an_acceleration_term_in_the_speed_is_an_exponential_approach(effects):
+    """d(vx)/dt = Kv(u − vx)/m + c·vx from rest (straight, below the friction limit) is vx = v∞(1 − e^(−λt)),
+    λ = Kv/m − c, v∞ = Kv·u/(m·λ): slower than commanded, as wheel slip is, for c < 0."""
+    u, c, kv, mass = 0.5, -0.31, 8000.0, 1500.0
+    traj = drive(effects, 5.0, velocity=u, corr_acc_v=c, Kv=kv, mass=mass)
+    lam = kv / mass - c
+    expected = kv * u / (mass * lam) * (1.0 - np.exp(-lam * traj.time))
+    assert np.abs(traj.column("vehicle.vx") - expected).max() < 1e-9
+
+
+def test_the_filtered_command_rate_matches_correction_py(effects):
+    """With no drive (Kv = 0), d(vx)/dt = 1·a_cmd integrates to the filtered command w(t) = u(1 − e^(−t/τ_f)),
+    which correction.filtered_rate computes in closed form from the command log."""
+    from dse_runner.analysis.diagnose import correction
+
+    traj = drive(effects, 2.0, velocity=0.8, Kv=0.0, corr_acc_acmd=1.0)
+    w, rate = correction.filtered_rate(np.array([0.0]), np.array([0.8]), traj.time)
+    assert np.abs(traj.column("vehicle.vx") - w).max() < 1e-9
+    assert rate[0] == pytest.approx(0.8 / correction.TAU_F)
+
+
+def test_antenna_terms_use_the_heading_and_speed_as_correction_py_does(effects):
+    """gps_along += c1·cos 2ψ + c2·v and gps_cross += c3·sin ψ, checked from the FMU's own heading and speed."""
+    from dse_runner.analysis.diagnose import correction
+
+    values = {"corr_gps_along_cos2psi": 0.2, "corr_gps_along_v": 0.1, "corr_gps_cross_sinpsi": -0.3}
+    traj = drive(effects, 10.0, velocity=2.0, delta_f=-0.2, **values)
+    theta, vx = traj.column("vehicle.theta"), traj.column("vehicle.vx")
+    zero = np.zeros_like(theta)
+    cols = correction.features(correction.FeatureInputs(v=vx, psi=theta, r=zero, s=zero, v_cmd=zero, a_cmd=zero,
+                                                        delta=zero, delta_rate=zero, f_drive=zero))
+    along = sum(v * cols[k] for k, v in values.items() if "along" in k)
+    cross = sum(v * cols[k] for k, v in values.items() if "cross" in k)
+    gx = traj.column("vehicle.x") + along * np.cos(theta) - cross * np.sin(theta)
+    gy = traj.column("vehicle.y") + along * np.sin(theta) + cross * np.cos(theta)
+    assert np.abs(traj.column("vehicle.gps_x") - gx).max() < 1e-12
+    assert np.abs(traj.column("vehicle.gps_y") - gy).max() < 1e-12
+
+
+def test_a_non_finite_correction_is_refused_by_name(effects):
+    with pytest.raises(DseError, match="corr_yaw_r"):
+        drive(effects, 1.0, corr_yaw_r=float("nan"))
+
+
+def test_correction_terms_read_as_equations():
+    from dse_runner.analysis.diagnose import correction
+
+    assert correction.readable({"vehicle.corr_acc_v": -0.31}) == ["d(v)/dt += -0.31·v"]
+    assert correction.readable({"corr_steer_ddelta": -0.4, "corr_steer_1": 0.012, "corr_acc_v": 0.0,
+                                "vehicle.mass": 1500.0}) == ["δ += 0.012 - 0.4·δ̇"]
+    assert correction.readable({"corr_gps_cross_sinpsi": 0.12, "corr_acc_acmd": 0.05, "corr_acc_v2": -0.02}) == [
+        "d(v)/dt += -0.02·v² + 0.05·a_cmd", "gps_cross += 0.12·sin ψ"]
+    assert correction.readable_term(correction.term("corr_acc_v"), -0.31, (-0.34, -0.28)) == \
+        "d(v)/dt += -0.31·v [-0.34, -0.28]"
+    with pytest.raises(DseError, match="not a correction term"):
+        correction.term("corr_acc_w")
+
+
+def test_correction_bounds_scale_with_the_feature():
+    from dse_runner.analysis.diagnose import correction
+
+    acc_v = correction.term("corr_acc_v")
+    assert correction.bound(acc_v, rms=2.0) == pytest.approx(1.0)  # 2 m/s² over an RMS speed of 2 m/s
+    assert correction.bound(acc_v) == pytest.approx(2.0 / 1.5)  # the typical speed when no runs are given
+    p = correction.parameter(acc_v, "vehicle", rms=2.0, start=-5.0)
+    assert (p.name, p.start, p.lower, p.upper, p.step) == ("vehicle.corr_acc_v", -1.0, -1.0, 1.0, 1e-3)
+    assert "yaw" not in {t.channel for t in correction.searched_terms()}
+    assert len(correction.TERMS) == 34
+
+
+def test_filtered_rate_of_a_piecewise_constant_command():
+    """correction.filtered_rate against a fine integration of dw/dt = (u − w)/τ_f, with a delayed look-up."""
+    from dse_runner.analysis.diagnose import correction
+
+    t_cmd, u = np.array([0.0, 0.05, 0.3, 1.0]), np.array([0.1, 0.4, -0.2, 0.0])
+    t = np.linspace(-0.2, 2.0, 221)
+    w, rate = correction.filtered_rate(t_cmd, u, t)
+    fine = np.arange(-0.2, 2.0 + 1e-12, 1e-5)
+    held = np.where(fine < 0, 0.0, u[np.clip(np.searchsorted(t_cmd, fine + 1e-12, side="right") - 1, 0, None)])
+    wf = np.zeros_like(fine)
+    for i in range(1, len(fine)):  # exact for a constant input over each step
+        wf[i] = held[i] + (wf[i - 1] - held[i]) * np.exp(-1e-5 / correction.TAU_F)
+    assert np.abs(w - np.interp(t, fine, wf)).max() < 1e-4
+    assert np.all(w[t < 0] == 0.0) and np.all(rate[t < 0] == 0.0)
+    assert rate[np.searchsorted(t, 0.5)] == pytest.approx((-0.2 - w[np.searchsorted(t, 0.5)]) / correction.TAU_F)
+    assert correction.distance(np.array([0.0, 1.0, 2.0]), np.array([1.0, -1.0, 3.0])).tolist() == [0.0, 1.0, 3.0]

@@ -42,7 +42,8 @@ from ...sweeps.fit import (
 from ...sweeps.spec import Range, Space, SpaceSpec, read_spec, resolve_space
 from ...sweeps.sweep import submit, trajectories_of
 from ..rank import rank
-from . import explain, locate, noise, screen
+from . import explain, locate, lookalike, noise, screen
+from .correction import variables as correction_variables
 from .explain import Candidate
 from .hypotheses import EFFECTS_FMU, LIBRARY, effect_variables, hypothesis
 from .noise import NoiseFloor
@@ -105,6 +106,7 @@ class Diagnosis:
     floor: NoiseFloor = noise.UNKNOWN  # the GPS noise floor, estimated from the recordings alone
     screened: list[screen.Screened] = field(default_factory=list)  # every combination the screen tried, best first
     shortlisted: list[str] = field(default_factory=list)  # the labels of those then fitted for real
+    lookalikes: list[lookalike.LookAlike] = field(default_factory=list)  # the evidence between twin sets
 
     @property
     def verdict(self) -> str:
@@ -176,6 +178,7 @@ class Diagnosis:
             "verdict": self.verdict,
             "noise_floor": self.noise_floor,
             "runner_up": up.to_json() if up is not None else None,
+            "lookalikes": [look.to_json() for look in self.lookalikes],
             "held_out": [{"scenario": s, "before": self.baseline.held_out[s], "after": self.chosen.held_out[s]}
                          for s in sorted(self.baseline.held_out)],
             "candidates": [{"id": c.label, "cross_track_held_out": c.cross_validated, "bic": c.bic,
@@ -265,6 +268,7 @@ def fits_space(calibration: Space, vehicle: str, out: Path) -> Space:
                           "# The multi-model diagnosis fits: the vehicle replaced by its effects variant.\n")
     parameters = {name: values for name, values in calibration.parameters.items()}
     parameters.update({f"{vehicle}.{v}": [0.0] for v in effect_variables()})
+    parameters.update({f"{vehicle}.{v}": [0.0] for v in correction_variables()})  # off until discovery frees them
     entries = [e if isinstance(e, str) else e.model_dump() for e in calibration.spec.scenarios]
     spec = SpaceSpec(name=FITS, multimodel=str(mm_path), scenarios=at_antenna(entries, vehicle),
                      parameters=parameters, objectives=["cross_track_error", "fix_residuals"],
@@ -483,8 +487,9 @@ def _diagnose(calibration: Space, out: Path, settings: Settings, client, say: Pr
     space = fits_space(calibration, vehicle, out)
     chain = Chain(space, vehicle, base, client, settings, say)
     choice = choose(chain, {p.name: p.start for p in base}, floor.cross_track if floor.available else None)
-    chosen = choice.chosen
     baseline = next(c for c in choice.candidates if not c.ids)
+    chosen, looks = lookalike.weigh(choice.chosen, choice.candidates, baseline, space.scenarios,
+                                    floor.sigma if floor.available else None, settings.min_gain, settings.bic_margin)
     diagnosis = Diagnosis(out, {
         "sweep": calibration.name, "vehicle": vehicle, "grid_best": grid.best,
         "grid_at_bound": [p.name for p in base if grid.best[p.name] in (p.lower, p.upper)
@@ -494,9 +499,11 @@ def _diagnose(calibration: Space, out: Path, settings: Settings, client, say: Pr
         "insensitive_scenarios": locate.insensitive_scenarios(grid.table1),
         "folds": chain.folds,
     }, explain.ranked(choice.candidates), chosen, baseline, settings, dropouts=dropouts(calibration.scenarios),
-        floor=floor, screened=choice.screened, shortlisted=[x.label for x in choice.shortlisted])
+        floor=floor, screened=choice.screened, shortlisted=[x.label for x in choice.shortlisted], lookalikes=looks)
     say("locating: the residuals of the calibrated model and of the chosen one")
     before = trajectories_of(space, client, baseline.full.point, BEFORE)
+    lookalike.attach_responses(looks, space.scenarios, before, {"heading": f"{vehicle}.theta", "vx": f"{vehicle}.vx",
+                                                                "vy": f"{vehicle}.vy"})
     after = trajectories_of(space, client, chosen.full.point, AFTER)
     frames = {"before": _locate(space, vehicle, before), "after": _locate(space, vehicle, after)}
     diagnosis.files.update(write_model(diagnosis, calibration))

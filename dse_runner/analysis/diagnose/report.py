@@ -19,7 +19,7 @@ from ... import strict_json
 from ...cases import fielddata
 from ...sweeps.spec import Space
 from ..rank import format_point
-from . import explain, locate
+from . import explain, locate, lookalike
 from .explain import Candidate
 from .hypotheses import LIBRARY
 from .noise import AT_REST, CLOSE_FIXES, MAX_SPACING
@@ -186,6 +186,8 @@ def _markdown(diagnosis: "Diagnosis", located: dict[str, pd.DataFrame], sig: dic
         lines += [f"**Finding:** `none`: no hypothesis of the library passes the test against the calibrated "
                   f"model (held-out mean cross-track error {diagnosis.cross_track_before:.3f} m). Nothing is added.", ""]
     lines += [verdict_text(diagnosis), ""]
+    lines += [line for look in diagnosis.lookalikes if look.decision != lookalike.DECIDED_BY_FIT
+              for line in (twins_sentence(look), "")]
 
     lines += ["## 1. Locate", "",
               f"Calibration grid best point: {format_point(cal['grid_best'], 5)}; parameters at a bound of the design space: "
@@ -220,6 +222,12 @@ def _markdown(diagnosis: "Diagnosis", located: dict[str, pd.DataFrame], sig: dic
     up = diagnosis.runner_up
     lines += ["### Runner-up", "", runner_up_text(up, diagnosis.chosen.label, diagnosis.settings) if up else
               "No other candidate was fitted that is not part of the chosen one.", ""]
+    if diagnosis.lookalikes:
+        lines += ["### Look-alikes", "", LOOKALIKE_INTRO, ""]
+        for look in diagnosis.lookalikes:
+            lines += [lookalike_text(look), "", _table(_by_segment(look), 2), ""]
+            if look.response:
+                lines += [response_text(look), "", _table(_responses(look)), ""]
     for e in diagnosis.effects:
         h = LIBRARY[e["id"]]
         lines += [f"### `{h.id}`: {h.name}", "", h.explanation, "", f"Expected signature: {h.signature}.", ""]
@@ -344,3 +352,103 @@ def runner_up_text(up: explain.Evidence, chosen: str, settings: Any) -> str:
             f"runs better{tied}; ΔBIC = {up.delta_bic:+.1f} (positive favours the chosen model). ΔBIC treats every fix "
             "as independent, but successive fixes are strongly correlated, so it overstates the evidence: the "
             "held-out difference and the count of runs are the figures to weigh.")
+
+
+# ---- look-alikes ----------------------------------------------------------------------------------
+
+SEGMENT_WORDS = {"steer_step": "steering steps", "steer_ramp": "steering ramps and sines", "steer_hold": "held turns",
+                 "speed_step": "speed steps", "speed_ramp": "speed ramps", "cruise": "cruising straight",
+                 "rest": "standing", "unlabelled": "outside the command log"}
+LOOKALIKE_INTRO = (
+    "Twin effects (a delay of every command and a steering lag; slip and a speed lag; a delay and a speed lag) "
+    "leave nearly the same residual on ordinary manoeuvres. Both sets were fitted on every run, and their fix "
+    "residuals compared segment by segment, the segments read from the command log alone: the log-likelihood "
+    "ratio (LLR) is the difference of their squared residuals over 2σ² (σ the GPS noise floor), divided by the "
+    "residuals' autocorrelation time in fixes, since successive fixes of a smooth residual are not independent "
+    f"evidence. Positive favours the first set. When held-out error and BIC cannot separate the two, |LLR| ≥ "
+    f"{lookalike.DECISIVE:g} (about 150 to 1) decides; below it the diagnosis names both.")
+
+
+def _words(kind: str) -> str:
+    return SEGMENT_WORDS.get(kind, kind)
+
+
+def _strongest(look: lookalike.LookAlike) -> str:
+    """The segment kind that carries most of the evidence, in words, with its share of the LLR."""
+    by_kind = look.evidence.by_kind
+    if not by_kind:
+        return ""
+    kind = max(by_kind, key=lambda k: abs(by_kind[k]))
+    return f"mostly on {_words(kind)} ({by_kind[kind]:+.1f})"
+
+
+def twins_sentence(look: lookalike.LookAlike) -> str:
+    """The verdict between twins that held-out error and BIC could not separate, in one sentence."""
+    a, b = look.pair
+    llr = look.evidence.llr
+    if look.decision == lookalike.DECIDED_BY_LLR:
+        loser = b if look.favoured == a else a
+        return (f"**Look-alikes:** {_ids(look.favoured)} rather than its look-alike {_ids(loser)}: held-out error "
+                f"and BIC cannot separate them, but the fixes can (LLR {abs(llr):.1f} in its favour, "
+                f"{_strongest(look)}).")
+    missing = "" if look.telling_fixes else (
+        " these runs have no " + " and no ".join(_words(k) for k in look.telling.kinds) + ";")
+    return (f"**Look-alikes:** {_ids(a)} or its look-alike {_ids(b)}: cannot tell on these runs (LLR {llr:+.1f}, "
+            f"below the {lookalike.DECISIVE:g} that decides);{missing} {look.telling.advice} would.")
+
+
+def lookalike_text(look: lookalike.LookAlike) -> str:
+    """The evidence between one pair of twins and how it was used."""
+    a, b = look.pair
+    e = look.evidence
+    how = {lookalike.DECIDED_BY_FIT: "held-out error and BIC already separate them, and the LLR is reported "
+                                     "as a check",
+           lookalike.DECIDED_BY_LLR: f"held-out error and BIC do not separate them; the LLR does "
+                                     f"(|LLR| ≥ {lookalike.DECISIVE:g})",
+           lookalike.CANNOT_TELL: f"neither held-out error and BIC nor the LLR (below {lookalike.DECISIVE:g}) "
+                                  "separates them: cannot tell on these runs"}[look.decision]
+    return (f"{_ids(a)} against {_ids(b)} (swapping `{look.members[0]}` for `{look.members[1]}`): LLR {e.llr:+.1f}, "
+            f"in favour of {_ids(look.favoured)}, {_strongest(look)}; {how}. σ = {e.sigma:.4f} m, autocorrelation "
+            f"time {e.tau:.1f} fixes. What tells them apart best: {', '.join(_words(k) for k in look.telling.kinds)} "
+            f"({look.telling_fixes} fixes here); {look.telling.advice} would add the most.")
+
+
+def _by_segment(look: lookalike.LookAlike) -> pd.DataFrame:
+    e = look.evidence
+    return pd.DataFrame([{"segment": _words(k), "fixes": e.fixes[k], f"LLR ({look.pair[0]} over {look.pair[1]})": v}
+                         for k, v in e.by_kind.items()])
+
+
+def response_text(look: lookalike.LookAlike) -> str:
+    """What the response fits say, in a control engineer's terms."""
+    channel = "course (direction of travel)" if look.telling.channel == lookalike.COURSE else "speed over ground"
+    telling = [r for r in look.response if r.kind in look.telling.kinds] or look.response
+    said = "; ".join(f"on {_words(r.kind)}, " + ({"delay": f"a delay of {r.delay:.2f} s fits best (lag "
+                                                            f"{r.lag:.2f} s fits a little worse)",
+                                                   "lag": f"a first-order lag of {r.lag:.2f} s fits best (delay "
+                                                          f"{r.delay:.2f} s fits a little worse)",
+                                                   "gain": f"a gain of {r.gain:.3f} fits best: an attenuation, not a "
+                                                           "phase",
+                                                   "none": "the calibrated model's answer fits as it is"}[r.best])
+                     for r in telling)
+    shape = look.shape
+    segment = _words(shape["segment"])
+    if shape["favours"]:
+        verdict = (f"On {segment} the shape alone favours `{shape['favours']}` (LLR {abs(shape['llr']):.1f} over "
+                   f"{shape['fixes']} fixes).")
+    elif shape["fixes"]:
+        verdict = (f"On {segment} the shape alone cannot tell them apart (LLR {shape['llr']:+.1f} over "
+                   f"{shape['fixes']} fixes); more of them would.")
+    else:
+        verdict = f"These runs have no {segment}, so the shape alone cannot tell them apart: {look.telling.advice} would."
+    return (f"The recorded {channel}, estimated from the fixes by local polynomial fits (no interpolation across "
+            "dropouts), against the calibrated model's without either effect, seen through the same window, fitted "
+            f"per segment as a pure delay, a first-order lag and a gain (no simulation): {said}. A delay and a lag "
+            "of the same size shift a slow answer alike; only a step's shape, or a steady deficit while cruising, "
+            f"tells them apart. {verdict}")
+
+
+def _responses(look: lookalike.LookAlike) -> pd.DataFrame:
+    return pd.DataFrame([{"segment": _words(r.kind), "fixes": r.fixes, "SSE as modelled": r.sse,
+                          "delay [s]": r.delay, "SSE delay": r.delay_sse, "lag [s]": r.lag, "SSE lag": r.lag_sse,
+                          "gain": r.gain, "SSE gain": r.gain_sse, "best": r.best} for r in look.response])

@@ -13,6 +13,11 @@
  *   antenna_x, _y    GPS antenna position forward and left of the reference point [m];
  *                    gps_x, gps_y are where the antenna is
  *
+ * and the correction block (corr_*, after gps_y): a sparse data-driven correction
+ * whose coefficients are parameters, each term adding coefficient x feature to a
+ * channel (docs/research/diagnosis-beyond-library.md section 4.3). With every
+ * coefficient zero the block is skipped, so the model is exactly the one above.
+ *
  * Value references are the indices of enum Real; modelDescription.xml lists
  * the same variables in the same order.
  */
@@ -20,6 +25,44 @@
 
 #include "bicycle.h"
 #include "slave.h"
+
+/*
+ * The correction block's terms, corr_<channel>_<feature>, in the order of
+ * dse_runner/analysis/diagnose/correction.py's TERMS (a test checks the names,
+ * their order and the value references against it and modelDescription.xml).
+ * dynamic_features() and gps_features() below evaluate the features with correction.py's definitions:
+ *   v = vx, psi = heading, r = yaw rate, s = distance travelled (a state, ds/dt = |v|);
+ *   v_cmd, delta = the speed set-point and steering angle as acted on (after time_offset
+ *   and the actuator lags, before steering_offset); a_cmd, ddelta their derivatives
+ *   through a first-order filter of time constant TAU_F (one state each);
+ *   fdrive = the drive force over the mass, as bicycle.h computes it.
+ *   channel    adds to
+ *   acc        d(vx)/dt [m/s^2]
+ *   steer      the steering angle after the actuators, positive = right [rad]
+ *   yaw        d(r)/dt [rad/s^2]
+ *   gps_along  the antenna's position forward of the reference point [m] (like antenna_x)
+ *   gps_cross  the antenna's position left of it [m] (like antenna_y)
+ */
+#define CORR_TERMS(X) \
+    X(ACC_1, "corr_acc_1") X(ACC_V, "corr_acc_v") X(ACC_V2, "corr_acc_v2") X(ACC_VERR, "corr_acc_verr") \
+    X(ACC_ACMD, "corr_acc_acmd") X(ACC_COSPSI, "corr_acc_cospsi") X(ACC_SINPSI, "corr_acc_sinpsi") \
+    X(ACC_S, "corr_acc_s") X(ACC_ABSVR, "corr_acc_absvr") X(ACC_FDRIVE, "corr_acc_fdrive") \
+    X(STEER_1, "corr_steer_1") X(STEER_DELTA, "corr_steer_delta") X(STEER_DDELTA, "corr_steer_ddelta") \
+    X(STEER_DDELTAV, "corr_steer_ddeltav") X(STEER_VDELTA, "corr_steer_vdelta") X(STEER_V, "corr_steer_v") \
+    X(STEER_R, "corr_steer_r") \
+    X(YAW_1, "corr_yaw_1") X(YAW_DELTA, "corr_yaw_delta") X(YAW_VDELTA, "corr_yaw_vdelta") X(YAW_R, "corr_yaw_r") \
+    X(YAW_VR, "corr_yaw_vr") \
+    X(ALONG_1, "corr_gps_along_1") X(ALONG_COSPSI, "corr_gps_along_cospsi") \
+    X(ALONG_SINPSI, "corr_gps_along_sinpsi") X(ALONG_COS2PSI, "corr_gps_along_cos2psi") \
+    X(ALONG_SIN2PSI, "corr_gps_along_sin2psi") X(ALONG_V, "corr_gps_along_v") \
+    X(CROSS_1, "corr_gps_cross_1") X(CROSS_COSPSI, "corr_gps_cross_cospsi") \
+    X(CROSS_SINPSI, "corr_gps_cross_sinpsi") X(CROSS_COS2PSI, "corr_gps_cross_cos2psi") \
+    X(CROSS_SIN2PSI, "corr_gps_cross_sin2psi") X(CROSS_V, "corr_gps_cross_v")
+
+#define CORR_INDEX(id, name) id,
+enum CorrTerm { CORR_TERMS(CORR_INDEX) N_CORR };
+#define CORR_NAME(id, name) name,
+static const char *const CORR_NAMES[N_CORR] = {CORR_TERMS(CORR_NAME)};
 
 enum Real {
     /* baseline parameters, as in robotti_vehicle */
@@ -32,8 +75,16 @@ enum Real {
     VELOCITY, DELTA_F,
     /* outputs */
     X, Y, THETA, VX, VY, YAW_RATE, GPS_X, GPS_Y,
-    N_REALS
+    /* correction coefficients: CORR + the index in CORR_TERMS */
+    CORR,
+    N_REALS = CORR + N_CORR
 };
+
+/* Each channel's terms are consecutive in CORR_TERMS. */
+enum Channel { C_ACC, C_STEER, C_YAW, C_ALONG, C_CROSS, N_CHANNELS };
+static const int CHANNEL_FIRST[N_CHANNELS + 1] = {ACC_1, STEER_1, YAW_1, ALONG_1, CROSS_1, N_CORR};
+
+static const double TAU_F = 0.1; /* s: the filtered derivatives' time constant (correction.TAU_F) */
 
 static const double DEFAULTS[N_REALS] = {
     [MASS] = 1500.0, [C_ALPHA_F] = 30000.0, [C_ALPHA_R] = 30000.0, [MU] = 0.5,
@@ -41,8 +92,11 @@ static const double DEFAULTS[N_REALS] = {
     [X0] = 0.0, [Y0] = 0.0, [THETA0] = 0.0, [RK4_STEP] = 0.001,
 };
 
-/* States: the bicycle's, then the two actuators' (used only when their lag is > 0). */
-enum { ACT_SPEED = BICYCLE_STATES, ACT_STEERING, N_STATES };
+/* States: the bicycle's, then the two actuators' (used only when their lag is > 0), then the
+ * correction block's (integrated only when a coefficient is nonzero): the filters of the speed
+ * set-point and of the steering angle, and the distance travelled. */
+enum { ACT_SPEED = BICYCLE_STATES, ACT_STEERING, F_SPEED, F_STEERING, DISTANCE, N_STATES };
+_Static_assert((int)N_STATES <= (int)RK4_MAX_STATES, "too many states for rk4_advance");
 
 /* Every command received, so that a delayed one can be looked up. */
 typedef struct {
@@ -60,7 +114,70 @@ typedef struct {
     Bicycle bicycle;
     Ground ground;
     const History *history;
+    int active[N_CHANNELS]; /* a channel with a nonzero coefficient */
+    int any;                /* any channel active: the block runs */
 } Step;
+
+/* Which channels have a nonzero coefficient; returns whether any has. */
+static int active_channels(const double *p, int *active) {
+    int any = 0;
+    for (int c = 0; c < N_CHANNELS; c++) {
+        active[c] = 0;
+        for (int k = CHANNEL_FIRST[c]; k < CHANNEL_FIRST[c + 1]; k++)
+            if (p[CORR + k] != 0.0) active[c] = 1;
+        any |= active[c];
+    }
+    return any;
+}
+
+/* sum of coefficient x feature over one channel's terms (zero coefficients skipped). */
+static double channel_sum(const double *p, int channel, const double *f) {
+    double sum = 0.0;
+    for (int k = CHANNEL_FIRST[channel]; k < CHANNEL_FIRST[channel + 1]; k++)
+        if (p[CORR + k] != 0.0) sum += p[CORR + k] * f[k];
+    return sum;
+}
+
+/* The drive force over the mass, exactly as bicycle_derivatives computes it. */
+static double drive_per_mass(const Bicycle *b, const Ground *ground, double vx, double velocity) {
+    const double wheel_speed = vx / (1.0 - ground->slip);
+    return bicycle_clamp(b->kv * (velocity - wheel_speed), -b->mu * b->m * b->g, b->mu * b->m * b->g) / b->m;
+}
+
+/* Every feature of the dynamic channels (acc, steer, yaw) at state z, commands as acted on. */
+static void dynamic_features(const Step *step, const double *z, double velocity, double delta_f, double *f) {
+    const double v = z[B_VX], r = z[B_R], psi = z[B_PSI];
+    const double a_cmd = (velocity - z[F_SPEED]) / TAU_F, ddelta = (delta_f - z[F_STEERING]) / TAU_F;
+    f[ACC_1] = 1.0;
+    f[ACC_V] = v;
+    f[ACC_V2] = v * v;
+    f[ACC_VERR] = velocity - v;
+    f[ACC_ACMD] = a_cmd;
+    f[ACC_COSPSI] = cos(psi);
+    f[ACC_SINPSI] = sin(psi);
+    f[ACC_S] = z[DISTANCE];
+    f[ACC_ABSVR] = fabs(v * r);
+    f[ACC_FDRIVE] = step->active[C_ACC] ? drive_per_mass(&step->bicycle, &step->ground, v, velocity) : 0.0;
+    f[STEER_1] = 1.0;
+    f[STEER_DELTA] = delta_f;
+    f[STEER_DDELTA] = ddelta;
+    f[STEER_DDELTAV] = ddelta / fmax(v, step->p[V_MIN]);
+    f[STEER_VDELTA] = v * delta_f;
+    f[STEER_V] = v;
+    f[STEER_R] = r;
+    f[YAW_1] = 1.0;
+    f[YAW_DELTA] = delta_f;
+    f[YAW_VDELTA] = v * delta_f;
+    f[YAW_R] = r;
+    f[YAW_VR] = v * r;
+}
+
+/* The features of the antenna channels, which act on the output only. */
+static void gps_features(const double *z, double *f) {
+    const double psi = z[B_PSI], v = z[B_VX];
+    const double values[] = {1.0, cos(psi), sin(psi), cos(2.0 * psi), sin(2.0 * psi), v};
+    for (int k = 0; k < ALONG_V - ALONG_1 + 1; k++) f[ALONG_1 + k] = f[CROSS_1 + k] = values[k];
+}
 
 static void release(Slave *s) {
     State *st = s->state;
@@ -129,15 +246,37 @@ static void rhs(const void *ctx, double t, const double *z, double *dz) {
     command_at(step->history, t - p[TIME_OFFSET], &velocity, &delta_f);
     velocity = actuator(velocity, p[SPEED_LAG], z[ACT_SPEED], &dz[ACT_SPEED]);
     delta_f = actuator(delta_f, p[STEERING_LAG], z[ACT_STEERING], &dz[ACT_STEERING]);
-    bicycle_derivatives(&step->bicycle, &step->ground, z, velocity, delta_f + p[STEERING_OFFSET], dz);
+    if (!step->any) {
+        dz[F_SPEED] = dz[F_STEERING] = dz[DISTANCE] = 0.0;
+        bicycle_derivatives(&step->bicycle, &step->ground, z, velocity, delta_f + p[STEERING_OFFSET], dz);
+        return;
+    }
+    double f[N_CORR];
+    dynamic_features(step, z, velocity, delta_f, f);
+    dz[F_SPEED] = f[ACC_ACMD];
+    dz[F_STEERING] = f[STEER_DDELTA];
+    dz[DISTANCE] = fabs(z[B_VX]);
+    double steering = delta_f + p[STEERING_OFFSET];
+    if (step->active[C_STEER]) steering += channel_sum(p, C_STEER, f);
+    bicycle_derivatives(&step->bicycle, &step->ground, z, velocity, steering, dz);
+    if (step->active[C_ACC]) dz[B_VX] += channel_sum(p, C_ACC, f);
+    if (step->active[C_YAW]) dz[B_R] += channel_sum(p, C_YAW, f);
 }
 
 static void publish(Slave *s, const double *z) {
     double *p = s->r;
     const double c = cos(z[B_PSI]), sn = sin(z[B_PSI]);
     bicycle_publish(&p[X], z); /* X, Y, THETA, VX, VY, YAW_RATE are consecutive */
-    p[GPS_X] = z[B_X] + p[ANTENNA_X] * c - p[ANTENNA_Y] * sn;
-    p[GPS_Y] = z[B_Y] + p[ANTENNA_X] * sn + p[ANTENNA_Y] * c;
+    double along = p[ANTENNA_X], cross = p[ANTENNA_Y];
+    int active[N_CHANNELS];
+    if (active_channels(p, active) && (active[C_ALONG] || active[C_CROSS])) {
+        double f[N_CORR];
+        gps_features(z, f);
+        if (active[C_ALONG]) along += channel_sum(p, C_ALONG, f);
+        if (active[C_CROSS]) cross += channel_sum(p, C_CROSS, f);
+    }
+    p[GPS_X] = z[B_X] + along * c - cross * sn;
+    p[GPS_Y] = z[B_Y] + along * sn + cross * c;
 }
 
 /* The initial pose comes from parameters; the vehicle starts at rest. */
@@ -172,6 +311,12 @@ static int check_parameters(Slave *s) {
         slave_log(s, fmi2Error, "logStatusError", "parameter wheel_slip must be < 0.9, got %g", p[WHEEL_SLIP]);
         return 1;
     }
+    for (int k = 0; k < N_CORR; k++)
+        if (!isfinite(p[CORR + k])) {
+            slave_log(s, fmi2Error, "logStatusError", "parameter %s must be finite, got %g", CORR_NAMES[k],
+                      p[CORR + k]);
+            return 1;
+        }
     return start_at_rest(s);
 }
 
@@ -179,10 +324,11 @@ static int do_step(Slave *s, double t, double h) {
     const double *p = s->r;
     State *st = s->state;
     if (remember(s, t, p[VELOCITY], p[DELTA_F]) != 0) return 1;
-    const Step step = {
+    Step step = {
         p, {p[MASS], p[C_ALPHA_F], p[C_ALPHA_R], p[MU], p[LF], p[LR], p[R_GYR], p[KV], p[V_MIN], p[G]},
-        {p[WHEEL_SLIP], p[GRADE_X], p[GRADE_Y]}, &st->history,
+        {p[WHEEL_SLIP], p[GRADE_X], p[GRADE_Y]}, &st->history, {0}, 0,
     };
+    step.any = active_channels(p, step.active);
     rk4_advance(rhs, &step, N_STATES, st->z, t, h, p[RK4_STEP]);
     if (check_finite(s, st->z, N_STATES, t, h) != 0) return 1;
     publish(s, st->z);

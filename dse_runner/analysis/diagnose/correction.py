@@ -1,0 +1,278 @@
+"""The correction block: a generic, sparse correction of the vehicle model whose coefficients are parameters.
+
+When no effect of the library explains the residual, discovery (step 7 of issue 18) proposes a few
+terms ``coefficient × feature`` added to one *channel* of the model (an acceleration, the steering
+angle, a yaw acceleration, the antenna's position). Every term is a parameter ``corr_<channel>_<feature>``
+of the effects variant (``bundled:fmus/robotti_vehicle_effects``), zero when absent, so a discovered
+correction is one more point of the same multi-model: it is fitted, cross-validated and re-calibrated
+by the same sweeps as the library's effects (docs/research/diagnosis-beyond-library.md, §4.3).
+
+This module owns the catalogue, :data:`TERMS`, in the FMU's order. The C block (``model.c``, the
+``CORR_TERMS`` table) evaluates the same features from its own state; :func:`features` evaluates them
+from given states (GPS-derived ones, in discovery) with the same definitions. A test checks that the
+names and order here, in ``model.c`` and in ``modelDescription.xml`` agree.
+
+Definitions shared with the C block (all at the model's reference point, mid-way between the axles):
+
+* ``v`` is the body-frame longitudinal speed vx (GPS gives the ground speed, which differs by the
+  lateral vy ≈ lr·r, a few cm/s); ``psi`` the heading, counter-clockwise from east; ``r`` the yaw rate.
+* ``v_cmd`` and ``delta`` are the speed set-point and the steering angle (positive = right) *as the
+  vehicle acts on them*: after the library's ``time_offset`` delay and actuator lags, before
+  ``steering_offset`` and before the correction itself (the log's commands when those effects are off).
+* ``a_cmd`` and ``delta_rate`` are their derivatives through a first-order filter of time constant
+  :data:`TAU_F` (one state each): the replayed commands are piecewise constant, so a raw derivative
+  would be a train of impulses. ``s`` is the distance travelled, ∫|v| dt (one state).
+* ``f_drive`` is the drive's force over the mass, clamp(Kv·(v_cmd − v/(1 − slip)), ±mu·m·g)/m.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict
+
+from ...errors import DseError
+from ...sweeps.fit import Parameter
+
+TAU_F = 0.1  # s: time constant of the filtered derivatives a_cmd and delta_rate (model.c's TAU_F)
+PREFIX = "corr_"
+STEP_FRACTION = 1e-3  # finite-difference step of a coefficient, as a fraction of its bound
+
+
+class Channel(BaseModel):
+    """What a channel's terms add to."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    name: str
+    target: str  # the left-hand side in readable text
+    unit: str
+    scale: float  # the largest correction the channel should make, in its unit: bounds coefficients
+    searched: bool = True  # offered to discovery by default
+    description: str
+
+
+class Feature(BaseModel):
+    """A function of the model's state and commands, as the C block evaluates it."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    name: str  # the suffix of the parameter's name
+    symbol: str  # in readable text; "1" for the constant
+    unit: str
+    typical: float  # an RMS size on Robotti manoeuvres (estimate): bounds a coefficient when no runs are given
+
+
+class Term(BaseModel):
+    """One coefficient of the block: ``channel += coefficient × feature``."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    channel: str
+    feature: str
+
+    @property
+    def variable(self) -> str:
+        """The effects FMU's parameter for this term's coefficient."""
+        return f"{PREFIX}{self.channel}_{self.feature}"
+
+    @property
+    def channel_info(self) -> Channel:
+        return CHANNELS[self.channel]
+
+    @property
+    def feature_info(self) -> Feature:
+        return FEATURES[self.feature]
+
+
+def _f(name: str, symbol: str, unit: str, typical: float) -> Feature:
+    return Feature(name=name, symbol=symbol, unit=unit, typical=typical)
+
+
+FEATURES: dict[str, Feature] = {f.name: f for f in [
+    _f("1", "1", "1", 1.0),
+    _f("v", "v", "m/s", 1.5),
+    _f("v2", "v²", "m²/s²", 2.5),
+    _f("verr", "(v_cmd − v)", "m/s", 0.1),
+    _f("acmd", "a_cmd", "m/s²", 0.2),
+    _f("cospsi", "cos ψ", "1", 0.7),
+    _f("sinpsi", "sin ψ", "1", 0.7),
+    _f("cos2psi", "cos 2ψ", "1", 0.7),
+    _f("sin2psi", "sin 2ψ", "1", 0.7),
+    _f("s", "s", "m", 60.0),
+    _f("absvr", "|v·r|", "m/s²", 0.2),
+    _f("fdrive", "F_drive/m", "m/s²", 0.3),
+    _f("delta", "δ", "rad", 0.1),
+    _f("ddelta", "δ̇", "rad/s", 0.03),
+    _f("ddeltav", "δ̇/max(v, v_min)", "rad/m", 0.03),
+    _f("vdelta", "v·δ", "m·rad/s", 0.15),
+    _f("r", "r", "rad/s", 0.1),
+    _f("vr", "v·r", "m·rad/s²", 0.15),
+]}
+
+CHANNELS: dict[str, Channel] = {c.name: c for c in [
+    Channel(name="acc", target="d(v)/dt", unit="m/s²", scale=2.0,
+            description="added to the longitudinal acceleration d(vx)/dt"),
+    Channel(name="steer", target="δ", unit="rad", scale=0.2,
+            description="added to the steering angle after the actuators, positive = right, like steering_offset"),
+    Channel(name="yaw", target="d(r)/dt", unit="rad/s²", scale=1.0, searched=False,
+            description="added to the yaw acceleration (quasi-statically it cannot be told from steer, "
+                        "so discovery leaves it out by default)"),
+    Channel(name="gps_along", target="gps_along", unit="m", scale=2.0,
+            description="added to the antenna's position forward of the reference point, like antenna_x"),
+    Channel(name="gps_cross", target="gps_cross", unit="m", scale=2.0,
+            description="added to the antenna's position left of the reference point, like antenna_y"),
+]}
+
+_GPS = ("1", "cospsi", "sinpsi", "cos2psi", "sin2psi", "v")
+_BY_CHANNEL: dict[str, tuple[str, ...]] = {
+    "acc": ("1", "v", "v2", "verr", "acmd", "cospsi", "sinpsi", "s", "absvr", "fdrive"),
+    "steer": ("1", "delta", "ddelta", "ddeltav", "vdelta", "v", "r"),
+    "yaw": ("1", "delta", "vdelta", "r", "vr"),
+    "gps_along": _GPS,
+    "gps_cross": _GPS,
+}
+
+# Every term, in the FMU's order (value references follow gps_y's: model.c's CORR_TERMS, the description).
+TERMS: tuple[Term, ...] = tuple(Term(channel=c, feature=f) for c, fs in _BY_CHANNEL.items() for f in fs)
+_BY_VARIABLE: dict[str, Term] = {t.variable: t for t in TERMS}
+
+
+def variables() -> list[str]:
+    """Every coefficient's parameter name, in FMU order."""
+    return [t.variable for t in TERMS]
+
+
+def searched_terms() -> tuple[Term, ...]:
+    """The terms discovery tries by default (the yaw channel is in the FMU but not searched)."""
+    return tuple(t for t in TERMS if CHANNELS[t.channel].searched)
+
+
+def term(variable: str) -> Term:
+    """The term of a parameter name, with or without its instance prefix (``vehicle.corr_acc_v``)."""
+    name = variable.rsplit(".", 1)[-1]
+    if name not in _BY_VARIABLE:
+        raise DseError(f"{variable!r} is not a correction term: they are {', '.join(_BY_VARIABLE)}")
+    return _BY_VARIABLE[name]
+
+
+def is_correction(variable: str) -> bool:
+    return variable.rsplit(".", 1)[-1] in _BY_VARIABLE
+
+
+def bound(t: Term, rms: float | None = None) -> float:
+    """|coefficient| ≤ channel scale / feature RMS: no term may move its channel by more than the scale
+    on these runs. ``rms`` is the feature's RMS over the runs; the typical size when absent or zero."""
+    size = rms if rms is not None and math.isfinite(rms) and rms > 0 else t.feature_info.typical
+    return t.channel_info.scale / size
+
+
+def parameter(t: Term, vehicle: str, rms: float | None = None, start: float = 0.0) -> Parameter:
+    """The fit's parameter for a term: symmetric bounds, a step of 1e-3 of the bound, start clipped in."""
+    b = bound(t, rms)
+    return Parameter(f"{vehicle}.{t.variable}", float(np.clip(start, -b, b)), -b, b, STEP_FRACTION * b)
+
+
+def _number(value: float) -> str:
+    return f"{value:.3g}"
+
+
+def readable_term(t: Term, value: float, interval: tuple[float, float] | None = None) -> str:
+    """``d(v)/dt += -0.31·v [-0.34, -0.28]``: one term as an engineer writes it."""
+    symbol = t.feature_info.symbol
+    text = f"{t.channel_info.target} += {_number(value)}" + ("" if symbol == "1" else f"·{symbol}")
+    if interval is not None:
+        text += f" [{_number(interval[0])}, {_number(interval[1])}]"
+    return text
+
+
+def readable(values: Mapping[str, float]) -> list[str]:
+    """One line per channel, its nonzero terms summed in FMU order, e.g. ``d(v)/dt += -0.31·v + 0.05·a_cmd``.
+    Keys are parameter names, with or without the instance prefix; other keys are ignored."""
+    by_channel: dict[str, list[str]] = {}
+    chosen = {term(k).variable: v for k, v in values.items() if is_correction(k) and v != 0.0}
+    for t in TERMS:
+        if t.variable not in chosen:
+            continue
+        value, symbol = chosen[t.variable], t.feature_info.symbol
+        factor = _number(abs(value)) + ("" if symbol == "1" else f"·{symbol}")
+        parts = by_channel.setdefault(t.channel, [])
+        parts.append(("-" if value < 0 else "") + factor if not parts else ("- " if value < 0 else "+ ") + factor)
+    return [f"{CHANNELS[c].target} += {' '.join(parts)}" for c, parts in by_channel.items()]
+
+
+@dataclass(frozen=True)
+class FeatureInputs:
+    """The states and commands the features are made of, as equal-length arrays (one row per sample)."""
+
+    v: np.ndarray  # longitudinal speed [m/s]
+    psi: np.ndarray  # heading [rad]
+    r: np.ndarray  # yaw rate [rad/s]
+    s: np.ndarray  # distance travelled [m]
+    v_cmd: np.ndarray  # speed set-point as acted on [m/s]
+    a_cmd: np.ndarray  # its filtered derivative [m/s²]
+    delta: np.ndarray  # steering angle as acted on, positive = right [rad]
+    delta_rate: np.ndarray  # its filtered derivative [rad/s]
+    f_drive: np.ndarray  # drive force over mass [m/s²]
+    v_min: float = 0.5  # the vehicle's v_min: floor of the speed that divides delta_rate
+
+
+def _feature(name: str, x: FeatureInputs) -> np.ndarray:
+    v = np.asarray(x.v, dtype=float)
+    match name:
+        case "1": return np.ones_like(v)
+        case "v": return v
+        case "v2": return v * v
+        case "verr": return np.asarray(x.v_cmd, dtype=float) - v
+        case "acmd": return np.asarray(x.a_cmd, dtype=float)
+        case "cospsi": return np.cos(x.psi)
+        case "sinpsi": return np.sin(x.psi)
+        case "cos2psi": return np.cos(2.0 * np.asarray(x.psi, dtype=float))
+        case "sin2psi": return np.sin(2.0 * np.asarray(x.psi, dtype=float))
+        case "s": return np.asarray(x.s, dtype=float)
+        case "absvr": return np.abs(v * x.r)
+        case "fdrive": return np.asarray(x.f_drive, dtype=float)
+        case "delta": return np.asarray(x.delta, dtype=float)
+        case "ddelta": return np.asarray(x.delta_rate, dtype=float)
+        case "ddeltav": return np.asarray(x.delta_rate, dtype=float) / np.maximum(v, x.v_min)
+        case "vdelta": return v * x.delta
+        case "r": return np.asarray(x.r, dtype=float)
+        case "vr": return v * x.r
+    raise DseError(f"unknown correction feature {name!r}")
+
+
+def features(x: FeatureInputs, terms: Iterable[Term] = TERMS) -> dict[str, np.ndarray]:
+    """Each term's feature column, keyed by its parameter name: the regression's Θ, with model.c's definitions."""
+    return {t.variable: _feature(t.feature, x) for t in terms}
+
+
+def filtered_rate(t_cmd: np.ndarray, u: np.ndarray, t: np.ndarray, tau: float = TAU_F
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The C block's filtered derivative of a piecewise-constant command, in closed form.
+
+    The command is ``u[k]`` from ``t_cmd[k]`` on and 0 before the first (as the vehicle holds it); the
+    filter state w follows dw/dt = (u − w)/tau from w = 0, and the rate is (u − w)/tau. Returns the
+    filtered command w and the rate at the times ``t`` (shift ``t`` by a time offset before calling).
+    """
+    t_cmd, u, t = (np.asarray(a, dtype=float) for a in (t_cmd, u, t))
+    # The state just before each command switches in, one segment at a time (exact between switches).
+    w_at = np.empty(len(t_cmd))
+    w, held, since = 0.0, 0.0, t_cmd[0] if len(t_cmd) else 0.0
+    for k, tk in enumerate(t_cmd):
+        w = held + (w - held) * math.exp(-(tk - since) / tau)
+        w_at[k], held, since = w, u[k], tk
+    k = np.searchsorted(t_cmd, t + 1e-9 * (1.0 + np.abs(t)), side="right") - 1
+    before = k < 0
+    kk = np.where(before, 0, k)
+    u_now = np.where(before, 0.0, u[kk] if len(u) else 0.0)
+    w_start = np.where(before, 0.0, w_at[kk] if len(u) else 0.0)
+    elapsed = np.where(before, 0.0, t - (t_cmd[kk] if len(t_cmd) else 0.0))
+    w_now = u_now + (w_start - u_now) * np.exp(-elapsed / tau)
+    return w_now, (u_now - w_now) / tau
+
+
+def distance(t: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """s = ∫|v| dt from the first sample (trapezoids), as the C block's distance state."""
+    a = np.abs(np.asarray(v, dtype=float))
+    steps = np.diff(np.asarray(t, dtype=float)) * 0.5 * (a[1:] + a[:-1])
+    return np.concatenate([[0.0], np.cumsum(steps)])

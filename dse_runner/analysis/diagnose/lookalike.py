@@ -1,0 +1,447 @@
+"""Look-alikes: telling twin effects apart by where their fits differ, not by luck.
+
+Some effects leave nearly the same residual on ordinary manoeuvres (hypotheses.LOOK_ALIKES): a
+delay of every command and a steering lag both turn the vehicle late; slip and a speed lag both
+put it behind. Held-out error and BIC then differ by little, and whichever wins does so by the
+noise of the draw. What separates them is *where* their fits differ: a delay shifts the answer
+to a steering step with its full size, a first-order lag rounds it off; slip leaves a steady
+deficit while cruising, a lag none at all once the speed has settled; a delay of every command
+also shows at every speed change, a steering lag does not.
+
+So both twins' sets are fitted in full (the screen shortlists twin swaps), and their fix
+residuals are compared segment by segment (segments.py, from the command log alone):
+
+    LLR = (SSE_twin − SSE_chosen) / (2 σ²) / τ
+
+per segment kind, with σ the GPS noise floor and τ the residuals' integrated autocorrelation
+time in fixes: successive fixes of a smooth residual are not independent pieces of evidence, and
+counting them as such would overstate the ratio by τ. The sum over the kinds (which partition
+the runs) is the evidence. When held-out error and BIC cannot separate the twins (neither beats
+the other by explain.beats) and |ΣLLR| ≥ ``DECISIVE``, the ratio decides; below it the diagnosis
+names both and says which manoeuvre would tell them apart.
+
+:func:`response_fit` explains the verdict in a control engineer's terms, at no cost in
+simulations: the recorded yaw rate or speed (kinematics.py, from the fixes), per segment kind,
+fitted against the calibrated model's own as a pure delay, a first-order lag and a gain.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+from scipy.signal import lfilter, lfilter_zi
+
+from ...cases import fielddata
+from ...simulation.scenario import Scenario
+from . import explain, kinematics, segments
+from .explain import Candidate
+from .hypotheses import LOOK_ALIKES
+
+DECISIVE = 5.0  # |Σ LLR| at which the evidence between twins decides (e^5 ≈ 150 : 1)
+MAX_LAG = 200  # fixes: the autocorrelation sum stops here at the latest
+MAX_SHIFT = 2.0  # s: the longest delay or lag a response fit tries
+SHIFT_GRID = 0.05  # s: the coarse search before the bounded refinement
+GAINS = (0.5, 1.5, 0.02)  # the gains a response fit tries: from, to, coarse step
+COURSE, SPEED = "course", "speed"  # the recorded channels a response fit compares
+DECIDED_BY_FIT, DECIDED_BY_LLR, CANNOT_TELL = "held_out", "llr", "cannot_tell"
+
+
+@dataclass(frozen=True)
+class Telling:
+    """What separates a pair of twins: the recorded channel in which they differ, the segment kinds
+    where they differ most, and the manoeuvre to ask for when the runs have too little of it."""
+
+    channel: str  # COURSE or SPEED
+    kinds: tuple[str, ...]
+    advice: str
+
+
+# From the table of docs/research/diagnosis-beyond-library.md §2.4: a delay against a lag shows in the shape of
+# the answer to a step; slip (a gain) against a speed lag (a phase) in the steady state after a speed change.
+TELLING: dict[frozenset[str], Telling] = {
+    frozenset({"steering_lag", "time_offset"}): Telling(
+        COURSE, (segments.STEER_STEP, segments.SPEED_STEP), "a run with steering steps"),
+    frozenset({"wheel_slip", "speed_lag"}): Telling(
+        SPEED, (segments.SPEED_STEP, segments.CRUISE), "a run with speed steps, each held for several seconds"),
+    frozenset({"time_offset", "speed_lag"}): Telling(
+        SPEED, (segments.SPEED_STEP, segments.STEER_STEP), "a run with speed steps and steering steps"),
+}
+FALLBACK = Telling(COURSE, (segments.STEER_STEP, segments.SPEED_STEP), "a run with steering and speed steps")
+
+
+# The form each twin gives the answer to a command, in response_fit's terms.
+FORMS = {"steering_lag": "lag", "time_offset": "delay", "speed_lag": "lag", "wheel_slip": "gain"}
+
+
+def telling(a: str, b: str) -> Telling:
+    return TELLING.get(frozenset({a, b}), FALLBACK)
+
+
+def swapped(a: tuple[str, ...], b: tuple[str, ...]) -> tuple[str, str] | None:
+    """(x, y) when set ``b`` is set ``a`` with its member x replaced by y, a look-alike of x; else None."""
+    only_a, only_b = set(a) - set(b), set(b) - set(a)
+    if len(only_a) != 1 or len(only_b) != 1:
+        return None
+    x, y = next(iter(only_a)), next(iter(only_b))
+    return (x, y) if y in LOOK_ALIKES.get(x, ()) else None
+
+
+def twin_pairs(chosen: Candidate, candidates: Sequence[Candidate]) -> list[tuple[Candidate, Candidate]]:
+    """The pairs to weigh: the chosen set against each fitted set that swaps one of its members for a
+    look-alike; when nothing is chosen, the two best-ranked cross-validated sets if they are twins."""
+    fitted = [c for c in candidates if c.full.residuals]
+    if chosen.ids:
+        return [(chosen, c) for c in fitted if swapped(chosen.ids, c.ids)]
+    top = [c for c in explain.ranked(fitted) if c.ids and c.validated][:2]
+    return [(top[0], top[1])] if len(top) == 2 and swapped(top[0].ids, top[1].ids) else []
+
+
+# ---- the evidence ----------------------------------------------------------------------------------
+
+def fix_times(scenario: Scenario, count: int) -> np.ndarray:
+    """The times of the first ``count`` fixes within the simulated span: those a fit's residuals are at
+    (fielddata.fix_residuals: every fix from the start of the simulation on)."""
+    t = fielddata.gps(scenario).time
+    return t[t >= scenario.start_time - 1e-9][:count]
+
+
+def autocorrelation_time(series: Sequence[np.ndarray], max_lag: int = MAX_LAG) -> float:
+    """1 + 2 Σ ρ_k, the integrated autocorrelation time (in samples) of the pooled series, each about its
+    mean, the sum stopped at the first ρ_k ≤ 0 (Geyer's initial positive sequence, simplified). White
+    noise gives 1; a residual that wanders slowly gives the number of fixes it takes to forget itself."""
+    parts = [np.asarray(s, float) - np.mean(s) for s in series if len(s) > 2]
+    if not parts:
+        return 1.0
+    variance = sum(float(p @ p) for p in parts)
+    if variance <= 0:
+        return 1.0
+    tau = 1.0
+    for k in range(1, min(max_lag, max(len(p) for p in parts) - 1) + 1):
+        rho = sum(float(p[k:] @ p[:-k]) for p in parts if len(p) > k) / variance
+        if rho <= 0:
+            break
+        tau += 2.0 * rho
+    return tau
+
+
+@dataclass(frozen=True)
+class SegmentEvidence:
+    """Σ LLR of set a over set b (positive favours a), in total and per segment kind, with the
+    autocorrelation time τ [fixes] and the noise σ [m per axis] it was scaled by."""
+
+    llr: float
+    by_kind: dict[str, float]
+    fixes: dict[str, int]
+    tau: float
+    sigma: float
+
+
+def segment_evidence(a: Sequence[np.ndarray], b: Sequence[np.ndarray], kinds: Sequence[np.ndarray],
+                     sigma: float) -> SegmentEvidence:
+    """The evidence for residuals ``a`` over ``b`` (per run: every fix's x offset, then its y offset, as
+    fielddata.fix_residuals) at fixes of segment ``kinds`` (per run, one per fix). τ comes from the
+    better set's residuals: under the right model they are the receiver's noise, and how correlated
+    that noise is sets how many independent fixes there are."""
+    per_fix_a, per_fix_b, xy = [], [], []
+    for ra, rb in zip(a, b):
+        m = len(ra) // 2
+        per_fix_a.append(ra[:m] ** 2 + ra[m:] ** 2)
+        per_fix_b.append(rb[:m] ** 2 + rb[m:] ** 2)
+    better = a if sum(map(np.sum, per_fix_a)) <= sum(map(np.sum, per_fix_b)) else b
+    for r in better:
+        m = len(r) // 2
+        xy += [r[:m], r[m:]]
+    tau = autocorrelation_time(xy)
+    by_kind: dict[str, float] = {}
+    fixes: dict[str, int] = {}
+    for fa, fb, k in zip(per_fix_a, per_fix_b, kinds):
+        contribution = (fb - fa) / (2.0 * sigma ** 2 * tau)
+        for kind in np.unique(k):
+            inside = k == kind
+            name = str(kind) or "unlabelled"
+            by_kind[name] = by_kind.get(name, 0.0) + float(contribution[inside].sum())
+            fixes[name] = fixes.get(name, 0) + int(inside.sum())
+    ordered = [k for k in (*segments.KINDS, "unlabelled") if k in by_kind]
+    return SegmentEvidence(float(sum(by_kind.values())), {k: by_kind[k] for k in ordered},
+                           {k: fixes[k] for k in ordered}, tau, sigma)
+
+
+# ---- the response, as a control engineer reads it -----------------------------------------------
+
+@dataclass(frozen=True)
+class Channel:
+    """One run's recorded signal at its fixes and the model's same signal on the model's grid, with
+    the kinematics operator that turns the model's into what GPS would show."""
+
+    fix_time: np.ndarray
+    recorded: np.ndarray  # NaN where kinematics had too few fixes
+    kinds: np.ndarray  # segment kind per fix
+    operator: Any  # a derivative block of kinematics.local_operator: an array, or sparse with NaN rows as 0
+    order: int  # how often the model signal is integrated before the operator applies
+    model_time: np.ndarray  # uniform
+    model: np.ndarray
+    free_offset: bool = False  # compare about each run's mean difference (a course, known up to a constant)
+    valid: np.ndarray | None = None  # rows of ``operator`` that are estimates (None: every row that is finite)
+
+
+def delayed(time: np.ndarray, signal: np.ndarray, delay: float) -> np.ndarray:
+    """The signal ``delay`` seconds late, holding its first value before it starts."""
+    return np.interp(time - delay, time, signal, left=signal[0])
+
+
+def lagged(time: np.ndarray, signal: np.ndarray, tau: float) -> np.ndarray:
+    """The signal through a first-order lag of time constant ``tau``, starting settled."""
+    if tau <= 0:
+        return np.asarray(signal, float)
+    a = math.exp(-float(np.median(np.diff(time))) / tau)
+    out, _ = lfilter([1.0 - a], [1.0, -a], signal, zi=lfilter_zi([1.0 - a], [1.0, -a]) * signal[0])
+    return out
+
+
+def _seen(channel: Channel, model: np.ndarray) -> np.ndarray:
+    seen = kinematics.smoothed_like(channel.operator, channel.order, channel.model_time, model, channel.fix_time)
+    return seen if channel.valid is None else np.where(channel.valid, seen, np.nan)
+
+
+def sparse_operator(operator: np.ndarray) -> tuple[Any, np.ndarray]:
+    """A local operator as a sparse matrix (each row touches a window's fixes only, so the hundreds of
+    evaluations of a response fit cost little) and the mask of its rows that are estimates."""
+    from scipy.sparse import csr_matrix
+
+    valid = np.isfinite(operator).all(axis=1)
+    return csr_matrix(np.where(valid[:, None], operator, 0.0)), valid
+
+
+def _sse(channels: Sequence[Channel], transform) -> dict[str, tuple[float, int]]:
+    """Per segment kind: the SSE of the recorded signal against the model's, transformed and seen through
+    the same kinematics window, and how many fixes count (both finite)."""
+    out: dict[str, tuple[float, int]] = {}
+    for c in channels:
+        error = c.recorded - _seen(c, transform(c.model_time, c.model))
+        usable = np.isfinite(error)
+        if c.free_offset and usable.any():
+            error = error - np.mean(error[usable])
+        for kind in np.unique(c.kinds[usable]):
+            use = usable & (c.kinds == kind)
+            sse, count = out.get(str(kind), (0.0, 0))
+            out[str(kind)] = (sse + float(np.sum(error[use] ** 2)), count + int(use.sum()))
+    return out
+
+
+def _best(channels: Sequence[Channel], kinds: Sequence[str], transform, grid: np.ndarray
+          ) -> dict[str, tuple[float, float]]:
+    """Per kind, the transform's parameter on ``grid``'s span with the least SSE, and that SSE: a coarse
+    grid shared by the kinds (the transform acts on whole runs), then a bounded search about each kind's best."""
+    def sse(s: float) -> dict[str, tuple[float, int]]:
+        return _sse(channels, lambda t, u: transform(t, u, s))
+
+    coarse = [sse(s) for s in grid]
+    out = {}
+    for kind in kinds:
+        values = np.array([c.get(kind, (math.inf, 0))[0] for c in coarse])
+        k = int(np.argmin(values))
+        low, high = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
+        fine = minimize_scalar(lambda s, kind=kind: sse(s).get(kind, (math.inf, 0))[0], bounds=(low, high),
+                               method="bounded", options={"xatol": 1e-3})
+        out[kind] = (float(fine.x), float(fine.fun)) if fine.fun < values[k] else (float(grid[k]), float(values[k]))
+    return out
+
+
+@dataclass(frozen=True)
+class ResponseFit:
+    """The recorded ``channel`` on segments of ``kind``, against the calibrated model's, as the model's
+    delayed by ``delay`` s, lagged by ``lag`` s, or scaled by ``gain`` (the model's yaw rate or speed), each
+    with its SSE, and the SSE of the model as it is. Units: rad² (course) or (m/s)² (speed)."""
+
+    channel: str
+    kind: str
+    fixes: int
+    sse: float
+    delay: float
+    delay_sse: float
+    lag: float
+    lag_sse: float
+    gain: float
+    gain_sse: float
+
+    @property
+    def best(self) -> str:
+        """Which form fits best: delay, lag or gain ("none" when none improves on the model as it is by 5 %)."""
+        forms = {"delay": self.delay_sse, "lag": self.lag_sse, "gain": self.gain_sse}
+        name = min(forms, key=forms.get)
+        return name if forms[name] < (1 - explain.MIN_GAIN) * self.sse else "none"
+
+    def to_json(self) -> dict[str, Any]:
+        return {"channel": self.channel, "segment": self.kind, "fixes": self.fixes, "sse": self.sse,
+                "delay": self.delay, "delay_sse": self.delay_sse, "lag": self.lag, "lag_sse": self.lag_sse,
+                "gain": self.gain, "gain_sse": self.gain_sse, "best": self.best}
+
+
+def response_fit(channels: Sequence[Channel], name: str, kinds: Sequence[str] = segments.KINDS,
+                 min_fixes: int = 20) -> list[ResponseFit]:
+    """Per segment kind with at least ``min_fixes`` usable fixes: the delay, lag and gain that best carry
+    the model's signal onto the recorded one (pooled over runs)."""
+    as_is = _sse(channels, lambda t, u: u)
+    kinds = [k for k in kinds if as_is.get(k, (0.0, 0))[1] >= min_fixes]
+    if not kinds:
+        return []
+    shifts = np.arange(0.0, MAX_SHIFT + 1e-9, SHIFT_GRID)
+    delays, lags = _best(channels, kinds, delayed, shifts), _best(channels, kinds, lagged, shifts)
+    gains = _best(channels, kinds, lambda t, u, g: g * u, np.arange(GAINS[0], GAINS[1] + 1e-9, GAINS[2]))
+    return [ResponseFit(name, kind, as_is[kind][1], as_is[kind][0], *delays[kind], *lags[kind], *gains[kind])
+            for kind in kinds]
+
+
+def model_signal(track: Any, name: str, columns: Mapping[str, str]) -> np.ndarray:
+    """The model's ``name`` as GPS sees it at the reference point: ``course``, the heading plus the sideslip
+    atan2(vy, vx) (it jumps with the steering, before the heading turns), unwrapped; ``speed``, the speed
+    over ground. ``columns`` names the track's ``heading``, ``vx`` and ``vy`` (body frame)."""
+    vx, vy = track[columns["vx"]].to_numpy(float), track[columns["vy"]].to_numpy(float)
+    if name == COURSE:
+        return np.unwrap(track[columns["heading"]].to_numpy(float) + np.arctan2(vy, vx))
+    return np.hypot(vx, vy)
+
+
+def channels_of(scenarios: Sequence[Scenario], tracks: Mapping[str, Any], columns: Mapping[str, str], name: str,
+                labels: Mapping[str, Any]) -> list[Channel]:
+    """Each run's recorded ``name`` (COURSE where the vehicle moves faster than kinematics.MIN_SPEED, or
+    SPEED) beside the model's (:func:`model_signal` of its track in ``tracks``), with the fixes' segment
+    kinds from ``labels`` (segments per run). A course, differentiated once from the fixes, shows the shape
+    of a steering step; a yaw rate, differentiated twice, is mostly noise at 2 cm."""
+    out = []
+    for s in scenarios:
+        if s.name not in tracks:
+            continue
+        fixes = fielddata.gps(s)
+        kin = kinematics.gps_kinematics(fixes.time, fixes.x, fixes.y)
+        velocity = kinematics.local_operator(fixes.time, kinematics.VELOCITY_WINDOW, 1)[1]
+        recorded = np.where(kin.speed >= kinematics.MIN_SPEED, kin.course, np.nan) if name == COURSE else kin.speed
+        track = tracks[s.name]
+        model_time = track["time"].to_numpy(float)
+        recorded = np.where(fixes.time <= model_time[-1] + 1e-9, recorded, np.nan)
+        operator, valid = sparse_operator(velocity)
+        out.append(Channel(fixes.time, recorded, segments.kinds_at(labels[s.name], fixes.time), operator, 1,
+                           model_time, model_signal(track, name, columns), free_offset=name == COURSE, valid=valid))
+    return out
+
+
+# ---- the verdict between twins ----------------------------------------------------------------------
+
+@dataclass
+class LookAlike:
+    """The evidence between two twin sets: ``pair`` = (first, second) labels, ``members`` the effects
+    swapped between them, ``evidence`` for the first over the second. ``decision`` is how they were told
+    apart: by held-out error and BIC, by the LLR, or not at all (``cannot_tell``); ``chosen`` the label
+    the diagnosis answers with (None when nothing is chosen)."""
+
+    pair: tuple[str, str]
+    members: tuple[str, str]
+    evidence: SegmentEvidence
+    decision: str
+    chosen: str | None
+    telling: Telling
+    response: list[ResponseFit] = field(default_factory=list)
+
+    @property
+    def favoured(self) -> str:
+        return self.pair[0] if self.evidence.llr >= 0 else self.pair[1]
+
+    @property
+    def shape(self) -> dict[str, Any]:
+        """What the answer's shape alone says on the segments that tell these twins apart: which member's form
+        (FORMS) fits the recorded channel better, by an LLR from the response fits' SSEs (σ² from the better
+        one's SSE per fix), or cannot_tell (below DECISIVE, or no such segment in these runs)."""
+        forms = [FORMS.get(m, "") for m in self.members]
+        fits = [r for r in self.response if r.kind in self.telling.kinds[:1]]
+        if not fits or "" in forms or forms[0] == forms[1]:
+            return {"segment": self.telling.kinds[0], "favours": None, "llr": 0.0, "fixes": 0}
+        r = fits[0]
+        sse = {"delay": r.delay_sse, "lag": r.lag_sse, "gain": r.gain_sse}
+        a, b = sse[forms[0]], sse[forms[1]]
+        llr = (b - a) / (2.0 * min(a, b) / r.fixes) if min(a, b) > 0 else 0.0
+        favours = (self.members[0] if llr > 0 else self.members[1]) if abs(llr) >= DECISIVE else None
+        return {"segment": r.kind, "favours": favours, "llr": llr, "fixes": r.fixes}
+
+    @property
+    def telling_fixes(self) -> int:
+        """Fixes in the segments that separate these twins best."""
+        return sum(self.evidence.fixes.get(k, 0) for k in self.telling.kinds)
+
+    def to_json(self) -> dict[str, Any]:
+        e = self.evidence
+        return {"pair": list(self.pair), "effects": list(self.members), "chosen": self.chosen,
+                "llr": e.llr, "favours": self.favoured, "decision": self.decision,
+                "by_segment": {k: {"llr": v, "fixes": e.fixes[k]} for k, v in e.by_kind.items()},
+                "autocorrelation_fixes": e.tau, "sigma": e.sigma, "telling_segments": list(self.telling.kinds),
+                "telling_fixes": self.telling_fixes, "would_tell": self.telling.advice, "shape": self.shape,
+                "response_fit": [r.to_json() for r in self.response]}
+
+
+def decision(a: Candidate, b: Candidate, llr: float, min_gain: float = explain.MIN_GAIN,
+             bic_margin: float = explain.BIC_MARGIN, decisive: float = DECISIVE) -> str:
+    """held_out when held-out error and BIC already separate the two (one beats the other); else llr when
+    |llr| ≥ ``decisive``; else cannot_tell."""
+    if a.validated and b.validated and (explain.beats(a, b, min_gain, bic_margin)
+                                        or explain.beats(b, a, min_gain, bic_margin)):
+        return DECIDED_BY_FIT
+    return DECIDED_BY_LLR if abs(llr) >= decisive else CANNOT_TELL
+
+
+def eligible(candidate: Candidate, candidates: Sequence[Candidate], baseline: Candidate, min_gain: float,
+             bic_margin: float) -> bool:
+    """Whether ``candidate`` could be the answer (explain.select's rule): cross-validated, better than none
+    and than every fitted part of it."""
+    return (candidate.validated and explain.beats(candidate, baseline, min_gain, bic_margin)
+            and explain.beats_subsets(candidate, candidates, min_gain, bic_margin))
+
+
+def weigh(chosen: Candidate, candidates: Sequence[Candidate], baseline: Candidate, scenarios: Sequence[Scenario],
+          sigma: float | None, min_gain: float = explain.MIN_GAIN, bic_margin: float = explain.BIC_MARGIN,
+          decisive: float = DECISIVE) -> tuple[Candidate, list[LookAlike]]:
+    """The evidence between the chosen set and each fitted twin of it; where held-out error and BIC cannot
+    separate them and the LLR can, the LLR's favourite is the answer (if it could be chosen at all).
+    ``sigma``: the GPS noise per axis; without it, the better fit's own residual scatter. Costs no
+    simulation: the full fits keep their residuals."""
+    labels = {s.name: segments.of_scenario(s) for s in scenarios}
+    names = [s.name for s in scenarios]
+    looks: list[LookAlike] = []
+    answer = chosen
+    for a, b in twin_pairs(chosen, candidates):
+        if len(a.full.residuals) != len(names) or len(b.full.residuals) != len(names):
+            continue  # fitted on other runs than these
+        kinds = [segments.kinds_at(labels[n], fix_times(s, len(r) // 2))
+                 for n, s, r in zip(names, scenarios, a.full.residuals)]
+        if any(len(ra) != len(rb) for ra, rb in zip(a.full.residuals, b.full.residuals)):
+            continue
+        scale = sigma if sigma and math.isfinite(sigma) and sigma > 0 else math.sqrt(
+            min(a.full.sse, b.full.sse) / max(a.full.residual_count, 1))
+        evidence = segment_evidence(a.full.residuals, b.full.residuals, kinds, scale)
+        how = decision(a, b, evidence.llr, min_gain, bic_margin, decisive)
+        members = swapped(a.ids, b.ids) or ("", "")
+        if how == DECIDED_BY_LLR and chosen.ids and evidence.llr < 0 and a is answer and eligible(
+                b, candidates, baseline, min_gain, bic_margin):
+            answer = b
+        looks.append(LookAlike((a.label, b.label), members, evidence, how, None, telling(*members)))
+    for look in looks:
+        look.chosen = answer.label if answer.ids else None
+    return answer, looks
+
+
+def attach_responses(looks: Sequence[LookAlike], scenarios: Sequence[Scenario], tracks: Mapping[str, Any],
+                     columns: Mapping[str, str]) -> None:
+    """Each look-alike's response fit, in its telling channel, against the model whose ``tracks`` are given
+    (the calibrated baseline: the model without either twin); ``columns`` names the tracks' ``heading``,
+    ``vx`` and ``vy``."""
+    labels = {s.name: segments.of_scenario(s) for s in scenarios}
+    cache: dict[str, list[ResponseFit]] = {}
+    for look in looks:
+        name = look.telling.channel
+        if name not in cache:
+            channels = channels_of(scenarios, tracks, columns, name, labels)
+            cache[name] = response_fit(channels, name)
+        look.response = cache[name]
