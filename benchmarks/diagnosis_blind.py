@@ -1,4 +1,4 @@
-"""Blind diagnosis figures: library effects concealed in truth recordings, alone, in pairs, and noise only.
+"""Blind diagnosis figures: concealed effects alone, in pairs, outside the library, and noise only.
 
 Runs the cases of tests/blind.py on the embedded local cluster and prints one table per kind:
 
@@ -6,14 +6,20 @@ Runs the cases of tests/blind.py on the embedded local cluster and prints one ta
   truth, and the held-out mean cross-track error before and after;
 * pairs (every pair of library effects): what it named (the chosen set and the runner-up), whether both
   concealed effects are in its top two (the target), held-out error before and after, the noise floor,
-  the verdict.
+  the verdict;
+* outside the library (tests/fmus/robotti_truth: a tyre relaxation length, a steering gain falling with
+  speed, a payload lowered mid-run, a leaning antenna mast, and, the benchmark's only, slip growing with the
+  pull and a steering rate limit): what it named, the verdict, whether the effects are flagged partial,
+  any discovered terms, held-out error before and after, the noise floor;
+* noise only (heavier: 5 cm, 10 % dropouts, two 5 s outages; coloured): what it named, the estimated noise
+  against the truth's, held-out error before and after, the verdict.
 
-    python3 benchmarks/diagnosis_blind.py [--cases singles|pairs|all] [--form benchmark|tests]
-                                          [--workers 2] [--out out/diagnosis-blind]
+    python3 benchmarks/diagnosis_blind.py [--cases singles|pairs|ool|noise|all] [--only NAME,...]
+                                          [--form benchmark|tests] [--workers 2] [--out out/diagnosis-blind]
 
 ``--form benchmark`` (the default) records 40 s of every bundled manoeuvre; ``--form tests`` records the
-test suite's form (20 s of six runs, and the pairs' synthetic steering steps), so each row is what
-tests/test_diagnose.py would see for that case.
+test suite's form (20 s of six runs, and each case's synthetic runs), so each row is what
+tests/test_diagnose.py would see for that case. ``--only`` keeps the named cases of the chosen kinds.
 """
 
 from __future__ import annotations
@@ -35,6 +41,11 @@ SINGLES_HEADER = (f"{'concealed':<16} {'truth':>8} {'named first':<16} {'estimat
                   f"{'before [m]':>10} {'after [m]':>10} {'after/before':>12} {'seconds':>8}")
 PAIRS_HEADER = (f"{'concealed':<32} {'chosen':<32} {'runner-up':<40} {'top two':>7} {'before [m]':>10} "
                 f"{'after [m]':>10} {'floor [m]':>9} {'verdict':<11} {'seconds':>8}")
+OUTSIDE_HEADER = (f"{'concealed':<17} {'truth':<48} {'chosen':<36} {'runner-up':<44} {'verdict':<11} "
+                  f"{'partial':>7} {'discovered':<12} {'before [m]':>10} {'after [m]':>10} {'floor [m]':>9} "
+                  f"{'seconds':>8}")
+NOISE_HEADER = (f"{'case':<15} {'receiver':<36} {'named':<24} {'sigma [m]':>9} {'estimate':>9} "
+                f"{'before [m]':>10} {'after [m]':>10} {'floor [m]':>9} {'verdict':<11} {'seconds':>8}")
 
 
 def run(case: str, args: argparse.Namespace, client):
@@ -69,9 +80,51 @@ def pair_row(pair: str, result, seconds: float) -> tuple[str, bool]:
             f"{seconds:>8.1f}"), passed
 
 
+def floor_of(result) -> str:
+    return f"{result.floor.cross_track:>9.3f}" if result.floor.available else f"{'-':>9}"
+
+
+def discovered(result) -> str:
+    """The discovered terms' readable text, or '-' (none yet: discovery is a later step of issue 18)."""
+    terms = [t.get("text", "?") for e in result.effects if e["id"] == "discovered"
+             for t in e.get("terms", [])]
+    return "; ".join(terms) or "-"
+
+
+def outside_row(name: str, result, seconds: float) -> str:
+    """What the diagnosis made of an effect outside its library: any library effect it names must be
+    partial."""
+    truth = ", ".join(f"{k}={v:g}" for k, v in blind.CASES[name].truth.items())
+    chosen_set = "+".join(e["id"] for e in result.effects)
+    up = result.runner_up.other if result.runner_up else "-"
+    library = [e for e in result.effects if e["id"] not in ("none", "discovered")]
+    partial = "-" if not library else "yes" if all(e.get("partial") for e in library) else "NO"
+    return (f"{name:<17} {truth:<48} {chosen_set:<36} {up:<44} {result.verdict:<11} {partial:>7} "
+            f"{discovered(result):<12} {result.cross_track_before:>10.3f} {result.cross_track_after:>10.3f} "
+            f"{floor_of(result)} {seconds:>8.1f}")
+
+
+def noise_row(name: str, result, seconds: float) -> str:
+    """Noise only: the named effects (the target is none), the estimated noise against the truth's."""
+    case = blind.CASES[name]
+    receiver = (f"{case.noise * 100:g} cm, {case.dropout * 100:g} % drops, {case.outages}x{case.outage_s:g} s"
+                + (f", rho {case.colour:g}" if case.colour else ""))
+    named = "+".join(e["id"] for e in result.effects) + ("+discovered" if discovered(result) != "-" else "")
+    estimate = f"{result.floor.sigma:>9.4f}" if result.floor.available else f"{'-':>9}"
+    return (f"{name:<15} {receiver:<36} {named:<24} {case.noise:>9.4f} {estimate} "
+            f"{result.cross_track_before:>10.3f} {result.cross_track_after:>10.3f} {floor_of(result)} "
+            f"{result.verdict:<11} {seconds:>8.1f}")
+
+
+def chosen(names, only: set[str] | None) -> list[str]:
+    return [n for n in names if only is None or n in only]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cases", choices=("singles", "pairs", "all"), default="singles")
+    parser.add_argument("--cases", choices=("singles", "pairs", "ool", "noise", "all"), default="singles")
+    parser.add_argument("--only", type=lambda text: set(text.split(",")), default=None,
+                        help="comma-separated case names to keep, of the chosen kinds")
     parser.add_argument("--form", choices=("benchmark", "tests"), default="benchmark")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("out/diagnosis-blind"))
@@ -79,16 +132,24 @@ def main() -> None:
     with connect(Cluster(n_workers=args.workers)) as client:
         if args.cases in ("singles", "all"):
             print(SINGLES_HEADER, flush=True)
-            for effect in blind.EFFECTS:
+            for effect in chosen(blind.EFFECTS, args.only):
                 print(single_row(effect, *run(effect, args, client)), flush=True)
         if args.cases in ("pairs", "all"):
             print(PAIRS_HEADER, flush=True)
-            passed = 0
-            for pair in blind.PAIRS:
+            passed, pairs = 0, chosen(blind.PAIRS, args.only)
+            for pair in pairs:
                 row, ok = pair_row(pair, *run(pair, args, client))
                 passed += ok
                 print(row, flush=True)
-            print(f"both effects in the top two: {passed}/{len(blind.PAIRS)}", flush=True)
+            print(f"both effects in the top two: {passed}/{len(pairs)}", flush=True)
+        if args.cases in ("ool", "all"):
+            print(OUTSIDE_HEADER, flush=True)
+            for name in chosen(blind.OUTSIDE, args.only):
+                print(outside_row(name, *run(name, args, client)), flush=True)
+        if args.cases in ("noise", "all"):
+            print(NOISE_HEADER, flush=True)
+            for name in chosen(["none", *blind.NOISE_CASES], args.only):
+                print(noise_row(name, *run(name, args, client)), flush=True)
 
 
 if __name__ == "__main__":

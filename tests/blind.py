@@ -1,16 +1,18 @@
 """Recordings from a richer truth model, for blind tests of discrepancy diagnosis.
 
-The truth is the vehicle's effects variant with vehicle parameters the
-calibration must find and one effect, two, or none switched on (a :class:`Case`).
+The truth has vehicle parameters the calibration must find and one effect, two,
+or none switched on (a :class:`Case`). For library effects it is the vehicle's
+effects variant; for effects outside the library it is tests/fmus/robotti_truth,
+a vehicle with its own right-hand side that also carries the library's effects.
 It replays the steering logs of the bundled runs, and of synthetic ones
 (:func:`synthetic_run`), and records the GPS antenna at 10 Hz with receiver
-noise and dropouts, in the field-data format: the diagnosis sees only these
-files, never the truth.
+noise, dropouts and outages, in the field-data format: the diagnosis sees only
+these files, never the truth.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from itertools import combinations
 from pathlib import Path
 
@@ -52,35 +54,80 @@ PAIRS = {f"{a}+{b}": {**EFFECTS[a], **EFFECTS[b]}
 
 # Synthetic manoeuvres (synthetic_run): the bundled steering is sines and ramps, on which a delay, a lag and
 # a lower gain all look like a phase shift; a step shows a delay as a late jump and a lag as a slow rise.
-SYNTHETIC = ("steer_steps",)
+# The slaloms are one steering sine at two speeds (what changes with speed); the loop turns through every
+# heading.
+SYNTHETIC = ("steer_steps", "slalom_slow", "slalom_fast", "loop")
 PAIR_RUNS = [*RUNS, "steer_steps"]  # what pair cases record
+SLALOM = {"slalom_slow": 0.8, "slalom_fast": 2.0}  # m/s
+SLALOM_AMPLITUDE, SLALOM_PERIOD = 0.2, 8.0  # rad, s: as the bundled sines' swing, 2.5 times as fast
+LOOP_SPEED, LOOP_STEERING, LOOP_TURNING = 1.6, 0.25, 30.0  # m/s, rad, s: about 6.7 rad of heading
+
+# Effects outside the library, in tests/fmus/robotti_truth (variables of that FMU, as the library's are of
+# the effects variant), at a size a field engineer would care about, with the synthetic runs that expose
+# each form.
+# slip_pull's constant part is the library's wheel_slip; it grows with the drive force.
+OUTSIDE = {
+    "relaxation": ({"relaxation": 0.8}, ("steer_steps", "slalom_slow", "slalom_fast")),
+    "steer_gain_speed": ({"steer_gain_speed": 0.12}, ("slalom_slow", "slalom_fast")),
+    "payload": ({"payload": 400.0, "payload_time": 10.0, "payload_draft": 0.06}, ()),
+    "mast_roll": ({"mast_roll": 0.2, "mast_roll_heading": 0.7}, ("loop",)),
+    "slip_pull": ({"wheel_slip": 0.03, "slip_pull": 0.3}, ()),  # the benchmark's only
+    "steer_rate_limit": ({"steer_rate_limit": 0.08}, ("steer_steps",)),  # the benchmark's only
+}
+OUTSIDE_BENCHMARK = ("slip_pull", "steer_rate_limit")  # not meant for CI: one more look-alike of each kind
+
+# Noise only, heavier than the singles' "none": a worse receiver, or a coloured one (multipath wanders).
+NOISE_CASES = {
+    "noise_heavy": {"noise": 0.05, "dropout": 0.10, "outages": 2, "outage_s": 5.0},
+    "noise_coloured": {"colour": 0.9},  # the benchmark's only
+}
+FIX_PERIOD = 0.1  # s, the receiver's
+VEHICLES = {"effects": "bundled:fmus/robotti_vehicle_effects",
+            "truth": str(REPO / "tests" / "fmus" / "robotti_truth")}
 
 
 @dataclass(frozen=True)
 class Case:
-    """A blind case's truth: the library effects concealed, their parameters' values, the runs recorded and
-    the seed of the receiver's noise."""
+    """A blind case's truth: the library effects concealed, their parameters' values, the vehicle that
+    records them, the runs recorded, and the receiver (its noise, its seed, its dropouts and outages)."""
     name: str
-    effects: tuple[str, ...]  # library ids; () for noise only
-    truth: dict[str, float]  # effect parameters of the truth (variables of the effects variant)
+    effects: tuple[str, ...]  # library ids; () for noise only and for effects outside the library
+    truth: dict[str, float]  # effect parameters of the truth (variables of the vehicle below)
     runs: tuple[str, ...]  # bundled or synthetic run names
     seed: int
+    vehicle: str = "effects"  # a key of VEHICLES: "truth" for effects outside the library
+    noise: float = NOISE  # m, per axis
+    dropout: float = 0.03  # probability that a fix is missing
+    outages: int = 1  # per run, each in its own part of the run
+    outage_s: float = 2.0  # s, each
+    colour: float = 0.0  # lag-1 correlation of the noise from fix to fix (AR(1)); 0 = white
+    benchmark_only: bool = False
 
 
 def _cases() -> dict[str, Case]:
-    """Singles keep the seeds they always had (sorted names); pairs take the next ones, in PAIRS' order."""
+    """Singles keep the seeds they always had (sorted names); pairs take the next ones, in PAIRS' order,
+    then the effects outside the library and the noise cases: adding a kind never moves an older case's
+    noise."""
     singles = {e: Case(e, (e,) if e != "none" else (), EFFECTS[e], tuple(RUNS), sorted(EFFECTS).index(e))
                for e in EFFECTS}
     pairs = {p: Case(p, tuple(p.split("+")), truth, tuple(PAIR_RUNS), len(EFFECTS) + k)
              for k, (p, truth) in enumerate(PAIRS.items())}
-    return singles | pairs
+    first = len(singles) + len(pairs)
+    outside = {o: Case(o, (), truth, (*RUNS, *synthetic), first + k, vehicle="truth",
+                       benchmark_only=o in OUTSIDE_BENCHMARK)
+               for k, (o, (truth, synthetic)) in enumerate(OUTSIDE.items())}
+    first += len(outside)
+    noise = {n: Case(n, (), {}, tuple(RUNS), first + k, benchmark_only=n == "noise_coloured", **receiver)
+             for k, (n, receiver) in enumerate(NOISE_CASES.items())}
+    return singles | pairs | outside | noise
 
 
 CASES = _cases()
 
 
 def truth_of(case: str) -> dict[str, float]:
-    """The effect parameters a case switches on in the truth: a single effect's, or a pair's."""
+    """The effect parameters a case switches on in the truth: a single effect's, a pair's, or one outside the
+    library (variables of tests/fmus/robotti_truth)."""
     return CASES[case].truth
 
 
@@ -89,19 +136,44 @@ def seed_of(case: str) -> int:
     return CASES[case].seed
 
 
-def synthetic_run(name: str, seconds: float) -> tuple[dict, list[str]]:
-    """A manoeuvre no bundled run has, as (scenario.yaml's fields, steering log lines), ``seconds`` long.
+def synthetic_length(name: str, seconds: float) -> float:
+    """How long a synthetic run lasts when runs are cut to ``seconds``: the loop never less than its whole
+    turn (1 s at rest, 1 s to start, LOOP_TURNING s turning), since a part of a circle leaves headings out."""
+    return max(seconds, 2.0 + LOOP_TURNING) if name == "loop" else seconds
+
+
+def synthetic_commands(name: str, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Commanded speed [m/s] and steering [rad, positive = right] of a synthetic run at ``times``.
 
     ``steer_steps``: at rest for 1 s, then 1.2 m/s with the steering stepped every 5 s through 0, +0.1, 0,
     -0.1 rad: each step separates a delay (the same jump, late) from a lag (a slow rise) and from an offset
-    (straight segments between the steps)."""
-    if name != "steer_steps":
-        raise ValueError(f"unknown synthetic run {name!r}: there is {', '.join(SYNTHETIC)}")
-    times = np.round(np.arange(0.0, seconds + 1e-9, STEP), 2)
-    speed = np.where(times >= 1.0, 1.2, 0.0)
-    steering = np.array([0.0, 0.1, 0.0, -0.1])[(times // 5.0).astype(int) % 4]
+    (straight segments between the steps).
+    ``slalom_slow``, ``slalom_fast``: at rest for 1 s, then 0.8 or 2.0 m/s, and from 2 s a steering sine of
+    0.2 rad and 8 s: the same steering at two speeds, so an effect that grows or fades with speed (a tyre's
+    relaxation length, a steering gain) cannot pass for a constant one.
+    ``loop``: at rest for 1 s, then 1.6 m/s, and from 2 s a steady 0.25 rad to the right: about 6.7 rad of
+    heading in 30 s, so an error that depends on the heading (a leaning antenna mast) shows at every
+    heading."""
+    moving = times >= 1.0
+    if name == "steer_steps":
+        return np.where(moving, 1.2, 0.0), np.array([0.0, 0.1, 0.0, -0.1])[(times // 5.0).astype(int) % 4]
+    if name in SLALOM:
+        sine = SLALOM_AMPLITUDE * np.sin(2 * np.pi * (times - 2.0) / SLALOM_PERIOD)
+        return np.where(moving, SLALOM[name], 0.0), np.where(times >= 2.0, sine, 0.0)
+    if name == "loop":
+        return np.where(moving, LOOP_SPEED, 0.0), np.where(times >= 2.0, LOOP_STEERING, 0.0)
+    raise ValueError(f"unknown synthetic run {name!r}: there is {', '.join(SYNTHETIC)}")
+
+
+def synthetic_run(name: str, seconds: float) -> tuple[dict, list[str]]:
+    """A manoeuvre no bundled run has, as (scenario.yaml's fields, steering log lines), ``seconds`` long
+    (the loop at least its whole turn: :func:`synthetic_length`); the manoeuvres are
+    :func:`synthetic_commands`'."""
+    duration = synthetic_length(name, seconds)
+    times = np.round(np.arange(0.0, duration + 1e-9, STEP), 2)
+    speed, steering = synthetic_commands(name, times)
     lines = ["time,velocity,delta_f"] + [f"{t:.2f},{v:.3f},{d:.4f}" for t, v, d in zip(times, speed, steering)]
-    info = {"name": name, "group": name, "duration": float(seconds),
+    info = {"name": name, "group": name, "duration": float(duration),
             "initial_pose": {"x": 0.0, "y": 0.0, "theta": 0.0}}
     return info, lines
 
@@ -117,19 +189,60 @@ def source(name: str, seconds: float) -> tuple[dict, list[str]]:
     return info.model_dump(mode="json") | {"duration": duration}, kept
 
 
-def truth_plan():
+def truth_plan(vehicle: str = "effects"):
+    """The bundled multi-model with the replay controller driving the truth's vehicle (a key of VEHICLES)."""
     data = yaml.safe_load(bundled.bundled_path("bundled:robotti/multimodel.yaml").read_text())
-    data["fmus"] = {"controller": "bundled:fmus/replay_controller", "vehicle": "bundled:fmus/robotti_vehicle_effects"}
+    data["fmus"] = {"controller": "bundled:fmus/replay_controller", "vehicle": VEHICLES[vehicle]}
     return as_plan(parse_multimodel(data, "truth", REPO))
 
 
-def record(folder: Path, effect: str, runs: list[str] | tuple[str, ...], seconds: float, noise: float = NOISE,
-           dropout: float = 0.03, seed: int = 0) -> Path:
+def truth_values(case: Case) -> dict[str, float]:
+    """What the truth's vehicle is set to for a case: the vehicle the calibration must find, and the
+    effects."""
+    return {**TRUTH_VEHICLE, **{f"vehicle.{k}": v for k, v in case.truth.items()}}
+
+
+def receiver(case: Case, fixes: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The receiver's errors (x, y) [m] and which fixes it keeps, for ``fixes`` fixes of one run.
+
+    The draws come in the order they always did (noise x, noise y, dropouts, first outage), so a white-noise,
+    one-outage case records the very files it did before cases had receivers. Coloured noise is the same
+    draws through an AR(1) filter that keeps their variance; each outage starts in the second quarter of its
+    share of the run, so two never overlap while each is shorter than half a share."""
+    ex, ey = rng.normal(0, case.noise, fixes), rng.normal(0, case.noise, fixes)
+    if case.colour:
+        ex, ey = ar1(ex, case.colour), ar1(ey, case.colour)
+    keep = rng.random(fixes) >= case.dropout
+    share, length = fixes // max(case.outages, 1), round(case.outage_s / FIX_PERIOD)
+    for k in range(case.outages):
+        start = k * share + rng.integers(share // 4, share // 2)
+        keep[start:start + length] = False
+    keep[0] = True
+    return ex, ey, keep
+
+
+def ar1(white: np.ndarray, rho: float) -> np.ndarray:
+    """White noise coloured by e[k] = rho e[k-1] + sqrt(1 - rho^2) w[k], from a stationary start: the same
+    standard deviation, correlated from fix to fix."""
+    out = np.empty_like(white)
+    out[0] = white[0]
+    gain = np.sqrt(1.0 - rho * rho)
+    for k in range(1, white.size):
+        out[k] = rho * out[k - 1] + gain * white[k]
+    return out
+
+
+def record(folder: Path, effect: str | Case, runs: list[str] | tuple[str, ...], seconds: float,
+           noise: float | None = None, dropout: float | None = None, seed: int = 0) -> Path:
     """Write ``runs`` (names of bundled or synthetic runs, cut to ``seconds``) as recorded by the truth with
-    ``effect`` (a name of CASES)."""
+    ``effect`` (a name of CASES, or a Case), on its receiver; ``noise`` and ``dropout`` override the
+    case's."""
+    case = effect if isinstance(effect, Case) else CASES[effect]
+    case = replace(case, noise=case.noise if noise is None else noise,
+                   dropout=case.dropout if dropout is None else dropout)
     rng = np.random.default_rng(seed)
-    plan = truth_plan()
-    overrides = {**TRUTH_VEHICLE, **{f"vehicle.{k}": v for k, v in truth_of(effect).items()}}
+    plan = truth_plan(case.vehicle)
+    overrides = truth_values(case)
     for name in runs:
         info, lines = source(name, seconds)
         duration = info["duration"]
@@ -139,14 +252,11 @@ def record(folder: Path, effect: str, runs: list[str] | tuple[str, ...], seconds
         (target / INFO_FILE).write_text(yaml.safe_dump(info, sort_keys=False))
         (target / "gps_position.csv").write_text("time,x,y\n0,0,0\n")  # replaced below
         run = simulate(plan, load_scenario(target), overrides, objectives=(), step=STEP)
-        fixes = np.round(np.arange(0.0, duration + 1e-9, 0.1), 2)
+        fixes = np.round(np.arange(0.0, duration + 1e-9, FIX_PERIOD), 2)
         x, y = run.trajectory.column("vehicle.gps_x"), run.trajectory.column("vehicle.gps_y")  # the antenna
-        gx = np.interp(fixes, run.trajectory.time, x) + rng.normal(0, noise, fixes.size)
-        gy = np.interp(fixes, run.trajectory.time, y) + rng.normal(0, noise, fixes.size)
-        keep = rng.random(fixes.size) >= dropout
-        start = rng.integers(fixes.size // 4, fixes.size // 2)  # and one outage of 2 s
-        keep[start:start + 20] = False
-        keep[0] = True
+        ex, ey, keep = receiver(case, fixes.size, rng)
+        gx = np.interp(fixes, run.trajectory.time, x) + ex
+        gy = np.interp(fixes, run.trajectory.time, y) + ey
         rows = [f"{t:.2f},{a:.4f},{b:.4f}" for t, a, b in zip(fixes[keep], gx[keep], gy[keep])]
         (target / "gps_position.csv").write_text("time,x,y\n" + "\n".join(rows) + "\n")
     return folder
