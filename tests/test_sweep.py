@@ -246,6 +246,36 @@ def test_task_ids_do_not_depend_on_how_they_are_written(value):
     assert task_id("m" * 32, point, "s" * 32) == _digest("m" * 32, sorted(point.items()), "s" * 32)[:24]
 
 
+@pytest.mark.parametrize("values", [[0.5, 1 / 3, float("nan"), -0.0], [3, True, 2.5, -7], ["fast", 1.0, None, 2.0]])
+def test_tasks_hashed_a_block_at_a_time_keep_their_ids(values):
+    """A sweep hashes points a block at a time, a column at a time; the ids must be task_id's, whatever
+    the values (plain numbers, mixed types, strings), and the values must come back as given."""
+    from dse_runner.sweeps.expand import TaskBatch, task_id
+
+    points = [{"b.x": v, "a.ü \"q\"": float(k)} for k, v in enumerate(values)]
+    batch = TaskBatch.of_points("m" * 32, points, "sin1", "s" * 32)
+    tasks = list(batch)
+    assert [t.task_id for t in tasks] == [task_id("m" * 32, p, "s" * 32) for p in points]
+    for task, point in zip(tasks, points):
+        assert task.scenario == "sin1" and repr(task.point) == repr(tuple(sorted(point.items())))  # NaN too
+        assert all(type(v) is type(point[name]) for name, v in task.point)  # plain Python values again
+
+
+def test_chunks_hold_the_tasks_in_order_at_the_asked_sizes_less_the_done(tmp_path):
+    """Chunks are cut across blocks and scenarios at whatever size the sweep asks next; finished tasks
+    are left out and no task is lost or repeated."""
+    from dse_runner.sweeps.expand import blocks, chunked
+
+    space = load_space(write_space(tmp_path))  # 6 points x 2 scenarios
+    every = list(expand(space))
+    done = {every[1].task_id, every[7].task_id}
+    sizes = iter([4, 3, 2, 100])
+    chunks = list(chunked(blocks(space, done=done), lambda: next(sizes)))
+    assert [len(c) for c in chunks] == [4, 3, 2, 1]
+    assert [t for c in chunks for t in c] == [t for t in every if t.task_id not in done]
+    assert chunks[1].scenarios == (every[0].scenario, every[6].scenario)  # a chunk may span two scenarios
+
+
 def test_chunks_ramp_up_from_the_smallest_then_follow_the_work_left():
     from dse_runner.sweeps.sweep import SMALLEST_CHUNK_PART, chunk_size
 

@@ -259,8 +259,8 @@ class SearchSource:
         self.running[number] = known
         if not self.first_sent:
             self.first_sent = time.monotonic()
-        space = self.space
-        return ChunkJob(space.name, chunk_id_of(missing), self.shipment, space.model_key, TaskBatch.of(missing),
+        space, batch = self.space, TaskBatch.of(missing)
+        return ChunkJob(space.name, chunk_id_of(batch), self.shipment, space.model_key, batch,
                         space.objectives, space.output, self.schema, space.spec.timeout, space.experiment,
                         with_scores=True, point=number)
 

@@ -10,6 +10,7 @@ changed FMU or recording gives new ids instead of stale results.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import math
 from collections.abc import Callable, Collection, Iterable, Iterator
@@ -114,16 +115,31 @@ def expand(space, points: list[dict[str, Any]] | None = None,
     ``only`` (with ``points``) names, for each point, the scenarios it is wanted on: an
     optimiser fitting some runs need not simulate the others. Without it, every point
     runs on every scenario."""
+    for block in blocks(space, points, only):
+        yield from block
+
+
+BLOCK = 1024  # points hashed together: large enough that per-block costs vanish, small enough to stream
+
+
+def blocks(space, points: list[dict[str, Any]] | None = None, only: list[Collection[str]] | None = None,
+           done: Collection[str] = ()) -> Iterator[TaskBatch]:
+    """expand()'s tasks in batches of up to BLOCK, less those in ``done``. A sweep makes its chunks from
+    these: ids are written a column at a time, so a 100,000-task sweep's client keeps up with its workers."""
     if only is not None and (points is None or len(only) != len(points)):
         raise ValueError("expand: `only` needs one collection of scenario names per given point")
     model = space.model_key
     visit = points_of(space, points)
     for scenario in space.scenarios:
         data = scenario_hash(scenario)
-        for k, point in enumerate(visit(space)):  # regenerated per scenario: no list of all points is kept
-            if only is None or scenario.name in only[k]:
-                items = tuple(sorted(point.items()))
-                yield Task(_task_id(model, items, data), scenario.name, items)
+        wanted = ((p for k, p in enumerate(visit(space)) if scenario.name in only[k]) if only is not None
+                  else visit(space))  # regenerated per scenario: no list of all points is kept
+        while block := list(itertools.islice(wanted, BLOCK)):
+            batch = TaskBatch.of_points(model, block, scenario.name, data)
+            if done:
+                batch = batch[np.array([i not in done for i in batch.ids()], dtype=bool)]
+            if len(batch):
+                yield batch
 
 
 def count(space, done: Collection[str], points: list[dict[str, Any]] | None = None,
@@ -131,7 +147,7 @@ def count(space, done: Collection[str], points: list[dict[str, Any]] | None = No
     """(tasks, tasks with a row in ``done``): ids are computed only if some tasks are done, since
     hashing every task of a large fresh sweep would keep the workers waiting for the client."""
     if done:
-        ids = [task.task_id for task in expand(space, points, only)]
+        ids = [task_id for block in blocks(space, points, only) for task_id in block.ids()]
         return len(ids), sum(task_id in done for task_id in ids)
     if only is not None:
         return sum(scenario.name in wanted for scenario in space.scenarios for wanted in only), 0
@@ -156,34 +172,93 @@ class TaskBatch:
     def of(cls, tasks: list[Task]) -> TaskBatch:
         parameters = tuple(name for name, _ in tasks[0].point)
         scenarios = tuple(dict.fromkeys(t.scenario for t in tasks))
-        values = [value for t in tasks for _, value in t.point]
-        numeric = all(type(v) is float for v in values)
         index = {name: k for k, name in enumerate(scenarios)}
-        return cls(parameters, scenarios,
-                   np.array([t.task_id.encode() for t in tasks]),
+        return cls(parameters, scenarios, np.array([t.task_id.encode() for t in tasks]),
                    np.array([index[t.scenario] for t in tasks], dtype=np.int32),
-                   np.array(values, dtype=np.float64 if numeric else object).reshape(len(tasks), len(parameters)))
+                   _values([value for t in tasks for _, value in t.point], len(tasks), len(parameters)))
+
+    @classmethod
+    def of_points(cls, model: str, points: list[dict[str, Any]], scenario: str, data: str) -> TaskBatch:
+        """The tasks of ``points`` on one scenario (``data``: its hash), ids as ``_task_id`` gives them."""
+        names = tuple(sorted(points[0]))
+        if any(len(point) != len(names) for point in points):  # points of differing parameters: one by one
+            return cls.of([Task(task_id(model, point, data), scenario, tuple(sorted(point.items())))
+                           for point in points])
+        rows = [[point[name] for name in names] for point in points]
+        ids = _block_ids(model, names, rows, data)
+        return cls(names, (scenario,), np.array([i.encode() for i in ids]), np.zeros(len(rows), dtype=np.int32),
+                   _values([v for row in rows for v in row], len(rows), len(names)))
+
+    @classmethod
+    def concat(cls, batches: list[TaskBatch]) -> TaskBatch:
+        """One batch of several (of one space: the same parameters)."""
+        if len(batches) == 1:
+            return batches[0]
+        scenarios = tuple(dict.fromkeys(name for b in batches for name in b.scenarios))
+        index = {name: k for k, name in enumerate(scenarios)}
+        remap = [np.array([index[name] for name in b.scenarios], dtype=np.int32)[b.scenario_index] for b in batches]
+        values = [b.values for b in batches]
+        kind = np.float64 if all(v.dtype == np.float64 for v in values) else object
+        return cls(batches[0].parameters, scenarios, np.concatenate([b.task_ids for b in batches]),
+                   np.concatenate(remap), np.concatenate([v.astype(kind) for v in values]))
+
+    def __getitem__(self, which: slice | np.ndarray) -> TaskBatch:
+        """Some of the tasks: a slice, or a boolean mask."""
+        return TaskBatch(self.parameters, self.scenarios, self.task_ids[which], self.scenario_index[which],
+                         self.values[which])
+
+    def ids(self) -> list[str]:
+        return self.task_ids.astype(str).tolist()
 
     def __len__(self) -> int:
         return len(self.task_ids)
 
     def __iter__(self) -> Iterator[Task]:
-        for task_id, scenario, row in zip(self.task_ids, self.scenario_index, self.values):
-            point = tuple(zip(self.parameters, (v.item() if hasattr(v, "item") else v for v in row)))
-            yield Task(task_id.decode(), self.scenarios[scenario], point)
+        """The tasks again, with plain Python values (a float64 column's ``tolist`` gives floats)."""
+        rows = self.values.tolist()
+        if self.values.dtype == object:  # numpy scalars a strategy gave become plain values
+            rows = [[v.item() if hasattr(v, "item") else v for v in row] for row in rows]
+        names, parameters = self.scenarios, self.parameters
+        for task_id, scenario, row in zip(self.ids(), self.scenario_index.tolist(), rows):
+            yield Task(task_id, names[scenario], tuple(zip(parameters, row)))
 
 
-def chunked(tasks: Iterable[Task], size: int | Callable[[], int]) -> Iterator[list[Task]]:
-    """Lists of ``size`` tasks; a callable size is asked before each chunk, so a sweep can re-size its
+def _values(flat: list[Any], n: int, width: int) -> np.ndarray:
+    """Tasks x parameters: float64 when every value is a float, else the values themselves."""
+    numeric = all(type(v) is float for v in flat)
+    return np.array(flat, dtype=np.float64 if numeric else object).reshape(n, width)
+
+
+def _block_ids(model: str, names: tuple[str, ...], rows: list[list[Any]], data: str) -> list[str]:
+    """``_task_id`` of each row of values (in ``names``' order), its JSON written a column at a time when
+    every value is a plain number: the same text, for a fraction of the cost per task."""
+    columns = []
+    for k, name in enumerate(names):
+        quoted = encode_basestring_ascii(name)
+        try:
+            columns.append([f"[{quoted},{_NUMBERS[type(row[k])](row[k])}]" for row in rows])
+        except KeyError:  # a string or other value: the json module writes it
+            return [_task_id(model, tuple(zip(names, row)), data) for row in rows]
+    head, tail = f"[{encode_basestring_ascii(model)},[", f"],{encode_basestring_ascii(data)}]"
+    texts = (head + ",".join(parts) + tail for parts in zip(*columns)) if len(columns) != 1 else \
+        (head + part + tail for part in columns[0])
+    sha = hashlib.sha256
+    return [sha(text.encode()).hexdigest()[:24] for text in texts]
+
+
+def chunked(batches: Iterable[TaskBatch], size: int | Callable[[], int]) -> Iterator[TaskBatch]:
+    """Batches of ``size`` tasks; a callable size is asked before each chunk, so a sweep can re-size its
     chunks from what the finished ones cost."""
     size_now = size if callable(size) else lambda: size
-    chunk: list[Task] = []
-    wanted = size_now()
-    for task in tasks:
-        chunk.append(task)
-        if len(chunk) >= wanted:
-            yield chunk
-            chunk = []
-            wanted = size_now()
-    if chunk:
-        yield chunk
+    parts: list[TaskBatch] = []
+    have, wanted = 0, size_now()
+    for batch in batches:
+        while len(batch):
+            part, batch = batch[:wanted - have], batch[wanted - have:]
+            parts.append(part)
+            have += len(part)
+            if have >= wanted:
+                yield TaskBatch.concat(parts)
+                parts, have, wanted = [], 0, size_now()
+    if parts:
+        yield TaskBatch.concat(parts)

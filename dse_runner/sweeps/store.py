@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 import fsspec
+import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.dataset as ds
@@ -153,13 +154,21 @@ def results_schema(parameters: dict[str, list[Any]], objectives: dict[str, Objec
 
 
 def write_rows(root: Root, sweep: str, chunk: str, rows: list[dict[str, Any]], schema: pa.Schema) -> list[str]:
-    """Write one chunk's rows, one file per scenario partition."""
-    by_scenario: dict[str, list[dict[str, Any]]] = {}
-    for row in rows:  # "scenario" is the partition: from_pylist takes the schema's columns and no others
-        by_scenario.setdefault(row["scenario"], []).append(row)
-    return [write_table(pa.Table.from_pylist(group, schema=schema), root,
-                        f"{_partition(RESULTS, sweep, scenario)}/part-{chunk}.parquet")
-            for scenario, group in by_scenario.items()]
+    """Write one chunk's rows given as dicts (each with its "scenario"), one file per scenario partition."""
+    return write_results(root, sweep, chunk, pa.Table.from_pylist(rows, schema=schema), [r["scenario"] for r in rows])
+
+
+def write_results(root: Root, sweep: str, chunk: str, table: pa.Table, scenarios: list[str]) -> list[str]:
+    """Write one chunk's rows, ``scenarios`` naming each row's, one file per scenario partition ("scenario"
+    is the partition, not a column)."""
+    names = list(dict.fromkeys(scenarios))
+    if len(names) == 1:
+        parts = {names[0]: table}
+    else:
+        each = np.array(scenarios)
+        parts = {name: table.filter(pa.array(each == name)) for name in names}
+    return [write_table(part, root, f"{_partition(RESULTS, sweep, name)}/part-{chunk}.parquet")
+            for name, part in parts.items()]
 
 
 def remove_chunk(root: Root, sweep: str, chunk: str) -> int:

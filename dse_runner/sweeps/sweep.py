@@ -28,7 +28,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Collection, Iterator
 from concurrent.futures import CancelledError
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal, Protocol
 
@@ -44,7 +44,7 @@ from .chunks import ChunkJob, ChunkSummary, chunk_id_of, probe, record_crash, ru
 from .closed_loop import SearchSource, SearchStatus
 from .cluster import connect, total_threads
 from .domain import Point
-from .expand import TaskBatch, chunked, count, expand, points_of
+from .expand import blocks, chunked, count, points_of
 from .search import strategy
 from .spec import Space
 
@@ -255,6 +255,7 @@ class GridSource:
     threads: int = 1
     unassigned: int = 0  # tasks not yet in a chunk
     sent: int = 0  # chunks handed out since the last (re)connection
+    warm_ups: list[Any] = field(default_factory=list)  # the probes' futures, kept so that none is cancelled
 
     def start(self, client, done: set[str]) -> None:
         self.threads = total_threads(client)
@@ -292,15 +293,24 @@ class GridSource:
         pass  # the rows are all a grid needs
 
     def probe(self, client, point: Point) -> float | None:
+        """One warm simulation's seconds, probed on every worker at once and taken from the first to
+        answer: each worker loads the model while the client makes the first chunks, so none of them
+        starts its first chunk cold (the others' probes go on, as warm-ups)."""
+        from distributed import as_completed
         from distributed.scheduler import KilledWorker
 
         spec = self.space.spec
-        future = client.submit(probe, self.shipment, self.space.scenarios[0].name, point,
-                               self.space.objectives, spec.timeout, self.space.experiment, pure=False)
-        try:
-            return future.result()
-        except KilledWorker:
-            return None
+        workers = [[address] for address in client.scheduler_info()["workers"]] or [None]
+        self.warm_ups = [client.submit(probe, self.shipment, self.space.scenarios[0].name, point,
+                                       self.space.objectives, spec.timeout, self.space.experiment,
+                                       workers=where, allow_other_workers=True, pure=False) for where in workers]
+        for future in as_completed(self.warm_ups):
+            try:
+                return future.result()
+            except KilledWorker:  # the model crashes its process: no more workers should die probing it
+                client.cancel(self.warm_ups)
+                return None
+        return None
 
 
 @dataclass
@@ -493,7 +503,6 @@ def _jobs(space: Space, shipment: str, done: set[str], size: Callable[[], int], 
           only: list[Collection[str]] | None = None) -> Iterator[ChunkJob]:
     key = space.model_key
     schema = store.results_schema(space.parameters, space.objectives)
-    todo = (t for t in expand(space, points, only) if t.task_id not in done)
-    for tasks in chunked(todo, size):
-        yield ChunkJob(space.name, chunk_id_of(tasks), shipment, key, TaskBatch.of(tasks), space.objectives,
+    for tasks in chunked(blocks(space, points, only, done), size):
+        yield ChunkJob(space.name, chunk_id_of(tasks), shipment, key, tasks, space.objectives,
                        space.output, schema, space.spec.timeout, space.experiment)
