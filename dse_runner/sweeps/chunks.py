@@ -29,7 +29,7 @@ from ..simulation.run import simulate
 from ..simulation.scenario import Scenario
 from . import ship, store
 from .domain import Point
-from .expand import Task, TaskBatch
+from .expand import TaskBatch
 
 ATTEMPTS = 2  # a failing simulation is retried once
 CRASH_ATTEMPTS = 2  # a lone task whose worker died under it this often (beyond Dask's own retries) has failed
@@ -97,13 +97,13 @@ def _worker_name() -> str:
         return f"{socket.gethostname()}:{os.getpid()}"
 
 
-def run_task(plan: Plan, task: Task, scenario: Scenario, objectives: dict[str, ObjectiveSpec],
+def run_task(plan: Plan, point: Point, scenario: Scenario, objectives: dict[str, ObjectiveSpec],
              timeout: float, experiment: Experiment | None = None) -> tuple[dict[str, float] | None, str | None]:
     """Objectives, or the error message after the retry."""
     error = None
     for _ in range(ATTEMPTS):
         try:
-            result = simulate(plan, scenario, dict(task.point), objectives=objectives, timeout=timeout,
+            result = simulate(plan, scenario, point, objectives=objectives, timeout=timeout,
                               experiment=experiment)
             return result.objectives, None
         except DseError as e:
@@ -123,17 +123,18 @@ def run_chunk(job: ChunkJob) -> ChunkSummary:
     messages: list[str] = []
     told: list[TaskScores] = []
     started = time.perf_counter()
-    for task in job.tasks:
+    for scenario, point in job.tasks.points():
         t0 = time.perf_counter()
-        result, error = run_task(unpacked.plan, task, unpacked.scenarios[task.scenario], job.objectives,
+        result, error = run_task(unpacked.plan, point, unpacked.scenarios[scenario], job.objectives,
                                  job.timeout, job.experiment)
         walls.append(time.perf_counter() - t0)
         scores.append(result)
         errors.append(error)
         if error and len(messages) < 3:
-            messages.append(f"{task.scenario} {dict(task.point)}: {error}")
-        if job.with_scores:
-            told.append(TaskScores(task.task_id, task.scenario, result, error))
+            messages.append(f"{scenario} {point}: {error}")
+    if job.with_scores:
+        told = [TaskScores(task.task_id, task.scenario, result, error)
+                for task, result, error in zip(job.tasks, scores, errors)]
     seconds = time.perf_counter() - started
     groups = {name: scenario.group for name, scenario in unpacked.scenarios.items()}
     store.write_results(job.output, job.sweep, job.chunk_id,

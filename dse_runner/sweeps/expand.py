@@ -214,13 +214,22 @@ class TaskBatch:
         return len(self.task_ids)
 
     def __iter__(self) -> Iterator[Task]:
-        """The tasks again, with plain Python values (a float64 column's ``tolist`` gives floats)."""
+        names, parameters = self.scenarios, self.parameters
+        for task_id, scenario, row in zip(self.ids(), self.scenario_index.tolist(), self._rows()):
+            yield Task(task_id, names[scenario], tuple(zip(parameters, row)))
+
+    def points(self) -> Iterator[tuple[str, dict[str, Any]]]:
+        """(scenario, point) of each task: what a worker simulates, without a Task object per task."""
+        names, parameters = self.scenarios, self.parameters
+        for scenario, row in zip(self.scenario_index.tolist(), self._rows()):
+            yield names[scenario], dict(zip(parameters, row))
+
+    def _rows(self) -> list[list[Any]]:
+        """The values with plain Python types (a float64 column's ``tolist`` gives floats)."""
         rows = self.values.tolist()
         if self.values.dtype == object:  # numpy scalars a strategy gave become plain values
             rows = [[v.item() if hasattr(v, "item") else v for v in row] for row in rows]
-        names, parameters = self.scenarios, self.parameters
-        for task_id, scenario, row in zip(self.ids(), self.scenario_index.tolist(), rows):
-            yield Task(task_id, names[scenario], tuple(zip(parameters, row)))
+        return rows
 
 
 def _values(flat: list[Any], n: int, width: int) -> np.ndarray:
