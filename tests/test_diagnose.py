@@ -66,12 +66,26 @@ def test_concealed_pairs_are_both_named(cases, pair):
     assert result.verdict == "explained"
 
 
+def test_an_effect_outside_the_library_is_discovered(cases):
+    """A steering gain that falls with speed (tests/fmus/robotti_truth) is in no hypothesis' form: the library's
+    best leaves a residual well above the noise, and discovery proposes, fits and proves a correction that at
+    least halves the held-out error; any library effect named beside it is only partial."""
+    _, _, _, result = cases("steer_gain_speed")
+    found = [e for e in result.effects if e["id"] == "discovered"]
+    assert found, f"verdict {result.verdict}, discovery {result.to_json()['discovery']}"
+    assert found[0]["held_out_with"] <= 0.5 * found[0]["held_out_without"]
+    assert all(e["partial"] for e in result.effects if e["id"] != "discovered")
+    assert result.verdict == "discovered" and found[0]["terms"] and found[0]["terms"][0]["text"].startswith("δ += ")
+    assert "**Verdict: discovered.**" in result.files["report"].read_text()
+    assert any(k.startswith("vehicle.corr_") for k in load_space(result.files["space"]).parameters)
+
+
 def test_noise_only_reports_nothing_missing(cases):
     _, _, _, result = cases("none")
     assert [e["id"] for e in result.effects] == ["none"]
     assert result.cross_track_after == result.cross_track_before
     assert "multimodel" not in result.files
-    assert result.verdict == "none"
+    assert result.verdict == "none" and result.discovery is None  # nothing above the noise to seek
     assert result.floor.sigma == pytest.approx(blind.NOISE, rel=0.10)  # from the files alone
 
 

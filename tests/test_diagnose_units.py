@@ -545,3 +545,124 @@ def test_lookalikes_in_json_and_words():
     decided = report.twins_sentence(look(lookalike.DECIDED_BY_LLR, -7.5, {"steer_step": -7.0, "cruise": -0.5}))
     assert decided.startswith("**Look-alikes:** `time_offset` rather than its look-alike `steering_lag`")
     assert "steering steps" in decided
+
+
+# ---- discovery: PySINDy's STLSQ on equation error, the rule, the words ------------------------------------
+
+def acc_regression(seed: int, runs: int = 6, rows: int = 200, coefficient: float | None = -0.31,
+                   noise_rms: float = 0.03) -> dict:
+    """The acc channel's regression over synthetic runs, each at its own speeds (0.4 to 2.4 m/s, so that 1, v
+    and v² differ): the target is
+    ``coefficient``·v (a drag the model lacks) plus white noise, or noise alone when ``coefficient`` is None."""
+    from dse_runner.analysis.diagnose import correction, discover
+
+    rng = np.random.default_rng(seed)
+    terms = tuple(t for t in correction.searched_terms() if t.channel == "acc")
+    parts = []
+    for k in range(runs):
+        t = np.arange(rows) * 0.1
+        v = 0.4 + 0.35 * k + 0.6 * np.sin(2 * np.pi * t / (8.0 + 3 * k)) ** 2  # slow runs and fast
+        v_cmd = v + 0.05 * np.sin(t)
+        inputs = correction.FeatureInputs(v=v, psi=0.3 * t, r=0.1 * np.sin(0.37 * t + k), s=correction.distance(t, v),
+                                          v_cmd=v_cmd, a_cmd=np.gradient(v_cmd, t), delta=np.zeros(rows),
+                                          delta_rate=np.zeros(rows), f_drive=4.4 * (v_cmd - v))
+        columns = correction.features(inputs, terms)
+        theta = np.column_stack([columns[tm.variable] for tm in terms])
+        y = rng.normal(0.0, noise_rms, rows) + (coefficient * v if coefficient is not None else 0.0)
+        rms = {tm.variable: float(np.sqrt(np.mean(theta[:, j] ** 2))) for j, tm in enumerate(terms)}
+        parts.append(discover.Regression("acc", terms, theta, y, np.zeros(rows, int), rms))
+    return {"acc": discover.Regression.join(parts)}
+
+
+def test_stlsq_recovers_a_known_speed_term():
+    """The exact PySINDy calls discovery makes (STLSQ, threshold by leave-one-run-out, bootstrap over runs)
+    find d(v)/dt += -0.31·v among the acc channel's ten features: v first, and the proposed correction is
+    that term (shrunk: equation-error coefficients are starting values, the fits size them). The ridge shares it with v's look-alikes (1 and v²), which the fits on positions then prune."""
+    from dse_runner.analysis.diagnose import correction, discover
+
+    regs = acc_regression(seed=1)
+    proposal = discover.propose(regs)
+    assert next(iter(proposal.terms)) == "corr_acc_v"
+    assert set(proposal.terms) <= {"corr_acc_v", "corr_acc_1", "corr_acc_v2"}
+    assert proposal.inclusion["corr_acc_v"] >= discover.INCLUSION
+    reg = regs["acc"]
+    column = {t.variable: reg.theta[:, k] for k, t in enumerate(reg.terms)}
+    proposed = sum(c * column[v] for v, c in proposal.terms.items())
+    truth = -0.31 * column["corr_acc_v"]
+    assert np.corrcoef(proposed, truth)[0, 1] >= 0.99  # the same correction, shrunk by the ridge: a start only
+    assert 0.5 <= np.linalg.norm(proposed) / np.linalg.norm(truth) <= 1.1
+    assert correction.readable(proposal.terms)[0].startswith("d(v)/dt += -")
+    assert discover.propose(acc_regression(seed=1)).terms == proposal.terms  # seeded: a re-run asks the same
+
+
+@pytest.mark.parametrize("seed", [2, 3, 4])
+def test_noise_alone_proposes_no_term(seed):
+    from dse_runner.analysis.diagnose import discover
+
+    proposal = discover.propose(acc_regression(seed=seed, coefficient=None))
+    assert proposal.empty, proposal.terms
+
+
+def test_extended_bic_charges_the_search():
+    from dse_runner.analysis.diagnose import discover
+
+    assert discover.extended_margin(10.0, 0) == pytest.approx(10.0)
+    p = discover.searched_count()
+    assert discover.extended_margin(10.0, 2) == pytest.approx(10.0 + 2 * math.log(math.comb(p, 2)))
+    assert discover.extended_margin(10.0, 2, searched=38) == pytest.approx(10.0 + 2 * math.log(703))  # +13.1
+
+
+def with_terms(ids, held_out, sse, values, se=0.001):
+    c = candidate(ids, held_out, sse, values)
+    c.full.standard_error.update({n: se for n in values})
+    return c
+
+
+def test_a_discovered_term_must_pay_like_an_effect():
+    """Accepted only when it cuts held-out error by min_gain and BIC by the extended margin against the
+    library's answer and every fitted part, with every term two standard errors from zero."""
+    from dse_runner.analysis.diagnose import discover
+
+    none = candidate((), [1.0, 1.0], 400.0)
+    lag = candidate(("steering_lag",), [0.3, 0.3], 100.0, {"vehicle.steering_lag": 0.4})
+    term = {"vehicle.corr_steer_vdelta": -0.12}
+    good = with_terms(("steering_lag", "discovered"), [0.05, 0.05], 10.0, {"vehicle.steering_lag": 0.0, **term})
+    alone = with_terms(("discovered",), [0.04, 0.04], 9.0, term)
+    everything = [none, lag, good, alone]
+    assert discover.accept([good, alone], lag, everything, 0.05, 10.0) is alone  # a tie goes to fewer ids
+    small = with_terms(("discovered",), [0.29, 0.29], 99.0, term)
+    assert discover.accept([small], lag, [none, lag, small], 0.05, 10.0) is None  # < 5 % better than the library
+    vague = with_terms(("discovered",), [0.04, 0.04], 9.0, term, se=0.1)
+    assert discover.accept([vague], lag, [none, lag, vague], 0.05, 10.0) is None  # within 2 se of zero
+
+
+def test_resemblance_in_words_and_cosine():
+    from dse_runner.analysis.diagnose import discover
+
+    change = np.array([1.0, 2.0, 0.0, -1.0])
+    assert discover.similarity(change, change[:, None] * 0.1, np.array([0.0]), np.array([10.0])) == pytest.approx(1.0)
+    assert discover.similarity(change, -change[:, None], np.array([0.0]), np.array([10.0])) == 0.0  # wrong sign only
+    other = np.array([[2.0], [-1.0], [0.0], [0.0]])
+    assert discover.similarity(change, other, np.array([-5.0]), np.array([5.0])) == pytest.approx(0.0, abs=1e-12)
+    assert discover.resemblance_words([("wheel_slip", 0.96)]) == "resembles `wheel_slip` (0.96)"
+    assert discover.resemblance_words([("steering_lag", 0.72)]) == "is partly like `steering_lag` (0.72)"
+    assert discover.resemblance_words([("time_offset", 0.2)]).startswith("is unlike any library effect")
+
+
+def test_discovered_terms_in_json_and_verdict(tmp_path):
+    from dse_runner.analysis.diagnose import discover
+
+    none = candidate((), [1.0, 1.0], 400.0)
+    term = {"vehicle.corr_acc_v": -0.31}
+    found = with_terms(("discovered",), [0.04, 0.04], 9.0, term)
+    d = Diagnosis(tmp_path, {"vehicle": "vehicle"}, [found, none], found, none,
+                  floor=noise.NoiseFloor(0.02, 0.025, noise.CLOSE_FIXES, 100),
+                  discovery=discover.Discovery(none, candidates=[found], chosen=found,
+                                               resembles=[("wheel_slip", 0.95), ("speed_lag", 0.4)]))
+    assert d.verdict == "discovered" and d.discovered
+    [entry] = d.effects
+    assert entry["id"] == "discovered" and entry["held_out_without"] == 1.0 and entry["held_out_with"] == 0.04
+    assert entry["terms"][0]["text"].startswith("d(v)/dt += -0.31·v [")
+    assert entry["resembles"]["id"] == "wheel_slip"
+    saved = strict_loads(strict_json.dumps(d.to_json()))
+    assert saved["discovery"]["accepted"] and saved["effects"][0]["terms"][0]["variable"] == "corr_acc_v"

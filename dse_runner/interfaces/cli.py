@@ -509,6 +509,9 @@ def diagnose(
     noise_factor: Annotated[float, typer.Option(
         help="Held-out error above this many noise floors (estimated from the GPS fixes) is a residual the "
              "library leaves unexplained: verdict partial or unexplained.")] = 2.0,
+    discovery: Annotated[bool, typer.Option(
+        "--discovery/--no-discovery", help="Above that, seek a sparse data-driven correction (PySINDy) and prove "
+                                           "it by the same fits and held-out runs as the library's effects.")] = True,
     workers: Annotated[int | None, typer.Option(help="Local cluster workers (overrides the space).")] = None,
     scheduler: Annotated[str | None, typer.Option(help="Address of an existing Dask scheduler.")] = None,
     as_json: JsonFlag = False,
@@ -521,7 +524,8 @@ def diagnose(
         typer.echo(message, err=True)
 
     try:
-        settings = Settings(folds=folds, hypotheses=tuple(hypothesis or ()), noise_factor=noise_factor)
+        settings = Settings(folds=folds, hypotheses=tuple(hypothesis or ()), noise_factor=noise_factor,
+                            discovery=discovery)
         result = run_diagnosis(scenarios, multimodel, space, out, settings, progress=say, n_workers=workers,
                                address=scheduler)
     except DseError as e:
@@ -533,6 +537,10 @@ def diagnose(
         emit_json(result.to_json())
         return
     for effect in result.effects:
+        if "terms" in effect:  # a discovered correction: its terms as an engineer writes them
+            typer.echo(f"{effect['id']}: " + "; ".join(t["text"] for t in effect["terms"])
+                       + (f" ({effect['resembles']['text']})" if effect.get("resembles") else ""))
+            continue
         values = ", ".join(f"{k} = {v:.4g} [{effect['interval'][k][0]:.4g}, {effect['interval'][k][1]:.4g}]"
                            for k, v in effect["parameters"].items())
         typer.echo(f"{effect['id']}: {effect['name']}" + (f": {values}" if values else ""))

@@ -42,7 +42,7 @@ from ...sweeps.fit import (
 from ...sweeps.spec import Range, Space, SpaceSpec, read_spec, resolve_space
 from ...sweeps.sweep import submit, trajectories_of
 from ..rank import rank
-from . import explain, locate, lookalike, noise, screen
+from . import correction, discover, explain, locate, lookalike, noise, screen
 from .correction import variables as correction_variables
 from .explain import Candidate
 from .hypotheses import EFFECTS_FMU, LIBRARY, effect_variables, hypothesis
@@ -69,6 +69,8 @@ class Settings:
     hypotheses: tuple[str, ...] = ()  # the library's ids to try; () tries them all
     noise_factor: float = explain.NOISE_FACTOR  # held-out error above this many noise floors is unexplained
     floor_stop: float = explain.FLOOR_STOP  # no combination is screened when a fit is within this many floors
+    discovery: bool = True  # seek a data-driven correction when the library leaves a residual above the noise
+    max_terms: int = 3  # most terms a discovered correction may have
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.noise_factor) and self.noise_factor > 0):
@@ -78,7 +80,7 @@ class Settings:
             raise DseError(f"floor stop {self.floor_stop!r}: must be a positive number (default "
                            f"{explain.FLOOR_STOP:g})")
         counts = {"pairs": self.pairs, "triples": self.triples, "shortlist": self.shortlist,
-                  "survivors": self.survivors, "max_effects": self.max_effects}
+                  "survivors": self.survivors, "max_effects": self.max_effects, "max_terms": self.max_terms}
         bad = [f"{k} = {v!r}" for k, v in counts.items() if not (isinstance(v, int) and v >= 0)]
         if bad:
             raise DseError(f"diagnosis settings {', '.join(bad)}: each must be a whole number, 0 or more")
@@ -107,17 +109,31 @@ class Diagnosis:
     screened: list[screen.Screened] = field(default_factory=list)  # every combination the screen tried, best first
     shortlisted: list[str] = field(default_factory=list)  # the labels of those then fitted for real
     lookalikes: list[lookalike.LookAlike] = field(default_factory=list)  # the evidence between twin sets
+    discovery: discover.Discovery | None = None  # what was sought beyond the library; None if nothing was
+
+    @property
+    def discovered(self) -> bool:
+        """Whether the chosen model carries a discovered correction."""
+        return discover.DISCOVERED in self.chosen.ids
+
+    @property
+    def library(self) -> Candidate:
+        """The best the library alone did: the reference discovery started from, else the chosen set."""
+        return self.discovery.reference if self.discovery is not None else self.chosen
 
     @property
     def verdict(self) -> str:
-        """none, explained, partial or unexplained: the chosen model's held-out error against the noise floor."""
+        """none, explained, partial, discovered or unexplained: the chosen model's held-out error against the
+        noise floor, or a discovered correction that passed the rule."""
         floor = self.floor.cross_track if self.floor.available else None
-        return explain.verdict(self.cross_track_after, floor, self.settings.noise_factor, bool(self.chosen.ids))
+        return explain.verdict(self.cross_track_after, floor, self.settings.noise_factor,
+                               bool(discover.library_ids(self.chosen.ids)), self.discovered)
 
     @property
     def partial(self) -> bool:
-        """Whether the chosen effects leave a residual well above the noise: they are at most part of the cause."""
-        return self.verdict == explain.PARTIAL
+        """Whether the chosen library effects are at most part of the cause: they leave a residual well above
+        the noise, or needed a discovered correction beside them."""
+        return self.verdict in (explain.PARTIAL, explain.DISCOVERED, explain.UNEXPLAINED)
 
     @property
     def floor_ratio(self) -> float | None:
@@ -143,7 +159,25 @@ class Diagnosis:
             return [{"id": "none", "name": LIBRARY["none"].name, "parameters": {}, "interval": {},
                      "partial": False}]
         order = explain.removal_order(self.chosen, self.candidates)
-        return [self._effect(hid) | {"partial": self.partial} for hid in order]
+        return [self._discovered() if hid == discover.DISCOVERED else self._effect(hid) | {"partial": self.partial}
+                for hid in order]
+
+    def _discovered(self) -> dict[str, Any]:
+        """The discovered correction: its terms in readable form, its held-out gain over the library's best
+        and the library effect it resembles most."""
+        fit = self.chosen.full
+        interval = fit.interval()
+        terms = discover.terms_json(fit)
+        similar = self.discovery.resembles if self.discovery is not None else []
+        return {"id": discover.DISCOVERED, "name": "a data-driven correction of the model (discovered)",
+                "terms": terms, "readable": correction.readable(fit.values),
+                "parameters": {t["variable"]: t["value"] for t in terms},
+                "interval": {n.rsplit(".", 1)[-1]: list(interval[n]) for n in fit.values if correction.is_correction(n)},
+                "resembles": ({"id": similar[0][0], "similarity": similar[0][1],
+                               "text": discover.resemblance_words(similar)} if similar else None),
+                "similarities": dict(similar),
+                "held_out_without": self.library.cross_validated, "held_out_with": self.chosen.cross_validated,
+                "partial": False}
 
     def _effect(self, hid: str) -> dict[str, Any]:
         h, fit = LIBRARY[hid], self.chosen.full
@@ -179,6 +213,7 @@ class Diagnosis:
             "noise_floor": self.noise_floor,
             "runner_up": up.to_json() if up is not None else None,
             "lookalikes": [look.to_json() for look in self.lookalikes],
+            "discovery": self.discovery.to_json() if self.discovery is not None else None,
             "held_out": [{"scenario": s, "before": self.baseline.held_out[s], "after": self.chosen.held_out[s]}
                          for s in sorted(self.baseline.held_out)],
             "candidates": [{"id": c.label, "cross_track_held_out": c.cross_validated, "bic": c.bic,
@@ -420,7 +455,13 @@ def write_model(diagnosis: Diagnosis, calibration: Space) -> dict[str, Path]:
     parameters = dict(spec["parameters"])
     fit = diagnosis.chosen.full
     interval = fit.interval()
-    for hid in diagnosis.chosen.ids:
+    for name in fit.names:  # the discovered terms over their intervals, as the effects' below
+        if correction.is_correction(name):
+            low, high = sorted(interval[name])
+            if not (math.isfinite(low) and math.isfinite(high)) or high <= low:
+                low, high = sorted((0.0, 2.0 * fit.values[name]))
+            parameters[name] = Range(start=round(low, 9), stop=round(high, 9), num=3).model_dump(exclude_none=True)
+    for hid in discover.library_ids(diagnosis.chosen.ids):
         for p in hypothesis(hid).parameters:
             ref = f"{vehicle}.{p.variable}"
             low, high = (max(p.lower, interval[ref][0]), min(p.upper, interval[ref][1]))
@@ -452,6 +493,28 @@ def _locate(space: Space, vehicle: str, tracks: dict[str, Any]) -> Any:
                              f"{vehicle}.yaw_rate", steering_source(space.multimodel, vehicle))
     return pd.concat([locate.residual_frame(tracks[s.name], s, signals) for s in space.scenarios],
                      ignore_index=True)
+
+
+def seek(chain: Chain, reference: Candidate, candidates: list[Candidate], floor: NoiseFloor, space: Space
+         ) -> discover.Discovery | None:
+    """Discovery (discover.py) on top of the library's answer, only when that answer leaves held-out error
+    above ``noise_factor`` noise floors: below it there is nothing a correction could claim but noise.
+    Without a floor nothing counts as above it, so nothing is sought."""
+    settings = chain.settings
+    if not (floor.available and explain.above_floor(reference.cross_validated, floor.cross_track,
+                                                    settings.noise_factor)):
+        return None
+    chain.say(f"the library leaves {reference.cross_validated:.4f} m held-out "
+              f"({reference.cross_validated / floor.cross_track:.1f}x the noise floor): seeking a correction")
+    runs = [discover.observe(s) for s in space.scenarios]
+    found = discover.discover(chain, reference, candidates, runs, space.multimodel.parameters)
+    if found.chosen is not None:
+        found.resembles = discover.resembles(chain, found.chosen)
+        chain.say(f"discovered {'; '.join(correction.readable(found.chosen.full.values))}: held-out "
+                  f"{reference.cross_validated:.4f} -> {found.chosen.cross_validated:.4f} m")
+    else:
+        chain.say(f"nothing discovered: {found.reason}")
+    return found
 
 
 def diagnose(scenarios: str | Path, multimodel: str | Path | None = None, space: str | Path | None = None,
@@ -490,6 +553,9 @@ def _diagnose(calibration: Space, out: Path, settings: Settings, client, say: Pr
     baseline = next(c for c in choice.candidates if not c.ids)
     chosen, looks = lookalike.weigh(choice.chosen, choice.candidates, baseline, space.scenarios,
                                     floor.sigma if floor.available else None, settings.min_gain, settings.bic_margin)
+    found = seek(chain, chosen, choice.candidates, floor, space) if settings.discovery else None
+    if found is not None and found.chosen is not None:
+        chosen = found.chosen
     diagnosis = Diagnosis(out, {
         "sweep": calibration.name, "vehicle": vehicle, "grid_best": grid.best,
         "grid_at_bound": [p.name for p in base if grid.best[p.name] in (p.lower, p.upper)
@@ -498,8 +564,9 @@ def _diagnose(calibration: Space, out: Path, settings: Settings, client, say: Pr
         "no_effect": baseline.full.undetermined,
         "insensitive_scenarios": locate.insensitive_scenarios(grid.table1),
         "folds": chain.folds,
-    }, explain.ranked(choice.candidates), chosen, baseline, settings, dropouts=dropouts(calibration.scenarios),
-        floor=floor, screened=choice.screened, shortlisted=[x.label for x in choice.shortlisted], lookalikes=looks)
+    }, explain.ranked(choice.candidates + (found.candidates if found else [])), chosen, baseline, settings,
+        dropouts=dropouts(calibration.scenarios), floor=floor, screened=choice.screened,
+        shortlisted=[x.label for x in choice.shortlisted], lookalikes=looks, discovery=found)
     say("locating: the residuals of the calibrated model and of the chosen one")
     before = trajectories_of(space, client, baseline.full.point, BEFORE)
     lookalike.attach_responses(looks, space.scenarios, before, {"heading": f"{vehicle}.theta", "vx": f"{vehicle}.vx",

@@ -151,6 +151,7 @@ def removal_order(chosen: Candidate, candidates: list[Candidate]) -> tuple[str, 
 # ---- verdicts: the answer judged against the noise floor ----------------------------------------
 
 NONE, EXPLAINED, PARTIAL, UNEXPLAINED = "none", "explained", "partial", "unexplained"
+DISCOVERED = "discovered"  # a data-driven correction (discover.py) passed the rule: the library alone did not explain
 NOISE_FACTOR = 2.0  # held-out error above this many noise floors is a residual the model leaves unexplained
 FLOOR_STOP = 1.25  # a fit within this many noise floors leaves nothing a combination could clearly explain
 TIE = 1e-4  # m: held-out errors of one run closer than this are equal (an effect fitted to ~0 changes nothing)
@@ -162,12 +163,15 @@ def above_floor(held_out: float, floor: float | None, factor: float = NOISE_FACT
     return floor is not None and math.isfinite(floor) and floor > 0 and held_out > factor * floor
 
 
-def verdict(held_out: float, floor: float | None, factor: float, chosen: bool) -> str:
-    """The diagnosis in one word. ``chosen``: whether any library effect was chosen.
+def verdict(held_out: float, floor: float | None, factor: float, chosen: bool, discovered: bool = False) -> str:
+    """The diagnosis in one word. ``chosen``: whether any library effect was chosen; ``discovered``: whether
+    a discovered correction was accepted (it is only sought when the library leaves a residual, so it wins).
 
     none: nothing chosen, and the residual is noise; explained: effects chosen, and what remains is
     noise; partial: effects chosen, yet a residual well above the noise remains, so they are at most
     part of the cause; unexplained: nothing chosen, and the residual is well above the noise."""
+    if discovered:
+        return DISCOVERED
     above = above_floor(held_out, floor, factor)
     if chosen:
         return PARTIAL if above else EXPLAINED

@@ -19,7 +19,7 @@ from ... import strict_json
 from ...cases import fielddata
 from ...sweeps.spec import Space
 from ..rank import format_point
-from . import explain, locate, lookalike
+from . import correction, discover, explain, locate, lookalike
 from .explain import Candidate
 from .hypotheses import LIBRARY
 from .noise import AT_REST, CLOSE_FIXES, MAX_SPACING
@@ -46,7 +46,8 @@ def _candidates(diagnosis: "Diagnosis") -> pd.DataFrame:
     rows = []
     for c in diagnosis.candidates:
         effect = {k.split(".", 1)[1]: v for k, v in c.full.values.items()
-                  if k.split(".", 1)[1] in {p for hid in c.ids for p in LIBRARY[hid].variables}}
+                  if k.split(".", 1)[1] in {p for hid in discover.library_ids(c.ids) for p in LIBRARY[hid].variables}
+                  or correction.is_correction(k)}
         validated = c.validated and math.isfinite(c.cross_validated)
         rows.append({"candidate": c.label,
                      "held-out error [m]": c.cross_validated if validated else "not cross-validated",
@@ -177,9 +178,9 @@ def _markdown(diagnosis: "Diagnosis", located: dict[str, pd.DataFrame], sig: dic
              + "; ".join(", ".join(f) for f in cal["folds"]) + ".", ""]
     if chosen.ids:
         lines += ["**Finding:** " + "; ".join(
-            f"`{e['id']}` ({e['name']}): " + ", ".join(
+            f"`{e['id']}` ({e['name']}): " + (", ".join(t["text"] for t in e["terms"]) if "terms" in e else ", ".join(
                 f"{k} = {v:.4g} [{e['interval'][k][0]:.4g}, {e['interval'][k][1]:.4g}]"
-                for k, v in e["parameters"].items()) for e in diagnosis.effects)
+                for k, v in e["parameters"].items())) for e in diagnosis.effects)
             + f". Held-out mean cross-track error {diagnosis.cross_track_before:.3f} m → "
             f"{diagnosis.cross_track_after:.3f} m.", ""]
     else:
@@ -219,6 +220,7 @@ def _markdown(diagnosis: "Diagnosis", located: dict[str, pd.DataFrame], sig: dic
     if diagnosis.screened:
         lines += [_table(_screened(diagnosis)), ""]
     lines += ["### Noise floor", "", noise_text(diagnosis), ""]
+    lines += ["### Discovery beyond the library", "", discovery_text(diagnosis), ""]
     up = diagnosis.runner_up
     lines += ["### Runner-up", "", runner_up_text(up, diagnosis.chosen.label, diagnosis.settings) if up else
               "No other candidate was fitted that is not part of the chosen one.", ""]
@@ -229,6 +231,8 @@ def _markdown(diagnosis: "Diagnosis", located: dict[str, pd.DataFrame], sig: dic
             if look.response:
                 lines += [response_text(look), "", _table(_responses(look)), ""]
     for e in diagnosis.effects:
+        if e["id"] not in LIBRARY:
+            continue
         h = LIBRARY[e["id"]]
         lines += [f"### `{h.id}`: {h.name}", "", h.explanation, "", f"Expected signature: {h.signature}.", ""]
     if chosen.ids:
@@ -238,7 +242,10 @@ def _markdown(diagnosis: "Diagnosis", located: dict[str, pd.DataFrame], sig: dic
                   f"The chosen effect is part of the vehicle's effects variant (`bundled:fmus/robotti_vehicle_effects`, in the package's `dse_runner/bundled/fmus/`). "
                   f"Written: `{diagnosis.files['multimodel'].name}` and `{diagnosis.files['space'].name}` "
                   "(the calibration with the effect's parameters added); `dse-runner submit space.yaml` "
-                  "re-calibrates with it.", ""]
+                  "re-calibrates with it."
+                  + (" The discovered terms are coefficients `corr_*` of the same variant's correction block, "
+                     "written over their ~95 % intervals like the effects' parameters." if diagnosis.discovered else ""),
+                  ""]
     lines += ["## 4. Show: held-out runs before and after", "", _table(held_out), "",
               f"![held-out errors]({figures['held_out']})", "", f"![tracks]({figures['tracks']})", ""]
     return "\n".join(lines)
@@ -297,12 +304,67 @@ def verdict_text(diagnosis: "Diagnosis") -> str:
                 f"held-out error is {level}, above the {factor:g}× that counts as noise. The library does not "
                 f"explain the residual: about {remains:.3f} m of mean cross-track error remains above the noise. "
                 "Read the effect as part of the cause, not as the cause.")
+    if verdict == explain.DISCOVERED:
+        return discovered_text(diagnosis)
     if verdict == explain.UNEXPLAINED:
         return (f"**Verdict: unexplained.** No hypothesis of the library explains the residual, and it is not noise: "
                 f"the calibrated model's held-out error is {level}, above the {factor:g}× that counts as noise; "
                 f"about {remains:.3f} m of mean cross-track error remains unexplained.")
     return (f"**Verdict: none.** Nothing is missing: the calibrated model's held-out error is {level}, within "
             f"the {factor:g}× that counts as noise.")
+
+
+def _without(diagnosis: "Diagnosis") -> str:
+    library = diagnosis.library
+    return f"with {_ids(library.label)}" if library.ids else "with the calibrated model alone"
+
+
+def discovered_text(diagnosis: "Diagnosis") -> str:
+    """The verdict when a discovered correction passed: the library falls short, and by how much; the term."""
+    floor, library, chosen = diagnosis.floor, diagnosis.library, diagnosis.chosen
+    entry = next(e for e in diagnosis.effects if e["id"] == discover.DISCOVERED)
+    remains = library.cross_validated - floor.cross_track
+    gain = 100.0 * (1.0 - chosen.cross_validated / library.cross_validated)
+    named = [e for e in diagnosis.effects if e["id"] != discover.DISCOVERED]
+    part = (" Read " + ", ".join(f"`{e['id']}`" for e in named) + " as part of the cause, not as the cause."
+            if named else "")
+    resembles = entry["resembles"]["text"] if entry["resembles"] else "was not compared with the library"
+    return (f"**Verdict: discovered.** The library does not explain the residual: {_without(diagnosis)} the held-out "
+            f"error is {library.cross_validated:.3f} m, {library.cross_validated / floor.cross_track:.1f}× the noise "
+            f"floor of {floor.cross_track:.3f} m, so about {remains:.3f} m of mean cross-track error remains above the "
+            f"noise. A data-driven correction explains most of it: " + "; ".join(f"`{t}`" for t in entry["readable"])
+            + f". With it the held-out error is {chosen.cross_validated:.3f} m ({gain:.0f} % lower, "
+            f"{chosen.cross_validated / floor.cross_track:.1f}× the floor), on runs the fits did not see, and it "
+            f"passed the same rule as the library's effects. It {resembles}.{part}")
+
+
+def discovery_text(diagnosis: "Diagnosis") -> str:
+    """What discovery did, or why it did not run."""
+    found, settings = diagnosis.discovery, diagnosis.settings
+    if found is None:
+        why = ("it is switched off (`--no-discovery`)" if not settings.discovery else
+               f"the library's answer is within {settings.noise_factor:g}× the noise floor (or no floor could be "
+               "estimated), so there is nothing a correction could claim but noise")
+        return f"No correction was sought: {why}."
+    intro = ("The library's best answer left held-out error well above the noise, so a sparse correction was sought "
+             "among the terms of the effects variant's correction block: the equation error of the recorded "
+             "speed and yaw rate (from the fixes alone) against the reference's quasi-static answer, regressed on "
+             "the block's features at the reference's state by PySINDy's STLSQ, with the threshold chosen by leave-one-run-out error and each term "
+             f"kept only if a seeded bootstrap over runs picks it in {discover.INCLUSION:.0%} of the resamples. "
+             "The proposed terms were then fitted on positions with the calibrated parameters, pruned to those two "
+             "standard errors from zero, re-proposed inside each fold on its training runs only, and judged by the "
+             f"library's rule, the BIC margin raised to {found.margin:.1f} for the search (extended BIC).")
+    proposed = "; ".join(correction.readable(found.proposal.terms)) if found.proposal else ""
+    lines = [intro, f" Proposed from every run: {('`' + proposed + '`') if proposed else 'nothing'}."]
+    for c in found.candidates:
+        lines.append(f" `{c.label}`: " + "; ".join(correction.readable(c.full.values))
+                     + f", held-out {c.cross_validated:.4f} m, ΔBIC {c.bic - found.reference.bic:+.1f} against "
+                     f"`{found.reference.label}` ({found.reference.cross_validated:.4f} m).")
+    if found.chosen is None:
+        lines.append(f" Nothing was accepted: {found.reason}.")
+    else:
+        lines.append(f" Accepted: `{found.chosen.label}`; it {discover.resemblance_words(found.resembles)}.")
+    return "".join(lines)
 
 
 def noise_text(diagnosis: "Diagnosis") -> str:

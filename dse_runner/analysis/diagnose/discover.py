@@ -1,0 +1,639 @@
+"""Discover: a sparse correction for what no effect of the library explains, proposed from the GPS and proven by the fits.
+
+When the chosen library set R (possibly ``none``) leaves held-out error well above the noise floor, the
+missing physics is sought among the correction block's terms (correction.py), in two stages
+(docs/research/diagnosis-beyond-library.md, §4):
+
+1. **Propose** (no simulation). The recorded state comes from the fixes alone (kinematics.py): speed,
+   course, yaw rate and acceleration. At that state the calibrated reference R says what the vehicle
+   should do; the difference is the *equation error* of each channel, the standard SINDy target for
+   residual dynamics: for ``acc`` in speed (the drive's stiff speed loop turns an added acceleration into
+   a speed change), for ``steer`` in yaw rate (steering enters it through the steady-state gain
+   G(v) = −v / (L + K_us·v²); the yaw mode settles in hundredths of a second at these speeds). The features
+   are taken at R's state, and every model-side signal is seen through the same local-polynomial window
+   as the fixes, so neither side is
+   sharper. PySINDy's sequentially thresholded least squares (STLSQ) picks the few terms that explain
+   it; the threshold comes from leave-one-run-out error, and a term is kept only if it is picked in most
+   of a seeded bootstrap over *runs* (rows within a run are correlated, so resampling rows would
+   overstate the evidence).
+2. **Prove** (the same sweeps as the library). The proposed terms are freed as ``corr_*`` parameters of
+   the effects FMU and fitted on positions jointly with the calibrated parameters and R's effects (R + D),
+   and without R (D alone). Terms within two standard errors of zero are pruned. Each fold re-does the
+   selection on its training runs only, so the held-out error does not leak the choice of terms. D is
+   accepted only if it beats R and every fitted part of itself by the library's rule, with the BIC
+   margin raised for the search among many terms (extended BIC).
+
+Equation-error coefficients are biased by noise in the recorded state, so they are only starting values:
+the fits size the terms on positions.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+import xml.etree.ElementTree as ET
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
+from typing import Any, Protocol
+
+import numpy as np
+
+from ... import bundled
+from ...simulation.scenario import Scenario, read_table
+from ...sweeps.fit import FitProblem, FitResult, Parameter, Point, Residuals
+from . import correction, explain, kinematics
+from .correction import FeatureInputs, Term
+from .explain import Candidate
+from .hypotheses import EFFECTS_FMU, LIBRARY
+
+DISCOVERED = "discovered"  # the id a discovered correction takes among a candidate's ids
+CHANNELS = ("acc", "steer")  # the channels equation error can see (the antenna's are outputs, not dynamics)
+THRESHOLDS = (0.02, 0.05, 0.1, 0.2, 0.35)  # STLSQ thresholds tried, as fractions of the channel target's RMS
+ALPHA = 0.05  # STLSQ's ridge weight per row, on columns scaled to unit RMS: enough to keep look-alike
+# columns (the reference's yaw rate is nearly v·δ) from cancelling with huge coefficients; the fits then size and prune
+BOOTSTRAP = 50  # run resamples
+INCLUSION = 0.7  # share of the resamples a term must be picked in
+SEED = 0  # every proposal is seeded: a re-run asks for the same points and resumes from the store
+MIN_ACC_SPEED = 0.3  # m/s: below this the recorded acceleration is mostly the start from rest
+PRUNE_SE = 2.0  # a fitted term within this many standard errors of zero is dropped
+RESEMBLES, PARTLY = 0.9, 0.5  # cosine similarity above which a term resembles, partly resembles, a library effect
+
+
+# ---- the recorded state and the reference's view of it ----------------------------------------
+
+@dataclass(frozen=True)
+class Observed:
+    """One run as the fixes and the command log give it, before any model: kinematics at each fix."""
+
+    name: str
+    time: np.ndarray  # fix times [s]
+    x: np.ndarray
+    y: np.ndarray
+    log_time: np.ndarray  # command log
+    log_speed: np.ndarray
+    log_steering: np.ndarray  # positive = right [rad]
+
+
+def observe(scenario: Scenario) -> Observed:
+    """A field-data run's fixes and command log."""
+    from ...cases import fielddata
+
+    fixes = fielddata.gps(scenario)
+    log = read_table(scenario.files["steering_inputs"], ("time", "velocity", "delta_f"))
+    t, v, d = (np.asarray(c, float) for c in log.columns)
+    return Observed(scenario.name, np.asarray(fixes.time, float), np.asarray(fixes.x, float),
+                    np.asarray(fixes.y, float), t, v, d)
+
+
+@lru_cache(maxsize=4)
+def _defaults(fmu: str) -> dict[str, float]:
+    """The start values of an FMU's real parameters, from its modelDescription.xml."""
+    root = ET.parse(bundled.bundled_path(fmu) / "modelDescription.xml").getroot()
+    out = {}
+    for var in root.iter("ScalarVariable"):
+        real = var.find("Real")
+        if var.get("causality") == "parameter" and real is not None and real.get("start") is not None:
+            out[var.get("name")] = float(real.get("start"))
+    return out
+
+
+def vehicle_values(point: Mapping[str, float], vehicle: str, fixed: Mapping[str, Any] = {}) -> dict[str, float]:
+    """Every parameter of the effects vehicle as a model at ``point`` uses it (local names): the FMU's
+    defaults, then the multi-model's fixed values ``fixed``, then the point's."""
+    values = dict(_defaults(EFFECTS_FMU))
+    prefix = f"{vehicle}."
+    for source in (fixed, point):
+        values.update({k[len(prefix):]: float(v) for k, v in source.items()
+                       if k.startswith(prefix) and isinstance(v, (int, float))})
+    return values
+
+
+def held(log_time: np.ndarray, command: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The command in force at ``t`` (the last logged at or before it; 0 before the first), as the FMU holds it."""
+    k = np.searchsorted(log_time, t + 1e-9 * (1.0 + np.abs(t)), side="right") - 1
+    return np.where(k < 0, 0.0, command[np.clip(k, 0, None)]) if len(command) else np.zeros_like(t)
+
+
+def acted(log_time: np.ndarray, command: np.ndarray, t: np.ndarray, delay: float, lag: float
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """A command as the vehicle acts on it at ``t``: delayed, through its actuator's first-order lag, and
+    its rate through the correction block's filter (correction.TAU_F). Returns (value, filtered rate)."""
+    shifted = np.asarray(t, float) - delay
+    if lag > 0:  # the lagged command on the log's grid, held between its rows: close enough for a proposal
+        command = correction.filtered_rate(log_time, command, log_time, lag)[0]
+    value = held(log_time, command, shifted)
+    _, rate = correction.filtered_rate(log_time, command, shifted)
+    return value, rate
+
+
+@dataclass(frozen=True)
+class Regression:
+    """One channel's equation error over some runs: the target and each term's column as the target sees
+    it, one row per usable fix, with the run each row came from."""
+
+    channel: str
+    terms: tuple[Term, ...]
+    theta: np.ndarray  # rows x terms
+    y: np.ndarray
+    run: np.ndarray  # run index per row
+    rms: dict[str, float]  # each term's raw feature RMS over the rows: bounds its coefficient
+
+    @staticmethod
+    def join(parts: Sequence[Regression]) -> Regression:
+        """The rows of several runs' regressions of one channel, runs numbered in order."""
+        first = parts[0]
+        theta = np.vstack([p.theta for p in parts])
+        rms = {t.variable: math.sqrt(sum(p.rms[t.variable] ** 2 * len(p.y) for p in parts)
+                                     / max(sum(len(p.y) for p in parts), 1)) for t in first.terms}
+        return Regression(first.channel, first.terms, theta, np.concatenate([p.y for p in parts]),
+                          np.concatenate([np.full(len(p.y), k) for k, p in enumerate(parts)]), rms)
+
+
+def _filled(time: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """NaNs replaced by linear interpolation (held at the ends): model-side signals must be finite everywhere."""
+    ok = np.isfinite(values)
+    if ok.all() or not ok.any():
+        return np.where(ok, values, 0.0)
+    return np.interp(time, time[ok], values[ok])
+
+
+def equation_error(run: Observed, values: Mapping[str, float], terms: Sequence[Term] = ()) -> dict[str, Regression]:
+    """Each channel's equation error on one run: what the fixes show minus what the reference model (parameters
+    ``values``, local names) predicts, and what each term would add, both seen through the fixes' window.
+
+    The reference is taken quasi-statically, on the command log's grid: its speed follows the command through
+    the drive (:func:`speed_response`), its yaw rate is the steady-state gain times
+    the steering it acts on. The features are evaluated at that reference state, not at the recorded one: the
+    recorded speed and yaw rate *are* the targets, so features made of them would explain any residual,
+    noise included. Channels: ``acc`` in speed (a term c·f of d(v)/dt moves the speed by the drive's answer
+    to c·f, so the stiff speed loop needs no differentiated GPS acceleration), ``steer`` in yaw rate (a term
+    c·f of the steering moves the yaw rate by G(v)·c·f). Rows where the fixes give no estimate are left out."""
+    terms = tuple(terms) or tuple(t for t in correction.searched_terms() if t.channel in CHANNELS)
+    t, x, y = run.time, run.x, run.y
+    kin = kinematics.gps_kinematics(t, x, y)
+    ax_, ay_ = values.get("antenna_x", 0.0), values.get("antenna_y", 0.0)
+    if ax_ or ay_:  # the fixes moved to the reference point, along the course
+        c, s = np.cos(_filled(t, kin.course)), np.sin(_filled(t, kin.course))
+        x, y = x - (ax_ * c - ay_ * s), y - (ax_ * s + ay_ * c)
+        kin = kinematics.gps_kinematics(t, x, y)
+    step = float(np.median(np.diff(run.log_time))) if len(run.log_time) > 1 else 0.05
+    grid = np.arange(0.0, max(t[-1], run.log_time[-1] if len(run.log_time) else 0.0) + step, step)
+    delay = values.get("time_offset", 0.0)
+    v_cmd, a_cmd = acted(run.log_time, run.log_speed, grid, delay, values.get("speed_lag", 0.0))
+    delta, delta_rate = acted(run.log_time, run.log_steering, grid, delay, values.get("steering_lag", 0.0))
+    m, g, mu, kv = values["mass"], values["g"], values["mu"], values["Kv"]
+    slip = values.get("wheel_slip", 0.0)
+    tau = m * (1.0 - slip) / kv  # the drive's speed response
+    psi = np.interp(grid, t, _filled(t, kin.course))
+    slope = -g * (values.get("grade_x", 0.0) * np.cos(psi) + values.get("grade_y", 0.0) * np.sin(psi))
+    v = speed_response(grid, v_cmd, slope, values)
+    lf, lr = values["lf"], values["lr"]
+    L = lf + lr
+    understeer = m / L * (lr / values["cAlphaF"] - lf / values["cAlphaR"])
+    gain = -v / (L + understeer * v * v)  # quasi-static yaw rate per rad of steering to the right
+    r = gain * (delta + values.get("steering_offset", 0.0))
+    f_drive = np.clip(kv * (v_cmd - v / (1.0 - slip)), -mu * m * g, mu * m * g) / m
+    inputs = FeatureInputs(v=v, psi=psi, r=r, s=correction.distance(grid, v), v_cmd=v_cmd, a_cmd=a_cmd, delta=delta,
+                           delta_rate=delta_rate, f_drive=f_drive, v_min=values["v_min"])
+    columns = correction.features(inputs, terms)
+    operators = {"acc": (kinematics.local_operator(t, kinematics.VELOCITY_WINDOW, 1)[1], 1),
+                 "steer": (kinematics.local_operator(t, kinematics.ACCELERATION_WINDOW, 2)[2], 2)}
+    recorded = {"acc": kin.speed, "steer": kin.yaw_rate}
+    model = {"acc": v, "steer": r}
+    effect = {"acc": lambda f: lagged(grid, tau * f, tau), "steer": lambda f: gain * f}
+    moving = v_cmd > 0
+    out = {}
+    for channel in CHANNELS:
+        mine = [tm for tm in terms if tm.channel == channel]
+        if not mine:
+            continue
+        operator, order = operators[channel]
+
+        def seen(signal: np.ndarray, operator: np.ndarray = operator, order: int = order) -> np.ndarray:
+            return kinematics.smoothed_like(operator, order, grid, signal, t)  # as the fixes would show it
+
+        target = recorded[channel] - seen(model[channel])
+        theta = np.column_stack([seen(effect[channel](columns[tm.variable])) for tm in mine])
+        rows = np.isfinite(target) & np.isfinite(theta).all(axis=1)
+        if channel == "acc":
+            rows &= kin.speed >= MIN_ACC_SPEED
+        raw = np.column_stack([columns[tm.variable] for tm in mine])[moving]
+        rms = {tm.variable: float(np.sqrt(np.mean(raw[:, k] ** 2))) if moving.any() else math.nan
+               for k, tm in enumerate(mine)}
+        out[channel] = Regression(channel, tuple(mine), theta[rows], target[rows], np.zeros(int(rows.sum()), int), rms)
+    return out
+
+
+def speed_response(grid: np.ndarray, v_cmd: np.ndarray, slope: np.ndarray, values: Mapping[str, float],
+                   substeps: int = 10) -> np.ndarray:
+    """The reference's speed on a uniform ``grid``: d(v)/dt = clamp(Kv·(v_cmd − v/(1 − i)), ±mu·m·g)/m + slope
+    from rest, by explicit Euler in ``substeps`` per grid step (the drive's time constant m/Kv is several
+    grid steps), the lateral coupling left out (it cancels to first order in a steady turn)."""
+    m, g, mu, kv = values["mass"], values["g"], values["mu"], values["Kv"]
+    slip = values.get("wheel_slip", 0.0)
+    dt = float(grid[1] - grid[0]) / substeps if len(grid) > 1 else 0.0
+    out = np.zeros(len(grid))
+    v = 0.0
+    for k in range(1, len(grid)):
+        for _ in range(substeps):
+            v += dt * (min(max(kv * (v_cmd[k - 1] - v / (1.0 - slip)), -mu * m * g), mu * m * g) / m + slope[k - 1])
+        out[k] = v
+    return out
+
+
+def lagged(time: np.ndarray, signal: np.ndarray, tau: float) -> np.ndarray:
+    """``signal`` (on a uniform grid) through a first-order lag of time constant ``tau`` from rest (scipy's lfilter)."""
+    from scipy.signal import lfilter
+
+    if tau <= 0:
+        return np.asarray(signal, float)
+    a = math.exp(-float(time[1] - time[0]) / tau) if len(time) > 1 else 0.0
+    return lfilter([1.0 - a], [1.0, -a], np.asarray(signal, float))
+
+
+def regressions(runs: Sequence[Observed], values: Mapping[str, Mapping[str, float]] | Mapping[str, float]
+                ) -> dict[str, Regression]:
+    """Each channel's equation error over ``runs``; ``values`` is one parameter set, or one per run name."""
+    per_run = [equation_error(run, values.get(run.name, values)) for run in runs]
+    return {c: Regression.join([p[c] for p in per_run if c in p]) for c in CHANNELS
+            if any(c in p for p in per_run)}
+
+
+# ---- proposal: PySINDy's STLSQ, threshold by leave-one-run-out, terms by a bootstrap over runs ---
+
+@dataclass(frozen=True)
+class Proposal:
+    """The terms equation error supports, with their equation-error coefficients (starting values only)."""
+
+    terms: dict[str, float]  # parameter name (corr_*) -> coefficient
+    inclusion: dict[str, float]  # every term picked at least once -> share of resamples picking it
+    threshold: dict[str, float]  # channel -> STLSQ threshold chosen (in the target's units per unit-RMS column)
+    rms: dict[str, float]  # every term's feature RMS over the runs
+
+    @property
+    def empty(self) -> bool:
+        return not self.terms
+
+
+def stlsq(theta: np.ndarray, y: np.ndarray, threshold: float) -> np.ndarray:
+    """PySINDy's sequentially thresholded least squares on columns of unit RMS: coefficients per column,
+    each in the target's units (what the term adds at its typical size). Thresholding on that scale keeps
+    terms by how much they move the channel, whatever their units."""
+    import pysindy as ps
+
+    if len(y) == 0:
+        return np.zeros(theta.shape[1])
+    optimizer = ps.STLSQ(threshold=threshold, alpha=ALPHA * len(y), max_iter=20, normalize_columns=False,
+                         unbias=False)
+    with warnings.catch_warnings():  # "eliminated all coefficients" is an answer here (no term), not a fault
+        warnings.filterwarnings("ignore", message="Sparsity parameter is too big", category=UserWarning)
+        optimizer.fit(theta, y)
+    return np.asarray(optimizer.coef_, float).reshape(-1)
+
+
+def _scaled(reg: Regression) -> tuple[np.ndarray, np.ndarray]:
+    scale = np.sqrt(np.mean(reg.theta ** 2, axis=0)) if len(reg.y) else np.ones(reg.theta.shape[1])
+    scale = np.where(scale > 0, scale, 1.0)
+    return reg.theta / scale, scale
+
+
+def held_out_error(z: np.ndarray, y: np.ndarray, run: np.ndarray, threshold: float) -> float:
+    """Leave-one-run-out squared error of STLSQ at ``threshold`` (math.inf for no threshold: the empty model)."""
+    total = 0.0
+    for k in np.unique(run):
+        out = run == k
+        coef = np.zeros(z.shape[1]) if math.isinf(threshold) else stlsq(z[~out], y[~out], threshold)
+        total += float(np.sum((y[out] - z[out] @ coef) ** 2))
+    return total
+
+
+def choose_threshold(z: np.ndarray, y: np.ndarray, run: np.ndarray) -> float:
+    """The threshold of ``THRESHOLDS`` (times the target's RMS) with the least leave-one-run-out error, the
+    largest within 2 % of it (the sparser model, as a tie); math.inf when none beats the empty model."""
+    size = float(np.sqrt(np.mean(y ** 2))) if len(y) else 0.0
+    if size == 0.0 or len(np.unique(run)) < 2:
+        return math.inf
+    errors = {f * size: held_out_error(z, y, run, f * size) for f in THRESHOLDS}
+    empty = float(np.sum(y ** 2))
+    best = min(errors.values())
+    if best >= empty:
+        return math.inf
+    return max(th for th, e in errors.items() if e <= 1.02 * best)
+
+
+def propose(regs: Mapping[str, Regression], max_terms: int = 3, seed: int = SEED,
+            bootstrap: int = BOOTSTRAP) -> Proposal:
+    """The few terms the equation error of every channel supports: per channel the STLSQ threshold of least
+    leave-one-run-out error, then a seeded bootstrap over runs; terms picked in at least ``INCLUSION`` of the
+    resamples, at most ``max_terms`` in all, the most often picked and the largest first."""
+    rng = np.random.default_rng(seed)
+    ranked: list[tuple[float, float, str, float]] = []
+    inclusion: dict[str, float] = {}
+    thresholds: dict[str, float] = {}
+    rms: dict[str, float] = {}
+    for channel, reg in regs.items():
+        rms.update(reg.rms)
+        z, scale = _scaled(reg)
+        threshold = choose_threshold(z, reg.y, reg.run)
+        thresholds[channel] = threshold
+        if math.isinf(threshold):
+            continue
+        runs = np.unique(reg.run)
+        picked = np.zeros(z.shape[1])
+        for _ in range(bootstrap):
+            sample = rng.choice(runs, size=len(runs), replace=True)
+            rows = np.concatenate([np.flatnonzero(reg.run == k) for k in sample])
+            picked += stlsq(z[rows], reg.y[rows], threshold) != 0
+        share = picked / bootstrap
+        coef = stlsq(z, reg.y, threshold) / scale
+        size = float(np.sqrt(np.mean(reg.y ** 2)))
+        for k, tm in enumerate(reg.terms):
+            if share[k] > 0:
+                inclusion[tm.variable] = float(share[k])
+            if share[k] >= INCLUSION and coef[k] != 0:
+                ranked.append((float(share[k]), abs(coef[k]) * scale[k] / size, tm.variable, float(coef[k])))
+    kept = sorted(ranked, reverse=True)[:max_terms]
+    return Proposal({v: c for _, _, v, c in kept}, inclusion, thresholds, rms)
+
+
+# ---- proof: the same fits, folds and rule as the library ------------------------------------
+
+def searched_count() -> int:
+    """How many terms the proposal chooses among: the extended BIC charges for the search."""
+    return sum(1 for t in correction.searched_terms() if t.channel in CHANNELS)
+
+
+def extended_margin(bic_margin: float, terms: int, searched: int | None = None) -> float:
+    """The BIC margin for a set of ``terms`` chosen among ``searched``: bic_margin + 2 ln C(P, k) (extended
+    BIC with γ = 1), since picking the best k of P terms buys a better fit by chance alone."""
+    p = searched_count() if searched is None else searched
+    k = max(0, min(terms, p))
+    return bic_margin + 2.0 * (math.lgamma(p + 1) - math.lgamma(k + 1) - math.lgamma(p - k + 1))
+
+
+def library_ids(ids: Sequence[str]) -> tuple[str, ...]:
+    return tuple(h for h in ids if h != DISCOVERED)
+
+
+def with_terms(problem: FitProblem, vehicle: str, terms: Mapping[str, float], start: Mapping[str, float],
+               rms: Mapping[str, float]) -> FitProblem:
+    """``problem`` with the correction terms freed: each bounded by correction.bound over the runs' feature
+    RMS, starting from ``start`` (a fitted point) where it has the term, else from the proposal."""
+    extra = []
+    for variable, value in terms.items():
+        name = f"{vehicle}.{variable}"
+        extra.append(correction.parameter(correction.term(variable), vehicle, rms.get(variable),
+                                          start.get(name, value)))
+    names = {p.name for p in extra}
+    return replace(problem, parameters=problem.parameters + tuple(extra),
+                   fixed={k: v for k, v in problem.fixed.items() if k not in names})
+
+
+def fitted_terms(fit: FitResult) -> dict[str, float]:
+    """The correction terms a fit moved, local names -> values."""
+    return {n.rsplit(".", 1)[-1]: v for n, v in fit.values.items() if correction.is_correction(n)}
+
+
+def pruned(fit: FitResult, factor: float = PRUNE_SE) -> dict[str, float]:
+    """The fitted terms at least ``factor`` cluster-robust standard errors from zero (an undetermined one is dropped)."""
+    out = {}
+    for name, value in fit.values.items():
+        if correction.is_correction(name):
+            se = fit.standard_error.get(name, math.inf)
+            if math.isfinite(se) and abs(value) >= factor * se and value != 0.0:
+                out[name.rsplit(".", 1)[-1]] = value
+    return out
+
+
+class Fitter(Protocol):
+    """What discovery needs from the chain (diagnose.Chain): problems, lockstep fits, held-out scoring, residuals."""
+
+    vehicle: str
+    folds: list[list[str]]
+    all: tuple[str, ...]
+    settings: Any
+    say: Callable[[str], None]
+
+    def problem(self, label: str, ids: tuple[str, ...], start: dict[str, float], scenarios: tuple[str, ...]
+                ) -> FitProblem: ...
+
+    def fit(self, problems: list[FitProblem], what: str) -> dict[str, FitResult]: ...
+
+    def score(self, candidates: list[Candidate], fits: dict[str, FitResult]) -> None: ...
+
+    def evaluate(self, points: list[Point]) -> Residuals: ...
+
+
+@dataclass
+class Discovery:
+    """What discovery tried on top of ``reference`` and what it found."""
+
+    reference: Candidate
+    proposal: Proposal | None = None  # from every run
+    candidates: list[Candidate] = field(default_factory=list)  # fitted with terms: R + D, and D alone
+    chosen: Candidate | None = None  # the accepted one; None if no term paid its way
+    folds: list[dict[str, Any]] = field(default_factory=list)  # each set's and fold's own proposal
+    resembles: list[tuple[str, float]] = field(default_factory=list)  # library effects by similarity, best first
+    margin: float = math.nan  # the BIC margin the terms had to beat (extended)
+    reason: str = ""
+
+    @property
+    def terms(self) -> dict[str, float]:
+        return fitted_terms(self.chosen.full) if self.chosen is not None else {}
+
+    def to_json(self) -> dict[str, Any]:
+        best = min(self.candidates, key=lambda c: c.cross_validated, default=None)
+        return {"reference": self.reference.label, "held_out_reference": self.reference.cross_validated,
+                "proposed": dict(self.proposal.terms) if self.proposal else {},
+                "inclusion": dict(self.proposal.inclusion) if self.proposal else {},
+                "folds": self.folds, "bic_margin": self.margin, "accepted": self.chosen is not None,
+                "tried": [{"id": c.label, "terms": fitted_terms(c.full), "cross_track_held_out": c.cross_validated,
+                           "bic": c.bic} for c in self.candidates],
+                "best_held_out": best.cross_validated if best is not None else None, "reason": self.reason}
+
+
+def _sets(reference: Candidate) -> list[tuple[str, ...]]:
+    """R + D, and D alone when R has effects (a term may explain what R was only a look-alike of)."""
+    return [(*reference.ids, DISCOVERED)] + ([(DISCOVERED,)] if reference.ids else [])
+
+
+def discover(chain: Fitter, reference: Candidate, candidates: Sequence[Candidate], runs: Sequence[Observed],
+             fixed: Mapping[str, Any] = {}) -> Discovery:
+    """Propose terms on top of ``reference`` (R + D) and of the calibrated model alone (D alone, when R has
+    effects: a term may explain what R only looked like), each from every run; fit them on every run and
+    prune them; re-propose and fit inside each fold on its training runs; score the held-out runs; accept by
+    the library's rule with the extended BIC margin. ``candidates`` are the library sets already fitted."""
+    settings, vehicle = chain.settings, chain.vehicle
+    result = Discovery(reference)
+    by_name = {r.name: r for r in runs}
+    baseline = next((c for c in candidates if not c.ids), reference)
+    parents = {ids: reference if library_ids(ids) == reference.ids else baseline for ids in _sets(reference)}
+
+    def proposal(parent: FitResult, names: Sequence[str]) -> Proposal:
+        values = vehicle_values(parent.point, vehicle, fixed)
+        return propose(regressions([by_name[n] for n in names if n in by_name], values), settings.max_terms)
+
+    proposals = {ids: proposal(parent.full, chain.all) for ids, parent in parents.items()}
+    result.proposal = proposals[_sets(reference)[0]]
+    sets = [ids for ids in parents if not proposals[ids].empty]
+    if not sets:
+        result.reason = "the equation error supports no term"
+        return result
+    for ids in sets:
+        chain.say(f"discovery: proposed for {'+'.join(ids)}: " + "; ".join(correction.readable(proposals[ids].terms)))
+    rms = {k: v for p in proposals.values() for k, v in p.rms.items()}
+
+    def full_problem(ids: tuple[str, ...], terms: Mapping[str, float]) -> FitProblem:
+        base = chain.problem("+".join(ids), library_ids(ids), dict(parents[ids].full.values), chain.all)
+        return with_terms(base, vehicle, terms, {}, rms)
+
+    fits = chain.fit([full_problem(ids, proposals[ids].terms) for ids in sets], "discovery: fitting the correction")
+    kept = {ids: pruned(fits["+".join(ids)]) for ids in sets}
+    refit = [ids for ids in sets if kept[ids] and kept[ids] != fitted_terms(fits["+".join(ids)])]
+    if refit:  # from the library part's own fit and the kept terms at zero: the dropped ones may have balanced them
+        fits.update(chain.fit([full_problem(ids, {v: 0.0 for v in kept[ids]}) for ids in refit],
+                              "discovery: refitting without the terms near zero"))
+    fitted = [Candidate(ids, fits["+".join(ids)]) for ids in sets if kept[ids]]
+    if not fitted:
+        result.reason = "no proposed term is two standard errors from zero when fitted on positions"
+        return result
+    problems, copies = [], {}
+    for c in fitted:  # fold-honest: each fold proposes again, on its training runs, from its parent's fold fit
+        parent = parents[c.ids]
+        for k, fold in enumerate(chain.folds):
+            label = f"{c.label}/fold{k}"
+            training = tuple(s for s in chain.all if s not in fold)
+            parent_fold = parent.folds[k] if k < len(parent.folds) else parent.full
+            terms = proposal(parent_fold, training).terms
+            result.folds.append({"set": c.label, "fold": k, "terms": terms})
+            if not terms:  # nothing proposed here: the fold predicts with its library fit alone
+                copies[label] = parent_fold
+                continue
+            base = chain.problem(label, library_ids(c.ids), {**parent_fold.values, **c.full.values}, training)
+            problems.append(with_terms(base, vehicle, terms, c.full.values, rms))
+    fold_fits = chain.fit(problems, "discovery: cross-validating the correction") if problems else {}
+    chain.score(fitted, {**fold_fits, **copies})
+    result.candidates = fitted
+    result.margin = extended_margin(settings.bic_margin, max(len(fitted_terms(c.full)) for c in fitted))
+    result.chosen = accept(fitted, reference, [*candidates, *fitted], settings.min_gain, settings.bic_margin)
+    if result.chosen is None:
+        best = min(fitted, key=lambda c: c.cross_validated)
+        result.reason = (f"no correction pays its way: held-out {reference.cross_validated:.4f} m at best → "
+                         f"{best.cross_validated:.4f} m, ΔBIC {best.bic - reference.bic:+.1f} (the rule: "
+                         f"{settings.min_gain:.0%} lower held-out error and {result.margin:.1f} lower BIC, every "
+                         "term two standard errors from zero)")
+    return result
+
+
+def pays(candidate: Candidate, candidates: Sequence[Candidate], min_gain: float, bic_margin: float) -> bool:
+    """Whether a candidate with discovered terms beats every fitted part of itself: the parts without the
+    terms by the extended BIC margin (the terms were searched for), those with them by the library's."""
+    terms = len(fitted_terms(candidate.full))
+    for part in explain.subsets(candidate, list(candidates)):
+        margin = bic_margin if DISCOVERED in part.ids else extended_margin(bic_margin, terms)
+        if not explain.beats(candidate, part, min_gain, margin):
+            return False
+    return True
+
+
+def accept(fitted: Sequence[Candidate], reference: Candidate, candidates: Sequence[Candidate], min_gain: float,
+           bic_margin: float) -> Candidate | None:
+    """The accepted candidate with terms, or None: cross-validated, beating the reference by the extended
+    margin and every fitted part of itself; the lowest held-out error, fewer ids winning a tie within
+    ``min_gain``."""
+    eligible = [c for c in fitted if c.validated and math.isfinite(c.cross_validated)
+                and pruned(c.full) == fitted_terms(c.full)  # every term still two standard errors from zero
+                and explain.beats(c, reference, min_gain, extended_margin(bic_margin, len(fitted_terms(c.full))))
+                and pays(c, candidates, min_gain, bic_margin)]
+    if not eligible:
+        return None
+    best = min(eligible, key=lambda c: (c.cross_validated, c.bic))
+    tied = [c for c in eligible if best.cross_validated > (1.0 - min_gain) * c.cross_validated]
+    return min(tied, key=lambda c: (len(c.ids), c.cross_validated, c.bic))
+
+
+# ---- resemblance: does the correction act like an effect of the library? --------------------
+
+def _library_parameters(vehicle: str) -> list[tuple[str, Parameter]]:
+    return [(h.id, Parameter(f"{vehicle}.{p.variable}", 0.0, p.lower, p.upper, p.step))
+            for h in LIBRARY.values() for p in h.parameters]
+
+
+def similarity(change: np.ndarray, columns: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> float:
+    """Cosine between ``change`` and the best bounded linear combination of ``columns`` (scipy's lsq_linear):
+    1 when the effect can reproduce the change, 0 when it cannot move the residuals that way at all."""
+    from scipy.optimize import lsq_linear
+
+    norm = float(np.linalg.norm(change))
+    if norm == 0.0 or not np.any(columns):
+        return 0.0
+    scale = np.linalg.norm(columns, axis=0)
+    scale = np.where(scale > 0, scale, 1.0)
+    solved = lsq_linear(columns / scale, change, bounds=(lower * scale, upper * scale), method="bvls")
+    fitted = columns / scale @ solved.x
+    size = float(np.linalg.norm(fitted))
+    return float(fitted @ change / (size * norm)) if size > 0 else 0.0
+
+
+def resembles(chain: Fitter, chosen: Candidate) -> list[tuple[str, float]]:
+    """Each library effect's cosine similarity, in output space, to what the discovered terms do: the change
+    of the fix residuals when the terms are switched off, against the best bounded linear combination of
+    the effect's own columns there (one sweep of 2 + E points). Best first."""
+    point = dict(chosen.full.point)
+    off = {**point, **{n: 0.0 for n in point if correction.is_correction(n)}}
+    params = _library_parameters(chain.vehicle)
+    probes = []
+    for _, p in params:
+        value = off.get(p.name, 0.0)
+        step = p.step if value + p.step <= p.upper else -p.step
+        probes.append({**off, p.name: value + step})
+    residuals = chain.evaluate([point, off, *probes])
+
+    def stacked(pt: Point) -> np.ndarray | None:
+        found = [residuals(pt, s) for s in chain.all]
+        return None if any(r is None for r in found) else np.concatenate(found)
+
+    with_, without = stacked(point), stacked(off)
+    if with_ is None or without is None:
+        return []
+    change = with_ - without
+    out = []
+    for hid in dict.fromkeys(h for h, _ in params):
+        cols, lows, highs = [], [], []
+        for (owner, p), probe in zip(params, probes):
+            if owner != hid:
+                continue
+            moved = stacked(probe)
+            delta = probe[p.name] - off.get(p.name, 0.0)
+            cols.append(np.zeros_like(without) if moved is None else (moved - without) / delta)
+            lows.append(p.lower - off.get(p.name, 0.0))
+            highs.append(p.upper - off.get(p.name, 0.0))
+        out.append((hid, similarity(change, np.column_stack(cols), np.minimum(lows, 0.0), np.maximum(highs, 0.0))))
+    return sorted(out, key=lambda item: -item[1])
+
+
+def resemblance_words(similar: Sequence[tuple[str, float]]) -> str:
+    """'resembles wheel_slip (0.96)', 'is partly like steering_lag (0.72)' or 'is unlike any library effect':
+    a predicate, so a sentence reads "It resembles …"."""
+    if not similar:
+        return "was not compared with the library (a probe failed to simulate)"
+    hid, value = similar[0]
+    if value >= RESEMBLES:
+        return f"resembles `{hid}` ({value:.2f})"
+    if value >= PARTLY:
+        return f"is partly like `{hid}` ({value:.2f})"
+    return f"is unlike any library effect (closest: `{hid}`, {value:.2f})"
+
+
+def terms_json(fit: FitResult) -> list[dict[str, Any]]:
+    """The discovered terms of a fit as the JSON's ``terms``: readable text, parameter, value, ~95 % interval."""
+    interval = fit.interval()
+    out = []
+    for name, value in fit.values.items():
+        if correction.is_correction(name):
+            t = correction.term(name)
+            low, high = interval[name]
+            out.append({"text": correction.readable_term(t, value, (low, high)), "variable": t.variable,
+                        "value": value, "interval": [low, high]})
+    return out
