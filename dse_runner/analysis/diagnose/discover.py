@@ -546,11 +546,7 @@ def accept(fitted: Sequence[Candidate], reference: Candidate, candidates: Sequen
                 and pruned(c.full) == fitted_terms(c.full)  # every term still two standard errors from zero
                 and explain.beats(c, reference, min_gain, extended_margin(bic_margin, len(fitted_terms(c.full))))
                 and pays(c, candidates, min_gain, bic_margin)]
-    if not eligible:
-        return None
-    best = min(eligible, key=lambda c: (c.cross_validated, c.bic))
-    tied = [c for c in eligible if best.cross_validated > (1.0 - min_gain) * c.cross_validated]
-    return min(tied, key=lambda c: (len(c.ids), c.cross_validated, c.bic))
+    return explain.simplest_best(eligible, min_gain) if eligible else None
 
 
 # ---- resemblance: does the correction act like an effect of the library? --------------------

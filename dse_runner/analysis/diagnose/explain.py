@@ -113,8 +113,12 @@ def select(candidates: list[Candidate], baseline: Candidate, min_gain: float = M
     wins (no test could tell them apart, and the simpler claim is the one to make). ``baseline`` if none."""
     eligible = [c for c in candidates if c.ids and c.validated and beats(c, baseline, min_gain, bic_margin)
                 and beats_subsets(c, candidates, min_gain, bic_margin)]
-    if not eligible:
-        return baseline
+    return simplest_best(eligible, min_gain) if eligible else baseline
+
+
+def simplest_best(eligible: list[Candidate], min_gain: float) -> Candidate:
+    """The lowest held-out error, except that one within ``min_gain`` of it with fewer effects wins: no
+    test could tell them apart, and the simpler claim is the one to make."""
     best = min(eligible, key=lambda c: (c.cross_validated, c.bic))
     tied = [c for c in eligible if best.cross_validated > (1.0 - min_gain) * c.cross_validated]
     return min(tied, key=lambda c: (len(c.ids), c.cross_validated, c.bic))
