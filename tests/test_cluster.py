@@ -122,6 +122,32 @@ def test_sigkilled_worker_loses_no_task_and_repeats_none(tmp_path, cli_cluster):
     assert len(ids) == SLOW_TASKS and ids.is_unique  # each task exactly once on disk
 
 
+def test_a_sweep_whose_workers_all_die_stops_with_its_finished_rows(tmp_path, cli_cluster):
+    """Every worker killed with its nanny, none restarted: the sweep says so and stops (it used to wait for
+    ever), keeps the rows of finished chunks, and a resubmission on new workers runs only the rest."""
+    cluster = cli_cluster()
+    spec = write_space(tmp_path, scenarios=[str(SCENARIOS / "*")], parameters=SLOW, chunk_seconds=0.5,
+                       keep_trajectories=0, cluster={"address": cluster.address, "connect_timeout": 2})
+    space = load_space(spec)
+
+    def kill_every_worker(report) -> None:
+        if report.chunks >= 1 and cluster.workers:
+            for worker in cluster.workers:  # the nanny and its worker: a process group each
+                os.killpg(worker.pid, signal.SIGKILL)
+                worker.wait(timeout=30)
+            cluster.workers = []
+
+    started = time.monotonic()
+    with pytest.raises(DseError, match=r"has had no worker for 4 s.*every finished chunk is in"):
+        submit(space, progress=kill_every_worker)
+    assert time.monotonic() - started < 120
+    kept = raw_task_ids(space.output)
+    assert 0 < len(kept) < SLOW_TASKS and kept.is_unique
+    cluster.start_worker()
+    report = submit(load_space(spec))
+    assert (report.skipped, report.ok + report.skipped) == (len(kept), SLOW_TASKS)
+
+
 def wait_until_idle(address: str, timeout: float = 120) -> None:
     """Until the scheduler at ``address`` holds no task and none of its workers runs one: a dead client's
     chunks are forgotten, except those already running, which run on to their end."""

@@ -19,12 +19,14 @@ from __future__ import annotations
 
 import logging
 import os
+import threading
+import time
 import uuid
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from importlib.metadata import entry_points
 from pathlib import Path
-from typing import Any
+from typing import Any, Self
 
 from ..errors import DseError
 from .spec import Cluster
@@ -204,6 +206,56 @@ def _client(target: Any, sec: Any, timeout: float, wait: float) -> Iterator[Any]
         yield client
     finally:
         client.close()
+
+
+def worker_grace(spec: Cluster) -> float:
+    """How long a sweep waits, mid-run, for a cluster that has lost every worker to get one back: a
+    batch system's job may wait in its queue as long as a first one; elsewhere a supervisor or a nanny
+    restarts a worker in seconds, so twice the connect timeout is ample."""
+    return QUEUE_WAIT if not spec.address and spec.kind != "local" else 2 * spec.connect_timeout
+
+
+class WorkerWatch:
+    """Watches, beside a running sweep, that its cluster still has a worker. When it has had none for
+    ``grace`` seconds (killed, and none restarted), it says why in ``stranded`` and cancels the chunks in
+    flight, which ends the sweep's wait; without it the sweep would wait for ever. Finished chunks are in
+    the store already."""
+
+    EVERY = 2.0  # seconds between looks: a call to the scheduler each time
+
+    def __init__(self, client: Any, grace: float, in_flight: Callable[[], list[Any]]):
+        self.client, self.grace, self.in_flight = client, grace, in_flight
+        self.stranded: str | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._watch, name="dse-runner worker watch", daemon=True)
+
+    def __enter__(self) -> Self:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join(timeout=self.EVERY)  # a look under way on a lost scheduler need not be waited for
+
+    def _watch(self) -> None:
+        alone_since: float | None = None
+        while not self._stop.wait(self.EVERY):
+            try:
+                workers = len(self.client.scheduler_info(n_workers=1)["workers"])  # is there one? no more asked
+            except Exception:  # noqa: BLE001 - the scheduler itself went: the sweep's reconnection deals with it
+                alone_since = None
+                continue
+            if self._stop.is_set():
+                return
+            if workers:
+                alone_since = None
+                continue
+            alone_since = alone_since or time.monotonic()
+            if time.monotonic() - alone_since >= self.grace:
+                self.stranded = (f"the Dask scheduler at {self.client.scheduler.address} has had no worker for "
+                                 f"{self.grace:g} s: its workers died or were lost and none came back")
+                self.client.cancel(self.in_flight())
+                return
 
 
 def total_threads(client) -> int:

@@ -42,7 +42,7 @@ from ..simulation.run import simulate
 from . import ship, store
 from .chunks import ChunkJob, ChunkSummary, chunk_id_of, probe, record_crash, run_chunk
 from .closed_loop import SearchSource, SearchStatus
-from .cluster import connect, total_threads
+from .cluster import WorkerWatch, connect, total_threads, worker_grace
 from .domain import Point
 from .expand import blocks, chunked, count, points_of
 from .search import strategy
@@ -359,8 +359,6 @@ class Run:
 
     def _chunks(self, client) -> None:
         from distributed import as_completed
-        from distributed.comm.core import CommClosedError
-        from distributed.scheduler import KilledWorker
 
         report, source = self.report, self.source
         again: deque[ChunkJob] = deque()  # halves of crashed chunks go first
@@ -375,36 +373,49 @@ class Run:
                 launched[job.key] = job
                 in_flight.add(client.submit(run_chunk, job, key=job.key, pure=False))
 
+        watch = WorkerWatch(client, worker_grace(self.space.spec.cluster), lambda: list(in_flight.futures))
         try:
-            fill()
-            self._tell(client)
-            for future in in_flight:
-                job = launched.pop(future.key)
-                try:
-                    self._count(job, future.result())
-                except KilledWorker as e:
-                    report.crashed_chunks += 1
-                    store.remove_chunk(job.output, job.sweep, job.chunk_id)  # if it finished before its worker died
-                    retry = job.after_crash()
-                    again.extend(retry)
-                    if not retry:  # a lone task, out of attempts
-                        self._count(job, record_crash(job, {s.name: s.group for s in self.space.scenarios},
-                                                      str(e)))
-                except CommClosedError:  # the scheduler went while we fetched this chunk's result
-                    raise SchedulerLost from None
-                except CancelledError:
-                    if client.status != "running":  # the connection to the scheduler broke
-                        raise SchedulerLost from None
-                    raise DseError(f"chunk {job.chunk_id} was cancelled on the scheduler {client.scheduler.address}"
-                                   " by someone else; submit again to finish the sweep") from None
-                fill()  # a split chunk's halves go first
-                self._tell(client)
+            with watch:
+                self._wait(client, in_flight, launched, again, fill, watch)
         except KeyboardInterrupt:
             report.interrupted = True
             if report.search is not None:
                 report.search.stopped = "interrupted"
             for future in list(in_flight.futures):
                 future.cancel()
+
+    def _wait(self, client, in_flight, launched: dict[str, ChunkJob], again: deque[ChunkJob],
+              fill: Callable[[], None], watch: WorkerWatch) -> None:
+        """Count each chunk as it finishes and send the next; split crashed chunks."""
+        from distributed.comm.core import CommClosedError
+        from distributed.scheduler import KilledWorker
+
+        report = self.report
+        fill()
+        self._tell(client)
+        for future in in_flight:
+            job = launched.pop(future.key)
+            try:
+                self._count(job, future.result())
+            except KilledWorker as e:
+                report.crashed_chunks += 1
+                store.remove_chunk(job.output, job.sweep, job.chunk_id)  # if it finished before its worker died
+                retry = job.after_crash()
+                again.extend(retry)
+                if not retry:  # a lone task, out of attempts
+                    self._count(job, record_crash(job, {s.name: s.group for s in self.space.scenarios}, str(e)))
+            except CommClosedError:  # the scheduler went while we fetched this chunk's result
+                raise SchedulerLost from None
+            except CancelledError:
+                if watch.stranded:
+                    raise DseError(f"{watch.stranded}; every finished chunk is in {report.output}: start "
+                                   "workers (or mend what killed them) and submit again to run the rest") from None
+                if client.status != "running":  # the connection to the scheduler broke
+                    raise SchedulerLost from None
+                raise DseError(f"chunk {job.chunk_id} was cancelled on the scheduler {client.scheduler.address}"
+                               " by someone else; submit again to finish the sweep") from None
+            fill()  # a split chunk's halves go first
+            self._tell(client)
 
     def _count(self, job: ChunkJob, summary: ChunkSummary) -> None:
         self.source.finished(job, summary)
