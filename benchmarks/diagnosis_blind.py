@@ -14,7 +14,7 @@ Runs the cases of tests/blind.py on the embedded local cluster and prints one ta
 * noise only (heavier: 5 cm, 10 % dropouts, two 5 s outages; coloured): what it named, the estimated noise
   against the truth's, held-out error before and after, the verdict.
 
-    python3 benchmarks/diagnosis_blind.py [--cases singles|pairs|ool|noise|all] [--only NAME,...]
+    python3 benchmarks/diagnosis_blind.py [--cases singles,pairs,ool,noise|all] [--only NAME,...]
                                           [--form benchmark|tests] [--workers 2] [--out out/diagnosis-blind]
 
 ``--form benchmark`` (the default) records 40 s of every bundled manoeuvre; ``--form tests`` records the
@@ -41,11 +41,11 @@ SINGLES_HEADER = (f"{'concealed':<16} {'truth':>8} {'named first':<16} {'estimat
                   f"{'before [m]':>10} {'after [m]':>10} {'after/before':>12} {'seconds':>8}")
 PAIRS_HEADER = (f"{'concealed':<32} {'chosen':<32} {'runner-up':<40} {'top two':>7} {'before [m]':>10} "
                 f"{'after [m]':>10} {'floor [m]':>9} {'verdict':<11} {'seconds':>8}")
-OUTSIDE_HEADER = (f"{'concealed':<17} {'truth':<48} {'chosen':<36} {'runner-up':<44} {'verdict':<11} "
-                  f"{'partial':>7} {'discovered':<12} {'before [m]':>10} {'after [m]':>10} {'floor [m]':>9} "
-                  f"{'seconds':>8}")
+OUTSIDE_HEADER = (f"{'concealed':<17} {'truth':<48} {'named':<40} {'verdict':<11} {'partial':>7} "
+                  f"{'before [m]':>10} {'library [m]':>11} {'after [m]':>10} {'floor [m]':>9} {'pass':>4} "
+                  f"{'seconds':>8}  discovered terms | resembles")
 NOISE_HEADER = (f"{'case':<15} {'receiver':<36} {'named':<24} {'sigma [m]':>9} {'estimate':>9} "
-                f"{'before [m]':>10} {'after [m]':>10} {'floor [m]':>9} {'verdict':<11} {'seconds':>8}")
+                f"{'before [m]':>10} {'after [m]':>10} {'floor [m]':>9} {'verdict':<11} {'pass':>4} {'seconds':>8}")
 
 
 def run(case: str, args: argparse.Namespace, client):
@@ -92,16 +92,21 @@ def discovered(result) -> str:
 
 
 def outside_row(name: str, result, seconds: float) -> str:
-    """What the diagnosis made of an effect outside its library: any library effect it names must be
-    partial."""
+    """What the diagnosis made of an effect outside its library: the effects it named (the chosen set, then
+    the runner-up), the verdict, whether every library effect named is partial, held-out error of the
+    calibrated model (before), of the library's best and of the chosen model (after), whether the issue's
+    target is met (blind.outside_target), then the discovered terms and what they resemble."""
     truth = ", ".join(f"{k}={v:g}" for k, v in blind.CASES[name].truth.items())
-    chosen_set = "+".join(e["id"] for e in result.effects)
     up = result.runner_up.other if result.runner_up else "-"
+    named = "+".join(e["id"] for e in result.effects) + f" ({up})"
     library = [e for e in result.effects if e["id"] not in ("none", "discovered")]
     partial = "-" if not library else "yes" if all(e.get("partial") for e in library) else "NO"
-    return (f"{name:<17} {truth:<48} {chosen_set:<36} {up:<44} {result.verdict:<11} {partial:>7} "
-            f"{discovered(result):<12} {result.cross_track_before:>10.3f} {result.cross_track_after:>10.3f} "
-            f"{floor_of(result)} {seconds:>8.1f}")
+    found = blind.discovered_entry(result)
+    best = found["held_out_without"] if found else result.cross_track_after
+    resembles = found["resembles"]["text"] if found and found.get("resembles") else "-"
+    return (f"{name:<17} {truth:<48} {named:<40} {result.verdict:<11} {partial:>7} "
+            f"{result.cross_track_before:>10.3f} {best:>11.3f} {result.cross_track_after:>10.3f} {floor_of(result)} "
+            f"{'yes' if blind.outside_target(result) else 'no':>4} {seconds:>8.1f}  {discovered(result)} | {resembles}")
 
 
 def noise_row(name: str, result, seconds: float) -> str:
@@ -113,16 +118,31 @@ def noise_row(name: str, result, seconds: float) -> str:
     estimate = f"{result.floor.sigma:>9.4f}" if result.floor.available else f"{'-':>9}"
     return (f"{name:<15} {receiver:<36} {named:<24} {case.noise:>9.4f} {estimate} "
             f"{result.cross_track_before:>10.3f} {result.cross_track_after:>10.3f} {floor_of(result)} "
-            f"{result.verdict:<11} {seconds:>8.1f}")
+            f"{result.verdict:<11} {'yes' if blind.noise_target(result, case.noise) else 'no':>4} {seconds:>8.1f}")
 
 
 def chosen(names, only: set[str] | None) -> list[str]:
     return [n for n in names if only is None or n in only]
 
 
+KINDS = ("singles", "pairs", "ool", "noise")
+
+
+def kinds(text: str) -> set[str]:
+    """``--cases``: comma-separated kinds, ``all`` for every one."""
+    chosen = set(text.split(","))
+    if "all" in chosen:
+        return set(KINDS)
+    if not chosen <= set(KINDS):
+        raise argparse.ArgumentTypeError(f"unknown kinds {', '.join(sorted(chosen - set(KINDS)))}: "
+                                         f"there is {', '.join(KINDS)} and all")
+    return chosen
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cases", choices=("singles", "pairs", "ool", "noise", "all"), default="singles")
+    parser.add_argument("--cases", type=kinds, default={"singles"},
+                        help="comma-separated kinds: singles, pairs, ool, noise, or all")
     parser.add_argument("--only", type=lambda text: set(text.split(",")), default=None,
                         help="comma-separated case names to keep, of the chosen kinds")
     parser.add_argument("--form", choices=("benchmark", "tests"), default="benchmark")
@@ -130,11 +150,11 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("out/diagnosis-blind"))
     args = parser.parse_args()
     with connect(Cluster(n_workers=args.workers)) as client:
-        if args.cases in ("singles", "all"):
+        if "singles" in args.cases:
             print(SINGLES_HEADER, flush=True)
             for effect in chosen(blind.EFFECTS, args.only):
                 print(single_row(effect, *run(effect, args, client)), flush=True)
-        if args.cases in ("pairs", "all"):
+        if "pairs" in args.cases:
             print(PAIRS_HEADER, flush=True)
             passed, pairs = 0, chosen(blind.PAIRS, args.only)
             for pair in pairs:
@@ -142,11 +162,11 @@ def main() -> None:
                 passed += ok
                 print(row, flush=True)
             print(f"both effects in the top two: {passed}/{len(pairs)}", flush=True)
-        if args.cases in ("ool", "all"):
+        if "ool" in args.cases:
             print(OUTSIDE_HEADER, flush=True)
             for name in chosen(blind.OUTSIDE, args.only):
                 print(outside_row(name, *run(name, args, client)), flush=True)
-        if args.cases in ("noise", "all"):
+        if "noise" in args.cases:
             print(NOISE_HEADER, flush=True)
             for name in chosen(["none", *blind.NOISE_CASES], args.only):
                 print(noise_row(name, *run(name, args, client)), flush=True)

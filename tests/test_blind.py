@@ -83,6 +83,10 @@ def test_the_new_synthetic_runs_vary_what_their_effects_depend_on():
     assert info["duration"] >= 2.0 + blind.LOOP_TURNING  # never cut short of a whole turn
     turning = loop[:, 0] >= 2.0
     assert np.all(loop[turning, 2] == blind.LOOP_STEERING) and np.all(loop[turning, 1] == blind.LOOP_SPEED)
+    info_left, lines = blind.synthetic_run("loop_left", blind.SECONDS)
+    left = np.loadtxt(lines[1:], delimiter=",")
+    assert np.array_equal(left[:, 2], -loop[:, 2]) and np.array_equal(left[:, 1], loop[:, 1])  # the other way
+    assert info["group"] == info_left["group"]  # one group, so the folds split the loops
 
 
 def test_the_heavy_noise_receiver_has_two_long_outages_and_more_dropouts():

@@ -80,6 +80,16 @@ def test_an_effect_outside_the_library_is_discovered(cases):
     assert any(k.startswith("vehicle.corr_") for k in load_space(result.files["space"]).parameters)
 
 
+def test_heavy_noise_and_long_outages_claim_nothing(cases):
+    """5 cm of receiver noise, 10 % dropouts and two 5 s outages per run: nothing is named or discovered, and the
+    noise is estimated from the files alone within 20 %."""
+    _, _, _, result = cases("noise_heavy")
+    assert [e["id"] for e in result.effects] == ["none"] and result.verdict == "none"
+    assert blind.discovered_entry(result) is None
+    assert result.floor.sigma == pytest.approx(blind.CASES["noise_heavy"].noise, rel=0.20)
+    assert blind.noise_target(result, blind.CASES["noise_heavy"].noise)
+
+
 def test_noise_only_reports_nothing_missing(cases):
     _, _, _, result = cases("none")
     assert [e["id"] for e in result.effects] == ["none"]

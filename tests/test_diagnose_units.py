@@ -160,6 +160,13 @@ def test_verdict(held_out, floor, chosen, expected):
     assert explain.verdict(held_out, floor, 2.0, chosen) == expected
 
 
+@pytest.mark.parametrize("chosen", [False, True])
+def test_a_discovered_correction_is_the_answer_only_down_to_the_noise(chosen):
+    """A correction that passed the rule but leaves a residual above the noise is part of the cause: partial."""
+    assert explain.verdict(0.04, 0.02, 2.0, chosen, discovered=True) == "discovered"
+    assert explain.verdict(0.041, 0.02, 2.0, chosen, discovered=True) == "partial"
+
+
 def candidate(ids: tuple[str, ...], held_out: list[float], sse: float, values: dict[str, float] | None = None
               ) -> Candidate:
     names = ["vehicle.mass", *(values or {})]
@@ -603,6 +610,53 @@ def test_noise_alone_proposes_no_term(seed):
     assert proposal.empty, proposal.terms
 
 
+def loop_run(name: str, seconds: float, turn: float, speed: float = 1.6) -> tuple:
+    """A synthetic run that drives at ``speed`` and turns at ``turn`` rad/s from 2 s, as its command log and
+    exact fixes (no receiver noise), with its heading at each fix."""
+    from dse_runner.analysis.diagnose import discover
+
+    log_t = np.round(np.arange(0.0, seconds + 1e-9, 0.05), 2)
+    t = np.round(np.arange(0.0, seconds + 1e-9, 0.1), 2)
+    fine = np.linspace(0.0, seconds, 20001)
+    v = np.where(fine >= 1.0, speed, 0.0)
+    psi = np.where(fine >= 2.0, turn * (fine - 2.0), 0.0)
+    x = np.concatenate([[0.0], np.cumsum(np.diff(fine) * v[1:] * np.cos(psi[1:]))])
+    y = np.concatenate([[0.0], np.cumsum(np.diff(fine) * v[1:] * np.sin(psi[1:]))])
+    observed = discover.Observed(name, t, np.interp(t, fine, x), np.interp(t, fine, y), log_t,
+                                 np.where(log_t >= 1.0, speed, 0.0), np.where(log_t >= 2.0, 0.25, 0.0))
+    return observed, np.interp(t, fine, psi)
+
+
+def test_antenna_channels_are_proposed_from_the_fix_residuals_in_body_axes():
+    """A mast that leans by h·sin(ψ − ψ_s) to the left is an output effect, invisible to equation error: the
+    residuals of a model without it, turned into body axes, propose gps_cross += −h·sin ψ_s·cos ψ + h·cos ψ_s·sin ψ
+    (sin(ψ − ψ_s) expanded) and nothing along the track; white receiver noise alone proposes nothing."""
+    from dse_runner.analysis.diagnose import correction, discover
+
+    values = discover.vehicle_values({}, "vehicle")
+    h, heading = 0.2, 0.7
+    rng = np.random.default_rng(5)
+    runs, leaning, noisy = [], {}, {}
+    for k, turn in enumerate((0.2, -0.15, 0.25, 0.1)):
+        run, psi = loop_run(f"loop{k}", 32.0, turn)
+        runs.append(run)
+        shift = h * np.sin(psi - heading)  # the antenna sits this far to the left of where the model has it
+        noise = rng.normal(0.0, 0.02, (2, len(psi)))
+        # fix_residuals: simulated minus recorded, x then y; the recorded antenna is moved left by ``shift``
+        leaning[run.name] = np.concatenate([shift * np.sin(psi) - noise[0], -shift * np.cos(psi) - noise[1]])
+        noisy[run.name] = -np.concatenate(noise)
+    proposal = discover.propose({c: r for c, r in discover.regressions(runs, values, leaning).items()
+                                 if c in discover.OUTPUT})
+    assert set(proposal.terms) == {"corr_gps_cross_cospsi", "corr_gps_cross_sinpsi"}, proposal.terms
+    assert proposal.terms["corr_gps_cross_sinpsi"] == pytest.approx(h * np.cos(heading), rel=0.1)
+    assert proposal.terms["corr_gps_cross_cospsi"] == pytest.approx(-h * np.sin(heading), rel=0.1)
+    assert correction.readable(proposal.terms)[0].startswith("gps_cross += ")
+    quiet = discover.propose({c: r for c, r in discover.regressions(runs, values, noisy).items()
+                              if c in discover.OUTPUT})
+    assert quiet.empty, quiet.terms
+    assert "gps_cross" not in discover.regressions(runs, values)  # no residuals, no antenna channel
+
+
 def test_extended_bic_charges_the_search():
     from dse_runner.analysis.diagnose import discover
 
@@ -666,3 +720,35 @@ def test_discovered_terms_in_json_and_verdict(tmp_path):
     assert entry["resembles"]["id"] == "wheel_slip"
     saved = strict_loads(strict_json.dumps(d.to_json()))
     assert saved["discovery"]["accepted"] and saved["effects"][0]["terms"][0]["variable"] == "corr_acc_v"
+
+
+def test_a_correction_that_leaves_a_residual_is_partial(tmp_path):
+    """Accepted, yet still well above the noise (a payload lowered mid-run, which no time-invariant term
+    expresses): verdict partial, the correction itself flagged partial, and the report says how much remains."""
+    from dse_runner.analysis.diagnose import discover, report
+
+    none = candidate((), [1.0, 1.0], 400.0)
+    found = with_terms(("discovered",), [0.3, 0.3], 90.0, {"vehicle.corr_acc_s": -0.05})
+    d = Diagnosis(tmp_path, {"vehicle": "vehicle"}, [found, none], found, none,
+                  floor=noise.NoiseFloor(0.02, 0.025, noise.CLOSE_FIXES, 100),
+                  discovery=discover.Discovery(none, candidates=[found], chosen=found, resembles=[("wheel_slip", 0.6)]))
+    assert d.verdict == "partial" and d.discovered
+    [entry] = d.effects
+    assert entry["id"] == "discovered" and entry["partial"]
+    text = report.verdict_text(d)
+    assert text.startswith("**Verdict: partial.**") and "explains part of it" in text
+    assert "0.275 m of mean cross-track error remains above the noise" in text
+
+
+def test_pruned_slots_go_to_the_next_proposed_terms():
+    """A term equation error ranked high but the fits put within two standard errors of zero frees its slot for
+    the next term the proposal ranked, never one already tried; the kept terms restart at zero."""
+    from dse_runner.analysis.diagnose import discover
+
+    ranked = (("corr_steer_ddeltav", 0.3), ("corr_steer_ddelta", 0.2), ("corr_gps_cross_sinpsi", 0.1),
+              ("corr_gps_cross_cospsi", -0.1), ("corr_acc_s", 0.01))
+    proposal = discover.Proposal(dict(ranked[:3]), {}, {}, {}, ranked)
+    kept = {"corr_gps_cross_sinpsi": 0.15}
+    refill = discover.refilled(kept, proposal, set(proposal.terms), 3)
+    assert refill == {"corr_gps_cross_sinpsi": 0.0, "corr_gps_cross_cospsi": -0.1, "corr_acc_s": 0.01}
+    assert discover.refilled(kept, proposal, {v for v, _ in ranked}, 3) == {"corr_gps_cross_sinpsi": 0.0}

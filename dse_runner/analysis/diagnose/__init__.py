@@ -177,7 +177,7 @@ class Diagnosis:
                                "text": discover.resemblance_words(similar)} if similar else None),
                 "similarities": dict(similar),
                 "held_out_without": self.library.cross_validated, "held_out_with": self.chosen.cross_validated,
-                "partial": False}
+                "partial": self.verdict == explain.PARTIAL}  # it too leaves a residual above the noise
 
     def _effect(self, hid: str) -> dict[str, Any]:
         h, fit = LIBRARY[hid], self.chosen.full

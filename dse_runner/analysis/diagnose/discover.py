@@ -11,11 +11,13 @@ missing physics is sought among the correction block's terms (correction.py), in
    a speed change), for ``steer`` in yaw rate (steering enters it through the steady-state gain
    G(v) = −v / (L + K_us·v²); the yaw mode settles in hundredths of a second at these speeds). The features
    are taken at R's state, and every model-side signal is seen through the same local-polynomial window
-   as the fixes, so neither side is
-   sharper. PySINDy's sequentially thresholded least squares (STLSQ) picks the few terms that explain
-   it; the threshold comes from leave-one-run-out error, and a term is kept only if it is picked in most
-   of a seeded bootstrap over *runs* (rows within a run are correlated, so resampling rows would
-   overstate the evidence).
+   as the fixes, so neither side is sharper. The antenna's channels (``gps_along``, ``gps_cross``) are
+   outputs, not dynamics, so equation error cannot see them: their target is R's fix residuals turned
+   into the vehicle's axes (one sweep of points the fits mostly simulated already), where a term's
+   column is its feature itself. PySINDy's sequentially thresholded least squares (STLSQ) picks the few
+   terms that explain each channel; the threshold comes from leave-one-run-out error, and a term is kept
+   only if it is picked in most of a seeded bootstrap over *runs* (rows within a run are correlated, so
+   resampling rows would overstate the evidence).
 2. **Prove** (the same sweeps as the library). The proposed terms are freed as ``corr_*`` parameters of
    the effects FMU and fitted on positions jointly with the calibrated parameters and R's effects (R + D),
    and without R (D alone). Terms within two standard errors of zero are pruned. Each fold re-does the
@@ -48,7 +50,9 @@ from .explain import Candidate
 from .hypotheses import EFFECTS_FMU, LIBRARY
 
 DISCOVERED = "discovered"  # the id a discovered correction takes among a candidate's ids
-CHANNELS = ("acc", "steer")  # the channels equation error can see (the antenna's are outputs, not dynamics)
+DYNAMIC = ("acc", "steer")  # the channels equation error can see
+OUTPUT = ("gps_along", "gps_cross")  # the antenna's: outputs, not dynamics, so proposed from the fix residuals
+CHANNELS = (*DYNAMIC, *OUTPUT)
 THRESHOLDS = (0.02, 0.05, 0.1, 0.2, 0.35)  # STLSQ thresholds tried, as fractions of the channel target's RMS
 ALPHA = 0.05  # STLSQ's ridge weight per row, on columns scaled to unit RMS: enough to keep look-alike
 # columns (the reference's yaw rate is nearly v·δ) from cancelling with huge coefficients; the fits then size and prune
@@ -158,18 +162,25 @@ def _filled(time: np.ndarray, values: np.ndarray) -> np.ndarray:
     return np.interp(time, time[ok], values[ok])
 
 
-def equation_error(run: Observed, values: Mapping[str, float], terms: Sequence[Term] = ()) -> dict[str, Regression]:
-    """Each channel's equation error on one run: what the fixes show minus what the reference model (parameters
-    ``values``, local names) predicts, and what each term would add, both seen through the fixes' window.
+@dataclass(frozen=True)
+class Reference:
+    """One run as the reference model (parameters ``values``) sees it, quasi-statically on the command log's
+    grid, next to the fixes' own kinematics: what both kinds of proposal (equation error, output error) need."""
 
-    The reference is taken quasi-statically, on the command log's grid: its speed follows the command through
-    the drive (:func:`speed_response`), its yaw rate is the steady-state gain times
-    the steering it acts on. The features are evaluated at that reference state, not at the recorded one: the
-    recorded speed and yaw rate *are* the targets, so features made of them would explain any residual,
-    noise included. Channels: ``acc`` in speed (a term c·f of d(v)/dt moves the speed by the drive's answer
-    to c·f, so the stiff speed loop needs no differentiated GPS acceleration), ``steer`` in yaw rate (a term
-    c·f of the steering moves the yaw rate by G(v)·c·f). Rows where the fixes give no estimate are left out."""
-    terms = tuple(terms) or tuple(t for t in correction.searched_terms() if t.channel in CHANNELS)
+    run: Observed
+    kin: Any  # kinematics.gps_kinematics of the fixes (moved to the reference point when R has an antenna offset)
+    grid: np.ndarray
+    inputs: FeatureInputs  # the reference's state on the grid, as the correction block's features see it
+    gain: np.ndarray  # steady-state yaw rate per rad of steering to the right, on the grid
+    tau: float  # the drive's speed response time [s]
+
+
+def reference_state(run: Observed, values: Mapping[str, float]) -> Reference:
+    """The reference's speed, heading, yaw rate and commands on the command log's grid.
+
+    Its speed follows the command through the drive (:func:`speed_response`), its yaw rate is the
+    steady-state gain times the steering it acts on, its heading is the fixes' course (GPS gives course, not
+    heading; they differ by the body slip angle, a few mrad here)."""
     t, x, y = run.time, run.x, run.y
     kin = kinematics.gps_kinematics(t, x, y)
     ax_, ay_ = values.get("antenna_x", 0.0), values.get("antenna_y", 0.0)
@@ -184,7 +195,6 @@ def equation_error(run: Observed, values: Mapping[str, float], terms: Sequence[T
     delta, delta_rate = acted(run.log_time, run.log_steering, grid, delay, values.get("steering_lag", 0.0))
     m, g, mu, kv = values["mass"], values["g"], values["mu"], values["Kv"]
     slip = values.get("wheel_slip", 0.0)
-    tau = m * (1.0 - slip) / kv  # the drive's speed response
     psi = np.interp(grid, t, _filled(t, kin.course))
     slope = -g * (values.get("grade_x", 0.0) * np.cos(psi) + values.get("grade_y", 0.0) * np.sin(psi))
     v = speed_response(grid, v_cmd, slope, values)
@@ -196,15 +206,35 @@ def equation_error(run: Observed, values: Mapping[str, float], terms: Sequence[T
     f_drive = np.clip(kv * (v_cmd - v / (1.0 - slip)), -mu * m * g, mu * m * g) / m
     inputs = FeatureInputs(v=v, psi=psi, r=r, s=correction.distance(grid, v), v_cmd=v_cmd, a_cmd=a_cmd, delta=delta,
                            delta_rate=delta_rate, f_drive=f_drive, v_min=values["v_min"])
+    return Reference(run, kin, grid, inputs, gain, m * (1.0 - slip) / kv)
+
+
+def _rms(columns: Mapping[str, np.ndarray], terms: Sequence[Term], moving: np.ndarray) -> dict[str, float]:
+    """Each term's raw feature RMS while the vehicle is commanded to move: bounds its coefficient."""
+    return {tm.variable: float(np.sqrt(np.mean(columns[tm.variable][moving] ** 2))) if moving.any() else math.nan
+            for tm in terms}
+
+
+def equation_error(ref: Reference, terms: Sequence[Term] = ()) -> dict[str, Regression]:
+    """Each dynamic channel's equation error on one run: what the fixes show minus what the reference model
+    predicts, and what each term would add, both seen through the fixes' window.
+
+    The features are evaluated at the reference state, not at the recorded one: the recorded speed and yaw
+    rate *are* the targets, so features made of them would explain any residual, noise included. Channels:
+    ``acc`` in speed (a term c·f of d(v)/dt moves the speed by the drive's answer to c·f, so the stiff speed
+    loop needs no differentiated GPS acceleration), ``steer`` in yaw rate (a term c·f of the steering moves
+    the yaw rate by G(v)·c·f). Rows where the fixes give no estimate are left out."""
+    terms = tuple(terms) or tuple(t for t in correction.searched_terms() if t.channel in DYNAMIC)
+    t, kin, grid, inputs = ref.run.time, ref.kin, ref.grid, ref.inputs
     columns = correction.features(inputs, terms)
     operators = {"acc": (kinematics.local_operator(t, kinematics.VELOCITY_WINDOW, 1)[1], 1),
                  "steer": (kinematics.local_operator(t, kinematics.ACCELERATION_WINDOW, 2)[2], 2)}
     recorded = {"acc": kin.speed, "steer": kin.yaw_rate}
-    model = {"acc": v, "steer": r}
-    effect = {"acc": lambda f: lagged(grid, tau * f, tau), "steer": lambda f: gain * f}
-    moving = v_cmd > 0
+    model = {"acc": inputs.v, "steer": inputs.r}
+    effect = {"acc": lambda f: lagged(grid, ref.tau * f, ref.tau), "steer": lambda f: ref.gain * f}
+    moving = inputs.v_cmd > 0
     out = {}
-    for channel in CHANNELS:
+    for channel in DYNAMIC:
         mine = [tm for tm in terms if tm.channel == channel]
         if not mine:
             continue
@@ -218,10 +248,45 @@ def equation_error(run: Observed, values: Mapping[str, float], terms: Sequence[T
         rows = np.isfinite(target) & np.isfinite(theta).all(axis=1)
         if channel == "acc":
             rows &= kin.speed >= MIN_ACC_SPEED
-        raw = np.column_stack([columns[tm.variable] for tm in mine])[moving]
-        rms = {tm.variable: float(np.sqrt(np.mean(raw[:, k] ** 2))) if moving.any() else math.nan
-               for k, tm in enumerate(mine)}
-        out[channel] = Regression(channel, tuple(mine), theta[rows], target[rows], np.zeros(int(rows.sum()), int), rms)
+        out[channel] = Regression(channel, tuple(mine), theta[rows], target[rows], np.zeros(int(rows.sum()), int),
+                                  _rms(columns, mine, moving))
+    return out
+
+
+def body_axes(dx: np.ndarray, dy: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A world-frame displacement (east, north) in the vehicle's axes at heading ``psi``: (forward, left)."""
+    c, s = np.cos(psi), np.sin(psi)
+    return dx * c + dy * s, -dx * s + dy * c
+
+
+def output_error(ref: Reference, residuals: np.ndarray | None, terms: Sequence[Term] = ()) -> dict[str, Regression]:
+    """The antenna channels' error on one run: the reference's fix residuals (fielddata.fix_residuals,
+    simulated minus recorded, x then y) turned into recorded minus simulated in the vehicle's axes, forward
+    and left.
+
+    An antenna term moves the simulated fix by exactly c·f(ψ, v) along its axis and leaves the dynamics
+    alone, so its column *is* its feature and the residual in body axes is its target: no GPS is
+    differentiated (output effects are invisible to equation error). The features are at the reference's
+    speed and the recorded course, at the fix times. ``residuals`` None (the reference failed to simulate
+    the run) gives no rows."""
+    terms = tuple(terms) or tuple(t for t in correction.searched_terms() if t.channel in OUTPUT)
+    if residuals is None or len(residuals) < 2:
+        return {}
+    n = len(residuals) // 2  # the fixes inside the simulated span: the first n (every run starts at 0)
+    t = ref.run.time[:n]
+    grid_columns = correction.features(ref.inputs, terms)
+    psi = np.interp(t, ref.grid, ref.inputs.psi)
+    along, left = body_axes(-residuals[:n], -residuals[n:], psi)
+    moving = ref.inputs.v_cmd > 0
+    out = {}
+    for channel, target in zip(OUTPUT, (along, left)):
+        mine = [tm for tm in terms if tm.channel == channel]
+        if not mine:
+            continue
+        theta = np.column_stack([np.interp(t, ref.grid, grid_columns[tm.variable]) for tm in mine])
+        rows = np.isfinite(target) & np.isfinite(theta).all(axis=1)
+        out[channel] = Regression(channel, tuple(mine), theta[rows], target[rows], np.zeros(int(rows.sum()), int),
+                                  _rms(grid_columns, mine, moving))
     return out
 
 
@@ -252,10 +317,15 @@ def lagged(time: np.ndarray, signal: np.ndarray, tau: float) -> np.ndarray:
     return lfilter([1.0 - a], [1.0, -a], np.asarray(signal, float))
 
 
-def regressions(runs: Sequence[Observed], values: Mapping[str, Mapping[str, float]] | Mapping[str, float]
-                ) -> dict[str, Regression]:
-    """Each channel's equation error over ``runs``; ``values`` is one parameter set, or one per run name."""
-    per_run = [equation_error(run, values.get(run.name, values)) for run in runs]
+def regressions(runs: Sequence[Observed], values: Mapping[str, Mapping[str, float]] | Mapping[str, float],
+                residuals: Mapping[str, np.ndarray | None] | None = None) -> dict[str, Regression]:
+    """Each channel's error over ``runs``; ``values`` is one parameter set, or one per run name; ``residuals``
+    the reference's fix residuals per run name (the antenna channels; none without them)."""
+    per_run = []
+    for run in runs:
+        ref = reference_state(run, values.get(run.name, values))
+        per_run.append({**equation_error(ref),
+                        **(output_error(ref, residuals.get(run.name)) if residuals is not None else {})})
     return {c: Regression.join([p[c] for p in per_run if c in p]) for c in CHANNELS
             if any(c in p for p in per_run)}
 
@@ -270,6 +340,7 @@ class Proposal:
     inclusion: dict[str, float]  # every term picked at least once -> share of resamples picking it
     threshold: dict[str, float]  # channel -> STLSQ threshold chosen (in the target's units per unit-RMS column)
     rms: dict[str, float]  # every term's feature RMS over the runs
+    ranked: tuple[tuple[str, float], ...] = ()  # every term that passed the bootstrap, best first (terms: the first)
 
     @property
     def empty(self) -> bool:
@@ -324,11 +395,13 @@ def choose_threshold(z: np.ndarray, y: np.ndarray, run: np.ndarray) -> float:
 
 def propose(regs: Mapping[str, Regression], max_terms: int = 3, seed: int = SEED,
             bootstrap: int = BOOTSTRAP) -> Proposal:
-    """The few terms the equation error of every channel supports: per channel the STLSQ threshold of least
+    """The few terms the error of every channel supports: per channel the STLSQ threshold of least
     leave-one-run-out error, then a seeded bootstrap over runs; terms picked in at least ``INCLUSION`` of the
-    resamples, at most ``max_terms`` in all, the most often picked and the largest first."""
+    resamples, at most ``max_terms`` in all, the dynamic channels' before the antenna's (a misfit of the
+    dynamics shows in the fix residuals too, integrated, so the antenna's channels are the fallback: they
+    take the slots the fits free, :func:`refilled`), then the most often picked and the largest first."""
     rng = np.random.default_rng(seed)
-    ranked: list[tuple[float, float, str, float]] = []
+    ranked: list[tuple[bool, float, float, str, float]] = []
     inclusion: dict[str, float] = {}
     thresholds: dict[str, float] = {}
     rms: dict[str, float] = {}
@@ -352,9 +425,10 @@ def propose(regs: Mapping[str, Regression], max_terms: int = 3, seed: int = SEED
             if share[k] > 0:
                 inclusion[tm.variable] = float(share[k])
             if share[k] >= INCLUSION and coef[k] != 0:
-                ranked.append((float(share[k]), abs(coef[k]) * scale[k] / size, tm.variable, float(coef[k])))
-    kept = sorted(ranked, reverse=True)[:max_terms]
-    return Proposal({v: c for _, _, v, c in kept}, inclusion, thresholds, rms)
+                ranked.append((channel in DYNAMIC, float(share[k]), abs(coef[k]) * scale[k] / size, tm.variable,
+                               float(coef[k])))
+    order = tuple((v, c) for *_, v, c in sorted(ranked, reverse=True))
+    return Proposal(dict(order[:max_terms]), inclusion, thresholds, rms, order)
 
 
 # ---- proof: the same fits, folds and rule as the library ------------------------------------
@@ -404,6 +478,51 @@ def pruned(fit: FitResult, factor: float = PRUNE_SE) -> dict[str, float]:
             if math.isfinite(se) and abs(value) >= factor * se and value != 0.0:
                 out[name.rsplit(".", 1)[-1]] = value
     return out
+
+
+def refilled(kept: Mapping[str, float], proposal: Proposal, tried: set[str], max_terms: int) -> dict[str, float]:
+    """The kept terms (at zero: the dropped ones may have balanced them) and, in the slots pruning freed, the
+    next terms the proposal ranked that were not tried yet (at their proposed values). Equation error sees
+    more than dynamics (the model's own misfit shows in it too), so a term it ranks high may fall on
+    positions; the slot is then the next term's, not lost."""
+    out = {v: 0.0 for v in kept}
+    for variable, value in proposal.ranked:
+        if len(out) >= max_terms:
+            break
+        if variable not in out and variable not in tried:
+            out[variable] = value
+    return out
+
+
+def settle(chain: Fitter, jobs: Mapping[str, tuple[Callable[[Mapping[str, float]], FitProblem], Proposal]],
+           what: str) -> dict[str, FitResult | None]:
+    """Fit each job's proposed terms, prune those within PRUNE_SE standard errors of zero, refit with the freed
+    slots refilled (:func:`refilled`; all of them when no term survived), then prune and refit without
+    refilling until every term stands; lockstep batches throughout. ``jobs``: label -> (problem for given
+    terms, proposal). None where no term survives."""
+    max_terms = chain.settings.max_terms
+    fits = chain.fit([make(dict(proposal.terms)) for make, proposal in jobs.values()], what)
+    tried = {label: set(proposal.terms) for label, (_, proposal) in jobs.items()}
+    out: dict[str, FitResult | None] = {}
+    for refill in (True, *[False] * max_terms):  # without refilling each pass drops a term: it ends
+        again = []
+        for label, (make, proposal) in jobs.items():
+            if label in out:
+                continue
+            fit = fits[label]
+            kept = pruned(fit)
+            if kept == fitted_terms(fit):
+                continue  # settled: every term two standard errors from zero
+            terms = refilled(kept, proposal, tried[label], max_terms) if refill else {v: 0.0 for v in kept}
+            if not terms:
+                out[label] = None  # nothing survived, and nothing is left to try
+                continue
+            tried[label] |= set(terms)
+            again.append(make(terms))
+        if not again:
+            break
+        fits.update(chain.fit(again, f"{what}: refitting without the terms near zero"))
+    return {label: out.get(label, fits[label]) for label in jobs}
 
 
 class Fitter(Protocol):
@@ -470,9 +589,16 @@ def discover(chain: Fitter, reference: Candidate, candidates: Sequence[Candidate
     baseline = next((c for c in candidates if not c.ids), reference)
     parents = {ids: reference if library_ids(ids) == reference.ids else baseline for ids in _sets(reference)}
 
+    # The parents' fix residuals (the antenna channels' targets), full and per fold, in one sweep: every
+    # point was simulated by its fit already, so the store answers most of it.
+    points = [f.point for parent in parents.values() for f in (parent.full, *parent.folds)]
+    residuals = chain.evaluate(points)
+
     def proposal(parent: FitResult, names: Sequence[str]) -> Proposal:
         values = vehicle_values(parent.point, vehicle, fixed)
-        return propose(regressions([by_name[n] for n in names if n in by_name], values), settings.max_terms)
+        mine = [by_name[n] for n in names if n in by_name]
+        return propose(regressions(mine, values, {r.name: residuals(parent.point, r.name) for r in mine}),
+                       settings.max_terms)
 
     proposals = {ids: proposal(parent.full, chain.all) for ids, parent in parents.items()}
     result.proposal = proposals[_sets(reference)[0]]
@@ -488,32 +614,40 @@ def discover(chain: Fitter, reference: Candidate, candidates: Sequence[Candidate
         base = chain.problem("+".join(ids), library_ids(ids), dict(parents[ids].full.values), chain.all)
         return with_terms(base, vehicle, terms, {}, rms)
 
-    fits = chain.fit([full_problem(ids, proposals[ids].terms) for ids in sets], "discovery: fitting the correction")
-    kept = {ids: pruned(fits["+".join(ids)]) for ids in sets}
-    refit = [ids for ids in sets if kept[ids] and kept[ids] != fitted_terms(fits["+".join(ids)])]
-    if refit:  # from the library part's own fit and the kept terms at zero: the dropped ones may have balanced them
-        fits.update(chain.fit([full_problem(ids, {v: 0.0 for v in kept[ids]}) for ids in refit],
-                              "discovery: refitting without the terms near zero"))
-    fitted = [Candidate(ids, fits["+".join(ids)]) for ids in sets if kept[ids]]
+    settled = settle(chain, {"+".join(ids): (lambda terms, ids=ids: full_problem(ids, terms), proposals[ids])
+                             for ids in sets}, "discovery: fitting the correction")
+    fitted = [Candidate(ids, settled["+".join(ids)]) for ids in sets if settled["+".join(ids)] is not None]
     if not fitted:
         result.reason = "no proposed term is two standard errors from zero when fitted on positions"
         return result
-    problems, copies = [], {}
+    jobs, copies = {}, {}
     for c in fitted:  # fold-honest: each fold proposes again, on its training runs, from its parent's fold fit
         parent = parents[c.ids]
         for k, fold in enumerate(chain.folds):
             label = f"{c.label}/fold{k}"
             training = tuple(s for s in chain.all if s not in fold)
             parent_fold = parent.folds[k] if k < len(parent.folds) else parent.full
-            terms = proposal(parent_fold, training).terms
-            result.folds.append({"set": c.label, "fold": k, "terms": terms})
-            if not terms:  # nothing proposed here: the fold predicts with its library fit alone
-                copies[label] = parent_fold
+            mine = proposal(parent_fold, training)
+            result.folds.append({"set": c.label, "fold": k, "terms": mine.terms})
+            copies[label] = parent_fold  # what the fold predicts with when no term is proposed or survives
+            if mine.empty:
                 continue
-            base = chain.problem(label, library_ids(c.ids), {**parent_fold.values, **c.full.values}, training)
-            problems.append(with_terms(base, vehicle, terms, c.full.values, rms))
-    fold_fits = chain.fit(problems, "discovery: cross-validating the correction") if problems else {}
-    chain.score(fitted, {**fold_fits, **copies})
+
+            def make(terms: Mapping[str, float], label: str = label, c: Candidate = c,
+                     parent_fold: FitResult = parent_fold, training: tuple[str, ...] = training) -> FitProblem:
+                base = chain.problem(label, library_ids(c.ids), {**parent_fold.values, **c.full.values}, training)
+                return with_terms(base, vehicle, terms, c.full.values, rms)
+
+            jobs[label] = (make, mine)
+    # Each fold's proposal is fitted and scored as proposed. Pruning inside the folds too (settle) was tried:
+    # it helps where the folds' proposals carry terms the fits then drop (mast_roll) but leaves folds whose
+    # training runs support no term at all with the library's answer (steer_gain_speed), docs/diagnosis.md.
+    fold_fits = chain.fit([make(dict(mine.terms)) for make, mine in jobs.values()],
+                          "discovery: cross-validating the correction") if jobs else {}
+    for entry in result.folds:
+        fit = fold_fits.get(f"{entry['set']}/fold{entry['fold']}")
+        entry["kept"] = fitted_terms(fit) if fit is not None else {}
+    chain.score(fitted, {**copies, **fold_fits})
     result.candidates = fitted
     result.margin = extended_margin(settings.bic_margin, max(len(fitted_terms(c.full)) for c in fitted))
     result.chosen = accept(fitted, reference, [*candidates, *fitted], settings.min_gain, settings.bic_margin)

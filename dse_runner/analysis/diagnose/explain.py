@@ -169,14 +169,15 @@ def above_floor(held_out: float, floor: float | None, factor: float = NOISE_FACT
 
 def verdict(held_out: float, floor: float | None, factor: float, chosen: bool, discovered: bool = False) -> str:
     """The diagnosis in one word. ``chosen``: whether any library effect was chosen; ``discovered``: whether
-    a discovered correction was accepted (it is only sought when the library leaves a residual, so it wins).
+    a discovered correction was accepted (it is only sought when the library leaves a residual).
 
     none: nothing chosen, and the residual is noise; explained: effects chosen, and what remains is
-    noise; partial: effects chosen, yet a residual well above the noise remains, so they are at most
+    noise; discovered: a discovered correction brings what remains down to the noise; partial: effects
+    chosen (library or discovered), yet a residual well above the noise remains, so they are at most
     part of the cause; unexplained: nothing chosen, and the residual is well above the noise."""
-    if discovered:
-        return DISCOVERED
     above = above_floor(held_out, floor, factor)
+    if discovered:
+        return PARTIAL if above else DISCOVERED
     if chosen:
         return PARTIAL if above else EXPLAINED
     return UNEXPLAINED if above else NONE

@@ -299,6 +299,8 @@ def verdict_text(diagnosis: "Diagnosis") -> str:
     if verdict == explain.EXPLAINED:
         return (f"**Verdict: explained.** With {chosen} the held-out error is {level}; up to {factor:g}× counts "
                 "as noise, so what remains is receiver noise or too close to it to tell apart.")
+    if verdict == explain.PARTIAL and diagnosis.discovered:
+        return discovered_text(diagnosis)
     if verdict == explain.PARTIAL:
         return (f"**Verdict: partial.** The runs support {chosen}, but it is not the whole story: after it the "
                 f"held-out error is {level}, above the {factor:g}× that counts as noise. The library does not "
@@ -320,22 +322,29 @@ def _without(diagnosis: "Diagnosis") -> str:
 
 
 def discovered_text(diagnosis: "Diagnosis") -> str:
-    """The verdict when a discovered correction passed: the library falls short, and by how much; the term."""
+    """The verdict when a discovered correction passed: the library falls short, and by how much; the term;
+    and, when the correction too leaves a residual above the noise (verdict partial), how much remains."""
     floor, library, chosen = diagnosis.floor, diagnosis.library, diagnosis.chosen
     entry = next(e for e in diagnosis.effects if e["id"] == discover.DISCOVERED)
     remains = library.cross_validated - floor.cross_track
     gain = 100.0 * (1.0 - chosen.cross_validated / library.cross_validated)
     named = [e for e in diagnosis.effects if e["id"] != discover.DISCOVERED]
+    whole = diagnosis.verdict == explain.DISCOVERED
     part = (" Read " + ", ".join(f"`{e['id']}`" for e in named) + " as part of the cause, not as the cause."
             if named else "")
     resembles = entry["resembles"]["text"] if entry["resembles"] else "was not compared with the library"
-    return (f"**Verdict: discovered.** The library does not explain the residual: {_without(diagnosis)} the held-out "
-            f"error is {library.cross_validated:.3f} m, {library.cross_validated / floor.cross_track:.1f}× the noise "
-            f"floor of {floor.cross_track:.3f} m, so about {remains:.3f} m of mean cross-track error remains above the "
-            f"noise. A data-driven correction explains most of it: " + "; ".join(f"`{t}`" for t in entry["readable"])
+    left = (f" It is not the whole story either: about {chosen.cross_validated - floor.cross_track:.3f} m of mean "
+            f"cross-track error remains above the noise, which no term of the correction block (each a fixed "
+            f"function of the state, the same all run long) expresses; read the correction as part of the cause."
+            if not whole else "")
+    return (f"**Verdict: {diagnosis.verdict}.** The library does not explain the residual: {_without(diagnosis)} the "
+            f"held-out error is {library.cross_validated:.3f} m, {library.cross_validated / floor.cross_track:.1f}× "
+            f"the noise floor of {floor.cross_track:.3f} m, so about {remains:.3f} m of mean cross-track error remains "
+            f"above the noise. A data-driven correction explains {'most' if whole else 'part'} of it: "
+            + "; ".join(f"`{t}`" for t in entry["readable"])
             + f". With it the held-out error is {chosen.cross_validated:.3f} m ({gain:.0f} % lower, "
             f"{chosen.cross_validated / floor.cross_track:.1f}× the floor), on runs the fits did not see, and it "
-            f"passed the same rule as the library's effects. It {resembles}.{part}")
+            f"passed the same rule as the library's effects. It {resembles}.{part}{left}")
 
 
 def discovery_text(diagnosis: "Diagnosis") -> str:
