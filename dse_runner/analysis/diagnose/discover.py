@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import math
 import warnings
-import xml.etree.ElementTree as ET
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
@@ -42,6 +41,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from ... import bundled
+from ...simulation.build import read_description
 from ...simulation.scenario import Scenario, read_table
 from ...sweeps.fit import FitProblem, FitResult, Parameter, Point, Residuals
 from . import correction, explain, kinematics
@@ -92,14 +92,10 @@ def observe(scenario: Scenario) -> Observed:
 
 @lru_cache(maxsize=4)
 def _defaults(fmu: str) -> dict[str, float]:
-    """The start values of an FMU's real parameters, from its modelDescription.xml."""
-    root = ET.parse(bundled.bundled_path(fmu) / "modelDescription.xml").getroot()
-    out = {}
-    for var in root.iter("ScalarVariable"):
-        real = var.find("Real")
-        if var.get("causality") == "parameter" and real is not None and real.get("start") is not None:
-            out[var.get("name")] = float(real.get("start"))
-    return out
+    """The start values of an FMU's real parameters, from its modelDescription.xml as FMPy reads it."""
+    description = read_description(bundled.bundled_path(fmu))
+    return {v.name: float(v.start) for v in description.modelVariables
+            if v.causality == "parameter" and v.type == "Real" and v.start is not None}
 
 
 def vehicle_values(point: Mapping[str, float], vehicle: str, fixed: Mapping[str, Any] = {}) -> dict[str, float]:
