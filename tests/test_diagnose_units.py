@@ -752,3 +752,27 @@ def test_pruned_slots_go_to_the_next_proposed_terms():
     refill = discover.refilled(kept, proposal, set(proposal.terms), 3)
     assert refill == {"corr_gps_cross_sinpsi": 0.0, "corr_gps_cross_cospsi": -0.1, "corr_acc_s": 0.01}
     assert discover.refilled(kept, proposal, {v for v, _ in ranked}, 3) == {"corr_gps_cross_sinpsi": 0.0}
+
+
+def test_terms_are_ranked_by_what_they_do_to_positions():
+    """Forward selection on the fix residuals, linearised: an antenna's heading terms win over a pair of steering
+    terms that only stand in for one of them (each alone barely moves the residuals), a term that explains nothing
+    is left out however many slots remain, and on noise alone no term pays the BIC margin."""
+    from dse_runner.analysis.diagnose import discover
+
+    rng = np.random.default_rng(3)
+    psi = np.linspace(0.0, 4 * np.pi, 2000)
+    sin, cos = np.sin(psi), np.cos(psi)
+    wobble = rng.normal(size=psi.size)
+    columns = {"corr_steer_ddelta": cos + 3.0 * wobble, "corr_steer_ddeltav": -3.0 * wobble,  # their sum is cos ψ
+               "corr_gps_cross_sinpsi": sin, "corr_gps_cross_cospsi": cos, "corr_acc_s": rng.normal(size=psi.size)}
+    bounds = dict.fromkeys(columns, 10.0)
+    base = np.ones((psi.size, 1))  # a calibrated parameter: an offset, refitted with every set
+    noise = 0.02 * rng.normal(size=psi.size)
+    r = -(0.15 * sin - 0.13 * cos) + 0.05 + noise  # the residuals the terms should cancel
+    chosen, rest = discover.rank_on_positions(r, base, columns, bounds, 3, 10.0)
+    assert [v for v, _ in chosen] == ["corr_gps_cross_sinpsi", "corr_gps_cross_cospsi"]
+    assert dict(chosen)["corr_gps_cross_sinpsi"] == pytest.approx(0.15, abs=0.01)
+    assert dict(chosen)["corr_gps_cross_cospsi"] == pytest.approx(-0.13, abs=0.01)
+    assert set(rest) == {"corr_steer_ddelta", "corr_steer_ddeltav", "corr_acc_s"}
+    assert discover.rank_on_positions(noise, base, columns, bounds, 3, 10.0)[0] == []

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -368,9 +368,11 @@ class Chain:
                     c.held_out[scenario] = (float(row["cross_track_error"])
                                             if row and row["status"] == "ok" else math.inf)
 
-    def evaluate(self, points: list[Point]) -> Residuals:
-        """The fix residuals of ``points`` on every run, as one sweep: the screen's probes and trials."""
-        points, only = wanted((p, self.all) for p in points)
+    def evaluate(self, points: list[Point], scenarios: Sequence[Sequence[str]] | None = None) -> Residuals:
+        """The fix residuals of ``points`` on every run (or each on its ``scenarios``), as one sweep: the
+        screen's probes and trials."""
+        points, only = wanted((p, self.all if scenarios is None else s)
+                              for p, s in zip(points, scenarios or [None] * len(points)))
         rows, _ = evaluate_points(self.space, points, self.client, [RESIDUALS], only)
 
         def residuals(point: Point, scenario: str) -> Any:

@@ -18,12 +18,19 @@ missing physics is sought among the correction block's terms (correction.py), in
    terms that explain each channel; the threshold comes from leave-one-run-out error, and a term is kept
    only if it is picked in most of a seeded bootstrap over *runs* (rows within a run are correlated, so
    resampling rows would overstate the evidence).
-2. **Prove** (the same sweeps as the library). The proposed terms are freed as ``corr_*`` parameters of
+2. **Rank on positions** (one sweep). Equation error sees the model's own misfit too, so the order it
+   gives mixes channels unfairly (a pair of steering terms can outrank the antenna terms they stand in
+   for). The terms every channel supports compete instead on what each does to the fix residuals,
+   linearised at the parent fit (one probe per term, as screen.py does for library effects): forward
+   selection, the parent's parameters refitted within their bounds, while the predicted BIC falls by the
+   extended margin's share of each term (:func:`rank_on_positions`).
+3. **Prove** (the same sweeps as the library). The chosen terms are freed as ``corr_*`` parameters of
    the effects FMU and fitted on positions jointly with the calibrated parameters and R's effects (R + D),
-   and without R (D alone). Terms within two standard errors of zero are pruned. Each fold re-does the
-   selection on its training runs only, so the held-out error does not leak the choice of terms. D is
-   accepted only if it beats R and every fitted part of itself by the library's rule, with the BIC
-   margin raised for the search among many terms (extended BIC).
+   and without R (D alone). Terms within two standard errors of zero are pruned, their slots refilled in
+   the ranked order. Each fold re-does the proposal and the ranking on its training runs only, so the
+   held-out error does not leak the choice of terms. D is accepted only if it beats R and every fitted
+   part of itself by the library's rule, with the BIC margin raised for the search among many terms
+   (extended BIC).
 
 Equation-error coefficients are biased by noise in the recorded state, so they are only starting values:
 the fits size the terms on positions.
@@ -393,7 +400,8 @@ def propose(regs: Mapping[str, Regression], max_terms: int = 3, seed: int = SEED
             bootstrap: int = BOOTSTRAP) -> Proposal:
     """The few terms the error of every channel supports: per channel the STLSQ threshold of least
     leave-one-run-out error, then a seeded bootstrap over runs; terms picked in at least ``INCLUSION`` of the
-    resamples, at most ``max_terms`` in all, the dynamic channels' before the antenna's (a misfit of the
+    resamples, at most ``max_terms`` in all (the order only until :func:`screened` re-ranks them on
+    positions), the dynamic channels' before the antenna's (a misfit of the
     dynamics shows in the fix residuals too, integrated, so the antenna's channels are the fallback: they
     take the slots the fits free, :func:`refilled`), then the most often picked and the largest first."""
     rng = np.random.default_rng(seed)
@@ -487,6 +495,136 @@ def refilled(kept: Mapping[str, float], proposal: Proposal, tried: set[str], max
             break
         if variable not in out and variable not in tried:
             out[variable] = value
+    return out
+
+
+@dataclass(frozen=True)
+class Screen:
+    """What ranking on positions needs of one parent fit: where it stands, on which runs, and what was proposed."""
+
+    fit: FitResult  # the parent (R, or the calibrated model) fitted on ``scenarios``
+    scenarios: tuple[str, ...]
+    proposal: Proposal
+    bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)  # the parent's parameters' bounds
+
+    def moves(self) -> tuple[np.ndarray, np.ndarray]:
+        """How far each of the parent's parameters (``fit.names``) may move from its fitted value, down and up."""
+        low = [self.bounds.get(n, (-math.inf, math.inf))[0] - self.fit.values[n] for n in self.fit.names]
+        high = [self.bounds.get(n, (-math.inf, math.inf))[1] - self.fit.values[n] for n in self.fit.names]
+        return np.minimum(low, 0.0), np.maximum(high, 0.0)
+
+
+def term_parameters(variables: Sequence[str], vehicle: str, rms: Mapping[str, float]) -> dict[str, Parameter]:
+    return {v: correction.parameter(correction.term(v), vehicle, rms.get(v)) for v in variables}
+
+
+def screen_probes(job: Screen, parameters: Mapping[str, Parameter]) -> list[Point]:
+    """The parent's point, then the point moved by one step in each proposed term (the missing columns)."""
+    point = dict(job.fit.point)
+    out = [point]
+    for variable, _ in job.proposal.ranked:
+        p = parameters[variable]
+        out.append({**point, p.name: point.get(p.name, 0.0) + p.step})
+    return out
+
+
+def linear_sse(r: np.ndarray, base: np.ndarray, columns: np.ndarray, bounds: np.ndarray,
+               moves: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[float, np.ndarray]:
+    """The least SSE of r + base·a + columns·c with the parent's parameters ``a`` refitted within ``moves``
+    (down, up; free without) and the terms' coefficients ``c`` within ±``bounds``; returns (SSE, c)."""
+    from scipy.optimize import lsq_linear
+
+    matrix = np.hstack([base, columns])
+    scale = np.linalg.norm(matrix, axis=0)
+    scale = np.where(scale > 0, scale, 1.0)
+    k = base.shape[1]
+    down, up = moves if moves is not None else (np.full(k, -np.inf), np.full(k, np.inf))
+    lower = np.concatenate([down, -bounds]) * scale
+    upper = np.concatenate([up, bounds]) * scale
+    solved = lsq_linear(matrix / scale, -r, bounds=(lower, upper), method="trf", lsmr_tol="auto")
+    x = solved.x / scale
+    fitted = r + matrix @ x
+    return float(fitted @ fitted), x[k:]
+
+
+def rank_on_positions(r: np.ndarray, base: np.ndarray, columns: Mapping[str, np.ndarray],
+                      bounds: Mapping[str, float], max_terms: int, bic_margin: float,
+                      moves: tuple[np.ndarray, np.ndarray] | None = None
+                      ) -> tuple[list[tuple[str, float]], list[str]]:
+    """Forward selection of terms by what they do to the fix residuals, linearised at the parent fit: each
+    step adds the term that lowers the SSE most with the terms already chosen and the parent's parameters
+    refitted, while the predicted BIC falls by the extended margin's share of that term (so the chosen set
+    beats the parent by ``extended_margin``, as acceptance asks of the real fit). Every channel competes on
+    one scale, positions: a steering term that only stands in for an antenna term loses to it. Returns
+    (chosen terms with their linearised coefficients, every other term by its last trial SSE, best first)."""
+    n = max(len(r), 1)
+    current = linear_sse(r, base, np.zeros((len(r), 0)), np.zeros(0), moves)[0]
+    chosen: list[str] = []
+    coefficients = np.zeros(0)
+    trials: dict[str, float] = {}
+    while len(chosen) < max_terms:
+        trials = {}
+        solutions = {}
+        for v in columns:
+            if v in chosen:
+                continue
+            names = [*chosen, v]
+            sse, c = linear_sse(r, base, np.column_stack([columns[x] for x in names]),
+                                np.array([bounds[x] for x in names]), moves)
+            trials[v], solutions[v] = sse, c
+        if not trials:
+            break
+        best = min(trials, key=trials.get)
+        k = len(chosen)
+        charge = extended_margin(bic_margin, k + 1) - (extended_margin(bic_margin, k) if k else 0.0)
+        if n * math.log(max(trials[best], 1e-300) / max(current, 1e-300)) + math.log(n) > -charge:
+            break
+        chosen.append(best)
+        coefficients, current = solutions[best], trials[best]
+        trials.pop(best)
+    rest = sorted(trials, key=trials.get)
+    return [(v, float(c)) for v, c in zip(chosen, coefficients)], rest
+
+
+def screened(chain: Fitter, jobs: Mapping[str, Screen], rms: Mapping[str, float]) -> dict[str, Proposal]:
+    """Each job's proposal re-ranked on positions (:func:`rank_on_positions`) at its parent fit, on the
+    parent's runs only, all in one sweep of probes (one per proposed term and parent; the parents' own
+    points are in the store). Equation error says *which* terms the data carry; this says which of them
+    the fix residuals want first, so the full fit and every fold choose their terms the same way."""
+    variables = {v for job in jobs.values() for v, _ in job.proposal.ranked}
+    parameters = term_parameters(sorted(variables), chain.vehicle, rms)
+    probes = {label: screen_probes(job, parameters) for label, job in jobs.items()}
+    residuals = chain.evaluate([p for points in probes.values() for p in points],
+                               [jobs[label].scenarios for label, points in probes.items() for _ in points])
+    out = {}
+    for label, job in jobs.items():
+        if job.proposal.empty:
+            out[label] = job.proposal
+            continue
+
+        def stacked(point: Point, scenarios: tuple[str, ...] = job.scenarios) -> np.ndarray | None:
+            found = [residuals(point, s) for s in scenarios]
+            return None if any(x is None for x in found) else np.concatenate(found)
+
+        point, *moved = probes[label]
+        r = stacked(point)
+        if r is None:  # the parent does not simulate (cannot happen for a fitted point): keep the proposal's order
+            out[label] = job.proposal
+            continue
+        whole = job.fit.jacobian and sum(len(j) for j in job.fit.jacobian) == len(r)
+        base = np.vstack(job.fit.jacobian) if whole else np.zeros((len(r), 0))
+        moves = job.moves() if whole else None
+        columns, bounds = {}, {}
+        for (variable, _), probe in zip(job.proposal.ranked, moved):
+            m = stacked(probe)
+            if m is not None:
+                columns[variable] = (m - r) / parameters[variable].step
+                bounds[variable] = parameters[variable].upper
+        chosen, rest = rank_on_positions(r, base, columns, bounds, chain.settings.max_terms,
+                                         chain.settings.bic_margin, moves)
+        proposed = dict(job.proposal.ranked)
+        order = (*chosen, *((v, proposed[v]) for v in rest))
+        out[label] = replace(job.proposal, terms=dict(chosen), ranked=order)
     return out
 
 
@@ -596,15 +734,35 @@ def discover(chain: Fitter, reference: Candidate, candidates: Sequence[Candidate
         return propose(regressions(mine, values, {r.name: residuals(parent.point, r.name) for r in mine}),
                        settings.max_terms)
 
-    proposals = {ids: proposal(parent.full, chain.all) for ids, parent in parents.items()}
+    def training(k: int) -> tuple[str, ...]:
+        return tuple(s for s in chain.all if s not in chain.folds[k])
+
+    def parent_fold(ids: tuple[str, ...], k: int) -> FitResult:
+        return parents[ids].folds[k] if k < len(parents[ids].folds) else parents[ids].full
+
+    # Every proposal, from every run and from each fold's training runs (so the held-out error does not
+    # leak the choice of terms), then ranked on positions at its parent, all in one sweep.
+    raw = {ids: proposal(parent.full, chain.all) for ids, parent in parents.items()}
+    rms = {k: v for p in raw.values() for k, v in p.rms.items()}
+    bounds = {ids: {p.name: (p.lower, p.upper) for p in chain.problem("", library_ids(ids), {}, chain.all).parameters}
+              for ids in parents}
+    jobs_ = {("+".join(ids), -1): Screen(parent.full, chain.all, raw[ids], bounds[ids])
+             for ids, parent in parents.items()}
+    for ids in parents:
+        for k in range(len(chain.folds)):
+            fold_proposal = proposal(parent_fold(ids, k), training(k))
+            rms.update({v: x for v, x in fold_proposal.rms.items() if v not in rms})
+            jobs_[("+".join(ids), k)] = Screen(parent_fold(ids, k), training(k), fold_proposal, bounds[ids])
+    ranked = screened(chain, {f"{a}/{k}": job for (a, k), job in jobs_.items()}, rms)
+    proposals = {ids: ranked[f"{'+'.join(ids)}/-1"] for ids in parents}
     result.proposal = proposals[_sets(reference)[0]]
     sets = [ids for ids in parents if not proposals[ids].empty]
     if not sets:
-        result.reason = "the equation error supports no term"
+        result.reason = ("the equation error supports no term" if all(p.empty for p in raw.values())
+                         else "no proposed term moves the fix residuals enough to pay its way, linearised")
         return result
     for ids in sets:
         chain.say(f"discovery: proposed for {'+'.join(ids)}: " + "; ".join(correction.readable(proposals[ids].terms)))
-    rms = {k: v for p in proposals.values() for k, v in p.rms.items()}
 
     def full_problem(ids: tuple[str, ...], terms: Mapping[str, float]) -> FitProblem:
         base = chain.problem("+".join(ids), library_ids(ids), dict(parents[ids].full.values), chain.all)
@@ -617,27 +775,24 @@ def discover(chain: Fitter, reference: Candidate, candidates: Sequence[Candidate
         result.reason = "no proposed term is two standard errors from zero when fitted on positions"
         return result
     jobs, copies = {}, {}
-    for c in fitted:  # fold-honest: each fold proposes again, on its training runs, from its parent's fold fit
-        parent = parents[c.ids]
-        for k, fold in enumerate(chain.folds):
+    for c in fitted:  # fold-honest: each fold's own proposal, on its training runs, ranked at its parent's fold fit
+        for k in range(len(chain.folds)):
             label = f"{c.label}/fold{k}"
-            training = tuple(s for s in chain.all if s not in fold)
-            parent_fold = parent.folds[k] if k < len(parent.folds) else parent.full
-            mine = proposal(parent_fold, training)
+            mine = ranked[f"{c.label}/{k}"]
             result.folds.append({"set": c.label, "fold": k, "terms": mine.terms})
-            copies[label] = parent_fold  # what the fold predicts with when no term is proposed or survives
+            copies[label] = parent_fold(c.ids, k)  # what the fold predicts with when no term is proposed
             if mine.empty:
                 continue
 
-            def make(terms: Mapping[str, float], label: str = label, c: Candidate = c,
-                     parent_fold: FitResult = parent_fold, training: tuple[str, ...] = training) -> FitProblem:
-                base = chain.problem(label, library_ids(c.ids), {**parent_fold.values, **c.full.values}, training)
+            def make(terms: Mapping[str, float], label: str = label, c: Candidate = c, k: int = k) -> FitProblem:
+                base = chain.problem(label, library_ids(c.ids), {**parent_fold(c.ids, k).values, **c.full.values},
+                                     training(k))
                 return with_terms(base, vehicle, terms, c.full.values, rms)
 
             jobs[label] = (make, mine)
-    # Each fold's proposal is fitted and scored as proposed. Pruning inside the folds too (settle) was tried:
-    # it helps where the folds' proposals carry terms the fits then drop (mast_roll) but leaves folds whose
-    # training runs support no term at all with the library's answer (steer_gain_speed), docs/diagnosis.md.
+    # Each fold's proposal is fitted and scored as ranked: the ranking on positions already leaves out the
+    # terms that would only stand in for others, and pruning inside a fold (fewer runs, so wider
+    # cluster-robust intervals) can leave it with no term where the full fit keeps one.
     fold_fits = chain.fit([make(dict(mine.terms)) for make, mine in jobs.values()],
                           "discovery: cross-validating the correction") if jobs else {}
     for entry in result.folds:
