@@ -1,6 +1,7 @@
 """Closes the control study: picks the tuned gains, compares them with the defaults, checks fidelity.
 
     dse-runner submit defaults.yaml && dse-runner submit pareto.yaml && dse-runner submit pareto-baseline.yaml
+    python bound.py   # optional: the least error any controller reaches at the defaults' effort (bound.json)
     python compare.py [--out out]
 
 1. The tuned gains are the point of pareto.yaml's front (mean path error against mean steering
@@ -11,6 +12,7 @@
    of both on every path as figures.
 3. Fidelity: the defaults, the tuned gains and the gains the same rule picks from the front found
    on the baseline plant (pareto-baseline.yaml: no wheel slip), each simulated on both plants.
+4. If bound.json is there: per path, the least error any steering reaches at the defaults' effort.
 
 Writes results.md and figures/ beside this file; prints results.md.
 """
@@ -18,6 +20,7 @@ Writes results.md and figures/ beside this file; prints results.md.
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 
 import matplotlib
@@ -122,6 +125,28 @@ def fidelity(gains: dict[str, dict[str, float]]) -> tuple[str, dict[str, dict[st
     return "\n".join(lines), runs
 
 
+def bound_section(path: Path) -> str | None:
+    """bound.py's result, if it has been run: per path, the least error any steering reaches at no more effort
+    than the defaults, against half the defaults' error (the target)."""
+    if not path.is_file():
+        return None
+    found = json.loads(path.read_text())
+    lines = ["### What any controller could reach at the defaults' effort (bound.py, nominal plant)",
+             "The least mean path error of any steering sequence, knowing the whole path in advance, with no more "
+             f"steering effort than {found['budget']:g} x the defaults' and within their steering limits, at their "
+             "speed: a linear (mixed-integer near the step) program on the linearised plant, corrected by replaying "
+             "its solution through the real plant FMU (bound.py). Where the program is solved to optimality and its "
+             "replay agrees, no controller of any structure or gains does better, so a value above half the defaults' "
+             "error rules the target out on that path; a replayed value below half shows a steering that meets it.",
+             "| path | defaults: error [m] | effort [rad] | least error, linear model [m] | replayed on the plant [m] "
+             "| ratio to the defaults | half the error reachable |", "|---|---|---|---|---|---|---|"]
+    for name, r in sorted(found["paths"].items()):
+        ratio = r["replayed_error"] / r["defaults_error"]
+        lines.append(f"| {name} | {r['defaults_error']:.4f} | {r['defaults_effort']:.3f} | {r['bound']:.4f} "
+                     f"| {r['replayed_error']:.4f} | {ratio:.2f} | {'yes' if ratio <= 0.5 else 'no'} |")
+    return "\n".join(lines[:2]) + "\n\n" + "\n".join(lines[2:])
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=HERE / "out", help="the sweeps' output folder")
@@ -160,7 +185,7 @@ def main() -> None:
         "points (figures/pareto.png); tracks on the diagnosed plant: figures/tracks.png.",
         "### Gains\n\n| parameter | defaults | tuned | tuned on the baseline plant |\n|---|---|---|---|\n" + gains,
         "### Fidelity: each gain set on both plants (nominal plant, no variants)", checked,
-    ])
+    ] + [section for section in [bound_section(HERE / "bound.json")] if section])
     (HERE / "results.md").write_text("<!-- Written by compare.py from the sweeps in out/; run it again to update. -->\n\n"
                                      + text + "\n")
     print(text)
