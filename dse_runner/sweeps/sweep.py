@@ -260,8 +260,10 @@ class GridSource:
     def start(self, client, done: set[str]) -> None:
         self.threads = total_threads(client)
         self.unassigned = self.report.remaining
-        self.seconds_per_task = self.seconds_per_task or self.probe(client, first_point(self.space, self.points))
-        self.jobs = _jobs(self.space, self.shipment, done, self._size, self.points, self.only)
+        if self.seconds_per_task is None:
+            self.warm_up(client, first_point(self.space, self.points))
+        self.jobs = _jobs(self.space, self.shipment, done, self._size, self.points, self.only)  # while they run
+        self.seconds_per_task = self.seconds_per_task or self.probed(client)
         self.capacity = 2 * self.threads + 2
         self.sent = 0
 
@@ -292,18 +294,20 @@ class GridSource:
     def save(self) -> None:
         pass  # the rows are all a grid needs
 
-    def probe(self, client, point: Point) -> float | None:
-        """One warm simulation's seconds, probed on every worker at once and taken from the first to
-        answer: each worker loads the model while the client makes the first chunks, so none of them
-        starts its first chunk cold (the others' probes go on, as warm-ups)."""
-        from distributed import as_completed
-        from distributed.scheduler import KilledWorker
-
+    def warm_up(self, client, point: Point) -> None:
+        """Probe one warm simulation on every worker at once: each loads the model while the client makes
+        the first chunks, so none of them starts its first chunk cold."""
         spec = self.space.spec
         workers = [[address] for address in client.scheduler_info()["workers"]] or [None]
         self.warm_ups = [client.submit(probe, self.shipment, self.space.scenarios[0].name, point,
                                        self.space.objectives, spec.timeout, self.space.experiment,
                                        workers=where, allow_other_workers=True, pure=False) for where in workers]
+
+    def probed(self, client) -> float | None:
+        """The first probe's answer (the others go on, as warm-ups); None if it failed."""
+        from distributed import as_completed
+        from distributed.scheduler import KilledWorker
+
         for future in as_completed(self.warm_ups):
             try:
                 return future.result()
@@ -512,8 +516,9 @@ def trajectories_of(space: Space, client, point: dict[str, Any], sweep: str) -> 
 
 def _jobs(space: Space, shipment: str, done: set[str], size: Callable[[], int], points: list[Point] | None,
           only: list[Collection[str]] | None = None) -> Iterator[ChunkJob]:
+    """The chunks, made as they are asked for; the results' schema (a walk over every value of a large grid)
+    is made now, and ``size`` is first asked when the first chunk is."""
     key = space.model_key
     schema = store.results_schema(space.parameters, space.objectives)
-    for tasks in chunked(blocks(space, points, only, done), size):
-        yield ChunkJob(space.name, chunk_id_of(tasks), shipment, key, tasks, space.objectives,
-                       space.output, schema, space.spec.timeout, space.experiment)
+    return (ChunkJob(space.name, chunk_id_of(tasks), shipment, key, tasks, space.objectives, space.output, schema,
+                     space.spec.timeout, space.experiment) for tasks in chunked(blocks(space, points, only, done), size))
