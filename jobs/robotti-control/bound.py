@@ -30,7 +30,6 @@ from __future__ import annotations
 import argparse
 import json
 import tempfile
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +40,7 @@ from scipy.optimize import Bounds, LinearConstraint, linprog, milp
 
 from dse_runner import simulate
 from dse_runner.cases import paths as P
+from dse_runner.simulation.build import read_description
 from dse_runner.simulation.scenario import load_scenario
 
 HERE = Path(__file__).resolve().parent
@@ -51,10 +51,10 @@ ERROR, EFFORT = "path_error_mean", "steering_effort"
 
 
 def fmu_defaults(name: str) -> dict[str, float]:
-    """The start values of an FMU's real parameters, from its modelDescription.xml."""
-    root = ET.parse(FMUS / name / "modelDescription.xml").getroot()
-    return {v.get("name"): float(v.find("Real").get("start")) for v in root.iter("ScalarVariable")
-            if v.get("causality") == "parameter" and v.find("Real") is not None}
+    """The start values of an FMU's real parameters, from its modelDescription.xml as FMPy reads it."""
+    description = read_description(FMUS / name)
+    return {v.name: float(v.start) for v in description.modelVariables
+            if v.causality == "parameter" and v.type == "Real" and v.start is not None}
 
 
 class Plant:
