@@ -282,10 +282,14 @@ class ResponseFit:
                 "gain": self.gain, "gain_sse": self.gain_sse, "best": self.best}
 
 
-def response_fit(channels: Sequence[Channel], name: str, kinds: Sequence[str] = segments.KINDS,
+MOVING_KINDS = tuple(k for k in segments.KINDS if k != segments.REST)  # a standing vehicle has no response
+
+
+def response_fit(channels: Sequence[Channel], name: str, kinds: Sequence[str] = MOVING_KINDS,
                  min_fixes: int = 20) -> list[ResponseFit]:
     """Per segment kind with at least ``min_fixes`` usable fixes: the delay, lag and gain that best carry
-    the model's signal onto the recorded one (pooled over runs)."""
+    the model's signal onto the recorded one (pooled over runs). Standing is left out: there the fits only
+    reach their bounds."""
     as_is = _sse(channels, lambda t, u: u)
     kinds = [k for k in kinds if as_is.get(k, (0.0, 0))[1] >= min_fixes]
     if not kinds:
