@@ -41,7 +41,7 @@ def _table(frame: pd.DataFrame, digits: int = 3) -> str:
     return "\n".join([head, rule, *rows])
 
 
-def _candidates(diagnosis: "Diagnosis") -> pd.DataFrame:
+def _candidates(diagnosis: Diagnosis) -> pd.DataFrame:
     base = diagnosis.baseline
     rows = []
     for c in diagnosis.candidates:
@@ -144,7 +144,7 @@ def _figures(folder: Path, space: Space, frames: dict[str, pd.DataFrame], tracks
     return files
 
 
-def write(diagnosis: "Diagnosis", space: Space, frames: dict[str, pd.DataFrame], before: dict[str, pd.DataFrame],
+def write(diagnosis: Diagnosis, space: Space, frames: dict[str, pd.DataFrame], before: dict[str, pd.DataFrame],
           after: dict[str, pd.DataFrame]) -> dict[str, Path]:
     folder = diagnosis.out / "report"
     vehicle = diagnosis.calibration["vehicle"]
@@ -169,7 +169,7 @@ def write(diagnosis: "Diagnosis", space: Space, frames: dict[str, pd.DataFrame],
     return {**files, "json": summary}
 
 
-def _markdown(diagnosis: "Diagnosis", located: dict[str, pd.DataFrame], sig: dict[str, Any],
+def _markdown(diagnosis: Diagnosis, located: dict[str, pd.DataFrame], sig: dict[str, Any],
               held_out: pd.DataFrame, figures: dict[str, Path]) -> str:
     cal = diagnosis.calibration
     chosen = diagnosis.chosen
@@ -252,7 +252,7 @@ def _markdown(diagnosis: "Diagnosis", located: dict[str, pd.DataFrame], sig: dic
 
 
 
-def _screened(diagnosis: "Diagnosis", rows: int = 12) -> pd.DataFrame:
+def _screened(diagnosis: Diagnosis, rows: int = 12) -> pd.DataFrame:
     """The best screened sets, and every shortlisted one: predicted against simulated SSE."""
     shown = [x for k, x in enumerate(diagnosis.screened) if k < rows or x.label in diagnosis.shortlisted]
     return pd.DataFrame([{"set": x.label, "linearised at": "+".join(x.anchor) or "none",
@@ -260,7 +260,7 @@ def _screened(diagnosis: "Diagnosis", rows: int = 12) -> pd.DataFrame:
                           "fitted": "yes" if x.label in diagnosis.shortlisted else ""} for x in shown])
 
 
-def screen_text(diagnosis: "Diagnosis") -> str:
+def screen_text(diagnosis: Diagnosis) -> str:
     """What the screen did, or why it did not run."""
     settings = diagnosis.settings
     if not diagnosis.screened:
@@ -284,7 +284,7 @@ def _ids(label: str) -> str:
     return " + ".join(f"`{h}`" for h in label.split("+"))
 
 
-def verdict_text(diagnosis: "Diagnosis") -> str:
+def verdict_text(diagnosis: Diagnosis) -> str:
     """The verdict in an engineer's words: the chosen model's held-out error against the noise floor."""
     verdict, floor = diagnosis.verdict, diagnosis.floor
     after = diagnosis.cross_track_after
@@ -316,12 +316,12 @@ def verdict_text(diagnosis: "Diagnosis") -> str:
             f"the {factor:g}× that counts as noise.")
 
 
-def _without(diagnosis: "Diagnosis") -> str:
+def _without(diagnosis: Diagnosis) -> str:
     library = diagnosis.library
     return f"with {_ids(library.label)}" if library.ids else "with the calibrated model alone"
 
 
-def discovered_text(diagnosis: "Diagnosis") -> str:
+def discovered_text(diagnosis: Diagnosis) -> str:
     """The verdict when a discovered correction passed: the library falls short, and by how much; the term;
     and, when the correction too leaves a residual above the noise (verdict partial), how much remains."""
     floor, library, chosen = diagnosis.floor, diagnosis.library, diagnosis.chosen
@@ -347,7 +347,7 @@ def discovered_text(diagnosis: "Diagnosis") -> str:
             f"passed the same rule as the library's effects. It {resembles}.{part}{left}")
 
 
-def discovery_text(diagnosis: "Diagnosis") -> str:
+def discovery_text(diagnosis: Diagnosis) -> str:
     """What discovery did, or why it did not run."""
     found, settings = diagnosis.discovery, diagnosis.settings
     if found is None:
@@ -376,7 +376,7 @@ def discovery_text(diagnosis: "Diagnosis") -> str:
     return "".join(lines)
 
 
-def noise_text(diagnosis: "Diagnosis") -> str:
+def noise_text(diagnosis: Diagnosis) -> str:
     """How the floor was estimated, from the recordings alone."""
     floor = diagnosis.floor
     if not floor.available:
