@@ -149,28 +149,28 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("out/diagnosis-blind"))
     args = parser.parse_args()
+    tables = {  # kind: header, its cases, a row of one
+        "singles": (SINGLES_HEADER, blind.EFFECTS, single_row),
+        "ool": (OUTSIDE_HEADER, blind.OUTSIDE, outside_row),
+        "noise": (NOISE_HEADER, ["none", *blind.NOISE_CASES], noise_row),
+    }
     with connect(Cluster(n_workers=args.workers)) as client:
-        if "singles" in args.cases:
-            print(SINGLES_HEADER, flush=True)
-            for effect in chosen(blind.EFFECTS, args.only):
-                print(single_row(effect, *run(effect, args, client)), flush=True)
-        if "pairs" in args.cases:
-            print(PAIRS_HEADER, flush=True)
-            passed, pairs = 0, chosen(blind.PAIRS, args.only)
-            for pair in pairs:
-                row, ok = pair_row(pair, *run(pair, args, client))
-                passed += ok
-                print(row, flush=True)
-            print(f"both effects in the top two: {passed}/{len(pairs)}", flush=True)
-        if "ool" in args.cases:
-            print(OUTSIDE_HEADER, flush=True)
-            for name in chosen(blind.OUTSIDE, args.only):
-                print(outside_row(name, *run(name, args, client)), flush=True)
-        if "noise" in args.cases:
-            print(NOISE_HEADER, flush=True)
-            for name in chosen(["none", *blind.NOISE_CASES], args.only):
-                print(noise_row(name, *run(name, args, client)), flush=True)
-
+        for kind in KINDS:
+            if kind not in args.cases:
+                continue
+            if kind == "pairs":  # rows that also count the cases passed
+                print(PAIRS_HEADER, flush=True)
+                passed, pairs = 0, chosen(blind.PAIRS, args.only)
+                for pair in pairs:
+                    row, ok = pair_row(pair, *run(pair, args, client))
+                    passed += ok
+                    print(row, flush=True)
+                print(f"both effects in the top two: {passed}/{len(pairs)}", flush=True)
+                continue
+            header, names, row_of = tables[kind]
+            print(header, flush=True)
+            for name in chosen(names, args.only):
+                print(row_of(name, *run(name, args, client)), flush=True)
 
 if __name__ == "__main__":
     main()

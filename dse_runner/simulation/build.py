@@ -79,6 +79,12 @@ def read_description(source_dir: Path):
         raise BuildError(f"{source_dir}/modelDescription.xml cannot be read: {e}") from e
 
 
+def real_parameters(source_dir: Path) -> dict[str, float]:
+    """The start values of the real parameters of the FMU built from ``source_dir``."""
+    return {v.name: float(v.start) for v in read_description(source_dir).modelVariables
+            if v.causality == "parameter" and v.type == "Real" and v.start is not None}
+
+
 def layer_of(source_dir: Path) -> Layer:
     """The layer the description asks for: FMI 3.0 -> slave3, or me3 with only <ModelExchange>;
     2.0 with only <ModelExchange> -> me2; else slave."""

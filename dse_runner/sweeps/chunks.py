@@ -157,7 +157,7 @@ def results_table(job: ChunkJob, groups: dict[str, str], scores: list[dict[str, 
         return np.ascontiguousarray(column) if numeric else [v.item() if hasattr(v, "item") else v for v in column]
 
     columns = {
-        "task_id": batch.task_ids.astype(str).tolist(), "model": [job.model_key] * n,
+        "task_id": batch.ids(), "model": [job.model_key] * n,
         "group": [groups[name] for name in scenarios],
         **{name: parameter(k) for k, name in enumerate(batch.parameters)},
         **{name: [None if s is None else s.get(name) for s in scores] for name in job.objectives},

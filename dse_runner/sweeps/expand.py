@@ -63,20 +63,11 @@ def scenario_hash(scenario: Scenario) -> str:
 
 
 def task_id(model: str, point: dict[str, Any], scenario: str) -> str:
-    return _task_id(model, tuple(sorted(point.items())), scenario)
+    names = tuple(sorted(point))
+    return _ids(model, names, [[point[name] for name in names]], scenario)[0]
 
 
-def _task_id(model: str, items: tuple[tuple[str, Any], ...], scenario: str) -> str:
-    """The id of sorted (name, value) pairs: ``_digest(model, items, scenario)``, with the JSON written
-    directly when every value is a plain number (a large sweep hashes hundreds of thousands)."""
-    text = _plain_json(model, items, scenario)
-    if text is None:
-        return _digest(model, items, scenario)[:24]
-    return hashlib.sha256(text.encode()).hexdigest()[:24]
-
-
-_JSON_STRINGS: dict[str, str] = {}  # names and hashes, as JSON writes them
-_NUMBERS: dict[type, Callable[[Any], str]] = {
+_NUMBERS: dict[type, Callable[[Any], str]] = {  # plain numbers as the json module writes them
     float: lambda v: float.__repr__(v) if math.isfinite(v) else "NaN" if math.isnan(v) else "Infinity" if v > 0
     else "-Infinity",
     int: int.__repr__,
@@ -84,23 +75,21 @@ _NUMBERS: dict[type, Callable[[Any], str]] = {
 }
 
 
-def _plain_json(model: str, items: tuple[tuple[str, Any], ...], scenario: str) -> str | None:
-    """What _CANONICAL writes for [model, items, scenario], or None if a value is not a float, int or bool
-    (their JSON is written as the json module writes it: tests/test_sweep.py checks the two agree)."""
-    strings = _JSON_STRINGS
-    parts = []
-    for name, value in items:
-        number = _NUMBERS.get(type(value))
-        if number is None:
-            return None
-        quoted = strings.get(name)
-        if quoted is None:
-            quoted = strings[name] = encode_basestring_ascii(name)
-        parts.append(f"[{quoted},{number(value)}]")
-    for text in (model, scenario):
-        if text not in strings:
-            strings[text] = encode_basestring_ascii(text)
-    return f"[{strings[model]},[{','.join(parts)}],{strings[scenario]}]"
+def _ids(model: str, names: tuple[str, ...], rows: list[list[Any]], data: str) -> list[str]:
+    """The id of each row of values (in ``names``' order, sorted): ``_digest(model, pairs, data)[:24]``.
+    When every value is a plain number the JSON is written directly, a column at a time: the same text
+    (tests/test_sweep.py checks), for a fraction of the cost, and a large sweep hashes 100,000s."""
+    columns = []
+    for k, name in enumerate(names):
+        quoted = encode_basestring_ascii(name)
+        try:
+            columns.append([f"[{quoted},{_NUMBERS[type(row[k])](row[k])}]" for row in rows])
+        except KeyError:  # a string or other value: the json module writes it
+            return [_digest(model, tuple(zip(names, row)), data)[:24] for row in rows]
+    head, tail = f"[{encode_basestring_ascii(model)},[", f"],{encode_basestring_ascii(data)}]"
+    parts = zip(*columns) if columns else [()] * len(rows)
+    sha = hashlib.sha256
+    return [sha(f"{head}{','.join(row)}{tail}".encode()).hexdigest()[:24] for row in parts]
 
 
 def points_of(space, points: list[dict[str, Any]] | None = None) -> Callable[[Any], Iterable[dict[str, Any]]]:
@@ -179,13 +168,13 @@ class TaskBatch:
 
     @classmethod
     def of_points(cls, model: str, points: list[dict[str, Any]], scenario: str, data: str) -> TaskBatch:
-        """The tasks of ``points`` on one scenario (``data``: its hash), ids as ``_task_id`` gives them."""
+        """The tasks of ``points`` on one scenario (``data``: its hash), ids as ``task_id`` gives them."""
         names = tuple(sorted(points[0]))
         if any(len(point) != len(names) for point in points):  # points of differing parameters: one by one
             return cls.of([Task(task_id(model, point, data), scenario, tuple(sorted(point.items())))
                            for point in points])
         rows = [[point[name] for name in names] for point in points]
-        ids = _block_ids(model, names, rows, data)
+        ids = _ids(model, names, rows, data)
         return cls(names, (scenario,), np.array([i.encode() for i in ids]), np.zeros(len(rows), dtype=np.int32),
                    _values([v for row in rows for v in row], len(rows), len(names)))
 
@@ -236,23 +225,6 @@ def _values(flat: list[Any], n: int, width: int) -> np.ndarray:
     """Tasks x parameters: float64 when every value is a float, else the values themselves."""
     numeric = all(type(v) is float for v in flat)
     return np.array(flat, dtype=np.float64 if numeric else object).reshape(n, width)
-
-
-def _block_ids(model: str, names: tuple[str, ...], rows: list[list[Any]], data: str) -> list[str]:
-    """``_task_id`` of each row of values (in ``names``' order), its JSON written a column at a time when
-    every value is a plain number: the same text, for a fraction of the cost per task."""
-    columns = []
-    for k, name in enumerate(names):
-        quoted = encode_basestring_ascii(name)
-        try:
-            columns.append([f"[{quoted},{_NUMBERS[type(row[k])](row[k])}]" for row in rows])
-        except KeyError:  # a string or other value: the json module writes it
-            return [_task_id(model, tuple(zip(names, row)), data) for row in rows]
-    head, tail = f"[{encode_basestring_ascii(model)},[", f"],{encode_basestring_ascii(data)}]"
-    texts = (head + ",".join(parts) + tail for parts in zip(*columns)) if len(columns) != 1 else \
-        (head + part + tail for part in columns[0])
-    sha = hashlib.sha256
-    return [sha(text.encode()).hexdigest()[:24] for text in texts]
 
 
 def chunked(batches: Iterable[TaskBatch], size: int | Callable[[], int]) -> Iterator[TaskBatch]:

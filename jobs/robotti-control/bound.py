@@ -40,7 +40,7 @@ from scipy.optimize import Bounds, LinearConstraint, linprog, milp
 
 from dse_runner import simulate
 from dse_runner.cases import paths as P
-from dse_runner.simulation.build import read_description
+from dse_runner.simulation.build import real_parameters
 from dse_runner.simulation.scenario import load_scenario
 
 HERE = Path(__file__).resolve().parent
@@ -50,20 +50,13 @@ MODEL = HERE / "multimodel.yaml"
 ERROR, EFFORT = "path_error_mean", "steering_effort"
 
 
-def fmu_defaults(name: str) -> dict[str, float]:
-    """The start values of an FMU's real parameters, from its modelDescription.xml as FMPy reads it."""
-    description = read_description(FMUS / name)
-    return {v.name: float(v.start) for v in description.modelVariables
-            if v.causality == "parameter" and v.type == "Real" and v.start is not None}
-
-
 class Plant:
     """The lateral dynamics of bicycle.h, linearised about straight driving at speed v, in the path's
     frame: states vy, r (body), psi (heading less the path's), e (offset, + left); input the
     counter-clockwise steering angle; disturbance the path's curvature."""
 
     def __init__(self, parameters: dict[str, float]):
-        p = fmu_defaults("robotti_vehicle_effects") | parameters
+        p = real_parameters(FMUS / "robotti_vehicle_effects") | parameters
         self.m, self.caf, self.car = p["mass"], p["cAlphaF"], p["cAlphaR"]
         self.lf, self.lr, self.v_min = p["lf"], p["lr"], p["v_min"]
         self.iz = self.m * p["r_gyr"] ** 2
@@ -226,7 +219,7 @@ def bound(folder: Path, budget: float, rounds: int, work: Path) -> dict:
     trajectory = defaults.trajectory
     time, speed = trajectory.time, trajectory.column("vehicle.vx")
     h = np.diff(time)
-    limits = fmu_defaults("path_controller")
+    limits = real_parameters(FMUS / "path_controller")
     plant = Plant({k.split(".", 1)[1]: v for k, v in yaml.safe_load(MODEL.read_text())["parameters"].items()
                    if k.startswith("vehicle.")})
     frame = Frame(scenario)

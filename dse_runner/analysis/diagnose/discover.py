@@ -48,7 +48,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from ... import bundled
-from ...simulation.build import read_description
+from ...simulation.build import real_parameters
 from ...simulation.scenario import Scenario, read_table
 from ...sweeps.fit import FitProblem, FitResult, Parameter, Point, Residuals
 from . import correction, explain, kinematics
@@ -100,9 +100,7 @@ def observe(scenario: Scenario) -> Observed:
 @lru_cache(maxsize=4)
 def _defaults(fmu: str) -> dict[str, float]:
     """The start values of an FMU's real parameters, from its modelDescription.xml as FMPy reads it."""
-    description = read_description(bundled.bundled_path(fmu))
-    return {v.name: float(v.start) for v in description.modelVariables
-            if v.causality == "parameter" and v.type == "Real" and v.start is not None}
+    return real_parameters(bundled.bundled_path(fmu))
 
 
 def vehicle_values(point: Mapping[str, float], vehicle: str, fixed: Mapping[str, Any] = {}) -> dict[str, float]:
