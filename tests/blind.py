@@ -77,8 +77,11 @@ OUTSIDE = {
     # the benchmark's only; a limit shows only where the steering moves faster than it, and held-out error can
     # prove only what more than one run shows: the steps, and the slaloms (peak rate 0.16 rad/s)
     "steer_rate_limit": ({"steer_rate_limit": 0.08}, ("steer_steps", "slalom_slow", "slalom_fast")),
+    # one manoeuvre at two speeds: a constant resisting force slows both by the same, wheel slip in proportion
+    "rolling_resistance": ({"rolling_resistance": 0.05}, ("slalom_slow", "slalom_fast")),
 }
-OUTSIDE_BENCHMARK = ("slip_pull", "steer_rate_limit")  # not meant for CI: one more look-alike of each kind
+OUTSIDE_BENCHMARK = ("slip_pull", "steer_rate_limit", "rolling_resistance")  # not meant for CI: look-alikes
+OUTSIDE_BEFORE_NOISE = 6  # the first cases of OUTSIDE, which came before the noise cases (their seeds: _cases)
 
 # Noise only, heavier than the singles' "none": a worse receiver, or a coloured one (multipath wanders).
 NOISE_CASES = {
@@ -110,19 +113,19 @@ class Case:
 
 def _cases() -> dict[str, Case]:
     """Singles keep the seeds they always had (sorted names); pairs take the next ones, in PAIRS' order,
-    then the effects outside the library and the noise cases: adding a kind never moves an older case's
-    noise."""
+    then the effects outside the library and the noise cases, then the effects outside the library added
+    since (after OUTSIDE_BEFORE_NOISE): adding a case never moves an older case's noise."""
     singles = {e: Case(e, (e,) if e != "none" else (), EFFECTS[e], tuple(RUNS), sorted(EFFECTS).index(e))
                for e in EFFECTS}
     pairs = {p: Case(p, tuple(p.split("+")), truth, tuple(PAIR_RUNS), len(EFFECTS) + k)
              for k, (p, truth) in enumerate(PAIRS.items())}
-    first = len(singles) + len(pairs)
-    outside = {o: Case(o, (), truth, (*RUNS, *synthetic), first + k, vehicle="truth",
+    later = list(OUTSIDE)[:OUTSIDE_BEFORE_NOISE] + list(NOISE_CASES) + list(OUTSIDE)[OUTSIDE_BEFORE_NOISE:]
+    seed = {name: len(singles) + len(pairs) + k for k, name in enumerate(later)}
+    outside = {o: Case(o, (), truth, (*RUNS, *synthetic), seed[o], vehicle="truth",
                        benchmark_only=o in OUTSIDE_BENCHMARK)
-               for k, (o, (truth, synthetic)) in enumerate(OUTSIDE.items())}
-    first += len(outside)
-    noise = {n: Case(n, (), {}, tuple(RUNS), first + k, benchmark_only=n == "noise_coloured", **receiver)
-             for k, (n, receiver) in enumerate(NOISE_CASES.items())}
+               for o, (truth, synthetic) in OUTSIDE.items()}
+    noise = {n: Case(n, (), {}, tuple(RUNS), seed[n], benchmark_only=n == "noise_coloured", **receiver)
+             for n, receiver in NOISE_CASES.items()}
     return singles | pairs | outside | noise
 
 

@@ -572,7 +572,7 @@ def acc_regression(seed: int, runs: int = 6, rows: int = 200, coefficient: float
         v_cmd = v + 0.05 * np.sin(t)
         inputs = correction.FeatureInputs(v=v, psi=0.3 * t, r=0.1 * np.sin(0.37 * t + k), s=correction.distance(t, v),
                                           v_cmd=v_cmd, a_cmd=np.gradient(v_cmd, t), delta=np.zeros(rows),
-                                          delta_rate=np.zeros(rows), f_drive=4.4 * (v_cmd - v))
+                                          delta_rate=np.zeros(rows), f_drive=4.4 * (v_cmd - v), t=t, onset=10.0)
         columns = correction.features(inputs, terms)
         theta = np.column_stack([columns[tm.variable] for tm in terms])
         y = rng.normal(0.0, noise_rms, rows) + (coefficient * v if coefficient is not None else 0.0)
@@ -583,14 +583,16 @@ def acc_regression(seed: int, runs: int = 6, rows: int = 200, coefficient: float
 
 def test_stlsq_recovers_a_known_speed_term():
     """The exact PySINDy calls discovery makes (STLSQ, threshold by leave-one-run-out, bootstrap over runs)
-    find d(v)/dt += -0.31·v among the acc channel's ten features: v first, and the proposed correction is
-    that term (shrunk: equation-error coefficients are starting values, the fits size them). The ridge shares it with v's look-alikes (1 and v²), which the fits on positions then prune."""
+    find d(v)/dt += -0.31·v among the acc channel's features: v among the proposed terms, and the proposed
+    correction is that term (shrunk: equation-error coefficients are starting values, the fits size them). The
+    ridge shares it with v's look-alikes (1, v² and sgn v, which is 1 above v_min); ranking on positions orders
+    them and the fits prune the ones that only stand in."""
     from dse_runner.analysis.diagnose import correction, discover
 
     regs = acc_regression(seed=1)
     proposal = discover.propose(regs)
-    assert next(iter(proposal.terms)) == "corr_acc_v"
-    assert set(proposal.terms) <= {"corr_acc_v", "corr_acc_1", "corr_acc_v2"}
+    assert "corr_acc_v" in proposal.terms
+    assert set(proposal.terms) <= {"corr_acc_v", "corr_acc_1", "corr_acc_v2", "corr_acc_sgnv"}
     assert proposal.inclusion["corr_acc_v"] >= discover.INCLUSION
     reg = regs["acc"]
     column = {t.variable: reg.theta[:, k] for k, t in enumerate(reg.terms)}
@@ -655,6 +657,47 @@ def test_antenna_channels_are_proposed_from_the_fix_residuals_in_body_axes():
                               if c in discover.OUTPUT})
     assert quiet.empty, quiet.terms
     assert "gps_cross" not in discover.regressions(runs, values)  # no residuals, no antenna channel
+
+
+def straight_run(name: str, seconds: float, speed: float, deceleration: float, onset: float,
+                 values: dict) -> object:
+    """A straight synthetic run at a constant speed command, its speed integrated here (1 ms Euler) with the
+    drive of ``values`` and, from ``onset`` on, a force against the motion: d(v)/dt += deceleration·clamp(v/v_min,
+    −1, 1); exact fixes at 10 Hz."""
+    from dse_runner.analysis.diagnose import discover
+
+    dt = 0.001
+    fine = np.arange(0.0, seconds + dt / 2, dt)
+    v = np.zeros(len(fine))
+    tau = values["mass"] / values["Kv"]
+    for k in range(1, len(fine)):
+        resist = deceleration * min(max(v[k - 1] / values["v_min"], -1.0), 1.0) if fine[k - 1] >= onset else 0.0
+        v[k] = v[k - 1] + dt * ((speed - v[k - 1]) / tau + resist)
+    x = np.concatenate([[0.0], np.cumsum(dt * 0.5 * (v[1:] + v[:-1]))])
+    t = np.round(np.arange(0.0, seconds + 1e-9, 0.1), 2)
+    log_t = np.round(np.arange(0.0, seconds + 1e-9, 0.05), 2)
+    return discover.Observed(name, t, np.interp(t, fine, x), np.zeros(len(t)), log_t, np.full(len(log_t), speed),
+                             np.zeros(len(log_t)))
+
+
+def test_a_change_mid_run_is_found_at_its_time_and_proposed_as_an_onset_term():
+    """A drag that starts 8 s into every run (an implement lowered) is a step in the acc channel's equation
+    error: the onset scan finds its time to within the fixes' smoothing window, and the proposal carries an
+    onset term and that time; the same runs without the drag propose no onset term."""
+    from dse_runner.analysis.diagnose import correction, discover
+
+    values = discover.vehicle_values({}, "vehicle")
+    speeds = (0.8, 1.2, 1.6, 2.0)
+    dragged = [straight_run(f"run{k}", 16.0, u, -0.6, 8.0, values) for k, u in enumerate(speeds)]
+    regs = discover.regressions(dragged, values)
+    assert regs["acc"].onset == pytest.approx(8.0, abs=0.3)
+    proposal = discover.propose(regs)
+    assert proposal.onset == regs["acc"].onset
+    assert any(correction.is_onset(correction.term(v)) for v in proposal.terms), proposal.terms
+    assert any("[t ≥ " in line and " s]" in line for line in proposal.readable())
+    clean = [straight_run(f"run{k}", 16.0, u, 0.0, 8.0, values) for k, u in enumerate(speeds)]
+    quiet = discover.propose(discover.regressions(clean, values))
+    assert not any(correction.is_onset(correction.term(v)) for v in quiet.terms), quiet.terms
 
 
 def test_extended_bic_charges_the_search():

@@ -112,10 +112,13 @@ def test_every_correction_term_is_a_parameter_of_the_fmu_in_order():
     described = [(v.get("name"), int(v.get("valueReference")), v.get("causality"), v.find("Real").get("start"))
                  for v in root.iter("ScalarVariable")]
     gps_y = next(vr for name, vr, *_ in described if name == "gps_y")
-    corr = [(name, vr, causality, start) for name, vr, causality, start in described if name.startswith("corr_")]
+    corr = [(name, vr, causality, start) for name, vr, causality, start in described
+            if name.startswith("corr_") and name != correction.ONSET]
     assert [name for name, *_ in corr] == correction.variables()
     assert [vr for _, vr, *_ in corr] == list(range(gps_y + 1, gps_y + 1 + len(correction.TERMS)))
     assert {(causality, float(start)) for *_, causality, start in corr} == {("parameter", 0.0)}
+    onset = next((vr, causality, float(start)) for name, vr, causality, start in described if name == correction.ONSET)
+    assert onset == (gps_y + 1 + len(correction.TERMS), "parameter", 0.0)  # after the coefficients, 0: from the start
     assert [vr for _, vr, *_ in described] == list(range(len(described)))  # no existing reference moved
     in_c = re.findall(r'X\(\w+, "(corr_\w+)"\)', (EFFECTS_SOURCE / "model.c").read_text())
     assert in_c == correction.variables()
@@ -146,6 +149,34 @@ def test_a_drive_force_term_of_one_doubles_the_drive_gain_bit_for_bit(effects):
     corrected = drive(effects, 10.0, velocity=0.3, Kv=8000.0, corr_acc_fdrive=1.0)
     assert np.array_equal(doubled.column("vehicle.vx"), corrected.column("vehicle.vx"))
     assert np.array_equal(doubled.column("vehicle.x"), corrected.column("vehicle.x"))
+
+
+def test_an_onset_term_is_off_before_its_time_and_its_feature_after(effects):
+    """corr_acc_onset_fdrive = 1 from t₀ = 3 s: up to 3 s the baseline bit for bit (the term adds 0), after it
+    the drive gain doubled, as corr_acc_fdrive = 1 from the start is; at t₀ = 0 the two terms are the same."""
+    inputs = {"velocity": 0.3, "delta_f": 0.05}
+    base = drive(effects, 6.0, **inputs)
+    late = drive(effects, 6.0, corr_acc_onset_fdrive=1.0, corr_onset_time=3.0, **inputs)
+    early = drive(effects, 6.0, corr_acc_onset_fdrive=1.0, **inputs)
+    doubled = drive(effects, 6.0, corr_acc_fdrive=1.0, **inputs)
+    before = base.time < 3.0 - 1e-9  # the step that ends at 3 s evaluates its last stage there
+    assert np.array_equal(base.column("vehicle.vx")[before], late.column("vehicle.vx")[before])
+    assert np.array_equal(early.column("vehicle.vx"), doubled.column("vehicle.vx"))
+    # After 3 s the speed leaves the baseline's, towards the doubled gain's: closer to it at the end.
+    assert not np.array_equal(base.column("vehicle.vx")[~before], late.column("vehicle.vx")[~before])
+    end = -1
+    assert abs(late.column("vehicle.vx")[end] - doubled.column("vehicle.vx")[end]) < \
+        abs(base.column("vehicle.vx")[end] - doubled.column("vehicle.vx")[end])
+
+
+def test_a_resistance_against_the_motion_lowers_the_cruise_by_its_force_over_the_drive_gain(effects):
+    """d(vx)/dt = Kv(u − vx)/m + c·clamp(vx/v_min, −1, 1), straight, c < 0, cruising above v_min: the drive
+    settles where Kv(u − vx) = −c·m, vx = u + c·m/Kv (a rolling resistance's speed deficit)."""
+    u, c, kv, mass = 1.5, -0.4, 8000.0, 1500.0
+    traj = drive(effects, 15.0, velocity=u, corr_acc_sgnv=c, Kv=kv, mass=mass)
+    assert traj.column("vehicle.vx")[-1] == pytest.approx(u + c * mass / kv, abs=1e-9)
+    standing = drive(effects, 3.0, velocity=0.0, corr_acc_sgnv=c)
+    assert np.all(standing.column("vehicle.vx") == 0.0)  # no motion, no force: a standing vehicle is not pushed
 
 
 def test_an_acceleration_term_in_the_speed_is_an_exponential_approach(effects):
@@ -202,6 +233,9 @@ def test_correction_terms_read_as_equations():
         "d(v)/dt += -0.02·v² + 0.05·a_cmd", "gps_cross += 0.12·sin ψ"]
     assert correction.readable_term(correction.term("corr_acc_v"), -0.31, (-0.34, -0.28)) == \
         "d(v)/dt += -0.31·v [-0.34, -0.28]"
+    assert correction.readable({"vehicle.corr_acc_onset_sgnv": -0.59, "vehicle.corr_onset_time": 10.05}) == [
+        "d(v)/dt += -0.59·[t ≥ 10.05 s]·sgn v"]
+    assert correction.readable({"corr_acc_onset_fdrive": -0.2}) == ["d(v)/dt += -0.2·[t ≥ t₀]·F_drive/m"]
     with pytest.raises(DseError, match="not a correction term"):
         correction.term("corr_acc_w")
 
@@ -215,7 +249,7 @@ def test_correction_bounds_scale_with_the_feature():
     p = correction.parameter(acc_v, "vehicle", rms=2.0, start=-5.0)
     assert (p.name, p.start, p.lower, p.upper, p.step) == ("vehicle.corr_acc_v", -1.0, -1.0, 1.0, 1e-3)
     assert "yaw" not in {t.channel for t in correction.searched_terms()}
-    assert len(correction.TERMS) == 34
+    assert len(correction.TERMS) == 37
 
 
 def test_filtered_rate_of_a_piecewise_constant_command():

@@ -261,6 +261,24 @@ def test_tasks_hashed_a_block_at_a_time_keep_their_ids(values):
         assert all(type(v) is type(point[name]) for name, v in task.point)  # plain Python values again
 
 
+def test_points_of_differing_parameters_in_one_sweep_keep_their_ids_and_values(tmp_path):
+    """A fit may ask in one sweep for points that set different parameters (a probe that sets one more): each
+    task keeps its own point and id, none is dropped or given another point's columns."""
+    from dse_runner.sweeps.expand import blocks, chunked, scenario_hash, task_id
+
+    space = load_space(write_space(tmp_path))
+    base = dict(next(iter(expand(space))).point)
+    extra = next(iter(base))
+    points = [base, {**base, "vehicle.corr_onset_time": 3.0}, {k: v for k, v in base.items() if k != extra},
+              {**base, extra: 0.25}]
+    tasks = [t for chunk in chunked(blocks(space, points), 3) for t in chunk]  # a sweep's chunks
+    assert len(tasks) == len(points) * len(space.scenarios)
+    for scenario in space.scenarios:
+        mine = [t for t in tasks if t.scenario == scenario.name]
+        assert [dict(t.point) for t in mine] == points
+        assert [t.task_id for t in mine] == [task_id(space.model_key, p, scenario_hash(scenario)) for p in points]
+
+
 def test_chunks_hold_the_tasks_in_order_at_the_asked_sizes_less_the_done(tmp_path):
     """Chunks are cut across blocks and scenarios at whatever size the sweep asks next; finished tasks
     are left out and no task is lost or repeated."""

@@ -93,6 +93,42 @@ def test_payload_draft_is_pulled_through_slipping_wheels(truth):
         (1 - slip) * (speed - draft * (mass + extra) * 9.81 / kv), rel=1e-9)
 
 
+@pytest.mark.parametrize("speed", [0.8, 2.0])
+def test_rolling_resistance_slows_every_speed_by_the_same_deficit(truth, speed):
+    """The drive, Kv (v - vx), pulls c m g at a deficit of c m g / Kv, whatever the speed (wheel slip's grows
+    with it); m is the current mass, so lowering a payload deepens it to c (m + dm) g / Kv."""
+    c, mass, extra, when, kv, g = 0.05, 1500.0, 400.0, 10.0, 8000.0, 9.81
+    traj = drive(truth, 30.0, velocity=speed, mass=mass, Kv=kv, payload=extra, payload_time=when,
+                 rolling_resistance=c)
+    assert at(traj, "vx", when - 0.05) == pytest.approx(speed - c * mass * g / kv, rel=1e-9)
+    assert traj.column("vehicle.vx")[-1] == pytest.approx(speed - c * (mass + extra) * g / kv, rel=1e-9)
+
+
+def test_rolling_resistance_from_rest_is_the_closed_form(truth):
+    """From rest at u = 0.8 m/s (Kv u < mu m g: the drive never saturates), m dv/dt = Kv (u - v) - c m g s,
+    s = min(v / v_min, 1). Below v_min it is linear with rate k = Kv + c m g / v_min: v = v_a (1 - exp(-k t / m)),
+    v_a = Kv u / k, reaching v_min at t1 = -(m / k) ln(1 - v_min / v_a); from there the exponential of time
+    constant m / Kv to v_ss = u - c m g / Kv."""
+    c, mass, kv, v_min, g, u = 0.05, 1500.0, 8000.0, 0.5, 9.81, 0.8
+    assert kv * u < 0.5 * mass * g and u - c * mass * g / kv > v_min
+    traj = drive(truth, 10.0, velocity=u, mass=mass, Kv=kv, v_min=v_min, rolling_resistance=c)
+    k = kv + c * mass * g / v_min
+    v_a = kv * u / k
+    t1 = -(mass / k) * math.log(1 - v_min / v_a)
+    v_ss = u - c * mass * g / kv
+    below = np.array([0.05, 0.1, 0.2])
+    above = np.array([0.3, 0.5, 1.0, 2.0])
+    assert below[-1] < t1 < above[0]
+    assert at(traj, "vx", 0.0) == 0.0
+    seen = np.array([at(traj, "vx", t) for t in below])
+    assert seen == pytest.approx(v_a * (1 - np.exp(-k * below / mass)), abs=1e-9)  # smooth: RK4 at 1 ms
+    seen = np.array([at(traj, "vx", t) for t in above])
+    # at v_min the force's slope jumps, and dv2/dt2 by (c g / v_min) dv/dt ~ 1.1 m/s^3: the RK4 step across it
+    # errs by about h^3 times that, 1e-9 m/s (h = 1 ms)
+    assert seen == pytest.approx(v_ss + (v_min - v_ss) * np.exp(-kv * (above - t1) / mass), abs=1e-8)
+    assert traj.column("vehicle.vx")[-1] == pytest.approx(v_ss, rel=1e-9)
+
+
 def test_mast_roll_moves_the_antenna_sideways_with_the_heading(truth):
     """Over a full loop the antenna is h*gamma * sin(theta - psi_s) to the left of the reference point:
     furthest left at psi_s + pi/2, furthest right at psi_s - pi/2, never forward or back."""
@@ -140,7 +176,8 @@ def test_slip_grows_with_the_pull(truth):
     assert hill.column("vehicle.vx")[-1] == pytest.approx((1 - slip) * (speed - pull / kv), rel=1e-9)
 
 
-@pytest.mark.parametrize("name", ["relaxation", "payload", "payload_draft", "slip_pull", "steer_rate_limit"])
+@pytest.mark.parametrize("name", ["relaxation", "payload", "payload_draft", "slip_pull", "steer_rate_limit",
+                                  "rolling_resistance"])
 def test_impossible_effect_values_are_refused_by_name(truth, name):
     with pytest.raises(DseError, match=name):
         drive(truth, 1.0, **{name: -0.1})

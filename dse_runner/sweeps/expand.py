@@ -121,14 +121,22 @@ def blocks(space, points: list[dict[str, Any]] | None = None, only: list[Collect
     visit = points_of(space, points)
     for scenario in space.scenarios:
         data = scenario_hash(scenario)
-        wanted = ((p for k, p in enumerate(visit(space)) if scenario.name in only[k]) if only is not None
-                  else visit(space))  # regenerated per scenario: no list of all points is kept
+        wanted = iter((p for k, p in enumerate(visit(space)) if scenario.name in only[k]) if only is not None
+                      else visit(space))  # regenerated per scenario: no list of all points is kept
         while block := list(itertools.islice(wanted, BLOCK)):
-            batch = TaskBatch.of_points(model, block, scenario.name, data)
-            if done:
-                batch = batch[np.array([i not in done for i in batch.ids()], dtype=bool)]
-            if len(batch):
-                yield batch
+            for same in _alike(block):
+                batch = TaskBatch.of_points(model, same, scenario.name, data)
+                if done:
+                    batch = batch[np.array([i not in done for i in batch.ids()], dtype=bool)]
+                if len(batch):
+                    yield batch
+
+
+def _alike(points: list[dict[str, Any]]) -> Iterator[list[dict[str, Any]]]:
+    """Consecutive runs of points that set the same parameters, in order: a batch's values are one table.
+    A fit may ask for points of differing parameters in one sweep (a probe that sets one more)."""
+    for _, run in itertools.groupby(points, key=dict.keys):  # key views compare as sets, in C
+        yield list(run)
 
 
 def count(space, done: Collection[str], points: list[dict[str, Any]] | None = None,
@@ -170,9 +178,10 @@ class TaskBatch:
     def of_points(cls, model: str, points: list[dict[str, Any]], scenario: str, data: str) -> TaskBatch:
         """The tasks of ``points`` on one scenario (``data``: its hash), ids as ``task_id`` gives them."""
         names = tuple(sorted(points[0]))
-        if any(len(point) != len(names) for point in points):  # points of differing parameters: one by one
-            return cls.of([Task(task_id(model, point, data), scenario, tuple(sorted(point.items())))
-                           for point in points])
+        first = points[0].keys()
+        if any(point.keys() != first for point in points):
+            raise ValueError("TaskBatch.of_points: every point must set the same parameters (expand.blocks "
+                             "groups them)")
         rows = [[point[name] for name in names] for point in points]
         ids = _ids(model, names, rows, data)
         return cls(names, (scenario,), np.array([i.encode() for i in ids]), np.zeros(len(rows), dtype=np.int32),
@@ -180,7 +189,7 @@ class TaskBatch:
 
     @classmethod
     def concat(cls, batches: list[TaskBatch]) -> TaskBatch:
-        """One batch of several (of one space: the same parameters)."""
+        """One batch of several that set the same parameters."""
         if len(batches) == 1:
             return batches[0]
         scenarios = tuple(dict.fromkeys(name for b in batches for name in b.scenarios))
@@ -229,11 +238,15 @@ def _values(flat: list[Any], n: int, width: int) -> np.ndarray:
 
 def chunked(batches: Iterable[TaskBatch], size: int | Callable[[], int]) -> Iterator[TaskBatch]:
     """Batches of ``size`` tasks; a callable size is asked before each chunk, so a sweep can re-size its
-    chunks from what the finished ones cost."""
+    chunks from what the finished ones cost. A chunk holds points of one set of parameters: a batch that sets
+    others starts a new chunk."""
     size_now = size if callable(size) else lambda: size
     parts: list[TaskBatch] = []
     have, wanted = 0, size_now()
     for batch in batches:
+        if parts and batch.parameters != parts[0].parameters:
+            yield TaskBatch.concat(parts)
+            parts, have, wanted = [], 0, size_now()
         while len(batch):
             part, batch = batch[:wanted - have], batch[wanted - have:]
             parts.append(part)

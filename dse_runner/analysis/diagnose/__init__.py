@@ -170,7 +170,7 @@ class Diagnosis:
         terms = discover.terms_json(fit)
         similar = self.discovery.resembles if self.discovery is not None else []
         return {"id": discover.DISCOVERED, "name": "a data-driven correction of the model (discovered)",
-                "terms": terms, "readable": correction.readable(fit.values),
+                "terms": terms, "readable": correction.readable(fit.point),
                 "parameters": {t["variable"]: t["value"] for t in terms},
                 "interval": {n.rsplit(".", 1)[-1]: list(interval[n]) for n in fit.values if correction.is_correction(n)},
                 "resembles": ({"id": similar[0][0], "similarity": similar[0][1],
@@ -512,7 +512,7 @@ def seek(chain: Chain, reference: Candidate, candidates: list[Candidate], floor:
     found = discover.discover(chain, reference, candidates, runs, space.multimodel.parameters)
     if found.chosen is not None:
         found.resembles = discover.resembles(chain, found.chosen)
-        chain.say(f"discovered {'; '.join(correction.readable(found.chosen.full.values))}: held-out "
+        chain.say(f"discovered {'; '.join(correction.readable(found.chosen.full.point))}: held-out "
                   f"{reference.cross_validated:.4f} -> {found.chosen.cross_validated:.4f} m")
     else:
         chain.say(f"nothing discovered: {found.reason}")

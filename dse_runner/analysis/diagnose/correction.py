@@ -23,6 +23,13 @@ Definitions shared with the C block (all at the model's reference point, mid-way
   :data:`TAU_F` (one state each): the replayed commands are piecewise constant, so a raw derivative
   would be a train of impulses. ``s`` is the distance travelled, ∫|v| dt (one state).
 * ``f_drive`` is the drive's force over the mass, clamp(Kv·(v_cmd − v/(1 − slip)), ±mu·m·g)/m.
+* ``sgnv`` is the direction of motion smoothed through rest, clamp(v/v_min, −1, 1): a force against the
+  motion (rolling resistance, an implement's draft) is a negative coefficient, and a standing vehicle is
+  not pushed.
+* ``onset_*`` is a feature switched on from one moment of the run, [t ≥ t₀]: a change mid-run (an
+  implement lowered, a tank filled). t₀ is the block's one parameter that is not a coefficient,
+  :data:`ONSET` (``corr_onset_time``, 0 by default: on from the start); discovery finds it from the data
+  (discover.find_onset) and the fits hold it.
 """
 
 from __future__ import annotations
@@ -40,6 +47,7 @@ from ...sweeps.fit import Parameter
 TAU_F = 0.1  # s: time constant of the filtered derivatives a_cmd and delta_rate (model.c's TAU_F)
 PREFIX = "corr_"
 STEP_FRACTION = 1e-3  # finite-difference step of a coefficient, as a fraction of its bound
+ONSET = "corr_onset_time"  # the onset_* features' switch-on time [s]: a parameter of the block, not a coefficient
 
 
 class Channel(BaseModel):
@@ -102,6 +110,9 @@ FEATURES: dict[str, Feature] = {f.name: f for f in [
     _f("s", "s", "m", 60.0),
     _f("absvr", "|v·r|", "m/s²", 0.2),
     _f("fdrive", "F_drive/m", "m/s²", 0.3),
+    _f("sgnv", "sgn v", "1", 0.8),
+    _f("onset_sgnv", "[t ≥ t₀]·sgn v", "1", 0.5),
+    _f("onset_fdrive", "[t ≥ t₀]·F_drive/m", "m/s²", 0.2),
     _f("delta", "δ", "rad", 0.1),
     _f("ddelta", "δ̇", "rad/s", 0.03),
     _f("ddeltav", "δ̇/max(v, v_min)", "rad/m", 0.03),
@@ -126,7 +137,8 @@ CHANNELS: dict[str, Channel] = {c.name: c for c in [
 
 _GPS = ("1", "cospsi", "sinpsi", "cos2psi", "sin2psi", "v")
 _BY_CHANNEL: dict[str, tuple[str, ...]] = {
-    "acc": ("1", "v", "v2", "verr", "acmd", "cospsi", "sinpsi", "s", "absvr", "fdrive"),
+    "acc": ("1", "v", "v2", "verr", "acmd", "cospsi", "sinpsi", "s", "absvr", "fdrive", "sgnv", "onset_sgnv",
+            "onset_fdrive"),
     "steer": ("1", "delta", "ddelta", "ddeltav", "vdelta", "v", "r"),
     "yaw": ("1", "delta", "vdelta", "r", "vr"),
     "gps_along": _GPS,
@@ -141,6 +153,11 @@ _BY_VARIABLE: dict[str, Term] = {t.variable: t for t in TERMS}
 def variables() -> list[str]:
     """Every coefficient's parameter name, in FMU order."""
     return [t.variable for t in TERMS]
+
+
+def is_onset(t: Term) -> bool:
+    """Whether a term switches on at the onset time t₀ (its column depends on t₀, found from the data)."""
+    return t.feature.startswith("onset_")
 
 
 def searched_terms() -> tuple[Term, ...]:
@@ -177,9 +194,21 @@ def _number(value: float) -> str:
     return f"{value:.3g}"
 
 
-def readable_term(t: Term, value: float, interval: tuple[float, float] | None = None) -> str:
-    """``d(v)/dt += -0.31·v [-0.34, -0.28]``: one term as an engineer writes it."""
+def _symbol(t: Term, onset: float | None) -> str:
+    """The feature's symbol, with the onset time written in when it is known."""
     symbol = t.feature_info.symbol
+    return symbol.replace("t₀", f"{onset:.4g} s") if onset is not None else symbol
+
+
+def onset_of(values: Mapping[str, float]) -> float | None:
+    """The onset time among parameter values (with or without the instance prefix), or None."""
+    return next((float(v) for k, v in values.items() if k.rsplit(".", 1)[-1] == ONSET), None)
+
+
+def readable_term(t: Term, value: float, interval: tuple[float, float] | None = None,
+                  onset: float | None = None) -> str:
+    """``d(v)/dt += -0.31·v [-0.34, -0.28]``: one term as an engineer writes it (``onset``: t₀'s value)."""
+    symbol = _symbol(t, onset)
     text = f"{t.channel_info.target} += {_number(value)}" + ("" if symbol == "1" else f"·{symbol}")
     if interval is not None:
         text += f" [{_number(interval[0])}, {_number(interval[1])}]"
@@ -188,13 +217,15 @@ def readable_term(t: Term, value: float, interval: tuple[float, float] | None = 
 
 def readable(values: Mapping[str, float]) -> list[str]:
     """One line per channel, its nonzero terms summed in FMU order, e.g. ``d(v)/dt += -0.31·v + 0.05·a_cmd``.
-    Keys are parameter names, with or without the instance prefix; other keys are ignored."""
+    Keys are parameter names, with or without the instance prefix (the onset time, when present, is written
+    into the onset terms); other keys are ignored."""
     by_channel: dict[str, list[str]] = {}
     chosen = {term(k).variable: v for k, v in values.items() if is_correction(k) and v != 0.0}
+    onset = onset_of(values)
     for t in TERMS:
         if t.variable not in chosen:
             continue
-        value, symbol = chosen[t.variable], t.feature_info.symbol
+        value, symbol = chosen[t.variable], _symbol(t, onset)
         factor = _number(abs(value)) + ("" if symbol == "1" else f"·{symbol}")
         parts = by_channel.setdefault(t.channel, [])
         parts.append(("-" if value < 0 else "") + factor if not parts else ("- " if value < 0 else "+ ") + factor)
@@ -215,6 +246,15 @@ class FeatureInputs:
     delta_rate: np.ndarray  # its filtered derivative [rad/s]
     f_drive: np.ndarray  # drive force over mass [m/s²]
     v_min: float = 0.5  # the vehicle's v_min: floor of the speed that divides delta_rate
+    t: np.ndarray | None = None  # time since the run's start [s]; None: the onset features are on throughout
+    onset: float = 0.0  # t₀ [s], when the onset_* features switch on
+
+
+def _after(x: FeatureInputs) -> np.ndarray:
+    """[t ≥ t₀]: 1 from the onset time on (throughout when no time is given), as the C block switches it."""
+    if x.t is None:
+        return np.ones_like(np.asarray(x.v, dtype=float))
+    return (np.asarray(x.t, dtype=float) >= x.onset).astype(float)
 
 
 def _feature(name: str, x: FeatureInputs) -> np.ndarray:
@@ -232,6 +272,9 @@ def _feature(name: str, x: FeatureInputs) -> np.ndarray:
         case "s": return np.asarray(x.s, dtype=float)
         case "absvr": return np.abs(v * x.r)
         case "fdrive": return np.asarray(x.f_drive, dtype=float)
+        case "sgnv": return np.clip(v / x.v_min, -1.0, 1.0)
+        case "onset_sgnv": return _after(x) * np.clip(v / x.v_min, -1.0, 1.0)
+        case "onset_fdrive": return _after(x) * np.asarray(x.f_drive, dtype=float)
         case "delta": return np.asarray(x.delta, dtype=float)
         case "ddelta": return np.asarray(x.delta_rate, dtype=float)
         case "ddeltav": return np.asarray(x.delta_rate, dtype=float) / np.maximum(v, x.v_min)

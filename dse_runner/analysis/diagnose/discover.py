@@ -68,6 +68,8 @@ INCLUSION = 0.7  # share of the resamples a term must be picked in
 SEED = 0  # every proposal is seeded: a re-run asks for the same points and resumes from the store
 MIN_ACC_SPEED = 0.3  # m/s: below this the recorded acceleration is mostly the start from rest
 PRUNE_SE = 2.0  # a fitted term within this many standard errors of zero is dropped
+NEGLIGIBLE = 1e-9  # a column this small against its feature's typical size is empty
+ONSET_CANDIDATES = 40  # onset times scanned, evenly over the span the runs move in; the extended BIC charges for them
 RESEMBLES, PARTLY = 0.9, 0.5  # cosine similarity above which a term resembles, partly resembles, a library effect
 
 
@@ -143,6 +145,7 @@ class Regression:
     y: np.ndarray
     run: np.ndarray  # run index per row
     rms: dict[str, float]  # each term's raw feature RMS over the rows: bounds its coefficient
+    onset: float | None = None  # the onset time t₀ the onset terms' columns were made with (None: no such term)
 
     @staticmethod
     def join(parts: Sequence[Regression]) -> Regression:
@@ -152,7 +155,7 @@ class Regression:
         rms = {t.variable: math.sqrt(sum(p.rms[t.variable] ** 2 * len(p.y) for p in parts)
                                      / max(sum(len(p.y) for p in parts), 1)) for t in first.terms}
         return Regression(first.channel, first.terms, theta, np.concatenate([p.y for p in parts]),
-                          np.concatenate([np.full(len(p.y), k) for k, p in enumerate(parts)]), rms)
+                          np.concatenate([np.full(len(p.y), k) for k, p in enumerate(parts)]), rms, first.onset)
 
 
 def _filled(time: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -174,6 +177,7 @@ class Reference:
     inputs: FeatureInputs  # the reference's state on the grid, as the correction block's features see it
     gain: np.ndarray  # steady-state yaw rate per rad of steering to the right, on the grid
     tau: float  # the drive's speed response time [s]
+    operators: Mapping[str, tuple[np.ndarray, int]]  # channel -> the fixes' derivative operator and its order
 
 
 def reference_state(run: Observed, values: Mapping[str, float]) -> Reference:
@@ -206,8 +210,10 @@ def reference_state(run: Observed, values: Mapping[str, float]) -> Reference:
     r = gain * (delta + values.get("steering_offset", 0.0))
     f_drive = np.clip(kv * (v_cmd - v / (1.0 - slip)), -mu * m * g, mu * m * g) / m
     inputs = FeatureInputs(v=v, psi=psi, r=r, s=correction.distance(grid, v), v_cmd=v_cmd, a_cmd=a_cmd, delta=delta,
-                           delta_rate=delta_rate, f_drive=f_drive, v_min=values["v_min"])
-    return Reference(run, kin, grid, inputs, gain, m * (1.0 - slip) / kv)
+                           delta_rate=delta_rate, f_drive=f_drive, v_min=values["v_min"], t=grid)
+    operators = {"acc": (kinematics.local_operator(t, kinematics.VELOCITY_WINDOW, 1)[1], 1),
+                 "steer": (kinematics.local_operator(t, kinematics.ACCELERATION_WINDOW, 2)[2], 2)}
+    return Reference(run, kin, grid, inputs, gain, m * (1.0 - slip) / kv, operators)
 
 
 def _rms(columns: Mapping[str, np.ndarray], terms: Sequence[Term], moving: np.ndarray) -> dict[str, float]:
@@ -228,8 +234,6 @@ def equation_error(ref: Reference, terms: Sequence[Term] = ()) -> dict[str, Regr
     terms = tuple(terms) or tuple(t for t in correction.searched_terms() if t.channel in DYNAMIC)
     t, kin, grid, inputs = ref.run.time, ref.kin, ref.grid, ref.inputs
     columns = correction.features(inputs, terms)
-    operators = {"acc": (kinematics.local_operator(t, kinematics.VELOCITY_WINDOW, 1)[1], 1),
-                 "steer": (kinematics.local_operator(t, kinematics.ACCELERATION_WINDOW, 2)[2], 2)}
     recorded = {"acc": kin.speed, "steer": kin.yaw_rate}
     model = {"acc": inputs.v, "steer": inputs.r}
     effect = {"acc": lambda f: lagged(grid, ref.tau * f, ref.tau), "steer": lambda f: ref.gain * f}
@@ -239,7 +243,7 @@ def equation_error(ref: Reference, terms: Sequence[Term] = ()) -> dict[str, Regr
         mine = [tm for tm in terms if tm.channel == channel]
         if not mine:
             continue
-        operator, order = operators[channel]
+        operator, order = ref.operators[channel]
 
         def seen(signal: np.ndarray, operator: np.ndarray = operator, order: int = order) -> np.ndarray:
             return kinematics.smoothed_like(operator, order, grid, signal, t)  # as the fixes would show it
@@ -249,9 +253,57 @@ def equation_error(ref: Reference, terms: Sequence[Term] = ()) -> dict[str, Regr
         rows = np.isfinite(target) & np.isfinite(theta).all(axis=1)
         if channel == "acc":
             rows &= kin.speed >= MIN_ACC_SPEED
+        onset = inputs.onset if any(correction.is_onset(tm) for tm in mine) else None
         out[channel] = Regression(channel, tuple(mine), theta[rows], target[rows], np.zeros(int(rows.sum()), int),
-                                  _rms(columns, mine, moving))
+                                  _rms(columns, mine, moving), onset)
     return out
+
+
+def at_onset(ref: Reference, onset: float) -> Reference:
+    """The reference with its onset features switched on at ``onset``."""
+    return replace(ref, inputs=replace(ref.inputs, onset=float(onset)))
+
+
+def onset_candidates(refs: Sequence[Reference], count: int = ONSET_CANDIDATES) -> np.ndarray:
+    """``count`` onset times evenly inside the span some run is commanded to move in (the ends left out: a
+    change at the very start or end is no change the runs can show)."""
+    spans = [ref.grid[ref.inputs.v_cmd > 0] for ref in refs]
+    spans = [s for s in spans if len(s)]
+    if not spans:
+        return np.zeros(0)
+    low, high = min(float(s[0]) for s in spans), max(float(s[-1]) for s in spans)
+    return np.linspace(low, high, count + 2)[1:-1]
+
+
+def _acc_sse(regs: Sequence[Regression]) -> float:
+    """The least squares SSE of the acc channel's equation error on all its columns, pooled over runs."""
+    joined = Regression.join(list(regs))
+    if len(joined.y) == 0:
+        return math.inf
+    z, _ = _scaled(joined)
+    coef = np.linalg.lstsq(z, joined.y, rcond=None)[0]
+    return float(np.sum((joined.y - z @ coef) ** 2))
+
+
+def find_onset(refs: Sequence[Reference]) -> float:
+    """The onset time t₀ at which every acc term together (the onset ones switched on at t₀) explains the acc
+    channel's equation error best, pooled over ``refs``' runs: a coarse scan (:func:`onset_candidates`),
+    then the command log's step around the best. A change mid-run shows as a step in the error, so least
+    squares finds where; whether the onset terms are worth their place is the proposal's question after."""
+    terms = [t for t in correction.searched_terms() if t.channel == "acc"]
+    coarse = onset_candidates(refs)
+    if len(coarse) == 0:
+        return 0.0
+
+    def sse(onset: float) -> float:
+        return _acc_sse([r["acc"] for r in (equation_error(at_onset(ref, onset), terms) for ref in refs)
+                         if "acc" in r])
+
+    best = min(coarse, key=sse)
+    spacing = float(coarse[1] - coarse[0]) if len(coarse) > 1 else 0.0
+    step = float(refs[0].grid[1] - refs[0].grid[0]) if len(refs[0].grid) > 1 else spacing
+    fine = np.arange(best - spacing, best + spacing + 1e-9, max(step, 1e-3)) if spacing > 0 else np.array([best])
+    return float(min(fine, key=sse))
 
 
 def body_axes(dx: np.ndarray, dy: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -322,11 +374,12 @@ def regressions(runs: Sequence[Observed], values: Mapping[str, Mapping[str, floa
                 residuals: Mapping[str, np.ndarray | None] | None = None) -> dict[str, Regression]:
     """Each channel's error over ``runs``; ``values`` is one parameter set, or one per run name; ``residuals``
     the reference's fix residuals per run name (the antenna channels; none without them)."""
-    per_run = []
-    for run in runs:
-        ref = reference_state(run, values.get(run.name, values))
-        per_run.append({**equation_error(ref),
-                        **(output_error(ref, residuals.get(run.name)) if residuals is not None else {})})
+    refs = [reference_state(run, values.get(run.name, values)) for run in runs]
+    if any(correction.is_onset(t) for t in correction.searched_terms()):
+        onset = find_onset(refs)
+        refs = [at_onset(ref, onset) for ref in refs]
+    per_run = [{**equation_error(ref), **(output_error(ref, residuals.get(ref.run.name)) if residuals is not None else {})}
+               for ref in refs]
     return {c: Regression.join([p[c] for p in per_run if c in p]) for c in CHANNELS
             if any(c in p for p in per_run)}
 
@@ -342,6 +395,11 @@ class Proposal:
     threshold: dict[str, float]  # channel -> STLSQ threshold chosen (in the target's units per unit-RMS column)
     rms: dict[str, float]  # every term's feature RMS over the runs
     ranked: tuple[tuple[str, float], ...] = ()  # every term that passed the bootstrap, best first (terms: the first)
+    onset: float | None = None  # t₀ of the onset terms' columns [s] (None: none was searched)
+
+    def readable(self) -> list[str]:
+        """The proposed terms as equations, the onset time written in."""
+        return correction.readable({**self.terms, **({correction.ONSET: self.onset} if self.onset is not None else {})})
 
     @property
     def empty(self) -> bool:
@@ -365,9 +423,14 @@ def stlsq(theta: np.ndarray, y: np.ndarray, threshold: float) -> np.ndarray:
 
 
 def _scaled(reg: Regression) -> tuple[np.ndarray, np.ndarray]:
+    """The columns scaled to unit RMS, and the scales. A column far below its feature's typical size (the
+    drive's force once the speed has settled, to rounding) carries no information, only rounding: it is
+    zeroed rather than blown up to unit size."""
     scale = np.sqrt(np.mean(reg.theta ** 2, axis=0)) if len(reg.y) else np.ones(reg.theta.shape[1])
-    scale = np.where(scale > 0, scale, 1.0)
-    return reg.theta / scale, scale
+    typical = np.array([t.feature_info.typical for t in reg.terms])
+    empty = scale <= NEGLIGIBLE * typical
+    scale = np.where(empty, 1.0, scale)
+    return np.where(empty, 0.0, reg.theta / scale), scale
 
 
 def held_out_error(z: np.ndarray, y: np.ndarray, run: np.ndarray, threshold: float) -> float:
@@ -430,14 +493,17 @@ def propose(regs: Mapping[str, Regression], max_terms: int = 3, seed: int = SEED
                 ranked.append((channel in DYNAMIC, float(share[k]), abs(coef[k]) * scale[k] / size, tm.variable,
                                float(coef[k])))
     order = tuple((v, c) for *_, v, c in sorted(ranked, reverse=True))
-    return Proposal(dict(order[:max_terms]), inclusion, thresholds, rms, order)
+    return Proposal(dict(order[:max_terms]), inclusion, thresholds, rms, order,
+                    regs["acc"].onset if "acc" in regs else None)
 
 
 # ---- proof: the same fits, folds and rule as the library ------------------------------------
 
 def searched_count() -> int:
-    """How many terms the proposal chooses among: the extended BIC charges for the search."""
-    return sum(1 for t in correction.searched_terms() if t.channel in CHANNELS)
+    """How many terms the proposal chooses among: the extended BIC charges for the search. An onset term
+    counts once per onset time scanned (a step at each is a term of its own)."""
+    return sum(ONSET_CANDIDATES if correction.is_onset(t) else 1 for t in correction.searched_terms()
+               if t.channel in CHANNELS)
 
 
 def extended_margin(bic_margin: float, terms: int, searched: int | None = None) -> float:
@@ -452,18 +518,28 @@ def library_ids(ids: Sequence[str]) -> tuple[str, ...]:
     return tuple(h for h in ids if h != DISCOVERED)
 
 
+def onset_value(onset: float | None, vehicle: str, variables: Sequence[str]) -> dict[str, float]:
+    """The onset time as the vehicle's parameter, when ``variables`` has an onset term (else nothing: the
+    time then changes nothing, and leaving it out keeps the point the store already has)."""
+    if onset is None or not any(correction.is_onset(correction.term(v)) for v in variables):
+        return {}
+    return {f"{vehicle}.{correction.ONSET}": onset}
+
+
 def with_terms(problem: FitProblem, vehicle: str, terms: Mapping[str, float], start: Mapping[str, float],
-               rms: Mapping[str, float]) -> FitProblem:
+               rms: Mapping[str, float], onset: float | None = None) -> FitProblem:
     """``problem`` with the correction terms freed: each bounded by correction.bound over the runs' feature
-    RMS, starting from ``start`` (a fitted point) where it has the term, else from the proposal."""
+    RMS, starting from ``start`` (a fitted point) where it has the term, else from the proposal; the onset
+    time, when an onset term is among them, held at ``onset``."""
     extra = []
     for variable, value in terms.items():
         name = f"{vehicle}.{variable}"
         extra.append(correction.parameter(correction.term(variable), vehicle, rms.get(variable),
                                           start.get(name, value)))
     names = {p.name for p in extra}
+    held = onset_value(onset, vehicle, list(terms))
     return replace(problem, parameters=problem.parameters + tuple(extra),
-                   fixed={k: v for k, v in problem.fixed.items() if k not in names})
+                   fixed={**{k: v for k, v in problem.fixed.items() if k not in names}, **held})
 
 
 def fitted_terms(fit: FitResult) -> dict[str, float]:
@@ -522,7 +598,8 @@ def screen_probes(job: Screen, parameters: Mapping[str, Parameter]) -> list[Poin
     out = [point]
     for variable, _ in job.proposal.ranked:
         p = parameters[variable]
-        out.append({**point, p.name: point.get(p.name, 0.0) + p.step})
+        out.append({**point, p.name: point.get(p.name, 0.0) + p.step,
+                    **onset_value(job.proposal.onset, parameters[variable].name.rsplit(".", 1)[0], [variable])})
     return out
 
 
@@ -760,11 +837,11 @@ def discover(chain: Fitter, reference: Candidate, candidates: Sequence[Candidate
                          else "no proposed term moves the fix residuals enough to pay its way, linearised")
         return result
     for ids in sets:
-        chain.say(f"discovery: proposed for {'+'.join(ids)}: " + "; ".join(correction.readable(proposals[ids].terms)))
+        chain.say(f"discovery: proposed for {'+'.join(ids)}: " + "; ".join(proposals[ids].readable()))
 
     def full_problem(ids: tuple[str, ...], terms: Mapping[str, float]) -> FitProblem:
         base = chain.problem("+".join(ids), library_ids(ids), dict(parents[ids].full.values), chain.all)
-        return with_terms(base, vehicle, terms, {}, rms)
+        return with_terms(base, vehicle, terms, {}, rms, proposals[ids].onset)
 
     settled = settle(chain, {"+".join(ids): (lambda terms, ids=ids: full_problem(ids, terms), proposals[ids])
                              for ids in sets}, "discovery: fitting the correction")
@@ -782,10 +859,11 @@ def discover(chain: Fitter, reference: Candidate, candidates: Sequence[Candidate
             if mine.empty:
                 continue
 
-            def make(terms: Mapping[str, float], label: str = label, c: Candidate = c, k: int = k) -> FitProblem:
+            def make(terms: Mapping[str, float], label: str = label, c: Candidate = c, k: int = k,
+                     onset: float | None = mine.onset) -> FitProblem:
                 base = chain.problem(label, library_ids(c.ids), {**parent_fold(c.ids, k).values, **c.full.values},
                                      training(k))
-                return with_terms(base, vehicle, terms, c.full.values, rms)
+                return with_terms(base, vehicle, terms, c.full.values, rms, onset)
 
             jobs[label] = (make, mine)
     # Each fold's proposal is fitted and scored as ranked: the ranking on positions already leaves out the
@@ -908,11 +986,13 @@ def resemblance_words(similar: Sequence[tuple[str, float]]) -> str:
 def terms_json(fit: FitResult) -> list[dict[str, Any]]:
     """The discovered terms of a fit as the JSON's ``terms``: readable text, parameter, value, ~95 % interval."""
     interval = fit.interval()
+    onset = correction.onset_of(fit.point)
     out = []
     for name, value in fit.values.items():
         if correction.is_correction(name):
             t = correction.term(name)
             low, high = interval[name]
-            out.append({"text": correction.readable_term(t, value, (low, high)), "variable": t.variable,
-                        "value": value, "interval": [low, high]})
+            out.append({"text": correction.readable_term(t, value, (low, high), onset if correction.is_onset(t) else None),
+                        "variable": t.variable, "value": value, "interval": [low, high]}
+                       | ({"onset_time": onset} if correction.is_onset(t) else {}))
     return out

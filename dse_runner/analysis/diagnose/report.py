@@ -363,10 +363,10 @@ def discovery_text(diagnosis: Diagnosis) -> str:
              "The proposed terms were then fitted on positions with the calibrated parameters, pruned to those two "
              "standard errors from zero, re-proposed inside each fold on its training runs only, and judged by the "
              f"library's rule, the BIC margin raised to {found.margin:.1f} for the search (extended BIC).")
-    proposed = "; ".join(correction.readable(found.proposal.terms)) if found.proposal else ""
+    proposed = "; ".join(found.proposal.readable()) if found.proposal else ""
     lines = [intro, f" Proposed from every run: {('`' + proposed + '`') if proposed else 'nothing'}."]
     for c in found.candidates:
-        lines.append(f" `{c.label}`: " + "; ".join(correction.readable(c.full.values))
+        lines.append(f" `{c.label}`: " + "; ".join(correction.readable(c.full.point))
                      + f", held-out {c.cross_validated:.4f} m, ΔBIC {c.bic - found.reference.bic:+.1f} against "
                      f"`{found.reference.label}` ({found.reference.cross_validated:.4f} m).")
     if found.chosen is None:

@@ -24,6 +24,8 @@
  *   mast_roll_heading   left by mast_roll * sin(theta - mast_roll_heading)
  *   slip_pull           k: slip grows with the pull, slip = wheel_slip + k |F_drive| / (m g)
  *   steer_rate_limit    the steering turns at most this fast [rad/s]
+ *   rolling_resistance  c_rr: soft soil resists a rolling wheel, a force c_rr * m * g against the
+ *                       motion (m with the payload once lowered), smoothed through rest as the draft is
  *
  * Value references are the indices of enum Real; modelDescription.xml lists
  * the same variables in the same order.
@@ -42,7 +44,7 @@ enum Real {
     GRADE_X, GRADE_Y, ANTENNA_X, ANTENNA_Y,
     /* out-of-library effects */
     RELAXATION, STEER_GAIN_SPEED, PAYLOAD, PAYLOAD_TIME, PAYLOAD_DRAFT,
-    MAST_ROLL, MAST_ROLL_HEADING, SLIP_PULL, STEER_RATE_LIMIT,
+    MAST_ROLL, MAST_ROLL_HEADING, SLIP_PULL, STEER_RATE_LIMIT, ROLLING_RESISTANCE,
     /* inputs */
     VELOCITY, DELTA_F,
     /* outputs */
@@ -198,10 +200,12 @@ static Contact derivatives(const Context *ctx, double t, const double *z, double
     const double iz = m * p[R_GYR] * p[R_GYR];
     const double lf = p[LF], lr = p[LR], wheelbase = lf + lr;
 
-    /* Longitudinal: drive, draft, and gravity along the slope. */
+    /* Longitudinal: drive, draft, rolling resistance, and gravity along the slope. */
     const double slip = slip_of(p, m, speed, vx);
     const double f_drive = drive_force(p, m, speed, vx, slip);
-    const double f_draft = lowered ? -p[PAYLOAD_DRAFT] * m * g * clamp(vx / p[V_MIN], -1.0, 1.0) : 0.0;
+    const double against = -clamp(vx / p[V_MIN], -1.0, 1.0); /* against the motion, smoothed through rest */
+    const double f_draft = lowered ? p[PAYLOAD_DRAFT] * m * g * against : 0.0;
+    const double f_roll = p[ROLLING_RESISTANCE] * m * g * against;
     const double c = cos(psi), s = sin(psi);
     const double pull_east = -m * g * p[GRADE_X], pull_north = -m * g * p[GRADE_Y]; /* downhill */
     const double f_slope_x = pull_east * c + pull_north * s;
@@ -228,7 +232,7 @@ static Contact derivatives(const Context *ctx, double t, const double *z, double
     dz[S_X] = vx * c - vy * s;
     dz[S_Y] = vx * s + vy * c;
     dz[S_PSI] = r;
-    dz[S_VX] = (f_drive + f_draft - fyf * sin(a) + f_slope_x) / m + vy * r;
+    dz[S_VX] = (f_drive + f_draft + f_roll - fyf * sin(a) + f_slope_x) / m + vy * r;
     dz[S_VY] = (fyf * cos(a) + fyr + f_slope_y) / m - vx * r;
     dz[S_R] = (lf * fyf * cos(a) - lr * fyr) / iz;
     return (Contact){delta_wheels, slip};
@@ -300,6 +304,7 @@ static int check_parameters(Slave *s) {
         {"relaxation", p[RELAXATION], 0.0, 0}, {"payload", p[PAYLOAD], 0.0, 0},
         {"payload_draft", p[PAYLOAD_DRAFT], 0.0, 0}, {"slip_pull", p[SLIP_PULL], 0.0, 0},
         {"steer_rate_limit", p[STEER_RATE_LIMIT], 0.0, 0},
+        {"rolling_resistance", p[ROLLING_RESISTANCE], 0.0, 0},
     };
     for (size_t i = 0; i < sizeof ranges / sizeof ranges[0]; i++) {
         const double v = ranges[i].value;

@@ -35,7 +35,12 @@
  *   v_cmd, delta = the speed set-point and steering angle as acted on (after time_offset
  *   and the actuator lags, before steering_offset); a_cmd, ddelta their derivatives
  *   through a first-order filter of time constant TAU_F (one state each);
- *   fdrive = the drive force over the mass, as bicycle.h computes it.
+ *   fdrive = the drive force over the mass, as bicycle.h computes it;
+ *   sgnv = clamp(v / v_min, -1, 1), the direction of motion smoothed through rest (a force
+ *   against the motion, like rolling resistance, is a negative coefficient);
+ *   onset_* = the feature after it times [t >= corr_onset_time]: a change from one moment of
+ *   the run on (an implement lowered, a tank filled). corr_onset_time is the block's one
+ *   parameter that is not a coefficient; it follows the coefficients.
  *   channel    adds to
  *   acc        d(vx)/dt [m/s^2]
  *   steer      the steering angle after the actuators, positive = right [rad]
@@ -47,6 +52,7 @@
     X(ACC_1, "corr_acc_1") X(ACC_V, "corr_acc_v") X(ACC_V2, "corr_acc_v2") X(ACC_VERR, "corr_acc_verr") \
     X(ACC_ACMD, "corr_acc_acmd") X(ACC_COSPSI, "corr_acc_cospsi") X(ACC_SINPSI, "corr_acc_sinpsi") \
     X(ACC_S, "corr_acc_s") X(ACC_ABSVR, "corr_acc_absvr") X(ACC_FDRIVE, "corr_acc_fdrive") \
+    X(ACC_SGNV, "corr_acc_sgnv") X(ACC_ONSET_SGNV, "corr_acc_onset_sgnv") X(ACC_ONSET_FDRIVE, "corr_acc_onset_fdrive") \
     X(STEER_1, "corr_steer_1") X(STEER_DELTA, "corr_steer_delta") X(STEER_DDELTA, "corr_steer_ddelta") \
     X(STEER_DDELTAV, "corr_steer_ddeltav") X(STEER_VDELTA, "corr_steer_vdelta") X(STEER_V, "corr_steer_v") \
     X(STEER_R, "corr_steer_r") \
@@ -77,7 +83,9 @@ enum Real {
     X, Y, THETA, VX, VY, YAW_RATE, GPS_X, GPS_Y,
     /* correction coefficients: CORR + the index in CORR_TERMS */
     CORR,
-    N_REALS = CORR + N_CORR
+    /* the time from which the onset_* features are on [s] */
+    CORR_ONSET_TIME = CORR + N_CORR,
+    N_REALS
 };
 
 /* Each channel's terms are consecutive in CORR_TERMS. */
@@ -145,8 +153,10 @@ static double drive_per_mass(const Bicycle *b, const Ground *ground, double vx, 
 }
 
 /* Every feature of the dynamic channels (acc, steer, yaw) at state z, commands as acted on. */
-static void dynamic_features(const Step *step, const double *z, double velocity, double delta_f, double *f) {
+static void dynamic_features(const Step *step, double t, const double *z, double velocity, double delta_f,
+                             double *f) {
     const double v = z[B_VX], r = z[B_R], psi = z[B_PSI];
+    const double after = t >= step->p[CORR_ONSET_TIME] ? 1.0 : 0.0;
     const double a_cmd = (velocity - z[F_SPEED]) / TAU_F, ddelta = (delta_f - z[F_STEERING]) / TAU_F;
     f[ACC_1] = 1.0;
     f[ACC_V] = v;
@@ -158,6 +168,9 @@ static void dynamic_features(const Step *step, const double *z, double velocity,
     f[ACC_S] = z[DISTANCE];
     f[ACC_ABSVR] = fabs(v * r);
     f[ACC_FDRIVE] = step->active[C_ACC] ? drive_per_mass(&step->bicycle, &step->ground, v, velocity) : 0.0;
+    f[ACC_SGNV] = bicycle_clamp(v / step->p[V_MIN], -1.0, 1.0);
+    f[ACC_ONSET_SGNV] = after * f[ACC_SGNV];
+    f[ACC_ONSET_FDRIVE] = after * f[ACC_FDRIVE];
     f[STEER_1] = 1.0;
     f[STEER_DELTA] = delta_f;
     f[STEER_DDELTA] = ddelta;
@@ -252,7 +265,7 @@ static void rhs(const void *ctx, double t, const double *z, double *dz) {
         return;
     }
     double f[N_CORR];
-    dynamic_features(step, z, velocity, delta_f, f);
+    dynamic_features(step, t, z, velocity, delta_f, f);
     dz[F_SPEED] = f[ACC_ACMD];
     dz[F_STEERING] = f[STEER_DDELTA];
     dz[DISTANCE] = fabs(z[B_VX]);
@@ -317,6 +330,10 @@ static int check_parameters(Slave *s) {
                       p[CORR + k]);
             return 1;
         }
+    if (isnan(p[CORR_ONSET_TIME])) {
+        slave_log(s, fmi2Error, "logStatusError", "parameter corr_onset_time must be a number, got nan");
+        return 1;
+    }
     return start_at_rest(s);
 }
 
