@@ -101,6 +101,23 @@ def test_a_heading_dependent_antenna_offset_is_discovered(cases):
     assert values.get("corr_gps_cross_cospsi") == pytest.approx(-size * math.sin(heading), abs=0.03)
 
 
+def test_a_change_mid_run_is_discovered_at_its_time(cases):
+    """A payload lowered 10 s into every run (tests/fmus/robotti_truth: 400 kg more and a draft of 0.06·m·g from
+    then on) is in no time-invariant form: discovery finds when it happens from the equation error, and a
+    correction switched on then at least halves the held-out error; any library effect named beside it is
+    only partial, and the space it writes holds the time its terms switch on."""
+    _, _, _, result = cases("payload")
+    found = blind.discovered_entry(result)
+    assert found, f"verdict {result.verdict}, discovery {result.to_json()['discovery']}"
+    assert blind.outside_target(result), result.to_json()["discovery"]
+    onset = [t for t in found["terms"] if "onset_time" in t]
+    assert onset, found["terms"]
+    truth = blind.OUTSIDE["payload"][0]["payload_time"]
+    assert all(t["onset_time"] == pytest.approx(truth, abs=0.5) for t in onset)
+    written = load_space(result.files["space"]).parameters
+    assert written["vehicle.corr_onset_time"] == [pytest.approx(onset[0]["onset_time"])]
+
+
 def test_heavy_noise_and_long_outages_claim_nothing(cases):
     """5 cm of receiver noise, 10 % dropouts and two 5 s outages per run: nothing is named or discovered, and the
     noise is estimated from the files alone within 20 %."""
