@@ -690,14 +690,14 @@ def test_a_change_mid_run_is_found_at_its_time_and_proposed_as_an_onset_term():
     speeds = (0.8, 1.2, 1.6, 2.0)
     dragged = [straight_run(f"run{k}", 16.0, u, -0.6, 8.0, values) for k, u in enumerate(speeds)]
     regs = discover.regressions(dragged, values)
-    assert regs["acc"].onset == pytest.approx(8.0, abs=0.3)
+    assert regs["acc"].shapes["corr_onset_time"] == pytest.approx(8.0, abs=0.3)
     proposal = discover.propose(regs)
-    assert proposal.onset == regs["acc"].onset
-    assert any(correction.is_onset(correction.term(v)) for v in proposal.terms), proposal.terms
+    assert proposal.shapes["corr_onset_time"] == regs["acc"].shapes["corr_onset_time"]
+    assert any(correction.shape_of(correction.term(v)) == correction.SHAPES["onset"] for v in proposal.terms), proposal.terms
     assert any("[t ≥ " in line and " s]" in line for line in proposal.readable())
     clean = [straight_run(f"run{k}", 16.0, u, 0.0, 8.0, values) for k, u in enumerate(speeds)]
     quiet = discover.propose(discover.regressions(clean, values))
-    assert not any(correction.is_onset(correction.term(v)) for v in quiet.terms), quiet.terms
+    assert not any(correction.shape_of(correction.term(v)) == correction.SHAPES["onset"] for v in quiet.terms), quiet.terms
 
 
 def test_extended_bic_charges_the_search():

@@ -112,13 +112,15 @@ def test_every_correction_term_is_a_parameter_of_the_fmu_in_order():
     described = [(v.get("name"), int(v.get("valueReference")), v.get("causality"), v.find("Real").get("start"))
                  for v in root.iter("ScalarVariable")]
     gps_y = next(vr for name, vr, *_ in described if name == "gps_y")
+    shapes = [s.variable for s in correction.SHAPES.values()]
     corr = [(name, vr, causality, start) for name, vr, causality, start in described
-            if name.startswith("corr_") and name != correction.ONSET]
+            if name.startswith("corr_") and name not in shapes]
     assert [name for name, *_ in corr] == correction.variables()
     assert [vr for _, vr, *_ in corr] == list(range(gps_y + 1, gps_y + 1 + len(correction.TERMS)))
     assert {(causality, float(start)) for *_, causality, start in corr} == {("parameter", 0.0)}
-    onset = next((vr, causality, float(start)) for name, vr, causality, start in described if name == correction.ONSET)
-    assert onset == (gps_y + 1 + len(correction.TERMS), "parameter", 0.0)  # after the coefficients, 0: from the start
+    after = [(name, vr, causality, float(start)) for name, vr, causality, start in described if name in shapes]
+    assert after == [(s.variable, gps_y + 1 + len(correction.TERMS) + k, "parameter", s.default)
+                     for k, s in enumerate(correction.SHAPES.values())]  # after the coefficients, at their defaults
     assert [vr for _, vr, *_ in described] == list(range(len(described)))  # no existing reference moved
     in_c = re.findall(r'X\(\w+, "(corr_\w+)"\)', (EFFECTS_SOURCE / "model.c").read_text())
     assert in_c == correction.variables()
@@ -179,6 +181,45 @@ def test_a_resistance_against_the_motion_lowers_the_cruise_by_its_force_over_the
     assert np.all(standing.column("vehicle.vx") == 0.0)  # no motion, no force: a standing vehicle is not pushed
 
 
+def test_the_rate_limiter_ramps_at_its_limit_then_closes_exponentially():
+    """correction.rate_limited, y' = clamp((u − y)/τ, ±L) in closed form, against a fine Euler integration of
+    the same equation for a command that steps up, holds, and steps down."""
+    from dse_runner.analysis.diagnose import correction
+
+    t = np.round(np.arange(0.0, 12.0 + 1e-9, 0.05), 2)
+    u = np.where(t < 1.0, 0.0, np.where(t < 6.0, 0.1, -0.05))
+    y = correction.rate_limited(t, u, 0.04)
+    dt, state, fine = 1e-5, 0.0, [0.0]
+    for k in range(1, len(t)):
+        for _ in range(int(round((t[k] - t[k - 1]) / dt))):
+            state += dt * min(max((u[k - 1] - state) / correction.TAU_TRACK, -0.04), 0.04)
+        fine.append(state)
+    assert np.abs(y - np.array(fine)).max() < 1e-5
+    assert y[t == 2.0][0] == pytest.approx(0.04 * 1.0, abs=1e-3)  # a second into the ramp
+
+
+def test_a_rate_limited_steering_term_turns_as_the_limited_angle_would(effects):
+    """corr_steer_ratelim = 1 makes the steering lim(δ, L): with a step of 0.1 rad at 2 m/s and L = 0.02 rad/s the
+    heading follows ∫ G(v)·lim(δ, L) dt (G the steady yaw gain; the yaw mode settles in hundredths of a
+    second), half the unlimited turn after 5 s (the ramp reaches the step at 5 s); with L far above the step's needs it is the unlimited
+    turn but for the limiter's 0.01 s of tracking."""
+    from dse_runner.analysis.diagnose import correction
+
+    inputs = {"velocity": 2.0, "delta_f": 0.1}
+    limited = drive(effects, 5.0, corr_steer_ratelim=1.0, corr_rate_limit=0.02, **inputs)
+    free = drive(effects, 5.0, **inputs)
+    loose = drive(effects, 5.0, corr_steer_ratelim=1.0, corr_rate_limit=100.0, **inputs)
+    t, vx = limited.time, limited.column("vehicle.vx")
+    mass, lf, lr, c = 1500.0, 0.9, 0.9, 30000.0
+    gain = -vx / (lf + lr + mass / (lf + lr) * (lr / c - lf / c) * vx ** 2)
+    delta = correction.rate_limited(t, np.full(len(t), 0.1), 0.02)
+    rate = gain * delta
+    heading = np.concatenate([[0.0], np.cumsum(np.diff(t) * 0.5 * (rate[1:] + rate[:-1]))])
+    assert limited.column("vehicle.theta")[-1] == pytest.approx(heading[-1], rel=0.03)
+    assert abs(limited.column("vehicle.theta")[-1]) < 0.6 * abs(free.column("vehicle.theta")[-1])
+    assert loose.column("vehicle.theta")[-1] == pytest.approx(free.column("vehicle.theta")[-1], rel=0.01)
+
+
 def test_an_acceleration_term_in_the_speed_is_an_exponential_approach(effects):
     """d(vx)/dt = Kv(u − vx)/m + c·vx from rest (straight, below the friction limit) is vx = v∞(1 − e^(−λt)),
     λ = Kv/m − c, v∞ = Kv·u/(m·λ): slower than commanded, as wheel slip is, for c < 0."""
@@ -236,6 +277,8 @@ def test_correction_terms_read_as_equations():
     assert correction.readable({"vehicle.corr_acc_onset_sgnv": -0.59, "vehicle.corr_onset_time": 10.05}) == [
         "d(v)/dt += -0.59·[t ≥ 10.05 s]·sgn v"]
     assert correction.readable({"corr_acc_onset_fdrive": -0.2}) == ["d(v)/dt += -0.2·[t ≥ t₀]·F_drive/m"]
+    assert correction.readable({"corr_steer_ratelim": 1.02, "corr_rate_limit": 0.08}) == [
+        "δ += 1.02·(lim(δ, 0.08 rad/s) − δ)"]
     with pytest.raises(DseError, match="not a correction term"):
         correction.term("corr_acc_w")
 
@@ -249,7 +292,7 @@ def test_correction_bounds_scale_with_the_feature():
     p = correction.parameter(acc_v, "vehicle", rms=2.0, start=-5.0)
     assert (p.name, p.start, p.lower, p.upper, p.step) == ("vehicle.corr_acc_v", -1.0, -1.0, 1.0, 1e-3)
     assert "yaw" not in {t.channel for t in correction.searched_terms()}
-    assert len(correction.TERMS) == 37
+    assert len(correction.TERMS) == 38
 
 
 def test_filtered_rate_of_a_piecewise_constant_command():

@@ -304,7 +304,7 @@ def fits_space(calibration: Space, vehicle: str, out: Path) -> Space:
     parameters = {name: values for name, values in calibration.parameters.items()}
     parameters.update({f"{vehicle}.{v}": [0.0] for v in effect_variables()})
     parameters.update({f"{vehicle}.{v}": [0.0] for v in correction_variables()})  # off until discovery frees them
-    parameters[f"{vehicle}.{correction.ONSET}"] = [0.0]  # discovery holds it where it finds a change mid-run
+    parameters.update({f"{vehicle}.{s.variable}": [s.default] for s in correction.SHAPES.values()})  # held by discovery
     entries = [e if isinstance(e, str) else e.model_dump() for e in calibration.spec.scenarios]
     spec = SpaceSpec(name=FITS, multimodel=str(mm_path), scenarios=at_antenna(entries, vehicle),
                      parameters=parameters, objectives=["cross_track_error", "fix_residuals"],
@@ -464,8 +464,9 @@ def write_model(diagnosis: Diagnosis, calibration: Space) -> dict[str, Path]:
             if not (math.isfinite(low) and math.isfinite(high)) or high <= low:
                 low, high = sorted((0.0, 2.0 * fit.values[name]))
             parameters[name] = Range(start=round(low, 9), stop=round(high, 9), num=3).model_dump(exclude_none=True)
-            if correction.is_onset(correction.term(name)):  # the time its terms switch on, as the fits held it
-                parameters[f"{vehicle}.{correction.ONSET}"] = [fit.point[f"{vehicle}.{correction.ONSET}"]]
+            shape = correction.shape_of(correction.term(name))
+            if shape is not None:  # what shapes the term (when it switches on, ...), as the fits held it
+                parameters[f"{vehicle}.{shape.variable}"] = [fit.point[f"{vehicle}.{shape.variable}"]]
     for hid in discover.library_ids(diagnosis.chosen.ids):
         for p in hypothesis(hid).parameters:
             ref = f"{vehicle}.{p.variable}"

@@ -27,9 +27,14 @@ Definitions shared with the C block (all at the model's reference point, mid-way
   motion (rolling resistance, an implement's draft) is a negative coefficient, and a standing vehicle is
   not pushed.
 * ``onset_*`` is a feature switched on from one moment of the run, [t ≥ t₀]: a change mid-run (an
-  implement lowered, a tank filled). t₀ is the block's one parameter that is not a coefficient,
-  :data:`ONSET` (``corr_onset_time``, 0 by default: on from the start); discovery finds it from the data
-  (discover.find_onset) and the fits hold it.
+  implement lowered, a tank filled).
+* ``ratelim`` is lim(δ, L) − δ: the steering angle through a rate limit of L rad/s (a state that follows
+  δ within :data:`TAU_TRACK` and turns at most L fast), less the angle itself; a coefficient of 1 makes
+  the steering a rate-limited one (a hydraulic actuator's flow limit).
+
+t₀ and L are the block's *shapes* (:data:`SHAPES`): parameters that are not coefficients but shape some
+features (``corr_onset_time``, ``corr_rate_limit``). Discovery finds them from the data (a scan,
+discover.find_shape) and the fits hold them.
 """
 
 from __future__ import annotations
@@ -45,9 +50,28 @@ from ...errors import DseError
 from ...sweeps.fit import Parameter
 
 TAU_F = 0.1  # s: time constant of the filtered derivatives a_cmd and delta_rate (model.c's TAU_F)
+TAU_TRACK = 0.01  # s: how fast the rate limiter follows the steering below its limit (model.c's TAU_TRACK)
 PREFIX = "corr_"
 STEP_FRACTION = 1e-3  # finite-difference step of a coefficient, as a fraction of its bound
-ONSET = "corr_onset_time"  # the onset_* features' switch-on time [s]: a parameter of the block, not a coefficient
+
+
+class Shape(BaseModel):
+    """A parameter of the block that is not a coefficient: it shapes some features (when they switch on, how
+    fast the steering may turn). Discovery finds its value from the data; the fits hold it there."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    name: str  # the FeatureInputs field that carries it
+    variable: str  # the effects FMU's parameter
+    symbol: str  # in readable text, until its value is known
+    unit: str
+    default: float  # the FMU's start value
+    key: str  # the name of its value in a discovered term's JSON
+
+
+SHAPES: dict[str, Shape] = {s.name: s for s in [
+    Shape(name="onset", variable="corr_onset_time", symbol="t₀", unit="s", default=0.0, key="onset_time"),
+    Shape(name="rate_limit", variable="corr_rate_limit", symbol="L", unit="rad/s", default=1.0, key="rate_limit"),
+]}
 
 
 class Channel(BaseModel):
@@ -67,9 +91,10 @@ class Feature(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
     name: str  # the suffix of the parameter's name
-    symbol: str  # in readable text; "1" for the constant
+    symbol: str  # in readable text; "1" for the constant; "{}" where its shape's value goes
     unit: str
     typical: float  # an RMS size on Robotti manoeuvres (estimate): bounds a coefficient when no runs are given
+    shape: str | None = None  # the SHAPES entry its column depends on
 
 
 class Term(BaseModel):
@@ -93,8 +118,8 @@ class Term(BaseModel):
         return FEATURES[self.feature]
 
 
-def _f(name: str, symbol: str, unit: str, typical: float) -> Feature:
-    return Feature(name=name, symbol=symbol, unit=unit, typical=typical)
+def _f(name: str, symbol: str, unit: str, typical: float, shape: str | None = None) -> Feature:
+    return Feature(name=name, symbol=symbol, unit=unit, typical=typical, shape=shape)
 
 
 FEATURES: dict[str, Feature] = {f.name: f for f in [
@@ -111,13 +136,14 @@ FEATURES: dict[str, Feature] = {f.name: f for f in [
     _f("absvr", "|v·r|", "m/s²", 0.2),
     _f("fdrive", "F_drive/m", "m/s²", 0.3),
     _f("sgnv", "sgn v", "1", 0.8),
-    _f("onset_sgnv", "[t ≥ t₀]·sgn v", "1", 0.5),
-    _f("onset_fdrive", "[t ≥ t₀]·F_drive/m", "m/s²", 0.2),
+    _f("onset_sgnv", "[t ≥ {}]·sgn v", "1", 0.5, "onset"),
+    _f("onset_fdrive", "[t ≥ {}]·F_drive/m", "m/s²", 0.2, "onset"),
     _f("delta", "δ", "rad", 0.1),
     _f("ddelta", "δ̇", "rad/s", 0.03),
     _f("ddeltav", "δ̇/max(v, v_min)", "rad/m", 0.03),
     _f("vdelta", "v·δ", "m·rad/s", 0.15),
     _f("r", "r", "rad/s", 0.1),
+    _f("ratelim", "(lim(δ, {}) − δ)", "rad", 0.02, "rate_limit"),
     _f("vr", "v·r", "m·rad/s²", 0.15),
 ]}
 
@@ -139,7 +165,7 @@ _GPS = ("1", "cospsi", "sinpsi", "cos2psi", "sin2psi", "v")
 _BY_CHANNEL: dict[str, tuple[str, ...]] = {
     "acc": ("1", "v", "v2", "verr", "acmd", "cospsi", "sinpsi", "s", "absvr", "fdrive", "sgnv", "onset_sgnv",
             "onset_fdrive"),
-    "steer": ("1", "delta", "ddelta", "ddeltav", "vdelta", "v", "r"),
+    "steer": ("1", "delta", "ddelta", "ddeltav", "vdelta", "v", "r", "ratelim"),
     "yaw": ("1", "delta", "vdelta", "r", "vr"),
     "gps_along": _GPS,
     "gps_cross": _GPS,
@@ -155,9 +181,18 @@ def variables() -> list[str]:
     return [t.variable for t in TERMS]
 
 
-def is_onset(t: Term) -> bool:
-    """Whether a term switches on at the onset time t₀ (its column depends on t₀, found from the data)."""
-    return t.feature.startswith("onset_")
+def shape_of(t: Term) -> Shape | None:
+    """The shape a term's column depends on (found from the data), or None."""
+    return SHAPES[t.feature_info.shape] if t.feature_info.shape else None
+
+
+def is_shape(variable: str) -> bool:
+    return variable.rsplit(".", 1)[-1] in {s.variable for s in SHAPES.values()}
+
+
+def shape_values(values: Mapping[str, float]) -> dict[str, float]:
+    """The shapes among parameter values (with or without the instance prefix): shape variable -> value."""
+    return {k.rsplit(".", 1)[-1]: float(v) for k, v in values.items() if is_shape(k)}
 
 
 def searched_terms() -> tuple[Term, ...]:
@@ -194,21 +229,19 @@ def _number(value: float) -> str:
     return f"{value:.3g}"
 
 
-def _symbol(t: Term, onset: float | None) -> str:
-    """The feature's symbol, with the onset time written in when it is known."""
-    symbol = t.feature_info.symbol
-    return symbol.replace("t₀", f"{onset:.4g} s") if onset is not None else symbol
-
-
-def onset_of(values: Mapping[str, float]) -> float | None:
-    """The onset time among parameter values (with or without the instance prefix), or None."""
-    return next((float(v) for k, v in values.items() if k.rsplit(".", 1)[-1] == ONSET), None)
+def _symbol(t: Term, shapes: Mapping[str, float]) -> str:
+    """The feature's symbol, its shape's value written in when ``shapes`` (variable -> value) has it."""
+    shape = shape_of(t)
+    if shape is None:
+        return t.feature_info.symbol
+    value = shapes.get(shape.variable)
+    return t.feature_info.symbol.format(shape.symbol if value is None else f"{value:.4g} {shape.unit}")
 
 
 def readable_term(t: Term, value: float, interval: tuple[float, float] | None = None,
-                  onset: float | None = None) -> str:
-    """``d(v)/dt += -0.31·v [-0.34, -0.28]``: one term as an engineer writes it (``onset``: t₀'s value)."""
-    symbol = _symbol(t, onset)
+                  shapes: Mapping[str, float] = {}) -> str:
+    """``d(v)/dt += -0.31·v [-0.34, -0.28]``: one term as an engineer writes it (``shapes``: their values)."""
+    symbol = _symbol(t, shapes)
     text = f"{t.channel_info.target} += {_number(value)}" + ("" if symbol == "1" else f"·{symbol}")
     if interval is not None:
         text += f" [{_number(interval[0])}, {_number(interval[1])}]"
@@ -217,15 +250,15 @@ def readable_term(t: Term, value: float, interval: tuple[float, float] | None = 
 
 def readable(values: Mapping[str, float]) -> list[str]:
     """One line per channel, its nonzero terms summed in FMU order, e.g. ``d(v)/dt += -0.31·v + 0.05·a_cmd``.
-    Keys are parameter names, with or without the instance prefix (the onset time, when present, is written
-    into the onset terms); other keys are ignored."""
+    Keys are parameter names, with or without the instance prefix (a shape, when present, is written into
+    the terms it shapes); other keys are ignored."""
     by_channel: dict[str, list[str]] = {}
     chosen = {term(k).variable: v for k, v in values.items() if is_correction(k) and v != 0.0}
-    onset = onset_of(values)
+    shapes = shape_values(values)
     for t in TERMS:
         if t.variable not in chosen:
             continue
-        value, symbol = chosen[t.variable], _symbol(t, onset)
+        value, symbol = chosen[t.variable], _symbol(t, shapes)
         factor = _number(abs(value)) + ("" if symbol == "1" else f"·{symbol}")
         parts = by_channel.setdefault(t.channel, [])
         parts.append(("-" if value < 0 else "") + factor if not parts else ("- " if value < 0 else "+ ") + factor)
@@ -246,8 +279,9 @@ class FeatureInputs:
     delta_rate: np.ndarray  # its filtered derivative [rad/s]
     f_drive: np.ndarray  # drive force over mass [m/s²]
     v_min: float = 0.5  # the vehicle's v_min: floor of the speed that divides delta_rate
-    t: np.ndarray | None = None  # time since the run's start [s]; None: the onset features are on throughout
-    onset: float = 0.0  # t₀ [s], when the onset_* features switch on
+    t: np.ndarray | None = None  # time since the run's start [s]; None: onset features on throughout, no rate limit
+    onset: float = SHAPES["onset"].default  # t₀ [s], when the onset_* features switch on
+    rate_limit: float = SHAPES["rate_limit"].default  # L [rad/s], the ratelim feature's limit
 
 
 def _after(x: FeatureInputs) -> np.ndarray:
@@ -255,6 +289,33 @@ def _after(x: FeatureInputs) -> np.ndarray:
     if x.t is None:
         return np.ones_like(np.asarray(x.v, dtype=float))
     return (np.asarray(x.t, dtype=float) >= x.onset).astype(float)
+
+
+def _rate_limited(x: FeatureInputs) -> np.ndarray:
+    """The steering through the rate limit (the steering itself when no time is given)."""
+    delta = np.asarray(x.delta, dtype=float)
+    return delta if x.t is None else rate_limited(np.asarray(x.t, dtype=float), delta, x.rate_limit)
+
+
+def rate_limited(t: np.ndarray, u: np.ndarray, limit: float, tau: float = TAU_TRACK) -> np.ndarray:
+    """The C block's rate limiter, y' = clamp((u − y)/tau, ±limit) from y = 0, in closed form for ``u`` held
+    from each time of ``t`` to the next: at the limit y moves linearly until it is within limit·tau of u,
+    then it closes the rest exponentially. Returns y at ``t``."""
+    y = np.zeros(len(t))
+    state, edge = 0.0, limit * tau
+    for k in range(1, len(t)):
+        h, target = float(t[k] - t[k - 1]), float(u[k - 1])
+        error = target - state
+        if abs(error) > edge:
+            ramp = (abs(error) - edge) / limit
+            if h <= ramp:
+                state += math.copysign(limit * h, error)
+                y[k] = state
+                continue
+            error, h = math.copysign(edge, error), h - ramp
+        state = target - error * math.exp(-h / tau)
+        y[k] = state
+    return y
 
 
 def _feature(name: str, x: FeatureInputs) -> np.ndarray:
@@ -280,6 +341,7 @@ def _feature(name: str, x: FeatureInputs) -> np.ndarray:
         case "ddeltav": return np.asarray(x.delta_rate, dtype=float) / np.maximum(v, x.v_min)
         case "vdelta": return v * x.delta
         case "r": return np.asarray(x.r, dtype=float)
+        case "ratelim": return _rate_limited(x) - np.asarray(x.delta, dtype=float)
         case "vr": return v * x.r
     raise DseError(f"unknown correction feature {name!r}")
 

@@ -69,7 +69,10 @@ SEED = 0  # every proposal is seeded: a re-run asks for the same points and resu
 MIN_ACC_SPEED = 0.3  # m/s: below this the recorded acceleration is mostly the start from rest
 PRUNE_SE = 2.0  # a fitted term within this many standard errors of zero is dropped
 NEGLIGIBLE = 1e-9  # a column this small against its feature's typical size is empty
-ONSET_CANDIDATES = 40  # onset times scanned, evenly over the span the runs move in; the extended BIC charges for them
+SCANNED = 40  # values of each shape scanned (onset times, rate limits); the extended BIC charges for them
+ONSET_MARGIN = 0.15  # onset times are scanned inside the moving span less this share at each end: a change
+# nearer the start than that is the start-up itself, and one nearer the end has too little run after it
+RATE_LIMITS = (0.01, 1.0)  # rad/s: the rate limits scanned, geometrically; the Robotti steers at most ~0.2 rad/s
 RESEMBLES, PARTLY = 0.9, 0.5  # cosine similarity above which a term resembles, partly resembles, a library effect
 
 
@@ -145,7 +148,7 @@ class Regression:
     y: np.ndarray
     run: np.ndarray  # run index per row
     rms: dict[str, float]  # each term's raw feature RMS over the rows: bounds its coefficient
-    onset: float | None = None  # the onset time t₀ the onset terms' columns were made with (None: no such term)
+    shapes: dict[str, float] = field(default_factory=dict)  # shape variable -> the value its terms' columns used
 
     @staticmethod
     def join(parts: Sequence[Regression]) -> Regression:
@@ -155,7 +158,7 @@ class Regression:
         rms = {t.variable: math.sqrt(sum(p.rms[t.variable] ** 2 * len(p.y) for p in parts)
                                      / max(sum(len(p.y) for p in parts), 1)) for t in first.terms}
         return Regression(first.channel, first.terms, theta, np.concatenate([p.y for p in parts]),
-                          np.concatenate([np.full(len(p.y), k) for k, p in enumerate(parts)]), rms, first.onset)
+                          np.concatenate([np.full(len(p.y), k) for k, p in enumerate(parts)]), rms, first.shapes)
 
 
 def _filled(time: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -253,30 +256,32 @@ def equation_error(ref: Reference, terms: Sequence[Term] = ()) -> dict[str, Regr
         rows = np.isfinite(target) & np.isfinite(theta).all(axis=1)
         if channel == "acc":
             rows &= kin.speed >= MIN_ACC_SPEED
-        onset = inputs.onset if any(correction.is_onset(tm) for tm in mine) else None
+        shapes = {sh.variable: getattr(inputs, sh.name) for tm in mine if (sh := correction.shape_of(tm))}
         out[channel] = Regression(channel, tuple(mine), theta[rows], target[rows], np.zeros(int(rows.sum()), int),
-                                  _rms(columns, mine, moving), onset)
+                                  _rms(columns, mine, moving), shapes)
     return out
 
 
-def at_onset(ref: Reference, onset: float) -> Reference:
-    """The reference with its onset features switched on at ``onset``."""
-    return replace(ref, inputs=replace(ref.inputs, onset=float(onset)))
+def shaped(ref: Reference, shape: correction.Shape, value: float) -> Reference:
+    """The reference with the features of ``shape`` made at ``value``."""
+    return replace(ref, inputs=replace(ref.inputs, **{shape.name: float(value)}))
 
 
-def onset_candidates(refs: Sequence[Reference], count: int = ONSET_CANDIDATES) -> np.ndarray:
-    """``count`` onset times evenly inside the span some run is commanded to move in (the ends left out: a
-    change at the very start or end is no change the runs can show)."""
-    spans = [ref.grid[ref.inputs.v_cmd > 0] for ref in refs]
-    spans = [s for s in spans if len(s)]
+def candidates(refs: Sequence[Reference], shape: correction.Shape, count: int = SCANNED) -> np.ndarray:
+    """The values of ``shape`` scanned: onset times evenly inside the span some run is commanded to move in,
+    less ONSET_MARGIN at each end; rate limits geometrically over RATE_LIMITS."""
+    if shape.name == "rate_limit":
+        return np.geomspace(*RATE_LIMITS, count)
+    spans = [s for s in (ref.grid[ref.inputs.v_cmd > 0] for ref in refs) if len(s)]
     if not spans:
         return np.zeros(0)
     low, high = min(float(s[0]) for s in spans), max(float(s[-1]) for s in spans)
-    return np.linspace(low, high, count + 2)[1:-1]
+    margin = ONSET_MARGIN * (high - low)
+    return np.linspace(low + margin, high - margin, count)
 
 
-def _acc_sse(regs: Sequence[Regression]) -> float:
-    """The least squares SSE of the acc channel's equation error on all its columns, pooled over runs."""
+def _sse(regs: Sequence[Regression]) -> float:
+    """The least squares SSE of one channel's equation error on all its columns, pooled over runs."""
     joined = Regression.join(list(regs))
     if len(joined.y) == 0:
         return math.inf
@@ -285,25 +290,30 @@ def _acc_sse(regs: Sequence[Regression]) -> float:
     return float(np.sum((joined.y - z @ coef) ** 2))
 
 
-def find_onset(refs: Sequence[Reference]) -> float:
-    """The onset time t₀ at which every acc term together (the onset ones switched on at t₀) explains the acc
-    channel's equation error best, pooled over ``refs``' runs: a coarse scan (:func:`onset_candidates`),
-    then the command log's step around the best. A change mid-run shows as a step in the error, so least
-    squares finds where; whether the onset terms are worth their place is the proposal's question after."""
-    terms = [t for t in correction.searched_terms() if t.channel == "acc"]
-    coarse = onset_candidates(refs)
+def find_shape(refs: Sequence[Reference], shape: correction.Shape) -> float:
+    """The value of ``shape`` at which every term of its channel together explains that channel's equation error
+    best, pooled over ``refs``' runs: a coarse scan (:func:`candidates`), then 20 steps between the best's
+    neighbours. A change mid-run is a step in the acc error, a rate limit a lag of the yaw rate while the
+    steering turns fast; least squares finds where, and whether the shaped terms are worth their place is
+    the proposal's question after."""
+    channel = next(t.channel for t in correction.searched_terms() if correction.shape_of(t) == shape)
+    terms = [t for t in correction.searched_terms() if t.channel == channel]
+    coarse = candidates(refs, shape)
     if len(coarse) == 0:
-        return 0.0
+        return shape.default
 
-    def sse(onset: float) -> float:
-        return _acc_sse([r["acc"] for r in (equation_error(at_onset(ref, onset), terms) for ref in refs)
-                         if "acc" in r])
+    def sse(value: float) -> float:
+        return _sse([r[channel] for r in (equation_error(shaped(ref, shape, value), terms) for ref in refs)
+                     if channel in r])
 
-    best = min(coarse, key=sse)
-    spacing = float(coarse[1] - coarse[0]) if len(coarse) > 1 else 0.0
-    step = float(refs[0].grid[1] - refs[0].grid[0]) if len(refs[0].grid) > 1 else spacing
-    fine = np.arange(best - spacing, best + spacing + 1e-9, max(step, 1e-3)) if spacing > 0 else np.array([best])
-    return float(min(fine, key=sse))
+    k = min(range(len(coarse)), key=lambda i: sse(coarse[i]))
+    low, high = coarse[max(k - 1, 0)], coarse[min(k + 1, len(coarse) - 1)]
+    return float(min([coarse[k], *np.linspace(low, high, 21)], key=sse))
+
+
+def searched_shapes() -> list[correction.Shape]:
+    """The shapes some searched term depends on."""
+    return list({sh.name: sh for t in correction.searched_terms() if (sh := correction.shape_of(t))}.values())
 
 
 def body_axes(dx: np.ndarray, dy: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -375,9 +385,9 @@ def regressions(runs: Sequence[Observed], values: Mapping[str, Mapping[str, floa
     """Each channel's error over ``runs``; ``values`` is one parameter set, or one per run name; ``residuals``
     the reference's fix residuals per run name (the antenna channels; none without them)."""
     refs = [reference_state(run, values.get(run.name, values)) for run in runs]
-    if any(correction.is_onset(t) for t in correction.searched_terms()):
-        onset = find_onset(refs)
-        refs = [at_onset(ref, onset) for ref in refs]
+    for shape in searched_shapes():
+        value = find_shape(refs, shape)
+        refs = [shaped(ref, shape, value) for ref in refs]
     per_run = [{**equation_error(ref), **(output_error(ref, residuals.get(ref.run.name)) if residuals is not None else {})}
                for ref in refs]
     return {c: Regression.join([p[c] for p in per_run if c in p]) for c in CHANNELS
@@ -395,11 +405,11 @@ class Proposal:
     threshold: dict[str, float]  # channel -> STLSQ threshold chosen (in the target's units per unit-RMS column)
     rms: dict[str, float]  # every term's feature RMS over the runs
     ranked: tuple[tuple[str, float], ...] = ()  # every term that passed the bootstrap, best first (terms: the first)
-    onset: float | None = None  # t₀ of the onset terms' columns [s] (None: none was searched)
+    shapes: dict[str, float] = field(default_factory=dict)  # shape variable -> the value the columns used
 
     def readable(self) -> list[str]:
-        """The proposed terms as equations, the onset time written in."""
-        return correction.readable({**self.terms, **({correction.ONSET: self.onset} if self.onset is not None else {})})
+        """The proposed terms as equations, their shapes' values written in."""
+        return correction.readable({**self.terms, **self.shapes})
 
     @property
     def empty(self) -> bool:
@@ -494,16 +504,15 @@ def propose(regs: Mapping[str, Regression], max_terms: int = 3, seed: int = SEED
                                float(coef[k])))
     order = tuple((v, c) for *_, v, c in sorted(ranked, reverse=True))
     return Proposal(dict(order[:max_terms]), inclusion, thresholds, rms, order,
-                    regs["acc"].onset if "acc" in regs else None)
+                    {k: v for reg in regs.values() for k, v in reg.shapes.items()})
 
 
 # ---- proof: the same fits, folds and rule as the library ------------------------------------
 
 def searched_count() -> int:
-    """How many terms the proposal chooses among: the extended BIC charges for the search. An onset term
-    counts once per onset time scanned (a step at each is a term of its own)."""
-    return sum(ONSET_CANDIDATES if correction.is_onset(t) else 1 for t in correction.searched_terms()
-               if t.channel in CHANNELS)
+    """How many terms the proposal chooses among: the extended BIC charges for the search. A shaped term
+    counts once per value scanned (a step at each onset time is a term of its own)."""
+    return sum(SCANNED if correction.shape_of(t) else 1 for t in correction.searched_terms() if t.channel in CHANNELS)
 
 
 def extended_margin(bic_margin: float, terms: int, searched: int | None = None) -> float:
@@ -518,26 +527,29 @@ def library_ids(ids: Sequence[str]) -> tuple[str, ...]:
     return tuple(h for h in ids if h != DISCOVERED)
 
 
-def onset_value(onset: float | None, vehicle: str, variables: Sequence[str]) -> dict[str, float]:
-    """The onset time as the vehicle's parameter, when ``variables`` has an onset term (else nothing: the
-    time then changes nothing, and leaving it out keeps the point the store already has)."""
-    if onset is None or not any(correction.is_onset(correction.term(v)) for v in variables):
-        return {}
-    return {f"{vehicle}.{correction.ONSET}": onset}
+def held_shapes(shapes: Mapping[str, float], vehicle: str, variables: Sequence[str]) -> dict[str, float]:
+    """The shapes the terms ``variables`` depend on, as the vehicle's parameters at their found values (a
+    shape no term uses changes nothing, and leaving it at its default keeps the points the store has)."""
+    out = {}
+    for v in variables:
+        shape = correction.shape_of(correction.term(v))
+        if shape is not None and shape.variable in shapes:
+            out[f"{vehicle}.{shape.variable}"] = shapes[shape.variable]
+    return out
 
 
 def with_terms(problem: FitProblem, vehicle: str, terms: Mapping[str, float], start: Mapping[str, float],
-               rms: Mapping[str, float], onset: float | None = None) -> FitProblem:
+               rms: Mapping[str, float], shapes: Mapping[str, float] = {}) -> FitProblem:
     """``problem`` with the correction terms freed: each bounded by correction.bound over the runs' feature
-    RMS, starting from ``start`` (a fitted point) where it has the term, else from the proposal; the onset
-    time, when an onset term is among them, held at ``onset``."""
+    RMS, starting from ``start`` (a fitted point) where it has the term, else from the proposal; the shapes
+    the terms depend on held at their values in ``shapes``."""
     extra = []
     for variable, value in terms.items():
         name = f"{vehicle}.{variable}"
         extra.append(correction.parameter(correction.term(variable), vehicle, rms.get(variable),
                                           start.get(name, value)))
     names = {p.name for p in extra}
-    held = onset_value(onset, vehicle, list(terms))
+    held = held_shapes(shapes, vehicle, list(terms))
     return replace(problem, parameters=problem.parameters + tuple(extra),
                    fixed={**{k: v for k, v in problem.fixed.items() if k not in names}, **held})
 
@@ -599,7 +611,7 @@ def screen_probes(job: Screen, parameters: Mapping[str, Parameter]) -> list[Poin
     for variable, _ in job.proposal.ranked:
         p = parameters[variable]
         out.append({**point, p.name: point.get(p.name, 0.0) + p.step,
-                    **onset_value(job.proposal.onset, parameters[variable].name.rsplit(".", 1)[0], [variable])})
+                    **held_shapes(job.proposal.shapes, p.name.rsplit(".", 1)[0], [variable])})
     return out
 
 
@@ -841,7 +853,7 @@ def discover(chain: Fitter, reference: Candidate, candidates: Sequence[Candidate
 
     def full_problem(ids: tuple[str, ...], terms: Mapping[str, float]) -> FitProblem:
         base = chain.problem("+".join(ids), library_ids(ids), dict(parents[ids].full.values), chain.all)
-        return with_terms(base, vehicle, terms, {}, rms, proposals[ids].onset)
+        return with_terms(base, vehicle, terms, {}, rms, proposals[ids].shapes)
 
     settled = settle(chain, {"+".join(ids): (lambda terms, ids=ids: full_problem(ids, terms), proposals[ids])
                              for ids in sets}, "discovery: fitting the correction")
@@ -860,10 +872,10 @@ def discover(chain: Fitter, reference: Candidate, candidates: Sequence[Candidate
                 continue
 
             def make(terms: Mapping[str, float], label: str = label, c: Candidate = c, k: int = k,
-                     onset: float | None = mine.onset) -> FitProblem:
+                     shapes: Mapping[str, float] = mine.shapes) -> FitProblem:
                 base = chain.problem(label, library_ids(c.ids), {**parent_fold(c.ids, k).values, **c.full.values},
                                      training(k))
-                return with_terms(base, vehicle, terms, c.full.values, rms, onset)
+                return with_terms(base, vehicle, terms, c.full.values, rms, shapes)
 
             jobs[label] = (make, mine)
     # Each fold's proposal is fitted and scored as ranked: the ranking on positions already leaves out the
@@ -986,13 +998,14 @@ def resemblance_words(similar: Sequence[tuple[str, float]]) -> str:
 def terms_json(fit: FitResult) -> list[dict[str, Any]]:
     """The discovered terms of a fit as the JSON's ``terms``: readable text, parameter, value, ~95 % interval."""
     interval = fit.interval()
-    onset = correction.onset_of(fit.point)
+    shapes = correction.shape_values(fit.point)
     out = []
     for name, value in fit.values.items():
         if correction.is_correction(name):
             t = correction.term(name)
             low, high = interval[name]
-            out.append({"text": correction.readable_term(t, value, (low, high), onset if correction.is_onset(t) else None),
-                        "variable": t.variable, "value": value, "interval": [low, high]}
-                       | ({"onset_time": onset} if correction.is_onset(t) else {}))
+            shape = correction.shape_of(t)
+            out.append({"text": correction.readable_term(t, value, (low, high), shapes), "variable": t.variable,
+                        "value": value, "interval": [low, high]}
+                       | ({shape.key: shapes[shape.variable]} if shape and shape.variable in shapes else {}))
     return out

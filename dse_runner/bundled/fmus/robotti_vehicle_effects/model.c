@@ -39,8 +39,11 @@
  *   sgnv = clamp(v / v_min, -1, 1), the direction of motion smoothed through rest (a force
  *   against the motion, like rolling resistance, is a negative coefficient);
  *   onset_* = the feature after it times [t >= corr_onset_time]: a change from one moment of
- *   the run on (an implement lowered, a tank filled). corr_onset_time is the block's one
- *   parameter that is not a coefficient; it follows the coefficients.
+ *   the run on (an implement lowered, a tank filled);
+ *   ratelim = lim(delta, L) - delta: the steering through a rate limit of L = corr_rate_limit
+ *   rad/s (a state that follows delta within TAU_TRACK and turns at most L fast), less delta.
+ *   corr_onset_time and corr_rate_limit shape features and are not coefficients; they follow
+ *   the coefficients.
  *   channel    adds to
  *   acc        d(vx)/dt [m/s^2]
  *   steer      the steering angle after the actuators, positive = right [rad]
@@ -55,7 +58,7 @@
     X(ACC_SGNV, "corr_acc_sgnv") X(ACC_ONSET_SGNV, "corr_acc_onset_sgnv") X(ACC_ONSET_FDRIVE, "corr_acc_onset_fdrive") \
     X(STEER_1, "corr_steer_1") X(STEER_DELTA, "corr_steer_delta") X(STEER_DDELTA, "corr_steer_ddelta") \
     X(STEER_DDELTAV, "corr_steer_ddeltav") X(STEER_VDELTA, "corr_steer_vdelta") X(STEER_V, "corr_steer_v") \
-    X(STEER_R, "corr_steer_r") \
+    X(STEER_R, "corr_steer_r") X(STEER_RATELIM, "corr_steer_ratelim") \
     X(YAW_1, "corr_yaw_1") X(YAW_DELTA, "corr_yaw_delta") X(YAW_VDELTA, "corr_yaw_vdelta") X(YAW_R, "corr_yaw_r") \
     X(YAW_VR, "corr_yaw_vr") \
     X(ALONG_1, "corr_gps_along_1") X(ALONG_COSPSI, "corr_gps_along_cospsi") \
@@ -83,8 +86,8 @@ enum Real {
     X, Y, THETA, VX, VY, YAW_RATE, GPS_X, GPS_Y,
     /* correction coefficients: CORR + the index in CORR_TERMS */
     CORR,
-    /* the time from which the onset_* features are on [s] */
-    CORR_ONSET_TIME = CORR + N_CORR,
+    /* the time from which the onset_* features are on [s], the ratelim feature's rate limit [rad/s] */
+    CORR_ONSET_TIME = CORR + N_CORR, CORR_RATE_LIMIT,
     N_REALS
 };
 
@@ -93,17 +96,18 @@ enum Channel { C_ACC, C_STEER, C_YAW, C_ALONG, C_CROSS, N_CHANNELS };
 static const int CHANNEL_FIRST[N_CHANNELS + 1] = {ACC_1, STEER_1, YAW_1, ALONG_1, CROSS_1, N_CORR};
 
 static const double TAU_F = 0.1; /* s: the filtered derivatives' time constant (correction.TAU_F) */
+static const double TAU_TRACK = 0.01; /* s: how fast the rate limiter follows below its limit (correction.TAU_TRACK) */
 
 static const double DEFAULTS[N_REALS] = {
     [MASS] = 1500.0, [C_ALPHA_F] = 30000.0, [C_ALPHA_R] = 30000.0, [MU] = 0.5,
     [LF] = 0.9, [LR] = 0.9, [R_GYR] = 0.9, [KV] = 8000.0, [V_MIN] = 0.5, [G] = 9.81,
-    [X0] = 0.0, [Y0] = 0.0, [THETA0] = 0.0, [RK4_STEP] = 0.001,
+    [X0] = 0.0, [Y0] = 0.0, [THETA0] = 0.0, [RK4_STEP] = 0.001, [CORR_RATE_LIMIT] = 1.0,
 };
 
 /* States: the bicycle's, then the two actuators' (used only when their lag is > 0), then the
  * correction block's (integrated only when a coefficient is nonzero): the filters of the speed
- * set-point and of the steering angle, and the distance travelled. */
-enum { ACT_SPEED = BICYCLE_STATES, ACT_STEERING, F_SPEED, F_STEERING, DISTANCE, N_STATES };
+ * set-point and of the steering angle, the distance travelled and the rate-limited steering. */
+enum { ACT_SPEED = BICYCLE_STATES, ACT_STEERING, F_SPEED, F_STEERING, DISTANCE, RATE_LIMITED, N_STATES };
 _Static_assert((int)N_STATES <= (int)RK4_MAX_STATES, "too many states for rk4_advance");
 
 /* Every command received, so that a delayed one can be looked up. */
@@ -178,6 +182,7 @@ static void dynamic_features(const Step *step, double t, const double *z, double
     f[STEER_VDELTA] = v * delta_f;
     f[STEER_V] = v;
     f[STEER_R] = r;
+    f[STEER_RATELIM] = z[RATE_LIMITED] - delta_f;
     f[YAW_1] = 1.0;
     f[YAW_DELTA] = delta_f;
     f[YAW_VDELTA] = v * delta_f;
@@ -260,7 +265,7 @@ static void rhs(const void *ctx, double t, const double *z, double *dz) {
     velocity = actuator(velocity, p[SPEED_LAG], z[ACT_SPEED], &dz[ACT_SPEED]);
     delta_f = actuator(delta_f, p[STEERING_LAG], z[ACT_STEERING], &dz[ACT_STEERING]);
     if (!step->any) {
-        dz[F_SPEED] = dz[F_STEERING] = dz[DISTANCE] = 0.0;
+        dz[F_SPEED] = dz[F_STEERING] = dz[DISTANCE] = dz[RATE_LIMITED] = 0.0;
         bicycle_derivatives(&step->bicycle, &step->ground, z, velocity, delta_f + p[STEERING_OFFSET], dz);
         return;
     }
@@ -269,6 +274,7 @@ static void rhs(const void *ctx, double t, const double *z, double *dz) {
     dz[F_SPEED] = f[ACC_ACMD];
     dz[F_STEERING] = f[STEER_DDELTA];
     dz[DISTANCE] = fabs(z[B_VX]);
+    dz[RATE_LIMITED] = bicycle_clamp((delta_f - z[RATE_LIMITED]) / TAU_TRACK, -p[CORR_RATE_LIMIT], p[CORR_RATE_LIMIT]);
     double steering = delta_f + p[STEERING_OFFSET];
     if (step->active[C_STEER]) steering += channel_sum(p, C_STEER, f);
     bicycle_derivatives(&step->bicycle, &step->ground, z, velocity, steering, dz);
@@ -332,6 +338,10 @@ static int check_parameters(Slave *s) {
         }
     if (isnan(p[CORR_ONSET_TIME])) {
         slave_log(s, fmi2Error, "logStatusError", "parameter corr_onset_time must be a number, got nan");
+        return 1;
+    }
+    if (!(p[CORR_RATE_LIMIT] > 0.0 && isfinite(p[CORR_RATE_LIMIT]))) {
+        slave_log(s, fmi2Error, "logStatusError", "parameter corr_rate_limit must be > 0, got %g", p[CORR_RATE_LIMIT]);
         return 1;
     }
     return start_at_rest(s);
