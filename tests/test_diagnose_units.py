@@ -700,6 +700,26 @@ def test_a_change_mid_run_is_found_at_its_time_and_proposed_as_an_onset_term():
     assert not any(correction.shape_of(correction.term(v)) == correction.SHAPES["onset"] for v in quiet.terms), quiet.terms
 
 
+def test_rate_limits_that_bind_most_of_the_time_are_not_scanned():
+    """A steering sine of 0.2 rad and 8 s turns at most 0.157 rad/s: a limit above that never binds, one far
+    below binds nearly all the time and is a gain, not a limit, so the scan leaves it out."""
+    from types import SimpleNamespace
+
+    from dse_runner.analysis.diagnose import correction, discover
+
+    t = np.round(np.arange(0.0, 40.0 + 1e-9, 0.05), 2)
+    delta = 0.2 * np.sin(2 * np.pi * t / 8.0)
+    zero = np.zeros(len(t))
+    inputs = correction.FeatureInputs(v=zero + 1.0, psi=zero, r=zero, s=zero, v_cmd=zero + 1.0, a_cmd=zero,
+                                      delta=delta, delta_rate=zero, f_drive=zero, t=t)
+    refs = [SimpleNamespace(inputs=inputs)]
+    assert discover.binding(refs, 0.2) == 0.0
+    assert discover.binding(refs, 0.01) > 0.9
+    scanned = discover.candidates(refs, correction.SHAPES["rate_limit"])
+    assert len(scanned) and all(discover.binding(refs, v) <= discover.MAX_BINDING for v in scanned)
+    assert scanned.min() > 0.05 and scanned.max() == pytest.approx(discover.RATE_LIMITS[1])
+
+
 def test_extended_bic_charges_the_search():
     from dse_runner.analysis.diagnose import discover
 

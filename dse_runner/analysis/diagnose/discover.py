@@ -73,6 +73,9 @@ SCANNED = 40  # values of each shape scanned (onset times, rate limits); the ext
 ONSET_MARGIN = 0.15  # onset times are scanned inside the moving span less this share at each end: a change
 # nearer the start than that is the start-up itself, and one nearer the end has too little run after it
 RATE_LIMITS = (0.01, 1.0)  # rad/s: the rate limits scanned, geometrically; the Robotti steers at most ~0.2 rad/s
+MAX_BINDING = 0.5  # a rate limit binding for more of the moving time than this is a gain, not a limit: not scanned
+SHAPE_GAIN = 0.10  # a shape's terms are offered only if, at its best value, they cut the channel's leave-one-run-out
+# error by this much: twice the library's min_gain, since the value was the best of a scan
 RESEMBLES, PARTLY = 0.9, 0.5  # cosine similarity above which a term resembles, partly resembles, a library effect
 
 
@@ -271,13 +274,30 @@ def candidates(refs: Sequence[Reference], shape: correction.Shape, count: int = 
     """The values of ``shape`` scanned: onset times evenly inside the span some run is commanded to move in,
     less ONSET_MARGIN at each end; rate limits geometrically over RATE_LIMITS."""
     if shape.name == "rate_limit":
-        return np.geomspace(*RATE_LIMITS, count)
+        return np.array([v for v in np.geomspace(*RATE_LIMITS, count) if binding(refs, v) <= MAX_BINDING])
     spans = [s for s in (ref.grid[ref.inputs.v_cmd > 0] for ref in refs) if len(s)]
     if not spans:
         return np.zeros(0)
     low, high = min(float(s[0]) for s in spans), max(float(s[-1]) for s in spans)
     margin = ONSET_MARGIN * (high - low)
     return np.linspace(low + margin, high - margin, count)
+
+
+def binding(refs: Sequence[Reference], limit: float) -> float:
+    """The share of the moving time a steering rate limit of ``limit`` binds (the limited angle still more than
+    limit·τ from the angle at the end of a log step), over ``refs``' runs. Where it binds most of the time, lim(δ, L) − δ is mostly
+    −δ, a gain the other steering terms already have."""
+    bound = moving = 0
+    for ref in refs:
+        x = ref.inputs
+        if x.t is None:
+            continue
+        # behind the angle it followed over each step (the log holds each angle until the next time)
+        gap = np.abs(correction.rate_limited(x.t, x.delta, limit)[1:] - np.asarray(x.delta)[:-1])
+        on = np.asarray(x.v_cmd)[1:] > 0
+        bound += int(np.sum(gap[on] > limit * correction.TAU_TRACK * 1.01))
+        moving += int(np.sum(on))
+    return bound / moving if moving else 0.0
 
 
 def _sse(regs: Sequence[Regression]) -> float:
@@ -288,6 +308,33 @@ def _sse(regs: Sequence[Regression]) -> float:
     z, _ = _scaled(joined)
     coef = np.linalg.lstsq(z, joined.y, rcond=None)[0]
     return float(np.sum((joined.y - z @ coef) ** 2))
+
+
+def _held_out_sse(regs: Sequence[Regression]) -> float:
+    """The leave-one-run-out SSE of least squares on all the columns: what the columns predict of runs they
+    were not fitted on."""
+    joined = Regression.join(list(regs))
+    z, _ = _scaled(joined)
+    total = 0.0
+    for k in np.unique(joined.run):
+        out = joined.run == k
+        coef = np.linalg.lstsq(z[~out], joined.y[~out], rcond=None)[0]
+        total += float(np.sum((joined.y[out] - z[out] @ coef) ** 2))
+    return total
+
+
+def shape_gain(refs: Sequence[Reference], shape: correction.Shape, value: float) -> float:
+    """How much the terms of ``shape``, made at ``value``, cut their channel's leave-one-run-out error beside
+    the channel's other terms (0 when they do not, or with fewer than two runs)."""
+    channel = next(t.channel for t in correction.searched_terms() if correction.shape_of(t) == shape)
+    terms = [t for t in correction.searched_terms() if t.channel == channel]
+    plain = [t for t in terms if correction.shape_of(t) != shape]
+    with_ = [r[channel] for r in (equation_error(shaped(ref, shape, value), terms) for ref in refs) if channel in r]
+    without = [r[channel] for r in (equation_error(ref, plain) for ref in refs) if channel in r]
+    if len(with_) < 2:
+        return 0.0
+    before = _held_out_sse(without)
+    return 1.0 - _held_out_sse(with_) / before if before > 0 else 0.0
 
 
 def find_shape(refs: Sequence[Reference], shape: correction.Shape) -> float:
@@ -385,10 +432,17 @@ def regressions(runs: Sequence[Observed], values: Mapping[str, Mapping[str, floa
     """Each channel's error over ``runs``; ``values`` is one parameter set, or one per run name; ``residuals``
     the reference's fix residuals per run name (the antenna channels; none without them)."""
     refs = [reference_state(run, values.get(run.name, values)) for run in runs]
-    for shape in searched_shapes():
+    dropped = set()
+    for shape in searched_shapes():  # each shape at its best value, or its terms left out when they do not pay
         value = find_shape(refs, shape)
-        refs = [shaped(ref, shape, value) for ref in refs]
-    per_run = [{**equation_error(ref), **(output_error(ref, residuals.get(ref.run.name)) if residuals is not None else {})}
+        if shape_gain(refs, shape, value) >= SHAPE_GAIN:
+            refs = [shaped(ref, shape, value) for ref in refs]
+        else:
+            dropped.add(shape.name)
+    terms = [t for t in correction.searched_terms() if not ((s := correction.shape_of(t)) and s.name in dropped)]
+    dynamic, output = [t for t in terms if t.channel in DYNAMIC], [t for t in terms if t.channel in OUTPUT]
+    per_run = [{**equation_error(ref, dynamic),
+                **(output_error(ref, residuals.get(ref.run.name), output) if residuals is not None else {})}
                for ref in refs]
     return {c: Regression.join([p[c] for p in per_run if c in p]) for c in CHANNELS
             if any(c in p for p in per_run)}
