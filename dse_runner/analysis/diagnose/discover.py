@@ -285,8 +285,8 @@ def candidates(refs: Sequence[Reference], shape: correction.Shape, count: int = 
 
 def binding(refs: Sequence[Reference], limit: float) -> float:
     """The share of the moving time a steering rate limit of ``limit`` binds (the limited angle still more than
-    limit·τ from the angle at the end of a log step), over ``refs``' runs. Where it binds most of the time, lim(δ, L) − δ is mostly
-    −δ, a gain the other steering terms already have."""
+    limit·τ from the angle at the end of a log step), over ``refs``' runs. Where it binds most of the time,
+    lim(δ, L) − δ is mostly −δ, a gain the other steering terms already have."""
     bound = moving = 0
     for ref in refs:
         x = ref.inputs
@@ -300,6 +300,17 @@ def binding(refs: Sequence[Reference], limit: float) -> float:
     return bound / moving if moving else 0.0
 
 
+def _shaped_rows(refs: Sequence[Reference], shape: correction.Shape, value: float | None,
+                 ) -> tuple[Regression, ...]:
+    """The equation error of the channel ``shape``'s terms belong to, run by run: on all that channel's terms
+    with the shaped ones made at ``value``, or without them when ``value`` is None."""
+    channel = next(t.channel for t in correction.searched_terms() if correction.shape_of(t) == shape)
+    terms = [t for t in correction.searched_terms() if t.channel == channel
+             and (value is not None or correction.shape_of(t) != shape)]
+    made = (equation_error(shaped(ref, shape, value) if value is not None else ref, terms) for ref in refs)
+    return tuple(r[channel] for r in made if channel in r)
+
+
 def _sse(regs: Sequence[Regression]) -> float:
     """The least squares SSE of one channel's equation error on all its columns, pooled over runs."""
     joined = Regression.join(list(regs))
@@ -310,48 +321,32 @@ def _sse(regs: Sequence[Regression]) -> float:
     return float(np.sum((joined.y - z @ coef) ** 2))
 
 
-def _held_out_sse(regs: Sequence[Regression]) -> float:
-    """The leave-one-run-out SSE of least squares on all the columns: what the columns predict of runs they
-    were not fitted on."""
-    joined = Regression.join(list(regs))
-    z, _ = _scaled(joined)
-    total = 0.0
-    for k in np.unique(joined.run):
-        out = joined.run == k
-        coef = np.linalg.lstsq(z[~out], joined.y[~out], rcond=None)[0]
-        total += float(np.sum((joined.y[out] - z[out] @ coef) ** 2))
-    return total
-
-
 def shape_gain(refs: Sequence[Reference], shape: correction.Shape, value: float) -> float:
-    """How much the terms of ``shape``, made at ``value``, cut their channel's leave-one-run-out error beside
-    the channel's other terms (0 when they do not, or with fewer than two runs)."""
-    channel = next(t.channel for t in correction.searched_terms() if correction.shape_of(t) == shape)
-    terms = [t for t in correction.searched_terms() if t.channel == channel]
-    plain = [t for t in terms if correction.shape_of(t) != shape]
-    with_ = [r[channel] for r in (equation_error(shaped(ref, shape, value), terms) for ref in refs) if channel in r]
-    without = [r[channel] for r in (equation_error(ref, plain) for ref in refs) if channel in r]
+    """How much the terms of ``shape``, made at ``value``, cut their channel's leave-one-run-out error (the
+    ridge fit of STLSQ at threshold 0) beside the channel's other terms; 0 with fewer than two runs."""
+    with_, without = _shaped_rows(refs, shape, value), _shaped_rows(refs, shape, None)
     if len(with_) < 2:
         return 0.0
-    before = _held_out_sse(without)
-    return 1.0 - _held_out_sse(with_) / before if before > 0 else 0.0
+    after, before = (held_out_error(*_joined(regs), 0.0) for regs in (with_, without))
+    return 1.0 - after / before if before > 0 else 0.0
+
+
+def _joined(regs: Sequence[Regression]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    joined = Regression.join(list(regs))
+    return _scaled(joined)[0], joined.y, joined.run
 
 
 def find_shape(refs: Sequence[Reference], shape: correction.Shape) -> float:
     """The value of ``shape`` at which every term of its channel together explains that channel's equation error
     best, pooled over ``refs``' runs: a coarse scan (:func:`candidates`), then 20 steps between the best's
     neighbours. A change mid-run is a step in the acc error, a rate limit a lag of the yaw rate while the
-    steering turns fast; least squares finds where, and whether the shaped terms are worth their place is
-    the proposal's question after."""
-    channel = next(t.channel for t in correction.searched_terms() if correction.shape_of(t) == shape)
-    terms = [t for t in correction.searched_terms() if t.channel == channel]
+    steering turns fast; least squares finds where (and :func:`shape_gain` whether it is worth it)."""
     coarse = candidates(refs, shape)
     if len(coarse) == 0:
         return shape.default
 
     def sse(value: float) -> float:
-        return _sse([r[channel] for r in (equation_error(shaped(ref, shape, value), terms) for ref in refs)
-                     if channel in r])
+        return _sse(_shaped_rows(refs, shape, value))
 
     k = min(range(len(coarse)), key=lambda i: sse(coarse[i]))
     low, high = coarse[max(k - 1, 0)], coarse[min(k + 1, len(coarse) - 1)]
