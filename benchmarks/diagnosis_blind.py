@@ -8,9 +8,10 @@ Runs the cases of tests/blind.py on the embedded local cluster and prints one ta
   concealed effects are in its top two (the target), held-out error before and after, the noise floor,
   the verdict;
 * outside the library (tests/fmus/robotti_truth: a tyre relaxation length, a steering gain falling with
-  speed, a payload lowered mid-run, a leaning antenna mast, and, the benchmark's only, slip growing with the
-  pull, a steering rate limit and rolling resistance on soft soil): what it named, the verdict, whether the
-  effects are flagged partial, any discovered terms, held-out error before and after, the noise floor;
+  speed, a payload lowered mid-run, a leaning antenna mast, rolling resistance on soft soil, and, the
+  benchmark's only, slip growing with the pull and a steering rate limit): what it named, the verdict,
+  whether the effects are flagged partial, any discovered terms, held-out error before and after, the noise
+  floor;
 * noise only (heavier: 5 cm, 10 % dropouts, two 5 s outages; coloured): what it named, the estimated noise
   against the truth's, held-out error before and after, the verdict.
 

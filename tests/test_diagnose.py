@@ -118,6 +118,20 @@ def test_a_change_mid_run_is_discovered_at_its_time(cases):
     assert written["vehicle.corr_onset_time"] == [pytest.approx(onset[0]["onset_time"])]
 
 
+def test_a_resistance_against_the_motion_is_discovered(cases):
+    """Rolling resistance on soft soil (tests/fmus/robotti_truth: a force 0.05·m·g against the motion) looks
+    like wheel slip at any one speed, but slows a slow run and a fast one by the same: the library's slip
+    leaves a residual well above the noise, and discovery finds the force, sized near the truth, and at least
+    halves the held-out error; any library effect named beside it is only partial."""
+    _, _, _, result = cases("rolling_resistance")
+    found = blind.discovered_entry(result)
+    assert found, f"verdict {result.verdict}, discovery {result.to_json()['discovery']}"
+    assert blind.outside_target(result), result.to_json()["discovery"]
+    values = {t["variable"]: t["value"] for t in found["terms"]}
+    truth = blind.OUTSIDE["rolling_resistance"][0]["rolling_resistance"] * 9.81
+    assert values.get("corr_acc_sgnv") == pytest.approx(-truth, rel=0.1), found["terms"]
+
+
 def test_heavy_noise_and_long_outages_claim_nothing(cases):
     """5 cm of receiver noise, 10 % dropouts and two 5 s outages per run: nothing is named or discovered, and the
     noise is estimated from the files alone within 20 %."""

@@ -191,7 +191,7 @@ def test_the_rate_limiter_ramps_at_its_limit_then_closes_exponentially():
     y = correction.rate_limited(t, u, 0.04)
     dt, state, fine = 1e-5, 0.0, [0.0]
     for k in range(1, len(t)):
-        for _ in range(int(round((t[k] - t[k - 1]) / dt))):
+        for _ in range(round((t[k] - t[k - 1]) / dt)):
             state += dt * min(max((u[k - 1] - state) / correction.TAU_TRACK, -0.04), 0.04)
         fine.append(state)
     assert np.abs(y - np.array(fine)).max() < 1e-5

@@ -17,7 +17,10 @@ missing physics is sought among the correction block's terms (correction.py), in
    column is its feature itself. PySINDy's sequentially thresholded least squares (STLSQ) picks the few
    terms that explain each channel; the threshold comes from leave-one-run-out error, and a term is kept
    only if it is picked in most of a seeded bootstrap over *runs* (rows within a run are correlated, so
-   resampling rows would overstate the evidence).
+   resampling rows would overstate the evidence). Some terms depend on a *shape* of the block (the time a
+   change mid-run sets in, a steering rate limit): each shape is first scanned for the value at which its
+   channel's equation error is least (:func:`find_shape`), and its terms are offered only if they then cut
+   that channel's leave-one-run-out error by SHAPE_GAIN (:func:`shape_gain`); the fits hold the value.
 2. **Rank on positions** (one sweep). Equation error sees the model's own misfit too, so the order it
    gives mixes channels unfairly (a pair of steering terms can outrank the antenna terms they stand in
    for). The terms every channel supports compete instead on what each does to the fix residuals,
@@ -275,6 +278,8 @@ def candidates(refs: Sequence[Reference], shape: correction.Shape, count: int = 
     less ONSET_MARGIN at each end; rate limits geometrically over RATE_LIMITS."""
     if shape.name == "rate_limit":
         return np.array([v for v in np.geomspace(*RATE_LIMITS, count) if binding(refs, v) <= MAX_BINDING])
+    if shape.name != "onset":
+        raise ValueError(f"no scan for the shape {shape.name!r}")
     spans = [s for s in (ref.grid[ref.inputs.v_cmd > 0] for ref in refs) if len(s)]
     if not spans:
         return np.zeros(0)
