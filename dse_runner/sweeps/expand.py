@@ -135,6 +135,10 @@ def blocks(space, points: list[dict[str, Any]] | None = None, only: list[Collect
 def _alike(points: list[dict[str, Any]]) -> Iterator[list[dict[str, Any]]]:
     """Consecutive runs of points that set the same parameters, in order: a batch's values are one table.
     A fit may ask for points of differing parameters in one sweep (a probe that sets one more)."""
+    first = points[0].keys()
+    if all(point.keys() == first for point in points):  # the usual case: one table, no regrouping
+        yield points
+        return
     for _, run in itertools.groupby(points, key=dict.keys):  # key views compare as sets, in C
         yield list(run)
 
@@ -176,12 +180,9 @@ class TaskBatch:
 
     @classmethod
     def of_points(cls, model: str, points: list[dict[str, Any]], scenario: str, data: str) -> TaskBatch:
-        """The tasks of ``points`` on one scenario (``data``: its hash), ids as ``task_id`` gives them."""
+        """The tasks of ``points`` on one scenario (``data``: its hash), ids as ``task_id`` gives them. Every
+        point sets the same parameters (:func:`blocks` groups them so)."""
         names = tuple(sorted(points[0]))
-        first = points[0].keys()
-        if any(point.keys() != first for point in points):
-            raise ValueError("TaskBatch.of_points: every point must set the same parameters (expand.blocks "
-                             "groups them)")
         rows = [[point[name] for name in names] for point in points]
         ids = _ids(model, names, rows, data)
         return cls(names, (scenario,), np.array([i.encode() for i in ids]), np.zeros(len(rows), dtype=np.int32),
