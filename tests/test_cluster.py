@@ -22,7 +22,7 @@ import pandas as pd
 import pytest
 import yaml
 from cluster import CliCluster, can_hide_folders, make_certs
-from conftest import FMU_SOURCES, MULTIMODEL, REPO, SCENARIOS, strict_loads, write_space
+from conftest import FMU_SOURCES, MULTIMODEL, REPO, SCENARIOS, sleeper_multimodel, strict_loads, write_space
 
 import dse_runner
 from dse_runner.sweeps import store
@@ -146,6 +146,37 @@ def test_a_sweep_whose_workers_all_die_stops_with_its_finished_rows(tmp_path, cl
     cluster.start_worker()
     report = submit(load_space(spec))
     assert (report.skipped, report.ok + report.skipped) == (len(kept), SLOW_TASKS)
+
+
+def test_a_sweep_whose_workers_all_die_while_it_probes_stops(tmp_path, cli_cluster):
+    """The first simulation, timed to size the chunks, runs before any chunk: every worker killed while it
+    runs (none restarted) stops the sweep with the same words, instead of waiting for the probe for ever."""
+    from distributed import Client
+
+    cluster = cli_cluster()
+    # sin1 is 1680 steps: at 5 ms of sleep a step, one simulation takes 8 s, and the probe runs two
+    spec = write_space(tmp_path, multimodel=str(sleeper_multimodel(tmp_path)), scenarios=[str(SCENARIOS / "sin1")],
+                       parameters={"sleeper.pause": [0.005]}, keep_trajectories=0,
+                       cluster={"address": cluster.address, "connect_timeout": 2})
+
+    def kill_when_probing() -> None:
+        with Client(cluster.address, timeout="30s") as client:
+            deadline = time.monotonic() + 120
+            while not any(k.startswith("probe") for keys in client.processing().values() for k in keys):
+                assert time.monotonic() < deadline, "the probe never started"
+                time.sleep(0.1)
+        for worker in cluster.workers:
+            os.killpg(worker.pid, signal.SIGKILL)
+            worker.wait(timeout=30)
+        cluster.workers = []
+
+    killer = threading.Thread(target=kill_when_probing, daemon=True)
+    killer.start()
+    started = time.monotonic()
+    with pytest.raises(DseError, match=r"timed its first simulation, the Dask scheduler .* has had no worker for 4 s"):
+        submit(load_space(spec))
+    assert time.monotonic() - started < 120
+    killer.join(timeout=30)
 
 
 def wait_until_idle(address: str, timeout: float = 120) -> None:

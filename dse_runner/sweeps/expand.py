@@ -124,7 +124,7 @@ def blocks(space, points: list[dict[str, Any]] | None = None, only: list[Collect
         wanted = iter((p for k, p in enumerate(visit(space)) if scenario.name in only[k]) if only is not None
                       else visit(space))  # regenerated per scenario: no list of all points is kept
         while block := list(itertools.islice(wanted, BLOCK)):
-            for same in _alike(block):
+            for same in (_alike(block) if points is not None else (block,)):  # a grid's points are alike
                 batch = TaskBatch.of_points(model, same, scenario.name, data)
                 if done:
                     batch = batch[np.array([i not in done for i in batch.ids()], dtype=bool)]

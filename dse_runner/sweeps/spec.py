@@ -242,7 +242,8 @@ class Cluster(BaseModel):
     threads_per_worker: PositiveInt = 1
     tls: Tls | None = None
     dashboard_address: str = "127.0.0.1:0"  # of a scheduler we start; loopback unless asked otherwise
-    connect_timeout: PositiveFloat = 30.0  # seconds to reach a scheduler, or get it back after a restart
+    connect_timeout: PositiveFloat = 30.0  # seconds to reach a scheduler, or get it back after a restart; a
+    # sweep whose local or addressed cluster has had no worker for twice this stops (cluster.worker_grace)
     htcondor: HTCondor = HTCondor()
     kubernetes: Kubernetes = Kubernetes()
 

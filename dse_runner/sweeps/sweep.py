@@ -296,7 +296,7 @@ class GridSource:
 
     def warm_up(self, client, point: Point) -> None:
         """Probe one warm simulation on every worker at once: each loads the model while the client makes
-        the first chunks, so none of them starts its first chunk cold."""
+        the results' schema, so none of them starts its first chunk cold."""
         spec = self.space.spec
         workers = [[address] for address in client.scheduler_info()["workers"]] or [None]
         self.warm_ups = [client.submit(probe, self.shipment, self.space.scenarios[0].name, point,
@@ -304,16 +304,24 @@ class GridSource:
                                        workers=where, allow_other_workers=True, pure=False) for where in workers]
 
     def probed(self, client) -> float | None:
-        """The first probe's answer (the others go on, as warm-ups); None if it failed."""
+        """The first probe's answer (the others go on, as warm-ups); None if it failed. Watched like the
+        chunks: a cluster that loses every worker while it probes stops the sweep, not waits for ever."""
         from distributed import as_completed
         from distributed.scheduler import KilledWorker
 
-        for future in as_completed(self.warm_ups):
-            try:
-                return future.result()
-            except KilledWorker:  # the model crashes its process: no more workers should die probing it
-                client.cancel(self.warm_ups)
-                return None
+        with WorkerWatch(client, worker_grace(self.space.spec.cluster), lambda: self.warm_ups) as watch:
+            for future in as_completed(self.warm_ups):
+                try:
+                    return future.result()
+                except KilledWorker:  # the model crashes its process: no more workers should die probing it
+                    client.cancel(self.warm_ups)
+                    return None
+                except CancelledError:
+                    if watch.stranded:
+                        raise DseError(f"while the sweep timed its first simulation, {watch.stranded}; every "
+                                       f"finished chunk is in {self.space.output}: start workers and submit "
+                                       "again") from None
+                    raise
         return None
 
 

@@ -124,7 +124,8 @@ class Diagnosis:
     @property
     def verdict(self) -> str:
         """none, explained, partial, discovered or unexplained: the chosen model's held-out error against the
-        noise floor, or a discovered correction that passed the rule."""
+        noise floor; a discovered correction that passed the rule gives discovered when it leaves only noise,
+        partial when it does not."""
         floor = self.floor.cross_track if self.floor.available else None
         return explain.verdict(self.cross_track_after, floor, self.settings.noise_factor,
                                bool(discover.library_ids(self.chosen.ids)), self.discovered)

@@ -316,14 +316,19 @@ def _shaped_rows(refs: Sequence[Reference], shape: correction.Shape, value: floa
     return tuple(r[channel] for r in made if channel in r)
 
 
+def _joined(regs: Sequence[Regression]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One channel's runs pooled: columns scaled to unit RMS, target, run index per row."""
+    joined = Regression.join(list(regs))
+    return _scaled(joined)[0], joined.y, joined.run
+
+
 def _sse(regs: Sequence[Regression]) -> float:
     """The least squares SSE of one channel's equation error on all its columns, pooled over runs."""
-    joined = Regression.join(list(regs))
-    if len(joined.y) == 0:
+    z, y, _ = _joined(regs)
+    if len(y) == 0:
         return math.inf
-    z, _ = _scaled(joined)
-    coef = np.linalg.lstsq(z, joined.y, rcond=None)[0]
-    return float(np.sum((joined.y - z @ coef) ** 2))
+    coef = np.linalg.lstsq(z, y, rcond=None)[0]
+    return float(np.sum((y - z @ coef) ** 2))
 
 
 def shape_gain(refs: Sequence[Reference], shape: correction.Shape, value: float) -> float:
@@ -334,11 +339,6 @@ def shape_gain(refs: Sequence[Reference], shape: correction.Shape, value: float)
         return 0.0
     after, before = (held_out_error(*_joined(regs), 0.0) for regs in (with_, without))
     return 1.0 - after / before if before > 0 else 0.0
-
-
-def _joined(regs: Sequence[Regression]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    joined = Regression.join(list(regs))
-    return _scaled(joined)[0], joined.y, joined.run
 
 
 def find_shape(refs: Sequence[Reference], shape: correction.Shape) -> float:

@@ -296,18 +296,16 @@ def verdict_text(diagnosis: Diagnosis) -> str:
                 "finding as the best of the library, not as proof that nothing else is missing.")
     level = (f"{after:.3f} m, {diagnosis.floor_ratio:.1f}× the noise floor of {floor.cross_track:.3f} m")
     remains = after - floor.cross_track
+    if diagnosis.discovered:
+        return discovered_text(diagnosis)
     if verdict == explain.EXPLAINED:
         return (f"**Verdict: explained.** With {chosen} the held-out error is {level}; up to {factor:g}× counts "
                 "as noise, so what remains is receiver noise or too close to it to tell apart.")
-    if verdict == explain.PARTIAL and diagnosis.discovered:
-        return discovered_text(diagnosis)
     if verdict == explain.PARTIAL:
         return (f"**Verdict: partial.** The runs support {chosen}, but it is not the whole story: after it the "
                 f"held-out error is {level}, above the {factor:g}× that counts as noise. The library does not "
                 f"explain the residual: about {remains:.3f} m of mean cross-track error remains above the noise. "
                 "Read the effect as part of the cause, not as the cause.")
-    if verdict == explain.DISCOVERED:
-        return discovered_text(diagnosis)
     if verdict == explain.UNEXPLAINED:
         return (f"**Verdict: unexplained.** No hypothesis of the library explains the residual, and it is not noise: "
                 f"the calibrated model's held-out error is {level}, above the {factor:g}× that counts as noise; "
@@ -334,8 +332,8 @@ def discovered_text(diagnosis: Diagnosis) -> str:
             if named else "")
     resembles = entry["resembles"]["text"] if entry["resembles"] else "was not compared with the library"
     left = (f" It is not the whole story either: about {chosen.cross_validated - floor.cross_track:.3f} m of mean "
-            f"cross-track error remains above the noise, which no term of the correction block (each a fixed "
-            f"function of the state, the same all run long) expresses; read the correction as part of the cause."
+            f"cross-track error remains above the noise, which the correction block's terms do not express; "
+            f"read the correction as part of the cause."
             if not whole else "")
     return (f"**Verdict: {diagnosis.verdict}.** The library does not explain the residual: {_without(diagnosis)} the "
             f"held-out error is {library.cross_validated:.3f} m, {library.cross_validated / floor.cross_track:.1f}× "
