@@ -162,6 +162,13 @@ class CliCluster:
         with self.client() as client:
             client.wait_for_workers(n, timeout=120)
 
+    def kill_workers(self) -> None:
+        """SIGKILL every worker with its nanny (a process group each); none is restarted."""
+        for worker in self.workers:
+            os.killpg(worker.pid, signal.SIGKILL)
+            worker.wait(timeout=30)
+        self.workers = []
+
     def kill_scheduler(self) -> None:
         """SIGKILL the scheduler; its workers exit on their own when they lose it."""
         self.scheduler.send_signal(signal.SIGKILL)

@@ -132,10 +132,7 @@ def test_a_sweep_whose_workers_all_die_stops_with_its_finished_rows(tmp_path, cl
 
     def kill_every_worker(report) -> None:
         if report.chunks >= 1 and cluster.workers:
-            for worker in cluster.workers:  # the nanny and its worker: a process group each
-                os.killpg(worker.pid, signal.SIGKILL)
-                worker.wait(timeout=30)
-            cluster.workers = []
+            cluster.kill_workers()
 
     started = time.monotonic()
     with pytest.raises(DseError, match=r"has had no worker for 4 s.*every finished chunk is in"):
@@ -165,10 +162,7 @@ def test_a_sweep_whose_workers_all_die_while_it_probes_stops(tmp_path, cli_clust
             while not any(k.startswith("probe") for keys in client.processing().values() for k in keys):
                 assert time.monotonic() < deadline, "the probe never started"
                 time.sleep(0.1)
-        for worker in cluster.workers:
-            os.killpg(worker.pid, signal.SIGKILL)
-            worker.wait(timeout=30)
-        cluster.workers = []
+        cluster.kill_workers()
 
     killer = threading.Thread(target=kill_when_probing, daemon=True)
     killer.start()
