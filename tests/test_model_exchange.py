@@ -46,12 +46,13 @@ def vrs(fmu) -> dict[str, int]:
 
 
 def run(fmu, model, params=TRUE, force=lambda t: None, output="x", stop=STOP, **settings):
-    """The master's loop in miniature: set parameters, initialize, then at every
+    """The master's loop in miniature: set up, set parameters, initialize, then at every
     communication point set the input (if ``force`` gives one), step, read the output."""
     ref = vrs(fmu)
+    stepper = ModelExchangeStepper(model, fmu.md, **settings)
+    stepper.setup(0.0, stop)
     for name, value in params.items():
         model.setReal([ref[name]], [value])
-    stepper = ModelExchangeStepper(model, fmu.md, **settings)
     stepper.enter_initialization(0.0, stop)
     stepper.exit_initialization()
     values = [model.getReal([ref[output]])[0]]
@@ -357,6 +358,7 @@ def test_fmi3_path_drives_fmpys_fmu3model_calls(msd):
         modelVariables=[SimpleNamespace(name="F", causality="input", type="Float64", valueReference=5)])
     fake = FakeMsd3(**TRUE)
     stepper = ModelExchangeStepper(fake, description, tolerance=1e-6)
+    stepper.setup(0.0, STOP)
     stepper.enter_initialization(0.0, STOP)
     stepper.exit_initialization()
     xs = [fake.x[0]]

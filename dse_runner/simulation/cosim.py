@@ -37,7 +37,8 @@ from fmpy.fmi1 import FMICallException
 
 from ..errors import DseError
 from . import fmu as fmus
-from . import native
+from . import isolation, native
+from . import lifecycle as lifecycles
 from .build import resolve_fmu
 from .multimodel import MultiModel
 from .scenario import Series
@@ -415,61 +416,82 @@ class Runner:
     series: dict[str, np.ndarray]  # input signals at the communication points
     external: np.ndarray | None  # the same, one column each, as the loops read them
 
+    def lifecycle(self, values: Mapping[str, Value]) -> dict[str, lifecycles.Verdict]:
+        """How each instance lives across runs (lifecycle.py): reset between runs, or a fresh process;
+        decided at the first run (an FMU that cannot run alone is measured with its values)."""
+        found = self.__dict__.get("_lifecycle")
+        if found is None:
+            found = self.__dict__["_lifecycle"] = lifecycles.plan_verdicts(self, values)
+        return found
+
     def run(self, values: Mapping[str, Value], timeout: float | None = None, loop: str | None = None) -> Trajectory:
-        """Co-simulate with ``values`` set before initialization (see :func:`run`)."""
-        plan, times, external = self.plan, self.times, self.external
-        settings = _resolve_values(plan, values)
-        names = plan.recorded
-        instances = {name: fmus.acquire(name, fmus.load(path, plan.interfaces[name]))
-                     for name, path in plan.fmu_paths.items()}
-        prepared = _prepare(plan, instances, self.series, _native(plan, loop))
-        units, signals, program = prepared.units, prepared.signals, prepared.program
-        texts = {v.ref: [] for vs in plan.texts.values() for v in vs}
-        record = np.empty((len(times), len(names)))
-        start, stop = float(times[0]), float(times[-1])
+        """Co-simulate with ``values`` set before initialization (see :func:`run`): here, or in a fresh
+        process where an instance needs one (lifecycle.py)."""
+        if not isolation.in_child() and lifecycles.needs_process(self.lifecycle(values)):
+            plan = self.plan
+            fmus_used = [(path, plan.interfaces[name]) for name, path in plan.fmu_paths.items()]
+            for path, interface in fmus_used:
+                fmus.load(path, interface)  # extracted, and warned about, once in this process
+            return isolation.run(_run_here, self, values, timeout, loop, preload=fmus_used)
+        return _run_here(self, values, timeout, loop)
+
+
+def _run_here(runner: Runner, values: Mapping[str, Value], timeout: float | None, loop: str | None) -> Trajectory:
+    """One run in this process, its instances reused through reset; in the order FMPy and the standard
+    call an FMU: set-up with the times, values, initialization, steps, termination."""
+    plan, times, external = runner.plan, runner.times, runner.external
+    settings = _resolve_values(plan, values)
+    names = plan.recorded
+    instances = {name: fmus.acquire(name, fmus.load(path, plan.interfaces[name]))
+                 for name, path in plan.fmu_paths.items()}
+    prepared = _prepare(plan, instances, runner.series, _native(plan, loop))
+    units, signals, program = prepared.units, prepared.signals, prepared.program
+    texts = {v.ref: [] for vs in plan.texts.values() for v in vs}
+    record = np.empty((len(times), len(names)))
+    start, stop = float(times[0]), float(times[-1])
+    current = None
+    try:
+        for unit in units:
+            current = unit
+            unit.stepper.setup(start, stop)
+            unit.stepper.set_values(settings.get(unit.stepper.name, ()))
         current = None
-        try:
-            if program is not None and program.sets_up:  # the C call sets up, runs and ends the units
-                for unit in units:
-                    current = unit
-                    unit.stepper.set_values(settings.get(unit.stepper.name, ()))
-                current = None
-                outcome = native.step_loop(program, times, external, record, texts, timeout)
-                _raise_where_stopped(outcome, program, units, times, names, record, texts)
-                return Trajectory(times, names, record, texts)
-            for unit in units:
-                current = unit
-                unit.stepper.set_values(settings.get(unit.stepper.name, ()))
-                unit.stepper.enter_initialization(start, stop)
-            _exchange(units, signals, external, 0, texts, start, feed=True)
-            for unit in units:
-                current = unit
-                unit.stepper.exit_initialization()
-            current = None
-            _exchange(units, signals, external, 0, texts, start, feed=False)
-            record[0] = signals[: len(names)]
-            if program is not None:
-                outcome = native.step_loop(program, times, external, record, texts, timeout)
-                _raise_where_stopped(outcome, program, units, times, names, record, texts)
-            else:
-                deadline = time.perf_counter() + timeout if timeout else math.inf
-                _step_loop(units, times, signals, external, record, texts, deadline)
-            for unit in units:
-                current = unit
-                unit.stepper.terminate()
-        except CosimError as e:
-            if e.instance is not None:
-                fmus.discard(instances[e.instance])
+        if program is not None and program.sets_up:  # the C call initialises, runs and ends the units
+            outcome = native.step_loop(program, times, external, record, texts, timeout)
+            _raise_where_stopped(outcome, program, units, times, names, record, texts)
+            return Trajectory(times, names, record, texts)
+        for unit in units:
+            current = unit
+            unit.stepper.enter_initialization(start, stop)
+        _exchange(units, signals, external, 0, texts, start, feed=True)
+        for unit in units:
+            current = unit
+            unit.stepper.exit_initialization()
+        current = None
+        _exchange(units, signals, external, 0, texts, start, feed=False)
+        record[0] = signals[: len(names)]
+        if program is not None:
+            outcome = native.step_loop(program, times, external, record, texts, timeout)
+            _raise_where_stopped(outcome, program, units, times, names, record, texts)
+        else:
+            deadline = time.perf_counter() + timeout if timeout else math.inf
+            _step_loop(units, times, signals, external, record, texts, deadline)
+        for unit in units:
+            current = unit
+            unit.stepper.terminate()
+    except CosimError as e:
+        if e.instance is not None:
+            fmus.discard(instances[e.instance])
+        raise
+    except Exception as e:  # FMPy's FMICallException from a set-up call, or the integrator's error
+        if current is None:
             raise
-        except Exception as e:  # FMPy's FMICallException from a set-up call, or the integrator's error
-            if current is None:
-                raise
-            message = current.stepper.instance.explain(str(e).rstrip("."))
-            fmus.discard(current.stepper.instance)
-            raise CosimError(message, current.stepper.name) from None
-        if program is None:  # the C loop checked every point
-            _check_finite(names, times, record)
-        return Trajectory(times, names, record, texts)
+        message = current.stepper.instance.explain(str(e).rstrip("."))
+        fmus.discard(current.stepper.instance)
+        raise CosimError(message, current.stepper.name) from None
+    if program is None:  # the C loop checked every point
+        _check_finite(names, times, record)
+    return Trajectory(times, names, record, texts)
 
 
 LOOPS = ("native", "python")

@@ -184,10 +184,20 @@ class LoadedFmu:
 _LOADED: dict[tuple[str, Interface], LoadedFmu] = {}
 
 
+_EXTRACT_ROOT: Path | None = None  # set where a process shares its parent's extractions (isolation.py)
+
+
 def extract_root() -> Path:
-    root = Path(tempfile.gettempdir()) / f"dse-runner-fmus-{os.getpid()}"
+    """Where this process extracts FMUs: a folder of its own, or the one it was given."""
+    root = _EXTRACT_ROOT or Path(tempfile.gettempdir()) / f"dse-runner-fmus-{os.getpid()}"
     root.mkdir(parents=True, exist_ok=True)
     return root
+
+
+def use_extract_root(root: Path) -> None:
+    """Extract into ``root`` from now on: the fresh processes of isolation.py find their parent's FMUs there."""
+    global _EXTRACT_ROOT
+    _EXTRACT_ROOT = root
 
 
 _LAST: dict[tuple[str, Interface | None], tuple[tuple[int, int], LoadedFmu]] = {}
@@ -218,15 +228,27 @@ def _load(path: Path, interface: Interface | None) -> LoadedFmu:
         member = binary_in_archive(path, description, chosen)  # warns once per process: loads are kept
         unzip_dir = extract_root() / sha
         if not unzip_dir.is_dir():
-            partial = Path(tempfile.mkdtemp(dir=extract_root(), prefix=f".{sha}-"))
-            extract(str(path), str(partial))
-            os.replace(partial, unzip_dir)
+            _extract(path, unzip_dir)
         loaded = LoadedFmu(path, sha, unzip_dir, description, chosen)
         expected = unzip_dir / _binary_dir(description) / f"{loaded.identifier}{sharedLibraryExtension}"
-        if not expected.is_file():  # a stand-in binary: give it the name FMPy loads
-            shutil.copyfile(unzip_dir / member, expected)
+        if not expected.is_file():  # a stand-in binary: give it the name FMPy loads, whole or not at all
+            partial = expected.with_name(f".{expected.name}-{os.getpid()}")
+            shutil.copyfile(unzip_dir / member, partial)
+            os.replace(partial, expected)
         _LOADED[(sha, chosen)] = loaded
     return loaded
+
+
+def _extract(path: Path, unzip_dir: Path) -> None:
+    """Extract into ``unzip_dir`` whole or not at all; another process may be extracting the same FMU."""
+    partial = Path(tempfile.mkdtemp(dir=unzip_dir.parent, prefix=f".{unzip_dir.name}-"))
+    extract(str(path), str(partial))
+    try:
+        os.replace(partial, unzip_dir)
+    except OSError:
+        if not unzip_dir.is_dir():
+            raise
+        shutil.rmtree(partial, ignore_errors=True)  # the other one was first
 
 
 # ---- instances -----------------------------------------------------------------------------------

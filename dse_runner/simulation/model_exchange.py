@@ -108,7 +108,7 @@ class ModelExchangeStepper:
     """Drives one ME instance from communication point to communication point."""
 
     def __init__(self, model: Any, description: Any, solver: str = "cvode",
-                 tolerance: float | None = None, euler_step: float | None = None):
+                 tolerance: float | None = None, euler_step: float | None = None, set_stop_time: bool = True):
         """``model``: an instantiated fmpy FMU2Model or FMU3Model whose start values the
         caller has set; ``description``: its fmpy ModelDescription. ``tolerance`` is
         CVode's relative tolerance (FMPy's default 1e-5); ``euler_step`` the fixed
@@ -124,6 +124,7 @@ class ModelExchangeStepper:
         self.solver_name = solver
         self.tolerance = tolerance
         self.euler_step = euler_step
+        self.set_stop_time = set_stop_time  # False: the FMU is not told the stop time (FMPy's set_stop_time)
         self.fmi3 = description.fmiVersion.startswith("3.")
         self.time = 0.0
         self.stop = math.inf
@@ -134,17 +135,26 @@ class ModelExchangeStepper:
 
     # ---- life cycle -------------------------------------------------------
 
-    def enter_initialization(self, start: float, stop: float) -> None:
-        """Start the experiment; parameters may still be set until exit_initialization."""
+    def setup(self, start: float, stop: float) -> None:
+        """Set the experiment up (FMI 2), before the caller sets start values: some FMUs load their
+        defaults in fmi2SetupExperiment."""
         if not stop > start:
             raise ModelExchangeError(f"stop time {stop} must be after start time {start}")
+        self.time, self.stop = start, stop
+        if not self.fmi3:
+            with self._reported("setting up the experiment"):
+                self.model.setupExperiment(tolerance=self.tolerance, startTime=start,
+                                           stopTime=stop if self.set_stop_time else None)
+
+    def enter_initialization(self, start: float, stop: float) -> None:
+        """Start the experiment (after :meth:`setup` and the start values); parameters may still
+        be set until exit_initialization."""
         self.time, self.stop = start, stop
         with self._reported("entering initialization mode"):
             if self.fmi3:
                 self.model.enterInitializationMode(tolerance=self.tolerance, startTime=start,
-                                                   stopTime=stop)
+                                                   stopTime=stop if self.set_stop_time else None)
             else:
-                self.model.setupExperiment(tolerance=self.tolerance, startTime=start, stopTime=stop)
                 self.model.enterInitializationMode()
 
     def exit_initialization(self) -> None:

@@ -58,13 +58,16 @@ class Target(BaseModel):
 
 
 class InstanceSettings(BaseModel):
-    """How one instance runs: its interface and, for model exchange, the integrator."""
+    """How one instance runs: its interface, for model exchange the integrator, whether it is told the
+    stop time, and whether it must run in a fresh process each time (docs/multimodel.md)."""
 
     model_config = Strict
     interface: Literal["cs", "me"] | None = None  # default: co-simulation when the FMU offers it
     solver: Literal["cvode", "euler"] = "cvode"  # model exchange: FMPy's CVode, or forward Euler
     tolerance: PositiveFloat | None = None  # relative tolerance (CVode; co-simulation FMUs get it too)
     euler_step: PositiveFloat | None = None  # euler: the integration step; default: the communication step
+    set_stop_time: bool = True  # tell the FMU when the experiment stops (FMPy's default); false: leave it open
+    lifecycle: Literal["auto", "process"] = "auto"  # process: a fresh process per run (lifecycle.py)
 
 
 class MultiModel(BaseModel):
@@ -85,7 +88,7 @@ class MultiModel(BaseModel):
         for name in fmus:
             if not name or "." in name:
                 raise ValueError(f"instance name {name!r} must be non-empty and contain no '.'")
-        return fmus
+        return {name: portable(path) for name, path in fmus.items()}  # a file written on Windows runs here
 
     @field_validator("connections")
     @classmethod
@@ -156,8 +159,15 @@ def into_cps_instances(data: dict[str, Any]) -> dict[str, str]:
     return keys
 
 
+def portable(path: str) -> str:
+    """An FMU path with ``/`` for every ``\\``: INTO-CPS projects made on Windows name FMUs
+    ``20-Sim\\MassSpringDamper2.fmu``, and no FMU file name holds a backslash."""
+    return path.replace("\\", "/")
+
+
 def _into_cps_fmu(path: str, base_dir: Path) -> str:
     """INTO-CPS keeps FMUs in the project's ``FMUs`` folder and names them relative to it."""
+    path = portable(path)
     if Path(path).is_absolute():
         return path
     for folder in (base_dir, *list(base_dir.parents)[:3]):

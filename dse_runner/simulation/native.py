@@ -40,9 +40,10 @@ CTYPES = {ctypes.c_double: 0, ctypes.c_float: 1, ctypes.c_int8: 2, ctypes.c_uint
 CONVERSIONS = {"none": 0, "round": 1, "threshold": 2}
 (DONE, FEED_FAILED, STEP_FAILED, READ_FAILED, TIMEOUT, DIVERGED, UNFIT, TERMINATE, TEXT_READ_FAILED,
  TEXT_FEED_FAILED, NO_MEMORY, LIFECYCLE_FAILED) = range(12)
-# The FMI functions of a unit's set-up and end (LIFECYCLE_FAILED's group indexes these), by FMI version.
-LIFECYCLE = {2: ("fmi2SetupExperiment", "fmi2EnterInitializationMode", "fmi2ExitInitializationMode", "fmi2Terminate"),
-             3: (None, "fmi3EnterInitializationMode", "fmi3ExitInitializationMode", "fmi3Terminate")}
+# The FMI functions of a unit's initialization and end (LIFECYCLE_FAILED's group indexes these), by FMI
+# version; fmi2SetupExperiment is Python's, before the values are set.
+LIFECYCLE = {2: ("fmi2EnterInitializationMode", "fmi2ExitInitializationMode", "fmi2Terminate"),
+             3: ("fmi3EnterInitializationMode", "fmi3ExitInitializationMode", "fmi3Terminate")}
 
 
 class NativeLoopWarning(UserWarning):
@@ -63,8 +64,8 @@ class Unit(ctypes.Structure):
 
 
 class Lifecycle(ctypes.Structure):
-    _fields_ = [("setup", ctypes.c_void_p), ("enter", ctypes.c_void_p), ("exit", ctypes.c_void_p),
-                ("terminate", ctypes.c_void_p), ("tolerance_defined", ctypes.c_int32), ("tolerance", ctypes.c_double)]
+    _fields_ = [("enter", ctypes.c_void_p), ("exit", ctypes.c_void_p), ("terminate", ctypes.c_void_p),
+                ("tolerance_defined", ctypes.c_int32), ("tolerance", ctypes.c_double), ("stop_defined", ctypes.c_int32)]
 
 
 class TextRead(ctypes.Structure):
@@ -248,13 +249,12 @@ def step_loop(program: Program, times: np.ndarray, external: np.ndarray | None, 
 
 
 def _lifecycle(stepper) -> Lifecycle:
-    """A co-simulation unit's set-up and end functions, from the library FMPy loaded."""
+    """A co-simulation unit's initialization and end functions, from the library FMPy loaded."""
     dll = stepper.instance.slave.dll
-    setup, enter, exit_, terminate = (_address(getattr(dll, name)) if name else None
-                                      for name in LIFECYCLE[stepper.fmi_version])
+    enter, exit_, terminate = (_address(getattr(dll, name)) for name in LIFECYCLE[stepper.fmi_version])
     tolerance = stepper.tolerance
-    return Lifecycle(setup=setup, enter=enter, exit=exit_, terminate=terminate,
-                     tolerance_defined=tolerance is not None, tolerance=tolerance or 0.0)
+    return Lifecycle(enter=enter, exit=exit_, terminate=terminate, tolerance_defined=tolerance is not None,
+                     tolerance=tolerance or 0.0, stop_defined=stepper.set_stop_time)
 
 
 def _decode(program: Program, outcome: Outcome, offsets: np.ndarray, texts: dict[str, list[str]]) -> None:

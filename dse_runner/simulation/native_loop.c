@@ -33,7 +33,7 @@ enum { F64, F32, I8, U8, I16, U16, I32, U32, I64, U64, BOOL8, CINT };  /* CINT: 
 enum { COPY, ROUND, THRESHOLD };
 enum { DONE, FEED_FAILED, STEP_FAILED, READ_FAILED, TIMEOUT, DIVERGED, UNFIT, TERMINATE,
        TEXT_READ_FAILED, TEXT_FEED_FAILED, NO_MEMORY, LIFECYCLE_FAILED };
-enum { SETUP, ENTER, EXIT, END };  /* Lifecycle calls, as LIFECYCLE_FAILED's group */
+enum { ENTER, EXIT, END };  /* Lifecycle calls, as LIFECYCLE_FAILED's group */
 
 #define FMI_WARNING 1  /* statuses above this are failures, in FMI 2 and 3 alike */
 
@@ -41,7 +41,6 @@ typedef int (*Access2)(void *, const uint32_t *, size_t, void *);
 typedef int (*Access3)(void *, const uint32_t *, size_t, void *, size_t);
 typedef int (*Step2)(void *, double, double, int);
 typedef int (*Step3)(void *, double, double, bool, bool *, bool *, bool *, double *);
-typedef int (*Setup2)(void *, int, double, double, int, double);
 typedef int (*Enter3)(void *, bool, double, double, bool, double);
 typedef int (*Call1)(void *);
 
@@ -67,11 +66,11 @@ typedef struct {
     int32_t unit;
 } Unit;
 
-typedef struct {          /* a unit's set-up and end, when the loop does them (Call.lifecycle) */
-    void *setup;          /* fmi2SetupExperiment; NULL in FMI 3, whose enter takes the times */
-    void *enter, *exit, *terminate;
-    int32_t tolerance_defined;
+typedef struct {          /* a unit's initialization and end, when the loop does them (Call.lifecycle); */
+    void *enter, *exit, *terminate;  /* Python set the experiment up (FMI 2) and set the values before */
+    int32_t tolerance_defined;       /* FMI 3's enter takes the tolerance and the times */
     double tolerance;
+    int32_t stop_defined;
 } Lifecycle;
 
 typedef struct {          /* the string outputs of one unit */
@@ -567,8 +566,8 @@ static int lifecycle_status(const Call *c, int status, int32_t unit, int which, 
 }
 
 /*
- * What cosim.py's Python does around the loop, when Call.lifecycle is given: every unit set up and
- * in initialization mode, outputs read and inputs fed once, initialization left, outputs read again
+ * What cosim.py's Python does around the loop, when Call.lifecycle is given (Python has set every
+ * unit's experiment up and its values): every unit in initialization mode, outputs read and inputs fed once, initialization left, outputs read again
  * into row 0 of the record (the values were set by Python just before).
  */
 static int initialise(const Call *c) {
@@ -577,14 +576,11 @@ static int initialise(const Call *c) {
         const Unit *unit = &c->units[u];
         const Lifecycle *l = &c->lifecycle[u];
         int code;
-        if (unit->version == 3) {
+        if (unit->version == 3)
             code = lifecycle_status(c, ((Enter3)l->enter)(unit->component, l->tolerance_defined != 0, l->tolerance,
-                                                          start, true, stop_time), u, ENTER, start);
-        } else {
-            code = lifecycle_status(c, ((Setup2)l->setup)(unit->component, l->tolerance_defined, l->tolerance, start, 0,
-                                                          0.0), u, SETUP, start);
-            if (code == DONE) code = lifecycle_status(c, ((Call1)l->enter)(unit->component), u, ENTER, start);
-        }
+                                                          start, l->stop_defined != 0, stop_time), u, ENTER, start);
+        else
+            code = lifecycle_status(c, ((Call1)l->enter)(unit->component), u, ENTER, start);
         if (code != DONE) return code;
     }
     int code = read_all(c, 0, start);

@@ -1,7 +1,8 @@
 """Steppers: one FMU instance as the master loop drives it, whatever its FMI version and interface.
 
-The master (cosim.py) asks every instance for the same few things: set
-values, enter and exit initialization, step from one communication point to
+The master (cosim.py) asks every instance for the same few things, in the
+order FMPy and the standard use: set up the experiment, set values, enter and
+exit initialization, step from one communication point to
 the next, read and write typed values through prepared buffers, terminate.
 Each FMI version and interface answers in its own small class, side by side
 as FMPy keeps ``simulateCS`` and ``simulateME``:
@@ -60,10 +61,15 @@ class Stepper:
     after: tuple = ()
     step_name = "doStep"
 
-    def __init__(self, instance: Instance, tolerance: float | None = None):
+    def __init__(self, instance: Instance, tolerance: float | None = None, set_stop_time: bool = True):
         self.instance = instance
         self.name = instance.name
         self.tolerance = tolerance
+        self.set_stop_time = set_stop_time  # FMPy's default: the FMU is told when the experiment ends
+
+    def stop_time(self, stop: float) -> float | None:
+        """The stop time the FMU is told, or None where the multi-model says not to tell it."""
+        return stop if self.set_stop_time else None
 
     def access(self, variable: Variable) -> Access:
         raise NotImplementedError
@@ -95,6 +101,11 @@ class Stepper:
                                                                    buffer))
         return found
 
+    def setup(self, start: float, stop: float) -> None:
+        """The experiment, before any value is set (FMI 2's fmi2SetupExperiment: an FMU may load its
+        defaults there, so values set earlier would be lost). FMI 3 takes the times on entering
+        initialization instead."""
+
     def enter_initialization(self, start: float, stop: float) -> None:
         raise NotImplementedError
 
@@ -112,8 +123,8 @@ class Stepper:
 class CoSimulation2(Stepper):
     """FMI 2.0 co-simulation."""
 
-    def __init__(self, instance: Instance, tolerance: float | None = None):
-        super().__init__(instance, tolerance)
+    def __init__(self, instance: Instance, tolerance: float | None = None, set_stop_time: bool = True):
+        super().__init__(instance, tolerance, set_stop_time)
         dll = instance.slave.dll
         self.call = dll.fmi2DoStep  # FMPy set its ctypes signature
         self.before, self.after = (instance.slave.component,), (fmi2True,)
@@ -124,8 +135,10 @@ class CoSimulation2(Stepper):
         dll = self.instance.slave.dll
         return Access(getattr(dll, f"fmi2Get{kind}"), getattr(dll, f"fmi2Set{kind}"), ctype, f"fmi2Get{kind}")
 
+    def setup(self, start: float, stop: float) -> None:
+        self.instance.slave.setupExperiment(tolerance=self.tolerance, startTime=start, stopTime=self.stop_time(stop))
+
     def enter_initialization(self, start: float, stop: float) -> None:
-        self.instance.slave.setupExperiment(tolerance=self.tolerance, startTime=start)
         self.instance.slave.enterInitializationMode()
 
 
@@ -134,8 +147,8 @@ class CoSimulation3(Stepper):
 
     fmi_version = 3
 
-    def __init__(self, instance: Instance, tolerance: float | None = None):
-        super().__init__(instance, tolerance)
+    def __init__(self, instance: Instance, tolerance: float | None = None, set_stop_time: bool = True):
+        super().__init__(instance, tolerance, set_stop_time)
         slave = instance.slave
         self.flags = [ctypes.c_bool(), ctypes.c_bool(), ctypes.c_bool(), ctypes.c_double()]
         self.call = slave.dll.fmi3DoStep
@@ -152,7 +165,8 @@ class CoSimulation3(Stepper):
         return (self.handle(), vrs, n, buffer, n)  # FMI 3 also counts values (arrays)
 
     def enter_initialization(self, start: float, stop: float) -> None:
-        self.instance.slave.enterInitializationMode(tolerance=self.tolerance, startTime=start, stopTime=stop)
+        self.instance.slave.enterInitializationMode(tolerance=self.tolerance, startTime=start,
+                                                    stopTime=self.stop_time(stop))
 
     def check_step(self, t: float) -> str | None:
         return "the FMU asked to terminate the simulation" if self.flags[1].value else None
@@ -161,13 +175,14 @@ class CoSimulation3(Stepper):
 class ModelExchange(Stepper):
     """FMI 2.0 or 3.0 model exchange: each communication step is integrated by FMPy's solvers."""
 
-    def __init__(self, instance: Instance, tolerance: float | None = None, solver: str = "cvode",
-                 euler_step: float | None = None):
-        super().__init__(instance, tolerance)
+    def __init__(self, instance: Instance, tolerance: float | None = None, set_stop_time: bool = True,
+                 solver: str = "cvode", euler_step: float | None = None):
+        super().__init__(instance, tolerance, set_stop_time)
         from .model_exchange import ModelExchangeStepper
 
         self.integrator = ModelExchangeStepper(instance.slave, instance.fmu.description, solver=solver,
-                                               tolerance=tolerance, euler_step=euler_step)
+                                               tolerance=tolerance, euler_step=euler_step,
+                                               set_stop_time=set_stop_time)
         self.call = self._do_step
         self.step_name = "the integration"
         self._typed = CoSimulation2 if instance.fmu.version == 2 else CoSimulation3
@@ -182,6 +197,9 @@ class ModelExchange(Stepper):
     def args(self, access: Access, vrs, n: int, buffer) -> tuple:
         return self._typed.args(self, access, vrs, n, buffer)
 
+    def setup(self, start: float, stop: float) -> None:
+        self.integrator.setup(start, stop)
+
     def enter_initialization(self, start: float, stop: float) -> None:
         self.integrator.enter_initialization(start, stop)
 
@@ -195,8 +213,9 @@ class ModelExchange(Stepper):
 def stepper(instance: Instance, settings) -> Stepper:
     """The stepper for an instance's FMI version and interface, with its multi-model settings."""
     tolerance = settings.tolerance if settings is not None else None
+    set_stop_time = settings.set_stop_time if settings is not None else True
     if instance.fmu.interface == "me":
         solver = settings.solver if settings is not None else "cvode"
         euler_step = settings.euler_step if settings is not None else None
-        return ModelExchange(instance, tolerance, solver, euler_step)
-    return (CoSimulation2 if instance.fmu.version == 2 else CoSimulation3)(instance, tolerance)
+        return ModelExchange(instance, tolerance, set_stop_time, solver, euler_step)
+    return (CoSimulation2 if instance.fmu.version == 2 else CoSimulation3)(instance, tolerance, set_stop_time)

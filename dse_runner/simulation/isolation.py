@@ -1,0 +1,180 @@
+"""A fresh process for each run, for FMUs that cannot be trusted with a second run in one process.
+
+Some exported FMUs keep state in their shared library: they declare
+``canBeInstantiatedOnlyOncePerProcess``, keep old outputs after ``fmi2Reset``,
+or crash when instantiated again. The only safe way to run them many times
+is the reference itself: every run in a process that has never loaded them.
+
+A Dask worker can neither fork itself (it has threads) nor start
+multiprocessing children (it is daemonic), so each thread that needs this
+keeps a *zygote*: a Python process started once with :mod:`subprocess`,
+single-threaded, that imports the simulation modules and describes the FMUs
+but never loads one. For every run it forks a child, which calls the function
+it was sent, sends back the result (or the exception) through a pipe and
+exits without freeing anything. A child that dies (an FMU's ``abort`` or
+segmentation fault) comes back as a :class:`~dse_runner.simulation.cosim.CosimError`
+naming the signal and the last line the process printed.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import pickle
+import signal
+import struct
+import subprocess
+import sys
+import tempfile
+import threading
+import warnings
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any, BinaryIO
+
+from ..errors import DseError
+
+_HEADER = struct.Struct("!Q")
+_LOCAL = threading.local()
+_IN_CHILD = False  # true in a forked child: the run happens here, not in yet another process
+
+
+def in_child() -> bool:
+    """Whether this process is a fresh one forked for a single run."""
+    return _IN_CHILD
+
+
+def run(function: Callable[..., Any], *args: Any, preload: Iterable[tuple[Path, str]] = ()) -> Any:
+    """``function(*args)`` in a fresh process; its result, or its exception raised here. ``preload``:
+    the FMUs (path, interface) the zygote describes and extracts once, so a child only loads them."""
+    zygote = getattr(_LOCAL, "zygote", None)
+    if zygote is None or zygote.process.poll() is not None:
+        zygote = _LOCAL.zygote = _Zygote()
+    ok, value = zygote.call(function, args, list(preload))
+    if not ok:
+        raise value
+    return value
+
+
+class _Zygote:
+    """The parent of the fresh processes of one thread; ends when its pipe closes (with this process)."""
+
+    def __init__(self):
+        from .fmu import extract_root
+
+        package_parent = str(Path(__file__).resolve().parents[2])
+        env = {**os.environ, "LIBC_FATAL_STDERR_": "1", "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
+               "PYTHONPATH": os.pathsep.join(filter(None, (package_parent, os.environ.get("PYTHONPATH"))))}
+        self.process = subprocess.Popen([sys.executable, "-m", __name__, str(extract_root())],
+                                        stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
+
+    def call(self, function: Callable[..., Any], args: tuple, preload: list) -> tuple[bool, Any]:
+        try:
+            _send(self.process.stdin, pickle.dumps((function, args, preload), protocol=pickle.HIGHEST_PROTOCOL))
+            reply = _receive(self.process.stdout)
+        except (BrokenPipeError, OSError):
+            reply = None
+        if reply is None:
+            self.process.kill()
+            raise DseError(f"the process that starts fresh processes for FMU runs ended (exit code "
+                           f"{self.process.wait()}); see the worker's log")
+        return pickle.loads(reply)
+
+
+def _send(stream: BinaryIO, payload: bytes) -> None:
+    stream.write(_HEADER.pack(len(payload)))
+    stream.write(payload)
+    stream.flush()
+
+
+def _receive(stream: BinaryIO) -> bytes | None:
+    header = stream.read(_HEADER.size)
+    if len(header) < _HEADER.size:
+        return None
+    return stream.read(_HEADER.unpack(header)[0])
+
+
+# ---- the zygote's side ---------------------------------------------------------------------------
+
+def _serve(extract_root: str) -> None:
+    """Answer requests until the parent closes the pipe. Frames travel on a copy of stdout; fd 1 then
+    points at stderr, so that what an FMU prints cannot corrupt them."""
+    frames_out = os.fdopen(os.dup(1), "wb")
+    os.dup2(2, 1)
+    from . import fmu as fmus
+    from . import run as _  # noqa: F401  (import everything a run needs once, before any fork)
+
+    fmus.use_extract_root(Path(extract_root))
+    warnings.simplefilter("ignore")  # the worker has warned about these FMUs already
+    requests = sys.stdin.buffer
+    while (request := _receive(requests)) is not None:
+        function, args, preload = pickle.loads(request)
+        for path, interface in preload:
+            try:
+                fmus.load(Path(path), interface)  # describe and find the extraction once, for every child
+            except DseError:
+                pass  # the child meets the same error and reports it
+        _send(frames_out, _fork(function, args))
+
+
+def _fork(function: Callable[..., Any], args: tuple) -> bytes:
+    """Run ``function(*args)`` in a forked child; its pickled (ok, value), or an error if it died."""
+    read_end, write_end = os.pipe()
+    with tempfile.TemporaryFile() as log:
+        pid = os.fork()
+        if pid == 0:  # the child: never returns
+            os.close(read_end)
+            os.dup2(log.fileno(), 1)
+            os.dup2(log.fileno(), 2)
+            _child(function, args, write_end)
+        os.close(write_end)
+        with os.fdopen(read_end, "rb") as results:
+            data = results.read()
+        _, status = os.waitpid(pid, 0)
+        log.seek(0)
+        said = log.read().decode("utf-8", "replace")
+    if said:
+        sys.stderr.write(said)
+        sys.stderr.flush()
+    if data and os.WIFEXITED(status):
+        return data
+    return pickle.dumps((False, _death(status, said)))
+
+
+def _child(function: Callable[..., Any], args: tuple, write_end: int) -> None:
+    global _IN_CHILD
+    _IN_CHILD = True
+    try:
+        reply: tuple[bool, Any] = (True, function(*args))
+    except BaseException as e:  # noqa: BLE001  (the parent raises it)
+        reply = (False, e)
+    try:
+        data = pickle.dumps(reply, protocol=pickle.HIGHEST_PROTOCOL)
+    except Exception as e:  # an exception or result that does not pickle
+        data = pickle.dumps((False, DseError(f"{type(reply[1]).__name__}: {reply[1]} ({e})")))
+    with os.fdopen(write_end, "wb") as out:
+        out.write(data)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    ctypes.CDLL(None).fflush(None)  # what the FMU printf'ed, before _exit skips the C library's flush
+    os._exit(0)  # no atexit, no freeing: the FMU's library goes with the process
+
+
+def _death(status: int, said: str) -> Exception:
+    from .cosim import CosimError
+
+    if os.WIFSIGNALED(status):
+        number = os.WTERMSIG(status)
+        how = f"was killed by {signal.Signals(number).name}" if number in signal.Signals._value2member_map_ \
+            else f"was killed by signal {number}"
+    else:
+        how = f"exited with code {os.WEXITSTATUS(status)}"
+    last = next((line.strip() for line in reversed(said.splitlines()) if line.strip()), "")
+    return CosimError(f"the fresh process running this simulation {how}: the FMU crashed"
+                      + (f" ({last})" if last else ""))
+
+
+if __name__ == "__main__":  # run as a script, this is a copy of the module: serve from the real one
+    from dse_runner.simulation import isolation
+
+    isolation._serve(sys.argv[1])
