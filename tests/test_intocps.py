@@ -18,6 +18,8 @@ from conftest import REPO, strict_loads
 
 from dse_runner.errors import DseError
 from dse_runner.interfaces import intocps
+from dse_runner.simulation import python2
+from dse_runner.simulation.multimodel import load_multimodel
 from dse_runner.simulation.objectives import Reduce
 from dse_runner.simulation.run import simulate
 from dse_runner.sweeps import store
@@ -25,6 +27,9 @@ from dse_runner.sweeps.spec import load_space
 
 PROJECT = REPO / "jobs" / "intocps-watertank"
 DSE = Path("DSEs/levels/levels.dse.json")
+WILD = Path(__file__).resolve().parents[2] / "shared" / "fmus-wild"  # INTO-CPS's own example projects
+needs_wild = pytest.mark.skipif(not WILD.is_dir(), reason=f"INTO-CPS's example projects are not beside the "
+                                                          f"checkout ({WILD}); CI has them")
 
 
 def dse_runner(*args, cwd=REPO):
@@ -254,3 +259,171 @@ def test_mm_json_connections_of_every_type(tmp_path):
                               "connections": {"{t}.a.int_out": ["{u}.a.int_in"]}}))
     with pytest.raises(DseError, match=r"instance 'a' belongs to two FMUs, \{t\} and \{u\}"):
         simulate(mm, stop_time=1, step=0.5)
+
+
+def failing_script(project: Path) -> None:
+    """switches.py raising on its third line."""
+    (project / "userMetricScripts" / "switches.py").write_text("import sys\n\nratio = 1 / 0\n")
+
+
+def test_a_failing_script_is_reported_by_its_exception_line(tmp_path, dask_scheduler):
+    """submit prints each failure's first line: the script's exception, not 'Traceback (most recent call last):'."""
+    project = copy_project(tmp_path)
+    failing_script(project)
+    done = dse_runner("submit", project / DSE, "--out", tmp_path / "out", "--scheduler", dask_scheduler,
+                      "--no-dashboard")
+    failed = [line for line in done.stdout.splitlines() if line.startswith("  failed: ")]
+    assert failed and "Traceback" not in done.stdout, done.stdout
+    assert all(line.endswith("objective 'switches': script switches.py failed (exit code 1) at line 3: "
+                             "ZeroDivisionError: division by zero") for line in failed), failed
+    error = store.read_results(tmp_path / "out", "levels")["error"].iloc[0]
+    assert "Traceback (most recent call last):" in error.splitlines()[1]  # the traceback follows
+
+
+def test_submit_exits_1_alike_with_and_without_json_when_nothing_is_ranked(tmp_path, dask_scheduler):
+    project = copy_project(tmp_path)
+    failing_script(project)
+    runs = {flags: dse_runner("submit", project / DSE, "--out", tmp_path / f"out{len(flags)}", "--scheduler",
+                              dask_scheduler, "--no-dashboard", *flags) for flags in ((), ("--json",))}
+    assert [done.returncode for done in runs.values()] == [1, 1], [done.stderr for done in runs.values()]
+    for done in runs.values():
+        assert done.stderr.strip().splitlines()[-1].startswith("error: no ranking: sweep 'levels': no parameter "
+                                                              "point has an ok result")
+    summary = strict_loads(runs[("--json",)].stdout)  # nothing but the JSON on stdout
+    assert summary["ranking"] is None and summary["failed"] == summary["ran"] > 0
+
+
+def test_a_dse_naming_instances_no_multimodel_defines_names_them(tmp_path):
+    project = copy_project(tmp_path)
+    other = project / "Multi-models" / "other"
+    (other / "run").mkdir(parents=True)
+    (other / "run" / "coe.json").write_text(json.dumps({"endTime": 1, "algorithm": {"type": "fixed-step",
+                                                                                     "size": 1}}))
+    mm = {"fmus": {"{controller}": "c.fmu", "{tankFMU}": "t.fmu"},
+          "connections": {"{controller}.controller.valve": ["{tankFMU}.tanks.valvecontrol"]}}
+    (other / "other.mm.json").write_text(json.dumps(mm))
+    dse = project / DSE
+    dse.write_text(dse.read_text().replace("{controllerFMU}", "{controller}"))
+    with pytest.raises(DseError) as error:
+        intocps.project.locate(dse)
+    assert str(error.value) == (
+        "no multi-model of the project defines every {fmu}.instance this DSE names: "
+        "Multi-models/other/other.mm.json lacks {tankFMU}.tank; "
+        "Multi-models/watertank/watertank.mm.json lacks {controller}.controller")
+    mm["connections"] = {"{ctrl}.controller.valve": ["{tankFMU}.tank.valvecontrol"]}
+    mm["fmus"]["{ctrl}"] = mm["fmus"].pop("{controller}")
+    (other / "other.mm.json").write_text(json.dumps(mm))
+    done = dse_runner("submit", dse, "--no-dashboard")  # the same from the command, with what both lack
+    assert done.returncode == 2 and done.stderr.strip() == (
+        "error: this DSE names {controller}.controller, which no multi-model of the project defines (looked at "
+        "Multi-models/other/other.mm.json, Multi-models/watertank/watertank.mm.json; a multi-model defines "
+        "the {fmu}.instance its connections and parameters name)")
+    with pytest.raises(DseError, match=r"^this DSE names \{controller\}\.controller, .*\(looked at "
+                                       r"Multi-models/watertank/watertank\.mm\.json;"):
+        intocps.project.locate(dse, multimodel=project / "Multi-models/watertank/watertank.mm.json")
+
+
+@needs_wild
+def test_an_mm_json_naming_fmus_with_windows_separators_runs():
+    """mass_spring_damper's mm.json names 20-Sim\\MassSpringDamper2.fmu, in the FMUs folder's 20-Sim/."""
+    project = WILD / "mass_spring_damper"
+    mm = project / "Multi-models" / "Stability" / "mm.json"
+    model = load_multimodel(mm)
+    assert model.fmu_path("i2") == (project / "FMUs" / "20-Sim" / "MassSpringDamper2.fmu").resolve()
+    trajectory = simulate(mm, stop_time=0.05, step=0.001).trajectory
+    x1, x2 = trajectory.column("i1.x1"), trajectory.column("i2.x2")
+    assert np.isfinite(x1).all() and np.isfinite(x2).all()
+    assert x1[0] == 1.0 and x2[-1] > 0  # m1 starts displaced and pulls m2 through the connections
+
+
+def test_our_multimodel_reads_backslashes_in_fmu_paths_as_slashes(tmp_path):
+    types2 = REPO / "tests" / "fmus" / "types2"
+    relative = __import__("os").path.relpath(types2, tmp_path).replace("/", "\\")
+    (tmp_path / "mm.yaml").write_text(f"fmus: {{a: '{relative}'}}\n")
+    assert load_multimodel(tmp_path / "mm.yaml").fmu_path("a") == types2.resolve()
+
+
+@needs_wild
+def test_intocps_python2_scripts_are_refused_before_any_task(tmp_path):
+    """single_watertank's scripts call unicode(): one line naming the script and the line, and nothing runs."""
+    project = WILD / "single_watertank"
+    done = dse_runner("submit", project / "DSEs/swt-levels/swt-levels.dse.json", "--coe",
+                      project / "Multi-models/mm/co-sim-51/co-sim-51.coe.json", "--out", tmp_path / "out",
+                      "--no-dashboard")
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.strip().splitlines() == [
+        f"error: {project}/DSEs/swt-levels/swt-levels.dse.json: objectives.cumulativeDeviation: "
+        f"{project}/userMetricScripts/cumulativeDeviation.py line 25: a Python 2 script (unicode(), which "
+        "Python 3 does not have); dse-runner runs scripts with Python 3: port it (2to3 does most of it, see "
+        "docs/intocps.md)"]
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_python2_script_in_a_dse_is_named_with_its_line(tmp_path):
+    project = copy_project(tmp_path)
+    (project / "userMetricScripts" / "switches.py").write_text("import sys\n\nprint sys.argv[2]\n")
+    done = dse_runner("submit", project / DSE, "--out", tmp_path / "out", "--no-dashboard")
+    assert done.returncode == 2 and not (tmp_path / "out").exists()
+    assert done.stderr.strip().endswith(
+        "objectives.switches: " + str((project / "userMetricScripts" / "switches.py").resolve())
+        + " line 3: a Python 2 script (print statement); dse-runner runs scripts with Python 3: port it "
+          "(2to3 does most of it, see docs/intocps.md)"), done.stderr
+
+
+@pytest.mark.parametrize(("code", "line", "what"), [
+    ("import sys\nprint sys.argv\n", 2, "print statement"),
+    ("import sys\nprint >>sys.stderr, 'x'\n", 2, "print statement"),
+    ("x = 1\nprint\n", 2, "print statement"),
+    ("exec 'x = 1'\n", 1, "exec statement"),
+    ("try:\n    pass\nexcept IOError, e:\n    pass\n", 3, "except X, e"),
+    ("raise ValueError, 'no'\n", 1, "raise X, message"),
+    ("if 1 <> 2:\n    pass\n", 1, "the <> operator"),
+    ("x = 10L\n", 1, "a long literal such as 10L"),
+    ("x = 0777\n", 1, "an octal literal such as 0777"),
+    ("x = `1`\n", 1, "backquotes for repr"),
+    ("x = 1\ny = unicode(x)\n", 2, "unicode(), which Python 3 does not have"),
+    ("for i in xrange(3):\n    pass\n", 1, "xrange(), which Python 3 does not have"),
+    ("d = {}\nif d.has_key('a'):\n    pass\n", 2, ".has_key(), a dict method Python 3 does not have"),
+    ("import urllib2\n", 1, "module urllib2, which Python 3 renamed or removed"),
+    ("from StringIO import StringIO\n", 1, "module StringIO, which Python 3 renamed or removed"),
+])
+def test_python2_is_told_from_python3(code, line, what):
+    with pytest.raises(DseError) as error:
+        python2.check(code, Path("/scripts/metric.py"))
+    assert str(error.value) == (f"/scripts/metric.py line {line}: a Python 2 script ({what}); dse-runner runs "
+                                "scripts with Python 3: port it (2to3 does most of it, see docs/intocps.md)")
+
+
+@pytest.mark.parametrize(("code", "message"), [
+    ("x = 1\ndef f(:\n    pass\n", "line 2: not valid Python 3: invalid syntax"),
+    ("x = 1\nreturn x\n", "line 2: not valid Python 3: 'return' outside function"),
+    ("import sys\nprint('x', file=sys.stderr)\nprinter = print\n", None),
+    ("try:\n    unicode\nexcept NameError:\n    unicode = str\nprint(unicode(1))\n", None),  # for both
+    ("try:\n    from StringIO import StringIO\nexcept ImportError:\n    from io import StringIO\n", None),
+    ("from functools import reduce\nlong = int\nprint(reduce(max, [long(1)]))\n", None),
+])
+def test_python3_scripts_pass_and_other_syntax_errors_are_named(code, message):
+    if message is None:
+        python2.check(code, Path("/scripts/metric.py"))
+        return
+    with pytest.raises(DseError, match=f"^/scripts/metric.py {message}$"):
+        python2.check(code, Path("/scripts/metric.py"))
+
+
+def test_the_porting_example_of_docs_intocps_runs_as_written(tmp_path):
+    """docs/intocps.md's Python 2 valveChanges.py is refused at its print statement; its port counts the
+    valve's switches as the declared objective does."""
+    text = (REPO / "docs" / "intocps.md").read_text().split("## Porting a Python 2 script")[1]
+    before, after = [block.split("```")[0] for block in text.split("```python\n")[1:3]]
+    project = copy_project(tmp_path)
+    script = project / "userMetricScripts" / "switches.py"
+    script.write_text(before)
+    with pytest.raises(DseError, match=r"switches\.py line 10: a Python 2 script \(print statement\)"):
+        intocps.load_space(project / DSE)
+    script.write_text(after)
+    space = intocps.load_space(project / DSE)
+    result = simulate(space.plan, space.scenarios[0], {"controller.minlevel": 0.8, "controller.maxlevel": 1.8},
+                      objectives={"switches": space.objectives["switches"],
+                                  "changes": Reduce(signal="controller.valve", reduce="changes")},
+                      experiment=space.experiment)
+    assert result.objectives["switches"] == result.objectives["changes"] > 0

@@ -79,3 +79,14 @@ def test_bad_files_name_the_file_and_key(tmp_path, name, text, model, message):
         read(write(tmp_path, name, text), model)
     with pytest.raises(DseError, match=r"cannot read .*missing\.dse\.json"):
         read(tmp_path / "missing.dse.json", DseConfig)
+
+
+def test_paths_written_on_windows_read_with_slashes(tmp_path):
+    """A project made on Windows: its scriptFile and multimodel_path use backslashes."""
+    dse = read(write(tmp_path, "a.dse.json", {
+        "parameters": {"{c}.c.x": [1]},
+        "objectiveDefinitions": {"externalScripts": {"s": {"scriptFile": "metrics\\settle.py"}}}}), DseConfig)
+    assert dse.objectiveDefinitions.externalScripts["s"].scriptFile == "metrics/settle.py"
+    coe = read(write(tmp_path, "coe.json", {"endTime": 10, "algorithm": {"type": "fixed-step", "size": 0.001},
+                                            "multimodel_path": "Multi-models\\Stability\\mm.json"}), CoeConfig)
+    assert coe.multimodel_path == "Multi-models/Stability/mm.json"

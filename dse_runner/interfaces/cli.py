@@ -1,7 +1,9 @@
 """The ``dse-runner`` command: a thin shell over the Python API.
 
 Every command that reports results takes ``--json`` and then prints one JSON
-object on stdout and nothing else; errors go to stderr with exit code 2.
+object on stdout and nothing else; errors go to stderr with exit code 2. The
+exit code does not depend on ``--json``: a ``submit`` whose sweep ran but could
+rank no point exits 1 either way (its JSON then says ``"ranking": null``).
 """
 
 from __future__ import annotations
@@ -163,6 +165,9 @@ def simulate(
         return
     typer.echo(f"scenario {result.scenario.name}  ({result.scenario.group}, {result.times.start:g}..{result.times.stop:g} s, "
                f"step {result.step:g} s)")
+    for name, verdict in result.lifecycle.items():
+        if verdict.mode == "process":
+            typer.echo(f"{name} ran in a fresh process: {verdict.reason}")
     for name, value in result.objectives.items():
         shown = f"{value:10.4f}" if isinstance(value, float) else f"[{len(value)} values]"
         typer.echo(f"  {name:<20} {shown}")

@@ -113,6 +113,18 @@ def describe(path: Path) -> ModelDescription:
     return _description(str(path), content_hash(path))
 
 
+def model_identifiers(path: Path) -> set[str]:
+    """The model identifiers an FMU declares (none if it is not a readable FMU): cheap, no check."""
+    from xml.etree.ElementTree import ParseError, fromstring
+
+    try:
+        with zipfile.ZipFile(path) as archive:
+            root = fromstring(archive.read("modelDescription.xml"))
+    except (OSError, KeyError, ParseError, zipfile.BadZipFile):
+        return set()
+    return {part.get("modelIdentifier") for part in root if part.get("modelIdentifier")}
+
+
 def choose_interface(path: Path, description: ModelDescription, wanted: Interface | None) -> Interface:
     """Co-simulation when the FMU offers it, unless model exchange is asked for; an error if the
     FMU cannot be run the way asked."""

@@ -25,6 +25,7 @@ converted into the same model, so the rest of the tool sees one format.
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 from typing import Any, Literal
 
@@ -33,6 +34,7 @@ from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationErro
 
 from .. import bundled
 from ..errors import DseError, format_syntax_error, format_validation_error
+from .fmu import FmuWarning
 from .variables import FiniteValue, split_ref
 
 Strict = ConfigDict(extra="forbid", allow_inf_nan=False)
@@ -166,14 +168,35 @@ def portable(path: str) -> str:
 
 
 def _into_cps_fmu(path: str, base_dir: Path) -> str:
-    """INTO-CPS keeps FMUs in the project's ``FMUs`` folder and names them relative to it."""
+    """INTO-CPS keeps FMUs in the project's ``FMUs`` folder and names them relative to it. A file renamed
+    since the multi-model was written is found by its model identifier or its name written otherwise
+    (``-`` for ``_``, case), where that points at one FMU of the folder, with a warning."""
     path = portable(path)
     if Path(path).is_absolute():
         return path
-    for folder in (base_dir, *list(base_dir.parents)[:3]):
-        if (folder / "FMUs" / path).exists():
-            return str((folder / "FMUs" / path).resolve())
+    folders = [folder / "FMUs" for folder in (base_dir, *list(base_dir.parents)[:3]) if (folder / "FMUs").is_dir()]
+    for folder in folders:
+        if (folder / path).exists():
+            return str((folder / path).resolve())
+    for folder in folders[:1]:
+        renamed = _renamed(folder, Path(path).stem)
+        if renamed is not None:
+            warnings.warn(FmuWarning(f"{path}: no such FMU in {folder}; using {renamed.relative_to(folder)}, "
+                                     "the one FMU there of that name or model identifier"), stacklevel=2)
+            return str(renamed.resolve())
     return path
+
+
+def _renamed(folder: Path, stem: str) -> Path | None:
+    """The one FMU under ``folder`` whose file name or model identifier is ``stem`` written otherwise."""
+    from .fmu import model_identifiers
+
+    def key(name: str) -> str:
+        return name.lower().replace("-", "").replace("_", "").replace(" ", "")
+
+    found = {fmu for fmu in folder.rglob("*.fmu")
+             if key(fmu.stem) == key(stem) or stem in model_identifiers(fmu)}
+    return found.pop() if len(found) == 1 else None
 
 
 def from_into_cps(data: dict[str, Any], base_dir: Path = Path(".")) -> dict[str, Any]:

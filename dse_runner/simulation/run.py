@@ -21,6 +21,7 @@ from ..errors import DseError
 from . import objectives as objs
 from .cosim import Plan, Runner, Trajectory, make_plan, prepare
 from .experiment import Experiment, Times, resolve_times
+from .lifecycle import Verdict, needs_process
 from .multimodel import MultiModel, load_multimodel
 from .scenario import Scenario, Series, kind, load_scenario, nominal
 from .variables import Value, split_ref
@@ -33,6 +34,12 @@ class SimulationResult:
     times: Times
     trajectory: Trajectory
     objectives: dict[str, float | list[float]]
+    lifecycle: dict[str, Verdict] = field(default_factory=dict)  # how each instance was run (lifecycle.py)
+
+    @property
+    def fresh_process(self) -> bool:
+        """Whether the run had a process of its own (an FMU could not be trusted with reuse)."""
+        return needs_process(self.lifecycle)
 
     @property
     def step(self) -> float:
@@ -128,7 +135,7 @@ def simulate(
     values = recipe.layered(values or {})
     trajectory = recipe.runner.run(values, timeout, loop)
     return SimulationResult(recipe.scenario, values, recipe.times, trajectory,
-                            objs.evaluate(recipe.specs, trajectory, recipe.scenario))
+                            objs.evaluate(recipe.specs, trajectory, recipe.scenario), recipe.runner.lifecycle(values))
 
 
 @dataclass
@@ -224,4 +231,5 @@ def summary(result: SimulationResult, bare: bool = False) -> dict:
         "objectives": result.objectives,
         "final": final,
         "dropouts": result.scenario.dropouts,
+        "lifecycle": {name: {"mode": v.mode, "reason": v.reason} for name, v in result.lifecycle.items()},
     }

@@ -15,10 +15,13 @@ written for INTO-CPS run unchanged once they are Python 3::
 * the ``args`` follow, as text.
 
 A script runs on the worker with the worker's own Python, in a subprocess, so
-it cannot take the worker down. A script that exits non-zero, runs past its
-timeout, or writes no number under its name fails the task; the failed row
-holds its message and the end of its stderr. The script's text travels with
-the objective (read when the spec loads), so workers need no shared files.
+it cannot take the worker down. A script that Python 3 cannot compile, or that
+is Python 2 (python2.py), is an error when the spec loads, before any task. A
+script that exits non-zero, runs past its timeout, or writes no number under
+its name fails the task; the failed row holds its message, the script's
+exception line (the last line of its stderr) first, then the end of its
+stderr. The script's text travels with the objective (read when the spec
+loads), so workers need no shared files.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
+import re
 import subprocess
 import sys
 import tempfile
@@ -38,8 +42,10 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, PositiveFloat, PrivateAttr
 
 from ..errors import DseError
+from . import python2
 
 FAULT_TAIL = 600  # characters of a failing script's stderr kept in its task's error
+FRAME = re.compile(r'^\s*File "(.+)", line (\d+)', re.MULTILINE)  # a traceback's frame
 
 
 class Script(BaseModel):
@@ -55,12 +61,16 @@ class Script(BaseModel):
 
     def loaded(self, base: Path, where: str) -> Script:
         """This objective with its script read: path made absolute, digest and text filled in."""
-        path = Path(self.script) if Path(self.script).is_absolute() else base / self.script
+        path = (Path(self.script) if Path(self.script).is_absolute() else base / self.script).resolve()
         try:
             code = path.read_text()
         except OSError as e:
             raise DseError(f"{where}: cannot read script {path}: {e.strerror}") from None
-        loaded = self.model_copy(update={"script": str(path.resolve()),
+        try:
+            python2.check(code, path)  # before any task runs it
+        except DseError as e:
+            raise DseError(f"{where}: {e}") from None
+        loaded = self.model_copy(update={"script": str(path),
                                          "digest": hashlib.sha256(code.encode()).hexdigest()[:16]})
         loaded._code = code
         return loaded
@@ -107,12 +117,23 @@ def _script_file(spec: Script, folder: Path) -> Path:
     return copy
 
 
+def _failure(stderr: str, script: str) -> str:
+    """What a failing script said, its exception line first: a row's first line is what the command
+    prints, and a traceback's first line says nothing. The end of stderr follows, for the traceback."""
+    lines = [line.strip() for line in stderr.splitlines() if line.strip()]
+    if not lines:
+        return ": (nothing on stderr)"
+    frames = [int(n) for file, n in FRAME.findall(stderr) if Path(file).name == Path(script).name]
+    where = f" at line {frames[-1]}" if frames else ""
+    tail = stderr.strip()[-FAULT_TAIL:]
+    return f"{where}: {lines[-1]}" + (f"\n{tail}" if tail != lines[-1] else "")
+
+
 def _value(name: str, spec: Script, objectives: Path, result: subprocess.CompletedProcess) -> float:
     """The number the script wrote under ``name``; anything else is an error quoting the script."""
     what = f"objective {name!r}: script {Path(spec.script).name}"
     if result.returncode != 0:
-        tail = result.stderr.strip()[-FAULT_TAIL:] or "(nothing on stderr)"
-        raise DseError(f"{what} failed (exit code {result.returncode}): {tail}")
+        raise DseError(f"{what} failed (exit code {result.returncode}){_failure(result.stderr, spec.script)}")
     try:
         written = json.loads(objectives.read_text())
     except (OSError, json.JSONDecodeError) as e:

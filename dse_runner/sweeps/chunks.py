@@ -98,19 +98,20 @@ def _worker_name() -> str:
 
 
 def run_task(plan: Plan, point: Point, scenario: Scenario, objectives: dict[str, ObjectiveSpec],
-             timeout: float, experiment: Experiment | None = None) -> tuple[dict[str, float] | None, str | None]:
-    """Objectives, or the error message after the retry."""
+             timeout: float, experiment: Experiment | None = None
+             ) -> tuple[dict[str, float] | None, str | None, str | None]:
+    """Objectives, or the error message after the retry; and how the run lived (reset or process)."""
     error = None
     for _ in range(ATTEMPTS):
         try:
             result = simulate(plan, scenario, point, objectives=objectives, timeout=timeout,
                               experiment=experiment)
-            return result.objectives, None
+            return result.objectives, None, "process" if result.fresh_process else "reset"
         except DseError as e:
             error = str(e)
         except Exception as e:  # a bug or an FMU misbehaving in a way we did not foresee
             error = f"{type(e).__name__}: {e}\n{traceback.format_exc(limit=3)}"
-    return None, error
+    return None, error, None
 
 
 def run_chunk(job: ChunkJob) -> ChunkSummary:
@@ -120,14 +121,16 @@ def run_chunk(job: ChunkJob) -> ChunkSummary:
     scores: list[dict[str, Any] | None] = []
     errors: list[str | None] = []
     walls: list[float] = []
+    lives: list[str | None] = []
     messages: list[str] = []
     told: list[TaskScores] = []
     started = time.perf_counter()
     for scenario, point in job.tasks.points():
         t0 = time.perf_counter()
-        result, error = run_task(unpacked.plan, point, unpacked.scenarios[scenario], job.objectives,
-                                 job.timeout, job.experiment)
+        result, error, life = run_task(unpacked.plan, point, unpacked.scenarios[scenario], job.objectives,
+                                       job.timeout, job.experiment)
         walls.append(time.perf_counter() - t0)
+        lives.append(life)
         scores.append(result)
         errors.append(error)
         if error and len(messages) < 3:
@@ -138,14 +141,15 @@ def run_chunk(job: ChunkJob) -> ChunkSummary:
     seconds = time.perf_counter() - started
     groups = {name: scenario.group for name, scenario in unpacked.scenarios.items()}
     store.write_results(job.output, job.sweep, job.chunk_id,
-                        *results_table(job, groups, scores, errors, walls, _worker_name()))
+                        *results_table(job, groups, scores, errors, walls, _worker_name(), lives))
     failed = len(errors) - errors.count(None)
     return ChunkSummary(job.chunk_id, len(errors) - failed, failed, seconds, messages, told,
                         busy=time.perf_counter() - began)
 
 
 def results_table(job: ChunkJob, groups: dict[str, str], scores: list[dict[str, Any] | None],
-                  errors: list[str | None], walls: list[float], worker: str) -> tuple[pa.Table, list[str]]:
+                  errors: list[str | None], walls: list[float], worker: str,
+                  lives: list[str | None] | None = None) -> tuple[pa.Table, list[str]]:
     """The chunk's rows (one per task, in order) as a table of ``job.schema``, and each row's scenario (the
     partition). Built column by column: a dict per row cost more than a cheap FMU's simulation."""
     batch, n = job.tasks, len(job.tasks)
@@ -162,7 +166,7 @@ def results_table(job: ChunkJob, groups: dict[str, str], scores: list[dict[str, 
         **{name: parameter(k) for k, name in enumerate(batch.parameters)},
         **{name: [None if s is None else s.get(name) for s in scores] for name in job.objectives},
         "status": ["ok" if e is None else "failed" for e in errors], "error": errors,
-        "wall_time": walls, "worker": [worker] * n,
+        "wall_time": walls, "worker": [worker] * n, "lifecycle": lives or [None] * n,
     }
     return pa.Table.from_pydict({name: columns[name] for name in job.schema.names}, schema=job.schema), scenarios
 

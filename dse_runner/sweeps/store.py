@@ -13,7 +13,8 @@ One row per task: ``task_id``, ``model`` (the hash of the model that produced
 it: a changed FMU gives new rows beside the old, and rankings use the current
 model's), the parameter values (one column each, named
 ``instance.variable``), ``group``, every objective, ``status`` (ok/failed),
-``error``, ``wall_time`` and ``worker``; ``sweep`` and ``scenario`` come from
+``error``, ``wall_time``, ``worker`` and ``lifecycle`` (``reset``: the worker's instances were
+reused; ``process``: a fresh process ran it, lifecycle.py); ``sweep`` and ``scenario`` come from
 the folder names. A chunk's file appears whole or not at all (a local file is
 written under a temporary name and renamed; an object store's PUT is atomic),
 and its name is the chunk's id, so a chunk run twice replaces its own file and
@@ -150,7 +151,8 @@ def results_schema(parameters: dict[str, list[Any]], objectives: dict[str, Objec
         [("task_id", pa.string()), ("model", pa.string()), ("group", pa.string())]
         + [(name, kind(values)) for name, values in parameters.items()]
         + [(name, pa.list_(pa.float64()) if is_vector(spec) else pa.float64()) for name, spec in objectives.items()]
-        + [("status", pa.string()), ("error", pa.string()), ("wall_time", pa.float64()), ("worker", pa.string())]
+        + [("status", pa.string()), ("error", pa.string()), ("wall_time", pa.float64()), ("worker", pa.string()),
+           ("lifecycle", pa.string())]
     )
 
 

@@ -18,7 +18,8 @@ import json
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, field_validator
+from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError,
+                      field_validator)
 
 from ...errors import DseError, format_validation_error
 
@@ -49,11 +50,16 @@ class InternalFunction(BaseModel):
     objectiveType: Literal["max", "min", "mean"]
 
 
+def _portable(path: str | None) -> str | None:
+    """Projects made on Windows write paths with ``\\``; they name the same files here with ``/``."""
+    return path.replace("\\", "/") if path is not None else None
+
+
 class ExternalScript(BaseModel):
     """A user's Python script in ``userMetricScripts/``; its parameters are passed in key order."""
 
     model_config = Strict
-    scriptFile: str
+    scriptFile: Annotated[str, AfterValidator(_portable)]
     scriptParameters: dict[str, str] = {}
 
     @field_validator("scriptParameters", mode="before")
@@ -130,7 +136,8 @@ class CoeConfig(BaseModel):
     startTime: float = 0.0
     endTime: float
     algorithm: StepAlgorithm
-    multimodel_path: str | None = None  # relative to the project; older files do not have it
+    # relative to the project; older files do not have it
+    multimodel_path: Annotated[str | None, AfterValidator(_portable)] = None
 
 
 def read_json(path: str | Path) -> Any:

@@ -6,8 +6,9 @@ application lets the user pick a coe.json among every file under
 two folders up (``<mm>/<config>/coe.json`` -> ``<mm>/mm.json``, else the one
 file there ending in ``mm.json``), else the coe's ``multimodel_path``
 (docs/research/intocps-formats.md, section 4). :func:`locate` does the same
-without a user to ask: one candidate is taken; among several, the one whose
-multi-model has every FMU the DSE names; otherwise the error lists them.
+without a user to ask: the candidates whose multi-model defines every
+``{fmu}.instance`` the DSE names; one is taken, several are listed, none is an
+error naming what is missing and the multi-models looked at.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ...errors import DseError
+from ...simulation.multimodel import into_cps_instances, split_into_cps_id
 from .formats import CoeConfig, DseConfig, read, read_json
 
 PROJECT_FILE = ".project.json"
@@ -75,23 +77,38 @@ def multimodel_of(coe: Path, root: Path) -> Path:
     if len(named) == 1:
         return named[0]
     given = read(coe, CoeConfig).multimodel_path
-    if given is not None and (root / given.replace("\\", "/")).is_file():
-        return root / given.replace("\\", "/")
+    if given is not None and (root / given).is_file():
+        return root / given
     raise DseError(f"{coe}: no multi-model found for it: no mm.json in {folder}"
                    + (f" and its multimodel_path {given!r} is not a file" if given else
                       " and it has no multimodel_path; give --multimodel"))
 
 
-def fmu_keys_used(dse: DseConfig) -> set[str]:
-    """The ``{fmu}`` keys of every id the DSE config names."""
+def instances_used(dse: DseConfig) -> set[str]:
+    """The ``{fmu}.instance`` of every id the DSE config names (an id of another shape is named by
+    convert.py's checks, later)."""
     ids = [*dse.parameters, *(f.columnID for f in dse.objectiveDefinitions.internalFunctions.values()),
            *(v for s in dse.objectiveDefinitions.externalScripts.values() for v in s.scriptParameters.values())]
-    return {i.partition("}")[0] + "}" for i in ids if i.startswith("{") and "}" in i}
+    return {f"{key}.{instance}" for key, instance, _ in filter(None, map(_split, ids))}
 
 
-def _defines(multimodel: Path, keys: set[str]) -> bool:
+def _split(ref: str) -> tuple[str, str, str] | None:
+    try:
+        return split_into_cps_id(ref)
+    except DseError:
+        return None
+
+
+def instances_defined(multimodel: Path) -> set[str]:
+    """The ``{fmu}.instance`` an mm.json defines: INTO-CPS's instances are those its connections and
+    parameters name, under an FMU key of ``fmus``."""
     data = read_json(multimodel)
-    return isinstance(data, dict) and keys <= set(data.get("fmus", {}))
+    if not isinstance(data, dict) or not isinstance(data.get("fmus"), dict):
+        return set()  # not an mm.json: it defines nothing the DSE can run
+    try:
+        return {f"{key}.{instance}" for instance, key in into_cps_instances(data).items()}
+    except DseError as e:
+        raise DseError(f"{multimodel}: {str(e).removeprefix('mm.json: ')}") from None
 
 
 def locate(dse_path: Path, multimodel: Path | None = None, coe: Path | None = None) -> Located:
@@ -108,20 +125,22 @@ def locate(dse_path: Path, multimodel: Path | None = None, coe: Path | None = No
 
 
 def _pick_coe(root: Path, dse: DseConfig, multimodel: Path | None) -> Path:
+    """One candidate whose multi-model defines every instance the DSE names, or an error saying why not."""
     candidates = coe_candidates(root)
     if multimodel is not None:
         candidates = [c for c in candidates if _multimodel_or_none(c, root) == multimodel.resolve()]
-    if len(candidates) > 1:
-        keys = fmu_keys_used(dse)
-        fitting = [c for c in candidates if _fits(c, root, keys)]
-        candidates = fitting or candidates
-    if len(candidates) == 1:
-        return candidates[0]
     where = f"{root}/{'|'.join(MULTI_MODEL_FOLDERS)}"
     if not candidates:
         raise DseError(f"no co-simulation config (*coe.json) under {where}"
                        + (f" runs {multimodel}" if multimodel else "") + "; give --coe")
-    names = ", ".join(str(c.relative_to(root)) for c in candidates)
+    used = instances_used(dse)
+    lacking = {c: _lacking(c, root, used) for c in candidates}
+    fitting = [c for c in candidates if not lacking[c]]
+    if len(fitting) == 1:
+        return fitting[0]
+    if not fitting:
+        raise DseError(_none_fits(root, lacking))
+    names = ", ".join(str(c.relative_to(root)) for c in fitting)
     raise DseError(f"several co-simulation configs could run this DSE ({names}); choose one with --coe")
 
 
@@ -132,6 +151,27 @@ def _multimodel_or_none(coe: Path, root: Path) -> Path | None:
         return None
 
 
-def _fits(coe: Path, root: Path, keys: set[str]) -> bool:
+def _lacking(coe: Path, root: Path, used: set[str]) -> list[str]:
+    """What of ``used`` the coe.json's multi-model does not define (all of it when it has none)."""
     multimodel = _multimodel_or_none(coe, root)
-    return multimodel is not None and _defines(multimodel, keys)
+    return sorted(used - (instances_defined(multimodel) if multimodel is not None else set()))
+
+
+def _shown(path: Path, root: Path) -> str:
+    return str(path.relative_to(root)) if path.is_relative_to(root) else str(path)
+
+
+def _none_fits(root: Path, lacking: dict[Path, list[str]]) -> str:
+    """What the DSE names that no candidate's multi-model defines, and the multi-models looked at."""
+    looked: dict[str, list[str]] = {}
+    for coe, missing in lacking.items():
+        multimodel = _multimodel_or_none(coe, root)
+        name = _shown(multimodel, root) if multimodel else f"{_shown(coe, root)} (no multi-model)"
+        looked.setdefault(name, missing)
+    if len({tuple(m) for m in looked.values()}) == 1:
+        missing = ", ".join(next(iter(looked.values())))
+        return (f"this DSE names {missing}, which no multi-model of the project defines (looked at "
+                f"{', '.join(looked)}; a multi-model defines the {{fmu}}.instance its connections and "
+                "parameters name)")
+    return ("no multi-model of the project defines every {fmu}.instance this DSE names: "
+            + "; ".join(f"{name} lacks {', '.join(missing)}" for name, missing in looked.items()))

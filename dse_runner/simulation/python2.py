@@ -1,0 +1,135 @@
+"""A user's script checked for Python 2 before anything runs.
+
+INTO-CPS's older user scripts (its DSE ``externalScripts``) are Python 2:
+``print x``, ``unicode(...)``, ``except IOError, e``. dse-runner runs scripts
+with Python 3, where such a script fails every task with a traceback that
+does not say why. :func:`check` reads the script when the spec loads and
+names the first line that is Python 2, or the line Python 3 cannot compile,
+so that no task runs. docs/intocps.md says how to port a script.
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+import warnings
+from pathlib import Path
+
+from ..errors import DseError
+
+PORT = "dse-runner runs scripts with Python 3: port it (2to3 does most of it, see docs/intocps.md)"
+
+# Why Python 3 could not compile a line: its message, then the line itself; each with what it is.
+MESSAGES = [
+    (re.compile(r"Missing parentheses in call to 'print'"), "print statement"),
+    (re.compile(r"Missing parentheses in call to 'exec'"), "exec statement"),
+]
+LINES = [
+    (re.compile(r"^\s*print\b\s*(>>|[^\s(=.,)\]}:;])"), "print statement"),
+    (re.compile(r"^\s*exec\b\s+[\"'\w]"), "exec statement"),
+    (re.compile(r"\bexcept\s+[^:]+,\s*\w+\s*:"), "except X, e"),
+    (re.compile(r"\braise\s+[\w.]+\s*,"), "raise X, message"),
+    (re.compile(r"<>"), "the <> operator"),
+    (re.compile(r"\b\d+[lL]\b"), "a long literal such as 10L"),
+    (re.compile(r"(?<![\w.])0\d+\b"), "an octal literal such as 0777"),
+    (re.compile(r"`"), "backquotes for repr"),
+    (re.compile(r"\bur['\"]"), "a ur'...' string"),
+]
+# Builtins and modules Python 3 no longer has: such a script compiles, then fails when it gets there.
+BUILTINS = {"unicode", "xrange", "basestring", "raw_input", "unichr", "long", "execfile", "reduce", "cmp",
+            "reload", "apply", "buffer", "intern", "coerce"}
+METHODS = {"has_key", "iteritems", "iterkeys", "itervalues"}
+MODULES = {"urllib2", "urlparse", "ConfigParser", "StringIO", "cStringIO", "cPickle", "Queue", "Tkinter",
+           "__builtin__", "httplib", "HTMLParser", "SocketServer", "commands", "exceptions"}
+
+
+def check(code: str, path: Path) -> None:
+    """Raise a one-line DseError if ``code`` is Python 2, or is not Python 3 that compiles."""
+    try:
+        with warnings.catch_warnings():  # invalid escapes and the like are the script's own business
+            warnings.simplefilter("ignore")
+            tree = compile(code, str(path), "exec", ast.PyCF_ONLY_AST, dont_inherit=True)
+            compile(tree, str(path), "exec", dont_inherit=True)  # what only the compiler finds
+    except (SyntaxError, ValueError) as e:  # ValueError: a null byte, before Python 3.12
+        raise DseError(_syntax_message(e, code, path)) from None
+    found = python2_names(tree)
+    if found:
+        line, what = found
+        raise DseError(f"{path} line {line}: a Python 2 script ({what}); {PORT}")
+
+
+def _syntax_message(error: SyntaxError | ValueError, code: str, path: Path) -> str:
+    """A Python 2 construct where Python 3 stopped, named; any other syntax error as Python says it."""
+    line = getattr(error, "lineno", None) or 1
+    lines = code.splitlines()
+    text = lines[line - 1] if 0 < line <= len(lines) else ""
+    message = getattr(error, "msg", str(error))
+    found = [what for pattern, what in MESSAGES if pattern.search(message)]
+    found += [what for pattern, what in LINES if pattern.search(text)]
+    if found:
+        return f"{path} line {line}: a Python 2 script ({found[0]}); {PORT}"
+    return f"{path} line {line}: not valid Python 3: {message}"
+
+
+def python2_names(tree: ast.Module) -> tuple[int, str] | None:
+    """The first line (and what it uses) that calls on what only Python 2 has: a builtin the script
+    does not define itself, a dict method, a module, or ``print`` alone on a line. Code under a
+    ``try`` that catches its absence (``except ImportError``) is a script made for both."""
+    bound, guarded = _bound(tree), _guarded(tree)
+    found: list[tuple[int, str]] = []
+    for node in ast.walk(tree):
+        if id(node) in guarded:
+            continue
+        if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Load) and node.id in BUILTINS - bound:
+            found.append((node.lineno, f"{node.id}(), which Python 3 does not have"))
+        elif isinstance(node, ast.Attribute) and node.attr in METHODS - bound:
+            found.append((node.lineno, f".{node.attr}(), a dict method Python 3 does not have"))
+        elif isinstance(node, (ast.Import, ast.ImportFrom)):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""]
+            found += [(node.lineno, f"module {n}, which Python 3 renamed or removed") for n in names
+                      if n.split(".")[0] in MODULES]
+        elif isinstance(node, ast.Expr) and _is_print_statement(node.value):
+            found.append((node.lineno, "print statement"))
+    return min(found) if found else None
+
+
+def _is_print_statement(value: ast.expr) -> bool:
+    """``print`` or ``print >>f, x``: Python 3 compiles both as expressions that print nothing."""
+    if isinstance(value, ast.Tuple) and value.elts:
+        value = value.elts[0]
+    if isinstance(value, ast.BinOp) and isinstance(value.op, ast.RShift):
+        value = value.left
+    return isinstance(value, ast.Name) and value.id == "print"
+
+
+def _bound(tree: ast.Module) -> set[str]:
+    """Every name the script defines: a compatibility shim (``unicode = str``) is not Python 2."""
+    names: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Name) and not isinstance(node.ctx, ast.Load):
+            names.add(node.id)
+        elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.add(node.name)
+        elif isinstance(node, ast.arg):
+            names.add(node.arg)
+        elif isinstance(node, ast.alias):
+            names.add((node.asname or node.name).split(".")[0])
+    return names
+
+
+GUARDS = {"ImportError", "ModuleNotFoundError", "NameError", "AttributeError"}
+
+
+def _guarded(tree: ast.Module) -> set[int]:
+    """The nodes inside a ``try`` whose handlers catch a missing module, name or attribute."""
+    guarded: set[int] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Try) and any(_catches(h.type) & GUARDS for h in node.handlers):
+            guarded |= {id(inner) for statement in node.body for inner in ast.walk(statement)}
+    return guarded
+
+
+def _catches(kind: ast.expr | None) -> set[str]:
+    if isinstance(kind, ast.Tuple):
+        return set().union(*map(_catches, kind.elts))
+    return {kind.id} if isinstance(kind, ast.Name) else set()
