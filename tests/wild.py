@@ -68,6 +68,17 @@ def changed_parameters(path: Path, scale: float = 1.25) -> dict[str, float]:
     return changed
 
 
+def driven_inputs(path: Path, stop: float) -> dict[str, tuple[np.ndarray, np.ndarray, str]]:
+    """Every Real input of the FMU driven from 0 up to 2 and back (crossing the water-tank controllers'
+    levels), by bare name: (times, values, interpolation). Continuous inputs are interpolated, discrete
+    ones held, as FMPy's Input does."""
+    from fmpy import read_model_description
+
+    times = np.array([0.0, stop / 2, stop])  # on the communication grid: FMPy would step to an input event
+    return {v.name: (times, np.array([0.0, 2.0, 0.0]), "linear" if v.variability == "continuous" else "hold")
+            for v in read_model_description(str(path)).modelVariables if v.causality == "input" and v.type == "Real"}
+
+
 # ---- fresh processes ---------------------------------------------------------------------------------
 
 @cache
@@ -80,7 +91,7 @@ def pool() -> ProcessPoolExecutor:
 
 def fresh(function, *args) -> Any:
     """``function(*args)`` in a process of its own."""
-    return pool().submit(function, *args).result(timeout=300)
+    return pool().submit(function, *args).result(timeout=120)
 
 
 def fresh_all(function, calls: list[tuple]) -> list[Any]:
@@ -89,20 +100,36 @@ def fresh_all(function, calls: list[tuple]) -> list[Any]:
     return [f.result(timeout=600) for f in futures]
 
 
-def fmpy_outputs(path: str, stop: float, step: float, values: dict[str, float]) -> dict[str, np.ndarray]:
-    """FMPy's simulate_fmu as a user calls it: every output, by name, with time."""
+def fmpy_outputs(path: str, stop: float, step: float, values: dict[str, float], driven: bool = False
+                 ) -> dict[str, np.ndarray]:
+    """FMPy's simulate_fmu as a user calls it: every output, by name, with time; ``driven``: with
+    :func:`driven_inputs`."""
     from fmpy import simulate_fmu
 
+    inputs = driven_inputs(Path(path), stop) if driven else {}
+    signals = None
+    if inputs:
+        times = next(iter(inputs.values()))[0]
+        signals = np.array(list(zip(times, *(v for _, v, _ in inputs.values()))),
+                           dtype=[("time", float), *((name, float) for name in inputs)])
     result = simulate_fmu(path, stop_time=stop, output_interval=step, start_values=values,
-                          fmi_type="CoSimulation")
+                          fmi_type="CoSimulation", input=signals)
     return {name: np.asarray(result[name], dtype=float) for name in result.dtype.names}
 
 
-def ours(model: str, stop: float, step: float, values: dict[str, Any]) -> dict[str, np.ndarray]:
-    """dse-runner's simulate: every output by name (instance prefix dropped for one FMU), with time."""
-    from dse_runner.simulation.run import simulate
+def ours(model: str, stop: float, step: float, values: dict[str, Any], driven: bool = False
+         ) -> dict[str, np.ndarray]:
+    """dse-runner's simulate: every output by name (instance prefix dropped for one FMU), with time;
+    ``driven``: a single FMU's inputs as :func:`driven_inputs` drives them."""
+    from dse_runner.simulation.run import simulate, single_fmu
+    from dse_runner.simulation.scenario import Scenario, Series
 
-    result = simulate(model, stop_time=stop, step=step, values=values)
+    scenario = None
+    if driven:
+        instance = next(iter(single_fmu(model).fmus))
+        scenario = Scenario("driven", inputs={f"{instance}.{name}": Series(t, v, how)
+                                              for name, (t, v, how) in driven_inputs(Path(model), stop).items()})
+    result = simulate(model, scenario, stop_time=stop, step=step, values=values)
     single = str(model).endswith(".fmu")
     outputs = {(name.partition(".")[2] if single else name): np.asarray(v, dtype=float)
                for name, v in result.outputs.items()}
@@ -117,17 +144,19 @@ def run_here() -> None:
     isolation._IN_CHILD = True
 
 
-def ours_here(model: str, stop: float, step: float, values: dict[str, Any]) -> dict[str, np.ndarray]:
+def ours_here(model: str, stop: float, step: float, values: dict[str, Any], driven: bool = False
+              ) -> dict[str, np.ndarray]:
     """:func:`ours`, in this (fresh) process."""
     run_here()
-    return ours(model, stop, step, values)
+    return ours(model, stop, step, values, driven)
 
 
 def default_step(path: Path) -> float:
-    """The FMU's DefaultExperiment step: a 20-sim FMU's internal step."""
+    """The FMU's DefaultExperiment step (a 20-sim FMU's internal step); 0 where it gives none."""
     from fmpy import read_model_description
 
-    return float(read_model_description(str(path)).defaultExperiment.stepSize)
+    experiment = read_model_description(str(path)).defaultExperiment
+    return float(experiment.stepSize) if experiment is not None and experiment.stepSize else 0.0
 
 
 def point_objectives(dse: str, coe: str, point: dict[str, Any]) -> dict[str, Any]:
