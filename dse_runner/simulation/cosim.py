@@ -422,12 +422,19 @@ class Runner:
         found = self.__dict__.get("_lifecycle")
         if found is None:
             found = self.__dict__["_lifecycle"] = lifecycles.plan_verdicts(self, values)
+            self.__dict__["_fresh"] = lifecycles.needs_process(found)
         return found
 
     def run(self, values: Mapping[str, Value], timeout: float | None = None, loop: str | None = None) -> Trajectory:
         """Co-simulate with ``values`` set before initialization (see :func:`run`): here, or in a fresh
         process where an instance needs one (lifecycle.py)."""
-        if not isolation.in_child() and lifecycles.needs_process(self.lifecycle(values)):
+        if isolation.in_child():  # this process is the fresh one
+            return _run_here(self, values, timeout, loop)
+        fresh = self.__dict__.get("_fresh")  # a sweep's cheap runs pay one look-up for this
+        if fresh is None:
+            self.lifecycle(values)
+            fresh = self.__dict__["_fresh"]
+        if fresh:
             plan = self.plan
             fmus_used = [(path, plan.interfaces[name]) for name, path in plan.fmu_paths.items()]
             for path, interface in fmus_used:

@@ -47,6 +47,8 @@ def in_child() -> bool:
 def run(function: Callable[..., Any], *args: Any, preload: Iterable[tuple[Path, str]] = ()) -> Any:
     """``function(*args)`` in a fresh process; its result, or its exception raised here. ``preload``:
     the FMUs (path, interface) the zygote describes and extracts once, so a child only loads them."""
+    if _IN_CHILD:  # never a zygote of a zygote's child: that would multiply processes
+        raise DseError("a fresh process asked for another fresh process (a bug in dse-runner)")
     zygote = getattr(_LOCAL, "zygote", None)
     if zygote is None or zygote.process.poll() is not None:
         zygote = _LOCAL.zygote = _Zygote()
@@ -108,7 +110,11 @@ def _serve(extract_root: str) -> None:
     warnings.simplefilter("ignore")  # the worker has warned about these FMUs already
     requests = sys.stdin.buffer
     while (request := _receive(requests)) is not None:
-        function, args, preload = pickle.loads(request)
+        try:
+            function, args, preload = pickle.loads(request)
+        except Exception as e:  # a function this process cannot import, say: the caller's error, not ours
+            _send(frames_out, pickle.dumps((False, DseError(f"cannot run this in a fresh process: {e}"))))
+            continue
         for path, interface in preload:
             try:
                 fmus.load(Path(path), interface)  # describe and find the extraction once, for every child

@@ -60,6 +60,8 @@ def plan_verdicts(runner: Runner, values: Mapping[str, Any]) -> dict[str, Verdic
     this multi-model with these values, where every other instance can be reused; where another needs a
     fresh process anyway, so does the whole run, and it is not measured."""
     plan = runner.plan
+    if isolation.in_child():  # a fresh process measures nothing: it is what the measures compare with
+        return dict.fromkeys(plan.fmu_paths, Verdict("process", "run in a fresh process of its own"))
     verdicts: dict[str, Verdict | str] = {}
     for name, path in plan.fmu_paths.items():
         interface, asked = plan.interfaces[name], plan.multimodel.settings(name).lifecycle
