@@ -432,6 +432,7 @@ class Runner:
             return _run_here(self, values, timeout, loop)
         fresh = self.__dict__.get("_fresh")  # a sweep's cheap runs pay one look-up for this
         if fresh is None:
+            _resolve_values(self.plan, values)  # a bad value is an error before any FMU is measured
             self.lifecycle(values)
             fresh = self.__dict__["_fresh"]
         if fresh:

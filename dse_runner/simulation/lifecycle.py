@@ -12,7 +12,8 @@ So each FMU gets a :class:`Verdict`, decided in this order (docs/multimodel.md):
 
 1. the multi-model asks for ``lifecycle: process``: a fresh process;
 2. the FMU declares ``canBeInstantiatedOnlyOncePerProcess``: a fresh process;
-3. otherwise it is *measured*: :func:`probe` runs the FMU alone a few times in
+3. otherwise it is *measured*: :func:`probe` runs the FMU alone (at most
+   PROBE_STEPS steps of its default experiment, its inputs driven) a few times in
    one process, with its defaults and with changed parameters, and compares every
    output bit for bit with runs in fresh processes. Identical: ``reset``. Different,
    crashed or not runnable alone: a fresh process.
@@ -43,7 +44,7 @@ if TYPE_CHECKING:
 
 Mode = Literal["reset", "process"]
 PROBE_VERSION = 1  # bump when the probe changes: verdicts kept on disk are then measured again
-PROBE_STEPS = 1000  # the longest probe run, in communication steps
+PROBE_STEPS = 200  # the longest probe run, in communication steps (a stale reset shows in the first ones)
 PROBE_SECONDS = 60.0  # a probe run that takes longer than this is stopped (the FMU then runs the safe way)
 
 
@@ -215,7 +216,8 @@ def _runs_here(runner: Runner, values: list[dict[str, Any]]) -> list[tuple]:
 
 def _changed_parameters(plan: Plan, changing: list[Path], values: Mapping[str, Any]) -> dict[str, float]:
     """Every real parameter of the FMUs at ``changing`` that ``values`` leaves alone, a quarter off its
-    start value and within its declared bounds."""
+    start value and within its declared bounds. Parameters that start at 0 stay: 0 often means "off"
+    (a delay, a pause), and no scale says what else it could be."""
     changed = {}
     for name, path in plan.fmu_paths.items():
         if path not in changing:
@@ -229,10 +231,10 @@ def _changed_parameters(plan: Plan, changing: list[Path], values: Mapping[str, A
                 start = float(v.start)
             except (TypeError, ValueError):
                 continue
-            value = start * 1.25 if start else 0.25
+            value = start * 1.25
             value = min(max(value, variable.low if variable.low is not None else -math.inf),
                         variable.high if variable.high is not None else math.inf)
-            if value != start and math.isfinite(value):
+            if start and value != start and math.isfinite(value):
                 changed[variable.ref] = value
     return changed
 
