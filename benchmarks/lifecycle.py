@@ -89,12 +89,12 @@ def main() -> None:
     if args.json:
         print(json.dumps(results, indent=2))
         return
-    print(f"seconds per run, median of {repeats}, one process (a worker's view)")
-    print(f"  {'case':<16}{'reset':>10}{'process':>10}{'added':>10}{'ratio':>8}")
+    print(f"milliseconds per run, median of {repeats}, one process (a worker's view)")
+    print(f"  {'case':<16}{'reset':>10}{'process':>10}{'added':>10}{'ratio':>9}")
     for name, case in results.items():
-        reset = f"{case['reset']:10.4f}" if "reset" in case else f"{'-':>10}"
-        added = f"{case['added_per_run']:10.4f}{case['process_over_reset']:7.1f}x" if "reset" in case else ""
-        print(f"  {name:<16}{reset}{case['process']:10.4f}{added}")
+        reset = f"{case['reset'] * 1e3:10.3f}" if "reset" in case else f"{'-':>10}"
+        added = f"{case['added_per_run'] * 1e3:10.3f}{case['process_over_reset']:8.1f}x" if "reset" in case else ""
+        print(f"  {name:<16}{reset}{case['process'] * 1e3:10.3f}{added}")
 
 
 if __name__ == "__main__":

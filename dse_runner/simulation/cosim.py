@@ -428,20 +428,19 @@ class Runner:
     def run(self, values: Mapping[str, Value], timeout: float | None = None, loop: str | None = None) -> Trajectory:
         """Co-simulate with ``values`` set before initialization (see :func:`run`): here, or in a fresh
         process where an instance needs one (lifecycle.py)."""
-        if isolation.in_child():  # this process is the fresh one
+        fresh = self.__dict__.get("_fresh")  # a sweep's cheap runs pay one look-up for all this
+        if fresh is False or isolation.in_child():  # reused instances, or this process is the fresh one
             return _run_here(self, values, timeout, loop)
-        fresh = self.__dict__.get("_fresh")  # a sweep's cheap runs pay one look-up for this
         if fresh is None:
             _resolve_values(self.plan, values)  # a bad value is an error before any FMU is measured
             self.lifecycle(values)
-            fresh = self.__dict__["_fresh"]
-        if fresh:
-            plan = self.plan
-            fmus_used = [(path, plan.interfaces[name]) for name, path in plan.fmu_paths.items()]
-            for path, interface in fmus_used:
-                fmus.load(path, interface)  # extracted, and warned about, once in this process
-            return isolation.run(_run_here, self, values, timeout, loop, preload=fmus_used)
-        return _run_here(self, values, timeout, loop)
+            if not self.__dict__["_fresh"]:
+                return _run_here(self, values, timeout, loop)
+        plan = self.plan
+        fmus_used = [(path, plan.interfaces[name]) for name, path in plan.fmu_paths.items()]
+        for path, interface in fmus_used:
+            fmus.load(path, interface)  # extracted, and warned about, once in this process
+        return isolation.run(_run_here, self, values, timeout, loop, preload=fmus_used)
 
 
 def _run_here(runner: Runner, values: Mapping[str, Value], timeout: float | None, loop: str | None) -> Trajectory:

@@ -133,9 +133,10 @@ def simulate(
     them: plans and scenarios are immutable; objectives and the experiment are compared by value."""
     recipe = _recipe(model, scenario, objectives, experiment, (start_time, stop_time, step), interface)
     values = recipe.layered(values or {})
-    trajectory = recipe.runner.run(values, timeout, loop)
+    runner = recipe.runner
+    trajectory = runner.run(values, timeout, loop)
     return SimulationResult(recipe.scenario, values, recipe.times, trajectory,
-                            objs.evaluate(recipe.specs, trajectory, recipe.scenario), recipe.runner.lifecycle(values))
+                            objs.evaluate(recipe.specs, trajectory, recipe.scenario), runner.lifecycle(values))
 
 
 @dataclass
