@@ -458,12 +458,14 @@ def _run_here(runner: Runner, values: Mapping[str, Value], timeout: float | None
     start, stop = float(times[0]), float(times[-1])
     current = None
     try:
-        for unit in units:
-            current = unit
-            unit.stepper.setup(start, stop)
-            unit.stepper.set_values(settings.get(unit.stepper.name, ()))
+        native_setup = program is not None and program.sets_up
+        if not (native_setup and native.values_of(program, units, settings)):  # else the C call does this
+            for unit in units:
+                current = unit
+                unit.stepper.setup(start, stop)
+                unit.stepper.set_values(settings.get(unit.stepper.name, ()))
         current = None
-        if program is not None and program.sets_up:  # the C call initialises, runs and ends the units
+        if native_setup:  # the C call (sets up and sets the values,) initialises, runs and ends the units
             outcome = native.step_loop(program, times, external, record, texts, timeout)
             _raise_where_stopped(outcome, program, units, times, names, record, texts)
             return Trajectory(times, names, record, texts)
@@ -579,6 +581,13 @@ def _raise_where_stopped(outcome, program, units: list[_Unit], times: np.ndarray
         value = texts[program.text_source_names[outcome.group]][-1].encode("utf-8")
         failed = f"{target.access(variable).name.replace('Get', 'Set')} of {variable.name} = {value!r} failed"
         raise CosimError(target.instance.explain(f"{failed} at t={t:.6g}"), target.name)
+    if code == native.VALUE_FAILED:
+        unit, members = program.given.failed(outcome.group)
+        step = units[unit].stepper
+        setter = step.access(members[0]).name.replace("Get", "Set")
+        given = program.given.views[outcome.group][2]
+        what = ", ".join(f"{v.name} = {given[j].item()!r}" for j, v in enumerate(members))
+        raise CosimError(step.instance.explain(f"{setter} of {what} failed"), step.name)
     if code == native.LIFECYCLE_FAILED:
         step = units[outcome.unit].stepper
         call = native.LIFECYCLE[step.fmi_version][outcome.group]

@@ -39,11 +39,10 @@ CTYPES = {ctypes.c_double: 0, ctypes.c_float: 1, ctypes.c_int8: 2, ctypes.c_uint
           ctypes.c_bool: 10, ctypes.c_int: 11}
 CONVERSIONS = {"none": 0, "round": 1, "threshold": 2}
 (DONE, FEED_FAILED, STEP_FAILED, READ_FAILED, TIMEOUT, DIVERGED, UNFIT, TERMINATE, TEXT_READ_FAILED,
- TEXT_FEED_FAILED, NO_MEMORY, LIFECYCLE_FAILED) = range(12)
-# The FMI functions of a unit's initialization and end (LIFECYCLE_FAILED's group indexes these), by FMI
-# version; fmi2SetupExperiment is Python's, before the values are set.
-LIFECYCLE = {2: ("fmi2EnterInitializationMode", "fmi2ExitInitializationMode", "fmi2Terminate"),
-             3: ("fmi3EnterInitializationMode", "fmi3ExitInitializationMode", "fmi3Terminate")}
+ TEXT_FEED_FAILED, NO_MEMORY, LIFECYCLE_FAILED, VALUE_FAILED) = range(13)
+# The FMI functions of a unit's set-up and end (LIFECYCLE_FAILED's group indexes these), by FMI version.
+LIFECYCLE = {2: ("fmi2SetupExperiment", "fmi2EnterInitializationMode", "fmi2ExitInitializationMode", "fmi2Terminate"),
+             3: (None, "fmi3EnterInitializationMode", "fmi3ExitInitializationMode", "fmi3Terminate")}
 
 
 class NativeLoopWarning(UserWarning):
@@ -64,8 +63,9 @@ class Unit(ctypes.Structure):
 
 
 class Lifecycle(ctypes.Structure):
-    _fields_ = [("enter", ctypes.c_void_p), ("exit", ctypes.c_void_p), ("terminate", ctypes.c_void_p),
-                ("tolerance_defined", ctypes.c_int32), ("tolerance", ctypes.c_double), ("stop_defined", ctypes.c_int32)]
+    _fields_ = [("setup", ctypes.c_void_p), ("enter", ctypes.c_void_p), ("exit", ctypes.c_void_p),
+                ("terminate", ctypes.c_void_p), ("tolerance_defined", ctypes.c_int32), ("tolerance", ctypes.c_double),
+                ("stop_defined", ctypes.c_int32)]
 
 
 class TextRead(ctypes.Structure):
@@ -84,14 +84,14 @@ class Call(ctypes.Structure):
     """dse_loop's arguments in one block (native_loop.c): the fixed ones are filled once per Program."""
 
     _fields_ = [("units", ctypes.c_void_p), ("lifecycle", ctypes.c_void_p), ("feeds", ctypes.c_void_p),
-                ("reads", ctypes.c_void_p),
+                ("reads", ctypes.c_void_p), ("values", ctypes.c_void_p),
                 ("text_reads", ctypes.c_void_p), ("text_feeds", ctypes.c_void_p), ("initial_texts", ctypes.c_void_p),
                 ("times", ctypes.c_void_p), ("external", ctypes.c_void_p), ("signals", ctypes.c_void_p),
                 ("record", ctypes.c_void_p), ("text_offsets", ctypes.c_void_p), ("out", ctypes.c_void_p),
                 ("seconds", ctypes.c_double), ("n_texts", ctypes.c_int64), ("n_times", ctypes.c_int64),
                 ("n_recorded", ctypes.c_int64), ("n_external", ctypes.c_int64), ("n_units", ctypes.c_int32),
                 ("n_feeds", ctypes.c_int32), ("n_reads", ctypes.c_int32), ("n_text_reads", ctypes.c_int32),
-                ("n_text_feeds", ctypes.c_int32)]
+                ("n_text_feeds", ctypes.c_int32), ("n_values", ctypes.c_int32)]
 
 
 class Outcome(ctypes.Structure):
@@ -206,6 +206,7 @@ class Program:
         self.sets_up = not self.text_names
         self.lifecycle = (Lifecycle * len(units))(*[_lifecycle(u.stepper) for u in units]) if self.sets_up else None
         self.outcome = Outcome()
+        self.value_groups: dict[tuple, tuple] = {}  # the variables a run sets -> their groups (values_of)
         self.call = Call(
             units=_address(self.steps), lifecycle=_address(self.lifecycle), n_units=len(units), feeds=_address(self.feed_groups), n_feeds=len(self.feeds),
             reads=_address(self.read_groups), n_reads=len(self.reads), text_reads=_address(self.text_reads),
@@ -215,6 +216,68 @@ class Program:
         self.call_address = ctypes.addressof(self.call)
         self._times: np.ndarray | None = None  # the time grid and input signals the block points at now
         self._external: np.ndarray | None = None
+
+
+class Values:
+    """The values of a run as C groups, one per unit and setter, with buffers that Python fills each run;
+    made once per set of variables (a sweep sets the same ones every run)."""
+
+    def __init__(self, units: list, settings: dict[str, list]) -> None:
+        index = {u.stepper.name: i for i, u in enumerate(units)}
+        groups: dict[tuple[int, str], list] = {}
+        for name, values in settings.items():
+            for variable, _ in values:
+                step = units[index[name]].stepper
+                groups.setdefault((index[name], step.access(variable).name), []).append(variable)
+        self.members = list(groups.items())  # ((unit, setter), [variable, ...]) per group, for messages
+        self.views, made = [], []
+        for (i, _), members in self.members:
+            step = units[i].stepper
+            access = step.access(members[0])
+            vrs = (ctypes.c_uint32 * len(members))(*[v.vr for v in members])
+            buffer = (access.ctype * len(members))()
+            made.append(_group(access.set, step.args(access, vrs, len(members), buffer), i, step.fmi_version,
+                               access.ctype, None))
+            self.views.append((vrs, buffer, np.ctypeslib.as_array(buffer) if access.ctype is not ctypes.c_bool
+                               else np.frombuffer(buffer, dtype=np.bool_)))
+        self.groups = (Group * len(made))(*made)
+        where = {(k, v): (g, j) for g, (_, members) in enumerate(self.members) for j, v in enumerate(members)
+                 for k in (units[self.members[g][0][0]].stepper.name,)}
+        self.slots = [where[(name, variable)] for name, values in settings.items() for variable, _ in values]
+
+    def fill(self, settings: dict[str, list]) -> None:
+        """This run's values into the buffers (the same variables, in the same order, as when made)."""
+        slots, views = iter(self.slots), self.views
+        for values in settings.values():
+            for _, value in values:
+                g, j = next(slots)
+                views[g][2][j] = value
+
+    def failed(self, group: int) -> tuple[int, list]:
+        """The unit and the variables of a group whose setter failed."""
+        (unit, _), members = self.members[group]
+        return unit, members
+
+
+def values_of(program: Program, units: list, settings: dict[str, list]) -> bool:
+    """Hand the run's values to the C call, which then sets each unit up and its values in FMPy's order;
+    False (and nothing handed) where a value is a string, which Python sets."""
+    key = tuple((name, tuple(v for v, _ in values)) for name, values in settings.items())
+    found = program.value_groups.get(key)
+    if found is None:
+        if any(v.family == "string" for values in settings.values() for v, _ in values):
+            found = program.value_groups[key] = (None,)
+        else:
+            found = program.value_groups[key] = (Values(units, settings),)
+    values = found[0]
+    call = program.call
+    if values is None:
+        call.values, call.n_values = None, 0
+        return False
+    values.fill(settings)
+    call.values, call.n_values = ctypes.addressof(values.groups), len(values.groups)
+    program.given = values
+    return True
 
 
 def step_loop(program: Program, times: np.ndarray, external: np.ndarray | None, record: np.ndarray,
@@ -249,11 +312,12 @@ def step_loop(program: Program, times: np.ndarray, external: np.ndarray | None, 
 
 
 def _lifecycle(stepper) -> Lifecycle:
-    """A co-simulation unit's initialization and end functions, from the library FMPy loaded."""
+    """A co-simulation unit's set-up and end functions, from the library FMPy loaded."""
     dll = stepper.instance.slave.dll
-    enter, exit_, terminate = (_address(getattr(dll, name)) for name in LIFECYCLE[stepper.fmi_version])
+    setup, enter, exit_, terminate = (_address(getattr(dll, name)) if name else None
+                                      for name in LIFECYCLE[stepper.fmi_version])
     tolerance = stepper.tolerance
-    return Lifecycle(enter=enter, exit=exit_, terminate=terminate, tolerance_defined=tolerance is not None,
+    return Lifecycle(setup=setup, enter=enter, exit=exit_, terminate=terminate, tolerance_defined=tolerance is not None,
                      tolerance=tolerance or 0.0, stop_defined=stepper.set_stop_time)
 
 

@@ -32,8 +32,8 @@
 enum { F64, F32, I8, U8, I16, U16, I32, U32, I64, U64, BOOL8, CINT };  /* CINT: FMI 2's Integer and Boolean */
 enum { COPY, ROUND, THRESHOLD };
 enum { DONE, FEED_FAILED, STEP_FAILED, READ_FAILED, TIMEOUT, DIVERGED, UNFIT, TERMINATE,
-       TEXT_READ_FAILED, TEXT_FEED_FAILED, NO_MEMORY, LIFECYCLE_FAILED };
-enum { ENTER, EXIT, END };  /* Lifecycle calls, as LIFECYCLE_FAILED's group */
+       TEXT_READ_FAILED, TEXT_FEED_FAILED, NO_MEMORY, LIFECYCLE_FAILED, VALUE_FAILED };
+enum { SETUP, ENTER, EXIT, END };  /* Lifecycle calls, as LIFECYCLE_FAILED's group */
 
 #define FMI_WARNING 1  /* statuses above this are failures, in FMI 2 and 3 alike */
 
@@ -41,6 +41,7 @@ typedef int (*Access2)(void *, const uint32_t *, size_t, void *);
 typedef int (*Access3)(void *, const uint32_t *, size_t, void *, size_t);
 typedef int (*Step2)(void *, double, double, int);
 typedef int (*Step3)(void *, double, double, bool, bool *, bool *, bool *, double *);
+typedef int (*Setup2)(void *, int, double, double, int, double);
 typedef int (*Enter3)(void *, bool, double, double, bool, double);
 typedef int (*Call1)(void *);
 
@@ -66,9 +67,10 @@ typedef struct {
     int32_t unit;
 } Unit;
 
-typedef struct {          /* a unit's initialization and end, when the loop does them (Call.lifecycle); */
-    void *enter, *exit, *terminate;  /* Python set the experiment up (FMI 2) and set the values before */
-    int32_t tolerance_defined;       /* FMI 3's enter takes the tolerance and the times */
+typedef struct {          /* a unit's set-up and end, when the loop does them (Call.lifecycle) */
+    void *setup;          /* fmi2SetupExperiment; NULL in FMI 3, whose enter takes the times */
+    void *enter, *exit, *terminate;
+    int32_t tolerance_defined;
     double tolerance;
     int32_t stop_defined;
 } Lifecycle;
@@ -520,6 +522,7 @@ typedef struct {
     const Unit *units;
     const Lifecycle *lifecycle;  /* NULL: Python sets the units up and terminates them */
     const Group *feeds, *reads;
+    const Group *values;         /* the run's values, set after each unit's set-up; NULL: Python set both */
     const TextRead *text_reads;
     const TextFeed *text_feeds;
     const char **initial_texts;
@@ -529,7 +532,7 @@ typedef struct {
     Outcome *out;
     double seconds;
     int64_t n_texts, n_times, n_recorded, n_external;
-    int32_t n_units, n_feeds, n_reads, n_text_reads, n_text_feeds;
+    int32_t n_units, n_feeds, n_reads, n_text_reads, n_text_feeds, n_values;
 } Call;
 
 /* Every output group read into the signals at point k (time t). */
@@ -566,16 +569,24 @@ static int lifecycle_status(const Call *c, int status, int32_t unit, int which, 
 }
 
 /*
- * What cosim.py's Python does around the loop, when Call.lifecycle is given (Python has set every
- * unit's experiment up and its values): every unit in initialization mode, outputs read and inputs fed once, initialization left, outputs read again
- * into row 0 of the record (the values were set by Python just before).
+ * What cosim.py's Python does around the loop, when Call.lifecycle is given: every unit set up (FMI 2:
+ * fmi2SetupExperiment with the stop time), its values set (Call.values, grouped by unit; where
+ * Call.values is NULL, Python did both), in initialization mode; outputs read and inputs fed once,
+ * initialization left, outputs read again into row 0 of the record. The order is FMPy's.
  */
 static int initialise(const Call *c) {
     const double start = c->times[0], stop_time = c->times[c->n_times - 1];
     for (int32_t u = 0; u < c->n_units; u++) {
         const Unit *unit = &c->units[u];
         const Lifecycle *l = &c->lifecycle[u];
-        int code;
+        int code = DONE;
+        if (c->values && unit->version == 2)
+            code = lifecycle_status(c, ((Setup2)l->setup)(unit->component, l->tolerance_defined, l->tolerance, start,
+                                                          l->stop_defined, stop_time), u, SETUP, start);
+        for (int32_t g = 0; c->values && code == DONE && g < c->n_values; g++)
+            if (c->values[g].unit == u && call(&c->values[g]) > FMI_WARNING)
+                code = stop(c->out, &(Arena){0}, VALUE_FAILED, 0, start, u, g);
+        if (code != DONE) return code;
         if (unit->version == 3)
             code = lifecycle_status(c, ((Enter3)l->enter)(unit->component, l->tolerance_defined != 0, l->tolerance,
                                                           start, l->stop_defined != 0, stop_time), u, ENTER, start);
