@@ -206,7 +206,7 @@ class Program:
         self.sets_up = not self.text_names
         self.lifecycle = (Lifecycle * len(units))(*[_lifecycle(u.stepper) for u in units]) if self.sets_up else None
         self.outcome = Outcome()
-        self.value_groups: dict[tuple, tuple] = {}  # the variables a run sets -> their groups (values_of)
+        self.value_groups: dict[tuple, Values | None] = {}  # the variables a run sets -> their groups (values_of)
         self.call = Call(
             units=_address(self.steps), lifecycle=_address(self.lifecycle), n_units=len(units), feeds=_address(self.feed_groups), n_feeds=len(self.feeds),
             reads=_address(self.read_groups), n_reads=len(self.reads), text_reads=_address(self.text_reads),
@@ -243,15 +243,17 @@ class Values:
         self.groups = (Group * len(made))(*made)
         where = {(k, v): (g, j) for g, (_, members) in enumerate(self.members) for j, v in enumerate(members)
                  for k in (units[self.members[g][0][0]].stepper.name,)}
-        self.slots = [where[(name, variable)] for name, values in settings.items() for variable, _ in values]
+        self.slots = [(self.views[g][2], j) for g, j in
+                      (where[(name, variable)] for name, values in settings.items() for variable, _ in values)]
+        self.address = ctypes.addressof(self.groups)
 
     def fill(self, settings: dict[str, list]) -> None:
         """This run's values into the buffers (the same variables, in the same order, as when made)."""
-        slots, views = iter(self.slots), self.views
+        slots = iter(self.slots)
         for values in settings.values():
             for _, value in values:
-                g, j = next(slots)
-                views[g][2][j] = value
+                view, j = next(slots)
+                view[j] = value
 
     def failed(self, group: int) -> tuple[int, list]:
         """The unit and the variables of a group whose setter failed."""
@@ -262,20 +264,17 @@ class Values:
 def values_of(program: Program, units: list, settings: dict[str, list]) -> bool:
     """Hand the run's values to the C call, which then sets each unit up and its values in FMPy's order;
     False (and nothing handed) where a value is a string, which Python sets."""
-    key = tuple((name, tuple(v for v, _ in values)) for name, values in settings.items())
-    found = program.value_groups.get(key)
-    if found is None:
-        if any(v.family == "string" for values in settings.values() for v, _ in values):
-            found = program.value_groups[key] = (None,)
-        else:
-            found = program.value_groups[key] = (Values(units, settings),)
-    values = found[0]
+    key = tuple([id(v) for values in settings.values() for v, _ in values])  # the plan keeps its variables
+    values = program.value_groups.get(key, False)
+    if values is False:
+        strings = any(v.family == "string" for values in settings.values() for v, _ in values)
+        values = program.value_groups[key] = None if strings else Values(units, settings)
     call = program.call
     if values is None:
         call.values, call.n_values = None, 0
         return False
     values.fill(settings)
-    call.values, call.n_values = ctypes.addressof(values.groups), len(values.groups)
+    call.values, call.n_values = values.address, len(values.groups)
     program.given = values
     return True
 
