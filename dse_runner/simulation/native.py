@@ -224,11 +224,14 @@ class Values:
 
     def __init__(self, units: list, settings: dict[str, list]) -> None:
         index = {u.stepper.name: i for i, u in enumerate(units)}
-        groups: dict[tuple[int, str], list] = {}
+        groups: dict[tuple[int, str], list] = {}  # (unit, setter) -> its variables
+        places = []  # each value's group and position, in the order ``settings`` gives them
         for name, values in settings.items():
+            step = units[index[name]].stepper
             for variable, _ in values:
-                step = units[index[name]].stepper
-                groups.setdefault((index[name], step.access(variable).name), []).append(variable)
+                key = (index[name], step.access(variable).name)
+                places.append((key, len(groups.setdefault(key, []))))
+                groups[key].append(variable)
         self.members = list(groups.items())  # ((unit, setter), [variable, ...]) per group, for messages
         self.views, made = [], []
         for (i, _), members in self.members:
@@ -241,10 +244,8 @@ class Values:
             self.views.append((vrs, buffer, np.ctypeslib.as_array(buffer) if access.ctype is not ctypes.c_bool
                                else np.frombuffer(buffer, dtype=np.bool_)))
         self.groups = (Group * len(made))(*made)
-        where = {(k, v): (g, j) for g, (_, members) in enumerate(self.members) for j, v in enumerate(members)
-                 for k in (units[self.members[g][0][0]].stepper.name,)}
-        self.slots = [(self.views[g][2], j) for g, j in
-                      (where[(name, variable)] for name, values in settings.items() for variable, _ in values)]
+        order = {key: g for g, key in enumerate(groups)}
+        self.slots = [(self.views[order[key]][2], j) for key, j in places]  # where each value goes
         self.address = ctypes.addressof(self.groups)
 
     def fill(self, settings: dict[str, list]) -> None:
