@@ -171,8 +171,10 @@ def _death(status: int, said: str) -> Exception:
 
     if os.WIFSIGNALED(status):
         number = os.WTERMSIG(status)
-        how = f"was killed by {signal.Signals(number).name}" if number in signal.Signals._value2member_map_ \
-            else f"was killed by signal {number}"
+        try:
+            how = f"was killed by {signal.Signals(number).name}"
+        except ValueError:
+            how = f"was killed by signal {number}"
     else:
         how = f"exited with code {os.WEXITSTATUS(status)}"
     last = next((line.strip() for line in reversed(said.splitlines()) if line.strip()), "")

@@ -76,6 +76,9 @@ def plan_verdicts(runner: Runner, values: Mapping[str, Any]) -> dict[str, Verdic
         return {**decided, **{name: Verdict("process", f"not measured ({why}); the run needs a fresh process for "
                                                        f"{others[0]} anyway") for name, why in alone.items()}}
     together = probe(runner, dict(values), [plan.fmu_paths[name] for name in alone])
+    if isinstance(together, str):  # this run fails in a fresh process too: nothing measured, nothing kept
+        return {**decided, **dict.fromkeys(alone, Verdict("process", f"not measured ({together}), so run the "
+                                                                     "safe way"))}
     if len(plan.fmu_paths) > 1:
         together = Verdict(together.mode, f"{together.reason}, in this multi-model (it cannot run alone: "
                                           f"{next(iter(alone.values()))})")
@@ -118,23 +121,25 @@ def _measured_alone(path: Path, interface: str) -> Verdict | str:
     from .run import single_fmu
 
     plan = make_plan(single_fmu(path), interface)
-    runner, why = _alone(plan)
+    runner, fresh = _alone(plan)
     if runner is None:
-        return why
-    found = probe(runner, {}, [path])
+        return fresh
+    found = probe(runner, {}, [path], fresh)
     _keep(path, interface, found)
     return found
 
 
 # ---- measuring -----------------------------------------------------------------------------------
 
-def probe(runner: Runner, values: dict[str, Any], changing: list[Path]) -> Verdict:
+def probe(runner: Runner, values: dict[str, Any], changing: list[Path], fresh: list[tuple] | None = None
+          ) -> Verdict | str:
     """Run ``runner`` in fresh processes and several times in one, and compare every output bit for bit:
     first with the parameters of the FMUs at ``changing`` changed, then with ``values`` twice. What a
-    reset forgets to reset shows."""
-    fresh = _fresh_runs(runner, [values])
+    reset forgets to reset shows. ``fresh``: the run with ``values`` in a fresh process, if made already.
+    Why not, where even that run fails."""
+    fresh = fresh or _fresh_runs(runner, [values])
     if isinstance(fresh, str):
-        return Verdict("process", f"not measured, so run the safe way: {fresh}")
+        return fresh
     changed = {**values, **_changed_parameters(runner.plan, changing, values)}
     fresh_changed = _fresh_runs(runner, [changed]) if changed != values else "no parameters to change"
     sequence = [changed, values, values] if not isinstance(fresh_changed, str) else [values, values]
@@ -151,27 +156,27 @@ def probe(runner: Runner, values: dict[str, Any], changing: list[Path]) -> Verdi
                             "bit-identical to runs in fresh processes")
 
 
-def _alone(plan: Plan) -> tuple[Runner | None, str]:
-    """The FMU alone on the probe's experiment, if it runs in a fresh process: with its inputs driven,
-    else at their start values; otherwise why not."""
+def _alone(plan: Plan) -> tuple[Runner | None, list[tuple] | str]:
+    """The FMU alone on the probe's experiment and its run in a fresh process: with its inputs driven,
+    else at their start values; otherwise (None, why not)."""
     from .cosim import prepare
 
-    times = _probe_times(plan)
+    start, stop, step = _probe_times(plan)
     why = "no experiment"
-    for inputs in (_excitation(plan, *times), {}):
+    for inputs in (_excitation(plan, start, stop), {}):
         try:
-            runner = prepare(plan, *times, inputs)
+            runner = prepare(plan, start, stop, step, inputs)
         except DseError as e:
             why = str(e)
             continue
         fresh = _fresh_runs(runner, [{}])
         if not isinstance(fresh, str):
-            return runner, ""
+            return runner, fresh
         why = fresh
     return None, why
 
 
-def _excitation(plan: Plan, start: float, stop: float, step: float) -> dict[str, Series]:
+def _excitation(plan: Plan, start: float, stop: float) -> dict[str, Series]:
     """Every number input driven from 0 up to 1 and back (held steps for integers and Booleans)."""
     middle, third = (start + stop) / 2, (stop - start) / 3
     driven = {}
@@ -231,10 +236,11 @@ def _changed_parameters(plan: Plan, changing: list[Path], values: Mapping[str, A
                 start = float(v.start)
             except (TypeError, ValueError):
                 continue
-            value = start * 1.25
-            value = min(max(value, variable.low if variable.low is not None else -math.inf),
+            if not start:
+                continue
+            value = min(max(start * 1.25, variable.low if variable.low is not None else -math.inf),
                         variable.high if variable.high is not None else math.inf)
-            if start and value != start and math.isfinite(value):
+            if value != start and math.isfinite(value):
                 changed[variable.ref] = value
     return changed
 

@@ -34,7 +34,7 @@ from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationErro
 
 from .. import bundled
 from ..errors import DseError, format_syntax_error, format_validation_error
-from .fmu import FmuWarning
+from .fmu import FmuWarning, model_identifiers
 from .variables import FiniteValue, split_ref
 
 Strict = ConfigDict(extra="forbid", allow_inf_nan=False)
@@ -189,8 +189,6 @@ def _into_cps_fmu(path: str, base_dir: Path) -> str:
 
 def _renamed(folder: Path, stem: str) -> Path | None:
     """The one FMU under ``folder`` whose file name or model identifier is ``stem`` written otherwise."""
-    from .fmu import model_identifiers
-
     def key(name: str) -> str:
         return name.lower().replace("-", "").replace("_", "").replace(" ", "")
 

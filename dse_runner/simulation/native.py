@@ -207,6 +207,7 @@ class Program:
         self.lifecycle = (Lifecycle * len(units))(*[_lifecycle(u.stepper) for u in units]) if self.sets_up else None
         self.outcome = Outcome()
         self.value_groups: dict[tuple, Values | None] = {}  # the variables a run sets -> their groups (values_of)
+        self.given: Values | None = None  # the groups the current run's values went into
         self.call = Call(
             units=_address(self.steps), lifecycle=_address(self.lifecycle), n_units=len(units), feeds=_address(self.feed_groups), n_feeds=len(self.feeds),
             reads=_address(self.read_groups), n_reads=len(self.reads), text_reads=_address(self.text_reads),

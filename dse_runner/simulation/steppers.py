@@ -24,7 +24,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import fmi2True
 
 from .fmu import Instance
@@ -137,16 +136,7 @@ class CoSimulation2(Stepper):
         return Access(getattr(dll, f"fmi2Get{kind}"), getattr(dll, f"fmi2Set{kind}"), ctype, f"fmi2Get{kind}")
 
     def setup(self, start: float, stop: float) -> None:
-        """fmi2SetupExperiment through its ctypes function, its arguments made once per experiment: FMPy's
-        wrapper would cost a cheap run of a sweep a few µs."""
-        args = self.__dict__.get("_setup")
-        if args is None or args[3] != start or args[5] != stop:
-            stop_time, tolerance = self.stop_time(stop), self.tolerance
-            args = self._setup = (self.instance.slave.component, tolerance is not None, tolerance or 0.0, start,
-                                  stop_time is not None, stop)
-        status = self.instance.slave.dll.fmi2SetupExperiment(*args)
-        if status > FMI_WARNING:
-            raise FMICallException(function="fmi2SetupExperiment", status=status)
+        self.instance.slave.setupExperiment(tolerance=self.tolerance, startTime=start, stopTime=self.stop_time(stop))
 
     def enter_initialization(self, start: float, stop: float) -> None:
         self.instance.slave.enterInitializationMode()
