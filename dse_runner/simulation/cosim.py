@@ -534,17 +534,18 @@ def _prepare(plan: Plan, instances: dict[str, fmus.Instance], series: dict[str, 
              use_native: bool) -> _Prepared:
     """The units of this plan and these instances: laid out once for the native loop and reused while
     the instances are (a sweep runs one plan thousands of times), so a cheap run costs little Python."""
-    key = (id(plan), tuple(map(id, instances.values())), tuple(series), use_native)
+    chosen = tuple(instances.values())
+    key = (id(plan), tuple(map(id, chosen)), tuple(series), use_native)
     kept = _PREPARED.get(key)
-    if kept is not None and kept.plan is plan and all(a is b for a, b in zip(kept.instances, instances.values())):
-        kept.signals[:] = 0.0
+    if kept is not None and kept.plan is plan and kept.instances == chosen:  # instances compare by identity
+        kept.signals.fill(0.0)
         return kept
     names = plan.recorded
     sources = {ref: i for i, ref in enumerate(names)}
     sources.update({ref: len(names) + j for j, ref in enumerate(series)})
     signals = np.zeros(len(names) + len(series))
     units = _units(plan, instances, signals, sources, series)
-    prepared = _Prepared(plan, tuple(instances.values()), units, signals,
+    prepared = _Prepared(plan, chosen, units, signals,
                          native.Program(units, signals, len(names)) if use_native else None)
     if use_native:  # model-exchange steppers hold an integrator's state: those are made anew each run
         while len(_PREPARED) >= KEEP_PREPARED:

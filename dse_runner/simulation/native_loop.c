@@ -114,6 +114,11 @@ static double now(void) {
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
+/* Whether the deadline has passed; without one (INFINITY), the clock is not read. */
+static inline bool past(double deadline) {
+    return deadline < INFINITY && now() > deadline;
+}
+
 static int call(const Group *g) {
     if (g->version == 3) return ((Access3)g->fn)(g->component, g->vrs, (size_t)g->n, g->buffer, (size_t)g->n);
     return ((Access2)g->fn)(g->component, g->vrs, (size_t)g->n, g->buffer);
@@ -246,7 +251,7 @@ __attribute__((noinline)) static int plain_loop(const Unit *units, int32_t n_uni
     double last_time;
     for (int64_t k = 1; k < n_times; k++) {
         const double t = times[k - 1], t_next = times[k], h = t_next - t;
-        if (!(k & 63) && now() > deadline) return stop(out, arena, TIMEOUT, k, t, -1, -1);
+        if (!(k & 63) && past(deadline)) return stop(out, arena, TIMEOUT, k, t, -1, -1);
         for (int32_t f = 0; f < n_feeds; f++) {
             const Group *g = &feeds[f];
             double bad = 0.0;
@@ -278,8 +283,24 @@ __attribute__((noinline)) static int plain_loop(const Unit *units, int32_t n_uni
     return stop(out, arena, DONE, n_times - 1, times[n_times - 1], -1, -1);
 }
 
-/* The first row in [from, to) of the record with a non-finite value, or -1. */
+/* Whether all n values are finite, tested on their bits: a non-finite double has every exponent bit
+ * set, and adding one to that exponent carries into bit 63.  Integer and, add and or only, so the
+ * compiler vectorises it (isfinite row by row, with an early exit, cost the cheap case 3 µs a run). */
+static bool finite_block(const double *x, int64_t n) {
+    const uint64_t exponent = 0x7ff0000000000000ull;
+    uint64_t carried = 0;
+    for (int64_t i = 0; i < n; i++) {
+        uint64_t bits;
+        memcpy(&bits, &x[i], sizeof bits);
+        carried |= (bits & exponent) + (1ull << 52);
+    }
+    return !(carried >> 63);
+}
+
+/* The first row in [from, to) of the record with a non-finite value, or -1: the block at once, then
+ * row by row only where it holds one. */
 static int64_t first_nonfinite(const double *record, int64_t from, int64_t to, int64_t n) {
+    if (to <= from || finite_block(record + from * n, (to - from) * n)) return -1;
     for (int64_t k = from; k < to; k++)
         if (!finite_row(record + k * n, n)) return k;
     return -1;
@@ -292,7 +313,7 @@ static inline int checkpoint(Outcome *out, Arena *arena, const double *record, c
     int64_t bad = first_nonfinite(record, *checked, k, n_recorded);
     if (bad >= 0) return stop(out, arena, DIVERGED, bad, times[bad], -1, -1);
     *checked = k;
-    if (now() > deadline) return stop(out, arena, TIMEOUT, k, times[k - 1], -1, -1);
+    if (past(deadline)) return stop(out, arena, TIMEOUT, k, times[k - 1], -1, -1);
     return DONE;
 }
 
@@ -450,7 +471,7 @@ int dse_loop(const Unit *units, int32_t n_units, const Group *feeds, int32_t n_f
     int64_t k;
     for (k = 1; k < n_times; k++) {
         double t = times[k - 1], t_next = times[k], h = t_next - t;
-        if (!(k & 63) && now() > deadline) { code = stop(out, &arena, TIMEOUT, k, t, -1, -1); goto done; }
+        if (!(k & 63) && past(deadline)) { code = stop(out, &arena, TIMEOUT, k, t, -1, -1); goto done; }
         for (int64_t j = 0; j < n_external; j++) signals[n_recorded + j] = external[(k - 1) * n_external + j];
         int32_t f = 0, tf = 0;
         for (int32_t u = 0; u < n_units; u++) {

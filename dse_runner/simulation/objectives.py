@@ -222,6 +222,8 @@ def evaluate(objectives: Mapping[str, ObjectiveSpec], trajectory, scenario) -> d
     """Every objective's value; a value that is not a finite number is an error naming the objective,
     so a NaN never reaches a result row with an ok status. Scripts run last, all in one folder,
     and see the other values in its objectives.json."""
+    if not objectives:  # a plain run: nothing to score
+        return {}
     results: dict[str, float | list[float]] = {}
     scripts = {name: spec for name, spec in objectives.items() if isinstance(spec, Script)}
     for name, spec in objectives.items():
