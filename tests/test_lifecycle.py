@@ -3,12 +3,14 @@ reused instance, a crash there is one error, and a reset that changes a run is c
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 import yaml
 from conftest import MULTIMODEL, REPO, SCENARIOS
 
-from dse_runner.simulation import lifecycle
+from dse_runner.simulation import isolation, lifecycle
 from dse_runner.simulation.cosim import CosimError
 from dse_runner.simulation.run import as_plan, simulate
 
@@ -48,6 +50,22 @@ def test_a_crash_in_a_fresh_process_is_one_error_and_the_next_run_goes_on(tmp_pa
         simulate(plan, values={"crasher.k": 1.0}, stop_time=1, step=0.1)
     assert simulate(plan, values={"crasher.k": 0.0, "crasher.velocity": 2.0}, stop_time=1,
                     step=0.1).outputs["crasher.x"][-1] == pytest.approx(2.0)
+
+
+def test_a_run_hung_inside_an_fmu_call_in_a_fresh_process_is_killed_after_its_timeout(tmp_path, monkeypatch):
+    """The step loop checks its timeout between steps; a step that never returns is stopped by killing the
+    fresh process (here a step sleeps 10 s, and the timeout is 1 s plus a grace of 1 s)."""
+    multimodel = tmp_path / "sleeper.yaml"
+    multimodel.write_text(yaml.safe_dump({"fmus": {"sleeper": str(REPO / "tests" / "fmus" / "sleeper")},
+                                          "instances": {"sleeper": {"lifecycle": "process"}}}))
+    plan = as_plan(multimodel)
+    monkeypatch.setattr(isolation, "KILL_GRACE", 1.0)
+    began = time.monotonic()
+    with pytest.raises(CosimError, match=r"did not end within 2 s \(hung inside an FMU call\)"):
+        simulate(plan, values={"sleeper.pause": 10.0}, stop_time=1, step=0.5, timeout=1.0)
+    assert time.monotonic() - began < 9  # killed at 2 s, not waited for to the first step's end at 10 s
+    assert simulate(plan, values={"sleeper.velocity": 2.0}, stop_time=1, step=0.5,
+                    timeout=1.0).outputs["sleeper.x"][-1] == pytest.approx(2.0)
 
 
 def test_the_probe_finds_a_reset_that_changes_the_next_run():

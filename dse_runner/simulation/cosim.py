@@ -440,7 +440,8 @@ class Runner:
         fmus_used = [(path, plan.interfaces[name]) for name, path in plan.fmu_paths.items()]
         for path, interface in fmus_used:
             fmus.load(path, interface)  # extracted, and warned about, once in this process
-        return isolation.run(_run_here, self, values, timeout, loop, preload=fmus_used)
+        kill_after = timeout + isolation.KILL_GRACE if timeout else None  # hung inside an FMU call
+        return isolation.run(_run_here, self, values, timeout, loop, preload=fmus_used, kill_after=kill_after)
 
 
 def _run_here(runner: Runner, values: Mapping[str, Value], timeout: float | None, loop: str | None) -> Trajectory:

@@ -21,13 +21,16 @@ from __future__ import annotations
 import ctypes
 import os
 import pickle
+import select
 import signal
 import struct
 import subprocess
 import sys
 import tempfile
 import threading
+import time
 import warnings
+import weakref
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -36,6 +39,7 @@ from ..errors import DseError
 
 _HEADER = struct.Struct("!Q")
 _LOCAL = threading.local()
+KILL_GRACE = 10.0  # seconds past a run's own timeout before its fresh process is killed (it stops itself first)
 _IN_CHILD = False  # true in a forked child: the run happens here, not in yet another process
 
 
@@ -44,15 +48,18 @@ def in_child() -> bool:
     return _IN_CHILD
 
 
-def run(function: Callable[..., Any], *args: Any, preload: Iterable[tuple[Path, str]] = ()) -> Any:
+def run(function: Callable[..., Any], *args: Any, preload: Iterable[tuple[Path, str]] = (),
+        kill_after: float | None = None) -> Any:
     """``function(*args)`` in a fresh process; its result, or its exception raised here. ``preload``:
-    the FMUs (path, interface) the zygote describes and extracts once, so a child only loads them."""
+    the FMUs (path, interface) the zygote describes and extracts once, so a child only loads them.
+    ``kill_after``: seconds after which the child is killed, for a run hung inside an FMU call, where
+    the step loop's own timeout cannot reach."""
     if _IN_CHILD:  # never a zygote of a zygote's child: that would multiply processes
         raise DseError("a fresh process asked for another fresh process (a bug in dse-runner)")
     zygote = getattr(_LOCAL, "zygote", None)
     if zygote is None or zygote.process.poll() is not None:
         zygote = _LOCAL.zygote = _Zygote()
-    ok, value = zygote.call(function, args, list(preload))
+    ok, value = zygote.call(function, args, list(preload), kill_after)
     if not ok:
         raise value
     return value
@@ -69,10 +76,13 @@ class _Zygote:
                "PYTHONPATH": os.pathsep.join(filter(None, (package_parent, os.environ.get("PYTHONPATH"))))}
         self.process = subprocess.Popen([sys.executable, "-m", __name__, str(extract_root())],
                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
+        weakref.finalize(self, _close, self.process)  # at exit too: the zygote ends with its pipe
 
-    def call(self, function: Callable[..., Any], args: tuple, preload: list) -> tuple[bool, Any]:
+    def call(self, function: Callable[..., Any], args: tuple, preload: list,
+             kill_after: float | None = None) -> tuple[bool, Any]:
         try:
-            _send(self.process.stdin, pickle.dumps((function, args, preload), protocol=pickle.HIGHEST_PROTOCOL))
+            request = (function, args, preload, kill_after)
+            _send(self.process.stdin, pickle.dumps(request, protocol=pickle.HIGHEST_PROTOCOL))
             reply = _receive(self.process.stdout)
         except (BrokenPipeError, OSError):
             reply = None
@@ -81,6 +91,20 @@ class _Zygote:
             raise DseError(f"the process that starts fresh processes for FMU runs ended (exit code "
                            f"{self.process.wait()}); see the worker's log")
         return pickle.loads(reply)
+
+
+def _close(process: subprocess.Popen) -> None:
+    """Close the zygote's pipes (it then exits) and collect it."""
+    for stream in (process.stdin, process.stdout):
+        try:
+            stream.close()
+        except OSError:
+            pass
+    try:
+        process.wait(timeout=5)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait()
 
 
 def _send(stream: BinaryIO, payload: bytes) -> None:
@@ -111,7 +135,7 @@ def _serve(extract_root: str) -> None:
     requests = sys.stdin.buffer
     while (request := _receive(requests)) is not None:
         try:
-            function, args, preload = pickle.loads(request)
+            function, args, preload, kill_after = pickle.loads(request)
         except Exception as e:  # a function this process cannot import, say: the caller's error, not ours
             _send(frames_out, pickle.dumps((False, DseError(f"cannot run this in a fresh process: {e}"))))
             continue
@@ -120,11 +144,12 @@ def _serve(extract_root: str) -> None:
                 fmus.load(Path(path), interface)  # describe and find the extraction once, for every child
             except DseError:
                 pass  # the child meets the same error and reports it
-        _send(frames_out, _fork(function, args))
+        _send(frames_out, _fork(function, args, kill_after))
 
 
-def _fork(function: Callable[..., Any], args: tuple) -> bytes:
-    """Run ``function(*args)`` in a forked child; its pickled (ok, value), or an error if it died."""
+def _fork(function: Callable[..., Any], args: tuple, kill_after: float | None = None) -> bytes:
+    """Run ``function(*args)`` in a forked child; its pickled (ok, value), or an error if it died or,
+    after ``kill_after`` seconds, had to be killed."""
     read_end, write_end = os.pipe()
     with tempfile.TemporaryFile() as log:
         pid = os.fork()
@@ -134,17 +159,39 @@ def _fork(function: Callable[..., Any], args: tuple) -> bytes:
             os.dup2(log.fileno(), 2)
             _child(function, args, write_end)
         os.close(write_end)
-        with os.fdopen(read_end, "rb") as results:
-            data = results.read()
+        data, hung = _read_all(read_end, kill_after)
+        if hung:
+            os.kill(pid, signal.SIGKILL)
         _, status = os.waitpid(pid, 0)
         log.seek(0)
         said = log.read().decode("utf-8", "replace")
     if said:
         sys.stderr.write(said)
         sys.stderr.flush()
+    if hung:
+        from .cosim import CosimError
+
+        return pickle.dumps((False, CosimError(f"timeout: the simulation did not end within {kill_after:g} s "
+                                               "(hung inside an FMU call); its fresh process was killed")))
     if data and os.WIFEXITED(status):
         return data
     return pickle.dumps((False, _death(status, said)))
+
+
+def _read_all(fd: int, seconds: float | None) -> tuple[bytes, bool]:
+    """Everything written to ``fd`` until it closes; and whether ``seconds`` passed first (then what came)."""
+    deadline = time.monotonic() + seconds if seconds else None
+    chunks = []
+    with os.fdopen(fd, "rb", buffering=0) as results:
+        while True:
+            if deadline is not None:
+                left = deadline - time.monotonic()
+                if left <= 0 or not select.select([results], [], [], left)[0]:
+                    return b"".join(chunks), True
+            chunk = results.read(1 << 16)
+            if not chunk:
+                return b"".join(chunks), False
+            chunks.append(chunk)
 
 
 def _child(function: Callable[..., Any], args: tuple, write_end: int) -> None:

@@ -205,7 +205,8 @@ def _fresh_runs(runner: Runner, values: list[dict[str, Any]]) -> list[tuple] | s
     """The runs in one fresh process, each as (values, texts); a message if any failed or the process died."""
     try:
         return isolation.run(_runs_here, runner, values,
-                             preload=[(p, runner.plan.interfaces[n]) for n, p in runner.plan.fmu_paths.items()])
+                             preload=[(p, runner.plan.interfaces[n]) for n, p in runner.plan.fmu_paths.items()],
+                             kill_after=len(values) * PROBE_SECONDS + isolation.KILL_GRACE)
     except DseError as e:
         return str(e)
 
