@@ -53,3 +53,19 @@ def test_build_fmus_json(tmp_path):
     built = strict_loads(done.stdout)["fmus"]
     assert set(built) == {"robotti_vehicle", "robotti_vehicle_effects", "replay_controller", "path_controller"}
     assert all((tmp_path / f"{name}.fmu").is_file() for name in built)
+
+
+def test_every_commands_help_fits_80_columns_and_names_its_flags_plainly():
+    """A terminal of 80 columns shows every option whole (no cut names), and a flag is shown as a flag."""
+    import os
+
+    helps = {}
+    for command in ("submit", "rank", "dashboard", "report", "diagnose", "simulate", "build-fmus", "convert-intocps"):
+        done = subprocess.run([sys.executable, "-m", "dse_runner", command, "--help"], capture_output=True, text=True,
+                              cwd=REPO, env={**os.environ, "COLUMNS": "80"})
+        assert done.returncode == 0, done.stderr
+        helps[command] = done.stdout
+    for command, text in helps.items():
+        assert not [line for line in text.splitlines() if len(line) > 80], (command, text)
+        assert "<bool>" not in text and "…" not in text, (command, text)
+    assert "--dashboard-address" in helps["submit"] and "--no-dashboard" in helps["submit"]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 import yaml
-from conftest import MULTIMODEL, SCENARIOS
+from conftest import MULTIMODEL, REPO, SCENARIOS
 
 from dse_runner import DseError
 from dse_runner.simulation.run import simulate
@@ -21,8 +21,20 @@ def write_multimodel(tmp_path, **changes):
 def test_missing_fmu(tmp_path):
     path = write_multimodel(tmp_path, fmus={"controller": "nowhere/replay.fmu",
                                             "vehicle": "bundled:fmus/robotti_vehicle"})
-    with pytest.raises(DseError, match=r"FMU not found: .*nowhere/replay\.fmu"):
+    with pytest.raises(DseError, match=r"^instance 'controller' of the multi-model names 'nowhere/replay\.fmu': "
+                                       r"FMU not found: .*nowhere/replay\.fmu$"):
         simulate(path, SCENARIOS / "sin1")
+
+
+def test_a_missing_fmu_file_given_alone_says_how_one_is_made(tmp_path):
+    with pytest.raises(DseError, match=r"FMU not found: .*tank\.fmu \(`dse-runner build-fmus"):
+        simulate(tmp_path / "tank.fmu")
+
+
+def test_an_fmu_source_folder_is_simulated_as_its_fmu():
+    """The README's Python example: C sources are built on first use and the instance is named after the folder."""
+    tank = simulate(REPO / "jobs" / "watertank" / "fmus" / "tank", stop_time=50, values={"valvecontrol": 1.0})
+    assert list(tank.outputs) == ["tank.level"] and tank.time[-1] == 50
 
 
 def test_unknown_variable_in_connection(tmp_path):

@@ -8,6 +8,7 @@ import os
 import shutil
 import subprocess
 import sys
+import sysconfig
 from pathlib import Path
 
 import pytest
@@ -31,9 +32,15 @@ def installed(tmp_path_factory) -> dict:
     subprocess.run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "--no-build-isolation", "-w",
                     str(root / "dist"), str(source)], check=True, capture_output=True, text=True)
     (wheel,) = (root / "dist").glob("dse_runner-*.whl")
-    # The dependencies come from this interpreter's site-packages; dse-runner itself only from the wheel.
+    # The dependencies come from this interpreter's site-packages (named in a .pth file, whose own .pth files,
+    # this checkout's editable install among them, are then not read); dse-runner itself only from the wheel.
+    # (--system-site-packages would give the base interpreter's, not those of the environment the tests run in.)
     venv = root / "venv"
-    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True)
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
+    target = subprocess.run([venv / "bin" / "python", "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"],
+                            check=True, capture_output=True, text=True).stdout.strip()
+    ours = dict.fromkeys([sysconfig.get_path("purelib"), sysconfig.get_path("platlib")])
+    (Path(target) / "dependencies.pth").write_text("".join(f"{path}\n" for path in ours))
     subprocess.run([venv / "bin" / "python", "-m", "pip", "install", "--quiet", "--no-deps", "--ignore-installed",
                     str(wheel)],
                    check=True, capture_output=True, text=True)

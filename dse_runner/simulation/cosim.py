@@ -191,10 +191,18 @@ def _did_you_mean(name: str, options) -> str:
 
 # ---- planning ------------------------------------------------------------------------------------
 
+def _fmu_file(multimodel: MultiModel, name: str) -> Path:
+    """The FMU an instance names, built if it is a source folder; an error names the instance."""
+    try:
+        return resolve_fmu(multimodel.fmu_path(name))
+    except DseError as e:
+        raise DseError(f"instance {name!r} of the multi-model names {multimodel.fmus[name]!r}: {e}") from None
+
+
 def make_plan(multimodel: MultiModel, interface: str | None = None) -> Plan:
     """Build FMUs if needed and check every name the multi-model uses. ``interface`` ("cs" or "me")
     overrides every instance's."""
-    fmu_paths = {name: resolve_fmu(multimodel.fmu_path(name)) for name in multimodel.fmus}
+    fmu_paths = {name: _fmu_file(multimodel, name) for name in multimodel.fmus}
     descriptions = {name: fmus.describe(path) for name, path in fmu_paths.items()}
     interfaces = {name: fmus.choose_interface(fmu_paths[name], d, interface or multimodel.settings(name).interface)
                   for name, d in descriptions.items()}

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..errors import DseError
 from . import objectives as objs
+from .build import is_source_dir
 from .cosim import Plan, Runner, Trajectory, make_plan, prepare
 from .experiment import Experiment, Times, resolve_times
 from .lifecycle import Verdict, needs_process
@@ -62,12 +63,23 @@ def single_fmu(path: str | Path) -> MultiModel:
 
 
 def as_plan(model: Plan | MultiModel | str | Path, interface: str | None = None) -> Plan:
-    """A checked plan from an ``.fmu`` file, a multi-model file or object, or a plan."""
+    """A checked plan from an ``.fmu`` file, an FMU source folder (built on first use), a multi-model
+    file or object, or a plan."""
     if isinstance(model, Plan):
         return model
     if not isinstance(model, MultiModel):
-        model = single_fmu(model) if str(model).lower().endswith(".fmu") else load_multimodel(model)
+        model = single_fmu(model) if _is_one_fmu(Path(model)) else load_multimodel(model)
     return make_plan(model, interface)
+
+
+def _is_one_fmu(path: Path) -> bool:
+    """An ``.fmu`` file or an FMU's C sources; a missing ``.fmu`` is an error that says how one is made."""
+    if path.suffix.lower() == ".fmu":
+        if not path.exists():
+            raise DseError(f"FMU not found: {path} (`dse-runner build-fmus SOURCES --out DIR` makes .fmu files "
+                           "from FMU source folders, and a source folder can be given instead of an .fmu)")
+        return True
+    return path.is_dir() and is_source_dir(path)
 
 
 def qualify(plan: Plan, ref: str) -> str:
