@@ -8,6 +8,7 @@ tmpfs laid over the folders to hide).
 
 from __future__ import annotations
 
+import ctypes
 import datetime
 import os
 import random
@@ -22,6 +23,11 @@ from pathlib import Path
 
 DASK_SCHEDULER = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
 DASK_WORKER = [sys.executable, "-m", "distributed.cli.dask_worker"]
+
+
+def _end_with_parent() -> None:
+    """In the child before exec: SIGTERM when the process that started it dies (Linux's PR_SET_PDEATHSIG)."""
+    ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)  # 1: PR_SET_PDEATHSIG
 
 
 @dataclass(frozen=True)
@@ -121,9 +127,10 @@ class CliCluster:
 
     def _popen(self, command: list[str], log: str) -> subprocess.Popen:
         with open(self.folder / log, "ab") as out:
-            # Each process leads its own process group, so that close() can kill a nanny and its worker at once.
+            # Each process leads its own process group, so that close() can kill a nanny and its worker at once;
+            # and is told to end when pytest does, even killed (no teardown then), so no daemon outlives a run.
             return subprocess.Popen(command, env=self.env, cwd=self.folder, stdout=out, stderr=subprocess.STDOUT,
-                                    start_new_session=True)
+                                    start_new_session=True, preexec_fn=_end_with_parent)
 
     def start_scheduler(self) -> None:
         tls = self.certs.flags() if self.certs else []
