@@ -2,7 +2,7 @@
 and dse-runner on 2 workers against plain Optuna in one process, measured side by side in one run.
 
     python benchmarks/search.py [--json] [--strategies tpe,sobol] [--seeds 3] [--points 60]
-                                [--baseline tpe] [--work DIR]
+                                [--baseline tpe] [--work DIR] [--variant NAME=JSON ...]
 
 Everything runs on ONE local Dask cluster of 2 single-threaded worker processes, started once
 before the clock (its start-up is in no figure) and shared by every run:
@@ -24,7 +24,13 @@ before the clock (its start-up is in no figure) and shared by every run:
    - ``wall_s``: the median wall time of ``submit`` (the cluster already up; tracks of the best
      points are not kept, ``keep_trajectories: 0``);
    - ``utilisation``: the median of the search's worker utilisation (SearchStatus: simulation
-     seconds on the workers / (threads x the time from the first point sent to the last result)).
+     seconds on the workers / (threads x the time from the first point sent to the last result));
+   - ``ask_s``: the median of the client's seconds in the strategy's ask() (SearchStatus.ask_seconds),
+     with ``ask_ms`` the mean per asked point: the client's share, which the workers wait for when
+     it outgrows a point's simulations divided by the workers.
+   Each ``--variant NAME=JSON`` runs every strategy and seed once more with JSON merged into its
+   ``search:`` block (e.g. ``async={"order": "asynchronous"}``), right after the others of the same
+   seed, so that variants are compared under the same load; rows are named ``strategy [NAME]``.
    nsga2 optimises the Pareto pair (cross_track_error, max_error); its figures are for the best
    cross_track_error total it found. least_squares fits the vector objective fix_residuals
    (added to its space's objectives when missing) and every point it asks, finite-difference
@@ -44,6 +50,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import json
 import logging
 import math
 import shutil
@@ -131,11 +138,11 @@ def grid_space(base: dict[str, Any], work: Path) -> Space:
 
 
 def search_space(base: dict[str, Any], work: Path, strategy: str, seed: int, points: int,
-                 prefix: str = "") -> Space:
+                 prefix: str = "", variant: tuple[str, dict[str, Any]] = ("", {})) -> Space:
     data = copy.deepcopy(base)
     data["name"] = f"robotti-{strategy}-s{seed}"
     data["parameters"] = copy.deepcopy(BOUNDS)
-    data["search"] = {"strategy": strategy, "max_points": points, "seed": seed}
+    data["search"] = {"strategy": strategy, "max_points": points, "seed": seed, **variant[1]}
     ranking = dict(data.get("ranking") or {})
     ranking["objective"] = OBJECTIVE
     if strategy == "nsga2":
@@ -146,7 +153,7 @@ def search_space(base: dict[str, Any], work: Path, strategy: str, seed: int, poi
     if strategy == "least_squares":
         data["objectives"] = with_objective(data.get("objectives"), RESIDUALS)
         data["search"]["residuals"] = RESIDUALS
-    folder = work / f"{prefix}{strategy}-s{seed}"
+    folder = work / f"{prefix}{strategy}-s{seed}{'-' + variant[0] if variant[0] else ''}"
     shutil.rmtree(folder, ignore_errors=True)  # a fresh store: nothing told from earlier runs
     return write_space(data, folder)
 
@@ -215,6 +222,8 @@ def run_search(space: Space, client, reference: float, goal: str, points: int) -
         "best_total": None if math.isnan(best) else best,
         "best_point": status.best_point if status else None,
         "utilisation": status.utilisation if status else None,
+        "ask_s": status.ask_seconds if status else None,  # the client's time in the strategy's ask()
+        "asks": len(history.points) if history is not None else 0,
         "busy_s": status.busy_seconds if status else None,
         "window_s": status.window_seconds if status else None,
         "failed": status.failed if status else report.failed,
@@ -306,7 +315,14 @@ def main() -> None:
                              "'best' (the best of those measured) or 'none' (default tpe)")
     parser.add_argument("--work", type=Path, default=None,
                         help="keep stores here (the grid is reused when it is there); default: a temp folder")
+    parser.add_argument("--variant", action="append", default=[], metavar="NAME=JSON",
+                        help="also run every strategy and seed with JSON merged into its search: block, "
+                             "e.g. 'async={\"order\": \"asynchronous\"}' (repeatable)")
     args = parser.parse_args()
+    try:
+        args.variants = [("", {})] + [parse_variant(v) for v in args.variant]
+    except ValueError as e:
+        parser.error(f"--variant: {e}")
     strategies = [s.strip() for s in args.strategies.split(",") if s.strip()]
     unknown = sorted(set(strategies) - set(STRATEGIES))
     if unknown or args.seeds < 1 or args.points < 1:
@@ -370,27 +386,33 @@ def measure(figures: dict[str, Any], client, base: dict[str, Any], work: Path, s
     # found in --work's store), as the plain loop's warm-up simulation does for its process
     warm_up = search_space(base, work, "random", 0, 2, "warm-up-")
     submit(warm_up, client=client)
+    if "gp" in strategies:  # PyTorch imported and the GP's code run once in this process, off the clock
+        submit(search_space(base, work, "gp", 0, 12, "warm-up-", ("", {"n_startup_trials": 10})), client=client)
 
-    # 2. every strategy, every seed
+    # 2. every strategy, every seed, every variant (a seed's variants one after another: the same load)
+    figures["variants"] = {v: options for v, options in args.variants if v}
     for name in strategies:
-        runs: list[dict[str, Any]] = []
-        errors: list[str] = []
+        runs: dict[str, list[dict[str, Any]]] = {row_name(name, v): [] for v, _ in args.variants}
+        errors: dict[str, list[str]] = {row: [] for row in runs}
         for seed in seeds:
-            try:
-                space = search_space(base, work, name, seed, args.points)
-                run = run_search(space, client, reference, goal, args.points)
-            except Exception as e:  # noqa: BLE001 -- a strategy that breaks must not sink the others' figures
-                errors.append(f"seed {seed}: {type(e).__name__}: {e}")
-                say(f"{name} seed {seed}: FAILED {type(e).__name__}: {e}")
-                traceback.print_exc(file=sys.stderr)
-                continue
-            run["seed"] = seed
-            runs.append(run)
-            util = f"{run['utilisation'] * 100:.0f}%" if run["utilisation"] is not None else "-"
-            say(f"{name} seed {seed}: {run['points']} points in {run['wall_s']:.1f} s, "
-                f"best {run['best_total']}, within 1% after {run['points_to_1pct']}, utilisation {util}, "
-                f"stopped: {run['stopped']}")
-        figures["strategies"][name] = summarise(runs, errors)
+            for variant in args.variants:
+                row = row_name(name, variant[0])
+                try:
+                    space = search_space(base, work, name, seed, args.points, variant=variant)
+                    run = run_search(space, client, reference, goal, args.points)
+                except Exception as e:  # noqa: BLE001 -- a strategy that breaks must not sink the others' figures
+                    errors[row].append(f"seed {seed}: {type(e).__name__}: {e}")
+                    say(f"{row} seed {seed}: FAILED {type(e).__name__}: {e}")
+                    traceback.print_exc(file=sys.stderr)
+                    continue
+                run["seed"] = seed
+                runs[row].append(run)
+                util = f"{run['utilisation'] * 100:.0f}%" if run["utilisation"] is not None else "-"
+                say(f"{row} seed {seed}: {run['points']} points in {run['wall_s']:.1f} s, "
+                    f"best {run['best_total']}, within 1% after {run['points_to_1pct']}, utilisation {util}, "
+                    f"asks {run['ask_s']:.1f} s, stopped: {run['stopped']}")
+        for row in runs:
+            figures["strategies"][row] = summarise(runs[row], errors[row])
     ranked = [n for n, s in figures["strategies"].items() if s["runs"]]
     figures["best_strategy"] = min(ranked, key=lambda n: order_key(figures["strategies"][n]), default=None)
 
@@ -429,10 +451,23 @@ def measure(figures: dict[str, Any], client, base: dict[str, Any], work: Path, s
         f" ms per simulation alone, {1000 * ceiling['two_processes_s_per_simulation']:.1f} ms two at once)")
 
 
+def parse_variant(text: str) -> tuple[str, dict[str, Any]]:
+    """``NAME=JSON`` as (name, the search: keys it changes)."""
+    name, _, options = text.partition("=")
+    found = json.loads(options) if options else None
+    if not name or not isinstance(found, dict):
+        raise ValueError(f"{text!r} is not NAME={{json object}}")
+    return name, found
+
+
+def row_name(strategy: str, variant: str) -> str:
+    return f"{strategy} [{variant}]" if variant else strategy
+
+
 def summarise(runs: list[dict[str, Any]], errors: list[str]) -> dict[str, Any]:
     if not runs:
         return {"points_to_1pct": None, "best_total_60": None, "wall_s": None, "utilisation": None,
-                "runs": [], "errors": errors}
+                "ask_s": None, "ask_ms": None, "runs": [], "errors": errors}
     bests = [r["best_total"] for r in runs if r["best_total"] is not None]
     utilisations = [r["utilisation"] for r in runs if r["utilisation"] is not None]
     return {
@@ -441,6 +476,9 @@ def summarise(runs: list[dict[str, Any]], errors: list[str]) -> dict[str, Any]:
         "wall_s": statistics.median(r["wall_s"] for r in runs),
         "cpu_s": statistics.median(r["cpu_s"] for r in runs),
         "utilisation": statistics.median(utilisations) if utilisations else None,
+        "ask_s": statistics.median(r["ask_s"] for r in runs),
+        "ask_ms": 1000 * sum(r["ask_s"] for r in runs) / max(1, sum(r["asks"] for r in runs)),
+        "utilisation_by_seed": utilisations,
         "points_to_1pct_by_seed": [r["points_to_1pct"] for r in runs],
         "best_totals": [r["best_total"] for r in runs],
         "best_of_seeds": min(bests) if bests else None,
@@ -469,15 +507,19 @@ def print_table(figures: dict[str, Any]) -> None:
     print(f"  ({grid['points']} points; within 1%: <= {grid['within_1pct_of']:.4f}); "
           f"grid on 2 workers {grid['wall_s']:.1f} s{stored}")
     print(f"{len(figures['seeds'])} seed(s) per strategy, {n} points each, medians over seeds; wall_s excludes "
-          f"the cluster's start-up ({figures['cluster_startup_s']:.1f} s, one cluster for all runs)")
+          f"the cluster's start-up ({figures['cluster_startup_s']:.1f} s, one cluster for all runs); ask_s: the "
+          "client's seconds in ask(), ask_ms per asked point")
+    for name, options in figures["variants"].items():
+        print(f"[{name}]: {json.dumps(options)} merged into search:")
     print()
-    header = (f"{'strategy':<14} {'points_to_1pct':>14} {'by seed':>16} {'best_total_' + str(n):>15} "
-              f"{'best of seeds':>13} {'wall_s':>7} {'utilisation':>11}")
+    width = max(14, *(len(name) for name in figures["strategies"]))
+    header = (f"{'strategy':<{width}} {'points_to_1pct':>14} {'by seed':>16} {'best_total_' + str(n):>15} "
+              f"{'best of seeds':>13} {'wall_s':>7} {'utilisation':>11} {'ask_s':>6} {'ask_ms':>6}")
     print(header)
     print("-" * len(header))
     for name, s in figures["strategies"].items():
         if not s["runs"]:
-            print(f"{name:<14} failed: {'; '.join(s['errors'])}")
+            print(f"{name:<{width}} failed: {'; '.join(s['errors'])}")
             continue
         reach = "-" if s["points_to_1pct"] is None else f"{s['points_to_1pct']:g}"
         by_seed = ",".join("-" if r is None else str(r) for r in s["points_to_1pct_by_seed"])
@@ -486,8 +528,8 @@ def print_table(figures: dict[str, Any]) -> None:
         util = "-" if s["utilisation"] is None else f"{s['utilisation'] * 100:.0f}%"
         short = "" if all(p >= n for p in s["points_by_seed"]) else f"  (stopped at {s['points_by_seed']})"
         failed = f"  ({len(s['errors'])} seed(s) failed)" if s["errors"] else ""
-        print(f"{name:<14} {reach:>14} {by_seed:>16} {best:>15} {best_of:>13} {s['wall_s']:>7.1f} "
-              f"{util:>11}{short}{failed}")
+        print(f"{name:<{width}} {reach:>14} {by_seed:>16} {best:>15} {best_of:>13} {s['wall_s']:>7.1f} "
+              f"{util:>11} {s['ask_s']:>6.1f} {s['ask_ms']:>6.0f}{short}{failed}")
     print()
     ranked = {k: v for k, v in figures["strategies"].items() if v["runs"]}
     if ranked:

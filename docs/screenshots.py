@@ -39,7 +39,7 @@ def main() -> None:
     IMAGES.mkdir(parents=True, exist_ok=True)
     with sync_playwright() as playwright:
         browser = playwright.chromium.launch(executable_path=shutil.which("chromium"))
-        page = browser.new_page(viewport={"width": 1560, "height": 1000})
+        page = browser.new_page(viewport={"width": 1400, "height": 1000})  # the width the pages are made to fit
         page.goto(server.url)
         page.wait_for_selector("#dse-done")
         sweep.start()

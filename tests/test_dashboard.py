@@ -19,6 +19,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 from conftest import SCENARIOS, strict_loads, write_space
+from pages import glyphs, measure
 
 SWEEP_SCENARIOS = ["sin1", "speed_ramp1", "speed_step1", "turn_ramp1"]
 PARAMETERS = {"vehicle.cAlphaF": [20000, 38000],
@@ -236,6 +237,74 @@ def test_the_report_opens_offline(watched, tmp_path):
         assert re.search(rf"{scenario}\s+\S+\s+{row['min_error']:.6g}\s+{row['max_error']:.6g}", text), scenario
     assert "name: watched" in text and "vehicle.cAlphaF" in text  # the spec
     assert f"{ranking.best_total:.4f}" in text
+
+
+DRAWN = "() => window.Bokeh && Bokeh.index.roots.length > 0 && Bokeh.index.roots.every(v => v.has_finished())"
+
+
+def test_the_report_and_the_dashboard_fit_a_1400_px_page(watched, tmp_path):
+    """Four scenario groups and three parameters: Figure 6's four panels once overflowed a 1400 px page, and
+    Figure 5's title "cross_track_error against vehicle.cAlphaF" ran past its canvas. Measured in the
+    browser, charts, titles and toolbars; a grid's Figure 5 keeps one line per scenario."""
+    from playwright.sync_api import sync_playwright
+
+    from dse_runner.interfaces.dashboard import serve
+    from dse_runner.interfaces.report import write_report
+
+    report = write_report(watched.output, tmp_path / "report.html")
+    server = serve(watched.output, "watched")
+    errors: list[str] = []
+    try:
+        with sync_playwright() as playwright:
+            browser = chromium(playwright)
+            page = browser.new_page(viewport={"width": 1400, "height": 1000})
+            _watch_errors(page, errors)
+            page.goto(report.as_uri())
+            page.wait_for_function(DRAWN, timeout=30_000)
+            on_report, report_lines = measure(page), glyphs(page, "dse-by-parameter-vehicle.mass")
+            page.screenshot(path=tmp_path / "report-1400.png", full_page=True)
+            page.goto(server.url)
+            page.wait_for_function("() => window.Bokeh && Bokeh.documents.some(d => "
+                                   "d.get_model_by_name('dse-by-parameter-vehicle.mass')?.renderers[0]"
+                                   ".data_source.get_length() > 0)", timeout=30_000)
+            page.wait_for_function(DRAWN, timeout=30_000)
+            on_dashboard, dashboard_lines = measure(page), glyphs(page, "dse-by-parameter-vehicle.mass")
+            page.screenshot(path=tmp_path / "dashboard-1400.png", full_page=True)
+            browser.close()
+    finally:
+        server.stop()
+    assert errors == []
+    figures = 3 + 4 + len(SWEEP_SCENARIOS)  # Figure 5, Figure 6, a track per scenario
+    assert on_report.charts == on_report.titles >= figures, on_report
+    assert on_dashboard.charts == on_dashboard.titles >= 3 + 4 + 1, on_dashboard  # and the best point's track
+    assert on_report.misfits == [] and on_dashboard.misfits == []
+    assert report_lines == dashboard_lines == [("MultiLine", len(SWEEP_SCENARIOS))]
+
+
+def test_a_long_title_is_set_small_enough_to_fit_its_chart(tmp_path):
+    """A parameter with a long name, and wide tick labels on the y axis: Figure 5's title shrinks to fit."""
+    from bokeh.embed import file_html
+    from bokeh.resources import INLINE
+    from playwright.sync_api import sync_playwright
+
+    from dse_runner.interfaces import charts
+
+    names = ["controller.proportional_gain_of_the_outer_loop", "controller.k"]
+    ok = pd.DataFrame({names[0]: [1.0, 2.0, 3.0] * 2, names[1]: [0.5] * 6, "scenario": ["a"] * 3 + ["b"] * 3,
+                       "group": ["g"] * 6, "settling_time": [-123456.5, 2.5e5, 3.1e5, 1.2e5, 2.2e5, 3.3e5]})
+    figure5 = charts.ObjectiveByParameter(names, "settling_time", ["g"])
+    figure5.update(ok)
+    page_file = tmp_path / "long.html"
+    page_file.write_text(file_html(figure5.layout, INLINE, "long title"))
+    with sync_playwright() as playwright:
+        browser = chromium(playwright)
+        page = browser.new_page(viewport={"width": 1400, "height": 600})
+        page.goto(page_file.as_uri())
+        page.wait_for_function(DRAWN, timeout=30_000)
+        fit = measure(page)
+        browser.close()
+    assert float(figure5.layout.children[0][0].title.text_font_size.removesuffix("pt")) < charts.TITLE_PT
+    assert (fit.charts, fit.titles, fit.misfits) == (2, 2, [])
 
 
 def test_dashboard_command_serves_a_finished_sweep(watched):

@@ -27,3 +27,26 @@ def test_the_readmes_python_example_runs_as_written(tmp_path):
     assert done.returncode == 0, done.stderr[-3000:]
     assert re.search(r"vehicle\.cAlphaF", done.stdout), done.stdout  # the best point, printed
     assert (tmp_path / "out" / "robotti-calibration").is_dir()
+
+
+def test_the_readmes_table1_is_laid_out_as_the_cli_prints_it(capsys):
+    """The README's "What the main job prints" shows Table 1 as `submit` prints it: the CLI, given the block's
+    own figures, prints the block line for line (its title, column names, widths and the best point)."""
+    import pandas as pd
+
+    from dse_runner.analysis.rank import Ranking
+    from dse_runner.interfaces.cli import _print_table1
+
+    text = (REPO / "README.md").read_text()
+    block = [line.removeprefix("    ") for line in text[text.index("    Table 1: "):].splitlines()]
+    block = block[:next(i for i, line in enumerate(block) if line.startswith("best: ")) + 1]
+    rows = [line.split() for line in block[2:-1]]
+    table1 = pd.DataFrame([{"scenario": r[0], "group": "", **dict(zip(
+        ("min_error", "max_error", "average_error", "computed", "difference"), map(float, r[1:])))} for r in rows])
+    points = int(re.search(r"\((\d+) points\)", block[0])[1])
+    best = {name: float(value) for name, value in re.findall(r"(\S+) = ([\d.]+)", block[-1])}
+    total = float(re.search(r"cross_track_error ([\d.]+)\)", block[-1])[1])
+    none = pd.DataFrame()
+    _print_table1(Ranking("robotti-calibration", list(best), "cross_track_error", "min", best, total,
+                          pd.DataFrame(index=range(points)), table1, none, none, none, 0, 0))
+    assert capsys.readouterr().out.splitlines() == block

@@ -23,8 +23,8 @@ from dse_runner.analysis.rank import rank
 from dse_runner.errors import DseError
 from dse_runner.sweeps import store
 from dse_runner.sweeps.history import load_history
-from dse_runner.sweeps.spec import load_space
-from dse_runner.sweeps.sweep import submit
+from dse_runner.sweeps.spec import BATCH, load_space
+from dse_runner.sweeps.sweep import load_status, submit
 
 MSD = REPO / "jobs" / "msd"
 CLIFF = REPO / "tests" / "fmus" / "cliff"
@@ -146,8 +146,12 @@ def asked_points(space) -> list[tuple[float, float]]:
     return [(p.point["msd.k"], p.point["msd.c"]) for p in history.points]
 
 
-def test_a_larger_budget_replays_the_search_and_simulates_only_new_points(tmp_path, dask_scheduler):
-    search = {"strategy": "tpe", "seed": 7, "batch": 1, "n_startup_trials": 5}  # batch 1: one ask/tell order
+# Reproducible (the default, 4 points asked ahead): the same points whatever the timing. Asynchronous: only with
+# batch 1 is there one ask/tell order, so that the search in one go asks the same points.
+@pytest.mark.parametrize("order, batch", [("reproducible", {}), ("asynchronous", {"batch": 1})],
+                         ids=["reproducible", "asynchronous"])
+def test_a_larger_budget_replays_the_search_and_simulates_only_new_points(tmp_path, dask_scheduler, order, batch):
+    search = {"strategy": "tpe", "seed": 7, "order": order, **batch, "n_startup_trials": 5}
     first = load_space(msd_space(tmp_path / "resumed", {**search, "max_points": 8}, dask_scheduler))
     report = submit(first)
     assert (report.ran, report.search.points, report.search.reused, report.search.replayed) == (8, 8, 0, False)
@@ -169,12 +173,81 @@ def test_a_larger_budget_replays_the_search_and_simulates_only_new_points(tmp_pa
                                   fresh_rows[["task_id", "msd.k", "msd.c", "position_rmse"]])
     assert (report.search.best, report.search.best_point) == (once.search.best, once.search.best_point)
 
-    # The same budget again: everything is replayed, nothing simulated, no row written.
+    # The same budget again: everything is replayed, nothing simulated, no row written, and the status (what
+    # the dashboard and the report show) stays that of the submission that simulated the last 12 points.
     files = {p: p.stat().st_mtime_ns for p in (more.output / "results").rglob("*.parquet")}
+    status = load_status(more.output, more.name)
     again = submit(more)
     assert (again.ran, again.search.points, again.search.reused, again.search.replayed) == (0, 20, 20, True)
     assert again.search.best_point == report.search.best_point
     assert {p: p.stat().st_mtime_ns for p in (more.output / "results").rglob("*.parquet")} == files
+    assert load_status(more.output, more.name) == status and status.ran == 12
+
+
+# ---- the order results are told in ------------------------------------------------------------------
+
+SLEEPER = REPO / "tests" / "fmus" / "sleeper"
+
+
+def timed_space(folder: Path, search: dict, cluster: dict) -> Path:
+    """tests/fmus/cliff beside tests/fmus/sleeper, whose ``pause`` is swept too (0-50 ms in each of 10 steps): each
+    point takes its own wall time, 0-0.5 s, so points finish in another order than they were asked (with seed 11
+    the first six take 0.23, 0.24, 0.47, 0.05, 0.08 and 0.06 s)."""
+    spec = {
+        "name": "timed",
+        "multimodel": {"fmus": {"cliff": str(CLIFF), "sleeper": str(SLEEPER)}},
+        "experiment": {"stop_time": 1, "step": 0.1},
+        "parameters": {"cliff.a": {"low": 0, "high": 6}, "cliff.b": {"low": 0, "high": 2},
+                       "sleeper.pause": {"low": 0, "high": 0.05}},
+        "objectives": {"y": {"signal": "cliff.y", "reduce": "final"}},
+        "search": {"seed": 11, "max_points": 20, **search},
+        "output": str(folder / "out"),
+        "cluster": cluster,
+        "keep_trajectories": 0,
+    }
+    return write_yaml(folder, spec)
+
+
+@pytest.mark.parametrize("name", ["gp", "tpe"])
+def test_a_seeded_search_asks_the_same_points_whatever_the_workers_timing(tmp_path, dask_scheduler, name):
+    """Results are told in the order the points were asked, and point n is asked right after the tells of points
+    0 .. n - BATCH: on the test cluster's two workers and on a local cluster of three that the spec starts, whose
+    points finish in other orders, the same seed and spec ask the same points and are told the same results."""
+    search = {"strategy": name, "n_startup_trials": 4, "max_points": 14}
+    spaces = [load_space(timed_space(tmp_path / "two", search, {"address": dask_scheduler})),
+              load_space(timed_space(tmp_path / "three", search, {"n_workers": 3}))]
+    reports = [submit(space) for space in spaces]
+    assert [(r.workers, r.search.points, r.search.stopped, r.failed) for r in reports] == [
+        (2, 14, "budget", 0), (3, 14, "budget", 0)]
+
+    histories = [load_history(space.output, space.name).points for space in spaces]
+    for history in histories:
+        assert [p.told for p in history] == list(range(14))
+        assert [p.asked_after for p in history] == [max(0, n - BATCH + 1) for n in range(14)]
+    assert [p.point for p in histories[0]] == [p.point for p in histories[1]]
+    assert [p.values for p in histories[0]] == [p.values for p in histories[1]]
+    columns = ["task_id", "cliff.a", "cliff.b", "sleeper.pause", "y"]
+    rows = [results(space, "y").sort_values("task_id").reset_index(drop=True)[columns] for space in spaces]
+    pd.testing.assert_frame_equal(rows[0], rows[1])
+    assert reports[0].search.best_point == reports[1].search.best_point
+
+
+def test_the_asynchronous_order_tells_each_result_as_it_comes(tmp_path, dask_scheduler):
+    """order: asynchronous keeps the cluster's threads + 1 points in flight and tells each result when it comes:
+    points that take less time are told before points asked earlier."""
+    space = load_space(timed_space(tmp_path, {"strategy": "tpe", "order": "asynchronous"}, {"address": dask_scheduler}))
+    report = submit(space)
+    assert (report.search.points, report.search.stopped, report.failed) == (20, "budget", 0)
+    history = load_history(space.output, space.name).points
+    told = [p.told for p in history]
+    assert sorted(told) == list(range(20)) and told != list(range(20)), told
+    assert all(p.asked_after >= p.number - 2 for p in history)  # 3 in flight: 2 threads + 1
+
+
+def test_the_order_is_checked_when_the_spec_loads(tmp_path):
+    path = msd_space(tmp_path, {"strategy": "tpe", "order": "as_they_come"}, "tcp://127.0.0.1:1")
+    with pytest.raises(DseError, match=r"search\.order: .*'reproducible' or 'asynchronous'"):
+        load_space(path)
 
 
 # ---- constraints ------------------------------------------------------------------------------------
@@ -267,9 +340,11 @@ def test_points_asked_again_are_simulated_once_even_while_they_run(tmp_path, das
 @pytest.mark.parametrize("search, changes, message", [
     ({"strategy": "genetic", "populaton": 10}, {}, r"search\.populaton: extra inputs are not permitted"),
     ({"strategy": "nsga2"}, {}, r"search: nsga2 optimises several objectives: list two or more under ranking\.pareto"),
+    ({"strategy": "gp", "acquisition_samples": 0}, {},
+     r"search: GPSampler refuses the options acquisition_samples=0: acquisition_samples and local_searches must be"),
     ({"strategy": "least_squares"}, {"objectives": {"position_rmse": {"signal": "msd.x", "recorded": "x"}}},
      r"search: least_squares fits a vector objective"),
-], ids=["genetic-option", "nsga2-without-pareto", "least-squares-without-residuals"])
+], ids=["genetic-option", "nsga2-without-pareto", "gp-effort", "least-squares-without-residuals"])
 def test_search_spec_errors_are_found_when_the_spec_loads(tmp_path, search, changes, message):
     path = msd_space(tmp_path, search, "tcp://127.0.0.1:1", **changes)  # no cluster is reached
     with pytest.raises(DseError, match=message) as error:

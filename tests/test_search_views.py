@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from conftest import write_msd_search
+from pages import Fit, glyphs, measure
 
 from dse_runner.interfaces import charts
 from dse_runner.interfaces.dashboard import search_html, search_summary
@@ -191,6 +192,8 @@ class Seen:
     finished_line: str = ""  # `dse-runner dashboard`'s page of the finished search (no space given)
     finished_points: int = -1
     errors: list[str] = field(default_factory=list)
+    fit: Fit | None = None  # the finished search's page, measured in a 1400 px window
+    by_parameter: list | None = None  # the glyphs of Figure 5's chart of msd.k, and their rows
 
 
 @pytest.fixture(scope="module")
@@ -248,6 +251,10 @@ def searched(tmp_path_factory, dask_scheduler) -> Seen:
         seen.headings = page.get_by_text(
             "Search: best position_rmse against simulations, and the Pareto front as it grew").count()
         seen.canvases = page.locator("canvas").count()
+        page.set_viewport_size({"width": 1400, "height": 1600})
+        page.wait_for_function("() => Bokeh.index.roots.every(v => v.has_finished())", timeout=30_000)
+        seen.fit, seen.by_parameter = measure(page), glyphs(page, "dse-by-parameter-msd.k")
+        page.screenshot(path=space.output.parent / "dashboard-1400.png", full_page=True)
         server.stop()
 
         finished = serve(space.output, space.name)  # as `dse-runner dashboard RESULTS` does: no space
@@ -278,6 +285,12 @@ def test_dashboard_shows_the_search_as_it_runs(searched):
     assert searched.headings == 1
     assert 0 < searched.final_fronts[0] and all(n > 0 for n in searched.final_fronts)
     assert searched.canvases >= 2 + 2 + 1 + 1  # the search's two charts, Figure 5, Figure 6, the track
+
+
+def test_dashboard_draws_the_searchs_points_as_dots_on_a_page_that_fits_1400_px(searched):
+    assert searched.by_parameter == [("Scatter", POINTS)]  # one dot a point on its one scenario
+    assert searched.fit.charts == searched.fit.titles >= 2 + 2 + 1 + 1, searched.fit
+    assert searched.fit.misfits == []
 
 
 def test_dashboard_of_the_finished_search_reads_it_from_the_store(searched):
@@ -320,6 +333,27 @@ def test_report_has_the_search(searched, tmp_path):
     rows = dict(r.split("\t") for r in search.splitlines())
     assert rows["strategy"] == "tpe" and rows["points"] == f"{POINTS} of {POINTS}"
     assert float(rows["best position_rmse"]) == pytest.approx(progress["best"].iloc[-1], rel=1e-5)
+
+
+def test_report_draws_the_searchs_points_as_dots_on_a_page_that_fits_1400_px(searched, tmp_path):
+    from playwright.sync_api import sync_playwright
+
+    from dse_runner.interfaces.report import write_report
+
+    report = write_report(searched.output, tmp_path / "report.html")
+    with sync_playwright() as playwright:
+        browser = chromium(playwright)
+        page = browser.new_context(offline=True, viewport={"width": 1400, "height": 1000}).new_page()
+        page.goto(report.as_uri())
+        page.wait_for_function("() => window.Bokeh && Bokeh.index.roots.length > 0 && "
+                               "Bokeh.index.roots.every(v => v.has_finished())", timeout=30_000)
+        fit = measure(page)
+        drawn = {name: glyphs(page, f"dse-by-parameter-{name}") for name in ("msd.k", "msd.c")}
+        page.screenshot(path=tmp_path / "report-1400.png", full_page=True)
+        browser.close()
+    assert drawn == {"msd.k": [("Scatter", POINTS)], "msd.c": [("Scatter", POINTS)]}
+    assert fit.charts == fit.titles >= 2 + 1 + 2 + 1 + 1, fit  # search, Pareto, Figures 5 and 6, a track
+    assert fit.misfits == []
 
 
 def test_a_grid_sweep_shows_no_search():

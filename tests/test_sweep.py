@@ -41,13 +41,22 @@ def test_rows_equal_direct_simulations(tmp_path, dask_scheduler, plan):
     assert len(track) == 1681 and {"time", "vehicle.x", "vehicle.y"} <= set(track.columns)
 
 
-def test_resubmitting_a_finished_sweep_runs_nothing(tmp_path, dask_scheduler):
-    space = load_space(write_space(tmp_path, cluster={"address": dask_scheduler}))
+def test_resubmitting_a_finished_sweep_runs_nothing_and_keeps_the_status_of_the_run_that_did(tmp_path,
+                                                                                             dask_scheduler):
+    from dse_runner.interfaces.report import build_report
+    from dse_runner.sweeps.sweep import load_status
+
+    space = load_space(write_space(tmp_path, cluster={"address": dask_scheduler}, keep_trajectories=0))
     first = submit(space)
     files = {p: p.stat().st_mtime_ns for p in (space.output / "results").rglob("*.parquet")}
+    status = load_status(space.output, "small")
     second = submit(space)
     assert (first.ran, second.ran, second.skipped) == (12, 0, 12)
     assert {p: p.stat().st_mtime_ns for p in (space.output / "results").rglob("*.parquet")} == files
+    assert load_status(space.output, "small") == status and (status.ran, status.workers) == (12, 2)
+    page = build_report(space.output)  # a user saw "ran 0 tasks in 0.2 s on 0 workers" here
+    assert re.search(r"last submission that ran tasks</td><td[^>]*>finished: ran 12 tasks in [\d.]+ s on 2 workers<",
+                     page), re.findall(r"last submission.*", page)
 
 
 def test_failing_simulations_become_failed_rows(tmp_path, dask_scheduler):
@@ -148,6 +157,23 @@ def test_rank_matches_a_plain_pandas_computation(tmp_path, dask_scheduler):
     for f in front:
         assert not np.any(np.all(every <= f, axis=1) & np.any(every < f, axis=1))
     assert len(ranking.groups) == 2 and set(ranking.groups["group"]) == {"sin", "speed_step"}
+
+
+@pytest.mark.parametrize("excluded, incomplete, scope", [
+    (0, 0, "3 points"),
+    (2, 0, "3 of 5 points meet e < 1 and f > 0; min/max/average over the 3"),
+    (0, 4, "4 points without an ok result on every scenario left out; min/max/average over the 3"),
+    (2, 4, "3 of 5 points meet e < 1 and f > 0; 4 points without an ok result on every scenario left out; "
+           "min/max/average over the 3"),
+])
+def test_table1_says_which_points_it_is_over(excluded, incomplete, scope):
+    from dse_runner.analysis.rank import Ranking, table1_scope
+
+    none = pd.DataFrame()
+    ranking = Ranking("s", ["k"], "e", "min", {"k": 1.0}, 1.0, pd.DataFrame({"k": [1.0, 2.0, 3.0]}), none, none,
+                      none, none, incomplete_points=incomplete, failed_rows=0, excluded_points=excluded,
+                      constraints=("e < 1", "f > 0"))
+    assert table1_scope(ranking) == scope
 
 
 def test_a_transient_failure_is_retried_once(tmp_path, monkeypatch):

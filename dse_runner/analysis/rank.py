@@ -5,8 +5,8 @@
   ``ranking.over_scenarios`` says; the best point minimises (or maximises) the
   ranking objective's total. Only points with an ok row for every scenario
   are ranked; the others are counted as incomplete.
-* Table 1 (the paper's): per scenario, min, max and average over points,
-  and the value at the best point with its difference from the average.
+* Table 1 (the paper's): per scenario, min, max and average over the ranked
+  points, and the value at the best point with its difference from the average.
 * the Pareto front over any number of objectives, each minimised or maximised;
 * the best point within each scenario group;
 * weighted sums of the objectives' totals.
@@ -55,6 +55,7 @@ class Ranking:
     failed_rows: int
     excluded_points: int = 0  # complete points that break one of the ranking's constraints
     over_scenarios: str = "sum"  # how each objective was reduced over the scenarios
+    constraints: tuple[str, ...] = ()  # the ranking's constraints on objectives, as written
 
     @property
     def reduced(self) -> str:
@@ -168,7 +169,7 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
     complete = _best_first(complete, settings.objective, settings.goal)
     best = {p: plain(complete.loc[0, p]) for p in parameters}
 
-    table1 = _table1(ok, settings.objective, best)
+    table1 = _table1(ok[_of_points(ok, complete, parameters)], settings.objective, best)
     if pareto:
         cols = [n for n, _ in pareto]
         front = complete[pareto_mask(complete[cols].to_numpy(float), [g for _, g in pareto])]
@@ -185,7 +186,7 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
                    float(complete.loc[0, settings.objective]), complete, table1, front, groups, weighted,
                    incomplete_points=len(totals) - len(complete) - excluded,
                    failed_rows=int((rows["status"] != "ok").sum()), excluded_points=excluded,
-                   over_scenarios=settings.over_scenarios)
+                   over_scenarios=settings.over_scenarios, constraints=tuple(settings.constraints))
 
 
 def admits(totals: pd.DataFrame, constraints: list[str], objectives: list[str]) -> np.ndarray:
@@ -217,6 +218,31 @@ def format_point(point: dict[str, Any], digits: int = 6) -> str:
     significant digits."""
     return ", ".join(f"{k} = {v:.{digits}g}" if isinstance(v, float) else f"{k} = {v}"
                      for k, v in ((k, plain(v)) for k, v in point.items()))
+
+
+def _of_points(rows: pd.DataFrame, points: pd.DataFrame, parameters: list[str]) -> np.ndarray:
+    """Which ``rows`` belong to one of ``points``: Table 1 is over the ranked points only, so that its
+    min is never below the best point's value and its average is over the points it names."""
+    return pd.MultiIndex.from_frame(rows[parameters]).isin(pd.MultiIndex.from_frame(points[parameters]))
+
+
+TABLE1_HEADINGS = {"min_error": "min", "max_error": "max", "average_error": "average", "computed": "best",
+                   "difference": "difference"}  # Table 1's columns as the CLI and the report head them
+
+
+def table1_scope(ranking: Ranking) -> str:
+    """Which points Table 1's min, max and average are over, in words: all of them (``125 points``), or
+    the ranked ones and what left the others out (objective constraints, results missing on a scenario)."""
+    ranked = len(ranking.totals)
+    if not ranking.excluded_points and not ranking.incomplete_points:
+        return f"{ranked} points"
+    parts = []
+    if ranking.excluded_points:
+        constraints = " and ".join(ranking.constraints) or "the constraints"
+        parts.append(f"{ranked} of {ranked + ranking.excluded_points} points meet {constraints}")
+    if ranking.incomplete_points:
+        parts.append(f"{ranking.incomplete_points} points without an ok result on every scenario left out")
+    return "; ".join(parts) + f"; min/max/average over the {ranked}"
 
 
 def _table1(ok: pd.DataFrame, objective: str, best: dict[str, Any]) -> pd.DataFrame:

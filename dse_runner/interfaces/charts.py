@@ -7,7 +7,8 @@ is drawn (which means, which lines) is computed here from result rows with panda
 - :class:`ObjectiveByParameter`: the objective against each parameter, one line per
   scenario coloured by its group (the paper's Figure 5);
 - :class:`ErrorByGroup`: for each scenario group, the objective at every parameter point,
-  one line per scenario (the paper's Figure 6);
+  one line per scenario (the paper's Figure 6); both draw a search's points as dots
+  (``scattered``): they lie off any grid, each its own x, and a line through them zigzags;
 - :class:`TrackChart`: a simulated track over the recorded GPS fixes;
 - :class:`ParetoChart`: the complete points on two objectives, the front joined;
 - :class:`BestSoFarChart`: a closed-loop search's best value against simulations run
@@ -15,6 +16,9 @@ is drawn (which means, which lines) is computed here from result rows with panda
 - :class:`ParetoGrowthChart`: a search's points on two objectives coloured by tell order, with
   the front as it stood at a few stages (:func:`pareto_stages`);
 - :func:`html_table`: a data frame as an HTML table (ranking, workers, Table 1).
+
+Charts stand in rows of at most three (:func:`grid`), toolbars at the right, titles sized to fit
+(:func:`title_size`): the report and the dashboard fit a 1400 px window.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from bokeh.layouts import column, row
+from bokeh.layouts import gridplot
 from bokeh.models import ColorBar, ColumnDataSource, HoverTool, LinearColorMapper
 from bokeh.palettes import Category10, Viridis256
 from bokeh.plotting import figure
@@ -35,6 +39,11 @@ from ..sweeps.history import Asked, SearchHistory
 
 PALETTE = Category10[10]
 WIDTH, HEIGHT = 380, 300
+PER_ROW = 3  # charts side by side: 3 * WIDTH and their toolbar fit the report's 1300 px body on a 1400 px page
+TITLE_PT = 11.0  # a chart title's font size, unless it must shrink to fit
+SMALLEST_TITLE_PT = 7.0
+TITLE_EM = 0.62  # a title character's mean advance in ems, with a margin (our titles measure 0.57 in Chromium)
+AXIS_ROOM = 80  # px left of the plot frame, where a title starts: the y axis, its tick labels and its label
 
 
 def colours(names: Sequence[str]) -> dict[str, str]:
@@ -43,10 +52,29 @@ def colours(names: Sequence[str]) -> dict[str, str]:
 
 
 def _figure(title: str, x_label: str, y_label: str, **options) -> figure:
+    """A chart with its toolbar on the right, where it takes no room from the title."""
     fig = figure(title=title, width=WIDTH, height=HEIGHT, x_axis_label=x_label, y_axis_label=y_label,
-                 tools="pan,wheel_zoom,box_zoom,reset,save", toolbar_location="above", **options)
-    fig.title.text_font_size = "11pt"
+                 tools="pan,wheel_zoom,box_zoom,reset,save", toolbar_location="right", **options)
+    fig.title.text_font_size = title_size([title], fig.width)
     return fig
+
+
+def title_size(titles: Sequence[str], width: int) -> str:
+    """The font size at which the longest of ``titles`` fits a chart ``width`` px wide: Bokeh draws a title
+    on its canvas and cuts off what runs past the edge (a long parameter or scenario name)."""
+    longest = max((len(t) for t in titles), default=0)
+    room = width - AXIS_ROOM  # px; a point is 4/3 px
+    fits = 0.75 * room / (TITLE_EM * longest) if longest else TITLE_PT
+    return f"{max(SMALLEST_TITLE_PT, min(TITLE_PT, fits)):.1f}pt"
+
+
+def grid(figures: Sequence[figure]):
+    """Charts in rows of at most PER_ROW, one toolbar for them all on the right: a row fits a 1400 px page,
+    and no title shares its line with a toolbar. Titles get one size, the one the longest fits."""
+    size = title_size([f.title.text for f in figures], WIDTH)
+    for fig in figures:
+        fig.title.text_font_size = size
+    return gridplot(list(figures), ncols=PER_ROW, toolbar_location="right")
 
 
 def _legend_below(fig: figure) -> None:
@@ -75,9 +103,24 @@ def lines(ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], b
     return data
 
 
-def _multi_line(fig: figure, source: ColumnDataSource, legend: str) -> None:
-    glyph = fig.multi_line("xs", "ys", line_color="colour", line_width=1.6, line_alpha=0.85,
-                           legend_field=legend, source=source)
+def _empty_dots() -> dict[str, list]:
+    return {"x": [], "y": [], "scenario": [], "group": [], "colour": []}
+
+
+def dots(ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], by: str = "group") -> dict[str, Any]:
+    """Every row a dot at its ``x`` and ``objective``, coloured by ``colour_of[row[by]]``: a search's points,
+    each its own x, have no mean over the other parameters to join. Columns for a ``scatter`` glyph."""
+    return {"x": ok[x].to_numpy(float), "y": ok[objective].to_numpy(float), "scenario": ok["scenario"].to_numpy(),
+            "group": ok["group"].to_numpy(), "colour": [colour_of.get(v, "grey") for v in ok[by]]}
+
+
+def _draw(fig: figure, source: ColumnDataSource, legend: str, scattered: bool) -> None:
+    """Lines joining a grid's values, or a search's points as dots."""
+    if scattered:
+        glyph = fig.scatter("x", "y", color="colour", size=6, alpha=0.75, legend_field=legend, source=source)
+    else:
+        glyph = fig.multi_line("xs", "ys", line_color="colour", line_width=1.6, line_alpha=0.85,
+                               legend_field=legend, source=source)
     fig.add_tools(HoverTool(renderers=[glyph], tooltips=[("scenario", "@scenario"), ("group", "@group")]))
     fig.legend.location = "top_left"
     fig.legend.label_text_font_size = "8pt"
@@ -85,22 +128,25 @@ def _multi_line(fig: figure, source: ColumnDataSource, legend: str) -> None:
 
 
 class ObjectiveByParameter:
-    """The paper's Figure 5: the objective against each parameter, other parameters averaged out."""
+    """The paper's Figure 5: the objective against each parameter, other parameters averaged out; for a
+    search (``scattered``), each point's objective as a dot."""
 
-    def __init__(self, parameters: list[str], objective: str, groups: Sequence[str]):
-        self.objective = objective
+    def __init__(self, parameters: list[str], objective: str, groups: Sequence[str], scattered: bool = False):
+        self.objective, self.scattered = objective, scattered
         self.colour_of = colours(groups)
-        self.sources = {p: ColumnDataSource(_empty_lines()) for p in parameters}
+        self.sources = {p: ColumnDataSource(_empty_dots() if scattered else _empty_lines()) for p in parameters}
         figures = []
         for name, source in self.sources.items():
-            fig = _figure(f"{objective} against {name}", name, f"mean {objective}")
-            _multi_line(fig, source, "group")
+            fig = _figure(name, name, objective if scattered else f"mean {objective}",
+                          name=f"dse-by-parameter-{name}")
+            _draw(fig, source, "group", scattered)
             figures.append(fig)
-        self.layout = row(*figures)
+        self.layout = grid(figures)
 
     def update(self, ok: pd.DataFrame) -> None:
+        drawn = dots if self.scattered else lines
         for name, source in self.sources.items():
-            source.data = lines(ok, name, self.objective, self.colour_of)
+            source.data = drawn(ok, name, self.objective, self.colour_of)
 
 
 def point_index(ok: pd.DataFrame, parameters: list[str]) -> pd.Series:
@@ -115,24 +161,25 @@ def point_index(ok: pd.DataFrame, parameters: list[str]) -> pd.Series:
 
 class ErrorByGroup:
     """The paper's Figure 6: one panel per scenario group, the objective at every parameter
-    point, a line per scenario of the group."""
+    point, a line per scenario of the group; for a search (``scattered``), dots."""
 
-    def __init__(self, parameters: list[str], objective: str, scenarios: dict[str, str]):
-        self.parameters, self.objective, self.scenarios = parameters, objective, scenarios
+    def __init__(self, parameters: list[str], objective: str, scenarios: dict[str, str], scattered: bool = False):
+        self.parameters, self.objective, self.scenarios, self.scattered = parameters, objective, scenarios, scattered
         self.colour_of = colours(scenarios)  # scenario -> colour; scenarios of a group differ
-        self.sources = {g: ColumnDataSource(_empty_lines()) for g in sorted(set(scenarios.values()))}
+        self.sources = {g: ColumnDataSource(_empty_dots() if scattered else _empty_lines())
+                        for g in sorted(set(scenarios.values()))}
         figures = []
         for group, source in self.sources.items():
-            fig = _figure(f"group {group}", "parameter point #", objective)
-            _multi_line(fig, source, "scenario")
+            fig = _figure(f"group {group}", "parameter point #", objective, name=f"dse-by-group-{group}")
+            _draw(fig, source, "scenario", scattered)
             figures.append(fig)
-        self.layout = row(*figures) if len(figures) <= 4 else column(
-            *[row(*figures[i:i + 4]) for i in range(0, len(figures), 4)])
+        self.layout = grid(figures)
 
     def update(self, ok: pd.DataFrame) -> None:
         indexed = ok.assign(point=point_index(ok, self.parameters))
+        drawn = dots if self.scattered else lines
         for group, source in self.sources.items():
-            source.data = lines(indexed[indexed["group"] == group], "point", self.objective, self.colour_of,
+            source.data = drawn(indexed[indexed["group"] == group], "point", self.objective, self.colour_of,
                                 by="scenario")
 
 
@@ -143,7 +190,7 @@ class TrackChart:
         self.recorded = ColumnDataSource({"x": [], "y": []})
         self.simulated = ColumnDataSource({"x": [], "y": []})
         self.figure = figure(title=title, width=width, height=height, match_aspect=True,
-                             tools="pan,wheel_zoom,box_zoom,reset,save", toolbar_location="above")
+                             tools="pan,wheel_zoom,box_zoom,reset,save", toolbar_location="right")
         self.figure.scatter("x", "y", source=self.recorded, size=3, color="#777777", legend_label="recorded")
         self.figure.line("x", "y", source=self.simulated, line_width=2, color=PALETTE[0], legend_label="simulated")
         self.figure.legend.location = "top_left"
@@ -156,6 +203,7 @@ class TrackChart:
         self.figure.yaxis.axis_label = comparison.y_label
         self.figure.match_aspect = comparison.equal_axes
         self.figure.title.text = title
+        self.figure.title.text_font_size = title_size([title], self.figure.width)
 
 
 class ParetoChart:

@@ -3,7 +3,8 @@
 Every command that reports results takes ``--json`` and then prints one JSON
 object on stdout and nothing else; errors go to stderr with exit code 2. The
 exit code does not depend on ``--json``: a ``submit`` whose sweep ran but could
-rank no point exits 1 either way (its JSON then says ``"ranking": null``).
+rank no point exits 1 either way (its JSON then says ``"ranking": null``). Ctrl-C
+during ``submit`` prints one line on stderr, nothing on stdout, and exits 130.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import sys
 import traceback
 import warnings
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, NoReturn
 
 import typer
 
@@ -25,6 +26,7 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,  # click's plain help: it fits 80 columns, where rich's boxed tables cut names off
 )
 
 JsonFlag = Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout, nothing else.")]
@@ -45,6 +47,23 @@ def options(debug: Annotated[bool, typer.Option(
     """Design-space exploration for FMI co-simulation."""
     Options.debug = debug
     warnings.showwarning = _one_line_warning
+    sys.unraisablehook = _interrupt_again
+
+
+def _interrupt_again(unraisable) -> None:
+    """A Ctrl-C that lands while Python runs a finalizer (``__del__``, e.g. of a zip file an FMU was read
+    from) cannot be raised there: Python would print it as "Exception ignored" with a traceback, and the
+    command would go on as if no key had been pressed. It is raised again in the main thread, a moment
+    later: raised at once, it would land in this hook, which is no better place."""
+    if issubclass(unraisable.exc_type, KeyboardInterrupt):
+        import _thread
+        import threading
+
+        later = threading.Timer(0.1, _thread.interrupt_main)
+        later.daemon = True  # nor does it hold Python up on its way out
+        later.start()
+        return
+    sys.__unraisablehook__(unraisable)
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
@@ -86,7 +105,7 @@ def parse_assignment(text: str) -> tuple[str, Any]:
 
 @app.command("build-fmus")
 def build_fmus(
-    sources: Annotated[Path | None, typer.Argument(
+    sources: Annotated[Path | None, typer.Argument(metavar="SOURCES",
         help="Folder of FMU source folders. Default: the FMUs bundled with dse-runner.")] = None,
     out: Annotated[Path | None, typer.Option(help="Copy the built .fmu files here.")] = None,
     as_json: JsonFlag = False,
@@ -114,7 +133,8 @@ def build_fmus(
 
 @app.command()
 def simulate(
-    model: Annotated[Path, typer.Argument(help="An .fmu file, or a multi-model file (YAML, or INTO-CPS mm.json).")],
+    model: Annotated[Path, typer.Argument(metavar="MODEL", help="An .fmu file, an FMU source folder, or a multi-model "
+                                                                "file (YAML, or INTO-CPS mm.json).")],
     scenario: Annotated[Path | None, typer.Option(
         "--scenario", "-s", help="Scenario folder (scenario.yaml, or a kind's format such as field data).")] = None,
     set_: Annotated[list[str] | None, typer.Option(
@@ -187,21 +207,24 @@ MAX_PRINTED = 30  # final values printed as text
 
 
 def _print_table1(ranking) -> None:
-    from ..analysis.rank import format_point
+    """Table 1 with the report's column names, saying which points its min, max and average are over."""
+    from ..analysis.rank import TABLE1_HEADINGS as heads
+    from ..analysis.rank import format_point, table1_scope
 
-    typer.echo(f"Table 1: {ranking.objective} per scenario ({len(ranking.totals)} points)")
+    typer.echo(f"Table 1: {ranking.objective} per scenario ({table1_scope(ranking)})")
     width = max([14, *(len(s) + 1 for s in ranking.table1["scenario"])])  # names of variants run long
-    typer.echo(f"  {'scenario':<{width}}{'min':>9}{'max':>9}{'average':>9}{'best':>9}{'diff':>10}")
+    figures = "".join(f"{heads[c]:>9}" for c in ("min_error", "max_error", "average_error", "computed"))
+    typer.echo(f"  {'scenario':<{width}}{figures}{heads['difference']:>12}")
     for row in ranking.table1.itertuples():
         typer.echo(f"  {row.scenario:<{width}}{row.min_error:9.3f}{row.max_error:9.3f}{row.average_error:9.3f}"
-                   f"{row.computed:9.3f}{row.difference:+10.3f}")
+                   f"{row.computed:9.3f}{row.difference:+12.3f}")
     typer.echo(f"best: {format_point(ranking.best)}  ({ranking.reduced} {ranking.objective} {ranking.best_total:.3f})")
 
 
 @app.command()
 def submit(
-    spec: Annotated[Path, typer.Argument(help="Design-space spec (space.yaml), or an INTO-CPS DSE config "
-                                              "(NAME.dse.json) run as it is.")],
+    spec: Annotated[Path, typer.Argument(metavar="SPEC", help="Design-space spec (space.yaml), or an INTO-CPS DSE "
+                                                              "config (NAME.dse.json) run as it is.")],
     multimodel: Annotated[Path | None, typer.Option(
         "--multimodel", help="INTO-CPS only: the mm.json (default: the co-simulation config's).")] = None,
     coe: Annotated[Path | None, typer.Option(
@@ -221,12 +244,12 @@ def submit(
 ) -> None:
     """Run SPEC on Dask: every (point, scenario) task of a grid, or a search until its budget; resume if
     run again (a search goes on from where it stopped); rank."""
-    from ..analysis.rank import rank, write_ranking
-    from ..simulation.scenario import dropouts
-    from ..sweeps.sweep import submit as run_sweep
-
-    board = None
+    board = space = None
     try:
+        from ..analysis.rank import rank, write_ranking
+        from ..simulation.scenario import dropouts
+        from ..sweeps.sweep import submit as run_sweep
+
         space = _load(spec, multimodel, coe).with_overrides(out, scheduler, workers, cluster, max_points,
                                                             max_seconds)
         if dashboard:
@@ -236,15 +259,12 @@ def submit(
     except DseError as e:
         fail(e)
     except KeyboardInterrupt:
-        typer.echo("interrupted before the sweep started; nothing was lost", err=True)
-        raise typer.Exit(130)
+        _interrupted(space)
     finally:
         if board is not None:
             board.server.stop()
     if report.interrupted:
-        typer.echo(f"interrupted: {report.skipped + report.ran} of {report.total} tasks have results in "
-                   f"{report.output}; run the same command again to finish the rest", err=True)
-        raise typer.Exit(130)
+        _interrupted(space)
     summary = {
         "sweep": report.sweep, "output": str(report.output), "tasks": report.total,
         "skipped": report.skipped, "ran": report.ran, "ok": report.ok, "failed": report.failed,
@@ -270,6 +290,8 @@ def submit(
             emit_json({**summary, "ranking": None, "best": None, "best_total": None})
         typer.echo(f"error: no ranking: {e}", err=True)
         raise typer.Exit(1)
+    except KeyboardInterrupt:
+        _interrupted(space)
     if as_json:
         emit_json({**summary, "ranking": str(files["json"]), "best": ranking.best, "best_total": ranking.best_total})
         return
@@ -277,6 +299,26 @@ def submit(
     typer.echo(f"ranking: {files['json'].rsplit('/', 1)[0]}")
     typer.echo(f"report: dse-runner report {report.output} -o report.html; "
                f"dashboard: dse-runner dashboard {report.output}")
+
+
+def _interrupted(space) -> NoReturn:
+    """Ctrl-C's one line on stderr, and exit code 130. The count is read from the store after the sweep's
+    last write (its chunks have ended, and a cluster it started is closed), so it is the number that
+    submitting again finds done; what the client itself had counted misses chunks that ended after."""
+    if space is None:
+        typer.echo("interrupted before the sweep started; nothing was lost", err=True)
+        raise typer.Exit(130)
+    from ..sweeps.sweep import tasks_done
+
+    try:
+        done, total = tasks_done(space)
+    except DseError:  # the store cannot be read now: the line still says where the results are
+        typer.echo(f"interrupted: finished chunks are in {space.output}; run the same command again to "
+                   "finish the rest", err=True)
+        raise typer.Exit(130) from None
+    typer.echo(f"interrupted: {done} of {total} tasks have results in {space.output}; run the same command "
+               "again to finish the rest", err=True)
+    raise typer.Exit(130)
 
 
 def _load(spec: Path, multimodel: Path | None, coe: Path | None):
@@ -293,7 +335,7 @@ def _load(spec: Path, multimodel: Path | None, coe: Path | None):
 
 @app.command("convert-intocps")
 def convert_intocps(
-    dse: Annotated[Path, typer.Argument(help="An INTO-CPS DSE config (NAME.dse.json) in its project.")],
+    dse: Annotated[Path, typer.Argument(metavar="DSE", help="An INTO-CPS DSE config (NAME.dse.json) in its project.")],
     output: Annotated[Path, typer.Option("-o", "--output", help="The space.yaml to write.")] = Path("space.yaml"),
     multimodel: Annotated[Path | None, typer.Option(
         "--multimodel", help="The mm.json (default: the co-simulation config's).")] = None,
@@ -356,7 +398,7 @@ def _start_dashboard(space, address: str) -> _Board:
 
 @app.command("dashboard")
 def dashboard_command(
-    results: Annotated[str, typer.Argument(help="A sweep's store: output folder or URL.")],
+    results: Annotated[str, typer.Argument(metavar="RESULTS", help="A sweep's store: output folder or URL.")],
     sweep: Annotated[str | None, typer.Option(help="Which sweep, if the folder holds several.")] = None,
     address: DashboardAddress = "127.0.0.1:0",
 ) -> None:
@@ -380,7 +422,7 @@ def dashboard_command(
 
 @app.command("report")
 def report_command(
-    results: Annotated[str, typer.Argument(help="A sweep's store: output folder or URL.")],
+    results: Annotated[str, typer.Argument(metavar="RESULTS", help="A sweep's store: output folder or URL.")],
     output: Annotated[Path, typer.Option("-o", "--output", help="The HTML file to write.")] = Path("report.html"),
     sweep: Annotated[str | None, typer.Option(help="Which sweep, if the folder holds several.")] = None,
     as_json: JsonFlag = False,
@@ -455,7 +497,7 @@ class ProgressBar:
 
 @app.command("rank")
 def rank_command(
-    results: Annotated[str, typer.Argument(help="A sweep's store: output folder or URL.")],
+    results: Annotated[str, typer.Argument(metavar="RESULTS", help="A sweep's store: output folder or URL.")],
     sweep: Annotated[str | None, typer.Option(help="Which sweep, if the folder holds several.")] = None,
     objective: Annotated[str | None, typer.Option(help="Rank by this objective instead of the spec's.")] = None,
     best_values: Annotated[Path | None, typer.Option(

@@ -270,8 +270,9 @@ class Page:
         self.best = Div(width=800)
         self.ranking = Div(width=2 * charts.WIDTH)
         self.workers = Div(width=charts.WIDTH)
-        self.fig5 = charts.ObjectiveByParameter(p, objective, sorted(set(self.scenarios.values())))
-        self.fig6 = charts.ErrorByGroup(p, objective, self.scenarios)
+        searching = feed.searching(snap)  # a search's points lie off any grid: Figures 5 and 6 draw dots
+        self.fig5 = charts.ObjectiveByParameter(p, objective, sorted(set(self.scenarios.values())), searching)
+        self.fig6 = charts.ErrorByGroup(p, objective, self.scenarios, searching)
         names = sorted(self.scenarios)
         self.select = Select(title="scenario", value=names[0] if names else "", options=names)
         self.select.on_change("value", lambda attr, old, new: self._track(feed.snapshot(), force=True))
@@ -280,7 +281,6 @@ class Page:
         self.track_shown: tuple | None = None
         self.search = self.search_chart = self.front_chart = None  # a closed-loop search's progress
         self.search_shown: tuple | None = None
-        searching = feed.searching(snap)
         if searching:
             self.search = Div(width=800)
             self.search_chart = charts.BestSoFarChart(objective, feed.goal, len(self.scenarios))

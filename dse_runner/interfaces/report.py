@@ -16,11 +16,20 @@ from pathlib import Path
 import yaml
 from jinja2 import Template
 
-from ..analysis.rank import Ranking, format_point, load_sweep_spec, pick_sweep, plain, rank
+from ..analysis.rank import (
+    TABLE1_HEADINGS,
+    Ranking,
+    format_point,
+    load_sweep_spec,
+    pick_sweep,
+    plain,
+    rank,
+    table1_scope,
+)
 from ..errors import DseError
 from ..sweeps import store
 from ..sweeps.history import load_history
-from ..sweeps.sweep import load_status
+from ..sweeps.sweep import SweepReport, load_status
 from . import charts
 from .dashboard import Feed, search_summary
 
@@ -58,9 +67,9 @@ them, and the front after a quarter, half, three quarters and all of them.{% end
 <div style="display:flex;gap:24px;flex-wrap:wrap">{{ plots.best_so_far }}
 {% if plots.front_growth %}{{ plots.front_growth }}{% endif %}</div>{% endif %}
 
-<h2>Table 1: {{ objective }} per scenario</h2>
-<p class="note">Over all ranked points: min, max and average per scenario; "computed" is the best point's
-value and "difference" its distance from the average (the paper's Table 1).</p>
+<h2>Table 1: {{ objective }} per scenario ({{ table1_scope }})</h2>
+<p class="note">Per scenario: min, max and average over the ranked points; "best" is the best point's value
+and "difference" its distance from the average (the paper's Table 1).</p>
 {{ table1 }}
 
 <h2>Ranking by {{ reduced }} {{ objective }}</h2>
@@ -79,11 +88,14 @@ value and "difference" its distance from the average (the paper's Table 1).</p>
 {{ weighted }}{% endif %}
 
 <h2>{{ objective }} against each parameter</h2>
-<p class="note">Mean over the other parameters, one line per scenario coloured by group (the paper's Figure 5).</p>
-{{ plots.by_parameter }}
+{% if scattered %}<p class="note">Each point the search simulated, a dot per scenario coloured by group (the paper's
+Figure 5 joins a grid's means with lines; a search's points lie off any grid).</p>
+{% else %}<p class="note">Mean over the other parameters, one line per scenario coloured by group (the paper's Figure 5).</p>
+{% endif %}{{ plots.by_parameter }}
 
 <h2>{{ objective }} per scenario group</h2>
-<p class="note">At every parameter point, sorted by {{ parameters }} (the paper's Figure 6).</p>
+<p class="note">At every parameter point, sorted by {{ parameters }} (the paper's Figure 6){% if scattered %}; a
+dot per point and scenario{% endif %}.</p>
 {{ plots.by_group }}
 
 <h2>The best point against each scenario's recording</h2>
@@ -99,8 +111,6 @@ value and "difference" its distance from the average (the paper's Table 1).</p>
 
 def _tracks(feed: Feed, ranking: Ranking, scenarios: list[str]) -> tuple[object | None, str]:
     """A small track chart per scenario for the best point; or None and why not."""
-    from bokeh.layouts import gridplot
-
     best = {p: plain(v) for p, v in ranking.best.items()}
     panels = []
     for scenario in scenarios:
@@ -111,7 +121,14 @@ def _tracks(feed: Feed, ranking: Ranking, scenarios: list[str]) -> tuple[object 
         chart = charts.TrackChart(width=charts.WIDTH, height=charts.HEIGHT)
         chart.update(comparison, f"{scenario}: {ranking.objective} {value:.3f}")
         panels.append(chart.figure)
-    return gridplot(panels, ncols=3, toolbar_location="right"), ""
+    return charts.grid(panels), ""
+
+
+def submission_line(status: SweepReport) -> tuple[str, str]:
+    """The summary's line on the submission that ran the sweep's tasks: a later one that found them all done
+    leaves the status file as it was (sweep.submit), so the figures are the run that made the rows."""
+    name = "last submission that ran tasks" if status.ran else "last submission"
+    return name, f"{status.state}: ran {status.ran} tasks in {status.seconds:.1f} s on {status.workers} workers"
 
 
 def build_report(output: store.Root, sweep: str | None = None) -> str:
@@ -127,12 +144,14 @@ def build_report(output: store.Root, sweep: str | None = None) -> str:
     snap = feed.snapshot()
     ok, scenarios = snap.ok, feed.scenarios(snap)
     parameters = ranking.parameters
+    scattered = feed.searching(snap)  # a search's points lie off any grid: dots, not lines
 
     figures: dict[str, object] = {}
-    by_parameter = charts.ObjectiveByParameter(parameters, ranking.objective, sorted(set(scenarios.values())))
+    by_parameter = charts.ObjectiveByParameter(parameters, ranking.objective, sorted(set(scenarios.values())),
+                                               scattered)
     by_parameter.update(ok)
     figures["by_parameter"] = by_parameter.layout
-    by_group = charts.ErrorByGroup(parameters, ranking.objective, scenarios)
+    by_group = charts.ErrorByGroup(parameters, ranking.objective, scenarios, scattered)
     by_group.update(ok)
     figures["by_group"] = by_group.layout
     goals = spec.ranking.pareto_goals()
@@ -161,13 +180,14 @@ def build_report(output: store.Root, sweep: str | None = None) -> str:
                ("points ranked", str(len(ranking.totals))), ("incomplete points", str(ranking.incomplete_points)),
                ("failed tasks", str(ranking.failed_rows)), ("scenarios", str(len(scenarios)))]
     if status is not None:
-        summary.append(("last submission", f"{status.state}: ran {status.ran} tasks in {status.seconds:.1f} s "
-                                           f"on {status.workers} workers"))
+        summary.append(submission_line(status))
     return PAGE.render(
         sweep=sweep, output=html.escape(str(output)), generated=time.strftime("%Y-%m-%d %H:%M %Z"),
         summary=[(name, html.escape(value)) for name, value in summary], objective=ranking.objective, top=TOP, points=len(ranking.totals),
         parameters=", ".join(parameters),
-        table1=charts.html_table(ranking.table1), totals=charts.html_table(ranking.totals.head(TOP)),
+        table1=charts.html_table(ranking.table1.rename(columns=TABLE1_HEADINGS)),
+        table1_scope=html.escape(table1_scope(ranking)), scattered=scattered,
+        totals=charts.html_table(ranking.totals.head(TOP)),
         pareto=charts.html_table(ranking.pareto) if not ranking.pareto.empty else "",
         groups=charts.html_table(ranking.groups) if not ranking.groups.empty else "",
         weighted=charts.html_table(ranking.weighted.head(10)) if not ranking.weighted.empty else "",

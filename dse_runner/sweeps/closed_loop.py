@@ -1,18 +1,33 @@
-"""Closed-loop search on Dask: ask the strategy for points as workers free up, tell it the results.
+"""Closed-loop search on Dask: ask the strategy for points ahead of their results, tell it the results.
 
 Each point is one chunk of its (point, scenario) tasks, run by the same
 worker code as a grid sweep (chunks.py) into the same store. When a chunk
 comes back the point's objectives are reduced over its scenarios the way the
 ranking says (``ranking.over_scenarios``; the paper's Equation 2 sums them)
-and told to the strategy, which is asked for the next point at once: there
-is no generation barrier unless the strategy itself holds points back.
-``search.batch`` points are in flight at a time, by default one more than the
-cluster has worker threads, so no worker waits while the client thinks.
+and told to the strategy, which is then asked for the next point: there is
+no generation barrier unless the strategy itself holds points back.
+
+In which order results are told is ``search.order``:
+
+- ``reproducible`` (the default): results are told in the order the points
+  were asked, and a point is asked only while fewer than ``search.batch``
+  points (4 by default, whatever the cluster) wait for theirs. So each ask
+  follows the same tells, with the same points still running, whichever
+  worker finishes first and however many there are: a seeded strategy asks
+  the same points (Optuna's samplers and pymoo's algorithms are
+  deterministic for a given seed and ask/tell sequence). A result that
+  comes early waits for the points asked before it.
+- ``asynchronous``: each result is told as it comes and a point asked at
+  once, ``search.batch`` in flight (by default one more than the cluster's
+  worker threads); no worker waits for a slow point, but the points depend
+  on which finishes first.
 
 Nothing is simulated twice: a point whose tasks all have rows is told from
-the store. A later submission replays the search from its history
-(history.py) and goes on; points the constraints reject are told as
-infeasible and never simulated.
+the store. A later submission of a reproducible search runs it again from
+the start, telling every point it asks that has rows from the store (the
+same points, so no simulation until it gets past them); an asynchronous one
+replays the recorded ask/tell order (history.py). Points the constraints
+reject are told as infeasible at once and never simulated.
 """
 
 from __future__ import annotations
@@ -58,7 +73,8 @@ class SearchStatus(BaseModel):
     threads: int = 0
     busy_seconds: float = 0.0  # time the workers spent on this submission's chunks (simulating, writing rows)
     window_seconds: float = 0.0  # from the first point sent to the last result
-    replayed: bool = False  # the strategy's state was rebuilt from the history
+    ask_seconds: float = 0.0  # the client's time in the strategy's ask() in this submission (told points included)
+    replayed: bool = False  # went on from an earlier submission's points (told from the store)
     stopped: str | None = None  # why the search ended: budget, time, strategy, interrupted
     notes: list[str] = []
 
@@ -81,7 +97,10 @@ Check = tuple[str, Callable[[Mapping[str, float]], bool]]  # a ranking constrain
 
 def evaluation_of(scores: list[TaskScores], scalar: list[str], how: str, checks: Sequence[Check] = ()) -> Evaluation:
     """A point's evaluation from its tasks: failed if any task failed, else each objective reduced, and
-    the ranking constraints (``checks``) those values break, which constrained strategies learn from."""
+    the ranking constraints (``checks``) those values break, which constrained strategies learn from.
+    Reduced in scenario-name order, whatever order the tasks came in: a sum's last bit depends on the order,
+    and a reproducible search must tell the same numbers whether they come from workers or the store."""
+    scores = sorted(scores, key=lambda s: s.scenario)
     failed = [s for s in scores if s.objectives is None]
     if failed:
         return Evaluation("failed", error=f"{failed[0].scenario}: {failed[0].error}")
@@ -108,6 +127,11 @@ class SearchSource:
         self.requeue: deque[int] = deque()  # points to (re)submit before asking for new ones
         self.running: dict[int, dict[str, TaskScores]] = {}  # point number -> its task results so far
         self.followers: dict[int, list[int]] = {}  # a running point -> later asks of the same point, told with it
+        self.reproducible = space.spec.search.order == "reproducible"
+        self.waiting: deque[int] = deque()  # reproducible: points asked and not yet told, in ask order
+        self.ready: dict[int, tuple[Evaluation, bool]] = {}  # ... of which these have their result (and reused)
+        self.earlier: SearchHistory | None = None  # reproducible: the last submission's, which it should repeat
+        self.wants_results = False  # reproducible: the strategy asked nothing until told more
         self.started = self.first_sent = 0.0
         self.saved = 0.0
         self.batch = 1
@@ -136,17 +160,26 @@ class SearchSource:
         old = load_history(self.space.output, self.space.name)
         self.history = SearchHistory(sweep=self.space.name, strategy=self.space.spec.search.strategy,
                                      settings=settings)
+        if self.reproducible and self.space.spec.search.batch is None and self.batch < threads:
+            self.status.notes.append(f"a reproducible search asks {self.batch} points ahead unless search.batch says "
+                                     f"otherwise, fewer than the cluster's {threads} worker threads: set search.batch "
+                                     f"to {threads} or more to use them all (another batch asks other points)")
         if old is not None and old.settings != settings:
             self.status.notes.append("the search settings changed since the last submission: a new search; "
                                      "points already simulated are reused when asked again")
+        elif old is not None and old.points and self.reproducible:
+            self.earlier, self.status.replayed = old, True  # asked again from the start, told from the store
         elif old is not None and old.points:
             self._replay(old, threads)
 
     def _settings(self) -> str:
+        """What the points depend on; a reproducible search's also on its batch (the points asked ahead)."""
         spec = self.space.spec
+        batch = self.batch if self.reproducible else None
         return settings_digest(spec.search.strategy, spec.search.seed, spec.search.options,
                                [d.__dict__ for d in self.space.dimensions], spec.constraints,
-                               spec.ranking.model_dump(), self.space.model_key, sorted(self.hashes.values()))
+                               spec.ranking.model_dump(), self.space.model_key, sorted(self.hashes.values()),
+                               spec.search.order, batch)
 
     def _replay(self, old: SearchHistory, threads: int) -> None:
         """Ask and tell a fresh strategy in the recorded order, with stored results; on any mismatch
@@ -160,7 +193,7 @@ class SearchSource:
     def _replay_events(self, old: SearchHistory, threads: int) -> None:
         for kind, asked in old.events():
             if kind == "ask":
-                point = self.strategy.ask()
+                point = self._strategy_ask()
                 if point != asked.point or self.history.ask(point) != asked.number:
                     return self._afresh(threads, f"replaying the history, the strategy asked {point} where it "
                                                  f"had asked {asked.point}")
@@ -196,38 +229,104 @@ class SearchSource:
     # ---- the run's side: next chunk, finished chunk -----------------------------------------------
 
     def next(self, in_flight: int) -> ChunkJob | None:
-        while in_flight < self.batch:
-            if self.requeue:
-                job = self._job(self.requeue.popleft())
-            else:
-                if self._should_stop():
-                    return None
-                point = self.strategy.ask()
-                if point is None:
-                    self.status.stopped = self.status.stopped or ("strategy" if not self.running else None)
-                    return None
-                number = self.history.ask(point)
-                if not self.space.admits(point):
-                    self._tell(number, Evaluation("infeasible"), reused=False)
-                    self.rejected_in_a_row += 1
-                    if self.rejected_in_a_row >= MAX_REJECTED:
-                        self.status.stopped = "infeasible"
-                        self.status.notes.append(f"the strategy proposed {MAX_REJECTED} points in a row that the "
-                                                 "constraints reject; loosen them or narrow the parameters' ranges")
-                        self.stopping = True
-                        return None
-                    continue
-                self.rejected_in_a_row = 0
-                job = self._job(number)
+        while self.requeue:  # in flight when the scheduler restarted, or when the last submission stopped
+            job = self._job(self.requeue.popleft())
+            if job is not None:
+                return job
+        return self._next_in_order() if self.reproducible else self._next_as_they_come(in_flight)
+
+    def _next_as_they_come(self, in_flight: int) -> ChunkJob | None:
+        """Asynchronous: ask while fewer than ``batch`` points are in flight (results are told as they come)."""
+        while in_flight < self.batch and not self._should_stop():
+            number = self._ask()
+            if number is None:
+                self.status.stopped = self.status.stopped or ("strategy" if not self.running else None)
+                return None
+            job = self._job(number)
             if job is not None:
                 return job
         return None
+
+    def _next_in_order(self) -> ChunkJob | None:
+        """Reproducible: before asking, tell the oldest waiting point if ``batch`` points wait, or if the strategy
+        asked for results (it asked nothing); its result not in yet, wait for it. So point n is always asked
+        right after the tells of points 0 .. n - batch, whichever finished first. When the search stops, the
+        rest is told in order as it comes."""
+        while not self._should_stop():
+            if len(self.waiting) >= self.batch or self.wants_results:
+                if not self._tell_oldest():
+                    return None
+                self.wants_results = False
+                continue
+            number = self._ask()
+            if number is None:
+                if not self.waiting and not self.stopping:
+                    self.status.stopped = self.status.stopped or "strategy"
+                    return None
+                self.wants_results = True
+                continue
+            self.waiting.append(number)
+            job = self._job(number)
+            if job is not None:
+                return job
+        while self._tell_oldest():
+            pass
+        return None
+
+    def _tell_oldest(self) -> bool:
+        """Tell the point asked first among those waiting, if its result is in."""
+        if not self.waiting or self.waiting[0] not in self.ready:
+            return False
+        number = self.waiting.popleft()
+        self._tell(number, *self.ready.pop(number))
+        return True
+
+    def _ask(self) -> int | None:
+        """The number of the next point to evaluate; None when the strategy waits for results or has no more
+        (or too many were rejected). Points the constraints reject are told as infeasible at once: the same
+        in any order."""
+        while not self._should_stop():
+            point = self._strategy_ask()
+            if point is None:
+                return None
+            number = self.history.ask(point)
+            self._compare(number, point)
+            if self.space.admits(point):
+                self.rejected_in_a_row = 0
+                return number
+            self._tell(number, Evaluation("infeasible"), reused=False)
+            self.rejected_in_a_row += 1
+            if self.rejected_in_a_row >= MAX_REJECTED:
+                self.status.stopped = "infeasible"
+                self.status.notes.append(f"the strategy proposed {MAX_REJECTED} points in a row that the "
+                                         "constraints reject; loosen them or narrow the parameters' ranges")
+                self.stopping = True
+        return None
+
+    def _strategy_ask(self) -> Point | None:
+        """The strategy's next point, its time counted: the client's share of a search's time."""
+        started = time.perf_counter()
+        try:
+            return self.strategy.ask()
+        finally:
+            self.status.ask_seconds += time.perf_counter() - started
+
+    def _compare(self, number: int, point: Point) -> None:
+        """Note once if a reproducible search asks other points than its last submission did with the same
+        settings (a strategy that is not deterministic, or another version of its library)."""
+        earlier = self.earlier
+        if earlier is None or number >= len(earlier.points) or earlier.points[number].point == point:
+            return
+        self.status.notes.append(f"asked {point} as point {number} where the last submission asked "
+                                 f"{earlier.points[number].point}: the strategy is not reproducible here; points "
+                                 "already simulated are reused when asked again")
+        self.earlier = None
 
     def _should_stop(self) -> bool:
         status, search = self.status, self.space.spec.search
         if self.stopping:
             return True
-        if status.points + len(self.running) >= search.max_points:
+        if status.points + self._open() >= search.max_points:
             status.stopped = "budget"
             return True
         if status.repeats >= search.max_points:  # a converged strategy that only proposes what it has had
@@ -237,6 +336,14 @@ class SearchSource:
             status.stopped = "time"
             return True
         return False
+
+    def _open(self) -> int:
+        """Points asked, not yet told, that will count against the budget when told. A reproducible search
+        counts those waiting, finished or not, so that where it stops does not depend on timing."""
+        if not self.reproducible:
+            return len(self.running)
+        keys = {tuple(sorted(self.history.points[n].point.items())) for n in self.waiting}
+        return len(keys - self.told)
 
     def tasks(self, point: Point) -> list[Task]:
         ordered = tuple(sorted(point.items()))
@@ -250,7 +357,7 @@ class SearchSource:
         known = {t.task_id: self.stored[t.task_id] for t in tasks if t.task_id in self.stored}
         missing = [t for t in tasks if t.task_id not in known]
         if not missing:
-            self._tell(number, evaluation_of(list(known.values()), self.scalar, self._how()), reused=True)
+            self._done(number, evaluation_of(list(known.values()), self.scalar, self._how(), self.checks), reused=True)
             return None
         leader = next((n for n in self.running if self.history.points[n].point == point), None)
         if leader is not None:  # asked again while it runs (a discrete space): told when it finishes
@@ -275,7 +382,7 @@ class SearchSource:
             self.stored[scores.task_id] = scores
         if len(results) == len(self.space.scenarios):
             del self.running[job.point]
-            self._tell(job.point, evaluation_of(list(results.values()), self.scalar, self._how(), self.checks),
+            self._done(job.point, evaluation_of(list(results.values()), self.scalar, self._how(), self.checks),
                        reused=False)
 
     def _how(self) -> str:
@@ -286,6 +393,16 @@ class SearchSource:
         if not all(t.task_id in self.stored for t in tasks):
             return None
         return evaluation_of([self.stored[t.task_id] for t in tasks], self.scalar, self._how(), self.checks)
+
+    def _done(self, number: int, evaluation: Evaluation, reused: bool) -> None:
+        """A point's result (and so its followers'): told now if asynchronous; if reproducible, kept until its
+        turn (_next_in_order)."""
+        if self.reproducible:
+            self.ready[number] = (evaluation, reused)
+        else:
+            self._tell(number, evaluation, reused)
+        for follower in self.followers.pop(number, []):
+            self._done(follower, evaluation, reused=True)
 
     def _tell(self, number: int, evaluation: Evaluation, reused: bool) -> None:
         point = self.history.points[number].point
@@ -308,8 +425,6 @@ class SearchSource:
             better = status.best is None or (value < status.best if status.goal == "min" else value > status.best)
             if better:
                 status.best, status.best_point = value, dict(point)
-        for follower in self.followers.pop(number, []):
-            self._tell(follower, evaluation, reused=True)
         self.save(force=False)
 
     def save(self, force: bool = True) -> None:

@@ -19,10 +19,11 @@ from __future__ import annotations
 
 import logging
 import os
+import signal
 import threading
 import time
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Collection, Iterator
 from contextlib import contextmanager
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -165,23 +166,104 @@ def connect(spec: Cluster, base: Path | None = None) -> Iterator[distributed.Cli
 
     logging.getLogger("distributed").setLevel(logging.ERROR)
     sec = security(spec, base)
-    with dask.config.set({"distributed.admin.low-level-log-length": MESSAGE_LOG_LENGTH}):
+    log_length = {"distributed.admin.low-level-log-length": MESSAGE_LOG_LENGTH}
+    with dask.config.set(log_length), quiet_once_interrupted():
         if spec.address:
             with _client(spec.address, sec, spec.connect_timeout, wait=spec.connect_timeout) as client:
                 yield client
             return
-        cluster = maker(spec.kind)(spec, sec)
+        cluster = None
         try:
+            with sigint_held():  # a Ctrl-C meanwhile is raised once the cluster exists, and it is closed
+                cluster = maker(spec.kind)(spec, sec)
             if spec.kind != "local":
                 cluster.scale(spec.n_workers or 1)
             wait = 0.0 if spec.kind == "local" else QUEUE_WAIT
             with _client(cluster, sec, spec.connect_timeout, wait) as client:
-                yield client
+                try:
+                    yield client
+                finally:
+                    settle(client)
         finally:
-            cluster.close()
+            if cluster is not None:
+                cluster.close()
 
 
 QUEUE_WAIT = 30 * 60.0  # seconds a started cluster's first job or pod may wait in the queue
+
+
+@contextmanager
+def sigint_held() -> Iterator[None]:
+    """Start a cluster whose processes never see the terminal's Ctrl-C, and keep a Ctrl-C that comes
+    meanwhile until the cluster exists.
+
+    A terminal sends SIGINT to its whole foreground process group, so the worker processes a
+    LocalCluster spawns get the user's Ctrl-C as well, and distributed leaves them to die of it
+    mid-chunk with a KeyboardInterrupt traceback each (dask/distributed#1925). A signal blocked in a
+    thread stays blocked in the threads it starts and, through fork and exec, in the processes they
+    spawn; the cluster's event-loop thread, started here, spawns every worker process (also those a
+    nanny restarts later) from threads of its own. So only the client takes the Ctrl-C, and it stops
+    the workers by closing the cluster. Python runs signal handlers in the main thread only, hence
+    the check: elsewhere nothing is changed."""
+    if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    from multiprocessing import resource_tracker
+
+    # The standard library starts its resource tracker the same way, and then unblocks SIGINT in the
+    # thread that started it: the cluster's event loop, were the tracker not running before.
+    resource_tracker.ensure_running()
+    previous = signal.getsignal(signal.SIGINT)
+    caught: list[int] = []
+    if callable(previous):
+        signal.signal(signal.SIGINT, lambda number, frame: caught.append(number))
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # one that waited is recorded now
+        if callable(previous):
+            signal.signal(signal.SIGINT, previous)
+    if caught:
+        previous(signal.SIGINT, None)  # handled as it would have been when it came
+
+
+NOISY_AFTER_CTRL_C = ("tornado.application", "asyncio")  # loggers of the event loop Dask runs in the client
+
+
+@contextmanager
+def quiet_once_interrupted() -> Iterator[None]:
+    """From the first Ctrl-C on, the loggers of Dask's event loop in this process say nothing.
+
+    Ctrl-C raises KeyboardInterrupt in the client wherever it is, inside distributed's waits too. What
+    a wait leaves behind then fails in the event loop, and tornado and asyncio log each failure with
+    its traceback, some only as Python exits: the tasks of a gather, or a wait that distributed's
+    ``sync`` cancels before it has started, which fails with a NameError. Until a Ctrl-C they speak as
+    before, and afterwards, if none came."""
+    previous = signal.getsignal(signal.SIGINT)
+    if threading.current_thread() is not threading.main_thread() or not callable(previous):
+        yield
+        return
+    interrupted = threading.Event()
+
+    def mark(number: int, frame: Any) -> None:
+        interrupted.set()
+        previous(number, frame)
+
+    def keep(record: logging.LogRecord) -> bool:
+        return not interrupted.is_set()
+
+    loggers = [logging.getLogger(name) for name in NOISY_AFTER_CTRL_C]
+    for logger in loggers:
+        logger.addFilter(keep)
+    signal.signal(signal.SIGINT, mark)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        if not interrupted.is_set():  # after a Ctrl-C they stay quiet: some failures are logged at exit
+            for logger in loggers:
+                logger.removeFilter(keep)
 
 
 @contextmanager
@@ -256,6 +338,40 @@ class WorkerWatch:
                                  f"{self.grace:g} s: its workers died or were lost and none came back")
                 self.client.cancel(self.in_flight())
                 return
+
+
+def wait_until_ended(client, keys: Collection[str] | None = None, every: float = 0.1) -> None:
+    """Until no worker runs a task of ``keys`` (None: any task). Dask cannot stop a task that has started:
+    a chunk cancelled while it runs goes on to write its rows, and the store holds its final rows only
+    after that."""
+    wanted = None if keys is None else frozenset(keys)
+
+    def running(dask_worker) -> list[str]:
+        return [key for key in list(dask_worker.active_threads.values()) if wanted is None or key in wanted]
+
+    while wanted is None or wanted:
+        try:
+            if not any(client.run(running, on_error="ignore").values()):
+                return
+        except OSError:  # the scheduler went: nothing more can be learnt from it
+            return
+        time.sleep(every)
+
+
+def settle(client) -> None:
+    """Cancel what the client still has on a cluster we started, and wait until no worker runs a task, so
+    that the cluster then closes at once and quietly (after Ctrl-C, say, while the first simulation is
+    timed). A worker closed while it runs a task waits for it, heartbeating to a scheduler that has let
+    it go already, and distributed logs each failed heartbeat as an error with its traceback."""
+    from distributed import Future
+
+    if client.status != "running":
+        return
+    try:
+        client.cancel([Future(key, client) for key in list(client.futures)])
+        wait_until_ended(client)
+    except Exception:  # noqa: BLE001 - at worst the close is noisy: this must not hide why the sweep stopped
+        return
 
 
 def total_threads(client) -> int:

@@ -2,11 +2,13 @@
 
 A strategy is a class built from a :class:`Problem` (the dimensions, the
 objectives to optimise, the budget and its own options). The runner *asks*
-it for a point whenever a worker frees up and *tells* it each point's
-:class:`Evaluation` when the point's simulations finish, the way Optuna's
+it for points ahead of their results and *tells* it each point's
+:class:`Evaluation` when the point's simulations finish (by default in the
+order the points were asked: closed_loop.py), the way Optuna's
 ``study.ask``/``study.tell`` work. A strategy never simulates anything, so the
-same strategy runs on a laptop or a cluster, and a search can be replayed
-from its stored history (history.py).
+same strategy runs on a laptop or a cluster. Given its seed and the same
+sequence of asks and tells, it must ask the same points: that is what makes a
+search reproducible and lets a later submission go on from the stored results.
 
 ``exhaustive`` is the grid strategy: it asks every point up front without
 needing results (``closed_loop = False``), and the sweep runs it in large
@@ -48,7 +50,7 @@ class Problem:
     vectors: tuple[str, ...]  # objectives that give one number per sample (least squares fits them)
     max_points: int
     seed: int
-    batch: int  # points in flight at once
+    batch: int  # points asked ahead of their results (asked and not yet told) at most
     options: Mapping[str, Any] = field(default_factory=dict)  # the strategy's own, from space.yaml's search:
     admits: Callable[[Point], bool] = lambda point: True  # the spec's constraints
     constrained: bool = False  # whether ``admits`` can refuse a point

@@ -184,6 +184,9 @@ class Ranking(BaseModel):
         return [self.objective, *(name for name, _ in self.pareto_goals()), *self.weights]
 
 
+BATCH = 4  # a reproducible search's points asked ahead: fixed, so that the points do not depend on the cluster
+
+
 class Search(BaseModel):
     """How points are chosen (search.py). Keys besides these are the strategy's own options."""
 
@@ -191,8 +194,12 @@ class Search(BaseModel):
     strategy: str = "exhaustive"  # built-in or a plug-in's (see search.py)
     max_points: PositiveInt = 100  # a search stops after this many simulated points (not for exhaustive)
     max_seconds: PositiveFloat | None = None  # ... or when this submission has run this long
-    seed: int = 0  # the same seed and results give the same points
-    batch: PositiveInt | None = None  # points in flight at once; default: worker threads + 1
+    seed: int = 0  # with order: reproducible, the same seed and spec give the same points
+    # reproducible: each result is told once every point asked before it has been told, and a point is
+    # asked only while fewer than ``batch`` points wait for theirs: the points depend on no worker's timing.
+    # asynchronous: each result is told as it comes (closed_loop.py).
+    order: Literal["reproducible", "asynchronous"] = "reproducible"
+    batch: PositiveInt | None = None  # points asked ahead of their results; default BATCH, or threads + 1 if asynchronous
 
     @property
     def options(self) -> dict[str, Any]:
@@ -381,11 +388,19 @@ class Space:
                        objective=(ranking.objective, ranking.goal), pareto=tuple(ranking.pareto_goals()),
                        scenarios=tuple(s.name for s in self.scenarios),
                        vectors=tuple(n for n, o in self.objectives.items() if objs.is_vector(o)),
-                       max_points=search.max_points, seed=search.seed, batch=search.batch or threads + 1,
+                       max_points=search.max_points, seed=search.seed, batch=batch_of(search, threads),
                        options=search.options, admits=self.admits, constrained=bool(self.constraints))
 
     def strategy(self, threads: int = 1) -> Strategy:
         return strategy(self.spec.search.strategy)(self.problem(threads))
+
+
+def batch_of(search: Search, threads: int) -> int:
+    """Points asked ahead of their results: a reproducible search's may not depend on the cluster (it would
+    change the points); an asynchronous one keeps every worker thread busy and one point waiting."""
+    if search.batch is not None:
+        return search.batch
+    return threads + 1 if search.order == "asynchronous" else BATCH
 
 
 def _scenarios(spec: SpaceSpec, base: Path, source: str) -> list[Scenario]:

@@ -17,8 +17,10 @@ What can go wrong, and what happens:
   until the task that crashes is alone, and that task gets a failed row;
 - the scheduler restarts: the client reconnects, re-reads the store and runs
   what is missing;
-- the client is interrupted or killed: finished chunks are in the store;
-  submitting again runs the rest.
+- the client is interrupted (Ctrl-C): chunks not started are cancelled, and
+  those running finish and write their rows before it stops;
+- the client is killed: finished chunks are in the store (running ones finish
+  on a cluster that outlives it); submitting again runs the rest.
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ from ..simulation.run import simulate
 from . import ship, store
 from .chunks import ChunkJob, ChunkSummary, chunk_id_of, probe, record_crash, run_chunk
 from .closed_loop import SearchSource, SearchStatus
-from .cluster import WorkerWatch, connect, total_threads, worker_grace
+from .cluster import WorkerWatch, connect, total_threads, wait_until_ended, worker_grace
 from .domain import Point
 from .expand import blocks, chunked, count, points_of
 from .search import strategy
@@ -117,9 +119,14 @@ STATUS_FILE = "status.json"
 STATUS_SECONDS = 1.0  # how often a running sweep saves its status
 
 
-def save_status(report: SweepReport) -> None:
+def save_status(report: SweepReport, kept: SweepReport | None = None) -> None:
+    """Save ``report`` as the sweep's status; or, if it finished without running a task (every task was done),
+    ``kept``, the status found when it started, if that finished submission ran tasks: the status, and the
+    report's summary, stay those of the run that made the rows, not of a resubmission that had nothing to do."""
     report.updated_at = time.time()
-    store.write_text(report.output, f"{report.sweep}.{STATUS_FILE}", report.model_dump_json(indent=1))
+    noop = report.state == "finished" and not report.ran
+    shown = kept if noop and kept is not None and kept.state == "finished" and kept.ran else report
+    store.write_text(report.output, f"{report.sweep}.{STATUS_FILE}", shown.model_dump_json(indent=1))
 
 
 def load_status(output: store.Root, sweep: str) -> SweepReport | None:
@@ -183,6 +190,7 @@ def submit(space: Space, progress: Progress | None = None, client=None,
     store.check_reachable(output)
     save_sweep_spec(output, space.spec, space.model_key)
     done = store.finished_task_ids(output, space.name)
+    kept = load_status(output, space.name)  # a submission that finds nothing to run leaves it as it is
     shipment = ship.pack(space.plan, space.scenarios)
     report = SweepReport(sweep=space.name, output=output, total=0, skipped=0, spec=str(space.path),
                          scenarios={s.name: s.group for s in space.scenarios})
@@ -198,10 +206,10 @@ def submit(space: Space, progress: Progress | None = None, client=None,
         if report.total == report.skipped and _trajectories_kept(space):
             report.seconds = time.perf_counter() - started
             report.state = "finished"
-            save_status(report)
+            save_status(report, kept)
             return report
         source = GridSource(space, shipment.key, report, points, only, seconds_per_task)
-    run = Run(space, shipment, source, report, progress, started, on_connect)
+    run = Run(space, shipment, source, report, progress, started, on_connect, kept)
     save_status(report)
     try:
         if client is None:
@@ -212,6 +220,23 @@ def submit(space: Space, progress: Progress | None = None, client=None,
         report.state = "failed"  # so a dashboard does not wait for a sweep that has stopped
         save_status(report)
         raise
+    except KeyboardInterrupt:  # while it starts, probes or keeps tracks (the chunks' loop returns instead)
+        report.state = "interrupted"
+        save_status(report)
+        raise
+
+
+def tasks_done(space: Space) -> tuple[int, int]:
+    """(tasks with a row in the store, tasks): read from the store, so that after an interruption, once
+    the last chunk has written, it is what submitting again finds done. The client's own count misses
+    chunks that finished after it stopped listening. A search's tasks are its budget (``max_points`` on
+    every scenario), and its rows are those of the current model."""
+    if strategy(space.spec.search.strategy).closed_loop:
+        rows = store.read_results(space.output, space.name, ["model"])
+        budget = space.spec.search.max_points * len(space.scenarios)
+        return int((rows["model"] == space.model_key).sum()), budget
+    total, done = count(space, store.finished_task_ids(space.output, space.name))
+    return done, total
 
 
 def _trajectories_kept(space: Space) -> bool:
@@ -336,6 +361,7 @@ class Run:
     progress: Progress | None
     started: float
     on_connect: Callable[[Any], None] | None = None
+    kept: SweepReport | None = None  # the status when the submission started (save_status)
     saved: float = 0.0  # when the status file was last written (monotonic)
 
     def until_done(self, client, done: set[str]) -> SweepReport:
@@ -360,7 +386,7 @@ class Run:
             keep_trajectories(self.space, client, self.space.spec.keep_trajectories, self.shipment)
         report.seconds = time.perf_counter() - self.started
         report.state = "interrupted" if report.interrupted else "finished"
-        save_status(report)
+        save_status(report, self.kept)
         return report
 
     def _connected(self, client) -> None:
@@ -393,8 +419,9 @@ class Run:
             report.interrupted = True
             if report.search is not None:
                 report.search.stopped = "interrupted"
-            for future in list(in_flight.futures):
-                future.cancel()
+            running = list(in_flight.futures)
+            client.cancel(running)  # those not started never will
+            wait_until_ended(client, [future.key for future in running])  # those started write their rows
 
     def _wait(self, client, in_flight, launched: dict[str, ChunkJob], again: deque[ChunkJob],
               fill: Callable[[], None], watch: WorkerWatch) -> None:

@@ -2,16 +2,17 @@
 
 Each wraps an in-memory Optuna study driven by ``study.ask``/``study.tell``,
 Optuna's own interface for optimisation loops it does not run itself. Trials
-in flight are Optuna's "running" trials, which TPE (constant liar), CMA-ES
-and NSGA-II take into account, so points can be asked while others still
-simulate. A failed point is a failed trial. A point the constraints reject
+in flight are Optuna's "running" trials, which GP (batch acquisition), TPE
+(constant liar), CMA-ES and NSGA-II take into account, so points can be asked
+while others still simulate. A failed point is a failed trial. A point the constraints reject
 is a complete trial with the worst value seen so far, marked infeasible with
 Optuna's own ``Trial.set_constraint``, which TPE, GP and NSGA-II read, so the
 sampler learns where the feasible region is instead of proposing the same
 infeasible region again and again.
 
 The strategy's options are the sampler's own keyword arguments, e.g.
-``search: {strategy: tpe, n_startup_trials: 5}``; ``seed`` is the search's.
+``search: {strategy: tpe, n_startup_trials: 5}``; ``seed`` is the search's;
+gp adds ``acquisition_samples`` and ``local_searches`` (GPSampler below).
 """
 
 from __future__ import annotations
@@ -50,6 +51,15 @@ def distribution(dimension: Dimension) -> BaseDistribution:
     return FloatDistribution(d.low, d.high, log=d.log)
 
 
+def keyword_options(kind: type) -> set[str]:
+    """The keyword arguments a sampler class takes: its own, and its base's if it passes ``**options`` on."""
+    parameters = inspect.signature(kind.__init__).parameters.values()
+    names = {p.name for p in parameters if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)}
+    if any(p.kind is p.VAR_KEYWORD for p in parameters) and kind.__base__ is not object:
+        names |= keyword_options(kind.__base__)
+    return names
+
+
 VIOLATION = "space.yaml constraints"  # the trial's constraint value: > 0 where the constraints reject the point
 
 
@@ -66,7 +76,7 @@ class OptunaStrategy(Strategy):
 
     def __init__(self, problem: Problem):
         super().__init__(problem)
-        accepted = set(inspect.signature(self.sampler.__init__).parameters) - NOT_OPTIONS
+        accepted = keyword_options(self.sampler) - NOT_OPTIONS
         options = dict(self.options.model_extra or {})
         for name in options:
             if name not in accepted:
@@ -141,10 +151,28 @@ class Tpe(OptunaStrategy):
         return {"multivariate": True}  # models the parameters jointly: they interact in a calibration
 
 
+class GPSampler(optuna.samplers.GPSampler):
+    """Optuna's GPSampler, with the effort of its search for each next point as options: QMC points at which
+    the acquisition function is first evaluated, then local searches from the best of them. Optuna sets both
+    in its constructor (2048 and 10, for any number of parameters) and reads them in ``_optimize_acqf``,
+    which its docstring leaves to advanced users."""
+
+    def __init__(self, *, acquisition_samples: int = 2048, local_searches: int = 10, **options: Any):
+        super().__init__(**options)
+        if acquisition_samples < 1 or local_searches < 1:
+            raise ValueError("acquisition_samples and local_searches must be positive")
+        effort = {"_n_preliminary_samples": acquisition_samples, "_n_local_search": local_searches}
+        for name, value in effort.items():
+            if not hasattr(self, name):  # another Optuna: say so rather than set what it no longer reads
+                raise ValueError(f"this Optuna's GPSampler has no {name}: acquisition_samples and "
+                                 "local_searches do not apply")
+            setattr(self, name, value)
+
+
 class GaussianProcess(OptunaStrategy):
     """Gaussian-process Bayesian optimisation (Optuna's GPSampler; needs PyTorch)."""
 
-    sampler = optuna.samplers.GPSampler
+    sampler = GPSampler
 
     def __init__(self, problem: Problem):
         try:
@@ -152,6 +180,14 @@ class GaussianProcess(OptunaStrategy):
         except ImportError:
             raise DseError("search strategy 'gp' needs PyTorch: pip install 'dse-runner[gp]'") from None
         super().__init__(problem)
+
+    def defaults(self) -> dict[str, Any]:
+        """Cheaper asks, so that the client keeps up with the workers (its asks would otherwise keep them
+        waiting: on the paper's calibration an ask cost about as much as a point's 12 simulations). A
+        simulation gives the same numbers for the same point, so the model needs no noise term to fit; and a
+        quarter of Optuna's acquisition samples and half its local searches found the same points to within
+        1% and the same best on that calibration (docs/performance.md). Many parameters may want Optuna's."""
+        return {"deterministic_objective": True, "acquisition_samples": 512, "local_searches": 5}
 
 
 class CmaEs(OptunaStrategy):

@@ -1,0 +1,77 @@
+"""What a browser shows of a page's Bokeh charts, measured in the page: whether every chart fits the page's
+width, whether every title fits its chart (Bokeh draws titles on the canvas, which cuts off what runs past
+its edge) and clears the chart's toolbar, and which glyphs a named chart draws."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+# Walks BokehJS's views (Bokeh.index), not the DOM: the charts live in shadow roots, and a title is canvas
+# pixels, so its extent is the text box BokehJS measured to draw it, placed where the title's view sits.
+MEASURE = """() => {
+  const views = [];
+  const walk = (view) => { views.push(view); for (const child of view.child_views || []) walk(child); };
+  for (const root of Bokeh.index.roots) walk(root);
+  const body = document.body.getBoundingClientRect();
+  const page = Math.min(document.documentElement.clientWidth, body.right);
+  const charts = [];
+  for (const view of views) {
+    if (!view.renderer_views || !view.canvas_view || !('title' in view.model.properties)) continue;
+    const box = view.el.getBoundingClientRect();
+    const canvas = view.canvas_view.el.getBoundingClientRect();
+    const chart = {name: view.model.name || '', right: box.right, page: page, title: '', title_right: 0,
+                   canvas_right: canvas.right, toolbar_left: null};
+    const title = view.model.title && view.renderer_views.get(view.model.title);
+    if (title && title.model.text) {
+      const size = title._text_box.size();
+      chart.title = title.model.text;
+      chart.title_right = canvas.left + title.bbox.x0 + size.width;
+      const top = canvas.top + title.bbox.y0, bottom = top + size.height;
+      const toolbar = view.model.toolbar && view.owner.find_one(view.model.toolbar);
+      const bar = toolbar && toolbar.el.getBoundingClientRect();
+      if (bar && bar.width > 0 && bar.top < bottom && bar.bottom > top) chart.toolbar_left = bar.left;
+    }
+    charts.push(chart);
+  }
+  return {charts: charts, scroll_width: document.documentElement.scrollWidth,
+          client_width: document.documentElement.clientWidth};
+}"""
+
+GLYPHS = """(name) => { for (const doc of Bokeh.documents) { const chart = doc.get_model_by_name(name);
+  if (chart) return chart.renderers.map(r => [r.glyph.type, r.data_source.get_length()]); } return null }"""
+
+
+@dataclass
+class Fit:
+    """What :func:`measure` found: how many charts and titles, and what does not fit, in words."""
+
+    charts: int
+    titles: int
+    misfits: list[str]
+
+
+def measure(page) -> Fit:
+    """Every Bokeh chart on ``page``: its right edge within the page (the body's box and the window), its
+    title within its canvas and left of a toolbar on its line; and the page not scrolling sideways."""
+    found = page.evaluate(MEASURE)
+    misfits = []
+    for chart in found["charts"]:
+        name = chart["title"] or chart["name"] or "a chart"
+        if chart["right"] > chart["page"] + 0.5:
+            misfits.append(f"{name}: right edge at {chart['right']:.0f} px, past the page's {chart['page']:.0f}")
+        if chart["title"] and chart["title_right"] > chart["canvas_right"] + 0.5:
+            misfits.append(f"title {name!r} ends at {chart['title_right']:.0f} px, past its canvas "
+                           f"({chart['canvas_right']:.0f})")
+        if chart["toolbar_left"] is not None and chart["title_right"] > chart["toolbar_left"] + 0.5:
+            misfits.append(f"title {name!r} runs under its toolbar ({chart['title_right']:.0f} > "
+                           f"{chart['toolbar_left']:.0f} px)")
+    if found["scroll_width"] > found["client_width"]:
+        misfits.append(f"the page scrolls sideways: {found['scroll_width']} px wide in a "
+                       f"{found['client_width']} px window")
+    return Fit(len(found["charts"]), sum(bool(c["title"]) for c in found["charts"]), misfits)
+
+
+def glyphs(page, name: str) -> list[tuple[str, int]] | None:
+    """The glyphs the chart named ``name`` draws, each with its data source's rows; None if no such chart."""
+    drawn = page.evaluate(GLYPHS, name)
+    return None if drawn is None else [(kind, rows) for kind, rows in drawn]
