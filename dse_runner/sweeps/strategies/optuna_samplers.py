@@ -189,6 +189,21 @@ class GaussianProcess(OptunaStrategy):
         1% and the same best on that calibration (docs/performance.md). Many parameters may want Optuna's."""
         return {"deterministic_objective": True, "acquisition_samples": 512, "local_searches": 5}
 
+    def ask(self) -> Point | None:
+        """With PyTorch on one thread throughout. An ask is many small tensor operations, which more threads
+        slow down, and the client shares the cores with the workers (a local cluster starts one a core).
+        Optuna's GPSampler limits its kernel fit and local searches so, but not the first evaluation of its
+        acquisition samples, the largest part of an ask while points are in flight: left to PyTorch's
+        default (a thread a core), asks took twice as long on 2 workers (docs/performance.md)."""
+        import torch
+
+        threads = torch.get_num_threads()
+        torch.set_num_threads(1)
+        try:
+            return super().ask()
+        finally:
+            torch.set_num_threads(threads)
+
 
 class CmaEs(OptunaStrategy):
     """CMA-ES (Optuna's CmaEsSampler over the cmaes package)."""
