@@ -2,8 +2,8 @@
 
 Each wraps an in-memory Optuna study driven by ``study.ask``/``study.tell``,
 Optuna's own interface for optimisation loops it does not run itself. Trials
-in flight are Optuna's "running" trials, which GP (batch acquisition), TPE
-(constant liar), CMA-ES and NSGA-II take into account, so points can be asked
+in flight are Optuna's "running" trials, which GP (batch acquisition) and TPE
+(with ``constant_liar: true``, an option) take into account, so points can be asked
 while others still simulate. A failed point is a failed trial. A point the constraints reject
 is a complete trial with the worst value seen so far, marked infeasible with
 Optuna's own ``Trial.set_constraint``, which TPE, GP and NSGA-II read, so the
