@@ -77,7 +77,7 @@ import optuna
 from distributed import Client
 
 from dse_runner import simulate, strict_json
-from dse_runner.analysis.rank import rank
+from dse_runner.sweeps.rank import rank
 from dse_runner.sweeps.cluster import MESSAGE_LOG_LENGTH, make_local
 from dse_runner.sweeps.history import SearchHistory, load_history
 from dse_runner.sweeps.spec import Cluster as ClusterSpec

@@ -28,7 +28,7 @@ import dse_runner
 from dse_runner.sweeps import store
 from dse_runner.sweeps.cluster import connect, kubernetes_cluster_spec, make_htcondor
 from dse_runner.errors import DseError
-from dse_runner.analysis.rank import rank
+from dse_runner.sweeps.rank import rank
 from dse_runner.sweeps.spec import Cluster, load_space
 from dse_runner.sweeps.sweep import load_status, submit
 

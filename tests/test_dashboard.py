@@ -177,7 +177,7 @@ def test_the_page_has_no_console_errors(watched):
 
 
 def test_the_best_track_is_drawn_for_the_chosen_scenario(watched):
-    from dse_runner.analysis.rank import rank
+    from dse_runner.sweeps.rank import rank
 
     assert watched.track_title.startswith("sin1: best point so far")
     assert watched.chosen_track.startswith("turn_ramp1: best point so far")
@@ -191,7 +191,7 @@ def test_dask_dashboard_links_to_it(watched):
 
 
 def test_the_final_page_shows_the_rank_commands_best_point(watched):
-    from dse_runner.analysis.rank import rank
+    from dse_runner.sweeps.rank import rank
 
     ranking = rank(watched.output, "watched")
     best = ", ".join(f"{k} = {v:g}" for k, v in ranking.best.items())
@@ -205,7 +205,7 @@ def test_the_report_opens_offline(watched, tmp_path):
     from playwright.sync_api import TimeoutError as PlaywrightTimeout
     from playwright.sync_api import sync_playwright
 
-    from dse_runner.analysis.rank import rank
+    from dse_runner.sweeps.rank import rank
 
     report = tmp_path / "report.html"
     done = subprocess.run([sys.executable, "-m", "dse_runner", "report", str(watched.output), "-o", str(report)],
@@ -332,7 +332,7 @@ def test_dashboard_command_serves_a_finished_sweep(watched):
 
 
 def test_standings_put_the_furthest_points_first():
-    from dse_runner.analysis.rank import standings
+    from dse_runner.sweeps.rank import standings
 
     ok = pd.DataFrame({"a": [1.0, 1.0, 2.0, 3.0, 3.0], "scenario": ["s", "t", "s", "s", "t"],
                        "e": [5.0, 1.0, 0.5, 2.0, 2.0]})

@@ -14,7 +14,7 @@ from conftest import strict_loads
 from test_cli import dse_runner
 
 from dse_runner.analysis.diagnose.hypotheses import LIBRARY
-from dse_runner.analysis.rank import rank
+from dse_runner.sweeps.rank import rank
 from dse_runner.sweeps.spec import load_space
 from dse_runner.sweeps.sweep import submit
 

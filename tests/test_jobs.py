@@ -15,7 +15,7 @@ import yaml
 from conftest import REPO
 
 from dse_runner.sweeps import store
-from dse_runner.analysis.rank import rank
+from dse_runner.sweeps.rank import rank
 from dse_runner.interfaces.report import write_report
 from dse_runner.simulation.run import simulate
 from dse_runner.sweeps.spec import load_space

@@ -82,7 +82,6 @@ print(sorted(m for m in sys.modules if m.startswith("dse_runner")))
 
 
 LAYERS = ["simulation", "sweeps", "analysis", "interfaces"]
-ALLOWED = {("sweeps", "analysis")}  # a sweep ranks its results to keep the best points' signals
 
 
 def test_each_layer_imports_only_the_layers_before_it():
@@ -94,6 +93,6 @@ def test_each_layer_imports_only_the_layers_before_it():
                 if isinstance(node, ast.ImportFrom) and node.level and node.module:
                     target = node.module.split(".")[0]
                     case_analysis = target == "cases" and MAY_IMPORT_CASES & set(path.parts)
-                    if target in later and (layer, target) not in ALLOWED and not case_analysis:
+                    if target in later and not case_analysis:
                         offenders.append(f"{path.relative_to(PACKAGE)} imports {node.module}")
     assert offenders == []

@@ -19,7 +19,7 @@ import pandas as pd
 import pytest
 from conftest import REPO, strict_loads, write_msd_search, write_yaml
 
-from dse_runner.analysis.rank import rank
+from dse_runner.sweeps.rank import rank
 from dse_runner.errors import DseError
 from dse_runner.sweeps import store
 from dse_runner.sweeps.history import load_history

@@ -299,7 +299,7 @@ def test_dashboard_of_the_finished_search_reads_it_from_the_store(searched):
 
 
 def test_dashboard_best_matches_the_rank_command(searched):
-    from dse_runner.analysis.rank import rank
+    from dse_runner.sweeps.rank import rank
 
     ranking = rank(searched.output, "msd-search")
     assert len(ranking.totals) == POINTS
@@ -309,7 +309,7 @@ def test_dashboard_best_matches_the_rank_command(searched):
 def test_report_has_the_search(searched, tmp_path):
     from playwright.sync_api import sync_playwright
 
-    from dse_runner.analysis.rank import rank
+    from dse_runner.sweeps.rank import rank
     from dse_runner.interfaces.report import write_report
     from dse_runner.sweeps.history import load_history
 

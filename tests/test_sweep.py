@@ -16,7 +16,7 @@ from conftest import REPO, SCENARIOS, sleeper_multimodel, strict_loads, write_sp
 
 from dse_runner.sweeps import store
 from dse_runner.sweeps.expand import expand
-from dse_runner.analysis.rank import rank
+from dse_runner.sweeps.rank import rank
 from dse_runner.simulation.run import simulate
 from dse_runner.sweeps.spec import load_space
 from dse_runner.sweeps.sweep import submit
@@ -167,7 +167,7 @@ def test_rank_matches_a_plain_pandas_computation(tmp_path, dask_scheduler):
            "min/max/average over the 3"),
 ])
 def test_table1_says_which_points_it_is_over(excluded, incomplete, scope):
-    from dse_runner.analysis.rank import Ranking, table1_scope
+    from dse_runner.sweeps.rank import Ranking, table1_scope
 
     none = pd.DataFrame()
     ranking = Ranking("s", ["k"], "e", "min", {"k": 1.0}, 1.0, pd.DataFrame({"k": [1.0, 2.0, 3.0]}), none, none,

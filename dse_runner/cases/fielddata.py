@@ -140,7 +140,7 @@ class FieldData:
 
     def compare(self, result):
         """The dashboard's and report's view: the simulated track over the fixes."""
-        from ..analysis.comparison import Comparison
+        from ..simulation.comparison import Comparison
 
         fixes = gps(result.scenario)
         return Comparison((fixes.x, fixes.y), simulated_xy(result.trajectory, result.scenario),

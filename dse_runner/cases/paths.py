@@ -223,7 +223,7 @@ class PathKind:
 
     def compare(self, result):
         """The dashboard's and report's view: the simulated track over the path."""
-        from ..analysis.comparison import Comparison
+        from ..simulation.comparison import Comparison
 
         path = path_of(result.scenario)
         return Comparison((path.points[:, 0], path.points[:, 1]),

@@ -34,7 +34,7 @@ from bokeh.models import ColorBar, ColumnDataSource, HoverTool, LinearColorMappe
 from bokeh.palettes import Category10, Viridis256
 from bokeh.plotting import figure
 
-from ..analysis.rank import pareto_mask
+from ..sweeps.rank import pareto_mask
 from ..sweeps.history import Asked, SearchHistory
 
 PALETTE = Category10[10]

@@ -208,8 +208,8 @@ MAX_PRINTED = 30  # final values printed as text
 
 def _print_table1(ranking) -> None:
     """Table 1 with the report's column names, saying which points its min, max and average are over."""
-    from ..analysis.rank import TABLE1_HEADINGS as heads
-    from ..analysis.rank import format_point, table1_scope
+    from ..sweeps.rank import TABLE1_HEADINGS as heads
+    from ..sweeps.rank import format_point, table1_scope
 
     typer.echo(f"Table 1: {ranking.objective} per scenario ({table1_scope(ranking)})")
     width = max([14, *(len(s) + 1 for s in ranking.table1["scenario"])])  # names of variants run long
@@ -246,7 +246,7 @@ def submit(
     run again (a search goes on from where it stopped); rank."""
     board = space = None
     try:
-        from ..analysis.rank import rank, write_ranking
+        from ..sweeps.rank import rank, write_ranking
         from ..simulation.scenario import dropouts
         from ..sweeps.sweep import submit as run_sweep
 
@@ -357,7 +357,7 @@ def convert_intocps(
 
 
 def _print_search(search) -> None:
-    from ..analysis.rank import format_point
+    from ..sweeps.rank import format_point
 
     typer.echo(f"  search {search.strategy}: {search.points} of {search.max_points} points "
                f"({search.reused} told from the store, {search.infeasible} infeasible, {search.failed} failed); "
@@ -405,7 +405,7 @@ def dashboard_command(
     """Serve the live dashboard of a running or finished sweep until interrupted (Ctrl-C)."""
     import time
 
-    from ..analysis.rank import pick_sweep
+    from ..sweeps.rank import pick_sweep
     from .dashboard import serve
 
     try:
@@ -429,7 +429,7 @@ def report_command(
 ) -> None:
     """Write one self-contained HTML file (opens offline): Table 1, rankings, Pareto front, figures, spec.
     A sweep of an INTO-CPS DSE config also gets INTO-CPS's result files, in a folder beside it."""
-    from ..analysis.rank import load_sweep_spec, pick_sweep
+    from ..sweeps.rank import load_sweep_spec, pick_sweep
     from . import intocps
     from .report import write_report
 
@@ -505,7 +505,7 @@ def rank_command(
     as_json: JsonFlag = False,
 ) -> None:
     """Aggregate a sweep's results: totals, Table 1, Pareto front, group and weighted rankings."""
-    from ..analysis.rank import load_sweep_spec, rank, write_ranking
+    from ..sweeps.rank import load_sweep_spec, rank, write_ranking
     from ..simulation.values import write_values
     from ..sweeps.store import sweeps
 

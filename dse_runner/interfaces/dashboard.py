@@ -30,8 +30,8 @@ from typing import Any
 import pandas as pd
 from distributed.diagnostics.plugin import SchedulerPlugin
 
-from ..analysis.comparison import Comparison, compare
-from ..analysis.rank import current_model, current_rows, format_point, load_sweep_spec, plain, standings
+from ..simulation.comparison import Comparison, compare
+from ..sweeps.rank import current_model, current_rows, format_point, load_sweep_spec, plain, standings
 from ..errors import DseError
 from ..sweeps import store
 from ..sweeps.closed_loop import SearchStatus

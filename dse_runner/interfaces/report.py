@@ -16,7 +16,7 @@ from pathlib import Path
 import yaml
 from jinja2 import Template
 
-from ..analysis.rank import (
+from ..sweeps.rank import (
     TABLE1_HEADINGS,
     Ranking,
     format_point,

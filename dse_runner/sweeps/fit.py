@@ -1,7 +1,8 @@
 """Least-squares fitting of parameters to recordings, run as sweeps.
 
-A fit minimises the sum of squared position offsets at every GPS fix (the
-``fix_residuals`` vector objective) over some parameters, by
+A fit minimises the sum of squares of a vector objective, its residuals
+against the recordings (field data's ``fix_residuals``: the position offset at
+every fix), over some parameters, by
 Levenberg-Marquardt with forward-difference Jacobians. A fit never simulates
 anything itself: it *asks* for points and is *told* their residuals
 (:class:`LevenbergMarquardt`), and :func:`fit_all` advances any number of
@@ -31,7 +32,6 @@ from .expand import expand
 from .spec import Space
 from .sweep import submit
 
-RESIDUALS = "fix_residuals"
 Point = dict[str, float]
 Key = tuple[tuple[str, float], ...]
 
@@ -239,11 +239,12 @@ def robust_standard_errors(jacobian: list[np.ndarray], residuals: list[np.ndarra
 Progress = Callable[[int, int, int, int], None]  # (round, active fits, points, simulations this round)
 
 
-def fit_all(space: Space, problems: list[FitProblem], client, progress: Progress | None = None) -> dict[str, FitResult]:
-    """Run fits in lockstep, each round one sweep of ``space`` (whose objectives must include
-    ``fix_residuals``) over the union of the points the fits ask for."""
-    if RESIDUALS not in space.objectives:
-        raise DseError(f"space {space.name}: fitting needs the objective {RESIDUALS!r}")
+def fit_all(space: Space, problems: list[FitProblem], client, residuals: str,
+            progress: Progress | None = None) -> dict[str, FitResult]:
+    """Run fits in lockstep, each round one sweep of ``space`` over the union of the points the fits
+    ask for, minimising the vector objective named ``residuals`` (one of the space's)."""
+    if residuals not in space.objectives:
+        raise DseError(f"space {space.name}: fitting needs the objective {residuals!r}")
     solvers = [LevenbergMarquardt(p) for p in problems]
     round_, cost = 0, None  # cost: seconds per task, measured by the last round
     while True:
@@ -254,19 +255,22 @@ def fit_all(space: Space, problems: list[FitProblem], client, progress: Progress
         round_ += 1
         if progress:
             progress(round_, len(asked), len(points), sum(len(s) for s in only))
-        rows, cost = evaluate_points(space, points, client, [RESIDUALS], only, cost)
-
-        def residuals(point: Point, scenario: str) -> np.ndarray | None:
-            row = rows.get((key_of(point), scenario))
-            return np.asarray(row[RESIDUALS], dtype=float) if row and row["status"] == "ok" else None
-
+        rows, cost = evaluate_points(space, points, client, [residuals], only, cost)
         for solver in solvers:
             if id(solver) in asked:
-                solver.tell(residuals)
+                solver.tell(residuals_in(rows, residuals))
     return {s.problem.label: s.result() for s in solvers}
 
 
 Rows = dict[tuple[Key, str], dict[str, Any]]  # (point, scenario) -> its result row
+
+
+def residuals_in(rows: Rows, column: str) -> Residuals:
+    """The residuals of (point, scenario) as the rows hold them: None where the run failed or is missing."""
+    def residuals(point: Point, scenario: str) -> np.ndarray | None:
+        row = rows.get((key_of(point), scenario))
+        return np.asarray(row[column], dtype=float) if row and row["status"] == "ok" else None
+    return residuals
 
 
 def wanted(requests: Iterable[tuple[Point, Iterable[str]]]) -> tuple[list[Point], list[set[str]]]:

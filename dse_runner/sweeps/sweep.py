@@ -37,7 +37,7 @@ from typing import Any, Literal, Protocol
 import pandas as pd
 from pydantic import BaseModel, Field
 
-from ..analysis.rank import rank, save_sweep_spec
+from .rank import rank, save_sweep_spec
 from ..errors import DseError
 from ..simulation.experiment import Experiment
 from ..simulation.run import simulate

@@ -30,7 +30,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from dse_runner import simulate  # noqa: E402
-from dse_runner.analysis.rank import rank  # noqa: E402
+from dse_runner.sweeps.rank import rank  # noqa: E402
 from dse_runner.simulation.values import read_values, write_values  # noqa: E402
 from dse_runner.sweeps import store  # noqa: E402
 

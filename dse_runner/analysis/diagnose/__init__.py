@@ -28,7 +28,6 @@ from ...simulation.multimodel import MultiModel, split_ref
 from ...simulation.scenario import dropouts
 from ...sweeps.cluster import connect
 from ...sweeps.fit import (
-    RESIDUALS,
     FitProblem,
     FitResult,
     Parameter,
@@ -37,16 +36,19 @@ from ...sweeps.fit import (
     evaluate_points,
     fit_all,
     key_of,
+    residuals_in,
     wanted,
 )
 from ...sweeps.spec import Range, Space, SpaceSpec, read_spec, resolve_space
 from ...sweeps.sweep import submit, trajectories_of
-from ..rank import rank
+from ...sweeps.rank import rank
 from . import correction, discover, explain, locate, lookalike, noise, screen
 from .correction import variables as correction_variables
 from .explain import Candidate
 from .hypotheses import EFFECTS_FMU, LIBRARY, effect_variables, hypothesis
 from .noise import NoiseFloor
+
+RESIDUALS = "fix_residuals"  # the field-data case's vector objective (cases/fielddata.py): offsets at every fix
 
 DEFAULT_SPACE = "bundled:robotti/calibration.yaml"  # the Robotti baseline's calibration grid
 FITS = "diagnosis-fits"  # the sweep every fit's rounds go to
@@ -353,7 +355,7 @@ class Chain:
         def report(round_: int, active: int, points: int, simulations: int) -> None:
             self.say(f"{what}: round {round_}, {active} fits, {points} points, {simulations} simulations")
 
-        return fit_all(self.space, problems, self.client, report) if problems else {}
+        return fit_all(self.space, problems, self.client, RESIDUALS, report) if problems else {}
 
     def score(self, candidates: list[Candidate], fits: dict[str, FitResult]) -> None:
         """Attach each candidate's fold fits and predict every run it held out with the fit that did not
@@ -376,12 +378,7 @@ class Chain:
         points, only = wanted((p, self.all if scenarios is None else s)
                               for p, s in zip(points, scenarios or [None] * len(points)))
         rows, _ = evaluate_points(self.space, points, self.client, [RESIDUALS], only)
-
-        def residuals(point: Point, scenario: str) -> Any:
-            row = rows.get((key_of(point), scenario))
-            return np.asarray(row[RESIDUALS], dtype=float) if row and row["status"] == "ok" else None
-
-        return residuals
+        return residuals_in(rows, RESIDUALS)
 
 
 def worth_screening(candidates: list[Candidate], floor: float | None, settings: Settings) -> bool:

@@ -18,7 +18,7 @@ import pandas as pd
 from ... import strict_json
 from ...cases import fielddata
 from ...sweeps.spec import Space
-from ..rank import format_point
+from ...sweeps.rank import format_point
 from . import correction, discover, explain, locate, lookalike
 from .explain import Candidate
 from .hypotheses import LIBRARY

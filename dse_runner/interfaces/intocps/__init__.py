@@ -16,7 +16,7 @@ from pathlib import Path
 
 import yaml
 
-from ...analysis.rank import current_rows, load_sweep_spec, pick_sweep, rank
+from ...sweeps.rank import current_rows, load_sweep_spec, pick_sweep, rank
 from ...errors import DseError
 from ...simulation.objectives import is_vector, normalise
 from ...sweeps import store

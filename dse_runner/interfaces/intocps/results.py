@@ -47,7 +47,7 @@ def trimmed(param_id: str) -> str:
 
 def fronts(values: np.ndarray, goals: list[str]) -> list[np.ndarray]:
     """Row indices of each Pareto front, the non-dominated one first; ``values`` is designs x objectives.
-    pymoo's non-dominated sort, as ``analysis.rank.pareto_mask`` uses, but every front: INTO-CPS's
+    pymoo's non-dominated sort, as ``sweeps.rank.pareto_mask`` uses, but every front: INTO-CPS's
     ranks 1, 2, ... are fronts peeled off one after another."""
     from pymoo.util.nds.non_dominated_sorting import NonDominatedSorting
 

@@ -26,10 +26,10 @@ import pandas as pd
 from .. import strict_json
 from ..errors import DseError
 from ..simulation.objectives import is_vector, normalise
-from ..sweeps import store
-from ..sweeps.constraints import compile_constraint
-from ..sweeps.spec import Ranking as RankingSpec
-from ..sweeps.spec import SpaceSpec
+from . import store
+from .constraints import compile_constraint
+from .spec import Ranking as RankingSpec
+from .spec import SpaceSpec
 
 SWEEP_FILE = "sweep.json"  # the spec a sweep ran with, saved beside its results
 MODEL_FILE = "model"  # the hash of the model it last ran

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..simulation import objectives as objs
-from ..simulation.scenario import kind
+from . import objectives as objs
+from .scenario import kind
 
 
 @dataclass(frozen=True)
