@@ -27,7 +27,7 @@ CONNECTIONS = {
     "vehicle.y": ["controller.y"],
     "vehicle.theta": ["controller.theta"],
 }
-VEHICLE_MASS, VEHICLE_KV = 1500.0, 8000.0  # the baseline vehicle's defaults (shared/robotti-model.md)
+VEHICLE_MASS, VEHICLE_KV = 1500.0, 8000.0  # the baseline vehicle's defaults (docs/robotti-model.md)
 
 
 def write_multimodel(folder: Path, vehicle: str = "robotti_vehicle") -> Path:

@@ -39,7 +39,7 @@ ALONE = {
 
 def fmpy_ready(path: Path, folder: Path) -> Path:
     """``path`` as FMPy loads it: a copy with the binary renamed to the model identifier where the
-    exporter named it otherwise (the shared README's advice)."""
+    exporter named it otherwise (FMPy looks for the binary under the model identifier only)."""
     from fmpy import read_model_description
 
     identifier = read_model_description(str(path)).coSimulation.modelIdentifier

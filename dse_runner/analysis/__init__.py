@@ -1,1 +1,1 @@
-"""dse-runner's analysis of results: rankings, comparisons, diagnosis."""
+"""dse-runner's analysis of results: diagnosis of what the model misses against its recordings."""

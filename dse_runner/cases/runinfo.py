@@ -1,6 +1,6 @@
-"""What the Robotti's scenario kinds share (robotti-model.md): a folder's scenario.yaml header, and the option
-naming the outputs that are the simulated position. Field data (fielddata.py) and reference paths (paths.py)
-both read these; the core never imports them."""
+"""What the Robotti's scenario kinds share (docs/robotti-model.md): a folder's scenario.yaml header, and the
+option naming the outputs that are the simulated position. Field data (fielddata.py) and reference paths
+(paths.py) both read these; the core never imports them."""
 
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ The paths are built from straight pieces and circular arcs (and a sine), with wa
 SPACING apart, so that curves are followed closely; each ends at target speed 0, reached over the
 last STOP_RAMP metres, so that a controller knows where to stop. A duration is the time to drive
 the path at its target speeds (each at least MIN_SPEED, the end ramp's 0 included) times 1.2,
-plus 10 s, rounded up to 5 s. Conventions as in robotti-model.md: theta counter-clockwise from
+plus 10 s, rounded up to 5 s. Conventions as in docs/robotti-model.md: theta counter-clockwise from
 the x axis; positive delta_f turns right. Running it again writes the same bytes.
 """
 

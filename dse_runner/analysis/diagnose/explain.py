@@ -155,7 +155,7 @@ def removal_order(chosen: Candidate, candidates: list[Candidate]) -> tuple[str, 
 # ---- verdicts: the answer judged against the noise floor ----------------------------------------
 
 NONE, EXPLAINED, PARTIAL, UNEXPLAINED = "none", "explained", "partial", "unexplained"
-DISCOVERED = "discovered"  # a data-driven correction (discover.py) passed the rule and left only noise (else partial)
+DISCOVERED = "discovered"  # a data-driven correction (discover/) passed the rule and left only noise (else partial)
 NOISE_FACTOR = 2.0  # held-out error above this many noise floors is a residual the model leaves unexplained
 FLOOR_STOP = 1.25  # a fit within this many noise floors leaves nothing a combination could clearly explain
 TIE = 1e-4  # m: held-out errors of one run closer than this are equal (an effect fitted to ~0 changes nothing)

@@ -2,7 +2,7 @@
  * robotti_truth: a test-only "real machine" for the blind diagnosis tests
  * (docs/research/diagnosis-beyond-library.md, section 6).
  *
- * It is the Robotti vehicle of shared/robotti-model.md written out again with
+ * It is the Robotti vehicle of docs/robotti-model.md written out again with
  * its own right-hand side and integrator, deliberately not bicycle.h: a bug
  * shared with the model under diagnosis could otherwise hide in both.  It
  * carries every effect of robotti_vehicle_effects under the same names (so a
