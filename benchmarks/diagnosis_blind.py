@@ -20,7 +20,7 @@ Runs the cases of tests/blind.py on the embedded local cluster and prints one ta
 
 ``--form benchmark`` (the default) records 40 s of every bundled manoeuvre; ``--form tests`` records the
 test suite's form (20 s of six runs, and each case's synthetic runs), so each row is what
-tests/test_diagnose.py would see for that case. ``--only`` keeps the named cases of the chosen kinds.
+tests/analysis/test_diagnose.py would see for that case. ``--only`` keeps the named cases of the chosen kinds.
 """
 
 from __future__ import annotations

@@ -78,8 +78,9 @@ from distributed import Client
 
 from dse_runner import simulate, strict_json
 from dse_runner.sweeps.rank import rank
-from dse_runner.sweeps.cluster import MESSAGE_LOG_LENGTH, make_local
+from dse_runner.sweeps.cluster import MESSAGE_LOG_LENGTH
 from dse_runner.sweeps.history import SearchHistory, load_history
+from dse_runner.sweeps.makers import Local
 from dse_runner.sweeps.spec import Cluster as ClusterSpec
 from dse_runner.sweeps.spec import Space, load_space
 from dse_runner.sweeps.sweep import submit
@@ -347,7 +348,7 @@ def main() -> None:
     say(f"work folder {work}; one local cluster of 2 workers x 1 thread, started before any clock")
     with dask.config.set({"distributed.admin.low-level-log-length": MESSAGE_LOG_LENGTH}):
         started = time.perf_counter()
-        cluster = make_local(ClusterSpec(n_workers=2, threads_per_worker=1), None)  # dse-runner's own local cluster
+        cluster = Local().start(ClusterSpec(n_workers=2, threads_per_worker=1), None, None)  # dse-runner's own
         client = Client(cluster)
         try:
             client.wait_for_workers(2)

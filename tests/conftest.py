@@ -16,6 +16,19 @@ SCENARIOS = REPO / "scenarios" / "robotti"
 FMU_SOURCES = bundled.root() / "fmus"
 
 
+# Every test that needs a real Dask cluster is slow (docs/testing.md): these fixtures start one, and a
+# test's fixturenames hold every fixture it needs, also through other fixtures (a module's sweep on the
+# cluster). Other slow tests (the browser, diagnosis cases, the wheel, a cluster that submit starts)
+# carry @pytest.mark.slow themselves, or their module does (pytestmark).
+CLUSTER_FIXTURES = frozenset({"dask_scheduler", "cli_cluster"})
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if CLUSTER_FIXTURES.intersection(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.slow)
+
+
 @pytest.fixture(scope="session", autouse=True)
 def fresh_fmu_cache(tmp_path_factory):
     """Build the FMUs from source once per test session, in a cache of its own."""
@@ -73,6 +86,15 @@ def strict_loads(text: str):
         raise ValueError(f"not strict JSON: {constant}")
 
     return json.loads(text, parse_constant=refuse)
+
+
+def dse_runner(*args, cwd=REPO):
+    """The dse-runner command as a user runs it: a real subprocess, its output captured as text."""
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "dse_runner", *map(str, args)],
+                          capture_output=True, text=True, cwd=cwd)
 
 
 def all_scenarios() -> list[str]:

@@ -4,6 +4,7 @@ its edge) and clears the chart's toolbar, and which glyphs a named chart draws."
 
 from __future__ import annotations
 
+import shutil
 from dataclasses import dataclass
 
 # Walks BokehJS's views (Bokeh.index), not the DOM: the charts live in shadow roots, and a title is canvas
@@ -75,3 +76,10 @@ def glyphs(page, name: str) -> list[tuple[str, int]] | None:
     """The glyphs the chart named ``name`` draws, each with its data source's rows; None if no such chart."""
     drawn = page.evaluate(GLYPHS, name)
     return None if drawn is None else [(kind, rows) for kind, rows in drawn]
+
+
+def chromium(playwright):
+    """Debian's Chromium: what .ci/install puts on the machine (apt-get install chromium)."""
+    path = shutil.which("chromium") or shutil.which("chromium-browser")
+    assert path, "no chromium on PATH: install Debian's (apt-get install chromium), as .ci/install does"
+    return playwright.chromium.launch(executable_path=path)

@@ -1,6 +1,6 @@
 """The field-data scenario kind: recorded runs as the paper's robots log them, and the GPS objectives.
 
-One folder per run (robotti-model.md)::
+One folder per run (docs/robotti-model.md)::
 
     <run>/scenario.yaml        name, group, duration, initial_pose {x, y, theta}
     <run>/steering_inputs.csv  time,velocity,delta_f (the controller's recorded outputs)
@@ -37,7 +37,8 @@ import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError
 
 from ..errors import DseError, format_validation_error
-from ..simulation.scenario import INFO_FILE, Recording, Scenario, read_table
+from ..simulation.comparison import Comparison
+from ..simulation.scenario import INFO_FILE, Recording, Scenario, ScenarioKind, read_table
 from ..simulation.variables import split_ref
 from ..yamlfile import read_yaml
 from .runinfo import Position, RunInfo
@@ -113,8 +114,8 @@ def load_run(folder: str | Path, options: Mapping[str, Any] | None = None) -> Sc
         sources=tuple(paths.values()), options=settings.model_dump(exclude_none=True))
 
 
-class FieldData:
-    """The kind, as ``dse_runner.scenario`` finds it."""
+class FieldData(ScenarioKind):
+    """The kind, as ``dse_runner.simulation.scenario`` finds it."""
 
     name = KIND
     default_objectives = ("cross_track_error", "max_error", "rms_error", "final_error")
@@ -135,13 +136,12 @@ class FieldData:
     def load(self, folder: Path, options: Mapping[str, Any] | None = None) -> Scenario:
         return load_run(folder, options)
 
-    def draw(self, result, ax) -> None:
+    def draw(self, result, ax) -> bool:
         draw(result, ax)
+        return True
 
-    def compare(self, result):
+    def compare(self, result) -> Comparison:
         """The dashboard's and report's view: the simulated track over the fixes."""
-        from ..simulation.comparison import Comparison
-
         fixes = gps(result.scenario)
         return Comparison((fixes.x, fixes.y), simulated_xy(result.trajectory, result.scenario),
                           "x [m]", "y [m]", equal_axes=True)

@@ -41,7 +41,8 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, NonNegativeFloat, ValidationError
 
 from ..errors import DseError, format_validation_error
-from ..simulation.scenario import INFO_FILE, Scenario, read_table
+from ..simulation.comparison import Comparison
+from ..simulation.scenario import INFO_FILE, Scenario, ScenarioKind, read_table
 from ..simulation.variables import split_ref
 from ..yamlfile import read_yaml
 from .runinfo import Position, RunInfo
@@ -205,8 +206,8 @@ def load_path(folder: str | Path, options: Mapping[str, Any] | None = None) -> S
         sources=(info_file, path_file), options=settings.model_dump(exclude_none=True))
 
 
-class PathKind:
-    """The kind, as ``dse_runner.scenario`` finds it."""
+class PathKind(ScenarioKind):
+    """The kind, as ``dse_runner.simulation.scenario`` finds it."""
 
     name = KIND
     default_objectives = ("path_error_mean", "path_error_max", "heading_error", "steering_effort",
@@ -218,13 +219,12 @@ class PathKind:
     def load(self, folder: Path, options: Mapping[str, Any] | None = None) -> Scenario:
         return load_path(folder, options)
 
-    def draw(self, result, ax) -> None:
+    def draw(self, result, ax) -> bool:
         draw(result, ax)
+        return True
 
-    def compare(self, result):
+    def compare(self, result) -> Comparison:
         """The dashboard's and report's view: the simulated track over the path."""
-        from ..simulation.comparison import Comparison
-
         path = path_of(result.scenario)
         return Comparison((path.points[:, 0], path.points[:, 1]),
                           simulated_xy(result.trajectory, result.scenario), "x [m]", "y [m]", equal_axes=True)

@@ -13,12 +13,15 @@ import sys
 import traceback
 import warnings
 from pathlib import Path
-from typing import Annotated, Any, NoReturn
+from typing import TYPE_CHECKING, Annotated, Any, NoReturn
 
 import typer
 
 from .. import __version__
 from ..errors import DseError
+
+if TYPE_CHECKING:  # the commands import what they use when they run: the CLI starts fast
+    from ..sweeps.sweep import SweepReport
 
 app = typer.Typer(
     name="dse-runner",
@@ -254,7 +257,7 @@ def submit(
                                                             max_seconds)
         if dashboard:
             board = _start_dashboard(space, dashboard_address)
-        with ProgressBar() as progress:
+        with SweepProgressBar() as progress:
             report = run_sweep(space, progress=progress, on_connect=board.link if board else None)
     except DseError as e:
         fail(e)
@@ -451,8 +454,9 @@ def report_command(
         typer.echo(f"INTO-CPS results: {folder} (dseResults.csv, results.html, ranking.json, graphs/pareto.png)")
 
 
-class ProgressBar:
-    """A terminal progress bar with rate and ETA, on stderr so --json output stays clean."""
+class SweepProgressBar:
+    """A sweep's progress (sweep.SweepProgress) as a terminal bar with rate and ETA, on stderr so --json
+    output stays clean."""
 
     def __init__(self) -> None:
         from rich.console import Console
@@ -478,7 +482,7 @@ class ProgressBar:
     def __exit__(self, *exc):
         return self.bar.__exit__(*exc)
 
-    def __call__(self, report) -> None:
+    def __call__(self, report: SweepReport) -> None:
         if self.task is None:
             if report.dashboard:
                 self.bar.console.print(f"Dask dashboard: {report.dashboard}")
@@ -566,6 +570,7 @@ def diagnose(
     """Calibrate, locate the mismatch, name the missing physics, model it and show the fit improve."""
     from ..analysis.diagnose import Settings
     from ..analysis.diagnose import diagnose as run_diagnosis
+    from ..analysis.diagnose.findings import DiscoveredCorrection
 
     def say(message: str) -> None:
         typer.echo(message, err=True)
@@ -583,14 +588,13 @@ def diagnose(
     if as_json:
         emit_json(result.to_json())
         return
-    for effect in result.effects:
-        if "terms" in effect:  # a discovered correction: its terms as an engineer writes them
-            typer.echo(f"{effect['id']}: " + "; ".join(t["text"] for t in effect["terms"])
-                       + (f" ({effect['resembles']['text']})" if effect.get("resembles") else ""))
+    for finding in result.findings:
+        if isinstance(finding, DiscoveredCorrection):  # its terms as an engineer writes them
+            typer.echo(f"{finding.id}: {finding.described()}"
+                       + (f" ({finding.resembles['text']})" if finding.resembles else ""))
             continue
-        values = ", ".join(f"{k} = {v:.4g} [{effect['interval'][k][0]:.4g}, {effect['interval'][k][1]:.4g}]"
-                           for k, v in effect["parameters"].items())
-        typer.echo(f"{effect['id']}: {effect['name']}" + (f": {values}" if values else ""))
+        values = finding.described()
+        typer.echo(f"{finding.id}: {finding.name}" + (f": {values}" if values else ""))
     typer.echo(f"held-out mean cross-track error: {result.cross_track_before:.3f} m before, "
                f"{result.cross_track_after:.3f} m after")
     if result.floor_ratio is not None:

@@ -17,13 +17,12 @@ MAX_SIGNALS = 8  # a page of small panels; the CSV has every signal
 
 
 def result_plot(result: SimulationResult, path: Path) -> Path:
-    """The kind's own drawing if it has one, else signals against time."""
-    draw = getattr(kind(result.scenario.kind), "draw", None)
-    fig, ax = plt.subplots(figsize=(7, 6), dpi=110) if draw else _signal_axes(result)
-    if draw:
-        draw(result, ax)
-    else:
-        _signals(result, ax)
+    """The kind's own drawing if it makes one, else signals against time."""
+    fig, ax = plt.subplots(figsize=(7, 6), dpi=110)
+    if not kind(result.scenario.kind).draw(result, ax):
+        plt.close(fig)
+        fig, axes = _signal_axes(result)
+        _signals(result, axes)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)

@@ -9,8 +9,10 @@ sources (``sources/``), as FMI allows, so it can be rebuilt elsewhere.
 
 ``common`` holds one layer per kind of FMU and the description picks it (see ``layer_of``):
 FMI 2.0 co-simulation (``slave.c``), FMI 2.0 model exchange (``me2.c``), FMI 3.0 co-simulation
-(``slave3.c``), FMI 3.0 model exchange (``me3.c``). Only the chosen layer's files, with common's shared headers, are compiled, hashed
-and shipped.
+(``slave3.c``), FMI 3.0 model exchange (``me3.c``). A layer builds with what the two layers of its
+FMI version share (``fmi2_common.c``, ``fmi3_common.c``) and what all four share (``fmi_common.c``).
+Only the chosen layer's files, those shared ones and common's other headers (``bicycle.h``,
+``file_parameter.h``) are compiled, hashed and shipped.
 """
 
 from __future__ import annotations
@@ -37,17 +39,20 @@ PLATFORM_DIR_FMI3 = "binaries/x86_64-linux"  # FMI 3.0 names platforms by tuple
 
 @dataclass(frozen=True)
 class Layer:
-    """One of common's FMI layers: ``<stem>.c`` and ``<stem>.h``."""
+    """One of common's FMI layers: ``<stem>.c`` and ``<stem>.h``, built with the files it shares."""
 
     stem: str
     interface: str  # the description's element the layer implements: CoSimulation or ModelExchange
     platform_dir: str
+    shared: tuple[str, ...]  # stems of the .c/.h it builds with: its FMI version's common part, then every layer's
 
 
-CS2 = Layer("slave", "CoSimulation", PLATFORM_DIR)
-ME2 = Layer("me2", "ModelExchange", PLATFORM_DIR)
-CS3 = Layer("slave3", "CoSimulation", PLATFORM_DIR_FMI3)
-ME3 = Layer("me3", "ModelExchange", PLATFORM_DIR_FMI3)
+FMI2_SHARED = ("fmi2_common", "fmi_common")
+FMI3_SHARED = ("fmi3_common", "fmi_common")
+CS2 = Layer("slave", "CoSimulation", PLATFORM_DIR, FMI2_SHARED)
+ME2 = Layer("me2", "ModelExchange", PLATFORM_DIR, FMI2_SHARED)
+CS3 = Layer("slave3", "CoSimulation", PLATFORM_DIR_FMI3, FMI3_SHARED)
+ME3 = Layer("me3", "ModelExchange", PLATFORM_DIR_FMI3, FMI3_SHARED)
 LAYERS = (CS2, ME2, CS3, ME3)
 
 
@@ -86,25 +91,17 @@ def real_parameters(source_dir: Path) -> dict[str, float]:
 
 
 def layer_of(source_dir: Path) -> Layer:
-    """The layer the description asks for: FMI 3.0 -> slave3, or me3 with only <ModelExchange>;
-    2.0 with only <ModelExchange> -> me2; else slave."""
+    """The layer the description asks for: its FMI version's model-exchange layer (me2, me3) if it
+    declares only <ModelExchange>, else its co-simulation layer (slave, slave3)."""
     md = read_description(source_dir)
-    if md.fmiVersion == "3.0":
-        if md.coSimulation is None and md.modelExchange is not None:
-            return ME3
-        if md.coSimulation is None:
-            raise BuildError(f"{source_dir}/modelDescription.xml declares neither <CoSimulation>"
-                             " nor <ModelExchange>")
-        return CS3
-    if md.fmiVersion != "2.0":
+    if md.fmiVersion not in ("2.0", "3.0"):
         raise BuildError(f"{source_dir}/modelDescription.xml: fmiVersion {md.fmiVersion!r} is not built here"
                          " (2.0 or 3.0)")
-    if md.coSimulation is None and md.modelExchange is not None:
-        return ME2
-    if md.coSimulation is None:
+    if md.coSimulation is None and md.modelExchange is None:
         raise BuildError(f"{source_dir}/modelDescription.xml declares neither <CoSimulation>"
                          " nor <ModelExchange>")
-    return CS2
+    co_simulation, model_exchange = (CS3, ME3) if md.fmiVersion == "3.0" else (CS2, ME2)
+    return co_simulation if md.coSimulation is not None else model_exchange
 
 
 def common_dir(source_dir: Path, layer: Layer | None = None) -> Path:
@@ -121,18 +118,21 @@ def bundled_sources() -> Path:
 
 
 def source_files(source_dir: Path, layer: Layer | None = None) -> list[Path]:
-    """The model's own C files, then the chosen layer's, then common's shared files (headers such as
-    bicycle.h); the other layers' files are left out."""
+    """The model's own C files, then the chosen layer's, then the files it shares with the other layer
+    of its FMI version and with all layers, then common's other files (headers such as bicycle.h);
+    the other layers' files are left out. A shared file a ``common`` folder lacks is skipped: a
+    folder of older, self-contained layers still builds."""
     layer = layer or layer_of(source_dir)
     common = common_dir(source_dir, layer)
     if not (common / f"{layer.stem}.c").is_file():
         raise BuildError(f"{source_dir}: the shared FMI layer {common}/{layer.stem}.c is missing"
                          f" (it implements {layer.interface} for this modelDescription.xml)")
     own = sorted(source_dir.glob("*.c")) + sorted(source_dir.glob("*.h"))
-    chosen = [p for p in (common / f"{layer.stem}.c", common / f"{layer.stem}.h") if p.is_file()]
-    other_stems = {other.stem for other in LAYERS}
-    shared = [p for p in sorted(common.glob("*.c")) + sorted(common.glob("*.h")) if p.stem not in other_stems]
-    return own + chosen + shared
+    stems = (layer.stem, *layer.shared)
+    chosen = [p for stem in stems for p in (common / f"{stem}.c", common / f"{stem}.h") if p.is_file()]
+    layer_stems = {stem for other in LAYERS for stem in (other.stem, *other.shared)}
+    rest = [p for p in sorted(common.glob("*.c")) + sorted(common.glob("*.h")) if p.stem not in layer_stems]
+    return own + chosen + rest
 
 
 def model_identifier(source_dir: Path, layer: Layer | None = None) -> str:

@@ -26,9 +26,9 @@ class Comparison:
 
 def compare(result, objective: objs.ObjectiveSpec | None = None) -> Comparison:
     """The kind's comparison, or the objective's signal over time."""
-    own = getattr(kind(result.scenario.kind), "compare", None)
+    own = kind(result.scenario.kind).compare(result)
     if own is not None:
-        return own(result)
+        return own
     signal = objective.signal if isinstance(objective, (objs.Reduce, objs.Fit)) else None
     signal = signal or (result.trajectory.names[0] if result.trajectory.names else None)
     if signal is None:

@@ -19,11 +19,12 @@ In space.yaml an objective is one of (docs/space.md):
   ``dse_runner.objectives`` (the field-data kind registers the paper's
   ``cross_track_error`` and its kin), or ``module:function``.
 
-A function objective is called as ``function(trajectory, scenario)`` with
-the whole result: ``trajectory.time``, ``trajectory.column(name)`` for every
-recorded output, and the scenario (its inputs, parameters and recording). It
-returns a number, or, marked ``function.vector = True``, one number per
-sample (stored as a list; rankings cannot use it).
+A named objective is held to the contract :class:`Objective`: called as
+``objective(trajectory, scenario)`` with the whole result: ``trajectory.time``,
+``trajectory.column(name)`` for every recorded output, and the scenario (its
+inputs, parameters and recording). It returns a number, or, if its ``vector``
+is true, one number per sample (stored as a list; rankings cannot use it). A
+plain function is one too, marked ``function.vector = True`` for a vector.
 
 Every value must be a finite number: anything else fails the task with a
 message naming the objective, never a result row holding NaN.
@@ -33,11 +34,13 @@ from __future__ import annotations
 
 import importlib
 import math
-from collections.abc import Callable, Mapping
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from functools import cache
 from importlib.metadata import entry_points
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, model_validator
@@ -45,7 +48,9 @@ from pydantic import BaseModel, ConfigDict, model_validator
 from ..errors import DseError
 from .scripts import Script, run_scripts
 
-Function = Callable[[Any, Any], Any]  # (trajectory, scenario) -> number or vector
+if TYPE_CHECKING:
+    from .cosim import Trajectory
+    from .scenario import Scenario
 
 Strict = ConfigDict(extra="forbid", allow_inf_nan=False)
 
@@ -166,13 +171,55 @@ def fit(spec: Fit, trajectory, scenario) -> float:
 
 # ---- named objectives: plug-ins and import paths --------------------------------------------------
 
+class Objective(ABC):
+    """A named objective: the contract of the entry-point group ``dse_runner.objectives`` (whose entries
+    name an instance of a subclass, or a plain function) and of a user's ``module:function``.
+
+    Lifecycle: the name is looked up when the space is read (so that an unknown one fails before any
+    task), and its ``vector`` decides whether rankings may use it. Then, on the worker, after every
+    simulation of a task, the objective is called once with the task's trajectory and scenario, looked
+    up again by name there (objectives travel as names, never pickled). It returns a finite number, or,
+    if ``vector``, a sequence of finite numbers (one per sample: what least squares fits); anything
+    else fails that task with a message naming the objective.
+
+    Optional part: ``vector`` (False: one number)."""
+
+    vector: bool = False
+
+    @abstractmethod
+    def __call__(self, trajectory: Trajectory, scenario: Scenario) -> float | Sequence[float]:
+        """The objective's value for one simulated task."""
+
+
+@dataclass(frozen=True)
+class FunctionObjective(Objective):
+    """A plain function held to the contract, as docs/space.md promises users: ``function.vector = True``
+    (read once, here) marks a vector."""
+
+    function: Callable[[Trajectory, Scenario], float | Sequence[float]]
+    vector: bool = False
+
+    def __call__(self, trajectory: Trajectory, scenario: Scenario) -> float | Sequence[float]:
+        return self.function(trajectory, scenario)
+
+
+def as_objective(found: Any, where: str) -> Objective:
+    """What a name stands for, as an :class:`Objective`: itself, or a plain function wrapped."""
+    if isinstance(found, Objective):
+        return found
+    if callable(found) and not isinstance(found, type):
+        return FunctionObjective(found, bool(getattr(found, "vector", False)))
+    raise DseError(f"objective {where} is neither a dse_runner Objective nor a function but {found!r:.80}")
+
+
 @cache
-def registered() -> dict[str, Function]:
+def registered() -> dict[str, Objective]:
     """Objectives installed packages register (entry-point group ``dse_runner.objectives``)."""
-    return {entry.name: entry.load() for entry in entry_points(group="dse_runner.objectives")}
+    return {entry.name: as_objective(entry.load(), f"{entry.name!r} ({entry.value})")
+            for entry in entry_points(group="dse_runner.objectives")}
 
 
-def function(name: str) -> Function:
+def function(name: str) -> Objective:
     """A registered objective's name, or ``module:function`` for a user's own."""
     if name in registered():
         return registered()[name]
@@ -188,13 +235,13 @@ def function(name: str) -> Function:
     found = getattr(module, function_name, None)
     if not callable(found):
         raise DseError(f"objective {name!r}: {module_name} has no function {function_name!r}")
-    return found
+    return as_objective(found, repr(name))
 
 
 def is_vector(spec: ObjectiveSpec) -> bool:
     if isinstance(spec, Fit):
         return spec.metric == "residuals"
-    return isinstance(spec, str) and bool(getattr(function(spec), "vector", False))
+    return isinstance(spec, str) and function(spec).vector
 
 
 def signals(spec: ObjectiveSpec) -> tuple[str, ...]:

@@ -15,6 +15,7 @@ It is written inline in space.yaml or as ``scenario.yaml`` in a folder
 (kind ``signals``, this module). Other formats are *kinds*, plug-ins in the
 entry-point group ``dse_runner.scenarios`` that turn a folder into the same
 :class:`Scenario`; the field-data format (``dse_runner/cases/fielddata.py``) is one.
+:class:`ScenarioKind` is their contract.
 
 Recorded values are never silently wrong (docs/recordings.md): every value is
 checked when the scenario loads, and errors name the file, line and column.
@@ -23,12 +24,13 @@ checked when the scenario loads, and errors name the file, line and column.
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from functools import cache
-from importlib.metadata import entry_points
+from importlib.metadata import EntryPoint, entry_points
 from pathlib import Path
-from typing import Any, Literal, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationError
@@ -36,6 +38,10 @@ from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationErro
 from ..errors import DseError, format_validation_error
 from ..yamlfile import load_yaml
 from .variables import FiniteValue, Value, split_ref
+
+if TYPE_CHECKING:
+    from .comparison import Comparison
+    from .run import SimulationResult
 
 INFO_FILE = "scenario.yaml"
 DEFAULT_GROUP = "all"
@@ -328,11 +334,49 @@ def parse_scenario(data: Any, source: str, base: Path) -> Scenario:
     return from_spec(spec, base, source)
 
 
-class SignalsKind:
+# ---- kinds: plug-ins that read other formats ----------------------------------------------------
+
+class ScenarioKind(ABC):
+    """A scenario format: the contract of the plug-ins in the entry-point group ``dse_runner.scenarios``,
+    which name an instance of a subclass (SignalsKind below; fielddata.FieldData, paths.PathKind).
+
+    Lifecycle: when a space is read, a folder its ``scenarios`` name is offered to every installed
+    kind's :meth:`detect` in turn, unless the entry names its ``kind``; the first that recognises it
+    reads it with :meth:`load`, the entry's other keys as ``options``, into a :class:`Scenario` that
+    travels to the workers (it must pickle), its ``kind`` this kind's ``name`` (the entry point's).
+    ``default_objectives`` are what a space of such scenarios scores when it names none. Afterwards,
+    on the client only, the interfaces ask the kind for its views of one simulated result:
+    :meth:`draw` (simulate's figure) and :meth:`compare` (the dashboard's and report's). Both are
+    optional: the defaults draw and compare nothing, and the general views (signals over time, each
+    over its recording) are shown instead.
+    """
+
+    name: ClassVar[str]
+    default_objectives: ClassVar[tuple[str, ...]] = ()
+
+    @abstractmethod
+    def detect(self, folder: Path) -> bool:
+        """Whether ``folder`` is in this kind's format: cheap, and false rather than an error."""
+
+    @abstractmethod
+    def load(self, folder: Path, options: Mapping[str, Any] | None = None) -> Scenario:
+        """The folder as a scenario; errors name the file, line and column (docs/recordings.md)."""
+
+    def draw(self, result: SimulationResult, ax: Any) -> bool:
+        """Draw ``result`` on one matplotlib axes; False (the default) draws nothing, and simulate's
+        figure shows the recorded signals over time instead."""
+        return False
+
+    def compare(self, result: SimulationResult) -> Comparison | None:
+        """The dashboard's and report's view of ``result`` against its scenario; None (the default):
+        the ranking objective's signal over time."""
+        return None
+
+
+class SignalsKind(ScenarioKind):
     """The general kind: a folder whose scenario.yaml is a :class:`ScenarioSpec`."""
 
     name = "signals"
-    default_objectives: tuple[str, ...] = ()
 
     def detect(self, folder: Path) -> bool:
         return (folder / INFO_FILE).is_file()
@@ -345,34 +389,31 @@ class SignalsKind:
         return replace(scenario, sources=(path.resolve(), *scenario.sources))
 
 
-# ---- kinds: plug-ins that read other formats ----------------------------------------------------
-
-class Kind(Protocol):
-    """A scenario format: recognises its folders and reads them (see SignalsKind, fielddata.FieldData)."""
-
-    name: str
-    default_objectives: tuple[str, ...]  # what a space of such scenarios scores when it names none
-
-    def detect(self, folder: Path) -> bool: ...
-
-    def load(self, folder: Path, options: Mapping[str, Any] | None = None) -> Scenario: ...
+def _checked(entry: EntryPoint) -> ScenarioKind:
+    """An installed kind, held to its contract: a plug-in that is not a ScenarioKind is named at once,
+    not found out by a missing method halfway through a sweep."""
+    found = entry.load()
+    if not isinstance(found, ScenarioKind):
+        raise DseError(f"scenario kind {entry.name!r} ({entry.value}) is not an instance of "
+                       "dse_runner.simulation.scenario.ScenarioKind")
+    return found
 
 
 @cache
-def kinds() -> dict[str, Kind]:
+def kinds() -> dict[str, ScenarioKind]:
     """Installed kinds (entry-point group ``dse_runner.scenarios``), then the general one."""
-    found = {entry.name: entry.load() for entry in entry_points(group="dse_runner.scenarios")}
+    found = {entry.name: _checked(entry) for entry in entry_points(group="dse_runner.scenarios")}
     found.setdefault(SignalsKind.name, SignalsKind())
     return found
 
 
 @cache
-def kind(name: str) -> Kind:
+def kind(name: str) -> ScenarioKind:
     """One kind by name, loading only its plug-in (a plain study never imports field data's)."""
     if name == SignalsKind.name:
         return SignalsKind()
     for entry in entry_points(group="dse_runner.scenarios", name=name):
-        return entry.load()
+        return _checked(entry)
     raise DseError(f"unknown scenario kind {name!r}: installed are {', '.join(sorted(kinds()))}")
 
 

@@ -1,43 +1,35 @@
 """Where a sweep runs: an existing scheduler, or a cluster started for it.
 
 ``cluster.address`` connects to a scheduler someone else runs (``tcp://`` or
-``tls://``). Otherwise ``cluster.kind`` names a *cluster maker*: a function
-from the spec's ``cluster`` section to a ``distributed`` deploy cluster
-(LocalCluster, dask-jobqueue's HTCondorCluster, dask-kubernetes' KubeCluster).
-Makers are plugins, as in ``distributed``'s own deploy projects: the three
-built-ins are registered below, and a package can add one through the
-``dse_runner.clusters`` entry-point group (e.g. ``slurm = mypkg:make``).
-Everything downstream sees only a ``distributed.Client``.
+``tls://``). Otherwise ``cluster.kind`` names a *cluster maker* (makers.py:
+``local``, ``htcondor``, ``kubernetes`` built in, more through the
+``dse_runner.clusters`` entry-point group), which starts a ``distributed``
+deploy cluster here and closes it afterwards. Everything downstream sees
+only a ``distributed.Client``.
 
-Local workers are separate processes with one thread each: FMUs are C code
-that may not be thread-safe, and one simulation per core is what keeps both
-cores busy without contention. Schedulers we start bind their dashboards to
-127.0.0.1 unless ``dashboard_address`` says otherwise.
+Schedulers we start bind their dashboards to 127.0.0.1 unless
+``dashboard_address`` says otherwise.
 """
 
 from __future__ import annotations
 
 import logging
-import os
 import signal
 import threading
 import time
-import uuid
 from collections.abc import Callable, Collection, Iterator
 from contextlib import contextmanager
-from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any, Self
 
 from ..errors import DseError
+from .makers import maker
 from .spec import Cluster
 
 # distributed keeps the last N messages each connection sent, for debugging; a sweep's
 # messages carry chunks of tasks, so the default (1000) would hold a large sweep's tasks in
 # the client. A short log keeps the client's memory flat.
 MESSAGE_LOG_LENGTH = 20
-
-Maker = Callable[[Cluster, Any], Any]  # (spec, Security or None) -> distributed.deploy.Cluster
 
 
 def security(spec: Cluster, base: Path | None = None) -> Any:
@@ -58,106 +50,6 @@ def security(spec: Cluster, base: Path | None = None) -> Any:
                     tls_worker_cert=files["cert"], tls_worker_key=files["key"], require_encryption=True)
 
 
-# Dask's own housekeeping, made less frequent on the clusters we start: an idle 2-worker local
-# cluster then costs about 0.02 CPU-seconds per second instead of 0.15 (on 2 cores that is 7% of
-# the machine a sweep or search could simulate with). Nothing a sweep relies on needs them faster:
-# the profiler feeds Dask's profile page only, and our dashboard reads memory and CPU once a second.
-QUIET = {
-    "distributed.worker.profile.enabled": False,
-    "distributed.admin.system-monitor.gil.enabled": False,
-    "distributed.admin.tick.interval": "1s",
-    "distributed.admin.system-monitor.interval": "1s",
-    "distributed.worker.memory.monitor-interval": "1s",
-}
-
-
-def make_local(spec: Cluster, sec: Any) -> Any:
-    import dask
-    from distributed import LocalCluster
-
-    # A worker that died under a chunk gets one rerun elsewhere before the sweep splits the
-    # chunk (sweep.py): a segfaulting FMU then costs two worker restarts per level, not four.
-    with dask.config.set({"distributed.scheduler.allowed-failures": 1, **QUIET}):
-        return LocalCluster(
-            n_workers=spec.n_workers or os.cpu_count() or 1,
-            threads_per_worker=spec.threads_per_worker,
-            processes=True,
-            host="127.0.0.1",
-            protocol="tls://" if sec else None,
-            security=sec,
-            dashboard_address=spec.dashboard_address,
-            silence_logs=logging.ERROR,
-        )
-
-
-def make_htcondor(spec: Cluster, sec: Any) -> Any:
-    """One HTCondor job per ``htcondor.cores`` single-threaded workers; the scheduler runs here."""
-    try:
-        from dask_jobqueue import HTCondorCluster
-    except ImportError:
-        raise DseError("cluster.kind htcondor needs dask-jobqueue: pip install 'dse-runner[htcondor]'") from None
-    h = spec.htcondor
-    return HTCondorCluster(
-        cores=h.cores,
-        processes=h.cores,  # one single-threaded worker process per core, as locally
-        memory=h.memory,
-        disk=h.disk,
-        job_extra_directives=dict(h.job_extra),
-        job_script_prologue=list(h.prologue),
-        python=h.python,
-        interface=h.interface,
-        security=sec,
-        protocol="tls://" if sec else None,
-        scheduler_options={"dashboard_address": spec.dashboard_address},
-        silence_logs="error",
-    )
-
-
-KUBERNETES_IDLE_TIMEOUT = 600  # seconds: the operator deletes a cluster its crashed client left behind
-
-
-def kubernetes_cluster_spec(spec: Cluster, name: str) -> dict[str, Any]:
-    """The DaskCluster resource for the operator: our image, one single-threaded worker per pod."""
-    from dask_kubernetes.operator import make_cluster_spec
-
-    k = spec.kubernetes
-    resource = make_cluster_spec(name=name, image=k.image, n_workers=0, resources=k.resources, env=dict(k.env),
-                                 worker_command=["dask", "worker", "--nthreads", str(spec.threads_per_worker)],
-                                 idle_timeout=KUBERNETES_IDLE_TIMEOUT)
-    # make_cluster_spec still starts the scheduler with `dask-scheduler`, a command distributed
-    # removed in 2026.6; `dask scheduler` is the same program under its current name.
-    (scheduler,) = resource["spec"]["scheduler"]["spec"]["containers"]
-    scheduler["args"] = ["dask", "scheduler", *scheduler["args"][1:]]
-    return resource
-
-
-def make_kubernetes(spec: Cluster, sec: Any) -> Any:
-    """A DaskCluster resource, served by the dask-kubernetes operator running in the cluster."""
-    try:
-        from dask_kubernetes.operator import KubeCluster
-    except ImportError:
-        raise DseError("cluster.kind kubernetes needs dask-kubernetes: pip install 'dse-runner[kubernetes]'") from None
-    if sec is not None:
-        raise DseError("cluster.tls: the dask-kubernetes operator does not set up TLS; keep the scheduler inside "
-                       "the cluster network and reach it by port-forward (deploy/kubernetes/README.md)")
-    name = f"dse-runner-{uuid.uuid4().hex[:8]}"  # two sweeps in one namespace get two clusters
-    return KubeCluster(custom_cluster_spec=kubernetes_cluster_spec(spec, name), namespace=spec.kubernetes.namespace)
-
-
-MAKERS: dict[str, Maker] = {"local": make_local, "htcondor": make_htcondor, "kubernetes": make_kubernetes}
-
-
-def maker(kind: str) -> Maker:
-    """The built-in maker or an installed plugin's."""
-    if kind in MAKERS:
-        return MAKERS[kind]
-    for entry in entry_points(group="dse_runner.clusters"):
-        if entry.name == kind:
-            return entry.load()
-    known = sorted({*MAKERS, *(e.name for e in entry_points(group="dse_runner.clusters"))})
-    raise DseError(f"cluster.kind {kind!r} is unknown (known: {', '.join(known)})")
-
-
 @contextmanager
 def connect(spec: Cluster, base: Path | None = None) -> Iterator[distributed.Client]:  # noqa: F821
     """A client of the spec's scheduler, with at least one worker; the cluster is closed afterwards
@@ -172,24 +64,20 @@ def connect(spec: Cluster, base: Path | None = None) -> Iterator[distributed.Cli
             with _client(spec.address, sec, spec.connect_timeout, wait=spec.connect_timeout) as client:
                 yield client
             return
+        chosen = maker(spec.kind)
         cluster = None
         try:
             with sigint_held():  # a Ctrl-C meanwhile is raised once the cluster exists, and it is closed
-                cluster = maker(spec.kind)(spec, sec)
-            if spec.kind != "local":
-                cluster.scale(spec.n_workers or 1)
-            wait = 0.0 if spec.kind == "local" else QUEUE_WAIT
-            with _client(cluster, sec, spec.connect_timeout, wait) as client:
+                cluster = chosen.started(spec, sec)
+            chosen.scale(cluster, spec.n_workers)
+            with _client(cluster, sec, spec.connect_timeout, chosen.first_worker_wait) as client:
                 try:
                     yield client
                 finally:
                     settle(client)
         finally:
             if cluster is not None:
-                cluster.close()
-
-
-QUEUE_WAIT = 30 * 60.0  # seconds a started cluster's first job or pod may wait in the queue
+                chosen.close(cluster)
 
 
 @contextmanager
@@ -292,9 +180,10 @@ def _client(target: Any, sec: Any, timeout: float, wait: float) -> Iterator[Any]
 
 def worker_grace(spec: Cluster) -> float:
     """How long a sweep waits, mid-run, for a cluster that has lost every worker to get one back: a
-    batch system's job may wait in its queue as long as a first one; elsewhere a supervisor or a nanny
-    restarts a worker in seconds, so twice the connect timeout is ample."""
-    return QUEUE_WAIT if not spec.address and spec.kind != "local" else 2 * spec.connect_timeout
+    batch system's job may wait in its queue as long as a first one (its maker's ``first_worker_wait``);
+    elsewhere a supervisor or a nanny restarts a worker in seconds, so twice the connect timeout is ample."""
+    wait = 0.0 if spec.address else maker(spec.kind).first_worker_wait
+    return wait or 2 * spec.connect_timeout
 
 
 class WorkerWatch:

@@ -16,8 +16,8 @@ from collections.abc import Callable, Mapping
 
 from ..errors import DseError
 
-Point = Mapping[str, float]
-Evaluate = Callable[[Point], object]
+Values = Mapping[str, float]  # named numbers: a design point's (domain.Point), or a result's objectives
+Evaluate = Callable[[Values], object]
 
 _BINARY = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
            ast.Div: operator.truediv, ast.Pow: operator.pow, ast.Mod: operator.mod,
@@ -70,7 +70,7 @@ def _compile(node: ast.AST, names: set[str], text: str, what: str = "parameter")
         terms = [_compile(node.left, names, text, what)] + [_compile(c, names, text, what) for c in node.comparators]
         ops = [_COMPARE[type(op)] for op in node.ops]
 
-        def compare(p: Point) -> bool:
+        def compare(p: Values) -> bool:
             values = [term(p) for term in terms]
             return all(op(a, b) for op, a, b in zip(ops, values, values[1:]))
 

@@ -17,7 +17,11 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-Point = dict[str, Any]
+from ..simulation.variables import Value
+
+# A design point: ``instance.variable`` -> the value it is set to. The one definition: strategies ask for
+# them, tasks carry them, constraints and fits (floats only) evaluate them, the store's rows record them.
+Point = dict[str, Value]
 
 
 @dataclass(frozen=True)

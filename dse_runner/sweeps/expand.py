@@ -24,6 +24,7 @@ from ..simulation import objectives as objs
 from ..simulation.cosim import Plan
 from ..simulation.fmu import content_hash
 from ..simulation.scenario import Scenario, Series
+from .domain import Point
 from .search import count as count_points
 from .search import points as search_points
 
@@ -62,7 +63,7 @@ def scenario_hash(scenario: Scenario) -> str:
     return _digest(settings, [content_hash(path) for path in scenario.sources])[:32]
 
 
-def task_id(model: str, point: dict[str, Any], scenario: str) -> str:
+def task_id(model: str, point: Point, scenario: str) -> str:
     names = tuple(sorted(point))
     return _ids(model, names, [[point[name] for name in names]], scenario)[0]
 
@@ -78,7 +79,7 @@ _NUMBERS: dict[type, Callable[[Any], str]] = {  # plain numbers as the json modu
 def _ids(model: str, names: tuple[str, ...], rows: list[list[Any]], data: str) -> list[str]:
     """The id of each row of values (in ``names``' order, sorted): ``_digest(model, pairs, data)[:24]``.
     When every value is a plain number the JSON is written directly, a column at a time: the same text
-    (tests/test_sweep.py checks), for a fraction of the cost, and a large sweep hashes 100,000s."""
+    (tests/sweeps/test_sweep.py checks), for a fraction of the cost, and a large sweep hashes 100,000s."""
     columns = []
     for k, name in enumerate(names):
         quoted = encode_basestring_ascii(name)
@@ -92,12 +93,12 @@ def _ids(model: str, names: tuple[str, ...], rows: list[list[Any]], data: str) -
     return [sha(f"{head}{','.join(row)}{tail}".encode()).hexdigest()[:24] for row in parts]
 
 
-def points_of(space, points: list[dict[str, Any]] | None = None) -> Callable[[Any], Iterable[dict[str, Any]]]:
+def points_of(space, points: list[Point] | None = None) -> Callable[[Any], Iterable[Point]]:
     """The space's grid strategy's points, or the given points (a search strategy's)."""
     return (lambda s: search_points(s.strategy)) if points is None else (lambda _: points)
 
 
-def expand(space, points: list[dict[str, Any]] | None = None,
+def expand(space, points: list[Point] | None = None,
            only: list[Collection[str]] | None = None) -> Iterator[Task]:
     """Tasks scenario by scenario, so a chunk of consecutive tasks mostly shares one scenario.
 
@@ -111,7 +112,7 @@ def expand(space, points: list[dict[str, Any]] | None = None,
 BLOCK = 1024  # points hashed together: large enough that per-block costs vanish, small enough to stream
 
 
-def blocks(space, points: list[dict[str, Any]] | None = None, only: list[Collection[str]] | None = None,
+def blocks(space, points: list[Point] | None = None, only: list[Collection[str]] | None = None,
            done: Collection[str] = ()) -> Iterator[TaskBatch]:
     """expand()'s tasks in batches of up to BLOCK, less those in ``done``. A sweep makes its chunks from
     these: ids are written a column at a time, so a 100,000-task sweep's client keeps up with its workers."""
@@ -132,7 +133,7 @@ def blocks(space, points: list[dict[str, Any]] | None = None, only: list[Collect
                     yield batch
 
 
-def _alike(points: list[dict[str, Any]]) -> Iterator[list[dict[str, Any]]]:
+def _alike(points: list[Point]) -> Iterator[list[Point]]:
     """Consecutive runs of points that set the same parameters, in order: a batch's values are one table.
     A fit may ask for points of differing parameters in one sweep (a probe that sets one more)."""
     first = points[0].keys()
@@ -143,7 +144,7 @@ def _alike(points: list[dict[str, Any]]) -> Iterator[list[dict[str, Any]]]:
         yield list(run)
 
 
-def count(space, done: Collection[str], points: list[dict[str, Any]] | None = None,
+def count(space, done: Collection[str], points: list[Point] | None = None,
           only: list[Collection[str]] | None = None) -> tuple[int, int]:
     """(tasks, tasks with a row in ``done``): ids are computed only if some tasks are done, since
     hashing every task of a large fresh sweep would keep the workers waiting for the client."""
@@ -179,7 +180,7 @@ class TaskBatch:
                    _values([value for t in tasks for _, value in t.point], len(tasks), len(parameters)))
 
     @classmethod
-    def of_points(cls, model: str, points: list[dict[str, Any]], scenario: str, data: str) -> TaskBatch:
+    def of_points(cls, model: str, points: list[Point], scenario: str, data: str) -> TaskBatch:
         """The tasks of ``points`` on one scenario (``data``: its hash), ids as ``task_id`` gives them. Every
         point sets the same parameters (:func:`blocks` groups them so)."""
         names = tuple(sorted(points[0]))
@@ -217,7 +218,7 @@ class TaskBatch:
         for task_id, scenario, row in zip(self.ids(), self.scenario_index.tolist(), self._rows()):
             yield Task(task_id, names[scenario], tuple(zip(parameters, row)))
 
-    def points(self) -> Iterator[tuple[str, dict[str, Any]]]:
+    def points(self) -> Iterator[tuple[str, Point]]:
         """(scenario, point) of each task: what a worker simulates, without a Task object per task."""
         names, parameters = self.scenarios, self.parameters
         for scenario, row in zip(self.scenario_index.tolist(), self._rows()):

@@ -28,11 +28,11 @@ import numpy as np
 
 from ..errors import DseError
 from . import store
+from .domain import Point
 from .expand import expand
 from .spec import Space
 from .sweep import submit
 
-Point = dict[str, float]
 Key = tuple[tuple[str, float], ...]
 
 
@@ -236,11 +236,11 @@ def robust_standard_errors(jacobian: list[np.ndarray], residuals: list[np.ndarra
     return errors
 
 
-Progress = Callable[[int, int, int, int], None]  # (round, active fits, points, simulations this round)
+FitRoundProgress = Callable[[int, int, int, int], None]  # (round, active fits, points, simulations this round)
 
 
 def fit_all(space: Space, problems: list[FitProblem], client, residuals: str,
-            progress: Progress | None = None) -> dict[str, FitResult]:
+            progress: FitRoundProgress | None = None) -> dict[str, FitResult]:
     """Run fits in lockstep, each round one sweep of ``space`` over the union of the points the fits
     ask for, minimising the vector objective named ``residuals`` (one of the space's)."""
     if residuals not in space.objectives:

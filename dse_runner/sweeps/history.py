@@ -20,6 +20,7 @@ from typing import Any, Literal
 from pydantic import BaseModel
 
 from . import store
+from .domain import Point
 
 HISTORY_FILE = "search.json"
 
@@ -44,7 +45,7 @@ class SearchHistory(BaseModel):
     points: list[Asked] = []
     tells: int = 0
 
-    def ask(self, point: dict[str, Any]) -> int:
+    def ask(self, point: Point) -> int:
         self.points.append(Asked(number=len(self.points), point=point, asked_after=self.tells))
         return len(self.points) - 1
 

@@ -28,6 +28,7 @@ from ..errors import DseError
 from ..simulation.objectives import is_vector, normalise
 from . import store
 from .constraints import compile_constraint
+from .domain import Point
 from .spec import Ranking as RankingSpec
 from .spec import SpaceSpec
 
@@ -213,7 +214,7 @@ def plain(value: Any) -> Any:
     return value.item() if hasattr(value, "item") else value
 
 
-def format_point(point: dict[str, Any], digits: int = 6) -> str:
+def format_point(point: Point, digits: int = 6) -> str:
     """``vehicle.mass = 3000, vehicle.mu = 0.3``: a point as people read it, numbers to ``digits``
     significant digits."""
     return ", ".join(f"{k} = {v:.{digits}g}" if isinstance(v, float) else f"{k} = {v}"

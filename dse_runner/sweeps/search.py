@@ -82,7 +82,35 @@ class Options(BaseModel):
 
 
 class Strategy(ABC):
-    """Ask for points, be told how they did. Subclasses set ``Options`` to take options of their own."""
+    """Ask for points, be told how they did: the contract of ``search.strategy`` and of the plug-ins in
+    the entry-point group ``dse_runner.search``, which name a subclass.
+
+    Lifecycle. The class is constructed with a :class:`Problem`, on the client: once when the space
+    is read (so that what only the constructor checks fails before a cluster starts; that instance is
+    dropped), then once per submission of a search (a grid: once per pass over its points, to count
+    them and to send them). ``problem.options`` (the keys under ``search:`` besides the common ones)
+    arrive validated as ``self.options``, an instance of the class's ``Options`` model. Then the
+    runner alternates :meth:`ask` and :meth:`tell` until the budget (``max_points``, ``max_seconds``)
+    is spent or the strategy has no more points (a grid is only asked, never told):
+
+    - :meth:`ask` returns the next point (``instance.variable`` -> value) or None. None means "wait":
+      nothing until a result is told, or nothing more at all; the search ends when the strategy
+      answers None with no point left in flight. At most ``problem.batch`` points are asked and not
+      yet told; a strategy that needs a whole generation told before it breeds the next answers None
+      meanwhile.
+    - :meth:`tell` gives each asked point's :class:`Evaluation`, exactly once, by default in the order
+      the points were asked (``search.order: reproducible``; closed_loop.py), else as results come.
+      A point the constraints (``problem.admits``) reject is told infeasible at once, never simulated.
+
+    Given ``problem.seed`` and the same sequence of asks and tells, a strategy must ask the same
+    points: that is what makes a search reproducible and lets a later submission replay the stored
+    results instead of simulating them again. A strategy never simulates anything itself.
+
+    Optional parts, with defaults that do nothing: :meth:`tell` (ignored: a strategy that learns
+    nothing from results), ``Options`` (no options of its own), ``size`` (unknown),
+    ``closed_loop`` (True; False: a grid, whose points are all known without results and which the
+    sweep runs in large chunks), ``multi_objective`` (False; True: it optimises the ranking's
+    Pareto objectives, and the space must list two or more)."""
 
     closed_loop: ClassVar[bool] = True  # False: every point is known without results (a grid)
     multi_objective: ClassVar[bool] = False  # optimises the ranking's Pareto objectives

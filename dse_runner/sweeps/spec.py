@@ -42,8 +42,9 @@ from ..simulation.run import bound_fields, qualify
 from ..simulation.scenario import Scenario, ScenarioSpec, kind, load_scenario, nominal, parse_scenario
 from ..simulation.variables import FiniteValue, check_value
 from ..yamlfile import read_yaml
+from . import makers
 from .constraints import compile_constraint
-from .domain import Dimension
+from .domain import Dimension, Point
 from .search import Problem, Strategy, parse_options, strategy
 from .store import is_url
 
@@ -215,35 +216,13 @@ class Tls(BaseModel):
     key: str  # its private key
 
 
-class HTCondor(BaseModel):
-    """dask-jobqueue's HTCondorCluster: one HTCondor job per worker."""
-
-    model_config = Strict
-    cores: PositiveInt = 1  # per job; each core runs one single-threaded worker process
-    memory: str = "2GiB"  # per job
-    disk: str = "1GiB"  # per job: extracted FMUs and scenario files, a few MB
-    job_extra: dict[str, str] = {}  # extra submit-description lines, e.g. {"+ProjectName": '"robotti"'}
-    prologue: list[str] = []  # shell lines before the worker starts, e.g. activating an environment
-    python: str | None = None  # the worker's Python on the execute nodes; default: this one
-    interface: str | None = None  # network interface the scheduler listens on, e.g. eth0
-
-
-class Kubernetes(BaseModel):
-    """The dask-kubernetes operator's KubeCluster: a DaskCluster resource in a namespace."""
-
-    model_config = Strict
-    image: str = "ghcr.io/dse-runner/dse-runner:latest"  # see deploy/Dockerfile
-    namespace: str | None = None  # default: the current kube context's
-    resources: dict[str, dict[str, str]] = {"requests": {"cpu": "1", "memory": "2Gi"},
-                                             "limits": {"cpu": "1", "memory": "2Gi"}}
-    env: dict[str, str] = {}
-
-
 class Cluster(BaseModel):
-    """Where tasks run: ``address`` of an existing scheduler, or a cluster of ``kind`` started for the sweep."""
+    """Where tasks run: ``address`` of an existing scheduler, or a cluster of ``kind`` started for the sweep.
+    Keys besides these are cluster kinds' own blocks, each named by its kind (``htcondor: {cores: 4}``)
+    and validated by that kind's maker (makers.py)."""
 
-    model_config = Strict
-    kind: str = "local"  # local, htcondor, kubernetes, or a plugin's (see cluster.py)
+    model_config = ConfigDict(extra="allow", allow_inf_nan=False)
+    kind: str = "local"  # local, htcondor, kubernetes, or a plug-in's (see makers.py)
     address: str | None = None  # tcp://host:8786 or tls://host:8786: use this scheduler, start nothing
     n_workers: PositiveInt | None = None  # workers to start; local default: the number of cores
     threads_per_worker: PositiveInt = 1
@@ -251,8 +230,6 @@ class Cluster(BaseModel):
     dashboard_address: str = "127.0.0.1:0"  # of a scheduler we start; loopback unless asked otherwise
     connect_timeout: PositiveFloat = 30.0  # seconds to reach a scheduler, or get it back after a restart; a
     # sweep whose local or addressed cluster has had no worker for twice this stops (cluster.worker_grace)
-    htcondor: HTCondor = HTCondor()
-    kubernetes: Kubernetes = Kubernetes()
 
     @model_validator(mode="after")
     def _address_or_kind(self) -> Cluster:
@@ -261,6 +238,23 @@ class Cluster(BaseModel):
         if self.address is not None and not self.address.startswith(("tcp://", "tls://", "ucx://", "inproc://")):
             raise ValueError(f"address {self.address!r} needs a protocol: tcp://host:port or tls://host:port")
         return self
+
+    @model_validator(mode="after")
+    def _kind_blocks(self) -> Cluster:
+        """Every block, and the chosen kind's even when absent (its required options), if installed here."""
+        blocks = dict(self.model_extra or {})
+        if self.address is None:
+            blocks.setdefault(self.kind, None)
+        for key, block in blocks.items():
+            try:
+                makers.check_block(key, block, self.kind)
+            except DseError as e:
+                raise ValueError(str(e)) from None
+        return self
+
+    def block(self, kind: str) -> Any:
+        """The block ``cluster.<kind>`` as written; None if the spec has none (the maker's defaults)."""
+        return (self.model_extra or {}).get(kind)
 
 
 class Origin(BaseModel):
@@ -375,7 +369,7 @@ class Space:
             update["cluster"] = Cluster.model_validate({**self.spec.cluster.model_dump(), **cluster})
         return Space(self.spec.model_copy(update=update), self.path, self.plan, self.scenarios)
 
-    def admits(self, point: dict[str, Any]) -> bool:
+    def admits(self, point: Point) -> bool:
         for check in self.constraints:  # a loop, not all(...): a large grid asks this of every point
             if not check(point):
                 return False

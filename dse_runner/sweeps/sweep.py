@@ -143,7 +143,7 @@ def worker_activity(client) -> list[WorkerActivity]:
             for w in workers]
 
 
-Progress = Callable[[SweepReport], None]
+SweepProgress = Callable[[SweepReport], None]  # told the sweep's counts each time they change (the CLI's bar)
 
 
 def first_point(space: Space, points: list[Point] | None = None) -> Point:
@@ -172,7 +172,7 @@ def chunk_size(seconds_per_task: float | None, target_seconds: float, pending: i
     return min(by_time, by_balance, ramp)
 
 
-def submit(space: Space, progress: Progress | None = None, client=None,
+def submit(space: Space, progress: SweepProgress | None = None, client=None,
            points: list[Point] | None = None, on_connect: Callable[[Any], None] | None = None,
            only: list[Collection[str]] | None = None, seconds_per_task: float | None = None) -> SweepReport:
     """Run ``space``: every task of a grid strategy that has no row yet, or a closed-loop search
@@ -358,7 +358,7 @@ class Run:
     shipment: ship.Shipment
     source: JobSource
     report: SweepReport
-    progress: Progress | None
+    progress: SweepProgress | None
     started: float
     on_connect: Callable[[Any], None] | None = None
     kept: SweepReport | None = None  # the status when the submission started (save_status)
@@ -510,7 +510,7 @@ class Run:
         self.report.waiting = None
 
 
-def _trajectory(shipment: str, model_key: str, scenario: str, point: dict[str, Any], output: store.Root,
+def _trajectory(shipment: str, model_key: str, scenario: str, point: Point, output: store.Root,
                 sweep: str, place: int, experiment: Experiment | None = None) -> str:
     unpacked = ship.received(shipment)
     result = simulate(unpacked.plan, unpacked.scenarios[scenario], point, objectives={}, experiment=experiment)
@@ -532,7 +532,7 @@ def keep_trajectories(space: Space, client, count: int, shipment: ship.Shipment)
                          space.name)
 
 
-def _trajectories(space: Space, client, shipment: ship.Shipment, places: list[tuple[int, dict[str, Any]]],
+def _trajectories(space: Space, client, shipment: ship.Shipment, places: list[tuple[int, Point]],
                   sweep: str) -> list[str]:
     ship.send(client, shipment)
     key = space.model_key
@@ -542,7 +542,7 @@ def _trajectories(space: Space, client, shipment: ship.Shipment, places: list[tu
     return client.gather(futures)
 
 
-def trajectories_of(space: Space, client, point: dict[str, Any], sweep: str) -> dict[str, pd.DataFrame]:
+def trajectories_of(space: Space, client, point: Point, sweep: str) -> dict[str, pd.DataFrame]:
     """Simulate one point on every scenario on the cluster, keep the tracks as ``sweep``'s rank 1,
     and return them by scenario."""
     _trajectories(space, client, ship.pack(space.plan, space.scenarios), [(1, point)], sweep)

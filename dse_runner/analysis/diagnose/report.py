@@ -21,6 +21,7 @@ from ...sweeps.spec import Space
 from ...sweeps.rank import format_point
 from . import correction, discover, explain, locate, lookalike
 from .explain import Candidate
+from .findings import DiscoveredCorrection
 from .hypotheses import LIBRARY
 from .noise import AT_REST, CLOSE_FIXES, MAX_SPACING
 
@@ -178,9 +179,8 @@ def _markdown(diagnosis: Diagnosis, located: dict[str, pd.DataFrame], sig: dict[
              + "; ".join(", ".join(f) for f in cal["folds"]) + ".", ""]
     if chosen.ids:
         lines += ["**Finding:** " + "; ".join(
-            f"`{e['id']}` ({e['name']}): " + (", ".join(t["text"] for t in e["terms"]) if "terms" in e else ", ".join(
-                f"{k} = {v:.4g} [{e['interval'][k][0]:.4g}, {e['interval'][k][1]:.4g}]"
-                for k, v in e["parameters"].items())) for e in diagnosis.effects)
+            f"`{f.id}` ({f.name}): " + (", ".join(t["text"] for t in f.terms) if isinstance(f, DiscoveredCorrection)
+                                        else f.described()) for f in diagnosis.findings)
             + f". Held-out mean cross-track error {diagnosis.cross_track_before:.3f} m → "
             f"{diagnosis.cross_track_after:.3f} m.", ""]
     else:

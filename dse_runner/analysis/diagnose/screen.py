@@ -25,7 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import lsq_linear
 
-from ...sweeps.fit import FitResult, Parameter, Point, Residuals
+from ...sweeps.domain import Point
+from ...sweeps.fit import FitResult, Parameter, Residuals
 from . import explain
 from .hypotheses import LOOK_ALIKES, hypothesis
 

@@ -44,6 +44,10 @@ class LeastSquares(Strategy):
         discrete = [d.name for d in problem.dimensions if d.choices is not None]
         if discrete:
             raise DseError(f"search: least_squares needs numeric ranges; {', '.join(discrete)} is a list of choices")
+        stepped = [d.name for d in problem.dimensions if d.integer or d.step is not None]
+        if stepped:  # its steps and finite differences move each parameter by fractions of its range
+            raise DseError(f"search: least_squares moves every parameter continuously; {', '.join(stepped)} takes "
+                           "only whole numbers or a grid's steps: give it an interval {low, high}")
         unknown = set(o.start) - {d.name for d in problem.dimensions}
         if unknown:
             raise DseError(f"search.start: {', '.join(sorted(unknown))} is not a swept parameter")

@@ -5,7 +5,7 @@
  *
  *   y = exp(rate * t)       rate: default 1000 1/s, so y is infinite from t = 0.71 s on
  *
- * Why it exists: the native loop's divergence checks (tests/test_native_loop.py)
+ * Why it exists: the native loop's divergence checks (tests/simulation/test_native_loop.py)
  * for one FMU alone and for FMUs that feed nothing to each other.
  */
 #include <math.h>

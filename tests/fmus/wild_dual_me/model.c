@@ -1,6 +1,6 @@
 /*
  * wild_dual_me: the model-exchange half of a test FMU offering both FMI 2.0
- * interfaces (tests/test_fmi_types.py merges it with wild_dual_cs into one
+ * interfaces (tests/simulation/test_fmi_types.py merges it with wild_dual_cs into one
  * .fmu with two binaries, dual_me.so and dual_cs.so, as FMI 2.0 allows).
  *
  *   x' = -a x,  x(0) = x0          a: default 1, x0: default 1

@@ -43,9 +43,15 @@ The stages live in their own modules, in the order data flows: observe, propose,
 """
 
 from .observe import OUTPUT, Observed, Regression, observe, vehicle_values
-from .propose import INCLUSION, MAX_BINDING, Proposal, RATE_LIMITS, binding, candidates, find_shape, propose, regressions
+from .propose import (INCLUSION, MAX_BINDING, RATE_LIMITS, Proposal, binding, candidates, find_shape, propose,
+                      regressions)
 from .rank_terms import DISCOVERED, extended_margin, library_ids, rank_on_positions, searched_count
 from .resemble import resemblance_words, resembles, similarity, terms_json
 from .prove import Discovery, accept, discover, refilled
 
-__all__ = ['DISCOVERED', 'Discovery', 'INCLUSION', 'MAX_BINDING', 'OUTPUT', 'Observed', 'Proposal', 'RATE_LIMITS', 'Regression', 'accept', 'binding', 'candidates', 'discover', 'extended_margin', 'find_shape', 'library_ids', 'observe', 'propose', 'rank_on_positions', 'refilled', 'regressions', 'resemblance_words', 'resembles', 'searched_count', 'similarity', 'terms_json', 'vehicle_values']
+__all__ = [
+    "DISCOVERED", "Discovery", "INCLUSION", "MAX_BINDING", "OUTPUT", "Observed", "Proposal",
+    "RATE_LIMITS", "Regression", "accept", "binding", "candidates", "discover", "extended_margin",
+    "find_shape", "library_ids", "observe", "propose", "rank_on_positions", "refilled", "regressions",
+    "resemblance_words", "resembles", "searched_count", "similarity", "terms_json", "vehicle_values",
+]

@@ -10,7 +10,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from ....sweeps.fit import FitProblem, FitResult, Parameter, Point, Residuals
+from ....sweeps.domain import Point
+from ....sweeps.fit import FitProblem, FitResult, Parameter, Residuals
 from .. import correction
 from ..explain import Candidate
 from .propose import CHANNELS, Proposal, SCANNED

@@ -7,7 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from ....sweeps.fit import FitResult, Parameter, Point
+from ....sweeps.domain import Point
+from ....sweeps.fit import FitResult, Parameter
 from .. import correction
 from ..explain import Candidate
 from ..hypotheses import LIBRARY

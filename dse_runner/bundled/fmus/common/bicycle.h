@@ -1,5 +1,5 @@
 /*
- * bicycle.h: the Robotti's dynamic bicycle model (shared/robotti-model.md) and
+ * bicycle.h: the Robotti's dynamic bicycle model (docs/robotti-model.md) and
  * a fixed-step RK4 integrator, shared by the baseline vehicle FMU and its
  * effects variant.  Ground carries what the baseline leaves out of the
  * vehicle-ground contact (soil slip, terrain slope); NULL is the baseline.

@@ -1,13 +1,13 @@
 /*
  * me2.h: the small FMI 2.0 model-exchange layer shared by dse-runner's ME FMUs.
  *
- * me2.c implements every fmi2* function of an ME FMU once: the mode state
- * machine, value access, continuous states and event handling.  A model
- * (model.c) describes its Real variables and supplies its equations; the
- * importer's solver does the integrating.  Real variables use value
- * references 0..n-1 in the order of the model's default array, which
- * modelDescription.xml lists in the same order.  There are no Integer,
- * Boolean or String variables.
+ * me2.c implements the model-exchange part (the mode state machine,
+ * continuous states and event handling); fmi2_common.c the rest of the fmi2*
+ * functions, which co-simulation (slave.h) shares.  A model (model.c)
+ * describes its Real variables and supplies its equations; the importer's
+ * solver does the integrating.  Real variables use value references 0..n-1 in
+ * the order of the model's default array, which modelDescription.xml lists in
+ * the same order.  There are no Integer, Boolean or String variables.
  *
  * Values are computed lazily: setting time, states or inputs marks the
  * instance stale, and the next read (fmi2GetReal, fmi2GetDerivatives, ...)
@@ -17,9 +17,10 @@
 #define DSE_ME2_H
 
 #include <stddef.h>
-#include "fmi2Functions.h"
+#include "fmi2_common.h"
 
-typedef struct MeInstance MeInstance;
+/* An instance: the time (m->time) and the Real variables (m->r); see fmi2_common.h. */
+typedef Fmi2Instance MeInstance;
 
 /* Returns 0 on success; on failure it has called me_log with the reason. */
 typedef int (*MeHook)(MeInstance *m);
@@ -54,22 +55,10 @@ typedef struct {
     int (*event_update)(MeInstance *m, MeEvent *e);
 } MeInfo;
 
-struct MeInstance {
-    const MeInfo *info;
-    const fmi2CallbackFunctions *cb;
-    char *instance_name;
-    int logging_on;
-    int phase;   /* see me2.c */
-    int stale;   /* the callbacks must run before values are read */
-    double time;
-    double *r;   /* real variables */
-};
-
 /* Every ME FMU defines exactly one of these in its model.c. */
 extern const MeInfo ME_MODEL;
 
 /* Reports through the importer's logger; printf-style. */
-void me_log(MeInstance *m, fmi2Status status, const char *category, const char *fmt, ...)
-    __attribute__((format(printf, 4, 5)));
+#define me_log fmi2_log
 
 #endif

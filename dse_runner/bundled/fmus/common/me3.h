@@ -1,15 +1,14 @@
 /*
  * me3.h: the small FMI 3.0 model-exchange layer, the FMI 3 twin of me2.h.
  *
- * me3.c implements every fmi3* function once: the ME mode machine
- * (instantiated -> initialization -> event mode <-> continuous-time mode ->
- * terminated), Float64 value access, continuous states and derivatives.  A
- * model (model.c) lists its Float64 variables, value reference = index, and
- * supplies its equations; the importer's solver integrates.  The independent
- * variable (time) is one of them, at time_vr: reading it gives the current
- * time.  No other types, no event indicators, no discrete states: every
- * other fmi3* function returns fmi3Error with a log message (FMPy binds all
- * of them at load, so all must exist).
+ * me3.c implements the model-exchange part (the mode machine instantiated ->
+ * initialization -> event mode <-> continuous-time mode -> terminated,
+ * continuous states and derivatives); fmi3_common.c the rest of the fmi3*
+ * functions, which co-simulation (slave3.h) shares.  A model (model.c) lists
+ * its Float64 variables, value reference = index, and supplies its
+ * equations; the importer's solver integrates.  The independent variable
+ * (time) is one of them, at time_vr: reading it gives the current time.  No
+ * other types, no event indicators, no discrete states.
  *
  * Values are computed lazily, as in me2.c: setting time, states or inputs
  * marks the instance stale; the next read runs the model's callbacks once.
@@ -18,9 +17,10 @@
 #define DSE_ME3_H
 
 #include <stddef.h>
-#include "fmi3Functions.h"
+#include "fmi3_common.h"
 
-typedef struct Me3Instance Me3Instance;
+/* An instance: the time (m->time) and the Float64 variables (m->r); see fmi3_common.h. */
+typedef Fmi3Instance Me3Instance;
 
 /* Returns 0 on success; on failure it has called me3_log with the reason. */
 typedef int (*Me3Hook)(Me3Instance *m);
@@ -41,23 +41,10 @@ typedef struct {
     Me3Hook equations;
 } Me3Info;
 
-struct Me3Instance {
-    const Me3Info *info;
-    fmi3InstanceEnvironment environment;
-    fmi3LogMessageCallback logger;
-    char *instance_name;
-    int logging_on;
-    int phase;   /* see me3.c */
-    int stale;   /* the callbacks must run before values are read */
-    double time;
-    double *r;   /* Float64 variables */
-};
-
 /* Every FMI 3 ME FMU defines exactly one of these in its model.c. */
 extern const Me3Info ME3_MODEL;
 
 /* Reports through the importer's logger; printf-style. */
-void me3_log(Me3Instance *m, fmi3Status status, const char *category, const char *fmt, ...)
-    __attribute__((format(printf, 4, 5)));
+#define me3_log fmi3_log
 
 #endif

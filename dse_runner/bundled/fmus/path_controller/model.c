@@ -4,7 +4,7 @@
  * It reads a path (a CSV of waypoints x,y,speed; the path is the polyline
  * through them) and, from the vehicle pose x, y, theta, commands a ground
  * speed and a front steering angle (positive = right turn, as the vehicle
- * expects; shared/robotti-model.md).
+ * expects; docs/robotti-model.md).
  *
  * Steering is an active-disturbance-rejection controller (ADRC) on the
  * look-ahead cross-track error e, the lateral offset of a point `lookahead`
@@ -39,6 +39,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "file_parameter.h"
 #include "slave.h"
 
 enum Real {
@@ -243,15 +244,8 @@ static int read_rows(Slave *s, const char *path, FILE *f, int n_fields, const in
 static int load_path(Slave *s) {
     const char *path = s->str[FILE_PATH];
     release(s);
-    if (!path[0]) {
-        slave_log(s, fmi2Error, "logStatusError", "parameter 'file' (the path CSV x,y,speed) is not set");
-        return 1;
-    }
-    FILE *f = fopen(path, "r");
-    if (!f) {
-        slave_log(s, fmi2Error, "logStatusError", "cannot open %s: %s", path, strerror(errno));
-        return 1;
-    }
+    FILE *f = open_file_parameter(s, path, "the path CSV x,y,speed");
+    if (!f) return 1;
     char header[4096];
     int position[N_COLUMNS], failed;
     if (!fgets(header, sizeof header, f)) {

@@ -10,6 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "file_parameter.h"
 #include "slave.h"
 
 enum Real { VELOCITY, DELTA_F, X, Y, THETA, N_REALS };
@@ -94,15 +95,8 @@ static int load_log(Slave *s) {
     Log *log = s->state;
     const char *path = s->str[FILE_PATH];
     release(s);
-    if (!path[0]) {
-        slave_log(s, fmi2Error, "logStatusError", "parameter 'file' (the steering_inputs.csv) is not set");
-        return 1;
-    }
-    FILE *f = fopen(path, "r");
-    if (!f) {
-        slave_log(s, fmi2Error, "logStatusError", "cannot open %s: %s", path, strerror(errno));
-        return 1;
-    }
+    FILE *f = open_file_parameter(s, path, "the steering_inputs.csv");
+    if (!f) return 1;
     char line[4096];
     int position[N_COLUMNS];
     size_t capacity = 0, line_no = 1;

@@ -1,6 +1,6 @@
 /*
  * robotti_vehicle: the baseline continuous-time model of the Robotti
- * (shared/robotti-model.md), a dynamic bicycle model with saturated linear
+ * (docs/robotti-model.md), a dynamic bicycle model with saturated linear
  * tyres and a speed-controlled drive, integrated with fixed-step RK4.
  *
  * Value references are the indices of enum Real; modelDescription.xml lists

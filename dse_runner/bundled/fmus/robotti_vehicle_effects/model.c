@@ -1,5 +1,5 @@
 /*
- * robotti_vehicle_effects: the baseline Robotti vehicle (shared/robotti-model.md)
+ * robotti_vehicle_effects: the baseline Robotti vehicle (docs/robotti-model.md)
  * plus the effects discrepancy diagnosis can add to it, each off (zero) by
  * default, so that with every effect parameter at zero it computes exactly
  * what robotti_vehicle computes:

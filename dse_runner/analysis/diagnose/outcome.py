@@ -1,0 +1,196 @@
+"""What a diagnosis is asked (Settings) and what it answers (Diagnosis): the JSON and the report are drawn
+from it."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ...errors import DseError
+from ...simulation.scenario import dropouts
+from . import correction, discover, explain, lookalike, noise, screen
+from .explain import Candidate
+from .findings import DiscoveredCorrection, Finding, NamedEffect
+from .hypotheses import LIBRARY
+from .noise import NoiseFloor
+
+
+@dataclass(frozen=True)
+class Settings:
+    folds: int = 3
+    max_effects: int = 3
+    pairs: int = 4  # best screened pairs fitted for real
+    triples: int = 2  # best screened triples fitted for real
+    shortlist: int = 10  # most sets fitted for real after the screen: those pairs and triples, then look-alikes
+    survivors: int = 3  # most combinations cross-validated: the best by BIC of those passing its gate
+    min_gain: float = explain.MIN_GAIN
+    bic_margin: float = explain.BIC_MARGIN
+    max_iterations: int = 15
+    hypotheses: tuple[str, ...] = ()  # the library's ids to try; () tries them all
+    noise_factor: float = explain.NOISE_FACTOR  # held-out error above this many noise floors is unexplained
+    floor_stop: float = explain.FLOOR_STOP  # no combination is screened when a fit is within this many floors
+    discovery: bool = True  # seek a data-driven correction when the library leaves a residual above the noise
+    max_terms: int = 3  # most terms a discovered correction may have
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.noise_factor) and self.noise_factor > 0):
+            raise DseError(f"noise factor {self.noise_factor!r}: must be a positive number (default "
+                           f"{explain.NOISE_FACTOR:g}: held-out error above twice the noise floor is a residual)")
+        if not (math.isfinite(self.floor_stop) and self.floor_stop > 0):
+            raise DseError(f"floor stop {self.floor_stop!r}: must be a positive number (default "
+                           f"{explain.FLOOR_STOP:g})")
+        counts = {"pairs": self.pairs, "triples": self.triples, "shortlist": self.shortlist,
+                  "survivors": self.survivors, "max_effects": self.max_effects, "max_terms": self.max_terms}
+        bad = [f"{k} = {v!r}" for k, v in counts.items() if not (isinstance(v, int) and v >= 0)]
+        if bad:
+            raise DseError(f"diagnosis settings {', '.join(bad)}: each must be a whole number, 0 or more")
+
+    def singles(self) -> list[tuple[str, ...]]:
+        """The hypotheses fitted alone: the chosen ids of the library, each checked."""
+        unknown = [h for h in self.hypotheses if h not in LIBRARY]
+        if unknown:
+            raise DseError(f"unknown hypothesis {', '.join(map(repr, unknown))}: the library has "
+                           f"{', '.join(h for h in LIBRARY if h != 'none')} (and none, always tried)")
+        return [(hid,) for hid in dict.fromkeys(self.hypotheses or LIBRARY) if hid != "none"]
+
+
+@dataclass
+class Diagnosis:
+    out: Path
+    calibration: dict[str, Any]  # best grid point, parameters at a bound, insensitive scenarios
+    candidates: list[Candidate]  # every candidate fitted, best first
+    chosen: Candidate  # the baseline when nothing is missing
+    baseline: Candidate
+    settings: Settings = Settings()
+    located: dict[str, Any] = field(default_factory=dict)  # locate's tables, before and after
+    files: dict[str, Path] = field(default_factory=dict)
+    dropouts: dict[str, int] = field(default_factory=dict)  # GPS fixes skipped per run (scenario.dropouts)
+    floor: NoiseFloor = noise.UNKNOWN  # the GPS noise floor, estimated from the recordings alone
+    screened: list[screen.Screened] = field(default_factory=list)  # every combination the screen tried, best first
+    shortlisted: list[str] = field(default_factory=list)  # the labels of those then fitted for real
+    lookalikes: list[lookalike.LookAlike] = field(default_factory=list)  # the evidence between twin sets
+    discovery: discover.Discovery | None = None  # what was sought beyond the library; None if nothing was
+
+    @property
+    def discovered(self) -> bool:
+        """Whether the chosen model carries a discovered correction."""
+        return discover.DISCOVERED in self.chosen.ids
+
+    @property
+    def library(self) -> Candidate:
+        """The best the library alone did: the reference discovery started from, else the chosen set."""
+        return self.discovery.reference if self.discovery is not None else self.chosen
+
+    @property
+    def verdict(self) -> str:
+        """none, explained, partial, discovered or unexplained: the chosen model's held-out error against the
+        noise floor; a discovered correction that passed the rule gives discovered when it leaves only noise,
+        partial when it does not."""
+        floor = self.floor.cross_track if self.floor.available else None
+        return explain.verdict(self.cross_track_after, floor, self.settings.noise_factor,
+                               bool(discover.library_ids(self.chosen.ids)), self.discovered)
+
+    @property
+    def partial(self) -> bool:
+        """Whether the chosen library effects are at most part of the cause: they leave a residual well above
+        the noise, or needed a discovered correction beside them."""
+        return self.verdict in (explain.PARTIAL, explain.DISCOVERED, explain.UNEXPLAINED)
+
+    @property
+    def floor_ratio(self) -> float | None:
+        """The chosen model's held-out error as a multiple of the noise floor (None without a floor)."""
+        return self.cross_track_after / self.floor.cross_track if self.floor.available else None
+
+    @property
+    def runner_up(self) -> explain.Evidence | None:
+        """The best real alternative to the chosen candidate, with the evidence against it."""
+        other = explain.runner_up(self.chosen, self.candidates)
+        return explain.evidence(self.chosen, other) if other is not None else None
+
+    @property
+    def noise_floor(self) -> dict[str, Any]:
+        """The floor as JSON, with the factor the verdict used and the chosen model's ratio to it."""
+        return {**self.floor.to_json(), "factor": self.settings.noise_factor, "ratio": self.floor_ratio}
+
+    @property
+    def findings(self) -> list[Finding]:
+        """The chosen hypotheses with their fitted parameters and ~95 % intervals; [none] if nothing.
+        Each says whether it is ``partial``: chosen, but leaving a residual well above the noise."""
+        if not self.chosen.ids:
+            return [NamedEffect("none", LIBRARY["none"].name, {}, {}, partial=False)]
+        order = explain.removal_order(self.chosen, self.candidates)
+        return [self._discovered() if hid == discover.DISCOVERED else self._effect(hid) for hid in order]
+
+    @property
+    def effects(self) -> list[dict[str, Any]]:
+        """The findings as the JSON's ``effects``."""
+        return [finding.to_json() for finding in self.findings]
+
+    def _discovered(self) -> DiscoveredCorrection:
+        """The discovered correction: its terms in readable form, its held-out gain over the library's best
+        and the library effect it resembles most."""
+        fit = self.chosen.full
+        interval = fit.interval()
+        terms = discover.terms_json(fit)
+        similar = self.discovery.resembles if self.discovery is not None else []
+        return DiscoveredCorrection(
+            id=discover.DISCOVERED, name="a data-driven correction of the model (discovered)",
+            terms=terms, readable=correction.readable(fit.point),
+            parameters={t["variable"]: t["value"] for t in terms},
+            interval={n.rsplit(".", 1)[-1]: list(interval[n]) for n in fit.values if correction.is_correction(n)},
+            resembles=({"id": similar[0][0], "similarity": similar[0][1],
+                        "text": discover.resemblance_words(similar)} if similar else None),
+            similarities=dict(similar),
+            held_out_without=self.library.cross_validated, held_out_with=self.chosen.cross_validated,
+            partial=self.verdict == explain.PARTIAL)  # it too leaves a residual above the noise
+
+    def _effect(self, hid: str) -> NamedEffect:
+        h, fit = LIBRARY[hid], self.chosen.full
+        refs = {v: f"{self.calibration['vehicle']}.{v}" for v in h.variables}
+        values = {v: fit.values[ref] for v, ref in refs.items()}
+        interval = fit.interval()
+        return NamedEffect(hid, h.name, values, {v: list(interval[ref]) for v, ref in refs.items()},
+                           magnitude=h.magnitude(values), partial=self.partial)
+
+    @property
+    def cross_track_before(self) -> float:
+        return self.baseline.cross_validated
+
+    @property
+    def cross_track_after(self) -> float:
+        return self.chosen.cross_validated
+
+    @property
+    def fitted(self) -> dict[str, Any]:
+        """Every parameter of the chosen model as fitted jointly (calibrated ones and effects), with ~95 %
+        intervals: what a later study on the diagnosed plant starts from, e.g. plants drawn for robustness."""
+        fit = self.chosen.full
+        return {"parameters": dict(fit.values), "interval": {k: list(v) for k, v in fit.interval().items()},
+                "at_bound": list(fit.at_bound)}
+
+    def to_json(self) -> dict[str, Any]:
+        up = self.runner_up
+        return {
+            "effects": self.effects,
+            "cross_track_before": self.cross_track_before,
+            "cross_track_after": self.cross_track_after,
+            "verdict": self.verdict,
+            "noise_floor": self.noise_floor,
+            "runner_up": up.to_json() if up is not None else None,
+            "lookalikes": [look.to_json() for look in self.lookalikes],
+            "discovery": self.discovery.to_json() if self.discovery is not None else None,
+            "held_out": [{"scenario": s, "before": self.baseline.held_out[s], "after": self.chosen.held_out[s]}
+                         for s in sorted(self.baseline.held_out)],
+            "candidates": [{"id": c.label, "cross_track_held_out": c.cross_validated, "bic": c.bic,
+                            "cross_validated": c.validated, "parameters": c.full.values, "at_bound": c.full.at_bound}
+                           for c in self.candidates],
+            "screen": [{"id": x.label, "from": "+".join(x.anchor) or "none", "predicted_sse": x.predicted_sse,
+                        "sse": x.sse, "bic": x.bic, "shortlisted": x.label in self.shortlisted}
+                       for x in self.screened],
+            "fitted": self.fitted,
+            "calibration": self.calibration,
+            "dropouts": self.dropouts,
+            "files": {k: str(v) for k, v in self.files.items()},
+        }

@@ -1,0 +1,178 @@
+"""The diagnosis workflow: calibrate, locate, explain with the library, screen combinations, discover beyond
+it, and write the model."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ...simulation.scenario import dropouts
+from ...sweeps.cluster import connect
+from ...sweeps.spec import Space
+from ...sweeps.sweep import submit, trajectories_of
+from ...sweeps.rank import rank
+from . import correction, discover, explain, locate, lookalike, noise, screen
+from .explain import Candidate
+from .noise import NoiseFloor
+from .outcome import Diagnosis, Settings
+from .model_files import base_parameters, calibration_space, fits_space, steering_source, vehicle_of, write_model
+from .chain import Chain, DiagnosisMessages
+
+DEFAULT_SPACE = "bundled:robotti/calibration.yaml"  # the Robotti baseline's calibration grid
+BEFORE, AFTER = "diagnosis-before", "diagnosis-after"  # sweeps holding the tracks of the report
+
+
+def worth_screening(candidates: list[Candidate], floor: float | None, settings: Settings) -> bool:
+    """Whether combinations could still explain something: not when a fit already leaves no more than
+    ``floor_stop`` noise floors of error (on the runs it saw), nor when one effect at a time is the most
+    allowed. Without a floor the screen always runs."""
+    if settings.max_effects < 2 or len(settings.singles()) < 2:
+        return False
+    if floor is None or not (math.isfinite(floor) and floor > 0):
+        return True
+    return min(explain.fitted_error(c.full) for c in candidates) > settings.floor_stop * floor
+
+
+def screen_combinations(chain: Chain, candidates: list[Candidate]) -> list[screen.Screened]:
+    """Every pair, and triples of the best pairs, predicted from none and the best single fits, each checked
+    by simulation (screen.py): best verified BIC first."""
+    settings = chain.settings
+    ids = [c.ids[0] for c in candidates if len(c.ids) == 1]
+    anchors = screen.anchors({c.ids: c.full for c in candidates})
+    entries = screen.catalogue(chain.base, chain.vehicle, ids)
+    pairs = len(ids) * (len(ids) - 1) // 2
+    chain.say(f"screening {pairs} pair{'s' * (pairs != 1)} from {', '.join(a.fit.label for a in anchors)}")
+    return screen.screen(anchors, ids, entries, chain.all, chain.evaluate, triples=settings.max_effects >= 3)
+
+
+@dataclass
+class Choice:
+    chosen: Candidate  # the baseline when nothing is missing
+    candidates: list[Candidate]  # every set fitted: none, the singles, the shortlisted combinations
+    screened: list[screen.Screened]  # every combination the screen tried, best first; [] when it did not run
+    shortlisted: list[screen.Screened]  # those fitted for real
+
+
+def choose(chain: Chain, start: dict[str, float], floor: float | None = None) -> Choice:
+    """Fit none and every hypothesis alone; unless one already fits to the noise, screen every combination
+    and fit the short list for real in the same batch as the singles' folds; cross-validate the combinations
+    that pass the BIC gate; choose (explain.select)."""
+    settings = chain.settings
+    sets = [(), *settings.singles()]
+    full = chain.fit([chain.full(ids, start) for ids in sets], "fitting none and each hypothesis")
+    candidates = [Candidate(ids, full["+".join(ids) or "none"]) for ids in sets]
+    screened, short = [], []
+    if worth_screening(candidates, floor, settings):
+        screened = screen_combinations(chain, candidates)
+        short = screen.shortlist(screened, settings.pairs, settings.triples if settings.max_effects >= 3 else 0,
+                                 settings.shortlist)
+    else:
+        chain.say("no combination screened: a fit is already within "
+                  f"{settings.floor_stop:g}x the noise floor, or the settings allow one effect at a time")
+    problems = [p for c in candidates for p in chain.by_fold(c)] + [chain.full(x.ids, x.start) for x in short]
+    fits = chain.fit(problems, "cross-validating" + (f" and fitting {len(short)} combinations" if short else ""))
+    chain.score(candidates, fits)
+    baseline = next(c for c in candidates if not c.ids)
+    current = explain.select(candidates, baseline, settings.min_gain, settings.bic_margin)
+    combinations = [Candidate(x.ids, fits[x.label]) for x in short]
+    everything = candidates + combinations
+    survivors = explain.bic_gate(combinations, everything, current, settings.bic_margin, settings.survivors)
+    if survivors:
+        chain.score(survivors, chain.fit([p for c in survivors for p in chain.by_fold(c)],
+                                         f"cross-validating {', '.join(c.label for c in survivors)}"))
+    return Choice(explain.select(everything, baseline, settings.min_gain, settings.bic_margin), everything,
+                  screened, short)
+
+
+def _locate(space: Space, vehicle: str, tracks: dict[str, Any]) -> Any:
+    import pandas as pd
+
+    signals = locate.Signals(f"{vehicle}.gps_x", f"{vehicle}.gps_y", f"{vehicle}.theta", f"{vehicle}.vx",
+                             f"{vehicle}.yaw_rate", steering_source(space.multimodel, vehicle))
+    return pd.concat([locate.residual_frame(tracks[s.name], s, signals) for s in space.scenarios],
+                     ignore_index=True)
+
+
+def seek(chain: Chain, reference: Candidate, candidates: list[Candidate], floor: NoiseFloor, space: Space
+         ) -> discover.Discovery | None:
+    """Discovery (discover/) on top of the library's answer, only when that answer leaves held-out error
+    above ``noise_factor`` noise floors: below it there is nothing a correction could claim but noise.
+    Without a floor nothing counts as above it, so nothing is sought."""
+    settings = chain.settings
+    if not (floor.available and explain.above_floor(reference.cross_validated, floor.cross_track,
+                                                    settings.noise_factor)):
+        return None
+    chain.say(f"the library leaves {reference.cross_validated:.4f} m held-out "
+              f"({reference.cross_validated / floor.cross_track:.1f}x the noise floor): seeking a correction")
+    runs = [discover.observe(s) for s in space.scenarios]
+    found = discover.discover(chain, reference, candidates, runs, space.multimodel.parameters)
+    if found.chosen is not None:
+        found.resembles = discover.resembles(chain, found.chosen)
+        chain.say(f"discovered {'; '.join(correction.readable(found.chosen.full.point))}: held-out "
+                  f"{reference.cross_validated:.4f} -> {found.chosen.cross_validated:.4f} m")
+    else:
+        chain.say(f"nothing discovered: {found.reason}")
+    return found
+
+
+def diagnose(scenarios: str | Path, multimodel: str | Path | None = None, space: str | Path | None = None,
+             out: str | Path | None = None, settings: Settings = Settings(), client=None,
+             progress: DiagnosisMessages | None = None, n_workers: int | None = None,
+             address: str | None = None) -> Diagnosis:
+    """Calibrate -> locate -> explain -> model -> re-calibrate on a folder of recorded runs.
+
+    ``space`` gives the calibration's parameters and ranges (default: the bundled Robotti
+    calibration, bundled:robotti/calibration.yaml); ``multimodel`` replaces its multi-model."""
+    out = Path(out or "out/diagnosis").resolve()
+    settings.singles()  # an unknown hypothesis is named before anything runs
+    calibration = calibration_space(space or DEFAULT_SPACE, scenarios, multimodel, out, n_workers, address)
+    say = progress or (lambda message: None)
+    if client is None:
+        with connect(calibration.spec.cluster, calibration.path.parent) as own:
+            return _diagnose(calibration, out, settings, own, say)
+    return _diagnose(calibration, out, settings, client, say)
+
+
+def _diagnose(calibration: Space, out: Path, settings: Settings, client, say: DiagnosisMessages) -> Diagnosis:
+    from . import report
+
+    floor = noise.estimate_noise(calibration.scenarios)  # from the files alone, before any model is fitted
+    if floor.available:
+        say(f"noise floor: GPS sigma {floor.sigma:.4f} m ({floor.method}, {floor.fixes} fixes), "
+            f"{floor.cross_track:.4f} m of cross-track error")
+    say(f"calibrating: the {calibration.name} grid on {len(calibration.scenarios)} runs")
+    submit(calibration, client=client)
+    grid = rank(out, calibration.name)
+    vehicle = vehicle_of(calibration)
+    base = base_parameters(calibration, grid.best)
+    space = fits_space(calibration, vehicle, out)
+    chain = Chain(space, vehicle, base, client, settings, say)
+    choice = choose(chain, {p.name: p.start for p in base}, floor.cross_track if floor.available else None)
+    baseline = next(c for c in choice.candidates if not c.ids)
+    chosen, looks = lookalike.weigh(choice.chosen, choice.candidates, baseline, space.scenarios,
+                                    floor.sigma if floor.available else None, settings.min_gain, settings.bic_margin)
+    found = seek(chain, chosen, choice.candidates, floor, space) if settings.discovery else None
+    if found is not None and found.chosen is not None:
+        chosen = found.chosen
+    diagnosis = Diagnosis(out, {
+        "sweep": calibration.name, "vehicle": vehicle, "grid_best": grid.best,
+        "grid_at_bound": [p.name for p in base if grid.best[p.name] in (p.lower, p.upper)
+                          and p.name not in baseline.full.undetermined],
+        "refined": baseline.full.values, "refined_at_bound": baseline.full.at_bound,
+        "no_effect": baseline.full.undetermined,
+        "insensitive_scenarios": locate.insensitive_scenarios(grid.table1),
+        "folds": chain.folds,
+    }, explain.ranked(choice.candidates + (found.candidates if found else [])), chosen, baseline, settings,
+        dropouts=dropouts(calibration.scenarios), floor=floor, screened=choice.screened,
+        shortlisted=[x.label for x in choice.shortlisted], lookalikes=looks, discovery=found)
+    say("locating: the residuals of the calibrated model and of the chosen one")
+    before = trajectories_of(space, client, baseline.full.point, BEFORE)
+    lookalike.attach_responses(looks, space.scenarios, before, {"heading": f"{vehicle}.theta", "vx": f"{vehicle}.vx",
+                                                                "vy": f"{vehicle}.vy"})
+    after = trajectories_of(space, client, chosen.full.point, AFTER)
+    frames = {"before": _locate(space, vehicle, before), "after": _locate(space, vehicle, after)}
+    diagnosis.files.update(write_model(diagnosis, calibration))
+    diagnosis.files.update(report.write(diagnosis, space, frames, before, after))
+    return diagnosis

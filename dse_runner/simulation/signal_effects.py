@@ -1,0 +1,124 @@
+"""Effects on a signal outside any FMU: a delay, a first-order lag, a gain, an offset.
+
+Why: what a model most often misses between its inputs and what the real system
+received (a late or sluggish actuator, a miscalibrated command) and between its
+outputs and what a sensor recorded (a late, filtered, scaled or biased
+measurement) can be stated and fitted for any FMU without changing it. The
+master applies an input effect to a scenario's input signal before the FMU sees
+it, and an output effect to a simulated signal before an objective compares it
+with its recording; diagnosis offers them as its model-independent hypotheses.
+
+Each effect wraps a signal and is a signal itself: anything with ``at(t)``, as
+scenario.Series is, so effects compose and the step loop samples them as it
+samples a recorded input. At its neutral value (delay 0, lag 0, gain 1, offset
+0) an effect returns the signal's own values unchanged, bit for bit, so a
+hypothesis that is absent changes nothing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal, Protocol
+
+import numpy as np
+
+Kind = Literal["delay", "lag", "gain", "offset"]
+NEUTRAL: dict[str, float] = {"delay": 0.0, "lag": 0.0, "gain": 1.0, "offset": 0.0}
+
+
+class Signal(Protocol):
+    """What an effect wraps: a signal that can be sampled at any times (scenario.Series, or an effect)."""
+
+    def at(self, t: np.ndarray) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class Sampled:
+    """A signal known at increasing times, linear in between and held beyond its ends: a simulated output."""
+
+    time: np.ndarray
+    values: np.ndarray
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        return np.interp(t, self.time, self.values)
+
+
+@dataclass(frozen=True)
+class Delayed:
+    """The signal ``delay`` seconds late; before the signal starts it holds its first value."""
+
+    signal: Signal
+    delay: float
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        return self.signal.at(np.asarray(t, dtype=float) - self.delay)
+
+
+@dataclass(frozen=True)
+class Scaled:
+    """gain · signal + offset."""
+
+    signal: Signal
+    gain: float = 1.0
+    offset: float = 0.0
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        values = self.signal.at(t)
+        if self.gain != 1.0:
+            values = self.gain * values
+        return values + self.offset if self.offset != 0.0 else values
+
+
+@dataclass(frozen=True)
+class Lagged:
+    """The signal through a first-order lag of time constant ``tau``, y' = (u − y) / tau, starting at rest
+    on the signal's value at the first time asked.
+
+    Solved exactly between the times asked, for an input linear in between. Each call starts afresh at its
+    first time: the master asks once for every communication point of a run."""
+
+    signal: Signal
+    tau: float
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        u = self.signal.at(t)
+        if self.tau <= 0.0 or t.size < 2:
+            return u
+        return first_order_lag(t, u, self.tau)
+
+
+def first_order_lag(t: np.ndarray, u: np.ndarray, tau: float) -> np.ndarray:
+    """y' = (u − y) / tau with y(t0) = u(t0), for u linear between its samples: exact at every sample.
+
+    Between samples the input is u_k + m·s (m its slope), whose response from y_k after s is
+    u_k + m·s − m·tau + (y_k − u_k + m·tau)·exp(−s/tau)."""
+    dt = np.diff(t)
+    decay = np.exp(-dt / tau)
+    slope = np.diff(u) / np.where(dt > 0, dt, 1.0)
+    y = np.empty_like(u, dtype=float)
+    y[0] = u[0]
+    for k in range(len(dt)):  # a recursion: each sample starts from the last
+        drift = slope[k] * tau
+        y[k + 1] = u[k + 1] - drift + (y[k] - u[k] + drift) * decay[k]
+    return y
+
+
+def apply(signal: Signal, kind: Kind, value: float) -> Signal:
+    """``signal`` under one effect at ``value``; the signal itself at the neutral value."""
+    if value == NEUTRAL[kind]:
+        return signal
+    if kind == "delay":
+        return Delayed(signal, value)
+    if kind == "lag":
+        return Lagged(signal, value)
+    if kind == "gain":
+        return Scaled(signal, gain=value)
+    return Scaled(signal, offset=value)
+
+
+def on_output(time: np.ndarray, values: np.ndarray, kind: Kind, value: float) -> np.ndarray:
+    """A simulated output as a sensor under the effect would have recorded it, at the simulation's times."""
+    if value == NEUTRAL[kind]:
+        return values
+    return apply(Sampled(time, values), kind, value).at(time)

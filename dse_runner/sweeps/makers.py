@@ -1,0 +1,266 @@
+"""Cluster makers: what ``cluster.kind`` names, the way a sweep gets a Dask cluster started for it.
+
+A maker is a subclass of :class:`ClusterMaker`. Three are built in: ``local``
+(distributed's LocalCluster), ``htcondor`` (dask-jobqueue's HTCondorCluster)
+and ``kubernetes`` (the dask-kubernetes operator's KubeCluster). A package adds
+one as ``distributed``'s own deploy projects do, through an entry point::
+
+    [project.entry-points."dse_runner.clusters"]
+    mine = "my_package.deploy:MyMaker"   # a subclass of dse_runner.sweeps.makers.ClusterMaker
+
+A maker may take a block of its own in the spec, named by its kind
+(``cluster: {kind: mine, mine: {...}}``), declared as a pydantic model, its
+``Options``: the block is validated with the spec. Connecting to a scheduler
+someone else runs (``cluster.address``) needs no maker (cluster.py).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import uuid
+from abc import ABC, abstractmethod
+from importlib.metadata import entry_points
+from typing import TYPE_CHECKING, Any, ClassVar
+
+from pydantic import BaseModel, ConfigDict, PositiveInt, ValidationError
+
+from ..errors import DseError
+
+if TYPE_CHECKING:
+    from .spec import Cluster
+
+GROUP = "dse_runner.clusters"
+QUEUE_WAIT = 30 * 60.0  # seconds a started cluster's first job or pod may wait in the queue
+
+Strict = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class NoOptions(BaseModel):
+    """A maker's block when it declares none: it must be empty."""
+
+    model_config = Strict
+
+
+class ClusterMaker(ABC):
+    """How a sweep starts a Dask cluster of one kind: the contract of ``cluster.kind`` and of the plug-ins
+    in the entry-point group ``dse_runner.clusters``, which name a subclass (built with no arguments).
+
+    Lifecycle (cluster.connect, on the client). When the space is read, the kind's own block
+    ``cluster.<kind>`` is validated with ``Options`` (a plug-in that is not installed there is named
+    when the sweep starts). When a sweep that names no ``address`` starts, :meth:`start` is called
+    once with the spec, the validated block and distributed's Security (None without ``cluster.tls``),
+    the terminal's Ctrl-C held off until it returns; it returns a ``distributed`` deploy cluster
+    (what a ``distributed.Client`` connects to). Then :meth:`scale` is called once with
+    ``cluster.n_workers``, a client connects and waits up to ``first_worker_wait`` seconds for a first
+    worker, and the sweep runs; a cluster that loses every worker mid-sweep gets as long to get one
+    back (twice ``connect_timeout`` when it is 0). :meth:`close` is called once when the sweep ends,
+    fails or is interrupted, after the client has cancelled its tasks.
+
+    Optional parts, with defaults: ``Options`` (none: the block, if given, must be empty), :meth:`scale`
+    (``cluster.scale(n_workers or 1)``: a batch system starts with no job), :meth:`close`
+    (``cluster.close()``), ``first_worker_wait`` (30 minutes: a job may wait in its queue).
+    """
+
+    Options: ClassVar[type[BaseModel]] = NoOptions
+    first_worker_wait: ClassVar[float] = QUEUE_WAIT
+
+    @abstractmethod
+    def start(self, spec: Cluster, options: Any, security: Any) -> Any:
+        """A started deploy cluster for ``spec``; ``options`` is the validated block (an ``Options``)."""
+
+    def scale(self, cluster: Any, n_workers: int | None) -> None:
+        cluster.scale(n_workers or 1)
+
+    def close(self, cluster: Any) -> None:
+        cluster.close()
+
+    def started(self, spec: Cluster, security: Any) -> Any:
+        """:meth:`start` given the spec's own block for its kind, validated: what connect calls."""
+        return self.start(spec, self.options(spec.block(spec.kind), spec.kind), security)
+
+    def options(self, block: Any, kind: str) -> BaseModel:
+        """The block ``cluster.<kind>`` validated; errors name the key within it."""
+        try:
+            return self.Options.model_validate({} if block is None else block)
+        except ValidationError as e:
+            problem = e.errors()[0]
+            where = ".".join(str(p) for p in (kind, *problem["loc"]))
+            raise DseError(f"{where}: {problem['msg'][:1].lower()}{problem['msg'][1:]} "
+                           f"(an option of cluster kind {kind})") from None
+
+
+# ---- the built-in makers ------------------------------------------------------------------------
+
+# Dask's own housekeeping, made less frequent on the clusters we start: an idle 2-worker local
+# cluster then costs about 0.02 CPU-seconds per second instead of 0.15 (on 2 cores that is 7% of
+# the machine a sweep or search could simulate with). Nothing a sweep relies on needs them faster:
+# the profiler feeds Dask's profile page only, and our dashboard reads memory and CPU once a second.
+QUIET = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.system-monitor.gil.enabled": False,
+    "distributed.admin.tick.interval": "1s",
+    "distributed.admin.system-monitor.interval": "1s",
+    "distributed.worker.memory.monitor-interval": "1s",
+}
+
+
+class Local(ClusterMaker):
+    """Worker processes on this machine, one thread each: FMUs are C code that may not be thread-safe, and
+    one simulation per core keeps every core busy without contention."""
+
+    first_worker_wait = 0.0  # its workers exist when it returns
+
+    def start(self, spec: Cluster, options: Any, security: Any) -> Any:
+        import dask
+        from distributed import LocalCluster
+
+        # A worker that died under a chunk gets one rerun elsewhere before the sweep splits the
+        # chunk (sweep.py): a segfaulting FMU then costs two worker restarts per level, not four.
+        with dask.config.set({"distributed.scheduler.allowed-failures": 1, **QUIET}):
+            return LocalCluster(
+                n_workers=spec.n_workers or os.cpu_count() or 1,
+                threads_per_worker=spec.threads_per_worker,
+                processes=True,
+                host="127.0.0.1",
+                protocol="tls://" if security else None,
+                security=security,
+                dashboard_address=spec.dashboard_address,
+                silence_logs=logging.ERROR,
+            )
+
+    def scale(self, cluster: Any, n_workers: int | None) -> None:
+        """Nothing: it started with its workers."""
+
+
+class HTCondorOptions(BaseModel):
+    """``cluster.htcondor``: dask-jobqueue's HTCondorCluster, one HTCondor job per ``cores`` workers."""
+
+    model_config = Strict
+    cores: PositiveInt = 1  # per job; each core runs one single-threaded worker process
+    memory: str = "2GiB"  # per job
+    disk: str = "1GiB"  # per job: extracted FMUs and scenario files, a few MB
+    job_extra: dict[str, str] = {}  # extra submit-description lines, e.g. {"+ProjectName": '"robotti"'}
+    prologue: list[str] = []  # shell lines before the worker starts, e.g. activating an environment
+    python: str | None = None  # the worker's Python on the execute nodes; default: this one
+    interface: str | None = None  # network interface the scheduler listens on, e.g. eth0
+
+
+class HTCondor(ClusterMaker):
+    """One HTCondor job per ``htcondor.cores`` single-threaded workers; the scheduler runs here."""
+
+    Options = HTCondorOptions
+
+    def start(self, spec: Cluster, options: HTCondorOptions, security: Any) -> Any:
+        try:
+            from dask_jobqueue import HTCondorCluster
+        except ImportError:
+            raise DseError("cluster.kind htcondor needs dask-jobqueue: pip install 'dse-runner[htcondor]'") from None
+        return HTCondorCluster(
+            cores=options.cores,
+            processes=options.cores,  # one single-threaded worker process per core, as locally
+            memory=options.memory,
+            disk=options.disk,
+            job_extra_directives=dict(options.job_extra),
+            job_script_prologue=list(options.prologue),
+            python=options.python,
+            interface=options.interface,
+            security=security,
+            protocol="tls://" if security else None,
+            scheduler_options={"dashboard_address": spec.dashboard_address},
+            silence_logs="error",
+        )
+
+
+KUBERNETES_IDLE_TIMEOUT = 600  # seconds: the operator deletes a cluster its crashed client left behind
+
+
+class KubernetesOptions(BaseModel):
+    """``cluster.kubernetes``: the dask-kubernetes operator's KubeCluster, a DaskCluster resource in a
+    namespace."""
+
+    model_config = Strict
+    image: str = "ghcr.io/dse-runner/dse-runner:latest"  # see deploy/Dockerfile
+    namespace: str | None = None  # default: the current kube context's
+    resources: dict[str, dict[str, str]] = {"requests": {"cpu": "1", "memory": "2Gi"},
+                                             "limits": {"cpu": "1", "memory": "2Gi"}}
+    env: dict[str, str] = {}
+
+
+def kubernetes_cluster_spec(spec: Cluster, options: KubernetesOptions, name: str) -> dict[str, Any]:
+    """The DaskCluster resource for the operator: our image, one single-threaded worker per pod."""
+    from dask_kubernetes.operator import make_cluster_spec
+
+    resource = make_cluster_spec(name=name, image=options.image, n_workers=0, resources=options.resources,
+                                 env=dict(options.env), idle_timeout=KUBERNETES_IDLE_TIMEOUT,
+                                 worker_command=["dask", "worker", "--nthreads", str(spec.threads_per_worker)])
+    # make_cluster_spec still starts the scheduler with `dask-scheduler`, a command distributed
+    # removed in 2026.6; `dask scheduler` is the same program under its current name.
+    (scheduler,) = resource["spec"]["scheduler"]["spec"]["containers"]
+    scheduler["args"] = ["dask", "scheduler", *scheduler["args"][1:]]
+    return resource
+
+
+class Kubernetes(ClusterMaker):
+    """A DaskCluster resource, served by the dask-kubernetes operator running in the cluster."""
+
+    Options = KubernetesOptions
+
+    def start(self, spec: Cluster, options: KubernetesOptions, security: Any) -> Any:
+        try:
+            from dask_kubernetes.operator import KubeCluster
+        except ImportError:
+            raise DseError("cluster.kind kubernetes needs dask-kubernetes: "
+                           "pip install 'dse-runner[kubernetes]'") from None
+        if security is not None:
+            raise DseError("cluster.tls: the dask-kubernetes operator does not set up TLS; keep the scheduler "
+                           "inside the cluster network and reach it by port-forward (deploy/kubernetes/README.md)")
+        name = f"dse-runner-{uuid.uuid4().hex[:8]}"  # two sweeps in one namespace get two clusters
+        return KubeCluster(custom_cluster_spec=kubernetes_cluster_spec(spec, options, name),
+                           namespace=options.namespace)
+
+
+BUILTIN: dict[str, type[ClusterMaker]] = {"local": Local, "htcondor": HTCondor, "kubernetes": Kubernetes}
+
+
+# ---- finding a kind's maker ---------------------------------------------------------------------
+
+def installed() -> list[str]:
+    """Every kind: the built-in ones and those installed packages declare."""
+    return sorted({*BUILTIN, *(e.name for e in entry_points(group=GROUP))})
+
+
+def find(kind: str) -> ClusterMaker | None:
+    """The maker of ``kind``, or None if no installed package declares it."""
+    if kind in BUILTIN:
+        return BUILTIN[kind]()
+    for entry in entry_points(group=GROUP, name=kind):
+        try:
+            found = entry.load()
+        except ImportError as e:
+            raise DseError(f"cluster.kind {kind!r} ({entry.value}) cannot be imported: {e}") from None
+        if not (isinstance(found, type) and issubclass(found, ClusterMaker)):
+            raise DseError(f"cluster.kind {kind!r} ({entry.value}) is not a subclass of "
+                           "dse_runner.sweeps.makers.ClusterMaker")
+        return found()
+    return None
+
+
+def maker(kind: str) -> ClusterMaker:
+    """The maker of ``kind``; an unknown kind is an error naming the known ones."""
+    found = find(kind)
+    if found is None:
+        raise DseError(f"cluster.kind {kind!r} is unknown (known: {', '.join(installed())})")
+    return found
+
+
+def check_block(key: str, block: Any, kind: str) -> None:
+    """A key of ``cluster`` besides its own fields: a kind's block, valid for that kind's maker. A block
+    for the chosen kind whose plug-in is not installed here passes: starting the sweep names the kind."""
+    found = find(key)
+    if found is None:
+        if key == kind:
+            return
+        raise DseError(f"unknown key {key!r}: besides its own keys, cluster takes a block named by a cluster "
+                       f"kind (installed: {', '.join(installed())})")
+    found.options(block, key)
