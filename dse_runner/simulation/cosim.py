@@ -149,6 +149,16 @@ class Trajectory:
         numbers = {n: float(self.values[-1, j]) for j, n in enumerate(self.names)}
         return {**numbers, **{n: v[-1] for n, v in self.texts.items()}}
 
+    def with_columns(self, changed: Mapping[str, np.ndarray]) -> Trajectory:
+        """The same trajectory with some numeric signals replaced (output effects, signal_effects.py)."""
+        if not changed:
+            return self
+        values = self.values.copy()
+        for name, column in changed.items():
+            self.column(name)  # names the signal if it is not recorded
+            values[:, self.names.index(name)] = column
+        return Trajectory(self.time, self.names, values, self.texts)
+
     def renamed(self, rename: Callable[[str], str]) -> Trajectory:
         return Trajectory(self.time, tuple(map(rename, self.names)), self.values,
                           {rename(n): v for n, v in self.texts.items()})
@@ -423,6 +433,18 @@ class Runner:
     times: np.ndarray
     series: dict[str, np.ndarray]  # input signals at the communication points
     external: np.ndarray | None  # the same, one column each, as the loops read them
+
+    def with_inputs(self, changed: Mapping[str, np.ndarray]) -> Runner:
+        """The same runner feeding some input signals changed (input effects, signal_effects.py): the
+        lifecycle it found carries over, since the FMUs are the same."""
+        if not changed:
+            return self
+        series = {**self.series, **changed}
+        runner = Runner(self.plan, self.times, series, np.column_stack(list(series.values())))
+        for cached in ("_lifecycle", "_fresh"):
+            if cached in self.__dict__:
+                runner.__dict__[cached] = self.__dict__[cached]
+        return runner
 
     def lifecycle(self, values: Mapping[str, Value]) -> dict[str, lifecycles.Verdict]:
         """How each instance lives across runs (lifecycle.py): reset between runs, or a fresh process;

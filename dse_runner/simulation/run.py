@@ -12,13 +12,14 @@ from __future__ import annotations
 import copy
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import DseError
 from . import objectives as objs
+from . import signal_effects
 from .build import is_source_dir
 from .cosim import Plan, Runner, Trajectory, make_plan, prepare
 from .experiment import Experiment, Times, resolve_times
@@ -144,11 +145,18 @@ def simulate(
     the same plan, scenario, objectives and experiment (a sweep), it reuses what it worked out from
     them: plans and scenarios are immutable; objectives and the experiment are compared by value."""
     recipe = _recipe(model, scenario, objectives, experiment, (start_time, stop_time, step), interface)
-    values = recipe.layered(values or {})
+    given, effects = signal_effects.split(values or {})
+    values = recipe.layered(given)
     runner = recipe.runner
+    if effects:
+        effects = recipe.qualified_effects(effects)
+        runner = runner.with_inputs(signal_effects.on_inputs(recipe.signals, runner.times, effects))
     trajectory = runner.run(values, timeout, loop)
-    return SimulationResult(recipe.scenario, values, recipe.times, trajectory,
-                            objs.evaluate(recipe.specs, trajectory, recipe.scenario), runner.lifecycle(values))
+    if effects:
+        trajectory = trajectory.with_columns(signal_effects.on_outputs(trajectory.time, trajectory.column, effects))
+    return SimulationResult(recipe.scenario, {**values, **{e.name: v for e, v in effects.items()}}, recipe.times,
+                            trajectory, objs.evaluate(recipe.specs, trajectory, recipe.scenario),
+                            runner.lifecycle(values))
 
 
 @dataclass
@@ -164,6 +172,21 @@ class _Recipe:
     times: Times
     runner: Runner
     names: dict[str, str] = field(default_factory=dict)  # a value's name as given -> as the plan has it
+
+    @property
+    def signals(self) -> dict[str, Series]:
+        """The scenario's input signals, by the names the runner feeds them under."""
+        return {ref: s for ref, s in self.scenario.inputs.items() if isinstance(s, Series)}
+
+    def qualified_effects(self, effects: Mapping[signal_effects.Effect, float]) -> dict[signal_effects.Effect, float]:
+        """Effects with their targets as the plan and the scenario name them (one FMU's may be written bare)."""
+        plan = self.runner.plan
+        fed = {qualify(plan, ref): ref for ref in self.signals}
+        out = {}
+        for effect, value in effects.items():
+            target = qualify(plan, effect.target)
+            out[replace(effect, target=fed.get(target, target))] = value
+        return out
 
     def layered(self, values: Mapping[str, Value]) -> dict[str, Value]:
         """The run's values: ``base``, then ``values`` (module docstring)."""

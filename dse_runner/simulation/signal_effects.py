@@ -8,6 +8,12 @@ master applies an input effect to a scenario's input signal before the FMU sees
 it, and an output effect to a simulated signal before an objective compares it
 with its recording; diagnosis offers them as its model-independent hypotheses.
 
+An effect is a parameter of a study like any other, named for what it does
+and to which signal: ``input_delay(vehicle.delta_f)``, ``output_gain(tank.level)``
+(:data:`EFFECTS`). A sweep varies it, a search or a fit tunes it, the store
+keeps it as a column; ``simulate`` takes it among its values. An input effect
+acts on a signal a scenario drives, an output effect on any recorded signal.
+
 Each effect wraps a signal and is a signal itself: anything with ``at(t)``, as
 scenario.Series is, so effects compose and the step loop samples them as it
 samples a recorded input. At its neutral value (delay 0, lag 0, gain 1, offset
@@ -17,13 +23,67 @@ hypothesis that is absent changes nothing.
 
 from __future__ import annotations
 
+import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Literal, Protocol
 
 import numpy as np
 
+from ..errors import DseError
+
 Kind = Literal["delay", "lag", "gain", "offset"]
-NEUTRAL: dict[str, float] = {"delay": 0.0, "lag": 0.0, "gain": 1.0, "offset": 0.0}
+NEUTRAL: dict[str, float] = {"delay": 0.0, "lag": 0.0, "gain": 1.0, "offset": 0.0}  # also the order applied
+EFFECTS = tuple(f"{side}_{kind}" for side in ("input", "output") for kind in NEUTRAL)  # input_delay, ...
+UNITS = {"delay": "s", "lag": "s", "gain": "1", "offset": "the signal's unit"}
+_NAME = re.compile(r"^(input|output)_(delay|lag|gain|offset)\((.+)\)$")
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One effect parameter, parsed from its name: ``input_lag(vehicle.delta_f)``."""
+
+    side: Literal["input", "output"]
+    kind: Kind
+    target: str  # instance.variable
+
+    @property
+    def id(self) -> str:
+        return f"{self.side}_{self.kind}"
+
+    @property
+    def name(self) -> str:
+        return f"{self.id}({self.target})"
+
+
+def parse(name: str) -> Effect | None:
+    """The effect a parameter's name declares, or None for an FMU variable."""
+    match = _NAME.match(name)
+    return Effect(match[1], match[2], match[3]) if match else None  # type: ignore[arg-type]
+
+
+def effect_name(effect_id: str, target: str) -> str:
+    """``input_delay``, ``vehicle.delta_f`` -> ``input_delay(vehicle.delta_f)``."""
+    if effect_id not in EFFECTS:
+        raise DseError(f"no signal effect {effect_id!r}; there are {', '.join(EFFECTS)}")
+    return f"{effect_id}({target})"
+
+
+def split(values: Mapping[str, object]) -> tuple[dict[str, object], dict[Effect, float]]:
+    """A run's values: those for FMU variables, and the effects (only those away from neutral)."""
+    plain: dict[str, object] = {}
+    effects: dict[Effect, float] = {}
+    for name, value in values.items():
+        effect = parse(name)
+        if effect is None:
+            plain[name] = value
+        elif not isinstance(value, (int, float)) or isinstance(value, bool) or not np.isfinite(value):
+            raise DseError(f"{name}: an effect takes a finite number, not {value!r}")
+        elif effect.kind in ("delay", "lag") and value < 0:
+            raise DseError(f"{name}: a {effect.kind} cannot be negative ({value:g} s)")
+        elif float(value) != NEUTRAL[effect.kind]:
+            effects[effect] = float(value)
+    return plain, effects
 
 
 class Signal(Protocol):
@@ -115,6 +175,41 @@ def apply(signal: Signal, kind: Kind, value: float) -> Signal:
     if kind == "gain":
         return Scaled(signal, gain=value)
     return Scaled(signal, offset=value)
+
+
+def in_order(effects: Mapping[Effect, float]) -> list[tuple[Effect, float]]:
+    """Effects on one signal apply as delay, lag, gain, offset, whatever order they are given in: the
+    signal becomes gain · lag(delay(u)) + offset. The first three commute; gain and offset do not."""
+    order = list(NEUTRAL)
+    return sorted(effects.items(), key=lambda item: order.index(item[0].kind))
+
+
+def on_inputs(series: Mapping[str, Signal], times: np.ndarray, effects: Mapping[Effect, float]
+              ) -> dict[str, np.ndarray]:
+    """The input signals the input ``effects`` change, sampled at ``times``: what the FMUs receive
+    instead of the scenario's own signals."""
+    changed: dict[str, Signal] = {}
+    for effect, value in in_order(effects):
+        if effect.side != "input":
+            continue
+        if effect.target not in series:
+            driven = ", ".join(series) or "none"
+            raise DseError(f"{effect.name}: {effect.target} is not an input the scenario drives "
+                           f"(driven: {driven})")
+        changed[effect.target] = apply(changed.get(effect.target, series[effect.target]), effect.kind, value)
+    return {ref: signal.at(times) for ref, signal in changed.items()}
+
+
+def on_outputs(time: np.ndarray, column, effects: Mapping[Effect, float]) -> dict[str, np.ndarray]:
+    """The recorded signals the output ``effects`` change, as a sensor under them would have recorded
+    them; ``column(name)`` gives a simulated signal."""
+    changed: dict[str, np.ndarray] = {}
+    for effect, value in in_order(effects):
+        if effect.side == "output":
+            values = changed.get(effect.target)
+            values = column(effect.target) if values is None else values
+            changed[effect.target] = on_output(time, np.asarray(values, dtype=float), effect.kind, value)
+    return changed
 
 
 def on_output(time: np.ndarray, values: np.ndarray, kind: Kind, value: float) -> np.ndarray:

@@ -35,11 +35,12 @@ from pydantic import (
 from .. import bundled
 from ..errors import DseError
 from ..simulation import objectives as objs
+from ..simulation import signal_effects
 from ..simulation.cosim import Plan, make_plan
 from ..simulation.experiment import Experiment
 from ..simulation.multimodel import MultiModel, load_multimodel, parse_multimodel
 from ..simulation.run import bound_fields, qualify
-from ..simulation.scenario import Scenario, ScenarioSpec, kind, load_scenario, nominal, parse_scenario
+from ..simulation.scenario import Scenario, ScenarioSpec, Series, kind, load_scenario, nominal, parse_scenario
 from ..simulation.variables import FiniteValue, check_value
 from ..yamlfile import read_yaml
 from . import makers
@@ -445,6 +446,10 @@ def _resolved(spec: SpaceSpec, scenarios: list[Scenario], source: str) -> SpaceS
 def _check_names(space: Space, source: str) -> None:
     """Every name the spec uses must exist: FMU variables, objectives, the strategy."""
     for ref, values in space.parameters.items():
+        effect = signal_effects.parse(ref)
+        if effect is not None:
+            _check_effect(space, effect, values, source)
+            continue
         variable = space.plan.variable(ref, f"{source}: parameters")
         for value in values:
             try:
@@ -477,6 +482,26 @@ def _check_names(space: Space, source: str) -> None:
             compile_constraint(text, set(space.objectives), "objective")
         except DseError as e:
             raise DseError(f"{source}: ranking.constraints.{index}: {e}") from None
+
+
+def _check_effect(space: Space, effect: signal_effects.Effect, values: list[Any], source: str) -> None:
+    """A signal effect's values are numbers it takes, on a signal it can act on: an input every scenario
+    drives, or a variable the model has (an output effect acts on what the run records)."""
+    where = f"{source}: parameters.{effect.name}"
+    for value in values:
+        try:
+            signal_effects.split({effect.name: value})
+        except DseError as e:
+            raise DseError(f"{source}: parameters.{e}") from None
+    target = qualify(space.plan, effect.target)
+    space.plan.variable(target, where)
+    if effect.side == "input":
+        for scenario in space.scenarios:
+            driven = {qualify(space.plan, ref) for ref, v in scenario.inputs.items() if isinstance(v, Series)}
+            if target not in driven:
+                raise DseError(f"{where}: scenario {scenario.name} does not drive {effect.target} with a signal "
+                               f"(it drives {', '.join(sorted(driven)) or 'none'}); an input effect acts on a "
+                               "scenario's input signal")
 
 
 def _check_search(space: Space, source: str) -> None:

@@ -96,3 +96,12 @@ def test_each_layer_imports_only_the_layers_before_it():
                     if target in later and not case_analysis:
                         offenders.append(f"{path.relative_to(PACKAGE)} imports {node.module}")
     assert offenders == []
+
+
+def test_the_import_graph_in_architecture_md_is_the_codes():
+    """docs/architecture.md draws the package's imports; a change of imports must redraw it."""
+    from conftest import REPO
+
+    done = subprocess.run([sys.executable, str(REPO / "docs" / "import_graph.py"), "--check"],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stdout + done.stderr

@@ -5,8 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dse_runner.simulation.scenario import Series
-from dse_runner.simulation.signal_effects import NEUTRAL, apply, first_order_lag, on_output
+from dse_runner.errors import DseError
+from dse_runner.simulation.objectives import Reduce
+from dse_runner.simulation.run import simulate
+from dse_runner.simulation.scenario import Scenario, Series
+from dse_runner.simulation.signal_effects import EFFECTS, NEUTRAL, apply, first_order_lag, on_output, parse
 
 RNG = np.random.default_rng(7)
 TIMES = np.cumsum(RNG.uniform(0.005, 0.03, 400))  # uneven, as recordings are
@@ -55,3 +58,52 @@ def test_an_output_effect_is_the_sensor_view_at_the_simulation_times():
     values = t ** 2
     late = on_output(t, values, "delay", 0.2)
     assert late[0] == 0.0 and np.allclose(late[t >= 0.2], (t[t >= 0.2] - 0.2) ** 2, atol=1e-4)
+
+
+# ---- as parameters of a run: simulate() applies them ---------------------------------------------
+
+def _pushed(delay: float = 0.0) -> Scenario:
+    """The mass-spring-damper at rest, pushed by a force switched on at 1 s (later by ``delay``)."""
+    t = np.array([0.0, 1.0 + delay, 6.0])
+    return Scenario("push", inputs={"msd.F": Series(t, np.array([0.0, 2.0, 2.0]), "hold")}, stop_time=6.0, step=0.01)
+
+
+def test_an_input_delay_is_the_same_run_as_a_recording_that_late():
+    from conftest import REPO
+
+    model = REPO / "jobs" / "msd" / "multimodel.yaml"
+    values = {"msd.x0": 0.0}
+    late = simulate(model, _pushed(), {**values, "input_delay(msd.F)": 0.37})
+    shifted = simulate(model, _pushed(0.37), values)
+    on_time = simulate(model, _pushed(), values)
+    assert np.allclose(late.outputs["msd.x"], shifted.outputs["msd.x"], rtol=0, atol=1e-12)
+    assert not np.allclose(late.outputs["msd.x"], on_time.outputs["msd.x"], rtol=0, atol=1e-6)
+    assert late.values["input_delay(msd.F)"] == 0.37
+
+
+def test_an_output_effect_changes_what_the_objectives_compare_not_the_model():
+    from conftest import REPO
+
+    model = REPO / "jobs" / "msd" / "multimodel.yaml"
+    objectives = {"x_end": Reduce(signal="msd.x", reduce="final"), "v_end": Reduce(signal="msd.v", reduce="final")}
+    plain = simulate(model, _pushed(), {"msd.x0": 0.0}, objectives=objectives)
+    biased = simulate(model, _pushed(), {"msd.x0": 0.0, "output_offset(msd.x)": 0.05, "output_gain(msd.x)": 2.0},
+                      objectives=objectives)
+    assert biased.objectives["x_end"] == pytest.approx(2.0 * plain.objectives["x_end"] + 0.05, abs=1e-12)
+    assert biased.objectives["v_end"] == plain.objectives["v_end"]  # the model itself ran alike
+
+
+def test_an_input_effect_on_a_signal_no_scenario_drives_is_named():
+    from conftest import REPO
+
+    with pytest.raises(DseError, match=r"input_lag\(msd\.m\): msd\.m is not an input the scenario drives"):
+        simulate(REPO / "jobs" / "msd" / "multimodel.yaml", _pushed(), {"input_lag(msd.m)": 0.1})
+    with pytest.raises(DseError, match=r"input_delay\(msd\.F\): a delay cannot be negative"):
+        simulate(REPO / "jobs" / "msd" / "multimodel.yaml", _pushed(), {"input_delay(msd.F)": -0.1})
+
+
+def test_effect_names_parse_back_to_what_they_say():
+    effect = parse("output_lag(tank.level)")
+    assert (effect.side, effect.kind, effect.target, effect.id) == ("output", "lag", "tank.level", "output_lag")
+    assert parse("tank.level") is None and parse("input_speed(tank.level)") is None
+    assert {parse(f"{e}(a.b)").name for e in EFFECTS} == {f"{e}(a.b)" for e in EFFECTS}
