@@ -549,10 +549,13 @@ def rank_command(
 
 @app.command()
 def diagnose(
-    scenarios: Annotated[Path, typer.Option("--scenarios", help="Folder of recorded runs (field-data format).")],
+    scenarios: Annotated[Path | None, typer.Option(
+        "--scenarios", help="Folder of recorded runs in the field-data format (the Robotti's diagnosis).")] = None,
     multimodel: Annotated[Path | None, typer.Option(help="Multi-model to diagnose (default: the space's).")] = None,
     space: Annotated[Path | None, typer.Option(
-        help="Calibration design space: its parameters and ranges (default: bundled:robotti/calibration.yaml).")] = None,
+        help="Without --scenarios: any space whose objectives compare signals with recordings; its parameters "
+             "are the calibration, and every signal effect is tried. With --scenarios: the calibration space "
+             "(default: bundled:robotti/calibration.yaml).")] = None,
     out: Annotated[Path, typer.Option(help="Folder for results, the new model and the report.")] = Path("out/diagnosis"),
     folds: Annotated[int, typer.Option(help="Cross-validation folds across runs.")] = 3,
     hypothesis: Annotated[list[str] | None, typer.Option(
@@ -568,6 +571,11 @@ def diagnose(
     as_json: JsonFlag = False,
 ) -> None:
     """Calibrate, locate the mismatch, name the missing physics, model it and show the fit improve."""
+    if scenarios is None:
+        if space is None:
+            fail(DseError("diagnose: give --space SPACE.yaml (any model with recordings), or --scenarios DIR "
+                          "(field data)"))
+        return _diagnose_space(space, out, folds, noise_factor, workers, scheduler, as_json)
     from ..analysis.diagnose import Settings
     from ..analysis.diagnose import diagnose as run_diagnosis
     from ..analysis.diagnose.findings import DiscoveredCorrection
@@ -607,6 +615,32 @@ def diagnose(
     for name in ("multimodel", "space", "report"):
         if name in result.files:
             typer.echo(f"{name}: {result.files[name]}")
+
+
+def _diagnose_space(space: Path, out: Path, folds: int, noise_factor: float, workers: int | None,
+                    scheduler: str | None, as_json: bool) -> None:
+    """diagnose --space: the library of signal effects on any model with recordings."""
+    from ..analysis.diagnose.signal_library import diagnose_space
+
+    try:
+        result = diagnose_space(space, out, folds, noise_factor, lambda m: typer.echo(m, err=True), workers,
+                                scheduler)
+    except DseError as e:
+        fail(e)
+    except KeyboardInterrupt:
+        typer.echo(f"interrupted: finished simulations are kept in {out}; run again to resume", err=True)
+        raise typer.Exit(130)
+    found = result.to_json()
+    if as_json:
+        emit_json(found)
+        return
+    for effect in found["effects"]:
+        (kind, value), = effect["parameters"].items()
+        low, high = effect["intervals"][kind]
+        typer.echo(f"{effect['id']}({effect['target']}): {kind} {value:.4g} (95 % {low:.4g} to {high:.4g})")
+    typer.echo(f"held-out error: {found['held_out_before']:.2f} before, {found['held_out_after']:.2f} after, in noise "
+               "floors (each compared signal's residuals over its recording's noise)")
+    typer.echo(f"verdict: {found['verdict']}" + (f"; runner-up {found['runner_up']}" if found["runner_up"] else ""))
 
 
 @app.command()

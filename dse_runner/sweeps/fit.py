@@ -20,7 +20,7 @@ too narrow.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Collection, Iterable
+from collections.abc import Callable, Collection, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -239,12 +239,14 @@ def robust_standard_errors(jacobian: list[np.ndarray], residuals: list[np.ndarra
 FitRoundProgress = Callable[[int, int, int, int], None]  # (round, active fits, points, simulations this round)
 
 
-def fit_all(space: Space, problems: list[FitProblem], client, residuals: str,
+def fit_all(space: Space, problems: list[FitProblem], client, residuals: str | Mapping[str, float],
             progress: FitRoundProgress | None = None) -> dict[str, FitResult]:
     """Run fits in lockstep, each round one sweep of ``space`` over the union of the points the fits
-    ask for, minimising the vector objective named ``residuals`` (one of the space's)."""
-    if residuals not in space.objectives:
-        raise DseError(f"space {space.name}: fitting needs the objective {residuals!r}")
+    ask for, minimising the vector objective named ``residuals`` (one of the space's), or several, each
+    multiplied by its scale and joined (``{name: scale}``: residuals in different units made alike)."""
+    for name in [residuals] if isinstance(residuals, str) else residuals:
+        if name not in space.objectives:
+            raise DseError(f"space {space.name}: fitting needs the objective {name!r}")
     solvers = [LevenbergMarquardt(p) for p in problems]
     round_, cost = 0, None  # cost: seconds per task, measured by the last round
     while True:
@@ -255,7 +257,8 @@ def fit_all(space: Space, problems: list[FitProblem], client, residuals: str,
         round_ += 1
         if progress:
             progress(round_, len(asked), len(points), sum(len(s) for s in only))
-        rows, cost = evaluate_points(space, points, client, [residuals], only, cost)
+        rows, cost = evaluate_points(space, points, client, [residuals] if isinstance(residuals, str)
+                                     else list(residuals), only, cost)
         for solver in solvers:
             if id(solver) in asked:
                 solver.tell(residuals_in(rows, residuals))
@@ -265,11 +268,17 @@ def fit_all(space: Space, problems: list[FitProblem], client, residuals: str,
 Rows = dict[tuple[Key, str], dict[str, Any]]  # (point, scenario) -> its result row
 
 
-def residuals_in(rows: Rows, column: str) -> Residuals:
-    """The residuals of (point, scenario) as the rows hold them: None where the run failed or is missing."""
+def residuals_in(rows: Rows, columns: str | Mapping[str, float]) -> Residuals:
+    """The residuals of (point, scenario) as the rows hold them (several columns scaled and joined): None
+    where the run failed or is missing."""
+    scales = {columns: 1.0} if isinstance(columns, str) else dict(columns)
+
     def residuals(point: Point, scenario: str) -> np.ndarray | None:
         row = rows.get((key_of(point), scenario))
-        return np.asarray(row[column], dtype=float) if row and row["status"] == "ok" else None
+        if not row or row["status"] != "ok":
+            return None
+        parts = [np.asarray(row[c], dtype=float) * s for c, s in scales.items()]
+        return parts[0] if len(parts) == 1 and scales[next(iter(scales))] == 1.0 else np.concatenate(parts)
     return residuals
 
 

@@ -1,0 +1,273 @@
+"""Diagnosis for any model with recordings: which signal effect, if any, the recordings support.
+
+Why: a user with an FMU and recordings, and no hypothesis library of their own, still wants to know
+whether what the model misses is a late, sluggish, scaled or biased input or sensor. The signal effects
+(simulation/signal_effects.py) are that library: they apply to every input a scenario drives and every
+signal an objective compares with a recording, without changing any FMU.
+
+The space says everything: its scenarios give the inputs and recordings, its objectives
+``{signal, recorded, metric}`` what is compared, its parameters the calibration. Each hypothesis is one
+effect fitted jointly with the calibrated parameters (fit.py's Levenberg-Marquardt, every round a sweep),
+judged as the field-data diagnosis judges its library (explain.py): held-out error across scenarios, the
+BIC, the simplest of the equally good, a verdict against the noise floor. Residuals of each compared
+signal are divided by its noise (estimated from its recording alone), so signals in different units
+weigh alike and an error of 1 is the noise itself.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ...errors import DseError
+from ...simulation import objectives as objs
+from ...simulation import signal_effects
+from ...simulation.run import qualify
+from ...simulation.scenario import Series
+from ...sweeps.cluster import connect
+from ...sweeps.fit import FitProblem, FitResult, Parameter, evaluate_points, fit_all, key_of, wanted
+from ...sweeps.rank import rank
+from ...sweeps.spec import Space, load_space, resolve_space
+from ...sweeps.sweep import submit
+from . import explain
+from .explain import Candidate
+from .noise import MAD_TO_SIGMA
+
+FITS = "diagnosis-signal-fits"  # the sweep every fit's rounds go to
+SPAN_SHARE = 0.1  # a delay or lag is sought up to this share of the shortest scenario
+GAIN_RANGE = (0.5, 2.0)
+STARTS = 4  # each effect's fit on every scenario starts from this many values across its range: a delay or a
+# lag of an oscillating model has local minima one period apart, which a fit from neutral alone can miss
+MAX_ITERATIONS = 30
+
+
+@dataclass(frozen=True)
+class Compared:
+    """One signal an objective compares with a recording, and the noise in that recording."""
+
+    objective: str
+    signal: str
+    recorded: str
+    noise: float  # σ of the recording's noise, in the signal's units
+
+    @property
+    def residuals(self) -> str:
+        return f"{self.objective}__residuals"
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    effect: signal_effects.Effect
+    parameter: Parameter
+    resolution: float = 0.0  # the finest change of its value a run can show (a delay: one communication step)
+
+
+@dataclass
+class SignalDiagnosis:
+    """What the library of signal effects explains of the mismatch between a space's model and recordings."""
+
+    compared: list[Compared]
+    baseline: Candidate
+    chosen: Candidate
+    candidates: list[Candidate]
+    verdict: str
+    hypotheses: dict[str, Hypothesis] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        runner = explain.runner_up(self.chosen, self.candidates)
+        return {
+            "compared": [{"objective": c.objective, "signal": c.signal, "recorded": c.recorded, "noise": c.noise}
+                         for c in self.compared],
+            "effects": [self._effect(name) for name in self.chosen.ids],
+            "verdict": self.verdict,
+            "held_out_before": self.baseline.cross_validated,
+            "held_out_after": self.chosen.cross_validated,
+            "held_out_unit": "noise floors (RMS of each compared signal's residuals over its recording's noise)",
+            "noise_floor": 1.0,
+            "runner_up": runner.label if runner is not None else None,
+            "candidates": [{"id": c.label, "held_out": c.cross_validated, "bic": c.bic} for c in
+                           explain.ranked(self.candidates)],
+        }
+
+    def _effect(self, name: str) -> dict[str, Any]:
+        hypothesis = self.hypotheses[name]
+        effect, fit = hypothesis.effect, self.chosen.full
+        value, (low, high) = fit.values[name], fit.interval()[name]
+        low, high = min(low, value - hypothesis.resolution), max(high, value + hypothesis.resolution)
+        return {"id": effect.id, "target": effect.target, "parameters": {effect.kind: value},
+                "intervals": {effect.kind: [low, high]}, "resolution": hypothesis.resolution,
+                "partial": self.verdict == explain.PARTIAL}
+
+
+def recording_noise(time: np.ndarray, values: np.ndarray, orders: Sequence[int] = (2, 3, 4, 5, 6)) -> float:
+    """σ of a recording's white noise from its differences at its own sampling: the k-th difference of
+    white noise has σ·√C(2k, k), robustly measured by the MAD. The signal itself adds to every order, less
+    the higher the order while it is smooth at the sampling step, so the smallest estimate over the orders
+    is the one least swollen by the signal (and still at least the noise, on average)."""
+    v = np.asarray(values, dtype=float)[np.isfinite(values)]
+    estimates = []
+    for k in orders:
+        if v.size > k + 2:
+            d = np.diff(v, n=k)
+            estimates.append(MAD_TO_SIGMA * float(np.median(np.abs(d - np.median(d)))) / math.sqrt(math.comb(2 * k, k)))
+    return min(estimates) if estimates else math.nan
+
+
+def compared_signals(space: Space) -> list[Compared]:
+    """Every objective that compares a signal with a recording, with the noise of that recording (the
+    median over the scenarios that record it)."""
+    found = []
+    for name, spec in space.objectives.items():
+        if not isinstance(spec, objs.Fit):
+            continue
+        noises = [recording_noise(*s.recorded.samples(spec.recorded)) for s in space.scenarios if s.recorded]
+        noise = float(np.nanmedian(noises)) if noises and np.isfinite(noises).any() else math.nan
+        if not noise > 0:
+            raise DseError(f"objective {name}: no noise could be estimated from the recorded {spec.recorded!r}")
+        found.append(Compared(name, qualify(space.plan, spec.signal), spec.recorded, noise))
+    if not found:
+        raise DseError(f"{space.path}: diagnosis compares signals with recordings: give an objective "
+                       "{signal: inst.var, recorded: column, metric: rmse}")
+    return found
+
+
+def hypotheses(space: Space, compared: Sequence[Compared]) -> dict[str, Hypothesis]:
+    """Every signal effect on every input all scenarios drive and every compared signal, with its range."""
+    span = min(float(s.stop_time or space.spec.experiment.stop_time or 0) or math.inf for s in space.scenarios)
+    span = span if math.isfinite(span) else 10.0
+    # The master feeds inputs at its communication points, so a run responds to a delay in steps of one
+    # (the delay's resolution): a finite difference finer than that sees no change
+    step = max((float(s.step or space.spec.experiment.step or 0.0) for s in space.scenarios), default=0.0)
+    inputs: dict[str, list[np.ndarray]] = {}
+    for scenario in space.scenarios:
+        for ref, signal in scenario.inputs.items():
+            if isinstance(signal, Series):
+                inputs.setdefault(qualify(space.plan, ref), []).append(signal.values)
+    driven = [ref for ref, values in inputs.items() if len(values) == len(space.scenarios)]
+    outputs = {c.signal: [s.recorded.samples(c.recorded)[1] for s in space.scenarios if s.recorded] for c in compared}
+    found = {}
+    for side, signals in (("input", {r: inputs[r] for r in driven}), ("output", outputs)):
+        for target, samples in signals.items():
+            size = float(np.ptp(np.concatenate(samples))) or 1.0
+            for kind, (low, high) in {"delay": (0.0, SPAN_SHARE * span), "lag": (0.0, SPAN_SHARE * span),
+                                      "gain": GAIN_RANGE, "offset": (-size, size)}.items():
+                effect = signal_effects.Effect(side, kind, target)  # type: ignore[arg-type]
+                start = signal_effects.NEUTRAL[kind]
+                difference = max(0.01 * (high - low), step if kind in ("delay", "lag") else 0.0)
+                found[effect.name] = Hypothesis(effect, Parameter(effect.name, start, low, high, difference),
+                                                step if kind == "delay" else 0.0)
+    return found
+
+
+def starts_of(parameter: Parameter, count: int = STARTS) -> list[float]:
+    """Where an effect's fits start: its neutral value, then evenly across its range."""
+    others = np.linspace(parameter.lower, parameter.upper, count + 1)[1:]
+    return [parameter.start, *(float(v) for v in others if v != parameter.start)][:count]
+
+
+def calibration(space: Space) -> tuple[Parameter, ...]:
+    """The space's numeric parameters with a range, from the best point of its own sweep when it is a grid
+    (else from the middle of each interval)."""
+    grid = all(d.grid() is not None for d in space.dimensions)
+    best = rank(space.output, space.name).best if grid and space.dimensions else {}
+    params = []
+    for name, values in space.parameters.items():  # a grid's values, or an interval's ends
+        numbers = [float(v) for v in values if isinstance(v, (int, float)) and not isinstance(v, bool)]
+        if len(numbers) == len(values) and len(set(numbers)) > 1:
+            low, high = min(numbers), max(numbers)
+            start = float(best.get(name, 0.5 * (low + high)))
+            params.append(Parameter(name, start, low, high, 0.01 * (high - low)))
+    return tuple(params)
+
+
+def fits_space(space: Space, compared: Sequence[Compared], hypotheses: Mapping[str, Hypothesis]) -> Space:
+    """The space the fits run in: its own parameters and every effect (each a parameter at its neutral value
+    unless a fit frees it), scored by the residuals of each compared signal."""
+    parameters = dict(space.spec.parameters)
+    parameters.update({name: [signal_effects.NEUTRAL[h.effect.kind]] for name, h in hypotheses.items()})
+    objectives = {**space.objectives,
+                  **{c.residuals: objs.Fit(signal=c.signal, recorded=c.recorded, metric="residuals") for c in compared}}
+    spec = space.spec.model_copy(update={"name": FITS, "parameters": parameters, "objectives": objectives,
+                                         "search": space.spec.search.model_copy(update={"strategy": "exhaustive"}),
+                                         "constraints": [], "keep_trajectories": 0})
+    return resolve_space(spec, space.path)
+
+
+Messages = Callable[[str], None]
+
+
+def diagnose_space(path: str | Path, out: str | Path | None = None, folds: int = 3, noise_factor: float =
+                   explain.NOISE_FACTOR, say: Messages | None = None, n_workers: int | None = None,
+                   address: str | None = None) -> SignalDiagnosis:
+    """Calibrate the space, then fit each signal effect with it and choose what the recordings support."""
+    say = say or (lambda message: None)
+    space = load_space(path).with_overrides(output=out, address=address, n_workers=n_workers)
+    compared = compared_signals(space)
+    library = hypotheses(space, compared)
+    scenarios = tuple(s.name for s in space.scenarios)
+    parts = explain.folds(space.scenarios, folds) if len(scenarios) > 1 else []
+    with connect(space.spec.cluster, say) as client:
+        if all(d.grid() is not None for d in space.dimensions) and space.dimensions:
+            say(f"calibrating: the space's grid, {space.name}")
+            submit(space, client=client)
+        base = calibration(space)
+        fits = fits_space(space, compared, library)
+        scales = {c.residuals: 1.0 / c.noise for c in compared}
+        neutral = {name: signal_effects.NEUTRAL[h.effect.kind] for name, h in library.items()}
+
+        def problem(label: str, names: tuple[str, ...], on: tuple[str, ...], start: Mapping[str, float] = {}
+                    ) -> FitProblem:
+            fixed = {k: v for k, v in neutral.items() if k not in names}
+            freed = tuple(replace(p, start=start.get(p.name, p.start)) for p in
+                          (*base, *(library[n].parameter for n in names)))
+            return FitProblem(label, freed, fixed, on, MAX_ITERATIONS)
+
+        def report(round_: int, active: int, points: int, simulations: int) -> None:
+            say(f"fits: round {round_}, {active} active, {points} points, {simulations} simulations")
+
+        sets = [(), *((name,) for name in library)]
+        starts = {s: starts_of(library[s[0]].parameter) if s else [None] for s in sets}
+        tries = [problem(f"{'+'.join(s) or 'none'}#{i}", s, scenarios, {s[0]: v} if s else {})
+                 for s in sets for i, v in enumerate(starts[s])]
+        say(f"fitting {len(sets) - 1} signal effects and none on every scenario: {len(tries)} fits")
+        tried = fit_all(fits, tries, client, scales, report)
+        full = {s: min((tried[f"{'+'.join(s) or 'none'}#{i}"] for i in range(len(starts[s]))), key=lambda f: f.sse)
+                for s in sets}
+        folded = [problem(f"{'+'.join(s) or 'none'}/fold{k}", s, tuple(x for x in scenarios if x not in fold),
+                          full[s].values) for s in sets for k, fold in enumerate(parts)]
+        say(f"cross-validating: {len(parts)} folds, {len(folded)} fits")
+        results = fit_all(fits, folded, client, scales, report) if folded else {}
+        candidates = [Candidate(s, full[s]) for s in sets]
+        held_out(fits, client, candidates, results, parts, scales)
+    baseline = candidates[0]
+    chosen = explain.select(candidates[1:], baseline)
+    floor = 1.0  # residuals are in units of each recording's noise
+    verdict = explain.verdict(chosen.cross_validated, floor, noise_factor, chosen is not baseline)
+    return SignalDiagnosis(compared, baseline, chosen, candidates, verdict, library)
+
+
+def held_out(space: Space, client, candidates: list[Candidate], results: Mapping[str, FitResult],
+             parts: list[list[str]], scales: Mapping[str, float]) -> None:
+    """Each candidate's error on every scenario its fold's fit did not see (all in one sweep), as the RMS of
+    the noise-scaled residuals; with one scenario, its fitted error (no cross-validation possible)."""
+    if not parts:
+        for c in candidates:
+            c.held_out = {"fitted": math.sqrt(c.full.sse / max(c.full.residual_count, 1))}
+        return
+    requests = [(results[f"{c.label}/fold{k}"].point, fold) for c in candidates for k, fold in enumerate(parts)]
+    points, only = wanted(requests)
+    rows, _ = evaluate_points(space, points, client, list(scales), only)
+    for c in candidates:
+        for k, fold in enumerate(parts):
+            fit = results[f"{c.label}/fold{k}"]
+            c.folds.append(fit)
+            for scenario in fold:
+                row = rows.get((key_of(fit.point), scenario))
+                ok = row is not None and row["status"] == "ok"
+                r = np.concatenate([np.asarray(row[col], float) * s for col, s in scales.items()]) if ok else None
+                c.held_out[scenario] = float(np.sqrt(np.mean(r ** 2))) if r is not None and r.size else math.inf
