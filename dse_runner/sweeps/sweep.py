@@ -411,10 +411,13 @@ class Run:
                 launched[job.key] = job
                 in_flight.add(client.submit(run_chunk, job, key=job.key, pure=False))
 
-        watch = WorkerWatch(client, worker_grace(self.space.spec.cluster), lambda: list(in_flight.futures))
+        # A chunk as_completed has handed over is no longer in flight, but its result may still be on its
+        # worker: if every worker dies before it arrives, the watch must cancel that one too
+        fetching: list = []
+        watch = WorkerWatch(client, worker_grace(self.space.spec.cluster), lambda: [*in_flight.futures, *fetching])
         try:
             with watch:
-                self._wait(client, in_flight, launched, again, fill, watch)
+                self._wait(client, in_flight, launched, again, fill, watch, fetching)
         except KeyboardInterrupt:
             report.interrupted = True
             if report.search is not None:
@@ -424,7 +427,7 @@ class Run:
             wait_until_ended(client, [future.key for future in running])  # those started write their rows
 
     def _wait(self, client, in_flight, launched: dict[str, ChunkJob], again: deque[ChunkJob],
-              fill: Callable[[], None], watch: WorkerWatch) -> None:
+              fill: Callable[[], None], watch: WorkerWatch, fetching: list) -> None:
         """Count each chunk as it finishes and send the next; split crashed chunks."""
         from distributed.comm.core import CommClosedError
         from distributed.scheduler import KilledWorker
@@ -434,6 +437,7 @@ class Run:
         self._tell(client)
         for future in in_flight:
             job = launched.pop(future.key)
+            fetching[:] = [future]
             try:
                 self._count(job, future.result())
             except KilledWorker as e:

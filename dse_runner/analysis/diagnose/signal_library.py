@@ -218,11 +218,14 @@ def diagnose_space(path: str | Path, out: str | Path | None = None, folds: int =
         base = calibration(space)
         fits = fits_space(space, compared, library)
         scales = {c.residuals: 1.0 / c.noise for c in compared}
-        neutral = {name: signal_effects.NEUTRAL[h.effect.kind] for name, h in library.items()}
+        calibrated = {p.name for p in base}
+        held = {name: values[0] for name, values in space.parameters.items() if name not in calibrated}
+        # what a fit does not free: the space's single-valued parameters, and every other effect at neutral
+        unfreed = {**held, **{name: signal_effects.NEUTRAL[h.effect.kind] for name, h in library.items()}}
 
         def problem(label: str, names: tuple[str, ...], on: tuple[str, ...], start: Mapping[str, float] = {}
                     ) -> FitProblem:
-            fixed = {k: v for k, v in neutral.items() if k not in names}
+            fixed = {k: v for k, v in unfreed.items() if k not in names}
             freed = tuple(replace(p, start=start.get(p.name, p.start)) for p in
                           (*base, *(library[n].parameter for n in names)))
             return FitProblem(label, freed, fixed, on, MAX_ITERATIONS)
