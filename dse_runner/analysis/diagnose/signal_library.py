@@ -41,8 +41,9 @@ from .noise import MAD_TO_SIGMA
 FITS = "diagnosis-signal-fits"  # the sweep every fit's rounds go to
 SPAN_SHARE = 0.1  # a delay or lag is sought up to this share of the shortest scenario
 GAIN_RANGE = (0.5, 2.0)
-STARTS = 4  # each effect's fit on every scenario starts from this many values across its range: a delay or a
-# lag of an oscillating model has local minima one period apart, which a fit from neutral alone can miss
+STARTS = 4  # a delay's or a lag's fit on every scenario starts from this many values across its range: in an
+# oscillating model their misfit has local minima a period apart, which a fit from neutral alone can miss
+MULTIMODAL = ("delay", "lag")  # a gain or an offset scales or shifts a signal: one start, from neutral
 MAX_ITERATIONS = 30
 
 
@@ -164,8 +165,11 @@ def hypotheses(space: Space, compared: Sequence[Compared]) -> dict[str, Hypothes
     return found
 
 
-def starts_of(parameter: Parameter, count: int = STARTS) -> list[float]:
-    """Where an effect's fits start: its neutral value, then evenly across its range."""
+def starts_of(hypothesis: Hypothesis, count: int = STARTS) -> list[float]:
+    """Where an effect's fits start: its neutral value, then (a delay or a lag) evenly across its range."""
+    parameter = hypothesis.parameter
+    if hypothesis.effect.kind not in MULTIMODAL:
+        return [parameter.start]
     others = np.linspace(parameter.lower, parameter.upper, count + 1)[1:]
     return [parameter.start, *(float(v) for v in others if v != parameter.start)][:count]
 
@@ -234,7 +238,7 @@ def diagnose_space(path: str | Path, out: str | Path | None = None, folds: int =
             say(f"fits: round {round_}, {active} active, {points} points, {simulations} simulations")
 
         sets = [(), *((name,) for name in library)]
-        starts = {s: starts_of(library[s[0]].parameter) if s else [None] for s in sets}
+        starts = {s: starts_of(library[s[0]]) if s else [None] for s in sets}
         tries = [problem(f"{'+'.join(s) or 'none'}#{i}", s, scenarios, {s[0]: v} if s else {})
                  for s in sets for i, v in enumerate(starts[s])]
         say(f"fitting {len(sets) - 1} signal effects and none on every scenario: {len(tries)} fits")
