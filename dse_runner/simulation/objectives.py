@@ -43,9 +43,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, model_validator
+from pydantic import BaseModel, ConfigDict, TypeAdapter, ValidationError, model_validator
 
-from ..errors import DseError
+from ..errors import DseError, format_validation_error
 from .scripts import Script, run_scripts
 
 if TYPE_CHECKING:
@@ -94,11 +94,22 @@ class Fit(BaseModel):
 ObjectiveSpec = Reduce | Fit | Script | str
 
 
-def normalise(objectives: list[str] | Mapping[str, ObjectiveSpec]) -> dict[str, ObjectiveSpec]:
-    """name -> spec; a plain list names registered objectives or import paths by themselves."""
+def normalise(objectives: list[str] | Mapping[str, ObjectiveSpec | Mapping[str, Any]]) -> dict[str, ObjectiveSpec]:
+    """name -> spec; a plain list names registered objectives or import paths by themselves. A spec given
+    as a plain mapping (``simulate(objectives={"peak": {"signal": ..., "reduce": "max"}})``, as space.yaml
+    writes it) is read as space.yaml's would be."""
     if isinstance(objectives, Mapping):
-        return dict(objectives)
+        return {name: _parsed(name, spec) for name, spec in objectives.items()}
     return {name: name for name in objectives}
+
+
+def _parsed(name: str, spec: ObjectiveSpec | Mapping[str, Any]) -> ObjectiveSpec:
+    if not isinstance(spec, Mapping):
+        return spec
+    try:
+        return TypeAdapter(ObjectiveSpec).validate_python(dict(spec))
+    except ValidationError as e:
+        raise DseError(format_validation_error(f"objectives.{name}", e)) from None
 
 
 # ---- reductions ----------------------------------------------------------------------------------

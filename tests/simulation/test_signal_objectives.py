@@ -139,3 +139,19 @@ def test_a_space_names_a_recorded_column_its_recording_lacks(tmp_path):
                      objectives={"fit": {"signal": "msd.x", "recorded": "x"}})
     with pytest.raises(DseError, match="compares with recorded 'x', but scenario nominal has no recording"):
         nothing()
+
+
+def test_simulate_reads_objectives_written_as_space_yaml_writes_them():
+    """simulate(objectives=...) takes plain mappings, as a user copies them from space.yaml, and names a bad one."""
+    from conftest import REPO
+
+    from dse_runner.simulation.run import simulate
+
+    tank = REPO / "jobs" / "watertank" / "fmus" / "tank"
+    given = simulate(tank, stop_time=5, values={"valvecontrol": 1.0},
+                     objectives={"peak": {"signal": "tank.level", "reduce": "max"}})
+    typed = simulate(tank, stop_time=5, values={"valvecontrol": 1.0},
+                     objectives={"peak": objs.Reduce(signal="tank.level", reduce="max")})
+    assert given.objectives == typed.objectives
+    with pytest.raises(DseError, match=r"^objectives\.peak: .*reduce: Input should be 'final'"):
+        simulate(tank, stop_time=5, objectives={"peak": {"signal": "tank.level", "reduce": "maxx"}})
