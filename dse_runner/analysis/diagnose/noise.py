@@ -114,11 +114,17 @@ def second_differences(time: np.ndarray, x: np.ndarray, y: np.ndarray, max_spaci
     return np.concatenate(d2)
 
 
-def sigma_from_second_differences(d2: np.ndarray) -> float:
-    """σ per axis from second differences: robust MAD, divided by √6 (var d2 = 6σ² for white noise)."""
-    if d2.size == 0:
+def sigma_from_differences(d: np.ndarray, order: int) -> float:
+    """σ of white noise from its ``order``-th differences: robust MAD, divided by √C(2·order, order) (var of
+    the k-th difference of white noise is C(2k, k) σ²)."""
+    if d.size == 0:
         return math.nan
-    return float(MAD_TO_SIGMA * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6))
+    return float(MAD_TO_SIGMA * np.median(np.abs(d - np.median(d))) / math.sqrt(math.comb(2 * order, order)))
+
+
+def sigma_from_second_differences(d2: np.ndarray) -> float:
+    """σ per axis from second differences (var d2 = 6σ² for white noise)."""
+    return sigma_from_differences(d2, 2)
 
 
 def rest_windows(command_time: np.ndarray, command_speed: np.ndarray, end: float,

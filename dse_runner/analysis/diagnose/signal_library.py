@@ -36,7 +36,7 @@ from ...sweeps.spec import Space, load_space, resolve_space
 from ...sweeps.sweep import submit
 from . import explain
 from .explain import Candidate
-from .noise import MAD_TO_SIGMA
+from .noise import sigma_from_differences
 
 FITS = "diagnosis-signal-fits"  # the sweep every fit's rounds go to
 SPAN_SHARE = 0.1  # a delay or lag is sought up to this share of the shortest scenario
@@ -111,11 +111,7 @@ def recording_noise(time: np.ndarray, values: np.ndarray, orders: Sequence[int] 
     the higher the order while it is smooth at the sampling step, so the smallest estimate over the orders
     is the one least swollen by the signal (and still at least the noise, on average)."""
     v = np.asarray(values, dtype=float)[np.isfinite(values)]
-    estimates = []
-    for k in orders:
-        if v.size > k + 2:
-            d = np.diff(v, n=k)
-            estimates.append(MAD_TO_SIGMA * float(np.median(np.abs(d - np.median(d)))) / math.sqrt(math.comb(2 * k, k)))
+    estimates = [sigma_from_differences(np.diff(v, n=k), k) for k in orders if v.size > k + 2]
     return min(estimates) if estimates else math.nan
 
 
@@ -174,11 +170,9 @@ def starts_of(hypothesis: Hypothesis, count: int = STARTS) -> list[float]:
     return [parameter.start, *(float(v) for v in others if v != parameter.start)][:count]
 
 
-def calibration(space: Space) -> tuple[Parameter, ...]:
-    """The space's numeric parameters with a range, from the best point of its own sweep when it is a grid
-    (else from the middle of each interval)."""
-    grid = all(d.grid() is not None for d in space.dimensions)
-    best = rank(space.output, space.name).best if grid and space.dimensions else {}
+def calibration(space: Space, best: Mapping[str, Any]) -> tuple[Parameter, ...]:
+    """The space's numeric parameters with a range, from ``best`` (its own sweep's best point, when it is a
+    grid) or else from the middle of each interval."""
     params = []
     for name, values in space.parameters.items():  # a grid's values, or an interval's ends
         numbers = [float(v) for v in values if isinstance(v, (int, float)) and not isinstance(v, bool)]
@@ -216,10 +210,12 @@ def diagnose_space(path: str | Path, out: str | Path | None = None, folds: int =
     scenarios = tuple(s.name for s in space.scenarios)
     parts = explain.folds(space.scenarios, folds) if len(scenarios) > 1 else []
     with connect(space.spec.cluster, say) as client:
-        if all(d.grid() is not None for d in space.dimensions) and space.dimensions:
+        best: dict[str, Any] = {}
+        if space.dimensions and all(d.grid() is not None for d in space.dimensions):
             say(f"calibrating: the space's grid, {space.name}")
             submit(space, client=client)
-        base = calibration(space)
+            best = rank(space.output, space.name).best
+        base = calibration(space, best)
         fits = fits_space(space, compared, library)
         scales = {c.residuals: 1.0 / c.noise for c in compared}
         calibrated = {p.name for p in base}
