@@ -34,7 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import blind  # noqa: E402
 
-from dse_runner.analysis.diagnose.hypotheses import LIBRARY  # noqa: E402
+from dse_runner.cases.robotti_diagnosis.hypotheses import LIBRARY  # noqa: E402
 from dse_runner.sweeps.cluster import connect  # noqa: E402
 from dse_runner.sweeps.spec import Cluster  # noqa: E402
 

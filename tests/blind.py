@@ -290,7 +290,7 @@ def run_case(effect: str, root: Path, client=None, address: str | None = None, s
     """Record case ``effect`` on ``runs`` (default: the case's own) under ``root`` and diagnose it with
     ``settings`` (default: two folds); returns (runs folder, calibration space, Diagnosis). ``seed`` shifts
     every case's noise, to check that a pass is not luck."""
-    from dse_runner.analysis.diagnose import Settings, diagnose
+    from dse_runner.cases.robotti_diagnosis import Settings, diagnose
 
     case = CASES[effect]
     runs = record(root / "runs", effect, case.runs if runs is None else runs, seconds, seed=case.seed + seed)

@@ -161,6 +161,7 @@ def simulate(
     from ..simulation.run import simulate as run_simulation
     from ..simulation.run import summary, write_csv
     from ..simulation.values import read_values
+    from ..simulation.scenario import dropouts_line
     from .plots import result_plot
 
     files: dict[str, Path] = {}
@@ -201,7 +202,7 @@ def simulate(
         if len(final["final"]) > MAX_PRINTED:
             typer.echo(f"  ... and {len(final['final']) - MAX_PRINTED} more (--json or --csv has them all)")
     if result.scenario.dropouts:
-        typer.echo(f"  {_dropouts_line({result.scenario.name: result.scenario.dropouts})}")
+        typer.echo(f"  {dropouts_line({result.scenario.name: result.scenario.dropouts})}")
     for label, path in files.items():
         typer.echo(f"{label + ':':<12}{path}")
 
@@ -250,7 +251,7 @@ def submit(
     board = space = None
     try:
         from ..sweeps.rank import rank, write_ranking
-        from ..simulation.scenario import dropouts
+        from ..simulation.scenario import dropouts, dropouts_line
         from ..sweeps.sweep import submit as run_sweep
 
         space = _load(spec, multimodel, coe).with_overrides(out, scheduler, workers, cluster, max_points,
@@ -284,7 +285,7 @@ def submit(
         if report.search is not None:
             _print_search(report.search)
         if summary["dropouts"]:
-            typer.echo(f"  {_dropouts_line(summary['dropouts'])}")
+            typer.echo(f"  {dropouts_line(summary['dropouts'])}")
     try:
         ranking = rank(report.output, report.sweep)
         files = write_ranking(ranking, report.output, report.sweep)
@@ -371,10 +372,6 @@ def _print_search(search) -> None:
         typer.echo(f"  worker utilisation {100 * search.utilisation:.0f}% of {search.threads} threads")
     for note in search.notes:
         typer.echo(f"  note: {note}")
-
-
-def _dropouts_line(counts: dict[str, int]) -> str:
-    return "recorded values skipped as dropouts (empty or NaN): " + ", ".join(f"{name} {n}" for name, n in counts.items())
 
 
 class _Board:
@@ -550,19 +547,20 @@ def rank_command(
 @app.command()
 def diagnose(
     scenarios: Annotated[Path | None, typer.Option(
-        "--scenarios", help="Folder of recorded runs in the field-data format (the Robotti's diagnosis).")] = None,
+        "--scenarios", help="Folder of recorded runs, in place of the space's scenarios. Without --space, a "
+                            "library's own calibration space reads them (the Robotti's, for field data).")] = None,
     multimodel: Annotated[Path | None, typer.Option(help="Multi-model to diagnose (default: the space's).")] = None,
     space: Annotated[Path | None, typer.Option(
-        help="Without --scenarios: any space whose objectives compare signals with recordings; its parameters "
-             "are the calibration, and every signal effect is tried. With --scenarios: the calibration space "
-             "(default: bundled:robotti/calibration.yaml).")] = None,
+        help="The space to diagnose: its scenarios give inputs and recordings, its objectives what is compared, "
+             "its parameters the calibration. The first installed hypothesis library that serves it runs "
+             "(the Robotti's for field data), else the built-in signal effects.")] = None,
     out: Annotated[Path, typer.Option(help="Folder for results, the new model and the report.")] = Path("out/diagnosis"),
     folds: Annotated[int, typer.Option(help="Cross-validation folds across runs.")] = 3,
     hypothesis: Annotated[list[str] | None, typer.Option(
-        "--hypothesis", help="Try only this hypothesis of the library (repeatable). Default: every one.")] = None,
+        "--hypothesis", help="Try only this hypothesis of a case's library (repeatable). Default: every one.")] = None,
     noise_factor: Annotated[float, typer.Option(
-        help="Held-out error above this many noise floors (estimated from the GPS fixes) is a residual the "
-             "library leaves unexplained: verdict partial or unexplained.")] = 2.0,
+        help="Held-out error above this many noise floors (estimated from the recordings alone) is a residual "
+             "the library leaves unexplained: verdict partial or unexplained.")] = 2.0,
     discovery: Annotated[bool, typer.Option(
         "--discovery/--no-discovery", help="Above that, seek a sparse data-driven correction (PySINDy) and prove "
                                            "it by the same fits and held-out runs as the library's effects.")] = True,
@@ -571,23 +569,14 @@ def diagnose(
     as_json: JsonFlag = False,
 ) -> None:
     """Calibrate, locate the mismatch, name the missing physics, model it and show the fit improve."""
-    if scenarios is None:
-        if space is None:
-            fail(DseError("diagnose: give --space SPACE.yaml (any model with recordings), or --scenarios DIR "
-                          "(field data)"))
-        return _diagnose_space(space, out, folds, noise_factor, workers, scheduler, as_json)
-    from ..analysis.diagnose import Settings
+    from ..analysis.diagnose import Request
     from ..analysis.diagnose import diagnose as run_diagnosis
-    from ..analysis.diagnose.findings import DiscoveredCorrection
 
-    def say(message: str) -> None:
-        typer.echo(message, err=True)
-
+    request = Request(out=out, folds=folds, noise_factor=noise_factor, hypotheses=tuple(hypothesis or ()),
+                      discovery=discovery)
     try:
-        settings = Settings(folds=folds, hypotheses=tuple(hypothesis or ()), noise_factor=noise_factor,
-                            discovery=discovery)
-        result = run_diagnosis(scenarios, multimodel, space, out, settings, progress=say, n_workers=workers,
-                               address=scheduler)
+        result = run_diagnosis(space, scenarios, request, lambda m: typer.echo(m, err=True), multimodel, workers,
+                               scheduler)
     except DseError as e:
         fail(e)
     except KeyboardInterrupt:
@@ -596,51 +585,8 @@ def diagnose(
     if as_json:
         emit_json(result.to_json())
         return
-    for finding in result.findings:
-        if isinstance(finding, DiscoveredCorrection):  # its terms as an engineer writes them
-            typer.echo(f"{finding.id}: {finding.described()}"
-                       + (f" ({finding.resembles['text']})" if finding.resembles else ""))
-            continue
-        values = finding.described()
-        typer.echo(f"{finding.id}: {finding.name}" + (f": {values}" if values else ""))
-    typer.echo(f"held-out mean cross-track error: {result.cross_track_before:.3f} m before, "
-               f"{result.cross_track_after:.3f} m after")
-    if result.floor_ratio is not None:
-        typer.echo(f"verdict: {result.verdict} ({result.floor_ratio:.1f}× the noise floor of "
-                   f"{result.floor.cross_track:.3f} m, {result.floor.method})")
-    else:
-        typer.echo(f"verdict: {result.verdict} (no noise floor could be estimated)")
-    if result.dropouts:
-        typer.echo(_dropouts_line(result.dropouts))
-    for name in ("multimodel", "space", "report"):
-        if name in result.files:
-            typer.echo(f"{name}: {result.files[name]}")
-
-
-def _diagnose_space(space: Path, out: Path, folds: int, noise_factor: float, workers: int | None,
-                    scheduler: str | None, as_json: bool) -> None:
-    """diagnose --space: the library of signal effects on any model with recordings."""
-    from ..analysis.diagnose.signal_library import diagnose_space
-
-    try:
-        result = diagnose_space(space, out, folds, noise_factor, lambda m: typer.echo(m, err=True), workers,
-                                scheduler)
-    except DseError as e:
-        fail(e)
-    except KeyboardInterrupt:
-        typer.echo(f"interrupted: finished simulations are kept in {out}; run again to resume", err=True)
-        raise typer.Exit(130)
-    found = result.to_json()
-    if as_json:
-        emit_json(found)
-        return
-    for effect in found["effects"]:
-        (kind, value), = effect["parameters"].items()
-        low, high = effect["intervals"][kind]
-        typer.echo(f"{effect['id']}({effect['target']}): {kind} {value:.4g} (95 % {low:.4g} to {high:.4g})")
-    typer.echo(f"held-out error: {found['held_out_before']:.2f} before, {found['held_out_after']:.2f} after, in noise "
-               "floors (each compared signal's residuals over its recording's noise)")
-    typer.echo(f"verdict: {found['verdict']}" + (f"; runner-up {found['runner_up']}" if found["runner_up"] else ""))
+    for line in result.summary():
+        typer.echo(line)
 
 
 @app.command()

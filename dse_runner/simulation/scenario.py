@@ -231,6 +231,11 @@ def dropouts(scenarios: list[Scenario]) -> dict[str, int]:
     return {s.name: s.dropouts for s in scenarios if s.dropouts}
 
 
+def dropouts_line(counts: dict[str, int]) -> str:
+    """The dropouts per scenario as one line, as every command prints them."""
+    return "recorded values skipped as dropouts (empty or NaN): " + ", ".join(f"{name} {n}" for name, n in counts.items())
+
+
 # ---- the general file format (kind "signals") --------------------------------------------------
 
 class SeriesSpec(BaseModel):

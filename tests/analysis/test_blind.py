@@ -10,7 +10,7 @@ import blind
 import numpy as np
 import pytest
 
-from dse_runner.analysis.diagnose.hypotheses import LIBRARY
+from dse_runner.cases.robotti_diagnosis.hypotheses import LIBRARY
 from dse_runner.simulation.run import simulate
 from dse_runner.simulation.scenario import load_scenario
 

@@ -12,7 +12,7 @@ import blind
 import pytest
 from conftest import dse_runner, strict_loads
 
-from dse_runner.analysis.diagnose.hypotheses import LIBRARY
+from dse_runner.cases.robotti_diagnosis.hypotheses import LIBRARY
 from dse_runner.sweeps.rank import rank
 from dse_runner.sweeps.spec import load_space
 from dse_runner.sweeps.sweep import submit

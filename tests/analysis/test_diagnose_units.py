@@ -12,9 +12,10 @@ import yaml
 from conftest import strict_loads
 
 from dse_runner import strict_json
-from dse_runner.analysis.diagnose import Diagnosis, Settings, explain, noise, screen
+from dse_runner.analysis.diagnose import explain
+from dse_runner.cases.robotti_diagnosis import Diagnosis, Settings, noise, screen
 from dse_runner.analysis.diagnose.explain import Candidate
-from dse_runner.analysis.diagnose.hypotheses import LIBRARY
+from dse_runner.cases.robotti_diagnosis.hypotheses import LIBRARY
 from dse_runner.cases.fielddata import load_run
 from dse_runner.errors import DseError
 from dse_runner.sweeps.fit import FitProblem, FitResult, LevenbergMarquardt, Parameter
@@ -243,7 +244,7 @@ def test_json_verdict_partial_and_runner_up():
 
 
 def test_report_words(tmp_path):
-    from dse_runner.analysis.diagnose import report
+    from dse_runner.cases.robotti_diagnosis import report
 
     text = report.verdict_text(diagnosis(("wheel_slip",), floor=0.025))
     assert "partial" in text and "does not explain the residual" in text and "4.8×" in text
@@ -408,7 +409,7 @@ def test_fitted_error_is_equation_1_on_the_fitted_runs():
 
 
 def test_the_stop_rule_screens_only_when_a_fit_leaves_more_than_noise():
-    from dse_runner.analysis.diagnose import worth_screening
+    from dse_runner.cases.robotti_diagnosis import worth_screening
 
     def fitted_to(error: float) -> Candidate:  # every fix off by ``error`` along x
         fit = FitResult("x", [], {}, 0.0, 4, 1, True, {}, [], {}, residuals=[np.array([error, error, 0.0, 0.0])])
@@ -424,7 +425,7 @@ def test_the_stop_rule_screens_only_when_a_fit_leaves_more_than_noise():
 
 # ---- look-alikes: segments, kinematics, the LLR between twins, response fits -------------------------
 
-from dse_runner.analysis.diagnose import kinematics, lookalike, segments
+from dse_runner.cases.robotti_diagnosis import kinematics, lookalike, segments
 
 
 def command_log() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -539,7 +540,7 @@ def test_twins_are_found_by_a_swap_of_look_alikes():
 
 
 def test_lookalikes_in_json_and_words():
-    from dse_runner.analysis.diagnose import report
+    from dse_runner.cases.robotti_diagnosis import report
 
     d = diagnosis(("wheel_slip",), floor=0.1)
     d.lookalikes = [look(lookalike.CANNOT_TELL, 1.2, {"steer_ramp": 1.0, "cruise": 0.2})]
@@ -561,7 +562,7 @@ def acc_regression(seed: int, runs: int = 6, rows: int = 200, coefficient: float
     """The acc channel's regression over synthetic runs, each at its own speeds (0.4 to 2.4 m/s, so that 1, v
     and v² differ): the target is
     ``coefficient``·v (a drag the model lacks) plus white noise, or noise alone when ``coefficient`` is None."""
-    from dse_runner.analysis.diagnose import correction, discover
+    from dse_runner.cases.robotti_diagnosis import correction, discover
 
     rng = np.random.default_rng(seed)
     terms = tuple(t for t in correction.searched_terms() if t.channel == "acc")
@@ -587,7 +588,7 @@ def test_stlsq_recovers_a_known_speed_term():
     correction is that term (shrunk: equation-error coefficients are starting values, the fits size them). The
     ridge shares it with v's look-alikes (1, v² and sgn v, which is 1 above v_min); ranking on positions orders
     them and the fits prune the ones that only stand in."""
-    from dse_runner.analysis.diagnose import correction, discover
+    from dse_runner.cases.robotti_diagnosis import correction, discover
 
     regs = acc_regression(seed=1)
     proposal = discover.propose(regs)
@@ -606,7 +607,7 @@ def test_stlsq_recovers_a_known_speed_term():
 
 @pytest.mark.parametrize("seed", [2, 3, 4])
 def test_noise_alone_proposes_no_term(seed):
-    from dse_runner.analysis.diagnose import discover
+    from dse_runner.cases.robotti_diagnosis import discover
 
     proposal = discover.propose(acc_regression(seed=seed, coefficient=None))
     assert proposal.empty, proposal.terms
@@ -615,7 +616,7 @@ def test_noise_alone_proposes_no_term(seed):
 def loop_run(name: str, seconds: float, turn: float, speed: float = 1.6) -> tuple:
     """A synthetic run that drives at ``speed`` and turns at ``turn`` rad/s from 2 s, as its command log and
     exact fixes (no receiver noise), with its heading at each fix."""
-    from dse_runner.analysis.diagnose import discover
+    from dse_runner.cases.robotti_diagnosis import discover
 
     log_t = np.round(np.arange(0.0, seconds + 1e-9, 0.05), 2)
     t = np.round(np.arange(0.0, seconds + 1e-9, 0.1), 2)
@@ -634,7 +635,7 @@ def test_antenna_channels_are_proposed_from_the_fix_residuals_in_body_axes():
     """A mast that leans by h·sin(ψ − ψ_s) to the left is an output effect, invisible to equation error: the
     residuals of a model without it, turned into body axes, propose gps_cross += −h·sin ψ_s·cos ψ + h·cos ψ_s·sin ψ
     (sin(ψ − ψ_s) expanded) and nothing along the track; white receiver noise alone proposes nothing."""
-    from dse_runner.analysis.diagnose import correction, discover
+    from dse_runner.cases.robotti_diagnosis import correction, discover
 
     values = discover.vehicle_values({}, "vehicle")
     h, heading = 0.2, 0.7
@@ -665,7 +666,7 @@ def straight_run(name: str, seconds: float, speed: float, deceleration: float, o
     """A straight synthetic run at a constant speed command, its speed integrated here (1 ms Euler) with the
     drive of ``values`` and, from ``onset`` on, a force against the motion: d(v)/dt += deceleration·clamp(v/v_min,
     −1, 1); exact fixes at 10 Hz."""
-    from dse_runner.analysis.diagnose import discover
+    from dse_runner.cases.robotti_diagnosis import discover
 
     dt = 0.001
     fine = np.arange(0.0, seconds + dt / 2, dt)
@@ -685,7 +686,7 @@ def test_a_change_mid_run_is_found_at_its_time_and_proposed_as_an_onset_term():
     """A drag that starts 8 s into every run (an implement lowered) is a step in the acc channel's equation
     error: the onset scan finds its time to within the fixes' smoothing window, and the proposal carries an
     onset term and that time; the same runs without the drag propose no onset term."""
-    from dse_runner.analysis.diagnose import correction, discover
+    from dse_runner.cases.robotti_diagnosis import correction, discover
 
     values = discover.vehicle_values({}, "vehicle")
     speeds = (0.8, 1.2, 1.6, 2.0)
@@ -706,7 +707,7 @@ def test_rate_limits_that_bind_most_of_the_time_are_not_scanned():
     below binds nearly all the time and is a gain, not a limit, so the scan leaves it out."""
     from types import SimpleNamespace
 
-    from dse_runner.analysis.diagnose import correction, discover
+    from dse_runner.cases.robotti_diagnosis import correction, discover
 
     t = np.round(np.arange(0.0, 40.0 + 1e-9, 0.05), 2)
     delta = 0.2 * np.sin(2 * np.pi * t / 8.0)
@@ -722,7 +723,7 @@ def test_rate_limits_that_bind_most_of_the_time_are_not_scanned():
 
 
 def test_extended_bic_charges_the_search():
-    from dse_runner.analysis.diagnose import discover
+    from dse_runner.cases.robotti_diagnosis import discover
 
     assert discover.extended_margin(10.0, 0) == pytest.approx(10.0)
     p = discover.searched_count()
@@ -739,7 +740,7 @@ def with_terms(ids, held_out, sse, values, se=0.001):
 def test_a_discovered_term_must_pay_like_an_effect():
     """Accepted only when it cuts held-out error by min_gain and BIC by the extended margin against the
     library's answer and every fitted part, with every term two standard errors from zero."""
-    from dse_runner.analysis.diagnose import discover
+    from dse_runner.cases.robotti_diagnosis import discover
 
     none = candidate((), [1.0, 1.0], 400.0)
     lag = candidate(("steering_lag",), [0.3, 0.3], 100.0, {"vehicle.steering_lag": 0.4})
@@ -755,7 +756,7 @@ def test_a_discovered_term_must_pay_like_an_effect():
 
 
 def test_resemblance_in_words_and_cosine():
-    from dse_runner.analysis.diagnose import discover
+    from dse_runner.cases.robotti_diagnosis import discover
 
     change = np.array([1.0, 2.0, 0.0, -1.0])
     assert discover.similarity(change, change[:, None] * 0.1, np.array([0.0]), np.array([10.0])) == pytest.approx(1.0)
@@ -768,7 +769,7 @@ def test_resemblance_in_words_and_cosine():
 
 
 def test_discovered_terms_in_json_and_verdict(tmp_path):
-    from dse_runner.analysis.diagnose import discover
+    from dse_runner.cases.robotti_diagnosis import discover
 
     none = candidate((), [1.0, 1.0], 400.0)
     term = {"vehicle.corr_acc_v": -0.31}
@@ -789,7 +790,7 @@ def test_discovered_terms_in_json_and_verdict(tmp_path):
 def test_a_correction_that_leaves_a_residual_is_partial(tmp_path):
     """Accepted, yet still well above the noise (a payload lowered mid-run, which no time-invariant term
     expresses): verdict partial, the correction itself flagged partial, and the report says how much remains."""
-    from dse_runner.analysis.diagnose import discover, report
+    from dse_runner.cases.robotti_diagnosis import discover, report
 
     none = candidate((), [1.0, 1.0], 400.0)
     found = with_terms(("discovered",), [0.3, 0.3], 90.0, {"vehicle.corr_acc_s": -0.05})
@@ -807,7 +808,7 @@ def test_a_correction_that_leaves_a_residual_is_partial(tmp_path):
 def test_pruned_slots_go_to_the_next_proposed_terms():
     """A term equation error ranked high but the fits put within two standard errors of zero frees its slot for
     the next term the proposal ranked, never one already tried; the kept terms restart at zero."""
-    from dse_runner.analysis.diagnose import discover
+    from dse_runner.cases.robotti_diagnosis import discover
 
     ranked = (("corr_steer_ddeltav", 0.3), ("corr_steer_ddelta", 0.2), ("corr_gps_cross_sinpsi", 0.1),
               ("corr_gps_cross_cospsi", -0.1), ("corr_acc_s", 0.01))
@@ -822,7 +823,7 @@ def test_terms_are_ranked_by_what_they_do_to_positions():
     """Forward selection on the fix residuals, linearised: an antenna's heading terms win over a pair of steering
     terms that only stand in for one of them (each alone barely moves the residuals), a term that explains nothing
     is left out however many slots remain, and on noise alone no term pays the BIC margin."""
-    from dse_runner.analysis.diagnose import discover
+    from dse_runner.cases.robotti_diagnosis import discover
 
     rng = np.random.default_rng(3)
     psi = np.linspace(0.0, 4 * np.pi, 2000)

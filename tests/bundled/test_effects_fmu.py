@@ -106,7 +106,7 @@ def test_every_correction_term_is_a_parameter_of_the_fmu_in_order():
     import re
     import xml.etree.ElementTree as ET
 
-    from dse_runner.analysis.diagnose import correction
+    from dse_runner.cases.robotti_diagnosis import correction
 
     root = ET.parse(EFFECTS_SOURCE / "modelDescription.xml").getroot()
     described = [(v.get("name"), int(v.get("valueReference")), v.get("causality"), v.find("Real").get("start"))
@@ -184,7 +184,7 @@ def test_a_resistance_against_the_motion_lowers_the_cruise_by_its_force_over_the
 def test_the_rate_limiter_ramps_at_its_limit_then_closes_exponentially():
     """correction.rate_limited, y' = clamp((u − y)/τ, ±L) in closed form, against a fine Euler integration of
     the same equation for a command that steps up, holds, and steps down."""
-    from dse_runner.analysis.diagnose import correction
+    from dse_runner.cases.robotti_diagnosis import correction
 
     t = np.round(np.arange(0.0, 12.0 + 1e-9, 0.05), 2)
     u = np.where(t < 1.0, 0.0, np.where(t < 6.0, 0.1, -0.05))
@@ -203,7 +203,7 @@ def test_a_rate_limited_steering_term_turns_as_the_limited_angle_would(effects):
     heading follows ∫ G(v)·lim(δ, L) dt (G the steady yaw gain; the yaw mode settles in hundredths of a
     second), half the unlimited turn after 5 s (the ramp reaches the step at 5 s); with L far above the step's needs it is the unlimited
     turn but for the limiter's 0.01 s of tracking."""
-    from dse_runner.analysis.diagnose import correction
+    from dse_runner.cases.robotti_diagnosis import correction
 
     inputs = {"velocity": 2.0, "delta_f": 0.1}
     limited = drive(effects, 5.0, corr_steer_ratelim=1.0, corr_rate_limit=0.02, **inputs)
@@ -233,7 +233,7 @@ def test_an_acceleration_term_in_the_speed_is_an_exponential_approach(effects):
 def test_the_filtered_command_rate_matches_correction_py(effects):
     """With no drive (Kv = 0), d(vx)/dt = 1·a_cmd integrates to the filtered command w(t) = u(1 − e^(−t/τ_f)),
     which correction.filtered_rate computes in closed form from the command log."""
-    from dse_runner.analysis.diagnose import correction
+    from dse_runner.cases.robotti_diagnosis import correction
 
     traj = drive(effects, 2.0, velocity=0.8, Kv=0.0, corr_acc_acmd=1.0)
     w, rate = correction.filtered_rate(np.array([0.0]), np.array([0.8]), traj.time)
@@ -243,7 +243,7 @@ def test_the_filtered_command_rate_matches_correction_py(effects):
 
 def test_antenna_terms_use_the_heading_and_speed_as_correction_py_does(effects):
     """gps_along += c1·cos 2ψ + c2·v and gps_cross += c3·sin ψ, checked from the FMU's own heading and speed."""
-    from dse_runner.analysis.diagnose import correction
+    from dse_runner.cases.robotti_diagnosis import correction
 
     values = {"corr_gps_along_cos2psi": 0.2, "corr_gps_along_v": 0.1, "corr_gps_cross_sinpsi": -0.3}
     traj = drive(effects, 10.0, velocity=2.0, delta_f=-0.2, **values)
@@ -265,7 +265,7 @@ def test_a_non_finite_correction_is_refused_by_name(effects):
 
 
 def test_correction_terms_read_as_equations():
-    from dse_runner.analysis.diagnose import correction
+    from dse_runner.cases.robotti_diagnosis import correction
 
     assert correction.readable({"vehicle.corr_acc_v": -0.31}) == ["d(v)/dt += -0.31·v"]
     assert correction.readable({"corr_steer_ddelta": -0.4, "corr_steer_1": 0.012, "corr_acc_v": 0.0,
@@ -284,7 +284,7 @@ def test_correction_terms_read_as_equations():
 
 
 def test_correction_bounds_scale_with_the_feature():
-    from dse_runner.analysis.diagnose import correction
+    from dse_runner.cases.robotti_diagnosis import correction
 
     acc_v = correction.term("corr_acc_v")
     assert correction.bound(acc_v, rms=2.0) == pytest.approx(1.0)  # 2 m/s² over an RMS speed of 2 m/s
@@ -297,7 +297,7 @@ def test_correction_bounds_scale_with_the_feature():
 
 def test_filtered_rate_of_a_piecewise_constant_command():
     """correction.filtered_rate against a fine integration of dw/dt = (u − w)/τ_f, with a delayed look-up."""
-    from dse_runner.analysis.diagnose import correction
+    from dse_runner.cases.robotti_diagnosis import correction
 
     t_cmd, u = np.array([0.0, 0.05, 0.3, 1.0]), np.array([0.1, 0.4, -0.2, 0.0])
     t = np.linspace(-0.2, 2.0, 221)

@@ -1,5 +1,5 @@
-"""The map holds: the core knows no case. Field data, GPS and cross-track live in their own module,
-which only its own case's analysis (diagnose) imports; everything else reaches it as a plug-in."""
+"""The map holds: the core knows no case. Field data, GPS, cross-track and the Robotti's diagnosis live in
+cases/; the core reaches them only as plug-ins (entry points), and the layers import only downwards."""
 
 from __future__ import annotations
 
@@ -12,51 +12,42 @@ from pathlib import Path
 import dse_runner
 
 PACKAGE = Path(dse_runner.__file__).parent
-CASE_MODULES = {"fielddata", "paths", "runinfo"}  # the Robotti field-data kind and GPS objectives; the path kind; their shared header
-MAY_IMPORT_CASES = {"diagnose"}  # the Robotti diagnosis: a case's own analysis
+CASES = PACKAGE / "cases"  # the Robotti's field-data kind, GPS objectives and diagnosis; the path kind
+
+
+def core_modules():
+    """Every module outside cases/: the layers and the package's own top-level modules."""
+    return [p for p in PACKAGE.rglob("*.py") if CASES not in p.parents]
 
 
 def imported_modules(path: Path) -> set[str]:
-    """The last dotted part of every module a file imports (relative or absolute, at any depth)."""
+    """Every module a file imports, as an absolute dotted name (relative imports resolved from the file's
+    package; ``from a import b`` counts as ``a`` and ``a.b``, b being a module or a name in a)."""
+    package = ".".join(("dse_runner", *path.relative_to(PACKAGE).parent.parts))
     names = set()
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.ImportFrom):
-            if node.module:
-                names.add(node.module.rsplit(".", 1)[-1])
-            names.update(alias.name for alias in node.names)
+            base = package.rsplit(".", node.level - 1)[0] if node.level > 1 else package
+            module = node.module or "" if node.level == 0 else ".".join(filter(None, (base, node.module)))
+            names.add(module)
+            names.update(f"{module}.{alias.name}" for alias in node.names)
         elif isinstance(node, ast.Import):
-            names.update(alias.name.rsplit(".", 1)[-1] for alias in node.names)
+            names.update(alias.name for alias in node.names)
     return names
 
 
-def test_no_core_module_imports_the_field_data_case():
-    offenders = []
-    for path in PACKAGE.rglob("*.py"):
-        if path.stem in CASE_MODULES or MAY_IMPORT_CASES & set(path.relative_to(PACKAGE).parts):
-            continue
-        if imported_modules(path) & CASE_MODULES:
-            offenders.append(str(path.relative_to(PACKAGE)))
+def test_no_core_module_imports_a_case():
+    offenders = [f"{path.relative_to(PACKAGE)}: {name}" for path in core_modules()
+                 for name in sorted(imported_modules(path)) if name == "dse_runner.cases"
+                 or name.startswith("dse_runner.cases.")]
     assert offenders == []
-
-
-def _outside_diagnose(tree: ast.AST):
-    """Every node, except inside the CLI's ``diagnose`` command (the diagnosis case's own interface)."""
-    stack = [tree]
-    while stack:
-        node = stack.pop()
-        if isinstance(node, ast.FunctionDef) and node.name == "diagnose":
-            continue
-        yield node
-        stack.extend(ast.iter_child_nodes(node))
 
 
 def test_gps_words_stay_in_the_case():
     """No core module names GPS or cross-track in its code (comments and docstrings may explain them)."""
     offenders = []
-    for path in PACKAGE.rglob("*.py"):
-        if path.stem in CASE_MODULES or MAY_IMPORT_CASES & set(path.relative_to(PACKAGE).parts):
-            continue
-        for node in _outside_diagnose(ast.parse(path.read_text())):
+    for path in core_modules():
+        for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, (ast.Name, ast.Attribute, ast.FunctionDef, ast.arg)):
                 word = getattr(node, "id", None) or getattr(node, "attr", None) or getattr(node, "name", None) \
                     or getattr(node, "arg", "")
@@ -92,8 +83,7 @@ def test_each_layer_imports_only_the_layers_before_it():
             for node in ast.walk(ast.parse(path.read_text())):
                 if isinstance(node, ast.ImportFrom) and node.level and node.module:
                     target = node.module.split(".")[0]
-                    case_analysis = target == "cases" and MAY_IMPORT_CASES & set(path.parts)
-                    if target in later and not case_analysis:
+                    if target in later:
                         offenders.append(f"{path.relative_to(PACKAGE)} imports {node.module}")
     assert offenders == []
 

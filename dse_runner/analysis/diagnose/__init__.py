@@ -1,21 +1,16 @@
-"""Discrepancy diagnosis: calibrate, locate the mismatch, explain it, model it, show the fit improve.
+"""Discrepancy diagnosis for any model with recordings: locate where simulation and recordings part,
+name what is missing from a hypothesis library, model it and show the held-out fit improve.
 
-:func:`diagnose` runs the whole chain on a folder of runs in the field-data
-format. Every simulation is a task of a sweep on the Dask cluster, with rows
-in the Parquet store under ``out``: the calibration grid is an ordinary
-sweep, and each fit (fit.py) runs its rounds as sweeps of the *effects*
-multi-model, the user's multi-model with the vehicle replaced by its effects
-variant, in which every hypothesis of the library is a parameter that is
-zero when absent.
-
-The package reads in the order data flows: ``workflow`` (the steps, :func:`diagnose`) over
-``chain`` (fits as sweeps) and ``model_files`` (what it reads and writes), with the results in
-``outcome``; the steps' own modules are noise, locate, segments, explain, screen, lookalike,
-discover/ and report. This module re-exports what users and the command import.
+The core reads in this order: ``library`` (the plug-in contract and :func:`diagnose`, which finds
+the library that serves a space), ``hypotheses`` (what a hypothesis is), ``explain`` (how candidates
+are judged: folds, BIC, the noise floor, the verdict), ``noise`` (noise from a recording alone) and
+``findings`` (what is named). The built-in library is ``signal_library`` (late, sluggish, scaled or
+biased inputs and outputs of any FMU); cases add theirs by entry point, as the Robotti does
+(dse_runner/cases/robotti_diagnosis).
 """
 
-from .chain import Chain, DiagnosisMessages
-from .outcome import Diagnosis, Settings
-from .workflow import DEFAULT_SPACE, diagnose, worth_screening
+from .hypotheses import EffectParameter, Hypothesis
+from .library import HypothesisLibrary, Request, Result, diagnose, libraries, serving, space_with
 
-__all__ = ["Chain", "DEFAULT_SPACE", "Diagnosis", "DiagnosisMessages", "Settings", "diagnose", "worth_screening"]
+__all__ = ["EffectParameter", "Hypothesis", "HypothesisLibrary", "Request", "Result", "diagnose", "libraries",
+           "serving", "space_with"]

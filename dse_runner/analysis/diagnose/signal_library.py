@@ -17,7 +17,7 @@ weigh alike and an error of 1 is the noise itself.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -36,6 +36,9 @@ from ...sweeps.spec import Space, load_space, resolve_space
 from ...sweeps.sweep import submit
 from . import explain
 from .explain import Candidate
+from .hypotheses import EffectParameter
+from .hypotheses import Hypothesis as LibraryHypothesis
+from .library import HypothesisLibrary, Messages, Request
 from .noise import sigma_from_differences
 
 FITS = "diagnosis-signal-fits"  # the sweep every fit's rounds go to
@@ -45,6 +48,16 @@ STARTS = 4  # a delay's or a lag's fit on every scenario starts from this many v
 # oscillating model their misfit has local minima a period apart, which a fit from neutral alone can miss
 MULTIMODAL = ("delay", "lag")  # a gain or an offset scales or shifts a signal: one start, from neutral
 MAX_ITERATIONS = 30
+PHYSICS = {  # what each kind of effect stands for, and the residual it leaves
+    "delay": ("the signal arrives late: a transport or processing delay, a late actuator or a late time stamp",
+              "residuals grow with the signal's rate of change; the simulation leads the recording"),
+    "lag": ("the signal is smoothed on its way: a first-order actuator or sensor response (a filter)",
+            "residuals at steps and fast changes, decaying with the lag's time constant; peaks are lower"),
+    "gain": ("the signal is scaled: a miscalibrated actuator or sensor, or a unit error",
+             "residuals proportional to the signal itself"),
+    "offset": ("the signal is shifted: an actuator's or a sensor's bias",
+               "a constant residual, whatever the signal does"),
+}
 
 
 @dataclass(frozen=True)
@@ -103,6 +116,19 @@ class SignalDiagnosis:
         return {"id": effect.id, "target": effect.target, "parameters": {effect.kind: value},
                 "intervals": {effect.kind: [low, high]}, "resolution": hypothesis.resolution,
                 "partial": self.verdict == explain.PARTIAL}
+
+    def summary(self) -> list[str]:
+        """The effects named, the held-out error before and after, and the verdict, as the CLI prints them."""
+        found = self.to_json()
+        lines = []
+        for effect in found["effects"]:
+            (kind, value), = effect["parameters"].items()
+            low, high = effect["intervals"][kind]
+            lines.append(f"{effect['id']}({effect['target']}): {kind} {value:.4g} (95 % {low:.4g} to {high:.4g})")
+        lines.append(f"held-out error: {found['held_out_before']:.2f} before, {found['held_out_after']:.2f} after, "
+                     "in noise floors (each compared signal's residuals over its recording's noise)")
+        lines.append(f"verdict: {found['verdict']}" + (f"; runner-up {found['runner_up']}" if found["runner_up"] else ""))
+        return lines
 
 
 def recording_noise(time: np.ndarray, values: np.ndarray, orders: Sequence[int] = (2, 3, 4, 5, 6)) -> float:
@@ -196,15 +222,15 @@ def fits_space(space: Space, compared: Sequence[Compared], hypotheses: Mapping[s
     return resolve_space(spec, space.path)
 
 
-Messages = Callable[[str], None]
 
-
-def diagnose_space(path: str | Path, out: str | Path | None = None, folds: int = 3, noise_factor: float =
+def diagnose_space(path: str | Path | Space, out: str | Path | None = None, folds: int = 3, noise_factor: float =
                    explain.NOISE_FACTOR, say: Messages | None = None, n_workers: int | None = None,
                    address: str | None = None) -> SignalDiagnosis:
-    """Calibrate the space, then fit each signal effect with it and choose what the recordings support."""
+    """Calibrate the space (a file, or a Space as the library contract gives it), then fit each signal effect
+    with it and choose what the recordings support."""
     say = say or (lambda message: None)
-    space = load_space(path).with_overrides(output=out, address=address, n_workers=n_workers)
+    space = path if isinstance(path, Space) else load_space(path).with_overrides(output=out, address=address,
+                                                                                 n_workers=n_workers)
     compared = compared_signals(space)
     library = hypotheses(space, compared)
     scenarios = tuple(s.name for s in space.scenarios)
@@ -274,3 +300,26 @@ def held_out(space: Space, client, candidates: list[Candidate], results: Mapping
                 ok = row is not None and row["status"] == "ok"
                 r = np.concatenate([np.asarray(row[col], float) * s for col, s in scales.items()]) if ok else None
                 c.held_out[scenario] = float(np.sqrt(np.mean(r ** 2))) if r is not None and r.size else math.inf
+
+
+class SignalEffects(HypothesisLibrary):
+    """The built-in library: every signal effect on every driven input and compared output, for any FMU."""
+
+    name = "signals"
+
+    def serves(self, space: Space) -> bool:
+        return any(isinstance(spec, objs.Fit) for spec in space.objectives.values())
+
+    def diagnose(self, space: Space, request: Request, say: Messages) -> SignalDiagnosis:
+        if request.hypotheses:
+            raise DseError(f"--hypothesis {', '.join(request.hypotheses)}: the signal effects library tries every "
+                           "effect on every driven input and compared signal; it takes no selection")
+        return diagnose_space(space, folds=request.folds, noise_factor=request.noise_factor, say=say)
+
+    def hypotheses(self, space: Space) -> list[LibraryHypothesis]:
+        found = hypotheses(space, compared_signals(space))
+        return [LibraryHypothesis(
+            id=name, name=f"{h.effect.side} {h.effect.kind} of {h.effect.target}",
+            explanation=PHYSICS[h.effect.kind][0], signature=PHYSICS[h.effect.kind][1],
+            parameters=(EffectParameter(variable=name, unit=signal_effects.UNITS[h.effect.kind], lower=h.parameter.lower, upper=h.parameter.upper,
+                                        step=h.parameter.step),)) for name, h in found.items()]

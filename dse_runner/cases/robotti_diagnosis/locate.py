@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ...cases import fielddata
+from .. import fielddata
 from ...simulation.scenario import Scenario
 
 FEATURES = ["speed", "acceleration", "steering", "steering_rate", "lateral_acceleration",

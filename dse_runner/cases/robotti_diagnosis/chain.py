@@ -10,8 +10,8 @@ from ...sweeps.domain import Point
 from ...sweeps.fit import (FitProblem, FitResult, Parameter, Residuals, evaluate_points, fit_all, key_of,
                            residuals_in, wanted)
 from ...sweeps.spec import Space
-from . import explain
-from .explain import Candidate
+from ...analysis.diagnose import explain
+from ...analysis.diagnose.explain import Candidate
 from .hypotheses import hypothesis
 from .outcome import Settings
 

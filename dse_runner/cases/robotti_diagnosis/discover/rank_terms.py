@@ -13,7 +13,7 @@ import numpy as np
 from ....sweeps.domain import Point
 from ....sweeps.fit import FitProblem, FitResult, Parameter, Residuals
 from .. import correction
-from ..explain import Candidate
+from ....analysis.diagnose.explain import Candidate
 from .propose import CHANNELS, Proposal, SCANNED
 
 DISCOVERED = "discovered"  # the id a discovered correction takes among a candidate's ids

@@ -13,11 +13,13 @@ from ...sweeps.cluster import connect
 from ...sweeps.spec import Space
 from ...sweeps.sweep import submit, trajectories_of
 from ...sweeps.rank import rank
-from . import correction, discover, explain, locate, lookalike, noise, screen
-from .explain import Candidate
+from ...analysis.diagnose.library import space_with
+from ...analysis.diagnose import explain
+from . import correction, discover, locate, lookalike, noise, screen
+from ...analysis.diagnose.explain import Candidate
 from .noise import NoiseFloor
 from .outcome import Diagnosis, Settings
-from .model_files import base_parameters, calibration_space, fits_space, steering_source, vehicle_of, write_model
+from .model_files import base_parameters, fits_space, steering_source, vehicle_of, write_model
 from .chain import Chain, DiagnosisMessages
 
 DEFAULT_SPACE = "bundled:robotti/calibration.yaml"  # the Robotti baseline's calibration grid
@@ -125,10 +127,19 @@ def diagnose(scenarios: str | Path, multimodel: str | Path | None = None, space:
 
     ``space`` gives the calibration's parameters and ranges (default: the bundled Robotti
     calibration, bundled:robotti/calibration.yaml); ``multimodel`` replaces its multi-model."""
-    out = Path(out or "out/diagnosis").resolve()
     settings.singles()  # an unknown hypothesis is named before anything runs
-    calibration = calibration_space(space or DEFAULT_SPACE, scenarios, multimodel, out, n_workers, address)
+    out = Path(out or "out/diagnosis").resolve()
+    calibration = space_with(space or DEFAULT_SPACE, scenarios, out, multimodel, n_workers, address)
+    return diagnose_calibration(calibration, settings, client, progress)
+
+
+def diagnose_calibration(calibration: Space, settings: Settings = Settings(), client=None,
+                         progress: DiagnosisMessages | None = None) -> Diagnosis:
+    """The whole chain on a calibration space whose scenarios are recorded runs in the field-data format,
+    its results (and the new model and report) in the space's output folder."""
+    settings.singles()
     say = progress or (lambda message: None)
+    out = Path(calibration.output)
     if client is None:
         with connect(calibration.spec.cluster, calibration.path.parent) as own:
             return _diagnose(calibration, out, settings, own, say)

@@ -9,8 +9,9 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from ....sweeps.fit import FitProblem, FitResult
-from .. import correction, explain
-from ..explain import Candidate
+from ....analysis.diagnose import explain
+from .. import correction
+from ....analysis.diagnose.explain import Candidate
 from .observe import Observed, held, vehicle_values
 from .propose import Proposal, candidates, propose, regressions
 from .rank_terms import DISCOVERED, Fitter, Screen, extended_margin, held_shapes, library_ids, screened

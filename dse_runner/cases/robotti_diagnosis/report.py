@@ -16,17 +16,18 @@ import numpy as np
 import pandas as pd
 
 from ... import strict_json
-from ...cases import fielddata
+from .. import fielddata
 from ...sweeps.spec import Space
 from ...sweeps.rank import format_point
-from . import correction, discover, explain, locate, lookalike
-from .explain import Candidate
-from .findings import DiscoveredCorrection
+from ...analysis.diagnose import explain
+from . import correction, discover, locate, lookalike
+from ...analysis.diagnose.explain import Candidate
+from ...analysis.diagnose.findings import DiscoveredCorrection
 from .hypotheses import LIBRARY
 from .noise import AT_REST, CLOSE_FIXES, MAX_SPACING
 
 if TYPE_CHECKING:
-    from ...diagnose import Diagnosis
+    from .outcome import Diagnosis
 
 
 def _table(frame: pd.DataFrame, digits: int = 3) -> str:

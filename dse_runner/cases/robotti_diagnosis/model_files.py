@@ -11,31 +11,17 @@ from typing import Any
 import yaml
 
 from ... import bundled
-from ...cases import fielddata
+from .. import fielddata
 from ...errors import DseError
 from ...simulation.multimodel import MultiModel, split_ref
 from ...sweeps.fit import Parameter
-from ...sweeps.spec import Range, Space, SpaceSpec, read_spec, resolve_space
+from ...sweeps.spec import Range, Space, SpaceSpec, resolve_space
 from . import correction, discover
 from .correction import variables as correction_variables
 from .hypotheses import EFFECTS_FMU, effect_variables, hypothesis
 from .outcome import Diagnosis
 
 FITS = "diagnosis-fits"  # the sweep every fit's rounds go to
-
-
-def calibration_space(space: str | Path, scenarios: str | Path, multimodel: str | Path | None, out: Path,
-                      n_workers: int | None = None, address: str | None = None) -> Space:
-    """The calibration's design space (parameters and their ranges) on the given runs, results in ``out``."""
-    path = bundled.resolve(space, Path.cwd())
-    folder = Path(scenarios).resolve()
-    if not folder.is_dir():
-        raise DseError(f"--scenarios {scenarios}: not a folder")
-    update: dict[str, Any] = {"scenarios": [str(folder / "*")], "output": str(out), "keep_trajectories": 0}
-    if multimodel is not None:
-        update["multimodel"] = str(Path(multimodel).resolve())
-    spec = read_spec(path).model_copy(update=update)
-    return resolve_space(spec, path).with_overrides(address=address, n_workers=n_workers)
 
 
 def vehicle_of(calibration: Space) -> str:

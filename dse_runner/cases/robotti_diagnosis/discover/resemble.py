@@ -10,7 +10,7 @@ import numpy as np
 from ....sweeps.domain import Point
 from ....sweeps.fit import FitResult, Parameter
 from .. import correction
-from ..explain import Candidate
+from ....analysis.diagnose.explain import Candidate
 from ..hypotheses import LIBRARY
 from .rank_terms import Fitter
 

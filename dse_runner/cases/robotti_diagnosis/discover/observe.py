@@ -38,7 +38,7 @@ class Observed:
 
 def observe(scenario: Scenario) -> Observed:
     """A field-data run's fixes and command log."""
-    from ....cases import fielddata
+    from ... import fielddata
 
     fixes = fielddata.gps(scenario)
     log = read_table(scenario.files["steering_inputs"], ("time", "velocity", "delta_f"))

@@ -9,10 +9,11 @@ from pathlib import Path
 from typing import Any
 
 from ...errors import DseError
-from ...simulation.scenario import dropouts
-from . import correction, discover, explain, lookalike, noise, screen
-from .explain import Candidate
-from .findings import DiscoveredCorrection, Finding, NamedEffect
+from ...simulation.scenario import dropouts, dropouts_line
+from ...analysis.diagnose import explain
+from . import correction, discover, lookalike, noise, screen
+from ...analysis.diagnose.explain import Candidate
+from ...analysis.diagnose.findings import DiscoveredCorrection, Finding, NamedEffect
 from .hypotheses import LIBRARY
 from .noise import NoiseFloor
 
@@ -169,6 +170,29 @@ class Diagnosis:
         fit = self.chosen.full
         return {"parameters": dict(fit.values), "interval": {k: list(v) for k, v in fit.interval().items()},
                 "at_bound": list(fit.at_bound)}
+
+    def summary(self) -> list[str]:
+        """What was named (a discovered correction's terms as an engineer writes them), the held-out error
+        before and after, the verdict against the noise floor, and the files written."""
+        lines = []
+        for finding in self.findings:
+            if isinstance(finding, DiscoveredCorrection):
+                lines.append(f"{finding.id}: {finding.described()}"
+                             + (f" ({finding.resembles['text']})" if finding.resembles else ""))
+                continue
+            values = finding.described()
+            lines.append(f"{finding.id}: {finding.name}" + (f": {values}" if values else ""))
+        lines.append(f"held-out mean cross-track error: {self.cross_track_before:.3f} m before, "
+                     f"{self.cross_track_after:.3f} m after")
+        if self.floor_ratio is not None:
+            lines.append(f"verdict: {self.verdict} ({self.floor_ratio:.1f}× the noise floor of "
+                         f"{self.floor.cross_track:.3f} m, {self.floor.method})")
+        else:
+            lines.append(f"verdict: {self.verdict} (no noise floor could be estimated)")
+        if self.dropouts:
+            lines.append(dropouts_line(self.dropouts))
+        lines.extend(f"{name}: {self.files[name]}" for name in ("multimodel", "space", "report") if name in self.files)
+        return lines
 
     def to_json(self) -> dict[str, Any]:
         up = self.runner_up

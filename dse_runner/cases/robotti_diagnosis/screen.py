@@ -27,7 +27,7 @@ from scipy.optimize import lsq_linear
 
 from ...sweeps.domain import Point
 from ...sweeps.fit import FitResult, Parameter, Residuals
-from . import explain
+from ...analysis.diagnose import explain
 from .hypotheses import LOOK_ALIKES, hypothesis
 
 ANCHORS = 2  # best single effects (by full-fit SSE) linearised at, besides none

@@ -1,0 +1,168 @@
+"""Hypothesis libraries: the plug-in contract of ``diagnose``, and how a space finds the library that serves it.
+
+A library knows a family of effects a model may miss, and the diagnosis that fits them to recordings.
+One is built in: the signal effects (signal_library.py), late, sluggish, scaled or biased inputs and
+outputs, which serve any space whose objectives compare signals with recordings. A package adds
+its own, as the Robotti case adds the field robot's (wheel slip, actuator lags, antenna lever arm,
+…), through an entry point::
+
+    [project.entry-points."dse_runner.hypotheses"]
+    mine = "my_package.diagnosis:MyLibrary"   # a subclass of HypothesisLibrary
+
+Installed libraries are asked before the built-in one, so a case's own physics comes first where it
+applies and the generic library serves everything else.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import dataclass
+from importlib.metadata import EntryPoint, entry_points
+from pathlib import Path
+from typing import Any, ClassVar, Protocol
+
+from ... import bundled
+from ...errors import DseError
+from ...sweeps.spec import Space, read_spec, resolve_space
+from .explain import NOISE_FACTOR
+from .hypotheses import Hypothesis
+
+GROUP = "dse_runner.hypotheses"
+
+Messages = Callable[[str], None]  # progress lines, as the CLI prints them to stderr
+
+
+@dataclass(frozen=True)
+class Request:
+    """What a user asks of any diagnosis: the command's options."""
+
+    out: Path = Path("out/diagnosis")
+    folds: int = 3  # cross-validation folds across scenarios
+    noise_factor: float = NOISE_FACTOR  # held-out error above this many noise floors is unexplained
+    hypotheses: tuple[str, ...] = ()  # the library's ids to try; () tries them all
+    discovery: bool = True  # seek a correction beyond the library when it leaves error above the noise
+
+
+class Result(Protocol):
+    """What every diagnosis answers: a verdict, strict JSON, and lines for the terminal."""
+
+    @property
+    def verdict(self) -> str: ...
+
+    def to_json(self) -> dict[str, Any]: ...
+
+    def summary(self) -> list[str]: ...
+
+
+class HypothesisLibrary(ABC):
+    """A library of hypotheses and the diagnosis that fits them: the contract of the entry-point group
+    ``dse_runner.hypotheses``, whose entries name a subclass (built with no arguments).
+
+    Lifecycle (:func:`diagnose`). The space to diagnose is read once: the user's, with ``--scenarios``
+    runs in place of its scenarios and ``--out`` as its output. Each installed library, then the
+    built-in one, is asked :meth:`serves`; the first that says yes gets :meth:`diagnose` once, with that
+    space, the request and a function for progress lines, and returns a :class:`Result`. It starts (or
+    reaches, by ``space.spec.cluster``) its own cluster, and keeps every simulation in the space's
+    Parquet store, so that running it again resumes.
+
+    Optional parts, with defaults: ``calibration`` (None: ``--scenarios`` alone cannot choose this
+    library; a library whose case has a standard calibration names it, e.g. ``bundled:…``),
+    :meth:`hypotheses` (none listed).
+    """
+
+    name: ClassVar[str]
+    calibration: ClassVar[str | None] = None  # the space ``--scenarios DIR`` fills when no --space is given
+
+    @abstractmethod
+    def serves(self, space: Space) -> bool:
+        """Whether this library can diagnose ``space`` (its scenarios, multi-model and objectives)."""
+
+    @abstractmethod
+    def diagnose(self, space: Space, request: Request, say: Messages) -> Result:
+        """Calibrate, fit the hypotheses, choose what the recordings support, write the report."""
+
+    def hypotheses(self, space: Space) -> list[Hypothesis]:
+        """The hypotheses it would try on ``space``, for listing and for ``--hypothesis`` checks."""
+        return []
+
+
+def _checked(entry: EntryPoint) -> HypothesisLibrary:
+    """An installed library, held to the contract at once, not half-way through a diagnosis."""
+    try:
+        found = entry.load()
+    except ImportError as e:
+        raise DseError(f"hypothesis library {entry.name!r} ({entry.value}) cannot be imported: {e}") from None
+    if not (isinstance(found, type) and issubclass(found, HypothesisLibrary)):
+        raise DseError(f"hypothesis library {entry.name!r} ({entry.value}) is not a subclass of "
+                       "dse_runner.analysis.diagnose.library.HypothesisLibrary")
+    return found()
+
+
+def libraries() -> list[HypothesisLibrary]:
+    """Installed libraries in name order, then the built-in signal effects (which serve any model)."""
+    from .signal_library import SignalEffects
+
+    installed = [_checked(e) for e in sorted(entry_points(group=GROUP), key=lambda e: e.name)]
+    return [*installed, SignalEffects()]
+
+
+def space_with(space: str | Path, scenarios: str | Path | None, out: Path, multimodel: str | Path | None = None,
+               n_workers: int | None = None, address: str | None = None) -> Space:
+    """The space to diagnose: ``space`` (a file or ``bundled:…``), with every run in ``scenarios`` as
+    its scenarios when given, ``multimodel`` in place of its own, results in ``out``."""
+    path = bundled.resolve(space, Path.cwd())
+    update: dict[str, Any] = {"output": str(out), "keep_trajectories": 0}
+    if scenarios is not None:
+        folder = Path(scenarios).resolve()
+        if not folder.is_dir():
+            raise DseError(f"--scenarios {scenarios}: not a folder")
+        update["scenarios"] = [str(folder / "*")]
+    if multimodel is not None:
+        update["multimodel"] = str(Path(multimodel).resolve())
+    spec = read_spec(path).model_copy(update=update)
+    return resolve_space(spec, path).with_overrides(address=address, n_workers=n_workers)
+
+
+def serving(space: Space, found: list[HypothesisLibrary] | None = None) -> HypothesisLibrary:
+    """The first library that serves ``space``; none is an error naming the space and the libraries."""
+    found = libraries() if found is None else found
+    for library in found:
+        if library.serves(space):
+            return library
+    raise DseError(f"{space.path}: no hypothesis library serves this space (installed: "
+                   f"{', '.join(lib.name for lib in found)}); the built-in signal effects need an objective "
+                   "{signal: inst.var, recorded: column, metric: rmse} comparing a signal with a recording")
+
+
+def diagnose(space: str | Path | None = None, scenarios: str | Path | None = None, request: Request = Request(),
+             say: Messages | None = None, multimodel: str | Path | None = None, n_workers: int | None = None,
+             address: str | None = None) -> Result:
+    """Diagnose a space (with ``scenarios`` as its runs, if given) with the first library that serves it.
+
+    With ``scenarios`` and no ``space``, the runs go into each library's own calibration space in
+    turn (``HypothesisLibrary.calibration``) until one serves them: the Robotti's field data this way
+    needs no space file."""
+    say = say or (lambda message: None)
+    out = Path(request.out).resolve()
+    found = libraries()
+    if space is not None:
+        target = space_with(space, scenarios, out, multimodel, n_workers, address)
+        return serving(target, found).diagnose(target, request, say)
+    if scenarios is None:
+        raise DseError("diagnose: give --space SPACE.yaml (any model with recordings), or --scenarios DIR "
+                       "(runs a library's own calibration space reads, such as the Robotti's field data)")
+    reasons = []
+    for library in found:
+        if library.calibration is None:
+            continue
+        try:
+            target = space_with(library.calibration, scenarios, out, multimodel, n_workers, address)
+        except DseError as e:  # these runs are not what this library's calibration reads
+            reasons.append(f"{library.name}: {e}")
+            continue
+        if library.serves(target):
+            return library.diagnose(target, request, say)
+        reasons.append(f"{library.name}: its calibration does not serve these runs")
+    raise DseError(f"--scenarios {scenarios}: no installed hypothesis library has a calibration space for these "
+                   f"runs ({'; '.join(reasons) or 'none has one'}); give --space SPACE.yaml whose scenarios they are")

@@ -1,0 +1,121 @@
+"""The hypothesis-library contract (HypothesisLibrary): every installed library holds to it, a space goes
+to the first library that serves it (plug-ins before the built-in signal effects), and the Robotti's
+diagnosis reaches the core only this way."""
+
+from __future__ import annotations
+
+from importlib.metadata import entry_points
+
+import pytest
+from conftest import MSD, REPO, SCENARIOS
+from plugins import register
+
+from dse_runner.analysis.diagnose import HypothesisLibrary, Request, diagnose, libraries, serving, space_with
+from dse_runner.errors import DseError
+
+ROBOTTI_CALIBRATION = "bundled:robotti/calibration.yaml"
+
+ALWAYS = """
+from dse_runner.analysis.diagnose import HypothesisLibrary
+
+
+class Answer:
+    verdict = "none"
+
+    def __init__(self, space):
+        self.space = space
+
+    def to_json(self):
+        return {"verdict": self.verdict, "space": str(self.space.path)}
+
+    def summary(self):
+        return [f"verdict: {self.verdict}"]
+
+
+class Always(HypothesisLibrary):
+    name = "always"
+
+    def serves(self, space):
+        return True
+
+    def diagnose(self, space, request, say):
+        say("diagnosed by always")
+        return Answer(space)
+
+
+class Duck:  # serves and diagnoses, but is not a HypothesisLibrary
+    name = "duck"
+"""
+
+
+def test_every_installed_library_holds_to_the_contract():
+    found = libraries()
+    names = [lib.name for lib in found]
+    assert names[-1] == "signals"  # the built-in one is asked last
+    assert set(names) == {"signals", *(e.name for e in entry_points(group="dse_runner.hypotheses"))}
+    for library in found:
+        assert isinstance(library, HypothesisLibrary), library
+
+
+def test_field_data_goes_to_the_robotti_library_and_any_other_recording_to_the_signal_effects(tmp_path):
+    runs = space_with(ROBOTTI_CALIBRATION, SCENARIOS, tmp_path / "robotti")
+    msd = space_with(MSD / "space.yaml", None, tmp_path / "msd")
+    assert serving(runs).name == "robotti"
+    assert serving(msd).name == "signals"
+    assert str(msd.output).startswith(str(tmp_path))  # --out is where its results go
+
+
+def test_the_robotti_library_lists_its_physics():
+    robotti = next(lib for lib in libraries() if lib.name == "robotti")
+    ids = {h.id for h in robotti.hypotheses(None)}
+    assert {"wheel_slip", "steering_lag", "speed_lag", "steering_offset", "time_offset", "antenna_offset",
+            "terrain_slope"} == ids
+
+
+def test_the_signal_effects_list_every_effect_on_every_driven_input_and_compared_signal(tmp_path):
+    msd = space_with(MSD / "space.yaml", None, tmp_path)
+    signals = libraries()[-1]
+    ids = {h.id for h in signals.hypotheses(msd)}
+    # the ring-down scenario drives no input: only the compared position has effects
+    assert ids == {f"output_{kind}(msd.x)" for kind in ("delay", "lag", "gain", "offset")}
+
+
+def test_an_installed_library_is_asked_before_the_built_in_one(tmp_path, monkeypatch):
+    register(monkeypatch, tmp_path / "plugin", "always_library", ALWAYS,
+             {"dse_runner.hypotheses": {"always": "always_library:Always"}})
+    said = []
+    result = diagnose(MSD / "space.yaml", request=Request(out=tmp_path / "out"), say=said.append)
+    assert result.to_json() == {"verdict": "none", "space": str((MSD / "space.yaml").resolve())}
+    assert said == ["diagnosed by always"]
+
+
+def test_a_library_that_is_not_a_subclass_is_named(tmp_path, monkeypatch):
+    register(monkeypatch, tmp_path / "plugin", "duck_library", ALWAYS,
+             {"dse_runner.hypotheses": {"duck": "duck_library:Duck"}})
+    with pytest.raises(DseError, match=r"hypothesis library 'duck' \(duck_library:Duck\) is not a subclass"):
+        libraries()
+
+
+def test_a_space_no_library_serves_is_named_with_what_would_serve_it(tmp_path):
+    space = space_with(REPO / "jobs" / "watertank" / "space.yaml", None, tmp_path)
+    with pytest.raises(DseError, match=r"space.yaml: no hypothesis library serves this space.*\{signal: inst.var, "
+                                       r"recorded: column"):
+        diagnose(space.path, request=Request(out=tmp_path))
+
+
+def test_runs_no_library_calibrates_are_refused_with_each_librarys_reason(tmp_path):
+    folder = tmp_path / "runs"
+    (folder / "one").mkdir(parents=True)
+    with pytest.raises(DseError, match=r"--scenarios .*runs: no installed hypothesis library has a calibration "
+                                       r"space for these runs \(robotti: "):
+        diagnose(scenarios=folder, request=Request(out=tmp_path / "out"))
+
+
+def test_nothing_to_diagnose_is_named():
+    with pytest.raises(DseError, match="give --space SPACE.yaml"):
+        diagnose()
+
+
+def test_the_signal_effects_refuse_a_selection_they_cannot_make(tmp_path):
+    with pytest.raises(DseError, match="--hypothesis wheel_slip: the signal effects library tries every effect"):
+        diagnose(MSD / "space.yaml", request=Request(out=tmp_path, hypotheses=("wheel_slip",)))
