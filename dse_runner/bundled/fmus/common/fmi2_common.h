@@ -73,7 +73,7 @@ int fmi2_allowed(Fmi2Instance *s, const char *function, unsigned phases);
 /* Marks the instance failed: its use ends until a reset. */
 fmi2Status fmi2_fail(Fmi2Instance *s);
 
-/* Logs an error (printf-style) and fails the instance: the usual end of a refused call. */
+/* Logs an error (printf-style) and fails the instance, for a call that must not go on (a refused step). */
 fmi2Status fmi2_error(Fmi2Instance *s, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 
 /* A call that only changes the phase: to `to` if the instance's phase is one of `phases`

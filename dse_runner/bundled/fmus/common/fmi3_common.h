@@ -116,7 +116,7 @@ int fmi3_allowed(Fmi3Instance *s, const char *function, unsigned phases);
 /* Marks the instance failed: its use ends until a reset. */
 fmi3Status fmi3_fail(Fmi3Instance *s);
 
-/* Logs an error (printf-style) and fails the instance: the usual end of a refused call. */
+/* Logs an error (printf-style) and fails the instance, for a call that must not go on (a refused step). */
 fmi3Status fmi3_error(Fmi3Instance *s, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 
 /* A call that only changes the phase: to `to` if the instance's phase is one of `phases`
