@@ -34,14 +34,13 @@ from typing import Any
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict
 
-from ..errors import DseError, format_validation_error
-from ..simulation.comparison import Comparison
-from ..simulation.scenario import INFO_FILE, Recording, Scenario, ScenarioKind, read_table
+from ..errors import DseError
+from ..simulation.scenario import INFO_FILE, Recording, Scenario, read_table
 from ..simulation.variables import split_ref
 from ..yamlfile import read_yaml
-from .runinfo import Position, RunInfo
+from .runinfo import XY, Position, RunInfo, TrackKind, open_folder
 
 STEERING_FILE = "steering_inputs.csv"
 GPS_FILE = "gps_position.csv"
@@ -85,17 +84,7 @@ def read_info(path: Path) -> RunInfo:
 
 def load_run(folder: str | Path, options: Mapping[str, Any] | None = None) -> Scenario:
     """Read and check a run's three files (both recordings now, before any FMU reads them)."""
-    folder = Path(folder).resolve()
-    paths = {name: folder / name for name in (INFO_FILE, STEERING_FILE, GPS_FILE)}
-    if not folder.is_dir():
-        raise DseError(f"scenario folder not found: {folder}")
-    for path in paths.values():
-        if not path.is_file():
-            raise DseError(f"scenario {folder}: missing {path.name}")
-    try:
-        settings = Options.model_validate(dict(options or {}))
-    except ValidationError as e:
-        raise DseError(format_validation_error(f"scenario {folder}", e)) from None
+    paths, settings = open_folder(folder, (INFO_FILE, STEERING_FILE, GPS_FILE), options, Options)
     info = read_info(paths[INFO_FILE])
     log = read_table(paths[STEERING_FILE], ("time", "velocity", "delta_f"))
     fixes = read_table(paths[GPS_FILE], ("time", "x", "y"), may_drop=("x", "y"))
@@ -114,11 +103,13 @@ def load_run(folder: str | Path, options: Mapping[str, Any] | None = None) -> Sc
         sources=tuple(paths.values()), options=settings.model_dump(exclude_none=True))
 
 
-class FieldData(ScenarioKind):
+class FieldData(TrackKind):
     """The kind, as ``dse_runner.simulation.scenario`` finds it."""
 
     name = KIND
     default_objectives = ("cross_track_error", "max_error", "rms_error", "final_error")
+    reference_style = (".", {"ms": 2.5, "color": "0.45", "label": "recorded GPS"})
+    title_error = ("cross_track_error", "mean cross-track error")
 
     def detect(self, folder: Path) -> bool:
         """Either recording, or a scenario.yaml with an initial pose and no CSV at all: then a missing
@@ -136,15 +127,9 @@ class FieldData(ScenarioKind):
     def load(self, folder: Path, options: Mapping[str, Any] | None = None) -> Scenario:
         return load_run(folder, options)
 
-    def draw(self, result, ax) -> bool:
-        draw(result, ax)
-        return True
-
-    def compare(self, result) -> Comparison:
-        """The dashboard's and report's view: the simulated track over the fixes."""
+    def tracks(self, result) -> tuple[XY, XY]:
         fixes = gps(result.scenario)
-        return Comparison((fixes.x, fixes.y), simulated_xy(result.trajectory, result.scenario),
-                          "x [m]", "y [m]", equal_axes=True)
+        return (fixes.x, fixes.y), simulated_xy(result.trajectory, result.scenario)
 
 
 FIELD_DATA = FieldData()
@@ -219,19 +204,3 @@ def rms_error(trajectory, scenario: Scenario) -> float:
 def final_error(trajectory, scenario: Scenario) -> float:
     """Distance at the last recorded fix [m]."""
     return float(fix_distances(trajectory, scenario)[-1])
-
-
-def draw(result, ax) -> None:
-    """The simulated track over the recorded GPS fixes, equal axes (simulate's plot)."""
-    fixes = gps(result.scenario)
-    x, y = simulated_xy(result.trajectory, result.scenario)
-    ax.plot(fixes.x, fixes.y, ".", ms=2.5, color="0.45", label="recorded GPS")
-    ax.plot(x, y, "-", lw=1.6, color="tab:blue", label="simulated")
-    ax.plot([x[0]], [y[0]], "o", color="tab:green", label="start")
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    cte = result.objectives.get("cross_track_error")
-    ax.set_title(result.scenario.name + (f": mean cross-track error {cte:.3f} m" if cte is not None else ""))
-    ax.grid(alpha=0.3)
-    ax.legend(loc="best")

@@ -38,14 +38,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, NonNegativeFloat, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, NonNegativeFloat
 
-from ..errors import DseError, format_validation_error
-from ..simulation.comparison import Comparison
-from ..simulation.scenario import INFO_FILE, Scenario, ScenarioKind, read_table
+from ..errors import DseError
+from ..simulation.scenario import INFO_FILE, Scenario, read_table
 from ..simulation.variables import split_ref
 from ..yamlfile import read_yaml
-from .runinfo import Position, RunInfo
+from .runinfo import XY, Position, RunInfo, TrackKind, open_folder
 
 PATH_FILE = "path.csv"
 KIND = "path"
@@ -180,17 +179,8 @@ def read_info(path: Path) -> PathInfo:
 
 def load_path(folder: str | Path, options: Mapping[str, Any] | None = None) -> Scenario:
     """Read and check a path folder (the path and any step now, before any FMU reads the file)."""
-    folder = Path(folder).resolve()
-    if not folder.is_dir():
-        raise DseError(f"scenario folder not found: {folder}")
-    info_file, path_file = folder / INFO_FILE, folder / PATH_FILE
-    for file in (info_file, path_file):
-        if not file.is_file():
-            raise DseError(f"scenario {folder}: missing {file.name}")
-    try:
-        settings = Options.model_validate(dict(options or {}))
-    except ValidationError as e:
-        raise DseError(format_validation_error(f"scenario {folder}", e)) from None
+    files, settings = open_folder(folder, (INFO_FILE, PATH_FILE), options, Options)
+    info_file, path_file = files[INFO_FILE], files[PATH_FILE]
     info = read_info(info_file)
     path = read_path(path_file)
     step = {}
@@ -206,12 +196,14 @@ def load_path(folder: str | Path, options: Mapping[str, Any] | None = None) -> S
         sources=(info_file, path_file), options=settings.model_dump(exclude_none=True))
 
 
-class PathKind(ScenarioKind):
+class PathKind(TrackKind):
     """The kind, as ``dse_runner.simulation.scenario`` finds it."""
 
     name = KIND
     default_objectives = ("path_error_mean", "path_error_max", "heading_error", "steering_effort",
                           "overshoot", "settling_distance")
+    reference_style = ("-", {"lw": 1.0, "color": "0.45", "label": "path"})
+    title_error = ("path_error_mean", "mean path error")
 
     def detect(self, folder: Path) -> bool:
         return (folder / PATH_FILE).is_file()
@@ -219,15 +211,9 @@ class PathKind(ScenarioKind):
     def load(self, folder: Path, options: Mapping[str, Any] | None = None) -> Scenario:
         return load_path(folder, options)
 
-    def draw(self, result, ax) -> bool:
-        draw(result, ax)
-        return True
-
-    def compare(self, result) -> Comparison:
-        """The dashboard's and report's view: the simulated track over the path."""
-        path = path_of(result.scenario)
-        return Comparison((path.points[:, 0], path.points[:, 1]),
-                          simulated_xy(result.trajectory, result.scenario), "x [m]", "y [m]", equal_axes=True)
+    def tracks(self, result) -> tuple[XY, XY]:
+        points = path_of(result.scenario).points
+        return (points[:, 0], points[:, 1]), simulated_xy(result.trajectory, result.scenario)
 
 
 PATH_KIND = PathKind()
@@ -432,19 +418,3 @@ def settling_distance(trajectory, scenario: Scenario) -> float:
     if not along.size or (outside.size and outside[-1] == along.size - 1):
         return step.end
     return max(0.0, float(along[outside[-1] + 1] if outside.size else along[0]))
-
-
-def draw(result, ax) -> None:
-    """The simulated track over the path, equal axes (simulate's plot)."""
-    path = path_of(result.scenario)
-    x, y = simulated_xy(result.trajectory, result.scenario)
-    ax.plot(path.points[:, 0], path.points[:, 1], "-", lw=1.0, color="0.45", label="path")
-    ax.plot(x, y, "-", lw=1.6, color="tab:blue", label="simulated")
-    ax.plot([x[0]], [y[0]], "o", color="tab:green", label="start")
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    error = result.objectives.get("path_error_mean")
-    ax.set_title(result.scenario.name + (f": mean path error {error:.3f} m" if error is not None else ""))
-    ax.grid(alpha=0.3)
-    ax.legend(loc="best")

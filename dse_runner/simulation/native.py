@@ -49,12 +49,16 @@ class NativeLoopWarning(UserWarning):
     """The native loop cannot be built here; the Python loop runs instead."""
 
 
+# How native_loop.c's Group, TextRead and TextFeed begin: the FMU function, the instance it is called on, and
+# the FMI version, whose calling convention the loop follows (its transfer()).
+CALLED = [("fn", ctypes.c_void_p), ("component", ctypes.c_void_p), ("version", ctypes.c_int32)]
+
+
 class Group(ctypes.Structure):
-    _fields_ = [("fn", ctypes.c_void_p), ("component", ctypes.c_void_p), ("version", ctypes.c_int32),
-                ("ctype", ctypes.c_int32), ("conv", ctypes.c_int32), ("unit", ctypes.c_int32),
-                ("threshold", ctypes.c_double), ("low", ctypes.c_double), ("above", ctypes.c_double),
-                ("n", ctypes.c_int64), ("vrs", ctypes.c_void_p), ("index", ctypes.c_void_p),
-                ("buffer", ctypes.c_void_p)]
+    _fields_ = CALLED + [("ctype", ctypes.c_int32), ("conv", ctypes.c_int32), ("unit", ctypes.c_int32),
+                         ("threshold", ctypes.c_double), ("low", ctypes.c_double), ("above", ctypes.c_double),
+                         ("n", ctypes.c_int64), ("vrs", ctypes.c_void_p), ("index", ctypes.c_void_p),
+                         ("buffer", ctypes.c_void_p)]
 
 
 class Unit(ctypes.Structure):
@@ -69,15 +73,13 @@ class Lifecycle(ctypes.Structure):
 
 
 class TextRead(ctypes.Structure):
-    _fields_ = [("fn", ctypes.c_void_p), ("component", ctypes.c_void_p), ("version", ctypes.c_int32),
-                ("unit", ctypes.c_int32), ("n", ctypes.c_int64), ("vrs", ctypes.c_void_p),
-                ("buffer", ctypes.c_void_p), ("first", ctypes.c_int64)]
+    _fields_ = CALLED + [("unit", ctypes.c_int32), ("n", ctypes.c_int64), ("vrs", ctypes.c_void_p),
+                         ("buffer", ctypes.c_void_p), ("first", ctypes.c_int64)]
 
 
 class TextFeed(ctypes.Structure):
-    _fields_ = [("fn", ctypes.c_void_p), ("component", ctypes.c_void_p), ("version", ctypes.c_int32),
-                ("unit", ctypes.c_int32), ("vr", ctypes.c_uint32), ("target", ctypes.c_int32),
-                ("source", ctypes.c_int64)]
+    _fields_ = CALLED + [("unit", ctypes.c_int32), ("vr", ctypes.c_uint32), ("target", ctypes.c_int32),
+                         ("source", ctypes.c_int64)]
 
 
 class Call(ctypes.Structure):

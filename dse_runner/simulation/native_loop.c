@@ -119,9 +119,22 @@ static inline bool past(double deadline) {
     return deadline < INFINITY && now() > deadline;
 }
 
-static int call(const Group *g) {
-    if (g->version == 3) return ((Access3)g->fn)(g->component, g->vrs, (size_t)g->n, g->buffer, (size_t)g->n);
-    return ((Access2)g->fn)(g->component, g->vrs, (size_t)g->n, g->buffer);
+/* Calls an FMU's getter or setter of n values at vrs (fmi2GetReal, fmi3SetString, ...) on buffer, as
+ * its FMI version calls it: FMI 3 passes the number of values again, after the buffer. */
+static inline int transfer(void *fn, void *component, int32_t version, const uint32_t *vrs, size_t n, void *buffer) {
+    if (version == 3) return ((Access3)fn)(component, vrs, n, buffer, n);
+    return ((Access2)fn)(component, vrs, n, buffer);
+}
+
+static int call(const Group *g) { return transfer(g->fn, g->component, g->version, g->vrs, (size_t)g->n, g->buffer); }
+
+/* Steps a unit from t to t + h (fmi2DoStep or fmi3DoStep); an FMI 3 unit's terminateSimulation goes to
+ * *asked, its other flags are not used. */
+static inline int step_unit(const Unit *s, double t, double h, bool *asked) {
+    bool event, early;
+    double last_time;
+    return s->version == 3 ? ((Step3)s->step)(s->component, t, h, true, &event, asked, &early, &last_time)
+                           : ((Step2)s->step)(s->component, t, h, 1);
 }
 
 /* Stores x into element i of a buffer of C type ctype, as numpy's assignment does. */
@@ -182,6 +195,19 @@ static int64_t fill(const Group *g, const double *signals, double *bad) {
         }
     }
     return -1;
+}
+
+/* Gathers an input group from the signals and sets it: DONE, FEED_FAILED, or UNFIT with the element
+ * that does not fit and its value in out. */
+static int feed(const Group *g, const double *signals, Outcome *out) {
+    double bad = 0.0;
+    int64_t unfit = fill(g, signals, &bad);
+    if (unfit >= 0) {
+        out->element = (int32_t)unfit;
+        out->value = bad;
+        return UNFIT;
+    }
+    return call(g) > FMI_WARNING ? FEED_FAILED : DONE;
 }
 
 static void scatter(const Group *g, double *signals) {
@@ -247,29 +273,15 @@ __attribute__((noinline)) static int plain_loop(const Unit *units, int32_t n_uni
                       double *signals, int64_t n_recorded, double *record, double seconds, bool *asked,
                       Arena *arena, Outcome *out) {
     const double deadline = seconds > 0 ? now() + seconds : INFINITY;
-    bool event, early;
-    double last_time;
     for (int64_t k = 1; k < n_times; k++) {
         const double t = times[k - 1], t_next = times[k], h = t_next - t;
         if (!(k & 63) && past(deadline)) return stop(out, arena, TIMEOUT, k, t, -1, -1);
         for (int32_t f = 0; f < n_feeds; f++) {
-            const Group *g = &feeds[f];
-            double bad = 0.0;
-            int64_t unfit = fill(g, signals, &bad);
-            if (unfit >= 0) {
-                out->element = (int32_t)unfit;
-                out->value = bad;
-                return stop(out, arena, UNFIT, k, t, g->unit, f);
-            }
-            if (call(g) > FMI_WARNING) return stop(out, arena, FEED_FAILED, k, t, g->unit, f);
+            int code = feed(&feeds[f], signals, out);
+            if (code != DONE) return stop(out, arena, code, k, t, feeds[f].unit, f);
         }
-        for (int32_t u = 0; u < n_units; u++) {
-            const Unit *s = &units[u];
-            int status = s->version == 3
-                ? ((Step3)s->step)(s->component, t, h, true, &event, &asked[u], &early, &last_time)
-                : ((Step2)s->step)(s->component, t, h, 1);
-            if (status > FMI_WARNING) return stop(out, arena, STEP_FAILED, k, t, u, -1);
-        }
+        for (int32_t u = 0; u < n_units; u++)
+            if (step_unit(&units[u], t, h, &asked[u]) > FMI_WARNING) return stop(out, arena, STEP_FAILED, k, t, u, -1);
         if (fmi3)
             for (int32_t u = 0; u < n_units; u++)
                 if (asked[u]) return stop(out, arena, TERMINATE, k, t_next, u, -1);
@@ -306,10 +318,12 @@ static int64_t first_nonfinite(const double *record, int64_t from, int64_t to, i
     return -1;
 }
 
-/* Every 64 points of the loops that check rows in blocks: the rows since ``*checked`` are finite
- * and the deadline has not passed. DONE to go on, else the code the run stopped with. */
+/* At point k of the loops that check rows in blocks, every 64 points (other points pass at once): the
+ * rows since ``*checked`` are finite and the deadline has not passed. DONE to go on, else the code the
+ * run stopped with. */
 static inline int checkpoint(Outcome *out, Arena *arena, const double *record, const double *times,
                              int64_t n_recorded, int64_t *checked, int64_t k, double deadline) {
+    if (k & 63) return DONE;
     int64_t bad = first_nonfinite(record, *checked, k, n_recorded);
     if (bad >= 0) return stop(out, arena, DIVERGED, bad, times[bad], -1, -1);
     *checked = k;
@@ -346,23 +360,14 @@ __attribute__((noinline)) static int direct_loop(const Unit *units, int32_t n_un
                        const double *times, int64_t n_times, const double *signals, int64_t n_recorded,
                        double *record, double seconds, bool *asked, Arena *arena, Outcome *out) {
     const double deadline = seconds > 0 ? now() + seconds : INFINITY;
-    bool event, early;
-    double last_time;
     int64_t checked = 1;  /* rows before this are finite */
     for (int64_t k = 1; k < n_times; k++) {
         const double t = times[k - 1], t_next = times[k], h = t_next - t;
-        if (!(k & 63)) {
-            int code = checkpoint(out, arena, record, times, n_recorded, &checked, k, deadline);
-            if (code != DONE) return code;
-        }
-        for (int32_t u = 0; u < n_units; u++) {
-            const Unit *s = &units[u];
-            int status = s->version == 3
-                ? ((Step3)s->step)(s->component, t, h, true, &event, &asked[u], &early, &last_time)
-                : ((Step2)s->step)(s->component, t, h, 1);
-            if (status > FMI_WARNING)
+        int code = checkpoint(out, arena, record, times, n_recorded, &checked, k, deadline);
+        if (code != DONE) return code;
+        for (int32_t u = 0; u < n_units; u++)
+            if (step_unit(&units[u], t, h, &asked[u]) > FMI_WARNING)
                 return halt(out, arena, record, times, n_recorded, checked, STEP_FAILED, k, t, u, -1);
-        }
         if (fmi3)
             for (int32_t u = 0; u < n_units; u++)
                 if (asked[u]) return halt(out, arena, record, times, n_recorded, checked, TERMINATE, k, t_next, u, -1);
@@ -370,10 +375,7 @@ __attribute__((noinline)) static int direct_loop(const Unit *units, int32_t n_un
         for (int32_t r = 0; r < n_reads; r++) {
             const Group *g = &reads[r];
             double *into = row + ((const double *)g->buffer - signals);
-            int status = g->version == 3
-                ? ((Access3)g->fn)(g->component, g->vrs, (size_t)g->n, into, (size_t)g->n)
-                : ((Access2)g->fn)(g->component, g->vrs, (size_t)g->n, into);
-            if (status > FMI_WARNING)
+            if (transfer(g->fn, g->component, g->version, g->vrs, (size_t)g->n, into) > FMI_WARNING)
                 return halt(out, arena, record, times, n_recorded, checked, READ_FAILED, k, t_next, g->unit, r);
         }
     }
@@ -403,10 +405,8 @@ static inline __attribute__((always_inline)) int single_steps(
     int64_t checked = 1;  /* rows before this are finite */
     for (int64_t k = 1; k < n_times; k++) {
         const double t = times[k - 1], t_next = times[k], h = t_next - t;
-        if (!(k & 63)) {
-            int code = checkpoint(out, arena, record, times, n_recorded, &checked, k, deadline);
-            if (code != DONE) return code;
-        }
+        int code = checkpoint(out, arena, record, times, n_recorded, &checked, k, deadline);
+        if (code != DONE) return code;
         int status = fmi3 ? step3(component, t, h, true, &event, &asked, &early, &last_time) : step2(component, t, h, 1);
         if (status > FMI_WARNING) return halt(out, arena, record, times, n_recorded, checked, STEP_FAILED, k, t, 0, -1);
         if (asked) return halt(out, arena, record, times, n_recorded, checked, TERMINATE, k, t_next, 0, -1);
@@ -466,8 +466,6 @@ int dse_loop(const Unit *units, int32_t n_units, const Group *feeds, int32_t n_f
         goto done;
     }
     double deadline = seconds > 0 ? now() + seconds : INFINITY;
-    bool event, early;
-    double last_time;
     int64_t k;
     for (k = 1; k < n_times; k++) {
         double t = times[k - 1], t_next = times[k], h = t_next - t;
@@ -476,32 +474,23 @@ int dse_loop(const Unit *units, int32_t n_units, const Group *feeds, int32_t n_f
         int32_t f = 0, tf = 0;
         for (int32_t u = 0; u < n_units; u++) {
             for (; f < n_feeds && feeds[f].unit == u; f++) {
-                double bad = 0.0;
-                int64_t unfit = fill(&feeds[f], signals, &bad);
-                if (unfit >= 0) {
-                    out->element = (int32_t)unfit;
-                    out->value = bad;
-                    code = stop(out, &arena, UNFIT, k, t, u, f);
-                    goto done;
-                }
-                if (call(&feeds[f]) > FMI_WARNING) { code = stop(out, &arena, FEED_FAILED, k, t, u, f); goto done; }
+                code = feed(&feeds[f], signals, out);
+                if (code != DONE) { code = stop(out, &arena, code, k, t, u, f); goto done; }
             }
             for (; tf < n_text_feeds && text_feeds[tf].unit == u; tf++) {
                 const TextFeed *x = &text_feeds[tf];
                 const char *value = arena.data + latest[x->source];
-                int status = x->version == 3
-                    ? ((Access3)x->fn)(x->component, &x->vr, 1, (void *)&value, 1)
-                    : ((Access2)x->fn)(x->component, &x->vr, 1, (void *)&value);
-                if (status > FMI_WARNING) { code = stop(out, &arena, TEXT_FEED_FAILED, k, t, x->target, tf); goto done; }
+                if (transfer(x->fn, x->component, x->version, &x->vr, 1, (void *)&value) > FMI_WARNING) {
+                    code = stop(out, &arena, TEXT_FEED_FAILED, k, t, x->target, tf);
+                    goto done;
+                }
             }
         }
-        for (int32_t u = 0; u < n_units; u++) {
-            const Unit *s = &units[u];
-            int status = s->version == 3
-                ? ((Step3)s->step)(s->component, t, h, true, &event, &asked[u], &early, &last_time)
-                : ((Step2)s->step)(s->component, t, h, 1);
-            if (status > FMI_WARNING) { code = stop(out, &arena, STEP_FAILED, k, t, u, -1); goto done; }
-        }
+        for (int32_t u = 0; u < n_units; u++)
+            if (step_unit(&units[u], t, h, &asked[u]) > FMI_WARNING) {
+                code = stop(out, &arena, STEP_FAILED, k, t, u, -1);
+                goto done;
+            }
         for (int32_t u = 0; u < n_units; u++)  /* after every unit has stepped, as the Python loop checks */
             if (asked[u]) { code = stop(out, &arena, TERMINATE, k, t_next, u, -1); goto done; }
         int32_t r = 0, tr = 0;
@@ -512,10 +501,10 @@ int dse_loop(const Unit *units, int32_t n_units, const Group *feeds, int32_t n_f
             }
             for (; tr < n_text_reads && text_reads[tr].unit == u; tr++) {
                 const TextRead *x = &text_reads[tr];
-                int status = x->version == 3
-                    ? ((Access3)x->fn)(x->component, x->vrs, (size_t)x->n, (void *)x->buffer, (size_t)x->n)
-                    : ((Access2)x->fn)(x->component, x->vrs, (size_t)x->n, (void *)x->buffer);
-                if (status > FMI_WARNING) { code = stop(out, &arena, TEXT_READ_FAILED, k, t_next, u, tr); goto done; }
+                if (transfer(x->fn, x->component, x->version, x->vrs, (size_t)x->n, (void *)x->buffer) > FMI_WARNING) {
+                    code = stop(out, &arena, TEXT_READ_FAILED, k, t_next, u, tr);
+                    goto done;
+                }
                 for (int64_t j = 0; j < x->n; j++) {
                     int64_t at = keep(&arena, x->buffer[j]);
                     if (at < 0) { code = stop(out, &arena, NO_MEMORY, k, t_next, u, tr); goto done; }
@@ -569,15 +558,8 @@ static int read_all(const Call *c, int64_t k, double t) {
 static int feed_all(const Call *c, double t) {
     for (int64_t j = 0; j < c->n_external; j++) c->signals[c->n_recorded + j] = c->external[j];
     for (int32_t f = 0; f < c->n_feeds; f++) {
-        const Group *g = &c->feeds[f];
-        double bad = 0.0;
-        int64_t unfit = fill(g, c->signals, &bad);
-        if (unfit >= 0) {
-            c->out->element = (int32_t)unfit;
-            c->out->value = bad;
-            return stop(c->out, &(Arena){0}, UNFIT, 0, t, g->unit, f);
-        }
-        if (call(g) > FMI_WARNING) return stop(c->out, &(Arena){0}, FEED_FAILED, 0, t, g->unit, f);
+        int code = feed(&c->feeds[f], c->signals, c->out);
+        if (code != DONE) return stop(c->out, &(Arena){0}, code, 0, t, c->feeds[f].unit, f);
     }
     return DONE;
 }

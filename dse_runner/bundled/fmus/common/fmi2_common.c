@@ -41,6 +41,23 @@ fmi2Status fmi2_fail(Fmi2Instance *s) {
     return fmi2Error;
 }
 
+fmi2Status fmi2_error(Fmi2Instance *s, const char *fmt, ...) {
+    char msg[1024];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    fmi2_log(s, fmi2Error, "logStatusError", "%s", msg);
+    return fmi2_fail(s);
+}
+
+fmi2Status fmi2_enter(fmi2Component c, const char *function, unsigned phases, int to) {
+    Fmi2Instance *s = c;
+    if (!fmi2_allowed(s, function, phases)) return fmi2Error;
+    s->phase = to;
+    return fmi2OK;
+}
+
 fmi2Status fmi2_unsupported(fmi2Component c, const char *function) {
     Fmi2Instance *s = c;
     if (s) fmi2_log(s, fmi2Error, "logStatusError", "%s is not supported by this FMU", function);

@@ -73,6 +73,13 @@ int fmi2_allowed(Fmi2Instance *s, const char *function, unsigned phases);
 /* Marks the instance failed: its use ends until a reset. */
 fmi2Status fmi2_fail(Fmi2Instance *s);
 
+/* Logs an error (printf-style) and fails the instance, for a call that must not go on (a refused step). */
+fmi2Status fmi2_error(Fmi2Instance *s, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
+/* A call that only changes the phase: to `to` if the instance's phase is one of `phases`
+ * (fmi2_allowed's guard). */
+fmi2Status fmi2_enter(fmi2Component c, const char *function, unsigned phases, int to);
+
 /* An error for a function the FMU does not implement, logged. */
 fmi2Status fmi2_unsupported(fmi2Component c, const char *function);
 

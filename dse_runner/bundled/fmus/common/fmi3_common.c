@@ -47,6 +47,23 @@ fmi3Status fmi3_fail(Fmi3Instance *s) {
     return fmi3Error;
 }
 
+fmi3Status fmi3_error(Fmi3Instance *s, const char *fmt, ...) {
+    char msg[1024];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    fmi3_log(s, fmi3Error, "logStatusError", "%s", msg);
+    return fmi3_fail(s);
+}
+
+fmi3Status fmi3_enter(fmi3Instance c, const char *function, unsigned phases, int to) {
+    Fmi3Instance *s = c;
+    if (!fmi3_allowed(s, function, phases)) return fmi3Error;
+    s->phase = to;
+    return fmi3OK;
+}
+
 fmi3Status fmi3_unsupported(fmi3Instance c, const char *function) {
     Fmi3Instance *s = c;
     if (s) fmi3_log(s, fmi3Error, "logStatusError", "%s is not supported by this FMU", function);

@@ -116,6 +116,13 @@ int fmi3_allowed(Fmi3Instance *s, const char *function, unsigned phases);
 /* Marks the instance failed: its use ends until a reset. */
 fmi3Status fmi3_fail(Fmi3Instance *s);
 
+/* Logs an error (printf-style) and fails the instance, for a call that must not go on (a refused step). */
+fmi3Status fmi3_error(Fmi3Instance *s, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
+/* A call that only changes the phase: to `to` if the instance's phase is one of `phases`
+ * (fmi3_allowed's guard). */
+fmi3Status fmi3_enter(fmi3Instance c, const char *function, unsigned phases, int to);
+
 /* An error for a function the FMU does not implement, logged. */
 fmi3Status fmi3_unsupported(fmi3Instance c, const char *function);
 

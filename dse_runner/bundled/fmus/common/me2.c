@@ -65,10 +65,7 @@ Fmi2Instance *fmi2_create(fmi2String name, fmi2Type type, fmi2String guid, const
 /* ---- event mode and continuous-time mode ------------------------------- */
 
 fmi2Status fmi2EnterEventMode(fmi2Component c) {
-    MeInstance *m = c;
-    if (!fmi2_allowed(m, "fmi2EnterEventMode", BIT(EVENT_MODE) | BIT(CONTINUOUS_TIME_MODE))) return fmi2Error;
-    m->phase = EVENT_MODE;
-    return fmi2OK;
+    return fmi2_enter(c, "fmi2EnterEventMode", BIT(EVENT_MODE) | BIT(CONTINUOUS_TIME_MODE), EVENT_MODE);
 }
 
 fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *info) {
@@ -90,10 +87,7 @@ fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *info) {
 }
 
 fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) {
-    MeInstance *m = c;
-    if (!fmi2_allowed(m, "fmi2EnterContinuousTimeMode", BIT(EVENT_MODE))) return fmi2Error;
-    m->phase = CONTINUOUS_TIME_MODE;
-    return fmi2OK;
+    return fmi2_enter(c, "fmi2EnterContinuousTimeMode", BIT(EVENT_MODE), CONTINUOUS_TIME_MODE);
 }
 
 fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean no_set_prior,

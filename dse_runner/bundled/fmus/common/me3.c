@@ -90,17 +90,11 @@ Fmi3Instance *fmi3_create(int co_simulation, fmi3String name, fmi3String token, 
 /* ---- event mode and continuous-time mode ------------------------------- */
 
 fmi3Status fmi3EnterEventMode(fmi3Instance c) {
-    Me3Instance *m = c;
-    if (!fmi3_allowed(m, "fmi3EnterEventMode", BIT(EVENT_MODE) | BIT(CONTINUOUS_TIME_MODE))) return fmi3Error;
-    m->phase = EVENT_MODE;
-    return fmi3OK;
+    return fmi3_enter(c, "fmi3EnterEventMode", BIT(EVENT_MODE) | BIT(CONTINUOUS_TIME_MODE), EVENT_MODE);
 }
 
 fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance c) {
-    Me3Instance *m = c;
-    if (!fmi3_allowed(m, "fmi3EnterContinuousTimeMode", BIT(EVENT_MODE))) return fmi3Error;
-    m->phase = CONTINUOUS_TIME_MODE;
-    return fmi3OK;
+    return fmi3_enter(c, "fmi3EnterContinuousTimeMode", BIT(EVENT_MODE), CONTINUOUS_TIME_MODE);
 }
 
 fmi3Status fmi3CompletedIntegratorStep(fmi3Instance c, fmi3Boolean no_set_prior,

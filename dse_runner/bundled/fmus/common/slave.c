@@ -38,10 +38,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
     Slave *s = c;
     if (!fmi2_allowed(s, "fmi2DoStep", BIT(STEP_MODE))) return fmi2Error;
     char why[256];
-    if (fmi_step_refused(why, sizeof why, "fmi2DoStep", s->time, t, h)) {
-        slave_log(s, fmi2Error, "logStatusError", "%s", why);
-        return fmi2_fail(s);
-    }
+    if (fmi_step_refused(why, sizeof why, "fmi2DoStep", s->time, t, h)) return fmi2_error(s, "%s", why);
     if (MODEL.do_step(s, t, h) != 0) return fmi2_fail(s);
     s->time = t + h;
     return fmi2OK;

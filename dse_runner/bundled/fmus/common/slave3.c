@@ -48,10 +48,7 @@ fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean 
     if (early_return) *early_return = fmi3False;
     if (last_successful_time) *last_successful_time = s->time;
     char why[256];
-    if (fmi_step_refused(why, sizeof why, "fmi3DoStep", s->time, t, h)) {
-        slave3_log(s, fmi3Error, "logStatusError", "%s", why);
-        return fmi3_fail(s);
-    }
+    if (fmi_step_refused(why, sizeof why, "fmi3DoStep", s->time, t, h)) return fmi3_error(s, "%s", why);
     if (MODEL.do_step(s, t, h) != 0) return fmi3_fail(s);
     s->time = t + h;
     if (last_successful_time) *last_successful_time = s->time;
