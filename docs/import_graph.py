@@ -9,7 +9,7 @@ imported, so no dependency needs to be installed). A node is a module; a subpack
 (``sweeps/strategies``, ``analysis/diagnose``, ``interfaces/intocps``, ``cases/robotti_diagnosis``) is one node. An arrow A --> B says A
 imports B at the top of the module; a dotted arrow, only inside a function or under ``TYPE_CHECKING`` (on
 first use, so that starting the CLI does not load what a command does not need). ``errors``,
-``strict_json`` and ``yamlfile``, which every layer may import, are drawn without their arrows.
+``plugins``, ``strict_json`` and ``yamlfile``, which every layer may import, are drawn without their arrows.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ START, END = "<!-- import-graph: start (docs/import_graph.py) -->", "<!-- import
 
 LAYERS = ("simulation", "sweeps", "analysis", "interfaces", "cases")  # in the order they may import
 COLLAPSED = ("sweeps.strategies", "analysis.diagnose", "interfaces.intocps", "cases.robotti_diagnosis")
-SHARED = ("errors", "strict_json", "yamlfile")  # imported from everywhere: drawn without arrows
+SHARED = ("errors", "plugins", "strict_json", "yamlfile")  # imported from everywhere: drawn without arrows
 LEFT_OUT = ("__main__", "bundled")  # the entry point (imports cli) and the data package (imports nothing)
 
 

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 from pydantic import BaseModel, ConfigDict, PositiveInt, ValidationError
 
 from ..errors import DseError
+from ..plugins import instance_of_subclass
 
 if TYPE_CHECKING:
     from .spec import Cluster
@@ -235,14 +236,7 @@ def find(kind: str) -> ClusterMaker | None:
     if kind in BUILTIN:
         return BUILTIN[kind]()
     for entry in entry_points(group=GROUP, name=kind):
-        try:
-            found = entry.load()
-        except ImportError as e:
-            raise DseError(f"cluster.kind {kind!r} ({entry.value}) cannot be imported: {e}") from None
-        if not (isinstance(found, type) and issubclass(found, ClusterMaker)):
-            raise DseError(f"cluster.kind {kind!r} ({entry.value}) is not a subclass of "
-                           "dse_runner.sweeps.makers.ClusterMaker")
-        return found()
+        return instance_of_subclass(entry, ClusterMaker, f"cluster.kind {kind!r}")
     return None
 
 

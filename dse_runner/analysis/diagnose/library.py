@@ -18,12 +18,13 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
-from importlib.metadata import EntryPoint, entry_points
+from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any, ClassVar, Protocol
 
 from ... import bundled
 from ...errors import DseError
+from ...plugins import instance_of_subclass
 from ...sweeps.spec import Space, read_spec, resolve_space
 from .explain import NOISE_FACTOR
 from .hypotheses import Hypothesis
@@ -87,23 +88,12 @@ class HypothesisLibrary(ABC):
         return []
 
 
-def _checked(entry: EntryPoint) -> HypothesisLibrary:
-    """An installed library, held to the contract at once, not half-way through a diagnosis."""
-    try:
-        found = entry.load()
-    except ImportError as e:
-        raise DseError(f"hypothesis library {entry.name!r} ({entry.value}) cannot be imported: {e}") from None
-    if not (isinstance(found, type) and issubclass(found, HypothesisLibrary)):
-        raise DseError(f"hypothesis library {entry.name!r} ({entry.value}) is not a subclass of "
-                       "dse_runner.analysis.diagnose.library.HypothesisLibrary")
-    return found()
-
-
 def libraries() -> list[HypothesisLibrary]:
     """Installed libraries in name order, then the built-in signal effects (which serve any model)."""
     from .signal_library import SignalEffects
 
-    installed = [_checked(e) for e in sorted(entry_points(group=GROUP), key=lambda e: e.name)]
+    installed = [instance_of_subclass(e, HypothesisLibrary, f"hypothesis library {e.name!r}")
+                 for e in sorted(entry_points(group=GROUP), key=lambda e: e.name)]
     return [*installed, SignalEffects()]
 
 

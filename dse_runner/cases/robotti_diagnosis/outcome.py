@@ -200,6 +200,9 @@ class Diagnosis:
             "effects": self.effects,
             "cross_track_before": self.cross_track_before,
             "cross_track_after": self.cross_track_after,
+            "held_out_before": self.cross_track_before,  # every library's keys: here in metres of cross-track
+            "held_out_after": self.cross_track_after,
+            "held_out_unit": "m (mean cross-track error on held-out runs, Equation 1)",
             "verdict": self.verdict,
             "noise_floor": self.noise_floor,
             "runner_up": up.to_json() if up is not None else None,
