@@ -27,7 +27,8 @@ from conftest import FMU_SOURCES, MULTIMODEL, REPO, SCENARIOS, sleeper_multimode
 import dse_runner
 from dse_runner.sweeps import store
 from dse_runner.sweeps.cluster import connect
-from dse_runner.sweeps.makers import HTCondor, KubernetesOptions, kubernetes_cluster_spec
+from dse_runner.sweeps.jobqueue import HTCondor
+from dse_runner.sweeps.makers import KubernetesOptions, kubernetes_cluster_spec
 from dse_runner.errors import DseError
 from dse_runner.sweeps.rank import rank
 from dse_runner.sweeps.spec import Cluster, load_space
@@ -327,8 +328,8 @@ def test_cluster_choice_errors(tmp_path):
         load_space(write_space(tmp_path, cluster={"kind": "htcondor", "address": "tcp://127.0.0.1:8786"}))
     with pytest.raises(DseError, match="needs a protocol"):
         load_space(write_space(tmp_path, cluster={"address": "127.0.0.1:8786"}))
-    space = load_space(write_space(tmp_path, cluster={"kind": "slurm"}))
-    with pytest.raises(DseError, match=r"cluster.kind 'slurm' is unknown \(known: htcondor, kubernetes, local"):
+    space = load_space(write_space(tmp_path, cluster={"kind": "lsf"}))
+    with pytest.raises(DseError, match=r"cluster.kind 'lsf' is unknown \(known: htcondor, kubernetes, local, slurm"):
         submit(space)
     space = load_space(write_space(tmp_path, cluster={"address": "tls://127.0.0.1:1",
                                                       "tls": {"ca_file": "x", "cert": "y", "key": "z"}}))
