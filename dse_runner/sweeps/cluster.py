@@ -102,7 +102,9 @@ def connect(spec: Cluster, base: Path | None = None) -> Iterator[distributed.Cli
             else:
                 chosen.scale(cluster, spec.n_workers)
             failure = functools.partial(chosen.failure, cluster)
-            with _client(cluster, sec, spec.connect_timeout, chosen.first_worker_wait, failure) as client:
+            # adapting from no worker, the cluster starts one only once a task waits: the sweep's first
+            wait = 0.0 if spec.max_workers is not None and not spec.min_workers else chosen.first_worker_wait
+            with _client(cluster, sec, spec.connect_timeout, wait, failure) as client:
                 _FAILURES[client] = failure
                 try:
                     yield client
