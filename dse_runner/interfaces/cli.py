@@ -236,7 +236,7 @@ def submit(
     out: Annotated[str | None, typer.Option(help="Results folder or fsspec URL (overrides the spec's 'output').")] = None,
     workers: Annotated[int | None, typer.Option(help="Workers to start (overrides the spec).")] = None,
     scheduler: Annotated[str | None, typer.Option(help="Address of an existing Dask scheduler (tcp:// or tls://).")] = None,
-    cluster: Annotated[str | None, typer.Option(help="Start a cluster of this kind: local, htcondor, kubernetes "
+    cluster: Annotated[str | None, typer.Option(help="Start a cluster of this kind: local, slurm, htcondor, kubernetes "
                                                      "or a plugin's (overrides the spec).")] = None,
     dashboard: Annotated[bool, typer.Option(help="Serve the live dashboard while the sweep runs.")] = True,
     dashboard_address: DashboardAddress = "127.0.0.1:0",

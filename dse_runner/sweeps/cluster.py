@@ -2,21 +2,25 @@
 
 ``cluster.address`` connects to a scheduler someone else runs (``tcp://`` or
 ``tls://``). Otherwise ``cluster.kind`` names a *cluster maker* (makers.py:
-``local``, ``htcondor``, ``kubernetes`` built in, more through the
+``local``, ``slurm``, ``htcondor``, ``kubernetes`` built in, more through the
 ``dse_runner.clusters`` entry-point group), which starts a ``distributed``
 deploy cluster here and closes it afterwards. Everything downstream sees
-only a ``distributed.Client``.
+only a ``distributed.Client``, and asks :func:`failure_of` it whether its
+cluster has failed for good (a batch system refused a job).
 
 Schedulers we start bind their dashboards to 127.0.0.1 unless
-``dashboard_address`` says otherwise.
+``dashboard_address`` says otherwise, and the links printed name the host
+the dashboard listens on (:func:`dashboard_link_template`).
 """
 
 from __future__ import annotations
 
+import functools
 import logging
 import signal
 import threading
 import time
+import weakref
 from collections.abc import Callable, Collection, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -30,6 +34,27 @@ from .spec import Cluster
 # messages carry chunks of tasks, so the default (1000) would hold a large sweep's tasks in
 # the client. A short log keeps the client's memory flat.
 MESSAGE_LOG_LENGTH = 20
+
+# Each client of a cluster we started -> its maker's failure check (makers.ClusterMaker.failure)
+_FAILURES: weakref.WeakKeyDictionary[Any, Callable[[], str | None]] = weakref.WeakKeyDictionary()
+
+
+def failure_of(client: Any) -> str | None:
+    """Why the cluster behind ``client`` cannot get workers any more, or None (also for one we did not start)."""
+    check = _FAILURES.get(client)
+    return check() if check else None
+
+
+def dashboard_link_template(dashboard_address: str) -> str | None:
+    """distributed's dashboard link naming the host the dashboard listens on, when that is one host.
+
+    distributed names the scheduler's host in the link; a batch cluster's scheduler listens on the
+    machine's network address, so the link said e.g. 192.0.2.2 while the dashboard listened on 127.0.0.1
+    only. None when it listens on every interface (``0.0.0.0``, ``:8787``): distributed's link is right."""
+    host = dashboard_address.rsplit(":", 1)[0] if ":" in dashboard_address else dashboard_address
+    if host in ("", "0.0.0.0", "[::]", "::"):
+        return None
+    return f"{{scheme}}://{host}:{{port}}/status"
 
 
 def security(spec: Cluster, base: Path | None = None) -> Any:
@@ -58,8 +83,11 @@ def connect(spec: Cluster, base: Path | None = None) -> Iterator[distributed.Cli
 
     logging.getLogger("distributed").setLevel(logging.ERROR)
     sec = security(spec, base)
-    log_length = {"distributed.admin.low-level-log-length": MESSAGE_LOG_LENGTH}
-    with dask.config.set(log_length), quiet_once_interrupted():
+    settings: dict[str, Any] = {"distributed.admin.low-level-log-length": MESSAGE_LOG_LENGTH}
+    link = None if spec.address else dashboard_link_template(spec.dashboard_address)
+    if link:
+        settings["distributed.dashboard.link"] = link
+    with dask.config.set(settings), quiet_once_interrupted():
         if spec.address:
             with _client(spec.address, sec, spec.connect_timeout, wait=spec.connect_timeout) as client:
                 yield client
@@ -69,11 +97,19 @@ def connect(spec: Cluster, base: Path | None = None) -> Iterator[distributed.Cli
         try:
             with sigint_held():  # a Ctrl-C meanwhile is raised once the cluster exists, and it is closed
                 cluster = chosen.started(spec, sec)
-            chosen.scale(cluster, spec.n_workers)
-            with _client(cluster, sec, spec.connect_timeout, chosen.first_worker_wait) as client:
+            if spec.max_workers is not None:
+                chosen.adapt(cluster, spec.min_workers or 0, spec.max_workers)
+            else:
+                chosen.scale(cluster, spec.n_workers)
+            failure = functools.partial(chosen.failure, cluster)
+            # adapting from no worker, the cluster starts one only once a task waits: the sweep's first
+            wait = 0.0 if spec.max_workers is not None and not spec.min_workers else chosen.first_worker_wait
+            with _client(cluster, sec, spec.connect_timeout, wait, failure) as client:
+                _FAILURES[client] = failure
                 try:
                     yield client
                 finally:
+                    _FAILURES.pop(client, None)
                     settle(client)
         finally:
             if cluster is not None:
@@ -155,8 +191,10 @@ def quiet_once_interrupted() -> Iterator[None]:
 
 
 @contextmanager
-def _client(target: Any, sec: Any, timeout: float, wait: float) -> Iterator[Any]:
-    """A connected client, after waiting up to ``wait`` seconds for the first worker."""
+def _client(target: Any, sec: Any, timeout: float, wait: float,
+            failure: Callable[[], str | None] = lambda: None) -> Iterator[Any]:
+    """A connected client, after waiting up to ``wait`` seconds for the first worker; a ``failure`` (a
+    refused job) meanwhile ends the wait at once."""
     from distributed import Client
 
     where = target if isinstance(target, str) else type(target).__name__
@@ -167,15 +205,27 @@ def _client(target: Any, sec: Any, timeout: float, wait: float) -> Iterator[Any]
         raise DseError(f"cannot reach the Dask scheduler at {where}{hint}: {e}") from None
     try:
         if wait:
-            try:
-                client.wait_for_workers(1, timeout=wait)
-            except TimeoutError:
-                raise DseError(f"no worker joined the scheduler at {client.scheduler.address} within {wait:g} s "
-                               "(for HTCondor or Kubernetes: are the jobs or pods queued? condor_q, "
-                               "kubectl get pods)") from None
+            _first_worker(client, wait, failure)
         yield client
     finally:
         client.close()
+
+
+def _first_worker(client: Any, wait: float, failure: Callable[[], str | None]) -> None:
+    """Until a worker joins; a failure, or ``wait`` seconds without one, is an error."""
+    deadline = time.monotonic() + wait
+    while True:
+        problem = failure()
+        if problem:
+            raise DseError(problem)
+        try:
+            client.wait_for_workers(1, timeout=min(WorkerWatch.EVERY, max(0.1, deadline - time.monotonic())))
+            return
+        except TimeoutError:
+            if time.monotonic() >= deadline:
+                raise DseError(f"no worker joined the scheduler at {client.scheduler.address} within {wait:g} s "
+                               "(for Slurm, HTCondor or Kubernetes: are the jobs or pods queued? squeue, condor_q, "
+                               "kubectl get pods)") from None
 
 
 def worker_grace(spec: Cluster) -> float:
@@ -188,9 +238,9 @@ def worker_grace(spec: Cluster) -> float:
 
 class WorkerWatch:
     """Watches, beside a running sweep, that its cluster still has a worker. When it has had none for
-    ``grace`` seconds (killed, and none restarted), it says why in ``stranded`` and cancels the chunks in
-    flight, which ends the sweep's wait; without it the sweep would wait for ever. Finished chunks are in
-    the store already."""
+    ``grace`` seconds (killed, and none restarted), or its cluster has failed for good (:func:`failure_of`:
+    a batch system refused a job), it says why in ``stranded`` and cancels the chunks in flight, which ends
+    the sweep's wait; without it the sweep would wait for ever. Finished chunks are in the store already."""
 
     EVERY = 2.0  # seconds between looks: a call to the scheduler each time
 
@@ -211,6 +261,11 @@ class WorkerWatch:
     def _watch(self) -> None:
         alone_since: float | None = None
         while not self._stop.wait(self.EVERY):
+            problem = failure_of(self.client)
+            if problem:
+                self.stranded = problem
+                self.client.cancel(self.in_flight())
+                return
             try:
                 workers = len(self.client.scheduler_info(n_workers=1)["workers"])  # is there one? no more asked
             except Exception:  # noqa: BLE001 - the scheduler itself went: the sweep's reconnection deals with it

@@ -1,8 +1,9 @@
 """Cluster makers: what ``cluster.kind`` names, the way a sweep gets a Dask cluster started for it.
 
-A maker is a subclass of :class:`ClusterMaker`. Three are built in: ``local``
-(distributed's LocalCluster), ``htcondor`` (dask-jobqueue's HTCondorCluster)
-and ``kubernetes`` (the dask-kubernetes operator's KubeCluster). A package adds
+A maker is a subclass of :class:`ClusterMaker`. Four are built in: ``local``
+(distributed's LocalCluster), ``slurm`` and ``htcondor`` (dask-jobqueue's
+SLURMCluster and HTCondorCluster, in jobqueue.py) and ``kubernetes`` (the
+dask-kubernetes operator's KubeCluster). A package adds
 one as ``distributed``'s own deploy projects do, through an entry point::
 
     [project.entry-points."dse_runner.clusters"]
@@ -20,10 +21,11 @@ import logging
 import os
 import uuid
 from abc import ABC, abstractmethod
+from importlib import import_module
 from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, Any, ClassVar
 
-from pydantic import BaseModel, ConfigDict, PositiveInt, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError
 
 from ..errors import DseError
 from ..plugins import instance_of_subclass
@@ -53,13 +55,15 @@ class ClusterMaker(ABC):
     once with the spec, the validated block and distributed's Security (None without ``cluster.tls``),
     the terminal's Ctrl-C held off until it returns; it returns a ``distributed`` deploy cluster
     (what a ``distributed.Client`` connects to). Then :meth:`scale` is called once with
-    ``cluster.n_workers``, a client connects and waits up to ``first_worker_wait`` seconds for a first
-    worker, and the sweep runs; a cluster that loses every worker mid-sweep gets as long to get one
+    ``cluster.n_workers`` (or :meth:`adapt` with ``min_workers`` and ``max_workers``, when given), a
+    client connects and waits up to ``first_worker_wait`` seconds for a first worker, and the sweep
+    runs; :meth:`failure` is asked meanwhile, about once a second, and a reason stops the sweep at once; a cluster that loses every worker mid-sweep gets as long to get one
     back (twice ``connect_timeout`` when it is 0). :meth:`close` is called once when the sweep ends,
     fails or is interrupted, after the client has cancelled its tasks.
 
     Optional parts, with defaults: ``Options`` (none: the block, if given, must be empty), :meth:`scale`
-    (``cluster.scale(n_workers or 1)``: a batch system starts with no job), :meth:`close`
+    (``cluster.scale(n_workers or 1)``: a batch system starts with no job), :meth:`adapt`
+    (``cluster.adapt(minimum=, maximum=)``, Dask's adaptive scaling), :meth:`failure` (None), :meth:`close`
     (``cluster.close()``), ``first_worker_wait`` (30 minutes: a job may wait in its queue).
     """
 
@@ -72,6 +76,14 @@ class ClusterMaker(ABC):
 
     def scale(self, cluster: Any, n_workers: int | None) -> None:
         cluster.scale(n_workers or 1)
+
+    def adapt(self, cluster: Any, minimum: int, maximum: int) -> None:
+        cluster.adapt(minimum=minimum, maximum=maximum)
+
+    def failure(self, cluster: Any) -> str | None:
+        """Why ``cluster`` cannot get workers any more (a batch system refused its job), or None. Without
+        it a sweep would wait ``first_worker_wait`` for workers that cannot come."""
+        return None
 
     def close(self, cluster: Any) -> None:
         cluster.close()
@@ -120,7 +132,7 @@ class Local(ClusterMaker):
         # chunk (sweep.py): a segfaulting FMU then costs two worker restarts per level, not four.
         with dask.config.set({"distributed.scheduler.allowed-failures": 1, **QUIET}):
             return LocalCluster(
-                n_workers=spec.n_workers or os.cpu_count() or 1,
+                n_workers=spec.min_workers if spec.max_workers else spec.n_workers or os.cpu_count() or 1,
                 threads_per_worker=spec.threads_per_worker,
                 processes=True,
                 host="127.0.0.1",
@@ -132,45 +144,6 @@ class Local(ClusterMaker):
 
     def scale(self, cluster: Any, n_workers: int | None) -> None:
         """Nothing: it started with its workers."""
-
-
-class HTCondorOptions(BaseModel):
-    """``cluster.htcondor``: dask-jobqueue's HTCondorCluster, one HTCondor job per ``cores`` workers."""
-
-    model_config = Strict
-    cores: PositiveInt = 1  # per job; each core runs one single-threaded worker process
-    memory: str = "2GiB"  # per job
-    disk: str = "1GiB"  # per job: extracted FMUs and scenario files, a few MB
-    job_extra: dict[str, str] = {}  # extra submit-description lines, e.g. {"+ProjectName": '"robotti"'}
-    prologue: list[str] = []  # shell lines before the worker starts, e.g. activating an environment
-    python: str | None = None  # the worker's Python on the execute nodes; default: this one
-    interface: str | None = None  # network interface the scheduler listens on, e.g. eth0
-
-
-class HTCondor(ClusterMaker):
-    """One HTCondor job per ``htcondor.cores`` single-threaded workers; the scheduler runs here."""
-
-    Options = HTCondorOptions
-
-    def start(self, spec: Cluster, options: HTCondorOptions, security: Any) -> Any:
-        try:
-            from dask_jobqueue import HTCondorCluster
-        except ImportError:
-            raise DseError("cluster.kind htcondor needs dask-jobqueue: pip install 'dse-runner[htcondor]'") from None
-        return HTCondorCluster(
-            cores=options.cores,
-            processes=options.cores,  # one single-threaded worker process per core, as locally
-            memory=options.memory,
-            disk=options.disk,
-            job_extra_directives=dict(options.job_extra),
-            job_script_prologue=list(options.prologue),
-            python=options.python,
-            interface=options.interface,
-            security=security,
-            protocol="tls://" if security else None,
-            scheduler_options={"dashboard_address": spec.dashboard_address},
-            silence_logs="error",
-        )
 
 
 KUBERNETES_IDLE_TIMEOUT = 600  # seconds: the operator deletes a cluster its crashed client left behind
@@ -221,7 +194,13 @@ class Kubernetes(ClusterMaker):
                            namespace=options.namespace)
 
 
-BUILTIN: dict[str, type[ClusterMaker]] = {"local": Local, "htcondor": HTCondor, "kubernetes": Kubernetes}
+# module:class, imported when chosen: the batch kinds live with what they share (jobqueue.py)
+BUILTIN: dict[str, str] = {
+    "local": "dse_runner.sweeps.makers:Local",
+    "htcondor": "dse_runner.sweeps.jobqueue:HTCondor",
+    "slurm": "dse_runner.sweeps.jobqueue:Slurm",
+    "kubernetes": "dse_runner.sweeps.makers:Kubernetes",
+}
 
 
 # ---- finding a kind's maker ---------------------------------------------------------------------
@@ -234,7 +213,8 @@ def installed() -> list[str]:
 def find(kind: str) -> ClusterMaker | None:
     """The maker of ``kind``, or None if no installed package declares it."""
     if kind in BUILTIN:
-        return BUILTIN[kind]()
+        module, name = BUILTIN[kind].split(":")
+        return getattr(import_module(module), name)()
     for entry in entry_points(group=GROUP, name=kind):
         return instance_of_subclass(entry, ClusterMaker, f"cluster.kind {kind!r}")
     return None

@@ -26,6 +26,7 @@ from pydantic import (
     ConfigDict,
     Discriminator,
     Field,
+    NonNegativeInt,
     PositiveFloat,
     PositiveInt,
     Tag,
@@ -223,9 +224,11 @@ class Cluster(BaseModel):
     and validated by that kind's maker (makers.py)."""
 
     model_config = ConfigDict(extra="allow", allow_inf_nan=False)
-    kind: str = "local"  # local, htcondor, kubernetes, or a plug-in's (see makers.py)
+    kind: str = "local"  # local, slurm, htcondor, kubernetes, or a plug-in's (see makers.py)
     address: str | None = None  # tcp://host:8786 or tls://host:8786: use this scheduler, start nothing
     n_workers: PositiveInt | None = None  # workers to start; local default: the number of cores
+    min_workers: NonNegativeInt | None = None  # with max_workers: Dask's adaptive scaling between the two,
+    max_workers: PositiveInt | None = None  # workers (jobs) started as tasks wait and given back when idle
     threads_per_worker: PositiveInt = 1
     tls: Tls | None = None
     dashboard_address: str = "127.0.0.1:0"  # of a scheduler we start; loopback unless asked otherwise
@@ -238,6 +241,21 @@ class Cluster(BaseModel):
             raise ValueError(f"give either 'address' (an existing scheduler) or 'kind: {self.kind}', not both")
         if self.address is not None and not self.address.startswith(("tcp://", "tls://", "ucx://", "inproc://")):
             raise ValueError(f"address {self.address!r} needs a protocol: tcp://host:port or tls://host:port")
+        return self
+
+    @model_validator(mode="after")
+    def _fixed_or_adaptive(self) -> Cluster:
+        """A fixed ``n_workers``, or ``min_workers`` to ``max_workers`` for Dask's adapt: not both."""
+        if self.min_workers is not None and self.max_workers is None:
+            raise ValueError("min_workers needs max_workers (adaptive scaling between the two)")
+        if self.max_workers is None:
+            return self
+        if self.n_workers is not None:
+            raise ValueError("give either n_workers (a fixed count) or min_workers/max_workers (adaptive), not both")
+        if self.address is not None:
+            raise ValueError("min_workers/max_workers scale a cluster dse-runner starts, not one at 'address'")
+        if (self.min_workers or 0) > self.max_workers:
+            raise ValueError(f"min_workers ({self.min_workers}) is more than max_workers ({self.max_workers})")
         return self
 
     @model_validator(mode="after")
@@ -365,7 +383,7 @@ class Space:
         if kind is not None:
             cluster.update(kind=kind, address=None)
         if n_workers is not None:
-            cluster["n_workers"] = n_workers
+            cluster.update(n_workers=n_workers, min_workers=None, max_workers=None)  # --workers: a fixed count
         if cluster:
             update["cluster"] = Cluster.model_validate({**self.spec.cluster.model_dump(), **cluster})
         return Space(self.spec.model_copy(update=update), self.path, self.plan, self.scenarios)

@@ -323,10 +323,12 @@ class GridSource:
         """Probe one warm simulation on every worker at once: each loads the model while the client makes
         the results' schema, so none of them starts its first chunk cold."""
         spec = self.space.spec
+        # none yet (an adaptive cluster starts from no worker): one probe anywhere, which asks for the first
         workers = [[address] for address in client.scheduler_info()["workers"]] or [None]
         self.warm_ups = [client.submit(probe, self.shipment, self.space.scenarios[0].name, point,
                                        self.space.objectives, spec.timeout, self.space.experiment,
-                                       workers=where, allow_other_workers=True, pure=False) for where in workers]
+                                       workers=where, allow_other_workers=True if where else None, pure=False)
+                         for where in workers]
 
     def probed(self, client) -> float | None:
         """The first probe's answer (the others go on, as warm-ups); None if it failed. Watched like the

@@ -27,7 +27,8 @@ from conftest import FMU_SOURCES, MULTIMODEL, REPO, SCENARIOS, sleeper_multimode
 import dse_runner
 from dse_runner.sweeps import store
 from dse_runner.sweeps.cluster import connect
-from dse_runner.sweeps.makers import HTCondor, KubernetesOptions, kubernetes_cluster_spec
+from dse_runner.sweeps.jobqueue import HTCondor
+from dse_runner.sweeps.makers import KubernetesOptions, kubernetes_cluster_spec
 from dse_runner.errors import DseError
 from dse_runner.sweeps.rank import rank
 from dse_runner.sweeps.spec import Cluster, load_space
@@ -327,8 +328,8 @@ def test_cluster_choice_errors(tmp_path):
         load_space(write_space(tmp_path, cluster={"kind": "htcondor", "address": "tcp://127.0.0.1:8786"}))
     with pytest.raises(DseError, match="needs a protocol"):
         load_space(write_space(tmp_path, cluster={"address": "127.0.0.1:8786"}))
-    space = load_space(write_space(tmp_path, cluster={"kind": "slurm"}))
-    with pytest.raises(DseError, match=r"cluster.kind 'slurm' is unknown \(known: htcondor, kubernetes, local"):
+    space = load_space(write_space(tmp_path, cluster={"kind": "lsf"}))
+    with pytest.raises(DseError, match=r"cluster.kind 'lsf' is unknown \(known: htcondor, kubernetes, local, slurm"):
         submit(space)
     space = load_space(write_space(tmp_path, cluster={"address": "tls://127.0.0.1:1",
                                                       "tls": {"ca_file": "x", "cert": "y", "key": "z"}}))
@@ -376,3 +377,84 @@ def test_store_at_an_s3_url(tmp_path, monkeypatch):
         assert store.read_trajectory("s3://sweeps/robotti", "small", "sin1", 1)["time"].size > 0
     finally:
         server.stop()
+
+
+@pytest.mark.slow  # a dse-runner command that starts a scheduler
+def test_htcondor_without_condor_submit_is_one_line_at_once(tmp_path):
+    """No HTCondor here: the submit stops at once with one line naming the missing command, instead of
+    logging a FileNotFoundError per job and waiting 30 minutes for a worker."""
+    if shutil.which("condor_submit"):
+        pytest.skip("HTCondor is installed here")
+    spec = write_space(tmp_path)
+    started = time.monotonic()
+    result = subprocess.run([sys.executable, "-m", "dse_runner", "submit", str(spec), "--cluster", "htcondor",
+                             "--no-dashboard"], capture_output=True, text=True, timeout=120, cwd=REPO)
+    assert time.monotonic() - started < 30
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [
+        "error: cluster.kind htcondor: condor_submit is not on PATH: run dse-runner where HTCondor's commands "
+        "are (a login or submit node), or install them"], result.stderr
+
+
+@pytest.mark.slow  # a sweep's cluster started and stopped
+def test_a_refused_htcondor_job_stops_the_sweep_with_its_words(tmp_path, monkeypatch):
+    """HTCondor on the same path as Slurm: a condor_submit that fails as it does without a reachable schedd
+    (no pool can run here) stops the sweep with its stderr in one line, not a 30-minute wait."""
+    bin_ = tmp_path / "bin"
+    bin_.mkdir()
+    (bin_ / "condor_submit").write_text("#!/bin/sh\necho 'ERROR: Can'\"'\"'t find address of local schedd' >&2\n"
+                                        "exit 1\n")
+    (bin_ / "condor_submit").chmod(0o755)
+    monkeypatch.setenv("PATH", f"{bin_}:{os.environ['PATH']}")
+    space = load_space(write_space(tmp_path, cluster={"kind": "htcondor"}))
+    started = time.monotonic()
+    with pytest.raises(DseError, match=r"^HTCondor refused a worker job: ERROR: Can't find address of local schedd$"):
+        submit(space)
+    assert time.monotonic() - started < 60
+    assert load_status(space.output, "small").state == "failed"
+
+
+@pytest.mark.parametrize("address, template", [
+    ("127.0.0.1:0", "{scheme}://127.0.0.1:{port}/status"),
+    ("192.0.2.7:8787", "{scheme}://192.0.2.7:{port}/status"),
+    ("0.0.0.0:8787", None),  # every interface: distributed's link, naming the scheduler's host, is right
+    (":8787", None),
+])
+def test_dashboard_links_name_the_host_the_dashboard_listens_on(address, template):
+    from dse_runner.sweeps.cluster import dashboard_link_template
+
+    assert dashboard_link_template(address) == template
+
+
+@pytest.mark.parametrize("cluster, message", [
+    ({"min_workers": 1}, "min_workers needs max_workers"),
+    ({"n_workers": 2, "max_workers": 4}, "give either n_workers .* or min_workers/max_workers"),
+    ({"min_workers": 3, "max_workers": 2}, r"min_workers \(3\) is more than max_workers \(2\)"),
+    ({"address": "tcp://127.0.0.1:8786", "max_workers": 2}, "scale a cluster dse-runner starts"),
+])
+def test_adaptive_bounds_are_checked(tmp_path, cluster, message):
+    with pytest.raises(DseError, match=message):
+        load_space(write_space(tmp_path, cluster=cluster))
+    adaptive = load_space(write_space(tmp_path, cluster={"kind": "slurm", "min_workers": 0, "max_workers": 4}))
+    fixed = adaptive.with_overrides(n_workers=3).spec.cluster  # --workers: a fixed count instead
+    assert (fixed.n_workers, fixed.min_workers, fixed.max_workers) == (3, None, None)
+
+
+def test_slurm_job_script():
+    """The sbatch script dask-jobqueue renders from cluster.slurm, with dask-jobqueue's names and meanings."""
+    from dse_runner.sweeps.jobqueue import Slurm
+
+    spec = Cluster.model_validate({"kind": "slurm", "slurm": {
+        "queue": "short", "account": "proj42", "cores": 4, "memory": "8GiB", "walltime": "02:00:00",
+        "job_extra_directives": ["--qos=low"], "job_script_prologue": ["source /opt/venvs/dse/bin/activate"],
+        "python": "/opt/venvs/dse/bin/python", "log_directory": "/tmp/dse-logs"}})
+    cluster = Slurm().started(spec, None)
+    try:
+        script = cluster.job_script()
+    finally:
+        cluster.close()
+    for line in ("#SBATCH -p short", "#SBATCH -A proj42", "#SBATCH --cpus-per-task=4", "#SBATCH --mem=8G",
+                 "#SBATCH -t 02:00:00", "#SBATCH --qos=low", "#SBATCH -e /tmp/dse-logs/dask-worker-%J.err",
+                 "source /opt/venvs/dse/bin/activate", "/opt/venvs/dse/bin/python -m distributed.cli.dask_worker"):
+        assert line in script, line
+    assert "--nworkers 4" in script and "--nthreads 1" in script  # four single-threaded workers per job

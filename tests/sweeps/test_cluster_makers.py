@@ -109,7 +109,7 @@ def test_a_makers_own_block_reaches_it(tmp_path, plugin):
     ({"kind": "tagged"}, r"cluster: tagged\.resource: field required"),  # the spec's block, though not given
     ({"kind": "tagged", "taged": {"resource": "x"}}, r"cluster: unknown key 'taged': besides its own keys, cluster "
                                                      r"takes a block named by a cluster kind \(installed: bare, "
-                                                     r"function, htcondor, kubernetes, local, tagged\)"),
+                                                     r"function, htcondor, kubernetes, local, slurm, tagged\)"),
     ({"kind": "bare", "bare": {"cores": 4}}, r"cluster: bare\.cores: extra inputs are not permitted"),
     ({"kind": "htcondor", "htcondor": {"cores": 0}}, r"cluster: htcondor\.cores: input should be greater than 0"),
     ({"kind": "function"}, r"cluster: cluster\.kind 'function' \(maker_plugin:Function\) is not a subclass of "
@@ -122,10 +122,10 @@ def test_cluster_blocks_are_checked_when_the_spec_loads(tmp_path, plugin, cluste
 
 def test_a_block_for_a_kind_not_installed_here_waits_for_the_sweep(tmp_path):
     """A space may name a plug-in kind this machine lacks (to be ranked or viewed here): the sweep names it."""
-    spec = Cluster.model_validate({"kind": "slurm", "slurm": {"queue": "short"}})
-    assert spec.block("slurm") == {"queue": "short"}
-    with pytest.raises(ValidationError, match="unknown key 'slurm'"):
-        Cluster.model_validate({"kind": "local", "slurm": {"queue": "short"}})
-    with pytest.raises(DseError, match=r"cluster.kind 'slurm' is unknown \(known: htcondor, kubernetes, local"):
+    spec = Cluster.model_validate({"kind": "lsf", "lsf": {"queue": "short"}})
+    assert spec.block("lsf") == {"queue": "short"}
+    with pytest.raises(ValidationError, match="unknown key 'lsf'"):
+        Cluster.model_validate({"kind": "local", "lsf": {"queue": "short"}})
+    with pytest.raises(DseError, match=r"cluster.kind 'lsf' is unknown \(known: htcondor, kubernetes, local, slurm"):
         with connect(spec):
             pass
