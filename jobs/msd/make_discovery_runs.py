@@ -15,7 +15,7 @@ The truth is integrated by scipy (not by dse-runner's master), with the force he
 communication step as the master feeds it. Four runs of 10 s, each driven by a different force (a push, a
 sine sweep, two sines, a release from 0.3 m then a pulse); the position is recorded every 0.04 s with white
 noise of σ 2 mm (seeded). Each case folder gets the force and position CSVs and a space.yaml that calibrates
-k and c (intervals) against the position. Run from the repository:
+k and c (a grid: the calibration) against the position. Run from the repository:
 ``PYTHONPATH=. python jobs/msd/make_discovery_runs.py [CASE ...] [--out DIR]``.
 """
 
@@ -98,7 +98,7 @@ def make(case: str, folder: Path, seed: int = SEED) -> Path:
         "multimodel": os.path.relpath(HERE / "multimodel.yaml", folder),
         "experiment": {"stop_time": DURATION, "step": STEP},
         "scenarios": scenarios,
-        "parameters": {"msd.k": {"low": 6.0, "high": 20.0}, "msd.c": {"low": 0.1, "high": 1.5}},
+        "parameters": {"msd.k": {"start": 6, "stop": 20, "step": 2}, "msd.c": [0.2, 0.6, 1.0, 1.4]},
         "objectives": {"position_rmse": {"signal": "msd.x", "recorded": "x", "metric": "rmse"},
                        "position": {"signal": "msd.x", "recorded": "x", "metric": "residuals"}},
         "output": "out", "cluster": {"n_workers": 2},

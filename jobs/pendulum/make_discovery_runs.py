@@ -13,7 +13,7 @@ with m = 1 kg, l = 0.8 m, g = 9.81 m/s², b = 0.05 N m s and, per case, the conc
 The truth is integrated by scipy (not by dse-runner's master), with the torque held over each 0.02 s
 communication step as the master feeds it. Four runs of 10 s (two releases, a push, a sine torque); the
 angle is recorded every 0.04 s with white noise of σ 2 mrad (seeded). Each case folder gets the torque
-and angle CSVs and a space.yaml that calibrates l and b (intervals) against the angle. Run from the
+and angle CSVs and a space.yaml that calibrates l and b (a grid: the calibration) against the angle. Run from the
 repository: ``PYTHONPATH=. python jobs/pendulum/make_discovery_runs.py [CASE ...] [--out DIR]``.
 """
 
@@ -93,7 +93,7 @@ def make(case: str, folder: Path, seed: int = SEED) -> Path:
         "multimodel": os.path.relpath(HERE / "multimodel.yaml", folder),
         "experiment": {"stop_time": DURATION, "step": STEP},
         "scenarios": scenarios,
-        "parameters": {"pendulum.l": {"low": 0.5, "high": 1.2}, "pendulum.b": {"low": 0.0, "high": 0.3}},
+        "parameters": {"pendulum.l": {"start": 0.5, "stop": 1.2, "step": 0.1}, "pendulum.b": [0.0, 0.1, 0.2, 0.3]},
         "objectives": {"angle_rmse": {"signal": "pendulum.theta", "recorded": "theta", "metric": "rmse"},
                        "angle": {"signal": "pendulum.theta", "recorded": "theta", "metric": "residuals"}},
         "output": "out", "cluster": {"n_workers": 2},
