@@ -31,6 +31,7 @@ from ..errors import DseError
 
 PREFIX = "derivative_term"
 FUNCTIONS = {"abs": np.abs, "tanh": np.tanh, "sin": np.sin, "cos": np.cos}
+_SCALAR = {"abs": abs, "tanh": math.tanh, "sin": math.sin, "cos": math.cos}  # the same on a float, without numpy's cost
 _NAME = re.compile(r"^derivative_term\(\s*(?:([^\s.()]+)\.)?der\((.+)\)\s*,\s*(.+?)\s*\)$")
 _VARIABLE = r"[A-Za-z_][A-Za-z0-9_.\[\]]*"
 _FACTOR = re.compile(rf"^(?:({_VARIABLE})|({'|'.join(FUNCTIONS)})\(\s*({_VARIABLE})\s*(?:/\s*([0-9.eE+-]+)\s*)?\))"
@@ -56,7 +57,7 @@ class Factor:
     def value(self, values: Mapping[str, Any]) -> Any:
         v = values[self.variable]
         if self.function is not None:
-            v = FUNCTIONS[self.function](v / self.width if self.width != 1.0 else v)
+            v = (_SCALAR if isinstance(v, float) else FUNCTIONS)[self.function](v / self.width if self.width != 1.0 else v)
         return v if self.power == 1 else v ** self.power
 
 
@@ -207,9 +208,10 @@ class Corrector:
         rows = tuple((states.index(t.state), t.term, a) for t, a in terms.items())
         return cls(rows, tuple(states), inputs)
 
-    def add(self, x: np.ndarray, inputs: Sequence[float], dx: np.ndarray) -> None:
-        """dx += each coefficient · its term at states ``x`` and ``inputs`` (in :attr:`inputs`' order)."""
-        values = dict(zip(self.states, x.tolist()))
+    def add(self, x: Sequence[float], inputs: Sequence[float], dx: Any) -> None:
+        """dx[i] += each coefficient · its term at states ``x`` and ``inputs`` (in :attr:`inputs`' order); ``dx``
+        anything indexable in place (the solver's ctypes pointer, an array)."""
+        values = dict(zip(self.states, x))
         values.update(zip((name for name, _ in self.inputs), inputs))
         for index, term, coefficient in self.rows:
             dx[index] += coefficient * term.value(values)

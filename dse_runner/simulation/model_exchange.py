@@ -243,10 +243,10 @@ class ModelExchangeStepper:
         corrector, states, model = self.corrector, self._states, self.model
         pointer = states.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
 
-        def corrected(derivatives: Any, n: int) -> None:
+        def corrected(derivatives: Any, n: int) -> None:  # derivatives: a ctypes pointer, indexed in place
             own(derivatives, n)
             model.getContinuousStates(pointer, n)
-            corrector.add(states, self._term_inputs, np.ctypeslib.as_array(derivatives, shape=(n,)))
+            corrector.add(states.tolist(), self._term_inputs, derivatives)
 
         return corrected
 
