@@ -98,7 +98,7 @@ class Discovered:
             targets.setdefault(term.target, []).append(name)
         return [{"id": DISCOVERED, "target": target,
                  "terms": {self.terms[n].term.text: coefficients[n] for n in names},
-                 "intervals": {self.terms[n].term.text: list(intervals[n]) for n in names},
+                 "intervals": {self.terms[n].term.text: [float(v) for v in intervals[n]] for n in names},
                  "parameters": {n: coefficients[n] for n in names},
                  "readable": readable(self.terms[names[0]].state, {self.terms[n].term.text: coefficients[n]
                                                                     for n in names})}
