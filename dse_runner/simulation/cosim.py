@@ -433,6 +433,8 @@ class Runner:
     times: np.ndarray
     series: dict[str, np.ndarray]  # input signals at the communication points
     external: np.ndarray | None  # the same, one column each, as the loops read them
+    # derivative terms (derivative_terms.py) per model-exchange instance: term -> coefficient
+    terms: Mapping[str, Mapping] = field(default_factory=dict)
 
     def with_inputs(self, changed: Mapping[str, np.ndarray]) -> Runner:
         """The same runner feeding some input signals changed (input effects, signal_effects.py): the
@@ -440,7 +442,15 @@ class Runner:
         if not changed:
             return self
         series = {**self.series, **changed}
-        runner = Runner(self.plan, self.times, series, np.column_stack(list(series.values())))
+        return self._carried(replace(self, series=series, external=np.column_stack(list(series.values()))))
+
+    def with_terms(self, terms: Mapping[str, Mapping]) -> Runner:
+        """The same runner adding derivative terms to model-exchange instances (instance -> term -> coefficient);
+        derivative_terms.check has checked each against its instance."""
+        return self._carried(replace(self, terms={**self.terms, **terms})) if terms else self
+
+    def _carried(self, runner: Runner) -> Runner:
+        """``runner`` keeping the lifecycle this one found: the FMUs are the same."""
         for cached in ("_lifecycle", "_fresh"):
             if cached in self.__dict__:
                 runner.__dict__[cached] = self.__dict__[cached]
@@ -482,7 +492,7 @@ def _run_here(runner: Runner, values: Mapping[str, Value], timeout: float | None
     names = plan.recorded
     instances = {name: fmus.acquire(name, fmus.load(path, plan.interfaces[name]))
                  for name, path in plan.fmu_paths.items()}
-    prepared = _prepare(plan, instances, runner.series, _native(plan, loop))
+    prepared = _prepare(plan, instances, runner.series, _native(plan, loop) and not runner.terms, runner.terms)
     units, signals, program = prepared.units, prepared.signals, prepared.program
     texts = {v.ref: [] for vs in plan.texts.values() for v in vs}
     record = np.empty((len(times), len(names)))
@@ -562,7 +572,7 @@ KEEP_PREPARED = 16  # plans x instance sets a process keeps laid out
 
 
 def _prepare(plan: Plan, instances: dict[str, fmus.Instance], series: dict[str, np.ndarray],
-             use_native: bool) -> _Prepared:
+             use_native: bool, terms: Mapping[str, Mapping] | None = None) -> _Prepared:
     """The units of this plan and these instances: laid out once for the native loop and reused while
     the instances are (a sweep runs one plan thousands of times), so a cheap run costs little Python."""
     chosen = tuple(instances.values())
@@ -575,7 +585,7 @@ def _prepare(plan: Plan, instances: dict[str, fmus.Instance], series: dict[str, 
     sources = {ref: i for i, ref in enumerate(names)}
     sources.update({ref: len(names) + j for j, ref in enumerate(series)})
     signals = np.zeros(len(names) + len(series))
-    units = _units(plan, instances, signals, sources, series)
+    units = _units(plan, instances, signals, sources, series, terms or {})
     prepared = _Prepared(plan, chosen, units, signals,
                          native.Program(units, signals, len(names)) if use_native else None)
     if use_native:  # model-exchange steppers hold an integrator's state: those are made anew each run
@@ -644,9 +654,10 @@ def _time_grid(start: float, stop: float, step: float) -> np.ndarray:
 
 
 def _units(plan: Plan, instances: dict[str, fmus.Instance], signals: np.ndarray, sources: dict[str, int],
-           series: dict[str, np.ndarray]) -> list[_Unit]:
-    """Every instance's stepper with its prepared reads and feeds."""
-    steppers = {name: stepper(instance, plan.multimodel.settings(name)) for name, instance in instances.items()}
+           series: dict[str, np.ndarray], terms: Mapping[str, Mapping]) -> list[_Unit]:
+    """Every instance's stepper with its prepared reads and feeds (and, model exchange, its derivative terms)."""
+    steppers = {name: stepper(instance, plan.multimodel.settings(name), terms.get(name))
+                for name, instance in instances.items()}
     feeds: dict[str, list[tuple[Variable, int, Conversion]]] = {name: [] for name in instances}
     for link in plan.links:
         if link.source.family != "string":

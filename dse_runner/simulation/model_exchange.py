@@ -15,17 +15,25 @@ steps past each output point and interpolates back, so a changed input must
 restart it, but restarting at every point costs accuracy (each restart begins
 again at first order): over ten times the error of an uninterrupted run for the
 mass-spring-damper over 500 steps.
+
+Derivative terms (derivative_terms.py) are added here, to what the FMU's derivatives return, every time the
+solver asks for them: the solver integrates the corrected equations. Without terms the solver calls the FMU
+directly, as before.
 """
 
 from __future__ import annotations
 
+import ctypes
 import functools
 import math
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
+import numpy as np
+
 from ..errors import DseError
+from .derivative_terms import Corrector
 
 SOLVERS = ("cvode", "euler")
 DEFAULT_TOLERANCE = 1e-5  # simulateME's default relative tolerance
@@ -108,11 +116,13 @@ class ModelExchangeStepper:
     """Drives one ME instance from communication point to communication point."""
 
     def __init__(self, model: Any, description: Any, solver: str = "cvode",
-                 tolerance: float | None = None, euler_step: float | None = None, set_stop_time: bool = True):
+                 tolerance: float | None = None, euler_step: float | None = None, set_stop_time: bool = True,
+                 corrector: Corrector | None = None):
         """``model``: an instantiated fmpy FMU2Model or FMU3Model whose start values the
         caller has set; ``description``: its fmpy ModelDescription. ``tolerance`` is
         CVode's relative tolerance (FMPy's default 1e-5); ``euler_step`` the fixed
-        Euler step (default: each communication step in one go)."""
+        Euler step (default: each communication step in one go); ``corrector`` the
+        derivative terms added to the FMU's derivatives (none: the FMU's own)."""
         if solver not in SOLVERS:
             raise ModelExchangeError(f"unknown ME solver {solver!r}: use one of {', '.join(SOLVERS)}")
         if euler_step is not None and not euler_step > 0:
@@ -132,6 +142,9 @@ class ModelExchangeStepper:
         self._solver: Any = None
         self._inputs: tuple | None = None  # the input values the solver last started from
         self._input_groups = _input_groups(description)
+        self.corrector = corrector if corrector is not None and corrector.rows else None
+        self._term_inputs: list[float] = []  # the inputs the terms read, held over the step as the FMU's are
+        self._states = np.zeros(description.numberOfContinuousStates)
 
     # ---- life cycle -------------------------------------------------------
 
@@ -164,6 +177,8 @@ class ModelExchangeStepper:
             self.model.exitInitializationMode()
             self._update_discrete_states()
             self.model.enterContinuousTimeMode()
+            if self.corrector is not None and self.corrector.inputs:
+                self._term_inputs = self._read_term_inputs()
             self._solver = self._make_solver()
             self._inputs = self._read_inputs()
 
@@ -181,6 +196,8 @@ class ModelExchangeStepper:
             if inputs is None or inputs != self._inputs:
                 self._event_iteration()
             self._inputs = inputs
+            if self.corrector is not None and self.corrector.inputs:
+                self._term_inputs = self._read_term_inputs()
         while self.time < end and not math.isclose(self.time, end):
             self._advance(end, self.euler_step or h)
         self.time = end
@@ -200,7 +217,7 @@ class ModelExchangeStepper:
             "nz": description.numberOfEventIndicators,
             "get_x": model.getContinuousStates,
             "set_x": model.setContinuousStates,
-            "get_dx": model.getContinuousStateDerivatives if self.fmi3 else model.getDerivatives,
+            "get_dx": self._derivatives_getter(),
             "get_z": model.getEventIndicators,
             "input": _HeldInputs(),
         }
@@ -216,6 +233,26 @@ class ModelExchangeStepper:
             relativeTolerance=self.tolerance or DEFAULT_TOLERANCE,
             **common,
         )
+
+    def _derivatives_getter(self) -> Any:
+        """What the solver calls for the derivatives: the FMU's own function, or (with terms) one that adds
+        the terms at the states the solver has just set."""
+        own = self.model.getContinuousStateDerivatives if self.fmi3 else self.model.getDerivatives
+        if self.corrector is None:
+            return own
+        corrector, states, model = self.corrector, self._states, self.model
+        pointer = states.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+
+        def corrected(derivatives: Any, n: int) -> None:  # derivatives: a ctypes pointer, indexed in place
+            own(derivatives, n)
+            model.getContinuousStates(pointer, n)
+            corrector.add(states.tolist(), self._term_inputs, derivatives)
+
+        return corrected
+
+    def _read_term_inputs(self) -> list[float]:
+        vrs = [vr for _, vr in self.corrector.inputs]
+        return list(self.model.getFloat64(vrs) if self.fmi3 else self.model.getReal(vrs))
 
     def _advance(self, end: float, euler_step: float) -> None:
         """One pass of simulateME's loop: integrate to the next of the step's end, the

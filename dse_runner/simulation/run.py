@@ -19,10 +19,11 @@ import numpy as np
 
 from ..errors import DseError
 from . import objectives as objs
-from . import signal_effects
+from . import derivative_terms, signal_effects
 from .build import is_source_dir
 from .cosim import Plan, Runner, Trajectory, make_plan, prepare
 from .experiment import Experiment, Times, resolve_times
+from .fmu import describe
 from .lifecycle import Verdict, needs_process
 from .multimodel import MultiModel, load_multimodel
 from .scenario import Scenario, Series, kind, load_scenario, nominal
@@ -96,6 +97,31 @@ def qualify(plan: Plan, ref: str) -> str:
     return ref
 
 
+def checked_term(plan: Plan, term: derivative_terms.DerivativeTerm) -> derivative_terms.DerivativeTerm:
+    """``term`` with its instance (the plan's only one when the name leaves it out), checked: a model-exchange
+    instance with that state and the variables the term reads."""
+    instance = term.instance
+    if instance is None:
+        if len(plan.variables) != 1:
+            raise DseError(f"{term.name}: name the instance, e.g. derivative_term({next(iter(plan.variables))}."
+                           f"der({term.state}), {term.term.text})")
+        instance = next(iter(plan.variables))
+    if instance not in plan.variables:
+        raise DseError(f"{term.name}: the multi-model has no instance {instance!r} "
+                       f"(it has {', '.join(sorted(plan.variables))})")
+    term = replace(term, instance=instance)
+    derivative_terms.check(term, instance, plan.interfaces[instance], describe(plan.fmu_paths[instance]))
+    return term
+
+
+def by_instance(terms: Mapping[derivative_terms.DerivativeTerm, float]) -> dict[str, dict]:
+    """Derivative terms grouped by the instance they correct."""
+    grouped: dict[str, dict] = {}
+    for term, value in terms.items():
+        grouped.setdefault(term.instance, {})[term] = value
+    return grouped
+
+
 def as_scenario(scenario: Scenario | str | Path | None) -> Scenario:
     if scenario is None:
         return nominal()
@@ -145,16 +171,21 @@ def simulate(
     the same plan, scenario, objectives and experiment (a sweep), it reuses what it worked out from
     them: plans and scenarios are immutable; objectives and the experiment are compared by value."""
     recipe = _recipe(model, scenario, objectives, experiment, (start_time, stop_time, step), interface)
-    given, effects = signal_effects.split(values or {})
+    given, terms = derivative_terms.split(values or {})
+    given, effects = signal_effects.split(given)
     values = recipe.layered(given)
     runner = recipe.runner
+    if terms:
+        terms = {recipe.qualified_term(term): value for term, value in terms.items()}
+        runner = runner.with_terms(by_instance(terms))
     if effects:
         effects = recipe.qualified_effects(effects)
         runner = runner.with_inputs(signal_effects.on_inputs(recipe.signals, runner.times, effects))
     trajectory = runner.run(values, timeout, loop)
     if effects:
         trajectory = trajectory.with_columns(signal_effects.on_outputs(trajectory.time, trajectory.column, effects))
-    return SimulationResult(recipe.scenario, {**values, **{e.name: v for e, v in effects.items()}}, recipe.times,
+    return SimulationResult(recipe.scenario, {**values, **{e.name: v for e, v in effects.items()},
+                                              **{t.name: v for t, v in terms.items()}}, recipe.times,
                             trajectory, objs.evaluate(recipe.specs, trajectory, recipe.scenario),
                             runner.lifecycle(values))
 
@@ -172,6 +203,7 @@ class _Recipe:
     times: Times
     runner: Runner
     names: dict[str, str] = field(default_factory=dict)  # a value's name as given -> as the plan has it
+    checked: dict = field(default_factory=dict)  # a derivative term as given -> checked, its instance named
 
     @property
     def signals(self) -> dict[str, Series]:
@@ -187,6 +219,14 @@ class _Recipe:
             target = qualify(plan, effect.target)
             out[replace(effect, target=fed.get(target, target))] = value
         return out
+
+    def qualified_term(self, term: derivative_terms.DerivativeTerm) -> derivative_terms.DerivativeTerm:
+        """A derivative term with its instance named (one FMU's may be left out), checked against it (once: a
+        sweep runs the same terms at many values)."""
+        found = self.checked.get(term)
+        if found is None:
+            found = self.checked[term] = checked_term(self.runner.plan, term)
+        return found
 
     def layered(self, values: Mapping[str, Value]) -> dict[str, Value]:
         """The run's values: ``base``, then ``values`` (module docstring)."""

@@ -20,7 +20,7 @@ the loop and the FMU for co-simulation.
 from __future__ import annotations
 
 import ctypes
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -176,13 +176,16 @@ class ModelExchange(Stepper):
     """FMI 2.0 or 3.0 model exchange: each communication step is integrated by FMPy's solvers."""
 
     def __init__(self, instance: Instance, tolerance: float | None = None, set_stop_time: bool = True,
-                 solver: str = "cvode", euler_step: float | None = None):
+                 solver: str = "cvode", euler_step: float | None = None, terms: Mapping | None = None):
         super().__init__(instance, tolerance, set_stop_time)
+        from .derivative_terms import Corrector
         from .model_exchange import ModelExchangeStepper
 
-        self.integrator = ModelExchangeStepper(instance.slave, instance.fmu.description, solver=solver,
+        description = instance.fmu.description
+        self.integrator = ModelExchangeStepper(instance.slave, description, solver=solver,
                                                tolerance=tolerance, euler_step=euler_step,
-                                               set_stop_time=set_stop_time)
+                                               set_stop_time=set_stop_time,
+                                               corrector=Corrector.of(description, terms) if terms else None)
         self.call = self._do_step
         self.step_name = "the integration"
         self._typed = CoSimulation2 if instance.fmu.version == 2 else CoSimulation3
@@ -210,12 +213,15 @@ class ModelExchange(Stepper):
         self.integrator.terminate()
 
 
-def stepper(instance: Instance, settings) -> Stepper:
-    """The stepper for an instance's FMI version and interface, with its multi-model settings."""
+def stepper(instance: Instance, settings, terms: Mapping | None = None) -> Stepper:
+    """The stepper for an instance's FMI version and interface, with its multi-model settings; ``terms``:
+    derivative terms (derivative_terms.py) to add while integrating a model-exchange instance."""
     tolerance = settings.tolerance if settings is not None else None
     set_stop_time = settings.set_stop_time if settings is not None else True
     if instance.fmu.interface == "me":
         solver = settings.solver if settings is not None else "cvode"
         euler_step = settings.euler_step if settings is not None else None
-        return ModelExchange(instance, tolerance, set_stop_time, solver, euler_step)
+        return ModelExchange(instance, tolerance, set_stop_time, solver, euler_step, terms)
+    if terms:
+        raise ValueError(f"instance {instance.name} is co-simulation: the master cannot add to its derivatives")
     return (CoSimulation2 if instance.fmu.version == 2 else CoSimulation3)(instance, tolerance, set_stop_time)

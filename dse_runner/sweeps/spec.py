@@ -36,11 +36,11 @@ from pydantic import (
 from .. import bundled
 from ..errors import DseError
 from ..simulation import objectives as objs
-from ..simulation import signal_effects
+from ..simulation import derivative_terms, signal_effects
 from ..simulation.cosim import Plan, make_plan
 from ..simulation.experiment import Experiment
 from ..simulation.multimodel import MultiModel, load_multimodel, parse_multimodel
-from ..simulation.run import bound_fields, qualify
+from ..simulation.run import bound_fields, checked_term, qualify
 from ..simulation.scenario import Scenario, ScenarioSpec, Series, kind, load_scenario, nominal, parse_scenario
 from ..simulation.variables import FiniteValue, check_value
 from ..yamlfile import read_yaml
@@ -468,6 +468,10 @@ def _check_names(space: Space, source: str) -> None:
         if effect is not None:
             _check_effect(space, effect, values, source)
             continue
+        term = _parsed_term(ref, source)
+        if term is not None:
+            _check_term(space, term, values, source)
+            continue
         variable = space.plan.variable(ref, f"{source}: parameters")
         for value in values:
             try:
@@ -520,6 +524,24 @@ def _check_effect(space: Space, effect: signal_effects.Effect, values: list[Any]
                 raise DseError(f"{where}: scenario {scenario.name} does not drive {effect.target} with a signal "
                                f"(it drives {', '.join(sorted(driven)) or 'none'}); an input effect acts on a "
                                "scenario's input signal")
+
+
+def _parsed_term(ref: str, source: str) -> derivative_terms.DerivativeTerm | None:
+    try:
+        return derivative_terms.parse(ref)
+    except DseError as e:
+        raise DseError(f"{source}: parameters.{e}") from None
+
+
+def _check_term(space: Space, term: derivative_terms.DerivativeTerm, values: list[Any], source: str) -> None:
+    """A derivative term's values are coefficients, on a model-exchange instance that has the state and the
+    variables the term reads (derivative_terms.check)."""
+    try:
+        for value in values:
+            derivative_terms.split({term.name: value})
+        checked_term(space.plan, term)
+    except DseError as e:
+        raise DseError(f"{source}: parameters.{e}") from None
 
 
 def _check_search(space: Space, source: str) -> None:

@@ -1,0 +1,217 @@
+"""Terms the master adds to a model-exchange instance's state derivatives: ``derivative_term(msd.der(v), x^3)``.
+
+Why: the master integrates a model-exchange (ME) FMU itself, so it can add to the derivatives the FMU
+returns before the solver uses them. A term missing from a model's equations (a hardening spring, a
+friction, a drag) can then be stated, fitted and proven for any ME FMU without changing it, as
+signal_effects.py does for what happens outside the equations. Diagnosis proposes such terms from what the
+recordings leave unexplained (analysis/diagnose/derivative_discovery.py).
+
+A parameter named ``derivative_term(INSTANCE.der(STATE), TERM)`` is the coefficient ``a`` of TERM in
+
+    der(STATE) = (the FMU's derivative) + a · TERM(states, inputs)
+
+while the master integrates INSTANCE. TERM is ``1`` or a product of factors joined by ``*``; a factor is
+a state or a real input of the instance (its FMU name), optionally raised to a whole power (``x^3``), or
+one of :data:`FUNCTIONS` of one, optionally divided by a width (``abs(v)``, ``tanh(v/0.05)``: a sign
+smoothed over ±0.05). At coefficient 0 a term is not applied at all: the run is bit for bit the run
+without it. A co-simulation instance integrates itself and is refused.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..errors import DseError
+
+PREFIX = "derivative_term"
+FUNCTIONS = {"abs": np.abs, "tanh": np.tanh, "sin": np.sin, "cos": np.cos}
+_SCALAR = {"abs": abs, "tanh": math.tanh, "sin": math.sin, "cos": math.cos}  # the same on a float, without numpy's cost
+_NAME = re.compile(r"^derivative_term\(\s*(?:([^\s.()]+)\.)?der\((.+)\)\s*,\s*(.+?)\s*\)$")
+_VARIABLE = r"[A-Za-z_][A-Za-z0-9_.\[\]]*"
+_FACTOR = re.compile(rf"^(?:({_VARIABLE})|({'|'.join(FUNCTIONS)})\(\s*({_VARIABLE})\s*(?:/\s*([0-9.eE+-]+)\s*)?\))"
+                     r"(?:\^(\d+))?$")
+
+
+@dataclass(frozen=True, order=True)
+class Factor:
+    """One factor of a term: ``function(variable / width) ^ power``, or ``variable ^ power`` without one."""
+
+    variable: str
+    function: str | None = None
+    width: float = 1.0
+    power: int = 1
+
+    @property
+    def text(self) -> str:
+        inner = self.variable if self.function is None else (
+            f"{self.function}({self.variable})" if self.width == 1.0 else
+            f"{self.function}({self.variable}/{self.width!r})")
+        return inner if self.power == 1 else f"{inner}^{self.power}"
+
+    def value(self, values: Mapping[str, Any]) -> Any:
+        v = values[self.variable]
+        if self.function is not None:
+            v = (_SCALAR if isinstance(v, float) else FUNCTIONS)[self.function](v / self.width if self.width != 1.0 else v)
+        return v if self.power == 1 else v ** self.power
+
+
+@dataclass(frozen=True)
+class Term:
+    """A product of factors; no factor at all is the constant 1."""
+
+    factors: tuple[Factor, ...] = ()
+
+    @property
+    def text(self) -> str:
+        return "*".join(f.text for f in self.factors) or "1"
+
+    @property
+    def variables(self) -> tuple[str, ...]:
+        return tuple(dict.fromkeys(f.variable for f in self.factors))
+
+    def value(self, values: Mapping[str, Any]) -> Any:
+        """The term at ``values`` (numbers or arrays by variable name)."""
+        out: Any = 1.0
+        for factor in self.factors:
+            out = out * factor.value(values)
+        return out
+
+
+def parse_term(text: str) -> Term:
+    """``x^2*tanh(v/0.05)`` -> a Term; an error says which factor it cannot read and what a factor is."""
+    text = text.strip()
+    if text == "1":
+        return Term()
+    factors = []
+    for part in text.split("*"):
+        match = _FACTOR.match(part.strip())
+        if match is None:
+            raise DseError(f"term {text!r}: cannot read the factor {part.strip()!r}; a factor is a state or input "
+                           f"(x), a power of one (x^3), or {', '.join(FUNCTIONS)} of one, optionally over a width "
+                           "(tanh(v/0.05))")
+        plain, function, inside, width, power = match.groups()
+        width_value = float(width) if width else 1.0
+        if not (math.isfinite(width_value) and width_value > 0):
+            raise DseError(f"term {text!r}: the width in {part.strip()!r} must be a number > 0")
+        exponent = int(power) if power else 1
+        if exponent < 1:
+            raise DseError(f"term {text!r}: the power in {part.strip()!r} must be 1 or more")
+        factors.append(Factor(plain or inside, function, width_value, exponent))
+    return Term(tuple(factors))
+
+
+@dataclass(frozen=True)
+class DerivativeTerm:
+    """One term parameter, parsed from its name. ``instance`` is None when the name leaves it out (one FMU)."""
+
+    instance: str | None
+    state: str
+    term: Term
+
+    @property
+    def target(self) -> str:
+        return f"{self.instance}.der({self.state})" if self.instance else f"der({self.state})"
+
+    @property
+    def name(self) -> str:
+        return f"{PREFIX}({self.target}, {self.term.text})"
+
+
+def parse(name: str) -> DerivativeTerm | None:
+    """The derivative term a parameter's name declares, or None for any other name."""
+    match = _NAME.match(name)
+    if match is None:
+        if name.startswith(f"{PREFIX}("):
+            raise DseError(f"{name}: a derivative term is named derivative_term(INSTANCE.der(STATE), TERM), "
+                           "e.g. derivative_term(msd.der(v), x^3)")
+        return None
+    instance, state, term = match.groups()
+    try:
+        return DerivativeTerm(instance, state.strip(), parse_term(term))
+    except DseError as e:
+        raise DseError(f"{name}: {e}") from None
+
+
+def term_name(instance: str, state: str, term: Term | str) -> str:
+    """``msd``, ``v``, ``x^3`` -> ``derivative_term(msd.der(v), x^3)``."""
+    return DerivativeTerm(instance, state, term if isinstance(term, Term) else parse_term(term)).name
+
+
+def split(values: Mapping[str, object]) -> tuple[dict[str, object], dict[DerivativeTerm, float]]:
+    """A run's values: all others, and the derivative terms (only those with a coefficient other than 0)."""
+    plain: dict[str, object] = {}
+    terms: dict[DerivativeTerm, float] = {}
+    for name, value in values.items():
+        term = parse(name)
+        if term is None:
+            plain[name] = value
+        elif not isinstance(value, (int, float)) or isinstance(value, bool) or not np.isfinite(value):
+            raise DseError(f"{name}: a derivative term's coefficient is a finite number, not {value!r}")
+        elif float(value) != 0.0:
+            terms[term] = float(value)
+    return plain, terms
+
+
+# ---- what an instance offers: its states and its real inputs ------------------------------------------------
+
+def states_of(description: Any) -> list[str]:
+    """The continuous states' names, in the order of the state vector (the derivatives' order in the model
+    description, FMI 2 and 3 alike)."""
+    return [d.variable.derivative.name for d in description.derivatives if d.variable.derivative is not None]
+
+
+def real_inputs_of(description: Any) -> dict[str, int]:
+    """The instance's real (FMI 3: Float64) inputs by name -> value reference: what a term may read besides states."""
+    return {v.name: v.valueReference for v in description.modelVariables
+            if v.causality == "input" and v.type in ("Real", "Float64") and not getattr(v, "dimensions", None)}
+
+
+def check(term: DerivativeTerm, instance: str, interface: str, description: Any) -> None:
+    """That the master can apply ``term`` to ``instance``: a model-exchange one, with that state, and every
+    variable of the term one of its states or real inputs."""
+    if interface != "me":
+        raise DseError(f"{term.name}: instance {instance!r} is run as co-simulation: it integrates its own states, "
+                       "so the master cannot add to their derivatives (give the instance interface: me in the "
+                       "multi-model, if its FMU offers model exchange)")
+    states = states_of(description)
+    if term.state not in states:
+        raise DseError(f"{term.name}: instance {instance!r} has no continuous state {term.state!r} "
+                       f"(its states: {', '.join(states) or 'none'})")
+    readable = [*states, *real_inputs_of(description)]
+    for variable in term.term.variables:
+        if variable not in readable:
+            raise DseError(f"{term.name}: {variable!r} is not a state or real input of instance {instance!r} "
+                           f"(a term may read {', '.join(readable)})")
+
+
+# ---- what the stepper applies -------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Corrector:
+    """The terms of one instance, laid out for its integrator: ``add`` adds them to the derivative vector."""
+
+    rows: tuple[tuple[int, Term, float], ...]  # state index, term, coefficient
+    states: tuple[str, ...]
+    inputs: tuple[tuple[str, int], ...]  # the real inputs the terms read: name, value reference
+
+    @classmethod
+    def of(cls, description: Any, terms: Mapping[DerivativeTerm, float]) -> Corrector:
+        states = states_of(description)
+        read = {v for t in terms for v in t.term.variables}
+        inputs = tuple((name, vr) for name, vr in real_inputs_of(description).items() if name in read)
+        rows = tuple((states.index(t.state), t.term, a) for t, a in terms.items())
+        return cls(rows, tuple(states), inputs)
+
+    def add(self, x: Sequence[float], inputs: Sequence[float], dx: Any) -> None:
+        """dx[i] += each coefficient · its term at states ``x`` and ``inputs`` (in :attr:`inputs`' order); ``dx``
+        anything indexable in place (the solver's ctypes pointer, an array)."""
+        values = dict(zip(self.states, x))
+        values.update(zip((name for name, _ in self.inputs), inputs))
+        for index, term, coefficient in self.rows:
+            dx[index] += coefficient * term.value(values)
