@@ -88,8 +88,8 @@ class SensitivityDesign(Strategy):
         while True:
             design = self.draw(problem, n)
             blocks, points = _budgeted(design, problem)
-            if blocks < design.blocks or len(points) == found:  # the budget is spent, or longer adds nothing
-                break
+            if blocks < design.blocks or len(points) == found or n >= problem.max_points:
+                break  # the budget is spent, or longer adds nothing, or there is a block per point of budget
             n, found = 2 * n, len(points)
         units = design.units[:blocks * design.block]
         return Design(design.method, units, design.block, design.second_order, design.levels), points
