@@ -34,6 +34,8 @@ from ..sweeps.strategies.designs import Design, SensitivityDesign, salib_problem
 CONFIDENCE = 0.95  # bootstrap interval level
 RESAMPLES = 100  # bootstrap resamples (SALib's default)
 WIDE = 0.1  # a Sobol' index known only to +/- this is too loose to tell parameters apart
+NEGLIGIBLE = 0.01  # factor fixing (Saltelli et al. 2008): a total index surely below this may be fixed anywhere
+FLAT = 1e-6  # an objective whose std is below this fraction of its mean barely varies: its indices share out noise
 MIN_TRAJECTORIES = 10  # Morris: fewer trajectories than this screen poorly (Campolongo et al. 2007 use 10-20)
 
 
@@ -77,12 +79,16 @@ class Sensitivity:
     warnings: list[str]
 
     def negligible(self, objective: str, group: str | None = None) -> list[str]:
-        """Parameters indistinguishable from no effect: the total index's (or mu*'s) interval reaches 0."""
-        key, conf = ("ST", "ST_conf") if self.method == "sobol" else ("mu_star", "mu_star_conf")
+        """Parameters that can be fixed anywhere in their range (factor fixing): the upper end of the total
+        index's interval is below NEGLIGIBLE (Morris: of mu*'s, below NEGLIGIBLE of the largest mu*)."""
         found = self.objectives[objective]
         found = (found.overall if group is None else found.groups[group]).parameters
-        return [name for name, v in found.items()
-                if v.get(key) is not None and v[key] - (v.get(conf) or 0.0) <= 0.0]
+        key, conf = ("ST", "ST_conf") if self.method == "sobol" else ("mu_star", "mu_star_conf")
+        known = {name: v for name, v in found.items() if v.get(key) is not None}
+        if not known:
+            return []
+        scale = 1.0 if self.method == "sobol" else max(v[key] for v in known.values())
+        return [name for name, v in known.items() if v[key] + (v.get(conf) or 0.0) < NEGLIGIBLE * scale]
 
     def least_responsive(self, objective: str) -> list[tuple[str, float]]:
         """Scenario groups by how little the objective varies over the sample (its coefficient of
@@ -145,6 +151,7 @@ def sensitivity(output: Any, sweep: str | None = None, objectives: list[str] | N
     scopes = [(None, rows), *(((str(g), members) for g, members in groups) if groups.ngroups > 1 else ())]
     found = {name: Objective(overall=None, groups={}) for name in chosen}
     notes: list[str] = []
+    wide: dict[str, list[str]] = {name: [] for name in chosen}  # per objective, the groups whose intervals are wide
     for group, members in scopes:
         values = _reduced(members, parameters, chosen, over).reindex(keys)
         n_scenarios = members["scenario"].nunique()
@@ -155,7 +162,15 @@ def sensitivity(output: Any, sweep: str | None = None, objectives: list[str] | N
                 found[name].overall = scope
             else:
                 found[name].groups[group] = scope
-            notes.extend(_warnings(design, scope, f"{name} ({'all scenarios' if group is None else 'group ' + group})"))
+            if group is None:
+                notes.extend(_warnings(design, scope, f"{name} (all scenarios)"))
+            else:
+                found_wide = _widest(scope)
+                if scope.left_out or scope.blocks < 2 or design.method == "morris":
+                    notes.extend(_warnings(design, scope, f"{name} (group {group})"))
+                elif found_wide > WIDE:
+                    wide[name].append(f"{group} +/-{found_wide:.2f}")
+    notes.extend(f"{name}: intervals wider than +/-{WIDE} in groups {', '.join(groups_)}" for name, groups_ in wide.items() if groups_)
     return Sensitivity(sweep, design.method, parameters, REDUCED[over],
                        {"strategy": spec.search.strategy, "rows": len(design.units), "blocks": design.blocks,
                         "block": design.block, "seed": spec.search.seed, "second_order": design.second_order,
@@ -209,7 +224,10 @@ def _scope(design: Design, y: np.ndarray, parameters: list[str], scenarios: int,
             for j in range(i + 1, len(parameters)):
                 pairs[f"{a} x {parameters[j]}"] = {"S2": float(found["S2"][i, j]),
                                                    "S2_conf": float(found["S2_conf"][i, j])}
-    return Scope(scenarios, used, left_out, indices, spread, pairs)
+    note = None
+    if cv is not None and cv < FLAT:
+        note = f"varies by only {cv:.1g} of its mean over the sample: the indices share out what may be rounding noise"
+    return Scope(scenarios, used, left_out, indices, spread, pairs, note)
 
 
 def _keys(method: str) -> tuple[str, ...]:
@@ -230,10 +248,15 @@ def _warnings(design: Design, scope: Scope, label: str) -> list[str]:
             found.append(f"{label}: {scope.blocks} trajectories; screening wants at least {MIN_TRAJECTORIES} "
                          f"(max_points >= {MIN_TRAJECTORIES * design.block})")
         return found
-    widest = max((v for p in scope.parameters.values() for k, v in p.items() if k.endswith("_conf") and v is not None),
-                 default=0.0)
+    widest = _widest(scope)
     if widest > WIDE:
         needed = math.ceil(scope.blocks * (widest / WIDE) ** 2)  # intervals narrow as 1 / sqrt(blocks)
         found.append(f"{label}: intervals up to +/-{widest:.2f}, too wide to tell parameters apart (over {WIDE}); "
                      f"about {needed} base rows would narrow them to {WIDE} (max_points >= {needed * design.block})")
     return found
+
+
+def _widest(scope: Scope) -> float:
+    """The widest half-width among a scope's intervals."""
+    return max((v for p in scope.parameters.values() for k, v in p.items() if k.endswith("_conf") and v is not None),
+               default=0.0)

@@ -552,6 +552,9 @@ def sensitivity_command(
         "--objective", help="Only this objective (repeatable). Default: every scalar objective.")] = None,
     confidence: Annotated[float, typer.Option(help="Level of the bootstrap confidence intervals.")] = 0.95,
     resamples: Annotated[int, typer.Option(help="Bootstrap resamples.")] = 100,
+    figures: Annotated[Path | None, typer.Option(
+        help="Write a figure per objective here (sensitivity-NAME.png): index bars with their intervals, "
+             "or Morris' mu*-sigma plane, overall and per group.")] = None,
     as_json: JsonFlag = False,
 ) -> None:
     """Which parameters move each objective: Sobol' S1/ST or Morris mu*/sigma with bootstrap intervals, over
@@ -563,15 +566,24 @@ def sensitivity_command(
         with warnings.catch_warnings(record=True) as caught:  # SALib's own, e.g. on few samples: ours say more
             warnings.simplefilter("always")
             found = sensitivity(results, sweep, list(objective) if objective else None, confidence, resamples)
+        written = {}
+        if figures is not None:
+            from .sensitivity_figures import write_figures
+
+            written = write_figures(found, figures)
     except DseError as e:
         fail(e)
+    except OSError as e:
+        fail(DseError(f"cannot write {e.filename}: {e.strerror}"))
     del caught
     for line in found.warnings:
         typer.echo(f"warning: {line}", err=True)
     if as_json:
-        emit_json(found.to_json())
+        emit_json({**found.to_json(), "figures": {name: str(path) for name, path in written.items()}})
         return
     _print_sensitivity(found)
+    for name, path in written.items():
+        typer.echo(f"figure {name}: {path}")
 
 
 def _print_sensitivity(found) -> None:
@@ -599,8 +611,8 @@ def _print_sensitivity(found) -> None:
             typer.echo(f"  note: {overall.note}")
         negligible = found.negligible(name)
         if negligible:
-            what = "total index" if sobol else "mu*"
-            typer.echo(f"  no effect distinguishable from zero ({what} interval reaches 0): {', '.join(negligible)}")
+            what = "total index's interval below 0.01" if sobol else "mu*'s interval below 1% of the largest"
+            typer.echo(f"  negligible ({what}: fix it anywhere in its range): {', '.join(negligible)}")
         groups = found.least_responsive(name)
         if groups:
             typer.echo("  groups, least responsive first (coefficient of variation over the sample; "
@@ -609,7 +621,8 @@ def _print_sensitivity(found) -> None:
             for group, cv in groups:
                 figures = ", ".join(f"{p.rsplit('.', 1)[-1]} {_number(v[key])}"
                                     for p, v in objective.groups[group].parameters.items())
-                typer.echo(f"    {group:<14} cv {cv:.3g}  {figures}")
+                flat = "  (barely varies)" if objective.groups[group].note else ""
+                typer.echo(f"    {group:<14} cv {cv:.3g}  {figures}{flat}")
 
 
 def _number(value) -> str:
