@@ -64,6 +64,7 @@ def ishigami_study(folder: Path, points: int) -> dict:
     spec["multimodel"] = {"fmus": {"ishigami": str(ISHIGAMI / "fmus" / "ishigami")}}
     spec["search"]["max_points"] = points
     spec.update(output=str(folder / "out"), cluster={"n_workers": 2})
+    folder.mkdir(parents=True)
     path = folder / "space.yaml"
     path.write_text(yaml.safe_dump(spec, sort_keys=False))
     submit_seconds, done = command("submit", str(path), "--no-dashboard", "--json")
@@ -100,6 +101,7 @@ def write_design_store(folder: Path, rows: int) -> SpaceSpec:
 
 
 def index_computation(folder: Path, rows: int, repeats: int = 3) -> dict:
+    folder.mkdir(parents=True)
     write_design_store(folder, rows)
     stored = len(store.read_results(folder, "ishigami", ["y"]))
     times = []
