@@ -160,17 +160,15 @@ def sensitivity(output: Any, sweep: str | None = None, objectives: list[str] | N
                            spec.search.seed + 1)
             if group is None:
                 found[name].overall = scope
-            else:
-                found[name].groups[group] = scope
-            if group is None:
                 notes.extend(_warnings(design, scope, f"{name} (all scenarios)"))
-            else:
-                found_wide = _widest(scope)
-                if scope.left_out or scope.blocks < 2 or design.method == "morris":
-                    notes.extend(_warnings(design, scope, f"{name} (group {group})"))
-                elif found_wide > WIDE:
-                    wide[name].append(f"{group} +/-{found_wide:.2f}")
-    notes.extend(f"{name}: intervals wider than +/-{WIDE} in groups {', '.join(groups_)}" for name, groups_ in wide.items() if groups_)
+                continue
+            found[name].groups[group] = scope
+            if scope.left_out or scope.blocks < 2 or design.method == "morris":
+                notes.extend(_warnings(design, scope, f"{name} (group {group})"))
+            elif _widest(scope) > WIDE:  # one line per objective for all its wide groups, below
+                wide[name].append(f"{group} +/-{_widest(scope):.2f}")
+    notes.extend(f"{name}: intervals wider than +/-{WIDE} in groups {', '.join(listed)}"
+                 for name, listed in wide.items() if listed)
     return Sensitivity(sweep, design.method, parameters, REDUCED[over],
                        {"strategy": spec.search.strategy, "rows": len(design.units), "blocks": design.blocks,
                         "block": design.block, "seed": spec.search.seed, "second_order": design.second_order,

@@ -59,7 +59,7 @@ def numeric(dimensions: tuple[Dimension, ...]) -> None:
             and any(isinstance(v, (str, bool)) for v in d.choices)]
     if text:
         raise DseError(f"search: sensitivity designs need numeric parameters; {', '.join(text)} "
-                       "lists text values: fix it with a scenario variant, or sweep it as numbers")
+                       "lists text values (a design moves each parameter along a numeric axis)")
 
 
 class SensitivityDesign(Strategy):
