@@ -544,6 +544,100 @@ def rank_command(
         typer.echo(f"best values: {files['best_values']}")
 
 
+@app.command("sensitivity")
+def sensitivity_command(
+    results: Annotated[str, typer.Argument(metavar="RESULTS", help="A sweep's store: output folder or URL.")],
+    sweep: Annotated[str | None, typer.Option(help="Which sweep, if the folder holds several.")] = None,
+    objective: Annotated[list[str] | None, typer.Option(
+        "--objective", help="Only this objective (repeatable). Default: every scalar objective.")] = None,
+    confidence: Annotated[float, typer.Option(help="Level of the bootstrap confidence intervals.")] = 0.95,
+    resamples: Annotated[int, typer.Option(help="Bootstrap resamples.")] = 100,
+    figures: Annotated[Path | None, typer.Option(
+        help="Write a figure per objective here (sensitivity-NAME.png): index bars with their intervals, "
+             "or Morris' mu*-sigma plane, overall and per group.")] = None,
+    as_json: JsonFlag = False,
+) -> None:
+    """Which parameters move each objective: Sobol' S1/ST or Morris mu*/sigma with bootstrap intervals, over
+    all scenarios (reduced as the ranking says) and per scenario group. The sweep must have been sampled by
+    search.strategy sobol_indices or morris."""
+    from ..analysis.sensitivity import sensitivity
+
+    try:
+        with warnings.catch_warnings(record=True) as caught:  # SALib's own, e.g. on few samples: ours say more
+            warnings.simplefilter("always")
+            found = sensitivity(results, sweep, list(objective) if objective else None, confidence, resamples)
+        written = {}
+        if figures is not None:
+            from .sensitivity_figures import write_figures
+
+            written = write_figures(found, figures)
+    except DseError as e:
+        fail(e)
+    except OSError as e:
+        fail(DseError(f"cannot write {e.filename}: {e.strerror}"))
+    del caught
+    for line in found.warnings:
+        typer.echo(f"warning: {line}", err=True)
+    if as_json:
+        emit_json({**found.to_json(), "figures": {name: str(path) for name, path in written.items()}})
+        return
+    _print_sensitivity(found)
+    for name, path in written.items():
+        typer.echo(f"figure {name}: {path}")
+
+
+def _print_sensitivity(found) -> None:
+    """Per objective: each parameter's indices with their intervals, then the groups, least responsive first."""
+    sobol = found.method == "sobol"
+    design = found.design
+    kind = "Sobol' indices (Saltelli)" if sobol else f"Morris elementary effects ({design['levels']} levels)"
+    level = f"{100 * found.confidence:g}%"
+    typer.echo(f"{found.sweep}: {kind}, {design['blocks']} blocks of {design['block']} rows; +/- {level} "
+               "bootstrap intervals")
+    width = max(len(p) for p in found.parameters) + 2
+    heads = ("S1", "ST") if sobol else ("mu*", "sigma")
+    for name, objective in found.objectives.items():
+        overall = objective.overall
+        spread = overall.spread
+        stats = f"mean {spread['mean']:.4g}, std {spread['std']:.4g}" if spread["mean"] is not None else "no rows"
+        over = f"{overall.scenarios} scenarios" if overall.scenarios > 1 else "its one scenario"
+        typer.echo(f"\n{name} ({found.reduced} over {over}; {stats})")
+        typer.echo(f"  {'parameter':<{width}}{heads[0]:>18}{heads[1]:>18}")
+        for parameter, v in overall.parameters.items():
+            typer.echo(f"  {parameter:<{width}}{_pm(v, heads[0], sobol):>18}{_pm(v, heads[1], sobol):>18}")
+        for pair, v in overall.second_order.items():
+            typer.echo(f"  S2 {pair}: {v['S2']:.3f} +/- {v['S2_conf']:.3f}")
+        if overall.note:
+            typer.echo(f"  note: {overall.note}")
+        negligible = found.negligible(name)
+        if negligible:
+            what = "total index's interval below 0.01" if sobol else "mu*'s interval below 1% of the largest"
+            typer.echo(f"  negligible ({what}: fix it anywhere in its range): {', '.join(negligible)}")
+        groups = found.least_responsive(name)
+        if groups:
+            typer.echo("  groups, least responsive first (coefficient of variation over the sample; "
+                       f"{heads[1] if sobol else heads[0]} per parameter):")
+            key = "ST" if sobol else "mu_star"
+            for group, cv in groups:
+                figures = ", ".join(f"{p.rsplit('.', 1)[-1]} {_number(v[key])}"
+                                    for p, v in objective.groups[group].parameters.items())
+                flat = "  (barely varies)" if objective.groups[group].note else ""
+                typer.echo(f"    {group:<14} cv {cv:.3g}  {figures}{flat}")
+
+
+def _number(value) -> str:
+    return "-" if value is None else f"{value:.3f}"
+
+
+def _pm(values: dict, head: str, sobol: bool) -> str:
+    """``0.314 +/- 0.021``: an index and its interval's half-width (sigma has none)."""
+    key = {"S1": "S1", "ST": "ST", "mu*": "mu_star", "sigma": "sigma"}[head]
+    conf = values.get(f"{key}_conf")
+    if values.get(key) is None:
+        return "-"
+    return f"{values[key]:.3f} +/- {conf:.3f}" if conf is not None else f"{values[key]:.3f}"
+
+
 @app.command()
 def diagnose(
     scenarios: Annotated[Path | None, typer.Option(

@@ -64,8 +64,9 @@ class Dimension:
         if self.integer:
             span = int(self.high) - int(self.low) + 1
             return float(int(self.low) + min(int(u * span), span - 1))
-        if self.log:
-            return float(math.exp(math.log(self.low) + u * (math.log(self.high) - math.log(self.low))))
+        if self.log:  # clamped: exp(log(high)) can come out a rounding above high (Morris designs ask u = 1)
+            value = math.exp(math.log(self.low) + u * (math.log(self.high) - math.log(self.low)))
+            return float(min(max(value, self.low), self.high))
         return float(self.low + u * (self.high - self.low))
 
 

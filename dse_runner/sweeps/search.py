@@ -178,6 +178,8 @@ BUILTIN: dict[str, str] = {  # loaded on first use: Optuna, pymoo and torch are 
     "nsga2": f"{STRATEGIES}.optuna_samplers:Nsga2",
     "genetic": f"{STRATEGIES}.genetic:Genetic",
     "least_squares": f"{STRATEGIES}.least_squares:LeastSquares",
+    "sobol_indices": f"{STRATEGIES}.designs:SobolIndices",
+    "morris": f"{STRATEGIES}.designs:Morris",
 }
 
 

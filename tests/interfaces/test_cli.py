@@ -55,7 +55,8 @@ def test_every_commands_help_fits_80_columns_and_names_its_flags_plainly():
     import os
 
     helps = {}
-    for command in ("submit", "rank", "dashboard", "report", "diagnose", "simulate", "build-fmus", "convert-intocps"):
+    for command in ("submit", "rank", "dashboard", "report", "diagnose", "simulate", "build-fmus", "convert-intocps",
+                    "sensitivity"):
         done = subprocess.run([sys.executable, "-m", "dse_runner", command, "--help"], capture_output=True, text=True,
                               cwd=REPO, env={**os.environ, "COLUMNS": "80"})
         assert done.returncode == 0, done.stderr
@@ -64,3 +65,58 @@ def test_every_commands_help_fits_80_columns_and_names_its_flags_plainly():
         assert not [line for line in text.splitlines() if len(line) > 80], (command, text)
         assert "<bool>" not in text and "…" not in text, (command, text)
     assert "--dashboard-address" in helps["submit"] and "--no-dashboard" in helps["submit"]
+
+
+ISHIGAMI = REPO / "jobs" / "ishigami"
+
+
+def ishigami_space(folder, address: str, **changes):
+    """jobs/ishigami/space.yaml on the test's cluster, ``changes`` applied."""
+    import yaml
+
+    spec = yaml.safe_load((ISHIGAMI / "space.yaml").read_text())
+    spec.update(multimodel={"fmus": {"ishigami": str(ISHIGAMI / "fmus" / "ishigami")}}, output=str(folder / "out"),
+                cluster={"address": address}, **changes)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "space.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+    return folder / "space.yaml"
+
+
+def test_sensitivity_json_is_strict_and_warns_of_a_small_sample_on_stderr(tmp_path, dask_scheduler):
+    """200 base rows: indices with intervals, and a warning naming the budget that would narrow them."""
+    space = ishigami_space(tmp_path, dask_scheduler, search={"strategy": "sobol_indices", "max_points": 1000})
+    assert dse_runner("submit", space, "--no-dashboard", "--json").returncode == 0
+    done = dse_runner("sensitivity", tmp_path / "out", "--json")
+    assert done.returncode == 0, done.stderr
+    found = strict_loads(done.stdout)
+    assert (found["method"], found["design"]["blocks"], found["design"]["block"]) == ("sobol", 200, 5)
+    x1 = found["objectives"]["y"]["parameters"]["ishigami.x1"]
+    assert set(x1) == {"S1", "S1_conf", "ST", "ST_conf"} and 0 < x1["S1"] < x1["ST"] < 1
+    assert found["objectives"]["y"]["groups"] == {}  # one scenario
+    assert "warning: y (all scenarios): intervals up to +/-" in done.stderr and "max_points >=" in done.stderr
+    text = dse_runner("sensitivity", tmp_path / "out")
+    assert text.returncode == 0 and "ishigami.x3" in text.stdout and "S1" in text.stdout and "+/-" in text.stdout
+
+
+def test_sensitivity_errors_name_the_culprit(tmp_path, dask_scheduler):
+    """A grid sweep, an objective the sweep lacks, too small a budget, text values: each one line, exit 2."""
+    grid = ishigami_space(tmp_path / "grid", dask_scheduler, search={"strategy": "exhaustive"},
+                          parameters={"ishigami.x1": [0, 1], "ishigami.x2": [0, 1], "ishigami.x3": [0, 1]})
+    assert dse_runner("submit", grid, "--no-dashboard", "--json").returncode == 0
+    done = dse_runner("sensitivity", tmp_path / "grid" / "out")
+    assert done.returncode == 2 and done.stdout == ""
+    assert "sampled by 'exhaustive'; sensitivity reads a sweep sampled for it" in done.stderr
+
+    small = ishigami_space(tmp_path / "small", dask_scheduler, search={"strategy": "sobol_indices", "max_points": 20})
+    assert dse_runner("submit", small, "--no-dashboard", "--json").returncode == 0
+    done = dse_runner("sensitivity", tmp_path / "small" / "out", "--objective", "z")
+    assert done.returncode == 2 and "objective 'z' is not among sweep 'ishigami''s (y)" in done.stderr
+
+    few = ishigami_space(tmp_path / "few", dask_scheduler, search={"strategy": "sobol_indices", "max_points": 4})
+    done = dse_runner("submit", few, "--no-dashboard")
+    assert done.returncode == 2 and "search: sobol_indices needs at least 5 points for 3 parameters" in done.stderr
+
+    text = ishigami_space(tmp_path / "text", dask_scheduler, search={"strategy": "morris", "max_points": 40},
+                          parameters={"ishigami.x1": {"low": -1, "high": 1}, "ishigami.a": [7, "seven"]})
+    done = dse_runner("submit", text, "--no-dashboard")
+    assert done.returncode == 2 and "ishigami.a" in done.stderr

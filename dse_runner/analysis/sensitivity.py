@@ -1,0 +1,260 @@
+"""Global sensitivity of a sweep's objectives to its parameters: Sobol' indices or Morris screening.
+
+A sweep sampled by a sensitivity design (sweeps/strategies/designs.py: ``sobol_indices``,
+``morris``) is read back here. The design is drawn again from the spec the sweep saved (the same
+seed, budget and constraints give the same rows), each row's objective is looked up in the
+store by its point, reduced over the scenarios as the ranking reduces them (``over_scenarios``),
+for all scenarios and for each scenario group, and SALib's estimators turn the rows into indices
+with bootstrap confidence intervals. Blocks the estimator cannot use whole (a point failed, is
+not simulated yet, or was refused by a constraint) are left out and counted.
+
+Why SALib: its estimators are the reference ones (Saltelli 2010 for S1 and ST, Saltelli 2002 for
+S2, Campolongo 2007 for mu*), with bootstrap intervals built in; docs/dependencies.md.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ..errors import DseError
+from ..simulation.objectives import is_vector, normalise
+from ..sweeps.constraints import compile_constraint
+from ..sweeps.domain import Dimension
+from ..sweeps.rank import REDUCED, current_rows, load_sweep_spec, pick_sweep
+from ..sweeps.search import Problem, strategy
+from ..sweeps.spec import SpaceSpec, dimension
+from ..sweeps.strategies.designs import Design, SensitivityDesign, salib_problem
+
+CONFIDENCE = 0.95  # bootstrap interval level
+RESAMPLES = 100  # bootstrap resamples (SALib's default)
+WIDE = 0.1  # a Sobol' index known only to +/- this is too loose to tell parameters apart
+NEGLIGIBLE = 0.01  # factor fixing (Saltelli et al. 2008): a total index surely below this may be fixed anywhere
+FLAT = 1e-6  # an objective whose std is below this fraction of its mean barely varies: its indices share out noise
+MIN_TRAJECTORIES = 10  # Morris: fewer trajectories than this screen poorly (Campolongo et al. 2007 use 10-20)
+
+
+@dataclass
+class Scope:
+    """One objective's indices over one set of scenarios: all of them, or one group's."""
+
+    scenarios: int
+    blocks: int  # blocks the estimator used
+    left_out: int  # blocks with a point missing
+    parameters: dict[str, dict[str, float | None]]  # parameter -> S1, S1_conf, ST, ST_conf | mu, mu_star, ...
+    spread: dict[str, float | None]  # the objective over the sample: mean, std, cv (std / |mean|)
+    second_order: dict[str, dict[str, float | None]] = field(default_factory=dict)  # "a x b" -> S2, S2_conf
+    note: str | None = None  # why there are no indices, or why they are all zero
+
+    def to_json(self) -> dict[str, Any]:
+        data: dict[str, Any] = {"scenarios": self.scenarios, "blocks": self.blocks, "left_out": self.left_out,
+                                "spread": self.spread, "parameters": self.parameters, "note": self.note}
+        if self.second_order:
+            data["second_order"] = self.second_order
+        return data
+
+
+@dataclass
+class Objective:
+    """One objective's indices over every scenario, and within each scenario group (when there are several)."""
+
+    overall: Scope | None
+    groups: dict[str, Scope]
+
+
+@dataclass
+class Sensitivity:
+    sweep: str
+    method: str  # "sobol" | "morris"
+    parameters: list[str]
+    reduced: str  # how scenarios were combined: total, mean, largest, smallest
+    design: dict[str, Any]  # strategy, rows, blocks, block, seed
+    confidence: float
+    objectives: dict[str, Objective]
+    warnings: list[str]
+
+    def negligible(self, objective: str, group: str | None = None) -> list[str]:
+        """Parameters that can be fixed anywhere in their range (factor fixing): the upper end of the total
+        index's interval is below NEGLIGIBLE (Morris: of mu*'s, below NEGLIGIBLE of the largest mu*)."""
+        found = self.objectives[objective]
+        found = (found.overall if group is None else found.groups[group]).parameters
+        key, conf = ("ST", "ST_conf") if self.method == "sobol" else ("mu_star", "mu_star_conf")
+        known = {name: v for name, v in found.items() if v.get(key) is not None}
+        if not known:
+            return []
+        scale = 1.0 if self.method == "sobol" else max(v[key] for v in known.values())
+        return [name for name, v in known.items() if v[key] + (v.get(conf) or 0.0) < NEGLIGIBLE * scale]
+
+    def least_responsive(self, objective: str) -> list[tuple[str, float]]:
+        """Scenario groups by how little the objective varies over the sample (its coefficient of
+        variation), least first: the indices say which parameter moves an objective, this says whether
+        the objective moves at all."""
+        groups = [(name, scope.spread["cv"]) for name, scope in self.objectives[objective].groups.items()
+                  if scope.spread.get("cv") is not None]
+        return sorted(groups, key=lambda item: item[1])
+
+    def to_json(self) -> dict[str, Any]:
+        objectives = {}
+        for name, found in self.objectives.items():
+            objectives[name] = {**found.overall.to_json(), "negligible": self.negligible(name),
+                                "groups": {g: {**s.to_json(), "negligible": self.negligible(name, g)}
+                                           for g, s in found.groups.items()},
+                                "least_responsive_groups": [g for g, _ in self.least_responsive(name)]}
+        return {"sweep": self.sweep, "method": self.method, "parameters": self.parameters, "reduced": self.reduced,
+                "design": self.design, "confidence": self.confidence, "objectives": objectives,
+                "warnings": self.warnings}
+
+
+def stored_design(spec: SpaceSpec) -> tuple[Design, tuple[Dimension, ...]]:
+    """The design a sweep ran, drawn again from its saved spec."""
+    kind = strategy(spec.search.strategy)
+    if not issubclass(kind, SensitivityDesign):
+        raise DseError(f"sweep {spec.name!r} was sampled by {spec.search.strategy!r}; sensitivity reads a "
+                       "sweep sampled for it: search.strategy sobol_indices or morris (docs/sensitivity.md)")
+    dimensions = tuple(dimension(name, values) for name, values in spec.parameters.items())
+    checks = [compile_constraint(text, {d.name for d in dimensions}) for text in spec.constraints]
+    problem = Problem(label=spec.name, dimensions=dimensions, objective=(spec.ranking.objective, spec.ranking.goal),
+                      pareto=(), scenarios=(), vectors=(), max_points=spec.search.max_points,
+                      seed=spec.search.seed, batch=1, options=spec.search.options,
+                      admits=lambda p: all(check(p) for check in checks), constrained=bool(checks))
+    return kind(problem).design, dimensions
+
+
+def sensitivity(output: Any, sweep: str | None = None, objectives: list[str] | None = None,
+                confidence: float = CONFIDENCE, resamples: int = RESAMPLES) -> Sensitivity:
+    """Indices of every scalar objective (or those named) of ``sweep``, overall and per scenario group."""
+    if not 0 < confidence < 1:
+        raise DseError(f"--confidence {confidence}: give a level between 0 and 1, e.g. 0.95")
+    if resamples < 2:
+        raise DseError(f"--resamples {resamples}: bootstrap intervals need at least 2 resamples")
+    sweep = pick_sweep(output, sweep)
+    spec = load_sweep_spec(output, sweep)
+    design, dimensions = stored_design(spec)
+    parameters = [d.name for d in dimensions]
+    scalar = [n for n, o in normalise(spec.objectives or []).items() if not is_vector(o)]
+    for name in objectives or []:
+        if name not in scalar:
+            raise DseError(f"objective {name!r} is not among sweep {sweep!r}'s ({', '.join(scalar)})")
+    chosen = list(objectives or scalar)
+    rows = current_rows(output, sweep, ["group", "status", *parameters, *chosen])
+    if rows.empty:
+        raise DseError(f"{output}: sweep {sweep!r} has no rows yet")
+    points = pd.DataFrame(design.points(dimensions), columns=parameters)
+    keys = pd.MultiIndex.from_frame(points) if len(parameters) > 1 else pd.Index(points[parameters[0]])
+    over = spec.ranking.over_scenarios
+    groups = rows.groupby("group")
+    scopes = [(None, rows), *(((str(g), members) for g, members in groups) if groups.ngroups > 1 else ())]
+    found = {name: Objective(overall=None, groups={}) for name in chosen}
+    notes: list[str] = []
+    wide: dict[str, list[str]] = {name: [] for name in chosen}  # per objective, the groups whose intervals are wide
+    for group, members in scopes:
+        values = _reduced(members, parameters, chosen, over).reindex(keys)
+        n_scenarios = members["scenario"].nunique()
+        for name in chosen:
+            scope = _scope(design, values[name].to_numpy(float), parameters, n_scenarios, confidence, resamples,
+                           spec.search.seed + 1)
+            if group is None:
+                found[name].overall = scope
+                notes.extend(_warnings(design, scope, f"{name} (all scenarios)"))
+                continue
+            found[name].groups[group] = scope
+            if scope.left_out or scope.blocks < 2 or design.method == "morris":
+                notes.extend(_warnings(design, scope, f"{name} (group {group})"))
+            elif _widest(scope) > WIDE:  # one line per objective for all its wide groups, below
+                wide[name].append(f"{group} +/-{_widest(scope):.2f}")
+    notes.extend(f"{name}: intervals wider than +/-{WIDE} in groups {', '.join(listed)}"
+                 for name, listed in wide.items() if listed)
+    return Sensitivity(sweep, design.method, parameters, REDUCED[over],
+                       {"strategy": spec.search.strategy, "rows": len(design.units), "blocks": design.blocks,
+                        "block": design.block, "seed": spec.search.seed, "second_order": design.second_order,
+                        "levels": design.levels or None},
+                       confidence, found, notes)
+
+
+def _reduced(rows: pd.DataFrame, parameters: list[str], objectives: list[str], over: str) -> pd.DataFrame:
+    """Each point's objectives reduced over the scenarios of ``rows``; only points ok on every one of them."""
+    n = rows["scenario"].nunique()
+    ok = rows[rows["status"] == "ok"]
+    per_point = ok.groupby(parameters, dropna=False)
+    reduced = per_point[objectives].agg(over)
+    return reduced[per_point.size() == n]
+
+
+def _scope(design: Design, y: np.ndarray, parameters: list[str], scenarios: int, confidence: float,
+           resamples: int, seed: int) -> Scope:
+    """Indices from the design's whole blocks: each block is one estimator term, so leaving one out
+    leaves the estimate unbiased over the rest (though no longer quasi-random)."""
+    whole = ~np.isnan(y.reshape(design.blocks, design.block)).any(axis=1)
+    rows = np.repeat(whole, design.block)
+    y, x = y[rows], design.units[rows]
+    used, left_out = int(whole.sum()), int((~whole).sum())
+    mean, std = (float(np.mean(y)), float(np.std(y))) if len(y) else (None, None)
+    cv = std / abs(mean) if mean else None
+    spread = {"mean": mean, "std": std, "cv": cv}
+    empty = {name: dict.fromkeys(_keys(design.method)) for name in parameters}
+    if used < 2:
+        return Scope(scenarios, used, left_out, empty, spread, note=f"{used} whole block(s): too few to estimate")
+    if np.ptp(y) == 0.0:  # no variance to share out: no parameter has an effect
+        zero = {name: dict.fromkeys(_keys(design.method), 0.0) for name in parameters}
+        return Scope(scenarios, used, left_out, zero, spread, note="constant over the sample: no parameter moves it")
+    problem = salib_problem(tuple(Dimension(name) for name in parameters))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", (RuntimeWarning, UserWarning))
+        if design.method == "sobol":
+            from SALib.analyze import sobol
+
+            found = sobol.analyze(problem, y, calc_second_order=design.second_order, num_resamples=resamples,
+                                  conf_level=confidence, seed=seed)
+        else:
+            from SALib.analyze import morris
+
+            found = morris.analyze(problem, x, y, num_resamples=resamples, conf_level=confidence,
+                                   num_levels=design.levels, seed=seed)
+    indices = {name: {key: float(found[key][i]) for key in _keys(design.method)} for i, name in enumerate(parameters)}
+    pairs = {}
+    if design.method == "sobol" and design.second_order:
+        for i, a in enumerate(parameters):
+            for j in range(i + 1, len(parameters)):
+                pairs[f"{a} x {parameters[j]}"] = {"S2": float(found["S2"][i, j]),
+                                                   "S2_conf": float(found["S2_conf"][i, j])}
+    note = None
+    if cv is not None and cv < FLAT:
+        note = f"varies by only {cv:.1g} of its mean over the sample: the indices share out what may be rounding noise"
+    return Scope(scenarios, used, left_out, indices, spread, pairs, note)
+
+
+def _keys(method: str) -> tuple[str, ...]:
+    return ("S1", "S1_conf", "ST", "ST_conf") if method == "sobol" else ("mu", "mu_star", "sigma", "mu_star_conf")
+
+
+def _warnings(design: Design, scope: Scope, label: str) -> list[str]:
+    """What makes these indices less than the user asked for: blocks lost, or a sample too small."""
+    found = []
+    if scope.left_out:
+        found.append(f"{label}: {scope.left_out} of {scope.blocks + scope.left_out} blocks left out (a point failed, "
+                     "has no result yet, or a constraint refused it)")
+    if scope.note and scope.blocks < 2:
+        found.append(f"{label}: {scope.note}")
+        return found
+    if design.method == "morris":
+        if scope.blocks < MIN_TRAJECTORIES:
+            found.append(f"{label}: {scope.blocks} trajectories; screening wants at least {MIN_TRAJECTORIES} "
+                         f"(max_points >= {MIN_TRAJECTORIES * design.block})")
+        return found
+    widest = _widest(scope)
+    if widest > WIDE:
+        needed = math.ceil(scope.blocks * (widest / WIDE) ** 2)  # intervals narrow as 1 / sqrt(blocks)
+        found.append(f"{label}: intervals up to +/-{widest:.2f}, too wide to tell parameters apart (over {WIDE}); "
+                     f"about {needed} base rows would narrow them to {WIDE} (max_points >= {needed * design.block})")
+    return found
+
+
+def _widest(scope: Scope) -> float:
+    """The widest half-width among a scope's intervals."""
+    return max((v for p in scope.parameters.values() for k, v in p.items() if k.endswith("_conf") and v is not None),
+               default=0.0)

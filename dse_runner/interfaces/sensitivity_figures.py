@@ -1,0 +1,69 @@
+"""Figures of a sensitivity analysis (analysis/sensitivity.py), one PNG per objective: Sobol' S1 and ST bars
+with their confidence intervals, over all scenarios and in each scenario group; or Morris' mu*-sigma plane,
+where a point far right matters and a point high up acts non-linearly or through interactions."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")  # files only
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from ..analysis.sensitivity import Scope, Sensitivity  # noqa: E402
+
+
+def write_figures(found: Sensitivity, folder: Path) -> dict[str, Path]:
+    """``folder``/sensitivity-<objective>.png for each objective."""
+    folder.mkdir(parents=True, exist_ok=True)
+    written = {}
+    for name, objective in found.objectives.items():
+        scopes = {"all scenarios": objective.overall,
+                  **{f"group {g}": objective.groups[g] for g, _ in found.least_responsive(name)}}
+        draw = _sobol if found.method == "sobol" else _morris
+        fig, axes = plt.subplots(1, len(scopes), figsize=(2.2 + 2.6 * len(scopes), 3.4), dpi=110, squeeze=False,
+                                 sharey=found.method == "sobol")
+        for ax, (label, scope) in zip(axes[0], scopes.items()):
+            draw(ax, scope, found.parameters)
+            cv = scope.spread.get("cv")
+            ax.set_title(label + (f"\ncv {cv:.3g}" if cv is not None else ""), fontsize=9)
+        level = f"{100 * found.confidence:g}%"
+        fig.suptitle(f"{found.sweep}: {name} ({found.reduced} over scenarios), {level} intervals", fontsize=10)
+        fig.tight_layout()
+        path = folder / f"sensitivity-{name}.png"
+        fig.savefig(path)
+        plt.close(fig)
+        written[name] = path.resolve()
+    return written
+
+
+def _short(parameter: str) -> str:
+    return parameter.rsplit(".", 1)[-1]
+
+
+def _sobol(ax, scope: Scope, parameters: list[str]) -> None:
+    x = np.arange(len(parameters))
+    for offset, key, color in ((-0.2, "S1", "tab:blue"), (0.2, "ST", "tab:orange")):
+        values = [scope.parameters[p][key] for p in parameters]
+        errors = [scope.parameters[p][f"{key}_conf"] for p in parameters]
+        if any(v is None for v in values):
+            continue
+        ax.bar(x + offset, values, 0.4, yerr=errors, capsize=3, color=color, label=key)
+    ax.axhline(0, color="0.3", lw=0.8)
+    ax.set_xticks(x, [_short(p) for p in parameters], fontsize=8)
+    ax.grid(axis="y", alpha=0.3)
+    ax.legend(fontsize=7)
+
+
+def _morris(ax, scope: Scope, parameters: list[str]) -> None:
+    for p in parameters:
+        v = scope.parameters[p]
+        if v["mu_star"] is None:
+            continue
+        ax.errorbar(v["mu_star"], v["sigma"], xerr=v["mu_star_conf"], fmt="o", capsize=3)
+        ax.annotate(_short(p), (v["mu_star"], v["sigma"]), fontsize=8, xytext=(4, 4), textcoords="offset points")
+    ax.set_xlabel("mu*", fontsize=8)
+    ax.set_ylabel("sigma", fontsize=8)
+    ax.grid(alpha=0.3)

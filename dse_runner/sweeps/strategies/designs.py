@@ -1,0 +1,184 @@
+"""Sampling designs for global sensitivity analysis: Saltelli's (``sobol_indices``) and Morris' (``morris``).
+
+Unlike a search, a sensitivity study needs its points in a fixed pattern that the estimator
+reads back: Saltelli's base rows each followed by one cross-sampled row per parameter, or
+Morris trajectories that move one parameter a level at a time. SALib draws both in the unit
+cube; the points are those rows mapped to values (domain.py), asked up front like a grid's
+(``closed_loop = False``), so they run in large chunks, resume by task id and land in the
+same store as any sweep. analysis/sensitivity.py draws the same :class:`Design` again from the
+saved spec and reads each row's result back by its point.
+
+The budget ``max_points`` buys whole blocks (a Saltelli base row's ``D + 2`` rows, or
+``2D + 2`` with second order; a Morris trajectory's ``D + 1``): as many as fit that many
+distinct points, ``max_points // block`` over continuous parameters. A point met twice
+(discrete parameters can map two rows to one point) is asked once; a point the constraints
+reject is not asked, and its block is left out of the indices.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+from pydantic import Field, PositiveInt
+
+from ...errors import DseError
+from ..domain import Dimension, Point, from_units
+from ..search import Options, Problem, Strategy
+
+
+@dataclass(frozen=True)
+class Design:
+    """A sensitivity method's sample in the unit cube, in the order its estimator reads it."""
+
+    method: str  # "sobol" | "morris": which SALib estimator reads it
+    units: np.ndarray  # rows x dimensions, in [0, 1]
+    block: int  # consecutive rows the estimator needs together: one base row's, or one trajectory
+    second_order: bool = False
+    levels: int = 0  # Morris' grid levels
+
+    @property
+    def blocks(self) -> int:
+        return len(self.units) // self.block
+
+    def points(self, dimensions: tuple[Dimension, ...]) -> list[Point]:
+        """Every row as a point (repeats included), in the design's order."""
+        return [from_units(list(dimensions), row) for row in self.units]
+
+
+def salib_problem(dimensions: tuple[Dimension, ...]) -> dict[str, Any]:
+    """SALib's problem: every parameter on [0, 1]; domain.py maps units to values (log, grids, choices)."""
+    return {"num_vars": len(dimensions), "names": [d.name for d in dimensions], "bounds": [[0.0, 1.0]] * len(dimensions)}
+
+
+def numeric(dimensions: tuple[Dimension, ...]) -> None:
+    """Indices move each parameter along its axis: text choices have no order to move along."""
+    text = [d.name for d in dimensions if d.choices is not None
+            and any(isinstance(v, (str, bool)) for v in d.choices)]
+    if text:
+        raise DseError(f"search: sensitivity designs need numeric parameters; {', '.join(text)} "
+                       "lists text values (a design moves each parameter along a numeric axis)")
+
+
+class SensitivityDesign(Strategy):
+    """A fixed design asked up front; subclasses say how many rows a block has and how SALib draws them."""
+
+    closed_loop = False
+    method: ClassVar[str]
+    label: ClassVar[str]  # its name under search.strategy, for messages
+
+    def __init__(self, problem: Problem):
+        super().__init__(problem)
+        numeric(problem.dimensions)
+        self.design, points = self.fit(problem)
+        self._points = iter(points)
+        self.size = len(points)
+
+    def fit(self, problem: Problem) -> tuple[Design, list[Point]]:
+        """The longest prefix of whole blocks whose distinct admitted points fit the budget. Repeats are
+        free (a point is simulated once), so a design over grids or choices is drawn again twice as long
+        while the budget has room: both SALib designs extend as prefixes for the same seed."""
+        block = self.block_of(len(problem.dimensions), self.options)
+        if problem.max_points < block:
+            raise DseError(f"search: {self.label} needs at least {block} points for {len(problem.dimensions)} "
+                           f"parameters (one block of {self.rows_in_words()}); max_points is {problem.max_points}")
+        n, found = problem.max_points // block, -1
+        while True:
+            design = self.draw(problem, n)
+            blocks, points = _budgeted(design, problem)
+            if blocks < design.blocks or len(points) == found or n >= problem.max_points:
+                break  # the budget is spent, or longer adds nothing, or there is a block per point of budget
+            n, found = 2 * n, len(points)
+        units = design.units[:blocks * design.block]
+        return Design(design.method, units, design.block, design.second_order, design.levels), points
+
+    @classmethod
+    def block_of(cls, dimensions: int, options: Any) -> int:
+        raise NotImplementedError
+
+    @classmethod
+    def rows_in_words(cls) -> str:
+        raise NotImplementedError
+
+    def draw(self, problem: Problem, n: int) -> Design:
+        """``n`` blocks of the design."""
+        raise NotImplementedError
+
+    def ask(self) -> Point | None:
+        return next(self._points, None)
+
+
+def _budgeted(design: Design, problem: Problem) -> tuple[int, list[Point]]:
+    """How many leading blocks fit ``max_points`` distinct admitted points, and those points in order."""
+    seen: dict[tuple, Point] = {}
+    rows = design.points(problem.dimensions)
+    for b in range(design.blocks):
+        new: dict[tuple, Point] = {}
+        for point in rows[b * design.block:(b + 1) * design.block]:
+            key = tuple(point.values())
+            if key not in seen and key not in new and problem.admits(point):
+                new[key] = point
+        if len(seen) + len(new) > problem.max_points:
+            return b, list(seen.values())
+        seen.update(new)
+    return design.blocks, list(seen.values())
+
+
+class SobolOptions(Options):
+    second_order: bool = False  # also S2: 2D + 2 rows per base row instead of D + 2
+
+
+class SobolIndices(SensitivityDesign):
+    """Saltelli's extension of a scrambled Sobol' sequence (SALib.sample.sobol), for first-, total- and
+    optionally second-order Sobol' indices. Base samples that are powers of two balance best."""
+
+    Options = SobolOptions
+    method, label = "sobol", "sobol_indices"
+
+    @classmethod
+    def block_of(cls, dimensions: int, options: SobolOptions) -> int:
+        return 2 * dimensions + 2 if options.second_order else dimensions + 2
+
+    @classmethod
+    def rows_in_words(cls) -> str:
+        return "D + 2 rows, 2D + 2 with second_order"
+
+    def draw(self, problem: Problem, n: int) -> Design:
+        from SALib.sample import sobol
+
+        with warnings.catch_warnings():  # balance is best at powers of two; any other N still estimates
+            warnings.simplefilter("ignore", UserWarning)
+            units = sobol.sample(salib_problem(problem.dimensions), n, calc_second_order=self.options.second_order,
+                                 scramble=True, seed=problem.seed)
+        return Design("sobol", units, self.block_of(len(problem.dimensions), self.options),
+                      second_order=self.options.second_order)
+
+
+class MorrisOptions(Options):
+    levels: PositiveInt = Field(4, ge=2, multiple_of=2)  # grid levels of each parameter; even, as Morris' design needs
+
+
+class Morris(SensitivityDesign):
+    """Morris' elementary-effects screening (SALib.sample.morris): trajectories of D + 1 points, each
+    moving one parameter by a fixed step on a grid of ``levels``. Cheap: a few tens of trajectories rank
+    the parameters by mu* and tell non-linearity or interaction by sigma."""
+
+    Options = MorrisOptions
+    method, label = "morris", "morris"
+
+    @classmethod
+    def block_of(cls, dimensions: int, options: MorrisOptions) -> int:
+        return dimensions + 1
+
+    @classmethod
+    def rows_in_words(cls) -> str:
+        return "a trajectory of D + 1 rows"
+
+    def draw(self, problem: Problem, n: int) -> Design:
+        from SALib.sample import morris
+
+        units = morris.sample(salib_problem(problem.dimensions), n, num_levels=self.options.levels, seed=problem.seed)
+        return Design("morris", units, self.block_of(len(problem.dimensions), self.options),
+                      levels=self.options.levels)

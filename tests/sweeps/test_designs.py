@@ -1,0 +1,98 @@
+"""Sensitivity designs (sweeps/strategies/designs.py) without a cluster: the budget buys whole blocks, a larger
+budget extends the same design, repeats are asked once, constraints are honoured, and bad input names its
+culprit. The contract every strategy keeps is tests/sweeps/test_every_strategy.py's; these runs on the
+real cluster are tests/analysis/test_sensitivity.py's."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dse_runner.errors import DseError
+from dse_runner.sweeps import search
+from dse_runner.sweeps.domain import Dimension
+from dse_runner.sweeps.search import Problem
+
+X = Dimension("m.x", low=-1.0, high=1.0)
+Y = Dimension("m.y", low=0.1, high=10.0, log=True)
+Z = Dimension("m.z", low=0.0, high=4.0)
+GRID = Dimension("m.g", low=0.0, high=1.0, step=0.5)
+
+
+def problem(*dimensions: Dimension, max_points: int = 100, seed: int = 3, options=None, admits=None) -> Problem:
+    return Problem(label="designs", dimensions=dimensions, objective=("f", "min"), pareto=(), scenarios=("s",),
+                   vectors=(), max_points=max_points, seed=seed, batch=4, options=options or {},
+                   admits=admits or (lambda p: True), constrained=admits is not None)
+
+
+def asked(name: str, p: Problem) -> list[dict]:
+    return list(iter(search.strategy(name)(p).ask, None))
+
+
+@pytest.mark.parametrize(("name", "options", "block"), [
+    ("sobol_indices", {}, 5), ("sobol_indices", {"second_order": True}, 8), ("morris", {}, 4)])
+def test_the_budget_buys_whole_blocks_and_a_larger_one_extends_the_same_design(name, options, block):
+    small = search.strategy(name)(problem(X, Y, Z, max_points=101, options=options))
+    rows = len(small.design.units)
+    assert small.design.block == block and rows % block == 0
+    if name == "sobol_indices":  # continuous: every row a new point
+        assert rows == (101 // block) * block
+    else:  # Morris moves on a grid of 4 levels: 64 points in all, met again by more trajectories
+        assert rows >= (101 // block) * block
+    assert small.size == len(asked(name, problem(X, Y, Z, max_points=101, options=options))) <= 101
+    large = search.strategy(name)(problem(X, Y, Z, max_points=400, options=options))
+    assert np.array_equal(large.design.units[:len(small.design.units)], small.design.units)
+
+
+def test_saltelli_blocks_cross_one_parameter_at_a_time():
+    """Each block: A, then A with column j taken from B for each j, then B (SALib's layout, which the
+    estimator reads back)."""
+    design = search.strategy("sobol_indices")(problem(X, Y, Z, max_points=50)).design
+    for first in range(0, len(design.units), design.block):
+        a, b = design.units[first], design.units[first + design.block - 1]
+        for j in range(3):
+            crossed = design.units[first + 1 + j]
+            assert crossed[j] == b[j] and np.array_equal(np.delete(crossed, j), np.delete(a, j))
+
+
+def test_a_point_met_twice_is_asked_once_and_the_budget_counts_distinct_points():
+    """On a 3 x 3 grid Morris' trajectories meet the same points again and again: the design grows until its
+    distinct points fill the budget, or the grid has no more."""
+    points = asked("morris", problem(GRID, Dimension("m.h", low=0.0, high=1.0, step=0.5), max_points=6))
+    keys = [tuple(p.values()) for p in points]
+    assert len(keys) == len(set(keys)) <= 6
+    every = asked("morris", problem(GRID, Dimension("m.h", low=0.0, high=1.0, step=0.5), max_points=50))
+    assert len(every) <= 9  # a 3 x 3 grid has 9 points; the design stops growing when nothing new comes
+
+
+def test_the_same_seed_asks_the_same_points_and_another_seed_others():
+    assert asked("sobol_indices", problem(X, Y, seed=5)) == asked("sobol_indices", problem(X, Y, seed=5))
+    assert asked("sobol_indices", problem(X, Y, seed=5)) != asked("sobol_indices", problem(X, Y, seed=6))
+
+
+def test_points_the_constraints_refuse_are_not_asked():
+    def admits(p):
+        return p["m.x"] < 0.5
+
+    points = asked("sobol_indices", problem(X, Y, max_points=40, admits=admits))
+    assert points and all(p["m.x"] < 0.5 for p in points)
+
+
+@pytest.mark.parametrize(("name", "options", "message"), [
+    ("sobol_indices", {}, r"search: sobol_indices needs at least 5 points for 3 parameters .*max_points is 4"),
+    ("sobol_indices", {"second_order": True}, r"needs at least 8 points for 3 parameters"),
+    ("morris", {}, r"search: morris needs at least 4 points for 3 parameters .*max_points is 3"),
+])
+def test_too_few_points_for_one_block_is_an_error_naming_the_budget(name, options, message):
+    with pytest.raises(DseError, match=message):
+        search.strategy(name)(problem(X, Y, Z, max_points=4 if name == "sobol_indices" else 3, options=options))
+
+
+def test_text_values_and_bad_options_are_errors_naming_them():
+    mode = Dimension("m.mode", choices=(0.1, "off"))
+    with pytest.raises(DseError, match=r"need numeric parameters; m\.mode lists text values"):
+        search.strategy("sobol_indices")(problem(X, mode))
+    with pytest.raises(DseError, match=r"search\.levels: .*multiple of 2 \(an option of Morris\)"):
+        search.strategy("morris")(problem(X, options={"levels": 5}))
+    with pytest.raises(DseError, match=r"search\.second_ordr: extra inputs are not permitted"):
+        search.strategy("sobol_indices")(problem(X, options={"second_ordr": True}))
