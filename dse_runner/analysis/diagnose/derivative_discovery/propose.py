@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -84,12 +85,14 @@ def unit_columns(theta: np.ndarray, before: np.ndarray) -> tuple[np.ndarray, np.
     return np.where(kept, theta / scale, 0.0), scale, kept
 
 
-def held_out_error(z: np.ndarray, y: np.ndarray, run: np.ndarray, threshold: float) -> float:
-    """Leave-one-scenario-out squared error of STLSQ at ``threshold`` (inf threshold: the empty model)."""
+def held_out_error(z: np.ndarray, y: np.ndarray, run: np.ndarray, threshold: float,
+                   solve: Callable[[np.ndarray, np.ndarray, float], np.ndarray] = stlsq) -> float:
+    """Leave-one-scenario-out squared error of a sparse regression (``solve``, STLSQ as set up here unless a
+    caller brings its own) at ``threshold`` (inf threshold: the empty model)."""
     total = 0.0
     for k in np.unique(run):
         out = run == k
-        coef = np.zeros(z.shape[1]) if math.isinf(threshold) else stlsq(z[~out], y[~out], threshold)
+        coef = np.zeros(z.shape[1]) if math.isinf(threshold) else solve(z[~out], y[~out], threshold)
         total += float(np.sum((y[out] - z[out] @ coef) ** 2))
     return total
 

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ....analysis.diagnose.derivative_discovery.propose import held_out_error
 from .. import correction
 from .observe import DYNAMIC, OUTPUT, Observed, Reference, Regression, equation_error, output_error, reference_state
 
@@ -99,7 +100,7 @@ def shape_gain(refs: Sequence[Reference], shape: correction.Shape, value: float)
     with_, without = _shaped_rows(refs, shape, value), _shaped_rows(refs, shape, None)
     if len(with_) < 2:
         return 0.0
-    after, before = (held_out_error(*_joined(regs), 0.0) for regs in (with_, without))
+    after, before = (held_out_error(*_joined(regs), 0.0, stlsq) for regs in (with_, without))
     return 1.0 - after / before if before > 0 else 0.0
 
 
@@ -193,23 +194,13 @@ def _scaled(reg: Regression) -> tuple[np.ndarray, np.ndarray]:
     return np.where(empty, 0.0, reg.theta / scale), scale
 
 
-def held_out_error(z: np.ndarray, y: np.ndarray, run: np.ndarray, threshold: float) -> float:
-    """Leave-one-run-out squared error of STLSQ at ``threshold`` (math.inf for no threshold: the empty model)."""
-    total = 0.0
-    for k in np.unique(run):
-        out = run == k
-        coef = np.zeros(z.shape[1]) if math.isinf(threshold) else stlsq(z[~out], y[~out], threshold)
-        total += float(np.sum((y[out] - z[out] @ coef) ** 2))
-    return total
-
-
 def choose_threshold(z: np.ndarray, y: np.ndarray, run: np.ndarray) -> float:
     """The threshold of ``THRESHOLDS`` (times the target's RMS) with the least leave-one-run-out error, the
     largest within 2 % of it (the sparser model, as a tie); math.inf when none beats the empty model."""
     size = float(np.sqrt(np.mean(y ** 2))) if len(y) else 0.0
     if size == 0.0 or len(np.unique(run)) < 2:
         return math.inf
-    errors = {f * size: held_out_error(z, y, run, f * size) for f in THRESHOLDS}
+    errors = {f * size: held_out_error(z, y, run, f * size, stlsq) for f in THRESHOLDS}
     empty = float(np.sum(y ** 2))
     best = min(errors.values())
     if best >= empty:
