@@ -79,9 +79,9 @@ def mixed(none: FitResult, a: FitResult, b: FitResult, coefficients: Sequence[fl
     point = dict(none.point)
     for name in {*a.point, *b.point}:
         base = none.point.get(name, 0.0)
-        point[name] = base + wa * (a.point.get(name, base) - base) + wb * (b.point.get(name, base) - base)
+        point[name] = float(base + wa * (a.point.get(name, base) - base) + wb * (b.point.get(name, base) - base))
     for name, change in zip(none.names, calibrated):
-        point[name] += change
+        point[name] = float(point[name] + change)
     return clipped(point, bounds)
 
 
