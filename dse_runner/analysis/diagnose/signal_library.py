@@ -47,6 +47,7 @@ STARTS = 4  # a delay's or a lag's fit on every scenario starts from this many v
 # oscillating model their misfit has local minima a period apart, which a fit from neutral alone can miss
 MULTIMODAL = ("delay", "lag")  # a gain or an offset scales or shifts a signal: one start, from neutral
 MAX_ITERATIONS = 30
+SCOUTING = 6  # iterations every start of a fit gets before only the best start of each effect goes on
 
 
 @dataclass(frozen=True)
@@ -284,12 +285,12 @@ def diagnose_space(path: str | Path, out: str | Path | None = None, folds: int =
         unfreed = {**held, **{name: signal_effects.NEUTRAL[h.effect.kind] for name, h in library.items()}}
         bounds = {p.name: p for p in (*base, *(h.parameter for h in library.values()))}
 
-        def problem(label: str, names: tuple[str, ...], on: tuple[str, ...], start: Mapping[str, float] = {}
-                    ) -> FitProblem:
+        def problem(label: str, names: tuple[str, ...], on: tuple[str, ...], start: Mapping[str, float] = {},
+                    iterations: int = MAX_ITERATIONS) -> FitProblem:
             fixed = {k: v for k, v in unfreed.items() if k not in names}
             freed = tuple(replace(p, start=start.get(p.name, p.start)) for p in
                           (*base, *(library[n].parameter for n in names)))
-            return FitProblem(label, freed, fixed, on, MAX_ITERATIONS)
+            return FitProblem(label, freed, fixed, on, iterations)
 
         def report(round_: int, active: int, points: int, simulations: int) -> None:
             say(f"fits: round {round_}, {active} active, {points} points, {simulations} simulations")
@@ -301,12 +302,19 @@ def diagnose_space(path: str | Path, out: str | Path | None = None, folds: int =
 
         sets = [(), *((name,) for name in library)]
         starts = {s: starts_of(library[s[0]]) if s else [None] for s in sets}
-        tries = [problem(f"{'+'.join(s) or 'none'}#{i}", s, scenarios, {s[0]: v} if s else {})
+        tries = [problem(f"{'+'.join(s) or 'none'}#{i}", s, scenarios, {s[0]: v} if s else {}, SCOUTING)
                  for s in sets for i, v in enumerate(starts[s])]
-        say(f"fitting {len(sets) - 1} signal effects and none on every scenario: {len(tries)} fits")
+        say(f"fitting {len(sets) - 1} signal effects and none on every scenario: {len(tries)} fits, "
+            f"{SCOUTING} iterations from every start")
         tried = fit_all(fits, tries, client, scales, report)
-        full = {s: min((tried[f"{'+'.join(s) or 'none'}#{i}"] for i in range(len(starts[s]))), key=lambda f: f.sse)
-                for s in sets}
+        scouted = {s: min((tried[f"{'+'.join(s) or 'none'}#{i}"] for i in range(len(starts[s]))), key=lambda f: f.sse)
+                   for s in sets}
+        # only the best start of each effect goes on: after a few iterations each start is in its basin
+        going = [problem("+".join(s) or "none", s, scenarios, f.values, MAX_ITERATIONS - SCOUTING)
+                 for s, f in scouted.items() if not f.converged]
+        say(f"going on from the best start: {len(going)} fits")
+        went = fit_all(fits, going, client, scales, report) if going else {}
+        full = {s: went.get("+".join(s) or "none", f) for s, f in scouted.items()}
 
         pairs = Pairs()
         singles = {s[0]: full[s] for s in sets if s}
