@@ -640,7 +640,9 @@ def _diagnose_space(space: Path, out: Path, folds: int, noise_factor: float, wor
         typer.echo(f"{effect['id']}({effect['target']}): {kind} {value:.4g} (95 % {low:.4g} to {high:.4g})")
     typer.echo(f"held-out error: {found['held_out_before']:.2f} before, {found['held_out_after']:.2f} after, in noise "
                "floors (each compared signal's residuals over its recording's noise)")
-    typer.echo(f"verdict: {found['verdict']}" + (f"; runner-up {found['runner_up']}" if found["runner_up"] else ""))
+    typer.echo(f"verdict: {found['verdict_text']}" + (f"; runner-up {found['runner_up']}" if found["runner_up"] else ""))
+    if found["files"]:
+        typer.echo(f"report: {found['files']['report']}")
 
 
 @app.command()
