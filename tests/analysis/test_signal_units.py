@@ -78,3 +78,18 @@ def test_a_remaining_error_points_inside_the_fmus_and_says_which_can_take_a_corr
     assert "co-simulation FMU plant, which cannot be augmented from outside" in text
     assert "model-exchange FMU sensor" in text
     assert "inside" not in signal_claims.verdict_text(explain.EXPLAINED, 1.0, chosen, {"plant": "cs"}, [], [], 2.0)
+
+
+def test_look_alikes_are_told_apart_only_where_their_residuals_differ_by_more_than_the_noise():
+    t = np.linspace(0.0, 10.0, 201)
+    run = Scenario("run")
+    chosen = [signal_locate.Residual("m.x", "run", t, np.full(t.size, 0.01))]
+    twin = [signal_locate.Residual("m.x", "run", t, np.where(t >= 9.0, 0.03, 0.01))]
+    (window,) = signal_claims.telling_windows(chosen, twin, {"m.x": 0.01}, {"run": run})
+    assert window["start"] == 9.0 and np.isclose(window["delta_mean_square"], 8.0)
+    assert signal_claims.telling_windows(chosen, chosen, {"m.x": 0.01}, {"run": run}) == []
+    a = _candidate(("a",), {"r1": 1.0, "r2": 1.0})
+    b = _candidate(("b",), {"r1": 1.02, "r2": 1.02})  # within 5 %: alike
+    c = _candidate(("c",), {"r1": 2.0, "r2": 2.0})
+    both = _candidate(("a", "b"), {"r1": 0.99, "r2": 0.99})  # more, not another explanation
+    assert signal_claims.alike(a, [a, b, c, both]) == [b]
