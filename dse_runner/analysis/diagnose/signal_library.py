@@ -12,6 +12,11 @@ judged as the field-data diagnosis judges its library (explain.py): held-out err
 BIC, the simplest of the equally good, a verdict against the noise floor. Residuals of each compared
 signal are divided by its noise (estimated from its recording alone), so signals in different units
 weigh alike and an error of 1 is the noise itself.
+
+When no single effect fits to the noise, pairs are predicted from the singles' fits and the best
+fitted for real (signal_screen.py); what may be claimed, the look-alikes and the verdict's sentence
+come from signal_claims.py; where the model misses, before and after, from signal_locate.py; the
+report from signal_report.py.
 """
 
 from __future__ import annotations

@@ -42,7 +42,7 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
     """The report's text from the diagnosis' JSON."""
     located = found.get("located") or {}
     pairs = found.get("pairs") or {}
-    lines = [f"# Diagnosis of {title}", "", f"**Verdict: {found['verdict']}.** {found.get('verdict_text', '')}", "",
+    lines = [f"# Diagnosis of {title}", "", f"**Verdict** {found.get('verdict_text') or found['verdict']}.", "",
              f"Held-out error {found['held_out_before']:.3g} noise floors before (the calibrated model), "
              f"{found['held_out_after']:.3g} after; 1 is the recordings' own noise.", "",
              "## Compared signals", ""]
@@ -71,7 +71,7 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
                                                  "no window tells them apart by more than the noise"))
         lines.append("")
     if located:
-        lines += ["## Where the model misses", "", located["method"] + ".", "", "By run (noise floors):", ""]
+        lines += ["## Where the model misses", "", located["method"][:1].upper() + located["method"][1:] + ".", "", "By run (noise floors):", ""]
         lines += markdown_table(located["by_scenario"], ["signal", "scenario", "samples", "floors_before",
                                                          "floors_after"])
         lines += ["", "By what the inputs do:", ""]
