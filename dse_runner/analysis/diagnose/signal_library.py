@@ -12,6 +12,11 @@ judged as the field-data diagnosis judges its library (explain.py): held-out err
 BIC, the simplest of the equally good, a verdict against the noise floor. Residuals of each compared
 signal are divided by its noise (estimated from its recording alone), so signals in different units
 weigh alike and an error of 1 is the noise itself.
+
+When no single effect fits to the noise, pairs are predicted from the singles' fits and the best
+fitted for real (signal_screen.py); what may be claimed, the look-alikes and the verdict's sentence
+come from signal_claims.py; where the model misses, before and after, from signal_locate.py; the
+report from signal_report.py.
 """
 
 from __future__ import annotations
@@ -30,11 +35,13 @@ from ...simulation import signal_effects
 from ...simulation.run import qualify
 from ...simulation.scenario import Series
 from ...sweeps.cluster import connect
-from ...sweeps.fit import FitProblem, FitResult, Parameter, evaluate_points, fit_all, key_of, wanted
+from ...sweeps.domain import Point
+from ...sweeps.fit import (FitProblem, FitResult, Parameter, evaluate_points, fit_all, key_of,
+                             residuals_in, wanted)
 from ...sweeps.rank import rank
 from ...sweeps.spec import Space, load_space, resolve_space
 from ...sweeps.sweep import submit
-from . import explain
+from . import explain, signal_claims, signal_locate, signal_report, signal_screen
 from .explain import Candidate
 from .hypotheses import EffectParameter
 from .hypotheses import Hypothesis as LibraryHypothesis
@@ -58,6 +65,7 @@ PHYSICS = {  # what each kind of effect stands for, and the residual it leaves
     "offset": ("the signal is shifted: an actuator's or a sensor's bias",
                "a constant residual, whatever the signal does"),
 }
+SCOUTING = 6  # iterations every start of a fit gets before only the best start of each effect goes on
 
 
 @dataclass(frozen=True)
@@ -91,6 +99,13 @@ class SignalDiagnosis:
     candidates: list[Candidate]
     verdict: str
     hypotheses: dict[str, Hypothesis] = field(default_factory=dict)
+    pairs: Any = None  # Pairs: what the pair screen did
+    lookalikes: list[signal_claims.LookAlike] = field(default_factory=list)
+    dropped: list[signal_claims.Dropped] = field(default_factory=list)
+    located: dict[str, Any] = field(default_factory=dict)
+    verdict_text: str = ""
+    discovery: Any = None  # what seek_derivative_correction found: nothing yet
+    files: dict[str, str] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
         runner = explain.runner_up(self.chosen, self.candidates)
@@ -99,13 +114,20 @@ class SignalDiagnosis:
                          for c in self.compared],
             "effects": [self._effect(name) for name in self.chosen.ids],
             "verdict": self.verdict,
+            "verdict_text": self.verdict_text,
             "held_out_before": self.baseline.cross_validated,
             "held_out_after": self.chosen.cross_validated,
             "held_out_unit": "noise floors (RMS of each compared signal's residuals over its recording's noise)",
             "noise_floor": 1.0,
             "runner_up": runner.label if runner is not None else None,
-            "candidates": [{"id": c.label, "held_out": c.cross_validated, "bic": c.bic} for c in
-                           explain.ranked(self.candidates)],
+            "candidates": [{"id": c.label, "held_out": c.cross_validated if c.validated else None, "bic": c.bic}
+                           for c in explain.ranked(self.candidates)],
+            "pairs": self.pairs.to_json() if self.pairs is not None else None,
+            "lookalikes": [x.to_json() for x in self.lookalikes],
+            "dropped": [d.to_json() for d in self.dropped],
+            "discovery": self.discovery,
+            "located": self.located,
+            "files": self.files,
         }
 
     def _effect(self, name: str) -> dict[str, Any]:
@@ -127,7 +149,10 @@ class SignalDiagnosis:
             lines.append(f"{effect['id']}({effect['target']}): {kind} {value:.4g} (95 % {low:.4g} to {high:.4g})")
         lines.append(f"held-out error: {found['held_out_before']:.2f} before, {found['held_out_after']:.2f} after, "
                      "in noise floors (each compared signal's residuals over its recording's noise)")
-        lines.append(f"verdict: {found['verdict']}" + (f"; runner-up {found['runner_up']}" if found["runner_up"] else ""))
+        lines.append(f"verdict: {found['verdict_text']}"
+                     + (f"; runner-up {found['runner_up']}" if found["runner_up"] else ""))
+        if found["files"]:
+            lines.append(f"report: {found['files']['report']}")
         return lines
 
 
@@ -222,12 +247,57 @@ def fits_space(space: Space, compared: Sequence[Compared], hypotheses: Mapping[s
     return resolve_space(spec, space.path)
 
 
+SURVIVORS = 2  # pairs that pass the BIC gate and are cross-validated, at most
+
+
+def fitted_error(fit: FitResult) -> float:
+    """The RMS of a fit's residuals on the runs it saw, in noise floors (optimistic, but free)."""
+    return math.sqrt(fit.sse / fit.residual_count) if fit.residual_count else math.inf
+
+
+def worth_pairing(singles: Sequence[FitResult], floor_stop: float = explain.FLOOR_STOP) -> bool:
+    """Whether pairs could still explain something: not when a single already fits to within ``floor_stop``
+    noise floors on the runs it saw."""
+    return len(singles) >= 2 and min(fitted_error(f) for f in singles) > floor_stop
+
+
+def gated_early(short: Sequence[signal_screen.Screened], full: Mapping[tuple[str, ...], FitResult], count: int,
+                margin: float = explain.BIC_MARGIN) -> list[signal_screen.Screened]:
+    """The screened pairs sure to pass explain.bic_gate whatever the singles' cross-validation chooses:
+    their checked BIC (which their fit can only lower) is ``margin`` below every single's and none's."""
+    lowest = min(explain.bic(f) for f in full.values())
+    sure = [x for x in short if x.bic <= lowest - margin]
+    return sorted(sure, key=lambda x: x.bic)[:count]
+
+
+def seek_derivative_correction(space: Space, chosen: Candidate, candidates: Sequence[Candidate], verdict: str,
+                               interfaces: Mapping[str, str]) -> Any | None:
+    """The hook for discovery beyond the library, called after the library's choice when its verdict is
+    partial or unexplained: a correction of the state derivatives of a model-exchange FMU, which the
+    master integrates (issue 30, point 4). It finds nothing yet and returns None; a co-simulation FMU
+    cannot take such a correction at all."""
+    return None
+
+
+@dataclass
+class Pairs:
+    """What the pair screen did: how many pairs it predicted, which it checked and which it fitted."""
+
+    predicted: int = 0
+    screened: list[signal_screen.Screened] = field(default_factory=list)
+    fitted: list[str] = field(default_factory=list)
+    reason: str = ""
+
+    def to_json(self) -> dict[str, Any]:
+        return {"predicted": self.predicted, "screened": [s.to_json() for s in self.screened],
+                "fitted": self.fitted, "reason": self.reason}
 
 def diagnose_space(path: str | Path | Space, out: str | Path | None = None, folds: int = 3, noise_factor: float =
                    explain.NOISE_FACTOR, say: Messages | None = None, n_workers: int | None = None,
                    address: str | None = None) -> SignalDiagnosis:
-    """Calibrate the space (a file, or a Space as the library contract gives it), then fit each signal effect
-    with it and choose what the recordings support."""
+    """Calibrate the space (a file, or a Space as the library contract gives it), fit each signal effect with
+    it, screen pairs when no single explains to the noise, choose what the recordings support, and locate the
+    misfit before and after."""
     say = say or (lambda message: None)
     space = path if isinstance(path, Space) else load_space(path).with_overrides(output=out, address=address,
                                                                                  n_workers=n_workers)
@@ -248,36 +318,126 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
         held = {name: values[0] for name, values in space.parameters.items() if name not in calibrated}
         # what a fit does not free: the space's single-valued parameters, and every other effect at neutral
         unfreed = {**held, **{name: signal_effects.NEUTRAL[h.effect.kind] for name, h in library.items()}}
+        bounds = {p.name: p for p in (*base, *(h.parameter for h in library.values()))}
 
-        def problem(label: str, names: tuple[str, ...], on: tuple[str, ...], start: Mapping[str, float] = {}
-                    ) -> FitProblem:
+        def problem(label: str, names: tuple[str, ...], on: tuple[str, ...], start: Mapping[str, float] = {},
+                    iterations: int = MAX_ITERATIONS) -> FitProblem:
             fixed = {k: v for k, v in unfreed.items() if k not in names}
             freed = tuple(replace(p, start=start.get(p.name, p.start)) for p in
                           (*base, *(library[n].parameter for n in names)))
-            return FitProblem(label, freed, fixed, on, MAX_ITERATIONS)
+            return FitProblem(label, freed, fixed, on, iterations)
 
         def report(round_: int, active: int, points: int, simulations: int) -> None:
             say(f"fits: round {round_}, {active} active, {points} points, {simulations} simulations")
 
+        def by_fold(ids: tuple[str, ...], start: Mapping[str, float]) -> list[FitProblem]:
+            label = "+".join(ids) or "none"
+            return [problem(f"{label}/fold{k}", ids, tuple(x for x in scenarios if x not in fold), start)
+                    for k, fold in enumerate(parts)]
+
         sets = [(), *((name,) for name in library)]
         starts = {s: starts_of(library[s[0]]) if s else [None] for s in sets}
-        tries = [problem(f"{'+'.join(s) or 'none'}#{i}", s, scenarios, {s[0]: v} if s else {})
+        tries = [problem(f"{'+'.join(s) or 'none'}#{i}", s, scenarios, {s[0]: v} if s else {}, SCOUTING)
                  for s in sets for i, v in enumerate(starts[s])]
-        say(f"fitting {len(sets) - 1} signal effects and none on every scenario: {len(tries)} fits")
+        say(f"fitting {len(sets) - 1} signal effects and none on every scenario: {len(tries)} fits, "
+            f"{SCOUTING} iterations from every start")
         tried = fit_all(fits, tries, client, scales, report)
-        full = {s: min((tried[f"{'+'.join(s) or 'none'}#{i}"] for i in range(len(starts[s]))), key=lambda f: f.sse)
-                for s in sets}
-        folded = [problem(f"{'+'.join(s) or 'none'}/fold{k}", s, tuple(x for x in scenarios if x not in fold),
-                          full[s].values) for s in sets for k, fold in enumerate(parts)]
-        say(f"cross-validating: {len(parts)} folds, {len(folded)} fits")
-        results = fit_all(fits, folded, client, scales, report) if folded else {}
+        scouted = {s: min((tried[f"{'+'.join(s) or 'none'}#{i}"] for i in range(len(starts[s]))), key=lambda f: f.sse)
+                   for s in sets}
+        # only the best start of each effect goes on: after a few iterations each start is in its basin
+        going = [problem("+".join(s) or "none", s, scenarios, f.values, MAX_ITERATIONS - SCOUTING)
+                 for s, f in scouted.items() if not f.converged]
+        say(f"going on from the best start: {len(going)} fits")
+        went = fit_all(fits, going, client, scales, report) if going else {}
+        full = {s: went.get("+".join(s) or "none", f) for s, f in scouted.items()}
+
+        pairs = Pairs()
+        singles = {s[0]: full[s] for s in sets if s}
+        if worth_pairing(list(singles.values())):
+            def real_sse(points: list[Point]) -> list[float]:
+                rows, _ = evaluate_points(fits, points, client, list(scales))
+                found = residuals_in(rows, scales)
+                return [screen_sse(p, scenarios, found) for p in points]
+
+            pairs.screened, pairs.predicted = signal_screen.screen(full[()], singles, bounds, real_sse)
+            say(f"pairs: {pairs.predicted} predicted from the single fits, {len(pairs.screened)} checked")
+        else:
+            pairs.reason = f"a single effect already fits within {explain.FLOOR_STOP:g} noise floors"
+        short = signal_screen.shortlist(pairs.screened)
+        pairs.fitted = [s.label for s in short]
+        # pairs whose checked point alone already passes the BIC gate (a fit only lowers the SSE) are
+        # cross-validated beside their full fits, saving the rounds of a batch of their own
+        early = gated_early(short, full, SURVIVORS) if parts else []
+        folded = [p for s in sets for p in by_fold(s, full[s].values)]
+        folded += [p for x in early for p in by_fold(x.ids, x.start)]
+        combos = [problem(x.label, x.ids, scenarios, x.start) for x in short]
+        say(f"cross-validating: {len(parts)} folds, {len(folded)} fits"
+            + (f"; fitting {len(combos)} pairs" if combos else ""))
+        results = fit_all(fits, folded + combos, client, scales, report) if folded or combos else {}
         candidates = [Candidate(s, full[s]) for s in sets]
-        held_out(fits, client, candidates, results, parts, scales)
-    baseline = candidates[0]
-    chosen = explain.select(candidates[1:], baseline)
-    floor = 1.0  # residuals are in units of each recording's noise
-    verdict = explain.verdict(chosen.cross_validated, floor, noise_factor, chosen is not baseline)
-    return SignalDiagnosis(compared, baseline, chosen, candidates, verdict, library)
+        combinations = [Candidate(x.ids, results[x.label]) for x in short]
+        first = {x.label for x in early}
+        held_out(fits, client, candidates + [c for c in combinations if c.label in first], results, parts, scales)
+        if not parts:  # one run: judged on its fit alone, as every candidate is
+            held_out(fits, client, combinations, {}, parts, scales)
+        baseline = candidates[0]
+        current = explain.select(candidates[1:], baseline)
+        everything = candidates + combinations
+        survivors = explain.bic_gate(combinations, everything, current, explain.BIC_MARGIN, SURVIVORS) if parts else []
+        late = [c for c in survivors if not c.validated]
+        if late:
+            say(f"cross-validating {', '.join(c.label for c in late)}")
+            more = fit_all(fits, [p for c in late for p in by_fold(c.ids, c.full.values)], client, scales, report)
+            held_out(fits, client, late, more, parts, scales)
+        selected = explain.select(everything[1:], baseline)
+        chosen, dropped = signal_claims.claimed(selected, everything, baseline)
+        floor = 1.0  # residuals are in units of each recording's noise
+        verdict = explain.verdict(chosen.cross_validated, floor, noise_factor, chosen is not baseline)
+        interfaces = dict(space.plan.interfaces)
+        discovery = None
+        if verdict in (explain.PARTIAL, explain.UNEXPLAINED):
+            discovery = seek_derivative_correction(fits, chosen, everything, verdict, interfaces)
+        twins = signal_claims.alike(chosen, everything)
+        shown = [baseline, chosen, *twins]
+        residuals = located_residuals(fits, client, shown, compared)
+    noise = {c.signal: c.noise for c in compared}
+    by_name = {s.name: s for s in space.scenarios}
+    looks = [signal_claims.weigh(chosen, t, residuals, noise, by_name) for t in twins]
+    located = signal_locate.located(residuals[baseline.label], residuals[chosen.label], noise, by_name)
+    text = signal_claims.verdict_text(verdict, chosen.cross_validated, chosen, interfaces, looks, dropped, noise_factor)
+    diagnosis = SignalDiagnosis(compared, baseline, chosen, everything, verdict, library, pairs=pairs,
+                                lookalikes=looks, dropped=dropped, located=located, verdict_text=text,
+                                discovery=discovery)
+    diagnosis.files = {k: str(v) for k, v in
+                       signal_report.write(diagnosis.to_json(), Path(space.output), space.name).items()}
+    return diagnosis
+
+
+def screen_sse(point: Point, scenarios: Sequence[str], residuals) -> float:
+    """The SSE of a simulated point on every run; infinite if any run failed."""
+    found = [residuals(point, s) for s in scenarios]
+    return math.inf if any(r is None for r in found) else float(sum(r @ r for r in found))
+
+
+def located_residuals(space: Space, client, shown: Sequence[Candidate], compared: Sequence[Compared]
+                      ) -> dict[str, list[signal_locate.Residual]]:
+    """Each shown candidate's residuals (in the signals' units) per compared signal and run, from its fit on
+    every run: already in the store, so read rather than simulated again."""
+    points = [c.full.point for c in shown]
+    rows, _ = evaluate_points(space, points, client, [c.residuals for c in compared])
+    scenarios = {s.name: s for s in space.scenarios}
+    found: dict[str, list[signal_locate.Residual]] = {}
+    for candidate in shown:
+        found[candidate.label] = []
+        for name, scenario in scenarios.items():
+            row = rows.get((key_of(candidate.full.point), name))
+            if row is None or row["status"] != "ok":
+                continue
+            for c in compared:
+                values = np.asarray(row[c.residuals], dtype=float)
+                found[candidate.label].append(signal_locate.Residual(
+                    c.signal, name, signal_locate.residual_times(scenario, c.recorded, values.size), values))
+    return found
 
 
 def held_out(space: Space, client, candidates: list[Candidate], results: Mapping[str, FitResult],

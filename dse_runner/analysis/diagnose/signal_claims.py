@@ -1,0 +1,180 @@
+"""What the diagnosis of any model may claim: effects that change the fit by more than the noise, twins
+named where the recordings cannot tell them apart, and where a remaining error must lie.
+
+Why: held-out error and the BIC choose among candidates, but a member of a combination can pass both
+by a whisker while changing the prediction by far less than the recordings' own noise (on a held-back
+Robotti set a terrain slope of grade 4e-5 was named beside the right effect). Residuals here are in
+noise floors, so a member's worth is measurable in the noise's own units: taking it out of the chosen
+set raises the held-out mean square by what it changes the prediction by, squared. A member whose
+removal adds less than one noise variance (``NOISE_RULE``) is not claimed.
+
+Two effects fit alike when neither's held-out error is clearly lower. Then the windows of time where
+their residuals differ by more than the noise are the evidence between them, and where none does the
+diagnosis names both and says so.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from . import explain
+from .explain import Candidate
+from .signal_locate import Residual, activity, window_of, windows
+
+NOISE_RULE = 1.0  # noise variances a claimed member must add to the held-out mean square when removed
+LOOKALIKES = 3  # at most this many look-alikes are weighed
+TELLING = 1.0  # a window tells two fits apart when their mean squares there differ by a noise variance
+
+
+def mean_square(candidate: Candidate) -> float:
+    """The held-out mean square in noise variances, over the runs the candidate was judged on."""
+    values = [v ** 2 for v in candidate.held_out.values()]
+    return float(np.mean(values)) if values else math.inf
+
+
+def worth(member: str, chosen: Candidate, candidates: Sequence[Candidate], baseline: Candidate) -> float:
+    """What removing ``member`` from ``chosen`` adds to the held-out mean square, in noise variances; inf
+    when the set without it was never cross-validated (it could not be judged, so it is kept)."""
+    rest = set(chosen.ids) - {member}
+    without = baseline if not rest else next((c for c in candidates if set(c.ids) == rest and c.validated), None)
+    if without is None or not without.validated:
+        return math.inf
+    return mean_square(without) - mean_square(chosen)
+
+
+@dataclass(frozen=True)
+class Dropped:
+    """An effect the choice had named but the noise rule took away: removing it added ``worth`` noise
+    variances (below ``NOISE_RULE``) to the held-out mean square."""
+
+    id: str
+    worth: float
+
+    def to_json(self) -> dict[str, Any]:
+        return {"id": self.id, "worth": self.worth, "rule": f"removal adds < {NOISE_RULE:g} noise variance"}
+
+
+def claimed(chosen: Candidate, candidates: Sequence[Candidate], baseline: Candidate,
+            rule: float = NOISE_RULE) -> tuple[Candidate, list[Dropped]]:
+    """``chosen`` without every member whose removal changes the held-out error by less than the noise,
+    the least worthy first, each time judged again on what is left."""
+    dropped: list[Dropped] = []
+    while chosen.ids:
+        worths = {m: worth(m, chosen, candidates, baseline) for m in chosen.ids}
+        member = min(worths, key=worths.__getitem__)
+        if worths[member] >= rule:
+            break
+        dropped.append(Dropped(member, worths[member]))
+        rest = set(chosen.ids) - {member}
+        chosen = baseline if not rest else next(c for c in candidates if set(c.ids) == rest and c.validated)
+    return chosen, dropped
+
+
+# ---- look-alikes ---------------------------------------------------------------------------------
+
+def alike(chosen: Candidate, candidates: Sequence[Candidate], min_gain: float = explain.MIN_GAIN
+          ) -> list[Candidate]:
+    """The cross-validated candidates that fit as well as the chosen one on held-out runs (neither is
+    ``min_gain`` better) and are a different explanation (neither a part nor a superset of it)."""
+    if not chosen.ids:
+        return []
+    inside = set(chosen.ids)
+    found = [c for c in explain.ranked(list(candidates)) if c.validated and c.ids and not set(c.ids) <= inside
+             and not inside <= set(c.ids) and c.cross_validated * (1.0 - min_gain) <= chosen.cross_validated]
+    return found[:LOOKALIKES]
+
+
+@dataclass
+class LookAlike:
+    """The chosen set against one that fits alike: the scenario-level evidence (explain.evidence) and the
+    windows of time where their residuals differ by more than the noise."""
+
+    chosen: str
+    other: str
+    evidence: explain.Evidence
+    telling: list[dict[str, Any]] = field(default_factory=list)  # windows, most telling first
+    favours_chosen: float = 0.0  # summed difference of mean squares over the telling windows (other - chosen)
+
+    @property
+    def told_apart(self) -> bool:
+        return bool(self.telling)
+
+    def to_json(self) -> dict[str, Any]:
+        e = self.evidence
+        return {"chosen": self.chosen, "id": self.other, "held_out": e.other_held_out, "delta_held_out": e.delta_held_out,
+                "delta_bic": e.delta_bic, "runs_better": e.runs_better_text, "runs_tied": e.runs_tied,
+                "told_apart": self.told_apart, "favours_chosen": self.favours_chosen, "telling_windows": self.telling}
+
+
+def telling_windows(chosen: Sequence[Residual], other: Sequence[Residual], noise: Mapping[str, float],
+                    scenarios: Mapping[str, Any], count: int = 5) -> list[dict[str, Any]]:
+    """The windows (signal_locate.windows) where the two fits' mean squares differ by at least ``TELLING``
+    noise variances, largest first: where a run tells the two apart."""
+    theirs = {(r.signal, r.scenario): r for r in other}
+    found = []
+    for mine in chosen:
+        twin = theirs.get((mine.signal, mine.scenario))
+        if twin is None or twin.values.size != mine.values.size:
+            continue
+        edges = windows(mine.time)
+        index = window_of(mine.time, edges)
+        sigma2 = noise[mine.signal] ** 2
+        for k in range(len(edges) - 1):
+            inside = index == k
+            if not inside.any():
+                continue
+            delta = float(np.mean(twin.values[inside] ** 2) - np.mean(mine.values[inside] ** 2)) / sigma2
+            if abs(delta) >= TELLING:
+                found.append({"signal": mine.signal, "scenario": mine.scenario, "start": float(edges[k]),
+                              "stop": float(edges[k + 1]), "input": activity(scenarios[mine.scenario], edges[k],
+                                                                             edges[k + 1]),
+                              "delta_mean_square": delta})
+    return sorted(found, key=lambda w: -abs(w["delta_mean_square"]))[:count]
+
+
+def weigh(chosen: Candidate, other: Candidate, residuals: Mapping[str, Sequence[Residual]],
+          noise: Mapping[str, float], scenarios: Mapping[str, Any]) -> LookAlike:
+    """The evidence between the chosen set and a look-alike, from their held-out errors and from their
+    full fits' residuals window by window."""
+    telling = telling_windows(residuals[chosen.label], residuals[other.label], noise, scenarios)
+    return LookAlike(chosen.label, other.label, explain.evidence(chosen, other), telling,
+                     float(sum(w["delta_mean_square"] for w in telling)))
+
+
+# ---- what the verdict says -----------------------------------------------------------------------
+
+def verdict_text(verdict: str, held_out: float, chosen: Candidate, interfaces: Mapping[str, str],
+                 looks: Sequence[LookAlike], dropped: Sequence[Dropped], factor: float) -> str:
+    """The verdict in a sentence: what was named, what was not claimed, which twins cannot be told apart,
+    and, when an error well above the noise remains, where it must lie."""
+    named = ", ".join(chosen.ids) or "no effect"
+    parts = [f"{verdict}: {named}; held-out error {held_out:.3g} noise floors"]
+    if dropped:
+        parts.append("not claimed (changes the fit by less than the noise): " + ", ".join(d.id for d in dropped))
+    twins = [x.other for x in looks if not x.told_apart]
+    if twins:
+        parts.append(f"the recordings cannot tell {named} from {', '.join(twins)}: a run that moves the inputs "
+                     "differently (another shape or timing, or a release away from rest) would")
+    if verdict in (explain.PARTIAL, explain.UNEXPLAINED):
+        parts.append(interior(interfaces, factor))
+    return "; ".join(parts)
+
+
+def interior(interfaces: Mapping[str, str], factor: float) -> str:
+    """Where an error the signal effects leave must lie: inside the FMUs, and whether that can be corrected."""
+    cs = sorted(name for name, kind in interfaces.items() if kind == "cs")
+    me = sorted(name for name, kind in interfaces.items() if kind == "me")
+    said = [f"more than {factor:g} noise floors remain after every effect on the inputs and outputs, so the "
+            "missing part lies inside the model"]
+    if cs:
+        said.append(f"inside the co-simulation FMU{'s' * (len(cs) > 1)} {', '.join(cs)}, which cannot be augmented "
+                    "from outside: only its inputs and outputs can be corrected, and the FMU itself has to change")
+    if me:
+        said.append(f"the model-exchange FMU{'s' * (len(me) > 1)} {', '.join(me)} could take a correction of "
+                    "their state derivatives, integrated by the master")
+    return ": ".join(said[:1]) + ("; " + "; ".join(said[1:]) if len(said) > 1 else "")

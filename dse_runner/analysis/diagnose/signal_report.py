@@ -1,0 +1,91 @@
+"""The report of a diagnosis of any model: one short Markdown page beside the JSON, in the out folder.
+
+Why: the JSON is for scripts; a user reads what was named, how sure it is, what else fits alike and
+where the model misses, in that order, without the field-data report's tracks and manoeuvres.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from ... import strict_json
+
+REPORT, SUMMARY = "diagnosis-report.md", "diagnosis.json"
+
+
+def _number(value: Any) -> str:
+    return f"{value:.4g}" if isinstance(value, (int, float)) and not isinstance(value, bool) else str(value)
+
+
+def markdown_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[str]) -> list[str]:
+    """A Markdown table of ``columns`` of ``rows``; numbers to four significant figures."""
+    if not rows:
+        return ["(none)"]
+    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    lines += ["| " + " | ".join(_number(row.get(c, "")) for c in columns) + " |" for row in rows]
+    return lines
+
+
+def effect_rows(effects: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    rows = []
+    for e in effects:
+        (kind, value), = e["parameters"].items()
+        low, high = e["intervals"][kind]
+        rows.append({"effect": f"{e['id']}({e['target']})", "parameter": kind, "value": value,
+                     "95 % interval": f"{_number(low)} to {_number(high)}", "partial": e["partial"]})
+    return rows
+
+
+def markdown(found: Mapping[str, Any], title: str) -> str:
+    """The report's text from the diagnosis' JSON."""
+    located = found.get("located") or {}
+    pairs = found.get("pairs") or {}
+    lines = [f"# Diagnosis of {title}", "", f"**Verdict** {found.get('verdict_text') or found['verdict']}.", "",
+             f"Held-out error {found['held_out_before']:.3g} noise floors before (the calibrated model), "
+             f"{found['held_out_after']:.3g} after; 1 is the recordings' own noise.", "",
+             "## Compared signals", ""]
+    lines += markdown_table(found["compared"], ["objective", "signal", "recorded", "noise"])
+    lines += ["", "## Named effects", ""] + markdown_table(effect_rows(found["effects"]),
+                                                           ["effect", "parameter", "value", "95 % interval", "partial"])
+    if found.get("dropped"):
+        lines += ["", "Not claimed (removing it changed the held-out error by less than the noise): "
+                  + ", ".join(d["id"] for d in found["dropped"]) + "."]
+    lines += ["", "## Candidates (best held-out first)", ""]
+    lines += markdown_table(found["candidates"][:8], ["id", "held_out", "bic"])
+    lines += ["", f"Runner-up: {found.get('runner_up') or 'none'}.", ""]
+    if pairs.get("screened"):
+        lines += [f"Pairs: {pairs['predicted']} predicted from the single fits, {len(pairs['screened'])} checked by "
+                  f"simulation, {len(pairs['fitted'])} fitted for real ({', '.join(pairs['fitted']) or 'none'}).", ""]
+    elif pairs:
+        lines += [f"Pairs: not screened ({pairs.get('reason', '')}).", ""]
+    looks = found.get("lookalikes") or []
+    if looks:
+        lines += ["## Look-alikes", ""]
+        for x in looks:
+            where = "; ".join(f"{w['scenario']} {w['start']:.3g}-{w['stop']:.3g} s ({w['input']}, "
+                              f"{w['delta_mean_square']:+.3g})" for w in x["telling_windows"][:3])
+            lines.append(f"- {x['id']} fits alike ({x['held_out']:.3g} held-out, {x['runs_better']} runs better "
+                         f"for the chosen); " + (f"told apart in {where}" if where else
+                                                 "no window tells them apart by more than the noise"))
+        lines.append("")
+    if located:
+        lines += ["## Where the model misses", "", located["method"][:1].upper() + located["method"][1:] + ".", "", "By run (noise floors):", ""]
+        lines += markdown_table(located["by_scenario"], ["signal", "scenario", "samples", "floors_before",
+                                                         "floors_after"])
+        lines += ["", "By what the inputs do:", ""]
+        lines += markdown_table(located["by_input"], ["signal", "input", "windows", "floors_before", "floors_after"])
+        lines += ["", "Worst windows before:", ""]
+        lines += markdown_table(located["worst"], ["signal", "scenario", "start", "stop", "input", "floors_before",
+                                                   "floors_after"])
+    return "\n".join(lines) + "\n"
+
+
+def write(found: Mapping[str, Any], folder: Path, title: str) -> dict[str, Path]:
+    """Write the report and the strict JSON summary into ``folder``; their paths."""
+    folder.mkdir(parents=True, exist_ok=True)
+    report, summary = folder / REPORT, folder / SUMMARY
+    report.write_text(markdown(found, title))
+    summary.write_text(strict_json.dumps(found))
+    return {"report": report, "summary": summary}

@@ -1,0 +1,60 @@
+"""Blind diagnosis of any model: recordings of the mass-spring-damper with an effect concealed in them
+(jobs/msd/make_diagnosis_runs.py), diagnosed from the recordings alone; the truth is read only to judge."""
+
+from __future__ import annotations
+
+import importlib.util
+
+import pytest
+
+from dse_runner.analysis.diagnose.signal_library import diagnose_space
+
+from conftest import REPO
+
+PARAMETER = {"force_delay": ("input_delay", "msd.F", "delay"), "sensor_gain": ("output_gain", "msd.x", "gain"),
+             "sensor_offset": ("output_offset", "msd.x", "offset")}
+
+
+def _generator():
+    spec = importlib.util.spec_from_file_location("make_diagnosis_runs", REPO / "jobs" / "msd" / "make_diagnosis_runs.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _concealed(case: str) -> dict[tuple[str, str], tuple[str, float]]:
+    """(effect id, target) -> (parameter, true value) of what the case conceals."""
+    return {PARAMETER[k][:2]: (PARAMETER[k][2], v) for k, v in _generator().CASES[case].items()}
+
+
+def _diagnose(case: str, folder, address: str) -> dict:
+    space = _generator().make(case, folder)
+    return diagnose_space(space, address=address).to_json()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", ["force-late", "sensor-gain-offset"])
+def test_a_concealed_effect_or_pair_is_named_with_intervals_covering_the_truth(case, tmp_path, dask_scheduler):
+    found = _diagnose(case, tmp_path, dask_scheduler)
+    truth = _concealed(case)
+    assert found["verdict"] == "explained", found["verdict_text"]
+    assert {(e["id"], e["target"]) for e in found["effects"]} == set(truth)
+    for effect in found["effects"]:
+        kind, value = truth[(effect["id"], effect["target"])]
+        low, high = effect["intervals"][kind]
+        assert low <= value <= high, (effect, value)
+    assert found["held_out_after"] < 2.0 < found["held_out_before"]
+    located = found["located"]
+    assert located["method"] and located["windows"]
+    assert all(r["floors_after"] < r["floors_before"] for r in located["by_scenario"])
+    if len(truth) > 1:  # a pair is found through the screen, not by fitting every pair
+        assert found["pairs"]["predicted"] > len(found["pairs"]["screened"]) >= len(found["pairs"]["fitted"])
+    assert (tmp_path / "out" / "diagnosis-report.md").is_file()
+
+
+@pytest.mark.slow
+def test_recordings_of_a_model_that_misses_nothing_name_nothing(tmp_path, dask_scheduler):
+    found = _diagnose("clean", tmp_path, dask_scheduler)
+    assert found["verdict"] == "none", found["verdict_text"]
+    assert found["effects"] == []
+    assert found["held_out_before"] < 2.0

@@ -1,0 +1,95 @@
+"""The pieces of the diagnosis of any model, without a cluster: locate's windows, the pair screen's
+prediction, the noise rule and the verdict's words."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dse_runner.analysis.diagnose import explain, signal_claims, signal_locate, signal_screen
+from dse_runner.analysis.diagnose.explain import Candidate
+from dse_runner.simulation.scenario import Scenario, Series
+from dse_runner.sweeps.fit import FitResult
+
+
+def _fit(label: str, residuals: list[np.ndarray], point: dict[str, float], names=(), jacobian=None) -> FitResult:
+    sse = float(sum(r @ r for r in residuals))
+    return FitResult(label, list(names), {n: point[n] for n in names}, sse, sum(map(len, residuals)), 1, True,
+                     {n: 0.1 for n in names}, [], point, jacobian or [np.zeros((len(r), len(names))) for r in residuals],
+                     residuals)
+
+
+def test_windows_are_labelled_by_what_the_inputs_do():
+    t = np.linspace(0.0, 10.0, 201)
+    pushed = Scenario("pushed", inputs={"m.F": Series(np.array([0.0, 2.0, 4.0]), np.array([0.0, 1.0, 0.0]), "hold")})
+    edges = signal_locate.windows(t)
+    assert len(edges) == signal_locate.WINDOWS + 1
+    labels = [signal_locate.activity(pushed, a, b) for a, b in zip(edges[:-1], edges[1:])]
+    assert labels[0] == signal_locate.STEADY and labels[1] == labels[3] == signal_locate.CHANGING
+    assert labels[5] == signal_locate.STEADY
+    assert signal_locate.activity(Scenario("free"), 0.0, 1.0) == signal_locate.NO_INPUT
+    assert len(signal_locate.windows(t[:20])) == 3  # 20 samples hold two windows of at least 8
+
+
+def test_located_gives_each_window_in_noise_floors_before_and_after():
+    t = np.arange(0.0, 10.0, 0.1)
+    scenario = Scenario("run")
+    before = [signal_locate.Residual("m.x", "run", t, np.where(t < 5.0, 0.04, 0.0))]
+    after = [signal_locate.Residual("m.x", "run", t, np.full(t.size, 0.01))]
+    found = signal_locate.located(before, after, {"m.x": 0.01}, {"run": scenario})
+    first, last = found["windows"][0], found["windows"][-1]
+    assert np.isclose(first["floors_before"], 4.0) and np.isclose(last["floors_before"], 0.0)
+    assert np.isclose(first["floors_after"], 1.0)
+    (whole,) = found["by_scenario"]
+    assert np.isclose(whole["floors_before"], np.sqrt(8.0)) and found["worst"][0]["floors_before"] == 4.0
+
+
+def test_a_pair_is_predicted_from_the_two_singles_changes():
+    rng = np.random.default_rng(0)
+    u, v = rng.normal(size=50), rng.normal(size=50)
+    point = {"a": 0.0, "b": 0.0}
+    none = _fit("none", [u + v], point)
+    only_a = _fit("a", [v], {"a": 2.0, "b": 0.0})  # a's fit took u away, b's would take v
+    only_b = _fit("b", [u], {"a": 0.0, "b": 3.0})
+    coefficients, predicted = signal_screen.prediction(none, only_a, only_b)
+    assert np.allclose(coefficients, [1.0, 1.0]) and predicted < 1e-20
+    assert signal_screen.mixed(none, only_a, only_b, coefficients, {}) == pytest.approx({"a": 2.0, "b": 3.0})
+
+
+def _candidate(ids, held_out: dict[str, float]) -> Candidate:
+    fit = _fit("+".join(ids) or "none", [np.zeros(3)], {})
+    return Candidate(tuple(ids), fit, held_out=held_out)
+
+
+def test_a_member_that_changes_the_fit_by_less_than_the_noise_is_not_claimed():
+    none = _candidate((), {"r1": 5.0, "r2": 5.0})
+    a = _candidate(("a",), {"r1": 1.2, "r2": 1.2})
+    b = _candidate(("b",), {"r1": 4.9, "r2": 4.9})
+    both = _candidate(("a", "b"), {"r1": 1.0, "r2": 1.0})  # b adds 1.44 - 1 = 0.44 noise variance: too little
+    chosen, dropped = signal_claims.claimed(both, [none, a, b, both], none)
+    assert chosen is a and [d.id for d in dropped] == ["b"] and np.isclose(dropped[0].worth, 0.44)
+    kept, none_dropped = signal_claims.claimed(a, [none, a, b, both], none)
+    assert kept is a and none_dropped == []
+
+
+def test_a_remaining_error_points_inside_the_fmus_and_says_which_can_take_a_correction():
+    chosen = _candidate(("input_gain(p.u)",), {"r": 4.0})
+    text = signal_claims.verdict_text(explain.PARTIAL, 4.0, chosen, {"plant": "cs", "sensor": "me"}, [], [], 2.0)
+    assert "co-simulation FMU plant, which cannot be augmented from outside" in text
+    assert "model-exchange FMU sensor" in text
+    assert "inside" not in signal_claims.verdict_text(explain.EXPLAINED, 1.0, chosen, {"plant": "cs"}, [], [], 2.0)
+
+
+def test_look_alikes_are_told_apart_only_where_their_residuals_differ_by_more_than_the_noise():
+    t = np.linspace(0.0, 10.0, 201)
+    run = Scenario("run")
+    chosen = [signal_locate.Residual("m.x", "run", t, np.full(t.size, 0.01))]
+    twin = [signal_locate.Residual("m.x", "run", t, np.where(t >= 9.0, 0.03, 0.01))]
+    (window,) = signal_claims.telling_windows(chosen, twin, {"m.x": 0.01}, {"run": run})
+    assert window["start"] == 9.0 and np.isclose(window["delta_mean_square"], 8.0)
+    assert signal_claims.telling_windows(chosen, chosen, {"m.x": 0.01}, {"run": run}) == []
+    a = _candidate(("a",), {"r1": 1.0, "r2": 1.0})
+    b = _candidate(("b",), {"r1": 1.02, "r2": 1.02})  # within 5 %: alike
+    c = _candidate(("c",), {"r1": 2.0, "r2": 2.0})
+    both = _candidate(("a", "b"), {"r1": 0.99, "r2": 0.99})  # more, not another explanation
+    assert signal_claims.alike(a, [a, b, c, both]) == [b]
