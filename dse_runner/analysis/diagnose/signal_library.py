@@ -46,6 +46,8 @@ from .explain import Candidate
 from .hypotheses import EffectParameter
 from .hypotheses import Hypothesis as LibraryHypothesis
 from .library import HypothesisLibrary, Messages, Request
+from .derivative_discovery import DISCOVERED, Discovered, NotDiscovered, discover_derivatives
+from .derivative_discovery.prove import terms_space
 from .noise import sigma_from_differences
 
 FITS = "diagnosis-signal-fits"  # the sweep every fit's rounds go to
@@ -104,7 +106,7 @@ class SignalDiagnosis:
     dropped: list[signal_claims.Dropped] = field(default_factory=list)
     located: dict[str, Any] = field(default_factory=dict)
     verdict_text: str = ""
-    discovery: Any = None  # what seek_derivative_correction found: nothing yet
+    discovery: Discovered | NotDiscovered | None = None  # sought when the library leaves error above the noise
     files: dict[str, str] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
@@ -112,7 +114,8 @@ class SignalDiagnosis:
         return {
             "compared": [{"objective": c.objective, "signal": c.signal, "recorded": c.recorded, "noise": c.noise}
                          for c in self.compared],
-            "effects": [self._effect(name) for name in self.chosen.ids],
+            "effects": [self._effect(name) for name in self.chosen.ids if name != DISCOVERED] + (
+                self.discovery.effects() if isinstance(self.discovery, Discovered) else []),
             "verdict": self.verdict,
             "verdict_text": self.verdict_text,
             "held_out_before": self.baseline.cross_validated,
@@ -125,7 +128,7 @@ class SignalDiagnosis:
             "pairs": self.pairs.to_json() if self.pairs is not None else None,
             "lookalikes": [x.to_json() for x in self.lookalikes],
             "dropped": [d.to_json() for d in self.dropped],
-            "discovery": self.discovery,
+            "discovery": self.discovery.to_json() if self.discovery is not None else None,
             "located": self.located,
             "files": self.files,
         }
@@ -144,6 +147,9 @@ class SignalDiagnosis:
         found = self.to_json()
         lines = []
         for effect in found["effects"]:
+            if effect["id"] == DISCOVERED:  # its terms as an engineer writes them
+                lines.append(f"{effect['id']}({effect['target']}): {effect['readable']}")
+                continue
             (kind, value), = effect["parameters"].items()
             low, high = effect["intervals"][kind]
             lines.append(f"{effect['id']}({effect['target']}): {kind} {value:.4g} (95 % {low:.4g} to {high:.4g})")
@@ -270,15 +276,6 @@ def gated_early(short: Sequence[signal_screen.Screened], full: Mapping[tuple[str
     return sorted(sure, key=lambda x: x.bic)[:count]
 
 
-def seek_derivative_correction(space: Space, chosen: Candidate, candidates: Sequence[Candidate], verdict: str,
-                               interfaces: Mapping[str, str]) -> Any | None:
-    """The hook for discovery beyond the library, called after the library's choice when its verdict is
-    partial or unexplained: a correction of the state derivatives of a model-exchange FMU, which the
-    master integrates (issue 30, point 4). It finds nothing yet and returns None; a co-simulation FMU
-    cannot take such a correction at all."""
-    return None
-
-
 @dataclass
 class Pairs:
     """What the pair screen did: how many pairs it predicted, which it checked and which it fitted."""
@@ -394,12 +391,22 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
         floor = 1.0  # residuals are in units of each recording's noise
         verdict = explain.verdict(chosen.cross_validated, floor, noise_factor, chosen is not baseline)
         interfaces = dict(space.plan.interfaces)
-        discovery = None
+        discovery: Discovered | NotDiscovered | None = None
         if verdict in (explain.PARTIAL, explain.UNEXPLAINED):
-            discovery = seek_derivative_correction(fits, chosen, everything, verdict, interfaces)
+            say(f"the library leaves {chosen.cross_validated:.3g} noise floors held-out: seeking a correction of "
+                "the model-exchange FMUs' state derivatives")
+            freed = (*base, *(library[n].parameter for n in chosen.ids))
+            discovery = discover_derivatives(fits, client, chosen, freed, scales, parts, say=say)
+            say(f"discovered {'; '.join(e['readable'] for e in discovery.effects())}"
+                if isinstance(discovery, Discovered) else f"nothing discovered: {discovery.reason}")
         twins = signal_claims.alike(chosen, everything)
-        shown = [baseline, chosen, *twins]
-        residuals = located_residuals(fits, client, shown, compared)
+        residuals = located_residuals(fits, client, [baseline, chosen, *twins], compared)
+        if isinstance(discovery, Discovered):  # the model the recordings support: the library's answer and the terms
+            chosen = discovery.candidate
+            everything.append(chosen)
+            verdict = explain.verdict(chosen.cross_validated, floor, noise_factor, True, discovered=True)
+            work = terms_space(fits, list(discovery.terms.values()))
+            residuals.update(located_residuals(work, client, [chosen], compared))
     noise = {c.signal: c.noise for c in compared}
     by_name = {s.name: s for s in space.scenarios}
     looks = [signal_claims.weigh(chosen, t, residuals, noise, by_name) for t in twins]

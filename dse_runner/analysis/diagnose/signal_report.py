@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from ... import strict_json
+from .derivative_discovery import DISCOVERED
 
 REPORT, SUMMARY = "diagnosis-report.md", "diagnosis.json"
 
@@ -29,12 +30,14 @@ def markdown_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[str]) ->
 
 
 def effect_rows(effects: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """One row per fitted value: a library effect's parameter, or a discovered correction's term."""
     rows = []
     for e in effects:
-        (kind, value), = e["parameters"].items()
-        low, high = e["intervals"][kind]
-        rows.append({"effect": f"{e['id']}({e['target']})", "parameter": kind, "value": value,
-                     "95 % interval": f"{_number(low)} to {_number(high)}", "partial": e["partial"]})
+        values = e["terms"] if e["id"] == DISCOVERED else e["parameters"]  # a term's interval is keyed by its text
+        for kind, value in values.items():
+            low, high = e["intervals"][kind]
+            rows.append({"effect": f"{e['id']}({e['target']})", "parameter": kind, "value": value,
+                         "95 % interval": f"{_number(low)} to {_number(high)}", "partial": e.get("partial", "")})
     return rows
 
 
