@@ -66,6 +66,13 @@ class Ranking:
         """How the ranked figures came from the scenarios, for labels: 'total', 'mean', 'largest', 'smallest'."""
         return REDUCED[self.over_scenarios]
 
+    @property
+    def ranked_label(self) -> str:
+        """What ``best_total`` is, in words: ``total y``, or ``mean+1sd of total y over 64 draws``."""
+        if self.uncertainty is None:
+            return f"{self.reduced} {self.objective}"
+        return f"{self.uncertainty['ranked_by']} of {self.reduced} {self.objective} over {self.uncertainty['samples']} draws"
+
     def to_json(self) -> dict[str, Any]:
         def records(frame: pd.DataFrame, limit: int | None = None) -> list[dict[str, Any]]:
             return json.loads(frame.head(limit).to_json(orient="records")) if limit else \
