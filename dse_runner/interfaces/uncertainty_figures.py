@@ -22,7 +22,7 @@ def distributions_png(ranking: Ranking, shown: int = SHOWN) -> bytes:
     labels = [format_point(dict(zip(ranking.parameters, key)), 4) for key in keys]
     fig, ax = plt.subplots(figsize=(9.5, 1.2 + 0.45 * len(keys)), dpi=110)
     y = np.arange(len(keys))[::-1]
-    ax.boxplot(values, positions=y, vert=False, whis=(5, 95), widths=0.5, showfliers=False,
+    ax.boxplot(values, positions=y, orientation="horizontal", whis=(5, 95), widths=0.5, showfliers=False,
                medianprops={"color": "tab:blue"})
     ax.plot(top[name].to_numpy(float), y, "o", color="black", label="mean")
     if ranking.ranked_by != name:
