@@ -169,7 +169,7 @@ def test_a_draw_outside_the_variables_bounds_names_the_draw(tmp_path):
     path = write_msd_search(tmp_path, {"strategy": "exhaustive"}, parameters={"msd.c": [0.5, 1.0]},
                             uncertain={"samples": 16, "parameters": {"msd.k": {"distribution": "normal", "mean": 1,
                                                                                "std": 5}}})
-    with pytest.raises(DseError, match=r"uncertain.parameters.msd.k: draw \d+ \(-[\d.]+\): .*truncate"):
+    with pytest.raises(DseError, match=r"uncertain.parameters.msd.k: draw \d+ \(-[\d.]+\): .*narrow its distribution"):
         load_space(path)
 
 
