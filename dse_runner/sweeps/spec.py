@@ -773,7 +773,8 @@ def _check_uncertain(spec: SpaceSpec, plan: Plan, scenarios: list[Scenario], dra
             try:
                 check_value(variable, value)
             except DseError as e:
-                raise DseError(f"{where}: draw {k} ({value:.6g}): {e}; narrow its distribution, or give a bounded one (uniform, triangular)") from None
+                raise DseError(f"{where}: draw {k} ({value:.6g}): {e}; narrow its distribution, or give a bounded "
+                               "one (uniform, triangular)") from None
     for scenario in scenarios:
         if uncertainty.SEPARATOR in scenario.name:
             raise DseError(f"{source}: scenario {scenario.name!r}: with an uncertain block scenario names may not "
