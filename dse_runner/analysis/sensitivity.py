@@ -134,6 +134,10 @@ def sensitivity(output: Any, sweep: str | None = None, objectives: list[str] | N
         raise DseError(f"--resamples {resamples}: bootstrap intervals need at least 2 resamples")
     sweep = pick_sweep(output, sweep)
     spec = load_sweep_spec(output, sweep)
+    if spec.uncertain is not None:
+        raise DseError(f"sweep {sweep!r} runs each point over uncertain draws; sensitivity reads a sweep without "
+                       "an uncertain block (its parameters' indices would mix in the draws' spread): sample the "
+                       "uncertain parameters as parameters of a sobol_indices sweep instead")
     design, dimensions = stored_design(spec)
     parameters = [d.name for d in dimensions]
     scalar = [n for n, o in normalise(spec.objectives or []).items() if not is_vector(o)]

@@ -222,7 +222,25 @@ def _print_table1(ranking) -> None:
     for row in ranking.table1.itertuples():
         typer.echo(f"  {row.scenario:<{width}}{row.min_error:9.3f}{row.max_error:9.3f}{row.average_error:9.3f}"
                    f"{row.computed:9.3f}{row.difference:+12.3f}")
-    typer.echo(f"best: {format_point(ranking.best)}  ({ranking.reduced} {ranking.objective} {ranking.best_total:.3f})")
+    typer.echo(f"best: {format_point(ranking.best)}  ({ranking.ranked_label} {ranking.best_total:.3f})")
+    if ranking.uncertainty is not None:
+        _print_draws(ranking)
+
+
+def _print_draws(ranking) -> None:
+    """The best points' objective over the uncertain draws: mean, std, quantiles and the ranked figure."""
+    from ..sweeps.rank import format_point
+    from ..sweeps.uncertainty import label
+
+    name, about = ranking.objective, ranking.uncertainty
+    quantiles = [f"{name}_{label(q)}" for q in about["quantiles"]]
+    typer.echo(f"{name} over {about['samples']} draws ({about['sampling']}, seed {about['seed']}), best first by "
+               f"{about['ranked_by']}:")
+    for row in ranking.totals.head(5).to_dict("records"):
+        spread = ", ".join(f"{c.rsplit('_', 1)[1]} {row[c]:.4g}" for c in quantiles)
+        robust = f", {about['ranked_by']} {row[ranking.ranked_by]:.4g}" if ranking.ranked_by != name else ""
+        typer.echo(f"  {format_point({p: row[p] for p in ranking.parameters}, 4)}: mean {row[name]:.4g}, "
+                   f"std {row[f'{name}_std']:.4g}, {spread}{robust}")
 
 
 @app.command()

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import asyncio
 import html
+import math
 import socket
 import threading
 import time
@@ -33,17 +34,20 @@ from distributed.diagnostics.plugin import SchedulerPlugin
 from ..simulation.comparison import Comparison, compare
 from ..sweeps.rank import current_model, current_rows, format_point, load_sweep_spec, plain, standings
 from ..errors import DseError
-from ..sweeps import store
+from ..sweeps import store, uncertainty
 from ..sweeps.closed_loop import SearchStatus
 from ..sweeps.history import SearchHistory, load_history
 from ..sweeps.search import strategy
 from ..sweeps.spec import Space, load_space
 from ..sweeps.sweep import SweepReport, load_status
 from . import charts
+from .study_figures import is_sensitivity, section_html, sections
 
 REFRESH_SECONDS = 1.0  # how often pages refresh, and how stale the shared snapshot may be
 STALE_SECONDS = 30.0  # a running sweep whose status is older than this has probably lost its client
 TOP = 15  # rows of the best-so-far ranking shown
+STUDY_SECONDS = 10.0  # how often a running sweep's sensitivity or uncertainty figures are redrawn
+STUDY_STYLE = "<style>.note {font-family: sans-serif; color: #666; font-size: 13px} h3 {font-family: sans-serif}</style>"
 DASK_PAGE = "dse-runner"  # the page added to Dask's dashboard
 
 
@@ -70,6 +74,7 @@ class Feed:
         self.parameters = list(spec.parameters)
         self.objective, self.goal = spec.ranking.objective, spec.ranking.goal
         self.pareto_goals = spec.ranking.pareto_goals()
+        self.uncertain = spec.uncertain  # each scenario ran once per draw: the pages show the draws' means
         self.max_points, self.strategy = spec.search.max_points, spec.search.strategy
         try:  # a closed-loop search writes a history the pages draw; a grid has none to look for
             self.closed_loop = strategy(spec.search.strategy).closed_loop
@@ -90,6 +95,9 @@ class Feed:
     def _read(self) -> Snapshot:
         rows = current_rows(self.output, self.sweep, ["group", "status", *self.parameters, self.objective])
         ok = rows[rows["status"] == "ok"]
+        if self.uncertain is not None:  # a row per point and scenario, its objective the mean over the draws so far
+            ok = uncertainty.collapse(uncertainty.with_draws(ok, self.uncertain.samples), self.parameters,
+                                      [self.objective])
         last = self._snapshot
         status = load_status(self.output, self.sweep)
         history = load_history(self.output, self.sweep) \
@@ -102,12 +110,16 @@ class Feed:
         return self.closed_loop or snap.history is not None
 
     def scenarios(self, snap: Snapshot) -> dict[str, str]:
-        """Scenario -> group: from the space if this process has it, else the status, else the rows."""
+        """Scenario -> group: from the space if this process has it, else the status, else the rows; with
+        uncertain draws, the scenarios themselves (each ran once per draw)."""
         if self._space is not None:
-            return {s.name: s.group for s in self._space.scenarios}
-        if snap.status is not None and snap.status.scenarios:
-            return dict(snap.status.scenarios)
-        return dict(zip(snap.ok["scenario"], snap.ok["group"]))
+            found = {s.name: s.group for s in self._space.scenarios}
+        elif snap.status is not None and snap.status.scenarios:
+            found = dict(snap.status.scenarios)
+        else:
+            return dict(zip(snap.ok["scenario"], snap.ok["group"]))
+        return {uncertainty.split_name(name)[0]: group for name, group in found.items()} \
+            if self.uncertain is not None else found
 
     def space(self) -> tuple[Space | None, str]:
         """The sweep's space, to simulate tracks; or None and why not."""
@@ -130,6 +142,22 @@ class Feed:
             return None, f"{status.spec} has changed since the sweep ran; its tracks would not be the sweep's"
         return space, ""
 
+    def studied(self) -> bool:
+        """Whether the pages show sensitivity or uncertainty figures."""
+        return self.uncertain is not None or is_sensitivity(self.output, self.sweep)
+
+    def studies_html(self) -> str:
+        """The sweep's sensitivity and uncertainty sections as they stand, or why they cannot be drawn yet."""
+        from ..sweeps.rank import rank
+
+        ranking = None
+        try:
+            ranking = rank(self.output, self.sweep) if self.uncertain is not None else None
+        except DseError as e:
+            note = f"<p id='uncertainty-note' class='note'>{html.escape(str(e))}</p>"
+            return STUDY_STYLE + note + "".join(section_html(s, "h3") for s in sections(self.output, self.sweep, None))
+        return STUDY_STYLE + "".join(section_html(s, "h3") for s in sections(self.output, self.sweep, ranking))
+
     def track(self, scenario: str, point: dict[str, Any]) -> tuple[Comparison, float]:
         """``point`` simulated on ``scenario`` next to its recording (comparison.py), and the objective."""
         from ..simulation.run import simulate
@@ -139,7 +167,8 @@ class Feed:
             space, note = self.space()
             if space is None:
                 raise DseError(note)
-            recording = next(s for s in space.scenarios if s.name == scenario)
+            names = {s.name: s for s in space.scenarios}  # a scenario of uncertain draws: its first draw's track
+            recording = names.get(scenario) or names[uncertainty.sample_name(scenario, 0)]
             objective = space.objectives[self.objective]
             result = simulate(space.plan, recording, point, objectives={self.objective: objective},
                               timeout=space.spec.timeout, experiment=space.experiment)
@@ -279,6 +308,9 @@ class Page:
         self.track = charts.TrackChart()
         self.track_note = Div(width=800)
         self.track_shown: tuple | None = None
+        # a sensitivity design's indices, an uncertainty study's distributions (study_figures.py)
+        self.studies = Div(width=2 * charts.WIDTH) if feed.studied() else None
+        self.studies_at = -math.inf  # when they were last drawn (monotonic seconds)
         self.search = self.search_chart = self.front_chart = None  # a closed-loop search's progress
         self.search_shown: tuple | None = None
         if searching:
@@ -298,6 +330,7 @@ class Page:
         doc.add_root(column(
             self.title, self.progress, *([self.search] if self.search else []), self.best,
             row(column(heading("Best so far"), self.ranking), column(heading("Workers"), self.workers)),
+            *([self.studies] if self.studies is not None else []),
             *search,
             heading(f"{objective} against each parameter (paper's Figure 5)"), self.fig5.layout,
             heading(f"{objective} per scenario group at each parameter point, points sorted by "
@@ -322,6 +355,18 @@ class Page:
         self.fig5.update(snap.ok)
         self.fig6.update(snap.ok)
         self._track(snap)
+        self._studies(snap)
+
+    def _studies(self, snap: Snapshot) -> None:
+        """Redraw the sensitivity or uncertainty figures: at most every STUDY_SECONDS while the sweep runs
+        (the bootstrap takes a while on a large design), and once more when it has stopped."""
+        if self.studies is None:
+            return
+        running = snap.status is not None and snap.status.state == "running"
+        if running and time.monotonic() - self.studies_at < STUDY_SECONDS:
+            return
+        self.studies_at = time.monotonic()
+        self.studies.text = self.feed.studies_html()
 
     def _search(self, snap: Snapshot) -> None:
         feed, history = self.feed, snap.history

@@ -32,6 +32,7 @@ from ..sweeps.history import load_history
 from ..sweeps.sweep import SweepReport, load_status
 from . import charts
 from .dashboard import Feed, search_summary
+from .study_figures import section_html, sections
 
 TOP = 20  # points listed in the ranking
 
@@ -72,11 +73,13 @@ them, and the front after a quarter, half, three quarters and all of them.{% end
 and "difference" its distance from the average (the paper's Table 1).</p>
 {{ table1 }}
 
-<h2>Ranking by {{ reduced }} {{ objective }}</h2>
+<h2>Ranking by {{ ranked_label }}</h2>
 <p class="note">The {{ top }} best of {{ points }} points, each objective {{ "summed" if over == "sum" else
 "reduced by its " ~ over }} over the scenarios.</p>
 {{ totals }}
 
+{% for section in studies %}{{ section }}
+{% endfor %}
 {% if pareto %}<h2>Pareto front</h2>
 {{ plots.pareto }}
 {{ pareto }}{% endif %}
@@ -176,7 +179,8 @@ def build_report(output: store.Root, sweep: str | None = None) -> str:
         figures["tracks"] = tracks
     script, divs = components(figures)
 
-    summary = [("best point", format_point(ranking.best)), (f"{ranking.reduced} {ranking.objective}", f"{ranking.best_total:.4f}"),
+    studies = [section_html(section) for section in sections(output, sweep, ranking)]
+    summary = [("best point", format_point(ranking.best)), (ranking.ranked_label, f"{ranking.best_total:.4f}"),
                ("points ranked", str(len(ranking.totals))), ("incomplete points", str(ranking.incomplete_points)),
                ("failed tasks", str(ranking.failed_rows)), ("scenarios", str(len(scenarios)))]
     if status is not None:
@@ -191,7 +195,8 @@ def build_report(output: store.Root, sweep: str | None = None) -> str:
         pareto=charts.html_table(ranking.pareto) if not ranking.pareto.empty else "",
         groups=charts.html_table(ranking.groups) if not ranking.groups.empty else "",
         weighted=charts.html_table(ranking.weighted.head(10)) if not ranking.weighted.empty else "",
-        plots=divs, track_note=track_note, over=spec.ranking.over_scenarios, reduced=ranking.reduced,
+        plots=divs, track_note=track_note, studies=studies, over=spec.ranking.over_scenarios, reduced=ranking.reduced,
+        ranked_label=html.escape(ranking.ranked_label),
         search=[(name, html.escape(value)) for name, value in search],
         spec=html.escape(yaml.safe_dump(spec.model_dump(mode="json"), sort_keys=False)),
         table_style=charts.TABLE_STYLE, bokeh_resources=Resources(mode="inline", components=["bokeh"]).render(), bokeh_script=script)

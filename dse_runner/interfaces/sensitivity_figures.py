@@ -4,6 +4,7 @@ where a point far right matters and a point high up acts non-linearly or through
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import matplotlib
@@ -19,24 +20,44 @@ def write_figures(found: Sensitivity, folder: Path) -> dict[str, Path]:
     """``folder``/sensitivity-<objective>.png for each objective."""
     folder.mkdir(parents=True, exist_ok=True)
     written = {}
-    for name, objective in found.objectives.items():
-        scopes = {"all scenarios": objective.overall,
-                  **{f"group {g}": objective.groups[g] for g, _ in found.least_responsive(name)}}
-        draw = _sobol if found.method == "sobol" else _morris
-        fig, axes = plt.subplots(1, len(scopes), figsize=(2.2 + 2.6 * len(scopes), 3.4), dpi=110, squeeze=False,
-                                 sharey=found.method == "sobol")
-        for ax, (label, scope) in zip(axes[0], scopes.items()):
-            draw(ax, scope, found.parameters)
-            cv = scope.spread.get("cv")
-            ax.set_title(label + (f"\ncv {cv:.3g}" if cv is not None else ""), fontsize=9)
-        level = f"{100 * found.confidence:g}%"
-        fig.suptitle(f"{found.sweep}: {name} ({found.reduced} over scenarios), {level} intervals", fontsize=10)
-        fig.tight_layout()
+    for name, png in pngs(found).items():
         path = folder / f"sensitivity-{name}.png"
-        fig.savefig(path)
-        plt.close(fig)
+        path.write_bytes(png)
         written[name] = path.resolve()
     return written
+
+
+def pngs(found: Sensitivity, largest: int | None = None) -> dict[str, bytes]:
+    """Each objective's figure as PNG bytes: files for the command, inline images for the report and the
+    dashboard. At most ``largest`` panels (all scenarios, then the least responsive groups), if given."""
+    return {name: png_bytes(figure(found, name, largest)) for name in found.objectives}
+
+
+def figure(found: Sensitivity, name: str, largest: int | None = None):
+    """One objective's panels: over all scenarios, then each group, least responsive first."""
+    objective = found.objectives[name]
+    groups = [g for g, _ in found.least_responsive(name)]
+    groups = groups if largest is None else groups[:max(0, largest - 1)]
+    scopes = {"all scenarios": objective.overall, **{f"group {g}": objective.groups[g] for g in groups}}
+    draw = _sobol if found.method == "sobol" else _morris
+    fig, axes = plt.subplots(1, len(scopes), figsize=(2.2 + 2.6 * len(scopes), 3.4), dpi=110, squeeze=False,
+                             sharey=found.method == "sobol")
+    for ax, (label, scope) in zip(axes[0], scopes.items()):
+        draw(ax, scope, found.parameters)
+        cv = scope.spread.get("cv")
+        ax.set_title(label + (f"\ncv {cv:.3g}" if cv is not None else ""), fontsize=9)
+    level = f"{100 * found.confidence:g}%"
+    fig.suptitle(f"{found.sweep}: {name} ({found.reduced} over scenarios), {level} intervals", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def png_bytes(fig) -> bytes:
+    """The figure as PNG, and closed (pyplot keeps every open figure)."""
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png")
+    plt.close(fig)
+    return buffer.getvalue()
 
 
 def _short(parameter: str) -> str:

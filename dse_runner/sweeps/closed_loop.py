@@ -41,7 +41,7 @@ import numpy as np
 from pydantic import BaseModel, computed_field
 
 from ..simulation.objectives import is_vector
-from . import store
+from . import store, uncertainty
 from .chunks import ChunkJob, ChunkSummary, TaskScores, chunk_id_of
 from .cluster import total_threads
 from .constraints import compile_constraint
@@ -49,7 +49,7 @@ from .domain import Point
 from .expand import Task, TaskBatch, scenario_hash, task_id
 from .history import SearchHistory, State, load_history, save_history, settings_digest
 from .search import Evaluation, Strategy
-from .spec import Space
+from .spec import Robust, Space
 
 HISTORY_SECONDS = 1.0  # how often a running search saves its history
 MAX_REJECTED = 1000  # infeasible points in a row after which a search gives up asking
@@ -95,7 +95,23 @@ def reduce_over_scenarios(values: Iterable[float], how: str) -> float:
 Check = tuple[str, Callable[[Mapping[str, float]], bool]]  # a ranking constraint's text and its test
 
 
-def evaluation_of(scores: list[TaskScores], scalar: list[str], how: str, checks: Sequence[Check] = ()) -> Evaluation:
+def over_draws(per: Mapping[str, Mapping[str, float]], scalar: list[str], how: str,
+               ranked: tuple[str, str, Robust | None]) -> dict[str, float]:
+    """A point's values from its sampled scenarios' (uncertainty.py): each draw reduced over the scenarios,
+    then each objective's mean over the draws; the ranking objective ``ranked`` (name, goal, robust) its robust
+    figure when the ranking asks for one, so a search optimises what the ranking ranks by."""
+    draws: dict[int, dict[str, list[float]]] = {}
+    for scenario, objectives in per.items():
+        k = uncertainty.split_name(scenario)[1]
+        for name in scalar:
+            draws.setdefault(k, {}).setdefault(name, []).append(objectives[name])
+    values = {name: np.array([reduce_over_scenarios(d[name], how) for d in draws.values()]) for name in scalar}
+    objective, goal, robust = ranked
+    return {name: uncertainty.robust_of(v, robust if name == objective else None, goal) for name, v in values.items()}
+
+
+def evaluation_of(scores: list[TaskScores], scalar: list[str], how: str, checks: Sequence[Check] = (),
+                  ranked: tuple[str, str, Robust | None] | None = None) -> Evaluation:
     """A point's evaluation from its tasks: failed if any task failed, else each objective reduced, and
     the ranking constraints (``checks``) those values break, which constrained strategies learn from.
     Reduced in scenario-name order, whatever order the tasks came in: a sum's last bit depends on the order,
@@ -105,7 +121,10 @@ def evaluation_of(scores: list[TaskScores], scalar: list[str], how: str, checks:
     if failed:
         return Evaluation("failed", error=f"{failed[0].scenario}: {failed[0].error}")
     per = {s.scenario: s.objectives for s in scores}
-    values = {name: reduce_over_scenarios((o[name] for o in per.values()), how) for name in scalar}
+    if ranked is not None:  # sampled scenarios: statistics over the draws
+        values = over_draws(per, scalar, how, ranked)
+    else:
+        values = {name: reduce_over_scenarios((o[name] for o in per.values()), how) for name in scalar}
     return Evaluation("ok", values=values, scores=per, breaks=tuple(text for text, holds in checks if not holds(values)))
 
 
@@ -117,6 +136,8 @@ class SearchSource:
         self.shipment = shipment
         self.status = status
         self.scalar = [n for n, o in space.objectives.items() if not is_vector(o)]
+        ranking = space.spec.ranking
+        self.ranked = (ranking.objective, ranking.goal, ranking.robust) if space.draws is not None else None
         self.checks: list[Check] = [(text, compile_constraint(text, set(self.scalar), "objective"))
                                     for text in space.spec.ranking.constraints]
         self.schema = store.results_schema(space.parameters, space.objectives)
@@ -357,7 +378,7 @@ class SearchSource:
         known = {t.task_id: self.stored[t.task_id] for t in tasks if t.task_id in self.stored}
         missing = [t for t in tasks if t.task_id not in known]
         if not missing:
-            self._done(number, evaluation_of(list(known.values()), self.scalar, self._how(), self.checks), reused=True)
+            self._done(number, evaluation_of(list(known.values()), self.scalar, self._how(), self.checks, self.ranked), reused=True)
             return None
         leader = next((n for n in self.running if self.history.points[n].point == point), None)
         if leader is not None:  # asked again while it runs (a discrete space): told when it finishes
@@ -382,7 +403,7 @@ class SearchSource:
             self.stored[scores.task_id] = scores
         if len(results) == len(self.space.scenarios):
             del self.running[job.point]
-            self._done(job.point, evaluation_of(list(results.values()), self.scalar, self._how(), self.checks),
+            self._done(job.point, evaluation_of(list(results.values()), self.scalar, self._how(), self.checks, self.ranked),
                        reused=False)
 
     def _how(self) -> str:
@@ -392,7 +413,8 @@ class SearchSource:
         tasks = self.tasks(point)
         if not all(t.task_id in self.stored for t in tasks):
             return None
-        return evaluation_of([self.stored[t.task_id] for t in tasks], self.scalar, self._how(), self.checks)
+        return evaluation_of([self.stored[t.task_id] for t in tasks], self.scalar, self._how(), self.checks,
+                             self.ranked)
 
     def _done(self, number: int, evaluation: Evaluation, reused: bool) -> None:
         """A point's result (and so its followers'): told now if asynchronous; if reproducible, kept until its

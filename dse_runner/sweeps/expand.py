@@ -43,13 +43,15 @@ def _digest(*parts: Any) -> str:
     return hashlib.sha256(_CANONICAL.encode(parts).encode()).hexdigest()
 
 
-def model_hash(plan: Plan, objectives: dict[str, objs.ObjectiveSpec], experiment: Any = None) -> str:
-    """What the model is, independent of where its files lie: FMUs, wiring, experiment, objectives."""
+def model_hash(plan: Plan, objectives: dict[str, objs.ObjectiveSpec], experiment: Any = None,
+               uncertain: dict[str, Any] | None = None) -> str:
+    """What the model is, independent of where its files lie: FMUs, wiring, experiment, objectives, and what
+    fixes an uncertain sample's draws (uncertainty.identity)."""
     mm = plan.multimodel.model_dump(mode="json", exclude={"fmus", "base_dir"})
     fmus = {name: content_hash(path) for name, path in sorted(plan.fmu_paths.items())}
     scored = {name: spec if isinstance(spec, str) else spec.model_dump(mode="json") for name, spec in objectives.items()}
     times = experiment.model_dump(mode="json", exclude_none=True) if experiment is not None else {}
-    return _digest(fmus, mm, scored, *([times] if times else []))[:32]
+    return _digest(fmus, mm, scored, *([times] if times else []), *([uncertain] if uncertain else []))[:32]
 
 
 def scenario_hash(scenario: Scenario) -> str:

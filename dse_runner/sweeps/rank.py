@@ -26,7 +26,7 @@ import pandas as pd
 from .. import strict_json
 from ..errors import DseError
 from ..simulation.objectives import is_vector, normalise
-from . import store
+from . import store, uncertainty
 from .constraints import compile_constraint
 from .domain import Point
 from .spec import Ranking as RankingSpec
@@ -57,11 +57,21 @@ class Ranking:
     excluded_points: int = 0  # complete points that break one of the ranking's constraints
     over_scenarios: str = "sum"  # how each objective was reduced over the scenarios
     constraints: tuple[str, ...] = ()  # the ranking's constraints on objectives, as written
+    ranked_by: str = ""  # the totals' column the points are ranked by: the objective, or its robust figure
+    uncertainty: dict[str, Any] | None = None  # with an uncertain block: samples, quantiles, robust, distributions
+    draws: pd.DataFrame | None = None  # each ranked point's objectives per draw (reduced over scenarios)
 
     @property
     def reduced(self) -> str:
         """How the ranked figures came from the scenarios, for labels: 'total', 'mean', 'largest', 'smallest'."""
         return REDUCED[self.over_scenarios]
+
+    @property
+    def ranked_label(self) -> str:
+        """What ``best_total`` is, in words: ``total y``, or ``mean+1sd of total y over 64 draws``."""
+        if self.uncertainty is None:
+            return f"{self.reduced} {self.objective}"
+        return f"{self.uncertainty['ranked_by']} of {self.reduced} {self.objective} over {self.uncertainty['samples']} draws"
 
     def to_json(self) -> dict[str, Any]:
         def records(frame: pd.DataFrame, limit: int | None = None) -> list[dict[str, Any]]:
@@ -76,6 +86,7 @@ class Ranking:
             "table1": records(self.table1), "pareto": records(self.pareto),
             "groups": records(self.groups), "weighted": records(self.weighted, 10),
             "top": records(self.totals, 10),
+            **({"ranked_by": self.ranked_by, "uncertainty": self.uncertainty} if self.uncertainty else {}),
         }
 
 
@@ -153,22 +164,35 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
     rows = current_rows(output, sweep, ["group", "status", *parameters, *objectives])
     if rows.empty:
         raise DseError(f"{output}: sweep {sweep!r} has no rows yet")
-    ok = rows[rows["status"] == "ok"]
-    n_scenarios = rows["scenario"].nunique()
-    per_point = ok.groupby(parameters, dropna=False)
-    totals = per_point[objectives].agg(settings.over_scenarios).join(per_point.size().rename("scenarios"))
-    totals = totals.reset_index()
-    complete = totals[totals["scenarios"] == n_scenarios].drop(columns="scenarios")
-    if complete.empty:
-        raise DseError(f"sweep {sweep!r}: no parameter point has an ok result for all {n_scenarios} scenarios")
+    draws, about = None, None
+    ranked_by = settings.objective
+    if spec.uncertain is not None:
+        rows = uncertainty.with_draws(rows, spec.uncertain.samples)
+        complete, draws, n_points = _over_draws(rows, parameters, objectives, settings, spec)
+        ok = uncertainty.collapse(rows[rows["status"] == "ok"], parameters, objectives)
+        rows = rows.assign(scenario=rows["base"])  # Table 1 and the groups are per scenario, over the draws
+        about = _about(spec, settings)
+        ranked_by = uncertainty.robust_column(settings.objective) if settings.robust else settings.objective
+    else:
+        ok = rows[rows["status"] == "ok"]
+        n_scenarios = rows["scenario"].nunique()
+        per_point = ok.groupby(parameters, dropna=False)
+        totals = per_point[objectives].agg(settings.over_scenarios).join(per_point.size().rename("scenarios"))
+        totals = totals.reset_index()
+        n_points = len(totals)
+        complete = totals[totals["scenarios"] == n_scenarios].drop(columns="scenarios")
+        if complete.empty:
+            raise DseError(f"sweep {sweep!r}: no parameter point has an ok result for all {n_scenarios} scenarios")
     admitted = admits(complete, settings.constraints, objectives)
     excluded = int((~admitted).sum())
     complete = complete[admitted]
     if complete.empty:
         raise DseError(f"sweep {sweep!r}: every complete point breaks a ranking constraint "
                        f"({'; '.join(settings.constraints)})")
-    complete = _best_first(complete, settings.objective, settings.goal)
+    complete = _best_first(complete, ranked_by, settings.goal)
     best = {p: plain(complete.loc[0, p]) for p in parameters}
+    if draws is not None:
+        draws = draws[_of_points(draws, complete, parameters)].reset_index(drop=True)
 
     table1 = _table1(ok[_of_points(ok, complete, parameters)], settings.objective, best)
     if pareto:
@@ -184,10 +208,44 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
         weighted = _best_first(complete.assign(weighted=score), "weighted", settings.goal)
 
     return Ranking(sweep, parameters, settings.objective, settings.goal, best,
-                   float(complete.loc[0, settings.objective]), complete, table1, front, groups, weighted,
-                   incomplete_points=len(totals) - len(complete) - excluded,
+                   float(complete.loc[0, ranked_by]), complete, table1, front, groups, weighted,
+                   incomplete_points=n_points - len(complete) - excluded,
                    failed_rows=int((rows["status"] != "ok").sum()), excluded_points=excluded,
-                   over_scenarios=settings.over_scenarios, constraints=tuple(settings.constraints))
+                   over_scenarios=settings.over_scenarios, constraints=tuple(settings.constraints),
+                   ranked_by=ranked_by, uncertainty=about, draws=draws)
+
+
+def _over_draws(rows: pd.DataFrame, parameters: list[str], objectives: list[str], settings: RankingSpec,
+                spec: SpaceSpec) -> tuple[pd.DataFrame, pd.DataFrame, int]:
+    """(complete points with each objective's mean, std and quantiles over the draws and, if asked, the robust
+    figure; every draw of them; how many points have any ok row): ``rows`` of sampled scenarios."""
+    uncertain = spec.uncertain
+    ok = rows[rows["status"] == "ok"]
+    n_scenarios = rows["base"].nunique()
+    draws = uncertainty.per_draw(ok, parameters, objectives, settings.over_scenarios, n_scenarios)
+    complete = uncertainty.summarise(draws, parameters, objectives, uncertain.quantiles, uncertain.samples)
+    if complete.empty:
+        raise DseError(f"sweep {spec.name!r}: no parameter point has an ok result for all {n_scenarios} scenarios "
+                       f"in each of its {uncertain.samples} uncertain draws")
+    complete = complete.drop(columns="draws")
+    if settings.robust is not None:
+        figure = uncertainty.robust_values(draws, parameters, settings.objective, settings.robust, settings.goal)
+        keys = pd.MultiIndex.from_frame(complete[parameters]) if len(parameters) > 1 else complete[parameters[0]]
+        complete[uncertainty.robust_column(settings.objective)] = figure.reindex(keys).to_numpy()
+    return complete, draws, ok.groupby(parameters, dropna=False).ngroups
+
+
+def _about(spec: SpaceSpec, settings: RankingSpec) -> dict[str, Any]:
+    """The ranking JSON's ``uncertainty``: how the draws were made and how points are ranked over them."""
+    uncertain = spec.uncertain
+    robust = settings.robust
+    return {"samples": uncertain.samples, "sampling": uncertain.sampling, "seed": uncertain.seed,
+            "quantiles": list(uncertain.quantiles),
+            "ranked_by": robust.label(settings.goal) if robust is not None else "mean",
+            "robust": robust.model_dump(exclude_none=True) if robust is not None else None,
+            "parameters": {n: d.model_dump(mode="json", exclude_none=True) for n, d in uncertain.parameters.items()},
+            "columns": "each objective's column is its mean over the draws; <objective>_std the standard deviation "
+                       "(ddof 1), <objective>_q<percent> its quantiles, <objective>_robust the ranked figure"}
 
 
 def admits(totals: pd.DataFrame, constraints: list[str], objectives: list[str]) -> np.ndarray:
@@ -278,5 +336,7 @@ def write_ranking(ranking: Ranking, output: store.Root, sweep: str) -> dict[str,
     for name in ("totals", "table1", "pareto", "groups", "weighted"):
         paths[name] = store.write_text(output, f"ranking/{sweep}/{name}.csv",
                                        getattr(ranking, name).to_csv(index=False))
+    if ranking.draws is not None:
+        paths["draws"] = store.write_text(output, f"ranking/{sweep}/draws.csv", ranking.draws.to_csv(index=False))
     paths["json"] = store.write_text(output, f"ranking/{sweep}/ranking.json", strict_json.dumps(ranking.to_json()))
     return paths

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
+import pandas as pd
 from pydantic import (
     BaseModel,
     ConfigDict,
@@ -44,7 +45,7 @@ from ..simulation.run import bound_fields, checked_term, qualify
 from ..simulation.scenario import Scenario, ScenarioSpec, Series, kind, load_scenario, nominal, parse_scenario
 from ..simulation.variables import FiniteValue, check_value
 from ..yamlfile import read_yaml
-from . import makers
+from . import makers, uncertainty
 from .constraints import compile_constraint
 from .domain import Dimension, Point
 from .search import Problem, Strategy, parse_options, strategy
@@ -164,6 +165,125 @@ ScenarioEntry = Annotated[
                   custom_error_message="expected a folder or glob, {path: ...}, or an inline scenario {name: ...}")]
 
 
+class Uniform(BaseModel):
+    """Every value between ``low`` and ``high`` equally likely."""
+
+    model_config = Strict
+    distribution: Literal["uniform"]
+    low: float
+    high: float
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Uniform:
+        if not self.high > self.low:
+            raise ValueError(f"'high' ({self.high:g}) must be above 'low' ({self.low:g})")
+        return self
+
+
+class Normal(BaseModel):
+    """Gaussian with ``mean`` and standard deviation ``std``."""
+
+    model_config = Strict
+    distribution: Literal["normal"]
+    mean: float
+    std: PositiveFloat
+
+
+class LogNormal(BaseModel):
+    """A value whose natural logarithm is normal: ``median`` (the value's) and ``std_log`` (the logarithm's std);
+    for a positive quantity known to a few percent, std_log is about its relative spread."""
+
+    model_config = Strict
+    distribution: Literal["lognormal"]
+    median: PositiveFloat
+    std_log: PositiveFloat
+
+
+class Triangular(BaseModel):
+    """Between ``low`` and ``high``, most likely at ``mode``."""
+
+    model_config = Strict
+    distribution: Literal["triangular"]
+    low: float
+    mode: float
+    high: float
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Triangular:
+        if not (self.low <= self.mode <= self.high and self.high > self.low):
+            raise ValueError(f"needs low <= mode <= high and low < high (got {self.low:g}, {self.mode:g}, "
+                             f"{self.high:g})")
+        return self
+
+
+class FromDiagnosis(BaseModel):
+    """A diagnosis's fitted value and ~95 % interval (``dse-runner diagnose --json``'s file), read as a normal
+    whose mean is the fitted value and whose 1.96 sigma is the interval's half-width. ``effect``: the id of one
+    of its ``effects`` (default: its ``fitted`` calibration, by the parameter's own name); ``parameter``: the
+    name within that effect, when it has several."""
+
+    model_config = Strict
+    from_diagnosis: str  # relative to the spec
+    effect: str | None = None
+    parameter: str | None = None
+
+
+DISTRIBUTIONS = {"uniform": Uniform, "normal": Normal, "lognormal": LogNormal, "triangular": Triangular}
+
+
+def _distribution_kind(value: Any) -> str | None:
+    if isinstance(value, FromDiagnosis) or (isinstance(value, dict) and "from_diagnosis" in value):
+        return "diagnosis"
+    kind = value.get("distribution") if isinstance(value, dict) else getattr(value, "distribution", None)
+    return kind if kind in DISTRIBUTIONS else None
+
+
+# One of the distributions, by its ``distribution`` key, or {from_diagnosis: ...}: a wrong one gives one message.
+UncertainValue = Annotated[
+    Annotated[Uniform, Tag("uniform")] | Annotated[Normal, Tag("normal")] | Annotated[LogNormal, Tag("lognormal")]
+    | Annotated[Triangular, Tag("triangular")] | Annotated[FromDiagnosis, Tag("diagnosis")],
+    Discriminator(_distribution_kind, custom_error_type="distribution",
+                  custom_error_message="expected {distribution: uniform | normal | lognormal | triangular, ...} "
+                                       "or {from_diagnosis: FILE, effect: ...}")]
+
+
+class Uncertain(BaseModel):
+    """Parameters known only as distributions: every design point runs on ``samples`` draws of them, each draw
+    a copy of every scenario (sweeps/uncertainty.py); objectives get their mean, std and quantiles."""
+
+    model_config = Strict
+    parameters: dict[str, UncertainValue] = Field(min_length=1)  # instance.variable -> distribution
+    samples: PositiveInt = 64
+    seed: int = 0
+    # sobol: scrambled Sobol' points (quasi-random, best at powers of 2; more samples keep the first ones);
+    # latin_hypercube: one draw per stratum of each parameter; random: plain pseudo-random draws
+    sampling: Literal["sobol", "latin_hypercube", "random"] = "sobol"
+    quantiles: list[Annotated[float, Field(gt=0, lt=1)]] = [0.05, 0.5, 0.95]
+
+
+class Robust(BaseModel):
+    """Rank by a pessimistic figure of the ranking objective's distribution over the uncertain samples:
+    ``sigmas: k``, the mean k standard deviations towards the worse side (mean + k std when minimising,
+    mean - k std when maximising); or ``quantile: q``, its q-quantile as written (0.9 when minimising,
+    0.1 when maximising is the worse tenth)."""
+
+    model_config = Strict
+    sigmas: Annotated[float, Field(ge=0)] | None = None
+    quantile: Annotated[float, Field(gt=0, lt=1)] | None = None
+
+    @model_validator(mode="after")
+    def _one(self) -> Robust:
+        if (self.sigmas is None) == (self.quantile is None):
+            raise ValueError("give exactly one of 'sigmas' (mean + k std) or 'quantile' (e.g. 0.9)")
+        return self
+
+    def label(self, goal: str) -> str:
+        """How the ranked figure is named in tables and reports."""
+        if self.quantile is not None:
+            return f"q{100 * self.quantile:g}"
+        return f"mean{'+' if goal == 'min' else '-'}{self.sigmas:g}sd"
+
+
 class Direction(BaseModel):
     model_config = Strict
     objective: str
@@ -178,6 +298,7 @@ class Ranking(BaseModel):
     pareto: list[Direction | str] = []  # objectives of the Pareto front, each "name" or {objective, goal}
     weights: dict[str, float] = {}  # weighted sum of per-point totals
     constraints: list[str] = []  # on objective totals, e.g. "level_max < 2.4": points breaking one are not ranked
+    robust: Robust | None = None  # with an uncertain block: rank by mean + k std or a quantile, not the mean
 
     def pareto_goals(self) -> list[tuple[str, str]]:
         """(objective, "min" | "max") for each Pareto objective."""
@@ -302,6 +423,14 @@ class SpaceSpec(BaseModel):
     timeout: PositiveFloat = 600.0  # seconds one simulation may take
     chunk_seconds: PositiveFloat = 2.0  # target wall time of one chunk of tasks
     origin: Origin | None = None  # set when converted from another tool's files (interfaces/intocps)
+    uncertain: Uncertain | None = None  # parameters as distributions, each point run over a sample of them
+
+    @model_validator(mode="after")
+    def _robust_needs_uncertain(self) -> SpaceSpec:
+        if self.ranking.robust is not None and self.uncertain is None:
+            raise ValueError("ranking.robust ranks over uncertain samples: add an 'uncertain' block "
+                             "(docs/space.md#uncertain-parameters)")
+        return self
 
 
 def _normal(value: Any) -> Any:
@@ -322,11 +451,14 @@ def dimension(name: str, values: list[Any] | Range | Interval) -> Dimension:
 class Space:
     """A loaded, checked spec with everything resolved: the unit the rest of the tool works on."""
 
-    def __init__(self, spec: SpaceSpec, path: Path, plan: Plan, scenarios: list[Scenario]):
+    def __init__(self, spec: SpaceSpec, path: Path, plan: Plan, scenarios: list[Scenario],
+                 distributions: dict[str, Any] | None = None, draws: pd.DataFrame | None = None):
         self.spec = spec
         self.path = path
         self.plan = plan  # the multi-model with every name checked against its FMUs
-        self.scenarios = scenarios
+        self.scenarios = scenarios  # with an uncertain block, each once per draw (uncertainty.sampled)
+        self.distributions = distributions  # uncertain parameter -> its distribution (a diagnosis's read)
+        self.draws = draws  # the uncertain sample: a row per draw, a column per uncertain parameter
         self.dimensions = [dimension(name, v) for name, v in spec.parameters.items()]
         # name -> declared objective, in the spec's order; scripts read, to travel to the workers
         self.objectives = objs.load_scripts(objs.normalise(spec.objectives or []), path.parent, str(path))
@@ -356,7 +488,8 @@ class Space:
         """The hash of what determines results besides the point and scenario (expand.model_hash)."""
         from .expand import model_hash
 
-        return model_hash(self.plan, self.objectives, self.experiment)
+        extra = None if self.draws is None else uncertainty.identity(self.spec.uncertain, self.distributions)
+        return model_hash(self.plan, self.objectives, self.experiment, extra)
 
     @property
     def output(self) -> Path | str:
@@ -386,7 +519,8 @@ class Space:
             cluster.update(n_workers=n_workers, min_workers=None, max_workers=None)  # --workers: a fixed count
         if cluster:
             update["cluster"] = Cluster.model_validate({**self.spec.cluster.model_dump(), **cluster})
-        return Space(self.spec.model_copy(update=update), self.path, self.plan, self.scenarios)
+        return Space(self.spec.model_copy(update=update), self.path, self.plan, self.scenarios, self.distributions,
+                     self.draws)
 
     def admits(self, point: Point) -> bool:
         for check in self.constraints:  # a loop, not all(...): a large grid asks this of every point
@@ -601,6 +735,47 @@ def resolve_space(spec: SpaceSpec, path: Path) -> Space:
     else:
         multimodel = parse_multimodel(spec.multimodel, f"{source}: multimodel", path.parent)
     scenarios = _scenarios(spec, path.parent, source)
-    space = Space(_resolved(spec, scenarios, source), path, make_plan(multimodel), scenarios)
+    plan = make_plan(multimodel)
+    distributions = draws = None
+    if spec.uncertain is not None:
+        distributions = uncertainty.resolved(spec.uncertain, path.parent, source)
+        try:
+            draws = uncertainty.draw(spec.uncertain, distributions)
+        except DseError as e:
+            raise DseError(f"{source}: {e}") from None
+        _check_uncertain(spec, plan, scenarios, draws, source)
+        scenarios = uncertainty.sampled(scenarios, draws)
+    space = Space(_resolved(spec, scenarios, source), path, plan, scenarios, distributions, draws)
     _check_names(space, source)
     return space
+
+
+def _check_uncertain(spec: SpaceSpec, plan: Plan, scenarios: list[Scenario], draws: pd.DataFrame,
+                     source: str) -> None:
+    """Uncertain parameters are FMU parameters that nothing else sets, and every drawn value suits them."""
+    swept = {qualify(plan, ref): ref for ref in spec.parameters if signal_effects.parse(ref) is None
+             and _parsed_term(ref, source) is None}
+    for ref in draws.columns:
+        where = f"{source}: uncertain.parameters.{ref}"
+        if signal_effects.parse(ref) is not None or _parsed_term(ref, source) is not None:
+            raise DseError(f"{where}: uncertain parameters are FMU variables; a signal effect or derivative "
+                           "term can be swept, not sampled")
+        name = qualify(plan, ref)
+        variable = plan.variable(name, f"{source}: uncertain.parameters")
+        if name in swept:
+            raise DseError(f"{where}: {swept[name]!r} is also under 'parameters'; a parameter is either swept "
+                           "(a design choice) or uncertain (a distribution), not both")
+        for scenario in scenarios:
+            if name in {qualify(plan, r) for r in scenario.parameters}:
+                raise DseError(f"{where}: scenario {scenario.name} sets it too; an uncertain parameter takes "
+                               "its value from the draws only")
+        for k, value in enumerate(draws[ref].tolist()):
+            try:
+                check_value(variable, value)
+            except DseError as e:
+                raise DseError(f"{where}: draw {k} ({value:.6g}): {e}; narrow its distribution, or give a bounded "
+                               "one (uniform, triangular)") from None
+    for scenario in scenarios:
+        if uncertainty.SEPARATOR in scenario.name:
+            raise DseError(f"{source}: scenario {scenario.name!r}: with an uncertain block scenario names may not "
+                           f"hold {uncertainty.SEPARATOR!r}, which names each draw")
