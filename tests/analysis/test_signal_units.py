@@ -66,9 +66,9 @@ def test_a_member_that_changes_the_fit_by_less_than_the_noise_is_not_claimed():
     a = _candidate(("a",), {"r1": 1.2, "r2": 1.2})
     b = _candidate(("b",), {"r1": 4.9, "r2": 4.9})
     both = _candidate(("a", "b"), {"r1": 1.0, "r2": 1.0})  # b adds 1.44 - 1 = 0.44 noise variance: too little
-    chosen, dropped = signal_claims.claimed(both, [none, a, b, both], none)
+    chosen, dropped = explain.claimed(both, [none, a, b, both], none)
     assert chosen is a and [d.id for d in dropped] == ["b"] and np.isclose(dropped[0].worth, 0.44)
-    kept, none_dropped = signal_claims.claimed(a, [none, a, b, both], none)
+    kept, none_dropped = explain.claimed(a, [none, a, b, both], none)
     assert kept is a and none_dropped == []
 
 

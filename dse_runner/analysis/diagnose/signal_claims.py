@@ -1,12 +1,6 @@
-"""What the diagnosis of any model may claim: effects that change the fit by more than the noise, twins
-named where the recordings cannot tell them apart, and where a remaining error must lie.
-
-Why: held-out error and the BIC choose among candidates, but a member of a combination can pass both
-by a whisker while changing the prediction by far less than the recordings' own noise (on a held-back
-Robotti set a terrain slope of grade 4e-5 was named beside the right effect). Residuals here are in
-noise floors, so a member's worth is measurable in the noise's own units: taking it out of the chosen
-set raises the held-out mean square by what it changes the prediction by, squared. A member whose
-removal adds less than one noise variance (``NOISE_RULE``) is not claimed.
+"""What the signal effects' diagnosis may claim: twins named where the recordings cannot tell them apart,
+and where a remaining error must lie (the noise rule, that a member is claimed only if it changes the fit by
+more than the noise, is every library's: explain.claimed).
 
 Two effects fit alike when neither's held-out error is clearly lower. Then the windows of time where
 their residuals differ by more than the noise are the evidence between them, and where none does the
@@ -15,7 +9,6 @@ diagnosis names both and says so.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -23,56 +16,12 @@ from typing import Any
 import numpy as np
 
 from . import explain
+from .derivative_discovery import DISCOVERED
 from .explain import Candidate
 from .signal_locate import Residual, activity, window_of, windows
 
-NOISE_RULE = 1.0  # noise variances a claimed member must add to the held-out mean square when removed
 LOOKALIKES = 3  # at most this many look-alikes are weighed
 TELLING = 1.0  # a window tells two fits apart when their mean squares there differ by a noise variance
-
-
-def mean_square(candidate: Candidate) -> float:
-    """The held-out mean square in noise variances, over the runs the candidate was judged on."""
-    values = [v ** 2 for v in candidate.held_out.values()]
-    return float(np.mean(values)) if values else math.inf
-
-
-def worth(member: str, chosen: Candidate, candidates: Sequence[Candidate], baseline: Candidate) -> float:
-    """What removing ``member`` from ``chosen`` adds to the held-out mean square, in noise variances; inf
-    when the set without it was never cross-validated (it could not be judged, so it is kept)."""
-    rest = set(chosen.ids) - {member}
-    without = baseline if not rest else next((c for c in candidates if set(c.ids) == rest and c.validated), None)
-    if without is None or not without.validated:
-        return math.inf
-    return mean_square(without) - mean_square(chosen)
-
-
-@dataclass(frozen=True)
-class Dropped:
-    """An effect the choice had named but the noise rule took away: removing it added ``worth`` noise
-    variances (below ``NOISE_RULE``) to the held-out mean square."""
-
-    id: str
-    worth: float
-
-    def to_json(self) -> dict[str, Any]:
-        return {"id": self.id, "worth": self.worth, "rule": f"removal adds < {NOISE_RULE:g} noise variance"}
-
-
-def claimed(chosen: Candidate, candidates: Sequence[Candidate], baseline: Candidate,
-            rule: float = NOISE_RULE) -> tuple[Candidate, list[Dropped]]:
-    """``chosen`` without every member whose removal changes the held-out error by less than the noise,
-    the least worthy first, each time judged again on what is left."""
-    dropped: list[Dropped] = []
-    while chosen.ids:
-        worths = {m: worth(m, chosen, candidates, baseline) for m in chosen.ids}
-        member = min(worths, key=worths.__getitem__)
-        if worths[member] >= rule:
-            break
-        dropped.append(Dropped(member, worths[member]))
-        rest = set(chosen.ids) - {member}
-        chosen = baseline if not rest else next(c for c in candidates if set(c.ids) == rest and c.validated)
-    return chosen, dropped
 
 
 # ---- look-alikes ---------------------------------------------------------------------------------
@@ -149,10 +98,12 @@ def weigh(chosen: Candidate, other: Candidate, residuals: Mapping[str, Sequence[
 # ---- what the verdict says -----------------------------------------------------------------------
 
 def verdict_text(verdict: str, held_out: float, chosen: Candidate, interfaces: Mapping[str, str],
-                 looks: Sequence[LookAlike], dropped: Sequence[Dropped], factor: float) -> str:
-    """The verdict in a sentence: what was named, what was not claimed, which twins cannot be told apart,
-    and, when an error well above the noise remains, where it must lie."""
-    named = ", ".join(chosen.ids) or "no effect"
+                 looks: Sequence[LookAlike], dropped: Sequence[explain.Dropped], factor: float,
+                 discovered: Sequence[str] = ()) -> str:
+    """The verdict in a sentence: what was named (a discovered correction as its formula), what was not
+    claimed, which twins cannot be told apart, and, when an error well above the noise remains, where it
+    must lie."""
+    named = ", ".join([*(i for i in chosen.ids if i != DISCOVERED), *discovered]) or "no effect"
     parts = [f"{verdict}: {named}; held-out error {held_out:.3g} noise floors"]
     if dropped:
         parts.append("not claimed (changes the fit by less than the noise): " + ", ".join(d.id for d in dropped))

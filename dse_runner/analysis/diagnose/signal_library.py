@@ -103,7 +103,7 @@ class SignalDiagnosis:
     hypotheses: dict[str, Hypothesis] = field(default_factory=dict)
     pairs: Any = None  # Pairs: what the pair screen did
     lookalikes: list[signal_claims.LookAlike] = field(default_factory=list)
-    dropped: list[signal_claims.Dropped] = field(default_factory=list)
+    dropped: list[explain.Dropped] = field(default_factory=list)
     located: dict[str, Any] = field(default_factory=dict)
     verdict_text: str = ""
     discovery: Discovered | NotDiscovered | None = None  # sought when the library leaves error above the noise
@@ -387,7 +387,7 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
             more = fit_all(fits, [p for c in late for p in by_fold(c.ids, c.full.values)], client, scales, report)
             held_out(fits, client, late, more, parts, scales)
         selected = explain.select(everything[1:], baseline)
-        chosen, dropped = signal_claims.claimed(selected, everything, baseline)
+        chosen, dropped = explain.claimed(selected, everything, baseline)
         floor = 1.0  # residuals are in units of each recording's noise
         verdict = explain.verdict(chosen.cross_validated, floor, noise_factor, chosen is not baseline)
         interfaces = dict(space.plan.interfaces)
@@ -411,7 +411,9 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
     by_name = {s.name: s for s in space.scenarios}
     looks = [signal_claims.weigh(chosen, t, residuals, noise, by_name) for t in twins]
     located = signal_locate.located(residuals[baseline.label], residuals[chosen.label], noise, by_name)
-    text = signal_claims.verdict_text(verdict, chosen.cross_validated, chosen, interfaces, looks, dropped, noise_factor)
+    formulas = [e["readable"] for e in discovery.effects()] if isinstance(discovery, Discovered) else []
+    text = signal_claims.verdict_text(verdict, chosen.cross_validated, chosen, interfaces, looks, dropped, noise_factor,
+                                      formulas)
     diagnosis = SignalDiagnosis(compared, baseline, chosen, everything, verdict, library, pairs=pairs,
                                 lookalikes=looks, dropped=dropped, located=located, verdict_text=text,
                                 discovery=discovery)

@@ -73,6 +73,7 @@ class Diagnosis:
     shortlisted: list[str] = field(default_factory=list)  # the labels of those then fitted for real
     lookalikes: list[lookalike.LookAlike] = field(default_factory=list)  # the evidence between twin sets
     discovery: discover.Discovery | None = None  # what was sought beyond the library; None if nothing was
+    dropped: list[explain.Dropped] = field(default_factory=list)  # members the noise rule took away
 
     @property
     def discovered(self) -> bool:
@@ -207,6 +208,7 @@ class Diagnosis:
             "noise_floor": self.noise_floor,
             "runner_up": up.to_json() if up is not None else None,
             "lookalikes": [look.to_json() for look in self.lookalikes],
+            "dropped": [d.to_json() for d in self.dropped],
             "discovery": self.discovery.to_json() if self.discovery is not None else None,
             "held_out": [{"scenario": s, "before": self.baseline.held_out[s], "after": self.chosen.held_out[s]}
                          for s in sorted(self.baseline.held_out)],

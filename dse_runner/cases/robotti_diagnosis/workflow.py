@@ -164,6 +164,11 @@ def _diagnose(calibration: Space, out: Path, settings: Settings, client, say: Di
     baseline = next(c for c in choice.candidates if not c.ids)
     chosen, looks = lookalike.weigh(choice.chosen, choice.candidates, baseline, space.scenarios,
                                     floor.sigma if floor.available else None, settings.min_gain, settings.bic_margin)
+    # the noise rule: a member is claimed only if it changes the held-out error by more than the noise does
+    chosen, dropped = explain.claimed(chosen, choice.candidates, baseline, floor.cross_track) if floor.available \
+        else (chosen, [])
+    if dropped:
+        say(f"not claimed (each changes the held-out error by less than the noise): {', '.join(d.id for d in dropped)}")
     found = seek(chain, chosen, choice.candidates, floor, space) if settings.discovery else None
     if found is not None and found.chosen is not None:
         chosen = found.chosen
@@ -177,7 +182,7 @@ def _diagnose(calibration: Space, out: Path, settings: Settings, client, say: Di
         "folds": chain.folds,
     }, explain.ranked(choice.candidates + (found.candidates if found else [])), chosen, baseline, settings,
         dropouts=dropouts(calibration.scenarios), floor=floor, screened=choice.screened,
-        shortlisted=[x.label for x in choice.shortlisted], lookalikes=looks, discovery=found)
+        shortlisted=[x.label for x in choice.shortlisted], lookalikes=looks, discovery=found, dropped=dropped)
     say("locating: the residuals of the calibrated model and of the chosen one")
     before = trajectories_of(space, client, baseline.full.point, BEFORE)
     lookalike.attach_responses(looks, space.scenarios, before, {"heading": f"{vehicle}.theta", "vx": f"{vehicle}.vx",
