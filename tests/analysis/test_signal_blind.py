@@ -8,6 +8,9 @@ import importlib.util
 import pytest
 
 from dse_runner.analysis.diagnose.signal_library import diagnose_space
+from dse_runner.simulation.run import simulate
+from dse_runner.simulation.values import read_values
+from dse_runner.sweeps.spec import load_space
 
 from conftest import REPO
 
@@ -50,6 +53,20 @@ def test_a_concealed_effect_or_pair_is_named_with_intervals_covering_the_truth(c
     if len(truth) > 1:  # a pair is found through the screen, not by fitting every pair
         assert found["pairs"]["predicted"] > len(found["pairs"]["screened"]) >= len(found["pairs"]["fitted"])
     assert (tmp_path / "out" / "diagnosis-report.md").is_file()
+    _replays(found, tmp_path)
+
+
+def _replays(found: dict, folder) -> None:
+    """The diagnosed model's values file runs again as the diagnosed model: every scenario simulated with it
+    misses its recording by about the noise."""
+    space = load_space(folder / "space.yaml")
+    values = read_values(found["files"]["values"])
+    assert values == found["fitted"]["parameters"]
+    noise = found["compared"][0]["noise"]
+    for scenario in space.scenarios:
+        rmse = {"rmse": {"signal": "msd.x", "recorded": "x", "metric": "rmse"}}
+        result = simulate(space.plan, scenario, values=values, experiment=space.experiment, objectives=rmse)
+        assert result.objectives["rmse"] < 2.0 * noise, (scenario.name, result.objectives["rmse"], noise)
 
 
 @pytest.mark.slow

@@ -130,6 +130,9 @@ class SignalDiagnosis:
             "dropped": [d.to_json() for d in self.dropped],
             "discovery": self.discovery.to_json() if self.discovery is not None else None,
             "located": self.located,
+            "fitted": {"parameters": dict(self.chosen.full.values),  # every value the chosen answer fitted
+                       "interval": {k: list(v) for k, v in self.chosen.full.interval().items()},
+                       "at_bound": list(self.chosen.full.at_bound)},
             "files": self.files,
         }
 
@@ -158,7 +161,7 @@ class SignalDiagnosis:
         lines.append(f"verdict: {found['verdict_text']}"
                      + (f"; runner-up {found['runner_up']}" if found["runner_up"] else ""))
         if found["files"]:
-            lines.append(f"report: {found['files']['report']}")
+            lines.extend(f"{name}: {found['files'][name]}" for name in ("report", "values") if name in found["files"])
         return lines
 
 

@@ -11,9 +11,10 @@ from pathlib import Path
 from typing import Any
 
 from ... import strict_json
+from ...simulation.values import write_values
 from .derivative_discovery import DISCOVERED
 
-REPORT, SUMMARY = "diagnosis-report.md", "diagnosis.json"
+REPORT, SUMMARY, VALUES = "diagnosis-report.md", "diagnosis.json", "diagnosed-values.yaml"
 
 
 def _number(value: Any) -> str:
@@ -86,9 +87,15 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
 
 
 def write(found: Mapping[str, Any], folder: Path, title: str) -> dict[str, Path]:
-    """Write the report and the strict JSON summary into ``folder``; their paths."""
+    """Write the report, the strict JSON summary and the diagnosed model's values into ``folder``; their
+    paths. The values file is the model the recordings support, ready to run again:
+    ``dse-runner simulate MODEL --scenario … --values diagnosed-values.yaml``."""
     folder.mkdir(parents=True, exist_ok=True)
     report, summary = folder / REPORT, folder / SUMMARY
     report.write_text(markdown(found, title))
     summary.write_text(strict_json.dumps(found))
-    return {"report": report, "summary": summary}
+    values = write_values(folder / VALUES, found["fitted"]["parameters"],
+                          f"The diagnosed model of {title}: its calibrated parameters, and the effects and derivative\n"
+                          f"terms the recordings support ({found['verdict']}), as fitted together. Run it again with\n"
+                          "dse-runner simulate MODEL --values THIS_FILE, or put it in a space's parameters.")
+    return {"report": report, "summary": summary, "values": values}
