@@ -1,7 +1,7 @@
-"""Global sensitivity of a sweep's objectives to its parameters: Sobol' indices or Morris screening.
+"""Global sensitivity of a sweep's objectives to its parameters: Sobol' indices, Morris screening or eFAST.
 
 A sweep sampled by a sensitivity design (sweeps/strategies/designs.py: ``sobol_indices``,
-``morris``) is read back here. The design is drawn again from the spec the sweep saved (the same
+``morris``, ``fast``) is read back here. The design is drawn again from the spec the sweep saved (the same
 seed, budget and constraints give the same rows), each row's objective is looked up in the
 store by its point, reduced over the scenarios as the ranking reduces them (``over_scenarios``),
 for all scenarios and for each scenario group, and SALib's estimators turn the rows into indices
@@ -9,7 +9,9 @@ with bootstrap confidence intervals. Blocks the estimator cannot use whole (a po
 not simulated yet, or was refused by a constraint) are left out and counted.
 
 Why SALib: its estimators are the reference ones (Saltelli 2010 for S1 and ST, Saltelli 2002 for
-S2, Campolongo 2007 for mu*), with bootstrap intervals built in; docs/dependencies.md.
+S2, Campolongo 2007 for mu*, Saltelli, Tarantola and Chan 1999 for eFAST), with bootstrap intervals
+built in; docs/dependencies.md. eFAST reads each parameter's search curve alone: a curve with a point
+missing leaves that parameter without indices, the others keep theirs.
 """
 
 from __future__ import annotations
@@ -36,6 +38,8 @@ RESAMPLES = 100  # bootstrap resamples (SALib's default)
 WIDE = 0.1  # a Sobol' index known only to +/- this is too loose to tell parameters apart
 NEGLIGIBLE = 0.01  # factor fixing (Saltelli et al. 2008): a total index surely below this may be fixed anywhere
 FLAT = 1e-6  # an objective whose std is below this fraction of its mean barely varies: its indices share out noise
+FAST_INTERVALS = ("eFAST's intervals are SALib's bootstrap of each search curve, which SALib itself calls "
+                  "indicative only (SALib issue 649): judge the indices by their values, not by these intervals")
 MIN_TRAJECTORIES = 10  # Morris: fewer trajectories than this screen poorly (Campolongo et al. 2007 use 10-20)
 
 
@@ -70,7 +74,7 @@ class Objective:
 @dataclass
 class Sensitivity:
     sweep: str
-    method: str  # "sobol" | "morris"
+    method: str  # "sobol" | "morris" | "fast"
     parameters: list[str]
     reduced: str  # how scenarios were combined: total, mean, largest, smallest
     design: dict[str, Any]  # strategy, rows, blocks, block, seed
@@ -78,16 +82,21 @@ class Sensitivity:
     objectives: dict[str, Objective]
     warnings: list[str]
 
+    @property
+    def indices(self) -> bool:
+        """Whether the method gives first-order and total indices (Sobol', eFAST) rather than Morris' mu*, sigma."""
+        return self.method != "morris"
+
     def negligible(self, objective: str, group: str | None = None) -> list[str]:
         """Parameters that can be fixed anywhere in their range (factor fixing): the upper end of the total
         index's interval is below NEGLIGIBLE (Morris: of mu*'s, below NEGLIGIBLE of the largest mu*)."""
         found = self.objectives[objective]
         found = (found.overall if group is None else found.groups[group]).parameters
-        key, conf = ("ST", "ST_conf") if self.method == "sobol" else ("mu_star", "mu_star_conf")
+        key, conf = ("ST", "ST_conf") if self.indices else ("mu_star", "mu_star_conf")
         known = {name: v for name, v in found.items() if v.get(key) is not None}
         if not known:
             return []
-        scale = 1.0 if self.method == "sobol" else max(v[key] for v in known.values())
+        scale = 1.0 if self.indices else max(v[key] for v in known.values())
         return [name for name, v in known.items() if v[key] + (v.get(conf) or 0.0) < NEGLIGIBLE * scale]
 
     def least_responsive(self, objective: str) -> list[tuple[str, float]]:
@@ -115,7 +124,7 @@ def stored_design(spec: SpaceSpec) -> tuple[Design, tuple[Dimension, ...]]:
     kind = strategy(spec.search.strategy)
     if not issubclass(kind, SensitivityDesign):
         raise DseError(f"sweep {spec.name!r} was sampled by {spec.search.strategy!r}; sensitivity reads a "
-                       "sweep sampled for it: search.strategy sobol_indices or morris (docs/sensitivity.md)")
+                       "sweep sampled for it: search.strategy sobol_indices, morris or fast (docs/sensitivity.md)")
     dimensions = tuple(dimension(name, values) for name, values in spec.parameters.items())
     checks = [compile_constraint(text, {d.name for d in dimensions}) for text in spec.constraints]
     problem = Problem(label=spec.name, dimensions=dimensions, objective=(spec.ranking.objective, spec.ranking.goal),
@@ -167,16 +176,18 @@ def sensitivity(output: Any, sweep: str | None = None, objectives: list[str] | N
                 notes.extend(_warnings(design, scope, f"{name} (all scenarios)"))
                 continue
             found[name].groups[group] = scope
-            if scope.left_out or scope.blocks < 2 or design.method == "morris":
+            if scope.left_out or scope.blocks < 2 or design.method != "sobol":
                 notes.extend(_warnings(design, scope, f"{name} (group {group})"))
             elif _widest(scope) > WIDE:  # one line per objective for all its wide groups, below
                 wide[name].append(f"{group} +/-{_widest(scope):.2f}")
     notes.extend(f"{name}: intervals wider than +/-{WIDE} in groups {', '.join(listed)}"
                  for name, listed in wide.items() if listed)
+    if design.method == "fast":
+        notes.append(FAST_INTERVALS)
     return Sensitivity(sweep, design.method, parameters, REDUCED[over],
                        {"strategy": spec.search.strategy, "rows": len(design.units), "blocks": design.blocks,
                         "block": design.block, "seed": spec.search.seed, "second_order": design.second_order,
-                        "levels": design.levels or None},
+                        "levels": design.levels or None, "harmonics": design.harmonics or None},
                        confidence, found, notes)
 
 
@@ -195,31 +206,22 @@ def _scope(design: Design, y: np.ndarray, parameters: list[str], scenarios: int,
     leaves the estimate unbiased over the rest (though no longer quasi-random)."""
     whole = ~np.isnan(y.reshape(design.blocks, design.block)).any(axis=1)
     rows = np.repeat(whole, design.block)
+    full = y  # eFAST reads curve i as rows i N .. (i + 1) N - 1: its incomplete curves stay in place, unread
     y, x = y[rows], design.units[rows]
     used, left_out = int(whole.sum()), int((~whole).sum())
     mean, std = (float(np.mean(y)), float(np.std(y))) if len(y) else (None, None)
     cv = std / abs(mean) if mean else None
     spread = {"mean": mean, "std": std, "cv": cv}
     empty = {name: dict.fromkeys(_keys(design.method)) for name in parameters}
-    if used < 2:
+    least = 1 if design.method == "fast" else 2  # an eFAST curve is one parameter's whole estimate
+    if used < least:
         return Scope(scenarios, used, left_out, empty, spread, note=f"{used} whole block(s): too few to estimate")
     if np.ptp(y) == 0.0:  # no variance to share out: no parameter has an effect
         zero = {name: dict.fromkeys(_keys(design.method), 0.0) for name in parameters}
         return Scope(scenarios, used, left_out, zero, spread, note="constant over the sample: no parameter moves it")
-    problem = salib_problem(tuple(Dimension(name) for name in parameters))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", (RuntimeWarning, UserWarning))
-        if design.method == "sobol":
-            from SALib.analyze import sobol
-
-            found = sobol.analyze(problem, y, calc_second_order=design.second_order, num_resamples=resamples,
-                                  conf_level=confidence, seed=seed)
-        else:
-            from SALib.analyze import morris
-
-            found = morris.analyze(problem, x, y, num_resamples=resamples, conf_level=confidence,
-                                   num_levels=design.levels, seed=seed)
-    indices = {name: {key: float(found[key][i]) for key in _keys(design.method)} for i, name in enumerate(parameters)}
+    found = _estimate(design, full if design.method == "fast" else y, x, parameters, confidence, resamples, seed)
+    indices = {name: {key: float(found[key][i]) if design.method != "fast" or whole[i] else None
+                      for key in _keys(design.method)} for i, name in enumerate(parameters)}
     pairs = {}
     if design.method == "sobol" and design.second_order:
         for i, a in enumerate(parameters):
@@ -232,8 +234,30 @@ def _scope(design: Design, y: np.ndarray, parameters: list[str], scenarios: int,
     return Scope(scenarios, used, left_out, indices, spread, pairs, note)
 
 
+def _estimate(design: Design, y: np.ndarray, x: np.ndarray, parameters: list[str], confidence: float,
+              resamples: int, seed: int) -> dict[str, Any]:
+    """SALib's estimator of the design's method on its outputs ``y`` (Morris also reads the inputs ``x``)."""
+    problem = salib_problem(tuple(Dimension(name) for name in parameters))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", (RuntimeWarning, UserWarning))
+        if design.method == "sobol":
+            from SALib.analyze import sobol
+
+            return sobol.analyze(problem, y, calc_second_order=design.second_order, num_resamples=resamples,
+                                 conf_level=confidence, seed=seed)
+        if design.method == "fast":
+            from SALib.analyze import fast
+
+            return fast.analyze(problem, y, M=design.harmonics, num_resamples=resamples, conf_level=confidence,
+                                seed=seed)
+        from SALib.analyze import morris
+
+        return morris.analyze(problem, x, y, num_resamples=resamples, conf_level=confidence,
+                              num_levels=design.levels, seed=seed)
+
+
 def _keys(method: str) -> tuple[str, ...]:
-    return ("S1", "S1_conf", "ST", "ST_conf") if method == "sobol" else ("mu", "mu_star", "sigma", "mu_star_conf")
+    return ("mu", "mu_star", "sigma", "mu_star_conf") if method == "morris" else ("S1", "S1_conf", "ST", "ST_conf")
 
 
 def _warnings(design: Design, scope: Scope, label: str) -> list[str]:
@@ -244,6 +268,8 @@ def _warnings(design: Design, scope: Scope, label: str) -> list[str]:
                      "has no result yet, or a constraint refused it)")
     if scope.note and scope.blocks < 2:
         found.append(f"{label}: {scope.note}")
+        return found
+    if design.method == "fast":  # a curve's length is fixed by the design (> 4 M^2); its intervals are SALib's caveat
         return found
     if design.method == "morris":
         if scope.blocks < MIN_TRAJECTORIES:

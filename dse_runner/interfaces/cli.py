@@ -575,9 +575,9 @@ def sensitivity_command(
              "or Morris' mu*-sigma plane, overall and per group.")] = None,
     as_json: JsonFlag = False,
 ) -> None:
-    """Which parameters move each objective: Sobol' S1/ST or Morris mu*/sigma with bootstrap intervals, over
-    all scenarios (reduced as the ranking says) and per scenario group. The sweep must have been sampled by
-    search.strategy sobol_indices or morris."""
+    """Which parameters move each objective: Sobol' or eFAST S1/ST, or Morris mu*/sigma, with bootstrap intervals,
+    over all scenarios (reduced as the ranking says) and per scenario group. The sweep must have been sampled by
+    search.strategy sobol_indices, morris or fast."""
     from ..analysis.sensitivity import sensitivity
 
     try:
@@ -606,11 +606,13 @@ def sensitivity_command(
 
 def _print_sensitivity(found) -> None:
     """Per objective: each parameter's indices with their intervals, then the groups, least responsive first."""
-    sobol = found.method == "sobol"
+    sobol = found.indices  # S1 and ST (Sobol' or eFAST), else Morris' mu*, sigma
     design = found.design
-    kind = "Sobol' indices (Saltelli)" if sobol else f"Morris elementary effects ({design['levels']} levels)"
+    kind = {"sobol": "Sobol' indices (Saltelli)", "fast": f"eFAST indices ({design['harmonics']} harmonics)"}.get(
+        found.method, f"Morris elementary effects ({design['levels']} levels)")
+    blocks = "curves" if found.method == "fast" else "blocks"
     level = f"{100 * found.confidence:g}%"
-    typer.echo(f"{found.sweep}: {kind}, {design['blocks']} blocks of {design['block']} rows; +/- {level} "
+    typer.echo(f"{found.sweep}: {kind}, {design['blocks']} {blocks} of {design['block']} rows; +/- {level} "
                "bootstrap intervals")
     width = max(len(p) for p in found.parameters) + 2
     heads = ("S1", "ST") if sobol else ("mu*", "sigma")

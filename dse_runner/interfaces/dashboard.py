@@ -32,7 +32,16 @@ import pandas as pd
 from distributed.diagnostics.plugin import SchedulerPlugin
 
 from ..simulation.comparison import Comparison, compare
-from ..sweeps.rank import current_model, current_rows, format_point, load_sweep_spec, plain, standings
+from ..sweeps.rank import (
+    current_model,
+    current_rows,
+    draw_standings,
+    format_point,
+    load_sweep_spec,
+    plain,
+    ranked_figure_label,
+    standings,
+)
 from ..errors import DseError
 from ..sweeps import store, uncertainty
 from ..sweeps.closed_loop import SearchStatus
@@ -59,7 +68,7 @@ class Snapshot:
     ok: pd.DataFrame  # ok rows of the current model: parameters, scenario, group, objective
     done: int  # tasks with a row (ok or failed)
     failed: int
-    standings: pd.DataFrame  # best so far first
+    standings: pd.DataFrame  # best so far first (rank.standings or rank.draw_standings)
     history: SearchHistory | None = None  # a closed-loop search's (history.py); None for a grid
     taken: float = field(default_factory=time.monotonic)
 
@@ -73,6 +82,8 @@ class Feed:
         self.output, self.sweep = output, sweep
         self.parameters = list(spec.parameters)
         self.objective, self.goal = spec.ranking.objective, spec.ranking.goal
+        self.settings = spec.ranking  # the best point is named as rank() names it: over_scenarios, robust
+        self.ranked_by = ranked_figure_label(spec.ranking, spec.uncertain is not None)
         self.pareto_goals = spec.ranking.pareto_goals()
         self.uncertain = spec.uncertain  # each scenario ran once per draw: the pages show the draws' means
         self.max_points, self.strategy = spec.search.max_points, spec.search.strategy
@@ -95,15 +106,23 @@ class Feed:
     def _read(self) -> Snapshot:
         rows = current_rows(self.output, self.sweep, ["group", "status", *self.parameters, self.objective])
         ok = rows[rows["status"] == "ok"]
-        if self.uncertain is not None:  # a row per point and scenario, its objective the mean over the draws so far
-            ok = uncertainty.collapse(uncertainty.with_draws(ok, self.uncertain.samples), self.parameters,
-                                      [self.objective])
         last = self._snapshot
         status = load_status(self.output, self.sweep)
+        if self.uncertain is not None:  # ranked over the draws; the charts get a row per point and scenario,
+            drawn = uncertainty.with_draws(ok, self.uncertain.samples)  # its objective the mean over the draws
+            ok = uncertainty.collapse(drawn, self.parameters, [self.objective])
+            table = draw_standings(drawn, self.parameters, self.objective, self.settings,
+                                   _base_scenarios(status, drawn))
+        else:
+            table = standings(ok, self.parameters, self.objective, self.goal, self.settings.over_scenarios)
         history = load_history(self.output, self.sweep) \
             if self.closed_loop or (last is not None and last.history is not None) else None
-        return Snapshot(status, ok, len(rows), int((rows["status"] != "ok").sum()),
-                        standings(ok, self.parameters, self.objective, self.goal), history)
+        return Snapshot(status, ok, len(rows), int((rows["status"] != "ok").sum()), table, history)
+
+    def counted(self, scenarios: int) -> tuple[str, int]:
+        """What the standings count per point and of how many: (``draws``, samples) with uncertain draws (a
+        draw counts once finished on every scenario), else (``scenarios``, ``scenarios``)."""
+        return ("draws", self.uncertain.samples) if self.uncertain is not None else ("scenarios", scenarios)
 
     def searching(self, snap: Snapshot) -> bool:
         """Whether the pages show a search's progress: its strategy asks for points, or it left a history."""
@@ -176,6 +195,13 @@ class Feed:
         return self._tracks[key]
 
 
+def _base_scenarios(status: SweepReport | None, drawn: pd.DataFrame) -> int:
+    """How many scenarios each uncertain draw runs on: the status's, else those with rows so far."""
+    if status is not None and status.scenarios:
+        return len({uncertainty.split_name(name)[0] for name in status.scenarios})
+    return int(drawn["base"].nunique())
+
+
 def _duration(seconds: float | None) -> str:
     if seconds is None:
         return "–"
@@ -209,13 +235,17 @@ def progress_html(snap: Snapshot, now: float) -> str:
             f'<div class="cells">{items}</div>')
 
 
-def best_html(snap: Snapshot, parameters: list[str], objective: str, scenarios: int) -> str:
+def best_html(snap: Snapshot, parameters: list[str], ranked_by: str, counted: tuple[str, int]) -> str:
+    """The best-so-far line: the standings' first point, by the figure the ranking ranks by."""
+    unit, total = counted
     if snap.standings.empty:
         return '<span id="dse-best">no results yet</span>'
     top = snap.standings.iloc[0]
+    if unit == "draws" and not top["draws"]:
+        return '<span id="dse-best">no point has finished an uncertain draw on every scenario yet</span>'
     values = format_point({p: top[p] for p in parameters})
-    return (f'<span id="dse-best">best so far: {html.escape(values)}; mean {objective} {top["mean"]:.4f} '
-            f'over {int(top["scenarios"])} of {scenarios or "?"} scenarios</span>')
+    return (f'<span id="dse-best">best so far: {html.escape(values)}; {html.escape(ranked_by)} '
+            f'{top["ranked"]:.4f} over {int(top[unit])} of {total or "?"} {unit}</span>')
 
 
 def search_summary(search: SearchStatus | None, history: SearchHistory | None, objective: str, goal: str,
@@ -260,11 +290,17 @@ def title_html(feed: Feed, status: SweepReport | None) -> str:
             f"<div style='font-family:sans-serif'>results in {html.escape(str(feed.output))}{link}</div>")
 
 
-def ranking_html(top: pd.DataFrame, objective: str) -> str:
-    four = "{:.4f}".format
-    table = top.rename(columns={"mean": f"mean {objective}", "total": f"total {objective}"})
+def ranking_html(top: pd.DataFrame, objective: str, ranked_by: str, uncertain: bool = False) -> str:
+    """The best-so-far table; its last column, headed by what it is, is the figure the points are ranked by."""
+    mean = f"mean of {ranked_by.split(' of ', 1)[-1]}" if uncertain else f"mean {objective}"
+    heading = f"ranked by: {ranked_by}"
+    table = top.drop(columns="mean") if mean == ranked_by else top  # ranked by that mean: shown once
+    table = table.rename(columns={"mean": mean, "ranked": heading})
     table.insert(0, "#", range(1, len(table) + 1))
-    return charts.html_table(table, "dse-ranking", {f"mean {objective}": four, f"total {objective}": four})
+
+    def four(value: float) -> str:
+        return "–" if pd.isna(value) else f"{value:.4f}"
+    return charts.html_table(table, "dse-ranking", {mean: four, heading: four})
 
 
 def workers_html(status: SweepReport) -> str:
@@ -329,7 +365,7 @@ class Page:
             row(*(c.figure for c in (self.search_chart, self.front_chart) if c is not None))]
         doc.add_root(column(
             self.title, self.progress, *([self.search] if self.search else []), self.best,
-            row(column(heading("Best so far"), self.ranking), column(heading("Workers"), self.workers)),
+            row(column(heading(f"Best so far, ranked by {html.escape(feed.ranked_by)}"), self.ranking), column(heading("Workers"), self.workers)),
             *([self.studies] if self.studies is not None else []),
             *search,
             heading(f"{objective} against each parameter (paper's Figure 5)"), self.fig5.layout,
@@ -350,8 +386,10 @@ class Page:
         if snap.done == self.shown:
             return  # no new rows since the last refill
         self.shown = snap.done
-        self.best.text = best_html(snap, self.feed.parameters, self.feed.objective, len(self.scenarios))
-        self.ranking.text = charts.TABLE_STYLE + ranking_html(snap.standings.head(TOP), self.feed.objective)
+        feed = self.feed
+        self.best.text = best_html(snap, feed.parameters, feed.ranked_by, feed.counted(len(self.scenarios)))
+        self.ranking.text = charts.TABLE_STYLE + ranking_html(snap.standings.head(TOP), feed.objective, feed.ranked_by,
+                                                              feed.uncertain is not None)
         self.fig5.update(snap.ok)
         self.fig6.update(snap.ok)
         self._track(snap)

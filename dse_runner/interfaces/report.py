@@ -13,12 +13,14 @@ import html
 import time
 from pathlib import Path
 
+import pandas as pd
 import yaml
 from jinja2 import Template
 
 from ..sweeps.rank import (
     TABLE1_HEADINGS,
     Ranking,
+    figure_label,
     format_point,
     load_sweep_spec,
     pick_sweep,
@@ -127,6 +129,15 @@ def _tracks(feed: Feed, ranking: Ranking, scenarios: list[str]) -> tuple[object 
     return charts.grid(panels), ""
 
 
+def _ranked_columns(ranking: Ranking) -> pd.DataFrame:
+    """The ranking's points with a robust figure's column headed by what it is (``ranked by: q90 of total y``),
+    not by its CSV name ``y_robust``."""
+    if ranking.ranked_by == ranking.objective:
+        return ranking.totals
+    figure = figure_label(ranking.objective, ranking.reduced, ranking.uncertainty["ranked_by"])
+    return ranking.totals.rename(columns={ranking.ranked_by: f"ranked by: {figure}"})
+
+
 def submission_line(status: SweepReport) -> tuple[str, str]:
     """The summary's line on the submission that ran the sweep's tasks: a later one that found them all done
     leaves the status file as it was (sweep.submit), so the figures are the run that made the rows."""
@@ -191,7 +202,7 @@ def build_report(output: store.Root, sweep: str | None = None) -> str:
         parameters=", ".join(parameters),
         table1=charts.html_table(ranking.table1.rename(columns=TABLE1_HEADINGS)),
         table1_scope=html.escape(table1_scope(ranking)), scattered=scattered,
-        totals=charts.html_table(ranking.totals.head(TOP)),
+        totals=charts.html_table(_ranked_columns(ranking).head(TOP)),
         pareto=charts.html_table(ranking.pareto) if not ranking.pareto.empty else "",
         groups=charts.html_table(ranking.groups) if not ranking.groups.empty else "",
         weighted=charts.html_table(ranking.weighted.head(10)) if not ranking.weighted.empty else "",

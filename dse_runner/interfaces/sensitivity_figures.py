@@ -1,4 +1,4 @@
-"""Figures of a sensitivity analysis (analysis/sensitivity.py), one PNG per objective: Sobol' S1 and ST bars
+"""Figures of a sensitivity analysis (analysis/sensitivity.py), one PNG per objective: Sobol' (or eFAST) S1 and ST bars
 with their confidence intervals, over all scenarios and in each scenario group; or Morris' mu*-sigma plane,
 where a point far right matters and a point high up acts non-linearly or through interactions."""
 
@@ -39,9 +39,9 @@ def figure(found: Sensitivity, name: str, largest: int | None = None):
     groups = [g for g, _ in found.least_responsive(name)]
     groups = groups if largest is None else groups[:max(0, largest - 1)]
     scopes = {"all scenarios": objective.overall, **{f"group {g}": objective.groups[g] for g in groups}}
-    draw = _sobol if found.method == "sobol" else _morris
+    draw = _sobol if found.indices else _morris
     fig, axes = plt.subplots(1, len(scopes), figsize=(2.2 + 2.6 * len(scopes), 3.4), dpi=110, squeeze=False,
-                             sharey=found.method == "sobol")
+                             sharey=found.indices)
     for ax, (label, scope) in zip(axes[0], scopes.items()):
         draw(ax, scope, found.parameters)
         cv = scope.spread.get("cv")
@@ -69,8 +69,10 @@ def _sobol(ax, scope: Scope, parameters: list[str]) -> None:
     for offset, key, color in ((-0.2, "S1", "tab:blue"), (0.2, "ST", "tab:orange")):
         values = [scope.parameters[p][key] for p in parameters]
         errors = [scope.parameters[p][f"{key}_conf"] for p in parameters]
-        if any(v is None for v in values):
-            continue
+        if all(v is None for v in values):
+            continue  # an eFAST curve with a point missing leaves its parameter alone without a bar
+        values = [np.nan if v is None else v for v in values]
+        errors = [0.0 if e is None else e for e in errors]
         ax.bar(x + offset, values, 0.4, yerr=errors, capsize=3, color=color, label=key)
     ax.axhline(0, color="0.3", lw=0.8)
     ax.set_xticks(x, [_short(p) for p in parameters], fontsize=8)

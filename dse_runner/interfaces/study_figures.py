@@ -54,9 +54,10 @@ def sensitivity_section(output: store.Root, sweep: str) -> Section:
             found = sensitivity(output, sweep)
     except DseError as e:
         return Section("sensitivity", "Sensitivity", "", f'<p class="note" id="sensitivity-note">{html.escape(str(e))}</p>')
-    sobol = found.method == "sobol"
+    sobol = found.indices  # S1 and ST (Sobol' or eFAST), else Morris' mu*, sigma
     level = f"{100 * found.confidence:g} %"
-    note = (f"Sobol' first-order (S1) and total (ST) indices with {level} bootstrap intervals" if sobol else
+    named = "eFAST" if found.method == "fast" else "Sobol'"
+    note = (f"{named} first-order (S1) and total (ST) indices with {level} bootstrap intervals" if sobol else
             f"Morris' mu* (how much) against sigma (how non-linearly or through interactions), mu* with its {level} "
             "interval") + (f", over all scenarios ({found.reduced}) and per scenario group, least responsive first"
                            f"; {found.design['blocks']} blocks of {found.design['block']} points.")

@@ -70,8 +70,9 @@ class Ranking:
     def ranked_label(self) -> str:
         """What ``best_total`` is, in words: ``total y``, or ``mean+1sd of total y over 64 draws``."""
         if self.uncertainty is None:
-            return f"{self.reduced} {self.objective}"
-        return f"{self.uncertainty['ranked_by']} of {self.reduced} {self.objective} over {self.uncertainty['samples']} draws"
+            return figure_label(self.objective, self.reduced, None)
+        return (f"{figure_label(self.objective, self.reduced, self.uncertainty['ranked_by'])} "
+                f"over {self.uncertainty['samples']} draws")
 
     def to_json(self) -> dict[str, Any]:
         def records(frame: pd.DataFrame, limit: int | None = None) -> list[dict[str, Any]]:
@@ -255,17 +256,52 @@ def admits(totals: pd.DataFrame, constraints: list[str], objectives: list[str]) 
     return np.array([all(check(r) for check in checks) for r in records], dtype=bool)
 
 
-def standings(ok: pd.DataFrame, parameters: list[str], objective: str, goal: str) -> pd.DataFrame:
+def figure_label(objective: str, reduced: str, over_draws: str | None) -> str:
+    """The ranked figure in words, one label for the rank command, the report and the dashboard: ``total y``,
+    or with uncertain draws ``q90 of total y`` (``over_draws`` the figure over them: mean, q90, mean+1sd)."""
+    return f"{reduced} {objective}" if over_draws is None else f"{over_draws} of {reduced} {objective}"
+
+
+def ranked_figure_label(settings: RankingSpec, uncertain: bool) -> str:
+    """What a sweep with these ranking settings ranks its points by, in words (see figure_label)."""
+    robust = settings.robust if uncertain else None
+    over_draws = robust.label(settings.goal) if robust is not None else "mean" if uncertain else None
+    return figure_label(settings.objective, REDUCED[settings.over_scenarios], over_draws)
+
+
+def standings(ok: pd.DataFrame, parameters: list[str], objective: str, goal: str, over: str = "sum") -> pd.DataFrame:
     """The best-so-far ranking of a running sweep: the points that have finished the most scenarios
     first (tasks run scenario by scenario, so these have finished the same ones and compare like with
-    like), each group by its mean ``objective``. Once every point has finished every scenario the
-    order is that of :func:`rank` (the total is the mean times the number of scenarios)."""
+    like), each group by ``objective`` reduced over its scenarios as the ranking's ``over_scenarios`` says
+    (column ``ranked``; ``mean`` beside it). Once every point has finished every scenario the order is that
+    of :func:`rank`."""
     if ok.empty:
-        return pd.DataFrame(columns=[*parameters, "scenarios", "mean", "total"])
+        return pd.DataFrame(columns=[*parameters, "scenarios", "mean", "ranked"])
     per_point = ok.groupby(parameters, dropna=False)[objective]
-    table = pd.DataFrame({"scenarios": per_point.size(), "mean": per_point.mean(), "total": per_point.sum()})
-    return table.reset_index().sort_values(["scenarios", "mean"], ascending=[False, goal == "min"],
+    table = pd.DataFrame({"scenarios": per_point.size(), "mean": per_point.mean(), "ranked": per_point.agg(over)})
+    return table.reset_index().sort_values(["scenarios", "ranked"], ascending=[False, goal == "min"],
                                            kind="stable").reset_index(drop=True)
+
+
+def draw_standings(ok: pd.DataFrame, parameters: list[str], objective: str, settings: RankingSpec,
+                   scenarios: int) -> pd.DataFrame:
+    """The best-so-far ranking of a running sweep with uncertain draws (``ok`` with_draws' rows): per point the
+    draws finished on all ``scenarios``, ``mean`` the mean over them of ``objective`` reduced over the scenarios,
+    and ``ranked`` the figure rank() ranks by (the robust one if the ranking is robust, else that mean). Points
+    with the most finished draws first, each group by ``ranked``; points with none yet last, ranked blank:
+    a draw's figure needs every scenario, and ranking the mean alone would name another best than rank()."""
+    if ok.empty:
+        return pd.DataFrame(columns=[*parameters, "draws", "mean", "ranked"])
+    draws = uncertainty.per_draw(ok, parameters, [objective], settings.over_scenarios, scenarios)
+    started = ok.groupby(parameters, dropna=False).size().index
+    grouped = draws.groupby(parameters, dropna=False)[objective]
+    mean = grouped.mean()
+    ranked = mean if settings.robust is None else \
+        uncertainty.robust_values(draws, parameters, objective, settings.robust, settings.goal)
+    table = pd.DataFrame({"draws": grouped.size(), "mean": mean, "ranked": ranked}).reindex(started)
+    table["draws"] = table["draws"].fillna(0).astype(int)
+    return table.reset_index().sort_values(["draws", "ranked"], ascending=[False, settings.goal == "min"],
+                                           na_position="last", kind="stable").reset_index(drop=True)
 
 
 def plain(value: Any) -> Any:

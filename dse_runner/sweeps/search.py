@@ -180,6 +180,7 @@ BUILTIN: dict[str, str] = {  # loaded on first use: Optuna, pymoo and torch are 
     "least_squares": f"{STRATEGIES}.least_squares:LeastSquares",
     "sobol_indices": f"{STRATEGIES}.designs:SobolIndices",
     "morris": f"{STRATEGIES}.designs:Morris",
+    "fast": f"{STRATEGIES}.designs:Fast",
 }
 
 

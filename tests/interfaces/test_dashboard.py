@@ -15,6 +15,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 from conftest import SCENARIOS, strict_loads, write_space
@@ -331,6 +332,33 @@ def test_standings_put_the_furthest_points_first():
     table = standings(ok, ["a"], "e", "min")
     assert table["a"].tolist() == [3.0, 1.0, 2.0]  # a=3 (mean 2) and a=1 (mean 3) have 2 scenarios
     assert table["scenarios"].tolist() == [2, 2, 1]
+
+
+def test_standings_rank_as_the_ranking_reduces_over_scenarios():
+    """over_scenarios: max ranks by the worst scenario, which here names another best than the mean."""
+    from dse_runner.sweeps.rank import standings
+
+    ok = pd.DataFrame({"a": [1.0, 1.0, 2.0, 2.0], "scenario": ["s", "t", "s", "t"], "e": [0.0, 3.0, 2.0, 2.0]})
+    assert standings(ok, ["a"], "e", "min")["a"].tolist() == [1.0, 2.0]
+    table = standings(ok, ["a"], "e", "min", "max")
+    assert table["a"].tolist() == [2.0, 1.0] and table["ranked"].tolist() == [2.0, 3.0]
+
+
+def test_draw_standings_rank_by_the_robust_figure_over_finished_draws():
+    """Uncertain draws: a point's figure is over the draws finished on every scenario; the robust one ranks."""
+    from dse_runner.sweeps.rank import draw_standings
+    from dse_runner.sweeps.spec import Ranking
+
+    draws = {1.0: [1.0, 1.0, 1.0, 1.0], 2.0: [0.0, 0.0, 0.0, 3.0]}  # a=2 has the better mean, the worse q90
+    ok = pd.DataFrame([{"a": a, "sample": k, "base": "s", "e": v} for a, values in draws.items()
+                       for k, v in enumerate(values)] + [{"a": 3.0, "sample": 0, "base": "s", "e": -9.0}])
+    robust = Ranking(objective="e", robust={"quantile": 0.9})
+    table = draw_standings(ok, ["a"], "e", robust, scenarios=1)
+    assert table["a"].tolist() == [1.0, 2.0, 3.0] and table["draws"].tolist() == [4, 4, 1]
+    assert table["ranked"].iloc[1] == pytest.approx(np.quantile(draws[2.0], 0.9))
+    assert draw_standings(ok, ["a"], "e", Ranking(objective="e"), scenarios=1)["a"].tolist() == [2.0, 1.0, 3.0]
+    unfinished = draw_standings(ok, ["a"], "e", robust, scenarios=2)  # no draw has run on both scenarios
+    assert unfinished["draws"].tolist() == [0, 0, 0] and unfinished["ranked"].isna().all()
 
 
 def test_dashboard_address_errors_name_the_address():

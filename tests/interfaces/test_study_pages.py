@@ -69,9 +69,12 @@ def _look(url: str, ident: str) -> dict:
         size = figure.evaluate("e => [e.complete, e.naturalWidth, e.getBoundingClientRect().right]")
         fit = measure(page)
         text = page.locator("body").inner_text()
+        table = page.locator("#dse-ranking")  # the dashboard's best-so-far table
+        ranking = {"best": page.locator("#dse-best").inner_text(), "headings": table.locator("th").all_inner_texts(),
+                   "top": table.locator("tbody tr").first.locator("td").all_inner_texts()} if table.count() else {}
         browser.close()
     return {"loaded": size[0], "width": size[1], "right": size[2], "errors": errors, "misfits": fit.misfits,
-            "text": text}
+            "text": text, **ranking}
 
 
 @pytest.mark.parametrize("kind", ["sobol", "morris", "uncertain"])
@@ -113,3 +116,27 @@ def test_the_uncertain_figure_is_of_the_ranked_points(sweeps):
     ranking = rank(output, sweep)
     assert len(ranking.totals) == 4 and len(ranking.draws) == 4 * 64
     assert ranking.ranked_by == "y_robust" and ranking.uncertainty["ranked_by"] == "q90"
+
+
+def test_the_dashboard_names_the_robust_best_as_rank_does(sweeps):
+    """With ``ranking: {robust: {quantile: 0.9}}`` the best-so-far line and table rank by the q90 over the draws,
+    as the rank command does and as the uncertainty section below them says, not by the mean; the table's last
+    column says so. On this sweep the best q90 and the best mean are different points."""
+    from dse_runner.interfaces.dashboard import serve
+    from dse_runner.sweeps.rank import format_point, rank
+
+    output, sweep, ident = sweeps["uncertain"]
+    ranking = rank(output, sweep)
+    by_mean = ranking.totals.sort_values("y", kind="stable").iloc[0]
+    assert {p: by_mean[p] for p in ranking.parameters} != ranking.best  # else the test could not tell them apart
+    server = serve(output, sweep, "127.0.0.1:0")
+    try:
+        seen = _look(server.url, ident)
+    finally:
+        server.stop()
+    assert f"best so far: {format_point(ranking.best)}; q90 of total y {ranking.best_total:.4f} over 64 of 64 draws" \
+        == seen["best"]
+    assert seen["headings"][-1] == "ranked by: q90 of total y"
+    assert [float(v) for v in seen["top"][1:3]] == list(ranking.best.values())
+    assert float(seen["top"][-1]) == pytest.approx(ranking.best_total, abs=1e-4)
+    assert seen["errors"] == [] and seen["misfits"] == []

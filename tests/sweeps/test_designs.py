@@ -96,3 +96,19 @@ def test_text_values_and_bad_options_are_errors_naming_them():
         search.strategy("morris")(problem(X, options={"levels": 5}))
     with pytest.raises(DseError, match=r"search\.second_ordr: extra inputs are not permitted"):
         search.strategy("sobol_indices")(problem(X, options={"second_ordr": True}))
+
+
+def test_fast_buys_one_curve_per_parameter_each_running_its_parameter_fastest():
+    """eFAST: D curves of max_points // D rows (SALib's layout: curve i runs parameter i at the highest
+    frequency); the same seed gives the same curves, and too small a budget for N > 4 M^2 names it."""
+    design = search.strategy("fast")(problem(X, Y, Z, max_points=400)).design
+    assert (design.method, design.block, design.blocks, design.harmonics) == ("fast", 133, 3, 4)
+    assert len(asked("fast", problem(X, Y, Z, max_points=400))) <= 399
+    for i in range(3):  # the parameter at the highest frequency crosses the cube's middle most often
+        curve = design.units[i * design.block:(i + 1) * design.block]
+        crossings = np.count_nonzero(np.diff(np.sign(curve - 0.5), axis=0), axis=0)
+        assert crossings.argmax() == i, (i, crossings)
+    assert asked("fast", problem(X, Y, seed=5, max_points=200)) == asked("fast", problem(X, Y, seed=5, max_points=200))
+    with pytest.raises(DseError, match=r"search: fast needs at least 195 points for 3 parameters .*max_points is 194"):
+        search.strategy("fast")(problem(X, Y, Z, max_points=194))
+    assert search.strategy("fast")(problem(X, Y, Z, max_points=15, options={"harmonics": 1})).design.block == 5

@@ -1,8 +1,10 @@
-"""Sampling designs for global sensitivity analysis: Saltelli's (``sobol_indices``) and Morris' (``morris``).
+"""Sampling designs for global sensitivity analysis: Saltelli's (``sobol_indices``), Morris' (``morris``) and
+the extended Fourier amplitude sensitivity test's (``fast``).
 
 Unlike a search, a sensitivity study needs its points in a fixed pattern that the estimator
 reads back: Saltelli's base rows each followed by one cross-sampled row per parameter, or
-Morris trajectories that move one parameter a level at a time. SALib draws both in the unit
+Morris trajectories that move one parameter a level at a time, or eFAST's search curves, one per
+parameter, each running that parameter at the highest frequency. SALib draws them in the unit
 cube; the points are those rows mapped to values (domain.py), asked up front like a grid's
 (``closed_loop = False``), so they run in large chunks, resume by task id and land in the
 same store as any sweep. analysis/sensitivity.py draws the same :class:`Design` again from the
@@ -10,7 +12,8 @@ saved spec and reads each row's result back by its point.
 
 The budget ``max_points`` buys whole blocks (a Saltelli base row's ``D + 2`` rows, or
 ``2D + 2`` with second order; a Morris trajectory's ``D + 1``): as many as fit that many
-distinct points, ``max_points // block`` over continuous parameters. A point met twice
+distinct points, ``max_points // block`` over continuous parameters. eFAST's curves do not extend
+(their frequencies depend on their length): it buys D curves of ``max_points // D`` rows. A point met twice
 (discrete parameters can map two rows to one point) is asked once; a point the constraints
 reject is not asked, and its block is left out of the indices.
 """
@@ -18,7 +21,7 @@ reject is not asked, and its block is left out of the indices.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, ClassVar
 
 import numpy as np
@@ -33,11 +36,12 @@ from ..search import Options, Problem, Strategy
 class Design:
     """A sensitivity method's sample in the unit cube, in the order its estimator reads it."""
 
-    method: str  # "sobol" | "morris": which SALib estimator reads it
+    method: str  # "sobol" | "morris" | "fast": which SALib estimator reads it
     units: np.ndarray  # rows x dimensions, in [0, 1]
-    block: int  # consecutive rows the estimator needs together: one base row's, or one trajectory
+    block: int  # consecutive rows the estimator needs together: one base row's, one trajectory, or one curve
     second_order: bool = False
     levels: int = 0  # Morris' grid levels
+    harmonics: int = 0  # eFAST's interference parameter M
 
     @property
     def blocks(self) -> int:
@@ -92,7 +96,7 @@ class SensitivityDesign(Strategy):
                 break  # the budget is spent, or longer adds nothing, or there is a block per point of budget
             n, found = 2 * n, len(points)
         units = design.units[:blocks * design.block]
-        return Design(design.method, units, design.block, design.second_order, design.levels), points
+        return replace(design, units=units), points
 
     @classmethod
     def block_of(cls, dimensions: int, options: Any) -> int:
@@ -182,3 +186,49 @@ class Morris(SensitivityDesign):
         units = morris.sample(salib_problem(problem.dimensions), n, num_levels=self.options.levels, seed=problem.seed)
         return Design("morris", units, self.block_of(len(problem.dimensions), self.options),
                       levels=self.options.levels)
+
+
+class FastOptions(Options):
+    harmonics: PositiveInt = 4  # M, the Fourier harmonics summed per frequency (SALib's default); curves need > 4 M^2 rows
+
+
+class Fast(SensitivityDesign):
+    """The extended Fourier amplitude sensitivity test (Saltelli, Tarantola and Chan 1999; SALib.sample.fast_sampler):
+    one search curve per parameter, that parameter oscillating at the highest frequency and the others at low ones,
+    for first-order and total indices at D curves of N rows. A curve's frequencies depend on N, so a longer design
+    is another design: the budget buys N = max_points // D rows per curve, drawn once."""
+
+    Options = FastOptions
+    method, label = "fast", "fast"
+
+    @classmethod
+    def block_of(cls, dimensions: int, options: FastOptions) -> int:
+        """The shortest curve SALib accepts: N > 4 M^2."""
+        return 4 * options.harmonics ** 2 + 1
+
+    @classmethod
+    def rows_in_words(cls) -> str:
+        return "a curve of more than 4 M^2 rows (M = harmonics) per parameter"
+
+    def fit(self, problem: Problem) -> tuple[Design, list[Point]]:
+        """D curves of ``max_points // D`` rows; the design's distinct admitted points, asked once each."""
+        dimensions = len(problem.dimensions)
+        shortest = self.block_of(dimensions, self.options)
+        if problem.max_points < shortest * dimensions:
+            raise DseError(f"search: fast needs at least {shortest * dimensions} points for {dimensions} parameters "
+                           f"({self.rows_in_words()}: {shortest} rows at harmonics {self.options.harmonics}); "
+                           f"max_points is {problem.max_points}")
+        design = self.draw(problem, problem.max_points // dimensions)
+        seen: dict[tuple, Point] = {}
+        for point in design.points(problem.dimensions):
+            key = tuple(point.values())
+            if key not in seen and problem.admits(point):
+                seen[key] = point
+        return design, list(seen.values())
+
+    def draw(self, problem: Problem, n: int) -> Design:
+        """``n`` rows per curve."""
+        from SALib.sample import fast_sampler
+
+        units = fast_sampler.sample(salib_problem(problem.dimensions), n, M=self.options.harmonics, seed=problem.seed)
+        return Design("fast", units, n, harmonics=self.options.harmonics)
