@@ -96,7 +96,10 @@ def parse_term(text: str) -> Term:
                            f"(x), a power of one (x^3), or {', '.join(FUNCTIONS)} of one, optionally over a width "
                            "(tanh(v/0.05))")
         plain, function, inside, width, power = match.groups()
-        width_value = float(width) if width else 1.0
+        try:
+            width_value = float(width) if width else 1.0
+        except ValueError:
+            width_value = math.nan
         if not (math.isfinite(width_value) and width_value > 0):
             raise DseError(f"term {text!r}: the width in {part.strip()!r} must be a number > 0")
         exponent = int(power) if power else 1

@@ -123,9 +123,10 @@ def evaluation_of(scores: list[TaskScores], scalar: list[str], how: str, checks:
     per = {s.scenario: s.objectives for s in scores}
     if ranked is not None:  # sampled scenarios: statistics over the draws
         values = over_draws(per, scalar, how, ranked)
+        means = over_draws(per, scalar, how, (ranked[0], ranked[1], None))  # constraints act on the means, as in rank
     else:
-        values = {name: reduce_over_scenarios((o[name] for o in per.values()), how) for name in scalar}
-    return Evaluation("ok", values=values, scores=per, breaks=tuple(text for text, holds in checks if not holds(values)))
+        values = means = {name: reduce_over_scenarios((o[name] for o in per.values()), how) for name in scalar}
+    return Evaluation("ok", values=values, scores=per, breaks=tuple(text for text, holds in checks if not holds(means)))
 
 
 class SearchSource:

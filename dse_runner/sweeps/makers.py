@@ -57,7 +57,7 @@ class ClusterMaker(ABC):
     (what a ``distributed.Client`` connects to). Then :meth:`scale` is called once with
     ``cluster.n_workers`` (or :meth:`adapt` with ``min_workers`` and ``max_workers``, when given), a
     client connects and waits up to ``first_worker_wait`` seconds for a first worker, and the sweep
-    runs; :meth:`failure` is asked meanwhile, about once a second, and a reason stops the sweep at once; a cluster that loses every worker mid-sweep gets as long to get one
+    runs; :meth:`failure` is asked meanwhile, every 2 s, and a reason stops the sweep at once; a cluster that loses every worker mid-sweep gets as long to get one
     back (twice ``connect_timeout`` when it is 0). :meth:`close` is called once when the sweep ends,
     fails or is interrupted, after the client has cancelled its tasks.
 
@@ -132,7 +132,7 @@ class Local(ClusterMaker):
         # chunk (sweep.py): a segfaulting FMU then costs two worker restarts per level, not four.
         with dask.config.set({"distributed.scheduler.allowed-failures": 1, **QUIET}):
             return LocalCluster(
-                n_workers=spec.min_workers if spec.max_workers else spec.n_workers or os.cpu_count() or 1,
+                n_workers=(spec.min_workers or 0) if spec.max_workers else spec.n_workers or os.cpu_count() or 1,
                 threads_per_worker=spec.threads_per_worker,
                 processes=True,
                 host="127.0.0.1",

@@ -430,6 +430,8 @@ class SpaceSpec(BaseModel):
         if self.ranking.robust is not None and self.uncertain is None:
             raise ValueError("ranking.robust ranks over uncertain samples: add an 'uncertain' block "
                              "(docs/space.md#uncertain-parameters)")
+        if self.ranking.robust is not None and self.ranking.robust.sigmas is not None and self.uncertain.samples < 2:
+            raise ValueError("ranking.robust.sigmas needs a standard deviation: give uncertain.samples 2 or more")
         return self
 
 

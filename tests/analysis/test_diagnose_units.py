@@ -403,9 +403,11 @@ def test_the_bic_gate_and_the_order_of_effects():
 
 
 def test_fitted_error_is_equation_1_on_the_fitted_runs():
+    from dse_runner.cases.robotti_diagnosis.workflow import fitted_error
+
     fit = FitResult("x", [], {}, 0.0, 4, 1, True, {}, [], {},
                     residuals=[np.array([3.0, 0.0, 4.0, 1.0]), np.array([0.0, 2.0])])
-    assert explain.fitted_error(fit) == pytest.approx(((5.0 + 1.0) / 2 + 2.0) / 2)
+    assert fitted_error(fit) == pytest.approx(((5.0 + 1.0) / 2 + 2.0) / 2)
 
 
 def test_the_stop_rule_screens_only_when_a_fit_leaves_more_than_noise():

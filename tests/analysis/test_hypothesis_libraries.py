@@ -116,6 +116,16 @@ def test_nothing_to_diagnose_is_named():
         diagnose()
 
 
-def test_the_signal_effects_refuse_a_selection_they_cannot_make(tmp_path):
-    with pytest.raises(DseError, match="--hypothesis wheel_slip: the signal effects library tries every effect"):
+def test_a_hypothesis_the_library_lacks_is_named_before_anything_runs(tmp_path):
+    with pytest.raises(DseError, match=r"--hypothesis wheel_slip: the signals library has no such hypothesis \(it "
+                                       r"has output_delay\(msd.x\), "):
         diagnose(MSD / "space.yaml", request=Request(out=tmp_path, hypotheses=("wheel_slip",)))
+    with pytest.raises(DseError, match="--hypothesis slip: the robotti library has no such hypothesis"):
+        diagnose(ROBOTTI_CALIBRATION, SCENARIOS, Request(out=tmp_path, hypotheses=("slip",)))
+    assert not list(tmp_path.rglob("*.parquet"))  # nothing ran
+
+
+@pytest.mark.parametrize("bad, named", [({"folds": 1}, "--folds 1"), ({"noise_factor": 0.0}, "--noise-factor 0.0")])
+def test_a_request_no_diagnosis_can_honour_is_refused(bad, named):
+    with pytest.raises(DseError, match=named):
+        Request(**bad)

@@ -5,8 +5,10 @@ parameters. It is judged two ways:
 
 * cross-validation across scenarios: the scenarios are split into folds
   (each fold takes every k-th run of each group); a fit on the other folds
-  predicts each held-out run, and the held-out mean cross-track error
-  (Equation 1) is what the candidate is worth on runs it never saw;
+  predicts each held-out run, and the held-out error (in the compared
+  objective's units: noise floors for the signal effects, the mean
+  cross-track error for field data) is what the candidate is worth on
+  runs it never saw;
 * the Bayesian information criterion of the fit on every run,
   n ln(SSE/n) + k ln n, which charges each added parameter.
 
@@ -14,7 +16,7 @@ A candidate beats a simpler one only if it lowers the held-out error by a
 clear margin *and* lowers the BIC: improvement on fitted runs alone is what
 an extra parameter always buys, and is no evidence of physics. A combination
 is chosen only if it beats every fitted part of it: each member has to pay
-its way.
+its way, and (the noise rule, below) change the fit by more than the noise.
 """
 
 from __future__ import annotations
@@ -50,12 +52,9 @@ def bic(fit: FitResult) -> float:
     return bic_of(fit.sse, fit.residual_count, len(fit.names))
 
 
-def fitted_error(fit: FitResult) -> float:
-    """Equation 1 on the runs the fit saw (the mean distance at each run's fixes, averaged over runs), from
-    its residuals (x offsets, then y offsets: fielddata.fix_residuals). The same units as held-out error
-    and the noise floor, at no cost: optimistic, but by little with a few parameters and many fixes."""
-    runs = [np.hypot(*np.split(r, 2)).mean() for r in fit.residuals if len(r) >= 2 and len(r) % 2 == 0]
-    return float(np.mean(runs)) if runs else math.inf
+def fitted_rms(fit: FitResult) -> float:
+    """The RMS of a fit's residuals on the runs it saw: optimistic beside held-out error, but free."""
+    return math.sqrt(fit.sse / fit.residual_count) if fit.residual_count else math.inf
 
 
 @dataclass
@@ -204,7 +203,7 @@ class Evidence:
     other: str
     other_held_out: float
     delta_bic: float
-    delta_held_out: float  # m
+    delta_held_out: float  # in the held-out error's units
     delta_held_out_percent: float  # of the chosen candidate's held-out error
     runs_better: int
     runs: int
@@ -214,8 +213,9 @@ class Evidence:
     def runs_better_text(self) -> str:
         return f"{self.runs_better}/{self.runs}"
 
-    def to_json(self) -> dict[str, object]:
-        return {"id": self.other, "cross_track_held_out": self.other_held_out, "delta_bic": self.delta_bic,
+    def to_json(self, held_out_key: str = "held_out") -> dict[str, object]:
+        """``held_out_key`` names the other's held-out error as its library's JSON does."""
+        return {"id": self.other, held_out_key: self.other_held_out, "delta_bic": self.delta_bic,
                 "delta_held_out": self.delta_held_out, "delta_held_out_percent": self.delta_held_out_percent,
                 "runs_better": self.runs_better_text, "runs_tied": self.runs_tied}
 

@@ -15,6 +15,7 @@ applies and the generic library serves everything else.
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -43,6 +44,13 @@ class Request:
     noise_factor: float = NOISE_FACTOR  # held-out error above this many noise floors is unexplained
     hypotheses: tuple[str, ...] = ()  # the library's ids to try; () tries them all
     discovery: bool = True  # seek a correction beyond the library when it leaves error above the noise
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.folds, int) and self.folds >= 2):
+            raise DseError(f"--folds {self.folds!r}: cross-validation needs 2 folds or more")
+        if not (math.isfinite(self.noise_factor) and self.noise_factor > 0):
+            raise DseError(f"--noise-factor {self.noise_factor!r}: must be a positive number (default "
+                           f"{NOISE_FACTOR:g}: held-out error above twice the noise floor is a residual)")
 
 
 class Result(Protocol):
@@ -84,8 +92,18 @@ class HypothesisLibrary(ABC):
         """Calibrate, fit the hypotheses, choose what the recordings support, write the report."""
 
     def hypotheses(self, space: Space) -> list[Hypothesis]:
-        """The hypotheses it would try on ``space``, for listing and for ``--hypothesis`` checks."""
+        """The hypotheses it would try on ``space``: ``--hypothesis`` may name only these (none listed: any)."""
         return []
+
+
+def checked(library: HypothesisLibrary, space: Space, request: Request) -> HypothesisLibrary:
+    """The library, once every ``--hypothesis`` is one it has: an unknown one is named before anything runs."""
+    known = [h.id for h in library.hypotheses(space)]
+    unknown = [h for h in request.hypotheses if known and h not in known]
+    if unknown:
+        raise DseError(f"--hypothesis {', '.join(unknown)}: the {library.name} library has no such hypothesis "
+                       f"(it has {', '.join(known)})")
+    return library
 
 
 def libraries() -> list[HypothesisLibrary]:
@@ -138,7 +156,7 @@ def diagnose(space: str | Path | None = None, scenarios: str | Path | None = Non
     found = libraries()
     if space is not None:
         target = space_with(space, scenarios, out, multimodel, n_workers, address)
-        return serving(target, found).diagnose(target, request, say)
+        return checked(serving(target, found), target, request).diagnose(target, request, say)
     if scenarios is None:
         raise DseError("diagnose: give --space SPACE.yaml (any model with recordings), or --scenarios DIR "
                        "(runs a library's own calibration space reads, such as the Robotti's field data)")
@@ -152,7 +170,7 @@ def diagnose(space: str | Path | None = None, scenarios: str | Path | None = Non
             reasons.append(f"{library.name}: {e}")
             continue
         if library.serves(target):
-            return library.diagnose(target, request, say)
+            return checked(library, target, request).diagnose(target, request, say)
         reasons.append(f"{library.name}: its calibration does not serve these runs")
     raise DseError(f"--scenarios {scenarios}: no installed hypothesis library has a calibration space for these "
                    f"runs ({'; '.join(reasons) or 'none has one'}); give --space SPACE.yaml whose scenarios they are")

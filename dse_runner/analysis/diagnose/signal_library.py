@@ -195,7 +195,10 @@ def compared_signals(space: Space) -> list[Compared]:
 
 def hypotheses(space: Space, compared: Sequence[Compared]) -> dict[str, Hypothesis]:
     """Every signal effect on every input all scenarios drive and every compared signal, with its range."""
-    span = min(float(s.stop_time or space.spec.experiment.stop_time or 0) or math.inf for s in space.scenarios)
+    experiment = space.spec.experiment
+    lengths = [float(s.stop_time or experiment.stop_time or 0) - float(s.start_time or experiment.start_time or 0)
+               for s in space.scenarios]
+    span = min((length for length in lengths if length > 0), default=math.inf)
     span = span if math.isfinite(span) else 10.0
     # The master feeds inputs at its communication points, so a run responds to a delay in steps of one
     # (the delay's resolution): a finite difference finer than that sees no change
@@ -219,6 +222,15 @@ def hypotheses(space: Space, compared: Sequence[Compared]) -> dict[str, Hypothes
                 found[effect.name] = Hypothesis(effect, Parameter(effect.name, start, low, high, difference),
                                                 step if kind == "delay" else 0.0)
     return found
+
+
+def selected(found: dict[str, Hypothesis], only: Sequence[str]) -> dict[str, Hypothesis]:
+    """The effects ``only`` names (all when it names none); an unknown name is an error listing them."""
+    unknown = [name for name in only if name not in found]
+    if unknown:
+        raise DseError(f"--hypothesis {', '.join(unknown)}: not a signal effect of this space; it has "
+                       f"{', '.join(found)}")
+    return {name: h for name, h in found.items() if not only or name in only}
 
 
 def starts_of(hypothesis: Hypothesis, count: int = STARTS) -> list[float]:
@@ -259,15 +271,10 @@ def fits_space(space: Space, compared: Sequence[Compared], hypotheses: Mapping[s
 SURVIVORS = 2  # pairs that pass the BIC gate and are cross-validated, at most
 
 
-def fitted_error(fit: FitResult) -> float:
-    """The RMS of a fit's residuals on the runs it saw, in noise floors (optimistic, but free)."""
-    return math.sqrt(fit.sse / fit.residual_count) if fit.residual_count else math.inf
-
-
 def worth_pairing(singles: Sequence[FitResult], floor_stop: float = explain.FLOOR_STOP) -> bool:
     """Whether pairs could still explain something: not when a single already fits to within ``floor_stop``
     noise floors on the runs it saw."""
-    return len(singles) >= 2 and min(fitted_error(f) for f in singles) > floor_stop
+    return len(singles) >= 2 and min(explain.fitted_rms(f) for f in singles) > floor_stop
 
 
 def gated_early(short: Sequence[signal_screen.Screened], full: Mapping[tuple[str, ...], FitResult], count: int,
@@ -294,18 +301,19 @@ class Pairs:
 
 def diagnose_space(path: str | Path | Space, out: str | Path | None = None, folds: int = 3, noise_factor: float =
                    explain.NOISE_FACTOR, say: Messages | None = None, n_workers: int | None = None,
-                   address: str | None = None) -> SignalDiagnosis:
+                   address: str | None = None, discover: bool = True, only: Sequence[str] = ()) -> SignalDiagnosis:
     """Calibrate the space (a file, or a Space as the library contract gives it), fit each signal effect with
-    it, screen pairs when no single explains to the noise, choose what the recordings support, and locate the
-    misfit before and after."""
+    it (``only`` these, when given), screen pairs when no single explains to the noise, choose what the
+    recordings support, seek a derivative correction when they leave error above the noise (unless not
+    ``discover``), and locate the misfit before and after."""
     say = say or (lambda message: None)
     space = path if isinstance(path, Space) else load_space(path).with_overrides(output=out, address=address,
                                                                                  n_workers=n_workers)
     compared = compared_signals(space)
-    library = hypotheses(space, compared)
+    library = selected(hypotheses(space, compared), only)
     scenarios = tuple(s.name for s in space.scenarios)
     parts = explain.folds(space.scenarios, folds) if len(scenarios) > 1 else []
-    with connect(space.spec.cluster, say) as client:
+    with connect(space.spec.cluster, space.path.parent) as client:
         best: dict[str, Any] = {}
         if space.dimensions and all(d.grid() is not None for d in space.dimensions):
             say(f"calibrating: the space's grid, {space.name}")
@@ -395,7 +403,7 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
         verdict = explain.verdict(chosen.cross_validated, floor, noise_factor, chosen is not baseline)
         interfaces = dict(space.plan.interfaces)
         discovery: Discovered | NotDiscovered | None = None
-        if verdict in (explain.PARTIAL, explain.UNEXPLAINED):
+        if discover and verdict in (explain.PARTIAL, explain.UNEXPLAINED):
             say(f"the library leaves {chosen.cross_validated:.3g} noise floors held-out: seeking a correction of "
                 "the model-exchange FMUs' state derivatives")
             freed = (*base, *(library[n].parameter for n in chosen.ids))
@@ -404,6 +412,7 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
                 if isinstance(discovery, Discovered) else f"nothing discovered: {discovery.reason}")
         twins = signal_claims.alike(chosen, everything)
         residuals = located_residuals(fits, client, [baseline, chosen, *twins], compared)
+        answer = chosen  # the library's: its look-alikes are among the library's candidates
         if isinstance(discovery, Discovered):  # the model the recordings support: the library's answer and the terms
             chosen = discovery.candidate
             everything.append(chosen)
@@ -412,7 +421,7 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
             residuals.update(located_residuals(work, client, [chosen], compared))
     noise = {c.signal: c.noise for c in compared}
     by_name = {s.name: s for s in space.scenarios}
-    looks = [signal_claims.weigh(chosen, t, residuals, noise, by_name) for t in twins]
+    looks = [signal_claims.weigh(answer, t, residuals, noise, by_name) for t in twins]
     located = signal_locate.located(residuals[baseline.label], residuals[chosen.label], noise, by_name)
     formulas = [e["readable"] for e in discovery.effects()] if isinstance(discovery, Discovered) else []
     text = signal_claims.verdict_text(verdict, chosen.cross_validated, chosen, interfaces, looks, dropped, noise_factor,
@@ -458,7 +467,7 @@ def held_out(space: Space, client, candidates: list[Candidate], results: Mapping
     the noise-scaled residuals; with one scenario, its fitted error (no cross-validation possible)."""
     if not parts:
         for c in candidates:
-            c.held_out = {"fitted": math.sqrt(c.full.sse / max(c.full.residual_count, 1))}
+            c.held_out = {"fitted": explain.fitted_rms(c.full)}
         return
     requests = [(results[f"{c.label}/fold{k}"].point, fold) for c in candidates for k, fold in enumerate(parts)]
     points, only = wanted(requests)
@@ -483,10 +492,8 @@ class SignalEffects(HypothesisLibrary):
         return any(isinstance(spec, objs.Fit) for spec in space.objectives.values())
 
     def diagnose(self, space: Space, request: Request, say: Messages) -> SignalDiagnosis:
-        if request.hypotheses:
-            raise DseError(f"--hypothesis {', '.join(request.hypotheses)}: the signal effects library tries every "
-                           "effect on every driven input and compared signal; it takes no selection")
-        return diagnose_space(space, folds=request.folds, noise_factor=request.noise_factor, say=say)
+        return diagnose_space(space, folds=request.folds, noise_factor=request.noise_factor, say=say,
+                              discover=request.discovery, only=request.hypotheses)
 
     def hypotheses(self, space: Space) -> list[LibraryHypothesis]:
         found = hypotheses(space, compared_signals(space))

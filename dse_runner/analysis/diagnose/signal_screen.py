@@ -1,7 +1,7 @@
 """Pairs of signal effects, screened from the single fits before any pair is fitted.
 
-Why: a space has eight effects per signal, so some hundred pairs for a model with one input and one
-compared output; fitting each for real (a fit on every run and one per fold) would cost ten times the
+Why: a space has four effects per signal, so 8 effects and 28 pairs for a model with one input and one
+compared output, and many more with more signals; fitting each for real (a fit on every run and one per fold) would cost ten times the
 singles. Instead each single's fit is taken as a direction: how its fitted effect, with the calibration
 refitted alongside, changed the residuals from those of ``none``. A pair is predicted as the best
 mixture of its two directions plus a small change of the calibrated parameters (``none``'s own

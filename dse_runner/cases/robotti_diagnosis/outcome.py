@@ -206,7 +206,7 @@ class Diagnosis:
             "held_out_unit": "m (mean cross-track error on held-out runs, Equation 1)",
             "verdict": self.verdict,
             "noise_floor": self.noise_floor,
-            "runner_up": up.to_json() if up is not None else None,
+            "runner_up": up.to_json("cross_track_held_out") if up is not None else None,
             "lookalikes": [look.to_json() for look in self.lookalikes],
             "dropped": [d.to_json() for d in self.dropped],
             "discovery": self.discovery.to_json() if self.discovery is not None else None,

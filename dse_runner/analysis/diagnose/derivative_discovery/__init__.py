@@ -23,7 +23,6 @@ client, the chosen candidate and the parameters it freed, the residual scales, t
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -145,7 +144,7 @@ def observe(space: Space, point: Point, instances: Sequence[Instance]) -> list[d
 
 def fitted_error(fit: FitResult) -> dict[str, float]:
     """With a single scenario no fold can be held out: its fitted RMS stands in (optimistic, and said so)."""
-    return {"fitted": math.sqrt(fit.sse / max(fit.residual_count, 1))}
+    return {"fitted": explain.fitted_rms(fit)}
 
 
 __all__ = ["DISCOVERED", "Discovered", "NotDiscovered", "Settings", "baseline_candidate", "discover_derivatives"]
