@@ -52,6 +52,8 @@ def dashboard_link_template(dashboard_address: str) -> str | None:
     machine's network address, so the link said e.g. 192.0.2.2 while the dashboard listened on 127.0.0.1
     only. None when it listens on every interface (``0.0.0.0``, ``:8787``): distributed's link is right."""
     host = dashboard_address.rsplit(":", 1)[0] if ":" in dashboard_address else dashboard_address
+    if host.isdigit():  # a bare port: every interface
+        host = ""
     if host in ("", "0.0.0.0", "[::]", "::"):
         return None
     return f"{{scheme}}://{host}:{{port}}/status"

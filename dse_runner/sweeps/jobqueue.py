@@ -83,12 +83,21 @@ class JobKeeper:
         self.joined: set[str] = set()  # jobs whose workers have been seen on the scheduler
         self.absent: dict[str, float] = {}  # such jobs with no worker now: since when (monotonic)
         self.replaced = 0
+        self.closing: set[asyncio.Future] = set()  # ended jobs being cancelled: held, so none is collected mid-way
         self._busy = False
         self._callback = PeriodicCallback(self._tick, KEEP_EVERY * 1000)
         cluster.loop.add_callback(self._callback.start)
 
     def stop(self) -> None:
         self.cluster.loop.add_callback(self._callback.stop)
+
+    @staticmethod
+    async def _close(job: Any) -> None:
+        """Cancel an ended job's remains; a batch command that fails or is missing is only logged."""
+        try:
+            await job.close()
+        except (RuntimeError, OSError) as e:
+            log.warning("could not cancel ended job %s: %s", getattr(job, "job_id", "?"), e)
 
     def refused(self) -> str | None:
         """The batch system's words for the first job it refused, if any."""
@@ -128,7 +137,9 @@ class JobKeeper:
                 self.joined.discard(name)
                 self.absent.pop(name, None)
                 self.replaced += 1
-                asyncio.ensure_future(job.close())  # scancel / condor_rm: harmless if the job has ended
+                closing = asyncio.ensure_future(self._close(job))  # scancel / condor_rm: harmless if it has ended
+                self.closing.add(closing)
+                closing.add_done_callback(self.closing.discard)
                 log.warning("worker job %s (%s) ended; submitting another", name, job.job_id)
 
 

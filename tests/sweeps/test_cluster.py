@@ -419,6 +419,7 @@ def test_a_refused_htcondor_job_stops_the_sweep_with_its_words(tmp_path, monkeyp
     ("192.0.2.7:8787", "{scheme}://192.0.2.7:{port}/status"),
     ("0.0.0.0:8787", None),  # every interface: distributed's link, naming the scheduler's host, is right
     (":8787", None),
+    ("8787", None),  # a bare port: every interface too
 ])
 def test_dashboard_links_name_the_host_the_dashboard_listens_on(address, template):
     from dse_runner.sweeps.cluster import dashboard_link_template

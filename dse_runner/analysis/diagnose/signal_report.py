@@ -91,11 +91,12 @@ def write(found: Mapping[str, Any], folder: Path, title: str) -> dict[str, Path]
     paths. The values file is the model the recordings support, ready to run again:
     ``dse-runner simulate MODEL --scenario … --values diagnosed-values.yaml``."""
     folder.mkdir(parents=True, exist_ok=True)
-    report, summary = folder / REPORT, folder / SUMMARY
-    report.write_text(markdown(found, title))
-    summary.write_text(strict_json.dumps(found))
-    values = write_values(folder / VALUES, found["fitted"]["parameters"],
+    files = {"report": folder / REPORT, "json": folder / SUMMARY, "values": folder / VALUES}
+    found = {**found, "files": {k: str(v) for k, v in files.items()}}  # the file says where its siblings are
+    files["report"].write_text(markdown(found, title))
+    files["json"].write_text(strict_json.dumps(found))
+    write_values(files["values"], found["fitted"]["parameters"],
                           f"The diagnosed model of {title}: its calibrated parameters, and the effects and derivative\n"
                           f"terms the recordings support ({found['verdict']}), as fitted together. Run it again with\n"
                           "dse-runner simulate MODEL --values THIS_FILE, or put it in a space's parameters.")
-    return {"report": report, "summary": summary, "values": values}
+    return files
