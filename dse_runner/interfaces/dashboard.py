@@ -347,6 +347,7 @@ class Page:
         # a sensitivity design's indices, an uncertainty study's distributions (study_figures.py)
         self.studies = Div(width=2 * charts.WIDTH) if feed.studied() else None
         self.studies_at = -math.inf  # when they were last drawn (monotonic seconds)
+        self.studies_drawn: tuple | None = None  # the (rows done, sweep state) they show
         self.search = self.search_chart = self.front_chart = None  # a closed-loop search's progress
         self.search_shown: tuple | None = None
         if searching:
@@ -383,6 +384,7 @@ class Page:
             self.workers.text = charts.TABLE_STYLE + workers_html(snap.status)
         if self.search is not None:
             self._search(snap)
+        self._studies(snap)
         if snap.done == self.shown:
             return  # no new rows since the last refill
         self.shown = snap.done
@@ -393,17 +395,17 @@ class Page:
         self.fig5.update(snap.ok)
         self.fig6.update(snap.ok)
         self._track(snap)
-        self._studies(snap)
 
     def _studies(self, snap: Snapshot) -> None:
-        """Redraw the sensitivity or uncertainty figures: at most every STUDY_SECONDS while the sweep runs
-        (the bootstrap takes a while on a large design), and once more when it has stopped."""
-        if self.studies is None:
+        """Redraw the sensitivity or uncertainty figures when rows or the sweep's state changed: at most every
+        STUDY_SECONDS while the sweep runs (the bootstrap takes a while on a large design), and once more
+        when it has stopped, whenever the last rows came."""
+        state = snap.status.state if snap.status is not None else None
+        if self.studies is None or (snap.done, state) == self.studies_drawn:
             return
-        running = snap.status is not None and snap.status.state == "running"
-        if running and time.monotonic() - self.studies_at < STUDY_SECONDS:
+        if state == "running" and time.monotonic() - self.studies_at < STUDY_SECONDS:
             return
-        self.studies_at = time.monotonic()
+        self.studies_at, self.studies_drawn = time.monotonic(), (snap.done, state)
         self.studies.text = self.feed.studies_html()
 
     def _search(self, snap: Snapshot) -> None:
