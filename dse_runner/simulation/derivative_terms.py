@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DseError
+from .values import split_named
 
 PREFIX = "derivative_term"
 FUNCTIONS = {"abs": np.abs, "tanh": np.tanh, "sin": np.sin, "cos": np.cos}
@@ -148,17 +149,8 @@ def term_name(instance: str, state: str, term: Term | str) -> str:
 
 def split(values: Mapping[str, object]) -> tuple[dict[str, object], dict[DerivativeTerm, float]]:
     """A run's values: all others, and the derivative terms (only those with a coefficient other than 0)."""
-    plain: dict[str, object] = {}
-    terms: dict[DerivativeTerm, float] = {}
-    for name, value in values.items():
-        term = parse(name)
-        if term is None:
-            plain[name] = value
-        elif not isinstance(value, (int, float)) or isinstance(value, bool) or not np.isfinite(value):
-            raise DseError(f"{name}: a derivative term's coefficient is a finite number, not {value!r}")
-        elif float(value) != 0.0:
-            terms[term] = float(value)
-    return plain, terms
+    plain, terms = split_named(values, parse, "a derivative term's coefficient")
+    return plain, {term: value for term, value in terms.items() if value != 0.0}
 
 
 # ---- what an instance offers: its states and its real inputs ------------------------------------------------

@@ -31,6 +31,7 @@ from typing import Literal, Protocol
 import numpy as np
 
 from ..errors import DseError
+from .values import split_named
 
 Kind = Literal["delay", "lag", "gain", "offset"]
 NEUTRAL: dict[str, float] = {"delay": 0.0, "lag": 0.0, "gain": 1.0, "offset": 0.0}  # also the order applied
@@ -71,19 +72,11 @@ def effect_name(effect_id: str, target: str) -> str:
 
 def split(values: Mapping[str, object]) -> tuple[dict[str, object], dict[Effect, float]]:
     """A run's values: those for FMU variables, and the effects (only those away from neutral)."""
-    plain: dict[str, object] = {}
-    effects: dict[Effect, float] = {}
-    for name, value in values.items():
-        effect = parse(name)
-        if effect is None:
-            plain[name] = value
-        elif not isinstance(value, (int, float)) or isinstance(value, bool) or not np.isfinite(value):
-            raise DseError(f"{name}: an effect takes a finite number, not {value!r}")
-        elif effect.kind in ("delay", "lag") and value < 0:
-            raise DseError(f"{name}: a {effect.kind} cannot be negative ({value:g} s)")
-        elif float(value) != NEUTRAL[effect.kind]:
-            effects[effect] = float(value)
-    return plain, effects
+    plain, effects = split_named(values, parse, "an effect")
+    for effect, value in effects.items():
+        if effect.kind in ("delay", "lag") and value < 0:
+            raise DseError(f"{effect.name}: a {effect.kind} cannot be negative ({value:g} s)")
+    return plain, {effect: value for effect, value in effects.items() if value != NEUTRAL[effect.kind]}
 
 
 class Signal(Protocol):

@@ -7,18 +7,40 @@ the file format; names are checked against the FMUs when the values are used.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import math
+from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import TypeVar
 
 import yaml
 from pydantic import RootModel
 
+from ..errors import DseError
 from ..yamlfile import read_yaml
 from .variables import FiniteValue, Value
+
+K = TypeVar("K")
 
 
 class ValuesFile(RootModel[dict[str, FiniteValue]]):
     """``{instance.variable: value}``: numbers, booleans or strings, every number finite."""
+
+
+def split_named(values: Mapping[str, object], parse: Callable[[str], K | None], what: str
+                ) -> tuple[dict[str, object], dict[K, float]]:
+    """A run's values split by name: those ``parse`` reads as master-side parameters (signal effects,
+    derivative terms), each a finite number (``what`` names the kind in errors), and all the others."""
+    plain: dict[str, object] = {}
+    parsed: dict[K, float] = {}
+    for name, value in values.items():
+        key = parse(name)
+        if key is None:
+            plain[name] = value
+        elif not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
+            raise DseError(f"{name}: {what} is a finite number, not {value!r}")
+        else:
+            parsed[key] = float(value)
+    return plain, parsed
 
 
 def read_values(path: str | Path) -> dict[str, Value]:

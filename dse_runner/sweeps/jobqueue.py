@@ -20,6 +20,7 @@ import functools
 import logging
 import shutil
 import time
+from importlib import import_module
 from abc import abstractmethod
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -149,13 +150,10 @@ class JobQueueMaker(ClusterMaker):
 
     system: ClassVar[str]  # the batch system's name, for messages
     extra: ClassVar[str]  # the pip extra that installs dask-jobqueue for this kind
+    cluster_name: ClassVar[str]  # dask-jobqueue's cluster class for this system, imported when a sweep starts
 
     def __init__(self) -> None:
         self._keepers: dict[int, JobKeeper] = {}
-
-    @abstractmethod
-    def cluster_class(self) -> type:
-        """dask-jobqueue's cluster class for this system."""
 
     @abstractmethod
     def arguments(self, spec: Cluster, options: Any) -> dict[str, Any]:
@@ -163,7 +161,7 @@ class JobQueueMaker(ClusterMaker):
 
     def start(self, spec: Cluster, options: Any, security: Any) -> Any:
         try:
-            cls = self.cluster_class()
+            cls = getattr(import_module("dask_jobqueue"), self.cluster_name)
         except ImportError:
             raise DseError(f"cluster.kind {spec.kind} needs dask-jobqueue: "
                            f"pip install 'dse-runner[{self.extra}]'") from None
@@ -237,13 +235,7 @@ class Slurm(JobQueueMaker):
     """One Slurm job per ``slurm.cores`` single-threaded workers; the scheduler runs here (a login node)."""
 
     Options = SlurmOptions
-    system = "Slurm"
-    extra = "slurm"
-
-    def cluster_class(self) -> type:
-        from dask_jobqueue import SLURMCluster
-
-        return SLURMCluster
+    system, extra, cluster_name = "Slurm", "slurm", "SLURMCluster"
 
     def arguments(self, spec: Cluster, options: SlurmOptions) -> dict[str, Any]:
         return dict(cores=options.cores, processes=options.cores, memory=options.memory, queue=options.queue,
@@ -270,13 +262,7 @@ class HTCondor(JobQueueMaker):
     """One HTCondor job per ``htcondor.cores`` single-threaded workers; the scheduler runs here."""
 
     Options = HTCondorOptions
-    system = "HTCondor"
-    extra = "htcondor"
-
-    def cluster_class(self) -> type:
-        from dask_jobqueue import HTCondorCluster
-
-        return HTCondorCluster
+    system, extra, cluster_name = "HTCondor", "htcondor", "HTCondorCluster"
 
     def arguments(self, spec: Cluster, options: HTCondorOptions) -> dict[str, Any]:
         return dict(cores=options.cores, processes=options.cores, memory=options.memory, disk=options.disk,

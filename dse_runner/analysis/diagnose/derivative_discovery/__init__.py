@@ -81,12 +81,9 @@ class Discovered:
         return {name: found[name] for name in self.terms}
 
     @property
-    def held_out_before(self) -> float:
-        return self.baseline.cross_validated
-
-    @property
-    def held_out_after(self) -> float:
-        return self.candidate.cross_validated
+    def held_out(self) -> tuple[float, float]:
+        """Held-out error without the terms and with them, in noise floors."""
+        return self.baseline.cross_validated, self.candidate.cross_validated
 
     def effects(self) -> list[dict[str, Any]]:
         """One entry per corrected derivative: ``{"id": "discovered", "target": "msd.der(v)", "terms": {"x^3": -60.1},
@@ -104,9 +101,9 @@ class Discovered:
                 for target, names in targets.items()]
 
     def to_json(self) -> dict[str, Any]:
-        return {"effects": self.effects(), "held_out_before": self.held_out_before,
-                "held_out_after": self.held_out_after, "bic_before": self.baseline.bic,
-                "bic_after": self.candidate.bic, "proposed": self.proposal.terms,
+        before, after = self.held_out
+        return {"effects": self.effects(), "held_out_before": before, "held_out_after": after,
+                "bic_before": self.baseline.bic, "bic_after": self.candidate.bic, "proposed": self.proposal.terms,
                 "seconds": self.seconds}
 
 
