@@ -8,6 +8,7 @@ import pytest
 
 from dse_runner.analysis.diagnose import explain, signal_claims, signal_locate, signal_screen
 from dse_runner.analysis.diagnose.explain import Candidate
+from dse_runner.errors import DseError
 from dse_runner.simulation.scenario import Scenario, Series
 from dse_runner.sweeps.fit import FitResult
 
@@ -93,3 +94,14 @@ def test_look_alikes_are_told_apart_only_where_their_residuals_differ_by_more_th
     c = _candidate(("c",), {"r1": 2.0, "r2": 2.0})
     both = _candidate(("a", "b"), {"r1": 0.99, "r2": 0.99})  # more, not another explanation
     assert signal_claims.alike(a, [a, b, c, both]) == [b]
+
+
+def test_a_selection_keeps_only_the_named_effects_and_names_an_unknown_one():
+    from dse_runner.analysis.diagnose.signal_library import restricted
+
+    found = {"input_delay(msd.F)": "delay", "output_gain(msd.x)": "gain"}
+    assert restricted(found, ()) == found
+    assert restricted(found, ("output_gain(msd.x)",)) == {"output_gain(msd.x)": "gain"}
+    with pytest.raises(DseError, match=r"--hypothesis input_lag\(msd.F\): not a signal effect of this space; it has "
+                                       r"input_delay\(msd.F\), output_gain\(msd.x\)"):
+        restricted(found, ("input_lag(msd.F)",))

@@ -224,7 +224,7 @@ def hypotheses(space: Space, compared: Sequence[Compared]) -> dict[str, Hypothes
     return found
 
 
-def selected(found: dict[str, Hypothesis], only: Sequence[str]) -> dict[str, Hypothesis]:
+def restricted(found: dict[str, Hypothesis], only: Sequence[str]) -> dict[str, Hypothesis]:
     """The effects ``only`` names (all when it names none); an unknown name is an error listing them."""
     unknown = [name for name in only if name not in found]
     if unknown:
@@ -310,7 +310,7 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
     space = path if isinstance(path, Space) else load_space(path).with_overrides(output=out, address=address,
                                                                                  n_workers=n_workers)
     compared = compared_signals(space)
-    library = selected(hypotheses(space, compared), only)
+    library = restricted(hypotheses(space, compared), only)
     scenarios = tuple(s.name for s in space.scenarios)
     parts = explain.folds(space.scenarios, folds) if len(scenarios) > 1 else []
     with connect(space.spec.cluster, space.path.parent) as client:
