@@ -96,7 +96,7 @@ def test_a_variant_naming_an_unknown_variable_names_it(tmp_path):
     ({"ranking": {"objective": "max_error"}, "objectives": ["cross_track_error"]},
      r"ranking uses objective 'max_error', which 'objectives' does not list"),
     ({"search": {"strategy": "simulated_annealing"}},
-     r"unknown search strategy 'simulated_annealing': available are cmaes, exhaustive, genetic"),
+     r"unknown search strategy 'simulated_annealing': available are cmaes, exhaustive, fast, genetic"),
     ({"parameters": {"vehicle.mass": {"low": 1000, "high": 3000}}},
      r"search: exhaustive needs a list or a grid .* vehicle\.mass is an interval"),
     ({"search": {"strategy": "tpe", "n_startup": 3}},
