@@ -686,9 +686,9 @@ def diagnose(
     from ..analysis.diagnose import Request
     from ..analysis.diagnose import diagnose as run_diagnosis
 
-    request = Request(out=out, folds=folds, noise_factor=noise_factor, hypotheses=tuple(hypothesis or ()),
-                      discovery=discovery)
     try:
+        request = Request(out=out, folds=folds, noise_factor=noise_factor, hypotheses=tuple(hypothesis or ()),
+                          discovery=discovery)
         result = run_diagnosis(space, scenarios, request, lambda m: typer.echo(m, err=True), multimodel, workers,
                                scheduler)
     except DseError as e:

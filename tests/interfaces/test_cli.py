@@ -5,6 +5,7 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import pytest
 from conftest import MULTIMODEL, REPO, SCENARIOS, dse_runner, strict_loads
 
 
@@ -120,3 +121,12 @@ def test_sensitivity_errors_name_the_culprit(tmp_path, dask_scheduler):
                           parameters={"ishigami.x1": {"low": -1, "high": 1}, "ishigami.a": [7, "seven"]})
     done = dse_runner("submit", text, "--no-dashboard")
     assert done.returncode == 2 and "ishigami.a" in done.stderr
+
+
+@pytest.mark.parametrize("option, named", [(["--folds", "1"], "--folds 1: cross-validation needs 2 folds or more"),
+                                           (["--noise-factor", "0"], "--noise-factor 0.0: must be a positive number")])
+def test_diagnose_refuses_what_no_diagnosis_can_honour_in_one_line(tmp_path, option, named):
+    done = dse_runner("diagnose", "--space", str(REPO / "jobs" / "msd" / "space.yaml"), "--out", str(tmp_path), *option)
+    assert done.returncode == 2
+    (line,) = done.stderr.strip().splitlines()  # one line, no traceback
+    assert line.startswith(f"error: {named}"), done.stderr
