@@ -671,7 +671,8 @@ def diagnose(
     out: Annotated[Path, typer.Option(help="Folder for results, the new model and the report.")] = Path("out/diagnosis"),
     folds: Annotated[int, typer.Option(help="Cross-validation folds across runs.")] = 3,
     hypothesis: Annotated[list[str] | None, typer.Option(
-        "--hypothesis", help="Try only this hypothesis of a case's library (repeatable). Default: every one.")] = None,
+        "--hypothesis", help="Try only this hypothesis of the library that serves the space, e.g. wheel_slip or "
+                             "'input_delay(msd.F)' (repeatable). Default: every one.")] = None,
     noise_factor: Annotated[float, typer.Option(
         help="Held-out error above this many noise floors (estimated from the recordings alone) is a residual "
              "the library leaves unexplained: verdict partial or unexplained.")] = 2.0,

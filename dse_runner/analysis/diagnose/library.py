@@ -98,6 +98,8 @@ class HypothesisLibrary(ABC):
 
 def checked(library: HypothesisLibrary, space: Space, request: Request) -> HypothesisLibrary:
     """The library, once every ``--hypothesis`` is one it has: an unknown one is named before anything runs."""
+    if not request.hypotheses:  # nothing to check: listing them (reading the recordings) would be wasted
+        return library
     known = [h.id for h in library.hypotheses(space)]
     unknown = [h for h in request.hypotheses if known and h not in known]
     if unknown:
