@@ -37,7 +37,7 @@ from fmpy.fmi1 import FMICallException
 
 from ..errors import DseError
 from . import fmu as fmus
-from . import isolation, native
+from . import isolation, native, native_me
 from . import lifecycle as lifecycles
 from .build import resolve_fmu
 from .multimodel import MultiModel
@@ -86,10 +86,6 @@ class Plan:
     texts: dict[str, tuple[Variable, ...]]  # string outputs recorded, per instance
     links: tuple[Link, ...]
     defaults: tuple[float | None, float | None, float | None] = (None, None, None)  # one FMU's experiment
-
-    @functools.cached_property
-    def cosimulation_only(self) -> bool:
-        return all(i == "cs" for i in self.interfaces.values())
 
     @functools.cached_property
     def recorded(self) -> tuple[str, ...]:
@@ -492,7 +488,8 @@ def _run_here(runner: Runner, values: Mapping[str, Value], timeout: float | None
     names = plan.recorded
     instances = {name: fmus.acquire(name, fmus.load(path, plan.interfaces[name]))
                  for name, path in plan.fmu_paths.items()}
-    prepared = _prepare(plan, instances, runner.series, _native(plan, loop) and not runner.terms, runner.terms)
+    use_native = _native(loop) and not runner.terms and _integrable(plan, instances)
+    prepared = _prepare(plan, instances, runner.series, use_native, runner.terms)
     units, signals, program = prepared.units, prepared.signals, prepared.program
     texts = {v.ref: [] for vs in plan.texts.values() for v in vs}
     record = np.empty((len(times), len(names)))
@@ -547,13 +544,20 @@ def _run_here(runner: Runner, values: Mapping[str, Value], timeout: float | None
 LOOPS = ("native", "python")
 
 
-def _native(plan: Plan, loop: str | None) -> bool:
-    """Whether the C loop runs: asked for (or by default), built, and every instance co-simulation
-    (model exchange keeps FMPy's solvers, in the Python loop)."""
+def _native(loop: str | None) -> bool:
+    """Whether the C loop may run: asked for (or by default) and built."""
     loop = loop or os.environ.get("DSE_RUNNER_LOOP") or "native"
     if loop not in LOOPS:
         raise DseError(f"loop {loop!r}: expected one of {', '.join(LOOPS)} (DSE_RUNNER_LOOP)")
-    return loop == "native" and plan.cosimulation_only and native.library() is not None
+    return loop == "native" and native.library() is not None
+
+
+def _integrable(plan: Plan, instances: dict[str, fmus.Instance]) -> bool:
+    """Whether C integrates every model-exchange instance exactly as FMPy's solvers would (native_me.py):
+    a plan with one it cannot runs in the Python loop."""
+    settings = plan.multimodel.settings
+    return all(native_me.eligible(instance.fmu.description, settings(name).solver if settings(name) else "cvode")
+               for name, instance in instances.items() if plan.interfaces[name] == "me")
 
 
 @dataclass
@@ -585,10 +589,10 @@ def _prepare(plan: Plan, instances: dict[str, fmus.Instance], series: dict[str, 
     sources = {ref: i for i, ref in enumerate(names)}
     sources.update({ref: len(names) + j for j, ref in enumerate(series)})
     signals = np.zeros(len(names) + len(series))
-    units = _units(plan, instances, signals, sources, series, terms or {})
+    units = _units(plan, instances, signals, sources, series, terms or {}, use_native)
     prepared = _Prepared(plan, chosen, units, signals,
                          native.Program(units, signals, len(names)) if use_native else None)
-    if use_native:  # model-exchange steppers hold an integrator's state: those are made anew each run
+    if use_native:  # the Python loop's model-exchange steppers hold FMPy's solver: those are made anew each run
         while len(_PREPARED) >= KEEP_PREPARED:
             _PREPARED.pop(next(iter(_PREPARED)))
         _PREPARED[key] = prepared
@@ -612,7 +616,8 @@ def _raise_where_stopped(outcome, program, units: list[_Unit], times: np.ndarray
         i, read = program.reads[outcome.group]
         raise units[i].fail(read.name, t)
     if code == native.STEP_FAILED:
-        raise units[outcome.unit].fail(units[outcome.unit].stepper.step_name, t)
+        step = units[outcome.unit].stepper
+        raise step.step_failure() or units[outcome.unit].fail(step.step_name, t)
     if code == native.TERMINATE:
         step = units[outcome.unit].stepper
         raise CosimError(step.instance.explain(f"the FMU asked to terminate the simulation at t={t:.6g}"), step.name)
@@ -654,9 +659,10 @@ def _time_grid(start: float, stop: float, step: float) -> np.ndarray:
 
 
 def _units(plan: Plan, instances: dict[str, fmus.Instance], signals: np.ndarray, sources: dict[str, int],
-           series: dict[str, np.ndarray], terms: Mapping[str, Mapping]) -> list[_Unit]:
-    """Every instance's stepper with its prepared reads and feeds (and, model exchange, its derivative terms)."""
-    steppers = {name: stepper(instance, plan.multimodel.settings(name), terms.get(name))
+           series: dict[str, np.ndarray], terms: Mapping[str, Mapping], use_native: bool = False) -> list[_Unit]:
+    """Every instance's stepper with its prepared reads and feeds (and, model exchange, its derivative terms,
+    or with ``use_native`` its integrator in C)."""
+    steppers = {name: stepper(instance, plan.multimodel.settings(name), terms.get(name), use_native)
                 for name, instance in instances.items()}
     feeds: dict[str, list[tuple[Variable, int, Conversion]]] = {name: [] for name in instances}
     for link in plan.links:

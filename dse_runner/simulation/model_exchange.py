@@ -117,12 +117,13 @@ class ModelExchangeStepper:
 
     def __init__(self, model: Any, description: Any, solver: str = "cvode",
                  tolerance: float | None = None, euler_step: float | None = None, set_stop_time: bool = True,
-                 corrector: Corrector | None = None):
+                 corrector: Corrector | None = None, native: bool = False):
         """``model``: an instantiated fmpy FMU2Model or FMU3Model whose start values the
         caller has set; ``description``: its fmpy ModelDescription. ``tolerance`` is
         CVode's relative tolerance (FMPy's default 1e-5); ``euler_step`` the fixed
         Euler step (default: each communication step in one go); ``corrector`` the
-        derivative terms added to the FMU's derivatives (none: the FMU's own)."""
+        derivative terms added to the FMU's derivatives (none: the FMU's own); ``native``:
+        integrate in C (native_me.py), where the native loop steps the instance, not do_step."""
         if solver not in SOLVERS:
             raise ModelExchangeError(f"unknown ME solver {solver!r}: use one of {', '.join(SOLVERS)}")
         if euler_step is not None and not euler_step > 0:
@@ -145,6 +146,11 @@ class ModelExchangeStepper:
         self.corrector = corrector if corrector is not None and corrector.rows else None
         self._term_inputs: list[float] = []  # the inputs the terms read, held over the step as the FMU's are
         self._states = np.zeros(description.numberOfContinuousStates)
+        self.native = None
+        if native:
+            from .native_me import NativeIntegrator
+
+            self.native = NativeIntegrator(model, description, tolerance)
 
     # ---- life cycle -------------------------------------------------------
 
@@ -177,6 +183,9 @@ class ModelExchangeStepper:
             self.model.exitInitializationMode()
             self._update_discrete_states()
             self.model.enterContinuousTimeMode()
+            if self.native is not None:
+                self.native.start(self.time, self.stop, self.next_event)
+                return
             if self.corrector is not None and self.corrector.inputs:
                 self._term_inputs = self._read_term_inputs()
             self._solver = self._make_solver()
@@ -203,6 +212,8 @@ class ModelExchangeStepper:
         self.time = end
 
     def terminate(self) -> None:
+        if self.native is not None:
+            self.native.end()
         with self._reported("terminating"):
             self.model.terminate()
         self._solver = None

@@ -30,7 +30,7 @@ import numpy as np
 
 from .build import default_cache_dir
 
-SOURCE = Path(__file__).with_name("native_loop.c")
+SOURCES = (Path(__file__).with_name("native_loop.c"), Path(__file__).with_name("native_me.c"))  # native_me.py
 CFLAGS = ("-O3", "-std=c11", "-fPIC", "-shared")  # -O3: unswitches the loop's invariant branches
 
 # C type codes of native_loop.c, by the ctypes type a buffer holds (FMI 2's Integer and Boolean are int).
@@ -111,7 +111,7 @@ def _build(compiler: str, target: Path) -> None:
     target.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=target.parent) as work:
         partial = Path(work) / target.name
-        done = subprocess.run([compiler, *CFLAGS, "-o", str(partial), str(SOURCE), "-lm"],
+        done = subprocess.run([compiler, *CFLAGS, "-o", str(partial), *map(str, SOURCES), "-lm"],
                               capture_output=True, text=True, check=False)
         if done.returncode != 0:
             raise OSError(done.stderr.strip().splitlines()[-1] if done.stderr.strip() else "the compiler failed")
@@ -127,7 +127,7 @@ def library() -> ctypes.CDLL | None:
                       "slower on cheap FMUs", NativeLoopWarning, stacklevel=2)
         return None
     try:
-        digest = hashlib.sha256(SOURCE.read_bytes() + " ".join(CFLAGS).encode()).hexdigest()[:16]
+        digest = hashlib.sha256(b"".join(p.read_bytes() for p in SOURCES) + " ".join(CFLAGS).encode()).hexdigest()[:16]
         path = default_cache_dir().parent / "native" / f"loop-{digest}.so"
         if not path.is_file():
             _build(compiler, path)
@@ -140,6 +140,10 @@ def library() -> ctypes.CDLL | None:
     lib.dse_run.restype = ctypes.c_int
     lib.dse_free.argtypes = [ctypes.c_void_p]
     lib.dse_free.restype = None
+    lib.dse_me_start.argtypes = lib.dse_me_end.argtypes = [ctypes.c_void_p]
+    lib.dse_me_start.restype, lib.dse_me_end.restype = ctypes.c_int, None
+    lib.dse_me_step.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int]
+    lib.dse_me_step.restype = ctypes.c_int
     return lib
 
 
@@ -186,7 +190,8 @@ class Program:
     def __init__(self, units: list, signals: np.ndarray, n_recorded: int) -> None:
         self.units = units
         self.steps = (Unit * len(units))(*[
-            Unit(step=_address(u.stepper.call), component=u.stepper.before[0], version=u.stepper.fmi_version, unit=i)
+            Unit(step=_address(u.stepper.call), component=u.stepper.before[0], version=u.stepper.step_convention,
+                 unit=i)
             for i, u in enumerate(units)])
         self.feeds = [(i, f) for i, u in enumerate(units) for f in u.feeds]
         self.reads = [(i, r) for i, u in enumerate(units) for r in u.reads]
@@ -211,8 +216,9 @@ class Program:
                      unit=i, vr=variable.vr, target=index[id(target)], source=int(firsts[j]) + k)
             for j, (i, x) in enumerate(self.texts) for target, variable, k in x.feeds])
         self.signals = signals
-        # Without strings (whose first values Python keeps), the loop also sets the units up and ends them.
-        self.sets_up = not self.text_names
+        # Without strings (whose first values Python keeps) or model exchange (whose initialization Python
+        # does: model_exchange.py), the loop also sets the units up and ends them.
+        self.sets_up = not self.text_names and not any(u.stepper.integrates for u in units)
         self.lifecycle = (Lifecycle * len(units))(*[_lifecycle(u.stepper) for u in units]) if self.sets_up else None
         self.outcome = Outcome()
         self.value_groups: dict[tuple, Values | None] = {}  # the variables a run sets -> their groups (values_of)

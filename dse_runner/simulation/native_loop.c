@@ -456,7 +456,7 @@ int dse_loop(const Unit *units, int32_t n_units, const Group *feeds, int32_t n_f
         for (int32_t u = 0; u < n_units; u++) fmi3 |= units[u].version == 3;
         bool direct = n_feeds == 0;
         for (int32_t r = 0; r < n_reads; r++) direct &= reads[r].index == NULL;  /* float64, into the signals */
-        code = direct && n_units == 1 && n_reads == 1
+        code = direct && n_units == 1 && n_reads == 1 && units[0].version == reads[0].version  /* not an ME unit's */
             ? single_loop(units, reads, times, n_times, signals, n_recorded, record, seconds, &arena, out)
             : direct
             ? direct_loop(units, n_units, reads, n_reads, fmi3, times, n_times, signals, n_recorded, record, seconds,

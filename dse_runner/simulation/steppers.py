@@ -57,6 +57,8 @@ class Stepper:
 
     call: Callable[..., int]  # the step function: call(*before, t, h, *after) -> status
     fmi_version = 2  # the calling convention of its functions (the native loop calls them)
+    step_convention = 2  # that of ``call``: fmi2DoStep's or fmi3DoStep's shape
+    integrates = False  # the master integrates it (model exchange), and initialises it in Python
     before: tuple = ()
     after: tuple = ()
     step_name = "doStep"
@@ -116,6 +118,10 @@ class Stepper:
         """After a step that returned OK: a reason to stop, if the FMU gave one another way."""
         return None
 
+    def step_failure(self) -> Exception | None:
+        """Why the native loop's call of ``call`` failed, where the stepper knows more than its status."""
+        return None
+
     def terminate(self) -> None:
         self.instance.slave.terminate()
 
@@ -145,7 +151,7 @@ class CoSimulation2(Stepper):
 class CoSimulation3(Stepper):
     """FMI 3.0 co-simulation: typed access per type, and doStep reports a request to terminate."""
 
-    fmi_version = 3
+    fmi_version = step_convention = 3
 
     def __init__(self, instance: Instance, tolerance: float | None = None, set_stop_time: bool = True):
         super().__init__(instance, tolerance, set_stop_time)
@@ -173,10 +179,14 @@ class CoSimulation3(Stepper):
 
 
 class ModelExchange(Stepper):
-    """FMI 2.0 or 3.0 model exchange: each communication step is integrated by FMPy's solvers."""
+    """FMI 2.0 or 3.0 model exchange: each communication step is integrated by FMPy's solvers, or with
+    ``native`` by the same CVode in C (native_me.py), which the native loop steps like doStep."""
+
+    integrates = True
 
     def __init__(self, instance: Instance, tolerance: float | None = None, set_stop_time: bool = True,
-                 solver: str = "cvode", euler_step: float | None = None, terms: Mapping | None = None):
+                 solver: str = "cvode", euler_step: float | None = None, terms: Mapping | None = None,
+                 native: bool = False):
         super().__init__(instance, tolerance, set_stop_time)
         from .derivative_terms import Corrector
         from .model_exchange import ModelExchangeStepper
@@ -185,10 +195,13 @@ class ModelExchange(Stepper):
         self.integrator = ModelExchangeStepper(instance.slave, description, solver=solver,
                                                tolerance=tolerance, euler_step=euler_step,
                                                set_stop_time=set_stop_time,
-                                               corrector=Corrector.of(description, terms) if terms else None)
-        self.call = self._do_step
+                                               corrector=Corrector.of(description, terms) if terms else None,
+                                               native=native)
+        self.fmi_version = instance.fmu.version  # of its getters and setters; its step is ours
         self.step_name = "the integration"
         self._typed = CoSimulation2 if instance.fmu.version == 2 else CoSimulation3
+        c = self.integrator.native
+        self.call, self.before, self.after = (c.function, (c.address,), (1,)) if c else (self._do_step, (), ())
 
     def _do_step(self, t: float, h: float) -> int:
         self.integrator.do_step(t, h)  # raises ModelExchangeError with what went wrong
@@ -212,16 +225,20 @@ class ModelExchange(Stepper):
     def terminate(self) -> None:
         self.integrator.terminate()
 
+    def step_failure(self) -> Exception | None:
+        return self.integrator.native.failure() if self.integrator.native else None
 
-def stepper(instance: Instance, settings, terms: Mapping | None = None) -> Stepper:
+
+def stepper(instance: Instance, settings, terms: Mapping | None = None, native: bool = False) -> Stepper:
     """The stepper for an instance's FMI version and interface, with its multi-model settings; ``terms``:
-    derivative terms (derivative_terms.py) to add while integrating a model-exchange instance."""
+    derivative terms (derivative_terms.py) to add while integrating a model-exchange instance; ``native``:
+    a model-exchange instance is integrated in C, for the native loop (native_me.eligible says when)."""
     tolerance = settings.tolerance if settings is not None else None
     set_stop_time = settings.set_stop_time if settings is not None else True
     if instance.fmu.interface == "me":
         solver = settings.solver if settings is not None else "cvode"
         euler_step = settings.euler_step if settings is not None else None
-        return ModelExchange(instance, tolerance, set_stop_time, solver, euler_step, terms)
+        return ModelExchange(instance, tolerance, set_stop_time, solver, euler_step, terms, native)
     if terms:
         raise ValueError(f"instance {instance.name} is co-simulation: the master cannot add to its derivatives")
     return (CoSimulation2 if instance.fmu.version == 2 else CoSimulation3)(instance, tolerance, set_stop_time)

@@ -21,6 +21,7 @@ from dse_runner.simulation.build import build_fmu
 from dse_runner.simulation.model_exchange import ModelExchangeError, ModelExchangeStepper
 
 MSD = REPO / "jobs" / "msd" / "fmus" / "msd"
+BALL = REPO / "tests" / "fmus" / "ball"  # a bounce is a state event, a kick a time event
 TRUE = {"k": 14.0, "c": 0.8}  # not the defaults, so setting parameters is tested too
 STEP, STOP = 0.01, 5.0
 
@@ -157,83 +158,12 @@ def test_input_changes_restart_the_solver_like_fmpy_input_events(msd):
     assert ours[100:300].mean() > 0.1  # the force moved the mass (to oscillate about F / k = 0.14 m)
 
 
-# ---- events: a bouncing ball built here -------------------------------------
-
-BALL_C = """
-#include "me2.h"
-
-enum Real { H, V, DER_H, DER_V, G, E, KICK_TIME, KICK, KICKED, N_REALS };
-static const double DEFAULTS[N_REALS] = {1.0, 0.0, 0.0, 0.0, 9.81, 0.7, 0.9, 6.0, 0.0};
-static const fmi2ValueReference STATES[] = {H, V}, DERIVATIVES[] = {DER_H, DER_V};
-
-static int equations(MeInstance *m) {
-    m->r[DER_H] = m->r[V];
-    m->r[DER_V] = -m->r[G];
-    return 0;
-}
-
-static int indicators(MeInstance *m, double z[]) {
-    z[0] = m->r[H];
-    return 0;
-}
-
-/* A bounce is a state event; the upward kick at KICK_TIME is a time event. */
-static int update(MeInstance *m, MeEvent *e) {
-    double *r = m->r;
-    if (r[H] <= 0.0 && r[V] < 0.0) {
-        r[H] = 0.0;
-        r[V] = -r[E] * r[V];
-        e->states_changed = 1;
-    }
-    if (!r[KICKED] && m->time >= r[KICK_TIME] - 1e-12) {
-        r[V] += r[KICK];
-        r[KICKED] = 1.0;
-        e->states_changed = 1;
-    }
-    e->next_time_defined = !r[KICKED];
-    e->next_time = r[KICK_TIME];
-    return 0;
-}
-
-const MeInfo ME_MODEL = {
-    .guid = "{5c1f2a9e-0d7b-4e63-9a48-3b2e6f1d7c05}", .n_reals = N_REALS, .real_defaults = DEFAULTS,
-    .n_states = 2, .states = STATES, .derivatives = DERIVATIVES, .n_event_indicators = 1,
-    .equations = equations, .event_indicators = indicators, .event_update = update,
-};
-"""
-
-
-BALL_XML = """<?xml version="1.0" encoding="UTF-8"?>
-<fmiModelDescription fmiVersion="2.0" modelName="ball" guid="{5c1f2a9e-0d7b-4e63-9a48-3b2e6f1d7c05}"
-  numberOfEventIndicators="1">
-  <ModelExchange modelIdentifier="ball"/>
-  <ModelVariables>
-    <ScalarVariable name="h" valueReference="0" causality="output" variability="continuous" initial="calculated"><Real/></ScalarVariable>
-    <ScalarVariable name="v" valueReference="1" causality="output" variability="continuous" initial="calculated"><Real/></ScalarVariable>
-    <ScalarVariable name="der(h)" valueReference="2" causality="local" variability="continuous" initial="calculated"><Real derivative="1"/></ScalarVariable>
-    <ScalarVariable name="der(v)" valueReference="3" causality="local" variability="continuous" initial="calculated"><Real derivative="2"/></ScalarVariable>
-    <ScalarVariable name="g" valueReference="4" causality="parameter" variability="fixed" initial="exact"><Real start="9.81"/></ScalarVariable>
-    <ScalarVariable name="e" valueReference="5" causality="parameter" variability="fixed" initial="exact"><Real start="0.7"/></ScalarVariable>
-    <ScalarVariable name="kick_time" valueReference="6" causality="parameter" variability="fixed" initial="exact"><Real start="0.9"/></ScalarVariable>
-    <ScalarVariable name="kick" valueReference="7" causality="parameter" variability="fixed" initial="exact"><Real start="6"/></ScalarVariable>
-    <ScalarVariable name="kicked" valueReference="8" causality="local" variability="discrete" initial="calculated"><Real/></ScalarVariable>
-  </ModelVariables>
-  <ModelStructure>
-    <Outputs><Unknown index="1"/><Unknown index="2"/></Outputs>
-    <Derivatives><Unknown index="3"/><Unknown index="4"/></Derivatives>
-    <InitialUnknowns><Unknown index="1"/><Unknown index="2"/><Unknown index="3"/><Unknown index="4"/></InitialUnknowns>
-  </ModelStructure>
-</fmiModelDescription>
-"""
+# ---- events: a bouncing ball (tests/fmus/ball) -------------------------------
 
 
 @pytest.fixture(scope="module")
 def ball(tmp_path_factory):
-    source = tmp_path_factory.mktemp("fmus") / "ball"
-    source.mkdir()
-    (source / "model.c").write_text(BALL_C)
-    (source / "modelDescription.xml").write_text(BALL_XML)
-    path = build_fmu(source)
+    path = build_fmu(BALL)
     return SimpleNamespace(path=str(path), md=read_model_description(str(path)),
                            unzipped=extract(str(path), str(tmp_path_factory.mktemp("ball"))))
 

@@ -20,6 +20,7 @@ from conftest import MULTIMODEL, REPO, SCENARIOS, all_scenarios, sleeper_multimo
 from dse_runner.errors import DseError
 from dse_runner.simulation import cosim, native
 from dse_runner.simulation.build import build_fmu
+from dse_runner.simulation.multimodel import MultiModel
 from dse_runner.simulation.run import as_plan, simulate
 
 TYPES2, TYPES3 = REPO / "tests" / "fmus" / "types2", REPO / "tests" / "fmus" / "types3"
@@ -226,20 +227,81 @@ def test_without_a_compiler_the_python_loop_runs_after_one_notice(tmp_path, env,
     assert json.loads(without.stdout)["final"] == json.loads(built.stdout)["final"]
 
 
-def test_model_exchange_keeps_fmpys_solvers(tmp_path):
-    """A plan with a model-exchange instance runs in the Python loop, whatever is asked."""
-    msd = REPO / "jobs" / "msd" / "multimodel.yaml"
+MSD = REPO / "jobs" / "msd" / "multimodel.yaml"  # the msd (model exchange) under CVode at 1e-6
+BALL = REPO / "tests" / "fmus" / "ball"  # model exchange with a state event (bounces) and a time event (a kick)
+MSD3 = REPO / "tests" / "fmus" / "msd3"  # FMI 3.0 model exchange
+
+
+def python_loop_runs(monkeypatch) -> list:
+    """Calls of the Python loop from now on (the native loop runs when this stays empty)."""
     ran = []
     original = cosim._step_loop
+    monkeypatch.setattr(cosim, "_step_loop", lambda *a: ran.append(True) or original(*a))
+    return ran
 
-    def spy(*args):
-        ran.append(True)
-        return original(*args)
 
-    cosim._step_loop, saved = spy, cosim._step_loop
-    try:
-        simulate(msd, stop_time=1.0, step=0.05, loop="native")
-    finally:
-        cosim._step_loop = saved
-    assert ran == [True]
-    assert native.library() is not None
+def named(source: Path, folder: Path) -> Path:
+    """The FMU built from ``source``, as ``<folder>/<name>.fmu``: its instance is named for it."""
+    fmu = folder / f"{source.name}.fmu"
+    shutil.copyfile(build_fmu(source), fmu)
+    return fmu
+
+
+def force_scenario(folder: Path, target: str = "msd.F") -> Path:
+    """A force log with steps, held between its samples: each change is an input event for the solver."""
+    (folder / "force.csv").write_text("time,F\n0,0\n1,2\n2.5,-1\n3,0.5\n4,0\n")
+    scenario = folder / "pushed"
+    scenario.mkdir()
+    (scenario / "scenario.yaml").write_text(
+        f"name: pushed\ninputs:\n  {target}: {{csv: ../force.csv, interpolation: hold}}\n")
+    return scenario
+
+
+def test_model_exchange_integrated_in_c_is_bit_identical(tmp_path, monkeypatch):
+    """native_me.c against FMPy's CVodeSolver in the Python loop: input events, state and time events,
+    FMI 3.0, and a model-exchange instance fed by a co-simulation one."""
+    ran = python_loop_runs(monkeypatch)
+    pushed = both(MSD, force_scenario(tmp_path), {"msd.k": 14.0}, stop_time=5.0, step=0.05)
+    bounced = both(named(BALL, tmp_path), stop_time=2.0, step=0.01)
+    (tmp_path / "fmi3").mkdir()
+    fmi3 = both(named(MSD3, tmp_path), force_scenario(tmp_path / "fmi3", "msd3.F"), {"msd3.k": 14.0, "msd3.c": 0.8},
+                stop_time=5.0, step=0.01)
+    mixed = tmp_path / "mixed.json"
+    mixed.write_text(json.dumps({"fmus": {"source": str(TYPES2), "msd": str(REPO / "jobs" / "msd" / "fmus" / "msd")},
+                                 "connections": {"source.real_out": ["msd.F"]},
+                                 "instances": {"msd": {"interface": "me", "tolerance": 1e-6}}}))
+    fed = both(mixed, values={"source.real_in": 0.5, "source.real_gain": 1.0}, stop_time=3.0, step=0.1)
+    for python, ours in (pushed, bounced, fmi3, fed):
+        assert_identical(python, ours)
+    assert ran == [True] * 4  # once per pair: the Python loop ran the references only
+    assert np.ptp(pushed[1].trajectory.column("msd.x")[40:]) > 0.1  # the force moved the mass
+    h = bounced[1].trajectory.column("ball.h")
+    assert h.min() < 0.05 and h.max() > 1.1  # it bounced, and the kick sent it higher than it fell from
+    assert np.ptp(fed[1].trajectory.column("msd.x")) > 0.01
+
+
+def test_model_exchange_the_c_integrator_cannot_match_runs_in_python(monkeypatch):
+    """Forward Euler (FMPy's) and derivative terms (ours) are integrated in Python: a plan with either keeps
+    the Python loop; the same plan without them runs natively."""
+    ran = python_loop_runs(monkeypatch)
+    euler = MultiModel(fmus={"msd": str(REPO / "jobs" / "msd" / "fmus" / "msd")},
+                       instances={"msd": {"interface": "me", "solver": "euler"}})
+    simulate(euler, stop_time=1.0, step=0.05, loop="native")
+    simulate(MSD, values={"derivative_term(msd.der(v), x^3)": -1.0}, stop_time=1.0, step=0.05, loop="native")
+    assert ran == [True, True]
+    simulate(MSD, stop_time=1.0, step=0.05, loop="native")
+    assert ran == [True, True] and native.library() is not None
+
+
+def test_model_exchange_failing_inside_cvode_gives_the_same_message(tmp_path):
+    """An FMU that fails inside CVode's right-hand side (the ball falling up at 1.7e308 m/s² overflows its
+    derivatives) and one that fails reading back a changed input (a force of 1.7e308 N): both loops say which
+    call failed, and when."""
+    messages = failures(named(BALL, tmp_path), values={"ball.g": -1.7e308}, stop_time=3.0, step=0.05)
+    assert messages[0] == messages[1]
+    assert messages[1] == "fmi2GetDerivatives failed with status 3 (error) while integrating from t=0 to t=0.05"
+    (tmp_path / "force.csv").write_text("time,F\n0,0\n1,1.7e308\n")
+    (tmp_path / "pushed").mkdir()
+    (tmp_path / "pushed" / "scenario.yaml").write_text("name: pushed\ninputs:\n  msd.F: {csv: ../force.csv, interpolation: hold}\n")
+    messages = failures(MSD, tmp_path / "pushed", {"msd.m": 0.5}, stop_time=2.0, step=0.05)
+    assert messages[0] == messages[1] == "handling an input change at t=1: fmi2GetReal failed with status 3 (error)"

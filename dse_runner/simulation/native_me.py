@@ -1,0 +1,185 @@
+"""A model-exchange instance integrated in C (native_me.c), so that the native loop steps it like any FMU.
+
+model_exchange.py integrates with FMPy's CVodeSolver, whose right-hand side is a Python callback: with
+a cheap FMU that callback costs several times the model. native_me.c makes the same SUNDIALS calls
+(the libraries FMPy ships, whose functions this module hands over) with the same options, and the same
+FMU calls in the same order, so a run is bit-identical to the Python one; ModelExchangeStepper still
+sets the instance up, initialises and terminates it, and words every failure here as it does its own.
+
+It takes the plans it can match exactly: CVode (Euler stays in Python), no derivative terms, and inputs
+that are numbers (an input change is seen by reading the inputs back and comparing them).
+"""
+
+from __future__ import annotations
+
+import ctypes
+from functools import cache
+from typing import Any
+
+from .model_exchange import DEFAULT_TOLERANCE, ModelExchangeError, _input_groups
+from .native import library
+
+# native_me.c's FMU functions (its enum), by FMI version: FMPy's names, which its messages use.
+FUNCTIONS = {
+    2: ("fmi2SetTime", "fmi2SetContinuousStates", "fmi2GetContinuousStates", "fmi2GetDerivatives",
+        "fmi2GetEventIndicators", "fmi2GetNominalsOfContinuousStates", "fmi2CompletedIntegratorStep",
+        "fmi2EnterEventMode", "fmi2NewDiscreteStates", "fmi2EnterContinuousTimeMode"),
+    3: ("fmi3SetTime", "fmi3SetContinuousStates", "fmi3GetContinuousStates", "fmi3GetContinuousStateDerivatives",
+        "fmi3GetEventIndicators", "fmi3GetNominalsOfContinuousStates", "fmi3CompletedIntegratorStep",
+        "fmi3EnterEventMode", "fmi3UpdateDiscreteStates", "fmi3EnterContinuousTimeMode"),
+}
+# The C type an input getter fills (model_exchange._input_groups names FMPy's getters), and whether its
+# values compare as numbers; a getter not here (strings) keeps the instance in Python.
+GETTERS = {
+    2: {"getReal": (ctypes.c_double, True), "getInteger": (ctypes.c_int, False), "getBoolean": (ctypes.c_int, False)},
+    3: {"getFloat64": (ctypes.c_double, True), "getFloat32": (ctypes.c_float, True), "getBoolean": (ctypes.c_bool, False),
+        **{f"get{t}": (getattr(ctypes, f"c_{t.lower()}"), False)
+           for t in ("Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64")}},
+}
+(OK, FMU_CALL, CALLBACK_CALL, SOLVER, TERMINATE_ASKED, UNSETTLED, OFF_GRID, BAD_STEP, NO_MEMORY) = range(9)
+STAGES = ("exiting initialization mode", "handling an input change", "integrating", "completing an integrator step")
+INTEGRATING = 2
+# The SUNDIALS functions native_me.c calls, in its Sundials structure's order.
+SUNDIALS = ("SUNContext_Create", "SUNContext_Free", "SUNContext_PushErrHandler", "N_VNew_Serial", "N_VDestroy_Serial",
+            "N_VGetArrayPointer", "CVodeCreate", "CVodeInit", "CVodeSVtolerances", "CVodeRootInit", "SUNDenseMatrix",
+            "SUNLinSol_Dense", "CVodeSetLinearSolver", "CVodeSetMaxStep", "CVodeSetMaxNumSteps",
+            "CVodeSetNoInactiveRootWarn", "CVodeSetUserData", "CVode", "CVodeReInit", "CVodeFree", "SUNLinSolFree",
+            "SUNMatDestroy")
+
+
+class Sundials(ctypes.Structure):
+    _fields_ = [(name, ctypes.c_void_p) for name in SUNDIALS]
+
+
+class Inputs(ctypes.Structure):
+    _fields_ = [("fn", ctypes.c_void_p), ("n", ctypes.c_int64), ("vrs", ctypes.c_void_p), ("now", ctypes.c_void_p),
+                ("before", ctypes.c_void_p), ("size", ctypes.c_int32), ("floating", ctypes.c_int32)]
+
+
+class Failure(ctypes.Structure):
+    _fields_ = [("code", ctypes.c_int32), ("stage", ctypes.c_int32), ("function", ctypes.c_int32),
+                ("status", ctypes.c_int32), ("start", ctypes.c_double), ("to", ctypes.c_double),
+                ("solver_code", ctypes.c_int32), ("solver_module", ctypes.c_char * 64),
+                ("solver_file", ctypes.c_char * 64), ("solver_message", ctypes.c_char * 256)]
+
+
+class Unit(ctypes.Structure):
+    _fields_ = [("sun", ctypes.c_void_p), ("fn", ctypes.c_void_p * len(FUNCTIONS[2])), ("component", ctypes.c_void_p),
+                ("inputs", ctypes.c_void_p), ("n_inputs", ctypes.c_int32), ("version", ctypes.c_int32),
+                ("needs_completed", ctypes.c_int32), ("discrete", ctypes.c_int32), ("nx", ctypes.c_int64),
+                ("nz", ctypes.c_int64), ("tolerance", ctypes.c_double), ("max_step", ctypes.c_double),
+                ("time", ctypes.c_double), ("next_event", ctypes.c_double), ("next_defined", ctypes.c_int32),
+                ("context", ctypes.c_void_p), ("memory", ctypes.c_void_p), ("x", ctypes.c_void_p),
+                ("abstol", ctypes.c_void_p), ("matrix", ctypes.c_void_p), ("solver", ctypes.c_void_p),
+                ("failure", Failure), ("has_error", ctypes.c_bool)]
+
+
+def _address(function: Any) -> int:
+    return ctypes.cast(function, ctypes.c_void_p).value
+
+
+@cache
+def _sundials() -> Sundials | None:
+    """FMPy's SUNDIALS functions, or None where FMPy ships no build (model exchange then stays in Python)."""
+    try:
+        from fmpy.sundials import libraries
+    except (ImportError, OSError):
+        return None
+    libs = [libraries.sundials_core, libraries.sundials_nvecserial, libraries.sundials_sunmatrixdense,
+            libraries.sundials_sunlinsoldense, libraries.sundials_cvode]
+
+    def found(name: str) -> int | None:
+        return next((_address(getattr(lib, name)) for lib in libs if hasattr(lib, name)), None)
+
+    addresses = {name: found(name) for name in SUNDIALS}
+    return None if None in addresses.values() else Sundials(**addresses)
+
+
+def _inputs(description: Any, version: int) -> list[tuple[str, list[int], Any, bool]] | None:
+    """The inputs' groups as model_exchange reads them back, with their C types; None if one cannot be
+    compared in C (a string, an array, a clock)."""
+    groups = _input_groups(description)
+    if groups is None or any(getter not in GETTERS[version] for getter, _ in groups):
+        return None
+    return [(getter, vrs, *GETTERS[version][getter]) for getter, vrs in groups]
+
+
+def eligible(description: Any, solver: str) -> bool:
+    """Whether native_me.c integrates this ME instance exactly as model_exchange.py would (without derivative
+    terms, which only Python adds)."""
+    version = 3 if description.fmiVersion.startswith("3.") else 2
+    return solver == "cvode" and _inputs(description, version) is not None and _sundials() is not None
+
+
+class NativeIntegrator:
+    """One ME instance's C integrator: its functions and buffers, laid out once and started every run."""
+
+    def __init__(self, model: Any, description: Any, tolerance: float | None) -> None:
+        self.version = 3 if description.fmiVersion.startswith("3.") else 2
+        self.description = description
+        dll, prefix = model.dll, f"fmi{self.version}"
+        self.groups = _inputs(description, self.version)
+        self._buffers = []  # kept alive while C points at them
+        inputs = []
+        for getter, vrs, ctype, floating in self.groups:
+            n = len(vrs)
+            held = [(ctypes.c_uint32 * n)(*vrs), (ctype * n)(), (ctype * n)()]
+            self._buffers.append(held)
+            inputs.append(Inputs(fn=_address(getattr(dll, prefix + getter[0].upper() + getter[1:])), n=n,
+                                 vrs=ctypes.addressof(held[0]), now=ctypes.addressof(held[1]),
+                                 before=ctypes.addressof(held[2]), size=ctypes.sizeof(ctype), floating=floating))
+        self.inputs = (Inputs * len(inputs))(*inputs)
+        self.sundials = _sundials()
+        states = description.numberOfContinuousStates
+        self.unit = Unit(sun=ctypes.addressof(self.sundials), component=model.component,
+                         inputs=ctypes.addressof(self.inputs), n_inputs=len(inputs), version=self.version,
+                         needs_completed=bool(description.modelExchange.needsCompletedIntegratorStep),
+                         discrete=states == 0, nx=max(states, 1), nz=description.numberOfEventIndicators,
+                         tolerance=tolerance or DEFAULT_TOLERANCE)
+        for i, name in enumerate(FUNCTIONS[self.version]):
+            self.unit.fn[i] = _address(getattr(dll, name))
+        self.address = ctypes.addressof(self.unit)
+        self.function = library().dse_me_step  # the unit's step, in fmi2DoStep's shape
+
+    def start(self, time: float, stop: float, next_event: float | None) -> None:
+        """A new solver at ``time`` after initialization (the old one freed), as _make_solver builds it."""
+        unit = self.unit
+        unit.time, unit.max_step = time, (stop - time) / 50.0
+        unit.next_defined, unit.next_event = next_event is not None, next_event or 0.0
+        if library().dse_me_start(self.address) != 0:
+            raise self.failure()
+
+    def end(self) -> None:
+        library().dse_me_end(self.address)
+
+    def failure(self) -> ModelExchangeError:
+        """What went wrong in C, worded as ModelExchangeStepper words it."""
+        f = self.unit.failure
+        functions = FUNCTIONS[self.version]
+        name = (functions[f.function] if f.function < len(functions)
+                else f"fmi{self.version}G{self.groups[f.function - len(functions)][0][1:]}")
+        called = _fmu_failure(name, f.status)
+        if f.code in (TERMINATE_ASKED, UNSETTLED, OFF_GRID, BAD_STEP):
+            return ModelExchangeError({
+                TERMINATE_ASKED: f"the FMU requested termination at t={f.start:.9g}",
+                UNSETTLED: f"the event iteration at t={f.start:.9g} did not settle in 1000 rounds",
+                OFF_GRID: f"do_step at t={f.to:.9g} but the instance is at t={f.start:.9g}",
+                BAD_STEP: f"communication step must be > 0, got {f.to} at t={f.start:.9g}"}[f.code])
+        if f.code == CALLBACK_CALL:
+            return ModelExchangeError(f"{called} while integrating from t={f.start:.9g} to t={f.to:.9g}")
+        if f.code == SOLVER and f.stage == INTEGRATING:
+            reason = (f"CVode error (code {f.solver_code}) in module {f.solver_module.decode()}, function "
+                      f"{f.solver_file.decode()}: {f.solver_message.decode()}")
+        else:
+            reason = {SOLVER: "Call to CVode failed", NO_MEMORY: "out of memory"}.get(f.code, called)
+        reason = " ".join(reason.split()).rstrip(".")
+        if f.stage == INTEGRATING:
+            return ModelExchangeError(f"the cvode solver failed between t={f.start:.9g} and t={f.to:.9g}: {reason}")
+        return ModelExchangeError(f"{STAGES[f.stage]} at t={f.start:.9g}: {reason}")
+
+
+def _fmu_failure(function: str, status: int) -> str:
+    """FMPy's words for a failed call, without the full stop (model_exchange._reason)."""
+    from fmpy.fmi1 import FMICallException
+
+    return str(FMICallException(function=function, status=status)).rstrip(".")
