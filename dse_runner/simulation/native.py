@@ -9,8 +9,9 @@ module its prepared reads and feeds.
 
 The library is compiled with the system C compiler on first use and cached by
 a hash of its source, as our FMUs are (build.py). Without a compiler the
-Python loop runs instead, after a one-line notice. Model-exchange instances
-keep FMPy's solvers, so a plan with one runs in the Python loop.
+Python loop runs instead, after a one-line notice. A model-exchange instance
+under CVode is integrated in C too (native_me.py) and stepped here like any
+FMU; one under Euler or with derivative terms keeps the plan in the Python loop.
 """
 
 from __future__ import annotations
