@@ -488,7 +488,7 @@ def _run_here(runner: Runner, values: Mapping[str, Value], timeout: float | None
     names = plan.recorded
     instances = {name: fmus.acquire(name, fmus.load(path, plan.interfaces[name]))
                  for name, path in plan.fmu_paths.items()}
-    use_native = _native(loop) and not runner.terms and _integrable(plan, instances)
+    use_native = _native(loop) and _integrable(plan, instances)
     prepared = _prepare(plan, instances, runner.series, use_native, runner.terms)
     units, signals, program = prepared.units, prepared.signals, prepared.program
     texts = {v.ref: [] for vs in plan.texts.values() for v in vs}
@@ -578,18 +578,24 @@ KEEP_PREPARED = 16  # plans x instance sets a process keeps laid out
 def _prepare(plan: Plan, instances: dict[str, fmus.Instance], series: dict[str, np.ndarray],
              use_native: bool, terms: Mapping[str, Mapping] | None = None) -> _Prepared:
     """The units of this plan and these instances: laid out once for the native loop and reused while
-    the instances are (a sweep runs one plan thousands of times), so a cheap run costs little Python."""
+    the instances are (a sweep runs one plan thousands of times), so a cheap run costs little Python. With
+    derivative terms, the same terms (a fit's runs) reuse the layout with this run's coefficients."""
     chosen = tuple(instances.values())
-    key = (id(plan), tuple(map(id, chosen)), tuple(series), use_native)
+    terms = terms or {}
+    shape = tuple((name, tuple(t.name for t in ts)) for name, ts in terms.items())
+    key = (id(plan), tuple(map(id, chosen)), tuple(series), use_native, shape)
     kept = _PREPARED.get(key)
     if kept is not None and kept.plan is plan and kept.instances == chosen:  # instances compare by identity
         kept.signals.fill(0.0)
+        for unit in kept.units:
+            if unit.stepper.name in terms:
+                unit.stepper.use_terms(terms[unit.stepper.name])
         return kept
     names = plan.recorded
     sources = {ref: i for i, ref in enumerate(names)}
     sources.update({ref: len(names) + j for j, ref in enumerate(series)})
     signals = np.zeros(len(names) + len(series))
-    units = _units(plan, instances, signals, sources, series, terms or {}, use_native)
+    units = _units(plan, instances, signals, sources, series, terms, use_native)
     prepared = _Prepared(plan, chosen, units, signals,
                          native.Program(units, signals, len(names)) if use_native else None)
     if use_native:  # the Python loop's model-exchange steppers hold FMPy's solver: those are made anew each run

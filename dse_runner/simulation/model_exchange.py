@@ -150,7 +150,13 @@ class ModelExchangeStepper:
         if native:
             from .native_me import NativeIntegrator
 
-            self.native = NativeIntegrator(model, description, tolerance)
+            self.native = NativeIntegrator(model, description, tolerance, self.corrector)
+
+    def use_coefficients(self, corrector: Corrector) -> None:
+        """Other coefficients for the same terms, for the next run (a fit changes only those)."""
+        self.corrector = corrector
+        if self.native is not None:
+            self.native.coefficients(corrector)
 
     # ---- life cycle -------------------------------------------------------
 

@@ -13,6 +13,9 @@
  * returns 3 (fmi2Error) when something failed, and records what in the unit (Failure) for Python to
  * word as ModelExchangeStepper would. No FMI or SUNDIALS header is needed: only their calling
  * conventions are used.
+ *
+ * Derivative terms (derivative_terms.py) are added to the FMU's derivatives in the right-hand side as
+ * Corrector.add adds them, factor by factor in the same order with the same libm functions.
  */
 #include <math.h>
 #include <stdbool.h>
@@ -84,6 +87,19 @@ typedef struct {          /* one group of inputs, read back to see whether the m
     int32_t floating;     /* compared as numbers (0.0 == -0.0, NaN != NaN), as Python compares them */
 } Inputs;
 
+typedef struct {          /* one factor of a term: function(value / width) ^ power */
+    int32_t input;        /* the value is the term inputs' [index], else the states' */
+    int32_t index;
+    int32_t function;     /* 0: none, then derivative_terms.FUNCTIONS' order: abs, tanh, sin, cos */
+    int32_t power;
+    double width;
+} Factor;
+
+typedef struct {          /* der(states[state]) += coefficient * the product of its factors */
+    int32_t state, first, n;
+    double coefficient;
+} Term;
+
 typedef struct {
     int32_t code, stage, function, status;
     double from, to;      /* INTEGRATING: the step the solver was asked for; else from is the time */
@@ -96,7 +112,11 @@ typedef struct {
     void *fn[N_FUNCTIONS];
     void *component;
     const Inputs *inputs;
-    int32_t n_inputs, version, needs_completed, discrete;
+    const Term *terms;
+    const Factor *factors;
+    const Inputs *term_inputs;  /* the real inputs the terms read (now: their values); NULL: none */
+    double *term_states;        /* the states, read back for the terms */
+    int32_t n_terms, n_inputs, version, needs_completed, discrete;
     int64_t nx, nz;       /* nx as the solver sees it: a dummy state when the FMU has none */
     double tolerance, max_step;
     double time, next_event;
@@ -128,6 +148,40 @@ static int vector(ModelExchangeUnit *m, int function, double *values, size_t n) 
     return ((VectorFn)m->fn[function])(m->component, values, n);
 }
 
+static double factor(const Factor *f, const double *states, const double *inputs) {
+    double v = f->input ? inputs[f->index] : states[f->index];
+    if (f->function) {
+        double x = f->width != 1.0 ? v / f->width : v;
+        v = f->function == 1 ? fabs(x) : f->function == 2 ? tanh(x) : f->function == 3 ? sin(x) : cos(x);
+    }
+    return f->power == 1 ? v : pow(v, (double)f->power);
+}
+
+/* Corrector.add: the terms at the states the FMU holds, and the inputs read at the step's start. */
+static int add_terms(ModelExchangeUnit *m, double *dx) {
+    int status = vector(m, GET_STATES, m->term_states, (size_t)m->nx);
+    if (status > FMI_WARNING) return fail(m, CALLBACK_CALL, INTEGRATING, GET_STATES, status), -1;
+    const double *inputs = m->term_inputs ? (const double *)m->term_inputs->now : NULL;
+    for (int32_t i = 0; i < m->n_terms; i++) {
+        const Term *term = &m->terms[i];
+        double product = 1.0;
+        for (int32_t j = term->first; j < term->first + term->n; j++)
+            product = product * factor(&m->factors[j], m->term_states, inputs);
+        dx[term->state] += term->coefficient * product;
+    }
+    return 0;
+}
+
+/* The term inputs' values, held over the step as the FMU's inputs are. */
+static int read_term_inputs(ModelExchangeUnit *m, int stage) {
+    const Inputs *in = m->term_inputs;
+    if (!in) return 0;
+    size_t n = (size_t)in->n;
+    int status = m->version == 3 ? ((Get3)in->fn)(m->component, in->vrs, n, in->now, n)
+                                 : ((Get2)in->fn)(m->component, in->vrs, n, in->now);
+    return status > FMI_WARNING ? fail(m, FMU_CALL, stage, N_FUNCTIONS + m->n_inputs, status) : 0;
+}
+
 /* FMPy's CVodeSolver.f through model_exchange's guard: a failed FMU call makes CVode stop (-1). */
 static int rhs(double t, void *y, void *ydot, void *data) {
     ModelExchangeUnit *m = data;
@@ -139,7 +193,7 @@ static int rhs(double t, void *y, void *ydot, void *data) {
         return fail(m, CALLBACK_CALL, INTEGRATING, SET_STATES, status), -1;
     if ((status = vector(m, GET_DERIVATIVES, dx, (size_t)m->nx)) > FMI_WARNING)
         return fail(m, CALLBACK_CALL, INTEGRATING, GET_DERIVATIVES, status), -1;
-    return 0;
+    return m->n_terms ? add_terms(m, dx) : 0;
 }
 
 /* CVodeSolver.g: the event indicators at the solver's states. */
@@ -314,6 +368,7 @@ int dse_me_start(ModelExchangeUnit *m) {
     free_solver(m);
     memset(&m->failure, 0, sizeof m->failure);
     m->has_error = false;
+    if (read_term_inputs(m, STARTING)) return FMI_ERROR;
     if (s->context_create(0, &m->context) != 0) return fail(m, NO_MEMORY, STARTING, 0, 0);
     m->x = s->new_serial(m->nx, m->context);
     m->abstol = s->new_serial(m->nx, m->context);
@@ -365,6 +420,7 @@ int dse_me_step(void *unit, double t, double h, int no_set_prior) {
     if (read_inputs(m, INPUT_CHANGE, &changed)) return FMI_ERROR;
     if (changed && event_iteration(m, INPUT_CHANGE)) return FMI_ERROR;
     keep_inputs(m);
+    if (read_term_inputs(m, INPUT_CHANGE)) return FMI_ERROR;
     while (m->time < end && !isclose(m->time, end))
         if (advance(m, end)) return FMI_ERROR;
     m->time = end;

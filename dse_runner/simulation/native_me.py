@@ -6,8 +6,9 @@ a cheap FMU that callback costs several times the model. native_me.c makes the s
 FMU calls in the same order, so a run is bit-identical to the Python one; ModelExchangeStepper still
 sets the instance up, initialises and terminates it, and words every failure here as it does its own.
 
-It takes the plans it can match exactly: CVode (Euler stays in Python), no derivative terms, and inputs
-that are numbers (an input change is seen by reading the inputs back and comparing them).
+It takes the instances it can match exactly: under CVode (Euler stays in Python), with inputs that are
+numbers (an input change is seen by reading the inputs back and comparing them); derivative terms
+(derivative_terms.py) are added in C as Corrector.add adds them.
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ import ctypes
 from functools import cache
 from typing import Any
 
+from .derivative_terms import FUNCTIONS as TERM_FUNCTIONS
+from .derivative_terms import Corrector
 from .model_exchange import DEFAULT_TOLERANCE, ModelExchangeError, _input_groups
 from .native import library
 
@@ -56,6 +59,16 @@ class Inputs(ctypes.Structure):
                 ("before", ctypes.c_void_p), ("size", ctypes.c_int32), ("floating", ctypes.c_int32)]
 
 
+class Factor(ctypes.Structure):
+    _fields_ = [("input", ctypes.c_int32), ("index", ctypes.c_int32), ("function", ctypes.c_int32),
+                ("power", ctypes.c_int32), ("width", ctypes.c_double)]
+
+
+class Term(ctypes.Structure):
+    _fields_ = [("state", ctypes.c_int32), ("first", ctypes.c_int32), ("n", ctypes.c_int32),
+                ("coefficient", ctypes.c_double)]
+
+
 class Failure(ctypes.Structure):
     _fields_ = [("code", ctypes.c_int32), ("stage", ctypes.c_int32), ("function", ctypes.c_int32),
                 ("status", ctypes.c_int32), ("start", ctypes.c_double), ("to", ctypes.c_double),
@@ -65,7 +78,9 @@ class Failure(ctypes.Structure):
 
 class Unit(ctypes.Structure):
     _fields_ = [("sun", ctypes.c_void_p), ("fn", ctypes.c_void_p * len(FUNCTIONS[2])), ("component", ctypes.c_void_p),
-                ("inputs", ctypes.c_void_p), ("n_inputs", ctypes.c_int32), ("version", ctypes.c_int32),
+                ("inputs", ctypes.c_void_p), ("terms", ctypes.c_void_p), ("factors", ctypes.c_void_p),
+                ("term_inputs", ctypes.c_void_p), ("term_states", ctypes.c_void_p), ("n_terms", ctypes.c_int32),
+                ("n_inputs", ctypes.c_int32), ("version", ctypes.c_int32),
                 ("needs_completed", ctypes.c_int32), ("discrete", ctypes.c_int32), ("nx", ctypes.c_int64),
                 ("nz", ctypes.c_int64), ("tolerance", ctypes.c_double), ("max_step", ctypes.c_double),
                 ("time", ctypes.c_double), ("next_event", ctypes.c_double), ("next_defined", ctypes.c_int32),
@@ -105,8 +120,7 @@ def _inputs(description: Any, version: int) -> list[tuple[str, list[int], Any, b
 
 
 def eligible(description: Any, solver: str) -> bool:
-    """Whether native_me.c integrates this ME instance exactly as model_exchange.py would (without derivative
-    terms, which only Python adds)."""
+    """Whether native_me.c integrates this ME instance exactly as model_exchange.py would."""
     version = 3 if description.fmiVersion.startswith("3.") else 2
     return solver == "cvode" and _inputs(description, version) is not None and _sundials() is not None
 
@@ -114,20 +128,15 @@ def eligible(description: Any, solver: str) -> bool:
 class NativeIntegrator:
     """One ME instance's C integrator: its functions and buffers, laid out once and started every run."""
 
-    def __init__(self, model: Any, description: Any, tolerance: float | None) -> None:
+    def __init__(self, model: Any, description: Any, tolerance: float | None,
+                 corrector: Corrector | None = None) -> None:
         self.version = 3 if description.fmiVersion.startswith("3.") else 2
         self.description = description
-        dll, prefix = model.dll, f"fmi{self.version}"
-        self.groups = _inputs(description, self.version)
-        self._buffers = []  # kept alive while C points at them
-        inputs = []
-        for getter, vrs, ctype, floating in self.groups:
-            n = len(vrs)
-            held = [(ctypes.c_uint32 * n)(*vrs), (ctype * n)(), (ctype * n)()]
-            self._buffers.append(held)
-            inputs.append(Inputs(fn=_address(getattr(dll, prefix + getter[0].upper() + getter[1:])), n=n,
-                                 vrs=ctypes.addressof(held[0]), now=ctypes.addressof(held[1]),
-                                 before=ctypes.addressof(held[2]), size=ctypes.sizeof(ctype), floating=floating))
+        self.dll, prefix = model.dll, f"fmi{self.version}"
+        self.getters = [prefix + "G" + getter[1:] for getter, *_ in _inputs(description, self.version)]
+        self._buffers: list = []  # kept alive while C points at them
+        inputs = [self._inputs(name, vrs, ctype, floating)
+                  for name, (_, vrs, ctype, floating) in zip(self.getters, _inputs(description, self.version))]
         self.inputs = (Inputs * len(inputs))(*inputs)
         self.sundials = _sundials()
         states = description.numberOfContinuousStates
@@ -137,9 +146,46 @@ class NativeIntegrator:
                          discrete=states == 0, nx=max(states, 1), nz=description.numberOfEventIndicators,
                          tolerance=tolerance or DEFAULT_TOLERANCE)
         for i, name in enumerate(FUNCTIONS[self.version]):
-            self.unit.fn[i] = _address(getattr(dll, name))
+            self.unit.fn[i] = _address(getattr(self.dll, name))
         self.address = ctypes.addressof(self.unit)
         self.function = library().dse_me_step  # the unit's step, in fmi2DoStep's shape
+        if corrector is not None:
+            self._terms(corrector, states)
+
+    def _inputs(self, getter: str, vrs: list[int], ctype: Any, floating: bool = True) -> Inputs:
+        """A group of inputs read back through ``getter``, with buffers for this step's and the last values."""
+        n = len(vrs)
+        held = [(ctypes.c_uint32 * n)(*vrs), (ctype * n)(), (ctype * n)()]
+        self._buffers.append(held)
+        return Inputs(fn=_address(getattr(self.dll, getter)), n=n, vrs=ctypes.addressof(held[0]),
+                      now=ctypes.addressof(held[1]), before=ctypes.addressof(held[2]), size=ctypes.sizeof(ctype),
+                      floating=floating)
+
+    def _terms(self, corrector: Corrector, states: int) -> None:
+        """The corrector's terms as C rows of factors, and the real inputs they read."""
+        inputs = [name for name, _ in corrector.inputs]
+        codes = {None: 0, **{name: i + 1 for i, name in enumerate(TERM_FUNCTIONS)}}
+        factors, rows = [], []
+        for state, term, coefficient in corrector.rows:
+            rows.append(Term(state=state, first=len(factors), n=len(term.factors), coefficient=coefficient))
+            factors += [Factor(input=f.variable not in corrector.states,
+                               index=corrector.states.index(f.variable) if f.variable in corrector.states
+                               else inputs.index(f.variable), function=codes[f.function], power=f.power,
+                               width=f.width) for f in term.factors]
+        self.terms, self.factors = (Term * len(rows))(*rows), (Factor * max(len(factors), 1))(*factors)
+        self.term_states = (ctypes.c_double * max(states, 1))()
+        unit = self.unit
+        unit.terms, unit.factors, unit.n_terms = ctypes.addressof(self.terms), ctypes.addressof(self.factors), len(rows)
+        unit.term_states = ctypes.addressof(self.term_states)
+        if inputs:
+            getter = "fmi3GetFloat64" if self.version == 3 else "fmi2GetReal"
+            self.term_inputs = self._inputs(getter, [vr for _, vr in corrector.inputs], ctypes.c_double)
+            unit.term_inputs = ctypes.addressof(self.term_inputs)
+
+    def coefficients(self, corrector: Corrector) -> None:
+        """A run's coefficients for the same terms (a fit changes only those)."""
+        for row, (_, _, coefficient) in zip(self.terms, corrector.rows):
+            row.coefficient = coefficient
 
     def start(self, time: float, stop: float, next_event: float | None) -> None:
         """A new solver at ``time`` after initialization (the old one freed), as _make_solver builds it."""
@@ -156,8 +202,8 @@ class NativeIntegrator:
         """What went wrong in C, worded as ModelExchangeStepper words it."""
         f = self.unit.failure
         functions = FUNCTIONS[self.version]
-        name = (functions[f.function] if f.function < len(functions)
-                else f"fmi{self.version}G{self.groups[f.function - len(functions)][0][1:]}")
+        getters = [*self.getters, "fmi3GetFloat64" if self.version == 3 else "fmi2GetReal"]  # the last: term inputs
+        name = functions[f.function] if f.function < len(functions) else getters[f.function - len(functions)]
         called = _fmu_failure(name, f.status)
         if f.code in (TERMINATE_ASKED, UNSETTLED, OFF_GRID, BAD_STEP):
             return ModelExchangeError({

@@ -228,6 +228,12 @@ class ModelExchange(Stepper):
     def step_failure(self) -> Exception | None:
         return self.integrator.native.failure() if self.integrator.native else None
 
+    def use_terms(self, terms: Mapping) -> None:
+        """This run's coefficients of the derivative terms the stepper was made with."""
+        from .derivative_terms import Corrector
+
+        self.integrator.use_coefficients(Corrector.of(self.instance.fmu.description, terms))
+
 
 def stepper(instance: Instance, settings, terms: Mapping | None = None, native: bool = False) -> Stepper:
     """The stepper for an instance's FMI version and interface, with its multi-model settings; ``terms``:
