@@ -57,9 +57,11 @@ def search(folder: Path) -> Path:
 
 
 def start(spec: Path, *options: str) -> subprocess.Popen:
-    """``dse-runner submit`` in a session of its own: a process group of its own, as in a terminal."""
+    """``dse-runner submit`` in a session of its own: a process group of its own, as in a terminal, with Ctrl-C's
+    signal at its default (a test runner's worker may ignore it, and an ignored SIGINT is inherited)."""
     return subprocess.Popen([sys.executable, "-m", "dse_runner", "submit", str(spec), *options], cwd=REPO,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 def ctrl_c_when(process: subprocess.Popen, ready: Callable[[], bool],
