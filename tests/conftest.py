@@ -31,8 +31,13 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.fixture(scope="session", autouse=True)
 def fresh_fmu_cache(tmp_path_factory):
-    """Build the FMUs from source once per test session, in a cache of its own."""
-    cache = tmp_path_factory.mktemp("fmu-cache")
+    """Build the FMUs from source once per test session, in a cache of its own, which pytest-xdist's workers
+    share (a build is written under a temporary name and renamed, so workers building at once are safe)."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        cache = tmp_path_factory.getbasetemp().parent / "fmu-cache"
+        cache.mkdir(exist_ok=True)
+    else:
+        cache = tmp_path_factory.mktemp("fmu-cache")
     old = os.environ.get("DSE_RUNNER_CACHE")
     os.environ["DSE_RUNNER_CACHE"] = str(cache)
     yield cache
