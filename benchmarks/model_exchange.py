@@ -26,10 +26,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import statistics
 import sys
 import tempfile
-import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -38,6 +36,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from cosim import median_time  # noqa: E402  (benchmarks/cosim.py: a warm-up, then the median)
 from dse_runner.simulation.build import build_fmu  # noqa: E402
 from dse_runner.simulation.run import as_plan, simulate  # noqa: E402
 from dse_runner.simulation.scenario import load_scenario  # noqa: E402
@@ -46,16 +45,6 @@ MSD = REPO / "jobs" / "msd" / "multimodel.yaml"
 BALL = REPO / "tests" / "fmus" / "ball"
 FORCE = [(0.0, 0.0), (1.0, 2.0), (3.0, 0.0), (5.0, -1.0), (7.0, 0.0), (8.0, 1.5), (9.0, 0.0)]  # s, N
 TERMS = {"derivative_term(msd.der(v), x^3)": -40.0, "derivative_term(msd.der(v), F*tanh(v/0.1))": 0.3}
-
-
-def median_time(run: Callable[[], object], repeats: int) -> float:
-    run()  # warm: FMUs extracted and instantiated, the native library built
-    times = []
-    for _ in range(repeats):
-        started = time.perf_counter()
-        run()
-        times.append(time.perf_counter() - started)
-    return statistics.median(times)
 
 
 def pushed_scenario(folder: Path) -> Path:

@@ -87,18 +87,11 @@ typedef struct {          /* one group of inputs, read back to see whether the m
     int32_t floating;     /* compared as numbers (0.0 == -0.0, NaN != NaN), as Python compares them */
 } Inputs;
 
-typedef struct {          /* one factor of a term: function(value / width) ^ power */
-    int32_t input;        /* the value is the term inputs' [index], else the states' */
-    int32_t index;
-    int32_t function;     /* 0: none, then derivative_terms.FUNCTIONS' order: abs, tanh, sin, cos */
-    int32_t power;
-    double width;
-} Factor;
-
-typedef struct {          /* der(states[state]) += coefficient * the product of its factors */
-    int32_t state, first, n;
-    double coefficient;
-} Term;
+/* A term, der(states[STATE]) += COEFFICIENT * the product of its factors, is a row of TERM_COLUMNS doubles;
+ * a factor, FUNCTION(value / WIDTH) ^ POWER of the term inputs' (INPUT != 0) or the states' [INDEX], a row of
+ * FACTOR_COLUMNS. FUNCTION: 0 none, then derivative_terms.FUNCTIONS' order: abs, tanh, sin, cos. */
+enum { STATE, FIRST, COUNT, COEFFICIENT, TERM_COLUMNS };
+enum { INPUT, INDEX, FUNCTION, POWER, WIDTH, FACTOR_COLUMNS };
 
 typedef struct {
     int32_t code, stage, function, status;
@@ -112,8 +105,7 @@ typedef struct {
     void *fn[N_FUNCTIONS];
     void *component;
     const Inputs *inputs;
-    const Term *terms;
-    const Factor *factors;
+    const double *terms, *factors;
     const Inputs *term_inputs;  /* the real inputs the terms read (now: their values); NULL: none */
     double *term_states;        /* the states, read back for the terms */
     int32_t n_terms, n_inputs, version, needs_completed, discrete;
@@ -121,9 +113,8 @@ typedef struct {
     double tolerance, max_step;
     double time, next_event;
     int32_t next_defined;
-    void *context, *memory, *x, *abstol, *matrix, *solver;
+    void *context, *memory, *x, *abstol, *matrix, *solver;  /* CVode's, made by dse_me_start */
     Failure failure;
-    bool has_error;       /* CVode reported an error through its handler (Failure.solver_*) */
 } ModelExchangeUnit;
 
 static bool isclose(double a, double b) {  /* math.isclose with its defaults: relative 1e-9, absolute 0 */
@@ -148,13 +139,14 @@ static int vector(ModelExchangeUnit *m, int function, double *values, size_t n) 
     return ((VectorFn)m->fn[function])(m->component, values, n);
 }
 
-static double factor(const Factor *f, const double *states, const double *inputs) {
-    double v = f->input ? inputs[f->index] : states[f->index];
-    if (f->function) {
-        double x = f->width != 1.0 ? v / f->width : v;
-        v = f->function == 1 ? fabs(x) : f->function == 2 ? tanh(x) : f->function == 3 ? sin(x) : cos(x);
+static double factor(const double *f, const double *states, const double *inputs) {
+    double v = f[INPUT] != 0.0 ? inputs[(int64_t)f[INDEX]] : states[(int64_t)f[INDEX]];
+    int function = (int)f[FUNCTION];
+    if (function) {
+        double x = f[WIDTH] != 1.0 ? v / f[WIDTH] : v;
+        v = function == 1 ? fabs(x) : function == 2 ? tanh(x) : function == 3 ? sin(x) : cos(x);
     }
-    return f->power == 1 ? v : pow(v, (double)f->power);
+    return f[POWER] == 1.0 ? v : pow(v, f[POWER]);
 }
 
 /* Corrector.add: the terms at the states the FMU holds, and the inputs read at the step's start. */
@@ -163,11 +155,11 @@ static int add_terms(ModelExchangeUnit *m, double *dx) {
     if (status > FMI_WARNING) return fail(m, CALLBACK_CALL, INTEGRATING, GET_STATES, status), -1;
     const double *inputs = m->term_inputs ? (const double *)m->term_inputs->now : NULL;
     for (int32_t i = 0; i < m->n_terms; i++) {
-        const Term *term = &m->terms[i];
+        const double *term = m->terms + i * TERM_COLUMNS;
         double product = 1.0;
-        for (int32_t j = term->first; j < term->first + term->n; j++)
-            product = product * factor(&m->factors[j], m->term_states, inputs);
-        dx[term->state] += term->coefficient * product;
+        for (int64_t j = (int64_t)term[FIRST]; j < (int64_t)(term[FIRST] + term[COUNT]); j++)
+            product = product * factor(m->factors + j * FACTOR_COLUMNS, m->term_states, inputs);
+        dx[(int64_t)term[STATE]] += term[COEFFICIENT] * product;
     }
     return 0;
 }
@@ -215,7 +207,6 @@ static void on_error(int line, const char *func, const char *file, const char *m
     (void)line;
     (void)context;
     ModelExchangeUnit *m = data;
-    m->has_error = true;
     m->failure.solver_code = code;
     strncpy(m->failure.solver_module, func ? func : "", sizeof m->failure.solver_module - 1);
     strncpy(m->failure.solver_file, file ? file : "", sizeof m->failure.solver_file - 1);
@@ -367,7 +358,6 @@ int dse_me_start(ModelExchangeUnit *m) {
     const Sundials *s = m->sun;
     free_solver(m);
     memset(&m->failure, 0, sizeof m->failure);
-    m->has_error = false;
     if (read_term_inputs(m, STARTING)) return FMI_ERROR;
     if (s->context_create(0, &m->context) != 0) return fail(m, NO_MEMORY, STARTING, 0, 0);
     m->x = s->new_serial(m->nx, m->context);

@@ -17,6 +17,8 @@ import ctypes
 from functools import cache
 from typing import Any
 
+import numpy as np
+
 from .derivative_terms import FUNCTIONS as TERM_FUNCTIONS
 from .derivative_terms import Corrector
 from .model_exchange import DEFAULT_TOLERANCE, ModelExchangeError, _input_groups
@@ -50,43 +52,33 @@ SUNDIALS = ("SUNContext_Create", "SUNContext_Free", "SUNContext_PushErrHandler",
             "SUNMatDestroy")
 
 
+def _fields(*groups: tuple[Any, str]) -> list[tuple[str, Any]]:
+    """ctypes fields from (type, "name name ...") groups, in order: read like native_me.c's declarations."""
+    return [(name, kind) for kind, names in groups for name in names.split()]
+
+
+P, I32, I64, F64 = ctypes.c_void_p, ctypes.c_int32, ctypes.c_int64, ctypes.c_double
+
+
 class Sundials(ctypes.Structure):
-    _fields_ = [(name, ctypes.c_void_p) for name in SUNDIALS]
+    _fields_ = _fields((P, " ".join(SUNDIALS)))
 
 
 class Inputs(ctypes.Structure):
-    _fields_ = [("fn", ctypes.c_void_p), ("n", ctypes.c_int64), ("vrs", ctypes.c_void_p), ("now", ctypes.c_void_p),
-                ("before", ctypes.c_void_p), ("size", ctypes.c_int32), ("floating", ctypes.c_int32)]
-
-
-class Factor(ctypes.Structure):
-    _fields_ = [("input", ctypes.c_int32), ("index", ctypes.c_int32), ("function", ctypes.c_int32),
-                ("power", ctypes.c_int32), ("width", ctypes.c_double)]
-
-
-class Term(ctypes.Structure):
-    _fields_ = [("state", ctypes.c_int32), ("first", ctypes.c_int32), ("n", ctypes.c_int32),
-                ("coefficient", ctypes.c_double)]
+    _fields_ = _fields((P, "fn"), (I64, "n"), (P, "vrs now before"), (I32, "size floating"))
 
 
 class Failure(ctypes.Structure):
-    _fields_ = [("code", ctypes.c_int32), ("stage", ctypes.c_int32), ("function", ctypes.c_int32),
-                ("status", ctypes.c_int32), ("start", ctypes.c_double), ("to", ctypes.c_double),
-                ("solver_code", ctypes.c_int32), ("solver_module", ctypes.c_char * 64),
-                ("solver_file", ctypes.c_char * 64), ("solver_message", ctypes.c_char * 256)]
+    _fields_ = _fields((I32, "code stage function status"), (F64, "start to"), (I32, "solver_code"),
+                       (ctypes.c_char * 64, "solver_module solver_file"), (ctypes.c_char * 256, "solver_message"))
 
 
 class Unit(ctypes.Structure):
-    _fields_ = [("sun", ctypes.c_void_p), ("fn", ctypes.c_void_p * len(FUNCTIONS[2])), ("component", ctypes.c_void_p),
-                ("inputs", ctypes.c_void_p), ("terms", ctypes.c_void_p), ("factors", ctypes.c_void_p),
-                ("term_inputs", ctypes.c_void_p), ("term_states", ctypes.c_void_p), ("n_terms", ctypes.c_int32),
-                ("n_inputs", ctypes.c_int32), ("version", ctypes.c_int32),
-                ("needs_completed", ctypes.c_int32), ("discrete", ctypes.c_int32), ("nx", ctypes.c_int64),
-                ("nz", ctypes.c_int64), ("tolerance", ctypes.c_double), ("max_step", ctypes.c_double),
-                ("time", ctypes.c_double), ("next_event", ctypes.c_double), ("next_defined", ctypes.c_int32),
-                ("context", ctypes.c_void_p), ("memory", ctypes.c_void_p), ("x", ctypes.c_void_p),
-                ("abstol", ctypes.c_void_p), ("matrix", ctypes.c_void_p), ("solver", ctypes.c_void_p),
-                ("failure", Failure), ("has_error", ctypes.c_bool)]
+    _fields_ = _fields((P, "sun"), (P * len(FUNCTIONS[2]), "fn"),
+                       (P, "component inputs terms factors term_inputs term_states"),
+                       (I32, "n_terms n_inputs version needs_completed discrete"), (I64, "nx nz"),
+                       (F64, "tolerance max_step time next_event"), (I32, "next_defined"),
+                       (P * 6, "solver"), (Failure, "failure"))  # solver: CVode's, which only C touches
 
 
 def _address(function: Any) -> int:
@@ -165,18 +157,18 @@ class NativeIntegrator:
         """The corrector's terms as C rows of factors, and the real inputs they read."""
         inputs = [name for name, _ in corrector.inputs]
         codes = {None: 0, **{name: i + 1 for i, name in enumerate(TERM_FUNCTIONS)}}
-        factors, rows = [], []
+        factors, rows = [], []  # native_me.c's rows: (state, first factor, factors, coefficient) and factors
         for state, term, coefficient in corrector.rows:
-            rows.append(Term(state=state, first=len(factors), n=len(term.factors), coefficient=coefficient))
-            factors += [Factor(input=f.variable not in corrector.states,
-                               index=corrector.states.index(f.variable) if f.variable in corrector.states
-                               else inputs.index(f.variable), function=codes[f.function], power=f.power,
-                               width=f.width) for f in term.factors]
-        self.terms, self.factors = (Term * len(rows))(*rows), (Factor * max(len(factors), 1))(*factors)
-        self.term_states = (ctypes.c_double * max(states, 1))()
+            rows.append((state, len(factors), len(term.factors), coefficient))
+            factors += [(f.variable not in corrector.states, corrector.states.index(f.variable)
+                         if f.variable in corrector.states else inputs.index(f.variable), codes[f.function], f.power,
+                         f.width) for f in term.factors]
+        self.terms = np.array(rows, dtype=float).reshape(-1, 4)
+        self.factors = np.array(factors or [(0, 0, 0, 1, 1.0)], dtype=float).reshape(-1, 5)
+        self.term_states = np.zeros(max(states, 1))
         unit = self.unit
-        unit.terms, unit.factors, unit.n_terms = ctypes.addressof(self.terms), ctypes.addressof(self.factors), len(rows)
-        unit.term_states = ctypes.addressof(self.term_states)
+        unit.terms, unit.factors, unit.n_terms = self.terms.ctypes.data, self.factors.ctypes.data, len(rows)
+        unit.term_states = self.term_states.ctypes.data
         if inputs:
             getter = "fmi3GetFloat64" if self.version == 3 else "fmi2GetReal"
             self.term_inputs = self._inputs(getter, [vr for _, vr in corrector.inputs], ctypes.c_double)
@@ -184,8 +176,7 @@ class NativeIntegrator:
 
     def coefficients(self, corrector: Corrector) -> None:
         """A run's coefficients for the same terms (a fit changes only those)."""
-        for row, (_, _, coefficient) in zip(self.terms, corrector.rows):
-            row.coefficient = coefficient
+        self.terms[:, 3] = [coefficient for _, _, coefficient in corrector.rows]
 
     def start(self, time: float, stop: float, next_event: float | None) -> None:
         """A new solver at ``time`` after initialization (the old one freed), as _make_solver builds it."""

@@ -1,0 +1,78 @@
+"""The test suite's wall time beside the CPU time it needs: how close a machine's cores can bring it.
+
+    python benchmarks/test_suite.py [-- PYTEST_ARGS...]      # default: the README's command, pytest -q
+
+Runs the tests as the README does (``.venv``'s python, ``-m pytest -q`` plus any arguments given after
+``--``) in a subprocess and prints, side by side:
+
+* ``wall``: the run's wall time;
+* ``cpu``: the CPU seconds (user + system) of the test process and every process it started and waited
+  for (its Dask schedulers and workers, the commands it runs, the browser, the Slurm jobs' workers);
+* ``machine_busy``: the share of the machine's cores busy over the run (``/proc/stat``; other work
+  counts too: run it on a quiet machine);
+* ``floor``: ``cpu`` spread over every core with nothing else running, the least wall time this
+  CPU work can take here, and its ratio to the issue's target of 8 minutes.
+
+``--json`` prints the figures as JSON. Why it exists: the suite's wall time is its CPU work over the cores
+it keeps busy; speeding it up means less work or busier cores, and this tells which is left.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+TARGET = 8 * 60.0  # s: issue 29's full suite, quiet
+
+
+def busy_jiffies() -> tuple[int, int]:
+    """(busy, total) jiffies of the whole machine so far."""
+    with open("/proc/stat") as f:
+        fields = [int(x) for x in f.readline().split()[1:]]
+    idle = fields[3] + fields[4]  # idle + iowait
+    return sum(fields) - idle, sum(fields)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--json", action="store_true")
+    parser.add_argument("pytest_args", nargs="*", help="after --: arguments added to pytest -q")
+    args = parser.parse_args()
+    python = REPO / ".venv" / "bin" / "python"
+    command = [str(python if python.exists() else sys.executable), "-m", "pytest", "-q", *args.pytest_args]
+    before_cpu = resource.getrusage(resource.RUSAGE_CHILDREN)
+    busy0, total0 = busy_jiffies()
+    started = time.perf_counter()
+    done = subprocess.run(command, cwd=REPO, capture_output=True, text=True, check=False)
+    wall = time.perf_counter() - started
+    busy1, total1 = busy_jiffies()
+    after_cpu = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after_cpu.ru_utime - before_cpu.ru_utime) + (after_cpu.ru_stime - before_cpu.ru_stime)
+    cores = os.cpu_count() or 1
+    figures = {
+        "command": " ".join(command[1:]), "exit_code": done.returncode,
+        "summary": (done.stdout.strip().splitlines() or [""])[-1],
+        "wall_s": round(wall, 1), "cpu_s": round(cpu, 1), "cores": cores,
+        "machine_busy": round((busy1 - busy0) / max(total1 - total0, 1), 3),
+        "floor_s": round(cpu / cores, 1), "target_s": TARGET, "floor_over_target": round(cpu / cores / TARGET, 2),
+        "wall_over_floor": round(wall / (cpu / cores), 2) if cpu else None,
+    }
+    if args.json:
+        print(json.dumps(figures, indent=2))
+    else:
+        print(f"{figures['command']}: {figures['summary']} (exit {done.returncode})")
+        print(f"wall {wall:.0f} s, CPU {cpu:.0f} s on {cores} cores (machine {figures['machine_busy']:.0%} busy): "
+              f"floor {cpu / cores:.0f} s = {figures['floor_over_target']}x the {TARGET / 60:.0f}-minute target; "
+              f"wall = {figures['wall_over_floor']}x the floor")
+    sys.exit(0 if done.returncode == 0 else 1)
+
+
+if __name__ == "__main__":
+    main()
