@@ -23,8 +23,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
-from scipy import stats
-from scipy.stats import qmc
 
 from ..errors import DseError
 from ..simulation.scenario import Scenario
@@ -48,6 +46,8 @@ def split_name(name: str) -> tuple[str, int | None]:
 
 def frozen(spec: Any) -> Any:
     """The scipy.stats distribution a spec entry names (from_diagnosis entries resolved first)."""
+    from scipy import stats  # on first use: scipy.stats costs every command about a second to import
+
     kind = spec.distribution
     if kind == "uniform":
         return stats.uniform(loc=spec.low, scale=spec.high - spec.low)
@@ -116,6 +116,8 @@ def unit_sample(n: int, d: int, sampling: str, seed: int) -> np.ndarray:
     do not depend on ``n`` (more samples keep the earlier ones); a Latin hypercube's all do."""
     if sampling == "random":
         return np.random.default_rng(seed).random((n, d))
+    from scipy.stats import qmc  # on first use, as in frozen()
+
     engine = qmc.Sobol(d, scramble=True, seed=seed) if sampling == "sobol" else qmc.LatinHypercube(d, seed=seed)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)  # Sobol' at n not a power of 2: balanced less well, still fine

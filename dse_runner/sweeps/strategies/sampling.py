@@ -11,7 +11,6 @@ import warnings
 from collections.abc import Iterator
 
 import numpy as np
-from scipy.stats import qmc
 
 from ..domain import Point, from_units
 from ..search import Problem, Strategy
@@ -51,6 +50,8 @@ class Sobol(UnitCubeSampling):
     larger budget extends the sample."""
 
     def rows(self, dimensions: int, seed: int, count: int) -> Iterator[np.ndarray]:
+        from scipy.stats import qmc  # on first use: scipy.stats costs every command about a second to import
+
         engine = qmc.Sobol(dimensions, scramble=True, seed=seed)
         while True:
             with warnings.catch_warnings():  # balance is best at powers of two; any prefix is still low-discrepancy
@@ -63,6 +64,8 @@ class LatinHypercube(UnitCubeSampling):
     point in each); rows beyond it come from further hypercubes of the same size."""
 
     def rows(self, dimensions: int, seed: int, count: int) -> Iterator[np.ndarray]:
+        from scipy.stats import qmc
+
         engine = qmc.LatinHypercube(dimensions, seed=seed)
         while True:
             yield from engine.random(count)
