@@ -162,11 +162,14 @@ class SingleNodeSlurm:
             except subprocess.TimeoutExpired:
                 daemon.kill()
                 daemon.wait(timeout=30)
-        for pid in self.leftovers():
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
+        deadline = time.monotonic() + 30  # a killed process takes a moment to go, longer on a busy machine
+        while (left := self.leftovers()) and time.monotonic() < deadline:
+            for pid in left:
+                try:
+                    os.kill(pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+            time.sleep(0.2)
 
     def leftovers(self) -> list[int]:
         """Processes still running with this cluster's SLURM_CONF: a job's, or a daemon's."""
