@@ -189,6 +189,11 @@ class NativeIntegrator:
     def end(self) -> None:
         library().dse_me_end(self.address)
 
+    def __del__(self) -> None:  # a run that failed, or an instance discarded, leaves its solver to free here
+        lib = library()
+        if lib is not None:
+            lib.dse_me_end(self.address)
+
     def failure(self) -> ModelExchangeError:
         """What went wrong in C, worded as ModelExchangeStepper words it."""
         f = self.unit.failure
