@@ -92,7 +92,7 @@ def _earliest(target: float, other: float | None) -> float:
     return other
 
 
-def _input_groups(description: Any) -> list[tuple[str, list[int]]] | None:
+def input_groups(description: Any) -> list[tuple[str, list[int]]] | None:
     """The inputs' value references grouped by the fmpy getter that reads them, or None
     if some input is of a kind we do not read back (an FMI 3 array, a binary, a clock)."""
     fmi2 = description.fmiVersion == "2.0"
@@ -142,7 +142,7 @@ class ModelExchangeStepper:
         self.next_event: float | None = None
         self._solver: Any = None
         self._inputs: tuple | None = None  # the input values the solver last started from
-        self._input_groups = _input_groups(description)
+        self._input_groups = input_groups(description)
         self.corrector = corrector if corrector is not None and corrector.rows else None
         self._term_inputs: list[float] = []  # the inputs the terms read, held over the step as the FMU's are
         self._states = np.zeros(description.numberOfContinuousStates)

@@ -11,7 +11,7 @@ The library is compiled with the system C compiler on first use and cached by
 a hash of its source, as our FMUs are (build.py). Without a compiler the
 Python loop runs instead, after a one-line notice. A model-exchange instance
 under CVode is integrated in C too (native_me.py) and stepped here like any
-FMU; one under Euler or with derivative terms keeps the plan in the Python loop.
+FMU, with its derivative terms; one under Euler keeps the plan in the Python loop.
 """
 
 from __future__ import annotations

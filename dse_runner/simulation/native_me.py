@@ -21,7 +21,7 @@ import numpy as np
 
 from .derivative_terms import FUNCTIONS as TERM_FUNCTIONS
 from .derivative_terms import Corrector
-from .model_exchange import DEFAULT_TOLERANCE, ModelExchangeError, _input_groups
+from .model_exchange import DEFAULT_TOLERANCE, ModelExchangeError, input_groups
 from .native import library
 
 # native_me.c's FMU functions (its enum), by FMI version: FMPy's names, which its messages use.
@@ -33,7 +33,7 @@ FUNCTIONS = {
         "fmi3GetEventIndicators", "fmi3GetNominalsOfContinuousStates", "fmi3CompletedIntegratorStep",
         "fmi3EnterEventMode", "fmi3UpdateDiscreteStates", "fmi3EnterContinuousTimeMode"),
 }
-# The C type an input getter fills (model_exchange._input_groups names FMPy's getters), and whether its
+# The C type an input getter fills (model_exchange.input_groups names FMPy's getters), and whether its
 # values compare as numbers; a getter not here (strings) keeps the instance in Python.
 GETTERS = {
     2: {"getReal": (ctypes.c_double, True), "getInteger": (ctypes.c_int, False), "getBoolean": (ctypes.c_int, False)},
@@ -105,12 +105,13 @@ def _sundials() -> Sundials | None:
 def _inputs(description: Any, version: int) -> list[tuple[str, list[int], Any, bool]] | None:
     """The inputs' groups as model_exchange reads them back, with their C types; None if one cannot be
     compared in C (a string, an array, a clock)."""
-    groups = _input_groups(description)
+    groups = input_groups(description)
     if groups is None or any(getter not in GETTERS[version] for getter, _ in groups):
         return None
     return [(getter, vrs, *GETTERS[version][getter]) for getter, vrs in groups]
 
 
+@cache  # asked every run; a loaded FMU keeps its description
 def eligible(description: Any, solver: str) -> bool:
     """Whether native_me.c integrates this ME instance exactly as model_exchange.py would."""
     version = 3 if description.fmiVersion.startswith("3.") else 2
