@@ -247,9 +247,10 @@ def named(source: Path, folder: Path) -> Path:
     return fmu
 
 
-def force_scenario(folder: Path, target: str = "msd.F") -> Path:
-    """A force log with steps, held between its samples: each change is an input event for the solver."""
-    (folder / "force.csv").write_text("time,F\n0,0\n1,2\n2.5,-1\n3,0.5\n4,0\n")
+def force_scenario(folder: Path, target: str = "msd.F", log: str = "0,0\n1,2\n2.5,-1\n3,0.5\n4,0\n") -> Path:
+    """A force log (time,F rows) with steps, held between its samples: each change is an input event for the
+    solver."""
+    (folder / "force.csv").write_text("time,F\n" + log)
     scenario = folder / "pushed"
     scenario.mkdir()
     (scenario / "scenario.yaml").write_text(
@@ -311,8 +312,6 @@ def test_model_exchange_failing_inside_cvode_gives_the_same_message(tmp_path):
     messages = failures(named(BALL, tmp_path), values={"ball.g": -1.7e308}, stop_time=3.0, step=0.05)
     assert messages[0] == messages[1]
     assert messages[1] == "fmi2GetDerivatives failed with status 3 (error) while integrating from t=0 to t=0.05"
-    (tmp_path / "force.csv").write_text("time,F\n0,0\n1,1.7e308\n")
-    (tmp_path / "pushed").mkdir()
-    (tmp_path / "pushed" / "scenario.yaml").write_text("name: pushed\ninputs:\n  msd.F: {csv: ../force.csv, interpolation: hold}\n")
-    messages = failures(MSD, tmp_path / "pushed", {"msd.m": 0.5}, stop_time=2.0, step=0.05)
+    messages = failures(MSD, force_scenario(tmp_path, log="0,0\n1,1.7e308\n"), {"msd.m": 0.5}, stop_time=2.0,
+                        step=0.05)
     assert messages[0] == messages[1] == "handling an input change at t=1: fmi2GetReal failed with status 3 (error)"
