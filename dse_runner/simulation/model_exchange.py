@@ -117,13 +117,14 @@ class ModelExchangeStepper:
 
     def __init__(self, model: Any, description: Any, solver: str = "cvode",
                  tolerance: float | None = None, euler_step: float | None = None, set_stop_time: bool = True,
-                 corrector: Corrector | None = None, native: bool = False):
+                 corrector: Corrector | None = None, native: Any = None):
         """``model``: an instantiated fmpy FMU2Model or FMU3Model whose start values the
         caller has set; ``description``: its fmpy ModelDescription. ``tolerance`` is
         CVode's relative tolerance (FMPy's default 1e-5); ``euler_step`` the fixed
         Euler step (default: each communication step in one go); ``corrector`` the
         derivative terms added to the FMU's derivatives (none: the FMU's own); ``native``:
-        integrate in C (native_me.py), where the native loop steps the instance, not do_step."""
+        its integrator in C (a native_me.NativeIntegrator), which the native loop steps instead of
+        do_step: this stepper then initialises and terminates the instance and starts that one."""
         if solver not in SOLVERS:
             raise ModelExchangeError(f"unknown ME solver {solver!r}: use one of {', '.join(SOLVERS)}")
         if euler_step is not None and not euler_step > 0:
@@ -146,11 +147,7 @@ class ModelExchangeStepper:
         self.corrector = corrector if corrector is not None and corrector.rows else None
         self._term_inputs: list[float] = []  # the inputs the terms read, held over the step as the FMU's are
         self._states = np.zeros(description.numberOfContinuousStates)
-        self.native = None
-        if native:
-            from .native_me import NativeIntegrator
-
-            self.native = NativeIntegrator(model, description, tolerance, self.corrector)
+        self.native = native
 
     def use_coefficients(self, corrector: Corrector) -> None:
         """Other coefficients for the same terms, for the next run (a fit changes only those)."""
