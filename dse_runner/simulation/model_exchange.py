@@ -117,14 +117,12 @@ class ModelExchangeStepper:
 
     def __init__(self, model: Any, description: Any, solver: str = "cvode",
                  tolerance: float | None = None, euler_step: float | None = None, set_stop_time: bool = True,
-                 corrector: Corrector | None = None, native: Any = None):
+                 corrector: Corrector | None = None):
         """``model``: an instantiated fmpy FMU2Model or FMU3Model whose start values the
         caller has set; ``description``: its fmpy ModelDescription. ``tolerance`` is
         CVode's relative tolerance (FMPy's default 1e-5); ``euler_step`` the fixed
         Euler step (default: each communication step in one go); ``corrector`` the
-        derivative terms added to the FMU's derivatives (none: the FMU's own); ``native``:
-        its integrator in C (a native_me.NativeIntegrator), which the native loop steps instead of
-        do_step: this stepper then initialises and terminates the instance and starts that one."""
+        derivative terms added to the FMU's derivatives (none: the FMU's own)."""
         if solver not in SOLVERS:
             raise ModelExchangeError(f"unknown ME solver {solver!r}: use one of {', '.join(SOLVERS)}")
         if euler_step is not None and not euler_step > 0:
@@ -147,7 +145,9 @@ class ModelExchangeStepper:
         self.corrector = corrector if corrector is not None and corrector.rows else None
         self._term_inputs: list[float] = []  # the inputs the terms read, held over the step as the FMU's are
         self._states = np.zeros(description.numberOfContinuousStates)
-        self.native = native
+        # Its integrator in C (a native_me.NativeIntegrator, set by steppers.ModelExchange for the native loop),
+        # which the loop steps instead of do_step: this stepper then initialises, starts it and terminates.
+        self.native: Any = None
 
     def use_coefficients(self, corrector: Corrector) -> None:
         """Other coefficients for the same terms, for the next run (a fit changes only those)."""

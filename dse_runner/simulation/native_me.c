@@ -27,7 +27,7 @@
 #define FMI_ERROR 3
 #define CV_BDF 2
 #define CV_NORMAL 1
-#define MAX_EVENT_ITERATIONS 1000
+#define MAX_EVENT_ITERATIONS 1000  /* model_exchange.MAX_EVENT_ITERATIONS */
 #define MAX_NUM_STEPS 500  /* FMPy's CVodeSolver default */
 
 /* What failed, for Python's message (native_me.py words each as model_exchange.py does). */

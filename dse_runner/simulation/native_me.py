@@ -21,7 +21,7 @@ import numpy as np
 
 from .derivative_terms import FUNCTIONS as TERM_FUNCTIONS
 from .derivative_terms import Corrector
-from .model_exchange import DEFAULT_TOLERANCE, ModelExchangeError, input_groups
+from .model_exchange import DEFAULT_TOLERANCE, MAX_EVENT_ITERATIONS, ModelExchangeError, input_groups
 from .native import library
 
 # native_me.c's FMU functions (its enum), by FMI version: FMPy's names, which its messages use.
@@ -41,6 +41,7 @@ GETTERS = {
         **{f"get{t}": (getattr(ctypes, f"c_{t.lower()}"), False)
            for t in ("Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64")}},
 }
+TERM_INPUTS = {2: "fmi2GetReal", 3: "fmi3GetFloat64"}  # what reads the real inputs derivative terms use
 (OK, FMU_CALL, CALLBACK_CALL, SOLVER, TERMINATE_ASKED, UNSETTLED, OFF_GRID, BAD_STEP, NO_MEMORY) = range(9)
 STAGES = ("exiting initialization mode", "handling an input change", "integrating", "completing an integrator step")
 INTEGRATING = 2
@@ -124,12 +125,13 @@ class NativeIntegrator:
     def __init__(self, model: Any, description: Any, tolerance: float | None,
                  corrector: Corrector | None = None) -> None:
         self.version = 3 if description.fmiVersion.startswith("3.") else 2
-        self.description = description
-        self.dll, prefix = model.dll, f"fmi{self.version}"
-        self.getters = [prefix + "G" + getter[1:] for getter, *_ in _inputs(description, self.version)]
+        self.dll = model.dll
+        groups = _inputs(description, self.version)
+        # the C getters, in native_me.c's order after its FMU functions: each input group's, then the terms'
+        self.getters = [f"fmi{self.version}G{getter[1:]}" for getter, *_ in groups] + [TERM_INPUTS[self.version]]
         self._buffers: list = []  # kept alive while C points at them
-        inputs = [self._inputs(name, vrs, ctype, floating)
-                  for name, (_, vrs, ctype, floating) in zip(self.getters, _inputs(description, self.version))]
+        inputs = [self._group(name, vrs, ctype, floating)
+                  for name, (_, vrs, ctype, floating) in zip(self.getters, groups)]
         self.inputs = (Inputs * len(inputs))(*inputs)
         self.sundials = _sundials()
         states = description.numberOfContinuousStates
@@ -145,7 +147,7 @@ class NativeIntegrator:
         if corrector is not None:
             self._terms(corrector, states)
 
-    def _inputs(self, getter: str, vrs: list[int], ctype: Any, floating: bool = True) -> Inputs:
+    def _group(self, getter: str, vrs: list[int], ctype: Any, floating: bool = True) -> Inputs:
         """A group of inputs read back through ``getter``, with buffers for this step's and the last values."""
         n = len(vrs)
         held = [(ctypes.c_uint32 * n)(*vrs), (ctype * n)(), (ctype * n)()]
@@ -171,8 +173,7 @@ class NativeIntegrator:
         unit.terms, unit.factors, unit.n_terms = self.terms.ctypes.data, self.factors.ctypes.data, len(rows)
         unit.term_states = self.term_states.ctypes.data
         if inputs:
-            getter = "fmi3GetFloat64" if self.version == 3 else "fmi2GetReal"
-            self.term_inputs = self._inputs(getter, [vr for _, vr in corrector.inputs], ctypes.c_double)
+            self.term_inputs = self._group(TERM_INPUTS[self.version], [vr for _, vr in corrector.inputs], ctypes.c_double)
             unit.term_inputs = ctypes.addressof(self.term_inputs)
 
     def coefficients(self, corrector: Corrector) -> None:
@@ -191,21 +192,17 @@ class NativeIntegrator:
         library().dse_me_end(self.address)
 
     def __del__(self) -> None:  # a run that failed, or an instance discarded, leaves its solver to free here
-        lib = library()
-        if lib is not None:
-            lib.dse_me_end(self.address)
+        self.end()
 
     def failure(self) -> ModelExchangeError:
         """What went wrong in C, worded as ModelExchangeStepper words it."""
         f = self.unit.failure
-        functions = FUNCTIONS[self.version]
-        getters = [*self.getters, "fmi3GetFloat64" if self.version == 3 else "fmi2GetReal"]  # the last: term inputs
-        name = functions[f.function] if f.function < len(functions) else getters[f.function - len(functions)]
+        name = [*FUNCTIONS[self.version], *self.getters][f.function]
         called = _fmu_failure(name, f.status)
         if f.code in (TERMINATE_ASKED, UNSETTLED, OFF_GRID, BAD_STEP):
             return ModelExchangeError({
                 TERMINATE_ASKED: f"the FMU requested termination at t={f.start:.9g}",
-                UNSETTLED: f"the event iteration at t={f.start:.9g} did not settle in 1000 rounds",
+                UNSETTLED: f"the event iteration at t={f.start:.9g} did not settle in {MAX_EVENT_ITERATIONS} rounds",
                 OFF_GRID: f"do_step at t={f.to:.9g} but the instance is at t={f.start:.9g}",
                 BAD_STEP: f"communication step must be > 0, got {f.to} at t={f.start:.9g}"}[f.code])
         if f.code == CALLBACK_CALL:

@@ -192,16 +192,15 @@ class ModelExchange(Stepper):
         from .model_exchange import ModelExchangeStepper
 
         description = instance.fmu.description
-        corrector = Corrector.of(description, terms) if terms else None
-        in_c = None
+        self.integrator = ModelExchangeStepper(instance.slave, description, solver=solver,
+                                               tolerance=tolerance, euler_step=euler_step,
+                                               set_stop_time=set_stop_time,
+                                               corrector=Corrector.of(description, terms) if terms else None)
         if native:
             from .native_me import NativeIntegrator
 
-            in_c = NativeIntegrator(instance.slave, description, tolerance, corrector if corrector and corrector.rows
-                                    else None)
-        self.integrator = ModelExchangeStepper(instance.slave, description, solver=solver,
-                                               tolerance=tolerance, euler_step=euler_step,
-                                               set_stop_time=set_stop_time, corrector=corrector, native=in_c)
+            self.integrator.native = NativeIntegrator(instance.slave, description, tolerance,
+                                                      self.integrator.corrector)
         self.fmi_version = instance.fmu.version  # of its getters and setters; its step is ours
         self.step_name = "the integration"
         self._typed = CoSimulation2 if instance.fmu.version == 2 else CoSimulation3
