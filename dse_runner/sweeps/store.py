@@ -189,7 +189,11 @@ def _files(fs: fsspec.AbstractFileSystem, path: str, kind: str, sweep: str | Non
     """The finished files of one sweep (sweeps of one store may have different columns), or of all."""
     folder = _join(path, kind)
     where = _join(folder, f"sweep={sweep}") if sweep is not None else folder
-    return sorted(f for f in fs.find(where) if f.endswith(".parquet") and not Path(f).name.startswith("."))
+    if isinstance(fs, LocalFileSystem):  # fsspec's find stats every file, and an optimiser lists the store each round
+        found = [os.path.join(folder, name) for folder, _, names in os.walk(where) for name in names]
+    else:
+        found = fs.find(where)
+    return sorted(f for f in found if f.endswith(".parquet") and not os.path.basename(f).startswith("."))
 
 
 def _dataset(root: Root, kind: str, sweep: str | None = None, files: list[str] | None = None) -> ds.Dataset | None:

@@ -170,9 +170,36 @@ def _rms(columns: Mapping[str, np.ndarray], terms: Sequence[Term], moving: np.nd
             for tm in terms}
 
 
-def equation_error(ref: Reference, terms: Sequence[Term] = ()) -> dict[str, Regression]:
+@dataclass(frozen=True)
+class Column:
+    """One term on one run: its feature on the grid, and what the feature adds to its channel's target as
+    the fixes would show it. A term's column depends on the reference and on nothing else in the regression,
+    so a scan over a shape's values computes the other terms' once (propose.find_shape)."""
+
+    raw: np.ndarray
+    seen: np.ndarray
+
+
+def term_columns(ref: Reference, terms: Sequence[Term]) -> dict[str, Column]:
+    """The column on ``ref``'s run of each of ``terms`` in a dynamic channel, keyed by its parameter name
+    (see :func:`equation_error`)."""
+    t, grid = ref.run.time, ref.grid
+    effect = {"acc": lambda f: lagged(grid, ref.tau * f, ref.tau), "steer": lambda f: ref.gain * f}
+    dynamic = [tm for tm in terms if tm.channel in DYNAMIC]
+    raws = correction.features(ref.inputs, dynamic)
+    out = {}
+    for tm in dynamic:
+        operator, order = ref.operators[tm.channel]
+        raw = raws[tm.variable]
+        out[tm.variable] = Column(raw, kinematics.smoothed_like(operator, order, grid, effect[tm.channel](raw), t))
+    return out
+
+
+def equation_error(ref: Reference, terms: Sequence[Term] = (), known: Mapping[str, Column] | None = None,
+                   ) -> dict[str, Regression]:
     """Each dynamic channel's equation error on one run: what the fixes show minus what the reference model
-    predicts, and what each term would add, both seen through the fixes' window.
+    predicts, and what each term would add, both seen through the fixes' window; ``known`` holds columns
+    already computed on this run (:func:`term_columns`), keyed by variable.
 
     The features are evaluated at the reference state, not at the recorded one: the recorded speed and yaw
     rate *are* the targets, so features made of them would explain any residual, noise included. Channels:
@@ -180,11 +207,11 @@ def equation_error(ref: Reference, terms: Sequence[Term] = ()) -> dict[str, Regr
     loop needs no differentiated GPS acceleration), ``steer`` in yaw rate (a term c·f of the steering moves
     the yaw rate by G(v)·c·f). Rows where the fixes give no estimate are left out."""
     terms = tuple(terms) or tuple(t for t in correction.searched_terms() if t.channel in DYNAMIC)
+    known = known or {}
     t, kin, grid, inputs = ref.run.time, ref.kin, ref.grid, ref.inputs
-    columns = correction.features(inputs, terms)
+    columns = {**term_columns(ref, [tm for tm in terms if tm.variable not in known]), **known}
     recorded = {"acc": kin.speed, "steer": kin.yaw_rate}
     model = {"acc": inputs.v, "steer": inputs.r}
-    effect = {"acc": lambda f: lagged(grid, ref.tau * f, ref.tau), "steer": lambda f: ref.gain * f}
     moving = inputs.v_cmd > 0
     out = {}
     for channel in DYNAMIC:
@@ -192,18 +219,14 @@ def equation_error(ref: Reference, terms: Sequence[Term] = ()) -> dict[str, Regr
         if not mine:
             continue
         operator, order = ref.operators[channel]
-
-        def seen(signal: np.ndarray, operator: np.ndarray = operator, order: int = order) -> np.ndarray:
-            return kinematics.smoothed_like(operator, order, grid, signal, t)  # as the fixes would show it
-
-        target = recorded[channel] - seen(model[channel])
-        theta = np.column_stack([seen(effect[channel](columns[tm.variable])) for tm in mine])
+        target = recorded[channel] - kinematics.smoothed_like(operator, order, grid, model[channel], t)
+        theta = np.column_stack([columns[tm.variable].seen for tm in mine])
         rows = np.isfinite(target) & np.isfinite(theta).all(axis=1)
         if channel == "acc":
             rows &= kin.speed >= MIN_ACC_SPEED
         shapes = {sh.variable: getattr(inputs, sh.name) for tm in mine if (sh := correction.shape_of(tm))}
         out[channel] = Regression(channel, tuple(mine), theta[rows], target[rows], np.zeros(int(rows.sum()), int),
-                                  _rms(columns, mine, moving), shapes)
+                                  _rms({tm.variable: columns[tm.variable].raw for tm in mine}, mine, moving), shapes)
     return out
 
 

@@ -12,7 +12,9 @@ import numpy as np
 
 from ....analysis.diagnose.derivative_discovery.propose import held_out_error
 from .. import correction
-from .observe import DYNAMIC, OUTPUT, Observed, Reference, Regression, equation_error, output_error, reference_state
+from ..correction import Term
+from .observe import (DYNAMIC, OUTPUT, Column, Observed, Reference, Regression, equation_error, output_error,
+                      reference_state, term_columns)
 
 CHANNELS = (*DYNAMIC, *OUTPUT)
 THRESHOLDS = (0.02, 0.05, 0.1, 0.2, 0.35)  # STLSQ thresholds tried, as fractions of the channel target's RMS
@@ -68,14 +70,23 @@ def binding(refs: Sequence[Reference], limit: float) -> float:
     return bound / moving if moving else 0.0
 
 
-def _shaped_rows(refs: Sequence[Reference], shape: correction.Shape, value: float | None,
-                 ) -> tuple[Regression, ...]:
-    """The equation error of the channel ``shape``'s terms belong to, run by run: on all that channel's terms
-    with the shaped ones made at ``value``, or without them when ``value`` is None."""
+def _channel_terms(shape: correction.Shape, with_shape: bool) -> list[Term]:
+    """The searched terms of the channel ``shape``'s terms belong to, with or without the shaped ones."""
     channel = next(t.channel for t in correction.searched_terms() if correction.shape_of(t) == shape)
-    terms = [t for t in correction.searched_terms() if t.channel == channel
-             and (value is not None or correction.shape_of(t) != shape)]
-    made = (equation_error(shaped(ref, shape, value) if value is not None else ref, terms) for ref in refs)
+    return [t for t in correction.searched_terms() if t.channel == channel
+            and (with_shape or correction.shape_of(t) != shape)]
+
+
+def _shaped_rows(refs: Sequence[Reference], shape: correction.Shape, value: float | None,
+                 known: Sequence[Mapping[str, Column]] | None = None) -> tuple[Regression, ...]:
+    """The equation error of the channel ``shape``'s terms belong to, run by run: on all that channel's terms
+    with the shaped ones made at ``value``, or without them when ``value`` is None. ``known`` holds, per run,
+    columns of the other terms already computed (they do not change with ``value``)."""
+    terms = _channel_terms(shape, value is not None)
+    known = known or [{}] * len(refs)
+    made = (equation_error(shaped(ref, shape, value) if value is not None else ref, terms, columns)
+            for ref, columns in zip(refs, known))
+    channel = terms[0].channel
     return tuple(r[channel] for r in made if channel in r)
 
 
@@ -113,8 +124,11 @@ def find_shape(refs: Sequence[Reference], shape: correction.Shape) -> float:
     if len(coarse) == 0:
         return shape.default
 
+    others = _channel_terms(shape, False)
+    known = [term_columns(ref, others) for ref in refs]  # once: a scan changes only the shaped terms' columns
+
     def sse(value: float) -> float:
-        return _sse(_shaped_rows(refs, shape, value))
+        return _sse(_shaped_rows(refs, shape, value, known))
 
     k = min(range(len(coarse)), key=lambda i: sse(coarse[i]))
     low, high = coarse[max(k - 1, 0)], coarse[min(k + 1, len(coarse) - 1)]
