@@ -26,10 +26,12 @@ loads), so workers need no shared files.
 
 from __future__ import annotations
 
+import atexit
 import csv
 import hashlib
 import json
 import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -96,8 +98,9 @@ def write_results(path: Path, trajectory, columns: Mapping[str, str]) -> None:
 
 @cache
 def _data_folder(files: tuple[tuple[str, Path], ...]) -> Path:
-    """A scenario's data files laid out under their own names, once per process."""
+    """A scenario's data files laid out under their own names, once per process (removed at its exit)."""
     folder = Path(tempfile.mkdtemp(prefix="dse-runner-data-"))
+    atexit.register(shutil.rmtree, folder, True)
     for name, source in files:
         target = folder / name
         target.parent.mkdir(parents=True, exist_ok=True)
