@@ -1,6 +1,7 @@
 """The test suite's wall time beside the CPU time it needs: how close a machine's cores can bring it.
 
     python benchmarks/test_suite.py [-- PYTEST_ARGS...]      # default: the README's command, pytest -q
+    python benchmarks/test_suite.py --by-file 30 [-- ...]    # one process, CPU per test file
 
 Runs the tests as the README does (``.venv``'s python, ``-m pytest -q`` plus any arguments given after
 ``--``) in a subprocess and prints, side by side:
@@ -9,11 +10,16 @@ Runs the tests as the README does (``.venv``'s python, ``-m pytest -q`` plus any
 * ``cpu``: the CPU seconds the machine spent busy over the run (``/proc/stat``, every core): the tests'
   processes, their Dask schedulers and workers, the commands they run, the browser, the Slurm daemons and
   jobs; other work counts too, so run it on a quiet machine;
+* ``cpu_own``: the CPU seconds of the run's own processes and everything they started, counted by the kernel
+  in a cpuacct control group of its own (cgroup v1, as root; absent elsewhere): the machine's background
+  (kernel threads reclaiming memory, other tenants) left out, so it varies less from run to run than ``cpu``;
 * ``cpu_waited``: the CPU seconds of the processes the run started and waited for (``getrusage``), a lower
   bound: processes that end otherwise (killed, reaped by others) are not counted;
 * ``floor``: ``cpu`` spread over every core, the least wall time this CPU work can take here, and its
   ratio to the issue's target of 8 minutes.
 
+``--by-file N`` runs the tests in one process (``-n 0``, with the plugin benchmarks/cpu_per_test.py) and adds
+the N test files that cost the machine the most CPU seconds, each with its wall time: where to look first.
 ``--json`` prints the figures as JSON. Why it exists: the suite's wall time is its CPU work over the cores
 it keeps busy; speeding it up means less work or busier cores, and this tells which is left.
 """
@@ -26,6 +32,7 @@ import os
 import resource
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -41,39 +48,93 @@ def busy_jiffies() -> tuple[int, int]:
     return sum(fields) - idle, sum(fields)
 
 
+CPUACCT = Path("/sys/fs/cgroup/cpuacct")
+
+
+def own_group() -> Path | None:
+    """A cpuacct control group for the run, or None where this machine does not let us make one."""
+    group = CPUACCT / f"dse-test-suite-{os.getpid()}"
+    try:
+        group.mkdir()
+    except OSError:
+        return None
+    return group
+
+
+def group_cpu(group: Path | None) -> float | None:
+    """CPU seconds used so far by every process that has been in ``group``."""
+    return int((group / "cpuacct.usage").read_text()) / 1e9 if group else None
+
+
+def by_file(rows: list[list]) -> list[dict]:
+    """Per-test rows (nodeid, CPU s, wall s) summed per test file, the costliest first."""
+    files: dict[str, dict] = {}
+    for nodeid, cpu, wall in rows:
+        name = nodeid.split("::")[0]
+        entry = files.setdefault(name, {"file": name, "cpu_s": 0.0, "wall_s": 0.0, "tests": 0})
+        entry["cpu_s"] += cpu
+        entry["wall_s"] += wall
+        entry["tests"] += 1
+    ranked = sorted(files.values(), key=lambda e: -e["cpu_s"])
+    return [{**e, "cpu_s": round(e["cpu_s"], 1), "wall_s": round(e["wall_s"], 1)} for e in ranked]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true")
+    parser.add_argument("--by-file", type=int, default=0, metavar="N",
+                        help="one test process; list the N test files that cost the most CPU")
     parser.add_argument("pytest_args", nargs="*", help="after --: arguments added to pytest -q")
     args = parser.parse_args()
     python = REPO / ".venv" / "bin" / "python"
     command = [str(python if python.exists() else sys.executable), "-m", "pytest", "-q", *args.pytest_args]
+    env = dict(os.environ)
+    per_test = Path(tempfile.mkdtemp()) / "cpu_per_test.json"
+    if args.by_file:
+        command += ["-n", "0", "-p", "cpu_per_test"]
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO / "benchmarks"), env.get("PYTHONPATH")]))
+        env["CPU_PER_TEST_OUT"] = str(per_test)
+    group = own_group()
+    join = (lambda: (group / "tasks").write_text(str(os.getpid()))) if group else None
     before_cpu = resource.getrusage(resource.RUSAGE_CHILDREN)
     busy0, total0 = busy_jiffies()
     started = time.perf_counter()
-    done = subprocess.run(command, cwd=REPO, capture_output=True, text=True, check=False)
+    done = subprocess.run(command, cwd=REPO, capture_output=True, text=True, check=False, env=env,
+                          preexec_fn=join)
     wall = time.perf_counter() - started
     busy1, total1 = busy_jiffies()
     after_cpu = resource.getrusage(resource.RUSAGE_CHILDREN)
     waited = (after_cpu.ru_utime - before_cpu.ru_utime) + (after_cpu.ru_stime - before_cpu.ru_stime)
     cpu = (busy1 - busy0) / os.sysconf("SC_CLK_TCK")
+    own = group_cpu(group)
+    if group:
+        try:
+            group.rmdir()
+        except OSError:  # a process the run started is still alive
+            pass
     cores = os.cpu_count() or 1
     figures = {
         "command": " ".join(command[1:]), "exit_code": done.returncode,
         "summary": (done.stdout.strip().splitlines() or [""])[-1],
-        "wall_s": round(wall, 1), "cpu_s": round(cpu, 1), "cpu_waited_s": round(waited, 1), "cores": cores,
+        "wall_s": round(wall, 1), "cpu_s": round(cpu, 1),
+        "cpu_own_s": round(own, 1) if own is not None else None, "cpu_waited_s": round(waited, 1), "cores": cores,
         "machine_busy": round((busy1 - busy0) / max(total1 - total0, 1), 3),
         "floor_s": round(cpu / cores, 1), "target_s": TARGET, "floor_over_target": round(cpu / cores / TARGET, 2),
         "wall_over_floor": round(wall / (cpu / cores), 2) if cpu else None,
     }
+    if args.by_file and per_test.exists():
+        figures["by_file"] = by_file(json.loads(per_test.read_text()))[:args.by_file]
     if args.json:
         print(json.dumps(figures, indent=2))
     else:
         print(f"{figures['command']}: {figures['summary']} (exit {done.returncode})")
+        mine = f"{own:.0f} s in its own processes, " if own is not None else ""
         print(f"wall {wall:.0f} s; CPU {cpu:.0f} s busy on {cores} cores (machine {figures['machine_busy']:.0%} busy; "
-              f"{waited:.0f} s in processes it waited for): floor {cpu / cores:.0f} s = "
+              f"{mine}{waited:.0f} s in processes it waited for): floor {cpu / cores:.0f} s = "
               f"{figures['floor_over_target']}x the {TARGET / 60:.0f}-minute target; wall = "
               f"{figures['wall_over_floor']}x the floor")
+        for row in figures.get("by_file", []):
+            print(f"{row['cpu_s']:8.1f} CPU s {row['wall_s']:8.1f} s wall {row['tests']:5d} tests  {row['file']}")
     sys.exit(0 if done.returncode == 0 else 1)
 
 
