@@ -30,6 +30,7 @@ import argparse
 import json
 import os
 import resource
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -89,8 +90,8 @@ def main() -> None:
     python = REPO / ".venv" / "bin" / "python"
     command = [str(python if python.exists() else sys.executable), "-m", "pytest", "-q", *args.pytest_args]
     env = dict(os.environ)
-    per_test = Path(tempfile.mkdtemp()) / "cpu_per_test.json"
-    if args.by_file:
+    per_test = Path(tempfile.mkdtemp()) / "cpu_per_test.json" if args.by_file else None
+    if per_test:
         command += ["-n", "0", "-p", "cpu_per_test"]
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO / "benchmarks"), env.get("PYTHONPATH")]))
         env["CPU_PER_TEST_OUT"] = str(per_test)
@@ -122,8 +123,9 @@ def main() -> None:
         "floor_s": round(cpu / cores, 1), "target_s": TARGET, "floor_over_target": round(cpu / cores / TARGET, 2),
         "wall_over_floor": round(wall / (cpu / cores), 2) if cpu else None,
     }
-    if args.by_file and per_test.exists():
+    if per_test and per_test.exists():
         figures["by_file"] = by_file(json.loads(per_test.read_text()))[:args.by_file]
+        shutil.rmtree(per_test.parent)
     if args.json:
         print(json.dumps(figures, indent=2))
     else:

@@ -111,8 +111,8 @@ def can_hide_folders() -> bool:
 
 def quiet_environment() -> dict[str, str]:
     """dse-runner's own local cluster's Dask settings (makers.QUIET) as environment variables: the test
-    clusters then spend as little on Dask's housekeeping as that cluster does. Two of them idle beside
-    the whole suite, and with Dask's defaults each costs about a tenth of a core."""
+    clusters then spend as little on Dask's housekeeping as that cluster does. One per test process idles
+    beside the whole suite, and with Dask's defaults each cost 0.12-0.19 of a core (docs/testing.md)."""
     from dse_runner.sweeps.makers import QUIET
 
     return {"DASK_" + "__".join(part.upper().replace("-", "_") for part in key.split(".")): str(value)

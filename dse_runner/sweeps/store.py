@@ -190,7 +190,7 @@ def _files(fs: fsspec.AbstractFileSystem, path: str, kind: str, sweep: str | Non
     folder = _join(path, kind)
     where = _join(folder, f"sweep={sweep}") if sweep is not None else folder
     if isinstance(fs, LocalFileSystem):  # fsspec's find stats every file, and an optimiser lists the store each round
-        found = [os.path.join(folder, name) for folder, _, names in os.walk(where) for name in names]
+        found = [os.path.join(parent, name) for parent, _, names in os.walk(where) for name in names]
     else:
         found = fs.find(where)
     return sorted(f for f in found if f.endswith(".parquet") and not os.path.basename(f).startswith("."))

@@ -70,11 +70,16 @@ def binding(refs: Sequence[Reference], limit: float) -> float:
     return bound / moving if moving else 0.0
 
 
+def _channel(shape: correction.Shape) -> str:
+    """The channel ``shape``'s terms belong to."""
+    return next(t.channel for t in correction.searched_terms() if correction.shape_of(t) == shape)
+
+
 def _channel_terms(shape: correction.Shape, with_shape: bool) -> list[Term]:
-    """The searched terms of the channel ``shape``'s terms belong to, with or without the shaped ones."""
-    channel = next(t.channel for t in correction.searched_terms() if correction.shape_of(t) == shape)
-    return [t for t in correction.searched_terms() if t.channel == channel
-            and (with_shape or correction.shape_of(t) != shape)]
+    """The searched terms of ``shape``'s channel, with or without the shaped ones."""
+    channel = _channel(shape)
+    return [t for t in correction.searched_terms()
+            if t.channel == channel and (with_shape or correction.shape_of(t) != shape)]
 
 
 def _shaped_rows(refs: Sequence[Reference], shape: correction.Shape, value: float | None,
@@ -86,7 +91,7 @@ def _shaped_rows(refs: Sequence[Reference], shape: correction.Shape, value: floa
     known = known or [{}] * len(refs)
     made = (equation_error(shaped(ref, shape, value) if value is not None else ref, terms, columns)
             for ref, columns in zip(refs, known))
-    channel = terms[0].channel
+    channel = _channel(shape)
     return tuple(r[channel] for r in made if channel in r)
 
 
