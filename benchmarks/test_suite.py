@@ -12,7 +12,7 @@ Runs the tests as the README does (``.venv``'s python, ``-m pytest -q`` plus any
   jobs; other work counts too, so run it on a quiet machine;
 * ``cpu_own``: the CPU seconds of the run's own processes and everything they started, counted by the kernel
   in a cpuacct control group of its own (cgroup v1, as root; absent elsewhere): the machine's background
-  (kernel threads reclaiming memory, other tenants) left out, so it varies less from run to run than ``cpu``;
+  (kernel threads reclaiming memory, other work) left out; on a quiet machine it is a few seconds under ``cpu``;
 * ``cpu_waited``: the CPU seconds of the processes the run started and waited for (``getrusage``), a lower
   bound: processes that end otherwise (killed, reaped by others) are not counted;
 * ``floor``: ``cpu`` spread over every core, the least wall time this CPU work can take here, and its
