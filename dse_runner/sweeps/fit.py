@@ -11,6 +11,13 @@ cluster into the Parquet store. Fits that ask for the same point (every fit
 starts from the same calibrated point) share its simulations, and a re-run
 finds every finished round in the store.
 
+A candidate's perturbations (its Jacobian) are worth simulating only if the
+candidate is accepted, and about a third are rejected. :func:`fit_all` asks
+for them with the candidate only when the cluster has a thread free for each
+(they then cost no wall time); otherwise it asks for them once the candidate
+is accepted, a round later. Either way the fit visits the same points and
+ends at the same values.
+
 The interval of a fitted parameter comes from the cluster-robust ("sandwich")
 covariance with scenarios as clusters: residuals within a run are strongly
 correlated, so treating every fix as independent would give intervals far
@@ -29,6 +36,7 @@ import numpy as np
 from ..errors import DseError
 from . import store
 from .domain import Point
+from .cluster import total_threads
 from .expand import expand
 from .spec import Space
 from .sweep import submit
@@ -93,7 +101,8 @@ Residuals = Callable[[Point, str], np.ndarray | None]  # (point, scenario) -> re
 
 class LevenbergMarquardt:
     """One fit as an ask/tell state machine: :meth:`ask` the points whose residuals
-    it needs next (a candidate and its perturbations), :meth:`tell` it them."""
+    it needs next (a candidate, and its perturbations with it or once it is accepted),
+    :meth:`tell` it them."""
 
     def __init__(self, problem: FitProblem):
         self.problem = problem
@@ -112,6 +121,9 @@ class LevenbergMarquardt:
         self.converged = False
         self.candidate = start
         self.perturbed = self._perturbations(start)
+        self.eager = True  # the last ask included the candidate's perturbations
+        self.pending = False  # the candidate is accepted; its perturbations are asked next
+        self.gain = np.inf  # of the accepted candidate, a fraction of the sum of squares before it
 
     def point(self, x: np.ndarray) -> Point:
         return {**self.problem.fixed, **{p.name: float(v) for p, v in zip(self.params, x)}}
@@ -125,12 +137,21 @@ class LevenbergMarquardt:
             moved.append(y)
         return moved
 
-    def ask(self) -> list[Point]:
+    def ask(self, eager: bool = True) -> list[Point]:
+        """The points to simulate next: the candidate, with its perturbations if ``eager`` (in
+        parallel, wasted when the candidate is rejected); or an accepted candidate's perturbations."""
         if self.done:
             return []
-        return [self.point(self.candidate)] + [self.point(y) for y in self.perturbed]
+        if self.pending:
+            return [self.point(y) for y in self.perturbed]
+        self.eager = eager
+        return [self.point(self.candidate)] + ([self.point(y) for y in self.perturbed] if eager else [])
 
     def tell(self, residuals: Residuals) -> None:
+        if self.pending:
+            self.pending = False
+            self._accepted(residuals)
+            return
         scenarios = self.problem.scenarios
         found = [residuals(self.point(self.candidate), s) for s in scenarios]
         if any(r is None for r in found):
@@ -143,11 +164,18 @@ class LevenbergMarquardt:
         if self.x is not None and not sse < self.sse:
             self._reject()
             return
-        gain = (self.sse - sse) / self.sse if np.isfinite(self.sse) and self.sse > 0 else np.inf
+        self.gain = (self.sse - sse) / self.sse if np.isfinite(self.sse) and self.sse > 0 else np.inf
         self.x, self.r, self.sse = self.candidate, found, sse
-        self.jacobian = self._jacobian(residuals)
         self.damping = max(self.damping / 3.0, 1e-9)
-        if gain < self.problem.tolerance:
+        if self.eager:
+            self._accepted(residuals)
+        else:
+            self.pending = True
+
+    def _accepted(self, residuals: Residuals) -> None:
+        """The accepted candidate's Jacobian (its perturbations simulated), then the next step or the end."""
+        self.jacobian = self._jacobian(residuals)
+        if self.gain < self.problem.tolerance:
             self._finish(converged=True)
             return
         self._next()
@@ -248,11 +276,14 @@ def fit_all(space: Space, problems: list[FitProblem], client, residuals: str | M
         if name not in space.objectives:
             raise DseError(f"space {space.name}: fitting needs the objective {name!r}")
     solvers = [LevenbergMarquardt(p) for p in problems]
+    threads = total_threads(client) if client is not None else 0  # without one, each round starts a cluster
     round_, cost = 0, None  # cost: seconds per task, measured by the last round
     while True:
-        asked = {id(s): s.ask() for s in solvers if not s.done}
+        asked = {id(s): s.ask(eager=True) for s in solvers if not s.done}
         if not asked:
             break
+        if simulations(solvers, asked) > threads:  # perturbations would queue behind the candidates
+            asked = {id(s): s.ask(eager=False) for s in solvers if not s.done}
         points, only = wanted((p, s.problem.scenarios) for s in solvers if id(s) in asked for p in asked[id(s)])
         round_ += 1
         if progress:
@@ -263,6 +294,12 @@ def fit_all(space: Space, problems: list[FitProblem], client, residuals: str | M
             if id(solver) in asked:
                 solver.tell(residuals_in(rows, residuals))
     return {s.problem.label: s.result() for s in solvers}
+
+
+def simulations(solvers: list[LevenbergMarquardt], asked: dict[int, list[Point]]) -> int:
+    """How many simulations a round of these asks runs (points shared between fits run once)."""
+    _, only = wanted((p, s.problem.scenarios) for s in solvers if id(s) in asked for p in asked[id(s)])
+    return sum(len(s) for s in only)
 
 
 Rows = dict[tuple[Key, str], dict[str, Any]]  # (point, scenario) -> its result row

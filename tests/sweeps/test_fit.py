@@ -1,0 +1,57 @@
+"""Levenberg-Marquardt as an ask/tell machine (sweeps/fit.py), told in-process residuals: asking a candidate's
+perturbations with it (eagerly) or once it is accepted (lazily) is a schedule, not an algorithm. Both visit
+the same accepted points and end at the same values; lazily, a rejected candidate costs one point, not one per
+parameter more."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dse_runner.sweeps.fit import FitProblem, LevenbergMarquardt, Parameter, key_of
+
+TIMES = {"early": np.linspace(0.0, 1.0, 30), "late": np.linspace(0.5, 4.0, 40)}
+TRUTH = {"a": 2.0, "b": 1.3}
+
+
+def residuals(point: dict[str, float], scenario: str) -> np.ndarray:
+    """A decay a exp(-b t) against its truth: nonlinear in b, so a full step from far away overshoots."""
+    t = TIMES[scenario]
+    return point["a"] * np.exp(-point["b"] * t) - TRUTH["a"] * np.exp(-TRUTH["b"] * t)
+
+
+def run(schedule) -> tuple[LevenbergMarquardt, list[tuple], int, int]:
+    """Fit from far away, each round asked ``eager=schedule(round)``; returns the solver, its accepted points
+    in order, how many distinct points it asked for, and in how many rounds."""
+    problem = FitProblem("decay", (Parameter("a", 0.5, 0.0, 10.0, 1e-4), Parameter("b", 6.0, 0.01, 10.0, 1e-4)),
+                         {}, tuple(TIMES), max_iterations=40, tolerance=1e-10)
+    solver = LevenbergMarquardt(problem)
+    asked: set = set()
+    accepted: list[tuple] = []
+    round_ = 0
+    while not solver.done:
+        asked.update(key_of(p) for p in solver.ask(eager=schedule(round_)))
+        solver.tell(residuals)
+        if solver.x is not None and (not accepted or accepted[-1] != tuple(solver.x)):
+            accepted.append(tuple(solver.x))
+        round_ += 1
+    return solver, accepted, len(asked), round_
+
+
+@pytest.mark.parametrize("schedule", [lambda r: False, lambda r: r % 2 == 0, lambda r: r % 3 == 1],
+                         ids=["lazy", "alternating", "every-third"])
+def test_asking_perturbations_later_changes_no_step_and_saves_the_rejected_ones(schedule):
+    eager, eager_path, eager_points, eager_rounds = run(lambda r: True)
+    other, path, points, _ = run(schedule)
+    assert eager.iterations > 3 and eager.converged
+    assert path == eager_path  # the same accepted points, in the same order
+    first, second = eager.result(), other.result()
+    assert second.values == first.values and second.sse == first.sse
+    assert second.standard_error == first.standard_error  # the final Jacobian is simulated either way
+    assert first.values == pytest.approx(TRUTH, rel=1e-6)
+    rejected = eager_rounds - len(eager_path)  # eagerly, each round tells one candidate: accepted or rejected
+    assert rejected > 0, "the test wants a fit that rejects steps"
+    if schedule(0) is False and schedule(1) is False:  # all lazy: each rejected candidate's 2 perturbations saved
+        assert points == eager_points - 2 * rejected
+    else:
+        assert points < eager_points
