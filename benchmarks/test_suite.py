@@ -20,8 +20,10 @@ Runs the tests as the README does (``.venv``'s python, ``-m pytest -q`` plus any
 
 ``--by-file N`` runs the tests in one process (``-n 0``, with the plugin benchmarks/cpu_per_test.py) and adds
 the N test files that cost the machine the most CPU seconds, each with its wall time: where to look first.
-``--json`` prints the figures as JSON. Why it exists: the suite's wall time is its CPU work over the cores
-it keeps busy; speeding it up means less work or busier cores, and this tells which is left.
+``--json`` prints the figures as JSON; ``--log FILE`` keeps pytest's whole output, which a failed run always
+keeps (in a temporary folder) and names, beside its failed tests. Why it exists: the suite's wall time is
+its CPU work over the cores it keeps busy; speeding it up means less work or busier cores, and this tells
+which is left.
 """
 
 from __future__ import annotations
@@ -85,6 +87,7 @@ def main() -> None:
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--by-file", type=int, default=0, metavar="N",
                         help="one test process; list the N test files that cost the most CPU")
+    parser.add_argument("--log", type=Path, help="keep pytest's whole output here (on a failure it is always kept)")
     parser.add_argument("pytest_args", nargs="*", help="after --: arguments added to pytest -q")
     args = parser.parse_args()
     python = REPO / ".venv" / "bin" / "python"
@@ -117,6 +120,7 @@ def main() -> None:
     figures = {
         "command": " ".join(command[1:]), "exit_code": done.returncode,
         "summary": (done.stdout.strip().splitlines() or [""])[-1],
+        "failures": [line for line in done.stdout.splitlines() if line.startswith(("FAILED ", "ERROR "))],
         "wall_s": round(wall, 1), "cpu_s": round(cpu, 1),
         "cpu_own_s": round(own, 1) if own is not None else None, "cpu_waited_s": round(waited, 1), "cores": cores,
         "machine_busy": round((busy1 - busy0) / max(total1 - total0, 1), 3),
@@ -126,6 +130,10 @@ def main() -> None:
     if per_test and per_test.exists():
         figures["by_file"] = by_file(json.loads(per_test.read_text()))[:args.by_file]
         shutil.rmtree(per_test.parent)
+    if args.log or done.returncode != 0:  # a failure under the suite's load is worth its whole story
+        log = args.log or Path(tempfile.mkdtemp(prefix="test-suite-")) / "pytest.log"
+        log.write_text(done.stdout + done.stderr)
+        figures["log"] = str(log)
     if args.json:
         print(json.dumps(figures, indent=2))
     else:
@@ -135,6 +143,10 @@ def main() -> None:
               f"{mine}{waited:.0f} s in processes it waited for): floor {cpu / cores:.0f} s = "
               f"{figures['floor_over_target']}x the {TARGET / 60:.0f}-minute target; wall = "
               f"{figures['wall_over_floor']}x the floor")
+        for line in figures["failures"]:
+            print(line)
+        if "log" in figures:
+            print(f"pytest's whole output: {figures['log']}")
         for row in figures.get("by_file", []):
             print(f"{row['cpu_s']:8.1f} CPU s {row['wall_s']:8.1f} s wall {row['tests']:5d} tests  {row['file']}")
     sys.exit(0 if done.returncode == 0 else 1)
