@@ -279,12 +279,11 @@ def fit_all(space: Space, problems: list[FitProblem], client, residuals: str | M
     threads = total_threads(client) if client is not None else 0  # without one, each round starts a cluster
     round_, cost = 0, None  # cost: seconds per task, measured by the last round
     while True:
-        asked = {id(s): s.ask(eager=True) for s in solvers if not s.done}
+        asked, points, only = asks(solvers, eager=True)
         if not asked:
             break
-        if simulations(solvers, asked) > threads:  # perturbations would queue behind the candidates
-            asked = {id(s): s.ask(eager=False) for s in solvers if not s.done}
-        points, only = wanted((p, s.problem.scenarios) for s in solvers if id(s) in asked for p in asked[id(s)])
+        if sum(len(s) for s in only) > threads:  # the perturbations would queue behind the candidates
+            asked, points, only = asks(solvers, eager=False)
         round_ += 1
         if progress:
             progress(round_, len(asked), len(points), sum(len(s) for s in only))
@@ -296,10 +295,12 @@ def fit_all(space: Space, problems: list[FitProblem], client, residuals: str | M
     return {s.problem.label: s.result() for s in solvers}
 
 
-def simulations(solvers: list[LevenbergMarquardt], asked: dict[int, list[Point]]) -> int:
-    """How many simulations a round of these asks runs (points shared between fits run once)."""
-    _, only = wanted((p, s.problem.scenarios) for s in solvers if id(s) in asked for p in asked[id(s)])
-    return sum(len(s) for s in only)
+def asks(solvers: list[LevenbergMarquardt], eager: bool
+         ) -> tuple[dict[int, list[Point]], list[Point], list[set[str]]]:
+    """What the unfinished fits ask for next, by fit, and as the round's distinct points with the scenarios
+    wanted of each (see :func:`wanted`)."""
+    asked = {id(s): s.ask(eager=eager) for s in solvers if not s.done}
+    return asked, *wanted((p, s.problem.scenarios) for s in solvers if id(s) in asked for p in asked[id(s)])
 
 
 Rows = dict[tuple[Key, str], dict[str, Any]]  # (point, scenario) -> its result row
