@@ -104,10 +104,13 @@ class Feed:
             return self._snapshot
 
     def _read(self) -> Snapshot:
+        # The status first: a sweep saves "finished" after its last rows, so rows read after it are at least
+        # as new. Read the other way round, a sweep ending between the two reads showed "finished" over the
+        # rows of before its last chunks until the next refresh.
+        status = load_status(self.output, self.sweep)
         rows = current_rows(self.output, self.sweep, ["group", "status", *self.parameters, self.objective])
         ok = rows[rows["status"] == "ok"]
         last = self._snapshot
-        status = load_status(self.output, self.sweep)
         if self.uncertain is not None:  # ranked over the draws; the charts get a row per point and scenario,
             drawn = uncertainty.with_draws(ok, self.uncertain.samples)  # its objective the mean over the draws
             ok = uncertainty.collapse(drawn, self.parameters, [self.objective])
