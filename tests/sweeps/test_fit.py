@@ -38,9 +38,12 @@ def run(schedule) -> tuple[LevenbergMarquardt, list[tuple], int, int]:
     return solver, accepted, len(asked), round_
 
 
-@pytest.mark.parametrize("schedule", [lambda r: False, lambda r: r % 2 == 0, lambda r: r % 3 == 1],
-                         ids=["lazy", "alternating", "every-third"])
-def test_asking_perturbations_later_changes_no_step_and_saves_the_rejected_ones(schedule):
+SCHEDULES = {"lazy": lambda r: False, "alternating": lambda r: r % 2 == 0, "every-third": lambda r: r % 3 == 1}
+
+
+@pytest.mark.parametrize("name", SCHEDULES)
+def test_asking_perturbations_later_changes_no_step_and_saves_the_rejected_ones(name):
+    schedule = SCHEDULES[name]
     eager, eager_path, eager_points, eager_rounds = run(lambda r: True)
     other, path, points, _ = run(schedule)
     assert eager.iterations > 3 and eager.converged
@@ -51,7 +54,7 @@ def test_asking_perturbations_later_changes_no_step_and_saves_the_rejected_ones(
     assert first.values == pytest.approx(TRUTH, rel=1e-6)
     rejected = eager_rounds - len(eager_path)  # eagerly, each round tells one candidate: accepted or rejected
     assert rejected > 0, "the test wants a fit that rejects steps"
-    if schedule(0) is False and schedule(1) is False:  # all lazy: each rejected candidate's 2 perturbations saved
+    if name == "lazy":  # every rejected candidate's 2 perturbations saved
         assert points == eager_points - 2 * rejected
     else:
         assert points < eager_points
