@@ -39,6 +39,7 @@ from fmpy.logging import addLoggerProxy
 from fmpy.model_description import ModelDescription, read_model_description
 
 from ..errors import DseError
+from . import scratch
 
 STATUS_NAMES = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
 Interface = Literal["cs", "me"]
@@ -201,9 +202,10 @@ _EXTRACT_ROOT: Path | None = None  # set where a process shares its parent's ext
 
 def extract_root() -> Path:
     """Where this process extracts FMUs: a folder of its own, or the one it was given."""
-    root = _EXTRACT_ROOT or Path(tempfile.gettempdir()) / f"dse-runner-fmus-{os.getpid()}"
-    root.mkdir(parents=True, exist_ok=True)
-    return root
+    if _EXTRACT_ROOT is not None:
+        _EXTRACT_ROOT.mkdir(parents=True, exist_ok=True)
+        return _EXTRACT_ROOT
+    return scratch.own_folder("dse-runner-fmus-")
 
 
 def use_extract_root(root: Path) -> None:

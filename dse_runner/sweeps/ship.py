@@ -21,7 +21,6 @@ from __future__ import annotations
 import hashlib
 import os
 import pickle
-import tempfile
 import uuid
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,6 +28,7 @@ from pathlib import Path
 from distributed.diagnostics.plugin import WorkerPlugin
 
 from ..errors import DseError
+from ..simulation import scratch
 from ..simulation.cosim import Plan, make_plan
 from ..simulation.multimodel import MultiModel
 from ..simulation.scenario import Scenario
@@ -92,9 +92,7 @@ _UNPACKED: dict[str, Unpacked] = {}
 
 
 def local_root() -> Path:
-    root = Path(tempfile.gettempdir()) / f"dse-runner-shipments-{os.getpid()}"
-    root.mkdir(parents=True, exist_ok=True)
-    return root
+    return scratch.own_folder("dse-runner-shipments-")
 
 
 def _write_once(path: Path, data: bytes) -> Path:

@@ -121,6 +121,7 @@ class Interrupted:
     partial: list[Path]  # half-written files left visible after the interrupt
     kept: dict[Path, int]  # each result file after the interrupt -> its mtime (ns)
     again: subprocess.CompletedProcess
+    scratch: Path  # TMPDIR of the second submission
 
 
 @pytest.fixture(scope="module")
@@ -134,9 +135,11 @@ def interrupted(tmp_path_factory) -> Interrupted:
     results = folder / "out" / "results"
     on_disk, partial = rows(folder), list((folder / "out").rglob("*.partial"))
     kept = {p: p.stat().st_mtime_ns for p in results.rglob("part-*.parquet")}
+    scratch = folder / "tmp"  # the second submission's temporary folder, and its workers'
+    scratch.mkdir()
     again = subprocess.run([sys.executable, "-m", "dse_runner", "submit", str(spec), "--json"], cwd=REPO,
-                           capture_output=True, text=True, timeout=600)
-    return Interrupted(folder, first.returncode, out, err, on_disk, partial, kept, again)
+                           capture_output=True, text=True, timeout=600, env={**os.environ, "TMPDIR": str(scratch)})
+    return Interrupted(folder, first.returncode, out, err, on_disk, partial, kept, again, scratch)
 
 
 def test_ctrl_c_mid_sweep_says_one_line_with_the_count_on_disk_and_a_rerun_finds_as_many(interrupted):
@@ -170,6 +173,13 @@ def test_interrupted_sweep_resumes_without_repeating_work(interrupted):
     files = (output / "results").rglob("part-*.parquet")
     raw = pd.concat(pd.read_parquet(p, columns=["task_id"]) for p in files)
     assert len(raw) == TASKS  # every task exactly once on disk, not merely after de-duplication
+
+
+def test_a_finished_submit_leaves_no_temporary_folder(interrupted):
+    """The client and every worker extract FMUs and unpack the shipment into folders of their own, which
+    each removes when it exits: a day of sweeps used to leave thousands in /tmp."""
+    assert interrupted.again.returncode == 0, interrupted.again.stderr
+    assert sorted(p.name for p in interrupted.scratch.iterdir() if p.name.startswith("dse-runner-")) == []
 
 
 def test_ctrl_c_while_the_cluster_starts_says_one_line(tmp_path):
