@@ -13,14 +13,15 @@ from pathlib import Path
 
 
 def own_folder(prefix: str) -> Path:
-    """``<tmp>/<prefix><pid>``, made once per process and removed at its exit."""
-    return _folder(prefix, os.getpid())
+    """``<tmp>/<prefix><pid>``, made once per process (again if something cleared it) and removed at its exit."""
+    folder = _folder(prefix, os.getpid())
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
 
 
 @cache
 def _folder(prefix: str, pid: int) -> Path:
     folder = Path(tempfile.gettempdir()) / f"{prefix}{pid}"
-    folder.mkdir(parents=True, exist_ok=True)
     atexit.register(_remove, folder, pid)
     return folder
 
