@@ -1,5 +1,5 @@
 """Temporary folders a process keeps for its whole life: the FMUs it extracts, the shipments a worker
-unpacks. Each is named for the process and removed when it exits; without that, every worker, client and
+unpacks, the data files objective scripts read. Each is named for the process and removed when it exits; without that, every worker, client and
 command left one behind (thousands in a day of sweeps). A process killed outright still leaves its own."""
 
 from __future__ import annotations

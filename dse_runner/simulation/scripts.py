@@ -26,12 +26,10 @@ loads), so workers need no shared files.
 
 from __future__ import annotations
 
-import atexit
 import csv
 import hashlib
 import json
 import re
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -44,7 +42,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, PositiveFloat, PrivateAttr
 
 from ..errors import DseError
-from . import python2
+from . import python2, scratch
 
 FAULT_TAIL = 600  # characters of a failing script's stderr kept in its task's error
 FRAME = re.compile(r'^\s*File "(.+)", line (\d+)', re.MULTILINE)  # a traceback's frame
@@ -98,9 +96,9 @@ def write_results(path: Path, trajectory, columns: Mapping[str, str]) -> None:
 
 @cache
 def _data_folder(files: tuple[tuple[str, Path], ...]) -> Path:
-    """A scenario's data files laid out under their own names, once per process (removed at its exit)."""
-    folder = Path(tempfile.mkdtemp(prefix="dse-runner-data-"))
-    atexit.register(shutil.rmtree, folder, True)
+    """A scenario's data files laid out under their own names, once per process, in its scratch folder (removed
+    at its exit)."""
+    folder = Path(tempfile.mkdtemp(dir=scratch.own_folder("dse-runner-data-")))
     for name, source in files:
         target = folder / name
         target.parent.mkdir(parents=True, exist_ok=True)
