@@ -18,6 +18,10 @@ Runs the tests as the README does (``.venv``'s python, ``-m pytest -q`` plus any
 * ``floor``: ``cpu`` spread over every core, the least wall time this CPU work can take here, and its
   ratio to the issue's target of 8 minutes.
 
+``--timeline`` adds, per test process, the test files that ran longest with their start and end (seconds
+into the run), and the machine's busy share in every 30 s of the run with the core-seconds left idle: which
+files ran side by side when the cores were not full (plugin benchmarks/test_timeline.py).
+
 ``--by-file N`` runs the tests in one process (``-n 0``, with the plugin benchmarks/cpu_per_test.py) and adds
 the N test files that cost the machine the most CPU seconds, each with its wall time: where to look first.
 ``--json`` prints the figures as JSON; ``--log FILE`` keeps pytest's whole output, which a failed run always
@@ -36,6 +40,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -69,6 +74,41 @@ def group_cpu(group: Path | None) -> float | None:
     return int((group / "cpuacct.usage").read_text()) / 1e9 if group else None
 
 
+class BusySampler(threading.Thread):
+    """The machine's busy share in each second, while the run lasts."""
+
+    def __init__(self) -> None:
+        super().__init__(daemon=True)
+        self.shares: list[float] = []
+        self.stopping = threading.Event()
+
+    def run(self) -> None:
+        busy, total = busy_jiffies()
+        while not self.stopping.wait(1.0):
+            now_busy, now_total = busy_jiffies()
+            self.shares.append((now_busy - busy) / max(now_total - total, 1))
+            busy, total = now_busy, now_total
+
+
+def timeline(folder: Path, started: float, shares: list[float], cores: int, longest: float = 10.0) -> dict:
+    """Per test process, its files of more than ``longest`` seconds (start and end, seconds into the run);
+    the machine's busy share per 30 s; the core-seconds the run left idle."""
+    processes: dict[str, list[dict]] = {}
+    for path in sorted(folder.glob("*.txt")):
+        spans: dict[str, list[float]] = {}
+        for line in path.read_text().splitlines():
+            start, end, nodeid = line.split(" ", 2)
+            span = spans.setdefault(nodeid.split("::")[0], [float(start), float(end)])
+            span[0], span[1] = min(span[0], float(start)), max(span[1], float(end))
+        processes[path.stem] = [{"file": name, "start_s": round(a - started, 1), "end_s": round(b - started, 1)}
+                                for name, (a, b) in sorted(spans.items(), key=lambda kv: kv[1][0])
+                                if b - a > longest]
+    windows = [shares[i:i + 30] for i in range(0, len(shares), 30)]
+    return {"processes": processes,
+            "busy_per_30_s": [round(sum(w) / len(w), 2) for w in windows],
+            "idle_core_s": round(sum((1 - share) * cores for share in shares), 1)}
+
+
 def by_file(rows: list[list]) -> list[dict]:
     """Per-test rows (nodeid, CPU s, wall s) summed per test file, the costliest first."""
     files: dict[str, dict] = {}
@@ -87,6 +127,8 @@ def main() -> None:
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--by-file", type=int, default=0, metavar="N",
                         help="one test process; list the N test files that cost the most CPU")
+    parser.add_argument("--timeline", action="store_true",
+                        help="which test files ran side by side, and how busy the machine was meanwhile")
     parser.add_argument("--log", type=Path, help="keep pytest's whole output here (on a failure it is always kept)")
     parser.add_argument("pytest_args", nargs="*", help="after --: arguments added to pytest -q")
     args = parser.parse_args()
@@ -98,14 +140,24 @@ def main() -> None:
         command += ["-n", "0", "-p", "cpu_per_test"]
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO / "benchmarks"), env.get("PYTHONPATH")]))
         env["CPU_PER_TEST_OUT"] = str(per_test)
+    lines = Path(tempfile.mkdtemp()) if args.timeline else None
+    if lines:
+        command += ["-p", "test_timeline"]
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO / "benchmarks"), env.get("PYTHONPATH")]))
+        env["TEST_TIMELINE_DIR"] = str(lines)
+    sampler = BusySampler() if lines else None
     group = own_group()
     join = (lambda: (group / "tasks").write_text(str(os.getpid()))) if group else None
     before_cpu = resource.getrusage(resource.RUSAGE_CHILDREN)
     busy0, total0 = busy_jiffies()
-    started = time.perf_counter()
+    started, started_at = time.perf_counter(), time.time()
+    if sampler:
+        sampler.start()
     done = subprocess.run(command, cwd=REPO, capture_output=True, text=True, check=False, env=env,
                           preexec_fn=join)
     wall = time.perf_counter() - started
+    if sampler:
+        sampler.stopping.set()
     busy1, total1 = busy_jiffies()
     after_cpu = resource.getrusage(resource.RUSAGE_CHILDREN)
     waited = (after_cpu.ru_utime - before_cpu.ru_utime) + (after_cpu.ru_stime - before_cpu.ru_stime)
@@ -130,6 +182,9 @@ def main() -> None:
     if per_test and per_test.exists():
         figures["by_file"] = by_file(json.loads(per_test.read_text()))[:args.by_file]
         shutil.rmtree(per_test.parent)
+    if lines:
+        figures["timeline"] = timeline(lines, started_at, sampler.shares, cores)
+        shutil.rmtree(lines)
     if args.log or done.returncode != 0:  # a failure under the suite's load is worth its whole story
         log = args.log or Path(tempfile.mkdtemp(prefix="test-suite-")) / "pytest.log"
         log.write_text(done.stdout + done.stderr)
@@ -147,6 +202,12 @@ def main() -> None:
             print(line)
         if "log" in figures:
             print(f"pytest's whole output: {figures['log']}")
+        if "timeline" in figures:
+            for process, files in figures["timeline"]["processes"].items():
+                print(f"{process}: " + ("; ".join(f"{f['start_s']:.0f}-{f['end_s']:.0f} s {f['file']}" for f in files)
+                                        or "no file over 10 s"))
+            print("machine busy per 30 s: " + " ".join(f"{b:.2f}" for b in figures["timeline"]["busy_per_30_s"]))
+            print(f"idle over the run: {figures['timeline']['idle_core_s']:.0f} core-seconds")
         for row in figures.get("by_file", []):
             print(f"{row['cpu_s']:8.1f} CPU s {row['wall_s']:8.1f} s wall {row['tests']:5d} tests  {row['file']}")
     sys.exit(0 if done.returncode == 0 else 1)

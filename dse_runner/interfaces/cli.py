@@ -268,12 +268,13 @@ def submit(
     run again (a search goes on from where it stopped); rank."""
     board = space = None
     try:
+        space = _load(spec, multimodel, coe).with_overrides(out, scheduler, workers, cluster, max_points,
+                                                            max_seconds)
+        # after the spec is read: a bad one is named without waiting on Dask's and pandas' imports
         from ..sweeps.rank import rank, write_ranking
         from ..simulation.scenario import dropouts, dropouts_line
         from ..sweeps.sweep import submit as run_sweep
 
-        space = _load(spec, multimodel, coe).with_overrides(out, scheduler, workers, cluster, max_points,
-                                                            max_seconds)
         if dashboard:
             board = _start_dashboard(space, dashboard_address)
         with SweepProgressBar() as progress:

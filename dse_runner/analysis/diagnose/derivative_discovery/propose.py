@@ -61,16 +61,19 @@ class Proposal:
         return not self.terms
 
 
-def stlsq(theta: np.ndarray, y: np.ndarray, threshold: float) -> np.ndarray:
-    """PySINDy's sequentially thresholded least squares, one coefficient per column."""
+def stlsq(theta: np.ndarray, y: np.ndarray, threshold: float, unbias: bool = True) -> np.ndarray:
+    """PySINDy's sequentially thresholded least squares, one coefficient per column; ``unbias``: refit the
+    kept columns without the ridge (PySINDy's default), or keep the ridge's shrinkage."""
     import pysindy as ps
+    import sklearn
 
     if len(y) == 0:
         return np.zeros(theta.shape[1])
     optimizer = ps.STLSQ(threshold=threshold, alpha=RIDGE * len(y), max_iter=20, normalize_columns=False,
-                         unbias=True)
-    with warnings.catch_warnings():  # "eliminated all coefficients" is an answer here (no term), not a fault
-        warnings.filterwarnings("ignore", category=UserWarning)
+                         unbias=unbias)
+    # sklearn checks the options of every fit; ours are fixed and valid, and the check is a tenth of a fit this small
+    with warnings.catch_warnings(), sklearn.config_context(skip_parameter_validation=True):
+        warnings.filterwarnings("ignore", category=UserWarning)  # "eliminated all coefficients" is an answer here
         optimizer.fit(theta, y)
     return np.asarray(optimizer.coef_, float).reshape(-1)
 

@@ -4,13 +4,13 @@ threshold by leave-one-run-out error, the terms by a bootstrap over runs."""
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ....analysis.diagnose.derivative_discovery.propose import held_out_error
+from ....analysis.diagnose.derivative_discovery.propose import stlsq as sparse_regression
 from .. import correction
 from ..correction import Term
 from .observe import (DYNAMIC, OUTPUT, Column, Observed, Reference, Regression, equation_error, output_error,
@@ -18,8 +18,6 @@ from .observe import (DYNAMIC, OUTPUT, Column, Observed, Reference, Regression, 
 
 CHANNELS = (*DYNAMIC, *OUTPUT)
 THRESHOLDS = (0.02, 0.05, 0.1, 0.2, 0.35)  # STLSQ thresholds tried, as fractions of the channel target's RMS
-ALPHA = 0.05  # STLSQ's ridge weight per row, on columns scaled to unit RMS: enough to keep look-alike
-# columns (the reference's yaw rate is nearly v·δ) from cancelling with huge coefficients; the fits then size and prune
 BOOTSTRAP = 50  # run resamples
 INCLUSION = 0.7  # share of the resamples a term must be picked in
 SEED = 0  # every proposal is seeded: a re-run asks for the same points and resumes from the store
@@ -189,17 +187,9 @@ class Proposal:
 def stlsq(theta: np.ndarray, y: np.ndarray, threshold: float) -> np.ndarray:
     """PySINDy's sequentially thresholded least squares on columns of unit RMS: coefficients per column,
     each in the target's units (what the term adds at its typical size). Thresholding on that scale keeps
-    terms by how much they move the channel, whatever their units."""
-    import pysindy as ps
-
-    if len(y) == 0:
-        return np.zeros(theta.shape[1])
-    optimizer = ps.STLSQ(threshold=threshold, alpha=ALPHA * len(y), max_iter=20, normalize_columns=False,
-                         unbias=False)
-    with warnings.catch_warnings():  # "eliminated all coefficients" is an answer here (no term), not a fault
-        warnings.filterwarnings("ignore", message="Sparsity parameter is too big", category=UserWarning)
-        optimizer.fit(theta, y)
-    return np.asarray(optimizer.coef_, float).reshape(-1)
+    terms by how much they move the channel, whatever their units. The ridge's shrinkage is kept (no
+    unbiasing): the fits size the terms afterwards."""
+    return sparse_regression(theta, y, threshold, unbias=False)
 
 
 def _scaled(reg: Regression) -> tuple[np.ndarray, np.ndarray]:
