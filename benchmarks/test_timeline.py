@@ -12,9 +12,6 @@ import time
 
 import pytest
 
-_STARTED: dict[str, float] = {}
-
-
 def _file():
     name = os.environ.get("PYTEST_XDIST_WORKER", "main")
     return open(os.path.join(os.environ["TEST_TIMELINE_DIR"], f"{name}.txt"), "a")

@@ -187,8 +187,9 @@ class Proposal:
 def stlsq(theta: np.ndarray, y: np.ndarray, threshold: float) -> np.ndarray:
     """PySINDy's sequentially thresholded least squares on columns of unit RMS: coefficients per column,
     each in the target's units (what the term adds at its typical size). Thresholding on that scale keeps
-    terms by how much they move the channel, whatever their units. The ridge's shrinkage is kept (no
-    unbiasing): the fits size the terms afterwards."""
+    terms by how much they move the channel, whatever their units. The ridge keeps look-alike columns (the
+    reference's yaw rate is nearly v·δ) from cancelling with huge coefficients, and its shrinkage is kept (no
+    unbiasing): the fits size and prune the terms afterwards."""
     return sparse_regression(theta, y, threshold, unbias=False)
 
 
