@@ -1,29 +1,76 @@
 """Temporary folders a process keeps for its whole life: the FMUs it extracts, the shipments a worker
-unpacks, the data files objective scripts read. Each is named for the process and removed when it exits; without that, every worker, client and
-command left one behind (thousands in a day of sweeps). A process killed outright still leaves its own."""
+unpacks, the data files objective scripts read. Each is named for the process and removed when it exits;
+without that, every worker, client and command left one behind (thousands in a day of sweeps).
+
+A process that does not exit normally (killed, crashed, or ended by ``os._exit`` as multiprocessing's
+fork and forkserver children are) cannot remove its own. So each folder holds a lock file that its process
+keeps locked (``flock``) while it lives; the kernel drops the lock however the process ends. The next process
+that makes a folder of the same kind removes those whose lock it can take. Folders without a lock file are
+left alone: one being made, or one from before locks."""
 
 from __future__ import annotations
 
 import atexit
+import fcntl
 import os
 import shutil
 import tempfile
 from functools import cache
 from pathlib import Path
 
+OWNER = ".owner"  # the lock file, locked by the folder's process for its whole life
+_HELD: dict[Path, int] = {}  # this process's folders -> the open lock file that holds the lock
+
 
 def own_folder(prefix: str) -> Path:
     """``<tmp>/<prefix><pid>``, made once per process (again if something cleared it) and removed at its exit."""
     folder = _folder(prefix, os.getpid())
-    folder.mkdir(parents=True, exist_ok=True)
+    if not (folder / OWNER).exists():
+        _claim(folder)
     return folder
 
 
 @cache
 def _folder(prefix: str, pid: int) -> Path:
+    sweep(prefix)
     folder = Path(tempfile.gettempdir()) / f"{prefix}{pid}"
     atexit.register(_remove, folder, pid)
     return folder
+
+
+def _claim(folder: Path) -> None:
+    """Make the folder and lock its lock file, locked before it has its name: no sweep sees it unlocked."""
+    folder.mkdir(parents=True, exist_ok=True)
+    partial = folder / f"{OWNER}.{os.getpid()}"
+    held = os.open(partial, os.O_CREAT | os.O_WRONLY, 0o600)  # not inherited by commands it runs (PEP 446)
+    fcntl.flock(held, fcntl.LOCK_EX)
+    os.replace(partial, folder / OWNER)
+    if folder in _HELD:
+        os.close(_HELD[folder])
+    _HELD[folder] = held
+
+
+def sweep(prefix: str) -> int:
+    """Remove the ``<prefix>*`` folders whose process has ended without removing its own; how many went."""
+    removed = 0
+    for folder in Path(tempfile.gettempdir()).glob(f"{prefix}*"):
+        if folder in _HELD:
+            continue
+        try:
+            lock = os.open(folder / OWNER, os.O_RDONLY)
+        except OSError:  # no lock file: being made, or older than locks
+            continue
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)  # fails while its process lives
+            # and the file locked is still the folder's: a new process of a reused pid would have replaced it
+            ended = os.fstat(lock).st_ino == os.stat(folder / OWNER).st_ino
+        except OSError:
+            ended = False
+        if ended:
+            shutil.rmtree(folder, ignore_errors=True)
+            removed += 1
+        os.close(lock)
+    return removed
 
 
 def _remove(folder: Path, owner: int) -> None:

@@ -27,3 +27,37 @@ def test_a_process_folder_outlives_a_forked_child_and_goes_at_its_own_exit(tmp_p
     folder, after_child = done.stdout.split()
     assert Path(folder).parent == tmp_path and after_child == "True"
     assert not Path(folder).exists()
+
+
+MAKE = """
+import os, sys
+from dse_runner.simulation import scratch
+folder = scratch.own_folder("dse-runner-test-")
+print(folder, flush=True)
+if sys.argv[1] == "os._exit":  # as multiprocessing's fork and forkserver children end: no exit hook runs
+    os._exit(0)
+sys.stdin.readline()  # "wait": lives until told
+"""
+
+
+def make(tmp_path: Path, how: str, **options) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-c", MAKE, how], stdout=subprocess.PIPE, stdin=subprocess.PIPE,
+                            text=True, env={**os.environ, "TMPDIR": str(tmp_path)}, **options)
+
+
+def test_a_folder_its_process_could_not_remove_goes_when_the_next_process_makes_one(tmp_path):
+    gone = make(tmp_path, "os._exit")
+    left = Path(gone.stdout.readline().strip())
+    assert gone.wait(timeout=120) == 0 and left.is_dir()  # os._exit: its folder stays behind
+    alive = make(tmp_path, "wait")
+    older = tmp_path / "dse-runner-test-1"  # a folder without a lock file: being made, or from before locks
+    older.mkdir()
+    try:
+        own = Path(alive.stdout.readline().strip())
+        assert own.is_dir() and not left.exists()  # the next process of the kind removed the orphan
+        later = make(tmp_path, "os._exit")
+        assert later.wait(timeout=120) == 0
+        assert own.is_dir() and older.is_dir()  # a live process's folder stays, and so does one without a lock
+    finally:
+        alive.communicate("\n", timeout=120)
+    assert not own.exists()  # removed at its normal exit
