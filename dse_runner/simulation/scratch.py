@@ -15,18 +15,21 @@ import fcntl
 import os
 import shutil
 import tempfile
+import threading
 from functools import cache
 from pathlib import Path
 
 OWNER = ".owner"  # the lock file, locked by the folder's process for its whole life
 _HELD: dict[Path, int] = {}  # this process's folders -> the open lock file that holds the lock
+_CLAIMING = threading.Lock()  # a worker's threads extract FMUs at once; two claims of one folder would deadlock
 
 
 def own_folder(prefix: str) -> Path:
     """``<tmp>/<prefix><pid>``, made once per process (again if something cleared it) and removed at its exit."""
-    folder = _folder(prefix, os.getpid())
-    if not (folder / OWNER).exists():
-        _claim(folder)
+    with _CLAIMING:
+        folder = _folder(prefix, os.getpid())
+        if not (folder / OWNER).exists():
+            _claim(folder)
     return folder
 
 
