@@ -24,6 +24,15 @@ _HELD: dict[Path, int] = {}  # this process's folders -> the open lock file that
 _CLAIMING = threading.Lock()  # a worker's threads extract FMUs at once; two claims of one folder would deadlock
 
 
+def _unlock_in_child() -> None:
+    """A child forked while another thread claimed a folder gets the lock as it was, held by no thread of its own."""
+    global _CLAIMING
+    _CLAIMING = threading.Lock()
+
+
+os.register_at_fork(after_in_child=_unlock_in_child)
+
+
 def own_folder(prefix: str) -> Path:
     """``<tmp>/<prefix><pid>``, made once per process (again if something cleared it) and removed at its exit."""
     with _CLAIMING:

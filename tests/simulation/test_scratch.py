@@ -61,3 +61,25 @@ def test_a_folder_its_process_could_not_remove_goes_when_the_next_process_makes_
     finally:
         alive.communicate("\n", timeout=120)
     assert not own.exists()  # removed at its normal exit
+
+
+FORK_MID_CLAIM = """
+import os, threading, time
+from dse_runner.simulation import scratch
+claiming = threading.Thread(target=lambda: (scratch._CLAIMING.acquire(), time.sleep(1), scratch._CLAIMING.release()))
+claiming.start()
+time.sleep(0.2)  # another thread is making a folder when the process forks
+child = os.fork()
+if child == 0:
+    print(scratch.own_folder("dse-runner-test-"), flush=True)
+    os._exit(0)
+os.waitpid(child, 0)
+claiming.join()
+"""
+
+
+def test_a_child_forked_while_another_thread_makes_a_folder_makes_its_own(tmp_path):
+    done = subprocess.run([sys.executable, "-W", "ignore", "-c", FORK_MID_CLAIM], capture_output=True, text=True,
+                          env={**os.environ, "TMPDIR": str(tmp_path)}, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert Path(done.stdout.strip()).parent == tmp_path
