@@ -1,5 +1,6 @@
 """A process's own temporary folders (simulation/scratch.py: its extracted FMUs, its unpacked shipments) go
-when it exits, and only the process that made one removes it."""
+when it exits, and only the process that made one removes it; one its process could not remove (ended by
+``os._exit`` or killed) goes when the next process makes a folder of its kind."""
 
 from __future__ import annotations
 
@@ -40,9 +41,10 @@ sys.stdin.readline()  # "wait": lives until told
 """
 
 
-def make(tmp_path: Path, how: str, **options) -> subprocess.Popen:
+def make(tmp_path: Path, how: str) -> subprocess.Popen:
+    """A process that makes its folder, then ends by ``os._exit`` or waits for a line on stdin."""
     return subprocess.Popen([sys.executable, "-c", MAKE, how], stdout=subprocess.PIPE, stdin=subprocess.PIPE,
-                            text=True, env={**os.environ, "TMPDIR": str(tmp_path)}, **options)
+                            text=True, env={**os.environ, "TMPDIR": str(tmp_path)})
 
 
 def test_a_folder_its_process_could_not_remove_goes_when_the_next_process_makes_one(tmp_path):
