@@ -65,9 +65,7 @@ def _claim(folder: Path) -> None:
 def sweep(prefix: str) -> int:
     """Remove the ``<prefix>*`` folders whose process has ended without removing its own; how many went."""
     removed = 0
-    for folder in Path(tempfile.gettempdir()).glob(f"{prefix}*"):
-        if folder in _HELD:
-            continue
+    for folder in Path(tempfile.gettempdir()).glob(f"{prefix}*"):  # this process's own are locked too
         try:
             lock = os.open(folder / OWNER, os.O_RDONLY)
         except OSError:  # no lock file: being made, or older than locks

@@ -72,7 +72,7 @@ def stlsq(theta: np.ndarray, y: np.ndarray, threshold: float, unbias: bool = Tru
     optimizer = ps.STLSQ(threshold=threshold, alpha=RIDGE * len(y), max_iter=20, normalize_columns=False,
                          unbias=unbias)
     # sklearn checks the options of every fit (STLSQ's, ridge_regression's); ours are fixed and valid, and in
-    # the Robotti's diagnoses the check took 5.0 of STLSQ's 11.2 CPU s (docs/performance.md)
+    # the test suite's blind diagnoses the check took 5.0 of STLSQ's 11.2 CPU s (docs/performance.md)
     with warnings.catch_warnings(), sklearn.config_context(skip_parameter_validation=True):
         warnings.filterwarnings("ignore", category=UserWarning)  # "eliminated all coefficients" is an answer here
         optimizer.fit(theta, y)
