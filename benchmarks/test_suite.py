@@ -18,6 +18,12 @@ Runs the tests as the README does (``.venv``'s python, ``-m pytest -q`` plus any
 * ``floor``: ``cpu`` spread over every core, the least wall time this CPU work can take here, and its
   ratio to the issue's target of 8 minutes.
 
+Before and after the run, a **speed probe** runs one process per core at once, each simulating the Robotti
+on sin1 ``PROBE_RUNS`` times, and prints its CPU seconds, and the run's CPU in probes (``cpu_in_probes``: its
+own CPU over the probes' mean). This shared machine's speed drifts by half with nothing else running: the
+same code's suite took 871 and 1299 CPU seconds on one day. A run's CPU in probes changes with the code and
+hardly with the machine's speed; ``--no-probe`` skips it.
+
 ``--timeline`` adds, per test process, the test files that ran longest with their start and end (seconds
 into the run), and the machine's busy share in every 30 s of the run with the core-seconds left idle: which
 files ran side by side when the cores were not full (plugin benchmarks/test_timeline.py).
@@ -72,6 +78,31 @@ def own_group() -> Path | None:
 def group_cpu(group: Path | None) -> float | None:
     """CPU seconds used so far by every process that has been in ``group``."""
     return int((group / "cpuacct.usage").read_text()) / 1e9 if group else None
+
+
+PROBE_RUNS = 200  # simulations of the Robotti on sin1, native loop: 3 s of a core on this machine, 2026-11-26
+PROBE = f"""
+import time
+from dse_runner import bundled
+from dse_runner.simulation.run import as_plan, simulate
+from dse_runner.simulation.scenario import load_scenario
+plan = as_plan(bundled.bundled_path("bundled:robotti/multimodel.yaml"))
+scenario = load_scenario({str(REPO / "scenarios" / "robotti" / "sin1")!r})
+simulate(plan, scenario, {{}}, loop="native")
+started = time.process_time()
+for _ in range({PROBE_RUNS}):
+    simulate(plan, scenario, {{}}, loop="native")
+print(time.process_time() - started)
+"""
+
+
+def speed_probe(python: str, cores: int) -> float:
+    """CPU seconds of PROBE_RUNS simulations, the mean of one probe per core run at once: the machine's speed
+    now. A shared machine's speed drifts by half with nothing else of ours running (docs/performance.md), so
+    runs compare by their CPU over the probe's, not by their CPU alone."""
+    probes = [subprocess.Popen([python, "-c", PROBE], cwd=REPO, stdout=subprocess.PIPE, text=True)
+              for _ in range(cores)]
+    return sum(float(p.communicate()[0]) for p in probes) / cores
 
 
 class BusySampler(threading.Thread):
@@ -129,6 +160,7 @@ def main() -> None:
                         help="one test process; list the N test files that cost the most CPU")
     parser.add_argument("--timeline", action="store_true",
                         help="which test files ran side by side, and how busy the machine was meanwhile")
+    parser.add_argument("--no-probe", action="store_true", help="skip the speed probes before and after the run")
     parser.add_argument("--log", type=Path, help="keep pytest's whole output here (on a failure it is always kept)")
     parser.add_argument("pytest_args", nargs="*", help="after --: arguments added to pytest -q")
     args = parser.parse_args()
@@ -145,6 +177,8 @@ def main() -> None:
         command += ["-p", "test_timeline"]
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO / "benchmarks"), env.get("PYTHONPATH")]))
         env["TEST_TIMELINE_DIR"] = str(lines)
+    cores = os.cpu_count() or 1
+    probes = [speed_probe(command[0], cores)] if not args.no_probe else []
     sampler = BusySampler() if lines else None
     group = own_group()
     join = (lambda: (group / "tasks").write_text(str(os.getpid()))) if group else None
@@ -168,7 +202,8 @@ def main() -> None:
             group.rmdir()
         except OSError:  # a process the run started is still alive
             pass
-    cores = os.cpu_count() or 1
+    if probes:
+        probes.append(speed_probe(command[0], cores))
     figures = {
         "command": " ".join(command[1:]), "exit_code": done.returncode,
         "summary": (done.stdout.strip().splitlines() or [""])[-1],
@@ -178,6 +213,8 @@ def main() -> None:
         "machine_busy": round((busy1 - busy0) / max(total1 - total0, 1), 3),
         "floor_s": round(cpu / cores, 1), "target_s": TARGET, "floor_over_target": round(cpu / cores / TARGET, 2),
         "wall_over_floor": round(wall / (cpu / cores), 2) if cpu else None,
+        "probe_s": [round(p, 2) for p in probes],
+        "cpu_in_probes": round((own if own is not None else cpu) / (sum(probes) / len(probes)), 1) if probes else None,
     }
     if per_test and per_test.exists():
         figures["by_file"] = by_file(json.loads(per_test.read_text()))[:args.by_file]
@@ -198,6 +235,10 @@ def main() -> None:
               f"{mine}{waited:.0f} s in processes it waited for): floor {cpu / cores:.0f} s = "
               f"{figures['floor_over_target']}x the {TARGET / 60:.0f}-minute target; wall = "
               f"{figures['wall_over_floor']}x the floor")
+        if probes:
+            print(f"speed probe ({PROBE_RUNS} simulations, one per core at once): {probes[0]:.2f} CPU s before, "
+                  f"{probes[1]:.2f} after; the run's {'own ' if own is not None else ''}CPU = "
+                  f"{figures['cpu_in_probes']} probes")
         for line in figures["failures"]:
             print(line)
         if "log" in figures:
