@@ -21,8 +21,9 @@ Runs the tests as the README does (``.venv``'s python, ``-m pytest -q`` plus any
 Before and after the run, a **speed probe** runs one process per core at once, each simulating the Robotti
 on sin1 ``PROBE_RUNS`` times, and prints its CPU seconds, and the run's CPU in probes (``cpu_in_probes``: its
 own CPU over the probes' mean). This shared machine's speed drifts by half with nothing else running: the
-same code's suite took 871 and 1299 CPU seconds on one day. A run's CPU in probes changes with the code and
-hardly with the machine's speed; ``--no-probe`` skips it.
+same code's suite took 871 and 1299 CPU seconds on one day. The probe tells a slow machine from slow code, but
+only roughly: it is a C loop and the suite is mostly Python, and the two do not slow alike
+(docs/performance.md), so compare runs made close together. ``--no-probe`` skips it.
 
 ``--timeline`` adds, per test process, the test files that ran longest with their start and end (seconds
 into the run), and the machine's busy share in every 30 s of the run with the core-seconds left idle: which
@@ -98,8 +99,7 @@ print(time.process_time() - started)
 
 def speed_probe(python: str, cores: int) -> float:
     """CPU seconds of PROBE_RUNS simulations, the mean of one probe per core run at once: the machine's speed
-    now. A shared machine's speed drifts by half with nothing else of ours running (docs/performance.md), so
-    runs compare by their CPU over the probe's, not by their CPU alone."""
+    now, which on a shared machine drifts by half with nothing else of ours running (docs/performance.md)."""
     probes = [subprocess.Popen([python, "-c", PROBE], cwd=REPO, stdout=subprocess.PIPE, text=True)
               for _ in range(cores)]
     return sum(float(p.communicate()[0]) for p in probes) / cores
