@@ -105,6 +105,23 @@ def speed_probe(python: str, cores: int) -> float:
     return sum(float(p.communicate()[0]) for p in probes) / cores
 
 
+def close_group(group: Path | None, grace: float = 10.0) -> float | None:
+    """The group's CPU seconds once its last process has ended (a forkserver or a worker may outlive pytest by
+    a moment, and its CPU is the run's), then the group removed; a process still alive after ``grace`` seconds
+    leaves it behind."""
+    if group is None:
+        return None
+    deadline = time.monotonic() + grace
+    while (group / "tasks").read_text().strip() and time.monotonic() < deadline:
+        time.sleep(0.2)
+    cpu = group_cpu(group)
+    try:
+        group.rmdir()
+    except OSError:  # still in use
+        pass
+    return cpu
+
+
 class BusySampler(threading.Thread):
     """The machine's busy share in each second, while the run lasts."""
 
@@ -196,12 +213,7 @@ def main() -> None:
     after_cpu = resource.getrusage(resource.RUSAGE_CHILDREN)
     waited = (after_cpu.ru_utime - before_cpu.ru_utime) + (after_cpu.ru_stime - before_cpu.ru_stime)
     cpu = (busy1 - busy0) / os.sysconf("SC_CLK_TCK")
-    own = group_cpu(group)
-    if group:
-        try:
-            group.rmdir()
-        except OSError:  # a process the run started is still alive
-            pass
+    own = close_group(group)
     if probes:
         probes.append(speed_probe(command[0], cores))
     figures = {
