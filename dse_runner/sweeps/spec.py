@@ -18,10 +18,9 @@ import glob
 import math
 from dataclasses import replace
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
-import pandas as pd
 from pydantic import (
     BaseModel,
     ConfigDict,
@@ -49,7 +48,9 @@ from . import makers, uncertainty
 from .constraints import compile_constraint
 from .domain import Dimension, Point
 from .search import Problem, Strategy, parse_options, strategy
-from .store import is_url
+
+if TYPE_CHECKING:  # pandas and the store's pyarrow wait for a spec that reads: a bad one is named 0.5 s sooner
+    import pandas as pd
 
 Strict = ConfigDict(extra="forbid", allow_inf_nan=False)  # unknown keys, NaN and infinity are errors
 
@@ -496,6 +497,8 @@ class Space:
     @property
     def output(self) -> Path | str:
         """The results store: a local folder (relative to the spec) or an fsspec URL."""
+        from .store import is_url
+
         if is_url(self.spec.output):
             return self.spec.output
         out = Path(self.spec.output)
@@ -511,6 +514,8 @@ class Space:
         if budget:
             update["search"] = Search.model_validate({**self.spec.search.model_dump(), **budget})
         if output is not None:
+            from .store import is_url
+
             update["output"] = output if is_url(str(output)) else str(Path(output).resolve())
         cluster: dict[str, Any] = {}
         if address is not None:

@@ -22,12 +22,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from ..errors import DseError
 from ..simulation.scenario import Scenario
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from .spec import FromDiagnosis, Normal, Robust, Uncertain
 
 SEPARATOR = "~u"  # <scenario>~u<k>: the k-th draw of the scenario
@@ -128,6 +129,8 @@ def draw(uncertain: Uncertain, distributions: dict[str, Any]) -> pd.DataFrame:
     """The sample: one row per draw, one column per uncertain parameter, plain floats."""
     names = list(distributions)
     units = unit_sample(uncertain.samples, len(names), uncertain.sampling, uncertain.seed)
+    import pandas as pd
+
     table = pd.DataFrame({name: frozen(distributions[name]).ppf(units[:, i]) for i, name in enumerate(names)})
     bad = [name for name in names if not np.isfinite(table[name]).all()]
     if bad:  # a unit point at exactly 0 or 1 of an unbounded distribution

@@ -13,17 +13,18 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import yaml
 
-from ...sweeps.rank import current_rows, load_sweep_spec, pick_sweep, rank
 from ...errors import DseError
 from ...simulation.objectives import is_vector, normalise
-from ...sweeps import store
 from ...sweeps.spec import Space, SpaceSpec, resolve_space
 from .convert import IntoCpsWarning, to_spec
 from .project import locate
-from .results import write_results
+
+if TYPE_CHECKING:  # the ranking's pandas only for result files: `submit` names a bad spec without it
+    from ...sweeps import store
 
 __all__ = ["IntoCpsWarning", "convert", "is_dse_config", "load_space", "write_result_files"]
 
@@ -60,6 +61,9 @@ def _path(value: str | Path | None) -> Path | None:
 
 def write_result_files(output: store.Root, folder: Path, sweep: str | None = None) -> dict[str, Path]:
     """INTO-CPS's result files (results.py) of a sweep converted from a DSE config, into ``folder``."""
+    from ...sweeps.rank import current_rows, load_sweep_spec, pick_sweep, rank
+    from .results import write_results
+
     sweep = pick_sweep(output, sweep)
     spec = load_sweep_spec(output, sweep)
     if spec.origin is None or spec.origin.format != "intocps":
