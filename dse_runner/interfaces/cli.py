@@ -162,7 +162,6 @@ def simulate(
     from ..simulation.run import summary, write_csv
     from ..simulation.values import read_values
     from ..simulation.scenario import dropouts_line
-    from .plots import result_plot
 
     files: dict[str, Path] = {}
     try:
@@ -176,6 +175,8 @@ def simulate(
         if csv is not None:
             files["csv"] = write_csv(result, csv, bare)
         if out is not None:
+            from .plots import result_plot  # matplotlib only when a plot is asked for
+
             out.mkdir(parents=True, exist_ok=True)
             files["trajectory"] = write_csv(result, out / "trajectory.csv", bare)
             files["plot"] = result_plot(result, out / "plot.png")
