@@ -49,7 +49,7 @@ from .constraints import compile_constraint
 from .domain import Dimension, Point
 from .search import Problem, Strategy, parse_options, strategy
 
-if TYPE_CHECKING:  # pandas (and the store's pyarrow) wait for a spec that reads: a bad one is named without them
+if TYPE_CHECKING:  # pandas and the store's pyarrow wait for a spec that reads: a bad one is named sooner
     import pandas as pd
 
 Strict = ConfigDict(extra="forbid", allow_inf_nan=False)  # unknown keys, NaN and infinity are errors
