@@ -117,6 +117,15 @@ def libraries() -> list[HypothesisLibrary]:
     return [*installed, SignalEffects()]
 
 
+def runs_folder(scenarios: str | Path) -> Path:
+    """The folder of recorded runs that ``scenarios`` names: a missing one is named before any library is
+    loaded or asked."""
+    folder = Path(scenarios).resolve()
+    if not folder.is_dir():
+        raise DseError(f"--scenarios {scenarios}: not a folder")
+    return folder
+
+
 def space_with(space: str | Path, scenarios: str | Path | None, out: Path, multimodel: str | Path | None = None,
                n_workers: int | None = None, address: str | None = None) -> Space:
     """The space to diagnose: ``space`` (a file or ``bundled:…``), with every run in ``scenarios`` as
@@ -124,10 +133,7 @@ def space_with(space: str | Path, scenarios: str | Path | None, out: Path, multi
     path = bundled.resolve(space, Path.cwd())
     update: dict[str, Any] = {"output": str(out), "keep_trajectories": 0}
     if scenarios is not None:
-        folder = Path(scenarios).resolve()
-        if not folder.is_dir():
-            raise DseError(f"--scenarios {scenarios}: not a folder")
-        update["scenarios"] = [str(folder / "*")]
+        update["scenarios"] = [str(runs_folder(scenarios) / "*")]
     if multimodel is not None:
         update["multimodel"] = str(Path(multimodel).resolve())
     spec = read_spec(path).model_copy(update=update)
@@ -155,6 +161,8 @@ def diagnose(space: str | Path | None = None, scenarios: str | Path | None = Non
     needs no space file."""
     say = say or (lambda message: None)
     out = Path(request.out).resolve()
+    if scenarios is not None:
+        runs_folder(scenarios)
     found = libraries()
     if space is not None:
         target = space_with(space, scenarios, out, multimodel, n_workers, address)
