@@ -111,6 +111,14 @@ def test_runs_no_library_calibrates_are_refused_with_each_librarys_reason(tmp_pa
         diagnose(scenarios=folder, request=Request(out=tmp_path / "out"))
 
 
+def test_a_missing_runs_folder_is_named_alone(tmp_path):
+    """Before any library is asked: one plain reason, not each library's."""
+    missing = tmp_path / "nowhere"
+    with pytest.raises(DseError) as refused:
+        diagnose(scenarios=missing, request=Request(out=tmp_path / "out"))
+    assert str(refused.value) == f"--scenarios {missing}: not a folder"
+
+
 def test_nothing_to_diagnose_is_named():
     with pytest.raises(DseError, match="give --space SPACE.yaml"):
         diagnose()
