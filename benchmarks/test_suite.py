@@ -18,12 +18,13 @@ Runs the tests as the README does (``.venv``'s python, ``-m pytest -q`` plus any
 * ``floor``: ``cpu`` spread over every core, the least wall time this CPU work can take here, and its
   ratio to the issue's target of 8 minutes.
 
-Before and after the run, a **speed probe** runs one process per core at once, each simulating the Robotti
-on sin1 ``PROBE_RUNS`` times, and prints its CPU seconds, and the run's CPU in probes (``cpu_in_probes``: its
-own CPU over the probes' mean). This shared machine's speed drifts by half with nothing else running: the
-same code's suite took 871 and 1299 CPU seconds on one day. The probe tells a slow machine from slow code, but
-only roughly: it is a C loop and the suite is mostly Python, and the two do not slow alike
-(docs/performance.md), so compare runs made close together. ``--no-probe`` skips it.
+Before and after the run, a **speed probe** runs one process per core at once, each simulating the Robotti on
+sin1 ``PROBE_RUNS`` times, and prints its CPU seconds, and the run's CPU in probes (``cpu_in_probes``: its own
+CPU over the probes' mean). This shared machine's speed drifts by half with nothing else running: one
+diagnosis took 16.6 client CPU seconds at 11:42 and 36.0 after the 13:29 run, on one day and the same code.
+The probe tells a slow machine from slow code, but only roughly: it is a C loop and the suite is mostly
+Python, and the two do not slow alike (docs/performance.md), so compare runs made close together.
+``--no-probe`` skips it.
 
 ``--timeline`` adds, per test process, the test files that ran longest with their start and end (seconds
 into the run), and the machine's busy share in every 30 s of the run with the core-seconds left idle: which

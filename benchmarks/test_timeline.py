@@ -12,6 +12,7 @@ import time
 
 import pytest
 
+
 def _file():
     name = os.environ.get("PYTEST_XDIST_WORKER", "main")
     return open(os.path.join(os.environ["TEST_TIMELINE_DIR"], f"{name}.txt"), "a")

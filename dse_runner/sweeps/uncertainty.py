@@ -127,10 +127,10 @@ def unit_sample(n: int, d: int, sampling: str, seed: int) -> np.ndarray:
 
 def draw(uncertain: Uncertain, distributions: dict[str, Any]) -> pd.DataFrame:
     """The sample: one row per draw, one column per uncertain parameter, plain floats."""
+    import pandas as pd  # here, not at the top: a bad spec is named without it
+
     names = list(distributions)
     units = unit_sample(uncertain.samples, len(names), uncertain.sampling, uncertain.seed)
-    import pandas as pd
-
     table = pd.DataFrame({name: frozen(distributions[name]).ppf(units[:, i]) for i, name in enumerate(names)})
     bad = [name for name in names if not np.isfinite(table[name]).all()]
     if bad:  # a unit point at exactly 0 or 1 of an unbounded distribution
