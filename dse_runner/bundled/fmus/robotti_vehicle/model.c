@@ -34,12 +34,13 @@ static Bicycle bicycle_of(const double *p) {
 typedef struct {
     Bicycle bicycle;
     double velocity, delta_f; /* inputs, held over the communication step */
+    SteeringTrig trig;
 } Step;
 
-static void rhs(const void *ctx, double t, const double *z, double *dz) {
-    const Step *step = ctx;
+static void rhs(void *ctx, double t, const double *z, double *dz) {
+    Step *step = ctx;
     (void)t;
-    bicycle_derivatives(&step->bicycle, 0, z, step->velocity, step->delta_f, dz);
+    bicycle_derivatives(&step->bicycle, 0, &step->trig, z, step->velocity, step->delta_f, dz);
 }
 
 static void publish(Slave *s, const double *z) {
@@ -75,7 +76,7 @@ static int check_parameters(Slave *s) {
 
 static int do_step(Slave *s, double t, double h) {
     const double *p = s->r;
-    const Step step = {bicycle_of(p), p[VELOCITY], p[DELTA_F]};
+    Step step = {bicycle_of(p), p[VELOCITY], p[DELTA_F], {0}};
     double *z = s->state;
     rk4_advance(rhs, &step, BICYCLE_STATES, z, t, h, p[RK4_STEP]);
     if (check_finite(s, z, BICYCLE_STATES, t, h) != 0) return 1;

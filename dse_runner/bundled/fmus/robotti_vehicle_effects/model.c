@@ -21,6 +21,7 @@
  * Value references are the indices of enum Real; modelDescription.xml lists
  * the same variables in the same order.
  */
+#include <stdint.h>
 #include <stdlib.h>
 
 #include "bicycle.h"
@@ -128,6 +129,8 @@ typedef struct {
     const History *history;
     int active[N_CHANNELS]; /* a channel with a nonzero coefficient */
     int any;                /* any channel active: the block runs */
+    SteeringTrig trig;
+    size_t next_command; /* command_at's place in the history */
 } Step;
 
 /* Which channels have a nonzero coefficient; returns whether any has. */
@@ -229,15 +232,24 @@ static int remember(Slave *s, double t, double velocity, double delta_f) {
 }
 
 /* The command in force at time t (the last one received at or before t);
- * before the first command the vehicle is held at rest, wheels straight. */
-static void command_at(const History *h, double t, double *velocity, double *delta_f) {
+ * before the first command the vehicle is held at rest, wheels straight.
+ * *next is the index after the command found last time: the RK4 stages of a
+ * step ask for times that do not decrease, so the search steps on from there;
+ * SIZE_MAX (nothing found yet), or an earlier time, searches the whole history. */
+static void command_at(const History *h, double t, size_t *next, double *velocity, double *delta_f) {
     const double tolerance = 1e-9 * (1.0 + fabs(t));
-    size_t lo = 0, hi = h->n; /* first index with time > t is in [lo, hi] */
-    while (lo < hi) {
-        size_t mid = (lo + hi) / 2;
-        if (h->time[mid] <= t + tolerance) lo = mid + 1;
-        else hi = mid;
+    size_t lo = *next; /* first index with time > t, once the loops below end */
+    if (lo > h->n || (lo > 0 && !(h->time[lo - 1] <= t + tolerance))) {
+        size_t hi = h->n;
+        lo = 0;
+        while (lo < hi) {
+            size_t mid = (lo + hi) / 2;
+            if (h->time[mid] <= t + tolerance) lo = mid + 1;
+            else hi = mid;
+        }
     }
+    while (lo < h->n && h->time[lo] <= t + tolerance) lo++;
+    *next = lo;
     if (lo == 0) {
         *velocity = 0.0;
         *delta_f = 0.0;
@@ -257,16 +269,16 @@ static double actuator(double command, double lag, double state, double *d_state
     return command;
 }
 
-static void rhs(const void *ctx, double t, const double *z, double *dz) {
-    const Step *step = ctx;
+static void rhs(void *ctx, double t, const double *z, double *dz) {
+    Step *step = ctx;
     const double *p = step->p;
     double velocity, delta_f;
-    command_at(step->history, t - p[TIME_OFFSET], &velocity, &delta_f);
+    command_at(step->history, t - p[TIME_OFFSET], &step->next_command, &velocity, &delta_f);
     velocity = actuator(velocity, p[SPEED_LAG], z[ACT_SPEED], &dz[ACT_SPEED]);
     delta_f = actuator(delta_f, p[STEERING_LAG], z[ACT_STEERING], &dz[ACT_STEERING]);
     if (!step->any) {
         dz[F_SPEED] = dz[F_STEERING] = dz[DISTANCE] = dz[RATE_LIMITED] = 0.0;
-        bicycle_derivatives(&step->bicycle, &step->ground, z, velocity, delta_f + p[STEERING_OFFSET], dz);
+        bicycle_derivatives(&step->bicycle, &step->ground, &step->trig, z, velocity, delta_f + p[STEERING_OFFSET], dz);
         return;
     }
     double f[N_CORR];
@@ -277,7 +289,7 @@ static void rhs(const void *ctx, double t, const double *z, double *dz) {
     dz[RATE_LIMITED] = bicycle_clamp((delta_f - z[RATE_LIMITED]) / TAU_TRACK, -p[CORR_RATE_LIMIT], p[CORR_RATE_LIMIT]);
     double steering = delta_f + p[STEERING_OFFSET];
     if (step->active[C_STEER]) steering += channel_sum(p, C_STEER, f);
-    bicycle_derivatives(&step->bicycle, &step->ground, z, velocity, steering, dz);
+    bicycle_derivatives(&step->bicycle, &step->ground, &step->trig, z, velocity, steering, dz);
     if (step->active[C_ACC]) dz[B_VX] += channel_sum(p, C_ACC, f);
     if (step->active[C_YAW]) dz[B_R] += channel_sum(p, C_YAW, f);
 }
@@ -353,7 +365,7 @@ static int do_step(Slave *s, double t, double h) {
     if (remember(s, t, p[VELOCITY], p[DELTA_F]) != 0) return 1;
     Step step = {
         p, {p[MASS], p[C_ALPHA_F], p[C_ALPHA_R], p[MU], p[LF], p[LR], p[R_GYR], p[KV], p[V_MIN], p[G]},
-        {p[WHEEL_SLIP], p[GRADE_X], p[GRADE_Y]}, &st->history, {0}, 0,
+        {p[WHEEL_SLIP], p[GRADE_X], p[GRADE_Y]}, &st->history, {0}, 0, {0}, SIZE_MAX,
     };
     step.any = active_channels(p, step.active);
     rk4_advance(rhs, &step, N_STATES, st->z, t, h, p[RK4_STEP]);
