@@ -259,11 +259,12 @@ static void command_at(const History *h, double t, size_t *next, double *velocit
     *delta_f = h->delta_f[lo - 1];
 }
 
-/* First-order actuator: its state when lagging, the command itself otherwise. */
-static double actuator(double command, double lag, double state, double *d_state) {
+/* First-order actuator: its state when lagging, the command itself otherwise
+ * (the state is then not read: it is not integrated, moving_states). */
+static double actuator(double command, double lag, const double *state, double *d_state) {
     if (lag > 0.0) {
-        *d_state = (command - state) / lag;
-        return state;
+        *d_state = (command - *state) / lag;
+        return *state;
     }
     *d_state = 0.0;
     return command;
@@ -274,8 +275,8 @@ static void rhs(void *ctx, double t, const double *z, double *dz) {
     const double *p = step->p;
     double velocity, delta_f;
     command_at(step->history, t - p[TIME_OFFSET], &step->next_command, &velocity, &delta_f);
-    velocity = actuator(velocity, p[SPEED_LAG], z[ACT_SPEED], &dz[ACT_SPEED]);
-    delta_f = actuator(delta_f, p[STEERING_LAG], z[ACT_STEERING], &dz[ACT_STEERING]);
+    velocity = actuator(velocity, p[SPEED_LAG], &z[ACT_SPEED], &dz[ACT_SPEED]);
+    delta_f = actuator(delta_f, p[STEERING_LAG], &z[ACT_STEERING], &dz[ACT_STEERING]);
     if (!step->any) {
         dz[F_SPEED] = dz[F_STEERING] = dz[DISTANCE] = dz[RATE_LIMITED] = 0.0;
         bicycle_derivatives(&step->bicycle, &step->ground, &step->trig, z, velocity, delta_f + p[STEERING_OFFSET], dz);
@@ -359,6 +360,13 @@ static int check_parameters(Slave *s) {
     return start_at_rest(s);
 }
 
+/* How many states (in enum order) move: the bicycle's; the actuators' when one lags; all when the
+ * correction block runs. The others keep their values (zero derivatives), so they are left out of RK4. */
+static int moving_states(const double *p, int any) {
+    if (any) return N_STATES;
+    return p[SPEED_LAG] > 0.0 || p[STEERING_LAG] > 0.0 ? ACT_STEERING + 1 : BICYCLE_STATES;
+}
+
 static int do_step(Slave *s, double t, double h) {
     const double *p = s->r;
     State *st = s->state;
@@ -368,7 +376,7 @@ static int do_step(Slave *s, double t, double h) {
         {p[WHEEL_SLIP], p[GRADE_X], p[GRADE_Y]}, &st->history, {0}, 0, {0}, SIZE_MAX,
     };
     step.any = active_channels(p, step.active);
-    rk4_advance(rhs, &step, N_STATES, st->z, t, h, p[RK4_STEP]);
+    rk4_advance(rhs, &step, moving_states(p, step.any), st->z, t, h, p[RK4_STEP]);
     if (check_finite(s, st->z, N_STATES, t, h) != 0) return 1;
     publish(s, st->z);
     return 0;
