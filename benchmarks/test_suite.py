@@ -18,12 +18,15 @@ Runs the tests as the README does (``.venv``'s python, ``-m pytest -q`` plus any
 * ``floor``: ``cpu`` spread over every core, the least wall time this CPU work can take here, and its
   ratio to the issue's target of 8 minutes.
 
-Before and after the run, a **speed probe** runs one process per core at once, each simulating the Robotti on
-sin1 ``PROBE_RUNS`` times, and prints its CPU seconds, and the run's CPU in probes (``cpu_in_probes``: its own
-CPU over the probes' mean). This shared machine's speed drifts by half with nothing else running: one
-diagnosis took 16.6 client CPU seconds at 11:42 and 36.0 after the 13:29 run, on one day and the same code.
-The probe tells a slow machine from slow code, but only roughly: it is a C loop and the suite is mostly
-Python, and the two do not slow alike (docs/performance.md), so compare runs made close together.
+Before and after the run, a **speed probe** runs one process per core at once, each a fixed piece of plain
+Python (JSON out and back, a sort, a sum over 5000 rows, ``PROBE_ROUNDS`` times) that uses nothing of the
+package, so that a change to the package cannot move it; it prints its CPU seconds, and the run's CPU in
+probes (``cpu_in_probes``: its own CPU over the probes' mean). This shared machine's speed drifts by half
+with nothing else running: one diagnosis took 16.6 client CPU seconds at 11:42 and 36.0 after the 13:29 run,
+on one day and the same code. The probe tells a slow machine from slow code, but only roughly: the suite's
+work is not the probe's, and the two do not slow alike (docs/performance.md), so compare runs made close
+together. (Until 2026-11-26 17:00 the probe simulated the Robotti, whose FMU was then made faster: figures
+in probes from before then are in other units.)
 ``--no-probe`` skips it.
 
 ``--timeline`` adds, per test process, the test files that ran longest with their start and end (seconds
@@ -82,24 +85,22 @@ def group_cpu(group: Path | None) -> float | None:
     return int((group / "cpuacct.usage").read_text()) / 1e9 if group else None
 
 
-PROBE_RUNS = 200  # simulations of the Robotti on sin1, native loop: 3 s of a core on this machine, 2026-11-26
+PROBE_ROUNDS = 200  # 5.4 CPU s here at 17:05 on 2026-11-26, when 200 runs of the Robotti took 5.2 (half speed)
 PROBE = f"""
-import time
-from dse_runner import bundled
-from dse_runner.simulation.run import as_plan, simulate
-from dse_runner.simulation.scenario import load_scenario
-plan = as_plan(bundled.bundled_path("bundled:robotti/multimodel.yaml"))
-scenario = load_scenario({str(REPO / "scenarios" / "robotti" / "sin1")!r})
-simulate(plan, scenario, {{}}, loop="native")
+import json, random, time
+rng = random.Random(0)
+rows = [{{"task": i, "x": rng.random(), "name": f"p{{i}}"}} for i in range(5000)]
 started = time.process_time()
-for _ in range({PROBE_RUNS}):
-    simulate(plan, scenario, {{}}, loop="native")
+for _ in range({PROBE_ROUNDS}):
+    back = json.loads(json.dumps(rows))
+    back.sort(key=lambda r: r["x"])
+    total = sum(r["x"] * r["task"] for r in back)
 print(time.process_time() - started)
 """
 
 
 def speed_probe(python: str, cores: int) -> float:
-    """CPU seconds of PROBE_RUNS simulations, the mean of one probe per core run at once: the machine's speed
+    """CPU seconds of the probe's PROBE_ROUNDS rounds, the mean of one probe per core run at once: the machine's speed
     now, which on a shared machine drifts by half with nothing else of ours running (docs/performance.md)."""
     probes = [subprocess.Popen([python, "-c", PROBE], cwd=REPO, stdout=subprocess.PIPE, text=True)
               for _ in range(cores)]
@@ -249,7 +250,7 @@ def main() -> None:
               f"{figures['floor_over_target']}x the {TARGET / 60:.0f}-minute target; wall = "
               f"{figures['wall_over_floor']}x the floor")
         if probes:
-            print(f"speed probe ({PROBE_RUNS} simulations, one per core at once): {probes[0]:.2f} CPU s before, "
+            print(f"speed probe ({PROBE_ROUNDS} rounds, one per core at once): {probes[0]:.2f} CPU s before, "
                   f"{probes[1]:.2f} after; the run's {'own ' if own is not None else ''}CPU = "
                   f"{figures['cpu_in_probes']} probes")
         for line in figures["failures"]:
