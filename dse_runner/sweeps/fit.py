@@ -36,6 +36,7 @@ import numpy as np
 from ..errors import DseError
 from . import store
 from .domain import Point
+from .chunks import TaskScores
 from .cluster import total_threads
 from .expand import expand
 from .spec import Space
@@ -336,8 +337,21 @@ def evaluate_points(space: Space, points: list[Point], client, columns: list[str
                     ) -> tuple[Rows, float | None]:
     """Run ``points`` on every scenario of ``space`` (or, with ``only``, each point on the scenarios
     named for it) as one sweep, skipping finished tasks. Returns their rows with ``status`` and
-    ``columns``, and what a task cost (for the next round's ``seconds_per_task``, see sweep.submit)."""
-    report = submit(space, client=client, points=points, only=only, seconds_per_task=seconds_per_task)
+    ``columns``, and what a task cost (for the next round's ``seconds_per_task``, see sweep.submit).
+    The tasks simulated now are told by their chunks; only those finished before are read from the store."""
+    told: list[TaskScores] = []
+    report = submit(space, client=client, points=points, only=only, seconds_per_task=seconds_per_task, told=told)
     ids = {task.task_id: (task.point, task.scenario) for task in expand(space, points, only)}
-    rows = store.read_results(space.output, space.name, ["status", *columns], task_ids=list(ids))
-    return {ids[r["task_id"]]: r for r in rows.to_dict("records")}, report.seconds_per_task or seconds_per_task
+    rows = {ids[t.task_id]: told_row(t, columns) for t in told if t.task_id in ids}
+    earlier = [task_id for task_id, key in ids.items() if key not in rows]
+    if earlier:
+        stored = store.read_results(space.output, space.name, ["status", *columns], task_ids=earlier)
+        rows.update({ids[r["task_id"]]: r for r in stored.to_dict("records")})
+    return rows, report.seconds_per_task or seconds_per_task
+
+
+def told_row(scores: TaskScores, columns: list[str]) -> dict[str, Any]:
+    """A task's row as the store would give it back: its status and ``columns`` (None when it failed)."""
+    objectives = scores.objectives
+    return {"task_id": scores.task_id, "scenario": scores.scenario, "status": "ok" if scores.error is None else "failed",
+            **{c: None if objectives is None else objectives.get(c) for c in columns}}

@@ -42,7 +42,7 @@ from ..errors import DseError
 from ..simulation.experiment import Experiment
 from ..simulation.run import simulate
 from . import ship, store
-from .chunks import ChunkJob, ChunkSummary, chunk_id_of, probe, record_crash, run_chunk
+from .chunks import ChunkJob, ChunkSummary, TaskScores, chunk_id_of, probe, record_crash, run_chunk
 from .closed_loop import SearchSource, SearchStatus
 from .cluster import WorkerWatch, connect, total_threads, wait_until_ended, worker_grace
 from .domain import Point
@@ -174,7 +174,8 @@ def chunk_size(seconds_per_task: float | None, target_seconds: float, pending: i
 
 def submit(space: Space, progress: SweepProgress | None = None, client=None,
            points: list[Point] | None = None, on_connect: Callable[[Any], None] | None = None,
-           only: list[Collection[str]] | None = None, seconds_per_task: float | None = None) -> SweepReport:
+           only: list[Collection[str]] | None = None, seconds_per_task: float | None = None,
+           told: list[TaskScores] | None = None) -> SweepReport:
     """Run ``space``: every task of a grid strategy that has no row yet, or a closed-loop search
     (closed_loop.py) until its budget; returns counts, never raises on failed tasks.
 
@@ -182,7 +183,9 @@ def submit(space: Space, progress: SweepProgress | None = None, client=None,
     optimiser (fit.py) runs each of its rounds as a sweep into the same store;
     ``only`` then names, per point, the scenarios it is wanted on (expand.expand), and
     ``seconds_per_task`` what a task cost in the last round (its report's ``seconds_per_task``),
-    which sizes chunks without a probe: a serial simulation every round would add up.
+    which sizes chunks without a probe: a serial simulation every round would add up;
+    ``told``, a list, receives the objectives of every task simulated, as its chunk finishes,
+    so that an optimiser need not read back from the store the rows it has just caused.
     ``on_connect(client)`` runs each time the sweep (re)connects to a scheduler: how the
     CLI links its dashboard from Dask's (dashboard.link_from_dask)."""
     started = time.perf_counter()
@@ -208,7 +211,7 @@ def submit(space: Space, progress: SweepProgress | None = None, client=None,
             report.state = "finished"
             save_status(report, kept)
             return report
-        source = GridSource(space, shipment.key, report, points, only, seconds_per_task)
+        source = GridSource(space, shipment.key, report, points, only, seconds_per_task, told)
     run = Run(space, shipment, source, report, progress, started, on_connect, kept)
     save_status(report)
     try:
@@ -275,6 +278,7 @@ class GridSource:
     points: list[Point] | None = None
     only: list[Collection[str]] | None = None
     seconds_per_task: float | None = None  # known from an earlier round, else probed; then measured
+    told: list[TaskScores] | None = None  # receives every task's objectives (submit's ``told``)
     jobs: Iterator[ChunkJob] | None = None
     capacity: int = 1
     threads: int = 1
@@ -287,7 +291,8 @@ class GridSource:
         self.unassigned = self.report.remaining
         if self.seconds_per_task is None:
             self.warm_up(client, first_point(self.space, self.points))
-        self.jobs = _jobs(self.space, self.shipment, done, self._size, self.points, self.only)  # while they run
+        self.jobs = _jobs(self.space, self.shipment, done, self._size, self.points, self.only,
+                          with_scores=self.told is not None)  # while they run
         self.seconds_per_task = self.seconds_per_task or self.probed(client)
         self.capacity = 2 * self.threads + 2
         self.sent = 0
@@ -306,6 +311,8 @@ class GridSource:
         tasks = summary.ok + summary.failed
         if tasks and summary.busy > 0:
             self.seconds_per_task = summary.busy / tasks
+        if self.told is not None:
+            self.told.extend(summary.scores)
 
     def _size(self) -> int:
         """The next chunk's size: by the latest cost per task, and by the tasks not yet handed out, so
@@ -556,10 +563,11 @@ def trajectories_of(space: Space, client, point: Point, sweep: str) -> dict[str,
 
 
 def _jobs(space: Space, shipment: str, done: set[str], size: Callable[[], int], points: list[Point] | None,
-          only: list[Collection[str]] | None = None) -> Iterator[ChunkJob]:
+          only: list[Collection[str]] | None = None, with_scores: bool = False) -> Iterator[ChunkJob]:
     """The chunks, made as they are asked for; the results' schema (a walk over every value of a large grid)
     is made now, and ``size`` is first asked when the first chunk is."""
     key = space.model_key
     schema = store.results_schema(space.parameters, space.objectives)
     return (ChunkJob(space.name, chunk_id_of(tasks), shipment, key, tasks, space.objectives, space.output, schema,
-                     space.spec.timeout, space.experiment) for tasks in chunked(blocks(space, points, only, done), size))
+                     space.spec.timeout, space.experiment, with_scores=with_scores)
+            for tasks in chunked(blocks(space, points, only, done), size))
