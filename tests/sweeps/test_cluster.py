@@ -143,6 +143,7 @@ def test_a_sweep_whose_workers_all_die_stops_with_its_finished_rows(tmp_path, cl
     kept = raw_task_ids(space.output)
     assert 0 < len(kept) < SLOW_TASKS and kept.is_unique
     cluster.start_worker()
+    cluster.wait_for_workers(1)  # the spec gives a worker 2 s to join: a slow machine takes longer to start one
     report = submit(load_space(spec))
     assert (report.skipped, report.ok + report.skipped) == (len(kept), SLOW_TASKS)
 
