@@ -353,5 +353,6 @@ def evaluate_points(space: Space, points: list[Point], client, columns: list[str
 def told_row(scores: TaskScores, columns: list[str]) -> dict[str, Any]:
     """A task's row as the store would give it back: its status and ``columns`` (None when it failed)."""
     objectives = scores.objectives
-    return {"task_id": scores.task_id, "scenario": scores.scenario, "status": "ok" if scores.error is None else "failed",
+    status = "ok" if scores.error is None else "failed"
+    return {"task_id": scores.task_id, "scenario": scores.scenario, "status": status,
             **{c: None if objectives is None else objectives.get(c) for c in columns}}

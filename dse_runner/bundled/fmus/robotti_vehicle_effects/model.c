@@ -279,7 +279,8 @@ static void rhs(void *ctx, double t, const double *z, double *dz) {
     delta_f = actuator(delta_f, p[STEERING_LAG], &z[ACT_STEERING], &dz[ACT_STEERING]);
     if (!step->any) {
         dz[F_SPEED] = dz[F_STEERING] = dz[DISTANCE] = dz[RATE_LIMITED] = 0.0;
-        bicycle_derivatives(&step->bicycle, &step->ground, &step->trig, z, velocity, delta_f + p[STEERING_OFFSET], dz);
+        const double steering = delta_f + p[STEERING_OFFSET];
+        bicycle_derivatives(&step->bicycle, &step->ground, &step->trig, z, velocity, steering, dz);
         return;
     }
     double f[N_CORR];
