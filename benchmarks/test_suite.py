@@ -100,8 +100,8 @@ print(time.process_time() - started)
 
 
 def speed_probe(python: str, cores: int) -> float:
-    """CPU seconds of the probe's PROBE_ROUNDS rounds, the mean of one probe per core run at once: the machine's speed
-    now, which on a shared machine drifts by half with nothing else of ours running (docs/performance.md)."""
+    """CPU seconds of the probe's PROBE_ROUNDS rounds, the mean of one probe per core run at once: the machine's
+    speed now, which on a shared machine drifts by half with nothing else of ours running (docs/performance.md)."""
     probes = [subprocess.Popen([python, "-c", PROBE], cwd=REPO, stdout=subprocess.PIPE, text=True)
               for _ in range(cores)]
     return sum(float(p.communicate()[0]) for p in probes) / cores
