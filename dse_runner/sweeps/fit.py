@@ -351,8 +351,7 @@ def evaluate_points(space: Space, points: list[Point], client, columns: list[str
 
 
 def told_row(scores: TaskScores, columns: list[str]) -> dict[str, Any]:
-    """A task's row as the store would give it back: its status and ``columns`` (None when it failed)."""
+    """A task's row as a fit reads it: its status and ``columns`` (None when it failed)."""
     objectives = scores.objectives
-    status = "ok" if scores.error is None else "failed"
-    return {"task_id": scores.task_id, "scenario": scores.scenario, "status": status,
+    return {"status": "ok" if scores.error is None else "failed",
             **{c: None if objectives is None else objectives.get(c) for c in columns}}
