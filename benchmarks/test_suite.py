@@ -2,6 +2,7 @@
 
     python benchmarks/test_suite.py [-- PYTEST_ARGS...]      # default: the README's command, pytest -q
     python benchmarks/test_suite.py --by-file 30 [-- ...]    # one process, CPU per test file
+    python benchmarks/test_suite.py --by-process 12 [-- ...] # CPU per kind of process: workers, commands
 
 Runs the tests as the README does (``.venv``'s python, ``-m pytest -q`` plus any arguments given after
 ``--``) in a subprocess and prints, side by side:
@@ -32,6 +33,10 @@ in probes from before then are in other units.)
 ``--timeline`` adds, per test process, the test files that ran longest with their start and end (seconds
 into the run), and the machine's busy share in every 30 s of the run with the core-seconds left idle: which
 files ran side by side when the cores were not full (plugin benchmarks/test_timeline.py).
+
+``--by-process N`` adds the N kinds of process that used the most CPU over the run, each with how many ran
+(plain Python reading /proc every 0.25 s: a process is counted up to its last sample): the test processes, the
+Dask workers their clusters spawned, the schedulers, dse-runner's commands by subcommand, the browser.
 
 ``--by-file N`` runs the tests in one process (``-n 0``, with the plugin benchmarks/cpu_per_test.py) and adds
 the N test files that cost the machine the most CPU seconds, each with its wall time: where to look first.
@@ -140,6 +145,88 @@ class BusySampler(threading.Thread):
             busy, total = now_busy, now_total
 
 
+class ProcessSampler(threading.Thread):
+    """Every process started after the run began, with the CPU seconds it had used when last seen (/proc,
+    every ``period`` seconds): where the suite's CPU goes by kind of process. A process is counted up to
+    its last sample, so one that lives less than a period, and what a process used after its last sample,
+    are missed."""
+
+    def __init__(self, period: float = 0.25) -> None:
+        super().__init__(daemon=True)
+        self.period = period
+        self.since = _boot_ticks()
+        self.seen: dict[tuple[str, str], list] = {}  # (pid, start tick) -> [command line, CPU s]
+        self.stopping = threading.Event()
+
+    def run(self) -> None:
+        while not self.stopping.wait(self.period):
+            self.sample()
+
+    def sample(self) -> None:
+        tick = os.sysconf("SC_CLK_TCK")
+        for pid in filter(str.isdigit, os.listdir("/proc")):
+            try:
+                stat = Path(f"/proc/{pid}/stat").read_text()
+                fields = stat[stat.rfind(")") + 2:].split()  # after the command name, which may hold spaces
+                cpu, start = (int(fields[11]) + int(fields[12])) / tick, int(fields[19])
+                if start < self.since:
+                    continue
+                entry = self.seen.get((pid, fields[19]))
+                if entry is None:
+                    command = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ")
+                    self.seen[(pid, fields[19])] = [command.decode(errors="replace").strip(), cpu]
+                else:
+                    entry[1] = cpu
+            except (OSError, IndexError, ValueError):  # ended between the listing and the read
+                continue
+
+    def by_kind(self) -> list[dict]:
+        """CPU seconds and process count per kind of process (:func:`process_kind`), the costliest first;
+        kernel threads (no command line) left out."""
+        kinds: dict[str, dict] = {}
+        for command, cpu in self.seen.values():
+            if command:
+                kind = process_kind(command)
+                entry = kinds.setdefault(kind, {"kind": kind, "processes": 0, "cpu_s": 0.0})
+                entry["processes"] += 1
+                entry["cpu_s"] += cpu
+        ranked = sorted(kinds.values(), key=lambda e: -e["cpu_s"])
+        return [{**e, "cpu_s": round(e["cpu_s"], 1)} for e in ranked]
+
+
+def _boot_ticks() -> int:
+    """Clock ticks since boot now: the unit of a process's start time in /proc/PID/stat."""
+    return int(float(Path("/proc/uptime").read_text().split()[0]) * os.sysconf("SC_CLK_TCK"))
+
+
+PROCESS_KINDS = (  # (what the command line holds, the kind), first match wins
+    ("spawn_main", "Dask worker processes (a nanny's or a local cluster's)"),
+    ("exec(eval(sys.stdin.readline()))", "pytest-xdist's test processes"),
+    ("pytest", "pytest"),
+    ("dask_scheduler", "Dask schedulers (dask scheduler)"),
+    ("dask_worker", "Dask nannies (dask worker)"),
+    ("dse_runner.simulation.isolation", "FMU isolation processes"),
+    ("forkserver", "multiprocessing forkservers"),
+    ("resource_tracker", "multiprocessing resource trackers"),
+    ("chrom", "the browser (Chromium)"),
+    ("playwright", "the browser's driver (Playwright)"),
+    ("slurm", "Slurm daemons"),
+)
+
+
+def process_kind(command: str) -> str:
+    """A readable kind for a process's command line; dse-runner's commands by subcommand."""
+    words = command.split()
+    for marker in ("-m dse_runner ", "dse-runner "):
+        if marker in command and "isolation" not in command:
+            rest = command.split(marker, 1)[1].split()
+            return f"dse-runner {rest[0] if rest else ''}".strip()
+    for marker, kind in PROCESS_KINDS:
+        if marker in command:
+            return kind
+    return Path(words[0]).name if words else "?"
+
+
 def timeline(folder: Path, started: float, shares: list[float], cores: int, longest: float = 10.0) -> dict:
     """Per test process, its files of more than ``longest`` seconds (start and end, seconds into the run);
     the machine's busy share per 30 s; the core-seconds the run left idle."""
@@ -179,6 +266,8 @@ def main() -> None:
                         help="one test process; list the N test files that cost the most CPU")
     parser.add_argument("--timeline", action="store_true",
                         help="which test files ran side by side, and how busy the machine was meanwhile")
+    parser.add_argument("--by-process", type=int, default=0, metavar="N",
+                        help="the N kinds of process that used the most CPU (workers, schedulers, commands)")
     parser.add_argument("--no-probe", action="store_true", help="skip the speed probes before and after the run")
     parser.add_argument("--log", type=Path, help="keep pytest's whole output here (on a failure it is always kept)")
     parser.add_argument("pytest_args", nargs="*", help="after --: arguments added to pytest -q")
@@ -199,6 +288,7 @@ def main() -> None:
     cores = os.cpu_count() or 1
     probes = [speed_probe(command[0], cores)] if not args.no_probe else []
     sampler = BusySampler() if lines else None
+    processes = ProcessSampler() if args.by_process else None
     group = own_group()
     join = (lambda: (group / "tasks").write_text(str(os.getpid()))) if group else None
     before_cpu = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -206,11 +296,17 @@ def main() -> None:
     started, started_at = time.perf_counter(), time.time()
     if sampler:
         sampler.start()
+    if processes:
+        processes.start()
     done = subprocess.run(command, cwd=REPO, capture_output=True, text=True, check=False, env=env,
                           preexec_fn=join)
     wall = time.perf_counter() - started
     if sampler:
         sampler.stopping.set()
+    if processes:
+        processes.stopping.set()
+        processes.join()
+        processes.sample()
     busy1, total1 = busy_jiffies()
     after_cpu = resource.getrusage(resource.RUSAGE_CHILDREN)
     waited = (after_cpu.ru_utime - before_cpu.ru_utime) + (after_cpu.ru_stime - before_cpu.ru_stime)
@@ -233,6 +329,8 @@ def main() -> None:
     if per_test and per_test.exists():
         figures["by_file"] = by_file(json.loads(per_test.read_text()))[:args.by_file]
         shutil.rmtree(per_test.parent)
+    if processes:
+        figures["by_process"] = processes.by_kind()[:args.by_process]
     if lines:
         figures["timeline"] = timeline(lines, started_at, sampler.shares, cores)
         shutil.rmtree(lines)
@@ -263,6 +361,8 @@ def main() -> None:
                                         or "no file over 10 s"))
             print("machine busy per 30 s: " + " ".join(f"{b:.2f}" for b in figures["timeline"]["busy_per_30_s"]))
             print(f"idle over the run: {figures['timeline']['idle_core_s']:.0f} core-seconds")
+        for row in figures.get("by_process", []):
+            print(f"{row['cpu_s']:8.1f} CPU s {row['processes']:6d} processes  {row['kind']}")
         for row in figures.get("by_file", []):
             print(f"{row['cpu_s']:8.1f} CPU s {row['wall_s']:8.1f} s wall {row['tests']:5d} tests  {row['file']}")
     sys.exit(0 if done.returncode == 0 else 1)
