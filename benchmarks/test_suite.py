@@ -202,7 +202,7 @@ def _boot_ticks() -> int:
 PROCESS_KINDS = (  # (what the command line holds, the kind), first match wins
     ("spawn_main", "Dask worker processes (a nanny's or a local cluster's)"),
     ("exec(eval(sys.stdin.readline()))", "pytest-xdist's test processes"),
-    ("pytest", "pytest"),
+    (" -m pytest", "pytest"),
     ("dask_scheduler", "Dask schedulers (dask scheduler)"),
     ("dask_worker", "Dask nannies (dask worker)"),
     ("dse_runner.simulation.isolation", "FMU isolation processes"),
@@ -215,7 +215,8 @@ PROCESS_KINDS = (  # (what the command line holds, the kind), first match wins
 
 
 def process_kind(command: str) -> str:
-    """A readable kind for a process's command line; dse-runner's commands by subcommand."""
+    """A readable kind for a process's command line: dse-runner's commands by subcommand, other Python by its
+    module or script, any other program by its name."""
     words = command.split()
     for marker in ("-m dse_runner ", "dse-runner "):
         if marker in command and "isolation" not in command:
@@ -224,7 +225,14 @@ def process_kind(command: str) -> str:
     for marker, kind in PROCESS_KINDS:
         if marker in command:
             return kind
-    return Path(words[0]).name if words else "?"
+    program = Path(words[0]).name if words else "?"
+    if program.startswith("python") and len(words) > 1:
+        flag = next((w for w in words[1:] if w in ("-m", "-c") or not w.startswith("-")), "")
+        module = words[words.index("-m") + 1] if flag == "-m" and words.index("-m") + 1 < len(words) else ""
+        if flag == "-m":
+            return f"python -m {module}".strip()
+        return "python -c" if flag == "-c" else f"python {Path(flag).name}"
+    return program
 
 
 def timeline(folder: Path, started: float, shares: list[float], cores: int, longest: float = 10.0) -> dict:
