@@ -226,13 +226,19 @@ def process_kind(command: str) -> str:
         if marker in command:
             return kind
     program = Path(words[0]).name if words else "?"
-    if program.startswith("python") and len(words) > 1:
-        flag = next((w for w in words[1:] if w in ("-m", "-c") or not w.startswith("-")), "")
-        module = words[words.index("-m") + 1] if flag == "-m" and words.index("-m") + 1 < len(words) else ""
-        if flag == "-m":
-            return f"python -m {module}".strip()
-        return "python -c" if flag == "-c" else f"python {Path(flag).name}"
-    return program
+    return _python_kind(words[1:]) if program.startswith("python") else program
+
+
+def _python_kind(args: list[str]) -> str:
+    """``python -m MODULE``, ``python -c`` or ``python SCRIPT``: what the interpreter's arguments run."""
+    k = 0
+    while k < len(args) and args[k].startswith("-") and args[k] not in ("-m", "-c"):
+        k += 2 if args[k] in ("-X", "-W") else 1  # options that take a value
+    if k >= len(args):
+        return "python"
+    if args[k] == "-m":
+        return f"python -m {args[k + 1]}" if k + 1 < len(args) else "python -m"
+    return "python -c" if args[k] == "-c" else f"python {Path(args[k]).name}"
 
 
 def timeline(folder: Path, started: float, shares: list[float], cores: int, longest: float = 10.0) -> dict:
