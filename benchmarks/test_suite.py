@@ -155,7 +155,7 @@ class ProcessSampler(threading.Thread):
         super().__init__(daemon=True)
         self.period = period
         self.since = _boot_ticks()
-        self.seen: dict[tuple[str, str], list] = {}  # (pid, start tick) -> [command line, CPU s]
+        self.seen: dict[tuple[str, int], tuple[str, float]] = {}  # (pid, start tick) -> (command line, CPU s)
         self.stopping = threading.Event()
 
     def run(self) -> None:
@@ -171,12 +171,12 @@ class ProcessSampler(threading.Thread):
                 cpu, start = (int(fields[11]) + int(fields[12])) / tick, int(fields[19])
                 if start < self.since:
                     continue
-                entry = self.seen.get((pid, fields[19]))
-                if entry is None:
-                    command = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ")
-                    self.seen[(pid, fields[19])] = [command.decode(errors="replace").strip(), cpu]
-                else:
-                    entry[1] = cpu
+                # read every time, since a child seen between its fork and its exec still shows its parent's
+                # line; but kept once the process has ended, when it shows none (a zombie's)
+                raw = Path(f"/proc/{pid}/cmdline").read_bytes()
+                command = raw.replace(b"\0", b" ").decode(errors="replace")
+                kept = self.seen.get((pid, start), ("", 0.0))[0]
+                self.seen[(pid, start)] = (command.strip() or kept, cpu)
             except (OSError, IndexError, ValueError):  # ended between the listing and the read
                 continue
 
@@ -219,7 +219,7 @@ def process_kind(command: str) -> str:
     module or script, any other program by its name."""
     words = command.split()
     for marker in ("-m dse_runner ", "dse-runner "):
-        if marker in command and "isolation" not in command:
+        if marker in command:
             rest = command.split(marker, 1)[1].split()
             return f"dse-runner {rest[0] if rest else ''}".strip()
     for marker, kind in PROCESS_KINDS:
