@@ -155,7 +155,8 @@ class ProcessSampler(threading.Thread):
         super().__init__(daemon=True)
         self.period = period
         self.since = _boot_ticks()
-        self.seen: dict[tuple[str, int], tuple[str, float]] = {}  # (pid, start tick) -> (command line, CPU s)
+        # (pid, start tick) -> (command line, CPU s, parent's pid)
+        self.seen: dict[tuple[str, int], tuple[str, float, str]] = {}
         self.stopping = threading.Event()
 
     def run(self) -> None:
@@ -168,15 +169,15 @@ class ProcessSampler(threading.Thread):
             try:
                 stat = Path(f"/proc/{pid}/stat").read_text()
                 fields = stat[stat.rfind(")") + 2:].split()  # after the command name, which may hold spaces
-                cpu, start = (int(fields[11]) + int(fields[12])) / tick, int(fields[19])
+                cpu, start, parent = (int(fields[11]) + int(fields[12])) / tick, int(fields[19]), fields[1]
                 if start < self.since:
                     continue
                 # read every time, since a child seen between its fork and its exec still shows its parent's
                 # line; but kept once the process has ended, when it shows none (a zombie's)
                 raw = Path(f"/proc/{pid}/cmdline").read_bytes()
                 command = raw.replace(b"\0", b" ").decode(errors="replace")
-                kept = self.seen.get((pid, start), ("", 0.0))[0]
-                self.seen[(pid, start)] = (command.strip() or kept, cpu)
+                kept = self.seen.get((pid, start), ("",))[0]
+                self.seen[(pid, start)] = (command.strip() or kept, cpu, parent)
             except (OSError, IndexError, ValueError):  # ended between the listing and the read
                 continue
 
@@ -184,9 +185,11 @@ class ProcessSampler(threading.Thread):
         """CPU seconds and process count per kind of process (:func:`process_kind`), the costliest first;
         kernel threads (no command line) left out."""
         kinds: dict[str, dict] = {}
-        for command, cpu in self.seen.values():
+        commands = {pid: command for (pid, _), (command, _, _) in self.seen.items()}
+        for command, cpu, parent in self.seen.values():
             if command:
-                kind = process_kind(command)
+                # a forkserver's children show the server's command line: it forked them
+                kind = FORKED if FORKSERVER in command and commands.get(parent) == command else process_kind(command)
                 entry = kinds.setdefault(kind, {"kind": kind, "processes": 0, "cpu_s": 0.0})
                 entry["processes"] += 1
                 entry["cpu_s"] += cpu
@@ -199,6 +202,8 @@ def _boot_ticks() -> int:
     return int(float(Path("/proc/uptime").read_text().split()[0]) * os.sysconf("SC_CLK_TCK"))
 
 
+FORKSERVER = "multiprocessing.forkserver"
+FORKED = "forked by a forkserver (the commands' Dask workers, tests/wild.py's runs)"
 PROCESS_KINDS = (  # (what the command line holds, the kind), first match wins
     ("spawn_main", "Dask worker processes (a nanny's or a local cluster's)"),
     ("exec(eval(sys.stdin.readline()))", "pytest-xdist's test processes"),

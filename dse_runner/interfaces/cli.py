@@ -714,6 +714,9 @@ def version() -> None:
 
 def main() -> None:
     """The console script: a bug's exception is one line too, unless --debug asks for the traceback."""
+    from ..sweeps.makers import fork_local_workers
+
+    fork_local_workers()  # one cluster per command: its workers start from a forkserver
     try:
         app()
     except Exception as e:  # anything the commands did not turn into a DseError

@@ -2,21 +2,21 @@
 unpacks, the data files objective scripts read. Each is named for the process and removed when it exits;
 without that, every worker, client and command left one behind (thousands in a day of sweeps).
 
-A process that does not exit normally (killed, crashed, or ended by ``os._exit`` as multiprocessing's
-fork and forkserver children are) cannot remove its own. So each folder holds a lock file that its process
+A process that does not exit normally (killed, crashed, or ended by ``os._exit`` before multiprocessing's
+finalizers ran, as an isolated FMU's child is) cannot remove its own. So each folder holds a lock file that its process
 keeps locked (``flock``) while it lives; the kernel drops the lock however the process ends. The next process
 that makes a folder of the same kind removes those whose lock it can take. Folders without a lock file are
 left alone: one being made, or one from before locks."""
 
 from __future__ import annotations
 
-import atexit
 import fcntl
 import os
 import shutil
 import tempfile
 import threading
 from functools import cache
+from multiprocessing.util import Finalize
 from pathlib import Path
 
 OWNER = ".owner"  # the lock file, locked by the folder's process for its whole life
@@ -46,7 +46,9 @@ def own_folder(prefix: str) -> Path:
 def _folder(prefix: str, pid: int) -> Path:
     sweep(prefix)
     folder = Path(tempfile.gettempdir()) / f"{prefix}{pid}"
-    atexit.register(_remove, folder, pid)
+    # a finalizer of multiprocessing's: run at exit, and by a multiprocessing child (a Dask worker) as it
+    # ends, also one started by fork or forkserver, which then leaves by os._exit without exit hooks
+    Finalize(None, _remove, (folder, pid), exitpriority=0)
     return folder
 
 

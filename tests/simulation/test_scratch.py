@@ -9,6 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 FORK_THEN_EXIT = """
 import os, sys
 from dse_runner.simulation import scratch
@@ -30,12 +32,43 @@ def test_a_process_folder_outlives_a_forked_child_and_goes_at_its_own_exit(tmp_p
     assert not Path(folder).exists()
 
 
+IN_A_CHILD = """
+import multiprocessing, sys
+from dse_runner.simulation import scratch
+
+def make(made):
+    made.put(str(scratch.own_folder("dse-runner-test-")))
+
+if __name__ == "__main__":
+    context = multiprocessing.get_context(sys.argv[1])
+    made = context.Queue()
+    child = context.Process(target=make, args=(made,))
+    child.start()
+    print(made.get(), flush=True)
+    child.join()
+"""
+
+
+@pytest.mark.parametrize("method", ["spawn", "fork", "forkserver"])
+def test_a_multiprocessing_child_removes_its_folder_as_it_ends(tmp_path, method):
+    """Dask's local workers are multiprocessing children, and the command line forks them from a forkserver:
+    such a child leaves by os._exit, past the exit hooks, yet its folder goes."""
+    script = tmp_path / "child.py"
+    script.write_text(IN_A_CHILD)
+    done = subprocess.run([sys.executable, str(script), method], capture_output=True, text=True,
+                          env={**os.environ, "TMPDIR": str(tmp_path)}, timeout=120)
+    assert done.returncode == 0, done.stderr
+    folder = Path(done.stdout.strip())
+    assert folder.parent == tmp_path and folder.name != f"dse-runner-test-{os.getpid()}"
+    assert not folder.exists()
+
+
 MAKE = """
 import os, sys
 from dse_runner.simulation import scratch
 folder = scratch.own_folder("dse-runner-test-")
 print(folder, flush=True)
-if sys.argv[1] == "os._exit":  # as multiprocessing's fork and forkserver children end: no exit hook runs
+if sys.argv[1] == "os._exit":  # as an isolated FMU's child ends: no exit hook runs
     os._exit(0)
 sys.stdin.readline()  # "wait": lives until told
 """
