@@ -37,7 +37,7 @@ files ran side by side when the cores were not full (plugin benchmarks/test_time
 ``--by-process N`` adds the N kinds of process that used the most CPU over the run, each with how many ran
 (plain Python reading /proc every 0.25 s: a process is counted up to its last sample): the test processes, the
 Dask workers their clusters spawned, the schedulers, dse-runner's commands by subcommand, the browser; a
-process a forkserver forked (the commands' Dask workers) shows the server's command line, and is counted apart.
+process a forkserver forked (the commands' Dask workers) shows the server's command line: it is counted apart.
 
 ``--by-file N`` runs the tests in one process (``-n 0``, with the plugin benchmarks/cpu_per_test.py) and adds
 the N test files that cost the machine the most CPU seconds, each with its wall time: where to look first.
@@ -190,7 +190,8 @@ class ProcessSampler(threading.Thread):
         for command, cpu, parent in self.seen.values():
             if command:
                 # a forkserver's children show the server's command line: it forked them
-                kind = FORKED if FORKSERVER in command and commands.get(parent) == command else process_kind(command)
+                forked = FORKSERVER in command and commands.get(parent) == command
+                kind = FORKED if forked else process_kind(command)
                 entry = kinds.setdefault(kind, {"kind": kind, "processes": 0, "cpu_s": 0.0})
                 entry["processes"] += 1
                 entry["cpu_s"] += cpu

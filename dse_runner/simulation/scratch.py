@@ -3,10 +3,10 @@ unpacks, the data files objective scripts read. Each is named for the process an
 without that, every worker, client and command left one behind (thousands in a day of sweeps).
 
 A process that does not exit normally (killed, crashed, or ended by ``os._exit`` before multiprocessing's
-finalizers ran, as an isolated FMU's child is) cannot remove its own. So each folder holds a lock file that its process
-keeps locked (``flock``) while it lives; the kernel drops the lock however the process ends. The next process
-that makes a folder of the same kind removes those whose lock it can take. Folders without a lock file are
-left alone: one being made, or one from before locks."""
+finalizers ran, as an isolated FMU's child is) cannot remove its own. So each folder holds a lock file that
+its process keeps locked (``flock``) while it lives; the kernel drops the lock however the process ends. The
+next process that makes a folder of the same kind removes those whose lock it can take. Folders without a
+lock file are left alone: one being made, or one from before locks."""
 
 from __future__ import annotations
 

@@ -128,9 +128,9 @@ def sigint_held() -> Iterator[None]:
     mid-chunk with a KeyboardInterrupt traceback each (dask/distributed#1925). A signal blocked in a
     thread stays blocked in the threads it starts and, through fork and exec, in the processes they
     spawn; the cluster's event-loop thread, started here, spawns every worker process (also those a
-    nanny restarts later) from threads of its own, or the forkserver that forks them (makers.py). So only the client takes the Ctrl-C, and it stops
-    the workers by closing the cluster. Python runs signal handlers in the main thread only, hence
-    the check: elsewhere nothing is changed."""
+    nanny restarts later) from threads of its own, or the forkserver that forks them (makers.py). So
+    only the client takes the Ctrl-C, and it stops the workers by closing the cluster. Python runs
+    signal handlers in the main thread only, hence the check: elsewhere nothing is changed."""
     if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
         yield
         return

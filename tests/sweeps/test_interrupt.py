@@ -188,10 +188,11 @@ def test_ctrl_c_while_the_cluster_starts_says_one_line(tmp_path):
     first = start(spec, "--json")
 
     def workers_starting() -> bool:
-        """A worker process exists: spawned, or forked by the command's forkserver (its line is the server's)."""
-        lines = [" ".join(command_line(child)) for child in psutil.Process(first.pid).children(recursive=True)]
-        return any("spawn_main" in line for line in lines) or sum("multiprocessing.forkserver" in line
-                                                                  for line in lines) > 1
+        """A worker exists: spawned, or forked by the command's forkserver (its line is the server's)."""
+        children = psutil.Process(first.pid).children(recursive=True)
+        lines = [" ".join(command_line(child)) for child in children]
+        forked = sum("multiprocessing.forkserver" in line for line in lines) > 1  # the server and a worker
+        return forked or any("spawn_main" in line for line in lines)
 
     out, err = ctrl_c_when(first, workers_starting)
     assert first.returncode == 130, err
