@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import logging
 import os
+import sys
 import uuid
 from abc import ABC, abstractmethod
 from importlib import import_module
@@ -130,18 +131,18 @@ def fork_local_workers() -> None:
 
     For a process that makes one cluster and ends: the command line calls it. A forkserver keeps the
     environment variables of the moment it started, so a Python program that changes them between two
-    clusters keeps Dask's own setting (spawn). The setting in the environment, when given, wins."""
+    clusters keeps Dask's own setting (spawn). The setting in the environment, when given, wins; elsewhere
+    than on Linux nothing changes."""
     global _fork_workers
     _fork_workers = True
 
 
 def _use_forkserver() -> None:
-    import multiprocessing
-
+    """On Linux only: macOS's system libraries may start threads that a fork breaks (why Python spawns there)."""
     import dask
     from distributed.utils import get_mp_context
 
-    if START_METHOD_VARIABLE in os.environ or "forkserver" not in multiprocessing.get_all_start_methods():
+    if START_METHOD_VARIABLE in os.environ or not sys.platform.startswith("linux"):
         return
     dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"})  # read at each worker start
     get_mp_context().set_forkserver_preload(list(WORKER_IMPORTS))
