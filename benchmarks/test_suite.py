@@ -76,9 +76,9 @@ def busy_jiffies() -> tuple[int, int]:
 CPUACCT = Path("/sys/fs/cgroup/cpuacct")
 
 
-def own_group() -> Path | None:
-    """A cpuacct control group for the run, or None where this machine does not let us make one."""
-    group = CPUACCT / f"dse-test-suite-{os.getpid()}"
+def own_group(name: str = "dse-test-suite") -> Path | None:
+    """A cpuacct control group ``name``-PID for the run, or None where this machine does not let us make one."""
+    group = CPUACCT / f"{name}-{os.getpid()}"
     try:
         group.mkdir()
     except OSError:
@@ -213,7 +213,7 @@ PROCESS_KINDS = (  # (what the command line holds, the kind), first match wins
     ("dask_scheduler", "Dask schedulers (dask scheduler)"),
     ("dask_worker", "Dask nannies (dask worker)"),
     ("dse_runner.simulation.isolation", "FMU isolation processes"),
-    ("forkserver", "multiprocessing forkservers"),
+    (FORKSERVER, "multiprocessing forkservers"),
     ("resource_tracker", "multiprocessing resource trackers"),
     ("chrom", "the browser (Chromium)"),
     ("playwright", "the browser's driver (Playwright)"),

@@ -25,8 +25,9 @@ import tempfile
 import time
 from pathlib import Path
 
+from test_suite import close_group, own_group  # benchmarks/, this script's folder, is on sys.path
+
 REPO = Path(__file__).resolve().parents[1]
-CPUACCT = Path("/sys/fs/cgroup/cpuacct")
 METHODS = ("spawn", "forkserver")
 VARIABLE = "DASK_DISTRIBUTED__WORKER__MULTIPROCESSING_METHOD"
 
@@ -44,25 +45,14 @@ def space(folder: Path, workers: int) -> Path:
 
 def measured(command: list[str], env: dict[str, str], label: str) -> tuple[float, float | None]:
     """(wall s, CPU s of the command and its descendants, or None without a control group)."""
-    group = CPUACCT / f"dse-worker-start-{os.getpid()}-{label}"
-    try:
-        group.mkdir()
-    except OSError:
-        group = None
+    group = own_group(f"dse-worker-start-{label}")
     started = time.perf_counter()
     join = (lambda: (group / "tasks").write_text(str(os.getpid()))) if group else None  # run in the child
     done = subprocess.run(command, env=env, capture_output=True, text=True, preexec_fn=join)
     wall = time.perf_counter() - started
     if done.returncode != 0:
         sys.exit(f"{' '.join(command)} failed:\n{done.stderr}")
-    if group is None:
-        return wall, None
-    deadline = time.monotonic() + 10  # the forkserver may outlive the command by a moment
-    while (group / "tasks").read_text().strip() and time.monotonic() < deadline:
-        time.sleep(0.2)
-    cpu = int((group / "cpuacct.usage").read_text()) / 1e9
-    group.rmdir()
-    return wall, cpu
+    return wall, close_group(group)  # once the forkserver, which may outlive the command a moment, has ended
 
 
 def main() -> None:
