@@ -1,8 +1,14 @@
 """The cluster-maker contract (makers.ClusterMaker): every installed kind is one, a plug-in with only
 ``start`` runs a sweep with the default scale and close, and a plug-in's own block under its kind's name
-is validated with the spec, its errors naming the key."""
+is validated with the spec, its errors naming the key. The command line's local cluster forks its workers
+from a forkserver unless Dask's own variable chooses the start method."""
 
 from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
 
 import pytest
 from conftest import write_space
@@ -129,3 +135,33 @@ def test_a_block_for_a_kind_not_installed_here_waits_for_the_sweep(tmp_path):
     with pytest.raises(DseError, match=r"cluster.kind 'lsf' is unknown \(known: htcondor, kubernetes, local, slurm"):
         with connect(spec):
             pass
+
+
+# A process like the command line's: it asks for forked workers, makes its local cluster and reports each
+# worker's parent. A spawned worker's parent is this process (its nanny lives here), a forked one's the server.
+LOCAL_PARENTS = """
+import json, os
+from dse_runner.sweeps import makers
+from dse_runner.sweeps.cluster import connect
+from dse_runner.sweeps.spec import Cluster
+
+makers.fork_local_workers()
+with connect(Cluster(n_workers=2)) as client:
+    parents = sorted(client.run(os.getppid).values())
+print(json.dumps({"own": os.getpid(), "parents": parents}))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the forkserver is used on Linux only")
+@pytest.mark.parametrize("method, forked", [(None, True), ("spawn", False)])
+def test_the_command_lines_workers_fork_unless_dasks_variable_chooses(method, forked):
+    env = {key: value for key, value in os.environ.items() if key != makers.START_METHOD_VARIABLE}
+    if method:
+        env[makers.START_METHOD_VARIABLE] = method
+    done = subprocess.run([sys.executable, "-c", LOCAL_PARENTS], env=env, capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr
+    seen = json.loads(done.stdout.splitlines()[-1])
+    assert len(seen["parents"]) == 2, seen
+    assert [parent != seen["own"] for parent in seen["parents"]] == [forked, forked], seen
