@@ -127,12 +127,27 @@ def blocks(space, points: list[Point] | None = None, only: list[Collection[str]]
         wanted = iter((p for k, p in enumerate(visit(space)) if scenario.name in only[k]) if only is not None
                       else visit(space))  # regenerated per scenario: no list of all points is kept
         while block := list(itertools.islice(wanted, BLOCK)):
-            for same in (_alike(block) if points is not None else (block,)):  # a grid's points are alike
-                batch = TaskBatch.of_points(model, same, scenario.name, data)
-                if done:
-                    batch = batch[np.array([i not in done for i in batch.ids()], dtype=bool)]
-                if len(batch):
-                    yield batch
+            batches = (TaskBatch.of_points(model, same, scenario.name, data)
+                       for same in (_alike(block) if points is not None else (block,)))  # a grid's are alike
+            yield from undone(batches, done)
+
+
+def undone(batches: Iterable[TaskBatch], done: Collection[str]) -> Iterator[TaskBatch]:
+    """Each batch less its tasks in ``done``; batches left empty are dropped."""
+    for batch in batches:
+        if done:
+            batch = batch[np.array([i not in done for i in batch.ids()], dtype=bool)]
+        if len(batch):
+            yield batch
+
+
+def tally(batches: Iterable[TaskBatch], done: Collection[str]) -> tuple[int, int]:
+    """(tasks, tasks with a row in ``done``) of batches made already."""
+    total = finished = 0
+    for batch in batches:
+        total += len(batch)
+        finished += sum(task_id in done for task_id in batch.ids()) if done else 0
+    return total, finished
 
 
 def _alike(points: list[Point]) -> Iterator[list[Point]]:
@@ -151,8 +166,7 @@ def count(space, done: Collection[str], points: list[Point] | None = None,
     """(tasks, tasks with a row in ``done``): ids are computed only if some tasks are done, since
     hashing every task of a large fresh sweep would keep the workers waiting for the client."""
     if done:
-        ids = [task_id for block in blocks(space, points, only) for task_id in block.ids()]
-        return len(ids), sum(task_id in done for task_id in ids)
+        return tally(blocks(space, points, only), done)
     if only is not None:
         return sum(scenario.name in wanted for scenario in space.scenarios for wanted in only), 0
     return (len(points) if points is not None else count_points(space.strategy)) * len(space.scenarios), 0

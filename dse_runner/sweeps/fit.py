@@ -38,7 +38,7 @@ from . import store
 from .domain import Point
 from .chunks import TaskScores
 from .cluster import total_threads
-from .expand import expand
+from .expand import blocks
 from .spec import Space
 from .sweep import submit
 
@@ -340,8 +340,10 @@ def evaluate_points(space: Space, points: list[Point], client, columns: list[str
     ``columns``, and what a task cost (for the next round's ``seconds_per_task``, see sweep.submit).
     The tasks simulated now are told by their chunks; only those finished before are read from the store."""
     told: list[TaskScores] = []
-    report = submit(space, client=client, points=points, only=only, seconds_per_task=seconds_per_task, told=told)
-    ids = {task.task_id: (task.point, task.scenario) for task in expand(space, points, only)}
+    tasks = list(blocks(space, points, only))  # made once: the sweep counts and sends these
+    report = submit(space, client=client, points=points, only=only, seconds_per_task=seconds_per_task, told=told,
+                    tasks=tasks)
+    ids = {task.task_id: (task.point, task.scenario) for batch in tasks for task in batch}
     rows = {ids[t.task_id]: told_row(t, columns) for t in told if t.task_id in ids}
     earlier = [task_id for task_id, key in ids.items() if key not in rows]
     if earlier:

@@ -46,7 +46,7 @@ from .chunks import ChunkJob, ChunkSummary, TaskScores, chunk_id_of, probe, reco
 from .closed_loop import SearchSource, SearchStatus
 from .cluster import WorkerWatch, connect, total_threads, wait_until_ended, worker_grace
 from .domain import Point
-from .expand import blocks, chunked, count, points_of
+from .expand import TaskBatch, blocks, chunked, count, points_of, tally, undone
 from .search import strategy
 from .spec import Space
 
@@ -175,7 +175,7 @@ def chunk_size(seconds_per_task: float | None, target_seconds: float, pending: i
 def submit(space: Space, progress: SweepProgress | None = None, client=None,
            points: list[Point] | None = None, on_connect: Callable[[Any], None] | None = None,
            only: list[Collection[str]] | None = None, seconds_per_task: float | None = None,
-           told: list[TaskScores] | None = None) -> SweepReport:
+           told: list[TaskScores] | None = None, tasks: list[TaskBatch] | None = None) -> SweepReport:
     """Run ``space``: every task of a grid strategy that has no row yet, or a closed-loop search
     (closed_loop.py) until its budget; returns counts, never raises on failed tasks.
 
@@ -185,7 +185,9 @@ def submit(space: Space, progress: SweepProgress | None = None, client=None,
     ``seconds_per_task`` what a task cost in the last round (its report's ``seconds_per_task``),
     which sizes chunks without a probe: a serial simulation every round would add up;
     ``told``, a list, receives the objectives of every task simulated, as its chunk finishes,
-    so that an optimiser need not read back from the store the rows it has just caused.
+    so that an optimiser need not read back from the store the rows it has just caused;
+    ``tasks``, the tasks of ``points`` (and ``only``) as expand.blocks makes them, if the caller has them
+    already; otherwise they are made here, once for both the count and the chunks.
     ``on_connect(client)`` runs each time the sweep (re)connects to a scheduler: how the
     CLI links its dashboard from Dask's (dashboard.link_from_dask)."""
     started = time.perf_counter()
@@ -205,13 +207,15 @@ def submit(space: Space, progress: SweepProgress | None = None, client=None,
         report.total = search.max_points * len(space.scenarios)
         source: JobSource = SearchSource(space, shipment.key, report.search)
     else:
-        report.total, report.skipped = count(space, done, points, only)
+        if points is not None and tasks is None:
+            tasks = list(blocks(space, points, only))  # a given list of points: its tasks fit in memory
+        report.total, report.skipped = count(space, done, points, only) if tasks is None else tally(tasks, done)
         if report.total == report.skipped and _trajectories_kept(space):
             report.seconds = time.perf_counter() - started
             report.state = "finished"
             save_status(report, kept)
             return report
-        source = GridSource(space, shipment.key, report, points, only, seconds_per_task, told)
+        source = GridSource(space, shipment.key, report, points, only, seconds_per_task, told, tasks)
     run = Run(space, shipment, source, report, progress, started, on_connect, kept)
     save_status(report)
     try:
@@ -279,6 +283,7 @@ class GridSource:
     only: list[Collection[str]] | None = None
     seconds_per_task: float | None = None  # known from an earlier round, else probed; then measured
     told: list[TaskScores] | None = None  # receives every task's objectives (submit's ``told``)
+    tasks: list[TaskBatch] | None = None  # the points' tasks, made already (submit's ``tasks``)
     jobs: Iterator[ChunkJob] | None = None
     capacity: int = 1
     threads: int = 1
@@ -292,7 +297,7 @@ class GridSource:
         if self.seconds_per_task is None:
             self.warm_up(client, first_point(self.space, self.points))
         self.jobs = _jobs(self.space, self.shipment, done, self._size, self.points, self.only,
-                          with_scores=self.told is not None)  # while they run
+                          with_scores=self.told is not None, tasks=self.tasks)  # while they run
         self.seconds_per_task = self.seconds_per_task or self.probed(client)
         self.capacity = 2 * self.threads + 2
         self.sent = 0
@@ -563,11 +568,13 @@ def trajectories_of(space: Space, client, point: Point, sweep: str) -> dict[str,
 
 
 def _jobs(space: Space, shipment: str, done: set[str], size: Callable[[], int], points: list[Point] | None,
-          only: list[Collection[str]] | None = None, with_scores: bool = False) -> Iterator[ChunkJob]:
-    """The chunks, made as they are asked for; the results' schema (a walk over every value of a large grid)
-    is made now, and ``size`` is first asked when the first chunk is."""
+          only: list[Collection[str]] | None = None, with_scores: bool = False,
+          tasks: list[TaskBatch] | None = None) -> Iterator[ChunkJob]:
+    """The chunks, made as they are asked for (of ``tasks`` when they are made already); the results' schema
+    (a walk over every value of a large grid) is made now, and ``size`` is first asked when the first chunk is."""
     key = space.model_key
     schema = store.results_schema(space.parameters, space.objectives)
-    return (ChunkJob(space.name, chunk_id_of(tasks), shipment, key, tasks, space.objectives, space.output, schema,
+    batches = blocks(space, points, only, done) if tasks is None else undone(tasks, done)
+    return (ChunkJob(space.name, chunk_id_of(chunk), shipment, key, chunk, space.objectives, space.output, schema,
                      space.spec.timeout, space.experiment, with_scores=with_scores)
-            for tasks in chunked(blocks(space, points, only, done), size))
+            for chunk in chunked(batches, size))
