@@ -33,23 +33,13 @@ FIGURES = ("wall_s", "client_cpu_s", "workers_cpu_s")
 
 def one_run(tree: Path, case: str, out: Path) -> dict:
     """In the child process: the case diagnosed with the code of ``tree``, its figures and answer."""
-    import psutil
-
     sys.path.insert(0, str(tree / "tests"))
-    import blind
+    import blind  # the tree's: fit_schedule, next, then finds it imported
     import dse_runner
+    from fit_schedule import cluster_cpu as workers_cpu  # this process's children: its local cluster
+
     from dse_runner.sweeps.cluster import connect
     from dse_runner.sweeps.spec import Cluster
-
-    def workers_cpu() -> float:
-        total = 0.0
-        for child in psutil.Process().children(recursive=True):
-            try:
-                times = child.cpu_times()
-                total += times.user + times.system
-            except psutil.Error:
-                pass
-        return total
 
     where = {Path(dse_runner.__file__).resolve()}
     with connect(Cluster(n_workers=2)) as client:
