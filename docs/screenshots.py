@@ -18,7 +18,8 @@ from pathlib import Path
 
 from playwright.sync_api import sync_playwright
 
-from dse_runner.interfaces.dashboard import link_from_dask, serve
+from dse_runner.interfaces.dashboard import serve
+from dse_runner.interfaces.dask_link import link_from_dask
 from dse_runner.interfaces.report import write_report
 from dse_runner.sweeps.spec import load_space
 from dse_runner.sweeps.sweep import submit

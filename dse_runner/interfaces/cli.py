@@ -21,7 +21,7 @@ from .. import __version__
 from ..errors import DseError
 
 if TYPE_CHECKING:  # the commands import what they use when they run: the CLI starts fast
-    from ..sweeps.sweep import SweepReport
+    from ..sweeps.status import SweepReport
 
 app = typer.Typer(
     name="dse-runner",
@@ -401,7 +401,7 @@ class _Board:
         self.server = server
 
     def link(self, client) -> None:
-        from .dashboard import link_from_dask
+        from .dask_link import link_from_dask
 
         page = link_from_dask(client, self.server.url)
         if page:

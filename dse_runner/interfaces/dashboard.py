@@ -2,7 +2,7 @@
 
 It reads only what any process can read: the result rows, the spec the sweep ran with
 (``<sweep>.sweep.json``) and the status the submitting process saves every second
-(``<sweep>.status.json``, see sweep.save_status). So one page serves a sweep running in
+(``<sweep>.status.json``, see status.py). So one page serves a sweep running in
 this process (``submit`` starts it), one running elsewhere (``dse-runner dashboard
 RESULTS``) and a finished one. The best point's track is simulated here, on demand, from
 the sweep's own spec and recordings: one co-simulation takes tens of milliseconds.
@@ -11,8 +11,7 @@ For a closed-loop search the page also reads the search's history (``<sweep>.sea
 history.py) and shows a line of its figures, best so far against simulations, and, with two
 or more Pareto objectives, the front as it grew (charts.BestSoFarChart, ParetoGrowthChart).
 
-``link_from_dask`` adds a "dse-runner" page to Dask's dashboard that redirects here,
-through a scheduler plugin, the way distributed extends itself.
+dask_link.py adds a "dse-runner" page to Dask's dashboard that redirects here.
 """
 
 from __future__ import annotations
@@ -29,7 +28,6 @@ from pathlib import Path
 from typing import Any
 
 import pandas as pd
-from distributed.diagnostics.plugin import SchedulerPlugin
 
 from ..simulation.comparison import Comparison, compare
 from ..sweeps.rank import (
@@ -44,11 +42,10 @@ from ..sweeps.rank import (
 )
 from ..errors import DseError
 from ..sweeps import store, uncertainty
-from ..sweeps.closed_loop import SearchStatus
 from ..sweeps.history import SearchHistory, load_history
 from ..sweeps.search import strategy
 from ..sweeps.spec import Space, load_space
-from ..sweeps.sweep import SweepReport, load_status
+from ..sweeps.status import SearchStatus, SweepReport, load_status
 from . import charts
 from .study_figures import is_sensitivity, section_html, sections
 
@@ -57,7 +54,6 @@ STALE_SECONDS = 30.0  # a running sweep whose status is older than this has prob
 TOP = 15  # rows of the best-so-far ranking shown
 STUDY_SECONDS = 10.0  # how often a running sweep's sensitivity or uncertainty figures are redrawn
 STUDY_STYLE = "<style>.note {font-family: sans-serif; color: #666; font-size: 13px} h3 {font-family: sans-serif}</style>"
-DASK_PAGE = "dse-runner"  # the page added to Dask's dashboard
 
 
 @dataclass
@@ -519,51 +515,3 @@ def serve(output: store.Root, sweep: str, address: str = "127.0.0.1:0", space: S
         raise DseError(f"cannot serve the dashboard at {host}:{port}: {ready['error'].strerror}")
     shown = f"[{host}]" if ":" in host else host
     return DashboardServer(f"http://{shown}:{port}/", ready["loop"], thread)
-
-
-# --- the link from Dask's dashboard -------------------------------------------------------------
-
-_TARGET: dict[str, str] = {}  # in the scheduler's process: where its dse-runner page redirects
-
-
-class DaskLink(SchedulerPlugin):
-    """Adds a "dse-runner" page to Dask's dashboard that redirects to our dashboard."""
-
-    name = "dse-runner-dashboard"
-
-    def __init__(self, url: str):
-        self.url = url
-
-    async def start(self, scheduler) -> None:
-        from tornado import web
-
-        first = not _TARGET
-        _TARGET["url"] = self.url
-        app = getattr(scheduler, "http_application", None)
-        if app is None or not first:
-            return
-
-        class Redirect(web.RequestHandler):
-            def get(self) -> None:
-                self.redirect(_TARGET["url"])
-
-        app.add_handlers(r".*", [(rf"/{DASK_PAGE}/?", Redirect)])
-        try:  # the link in the navigation bar of Dask's own pages
-            from distributed.dashboard.scheduler import template_variables
-
-            pages = template_variables(scheduler)["pages"]
-            if DASK_PAGE not in pages:
-                pages.append(DASK_PAGE)
-        except ImportError:  # no bokeh on the scheduler: no Dask pages to link from
-            pass
-
-
-def link_from_dask(client, url: str) -> str | None:
-    """Make Dask's dashboard link to ``url``; the address of the linking page, or None if the
-    scheduler cannot take the plugin (no dse-runner installed beside it, say)."""
-    try:
-        client.register_plugin(DaskLink(url))
-    except Exception:  # the scheduler could not unpickle or start it: the link is a convenience
-        return None
-    dask = client.dashboard_link
-    return dask.rsplit("/", 1)[0] + f"/{DASK_PAGE}" if dask else None

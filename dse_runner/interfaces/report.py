@@ -31,7 +31,7 @@ from ..sweeps.rank import (
 from ..errors import DseError
 from ..sweeps import store
 from ..sweeps.history import load_history
-from ..sweeps.sweep import SweepReport, load_status
+from ..sweeps.status import SweepReport, load_status
 from . import charts
 from .dashboard import Feed, search_summary
 from .study_figures import section_html, sections

@@ -38,7 +38,6 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, computed_field
 
 from ..simulation.objectives import is_vector
 from . import store, uncertainty
@@ -50,41 +49,10 @@ from .expand import Task, TaskBatch, scenario_hash, task_id
 from .history import SearchHistory, State, load_history, save_history, settings_digest
 from .search import Evaluation, Strategy
 from .spec import Robust, Space
+from .status import SearchStatus
 
 HISTORY_SECONDS = 1.0  # how often a running search saves its history
 MAX_REJECTED = 1000  # infeasible points in a row after which a search gives up asking
-
-
-class SearchStatus(BaseModel):
-    """How a search is going: part of the sweep's status (``<sweep>.status.json``) and of ``submit --json``."""
-
-    strategy: str
-    objective: str
-    goal: str
-    max_points: int
-    max_seconds: float | None = None
-    points: int = 0  # simulated points told to the strategy, in all submissions
-    reused: int = 0  # of which told from the store without simulating (a replay), in this submission
-    repeats: int = 0  # points asked again after (or while) an equal one ran: told its result, not counted
-    infeasible: int = 0  # points the constraints rejected: never simulated
-    failed: int = 0  # points with a failed task
-    best: float | None = None  # the best reduced objective so far
-    best_point: dict[str, Any] | None = None
-    threads: int = 0
-    busy_seconds: float = 0.0  # time the workers spent on this submission's chunks (simulating, writing rows)
-    window_seconds: float = 0.0  # from the first point sent to the last result
-    ask_seconds: float = 0.0  # the client's time in the strategy's ask() in this submission (told points included)
-    replayed: bool = False  # went on from an earlier submission's points (told from the store)
-    stopped: str | None = None  # why the search ended: budget, time, strategy, interrupted
-    notes: list[str] = []
-
-    @computed_field
-    @property
-    def utilisation(self) -> float | None:
-        """Share of the worker threads' time spent on the search's chunks while it ran."""
-        if self.window_seconds <= 0 or not self.threads:
-            return None
-        return min(1.0, self.busy_seconds / (self.window_seconds * self.threads))
 
 
 def reduce_over_scenarios(values: Iterable[float], how: str) -> float:

@@ -31,11 +31,9 @@ from collections import deque
 from collections.abc import Callable, Collection, Iterator
 from concurrent.futures import CancelledError
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any, Literal, Protocol
+from typing import Any, Protocol
 
 import pandas as pd
-from pydantic import BaseModel, Field
 
 from .rank import rank, save_sweep_spec
 from ..errors import DseError
@@ -43,96 +41,14 @@ from ..simulation.experiment import Experiment
 from ..simulation.run import simulate
 from . import ship, store
 from .chunks import ChunkJob, ChunkSummary, TaskScores, chunk_id_of, probe, record_crash, run_chunk
-from .closed_loop import SearchSource, SearchStatus
+from .closed_loop import SearchSource
 from .cluster import WorkerWatch, connect, total_threads, wait_until_ended, worker_grace
 from .domain import Point
 from .expand import TaskBatch, blocks, chunked, count, points_of, tally, undone
 from .search import strategy
 from .spec import Space
-
-
-class WorkerActivity(BaseModel):
-    """One Dask worker as the dashboard shows it."""
-
-    name: str
-    threads: int
-    executing: int = 0  # tasks running on it now
-    cpu: float = 0.0  # percent
-    memory: int = 0  # bytes
-
-
-class SweepReport(BaseModel):
-    """What a submission has done so far: returned by :func:`submit`, shown by the progress bar,
-    and saved beside the results as ``<sweep>.status.json`` for the dashboard (also when it runs
-    in another process than the sweep)."""
-
-    sweep: str
-    output: str | Path
-    total: int  # tasks in the space
-    skipped: int  # already had a row
-    spec: str = ""  # the space.yaml the sweep ran from, to find its recordings again
-    scenarios: dict[str, str] = {}  # scenario -> group
-    state: Literal["running", "finished", "interrupted", "failed"] = "running"  # failed: submit raised
-    started_at: float = Field(default_factory=time.time)  # Unix time
-    updated_at: float = Field(default_factory=time.time)
-    ok: int = 0
-    failed: int = 0
-    seconds: float = 0.0  # wall time of this submission
-    simulation_seconds: float = 0.0  # summed on the workers
-    chunk_seconds: float = 0.0  # the chunks' whole time on the workers, summed: simulations, unpacking, writing rows
-    chunk_size: int = 0  # tasks in the largest chunk handed out (chunks adapt, and shrink towards the end)
-    chunks: int = 0
-    workers: int = 0
-    activity: list[WorkerActivity] = []
-    dashboard: str | None = None  # Dask's
-    interrupted: bool = False
-    crashed_chunks: int = 0  # chunks Dask gave up on because workers died running them; split and rerun
-    reconnects: int = 0  # times the scheduler went away and the sweep resumed from the store
-    waiting: str | None = None  # what the sweep is waiting for, if it is not running tasks
-    errors: list[str] = []
-    search: SearchStatus | None = None  # a closed-loop search's progress
-
-    @property
-    def ran(self) -> int:
-        return self.ok + self.failed
-
-    @property
-    def remaining(self) -> int:
-        return max(0, self.total - self.skipped - self.ran)
-
-    @property
-    def rate(self) -> float:
-        """Simulations per second in this submission."""
-        return self.ran / self.seconds if self.seconds > 0 else 0.0
-
-    @property
-    def eta_seconds(self) -> float | None:
-        return self.remaining / self.rate if self.rate > 0 else None
-
-    @property
-    def seconds_per_task(self) -> float | None:
-        """The mean wall time of this submission's simulations on the workers, if all went well."""
-        return self.simulation_seconds / self.ok if self.ok and not self.failed else None
-
-
-STATUS_FILE = "status.json"
-STATUS_SECONDS = 1.0  # how often a running sweep saves its status
-
-
-def save_status(report: SweepReport, kept: SweepReport | None = None) -> None:
-    """Save ``report`` as the sweep's status; or, if it finished without running a task (every task was done),
-    ``kept``, the status found when it started, if that finished submission ran tasks: the status, and the
-    report's summary, stay those of the run that made the rows, not of a resubmission that had nothing to do."""
-    report.updated_at = time.time()
-    noop = report.state == "finished" and not report.ran
-    shown = kept if noop and kept is not None and kept.state == "finished" and kept.ran else report
-    store.write_text(report.output, f"{report.sweep}.{STATUS_FILE}", shown.model_dump_json(indent=1))
-
-
-def load_status(output: store.Root, sweep: str) -> SweepReport | None:
-    """The last status a submission saved, or None if no submission of ``sweep`` saved one."""
-    text = store.read_text(output, f"{sweep}.{STATUS_FILE}")
-    return SweepReport.model_validate_json(text) if text is not None else None
+# The status file's models live in status.py; importing them from here keeps working.
+from .status import STATUS_SECONDS, SearchStatus, SweepReport, WorkerActivity, load_status, save_status
 
 
 def worker_activity(client) -> list[WorkerActivity]:
@@ -189,7 +105,7 @@ def submit(space: Space, progress: SweepProgress | None = None, client=None,
     ``tasks``, the tasks of ``points`` (and ``only``) as expand.blocks makes them, if the caller has them
     already; otherwise they are made here, once for both the count and the chunks.
     ``on_connect(client)`` runs each time the sweep (re)connects to a scheduler: how the
-    CLI links its dashboard from Dask's (dashboard.link_from_dask)."""
+    CLI links its dashboard from Dask's (dask_link.link_from_dask)."""
     started = time.perf_counter()
     output = space.output
     store.check_reachable(output)

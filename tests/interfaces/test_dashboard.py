@@ -62,7 +62,8 @@ def watched(tmp_path_factory, dask_scheduler) -> Watched:
     from distributed import Client
     from playwright.sync_api import sync_playwright
 
-    from dse_runner.interfaces.dashboard import link_from_dask, serve
+    from dse_runner.interfaces.dashboard import serve
+    from dse_runner.interfaces.dask_link import link_from_dask
     from dse_runner.sweeps.spec import load_space
     from dse_runner.sweeps.sweep import submit
 
