@@ -2,7 +2,7 @@
 
 It reads only what any process can read: the result rows, the spec the sweep ran with
 (``<sweep>.sweep.json``) and the status the submitting process saves every second
-(``<sweep>.status.json``, see status.py). So one page serves a sweep running in
+(``<sweep>.status.json``, see sweeps/status.py). So one page serves a sweep running in
 this process (``submit`` starts it), one running elsewhere (``dse-runner dashboard
 RESULTS``) and a finished one. The best point's track is simulated here, on demand, from
 the sweep's own spec and recordings: one co-simulation takes tens of milliseconds.
