@@ -58,7 +58,7 @@ class WorkerActivity(BaseModel):
 
 
 class SweepReport(BaseModel):
-    """What a submission has done so far: returned by :func:`submit`, shown by the progress bar,
+    """What a submission has done so far: returned by :func:`sweep.submit`, shown by the progress bar,
     and saved beside the results as ``<sweep>.status.json`` for the dashboard (also when it runs
     in another process than the sweep)."""
 
