@@ -5,7 +5,10 @@ its edge) and clears the chart's toolbar, and which glyphs a named chart draws."
 from __future__ import annotations
 
 import shutil
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Any
 
 # Walks BokehJS's views (Bokeh.index), not the DOM: the charts live in shadow roots, and a title is canvas
 # pixels, so its extent is the text box BokehJS measured to draw it, placed where the title's view sits.
@@ -83,3 +86,28 @@ def chromium(playwright):
     path = shutil.which("chromium") or shutil.which("chromium-browser")
     assert path, "no chromium on PATH: install Debian's (apt-get install chromium), as .ci/install does"
     return playwright.chromium.launch(executable_path=path)
+
+
+def watch_errors(page, errors: list[str]) -> None:
+    """Append the page's console errors and uncaught exceptions to ``errors``."""
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.on("pageerror", lambda e: errors.append(str(e)))
+
+
+@contextmanager
+def browser_page(errors: list[str] | None = None, **context: Any) -> Iterator[Any]:
+    """A page in a Chromium of its own, closed with it on leaving; ``context`` goes to the browser context
+    (``viewport={...}``, ``offline=True``), and with ``errors`` the page's errors are collected there.
+    Playwright's sync API is opened here and closed again: kept open, it marks the thread's event loop as
+    running, and ``asyncio.run`` elsewhere in the test process would fail."""
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as playwright:
+        browser = chromium(playwright)
+        try:
+            page = browser.new_context(**context).new_page()
+            if errors is not None:
+                watch_errors(page, errors)
+            yield page
+        finally:
+            browser.close()

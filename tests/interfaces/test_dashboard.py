@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from conftest import SCENARIOS, strict_loads, write_space
-from pages import chromium, glyphs, measure
+from pages import browser_page, glyphs, measure, watch_errors
 
 SWEEP_SCENARIOS = ["sin1", "speed_ramp1", "speed_step1", "turn_ramp1"]
 PARAMETERS = {"vehicle.cAlphaF": [20000, 38000],
@@ -48,11 +48,6 @@ class Watched:
     chosen_track: str = ""  # the caption after choosing another scenario
 
 
-def _watch_errors(page, errors: list[str]) -> None:
-    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
-    page.on("pageerror", lambda e: errors.append(str(e)))
-
-
 def _text(page, element: str) -> str:
     return page.locator(f"#dse-{element}").inner_text()
 
@@ -60,7 +55,6 @@ def _text(page, element: str) -> str:
 @pytest.fixture(scope="module")
 def watched(tmp_path_factory, dask_scheduler) -> Watched:
     from distributed import Client
-    from playwright.sync_api import sync_playwright
 
     from dse_runner.interfaces.dashboard import serve
     from dse_runner.interfaces.dask_link import link_from_dask
@@ -99,10 +93,7 @@ def watched(tmp_path_factory, dask_scheduler) -> Watched:
         except BaseException as e:  # noqa: BLE001 - reported by the test
             outcome["error"] = e
 
-    with sync_playwright() as playwright:
-        browser = chromium(playwright)
-        page = browser.new_page(viewport={"width": 1300, "height": 1600})
-        _watch_errors(page, seen.errors)
+    with browser_page(seen.errors, viewport={"width": 1300, "height": 1600}) as page:
         page.goto(server.url)
         page.wait_for_selector("#dse-done", timeout=30_000)
         sweep = threading.Thread(target=run)
@@ -136,13 +127,12 @@ def watched(tmp_path_factory, dask_scheduler) -> Watched:
             time.sleep(0.25)
         seen.chosen_track = _text(page, "track")
         if links and links[0]:
-            dask = browser.new_page()
-            _watch_errors(dask, seen.errors)
+            dask = page.context.browser.new_page()
+            watch_errors(dask, seen.errors)
             dask.goto(client.dashboard_link)
             seen.dask_nav_has_link = dask.locator("a[href='dse-runner']").count() == 1
             dask.goto(links[0])
             seen.dask_page_went_to = dask.url
-        browser.close()
     client.close()
     server.stop()
     if "error" in outcome:
@@ -197,7 +187,6 @@ def test_the_final_page_shows_the_rank_commands_best_point(watched):
 
 def test_the_report_opens_offline(watched, tmp_path):
     from playwright.sync_api import TimeoutError as PlaywrightTimeout
-    from playwright.sync_api import sync_playwright
 
     from dse_runner.sweeps.rank import rank
 
@@ -208,11 +197,7 @@ def test_the_report_opens_offline(watched, tmp_path):
     ranking = rank(watched.output, "watched")
     errors: list[str] = []
     requests: list[str] = []
-    with sync_playwright() as playwright:
-        browser = chromium(playwright)
-        context = browser.new_context(offline=True)
-        page = context.new_page()
-        _watch_errors(page, errors)
+    with browser_page(errors, offline=True) as page:
         page.on("request", lambda r: requests.append(r.url))
         page.goto(report.as_uri())
         figures = 3 + 4 + 1 + len(SWEEP_SCENARIOS)  # Figure 5, Figure 6, Pareto, a track per scenario
@@ -222,7 +207,6 @@ def test_the_report_opens_offline(watched, tmp_path):
             pass  # the count below says how many there were
         canvases = page.locator("canvas").count()
         text = page.locator("body").inner_text()
-        browser.close()
     assert errors == []
     assert [r for r in requests if not r.startswith("file:")] == []
     assert canvases >= figures
@@ -240,8 +224,6 @@ def test_the_report_and_the_dashboard_fit_a_1400_px_page(watched, tmp_path):
     """Four scenario groups and three parameters: Figure 6's four panels once overflowed a 1400 px page, and
     Figure 5's title "cross_track_error against vehicle.cAlphaF" ran past its canvas. Measured in the
     browser, charts, titles and toolbars; a grid's Figure 5 keeps one line per scenario."""
-    from playwright.sync_api import sync_playwright
-
     from dse_runner.interfaces.dashboard import serve
     from dse_runner.interfaces.report import write_report
 
@@ -249,10 +231,7 @@ def test_the_report_and_the_dashboard_fit_a_1400_px_page(watched, tmp_path):
     server = serve(watched.output, "watched")
     errors: list[str] = []
     try:
-        with sync_playwright() as playwright:
-            browser = chromium(playwright)
-            page = browser.new_page(viewport={"width": 1400, "height": 1000})
-            _watch_errors(page, errors)
+        with browser_page(errors, viewport={"width": 1400, "height": 1000}) as page:
             page.goto(report.as_uri())
             page.wait_for_function(DRAWN, timeout=30_000)
             on_report, report_lines = measure(page), glyphs(page, "dse-by-parameter-vehicle.mass")
@@ -264,7 +243,6 @@ def test_the_report_and_the_dashboard_fit_a_1400_px_page(watched, tmp_path):
             page.wait_for_function(DRAWN, timeout=30_000)
             on_dashboard, dashboard_lines = measure(page), glyphs(page, "dse-by-parameter-vehicle.mass")
             page.screenshot(path=tmp_path / "dashboard-1400.png", full_page=True)
-            browser.close()
     finally:
         server.stop()
     assert errors == []
@@ -279,7 +257,6 @@ def test_a_long_title_is_set_small_enough_to_fit_its_chart(tmp_path):
     """A parameter with a long name, and wide tick labels on the y axis: Figure 5's title shrinks to fit."""
     from bokeh.embed import file_html
     from bokeh.resources import INLINE
-    from playwright.sync_api import sync_playwright
 
     from dse_runner.interfaces import charts
 
@@ -290,20 +267,15 @@ def test_a_long_title_is_set_small_enough_to_fit_its_chart(tmp_path):
     figure5.update(ok)
     page_file = tmp_path / "long.html"
     page_file.write_text(file_html(figure5.layout, INLINE, "long title"))
-    with sync_playwright() as playwright:
-        browser = chromium(playwright)
-        page = browser.new_page(viewport={"width": 1400, "height": 600})
+    with browser_page(viewport={"width": 1400, "height": 600}) as page:
         page.goto(page_file.as_uri())
         page.wait_for_function(DRAWN, timeout=30_000)
         fit = measure(page)
-        browser.close()
     assert float(figure5.layout.children[0][0].title.text_font_size.removesuffix("pt")) < charts.TITLE_PT
     assert (fit.charts, fit.titles, fit.misfits) == (2, 2, [])
 
 
 def test_dashboard_command_serves_a_finished_sweep(watched):
-    from playwright.sync_api import sync_playwright
-
     server = subprocess.Popen([sys.executable, "-m", "dse_runner", "dashboard", str(watched.output)],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
@@ -311,14 +283,10 @@ def test_dashboard_command_serves_a_finished_sweep(watched):
         match = re.search(r"http://127\.0\.0\.1:\d+/", line)
         assert match, line + server.stderr.read()
         errors: list[str] = []
-        with sync_playwright() as playwright:
-            browser = chromium(playwright)
-            page = browser.new_page()
-            _watch_errors(page, errors)
+        with browser_page(errors) as page:
             page.goto(match[0])
             page.wait_for_selector("#dse-done", timeout=30_000)
             state, done = _text(page, "state"), _text(page, "done")
-            browser.close()
     finally:
         server.terminate()
         server.wait(timeout=10)

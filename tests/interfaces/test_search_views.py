@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from conftest import REPO, write_msd_search
-from pages import Fit, chromium, glyphs, measure
+from pages import Fit, browser_page, glyphs, measure, watch_errors
 
 from dse_runner.interfaces import charts
 from dse_runner.interfaces.dashboard import search_html, search_summary
@@ -23,11 +23,6 @@ from dse_runner.sweeps.history import SearchHistory
 
 MSD = REPO / "jobs" / "msd"
 POINTS = 24
-
-
-def _watch_errors(page, errors: list[str]) -> None:
-    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
-    page.on("pageerror", lambda e: errors.append(str(e)))
 
 
 # --- the pure functions, on hand-made histories ---------------------------------------------------
@@ -190,7 +185,6 @@ class Seen:
 @pytest.fixture(scope="module")
 def searched(tmp_path_factory, dask_scheduler) -> Seen:
     from distributed import Client
-    from playwright.sync_api import sync_playwright
 
     from dse_runner.interfaces.dashboard import serve
     from dse_runner.sweeps.spec import load_space
@@ -216,10 +210,7 @@ def searched(tmp_path_factory, dask_scheduler) -> Seen:
         except BaseException as e:  # noqa: BLE001 - reported by the test
             outcome["error"] = e
 
-    with sync_playwright() as playwright:
-        browser = chromium(playwright)
-        page = browser.new_page(viewport={"width": 1300, "height": 1600})
-        _watch_errors(page, seen.errors)
+    with browser_page(seen.errors, viewport={"width": 1300, "height": 1600}) as page:
         page.goto(server.url)
         page.locator("#dse-search").wait_for(timeout=30_000)
         search = threading.Thread(target=run)
@@ -249,8 +240,8 @@ def searched(tmp_path_factory, dask_scheduler) -> Seen:
         server.stop()
 
         finished = serve(space.output, space.name)  # as `dse-runner dashboard RESULTS` does: no space
-        other = browser.new_page()
-        _watch_errors(other, seen.errors)
+        other = page.context.browser.new_page()
+        watch_errors(other, seen.errors)
         other.goto(finished.url)
         other.locator("#dse-search").wait_for(timeout=30_000)
         deadline = time.monotonic() + 20
@@ -259,7 +250,6 @@ def searched(tmp_path_factory, dask_scheduler) -> Seen:
         seen.finished_line = other.locator("#dse-search").inner_text()
         seen.finished_points = drawn(other, "dse-best-so-far-points", "value")
         finished.stop()
-        browser.close()
     if "error" in outcome:
         raise outcome["error"]
     assert outcome["report"].search.points == POINTS, outcome["report"]
@@ -298,8 +288,6 @@ def test_dashboard_best_matches_the_rank_command(searched):
 
 
 def test_report_has_the_search(searched, tmp_path):
-    from playwright.sync_api import sync_playwright
-
     from dse_runner.sweeps.rank import rank
     from dse_runner.interfaces.report import write_report
     from dse_runner.sweeps.history import load_history
@@ -309,16 +297,12 @@ def test_report_has_the_search(searched, tmp_path):
     progress = charts.best_so_far(history, "position_rmse", "min", 1)
     assert progress["best"].iloc[-1] == pytest.approx(rank(searched.output).best_total)
     errors: list[str] = []
-    with sync_playwright() as playwright:
-        browser = chromium(playwright)
-        page = browser.new_context(offline=True).new_page()
-        _watch_errors(page, errors)
+    with browser_page(errors, offline=True) as page:
         page.goto(report.as_uri())
         page.wait_for_function("() => window.Bokeh && Bokeh.documents.length > 0", timeout=30_000)
         dots, line = drawn(page, "dse-best-so-far-points", "value"), drawn(page, "dse-best-so-far-line", "best")
         front = drawn(page, "dse-front-growth-100", "x")
         search = page.locator("#search").inner_text()
-        browser.close()
     assert errors == []
     assert (dots, line) == (POINTS, POINTS) and front > 0
     rows = dict(r.split("\t") for r in search.splitlines())
@@ -327,21 +311,16 @@ def test_report_has_the_search(searched, tmp_path):
 
 
 def test_report_draws_the_searchs_points_as_dots_on_a_page_that_fits_1400_px(searched, tmp_path):
-    from playwright.sync_api import sync_playwright
-
     from dse_runner.interfaces.report import write_report
 
     report = write_report(searched.output, tmp_path / "report.html")
-    with sync_playwright() as playwright:
-        browser = chromium(playwright)
-        page = browser.new_context(offline=True, viewport={"width": 1400, "height": 1000}).new_page()
+    with browser_page(offline=True, viewport={"width": 1400, "height": 1000}) as page:
         page.goto(report.as_uri())
         page.wait_for_function("() => window.Bokeh && Bokeh.index.roots.length > 0 && "
                                "Bokeh.index.roots.every(v => v.has_finished())", timeout=30_000)
         fit = measure(page)
         drawn = {name: glyphs(page, f"dse-by-parameter-{name}") for name in ("msd.k", "msd.c")}
         page.screenshot(path=tmp_path / "report-1400.png", full_page=True)
-        browser.close()
     assert drawn == {"msd.k": [("Scatter", POINTS)], "msd.c": [("Scatter", POINTS)]}
     assert fit.charts == fit.titles >= 2 + 1 + 2 + 1 + 1, fit  # search, Pareto, Figures 5 and 6, a track
     assert fit.misfits == []

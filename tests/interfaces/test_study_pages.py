@@ -10,7 +10,7 @@ import sys
 import pytest
 import yaml
 from conftest import REPO
-from pages import chromium, measure
+from pages import browser_page, measure
 
 ISHIGAMI = REPO / "jobs" / "ishigami"
 PI = 3.141592653589793
@@ -53,14 +53,8 @@ def sweeps(tmp_path_factory, dask_scheduler):
 
 def _look(url: str, ident: str) -> dict:
     """Open ``url`` in a 1400 px window; the figure's natural size, console errors and what does not fit."""
-    from playwright.sync_api import sync_playwright
-
     errors: list[str] = []
-    with sync_playwright() as playwright:
-        browser = chromium(playwright)
-        page = browser.new_page(viewport={"width": 1400, "height": 900})
-        page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
-        page.on("pageerror", lambda e: errors.append(str(e)))
+    with browser_page(errors, viewport={"width": 1400, "height": 900}) as page:
         page.goto(url)
         figure = page.locator(f"#{ident}")
         figure.wait_for(state="attached", timeout=60_000)
@@ -72,7 +66,6 @@ def _look(url: str, ident: str) -> dict:
         table = page.locator("#dse-ranking")  # the dashboard's best-so-far table
         ranking = {"best": page.locator("#dse-best").inner_text(), "headings": table.locator("th").all_inner_texts(),
                    "top": table.locator("tbody tr").first.locator("td").all_inner_texts()} if table.count() else {}
-        browser.close()
     return {"loaded": size[0], "width": size[1], "right": size[2], "errors": errors, "misfits": fit.misfits,
             "text": text, **ranking}
 

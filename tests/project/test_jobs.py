@@ -93,8 +93,8 @@ def test_watertank_sweeps_the_levels_under_its_constraint_and_ranks_a_pareto_fro
 
 
 def test_watertank_report_and_dashboard_show_the_one_scenario(watertank, tmp_path):
-    from playwright.sync_api import expect, sync_playwright
-    from pages import chromium
+    from pages import browser_page
+    from playwright.sync_api import expect
 
     space, report = watertank
     ranking = rank(space.output, space.name)
@@ -105,18 +105,13 @@ def test_watertank_report_and_dashboard_show_the_one_scenario(watertank, tmp_pat
     try:
         match = re.search(r"http://127\.0\.0\.1:\d+/", server.stdout.readline())
         assert match, server.stderr.read()
-        with sync_playwright() as playwright:
-            browser = chromium(playwright)
-            page = browser.new_page(viewport={"width": 1300, "height": 1600})
-            page.on("pageerror", lambda e: errors.append(str(e)))
-            page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+        with browser_page(errors, viewport={"width": 1300, "height": 1600}) as page:
             page.goto(match[0])
             page.wait_for_selector("#dse-done", timeout=30_000)
             expect(page.locator("#dse-track")).to_have_text(re.compile(r"^nominal: best point"), timeout=60_000)
             done, track = page.locator("#dse-done").inner_text(), page.locator("#dse-track").inner_text()
             page.goto(page_file.as_uri())
             text = page.locator("body").inner_text()
-            browser.close()
     finally:
         server.terminate()
         server.wait(timeout=10)
