@@ -714,7 +714,7 @@ def version() -> None:
 
 def main() -> None:
     """The console script: a bug's exception is one line too, unless --debug asks for the traceback."""
-    from ..sweeps.makers import fork_local_workers
+    from ..sweeps.start_method import fork_local_workers
 
     fork_local_workers()  # one cluster per command: its workers start from a forkserver
     try:

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import logging
 import os
-import sys
 import uuid
 from abc import ABC, abstractmethod
 from importlib import import_module
@@ -30,6 +29,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 
 from ..errors import DseError
 from ..plugins import instance_of_subclass
+from . import start_method
 
 if TYPE_CHECKING:
     from .spec import Cluster
@@ -119,35 +119,6 @@ QUIET = {
 }
 
 
-# What every worker imports before its first task: a forkserver (fork_local_workers) imports them once.
-WORKER_IMPORTS = ("distributed", "pandas", "pyarrow.parquet", "fmpy.validation", f"{__package__}.sweep")
-START_METHOD_VARIABLE = "DASK_DISTRIBUTED__WORKER__MULTIPROCESSING_METHOD"
-_fork_workers = False
-
-
-def fork_local_workers() -> None:
-    """Have this process's local clusters fork their workers from a server that has imported
-    WORKER_IMPORTS once, instead of spawning each worker to import them anew (about 1.5 CPU s each).
-
-    For a process that makes one cluster and ends: the command line calls it. A forkserver keeps the
-    environment variables of the moment it started, so a Python program that changes them between two
-    clusters keeps Dask's own setting (spawn). The setting in the environment, when given, wins; elsewhere
-    than on Linux nothing changes."""
-    global _fork_workers
-    _fork_workers = True
-
-
-def _use_forkserver() -> None:
-    """On Linux only: macOS's system libraries may start threads that a fork breaks (why Python spawns there)."""
-    import dask
-    from distributed.utils import get_mp_context
-
-    if START_METHOD_VARIABLE in os.environ or not sys.platform.startswith("linux"):
-        return
-    dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"})  # read at each worker start
-    get_mp_context().set_forkserver_preload(list(WORKER_IMPORTS))
-
-
 class Local(ClusterMaker):
     """Worker processes on this machine, one thread each: FMUs are C code that may not be thread-safe, and
     one simulation per core keeps every core busy without contention."""
@@ -158,8 +129,7 @@ class Local(ClusterMaker):
         import dask
         from distributed import LocalCluster
 
-        if _fork_workers:
-            _use_forkserver()
+        start_method.choose()
         # A worker that died under a chunk gets one rerun elsewhere before the sweep splits the
         # chunk (sweep.py): a segfaulting FMU then costs two worker restarts per level, not four.
         with dask.config.set({"distributed.scheduler.allowed-failures": 1, **QUIET}):

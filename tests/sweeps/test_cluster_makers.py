@@ -16,7 +16,7 @@ from plugins import register
 from pydantic import BaseModel, ValidationError
 
 from dse_runner.errors import DseError
-from dse_runner.sweeps import makers
+from dse_runner.sweeps import makers, start_method
 from dse_runner.sweeps.cluster import connect
 from dse_runner.sweeps.spec import Cluster, load_space
 from dse_runner.sweeps.sweep import submit
@@ -141,11 +141,11 @@ def test_a_block_for_a_kind_not_installed_here_waits_for_the_sweep(tmp_path):
 # worker's parent. A spawned worker's parent is this process (its nanny lives here), a forked one's the server.
 LOCAL_PARENTS = """
 import json, os
-from dse_runner.sweeps import makers
+from dse_runner.sweeps import start_method
 from dse_runner.sweeps.cluster import connect
 from dse_runner.sweeps.spec import Cluster
 
-makers.fork_local_workers()
+start_method.fork_local_workers()
 with connect(Cluster(n_workers=2)) as client:
     parents = sorted(client.run(os.getppid).values())
 print(json.dumps({"own": os.getpid(), "parents": parents}))
@@ -156,9 +156,9 @@ print(json.dumps({"own": os.getpid(), "parents": parents}))
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the forkserver is used on Linux only")
 @pytest.mark.parametrize("method, forked", [(None, True), ("spawn", False)])
 def test_the_command_lines_workers_fork_unless_dasks_variable_chooses(method, forked):
-    env = {key: value for key, value in os.environ.items() if key != makers.START_METHOD_VARIABLE}
+    env = {key: value for key, value in os.environ.items() if key != start_method.START_METHOD_VARIABLE}
     if method:
-        env[makers.START_METHOD_VARIABLE] = method
+        env[start_method.START_METHOD_VARIABLE] = method
     done = subprocess.run([sys.executable, "-c", LOCAL_PARENTS], env=env, capture_output=True, text=True,
                           timeout=300)
     assert done.returncode == 0, done.stderr
