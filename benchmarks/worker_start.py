@@ -27,9 +27,10 @@ from pathlib import Path
 
 from test_suite import close_group, own_group  # benchmarks/, this script's folder, is on sys.path
 
+from dse_runner.sweeps.start_method import START_METHOD_VARIABLE as VARIABLE
+
 REPO = Path(__file__).resolve().parents[1]
 METHODS = ("spawn", "forkserver")
-VARIABLE = "DASK_DISTRIBUTED__WORKER__MULTIPROCESSING_METHOD"
 
 
 def space(folder: Path, workers: int) -> Path:
