@@ -38,7 +38,9 @@ from ..sweeps.rank import (
     load_sweep_spec,
     plain,
     ranked_figure_label,
+    scalar_objectives,
     standings,
+    without_excluded,
 )
 from ..errors import DseError
 from ..sweeps import store, uncertainty
@@ -78,7 +80,9 @@ class Feed:
         self.output, self.sweep = output, sweep
         self.parameters = list(spec.parameters)
         self.objective, self.goal = spec.ranking.objective, spec.ranking.goal
-        self.settings = spec.ranking  # the best point is named as rank() names it: over_scenarios, robust
+        self.settings = spec.ranking  # the best point is named as rank() names it: over_scenarios, robust, constraints
+        # the objectives read: the ranked one, and every one when constraints may name others (as rank() reads them)
+        self.objectives = scalar_objectives(spec) if spec.ranking.constraints else [self.objective]
         self.ranked_by = ranked_figure_label(spec.ranking, spec.uncertain is not None)
         self.pareto_goals = spec.ranking.pareto_goals()
         self.uncertain = spec.uncertain  # each scenario ran once per draw: the pages show the draws' means
@@ -104,16 +108,20 @@ class Feed:
         # as new. Read the other way round, a sweep ending between the two reads showed "finished" over the
         # rows of before its last chunks until the next refresh.
         status = load_status(self.output, self.sweep)
-        rows = current_rows(self.output, self.sweep, ["group", "status", *self.parameters, self.objective])
+        rows = current_rows(self.output, self.sweep, ["group", "status", *self.parameters, *self.objectives])
         ok = rows[rows["status"] == "ok"]
         last = self._snapshot
         if self.uncertain is not None:  # ranked over the draws; the charts get a row per point and scenario,
             drawn = uncertainty.with_draws(ok, self.uncertain.samples)  # its objective the mean over the draws
             ok = uncertainty.collapse(drawn, self.parameters, [self.objective])
-            table = draw_standings(drawn, self.parameters, self.objective, self.settings,
-                                   _base_scenarios(status, drawn))
+            scenarios = _base_scenarios(status, drawn)
+            table = draw_standings(drawn, self.parameters, self.objective, self.settings, scenarios)
+            table = without_excluded(table, drawn, self.parameters, self.objectives, self.settings, scenarios,
+                                     self.uncertain.samples)
         else:
             table = standings(ok, self.parameters, self.objective, self.goal, self.settings.over_scenarios)
+            table = without_excluded(table, ok, self.parameters, self.objectives, self.settings,
+                                     _scenario_count(status, rows))
         history = load_history(self.output, self.sweep) \
             if self.closed_loop or (last is not None and last.history is not None) else None
         return Snapshot(status, ok, len(rows), int((rows["status"] != "ok").sum()), table, history)
@@ -194,6 +202,13 @@ class Feed:
         return self._tracks[key]
 
 
+def _scenario_count(status: SweepReport | None, rows: pd.DataFrame) -> int:
+    """How many scenarios each point runs on: the status's, else those with rows so far (as rank() counts)."""
+    if status is not None and status.scenarios:
+        return len(status.scenarios)
+    return int(rows["scenario"].nunique())
+
+
 def _base_scenarios(status: SweepReport | None, drawn: pd.DataFrame) -> int:
     """How many scenarios each uncertain draw runs on: the status's, else those with rows so far."""
     if status is not None and status.scenarios:
@@ -238,7 +253,8 @@ def best_html(snap: Snapshot, parameters: list[str], ranked_by: str, counted: tu
     """The best-so-far line: the standings' first point, by the figure the ranking ranks by."""
     unit, total = counted
     if snap.standings.empty:
-        return '<span id="dse-best">no results yet</span>'
+        said = "no results yet" if snap.ok.empty else "no finished point meets the ranking's constraints yet"
+        return f'<span id="dse-best">{said}</span>'
     top = snap.standings.iloc[0]
     if unit == "draws" and not top["draws"]:
         return '<span id="dse-best">no point has finished an uncertain draw on every scenario yet</span>'

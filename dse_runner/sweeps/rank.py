@@ -156,7 +156,7 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
     spec = load_sweep_spec(output, sweep)
     settings = settings or spec.ranking
     parameters = list(spec.parameters)
-    objectives = [name for name, o in normalise(spec.objectives or []).items() if not is_vector(o)]  # lists are not summed
+    objectives = scalar_objectives(spec)
     pareto = settings.pareto_goals()
     for name in settings.objectives_used():
         if name not in objectives:
@@ -177,11 +177,8 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
     else:
         ok = rows[rows["status"] == "ok"]
         n_scenarios = rows["scenario"].nunique()
-        per_point = ok.groupby(parameters, dropna=False)
-        totals = per_point[objectives].agg(settings.over_scenarios).join(per_point.size().rename("scenarios"))
-        totals = totals.reset_index()
-        n_points = len(totals)
-        complete = totals[totals["scenarios"] == n_scenarios].drop(columns="scenarios")
+        n_points = ok.groupby(parameters, dropna=False).ngroups
+        complete = complete_totals(ok, parameters, objectives, settings.over_scenarios, n_scenarios)
         if complete.empty:
             raise DseError(f"sweep {sweep!r}: no parameter point has an ok result for all {n_scenarios} scenarios")
     admitted = admits(complete, settings.constraints, objectives)
@@ -247,6 +244,39 @@ def _about(spec: SpaceSpec, settings: RankingSpec) -> dict[str, Any]:
             "parameters": {n: d.model_dump(mode="json", exclude_none=True) for n, d in uncertain.parameters.items()},
             "columns": "each objective's column is its mean over the draws; <objective>_std the standard deviation "
                        "(ddof 1), <objective>_q<percent> its quantiles, <objective>_robust the ranked figure"}
+
+
+def scalar_objectives(spec: SpaceSpec) -> list[str]:
+    """The sweep's objectives that give one number per task: those a ranking reduces over scenarios (a
+    vector objective, such as residuals, is not summed)."""
+    return [name for name, o in normalise(spec.objectives or []).items() if not is_vector(o)]
+
+
+def complete_totals(ok: pd.DataFrame, parameters: list[str], objectives: list[str], over: str,
+                    scenarios: int) -> pd.DataFrame:
+    """Each point with an ok row on all ``scenarios``: its ``objectives`` reduced over them (``over``: the
+    ranking's ``over_scenarios``). Only these are ranked: a point's total over fewer scenarios is not its total."""
+    per_point = ok.groupby(parameters, dropna=False)
+    totals = per_point[objectives].agg(over)
+    return totals[(per_point.size() == scenarios).to_numpy()].reset_index()
+
+
+def without_excluded(table: pd.DataFrame, ok: pd.DataFrame, parameters: list[str], objectives: list[str],
+                     settings: RankingSpec, scenarios: int, samples: int | None = None) -> pd.DataFrame:
+    """A running sweep's standings (``table``: :func:`standings` or :func:`draw_standings`) without the points
+    :func:`rank` leaves out for breaking a ranking constraint, so that the dashboard never names as best a point
+    the rank command excludes. ``ok``: the ok rows with ``objectives`` (with uncertain draws, ``with_draws``'
+    rows and the ``samples`` drawn). A point is judged once it has finished every scenario (every draw on every
+    scenario), as rank() judges it; until then it stays, ranked by what it has."""
+    if not settings.constraints or table.empty:
+        return table
+    if samples is None:
+        totals = complete_totals(ok, parameters, objectives, settings.over_scenarios, scenarios)
+    else:
+        draws = uncertainty.per_draw(ok, parameters, objectives, settings.over_scenarios, scenarios)
+        totals = uncertainty.summarise(draws, parameters, objectives, [], samples)
+    excluded = totals[~admits(totals, settings.constraints, objectives)]
+    return table[~_of_points(table, excluded, parameters)].reset_index(drop=True)
 
 
 def admits(totals: pd.DataFrame, constraints: list[str], objectives: list[str]) -> np.ndarray:

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import SCENARIOS, strict_loads, write_space
+from conftest import REPO, SCENARIOS, strict_loads, write_space
 from pages import browser_page, glyphs, measure, watch_errors
 
 SWEEP_SCENARIOS = ["sin1", "speed_ramp1", "speed_step1", "turn_ramp1"]
@@ -328,6 +328,57 @@ def test_draw_standings_rank_by_the_robust_figure_over_finished_draws():
     assert draw_standings(ok, ["a"], "e", Ranking(objective="e"), scenarios=1)["a"].tolist() == [2.0, 1.0, 3.0]
     unfinished = draw_standings(ok, ["a"], "e", robust, scenarios=2)  # no draw has run on both scenarios
     assert unfinished["draws"].tolist() == [0, 0, 0] and unfinished["ranked"].isna().all()
+
+
+def test_standings_leave_out_finished_points_that_break_a_ranking_constraint():
+    """A point that has finished every scenario (every draw on every scenario) and breaks a ranking constraint
+    leaves the standings, as rank() leaves it out; one still running stays, ranked by what it has."""
+    from dse_runner.sweeps.rank import draw_standings, standings, without_excluded
+    from dse_runner.sweeps.spec import Ranking
+
+    ok = pd.DataFrame({"a": [1.0, 1.0, 2.0, 2.0, 3.0], "scenario": ["s", "t", "s", "t", "s"],
+                       "e": [0.0, 0.5, 1.0, 1.0, 0.1], "f": [9.0, 9.0, 1.0, 1.0, 9.0]})
+    kept = Ranking(objective="e", constraints=["f < 10"])  # a=1's total f is 18
+    table = without_excluded(standings(ok, ["a"], "e", "min"), ok, ["a"], ["e", "f"], kept, scenarios=2)
+    assert table["a"].tolist() == [2.0, 3.0]  # a=3 has finished one scenario of two: not judged yet
+    assert without_excluded(standings(ok, ["a"], "e", "min"), ok, ["a"], ["e", "f"], Ranking(objective="e"),
+                            scenarios=2)["a"].tolist() == [1.0, 2.0, 3.0]
+
+    drawn = pd.DataFrame([{"a": a, "sample": k, "base": "s", "e": e, "f": f}
+                          for a, e, f in ((1.0, 0.0, 12.0), (2.0, 1.0, 8.0)) for k in range(2)])
+    table = draw_standings(drawn, ["a"], "e", kept, scenarios=1)
+    assert without_excluded(table, drawn, ["a"], ["e", "f"], kept, 1, samples=2)["a"].tolist() == [2.0]
+    assert without_excluded(table, drawn, ["a"], ["e", "f"], kept, 1, samples=3)["a"].tolist() == [1.0, 2.0]
+
+
+def test_the_dashboard_names_the_best_point_the_ranking_constraints_keep(tmp_path, dask_scheduler):
+    """A finished grid whose best points (y < 0.7, the free optimum y = 0 among them) break the ranking's
+    constraint: the page's best-so-far line and table name the point dse-runner rank names, and list only the
+    points it ranks."""
+    import yaml
+
+    from dse_runner.interfaces.dashboard import Feed, best_html
+    from dse_runner.sweeps.rank import rank
+    from dse_runner.sweeps.spec import load_space
+    from dse_runner.sweeps.sweep import submit
+
+    spec = {"name": "kept", "multimodel": {"fmus": {"cliff": str(REPO / "tests" / "fmus" / "cliff")}},
+            "parameters": {"cliff.a": [1, 2.2, 3, 3.5, 5], "cliff.b": [0, 1, 1.5]},  # y = (a - 3)^2 + (b - 1)^2
+            "objectives": {"y": {"signal": "cliff.y", "reduce": "final"}},
+            "ranking": {"objective": "y", "constraints": ["y >= 0.7"]},
+            "output": str(tmp_path / "out"), "cluster": {"address": dask_scheduler}, "keep_trajectories": 0}
+    (tmp_path / "space.yaml").write_text(yaml.safe_dump(spec))
+    space = load_space(tmp_path / "space.yaml")
+    assert submit(space).ok == 15
+    ranking = rank(space.output, "kept")
+    assert ranking.best == {"cliff.a": 2.2, "cliff.b": 1.5} and ranking.excluded_points == 5
+    feed = Feed(space.output, "kept")
+    snap = feed.snapshot()
+    assert len(snap.standings) == len(ranking.totals) == 10
+    assert {p: snap.standings.iloc[0][p] for p in space.parameters} == ranking.best
+    assert snap.standings.iloc[0]["ranked"] == pytest.approx(ranking.best_total)
+    line = best_html(snap, feed.parameters, feed.ranked_by, feed.counted(1))
+    assert "best so far: cliff.a = 2.2, cliff.b = 1.5;" in line
 
 
 def test_dashboard_address_errors_name_the_address():
