@@ -476,6 +476,20 @@ def test_kinematics_recover_speed_and_yaw_rate_through_noise_and_dropouts():
     assert np.isfinite(kin.speed).mean() > 0.8
 
 
+def test_a_derivative_operator_is_made_afresh_from_the_windows_it_keeps():
+    """The operators of one run's fix times are asked for at every reference point: their windows' fits are
+    kept, and each call lays out a new matrix, so a caller that writes into one changes no later estimate."""
+    t = np.round(np.arange(0.0, 30.0, PERIOD), 2)
+    t = t[(t < 10.0) | (t >= 14.0)]  # an outage: rows without a window are NaN
+    first = kinematics.derivative_operator(t, kinematics.ACCELERATION_WINDOW, 2, 2)
+    assert np.array_equal(first, kinematics.local_operator(t, kinematics.ACCELERATION_WINDOW, 2)[2], equal_nan=True)
+    assert np.isnan(first[np.searchsorted(t, 10.0) - 1]).all() and np.isfinite(first[len(t) // 4]).all()
+    first[:] = 0.0
+    again = kinematics.derivative_operator(t, kinematics.ACCELERATION_WINDOW, 2, 2)
+    x = 0.5 * t ** 2  # a constant acceleration of 1: its second derivative wherever there is a window
+    assert np.nanmax(np.abs(again @ x - 1.0)) < 1e-9 and np.isnan(again @ x).any()
+
+
 def test_the_llr_favours_the_set_whose_residual_is_noise_where_the_twins_differ():
     rng = np.random.default_rng(2)
     sigma, m = 0.02, 400

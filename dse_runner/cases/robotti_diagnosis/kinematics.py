@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
@@ -37,20 +38,41 @@ def local_operator(time: np.ndarray, window: float, degree: int) -> np.ndarray:
     """Matrices D (degree + 1, n, n): D[k] @ values is the k-th derivative at each fix of the weighted
     polynomial of ``degree`` fitted over ``window`` seconds centred there. Rows are NaN where the window
     has too few fixes (``MIN_SHARE``, ``MIN_SIDE``)."""
+    return np.stack([derivative_operator(time, window, degree, k) for k in range(degree + 1)])
+
+
+def derivative_operator(time: np.ndarray, window: float, degree: int, order: int) -> np.ndarray:
+    """D[order] of :func:`local_operator`, alone: what a kinematic estimate needs. Its windows' fits are made
+    once per run's fix times and kept (:func:`_windows`): a diagnosis asks for the same runs' operators at every
+    reference point it observes, and the fits, one small solve per fix, cost far more than laying them out."""
     time = np.asarray(time, float)
     n = time.size
-    out = np.full((degree + 1, n, n), np.nan)
+    out = np.full((n, n), np.nan)
+    for i, start, coefficients in _windows(time.tobytes(), window, degree):
+        out[i, :] = 0.0
+        out[i, start:start + coefficients.shape[1]] = coefficients[order]
+    return out
+
+
+@lru_cache(maxsize=64)
+def _windows(fix_times: bytes, window: float, degree: int) -> tuple[tuple[int, int, np.ndarray], ...]:
+    """Per fix whose window holds enough fixes: (its row, the window's first fix, the (degree + 1, m)
+    coefficients that give each derivative there from the window's m values). Kept by the fix times' bytes:
+    a run's are some kilobytes, and its windows' coefficients a few dozen numbers per fix."""
+    time = np.frombuffer(fix_times, float)
+    n = time.size
     if n < 2 * MIN_SIDE + 1:
-        return out
+        return ()
     period = float(np.median(np.diff(time)))
     expected = window / period if period > 0 else math.inf
     half = window / 2
     lo = np.searchsorted(time, time - half, side="left")
     hi = np.searchsorted(time, time + half, side="right")
     factorial = np.array([math.factorial(k) for k in range(degree + 1)], float)
+    scale = factorial / half ** np.arange(degree + 1)
+    out = []
     for i in range(n):
-        span = slice(lo[i], hi[i])
-        dt = time[span] - time[i]
+        dt = time[lo[i]:hi[i]] - time[i]
         before, after = int(np.sum(dt < 0)), int(np.sum(dt > 0))
         if dt.size < MIN_SHARE * expected or before < MIN_SIDE or after < MIN_SIDE:
             continue
@@ -58,10 +80,10 @@ def local_operator(time: np.ndarray, window: float, degree: int) -> np.ndarray:
         design = np.vander(dt / half, degree + 1, increasing=True)  # scaled for conditioning
         weighted = design * w[:, None]
         hat = np.linalg.solve(design.T @ weighted, weighted.T)  # (degree + 1, m): coefficients per value
-        scale = factorial / half ** np.arange(degree + 1)
-        out[:, i, :] = 0.0
-        out[:, i, span] = hat * scale[:, None]
-    return out
+        coefficients = hat * scale[:, None]
+        coefficients.setflags(write=False)
+        out.append((i, int(lo[i]), coefficients))
+    return tuple(out)
 
 
 @dataclass(frozen=True)
@@ -79,8 +101,8 @@ class Kinematics:
 def gps_kinematics(time: np.ndarray, x: np.ndarray, y: np.ndarray) -> Kinematics:
     """Speed, course, yaw rate r = (ẋÿ − ẏẍ)/v² and acceleration a = (ẋẍ + ẏÿ)/v from fixes."""
     time, x, y = (np.asarray(a, float) for a in (time, x, y))
-    velocity = local_operator(time, VELOCITY_WINDOW, 1)[1]
-    second = local_operator(time, ACCELERATION_WINDOW, 2)[2]
+    velocity = derivative_operator(time, VELOCITY_WINDOW, 1, 1)
+    second = derivative_operator(time, ACCELERATION_WINDOW, 2, 2)
     vx, vy = velocity @ x, velocity @ y
     ax, ay = second @ x, second @ y
     speed = np.hypot(vx, vy)

@@ -182,7 +182,7 @@ class Channel:
     fix_time: np.ndarray
     recorded: np.ndarray  # NaN where kinematics had too few fixes
     kinds: np.ndarray  # segment kind per fix
-    operator: Any  # a derivative block of kinematics.local_operator: an array, or sparse with NaN rows as 0
+    operator: Any  # kinematics.derivative_operator: an array, or sparse with NaN rows as 0
     order: int  # how often the model signal is integrated before the operator applies
     model_time: np.ndarray  # uniform
     model: np.ndarray
@@ -324,7 +324,7 @@ def channels_of(scenarios: Sequence[Scenario], tracks: Mapping[str, Any], column
             continue
         fixes = fielddata.gps(s)
         kin = kinematics.gps_kinematics(fixes.time, fixes.x, fixes.y)
-        velocity = kinematics.local_operator(fixes.time, kinematics.VELOCITY_WINDOW, 1)[1]
+        velocity = kinematics.derivative_operator(fixes.time, kinematics.VELOCITY_WINDOW, 1, 1)
         recorded = np.where(kin.speed >= kinematics.MIN_SPEED, kin.course, np.nan) if name == COURSE else kin.speed
         track = tracks[s.name]
         model_time = track["time"].to_numpy(float)

@@ -159,8 +159,8 @@ def reference_state(run: Observed, values: Mapping[str, float]) -> Reference:
     f_drive = np.clip(kv * (v_cmd - v / (1.0 - slip)), -mu * m * g, mu * m * g) / m
     inputs = FeatureInputs(v=v, psi=psi, r=r, s=correction.distance(grid, v), v_cmd=v_cmd, a_cmd=a_cmd, delta=delta,
                            delta_rate=delta_rate, f_drive=f_drive, v_min=values["v_min"], t=grid)
-    operators = {"acc": (kinematics.local_operator(t, kinematics.VELOCITY_WINDOW, 1)[1], 1),
-                 "steer": (kinematics.local_operator(t, kinematics.ACCELERATION_WINDOW, 2)[2], 2)}
+    operators = {"acc": (kinematics.derivative_operator(t, kinematics.VELOCITY_WINDOW, 1, 1), 1),
+                 "steer": (kinematics.derivative_operator(t, kinematics.ACCELERATION_WINDOW, 2, 2), 2)}
     return Reference(run, kin, grid, inputs, gain, m * (1.0 - slip) / kv, operators)
 
 
