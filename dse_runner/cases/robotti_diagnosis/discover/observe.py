@@ -126,6 +126,9 @@ class Reference:
     gain: np.ndarray  # steady-state yaw rate per rad of steering to the right, on the grid
     tau: float  # the drive's speed response time [s]
     operators: Mapping[str, tuple[np.ndarray, int]]  # channel -> the fixes' derivative operator and its order
+    # channel -> the equation error's target: the recorded speed or yaw rate less the reference's, seen through
+    # the fixes' window. A shape's value changes none of it, so a scan over it reuses these (propose.find_shape).
+    targets: Mapping[str, np.ndarray] = field(default_factory=dict)
 
 
 def reference_state(run: Observed, values: Mapping[str, float]) -> Reference:
@@ -161,7 +164,9 @@ def reference_state(run: Observed, values: Mapping[str, float]) -> Reference:
                            delta_rate=delta_rate, f_drive=f_drive, v_min=values["v_min"], t=grid)
     operators = {"acc": (kinematics.derivative_operator(t, kinematics.VELOCITY_WINDOW, 1, 1), 1),
                  "steer": (kinematics.derivative_operator(t, kinematics.ACCELERATION_WINDOW, 2, 2), 2)}
-    return Reference(run, kin, grid, inputs, gain, m * (1.0 - slip) / kv, operators)
+    recorded, model = {"acc": kin.speed, "steer": kin.yaw_rate}, {"acc": v, "steer": r}
+    targets = {c: recorded[c] - kinematics.smoothed_like(*operators[c], grid, model[c], t) for c in DYNAMIC}
+    return Reference(run, kin, grid, inputs, gain, m * (1.0 - slip) / kv, operators, targets)
 
 
 def _rms(columns: Mapping[str, np.ndarray], terms: Sequence[Term], moving: np.ndarray) -> dict[str, float]:
@@ -178,6 +183,7 @@ class Column:
 
     raw: np.ndarray
     seen: np.ndarray
+    rms: float  # the raw feature's RMS while the vehicle is commanded to move (:func:`_rms`)
 
 
 def term_columns(ref: Reference, terms: Sequence[Term]) -> dict[str, Column]:
@@ -187,11 +193,13 @@ def term_columns(ref: Reference, terms: Sequence[Term]) -> dict[str, Column]:
     effect = {"acc": lambda f: lagged(grid, ref.tau * f, ref.tau), "steer": lambda f: ref.gain * f}
     dynamic = [tm for tm in terms if tm.channel in DYNAMIC]
     raws = correction.features(ref.inputs, dynamic)
+    rms = _rms(raws, dynamic, ref.inputs.v_cmd > 0)
     out = {}
     for tm in dynamic:
         operator, order = ref.operators[tm.channel]
         raw = raws[tm.variable]
-        out[tm.variable] = Column(raw, kinematics.smoothed_like(operator, order, grid, effect[tm.channel](raw), t))
+        out[tm.variable] = Column(raw, kinematics.smoothed_like(operator, order, grid, effect[tm.channel](raw), t),
+                                  rms[tm.variable])
     return out
 
 
@@ -208,25 +216,21 @@ def equation_error(ref: Reference, terms: Sequence[Term] = (), known: Mapping[st
     the yaw rate by G(v)·c·f). Rows where the fixes give no estimate are left out."""
     terms = tuple(terms) or tuple(t for t in correction.searched_terms() if t.channel in DYNAMIC)
     known = known or {}
-    t, kin, grid, inputs = ref.run.time, ref.kin, ref.grid, ref.inputs
+    kin, inputs = ref.kin, ref.inputs
     columns = {**term_columns(ref, [tm for tm in terms if tm.variable not in known]), **known}
-    recorded = {"acc": kin.speed, "steer": kin.yaw_rate}
-    model = {"acc": inputs.v, "steer": inputs.r}
-    moving = inputs.v_cmd > 0
     out = {}
     for channel in DYNAMIC:
         mine = [tm for tm in terms if tm.channel == channel]
         if not mine:
             continue
-        operator, order = ref.operators[channel]
-        target = recorded[channel] - kinematics.smoothed_like(operator, order, grid, model[channel], t)
+        target = ref.targets[channel]
         theta = np.column_stack([columns[tm.variable].seen for tm in mine])
         rows = np.isfinite(target) & np.isfinite(theta).all(axis=1)
         if channel == "acc":
             rows &= kin.speed >= MIN_ACC_SPEED
         shapes = {sh.variable: getattr(inputs, sh.name) for tm in mine if (sh := correction.shape_of(tm))}
         out[channel] = Regression(channel, tuple(mine), theta[rows], target[rows], np.zeros(int(rows.sum()), int),
-                                  _rms({tm.variable: columns[tm.variable].raw for tm in mine}, mine, moving), shapes)
+                                  {tm.variable: columns[tm.variable].rms for tm in mine}, shapes)
     return out
 
 
