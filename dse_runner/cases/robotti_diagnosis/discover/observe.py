@@ -128,7 +128,7 @@ class Reference:
     operators: Mapping[str, tuple[np.ndarray, int]]  # channel -> the fixes' derivative operator and its order
     # channel -> the equation error's target: the recorded speed or yaw rate less the reference's, seen through
     # the fixes' window. A shape's value changes none of it, so a scan over it reuses these (propose.find_shape).
-    targets: Mapping[str, np.ndarray] = field(default_factory=dict)
+    targets: Mapping[str, np.ndarray]
 
 
 def reference_state(run: Observed, values: Mapping[str, float]) -> Reference:
