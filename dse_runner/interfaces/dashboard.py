@@ -114,7 +114,7 @@ class Feed:
         if self.uncertain is not None:  # ranked over the draws; the charts get a row per point and scenario,
             drawn = uncertainty.with_draws(ok, self.uncertain.samples)  # its objective the mean over the draws
             ok = uncertainty.collapse(drawn, self.parameters, [self.objective])
-            scenarios = _base_scenarios(status, drawn)
+            scenarios = _scenario_count(status, drawn, "base")
             table = draw_standings(drawn, self.parameters, self.objective, self.settings, scenarios)
             table = without_excluded(table, drawn, self.parameters, self.objectives, self.settings, scenarios,
                                      self.uncertain.samples)
@@ -202,18 +202,12 @@ class Feed:
         return self._tracks[key]
 
 
-def _scenario_count(status: SweepReport | None, rows: pd.DataFrame) -> int:
-    """How many scenarios each point runs on: the status's, else those with rows so far (as rank() counts)."""
-    if status is not None and status.scenarios:
-        return len(status.scenarios)
-    return int(rows["scenario"].nunique())
-
-
-def _base_scenarios(status: SweepReport | None, drawn: pd.DataFrame) -> int:
-    """How many scenarios each uncertain draw runs on: the status's, else those with rows so far."""
+def _scenario_count(status: SweepReport | None, rows: pd.DataFrame, column: str = "scenario") -> int:
+    """How many scenarios each point (each uncertain draw: ``column`` "base" of with_draws' rows) runs on: the
+    status's, a sampled scenario counted once, else those with rows so far (as rank() counts)."""
     if status is not None and status.scenarios:
         return len({uncertainty.split_name(name)[0] for name in status.scenarios})
-    return int(drawn["base"].nunique())
+    return int(rows[column].nunique())
 
 
 def _duration(seconds: float | None) -> str:
