@@ -16,6 +16,7 @@ Only the columns needed are read from Parquet; trajectories are never loaded.
 
 from __future__ import annotations
 
+import io
 import json
 from dataclasses import dataclass
 from typing import Any
@@ -34,6 +35,7 @@ from .spec import SpaceSpec
 
 SWEEP_FILE = "sweep.json"  # the spec a sweep ran with, saved beside its results
 MODEL_FILE = "model"  # the hash of the model it last ran
+SAMPLE_FILE = "sample.csv"  # with uncertain parameters: a row per draw, the values it ran with
 
 
 REDUCED = {"sum": "total", "mean": "mean", "max": "largest", "min": "smallest"}  # ranking.over_scenarios
@@ -59,7 +61,7 @@ class Ranking:
     constraints: tuple[str, ...] = ()  # the ranking's constraints on objectives, as written
     ranked_by: str = ""  # the totals' column the points are ranked by: the objective, or its robust figure
     uncertainty: dict[str, Any] | None = None  # with an uncertain block: samples, quantiles, robust, distributions
-    draws: pd.DataFrame | None = None  # each ranked point's objectives per draw (reduced over scenarios)
+    draws: pd.DataFrame | None = None  # per ranked point and draw: the drawn values, the objectives over scenarios
 
     @property
     def reduced(self) -> str:
@@ -91,10 +93,28 @@ class Ranking:
         }
 
 
-def save_sweep_spec(output: store.Root, spec: SpaceSpec, model: str) -> None:
-    """The spec a sweep runs with, and the hash of its model, whose rows rankings use."""
+def save_sweep_spec(output: store.Root, spec: SpaceSpec, model: str, sample: pd.DataFrame | None = None) -> None:
+    """The spec a sweep runs with, the hash of its model, whose rows rankings use, and with uncertain
+    parameters its sample: the rows name a draw only by its number (``<scenario>~u<k>``), and the spec
+    alone may not remake the values (a diagnosis's file it read can be gone)."""
     store.write_text(output, f"{spec.name}.{SWEEP_FILE}", spec.model_dump_json(indent=2))
     store.write_text(output, f"{spec.name}.{MODEL_FILE}", model + "\n")
+    if sample is not None:
+        store.write_text(output, f"{spec.name}.{SAMPLE_FILE}",
+                         sample.rename_axis("sample").reset_index().to_csv(index=False))
+
+
+def with_drawn_values(draws: pd.DataFrame, output: store.Root, sweep: str) -> pd.DataFrame:
+    """``draws`` (a row per point and draw) with the values each draw's uncertain parameters ran with, after
+    ``sample``; as it is for a store saved without them."""
+    text = store.read_text(output, f"{sweep}.{SAMPLE_FILE}")
+    if text is None:
+        return draws
+    sample = pd.read_csv(io.StringIO(text))
+    drawn = [c for c in sample.columns if c != "sample" and c not in draws.columns]
+    at = list(draws.columns).index("sample") + 1
+    order = [*draws.columns[:at], *drawn, *draws.columns[at:]]
+    return draws.merge(sample[["sample", *drawn]], on="sample", how="left")[order]
 
 
 def current_model(output: store.Root, sweep: str) -> str | None:
@@ -190,7 +210,7 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
     complete = _best_first(complete, ranked_by, settings.goal)
     best = {p: plain(complete.loc[0, p]) for p in parameters}
     if draws is not None:
-        draws = draws[_of_points(draws, complete, parameters)].reset_index(drop=True)
+        draws = with_drawn_values(draws[_of_points(draws, complete, parameters)].reset_index(drop=True), output, sweep)
 
     table1 = _table1(ok[_of_points(ok, complete, parameters)], settings.objective, best)
     if pareto:

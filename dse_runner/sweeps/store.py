@@ -3,6 +3,7 @@
     <store>/results/sweep=<name>/scenario=<scenario>/part-<chunk>.parquet
     <store>/trajectories/sweep=<name>/scenario=<scenario>/rank-<k>.parquet
     <store>/<name>.sweep.json, <name>.model      (written by rank.save_sweep_spec)
+    <store>/<name>.sample.csv                    (with uncertain parameters: each draw's values)
 
 A store is a local folder or any fsspec URL the workers can reach
 (``s3://bucket/prefix``, ``gs://…``, ``abfs://…``; credentials come the way

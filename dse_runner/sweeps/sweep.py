@@ -109,7 +109,7 @@ def submit(space: Space, progress: SweepProgress | None = None, client=None,
     started = time.perf_counter()
     output = space.output
     store.check_reachable(output)
-    save_sweep_spec(output, space.spec, space.model_key)
+    save_sweep_spec(output, space.spec, space.model_key, space.draws)
     done = store.finished_task_ids(output, space.name)
     kept = load_status(output, space.name)  # a submission that finds nothing to run leaves it as it is
     shipment = ship.pack(space.plan, space.scenarios)

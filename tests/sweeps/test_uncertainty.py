@@ -21,7 +21,7 @@ from dse_runner.errors import DseError
 from dse_runner.sweeps import uncertainty
 from dse_runner.sweeps.closed_loop import over_draws
 from dse_runner.sweeps.expand import expand
-from dse_runner.sweeps.rank import load_sweep_spec, rank
+from dse_runner.sweeps.rank import load_sweep_spec, rank, write_ranking
 from dse_runner.sweeps.spec import Robust, load_space
 from dse_runner.sweeps.sweep import submit
 
@@ -213,10 +213,17 @@ def test_mean_and_std_over_the_draws_match_the_closed_form(study):
 
 
 def test_the_stored_rows_are_the_function_at_each_draw(study):
-    ranking = rank(study.output)
+    """draws.csv alone says what each draw ran with (the rows only number the draws): beside each point's
+    objectives per draw, the values of the space's sample, at which y is the function."""
+    import pandas as pd
+
+    draws = pd.read_csv(write_ranking(rank(study.output), study.output, study.name)["draws"])
+    assert list(draws.columns) == ["ishigami.a", "ishigami.b", "sample", *XS, "y"]
     x = study.draws[list(XS)].to_numpy()
-    for (a, b), rows in ranking.draws.groupby(["ishigami.a", "ishigami.b"]):
-        assert np.allclose(rows.sort_values("sample")["y"].to_numpy(), ishigami(x, a, b), rtol=0, atol=1e-12)
+    for (a, b), rows in draws.groupby(["ishigami.a", "ishigami.b"]):
+        rows = rows.sort_values("sample")
+        assert np.array_equal(rows[list(XS)].to_numpy(), x)
+        assert np.allclose(rows["y"].to_numpy(), ishigami(x, a, b), rtol=0, atol=1e-12)
 
 
 def test_robust_ranking_picks_the_analytic_best_not_the_means(study):
