@@ -40,10 +40,10 @@ from dataclasses import dataclass
 from functools import cache
 from importlib.metadata import entry_points
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, TypeAdapter, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Discriminator, Tag, TypeAdapter, ValidationError, model_validator
 
 from ..errors import DseError, format_validation_error
 from .scripts import Script, run_scripts
@@ -91,7 +91,27 @@ class Fit(BaseModel):
     metric: Literal["rmse", "mae", "max_abs", "residuals"] = "rmse"  # residuals: every error, a vector
 
 
-ObjectiveSpec = Reduce | Fit | Script | str
+def _objective_kind(value: Any) -> str | None:
+    """Which form an objective's entry has, by its keys: a wrong entry is then judged against that form only."""
+    if isinstance(value, str):
+        return "name"
+    if isinstance(value, (Reduce, Fit, Script)):
+        return type(value).__name__.lower()
+    if not isinstance(value, Mapping):
+        return None
+    if "script" in value:
+        return "script"
+    return "fit" if "recorded" in value or "metric" in value else "reduce" if "reduce" in value else None
+
+
+# A registered name or module:function, or one of the three mappings; a wrong entry gives the messages of the
+# form its keys choose, not one per form.
+ObjectiveSpec = Annotated[
+    Annotated[Reduce, Tag("reduce")] | Annotated[Fit, Tag("fit")] | Annotated[Script, Tag("script")]
+    | Annotated[str, Tag("name")],
+    Discriminator(_objective_kind, custom_error_type="objective",
+                  custom_error_message="expected a name, {signal, reduce}, {signal, recorded, metric} "
+                                       "or {script, args}")]
 
 
 def normalise(objectives: list[str] | Mapping[str, ObjectiveSpec | Mapping[str, Any]]) -> dict[str, ObjectiveSpec]:

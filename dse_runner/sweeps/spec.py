@@ -121,6 +121,16 @@ ParameterValues = Annotated[
                                        "or an interval {low, high}")]
 
 
+def _shape(value: Any) -> str | None:
+    """A union member by the shape the file gives its value (a name, a list or a mapping): a wrong value is then
+    judged against that member only, one message per problem instead of one per member."""
+    if isinstance(value, str):
+        return "name"
+    if isinstance(value, list):
+        return "list"
+    return "mapping" if isinstance(value, (dict, BaseModel)) else None
+
+
 class Variant(BaseModel):
     """One variant of every scenario of a source: ``{name: heavy, parameters: {vehicle.mass: 2000}}``."""
 
@@ -139,7 +149,10 @@ class ScenarioSource(BaseModel):
     # Each folder runs once per variant, as scenario <name>-<variant> with the variant's parameters on top of
     # its own: a design evaluated over several plants (a robust objective: ranking.over_scenarios max or mean).
     # A string is a YAML file holding the list, relative to the spec.
-    variants: list[Variant] | str = []
+    variants: Annotated[
+        Annotated[list[Variant], Tag("list")] | Annotated[str, Tag("name")],
+        Discriminator(_shape, custom_error_type="variants",
+                      custom_error_message="expected a list of {name, parameters} or a YAML file holding one")] = []
 
 
 def read_variants(path: Path) -> list[Variant]:
@@ -154,14 +167,16 @@ def varied(scenario: Scenario, variant: Variant) -> Scenario:
 
 
 def _source_or_inline(value: Any) -> str | None:
-    if isinstance(value, (str, ScenarioSource)) or (isinstance(value, dict) and "path" in value):
+    if isinstance(value, str):
+        return "folder"
+    if isinstance(value, ScenarioSource) or (isinstance(value, dict) and "path" in value):
         return "source"
     return "inline" if isinstance(value, (dict, ScenarioSpec)) else None
 
 
 # A folder (or glob), {path: ...} with options, or a scenario written inline ({name: ..., inputs: ...}).
 ScenarioEntry = Annotated[
-    Annotated[str | ScenarioSource, Tag("source")] | Annotated[ScenarioSpec, Tag("inline")],
+    Annotated[str, Tag("folder")] | Annotated[ScenarioSource, Tag("source")] | Annotated[ScenarioSpec, Tag("inline")],
     Discriminator(_source_or_inline, custom_error_type="scenario_entry",
                   custom_error_message="expected a folder or glob, {path: ...}, or an inline scenario {name: ...}")]
 
@@ -296,7 +311,10 @@ class Ranking(BaseModel):
     objective: str | None = None  # reduced over scenarios (by default summed: the paper's Equation 2); default: the first
     goal: Literal["min", "max"] = "min"
     over_scenarios: Literal["sum", "mean", "max", "min"] = "sum"  # max: the worst case of a minimised objective
-    pareto: list[Direction | str] = []  # objectives of the Pareto front, each "name" or {objective, goal}
+    pareto: list[Annotated[  # objectives of the Pareto front, each "name" or {objective, goal}
+        Annotated[Direction, Tag("mapping")] | Annotated[str, Tag("name")],
+        Discriminator(_shape, custom_error_type="pareto", custom_error_message="expected a name or {objective, goal}")
+    ]] = []
     weights: dict[str, float] = {}  # weighted sum of per-point totals
     constraints: list[str] = []  # on objective totals, e.g. "level_max < 2.4": points breaking one are not ranked
     robust: Robust | None = None  # with an uncertain block: rank by mean + k std or a quantile, not the mean
@@ -398,6 +416,18 @@ class Cluster(BaseModel):
         return (self.model_extra or {}).get(kind)
 
 
+# A list of names or a mapping name -> objective (simulation/objectives.py's forms); an entry with options in a
+# list is the likely slip, so its message says where options go.
+ObjectiveName = Annotated[Annotated[str, Tag("name")], Discriminator(
+    _shape, custom_error_type="objective_name",
+    custom_error_message="a list holds names only (an objective with options goes in a mapping, "
+                         "objectives: {name: {signal: ..., reduce: ...}})")]
+Objectives = Annotated[
+    Annotated[list[ObjectiveName], Tag("list")] | Annotated[dict[str, objs.ObjectiveSpec], Tag("mapping")],
+    Discriminator(_shape, custom_error_type="objectives",
+                  custom_error_message="expected a list of names or a mapping name: objective")]
+
+
 class Origin(BaseModel):
     """What a space was converted from, so that reports also write that tool's result files."""
 
@@ -415,7 +445,7 @@ class SpaceSpec(BaseModel):
     scenarios: list[ScenarioEntry] = []  # none: the experiment alone, as scenario "nominal"
     parameters: dict[str, ParameterValues] = Field(min_length=1)
     constraints: list[str] = []
-    objectives: list[str] | dict[str, objs.ObjectiveSpec] | None = None  # default: the scenarios' kind's
+    objectives: Objectives | None = None  # default: the scenarios' kind's
     ranking: Ranking = Ranking()
     search: Search = Search()
     output: str = "out"  # results store: a folder relative to the spec, or an fsspec URL (s3://bucket/prefix)

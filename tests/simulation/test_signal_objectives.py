@@ -126,6 +126,26 @@ def test_a_space_names_an_objectives_unknown_signal(tmp_path):
         load()
 
 
+@pytest.mark.parametrize("objectives, problems", [
+    (["max_error", {"peak": {"signal": "msd.x", "reduce": "max"}}],
+     ["objectives.list.1: a list holds names only (an objective with options goes in a mapping, "
+      "objectives: {name: {signal: ..., reduce: ...}})"]),
+    ({"peak": {"signl": "msd.x", "reduce": "max"}},
+     ["objectives.mapping.peak.reduce.signal: Field required",
+      "objectives.mapping.peak.reduce.signl: Extra inputs are not permitted"]),
+    ({"fit": {"signal": "msd.x", "recorded": "x", "metric": "rms"}},
+     ["objectives.mapping.fit.fit.metric: Input should be 'rmse', 'mae', 'max_abs' or 'residuals'"]),
+    ({"peak": {"signal": "msd.x"}},
+     ["objectives.mapping.peak: expected a name, {signal, reduce}, {signal, recorded, metric} or {script, args}"]),
+])
+def test_a_wrong_objective_entry_gets_the_messages_of_its_own_form(tmp_path, objectives, problems):
+    """An entry is judged by the form its keys choose (a name, reduce, fit or script), so a typo gives its own
+    message, not one per form the entry might have been."""
+    with pytest.raises(DseError) as caught:
+        _space(tmp_path, objectives=objectives)()
+    assert str(caught.value).split(": ", 1)[1].split("; ") == problems
+
+
 def test_a_space_names_a_recorded_column_its_recording_lacks(tmp_path):
     from conftest import REPO
 

@@ -104,6 +104,12 @@ def test_a_variant_naming_an_unknown_variable_names_it(tmp_path):
     ({"parameters": {"vehicle.mass": {"low": 3000, "high": 1000}}},
      r"parameters\.vehicle\.mass\.interval: 'high' must be above 'low'"),
     ({"name": "a b"}, r"space\.yaml: name: String should match pattern"),
+    # a union's wrong value is judged by the member its shape picks: that member's messages only
+    ({"ranking": {"pareto": [{"objective": "max_error", "goal": "maxx"}]}},
+     r"space\.yaml: ranking\.pareto\.0\.mapping\.goal: Input should be 'min' or 'max'$"),
+    ({"scenarios": [{"path": "runs/*", "variants": [{"name": "a", "parametrs": {}}]}]},
+     r"space\.yaml: scenarios\.0\.source\.variants\.list\.0\.parameters: Field required; "
+     r"scenarios\.0\.source\.variants\.list\.0\.parametrs: Extra inputs are not permitted$"),
 ])
 def test_bad_specs_name_file_key_and_reason(tmp_path, changes, message):
     with pytest.raises(DseError, match=message):
