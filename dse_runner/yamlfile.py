@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 import yaml
-from pydantic import TypeAdapter, ValidationError
+from pydantic import BaseModel, TypeAdapter, ValidationError
 
 from .errors import DseError, format_syntax_error, format_validation_error
 
@@ -26,6 +26,15 @@ def load_yaml(path: Path, what: str = "file") -> Any:
         raise DseError(f"cannot read {what} {path}: {e.strerror}") from None
     except yaml.YAMLError as e:
         raise DseError(format_syntax_error(str(path), "YAML", e)) from None
+
+
+def shape(value: Any) -> str:
+    """A value's shape as a file gives it: "mapping" (or a model), "list", or "scalar" (a name, a number, a
+    Boolean). Our formats' unions are told apart by it (pydantic's ``Discriminator``), so a wrong value gets
+    the messages of the member its shape picks, not one per member."""
+    if isinstance(value, (dict, BaseModel)):
+        return "mapping"
+    return "list" if isinstance(value, list) else "scalar"
 
 
 @cache

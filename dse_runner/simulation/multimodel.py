@@ -27,13 +27,15 @@ from __future__ import annotations
 import json
 import warnings
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationError, field_validator
+from pydantic import (BaseModel, ConfigDict, Discriminator, Field, PositiveFloat, Tag, ValidationError,
+                      field_validator)
 
 from .. import bundled
 from ..errors import DseError, format_syntax_error, format_validation_error
+from ..yamlfile import shape
 from .fmu import FmuWarning, model_identifiers
 from .variables import FiniteValue, split_ref
 
@@ -59,6 +61,12 @@ class Target(BaseModel):
         return _check_ref(ref)
 
 
+# An input's name, or {input, round | threshold}: a wrong mapping gets Target's messages only.
+ConnectionTarget = Annotated[Annotated[Target, Tag("mapping")] | Annotated[str, Tag("scalar")],
+                             Discriminator(shape, custom_error_type="connection_target",
+                                           custom_error_message="expected an input's name or {input, ...}")]
+
+
 class InstanceSettings(BaseModel):
     """How one instance runs: its interface, for model exchange the integrator, whether it is told the
     stop time, and whether it must run in a fresh process each time (docs/multimodel.md)."""
@@ -76,7 +84,7 @@ class MultiModel(BaseModel):
     model_config = Strict
 
     fmus: dict[str, str] = Field(min_length=1)
-    connections: dict[str, list[str | Target]] = {}
+    connections: dict[str, list[ConnectionTarget]] = {}
     parameters: dict[str, FiniteValue] = {}
     scenario: dict[str, str] = {}  # instance.variable -> a field of each scenario
     instances: dict[str, InstanceSettings] = {}

@@ -30,13 +30,13 @@ from dataclasses import dataclass, field, replace
 from functools import cache
 from importlib.metadata import EntryPoint, entry_points
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, ClassVar, Literal
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationError
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, PositiveFloat, Tag, ValidationError
 
 from ..errors import DseError, format_validation_error
-from ..yamlfile import load_yaml
+from ..yamlfile import load_yaml, shape
 from .variables import FiniteValue, Value, split_ref
 
 if TYPE_CHECKING:
@@ -256,15 +256,25 @@ class RecordedSpec(BaseModel):
     time: str = "time"
 
 
+# A mapping is a CSV series or recording, anything else a constant or a CSV's path: a wrong mapping gets that
+# model's messages only, not one per kind of value.
+InputSpec = Annotated[Annotated[SeriesSpec, Tag("mapping")] | Annotated[FiniteValue, Tag("scalar")],
+                      Discriminator(shape, custom_error_type="input",
+                                    custom_error_message="expected a value or {csv, column, ...}")]
+RecordedEntry = Annotated[Annotated[RecordedSpec, Tag("mapping")] | Annotated[str, Tag("scalar")],
+                          Discriminator(shape, custom_error_type="recorded",
+                                        custom_error_message="expected a CSV's path or {csv, time}")]
+
+
 class ScenarioSpec(BaseModel):
     """A scenario written inline in space.yaml, or as a folder's scenario.yaml."""
 
     model_config = Strict
     name: str = Field(pattern=r"^[A-Za-z0-9_.-]+$")
     group: str = DEFAULT_GROUP
-    inputs: dict[str, SeriesSpec | FiniteValue] = {}
+    inputs: dict[str, InputSpec] = {}
     parameters: dict[str, FiniteValue] = {}
-    recorded: RecordedSpec | str | None = None  # a CSV path, or {csv, time}
+    recorded: RecordedEntry | None = None  # a CSV path, or {csv, time}
     start_time: float | None = None
     stop_time: PositiveFloat | None = None
     step: PositiveFloat | None = None

@@ -43,7 +43,7 @@ from ..simulation.multimodel import MultiModel, load_multimodel, parse_multimode
 from ..simulation.run import bound_fields, checked_term, qualify
 from ..simulation.scenario import Scenario, ScenarioSpec, Series, kind, load_scenario, nominal, parse_scenario
 from ..simulation.variables import FiniteValue, check_value
-from ..yamlfile import read_yaml
+from ..yamlfile import read_yaml, shape
 from . import makers, uncertainty
 from .constraints import compile_constraint
 from .domain import Dimension, Point
@@ -121,16 +121,6 @@ ParameterValues = Annotated[
                                        "or an interval {low, high}")]
 
 
-def _shape(value: Any) -> str | None:
-    """A union member by the shape the file gives its value (a name, a list or a mapping): a wrong value is then
-    judged against that member only, one message per problem instead of one per member."""
-    if isinstance(value, str):
-        return "name"
-    if isinstance(value, list):
-        return "list"
-    return "mapping" if isinstance(value, (dict, BaseModel)) else None
-
-
 class Variant(BaseModel):
     """One variant of every scenario of a source: ``{name: heavy, parameters: {vehicle.mass: 2000}}``."""
 
@@ -150,8 +140,8 @@ class ScenarioSource(BaseModel):
     # its own: a design evaluated over several plants (a robust objective: ranking.over_scenarios max or mean).
     # A string is a YAML file holding the list, relative to the spec.
     variants: Annotated[
-        Annotated[list[Variant], Tag("list")] | Annotated[str, Tag("name")],
-        Discriminator(_shape, custom_error_type="variants",
+        Annotated[list[Variant], Tag("list")] | Annotated[str, Tag("scalar")],
+        Discriminator(shape, custom_error_type="variants",
                       custom_error_message="expected a list of {name, parameters} or a YAML file holding one")] = []
 
 
@@ -312,8 +302,8 @@ class Ranking(BaseModel):
     goal: Literal["min", "max"] = "min"
     over_scenarios: Literal["sum", "mean", "max", "min"] = "sum"  # max: the worst case of a minimised objective
     pareto: list[Annotated[  # objectives of the Pareto front, each "name" or {objective, goal}
-        Annotated[Direction, Tag("mapping")] | Annotated[str, Tag("name")],
-        Discriminator(_shape, custom_error_type="pareto", custom_error_message="expected a name or {objective, goal}")
+        Annotated[Direction, Tag("mapping")] | Annotated[str, Tag("scalar")],
+        Discriminator(shape, custom_error_type="pareto", custom_error_message="expected a name or {objective, goal}")
     ]] = []
     weights: dict[str, float] = {}  # weighted sum of per-point totals
     constraints: list[str] = []  # on objective totals, e.g. "level_max < 2.4": points breaking one are not ranked
@@ -418,13 +408,13 @@ class Cluster(BaseModel):
 
 # A list of names or a mapping name -> objective (simulation/objectives.py's forms); an entry with options in a
 # list is the likely slip, so its message says where options go.
-ObjectiveName = Annotated[Annotated[str, Tag("name")], Discriminator(
-    _shape, custom_error_type="objective_name",
+ObjectiveName = Annotated[Annotated[str, Tag("scalar")], Discriminator(
+    shape, custom_error_type="objective_name",
     custom_error_message="a list holds names only (an objective with options goes in a mapping, "
                          "objectives: {name: {signal: ..., reduce: ...}})")]
 Objectives = Annotated[
     Annotated[list[ObjectiveName], Tag("list")] | Annotated[dict[str, objs.ObjectiveSpec], Tag("mapping")],
-    Discriminator(_shape, custom_error_type="objectives",
+    Discriminator(shape, custom_error_type="objectives",
                   custom_error_message="expected a list of names or a mapping name: objective")]
 
 

@@ -324,6 +324,13 @@ def test_strings_connect_only_to_strings(pair, source, target, message):
     assert f"connection {source} -> {target}" in str(caught.value) and message in str(caught.value)
 
 
+def test_a_misspelt_connection_option_gets_one_message(pair):
+    """A target mapping with a typo is judged as a mapping only: not also as an input's name."""
+    with pytest.raises(DseError) as caught:
+        as_plan(pair({"a.real_out": [{"input": "c.bool_in", "treshold": 0.5}]}))
+    assert str(caught.value).split(": ", 1)[1] == "connections.a.real_out.0.mapping.treshold: Extra inputs are not permitted"
+
+
 def test_an_option_a_connection_does_not_need_is_refused(pair):
     with pytest.raises(DseError, match="this connection needs neither"):
         as_plan(pair({"a.real_out": [{"input": "b.real_in", "round": True}]}))

@@ -110,6 +110,10 @@ def test_a_variant_naming_an_unknown_variable_names_it(tmp_path):
     ({"scenarios": [{"path": "runs/*", "variants": [{"name": "a", "parametrs": {}}]}]},
      r"space\.yaml: scenarios\.0\.source\.variants\.list\.0\.parameters: Field required; "
      r"scenarios\.0\.source\.variants\.list\.0\.parametrs: Extra inputs are not permitted$"),
+    ({"scenarios": [{"name": "s", "inputs": {"controller.steering": {"csv": "a.csv", "colum": "q"}},
+                     "recorded": {"csv": "r.csv", "tme": "t"}}]},
+     r"space\.yaml: scenarios\.0\.inline\.inputs\.controller\.steering\.mapping\.colum: Extra inputs are not "
+     r"permitted; scenarios\.0\.inline\.recorded\.mapping\.tme: Extra inputs are not permitted$"),
 ])
 def test_bad_specs_name_file_key_and_reason(tmp_path, changes, message):
     with pytest.raises(DseError, match=message):
