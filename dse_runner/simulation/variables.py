@@ -59,14 +59,20 @@ def with_article(type_name: str) -> str:
     return f"{'an' if type_name[:1] in 'AEIOaeiou' else 'a'} {type_name}"
 
 
-def _finite(value: Any) -> Any:
-    """NaN and infinity are no value to give an FMU (checked before the union, for one clear message)."""
+def _plain_finite(value: Any) -> Any:
+    """A number, a Boolean or a string, and not NaN or infinity: anything else is no value to give an FMU.
+    Checked before the union, for one clear message instead of one per member."""
     if isinstance(value, float) and not math.isfinite(value):
         raise ValueError(f"{value} is not a finite number")
+    if value is None:
+        raise ValueError("no value given")
+    if isinstance(value, (dict, list)):
+        shape = "mapping" if isinstance(value, dict) else "list"
+        raise ValueError(f"expected a number, a Boolean or a string, not a {shape}")
     return value
 
 
-FiniteValue = Annotated[Value, BeforeValidator(_finite)]  # a value as files give it
+FiniteValue = Annotated[Value, BeforeValidator(_plain_finite)]  # a value as files give it
 
 
 def split_ref(ref: str) -> tuple[str, str]:

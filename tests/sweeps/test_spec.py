@@ -110,6 +110,9 @@ def test_a_variant_naming_an_unknown_variable_names_it(tmp_path):
     ({"scenarios": [{"path": "runs/*", "variants": [{"name": "a", "parametrs": {}}]}]},
      r"space\.yaml: scenarios\.0\.source\.variants\.list\.0\.parameters: Field required; "
      r"scenarios\.0\.source\.variants\.list\.0\.parametrs: Extra inputs are not permitted$"),
+    ({"parameters": {"vehicle.mass": [1800, {"kg": 2000}]}},
+     r"space\.yaml: parameters\.vehicle\.mass\.values\.1: expected a number, a Boolean or a string, not a mapping$"),
+    ({"parameters": {"vehicle.mass": [None]}}, r"space\.yaml: parameters\.vehicle\.mass\.values\.0: no value given$"),
     ({"scenarios": [{"name": "s", "inputs": {"controller.steering": {"csv": "a.csv", "colum": "q"}},
                      "recorded": {"csv": "r.csv", "tme": "t"}}]},
      r"space\.yaml: scenarios\.0\.inline\.inputs\.controller\.steering\.mapping\.colum: Extra inputs are not "
