@@ -69,6 +69,8 @@ def test_ids_split_into_fmu_instance_and_variable():
 @pytest.mark.parametrize(("name", "text", "model", "message"), [
     ("bad.dse.json", "{\"parameters\": {\"{a}.a.k\": [1],}}", DseConfig, r"bad\.dse\.json line 1, column \d+: not JSON"),
     ("bad.dse.json", {"parameters": {"{a}.a.k": []}}, DseConfig, r"bad\.dse\.json: parameters\.\{a\}\.a\.k"),
+    ("bad.dse.json", {"parameters": {"{a}.a.k": [1, {"value": 2}]}}, DseConfig,
+     r"bad\.dse\.json: parameters\.\{a\}\.a\.k\.1: expected a number, a Boolean or a string, not a mapping$"),
     ("bad.dse.json", {"parameters": {"{a}.a.k": [1]}, "ranking": {"pareto": {"x": "min"}}}, DseConfig,
      r"ranking\.pareto\.x"),
     ("bad.coe.json", {"endTime": 1, "algorithm": {"type": "jacobi"}}, CoeConfig,

@@ -22,11 +22,10 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Fiel
                       field_validator)
 
 from ...errors import DseError, format_validation_error
+from ...simulation.variables import FiniteValue
 
 Loose = ConfigDict(extra="allow", allow_inf_nan=False)  # INTO-CPS writes keys we read past (graphs, livestream...)
 Strict = ConfigDict(extra="forbid", allow_inf_nan=False)
-
-Value = bool | int | float | str
 
 
 # ---- *.dse.json ------------------------------------------------------------------------------------
@@ -80,7 +79,7 @@ class DseConfig(BaseModel):
 
     model_config = Loose  # e.g. "simulation", which INTO-CPS itself ignores (the coe.json decides)
     algorithm: Algorithm = Algorithm()
-    parameters: dict[str, Annotated[list[Value], Field(min_length=1)]]
+    parameters: dict[str, Annotated[list[FiniteValue], Field(min_length=1)]]
     parameterConstraints: list[str] = []
     objectiveDefinitions: ObjectiveDefinitions = ObjectiveDefinitions()
     objectiveConstraints: list[str] = []
