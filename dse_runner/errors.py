@@ -13,8 +13,9 @@ def format_validation_error(source: str, error: ValidationError) -> str:
     """One line: the file, then each problem's key path and reason."""
     problems = []
     for problem in error.errors():
-        where = ".".join(str(p) for p in problem["loc"]) or "(top level)"
-        problems.append(f"{where}: {problem['msg'].removeprefix('Value error, ')}")
+        where = ".".join(str(p) for p in problem["loc"])
+        reason = problem["msg"].removeprefix("Value error, ")
+        problems.append(f"{where}: {reason}" if where else reason)  # at the top: the file's own problem
     return f"{source}: " + "; ".join(problems)
 
 

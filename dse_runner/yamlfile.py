@@ -6,6 +6,7 @@ way they are read, so a missing file, bad YAML and a bad value are worded alike 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from functools import cache
 from pathlib import Path
 from typing import Any, TypeVar
@@ -32,9 +33,9 @@ def shape(value: Any) -> str:
     """A value's shape as a file gives it: "mapping" (or a model), "list", or "scalar" (a name, a number, a
     Boolean). Our formats' unions are told apart by it (pydantic's ``Discriminator``), so a wrong value gets
     the messages of the member its shape picks, not one per member."""
-    if isinstance(value, (dict, BaseModel)):
+    if isinstance(value, (Mapping, BaseModel)):
         return "mapping"
-    return "list" if isinstance(value, list) else "scalar"
+    return "list" if isinstance(value, (list, tuple)) else "scalar"
 
 
 @cache

@@ -95,13 +95,13 @@ def _objective_kind(value: Any) -> str | None:
     """Which form an objective's entry has, by its keys: a wrong entry is then judged against that form only."""
     if isinstance(value, str):
         return "name"
-    if isinstance(value, (Reduce, Fit, Script)):
-        return type(value).__name__.lower()
-    if not isinstance(value, Mapping):
-        return None
-    if "script" in value:
+    if isinstance(value, Script) or (isinstance(value, Mapping) and "script" in value):
         return "script"
-    return "fit" if "recorded" in value or "metric" in value else "reduce" if "reduce" in value else None
+    if isinstance(value, Fit) or (isinstance(value, Mapping) and ("recorded" in value or "metric" in value)):
+        return "fit"
+    if isinstance(value, Reduce) or (isinstance(value, Mapping) and ("reduce" in value or "signal" in value)):
+        return "reduce"  # a signal with neither a recording nor a reduction: what it lacks is named
+    return None
 
 
 # A registered name or module:function, or one of the three mappings; a wrong entry gives the messages of the

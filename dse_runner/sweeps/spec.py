@@ -782,8 +782,12 @@ def _check_uncertain(spec: SpaceSpec, plan: Plan, scenarios: list[Scenario], dra
     """Uncertain parameters are FMU parameters that nothing else sets, and every drawn value suits them."""
     swept = {qualify(plan, ref): ref for ref in spec.parameters if signal_effects.parse(ref) is None
              and _parsed_term(ref, source) is None}
+    taken = {"sample", *(spec.objectives or ())}  # columns of the draws' table (rank.with_drawn_values)
     for ref in draws.columns:
         where = f"{source}: uncertain.parameters.{ref}"
+        if ref in taken:
+            raise DseError(f"{where}: the name is a column of the ranking's draws already (the draw's number, or "
+                           "an objective); write the parameter as instance.variable")
         if signal_effects.parse(ref) is not None or _parsed_term(ref, source) is not None:
             raise DseError(f"{where}: uncertain parameters are FMU variables; a signal effect or derivative "
                            "term can be swept, not sampled")

@@ -135,7 +135,10 @@ def test_a_space_names_an_objectives_unknown_signal(tmp_path):
       "objectives.mapping.peak.reduce.signl: Extra inputs are not permitted"]),
     ({"fit": {"signal": "msd.x", "recorded": "x", "metric": "rms"}},
      ["objectives.mapping.fit.fit.metric: Input should be 'rmse', 'mae', 'max_abs' or 'residuals'"]),
-    ({"peak": {"signal": "msd.x"}},
+    ({"peak": {"signal": "msd.x", "reduc": "max"}},
+     ["objectives.mapping.peak.reduce.reduce: Field required",
+      "objectives.mapping.peak.reduce.reduc: Extra inputs are not permitted"]),
+    ({"peak": {"sgnal": "msd.x"}},
      ["objectives.mapping.peak: expected a name, {signal, reduce}, {signal, recorded, metric} or {script, args}"]),
 ])
 def test_a_wrong_objective_entry_gets_the_messages_of_its_own_form(tmp_path, objectives, problems):

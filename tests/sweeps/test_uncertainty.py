@@ -141,6 +141,8 @@ def test_a_diagnosis_interval_is_read_as_a_normal_of_half_width_1_96_sigma(tmp_p
     ({"parameters": {"ishigami.x1": {"from_diagnosis": "nowhere.json"}}}, "no such file"),
     ({"samples": 0, "parameters": {"ishigami.x1": UNIFORM}}, "samples"),
     ({"quantiles": [1.5], "parameters": {"ishigami.x1": UNIFORM}}, "quantiles"),
+    ({"parameters": {"sample": UNIFORM}}, "uncertain.parameters.sample: the name is a column of the ranking's draws"),
+    ({"parameters": {"y": UNIFORM}}, "uncertain.parameters.y: the name is a column of the ranking's draws"),
 ])
 def test_bad_uncertain_blocks_name_the_culprit(tmp_path, uncertain, message):
     with pytest.raises(DseError) as caught:
