@@ -553,6 +553,8 @@ def rank_command(
     _print_table1(ranking)
     if len(ranking.pareto):
         typer.echo(f"Pareto front: {len(ranking.pareto)} points (pareto.csv)")
+    if ranking.uncertainty and len(ranking.groups):  # the groups rank by the mean, whatever the ranking's figure
+        typer.echo(f"best per group, by the mean over the draws of total {ranking.objective}:")
     for row in ranking.groups.to_dict("records"):
         point = ", ".join(f"{p}={row[p]:g}" for p in ranking.parameters)
         typer.echo(f"  best in {row['group']:<12} {point}  ({row[f'{ranking.objective}_total']:.3f})")

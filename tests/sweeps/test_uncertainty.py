@@ -49,13 +49,11 @@ def ishigami(x: np.ndarray, a: float, b: float) -> np.ndarray:
 
 
 def write(folder, address: str | None = None, **changes):
-    """An Ishigami uncertainty study in ``folder``; ``changes`` replace top-level keys."""
-    spec = {"name": "robust", "multimodel": {"fmus": {"ishigami": str(ISHIGAMI / "fmus" / "ishigami")}},
-            "experiment": {"start_time": 0, "stop_time": 1, "step": 1}, **DESIGN,
-            "uncertain": {"samples": SAMPLES, "parameters": {x: UNIFORM for x in XS}},
-            "objectives": {"y": {"signal": "ishigami.y", "reduce": "final"}},
-            "ranking": {"robust": {"sigmas": 1}}, "output": str(folder / "out"), "keep_trajectories": 0,
-            "cluster": {"address": address} if address else {"n_workers": 1}}
+    """The example study (jobs/ishigami/robust.yaml) in ``folder``, its store there; ``changes`` replace
+    top-level keys."""
+    spec = yaml.safe_load((ISHIGAMI / "robust.yaml").read_text())
+    spec["multimodel"]["fmus"]["ishigami"] = str(ISHIGAMI / spec["multimodel"]["fmus"]["ishigami"])
+    spec |= {"output": str(folder / "out"), "cluster": {"address": address} if address else {"n_workers": 1}}
     spec.update(changes)
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / "space.yaml"
@@ -190,6 +188,9 @@ def test_a_search_is_told_the_draws_mean_or_robust_figure():
 @pytest.fixture(scope="module")
 def study(tmp_path_factory, dask_scheduler):
     space = load_space(write(tmp_path_factory.mktemp("uncertainty"), dask_scheduler))
+    assert space.spec.uncertain.samples == SAMPLES and list(space.draws.columns) == list(XS)
+    assert {k: space.parameters[k] for k in DESIGN["parameters"]} == DESIGN["parameters"]
+    assert space.spec.constraints == DESIGN["constraints"]
     report = submit(space)
     assert (report.ok, report.failed) == (3 * SAMPLES, 0)
     return space
@@ -255,6 +256,8 @@ def test_rank_json_is_strict_and_a_resubmission_runs_nothing(study, tmp_path):
     assert found["ranked_by"] == "y_robust" and found["uncertainty"]["ranked_by"] == "mean+1sd"
     assert set(found["top"][0]) >= {"y", "y_std", "y_q5", "y_q50", "y_q95", "y_robust"}
     assert "draws" in found["files"]
+    printed = dse_runner("rank", str(study.output)).stdout  # the groups' best is by the mean: said so
+    assert "best per group, by the mean over the draws of total y:" in printed, printed
     again = submit(study)
     assert (again.skipped, again.ran) == (3 * SAMPLES, 0)
 
