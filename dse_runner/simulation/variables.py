@@ -67,8 +67,8 @@ def _plain_finite(value: Any) -> Any:
     if value is None:
         raise ValueError("no value given")
     if isinstance(value, (dict, list)):
-        shape = "mapping" if isinstance(value, dict) else "list"
-        raise ValueError(f"expected a number, a Boolean or a string, not a {shape}")
+        given = "mapping" if isinstance(value, dict) else "list"
+        raise ValueError(f"expected a number, a Boolean or a string, not a {given}")
     return value
 
 
