@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import glob
 import math
+from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal
@@ -159,9 +160,9 @@ def varied(scenario: Scenario, variant: Variant) -> Scenario:
 def _source_or_inline(value: Any) -> str | None:
     if isinstance(value, str):
         return "folder"
-    if isinstance(value, ScenarioSource) or (isinstance(value, dict) and "path" in value):
+    if isinstance(value, ScenarioSource) or (isinstance(value, Mapping) and "path" in value):
         return "source"
-    return "inline" if isinstance(value, (dict, ScenarioSpec)) else None
+    return "inline" if shape(value) == "mapping" else None
 
 
 # A folder (or glob), {path: ...} with options, or a scenario written inline ({name: ..., inputs: ...}).

@@ -8,7 +8,7 @@ acceleration. A window must hold at least ``MIN_SHARE`` of the fixes it would ho
 dropouts and ``MIN_SIDE`` on each side of its centre, otherwise the estimate there is NaN: an
 outage splits a run into separate stretches rather than being bridged.
 
-Every estimate is a linear operator on the fixes (:func:`local_operator`), so the same smoothing
+Every estimate is a linear operator on the fixes (:func:`derivative_operator`), so the same smoothing
 can be applied to a model's signal (:func:`smoothed_like`): a recorded yaw rate is then compared
 with a model's yaw rate seen through the same window, and neither is sharper than the other.
 """
@@ -34,17 +34,12 @@ def tricube(u: np.ndarray) -> np.ndarray:
     return np.clip(1.0 - np.abs(u) ** 3, 0.0, None) ** 3
 
 
-def local_operator(time: np.ndarray, window: float, degree: int) -> np.ndarray:
-    """Matrices D (degree + 1, n, n): D[k] @ values is the k-th derivative at each fix of the weighted
-    polynomial of ``degree`` fitted over ``window`` seconds centred there. Rows are NaN where the window
-    has too few fixes (``MIN_SHARE``, ``MIN_SIDE``)."""
-    return np.stack([derivative_operator(time, window, degree, k) for k in range(degree + 1)])
-
-
 def derivative_operator(time: np.ndarray, window: float, degree: int, order: int) -> np.ndarray:
-    """D[order] of :func:`local_operator`, alone: what a kinematic estimate needs. Its windows' fits are made
-    once per run's fix times and kept (:func:`_windows`): a diagnosis asks for the same runs' operators at every
-    reference point it observes, and the fits, one small solve per fix, cost far more than laying them out."""
+    """The matrix D (n, n): D @ values is the ``order``-th derivative at each fix of the weighted polynomial of
+    ``degree`` fitted over ``window`` seconds centred there. Rows are NaN where the window has too few fixes
+    (``MIN_SHARE``, ``MIN_SIDE``). The windows' fits are made once per run's fix times and kept
+    (:func:`_windows`): a diagnosis asks for the same runs' operators at every reference point it observes,
+    and the fits, one small solve per fix, cost far more than laying them out."""
     time = np.asarray(time, float)
     n = time.size
     out = np.full((n, n), np.nan)
@@ -119,8 +114,8 @@ def gps_kinematics(time: np.ndarray, x: np.ndarray, y: np.ndarray) -> Kinematics
 def smoothed_like(operator: np.ndarray, order: int, time: np.ndarray, signal: np.ndarray,
                   at: np.ndarray) -> np.ndarray:
     """A model's ``signal`` (on its own ``time`` grid) seen as GPS would see it: integrated ``order``
-    times, sampled at the fix times ``at`` and differentiated back by ``operator`` (a row block of
-    :func:`local_operator` for that derivative). Speed is order 1 (from positions by the velocity
+    times, sampled at the fix times ``at`` and differentiated back by ``operator`` (the
+    :func:`derivative_operator` of that order). Speed is order 1 (from positions by the velocity
     operator), yaw rate order 2 (from positions by the acceleration operator)."""
     values = np.asarray(signal, float)
     for _ in range(order):
