@@ -166,9 +166,21 @@ class Exhaustive(Strategy):
         return next(self._points, None)
 
 
+class Given(Strategy):
+    """No points of its own: a caller gives every point (fit.py's rounds, a diagnosis's fits), so the
+    parameters may take any form, intervals included. Submitted without points, it runs nothing."""
+
+    closed_loop = False
+    size = 0
+
+    def ask(self) -> Point | None:
+        return None
+
+
 STRATEGIES = "dse_runner.sweeps.strategies"
 BUILTIN: dict[str, str] = {  # loaded on first use: Optuna, pymoo and torch are imported only when chosen
     "exhaustive": f"{__name__}:Exhaustive",
+    "given": f"{__name__}:Given",
     "random": f"{STRATEGIES}.sampling:RandomSampling",
     "sobol": f"{STRATEGIES}.sampling:Sobol",
     "lhs": f"{STRATEGIES}.sampling:LatinHypercube",

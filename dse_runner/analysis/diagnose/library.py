@@ -26,7 +26,7 @@ from typing import Any, ClassVar, Protocol
 from ... import bundled
 from ...errors import DseError
 from ...plugins import instance_of_subclass
-from ...sweeps.spec import Space, read_spec, resolve_space
+from ...sweeps.spec import Interval, Search, Space, SpaceSpec, read_spec, resolve_space
 from .explain import NOISE_FACTOR
 from .hypotheses import Hypothesis
 
@@ -126,18 +126,33 @@ def runs_folder(scenarios: str | Path) -> Path:
     return folder
 
 
-def space_with(space: str | Path, scenarios: str | Path | None, out: Path, multimodel: str | Path | None = None,
+def space_with(space: str | Path, scenarios: str | Path | None, out: Path | None, multimodel: str | Path | None = None,
                n_workers: int | None = None, address: str | None = None) -> Space:
     """The space to diagnose: ``space`` (a file or ``bundled:…``), with every run in ``scenarios`` as
-    its scenarios when given, ``multimodel`` in place of its own, results in ``out``."""
+    its scenarios when given, ``multimodel`` in place of its own, results in ``out`` (None: its own)."""
     path = bundled.resolve(space, Path.cwd())
-    update: dict[str, Any] = {"output": str(out), "keep_trajectories": 0}
+    update: dict[str, Any] = {"keep_trajectories": 0}
+    if out is not None:
+        update["output"] = str(out)
     if scenarios is not None:
         update["scenarios"] = [str(runs_folder(scenarios) / "*")]
     if multimodel is not None:
         update["multimodel"] = str(Path(multimodel).resolve())
-    spec = read_spec(path).model_copy(update=update)
+    spec = calibrated_by_search(read_spec(path).model_copy(update=update))
     return resolve_space(spec, path).with_overrides(address=address, n_workers=n_workers)
+
+
+CALIBRATION_SEARCH = {"strategy": "sobol", "max_points": 64}  # where intervals are calibrated from
+
+
+def calibrated_by_search(spec: SpaceSpec) -> SpaceSpec:
+    """A spec that says no search of its own and has intervals among its parameters: a grid cannot cover
+    them, so the calibration samples them (a Sobol' design of 64 points), and the fits start from its best.
+    A search the spec names is kept."""
+    intervals = [name for name, p in spec.parameters.items() if isinstance(p, Interval)]
+    if "search" in spec.model_fields_set or not intervals:
+        return spec
+    return spec.model_copy(update={"search": Search(**CALIBRATION_SEARCH)})
 
 
 def serving(space: Space, found: list[HypothesisLibrary] | None = None) -> HypothesisLibrary:

@@ -39,13 +39,13 @@ from ...sweeps.domain import Point
 from ...sweeps.fit import (FitProblem, FitResult, Parameter, evaluate_points, fit_all, key_of,
                              residuals_in, wanted)
 from ...sweeps.rank import rank
-from ...sweeps.spec import Space, load_space, resolve_space
+from ...sweeps.spec import Space, resolve_space
 from ...sweeps.sweep import submit
 from . import explain, signal_claims, signal_locate, signal_report, signal_screen
 from .explain import Candidate
 from .hypotheses import EffectParameter
 from .hypotheses import Hypothesis as LibraryHypothesis
-from .library import HypothesisLibrary, Messages, Request
+from .library import HypothesisLibrary, Messages, Request, space_with
 from .derivative_discovery import DISCOVERED, Discovered, NotDiscovered, discover_derivatives
 from .derivative_discovery.prove import terms_space
 from .noise import sigma_from_differences
@@ -263,7 +263,7 @@ def fits_space(space: Space, compared: Sequence[Compared], hypotheses: Mapping[s
     objectives = {**space.objectives,
                   **{c.residuals: objs.Fit(signal=c.signal, recorded=c.recorded, metric="residuals") for c in compared}}
     spec = space.spec.model_copy(update={"name": FITS, "parameters": parameters, "objectives": objectives,
-                                         "search": space.spec.search.model_copy(update={"strategy": "exhaustive"}),
+                                         "search": space.spec.search.model_copy(update={"strategy": "given"}),
                                          "constraints": [], "keep_trajectories": 0})
     return resolve_space(spec, space.path)
 
@@ -307,16 +307,18 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
     recordings support, seek a derivative correction when they leave error above the noise (unless not
     ``discover``), and locate the misfit before and after."""
     say = say or (lambda message: None)
-    space = path if isinstance(path, Space) else load_space(path).with_overrides(output=out, address=address,
-                                                                                 n_workers=n_workers)
+    space = path if isinstance(path, Space) else space_with(path, None, Path(out) if out else None,
+                                                            n_workers=n_workers, address=address)
     compared = compared_signals(space)
     library = restricted(hypotheses(space, compared), only)
     scenarios = tuple(s.name for s in space.scenarios)
     parts = explain.folds(space.scenarios, folds) if len(scenarios) > 1 else []
     with connect(space.spec.cluster, space.path.parent) as client:
         best: dict[str, Any] = {}
-        if space.dimensions and all(d.grid() is not None for d in space.dimensions):
-            say(f"calibrating: the space's grid, {space.name}")
+        if space.dimensions and space.spec.search.strategy != "given":
+            search = space.spec.search
+            say(f"calibrating: {space.name}, " + ("the space's grid" if search.strategy == "exhaustive" else
+                                                   f"{search.strategy} over its intervals, {search.max_points} points"))
             submit(space, client=client)
             best = rank(space.output, space.name).best
         base = calibration(space, best)

@@ -32,7 +32,7 @@ def terms_space(space: Space, terms: Sequence[CandidateTerm]) -> Space:
     plain sweep of given points."""
     parameters = {**space.spec.parameters, **{t.name: [0.0] for t in terms}}
     spec = space.spec.model_copy(update={"name": SWEEP, "parameters": parameters,
-                                         "search": space.spec.search.model_copy(update={"strategy": "exhaustive"}),
+                                         "search": space.spec.search.model_copy(update={"strategy": "given"}),
                                          "constraints": [], "keep_trajectories": 0})
     return resolve_space(spec, space.path)
 
