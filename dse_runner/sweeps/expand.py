@@ -114,6 +114,35 @@ def expand(space, points: list[Point] | None = None,
 BLOCK = 1024  # points hashed together: large enough that per-block costs vanish, small enough to stream
 
 
+Key = tuple[tuple[str, float], ...]
+
+
+def key_of(point: Point) -> Key:
+    return tuple(sorted(point.items()))
+
+
+def wanted(requests: Iterable[tuple[Point, Iterable[str]]]) -> tuple[list[Point], list[set[str]]]:
+    """Distinct points, each with the union of the scenarios asked of it.
+
+    A fit on some runs (a cross-validation fold) needs its points simulated on those runs
+    only; fits that ask for the same point share its simulations."""
+    by_key: dict[Key, tuple[Point, set[str]]] = {}
+    for point, scenarios in requests:
+        by_key.setdefault(key_of(point), (point, set()))[1].update(scenarios)
+    return [p for p, _ in by_key.values()], [s for _, s in by_key.values()]
+
+
+def distinct(points: list[Point], only: list[Collection[str]] | None) -> tuple[list[Point], list[Collection[str]] | None]:
+    """The given points less repeats (with the union of the scenarios asked of each): a point asked twice
+    is simulated once and answers both asks, whose rows are found by the point."""
+    if only is None:
+        unique: dict[Key, Point] = {}
+        for point in points:
+            unique.setdefault(key_of(point), point)
+        return list(unique.values()), None
+    return wanted(zip(points, only))
+
+
 def blocks(space, points: list[Point] | None = None, only: list[Collection[str]] | None = None,
            done: Collection[str] = ()) -> Iterator[TaskBatch]:
     """expand()'s tasks in batches of up to BLOCK, less those in ``done``. A sweep makes its chunks from

@@ -38,16 +38,9 @@ from . import store
 from .domain import Point
 from .chunks import TaskScores
 from .cluster import total_threads
-from .expand import blocks
+from .expand import Key, blocks, distinct, key_of, wanted
 from .spec import Space
 from .sweep import submit
-
-Key = tuple[tuple[str, float], ...]
-
-
-def key_of(point: Point) -> Key:
-    return tuple(sorted(point.items()))
-
 
 @dataclass(frozen=True)
 class Parameter:
@@ -321,17 +314,6 @@ def residuals_in(rows: Rows, columns: str | Mapping[str, float]) -> Residuals:
     return residuals
 
 
-def wanted(requests: Iterable[tuple[Point, Iterable[str]]]) -> tuple[list[Point], list[set[str]]]:
-    """Distinct points, each with the union of the scenarios asked of it.
-
-    A fit on some runs (a cross-validation fold) needs its points simulated on those runs
-    only; fits that ask for the same point share its simulations."""
-    by_key: dict[Key, tuple[Point, set[str]]] = {}
-    for point, scenarios in requests:
-        by_key.setdefault(key_of(point), (point, set()))[1].update(scenarios)
-    return [p for p, _ in by_key.values()], [s for _, s in by_key.values()]
-
-
 def evaluate_points(space: Space, points: list[Point], client, columns: list[str],
                     only: list[Collection[str]] | None = None, seconds_per_task: float | None = None
                     ) -> tuple[Rows, float | None]:
@@ -340,6 +322,7 @@ def evaluate_points(space: Space, points: list[Point], client, columns: list[str
     ``columns``, and what a task cost (for the next round's ``seconds_per_task``, see sweep.submit).
     The tasks simulated now are told by their chunks; only those finished before are read from the store."""
     told: list[TaskScores] = []
+    points, only = distinct(points, only)  # a point asked twice is simulated once; both find its rows
     tasks = list(blocks(space, points, only))  # made once: the sweep counts and sends these
     report = submit(space, client=client, points=points, only=only, seconds_per_task=seconds_per_task, told=told,
                     tasks=tasks)

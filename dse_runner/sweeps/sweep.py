@@ -44,7 +44,7 @@ from .chunks import ChunkJob, ChunkSummary, TaskScores, chunk_id_of, probe, reco
 from .closed_loop import SearchSource
 from .cluster import WorkerWatch, connect, total_threads, wait_until_ended, worker_grace
 from .domain import Point
-from .expand import TaskBatch, blocks, chunked, count, points_of, tally, undone
+from .expand import TaskBatch, blocks, chunked, count, distinct, points_of, tally, undone
 from .search import strategy
 from .spec import Space
 # The status file's models live in status.py; importing them from here keeps working.
@@ -124,6 +124,7 @@ def submit(space: Space, progress: SweepProgress | None = None, client=None,
         source: JobSource = SearchSource(space, shipment.key, report.search)
     else:
         if points is not None and tasks is None:
+            points, only = distinct(points, only)  # a repeat would be a second chunk of the same tasks
             tasks = list(blocks(space, points, only))  # a given list of points: its tasks fit in memory
         report.total, report.skipped = count(space, done, points, only) if tasks is None else tally(tasks, done)
         if report.total == report.skipped and _trajectories_kept(space):

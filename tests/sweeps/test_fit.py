@@ -8,7 +8,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dse_runner.sweeps.fit import FitProblem, LevenbergMarquardt, Parameter, key_of
+from conftest import write_msd_search
+
+from dse_runner.sweeps import store
+from dse_runner.sweeps.fit import FitProblem, LevenbergMarquardt, Parameter, evaluate_points, key_of
+from dse_runner.sweeps.spec import load_space
+from dse_runner.sweeps.sweep import submit
 
 TIMES = {"early": np.linspace(0.0, 1.0, 30), "late": np.linspace(0.5, 4.0, 40)}
 TRUTH = {"a": 2.0, "b": 1.3}
@@ -58,3 +63,17 @@ def test_asking_perturbations_later_changes_no_step_and_saves_the_rejected_ones(
         assert points == eager_points - 2 * rejected
     else:
         assert points < eager_points
+
+
+def test_a_point_asked_twice_in_one_sweep_runs_once_and_answers_both(tmp_path, dask_scheduler):
+    """A fit or a screen may ask for one point twice in a round (the pair screen did, and the sweep raised
+    KeyError on the chunk's key coming back twice): it is simulated once and both asks find its rows."""
+    space = load_space(write_msd_search(tmp_path, {"strategy": "given"}, cluster={"address": dask_scheduler},
+                                         chunk_seconds=0.001))  # a chunk per task
+    p, q = {"msd.k": 12.0, "msd.c": 0.7}, {"msd.k": 14.0, "msd.c": 0.7}
+    rows, _ = evaluate_points(space, [p, q, dict(p), p], None, ["position_rmse"], seconds_per_task=0.001)
+    assert {k: r["status"] for k, r in rows.items()} == {(key_of(p), "ringdown"): "ok", (key_of(q), "ringdown"): "ok"}
+    report = submit(space, points=[q, p, q], only=[{"ringdown"}] * 3)  # each in a chunk of its own, as a fit's rounds are
+    assert (report.total, report.skipped) == (2, 2)
+    stored = store.read_results(space.output, space.name, ["msd.k", "status"])
+    assert sorted(stored["msd.k"]) == [12.0, 14.0] and stored["task_id"].is_unique
