@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DseError
+from . import state_limits
 from .values import split_named
 
 PREFIX = "derivative_term"
@@ -189,24 +190,35 @@ def check(term: DerivativeTerm, instance: str, interface: str, description: Any)
 
 @dataclass(frozen=True)
 class Corrector:
-    """The terms of one instance, laid out for its integrator: ``add`` adds them to the derivative vector."""
+    """The terms and state limits (state_limits.py) of one instance, laid out for its integrator: ``add``
+    adds the terms to the derivative vector, then holds the bounded states."""
 
     rows: tuple[tuple[int, Term, float], ...]  # state index, term, coefficient
     states: tuple[str, ...]
     inputs: tuple[tuple[str, int], ...]  # the real inputs the terms read: name, value reference
+    limits: tuple[state_limits.Row, ...] = ()
 
     @classmethod
-    def of(cls, description: Any, terms: Mapping[DerivativeTerm, float]) -> Corrector:
+    def of(cls, description: Any, corrections: Mapping[DerivativeTerm | state_limits.StateLimit, float]) -> Corrector:
+        """``corrections``: derivative terms and state limits, each with its value."""
         states = states_of(description)
+        terms = {t: a for t, a in corrections.items() if isinstance(t, DerivativeTerm)}
+        limits = {t: a for t, a in corrections.items() if isinstance(t, state_limits.StateLimit)}
         read = {v for t in terms for v in t.term.variables}
         inputs = tuple((name, vr) for name, vr in real_inputs_of(description).items() if name in read)
         rows = tuple((states.index(t.state), t.term, a) for t, a in terms.items())
-        return cls(rows, tuple(states), inputs)
+        return cls(rows, tuple(states), inputs, state_limits.rows(states, limits))
+
+    @property
+    def empty(self) -> bool:
+        return not (self.rows or self.limits)
 
     def add(self, x: Sequence[float], inputs: Sequence[float], dx: Any) -> None:
-        """dx[i] += each coefficient · its term at states ``x`` and ``inputs`` (in :attr:`inputs`' order); ``dx``
-        anything indexable in place (the solver's ctypes pointer, an array)."""
+        """dx[i] += each coefficient · its term at states ``x`` and ``inputs`` (in :attr:`inputs`' order), then
+        the limits; ``dx`` anything indexable in place (the solver's ctypes pointer, an array)."""
         values = dict(zip(self.states, x))
         values.update(zip((name for name, _ in self.inputs), inputs))
         for index, term, coefficient in self.rows:
             dx[index] += coefficient * term.value(values)
+        if self.limits:
+            state_limits.hold(self.limits, x, dx)

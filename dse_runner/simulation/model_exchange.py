@@ -142,7 +142,7 @@ class ModelExchangeStepper:
         self._solver: Any = None
         self._inputs: tuple | None = None  # the input values the solver last started from
         self._input_groups = input_groups(description)
-        self.corrector = corrector if corrector is not None and corrector.rows else None
+        self.corrector = corrector if corrector is not None and not corrector.empty else None
         self._term_inputs: list[float] = []  # the inputs the terms read, held over the step as the FMU's are
         self._states = np.zeros(description.numberOfContinuousStates)
         # Its integrator in C (a native_me.NativeIntegrator, set by steppers.ModelExchange for the native loop),

@@ -92,6 +92,9 @@ typedef struct {          /* one group of inputs, read back to see whether the m
  * FACTOR_COLUMNS. FUNCTION: 0 none, then derivative_terms.FUNCTIONS' order: abs, tanh, sin, cos. */
 enum { STATE, FIRST, COUNT, COEFFICIENT, TERM_COLUMNS };
 enum { INPUT, INDEX, FUNCTION, POWER, WIDTH, FACTOR_COLUMNS };
+/* A bounded state (state_limits.Row) is a row of LIMIT_COLUMNS doubles: its index, bounds, the state its
+ * overflow passes into (-1: none) and the fraction passed. */
+enum { LIMITED, LOW, HIGH, TO, FRACTION, LIMIT_COLUMNS };
 
 typedef struct {
     int32_t code, stage, function, status;
@@ -105,10 +108,10 @@ typedef struct {
     void *fn[N_FUNCTIONS];
     void *component;
     const Inputs *inputs;
-    const double *terms, *factors;
+    const double *terms, *factors, *limits;
     const Inputs *term_inputs;  /* the real inputs the terms read (now: their values); NULL: none */
     double *term_states;        /* the states, read back for the terms */
-    int32_t n_terms, n_inputs, version, needs_completed, discrete;
+    int32_t n_terms, n_limits, n_inputs, version, needs_completed, discrete;
     int64_t nx, nz;       /* nx as the solver sees it: a dummy state when the FMU has none */
     double tolerance, max_step;
     double time, next_event;
@@ -149,7 +152,7 @@ static double factor(const double *f, const double *states, const double *inputs
     return f[POWER] == 1.0 ? v : pow(v, f[POWER]);
 }
 
-/* Corrector.add: the terms at the states the FMU holds, and the inputs read at the step's start. */
+/* Corrector.add: the terms at the states the FMU holds, and the inputs read at the step's start; then the limits. */
 static int add_terms(ModelExchangeUnit *m, double *dx) {
     int status = vector(m, GET_STATES, m->term_states, (size_t)m->nx);
     if (status > FMI_WARNING) return fail(m, CALLBACK_CALL, INTEGRATING, GET_STATES, status), -1;
@@ -160,6 +163,15 @@ static int add_terms(ModelExchangeUnit *m, double *dx) {
         for (int64_t j = (int64_t)term[FIRST]; j < (int64_t)(term[FIRST] + term[COUNT]); j++)
             product = product * factor(m->factors + j * FACTOR_COLUMNS, m->term_states, inputs);
         dx[(int64_t)term[STATE]] += term[COEFFICIENT] * product;
+    }
+    for (int32_t i = 0; i < m->n_limits; i++) {  /* state_limits.hold */
+        const double *limit = m->limits + i * LIMIT_COLUMNS;
+        int64_t k = (int64_t)limit[LIMITED];
+        double rate = dx[k], value = m->term_states[k];
+        if ((value >= limit[HIGH] && rate > 0.0) || (value <= limit[LOW] && rate < 0.0)) {
+            dx[k] = 0.0;
+            if (limit[TO] >= 0.0) dx[(int64_t)limit[TO]] += limit[FRACTION] * rate;
+        }
     }
     return 0;
 }
@@ -185,7 +197,7 @@ static int rhs(double t, void *y, void *ydot, void *data) {
         return fail(m, CALLBACK_CALL, INTEGRATING, SET_STATES, status), -1;
     if ((status = vector(m, GET_DERIVATIVES, dx, (size_t)m->nx)) > FMI_WARNING)
         return fail(m, CALLBACK_CALL, INTEGRATING, GET_DERIVATIVES, status), -1;
-    return m->n_terms ? add_terms(m, dx) : 0;
+    return m->n_terms || m->n_limits ? add_terms(m, dx) : 0;
 }
 
 /* CVodeSolver.g: the event indicators at the solver's states. */

@@ -76,10 +76,16 @@ class Failure(ctypes.Structure):
 
 class Unit(ctypes.Structure):
     _fields_ = _fields((P, "sun"), (P * len(FUNCTIONS[2]), "fn"),
-                       (P, "component inputs terms factors term_inputs term_states"),
-                       (I32, "n_terms n_inputs version needs_completed discrete"), (I64, "nx nz"),
+                       (P, "component inputs terms factors limits term_inputs term_states"),
+                       (I32, "n_terms n_limits n_inputs version needs_completed discrete"), (I64, "nx nz"),
                        (F64, "tolerance max_step time next_event"), (I32, "next_defined"),
                        (P * 6, "solver"), (Failure, "failure"))  # solver: CVode's, which only C touches
+
+
+def _limit_rows(corrector: Corrector) -> np.ndarray:
+    """The corrector's state limits as native_me.c's rows (at least one row, so that C has an address)."""
+    rows = [(r.state, r.low, r.high, r.to, r.fraction) for r in corrector.limits]
+    return np.array(rows or [(0, -np.inf, np.inf, -1, 0.0)], dtype=float).reshape(-1, 5)
 
 
 def _address(function: Any) -> int:
@@ -168,17 +174,20 @@ class NativeIntegrator:
                          f.width) for f in term.factors]
         self.terms = np.array(rows, dtype=float).reshape(-1, 4)
         self.factors = np.array(factors or [(0, 0, 0, 1, 1.0)], dtype=float).reshape(-1, 5)
+        self.limits = _limit_rows(corrector)
         self.term_states = np.zeros(max(states, 1))
         unit = self.unit
         unit.terms, unit.factors, unit.n_terms = self.terms.ctypes.data, self.factors.ctypes.data, len(rows)
+        unit.limits, unit.n_limits = self.limits.ctypes.data, len(corrector.limits)
         unit.term_states = self.term_states.ctypes.data
         if inputs:
             self.term_inputs = self._group(TERM_INPUTS[self.version], [vr for _, vr in corrector.inputs], ctypes.c_double)
             unit.term_inputs = ctypes.addressof(self.term_inputs)
 
     def coefficients(self, corrector: Corrector) -> None:
-        """A run's coefficients for the same terms (a fit changes only those)."""
+        """A run's coefficients and limits for the same terms and bounded states (a fit changes only those)."""
         self.terms[:, 3] = [coefficient for _, _, coefficient in corrector.rows]
+        self.limits[: len(corrector.limits)] = _limit_rows(corrector)[: len(corrector.limits)]
 
     def start(self, time: float, stop: float, next_event: float | None) -> None:
         """A new solver at ``time`` after initialization (the old one freed), as _make_solver builds it."""

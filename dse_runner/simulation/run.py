@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import DseError
 from . import objectives as objs
-from . import derivative_terms, signal_effects
+from . import derivative_terms, signal_effects, state_limits
 from .build import is_source_dir
 from .cosim import Plan, Runner, Trajectory, make_plan, prepare
 from .experiment import Experiment, Times, resolve_times
@@ -97,25 +97,32 @@ def qualify(plan: Plan, ref: str) -> str:
     return ref
 
 
-def checked_term(plan: Plan, term: derivative_terms.DerivativeTerm) -> derivative_terms.DerivativeTerm:
-    """``term`` with its instance (the plan's only one when the name leaves it out), checked: a model-exchange
-    instance with that state and the variables the term reads."""
+Correction = derivative_terms.DerivativeTerm | state_limits.StateLimit  # what the master changes in ME equations
+
+
+def checked_term(plan: Plan, term: Correction) -> Correction:
+    """``term`` (a derivative term or a state limit) with its instance (the plan's only one when the name
+    leaves it out), checked: a model-exchange instance with those states and the variables the term reads."""
     instance = term.instance
     if instance is None:
         if len(plan.variables) != 1:
-            raise DseError(f"{term.name}: name the instance, e.g. derivative_term({next(iter(plan.variables))}."
-                           f"der({term.state}), {term.term.text})")
+            named = replace(term, instance=next(iter(plan.variables)))
+            raise DseError(f"{term.name}: name the instance, e.g. {named.name}")
         instance = next(iter(plan.variables))
     if instance not in plan.variables:
         raise DseError(f"{term.name}: the multi-model has no instance {instance!r} "
                        f"(it has {', '.join(sorted(plan.variables))})")
     term = replace(term, instance=instance)
-    derivative_terms.check(term, instance, plan.interfaces[instance], describe(plan.fmu_paths[instance]))
+    description = describe(plan.fmu_paths[instance])
+    if isinstance(term, state_limits.StateLimit):
+        state_limits.check(term, instance, plan.interfaces[instance], derivative_terms.states_of(description))
+    else:
+        derivative_terms.check(term, instance, plan.interfaces[instance], description)
     return term
 
 
-def by_instance(terms: Mapping[derivative_terms.DerivativeTerm, float]) -> dict[str, dict]:
-    """Derivative terms grouped by the instance they correct."""
+def by_instance(terms: Mapping[Correction, float]) -> dict[str, dict]:
+    """Derivative terms and state limits grouped by the instance they correct."""
     grouped: dict[str, dict] = {}
     for term, value in terms.items():
         grouped.setdefault(term.instance, {})[term] = value
@@ -172,6 +179,8 @@ def simulate(
     them: plans and scenarios are immutable; objectives and the experiment are compared by value."""
     recipe = _recipe(model, scenario, objectives, experiment, (start_time, stop_time, step), interface)
     given, terms = derivative_terms.split(values or {})
+    given, limits = state_limits.split(given)
+    terms = {**terms, **limits}
     given, effects = signal_effects.split(given)
     values = recipe.layered(given)
     runner = recipe.runner
@@ -220,7 +229,7 @@ class _Recipe:
             out[replace(effect, target=fed.get(target, target))] = value
         return out
 
-    def qualified_term(self, term: derivative_terms.DerivativeTerm) -> derivative_terms.DerivativeTerm:
+    def qualified_term(self, term: Correction) -> Correction:
         """A derivative term with its instance named (one FMU's may be left out), checked against it (once: a
         sweep runs the same terms at many values)."""
         found = self.checked.get(term)

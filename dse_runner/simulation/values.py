@@ -26,17 +26,19 @@ class ValuesFile(RootModel[dict[str, FiniteValue]]):
     """``{instance.variable: value}``: numbers, booleans or strings, every number finite."""
 
 
-def split_named(values: Mapping[str, object], parse: Callable[[str], K | None], what: str
-                ) -> tuple[dict[str, object], dict[K, float]]:
+def split_named(values: Mapping[str, object], parse: Callable[[str], K | None], what: str,
+                allow: Callable[[K, float], bool] = lambda key, value: False) -> tuple[dict[str, object], dict[K, float]]:
     """A run's values split by name: those ``parse`` reads as master-side parameters (signal effects,
-    derivative terms), each a finite number (``what`` names the kind in errors), and all the others."""
+    derivative terms, state limits), each a finite number or one ``allow`` admits (``what`` names the kind
+    in errors), and all the others."""
     plain: dict[str, object] = {}
     parsed: dict[K, float] = {}
     for name, value in values.items():
         key = parse(name)
         if key is None:
             plain[name] = value
-        elif not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
+        elif not isinstance(value, (int, float)) or isinstance(value, bool) or not (
+                math.isfinite(value) or allow(key, float(value))):
             raise DseError(f"{name}: {what} is a finite number, not {value!r}")
         else:
             parsed[key] = float(value)

@@ -37,7 +37,7 @@ from pydantic import (
 from .. import bundled
 from ..errors import DseError
 from ..simulation import objectives as objs
-from ..simulation import derivative_terms, signal_effects
+from ..simulation import derivative_terms, signal_effects, state_limits
 from ..simulation.cosim import Plan, make_plan
 from ..simulation.experiment import Experiment
 from ..simulation.multimodel import MultiModel, load_multimodel, parse_multimodel
@@ -688,19 +688,22 @@ def _check_effect(space: Space, effect: signal_effects.Effect, values: list[Any]
                                "scenario's input signal")
 
 
-def _parsed_term(ref: str, source: str) -> derivative_terms.DerivativeTerm | None:
+def _parsed_term(ref: str, source: str) -> derivative_terms.DerivativeTerm | state_limits.StateLimit | None:
+    """A derivative term or a state limit: what the master changes in a model-exchange instance's equations."""
     try:
-        return derivative_terms.parse(ref)
+        return derivative_terms.parse(ref) or state_limits.parse(ref)
     except DseError as e:
         raise DseError(f"{source}: parameters.{e}") from None
 
 
-def _check_term(space: Space, term: derivative_terms.DerivativeTerm, values: list[Any], source: str) -> None:
-    """A derivative term's values are coefficients, on a model-exchange instance that has the state and the
-    variables the term reads (derivative_terms.check)."""
+def _check_term(space: Space, term: derivative_terms.DerivativeTerm | state_limits.StateLimit, values: list[Any],
+                source: str) -> None:
+    """A derivative term's values are coefficients, a state limit's bounds or fractions, on a model-exchange
+    instance that has the states and the variables the term reads (derivative_terms.check, state_limits.check)."""
+    split = state_limits.split if isinstance(term, state_limits.StateLimit) else derivative_terms.split
     try:
         for value in values:
-            derivative_terms.split({term.name: value})
+            split({term.name: value})
         checked_term(space.plan, term)
     except DseError as e:
         raise DseError(f"{source}: parameters.{e}") from None
