@@ -57,6 +57,7 @@ typedef struct {          /* the SUNDIALS functions, from the libraries FMPy loa
     int (*context_create)(int, void **);
     int (*context_free)(void **);
     int (*push_err_handler)(void *, ErrFn, void *);
+    int (*clear_err_handlers)(void *);
     void *(*new_serial)(int64_t, void *);
     void (*destroy_serial)(void *);
     double *(*array)(void *);
@@ -395,6 +396,8 @@ int dse_me_start(ModelExchangeUnit *m) {
         && s->set_max_step(m->memory, m->max_step) == 0
         && s->set_max_num_steps(m->memory, MAX_NUM_STEPS) == 0
         && s->no_inactive_root_warn(m->memory) == 0
+        /* ours alone: SUNDIALS's own handler would print every failure of a trial run to the worker's stderr */
+        && s->clear_err_handlers(m->context) == 0
         && s->push_err_handler(m->context, on_error, m) == 0
         && s->set_user_data(m->memory, m) == 0;
     if (!ok) return fail(m, SOLVER, STARTING, 0, 0);

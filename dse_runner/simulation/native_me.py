@@ -46,7 +46,8 @@ TERM_INPUTS = {2: "fmi2GetReal", 3: "fmi3GetFloat64"}  # what reads the real inp
 STAGES = ("exiting initialization mode", "handling an input change", "integrating", "completing an integrator step")
 INTEGRATING = 2
 # The SUNDIALS functions native_me.c calls, in its Sundials structure's order.
-SUNDIALS = ("SUNContext_Create", "SUNContext_Free", "SUNContext_PushErrHandler", "N_VNew_Serial", "N_VDestroy_Serial",
+SUNDIALS = ("SUNContext_Create", "SUNContext_Free", "SUNContext_PushErrHandler", "SUNContext_ClearErrHandlers",
+            "N_VNew_Serial", "N_VDestroy_Serial",
             "N_VGetArrayPointer", "CVodeCreate", "CVodeInit", "CVodeSVtolerances", "CVodeRootInit", "SUNDenseMatrix",
             "SUNLinSol_Dense", "CVodeSetLinearSolver", "CVodeSetMaxStep", "CVodeSetMaxNumSteps",
             "CVodeSetNoInactiveRootWarn", "CVodeSetUserData", "CVode", "CVodeReInit", "CVodeFree", "SUNLinSolFree",

@@ -746,6 +746,14 @@ def _check_objective(space: Space, name: str, objective: objs.ObjectiveSpec, sou
                                f"column {objective.recorded!r} (it has {', '.join(scenario.recorded.columns)})")
 
 
+def derived_space(space: Space, **update: Any) -> Space:
+    """``space`` with its spec changed by ``update`` (another sweep's name, parameters, objectives), resolved
+    and checked again, keeping its scenarios as they are: a diagnosis's views of its runs (a record's
+    validation blocks) exist only there."""
+    resolved = resolve_space(space.spec.model_copy(update=update), space.path)
+    return Space(resolved.spec, resolved.path, resolved.plan, space.scenarios, resolved.distributions, resolved.draws)
+
+
 def load_space(path: str | Path) -> Space:
     """Read, validate and resolve a space.yaml; every error names the file."""
     path = Path(path).resolve()

@@ -31,42 +31,29 @@ import numpy as np
 
 from ...errors import DseError
 from ...simulation import objectives as objs
-from ...simulation import signal_effects
+from ...simulation import signal_effects, state_limits
 from ...simulation.run import qualify
-from ...simulation.scenario import Series
 from ...sweeps.cluster import connect
 from ...sweeps.domain import Point
 from ...sweeps.fit import (FitProblem, FitResult, Parameter, evaluate_points, fit_all, key_of,
                              residuals_in, wanted)
 from ...sweeps.rank import rank
-from ...sweeps.spec import Space, resolve_space
+from ...sweeps.spec import Space, derived_space
 from ...sweeps.sweep import submit
 from . import explain, signal_claims, signal_locate, signal_report, signal_screen
 from .explain import Candidate
 from .hypotheses import EffectParameter
 from .hypotheses import Hypothesis as LibraryHypothesis
 from .library import HypothesisLibrary, Messages, Request, space_with
-from .derivative_discovery import DISCOVERED, Discovered, NotDiscovered, discover_derivatives
+from .derivative_discovery import DISCOVERED, Discovered, NotDiscovered, discover_derivatives, observe
+from .derivative_discovery.library import model_exchange_instances
 from .derivative_discovery.prove import terms_space
 from .noise import sigma_from_differences
+from .signal_hypotheses import Hypothesis, signal_hypotheses, state_hypotheses
+from .validation import validated
 
 FITS = "diagnosis-signal-fits"  # the sweep every fit's rounds go to
-SPAN_SHARE = 0.1  # a delay or lag is sought up to this share of the shortest scenario
-GAIN_RANGE = (0.5, 2.0)
-STARTS = 4  # a delay's or a lag's fit on every scenario starts from this many values across its range: in an
-# oscillating model their misfit has local minima a period apart, which a fit from neutral alone can miss
-MULTIMODAL = ("delay", "lag")  # a gain or an offset scales or shifts a signal: one start, from neutral
 MAX_ITERATIONS = 30
-PHYSICS = {  # what each kind of effect stands for, and the residual it leaves
-    "delay": ("the signal arrives late: a transport or processing delay, a late actuator or a late time stamp",
-              "residuals grow with the signal's rate of change; the simulation leads the recording"),
-    "lag": ("the signal is smoothed on its way: a first-order actuator or sensor response (a filter)",
-            "residuals at steps and fast changes, decaying with the lag's time constant; peaks are lower"),
-    "gain": ("the signal is scaled: a miscalibrated actuator or sensor, or a unit error",
-             "residuals proportional to the signal itself"),
-    "offset": ("the signal is shifted: an actuator's or a sensor's bias",
-               "a constant residual, whatever the signal does"),
-}
 SCOUTING = 6  # iterations every start of a fit gets before only the best start of each effect goes on
 
 
@@ -82,13 +69,6 @@ class Compared:
     @property
     def residuals(self) -> str:
         return f"{self.objective}__residuals"
-
-
-@dataclass(frozen=True)
-class Hypothesis:
-    effect: signal_effects.Effect
-    parameter: Parameter
-    resolution: float = 0.0  # the finest change of its value a run can show (a delay: one communication step)
 
 
 @dataclass
@@ -137,13 +117,16 @@ class SignalDiagnosis:
         }
 
     def _effect(self, name: str) -> dict[str, Any]:
-        hypothesis = self.hypotheses[name]
-        effect, fit = hypothesis.effect, self.chosen.full
-        value, (low, high) = fit.values[name], fit.interval()[name]
-        low, high = min(low, value - hypothesis.resolution), max(high, value + hypothesis.resolution)
-        return {"id": effect.id, "target": effect.target, "parameters": {effect.kind: value},
-                "intervals": {effect.kind: [low, high]}, "resolution": hypothesis.resolution,
-                "partial": self.verdict == explain.PARTIAL}
+        hypothesis, fit = self.hypotheses[name], self.chosen.full
+        values, intervals = {}, {}
+        for kind, parameter in zip(hypothesis.kinds, hypothesis.parameters):
+            value, (low, high) = fit.values[parameter.name], fit.interval()[parameter.name]
+            if parameter is hypothesis.parameters[0]:  # its resolution widens the interval
+                low, high = min(low, value - hypothesis.resolution), max(high, value + hypothesis.resolution)
+            values[kind], intervals[kind] = value, [low, high]
+        found = {"id": hypothesis.id, "target": hypothesis.target, "parameters": values, "intervals": intervals,
+                 "resolution": hypothesis.resolution, "partial": self.verdict == explain.PARTIAL}
+        return {**found, "into": hypothesis.into} if hypothesis.into else found
 
     def summary(self) -> list[str]:
         """The effects named, the held-out error before and after, and the verdict, as the CLI prints them."""
@@ -153,9 +136,10 @@ class SignalDiagnosis:
             if effect["id"] == DISCOVERED:  # its terms as an engineer writes them
                 lines.append(f"{effect['id']}({effect['target']}): {effect['readable']}")
                 continue
-            (kind, value), = effect["parameters"].items()
-            low, high = effect["intervals"][kind]
-            lines.append(f"{effect['id']}({effect['target']}): {kind} {value:.4g} (95 % {low:.4g} to {high:.4g})")
+            told = [f"{kind} {value:.4g} (95 % {effect['intervals'][kind][0]:.4g} to {effect['intervals'][kind][1]:.4g})"
+                    for kind, value in effect["parameters"].items()]
+            into = f" into {effect['into']}" if effect.get("into") else ""
+            lines.append(f"{effect['id']}({effect['target']}){into}: {', '.join(told)}")
         lines.append(f"held-out error: {found['held_out_before']:.2f} before, {found['held_out_after']:.2f} after, "
                      "in noise floors (each compared signal's residuals over its recording's noise)")
         lines.append(f"verdict: {found['verdict_text']}"
@@ -193,35 +177,19 @@ def compared_signals(space: Space) -> list[Compared]:
     return found
 
 
-def hypotheses(space: Space, compared: Sequence[Compared]) -> dict[str, Hypothesis]:
-    """Every signal effect on every input all scenarios drive and every compared signal, with its range."""
-    experiment = space.spec.experiment
-    lengths = [float(s.stop_time or experiment.stop_time or 0) - float(s.start_time or experiment.start_time or 0)
-               for s in space.scenarios]
-    span = min((length for length in lengths if length > 0), default=math.inf)
-    span = span if math.isfinite(span) else 10.0
-    # The master feeds inputs at its communication points, so a run responds to a delay in steps of one
-    # (the delay's resolution): a finite difference finer than that sees no change
-    step = max((float(s.step or space.spec.experiment.step or 0.0) for s in space.scenarios), default=0.0)
-    inputs: dict[str, list[np.ndarray]] = {}
-    for scenario in space.scenarios:
-        for ref, signal in scenario.inputs.items():
-            if isinstance(signal, Series):
-                inputs.setdefault(qualify(space.plan, ref), []).append(signal.values)
-    driven = [ref for ref, values in inputs.items() if len(values) == len(space.scenarios)]
-    outputs = {c.signal: [s.recorded.samples(c.recorded)[1] for s in space.scenarios if s.recorded] for c in compared}
-    found = {}
-    for side, signals in (("input", {r: inputs[r] for r in driven}), ("output", outputs)):
-        for target, samples in signals.items():
-            size = float(np.ptp(np.concatenate(samples))) or 1.0
-            for kind, (low, high) in {"delay": (0.0, SPAN_SHARE * span), "lag": (0.0, SPAN_SHARE * span),
-                                      "gain": GAIN_RANGE, "offset": (-size, size)}.items():
-                effect = signal_effects.Effect(side, kind, target)  # type: ignore[arg-type]
-                start = signal_effects.NEUTRAL[kind]
-                difference = max(0.01 * (high - low), step if kind in ("delay", "lag") else 0.0)
-                found[effect.name] = Hypothesis(effect, Parameter(effect.name, start, low, high, difference),
-                                                step if kind == "delay" else 0.0)
-    return found
+def library_of(space: Space, compared: Sequence[Compared], point: Mapping[str, Any] | None) -> dict[str, Hypothesis]:
+    """The hypotheses for ``space``: signal effects on its driven inputs and compared signals, and state limits
+    on its model-exchange instances' states, ranged over what the states do at ``point`` (the calibration's
+    start; simulated here on every scenario). Without a point (a listing), every state's limits by name."""
+    found = signal_hypotheses(space, [(c.signal, c.recorded) for c in compared])
+    instances = model_exchange_instances(space.plan)
+    if not instances:
+        return found
+    if point is None:
+        runs = [{f"{i.name}.{s}": np.array([0.0, 1.0]) for i in instances for s in i.states}]
+    else:
+        runs = observe(space, dict(point), instances)
+    return {**found, **state_hypotheses({i.name: i.states for i in instances}, runs)}
 
 
 def restricted(found: dict[str, Hypothesis], only: Sequence[str]) -> dict[str, Hypothesis]:
@@ -231,15 +199,6 @@ def restricted(found: dict[str, Hypothesis], only: Sequence[str]) -> dict[str, H
         raise DseError(f"--hypothesis {', '.join(unknown)}: not a signal effect of this space; it has "
                        f"{', '.join(found)}")
     return {name: h for name, h in found.items() if not only or name in only}
-
-
-def starts_of(hypothesis: Hypothesis, count: int = STARTS) -> list[float]:
-    """Where an effect's fits start: its neutral value, then (a delay or a lag) evenly across its range."""
-    parameter = hypothesis.parameter
-    if hypothesis.effect.kind not in MULTIMODAL:
-        return [parameter.start]
-    others = np.linspace(parameter.lower, parameter.upper, count + 1)[1:]
-    return [parameter.start, *(float(v) for v in others if v != parameter.start)][:count]
 
 
 def calibration(space: Space, best: Mapping[str, Any]) -> tuple[Parameter, ...]:
@@ -256,16 +215,16 @@ def calibration(space: Space, best: Mapping[str, Any]) -> tuple[Parameter, ...]:
 
 
 def fits_space(space: Space, compared: Sequence[Compared], hypotheses: Mapping[str, Hypothesis]) -> Space:
-    """The space the fits run in: its own parameters and every effect (each a parameter at its neutral value
-    unless a fit frees it), scored by the residuals of each compared signal."""
+    """The space the fits run in (its scenarios as they are: a record's blocks stay blocks): its own
+    parameters and every effect's (each at its neutral value unless a fit frees it), scored by the residuals
+    of each compared signal."""
     parameters = dict(space.spec.parameters)
-    parameters.update({name: [signal_effects.NEUTRAL[h.effect.kind]] for name, h in hypotheses.items()})
+    parameters.update({name: [value] for h in hypotheses.values() for name, value in h.absent().items()})
     objectives = {**space.objectives,
                   **{c.residuals: objs.Fit(signal=c.signal, recorded=c.recorded, metric="residuals") for c in compared}}
-    spec = space.spec.model_copy(update={"name": FITS, "parameters": parameters, "objectives": objectives,
-                                         "search": space.spec.search.model_copy(update={"strategy": "given"}),
-                                         "constraints": [], "keep_trajectories": 0})
-    return resolve_space(spec, space.path)
+    return derived_space(space, name=FITS, parameters=parameters, objectives=objectives,
+                         search=space.spec.search.model_copy(update={"strategy": "given"}), constraints=[],
+                         keep_trajectories=0)
 
 
 SURVIVORS = 2  # pairs that pass the BIC gate and are cross-validated, at most
@@ -310,9 +269,6 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
     space = path if isinstance(path, Space) else space_with(path, None, Path(out) if out else None,
                                                             n_workers=n_workers, address=address)
     compared = compared_signals(space)
-    library = restricted(hypotheses(space, compared), only)
-    scenarios = tuple(s.name for s in space.scenarios)
-    parts = explain.folds(space.scenarios, folds) if len(scenarios) > 1 else []
     with connect(space.spec.cluster, space.path.parent) as client:
         best: dict[str, Any] = {}
         if space.dimensions and space.spec.search.strategy != "given":
@@ -322,19 +278,24 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
             submit(space, client=client)
             best = rank(space.output, space.name).best
         base = calibration(space, best)
-        fits = fits_space(space, compared, library)
-        scales = {c.residuals: 1.0 / c.noise for c in compared}
         calibrated = {p.name for p in base}
         held = {name: values[0] for name, values in space.parameters.items() if name not in calibrated}
+        library = restricted(library_of(space, compared, {**held, **{p.name: p.start for p in base}}), only)
+        space, validation = validated(space, folds, sorted({c.recorded for c in compared}))
+        say(f"validation: {validation.text}")
+        scenarios = tuple(s.name for s in space.scenarios)
+        parts = validation.folds
+        fits = fits_space(space, compared, library)
+        scales = {c.residuals: 1.0 / c.noise for c in compared}
         # what a fit does not free: the space's single-valued parameters, and every other effect at neutral
-        unfreed = {**held, **{name: signal_effects.NEUTRAL[h.effect.kind] for name, h in library.items()}}
-        bounds = {p.name: p for p in (*base, *(h.parameter for h in library.values()))}
+        unfreed = {**held, **{k: v for h in library.values() for k, v in h.absent().items()}}
+        bounds = {p.name: p for p in (*base, *(p for h in library.values() for p in h.parameters))}
 
         def problem(label: str, names: tuple[str, ...], on: tuple[str, ...], start: Mapping[str, float] = {},
                     iterations: int = MAX_ITERATIONS) -> FitProblem:
-            fixed = {k: v for k, v in unfreed.items() if k not in names}
             freed = tuple(replace(p, start=start.get(p.name, p.start)) for p in
-                          (*base, *(library[n].parameter for n in names)))
+                          (*base, *(p for n in names for p in library[n].parameters)))
+            fixed = {k: v for k, v in unfreed.items() if k not in {p.name for p in freed}}
             return FitProblem(label, freed, fixed, on, iterations)
 
         def report(round_: int, active: int, points: int, simulations: int) -> None:
@@ -346,10 +307,10 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
                     for k, fold in enumerate(parts)]
 
         sets = [(), *((name,) for name in library)]
-        starts = {s: starts_of(library[s[0]]) if s else [None] for s in sets}
-        tries = [problem(f"{'+'.join(s) or 'none'}#{i}", s, scenarios, {s[0]: v} if s else {}, SCOUTING)
+        starts = {s: [library[s[0]].start(i) for i in range(len(library[s[0]].starts))] if s else [{}] for s in sets}
+        tries = [problem(f"{'+'.join(s) or 'none'}#{i}", s, scenarios, v, SCOUTING)
                  for s in sets for i, v in enumerate(starts[s])]
-        say(f"fitting {len(sets) - 1} signal effects and none on every scenario: {len(tries)} fits, "
+        say(f"fitting {len(sets) - 1} effects and none on every scenario: {len(tries)} fits, "
             f"{SCOUTING} iterations from every start")
         tried = fit_all(fits, tries, client, scales, report)
         scouted = {s: min((tried[f"{'+'.join(s) or 'none'}#{i}"] for i in range(len(starts[s]))), key=lambda f: f.sse)
@@ -408,7 +369,7 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
         if discover and verdict in (explain.PARTIAL, explain.UNEXPLAINED):
             say(f"the library leaves {chosen.cross_validated:.3g} noise floors held-out: seeking a correction of "
                 "the model-exchange FMUs' state derivatives")
-            freed = (*base, *(library[n].parameter for n in chosen.ids))
+            freed = (*base, *(p for n in chosen.ids for p in library[n].parameters))
             discovery = discover_derivatives(fits, client, chosen, freed, scales, parts, say=say)
             say(f"discovered {'; '.join(e['readable'] for e in discovery.effects())}"
                 if isinstance(discovery, Discovered) else f"nothing discovered: {discovery.reason}")
@@ -498,9 +459,11 @@ class SignalEffects(HypothesisLibrary):
                               discover=request.discovery, only=request.hypotheses)
 
     def hypotheses(self, space: Space) -> list[LibraryHypothesis]:
-        found = hypotheses(space, compared_signals(space))
+        """Every hypothesis by name; a state limit's range is known only once the calibrated model has run."""
+        units = {**signal_effects.UNITS, **state_limits.UNITS}
         return [LibraryHypothesis(
-            id=name, name=f"{h.effect.side} {h.effect.kind} of {h.effect.target}",
-            explanation=PHYSICS[h.effect.kind][0], signature=PHYSICS[h.effect.kind][1],
-            parameters=(EffectParameter(variable=name, unit=signal_effects.UNITS[h.effect.kind], lower=h.parameter.lower, upper=h.parameter.upper,
-                                        step=h.parameter.step),)) for name, h in found.items()]
+            id=name, name=f"{h.id.replace('_', ' ')} of {h.target}" + (f" into {h.into}" if h.into else ""),
+            explanation=h.physics[0], signature=h.physics[1],
+            parameters=tuple(EffectParameter(variable=p.name, unit=units[kind], lower=p.lower, upper=p.upper,
+                                             step=p.step) for kind, p in zip(h.kinds, h.parameters)))
+            for name, h in library_of(space, compared_signals(space), None).items()]

@@ -79,7 +79,11 @@ def mixed(none: FitResult, a: FitResult, b: FitResult, coefficients: Sequence[fl
     point = dict(none.point)
     for name in {*a.point, *b.point}:
         base = none.point.get(name, 0.0)
-        point[name] = float(base + wa * (a.point.get(name, base) - base) + wb * (b.point.get(name, base) - base))
+        value_a, value_b = a.point.get(name, base), b.point.get(name, base)
+        if not math.isfinite(base):  # a bound absent from none (state_max at inf) is the single's own, unweighted
+            point[name] = float(value_a if value_a != base else value_b)
+            continue
+        point[name] = float(base + wa * (value_a - base) + wb * (value_b - base))
     for name, change in zip(none.names, calibrated):
         point[name] = float(point[name] + change)
     return clipped(point, bounds)
@@ -93,7 +97,7 @@ def to_check(singles: Mapping[str, FitResult], predicted: Mapping[tuple[str, str
              parameters: Callable[[tuple[str, str]], int], n: int) -> list[tuple[str, str]]:
     """The pairs checked by simulation: every pair of the best singles, and the best predicted ones."""
     best = sorted(singles, key=lambda h: singles[h].sse)[:BEST_SINGLES]
-    chosen = [tuple(sorted(p)) for p in itertools.combinations(best, 2)]
+    chosen = [tuple(sorted(p)) for p in itertools.combinations(best, 2) if tuple(sorted(p)) in predicted]
     ranked = sorted(predicted, key=lambda p: explain.bic_of(predicted[p], n, parameters(p)))
     for pair in ranked[:PREDICTED]:
         if pair not in chosen:
@@ -103,12 +107,14 @@ def to_check(singles: Mapping[str, FitResult], predicted: Mapping[tuple[str, str
 
 def screen(none: FitResult, singles: Mapping[str, FitResult], bounds: Mapping[str, Parameter],
            real_sse: RealSse) -> tuple[list[Screened], int]:
-    """Every pair of ``singles`` predicted, the best checked in one sweep: the checked pairs, best real BIC
-    first, and how many pairs were predicted."""
+    """Every pair of ``singles`` that fit no parameter in common predicted, the best checked in one sweep:
+    the checked pairs, best real BIC first, and how many pairs were predicted."""
     n = len(stacked(none))
     calibrated = len(none.names)
-    parameters = lambda pair: calibrated + 2  # noqa: E731  (one parameter per effect)
-    pairs = [tuple(sorted(p)) for p in itertools.combinations(singles, 2)]
+    parameters = lambda pair: len({*singles[pair[0]].names, *singles[pair[1]].names})  # noqa: E731
+    pairs = [tuple(sorted(p)) for p in itertools.combinations(singles, 2)
+             if len({*singles[p[0]].names, *singles[p[1]].names}) == len(singles[p[0]].names) + len(singles[p[1]].names)
+             - calibrated]
     solved = {p: prediction(none, singles[p[0]], singles[p[1]]) for p in pairs}
     checked = to_check(singles, {p: s for p, (_, s) in solved.items()}, parameters, n)
     trials = {}

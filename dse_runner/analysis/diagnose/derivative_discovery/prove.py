@@ -16,7 +16,7 @@ import numpy as np
 from ....errors import DseError
 from ....sweeps.domain import Point
 from ....sweeps.fit import FitProblem, FitResult, Parameter, evaluate_points, fit_all, residuals_in, wanted
-from ....sweeps.spec import Space, resolve_space
+from ....sweeps.spec import Space, derived_space
 from ..explain import Candidate
 from .library import CandidateTerm
 from .propose import Regression
@@ -31,10 +31,8 @@ def terms_space(space: Space, terms: Sequence[CandidateTerm]) -> Space:
     """``space`` with every candidate term a parameter at 0 (bit for bit the model without it), run as a
     plain sweep of given points."""
     parameters = {**space.spec.parameters, **{t.name: [0.0] for t in terms}}
-    spec = space.spec.model_copy(update={"name": SWEEP, "parameters": parameters,
-                                         "search": space.spec.search.model_copy(update={"strategy": "given"}),
-                                         "constraints": [], "keep_trajectories": 0})
-    return resolve_space(spec, space.path)
+    return derived_space(space, name=SWEEP, parameters=parameters, constraints=[], keep_trajectories=0,
+                         search=space.spec.search.model_copy(update={"strategy": "given"}))
 
 
 def inward(parameter: Parameter, value: float) -> float:
