@@ -1,4 +1,5 @@
-"""Effects on a signal outside any FMU: a delay, a first-order lag, a gain, an offset.
+"""Effects on a signal outside any FMU: a delay, a first-order lag, a gain, an offset, and the hard
+nonlinearities of actuators and sensors: saturation, a dead zone, backlash, a rate limit, a square term.
 
 Why: what a model most often misses between its inputs and what the real system
 received (a late or sluggish actuator, a miscalibrated command) and between its
@@ -17,12 +18,27 @@ acts on a signal a scenario drives, an output effect on any recorded signal.
 Each effect wraps a signal and is a signal itself: anything with ``at(t)``, as
 scenario.Series is, so effects compose and the step loop samples them as it
 samples a recorded input. At its neutral value (delay 0, lag 0, gain 1, offset
-0) an effect returns the signal's own values unchanged, bit for bit, so a
-hypothesis that is absent changes nothing.
+0, no bound, no dead zone, no backlash, no rate limit, no square term) an effect
+returns the signal's own values unchanged, bit for bit, so a hypothesis that is
+absent changes nothing.
+
+The hard ones:
+
+* ``max`` and ``min`` clip the signal at a bound (an actuator that saturates, a
+  sensor at the end of its range); neutral ±inf, which a fit uses and nobody writes;
+* ``deadzone`` w: nothing passes while |u| ≤ w, then u − w·sign(u) (a valve or a pump
+  that needs some voltage before it moves);
+* ``backlash`` w: the output follows only once the input has moved more than w
+  from where it last pushed (play in a gear), starting at the signal's first value;
+* ``rate`` r: the output follows at most r per second (a slew-limited actuator);
+  neutral +inf;
+* ``square`` q: u + q·u², with gain and offset a polynomial map (an uncalibrated
+  sensor or a nonlinear actuator characteristic).
 """
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -33,11 +49,16 @@ import numpy as np
 from ..errors import DseError
 from .values import split_named
 
-Kind = Literal["delay", "lag", "gain", "offset"]
-NEUTRAL: dict[str, float] = {"delay": 0.0, "lag": 0.0, "gain": 1.0, "offset": 0.0}  # also the order applied
+Kind = Literal["delay", "lag", "backlash", "deadzone", "rate", "square", "gain", "offset", "max", "min"]
+NEUTRAL: dict[str, float] = {  # also the order they apply in
+    "delay": 0.0, "lag": 0.0, "backlash": 0.0, "deadzone": 0.0, "rate": math.inf, "square": 0.0, "gain": 1.0,
+    "offset": 0.0, "max": math.inf, "min": -math.inf}
 EFFECTS = tuple(f"{side}_{kind}" for side in ("input", "output") for kind in NEUTRAL)  # input_delay, ...
-UNITS = {"delay": "s", "lag": "s", "gain": "1", "offset": "the signal's unit"}
-_NAME = re.compile(r"^(input|output)_(delay|lag|gain|offset)\((.+)\)$")
+UNITS = {"delay": "s", "lag": "s", "backlash": "the signal's unit", "deadzone": "the signal's unit",
+         "rate": "the signal's unit per s", "square": "1 / the signal's unit", "gain": "1",
+         "offset": "the signal's unit", "max": "the signal's unit", "min": "the signal's unit"}
+NON_NEGATIVE = ("delay", "lag", "backlash", "deadzone", "rate")
+_NAME = re.compile(rf"^(input|output)_({'|'.join(NEUTRAL)})\((.+)\)$")
 
 
 @dataclass(frozen=True)
@@ -72,10 +93,10 @@ def effect_name(effect_id: str, target: str) -> str:
 
 def split(values: Mapping[str, object]) -> tuple[dict[str, object], dict[Effect, float]]:
     """A run's values: those for FMU variables, and the effects (only those away from neutral)."""
-    plain, effects = split_named(values, parse, "an effect")
+    plain, effects = split_named(values, parse, "an effect", allow=lambda e, v: v == NEUTRAL[e.kind])
     for effect, value in effects.items():
-        if effect.kind in ("delay", "lag") and value < 0:
-            raise DseError(f"{effect.name}: a {effect.kind} cannot be negative ({value:g} s)")
+        if effect.kind in NON_NEGATIVE and value < 0:
+            raise DseError(f"{effect.name}: a {effect.kind} cannot be negative ({value:g} {UNITS[effect.kind]})")
     return plain, {effect: value for effect, value in effects.items() if value != NEUTRAL[effect.kind]}
 
 
@@ -157,6 +178,62 @@ def first_order_lag(t: np.ndarray, u: np.ndarray, tau: float) -> np.ndarray:
     return y
 
 
+@dataclass(frozen=True)
+class Mapped:
+    """A static map of the signal's values (a clip, a dead zone, a square term)."""
+
+    signal: Signal
+    kind: Kind
+    value: float
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        u = self.signal.at(t)
+        if self.kind == "max":
+            return np.minimum(u, self.value)
+        if self.kind == "min":
+            return np.maximum(u, self.value)
+        if self.kind == "deadzone":
+            return np.sign(u) * np.maximum(np.abs(u) - self.value, 0.0)
+        return u + self.value * u * u  # square
+
+
+@dataclass(frozen=True)
+class Tracked:
+    """The signal followed by something with memory, at the times asked: through play of ``backlash`` (the
+    output moves only once the input is more than that from it), or at most ``rate`` per second. Each call
+    starts afresh on the signal's value at its first time, as Lagged does."""
+
+    signal: Signal
+    kind: Kind
+    value: float
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        u = self.signal.at(t)
+        if t.size < 2:
+            return u
+        return backlash(u, self.value) if self.kind == "backlash" else rate_limited(t, u, self.value)
+
+
+def backlash(u: np.ndarray, width: float) -> np.ndarray:
+    """y follows u with play ``width``: y stays while |u − y| ≤ width / 2, else it is dragged along."""
+    y = np.empty_like(u, dtype=float)
+    y[0], half = u[0], 0.5 * width
+    for k in range(1, len(u)):  # a recursion: each sample starts from the last
+        y[k] = min(max(y[k - 1], u[k] - half), u[k] + half)
+    return y
+
+
+def rate_limited(t: np.ndarray, u: np.ndarray, rate: float) -> np.ndarray:
+    """y follows u, changing by at most ``rate`` per second between the times asked."""
+    y = np.empty_like(u, dtype=float)
+    y[0] = u[0]
+    limits = rate * np.diff(t)
+    for k in range(1, len(u)):
+        y[k] = y[k - 1] + min(max(u[k] - y[k - 1], -limits[k - 1]), limits[k - 1])
+    return y
+
+
 def apply(signal: Signal, kind: Kind, value: float) -> Signal:
     """``signal`` under one effect at ``value``; the signal itself at the neutral value."""
     if value == NEUTRAL[kind]:
@@ -165,14 +242,20 @@ def apply(signal: Signal, kind: Kind, value: float) -> Signal:
         return Delayed(signal, value)
     if kind == "lag":
         return Lagged(signal, value)
+    if kind in ("backlash", "rate"):
+        return Tracked(signal, kind, value)
+    if kind in ("deadzone", "square", "max", "min"):
+        return Mapped(signal, kind, value)
     if kind == "gain":
         return Scaled(signal, gain=value)
     return Scaled(signal, offset=value)
 
 
 def in_order(effects: Mapping[Effect, float]) -> list[tuple[Effect, float]]:
-    """Effects on one signal apply as delay, lag, gain, offset, whatever order they are given in: the
-    signal becomes gain · lag(delay(u)) + offset. The first three commute; gain and offset do not."""
+    """Effects on one signal apply in NEUTRAL's order, whatever order they are given in: the signal is
+    delayed, lagged, passed through backlash, a dead zone and a rate limit, mapped by u + square·u², then
+    scaled by the gain, shifted by the offset and clipped to max and min (a sensor's range is the last
+    thing its reading meets). Delay and lag commute; the rest do not."""
     order = list(NEUTRAL)
     return sorted(effects.items(), key=lambda item: order.index(item[0].kind))
 

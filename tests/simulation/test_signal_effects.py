@@ -107,3 +107,31 @@ def test_effect_names_parse_back_to_what_they_say():
     assert (effect.side, effect.kind, effect.target, effect.id) == ("output", "lag", "tank.level", "output_lag")
     assert parse("tank.level") is None and parse("input_speed(tank.level)") is None
     assert {parse(f"{e}(a.b)").name for e in EFFECTS} == {f"{e}(a.b)" for e in EFFECTS}
+
+
+def test_saturation_dead_zone_and_square_map_each_value():
+    t = np.arange(6.0)
+    series = Series(t, np.array([-3.0, -0.5, 0.0, 0.4, 2.0, 5.0]), "hold")
+    assert apply(series, "max", 1.5).at(t).tolist() == [-3.0, -0.5, 0.0, 0.4, 1.5, 1.5]
+    assert apply(series, "min", -1.0).at(t).tolist() == [-1.0, -0.5, 0.0, 0.4, 2.0, 5.0]
+    assert apply(series, "deadzone", 1.0).at(t).tolist() == [-2.0, 0.0, 0.0, 0.0, 1.0, 4.0]
+    assert np.allclose(apply(series, "square", 0.5).at(t), [1.5, -0.375, 0.0, 0.48, 4.0, 17.5], rtol=0, atol=1e-15)
+
+
+def test_backlash_follows_only_past_its_play_and_a_rate_limit_only_so_fast():
+    t = np.arange(8.0)
+    u = np.array([0.0, 0.3, 1.0, 2.0, 1.8, 1.2, 0.5, 0.5])
+    # play 1: the output waits until the input is half of it away, then is dragged half of it behind
+    assert np.allclose(apply(Series(t, u, "hold"), "backlash", 1.0).at(t), [0.0, 0.0, 0.5, 1.5, 1.5, 1.5, 1.0, 1.0])
+    steps = Series(t, np.array([0.0, 3.0, 3.0, 3.0, -1.0, -1.0, -1.0, -1.0]), "hold")
+    assert np.allclose(apply(steps, "rate", 1.5).at(t), [0.0, 1.5, 3.0, 3.0, 1.5, 0.0, -1.0, -1.0])
+
+
+def test_hard_effects_refuse_negative_sizes_and_keep_their_neutral_out():
+    from dse_runner.simulation.signal_effects import split
+
+    with pytest.raises(DseError, match=r"input_deadzone\(msd.F\): a deadzone cannot be negative"):
+        split({"input_deadzone(msd.F)": -0.1})
+    with pytest.raises(DseError, match=r"an effect is a finite number, not -inf"):
+        split({"output_max(msd.x)": -np.inf})
+    assert split({"output_max(msd.x)": np.inf, "input_rate(msd.F)": np.inf, "msd.k": 2.0}) == ({"msd.k": 2.0}, {})

@@ -49,12 +49,14 @@ from .derivative_discovery import DISCOVERED, Discovered, NotDiscovered, discove
 from .derivative_discovery.library import model_exchange_instances
 from .derivative_discovery.prove import terms_space
 from .noise import sigma_from_differences
-from .signal_hypotheses import Hypothesis, signal_hypotheses, state_hypotheses
-from .validation import validated
+from .signal_hypotheses import Hypothesis, shares, signal_hypotheses, state_hypotheses
+from .validation import Validation, validated
 
 FITS = "diagnosis-signal-fits"  # the sweep every fit's rounds go to
 MAX_ITERATIONS = 30
 SCOUTING = 6  # iterations every start of a fit gets before only the best start of each effect goes on
+MAX_EFFECTS = 4  # the answer grows one effect at a time, while each pays its way, up to this many
+GROW_FINALISTS = 2  # sets of one more effect fitted on after scouting
 
 
 @dataclass(frozen=True)
@@ -88,6 +90,8 @@ class SignalDiagnosis:
     verdict_text: str = ""
     discovery: Discovered | NotDiscovered | None = None  # sought when the library leaves error above the noise
     files: dict[str, str] = field(default_factory=dict)
+    growth: list[dict[str, Any]] = field(default_factory=list)  # each round of one more effect: what it tried
+    validation: Validation | None = None  # what held-out means here
 
     def to_json(self) -> dict[str, Any]:
         runner = explain.runner_up(self.chosen, self.candidates)
@@ -105,7 +109,9 @@ class SignalDiagnosis:
             "runner_up": runner.label if runner is not None else None,
             "candidates": [{"id": c.label, "held_out": c.cross_validated if c.validated else None, "bic": c.bic}
                            for c in explain.ranked(self.candidates)],
+            "validation": self.validation.to_json() if self.validation is not None else None,
             "pairs": self.pairs.to_json() if self.pairs is not None else None,
+            "growth": self.growth,
             "lookalikes": [x.to_json() for x in self.lookalikes],
             "dropped": [d.to_json() for d in self.dropped],
             "discovery": self.discovery.to_json() if self.discovery is not None else None,
@@ -361,6 +367,51 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
             more = fit_all(fits, [p for c in late for p in by_fold(c.ids, c.full.values)], client, scales, report)
             held_out(fits, client, late, more, parts, scales)
         selected = explain.select(everything[1:], baseline)
+
+        def extended(current: Candidate) -> Candidate | None:
+            """The best of ``current`` with one more effect (scouted from ``current``'s fit and the effect's
+            single fit, the best few fitted on), cross-validated: it, if it beats ``current`` and every
+            fitted part of itself; else None."""
+            known = {frozenset(c.ids) for c in everything}
+            sets = [tuple(sorted((*current.ids, h))) for h in library if h not in current.ids
+                    and not any(shares(library[h], library[i]) for i in current.ids)]
+            sets = [x for x in sets if frozenset(x) not in known]
+            if not sets:
+                return None
+            starts = {x: {**current.full.values, **{n: full[(h,)].values[n] for h in x if h not in current.ids
+                                                    for n in library[h].names}} for x in sets}
+            say(f"growing {current.label}: {len(sets)} sets with one more effect, {SCOUTING} iterations each")
+            scouted = fit_all(fits, [problem("+".join(x), x, scenarios, starts[x], SCOUTING) for x in sets], client,
+                              scales, report)
+            finalists = sorted(sets, key=lambda x: scouted["+".join(x)].sse)[:GROW_FINALISTS]
+            going = [problem("+".join(x), x, scenarios, scouted["+".join(x)].values, MAX_ITERATIONS - SCOUTING)
+                     for x in finalists if not scouted["+".join(x)].converged]
+            fitted = {**scouted, **(fit_all(fits, going, client, scales, report) if going else {})}
+            tried = [Candidate(x, fitted["+".join(x)]) for x in sets]
+            everything.extend(tried)
+            best = min(tried, key=lambda c: c.bic)
+            growth.append({"from": current.label, "tried": len(tried), "best": best.label, "bic": best.bic})
+            if best.bic > current.bic - explain.BIC_MARGIN:
+                return None
+            if parts:
+                folded_fits = fit_all(fits, by_fold(best.ids, best.full.values), client, scales, report)
+                held_out(fits, client, [best], folded_fits, parts, scales)
+            else:
+                held_out(fits, client, [best], {}, parts, scales)
+            growth[-1]["held_out"] = best.cross_validated
+            if explain.beats(best, current) and explain.beats_subsets(best, everything):
+                growth[-1]["accepted"] = True
+                return best
+            return None
+
+        growth: list[dict[str, Any]] = []
+        while selected.ids and len(selected.ids) < MAX_EFFECTS and explain.above_floor(
+                selected.cross_validated, 1.0, noise_factor):
+            grown = extended(selected)
+            if grown is None:
+                break
+            say(f"grown: {grown.label}, held-out {grown.cross_validated:.3g} noise floors")
+            selected = grown
         chosen, dropped = explain.claimed(selected, everything, baseline)
         floor = 1.0  # residuals are in units of each recording's noise
         verdict = explain.verdict(chosen.cross_validated, floor, noise_factor, chosen is not baseline)
@@ -389,7 +440,8 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
     formulas = [e["readable"] for e in discovery.effects()] if isinstance(discovery, Discovered) else []
     text = signal_claims.verdict_text(verdict, chosen.cross_validated, chosen, interfaces, looks, dropped, noise_factor,
                                       formulas)
-    diagnosis = SignalDiagnosis(compared, baseline, chosen, everything, verdict, library, pairs=pairs,
+    diagnosis = SignalDiagnosis(compared, baseline, chosen, everything, verdict, library, pairs=pairs, growth=growth,
+                                validation=validation,
                                 lookalikes=looks, dropped=dropped, located=located, verdict_text=text,
                                 discovery=discovery)
     diagnosis.files = {k: str(v) for k, v in
