@@ -78,6 +78,7 @@ class FitResult:
     # it again; in memory only, never written.
     jacobian: list[np.ndarray] = field(default_factory=list, repr=False, compare=False)
     residuals: list[np.ndarray] = field(default_factory=list, repr=False, compare=False)
+    error: str | None = None  # the start point failed to simulate: nothing was fitted, the SSE is infinite
 
     @property
     def undetermined(self) -> list[str]:
@@ -118,6 +119,7 @@ class LevenbergMarquardt:
         self.eager = True  # the last ask included the candidate's perturbations
         self.pending = False  # the candidate is accepted; its perturbations are asked next
         self.gain = np.inf  # of the accepted candidate, a fraction of the sum of squares before it
+        self.error: str | None = None  # why the fit could not start
 
     def point(self, x: np.ndarray) -> Point:
         return {**self.problem.fixed, **{p.name: float(v) for p, v in zip(self.params, x)}}
@@ -149,9 +151,11 @@ class LevenbergMarquardt:
         scenarios = self.problem.scenarios
         found = [residuals(self.point(self.candidate), s) for s in scenarios]
         if any(r is None for r in found):
-            if self.x is None:
-                raise DseError(f"fit {self.problem.label}: the start point {self.point(self.candidate)} "
-                               "fails to simulate")
+            if self.x is None:  # nothing to fit from: the fit ends, failed, and its caller rejects what it stood for
+                failed = [s for s, r in zip(scenarios, found) if r is None]
+                self.error = f"its start point fails to simulate on {', '.join(failed)}"
+                self._finish(converged=False)
+                return
             self._reject()
             return
         sse = float(sum(np.dot(r, r) for r in found))
@@ -228,9 +232,13 @@ class LevenbergMarquardt:
         self.converged = converged
 
     def result(self) -> FitResult:
+        names = [p.name for p in self.params]
+        if self.error is not None:
+            start = {n: float(v) for n, v in zip(names, self.candidate)}
+            return FitResult(self.problem.label, names, start, np.inf, 0, 0, False, {n: np.inf for n in names}, [],
+                             self.point(self.candidate), error=self.error)
         if self.x is None:
             raise DseError(f"fit {self.problem.label} has not started")
-        names = [p.name for p in self.params]
         error = robust_standard_errors(self.jacobian, self.r)
         at_bound = [n for n, v, lo, hi, st, e in zip(names, self.x, self.lower, self.upper, self.steps, error)
                     if (v - lo < 1e-3 * st or hi - v < 1e-3 * st) and np.isfinite(e)]

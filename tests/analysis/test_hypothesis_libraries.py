@@ -76,8 +76,11 @@ def test_the_signal_effects_list_every_effect_on_every_driven_input_and_compared
     msd = space_with(MSD / "space.yaml", None, tmp_path)
     signals = libraries()[-1]
     ids = {h.id for h in signals.hypotheses(msd)}
-    # the ring-down scenario drives no input: only the compared position has effects
-    assert ids == {f"output_{kind}(msd.x)" for kind in ("delay", "lag", "gain", "offset")}
+    # the ring-down scenario drives no input: only the compared position has effects, those a sensor has;
+    # the model-exchange instance's two states have bounds, and each an overflow into the other
+    assert ids == {*(f"output_{kind}(msd.x)" for kind in ("delay", "lag", "gain", "offset", "max", "min", "square")),
+                   *(f"state_{kind}(msd.{s})" for kind in ("max", "min") for s in ("x", "v")),
+                   "state_overflow(msd.x, v)", "state_overflow(msd.v, x)"}
 
 
 def test_an_installed_library_is_asked_before_the_built_in_one(tmp_path, monkeypatch):

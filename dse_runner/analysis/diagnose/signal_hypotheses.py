@@ -7,7 +7,9 @@ the equations leave out (a tank that overflows, an end stop: simulation/state_li
 outside the FMU, so they can be offered for any model with recordings. Each hypothesis here is one such
 effect on one signal or state:
 
-* signal effects (delay, lag, gain, offset) on every input all scenarios drive and every compared signal;
+* signal effects on every input all scenarios drive (delay, lag, gain, offset, saturation at a maximum
+  or a minimum, dead zone, backlash, rate limit, a square term) and on every compared signal (those a
+  sensor has: delay, lag, gain, offset, saturation, a square term);
 * state limits on every state of a model-exchange instance: an upper bound (``state_max``), a lower
   bound (``state_min``), and an upper bound whose overflow passes, in a fitted fraction, into another
   state of the instance (``state_overflow``: two parameters, the fraction and the bound).
@@ -47,14 +49,29 @@ PHYSICS = {  # what each kind of effect stands for, and the residual it leaves
              "residuals proportional to the signal itself"),
     "offset": ("the signal is shifted: an actuator's or a sensor's bias",
                "a constant residual, whatever the signal does"),
-    "max": ("the state cannot rise above a bound: a store that is full, a tank at its brim, an end stop",
-            "the simulation overshoots where the recording stays flat at its highest values"),
-    "min": ("the state cannot fall below a bound: a store that is empty, an end stop",
-            "the simulation undershoots where the recording stays flat at its lowest values"),
-    "overflow": ("the state overflows at a bound, and part of what overflows reaches another state (a tank "
-                 "spilling into the one below)",
-                 "the first state stays flat at its highest values while the other rises faster than "
-                 "modelled"),
+    "deadzone": ("nothing passes until the signal exceeds a threshold: a valve or a pump that needs some drive "
+                 "before it moves",
+                 "the simulation responds to small inputs that the process ignores"),
+    "backlash": ("play between the signal and what it moves: a gear or linkage that must take up slack first",
+                 "residuals after every reversal of the signal, the size of the play"),
+    "rate": ("the signal can change only so fast: a slew-limited actuator",
+             "residuals at steps and steep changes, growing with their size, the simulation ahead of the recording"),
+    "square": ("the signal passes through a curved characteristic: an uncalibrated sensor or a nonlinear "
+               "actuator (with gain and offset, a polynomial map)",
+               "residuals that grow with the square of the signal: too low at one end, too high at the other"),
+    "max": ("the signal saturates at a maximum: an actuator at its limit, a sensor at the end of its range",
+            "the recording stays flat at its highest values where the simulation goes on"),
+    "min": ("the signal saturates at a minimum: an actuator at its limit, a sensor at the end of its range",
+            "the recording stays flat at its lowest values where the simulation goes on"),
+    "state_max": ("the state cannot rise above a bound: a store that is full, a tank at its brim, an end stop",
+                  "the simulation overshoots where the recording stays flat at its highest values, and "
+                  "falls back too late"),
+    "state_min": ("the state cannot fall below a bound: a store that is empty, an end stop",
+                  "the simulation undershoots where the recording stays flat at its lowest values"),
+    "state_overflow": ("the state overflows at a bound, and part of what overflows reaches another state (a "
+                       "tank spilling into the one below)",
+                       "the first state stays flat at its highest values while the other rises faster than "
+                       "modelled"),
 }
 
 
@@ -82,7 +99,7 @@ class Hypothesis:
 
     @property
     def physics(self) -> tuple[str, str]:
-        return PHYSICS[self.kinds[-1] if self.id == "state_overflow" else self.kinds[0]]
+        return PHYSICS[self.id if self.id.startswith("state_") else self.kinds[0]]
 
     def absent(self) -> dict[str, float]:
         """Its parameters at their neutral values: the model without it."""
@@ -113,20 +130,50 @@ def signal_hypotheses(space: Space, compared_signals: Sequence[str]) -> dict[str
     found = {}
     for side, signals in (("input", {r: inputs[r] for r in driven}), ("output", outputs)):
         for target, samples in signals.items():
-            size = float(np.ptp(np.concatenate(samples))) or 1.0
-            for kind, (low, high) in {"delay": (0.0, SPAN_SHARE * span), "lag": (0.0, SPAN_SHARE * span),
-                                      "gain": GAIN_RANGE, "offset": (-size, size)}.items():
+            for kind, (low, high, starts, difference) in signal_ranges(side, samples, span, step).items():
                 effect = signal_effects.Effect(side, kind, target)  # type: ignore[arg-type]
                 neutral = signal_effects.NEUTRAL[kind]
-                difference = max(0.01 * (high - low), step if kind in ("delay", "lag") else 0.0)
-                starts = [neutral]
-                if kind in ("delay", "lag"):  # multimodal: starts across the range too
-                    others = np.linspace(low, high, STARTS + 1)[1:]
-                    starts = [neutral, *(float(v) for v in others if v != neutral)][:STARTS]
-                found[effect.name] = Hypothesis(effect.id, target, (Parameter(effect.name, neutral, low, high, difference),),
+                found[effect.name] = Hypothesis(effect.id, target, (Parameter(effect.name, starts[0], low, high, difference),),
                                                 (kind,), (neutral,), tuple((v,) for v in starts),
                                                 step if kind == "delay" else 0.0)
     return found
+
+
+OUTPUT_KINDS = ("delay", "lag", "gain", "offset", "max", "min", "square")  # a sensor's; an actuator may have any
+
+
+def signal_ranges(side: str, samples: Sequence[np.ndarray], span: float, step: float
+                  ) -> dict[str, tuple[float, float, list[float], float]]:
+    """Each kind of effect on one signal: its range, where its fits start, its finite-difference step; from the
+    signal's values (``samples``: a driven input's, or a compared signal's recordings), the shortest scenario's
+    length ``span`` and the communication ``step``."""
+    values = np.concatenate([np.asarray(v, float) for v in samples])
+    values = values[np.isfinite(values)]
+    low, high = (float(values.min()), float(values.max())) if values.size else (0.0, 1.0)
+    size = (high - low) or 1.0
+    largest = float(np.max(np.abs(values))) if values.size else 1.0
+    largest = largest or 1.0
+    rates = [np.max(np.abs(np.diff(v))) for v in samples if len(v) > 1]
+    fastest = max(float(max(rates, default=0.0)) / (step or 1.0), 1e-9)  # per second, at the fastest sample change
+    reach = SPAN_SHARE * span
+
+    def multistart(lo: float, hi: float, first: float) -> list[float]:
+        others = np.linspace(lo, hi, STARTS + 1)[1:]
+        return [first, *(float(v) for v in others if v != first)][:STARTS]
+
+    kinds = {
+        "delay": (0.0, reach, multistart(0.0, reach, 0.0), max(0.01 * reach, step)),
+        "lag": (0.0, reach, multistart(0.0, reach, 0.0), max(0.01 * reach, step)),
+        "gain": (*GAIN_RANGE, [1.0], 0.01 * (GAIN_RANGE[1] - GAIN_RANGE[0])),
+        "offset": (-size, size, [0.0], 0.02 * size),
+        "max": (high - BOUND_REACH * size, high, [high - f * size for f in (0.0, *BOUND_STARTS[:2])], 0.01 * size),
+        "min": (low, low + BOUND_REACH * size, [low + f * size for f in (0.0, *BOUND_STARTS[:2])], 0.01 * size),
+        "deadzone": (0.0, 0.5 * largest, [0.1 * largest, 0.3 * largest], 0.01 * largest),
+        "backlash": (0.0, 0.5 * size, [0.05 * size, 0.2 * size], 0.01 * size),
+        "rate": (0.01 * fastest, fastest, [0.3 * fastest, 0.1 * fastest], 0.01 * fastest),
+        "square": (-1.0 / largest, 1.0 / largest, [0.0], 0.01 / largest),
+    }
+    return {k: v for k, v in kinds.items() if side == "input" or k in OUTPUT_KINDS}
 
 
 def state_hypotheses(instances: Mapping[str, Sequence[str]], observed: Sequence[Mapping[str, np.ndarray]]

@@ -107,8 +107,8 @@ class SignalDiagnosis:
             "held_out_unit": "noise floors (RMS of each compared signal's residuals over its recording's noise)",
             "noise_floor": 1.0,
             "runner_up": runner.label if runner is not None else None,
-            "candidates": [{"id": c.label, "held_out": c.cross_validated if c.validated else None, "bic": c.bic}
-                           for c in explain.ranked(self.candidates)],
+            "candidates": [{"id": c.label, "held_out": c.cross_validated if c.validated else None, "bic": c.bic,
+                            **({"error": c.full.error} if c.full.error else {})} for c in explain.ranked(self.candidates)],
             "validation": self.validation.to_json() if self.validation is not None else None,
             "pairs": self.pairs.to_json() if self.pairs is not None else None,
             "growth": self.growth,
@@ -289,8 +289,8 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
         library = restricted(library_of(space, compared, {**held, **{p.name: p.start for p in base}}), only)
         space, validation = validated(space, folds, sorted({c.recorded for c in compared}))
         say(f"validation: {validation.text}")
-        scenarios = tuple(s.name for s in space.scenarios)
-        parts = validation.folds
+        scenarios = validation.fitted  # what a fit on everything fits: a record's views are only for its folds
+        parts = validation.tests
         fits = fits_space(space, compared, library)
         scales = {c.residuals: 1.0 / c.noise for c in compared}
         # what a fit does not free: the space's single-valued parameters, and every other effect at neutral
@@ -309,8 +309,7 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
 
         def by_fold(ids: tuple[str, ...], start: Mapping[str, float]) -> list[FitProblem]:
             label = "+".join(ids) or "none"
-            return [problem(f"{label}/fold{k}", ids, tuple(x for x in scenarios if x not in fold), start)
-                    for k, fold in enumerate(parts)]
+            return [problem(f"{label}/fold{k}", ids, fold.train, start) for k, fold in enumerate(validation.folds)]
 
         sets = [(), *((name,) for name in library)]
         starts = {s: [library[s[0]].start(i) for i in range(len(library[s[0]].starts))] if s else [{}] for s in sets}
@@ -329,7 +328,7 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
         full = {s: went.get("+".join(s) or "none", f) for s, f in scouted.items()}
 
         pairs = Pairs()
-        singles = {s[0]: full[s] for s in sets if s}
+        singles = {s[0]: full[s] for s in sets if s and full[s].error is None}  # a failed one has no direction
         if worth_pairing(list(singles.values())):
             def real_sse(points: list[Point]) -> list[float]:
                 rows, _ = evaluate_points(fits, points, client, list(scales))
@@ -421,18 +420,19 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
             say(f"the library leaves {chosen.cross_validated:.3g} noise floors held-out: seeking a correction of "
                 "the model-exchange FMUs' state derivatives")
             freed = (*base, *(p for n in chosen.ids for p in library[n].parameters))
-            discovery = discover_derivatives(fits, client, chosen, freed, scales, parts, say=say)
+            discovery = discover_derivatives(fits, client, chosen, freed, scales, validation.folds, say=say,
+                                             fitted=validation.fitted, pieces=validation.pieces)
             say(f"discovered {'; '.join(e['readable'] for e in discovery.effects())}"
                 if isinstance(discovery, Discovered) else f"nothing discovered: {discovery.reason}")
         twins = signal_claims.alike(chosen, everything)
-        residuals = located_residuals(fits, client, [baseline, chosen, *twins], compared)
+        residuals = located_residuals(fits, client, [baseline, chosen, *twins], compared, scenarios)
         answer = chosen  # the library's: its look-alikes are among the library's candidates
         if isinstance(discovery, Discovered):  # the model the recordings support: the library's answer and the terms
             chosen = discovery.candidate
             everything.append(chosen)
             verdict = explain.verdict(chosen.cross_validated, floor, noise_factor, True, discovered=True)
             work = terms_space(fits, list(discovery.terms.values()))
-            residuals.update(located_residuals(work, client, [chosen], compared))
+            residuals.update(located_residuals(work, client, [chosen], compared, scenarios))
     noise = {c.signal: c.noise for c in compared}
     by_name = {s.name: s for s in space.scenarios}
     looks = [signal_claims.weigh(answer, t, residuals, noise, by_name) for t in twins]
@@ -455,13 +455,13 @@ def screen_sse(point: Point, scenarios: Sequence[str], residuals) -> float:
     return math.inf if any(r is None for r in found) else float(sum(r @ r for r in found))
 
 
-def located_residuals(space: Space, client, shown: Sequence[Candidate], compared: Sequence[Compared]
-                      ) -> dict[str, list[signal_locate.Residual]]:
-    """Each shown candidate's residuals (in the signals' units) per compared signal and run, from its fit on
-    every run: already in the store, so read rather than simulated again."""
+def located_residuals(space: Space, client, shown: Sequence[Candidate], compared: Sequence[Compared],
+                      fitted: Sequence[str]) -> dict[str, list[signal_locate.Residual]]:
+    """Each shown candidate's residuals (in the signals' units) per compared signal and run it was ``fitted``
+    on, from its fit on every run: already in the store, so read rather than simulated again."""
     points = [c.full.point for c in shown]
-    rows, _ = evaluate_points(space, points, client, [c.residuals for c in compared])
-    scenarios = {s.name: s for s in space.scenarios}
+    rows, _ = evaluate_points(space, points, client, [c.residuals for c in compared], [set(fitted)] * len(points))
+    scenarios = {s.name: s for s in space.scenarios if s.name in fitted}
     found: dict[str, list[signal_locate.Residual]] = {}
     for candidate in shown:
         found[candidate.label] = []

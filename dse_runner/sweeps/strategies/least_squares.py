@@ -78,4 +78,7 @@ class LeastSquares(Strategy):
             return np.asarray(found.scores[scenario][self.residuals], dtype=float)
 
         self.solver.tell(residuals)
+        if self.solver.error is not None:
+            raise DseError(f"search: least_squares cannot start: {self.solver.error} (give search.start a point "
+                           "that simulates)")
         self._round()

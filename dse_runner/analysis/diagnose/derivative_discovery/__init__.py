@@ -36,6 +36,7 @@ from ....sweeps.fit import FitResult, Parameter
 from ....sweeps.spec import Space
 from .. import explain
 from ..explain import Candidate
+from ..validation import Fold, as_folds
 from .library import CandidateTerm, Instance, candidate_terms, model_exchange_instances
 from .propose import Proposal, propose
 from .prove import (PRUNE_SE, baseline_candidate, cross_validate, fit_sets, pruned, regression, term_parameter,
@@ -69,6 +70,7 @@ class Discovered:
     baseline: Candidate  # the chosen answer without them
     proposal: Proposal
     seconds: dict[str, float] = field(default_factory=dict)
+    rejected: dict[str, str] = field(default_factory=dict)  # sets of terms that could not be fitted, and why
 
     @property
     def coefficients(self) -> dict[str, float]:
@@ -104,7 +106,7 @@ class Discovered:
         before, after = self.held_out
         return {"effects": self.effects(), "held_out_before": before, "held_out_after": after,
                 "bic_before": self.baseline.bic, "bic_after": self.candidate.bic, "proposed": self.proposal.terms,
-                "seconds": self.seconds}
+                "rejected": self.rejected, "seconds": self.seconds}
 
 
 @dataclass
@@ -116,9 +118,10 @@ class NotDiscovered:
     tried: Candidate | None = None
     baseline: Candidate | None = None
     seconds: dict[str, float] = field(default_factory=dict)
+    rejected: dict[str, str] = field(default_factory=dict)  # sets of terms that could not be fitted, and why
 
     def to_json(self) -> dict[str, Any]:
-        return {"effects": [], "reason": self.reason,
+        return {"effects": [], "reason": self.reason, "rejected": self.rejected,
                 "proposed": self.proposal.terms if self.proposal else {},
                 "held_out_before": self.baseline.cross_validated if self.baseline else None,
                 "held_out_tried": self.tried.cross_validated if self.tried else None,
@@ -131,12 +134,14 @@ def readable(state: str, terms: Mapping[str, float]) -> str:
     return f"der({state}) += " + " + ".join(parts).replace("+ -", "- ")
 
 
-def observe(space: Space, point: Point, instances: Sequence[Instance]) -> list[dict[str, np.ndarray]]:
-    """Every scenario simulated here at ``point``, recording each instance's states, derivatives and real
-    inputs: what the library sizes its terms on."""
+def observe(space: Space, point: Point, instances: Sequence[Instance], names: Sequence[str] | None = None
+            ) -> list[dict[str, np.ndarray]]:
+    """Every scenario (of ``names``, when given) simulated here at ``point``, recording each instance's states,
+    derivatives and real inputs: what the library sizes its terms on."""
     plan = space.plan.recording([ref for i in instances for ref in i.recorded], "derivative discovery")
     return [simulate(plan, scenario, point, objectives={}, experiment=space.experiment).outputs
-            for scenario in space.scenarios]
+            for scenario in space.scenarios if names is None or scenario.name in names]
+
 
 
 def fitted_error(fit: FitResult) -> dict[str, float]:
@@ -149,10 +154,12 @@ __all__ = ["DISCOVERED", "Discovered", "NotDiscovered", "Settings", "baseline_ca
 
 def forward(space: Space, client, freed: Sequence[Parameter], screened: Mapping[str, CandidateTerm],
             start: Mapping[str, float], base: Point, scenarios: Sequence[str], scales: Mapping[str, float],
-            reference: FitResult, settings: Settings, report: Callable | None) -> tuple[FitResult | None, list[str]]:
+            reference: FitResult, settings: Settings, report: Callable | None,
+            rejected: dict[str, str]) -> tuple[FitResult | None, list[str]]:
     """Forward selection: fit the terms chosen so far plus each other screened term (in lockstep); the set of
     least BIC is kept if it lowers the BIC by ``settings.bic_margin`` and its every term stands PRUNE_SE
-    standard errors from zero; repeat up to ``settings.max_terms``. None when no term joins."""
+    standard errors from zero; repeat up to ``settings.max_terms``. None when no term joins. A set whose fit
+    cannot start (its start fails to simulate: a solver limit, NaN, divergence) goes into ``rejected``."""
     names: list[str] = []
     current, start = reference, dict(start)
     while len(names) < settings.max_terms:
@@ -163,6 +170,7 @@ def forward(space: Space, client, freed: Sequence[Parameter], screened: Mapping[
                         *(term_parameter(screened[n], start[n], settings.bound, settings.trial) for n in terms))
                 for label, terms in options.items()}
         results = fit_sets(space, client, sets, base, scenarios, scales, settings.max_iterations, report)
+        rejected.update({key: r.error for key, r in results.items() if r.error})
         label = min(results, key=lambda key: explain.bic(results[key]))
         best = results[label]
         if explain.bic(best) > explain.bic(current) - settings.bic_margin or pruned(best, options[label]) != options[label]:
@@ -173,14 +181,17 @@ def forward(space: Space, client, freed: Sequence[Parameter], screened: Mapping[
 
 
 def discover_derivatives(space: Space, client, chosen: Candidate, freed: Sequence[Parameter],
-                         scales: Mapping[str, float], folds: Sequence[Sequence[str]],
-                         settings: Settings = Settings(), say: Say | None = None) -> Discovered | NotDiscovered:
+                         scales: Mapping[str, float], folds: Sequence[Sequence[str] | Fold],
+                         settings: Settings = Settings(), say: Say | None = None, fitted: Sequence[str] | None = None,
+                         pieces: Sequence[str] | None = None) -> Discovered | NotDiscovered:
     """Terms for the model-exchange instances' derivatives that the recordings support beyond ``chosen``.
 
     ``space``: the space ``chosen`` was fitted in (its objectives hold the residuals named in ``scales``, each
     multiplied by its scale: noise floors); ``freed``: the parameters ``chosen`` fitted, refitted with the
-    terms; ``folds``: scenario names per fold (none: a single scenario, judged on its fit). ``chosen`` is
-    cross-validated here if it was not yet."""
+    terms; ``folds``: scenario names per fold, each judged by a fit on the others, or validation.Fold (none:
+    a single scenario, judged on its fit); ``fitted``: the scenarios a fit on everything uses, and ``pieces``
+    those that partition its data, which the proposal holds out one at a time (default: every scenario).
+    ``chosen`` is cross-validated here if it was not yet."""
     say = say or (lambda message: None)
     seconds: dict[str, float] = {}
     clock = time.perf_counter()
@@ -196,8 +207,9 @@ def discover_derivatives(space: Space, client, chosen: Candidate, freed: Sequenc
         return NotDiscovered("no model-exchange instance: co-simulation FMUs integrate their own states, so the "
                              "master cannot add to their derivatives; what remains points inside them",
                              baseline=chosen)
-    scenarios = tuple(s.name for s in space.scenarios)
-    runs = observe(space, chosen.full.point, instances)
+    scenarios = tuple(fitted) if fitted is not None else tuple(s.name for s in space.scenarios)
+    folds = as_folds(folds, scenarios)
+    runs = observe(space, chosen.full.point, instances, scenarios)
     library = [t for i in instances for t in candidate_terms(i, runs, settings.degree)]
     lap("observe")
     if not library:
@@ -209,7 +221,8 @@ def discover_derivatives(space: Space, client, chosen: Candidate, freed: Sequenc
     freed = tuple(replace(p, start=chosen.full.values.get(p.name, p.start)) for p in freed)
     say(f"derivative discovery: {len(library)} candidate terms on "
         f"{', '.join(sorted({t.target for t in library}))}: one sweep of their sensitivities")
-    proposal = propose(regression(work, client, base, freed, library, scales, scenarios, settings.trial),
+    proposal = propose(regression(work, client, base, freed, library, scales, tuple(pieces or scenarios),
+                                  settings.trial),
                        settings.max_terms, settings.bootstrap, settings.inclusion, settings.seed)
     lap("propose")
     if proposal.empty:
@@ -222,13 +235,17 @@ def discover_derivatives(space: Space, client, chosen: Candidate, freed: Sequenc
     screened = [name for name, _ in proposal.ranked][:settings.screen]
     say(f"derivative discovery: ranked first {', '.join(screened)}; forward selection, each fitted with "
         f"{', '.join(p.name for p in freed) or 'nothing else'}")
+    rejected: dict[str, str] = {}
     result, names = forward(work, client, freed, {n: by_name[n] for n in screened}, dict(proposal.ranked), base,
-                            scenarios, scales, chosen.full, settings, report)
+                            scenarios, scales, chosen.full, settings, report, rejected)
+    if rejected:
+        say(f"derivative discovery: rejected {len(rejected)} sets of terms whose fit could not start "
+            f"({next(iter(rejected.values()))})")
     if result is None:
         lap("fit")
         return NotDiscovered(f"no proposed term ({', '.join(screened)}), fitted, lowered the BIC by "
                              f"{settings.bic_margin:g} and stood {PRUNE_SE:g} standard errors from zero", proposal,
-                             baseline=chosen, seconds=seconds)
+                             baseline=chosen, seconds=seconds, rejected=rejected)
     parameters = (*(replace(p, start=result.values[p.name]) for p in freed),
                   *(term_parameter(by_name[n], result.values[n], settings.bound, settings.trial) for n in names))
     lap("fit")
@@ -243,9 +260,9 @@ def discover_derivatives(space: Space, client, chosen: Candidate, freed: Sequenc
         baseline.held_out = baseline.held_out or fitted_error(baseline.full)
     lap("prove")
     if explain.beats(found, baseline, settings.min_gain, settings.bic_margin):
-        return Discovered({n: by_name[n] for n in names}, found, baseline, proposal, seconds)
+        return Discovered({n: by_name[n] for n in names}, found, baseline, proposal, seconds, rejected)
     return NotDiscovered(
         f"{' + '.join(by_name[n].term.text for n in names)} did not beat the answer without it: held-out "
         f"{baseline.cross_validated:.3g} -> {found.cross_validated:.3g} noise floors (needs {settings.min_gain:.0%} "
         f"lower), BIC {baseline.bic:.1f} -> {found.bic:.1f} (needs {settings.bic_margin:g} lower)",
-        proposal, found, baseline, seconds)
+        proposal, found, baseline, seconds, rejected)

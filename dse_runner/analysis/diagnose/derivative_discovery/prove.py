@@ -17,6 +17,7 @@ from ....errors import DseError
 from ....sweeps.domain import Point
 from ....sweeps.fit import FitProblem, FitResult, Parameter, evaluate_points, fit_all, residuals_in, wanted
 from ....sweeps.spec import Space, derived_space
+from ..validation import Fold, as_folds
 from ..explain import Candidate
 from .library import CandidateTerm
 from .propose import Regression
@@ -104,12 +105,11 @@ def pruned(result: FitResult, names: Sequence[str], factor: float = PRUNE_SE) ->
 
 
 def cross_validate(space: Space, client, jobs: Sequence[tuple[Candidate, Sequence[Parameter]]], base: Point,
-                   folds: Sequence[Sequence[str]], scales: Mapping[str, float], max_iterations: int,
+                   folds: Sequence[Fold], scales: Mapping[str, float], max_iterations: int,
                    report: Report | None) -> None:
-    """Each candidate refitted without each fold (from its full fit) and scored on that fold's scenarios: the
-    RMS of its noise-scaled residuals per held-out scenario, into its ``held_out``. One lockstep of fits for
-    all candidates and folds, one sweep for all held-out runs."""
-    scenarios = [s for fold in folds for s in fold]
+    """Each candidate refitted on each fold's training scenarios (from its full fit) and scored on its test
+    scenarios: the RMS of its noise-scaled residuals per held-out scenario, into its ``held_out``. One lockstep
+    of fits for all candidates and folds, one sweep for all held-out runs."""
     problems, owners = [], []
     for c, parameters in jobs:
         names = {p.name for p in parameters}
@@ -117,9 +117,8 @@ def cross_validate(space: Space, client, jobs: Sequence[tuple[Candidate, Sequenc
         freed = tuple(replace(p, start=start.get(p.name, p.start)) for p in parameters)
         fixed = {k: v for k, v in {**base, **c.full.point}.items() if k not in names}
         for k, fold in enumerate(folds):
-            problems.append(FitProblem(f"{c.label}/fold{k}", freed, fixed,
-                                       tuple(s for s in scenarios if s not in fold), max_iterations))
-            owners.append((c, fold))
+            problems.append(FitProblem(f"{c.label}/fold{k}", freed, fixed, fold.train, max_iterations))
+            owners.append((c, fold.test))
     results = fit_all(space, problems, client, dict(scales), report)
     points, only = wanted((results[p.label].point, fold) for p, (_, fold) in zip(problems, owners))
     rows, _ = evaluate_points(space, points, client, list(scales), only)
@@ -133,11 +132,12 @@ def cross_validate(space: Space, client, jobs: Sequence[tuple[Candidate, Sequenc
 
 
 def baseline_candidate(space: Space, client, freed: Sequence[Parameter], base: Point, scales: Mapping[str, float],
-                       folds: Sequence[Sequence[str]], max_iterations: int = 30, report: Report | None = None
+                       folds: Sequence[Sequence[str] | Fold], max_iterations: int = 30, report: Report | None = None
                        ) -> Candidate:
     """The answer without any term, for a diagnosis that has none yet: ``freed`` fitted on every scenario from
-    ``base``, then cross-validated on ``folds``."""
+    ``base``, then cross-validated on ``folds`` (as discover_derivatives takes them)."""
     scenarios = [s.name for s in space.scenarios]
+    folds = as_folds(folds, scenarios)
     candidate = Candidate((), fit(space, client, "none", freed, base, scenarios, scales, max_iterations, report))
     if folds:
         cross_validate(space, client, [(candidate, freed)], base, folds, scales, max_iterations, report)
