@@ -135,9 +135,20 @@ def as_scenario(scenario: Scenario | str | Path | None) -> Scenario:
     return scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
 
 
-def default_objectives(scenario: Scenario) -> dict[str, objs.ObjectiveSpec]:
-    """What a scenario's kind scores when nothing is asked (field data: the GPS objectives)."""
-    return objs.normalise(list(kind(scenario.kind).default_objectives))
+def default_objectives(scenario: Scenario, plan: Plan | None = None) -> dict[str, objs.ObjectiveSpec]:
+    """What a scenario's kind scores when nothing is asked (field data: the GPS objectives); a kind that
+    scores nothing of its own, with a recording, compares every recorded column that names an output of
+    ``plan`` (``tanks.y``, or ``y`` when exactly one instance outputs a ``y``): ``<column>_rmse``. So a
+    model simulated on a new record says at once how well it predicts it."""
+    found = objs.normalise(list(kind(scenario.kind).default_objectives))
+    if found or scenario.recorded is None or plan is None:
+        return found
+    outputs = {f"{instance}.{v.name}": v for instance, vs in plan.outputs.items() for v in vs}
+    for column in scenario.recorded.columns:
+        named = [ref for ref in outputs if ref == column or ref.split(".", 1)[1] == column]
+        if len(named) == 1:
+            found[f"{column}_rmse"] = objs.Fit(signal=named[0], recorded=column, metric="rmse")
+    return found
 
 
 def bound_fields(multimodel: MultiModel, scenario: Scenario) -> dict[str, Value]:
@@ -264,7 +275,7 @@ def _recipe(model, scenario, objectives, experiment: Experiment | None, times: t
         return kept
     plan = as_plan(model, interface)
     scenario = as_scenario(scenario)
-    specs = objs.normalise(objectives) if objectives is not None else default_objectives(scenario)
+    specs = objs.normalise(objectives) if objectives is not None else default_objectives(scenario, plan)
     specs = {name: _qualified(plan, spec) for name, spec in specs.items()}
     plan = _recording(plan, specs)
     base = {**plan.multimodel.parameters, **scenario_values(plan, scenario)}
