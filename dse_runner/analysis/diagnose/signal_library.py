@@ -53,9 +53,10 @@ from .signal_hypotheses import Hypothesis, shares, signal_hypotheses, state_hypo
 from .validation import Validation, validated
 
 FITS = "diagnosis-signal-fits"  # the sweep every fit's rounds go to
+CALIBRATION_FITS = "diagnosis-calibration"  # the sweep the calibration's least squares goes to
 MAX_ITERATIONS = 30
 SCOUTING = 6  # iterations every start of a fit gets before only the best start of each effect goes on
-MAX_EFFECTS = 4  # the answer grows one effect at a time, while each pays its way, up to this many
+MAX_EFFECTS = 6  # the answer grows one effect at a time, while each pays its way, up to this many
 GROW_FINALISTS = 2  # sets of one more effect fitted on after scouting
 
 
@@ -220,7 +221,8 @@ def calibration(space: Space, best: Mapping[str, Any]) -> tuple[Parameter, ...]:
     return tuple(params)
 
 
-def fits_space(space: Space, compared: Sequence[Compared], hypotheses: Mapping[str, Hypothesis]) -> Space:
+def fits_space(space: Space, compared: Sequence[Compared], hypotheses: Mapping[str, Hypothesis], name: str = FITS
+               ) -> Space:
     """The space the fits run in (its scenarios as they are: a record's blocks stay blocks): its own
     parameters and every effect's (each at its neutral value unless a fit frees it), scored by the residuals
     of each compared signal."""
@@ -228,7 +230,7 @@ def fits_space(space: Space, compared: Sequence[Compared], hypotheses: Mapping[s
     parameters.update({name: [value] for h in hypotheses.values() for name, value in h.absent().items()})
     objectives = {**space.objectives,
                   **{c.residuals: objs.Fit(signal=c.signal, recorded=c.recorded, metric="residuals") for c in compared}}
-    return derived_space(space, name=FITS, parameters=parameters, objectives=objectives,
+    return derived_space(space, name=name, parameters=parameters, objectives=objectives,
                          search=space.spec.search.model_copy(update={"strategy": "given"}), constraints=[],
                          keep_trajectories=0)
 
@@ -286,13 +288,25 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
         base = calibration(space, best)
         calibrated = {p.name for p in base}
         held = {name: values[0] for name, values in space.parameters.items() if name not in calibrated}
+        scales = {c.residuals: 1.0 / c.noise for c in compared}
+
+        def report(round_: int, active: int, points: int, simulations: int) -> None:
+            say(f"fits: round {round_}, {active} active, {points} points, {simulations} simulations")
+
+        if base:  # the search's best refined by least squares: where every effect's fit starts
+            say("calibrating: least squares from the best point")
+            plain = fits_space(space, compared, {}, CALIBRATION_FITS)
+            names = tuple(s.name for s in space.scenarios)
+            refined = fit_all(plain, [FitProblem("calibration", base, held, names, MAX_ITERATIONS)], client, scales,
+                              report)["calibration"]
+            if refined.error is None:
+                base = tuple(replace(p, start=refined.values[p.name]) for p in base)
         library = restricted(library_of(space, compared, {**held, **{p.name: p.start for p in base}}), only)
         space, validation = validated(space, folds, sorted({c.recorded for c in compared}))
         say(f"validation: {validation.text}")
         scenarios = validation.fitted  # what a fit on everything fits: a record's views are only for its folds
         parts = validation.tests
         fits = fits_space(space, compared, library)
-        scales = {c.residuals: 1.0 / c.noise for c in compared}
         # what a fit does not free: the space's single-valued parameters, and every other effect at neutral
         unfreed = {**held, **{k: v for h in library.values() for k, v in h.absent().items()}}
         bounds = {p.name: p for p in (*base, *(p for h in library.values() for p in h.parameters))}
@@ -303,9 +317,6 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
                           (*base, *(p for n in names for p in library[n].parameters)))
             fixed = {k: v for k, v in unfreed.items() if k not in {p.name for p in freed}}
             return FitProblem(label, freed, fixed, on, iterations)
-
-        def report(round_: int, active: int, points: int, simulations: int) -> None:
-            say(f"fits: round {round_}, {active} active, {points} points, {simulations} simulations")
 
         def by_fold(ids: tuple[str, ...], start: Mapping[str, float]) -> list[FitProblem]:
             label = "+".join(ids) or "none"

@@ -2,12 +2,13 @@
 
 Why: a candidate is judged by its error on data its fit did not see. With several scenarios a fold holds
 some of them out. A real process is often recorded once, in one long record; judging a fit on the samples
-it was fitted to would reward every extra parameter. So one record is cut into contiguous blocks of time:
-per block, two *views* of the whole run: one whose recording keeps all but the block, one that keeps only
-the block (the other samples are dropouts, which every objective skips). Views are scenarios like any
-other: a fold's fit runs on the first and is judged on the second, which it predicts from the run's start,
-free-running through the block. What the fit saw and what it predicts share the run's initial state and
-inputs, never the held-out samples. A fit on everything runs on the record itself, so each point is
+it was fitted to would reward every extra parameter. So one record is cut into contiguous blocks of time.
+The first block is always fitted: the run's unknown initial state shows there, and only there. Every other
+block is a fold, with two *views* of the whole run: one whose recording keeps all but the block, one that
+keeps only the block (the other samples are dropouts, which every objective skips). Views are scenarios like
+any other: a fold's fit runs on the first and is judged on the second, which it predicts from the run's
+start, free-running through the block. What the fit saw and what it predicts share the run's initial state
+and inputs, never the held-out samples. A fit on everything runs on the record itself, so each point is
 simulated once.
 """
 
@@ -66,7 +67,8 @@ class Validation:
     def text(self) -> str:
         if self.by == "time blocks":
             return (f"held out: {len(self.folds)} contiguous blocks of time of the one record {self.record}, each "
-                    "predicted free-running by a fit on the others")
+                    "predicted free-running by a fit on the rest (the first block, where the unknown initial "
+                    "state shows, is always fitted)")
         if self.by == "scenarios":
             return f"held out: {len(self.folds)} folds of scenarios, each predicted by a fit on the others"
         return "in sample: one record too short to cut into blocks; every error is on the samples fitted"
@@ -76,20 +78,22 @@ MIN_SAMPLES = 8  # a block holds at least this many recorded samples of each com
 
 
 def blocks(scenario: Scenario, count: int, columns: list[str]) -> list[tuple[Scenario, Scenario]]:
-    """``scenario`` cut into ``count`` contiguous blocks of time (equal shares of its recorded samples): per
-    block, the view that keeps all but the block (what a fold fits on) and the view that keeps only the
-    block (what it is judged on); none if a block would hold fewer than MIN_SAMPLES recorded samples."""
+    """``scenario`` cut into ``count`` + 1 contiguous blocks of time (equal shares of its recorded samples):
+    per block but the first, the view that keeps all but the block (what a fold fits on) and the view that
+    keeps only the block (what it is judged on); none if a block would hold fewer than MIN_SAMPLES recorded
+    samples. The first block is never held out: the run's unknown initial state shows there, and only
+    there, so a fit without it could not know where the run starts."""
     recording = scenario.recorded
     if recording is None or count < 2:
         return []
     present = np.zeros(recording.time.size, dtype=bool)
     for column in columns:
         present |= np.isfinite(recording.columns[column])
-    parts = np.array_split(np.flatnonzero(present), count)
+    parts = np.array_split(np.flatnonzero(present), count + 1)
     if min(part.size for part in parts) < MIN_SAMPLES:
         return []
     views = []
-    for k, part in enumerate(parts):
+    for k, part in enumerate(parts[1:], start=1):
         keep = np.zeros(recording.time.size, dtype=bool)
         keep[part[0]:part[-1] + 1] = True
         views.append((view(scenario, recording, ~keep, f"train{k + 1}"), view(scenario, recording, keep, f"block{k + 1}")))
