@@ -184,6 +184,15 @@ def verdict(held_out: float, floor: float | None, factor: float, chosen: bool, d
     return UNEXPLAINED if above else NONE
 
 
+def unless_white(verdict: str, white: bool) -> str:
+    """The verdict once the residuals' whiteness is known: an error as small as the noise but not white is not
+    indistinguishable from it (something is still missing, or the noise is coloured and its floor reads low),
+    so it explains nothing for sure."""
+    if white:
+        return verdict
+    return {EXPLAINED: PARTIAL, DISCOVERED: PARTIAL, NONE: UNEXPLAINED}.get(verdict, verdict)
+
+
 def runner_up(chosen: Candidate, candidates: list[Candidate]) -> Candidate | None:
     """The best-ranked real alternative: cross-validated, not the chosen set and not a subset of it (a
     subset is the chosen answer with less in it, not a different explanation)."""

@@ -18,6 +18,7 @@ import numpy as np
 from . import explain
 from .derivative_discovery import DISCOVERED
 from .explain import Candidate
+from .noise import Whiteness
 from .signal_locate import Residual, activity, window_of, windows
 
 LOOKALIKES = 3  # at most this many look-alikes are weighed
@@ -99,12 +100,16 @@ def weigh(chosen: Candidate, other: Candidate, residuals: Mapping[str, Sequence[
 
 def verdict_text(verdict: str, held_out: float, chosen: Candidate, interfaces: Mapping[str, str],
                  looks: Sequence[LookAlike], dropped: Sequence[explain.Dropped], factor: float,
-                 discovered: Sequence[str] = ()) -> str:
+                 discovered: Sequence[str] = (), coloured: Mapping[str, Whiteness] | None = None) -> str:
     """The verdict in a sentence: what was named (a discovered correction as its formula), what was not
-    claimed, which twins cannot be told apart, and, when an error well above the noise remains, where it
-    must lie."""
+    claimed, which twins cannot be told apart, whose residuals are not white, and, when an error well above
+    the noise remains, where it must lie."""
     named = ", ".join([*(i for i in chosen.ids if i != DISCOVERED), *discovered]) or "no effect"
     parts = [f"{verdict}: {named}; held-out error {held_out:.3g} noise floors"]
+    for signal, w in (coloured or {}).items():
+        parts.append(f"the residuals of {signal} are not white (lag-1 autocorrelation {w.rho1:.2f}, Ljung-Box p "
+                     f"{w.p:.2g}): either the model still misses something there, or the recording's noise is "
+                     "coloured and its floor reads low")
     if dropped:
         parts.append("not claimed (changes the fit by less than the noise): " + ", ".join(d.id for d in dropped))
     twins = [x.other for x in looks if not x.told_apart]

@@ -40,6 +40,7 @@ STARTS = 4  # a delay's or a lag's fit on every scenario starts from this many v
 # oscillating model their misfit has local minima a period apart, which a fit from neutral alone can miss
 BOUND_STARTS = (0.1, 0.3, 0.5)  # a bound's fits start this share of its state's span inside the span's edge
 BOUND_REACH = 0.8  # a bound is sought over this share of the span, from the edge it limits
+SQUARE = 3.0  # a square term is sought up to where it adds this many times the signal at its largest
 PHYSICS = {  # what each kind of effect stands for, and the residual it leaves
     "delay": ("the signal arrives late: a transport or processing delay, a late actuator or a late time stamp",
               "residuals grow with the signal's rate of change; the simulation leads the recording"),
@@ -171,7 +172,7 @@ def signal_ranges(side: str, samples: Sequence[np.ndarray], span: float, step: f
         "deadzone": (0.0, 0.5 * largest, [0.1 * largest, 0.3 * largest], 0.01 * largest),
         "backlash": (0.0, 0.5 * size, [0.05 * size, 0.2 * size], 0.01 * size),
         "rate": (0.01 * fastest, fastest, [0.3 * fastest, 0.1 * fastest], 0.01 * fastest),
-        "square": (-1.0 / largest, 1.0 / largest, [0.0], 0.01 / largest),
+        "square": (-SQUARE / largest, SQUARE / largest, [0.0], 0.01 / largest),
     }
     return {k: v for k, v in kinds.items() if side == "input" or k in OUTPUT_KINDS}
 

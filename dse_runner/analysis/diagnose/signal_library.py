@@ -48,7 +48,7 @@ from .library import HypothesisLibrary, Messages, Request, space_with
 from .derivative_discovery import DISCOVERED, Discovered, NotDiscovered, discover_derivatives, observe
 from .derivative_discovery.library import model_exchange_instances
 from .derivative_discovery.prove import terms_space
-from .noise import sigma_from_differences
+from .noise import NoiseEstimate, Whiteness, estimate_noise, whiteness
 from .signal_hypotheses import Hypothesis, shares, signal_hypotheses, state_hypotheses
 from .validation import Validation, validated
 
@@ -67,7 +67,8 @@ class Compared:
     objective: str
     signal: str
     recorded: str
-    noise: float  # σ of the recording's noise, in the signal's units
+    noise: float  # σ of the recording's noise, in the signal's units (the median over the scenarios)
+    estimate: NoiseEstimate | None = None  # how the scenario nearest that median was estimated, and what it assumes
 
     @property
     def residuals(self) -> str:
@@ -93,12 +94,14 @@ class SignalDiagnosis:
     files: dict[str, str] = field(default_factory=dict)
     growth: list[dict[str, Any]] = field(default_factory=list)  # each round of one more effect: what it tried
     validation: Validation | None = None  # what held-out means here
+    whiteness: dict[str, Whiteness] = field(default_factory=dict)  # the chosen fit's residuals, per compared signal
 
     def to_json(self) -> dict[str, Any]:
         runner = explain.runner_up(self.chosen, self.candidates)
         return {
-            "compared": [{"objective": c.objective, "signal": c.signal, "recorded": c.recorded, "noise": c.noise}
-                         for c in self.compared],
+            "compared": [{"objective": c.objective, "signal": c.signal, "recorded": c.recorded, "noise": c.noise,
+                          "noise_estimate": c.estimate.to_json() if c.estimate else None} for c in self.compared],
+            "whiteness": {signal: w.to_json() for signal, w in self.whiteness.items()},
             "effects": [self._effect(name) for name in self.chosen.ids if name != DISCOVERED] + (
                 self.discovery.effects() if isinstance(self.discovery, Discovered) else []),
             "verdict": self.verdict,
@@ -156,16 +159,6 @@ class SignalDiagnosis:
         return lines
 
 
-def recording_noise(time: np.ndarray, values: np.ndarray, orders: Sequence[int] = (2, 3, 4, 5, 6)) -> float:
-    """σ of a recording's white noise from its differences at its own sampling: the k-th difference of
-    white noise has σ·√C(2k, k), robustly measured by the MAD. The signal itself adds to every order, less
-    the higher the order while it is smooth at the sampling step, so the smallest estimate over the orders
-    is the one least swollen by the signal (and still at least the noise, on average)."""
-    v = np.asarray(values, dtype=float)[np.isfinite(values)]
-    estimates = [sigma_from_differences(np.diff(v, n=k), k) for k in orders if v.size > k + 2]
-    return min(estimates) if estimates else math.nan
-
-
 def compared_signals(space: Space) -> list[Compared]:
     """Every objective that compares a signal with a recording, with the noise of that recording (the
     median over the scenarios that record it)."""
@@ -173,11 +166,13 @@ def compared_signals(space: Space) -> list[Compared]:
     for name, spec in space.objectives.items():
         if not isinstance(spec, objs.Fit):
             continue
-        noises = [recording_noise(*s.recorded.samples(spec.recorded)) for s in space.scenarios if s.recorded]
-        noise = float(np.nanmedian(noises)) if noises and np.isfinite(noises).any() else math.nan
+        estimates = [estimate_noise(s.recorded.samples(spec.recorded)[1]) for s in space.scenarios if s.recorded]
+        sigmas = [e.sigma for e in estimates]
+        noise = float(np.nanmedian(sigmas)) if sigmas and np.isfinite(sigmas).any() else math.nan
         if not noise > 0:
             raise DseError(f"objective {name}: no noise could be estimated from the recorded {spec.recorded!r}")
-        found.append(Compared(name, qualify(space.plan, spec.signal), spec.recorded, noise))
+        typical = min(estimates, key=lambda e: abs(e.sigma - noise) if math.isfinite(e.sigma) else math.inf)
+        found.append(Compared(name, qualify(space.plan, spec.signal), spec.recorded, noise, typical))
     if not found:
         raise DseError(f"{space.path}: diagnosis compares signals with recordings: give an objective "
                        "{signal: inst.var, recorded: column, metric: rmse}")
@@ -449,10 +444,13 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
     looks = [signal_claims.weigh(answer, t, residuals, noise, by_name) for t in twins]
     located = signal_locate.located(residuals[baseline.label], residuals[chosen.label], noise, by_name)
     formulas = [e["readable"] for e in discovery.effects()] if isinstance(discovery, Discovered) else []
+    white = {c.signal: whiteness([r.values for r in residuals[chosen.label] if r.signal == c.signal]) for c in compared}
+    coloured = {signal: w for signal, w in white.items() if not w.white}
+    verdict = explain.unless_white(verdict, not coloured)
     text = signal_claims.verdict_text(verdict, chosen.cross_validated, chosen, interfaces, looks, dropped, noise_factor,
-                                      formulas)
+                                      formulas, coloured)
     diagnosis = SignalDiagnosis(compared, baseline, chosen, everything, verdict, library, pairs=pairs, growth=growth,
-                                validation=validation,
+                                validation=validation, whiteness=white,
                                 lookalikes=looks, dropped=dropped, located=located, verdict_text=text,
                                 discovery=discovery)
     diagnosis.files = {k: str(v) for k, v in
