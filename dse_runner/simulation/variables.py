@@ -95,6 +95,7 @@ class Variable:
     low: float | None = None  # the declared min and max, if any
     high: float | None = None
     scalar: bool = True  # FMI 3 arrays are not
+    start: bool = False  # not a parameter or input, but its start value may be set before initialisation
 
     @property
     def ref(self) -> str:
@@ -126,13 +127,21 @@ def describe_variable(instance: str, v) -> Variable:
 
     scalar = not getattr(v, "dimensions", None)
     return Variable(instance, v.name, v.valueReference, v.type, v.causality,
-                    bound("min"), bound("max"), scalar)
+                    bound("min"), bound("max"), scalar, start_settable(v))
+
+
+def start_settable(v) -> bool:
+    """Whether FMI lets an importer set this output or local before initialisation: its start value is
+    ``exact`` or ``approx`` and it is not a constant (a model-exchange state's initial value, for one). The
+    master sets every value before initialisation, so it may set these too."""
+    return (v.causality in ("output", "local") and getattr(v, "initial", None) in ("exact", "approx")
+            and v.variability != "constant")
 
 
 def check_settable(variable: Variable) -> None:
-    if variable.causality not in SETTABLE:
-        raise DseError(f"{variable.ref!r} is {with_article(variable.causality)}, not a parameter or input: "
-                       "it cannot be set")
+    if variable.causality not in SETTABLE and not variable.start:
+        raise DseError(f"{variable.ref!r} is {with_article(variable.causality)}, not a parameter or input, and "
+                       "its start value is not exact or approx: it cannot be set")
     if variable.family is None:
         what = "an array" if not variable.scalar else with_article(variable.type)
         raise DseError(f"{variable.ref!r} is {what}, which dse-runner cannot set")

@@ -301,3 +301,32 @@ def test_fmi3_path_drives_fmpys_fmu3model_calls(msd):
     fmi2 = run(msd, model, tolerance=1e-6)
     model.freeInstance()
     assert np.abs(np.array(xs) - fmi2).max() < 1e-9
+
+
+def test_a_state_with_an_exact_start_value_is_set_as_fmi_allows_and_calibrates_like_a_parameter(tmp_path):
+    """The Reference FMUs' VanDerPol declares its states x0, x1 as outputs with exact start values: FMI lets an
+    importer set those before initialisation, so --set, values files and a space's parameters take them (an
+    unknown initial state is calibrated like any parameter). The run starts there: against scipy from (0.5, 0)."""
+    import yaml
+    from scipy.integrate import solve_ivp
+
+    from dse_runner.errors import DseError
+    from dse_runner.simulation.run import simulate
+    from dse_runner.sweeps.spec import load_space
+
+    vdp = REPO / "tests" / "fmus" / "vdp_me"
+    run = simulate(vdp, None, {"x0": 0.5}, stop_time=2.0, step=0.1, interface="me")
+    expected = solve_ivp(lambda t, s: [s[1], (1 - s[0] ** 2) * s[1] - s[0]], (0.0, 2.0), [0.5, 0.0],
+                         t_eval=run.time, rtol=1e-10, atol=1e-12).y
+    assert run.trajectory.column("vdp_me.x0")[0] == 0.5
+    assert np.max(np.abs(run.trajectory.column("vdp_me.x0") - expected[0])) < 1e-3  # CVode at its default tolerance
+    spec = {"name": "start", "multimodel": {"fmus": {"vdp": str(vdp)}, "instances": {"vdp": {"interface": "me"}}},
+            "experiment": {"stop_time": 2.0, "step": 0.1},
+            "parameters": {"vdp.x0": {"low": -1.0, "high": 1.0}, "vdp.mu": [1.0]},
+            "objectives": {"x_end": {"signal": "vdp.x0", "reduce": "final"}}, "search": {"strategy": "random"},
+            "output": str(tmp_path / "out")}
+    (tmp_path / "space.yaml").write_text(yaml.safe_dump(spec))
+    assert load_space(tmp_path / "space.yaml").parameters["vdp.x0"] == [-1.0, 1.0]
+    with pytest.raises(DseError, match=r"'vdp_me.der\(x0\)' is a local, not a parameter or input, and its start "
+                                       r"value is not exact or approx"):
+        simulate(vdp, None, {"der(x0)": 0.5}, stop_time=1.0, step=0.1, interface="me")

@@ -39,7 +39,7 @@ GAIN_RANGE = (0.5, 2.0)
 STARTS = 4  # a delay's or a lag's fit on every scenario starts from this many values across its range: in an
 # oscillating model their misfit has local minima a period apart, which a fit from neutral alone can miss
 BOUND_STARTS = (0.1, 0.3, 0.5)  # a bound's fits start this share of its state's span inside the span's edge
-BOUND_REACH = 0.8  # a bound is sought over this share of the span, from the edge it limits
+BOUND_REACH = 1.0  # a bound is sought over this share of the span, from the edge it limits
 SQUARE = 3.0  # a square term is sought up to where it adds this many times the signal at its largest
 PHYSICS = {  # what each kind of effect stands for, and the residual it leaves
     "delay": ("the signal arrives late: a transport or processing delay, a late actuator or a late time stamp",
