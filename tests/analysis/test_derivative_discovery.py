@@ -140,3 +140,25 @@ def test_cosimulation_models_are_told_that_only_their_signals_can_be_corrected()
     found = discover_derivatives(space, None, explain.Candidate((), fit), [], {}, [])
     assert isinstance(found, NotDiscovered)
     assert "no model-exchange instance" in found.reason and "points inside them" in found.reason
+
+
+@pytest.mark.slow
+def test_diagnose_space_discovers_the_cubic_spring_the_library_cannot_explain(tmp_path, dask_scheduler):
+    """The whole command's path: the space (a grid calibration), its library of effects, then discovery because
+    none of them explains the hardening spring; the answer carries the term, and the diagnosed values replay
+    it. Only one library effect is tried (--hypothesis), so that the library's part stays short."""
+    from dse_runner.analysis.diagnose.signal_library import diagnose_space
+    from dse_runner.simulation.values import read_values
+
+    space = _generator("msd").make("cubic", tmp_path / "cubic")
+    result = diagnose_space(space, out=tmp_path / "out", address=dask_scheduler, only=["output_offset(msd.x)"])
+    found = result.to_json()
+    discovered = [e for e in found["effects"] if e["id"] == "discovered"]
+    assert [(e["target"], list(e["terms"])) for e in discovered] == [("msd.der(v)", ["x^3"])], found["discovery"]
+    low, high = discovered[0]["intervals"]["x^3"]
+    assert low <= -60.0 <= high
+    assert found["verdict"] in ("discovered", "partial") and found["held_out_after"] < 0.2 * found["held_out_before"]
+    assert found["validation"] == {"by": "scenarios", "folds": 3}
+    values = read_values(found["files"]["values"])
+    assert values["derivative_term(msd.der(v), x^3)"] == pytest.approx(discovered[0]["terms"]["x^3"])
+    assert all(Path(f).is_file() for f in found["files"]["figures"]) and len(found["files"]["figures"]) == 4

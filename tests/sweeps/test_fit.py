@@ -77,3 +77,16 @@ def test_a_point_asked_twice_in_one_sweep_runs_once_and_answers_both(tmp_path, d
     assert (report.total, report.skipped) == (2, 2)
     stored = store.read_results(space.output, space.name, ["msd.k", "status"])
     assert sorted(stored["msd.k"]) == [12.0, 14.0] and stored["task_id"].is_unique
+
+
+def test_a_fit_whose_start_fails_to_simulate_ends_failed_and_says_why_instead_of_raising():
+    """A diagnosis fits many candidates at once; one whose start point fails (a solver limit, NaN, a diverging
+    run) must be rejected by name, not abort the others."""
+    problem = FitProblem("doomed", (Parameter("a", 1.0, 0.0, 2.0, 0.01),), {"b": 3.0}, ("run1", "run2"))
+    solver = LevenbergMarquardt(problem)
+    solver.ask()
+    solver.tell(lambda point, scenario: None if scenario == "run2" else np.zeros(3))
+    assert solver.done and not solver.ask()
+    result = solver.result()
+    assert result.error == "its start point fails to simulate on run2"
+    assert result.sse == np.inf and result.point == {"a": 1.0, "b": 3.0} and not result.converged

@@ -40,7 +40,7 @@ from ...sweeps.fit import (FitProblem, FitResult, Parameter, evaluate_points, fi
 from ...sweeps.rank import rank
 from ...sweeps.spec import Space, derived_space
 from ...sweeps.sweep import submit
-from . import explain, signal_claims, signal_locate, signal_report, signal_screen
+from . import explain, signal_claims, signal_figures, signal_locate, signal_report, signal_screen
 from .explain import Candidate
 from .hypotheses import EffectParameter
 from .hypotheses import Hypothesis as LibraryHypothesis
@@ -92,6 +92,7 @@ class SignalDiagnosis:
     verdict_text: str = ""
     discovery: Discovered | NotDiscovered | None = None  # sought when the library leaves error above the noise
     files: dict[str, str] = field(default_factory=dict)
+    figures: list[str] = field(default_factory=list)  # recorded against simulated, per compared signal and run
     growth: list[dict[str, Any]] = field(default_factory=list)  # each round of one more effect: what it tried
     validation: Validation | None = None  # what held-out means here
     whiteness: dict[str, Whiteness] = field(default_factory=dict)  # the chosen fit's residuals, per compared signal
@@ -123,7 +124,7 @@ class SignalDiagnosis:
             "fitted": {"parameters": dict(self.chosen.full.values),  # every value the chosen answer fitted
                        "interval": {k: list(v) for k, v in self.chosen.full.interval().items()},
                        "at_bound": list(self.chosen.full.at_bound)},
-            "files": self.files,
+            "files": {**self.files, "figures": self.figures} if self.files else {},
         }
 
     def _effect(self, name: str) -> dict[str, Any]:
@@ -453,8 +454,11 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
                                 validation=validation, whiteness=white,
                                 lookalikes=looks, dropped=dropped, located=located, verdict_text=text,
                                 discovery=discovery)
+    figures = signal_figures.draw(residuals[baseline.label], residuals[chosen.label], by_name,
+                                  {c.signal: c.recorded for c in compared}, located.get("worst", []), Path(space.output))
     diagnosis.files = {k: str(v) for k, v in
-                       signal_report.write(diagnosis.to_json(), Path(space.output), space.name).items()}
+                       signal_report.write(diagnosis.to_json(), Path(space.output), space.name, figures).items()}
+    diagnosis.figures = [str(f) for f in figures]
     return diagnosis
 
 

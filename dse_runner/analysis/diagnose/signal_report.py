@@ -50,7 +50,21 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
              f"Held-out error {found['held_out_before']:.3g} noise floors before (the calibrated model), "
              f"{found['held_out_after']:.3g} after; 1 is the recordings' own noise.", "",
              "## Compared signals", ""]
+    validation = found.get("validation") or {}
+    if validation:
+        lines[-2:-2] = [f"Validated by {validation['by']}" + (f" ({validation['folds']} folds"
+                                                               + (f" of the record {validation['record']}" if
+                                                                  validation.get("record") else "") + ")"
+                                                               if validation.get("folds") else "") + ".", ""]
     lines += markdown_table(found["compared"], ["objective", "signal", "recorded", "noise"])
+    for c in found["compared"]:
+        estimate = c.get("noise_estimate") or {}
+        if estimate:
+            lines += ["", f"Noise of {c['recorded']}: σ {estimate['sigma']:.4g} by {estimate['method']}; it assumes "
+                      f"{estimate['assumptions']}."]
+    for signal, w in (found.get("whiteness") or {}).items():
+        lines += ["", f"Residuals of {signal} after: lag-1 autocorrelation {_number(w['rho1'])}, Ljung-Box p "
+                  f"{_number(w['p'])} over {w['lags']} lags: " + ("white." if w["white"] else "not white.")]
     lines += ["", "## Named effects", ""] + markdown_table(effect_rows(found["effects"]),
                                                            ["effect", "parameter", "value", "95 % interval", "partial"])
     if found.get("dropped"):
@@ -59,6 +73,10 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
     lines += ["", "## Candidates (best held-out first)", ""]
     lines += markdown_table(found["candidates"][:8], ["id", "held_out", "bic"])
     lines += ["", f"Runner-up: {found.get('runner_up') or 'none'}.", ""]
+    for step in found.get("growth") or []:
+        lines += [f"Grown from {step['from']}: {step['tried']} sets with one more effect tried, the best "
+                  f"{step['best']}" + (f", held-out {step['held_out']:.3g}" if "held_out" in step else "")
+                  + (": accepted." if step.get("accepted") else ": not accepted."), ""]
     if pairs.get("screened"):
         lines += [f"Pairs: {pairs['predicted']} predicted from the single fits, {len(pairs['screened'])} checked by "
                   f"simulation, {len(pairs['fitted'])} fitted for real ({', '.join(pairs['fitted']) or 'none'}).", ""]
@@ -86,14 +104,20 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write(found: Mapping[str, Any], folder: Path, title: str) -> dict[str, Path]:
+def write(found: Mapping[str, Any], folder: Path, title: str, figures: Sequence[Path] = ()) -> dict[str, Path]:
     """Write the report, the strict JSON summary and the diagnosed model's values into ``folder``; their
     paths. The values file is the model the recordings support, ready to run again:
-    ``dse-runner simulate MODEL --scenario … --values diagnosed-values.yaml``."""
+    ``dse-runner simulate MODEL --scenario … --values diagnosed-values.yaml``. ``figures`` (inside ``folder``)
+    are shown in the report and listed in the JSON."""
     folder.mkdir(parents=True, exist_ok=True)
     files = {"report": folder / REPORT, "json": folder / SUMMARY, "values": folder / VALUES}
-    found = {**found, "files": {k: str(v) for k, v in files.items()}}  # the file says where its siblings are
-    files["report"].write_text(markdown(found, title))
+    found = {**found, "files": {**{k: str(v) for k, v in files.items()},  # the file says where its siblings are
+                                "figures": [str(f) for f in figures]}}
+    text = markdown(found, title)
+    if figures:
+        text += "\n## Recorded against simulated\n\n" + "".join(
+            f"![{f.stem}]({f.relative_to(folder).as_posix()})\n\n" for f in figures)
+    files["report"].write_text(text)
     files["json"].write_text(strict_json.dumps(found))
     write_values(files["values"], found["fitted"]["parameters"],
                           f"The diagnosed model of {title}: its calibrated parameters, and the effects and derivative\n"
