@@ -34,9 +34,10 @@ def generator():
 def named(found: dict) -> str:
     parts = []
     for e in found["effects"]:
-        (kind, value), = e["parameters"].items()
-        low, high = e["intervals"][kind]
-        parts.append(f"{e['id']}({e['target']}) {value:.4g} [{low:.4g}, {high:.4g}]")
+        values = e["terms"] if e["id"] == "discovered" else e["parameters"]
+        sized = ", ".join(f"{value:.4g} [{e['intervals'][kind][0]:.4g}, {e['intervals'][kind][1]:.4g}]"
+                          for kind, value in values.items())
+        parts.append(f"{e['id']}({e['target']}) {sized}")
     return "; ".join(parts) or "nothing"
 
 

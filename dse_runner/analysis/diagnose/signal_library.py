@@ -121,6 +121,7 @@ class SignalDiagnosis:
             "dropped": [d.to_json() for d in self.dropped],
             "discovery": self.discovery.to_json() if self.discovery is not None else None,
             "located": self.located,
+            "calibrated": {"parameters": dict(self.baseline.full.values)},  # the model before: none refitted alone
             "fitted": {"parameters": dict(self.chosen.full.values),  # every value the chosen answer fitted
                        "interval": {k: list(v) for k, v in self.chosen.full.interval().items()},
                        "at_bound": list(self.chosen.full.at_bound)},
