@@ -140,3 +140,20 @@ def test_a_hypothesis_the_library_lacks_is_named_before_anything_runs(tmp_path):
 def test_a_request_no_diagnosis_can_honour_is_refused(bad, named):
     with pytest.raises(DseError, match=named):
         Request(**bad)
+
+
+def test_a_space_of_intervals_is_calibrated_by_a_search_and_a_grid_stays_a_grid(tmp_path):
+    """``msd.k: {low: 8, high: 20}`` with no search: diagnose samples the intervals (a grid cannot cover them;
+    'exhaustive needs a list or a grid' was the answer once). A search the space names is kept."""
+    import yaml
+
+    spec = yaml.safe_load((MSD / "space.yaml").read_text())
+    spec.update(multimodel=str(MSD / "multimodel.yaml"), output=str(tmp_path / "out"),
+                parameters={"msd.k": {"low": 8, "high": 20}, "msd.c": {"low": 0.4, "high": 1.2}})
+    spec["scenarios"][0]["recorded"] = str(MSD / "recording" / "position.csv")
+    (tmp_path / "intervals.yaml").write_text(yaml.safe_dump(spec))
+    sampled = space_with(tmp_path / "intervals.yaml", None, tmp_path / "a")
+    assert (sampled.spec.search.strategy, sampled.spec.search.max_points) == ("sobol", 64)
+    (tmp_path / "named.yaml").write_text(yaml.safe_dump({**spec, "search": {"strategy": "tpe", "max_points": 20}}))
+    assert space_with(tmp_path / "named.yaml", None, tmp_path / "b").spec.search.strategy == "tpe"
+    assert space_with(MSD / "space.yaml", None, tmp_path / "c").spec.search.strategy == "exhaustive"
