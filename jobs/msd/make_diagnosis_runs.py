@@ -9,10 +9,12 @@ Each case conceals something the model does not know (CASES):
 
 * ``clean``: nothing; a diagnosis should name nothing;
 * ``force-late``: the plant receives the logged force 0.3 s late;
-* ``sensor-gain-offset``: the position sensor reads 1.1 x + 0.01 m (a pair).
+* ``sensor-gain-offset``: the position sensor reads 1.1 x + 0.01 m (a pair);
+* ``force-clipped``: the actuator saturates: the plant receives the logged force clipped to ±1.2 N (a hard
+  nonlinearity on both sides).
 
 The effects are made here, not with the master's signal effects the diagnosis fits: the force's log is
-shifted in time before the plant sees it, and the sensor's gain and offset are applied to the simulated
+shifted in time or clipped before the plant sees it, and the sensor's gain and offset are applied to the simulated
 position, which is solved at a finer step than the diagnosis uses (0.01 s against 0.025 s). Written into the folder: each run's
 ``<run>-force.csv`` and ``<run>-x.csv``, and a ``space.yaml`` that calibrates k and c on them and
 compares the position (nothing of the truth). Run from the repository:
@@ -41,6 +43,7 @@ CASES: dict[str, dict[str, float]] = {
     "clean": {},
     "force-late": {"force_delay": 0.3},
     "sensor-gain-offset": {"sensor_gain": 1.1, "sensor_offset": 0.01},
+    "force-clipped": {"force_limit": 1.2},
 }
 DURATION = 10.0  # s
 LOG_INTERVAL = 0.05  # s: the force log's and the position recording's sampling
@@ -68,7 +71,8 @@ def record(name: str, case: Mapping[str, float], rng: np.random.Generator) -> tu
     shape, x0 = RUNS[name]
     t = np.round(np.arange(0.0, DURATION + 1e-9, LOG_INTERVAL), 10)
     force = shape(t)
-    received = Series(t + case.get("force_delay", 0.0), force, "hold")  # before it starts: its first value
+    limit = case.get("force_limit", np.inf)
+    received = Series(t + case.get("force_delay", 0.0), np.clip(force, -limit, limit), "hold")  # held before it starts
     run = simulate(MODEL, Scenario(name, inputs={"msd.F": received}, stop_time=DURATION, step=TRUTH_STEP),
                    {"msd.x0": x0, **PLANT})
     x = np.interp(t, run.time, run.outputs["msd.x"])

@@ -167,8 +167,9 @@ def signal_ranges(side: str, samples: Sequence[np.ndarray], span: float, step: f
         "lag": (0.0, reach, multistart(0.0, reach, 0.0), max(0.01 * reach, step)),
         "gain": (*GAIN_RANGE, [1.0], 0.01 * (GAIN_RANGE[1] - GAIN_RANGE[0])),
         "offset": (-size, size, [0.0], 0.02 * size),
-        "max": (high - BOUND_REACH * size, high, [high - f * size for f in (0.0, *BOUND_STARTS[:2])], 0.01 * size),
-        "min": (low, low + BOUND_REACH * size, [low + f * size for f in (0.0, *BOUND_STARTS[:2])], 0.01 * size),
+        # a bound starts inside the signal's span: at its edge it would clip nothing, and a fit there sees no slope
+        "max": (high - BOUND_REACH * size, high, [high - f * size for f in BOUND_STARTS], 0.01 * size),
+        "min": (low, low + BOUND_REACH * size, [low + f * size for f in BOUND_STARTS], 0.01 * size),
         "deadzone": (0.0, 0.5 * largest, [0.1 * largest, 0.3 * largest], 0.01 * largest),
         "backlash": (0.0, 0.5 * size, [0.05 * size, 0.2 * size], 0.01 * size),
         "rate": (0.01 * fastest, fastest, [0.3 * fastest, 0.1 * fastest], 0.01 * fastest),

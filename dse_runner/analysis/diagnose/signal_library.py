@@ -375,6 +375,15 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
             held_out(fits, client, late, more, parts, scales)
         selected = explain.select(everything[1:], baseline)
 
+        def joining(h: str) -> dict[str, float]:
+            """Where an effect joining a set starts: its single fit, unless that did no better than none (an
+            effect another masks, such as the second side of a clip: alone it fitted to nothing), then its
+            own first start."""
+            single = full[(h,)]
+            if single.error is None and explain.bic(single) < explain.bic(full[()]):
+                return {n: single.values[n] for n in library[h].names}
+            return library[h].start(0)
+
         def extended(current: Candidate) -> Candidate | None:
             """The best of ``current`` with one more effect (scouted from ``current``'s fit and the effect's
             single fit, the best few fitted on), cross-validated: it, if it beats ``current`` and every
@@ -385,8 +394,8 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
             sets = [x for x in sets if frozenset(x) not in known]
             if not sets:
                 return None
-            starts = {x: {**current.full.values, **{n: full[(h,)].values[n] for h in x if h not in current.ids
-                                                    for n in library[h].names}} for x in sets}
+            starts = {x: {**current.full.values, **{k: v for h in x if h not in current.ids
+                                                    for k, v in joining(h).items()}} for x in sets}
             say(f"growing {current.label}: {len(sets)} sets with one more effect, {SCOUTING} iterations each")
             scouted = fit_all(fits, [problem("+".join(x), x, scenarios, starts[x], SCOUTING) for x in sets], client,
                               scales, report)
@@ -411,6 +420,23 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
                 return best
             return None
 
+        def judge_members(answer: Candidate) -> None:
+            """Each set of the answer without one member, fitted and cross-validated if it was not yet: the noise
+            rule weighs every member by what taking it out costs, and keeps one it cannot weigh."""
+            known = {frozenset(c.ids): c for c in everything if c.validated}
+            missing = [tuple(i for i in answer.ids if i != m) for m in answer.ids if len(answer.ids) > 1]
+            missing = [x for x in missing if frozenset(x) not in known]
+            if not missing or not parts:
+                return
+            say(f"judging each member of {answer.label}: {len(missing)} sets without one, fitted and cross-validated")
+            start = dict(answer.full.values)
+            fitted = fit_all(fits, [problem("+".join(x), x, scenarios, start) for x in missing], client, scales, report)
+            folded = fit_all(fits, [p for x in missing for p in by_fold(x, fitted["+".join(x)].values)], client,
+                             scales, report)
+            judged = [Candidate(x, fitted["+".join(x)]) for x in missing]
+            held_out(fits, client, judged, folded, parts, scales)
+            everything.extend(judged)
+
         growth: list[dict[str, Any]] = []
         while selected.ids and len(selected.ids) < MAX_EFFECTS and explain.above_floor(
                 selected.cross_validated, 1.0, noise_factor):
@@ -419,6 +445,7 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
                 break
             say(f"grown: {grown.label}, held-out {grown.cross_validated:.3g} noise floors")
             selected = grown
+        judge_members(selected)
         chosen, dropped = explain.claimed(selected, everything, baseline)
         floor = 1.0  # residuals are in units of each recording's noise
         verdict = explain.verdict(chosen.cross_validated, floor, noise_factor, chosen is not baseline)

@@ -101,13 +101,16 @@ def held_out_error(z: np.ndarray, y: np.ndarray, run: np.ndarray, threshold: flo
     return total
 
 
-def choose_threshold(z: np.ndarray, y: np.ndarray, run: np.ndarray) -> float:
-    """The threshold of least leave-one-scenario-out error (the largest of those that tie with it), or inf
-    when none predicts held-out scenarios better than no term at all."""
+def choose_threshold(z: np.ndarray, y: np.ndarray, run: np.ndarray,
+                     solve: Callable[[np.ndarray, np.ndarray, float], np.ndarray] = stlsq) -> float:
+    """The threshold of THRESHOLDS (shares of the target's RMS) of least leave-one-run-out error (the largest
+    of those that tie with it), or inf when none predicts held-out runs better than no term at all.
+    ``solve``: the sparse regression (STLSQ as set up here unless a caller, such as the Robotti's
+    discovery, brings its own)."""
     size = float(np.sqrt(np.mean(y ** 2))) if len(y) else 0.0
     if size == 0.0 or len(np.unique(run)) < 2:
         return math.inf
-    errors = {share * size: held_out_error(z, y, run, share * size) for share in THRESHOLDS}
+    errors = {share * size: held_out_error(z, y, run, share * size, solve) for share in THRESHOLDS}
     best = min(errors.values())
     if best >= float(np.sum(y ** 2)):
         return math.inf

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ....analysis.diagnose.derivative_discovery.propose import choose_threshold as generic_threshold
 from ....analysis.diagnose.derivative_discovery.propose import held_out_error
 from ....analysis.diagnose.derivative_discovery.propose import stlsq as sparse_regression
 from .. import correction
@@ -17,7 +18,6 @@ from .observe import (DYNAMIC, OUTPUT, Column, Observed, Reference, Regression, 
                       reference_state, term_columns)
 
 CHANNELS = (*DYNAMIC, *OUTPUT)
-THRESHOLDS = (0.02, 0.05, 0.1, 0.2, 0.35)  # STLSQ thresholds tried, as fractions of the channel target's RMS
 BOOTSTRAP = 50  # run resamples
 INCLUSION = 0.7  # share of the resamples a term must be picked in
 SEED = 0  # every proposal is seeded: a re-run asks for the same points and resumes from the store
@@ -205,17 +205,8 @@ def _scaled(reg: Regression) -> tuple[np.ndarray, np.ndarray]:
 
 
 def choose_threshold(z: np.ndarray, y: np.ndarray, run: np.ndarray) -> float:
-    """The threshold of ``THRESHOLDS`` (times the target's RMS) with the least leave-one-run-out error, the
-    largest within 2 % of it (the sparser model, as a tie); math.inf when none beats the empty model."""
-    size = float(np.sqrt(np.mean(y ** 2))) if len(y) else 0.0
-    if size == 0.0 or len(np.unique(run)) < 2:
-        return math.inf
-    errors = {f * size: held_out_error(z, y, run, f * size, stlsq) for f in THRESHOLDS}
-    empty = float(np.sum(y ** 2))
-    best = min(errors.values())
-    if best >= empty:
-        return math.inf
-    return max(th for th, e in errors.items() if e <= 1.02 * best)
+    """The generic discovery's threshold (derivative_discovery.propose), with this module's STLSQ."""
+    return generic_threshold(z, y, run, stlsq)
 
 
 def propose(regs: Mapping[str, Regression], max_terms: int = 3, seed: int = SEED,

@@ -11,12 +11,13 @@ from typing import Any
 from ....sweeps.fit import FitProblem, FitResult
 from ....analysis.diagnose import explain
 from .. import correction
+from ....analysis.diagnose.derivative_discovery.prove import PRUNE_SE
+from ....analysis.diagnose.derivative_discovery.prove import pruned as generic_pruned
 from ....analysis.diagnose.explain import Candidate
 from .observe import Observed, held, vehicle_values
 from .propose import Proposal, candidates, propose, regressions
 from .rank_terms import DISCOVERED, Fitter, Screen, extended_margin, held_shapes, library_ids, screened
 
-PRUNE_SE = 2.0  # a fitted term within this many standard errors of zero is dropped
 
 
 def with_terms(problem: FitProblem, vehicle: str, terms: Mapping[str, float], start: Mapping[str, float],
@@ -41,14 +42,10 @@ def fitted_terms(fit: FitResult) -> dict[str, float]:
 
 
 def pruned(fit: FitResult, factor: float = PRUNE_SE) -> dict[str, float]:
-    """The fitted terms at least ``factor`` cluster-robust standard errors from zero (an undetermined one is dropped)."""
-    out = {}
-    for name, value in fit.values.items():
-        if correction.is_correction(name):
-            se = fit.standard_error.get(name, math.inf)
-            if math.isfinite(se) and abs(value) >= factor * se and value != 0.0:
-                out[name.rsplit(".", 1)[-1]] = value
-    return out
+    """The fitted correction terms at least ``factor`` cluster-robust standard errors from zero (an undetermined
+    one is dropped; derivative_discovery.prove.pruned), local names -> values."""
+    kept = generic_pruned(fit, [n for n in fit.values if correction.is_correction(n)], factor)
+    return {name.rsplit(".", 1)[-1]: fit.values[name] for name in kept}
 
 
 def refilled(kept: Mapping[str, float], proposal: Proposal, tried: set[str], max_terms: int) -> dict[str, float]:
