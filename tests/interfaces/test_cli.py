@@ -130,3 +130,25 @@ def test_diagnose_refuses_what_no_diagnosis_can_honour_in_one_line(tmp_path, opt
     assert done.returncode == 2
     (line,) = done.stderr.strip().splitlines()  # one line, no traceback
     assert line.startswith(f"error: {named}"), done.stderr
+
+
+def test_simulate_on_a_new_record_prints_its_error_against_the_recording(tmp_path):
+    """Predicting a record: a scenario whose recording has a column named like an output (y, tanks.y) is
+    compared with it, in text and in --json, the error being the RMS of simulated minus recorded."""
+    import numpy as np
+
+    tanks = REPO / "jobs" / "cascaded_tanks"
+    values = tmp_path / "values.yaml"
+    values.write_text("tanks.k1: 0.046\ntanks.k2: 0.063\ntanks.k3: 0.09\ntanks.k4: 0.055\ntanks.x1_0: 10.4\n"
+                      "tanks.x2_0: 5.13\nstate_max(tanks.x2): 10.0\n")
+    done = dse_runner("simulate", tanks / "multimodel.yaml", "-s", tanks / "estimation", "--values", values,
+                      "--csv", tmp_path / "predicted.csv", "--json")
+    assert done.returncode == 0, done.stderr
+    found = strict_loads(done.stdout)
+    predicted = np.genfromtxt(tmp_path / "predicted.csv", delimiter=",", names=True)
+    recorded = np.genfromtxt(tanks / "estimation" / "level.csv", delimiter=",", names=True)
+    assert np.array_equal(predicted["time"], recorded["time"])  # the record's 4 s step
+    by_hand = float(np.sqrt(np.mean((predicted["tanksy"] - recorded["y"]) ** 2)))
+    assert found["objectives"] == {"y_rmse": pytest.approx(by_hand, rel=1e-12)}
+    text = dse_runner("simulate", tanks / "multimodel.yaml", "-s", tanks / "estimation", "--values", values)
+    assert f"  {'y_rmse':<20} {by_hand:10.4f}" in text.stdout.splitlines()

@@ -455,8 +455,8 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
             say(f"the library leaves {chosen.cross_validated:.3g} noise floors held-out: seeking a correction of "
                 "the model-exchange FMUs' state derivatives")
             freed = (*base, *(p for n in chosen.ids for p in library[n].parameters))
-            discovery = discover_derivatives(fits, client, chosen, freed, scales, validation.folds, say=say,
-                                             fitted=validation.fitted, pieces=validation.pieces)
+            discovery = noise_ruled(discover_derivatives(fits, client, chosen, freed, scales, validation.folds,
+                                                         say=say, fitted=validation.fitted, pieces=validation.pieces))
             say(f"discovered {'; '.join(e['readable'] for e in discovery.effects())}"
                 if isinstance(discovery, Discovered) else f"nothing discovered: {discovery.reason}")
         twins = signal_claims.alike(chosen, everything)
@@ -488,6 +488,20 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
                        signal_report.write(diagnosis.to_json(), Path(space.output), space.name, figures).items()}
     diagnosis.figures = [str(f) for f in figures]
     return diagnosis
+
+
+def noise_ruled(found: Discovered | NotDiscovered) -> Discovered | NotDiscovered:
+    """Discovered terms face the library's noise rule: taking them out must raise the held-out mean square by
+    at least one noise variance (explain.NOISE_RULE), or they change the prediction by less than the noise and
+    are not claimed."""
+    if not isinstance(found, Discovered):
+        return found
+    worth = explain.mean_square(found.baseline) - explain.mean_square(found.candidate)
+    if worth >= explain.NOISE_RULE:
+        return found
+    return NotDiscovered(f"{', '.join(e['readable'] for e in found.effects())} changes the held-out mean square by "
+                         f"{worth:.3g} noise variances, less than {explain.NOISE_RULE:g}: within the noise",
+                         found.proposal, found.candidate, found.baseline, found.seconds, found.rejected)
 
 
 def screen_sse(point: Point, scenarios: Sequence[str], residuals) -> float:

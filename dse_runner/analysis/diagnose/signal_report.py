@@ -72,6 +72,11 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
                   + ", ".join(d["id"] for d in found["dropped"]) + "."]
     lines += ["", "## Candidates (best held-out first)", ""]
     lines += markdown_table(found["candidates"][:8], ["id", "held_out", "bic"])
+    failed = [c for c in found["candidates"] if c.get("error")]
+    rejected = {**{c["id"]: c["error"] for c in failed}, **((found.get("discovery") or {}).get("rejected") or {})}
+    if rejected:
+        lines += ["", "Rejected, their fits could not start: " + "; ".join(f"{k} ({v})" for k, v in rejected.items())
+                  + "."]
     lines += ["", f"Runner-up: {found.get('runner_up') or 'none'}.", ""]
     for step in found.get("growth") or []:
         lines += [f"Grown from {step['from']}: {step['tried']} sets with one more effect tried, the best "
