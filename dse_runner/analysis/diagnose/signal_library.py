@@ -152,8 +152,12 @@ class SignalDiagnosis:
                     for kind, value in effect["parameters"].items()]
             into = f" into {effect['into']}" if effect.get("into") else ""
             lines.append(f"{effect['id']}({effect['target']}){into}: {', '.join(told)}")
-        lines.append(f"held-out error: {found['held_out_before']:.2f} before, {found['held_out_after']:.2f} after, "
+        judged = "error on the samples fitted (nothing could be held out)" if (
+            self.validation is not None and not self.validation.folds) else "held-out error"
+        lines.append(f"{judged}: {found['held_out_before']:.2f} before, {found['held_out_after']:.2f} after, "
                      "in noise floors (each compared signal's residuals over its recording's noise)")
+        if self.validation is not None:
+            lines.append(self.validation.text)
         lines.append(f"verdict: {found['verdict_text']}"
                      + (f"; runner-up {found['runner_up']}" if found["runner_up"] else ""))
         if found["files"]:

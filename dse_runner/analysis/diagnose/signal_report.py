@@ -47,7 +47,9 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
     located = found.get("located") or {}
     pairs = found.get("pairs") or {}
     lines = [f"# Diagnosis of {title}", "", f"**Verdict** {found.get('verdict_text') or found['verdict']}.", "",
-             f"Held-out error {found['held_out_before']:.3g} noise floors before (the calibrated model), "
+             ("Error on the samples fitted (nothing could be held out) " if (found.get("validation") or {}).get(
+                 "by") == "in sample" else "Held-out error ") +
+             f"{found['held_out_before']:.3g} noise floors before (the calibrated model), "
              f"{found['held_out_after']:.3g} after; 1 is the recordings' own noise.", "",
              "## Compared signals", ""]
     validation = found.get("validation") or {}
