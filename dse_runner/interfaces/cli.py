@@ -673,7 +673,9 @@ def diagnose(
              "its parameters the calibration. The first installed hypothesis library that serves it runs "
              "(the Robotti's for field data), else the built-in signal effects.")] = None,
     out: Annotated[Path, typer.Option(help="Folder for results, the new model and the report.")] = Path("out/diagnosis"),
-    folds: Annotated[int, typer.Option(help="Cross-validation folds across runs.")] = 3,
+    folds: Annotated[int, typer.Option(help="Cross-validation folds across runs; with one record, blocks of its "
+                                            "time held out (the first, where the unknown initial state shows, is "
+                                            "always fitted).")] = 3,
     hypothesis: Annotated[list[str] | None, typer.Option(
         "--hypothesis", help="Try only this hypothesis of the library that serves the space, e.g. wheel_slip or "
                              "'input_delay(msd.F)' (repeatable). Default: every one.")] = None,
