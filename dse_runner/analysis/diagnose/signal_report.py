@@ -37,7 +37,8 @@ def effect_rows(effects: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
         values = e["terms"] if e["id"] == DISCOVERED else e["parameters"]  # a term's interval is keyed by its text
         for kind, value in values.items():
             low, high = e["intervals"][kind]
-            rows.append({"effect": f"{e['id']}({e['target']})", "parameter": kind, "value": value,
+            into = f" into {e['into']}" if e.get("into") else ""
+            rows.append({"effect": f"{e['id']}({e['target']}){into}", "parameter": kind, "value": value,
                          "95 % interval": f"{_number(low)} to {_number(high)}", "partial": e.get("partial", "")})
     return rows
 
