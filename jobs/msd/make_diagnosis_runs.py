@@ -11,7 +11,10 @@ Each case conceals something the model does not know (CASES):
 * ``force-late``: the plant receives the logged force 0.3 s late;
 * ``sensor-gain-offset``: the position sensor reads 1.1 x + 0.01 m (a pair);
 * ``force-clipped``: the actuator saturates: the plant receives the logged force clipped to ±1.2 N (a hard
-  nonlinearity on both sides).
+  nonlinearity on both sides);
+* ``force-deadzone``: the actuator ignores forces under 0.5 N and passes the rest less 0.5 N;
+* ``force-rate-limited``: the actuator's force changes by at most 3 N/s (at the log's sampling);
+* ``sensor-saturated``: the position sensor reads at most 0.08 m.
 
 The effects are made here, not with the master's signal effects the diagnosis fits: the force's log is
 shifted in time or clipped before the plant sees it, and the sensor's gain and offset are applied to the simulated
@@ -44,6 +47,9 @@ CASES: dict[str, dict[str, float]] = {
     "force-late": {"force_delay": 0.3},
     "sensor-gain-offset": {"sensor_gain": 1.1, "sensor_offset": 0.01},
     "force-clipped": {"force_limit": 1.2},
+    "force-deadzone": {"force_deadzone": 0.5},
+    "force-rate-limited": {"force_rate": 3.0},
+    "sensor-saturated": {"sensor_max": 0.08},
 }
 DURATION = 10.0  # s
 LOG_INTERVAL = 0.05  # s: the force log's and the position recording's sampling
@@ -71,12 +77,18 @@ def record(name: str, case: Mapping[str, float], rng: np.random.Generator) -> tu
     shape, x0 = RUNS[name]
     t = np.round(np.arange(0.0, DURATION + 1e-9, LOG_INTERVAL), 10)
     force = shape(t)
-    limit = case.get("force_limit", np.inf)
-    received = Series(t + case.get("force_delay", 0.0), np.clip(force, -limit, limit), "hold")  # held before it starts
+    limit, zone = case.get("force_limit", np.inf), case.get("force_deadzone", 0.0)
+    applied = np.sign(force) * np.maximum(np.abs(np.clip(force, -limit, limit)) - zone, 0.0)
+    if "force_rate" in case:  # the actuator follows the log at most this fast, sample by sample
+        step = case["force_rate"] * LOG_INTERVAL
+        for k in range(1, applied.size):
+            applied[k] = applied[k - 1] + np.clip(applied[k] - applied[k - 1], -step, step)
+    received = Series(t + case.get("force_delay", 0.0), applied, "hold")  # held before it starts
     run = simulate(MODEL, Scenario(name, inputs={"msd.F": received}, stop_time=DURATION, step=TRUTH_STEP),
                    {"msd.x0": x0, **PLANT})
     x = np.interp(t, run.time, run.outputs["msd.x"])
-    measured = case.get("sensor_gain", 1.0) * x + case.get("sensor_offset", 0.0) + rng.normal(0.0, NOISE, t.size)
+    sensed = case.get("sensor_gain", 1.0) * x + case.get("sensor_offset", 0.0) + rng.normal(0.0, NOISE, t.size)
+    measured = np.minimum(sensed, case.get("sensor_max", np.inf))  # a saturated reading is flat: its noise too
     return t, force, measured
 
 

@@ -116,8 +116,8 @@ def verdict_text(verdict: str, held_out: float, chosen: Candidate, interfaces: M
     if twins:
         parts.append(f"the recordings cannot tell {named} from {', '.join(twins)}: a run that moves the inputs "
                      "differently (another shape or timing, or a release away from rest) would")
-    if verdict in (explain.PARTIAL, explain.UNEXPLAINED):
-        parts.append(interior(interfaces, factor))
+    if verdict in (explain.PARTIAL, explain.UNEXPLAINED) and explain.above_floor(held_out, 1.0, factor):
+        parts.append(interior(interfaces, factor))  # not when only the residuals' colour made it partial
     return "; ".join(parts)
 
 
