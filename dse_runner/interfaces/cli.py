@@ -151,13 +151,16 @@ def simulate(
     interface: Annotated[str | None, typer.Option(
         help="cs or me: run every FMU through this interface. Default: co-simulation when offered.")] = None,
     objective: Annotated[list[str] | None, typer.Option(
-        "--objective", help="A registered objective or module:function; repeatable. Default: the scenario "
-                            "kind's (field data: the GPS objectives).")] = None,
+        "--objective", help="A registered objective, module:function, or a spec as space.yaml writes one: "
+                            "'{signal: inst.var, recorded: column, metric: rmse}'; repeatable. Default: the "
+                            "scenario kind's (field data: the GPS objectives), or each recorded column named "
+                            "like an output, by its RMS error.")] = None,
     csv: Annotated[Path | None, typer.Option(help="Write every output here: time, then one column per output.")] = None,
     out: Annotated[Path | None, typer.Option(help="Folder for trajectory.csv and a plot (plot.png).")] = None,
     as_json: JsonFlag = False,
 ) -> None:
     """Simulate MODEL once (on a scenario if given); print the objectives and final outputs."""
+    from ..simulation import objectives as objs
     from ..simulation.run import simulate as run_simulation
     from ..simulation.run import summary, write_csv
     from ..simulation.values import read_values
@@ -170,7 +173,7 @@ def simulate(
         values = {**(read_values(values_file) if values_file is not None else {}),
                   **dict(parse_assignment(a) for a in set_ or [])}
         result = run_simulation(model, scenario, values, start_time, stop_time, step,
-                                objectives=list(objective) if objective else None, interface=interface)
+                                objectives=objs.from_command_line(objective) if objective else None, interface=interface)
         bare = model.suffix.lower() == ".fmu"  # one FMU: its variables' own names
         if csv is not None:
             files["csv"] = write_csv(result, csv, bare)

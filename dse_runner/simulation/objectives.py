@@ -123,6 +123,46 @@ def normalise(objectives: list[str] | Mapping[str, ObjectiveSpec | Mapping[str, 
     return {name: name for name in objectives}
 
 
+def from_command_line(items: Sequence[str]) -> dict[str, ObjectiveSpec]:
+    """``--objective`` values: a registered name or ``module:function`` as they are, or a spec as space.yaml
+    writes one, in YAML's flow form: ``{signal: tank.level, recorded: level, metric: rmse}`` (named
+    ``level_rmse``: the recorded column, or the signal, and the metric or reduction) or
+    ``{peak: {signal: tank.level, reduce: max}}`` (named as written)."""
+    import yaml
+
+    found: dict[str, ObjectiveSpec] = {}
+    for item in items:
+        if not item.lstrip().startswith("{"):
+            found[item] = item
+            continue
+        try:
+            data = yaml.safe_load(item)
+        except yaml.YAMLError as e:
+            raise DseError(f"--objective {item!r}: not a YAML mapping: {str(e).splitlines()[0]}") from None
+        if not isinstance(data, dict):
+            raise DseError(f"--objective {item!r}: give a name, module:function, or a mapping such as "
+                           "'{signal: inst.var, recorded: column, metric: rmse}'")
+        if len(data) == 1 and isinstance(next(iter(data.values())), dict):  # {name: {...}}
+            (name, spec), = data.items()
+            found[str(name)] = _parsed(str(name), spec)
+            continue
+        try:
+            spec = TypeAdapter(ObjectiveSpec).validate_python(data)
+        except ValidationError as e:
+            raise DseError(format_validation_error(f"--objective {item}", e)) from None
+        found[_named(spec)] = spec
+    return found
+
+
+def _named(spec: ObjectiveSpec) -> str:
+    """A spec's name when the command line gives none: what it reads and how it scores it."""
+    if isinstance(spec, Fit):
+        return f"{spec.recorded}_{spec.metric}"
+    if isinstance(spec, Reduce):
+        return f"{spec.signal.rsplit('.', 1)[-1]}_{spec.reduce}"
+    return "script"
+
+
 def _parsed(name: str, spec: ObjectiveSpec | Mapping[str, Any]) -> ObjectiveSpec:
     if not isinstance(spec, Mapping):
         return spec

@@ -152,3 +152,19 @@ def test_simulate_on_a_new_record_prints_its_error_against_the_recording(tmp_pat
     assert found["objectives"] == {"y_rmse": pytest.approx(by_hand, rel=1e-12)}
     text = dse_runner("simulate", tanks / "multimodel.yaml", "-s", tanks / "estimation", "--values", values)
     assert f"  {'y_rmse':<20} {by_hand:10.4f}" in text.stdout.splitlines()
+
+
+def test_simulate_takes_objectives_written_as_a_space_writes_them():
+    """--objective takes a spec in YAML's flow form, as the error text and space.yaml write them (it used to
+    answer "cannot import '{signal'"): unnamed, it is named for what it reads and how; a misspelt key is named."""
+    tanks = REPO / "jobs" / "cascaded_tanks"
+    done = dse_runner("simulate", tanks / "multimodel.yaml", "-s", tanks / "estimation", "--json",
+                      "--objective", "{signal: tanks.y, recorded: y, metric: max_abs}",
+                      "--objective", "{peak: {signal: tanks.x1, reduce: max}}", "--objective", "{signal: tanks.y, reduce: min}")
+    assert done.returncode == 0, done.stderr
+    found = strict_loads(done.stdout)["objectives"]
+    assert set(found) == {"y_max_abs", "peak", "y_min"} and found["peak"] > found["y_min"] > 0
+    bad = dse_runner("simulate", tanks / "multimodel.yaml", "-s", tanks / "estimation",
+                     "--objective", "{signal: tanks.y, recorded: y, metrc: rmse}")
+    assert bad.returncode != 0
+    assert "--objective {signal: tanks.y, recorded: y, metrc: rmse}: fit.metrc: Extra inputs are not permitted" in bad.stderr
