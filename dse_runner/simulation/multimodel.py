@@ -242,6 +242,9 @@ def load_multimodel(path: str | Path) -> MultiModel:
         text = path.read_text()
     except OSError as e:
         raise DseError(f"cannot read multi-model {path}: {e.strerror}") from None
+    except UnicodeDecodeError:
+        raise DseError(f"{path}: not a multi-model: it is not text (a model is an .fmu file, an FMU source folder, "
+                       "a multi-model YAML file or INTO-CPS's mm.json)") from None
     try:
         data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
     except (json.JSONDecodeError, yaml.YAMLError) as e:

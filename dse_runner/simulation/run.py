@@ -64,13 +64,19 @@ def single_fmu(path: str | Path) -> MultiModel:
     return MultiModel(fmus={name: str(path)}, base_dir=path.parent)
 
 
+def load_model(path: str | Path) -> MultiModel:
+    """The model a path names: an ``.fmu`` file or an FMU source folder (one instance, named after the file:
+    the same name in every command and space), or a multi-model file."""
+    return single_fmu(path) if _is_one_fmu(Path(path)) else load_multimodel(path)
+
+
 def as_plan(model: Plan | MultiModel | str | Path, interface: str | None = None) -> Plan:
     """A checked plan from an ``.fmu`` file, an FMU source folder (built on first use), a multi-model
     file or object, or a plan."""
     if isinstance(model, Plan):
         return model
     if not isinstance(model, MultiModel):
-        model = single_fmu(model) if _is_one_fmu(Path(model)) else load_multimodel(model)
+        model = load_model(model)
     return make_plan(model, interface)
 
 

@@ -40,8 +40,8 @@ from ..simulation import objectives as objs
 from ..simulation import derivative_terms, signal_effects, state_limits
 from ..simulation.cosim import Plan, make_plan
 from ..simulation.experiment import Experiment
-from ..simulation.multimodel import MultiModel, load_multimodel, parse_multimodel
-from ..simulation.run import bound_fields, checked_term, qualify
+from ..simulation.multimodel import MultiModel, parse_multimodel
+from ..simulation.run import bound_fields, checked_term, load_model, qualify
 from ..simulation.scenario import Scenario, ScenarioSpec, Series, kind, load_scenario, nominal, parse_scenario
 from ..simulation.variables import FiniteValue, check_value
 from ..yamlfile import read_yaml, shape
@@ -770,7 +770,7 @@ def resolve_space(spec: SpaceSpec, path: Path) -> Space:
     checked. ``path`` is where relative paths start from (the spec file's folder)."""
     source = str(path)
     if isinstance(spec.multimodel, str):
-        multimodel = load_multimodel(bundled.resolve(spec.multimodel, path.parent))
+        multimodel = load_model(bundled.resolve(spec.multimodel, path.parent))  # or one .fmu, or its sources
     else:
         multimodel = parse_multimodel(spec.multimodel, f"{source}: multimodel", path.parent)
     scenarios = _scenarios(spec, path.parent, source)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import shutil
 
 import pytest
-from conftest import SCENARIOS, write_space
+from conftest import REPO, SCENARIOS, write_space
 
 from dse_runner import DseError
 from dse_runner.sweeps.rank import pareto_mask
@@ -138,3 +138,30 @@ def test_pareto_mask_min_and_max():
     assert pareto_mask(values, ["min", "min"]).tolist() == [True, True, True, False, True]
     # Maximising the second objective: only the points with the largest second value for their first.
     assert pareto_mask(values, ["min", "max"]).tolist() == [True, False, False, False, True]
+
+
+def test_a_space_names_an_fmu_as_simulate_does_and_a_file_that_is_no_model_is_named(tmp_path):
+    """``multimodel: VanDerPol.fmu`` (one FMU, no multi-model file) was read as YAML and failed with an
+    unexpected UnicodeDecodeError. The instance is named after the file, as ``simulate VanDerPol.fmu`` names it,
+    so a values file of one replays in the other."""
+    import shutil
+
+    import yaml
+
+    from dse_runner.simulation.build import build_fmu
+    from dse_runner.simulation.run import simulate
+
+    fmu = tmp_path / "VanDerPol.fmu"
+    shutil.copyfile(build_fmu(REPO / "tests" / "fmus" / "vdp_me"), fmu)
+    spec = {"name": "vdp", "multimodel": "VanDerPol.fmu", "experiment": {"stop_time": 2.0, "step": 0.1},
+            "parameters": {"VanDerPol.mu": [0.5, 1.5]}, "objectives": {"x_end": {"signal": "VanDerPol.x0",
+                                                                                   "reduce": "final"}}}
+    (tmp_path / "space.yaml").write_text(yaml.safe_dump(spec))
+    space = load_space(tmp_path / "space.yaml")
+    assert list(space.plan.variables) == ["VanDerPol"] and space.parameters["VanDerPol.mu"] == [0.5, 1.5]
+    direct = simulate(fmu, None, {"VanDerPol.mu": 1.5}, stop_time=2.0, step=0.1)
+    assert direct.values["VanDerPol.mu"] == 1.5  # the space's names are simulate's
+    (tmp_path / "binary.yaml").write_bytes(fmu.read_bytes())
+    (tmp_path / "space.yaml").write_text(yaml.safe_dump({**spec, "multimodel": "binary.yaml"}))
+    with pytest.raises(DseError, match=r"binary.yaml: not a multi-model: it is not text \(a model is an .fmu file"):
+        load_space(tmp_path / "space.yaml")
