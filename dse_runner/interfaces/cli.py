@@ -136,10 +136,12 @@ def build_fmus(
 
 @app.command()
 def simulate(
-    model: Annotated[Path, typer.Argument(metavar="MODEL", help="An .fmu file, an FMU source folder, or a multi-model "
-                                                                "file (YAML, or INTO-CPS mm.json).")],
+    model: Annotated[Path, typer.Argument(metavar="MODEL", help="An .fmu file, an FMU source folder, a multi-model "
+                                                                "file (YAML, or INTO-CPS mm.json), or a space.yaml: "
+                                                                "its model, experiment and objectives.")],
     scenario: Annotated[Path | None, typer.Option(
-        "--scenario", "-s", help="Scenario folder (scenario.yaml, or a kind's format such as field data).")] = None,
+        "--scenario", "-s", help="Scenario folder (scenario.yaml, or a kind's format such as field data); for a "
+                                 "space, also one of its scenarios by name.")] = None,
     set_: Annotated[list[str] | None, typer.Option(
         "--set", help="instance.variable=value (for one .fmu: variable=value); repeatable.")] = None,
     values_file: Annotated[Path | None, typer.Option(
@@ -165,6 +167,7 @@ def simulate(
     from ..simulation.run import summary, write_csv
     from ..simulation.values import read_values
     from ..simulation.scenario import dropouts_line
+    from ..sweeps.space_run import is_space_file, simulate_space
 
     files: dict[str, Path] = {}
     try:
@@ -172,8 +175,14 @@ def simulate(
             raise DseError(f"--interface {interface!r}: use cs (co-simulation) or me (model exchange)")
         values = {**(read_values(values_file) if values_file is not None else {}),
                   **dict(parse_assignment(a) for a in set_ or [])}
-        result = run_simulation(model, scenario, values, start_time, stop_time, step,
-                                objectives=objs.from_command_line(objective) if objective else None, interface=interface)
+        asked = objs.from_command_line(objective) if objective else None
+        if is_space_file(model):  # the space's own model, experiment, scenarios and objectives
+            if interface is not None:
+                raise DseError("--interface: a space's model runs as its multi-model says")
+            result = simulate_space(model, scenario, values, asked, start_time, stop_time, step)
+        else:
+            result = run_simulation(model, scenario, values, start_time, stop_time, step, objectives=asked,
+                                    interface=interface)
         bare = model.suffix.lower() == ".fmu"  # one FMU: its variables' own names
         if csv is not None:
             files["csv"] = write_csv(result, csv, bare)

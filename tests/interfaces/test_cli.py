@@ -168,3 +168,30 @@ def test_simulate_takes_objectives_written_as_a_space_writes_them():
                      "--objective", "{signal: tanks.y, recorded: y, metrc: rmse}")
     assert bad.returncode != 0
     assert "--objective {signal: tanks.y, recorded: y, metrc: rmse}: fit.metrc: Extra inputs are not permitted" in bad.stderr
+
+
+def test_simulate_a_space_runs_its_own_model_so_values_named_as_the_space_names_them_replay(tmp_path):
+    """A space whose model is inline (instance ``vdp`` of an FMU file named otherwise): its values, as a fit or
+    a diagnosis writes them, replay with ``simulate SPACE.yaml`` on its experiment and objectives; a scenario is
+    chosen by name; several without one is one line listing them."""
+    import yaml
+
+    vdp = REPO / "tests" / "fmus" / "vdp_me"
+    spec = {"name": "inline", "multimodel": {"fmus": {"vdp": str(vdp)}, "instances": {"vdp": {"interface": "me"}}},
+            "experiment": {"stop_time": 2.0, "step": 0.1},
+            "scenarios": [{"name": "low", "parameters": {"vdp.x0": 0.5}}, {"name": "high", "parameters": {"vdp.x0": 2.5}}],
+            "parameters": {"vdp.mu": {"low": 0.5, "high": 2.0}},
+            "objectives": {"x_end": {"signal": "vdp.x0", "reduce": "final"}}, "output": str(tmp_path / "out")}
+    space = tmp_path / "space.yaml"
+    space.write_text(yaml.safe_dump(spec))
+    values = tmp_path / "values.yaml"
+    values.write_text("vdp.mu: 1.5\n")
+    done = dse_runner("simulate", space, "--scenario", "high", "--values", values, "--json")
+    assert done.returncode == 0, done.stderr
+    found = strict_loads(done.stdout)
+    assert found["scenario"] == "high" and found["values"]["vdp.mu"] == 1.5 and found["stop_time"] == 2.0
+    direct = dse_runner("simulate", vdp, "--set", "mu=1.5", "--set", "x0=2.5", "--stop-time", "2", "--step", "0.1",
+                        "--interface", "me", "--objective", "{x_end: {signal: x0, reduce: final}}", "--json")
+    assert strict_loads(direct.stdout)["objectives"]["x_end"] == found["objectives"]["x_end"]
+    both = dse_runner("simulate", space, "--values", values)
+    assert both.returncode != 0 and "the space has 2 scenarios (low, high): name one with --scenario" in both.stderr
