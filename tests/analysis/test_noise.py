@@ -3,6 +3,7 @@ noise-free; and the whiteness test that says when a residual is not the noise.""
 
 from __future__ import annotations
 
+import importlib.util
 import math
 
 import numpy as np
@@ -18,13 +19,11 @@ SMOOTH = 0.3 * np.sin(2 * np.pi * 0.05 * T) + 0.1 * np.sin(2 * np.pi * 0.13 * T 
 
 
 def ar1(rho: float, sigma: float, n: int = N) -> np.ndarray:
-    """AR(1) noise of stationary σ ``sigma`` and lag-1 correlation ``rho``."""
-    w = RNG.normal(0.0, sigma * math.sqrt(1 - rho ** 2), n)
-    e = np.empty(n)
-    e[0] = RNG.normal(0.0, sigma)
-    for k in range(1, n):
-        e[k] = rho * e[k - 1] + w[k]
-    return e
+    """AR(1) noise of stationary σ ``sigma`` and lag-1 correlation ``rho``: benchmarks/coloured_noise.py's."""
+    spec = importlib.util.spec_from_file_location("coloured_noise", REPO / "benchmarks" / "coloured_noise.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.ar1(RNG, rho, sigma, n)
 
 
 def test_white_noise_on_a_smooth_signal_reads_its_sigma():
