@@ -111,10 +111,9 @@ def screen(none: FitResult, singles: Mapping[str, FitResult], bounds: Mapping[st
     the checked pairs, best real BIC first, and how many pairs were predicted."""
     n = len(stacked(none))
     calibrated = len(none.names)
-    parameters = lambda pair: len({*singles[pair[0]].names, *singles[pair[1]].names})  # noqa: E731
-    pairs = [tuple(sorted(p)) for p in itertools.combinations(singles, 2)
-             if len({*singles[p[0]].names, *singles[p[1]].names}) == len(singles[p[0]].names) + len(singles[p[1]].names)
-             - calibrated]
+    own = {h: set(f.names) - set(none.names) for h, f in singles.items()}  # each effect's own parameters
+    parameters = lambda pair: calibrated + len(own[pair[0]] | own[pair[1]])  # noqa: E731
+    pairs = [tuple(sorted(p)) for p in itertools.combinations(singles, 2) if not own[p[0]] & own[p[1]]]
     solved = {p: prediction(none, singles[p[0]], singles[p[1]]) for p in pairs}
     checked = to_check(singles, {p: s for p, (_, s) in solved.items()}, parameters, n)
     trials = {}

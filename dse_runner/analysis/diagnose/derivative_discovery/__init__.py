@@ -143,7 +143,6 @@ def observe(space: Space, point: Point, instances: Sequence[Instance], names: Se
             for scenario in space.scenarios if names is None or scenario.name in names]
 
 
-
 def fitted_error(fit: FitResult) -> dict[str, float]:
     """With a single scenario no fold can be held out: its fitted RMS stands in (optimistic, and said so)."""
     return {"fitted": explain.fitted_rms(fit)}

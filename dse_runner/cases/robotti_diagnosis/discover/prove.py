@@ -10,14 +10,13 @@ from typing import Any
 
 from ....sweeps.fit import FitProblem, FitResult
 from ....analysis.diagnose import explain
-from .. import correction
 from ....analysis.diagnose.derivative_discovery.prove import PRUNE_SE
 from ....analysis.diagnose.derivative_discovery.prove import pruned as generic_pruned
+from .. import correction
 from ....analysis.diagnose.explain import Candidate
 from .observe import Observed, held, vehicle_values
 from .propose import Proposal, candidates, propose, regressions
 from .rank_terms import DISCOVERED, Fitter, Screen, extended_margin, held_shapes, library_ids, screened
-
 
 
 def with_terms(problem: FitProblem, vehicle: str, terms: Mapping[str, float], start: Mapping[str, float],
