@@ -81,6 +81,10 @@ class Options(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False, populate_by_name=True)
 
 
+class BudgetWarning(UserWarning):
+    """A search that will run well under its budget: how many points it runs, and how to get more."""
+
+
 class Strategy(ABC):
     """Ask for points, be told how they did: the contract of ``search.strategy`` and of the plug-ins in
     the entry-point group ``dse_runner.search``, which name a subclass.
@@ -107,7 +111,7 @@ class Strategy(ABC):
     results instead of simulating them again. A strategy never simulates anything itself.
 
     Optional parts, with defaults that do nothing: :meth:`tell` (ignored: a strategy that learns
-    nothing from results), ``Options`` (no options of its own), ``size`` (unknown),
+    nothing from results), ``Options`` (no options of its own), ``size`` (unknown), :meth:`spending` (silent),
     ``closed_loop`` (True; False: a grid, whose points are all known without results and which the
     sweep runs in large chunks), ``multi_objective`` (False; True: it optimises the ranking's
     Pareto objectives, and the space must list two or more)."""
@@ -117,6 +121,11 @@ class Strategy(ABC):
     Options: ClassVar[type[BaseModel]] = Options
 
     size: int | None = None  # open loop: how many points it will ask, where known without asking them
+
+    def spending(self) -> str | None:
+        """One line when the strategy will ask well under its budget (``max_points``), saying how many
+        distinct points it runs and how to get more; None when it uses its budget or cannot know."""
+        return None
 
     def __init__(self, problem: Problem):
         self.problem = problem

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from collections import deque
 from collections.abc import Callable, Collection, Iterator
 from concurrent.futures import CancelledError
@@ -45,7 +46,7 @@ from .closed_loop import SearchSource
 from .cluster import WorkerWatch, connect, total_threads, wait_until_ended, worker_grace
 from .domain import Point
 from .expand import TaskBatch, blocks, chunked, count, distinct, points_of, tally, undone
-from .search import strategy
+from .search import BudgetWarning, strategy
 from .spec import Space
 # The status file's models live in status.py; importing them from here keeps working.
 from .status import STATUS_SECONDS, SearchStatus, SweepReport, WorkerActivity, load_status, save_status
@@ -123,6 +124,8 @@ def submit(space: Space, progress: SweepProgress | None = None, client=None,
         report.total = search.max_points * len(space.scenarios)
         source: JobSource = SearchSource(space, shipment.key, report.search)
     else:
+        if points is None and (note := space.strategy().spending()):
+            warnings.warn(BudgetWarning(note), stacklevel=2)
         if points is not None and tasks is None:
             points, only = distinct(points, only)  # a repeat would be a second chunk of the same tasks
             tasks = list(blocks(space, points, only))  # a given list of points: its tasks fit in memory

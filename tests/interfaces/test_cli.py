@@ -117,6 +117,12 @@ def test_sensitivity_errors_name_the_culprit(tmp_path, dask_scheduler):
     done = dse_runner("submit", few, "--no-dashboard")
     assert done.returncode == 2 and "search: sobol_indices needs at least 5 points for 3 parameters" in done.stderr
 
+    spent = ishigami_space(tmp_path / "spent", dask_scheduler, search={"strategy": "morris", "max_points": 60},
+                           parameters={"ishigami.x1": {"low": -1, "high": 1}, "ishigami.x2": {"low": -1, "high": 1}})
+    done = dse_runner("submit", spent, "--no-dashboard", "--json")  # the budget's line on stderr: JSON stays strict
+    assert done.returncode == 0 and strict_loads(done.stdout)["tasks"] == 16
+    assert "warning: search: morris runs 16 distinct points of max_points 60" in done.stderr
+
     text = ishigami_space(tmp_path / "text", dask_scheduler, search={"strategy": "morris", "max_points": 40},
                           parameters={"ishigami.x1": {"low": -1, "high": 1}, "ishigami.a": [7, "seven"]})
     done = dse_runner("submit", text, "--no-dashboard")

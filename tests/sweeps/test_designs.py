@@ -65,6 +65,21 @@ def test_a_point_met_twice_is_asked_once_and_the_budget_counts_distinct_points()
     assert len(every) <= 9  # a 3 x 3 grid has 9 points; the design stops growing when nothing new comes
 
 
+def test_a_design_that_cannot_spend_its_budget_says_how_many_points_it_runs_and_how_to_get_more():
+    """Morris on 4 levels in 2-D has 16 distinct points, whatever the budget; on grids, the grids hold the
+    points; a design that spends its budget says nothing."""
+    morris = search.strategy("morris")(problem(X, Z, max_points=60))
+    assert morris.size == 16
+    assert morris.spending() == ("search: morris runs 16 distinct points of max_points 60: 4 levels over 2 "
+                                 "parameters give at most 16 points; more levels (search: {levels: 8}) give more")
+    finer = search.strategy("morris")(problem(X, Z, max_points=60, options={"levels": 8}))
+    assert finer.size > 50 and finer.spending() is None
+    grids = search.strategy("sobol_indices")(problem(GRID, Dimension("m.h", low=0.0, high=1.0, step=0.5),
+                                                     max_points=60))
+    assert grids.size == 9 and "grids and choices hold 9 points" in grids.spending()
+    assert search.strategy("sobol_indices")(problem(X, Y, Z, max_points=101)).spending() is None
+
+
 def test_the_same_seed_asks_the_same_points_and_another_seed_others():
     assert asked("sobol_indices", problem(X, Y, seed=5)) == asked("sobol_indices", problem(X, Y, seed=5))
     assert asked("sobol_indices", problem(X, Y, seed=5)) != asked("sobol_indices", problem(X, Y, seed=6))

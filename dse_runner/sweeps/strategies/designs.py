@@ -20,6 +20,7 @@ reject is not asked, and its block is left out of the indices.
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass, replace
 from typing import Any, ClassVar
@@ -113,6 +114,29 @@ class SensitivityDesign(Strategy):
     def ask(self) -> Point | None:
         return next(self._points, None)
 
+    def spending(self) -> str | None:
+        """Said when a whole block of the budget is left: the design's grid (Morris' levels, the grids and
+        choices of the parameters) holds fewer distinct points than the budget buys rows, or the
+        constraints reject some."""
+        left = self.problem.max_points - self.size
+        if left < self.design.block:
+            return None
+        return (f"search: {self.label} runs {self.size} distinct points of max_points {self.problem.max_points}: "
+                f"{self.more()}")
+
+    def more(self) -> str:
+        """How to get more distinct points out of the design."""
+        finite = distinct_points(self.problem.dimensions)
+        if finite is not None:
+            return f"the parameters' grids and choices hold {finite} points; finer grids or intervals give more"
+        return "the constraints leave few points; widen them, or lower max_points"
+
+
+def distinct_points(dimensions: tuple[Dimension, ...]) -> int | None:
+    """How many points the parameters' grids and choices hold, or None when one is an interval."""
+    grids = [d.grid() for d in dimensions]
+    return None if any(g is None for g in grids) else math.prod(len(set(g)) for g in grids)
+
 
 def _budgeted(design: Design, problem: Problem) -> tuple[int, list[Point]]:
     """How many leading blocks fit ``max_points`` distinct admitted points, and those points in order."""
@@ -186,6 +210,12 @@ class Morris(SensitivityDesign):
         units = morris.sample(salib_problem(problem.dimensions), n, num_levels=self.options.levels, seed=problem.seed)
         return Design("morris", units, self.block_of(len(problem.dimensions), self.options),
                       levels=self.options.levels)
+
+    def more(self) -> str:
+        """Morris moves on a grid of ``levels`` per parameter, which holds levels^D points at most."""
+        levels, d = self.options.levels, len(self.problem.dimensions)
+        return (f"{levels} levels over {d} parameters give at most {levels ** d} points; more levels "
+                f"(search: {{levels: {2 * levels}}}) give more")
 
 
 class FastOptions(Options):
