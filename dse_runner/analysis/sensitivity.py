@@ -25,10 +25,9 @@ import numpy as np
 import pandas as pd
 
 from ..errors import DseError
-from ..simulation.objectives import is_vector, normalise
 from ..sweeps.constraints import compile_constraint
 from ..sweeps.domain import Dimension
-from ..sweeps.rank import REDUCED, current_rows, load_sweep_spec, pick_sweep
+from ..sweeps.rank import REDUCED, current_rows, load_sweep_spec, pick_sweep, scalar_objectives
 from ..sweeps.search import Problem, strategy
 from ..sweeps.spec import SpaceSpec, dimension
 from ..sweeps.strategies.designs import Design, SensitivityDesign, salib_problem
@@ -149,7 +148,7 @@ def sensitivity(output: Any, sweep: str | None = None, objectives: list[str] | N
                        "uncertain parameters as parameters of a sobol_indices sweep instead")
     design, dimensions = stored_design(spec)
     parameters = [d.name for d in dimensions]
-    scalar = [n for n, o in normalise(spec.objectives or []).items() if not is_vector(o)]
+    scalar = scalar_objectives(spec, output, sweep)
     for name in objectives or []:
         if name not in scalar:
             raise DseError(f"objective {name!r} is not among sweep {sweep!r}'s ({', '.join(scalar)})")

@@ -167,6 +167,7 @@ def simulate(
     from ..simulation.run import summary, write_csv
     from ..simulation.values import read_values
     from ..simulation.scenario import dropouts_line
+    from ..simulation.user_modules import import_beside
     from ..sweeps.space_run import is_space_file, simulate_space
 
     files: dict[str, Path] = {}
@@ -176,6 +177,8 @@ def simulate(
         values = {**(read_values(values_file) if values_file is not None else {}),
                   **dict(parse_assignment(a) for a in set_ or [])}
         asked = objs.from_command_line(objective) if objective else None
+        if asked:  # module:function with the module a file here, as a script finds its neighbours
+            import_beside(asked.values(), Path.cwd())
         if is_space_file(model):  # the space's own model, experiment, scenarios and objectives
             if interface is not None:
                 raise DseError("--interface: a space's model runs as its multi-model says")

@@ -82,7 +82,7 @@ class Feed:
         self.objective, self.goal = spec.ranking.objective, spec.ranking.goal
         self.settings = spec.ranking  # the best point is named as rank() names it: over_scenarios, robust, constraints
         # the objectives read: the ranked one, and every one when constraints may name others (as rank() reads them)
-        self.objectives = scalar_objectives(spec) if spec.ranking.constraints else [self.objective]
+        self.objectives = scalar_objectives(spec, output, sweep) if spec.ranking.constraints else [self.objective]
         self.ranked_by = ranked_figure_label(spec.ranking, spec.uncertain is not None)
         self.pareto_goals = spec.ranking.pareto_goals()
         self.uncertain = spec.uncertain  # each scenario ran once per draw: the pages show the draws' means
@@ -378,10 +378,12 @@ class Page:
             row(column(heading(f"Best so far, ranked by {html.escape(feed.ranked_by)}"), self.ranking), column(heading("Workers"), self.workers)),
             *([self.studies] if self.studies is not None else []),
             *search,
-            heading(f"{objective} against each parameter (paper's Figure 5)"), self.fig5.layout,
-            heading(f"{objective} per scenario group at each parameter point, points sorted by "
-                    f"{', '.join(p)} (paper's Figure 6)"), self.fig6.layout,
-            heading("Best candidate against the scenario's recording"), self.select, self.track_note, self.track.figure))
+            heading(f"{objective} against each parameter" + ("" if searching else ", the mean over the others")),
+            self.fig5.layout,
+            heading(f"{objective} per scenario group at each parameter point, points sorted by {', '.join(p)}"),
+            self.fig6.layout,
+            heading("Best candidate on the chosen scenario, over its recording if it has one"), self.select,
+            self.track_note, self.track.figure))
         self.update()
         doc.add_periodic_callback(self.update, int(REFRESH_SECONDS * 1000))
 

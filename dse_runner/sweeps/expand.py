@@ -44,14 +44,17 @@ def _digest(*parts: Any) -> str:
 
 
 def model_hash(plan: Plan, objectives: dict[str, objs.ObjectiveSpec], experiment: Any = None,
-               uncertain: dict[str, Any] | None = None) -> str:
-    """What the model is, independent of where its files lie: FMUs, wiring, experiment, objectives, and what
-    fixes an uncertain sample's draws (uncertainty.identity)."""
+               uncertain: dict[str, Any] | None = None, modules: dict[str, bytes] | None = None) -> str:
+    """What the model is, independent of where its files lie: FMUs, wiring, experiment, objectives (the
+    sources of a user's objective modules too: an edited one scores anew), and what fixes an uncertain
+    sample's draws (uncertainty.identity)."""
     mm = plan.multimodel.model_dump(mode="json", exclude={"fmus", "base_dir"})
     fmus = {name: content_hash(path) for name, path in sorted(plan.fmu_paths.items())}
     scored = {name: spec if isinstance(spec, str) else spec.model_dump(mode="json") for name, spec in objectives.items()}
     times = experiment.model_dump(mode="json", exclude_none=True) if experiment is not None else {}
-    return _digest(fmus, mm, scored, *([times] if times else []), *([uncertain] if uncertain else []))[:32]
+    sources = {name: hashlib.sha256(source).hexdigest() for name, source in sorted((modules or {}).items())}
+    return _digest(fmus, mm, scored, *([times] if times else []), *([uncertain] if uncertain else []),
+                   *([sources] if sources else []))[:32]
 
 
 def scenario_hash(scenario: Scenario) -> str:

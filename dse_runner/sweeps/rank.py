@@ -26,7 +26,7 @@ import pandas as pd
 
 from .. import strict_json
 from ..errors import DseError
-from ..simulation.objectives import is_vector, normalise
+from ..simulation.objectives import Fit, normalise
 from . import store, uncertainty
 from .constraints import compile_constraint
 from .domain import Point
@@ -176,7 +176,7 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
     spec = load_sweep_spec(output, sweep)
     settings = settings or spec.ranking
     parameters = list(spec.parameters)
-    objectives = scalar_objectives(spec)
+    objectives = scalar_objectives(spec, output, sweep)
     pareto = settings.pareto_goals()
     for name in settings.objectives_used():
         if name not in objectives:
@@ -266,10 +266,15 @@ def _about(spec: SpaceSpec, settings: RankingSpec) -> dict[str, Any]:
                        "(ddof 1), <objective>_q<percent> its quantiles, <objective>_robust the ranked figure"}
 
 
-def scalar_objectives(spec: SpaceSpec) -> list[str]:
+def scalar_objectives(spec: SpaceSpec, output: store.Root, sweep: str) -> list[str]:
     """The sweep's objectives that give one number per task: those a ranking reduces over scenarios (a
-    vector objective, such as residuals, is not summed)."""
-    return [name for name, o in normalise(spec.objectives or []).items() if not is_vector(o)]
+    vector objective, such as residuals, is not summed). Told by the stored columns' types, so that a
+    user's ``module:function`` is not imported again to ask; before any row, by what the spec says."""
+    vectors = store.vector_columns(output, sweep)
+    declared = normalise(spec.objectives or [])
+    if vectors is None:
+        vectors = {name for name, o in declared.items() if isinstance(o, Fit) and o.metric == "residuals"}
+    return [name for name in declared if name not in vectors]
 
 
 def complete_totals(ok: pd.DataFrame, parameters: list[str], objectives: list[str], over: str,

@@ -22,13 +22,13 @@ import hashlib
 import os
 import pickle
 import uuid
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from distributed.diagnostics.plugin import WorkerPlugin
 
 from ..errors import DseError
-from ..simulation import scratch
+from ..simulation import scratch, user_modules
 from ..simulation.cosim import Plan, make_plan
 from ..simulation.multimodel import MultiModel
 from ..simulation.scenario import Scenario
@@ -43,6 +43,7 @@ class Shipment:
     fmus: dict[str, bytes]  # content hash -> .fmu archive
     scenarios: dict[str, Scenario]  # read and checked on the client; their data travel with them
     files: dict[str, bytes]  # content hash -> a file an FMU or a script reads (a scenario's ``files``, ``data``)
+    modules: dict[str, bytes] = field(default_factory=dict)  # name -> source: objective modules beside the spec
 
 
 def _sha(data: bytes) -> str:
@@ -56,8 +57,9 @@ def _read(scenario: Scenario, path: Path) -> bytes:
         raise DseError(f"scenario {scenario.name}: cannot read {e.filename}: {e.strerror}") from None
 
 
-def pack(plan: Plan, scenarios: list[Scenario]) -> Shipment:
-    """Read the built FMUs and the files scenarios hand to FMUs into one shipment."""
+def pack(plan: Plan, scenarios: list[Scenario], modules: dict[str, bytes] | None = None) -> Shipment:
+    """Read the built FMUs and the files scenarios hand to FMUs into one shipment, with the sources of the
+    user's objective modules (simulation/user_modules.py)."""
     archives = {name: Path(path).read_bytes() for name, path in plan.fmu_paths.items()}
     fmus = {_sha(data): data for data in archives.values()}
     multimodel = plan.multimodel.model_copy(update={"fmus": {name: _sha(data) for name, data in archives.items()}})
@@ -76,7 +78,10 @@ def pack(plan: Plan, scenarios: list[Scenario]) -> Shipment:
         digest.update(sha.encode())
     for name in sorted(packed):
         digest.update(pickle.dumps(packed[name]))
-    return Shipment(digest.hexdigest()[:24], multimodel, fmus, packed, files)
+    modules = dict(modules or {})
+    for name in sorted(modules):
+        digest.update(f"{name}:{user_modules.digest(modules[name])}".encode())
+    return Shipment(digest.hexdigest()[:24], multimodel, fmus, packed, files, modules)
 
 
 @dataclass
@@ -115,6 +120,9 @@ def unpack(shipment: Shipment) -> Unpacked:
     multimodel = shipment.multimodel.model_copy(
         update={"fmus": {name: str(paths[sha]) for name, sha in shipment.multimodel.fmus.items()}})
     files = {sha: _write_once(root / "files" / sha, data) for sha, data in shipment.files.items()}
+    for name, source in shipment.modules.items():  # named by hash: two versions of one module never mix
+        user_modules.load(name, _write_once(root / "modules" / user_modules.digest(source) / f"{name}.py", source),
+                          source)
     scenarios = {name: s.with_files({field: files[str(sha)] for field, sha in s.files.items()})
                  .with_data({file: files[str(sha)] for file, sha in s.data.items()})
                  for name, s in shipment.scenarios.items()}

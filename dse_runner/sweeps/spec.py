@@ -37,7 +37,7 @@ from pydantic import (
 from .. import bundled
 from ..errors import DseError
 from ..simulation import objectives as objs
-from ..simulation import derivative_terms, signal_effects, state_limits
+from ..simulation import derivative_terms, signal_effects, state_limits, user_modules
 from ..simulation.cosim import Plan, make_plan
 from ..simulation.experiment import Experiment
 from ..simulation.multimodel import MultiModel, parse_multimodel
@@ -486,6 +486,8 @@ class Space:
         self.dimensions = [dimension(name, v) for name, v in spec.parameters.items()]
         # name -> declared objective, in the spec's order; scripts read, to travel to the workers
         self.objectives = objs.load_scripts(objs.normalise(spec.objectives or []), path.parent, str(path))
+        # module:function objectives whose module is a file beside the spec: imported, sources kept to ship
+        self.modules = user_modules.import_beside(self.objectives.values(), path.parent)
         # every value of a grid or list; an interval's two ends (what the type and bound checks need)
         self.parameters = {d.name: d.extremes() for d in self.dimensions}
         self.constraints = []
@@ -513,7 +515,7 @@ class Space:
         from .expand import model_hash
 
         extra = None if self.draws is None else uncertainty.identity(self.spec.uncertain, self.distributions)
-        return model_hash(self.plan, self.objectives, self.experiment, extra)
+        return model_hash(self.plan, self.objectives, self.experiment, extra, self.modules)
 
     @property
     def output(self) -> Path | str:
@@ -784,6 +786,8 @@ def resolve_space(spec: SpaceSpec, path: Path) -> Space:
             raise DseError(f"{source}: {e}") from None
         _check_uncertain(spec, plan, scenarios, draws, source)
         scenarios = uncertainty.sampled(scenarios, draws)
+    # a module:function beside the spec, imported before anything asks its function (is_vector, the checks)
+    user_modules.import_beside(objs.normalise(spec.objectives or []).values(), path.parent)
     space = Space(_resolved(spec, scenarios, source), path, plan, scenarios, distributions, draws)
     _check_names(space, source)
     return space

@@ -250,6 +250,18 @@ def _task_ids_by_file(fs: fsspec.AbstractFileSystem, files: list[str]) -> dict[s
     return {name: _IDS.ids(name) for name in files}
 
 
+def vector_columns(root: Root, sweep: str) -> set[str] | None:
+    """The sweep's result columns that hold a list per row (vector objectives), from its files' schemas; None
+    before any file. What readers (rank, report, the dashboard) need to know of an objective without
+    importing a user's function again: it ran on the workers, and its values are stored."""
+    fs, path = _fs(root)
+    files = _files(fs, path, RESULTS, sweep)
+    if not files:
+        return None
+    schema = pq.read_schema(files[-1], filesystem=_arrow_fs(fs))  # one schema per sweep (store.schema)
+    return {f.name for f in schema if pa.types.is_list(f.type)}
+
+
 def _with_every_column(dataset: ds.Dataset, root: Root, kind: str) -> ds.Dataset:
     """The dataset with the union of its files' columns: a sweep re-run with more objectives has files
     of both shapes, and the dataset otherwise takes its columns from whichever file comes first."""

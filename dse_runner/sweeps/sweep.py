@@ -113,7 +113,7 @@ def submit(space: Space, progress: SweepProgress | None = None, client=None,
     save_sweep_spec(output, space.spec, space.model_key, space.draws)
     done = store.finished_task_ids(output, space.name)
     kept = load_status(output, space.name)  # a submission that finds nothing to run leaves it as it is
-    shipment = ship.pack(space.plan, space.scenarios)
+    shipment = ship.pack(space.plan, space.scenarios, space.modules)
     report = SweepReport(sweep=space.name, output=output, total=0, skipped=0, spec=str(space.path),
                          scenarios={s.name: s.group for s in space.scenarios})
     if points is None and strategy(space.spec.search.strategy).closed_loop:
@@ -483,7 +483,7 @@ def _trajectories(space: Space, client, shipment: ship.Shipment, places: list[tu
 def trajectories_of(space: Space, client, point: Point, sweep: str) -> dict[str, pd.DataFrame]:
     """Simulate one point on every scenario on the cluster, keep the tracks as ``sweep``'s rank 1,
     and return them by scenario."""
-    _trajectories(space, client, ship.pack(space.plan, space.scenarios), [(1, point)], sweep)
+    _trajectories(space, client, ship.pack(space.plan, space.scenarios, space.modules), [(1, point)], sweep)
     return {s.name: store.read_trajectory(space.output, sweep, s.name) for s in space.scenarios}
 
 

@@ -18,7 +18,6 @@ from typing import TYPE_CHECKING
 import yaml
 
 from ...errors import DseError
-from ...simulation.objectives import is_vector, normalise
 from ...sweeps.spec import Space, SpaceSpec, resolve_space
 from .convert import IntoCpsWarning, to_spec
 from .project import locate
@@ -61,7 +60,7 @@ def _path(value: str | Path | None) -> Path | None:
 
 def write_result_files(output: store.Root, folder: Path, sweep: str | None = None) -> dict[str, Path]:
     """INTO-CPS's result files (results.py) of a sweep converted from a DSE config, into ``folder``."""
-    from ...sweeps.rank import current_rows, load_sweep_spec, pick_sweep, rank
+    from ...sweeps.rank import current_rows, load_sweep_spec, pick_sweep, rank, scalar_objectives
     from .results import write_results
 
     sweep = pick_sweep(output, sweep)
@@ -70,7 +69,7 @@ def write_result_files(output: store.Root, folder: Path, sweep: str | None = Non
         raise DseError(f"sweep {sweep!r} was not converted from an INTO-CPS DSE config: no INTO-CPS result files")
     ranking = rank(output, sweep)
     ids = _ids(spec)
-    objectives = [name for name, o in normalise(spec.objectives or []).items() if not is_vector(o)]
+    objectives = scalar_objectives(spec, output, sweep)
     rows = current_rows(output, sweep, ["status", *spec.parameters])
     failed = rows.loc[rows["status"] != "ok", list(spec.parameters)].drop_duplicates()
     fixed = {ids(ref): value for ref, value in _multimodel_parameters(spec).items() if ref not in spec.parameters}
