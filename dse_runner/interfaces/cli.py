@@ -147,6 +147,9 @@ def simulate(
     values_file: Annotated[Path | None, typer.Option(
         "--values", help="A YAML file of instance.variable: value lines (e.g. rank --best-values); --set "
                          "overrides it.")] = None,
+    best: Annotated[bool, typer.Option(
+        "--best", help="A space only: run the best point of its sweep (its output folder), as rank ranks it; "
+                       "--values and --set override it.")] = False,
     start_time: Annotated[float | None, typer.Option(help="Start time [s]. Default: the scenario's, the FMU's, 0.")] = None,
     stop_time: Annotated[float | None, typer.Option(help="Stop time [s]. Default: the scenario's or the FMU's.")] = None,
     step: Annotated[float | None, typer.Option(help="Communication step [s]. Default: see docs/space.md.")] = None,
@@ -182,7 +185,9 @@ def simulate(
         if is_space_file(model):  # the space's own model, experiment, scenarios and objectives
             if interface is not None:
                 raise DseError("--interface: a space's model runs as its multi-model says")
-            result = simulate_space(model, scenario, values, asked, start_time, stop_time, step)
+            result = simulate_space(model, scenario, values, asked, start_time, stop_time, step, best)
+        elif best:
+            raise DseError(f"--best: {model} is not a space.yaml; the best point is that of a space's sweep")
         else:
             result = run_simulation(model, scenario, values, start_time, stop_time, step, objectives=asked,
                                     interface=interface)
@@ -205,6 +210,10 @@ def simulate(
         return
     typer.echo(f"scenario {result.scenario.name}  ({result.scenario.group}, {result.times.start:g}..{result.times.stop:g} s, "
                f"step {result.step:g} s)")
+    if best or values:
+        shown = [f"{name} = {value:g}" if isinstance(value, float) else f"{name} = {value!r}"
+                 for name, value in result.values.items()]
+        typer.echo(f"values: {', '.join(shown[:MAX_PRINTED])}{' ...' if len(shown) > MAX_PRINTED else ''}")
     for name, verdict in result.lifecycle.items():
         if verdict.mode == "process":
             typer.echo(f"{name} ran in a fresh process: {verdict.reason}")

@@ -33,12 +33,16 @@ def is_space_file(path: Path) -> bool:
 
 def simulate_space(path: Path, scenario: str | Path | None, values: Mapping[str, Any],
                    objectives: Mapping[str, objs.ObjectiveSpec] | None = None, start_time: float | None = None,
-                   stop_time: float | None = None, step: float | None = None) -> SimulationResult:
+                   stop_time: float | None = None, step: float | None = None,
+                   best: bool = False) -> SimulationResult:
     """The space's model run once on one of its scenarios (its only one, or the one named; a scenario folder
-    also serves), with its single-valued parameters, then ``values``, scored by its objectives unless others
-    are given. Its search strategy plays no part: intervals need no grid here."""
+    also serves), with its single-valued parameters, then its sweep's best point if ``best``, then
+    ``values``, scored by its objectives unless others are given. Its search strategy plays no part:
+    intervals need no grid here."""
     spec = read_spec(path.resolve())
     space = resolve_space(spec.model_copy(update={"search": Search(strategy="given")}), path.resolve())
+    if best:
+        values = {**best_point(space.output, space.name), **values}
     by_name = {s.name: s for s in space.scenarios}
     if scenario is None:
         if len(by_name) != 1:
@@ -54,3 +58,13 @@ def simulate_space(path: Path, scenario: str | Path | None, values: Mapping[str,
     fixed = {name: points[0] for name, points in space.parameters.items() if len(points) == 1}
     return simulate(space.plan, chosen, {**fixed, **values}, start_time, stop_time, step,
                     objectives=dict(objectives) if objectives else space.objectives, experiment=space.experiment)
+
+
+def best_point(output: Any, sweep: str) -> dict[str, Any]:
+    """The best point of ``sweep`` in the store ``output``, as ``dse-runner rank`` ranks it."""
+    from .rank import rank  # pandas and the store: only when a best point is asked for
+
+    try:
+        return dict(rank(output, sweep).best)
+    except DseError as e:
+        raise DseError(f"--best: {e} (submit the space first, or give --values)") from None

@@ -201,3 +201,28 @@ def test_simulate_a_space_runs_its_own_model_so_values_named_as_the_space_names_
     assert strict_loads(direct.stdout)["objectives"]["x_end"] == found["objectives"]["x_end"]
     both = dse_runner("simulate", space, "--values", values)
     assert both.returncode != 0 and "the space has 2 scenarios (low, high): name one with --scenario" in both.stderr
+
+
+def test_simulate_a_space_at_its_best_point_replays_what_rank_writes(tmp_path, dask_scheduler):
+    """``simulate SPACE --best`` runs the point rank ranks best, as ``rank --best-values``' file does, and
+    scores it as the sweep did; --set overrides it; before any submit it is one line saying what to do."""
+    import yaml
+
+    vdp = REPO / "tests" / "fmus" / "vdp_me"
+    spec = {"name": "best", "multimodel": {"fmus": {"vdp": str(vdp)}, "instances": {"vdp": {"interface": "me"}}},
+            "experiment": {"stop_time": 2.0, "step": 0.1}, "parameters": {"vdp.mu": [0.5, 1.0, 2.0]},
+            "objectives": {"x_end": {"signal": "vdp.x0", "reduce": "final"}}, "output": str(tmp_path / "out"),
+            "cluster": {"address": dask_scheduler}}
+    space = tmp_path / "space.yaml"
+    space.write_text(yaml.safe_dump(spec))
+    early = dse_runner("simulate", space, "--best")
+    assert early.returncode == 2 and "--best:" in early.stderr and "submit the space first" in early.stderr
+    assert dse_runner("submit", space, "--no-dashboard", "--json").returncode == 0
+    ranked = strict_loads(dse_runner("rank", tmp_path / "out", "--best-values", tmp_path / "best.yaml",
+                                     "--json").stdout)
+    best = strict_loads(dse_runner("simulate", space, "--best", "--json").stdout)
+    replay = strict_loads(dse_runner("simulate", space, "--values", tmp_path / "best.yaml", "--json").stdout)
+    assert best["values"] == replay["values"] == ranked["best"]
+    assert best["objectives"]["x_end"] == replay["objectives"]["x_end"] == ranked["best_total"]
+    other = strict_loads(dse_runner("simulate", space, "--best", "--set", "vdp.mu=3", "--json").stdout)
+    assert other["values"] == {"vdp.mu": 3}
