@@ -135,6 +135,39 @@ def build_fmus(
 
 
 @app.command()
+def describe(
+    model: Annotated[Path, typer.Argument(metavar="MODEL", help="An .fmu file, an FMU source folder or a "
+                                                                "multi-model file.")],
+    every: Annotated[bool, typer.Option("--all", help="Every variable, locals too.")] = False,
+    as_json: JsonFlag = False,
+) -> None:
+    """List MODEL's parameters, inputs and outputs by the names --set, values files and spaces use."""
+    from ..simulation.model_info import model_info
+
+    try:
+        found = model_info(model, every)
+    except DseError as e:
+        fail(e)
+    if as_json:
+        emit_json({"instances": [i.model_dump(mode="json") for i in found]})
+        return
+    for instance in found:
+        times = ", ".join(f"{label} {value:g}" for label, value in (
+            ("start", instance.start_time), ("stop", instance.stop_time), ("step", instance.step))
+            if value is not None)
+        typer.echo(f"{instance.instance}: {instance.model_name}, FMI {instance.fmi_version}, "
+                   f"{'co-simulation' if instance.interface == 'cs' else 'model exchange'}"
+                   f"{f'; default experiment {times}' if times else ''}")
+        width = max((len(v.name) for v in instance.variables), default=0)
+        for v in instance.variables:
+            start = "" if v.start is None else v.start
+            typer.echo(f"  {v.name:<{width}}  {v.causality:<10} {start:>10} {v.unit or '':<8} "
+                       f"{'settable ' if v.settable else '         '}{v.description or ''}".rstrip())
+    typer.echo("set a value: --set NAME=VALUE (one .fmu: also the bare variable name); in a space: "
+               "parameters: {NAME: [values]}")
+
+
+@app.command()
 def simulate(
     model: Annotated[Path, typer.Argument(metavar="MODEL", help="An .fmu file, an FMU source folder, a multi-model "
                                                                 "file (YAML, or INTO-CPS mm.json), or a space.yaml: "

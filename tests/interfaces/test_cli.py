@@ -226,3 +226,25 @@ def test_simulate_a_space_at_its_best_point_replays_what_rank_writes(tmp_path, d
     assert best["objectives"]["x_end"] == replay["objectives"]["x_end"] == ranked["best_total"]
     other = strict_loads(dse_runner("simulate", space, "--best", "--set", "vdp.mu=3", "--json").stdout)
     assert other["values"] == {"vdp.mu": 3}
+
+
+def test_describe_lists_what_a_model_offers_by_the_names_every_command_uses(tmp_path):
+    """An FMU source folder's instance is named after it; its parameters and inputs are settable, with start
+    value, unit and description; the names given replay in --set; --json is strict."""
+    msd = REPO / "jobs" / "msd" / "fmus" / "msd"
+    done = dse_runner("describe", msd, "--json")
+    assert done.returncode == 0, done.stderr
+    (instance,) = strict_loads(done.stdout)["instances"]
+    assert (instance["instance"], instance["interface"], instance["stop_time"]) == ("msd", "me", 10.0)
+    by_name = {v["name"]: v for v in instance["variables"]}
+    assert by_name["msd.k"] == {"name": "msd.k", "causality": "parameter", "type": "Real", "start": "10",
+                                "unit": "N/m", "description": "spring stiffness [N/m]", "settable": True}
+    assert by_name["msd.F"]["settable"] and not by_name["msd.x"]["settable"]
+    text = dse_runner("describe", msd).stdout.splitlines()
+    assert text[0] == "msd: msd, FMI 2.0, model exchange; default experiment start 0, stop 10"
+    assert any(line.split()[:3] == ["msd.k", "parameter", "10"] for line in text)
+    ran = dse_runner("simulate", msd, *[f"--set={v['name']}={v['start']}" for v in by_name.values() if v["settable"]],
+                     "--json")
+    assert ran.returncode == 0, ran.stderr
+    missing = dse_runner("describe", tmp_path / "nowhere.fmu")
+    assert missing.returncode == 2 and "nowhere.fmu" in missing.stderr
