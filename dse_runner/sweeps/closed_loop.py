@@ -414,7 +414,7 @@ class SearchSource:
         if evaluation.feasible:  # the best the ranking may choose
             value = evaluation.values[status.objective]
             better = status.best is None or (value < status.best if status.goal == "min" else value > status.best)
-            if better:
+            if better or (value == status.best and _sorts_first(point, status.best_point)):
                 status.best, status.best_point = value, dict(point)
         self.save(force=False)
 
@@ -431,3 +431,12 @@ def _plain(value: Any) -> Any:
     if hasattr(value, "tolist"):
         return value.tolist()
     return value.item() if hasattr(value, "item") else value
+
+
+def _sorts_first(point: Point, other: Point | None) -> bool:
+    """Of two points with equal objectives, the one rank() names best: the first by parameter values (its
+    totals are grouped by them, in the space's order), so the search's best and the ranking's agree."""
+    try:
+        return other is not None and tuple(point.values()) < tuple(other[name] for name in point)
+    except (TypeError, KeyError):  # mixed value types: keep the first found
+        return False

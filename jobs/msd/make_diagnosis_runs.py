@@ -20,7 +20,8 @@ The effects are made here, not with the master's signal effects the diagnosis fi
 shifted in time or clipped before the plant sees it, and the sensor's gain and offset are applied to the simulated
 position, which is solved at a finer step than the diagnosis uses (0.01 s against 0.025 s). Written into the folder: each run's
 ``<run>-force.csv`` and ``<run>-x.csv``, and a ``space.yaml`` that calibrates k and c on them and
-compares the position (nothing of the truth). Run from the repository:
+compares the position (nothing of the truth); with ``--folders``, one scenario folder per run instead
+(jobs/quickstart/rig was made so, with ``force-deadzone --seed 7``). Run from the repository:
 
     PYTHONPATH=. python jobs/msd/make_diagnosis_runs.py sensor-gain-offset --out out/msd-blind
     dse-runner diagnose --space out/msd-blind/space.yaml --json
@@ -120,13 +121,40 @@ def make(case: str, folder: Path, seed: int = 1) -> Path:
     return path
 
 
+def make_folders(case: str, folder: Path, seed: int = 1) -> list[Path]:
+    """Write the case's runs as scenario folders (``folder/<run>/``: scenario.yaml, force.csv, position.csv),
+    the layout a rig's own logs would have; the folders."""
+    if case not in CASES:
+        raise SystemExit(f"no case {case!r}; there are {', '.join(CASES)}")
+    rng = np.random.default_rng(seed)
+    made = []
+    for name, (_, x0) in RUNS.items():
+        t, force, x = record(name, CASES[case], rng)
+        run = folder / name
+        run.mkdir(parents=True, exist_ok=True)
+        np.savetxt(run / "force.csv", np.column_stack([t, force]), delimiter=",", header="time,F", comments="",
+                   fmt="%.6g")
+        np.savetxt(run / "position.csv", np.column_stack([t, x]), delimiter=",", header="time,x", comments="",
+                   fmt="%.6g")
+        (run / "scenario.yaml").write_text(yaml.safe_dump({
+            "name": name, "inputs": {"msd.F": {"csv": "force.csv", "interpolation": "hold"}},
+            "parameters": {"msd.x0": x0}, "recorded": "position.csv", "stop_time": DURATION}, sort_keys=False))
+        made.append(run)
+    return made
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("case", choices=list(CASES))
     parser.add_argument("--out", type=Path, default=None, help="folder (default out/msd-blind/CASE)")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--folders", action="store_true", help="one scenario folder per run, and no space.yaml")
     args = parser.parse_args()
-    path = make(args.case, (args.out or Path("out") / "msd-blind" / args.case).resolve(), args.seed)
+    folder = (args.out or Path("out") / "msd-blind" / args.case).resolve()
+    if args.folders:
+        print(f"wrote {', '.join(str(p) for p in make_folders(args.case, folder, args.seed))}")
+        return
+    path = make(args.case, folder, args.seed)
     print(f"wrote {path}")
 
 

@@ -152,6 +152,13 @@ class SignalDiagnosis:
                     for kind, value in effect["parameters"].items()]
             into = f" into {effect['into']}" if effect.get("into") else ""
             lines.append(f"{effect['id']}({effect['target']}){into}: {', '.join(told)}")
+        alone = (found.get("calibrated") or {}).get("parameters") or {}
+        fitted = (found.get("fitted") or {}).get("parameters") or {}
+        together = {name: value for name, value in fitted.items() if name in alone}
+        if alone:  # what the missing physics did to the calibration: it bends the parameters to make up for it
+            lines.append("calibrated: " + ", ".join(f"{name} = {value:.4g}" for name, value in alone.items())
+                         + ("; with the effects: " + ", ".join(f"{n} = {v:.4g}" for n, v in together.items())
+                            if found["effects"] and together else ""))
         judged = "error on the samples fitted (nothing could be held out)" if (
             self.validation is not None and not self.validation.folds) else "held-out error"
         lines.append(f"{judged}: {found['held_out_before']:.2f} before, {found['held_out_after']:.2f} after, "

@@ -130,5 +130,6 @@ def write(found: Mapping[str, Any], folder: Path, title: str, figures: Sequence[
     write_values(files["values"], found["fitted"]["parameters"],
                           f"The diagnosed model of {title}: its calibrated parameters, and the effects and derivative\n"
                           f"terms the recordings support ({found['verdict']}), as fitted together. Run it again with\n"
-                          "dse-runner simulate MODEL --values THIS_FILE, or put it in a space's parameters.")
+                          f"dse-runner simulate SPACE.yaml --scenario NAME --values {VALUES}, or put it in a "
+                          "space's parameters.")
     return files
