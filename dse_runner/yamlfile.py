@@ -25,6 +25,8 @@ def load_yaml(path: Path, what: str = "file") -> Any:
         return yaml.safe_load(Path(path).read_text())
     except OSError as e:
         raise DseError(f"cannot read {what} {path}: {e.strerror}") from None
+    except UnicodeDecodeError:
+        raise DseError(f"{path}: not a {what}: it is not text ({_binary_hint(Path(path))}a {what} is YAML)") from None
     except yaml.YAMLError as e:
         raise DseError(format_syntax_error(str(path), "YAML", e)) from None
 
@@ -51,7 +53,24 @@ def validated(data: Any, shape: type[T], source: str) -> T:
         raise DseError(format_validation_error(source, e)) from None
 
 
+def _binary_hint(path: Path) -> str:
+    return "an FMU archive; " if path.suffix.lower() == ".fmu" else ""
+
+
 def read_yaml(path: Path, shape: type[T], what: str = "file", empty: Any = None) -> T:
-    """A YAML file validated as ``shape``; an empty file counts as ``empty``."""
+    """A YAML file validated as ``shape``; an empty file counts as ``empty``. A file that is not a YAML
+    mapping where one is expected (a CSV, a list) is one line saying so, not a validation error."""
     data = load_yaml(path, what)
+    if data is not None and not isinstance(data, Mapping) and _wants_mapping(shape):
+        found = "a list" if isinstance(data, list) else "text that is not a YAML mapping (a CSV file?)" if (
+            isinstance(data, str)) else f"the single value {data!r:.40}"
+        raise DseError(f"{path}: not a {what}: a {what} is a YAML mapping of keys to values, this file holds {found}")
     return validated(empty if data is None else data, shape, str(path))
+
+
+def _wants_mapping(shape: Any) -> bool:
+    """Whether ``shape`` reads a mapping: a pydantic model, or a root model of a dict."""
+    if not (isinstance(shape, type) and issubclass(shape, BaseModel)):
+        return False
+    root = shape.model_fields.get("root")
+    return root is None or getattr(root.annotation, "__origin__", None) is dict

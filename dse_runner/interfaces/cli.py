@@ -136,16 +136,22 @@ def build_fmus(
 
 @app.command()
 def describe(
-    model: Annotated[Path, typer.Argument(metavar="MODEL", help="An .fmu file, an FMU source folder or a "
-                                                                "multi-model file.")],
+    model: Annotated[Path, typer.Argument(metavar="MODEL", help="An .fmu file, an FMU source folder, a "
+                                                                "multi-model file, or a space.yaml (its model).")],
     every: Annotated[bool, typer.Option("--all", help="Every variable, locals too.")] = False,
     as_json: JsonFlag = False,
 ) -> None:
     """List MODEL's parameters, inputs and outputs by the names --set, values files and spaces use."""
     from ..simulation.model_info import model_info
+    from ..sweeps.space_run import is_space_file
 
     try:
-        found = model_info(model, every)
+        if is_space_file(model):  # a space: the model it names, as its sweeps run it
+            from ..sweeps.spec import load_space
+
+            found = model_info(load_space(model).plan, every)
+        else:
+            found = model_info(model, every)
     except DseError as e:
         fail(e)
     if as_json:

@@ -16,7 +16,7 @@ import yaml
 from pydantic import RootModel
 
 from ..errors import DseError
-from ..yamlfile import read_yaml
+from ..yamlfile import load_yaml, read_yaml
 from .variables import FiniteValue, Value
 
 K = TypeVar("K")
@@ -47,6 +47,10 @@ def split_named(values: Mapping[str, object], parse: Callable[[str], K | None], 
 
 def read_values(path: str | Path) -> dict[str, Value]:
     """The values of a values file; errors name the file and the key."""
+    data = load_yaml(Path(path), "values file")
+    if isinstance(data, dict) and "multimodel" in data:
+        raise DseError(f"{path}: a space.yaml, not a values file: a values file holds instance.variable: value "
+                       "lines (rank --best-values and diagnose write them); run a space with simulate SPACE.yaml")
     return read_yaml(Path(path), ValuesFile, "values file").root
 
 

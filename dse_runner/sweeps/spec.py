@@ -764,7 +764,7 @@ def load_space(path: str | Path) -> Space:
 
 def read_spec(path: Path) -> SpaceSpec:
     """Read and validate a space.yaml without resolving anything it names."""
-    return read_yaml(path, SpaceSpec, "spec", empty={})
+    return read_yaml(path, SpaceSpec, "space.yaml", empty={})
 
 
 def resolve_space(spec: SpaceSpec, path: Path) -> Space:

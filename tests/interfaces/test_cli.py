@@ -248,3 +248,34 @@ def test_describe_lists_what_a_model_offers_by_the_names_every_command_uses(tmp_
     assert ran.returncode == 0, ran.stderr
     missing = dse_runner("describe", tmp_path / "nowhere.fmu")
     assert missing.returncode == 2 and "nowhere.fmu" in missing.stderr
+
+
+def test_a_file_that_is_not_what_its_place_expects_is_one_line_naming_it(tmp_path):
+    """An .fmu, a CSV, a list or a space.yaml where a values file or a space is expected: one line naming the
+    file and what was expected, never a decoding error or a validation error per key."""
+    fmu = tmp_path / "model.fmu"
+    fmu.write_bytes(b"PK\x03\x04\x14\x00\x00\x00\x08\x00\xe3\x9c\xff" * 20)  # a zip's start, not text
+    csv = tmp_path / "position.csv"
+    csv.write_text("time,x\n0.0,0.1\n0.05,0.09\n")
+    listed = tmp_path / "list.yaml"
+    listed.write_text("- a\n- b\n")
+    space = tmp_path / "space.yaml"
+    space.write_text(f"name: s\nmultimodel: {REPO / 'jobs' / 'msd' / 'fmus' / 'msd'}\n"
+                     "parameters: {msd.k: [10]}\nobjectives: {x: {signal: msd.x, reduce: final}}\n")
+    msd = REPO / "jobs" / "msd" / "fmus" / "msd"
+    for args, named in [
+        (["simulate", msd, "--values", fmu], f"{fmu}: not a values file: it is not text (an FMU archive;"),
+        (["simulate", msd, "--values", csv], f"{csv}: not a values file: a values file is a YAML mapping"),
+        (["simulate", msd, "--values", listed], "this file holds a list"),
+        (["simulate", msd, "--values", space], f"{space}: a space.yaml, not a values file"),
+        (["submit", fmu], "not a space.yaml: it is not text (an FMU archive; a space.yaml is YAML)"),
+        (["submit", csv], "not a space.yaml: a space.yaml is a YAML mapping of keys to values, this file holds "
+                          "text that is not a YAML mapping (a CSV file?)"),
+        (["diagnose", "--space", fmu], "not a space.yaml: it is not text"),
+    ]:
+        done = dse_runner(*args)
+        assert done.returncode == 2, (args, done.stderr)
+        (line,) = done.stderr.strip().splitlines()
+        assert line.startswith("error: ") and named in line, (args, line)
+    described = dse_runner("describe", space)  # a space's model, described
+    assert described.returncode == 0 and described.stdout.startswith("msd: msd, FMI 2.0, model exchange")
