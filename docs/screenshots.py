@@ -4,7 +4,8 @@
 
 Runs jobs/robotti/space.yaml on the embedded local cluster into a fresh folder, with the
 dashboard served as ``submit`` serves it, photographs the dashboard mid-sweep and at the end
-in Debian's Chromium, then writes the report and photographs its top.
+in Debian's Chromium, then writes the report and photographs its top in a 1400 px window and its
+figures (from "against each parameter" on) in a 1280 px one.
 """
 
 from __future__ import annotations
@@ -59,6 +60,12 @@ def main() -> None:
         page.wait_for_selector("canvas")
         page.wait_for_timeout(1500)
         page.screenshot(path=IMAGES / "report.png", full_page=False)
+        laptop = browser.new_page(viewport={"width": 1280, "height": 1400})  # a laptop's window: figures fill it
+        laptop.goto(report.as_uri())
+        laptop.wait_for_selector("canvas")
+        laptop.locator("h2", has_text="against each parameter").evaluate("h => h.scrollIntoView()")  # at the top
+        laptop.wait_for_timeout(1500)
+        laptop.screenshot(path=IMAGES / "report-figures-1280.png", full_page=False)
         browser.close()
     server.stop()
     print(f"screenshots in {IMAGES}; results in {out}")

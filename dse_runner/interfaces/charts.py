@@ -18,7 +18,9 @@ is drawn (which means, which lines) is computed here from result rows with panda
 - :func:`html_table`: a data frame as an HTML table (ranking, workers, Table 1).
 
 Charts stand in rows of at most three (:func:`grid`), toolbars at the right, titles sized to fit
-(:func:`title_size`): the report and the dashboard fit a 1400 px window.
+(:func:`title_size`), legends below the plot where they hide no point (:func:`_legend_below`), an entry
+only for a glyph with something drawn (:func:`legend_follows_data`): the dashboard fits a 1400 px window,
+and the report stretches its figures to its page's width (:func:`fill_width`).
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 from bokeh.layouts import gridplot
-from bokeh.models import ColorBar, ColumnDataSource, HoverTool, LinearColorMapper
+from bokeh.models import ColorBar, ColumnDataSource, HoverTool, LegendItem, LinearColorMapper
 from bokeh.palettes import Category10, Viridis256
 from bokeh.plotting import figure
 
@@ -39,7 +41,12 @@ from ..sweeps.history import Asked, SearchHistory
 
 PALETTE = Category10[10]
 WIDTH, HEIGHT = 380, 300
-PER_ROW = 3  # charts side by side: 3 * WIDTH and their toolbar fit the report's 1300 px body on a 1400 px page
+PER_ROW = 3  # charts side by side: 3 * WIDTH and their toolbar fit the dashboard on a 1400 px page
+NARROWEST_PAGE = 1200  # px: the report's body in a 1280 px window (less its margins), which its figures fill
+TALLER = {1: 1.5, 2: 1.2}  # a report's row of one or two charts, stretched wider, is made this much taller
+PAD = 0.15  # Pareto charts' ranges beyond their points: a marker at the edge is drawn whole
+LEGEND_PT, LEGEND_CHAR, LEGEND_ITEM = 8, 6.0, 40  # legend font, a label character's px, a glyph's px
+LEGEND_ROW = 22  # px a row of a legend below the plot takes
 TITLE_PT = 11.0  # a chart title's font size, unless it must shrink to fit
 SMALLEST_TITLE_PT = 7.0
 TITLE_EM = 0.62  # a title character's mean advance in ems, with a margin (our titles measure 0.57 in Chromium)
@@ -77,12 +84,59 @@ def grid(figures: Sequence[figure]):
     return gridplot(list(figures), ncols=PER_ROW, toolbar_location="right")
 
 
-def _legend_below(fig: figure) -> None:
-    """The legend in a row under the plot, where it hides no point."""
+def legend_columns(labels: Sequence[str], width: int = WIDTH) -> int:
+    """How many of ``labels``' legend entries fit side by side under a plot ``width`` px wide."""
+    widest = max((len(label) for label in labels), default=0)
+    return max(1, min(len(labels), int((width - AXIS_ROOM) // (LEGEND_ITEM + LEGEND_CHAR * widest))))
+
+
+def legend_room(label_sets: Sequence[Sequence[str]]) -> tuple[int, int]:
+    """(columns, rows) for the legends of one grid's panels, each holding one of ``label_sets``: the same for
+    every panel, so that the panels' plots stand as tall as each other."""
+    columns = legend_columns([label for labels in label_sets for label in labels])
+    return columns, max((-(-len(labels) // columns) for labels in label_sets), default=1)
+
+
+def _legend_below(fig: figure, room: tuple[int, int] | None = None) -> None:
+    """The legend in rows under the plot, where it hides no point: ``room`` (columns, rows) as
+    :func:`legend_room` gives it, else room for its own entries, each a ``legend_label``."""
     legend = fig.legend[0]
-    legend.orientation, legend.label_text_font_size = "horizontal", "8pt"
+    columns, lines = room or legend_room([[item.label.value for item in legend.items]])
+    legend.orientation, legend.label_text_font_size, legend.ncols = "horizontal", f"{LEGEND_PT}pt", columns
+    legend.margin, legend.padding, legend.spacing, legend.location = 4, 4, 6, "center"
     fig.add_layout(legend, "below")
-    fig.height += 30
+    fig.height += LEGEND_ROW * max(1, lines) + 8
+
+
+def source_rows(source: ColumnDataSource) -> int:
+    """How many rows a data source holds (its longest column)."""
+    return max((len(column) for column in source.data.values()), default=0)
+
+
+def legend_follows_data(fig: figure) -> None:
+    """Show a legend entry only while its glyph has something to draw: a study without recordings has no
+    "recorded" entry, nor a search without an ok point a "best so far"; a legend with no entry is hidden."""
+    for legend in fig.legend:
+        for item in legend.items:
+            item.visible = any(source_rows(renderer.data_source) > 0 for renderer in item.renderers)
+        legend.visible = any(item.visible for item in legend.items)
+
+
+def fill_width(layout):
+    """``layout`` (a chart or :func:`grid`'s charts) stretched to the width of the page that holds it: the
+    report's figures fill its body whatever the window, a row of one or two charts shares the width and
+    stands taller. Titles are sized for the narrowest page the report is made for."""
+    from bokeh.models import GridPlot
+
+    placed = list(layout.children) if isinstance(layout, GridPlot) else [(layout, 0, 0)]
+    columns = 1 + max(column for _, _, column in placed)
+    size = title_size([fig.title.text for fig, _, _ in placed], NARROWEST_PAGE // columns - 30)
+    for fig, _, _ in placed:
+        fig.sizing_mode = "stretch_width"
+        fig.height = int(fig.height * TALLER.get(columns, 1.0))
+        fig.title.text_font_size = size
+    layout.sizing_mode = "stretch_width"
+    return layout
 
 
 def _empty_lines() -> dict[str, list]:
@@ -114,17 +168,15 @@ def dots(ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], by
             "group": ok["group"].to_numpy(), "colour": [colour_of.get(v, "grey") for v in ok[by]]}
 
 
-def _draw(fig: figure, source: ColumnDataSource, legend: str, scattered: bool) -> None:
-    """Lines joining a grid's values, or a search's points as dots."""
+def _draw(fig: figure, source: ColumnDataSource, legend: str, scattered: bool, room: tuple[int, int]) -> None:
+    """Lines joining a grid's values, or a search's points as dots; the legend below, in ``room``."""
     if scattered:
         glyph = fig.scatter("x", "y", color="colour", size=6, alpha=0.75, legend_field=legend, source=source)
     else:
         glyph = fig.multi_line("xs", "ys", line_color="colour", line_width=1.6, line_alpha=0.85,
                                legend_field=legend, source=source)
     fig.add_tools(HoverTool(renderers=[glyph], tooltips=[("scenario", "@scenario"), ("group", "@group")]))
-    fig.legend.location = "top_left"
-    fig.legend.label_text_font_size = "8pt"
-    fig.legend.background_fill_alpha = 0.6
+    _legend_below(fig, room)
 
 
 class ObjectiveByParameter:
@@ -135,11 +187,12 @@ class ObjectiveByParameter:
         self.objective, self.scattered = objective, scattered
         self.colour_of = colours(groups)
         self.sources = {p: ColumnDataSource(_empty_dots() if scattered else _empty_lines()) for p in parameters}
+        room = legend_room([list(self.colour_of)])  # every panel has a line per group
         figures = []
         for name, source in self.sources.items():
             fig = _figure(name, name, objective if scattered else f"mean {objective}",
                           name=f"dse-by-parameter-{name}")
-            _draw(fig, source, "group", scattered)
+            _draw(fig, source, "group", scattered, room)
             figures.append(fig)
         self.layout = grid(figures)
 
@@ -168,10 +221,11 @@ class ErrorByGroup:
         self.colour_of = colours(scenarios)  # scenario -> colour; scenarios of a group differ
         self.sources = {g: ColumnDataSource(_empty_dots() if scattered else _empty_lines())
                         for g in sorted(set(scenarios.values()))}
+        room = legend_room([[s for s, of in scenarios.items() if of == g] for g in self.sources])
         figures = []
         for group, source in self.sources.items():
             fig = _figure(f"group {group}", "parameter point #", objective, name=f"dse-by-group-{group}")
-            _draw(fig, source, "scenario", scattered)
+            _draw(fig, source, "scenario", scattered, room)
             figures.append(fig)
         self.layout = grid(figures)
 
@@ -193,7 +247,7 @@ class TrackChart:
                              tools="pan,wheel_zoom,box_zoom,reset,save", toolbar_location="right")
         self.figure.scatter("x", "y", source=self.recorded, size=3, color="#777777", legend_label="recorded")
         self.figure.line("x", "y", source=self.simulated, line_width=2, color=PALETTE[0], legend_label="simulated")
-        self.figure.legend.location = "top_left"
+        _legend_below(self.figure)
 
     def update(self, comparison, title: str) -> None:
         recorded = comparison.recorded or (np.array([]), np.array([]))
@@ -204,6 +258,7 @@ class TrackChart:
         self.figure.match_aspect = comparison.equal_axes
         self.figure.title.text = title
         self.figure.title.text_font_size = title_size([title], self.figure.width)
+        legend_follows_data(self.figure)
 
 
 class ParetoChart:
@@ -213,17 +268,20 @@ class ParetoChart:
         self.x, self.y, self.parameters = x, y, parameters
         self.points = ColumnDataSource({x: [], y: [], **{p: [] for p in parameters}})
         self.front = ColumnDataSource({x: [], y: []})
-        self.figure = _figure("Pareto front", f"{reduced} {x}", f"{reduced} {y}")
+        self.figure = _figure("Pareto front", f"{reduced} {x}", f"{reduced} {y}", name="dse-pareto")
+        self.figure.x_range.range_padding = self.figure.y_range.range_padding = PAD
         dots = self.figure.scatter(x, y, source=self.points, size=6, color="#9a9a9a", legend_label="points")
-        self.figure.line(x, y, source=self.front, color=PALETTE[3], line_width=2, legend_label="front")
-        self.figure.scatter(x, y, source=self.front, size=8, color=PALETTE[3])
+        front_line = self.figure.line(x, y, source=self.front, color=PALETTE[3], line_width=2)
+        front_dots = self.figure.scatter(x, y, source=self.front, size=8, color=PALETTE[3])
+        self.figure.legend.items.append(LegendItem(label="front", renderers=[front_line, front_dots]))
         self.figure.add_tools(HoverTool(renderers=[dots], tooltips=[(p, f"@{{{p}}}") for p in parameters]))
-        self.figure.legend.location = "top_right"
+        _legend_below(self.figure)
 
     def update(self, totals: pd.DataFrame, front: pd.DataFrame) -> None:
         self.points.data = {c: totals[c].to_numpy() for c in (self.x, self.y, *self.parameters)}
         ordered = front.sort_values(self.x)
         self.front.data = {self.x: ordered[self.x].to_numpy(), self.y: ordered[self.y].to_numpy()}
+        legend_follows_data(self.figure)
 
 
 # --- a closed-loop search's history (sweeps/history.py) ------------------------------------------
@@ -318,6 +376,7 @@ class BestSoFarChart:
                             "number": ok["number"].to_numpy()}
         shown = progress[progress["best"].notna()]
         self.best.data = {"simulations": shown["simulations"].to_numpy(), "best": shown["best"].to_numpy()}
+        legend_follows_data(self.figure)
         return progress
 
 
@@ -334,6 +393,7 @@ class ParetoGrowthChart:
         self.mapper = LinearColorMapper(palette=Viridis256, low=0, high=1)
         self.figure = _figure("Pareto front as the search went", f"{x} ({x_goal})", f"{y} ({y_goal})",
                               name="dse-front-growth")
+        self.figure.x_range.range_padding = self.figure.y_range.range_padding = PAD
         self.figure.width = int(1.4 * WIDTH)
         dots = self.figure.scatter("x", "y", source=self.points, size=6, alpha=0.8,
                                    color={"field": "order", "transform": self.mapper})
@@ -362,6 +422,7 @@ class ParetoGrowthChart:
         stages = pareto_stages(points, self.goals)
         for source, (_, front) in zip(self.fronts, stages):
             source.data = {"x": front[self.x].to_numpy(float), "y": front[self.y].to_numpy(float)}
+        legend_follows_data(self.figure)
         return stages
 
 

@@ -5,6 +5,7 @@ where a point far right matters and a point high up acts non-linearly or through
 from __future__ import annotations
 
 import io
+import math
 from pathlib import Path
 
 import matplotlib
@@ -14,6 +15,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from ..analysis.sensitivity import Scope, Sensitivity  # noqa: E402
+
+DPI = 110
+PAGE_INCHES = 12.0  # a figure's width: 1320 px at DPI, as wide as the report's page, which it fills unblurred
+PER_ROW = 3  # panels side by side: wider rows would set their labels too small once fitted to the page
 
 
 def write_figures(found: Sensitivity, folder: Path) -> dict[str, Path]:
@@ -40,9 +45,13 @@ def figure(found: Sensitivity, name: str, largest: int | None = None):
     groups = groups if largest is None else groups[:max(0, largest - 1)]
     scopes = {"all scenarios": objective.overall, **{f"group {g}": objective.groups[g] for g in groups}}
     draw = _sobol if found.indices else _morris
-    fig, axes = plt.subplots(1, len(scopes), figsize=(2.2 + 2.6 * len(scopes), 3.4), dpi=110, squeeze=False,
+    columns = min(PER_ROW, len(scopes))
+    rows = math.ceil(len(scopes) / columns)
+    fig, axes = plt.subplots(rows, columns, figsize=(PAGE_INCHES, 0.6 + 3.0 * rows), dpi=DPI, squeeze=False,
                              sharey=found.indices)
-    for ax, (label, scope) in zip(axes[0], scopes.items()):
+    for ax in axes.flat[len(scopes):]:
+        ax.set_visible(False)  # the last row's empty places
+    for ax, (label, scope) in zip(axes.flat, scopes.items()):
         draw(ax, scope, found.parameters)
         cv = scope.spread.get("cv")
         ax.set_title(label + (f"\ncv {cv:.3g}" if cv is not None else ""), fontsize=9)

@@ -29,9 +29,10 @@ class Section:
 
 
 def image(png: bytes, alt: str, ident: str) -> str:
-    """An inline PNG, never wider than the page."""
+    """An inline PNG as wide as the page (drawn at least as wide: sensitivity_figures.PAGE_INCHES), so it is
+    read at the size of the charts around it."""
     data = base64.b64encode(png).decode()
-    return (f'<img id="{html.escape(ident)}" alt="{html.escape(alt)}" style="max-width:100%;height:auto" '
+    return (f'<img id="{html.escape(ident)}" alt="{html.escape(alt)}" style="width:100%;height:auto" '
             f'src="data:image/png;base64,{data}">')
 
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..sweeps.rank import Ranking, format_point
-from .sensitivity_figures import plt, png_bytes
+from .sensitivity_figures import DPI, PAGE_INCHES, plt, png_bytes
 
 SHOWN = 8  # best points drawn
 
@@ -20,7 +20,7 @@ def distributions_png(ranking: Ranking, shown: int = SHOWN) -> bytes:
     per_point = ranking.draws.groupby(ranking.parameters, dropna=False)[name]
     values = [per_point.get_group(key if len(key) > 1 else key[0]).to_numpy(float) for key in keys]
     labels = [format_point(dict(zip(ranking.parameters, key)), 4) for key in keys]
-    fig, ax = plt.subplots(figsize=(9.5, 1.2 + 0.45 * len(keys)), dpi=110)
+    fig, ax = plt.subplots(figsize=(PAGE_INCHES, 1.2 + 0.45 * len(keys)), dpi=DPI)
     y = np.arange(len(keys))[::-1]
     ax.boxplot(values, positions=y, orientation="horizontal", whis=(5, 95), widths=0.5, showfliers=False,
                medianprops={"color": "tab:blue"})
