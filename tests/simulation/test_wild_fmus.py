@@ -72,6 +72,27 @@ def test_ten_runs_in_one_process_are_bit_identical_to_fresh_processes(fmu):
             assert np.array_equal(here[name], fresh[k][name], equal_nan=True), (k, name)
 
 
+@pytest.mark.parametrize("fmu", FMUS)
+def test_describe_lists_every_parameter_and_output_of_the_fmu_by_the_name_simulate_takes(fmu):
+    """describe's names are those --set takes (the instance named after the file), and it lists exactly the
+    parameters, inputs and outputs FMPy reads from the FMU's model description."""
+    from fmpy import read_model_description
+
+    path = WILD / fmu
+    done = subprocess.run([sys.executable, "-m", "dse_runner", "describe", str(path), "--json"], capture_output=True,
+                          text=True)
+    assert done.returncode == 0, done.stderr
+    (instance,) = strict_loads(done.stdout)["instances"]
+    listed = {v["name"]: v for v in instance["variables"]}
+    prefix = f"{instance['instance']}."
+    assert instance["instance"] == re.sub(r"[^A-Za-z0-9_]", "_", path.stem)
+    wanted = {prefix + v.name: v for v in read_model_description(str(path)).modelVariables
+              if v.causality in ("parameter", "calculatedParameter", "input", "output")}
+    assert set(listed) == set(wanted)
+    assert all(listed[n]["causality"] == v.causality and listed[n]["start"] == (None if v.start is None else
+               str(v.start)) for n, v in wanted.items())
+
+
 def test_an_fmu_that_declares_one_instance_per_process_runs_in_a_fresh_process():
     fmu = "three_tank_watertank/FMUs/threewatertank1.fmu"
     result = simulate(WILD / fmu, stop_time=5, step=0.05)
