@@ -104,7 +104,8 @@ def differences(shown: list[str], printed: list[str]) -> list[str]:
         match = next((k for k in range(at, len(printed)) if same(line, printed[k])), None) if skipping else (
             at if at < len(printed) and same(line, printed[at]) else None)
         if match is None:
-            problems.append(f"shown {line!r}, printed {printed[at] if at < len(printed) else '(nothing more)'!r}")
+            instead = printed[at] if at < len(printed) else "(nothing more)"
+            problems.append(f"shown {line!r}, printed {instead!r}")
             break
         at, skipping = match + 1, False
     if not skipping and at < len(printed) and not problems:
@@ -135,7 +136,8 @@ def check(text: str, root: Path) -> list[str]:
     for step in steps(text):
         done = run(step.command, root)
         if done.returncode != 0:
-            problems.append(f"line {step.line}: {step.command}: exit {done.returncode}: {done.stderr.strip()[-400:]}")
+            said = done.stderr.strip()[-400:]
+            problems.append(f"line {step.line}: {step.command}: exit {done.returncode}: {said}")
             continue
         printed = [normal(line, root) for line in done.stdout.splitlines()]
         problems.extend(f"line {step.line}: {step.command}: {p}"

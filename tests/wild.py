@@ -168,3 +168,23 @@ def point_objectives(dse: str, coe: str, point: dict[str, Any]) -> dict[str, Any
     space = load_space(dse, coe=coe)
     result = simulate(space.plan, space.scenarios[0], point, objectives=space.objectives, experiment=space.experiment)
     return result.objectives
+
+
+def as_intocps_scripts_compute(dse: str, coe: str | None, point: dict[str, Any], level: str, target: float,
+                               valve: str) -> tuple[dict[str, Any], dict[str, float]]:
+    """One point of a DSE, scored as a sweep scores it, beside what INTO-CPS's published scripts compute from
+    the run's own trajectory read as INTO-CPS writes results.csv: ``cumulativeDeviation`` sums
+    |level - target| times the step-size column (0 on the first row, then time[i] - time[i-1]); ``vCount``
+    counts the valve's changes between rows."""
+    from dse_runner.interfaces.intocps import load_space
+    from dse_runner.simulation.run import simulate
+
+    run_here()
+    space = load_space(dse, coe=coe)
+    result = simulate(space.plan, space.scenarios[0], point, objectives=space.objectives,
+                      experiment=space.experiment)
+    time = result.trajectory.time
+    steps = np.concatenate([[0.0], time[1:] - time[:-1]])
+    levels, valves = result.trajectory.column(level), result.trajectory.column(valve)
+    return result.objectives, {"cumulativeDeviation": float(np.sum(np.abs(levels - target) * steps)),
+                               "vCount": float(np.count_nonzero(valves[1:] != valves[:-1]))}

@@ -417,7 +417,7 @@ def prepare(plan: Plan, start: float, stop: float, step: float,
     times = _time_grid(start, stop, step)
     series = _resolve_inputs(plan, inputs or {}, times)
     external = np.column_stack(list(series.values())) if series else None
-    return Runner(plan, times, series, external)
+    return Runner(plan, times, series, external, _step_sizes(start, stop, step, plan.multimodel.step_sizes))
 
 
 @dataclass(frozen=True)
@@ -429,6 +429,7 @@ class Runner:
     times: np.ndarray
     series: dict[str, np.ndarray]  # input signals at the communication points
     external: np.ndarray | None  # the same, one column each, as the loops read them
+    steps: np.ndarray  # the communication step that reaches each point (0 at the first): _step_sizes
     # derivative terms (derivative_terms.py) per model-exchange instance: term -> coefficient
     terms: Mapping[str, Mapping] = field(default_factory=dict)
 
@@ -504,7 +505,7 @@ def _run_here(runner: Runner, values: Mapping[str, Value], timeout: float | None
                 unit.stepper.set_values(settings.get(unit.stepper.name, ()))
         current = None
         if native_setup:  # the C call (sets up and sets the values,) initialises, runs and ends the units
-            outcome = native.step_loop(program, times, external, record, texts, timeout)
+            outcome = native.step_loop(program, times, runner.steps, external, record, texts, timeout)
             _raise_where_stopped(outcome, program, units, times, names, record, texts)
             return Trajectory(times, names, record, texts)
         for unit in units:
@@ -518,11 +519,11 @@ def _run_here(runner: Runner, values: Mapping[str, Value], timeout: float | None
         _exchange(units, signals, external, 0, texts, start, feed=False)
         record[0] = signals[: len(names)]
         if program is not None:
-            outcome = native.step_loop(program, times, external, record, texts, timeout)
+            outcome = native.step_loop(program, times, runner.steps, external, record, texts, timeout)
             _raise_where_stopped(outcome, program, units, times, names, record, texts)
         else:
             deadline = time.perf_counter() + timeout if timeout else math.inf
-            _step_loop(units, times, signals, external, record, texts, deadline)
+            _step_loop(units, times, runner.steps, signals, external, record, texts, deadline)
         for unit in units:
             current = unit
             unit.stepper.terminate()
@@ -664,6 +665,22 @@ def _time_grid(start: float, stop: float, step: float) -> np.ndarray:
     return times
 
 
+@functools.lru_cache(maxsize=64)
+def _step_sizes(start: float, stop: float, step: float, told: str = "difference") -> np.ndarray:
+    """The step size an FMU is told on its way to each point of ``_time_grid`` (0 at the first), as the
+    multi-model's ``step_sizes`` says: the difference of the two points (FMPy's), or the nominal ``step``
+    (INTO-CPS's master's), which rounding makes differ in the last bit (0.4 - 0.30000000000000004 is
+    0.09999999999999998). A shorter last step to the stop time is the difference either way."""
+    times = _time_grid(start, stop, step)
+    steps = np.diff(times, prepend=times[0])
+    if told == "nominal":
+        steps[1:-1] = step
+        if math.isclose(steps[-1], step, rel_tol=1e-9):
+            steps[-1] = step
+    steps.flags.writeable = False
+    return steps
+
+
 def _units(plan: Plan, instances: dict[str, fmus.Instance], signals: np.ndarray, sources: dict[str, int],
            series: dict[str, np.ndarray], terms: Mapping[str, Mapping], use_native: bool = False) -> list[_Unit]:
     """Every instance's stepper with its prepared reads and feeds (and, model exchange, its derivative terms,
@@ -742,8 +759,9 @@ def _feed_texts(texts: _Texts, t: float) -> None:
             raise CosimError(target.instance.explain(f"{e} at t={t:.6g}"), target.name) from None
 
 
-def _step_loop(units: list[_Unit], times: np.ndarray, signals: np.ndarray, external: np.ndarray | None,
-               record: np.ndarray, texts: dict[str, list[str]], deadline: float) -> None:
+def _step_loop(units: list[_Unit], times: np.ndarray, steps: np.ndarray, signals: np.ndarray,
+               external: np.ndarray | None, record: np.ndarray, texts: dict[str, list[str]],
+               deadline: float) -> None:
     """The hot loop: no buffer is created here, only FMI calls through prepared ones, read from flat
     lists so that a step costs no Python call beyond the FMI calls and the fills that need one."""
     n = record.shape[1]
@@ -753,8 +771,8 @@ def _step_loop(units: list[_Unit], times: np.ndarray, signals: np.ndarray, exter
     feeds = [(f.fill, f.call, f.args, unit, f.name) for unit in units for f in unit.feeds]
     reads = [(r.call, r.args, r.copy, unit, r.name) for unit in units for r in unit.reads]
     clock = time.perf_counter
-    for k, (t, t_next) in enumerate(zip(times[:-1].tolist(), times[1:].tolist()), start=1):
-        h = t_next - t
+    points = zip(times[:-1].tolist(), times[1:].tolist(), steps[1:].tolist())
+    for k, (t, t_next, h) in enumerate(points, start=1):
         if not k & 63 and clock() > deadline:
             raise CosimError(f"timeout: the simulation was stopped at t={t:.6g} of {times[-1]:.6g} s")
         if plain:

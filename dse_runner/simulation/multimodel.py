@@ -89,6 +89,12 @@ class MultiModel(BaseModel):
     scenario: dict[str, str] = {}  # instance.variable -> a field of each scenario
     instances: dict[str, InstanceSettings] = {}
     step: PositiveFloat | None = None
+    # The step size an FMU is told at each communication point: "difference", the difference of two points,
+    # as FMPy's simulate_fmu passes it; "nominal", the step itself, as INTO-CPS's master (Maestro) passes it
+    # (an INTO-CPS mm.json's default). They differ in the last bit (0.4 - 0.30000000000000004 is
+    # 0.09999999999999998), which some FMUs notice: Overture's older controllers refuse any step but
+    # their period, and 20-sim's models place internal steps by it.
+    step_sizes: Literal["difference", "nominal"] = "difference"
     # Relative FMU paths are relative to the file's folder; ``bundled:`` ones name the package's own.
     base_dir: Path = Field(default=Path("."), exclude=True)
 
@@ -215,8 +221,9 @@ def from_into_cps(data: dict[str, Any], base_dir: Path = Path(".")) -> dict[str,
     instances = {instance: _into_cps_fmu(data["fmus"][key], base_dir) for instance, key in keys.items()}
     connections = {local(src): [local(dst) for dst in dsts] for src, dsts in data.get("connections", {}).items()}
     parameters = {local(ref): v for ref, v in data.get("parameters", {}).items()}
-    ours = {k: v for k, v in data.items() if k in ("scenario", "instances", "step")}
-    return {"fmus": instances, "connections": connections, "parameters": parameters, **ours}
+    ours = {k: v for k, v in data.items() if k in ("scenario", "instances", "step", "step_sizes")}
+    return {"fmus": instances, "connections": connections, "parameters": parameters, "step_sizes": "nominal",
+            **ours}
 
 
 def is_into_cps(data: dict[str, Any]) -> bool:

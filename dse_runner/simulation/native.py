@@ -89,7 +89,8 @@ class Call(ctypes.Structure):
     _fields_ = [("units", ctypes.c_void_p), ("lifecycle", ctypes.c_void_p), ("feeds", ctypes.c_void_p),
                 ("reads", ctypes.c_void_p), ("values", ctypes.c_void_p),
                 ("text_reads", ctypes.c_void_p), ("text_feeds", ctypes.c_void_p), ("initial_texts", ctypes.c_void_p),
-                ("times", ctypes.c_void_p), ("external", ctypes.c_void_p), ("signals", ctypes.c_void_p),
+                ("times", ctypes.c_void_p), ("steps", ctypes.c_void_p), ("external", ctypes.c_void_p),
+                ("signals", ctypes.c_void_p),
                 ("record", ctypes.c_void_p), ("text_offsets", ctypes.c_void_p), ("out", ctypes.c_void_p),
                 ("seconds", ctypes.c_double), ("n_texts", ctypes.c_int64), ("n_times", ctypes.c_int64),
                 ("n_recorded", ctypes.c_int64), ("n_external", ctypes.c_int64), ("n_units", ctypes.c_int32),
@@ -232,6 +233,7 @@ class Program:
             n_recorded=n_recorded, out=ctypes.addressof(self.outcome))
         self.call_address = ctypes.addressof(self.call)
         self._times: np.ndarray | None = None  # the time grid and input signals the block points at now
+        self._steps: np.ndarray | None = None
         self._external: np.ndarray | None = None
 
 
@@ -297,16 +299,20 @@ def values_of(program: Program, units: list, settings: dict[str, list]) -> bool:
     return True
 
 
-def step_loop(program: Program, times: np.ndarray, external: np.ndarray | None, record: np.ndarray,
-              texts: dict[str, list[str]], timeout: float | None) -> Outcome:
-    """Run points 1.. of ``times`` in C into ``record``; the string outputs are appended to ``texts``.
+def step_loop(program: Program, times: np.ndarray, steps: np.ndarray, external: np.ndarray | None,
+              record: np.ndarray, texts: dict[str, list[str]], timeout: float | None) -> Outcome:
+    """Run points 1.. of ``times`` in C into ``record``, stepping by ``steps`` (the step reaching each point);
+    the string outputs are appended to ``texts``.
     With ``program.sets_up``, the C call also sets the units up (point 0, row 0 of ``record``) before
-    and terminates them after, as cosim.py's Python otherwise does. ``times`` and ``external`` must be C-contiguous float64 and stay unchanged while the program uses
+    and terminates them after, as cosim.py's Python otherwise does. ``times``, ``steps`` and ``external``
+    must be C-contiguous float64 and stay unchanged while the program uses
     them: a sweep passes the same arrays run after run, and their addresses are taken only when they
     change (numpy's ``.ctypes`` costs about a microsecond each)."""
     call = program.call
     if times is not program._times:
         call.times, call.n_times, program._times = times.ctypes.data, len(times), times
+    if steps is not program._steps:
+        call.steps, program._steps = steps.ctypes.data, steps
     if external is not program._external:
         call.external = _address(external)
         call.n_external = external.shape[1] if external is not None else 0

@@ -269,12 +269,12 @@ static bool finite_row(const double *row, int64_t n) {
  * need (for numbers it changes nothing: every input is set before any unit steps).
  */
 __attribute__((noinline)) static int plain_loop(const Unit *units, int32_t n_units, const Group *feeds, int32_t n_feeds,
-                      const Group *reads, int32_t n_reads, bool fmi3, const double *times, int64_t n_times,
-                      double *signals, int64_t n_recorded, double *record, double seconds, bool *asked,
+                      const Group *reads, int32_t n_reads, bool fmi3, const double *times, const double *steps,
+                      int64_t n_times, double *signals, int64_t n_recorded, double *record, double seconds, bool *asked,
                       Arena *arena, Outcome *out) {
     const double deadline = seconds > 0 ? now() + seconds : INFINITY;
     for (int64_t k = 1; k < n_times; k++) {
-        const double t = times[k - 1], t_next = times[k], h = t_next - t;
+        const double t = times[k - 1], t_next = times[k], h = steps[k];
         if (!(k & 63) && past(deadline)) return stop(out, arena, TIMEOUT, k, t, -1, -1);
         for (int32_t f = 0; f < n_feeds; f++) {
             int code = feed(&feeds[f], signals, out);
@@ -357,12 +357,12 @@ static int halt(Outcome *out, Arena *arena, const double *record, const double *
  * FMUs may have stepped up to 63 points beyond it (the Python loop checks only at the end).
  */
 __attribute__((noinline)) static int direct_loop(const Unit *units, int32_t n_units, const Group *reads, int32_t n_reads, bool fmi3,
-                       const double *times, int64_t n_times, const double *signals, int64_t n_recorded,
-                       double *record, double seconds, bool *asked, Arena *arena, Outcome *out) {
+                       const double *times, const double *steps, int64_t n_times, const double *signals,
+                       int64_t n_recorded, double *record, double seconds, bool *asked, Arena *arena, Outcome *out) {
     const double deadline = seconds > 0 ? now() + seconds : INFINITY;
     int64_t checked = 1;  /* rows before this are finite */
     for (int64_t k = 1; k < n_times; k++) {
-        const double t = times[k - 1], t_next = times[k], h = t_next - t;
+        const double t = times[k - 1], t_next = times[k], h = steps[k];
         int code = checkpoint(out, arena, record, times, n_recorded, &checked, k, deadline);
         if (code != DONE) return code;
         for (int32_t u = 0; u < n_units; u++)
@@ -389,7 +389,7 @@ __attribute__((noinline)) static int direct_loop(const Unit *units, int32_t n_un
  * costs a cheap FMU about half again its own step.
  */
 static inline __attribute__((always_inline)) int single_steps(
-    const bool fmi3, const Unit *unit, const Group *read, const double *times, int64_t n_times,
+    const bool fmi3, const Unit *unit, const Group *read, const double *times, const double *steps, int64_t n_times,
     const double *signals, int64_t n_recorded, double *record, double seconds, Arena *arena, Outcome *out) {
     const double deadline = seconds > 0 ? now() + seconds : INFINITY;
     void *const component = unit->component, *const reader = read->component;
@@ -404,7 +404,7 @@ static inline __attribute__((always_inline)) int single_steps(
     double last_time;
     int64_t checked = 1;  /* rows before this are finite */
     for (int64_t k = 1; k < n_times; k++) {
-        const double t = times[k - 1], t_next = times[k], h = t_next - t;
+        const double t = times[k - 1], t_next = times[k], h = steps[k];
         int code = checkpoint(out, arena, record, times, n_recorded, &checked, k, deadline);
         if (code != DONE) return code;
         int status = fmi3 ? step3(component, t, h, true, &event, &asked, &early, &last_time) : step2(component, t, h, 1);
@@ -419,11 +419,11 @@ static inline __attribute__((always_inline)) int single_steps(
 
 /* single_steps made twice, for FMI 2 and for FMI 3, so that neither tests the version at each step. */
 __attribute__((noinline)) static int single_loop(const Unit *unit, const Group *read, const double *times,
-                                                 int64_t n_times, const double *signals, int64_t n_recorded,
+                                                 const double *steps, int64_t n_times, const double *signals, int64_t n_recorded,
                                                  double *record, double seconds, Arena *arena, Outcome *out) {
     return unit->version == 3
-        ? single_steps(true, unit, read, times, n_times, signals, n_recorded, record, seconds, arena, out)
-        : single_steps(false, unit, read, times, n_times, signals, n_recorded, record, seconds, arena, out);
+        ? single_steps(true, unit, read, times, steps, n_times, signals, n_recorded, record, seconds, arena, out)
+        : single_steps(false, unit, read, times, steps, n_times, signals, n_recorded, record, seconds, arena, out);
 }
 
 /*
@@ -435,7 +435,7 @@ __attribute__((noinline)) static int single_loop(const Unit *unit, const Group *
 int dse_loop(const Unit *units, int32_t n_units, const Group *feeds, int32_t n_feeds,
              const Group *reads, int32_t n_reads, const TextRead *text_reads, int32_t n_text_reads,
              const TextFeed *text_feeds, int32_t n_text_feeds, const char **initial_texts, int64_t n_texts,
-             const double *times, int64_t n_times, double *signals, int64_t n_recorded,
+             const double *times, const double *steps, int64_t n_times, double *signals, int64_t n_recorded,
              const double *external, int64_t n_external, double *record, int64_t *text_offsets,
              double seconds, Outcome *out) {
     Arena arena = {0};
@@ -457,18 +457,18 @@ int dse_loop(const Unit *units, int32_t n_units, const Group *feeds, int32_t n_f
         bool direct = n_feeds == 0;
         for (int32_t r = 0; r < n_reads; r++) direct &= reads[r].index == NULL;  /* float64, into the signals */
         code = direct && n_units == 1 && n_reads == 1 && units[0].version == reads[0].version  /* not an ME unit's */
-            ? single_loop(units, reads, times, n_times, signals, n_recorded, record, seconds, &arena, out)
+            ? single_loop(units, reads, times, steps, n_times, signals, n_recorded, record, seconds, &arena, out)
             : direct
-            ? direct_loop(units, n_units, reads, n_reads, fmi3, times, n_times, signals, n_recorded, record, seconds,
+            ? direct_loop(units, n_units, reads, n_reads, fmi3, times, steps, n_times, signals, n_recorded, record, seconds,
                           asked, &arena, out)
-            : plain_loop(units, n_units, feeds, n_feeds, reads, n_reads, fmi3, times, n_times, signals,
+            : plain_loop(units, n_units, feeds, n_feeds, reads, n_reads, fmi3, times, steps, n_times, signals,
                          n_recorded, record, seconds, asked, &arena, out);
         goto done;
     }
     double deadline = seconds > 0 ? now() + seconds : INFINITY;
     int64_t k;
     for (k = 1; k < n_times; k++) {
-        double t = times[k - 1], t_next = times[k], h = t_next - t;
+        double t = times[k - 1], t_next = times[k], h = steps[k];
         if (!(k & 63) && past(deadline)) { code = stop(out, &arena, TIMEOUT, k, t, -1, -1); goto done; }
         for (int64_t j = 0; j < n_external; j++) signals[n_recorded + j] = external[(k - 1) * n_external + j];
         int32_t f = 0, tf = 0;
@@ -536,7 +536,7 @@ typedef struct {
     const TextRead *text_reads;
     const TextFeed *text_feeds;
     const char **initial_texts;
-    const double *times, *external;
+    const double *times, *steps, *external;  /* steps[k]: the communication step that reaches times[k] */
     double *signals, *record;
     int64_t *text_offsets;
     Outcome *out;
@@ -613,7 +613,7 @@ int dse_run(const Call *c) {
     }
     int code = dse_loop(c->units, c->n_units, c->feeds, c->n_feeds, c->reads, c->n_reads, c->text_reads,
                         c->n_text_reads, c->text_feeds, c->n_text_feeds, c->initial_texts, c->n_texts, c->times,
-                        c->n_times, c->signals, c->n_recorded, c->external, c->n_external, c->record,
+                        c->steps, c->n_times, c->signals, c->n_recorded, c->external, c->n_external, c->record,
                         c->text_offsets, c->seconds, c->out);
     for (int32_t u = 0; c->lifecycle && code == DONE && u < c->n_units; u++) {
         double end = c->times[c->n_times - 1];

@@ -1,11 +1,14 @@
-"""A user's script checked for Python 2 before anything runs.
+"""A user's script checked for Python 2 before anything runs, and ported when it is.
 
-INTO-CPS's older user scripts (its DSE ``externalScripts``) are Python 2:
+INTO-CPS's published user scripts (its DSE ``externalScripts``) are Python 2:
 ``print x``, ``unicode(...)``, ``except IOError, e``. dse-runner runs scripts
 with Python 3, where such a script fails every task with a traceback that
 does not say why. :func:`check` reads the script when the spec loads and
-names the first line that is Python 2, or the line Python 3 cannot compile,
-so that no task runs. docs/intocps.md says how to port a script.
+names the first line that is Python 2, or the line Python 3 cannot compile.
+:func:`as_python3` then ports a Python 2 script with fissix (the maintained
+fork of lib2to3, 2to3's engine): the run uses the ported text, the user's file
+is never changed, and only a script that still is not Python 3 once ported is
+refused, naming its line, so that no task runs.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from pathlib import Path
 
 from ..errors import DseError
 
-PORT = "dse-runner runs scripts with Python 3: port it (2to3 does most of it, see docs/intocps.md)"
+PORT = "dse-runner runs scripts with Python 3 (docs/intocps.md)"
 
 # Why Python 3 could not compile a line: its message, then the line itself; each with what it is.
 MESSAGES = [
@@ -41,6 +44,38 @@ BUILTINS = {"unicode", "xrange", "basestring", "raw_input", "unichr", "long", "e
 METHODS = {"has_key", "iteritems", "iterkeys", "itervalues"}
 MODULES = {"urllib2", "urlparse", "ConfigParser", "StringIO", "cStringIO", "cPickle", "Queue", "Tkinter",
            "__builtin__", "httplib", "HTMLParser", "SocketServer", "commands", "exceptions"}
+
+
+def as_python3(code: str, path: Path) -> tuple[str, str | None]:
+    """The text to run, and what made it Python 2 if it was ported (None: it is Python 3 already)."""
+    try:
+        check(code, path)
+        return code, None
+    except DseError as refused:
+        ported = _ported(code, path)
+        if ported is None:
+            raise
+        try:
+            check(ported, path)
+        except DseError as still:
+            raise DseError(f"{refused}; ported by fissix it is still not Python 3: "
+                           f"{str(still).removeprefix(f'{path} ')}") from None
+        return ported, str(refused).removeprefix(f"{path} ").split(";")[0]
+
+
+def _ported(code: str, path: Path) -> str | None:
+    """``code`` through fissix's fixers (2to3's), or None if it cannot parse it."""
+    import logging
+
+    from fissix.pgen2.parse import ParseError
+    from fissix.refactor import RefactoringTool, get_fixers_from_package
+
+    logging.getLogger("RefactoringTool").setLevel(logging.ERROR)  # it logs each fixer it loads
+    tool = RefactoringTool(get_fixers_from_package("fissix.fixes"))
+    try:
+        return str(tool.refactor_string(code if code.endswith("\n") else code + "\n", str(path)))
+    except (ParseError, SyntaxError, IndentationError):
+        return None
 
 
 def check(code: str, path: Path) -> None:

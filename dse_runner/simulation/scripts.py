@@ -1,9 +1,9 @@
-"""Script objectives: a user's Python 3 script scores a simulation in a subprocess.
+"""Script objectives: a user's Python script scores a simulation in a subprocess.
 
 The calling convention is INTO-CPS's (its DSE ``externalScripts``), so scripts
-written for INTO-CPS run unchanged once they are Python 3::
+written for INTO-CPS run unchanged, Python 2 ones ported on the fly::
 
-    python SCRIPT FOLDER NAME DATA ARG...
+    python SCRIPT FOLDER NAME DATA ARG...      (DATA left out for a script written without it)
 
 * ``FOLDER`` holds ``results.csv`` (columns ``time``, ``step-size``, then every
   recorded signal, also under the names ``columns`` gives it) and
@@ -14,9 +14,11 @@ written for INTO-CPS run unchanged once they are Python 3::
   the worker), or an empty folder;
 * the ``args`` follow, as text.
 
-A script runs on the worker with the worker's own Python, in a subprocess, so
-it cannot take the worker down. A script that Python 3 cannot compile, or that
-is Python 2 (python2.py), is an error when the spec loads, before any task. A
+Whether a script takes ``DATA`` is read from the script (script_convention.py)
+unless ``data_folder`` says. A script runs on the worker with the worker's own
+Python, in a subprocess, so it cannot take the worker down. A Python 2 script
+is ported when the spec loads (python2.py); one that Python 3 cannot compile,
+even ported, is an error then, before any task. A
 script that exits non-zero, runs past its timeout, or writes no number under
 its name fails the task; the failed row holds its message, the script's
 exception line (the last line of its stderr) first, then the end of its
@@ -33,6 +35,7 @@ import re
 import subprocess
 import sys
 import tempfile
+import warnings
 from collections.abc import Mapping
 from functools import cache
 from pathlib import Path
@@ -43,6 +46,7 @@ from pydantic import BaseModel, ConfigDict, PositiveFloat, PrivateAttr
 
 from ..errors import DseError
 from . import python2, scratch
+from .script_convention import convention
 
 FAULT_TAIL = 600  # characters of a failing script's stderr kept in its task's error
 FRAME = re.compile(r'^\s*File "(.+)", line (\d+)', re.MULTILINE)  # a traceback's frame
@@ -56,6 +60,8 @@ class Script(BaseModel):
     args: list[str] = []
     columns: dict[str, str] = {}  # results.csv header -> recorded signal (INTO-CPS: {fmu}.instance.variable)
     timeout: PositiveFloat = 60.0  # seconds one run of the script may take
+    # pass the scenario's data folder as the third argument; None: as the script reads (script_convention.py)
+    data_folder: bool | None = None
     digest: str | None = None  # the script's sha256, filled when loaded: a changed script is a changed model
     _code: str | None = PrivateAttr(None)  # its text, which travels to the workers
 
@@ -67,13 +73,28 @@ class Script(BaseModel):
         except OSError as e:
             raise DseError(f"{where}: cannot read script {path}: {e.strerror}") from None
         try:
-            python2.check(code, path)  # before any task runs it
+            runs, python2_because = python2.as_python3(code, path)  # before any task runs it
         except DseError as e:
             raise DseError(f"{where}: {e}") from None
-        loaded = self.model_copy(update={"script": str(path),
+        if python2_because is not None:
+            _say(path, code, f"{path} {python2_because}; ported to Python 3 with fissix for this run, the "
+                             "file unchanged")
+        data_folder = self.data_folder
+        if data_folder is None:
+            chosen = convention(runs, len(self.args), str(path))
+            if chosen.note is not None:
+                _say(path, code, chosen.note)
+            data_folder = chosen.data_folder
+        loaded = self.model_copy(update={"script": str(path), "data_folder": data_folder,
                                          "digest": hashlib.sha256(code.encode()).hexdigest()[:16]})
-        loaded._code = code
+        loaded._code = runs
         return loaded
+
+    def takes_data_folder(self) -> bool:
+        """Whether its command line has the scenario's data folder third (as loaded, or as it reads)."""
+        if self.data_folder is not None:
+            return self.data_folder
+        return convention(self.code(), len(self.args), self.script).data_folder
 
     def code(self) -> str:
         if self._code is None:  # made through the API, not loaded from a spec
@@ -81,10 +102,28 @@ class Script(BaseModel):
         return self._code
 
 
+class ScriptWarning(UserWarning):
+    """A user's script run otherwise than as written (a Python 2 script, ported for the run), or called on a
+    command line it did not tell."""
+
+
+_SAID: set[tuple[str, str, str]] = set()  # what was said of which script's text: once per process
+
+
+def _say(path: Path, code: str, line: str) -> None:
+    """``line`` as a warning, once per script text: a space loads several times (checks, each submission)."""
+    key = (str(path), hashlib.sha256(code.encode()).hexdigest(), line)
+    if key not in _SAID:
+        _SAID.add(key)
+        warnings.warn(ScriptWarning(line), stacklevel=3)
+
+
 def write_results(path: Path, trajectory, columns: Mapping[str, str]) -> None:
-    """``results.csv`` as INTO-CPS's co-simulation writes it: time, step-size, then the signals."""
+    """``results.csv`` as INTO-CPS's co-simulation (Maestro) writes it: time, step-size, then the signals.
+    The step-size of a row is the step that reached it, ``time[i] - time[i-1]``, and 0 on the first row:
+    a script that sums ``value × step-size`` gets INTO-CPS's number, not one step more."""
     time = trajectory.time
-    steps = np.diff(time, append=time[-1] + (time[-1] - time[-2] if len(time) > 1 else 0.0))
+    steps = np.diff(time, prepend=time[:1])
     names = [*trajectory.names, *columns]
     data = np.column_stack([time, steps, trajectory.values,
                             *(trajectory.column(signal) for signal in columns.values())])
@@ -160,11 +199,13 @@ def run_scripts(scripts: Mapping[str, Script], trajectory, data: Mapping[str, Pa
         objectives.write_text(json.dumps({k: v for k, v in known.items() if isinstance(v, float)}))
         data_folder = _data_folder(tuple(sorted(data.items())))
         for name, spec in scripts.items():
-            argv = [sys.executable, str(_script_file(spec, Path(work))), str(folder), name, str(data_folder),
-                    *spec.args]
+            passed = [str(data_folder)] if spec.takes_data_folder() else []
+            script = str(_script_file(spec, Path(work)))
+            argv = [sys.executable, script, str(folder), name, *passed, *spec.args]
             try:
+                own = Path(spec.script).parent  # INTO-CPS runs scripts from their folder (a ported one's too)
                 result = subprocess.run(argv, capture_output=True, text=True, timeout=spec.timeout, check=False,
-                                        cwd=Path(argv[1]).parent)  # INTO-CPS runs scripts from their folder
+                                        cwd=own if own.is_dir() else Path(argv[1]).parent)
             except subprocess.TimeoutExpired:
                 raise DseError(f"objective {name!r}: script {Path(spec.script).name} ran past its timeout of "
                                f"{spec.timeout:g} s") from None

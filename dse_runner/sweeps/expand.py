@@ -49,6 +49,8 @@ def model_hash(plan: Plan, objectives: dict[str, objs.ObjectiveSpec], experiment
     sources of a user's objective modules too: an edited one scores anew), and what fixes an uncertain
     sample's draws (uncertainty.identity)."""
     mm = plan.multimodel.model_dump(mode="json", exclude={"fmus", "base_dir"})
+    if mm.get("step_sizes") == "difference":  # the default, as before the key existed: older stores resume
+        del mm["step_sizes"]
     fmus = {name: content_hash(path) for name, path in sorted(plan.fmu_paths.items())}
     scored = {name: spec if isinstance(spec, str) else spec.model_dump(mode="json") for name, spec in objectives.items()}
     times = experiment.model_dump(mode="json", exclude_none=True) if experiment is not None else {}

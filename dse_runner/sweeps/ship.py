@@ -22,6 +22,7 @@ import hashlib
 import os
 import pickle
 import uuid
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -44,6 +45,7 @@ class Shipment:
     scenarios: dict[str, Scenario]  # read and checked on the client; their data travel with them
     files: dict[str, bytes]  # content hash -> a file an FMU or a script reads (a scenario's ``files``, ``data``)
     modules: dict[str, bytes] = field(default_factory=dict)  # name -> source: objective modules beside the spec
+    names: dict[str, str] = field(default_factory=dict)  # content hash -> the FMU's file name, for messages
 
 
 def _sha(data: bytes) -> str:
@@ -62,6 +64,7 @@ def pack(plan: Plan, scenarios: list[Scenario], modules: dict[str, bytes] | None
     user's objective modules (simulation/user_modules.py)."""
     archives = {name: Path(path).read_bytes() for name, path in plan.fmu_paths.items()}
     fmus = {_sha(data): data for data in archives.values()}
+    names = {_sha(archives[name]): Path(path).name for name, path in plan.fmu_paths.items()}
     multimodel = plan.multimodel.model_copy(update={"fmus": {name: _sha(data) for name, data in archives.items()}})
     files: dict[str, bytes] = {}
     packed = {}
@@ -81,7 +84,7 @@ def pack(plan: Plan, scenarios: list[Scenario], modules: dict[str, bytes] | None
     modules = dict(modules or {})
     for name in sorted(modules):
         digest.update(f"{name}:{user_modules.digest(modules[name])}".encode())
-    return Shipment(digest.hexdigest()[:24], multimodel, fmus, packed, files, modules)
+    return Shipment(digest.hexdigest()[:24], multimodel, fmus, packed, files, modules, names)
 
 
 @dataclass
@@ -116,7 +119,9 @@ def unpack(shipment: Shipment) -> Unpacked:
     if done is not None:
         return done
     root = local_root()
-    paths = {sha: _write_once(root / "fmus" / f"{sha}.fmu", data) for sha, data in shipment.fmus.items()}
+    # under their own file names (in a folder named by content), so a worker's messages name the user's FMU
+    paths = {sha: _write_once(root / "fmus" / sha / shipment.names.get(sha, f"{sha}.fmu"), data)
+             for sha, data in shipment.fmus.items()}
     multimodel = shipment.multimodel.model_copy(
         update={"fmus": {name: str(paths[sha]) for name, sha in shipment.multimodel.fmus.items()}})
     files = {sha: _write_once(root / "files" / sha, data) for sha, data in shipment.files.items()}
@@ -152,10 +157,22 @@ class ShipmentPlugin(WorkerPlugin):
 
     def setup(self, worker) -> None:
         _RECEIVED[self.shipment.key] = self.shipment
+        warnings.formatwarning = _one_line  # our warnings on the worker's stderr as the command prints them
 
     def teardown(self, worker) -> None:
         _RECEIVED.pop(self.shipment.key, None)
         _UNPACKED.pop(self.shipment.key, None)
+
+
+_PYTHON_FORMAT = warnings.formatwarning
+
+
+def _one_line(message, category, filename, lineno, line=None) -> str:
+    """dse-runner's own warnings as one line (``warning: …``, as the CLI prints them), where a worker prints
+    them; any other as Python formats it."""
+    if category.__module__.startswith("dse_runner."):
+        return f"warning: {message}\n"
+    return _PYTHON_FORMAT(message, category, filename, lineno, line)
 
 
 def plugin_name(key: str) -> str:

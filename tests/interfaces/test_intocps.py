@@ -370,31 +370,45 @@ def test_our_multimodel_reads_backslashes_in_fmu_paths_as_slashes(tmp_path):
     assert load_multimodel(tmp_path / "mm.yaml").fmu_path("a") == types2.resolve()
 
 
-@needs_wild
-def test_intocps_python2_scripts_are_refused_before_any_task(tmp_path):
-    """single_watertank's scripts call unicode(): one line naming the script and the line, and nothing runs."""
-    project = WILD / "single_watertank"
-    done = dse_runner("submit", project / "DSEs/swt-levels/swt-levels.dse.json", "--coe",
-                      project / "Multi-models/mm/co-sim-51/co-sim-51.coe.json", "--out", tmp_path / "out",
-                      "--no-dashboard")
-    assert done.returncode == 2 and done.stdout == ""
-    assert done.stderr.strip().splitlines() == [
-        f"error: {project}/DSEs/swt-levels/swt-levels.dse.json: objectives.cumulativeDeviation: "
-        f"{project}/userMetricScripts/cumulativeDeviation.py line 25: a Python 2 script (unicode(), which "
-        "Python 3 does not have); dse-runner runs scripts with Python 3: port it (2to3 does most of it, see "
-        "docs/intocps.md)"]
-    assert not (tmp_path / "out").exists()
-
-
-def test_a_python2_script_in_a_dse_is_named_with_its_line(tmp_path):
+def test_a_python2_script_that_does_not_port_is_refused_with_its_line(tmp_path):
+    """Python 2 accepted a tab after spaces where Python 3 cannot tell the indentation: fissix keeps the
+    line, so the ported script still does not compile; one line names the script, the line and both
+    reasons, and nothing runs."""
     project = copy_project(tmp_path)
-    (project / "userMetricScripts" / "switches.py").write_text("import sys\n\nprint sys.argv[2]\n")
+    (project / "userMetricScripts" / "switches.py").write_text(
+        "import sys\n\nif len(sys.argv) > 2:\n        x = 1\n\ty = 2\nprint sys.argv[2]\n")
     done = dse_runner("submit", project / DSE, "--out", tmp_path / "out", "--no-dashboard")
     assert done.returncode == 2 and not (tmp_path / "out").exists()
-    assert done.stderr.strip().endswith(
-        "objectives.switches: " + str((project / "userMetricScripts" / "switches.py").resolve())
-        + " line 3: a Python 2 script (print statement); dse-runner runs scripts with Python 3: port it "
-          "(2to3 does most of it, see docs/intocps.md)"), done.stderr
+    (line,) = done.stderr.strip().splitlines()
+    script = str((project / "userMetricScripts" / "switches.py").resolve())
+    assert line.startswith(f"error: {project / DSE}: objectives.switches: {script} line 5: ") and (
+        "ported by fissix it is still not Python 3: line 5: not valid Python 3: inconsistent use of tabs"
+        in line)
+
+
+def test_a_python2_script_is_ported_for_the_run_once_and_the_file_left_unchanged(tmp_path):
+    """``print x`` and ``unicode()``: the run uses the ported text, one warning per script says so, the
+    user's file is byte for byte as it was, and the value is what the declared objective computes."""
+    project = copy_project(tmp_path)
+    script = project / "userMetricScripts" / "switches.py"
+    script.write_text(script.read_text().replace(
+        'objectives[name] = switches\n', 'objectives[name] = switches\nprint "%d switches" % switches\n'))
+    before = script.read_bytes()
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        space = intocps.load_space(project / DSE)
+        intocps.load_space(project / DSE)  # loaded again (a resubmission): said once
+    ported = [str(w.message) for w in said if "ported to Python 3 with fissix" in str(w.message)]
+    line = script.read_text().splitlines().index('print "%d switches" % switches') + 1
+    assert ported == [f"{script.resolve()} line {line}: a Python 2 script (print statement); ported to "
+                      "Python 3 with fissix for this run, the file unchanged"]
+    point = {"controller.minlevel": 0.8, "controller.maxlevel": 1.8}
+    result = simulate(space.plan, space.scenarios[0], point,
+                      objectives={"switches": space.objectives["switches"],
+                                  "changes": Reduce(signal="controller.valve", reduce="changes")},
+                      experiment=space.experiment)
+    assert result.objectives["switches"] == result.objectives["changes"] > 0
+    assert script.read_bytes() == before
 
 
 @pytest.mark.parametrize(("code", "line", "what"), [
@@ -418,7 +432,10 @@ def test_python2_is_told_from_python3(code, line, what):
     with pytest.raises(DseError) as error:
         python2.check(code, Path("/scripts/metric.py"))
     assert str(error.value) == (f"/scripts/metric.py line {line}: a Python 2 script ({what}); dse-runner runs "
-                                "scripts with Python 3: port it (2to3 does most of it, see docs/intocps.md)")
+                                "scripts with Python 3 (docs/intocps.md)")
+    ported, because = python2.as_python3(code, Path("/scripts/metric.py"))
+    assert because == f"line {line}: a Python 2 script ({what})"
+    python2.check(ported, Path("/scripts/metric.py"))  # what runs is Python 3
 
 
 @pytest.mark.parametrize(("code", "message"), [
@@ -437,20 +454,65 @@ def test_python3_scripts_pass_and_other_syntax_errors_are_named(code, message):
         python2.check(code, Path("/scripts/metric.py"))
 
 
-def test_the_porting_example_of_docs_intocps_runs_as_written(tmp_path):
-    """docs/intocps.md's Python 2 valveChanges.py is refused at its print statement; its port counts the
-    valve's switches as the declared objective does."""
-    text = (REPO / "docs" / "intocps.md").read_text().split("## Porting a Python 2 script")[1]
-    before, after = [block.split("```")[0] for block in text.split("```python\n")[1:3]]
+def test_the_scripts_of_docs_intocps_run_as_written(tmp_path):
+    """docs/intocps.md's two valveChanges.py: the Python 2 one, written for the command line without the data
+    folder, is ported and called without it; the Python 3 one, written for INTO-CPS's later command line, is
+    called with it. Both count the valve's switches as the declared objective does."""
+    text = (REPO / "docs" / "intocps.md").read_text().split("## Python 2 scripts and the command line")[1]
+    scripts = [block.split("```")[0] for block in text.split("```python\n")[1:3]]
     project = copy_project(tmp_path)
     script = project / "userMetricScripts" / "switches.py"
-    script.write_text(before)
-    with pytest.raises(DseError, match=r"switches\.py line 10: a Python 2 script \(print statement\)"):
-        intocps.load_space(project / DSE)
-    script.write_text(after)
-    space = intocps.load_space(project / DSE)
-    result = simulate(space.plan, space.scenarios[0], {"controller.minlevel": 0.8, "controller.maxlevel": 1.8},
-                      objectives={"switches": space.objectives["switches"],
-                                  "changes": Reduce(signal="controller.valve", reduce="changes")},
-                      experiment=space.experiment)
-    assert result.objectives["switches"] == result.objectives["changes"] > 0
+    for code, python2_line in zip(scripts, ["line 10: a Python 2 script (print statement)", None]):
+        script.write_text(code)
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
+            space = intocps.load_space(project / DSE)
+        ported = [str(w.message) for w in said if "ported" in str(w.message)]
+        assert ported == ([f"{script.resolve()} {python2_line}; ported to Python 3 with fissix for this run, "
+                           "the file unchanged"] if python2_line else [])
+        assert space.objectives["switches"].data_folder is (python2_line is None)
+        point = {"controller.minlevel": 0.8, "controller.maxlevel": 1.8}
+        result = simulate(space.plan, space.scenarios[0], point,
+                          objectives={"switches": space.objectives["switches"],
+                                      "changes": Reduce(signal="controller.valve", reduce="changes")},
+                          experiment=space.experiment)
+        assert result.objectives["switches"] == result.objectives["changes"] > 0
+
+
+@pytest.mark.parametrize(("code", "arguments", "takes"), [
+    ("import sys\ncolumn, target = sys.argv[3], float(sys.argv[4])\n", 2, False),  # INTO-CPS's published ones
+    ("import sys\ndata, column, target = sys.argv[3], sys.argv[4], sys.argv[5]\n", 2, True),  # example-fcu's
+    ("import sys\nfolder, name, data, a, b, c = sys.argv[1:7]\n", 3, True),  # a fixed slice
+    ("from sys import argv\nfolder, name, column = argv[1], argv[2], argv[3]\n", 1, False),
+    ("import sys\nname = sys.argv[2]\n", 0, True),  # no parameters: the data folder harms nothing
+])
+def test_the_command_line_a_script_expects_is_read_from_it(code, arguments, takes):
+    from dse_runner.simulation.script_convention import convention
+
+    assert convention(code, arguments, "s.py") == (convention(code, arguments, "s.py").__class__(takes))
+
+
+@pytest.mark.parametrize("code", ["import sys\nrest = sys.argv[3:]\n", "import sys\nx = sys.argv[7]\n",
+                                  "import sys\ni = 3\nx = sys.argv[i]\n", "print('no arguments read')\n"])
+def test_a_script_whose_command_line_cannot_be_read_gets_the_data_folder_and_a_line_saying_so(code):
+    from dse_runner.simulation.script_convention import convention
+
+    chosen = convention(code, 1, "s.py")
+    assert chosen.data_folder and chosen.note.startswith("s.py reads ")
+    assert chosen.note.endswith("passing the scenario's data folder as its third argument, as INTO-CPS's DSE "
+                                "scripts do (data_folder: false leaves it out)")
+
+
+def test_results_csv_has_the_step_size_column_intocps_writes(tmp_path):
+    """0 on the first row, then the step that reached each row (Maestro's outputs.csv: 0.0, 0.05, 0.05...)."""
+    import csv
+
+    from dse_runner.simulation.cosim import Trajectory
+    from dse_runner.simulation.scripts import write_results
+
+    time = np.array([0.0, 0.05, 0.1, 0.15000000000000002, 0.2])
+    trajectory = Trajectory(time, ["a.x"], np.arange(5.0)[:, None], {})
+    write_results(tmp_path / "results.csv", trajectory, {"{a}.a.x": "a.x"})
+    rows = list(csv.reader(open(tmp_path / "results.csv")))
+    assert rows[0] == ["time", "step-size", "a.x", "{a}.a.x"]
+    assert [float(r[1]) for r in rows[1:]] == [0.0, *np.diff(time)]

@@ -77,10 +77,10 @@ def test_a_module_that_cannot_serve_is_one_line_naming_the_file(tmp_path, source
 
 
 def test_simulate_finds_a_module_in_the_current_folder(tmp_path):
-    """``simulate MODEL --objective scores:overshoot`` in the folder that holds scores.py, as a user runs it."""
+    """``simulate MODEL --objective scores:overshoot`` in the folder holding scores.py, as a user runs it."""
     (tmp_path / "scores.py").write_text(SCORES)
     shutil.copytree(MSD / "fmus" / "msd", tmp_path / "msd")
-    command = Path(sys.executable).with_name("dse-runner")  # as installed: python -m would put the folder on sys.path
+    command = Path(sys.executable).with_name("dse-runner")  # installed: -m would put the folder on sys.path
     done = subprocess.run([str(command), "simulate", "msd", "--objective", "scores:overshoot", "--json"],
                           capture_output=True, text=True, cwd=tmp_path)
     assert done.returncode == 0, done.stderr

@@ -34,7 +34,7 @@ from ...errors import DseError
 from ...simulation.multimodel import from_into_cps, into_cps_instances, split_into_cps_id
 from ...sweeps.constraints import compile_constraint
 from ...sweeps.spec import SpaceSpec
-from .formats import CoeConfig, DseConfig, FixedStep, VariableStep, read, read_json
+from .formats import CoeConfig, DseConfig, FixedStep, IntoCpsWarning, VariableStep, read, read_json
 from .project import Located
 
 # an id as INTO-CPS writes it in an expression: {fmu}.instance.variable (variables may hold dots)
@@ -43,10 +43,6 @@ MM_KEYS = {"fmus", "connections", "parameters"}  # what the application writes; 
 INTERNAL = {"max": "max", "min": "min", "mean": "sample_mean"}
 ALGORITHMS = ("exhaustive", "genetic")
 GENERATIONS = 10  # a genetic search's default budget, in populations, when the DSE sets none
-
-
-class IntoCpsWarning(UserWarning):
-    """Something of the INTO-CPS files that dse-runner does differently; the message says what."""
 
 
 def _relative(path: Path, base: Path) -> str:

@@ -28,6 +28,11 @@ Loose = ConfigDict(extra="allow", allow_inf_nan=False)  # INTO-CPS writes keys w
 Strict = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
+class IntoCpsWarning(UserWarning):
+    """Something of the INTO-CPS files that dse-runner does differently; the message says what."""
+
+
+
 # ---- *.dse.json ------------------------------------------------------------------------------------
 
 class Algorithm(BaseModel):

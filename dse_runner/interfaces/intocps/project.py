@@ -7,18 +7,21 @@ two folders up (``<mm>/<config>/coe.json`` -> ``<mm>/mm.json``, else the one
 file there ending in ``mm.json``), else the coe's ``multimodel_path``
 (docs/research/intocps-formats.md, section 4). :func:`locate` does the same
 without a user to ask: the candidates whose multi-model defines every
-``{fmu}.instance`` the DSE names; one is taken, several are listed, none is an
-error naming what is missing and the multi-models looked at.
+``{fmu}.instance`` the DSE names and whose FMUs are in the project; one is
+taken, several are listed, none is an error naming what is missing and the
+multi-models looked at. Configs that fit but whose FMUs are absent (a project
+published without them) are set aside with one line saying so.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 from ...errors import DseError
-from ...simulation.multimodel import into_cps_instances, split_into_cps_id
-from .formats import CoeConfig, DseConfig, read, read_json
+from ...simulation.multimodel import from_into_cps, into_cps_instances, portable, split_into_cps_id
+from .formats import CoeConfig, DseConfig, IntoCpsWarning, read, read_json
 
 PROJECT_FILE = ".project.json"
 MULTI_MODEL_FOLDERS = ("Multi-models", "Multi-Models", "Multimodels")  # all three occur in real projects
@@ -136,10 +139,20 @@ def _pick_coe(root: Path, dse: DseConfig, multimodel: Path | None) -> Path:
     used = instances_used(dse)
     lacking = {c: _lacking(c, root, used) for c in candidates}
     fitting = [c for c in candidates if not lacking[c]]
-    if len(fitting) == 1:
-        return fitting[0]
     if not fitting:
         raise DseError(_none_fits(root, lacking))
+    absent = {c: absent_fmus(c, root) for c in fitting} if len(fitting) > 1 else {}
+    if absent and any(absent.values()):
+        runnable = [c for c in fitting if not absent[c]]
+        if not runnable:
+            raise DseError("every co-simulation config that could run this DSE lacks FMUs: " + "; ".join(
+                f"{_shown(c, root)} needs {', '.join(missing)}" for c, missing in absent.items()))
+        warnings.warn(IntoCpsWarning("set aside, their FMUs absent from the project: " + "; ".join(
+            f"{_shown(c, root)} (needs {', '.join(missing)})" for c, missing in absent.items() if missing)),
+            stacklevel=3)
+        fitting = runnable
+    if len(fitting) == 1:
+        return fitting[0]
     names = ", ".join(str(c.relative_to(root)) for c in fitting)
     raise DseError(f"several co-simulation configs could run this DSE ({names}); choose one with --coe")
 
@@ -155,6 +168,20 @@ def _lacking(coe: Path, root: Path, used: set[str]) -> list[str]:
     """What of ``used`` the coe.json's multi-model does not define (all of it when it has none)."""
     multimodel = _multimodel_or_none(coe, root)
     return sorted(used - (instances_defined(multimodel) if multimodel is not None else set()))
+
+
+def absent_fmus(coe: Path, root: Path) -> list[str]:
+    """The FMU files the coe.json's multi-model names that the project does not hold (found as the run finds
+    them: in its FMUs folder, also under a name written otherwise)."""
+    multimodel = _multimodel_or_none(coe, root)
+    if multimodel is None:
+        return []
+    data = read_json(multimodel)
+    with warnings.catch_warnings():  # a renamed FMU is said when the chosen config loads, not per candidate
+        warnings.simplefilter("ignore")
+        found = from_into_cps(data, multimodel.parent)["fmus"]
+    named = {instance: data["fmus"][key] for instance, key in into_cps_instances(data).items()}
+    return sorted({portable(named[instance]) for instance, path in found.items() if not Path(path).exists()})
 
 
 def _shown(path: Path, root: Path) -> str:
