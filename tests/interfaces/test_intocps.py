@@ -386,6 +386,15 @@ def test_a_python2_script_that_does_not_port_is_refused_with_its_line(tmp_path):
         in line)
 
 
+def switches_and_changes(space) -> tuple[float, float]:
+    """The DSE's switches script's value at one point, and what {signal: valve, reduce: changes} gives there."""
+    result = simulate(space.plan, space.scenarios[0], {"controller.minlevel": 0.8, "controller.maxlevel": 1.8},
+                      objectives={"switches": space.objectives["switches"],
+                                  "changes": Reduce(signal="controller.valve", reduce="changes")},
+                      experiment=space.experiment)
+    return result.objectives["switches"], result.objectives["changes"]
+
+
 def test_a_python2_script_is_ported_for_the_run_once_and_the_file_left_unchanged(tmp_path):
     """``print x`` and ``unicode()``: the run uses the ported text, one warning per script says so, the
     user's file is byte for byte as it was, and the value is what the declared objective computes."""
@@ -402,12 +411,8 @@ def test_a_python2_script_is_ported_for_the_run_once_and_the_file_left_unchanged
     line = script.read_text().splitlines().index('print "%d switches" % switches') + 1
     assert ported == [f"{script.resolve()} line {line}: a Python 2 script (print statement); ported to "
                       "Python 3 with fissix for this run, the file unchanged"]
-    point = {"controller.minlevel": 0.8, "controller.maxlevel": 1.8}
-    result = simulate(space.plan, space.scenarios[0], point,
-                      objectives={"switches": space.objectives["switches"],
-                                  "changes": Reduce(signal="controller.valve", reduce="changes")},
-                      experiment=space.experiment)
-    assert result.objectives["switches"] == result.objectives["changes"] > 0
+    switches, changes = switches_and_changes(space)
+    assert switches == changes > 0
     assert script.read_bytes() == before
 
 
@@ -471,12 +476,8 @@ def test_the_scripts_of_docs_intocps_run_as_written(tmp_path):
         assert ported == ([f"{script.resolve()} {python2_line}; ported to Python 3 with fissix for this run, "
                            "the file unchanged"] if python2_line else [])
         assert space.objectives["switches"].data_folder is (python2_line is None)
-        point = {"controller.minlevel": 0.8, "controller.maxlevel": 1.8}
-        result = simulate(space.plan, space.scenarios[0], point,
-                          objectives={"switches": space.objectives["switches"],
-                                      "changes": Reduce(signal="controller.valve", reduce="changes")},
-                          experiment=space.experiment)
-        assert result.objectives["switches"] == result.objectives["changes"] > 0
+        switches, changes = switches_and_changes(space)
+        assert switches == changes > 0
 
 
 @pytest.mark.parametrize(("code", "arguments", "takes"), [
