@@ -349,7 +349,9 @@ def submit(
         _interrupted(space)
     finally:
         if board is not None:
-            board.server.stop()
+            from .dashboard import farewell
+
+            board.server.stop(farewell(space.output, "The sweep's submit has ended, and its dashboard server with it."))
     if report.interrupted:
         _interrupted(space)
     summary = {
@@ -500,7 +502,9 @@ def dashboard_command(
         while True:
             time.sleep(3600)
     except KeyboardInterrupt:
-        server.stop()
+        from .dashboard import farewell
+
+        server.stop(farewell(results, "This dashboard server was stopped (Ctrl-C)."))
 
 
 @app.command("report")

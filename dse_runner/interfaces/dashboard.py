@@ -22,6 +22,7 @@ import math
 import socket
 import threading
 import time
+import weakref
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
@@ -96,10 +97,12 @@ class Feed:
         self._lock = threading.Lock()
         self._snapshot: Snapshot | None = None
         self._tracks: dict[tuple, tuple] = {}
+        self.pages: weakref.WeakSet[Page] = weakref.WeakSet()  # the open tabs, told when the server stops
 
-    def snapshot(self) -> Snapshot:
+    def snapshot(self, fresh: bool = False) -> Snapshot:
+        """What the store holds, read at most every REFRESH_SECONDS (``fresh``: now)."""
         with self._lock:
-            if self._snapshot is None or time.monotonic() - self._snapshot.taken >= REFRESH_SECONDS:
+            if fresh or self._snapshot is None or time.monotonic() - self._snapshot.taken >= REFRESH_SECONDS:
                 self._snapshot = self._read()
             return self._snapshot
 
@@ -333,10 +336,16 @@ class Page:
 
     def __init__(self, feed: Feed, doc):
         from bokeh.layouts import column, row
-        from bokeh.models import Div, Select
+        from bokeh.models import CustomJS, Div, Select
 
-        self.feed, self.shown = feed, -1  # rows shown: they only ever grow, so a count tells news
+        self.feed, self.shown, self.doc = feed, -1, doc  # rows shown: they only ever grow, so a count tells news
+        feed.pages.add(self)
         snap = feed.snapshot()
+        self.farewell = Div(width=800)  # what the page says when its server stops (DashboardServer.stop)
+        # once it has said so, the end of the connection is expected: no "connection was lost" banner (a Bokeh
+        # 3.8+ setting, read in the browser; a change made on the server does not reach the browser's copy)
+        self.farewell.js_on_change("text", CustomJS(code="const config = cb_obj.document.config; if (config) "
+                                                         "config.setv({notify_connection_status: false}, {sync: false})"))
         self.scenarios = feed.scenarios(snap)
         p, objective = feed.parameters, feed.objective
         self.title = Div(width=800)
@@ -369,12 +378,14 @@ class Page:
             return Div(text=f"<h3 style='font-family:sans-serif;margin:12px 0 0'>{text}</h3>")
 
         doc.title = f"dse-runner: {feed.sweep}"
+        if getattr(doc, "config", None) is not None:  # Bokeh 3.8+: a page reconnects to a new, empty session
+            doc.config.reconnect_session = False  # and shows nothing of it; a lost connection is said once
         search = [] if not searching else [
             heading(f"Search: best {objective} against simulations"
                     + (", and the Pareto front as it grew" if self.front_chart else "")),
             row(*(c.figure for c in (self.search_chart, self.front_chart) if c is not None))]
         doc.add_root(column(
-            self.title, self.progress, *([self.search] if self.search else []), self.best,
+            self.farewell, self.title, self.progress, *([self.search] if self.search else []), self.best,
             row(column(heading(f"Best so far, ranked by {html.escape(feed.ranked_by)}"), self.ranking), column(heading("Workers"), self.workers)),
             *([self.studies] if self.studies is not None else []),
             *search,
@@ -386,6 +397,17 @@ class Page:
             self.track_note, self.track.figure))
         self.update()
         doc.add_periodic_callback(self.update, int(REFRESH_SECONDS * 1000))
+
+    def finish(self, note: str, said: threading.Event) -> None:
+        """The server is about to stop: the final state and figures from the store as it is now, and ``note``
+        on top (whose arrival tells the browser the connection's end is meant)."""
+        try:
+            self.feed.snapshot(fresh=True)
+            self.update()
+            self.farewell.text = (f"<div id='dse-farewell' style='font-family:sans-serif;background:#fff4d6;"
+                                  f"border:1px solid #e0c060;padding:8px 12px'>{html.escape(note)}</div>")
+        finally:
+            said.set()
 
     def update(self) -> None:
         snap = self.feed.snapshot()
@@ -474,6 +496,10 @@ def _origins(host: str, port: int) -> list[str]:
     return sorted(f"{name}:{port}" for name in names)
 
 
+FAREWELL_SECONDS = 10.0  # at most this long for the open pages to take their last update
+DELIVERY_SECONDS = 0.5  # then this long for it to leave the server before it closes the connections
+
+
 @dataclass
 class DashboardServer:
     """A dashboard served from a background thread; ``stop()`` ends it."""
@@ -481,8 +507,19 @@ class DashboardServer:
     url: str
     _loop: Any
     _thread: threading.Thread
+    feed: Feed | None = None
 
-    def stop(self) -> None:
+    def stop(self, farewell: str | None = None) -> None:
+        """Stop serving. With ``farewell``, every open page first shows the sweep's final state and figures
+        and the note, and is told the connection's end is meant: no lost-connection banner, no error."""
+        if farewell is not None and self.feed is not None:
+            told = []
+            for page in list(self.feed.pages):
+                said = threading.Event()
+                page.doc.add_next_tick_callback(partial(page.finish, farewell, said))
+                told.append(said)
+            if all(said.wait(FAREWELL_SECONDS) for said in told) and told:
+                time.sleep(DELIVERY_SECONDS)
         self._loop.add_callback(self._loop.stop)
         self._thread.join(timeout=10)
 
@@ -526,4 +563,10 @@ def serve(output: store.Root, sweep: str, address: str = "127.0.0.1:0", space: S
     if "error" in ready:
         raise DseError(f"cannot serve the dashboard at {host}:{port}: {ready['error'].strerror}")
     shown = f"[{host}]" if ":" in host else host
-    return DashboardServer(f"http://{shown}:{port}/", ready["loop"], thread)
+    return DashboardServer(f"http://{shown}:{port}/", ready["loop"], thread, feed)
+
+
+def farewell(output: store.Root, how: str) -> str:
+    """What a page says when its server stops: how, and how to see the results again."""
+    return (f"{how} This page shows the final state, and no longer updates. To open the results again: "
+            f"dse-runner dashboard {output}")

@@ -46,6 +46,8 @@ class Watched:
     dask_nav_has_link: bool = False
     track_title: str = ""
     chosen_track: str = ""  # the caption after choosing another scenario
+    farewell: str = ""  # what the page said when submit stopped its server, and the state it showed then
+    farewell_state: str = ""
 
 
 def _text(page, element: str) -> str:
@@ -56,7 +58,7 @@ def _text(page, element: str) -> str:
 def watched(tmp_path_factory, dask_scheduler) -> Watched:
     from distributed import Client
 
-    from dse_runner.interfaces.dashboard import serve
+    from dse_runner.interfaces.dashboard import farewell, serve
     from dse_runner.interfaces.dask_link import link_from_dask
     from dse_runner.sweeps.spec import load_space
     from dse_runner.sweeps.sweep import submit
@@ -133,8 +135,10 @@ def watched(tmp_path_factory, dask_scheduler) -> Watched:
             seen.dask_nav_has_link = dask.locator("a[href='dse-runner']").count() == 1
             dask.goto(links[0])
             seen.dask_page_went_to = dask.url
+        ended = "The sweep's submit has ended, and its dashboard server with it."
+        server.stop(farewell(space.output, ended))  # as submit does
+        seen.farewell, seen.farewell_state = _text(page, "farewell"), _text(page, "state")
     client.close()
-    server.stop()
     if "error" in outcome:
         raise outcome["error"]
     assert outcome["report"].ok == TASKS, outcome["report"].errors
@@ -275,22 +279,53 @@ def test_a_long_title_is_set_small_enough_to_fit_its_chart(tmp_path):
     assert (fit.charts, fit.titles, fit.misfits) == (2, 2, [])
 
 
-def test_dashboard_command_serves_a_finished_sweep(watched):
-    server = subprocess.Popen([sys.executable, "-m", "dse_runner", "dashboard", str(watched.output)],
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        line = server.stdout.readline()
-        match = re.search(r"http://127\.0\.0\.1:\d+/", line)
-        assert match, line + server.stderr.read()
-        errors: list[str] = []
-        with browser_page(errors) as page:
-            page.goto(match[0])
-            page.wait_for_selector("#dse-done", timeout=30_000)
-            state, done = _text(page, "state"), _text(page, "done")
-    finally:
-        server.terminate()
-        server.wait(timeout=10)
-    assert (state, done, errors) == ("finished", f"{TASKS} of {TASKS}", [])
+def test_the_page_shows_the_sweeps_end_when_submit_stops_its_server(watched):
+    """Submit stops the dashboard it served as it ends: the open page shows the finished state, then says the
+    server has stopped and how to open the results again."""
+    assert watched.farewell_state == "finished"
+    assert watched.farewell == ("The sweep's submit has ended, and its dashboard server with it. This page shows "
+                                f"the final state, and no longer updates. To open the results again: dse-runner "
+                                f"dashboard {watched.output}")
+
+
+def test_dashboard_command_serves_a_finished_sweep_and_its_page_outlives_it_without_error(watched):
+    """Stopped by Ctrl-C, the server says goodbye on the open page and exits; the page notices the closed
+    connection without a console error and without Bokeh's "connection was lost" banner, which a server
+    killed without a word still gets."""
+    import signal
+
+    lost: list[str] = []
+    for ending in (signal.SIGINT, signal.SIGKILL):
+        server = subprocess.Popen([sys.executable, "-m", "dse_runner", "dashboard", str(watched.output)],
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            line = server.stdout.readline()
+            match = re.search(r"http://127\.0\.0\.1:\d+/", line)
+            assert match, line + server.stderr.read()
+            errors: list[str] = []
+            with browser_page(errors) as page:
+                page.on("console", lambda m: lost.append(m.text) if "Lost websocket" in m.text else None)
+                page.goto(match[0])
+                page.wait_for_selector("#dse-done", timeout=30_000)
+                state, done = _text(page, "state"), _text(page, "done")
+                noticed = len(lost)
+                server.send_signal(ending)
+                server.wait(timeout=30)
+                deadline = time.monotonic() + 30
+                while time.monotonic() < deadline and len(lost) == noticed:  # until the browser notices
+                    page.wait_for_timeout(250)
+                banner = page.get_by_text("connection was lost").count()
+                said = _text(page, "farewell") if page.locator("#dse-farewell").count() else ""
+        finally:
+            server.kill()
+            server.wait(timeout=10)
+        assert (state, done) == ("finished", f"{TASKS} of {TASKS}")
+        assert len(lost) > noticed, "the browser never noticed the server's end"
+        if ending == signal.SIGINT:
+            assert (errors, banner) == ([], 0)
+            assert said.startswith("This dashboard server was stopped (Ctrl-C).") and str(watched.output) in said
+        else:  # the control: a server killed without a word, as before
+            assert banner == 1 and said == ""
 
 
 def test_standings_put_the_furthest_points_first():
