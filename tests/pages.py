@@ -76,9 +76,10 @@ def measure(page) -> Fit:
 
 
 def glyphs(page, name: str) -> list[tuple[str, int]] | None:
-    """The glyphs the chart named ``name`` draws, each with its data source's rows; None if no such chart."""
+    """The glyphs the chart named ``name`` draws, each with its data source's rows (those with any: a chart
+    keeps empty glyphs for what another design would draw); None if no such chart."""
     drawn = page.evaluate(GLYPHS, name)
-    return None if drawn is None else [(kind, rows) for kind, rows in drawn]
+    return None if drawn is None else [(kind, rows) for kind, rows in drawn if rows]
 
 
 def chromium(playwright):

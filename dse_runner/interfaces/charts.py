@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -158,24 +159,89 @@ def lines(ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], b
 
 
 def _empty_dots() -> dict[str, list]:
-    return {"x": [], "y": [], "scenario": [], "group": [], "colour": []}
+    return {"x": [], "y": [], "scenario": [], "group": [], "colour": [], "legend": []}
 
 
 def dots(ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], by: str = "group") -> dict[str, Any]:
     """Every row a dot at its ``x`` and ``objective``, coloured by ``colour_of[row[by]]``: a search's points,
     each its own x, have no mean over the other parameters to join. Columns for a ``scatter`` glyph."""
     return {"x": ok[x].to_numpy(float), "y": ok[objective].to_numpy(float), "scenario": ok["scenario"].to_numpy(),
-            "group": ok["group"].to_numpy(), "colour": [colour_of.get(v, "grey") for v in ok[by]]}
+            "group": ok["group"].to_numpy(), "colour": [colour_of.get(v, "grey") for v in ok[by]],
+            "legend": ok[by].to_numpy()}
 
 
-def _draw(fig: figure, source: ColumnDataSource, legend: str, scattered: bool, room: tuple[int, int]) -> None:
-    """Lines joining a grid's values, or a search's points as dots; the legend below, in ``room``."""
-    if scattered:
-        glyph = fig.scatter("x", "y", color="colour", size=6, alpha=0.75, legend_field=legend, source=source)
-    else:
-        glyph = fig.multi_line("xs", "ys", line_color="colour", line_width=1.6, line_alpha=0.85,
-                               legend_field=legend, source=source)
-    fig.add_tools(HoverTool(renderers=[glyph], tooltips=[("scenario", "@scenario"), ("group", "@group")]))
+MAX_DOTS = 5000  # rows of a sampled design drawn as dots; above, a binned mean and band (megabytes, a blot)
+BINS = 30  # bins of a parameter's range in the binned view
+BAND = (0.1, 0.9)  # the quantiles the band spans
+
+
+def _empty_bands() -> dict[str, list]:
+    return {"xs": [], "ys": [], "colour": []}
+
+
+def binned(ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], by: str = "group",
+           bins: int = BINS) -> tuple[dict[str, list], dict[str, list]]:
+    """Per scenario, over ``bins`` equal bins of column ``x``: the mean ``objective`` (a line, as ``lines``
+    makes them) and the band between its ``BAND`` quantiles (a patch). What a sampled design of 10^5 rows
+    shows of its objective against a parameter, in a few kilobytes."""
+    means, bands = _empty_lines(), _empty_bands()
+    for scenario, rows in ok.groupby("scenario", sort=True):
+        values = rows[x].to_numpy(float)
+        edges = np.linspace(values.min(), values.max(), bins + 1)
+        where = np.clip(np.searchsorted(edges, values, side="right") - 1, 0, bins - 1)
+        stats = rows[objective].groupby(where).agg(["mean", lambda v: v.quantile(BAND[0]),
+                                                    lambda v: v.quantile(BAND[1])])
+        centres = ((edges[:-1] + edges[1:]) / 2)[stats.index.to_numpy()]
+        low, high = stats.iloc[:, 1].to_numpy(float), stats.iloc[:, 2].to_numpy(float)
+        colour = colour_of.get(rows[by].iloc[0], "grey")
+        means["xs"].append(centres)
+        means["ys"].append(stats["mean"].to_numpy(float))
+        means["scenario"].append(scenario)
+        means["group"].append(rows["group"].iloc[0])
+        means["colour"].append(colour)
+        bands["xs"].append(np.concatenate([centres, centres[::-1]]))
+        bands["ys"].append(np.concatenate([low, high[::-1]]))
+        bands["colour"].append(colour)
+    return means, bands
+
+
+@dataclass
+class _Sources:
+    """What one panel draws: lines (a grid's means, or a large design's binned means), a large design's
+    quantile bands, and dots (a search's or a smaller design's points)."""
+
+    lines: ColumnDataSource
+    bands: ColumnDataSource
+    dots: ColumnDataSource
+
+    @classmethod
+    def empty(cls) -> _Sources:
+        return cls(ColumnDataSource(_empty_lines()), ColumnDataSource(_empty_bands()),
+                   ColumnDataSource(_empty_dots()))
+
+    def fill(self, ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], by: str,
+             scattered: bool) -> None:
+        """A grid's lines; a sampled design's dots up to MAX_DOTS rows, its binned means and bands above."""
+        if not scattered:
+            self.lines.data = lines(ok, x, objective, colour_of, by)
+        elif len(ok) <= MAX_DOTS:
+            self.dots.data = dots(ok, x, objective, colour_of, by)
+            self.lines.data, self.bands.data = _empty_lines(), _empty_bands()
+        else:
+            self.lines.data, self.bands.data = binned(ok, x, objective, colour_of, by)
+            self.dots.data = _empty_dots()
+
+
+def _draw(fig: figure, sources: _Sources, legend: str, room: tuple[int, int]) -> None:
+    """Lines (a grid's means, or a large design's binned means over their quantile bands), and dots (a
+    search's points); the legend below, in ``room``, showing only what has data."""
+    line = fig.multi_line("xs", "ys", line_color="colour", line_width=1.6, line_alpha=0.85,
+                          legend_field=legend, source=sources.lines)
+    # its own legend column: Bokeh merges the entries of one field name across glyphs, and their sources differ
+    dot = fig.scatter("x", "y", color="colour", size=6, alpha=0.75, legend_field="legend", source=sources.dots)
+    fig.patches("xs", "ys", fill_color="colour", fill_alpha=0.15, line_alpha=0.0, source=sources.bands,
+                level="underlay")
+    fig.add_tools(HoverTool(renderers=[line, dot], tooltips=[("scenario", "@scenario"), ("group", "@group")]))
     _legend_below(fig, room)
 
 
@@ -186,20 +252,23 @@ class ObjectiveByParameter:
     def __init__(self, parameters: list[str], objective: str, groups: Sequence[str], scattered: bool = False):
         self.objective, self.scattered = objective, scattered
         self.colour_of = colours(groups)
-        self.sources = {p: ColumnDataSource(_empty_dots() if scattered else _empty_lines()) for p in parameters}
+        self.sources = {p: _Sources.empty() for p in parameters}
         room = legend_room([list(self.colour_of)])  # every panel has a line per group
-        figures = []
-        for name, source in self.sources.items():
+        self.figures = []
+        for name, sources in self.sources.items():
             fig = _figure(name, name, objective if scattered else f"mean {objective}",
                           name=f"dse-by-parameter-{name}")
-            _draw(fig, source, "group", scattered, room)
-            figures.append(fig)
-        self.layout = grid(figures)
+            _draw(fig, sources, "group", room)
+            self.figures.append(fig)
+        self.layout = grid(self.figures)
 
     def update(self, ok: pd.DataFrame) -> None:
-        drawn = dots if self.scattered else lines
-        for name, source in self.sources.items():
-            source.data = drawn(ok, name, self.objective, self.colour_of)
+        for (name, sources), fig in zip(self.sources.items(), self.figures):
+            sources.fill(ok, name, self.objective, self.colour_of, "group", self.scattered)
+            if self.scattered:  # dots, or above MAX_DOTS rows the binned mean with its band
+                fig.yaxis.axis_label = self.objective if len(ok) <= MAX_DOTS else (
+                    f"mean {self.objective}, {round(100 * BAND[0])}-{round(100 * BAND[1])} % band")
+            legend_follows_data(fig)
 
 
 def point_index(ok: pd.DataFrame, parameters: list[str]) -> pd.Series:
@@ -219,22 +288,21 @@ class ErrorByGroup:
     def __init__(self, parameters: list[str], objective: str, scenarios: dict[str, str], scattered: bool = False):
         self.parameters, self.objective, self.scenarios, self.scattered = parameters, objective, scenarios, scattered
         self.colour_of = colours(scenarios)  # scenario -> colour; scenarios of a group differ
-        self.sources = {g: ColumnDataSource(_empty_dots() if scattered else _empty_lines())
-                        for g in sorted(set(scenarios.values()))}
+        self.sources = {g: _Sources.empty() for g in sorted(set(scenarios.values()))}
         room = legend_room([[s for s, of in scenarios.items() if of == g] for g in self.sources])
-        figures = []
-        for group, source in self.sources.items():
+        self.figures = []
+        for group, sources in self.sources.items():
             fig = _figure(f"group {group}", "parameter point #", objective, name=f"dse-by-group-{group}")
-            _draw(fig, source, "scenario", scattered, room)
-            figures.append(fig)
-        self.layout = grid(figures)
+            _draw(fig, sources, "scenario", room)
+            self.figures.append(fig)
+        self.layout = grid(self.figures)
 
     def update(self, ok: pd.DataFrame) -> None:
         indexed = ok.assign(point=point_index(ok, self.parameters))
-        drawn = dots if self.scattered else lines
-        for group, source in self.sources.items():
-            source.data = drawn(indexed[indexed["group"] == group], "point", self.objective, self.colour_of,
-                                by="scenario")
+        for (group, sources), fig in zip(self.sources.items(), self.figures):
+            sources.fill(indexed[indexed["group"] == group], "point", self.objective, self.colour_of, "scenario",
+                         self.scattered)
+            legend_follows_data(fig)
 
 
 class TrackChart:
@@ -278,7 +346,10 @@ class ParetoChart:
         _legend_below(self.figure)
 
     def update(self, totals: pd.DataFrame, front: pd.DataFrame) -> None:
-        self.points.data = {c: totals[c].to_numpy() for c in (self.x, self.y, *self.parameters)}
+        shown = totals if len(totals) <= MAX_DOTS else totals.sample(MAX_DOTS, random_state=0)  # the front whole
+        self.figure.title.text = "Pareto front" if shown is totals else (
+            f"Pareto front; {MAX_DOTS} of the {len(totals)} points, drawn at random")
+        self.points.data = {c: shown[c].to_numpy() for c in (self.x, self.y, *self.parameters)}
         ordered = front.sort_values(self.x)
         self.front.data = {self.x: ordered[self.x].to_numpy(), self.y: ordered[self.y].to_numpy()}
         legend_follows_data(self.figure)
