@@ -30,7 +30,7 @@ from ..sweeps.domain import Dimension
 from ..sweeps.rank import REDUCED, current_rows, load_sweep_spec, pick_sweep, scalar_objectives
 from ..sweeps.search import Problem, strategy
 from ..sweeps.spec import SpaceSpec, dimension
-from ..sweeps.strategies.designs import Design, SensitivityDesign, salib_problem
+from ..sweeps.strategies.designs import Design, SensitivityDesign, interval_values, salib_problem
 
 CONFIDENCE = 0.95  # bootstrap interval level
 RESAMPLES = 100  # bootstrap resamples (SALib's default)
@@ -156,7 +156,8 @@ def sensitivity(output: Any, sweep: str | None = None, objectives: list[str] | N
     rows = current_rows(output, sweep, ["group", "status", *parameters, *chosen])
     if rows.empty:
         raise DseError(f"{output}: sweep {sweep!r} has no rows yet")
-    points = pd.DataFrame(design.points(dimensions), columns=parameters)
+    fast = interval_values(dimensions, design.units)  # a million rows without a dict each, where it applies
+    points = pd.DataFrame(fast if fast is not None else design.points(dimensions), columns=parameters)
     keys = pd.MultiIndex.from_frame(points) if len(parameters) > 1 else pd.Index(points[parameters[0]])
     over = spec.ranking.over_scenarios
     groups = rows.groupby("group")

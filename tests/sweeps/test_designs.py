@@ -127,3 +127,25 @@ def test_fast_buys_one_curve_per_parameter_each_running_its_parameter_fastest():
     with pytest.raises(DseError, match=r"search: fast needs at least 195 points for 3 parameters .*max_points is 194"):
         search.strategy("fast")(problem(X, Y, Z, max_points=194))
     assert search.strategy("fast")(problem(X, Y, Z, max_points=15, options={"harmonics": 1})).design.block == 5
+
+
+@pytest.mark.parametrize(("name", "options"), [("sobol_indices", {}), ("sobol_indices", {"second_order": True}),
+                                               ("morris", {}), ("morris", {"levels": 6})])
+def test_a_design_over_intervals_is_computed_on_whole_columns_to_the_same_points(name, options):
+    """The column-wise path (no Python object per row, for designs of a million points) asks the very points,
+    in the very order, that mapping each row and keeping its first occurrence gives, with the same budget."""
+    from dse_runner.sweeps.domain import from_units
+    from dse_runner.sweeps.strategies import designs
+
+    x, z, w = Dimension("m.x", low=-1, high=1), Dimension("m.z", low=0.0, high=4.0), Dimension("m.w", low=2, high=3)
+    p = problem(x, z, w, max_points=203, options=options)
+    fast = search.strategy(name)(p)
+    assert isinstance(designs._budgeted_intervals(fast.design, p)[1], np.ndarray)  # the fast path served
+    by_row, seen = [], set()
+    for row in fast.design.units:
+        point = from_units([x, z, w], row)
+        if tuple(point.values()) not in seen:
+            seen.add(tuple(point.values()))
+            by_row.append(point)
+    assert list(iter(fast.ask, None)) == by_row and fast.size == len(by_row) <= 203
+    assert designs._budgeted(fast.design, p) == (fast.design.blocks, by_row)  # the row-by-row path agrees

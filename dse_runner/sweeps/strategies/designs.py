@@ -53,6 +53,24 @@ class Design:
         return [from_units(list(dimensions), row) for row in self.units]
 
 
+def plain_intervals(dimensions: tuple[Dimension, ...]) -> bool:
+    """Whether every parameter is an interval without log, integer, step or choices: a design's rows then
+    never meet the same point twice."""
+    return bool(dimensions) and all(d.choices is None and d.step is None and not d.integer and not d.log
+                                    and d.low is not None for d in dimensions)
+
+
+def interval_values(dimensions: tuple[Dimension, ...], units: np.ndarray) -> np.ndarray | None:
+    """``units`` mapped to values on whole columns where every parameter is a plain interval (no log, integer,
+    step or choices): the very numbers ``Dimension.from_unit`` gives row by row (the same IEEE operations,
+    low + u * (high - low)), without a Python object per row. None for any other design."""
+    if not plain_intervals(dimensions):
+        return None
+    low = np.array([float(d.low) for d in dimensions])
+    high = np.array([float(d.high) for d in dimensions])
+    return low + np.clip(units, 0.0, 1.0) * (high - low)
+
+
 def salib_problem(dimensions: tuple[Dimension, ...]) -> dict[str, Any]:
     """SALib's problem: every parameter on [0, 1]; domain.py maps units to values (log, grids, choices)."""
     return {"num_vars": len(dimensions), "names": [d.name for d in dimensions], "bounds": [[0.0, 1.0]] * len(dimensions)}
@@ -78,7 +96,7 @@ class SensitivityDesign(Strategy):
         super().__init__(problem)
         numeric(problem.dimensions)
         self.design, points = self.fit(problem)
-        self._points = iter(points)
+        self._points = _asked(points, [d.name for d in problem.dimensions])
         self.size = len(points)
 
     def fit(self, problem: Problem) -> tuple[Design, list[Point]]:
@@ -92,9 +110,11 @@ class SensitivityDesign(Strategy):
         n, found = problem.max_points // block, -1
         while True:
             design = self.draw(problem, n)
-            blocks, points = _budgeted(design, problem)
+            blocks, points = _budgeted_intervals(design, problem) or _budgeted(design, problem)
             if blocks < design.blocks or len(points) == found or n >= problem.max_points:
                 break  # the budget is spent, or longer adds nothing, or there is a block per point of budget
+            if plain_intervals(problem.dimensions) and problem.max_points - len(points) < block:
+                break  # rows that never repeat: no further block fits (drawing it would cost as much again)
             n, found = 2 * n, len(points)
         units = design.units[:blocks * design.block]
         return replace(design, units=units), points
@@ -136,6 +156,32 @@ def distinct_points(dimensions: tuple[Dimension, ...]) -> int | None:
     """How many points the parameters' grids and choices hold, or None when one is an interval."""
     grids = [d.grid() for d in dimensions]
     return None if any(g is None for g in grids) else math.prod(len(set(g)) for g in grids)
+
+
+def _asked(points: list[Point] | np.ndarray, names: list[str]):
+    """The points to ask, one at a time: a matrix of values becomes a point only when asked (a million
+    points held as dicts would cost the client half a gigabyte)."""
+    if isinstance(points, np.ndarray):
+        return (dict(zip(names, row.tolist())) for row in points)  # a row's list made when it is asked
+    return iter(points)
+
+
+def _budgeted_intervals(design: Design, problem: Problem) -> tuple[int, np.ndarray] | None:
+    """:func:`_budgeted` on whole columns, for a design over plain intervals without constraints: the same
+    blocks and the same points in the same order (each distinct row where it first occurs), as a matrix.
+    None where it does not apply."""
+    if problem.constrained:
+        return None
+    values = interval_values(problem.dimensions, design.units)
+    if values is None or not len(values):
+        return None
+    _, first, inverse = np.unique(values, axis=0, return_index=True, return_inverse=True)
+    is_new = first[inverse.ravel()] == np.arange(len(values))
+    ends = np.arange(1, design.blocks + 1) * design.block
+    distinct = np.cumsum(is_new)[ends - 1]  # distinct points in the first 1, 2, ... blocks
+    blocks = int(np.searchsorted(distinct, problem.max_points, side="right"))
+    used = blocks * design.block
+    return blocks, values[:used][is_new[:used]]
 
 
 def _budgeted(design: Design, problem: Problem) -> tuple[int, list[Point]]:
