@@ -47,6 +47,7 @@ from ..errors import DseError
 from ..sweeps import store, uncertainty
 from ..sweeps.history import SearchHistory, load_history
 from ..sweeps.search import strategy
+from ..sweeps.strategies.designs import SensitivityDesign
 from ..sweeps.spec import Space, load_space
 from ..sweeps.status import SearchStatus, SweepReport, load_status
 from . import charts
@@ -89,9 +90,10 @@ class Feed:
         self.uncertain = spec.uncertain  # each scenario ran once per draw: the pages show the draws' means
         self.max_points, self.strategy = spec.search.max_points, spec.search.strategy
         try:  # a closed-loop search writes a history the pages draw; a grid has none to look for
-            self.closed_loop = strategy(spec.search.strategy).closed_loop
+            kind = strategy(spec.search.strategy)
+            self.closed_loop, self.designed = kind.closed_loop, issubclass(kind, SensitivityDesign)
         except DseError:  # a plug-in strategy this process does not have: look for its history anyway
-            self.closed_loop = True
+            self.closed_loop, self.designed = True, False
         self._space, self._space_note = space, ""  # no space, and why not (once looked for)
         self._looked_for_space = space is not None
         self._lock = threading.Lock()
@@ -137,6 +139,11 @@ class Feed:
     def searching(self, snap: Snapshot) -> bool:
         """Whether the pages show a search's progress: its strategy asks for points, or it left a history."""
         return self.closed_loop or snap.history is not None
+
+    def sampled(self, snap: Snapshot) -> bool:
+        """Whether the points lie off any grid, each its own value (a search's, a sensitivity design's):
+        Figures 5 and 6 then draw dots, or binned means, where a grid's lines of means would zigzag."""
+        return self.searching(snap) or self.designed
 
     def scenarios(self, snap: Snapshot) -> dict[str, str]:
         """Scenario -> group: from the space if this process has it, else the status, else the rows; with
@@ -353,9 +360,9 @@ class Page:
         self.best = Div(width=800)
         self.ranking = Div(width=2 * charts.WIDTH)
         self.workers = Div(width=charts.WIDTH)
-        searching = feed.searching(snap)  # a search's points lie off any grid: Figures 5 and 6 draw dots
-        self.fig5 = charts.ObjectiveByParameter(p, objective, sorted(set(self.scenarios.values())), searching)
-        self.fig6 = charts.ErrorByGroup(p, objective, self.scenarios, searching)
+        searching, sampled = feed.searching(snap), feed.sampled(snap)
+        self.fig5 = charts.ObjectiveByParameter(p, objective, sorted(set(self.scenarios.values())), sampled)
+        self.fig6 = charts.ErrorByGroup(p, objective, self.scenarios, sampled)
         names = sorted(self.scenarios)
         self.select = Select(title="scenario", value=names[0] if names else "", options=names)
         self.select.on_change("value", lambda attr, old, new: self._track(feed.snapshot(), force=True))
@@ -389,7 +396,7 @@ class Page:
             row(column(heading(f"Best so far, ranked by {html.escape(feed.ranked_by)}"), self.ranking), column(heading("Workers"), self.workers)),
             *([self.studies] if self.studies is not None else []),
             *search,
-            heading(f"{objective} against each parameter" + ("" if searching else ", the mean over the others")),
+            heading(f"{objective} against each parameter" + ("" if sampled else ", the mean over the others")),
             self.fig5.layout,
             heading(f"{objective} per scenario group at each parameter point, points sorted by {', '.join(p)}"),
             self.fig6.layout,

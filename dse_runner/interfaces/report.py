@@ -244,7 +244,7 @@ def build_report(output: store.Root, sweep: str | None = None) -> str:
     snap = feed.snapshot()
     ok, scenarios = snap.ok, feed.scenarios(snap)
     parameters = ranking.parameters
-    scattered = feed.searching(snap)  # a search's points lie off any grid: dots, not lines
+    scattered = feed.sampled(snap)  # a search's or a design's points lie off any grid: dots, not lines
 
     figures: dict[str, object] = {}
     by_parameter = charts.ObjectiveByParameter(parameters, ranking.objective, sorted(set(scenarios.values())),
