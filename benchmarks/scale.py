@@ -1,11 +1,11 @@
-"""How the commands scale with a study's rows: submit, rank, report and sensitivity at 10^4, 10^5 and 10^6 rows,
-each as a user runs it (the installed ``dse-runner`` in a subprocess), side by side in one run.
+"""How the commands scale with a study's rows: submit, rank, report and sensitivity at 10^4, 10^5 and
+10^6 rows, each as a user runs it (the installed ``dse-runner`` in a subprocess), side by side in one run.
 
     python benchmarks/scale.py [--rows 10000,100000,1000000] [--json]
 
-The study is jobs/ishigami/space.yaml's (the Ishigami function as a C FMU, Sobol' indices by Saltelli's design:
-one row per point), with ``max_points`` set to the rows asked for, into a fresh folder each; submit runs on
-the embedded local cluster of 2 workers without a dashboard. For each command: wall seconds, and the peak
+The study is jobs/ishigami/space.yaml's (the Ishigami function as a C FMU, Sobol' indices by Saltelli's
+design: one row per point), with ``max_points`` set to the rows asked for, into a fresh folder each; submit
+runs on the embedded local cluster of 2 workers without a dashboard. For each command: wall seconds, and the peak
 resident memory of the command's own process (the client: sampled every 50 ms with psutil; submit's
 workers are other processes and not counted). For the report, its size. The ratios to the smallest study
 show what grows with the rows; issue 52's targets at 10^6 rows are a client peak of 1 GB, rank 10 s,
@@ -88,7 +88,8 @@ def table(found: list[dict]) -> None:
     print(f"{'rows':>9} | {'submit':>16} | {'rank':>15} | {'report':>22} | {'sensitivity':>15}")
     for f in found:
         cells = [f"{f[c]['seconds']:6.1f} s {f[c]['peak_mb']:5d} MB" for c in ("submit", "rank")]
-        cells.append(f"{f['report']['seconds']:6.1f} s {f['report']['peak_mb']:5d} MB {f['report']['mb']:5.1f} MB")
+        report = f["report"]
+        cells.append(f"{report['seconds']:6.1f} s {report['peak_mb']:5d} MB {report['mb']:5.1f} MB")
         cells.append(f"{f['sensitivity']['seconds']:6.1f} s {f['sensitivity']['peak_mb']:5d} MB")
         print(f"{f['rows']:>9} | " + " | ".join(cells))
     for f in found[1:]:

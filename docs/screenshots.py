@@ -60,10 +60,11 @@ def main() -> None:
         page.wait_for_selector("canvas")
         page.wait_for_timeout(1500)
         page.screenshot(path=IMAGES / "report.png", full_page=False)
-        laptop = browser.new_page(viewport={"width": 1280, "height": 1400})  # a laptop's window: figures fill it
+        laptop = browser.new_page(viewport={"width": 1280, "height": 1400})  # a laptop's: figures fill it
         laptop.goto(report.as_uri())
         laptop.wait_for_selector("canvas")
-        laptop.locator("h2", has_text="against each parameter").evaluate("h => h.scrollIntoView()")  # at the top
+        heading = laptop.locator("h2", has_text="against each parameter")
+        heading.evaluate("h => h.scrollIntoView()")  # at the top
         laptop.wait_for_timeout(1500)
         laptop.screenshot(path=IMAGES / "report-figures-1280.png", full_page=False)
         browser.close()

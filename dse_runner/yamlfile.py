@@ -26,7 +26,8 @@ def load_yaml(path: Path, what: str = "file") -> Any:
     except OSError as e:
         raise DseError(f"cannot read {what} {path}: {e.strerror}") from None
     except UnicodeDecodeError:
-        raise DseError(f"{path}: not a {what}: it is not text ({_binary_hint(Path(path))}a {what} is YAML)") from None
+        hint = _binary_hint(Path(path))
+        raise DseError(f"{path}: not a {what}: it is not text ({hint}a {what} is YAML)") from None
     except yaml.YAMLError as e:
         raise DseError(format_syntax_error(str(path), "YAML", e)) from None
 
@@ -64,7 +65,8 @@ def read_yaml(path: Path, shape: type[T], what: str = "file", empty: Any = None)
     if data is not None and not isinstance(data, Mapping) and _wants_mapping(shape):
         found = "a list" if isinstance(data, list) else "text that is not a YAML mapping (a CSV file?)" if (
             isinstance(data, str)) else f"the single value {data!r:.40}"
-        raise DseError(f"{path}: not a {what}: a {what} is a YAML mapping of keys to values, this file holds {found}")
+        raise DseError(f"{path}: not a {what}: a {what} is a YAML mapping of keys to values, this file "
+                       f"holds {found}")
     return validated(empty if data is None else data, shape, str(path))
 
 

@@ -237,8 +237,9 @@ def _draw(fig: figure, sources: _Sources, legend: str, room: tuple[int, int]) ->
     search's points); the legend below, in ``room``, showing only what has data."""
     line = fig.multi_line("xs", "ys", line_color="colour", line_width=1.6, line_alpha=0.85,
                           legend_field=legend, source=sources.lines)
-    # its own legend column: Bokeh merges the entries of one field name across glyphs, and their sources differ
-    dot = fig.scatter("x", "y", color="colour", size=6, alpha=0.75, legend_field="legend", source=sources.dots)
+    # its own legend column: Bokeh merges entries of one field name across glyphs, and their sources differ
+    dot = fig.scatter("x", "y", color="colour", size=6, alpha=0.75, legend_field="legend",
+                      source=sources.dots)
     fig.patches("xs", "ys", fill_color="colour", fill_alpha=0.15, line_alpha=0.0, source=sources.bands,
                 level="underlay")
     fig.add_tools(HoverTool(renderers=[line, dot], tooltips=[("scenario", "@scenario"), ("group", "@group")]))
@@ -300,8 +301,8 @@ class ErrorByGroup:
     def update(self, ok: pd.DataFrame) -> None:
         indexed = ok.assign(point=point_index(ok, self.parameters))
         for (group, sources), fig in zip(self.sources.items(), self.figures):
-            sources.fill(indexed[indexed["group"] == group], "point", self.objective, self.colour_of, "scenario",
-                         self.scattered)
+            members = indexed[indexed["group"] == group]
+            sources.fill(members, "point", self.objective, self.colour_of, "scenario", self.scattered)
             legend_follows_data(fig)
 
 
@@ -346,7 +347,7 @@ class ParetoChart:
         _legend_below(self.figure)
 
     def update(self, totals: pd.DataFrame, front: pd.DataFrame) -> None:
-        shown = totals if len(totals) <= MAX_DOTS else totals.sample(MAX_DOTS, random_state=0)  # the front whole
+        shown = totals if len(totals) <= MAX_DOTS else totals.sample(MAX_DOTS, random_state=0)  # front: whole
         self.figure.title.text = "Pareto front" if shown is totals else (
             f"Pareto front; {MAX_DOTS} of the {len(totals)} points, drawn at random")
         self.points.data = {c: shown[c].to_numpy() for c in (self.x, self.y, *self.parameters)}

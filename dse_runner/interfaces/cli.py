@@ -351,7 +351,8 @@ def submit(
         if board is not None:
             from .dashboard import farewell
 
-            board.server.stop(farewell(space.output, "The sweep's submit has ended, and its dashboard server with it."))
+            ended = "The sweep's submit has ended, and its dashboard server with it."
+            board.server.stop(farewell(space.output, ended))
     if report.interrupted:
         _interrupted(space)
     summary = {

@@ -345,14 +345,16 @@ class Page:
         from bokeh.layouts import column, row
         from bokeh.models import CustomJS, Div, Select
 
-        self.feed, self.shown, self.doc = feed, -1, doc  # rows shown: they only ever grow, so a count tells news
+        self.feed, self.doc = feed, doc
+        self.shown = -1  # rows shown: they only ever grow, so a count tells news
         feed.pages.add(self)
         snap = feed.snapshot()
         self.farewell = Div(width=800)  # what the page says when its server stops (DashboardServer.stop)
         # once it has said so, the end of the connection is expected: no "connection was lost" banner (a Bokeh
         # 3.8+ setting, read in the browser; a change made on the server does not reach the browser's copy)
-        self.farewell.js_on_change("text", CustomJS(code="const config = cb_obj.document.config; if (config) "
-                                                         "config.setv({notify_connection_status: false}, {sync: false})"))
+        quiet = "config.setv({notify_connection_status: false}, {sync: false})"
+        self.farewell.js_on_change("text", CustomJS(
+            code=f"const config = cb_obj.document.config; if (config) {quiet}"))
         self.scenarios = feed.scenarios(snap)
         p, objective = feed.parameters, feed.objective
         self.title = Div(width=800)
@@ -396,9 +398,11 @@ class Page:
             row(column(heading(f"Best so far, ranked by {html.escape(feed.ranked_by)}"), self.ranking), column(heading("Workers"), self.workers)),
             *([self.studies] if self.studies is not None else []),
             *search,
-            heading(f"{objective} against each parameter" + ("" if sampled else ", the mean over the others")),
+            heading(f"{objective} against each parameter"
+                    + ("" if sampled else ", the mean over the others")),
             self.fig5.layout,
-            heading(f"{objective} per scenario group at each parameter point, points sorted by {', '.join(p)}"),
+            heading(f"{objective} per scenario group at each parameter point, points sorted by "
+                    f"{', '.join(p)}"),
             self.fig6.layout,
             heading("Best candidate on the chosen scenario, over its recording if it has one"), self.select,
             self.track_note, self.track.figure))

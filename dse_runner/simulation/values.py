@@ -49,8 +49,9 @@ def read_values(path: str | Path) -> dict[str, Value]:
     """The values of a values file; errors name the file and the key."""
     data = load_yaml(Path(path), "values file")
     if isinstance(data, dict) and "multimodel" in data:
-        raise DseError(f"{path}: a space.yaml, not a values file: a values file holds instance.variable: value "
-                       "lines (rank --best-values and diagnose write them); run a space with simulate SPACE.yaml")
+        raise DseError(f"{path}: a space.yaml, not a values file: a values file holds instance.variable: "
+                       "value lines (rank --best-values and diagnose write them); run a space with "
+                       "simulate SPACE.yaml")
     return read_yaml(Path(path), ValuesFile, "values file").root
 
 

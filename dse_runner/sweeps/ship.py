@@ -44,7 +44,7 @@ class Shipment:
     fmus: dict[str, bytes]  # content hash -> .fmu archive
     scenarios: dict[str, Scenario]  # read and checked on the client; their data travel with them
     files: dict[str, bytes]  # content hash -> a file an FMU or a script reads (a scenario's ``files``, ``data``)
-    modules: dict[str, bytes] = field(default_factory=dict)  # name -> source: objective modules beside the spec
+    modules: dict[str, bytes] = field(default_factory=dict)  # name -> source: objective modules by the spec
     names: dict[str, str] = field(default_factory=dict)  # content hash -> the FMU's file name, for messages
 
 
@@ -126,8 +126,8 @@ def unpack(shipment: Shipment) -> Unpacked:
         update={"fmus": {name: str(paths[sha]) for name, sha in shipment.multimodel.fmus.items()}})
     files = {sha: _write_once(root / "files" / sha, data) for sha, data in shipment.files.items()}
     for name, source in shipment.modules.items():  # named by hash: two versions of one module never mix
-        user_modules.load(name, _write_once(root / "modules" / user_modules.digest(source) / f"{name}.py", source),
-                          source)
+        path = _write_once(root / "modules" / user_modules.digest(source) / f"{name}.py", source)
+        user_modules.load(name, path, source)
     scenarios = {name: s.with_files({field: files[str(sha)] for field, sha in s.files.items()})
                  .with_data({file: files[str(sha)] for file, sha in s.data.items()})
                  for name, s in shipment.scenarios.items()}

@@ -155,7 +155,7 @@ class SignalDiagnosis:
         alone = (found.get("calibrated") or {}).get("parameters") or {}
         fitted = (found.get("fitted") or {}).get("parameters") or {}
         together = {name: value for name, value in fitted.items() if name in alone}
-        if alone:  # what the missing physics did to the calibration: it bends the parameters to make up for it
+        if alone:  # what the missing physics did to the calibration: it bent the parameters to make up for it
             lines.append("calibrated: " + ", ".join(f"{name} = {value:.4g}" for name, value in alone.items())
                          + ("; with the effects: " + ", ".join(f"{n} = {v:.4g}" for n, v in together.items())
                             if found["effects"] and together else ""))

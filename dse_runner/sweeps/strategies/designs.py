@@ -141,14 +141,15 @@ class SensitivityDesign(Strategy):
         left = self.problem.max_points - self.size
         if left < self.design.block:
             return None
-        return (f"search: {self.label} runs {self.size} distinct points of max_points {self.problem.max_points}: "
-                f"{self.more()}")
+        return (f"search: {self.label} runs {self.size} distinct points of max_points "
+                f"{self.problem.max_points}: {self.more()}")
 
     def more(self) -> str:
         """How to get more distinct points out of the design."""
         finite = distinct_points(self.problem.dimensions)
         if finite is not None:
-            return f"the parameters' grids and choices hold {finite} points; finer grids or intervals give more"
+            return (f"the parameters' grids and choices hold {finite} points; finer grids or intervals give "
+                    "more")
         return "the constraints leave few points; widen them, or lower max_points"
 
 
