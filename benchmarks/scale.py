@@ -5,8 +5,8 @@
 
 The study is jobs/ishigami/space.yaml's (the Ishigami function as a C FMU, Sobol' indices by Saltelli's
 design: one row per point), with ``max_points`` set to the rows asked for, into a fresh folder each; submit
-runs on the embedded local cluster of 2 workers without a dashboard. For each command: wall seconds, and the peak
-resident memory of the command's own process (the client: sampled every 50 ms with psutil; submit's
+runs on the embedded local cluster of 2 workers without a dashboard. For each command: wall seconds, and the
+peak resident memory of the command's own process (the client: sampled every 50 ms with psutil; submit's
 workers are other processes and not counted). For the report, its size. The ratios to the smallest study
 show what grows with the rows; issue 52's targets at 10^6 rows are a client peak of 1 GB, rank 10 s,
 report 20 s and 8 MB.

@@ -136,8 +136,9 @@ def build_fmus(
 
 @app.command()
 def describe(
-    model: Annotated[Path, typer.Argument(metavar="MODEL", help="An .fmu file, an FMU source folder, a "
-                                                                "multi-model file, or a space.yaml (its model).")],
+    model: Annotated[Path, typer.Argument(
+        metavar="MODEL", help="An .fmu file, an FMU source folder, a multi-model file, or a space.yaml "
+                              "(its model).")],
     every: Annotated[bool, typer.Option("--all", help="Every variable, locals too.")] = False,
     as_json: JsonFlag = False,
 ) -> None:

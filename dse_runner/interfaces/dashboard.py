@@ -84,7 +84,8 @@ class Feed:
         self.objective, self.goal = spec.ranking.objective, spec.ranking.goal
         self.settings = spec.ranking  # the best point is named as rank() names it: over_scenarios, robust, constraints
         # the objectives read: the ranked one, and every one when constraints may name others (as rank() reads them)
-        self.objectives = scalar_objectives(spec, output, sweep) if spec.ranking.constraints else [self.objective]
+        every = spec.ranking.constraints
+        self.objectives = scalar_objectives(spec, output, sweep) if every else [self.objective]
         self.ranked_by = ranked_figure_label(spec.ranking, spec.uncertain is not None)
         self.pareto_goals = spec.ranking.pareto_goals()
         self.uncertain = spec.uncertain  # each scenario ran once per draw: the pages show the draws' means

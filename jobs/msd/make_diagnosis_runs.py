@@ -132,13 +132,14 @@ def make_folders(case: str, folder: Path, seed: int = 1) -> list[Path]:
         t, force, x = record(name, CASES[case], rng)
         run = folder / name
         run.mkdir(parents=True, exist_ok=True)
-        np.savetxt(run / "force.csv", np.column_stack([t, force]), delimiter=",", header="time,F", comments="",
-                   fmt="%.6g")
+        np.savetxt(run / "force.csv", np.column_stack([t, force]), delimiter=",", header="time,F",
+                   comments="", fmt="%.6g")
         np.savetxt(run / "position.csv", np.column_stack([t, x]), delimiter=",", header="time,x", comments="",
                    fmt="%.6g")
         (run / "scenario.yaml").write_text(yaml.safe_dump({
             "name": name, "inputs": {"msd.F": {"csv": "force.csv", "interpolation": "hold"}},
-            "parameters": {"msd.x0": x0}, "recorded": "position.csv", "stop_time": DURATION}, sort_keys=False))
+            "parameters": {"msd.x0": x0}, "recorded": "position.csv", "stop_time": DURATION},
+            sort_keys=False))
         made.append(run)
     return made
 
@@ -148,7 +149,8 @@ def main() -> None:
     parser.add_argument("case", choices=list(CASES))
     parser.add_argument("--out", type=Path, default=None, help="folder (default out/msd-blind/CASE)")
     parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--folders", action="store_true", help="one scenario folder per run, and no space.yaml")
+    parser.add_argument("--folders", action="store_true",
+                        help="one scenario folder per run, and no space.yaml")
     args = parser.parse_args()
     folder = (args.out or Path("out") / "msd-blind" / args.case).resolve()
     if args.folders:
