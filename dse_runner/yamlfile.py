@@ -59,9 +59,13 @@ def _binary_hint(path: Path) -> str:
 
 
 def read_yaml(path: Path, shape: type[T], what: str = "file", empty: Any = None) -> T:
-    """A YAML file validated as ``shape``; an empty file counts as ``empty``. A file that is not a YAML
-    mapping where one is expected (a CSV, a list) is one line saying so, not a validation error."""
-    data = load_yaml(path, what)
+    """A YAML file validated as ``shape``; an empty file counts as ``empty``."""
+    return as_format(load_yaml(path, what), shape, path, what, empty)
+
+
+def as_format(data: Any, shape: type[T], path: Path, what: str = "file", empty: Any = None) -> T:
+    """The data of the YAML file ``path`` validated as ``shape``. A file that is not a YAML mapping where one
+    is expected (a CSV, a list) is one line saying so, not a validation error."""
     if data is not None and not isinstance(data, Mapping) and _wants_mapping(shape):
         found = "a list" if isinstance(data, list) else "text that is not a YAML mapping (a CSV file?)" if (
             isinstance(data, str)) else f"the single value {data!r:.40}"

@@ -189,13 +189,13 @@ def binned(ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], 
         values = rows[x].to_numpy(float)
         edges = np.linspace(values.min(), values.max(), bins + 1)
         where = np.clip(np.searchsorted(edges, values, side="right") - 1, 0, bins - 1)
-        stats = rows[objective].groupby(where).agg(["mean", lambda v: v.quantile(BAND[0]),
-                                                    lambda v: v.quantile(BAND[1])])
-        centres = ((edges[:-1] + edges[1:]) / 2)[stats.index.to_numpy()]
-        low, high = stats.iloc[:, 1].to_numpy(float), stats.iloc[:, 2].to_numpy(float)
+        per_bin = rows[objective].groupby(where)
+        mean = per_bin.mean()
+        low, high = per_bin.quantile(BAND[0]).to_numpy(float), per_bin.quantile(BAND[1]).to_numpy(float)
+        centres = ((edges[:-1] + edges[1:]) / 2)[mean.index.to_numpy()]
         colour = colour_of.get(rows[by].iloc[0], "grey")
         means["xs"].append(centres)
-        means["ys"].append(stats["mean"].to_numpy(float))
+        means["ys"].append(mean.to_numpy(float))
         means["scenario"].append(scenario)
         means["group"].append(rows["group"].iloc[0])
         means["colour"].append(colour)
@@ -224,12 +224,17 @@ class _Sources:
         """A grid's lines; a sampled design's dots up to MAX_DOTS rows, its binned means and bands above."""
         if not scattered:
             self.lines.data = lines(ok, x, objective, colour_of, by)
-        elif len(ok) <= MAX_DOTS:
+        elif not is_binned(ok, scattered):
             self.dots.data = dots(ok, x, objective, colour_of, by)
             self.lines.data, self.bands.data = _empty_lines(), _empty_bands()
         else:
             self.lines.data, self.bands.data = binned(ok, x, objective, colour_of, by)
             self.dots.data = _empty_dots()
+
+
+def is_binned(ok: pd.DataFrame, scattered: bool) -> bool:
+    """Whether a sampled design's rows are too many for dots: its binned means and bands are drawn."""
+    return scattered and len(ok) > MAX_DOTS
 
 
 def _draw(fig: figure, sources: _Sources, legend: str, room: tuple[int, int]) -> None:
@@ -267,7 +272,7 @@ class ObjectiveByParameter:
         for (name, sources), fig in zip(self.sources.items(), self.figures):
             sources.fill(ok, name, self.objective, self.colour_of, "group", self.scattered)
             if self.scattered:  # dots, or above MAX_DOTS rows the binned mean with its band
-                fig.yaxis.axis_label = self.objective if len(ok) <= MAX_DOTS else (
+                fig.yaxis.axis_label = self.objective if not is_binned(ok, True) else (
                     f"mean {self.objective}, {round(100 * BAND[0])}-{round(100 * BAND[1])} % band")
             legend_follows_data(fig)
 

@@ -155,20 +155,29 @@ def tracks_caption(compared: list[Comparison], objective: str, best: str) -> tup
                      f"the scenario's {objective}.")
 
 
-def figure_notes(objective: str, parameters: list[str], scattered: bool) -> dict[str, str]:
-    """What each figure and table shows, in the study's own objective and parameter names."""
+def figure_notes(objective: str, parameters: list[str], scattered: bool,
+                 binned: bool = False) -> dict[str, str]:
+    """What each figure and table shows, in the study's own objective and parameter names (``binned``: a
+    sampled design too large for dots, charts.is_binned)."""
     named = ", ".join(parameters)
-    if scattered:
-        by_parameter = (f"Every point the search simulated, at its value of each parameter ({named}): a "
-                        "dot per scenario, coloured by its group. A search's points lie off any grid, so "
-                        "there is no mean over the other parameters to join with lines.")
+    band = f"{round(100 * charts.BAND[0])} % and {round(100 * charts.BAND[1])} %"
+    if binned:
+        by_parameter = (f"Each point the sweep simulated lies off any grid, and there are more than "
+                        f"{charts.MAX_DOTS}: per scenario, the mean {objective} in {charts.BINS} equal bins "
+                        f"of each parameter ({named}), drawn as a line over the band between its rows' "
+                        f"{band} quantiles, coloured by group.")
+    elif scattered:
+        by_parameter = (f"Every point the sweep simulated, at its value of each parameter ({named}): a "
+                        "dot per scenario, coloured by its group. Sampled or searched points lie off any "
+                        "grid, so there is no mean over the other parameters to join with lines.")
     elif len(parameters) > 1:
         by_parameter = (f"One panel per parameter: the mean {objective} at each of its values, over every "
                         f"value of the others (for {parameters[0]}: over {', '.join(parameters[1:])}); a "
                         "line per scenario, coloured by its group.")
     else:
         by_parameter = f"{objective} at each value of {named}; a line per scenario, coloured by its group."
-    drawn = "a dot per point and scenario" if scattered else "a line per scenario of the group"
+    drawn = ("per scenario, the mean in bins of consecutive points inside its quantile band" if binned else
+             "a dot per point and scenario" if scattered else "a line per scenario of the group")
     by_group = (f"One panel per scenario group: {objective} at every parameter point, {drawn}. The points "
                 f"are numbered in the order of their values of {named}.")
     table1 = (f"Per scenario: the min, max and average {objective} over the ranked points; \"best\" is the "
@@ -255,7 +264,8 @@ def build_report(output: store.Root, sweep: str | None = None) -> str:
     by_group.update(ok)
     figures["by_group"] = charts.fill_width(by_group.layout)
     goals = spec.ranking.pareto_goals()
-    notes = {**figure_notes(ranking.objective, parameters, scattered), "spec": spec_note(spec)}
+    notes = {**figure_notes(ranking.objective, parameters, scattered, charts.is_binned(ok, scattered)),
+             "spec": spec_note(spec)}
     if len(goals) >= 2 and not ranking.pareto.empty:
         pareto = charts.ParetoChart(goals[0][0], goals[1][0], parameters, ranking.reduced)
         pareto.update(ranking.totals, ranking.pareto)

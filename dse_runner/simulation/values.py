@@ -16,7 +16,7 @@ import yaml
 from pydantic import RootModel
 
 from ..errors import DseError
-from ..yamlfile import load_yaml, read_yaml
+from ..yamlfile import as_format, load_yaml
 from .variables import FiniteValue, Value
 
 K = TypeVar("K")
@@ -52,7 +52,7 @@ def read_values(path: str | Path) -> dict[str, Value]:
         raise DseError(f"{path}: a space.yaml, not a values file: a values file holds instance.variable: "
                        "value lines (rank --best-values and diagnose write them); run a space with "
                        "simulate SPACE.yaml")
-    return read_yaml(Path(path), ValuesFile, "values file").root
+    return as_format(data, ValuesFile, Path(path), "values file").root
 
 
 def write_values(path: str | Path, values: Mapping[str, Value], header: str = "") -> Path:

@@ -14,6 +14,7 @@ in, which is what a sweep saves beside its results.
 
 from __future__ import annotations
 
+import functools
 import glob
 import math
 from collections.abc import Mapping
@@ -486,8 +487,6 @@ class Space:
         self.dimensions = [dimension(name, v) for name, v in spec.parameters.items()]
         # name -> declared objective, in the spec's order; scripts read, to travel to the workers
         self.objectives = objs.load_scripts(objs.normalise(spec.objectives or []), path.parent, str(path))
-        # module:function objectives whose module is a file beside the spec: imported, sources kept to ship
-        self.modules = user_modules.import_beside(self.objectives.values(), path.parent)
         # every value of a grid or list; an interval's two ends (what the type and bound checks need)
         self.parameters = {d.name: d.extremes() for d in self.dimensions}
         self.constraints = []
@@ -500,6 +499,12 @@ class Space:
     @property
     def name(self) -> str:
         return self.spec.name
+
+    @functools.cached_property
+    def modules(self) -> dict[str, bytes]:
+        """The sources of the objective modules beside the spec (imported by resolve_space), read once: they
+        travel to the workers and are part of the model's hash."""
+        return user_modules.beside(self.objectives.values(), self.path.parent)
 
     @property
     def multimodel(self) -> MultiModel:

@@ -32,7 +32,6 @@ class IntoCpsWarning(UserWarning):
     """Something of the INTO-CPS files that dse-runner does differently; the message says what."""
 
 
-
 # ---- *.dse.json ------------------------------------------------------------------------------------
 
 class Algorithm(BaseModel):

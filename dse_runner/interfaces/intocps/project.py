@@ -181,7 +181,8 @@ def absent_fmus(coe: Path, root: Path) -> list[str]:
         warnings.simplefilter("ignore")
         found = from_into_cps(data, multimodel.parent)["fmus"]
     named = {instance: data["fmus"][key] for instance, key in into_cps_instances(data).items()}
-    return sorted({portable(named[instance]) for instance, path in found.items() if not Path(path).exists()})
+    return sorted({portable(named[instance]) for instance, path in found.items()
+                   if not (Path(path).is_absolute() and Path(path).exists())})  # one not found stays relative
 
 
 def _shown(path: Path, root: Path) -> str:
