@@ -23,11 +23,21 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
+import pyarrow.compute as pc
 
 from ..errors import DseError
+from ..sweeps import aggregate
 from ..sweeps.constraints import compile_constraint
 from ..sweeps.domain import Dimension
-from ..sweeps.rank import REDUCED, current_rows, load_sweep_spec, pick_sweep, scalar_objectives
+from ..sweeps.rank import (
+    REDUCED,
+    complete_totals,
+    current_table,
+    load_sweep_spec,
+    pick_sweep,
+    scalar_objectives,
+)
 from ..sweeps.search import Problem, strategy
 from ..sweeps.spec import SpaceSpec, dimension
 from ..sweeps.strategies.designs import Design, SensitivityDesign, interval_values, salib_problem
@@ -153,21 +163,21 @@ def sensitivity(output: Any, sweep: str | None = None, objectives: list[str] | N
         if name not in scalar:
             raise DseError(f"objective {name!r} is not among sweep {sweep!r}'s ({', '.join(scalar)})")
     chosen = list(objectives or scalar)
-    rows = current_rows(output, sweep, ["group", "status", *parameters, *chosen])
-    if rows.empty:
+    rows = current_table(output, sweep, ["group", "status", *parameters, *chosen])
+    if rows.num_rows == 0:
         raise DseError(f"{output}: sweep {sweep!r} has no rows yet")
     fast = interval_values(dimensions, design.units)  # a million rows without a dict each, where it applies
     points = pd.DataFrame(fast if fast is not None else design.points(dimensions), columns=parameters)
-    keys = pd.MultiIndex.from_frame(points) if len(parameters) > 1 else pd.Index(points[parameters[0]])
     over = spec.ranking.over_scenarios
-    groups = rows.groupby("group")
-    scopes = [(None, rows), *(((str(g), members) for g, members in groups) if groups.ngroups > 1 else ())]
+    groups = aggregate.statistics(rows, ["group"], "scenario", ["count_distinct"])["group"].tolist()
+    scopes = [(None, rows), *(((str(g), rows.filter(pc.equal(rows["group"], g))) for g in groups)
+                              if len(groups) > 1 else ())]
     found = {name: Objective(overall=None, groups={}) for name in chosen}
     notes: list[str] = []
     wide: dict[str, list[str]] = {name: [] for name in chosen}  # per objective, the groups whose intervals are wide
     for group, members in scopes:
-        values = _reduced(members, parameters, chosen, over).reindex(keys)
-        n_scenarios = members["scenario"].nunique()
+        n_scenarios = aggregate.distinct(members, "scenario")
+        values = aggregate.aligned(points, _reduced(members, parameters, chosen, over, n_scenarios), parameters, chosen)
         for name in chosen:
             scope = _scope(design, values[name].to_numpy(float), parameters, n_scenarios, confidence, resamples,
                            spec.search.seed + 1)
@@ -191,13 +201,9 @@ def sensitivity(output: Any, sweep: str | None = None, objectives: list[str] | N
                        confidence, found, notes)
 
 
-def _reduced(rows: pd.DataFrame, parameters: list[str], objectives: list[str], over: str) -> pd.DataFrame:
-    """Each point's objectives reduced over the scenarios of ``rows``; only points ok on every one of them."""
-    n = rows["scenario"].nunique()
-    ok = rows[rows["status"] == "ok"]
-    per_point = ok.groupby(parameters, dropna=False)
-    reduced = per_point[objectives].agg(over)
-    return reduced[per_point.size() == n]
+def _reduced(rows: pa.Table, parameters: list[str], objectives: list[str], over: str, scenarios: int) -> pd.DataFrame:
+    """Each point's objectives reduced over the ``scenarios`` of ``rows``; only points ok on every one of them."""
+    return complete_totals(aggregate.ok_rows(rows), parameters, objectives, over, scenarios)
 
 
 def _scope(design: Design, y: np.ndarray, parameters: list[str], scenarios: int, confidence: float,

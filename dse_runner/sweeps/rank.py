@@ -23,11 +23,12 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
 
 from .. import strict_json
 from ..errors import DseError
 from ..simulation.objectives import Fit, normalise
-from . import store, uncertainty
+from . import aggregate, store, uncertainty
 from .constraints import compile_constraint
 from .domain import Point
 from .spec import Ranking as RankingSpec
@@ -150,12 +151,15 @@ def _best_first(frame: pd.DataFrame, column: str, goal: str) -> pd.DataFrame:
     return frame.sort_values(column, ascending=(goal == "min"), kind="stable").reset_index(drop=True)
 
 
+def current_table(output: store.Root, sweep: str, columns: list[str]) -> pa.Table:
+    """The sweep's rows of its current model, ``columns`` of them: rows of an earlier version of the model (a
+    changed FMU or objective list) are neither ranked nor shown, nor read."""
+    return store.read_table(output, sweep, columns=columns, model=current_model(output, sweep))
+
+
 def current_rows(output: store.Root, sweep: str, columns: list[str]) -> pd.DataFrame:
-    """The sweep's rows of its current model: rows of an earlier version of the model (a changed
-    FMU or objective list) are neither ranked nor shown."""
-    rows = store.read_results(output, sweep, columns=["model", *columns])
-    model = current_model(output, sweep)
-    return rows if model is None else rows[rows["model"] == model]
+    """current_table's rows as a DataFrame."""
+    return current_table(output, sweep, columns).to_pandas()
 
 
 def pick_sweep(output: store.Root, sweep: str | None) -> str:
@@ -182,23 +186,26 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
         if name not in objectives:
             raise DseError(f"ranking: objective {name!r} is not among the sweep's ({', '.join(objectives)})")
 
-    rows = current_rows(output, sweep, ["group", "status", *parameters, *objectives])
-    if rows.empty:
+    rows = current_table(output, sweep, ["group", "status", *parameters, *objectives])
+    if rows.num_rows == 0:
         raise DseError(f"{output}: sweep {sweep!r} has no rows yet")
     draws, about = None, None
     ranked_by = settings.objective
-    if spec.uncertain is not None:
-        rows = uncertainty.with_draws(rows, spec.uncertain.samples)
+    if spec.uncertain is not None:  # a row per draw: reduced in pandas, over the draws' names
+        rows = uncertainty.with_draws(rows.to_pandas(), spec.uncertain.samples)
+        failed = int((rows["status"] != "ok").sum())
         complete, draws, n_points = _over_draws(rows, parameters, objectives, settings, spec)
         ok = uncertainty.collapse(rows[rows["status"] == "ok"], parameters, objectives)
         rows = rows.assign(scenario=rows["base"])  # Table 1 and the groups are per scenario, over the draws
         about = _about(spec, settings)
         ranked_by = uncertainty.robust_column(settings.objective) if settings.robust else settings.objective
     else:
-        ok = rows[rows["status"] == "ok"]
-        n_scenarios = rows["scenario"].nunique()
-        n_points = ok.groupby(parameters, dropna=False).ngroups
-        complete = complete_totals(ok, parameters, objectives, settings.over_scenarios, n_scenarios)
+        ok = aggregate.ok_rows(rows)
+        failed = rows.num_rows - ok.num_rows
+        n_scenarios = aggregate.distinct(rows, "scenario")
+        points = aggregate.per_point(ok, parameters, objectives, settings.over_scenarios)
+        n_points = len(points)
+        complete = _complete(points, n_scenarios)
         if complete.empty:
             raise DseError(f"sweep {sweep!r}: no parameter point has an ok result for all {n_scenarios} scenarios")
     admitted = admits(complete, settings.constraints, objectives)
@@ -212,7 +219,8 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
     if draws is not None:
         draws = with_drawn_values(draws[_of_points(draws, complete, parameters)].reset_index(drop=True), output, sweep)
 
-    table1 = _table1(ok[_of_points(ok, complete, parameters)], settings.objective, best)
+    ranked_ok = ok if len(complete) == n_points else aggregate.of_points(ok, complete, parameters)
+    table1 = _table1(ranked_ok, settings.objective, best)
     if pareto:
         cols = [n for n, _ in pareto]
         front = complete[pareto_mask(complete[cols].to_numpy(float), [g for _, g in pareto])]
@@ -228,7 +236,7 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
     return Ranking(sweep, parameters, settings.objective, settings.goal, best,
                    float(complete.loc[0, ranked_by]), complete, table1, front, groups, weighted,
                    incomplete_points=n_points - len(complete) - excluded,
-                   failed_rows=int((rows["status"] != "ok").sum()), excluded_points=excluded,
+                   failed_rows=failed, excluded_points=excluded,
                    over_scenarios=settings.over_scenarios, constraints=tuple(settings.constraints),
                    ranked_by=ranked_by, uncertainty=about, draws=draws)
 
@@ -277,13 +285,16 @@ def scalar_objectives(spec: SpaceSpec, output: store.Root, sweep: str) -> list[s
     return [name for name in declared if name not in vectors]
 
 
-def complete_totals(ok: pd.DataFrame, parameters: list[str], objectives: list[str], over: str,
+def complete_totals(ok: aggregate.Rows, parameters: list[str], objectives: list[str], over: str,
                     scenarios: int) -> pd.DataFrame:
     """Each point with an ok row on all ``scenarios``: its ``objectives`` reduced over them (``over``: the
     ranking's ``over_scenarios``). Only these are ranked: a point's total over fewer scenarios is not its total."""
-    per_point = ok.groupby(parameters, dropna=False)
-    totals = per_point[objectives].agg(over)
-    return totals[(per_point.size() == scenarios).to_numpy()].reset_index()
+    return _complete(aggregate.per_point(ok, parameters, objectives, over), scenarios)
+
+
+def _complete(points: pd.DataFrame, scenarios: int) -> pd.DataFrame:
+    """per_point's points that have a row on all ``scenarios``, without the count."""
+    return points[points[aggregate.COUNT] == scenarios].drop(columns=aggregate.COUNT).reset_index(drop=True)
 
 
 def without_excluded(table: pd.DataFrame, ok: pd.DataFrame, parameters: list[str], objectives: list[str],
@@ -306,6 +317,8 @@ def without_excluded(table: pd.DataFrame, ok: pd.DataFrame, parameters: list[str
 
 def admits(totals: pd.DataFrame, constraints: list[str], objectives: list[str]) -> np.ndarray:
     """Which points' objective totals meet every ranking constraint."""
+    if not constraints:
+        return np.ones(len(totals), dtype=bool)
     checks = [compile_constraint(text, set(objectives), "objective") for text in constraints]
     records = totals[objectives].to_dict("records")
     return np.array([all(check(r) for check in checks) for r in records], dtype=bool)
@@ -324,18 +337,20 @@ def ranked_figure_label(settings: RankingSpec, uncertain: bool) -> str:
     return figure_label(settings.objective, REDUCED[settings.over_scenarios], over_draws)
 
 
-def standings(ok: pd.DataFrame, parameters: list[str], objective: str, goal: str, over: str = "sum") -> pd.DataFrame:
+def standings(ok: aggregate.Rows, parameters: list[str], objective: str, goal: str,
+              over: str = "sum") -> pd.DataFrame:
     """The best-so-far ranking of a running sweep: the points that have finished the most scenarios
     first (tasks run scenario by scenario, so these have finished the same ones and compare like with
     like), each group by ``objective`` reduced over its scenarios as the ranking's ``over_scenarios`` says
     (column ``ranked``; ``mean`` beside it). Once every point has finished every scenario the order is that
     of :func:`rank`."""
-    if ok.empty:
+    if len(ok) == 0:
         return pd.DataFrame(columns=[*parameters, "scenarios", "mean", "ranked"])
-    per_point = ok.groupby(parameters, dropna=False)[objective]
-    table = pd.DataFrame({"scenarios": per_point.size(), "mean": per_point.mean(), "ranked": per_point.agg(over)})
-    return table.reset_index().sort_values(["scenarios", "ranked"], ascending=[False, goal == "min"],
-                                           kind="stable").reset_index(drop=True)
+    ranked = aggregate.per_point(ok, parameters, [objective], over)
+    mean = ranked if over == "mean" else aggregate.per_point(ok, parameters, [objective], "mean")
+    table = ranked[parameters].assign(scenarios=ranked[aggregate.COUNT], mean=mean[objective], ranked=ranked[objective])
+    return table.sort_values(["scenarios", "ranked"], ascending=[False, goal == "min"],
+                             kind="stable").reset_index(drop=True)
 
 
 def draw_standings(ok: pd.DataFrame, parameters: list[str], objective: str, settings: RankingSpec,
@@ -395,39 +410,36 @@ def table1_scope(ranking: Ranking) -> str:
     return "; ".join(parts) + f"; min/max/average over the {ranked}"
 
 
-def _table1(ok: pd.DataFrame, objective: str, best: dict[str, Any]) -> pd.DataFrame:
-    at_best = np.logical_and.reduce([ok[p] == v for p, v in best.items()])
-    stats = ok.groupby(["scenario", "group"])[objective].agg(["min", "max", "mean"])
+def _table1(ok: aggregate.Rows, objective: str, best: dict[str, Any]) -> pd.DataFrame:
+    stats = aggregate.statistics(ok, ["scenario", "group"], objective, ["min", "max", "mean"])
     stats = stats.rename(columns={"min": "min_error", "max": "max_error", "mean": "average_error"})
-    computed = ok[at_best].set_index(["scenario", "group"])[objective].rename("computed")
-    table = stats.join(computed).reset_index()
+    computed = aggregate.at_point(ok, best).select(["scenario", "group", objective]).to_pandas()
+    table = stats.merge(computed.rename(columns={objective: "computed"}), on=["scenario", "group"], how="left")
     table["difference"] = table["computed"] - table["average_error"]
     return table
 
 
-def _groups(ok: pd.DataFrame, parameters: list[str], objective: str, goal: str,
-            rows: pd.DataFrame) -> pd.DataFrame:
+def _groups(ok: aggregate.Rows, parameters: list[str], objective: str, goal: str,
+            rows: aggregate.Rows) -> pd.DataFrame:
     """The best point within each scenario group, by the group's total."""
+    scenarios = aggregate.statistics(rows, ["group"], "scenario", ["count_distinct"])
+    per_point = aggregate.per_point(ok, ["group", *parameters], [objective], "sum")
     result = []
-    for group, members in ok.groupby("group"):
-        n = rows.loc[rows["group"] == group, "scenario"].nunique()
-        per_point = members.groupby(parameters)[objective].agg(["sum", "size"]).reset_index()
-        per_point = per_point[per_point["size"] == n]
-        if per_point.empty:
+    for group, n in zip(scenarios["group"], scenarios["count_distinct"]):
+        members = per_point[(per_point["group"] == group) & (per_point[aggregate.COUNT] == n)]
+        if members.empty:
             continue
-        top = _best_first(per_point, "sum", goal).iloc[0]
-        result.append({"group": group, "scenarios": n, **{p: plain(top[p]) for p in parameters},
-                       f"{objective}_total": float(top["sum"])})
+        top = _best_first(members, objective, goal).iloc[0]
+        result.append({"group": group, "scenarios": int(n), **{p: plain(top[p]) for p in parameters},
+                       f"{objective}_total": float(top[objective])})
     return pd.DataFrame(result)
 
 
 def write_ranking(ranking: Ranking, output: store.Root, sweep: str) -> dict[str, str]:
     """CSV files and one JSON file in ``<output>/ranking/<sweep>/``, for people and for scripts."""
     paths = {}
-    for name in ("totals", "table1", "pareto", "groups", "weighted"):
-        paths[name] = store.write_text(output, f"ranking/{sweep}/{name}.csv",
-                                       getattr(ranking, name).to_csv(index=False))
-    if ranking.draws is not None:
-        paths["draws"] = store.write_text(output, f"ranking/{sweep}/draws.csv", ranking.draws.to_csv(index=False))
+    tables = ["totals", "table1", "pareto", "groups", "weighted", *(["draws"] if ranking.draws is not None else [])]
+    for name in tables:
+        paths[name] = store.write_csv(getattr(ranking, name), output, f"ranking/{sweep}/{name}.csv")
     paths["json"] = store.write_text(output, f"ranking/{sweep}/ranking.json", strict_json.dumps(ranking.to_json()))
     return paths
