@@ -16,6 +16,7 @@ missing leaves that parameter without indices, the others keep theirs.
 
 from __future__ import annotations
 
+import hashlib
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -25,14 +26,17 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.compute as pc
+from pydantic import BaseModel, ValidationError
 
 from ..errors import DseError
-from ..sweeps import aggregate
+from ..sweeps import aggregate, store
 from ..sweeps.constraints import compile_constraint
 from ..sweeps.domain import Dimension
 from ..sweeps.rank import (
     REDUCED,
+    SWEEP_FILE,
     complete_totals,
+    current_model,
     current_table,
     load_sweep_spec,
     pick_sweep,
@@ -143,14 +147,56 @@ def stored_design(spec: SpaceSpec) -> tuple[Design, tuple[Dimension, ...]]:
     return kind(problem).design, dimensions
 
 
+CACHE_FILE = "sensitivity.json"  # <sweep>.sensitivity.json: the indices of one version of the store
+
+
+class Cached(BaseModel):
+    """The file format of the indices kept beside a sweep's results: what they were computed from (``key``:
+    the store's version, the model, the spec, the options, SALib's version) and the indices."""
+
+    key: str
+    found: Sensitivity
+
+
 def sensitivity(output: Any, sweep: str | None = None, objectives: list[str] | None = None,
                 confidence: float = CONFIDENCE, resamples: int = RESAMPLES) -> Sensitivity:
-    """Indices of every scalar objective (or those named) of ``sweep``, overall and per scenario group."""
+    """Indices of every scalar objective (or those named) of ``sweep``, overall and per scenario group;
+    computed once per version of the store and kept in it: the bootstrap of a million-row design takes
+    its time, and the report, the dashboard and this command all show the same indices."""
     if not 0 < confidence < 1:
         raise DseError(f"--confidence {confidence}: give a level between 0 and 1, e.g. 0.95")
     if resamples < 2:
         raise DseError(f"--resamples {resamples}: bootstrap intervals need at least 2 resamples")
     sweep = pick_sweep(output, sweep)
+    key = _cache_key(output, sweep, objectives, confidence, resamples)
+    text = store.read_text(output, f"{sweep}.{CACHE_FILE}")
+    if text is not None:
+        try:
+            cached = Cached.model_validate_json(text)
+            if cached.key == key:
+                return cached.found
+        except ValidationError:  # another version's file: computed again below
+            pass
+    found = _computed(output, sweep, objectives, confidence, resamples)
+    try:
+        store.write_text(output, f"{sweep}.{CACHE_FILE}", Cached(key=key, found=found).model_dump_json())
+    except OSError:  # a store this process may only read: the indices are still shown
+        pass
+    return found
+
+
+def _cache_key(output: Any, sweep: str, objectives: list[str] | None, confidence: float, resamples: int) -> str:
+    """What the indices depend on: the rows (the store's version and the current model), the spec the sweep
+    ran with (its design), the options and the estimator's version."""
+    from importlib.metadata import version
+
+    parts = [store.version(output, sweep), current_model(output, sweep), store.read_text(output, f"{sweep}.{SWEEP_FILE}"),
+             objectives, confidence, resamples, version("SALib")]
+    return hashlib.sha256(repr(parts).encode()).hexdigest()[:32]
+
+
+def _computed(output: Any, sweep: str, objectives: list[str] | None, confidence: float,
+              resamples: int) -> Sensitivity:
     spec = load_sweep_spec(output, sweep)
     if spec.uncertain is not None:
         raise DseError(f"sweep {sweep!r} runs each point over uncertain draws; sensitivity reads a sweep without "

@@ -23,14 +23,17 @@ import socket
 import threading
 import time
 import weakref
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
+from ..errors import DseError
 from ..simulation.comparison import Comparison, compare
+from ..sweeps import store, uncertainty
+from ..sweeps.history import SearchHistory, load_history
 from ..sweeps.rank import (
     current_model,
     current_rows,
@@ -43,13 +46,10 @@ from ..sweeps.rank import (
     standings,
     without_excluded,
 )
-from ..errors import DseError
-from ..sweeps import store, uncertainty
-from ..sweeps.history import SearchHistory, load_history
 from ..sweeps.search import strategy
-from ..sweeps.strategies.designs import SensitivityDesign
 from ..sweeps.spec import Space, load_space
 from ..sweeps.status import SearchStatus, SweepReport, load_status
+from ..sweeps.strategies.designs import SensitivityDesign
 from . import charts
 from .study_figures import is_sensitivity, section_html, sections
 
@@ -99,21 +99,30 @@ class Feed:
         self._looked_for_space = space is not None
         self._lock = threading.Lock()
         self._snapshot: Snapshot | None = None
+        self._version = ""  # the store's version the snapshot's rows are of
         self._tracks: dict[tuple, tuple] = {}
         self.pages: weakref.WeakSet[Page] = weakref.WeakSet()  # the open tabs, told when the server stops
 
     def snapshot(self, fresh: bool = False) -> Snapshot:
-        """What the store holds, read at most every REFRESH_SECONDS (``fresh``: now)."""
+        """What the store holds, looked at most every REFRESH_SECONDS (``fresh``: now); its rows are read and
+        reduced once per version of the store (store.version), which a finished sweep keeps for good."""
         with self._lock:
-            if fresh or self._snapshot is None or time.monotonic() - self._snapshot.taken >= REFRESH_SECONDS:
-                self._snapshot = self._read()
+            last = self._snapshot
+            if fresh or last is None or time.monotonic() - last.taken >= REFRESH_SECONDS:
+                # The status first: a sweep saves "finished" after its last rows, so rows read after it are at
+                # least as new. Read the other way round, a sweep ending between the two reads showed "finished"
+                # over the rows of before its last chunks until the next refresh.
+                status = load_status(self.output, self.sweep)
+                version = f"{store.version(self.output, self.sweep)} {current_model(self.output, self.sweep)}"
+                if last is not None and version == self._version:
+                    history = load_history(self.output, self.sweep) \
+                        if self.closed_loop or last.history is not None else None
+                    self._snapshot = replace(last, status=status, history=history, taken=time.monotonic())
+                else:
+                    self._snapshot, self._version = self._read(status), version
             return self._snapshot
 
-    def _read(self) -> Snapshot:
-        # The status first: a sweep saves "finished" after its last rows, so rows read after it are at least
-        # as new. Read the other way round, a sweep ending between the two reads showed "finished" over the
-        # rows of before its last chunks until the next refresh.
-        status = load_status(self.output, self.sweep)
+    def _read(self, status: SweepReport | None) -> Snapshot:
         rows = current_rows(self.output, self.sweep, ["group", "status", *self.parameters, *self.objectives])
         ok = rows[rows["status"] == "ok"]
         last = self._snapshot
@@ -166,7 +175,7 @@ class Feed:
         return self._space, self._space_note
 
     def _load_space(self) -> tuple[Space | None, str]:
-        status = self.snapshot().status
+        status = load_status(self.output, self.sweep)
         if status is None or not status.spec:
             return None, "no status file names the sweep's spec, so its recordings are unknown"
         if not Path(status.spec).is_file():

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import html
 import time
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,6 +20,10 @@ import pandas as pd
 import yaml
 from jinja2 import Template
 
+from ..errors import DseError
+from ..simulation.comparison import Comparison
+from ..sweeps import store
+from ..sweeps.history import load_history
 from ..sweeps.rank import (
     TABLE1_HEADINGS,
     Ranking,
@@ -29,15 +35,11 @@ from ..sweeps.rank import (
     rank,
     table1_scope,
 )
-from ..errors import DseError
-from ..simulation.comparison import Comparison
-from ..sweeps import store
 from ..sweeps.spec import Search, SpaceSpec
-from ..sweeps.history import load_history
 from ..sweeps.status import SweepReport, load_status
 from . import charts
 from .dashboard import Feed, search_summary
-from .study_figures import section_html, sections
+from .study_figures import Section, section_html, sensitivity_sections, uncertainty_sections
 
 TOP = 20  # points listed in the ranking
 
@@ -242,11 +244,18 @@ def submission_line(status: SweepReport) -> tuple[str, str]:
 
 def build_report(output: store.Root, sweep: str | None = None) -> str:
     """The report of ``sweep`` in ``output`` as one HTML string."""
+    sweep = pick_sweep(output, sweep)
+    with ThreadPoolExecutor(1) as aside:  # a large design's bootstrap (numpy, GIL released) beside the rest
+        studied = aside.submit(sensitivity_sections, output, sweep)
+        ranking = rank(output, sweep)
+        return _page(output, sweep, ranking, lambda: [*studied.result(), *uncertainty_sections(ranking)])
+
+
+def _page(output: store.Root, sweep: str, ranking: Ranking, studied: Callable[[], list[Section]]) -> str:
+    """The page around ``ranking``; ``studied`` gives the study sections, asked for last."""
     from bokeh.embed import components
     from bokeh.resources import Resources
 
-    sweep = pick_sweep(output, sweep)
-    ranking = rank(output, sweep)
     spec = load_sweep_spec(output, sweep)
     status = load_status(output, sweep)
     feed = Feed(output, sweep)
@@ -289,7 +298,7 @@ def build_report(output: store.Root, sweep: str | None = None) -> str:
         figures["tracks"] = tracks.layout
     script, divs = components(figures)
 
-    studies = [section_html(section) for section in sections(output, sweep, ranking)]
+    studies = [section_html(section) for section in studied()]
     summary = [("best point", format_point(ranking.best)), (ranking.ranked_label, f"{ranking.best_total:.4f}"),
                ("points ranked", str(len(ranking.totals))), ("incomplete points", str(ranking.incomplete_points)),
                ("failed tasks", str(ranking.failed_rows)), ("scenarios", str(len(scenarios)))]

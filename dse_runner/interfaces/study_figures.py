@@ -93,12 +93,19 @@ def _described(d: dict) -> str:
 
 def sections(output: store.Root, sweep: str, ranking: Ranking | None) -> list[Section]:
     """What this sweep has of the two: none for a plain sweep."""
-    found = []
-    if is_sensitivity(output, sweep):
-        found.append(sensitivity_section(output, sweep))
+    return [*sensitivity_sections(output, sweep), *uncertainty_sections(ranking)]
+
+
+def sensitivity_sections(output: store.Root, sweep: str) -> list[Section]:
+    """The sensitivity section of a sweep sampled by a sensitivity design; none for another."""
+    return [sensitivity_section(output, sweep)] if is_sensitivity(output, sweep) else []
+
+
+def uncertainty_sections(ranking: Ranking | None) -> list[Section]:
+    """The uncertainty section of a ranking over uncertain draws; none for another."""
     if ranking is not None and ranking.uncertainty is not None and ranking.draws is not None:
-        found.append(uncertainty_section(ranking))
-    return found
+        return [uncertainty_section(ranking)]
+    return []
 
 
 def section_html(section: Section, heading: str = "h2") -> str:

@@ -153,8 +153,20 @@ def _best_first(frame: pd.DataFrame, column: str, goal: str) -> pd.DataFrame:
 
 def current_table(output: store.Root, sweep: str, columns: list[str]) -> pa.Table:
     """The sweep's rows of its current model, ``columns`` of them: rows of an earlier version of the model (a
-    changed FMU or objective list) are neither ranked nor shown, nor read."""
-    return store.read_table(output, sweep, columns=columns, model=current_model(output, sweep))
+    changed FMU or objective list) are neither ranked nor shown, nor read. The last table read is kept while
+    the store is unchanged: the report ranks and then draws the same rows."""
+    model = current_model(output, sweep)
+    key = (str(output), sweep, model, store.version(output, sweep))
+    kept = _LAST_READ.get(key)
+    if kept is not None and set(columns) <= set(kept.column_names):
+        return kept.select(list(dict.fromkeys(["task_id", "sweep", "scenario", *columns])))
+    table = store.read_table(output, sweep, columns=columns, model=model)
+    _LAST_READ.clear()
+    _LAST_READ[key] = table
+    return table
+
+
+_LAST_READ: dict[tuple, pa.Table] = {}  # current_table's last table, by store, sweep, model and store version
 
 
 def current_rows(output: store.Root, sweep: str, columns: list[str]) -> pd.DataFrame:
@@ -346,9 +358,8 @@ def standings(ok: aggregate.Rows, parameters: list[str], objective: str, goal: s
     of :func:`rank`."""
     if len(ok) == 0:
         return pd.DataFrame(columns=[*parameters, "scenarios", "mean", "ranked"])
-    ranked = aggregate.per_point(ok, parameters, [objective], over)
-    mean = ranked if over == "mean" else aggregate.per_point(ok, parameters, [objective], "mean")
-    table = ranked[parameters].assign(scenarios=ranked[aggregate.COUNT], mean=mean[objective], ranked=ranked[objective])
+    found = aggregate.statistics(ok, parameters, objective, list(dict.fromkeys([over, "mean", "count"])))
+    table = found[parameters].assign(scenarios=found["count"], mean=found["mean"], ranked=found[over])
     return table.sort_values(["scenarios", "ranked"], ascending=[False, goal == "min"],
                              kind="stable").reset_index(drop=True)
 

@@ -24,6 +24,7 @@ readers drop any repeated ``task_id``: a result is never counted twice.
 
 from __future__ import annotations
 
+import hashlib
 import os
 import uuid
 from collections.abc import Callable
@@ -211,6 +212,25 @@ def _files(fs: fsspec.AbstractFileSystem, path: str, kind: str, sweep: str | Non
     else:
         found = fs.find(where)
     return sorted(f for f in found if f.endswith(".parquet") and not os.path.basename(f).startswith("."))
+
+
+def version(root: Root, sweep: str) -> str:
+    """A fingerprint of the sweep's result files (names, sizes, modification times): equal while no chunk
+    has written, so that readers compute an aggregate once per version of the store, not once per look."""
+    fs, path = _fs(root)
+    where = _join(path, RESULTS, f"sweep={sweep}")
+    if isinstance(fs, LocalFileSystem):
+        listing = []
+        for parent, _, names in os.walk(where):
+            for name in names:
+                if name.endswith(".parquet") and not name.startswith("."):
+                    stat = os.stat(os.path.join(parent, name))
+                    listing.append((os.path.join(parent, name), stat.st_size, stat.st_mtime_ns))
+    else:
+        found = fs.find(where, detail=True) if fs.exists(where) else {}
+        listing = [(name, info.get("size"), str(info.get("mtime", info.get("LastModified", ""))))
+                   for name, info in found.items() if name.endswith(".parquet")]
+    return hashlib.sha256(repr(sorted(listing)).encode()).hexdigest()[:24]
 
 
 def _dataset(root: Root, kind: str, sweep: str | None = None, files: list[str] | None = None) -> ds.Dataset | None:

@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 from typing import Any, ClassVar
 
 import numpy as np
+import pandas as pd
 from pydantic import Field, PositiveInt
 
 from ...errors import DseError
@@ -93,20 +94,41 @@ class SensitivityDesign(Strategy):
     label: ClassVar[str]  # its name under search.strategy, for messages
 
     def __init__(self, problem: Problem):
+        """Checks what can be checked without drawing; the design is drawn when first asked for (a spec's check
+        builds the strategy, and a million-row design takes seconds), once per process for the same problem."""
         super().__init__(problem)
         numeric(problem.dimensions)
-        self.design, points = self.fit(problem)
-        self._points = _asked(points, [d.name for d in problem.dimensions])
-        self.size = len(points)
+        self.check_budget(problem)
+        self._asking: Any = None
 
-    def fit(self, problem: Problem) -> tuple[Design, list[Point]]:
-        """The longest prefix of whole blocks whose distinct admitted points fit the budget. Repeats are
-        free (a point is simulated once), so a design over grids or choices is drawn again twice as long
-        while the budget has room: both SALib designs extend as prefixes for the same seed."""
+    @property
+    def design(self) -> Design:
+        return _fitted(self)[0]
+
+    @property
+    def size(self) -> int:  # type: ignore[override]  # known once drawn, and drawn when asked
+        return len(_fitted(self)[1])
+
+    def identity(self) -> tuple | None:
+        """What fixes the design, to reuse one drawn already; None when constraints judge its points (a
+        function of the spec, not told apart here)."""
+        problem = self.problem
+        if problem.constrained:
+            return None
+        return type(self), self.options.model_dump_json(), problem.dimensions, problem.max_points, problem.seed
+
+    def check_budget(self, problem: Problem) -> None:
+        """The budget buys at least one block."""
         block = self.block_of(len(problem.dimensions), self.options)
         if problem.max_points < block:
             raise DseError(f"search: {self.label} needs at least {block} points for {len(problem.dimensions)} "
                            f"parameters (one block of {self.rows_in_words()}); max_points is {problem.max_points}")
+
+    def fit(self, problem: Problem) -> tuple[Design, list[Point] | np.ndarray]:
+        """The longest prefix of whole blocks whose distinct admitted points fit the budget. Repeats are
+        free (a point is simulated once), so a design over grids or choices is drawn again twice as long
+        while the budget has room: both SALib designs extend as prefixes for the same seed."""
+        block = self.block_of(len(problem.dimensions), self.options)
         n, found = problem.max_points // block, -1
         while True:
             design = self.draw(problem, n)
@@ -132,7 +154,9 @@ class SensitivityDesign(Strategy):
         raise NotImplementedError
 
     def ask(self) -> Point | None:
-        return next(self._points, None)
+        if self._asking is None:
+            self._asking = _asked(_fitted(self)[1], [d.name for d in self.problem.dimensions])
+        return next(self._asking, None)
 
     def spending(self) -> str | None:
         """Said when a whole block of the budget is left: the design's grid (Morris' levels, the grids and
@@ -151,6 +175,26 @@ class SensitivityDesign(Strategy):
             return (f"the parameters' grids and choices hold {finite} points; finer grids or intervals give "
                     "more")
         return "the constraints leave few points; widen them, or lower max_points"
+
+
+_DRAWN: dict[tuple, tuple[Design, list[Point] | np.ndarray]] = {}  # the last designs drawn, by identity()
+DRAWN_KEPT = 2
+
+
+def _fitted(design: SensitivityDesign) -> tuple[Design, list[Point] | np.ndarray]:
+    """The strategy's design and its points to ask, drawn once per process for the same identity: a sweep
+    builds its strategy to check the spec, to count its tasks and to ask its points, and the sensitivity
+    command to read the rows back."""
+    key = design.identity()
+    if key is None:
+        if not hasattr(design, "_own"):
+            design._own = design.fit(design.problem)
+        return design._own
+    if key not in _DRAWN:
+        while len(_DRAWN) >= DRAWN_KEPT:
+            _DRAWN.pop(next(iter(_DRAWN)))
+        _DRAWN[key] = design.fit(design.problem)
+    return _DRAWN[key]
 
 
 def distinct_points(dimensions: tuple[Dimension, ...]) -> int | None:
@@ -176,8 +220,7 @@ def _budgeted_intervals(design: Design, problem: Problem) -> tuple[int, np.ndarr
     values = interval_values(problem.dimensions, design.units)
     if values is None or not len(values):
         return None
-    _, first, inverse = np.unique(values, axis=0, return_index=True, return_inverse=True)
-    is_new = first[inverse.ravel()] == np.arange(len(values))
+    is_new = ~pd.DataFrame(values).duplicated(keep="first").to_numpy()  # hashed: a sort of rows costs seconds
     ends = np.arange(1, design.blocks + 1) * design.block
     distinct = np.cumsum(is_new)[ends - 1]  # distinct points in the first 1, 2, ... blocks
     blocks = int(np.searchsorted(distinct, problem.max_points, side="right"))
@@ -287,15 +330,18 @@ class Fast(SensitivityDesign):
     def rows_in_words(cls) -> str:
         return "a curve of more than 4 M^2 rows (M = harmonics) per parameter"
 
-    def fit(self, problem: Problem) -> tuple[Design, list[Point]]:
-        """D curves of ``max_points // D`` rows; the design's distinct admitted points, asked once each."""
+    def check_budget(self, problem: Problem) -> None:
+        """The budget buys a curve per parameter."""
         dimensions = len(problem.dimensions)
         shortest = self.block_of(dimensions, self.options)
         if problem.max_points < shortest * dimensions:
             raise DseError(f"search: fast needs at least {shortest * dimensions} points for {dimensions} parameters "
                            f"({self.rows_in_words()}: {shortest} rows at harmonics {self.options.harmonics}); "
                            f"max_points is {problem.max_points}")
-        design = self.draw(problem, problem.max_points // dimensions)
+
+    def fit(self, problem: Problem) -> tuple[Design, list[Point]]:
+        """D curves of ``max_points // D`` rows; the design's distinct admitted points, asked once each."""
+        design = self.draw(problem, problem.max_points // len(problem.dimensions))
         seen: dict[tuple, Point] = {}
         for point in design.points(problem.dimensions):
             key = tuple(point.values())
