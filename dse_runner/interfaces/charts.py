@@ -221,15 +221,25 @@ class _Sources:
 
     def fill(self, ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], by: str,
              scattered: bool) -> None:
-        """A grid's lines; a sampled design's dots up to MAX_DOTS rows, its binned means and bands above."""
-        if not scattered:
-            self.lines.data = lines(ok, x, objective, colour_of, by)
-        elif not is_binned(ok, scattered):
-            self.dots.data = dots(ok, x, objective, colour_of, by)
-            self.lines.data, self.bands.data = _empty_lines(), _empty_bands()
-        else:
-            self.lines.data, self.bands.data = binned(ok, x, objective, colour_of, by)
-            self.dots.data = _empty_dots()
+        self.show(contents(ok, x, objective, colour_of, by, scattered))
+
+    def show(self, drawn: Contents) -> None:
+        """Hand what :func:`contents` computed to the browser."""
+        self.lines.data, self.bands.data, self.dots.data = drawn
+
+
+Contents = tuple[dict[str, Any], dict[str, Any], dict[str, Any]]  # a panel's lines, bands and dots
+
+
+def contents(ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], by: str,
+             scattered: bool) -> Contents:
+    """What one panel draws: a grid's lines; a sampled design's dots up to MAX_DOTS rows, its binned means
+    and bands above. Computed apart from the Bokeh models, so a server can do it off its event loop."""
+    if not scattered:
+        return lines(ok, x, objective, colour_of, by), _empty_bands(), _empty_dots()
+    if not is_binned(ok, scattered):
+        return _empty_lines(), _empty_bands(), dots(ok, x, objective, colour_of, by)
+    return (*binned(ok, x, objective, colour_of, by), _empty_dots())
 
 
 def is_binned(ok: pd.DataFrame, scattered: bool) -> bool:
@@ -269,10 +279,20 @@ class ObjectiveByParameter:
         self.layout = grid(self.figures)
 
     def update(self, ok: pd.DataFrame) -> None:
-        for (name, sources), fig in zip(self.sources.items(), self.figures):
-            sources.fill(ok, name, self.objective, self.colour_of, "group", self.scattered)
+        self.show(self.prepare(ok))
+
+    def prepare(self, ok: pd.DataFrame) -> tuple[list[Contents], bool]:
+        """Each panel's contents, and whether they are binned: all the work of an update, none of it on
+        Bokeh's models."""
+        return ([contents(ok, name, self.objective, self.colour_of, "group", self.scattered) for name in self.sources],
+                is_binned(ok, self.scattered))
+
+    def show(self, prepared: tuple[list[Contents], bool]) -> None:
+        drawn, binned_ = prepared
+        for (name, sources), fig, panel in zip(self.sources.items(), self.figures, drawn):
+            sources.show(panel)
             if self.scattered:  # dots, or above MAX_DOTS rows the binned mean with its band
-                fig.yaxis.axis_label = self.objective if not is_binned(ok, True) else (
+                fig.yaxis.axis_label = self.objective if not binned_ else (
                     f"mean {self.objective}, {round(100 * BAND[0])}-{round(100 * BAND[1])} % band")
             legend_follows_data(fig)
 
@@ -304,10 +324,17 @@ class ErrorByGroup:
         self.layout = grid(self.figures)
 
     def update(self, ok: pd.DataFrame) -> None:
+        self.show(self.prepare(ok))
+
+    def prepare(self, ok: pd.DataFrame) -> list[Contents]:
+        """Each panel's contents (see ObjectiveByParameter.prepare)."""
         indexed = ok.assign(point=point_index(ok, self.parameters))
-        for (group, sources), fig in zip(self.sources.items(), self.figures):
-            members = indexed[indexed["group"] == group]
-            sources.fill(members, "point", self.objective, self.colour_of, "scenario", self.scattered)
+        return [contents(indexed[indexed["group"] == group], "point", self.objective, self.colour_of, "scenario",
+                         self.scattered) for group in self.sources]
+
+    def show(self, prepared: list[Contents]) -> None:
+        for sources, fig, panel in zip(self.sources.values(), self.figures, prepared):
+            sources.show(panel)
             legend_follows_data(fig)
 
 

@@ -71,6 +71,7 @@ class Snapshot:
     standings: pd.DataFrame  # best so far first (rank.standings or rank.draw_standings)
     history: SearchHistory | None = None  # a closed-loop search's (history.py); None for a grid
     taken: float = field(default_factory=time.monotonic)
+    provisional: bool = False  # the status file's counts only, before the rows are read (Feed.provisional)
 
 
 class Feed:
@@ -100,8 +101,27 @@ class Feed:
         self._lock = threading.Lock()
         self._snapshot: Snapshot | None = None
         self._version = ""  # the store's version the snapshot's rows are of
+        self._studies_lock = threading.Lock()
+        self._studies: tuple[tuple, str] = ((), "")  # ((rows done, state), the study sections' HTML)
         self._tracks: dict[tuple, tuple] = {}
         self.pages: weakref.WeakSet[Page] = weakref.WeakSet()  # the open tabs, told when the server stops
+
+    def latest(self) -> Snapshot | None:
+        """The last snapshot taken, without waiting for one: what a page shows while the next is read."""
+        return self._snapshot
+
+    def provisional(self) -> Snapshot:
+        """Before the first rows are read (a million take seconds): the counts the submitting process saved
+        in its status file, which a page shows at once."""
+        status = load_status(self.output, self.sweep)
+        done = status.skipped + status.ran if status is not None else 0
+        empty = pd.DataFrame(columns=[*self.parameters, "scenario", "group", self.objective])
+        return Snapshot(status, empty, done, status.failed if status is not None else 0, empty.iloc[0:0], None,
+                        provisional=True)
+
+    def warm(self) -> None:
+        """Read the first snapshot in the background, so the first page finds it ready or under way."""
+        threading.Thread(target=self.snapshot, name="dse-runner-feed", daemon=True).start()
 
     def snapshot(self, fresh: bool = False) -> Snapshot:
         """What the store holds, looked at most every REFRESH_SECONDS (``fresh``: now); its rows are read and
@@ -146,22 +166,25 @@ class Feed:
         draw counts once finished on every scenario), else (``scenarios``, ``scenarios``)."""
         return ("draws", self.uncertain.samples) if self.uncertain is not None else ("scenarios", scenarios)
 
-    def searching(self, snap: Snapshot) -> bool:
+    def searching(self, snap: Snapshot | None) -> bool:
         """Whether the pages show a search's progress: its strategy asks for points, or it left a history."""
-        return self.closed_loop or snap.history is not None
+        return self.closed_loop or (snap is not None and snap.history is not None)
 
-    def sampled(self, snap: Snapshot) -> bool:
+    def sampled(self, snap: Snapshot | None) -> bool:
         """Whether the points lie off any grid, each its own value (a search's, a sensitivity design's):
         Figures 5 and 6 then draw dots, or binned means, where a grid's lines of means would zigzag."""
         return self.searching(snap) or self.designed
 
-    def scenarios(self, snap: Snapshot) -> dict[str, str]:
-        """Scenario -> group: from the space if this process has it, else the status, else the rows; with
-        uncertain draws, the scenarios themselves (each ran once per draw)."""
+    def scenarios(self, snap: Snapshot | None) -> dict[str, str] | None:
+        """Scenario -> group: from the space if this process has it, else the status, else the rows (None
+        before they are read); with uncertain draws, the scenarios themselves (each ran once per draw)."""
+        status = snap.status if snap is not None else load_status(self.output, self.sweep)
         if self._space is not None:
             found = {s.name: s.group for s in self._space.scenarios}
-        elif snap.status is not None and snap.status.scenarios:
-            found = dict(snap.status.scenarios)
+        elif status is not None and status.scenarios:
+            found = dict(status.scenarios)
+        elif snap is None or snap.provisional:
+            return None
         else:
             return dict(zip(snap.ok["scenario"], snap.ok["group"]))
         return {uncertainty.split_name(name)[0]: group for name, group in found.items()} \
@@ -191,6 +214,14 @@ class Feed:
     def studied(self) -> bool:
         """Whether the pages show sensitivity or uncertainty figures."""
         return self.uncertain is not None or is_sensitivity(self.output, self.sweep)
+
+    def studies_of(self, snap: Snapshot) -> str:
+        """studies_html for the rows of ``snap`` and the sweep's state, drawn once for every page."""
+        key = (snap.done, snap.status.state if snap.status is not None else None)
+        with self._studies_lock:
+            if self._studies[0] != key:
+                self._studies = (key, self.studies_html())
+            return self._studies[1]
 
     def studies_html(self) -> str:
         """The sweep's sensitivity and uncertainty sections as they stand, or why they cannot be drawn yet."""
@@ -348,8 +379,22 @@ STYLE = """<style>
 </style>"""
 
 
+@dataclass
+class View:
+    """What a page shows of one snapshot beyond its counts, computed off the server's event loop (a million
+    rows take seconds to reduce and bin) and then handed to the Bokeh models at once."""
+
+    best: str
+    ranking: str
+    by_parameter: Any  # charts.ObjectiveByParameter.prepare's
+    by_group: Any  # charts.ErrorByGroup.prepare's
+    track: tuple | None  # (Comparison, caption) or (None, note): the best point's, if it changed
+
+
 class Page:
-    """One browser tab: Bokeh models refilled from the shared feed every REFRESH_SECONDS."""
+    """One browser tab: Bokeh models refilled from the shared feed every REFRESH_SECONDS. The counts come
+    first, at once (the status file's before the rows are read); the figures follow as a worker thread
+    reads and reduces the rows, so a large study's page opens without waiting for them."""
 
     def __init__(self, feed: Feed, doc):
         from bokeh.layouts import column, row
@@ -357,15 +402,20 @@ class Page:
 
         self.feed, self.doc = feed, doc
         self.shown = -1  # rows shown: they only ever grow, so a count tells news
+        self.busy = False  # a worker thread is preparing the next view
         feed.pages.add(self)
-        snap = feed.snapshot()
+        snap = feed.latest()
+        scenarios = feed.scenarios(snap)
+        if scenarios is None:  # neither the space nor a status file names them: the rows must
+            snap = feed.snapshot()
+            scenarios = feed.scenarios(snap)
         self.farewell = Div(width=800)  # what the page says when its server stops (DashboardServer.stop)
         # once it has said so, the end of the connection is expected: no "connection was lost" banner (a Bokeh
         # 3.8+ setting, read in the browser; a change made on the server does not reach the browser's copy)
         quiet = "config.setv({notify_connection_status: false}, {sync: false})"
         self.farewell.js_on_change("text", CustomJS(
             code=f"const config = cb_obj.document.config; if (config) {quiet}"))
-        self.scenarios = feed.scenarios(snap)
+        self.scenarios = scenarios
         p, objective = feed.parameters, feed.objective
         self.title = Div(width=800)
         self.progress = Div(text=STYLE, width=800)
@@ -377,7 +427,7 @@ class Page:
         self.fig6 = charts.ErrorByGroup(p, objective, self.scenarios, sampled)
         names = sorted(self.scenarios)
         self.select = Select(title="scenario", value=names[0] if names else "", options=names)
-        self.select.on_change("value", lambda attr, old, new: self._track(feed.snapshot(), force=True))
+        self.select.on_change("value", lambda attr, old, new: self._chosen())
         self.track = charts.TrackChart()
         self.track_note = Div(width=800)
         self.track_shown: tuple | None = None
@@ -405,7 +455,8 @@ class Page:
             row(*(c.figure for c in (self.search_chart, self.front_chart) if c is not None))]
         doc.add_root(column(
             self.farewell, self.title, self.progress, *([self.search] if self.search else []), self.best,
-            row(column(heading(f"Best so far, ranked by {html.escape(feed.ranked_by)}"), self.ranking), column(heading("Workers"), self.workers)),
+            row(column(heading(f"Best so far, ranked by {html.escape(feed.ranked_by)}"), self.ranking),
+                column(heading("Workers"), self.workers)),
             *([self.studies] if self.studies is not None else []),
             *search,
             heading(f"{objective} against each parameter"
@@ -416,6 +467,8 @@ class Page:
             self.fig6.layout,
             heading("Best candidate on the chosen scenario, over its recording if it has one"), self.select,
             self.track_note, self.track.figure))
+        self._counts(snap or feed.provisional())
+        self.best.text = '<span id="dse-best">reading the results…</span>'
         self.update()
         doc.add_periodic_callback(self.update, int(REFRESH_SECONDS * 1000))
 
@@ -423,44 +476,80 @@ class Page:
         """The server is about to stop: the final state and figures from the store as it is now, and ``note``
         on top (whose arrival tells the browser the connection's end is meant)."""
         try:
-            self.feed.snapshot(fresh=True)
-            self.update()
+            snap = self.feed.snapshot(fresh=True)
+            self._show(snap, self._view(snap), self._studies_due(snap, final=True))
             self.farewell.text = (f"<div id='dse-farewell' style='font-family:sans-serif;background:#fff4d6;"
                                   f"border:1px solid #e0c060;padding:8px 12px'>{html.escape(note)}</div>")
         finally:
             said.set()
 
     def update(self) -> None:
-        snap = self.feed.snapshot()
+        """On the server's loop, every REFRESH_SECONDS: the counts now; the rest from a worker thread."""
+        self._counts(self.feed.latest() or self.feed.provisional())
+        if not self.busy:
+            self.busy = True
+            threading.Thread(target=self._prepare, name="dse-runner-page", daemon=True).start()
+
+    def _counts(self, snap: Snapshot) -> None:
+        """The title, the progress line and the workers: cheap, from any snapshot."""
         self.title.text = title_html(self.feed, snap.status)
         self.progress.text = STYLE + progress_html(snap, time.time())
         if snap.status:
             self.workers.text = charts.TABLE_STYLE + workers_html(snap.status)
-        if self.search is not None:
-            self._search(snap)
-        self._studies(snap)
-        if snap.done == self.shown:
-            return  # no new rows since the last refill
-        self.shown = snap.done
-        feed = self.feed
-        self.best.text = best_html(snap, feed.parameters, feed.ranked_by, feed.counted(len(self.scenarios)))
-        self.ranking.text = charts.TABLE_STYLE + ranking_html(snap.standings.head(TOP), feed.objective, feed.ranked_by,
-                                                              feed.uncertain is not None)
-        self.fig5.update(snap.ok)
-        self.fig6.update(snap.ok)
-        self._track(snap)
 
-    def _studies(self, snap: Snapshot) -> None:
-        """Redraw the sensitivity or uncertainty figures when rows or the sweep's state changed: at most every
+    def _prepare(self) -> None:
+        """Off the loop: read the snapshot, compute what changed, and hand it to the loop."""
+        try:
+            snap = self.feed.snapshot()
+            view = self._view(snap) if snap.done != self.shown else None
+            studies = self._studies_due(snap)
+        except Exception:
+            self.busy = False
+            raise
+        self.doc.add_next_tick_callback(partial(self._show, snap, view, studies))
+
+    def _view(self, snap: Snapshot) -> View:
+        feed = self.feed
+        self.shown = snap.done
+        return View(best_html(snap, feed.parameters, feed.ranked_by, feed.counted(len(self.scenarios))),
+                    charts.TABLE_STYLE + ranking_html(snap.standings.head(TOP), feed.objective, feed.ranked_by,
+                                                      feed.uncertain is not None),
+                    self.fig5.prepare(snap.ok), self.fig6.prepare(snap.ok), self._best_track(snap))
+
+    def _studies_due(self, snap: Snapshot, final: bool = False) -> str | None:
+        """The sensitivity or uncertainty figures' HTML when rows or the sweep's state changed: at most every
         STUDY_SECONDS while the sweep runs (the bootstrap takes a while on a large design), and once more
-        when it has stopped, whenever the last rows came."""
+        when it has stopped, whenever the last rows came; None when they stand."""
         state = snap.status.state if snap.status is not None else None
         if self.studies is None or (snap.done, state) == self.studies_drawn:
-            return
-        if state == "running" and time.monotonic() - self.studies_at < STUDY_SECONDS:
-            return
+            return None
+        if not final and state == "running" and time.monotonic() - self.studies_at < STUDY_SECONDS:
+            return None
         self.studies_at, self.studies_drawn = time.monotonic(), (snap.done, state)
-        self.studies.text = self.feed.studies_html()
+        return self.feed.studies_of(snap)
+
+    def _show(self, snap: Snapshot, view: View | None, studies: str | None) -> None:
+        """On the loop: hand a prepared view to the Bokeh models."""
+        self.busy = False
+        self._counts(snap)
+        if self.search is not None:
+            self._search(snap)
+        if studies is not None:
+            self.studies.text = studies
+        if view is None:
+            return
+        self.best.text, self.ranking.text = view.best, view.ranking
+        self.fig5.show(view.by_parameter)
+        self.fig6.show(view.by_group)
+        self._show_track(view.track)
+
+    def _show_track(self, found: tuple | None) -> None:
+        if found is None:
+            return
+        comparison, caption = found
+        self.track_note.text = f"<span id='dse-track'>{html.escape(caption) if comparison else caption}</span>"
+        if comparison is not None:
+            self.track.update(comparison, caption)
 
     def _search(self, snap: Snapshot) -> None:
         feed, history = self.feed, snap.history
@@ -474,23 +563,26 @@ class Page:
         if self.front_chart is not None:
             self.front_chart.update(history)
 
-    def _track(self, snap: Snapshot, force: bool = False) -> None:
+    def _best_track(self, snap: Snapshot, force: bool = False) -> tuple | None:
+        """(Comparison, caption) of the best point on the chosen scenario, (None, note) when there is none to
+        show, or None when the one shown stands."""
         if snap.standings.empty or not self.select.value:
-            self.track_note.text = "<span id='dse-track'>The best point's track appears with the first results.</span>"
-            return
+            return None, "The best point's track appears with the first results."
         point = {p: plain(snap.standings.iloc[0][p]) for p in self.feed.parameters}
         key = (self.select.value, tuple(sorted(point.items())))
         if key == self.track_shown and not force:
-            return
+            return None
         self.track_shown = key
         try:
             comparison, value = self.feed.track(self.select.value, point)
         except DseError as e:
-            self.track_note.text = f"<span id='dse-track'>No track: {html.escape(str(e))}</span>"
-            return
-        caption = f"{self.select.value}: best point so far, {self.feed.objective} {value:.4f}"
-        self.track_note.text = f"<span id='dse-track'>{html.escape(caption)}</span>"
-        self.track.update(comparison, caption)
+            return None, f"No track: {html.escape(str(e))}"
+        return comparison, f"{self.select.value}: best point so far, {self.feed.objective} {value:.4f}"
+
+    def _chosen(self) -> None:
+        """Another scenario chosen: its track, at once."""
+        snap = self.feed.latest()
+        self._show_track(self._best_track(snap, force=True) if snap is not None else None)
 
 
 # --- serving -------------------------------------------------------------------------------------
@@ -559,6 +651,7 @@ def serve(output: store.Root, sweep: str, address: str = "127.0.0.1:0", space: S
     except OSError as e:
         raise DseError(f"dashboard address {address}: {e.strerror}") from None
     feed = Feed(output, sweep, space)
+    feed.warm()
     ready: dict[str, Any] = {}
     started = threading.Event()
 
