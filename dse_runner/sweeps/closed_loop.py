@@ -132,7 +132,7 @@ class SearchSource:
 
     # ---- starting and replaying ----------------------------------------------------------------
 
-    def start(self, client, done: set[str]) -> None:
+    def start(self, client, done: store.TaskIds) -> None:
         """Called when the run (re)connects: the first time build and replay the strategy; after a
         scheduler restart send the points that were in flight again (or tell them from the store).
         ``done`` is not needed: a search reads the stored results themselves, not only their ids."""

@@ -27,6 +27,7 @@ from ..simulation.scenario import Scenario, Series
 from .domain import Point
 from .search import count as count_points
 from .search import points as search_points
+from .store import TaskIds
 
 
 @dataclass(frozen=True)
@@ -149,7 +150,7 @@ def distinct(points: list[Point], only: list[Collection[str]] | None) -> tuple[l
 
 
 def blocks(space, points: list[Point] | None = None, only: list[Collection[str]] | None = None,
-           done: Collection[str] = ()) -> Iterator[TaskBatch]:
+           done: TaskIds | None = None) -> Iterator[TaskBatch]:
     """expand()'s tasks in batches of up to BLOCK, less those in ``done``. A sweep makes its chunks from
     these: ids are written a column at a time, so a 100,000-task sweep's client keeps up with its workers."""
     if only is not None and (points is None or len(only) != len(points)):
@@ -166,21 +167,21 @@ def blocks(space, points: list[Point] | None = None, only: list[Collection[str]]
             yield from undone(batches, done)
 
 
-def undone(batches: Iterable[TaskBatch], done: Collection[str]) -> Iterator[TaskBatch]:
+def undone(batches: Iterable[TaskBatch], done: TaskIds | None) -> Iterator[TaskBatch]:
     """Each batch less its tasks in ``done``; batches left empty are dropped."""
     for batch in batches:
         if done:
-            batch = batch[np.array([i not in done for i in batch.ids()], dtype=bool)]
+            batch = batch[~done.among(batch.task_ids)]
         if len(batch):
             yield batch
 
 
-def tally(batches: Iterable[TaskBatch], done: Collection[str]) -> tuple[int, int]:
+def tally(batches: Iterable[TaskBatch], done: TaskIds | None) -> tuple[int, int]:
     """(tasks, tasks with a row in ``done``) of batches made already."""
     total = finished = 0
     for batch in batches:
         total += len(batch)
-        finished += sum(task_id in done for task_id in batch.ids()) if done else 0
+        finished += int(done.among(batch.task_ids).sum()) if done else 0
     return total, finished
 
 
@@ -195,7 +196,7 @@ def _alike(points: list[Point]) -> Iterator[list[Point]]:
         yield list(run)
 
 
-def count(space, done: Collection[str], points: list[Point] | None = None,
+def count(space, done: TaskIds | None, points: list[Point] | None = None,
           only: list[Collection[str]] | None = None) -> tuple[int, int]:
     """(tasks, tasks with a row in ``done``): ids are computed only if some tasks are done, since
     hashing every task of a large fresh sweep would keep the workers waiting for the client."""

@@ -109,18 +109,13 @@ def _replace_whole(target: str, write: Callable[[Path], object]) -> None:
 def write_text(root: Root, name: str, text: str) -> str:
     """Write a small file (``name`` may hold folders) so that readers see all of it or the old one
     (a dashboard reads status and history files while a sweep rewrites them); returns where it went."""
-    return write_bytes(root, name, text.encode())
-
-
-def write_bytes(root: Root, name: str, data: bytes) -> str:
-    """write_text's bytes."""
     fs, path = _fs(root)
     target = _join(path, name)
     if isinstance(fs, LocalFileSystem):
-        _replace_whole(target, lambda partial: partial.write_bytes(data))
+        _replace_whole(target, lambda partial: partial.write_bytes(text.encode()))
     else:  # object stores replace an object whole
         fs.makedirs(target.rsplit("/", 1)[0], exist_ok=True)
-        fs.pipe_file(target, data)
+        fs.pipe_file(target, text.encode())
     return _where(fs, target)
 
 
@@ -136,10 +131,16 @@ def read_text(root: Root, name: str) -> str | None:
 def write_csv(frame: pd.DataFrame, root: Root, name: str) -> str:
     """``frame`` as CSV (no index), written whole like write_text. Arrow's writer: a million-row ranking in a
     second, where pandas' takes ten."""
-    sink = pa.BufferOutputStream()
     table = pa.Table.from_pandas(frame, preserve_index=False)
-    pa_csv.write_csv(table, sink)
-    return write_bytes(root, name, sink.getvalue().to_pybytes())
+    fs, path = _fs(root)
+    target = _join(path, name)
+    if isinstance(fs, LocalFileSystem):  # streamed to the file, not held: a million rows are 70 MB of text
+        _replace_whole(target, lambda partial: pa_csv.write_csv(table, str(partial)))
+    else:
+        fs.makedirs(target.rsplit("/", 1)[0], exist_ok=True)
+        with fs.open(target, "wb") as sink:
+            pa_csv.write_csv(table, sink)
+    return _where(fs, target)
 
 
 def write_table(table: pa.Table, root: Root, relative: str) -> str:
@@ -358,13 +359,43 @@ def read_results(root: Root, sweep: str | None = None, columns: list[str] | None
     return read_table(root, sweep, columns, task_ids, model).to_pandas()
 
 
-def finished_task_ids(root: Root, sweep: str) -> set[str]:
-    """Ids of every task with a row, ok or failed: what a re-run skips."""
-    fs, path = _fs(root)
-    by_file = _task_ids_by_file(fs, _files(fs, path, RESULTS, sweep))
-    if by_file is None:
-        return set(read_results(root, sweep, columns=[])["task_id"])
-    return set().union(*by_file.values())
+class TaskIds:
+    """Ids of the tasks with a row: one sorted array of fixed-width bytes, about 24 bytes a task where a set of
+    strings costs 200, so that resuming a sweep of millions holds tens of megabytes. Asked a batch at a time
+    (``among``), as expand.py walks the space."""
+
+    def __init__(self, ids: np.ndarray | None = None):
+        self.ids = np.unique(ids) if ids is not None and len(ids) else np.array([], dtype="S24")
+
+    @classmethod
+    def of(cls, ids: list[str] | set[str]) -> TaskIds:
+        return cls(np.array([i.encode() for i in ids], dtype="S"))
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def __iter__(self):
+        return (i.decode() for i in self.ids.tolist())
+
+    def __contains__(self, task_id: str) -> bool:
+        return bool(self.among(np.array([task_id.encode()]))[0])
+
+    def among(self, ids: np.ndarray) -> np.ndarray:
+        """Which of ``ids`` (fixed-width bytes) have a row."""
+        if not len(self.ids):
+            return np.zeros(len(ids), dtype=bool)
+        at = np.minimum(np.searchsorted(self.ids, ids), len(self.ids) - 1)
+        return self.ids[at] == ids
+
+
+def finished_task_ids(root: Root, sweep: str) -> TaskIds:
+    """Ids of every task with a row, ok or failed: what a re-run skips. Read a file's column at a time."""
+    dataset = _dataset(root, RESULTS, sweep)
+    if dataset is None:
+        return TaskIds()
+    parts = [np.array(batch.column(0).to_pylist(), dtype="S") for batch in dataset.to_batches(columns=["task_id"])
+             if batch.num_rows]
+    return TaskIds(np.concatenate(parts) if parts else None)
 
 
 def sweeps(root: Root) -> list[str]:

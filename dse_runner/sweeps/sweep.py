@@ -178,7 +178,7 @@ class SchedulerLost(Exception):
 class JobSource(Protocol):
     """Where a run's chunks come from: a grid's chunks (GridSource) or a search's points (SearchSource)."""
 
-    def start(self, client, done: set[str]) -> None:
+    def start(self, client, done: store.TaskIds) -> None:
         """(Re)connected to the cluster of ``client``; ``done``: task ids with a row."""
 
     def next(self, in_flight: int) -> ChunkJob | None:
@@ -211,7 +211,7 @@ class GridSource:
     sent: int = 0  # chunks handed out since the last (re)connection
     warm_ups: list[Any] = field(default_factory=list)  # the probes' futures, kept so that none is cancelled
 
-    def start(self, client, done: set[str]) -> None:
+    def start(self, client, done: store.TaskIds) -> None:
         self.threads = total_threads(client)
         self.unassigned = self.report.remaining
         if self.seconds_per_task is None:
@@ -298,7 +298,7 @@ class Run:
     kept: SweepReport | None = None  # the status when the submission started (save_status)
     saved: float = 0.0  # when the status file was last written (monotonic)
 
-    def until_done(self, client, done: set[str]) -> SweepReport:
+    def until_done(self, client, done: store.TaskIds) -> SweepReport:
         report = self.report
         if report.search is not None or report.total > report.skipped:
             ship.send(client, self.shipment)
@@ -487,7 +487,7 @@ def trajectories_of(space: Space, client, point: Point, sweep: str) -> dict[str,
     return {s.name: store.read_trajectory(space.output, sweep, s.name) for s in space.scenarios}
 
 
-def _jobs(space: Space, shipment: str, done: set[str], size: Callable[[], int], points: list[Point] | None,
+def _jobs(space: Space, shipment: str, done: store.TaskIds, size: Callable[[], int], points: list[Point] | None,
           only: list[Collection[str]] | None = None, with_scores: bool = False,
           tasks: list[TaskBatch] | None = None) -> Iterator[ChunkJob]:
     """The chunks, made as they are asked for (of ``tasks`` when they are made already); the results' schema

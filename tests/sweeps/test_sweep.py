@@ -277,7 +277,7 @@ def test_chunks_hold_the_tasks_in_order_at_the_asked_sizes_less_the_done(tmp_pat
 
     space = load_space(write_space(tmp_path))  # 6 points x 2 scenarios
     every = list(expand(space))
-    done = {every[1].task_id, every[7].task_id}
+    done = store.TaskIds.of({every[1].task_id, every[7].task_id})
     sizes = iter([4, 3, 2, 100])
     chunks = list(chunked(blocks(space, done=done), lambda: next(sizes)))
     assert [len(c) for c in chunks] == [4, 3, 2, 1]
