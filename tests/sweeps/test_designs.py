@@ -149,3 +149,20 @@ def test_a_design_over_intervals_is_computed_on_whole_columns_to_the_same_points
             by_row.append(point)
     assert list(iter(fast.ask, None)) == by_row and fast.size == len(by_row) <= 203
     assert designs._budgeted(fast.design, p) == (fast.design.blocks, by_row)  # the row-by-row path agrees
+
+
+def test_a_design_is_drawn_when_first_needed_and_once_for_the_same_problem():
+    """A spec's check builds the strategy (a million-row design takes seconds to draw): building it draws
+    nothing; the strategies a sweep builds to count, to warn and to ask share one drawing, each asking from
+    the start; another seed is another design."""
+    from dse_runner.sweeps.strategies import designs
+
+    p = problem(X, Z, max_points=160, seed=11)
+    designs._DRAWN.clear()
+    first = search.strategy("sobol_indices")(p)
+    assert not designs._DRAWN  # built, not drawn
+    second = search.strategy("sobol_indices")(p)
+    assert first.design is second.design and len(designs._DRAWN) == 1
+    assert list(iter(first.ask, None)) == list(iter(second.ask, None)) == asked("sobol_indices", p)
+    other = search.strategy("sobol_indices")(problem(X, Z, max_points=160, seed=12))
+    assert other.design is not first.design and not np.array_equal(other.design.units, first.design.units)

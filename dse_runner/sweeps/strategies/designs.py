@@ -99,7 +99,8 @@ class SensitivityDesign(Strategy):
         super().__init__(problem)
         numeric(problem.dimensions)
         self.check_budget(problem)
-        self._asking: Any = None
+        self._asking: Any = None  # the points' iterator, from the first ask
+        self._own: tuple[Design, list[Point] | np.ndarray] | None = None  # a constrained design, drawn for this one
 
     @property
     def design(self) -> Design:
@@ -187,7 +188,7 @@ def _fitted(design: SensitivityDesign) -> tuple[Design, list[Point] | np.ndarray
     command to read the rows back."""
     key = design.identity()
     if key is None:
-        if not hasattr(design, "_own"):
+        if design._own is None:
             design._own = design.fit(design.problem)
         return design._own
     if key not in _DRAWN:
