@@ -102,7 +102,7 @@ class Feed:
         self._snapshot: Snapshot | None = None
         self._version = ""  # the store's version the snapshot's rows are of
         self._studies_lock = threading.Lock()
-        self._studies: tuple[tuple, str] = ((), "")  # ((rows done, state), the study sections' HTML)
+        self._studies: tuple[tuple, str] = ((), "")  # ((store version, model), the study sections' HTML)
         self._tracks: dict[tuple, tuple] = {}
         self.pages: weakref.WeakSet[Page] = weakref.WeakSet()  # the open tabs, told when the server stops
 
@@ -120,7 +120,9 @@ class Feed:
                         provisional=True)
 
     def warm(self) -> None:
-        """Read the first snapshot in the background, so the first page finds it ready or under way."""
+        """Read the first snapshot in the background, so the first page finds it ready or under way. (The
+        study sections are not started here too: their bootstrap beside the page's first build delayed the
+        page's first number by 2 s at a million rows, and brought the figures no sooner.)"""
         threading.Thread(target=self.snapshot, name="dse-runner-feed", daemon=True).start()
 
     def snapshot(self, fresh: bool = False) -> Snapshot:
@@ -215,10 +217,10 @@ class Feed:
         """Whether the pages show sensitivity or uncertainty figures."""
         return self.uncertain is not None or is_sensitivity(self.output, self.sweep)
 
-    def studies_of(self, snap: Snapshot) -> str:
-        """studies_html for the rows of ``snap`` and the sweep's state, drawn once for every page."""
-        key = (snap.done, snap.status.state if snap.status is not None else None)
+    def studies_now(self) -> str:
+        """studies_html for the store as it is, drawn once per version of it for every page."""
         with self._studies_lock:
+            key = (store.version(self.output, self.sweep), current_model(self.output, self.sweep))
             if self._studies[0] != key:
                 self._studies = (key, self.studies_html())
             return self._studies[1]
@@ -526,7 +528,7 @@ class Page:
         if not final and state == "running" and time.monotonic() - self.studies_at < STUDY_SECONDS:
             return None
         self.studies_at, self.studies_drawn = time.monotonic(), (snap.done, state)
-        return self.feed.studies_of(snap)
+        return self.feed.studies_now()
 
     def _show(self, snap: Snapshot, view: View | None, studies: str | None) -> None:
         """On the loop: hand a prepared view to the Bokeh models."""
