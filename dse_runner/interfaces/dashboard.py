@@ -633,7 +633,8 @@ class DashboardServer:
                 said = threading.Event()
                 page.doc.add_next_tick_callback(partial(page.finish, farewell, said))
                 told.append(said)
-            if all(said.wait(FAREWELL_SECONDS) for said in told) and told:
+            deadline = time.monotonic() + FAREWELL_SECONDS  # every page its chance, however slow one is
+            if [said.wait(max(0.0, deadline - time.monotonic())) for said in told].count(True):
                 time.sleep(DELIVERY_SECONDS)
         self._loop.add_callback(self._loop.stop)
         self._thread.join(timeout=10)
