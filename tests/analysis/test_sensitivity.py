@@ -9,6 +9,7 @@ V1 = (1 + b pi^4 / 5)^2 / 2, V2 = a^2 / 8, V13 = b^2 pi^8 (1/18 - 1/50), V3 = V1
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import pandas as pd
@@ -196,7 +197,29 @@ def test_sensitivity_equals_salib_on_the_plainly_read_store(tmp_path, dask_sched
     marked = kept.read_text().replace('"S1":', '"S1":7.0,"was":', 1)
     kept.write_text(marked)
     assert sensitivity(space.output).objectives["y"].overall.parameters["ishigami.x1"]["S1"] == 7.0
-    first = sorted((space.output / "results").rglob("*.parquet"))[0]
+    first = min((space.output / "results").rglob("*.parquet"))
     first.write_bytes(first.read_bytes())  # written again: a new version of the store
     assert sensitivity(space.output).objectives["y"].overall.parameters["ishigami.x1"]["S1"] == \
         float(expected["S1"][0])
+
+
+def test_a_large_designs_bootstrap_runs_in_processes_to_the_same_numbers():
+    """From PARALLEL_ROWS rows the Sobol' estimator runs SALib's bootstrap a process per parameter: the indices
+    and intervals are those of the one-process run, to the last digit."""
+    from SALib.analyze import sobol
+
+    from dse_runner.analysis.sensitivity import PARALLEL_ROWS, _estimate, bootstrap_processes
+    from dse_runner.sweeps.strategies.designs import Design
+
+    rng = np.random.default_rng(5)
+    rows = PARALLEL_ROWS // 5 * 5
+    assert bootstrap_processes(rows - 5, 3) == 1
+    if (os.cpu_count() or 1) > 1:
+        assert bootstrap_processes(rows, 3) == min(os.cpu_count(), 3) > 1
+    units = rng.random((rows, 3))
+    y = ishigami(units * 2 * math.pi - math.pi)
+    found = _estimate(Design("sobol", units, 5), y, units, list(NAMES), 0.95, 20, 7)
+    alone = sobol.analyze(salib_problem(tuple(Dimension(n) for n in NAMES)), y, calc_second_order=False,
+                          num_resamples=20, conf_level=0.95, seed=7)
+    for key in ("S1", "S1_conf", "ST", "ST_conf"):
+        assert np.array_equal(found[key], alone[key]), key
