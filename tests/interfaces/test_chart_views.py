@@ -47,3 +47,15 @@ def test_a_grid_keeps_its_lines_of_means():
     sources = charts._Sources.empty()
     sources.fill(ok, "m.x", "y", {"all": "#000"}, "group", scattered=False)
     assert sources.lines.data["ys"][0].tolist() == [2.0, 6.0] and charts.source_rows(sources.dots) == 0
+
+
+def test_point_numbers_follow_the_points_sorted_by_their_values_with_text_values_too():
+    """Figure 6's x: each row's point numbered by the points' order (first parameter first), the same number
+    for the same point on every scenario."""
+    from dse_runner.interfaces.charts import point_index
+
+    ok = pd.DataFrame({"a": [2.0, 1.0, 2.0, 1.0, 2.0], "b": [0.5, 0.7, 0.1, 0.7, 0.5]})
+    assert point_index(ok, ["a", "b"]).tolist() == [2.0, 0.0, 1.0, 0.0, 2.0]
+    assert point_index(ok, ["b", "a"]).tolist() == [1.0, 2.0, 0.0, 2.0, 1.0]
+    text = ok.assign(c=["x", "y", "x", "y", "x"])
+    assert point_index(text, ["c", "a"]).tolist() == [0.0, 1.0, 0.0, 1.0, 0.0]
