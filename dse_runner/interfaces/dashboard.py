@@ -405,6 +405,7 @@ class Page:
         self.feed, self.doc = feed, doc
         self.shown = -1  # rows shown: they only ever grow, so a count tells news
         self.busy = False  # a worker thread is preparing the next view
+        self.studying = False  # one is drawing the study sections
         feed.pages.add(self)
         snap = feed.latest()
         scenarios = feed.scenarios(snap)
@@ -486,11 +487,17 @@ class Page:
             said.set()
 
     def update(self) -> None:
-        """On the server's loop, every REFRESH_SECONDS: the counts now; the rest from a worker thread."""
-        self._counts(self.feed.latest() or self.feed.provisional())
+        """On the server's loop, every REFRESH_SECONDS: the counts now; the figures, and apart from them the
+        study sections (a large design's bootstrap), from worker threads."""
+        snap = self.feed.latest() or self.feed.provisional()
+        self._counts(snap)
         if not self.busy:
             self.busy = True
             threading.Thread(target=self._prepare, name="dse-runner-page", daemon=True).start()
+        # after the first view: beside the page's first build the bootstrap delays the counts and figures
+        if not self.studying and self.shown >= 0 and self._studies_due(snap) is not None:
+            self.studying = True
+            threading.Thread(target=self._prepare_studies, name="dse-runner-studies", daemon=True).start()
 
     def _counts(self, snap: Snapshot) -> None:
         """The title, the progress line and the workers: cheap, from any snapshot."""
@@ -504,11 +511,18 @@ class Page:
         try:
             snap = self.feed.snapshot()
             view = self._view(snap) if snap.done != self.shown else None
-            studies = self._studies_due(snap)
         except Exception:
             self.busy = False
             raise
-        self.doc.add_next_tick_callback(partial(self._show, snap, view, studies))
+        self.doc.add_next_tick_callback(partial(self._show, snap, view, None))
+
+    def _prepare_studies(self) -> None:
+        """Off the loop: the study sections for the store as it is, handed to the loop."""
+        try:
+            found = self.feed.studies_now()
+        finally:
+            self.studying = False
+        self.doc.add_next_tick_callback(partial(setattr, self.studies, "text", found))
 
     def _view(self, snap: Snapshot) -> View:
         feed = self.feed
@@ -519,16 +533,17 @@ class Page:
                     self.fig5.prepare(snap.ok), self.fig6.prepare(snap.ok), self._best_track(snap))
 
     def _studies_due(self, snap: Snapshot, final: bool = False) -> str | None:
-        """The sensitivity or uncertainty figures' HTML when rows or the sweep's state changed: at most every
-        STUDY_SECONDS while the sweep runs (the bootstrap takes a while on a large design), and once more
-        when it has stopped, whenever the last rows came; None when they stand."""
+        """Whether the sensitivity or uncertainty figures are due again, when rows or the sweep's state changed:
+        at most every STUDY_SECONDS while the sweep runs (the bootstrap takes a while on a large design), and
+        once more when it has stopped, whenever the last rows came. None when they stand; else, ``final``
+        (the server stops), their HTML now, or "" (a worker thread draws them)."""
         state = snap.status.state if snap.status is not None else None
         if self.studies is None or (snap.done, state) == self.studies_drawn:
             return None
         if not final and state == "running" and time.monotonic() - self.studies_at < STUDY_SECONDS:
             return None
         self.studies_at, self.studies_drawn = time.monotonic(), (snap.done, state)
-        return self.feed.studies_now()
+        return self.feed.studies_now() if final else ""
 
     def _show(self, snap: Snapshot, view: View | None, studies: str | None) -> None:
         """On the loop: hand a prepared view to the Bokeh models."""
