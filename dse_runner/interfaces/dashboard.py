@@ -104,6 +104,7 @@ class Feed:
         self._studies_lock = threading.Lock()
         self._studies: tuple[tuple, str] = ((), "")  # ((store version, model), the study sections' HTML)
         self._tracks: dict[tuple, tuple] = {}
+        self._track_lock = threading.Lock()
         self.pages: weakref.WeakSet[Page] = weakref.WeakSet()  # the open tabs, told when the server stops
 
     def latest(self) -> Snapshot | None:
@@ -238,21 +239,24 @@ class Feed:
         return STUDY_STYLE + "".join(section_html(s, "h3") for s in sections(self.output, self.sweep, ranking))
 
     def track(self, scenario: str, point: dict[str, Any]) -> tuple[Comparison, float]:
-        """``point`` simulated on ``scenario`` next to its recording (comparison.py), and the objective."""
+        """``point`` simulated on ``scenario`` next to its recording (comparison.py), and the objective. One
+        simulation at a time: the pages' worker threads and the server's loop all ask, and a process's FMU
+        instances are not for two threads at once."""
         from ..simulation.run import simulate
 
         key = (scenario, tuple(sorted(point.items())))
-        if key not in self._tracks:
-            space, note = self.space()
-            if space is None:
-                raise DseError(note)
-            names = {s.name: s for s in space.scenarios}  # a scenario of uncertain draws: its first draw's track
-            recording = names.get(scenario) or names[uncertainty.sample_name(scenario, 0)]
-            objective = space.objectives[self.objective]
-            result = simulate(space.plan, recording, point, objectives={self.objective: objective},
-                              timeout=space.spec.timeout, experiment=space.experiment)
-            self._tracks[key] = (compare(result, objective), result.objectives[self.objective])
-        return self._tracks[key]
+        with self._track_lock:
+            if key not in self._tracks:
+                space, note = self.space()
+                if space is None:
+                    raise DseError(note)
+                names = {s.name: s for s in space.scenarios}  # a scenario of uncertain draws: its first draw's
+                recording = names.get(scenario) or names[uncertainty.sample_name(scenario, 0)]
+                objective = space.objectives[self.objective]
+                result = simulate(space.plan, recording, point, objectives={self.objective: objective},
+                                  timeout=space.spec.timeout, experiment=space.experiment)
+                self._tracks[key] = (compare(result, objective), result.objectives[self.objective])
+            return self._tracks[key]
 
 
 def _scenario_count(status: SweepReport | None, rows: pd.DataFrame, column: str = "scenario") -> int:
@@ -627,7 +631,7 @@ def _origins(host: str, port: int) -> list[str]:
 
 
 FAREWELL_SECONDS = 10.0  # at most this long for the open pages to take their last update
-DELIVERY_SECONDS = 0.5  # then this long for it to leave the server before it closes the connections
+DELIVERY_SECONDS = 2.0  # then this long for it to leave the server (0.5 s lost it under a full machine)
 
 
 @dataclass
