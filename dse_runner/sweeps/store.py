@@ -221,12 +221,8 @@ def version(root: Root, sweep: str) -> str:
     fs, path = _fs(root)
     where = _join(path, RESULTS, f"sweep={sweep}")
     if isinstance(fs, LocalFileSystem):
-        listing = []
-        for parent, _, names in os.walk(where):
-            for name in names:
-                if name.endswith(".parquet") and not name.startswith("."):
-                    stat = os.stat(os.path.join(parent, name))
-                    listing.append((os.path.join(parent, name), stat.st_size, stat.st_mtime_ns))
+        listing = [(name, stat.st_size, stat.st_mtime_ns)
+                   for name, stat in ((name, os.stat(name)) for name in _files(fs, path, RESULTS, sweep))]
     else:
         found = fs.find(where, detail=True) if fs.exists(where) else {}
         listing = [(name, info.get("size"), str(info.get("mtime", info.get("LastModified", ""))))
@@ -244,18 +240,23 @@ def _dataset(root: Root, kind: str, sweep: str | None = None, files: list[str] |
                       filesystem=_arrow_fs(fs))
 
 
+def _id_bytes(column: pa.ChunkedArray | pa.Array) -> np.ndarray:
+    """Task ids as fixed-width bytes: about 24 bytes an id, where a Python string costs 70 and more."""
+    return np.array(column.to_pylist(), dtype="S")
+
+
 class _TaskIdCache:
     """Task ids per local file, keyed by (size, mtime): a chunk's file does not change once written
     (a chunk run again replaces it whole, with a new modification time). Bounded, so a process
     that scans a huge sweep re-reads it rather than holding every id."""
 
-    limit = 500_000  # ids, ~50 MB
+    limit = 2_000_000  # ids, ~50 MB
 
     def __init__(self) -> None:
-        self.files: dict[str, tuple[tuple[int, int], frozenset[str]]] = {}
+        self.files: dict[str, tuple[tuple[int, int], np.ndarray]] = {}
         self.count = 0
 
-    def ids(self, name: str) -> frozenset[str]:
+    def ids(self, name: str) -> np.ndarray:
         stat = os.stat(name)
         version = (stat.st_size, stat.st_mtime_ns)
         cached = self.files.get(name)
@@ -263,9 +264,9 @@ class _TaskIdCache:
             return cached[1]
         # ParquetFile: a third of read_table's cost per small file (no dataset machinery)
         with pq.ParquetFile(name) as file:
-            ids = frozenset(file.read(columns=["task_id"]).column("task_id").to_pylist())
+            ids = _id_bytes(file.read(columns=["task_id"]).column("task_id"))
         if cached is not None:
-            self.count -= len(self.files.pop(name, (None, frozenset()))[1])
+            self.count -= len(self.files.pop(name)[1])
         if self.count + len(ids) > self.limit:
             self.files.clear()
             self.count = 0
@@ -277,8 +278,8 @@ class _TaskIdCache:
 _IDS = _TaskIdCache()
 
 
-def _task_ids_by_file(fs: fsspec.AbstractFileSystem, files: list[str]) -> dict[str, frozenset[str]] | None:
-    """The task ids in each of ``files``, or None for a remote store.
+def _task_ids_by_file(fs: fsspec.AbstractFileSystem, files: list[str]) -> dict[str, np.ndarray] | None:
+    """The task ids in each of ``files`` (fixed-width bytes), or None for a remote store.
 
     An optimiser reads the store after every one of its many small rounds (fit.py); with the
     ids of each local file remembered, a round opens only the files written since the last."""
@@ -321,8 +322,8 @@ def read_table(root: Root, sweep: str | None = None, columns: list[str] | None =
         files = _files(fs, path, RESULTS, sweep)
         by_file = _task_ids_by_file(fs, files)
         if by_file is not None:
-            wanted_ids = set(task_ids)
-            files = [f for f in files if not by_file[f].isdisjoint(wanted_ids)]
+            wanted_ids = TaskIds.of(task_ids)
+            files = [f for f in files if wanted_ids.among(by_file[f]).any()]
     keys = ["task_id", "sweep", "scenario"]
     dataset = _dataset(root, RESULTS, sweep, files)
     if dataset is None:
@@ -389,12 +390,16 @@ class TaskIds:
 
 
 def finished_task_ids(root: Root, sweep: str) -> TaskIds:
-    """Ids of every task with a row, ok or failed: what a re-run skips. Read a file's column at a time."""
-    dataset = _dataset(root, RESULTS, sweep)
-    if dataset is None:
-        return TaskIds()
-    parts = [np.array(batch.column(0).to_pylist(), dtype="S") for batch in dataset.to_batches(columns=["task_id"])
-             if batch.num_rows]
+    """Ids of every task with a row, ok or failed: what a re-run skips. A local file's ids are remembered
+    (_TaskIdCache), a remote store's read a column at a time."""
+    fs, path = _fs(root)
+    by_file = _task_ids_by_file(fs, _files(fs, path, RESULTS, sweep))
+    if by_file is not None:
+        parts = list(by_file.values())
+    else:
+        dataset = _dataset(root, RESULTS, sweep)
+        batches = dataset.to_batches(columns=["task_id"]) if dataset is not None else []
+        parts = [_id_bytes(batch.column(0)) for batch in batches if batch.num_rows]
     return TaskIds(np.concatenate(parts) if parts else None)
 
 
