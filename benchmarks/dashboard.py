@@ -21,7 +21,8 @@ from pathlib import Path
 
 from playwright.sync_api import sync_playwright
 
-from dse_runner.interfaces.dashboard import Feed, serve
+from dse_runner.interfaces.dashboard.feed import Feed
+from dse_runner.interfaces.dashboard.server import serve
 from dse_runner.interfaces.report import build_report
 from dse_runner.sweeps.spec import load_space
 from dse_runner.sweeps.sweep import submit
@@ -37,6 +38,7 @@ def sweep_seconds(folder: Path, watched: bool, browser) -> float:
         server = serve(space.output, space.name, "127.0.0.1:0", space)
         page = browser.new_page()
         page.goto(server.url)
+        page.wait_for_selector("#dse-first", state="detached")  # BokehJS has drawn the document
         page.wait_for_selector("#dse-done")
     started = time.perf_counter()
     report = submit(space)

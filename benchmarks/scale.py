@@ -8,7 +8,9 @@ The study is jobs/ishigami/space.yaml's (the Ishigami function as a C FMU, Sobol
 design: one row per point), with ``max_points`` set to the rows asked for, into a fresh folder each; submit
 runs on the embedded local cluster of 2 workers without a dashboard. For each command: wall seconds, and the
 peak resident memory of the command's own process (the client: sampled every 50 ms with psutil; submit's
-workers are other processes and not counted). For the report, its size.
+workers are other processes and not counted); for submit, also that peak up to its summary line, which it
+prints when the sweep has ended and before it ranks (the sweep part: what issue 52 wants flat in the rows).
+For the report, its size.
 
 The dashboard: once submit has finished, ``dse-runner dashboard OUT --address 127.0.0.1:PORT`` is started
 while a headless Chromium (Debian's, launched as tests/pages.py launches it, before the command) waits; from
@@ -44,6 +46,7 @@ REPO = Path(__file__).resolve().parents[1]
 ISHIGAMI = REPO / "jobs" / "ishigami"
 SAMPLE_SECONDS = 0.05
 POLL_SECONDS = 0.1  # how often the dashboard's page is looked at
+SWEPT = " simulations ("  # in submit's summary line: the sweep has ended, its ranking begins
 DASHBOARD_TIMEOUT = 600.0  # seconds from the dashboard command's start after which a figure is a timeout
 
 
@@ -81,18 +84,30 @@ def sampled(process: subprocess.Popen) -> tuple[threading.Thread, list[int]]:
     return sampler, peak
 
 
-def measured(*args: str) -> dict:
-    """One command: its wall seconds and its own process's peak resident memory [MB]."""
+def measured(*args: str, phase: str | None = None) -> dict:
+    """One command: its wall seconds and its own process's peak resident memory [MB]; with ``phase``, also
+    the peak until the first line of its output containing it (submit's summary line, printed when the sweep
+    has ended and before its ranking begins)."""
     started = time.perf_counter()
-    process = subprocess.Popen(dse_runner(*args), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                               text=True)
+    process = subprocess.Popen(dse_runner(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     sampler, peak = sampled(process)
-    _, stderr = process.communicate()
+    phase_peak = None
+    errors: list[str] = []
+    drain = threading.Thread(target=lambda: errors.append(process.stderr.read()), daemon=True)
+    drain.start()
+    for line in process.stdout:
+        if phase is not None and phase_peak is None and phase in line:
+            phase_peak = peak[0]
+    process.wait()
     seconds = time.perf_counter() - started
     sampler.join()
+    drain.join()
     if process.returncode != 0:
-        raise SystemExit(f"{' '.join(args)}: exit {process.returncode}: {stderr.strip()[-500:]}")
-    return {"seconds": round(seconds, 2), "peak_mb": round(peak[0] / 2**20)}
+        raise SystemExit(f"{' '.join(args)}: exit {process.returncode}: {''.join(errors).strip()[-500:]}")
+    found = {"seconds": round(seconds, 2), "peak_mb": round(peak[0] / 2**20)}
+    if phase is not None:
+        found["phase_peak_mb"] = None if phase_peak is None else round(phase_peak / 2**20)
+    return found
 
 
 # What the page holds, read through BokehJS (the charts live in shadow roots): every visible plot's data
@@ -231,7 +246,7 @@ def study(rows: int, work: Path) -> dict:
     folder = work / f"rows-{rows}"
     path = space(folder, rows)
     out = folder / "out"
-    found = {"rows": rows, "submit": measured("submit", str(path), "--no-dashboard")}
+    found = {"rows": rows, "submit": measured("submit", str(path), "--no-dashboard", phase=SWEPT)}
     found["dashboard"] = dashboard(out, folder / "dashboard.log")
     found["rank"] = measured("rank", str(out))
     found["report"] = measured("report", str(out), "-o", str(folder / "report.html"))
@@ -248,16 +263,21 @@ def seconds(value: float | None) -> str:
     return "timeout" if value is None else f"{value:.1f} s"
 
 
+def megabytes(value: int | None) -> str:
+    return "–" if value is None else f"{value:5d} MB"
+
+
 def ratio(value: float | None, first: float | None) -> str:
     return "–" if value is None or not first else f"{value / first:.1f}x"
 
 
 def table(found: list[dict]) -> None:
     first = found[0]
-    print(f"{'rows':>9} | {'submit':>16} | {'rank':>15} | {'report':>22} | {'sensitivity':>15} | "
+    print(f"{'rows':>9} | {'submit (its sweep part)':>26} | {'rank':>15} | {'report':>22} | {'sensitivity':>15} | "
           f"{'dashboard: first number, all figures':>37} | {'again, indices kept':>29}")
     for f in found:
         cells = [f"{f[c]['seconds']:6.1f} s {f[c]['peak_mb']:5d} MB" for c in ("submit", "rank")]
+        cells[0] += f" ({megabytes(f['submit']['phase_peak_mb'])})"
         report = f["report"]
         cells.append(f"{report['seconds']:6.1f} s {report['peak_mb']:5d} MB {report['mb']:5.1f} MB")
         cells.append(f"{f['sensitivity']['seconds']:6.1f} s {f['sensitivity']['peak_mb']:5d} MB")
@@ -279,6 +299,8 @@ def table(found: list[dict]) -> None:
         ratios = [f"{c} {f[c]['seconds'] / first[c]['seconds']:.1f}x time, "
                   f"{f[c]['peak_mb'] / first[c]['peak_mb']:.1f}x memory"
                   for c in ("submit", "rank", "report", "sensitivity")]
+        ratios.append(f"submit's sweep part {ratio(f['submit']['phase_peak_mb'], first['submit']['phase_peak_mb'])} "
+                      "memory")
         shown, before = f["dashboard"], first["dashboard"]
         ratios.append(f"dashboard {ratio(shown['first_number_s'], before['first_number_s'])} to the first "
                       f"number, {ratio(shown['all_figures_s'], before['all_figures_s'])} to all figures, "

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from playwright.sync_api import sync_playwright
 
-from dse_runner.interfaces.dashboard import serve
+from dse_runner.interfaces.dashboard.server import serve
 from dse_runner.interfaces.dask_link import link_from_dask
 from dse_runner.interfaces.report import write_report
 from dse_runner.sweeps.spec import load_space
@@ -43,6 +43,7 @@ def main() -> None:
         browser = playwright.chromium.launch(executable_path=shutil.which("chromium"))
         page = browser.new_page(viewport={"width": 1400, "height": 1000})  # the width the pages are made to fit
         page.goto(server.url)
+        page.wait_for_selector("#dse-first", state="detached")  # BokehJS has drawn the document
         page.wait_for_selector("#dse-done")
         sweep.start()
         while True:  # until a third of the tasks are done

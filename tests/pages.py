@@ -112,3 +112,11 @@ def browser_page(errors: list[str] | None = None, **context: Any) -> Iterator[An
             yield page
         finally:
             browser.close()
+
+
+def open_dashboard(page, url: str, timeout: float = 30_000) -> None:
+    """Go to a dashboard page and wait until BokehJS has drawn its document: the counts the page's HTML shows
+    first (#dse-first) are gone then, and every live part is the document's."""
+    page.goto(url)
+    page.wait_for_selector("#dse-first", state="detached", timeout=timeout)
+    page.wait_for_selector("#dse-done", timeout=timeout)

@@ -351,7 +351,7 @@ def submit(
         _interrupted(space)
     finally:
         if board is not None:
-            from .dashboard import farewell
+            from .dashboard.server import farewell
 
             ended = "The sweep's submit has ended, and its dashboard server with it."
             board.server.stop(farewell(space.output, ended))
@@ -477,7 +477,7 @@ class _Board:
 
 
 def _start_dashboard(space, address: str) -> _Board:
-    from .dashboard import serve
+    from .dashboard.server import serve
 
     server = serve(space.output, space.name, address, space)
     typer.echo(f"dse-runner dashboard: {server.url}", err=True)
@@ -494,7 +494,7 @@ def dashboard_command(
     import time
 
     from ..sweeps.rank import pick_sweep
-    from .dashboard import serve
+    from .dashboard.server import serve
 
     try:
         server = serve(results, pick_sweep(results, sweep), address)
@@ -505,7 +505,7 @@ def dashboard_command(
         while True:
             time.sleep(3600)
     except KeyboardInterrupt:
-        from .dashboard import farewell
+        from .dashboard.server import farewell
 
         server.stop(farewell(results, "This dashboard server was stopped (Ctrl-C)."))
 

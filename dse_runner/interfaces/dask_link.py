@@ -1,5 +1,5 @@
 """A "dse-runner" page on Dask's dashboard that redirects to ours: a scheduler plugin, the way distributed
-extends itself. Apart from dashboard.py, so that a page over a store (the dashboard and report commands)
+extends itself. Apart from dashboard/, so that a page over a store (the dashboard and report commands)
 does not import Dask's distributed; the scheduler imports this module to run the plugin."""
 
 from __future__ import annotations

@@ -38,7 +38,7 @@ from ..sweeps.rank import (
 from ..sweeps.spec import Search, SpaceSpec
 from ..sweeps.status import SweepReport, load_status
 from . import charts
-from .dashboard import Feed, search_summary
+from .dashboard.feed import Feed, search_summary
 from .study_figures import Section, section_html, sensitivity_sections, uncertainty_sections
 
 TOP = 20  # points listed in the ranking

@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from conftest import REPO, SCENARIOS, strict_loads, write_space
-from pages import browser_page, glyphs, measure, watch_errors
+from pages import browser_page, glyphs, measure, open_dashboard, watch_errors
 
 SWEEP_SCENARIOS = ["sin1", "speed_ramp1", "speed_step1", "turn_ramp1"]
 PARAMETERS = {"vehicle.cAlphaF": [20000, 38000],
@@ -58,7 +58,7 @@ def _text(page, element: str) -> str:
 def watched(tmp_path_factory, dask_scheduler) -> Watched:
     from distributed import Client
 
-    from dse_runner.interfaces.dashboard import farewell, serve
+    from dse_runner.interfaces.dashboard.server import farewell, serve
     from dse_runner.interfaces.dask_link import link_from_dask
     from dse_runner.sweeps.spec import load_space
     from dse_runner.sweeps.sweep import submit
@@ -96,8 +96,7 @@ def watched(tmp_path_factory, dask_scheduler) -> Watched:
             outcome["error"] = e
 
     with browser_page(seen.errors, viewport={"width": 1300, "height": 1600}) as page:
-        page.goto(server.url)
-        page.wait_for_selector("#dse-done", timeout=30_000)
+        open_dashboard(page, server.url)
         sweep = threading.Thread(target=run)
         sweep.start()
 
@@ -228,7 +227,7 @@ def test_the_report_and_the_dashboard_fit_a_1400_px_page(watched, tmp_path):
     """Four scenario groups and three parameters: Figure 6's four panels once overflowed a 1400 px page, and
     Figure 5's title "cross_track_error against vehicle.cAlphaF" ran past its canvas. Measured in the
     browser, charts, titles and toolbars; a grid's Figure 5 keeps one line per scenario."""
-    from dse_runner.interfaces.dashboard import serve
+    from dse_runner.interfaces.dashboard.server import serve
     from dse_runner.interfaces.report import write_report
 
     report = write_report(watched.output, tmp_path / "report.html")
@@ -305,8 +304,7 @@ def test_dashboard_command_serves_a_finished_sweep_and_its_page_outlives_it_with
             errors: list[str] = []
             with browser_page(errors) as page:
                 page.on("console", lambda m: lost.append(m.text) if "Lost websocket" in m.text else None)
-                page.goto(match[0])
-                page.wait_for_selector("#dse-done", timeout=30_000)
+                open_dashboard(page, match[0])
                 state, done = _text(page, "state"), _text(page, "done")
                 noticed = len(lost)
                 server.send_signal(ending)
@@ -326,6 +324,24 @@ def test_dashboard_command_serves_a_finished_sweep_and_its_page_outlives_it_with
             assert said.startswith("This dashboard server was stopped (Ctrl-C).") and str(watched.output) in said
         else:  # the control: a server killed without a word, as before
             assert banner == 1 and said == ""
+
+
+def test_the_pages_html_shows_the_counts_before_any_script(watched):
+    """A large study's page takes seconds to draw (BokehJS loads, pulls the document, draws it): the counts are
+    in the HTML the server answers with, ahead of BokehJS's scripts, so a browser shows them as it parses."""
+    from urllib.request import urlopen
+
+    from dse_runner.interfaces.dashboard.server import serve
+
+    server = serve(watched.output, "watched")
+    try:
+        with urlopen(server.url, timeout=60) as answer:
+            page = answer.read().decode()
+    finally:
+        server.stop()
+    first = page.index('id="dse-first"')
+    assert f'id="dse-done">{TASKS} of {TASKS}<' in page[first:page.index("<script", first)]
+    assert 'id="dse-state">finished<' in page and "<script" not in page[:first]
 
 
 def test_standings_put_the_furthest_points_first():
@@ -392,7 +408,8 @@ def test_the_dashboard_names_the_best_point_the_ranking_constraints_keep(tmp_pat
     points it ranks."""
     import yaml
 
-    from dse_runner.interfaces.dashboard import Feed, best_html
+    from dse_runner.interfaces.dashboard.feed import Feed
+    from dse_runner.interfaces.dashboard.page import best_html
     from dse_runner.sweeps.rank import rank
     from dse_runner.sweeps.spec import load_space
     from dse_runner.sweeps.sweep import submit
@@ -417,7 +434,7 @@ def test_the_dashboard_names_the_best_point_the_ranking_constraints_keep(tmp_pat
 
 
 def test_dashboard_address_errors_name_the_address():
-    from dse_runner.interfaces.dashboard import parse_address
+    from dse_runner.interfaces.dashboard.server import parse_address
     from dse_runner.errors import DseError
 
     assert parse_address("127.0.0.1:0") == ("127.0.0.1", 0)

@@ -17,7 +17,8 @@ from conftest import REPO, write_msd_search
 from pages import Fit, browser_page, glyphs, measure, watch_errors
 
 from dse_runner.interfaces import charts
-from dse_runner.interfaces.dashboard import search_html, search_summary
+from dse_runner.interfaces.dashboard.feed import search_summary
+from dse_runner.interfaces.dashboard.page import search_html
 from dse_runner.sweeps.closed_loop import SearchStatus
 from dse_runner.sweeps.history import SearchHistory
 
@@ -186,7 +187,7 @@ class Seen:
 def searched(tmp_path_factory, dask_scheduler) -> Seen:
     from distributed import Client
 
-    from dse_runner.interfaces.dashboard import serve
+    from dse_runner.interfaces.dashboard.server import serve
     from dse_runner.sweeps.spec import load_space
     from dse_runner.sweeps.sweep import submit
 
@@ -328,7 +329,7 @@ def test_report_draws_the_searchs_points_as_dots_on_a_page_that_fits_1400_px(sea
 
 def test_a_grid_sweep_shows_no_search():
     """A grid sweep (exhaustive, no history) gets no search line or charts: its pages are as before."""
-    from dse_runner.interfaces.dashboard import Feed, Snapshot
+    from dse_runner.interfaces.dashboard.feed import Feed, Snapshot
     from dse_runner.sweeps.spec import load_space
 
     space = load_space(MSD / "space.yaml")

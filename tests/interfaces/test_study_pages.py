@@ -89,7 +89,7 @@ def test_the_report_shows_the_figure(sweeps, tmp_path, kind):
 
 @pytest.mark.parametrize("kind", ["sobol", "uncertain"])
 def test_the_dashboard_of_a_finished_sweep_shows_the_figure(sweeps, kind):
-    from dse_runner.interfaces.dashboard import serve
+    from dse_runner.interfaces.dashboard.server import serve
 
     output, sweep, ident = sweeps[kind]
     server = serve(output, sweep, "127.0.0.1:0")
@@ -115,7 +115,7 @@ def test_the_dashboard_names_the_robust_best_as_rank_does(sweeps):
     """With ``ranking: {robust: {quantile: 0.9}}`` the best-so-far line and table rank by the q90 over the draws,
     as the rank command does and as the uncertainty section below them says, not by the mean; the table's last
     column says so. On this sweep the best q90 and the best mean are different points."""
-    from dse_runner.interfaces.dashboard import serve
+    from dse_runner.interfaces.dashboard.server import serve
     from dse_runner.sweeps.rank import format_point, rank
 
     output, sweep, ident = sweeps["uncertain"]

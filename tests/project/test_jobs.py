@@ -93,7 +93,7 @@ def test_watertank_sweeps_the_levels_under_its_constraint_and_ranks_a_pareto_fro
 
 
 def test_watertank_report_and_dashboard_show_the_one_scenario(watertank, tmp_path):
-    from pages import browser_page
+    from pages import browser_page, open_dashboard
     from playwright.sync_api import expect
 
     space, report = watertank
@@ -106,8 +106,7 @@ def test_watertank_report_and_dashboard_show_the_one_scenario(watertank, tmp_pat
         match = re.search(r"http://127\.0\.0\.1:\d+/", server.stdout.readline())
         assert match, server.stderr.read()
         with browser_page(errors, viewport={"width": 1300, "height": 1600}) as page:
-            page.goto(match[0])
-            page.wait_for_selector("#dse-done", timeout=30_000)
+            open_dashboard(page, match[0])
             expect(page.locator("#dse-track")).to_have_text(re.compile(r"^nominal: best point"), timeout=60_000)
             done, track = page.locator("#dse-done").inner_text(), page.locator("#dse-track").inner_text()
             page.goto(page_file.as_uri())

@@ -166,3 +166,55 @@ def test_a_design_is_drawn_when_first_needed_and_once_for_the_same_problem():
     assert list(iter(first.ask, None)) == list(iter(second.ask, None)) == asked("sobol_indices", p)
     other = search.strategy("sobol_indices")(problem(X, Z, max_points=160, seed=12))
     assert other.design is not first.design and not np.array_equal(other.design.units, first.design.units)
+
+
+@pytest.mark.parametrize("options", [{}, {"second_order": True}])
+def test_a_saltelli_design_over_intervals_streams_the_whole_draws_points_without_holding_them(monkeypatch, options):
+    """A million-row study must not cost the client the design: over plain intervals the points are drawn a
+    few blocks at a time (here 7, so parts start at blocks that are no power of two) and are the very points
+    of the whole draw the sensitivity command reads back, in order; counting and asking leave no design
+    drawn."""
+    from dse_runner.sweeps.domain import from_units
+    from dse_runner.sweeps.strategies import designs
+
+    monkeypatch.setattr(designs, "STREAM_BLOCKS", 7)
+    p = problem(X, Z, Dimension("m.w", low=2, high=3), max_points=307, seed=5, options=options)
+    designs._DRAWN.clear()
+    streamed = search.strategy("sobol_indices")(p)
+    assert streamed.streams()
+    size, points = streamed.size, list(iter(streamed.ask, None))
+    assert not designs._DRAWN  # counted and asked, never drawn whole
+    whole = search.strategy("sobol_indices")(p).design  # as the sensitivity command draws it
+    assert len(whole.units) == (307 // whole.block) * whole.block and whole.blocks > 7
+    assert points == [from_units(list(p.dimensions), row) for row in whole.units] and size == len(points)
+
+
+def test_a_design_streams_only_where_no_two_blocks_can_share_a_point():
+    """Grids, log axes, a single parameter (its crossed row is its B row) and constraints keep the whole
+    draw and its global dedup."""
+    def streams(*dimensions, admits=None):
+        return search.strategy("sobol_indices")(problem(*dimensions, max_points=60, admits=admits)).streams()
+
+    assert streams(X, Z) and not streams(X) and not streams(X, GRID) and not streams(X, Y)
+    assert not streams(X, Z, admits=lambda p: True)
+    assert not search.strategy("morris")(problem(X, Z, max_points=60)).streams()
+
+
+@pytest.mark.parametrize("second_order", [False, True])
+@pytest.mark.parametrize(("n", "skip"), [(1, 0), (37, 0), (64, 64), (19, 45)])
+def test_saltelli_rows_are_salib_s_to_the_bit(second_order, n, skip):
+    """The design's rows are SALib.sample.sobol's (the estimator reads them back in its order), also a part
+    drawn from any base row on."""
+    import warnings
+
+    from SALib.sample import sobol
+
+    from dse_runner.sweeps.strategies import designs
+
+    p = problem(X, Y, Z, max_points=10_000, seed=9, options={"second_order": second_order})
+    ours = search.strategy("sobol_indices")(p).draw_part(p, n, skip).units
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        theirs = sobol.sample(designs.salib_problem(p.dimensions), n, calc_second_order=second_order,
+                              scramble=True, seed=9, skip_values=skip)
+    assert ours.shape == theirs.shape and np.array_equal(ours, theirs)

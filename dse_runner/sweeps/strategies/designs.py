@@ -16,12 +16,17 @@ distinct points, ``max_points // block`` over continuous parameters. eFAST's cur
 (their frequencies depend on their length): it buys D curves of ``max_points // D`` rows. A point met twice
 (discrete parameters can map two rows to one point) is asked once; a point the constraints
 reject is not asked, and its block is left out of the indices.
+
+A Saltelli design over plain intervals without constraints is never held by the sweep: its points are
+drawn a part at a time as they are asked (the Sobol' sequence fast-forwarded), so a million-row study
+costs the client what a thousand-row one does.
 """
 
 from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from typing import Any, ClassVar
 
@@ -100,7 +105,7 @@ class SensitivityDesign(Strategy):
         numeric(problem.dimensions)
         self.check_budget(problem)
         self._asking: Any = None  # the points' iterator, from the first ask
-        self._own: tuple[Design, list[Point] | np.ndarray] | None = None  # a constrained design, drawn for this one
+        self._own: tuple[Design, list[Point] | np.ndarray | None] | None = None  # a constrained design, drawn for this one
 
     @property
     def design(self) -> Design:
@@ -108,7 +113,14 @@ class SensitivityDesign(Strategy):
 
     @property
     def size(self) -> int:  # type: ignore[override]  # known once drawn, and drawn when asked
+        if self.streams():
+            return _streamed_size(self)
         return len(_fitted(self)[1])
+
+    def streams(self) -> bool:
+        """Whether the points are drawn a part at a time as they are asked, never held whole: the client's
+        memory then stays flat in the design's size. A design that can start drawing at any block says when."""
+        return False
 
     def identity(self) -> tuple | None:
         """What fixes the design, to reuse one drawn already; None when constraints judge its points (a
@@ -125,12 +137,14 @@ class SensitivityDesign(Strategy):
             raise DseError(f"search: {self.label} needs at least {block} points for {len(problem.dimensions)} "
                            f"parameters (one block of {self.rows_in_words()}); max_points is {problem.max_points}")
 
-    def fit(self, problem: Problem) -> tuple[Design, list[Point] | np.ndarray]:
+    def fit(self, problem: Problem) -> tuple[Design, list[Point] | np.ndarray | None]:
         """The longest prefix of whole blocks whose distinct admitted points fit the budget. Repeats are
         free (a point is simulated once), so a design over grids or choices is drawn again twice as long
         while the budget has room: both SALib designs extend as prefixes for the same seed."""
         block = self.block_of(len(problem.dimensions), self.options)
         n, found = problem.max_points // block, -1
+        if self.streams():
+            return self.draw(problem, n), None  # its points are asked a part at a time: parts()
         while True:
             design = self.draw(problem, n)
             blocks, points = _budgeted_intervals(design, problem) or _budgeted(design, problem)
@@ -154,9 +168,26 @@ class SensitivityDesign(Strategy):
         """``n`` blocks of the design."""
         raise NotImplementedError
 
+    def draw_part(self, problem: Problem, n: int, skip: int) -> Design:
+        """``n`` blocks of the design from its block ``skip`` on, the very rows of a whole draw: what a design
+        that :meth:`streams` draws a part at a time."""
+        raise NotImplementedError
+
+    def parts(self) -> Iterator[np.ndarray]:
+        """For a design that :meth:`streams`: its points, :data:`STREAM_BLOCKS` blocks at a time, each part's
+        repeats asked once. The same blocks :meth:`fit` keeps, and so the rows the estimator reads back."""
+        problem = self.problem
+        blocks = problem.max_points // self.block_of(len(problem.dimensions), self.options)
+        for skip in range(0, blocks, STREAM_BLOCKS):
+            part = self.draw_part(problem, min(STREAM_BLOCKS, blocks - skip), skip)
+            values = interval_values(problem.dimensions, part.units)
+            yield values[~pd.DataFrame(values).duplicated(keep="first").to_numpy()]
+
     def ask(self) -> Point | None:
         if self._asking is None:
-            self._asking = _asked(_fitted(self)[1], [d.name for d in self.problem.dimensions])
+            names = [d.name for d in self.problem.dimensions]
+            parts = self.parts() if self.streams() else iter([_fitted(self)[1]])
+            self._asking = (point for part in parts for point in _asked(part, names))
         return next(self._asking, None)
 
     def spending(self) -> str | None:
@@ -164,7 +195,7 @@ class SensitivityDesign(Strategy):
         choices of the parameters) holds fewer distinct points than the budget buys rows, or the
         constraints reject some."""
         left = self.problem.max_points - self.size
-        if left < self.design.block:
+        if left < self.block_of(len(self.problem.dimensions), self.options):
             return None
         return (f"search: {self.label} runs {self.size} distinct points of max_points "
                 f"{self.problem.max_points}: {self.more()}")
@@ -178,11 +209,21 @@ class SensitivityDesign(Strategy):
         return "the constraints leave few points; widen them, or lower max_points"
 
 
-_DRAWN: dict[tuple, tuple[Design, list[Point] | np.ndarray]] = {}  # the last designs drawn, by identity()
+_DRAWN: dict[tuple, tuple[Design, list[Point] | np.ndarray | None]] = {}  # the last designs drawn, by identity()
 DRAWN_KEPT = 2
+STREAM_BLOCKS = 8192  # blocks drawn at a time by a design that streams: about 1 MB of rows for a few parameters
+_COUNTED: dict[tuple, int] = {}  # the points of designs that stream, by identity(): counting draws them all
 
 
-def _fitted(design: SensitivityDesign) -> tuple[Design, list[Point] | np.ndarray]:
+def _streamed_size(design: SensitivityDesign) -> int:
+    """How many points a design that streams asks: its parts drawn and counted once per process, none kept."""
+    key = design.identity()
+    if key not in _COUNTED:
+        _COUNTED[key] = sum(len(part) for part in design.parts())
+    return _COUNTED[key]
+
+
+def _fitted(design: SensitivityDesign) -> tuple[Design, list[Point] | np.ndarray | None]:
     """The strategy's design and its points to ask, drawn once per process for the same identity: a sweep
     builds its strategy to check the spec, to count its tasks and to ask its points, and the sensitivity
     command to read the rows back."""
@@ -245,6 +286,19 @@ def _budgeted(design: Design, problem: Problem) -> tuple[int, list[Point]]:
     return design.blocks, list(seen.values())
 
 
+def saltelli_rows(base: np.ndarray, second_order: bool) -> np.ndarray:
+    """Saltelli's rows of Sobol' base rows (A | B, 2D columns) in SALib.sample.sobol's order: for each base row
+    A, A with its column j taken from B for each j, with second order B with its column j taken from A, then B.
+    Built on whole columns where SALib loops over the rows in Python (2 s at a million rows, drawn by both
+    submit and the sensitivity command); test_designs.py checks the two agree to the bit."""
+    d = base.shape[1] // 2
+    a, b, column = base[:, :d], base[:, d:], np.arange(d)
+    crossed = [np.where(column == j, b, a) for j in range(d)]
+    if second_order:
+        crossed += [np.where(column == j, a, b) for j in range(d)]
+    return np.stack([a, *crossed, b], axis=1).reshape(-1, d)
+
+
 class SobolOptions(Options):
     second_order: bool = False  # also S2: 2D + 2 rows per base row instead of D + 2
 
@@ -264,13 +318,28 @@ class SobolIndices(SensitivityDesign):
     def rows_in_words(cls) -> str:
         return "D + 2 rows, 2D + 2 with second_order"
 
-    def draw(self, problem: Problem, n: int) -> Design:
-        from SALib.sample import sobol
+    def streams(self) -> bool:
+        """Without constraints, over two or more plain intervals: rows repeat inside a block (a cross-sampled
+        row that draws its base row's value), and rows of two blocks meet only if two coordinates of the
+        Sobol' sequence coincide by chance (odds near blocks^2 * 2^-60; one coordinate never repeats), which at
+        worst simulates a point twice. So every block is kept, and its points are known a part at a time."""
+        problem = self.problem
+        return not problem.constrained and len(problem.dimensions) >= 2 and plain_intervals(problem.dimensions)
 
-        with warnings.catch_warnings():  # balance is best at powers of two; any other N still estimates
+    def draw(self, problem: Problem, n: int) -> Design:
+        return self.draw_part(problem, n, 0)
+
+    def draw_part(self, problem: Problem, n: int, skip: int) -> Design:
+        """SALib.sample.sobol's rows from base row ``skip`` on (its ``skip_values``: the scrambled Sobol'
+        sequence fast-forwarded), the rows of the whole draw's blocks ``skip`` to ``skip + n``."""
+        from scipy.stats import qmc  # on first use: scipy.stats costs every command about a second to import
+
+        engine = qmc.Sobol(2 * len(problem.dimensions), scramble=True, seed=problem.seed)
+        if skip:  # (scipy refuses to fast-forward by nothing)
+            engine.fast_forward(skip)
+        with warnings.catch_warnings():  # balance is best at powers of two; any other N or skip still estimates
             warnings.simplefilter("ignore", UserWarning)
-            units = sobol.sample(salib_problem(problem.dimensions), n, calc_second_order=self.options.second_order,
-                                 scramble=True, seed=problem.seed)
+            units = saltelli_rows(engine.random(n), self.options.second_order)
         return Design("sobol", units, self.block_of(len(problem.dimensions), self.options),
                       second_order=self.options.second_order)
 
