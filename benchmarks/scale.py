@@ -15,7 +15,8 @@ For the report, its size.
 The dashboard: once submit has finished, ``dse-runner dashboard OUT --address 127.0.0.1:PORT`` is started
 while a headless Chromium (Debian's, launched as tests/pages.py launches it, before the command) waits; from
 the command's start (wall clock) to the page showing its first number (the progress line's "done" count,
-#dse-done), and to all figures drawn: every visible Bokeh plot with a non-empty data source as BokehJS's
+#dse-done, which the page's HTML carries before BokehJS draws the document; looked for from the answer's
+first bytes on), and to all figures drawn: every visible Bokeh plot with a non-empty data source as BokehJS's
 documents hold them, every Bokeh view finished rendering, and the sensitivity section's images loaded (or
 its note saying why there are none). The page is polled every 100 ms for at most 600 s; a figure not reached
 by then is reported as a timeout (null in --json). Its peak resident memory is the dashboard process's.
@@ -197,8 +198,9 @@ def dashboard(out: Path, log: Path) -> dict:
                     break
             if serving.is_set():
                 waiting = "the page"
-                # the server answers once it has built the page's document, its first update done
-                answer = page.goto(url, timeout=max(1.0, deadline - time.perf_counter()) * 1000)
+                # the server answers once it has built the page's document; the page is looked at from its
+                # first bytes on (its HTML carries the counts, shown as it is parsed, before BokehJS's load)
+                answer = page.goto(url, timeout=max(1.0, deadline - time.perf_counter()) * 1000, wait_until="commit")
                 waiting = "the first number"
                 if answer is not None and not answer.ok:  # the page failed to build (the log says why)
                     failed = f"the page answered HTTP {answer.status}"
