@@ -36,7 +36,7 @@ import blind  # noqa: E402
 
 from dse_runner.cases.robotti_diagnosis.hypotheses import LIBRARY  # noqa: E402
 from dse_runner.sweeps.cluster import connect  # noqa: E402
-from dse_runner.sweeps.spec import Cluster  # noqa: E402
+from dse_runner.sweeps.makers import Cluster  # noqa: E402
 
 SINGLES_HEADER = (f"{'concealed':<16} {'truth':>8} {'named first':<16} {'estimate':>9} {'error':>7} "
                   f"{'before [m]':>10} {'after [m]':>10} {'after/before':>12} {'seconds':>8}")

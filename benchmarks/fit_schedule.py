@@ -33,7 +33,7 @@ import blind  # noqa: E402
 
 from dse_runner.sweeps import fit, store  # noqa: E402
 from dse_runner.sweeps.cluster import connect  # noqa: E402
-from dse_runner.sweeps.spec import Cluster  # noqa: E402
+from dse_runner.sweeps.makers import Cluster  # noqa: E402
 
 
 def cluster_cpu() -> float:

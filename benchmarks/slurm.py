@@ -57,7 +57,7 @@ def sweep(folder: Path, kind: str) -> tuple[float, float]:
 def job_start(folder: Path) -> float:
     """Seconds from asking for one worker job to its worker joining the scheduler."""
     from dse_runner.sweeps.jobqueue import Slurm
-    from dse_runner.sweeps.spec import Cluster
+    from dse_runner.sweeps.makers import Cluster
 
     spec = Cluster.model_validate({"kind": "slurm", "slurm": {"log_directory": str(folder / "logs")}})
     maker = Slurm()

@@ -64,7 +64,8 @@ from dse_runner.simulation import native  # noqa: E402
 from dse_runner.simulation.run import simulate  # noqa: E402
 from dse_runner.sweeps.cluster import connect  # noqa: E402
 from dse_runner.sweeps.expand import expand  # noqa: E402
-from dse_runner.sweeps.spec import Cluster, Space, load_space  # noqa: E402
+from dse_runner.sweeps.makers import Cluster  # noqa: E402
+from dse_runner.sweeps.spec import Space, load_space  # noqa: E402
 from dse_runner.sweeps.sweep import SweepReport, submit  # noqa: E402
 
 VANDERPOL = REPO / "benchmarks" / "fmus" / "vanderpol"

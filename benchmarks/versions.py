@@ -39,7 +39,7 @@ def one_run(tree: Path, case: str, out: Path) -> dict:
     from fit_schedule import cluster_cpu as workers_cpu  # this process's children: its local cluster
 
     from dse_runner.sweeps.cluster import connect
-    from dse_runner.sweeps.spec import Cluster
+    from dse_runner.sweeps.makers import Cluster
 
     where = {Path(dse_runner.__file__).resolve()}
     with connect(Cluster(n_workers=2)) as client:

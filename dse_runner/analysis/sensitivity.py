@@ -32,7 +32,7 @@ from pydantic import BaseModel, ValidationError
 from ..errors import DseError
 from ..sweeps import aggregate, store
 from ..sweeps.constraints import compile_constraint
-from ..sweeps.domain import Dimension
+from ..sweeps.domain import Dimension, dimension
 from ..sweeps.rank import (
     REDUCED,
     SWEEP_FILE,
@@ -44,7 +44,7 @@ from ..sweeps.rank import (
     scalar_objectives,
 )
 from ..sweeps.search import Problem, strategy
-from ..sweeps.spec import SpaceSpec, dimension
+from ..sweeps.spec import SpaceSpec
 from ..sweeps.strategies.designs import Design, SensitivityDesign, interval_values, salib_problem
 
 CONFIDENCE = 0.95  # bootstrap interval level

@@ -14,14 +14,13 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, PositiveFloat, ValidationError
 
 from ..errors import DseError, format_validation_error
+from ..schema import Strict
 from ..simulation.comparison import Comparison
 from ..simulation.scenario import ScenarioKind
 
-Finite = ConfigDict(extra="forbid", allow_inf_nan=False)
-
 
 class Pose(BaseModel):
-    model_config = Finite
+    model_config = Strict
     x: float
     y: float
     theta: float
@@ -30,7 +29,7 @@ class Pose(BaseModel):
 class RunInfo(BaseModel):
     """The contents of a scenario folder's scenario.yaml."""
 
-    model_config = Finite
+    model_config = Strict
     name: str
     group: str
     duration: PositiveFloat

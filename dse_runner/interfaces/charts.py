@@ -37,8 +37,8 @@ from bokeh.models import ColorBar, ColumnDataSource, HoverTool, LegendItem, Line
 from bokeh.palettes import Category10, Viridis256
 from bokeh.plotting import figure
 
-from ..sweeps.rank import pareto_mask
 from ..sweeps.history import Asked, SearchHistory
+from ..sweeps.rank import pareto_mask
 
 PALETTE = Category10[10]
 WIDTH, HEIGHT = 380, 300

@@ -209,9 +209,9 @@ def simulate(
     from ..simulation import objectives as objs
     from ..simulation.run import simulate as run_simulation
     from ..simulation.run import summary, write_csv
-    from ..simulation.values import read_values
     from ..simulation.scenario import dropouts_line
     from ..simulation.user_modules import import_beside
+    from ..simulation.values import read_values
     from ..sweeps.space_run import is_space_file, simulate_space
 
     files: dict[str, Path] = {}
@@ -337,8 +337,8 @@ def submit(
         space = _load(spec, multimodel, coe).with_overrides(out, scheduler, workers, cluster, max_points,
                                                             max_seconds)
         # after the spec is read: a bad one is named without waiting on Dask's and pandas' imports
-        from ..sweeps.rank import rank, write_ranking
         from ..simulation.scenario import dropouts, dropouts_line
+        from ..sweeps.rank import rank, write_ranking
         from ..sweeps.sweep import submit as run_sweep
 
         if dashboard:
@@ -596,8 +596,8 @@ def rank_command(
     as_json: JsonFlag = False,
 ) -> None:
     """Aggregate a sweep's results: totals, Table 1, Pareto front, group and weighted rankings."""
-    from ..sweeps.rank import load_sweep_spec, rank, write_ranking
     from ..simulation.values import write_values
+    from ..sweeps.rank import load_sweep_spec, rank, write_ranking
     from ..sweeps.store import sweeps
 
     try:

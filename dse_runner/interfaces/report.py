@@ -35,7 +35,8 @@ from ..sweeps.rank import (
     rank,
     table1_scope,
 )
-from ..sweeps.spec import Search, SpaceSpec
+from ..sweeps.search import Search
+from ..sweeps.spec import SpaceSpec
 from ..sweeps.status import SweepReport, load_status
 from . import charts
 from .dashboard.feed import Feed, search_summary

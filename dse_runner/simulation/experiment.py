@@ -21,15 +21,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from fmpy.util import auto_interval
-from pydantic import BaseModel, ConfigDict, PositiveFloat, model_validator
+from pydantic import BaseModel, PositiveFloat, model_validator
 
 from ..errors import DseError
+from ..schema import Strict
 
 
 class Experiment(BaseModel):
     """``experiment: {start_time: 0, stop_time: 100, step: 0.1}`` in space.yaml."""
 
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    model_config = Strict
     start_time: float | None = None
     stop_time: float | None = None
     step: PositiveFloat | None = None

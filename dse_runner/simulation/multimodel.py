@@ -30,16 +30,22 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import (BaseModel, ConfigDict, Discriminator, Field, PositiveFloat, Tag, ValidationError,
-                      field_validator)
+from pydantic import (
+    BaseModel,
+    Discriminator,
+    Field,
+    PositiveFloat,
+    Tag,
+    ValidationError,
+    field_validator,
+)
 
 from .. import bundled
 from ..errors import DseError, format_syntax_error, format_validation_error
+from ..schema import Strict
 from ..yamlfile import shape
 from .fmu import FmuWarning, model_identifiers
 from .variables import FiniteValue, split_ref
-
-Strict = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 def _check_ref(ref: str) -> str:

@@ -43,16 +43,16 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Discriminator, Tag, TypeAdapter, ValidationError, model_validator
+from pydantic import BaseModel, Discriminator, Tag, TypeAdapter, ValidationError, model_validator
 
 from ..errors import DseError, format_validation_error
+from ..schema import Strict
 from .scripts import Script, run_scripts
 
 if TYPE_CHECKING:
     from .cosim import Trajectory
     from .scenario import Scenario
 
-Strict = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 Reduction = Literal["final", "min", "max", "mean", "sample_mean", "integral", "rms", "changes",
                     "time_above", "time_below", "settling_time"]

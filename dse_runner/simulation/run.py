@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DseError
-from . import objectives as objs
 from . import derivative_terms, signal_effects, state_limits
+from . import objectives as objs
 from .build import is_source_dir
 from .cosim import Plan, Runner, Trajectory, make_plan, prepare
 from .experiment import Experiment, Times, resolve_times

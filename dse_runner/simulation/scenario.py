@@ -33,9 +33,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Discriminator, Field, PositiveFloat, Tag, ValidationError
+from pydantic import BaseModel, Discriminator, Field, PositiveFloat, Tag, ValidationError
 
 from ..errors import DseError, format_validation_error
+from ..schema import Strict
 from ..yamlfile import load_yaml, shape
 from .variables import FiniteValue, Value, split_ref
 
@@ -47,7 +48,6 @@ INFO_FILE = "scenario.yaml"
 DEFAULT_GROUP = "all"
 NOMINAL = "nominal"  # the one scenario of a space that names none
 
-Strict = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 # ---- recorded tables ---------------------------------------------------------------------------

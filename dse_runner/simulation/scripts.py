@@ -42,9 +42,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, PositiveFloat, PrivateAttr
+from pydantic import BaseModel, PositiveFloat, PrivateAttr
 
 from ..errors import DseError
+from ..schema import Strict
 from . import python2, scratch
 from .script_convention import convention
 
@@ -55,7 +56,7 @@ FRAME = re.compile(r'^\s*File "(.+)", line (\d+)', re.MULTILINE)  # a traceback'
 class Script(BaseModel):
     """``{script: metrics/settle.py, args: [...], columns: {header: signal}}`` (paths relative to the spec)."""
 
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    model_config = Strict
     script: str
     args: list[str] = []
     columns: dict[str, str] = {}  # results.csv header -> recorded signal (INTO-CPS: {fmu}.instance.variable)

@@ -48,8 +48,9 @@ from .domain import Point
 from .expand import Task, TaskBatch, scenario_hash, task_id
 from .history import SearchHistory, State, load_history, save_history, settings_digest
 from .search import Evaluation, Strategy
-from .spec import Robust, Space
+from .spec import Space
 from .status import SearchStatus
+from .uncertainty import Robust
 
 HISTORY_SECONDS = 1.0  # how often a running search saves its history
 MAX_REJECTED = 1000  # infeasible points in a row after which a search gives up asking

@@ -27,8 +27,7 @@ from pathlib import Path
 from typing import Any, Self
 
 from ..errors import DseError
-from .makers import maker
-from .spec import Cluster
+from .makers import Cluster, maker
 
 # distributed keeps the last N messages each connection sent, for debugging; a sweep's
 # messages carry chunks of tasks, so the default (1000) would hold a large sweep's tasks in

@@ -35,12 +35,13 @@ import numpy as np
 
 from ..errors import DseError
 from . import store
-from .domain import Point
 from .chunks import TaskScores
 from .cluster import total_threads
+from .domain import Point
 from .expand import Key, blocks, distinct, key_of, wanted
 from .spec import Space
 from .sweep import submit
+
 
 @dataclass(frozen=True)
 class Parameter:

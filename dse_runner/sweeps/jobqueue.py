@@ -20,17 +20,18 @@ import functools
 import logging
 import shutil
 import time
-from importlib import import_module
 from abc import abstractmethod
+from importlib import import_module
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from pydantic import BaseModel, PositiveInt
 
 from ..errors import DseError
-from .makers import ClusterMaker, Strict
+from ..schema import Strict
+from .makers import ClusterMaker
 
 if TYPE_CHECKING:
-    from .spec import Cluster
+    from .makers import Cluster
 
 log = logging.getLogger(__name__)
 

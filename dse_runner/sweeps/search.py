@@ -32,9 +32,10 @@ from dataclasses import dataclass, field
 from importlib.metadata import entry_points
 from typing import Any, ClassVar, Literal
 
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, PositiveFloat, PositiveInt, ValidationError
 
 from ..errors import DseError
+from ..schema import Extensible, Strict
 from .domain import Dimension, Point
 
 
@@ -78,7 +79,7 @@ class Evaluation:
 class Options(BaseModel):
     """A strategy's own options (keys under ``search:`` besides the common ones); none by default."""
 
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, populate_by_name=True)
+    model_config = ConfigDict(**Strict, populate_by_name=True)
 
 
 class BudgetWarning(UserWarning):
@@ -245,3 +246,33 @@ def count(make: Callable[[], Strategy]) -> int:
     """How many points an open-loop strategy asks for: its ``size``, else by asking them all."""
     chosen = make()
     return chosen.size if chosen.size is not None else sum(1 for _ in iter(chosen.ask, None))
+
+
+BATCH = 4  # a reproducible search's points asked ahead: fixed, so that the points do not depend on the cluster
+
+
+class Search(BaseModel):
+    """How points are chosen (search.py). Keys besides these are the strategy's own options."""
+
+    model_config = Extensible
+    strategy: str = "exhaustive"  # built-in or a plug-in's (see search.py)
+    max_points: PositiveInt = 100  # a search stops after this many simulated points (not for exhaustive)
+    max_seconds: PositiveFloat | None = None  # ... or when this submission has run this long
+    seed: int = 0  # with order: reproducible, the same seed and spec give the same points
+    # reproducible: each result is told once every point asked before it has been told, and a point is
+    # asked only while fewer than ``batch`` points wait for theirs: the points depend on no worker's timing.
+    # asynchronous: each result is told as it comes (closed_loop.py).
+    order: Literal["reproducible", "asynchronous"] = "reproducible"
+    batch: PositiveInt | None = None  # points asked ahead of their results; default BATCH, or threads + 1 if asynchronous
+
+    @property
+    def options(self) -> dict[str, Any]:
+        return dict(self.model_extra or {})
+
+
+def batch_of(search: Search, threads: int) -> int:
+    """Points asked ahead of their results: a reproducible search's may not depend on the cluster (it would
+    change the points); an asynchronous one keeps every worker thread busy and one point waiting."""
+    if search.batch is not None:
+        return search.batch
+    return threads + 1 if search.order == "asynchronous" else BATCH

@@ -17,7 +17,8 @@ import yaml
 from ..errors import DseError
 from ..simulation import objectives as objs
 from ..simulation.run import SimulationResult, simulate
-from .spec import Search, read_spec, resolve_space
+from .search import Search
+from .spec import read_spec, resolve_space
 
 
 def is_space_file(path: Path) -> bool:

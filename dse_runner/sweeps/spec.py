@@ -16,29 +16,25 @@ from __future__ import annotations
 
 import functools
 import glob
-import math
 from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
-import numpy as np
 from pydantic import (
     BaseModel,
-    ConfigDict,
     Discriminator,
     Field,
-    NonNegativeInt,
     PositiveFloat,
-    PositiveInt,
     Tag,
     model_validator,
 )
 
 from .. import bundled
 from ..errors import DseError
-from ..simulation import objectives as objs
+from ..schema import Extensible, Strict
 from ..simulation import derivative_terms, signal_effects, state_limits, user_modules
+from ..simulation import objectives as objs
 from ..simulation.cosim import Plan, make_plan
 from ..simulation.experiment import Experiment
 from ..simulation.multimodel import MultiModel, parse_multimodel
@@ -46,81 +42,15 @@ from ..simulation.run import bound_fields, checked_term, load_model, qualify
 from ..simulation.scenario import Scenario, ScenarioSpec, Series, kind, load_scenario, nominal, parse_scenario
 from ..simulation.variables import FiniteValue, check_value
 from ..yamlfile import read_yaml, shape
-from . import makers, uncertainty
+from . import uncertainty
 from .constraints import compile_constraint
-from .domain import Dimension, Point
-from .search import Problem, Strategy, parse_options, strategy
+from .domain import ParameterValues, Point, dimension
+from .makers import Cluster
+from .search import Problem, Search, Strategy, batch_of, parse_options, strategy
+from .uncertainty import Robust, Uncertain
 
 if TYPE_CHECKING:  # pandas and the store's pyarrow wait for a spec that reads: a bad one is named sooner
     import pandas as pd
-
-Strict = ConfigDict(extra="forbid", allow_inf_nan=False)  # unknown keys, NaN and infinity are errors
-
-
-class Range(BaseModel):
-    """``{start, stop, step}`` (stop included when the steps land on it) or ``{start, stop, num}``."""
-
-    model_config = Strict
-    start: float
-    stop: float
-    step: PositiveFloat | None = None
-    num: PositiveInt | None = None
-    log: bool = False
-
-    @model_validator(mode="after")
-    def _one_of_step_or_num(self) -> Range:
-        if (self.step is None) == (self.num is None):
-            raise ValueError("give exactly one of 'step' or 'num'")
-        if self.log and (self.step is not None or self.start <= 0 or self.stop <= 0):
-            raise ValueError("a log range needs 'num' and positive 'start' and 'stop'")
-        if self.stop < self.start:
-            raise ValueError("'stop' must not be below 'start'")
-        return self
-
-    def values(self) -> list[float]:
-        if self.log:
-            return [float(v) for v in np.geomspace(self.start, self.stop, self.num)]
-        if self.num is not None:
-            return [float(v) for v in np.linspace(self.start, self.stop, self.num)]
-        count = math.floor((self.stop - self.start) / self.step + 1e-9) + 1
-        # round() keeps 0.1-steps free of 0.30000000000000004 in tables and ids
-        return [round(self.start + i * self.step, 12) for i in range(count)]
-
-
-class Interval(BaseModel):
-    """``{low, high}``: every value between, for search strategies; ``log: true`` samples the
-    logarithm uniformly, ``integer: true`` takes whole numbers only."""
-
-    model_config = Strict
-    low: float
-    high: float
-    log: bool = False
-    integer: bool = False
-
-    @model_validator(mode="after")
-    def _ordered(self) -> Interval:
-        if not self.high > self.low:
-            raise ValueError("'high' must be above 'low'")
-        if self.log and self.low <= 0:
-            raise ValueError("a log interval needs a positive 'low'")
-        if self.integer and not (self.low.is_integer() and self.high.is_integer()):
-            raise ValueError("an integer interval needs whole-number 'low' and 'high'")
-        return self
-
-
-def _parameter_kind(value: Any) -> str | None:
-    if isinstance(value, Interval) or (isinstance(value, dict) and ("low" in value or "high" in value)):
-        return "interval"
-    return "range" if isinstance(value, (dict, Range)) else "values" if isinstance(value, list) else None
-
-
-# A list of values, a grid or an interval; the discriminator makes a wrong one give one message, not one per kind.
-ParameterValues = Annotated[
-    Annotated[Annotated[list[FiniteValue], Field(min_length=1)], Tag("values")] | Annotated[Range, Tag("range")]
-    | Annotated[Interval, Tag("interval")],
-    Discriminator(_parameter_kind, custom_error_type="parameter_values",
-                  custom_error_message="expected a list of values, a grid {start, stop, step or num} "
-                                       "or an interval {low, high}")]
 
 
 class Variant(BaseModel):
@@ -134,7 +64,7 @@ class Variant(BaseModel):
 class ScenarioSource(BaseModel):
     """Scenario folders: ``{path: runs/*, group: .., kind: .., variants: [..]}`` plus the kind's own options."""
 
-    model_config = ConfigDict(extra="allow", allow_inf_nan=False)  # the rest goes to the kind
+    model_config = Extensible  # the rest goes to the kind
     path: str  # a folder or a glob of folders, relative to the spec
     group: str | None = None  # overrides the scenario's own group
     kind: str | None = None  # default: the first installed kind that recognises the folder
@@ -173,125 +103,6 @@ ScenarioEntry = Annotated[
                   custom_error_message="expected a folder or glob, {path: ...}, or an inline scenario {name: ...}")]
 
 
-class Uniform(BaseModel):
-    """Every value between ``low`` and ``high`` equally likely."""
-
-    model_config = Strict
-    distribution: Literal["uniform"]
-    low: float
-    high: float
-
-    @model_validator(mode="after")
-    def _ordered(self) -> Uniform:
-        if not self.high > self.low:
-            raise ValueError(f"'high' ({self.high:g}) must be above 'low' ({self.low:g})")
-        return self
-
-
-class Normal(BaseModel):
-    """Gaussian with ``mean`` and standard deviation ``std``."""
-
-    model_config = Strict
-    distribution: Literal["normal"]
-    mean: float
-    std: PositiveFloat
-
-
-class LogNormal(BaseModel):
-    """A value whose natural logarithm is normal: ``median`` (the value's) and ``std_log`` (the logarithm's std);
-    for a positive quantity known to a few percent, std_log is about its relative spread."""
-
-    model_config = Strict
-    distribution: Literal["lognormal"]
-    median: PositiveFloat
-    std_log: PositiveFloat
-
-
-class Triangular(BaseModel):
-    """Between ``low`` and ``high``, most likely at ``mode``."""
-
-    model_config = Strict
-    distribution: Literal["triangular"]
-    low: float
-    mode: float
-    high: float
-
-    @model_validator(mode="after")
-    def _ordered(self) -> Triangular:
-        if not (self.low <= self.mode <= self.high and self.high > self.low):
-            raise ValueError(f"needs low <= mode <= high and low < high (got {self.low:g}, {self.mode:g}, "
-                             f"{self.high:g})")
-        return self
-
-
-class FromDiagnosis(BaseModel):
-    """A diagnosis's fitted value and ~95 % interval (``dse-runner diagnose --json``'s file), read as a normal
-    whose mean is the fitted value and whose 1.96 sigma is the interval's half-width. ``effect``: the id of one
-    of its ``effects`` (default: its ``fitted`` calibration, by the parameter's own name); ``parameter``: the
-    name within that effect, when it has several."""
-
-    model_config = Strict
-    from_diagnosis: str  # relative to the spec
-    effect: str | None = None
-    parameter: str | None = None
-
-
-DISTRIBUTIONS = {"uniform": Uniform, "normal": Normal, "lognormal": LogNormal, "triangular": Triangular}
-
-
-def _distribution_kind(value: Any) -> str | None:
-    if isinstance(value, FromDiagnosis) or (isinstance(value, dict) and "from_diagnosis" in value):
-        return "diagnosis"
-    kind = value.get("distribution") if isinstance(value, dict) else getattr(value, "distribution", None)
-    return kind if kind in DISTRIBUTIONS else None
-
-
-# One of the distributions, by its ``distribution`` key, or {from_diagnosis: ...}: a wrong one gives one message.
-UncertainValue = Annotated[
-    Annotated[Uniform, Tag("uniform")] | Annotated[Normal, Tag("normal")] | Annotated[LogNormal, Tag("lognormal")]
-    | Annotated[Triangular, Tag("triangular")] | Annotated[FromDiagnosis, Tag("diagnosis")],
-    Discriminator(_distribution_kind, custom_error_type="distribution",
-                  custom_error_message="expected {distribution: uniform | normal | lognormal | triangular, ...} "
-                                       "or {from_diagnosis: FILE, effect: ...}")]
-
-
-class Uncertain(BaseModel):
-    """Parameters known only as distributions: every design point runs on ``samples`` draws of them, each draw
-    a copy of every scenario (sweeps/uncertainty.py); objectives get their mean, std and quantiles."""
-
-    model_config = Strict
-    parameters: dict[str, UncertainValue] = Field(min_length=1)  # instance.variable -> distribution
-    samples: PositiveInt = 64
-    seed: int = 0
-    # sobol: scrambled Sobol' points (quasi-random, best at powers of 2; more samples keep the first ones);
-    # latin_hypercube: one draw per stratum of each parameter; random: plain pseudo-random draws
-    sampling: Literal["sobol", "latin_hypercube", "random"] = "sobol"
-    quantiles: list[Annotated[float, Field(gt=0, lt=1)]] = [0.05, 0.5, 0.95]
-
-
-class Robust(BaseModel):
-    """Rank by a pessimistic figure of the ranking objective's distribution over the uncertain samples:
-    ``sigmas: k``, the mean k standard deviations towards the worse side (mean + k std when minimising,
-    mean - k std when maximising); or ``quantile: q``, its q-quantile as written (0.9 when minimising,
-    0.1 when maximising is the worse tenth)."""
-
-    model_config = Strict
-    sigmas: Annotated[float, Field(ge=0)] | None = None
-    quantile: Annotated[float, Field(gt=0, lt=1)] | None = None
-
-    @model_validator(mode="after")
-    def _one(self) -> Robust:
-        if (self.sigmas is None) == (self.quantile is None):
-            raise ValueError("give exactly one of 'sigmas' (mean + k std) or 'quantile' (e.g. 0.9)")
-        return self
-
-    def label(self, goal: str) -> str:
-        """How the ranked figure is named in tables and reports."""
-        if self.quantile is not None:
-            return f"q{100 * self.quantile:g}"
-        return f"mean{'+' if goal == 'min' else '-'}{self.sigmas:g}sd"
-
-
 class Direction(BaseModel):
     model_config = Strict
     objective: str
@@ -317,95 +128,6 @@ class Ranking(BaseModel):
 
     def objectives_used(self) -> list[str]:
         return [self.objective, *(name for name, _ in self.pareto_goals()), *self.weights]
-
-
-BATCH = 4  # a reproducible search's points asked ahead: fixed, so that the points do not depend on the cluster
-
-
-class Search(BaseModel):
-    """How points are chosen (search.py). Keys besides these are the strategy's own options."""
-
-    model_config = ConfigDict(extra="allow", allow_inf_nan=False)
-    strategy: str = "exhaustive"  # built-in or a plug-in's (see search.py)
-    max_points: PositiveInt = 100  # a search stops after this many simulated points (not for exhaustive)
-    max_seconds: PositiveFloat | None = None  # ... or when this submission has run this long
-    seed: int = 0  # with order: reproducible, the same seed and spec give the same points
-    # reproducible: each result is told once every point asked before it has been told, and a point is
-    # asked only while fewer than ``batch`` points wait for theirs: the points depend on no worker's timing.
-    # asynchronous: each result is told as it comes (closed_loop.py).
-    order: Literal["reproducible", "asynchronous"] = "reproducible"
-    batch: PositiveInt | None = None  # points asked ahead of their results; default BATCH, or threads + 1 if asynchronous
-
-    @property
-    def options(self) -> dict[str, Any]:
-        return dict(self.model_extra or {})
-
-
-class Tls(BaseModel):
-    """Certificates for a TLS scheduler (distributed's Security); paths relative to the spec."""
-
-    model_config = Strict
-    ca_file: str  # the authority that signed the scheduler's and workers' certificates
-    cert: str  # this client's certificate
-    key: str  # its private key
-
-
-class Cluster(BaseModel):
-    """Where tasks run: ``address`` of an existing scheduler, or a cluster of ``kind`` started for the sweep.
-    Keys besides these are cluster kinds' own blocks, each named by its kind (``htcondor: {cores: 4}``)
-    and validated by that kind's maker (makers.py)."""
-
-    model_config = ConfigDict(extra="allow", allow_inf_nan=False)
-    kind: str = "local"  # local, slurm, htcondor, kubernetes, or a plug-in's (see makers.py)
-    address: str | None = None  # tcp://host:8786 or tls://host:8786: use this scheduler, start nothing
-    n_workers: PositiveInt | None = None  # workers to start; local default: the number of cores
-    min_workers: NonNegativeInt | None = None  # with max_workers: Dask's adaptive scaling between the two,
-    max_workers: PositiveInt | None = None  # workers (jobs) started as tasks wait and given back when idle
-    threads_per_worker: PositiveInt = 1
-    tls: Tls | None = None
-    dashboard_address: str = "127.0.0.1:0"  # of a scheduler we start; loopback unless asked otherwise
-    connect_timeout: PositiveFloat = 30.0  # seconds to reach a scheduler, or get it back after a restart; a
-    # sweep whose local or addressed cluster has had no worker for twice this stops (cluster.worker_grace)
-
-    @model_validator(mode="after")
-    def _address_or_kind(self) -> Cluster:
-        if self.address is not None and self.kind != "local":
-            raise ValueError(f"give either 'address' (an existing scheduler) or 'kind: {self.kind}', not both")
-        if self.address is not None and not self.address.startswith(("tcp://", "tls://", "ucx://", "inproc://")):
-            raise ValueError(f"address {self.address!r} needs a protocol: tcp://host:port or tls://host:port")
-        return self
-
-    @model_validator(mode="after")
-    def _fixed_or_adaptive(self) -> Cluster:
-        """A fixed ``n_workers``, or ``min_workers`` to ``max_workers`` for Dask's adapt: not both."""
-        if self.min_workers is not None and self.max_workers is None:
-            raise ValueError("min_workers needs max_workers (adaptive scaling between the two)")
-        if self.max_workers is None:
-            return self
-        if self.n_workers is not None:
-            raise ValueError("give either n_workers (a fixed count) or min_workers/max_workers (adaptive), not both")
-        if self.address is not None:
-            raise ValueError("min_workers/max_workers scale a cluster dse-runner starts, not one at 'address'")
-        if (self.min_workers or 0) > self.max_workers:
-            raise ValueError(f"min_workers ({self.min_workers}) is more than max_workers ({self.max_workers})")
-        return self
-
-    @model_validator(mode="after")
-    def _kind_blocks(self) -> Cluster:
-        """Every block, and the chosen kind's even when absent (its required options), if installed here."""
-        blocks = dict(self.model_extra or {})
-        if self.address is None:
-            blocks.setdefault(self.kind, None)
-        for key, block in blocks.items():
-            try:
-                makers.check_block(key, block, self.kind)
-            except DseError as e:
-                raise ValueError(str(e)) from None
-        return self
-
-    def block(self, kind: str) -> Any:
-        """The block ``cluster.<kind>`` as written; None if the spec has none (the maker's defaults)."""
-        return (self.model_extra or {}).get(kind)
 
 
 # A list of names or a mapping name -> objective (simulation/objectives.py's forms); an entry with options in a
@@ -456,21 +178,6 @@ class SpaceSpec(BaseModel):
         if self.ranking.robust is not None and self.ranking.robust.sigmas is not None and self.uncertain.samples < 2:
             raise ValueError("ranking.robust.sigmas needs a standard deviation: give uncertain.samples 2 or more")
         return self
-
-
-def _normal(value: Any) -> Any:
-    """Numbers as floats, so 1000 and 1000.0 are one point (and one task id)."""
-    return float(value) if isinstance(value, int) and not isinstance(value, bool) else value
-
-
-def dimension(name: str, values: list[Any] | Range | Interval) -> Dimension:
-    """How a search strategy sees one parameter (domain.py)."""
-    if isinstance(values, Interval):
-        return Dimension(name, values.low, values.high, log=values.log, integer=values.integer)
-    if isinstance(values, Range) and values.step is not None and not values.log:
-        return Dimension(name, values.start, values.values()[-1], step=values.step)
-    listed = values.values() if isinstance(values, Range) else values
-    return Dimension(name, choices=tuple(dict.fromkeys(_normal(v) for v in listed)))
 
 
 class Space:
@@ -575,14 +282,6 @@ class Space:
 
     def strategy(self, threads: int = 1) -> Strategy:
         return strategy(self.spec.search.strategy)(self.problem(threads))
-
-
-def batch_of(search: Search, threads: int) -> int:
-    """Points asked ahead of their results: a reproducible search's may not depend on the cluster (it would
-    change the points); an asynchronous one keeps every worker thread busy and one point waiting."""
-    if search.batch is not None:
-        return search.batch
-    return threads + 1 if search.order == "asynchronous" else BATCH
 
 
 def _scenarios(spec: SpaceSpec, base: Path, source: str) -> list[Scenario]:

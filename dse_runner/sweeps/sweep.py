@@ -36,7 +36,6 @@ from typing import Any, Protocol
 
 import pandas as pd
 
-from .rank import rank, save_sweep_spec
 from ..errors import DseError
 from ..simulation.experiment import Experiment
 from ..simulation.run import simulate
@@ -46,8 +45,10 @@ from .closed_loop import SearchSource
 from .cluster import WorkerWatch, connect, total_threads, wait_until_ended, worker_grace
 from .domain import Point
 from .expand import TaskBatch, blocks, chunked, count, distinct, points_of, tally, undone
+from .rank import rank, save_sweep_spec
 from .search import BudgetWarning, strategy
 from .spec import Space
+
 # The status file's models live in status.py; importing them from here keeps working.
 from .status import STATUS_SECONDS, SearchStatus, SweepReport, WorkerActivity, load_status, save_status
 

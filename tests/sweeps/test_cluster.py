@@ -31,7 +31,8 @@ from dse_runner.sweeps.jobqueue import HTCondor
 from dse_runner.sweeps.makers import KubernetesOptions, kubernetes_cluster_spec
 from dse_runner.errors import DseError
 from dse_runner.sweeps.rank import rank
-from dse_runner.sweeps.spec import Cluster, load_space
+from dse_runner.sweeps.makers import Cluster
+from dse_runner.sweeps.spec import load_space
 from dse_runner.sweeps.sweep import load_status, submit
 
 # 2 points x 12 scenarios at a tenth of the default integration step (~0.1-0.3 s a task, 2 tasks a chunk):

@@ -18,7 +18,8 @@ from pydantic import BaseModel, ValidationError
 from dse_runner.errors import DseError
 from dse_runner.sweeps import makers, start_method
 from dse_runner.sweeps.cluster import connect
-from dse_runner.sweeps.spec import Cluster, load_space
+from dse_runner.sweeps.makers import Cluster
+from dse_runner.sweeps.spec import load_space
 from dse_runner.sweeps.sweep import submit
 
 PLUGIN = """
@@ -143,7 +144,7 @@ LOCAL_PARENTS = """
 import json, os
 from dse_runner.sweeps import start_method
 from dse_runner.sweeps.cluster import connect
-from dse_runner.sweeps.spec import Cluster
+from dse_runner.sweeps.makers import Cluster
 
 start_method.fork_local_workers()
 with connect(Cluster(n_workers=2)) as client:

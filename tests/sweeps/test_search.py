@@ -23,7 +23,8 @@ from dse_runner.sweeps.rank import rank
 from dse_runner.errors import DseError
 from dse_runner.sweeps import store
 from dse_runner.sweeps.history import load_history
-from dse_runner.sweeps.spec import BATCH, load_space
+from dse_runner.sweeps.search import BATCH
+from dse_runner.sweeps.spec import load_space
 from dse_runner.sweeps.sweep import load_status, submit
 
 MSD = REPO / "jobs" / "msd"

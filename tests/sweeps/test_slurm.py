@@ -20,7 +20,8 @@ from conftest import SCENARIOS, dse_runner, sleeper_multimodel, write_space
 from dse_runner.errors import DseError
 from dse_runner.sweeps import store
 from dse_runner.sweeps.cluster import connect
-from dse_runner.sweeps.spec import Cluster, load_space
+from dse_runner.sweeps.makers import Cluster
+from dse_runner.sweeps.spec import load_space
 from dse_runner.sweeps.sweep import load_status, submit
 
 pytestmark = pytest.mark.slow

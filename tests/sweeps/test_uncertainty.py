@@ -22,7 +22,8 @@ from dse_runner.sweeps import uncertainty
 from dse_runner.sweeps.closed_loop import over_draws
 from dse_runner.sweeps.expand import expand
 from dse_runner.sweeps.rank import load_sweep_spec, rank, write_ranking
-from dse_runner.sweeps.spec import Robust, load_space
+from dse_runner.sweeps.spec import load_space
+from dse_runner.sweeps.uncertainty import Robust
 from dse_runner.sweeps.sweep import submit
 
 ISHIGAMI = REPO / "jobs" / "ishigami"

@@ -26,7 +26,9 @@ from typing import Any, ClassVar, Protocol
 from ... import bundled
 from ...errors import DseError
 from ...plugins import instance_of_subclass
-from ...sweeps.spec import Interval, Search, Space, SpaceSpec, read_spec, resolve_space
+from ...sweeps.domain import Interval
+from ...sweeps.search import Search
+from ...sweeps.spec import Space, SpaceSpec, read_spec, resolve_space
 from .explain import NOISE_FACTOR
 from .hypotheses import Hypothesis
 

@@ -35,19 +35,27 @@ from ...simulation import signal_effects, state_limits
 from ...simulation.run import qualify
 from ...sweeps.cluster import connect
 from ...sweeps.domain import Point
-from ...sweeps.fit import (FitProblem, FitResult, Parameter, evaluate_points, fit_all, key_of,
-                             residuals_in, wanted)
+from ...sweeps.fit import (
+    FitProblem,
+    FitResult,
+    Parameter,
+    evaluate_points,
+    fit_all,
+    key_of,
+    residuals_in,
+    wanted,
+)
 from ...sweeps.rank import rank
 from ...sweeps.spec import Space, derived_space
 from ...sweeps.sweep import submit
 from . import explain, signal_claims, signal_figures, signal_locate, signal_report, signal_screen
+from .derivative_discovery import DISCOVERED, Discovered, NotDiscovered, discover_derivatives, observe
+from .derivative_discovery.library import model_exchange_instances
+from .derivative_discovery.prove import terms_space
 from .explain import Candidate
 from .hypotheses import EffectParameter
 from .hypotheses import Hypothesis as LibraryHypothesis
 from .library import HypothesisLibrary, Messages, Request, space_with
-from .derivative_discovery import DISCOVERED, Discovered, NotDiscovered, discover_derivatives, observe
-from .derivative_discovery.library import model_exchange_instances
-from .derivative_discovery.prove import terms_space
 from .noise import NoiseEstimate, Whiteness, estimate_noise, whiteness
 from .signal_hypotheses import Hypothesis, shares, signal_hypotheses, state_hypotheses
 from .validation import Validation, validated

@@ -24,6 +24,7 @@ from ...simulation.scenario import Recording, Scenario
 from ...sweeps.spec import Space
 from . import explain
 
+
 @dataclass(frozen=True)
 class Fold:
     """One fold: fitted on ``train``, judged on ``test`` (scenario names)."""

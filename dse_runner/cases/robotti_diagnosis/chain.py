@@ -6,12 +6,21 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 
-from ...sweeps.domain import Point
-from ...sweeps.fit import (FitProblem, FitResult, Parameter, Residuals, evaluate_points, fit_all, key_of,
-                           residuals_in, wanted)
-from ...sweeps.spec import Space
 from ...analysis.diagnose import explain
 from ...analysis.diagnose.explain import Candidate
+from ...sweeps.domain import Point
+from ...sweeps.fit import (
+    FitProblem,
+    FitResult,
+    Parameter,
+    Residuals,
+    evaluate_points,
+    fit_all,
+    key_of,
+    residuals_in,
+    wanted,
+)
+from ...sweeps.spec import Space
 from .hypotheses import hypothesis
 from .outcome import Settings
 

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from .. import fielddata
 from ...simulation.scenario import Scenario
+from .. import fielddata
 
 FEATURES = ["speed", "acceleration", "steering", "steering_rate", "lateral_acceleration",
             "heading_cos", "heading_sin", "distance"]

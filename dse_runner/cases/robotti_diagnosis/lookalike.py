@@ -36,11 +36,11 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter, lfilter_zi
 
-from .. import fielddata
-from ...simulation.scenario import Scenario
 from ...analysis.diagnose import explain
-from . import kinematics, segments
 from ...analysis.diagnose.explain import Candidate
+from ...simulation.scenario import Scenario
+from .. import fielddata
+from . import kinematics, segments
 from .hypotheses import LOOK_ALIKES
 
 DECISIVE = 5.0  # |Σ LLR| at which the evidence between twins decides (e^5 ≈ 150 : 1)

@@ -11,11 +11,12 @@ from typing import Any
 import yaml
 
 from ... import bundled
-from .. import fielddata
 from ...errors import DseError
 from ...simulation.multimodel import MultiModel, split_ref
+from ...sweeps.domain import Range
 from ...sweeps.fit import Parameter
-from ...sweeps.spec import Range, Space, SpaceSpec, resolve_space
+from ...sweeps.spec import Space, SpaceSpec, resolve_space
+from .. import fielddata
 from . import correction, discover
 from .correction import variables as correction_variables
 from .hypotheses import EFFECTS_FMU, effect_variables, hypothesis

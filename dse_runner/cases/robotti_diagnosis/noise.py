@@ -32,8 +32,8 @@ from typing import Any
 import numpy as np
 
 from ...analysis.diagnose.noise import sigma_from_differences
-from .. import fielddata
 from ...simulation.scenario import Scenario, read_table
+from .. import fielddata
 
 MAX_SPACING = 0.25  # s: fixes further apart than this let motion leak into second differences
 SPACING_TOLERANCE = 1e-3  # s: two gaps are "equal" within this (times are logged to the ms or coarser)

@@ -8,12 +8,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ...errors import DseError
-from ...simulation.scenario import dropouts, dropouts_line
 from ...analysis.diagnose import explain
-from . import correction, discover, lookalike, noise, screen
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.findings import DiscoveredCorrection, Finding, NamedEffect
+from ...errors import DseError
+from ...simulation.scenario import dropouts_line
+from . import correction, discover, lookalike, noise, screen
 from .hypotheses import LIBRARY
 from .noise import NoiseFloor
 

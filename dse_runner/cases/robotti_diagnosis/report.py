@@ -16,13 +16,13 @@ import numpy as np
 import pandas as pd
 
 from ... import strict_json
-from .. import fielddata
-from ...sweeps.spec import Space
-from ...sweeps.rank import format_point
 from ...analysis.diagnose import explain
-from . import correction, discover, locate, lookalike
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.findings import DiscoveredCorrection
+from ...sweeps.rank import format_point
+from ...sweeps.spec import Space
+from .. import fielddata
+from . import correction, discover, locate, lookalike
 from .hypotheses import LIBRARY
 from .noise import AT_REST, CLOSE_FIXES, MAX_SPACING
 

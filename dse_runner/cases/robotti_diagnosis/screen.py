@@ -25,9 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import lsq_linear
 
+from ...analysis.diagnose import explain
 from ...sweeps.domain import Point
 from ...sweeps.fit import FitResult, Parameter, Residuals
-from ...analysis.diagnose import explain
 from .hypotheses import LOOK_ALIKES, hypothesis
 
 ANCHORS = 2  # best single effects (by full-fit SSE) linearised at, besides none

@@ -10,20 +10,20 @@ from typing import Any
 
 import numpy as np
 
+from ...analysis.diagnose import explain
+from ...analysis.diagnose.explain import Candidate
+from ...analysis.diagnose.library import space_with
 from ...simulation.scenario import dropouts
 from ...sweeps.cluster import connect
 from ...sweeps.fit import FitResult
+from ...sweeps.rank import rank
 from ...sweeps.spec import Space
 from ...sweeps.sweep import submit, trajectories_of
-from ...sweeps.rank import rank
-from ...analysis.diagnose.library import space_with
-from ...analysis.diagnose import explain
 from . import correction, discover, locate, lookalike, noise, screen
-from ...analysis.diagnose.explain import Candidate
+from .chain import Chain, DiagnosisMessages
+from .model_files import base_parameters, fits_space, steering_source, vehicle_of, write_model
 from .noise import NoiseFloor
 from .outcome import Diagnosis, Settings
-from .model_files import base_parameters, fits_space, steering_source, vehicle_of, write_model
-from .chain import Chain, DiagnosisMessages
 
 DEFAULT_SPACE = "bundled:robotti/calibration.yaml"  # the Robotti baseline's calibration grid
 BEFORE, AFTER = "diagnosis-before", "diagnosis-after"  # sweeps holding the tracks of the report

@@ -18,14 +18,21 @@ import json
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError,
-                      field_validator)
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    Discriminator,
+    Field,
+    Tag,
+    ValidationError,
+    field_validator,
+)
 
 from ...errors import DseError, format_validation_error
+from ...schema import Extensible, Strict
 from ...simulation.variables import FiniteValue
 
-Loose = ConfigDict(extra="allow", allow_inf_nan=False)  # INTO-CPS writes keys we read past (graphs, livestream...)
-Strict = ConfigDict(extra="forbid", allow_inf_nan=False)
+Loose = Extensible  # INTO-CPS writes keys we read past (graphs, livestream...)
 
 
 class IntoCpsWarning(UserWarning):

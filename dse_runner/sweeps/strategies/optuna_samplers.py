@@ -25,9 +25,10 @@ from typing import Any, ClassVar
 import optuna
 from optuna.distributions import BaseDistribution, CategoricalDistribution, FloatDistribution, IntDistribution
 from optuna.trial import TrialState
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel
 
 from ...errors import DseError
+from ...schema import Extensible
 from ..domain import Dimension, Point
 from ..search import Evaluation, Problem, Strategy
 
@@ -37,7 +38,7 @@ NOT_OPTIONS = {"self", "seed", "constraints_func", "independent_sampler", "sourc
 
 
 class SamplerOptions(BaseModel):
-    model_config = ConfigDict(extra="allow", allow_inf_nan=False)
+    model_config = Extensible
 
 
 def distribution(dimension: Dimension) -> BaseDistribution:

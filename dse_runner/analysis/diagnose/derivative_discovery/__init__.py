@@ -39,8 +39,16 @@ from ..explain import Candidate
 from ..validation import Fold, as_folds
 from .library import CandidateTerm, Instance, candidate_terms, model_exchange_instances
 from .propose import Proposal, propose
-from .prove import (PRUNE_SE, baseline_candidate, cross_validate, fit_sets, pruned, regression, term_parameter,
-                    terms_space)
+from .prove import (
+    PRUNE_SE,
+    baseline_candidate,
+    cross_validate,
+    fit_sets,
+    pruned,
+    regression,
+    term_parameter,
+    terms_space,
+)
 
 DISCOVERED = "discovered"  # the candidate id, and the effect id in the JSON
 Say = Callable[[str], None]

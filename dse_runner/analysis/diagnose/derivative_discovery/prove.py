@@ -17,8 +17,8 @@ from ....errors import DseError
 from ....sweeps.domain import Point
 from ....sweeps.fit import FitProblem, FitResult, Parameter, evaluate_points, fit_all, residuals_in, wanted
 from ....sweeps.spec import Space, derived_space
-from ..validation import Fold, as_folds
 from ..explain import Candidate
+from ..validation import Fold, as_folds
 from .library import CandidateTerm
 from .propose import Regression
 

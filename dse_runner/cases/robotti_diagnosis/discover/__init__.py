@@ -43,11 +43,20 @@ The stages live in their own modules, in the order data flows: observe, propose,
 """
 
 from .observe import OUTPUT, Observed, Regression, observe, vehicle_values
-from .propose import (INCLUSION, MAX_BINDING, RATE_LIMITS, Proposal, binding, candidates, find_shape, propose,
-                      regressions)
+from .propose import (
+                      INCLUSION,
+                      MAX_BINDING,
+                      RATE_LIMITS,
+                      Proposal,
+                      binding,
+                      candidates,
+                      find_shape,
+                      propose,
+                      regressions,
+)
+from .prove import Discovery, accept, discover, refilled
 from .rank_terms import DISCOVERED, extended_margin, library_ids, rank_on_positions, searched_count
 from .resemble import resemblance_words, resembles, similarity, terms_json
-from .prove import Discovery, accept, discover, refilled
 
 __all__ = [
     "DISCOVERED", "Discovery", "INCLUSION", "MAX_BINDING", "OUTPUT", "Observed", "Proposal",

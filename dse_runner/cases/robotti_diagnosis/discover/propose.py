@@ -14,8 +14,18 @@ from ....analysis.diagnose.derivative_discovery.propose import held_out_error
 from ....analysis.diagnose.derivative_discovery.propose import stlsq as sparse_regression
 from .. import correction
 from ..correction import Term
-from .observe import (DYNAMIC, OUTPUT, Column, Observed, Reference, Regression, equation_error, output_error,
-                      reference_state, term_columns)
+from .observe import (
+    DYNAMIC,
+    OUTPUT,
+    Column,
+    Observed,
+    Reference,
+    Regression,
+    equation_error,
+    output_error,
+    reference_state,
+    term_columns,
+)
 
 CHANNELS = (*DYNAMIC, *OUTPUT)
 BOOTSTRAP = 50  # run resamples

@@ -8,14 +8,14 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from ....sweeps.fit import FitProblem, FitResult
 from ....analysis.diagnose import explain
 from ....analysis.diagnose.derivative_discovery.prove import PRUNE_SE
 from ....analysis.diagnose.derivative_discovery.prove import pruned as generic_pruned
-from .. import correction
 from ....analysis.diagnose.explain import Candidate
-from .observe import Observed, held, vehicle_values
-from .propose import Proposal, candidates, propose, regressions
+from ....sweeps.fit import FitProblem, FitResult
+from .. import correction
+from .observe import Observed, vehicle_values
+from .propose import Proposal, propose, regressions
 from .rank_terms import DISCOVERED, Fitter, Screen, extended_margin, held_shapes, library_ids, screened
 
 

@@ -10,11 +10,11 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from ....analysis.diagnose.explain import Candidate
 from ....sweeps.domain import Point
 from ....sweeps.fit import FitProblem, FitResult, Parameter, Residuals
 from .. import correction
-from ....analysis.diagnose.explain import Candidate
-from .propose import CHANNELS, Proposal, SCANNED
+from .propose import CHANNELS, SCANNED, Proposal
 
 DISCOVERED = "discovered"  # the id a discovered correction takes among a candidate's ids
 

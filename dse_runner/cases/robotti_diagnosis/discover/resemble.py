@@ -7,10 +7,10 @@ from typing import Any
 
 import numpy as np
 
+from ....analysis.diagnose.explain import Candidate
 from ....sweeps.domain import Point
 from ....sweeps.fit import FitResult, Parameter
 from .. import correction
-from ....analysis.diagnose.explain import Candidate
 from ..hypotheses import LIBRARY
 from .rank_terms import Fitter
 
