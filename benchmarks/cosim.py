@@ -62,9 +62,9 @@ sys.path.insert(0, str(REPO))
 
 from dse_runner import bundled  # noqa: E402
 from dse_runner.simulation.build import build_fmu, fmi_headers_dir  # noqa: E402
-from dse_runner.simulation.cosim import Plan  # noqa: E402
 from dse_runner.simulation.crosscheck import run_libcosim  # noqa: E402
 from dse_runner.simulation.fmu import describe  # noqa: E402
+from dse_runner.simulation.plan import Plan  # noqa: E402
 from dse_runner.simulation.run import SimulationResult, as_plan, simulate  # noqa: E402
 from dse_runner.simulation.scenario import Scenario, load_scenario  # noqa: E402
 

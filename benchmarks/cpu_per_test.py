@@ -12,7 +12,6 @@ import os
 import time
 
 import pytest
-
 from test_suite import busy_jiffies
 
 _ROWS: list[tuple[str, float, float]] = []

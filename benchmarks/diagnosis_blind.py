@@ -1,6 +1,6 @@
 """Blind diagnosis figures: concealed effects alone, in pairs, outside the library, and noise only.
 
-Runs the cases of tests/blind.py on the embedded local cluster and prints one table per kind:
+Runs the cases of tests/support/blind.py on the embedded local cluster and prints one table per kind:
 
 * singles (each library effect, and noise only): what the diagnosis named first, its size against the
   truth, and the held-out mean cross-track error before and after;
@@ -20,7 +20,7 @@ Runs the cases of tests/blind.py on the embedded local cluster and prints one ta
 
 ``--form benchmark`` (the default) records 40 s of every bundled manoeuvre; ``--form tests`` records the
 test suite's form (20 s of six runs, and each case's synthetic runs), so each row is what
-tests/analysis/test_diagnose.py would see for that case. ``--only`` keeps the named cases of the chosen kinds.
+tests/cases/test_diagnose.py would see for that case. ``--only`` keeps the named cases of the chosen kinds.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-import blind  # noqa: E402
+from support import blind  # noqa: E402
 
 from dse_runner.cases.robotti_diagnosis.hypotheses import LIBRARY  # noqa: E402
 from dse_runner.sweeps.cluster import connect  # noqa: E402

@@ -1,9 +1,9 @@
 """When a fit asks for a candidate's perturbations: with the candidate, or once it is accepted.
 
-sweeps/fit.py's ``fit_all`` asks for a candidate's perturbations (its Jacobian) with it only when the
+sweeps/fit_rounds.py's ``fit_all`` asks for a candidate's perturbations (its Jacobian) with it only when the
 cluster has a free thread for every simulation of the round; otherwise a round later, once the candidate is
 accepted, so a rejected candidate costs one point instead of one per parameter more. This runs blind
-diagnosis cases of tests/blind.py (the test suite's form) both ways, side by side, each in a store of its
+diagnosis cases of tests/support/blind.py (the test suite's form) both ways, side by side, each in a store of its
 own on the same local cluster, and prints per case and schedule: the simulations run, the wall time, the CPU
 seconds of this process (the diagnosis' client, and the local cluster's scheduler, which runs in it) and of
 the worker processes, and whether the diagnosis came out the same to the last digit.
@@ -29,9 +29,9 @@ import psutil
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-import blind  # noqa: E402
+from support import blind  # noqa: E402
 
-from dse_runner.sweeps import fit, store  # noqa: E402
+from dse_runner.sweeps import fit_rounds, store  # noqa: E402
 from dse_runner.sweeps.cluster import connect  # noqa: E402
 from dse_runner.sweeps.makers import Cluster  # noqa: E402
 
@@ -51,12 +51,12 @@ def cluster_cpu() -> float:
 @contextmanager
 def eager():
     """fit_all as if the cluster had a thread for every simulation of every round."""
-    real = fit.total_threads
-    fit.total_threads = lambda client: sys.maxsize
+    real = fit_rounds.total_threads
+    fit_rounds.total_threads = lambda client: sys.maxsize
     try:
         yield
     finally:
-        fit.total_threads = real
+        fit_rounds.total_threads = real
 
 
 def simulations(out: Path) -> int:

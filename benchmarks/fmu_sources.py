@@ -28,8 +28,8 @@ sys.path.insert(0, str(REPO))
 
 from dse_runner import bundled  # noqa: E402
 from dse_runner.simulation.build import build_fmu  # noqa: E402
-from dse_runner.simulation.cosim import make_plan  # noqa: E402
 from dse_runner.simulation.multimodel import load_multimodel  # noqa: E402
+from dse_runner.simulation.plan import make_plan  # noqa: E402
 from dse_runner.simulation.run import simulate  # noqa: E402
 from dse_runner.simulation.scenario import load_scenario  # noqa: E402
 

@@ -33,8 +33,8 @@ sys.path.insert(0, str(REPO))
 from dse_runner import bundled  # noqa: E402
 from dse_runner.simulation import isolation  # noqa: E402
 from dse_runner.simulation.build import build_fmu  # noqa: E402
-from dse_runner.simulation.multimodel import InstanceSettings, MultiModel, load_multimodel  # noqa: E402
-from dse_runner.simulation.run import as_plan, simulate, single_fmu  # noqa: E402
+from dse_runner.simulation.multimodel import MultiModel, load_multimodel, single_fmu  # noqa: E402
+from dse_runner.simulation.run import as_plan, simulate  # noqa: E402
 from dse_runner.simulation.scenario import load_scenario  # noqa: E402
 
 WILD = REPO.parent / "shared" / "fmus-wild"

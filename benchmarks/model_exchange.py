@@ -37,6 +37,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from cosim import median_time  # noqa: E402  (benchmarks/cosim.py: a warm-up, then the median)
+
 from dse_runner.simulation.build import build_fmu  # noqa: E402
 from dse_runner.simulation.run import as_plan, simulate  # noqa: E402
 from dse_runner.simulation.scenario import load_scenario  # noqa: E402

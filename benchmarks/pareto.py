@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from dse_runner.sweeps.rank import pareto_mask, rank, save_sweep_spec
 from dse_runner.simulation.objectives import Reduce
 from dse_runner.sweeps import store
+from dse_runner.sweeps.rank import pareto_mask, rank, save_sweep_spec
 from dse_runner.sweeps.spec import SpaceSpec
 
 SUBSAMPLE = 2_000

@@ -13,7 +13,7 @@ prints when the sweep has ended and before it ranks (the sweep part: what issue 
 For the report, its size.
 
 The dashboard: once submit has finished, ``dse-runner dashboard OUT --address 127.0.0.1:PORT`` is started
-while a headless Chromium (Debian's, launched as tests/pages.py launches it, before the command) waits; from
+while a headless Chromium (Debian's, launched as tests/support/pages.py launches it, before the command) waits; from
 the command's start (wall clock) to the page showing its first number (the progress line's "done" count,
 #dse-done, which the page's HTML carries before BokehJS draws the document; looked for from the answer's
 first bytes on), and to all figures drawn: every visible Bokeh plot with a non-empty data source as BokehJS's
@@ -132,7 +132,7 @@ IMAGES = "els => els.map(e => e.complete && e.naturalWidth > 0)"
 
 
 def chromium(playwright):
-    """Debian's Chromium, found and launched as tests/pages.py does."""
+    """Debian's Chromium, found and launched as tests/support/pages.py does."""
     path = shutil.which("chromium") or shutil.which("chromium-browser")
     if not path:
         raise SystemExit("no chromium on PATH: install Debian's (apt-get install chromium), as .ci/install "

@@ -134,7 +134,7 @@ def noop(x):
 
 
 class CliCluster:
-    """`dask scheduler` and `dask worker --nthreads 1` processes on loopback (as tests/cluster.py)."""
+    """`dask scheduler` and `dask worker --nthreads 1` processes on loopback (as tests/support/cluster.py)."""
 
     def __init__(self, folder: Path, workers: int):
         with socket.socket() as s:

@@ -77,11 +77,11 @@ import optuna
 from distributed import Client
 
 from dse_runner import simulate, strict_json
-from dse_runner.sweeps.rank import rank
 from dse_runner.sweeps.cluster import MESSAGE_LOG_LENGTH
 from dse_runner.sweeps.history import SearchHistory, load_history
-from dse_runner.sweeps.makers import Local
 from dse_runner.sweeps.makers import Cluster as ClusterSpec
+from dse_runner.sweeps.makers import Local
+from dse_runner.sweeps.rank import rank
 from dse_runner.sweeps.spec import Space, load_space
 from dse_runner.sweeps.sweep import submit
 

@@ -2,7 +2,7 @@
 
     python3 benchmarks/slurm.py [--repeats 3] [--json]      # as root, with Debian's Slurm and munge
 
-A single-node Slurm (tests/slurm.py, the tests' own) is brought up here. Then:
+A single-node Slurm (tests/support/slurm.py, the tests' own) is brought up here. Then:
 
 1. The same sweep (jobs/robotti/space.yaml restricted to vehicle.mu in {0.3, 0.5}: 600 tasks) with
    `dse-runner submit --json`, 2 workers, into a fresh folder each time: once on the embedded local
@@ -79,7 +79,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
-    from slurm import SingleNodeSlurm, why_not
+    from support.slurm import SingleNodeSlurm, why_not
 
     if why_not():
         raise SystemExit(why_not())

@@ -205,7 +205,7 @@ def _boot_ticks() -> int:
 
 
 FORKSERVER = "multiprocessing.forkserver"
-FORKED = "forked by a forkserver (the commands' Dask workers, tests/wild.py's runs)"
+FORKED = "forked by a forkserver (the commands' Dask workers, tests/support/wild.py's runs)"
 PROCESS_KINDS = (  # (what the command line holds, the kind), first match wins
     ("spawn_main", "Dask worker processes (a nanny's or a local cluster's)"),
     ("exec(eval(sys.stdin.readline()))", "pytest-xdist's test processes"),

@@ -1,7 +1,7 @@
 """One blind diagnosis on two versions of the code, in turns: its CPU, and whether it gave the same answer.
 
 For a change meant to save work and change no answer. It checks ``--base`` (a git revision) out into a
-temporary worktree and runs the same case of tests/blind.py (the test suite's form) with each version in
+temporary worktree and runs the same case of tests/support/blind.py (the test suite's form) with each version in
 turns, each in a process of its own with that version first on PYTHONPATH (its local cluster's workers
 import the same version; checked). Per run it prints the case's wall time, the CPU seconds of the client
 (the diagnosis itself, and the local cluster's scheduler, which runs in its process), of the 2 workers, and a
@@ -34,10 +34,10 @@ FIGURES = ("wall_s", "client_cpu_s", "workers_cpu_s")
 def one_run(tree: Path, case: str, out: Path) -> dict:
     """In the child process: the case diagnosed with the code of ``tree``, its figures and answer."""
     sys.path.insert(0, str(tree / "tests"))
-    import blind  # the tree's: fit_schedule, next, then finds it imported
-    import dse_runner
+    from support import blind  # the tree's: fit_schedule, next, then finds it imported
     from fit_schedule import cluster_cpu as workers_cpu  # this process's children: its local cluster
 
+    import dse_runner
     from dse_runner.sweeps.cluster import connect
     from dse_runner.sweeps.makers import Cluster
 

@@ -2,14 +2,17 @@
 
     python docs/import_graph.py            # rewrites the diagram in docs/architecture.md
     python docs/import_graph.py --print    # prints it instead
-    python docs/import_graph.py --check    # exit code 1 if docs/architecture.md's diagram is not the code's
+    python docs/import_graph.py --check    # exit code 1 if docs/architecture.md's diagram is not the code's,
+                                           # or if any modules import one another round a loop
 
 Every ``import`` and ``from … import`` in every module of the package is read with ``ast`` (nothing is
 imported, so no dependency needs to be installed). A node is a module; a subpackage below a layer
 (``sweeps/strategies``, ``analysis/diagnose``, ``interfaces/intocps``, ``cases/robotti_diagnosis``) is one node. An arrow A --> B says A
 imports B at the top of the module; a dotted arrow, only inside a function or under ``TYPE_CHECKING`` (on
 first use, so that starting the CLI does not load what a command does not need). ``errors``,
-``plugins``, ``strict_json`` and ``yamlfile``, which every layer may import, are drawn without their arrows.
+``plugins``, ``schema``, ``strict_json`` and ``yamlfile``, which every layer may import, are drawn without
+their arrows. ``--check`` also fails on an import circle: modules that import one another round a loop,
+deferred imports counted (deferring an import does not untie two modules).
 """
 
 from __future__ import annotations
@@ -26,7 +29,7 @@ START, END = "<!-- import-graph: start (docs/import_graph.py) -->", "<!-- import
 
 LAYERS = ("simulation", "sweeps", "analysis", "interfaces", "cases")  # in the order they may import
 COLLAPSED = ("sweeps.strategies", "analysis.diagnose", "interfaces.intocps", "cases.robotti_diagnosis")
-SHARED = ("errors", "plugins", "strict_json", "yamlfile")  # imported from everywhere: drawn without arrows
+SHARED = ("errors", "plugins", "schema", "strict_json", "yamlfile")  # imported from everywhere: drawn without arrows
 LEFT_OUT = ("__main__", "bundled")  # the entry point (imports cli) and the data package (imports nothing)
 
 
@@ -72,27 +75,76 @@ def targets(statement: ast.Import | ast.ImportFrom, importer: str, is_package: b
     return {m for m in found if m in modules}
 
 
-def edges() -> tuple[set[str], dict[tuple[str, str], bool]]:
-    """The nodes, and every edge (importer node, imported node) -> whether some import of it is at the top."""
+def module_edges() -> dict[tuple[str, str], bool]:
+    """Every import between two of the package's modules: (importer, imported) -> whether some import of it
+    is at the top of the module (False: only inside a function or under ``TYPE_CHECKING``)."""
     files = {module_name(p): p for p in sorted(PACKAGE.rglob("*.py")) if "__pycache__" not in p.parts}
     modules = set(files) - {""}
     graph: dict[tuple[str, str], bool] = {}
-    nodes = set()
     for module, path in files.items():
         if not module or module.split(".")[0] in LEFT_OUT or module in LAYERS:
             continue  # the root and layer __init__.py hold no code worth an arrow (the root's is lazy)
-        nodes.add(node_of(module))
         tree = ast.parse(path.read_text())
         deferred = deferred_nodes(tree)
         for statement in ast.walk(tree):
             if not isinstance(statement, (ast.Import, ast.ImportFrom)):
                 continue
             for target in targets(statement, module, path.name == "__init__.py", modules):
-                a, b = node_of(module), node_of(target)
-                if a == b or b in SHARED or b in LAYERS or b.split(".")[0] in LEFT_OUT:
+                if target == module or target in LAYERS or target.split(".")[0] in LEFT_OUT:
                     continue
-                graph[(a, b)] = graph.get((a, b), False) or id(statement) not in deferred
+                graph[(module, target)] = graph.get((module, target), False) or id(statement) not in deferred
+    return graph
+
+
+def edges() -> tuple[set[str], dict[tuple[str, str], bool]]:
+    """The drawn nodes, and every edge (importer node, imported node) -> whether some import of it is at the
+    top."""
+    modules = module_edges()
+    nodes = {node_of(a) for a, _ in modules} | {node_of(b) for _, b in modules if b not in SHARED}
+    graph: dict[tuple[str, str], bool] = {}
+    for (module, target), top in modules.items():
+        a, b = node_of(module), node_of(target)
+        if a == b or b in SHARED:
+            continue
+        graph[(a, b)] = graph.get((a, b), False) or top
     return nodes, graph
+
+
+def circles(graph: dict[tuple[str, str], bool]) -> list[list[str]]:
+    """The import circles: each set of modules that import one another round a loop (a strongly connected
+    component of more than one module), by whatever import, deferred or not. Deferring an import does not
+    untie two modules: each still needs the other."""
+    following: dict[str, list[str]] = {}
+    for a, b in graph:
+        following.setdefault(a, []).append(b)
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    found: list[list[str]] = []
+
+    def visit(node: str) -> None:  # Tarjan's algorithm
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        for nxt in following.get(node, ()):
+            if nxt not in index:
+                visit(nxt)
+                low[node] = min(low[node], low[nxt])
+            elif nxt in stack:
+                low[node] = min(low[node], index[nxt])
+        if low[node] == index[node]:
+            component = []
+            while True:
+                member = stack.pop()
+                component.append(member)
+                if member == node:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for node in sorted(following):
+        if node not in index:
+            visit(node)
+    return sorted(found)
 
 
 def node_id(name: str) -> str:
@@ -158,8 +210,12 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     action = parser.add_mutually_exclusive_group()
     action.add_argument("--print", action="store_true", help="print the diagram instead of writing it")
-    action.add_argument("--check", action="store_true", help="exit code 1 if architecture.md's diagram is stale")
+    action.add_argument("--check", action="store_true",
+                        help="exit code 1 if architecture.md's diagram is stale or the package has an import circle")
     args = parser.parse_args()
+    tied = circles(module_edges())
+    for circle in tied:
+        print(f"import circle: {' -> '.join(circle)} (each imports another round a loop)", file=sys.stderr)
     diagram = mermaid()
     if args.print:
         sys.stdout.write(diagram)
@@ -170,7 +226,7 @@ def main() -> int:
         if new != text:
             print(f"{TARGET}: the import graph is not the code's; run python docs/import_graph.py", file=sys.stderr)
             return 1
-        return 0
+        return 1 if tied else 0
     TARGET.write_text(new)
     return 0
 

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import difflib
+from collections.abc import Iterable
+
 from pydantic import ValidationError
 
 
@@ -27,3 +30,9 @@ def format_syntax_error(source: str, kind: str, error: Exception) -> str:
     if hasattr(error, "lineno"):  # json.JSONDecodeError
         return f"{source} line {error.lineno}, column {error.colno}: not valid {kind}: {error.msg}"
     return f"{source}: not valid {kind}: {' '.join(str(error).split())}"
+
+
+def did_you_mean(name: str, options: Iterable[str]) -> str:
+    """`` (did you mean a, b?)`` with the options closest to ``name``, or nothing if none is close."""
+    close = difflib.get_close_matches(name, list(options), n=3)
+    return f" (did you mean {', '.join(close)}?)" if close else ""

@@ -109,7 +109,7 @@ def all_scenarios() -> list[str]:
 @pytest.fixture(scope="session")
 def dask_scheduler(tmp_path_factory, fresh_fmu_cache):
     """A real cluster: `dask scheduler` and two single-threaded `dask worker` processes on loopback."""
-    from cluster import CliCluster
+    from support.cluster import CliCluster
 
     cluster = CliCluster(tmp_path_factory.mktemp("dask"), workers=2)
     yield cluster.address

@@ -81,7 +81,7 @@ class Scope:
 
 
 @dataclass
-class Objective:
+class ObjectiveIndices:
     """One objective's indices over every scenario, and within each scenario group (when there are several)."""
 
     overall: Scope | None
@@ -96,7 +96,7 @@ class Sensitivity:
     reduced: str  # how scenarios were combined: total, mean, largest, smallest
     design: dict[str, Any]  # strategy, rows, blocks, block, seed
     confidence: float
-    objectives: dict[str, Objective]
+    objectives: dict[str, ObjectiveIndices]
     warnings: list[str]
 
     @property
@@ -222,7 +222,7 @@ def _computed(output: Any, sweep: str, objectives: list[str] | None, confidence:
     groups = aggregate.statistics(rows, ["group"], "scenario", ["count_distinct"])["group"].tolist()
     scopes = [(None, rows), *(((str(g), rows.filter(pc.equal(rows["group"], g))) for g in groups)
                               if len(groups) > 1 else ())]
-    found = {name: Objective(overall=None, groups={}) for name in chosen}
+    found = {name: ObjectiveIndices(overall=None, groups={}) for name in chosen}
     notes: list[str] = []
     wide: dict[str, list[str]] = {name: [] for name in chosen}  # per objective, the groups whose intervals are wide
     for group, members in scopes:

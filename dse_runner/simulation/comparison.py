@@ -7,24 +7,13 @@ against time, over the recorded column it is compared with if any.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from . import objectives as objs
-from .scenario import kind
+from .scenario import Comparison, Simulated, kind
 
 
-@dataclass(frozen=True)
-class Comparison:
-    recorded: tuple[np.ndarray, np.ndarray] | None  # x and y of the recorded points, if any
-    simulated: tuple[np.ndarray, np.ndarray]
-    x_label: str
-    y_label: str
-    equal_axes: bool = False  # a track on a map, not a signal over time
-
-
-def compare(result, objective: objs.ObjectiveSpec | None = None) -> Comparison:
+def compare(result: Simulated, objective: objs.ObjectiveSpec | None = None) -> Comparison:
     """The kind's comparison, or the objective's signal over time."""
     own = kind(result.scenario.kind).compare(result)
     if own is not None:

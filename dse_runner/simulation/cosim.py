@@ -2,11 +2,8 @@
 
 Two stages, so that checking is done once and running is cheap:
 
-* :func:`make_plan` resolves a multi-model against its FMUs' model
-  descriptions: every ``instance.variable`` named in connections and values
-  is checked (unknown names get close matches suggested), each connection's
-  conversion is fixed by the rules of variables.py, and value references are
-  looked up once.
+* plan.py's ``make_plan`` resolves a multi-model against its FMUs' model
+  descriptions once: every name checked, every connection's conversion fixed.
 * :func:`run` co-simulates a plan with given values (and input signals)
   from ``start`` to ``stop``. At each communication point every FMU's
   connected inputs are set from the outputs of the previous point, then
@@ -22,14 +19,12 @@ recorded as text.
 from __future__ import annotations
 
 import ctypes
-import difflib
 import functools
 import math
 import os
 import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -38,224 +33,16 @@ from fmpy.fmi1 import FMICallException
 from ..errors import DseError
 from . import fmu as fmus
 from . import isolation, native, native_me
-from . import lifecycle as lifecycles
-from .build import resolve_fmu
-from .multimodel import MultiModel
-from .scenario import Series
+from .plan import Plan
 from .steppers import FMI_WARNING, Stepper, stepper
+from .trajectory import CosimError, Series, Trajectory
 from .variables import (
     Conversion,
     Value,
     Variable,
-    check_settable,
     check_value,
-    conversion,
-    describe_variable,
-    split_ref,
     with_article,
 )
-
-
-class CosimError(DseError):
-    """An FMU failed or diverged during a co-simulation."""
-
-    def __init__(self, message: str, instance: str | None = None):
-        super().__init__(message)
-        self.instance = instance  # the instance that failed, when one did
-
-
-@dataclass(frozen=True)
-class Link:
-    """A connection, resolved: which output feeds which input, converted how."""
-
-    source: Variable
-    target: Variable
-    conversion: Conversion = Conversion()
-
-
-@dataclass(frozen=True)
-class Plan:
-    """A multi-model whose every name has been checked against its FMUs."""
-
-    multimodel: MultiModel
-    fmu_paths: dict[str, Path]
-    interfaces: dict[str, str]  # instance -> "cs" | "me"
-    variables: dict[str, dict[str, Variable]]  # instance -> name -> variable, read once
-    models: dict[str, str]  # instance -> model name, for messages
-    outputs: dict[str, tuple[Variable, ...]]  # numeric variables recorded, per instance
-    texts: dict[str, tuple[Variable, ...]]  # string outputs recorded, per instance
-    links: tuple[Link, ...]
-    defaults: tuple[float | None, float | None, float | None] = (None, None, None)  # one FMU's experiment
-
-    @functools.cached_property
-    def recorded(self) -> tuple[str, ...]:
-        return tuple(v.ref for vs in self.outputs.values() for v in vs)
-
-    @property
-    def connections(self) -> tuple[tuple[Variable, Variable], ...]:
-        return tuple((link.source, link.target) for link in self.links)
-
-    def variable(self, ref: str, purpose: str) -> Variable:
-        found = self.__dict__.setdefault("_found", {})  # a sweep looks up the same names every run
-        variable = found.get(ref)
-        if variable is None:
-            variable = found[ref] = lookup(self.variables, self.models, ref, purpose)
-        return variable
-
-    def recording(self, refs: Iterable[str], purpose: str = "objective") -> Plan:
-        """The plan also recording ``refs`` (e.g. a local variable an objective reads)."""
-        outputs = {name: list(vs) for name, vs in self.outputs.items()}
-        for ref in refs:
-            variable = self.variable(ref, purpose)
-            if variable.family == "string" or not variable.numeric:
-                raise DseError(f"{purpose}: {ref!r} is {with_article(variable.type)}, not a number one can "
-                               "score")
-            if variable not in outputs[variable.instance]:
-                outputs[variable.instance].append(variable)
-        return replace(self, outputs={name: tuple(vs) for name, vs in outputs.items()})
-
-
-@dataclass(frozen=True)
-class Trajectory:
-    """Recorded values at the communication points: ``values[k, j]`` is ``names[j]`` at ``time[k]``."""
-
-    time: np.ndarray
-    names: tuple[str, ...]
-    values: np.ndarray
-    texts: dict[str, list[str]] = field(default_factory=dict)  # string outputs, one value per point
-
-    def column(self, name: str) -> np.ndarray:
-        try:
-            return self.values[:, self.names.index(name)]
-        except ValueError:
-            if name in self.texts:
-                return np.array(self.texts[name], dtype=object)
-            have = ", ".join((*self.names, *self.texts))
-            raise DseError(f"no recorded signal {name!r}{_did_you_mean(name, self.names)}; "
-                           f"recorded are {have}") from None
-
-    @property
-    def outputs(self) -> dict[str, np.ndarray]:
-        """Every recorded signal by name."""
-        return {**{n: self.values[:, j] for j, n in enumerate(self.names)},
-                **{n: np.array(v, dtype=object) for n, v in self.texts.items()}}
-
-    def final(self) -> dict[str, Value]:
-        """Every recorded signal's last value."""
-        numbers = {n: float(self.values[-1, j]) for j, n in enumerate(self.names)}
-        return {**numbers, **{n: v[-1] for n, v in self.texts.items()}}
-
-    def with_columns(self, changed: Mapping[str, np.ndarray]) -> Trajectory:
-        """The same trajectory with some numeric signals replaced (output effects, signal_effects.py)."""
-        if not changed:
-            return self
-        values = self.values.copy()
-        for name, column in changed.items():
-            self.column(name)  # names the signal if it is not recorded
-            values[:, self.names.index(name)] = column
-        return Trajectory(self.time, self.names, values, self.texts)
-
-    def renamed(self, rename: Callable[[str], str]) -> Trajectory:
-        return Trajectory(self.time, tuple(map(rename, self.names)), self.values,
-                          {rename(n): v for n, v in self.texts.items()})
-
-    def to_csv(self, path: Path) -> None:
-        """``time`` then one column per signal; text values are quoted. Sixteen significant digits
-        keep integers exact up to 2^53 (Int64 counters, millisecond stamps) and still print
-        0.1 * 3 as 0.3."""
-        import csv
-
-        with open(path, "w", newline="") as f:
-            writer = csv.writer(f)
-            writer.writerow(["time", *self.names, *self.texts])
-            numbers = np.column_stack([self.time, self.values])
-            for k, row in enumerate(numbers):
-                writer.writerow([f"{v:.16g}" for v in row] + [v[k] for v in self.texts.values()])
-
-
-def lookup(variables: dict[str, dict[str, Variable]], models: dict[str, str], ref: str,
-           purpose: str) -> Variable:
-    """Resolve ``instance.variable``; the error names it and suggests near names."""
-    try:
-        instance, name = split_ref(ref)
-    except ValueError as e:
-        raise DseError(f"{purpose}: {e}") from None
-    if instance not in variables:
-        raise DseError(f"{purpose}: {ref!r} names instance {instance!r}, but the multi-model has "
-                       f"{', '.join(sorted(variables))}{_did_you_mean(instance, variables)}")
-    variable = variables[instance].get(name)
-    if variable is None:
-        raise DseError(f"{purpose}: unknown variable {ref!r}: instance {instance!r} ({models[instance]}) "
-                       f"has no variable {name!r}{_did_you_mean(name, variables[instance])}")
-    return variable
-
-
-def _did_you_mean(name: str, options) -> str:
-    close = difflib.get_close_matches(name, list(options), n=3)
-    return f" (did you mean {', '.join(close)}?)" if close else ""
-
-
-# ---- planning ------------------------------------------------------------------------------------
-
-def _fmu_file(multimodel: MultiModel, name: str) -> Path:
-    """The FMU an instance names, built if it is a source folder; an error names the instance."""
-    try:
-        return resolve_fmu(multimodel.fmu_path(name))
-    except DseError as e:
-        raise DseError(f"instance {name!r} of the multi-model names {multimodel.fmus[name]!r}: {e}") from None
-
-
-def make_plan(multimodel: MultiModel, interface: str | None = None) -> Plan:
-    """Build FMUs if needed and check every name the multi-model uses. ``interface`` ("cs" or "me")
-    overrides every instance's."""
-    fmu_paths = {name: _fmu_file(multimodel, name) for name in multimodel.fmus}
-    descriptions = {name: fmus.describe(path) for name, path in fmu_paths.items()}
-    interfaces = {name: fmus.choose_interface(fmu_paths[name], d, interface or multimodel.settings(name).interface)
-                  for name, d in descriptions.items()}
-    variables = {name: {v.name: describe_variable(name, v) for v in d.modelVariables}
-                 for name, d in descriptions.items()}
-    models = {name: d.modelName for name, d in descriptions.items()}
-    outputs = {name: tuple(v for v in vs.values() if v.causality == "output" and v.numeric)
-               for name, vs in variables.items()}
-    texts = {name: tuple(v for v in vs.values() if v.causality == "output" and v.family == "string")
-             for name, vs in variables.items()}
-    links = _links(multimodel, variables, models)
-    for ref in multimodel.scenario:
-        check_settable(lookup(variables, models, ref, "scenario"))
-    for ref, value in multimodel.parameters.items():
-        check_value(lookup(variables, models, ref, "parameters"), value)
-    defaults = _defaults(next(iter(descriptions.values())) if len(descriptions) == 1 else None)
-    return Plan(multimodel, fmu_paths, interfaces, variables, models, outputs, texts, links, defaults)
-
-
-def _links(multimodel: MultiModel, variables, models) -> tuple[Link, ...]:
-    links, fed = [], {}
-    for source_ref, target in multimodel.targets():
-        source = lookup(variables, models, source_ref, "connection")
-        if source.causality != "output":
-            raise DseError(f"connection: {source_ref!r} must be an output (it is {with_article(source.causality)})")
-        sink = lookup(variables, models, target.input, "connection")
-        if sink.causality != "input":
-            raise DseError(f"connection {source_ref} -> {target.input}: the target must be an input "
-                           f"(it is {with_article(sink.causality)})")
-        if target.input in fed:
-            raise DseError(f"connection: input {target.input!r} is fed by both {fed[target.input]} and {source_ref}")
-        fed[target.input] = source_ref
-        links.append(Link(source, sink, conversion(source, sink, target.round, target.threshold)))
-    return tuple(links)
-
-
-def _defaults(description) -> tuple[float | None, float | None, float | None]:
-    """A single FMU's default experiment: start, stop and step, where it gives them."""
-    experiment = description.defaultExperiment if description is not None else None
-    if experiment is None:
-        return (None, None, None)
-
-    def number(text) -> float | None:
-        return float(text) if text not in (None, "") else None
-
-    return number(experiment.startTime), number(experiment.stopTime), number(experiment.stepSize)
-
 
 # ---- running -------------------------------------------------------------------------------------
 
@@ -434,45 +221,28 @@ class Runner:
     terms: Mapping[str, Mapping] = field(default_factory=dict)
 
     def with_inputs(self, changed: Mapping[str, np.ndarray]) -> Runner:
-        """The same runner feeding some input signals changed (input effects, signal_effects.py): the
-        lifecycle it found carries over, since the FMUs are the same."""
+        """The same runner feeding some input signals changed (input effects, signal_effects.py)."""
         if not changed:
             return self
         series = {**self.series, **changed}
-        return self._carried(replace(self, series=series, external=np.column_stack(list(series.values()))))
+        return replace(self, series=series, external=np.column_stack(list(series.values())))
 
     def with_terms(self, terms: Mapping[str, Mapping]) -> Runner:
         """The same runner adding derivative terms to model-exchange instances (instance -> term -> coefficient);
         derivative_terms.check has checked each against its instance."""
-        return self._carried(replace(self, terms={**self.terms, **terms})) if terms else self
+        return replace(self, terms={**self.terms, **terms}) if terms else self
 
-    def _carried(self, runner: Runner) -> Runner:
-        """``runner`` keeping the lifecycle this one found: the FMUs are the same."""
-        for cached in ("_lifecycle", "_fresh"):
-            if cached in self.__dict__:
-                runner.__dict__[cached] = self.__dict__[cached]
-        return runner
+    def check(self, values: Mapping[str, Value]) -> None:
+        """Every value named, settable and of its variable's type: an error names it before anything runs."""
+        _resolve_values(self.plan, values)
 
-    def lifecycle(self, values: Mapping[str, Value]) -> dict[str, lifecycles.Verdict]:
-        """How each instance lives across runs (lifecycle.py): reset between runs, or a fresh process;
-        decided at the first run (an FMU that cannot run alone is measured with its values)."""
-        found = self.__dict__.get("_lifecycle")
-        if found is None:
-            found = self.__dict__["_lifecycle"] = lifecycles.plan_verdicts(self, values)
-            self.__dict__["_fresh"] = lifecycles.needs_process(found)
-        return found
-
-    def run(self, values: Mapping[str, Value], timeout: float | None = None, loop: str | None = None) -> Trajectory:
-        """Co-simulate with ``values`` set before initialization (see :func:`run`): here, or in a fresh
-        process where an instance needs one (lifecycle.py)."""
-        fresh = self.__dict__.get("_fresh")  # a sweep's cheap runs pay one look-up for all this
-        if fresh is False or isolation.in_child():  # reused instances, or this process is the fresh one
+    def run(self, values: Mapping[str, Value], timeout: float | None = None, loop: str | None = None,
+            fresh_process: bool = False) -> Trajectory:
+        """Co-simulate with ``values`` set before initialization (see :func:`run`): here, its instances reused
+        through reset, or with ``fresh_process`` in a process of its own (an instance that cannot be trusted
+        with a second run in one: lifecycle.py decides, and the caller keeps its verdict)."""
+        if not fresh_process or isolation.in_child():  # reused instances, or this process is the fresh one
             return _run_here(self, values, timeout, loop)
-        if fresh is None:
-            _resolve_values(self.plan, values)  # a bad value is an error before any FMU is measured
-            self.lifecycle(values)
-            if not self.__dict__["_fresh"]:
-                return _run_here(self, values, timeout, loop)
         plan = self.plan
         fmus_used = [(path, plan.interfaces[name]) for name, path in plan.fmu_paths.items()]
         for path, interface in fmus_used:

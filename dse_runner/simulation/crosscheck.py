@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import DseError
-from .cosim import Plan, Trajectory
+from .plan import Plan
+from .trajectory import Trajectory
 from .variables import Value
 
 

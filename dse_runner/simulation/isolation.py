@@ -12,7 +12,7 @@ single-threaded, that imports the simulation modules and describes the FMUs
 but never loads one. For every run it forks a child, which calls the function
 it was sent, sends back the result (or the exception) through a pipe and
 exits without freeing anything. A child that dies (an FMU's ``abort`` or
-segmentation fault) comes back as a :class:`~dse_runner.simulation.cosim.CosimError`
+segmentation fault) comes back as a :class:`~dse_runner.simulation.trajectory.CosimError`
 naming the signal and the last line the process printed.
 """
 
@@ -36,6 +36,7 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 from ..errors import DseError
+from .trajectory import CosimError
 
 _HEADER = struct.Struct("!Q")
 _LOCAL = threading.local()
@@ -128,7 +129,9 @@ def _serve(extract_root: str) -> None:
     frames_out = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)
     from . import fmu as fmus
-    from . import run as _  # noqa: F401  (import everything a run needs once, before any fork)
+
+    # A request's function is imported here as the request is read (its module and all that one imports),
+    # once and before any fork: each child only runs it.
 
     fmus.use_extract_root(Path(extract_root))
     warnings.simplefilter("ignore")  # the worker has warned about these FMUs already
@@ -169,8 +172,6 @@ def _fork(function: Callable[..., Any], args: tuple, kill_after: float | None = 
         sys.stderr.write(said)
         sys.stderr.flush()
     if hung:
-        from .cosim import CosimError
-
         return pickle.dumps((False, CosimError(f"timeout: the simulation did not end within {kill_after:g} s "
                                                "(hung inside an FMU call); its fresh process was killed")))
     if data and os.WIFEXITED(status):
@@ -214,8 +215,6 @@ def _child(function: Callable[..., Any], args: tuple, write_end: int) -> None:
 
 
 def _death(status: int, said: str) -> Exception:
-    from .cosim import CosimError
-
     if os.WIFSIGNALED(status):
         number = os.WTERMSIG(status)
         try:

@@ -30,17 +30,17 @@ import os
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal
 
 import numpy as np
 
 from ..errors import DseError
 from . import fmu as fmus
 from . import isolation
-from .scenario import Series
-
-if TYPE_CHECKING:
-    from .cosim import Plan, Runner
+from .cosim import Runner, prepare
+from .multimodel import single_fmu
+from .plan import Plan, make_plan
+from .trajectory import Series
 
 Mode = Literal["reset", "process"]
 PROBE_VERSION = 1  # bump when the probe changes: verdicts kept on disk are then measured again
@@ -117,9 +117,6 @@ def _known(path: Path, interface: str) -> Verdict | None:
 
 def _measured_alone(path: Path, interface: str) -> Verdict | str:
     """The probe's verdict on the FMU alone, kept; or why it could not run alone."""
-    from .cosim import make_plan
-    from .run import single_fmu
-
     plan = make_plan(single_fmu(path), interface)
     runner, fresh = _alone(plan)
     if runner is None:
@@ -159,8 +156,6 @@ def probe(runner: Runner, values: dict[str, Any], changing: list[Path], fresh: l
 def _alone(plan: Plan) -> tuple[Runner | None, list[tuple] | str]:
     """The FMU alone on the probe's experiment and its run in a fresh process: with its inputs driven,
     else at their start values; otherwise (None, why not)."""
-    from .cosim import prepare
-
     start, stop, step = _probe_times(plan)
     why = "no experiment"
     for inputs in (_excitation(plan, start, stop), {}):

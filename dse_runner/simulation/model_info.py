@@ -13,8 +13,8 @@ from pathlib import Path
 
 from pydantic import BaseModel
 
-from .cosim import Plan
 from .fmu import describe
+from .plan import Plan
 from .run import as_plan
 from .variables import Variable
 

@@ -25,6 +25,7 @@ converted into the same model, so the rest of the tool sees one format.
 from __future__ import annotations
 
 import json
+import re
 import warnings
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -263,3 +264,10 @@ def load_multimodel(path: str | Path) -> MultiModel:
     except (json.JSONDecodeError, yaml.YAMLError) as e:
         raise DseError(format_syntax_error(str(path), "JSON" if path.suffix == ".json" else "YAML", e)) from None
     return parse_multimodel(data, str(path), path.parent.resolve())
+
+
+def single_fmu(path: str | Path) -> MultiModel:
+    """A multi-model of one FMU, its instance named after the file."""
+    path = Path(path).resolve()
+    name = re.sub(r"[^A-Za-z0-9_]", "_", path.stem) or "model"
+    return MultiModel(fmus={name: str(path)}, base_dir=path.parent)

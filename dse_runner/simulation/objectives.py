@@ -37,21 +37,20 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from functools import cache
-from importlib.metadata import entry_points
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, Discriminator, Tag, TypeAdapter, ValidationError, model_validator
 
+from .. import plugins
 from ..errors import DseError, format_validation_error
 from ..schema import Strict
 from .scripts import Script, run_scripts
 
 if TYPE_CHECKING:
-    from .cosim import Trajectory
     from .scenario import Scenario
+    from .trajectory import Trajectory
 
 
 Reduction = Literal["final", "min", "max", "mean", "sample_mean", "integral", "rms", "changes",
@@ -283,11 +282,13 @@ def as_objective(found: Any, where: str) -> Objective:
     raise DseError(f"objective {where} is neither a dse_runner Objective nor a function but {found!r:.80}")
 
 
-@cache
+GROUP = "dse_runner.objectives"
+
+
 def registered() -> dict[str, Objective]:
     """Objectives installed packages register (entry-point group ``dse_runner.objectives``)."""
-    return {entry.name: as_objective(entry.load(), f"{entry.name!r} ({entry.value})")
-            for entry in entry_points(group="dse_runner.objectives")}
+    return {name: as_objective(plugins.loaded(entry, f"objective {name!r}"), f"{name!r} ({entry.value})")
+            for name, entry in plugins.entries(GROUP).items()}
 
 
 def function(name: str) -> Objective:

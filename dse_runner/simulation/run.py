@@ -1,7 +1,7 @@
 """One simulation of a model on a scenario, scored: the unit of work a sweep repeats.
 
 ``simulate(model)`` takes an ``.fmu`` file, a multi-model file or object, or a
-checked :class:`~dse_runner.simulation.cosim.Plan`. Values come in layers, later ones
+checked :class:`~dse_runner.simulation.plan.Plan`. Values come in layers, later ones
 winning: the multi-model's parameters, the scenario's bound fields
 (multi-model ``scenario:``), the scenario's parameters and constant inputs,
 then ``values`` (a sweep's parameter point). Times follow experiment.py.
@@ -10,7 +10,6 @@ then ``values`` (a sweep's parameter point). Times follow experiment.py.
 from __future__ import annotations
 
 import copy
-import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -21,12 +20,14 @@ from ..errors import DseError
 from . import derivative_terms, signal_effects, state_limits
 from . import objectives as objs
 from .build import is_source_dir
-from .cosim import Plan, Runner, Trajectory, make_plan, prepare
+from .cosim import Runner, prepare
 from .experiment import Experiment, Times, resolve_times
 from .fmu import describe
-from .lifecycle import Verdict, needs_process
-from .multimodel import MultiModel, load_multimodel
-from .scenario import Scenario, Series, kind, load_scenario, nominal
+from .lifecycle import Verdict, needs_process, plan_verdicts
+from .multimodel import MultiModel, load_multimodel, single_fmu
+from .plan import Plan, make_plan
+from .scenario import Scenario, kind, load_scenario, nominal
+from .trajectory import Series, Trajectory
 from .variables import Value, split_ref
 
 
@@ -55,13 +56,6 @@ class SimulationResult:
     @property
     def outputs(self) -> dict[str, np.ndarray]:
         return self.trajectory.outputs
-
-
-def single_fmu(path: str | Path) -> MultiModel:
-    """A multi-model of one FMU, its instance named after the file."""
-    path = Path(path).resolve()
-    name = re.sub(r"[^A-Za-z0-9_]", "_", path.stem) or "model"
-    return MultiModel(fmus={name: str(path)}, base_dir=path.parent)
 
 
 def load_model(path: str | Path) -> MultiModel:
@@ -207,13 +201,13 @@ def simulate(
     if effects:
         effects = recipe.qualified_effects(effects)
         runner = runner.with_inputs(signal_effects.on_inputs(recipe.signals, runner.times, effects))
-    trajectory = runner.run(values, timeout, loop)
+    verdicts = recipe.lifecycle(runner, values)
+    trajectory = runner.run(values, timeout, loop, fresh_process=needs_process(verdicts))
     if effects:
         trajectory = trajectory.with_columns(signal_effects.on_outputs(trajectory.time, trajectory.column, effects))
     return SimulationResult(recipe.scenario, {**values, **{e.name: v for e, v in effects.items()},
                                               **{t.name: v for t, v in terms.items()}}, recipe.times,
-                            trajectory, objs.evaluate(recipe.specs, trajectory, recipe.scenario),
-                            runner.lifecycle(values))
+                            trajectory, objs.evaluate(recipe.specs, trajectory, recipe.scenario), verdicts)
 
 
 @dataclass
@@ -230,6 +224,17 @@ class _Recipe:
     runner: Runner
     names: dict[str, str] = field(default_factory=dict)  # a value's name as given -> as the plan has it
     checked: dict = field(default_factory=dict)  # a derivative term as given -> checked, its instance named
+    verdicts: dict[str, Verdict] | None = None  # how each instance lives across runs, found at the first
+
+    def lifecycle(self, runner: Runner, values: Mapping[str, Value]) -> dict[str, Verdict]:
+        """How each instance lives across the runs of this process (lifecycle.py): reset between runs, or
+        a fresh process; decided at the first run, by its runner and values (an FMU that cannot run alone is
+        measured with them), and kept for the recipe's every run: its FMUs stay the same whatever terms or
+        input effects a run adds."""
+        if self.verdicts is None:
+            runner.check(values)  # a bad value is an error before any FMU is measured
+            self.verdicts = plan_verdicts(runner, values)
+        return self.verdicts
 
     @property
     def signals(self) -> dict[str, Series]:

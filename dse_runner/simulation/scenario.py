@@ -27,22 +27,22 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from functools import cache
-from importlib.metadata import EntryPoint, entry_points
+from importlib.metadata import EntryPoint
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, Protocol
 
 import numpy as np
 from pydantic import BaseModel, Discriminator, Field, PositiveFloat, Tag, ValidationError
 
+from .. import plugins
 from ..errors import DseError, format_validation_error
 from ..schema import Strict
 from ..yamlfile import load_yaml, shape
+from .trajectory import Series
 from .variables import FiniteValue, Value, split_ref
 
 if TYPE_CHECKING:
-    from .comparison import Comparison
-    from .run import SimulationResult
+    from .trajectory import Trajectory
 
 INFO_FILE = "scenario.yaml"
 DEFAULT_GROUP = "all"
@@ -140,22 +140,6 @@ def _check_increasing(path: Path, column: str, times: list[tuple[float, int]]) -
 
 
 # ---- what a scenario holds ---------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class Series:
-    """An input signal sampled at ``time``: held from sample to sample, or interpolated linearly.
-    Before the first sample it has the first value, after the last the last one."""
-
-    time: np.ndarray
-    values: np.ndarray
-    interpolation: Literal["hold", "linear"] = "linear"
-
-    def at(self, t: np.ndarray) -> np.ndarray:
-        if self.interpolation == "linear":
-            return np.interp(t, self.time, self.values)
-        index = np.searchsorted(self.time, t, side="right") - 1
-        return self.values[np.clip(index, 0, len(self.values) - 1)]
-
 
 @dataclass(frozen=True)
 class Recording:
@@ -351,6 +335,31 @@ def parse_scenario(data: Any, source: str, base: Path) -> Scenario:
 
 # ---- kinds: plug-ins that read other formats ----------------------------------------------------
 
+class Simulated(Protocol):
+    """What a kind's views read of one simulated result (run.SimulationResult is one)."""
+
+    @property
+    def scenario(self) -> Scenario: ...
+
+    @property
+    def time(self) -> np.ndarray: ...
+
+    @property
+    def trajectory(self) -> Trajectory: ...
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """One simulation next to its scenario's recording, as the dashboard and the report draw it
+    (comparison.py makes the general one; a kind may make its own)."""
+
+    recorded: tuple[np.ndarray, np.ndarray] | None  # x and y of the recorded points, if any
+    simulated: tuple[np.ndarray, np.ndarray]
+    x_label: str
+    y_label: str
+    equal_axes: bool = False  # a track on a map, not a signal over time
+
+
 class ScenarioKind(ABC):
     """A scenario format: the contract of the plug-ins in the entry-point group ``dse_runner.scenarios``,
     which name an instance of a subclass (SignalsKind below; fielddata.FieldData, paths.PathKind).
@@ -377,12 +386,12 @@ class ScenarioKind(ABC):
     def load(self, folder: Path, options: Mapping[str, Any] | None = None) -> Scenario:
         """The folder as a scenario; errors name the file, line and column (docs/recordings.md)."""
 
-    def draw(self, result: SimulationResult, ax: Any) -> bool:
+    def draw(self, result: Simulated, ax: Any) -> bool:
         """Draw ``result`` on one matplotlib axes; False (the default) draws nothing, and simulate's
         figure shows the recorded signals over time instead."""
         return False
 
-    def compare(self, result: SimulationResult) -> Comparison | None:
+    def compare(self, result: Simulated) -> Comparison | None:
         """The dashboard's and report's view of ``result`` against its scenario; None (the default):
         the ranking objective's signal over time."""
         return None
@@ -404,32 +413,33 @@ class SignalsKind(ScenarioKind):
         return replace(scenario, sources=(path.resolve(), *scenario.sources))
 
 
+SIGNALS = SignalsKind()  # the group's entry "signals" (pyproject.toml)
+GROUP = "dse_runner.scenarios"
+
+
 def _checked(entry: EntryPoint) -> ScenarioKind:
     """An installed kind, held to its contract: a plug-in that is not a ScenarioKind is named at once,
     not found out by a missing method halfway through a sweep."""
-    found = entry.load()
+    found = plugins.loaded(entry, f"scenario kind {entry.name!r}")
     if not isinstance(found, ScenarioKind):
         raise DseError(f"scenario kind {entry.name!r} ({entry.value}) is not an instance of "
                        "dse_runner.simulation.scenario.ScenarioKind")
     return found
 
 
-@cache
 def kinds() -> dict[str, ScenarioKind]:
-    """Installed kinds (entry-point group ``dse_runner.scenarios``), then the general one."""
-    found = {entry.name: _checked(entry) for entry in entry_points(group="dse_runner.scenarios")}
-    found.setdefault(SignalsKind.name, SignalsKind())
-    return found
+    """Installed kinds (entry-point group ``dse_runner.scenarios``) in the order they are tried on a folder:
+    by name, and the general one (``signals``, whose scenario.yaml any folder may hold) last."""
+    found = {name: _checked(entry) for name, entry in plugins.entries(GROUP).items() if name != SIGNALS.name}
+    return {**found, SIGNALS.name: kind(SIGNALS.name)}
 
 
-@cache
 def kind(name: str) -> ScenarioKind:
     """One kind by name, loading only its plug-in (a plain study never imports field data's)."""
-    if name == SignalsKind.name:
-        return SignalsKind()
-    for entry in entry_points(group="dse_runner.scenarios", name=name):
-        return _checked(entry)
-    raise DseError(f"unknown scenario kind {name!r}: installed are {', '.join(sorted(kinds()))}")
+    entry = plugins.entries(GROUP).get(name)
+    if entry is None:
+        raise DseError(f"unknown scenario kind {name!r}: installed are {', '.join(plugins.names(GROUP))}")
+    return _checked(entry)
 
 
 def load_scenario(folder: str | Path, kind_name: str | None = None,

@@ -22,9 +22,9 @@ import numpy as np
 import pyarrow as pa
 
 from ..errors import DseError
-from ..simulation.cosim import Plan
 from ..simulation.experiment import Experiment
 from ..simulation.objectives import ObjectiveSpec
+from ..simulation.plan import Plan
 from ..simulation.run import simulate
 from ..simulation.scenario import Scenario
 from . import ship, store

@@ -21,9 +21,10 @@ from typing import Any
 import numpy as np
 
 from ..simulation import objectives as objs
-from ..simulation.cosim import Plan
 from ..simulation.fmu import content_hash
-from ..simulation.scenario import Scenario, Series
+from ..simulation.plan import Plan
+from ..simulation.scenario import Scenario
+from ..simulation.trajectory import Series
 from .domain import Point
 from .search import count as count_points
 from .search import points as search_points

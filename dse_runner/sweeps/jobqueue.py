@@ -22,16 +22,13 @@ import shutil
 import time
 from abc import abstractmethod
 from importlib import import_module
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 from pydantic import BaseModel, PositiveInt
 
 from ..errors import DseError
 from ..schema import Strict
-from .makers import ClusterMaker
-
-if TYPE_CHECKING:
-    from .makers import Cluster
+from .makers import Cluster, ClusterMaker
 
 log = logging.getLogger(__name__)
 

@@ -21,8 +21,6 @@ import logging
 import os
 import uuid
 from abc import ABC, abstractmethod
-from importlib import import_module
-from importlib.metadata import entry_points
 from typing import Any, ClassVar
 
 from pydantic import (
@@ -34,8 +32,8 @@ from pydantic import (
     model_validator,
 )
 
+from .. import plugins
 from ..errors import DseError
-from ..plugins import instance_of_subclass
 from ..schema import Extensible, Strict
 from . import start_method
 
@@ -200,30 +198,17 @@ class Kubernetes(ClusterMaker):
                            namespace=options.namespace)
 
 
-# module:class, imported when chosen: the batch kinds live with what they share (jobqueue.py)
-BUILTIN: dict[str, str] = {
-    "local": "dse_runner.sweeps.makers:Local",
-    "htcondor": "dse_runner.sweeps.jobqueue:HTCondor",
-    "slurm": "dse_runner.sweeps.jobqueue:Slurm",
-    "kubernetes": "dse_runner.sweeps.makers:Kubernetes",
-}
-
-
-# ---- finding a kind's maker ---------------------------------------------------------------------
+# ---- finding a kind's maker: the built-in kinds are the group's entries too (pyproject.toml) -------------
 
 def installed() -> list[str]:
     """Every kind: the built-in ones and those installed packages declare."""
-    return sorted({*BUILTIN, *(e.name for e in entry_points(group=GROUP))})
+    return plugins.names(GROUP)
 
 
 def find(kind: str) -> ClusterMaker | None:
     """The maker of ``kind``, or None if no installed package declares it."""
-    if kind in BUILTIN:
-        module, name = BUILTIN[kind].split(":")
-        return getattr(import_module(module), name)()
-    for entry in entry_points(group=GROUP, name=kind):
-        return instance_of_subclass(entry, ClusterMaker, f"cluster.kind {kind!r}")
-    return None
+    entry = plugins.entries(GROUP).get(kind)
+    return None if entry is None else plugins.instance_of_subclass(entry, ClusterMaker, f"cluster.kind {kind!r}")
 
 
 def maker(kind: str) -> ClusterMaker:

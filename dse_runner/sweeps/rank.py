@@ -31,8 +31,7 @@ from ..simulation.objectives import Fit, normalise
 from . import aggregate, store, uncertainty
 from .constraints import compile_constraint
 from .domain import Point
-from .spec import Ranking as RankingSpec
-from .spec import SpaceSpec
+from .spec import RankingSpec, SpaceSpec
 
 SWEEP_FILE = "sweep.json"  # the spec a sweep ran with, saved beside its results
 MODEL_FILE = "model"  # the hash of the model it last ran

@@ -22,18 +22,16 @@ package declares an entry point in the group ``dse_runner.search``::
 
 from __future__ import annotations
 
-import functools
-import importlib
 import itertools
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
-from importlib.metadata import entry_points
 from typing import Any, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, PositiveFloat, PositiveInt, ValidationError
 
+from .. import plugins
 from ..errors import DseError
 from ..schema import Extensible, Strict
 from .domain import Dimension, Point
@@ -187,53 +185,22 @@ class Given(Strategy):
         return None
 
 
-STRATEGIES = "dse_runner.sweeps.strategies"
-BUILTIN: dict[str, str] = {  # loaded on first use: Optuna, pymoo and torch are imported only when chosen
-    "exhaustive": f"{__name__}:Exhaustive",
-    "given": f"{__name__}:Given",
-    "random": f"{STRATEGIES}.sampling:RandomSampling",
-    "sobol": f"{STRATEGIES}.sampling:Sobol",
-    "lhs": f"{STRATEGIES}.sampling:LatinHypercube",
-    "tpe": f"{STRATEGIES}.optuna_samplers:Tpe",
-    "gp": f"{STRATEGIES}.optuna_samplers:GaussianProcess",
-    "cmaes": f"{STRATEGIES}.optuna_samplers:CmaEs",
-    "nsga2": f"{STRATEGIES}.optuna_samplers:Nsga2",
-    "genetic": f"{STRATEGIES}.genetic:Genetic",
-    "least_squares": f"{STRATEGIES}.least_squares:LeastSquares",
-    "sobol_indices": f"{STRATEGIES}.designs:SobolIndices",
-    "morris": f"{STRATEGIES}.designs:Morris",
-    "fast": f"{STRATEGIES}.designs:Fast",
-}
+GROUP = "dse_runner.search"  # the built-in strategies are its entries too (pyproject.toml): Optuna, pymoo and
+# torch are imported only when a strategy that needs them is chosen
 
 
 def available() -> dict[str, str]:
     """Strategy name -> import path: the built-in ones and those installed packages declare."""
-    return dict(_available())
-
-
-@functools.cache
-def _available() -> tuple[tuple[str, str], ...]:
-    """Read once per process: scanning the installed packages' entry points takes tens of ms, and a
-    sweep asks for its strategy several times as it starts."""
-    found = dict(BUILTIN)
-    for entry in entry_points(group="dse_runner.search"):
-        found.setdefault(entry.name, entry.value)
-    return tuple(found.items())
+    return {name: entry.value for name, entry in plugins.entries(GROUP).items()}
 
 
 def strategy(name: str) -> type[Strategy]:
     """The strategy class of ``name``; importing it only now."""
-    paths = available()
-    if name not in paths:
-        raise DseError(f"unknown search strategy {name!r}: available are {', '.join(sorted(paths))}")
-    module_name, _, attribute = paths[name].partition(":")
-    try:
-        found = getattr(importlib.import_module(module_name), attribute)
-    except ImportError as e:
-        raise DseError(f"search strategy {name!r} needs a package that is not installed: {e}") from None
-    if not (isinstance(found, type) and issubclass(found, Strategy)):
-        raise DseError(f"search strategy {name!r} ({paths[name]}) is not a dse_runner Strategy class")
-    return found
+    label = f"search strategy {name!r}"
+    found = plugins.load(GROUP, name, label)
+    if found is None:
+        raise DseError(f"unknown search strategy {name!r}: available are {', '.join(plugins.names(GROUP))}")
+    return plugins.subclass_of(found, Strategy, label, plugins.entries(GROUP)[name].value)
 
 
 def points(make: Callable[[], Strategy]) -> Iterator[Point]:

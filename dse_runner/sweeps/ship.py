@@ -30,8 +30,8 @@ from distributed.diagnostics.plugin import WorkerPlugin
 
 from ..errors import DseError
 from ..simulation import scratch, user_modules
-from ..simulation.cosim import Plan, make_plan
 from ..simulation.multimodel import MultiModel
+from ..simulation.plan import Plan, make_plan
 from ..simulation.scenario import Scenario
 
 

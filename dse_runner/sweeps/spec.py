@@ -35,11 +35,12 @@ from ..errors import DseError
 from ..schema import Extensible, Strict
 from ..simulation import derivative_terms, signal_effects, state_limits, user_modules
 from ..simulation import objectives as objs
-from ..simulation.cosim import Plan, make_plan
 from ..simulation.experiment import Experiment
 from ..simulation.multimodel import MultiModel, parse_multimodel
+from ..simulation.plan import Plan, make_plan
 from ..simulation.run import bound_fields, checked_term, load_model, qualify
-from ..simulation.scenario import Scenario, ScenarioSpec, Series, kind, load_scenario, nominal, parse_scenario
+from ..simulation.scenario import Scenario, ScenarioSpec, kind, load_scenario, nominal, parse_scenario
+from ..simulation.trajectory import Series
 from ..simulation.variables import FiniteValue, check_value
 from ..yamlfile import read_yaml, shape
 from . import uncertainty
@@ -109,7 +110,7 @@ class Direction(BaseModel):
     goal: Literal["min", "max"] = "min"
 
 
-class Ranking(BaseModel):
+class RankingSpec(BaseModel):
     model_config = Strict
     objective: str | None = None  # reduced over scenarios (by default summed: the paper's Equation 2); default: the first
     goal: Literal["min", "max"] = "min"
@@ -160,7 +161,7 @@ class SpaceSpec(BaseModel):
     parameters: dict[str, ParameterValues] = Field(min_length=1)
     constraints: list[str] = []
     objectives: Objectives | None = None  # default: the scenarios' kind's
-    ranking: Ranking = Ranking()
+    ranking: RankingSpec = RankingSpec()
     search: Search = Search()
     output: str = "out"  # results store: a folder relative to the spec, or an fsspec URL (s3://bucket/prefix)
     cluster: Cluster = Cluster()

@@ -38,7 +38,8 @@ import numpy as np
 import yaml
 
 from dse_runner.simulation.run import simulate
-from dse_runner.simulation.scenario import Scenario, Series
+from dse_runner.simulation.scenario import Scenario
+from dse_runner.simulation.trajectory import Series
 
 HERE = Path(__file__).resolve().parent
 MODEL = HERE / "multimodel.yaml"

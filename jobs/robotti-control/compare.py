@@ -30,9 +30,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from dse_runner import simulate  # noqa: E402
-from dse_runner.sweeps.rank import rank  # noqa: E402
 from dse_runner.simulation.values import read_values, write_values  # noqa: E402
 from dse_runner.sweeps import store  # noqa: E402
+from dse_runner.sweeps.rank import rank  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 PATHS = HERE.parents[1] / "scenarios" / "robotti-paths"

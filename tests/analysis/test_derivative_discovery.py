@@ -20,7 +20,10 @@ from dse_runner.analysis.diagnose.derivative_discovery import (
     baseline_candidate,
     discover_derivatives,
 )
-from dse_runner.analysis.diagnose.derivative_discovery.library import candidate_terms, model_exchange_instances
+from dse_runner.analysis.diagnose.derivative_discovery.library import (
+    candidate_terms,
+    model_exchange_instances,
+)
 from dse_runner.analysis.diagnose.derivative_discovery.propose import Regression, propose
 from dse_runner.analysis.diagnose.noise import sigma_from_differences
 from dse_runner.simulation.run import simulate

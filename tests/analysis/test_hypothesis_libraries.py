@@ -8,7 +8,7 @@ from importlib.metadata import entry_points
 
 import pytest
 from conftest import MSD, REPO, SCENARIOS
-from plugins import register
+from support.plugins import register
 
 from dse_runner.analysis.diagnose import HypothesisLibrary, Request, diagnose, libraries, serving, space_with
 from dse_runner.errors import DseError

@@ -6,13 +6,12 @@ from __future__ import annotations
 import importlib.util
 
 import pytest
+from conftest import REPO
 
 from dse_runner.analysis.diagnose.signal_library import diagnose_space
 from dse_runner.simulation.run import simulate
 from dse_runner.simulation.values import read_values
 from dse_runner.sweeps.spec import load_space
-
-from conftest import REPO
 
 PARAMETER = {"force_delay": ("input_delay", "msd.F", "delay"), "sensor_gain": ("output_gain", "msd.x", "gain"),
              "sensor_offset": ("output_offset", "msd.x", "offset")}

@@ -6,13 +6,14 @@ import numpy as np
 import pytest
 import yaml
 
-from dse_runner.errors import DseError
-
 from dse_runner.analysis.diagnose.signal_library import diagnose_space
+from dse_runner.errors import DseError
 from dse_runner.simulation.run import simulate
-from dse_runner.simulation.scenario import Scenario, Series
+from dse_runner.simulation.scenario import Scenario
 
 # name: (force on, force off, force [N], released from x0 [m]). A run released from rest and pushed later
+from dse_runner.simulation.trajectory import Series
+
 # cannot tell a late force from a late sensor (its response merely starts later); one released away from
 # rest can: the sensor delays the release as well, the force does not.
 PUSHES = {"early": (1.0, 3.0, 2.0, 0.05), "long": (0.5, 5.0, 1.0, 0.0), "late": (3.0, 4.0, 3.0, -0.05),

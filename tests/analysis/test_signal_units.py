@@ -9,7 +9,8 @@ import pytest
 from dse_runner.analysis.diagnose import explain, signal_claims, signal_locate, signal_screen
 from dse_runner.analysis.diagnose.explain import Candidate
 from dse_runner.errors import DseError
-from dse_runner.simulation.scenario import Scenario, Series
+from dse_runner.simulation.scenario import Scenario
+from dse_runner.simulation.trajectory import Series
 from dse_runner.sweeps.fit import FitResult
 
 

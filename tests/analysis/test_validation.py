@@ -6,7 +6,8 @@ import numpy as np
 from conftest import REPO
 
 from dse_runner.analysis.diagnose.validation import Fold, blocks, complements, validated
-from dse_runner.simulation.scenario import Recording, Scenario, Series
+from dse_runner.simulation.scenario import Recording, Scenario
+from dse_runner.simulation.trajectory import Series
 from dse_runner.sweeps.expand import scenario_hash
 from dse_runner.sweeps.spec import load_space
 

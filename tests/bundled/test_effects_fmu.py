@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 from conftest import FMU_SOURCES
 
-from dse_runner.simulation.cosim import make_plan, run
 from dse_runner.errors import DseError
+from dse_runner.simulation.cosim import run
 from dse_runner.simulation.multimodel import MultiModel
+from dse_runner.simulation.plan import make_plan
 
 
 def plan_of(fmu: str):

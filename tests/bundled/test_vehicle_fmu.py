@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 from conftest import FMU_SOURCES
 
-from dse_runner.simulation.cosim import make_plan, run
+from dse_runner.simulation.cosim import run
 from dse_runner.simulation.multimodel import MultiModel
+from dse_runner.simulation.plan import make_plan
 
 
 @pytest.fixture(scope="module")

@@ -11,8 +11,8 @@ import pytest
 from dse_runner import DseError
 from dse_runner.cases import fielddata
 from dse_runner.simulation import objectives as objs
-from dse_runner.simulation.cosim import Trajectory
 from dse_runner.simulation.scenario import load_scenario
+from dse_runner.simulation.trajectory import Trajectory
 
 
 @pytest.fixture

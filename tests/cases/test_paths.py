@@ -11,13 +11,13 @@ import shutil
 import numpy as np
 import pytest
 import yaml
-
 from conftest import REPO
+
 from dse_runner import DseError
 from dse_runner.cases import paths
 from dse_runner.simulation import objectives as objs
-from dse_runner.simulation.cosim import Trajectory
 from dse_runner.simulation.scenario import load_scenario
+from dse_runner.simulation.trajectory import Trajectory
 
 PATHS = REPO / "scenarios" / "robotti-paths"
 NAMES = ("straight_offset", "lateral_step", "headland_turn", "curved_row")

@@ -26,11 +26,10 @@ import yaml
 from conftest import MULTIMODEL, SCENARIOS, SLEEPER, sleeper_multimodel, strict_loads, write_space
 from typer.testing import CliRunner
 
-from dse_runner.sweeps import store
-
 from dse_runner import strict_json
-from dse_runner.simulation.build import build_fmu
 from dse_runner.interfaces.cli import app
+from dse_runner.simulation.build import build_fmu
+from dse_runner.sweeps import store
 
 
 def run(*args) -> tuple[int, str, str]:

@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from conftest import REPO, SCENARIOS, strict_loads, write_space
-from pages import browser_page, glyphs, measure, open_dashboard, watch_errors
+from support.pages import browser_page, glyphs, measure, open_dashboard, watch_errors
 
 SWEEP_SCENARIOS = ["sin1", "speed_ramp1", "speed_step1", "turn_ramp1"]
 PARAMETERS = {"vehicle.cAlphaF": [20000, 38000],
@@ -367,16 +367,16 @@ def test_standings_rank_as_the_ranking_reduces_over_scenarios():
 def test_draw_standings_rank_by_the_robust_figure_over_finished_draws():
     """Uncertain draws: a point's figure is over the draws finished on every scenario; the robust one ranks."""
     from dse_runner.sweeps.rank import draw_standings
-    from dse_runner.sweeps.spec import Ranking
+    from dse_runner.sweeps.spec import RankingSpec
 
     draws = {1.0: [1.0, 1.0, 1.0, 1.0], 2.0: [0.0, 0.0, 0.0, 3.0]}  # a=2 has the better mean, the worse q90
     ok = pd.DataFrame([{"a": a, "sample": k, "base": "s", "e": v} for a, values in draws.items()
                        for k, v in enumerate(values)] + [{"a": 3.0, "sample": 0, "base": "s", "e": -9.0}])
-    robust = Ranking(objective="e", robust={"quantile": 0.9})
+    robust = RankingSpec(objective="e", robust={"quantile": 0.9})
     table = draw_standings(ok, ["a"], "e", robust, scenarios=1)
     assert table["a"].tolist() == [1.0, 2.0, 3.0] and table["draws"].tolist() == [4, 4, 1]
     assert table["ranked"].iloc[1] == pytest.approx(np.quantile(draws[2.0], 0.9))
-    assert draw_standings(ok, ["a"], "e", Ranking(objective="e"), scenarios=1)["a"].tolist() == [2.0, 1.0, 3.0]
+    assert draw_standings(ok, ["a"], "e", RankingSpec(objective="e"), scenarios=1)["a"].tolist() == [2.0, 1.0, 3.0]
     unfinished = draw_standings(ok, ["a"], "e", robust, scenarios=2)  # no draw has run on both scenarios
     assert unfinished["draws"].tolist() == [0, 0, 0] and unfinished["ranked"].isna().all()
 
@@ -385,14 +385,14 @@ def test_standings_leave_out_finished_points_that_break_a_ranking_constraint():
     """A point that has finished every scenario (every draw on every scenario) and breaks a ranking constraint
     leaves the standings, as rank() leaves it out; one still running stays, ranked by what it has."""
     from dse_runner.sweeps.rank import draw_standings, standings, without_excluded
-    from dse_runner.sweeps.spec import Ranking
+    from dse_runner.sweeps.spec import RankingSpec
 
     ok = pd.DataFrame({"a": [1.0, 1.0, 2.0, 2.0, 3.0], "scenario": ["s", "t", "s", "t", "s"],
                        "e": [0.0, 0.5, 1.0, 1.0, 0.1], "f": [9.0, 9.0, 1.0, 1.0, 9.0]})
-    kept = Ranking(objective="e", constraints=["f < 10"])  # a=1's total f is 18
+    kept = RankingSpec(objective="e", constraints=["f < 10"])  # a=1's total f is 18
     table = without_excluded(standings(ok, ["a"], "e", "min"), ok, ["a"], ["e", "f"], kept, scenarios=2)
     assert table["a"].tolist() == [2.0, 3.0]  # a=3 has finished one scenario of two: not judged yet
-    assert without_excluded(standings(ok, ["a"], "e", "min"), ok, ["a"], ["e", "f"], Ranking(objective="e"),
+    assert without_excluded(standings(ok, ["a"], "e", "min"), ok, ["a"], ["e", "f"], RankingSpec(objective="e"),
                             scenarios=2)["a"].tolist() == [1.0, 2.0, 3.0]
 
     drawn = pd.DataFrame([{"a": a, "sample": k, "base": "s", "e": e, "f": f}
@@ -434,8 +434,8 @@ def test_the_dashboard_names_the_best_point_the_ranking_constraints_keep(tmp_pat
 
 
 def test_dashboard_address_errors_name_the_address():
-    from dse_runner.interfaces.dashboard.server import parse_address
     from dse_runner.errors import DseError
+    from dse_runner.interfaces.dashboard.server import parse_address
 
     assert parse_address("127.0.0.1:0") == ("127.0.0.1", 0)
     with pytest.raises(DseError, match="8790x"):

@@ -508,8 +508,8 @@ def test_results_csv_has_the_step_size_column_intocps_writes(tmp_path):
     """0 on the first row, then the step that reached each row (Maestro's outputs.csv: 0.0, 0.05, 0.05...)."""
     import csv
 
-    from dse_runner.simulation.cosim import Trajectory
     from dse_runner.simulation.scripts import write_results
+    from dse_runner.simulation.trajectory import Trajectory
 
     time = np.array([0.0, 0.05, 0.1, 0.15000000000000002, 0.2])
     trajectory = Trajectory(time, ["a.x"], np.arange(5.0)[:, None], {})

@@ -10,7 +10,7 @@ import re
 import pytest
 import yaml
 from conftest import REPO, SCENARIOS, write_space, write_yaml
-from pages import browser_page, measure
+from support.pages import browser_page, measure
 
 from dse_runner.interfaces import charts
 from dse_runner.interfaces.report import figure_notes, pareto_note, shown_spec, write_report

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from conftest import REPO, write_msd_search
-from pages import Fit, browser_page, glyphs, measure, watch_errors
+from support.pages import Fit, browser_page, glyphs, measure, watch_errors
 
 from dse_runner.interfaces import charts
 from dse_runner.interfaces.dashboard.feed import search_summary
@@ -289,9 +289,9 @@ def test_dashboard_best_matches_the_rank_command(searched):
 
 
 def test_report_has_the_search(searched, tmp_path):
-    from dse_runner.sweeps.rank import rank
     from dse_runner.interfaces.report import write_report
     from dse_runner.sweeps.history import load_history
+    from dse_runner.sweeps.rank import rank
 
     report = write_report(searched.output, tmp_path / "report.html")
     history = load_history(searched.output, "msd-search")

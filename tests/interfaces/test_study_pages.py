@@ -10,7 +10,7 @@ import sys
 import pytest
 import yaml
 from conftest import REPO
-from pages import browser_page, measure
+from support.pages import browser_page, measure
 
 ISHIGAMI = REPO / "jobs" / "ishigami"
 PI = 3.141592653589793

@@ -14,10 +14,10 @@ import pytest
 import yaml
 from conftest import REPO
 
-from dse_runner.sweeps import store
-from dse_runner.sweeps.rank import rank
 from dse_runner.interfaces.report import write_report
 from dse_runner.simulation.run import simulate
+from dse_runner.sweeps import store
+from dse_runner.sweeps.rank import rank
 from dse_runner.sweeps.spec import load_space
 from dse_runner.sweeps.sweep import submit
 
@@ -93,7 +93,7 @@ def test_watertank_sweeps_the_levels_under_its_constraint_and_ranks_a_pareto_fro
 
 
 def test_watertank_report_and_dashboard_show_the_one_scenario(watertank, tmp_path):
-    from pages import browser_page, open_dashboard
+    from support.pages import browser_page, open_dashboard
     from playwright.sync_api import expect
 
     space, report = watertank

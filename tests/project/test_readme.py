@@ -36,8 +36,8 @@ def test_the_readmes_table1_is_laid_out_as_the_cli_prints_it(capsys):
     own figures, prints the block line for line (its title, column names, widths and the best point)."""
     import pandas as pd
 
-    from dse_runner.sweeps.rank import Ranking
     from dse_runner.interfaces.cli import _print_table1
+    from dse_runner.sweeps.rank import Ranking
 
     text = (REPO / "README.md").read_text()
     block = [line.removeprefix("    ") for line in text[text.index("    Table 1: "):].splitlines()]

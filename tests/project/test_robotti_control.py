@@ -10,8 +10,8 @@ import sys
 import yaml
 from conftest import REPO
 
-from dse_runner.sweeps.rank import rank
 from dse_runner.simulation.values import read_values
+from dse_runner.sweeps.rank import rank
 from dse_runner.sweeps.spec import load_space
 from dse_runner.sweeps.sweep import submit
 

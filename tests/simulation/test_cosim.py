@@ -9,10 +9,10 @@ import pytest
 from conftest import FMU_SOURCES, SCENARIOS, all_scenarios
 
 from dse_runner import DseError
-from dse_runner.simulation.crosscheck import run_libcosim
 from dse_runner.cases.fielddata import position_of, simulated_xy
-from dse_runner.simulation.scenario import load_scenario
+from dse_runner.simulation.crosscheck import run_libcosim
 from dse_runner.simulation.run import simulate
+from dse_runner.simulation.scenario import load_scenario
 
 CALIBRATED = {"vehicle.mass": 1000.0, "vehicle.cAlphaF": 38000.0, "vehicle.mu": 0.3}
 

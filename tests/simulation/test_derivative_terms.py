@@ -13,7 +13,8 @@ from dse_runner.errors import DseError
 from dse_runner.simulation.derivative_terms import parse, parse_term, split, term_name
 from dse_runner.simulation.multimodel import MultiModel
 from dse_runner.simulation.run import simulate
-from dse_runner.simulation.scenario import Scenario, Series
+from dse_runner.simulation.scenario import Scenario
+from dse_runner.simulation.trajectory import Series
 from dse_runner.sweeps.spec import load_space
 
 MSD = REPO / "jobs" / "msd" / "multimodel.yaml"

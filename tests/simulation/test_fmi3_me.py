@@ -10,9 +10,8 @@ import numpy as np
 from conftest import FMU_SOURCES
 from fmpy.validation import validate_fmu
 
-from dse_runner.simulation import build
-
 from dse_runner import simulate
+from dse_runner.simulation import build
 from dse_runner.simulation.build import build_fmu
 from dse_runner.simulation.run import as_plan
 

@@ -29,13 +29,14 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 from typer.testing import CliRunner
 
+from dse_runner.errors import DseError
+from dse_runner.interfaces.cli import app
 from dse_runner.simulation import cosim
 from dse_runner.simulation.build import build_fmu
-from dse_runner.interfaces.cli import app
-from dse_runner.errors import DseError
 from dse_runner.simulation.fmu import FmuWarning
 from dse_runner.simulation.multimodel import MultiModel
 from dse_runner.simulation.run import as_plan, simulate
+from dse_runner.simulation.trajectory import CosimError
 from dse_runner.simulation.variables import check_value
 
 SOURCES = {
@@ -371,7 +372,7 @@ def test_conversions_round_threshold_and_widen(pair):
 def test_a_rounded_value_the_target_cannot_hold_stops_the_run(pair, real_in, target, type_name):
     path = pair({"a.real_out": [{"input": target, "round": True}]})
     expected = rf"{re.escape(target)} is fed .* which rounded does not fit an? {type_name} at t=0\b"
-    with pytest.raises(cosim.CosimError, match=expected):
+    with pytest.raises(CosimError, match=expected):
         simulate(path, values={"a.real_in": real_in, "a.real_gain": 1.0}, stop_time=1.0, step=0.25)
 
 

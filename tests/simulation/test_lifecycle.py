@@ -11,8 +11,8 @@ import yaml
 from conftest import MULTIMODEL, REPO, SCENARIOS
 
 from dse_runner.simulation import isolation, lifecycle
-from dse_runner.simulation.cosim import CosimError
 from dse_runner.simulation.run import as_plan, simulate
+from dse_runner.simulation.trajectory import CosimError
 
 CALIBRATED = {"vehicle.mass": 1000.0, "vehicle.cAlphaF": 38000.0, "vehicle.mu": 0.3}
 
@@ -70,7 +70,7 @@ def test_a_run_hung_inside_an_fmu_call_in_a_fresh_process_is_killed_after_its_ti
 
 def test_the_probe_finds_a_reset_that_changes_the_next_run():
     """The 20-sim mass-spring-damper of INTO-CPS's example stays at its initial position after fmi2Reset."""
-    from wild import WILD
+    from support.wild import WILD
 
     path = WILD / "mass_spring_damper/FMUs/20-Sim/MassSpringDamper1.fmu"
     if not path.is_file():

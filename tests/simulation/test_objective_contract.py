@@ -8,7 +8,7 @@ from importlib.metadata import entry_points
 import numpy as np
 import pytest
 from conftest import REPO
-from plugins import register
+from support.plugins import register
 
 from dse_runner.errors import DseError
 from dse_runner.simulation import objectives as objs
@@ -38,14 +38,7 @@ NOT_AN_OBJECTIVE = 42
 """
 
 
-@pytest.fixture
-def fresh_objectives():
-    objs.registered.cache_clear()
-    yield
-    objs.registered.cache_clear()
-
-
-def test_every_registered_objective_holds_to_the_contract(fresh_objectives):
+def test_every_registered_objective_holds_to_the_contract():
     registered = objs.registered()
     assert set(registered) == {e.name for e in entry_points(group="dse_runner.objectives")}
     for name, objective in registered.items():
@@ -53,7 +46,7 @@ def test_every_registered_objective_holds_to_the_contract(fresh_objectives):
     assert registered["fix_residuals"].vector and not registered["cross_track_error"].vector  # kept from .vector
 
 
-def test_an_objective_with_only_call_scores_a_run(tmp_path, monkeypatch, fresh_objectives):
+def test_an_objective_with_only_call_scores_a_run(tmp_path, monkeypatch):
     register(monkeypatch, tmp_path / "plugin", "objective_plugin", PLUGIN, {"dse_runner.objectives": {
         "peak_level": "objective_plugin:PEAK_LEVEL", "level_samples": "objective_plugin:LEVEL_SAMPLES"}})
     result = simulate(REPO / "jobs" / "watertank" / "multimodel.yaml", stop_time=5, step=0.1,
@@ -64,7 +57,7 @@ def test_an_objective_with_only_call_scores_a_run(tmp_path, monkeypatch, fresh_o
     assert not objs.is_vector("peak_level") and objs.is_vector("level_samples")  # the default, and the override
 
 
-def test_a_registered_name_that_is_no_objective_is_named(tmp_path, monkeypatch, fresh_objectives):
+def test_a_registered_name_that_is_no_objective_is_named(tmp_path, monkeypatch):
     register(monkeypatch, tmp_path / "plugin", "bad_objective_plugin", PLUGIN,
              {"dse_runner.objectives": {"answer": "bad_objective_plugin:NOT_AN_OBJECTIVE"}})
     with pytest.raises(DseError, match=r"objective 'answer' \(bad_objective_plugin:NOT_AN_OBJECTIVE\) is neither a "

@@ -7,7 +7,7 @@ from importlib.metadata import entry_points
 
 import pytest
 from conftest import REPO
-from plugins import register
+from support.plugins import register
 
 from dse_runner.errors import DseError
 from dse_runner.interfaces.plots import result_plot
@@ -50,17 +50,7 @@ DUCK = Duck()
 """
 
 
-@pytest.fixture
-def fresh_kinds():
-    """The kinds looked up afresh during the test and after it, without the test's plug-ins."""
-    scenario.kinds.cache_clear()
-    scenario.kind.cache_clear()
-    yield
-    scenario.kinds.cache_clear()
-    scenario.kind.cache_clear()
-
-
-def test_every_installed_kind_holds_to_the_contract(fresh_kinds):
+def test_every_installed_kind_holds_to_the_contract():
     installed = scenario.kinds()
     assert {"signals", *(e.name for e in entry_points(group="dse_runner.scenarios"))} == set(installed)
     for name, found in installed.items():
@@ -69,7 +59,7 @@ def test_every_installed_kind_holds_to_the_contract(fresh_kinds):
         assert all(isinstance(o, str) for o in found.default_objectives)
 
 
-def test_a_kind_with_only_detect_and_load_gets_the_general_views(tmp_path, monkeypatch, fresh_kinds):
+def test_a_kind_with_only_detect_and_load_gets_the_general_views(tmp_path, monkeypatch):
     register(monkeypatch, tmp_path / "plugin", "minimal_kind_plugin", MINIMAL,
              {"dse_runner.scenarios": {"minimal": "minimal_kind_plugin:MINIMAL"}})
     folder = tmp_path / "run1"
@@ -88,7 +78,7 @@ def test_a_kind_with_only_detect_and_load_gets_the_general_views(tmp_path, monke
     assert figure.stat().st_size > 0
 
 
-def test_a_kind_that_is_not_a_scenario_kind_is_named(tmp_path, monkeypatch, fresh_kinds):
+def test_a_kind_that_is_not_a_scenario_kind_is_named(tmp_path, monkeypatch):
     register(monkeypatch, tmp_path / "plugin", "duck_kind_plugin", MINIMAL,
              {"dse_runner.scenarios": {"duck": "duck_kind_plugin:DUCK"}})
     with pytest.raises(DseError, match=r"^scenario kind 'duck' \(duck_kind_plugin:DUCK\) is not an instance of "

@@ -8,8 +8,9 @@ import pytest
 from dse_runner.errors import DseError
 from dse_runner.simulation.objectives import Reduce
 from dse_runner.simulation.run import simulate
-from dse_runner.simulation.scenario import Scenario, Series
+from dse_runner.simulation.scenario import Scenario
 from dse_runner.simulation.signal_effects import EFFECTS, NEUTRAL, apply, first_order_lag, on_output, parse
+from dse_runner.simulation.trajectory import Series
 
 RNG = np.random.default_rng(7)
 TIMES = np.cumsum(RNG.uniform(0.005, 0.03, 400))  # uneven, as recordings are

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from dse_runner.simulation import objectives as objs
-from dse_runner.simulation.cosim import Trajectory
 from dse_runner.errors import DseError
+from dse_runner.simulation import objectives as objs
 from dse_runner.simulation.scenario import Recording, Scenario
+from dse_runner.simulation.trajectory import Trajectory
 
 TIME = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
 LEVEL = np.array([0.0, 2.0, 1.0, 3.0, 3.0])

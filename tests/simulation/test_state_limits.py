@@ -12,8 +12,9 @@ from scipy.integrate import solve_ivp
 
 from dse_runner.errors import DseError
 from dse_runner.simulation.run import simulate
-from dse_runner.simulation.scenario import Scenario, Series
+from dse_runner.simulation.scenario import Scenario
 from dse_runner.simulation.state_limits import StateLimit, parse, split
+from dse_runner.simulation.trajectory import Series
 
 TANKS = REPO / "jobs" / "cascaded_tanks" / "multimodel.yaml"
 K = {"tanks.k1": 0.05, "tanks.k2": 0.06, "tanks.k3": 0.08, "tanks.k4": 0.06, "tanks.x1_0": 4.0, "tanks.x2_0": 3.0}

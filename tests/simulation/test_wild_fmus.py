@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-import wild
+from support import wild
 from conftest import strict_loads
-from wild import ALONE, WILD
+from support.wild import ALONE, WILD
 
 from dse_runner.simulation.run import simulate
 

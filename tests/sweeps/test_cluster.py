@@ -1,7 +1,7 @@
 """Sweeps on real clusters, and what happens when parts of them die.
 
 Each test starts its own `dask scheduler` / `dask worker` processes through
-their command lines (tests/cluster.py) unless it needs the embedded cluster.
+their command lines (tests/support/cluster.py) unless it needs the embedded cluster.
 """
 
 from __future__ import annotations
@@ -21,17 +21,16 @@ from urllib.parse import urlparse
 import pandas as pd
 import pytest
 import yaml
-from cluster import CliCluster, can_hide_folders, make_certs
+from support.cluster import CliCluster, can_hide_folders, make_certs
 from conftest import FMU_SOURCES, MULTIMODEL, REPO, SCENARIOS, sleeper_multimodel, strict_loads, write_space
 
 import dse_runner
+from dse_runner.errors import DseError
 from dse_runner.sweeps import store
 from dse_runner.sweeps.cluster import connect
 from dse_runner.sweeps.jobqueue import HTCondor
-from dse_runner.sweeps.makers import KubernetesOptions, kubernetes_cluster_spec
-from dse_runner.errors import DseError
+from dse_runner.sweeps.makers import Cluster, KubernetesOptions, kubernetes_cluster_spec
 from dse_runner.sweeps.rank import rank
-from dse_runner.sweeps.makers import Cluster
 from dse_runner.sweeps.spec import load_space
 from dse_runner.sweeps.sweep import load_status, submit
 

@@ -12,7 +12,7 @@ import sys
 
 import pytest
 from conftest import write_space
-from plugins import register
+from support.plugins import register
 from pydantic import BaseModel, ValidationError
 
 from dse_runner.errors import DseError

@@ -8,7 +8,8 @@ import yaml
 
 from dse_runner.errors import DseError
 from dse_runner.simulation.run import simulate
-from dse_runner.simulation.scenario import Scenario, Series
+from dse_runner.simulation.scenario import Scenario
+from dse_runner.simulation.trajectory import Series
 from dse_runner.sweeps import store
 from dse_runner.sweeps.rank import rank
 from dse_runner.sweeps.spec import load_space

@@ -18,8 +18,12 @@ import pytest
 from dse_runner.errors import DseError
 from dse_runner.sweeps import search
 from dse_runner.sweeps.domain import Dimension, Point
-from dse_runner.sweeps.search import Evaluation, Problem, Strategy
-from dse_runner.sweeps.search import BATCH  # points asked ahead of their results: a reproducible search's
+from dse_runner.sweeps.search import (
+    BATCH,  # points asked ahead of their results: a reproducible search's
+    Evaluation,
+    Problem,
+    Strategy,
+)
 
 # Read at collection: a plug-in installed later is in the next run. ``given`` asks nothing by design (its
 # points come from a fit); test_fit.py runs it.

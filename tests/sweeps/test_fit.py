@@ -7,11 +7,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from conftest import write_msd_search
 
 from dse_runner.sweeps import store
-from dse_runner.sweeps.fit import FitProblem, LevenbergMarquardt, Parameter, evaluate_points, key_of
+from dse_runner.sweeps.expand import key_of
+from dse_runner.sweeps.fit import FitProblem, LevenbergMarquardt, Parameter
+from dse_runner.sweeps.fit_rounds import evaluate_points
 from dse_runner.sweeps.spec import load_space
 from dse_runner.sweeps.sweep import submit
 

@@ -19,10 +19,10 @@ import pandas as pd
 import pytest
 from conftest import REPO, strict_loads, write_msd_search, write_yaml
 
-from dse_runner.sweeps.rank import rank
 from dse_runner.errors import DseError
 from dse_runner.sweeps import store
 from dse_runner.sweeps.history import load_history
+from dse_runner.sweeps.rank import rank
 from dse_runner.sweeps.search import BATCH
 from dse_runner.sweeps.spec import load_space
 from dse_runner.sweeps.sweep import load_status, submit

@@ -1,4 +1,4 @@
-"""Sweeps through a real single-node Slurm (tests/slurm.py): workers go out as sbatch jobs, a cancelled job
+"""Sweeps through a real single-node Slurm (tests/support/slurm.py): workers go out as sbatch jobs, a cancelled job
 is replaced, a job Slurm refuses stops the submit with Slurm's own words, and ``min_workers``/``max_workers``
 scale the jobs through Dask's adapt. Real Slurm, real Dask, real Parquet: nothing is mocked.
 
@@ -31,7 +31,7 @@ TASKS = 12  # write_space's: 6 points x 2 scenarios
 
 @pytest.fixture(scope="module")
 def slurm(tmp_path_factory):
-    from slurm import SingleNodeSlurm, why_not
+    from support.slurm import SingleNodeSlurm, why_not
 
     reason = why_not()
     if reason:

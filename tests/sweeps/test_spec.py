@@ -8,9 +8,9 @@ import pytest
 from conftest import REPO, SCENARIOS, write_space
 
 from dse_runner import DseError
-from dse_runner.sweeps.rank import pareto_mask
 from dse_runner.sweeps.constraints import compile_constraint
 from dse_runner.sweeps.expand import count, expand
+from dse_runner.sweeps.rank import pareto_mask
 from dse_runner.sweeps.spec import load_space
 
 

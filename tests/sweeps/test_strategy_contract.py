@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 from conftest import write_msd_search
-from plugins import register
+from support.plugins import register
 from pydantic import BaseModel
 
 from dse_runner.errors import DseError
@@ -31,14 +31,7 @@ class Fixed(Strategy):
 """
 
 
-@pytest.fixture
-def fresh_strategies():
-    search._available.cache_clear()
-    yield
-    search._available.cache_clear()
-
-
-def test_every_available_strategy_holds_to_the_contract(fresh_strategies):
+def test_every_available_strategy_holds_to_the_contract():
     for name in search.available():
         found = search.strategy(name)
         assert issubclass(found, search.Strategy), name
@@ -46,7 +39,7 @@ def test_every_available_strategy_holds_to_the_contract(fresh_strategies):
         assert isinstance(found.closed_loop, bool) and isinstance(found.multi_objective, bool), name
 
 
-def test_a_strategy_with_only_ask_runs_a_search(tmp_path, monkeypatch, fresh_strategies, dask_scheduler):
+def test_a_strategy_with_only_ask_runs_a_search(tmp_path, monkeypatch, dask_scheduler):
     register(monkeypatch, tmp_path / "plugin", "fixed_strategy_plugin", FIXED,
              {"dse_runner.search": {"fixed": "fixed_strategy_plugin:Fixed"}})
     space = load_space(write_msd_search(tmp_path / "run", {"strategy": "fixed", "max_points": 10},

@@ -11,10 +11,10 @@ import pandas as pd
 import pytest
 from conftest import REPO, SCENARIOS, sleeper_multimodel, strict_loads, write_space
 
+from dse_runner.simulation.run import simulate
 from dse_runner.sweeps import store
 from dse_runner.sweeps.expand import expand
 from dse_runner.sweeps.rank import rank
-from dse_runner.simulation.run import simulate
 from dse_runner.sweeps.spec import load_space
 from dse_runner.sweeps.sweep import submit
 

@@ -23,8 +23,8 @@ from dse_runner.sweeps.closed_loop import over_draws
 from dse_runner.sweeps.expand import expand
 from dse_runner.sweeps.rank import load_sweep_spec, rank, write_ranking
 from dse_runner.sweeps.spec import load_space
-from dse_runner.sweeps.uncertainty import Robust
 from dse_runner.sweeps.sweep import submit
+from dse_runner.sweeps.uncertainty import Robust
 
 ISHIGAMI = REPO / "jobs" / "ishigami"
 PI = math.pi

@@ -19,13 +19,11 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
-from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any, ClassVar, Protocol
 
-from ... import bundled
+from ... import bundled, plugins
 from ...errors import DseError
-from ...plugins import instance_of_subclass
 from ...sweeps.domain import Interval
 from ...sweeps.search import Search
 from ...sweeps.spec import Space, SpaceSpec, read_spec, resolve_space
@@ -71,11 +69,11 @@ class HypothesisLibrary(ABC):
     ``dse_runner.hypotheses``, whose entries name a subclass (built with no arguments).
 
     Lifecycle (:func:`diagnose`). The space to diagnose is read once: the user's, with ``--scenarios``
-    runs in place of its scenarios and ``--out`` as its output. Each installed library, then the
-    built-in one, is asked :meth:`serves`; the first that says yes gets :meth:`diagnose` once, with that
-    space, the request and a function for progress lines, and returns a :class:`Result`. It starts (or
-    reaches, by ``space.spec.cluster``) its own cluster, and keeps every simulation in the space's
-    Parquet store, so that running it again resumes.
+    runs in place of its scenarios and ``--out`` as its output. Each installed library, the general ones
+    (``general``, such as the built-in signal effects) last, is asked :meth:`serves`; the first that
+    says yes gets :meth:`diagnose` once, with that space, the request and a function for progress lines,
+    and returns a :class:`Result`. It starts (or reaches, by ``space.spec.cluster``) its own cluster, and
+    keeps every simulation in the space's Parquet store, so that running it again resumes.
 
     Optional parts, with defaults: ``calibration`` (None: ``--scenarios`` alone cannot choose this
     library; a library whose case has a standard calibration names it, e.g. ``bundled:…``),
@@ -84,6 +82,7 @@ class HypothesisLibrary(ABC):
 
     name: ClassVar[str]
     calibration: ClassVar[str | None] = None  # the space ``--scenarios DIR`` fills when no --space is given
+    general: ClassVar[bool] = False  # serves any model: asked after the libraries of a model
 
     @abstractmethod
     def serves(self, space: Space) -> bool:
@@ -111,12 +110,11 @@ def checked(library: HypothesisLibrary, space: Space, request: Request) -> Hypot
 
 
 def libraries() -> list[HypothesisLibrary]:
-    """Installed libraries in name order, then the built-in signal effects (which serve any model)."""
-    from .signal_library import SignalEffects
-
-    installed = [instance_of_subclass(e, HypothesisLibrary, f"hypothesis library {e.name!r}")
-                 for e in sorted(entry_points(group=GROUP), key=lambda e: e.name)]
-    return [*installed, SignalEffects()]
+    """Installed libraries (entry-point group ``dse_runner.hypotheses``) in the order they are asked: those of
+    a model in name order, then the general ones (the built-in signal effects, which serve any model)."""
+    found = [plugins.instance_of_subclass(entry, HypothesisLibrary, f"hypothesis library {name!r}")
+             for name, entry in sorted(plugins.entries(GROUP).items())]
+    return sorted(found, key=lambda library: library.general)  # stable: name order within each
 
 
 def runs_folder(scenarios: str | Path) -> Path:

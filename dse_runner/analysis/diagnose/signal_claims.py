@@ -40,7 +40,7 @@ def alike(chosen: Candidate, candidates: Sequence[Candidate], min_gain: float = 
 
 
 @dataclass
-class LookAlike:
+class FitsAlike:
     """The chosen set against one that fits alike: the scenario-level evidence (explain.evidence) and the
     windows of time where their residuals differ by more than the noise."""
 
@@ -88,18 +88,18 @@ def telling_windows(chosen: Sequence[Residual], other: Sequence[Residual], noise
 
 
 def weigh(chosen: Candidate, other: Candidate, residuals: Mapping[str, Sequence[Residual]],
-          noise: Mapping[str, float], scenarios: Mapping[str, Any]) -> LookAlike:
+          noise: Mapping[str, float], scenarios: Mapping[str, Any]) -> FitsAlike:
     """The evidence between the chosen set and a look-alike, from their held-out errors and from their
     full fits' residuals window by window."""
     telling = telling_windows(residuals[chosen.label], residuals[other.label], noise, scenarios)
-    return LookAlike(chosen.label, other.label, explain.evidence(chosen, other), telling,
+    return FitsAlike(chosen.label, other.label, explain.evidence(chosen, other), telling,
                      float(sum(w["delta_mean_square"] for w in telling)))
 
 
 # ---- what the verdict says -----------------------------------------------------------------------
 
 def verdict_text(verdict: str, held_out: float, chosen: Candidate, interfaces: Mapping[str, str],
-                 looks: Sequence[LookAlike], dropped: Sequence[explain.Dropped], factor: float,
+                 looks: Sequence[FitsAlike], dropped: Sequence[explain.Dropped], factor: float,
                  discovered: Sequence[str] = (), coloured: Mapping[str, Whiteness] | None = None) -> str:
     """The verdict in a sentence: what was named (a discovered correction as its formula), what was not
     claimed, which twins cannot be told apart, whose residuals are not white, and, when an error well above

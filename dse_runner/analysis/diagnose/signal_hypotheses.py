@@ -30,7 +30,7 @@ import numpy as np
 
 from ...simulation import signal_effects, state_limits
 from ...simulation.run import qualify
-from ...simulation.scenario import Series
+from ...simulation.trajectory import Series
 from ...sweeps.fit import Parameter
 from ...sweeps.spec import Space
 
@@ -77,7 +77,7 @@ PHYSICS = {  # what each kind of effect stands for, and the residual it leaves
 
 
 @dataclass(frozen=True)
-class Hypothesis:
+class SignalHypothesis:
     """One effect the library may add: its parameters (the first named as the effect), what each is (a
     kind of PHYSICS), its neutral values, and where its fits start (one value per parameter each)."""
 
@@ -110,7 +110,7 @@ class Hypothesis:
         return dict(zip(self.names, self.starts[k]))
 
 
-def signal_hypotheses(space: Space, compared_signals: Sequence[str]) -> dict[str, Hypothesis]:
+def signal_hypotheses(space: Space, compared_signals: Sequence[str]) -> dict[str, SignalHypothesis]:
     """Every signal effect on every input all scenarios drive and every compared signal, with its range."""
     experiment = space.spec.experiment
     lengths = [float(s.stop_time or experiment.stop_time or 0) - float(s.start_time or experiment.start_time or 0)
@@ -134,7 +134,7 @@ def signal_hypotheses(space: Space, compared_signals: Sequence[str]) -> dict[str
             for kind, (low, high, starts, difference) in signal_ranges(side, samples, span, step).items():
                 effect = signal_effects.Effect(side, kind, target)  # type: ignore[arg-type]
                 neutral = signal_effects.NEUTRAL[kind]
-                found[effect.name] = Hypothesis(effect.id, target, (Parameter(effect.name, starts[0], low, high, difference),),
+                found[effect.name] = SignalHypothesis(effect.id, target, (Parameter(effect.name, starts[0], low, high, difference),),
                                                 (kind,), (neutral,), tuple((v,) for v in starts),
                                                 step if kind == "delay" else 0.0)
     return found
@@ -179,7 +179,7 @@ def signal_ranges(side: str, samples: Sequence[np.ndarray], span: float, step: f
 
 
 def state_hypotheses(instances: Mapping[str, Sequence[str]], observed: Sequence[Mapping[str, np.ndarray]]
-                     ) -> dict[str, Hypothesis]:
+                     ) -> dict[str, SignalHypothesis]:
     """Every bound on every state of the model-exchange ``instances`` (name -> states), ranged over the span
     each state covers in the ``observed`` runs (``instance.state`` -> values); a state that does not move
     gets none."""
@@ -203,19 +203,19 @@ def state_hypotheses(instances: Mapping[str, Sequence[str]], observed: Sequence[
             starts = {"max": [high - f * width for f in BOUND_STARTS], "min": [low + f * width for f in BOUND_STARTS]}
             target = f"{instance}.{state}"
             for kind, bound in bounds.items():
-                found[bound.name] = Hypothesis(f"state_{kind}", target, (bound,), (kind,),
+                found[bound.name] = SignalHypothesis(f"state_{kind}", target, (bound,), (kind,),
                                                (state_limits.NEUTRAL[kind],), tuple((v,) for v in starts[kind]))
             for other in spans:
                 if other == state:
                     continue
                 name = state_limits.limit_name("overflow", instance, state, other)
                 fraction = Parameter(name, 0.5, 0.0, 1.0, 0.02)
-                found[name] = Hypothesis("state_overflow", target, (fraction, bounds["max"]), ("overflow", "max"),
+                found[name] = SignalHypothesis("state_overflow", target, (fraction, bounds["max"]), ("overflow", "max"),
                                          (0.0, state_limits.NEUTRAL["max"]), tuple((0.5, v) for v in starts["max"]),
                                          into=f"{instance}.{other}")
     return found
 
 
-def shares(a: Hypothesis, b: Hypothesis) -> bool:
+def shares(a: SignalHypothesis, b: SignalHypothesis) -> bool:
     """Whether two hypotheses fit a parameter in common (an overflow and its bound): they cannot be combined."""
     return bool(set(a.names) & set(b.names))

@@ -35,16 +35,9 @@ from ...simulation import signal_effects, state_limits
 from ...simulation.run import qualify
 from ...sweeps.cluster import connect
 from ...sweeps.domain import Point
-from ...sweeps.fit import (
-    FitProblem,
-    FitResult,
-    Parameter,
-    evaluate_points,
-    fit_all,
-    key_of,
-    residuals_in,
-    wanted,
-)
+from ...sweeps.expand import key_of, wanted
+from ...sweeps.fit import FitProblem, FitResult, Parameter
+from ...sweeps.fit_rounds import evaluate_points, fit_all, residuals_in
 from ...sweeps.rank import rank
 from ...sweeps.spec import Space, derived_space
 from ...sweeps.sweep import submit
@@ -57,7 +50,7 @@ from .hypotheses import EffectParameter
 from .hypotheses import Hypothesis as LibraryHypothesis
 from .library import HypothesisLibrary, Messages, Request, space_with
 from .noise import NoiseEstimate, Whiteness, estimate_noise, whiteness
-from .signal_hypotheses import Hypothesis, shares, signal_hypotheses, state_hypotheses
+from .signal_hypotheses import SignalHypothesis, shares, signal_hypotheses, state_hypotheses
 from .validation import Validation, validated
 
 FITS = "diagnosis-signal-fits"  # the sweep every fit's rounds go to
@@ -92,9 +85,9 @@ class SignalDiagnosis:
     chosen: Candidate
     candidates: list[Candidate]
     verdict: str
-    hypotheses: dict[str, Hypothesis] = field(default_factory=dict)
+    hypotheses: dict[str, SignalHypothesis] = field(default_factory=dict)
     pairs: Any = None  # Pairs: what the pair screen did
-    lookalikes: list[signal_claims.LookAlike] = field(default_factory=list)
+    lookalikes: list[signal_claims.FitsAlike] = field(default_factory=list)
     dropped: list[explain.Dropped] = field(default_factory=list)
     located: dict[str, Any] = field(default_factory=dict)
     verdict_text: str = ""
@@ -200,7 +193,7 @@ def compared_signals(space: Space) -> list[Compared]:
     return found
 
 
-def library_of(space: Space, compared: Sequence[Compared], point: Mapping[str, Any] | None) -> dict[str, Hypothesis]:
+def library_of(space: Space, compared: Sequence[Compared], point: Mapping[str, Any] | None) -> dict[str, SignalHypothesis]:
     """The hypotheses for ``space``: signal effects on its driven inputs and compared signals, and state limits
     on its model-exchange instances' states, ranged over what the states do at ``point`` (the calibration's
     start; simulated here on every scenario). Without a point (a listing), every state's limits by name."""
@@ -215,7 +208,7 @@ def library_of(space: Space, compared: Sequence[Compared], point: Mapping[str, A
     return {**found, **state_hypotheses({i.name: i.states for i in instances}, runs)}
 
 
-def restricted(found: dict[str, Hypothesis], only: Sequence[str]) -> dict[str, Hypothesis]:
+def restricted(found: dict[str, SignalHypothesis], only: Sequence[str]) -> dict[str, SignalHypothesis]:
     """The effects ``only`` names (all when it names none); an unknown name is an error listing them."""
     unknown = [name for name in only if name not in found]
     if unknown:
@@ -237,7 +230,7 @@ def calibration(space: Space, best: Mapping[str, Any]) -> tuple[Parameter, ...]:
     return tuple(params)
 
 
-def fits_space(space: Space, compared: Sequence[Compared], hypotheses: Mapping[str, Hypothesis], name: str = FITS
+def fits_space(space: Space, compared: Sequence[Compared], hypotheses: Mapping[str, SignalHypothesis], name: str = FITS
                ) -> Space:
     """The space the fits run in (its scenarios as they are: a record's blocks stay blocks): its own
     parameters and every effect's (each at its neutral value unless a fit frees it), scored by the residuals
@@ -260,8 +253,8 @@ def worth_pairing(singles: Sequence[FitResult], floor_stop: float = explain.FLOO
     return len(singles) >= 2 and min(explain.fitted_rms(f) for f in singles) > floor_stop
 
 
-def gated_early(short: Sequence[signal_screen.Screened], full: Mapping[tuple[str, ...], FitResult], count: int,
-                margin: float = explain.BIC_MARGIN) -> list[signal_screen.Screened]:
+def gated_early(short: Sequence[signal_screen.ScreenedPair], full: Mapping[tuple[str, ...], FitResult], count: int,
+                margin: float = explain.BIC_MARGIN) -> list[signal_screen.ScreenedPair]:
     """The screened pairs sure to pass explain.bic_gate whatever the singles' cross-validation chooses:
     their checked BIC (which their fit can only lower) is ``margin`` below every single's and none's."""
     lowest = min(explain.bic(f) for f in full.values())
@@ -274,7 +267,7 @@ class Pairs:
     """What the pair screen did: how many pairs it predicted, which it checked and which it fitted."""
 
     predicted: int = 0
-    screened: list[signal_screen.Screened] = field(default_factory=list)
+    screened: list[signal_screen.ScreenedPair] = field(default_factory=list)
     fitted: list[str] = field(default_factory=list)
     reason: str = ""
 
@@ -576,6 +569,7 @@ class SignalEffects(HypothesisLibrary):
     """The built-in library: every signal effect on every driven input and compared output, for any FMU."""
 
     name = "signals"
+    general = True
 
     def serves(self, space: Space) -> bool:
         return any(isinstance(spec, objs.Fit) for spec in space.objectives.values())

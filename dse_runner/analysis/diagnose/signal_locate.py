@@ -21,7 +21,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ...simulation.scenario import Scenario, Series
+from ...simulation.scenario import Scenario
+from ...simulation.trajectory import Series
 
 WINDOWS = 10  # stretches per run
 MIN_SAMPLES = 8  # recorded samples a stretch needs for its RMS to mean anything

@@ -32,7 +32,7 @@ RealSse = Callable[[list[Point]], list[float]]  # simulate points on every run i
 
 
 @dataclass(frozen=True)
-class Screened:
+class ScreenedPair:
     """A pair as the screen saw it: its predicted SSE, and the real SSE at the better of its trial points."""
 
     ids: tuple[str, str]
@@ -106,7 +106,7 @@ def to_check(singles: Mapping[str, FitResult], predicted: Mapping[tuple[str, str
 
 
 def screen(none: FitResult, singles: Mapping[str, FitResult], bounds: Mapping[str, Parameter],
-           real_sse: RealSse) -> tuple[list[Screened], int]:
+           real_sse: RealSse) -> tuple[list[ScreenedPair], int]:
     """Every pair of ``singles`` that fit no parameter in common predicted, the best checked in one sweep:
     the checked pairs, best real BIC first, and how many pairs were predicted."""
     n = len(stacked(none))
@@ -128,11 +128,11 @@ def screen(none: FitResult, singles: Mapping[str, FitResult], bounds: Mapping[st
         k += 2
         sse, start = min(tried, key=lambda t: t[0])
         weights = tuple(float(w) for w in solved[pair][0][-2:])
-        found.append(Screened(pair, weights, solved[pair][1], sse,  # type: ignore[arg-type]
+        found.append(ScreenedPair(pair, weights, solved[pair][1], sse,  # type: ignore[arg-type]
                               explain.bic_of(sse, n, parameters(pair)), start))
     return sorted(found, key=lambda s: s.bic), len(pairs)
 
 
-def shortlist(screened: Sequence[Screened], count: int = SHORTLIST) -> list[Screened]:
+def shortlist(screened: Sequence[ScreenedPair], count: int = SHORTLIST) -> list[ScreenedPair]:
     """The pairs worth a real fit: the best real BIC, those whose simulation succeeded."""
     return [s for s in screened if math.isfinite(s.sse)][:count]

@@ -9,17 +9,9 @@ from collections.abc import Callable, Sequence
 from ...analysis.diagnose import explain
 from ...analysis.diagnose.explain import Candidate
 from ...sweeps.domain import Point
-from ...sweeps.fit import (
-    FitProblem,
-    FitResult,
-    Parameter,
-    Residuals,
-    evaluate_points,
-    fit_all,
-    key_of,
-    residuals_in,
-    wanted,
-)
+from ...sweeps.expand import key_of, wanted
+from ...sweeps.fit import FitProblem, FitResult, Parameter, Residuals
+from ...sweeps.fit_rounds import evaluate_points, fit_all, residuals_in
 from ...sweeps.spec import Space
 from .hypotheses import hypothesis
 from .outcome import Settings

@@ -18,7 +18,8 @@ from pydantic import Field, PositiveFloat, PositiveInt
 
 from ...errors import DseError
 from ..domain import Point
-from ..fit import FitProblem, LevenbergMarquardt, Parameter, key_of
+from ..expand import key_of
+from ..fit import FitProblem, LevenbergMarquardt, Parameter
 from ..search import Evaluation, Options, Problem, Strategy
 
 

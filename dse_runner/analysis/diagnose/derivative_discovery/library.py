@@ -18,8 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ....simulation import derivative_terms as dt
-from ....simulation.cosim import Plan
 from ....simulation.fmu import describe
+from ....simulation.plan import Plan
 
 SMOOTH = 0.1  # a smoothed sign's width, as a share of its variable's RMS over the runs
 KINEMATIC = 1e-9  # a derivative within this share of a state's size from that state is that state

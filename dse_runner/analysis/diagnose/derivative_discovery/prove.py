@@ -15,7 +15,9 @@ import numpy as np
 
 from ....errors import DseError
 from ....sweeps.domain import Point
-from ....sweeps.fit import FitProblem, FitResult, Parameter, evaluate_points, fit_all, residuals_in, wanted
+from ....sweeps.expand import wanted
+from ....sweeps.fit import FitProblem, FitResult, Parameter
+from ....sweeps.fit_rounds import evaluate_points, fit_all, residuals_in
 from ....sweeps.spec import Space, derived_space
 from ..explain import Candidate
 from ..validation import Fold, as_folds

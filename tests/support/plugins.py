@@ -4,11 +4,14 @@ any installed distribution's. Nothing is installed into the environment."""
 
 from __future__ import annotations
 
+import functools
 import sys
 import textwrap
 from pathlib import Path
 
 import pytest
+
+from dse_runner import plugins
 
 
 def register(monkeypatch: pytest.MonkeyPatch, folder: Path, module: str, source: str,
@@ -25,3 +28,6 @@ def register(monkeypatch: pytest.MonkeyPatch, folder: Path, module: str, source:
         for group, names in entries.items()))
     monkeypatch.syspath_prepend(str(folder))  # also invalidates the import system's caches
     monkeypatch.delitem(sys.modules, module, raising=False)
+    # the registry reads the entry points once per process: this test reads them afresh, and the tests after
+    # it get the registry as it was, without this plug-in
+    monkeypatch.setattr(plugins, "entries", functools.cache(plugins.entries.__wrapped__))

@@ -6,14 +6,15 @@ from __future__ import annotations
 
 import math
 
-import blind
+from support import blind
 import numpy as np
 import pytest
 from conftest import SCENARIOS
 
 from dse_runner.errors import DseError
-from dse_runner.simulation.cosim import make_plan, run
+from dse_runner.simulation.cosim import run
 from dse_runner.simulation.multimodel import MultiModel
+from dse_runner.simulation.plan import make_plan
 from dse_runner.simulation.run import simulate
 from dse_runner.simulation.scenario import load_scenario
 

@@ -1,4 +1,4 @@
-"""The blind cases themselves (tests/blind.py): every pair of library effects is a case with its own noise,
+"""The blind cases themselves (tests/support/blind.py): every pair of library effects is a case with its own noise,
 the synthetic runs are what the recordings replay, the cases outside the library are recorded by the truth
 FMU with their effect, and the noise cases' receivers are as heavy as they say."""
 
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from itertools import combinations
 
-import blind
+from support import blind
 import numpy as np
 import pytest
 

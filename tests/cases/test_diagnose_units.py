@@ -13,10 +13,10 @@ from conftest import strict_loads
 
 from dse_runner import strict_json
 from dse_runner.analysis.diagnose import explain
-from dse_runner.cases.robotti_diagnosis import Diagnosis, Settings, noise, screen
 from dse_runner.analysis.diagnose.explain import Candidate
-from dse_runner.cases.robotti_diagnosis.hypotheses import LIBRARY
 from dse_runner.cases.fielddata import load_run
+from dse_runner.cases.robotti_diagnosis import Diagnosis, Settings, noise, screen
+from dse_runner.cases.robotti_diagnosis.hypotheses import LIBRARY
 from dse_runner.errors import DseError
 from dse_runner.sweeps.fit import FitProblem, FitResult, LevenbergMarquardt, Parameter
 

@@ -20,7 +20,7 @@ import subprocess
 import time
 from pathlib import Path
 
-from cluster import _end_with_parent, free_port
+from support.cluster import _end_with_parent, free_port
 
 DAEMONS = {"munged": "/usr/sbin/munged", "slurmctld": "/usr/sbin/slurmctld", "slurmd": "/usr/sbin/slurmd"}
 CLIENTS = ("sbatch", "squeue", "scancel", "sinfo", "scontrol")

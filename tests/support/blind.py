@@ -25,7 +25,7 @@ from dse_runner.simulation.multimodel import parse_multimodel
 from dse_runner.simulation.run import as_plan, simulate
 from dse_runner.simulation.scenario import INFO_FILE, load_scenario
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 SOURCES = REPO / "scenarios" / "robotti"
 RUNS = ["sin1", "sin2", "speed_step1", "speed_step2", "turn_ramp1", "turn_ramp2"]  # in the tests
 BENCHMARK_RUNS = [*RUNS, "speed_ramp1", "speed_ramp2"]  # benchmarks/diagnosis_blind.py

@@ -1,4 +1,4 @@
-"""Discrepancy diagnosis, proven blind: recordings from a richer truth model (tests/blind.py)
+"""Discrepancy diagnosis, proven blind: recordings from a richer truth model (tests/support/blind.py)
 with each library effect concealed in turn, with two together, and with none, go through the
 whole chain on a real multi-process Dask cluster. The diagnosis must name the concealed effect
 first, size it within 25 %, at least halve the held-out cross-track error, name both effects of
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 
-import blind
+from support import blind
 import pytest
 from conftest import dse_runner, strict_loads
 

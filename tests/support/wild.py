@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 WILD = REPO.parent / "shared" / "fmus-wild"
 
 # Every FMU there with a binary for Linux, with an experiment to run it alone on: (stop time, step). The
@@ -121,9 +121,10 @@ def ours(model: str, stop: float, step: float, values: dict[str, Any], driven: b
          ) -> dict[str, np.ndarray]:
     """dse-runner's simulate: every output by name (instance prefix dropped for one FMU), with time;
     ``driven``: a single FMU's inputs as :func:`driven_inputs` drives them."""
-    from dse_runner.simulation.run import simulate, single_fmu
-    from dse_runner.simulation.scenario import Scenario, Series
-
+    from dse_runner.simulation.multimodel import single_fmu
+    from dse_runner.simulation.run import simulate
+    from dse_runner.simulation.scenario import Scenario
+    from dse_runner.simulation.trajectory import Series
     scenario = None
     if driven:
         instance = next(iter(single_fmu(model).fmus))
