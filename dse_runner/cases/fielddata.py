@@ -46,7 +46,7 @@ STEERING_FILE = "steering_inputs.csv"
 GPS_FILE = "gps_position.csv"
 KIND = "field_data"
 
-class Options(BaseModel):
+class FieldDataOptions(BaseModel):
     """What a space may say about field-data scenarios: ``{path: runs/*, position: {x: .., y: ..}}``."""
 
     model_config = ConfigDict(extra="forbid")
@@ -84,7 +84,7 @@ def read_info(path: Path) -> RunInfo:
 
 def load_run(folder: str | Path, options: Mapping[str, Any] | None = None) -> Scenario:
     """Read and check a run's three files (both recordings now, before any FMU reads them)."""
-    paths, settings = open_folder(folder, (INFO_FILE, STEERING_FILE, GPS_FILE), options, Options)
+    paths, settings = open_folder(folder, (INFO_FILE, STEERING_FILE, GPS_FILE), options, FieldDataOptions)
     info = read_info(paths[INFO_FILE])
     log = read_table(paths[STEERING_FILE], ("time", "velocity", "delta_f"))
     fixes = read_table(paths[GPS_FILE], ("time", "x", "y"), may_drop=("x", "y"))

@@ -62,7 +62,7 @@ class PathInfo(RunInfo):
     step_at: NonNegativeFloat | None = None  # arc length [m] where a lateral step starts
 
 
-class Options(BaseModel):
+class PathOptions(BaseModel):
     """What a space may say about path scenarios: ``{path: paths/*, position: {x, y}, heading, steering}``."""
 
     model_config = ConfigDict(extra="forbid")
@@ -179,7 +179,7 @@ def read_info(path: Path) -> PathInfo:
 
 def load_path(folder: str | Path, options: Mapping[str, Any] | None = None) -> Scenario:
     """Read and check a path folder (the path and any step now, before any FMU reads the file)."""
-    files, settings = open_folder(folder, (INFO_FILE, PATH_FILE), options, Options)
+    files, settings = open_folder(folder, (INFO_FILE, PATH_FILE), options, PathOptions)
     info_file, path_file = files[INFO_FILE], files[PATH_FILE]
     info = read_info(info_file)
     path = read_path(path_file)

@@ -39,7 +39,7 @@ DashboardAddress = Annotated[str, typer.Option(
          "login; reach it from elsewhere through an SSH tunnel.")]
 
 
-class Options:
+class CommandOptions:
     """Options of the whole command, given before the subcommand."""
 
     debug = False  # show tracebacks
@@ -49,7 +49,7 @@ class Options:
 def options(debug: Annotated[bool, typer.Option(
         "--debug", help="Show the traceback behind an error message.")] = False) -> None:
     """Design-space exploration for FMI co-simulation."""
-    Options.debug = debug
+    CommandOptions.debug = debug
     warnings.showwarning = _one_line_warning
     sys.unraisablehook = _interrupt_again
 
@@ -72,14 +72,14 @@ def _interrupt_again(unraisable) -> None:
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
     """A warning is one line on stderr, ``warning: ...``, like an error (the source line with --debug)."""
-    where = f" ({filename}:{lineno})" if Options.debug else ""
+    where = f" ({filename}:{lineno})" if CommandOptions.debug else ""
     typer.echo(f"warning: {message}{where}", err=True)
 
 
 def fail(error: Exception) -> None:
     """A user's error: one line naming the culprit on stderr, exit code 2 (the traceback with --debug,
     and that of the exception behind it: our messages are raised ``from None``)."""
-    if Options.debug:
+    if CommandOptions.debug:
         if error.__context__ is not None:
             traceback.print_exception(error.__context__)
         traceback.print_exc()
@@ -798,7 +798,7 @@ def main() -> None:
     try:
         app()
     except Exception as e:  # anything the commands did not turn into a DseError
-        if Options.debug:
+        if CommandOptions.debug:
             raise
         typer.echo(f"error: unexpected {type(e).__name__}: {e} (run with --debug for the traceback)", err=True)
         sys.exit(1)

@@ -75,7 +75,7 @@ class Failure(ctypes.Structure):
                        (ctypes.c_char * 64, "solver_module solver_file"), (ctypes.c_char * 256, "solver_message"))
 
 
-class Unit(ctypes.Structure):
+class MeUnit(ctypes.Structure):
     _fields_ = _fields((P, "sun"), (P * len(FUNCTIONS[2]), "fn"),
                        (P, "component inputs terms factors limits term_inputs term_states"),
                        (I32, "n_terms n_limits n_inputs version needs_completed discrete"), (I64, "nx nz"),
@@ -142,7 +142,7 @@ class NativeIntegrator:
         self.inputs = (Inputs * len(inputs))(*inputs)
         self.sundials = _sundials()
         states = description.numberOfContinuousStates
-        self.unit = Unit(sun=ctypes.addressof(self.sundials), component=model.component,
+        self.unit = MeUnit(sun=ctypes.addressof(self.sundials), component=model.component,
                          inputs=ctypes.addressof(self.inputs), n_inputs=len(inputs), version=self.version,
                          needs_completed=bool(description.modelExchange.needsCompletedIntegratorStep),
                          discrete=states == 0, nx=max(states, 1), nz=description.numberOfEventIndicators,

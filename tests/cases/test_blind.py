@@ -6,9 +6,9 @@ from __future__ import annotations
 
 from itertools import combinations
 
-from support import blind
 import numpy as np
 import pytest
+from support import blind
 
 from dse_runner.cases.robotti_diagnosis.hypotheses import LIBRARY
 from dse_runner.simulation.run import simulate

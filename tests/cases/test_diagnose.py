@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import math
 
-from support import blind
 import pytest
 from conftest import dse_runner, strict_loads
+from support import blind
 
 from dse_runner.cases.robotti_diagnosis.hypotheses import LIBRARY
 from dse_runner.sweeps.rank import rank

@@ -15,7 +15,7 @@ from dse_runner import strict_json
 from dse_runner.analysis.diagnose import explain
 from dse_runner.analysis.diagnose.explain import Candidate
 from dse_runner.cases.fielddata import load_run
-from dse_runner.cases.robotti_diagnosis import Diagnosis, Settings, noise, screen
+from dse_runner.cases.robotti_diagnosis import Diagnosis, DiagnosisSettings, noise, screen
 from dse_runner.cases.robotti_diagnosis.hypotheses import LIBRARY
 from dse_runner.errors import DseError
 from dse_runner.sweeps.fit import FitProblem, FitResult, LevenbergMarquardt, Parameter
@@ -141,7 +141,7 @@ def test_rest_windows():
 
 
 def test_no_estimate_without_usable_fixes():
-    run = noise.Run(np.array([0.0, 1.0]), np.zeros(2), np.zeros(2), np.array([0.0]), np.array([1.0]))
+    run = noise.RecordedRun(np.array([0.0, 1.0]), np.zeros(2), np.zeros(2), np.array([0.0]), np.array([1.0]))
     floor = noise.estimate({"a": run})
     assert not floor.available and floor.method == noise.UNAVAILABLE
     assert strict_loads(strict_json.dumps(floor.to_json()))["sigma"] is None
@@ -217,7 +217,7 @@ def diagnosis(chosen_ids: tuple[str, ...], floor: float, factor: float = 2.0) ->
     sigma = floor / noise.MEAN_DISTANCE
     nf = noise.NoiseFloor(sigma, floor, noise.CLOSE_FIXES, 5000, {"run0": sigma},
                           {noise.CLOSE_FIXES: noise.Estimate(sigma, 5000)}, 0.02)
-    return Diagnosis(Path("/nowhere"), {"vehicle": "vehicle"}, cands, chosen, baseline, Settings(noise_factor=factor),
+    return Diagnosis(Path("/nowhere"), {"vehicle": "vehicle"}, cands, chosen, baseline, DiagnosisSettings(noise_factor=factor),
                      floor=nf)
 
 
@@ -258,11 +258,11 @@ def test_report_words(tmp_path):
 
 def test_a_bad_noise_factor_is_refused():
     with pytest.raises(DseError, match="noise factor"):
-        Settings(noise_factor=0.0)
+        DiagnosisSettings(noise_factor=0.0)
     with pytest.raises(DseError, match="pairs = -1"):
-        Settings(pairs=-1)
+        DiagnosisSettings(pairs=-1)
     with pytest.raises(DseError, match="floor stop"):
-        Settings(floor_stop=float("nan"))
+        DiagnosisSettings(floor_stop=float("nan"))
 
 
 def test_an_effect_fitted_to_nothing_ties_rather_than_wins_runs():
@@ -417,12 +417,12 @@ def test_the_stop_rule_screens_only_when_a_fit_leaves_more_than_noise():
         fit = FitResult("x", [], {}, 0.0, 4, 1, True, {}, [], {}, residuals=[np.array([error, error, 0.0, 0.0])])
         return Candidate((), fit)
 
-    floor, settings = 0.025, Settings()
+    floor, settings = 0.025, DiagnosisSettings()
     assert not worth_screening([fitted_to(0.09), fitted_to(1.2 * floor)], floor, settings)
     assert worth_screening([fitted_to(0.09), fitted_to(1.3 * floor)], floor, settings)
     assert worth_screening([fitted_to(0.0)], None, settings)  # no floor: nothing to stop at
-    assert not worth_screening([fitted_to(0.09)], floor, Settings(max_effects=1))
-    assert not worth_screening([fitted_to(0.09)], floor, Settings(hypotheses=("wheel_slip",)))
+    assert not worth_screening([fitted_to(0.09)], floor, DiagnosisSettings(max_effects=1))
+    assert not worth_screening([fitted_to(0.09)], floor, DiagnosisSettings(hypotheses=("wheel_slip",)))
 
 
 # ---- look-alikes: segments, kinematics, the LLR between twins, response fits -------------------------
@@ -520,7 +520,7 @@ def test_correlated_residuals_count_for_fewer_fixes():
     assert lookalike.autocorrelation_time([coloured]) == pytest.approx((1 + rho) / (1 - rho), rel=0.15)
 
 
-def speed_channel(form: str, size: float, seed: int) -> lookalike.Channel:
+def speed_channel(form: str, size: float, seed: int) -> lookalike.SignalAtFixes:
     """Recorded speed = the model's speed steps through a delay or a lag of ``size`` s, as GPS would show it."""
     t, speed, steering = command_log()
     truth = lookalike.delayed(t, speed, size) if form == "delay" else lookalike.lagged(t, speed, size)
@@ -530,7 +530,7 @@ def speed_channel(form: str, size: float, seed: int) -> lookalike.Channel:
     operator = kinematics.derivative_operator(fixes, kinematics.VELOCITY_WINDOW, 1, 1)
     recorded = kinematics.smoothed_like(operator, 1, t, truth, fixes) + rng.normal(0, 0.005, fixes.size)
     kinds = segments.kinds_at(segments.command_segments(t, speed, steering), fixes)
-    return lookalike.Channel(fixes, recorded, kinds, operator, 1, t, speed)
+    return lookalike.SignalAtFixes(fixes, recorded, kinds, operator, 1, t, speed)
 
 
 @pytest.mark.parametrize("form", ["delay", "lag"])
@@ -596,8 +596,8 @@ def acc_regression(seed: int, runs: int = 6, rows: int = 200, coefficient: float
         theta = np.column_stack([columns[tm.variable] for tm in terms])
         y = rng.normal(0.0, noise_rms, rows) + (coefficient * v if coefficient is not None else 0.0)
         rms = {tm.variable: float(np.sqrt(np.mean(theta[:, j] ** 2))) for j, tm in enumerate(terms)}
-        parts.append(discover.Regression("acc", terms, theta, y, np.zeros(rows, int), rms))
-    return {"acc": discover.Regression.join(parts)}
+        parts.append(discover.ChannelRegression("acc", terms, theta, y, np.zeros(rows, int), rms))
+    return {"acc": discover.ChannelRegression.join(parts)}
 
 
 def test_stlsq_recovers_a_known_speed_term():
@@ -830,7 +830,7 @@ def test_pruned_slots_go_to_the_next_proposed_terms():
 
     ranked = (("corr_steer_ddeltav", 0.3), ("corr_steer_ddelta", 0.2), ("corr_gps_cross_sinpsi", 0.1),
               ("corr_gps_cross_cospsi", -0.1), ("corr_acc_s", 0.01))
-    proposal = discover.Proposal(dict(ranked[:3]), {}, {}, {}, ranked)
+    proposal = discover.CorrectionProposal(dict(ranked[:3]), {}, {}, {}, ranked)
     kept = {"corr_gps_cross_sinpsi": 0.15}
     refill = discover.refilled(kept, proposal, set(proposal.terms), 3)
     assert refill == {"corr_gps_cross_sinpsi": 0.0, "corr_gps_cross_cospsi": -0.1, "corr_acc_s": 0.01}

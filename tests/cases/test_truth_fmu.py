@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import math
 
-from support import blind
 import numpy as np
 import pytest
 from conftest import SCENARIOS
+from support import blind
 
 from dse_runner.errors import DseError
 from dse_runner.simulation.cosim import run

@@ -93,8 +93,8 @@ def test_watertank_sweeps_the_levels_under_its_constraint_and_ranks_a_pareto_fro
 
 
 def test_watertank_report_and_dashboard_show_the_one_scenario(watertank, tmp_path):
-    from support.pages import browser_page, open_dashboard
     from playwright.sync_api import expect
+    from support.pages import browser_page, open_dashboard
 
     space, report = watertank
     ranking = rank(space.output, space.name)

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from support import wild
 from conftest import strict_loads
+from support import wild
 from support.wild import ALONE, WILD
 
 from dse_runner.simulation.run import simulate

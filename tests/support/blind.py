@@ -290,12 +290,12 @@ def run_case(effect: str, root: Path, client=None, address: str | None = None, s
     """Record case ``effect`` on ``runs`` (default: the case's own) under ``root`` and diagnose it with
     ``settings`` (default: two folds); returns (runs folder, calibration space, Diagnosis). ``seed`` shifts
     every case's noise, to check that a pass is not luck."""
-    from dse_runner.cases.robotti_diagnosis import Settings, diagnose
+    from dse_runner.cases.robotti_diagnosis import DiagnosisSettings, diagnose
 
     case = CASES[effect]
     runs = record(root / "runs", effect, case.runs if runs is None else runs, seconds, seed=case.seed + seed)
     space = calibration_space(root)
-    result = diagnose(runs, space=space, out=root / "out", settings=settings or Settings(folds=2), client=client,
+    result = diagnose(runs, space=space, out=root / "out", settings=settings or DiagnosisSettings(folds=2), client=client,
                       address=address)
     return runs, space, result
 

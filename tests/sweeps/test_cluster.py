@@ -21,8 +21,8 @@ from urllib.parse import urlparse
 import pandas as pd
 import pytest
 import yaml
-from support.cluster import CliCluster, can_hide_folders, make_certs
 from conftest import FMU_SOURCES, MULTIMODEL, REPO, SCENARIOS, sleeper_multimodel, strict_loads, write_space
+from support.cluster import CliCluster, can_hide_folders, make_certs
 
 import dse_runner
 from dse_runner.errors import DseError

@@ -12,8 +12,8 @@ import sys
 
 import pytest
 from conftest import write_space
-from support.plugins import register
 from pydantic import BaseModel, ValidationError
+from support.plugins import register
 
 from dse_runner.errors import DseError
 from dse_runner.sweeps import makers, start_method

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import pytest
 from conftest import write_msd_search
-from support.plugins import register
 from pydantic import BaseModel
+from support.plugins import register
 
 from dse_runner.errors import DseError
 from dse_runner.sweeps import search

@@ -17,8 +17,8 @@ import.
 
 from .chain import Chain, DiagnosisMessages
 from .library import RobottiLibrary
-from .outcome import Diagnosis, Settings
+from .outcome import Diagnosis, DiagnosisSettings
 from .workflow import DEFAULT_SPACE, diagnose, diagnose_calibration, worth_screening
 
-__all__ = ["Chain", "DEFAULT_SPACE", "Diagnosis", "DiagnosisMessages", "RobottiLibrary", "Settings", "diagnose",
+__all__ = ["Chain", "DEFAULT_SPACE", "Diagnosis", "DiagnosisMessages", "RobottiLibrary", "DiagnosisSettings", "diagnose",
            "diagnose_calibration", "worth_screening"]

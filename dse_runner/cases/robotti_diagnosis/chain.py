@@ -14,7 +14,7 @@ from ...sweeps.fit import FitProblem, FitResult, Parameter, Residuals
 from ...sweeps.fit_rounds import evaluate_points, fit_all, residuals_in
 from ...sweeps.spec import Space
 from .hypotheses import hypothesis
-from .outcome import Settings
+from .outcome import DiagnosisSettings
 
 RESIDUALS = "fix_residuals"  # the field-data case's vector objective (cases/fielddata.py): offsets at every fix
 DiagnosisMessages = Callable[[str], None]  # one line per step, for a person watching (the CLI: stderr)
@@ -29,7 +29,7 @@ def _effect_parameters(ids: tuple[str, ...], vehicle: str, start: dict[str, floa
 class Chain:
     """The state of one diagnosis between its steps."""
 
-    def __init__(self, space: Space, vehicle: str, base: tuple[Parameter, ...], client, settings: Settings,
+    def __init__(self, space: Space, vehicle: str, base: tuple[Parameter, ...], client, settings: DiagnosisSettings,
                  progress: DiagnosisMessages):
         self.space, self.vehicle, self.base, self.client = space, vehicle, base, client
         self.settings, self.say = settings, progress

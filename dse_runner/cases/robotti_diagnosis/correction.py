@@ -74,7 +74,7 @@ SHAPES: dict[str, Shape] = {s.name: s for s in [
 ]}
 
 
-class Channel(BaseModel):
+class CorrectionChannel(BaseModel):
     """What a channel's terms add to."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -97,7 +97,7 @@ class Feature(BaseModel):
     shape: str | None = None  # the SHAPES entry its column depends on
 
 
-class Term(BaseModel):
+class CorrectionTerm(BaseModel):
     """One coefficient of the block: ``channel += coefficient × feature``."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -110,7 +110,7 @@ class Term(BaseModel):
         return f"{PREFIX}{self.channel}_{self.feature}"
 
     @property
-    def channel_info(self) -> Channel:
+    def channel_info(self) -> CorrectionChannel:
         return CHANNELS[self.channel]
 
     @property
@@ -147,17 +147,17 @@ FEATURES: dict[str, Feature] = {f.name: f for f in [
     _f("vr", "v·r", "m·rad/s²", 0.15),
 ]}
 
-CHANNELS: dict[str, Channel] = {c.name: c for c in [
-    Channel(name="acc", target="d(v)/dt", unit="m/s²", scale=2.0,
+CHANNELS: dict[str, CorrectionChannel] = {c.name: c for c in [
+    CorrectionChannel(name="acc", target="d(v)/dt", unit="m/s²", scale=2.0,
             description="added to the longitudinal acceleration d(vx)/dt"),
-    Channel(name="steer", target="δ", unit="rad", scale=0.2,
+    CorrectionChannel(name="steer", target="δ", unit="rad", scale=0.2,
             description="added to the steering angle after the actuators, positive = right, like steering_offset"),
-    Channel(name="yaw", target="d(r)/dt", unit="rad/s²", scale=1.0, searched=False,
+    CorrectionChannel(name="yaw", target="d(r)/dt", unit="rad/s²", scale=1.0, searched=False,
             description="added to the yaw acceleration (quasi-statically it cannot be told from steer, "
                         "so discovery leaves it out by default)"),
-    Channel(name="gps_along", target="gps_along", unit="m", scale=2.0,
+    CorrectionChannel(name="gps_along", target="gps_along", unit="m", scale=2.0,
             description="added to the antenna's position forward of the reference point, like antenna_x"),
-    Channel(name="gps_cross", target="gps_cross", unit="m", scale=2.0,
+    CorrectionChannel(name="gps_cross", target="gps_cross", unit="m", scale=2.0,
             description="added to the antenna's position left of the reference point, like antenna_y"),
 ]}
 
@@ -172,8 +172,8 @@ _BY_CHANNEL: dict[str, tuple[str, ...]] = {
 }
 
 # Every term, in the FMU's order (value references follow gps_y's: model.c's CORR_TERMS, the description).
-TERMS: tuple[Term, ...] = tuple(Term(channel=c, feature=f) for c, fs in _BY_CHANNEL.items() for f in fs)
-_BY_VARIABLE: dict[str, Term] = {t.variable: t for t in TERMS}
+TERMS: tuple[CorrectionTerm, ...] = tuple(CorrectionTerm(channel=c, feature=f) for c, fs in _BY_CHANNEL.items() for f in fs)
+_BY_VARIABLE: dict[str, CorrectionTerm] = {t.variable: t for t in TERMS}
 
 
 def variables() -> list[str]:
@@ -181,7 +181,7 @@ def variables() -> list[str]:
     return [t.variable for t in TERMS]
 
 
-def shape_of(t: Term) -> Shape | None:
+def shape_of(t: CorrectionTerm) -> Shape | None:
     """The shape a term's column depends on (found from the data), or None."""
     return SHAPES[t.feature_info.shape] if t.feature_info.shape else None
 
@@ -195,12 +195,12 @@ def shape_values(values: Mapping[str, float]) -> dict[str, float]:
     return {k.rsplit(".", 1)[-1]: float(v) for k, v in values.items() if is_shape(k)}
 
 
-def searched_terms() -> tuple[Term, ...]:
+def searched_terms() -> tuple[CorrectionTerm, ...]:
     """The terms discovery tries by default (the yaw channel is in the FMU but not searched)."""
     return tuple(t for t in TERMS if CHANNELS[t.channel].searched)
 
 
-def term(variable: str) -> Term:
+def term(variable: str) -> CorrectionTerm:
     """The term of a parameter name, with or without its instance prefix (``vehicle.corr_acc_v``)."""
     name = variable.rsplit(".", 1)[-1]
     if name not in _BY_VARIABLE:
@@ -212,14 +212,14 @@ def is_correction(variable: str) -> bool:
     return variable.rsplit(".", 1)[-1] in _BY_VARIABLE
 
 
-def bound(t: Term, rms: float | None = None) -> float:
+def bound(t: CorrectionTerm, rms: float | None = None) -> float:
     """|coefficient| ≤ channel scale / feature RMS: no term may move its channel by more than the scale
     on these runs. ``rms`` is the feature's RMS over the runs; the typical size when absent or zero."""
     size = rms if rms is not None and math.isfinite(rms) and rms > 0 else t.feature_info.typical
     return t.channel_info.scale / size
 
 
-def parameter(t: Term, vehicle: str, rms: float | None = None, start: float = 0.0) -> Parameter:
+def parameter(t: CorrectionTerm, vehicle: str, rms: float | None = None, start: float = 0.0) -> Parameter:
     """The fit's parameter for a term: symmetric bounds, a step of 1e-3 of the bound, start clipped in."""
     b = bound(t, rms)
     return Parameter(f"{vehicle}.{t.variable}", float(np.clip(start, -b, b)), -b, b, STEP_FRACTION * b)
@@ -229,7 +229,7 @@ def _number(value: float) -> str:
     return f"{value:.3g}"
 
 
-def _symbol(t: Term, shapes: Mapping[str, float]) -> str:
+def _symbol(t: CorrectionTerm, shapes: Mapping[str, float]) -> str:
     """The feature's symbol, its shape's value written in when ``shapes`` (variable -> value) has it."""
     shape = shape_of(t)
     if shape is None:
@@ -238,7 +238,7 @@ def _symbol(t: Term, shapes: Mapping[str, float]) -> str:
     return t.feature_info.symbol.format(shape.symbol if value is None else f"{value:.4g} {shape.unit}")
 
 
-def readable_term(t: Term, value: float, interval: tuple[float, float] | None = None,
+def readable_term(t: CorrectionTerm, value: float, interval: tuple[float, float] | None = None,
                   shapes: Mapping[str, float] = {}) -> str:
     """``d(v)/dt += -0.31·v [-0.34, -0.28]``: one term as an engineer writes it (``shapes``: their values)."""
     symbol = _symbol(t, shapes)
@@ -346,7 +346,7 @@ def _feature(name: str, x: FeatureInputs) -> np.ndarray:
     raise DseError(f"unknown correction feature {name!r}")
 
 
-def features(x: FeatureInputs, terms: Iterable[Term] = TERMS) -> dict[str, np.ndarray]:
+def features(x: FeatureInputs, terms: Iterable[CorrectionTerm] = TERMS) -> dict[str, np.ndarray]:
     """Each term's feature column, keyed by its parameter name: the regression's Θ, with model.c's definitions."""
     return {t.variable: _feature(t.feature, x) for t in terms}
 

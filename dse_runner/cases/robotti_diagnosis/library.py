@@ -14,7 +14,7 @@ from ...analysis.diagnose.library import HypothesisLibrary, Messages, Request
 from ...sweeps.spec import Space
 from .. import fielddata
 from .hypotheses import LIBRARY
-from .outcome import Diagnosis, Settings
+from .outcome import Diagnosis, DiagnosisSettings
 from .workflow import DEFAULT_SPACE, diagnose_calibration
 
 
@@ -28,7 +28,7 @@ class RobottiLibrary(HypothesisLibrary):
         return bool(space.scenarios) and all(s.kind == fielddata.KIND for s in space.scenarios)
 
     def diagnose(self, space: Space, request: Request, say: Messages) -> Diagnosis:
-        settings = Settings(folds=request.folds, hypotheses=request.hypotheses, noise_factor=request.noise_factor,
+        settings = DiagnosisSettings(folds=request.folds, hypotheses=request.hypotheses, noise_factor=request.noise_factor,
                             discovery=request.discovery)
         return diagnose_calibration(space, settings, progress=say)
 

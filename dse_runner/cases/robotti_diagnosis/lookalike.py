@@ -175,7 +175,7 @@ def segment_evidence(a: Sequence[np.ndarray], b: Sequence[np.ndarray], kinds: Se
 # ---- the response, as a control engineer reads it -----------------------------------------------
 
 @dataclass(frozen=True)
-class Channel:
+class SignalAtFixes:
     """One run's recorded signal at its fixes and the model's same signal on the model's grid, with
     the kinematics operator that turns the model's into what GPS would show."""
 
@@ -204,7 +204,7 @@ def lagged(time: np.ndarray, signal: np.ndarray, tau: float) -> np.ndarray:
     return out
 
 
-def _seen(channel: Channel, model: np.ndarray) -> np.ndarray:
+def _seen(channel: SignalAtFixes, model: np.ndarray) -> np.ndarray:
     seen = kinematics.smoothed_like(channel.operator, channel.order, channel.model_time, model, channel.fix_time)
     return seen if channel.valid is None else np.where(channel.valid, seen, np.nan)
 
@@ -218,7 +218,7 @@ def sparse_operator(operator: np.ndarray) -> tuple[Any, np.ndarray]:
     return csr_matrix(np.where(valid[:, None], operator, 0.0)), valid
 
 
-def _sse(channels: Sequence[Channel], transform) -> dict[str, tuple[float, int]]:
+def _sse(channels: Sequence[SignalAtFixes], transform) -> dict[str, tuple[float, int]]:
     """Per segment kind: the SSE of the recorded signal against the model's, transformed and seen through
     the same kinematics window, and how many fixes count (both finite)."""
     out: dict[str, tuple[float, int]] = {}
@@ -234,7 +234,7 @@ def _sse(channels: Sequence[Channel], transform) -> dict[str, tuple[float, int]]
     return out
 
 
-def _best(channels: Sequence[Channel], kinds: Sequence[str], transform, grid: np.ndarray
+def _best(channels: Sequence[SignalAtFixes], kinds: Sequence[str], transform, grid: np.ndarray
           ) -> dict[str, tuple[float, float]]:
     """Per kind, the transform's parameter on ``grid``'s span with the least SSE, and that SSE: a coarse
     grid shared by the kinds (the transform acts on whole runs), then a bounded search about each kind's best."""
@@ -286,7 +286,7 @@ class ResponseFit:
 MOVING_KINDS = tuple(k for k in segments.KINDS if k != segments.REST)  # a standing vehicle has no response
 
 
-def response_fit(channels: Sequence[Channel], name: str, kinds: Sequence[str] = MOVING_KINDS,
+def response_fit(channels: Sequence[SignalAtFixes], name: str, kinds: Sequence[str] = MOVING_KINDS,
                  min_fixes: int = 20) -> list[ResponseFit]:
     """Per segment kind with at least ``min_fixes`` usable fixes: the delay, lag and gain that best carry
     the model's signal onto the recorded one (pooled over runs). Standing is left out: there the fits only
@@ -313,7 +313,7 @@ def model_signal(track: Any, name: str, columns: Mapping[str, str]) -> np.ndarra
 
 
 def channels_of(scenarios: Sequence[Scenario], tracks: Mapping[str, Any], columns: Mapping[str, str], name: str,
-                labels: Mapping[str, Any]) -> list[Channel]:
+                labels: Mapping[str, Any]) -> list[SignalAtFixes]:
     """Each run's recorded ``name`` (COURSE where the vehicle moves faster than kinematics.MIN_SPEED, or
     SPEED) beside the model's (:func:`model_signal` of its track in ``tracks``), with the fixes' segment
     kinds from ``labels`` (segments per run). A course, differentiated once from the fixes, shows the shape
@@ -330,7 +330,7 @@ def channels_of(scenarios: Sequence[Scenario], tracks: Mapping[str, Any], column
         model_time = track["time"].to_numpy(float)
         recorded = np.where(fixes.time <= model_time[-1] + 1e-9, recorded, np.nan)
         operator, valid = sparse_operator(velocity)
-        out.append(Channel(fixes.time, recorded, segments.kinds_at(labels[s.name], fixes.time), operator, 1,
+        out.append(SignalAtFixes(fixes.time, recorded, segments.kinds_at(labels[s.name], fixes.time), operator, 1,
                            model_time, model_signal(track, name, columns), free_offset=name == COURSE, valid=valid))
     return out
 

@@ -85,7 +85,7 @@ UNKNOWN = NoiseFloor(math.nan, math.nan, UNAVAILABLE, 0)
 
 
 @dataclass(frozen=True)
-class Run:
+class RecordedRun:
     """What the estimators need from one recorded run: its fixes and its speed commands."""
 
     time: np.ndarray  # s, fixes (dropouts already removed)
@@ -173,13 +173,13 @@ def lag1_autocorrelation(deviations: list[np.ndarray]) -> float | None:
     return num / den if den > 0 else None
 
 
-def _end(run: Run) -> float:
+def _end(run: RecordedRun) -> float:
     """Just after the last fix or command: a stop that lasts to the end of the run keeps its last fix."""
     last = [float(a[-1]) for a in (run.time, run.command_time) if a.size]
     return max(last, default=0.0) + 1e-9
 
 
-def estimate(runs: Mapping[str, Run]) -> NoiseFloor:
+def estimate(runs: Mapping[str, RecordedRun]) -> NoiseFloor:
     """The noise floor of ``runs``: each estimator pooled over runs, σ̂ the larger of those available."""
     d2 = {name: second_differences(r.time, r.x, r.y) for name, r in runs.items()}
     rest = {name: rest_deviations(r.time, r.x, r.y, rest_windows(r.command_time, r.command_speed, _end(r)))
@@ -204,11 +204,11 @@ def estimate(runs: Mapping[str, Run]) -> NoiseFloor:
                       lag1_autocorrelation(all_rest))
 
 
-def run_of(scenario: Scenario) -> Run:
+def run_of(scenario: Scenario) -> RecordedRun:
     """A field-data run's fixes and speed commands (its steering log's ``velocity`` column)."""
     track = fielddata.gps(scenario)
     log = read_table(scenario.files["steering_inputs"], ("time", "velocity"))
-    return Run(track.time, track.x, track.y, log.columns[0], log.columns[1])
+    return RecordedRun(track.time, track.x, track.y, log.columns[0], log.columns[1])
 
 
 def estimate_noise(scenarios: Iterable[Scenario]) -> NoiseFloor:

@@ -1,4 +1,4 @@
-"""What a diagnosis is asked (Settings) and what it answers (Diagnosis): the JSON and the report are drawn
+"""What a diagnosis is asked (DiagnosisSettings) and what it answers (Diagnosis): the JSON and the report are drawn
 from it."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from .noise import NoiseFloor
 
 
 @dataclass(frozen=True)
-class Settings:
+class DiagnosisSettings:
     folds: int = 3
     max_effects: int = 3
     pairs: int = 4  # best screened pairs fitted for real
@@ -64,7 +64,7 @@ class Diagnosis:
     candidates: list[Candidate]  # every candidate fitted, best first
     chosen: Candidate  # the baseline when nothing is missing
     baseline: Candidate
-    settings: Settings = Settings()
+    settings: DiagnosisSettings = DiagnosisSettings()
     located: dict[str, Any] = field(default_factory=dict)  # locate's tables, before and after
     files: dict[str, Path] = field(default_factory=dict)
     dropouts: dict[str, int] = field(default_factory=dict)  # GPS fixes skipped per run (scenario.dropouts)

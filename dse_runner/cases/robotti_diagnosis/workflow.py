@@ -23,7 +23,7 @@ from . import correction, discover, locate, lookalike, noise, screen
 from .chain import Chain, DiagnosisMessages
 from .model_files import base_parameters, fits_space, steering_source, vehicle_of, write_model
 from .noise import NoiseFloor
-from .outcome import Diagnosis, Settings
+from .outcome import Diagnosis, DiagnosisSettings
 
 DEFAULT_SPACE = "bundled:robotti/calibration.yaml"  # the Robotti baseline's calibration grid
 BEFORE, AFTER = "diagnosis-before", "diagnosis-after"  # sweeps holding the tracks of the report
@@ -37,7 +37,7 @@ def fitted_error(fit: FitResult) -> float:
     return float(np.mean(runs)) if runs else math.inf
 
 
-def worth_screening(candidates: list[Candidate], floor: float | None, settings: Settings) -> bool:
+def worth_screening(candidates: list[Candidate], floor: float | None, settings: DiagnosisSettings) -> bool:
     """Whether combinations could still explain something: not when a fit already leaves no more than
     ``floor_stop`` noise floors of error (on the runs it saw), nor when one effect at a time is the most
     allowed. Without a floor the screen always runs."""
@@ -131,7 +131,7 @@ def seek(chain: Chain, reference: Candidate, candidates: list[Candidate], floor:
 
 
 def diagnose(scenarios: str | Path, multimodel: str | Path | None = None, space: str | Path | None = None,
-             out: str | Path | None = None, settings: Settings = Settings(), client=None,
+             out: str | Path | None = None, settings: DiagnosisSettings = DiagnosisSettings(), client=None,
              progress: DiagnosisMessages | None = None, n_workers: int | None = None,
              address: str | None = None) -> Diagnosis:
     """Calibrate -> locate -> explain -> model -> re-calibrate on a folder of recorded runs.
@@ -144,7 +144,7 @@ def diagnose(scenarios: str | Path, multimodel: str | Path | None = None, space:
     return diagnose_calibration(calibration, settings, client, progress)
 
 
-def diagnose_calibration(calibration: Space, settings: Settings = Settings(), client=None,
+def diagnose_calibration(calibration: Space, settings: DiagnosisSettings = DiagnosisSettings(), client=None,
                          progress: DiagnosisMessages | None = None) -> Diagnosis:
     """The whole chain on a calibration space whose scenarios are recorded runs in the field-data format,
     its results (and the new model and report) in the space's output folder."""
@@ -157,7 +157,7 @@ def diagnose_calibration(calibration: Space, settings: Settings = Settings(), cl
     return _diagnose(calibration, out, settings, client, say)
 
 
-def _diagnose(calibration: Space, out: Path, settings: Settings, client, say: DiagnosisMessages) -> Diagnosis:
+def _diagnose(calibration: Space, out: Path, settings: DiagnosisSettings, client, say: DiagnosisMessages) -> Diagnosis:
     from . import report
 
     floor = noise.estimate_noise(calibration.scenarios)  # from the files alone, before any model is fitted

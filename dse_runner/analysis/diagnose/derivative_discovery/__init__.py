@@ -37,7 +37,7 @@ from ....sweeps.spec import Space
 from .. import explain
 from ..explain import Candidate
 from ..validation import Fold, as_folds
-from .library import CandidateTerm, Instance, candidate_terms, model_exchange_instances
+from .library import CandidateTerm, ModelExchangeInstance, candidate_terms, model_exchange_instances
 from .propose import Proposal, propose
 from .prove import (
     PRUNE_SE,
@@ -142,7 +142,7 @@ def readable(state: str, terms: Mapping[str, float]) -> str:
     return f"der({state}) += " + " + ".join(parts).replace("+ -", "- ")
 
 
-def observe(space: Space, point: Point, instances: Sequence[Instance], names: Sequence[str] | None = None
+def observe(space: Space, point: Point, instances: Sequence[ModelExchangeInstance], names: Sequence[str] | None = None
             ) -> list[dict[str, np.ndarray]]:
     """Every scenario (of ``names``, when given) simulated here at ``point``, recording each instance's states,
     derivatives and real inputs: what the library sizes its terms on."""

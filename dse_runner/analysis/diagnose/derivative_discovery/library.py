@@ -26,7 +26,7 @@ KINEMATIC = 1e-9  # a derivative within this share of a state's size from that s
 
 
 @dataclass(frozen=True)
-class Instance:
+class ModelExchangeInstance:
     """A model-exchange instance as the library sees it: its states, their derivative variables, its real inputs."""
 
     name: str
@@ -58,7 +58,7 @@ class CandidateTerm:
         return f"{self.instance}.der({self.state})"
 
 
-def model_exchange_instances(plan: Plan) -> list[Instance]:
+def model_exchange_instances(plan: Plan) -> list[ModelExchangeInstance]:
     """The plan's model-exchange instances (the only ones the master can add terms to)."""
     found = []
     for name, interface in plan.interfaces.items():
@@ -67,7 +67,7 @@ def model_exchange_instances(plan: Plan) -> list[Instance]:
         description = describe(plan.fmu_paths[name])
         states = dt.states_of(description)
         derivatives = [d.variable.name for d in description.derivatives if d.variable.derivative is not None]
-        found.append(Instance(name, tuple(states), tuple(derivatives), tuple(dt.real_inputs_of(description))))
+        found.append(ModelExchangeInstance(name, tuple(states), tuple(derivatives), tuple(dt.real_inputs_of(description))))
     return found
 
 
@@ -76,7 +76,7 @@ def rms(values: Sequence[np.ndarray]) -> float:
     return float(np.sqrt(np.mean(joined ** 2))) if joined.size else 0.0
 
 
-def kinematic(instance: Instance, runs: Sequence[Mapping[str, np.ndarray]]) -> set[str]:
+def kinematic(instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.ndarray]]) -> set[str]:
     """The states whose derivative is another state on every run (der(x) = v): definitions, not physics."""
     found = set()
     for state, derivative in zip(instance.states, instance.derivatives):
@@ -107,7 +107,7 @@ def terms(variables: Sequence[str], states: Sequence[str], widths: Mapping[str, 
     return found
 
 
-def candidate_terms(instance: Instance, runs: Sequence[Mapping[str, np.ndarray]], degree: int = 3
+def candidate_terms(instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.ndarray]], degree: int = 3
                     ) -> list[CandidateTerm]:
     """Every library term on every non-kinematic state's derivative, for the variables that vary on some run,
     sized over ``runs`` (each a recorded run: signal name -> values). A term that is zero on every run is left out."""

@@ -42,12 +42,12 @@ The stages live in their own modules, in the order data flows: observe, propose,
 (with resemble afterwards); this package re-exports what the workflow and the tests use.
 """
 
-from .observe import OUTPUT, Observed, Regression, observe, vehicle_values
+from .observe import OUTPUT, ChannelRegression, Observed, observe, vehicle_values
 from .propose import (
                       INCLUSION,
                       MAX_BINDING,
                       RATE_LIMITS,
-                      Proposal,
+                      CorrectionProposal,
                       binding,
                       candidates,
                       find_shape,
@@ -59,8 +59,8 @@ from .rank_terms import DISCOVERED, extended_margin, library_ids, rank_on_positi
 from .resemble import resemblance_words, resembles, similarity, terms_json
 
 __all__ = [
-    "DISCOVERED", "Discovery", "INCLUSION", "MAX_BINDING", "OUTPUT", "Observed", "Proposal",
-    "RATE_LIMITS", "Regression", "accept", "binding", "candidates", "discover", "extended_margin",
+    "DISCOVERED", "Discovery", "INCLUSION", "MAX_BINDING", "OUTPUT", "Observed", "CorrectionProposal",
+    "RATE_LIMITS", "ChannelRegression", "accept", "binding", "candidates", "discover", "extended_margin",
     "find_shape", "library_ids", "observe", "propose", "rank_on_positions", "refilled", "regressions",
     "resemblance_words", "resembles", "searched_count", "similarity", "terms_json", "vehicle_values",
 ]

@@ -15,7 +15,7 @@ from .... import bundled
 from ....simulation.build import real_parameters
 from ....simulation.scenario import Scenario, read_table
 from .. import correction, kinematics
-from ..correction import FeatureInputs, Term
+from ..correction import CorrectionTerm, FeatureInputs
 from ..hypotheses import EFFECTS_FMU
 
 DYNAMIC = ("acc", "steer")  # the channels equation error can see
@@ -83,12 +83,12 @@ def acted(log_time: np.ndarray, command: np.ndarray, t: np.ndarray, delay: float
 
 
 @dataclass(frozen=True)
-class Regression:
+class ChannelRegression:
     """One channel's equation error over some runs: the target and each term's column as the target sees
     it, one row per usable fix, with the run each row came from."""
 
     channel: str
-    terms: tuple[Term, ...]
+    terms: tuple[CorrectionTerm, ...]
     theta: np.ndarray  # rows x terms
     y: np.ndarray
     run: np.ndarray  # run index per row
@@ -96,13 +96,13 @@ class Regression:
     shapes: dict[str, float] = field(default_factory=dict)  # shape variable -> the value its terms' columns used
 
     @staticmethod
-    def join(parts: Sequence[Regression]) -> Regression:
+    def join(parts: Sequence[ChannelRegression]) -> ChannelRegression:
         """The rows of several runs' regressions of one channel, runs numbered in order."""
         first = parts[0]
         theta = np.vstack([p.theta for p in parts])
         rms = {t.variable: math.sqrt(sum(p.rms[t.variable] ** 2 * len(p.y) for p in parts)
                                      / max(sum(len(p.y) for p in parts), 1)) for t in first.terms}
-        return Regression(first.channel, first.terms, theta, np.concatenate([p.y for p in parts]),
+        return ChannelRegression(first.channel, first.terms, theta, np.concatenate([p.y for p in parts]),
                           np.concatenate([np.full(len(p.y), k) for k, p in enumerate(parts)]), rms, first.shapes)
 
 
@@ -169,7 +169,7 @@ def reference_state(run: Observed, values: Mapping[str, float]) -> Reference:
     return Reference(run, kin, grid, inputs, gain, m * (1.0 - slip) / kv, operators, targets)
 
 
-def _rms(columns: Mapping[str, np.ndarray], terms: Sequence[Term], moving: np.ndarray) -> dict[str, float]:
+def _rms(columns: Mapping[str, np.ndarray], terms: Sequence[CorrectionTerm], moving: np.ndarray) -> dict[str, float]:
     """Each term's raw feature RMS while the vehicle is commanded to move: bounds its coefficient."""
     return {tm.variable: float(np.sqrt(np.mean(columns[tm.variable][moving] ** 2))) if moving.any() else math.nan
             for tm in terms}
@@ -186,7 +186,7 @@ class Column:
     rms: float  # the raw feature's RMS while the vehicle is commanded to move (:func:`_rms`)
 
 
-def term_columns(ref: Reference, terms: Sequence[Term]) -> dict[str, Column]:
+def term_columns(ref: Reference, terms: Sequence[CorrectionTerm]) -> dict[str, Column]:
     """The column on ``ref``'s run of each of ``terms`` in a dynamic channel, keyed by its parameter name
     (see :func:`equation_error`)."""
     t, grid = ref.run.time, ref.grid
@@ -203,8 +203,8 @@ def term_columns(ref: Reference, terms: Sequence[Term]) -> dict[str, Column]:
     return out
 
 
-def equation_error(ref: Reference, terms: Sequence[Term] = (), known: Mapping[str, Column] | None = None,
-                   ) -> dict[str, Regression]:
+def equation_error(ref: Reference, terms: Sequence[CorrectionTerm] = (), known: Mapping[str, Column] | None = None,
+                   ) -> dict[str, ChannelRegression]:
     """Each dynamic channel's equation error on one run: what the fixes show minus what the reference model
     predicts, and what each term would add, both seen through the fixes' window; ``known`` holds columns
     already computed on this run (:func:`term_columns`), keyed by variable.
@@ -229,7 +229,7 @@ def equation_error(ref: Reference, terms: Sequence[Term] = (), known: Mapping[st
         if channel == "acc":
             rows &= kin.speed >= MIN_ACC_SPEED
         shapes = {sh.variable: getattr(inputs, sh.name) for tm in mine if (sh := correction.shape_of(tm))}
-        out[channel] = Regression(channel, tuple(mine), theta[rows], target[rows], np.zeros(int(rows.sum()), int),
+        out[channel] = ChannelRegression(channel, tuple(mine), theta[rows], target[rows], np.zeros(int(rows.sum()), int),
                                   {tm.variable: columns[tm.variable].rms for tm in mine}, shapes)
     return out
 
@@ -240,7 +240,7 @@ def body_axes(dx: np.ndarray, dy: np.ndarray, psi: np.ndarray) -> tuple[np.ndarr
     return dx * c + dy * s, -dx * s + dy * c
 
 
-def output_error(ref: Reference, residuals: np.ndarray | None, terms: Sequence[Term] = ()) -> dict[str, Regression]:
+def output_error(ref: Reference, residuals: np.ndarray | None, terms: Sequence[CorrectionTerm] = ()) -> dict[str, ChannelRegression]:
     """The antenna channels' error on one run: the reference's fix residuals (fielddata.fix_residuals,
     simulated minus recorded, x then y) turned into recorded minus simulated in the vehicle's axes, forward
     and left.
@@ -266,7 +266,7 @@ def output_error(ref: Reference, residuals: np.ndarray | None, terms: Sequence[T
             continue
         theta = np.column_stack([np.interp(t, ref.grid, grid_columns[tm.variable]) for tm in mine])
         rows = np.isfinite(target) & np.isfinite(theta).all(axis=1)
-        out[channel] = Regression(channel, tuple(mine), theta[rows], target[rows], np.zeros(int(rows.sum()), int),
+        out[channel] = ChannelRegression(channel, tuple(mine), theta[rows], target[rows], np.zeros(int(rows.sum()), int),
                                   _rms(grid_columns, mine, moving))
     return out
 

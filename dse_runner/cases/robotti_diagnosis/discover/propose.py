@@ -13,14 +13,14 @@ from ....analysis.diagnose.derivative_discovery.propose import choose_threshold 
 from ....analysis.diagnose.derivative_discovery.propose import held_out_error
 from ....analysis.diagnose.derivative_discovery.propose import stlsq as sparse_regression
 from .. import correction
-from ..correction import Term
+from ..correction import CorrectionTerm
 from .observe import (
     DYNAMIC,
     OUTPUT,
+    ChannelRegression,
     Column,
     Observed,
     Reference,
-    Regression,
     equation_error,
     output_error,
     reference_state,
@@ -83,7 +83,7 @@ def _channel(shape: correction.Shape) -> str:
     return next(t.channel for t in correction.searched_terms() if correction.shape_of(t) == shape)
 
 
-def _channel_terms(shape: correction.Shape, with_shape: bool) -> list[Term]:
+def _channel_terms(shape: correction.Shape, with_shape: bool) -> list[CorrectionTerm]:
     """The searched terms of ``shape``'s channel, with or without the shaped ones."""
     channel = _channel(shape)
     return [t for t in correction.searched_terms()
@@ -91,7 +91,7 @@ def _channel_terms(shape: correction.Shape, with_shape: bool) -> list[Term]:
 
 
 def _shaped_rows(refs: Sequence[Reference], shape: correction.Shape, value: float | None,
-                 known: Sequence[Mapping[str, Column]] | None = None) -> tuple[Regression, ...]:
+                 known: Sequence[Mapping[str, Column]] | None = None) -> tuple[ChannelRegression, ...]:
     """The equation error of the channel ``shape``'s terms belong to, run by run: on all that channel's terms
     with the shaped ones made at ``value``, or without them when ``value`` is None. ``known`` holds, per run,
     columns of the other terms already computed (they do not change with ``value``)."""
@@ -103,13 +103,13 @@ def _shaped_rows(refs: Sequence[Reference], shape: correction.Shape, value: floa
     return tuple(r[channel] for r in made if channel in r)
 
 
-def _joined(regs: Sequence[Regression]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _joined(regs: Sequence[ChannelRegression]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One channel's runs pooled: columns scaled to unit RMS, target, run index per row."""
-    joined = Regression.join(list(regs))
+    joined = ChannelRegression.join(list(regs))
     return _scaled(joined)[0], joined.y, joined.run
 
 
-def _sse(regs: Sequence[Regression]) -> float:
+def _sse(regs: Sequence[ChannelRegression]) -> float:
     """The least squares SSE of one channel's equation error on all its columns, pooled over runs."""
     z, y, _ = _joined(regs)
     if len(y) == 0:
@@ -154,7 +154,7 @@ def searched_shapes() -> list[correction.Shape]:
 
 
 def regressions(runs: Sequence[Observed], values: Mapping[str, Mapping[str, float]] | Mapping[str, float],
-                residuals: Mapping[str, np.ndarray | None] | None = None) -> dict[str, Regression]:
+                residuals: Mapping[str, np.ndarray | None] | None = None) -> dict[str, ChannelRegression]:
     """Each channel's error over ``runs``; ``values`` is one parameter set, or one per run name; ``residuals``
     the reference's fix residuals per run name (the antenna channels; none without them)."""
     refs = [reference_state(run, values.get(run.name, values)) for run in runs]
@@ -170,12 +170,12 @@ def regressions(runs: Sequence[Observed], values: Mapping[str, Mapping[str, floa
     per_run = [{**equation_error(ref, dynamic),
                 **(output_error(ref, residuals.get(ref.run.name), output) if residuals is not None else {})}
                for ref in refs]
-    return {c: Regression.join([p[c] for p in per_run if c in p]) for c in CHANNELS
+    return {c: ChannelRegression.join([p[c] for p in per_run if c in p]) for c in CHANNELS
             if any(c in p for p in per_run)}
 
 
 @dataclass(frozen=True)
-class Proposal:
+class CorrectionProposal:
     """The terms equation error supports, with their equation-error coefficients (starting values only)."""
 
     terms: dict[str, float]  # parameter name (corr_*) -> coefficient
@@ -203,7 +203,7 @@ def stlsq(theta: np.ndarray, y: np.ndarray, threshold: float) -> np.ndarray:
     return sparse_regression(theta, y, threshold, unbias=False)
 
 
-def _scaled(reg: Regression) -> tuple[np.ndarray, np.ndarray]:
+def _scaled(reg: ChannelRegression) -> tuple[np.ndarray, np.ndarray]:
     """The columns scaled to unit RMS, and the scales. A column far below its feature's typical size (the
     drive's force once the speed has settled, to rounding) carries no information, only rounding: it is
     zeroed rather than blown up to unit size."""
@@ -219,8 +219,8 @@ def choose_threshold(z: np.ndarray, y: np.ndarray, run: np.ndarray) -> float:
     return generic_threshold(z, y, run, stlsq)
 
 
-def propose(regs: Mapping[str, Regression], max_terms: int = 3, seed: int = SEED,
-            bootstrap: int = BOOTSTRAP) -> Proposal:
+def propose(regs: Mapping[str, ChannelRegression], max_terms: int = 3, seed: int = SEED,
+            bootstrap: int = BOOTSTRAP) -> CorrectionProposal:
     """The few terms the error of every channel supports: per channel the STLSQ threshold of least
     leave-one-run-out error, then a seeded bootstrap over runs; terms picked in at least ``INCLUSION`` of the
     resamples, at most ``max_terms`` in all (the order only until :func:`screened` re-ranks them on
@@ -255,5 +255,5 @@ def propose(regs: Mapping[str, Regression], max_terms: int = 3, seed: int = SEED
                 ranked.append((channel in DYNAMIC, float(share[k]), abs(coef[k]) * scale[k] / size, tm.variable,
                                float(coef[k])))
     order = tuple((v, c) for *_, v, c in sorted(ranked, reverse=True))
-    return Proposal(dict(order[:max_terms]), inclusion, thresholds, rms, order,
+    return CorrectionProposal(dict(order[:max_terms]), inclusion, thresholds, rms, order,
                     {k: v for reg in regs.values() for k, v in reg.shapes.items()})

@@ -15,7 +15,7 @@ from ....analysis.diagnose.explain import Candidate
 from ....sweeps.fit import FitProblem, FitResult
 from .. import correction
 from .observe import Observed, vehicle_values
-from .propose import Proposal, propose, regressions
+from .propose import CorrectionProposal, propose, regressions
 from .rank_terms import DISCOVERED, Fitter, Screen, extended_margin, held_shapes, library_ids, screened
 
 
@@ -47,7 +47,7 @@ def pruned(fit: FitResult, factor: float = PRUNE_SE) -> dict[str, float]:
     return {name.rsplit(".", 1)[-1]: fit.values[name] for name in kept}
 
 
-def refilled(kept: Mapping[str, float], proposal: Proposal, tried: set[str], max_terms: int) -> dict[str, float]:
+def refilled(kept: Mapping[str, float], proposal: CorrectionProposal, tried: set[str], max_terms: int) -> dict[str, float]:
     """The kept terms (at zero: the dropped ones may have balanced them) and, in the slots pruning freed, the
     next terms the proposal ranked that were not tried yet (at their proposed values). Equation error sees
     more than dynamics (the model's own misfit shows in it too), so a term it ranks high may fall on
@@ -61,7 +61,7 @@ def refilled(kept: Mapping[str, float], proposal: Proposal, tried: set[str], max
     return out
 
 
-def settle(chain: Fitter, jobs: Mapping[str, tuple[Callable[[Mapping[str, float]], FitProblem], Proposal]],
+def settle(chain: Fitter, jobs: Mapping[str, tuple[Callable[[Mapping[str, float]], FitProblem], CorrectionProposal]],
            what: str) -> dict[str, FitResult | None]:
     """Fit each job's proposed terms, prune those within PRUNE_SE standard errors of zero, refit with the freed
     slots refilled (:func:`refilled`; all of them when no term survived), then prune and refit without
@@ -97,7 +97,7 @@ class Discovery:
     """What discovery tried on top of ``reference`` and what it found."""
 
     reference: Candidate
-    proposal: Proposal | None = None  # from every run
+    proposal: CorrectionProposal | None = None  # from every run
     candidates: list[Candidate] = field(default_factory=list)  # fitted with terms: R + D, and D alone
     chosen: Candidate | None = None  # the accepted one; None if no term paid its way
     folds: list[dict[str, Any]] = field(default_factory=list)  # each set's and fold's own proposal
@@ -142,7 +142,7 @@ def discover(chain: Fitter, reference: Candidate, candidates: Sequence[Candidate
     points = [f.point for parent in parents.values() for f in (parent.full, *parent.folds)]
     residuals = chain.evaluate(points)
 
-    def proposal(parent: FitResult, names: Sequence[str]) -> Proposal:
+    def proposal(parent: FitResult, names: Sequence[str]) -> CorrectionProposal:
         values = vehicle_values(parent.point, vehicle, fixed)
         mine = [by_name[n] for n in names if n in by_name]
         return propose(regressions(mine, values, {r.name: residuals(parent.point, r.name) for r in mine}),

@@ -14,7 +14,7 @@ from ....analysis.diagnose.explain import Candidate
 from ....sweeps.domain import Point
 from ....sweeps.fit import FitProblem, FitResult, Parameter, Residuals
 from .. import correction
-from .propose import CHANNELS, SCANNED, Proposal
+from .propose import CHANNELS, SCANNED, CorrectionProposal
 
 DISCOVERED = "discovered"  # the id a discovered correction takes among a candidate's ids
 
@@ -73,7 +73,7 @@ class Screen:
 
     fit: FitResult  # the parent (R, or the calibrated model) fitted on ``scenarios``
     scenarios: tuple[str, ...]
-    proposal: Proposal
+    proposal: CorrectionProposal
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)  # the parent's parameters' bounds
 
     def moves(self) -> tuple[np.ndarray, np.ndarray]:
@@ -156,7 +156,7 @@ def rank_on_positions(r: np.ndarray, base: np.ndarray, columns: Mapping[str, np.
     return [(v, float(c)) for v, c in zip(chosen, coefficients)], rest
 
 
-def screened(chain: Fitter, jobs: Mapping[str, Screen], rms: Mapping[str, float]) -> dict[str, Proposal]:
+def screened(chain: Fitter, jobs: Mapping[str, Screen], rms: Mapping[str, float]) -> dict[str, CorrectionProposal]:
     """Each job's proposal re-ranked on positions (:func:`rank_on_positions`) at its parent fit, on the
     parent's runs only, all in one sweep of probes (one per proposed term and parent; the parents' own
     points are in the store). Equation error says *which* terms the data carry; this says which of them
