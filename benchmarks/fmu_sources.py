@@ -3,7 +3,7 @@
     python benchmarks/fmu_sources.py [--rev HEAD] [--fmu robotti_vehicle_effects] [--repeats 8] [--json]
 
 The FMU is built twice (the ordinary build and cache, simulation/build.py): from the package's
-``bundled/fmus`` as it is in the working tree, and from the same folder at git revision ``--rev``
+top-level ``fmus/`` as it is in the working tree, and from the same folder at git revision ``--rev``
 (``git archive``). Each drives the Robotti multi-model, its vehicle replaced by the FMU, on the bundled
 runs with each of a few parameter sets: the calibrated baseline and, for the effects variant, each effect
 and a correction block switched on. Every trajectory of one build is compared with the other's byte for
@@ -33,7 +33,8 @@ from dse_runner.simulation.plan import make_plan  # noqa: E402
 from dse_runner.simulation.run import simulate  # noqa: E402
 from dse_runner.simulation.scenario import load_scenario  # noqa: E402
 
-FMUS = "dse_runner/bundled/fmus"
+FMUS = "fmus"
+FORMERLY = "dse_runner/bundled/fmus"  # where they were before 2026-11-28
 RUNS = ("sin1", "turn_ramp2", "speed_step1", "speed_ramp3")
 CALIBRATED = {"vehicle.mass": 1000.0, "vehicle.cAlphaF": 38000.0, "vehicle.mu": 0.3}
 EFFECTS = [{"vehicle.wheel_slip": 0.08}, {"vehicle.steering_lag": 0.4}, {"vehicle.speed_lag": 0.8},
@@ -44,10 +45,12 @@ EFFECTS = [{"vehicle.wheel_slip": 0.08}, {"vehicle.steering_lag": 0.4}, {"vehicl
 
 def sources_at(rev: str, into: Path) -> Path:
     """The bundled FMU sources at git revision ``rev``, unpacked under ``into``."""
-    archive = subprocess.run(["git", "-C", str(REPO), "archive", rev, FMUS], capture_output=True, check=True).stdout
+    folder = FMUS if subprocess.run(["git", "-C", str(REPO), "cat-file", "-e", f"{rev}:{FMUS}"],
+                                    capture_output=True).returncode == 0 else FORMERLY
+    archive = subprocess.run(["git", "-C", str(REPO), "archive", rev, folder], capture_output=True, check=True).stdout
     with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
         tar.extractall(into, filter="data")
-    return into / FMUS
+    return into / folder
 
 
 def cases(fmu: str) -> list[dict[str, float]]:
@@ -67,7 +70,7 @@ def run_all(plan, scenarios, values_list) -> list[bytes]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rev", default="HEAD", help="the git revision to compare the working tree with")
-    parser.add_argument("--fmu", default="robotti_vehicle_effects", help="a folder of the package's bundled/fmus")
+    parser.add_argument("--fmu", default="robotti_vehicle_effects", help="a folder of the top-level fmus/")
     parser.add_argument("--repeats", type=int, default=8)
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()

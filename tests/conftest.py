@@ -13,7 +13,7 @@ from dse_runner import bundled
 REPO = Path(__file__).resolve().parents[1]
 MULTIMODEL = bundled.root() / "robotti" / "multimodel.yaml"
 SCENARIOS = REPO / "scenarios" / "robotti"
-FMU_SOURCES = bundled.root() / "fmus"
+FMU_SOURCES = bundled.fmus_root()
 
 
 # Every test that needs a real Dask cluster is slow (docs/testing.md): these fixtures start one, and a

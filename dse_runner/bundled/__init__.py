@@ -1,5 +1,6 @@
-"""What ships inside the package: our FMUs' C sources and the Robotti example's multi-model and
-calibration space, found at run time wherever the package is installed.
+"""What ships inside the package: our FMUs' C sources (the checkout's top-level fmus/, installed as
+``dse_runner.bundled.fmus``) and the Robotti example's multi-model and calibration space, found at run
+time wherever the package is installed.
 
 Files name them with the ``bundled:`` prefix, e.g. ``bundled:fmus/robotti_vehicle`` in a
 multi-model or ``bundled:robotti/calibration.yaml`` as a space, so a job folder keeps working
@@ -21,6 +22,18 @@ def root() -> Path:
     return Path(str(files(__name__)))
 
 
+def fmus_root() -> Path:
+    """The folder of our FMUs' C sources: the checkout's top-level fmus/, installed as the package
+    ``dse_runner.bundled.fmus`` (pyproject.toml maps it there)."""
+    return Path(str(files(f"{__name__}.fmus")))
+
+
+def _located(relative: str) -> Path:
+    """Where a bundled name's file is: ``fmus/...`` among the FMU sources, anything else in this folder."""
+    first, _, rest = relative.partition("/")
+    return fmus_root() / rest if first == "fmus" else root() / relative
+
+
 def is_bundled(reference: str | Path) -> bool:
     return str(reference).startswith(PREFIX)
 
@@ -28,19 +41,26 @@ def is_bundled(reference: str | Path) -> bool:
 def bundled_path(reference: str) -> Path:
     """``bundled:fmus/robotti_vehicle`` -> the installed folder or file it names."""
     relative = reference.removeprefix(PREFIX).strip("/")
-    path = root() / relative
+    path = _located(relative)
     if not relative or ".." in Path(relative).parts or not path.exists():
-        available = ", ".join(f"{PREFIX}{p.relative_to(root())}" for p in listing())
+        available = ", ".join(_name(p) for p in listing())
         raise DseError(f"{reference!r}: dse-runner bundles no such file (it bundles {available})")
     return path
 
 
 def listing() -> list[Path]:
     """The bundled FMU source folders and example files: what an error about a bundled name lists."""
-    folder = root() / "fmus"
+    folder = fmus_root()
     fmus = [p for p in sorted(folder.iterdir()) if (p / "modelDescription.xml").is_file()] if folder.is_dir() else []
     examples = sorted(p for p in root().glob("*/*.yaml"))
     return fmus + examples
+
+
+def _name(path: Path) -> str:
+    """The ``bundled:`` name of a listed file."""
+    if path.is_relative_to(fmus_root()):
+        return f"{PREFIX}fmus/{path.relative_to(fmus_root())}"
+    return f"{PREFIX}{path.relative_to(root())}"
 
 
 def resolve(reference: str | Path, base: Path) -> Path:

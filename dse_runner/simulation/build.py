@@ -114,7 +114,7 @@ def common_dir(source_dir: Path, layer: Layer | None = None) -> Path:
 
 def bundled_sources() -> Path:
     """The FMU source folders that ship inside the package."""
-    return bundled.root() / "fmus"
+    return bundled.fmus_root()
 
 
 def source_files(source_dir: Path, layer: Layer | None = None) -> list[Path]:

@@ -44,7 +44,7 @@ from dse_runner.simulation.build import real_parameters
 from dse_runner.simulation.scenario import load_scenario
 
 HERE = Path(__file__).resolve().parent
-FMUS = HERE.parents[1] / "dse_runner" / "bundled" / "fmus"
+FMUS = HERE.parents[1] / "fmus"
 PATHS = HERE.parents[1] / "scenarios" / "robotti-paths"
 MODEL = HERE / "multimodel.yaml"
 ERROR, EFFORT = "path_error_mean", "steering_effort"

@@ -112,3 +112,18 @@ def test_the_graph_check_finds_a_circle_however_its_imports_are_deferred():
                 ("sweeps.uncertainty", "sweeps.spec"): False, ("sweeps.rank", "sweeps.spec"): True}
     assert graph.circles(deferred) == [["sweeps.makers", "sweeps.spec", "sweeps.uncertainty"]]
     assert graph.circles({k: v for k, v in deferred.items() if k[0] != "sweeps.uncertainty"}) == []
+
+
+def test_the_wheel_lists_every_package_and_takes_the_fmu_sources_from_the_top_level():
+    """pyproject.toml lists the packages one by one (the FMU sources are mapped in from the top-level fmus/,
+    which a search of dse_runner/ cannot find): a package folder left off the list would be missing from the
+    wheel, and the FMU sources are kept once, at the top level."""
+    import tomllib
+
+    from conftest import REPO
+
+    setuptools = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
+    folders = {".".join(p.parent.relative_to(REPO).parts) for p in (REPO / "dse_runner").rglob("__init__.py")}
+    assert set(setuptools["packages"]) == folders | {"dse_runner.bundled.fmus"}
+    assert setuptools["package-dir"] == {"dse_runner.bundled.fmus": "fmus"}
+    assert (REPO / "fmus" / "common" / "slave.c").is_file() and not (PACKAGE / "bundled" / "fmus").exists()

@@ -30,7 +30,8 @@ def installed(tmp_path_factory) -> dict:
     source.mkdir()
     for name in ("pyproject.toml", "README.md"):
         shutil.copy(REPO / name, source / name)
-    shutil.copytree(REPO / "dse_runner", source / "dse_runner", ignore=shutil.ignore_patterns("__pycache__"))
+    for folder in ("dse_runner", "fmus"):  # the package, and the FMU sources pyproject.toml maps into it
+        shutil.copytree(REPO / folder, source / folder, ignore=shutil.ignore_patterns("__pycache__"))
     subprocess.run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "--no-build-isolation", "-w",
                     str(root / "dist"), str(source)], check=True, capture_output=True, text=True)
     (wheel,) = (root / "dist").glob("dse_runner-*.whl")

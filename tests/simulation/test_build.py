@@ -6,13 +6,11 @@ import shutil
 import zipfile
 
 import pytest
-from conftest import FMU_SOURCES
+from conftest import FMU_SOURCES, REPO
 from fmpy.validation import validate_fmu
 
 from dse_runner.simulation import build
 from dse_runner.simulation.build import BuildError, build_fmu, find_source_dirs
-
-REPO = FMU_SOURCES.parents[2]
 
 
 @pytest.mark.parametrize("name", ["robotti_vehicle", "replay_controller"])

@@ -7,7 +7,7 @@ import zipfile
 
 import fmpy
 import numpy as np
-from conftest import FMU_SOURCES
+from conftest import REPO
 from fmpy.validation import validate_fmu
 
 from dse_runner import simulate
@@ -15,7 +15,6 @@ from dse_runner.simulation import build
 from dse_runner.simulation.build import build_fmu
 from dse_runner.simulation.run import as_plan
 
-REPO = FMU_SOURCES.parents[2]
 MSD3 = REPO / "tests" / "fmus" / "msd3"
 MSD2 = REPO / "jobs" / "msd" / "fmus" / "msd"
 VALUES = {"k": 14.0, "c": 0.8}

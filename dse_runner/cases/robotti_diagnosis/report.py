@@ -240,7 +240,7 @@ def _markdown(diagnosis: Diagnosis, located: dict[str, pd.DataFrame], sig: dict[
         lines += [f"Observed: the residual fell most in {sig['component']} on {sig['segment']} segments, "
                   f"from {sig['before']:.3f} to {sig['after']:.3f} (rms).", "",
                   "## 3. Model", "",
-                  f"The chosen effect is part of the vehicle's effects variant (`bundled:fmus/robotti_vehicle_effects`, in the package's `dse_runner/bundled/fmus/`). "
+                  f"The chosen effect is part of the vehicle's effects variant (`bundled:fmus/robotti_vehicle_effects`: the checkout's top-level `fmus/`, shipped inside the package). "
                   f"Written: `{diagnosis.files['multimodel'].name}` and `{diagnosis.files['space'].name}` "
                   "(the calibration with the effect's parameters added); `dse-runner submit space.yaml` "
                   "re-calibrates with it."
