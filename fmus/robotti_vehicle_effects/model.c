@@ -29,7 +29,7 @@
 
 /*
  * The correction block's terms, corr_<channel>_<feature>, in the order of
- * dse_runner/analysis/diagnose/correction.py's TERMS (a test checks the names,
+ * dse_runner/cases/robotti_diagnosis/correction.py's TERMS (a test checks the names,
  * their order and the value references against it and modelDescription.xml).
  * dynamic_features() and gps_features() below evaluate the features with correction.py's definitions:
  *   v = vx, psi = heading, r = yaw rate, s = distance travelled (a state, ds/dt = |v|);
