@@ -16,7 +16,7 @@ keeps it as a column; ``simulate`` takes it among its values. An input effect
 acts on a signal a scenario drives, an output effect on any recorded signal.
 
 Each effect wraps a signal and is a signal itself: anything with ``at(t)``, as
-scenario.Series is, so effects compose and the step loop samples them as it
+trajectory.Series is, so effects compose and the step loop samples them as it
 samples a recorded input. At its neutral value (delay 0, lag 0, gain 1, offset
 0, no bound, no dead zone, no backlash, no rate limit, no square term) an effect
 returns the signal's own values unchanged, bit for bit, so a hypothesis that is
@@ -101,7 +101,7 @@ def split(values: Mapping[str, object]) -> tuple[dict[str, object], dict[Effect,
 
 
 class Signal(Protocol):
-    """What an effect wraps: a signal that can be sampled at any times (scenario.Series, or an effect)."""
+    """What an effect wraps: a signal that can be sampled at any times (trajectory.Series, or an effect)."""
 
     def at(self, t: np.ndarray) -> np.ndarray: ...
 

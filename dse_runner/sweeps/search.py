@@ -14,7 +14,8 @@ search reproducible and lets a later submission go on from the stored results.
 needing results (``closed_loop = False``), and the sweep runs it in large
 chunks. The others (strategies/) wrap Optuna, scipy and pymoo. More plug in
 without touching this module, the way ``distributed`` takes plug-ins: a
-package declares an entry point in the group ``dse_runner.search``::
+package declares an entry point in the group ``dse_runner.search``, as
+dse-runner's own pyproject.toml declares the built-in ones::
 
     [project.entry-points."dse_runner.search"]
     my_search = "my_package.search:MySearch"   # a subclass of dse_runner.sweeps.search.Strategy
