@@ -34,8 +34,8 @@ FIGURES = ("wall_s", "client_cpu_s", "workers_cpu_s")
 def one_run(tree: Path, case: str, out: Path) -> dict:
     """In the child process: the case diagnosed with the code of ``tree``, its figures and answer."""
     sys.path.insert(0, str(tree / "tests"))
-    from support import blind  # the tree's: fit_schedule, next, then finds it imported
     from fit_schedule import cluster_cpu as workers_cpu  # this process's children: its local cluster
+    from support import blind  # the tree's: fit_schedule, next, then finds it imported
 
     import dse_runner
     from dse_runner.sweeps.cluster import connect
