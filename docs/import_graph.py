@@ -7,7 +7,8 @@
 
 Every ``import`` and ``from … import`` in every module of the package is read with ``ast`` (nothing is
 imported, so no dependency needs to be installed). A node is a module; a subpackage below a layer
-(``sweeps/strategies``, ``analysis/diagnose``, ``interfaces/intocps``, ``cases/robotti_diagnosis``) is one node. An arrow A --> B says A
+(``sweeps/strategies``, ``analysis/diagnose``, ``interfaces/dashboard``, ``interfaces/intocps``,
+``cases/robotti_diagnosis``) is one node. An arrow A --> B says A
 imports B at the top of the module; a dotted arrow, only inside a function or under ``TYPE_CHECKING`` (on
 first use, so that starting the CLI does not load what a command does not need). ``errors``,
 ``plugins``, ``schema``, ``strict_json`` and ``yamlfile``, which every layer may import, are drawn without
@@ -28,7 +29,8 @@ TARGET = ROOT / "docs" / "architecture.md"
 START, END = "<!-- import-graph: start (docs/import_graph.py) -->", "<!-- import-graph: end -->"
 
 LAYERS = ("simulation", "sweeps", "analysis", "interfaces", "cases")  # in the order they may import
-COLLAPSED = ("sweeps.strategies", "analysis.diagnose", "interfaces.intocps", "cases.robotti_diagnosis")
+COLLAPSED = ("sweeps.strategies", "analysis.diagnose", "interfaces.dashboard", "interfaces.intocps",
+             "cases.robotti_diagnosis")
 SHARED = ("errors", "plugins", "schema", "strict_json", "yamlfile")  # imported from everywhere: drawn without arrows
 LEFT_OUT = ("__main__", "bundled")  # the entry point (imports cli) and the data package (imports nothing)
 
@@ -75,15 +77,26 @@ def targets(statement: ast.Import | ast.ImportFrom, importer: str, is_package: b
     return {m for m in found if m in modules}
 
 
+def package_files() -> dict[str, Path]:
+    """Module name -> file, for every module of the package."""
+    return {module_name(p): p for p in sorted(PACKAGE.rglob("*.py")) if "__pycache__" not in p.parts}
+
+
+def drawn(module: str) -> bool:
+    """Whether a module is a node: not the root, not a layer's __init__.py (they hold no code worth an arrow;
+    the root's is lazy), not the entry point or the data package."""
+    return bool(module) and module.split(".")[0] not in LEFT_OUT and module not in LAYERS
+
+
 def module_edges() -> dict[tuple[str, str], bool]:
     """Every import between two of the package's modules: (importer, imported) -> whether some import of it
     is at the top of the module (False: only inside a function or under ``TYPE_CHECKING``)."""
-    files = {module_name(p): p for p in sorted(PACKAGE.rglob("*.py")) if "__pycache__" not in p.parts}
+    files = package_files()
     modules = set(files) - {""}
     graph: dict[tuple[str, str], bool] = {}
     for module, path in files.items():
-        if not module or module.split(".")[0] in LEFT_OUT or module in LAYERS:
-            continue  # the root and layer __init__.py hold no code worth an arrow (the root's is lazy)
+        if not drawn(module):
+            continue
         tree = ast.parse(path.read_text())
         deferred = deferred_nodes(tree)
         for statement in ast.walk(tree):
@@ -100,7 +113,7 @@ def edges() -> tuple[set[str], dict[tuple[str, str], bool]]:
     """The drawn nodes, and every edge (importer node, imported node) -> whether some import of it is at the
     top."""
     modules = module_edges()
-    nodes = {node_of(a) for a, _ in modules} | {node_of(b) for _, b in modules if b not in SHARED}
+    nodes = {node_of(module) for module in package_files() if drawn(module)}
     graph: dict[tuple[str, str], bool] = {}
     for (module, target), top in modules.items():
         a, b = node_of(module), node_of(target)

@@ -49,11 +49,6 @@ def names(group: str) -> list[str]:
     return sorted(entries(group))
 
 
-def builtin(entry: EntryPoint) -> bool:
-    """Whether ``entry`` is one of dse-runner's own."""
-    return _distribution(entry) == OWN
-
-
 def load(group: str, name: str, label: str) -> Any:
     """What the entry ``name`` of ``group`` names, imported now; None if no installed package declares it.
     ``label`` names it in errors (``search strategy 'tpe'``)."""

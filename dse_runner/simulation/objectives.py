@@ -32,11 +32,13 @@ message naming the objective, never a result row holding NaN.
 
 from __future__ import annotations
 
+import functools
 import importlib
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from importlib.metadata import EntryPoint
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
@@ -287,14 +289,20 @@ GROUP = "dse_runner.objectives"
 
 def registered() -> dict[str, Objective]:
     """Objectives installed packages register (entry-point group ``dse_runner.objectives``)."""
-    return {name: as_objective(plugins.loaded(entry, f"objective {name!r}"), f"{name!r} ({entry.value})")
-            for name, entry in plugins.entries(GROUP).items()}
+    return {name: _registered(entry) for name, entry in plugins.entries(GROUP).items()}
+
+
+@functools.cache
+def _registered(entry: EntryPoint) -> Objective:
+    """One registered objective, loaded and wrapped once: a sweep looks its objectives up at every run."""
+    return as_objective(plugins.loaded(entry, f"objective {entry.name!r}"), f"{entry.name!r} ({entry.value})")
 
 
 def function(name: str) -> Objective:
     """A registered objective's name, or ``module:function`` for a user's own."""
-    if name in registered():
-        return registered()[name]
+    entry = plugins.entries(GROUP).get(name)
+    if entry is not None:
+        return _registered(entry)
     module_name, colon, function_name = name.partition(":")
     if not colon:
         available = ", ".join(registered()) or "none installed"

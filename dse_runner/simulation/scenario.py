@@ -365,9 +365,10 @@ class ScenarioKind(ABC):
     which name an instance of a subclass (SignalsKind below; fielddata.FieldData, paths.PathKind).
 
     Lifecycle: when a space is read, a folder its ``scenarios`` name is offered to every installed
-    kind's :meth:`detect` in turn, unless the entry names its ``kind``; the first that recognises it
-    reads it with :meth:`load`, the entry's other keys as ``options``, into a :class:`Scenario` that
-    travels to the workers (it must pickle), its ``kind`` this kind's ``name`` (the entry point's).
+    kind's :meth:`detect` in turn (``general`` ones last), unless the entry names its ``kind``; the first
+    that recognises it reads it with :meth:`load`, the entry's other keys as ``options``, into a
+    :class:`Scenario` that travels to the workers (it must pickle), its ``kind`` this kind's ``name``
+    (the entry point's).
     ``default_objectives`` are what a space of such scenarios scores when it names none. Afterwards,
     on the client only, the interfaces ask the kind for its views of one simulated result:
     :meth:`draw` (simulate's figure) and :meth:`compare` (the dashboard's and report's). Both are
@@ -377,6 +378,7 @@ class ScenarioKind(ABC):
 
     name: ClassVar[str]
     default_objectives: ClassVar[tuple[str, ...]] = ()
+    general: ClassVar[bool] = False  # recognises folders of any origin: offered a folder after the others
 
     @abstractmethod
     def detect(self, folder: Path) -> bool:
@@ -401,6 +403,7 @@ class SignalsKind(ScenarioKind):
     """The general kind: a folder whose scenario.yaml is a :class:`ScenarioSpec`."""
 
     name = "signals"
+    general = True  # a scenario.yaml may sit in any folder
 
     def detect(self, folder: Path) -> bool:
         return (folder / INFO_FILE).is_file()
@@ -429,9 +432,10 @@ def _checked(entry: EntryPoint) -> ScenarioKind:
 
 def kinds() -> dict[str, ScenarioKind]:
     """Installed kinds (entry-point group ``dse_runner.scenarios``) in the order they are tried on a folder:
-    by name, and the general one (``signals``, whose scenario.yaml any folder may hold) last."""
-    found = {name: _checked(entry) for name, entry in plugins.entries(GROUP).items() if name != SIGNALS.name}
-    return {**found, SIGNALS.name: kind(SIGNALS.name)}
+    by name, the general ones (the built-in ``signals``, whose scenario.yaml any folder may hold) last."""
+    found = sorted(((name, _checked(entry)) for name, entry in plugins.entries(GROUP).items()),
+                   key=lambda named: (named[1].general, named[0]))
+    return dict(found)
 
 
 def kind(name: str) -> ScenarioKind:
