@@ -35,19 +35,30 @@ def set_bytecode(compiled: bool) -> None:
     for cache in list(PACKAGE.rglob("__pycache__")):
         shutil.rmtree(cache)
     if compiled:
-        subprocess.run([sys.executable, "-m", "compileall", "-q", str(PACKAGE)], check=True,
-                       stdout=subprocess.DEVNULL)
+        subprocess.run(
+            [sys.executable, "-m", "compileall", "-q", str(PACKAGE)], check=True, stdout=subprocess.DEVNULL
+        )
 
 
 def commands(dse_runner: str, spec: Path) -> dict[str, tuple[list[str], dict[str, str]]]:
     """Each measured command, by label, with its environment (``PYTHONDONTWRITEBYTECODE`` set)."""
     env = {key: value for key, value in os.environ.items() if key != VARIABLE}
-    env["PYTHONDONTWRITEBYTECODE"] = "1"  # as on this machine; without it the first run would write the bytecode
+    env["PYTHONDONTWRITEBYTECODE"] = (
+        "1"  # as on this machine; without it the first run would write the bytecode
+    )
     submit = [dse_runner, "submit", str(spec)]
-    simulate = [dse_runner, "simulate", "bundled:robotti/multimodel.yaml",
-                "--scenario", str(REPO / "scenarios" / "robotti" / "sin1")]
-    return {"submit, spawned workers": (submit, {**env, VARIABLE: "spawn"}),
-            "submit, forked workers": (submit, env), "simulate": (simulate, env)}
+    simulate = [
+        dse_runner,
+        "simulate",
+        "bundled:robotti/multimodel.yaml",
+        "--scenario",
+        str(REPO / "scenarios" / "robotti" / "sin1"),
+    ]
+    return {
+        "submit, spawned workers": (submit, {**env, VARIABLE: "spawn"}),
+        "submit, forked workers": (submit, env),
+        "simulate": (simulate, env),
+    }
 
 
 def main() -> None:
@@ -74,17 +85,26 @@ def main() -> None:
     finally:
         set_bytecode(True)
         shutil.rmtree(folder, ignore_errors=True)
-    summary = {label: {state: round(statistics.mean(cpu[label, state]), 2) for state in STATES}
-               for label, _ in cpu}
+    summary = {
+        label: {state: round(statistics.mean(cpu[label, state]), 2) for state in STATES} for label, _ in cpu
+    }
     for figures in summary.values():
         figures["compiled/source"] = round(figures["compiled"] / figures["source"], 2)
     if args.json:
-        print(json.dumps({"runs": {f"{label}, {state}": values for (label, state), values in cpu.items()},
-                          "summary": summary}))
+        print(
+            json.dumps(
+                {
+                    "runs": {f"{label}, {state}": values for (label, state), values in cpu.items()},
+                    "summary": summary,
+                }
+            )
+        )
         return
     for label, figures in summary.items():
-        print(f"{label}: source {figures['source']} CPU s, compiled {figures['compiled']} CPU s, "
-              f"compiled/source {figures['compiled/source']}")
+        print(
+            f"{label}: source {figures['source']} CPU s, compiled {figures['compiled']} CPU s, "
+            f"compiled/source {figures['compiled/source']}"
+        )
 
 
 if __name__ == "__main__":

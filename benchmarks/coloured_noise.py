@@ -35,7 +35,7 @@ N, DT, DECIMALS = 2000, 0.05, 6
 
 def ar1(rng: np.random.Generator, rho: float, sigma: float, n: int) -> np.ndarray:
     """AR(1) of stationary σ ``sigma`` and lag-1 correlation ``rho``: the Ornstein-Uhlenbeck process sampled."""
-    w = rng.normal(0.0, sigma * math.sqrt(1 - rho ** 2), n)
+    w = rng.normal(0.0, sigma * math.sqrt(1 - rho**2), n)
     e = np.empty(n)
     e[0] = rng.normal(0.0, sigma)
     for k in range(1, n):
@@ -52,7 +52,9 @@ def main() -> None:
     t = np.arange(N) * DT
     smooth = 0.3 * np.sin(2 * np.pi * 0.05 * t) + 0.1 * np.sin(2 * np.pi * 0.13 * t + 1.0)
     disturbance = ar1(np.random.default_rng(args.seed), args.rho, args.sigma, N)
-    record_a = np.round(smooth + disturbance, DECIMALS)  # A: signal + coloured sensor noise, written to 6 decimals
+    record_a = np.round(
+        smooth + disturbance, DECIMALS
+    )  # A: signal + coloured sensor noise, written to 6 decimals
     process_b = smooth + disturbance  # B: the process itself wanders by the OU component ...
     record_b = np.round(process_b, DECIMALS)  # ... and a perfect sensor writes it to 6 decimals
     same = record_a.tobytes() == record_b.tobytes()
@@ -60,12 +62,18 @@ def main() -> None:
     right_a, right_b = args.sigma, quantum_of(record_b) / math.sqrt(12.0)
     print(f"records A and B identical to the last bit: {same}")
     print(f"the floor read from the record (either): {estimate.sigma:.3g} ({estimate.method})")
-    print(f"right floor for A (coloured sensor noise, ρ = {args.rho:g}): {right_a:.3g}; read/right = "
-          f"{estimate.sigma / right_a:.2f}")
-    print(f"right floor for B (a wandering process, perfect sensor): {right_b:.3g}; read/right = "
-          f"{estimate.sigma / right_b:.3g}")
-    print(f"any record-only estimate is wrong for A or for B by a factor of at least "
-          f"{math.sqrt(right_a / right_b):.3g} (the geometric middle of the two right answers)")
+    print(
+        f"right floor for A (coloured sensor noise, ρ = {args.rho:g}): {right_a:.3g}; read/right = "
+        f"{estimate.sigma / right_a:.2f}"
+    )
+    print(
+        f"right floor for B (a wandering process, perfect sensor): {right_b:.3g}; read/right = "
+        f"{estimate.sigma / right_b:.3g}"
+    )
+    print(
+        f"any record-only estimate is wrong for A or for B by a factor of at least "
+        f"{math.sqrt(right_a / right_b):.3g} (the geometric middle of the two right answers)"
+    )
 
 
 if __name__ == "__main__":

@@ -127,8 +127,20 @@ def compile_floor(source: str, work: Path) -> Path:
     """A floor program compiled with the system C compiler against FMPy's FMI headers."""
     work.mkdir(parents=True, exist_ok=True)
     binary = work / Path(source).stem
-    subprocess.run(["cc", "-O2", "-std=c11", f"-I{fmi_headers_dir()}", "-o", str(binary),
-                    str(REPO / "benchmarks" / source), "-ldl", "-lm"], check=True)
+    subprocess.run(
+        [
+            "cc",
+            "-O2",
+            "-std=c11",
+            f"-I{fmi_headers_dir()}",
+            "-o",
+            str(binary),
+            str(REPO / "benchmarks" / source),
+            "-ldl",
+            "-lm",
+        ],
+        check=True,
+    )
     return binary
 
 
@@ -143,12 +155,16 @@ def extract_library(path: Path, work: Path, name: str) -> tuple[Path, str]:
 
 def real_sets(plan: Plan, values: dict, instance: str) -> str:
     """The real values set on ``instance``, as the floors take them: "vr=value,..."."""
-    return ",".join(f"{plan.variable(ref, 'set').vr}={float(v)!r}"
-                    for ref, v in values.items() if ref.startswith(f"{instance}."))
+    return ",".join(
+        f"{plan.variable(ref, 'set').vr}={float(v)!r}"
+        for ref, v in values.items()
+        if ref.startswith(f"{instance}.")
+    )
 
 
-def time_c_floor(plan: Plan, scenario: Scenario, values: dict, step: float, repeats: int,
-                 work: Path) -> tuple[float, float]:
+def time_c_floor(
+    plan: Plan, scenario: Scenario, values: dict, step: float, repeats: int, work: Path
+) -> tuple[float, float]:
     """Robotti through cosim_floor.c: (median seconds, final vehicle x)."""
     binary = compile_floor("cosim_floor.c", work)
     libraries = {name: extract_library(path, work, name) for name, path in plan.fmu_paths.items()}
@@ -156,26 +172,53 @@ def time_c_floor(plan: Plan, scenario: Scenario, values: dict, step: float, repe
     v2c = ",".join(f"{s.vr}:{t.vr}" for s, t in plan.connections if s.instance == "vehicle")
     file_vr = plan.variable("controller.file", "set").vr
     done = subprocess.run(
-        [str(binary), str(libraries["vehicle"][0]), libraries["vehicle"][1], str(libraries["controller"][0]),
-         libraries["controller"][1], repr(scenario.stop_time), repr(step), str(repeats), str(file_vr),
-         str(scenario.files["steering_inputs"]), c2v, v2c, real_sets(plan, values, "vehicle")],
-        capture_output=True, text=True, check=True)
+        [
+            str(binary),
+            str(libraries["vehicle"][0]),
+            libraries["vehicle"][1],
+            str(libraries["controller"][0]),
+            libraries["controller"][1],
+            repr(scenario.stop_time),
+            repr(step),
+            str(repeats),
+            str(file_vr),
+            str(scenario.files["steering_inputs"]),
+            c2v,
+            v2c,
+            real_sets(plan, values, "vehicle"),
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     seconds, last_x = map(float, done.stdout.split())
     return seconds, last_x
 
 
-def time_c_floor_single(plan: Plan, values: dict, stop: float, step: float, repeats: int,
-                        work: Path) -> tuple[float, float, float]:
+def time_c_floor_single(
+    plan: Plan, values: dict, stop: float, step: float, repeats: int, work: Path
+) -> tuple[float, float, float]:
     """One FMU through cosim_floor_single.c, recording every output: (median seconds, final first output,
     fastest seconds)."""
     binary = compile_floor("cosim_floor_single.c", work)
-    (instance, path), = plan.fmu_paths.items()
+    ((instance, path),) = plan.fmu_paths.items()
     library, guid = extract_library(path, work, instance)
     outputs = ",".join(str(v.vr) for v in plan.outputs[instance])
     done = subprocess.run(
-        [str(binary), str(library), guid, repr(stop), repr(step), str(repeats), outputs,
-         real_sets(plan, values, instance)],
-        capture_output=True, text=True, check=True)
+        [
+            str(binary),
+            str(library),
+            guid,
+            repr(stop),
+            repr(step),
+            str(repeats),
+            outputs,
+            real_sets(plan, values, instance),
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     seconds, last, fastest = map(float, done.stdout.split())
     return seconds, last, fastest
 
@@ -188,25 +231,40 @@ def time_simulate_fmu(plan: Plan, scenario: Scenario, values: dict, step: float,
     from fmpy import simulate_fmu
 
     log = np.loadtxt(scenario.files["steering_inputs"], delimiter=",", skiprows=1)
-    signals = np.array([tuple(row) for row in log],
-                       dtype=[("time", float), ("velocity", float), ("delta_f", float)])
+    signals = np.array(
+        [tuple(row) for row in log], dtype=[("time", float), ("velocity", float), ("delta_f", float)]
+    )
     start_values = {ref.split(".", 1)[1]: v for ref, v in values.items() if ref.startswith("vehicle.")}
 
     def run():
-        simulate_fmu(str(plan.fmu_paths["vehicle"]), stop_time=scenario.stop_time, step_size=step,
-                     output_interval=step, start_values=start_values, input=signals, output=["x", "y"])
+        simulate_fmu(
+            str(plan.fmu_paths["vehicle"]),
+            stop_time=scenario.stop_time,
+            step_size=step,
+            output_interval=step,
+            start_values=start_values,
+            input=signals,
+            output=["x", "y"],
+        )
 
     return median_time(run, repeats)
 
 
-def time_simulate_fmu_single(path: Path, values: dict, stop: float, step: float, outputs: list[str],
-                             repeats: int) -> float:
+def time_simulate_fmu_single(
+    path: Path, values: dict, stop: float, step: float, outputs: list[str], repeats: int
+) -> float:
     """One FMU, its outputs recorded every step, as a user would call simulate_fmu."""
     from fmpy import simulate_fmu
 
     def run():
-        simulate_fmu(str(path), stop_time=stop, step_size=step, output_interval=step,
-                     start_values=values, output=outputs)
+        simulate_fmu(
+            str(path),
+            stop_time=stop,
+            step_size=step,
+            output_interval=step,
+            start_values=values,
+            output=outputs,
+        )
 
     return median_time(run, repeats)
 
@@ -228,8 +286,11 @@ def robotti_case(scenario_name: str, repeats: int, work: Path) -> Case:
         "libcosim": median_time(lambda: run_libcosim(plan, values, scenario.stop_time, step), repeats),
         "c_floor": c_floor,
     }
-    final = {"dse_runner": final_value(reference, "x"), "python_loop": final_value(python, "x"),
-             "c_floor": c_last_x}
+    final = {
+        "dse_runner": final_value(reference, "x"),
+        "python_loop": final_value(python, "x"),
+        "c_floor": c_last_x,
+    }
     return Case(figures, len(reference.time) - 1, step, "x", final)
 
 
@@ -255,25 +316,39 @@ def cheap_case(repeats: int, work: Path) -> Case:
     figures = {
         "dse_runner": median_time(ours("native"), fast),
         "python_loop": median_time(ours("python"), repeats),
-        "simulate_fmu": time_simulate_fmu_single(path, CHEAP_VALUES, times.stop, times.step, outputs,
-                                                 repeats),
+        "simulate_fmu": time_simulate_fmu_single(
+            path, CHEAP_VALUES, times.stop, times.step, outputs, repeats
+        ),
         "libcosim": median_time(lambda: run_libcosim(plan, values, times.stop, times.step), repeats),
         "c_floor": c_floor,
     }
-    final = {"dse_runner": final_value(reference, "x0"), "python_loop": final_value(python, "x0"),
-             "c_floor": c_last_x0}
+    final = {
+        "dse_runner": final_value(reference, "x0"),
+        "python_loop": final_value(python, "x0"),
+        "c_floor": c_last_x0,
+    }
     long_stop = times.start + LONGER * (times.stop - times.start)
-    fastest = {"dse_runner": [fastest_time(ours_at(stop), fast) for stop in (times.stop, long_stop)],
-               "c_floor": [min(time_c_floor_single(plan, values, stop, times.step, fast, work)[2]
-                               for _ in range(FLOOR_PROCESSES)) for stop in (times.stop, long_stop)]}
+    fastest = {
+        "dse_runner": [fastest_time(ours_at(stop), fast) for stop in (times.stop, long_stop)],
+        "c_floor": [
+            min(
+                time_c_floor_single(plan, values, stop, times.step, fast, work)[2]
+                for _ in range(FLOOR_PROCESSES)
+            )
+            for stop in (times.stop, long_stop)
+        ],
+    }
     steps = len(reference.time) - 1
     split = {master: cost_split(*fastest[master], steps, LONGER * steps) for master in fastest}
-    return Case(figures, steps, times.step, "x0", final, split,
-                {master: runs[0] for master, runs in fastest.items()})
+    return Case(
+        figures, steps, times.step, "x0", final, split, {master: runs[0] for master, runs in fastest.items()}
+    )
 
 
 LONGER = 10  # the cheap case is also run this many times longer, to split fixed from per-step cost
-FLOOR_PROCESSES = 3  # a whole floor process can land on a slow moment of a shared machine: the fastest of these
+FLOOR_PROCESSES = (
+    3  # a whole floor process can land on a slow moment of a shared machine: the fastest of these
+)
 
 
 def cost_split(short: float, long: float, short_steps: int, long_steps: int) -> dict[str, float]:
@@ -304,9 +379,16 @@ def ratios(case: Case) -> dict[str, float]:
 
 def targets(all_ratios: dict[str, dict[str, float]]) -> list[dict]:
     """Each target with the measured ratio and whether it is met."""
-    return [{"case": case, "ratio": name, "target": f"{comparison} {bound:g}",
-             "measured": all_ratios[case][name], "met": COMPARE[comparison](all_ratios[case][name], bound)}
-            for case, name, comparison, bound in TARGETS]
+    return [
+        {
+            "case": case,
+            "ratio": name,
+            "target": f"{comparison} {bound:g}",
+            "measured": all_ratios[case][name],
+            "met": COMPARE[comparison](all_ratios[case][name], bound),
+        }
+        for case, name, comparison, bound in TARGETS
+    ]
 
 
 def duration(seconds: float) -> str:
@@ -323,11 +405,15 @@ def print_case(name: str, case: Case, case_ratios: dict[str, float], title: str)
         print(f"  {ratio:<30} {value:7.2f}x")
     ours = case.final["dse_runner"]
     floor, python = (abs(case.final[master] - ours) for master in ("c_floor", "python_loop"))
-    print(f"  final {case.signal}: dse_runner {ours:.12g}; the C floor differs by {floor:.2e},"
-          f" the Python loop by {python:.2e}")
+    print(
+        f"  final {case.signal}: dse_runner {ours:.12g}; the C floor differs by {floor:.2e},"
+        f" the Python loop by {python:.2e}"
+    )
     for master, cost in (case.split or {}).items():
-        print(f"  {master:<14} fixed {cost['fixed_seconds'] * 1e6:7.1f} µs per simulation,"
-              f" {cost['seconds_per_step'] * 1e9:6.1f} ns per step (runs of {case.steps} and {LONGER * case.steps} steps)")
+        print(
+            f"  {master:<14} fixed {cost['fixed_seconds'] * 1e6:7.1f} µs per simulation,"
+            f" {cost['seconds_per_step'] * 1e9:6.1f} ns per step (runs of {case.steps} and {LONGER * case.steps} steps)"
+        )
 
 
 PROFILED_RUNS = 3000
@@ -358,32 +444,44 @@ def main() -> None:
     parser.add_argument("--scenario", default="sin1")
     parser.add_argument("--repeats", type=int, default=15)
     parser.add_argument("--json", action="store_true")
-    parser.add_argument("--profile", action="store_true", help="print a cProfile breakdown of the cheap case only")
+    parser.add_argument(
+        "--profile", action="store_true", help="print a cProfile breakdown of the cheap case only"
+    )
     args = parser.parse_args()
     if args.profile:
         profile_cheap()
         return
 
     with tempfile.TemporaryDirectory() as tmp:
-        cases = {"robotti": robotti_case(args.scenario, args.repeats, Path(tmp) / "robotti"),
-                 "cheap": cheap_case(args.repeats, Path(tmp) / "cheap")}
+        cases = {
+            "robotti": robotti_case(args.scenario, args.repeats, Path(tmp) / "robotti"),
+            "cheap": cheap_case(args.repeats, Path(tmp) / "cheap"),
+        }
     all_ratios = {name: ratios(case) for name, case in cases.items()}
     checked = targets(all_ratios)
     if args.json:
-        print(json.dumps({
-            **{name: case.figures for name, case in cases.items()},
-            "ratios": all_ratios,
-            "steps": {name: case.steps for name, case in cases.items()},
-            "repeats": args.repeats,
-            "scenario": args.scenario,
-            "targets": checked,
-            "final": {name: {"signal": case.signal, **case.final} for name, case in cases.items()},
-            "split": {name: case.split for name, case in cases.items() if case.split},
-        }, indent=2, allow_nan=False))
+        print(
+            json.dumps(
+                {
+                    **{name: case.figures for name, case in cases.items()},
+                    "ratios": all_ratios,
+                    "steps": {name: case.steps for name, case in cases.items()},
+                    "repeats": args.repeats,
+                    "scenario": args.scenario,
+                    "targets": checked,
+                    "final": {name: {"signal": case.signal, **case.final} for name, case in cases.items()},
+                    "split": {name: case.split for name, case in cases.items() if case.split},
+                },
+                indent=2,
+                allow_nan=False,
+            )
+        )
         return
     print(f"median of {args.repeats} runs per master")
-    titles = {"robotti": f"Robotti scenario {args.scenario}, controller + vehicle",
-              "cheap": f"vanderpol alone, mu = {CHEAP_VALUES['mu']:g}, x0 and x1 recorded"}
+    titles = {
+        "robotti": f"Robotti scenario {args.scenario}, controller + vehicle",
+        "cheap": f"vanderpol alone, mu = {CHEAP_VALUES['mu']:g}, x0 and x1 recorded",
+    }
     for name, case in cases.items():
         print_case(name, case, all_ratios[name], titles[name])
     print("targets (native loop):")

@@ -22,7 +22,9 @@ def pytest_runtest_protocol(item, nextitem):
     """Setup, call and teardown of one test, timed together."""
     busy, started = busy_jiffies()[0], time.perf_counter()
     yield
-    _ROWS.append((item.nodeid, (busy_jiffies()[0] - busy) / os.sysconf("SC_CLK_TCK"), time.perf_counter() - started))
+    _ROWS.append(
+        (item.nodeid, (busy_jiffies()[0] - busy) / os.sysconf("SC_CLK_TCK"), time.perf_counter() - started)
+    )
 
 
 def pytest_sessionfinish(session) -> None:

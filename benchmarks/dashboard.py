@@ -78,16 +78,19 @@ def main() -> None:
         "sweep_with_dashboard_page_open_s": statistics.median(watched),
         "ratio": statistics.median(watched) / statistics.median(plain),
         "refresh_read_ms": 1e3 * statistics.median(reads),
-        "report_s": report_seconds, "report_mb": size / 1e6,
+        "report_s": report_seconds,
+        "report_mb": size / 1e6,
         "runs": {"plain": plain, "watched": watched},
     }
     shutil.rmtree(root, ignore_errors=True)
     if args.json:
         print(json.dumps(figures, indent=2))
         return
-    print(f"sweep of 1500 tasks, median of {args.repeats}: {figures['sweep_without_dashboard_s']:.1f} s without a "
-          f"dashboard, {figures['sweep_with_dashboard_page_open_s']:.1f} s with one open "
-          f"(ratio {figures['ratio']:.3f})")
+    print(
+        f"sweep of 1500 tasks, median of {args.repeats}: {figures['sweep_without_dashboard_s']:.1f} s without a "
+        f"dashboard, {figures['sweep_with_dashboard_page_open_s']:.1f} s with one open "
+        f"(ratio {figures['ratio']:.3f})"
+    )
     print(f"one dashboard refresh reads the store in {figures['refresh_read_ms']:.1f} ms (1500 rows)")
     print(f"the report: {report_seconds:.1f} s to build, {figures['report_mb']:.2f} MB")
 

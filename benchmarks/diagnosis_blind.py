@@ -38,15 +38,23 @@ from dse_runner.cases.robotti_diagnosis.hypotheses import LIBRARY  # noqa: E402
 from dse_runner.sweeps.cluster import connect  # noqa: E402
 from dse_runner.sweeps.makers import Cluster  # noqa: E402
 
-SINGLES_HEADER = (f"{'concealed':<16} {'truth':>8} {'named first':<16} {'estimate':>9} {'error':>7} "
-                  f"{'before [m]':>10} {'after [m]':>10} {'after/before':>12} {'seconds':>8}")
-PAIRS_HEADER = (f"{'concealed':<32} {'chosen':<32} {'runner-up':<40} {'top two':>7} {'before [m]':>10} "
-                f"{'after [m]':>10} {'floor [m]':>9} {'verdict':<11} {'seconds':>8}")
-OUTSIDE_HEADER = (f"{'concealed':<17} {'truth':<48} {'named':<40} {'verdict':<11} {'partial':>7} "
-                  f"{'before [m]':>10} {'library [m]':>11} {'after [m]':>10} {'floor [m]':>9} {'pass':>4} "
-                  f"{'seconds':>8}  discovered terms | resembles")
-NOISE_HEADER = (f"{'case':<15} {'receiver':<36} {'named':<24} {'sigma [m]':>9} {'estimate':>9} "
-                f"{'before [m]':>10} {'after [m]':>10} {'floor [m]':>9} {'verdict':<11} {'pass':>4} {'seconds':>8}")
+SINGLES_HEADER = (
+    f"{'concealed':<16} {'truth':>8} {'named first':<16} {'estimate':>9} {'error':>7} "
+    f"{'before [m]':>10} {'after [m]':>10} {'after/before':>12} {'seconds':>8}"
+)
+PAIRS_HEADER = (
+    f"{'concealed':<32} {'chosen':<32} {'runner-up':<40} {'top two':>7} {'before [m]':>10} "
+    f"{'after [m]':>10} {'floor [m]':>9} {'verdict':<11} {'seconds':>8}"
+)
+OUTSIDE_HEADER = (
+    f"{'concealed':<17} {'truth':<48} {'named':<40} {'verdict':<11} {'partial':>7} "
+    f"{'before [m]':>10} {'library [m]':>11} {'after [m]':>10} {'floor [m]':>9} {'pass':>4} "
+    f"{'seconds':>8}  discovered terms | resembles"
+)
+NOISE_HEADER = (
+    f"{'case':<15} {'receiver':<36} {'named':<24} {'sigma [m]':>9} {'estimate':>9} "
+    f"{'before [m]':>10} {'after [m]':>10} {'floor [m]':>9} {'verdict':<11} {'pass':>4} {'seconds':>8}"
+)
 
 
 def run(case: str, args: argparse.Namespace, client):
@@ -55,8 +63,13 @@ def run(case: str, args: argparse.Namespace, client):
     if args.form == "tests":
         _, _, result = blind.run_case(case, (args.out / case).resolve(), client)
     else:
-        _, _, result = blind.run_case(case, (args.out / case).resolve(), client, seconds=blind.BENCHMARK_SECONDS,
-                                      runs=blind.benchmark_runs(case))
+        _, _, result = blind.run_case(
+            case,
+            (args.out / case).resolve(),
+            client,
+            seconds=blind.BENCHMARK_SECONDS,
+            runs=blind.benchmark_runs(case),
+        )
     return result, time.perf_counter() - started
 
 
@@ -66,8 +79,10 @@ def single_row(effect: str, result, seconds: float) -> str:
     estimate = first.get("magnitude", 0.0)
     error = f"{(estimate / truth - 1) * 100:+.1f}%" if truth else "-"
     ratio = result.cross_track_after / result.cross_track_before
-    return (f"{effect:<16} {truth:>8.4g} {first['id']:<16} {estimate:>9.4g} {error:>7} "
-            f"{result.cross_track_before:>10.3f} {result.cross_track_after:>10.3f} {ratio:>12.3f} {seconds:>8.1f}")
+    return (
+        f"{effect:<16} {truth:>8.4g} {first['id']:<16} {estimate:>9.4g} {error:>7} "
+        f"{result.cross_track_before:>10.3f} {result.cross_track_after:>10.3f} {ratio:>12.3f} {seconds:>8.1f}"
+    )
 
 
 def pair_row(pair: str, result, seconds: float) -> tuple[str, bool]:
@@ -76,9 +91,11 @@ def pair_row(pair: str, result, seconds: float) -> tuple[str, bool]:
     up = result.runner_up
     passed = set(blind.CASES[pair].effects) <= set(blind.top_two(result))
     floor = f"{result.floor.cross_track:>9.3f}" if result.floor.available else f"{'-':>9}"
-    return (f"{pair:<32} {chosen:<32} {up.other if up else '-':<40} {'yes' if passed else 'NO':>7} "
-            f"{result.cross_track_before:>10.3f} {result.cross_track_after:>10.3f} {floor} {result.verdict:<11} "
-            f"{seconds:>8.1f}"), passed
+    return (
+        f"{pair:<32} {chosen:<32} {up.other if up else '-':<40} {'yes' if passed else 'NO':>7} "
+        f"{result.cross_track_before:>10.3f} {result.cross_track_after:>10.3f} {floor} {result.verdict:<11} "
+        f"{seconds:>8.1f}"
+    ), passed
 
 
 def floor_of(result) -> str:
@@ -87,8 +104,9 @@ def floor_of(result) -> str:
 
 def discovered(result) -> str:
     """The discovered terms' readable text, or '-' (none yet: discovery is a later step of issue 18)."""
-    terms = [t.get("text", "?") for e in result.effects if e["id"] == "discovered"
-             for t in e.get("terms", [])]
+    terms = [
+        t.get("text", "?") for e in result.effects if e["id"] == "discovered" for t in e.get("terms", [])
+    ]
     return "; ".join(terms) or "-"
 
 
@@ -105,21 +123,27 @@ def outside_row(name: str, result, seconds: float) -> str:
     found = blind.discovered_entry(result)
     best = found["held_out_without"] if found else result.cross_track_after
     resembles = found["resembles"]["text"] if found and found.get("resembles") else "-"
-    return (f"{name:<17} {truth:<48} {named:<40} {result.verdict:<11} {partial:>7} "
-            f"{result.cross_track_before:>10.3f} {best:>11.3f} {result.cross_track_after:>10.3f} {floor_of(result)} "
-            f"{'yes' if blind.outside_target(result) else 'no':>4} {seconds:>8.1f}  {discovered(result)} | {resembles}")
+    return (
+        f"{name:<17} {truth:<48} {named:<40} {result.verdict:<11} {partial:>7} "
+        f"{result.cross_track_before:>10.3f} {best:>11.3f} {result.cross_track_after:>10.3f} {floor_of(result)} "
+        f"{'yes' if blind.outside_target(result) else 'no':>4} {seconds:>8.1f}  {discovered(result)} | {resembles}"
+    )
 
 
 def noise_row(name: str, result, seconds: float) -> str:
     """Noise only: the named effects (the target is none), the estimated noise against the truth's."""
     case = blind.CASES[name]
-    receiver = (f"{case.noise * 100:g} cm, {case.dropout * 100:g} % drops, {case.outages}x{case.outage_s:g} s"
-                + (f", rho {case.colour:g}" if case.colour else ""))
+    receiver = (
+        f"{case.noise * 100:g} cm, {case.dropout * 100:g} % drops, {case.outages}x{case.outage_s:g} s"
+        + (f", rho {case.colour:g}" if case.colour else "")
+    )
     named = "+".join(e["id"] for e in result.effects) + ("+discovered" if discovered(result) != "-" else "")
     estimate = f"{result.floor.sigma:>9.4f}" if result.floor.available else f"{'-':>9}"
-    return (f"{name:<15} {receiver:<36} {named:<24} {case.noise:>9.4f} {estimate} "
-            f"{result.cross_track_before:>10.3f} {result.cross_track_after:>10.3f} {floor_of(result)} "
-            f"{result.verdict:<11} {'yes' if blind.noise_target(result, case.noise) else 'no':>4} {seconds:>8.1f}")
+    return (
+        f"{name:<15} {receiver:<36} {named:<24} {case.noise:>9.4f} {estimate} "
+        f"{result.cross_track_before:>10.3f} {result.cross_track_after:>10.3f} {floor_of(result)} "
+        f"{result.verdict:<11} {'yes' if blind.noise_target(result, case.noise) else 'no':>4} {seconds:>8.1f}"
+    )
 
 
 def chosen(names, only: set[str] | None) -> list[str]:
@@ -135,17 +159,26 @@ def kinds(text: str) -> set[str]:
     if "all" in chosen:
         return set(KINDS)
     if not chosen <= set(KINDS):
-        raise argparse.ArgumentTypeError(f"unknown kinds {', '.join(sorted(chosen - set(KINDS)))}: "
-                                         f"there is {', '.join(KINDS)} and all")
+        raise argparse.ArgumentTypeError(
+            f"unknown kinds {', '.join(sorted(chosen - set(KINDS)))}: there is {', '.join(KINDS)} and all"
+        )
     return chosen
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cases", type=kinds, default={"singles"},
-                        help="comma-separated kinds: singles, pairs, ool, noise, or all")
-    parser.add_argument("--only", type=lambda text: set(text.split(",")), default=None,
-                        help="comma-separated case names to keep, of the chosen kinds")
+    parser.add_argument(
+        "--cases",
+        type=kinds,
+        default={"singles"},
+        help="comma-separated kinds: singles, pairs, ool, noise, or all",
+    )
+    parser.add_argument(
+        "--only",
+        type=lambda text: set(text.split(",")),
+        default=None,
+        help="comma-separated case names to keep, of the chosen kinds",
+    )
     parser.add_argument("--form", choices=("benchmark", "tests"), default="benchmark")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("out/diagnosis-blind"))
@@ -172,6 +205,7 @@ def main() -> None:
             print(header, flush=True)
             for name in chosen(names, args.only):
                 print(row_of(name, *run(name, args, client)), flush=True)
+
 
 if __name__ == "__main__":
     main()

@@ -20,12 +20,16 @@ from pathlib import Path
 from dse_runner.analysis.diagnose.signal_library import diagnose_space
 
 REPO = Path(__file__).resolve().parents[1]
-HEADER = (f"{'case':<20} {'concealed':<44} {'named (95 % interval)':<72} {'before':>7} {'after':>6} "
-          f"{'verdict':<11} {'seconds':>7}")
+HEADER = (
+    f"{'case':<20} {'concealed':<44} {'named (95 % interval)':<72} {'before':>7} {'after':>6} "
+    f"{'verdict':<11} {'seconds':>7}"
+)
 
 
 def generator():
-    spec = importlib.util.spec_from_file_location("make_diagnosis_runs", REPO / "jobs/msd/make_diagnosis_runs.py")
+    spec = importlib.util.spec_from_file_location(
+        "make_diagnosis_runs", REPO / "jobs/msd/make_diagnosis_runs.py"
+    )
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -35,8 +39,10 @@ def named(found: dict) -> str:
     parts = []
     for e in found["effects"]:
         values = e["terms"] if e["id"] == "discovered" else e["parameters"]
-        sized = ", ".join(f"{value:.4g} [{e['intervals'][kind][0]:.4g}, {e['intervals'][kind][1]:.4g}]"
-                          for kind, value in values.items())
+        sized = ", ".join(
+            f"{value:.4g} [{e['intervals'][kind][0]:.4g}, {e['intervals'][kind][1]:.4g}]"
+            for kind, value in values.items()
+        )
         parts.append(f"{e['id']}({e['target']}) {sized}")
     return "; ".join(parts) or "nothing"
 
@@ -55,8 +61,11 @@ def main() -> None:
         found = diagnose_space(space, n_workers=args.workers).to_json()
         seconds = time.perf_counter() - started
         concealed = ", ".join(f"{k} {v:g}" for k, v in make.CASES[case].items()) or "nothing"
-        print(f"{case:<20} {concealed:<44} {named(found):<72} {found['held_out_before']:>7.2f} "
-              f"{found['held_out_after']:>6.2f} {found['verdict']:<11} {seconds:>7.0f}", flush=True)
+        print(
+            f"{case:<20} {concealed:<44} {named(found):<72} {found['held_out_before']:>7.2f} "
+            f"{found['held_out_after']:>6.2f} {found['verdict']:<11} {seconds:>7.0f}",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

@@ -27,9 +27,14 @@ from dse_runner.simulation.run import simulate
 REPO = Path(__file__).resolve().parents[1]
 JOB = REPO / "jobs" / "cascaded_tanks"
 PUBLISHED = {  # test-record e_RMS [V], from the benchmark's README: the yardstick, not a target we fit to
-    "best linear approximation": 0.75, "Volterra series": 0.54, "state space, GP-inspired prior": 0.45,
-    "polynomial nonlinear state space": 0.45, "nonlinear state space, NLSS2": 0.34,
-    "neural continuous-time state space": 0.33, "grey box with a hand-written overflow model": 0.18}
+    "best linear approximation": 0.75,
+    "Volterra series": 0.54,
+    "state space, GP-inspired prior": 0.45,
+    "polynomial nonlinear state space": 0.45,
+    "nonlinear state space, NLSS2": 0.34,
+    "neural continuous-time state space": 0.33,
+    "grey box with a hand-written overflow model": 0.18,
+}
 
 
 def effects(found: dict) -> str:
@@ -37,7 +42,9 @@ def effects(found: dict) -> str:
     for e in found["effects"]:
         values = e["terms"] if e["id"] == "discovered" else e["parameters"]
         into = f" into {e['into']}" if e.get("into") else ""
-        parts.append(f"{e['id']}({e['target']}){into}: " + ", ".join(f"{k} {v:.4g}" for k, v in values.items()))
+        parts.append(
+            f"{e['id']}({e['target']}){into}: " + ", ".join(f"{k} {v:.4g}" for k, v in values.items())
+        )
     return "; ".join(parts) or "nothing"
 
 
@@ -60,17 +67,31 @@ def main() -> None:
     seconds = time.perf_counter() - started
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # MB (Linux reports kB)
     noise = found["compared"][0]["noise"]
-    rows = [("plain model, calibrated", found["held_out_before"], record_error(found["calibrated"]["parameters"]),
-             "nothing"),
-            ("diagnosed", found["held_out_after"], record_error(found["fitted"]["parameters"]), effects(found))]
-    print(f"noise floor {noise:.4g} V ({found['compared'][0]['noise_estimate']['method']}); "
-          f"validation: {found['validation']}")
-    print(f"{'model':<26} {'held-out [floors]':>17} {'held-out [V]':>12} {'estimation record [V]':>21}  effects")
+    rows = [
+        (
+            "plain model, calibrated",
+            found["held_out_before"],
+            record_error(found["calibrated"]["parameters"]),
+            "nothing",
+        ),
+        ("diagnosed", found["held_out_after"], record_error(found["fitted"]["parameters"]), effects(found)),
+    ]
+    print(
+        f"noise floor {noise:.4g} V ({found['compared'][0]['noise_estimate']['method']}); "
+        f"validation: {found['validation']}"
+    )
+    print(
+        f"{'model':<26} {'held-out [floors]':>17} {'held-out [V]':>12} {'estimation record [V]':>21}  effects"
+    )
     for name, held_out, error, named in rows:
         print(f"{name:<26} {held_out:>17.2f} {held_out * noise:>12.3f} {error:>21.3f}  {named}")
-    print(f"verdict: {found['verdict']}; {seconds:.0f} s on {args.workers} workers, client peak {peak:.0f} MB")
-    print("published, on the held-back test record [V]: "
-          + "; ".join(f"{name} {value:g}" for name, value in PUBLISHED.items()))
+    print(
+        f"verdict: {found['verdict']}; {seconds:.0f} s on {args.workers} workers, client peak {peak:.0f} MB"
+    )
+    print(
+        "published, on the held-back test record [V]: "
+        + "; ".join(f"{name} {value:g}" for name, value in PUBLISHED.items())
+    )
 
 
 if __name__ == "__main__":

@@ -68,10 +68,16 @@ def run(case: str, folder: Path, client) -> dict:
     shutil.rmtree(folder, ignore_errors=True)
     cpu0, client0, started = cluster_cpu(), time.process_time(), time.perf_counter()
     _, _, result = blind.run_case(case, folder.resolve(), client)
-    return {"wall": time.perf_counter() - started, "client": time.process_time() - client0,
-            "cluster": cluster_cpu() - cpu0, "simulations": simulations(folder / "out"),
-            "answer": json.dumps(result.to_json(), sort_keys=True, default=str).replace(str(folder.resolve()), "<out>"),
-            "named": [e["id"] for e in result.effects]}
+    return {
+        "wall": time.perf_counter() - started,
+        "client": time.process_time() - client0,
+        "cluster": cluster_cpu() - cpu0,
+        "simulations": simulations(folder / "out"),
+        "answer": json.dumps(result.to_json(), sort_keys=True, default=str).replace(
+            str(folder.resolve()), "<out>"
+        ),
+        "named": [e["id"] for e in result.effects],
+    }
 
 
 def main() -> None:
@@ -80,8 +86,10 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("out/fit-schedule"))
     args = parser.parse_args()
-    print(f"{'case':<22} {'schedule':<11} {'simulations':>11} {'wall s':>7} {'client CPU s':>12} "
-          f"{'workers CPU s':>13} {'total CPU s':>11}  named")
+    print(
+        f"{'case':<22} {'schedule':<11} {'simulations':>11} {'wall s':>7} {'client CPU s':>12} "
+        f"{'workers CPU s':>13} {'total CPU s':>11}  named"
+    )
     with connect(Cluster(n_workers=args.workers)) as client:
         blind.run_case("none", (args.out / "warm-up").resolve(), client)  # builds the FMUs, warms the workers
         for case in args.cases.split(","):
@@ -90,13 +98,21 @@ def main() -> None:
                 with eager() if schedule == "eager" else nullcontext():
                     rows[schedule] = run(case, args.out / case / schedule.replace(" ", "-"), client)
             for schedule, row in rows.items():
-                print(f"{case:<22} {schedule:<11} {row['simulations']:>11} {row['wall']:>7.1f} {row['client']:>12.1f} "
-                      f"{row['cluster']:>13.1f} {row['client'] + row['cluster']:>11.1f}  {', '.join(row['named'])}")
+                print(
+                    f"{case:<22} {schedule:<11} {row['simulations']:>11} {row['wall']:>7.1f} {row['client']:>12.1f} "
+                    f"{row['cluster']:>13.1f} {row['client'] + row['cluster']:>11.1f}  {', '.join(row['named'])}"
+                )
             first, second = rows.values()
-            same = "the same diagnosis to the last digit" if first["answer"] == second["answer"] else "DIFFERENT answers"
-            print(f"{case:<22} shipped/eager: simulations {second['simulations'] / first['simulations']:.2f}, CPU "
-                  f"{(second['client'] + second['cluster']) / (first['client'] + first['cluster']):.2f}, "
-                  f"wall {second['wall'] / first['wall']:.2f}; {same}")
+            same = (
+                "the same diagnosis to the last digit"
+                if first["answer"] == second["answer"]
+                else "DIFFERENT answers"
+            )
+            print(
+                f"{case:<22} shipped/eager: simulations {second['simulations'] / first['simulations']:.2f}, CPU "
+                f"{(second['client'] + second['cluster']) / (first['client'] + first['cluster']):.2f}, "
+                f"wall {second['wall'] / first['wall']:.2f}; {same}"
+            )
 
 
 if __name__ == "__main__":

@@ -37,17 +37,31 @@ FMUS = "fmus"
 FORMERLY = "dse_runner/bundled/fmus"  # where they were before 2026-11-28
 RUNS = ("sin1", "turn_ramp2", "speed_step1", "speed_ramp3")
 CALIBRATED = {"vehicle.mass": 1000.0, "vehicle.cAlphaF": 38000.0, "vehicle.mu": 0.3}
-EFFECTS = [{"vehicle.wheel_slip": 0.08}, {"vehicle.steering_lag": 0.4}, {"vehicle.speed_lag": 0.8},
-           {"vehicle.steering_offset": 0.02}, {"vehicle.time_offset": 0.4},
-           {"vehicle.grade_x": 0.04, "vehicle.grade_y": -0.03}, {"vehicle.antenna_x": 0.6},
-           {"vehicle.corr_steer_v": 0.01, "vehicle.corr_yaw_r": -0.05, "vehicle.corr_acc_1": 0.02}]
+EFFECTS = [
+    {"vehicle.wheel_slip": 0.08},
+    {"vehicle.steering_lag": 0.4},
+    {"vehicle.speed_lag": 0.8},
+    {"vehicle.steering_offset": 0.02},
+    {"vehicle.time_offset": 0.4},
+    {"vehicle.grade_x": 0.04, "vehicle.grade_y": -0.03},
+    {"vehicle.antenna_x": 0.6},
+    {"vehicle.corr_steer_v": 0.01, "vehicle.corr_yaw_r": -0.05, "vehicle.corr_acc_1": 0.02},
+]
 
 
 def sources_at(rev: str, into: Path) -> Path:
     """The bundled FMU sources at git revision ``rev``, unpacked under ``into``."""
-    folder = FMUS if subprocess.run(["git", "-C", str(REPO), "cat-file", "-e", f"{rev}:{FMUS}"],
-                                    capture_output=True).returncode == 0 else FORMERLY
-    archive = subprocess.run(["git", "-C", str(REPO), "archive", rev, folder], capture_output=True, check=True).stdout
+    folder = (
+        FMUS
+        if subprocess.run(
+            ["git", "-C", str(REPO), "cat-file", "-e", f"{rev}:{FMUS}"], capture_output=True
+        ).returncode
+        == 0
+        else FORMERLY
+    )
+    archive = subprocess.run(
+        ["git", "-C", str(REPO), "archive", rev, folder], capture_output=True, check=True
+    ).stdout
     with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
         tar.extractall(into, filter="data")
     return into / folder
@@ -64,7 +78,11 @@ def plan_with(fmu_file: Path):
 
 
 def run_all(plan, scenarios, values_list) -> list[bytes]:
-    return [simulate(plan, s, v, loop="native").trajectory.values.tobytes() for v in values_list for s in scenarios]
+    return [
+        simulate(plan, s, v, loop="native").trajectory.values.tobytes()
+        for v in values_list
+        for s in scenarios
+    ]
 
 
 def main() -> None:
@@ -78,10 +96,14 @@ def main() -> None:
     scenarios = [load_scenario(REPO / "scenarios" / "robotti" / r) for r in RUNS]
     values_list = cases(args.fmu)
     with tempfile.TemporaryDirectory(prefix="fmu-sources-") as tmp:
-        builds = {args.rev: build_fmu(sources_at(args.rev, Path(tmp)) / args.fmu),
-                  "working tree": build_fmu(REPO / FMUS / args.fmu)}
+        builds = {
+            args.rev: build_fmu(sources_at(args.rev, Path(tmp)) / args.fmu),
+            "working tree": build_fmu(REPO / FMUS / args.fmu),
+        }
         plans = {name: plan_with(path) for name, path in builds.items()}
-        outputs = {name: run_all(plan, scenarios, values_list) for name, plan in plans.items()}  # also a warm-up
+        outputs = {
+            name: run_all(plan, scenarios, values_list) for name, plan in plans.items()
+        }  # also a warm-up
         fastest = {name: float("inf") for name in plans}
         for _ in range(args.repeats):
             for name, plan in plans.items():
@@ -91,7 +113,9 @@ def main() -> None:
     runs = len(values_list) * len(scenarios)
     old, new = outputs.values()
     figures = {
-        "fmu": args.fmu, "runs_per_round": runs, "repeats": args.repeats,
+        "fmu": args.fmu,
+        "runs_per_round": runs,
+        "repeats": args.repeats,
         "ms_per_run": {name: round(1000 * s / runs, 3) for name, s in fastest.items()},
         "working_tree_over_rev": round(fastest["working tree"] / fastest[args.rev], 3),
         "identical_runs": sum(a == b for a, b in zip(old, new)),
@@ -99,8 +123,10 @@ def main() -> None:
     if args.json:
         print(json.dumps(figures))
         return
-    print(f"{args.fmu}: {runs} runs a round ({len(values_list)} parameter sets x {len(scenarios)} runs), "
-          f"fastest of {args.repeats} rounds, CPU per run:")
+    print(
+        f"{args.fmu}: {runs} runs a round ({len(values_list)} parameter sets x {len(scenarios)} runs), "
+        f"fastest of {args.repeats} rounds, CPU per run:"
+    )
     for name, ms in figures["ms_per_run"].items():
         print(f"  {name:>14}: {ms:.2f} ms")
     print(f"  working tree / {args.rev}: {figures['working_tree_over_rev']:.3f}")

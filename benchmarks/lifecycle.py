@@ -54,14 +54,22 @@ def median_time(run: Callable[[], object], repeats: int) -> float:
 
 def in_fresh_processes(multimodel: MultiModel) -> MultiModel:
     """The same multi-model with every instance asking for a fresh process per run."""
-    return multimodel.model_copy(update={"instances": {
-        name: multimodel.settings(name).model_copy(update={"lifecycle": "process"}) for name in multimodel.fmus}})
+    return multimodel.model_copy(
+        update={
+            "instances": {
+                name: multimodel.settings(name).model_copy(update={"lifecycle": "process"})
+                for name in multimodel.fmus
+            }
+        }
+    )
 
 
 def both(multimodel: MultiModel, run: Callable, repeats: int) -> dict[str, float]:
     reset, fresh = as_plan(multimodel), as_plan(in_fresh_processes(multimodel))
-    figures = {"reset": median_time(lambda: run(reset), repeats),
-               "process": median_time(lambda: run(fresh), repeats)}
+    figures = {
+        "reset": median_time(lambda: run(reset), repeats),
+        "process": median_time(lambda: run(fresh), repeats),
+    }
     assert not run(reset).fresh_process and run(fresh).fresh_process  # each ran the way it says
     return figures
 
@@ -81,7 +89,9 @@ def main() -> None:
     results["robotti"] = both(robotti, lambda plan: simulate(plan, sin1, CALIBRATED), repeats)
     if THREE_TANK.is_file():
         plan = as_plan(THREE_TANK)
-        results["three_tank"] = {"process": median_time(lambda: simulate(plan, stop_time=30, step=0.05), repeats)}
+        results["three_tank"] = {
+            "process": median_time(lambda: simulate(plan, stop_time=30, step=0.05), repeats)
+        }
     for case in results.values():
         if "reset" in case:
             case["added_per_run"] = case["process"] - case["reset"]
@@ -93,7 +103,11 @@ def main() -> None:
     print(f"  {'case':<16}{'reset':>10}{'process':>10}{'added':>10}{'ratio':>9}")
     for name, case in results.items():
         reset = f"{case['reset'] * 1e3:10.3f}" if "reset" in case else f"{'-':>10}"
-        added = f"{case['added_per_run'] * 1e3:10.3f}{case['process_over_reset']:8.1f}x" if "reset" in case else ""
+        added = (
+            f"{case['added_per_run'] * 1e3:10.3f}{case['process_over_reset']:8.1f}x"
+            if "reset" in case
+            else ""
+        )
         print(f"  {name:<16}{reset}{case['process'] * 1e3:10.3f}{added}")
 
 

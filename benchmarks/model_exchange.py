@@ -52,25 +52,41 @@ def pushed_scenario(folder: Path) -> Path:
     (folder / "force.csv").write_text("time,F\n" + "".join(f"{t},{f}\n" for t, f in FORCE))
     scenario = folder / "pushed"
     scenario.mkdir()
-    (scenario / "scenario.yaml").write_text("name: pushed\ninputs:\n  msd.F: {csv: ../force.csv, interpolation: hold}\n")
+    (scenario / "scenario.yaml").write_text(
+        "name: pushed\ninputs:\n  msd.F: {csv: ../force.csv, interpolation: hold}\n"
+    )
     return scenario
 
 
-def fmpy_run(path: Path, stop: float, step: float, outputs: list[str], values: dict | None = None,
-             force: bool = False) -> Callable[[], object]:
+def fmpy_run(
+    path: Path, stop: float, step: float, outputs: list[str], values: dict | None = None, force: bool = False
+) -> Callable[[], object]:
     from fmpy import simulate_fmu
 
     signal = None
     if force:  # held: each sample repeated at the next one's time, as FMPy's input table steps
-        rows = [row for (t, f), (t_next, _) in zip(FORCE, [*FORCE[1:], (stop, 0.0)]) for row in ((t, f), (t_next, f))]
+        rows = [
+            row
+            for (t, f), (t_next, _) in zip(FORCE, [*FORCE[1:], (stop, 0.0)])
+            for row in ((t, f), (t_next, f))
+        ]
         signal = np.array(rows, dtype=[("time", float), ("F", float)])
-    return lambda: simulate_fmu(str(path), solver="CVode", stop_time=stop, output_interval=step,
-                                relative_tolerance=1e-6, start_values=values or {}, input=signal, output=outputs,
-                                record_events=False)
+    return lambda: simulate_fmu(
+        str(path),
+        solver="CVode",
+        stop_time=stop,
+        output_interval=step,
+        relative_tolerance=1e-6,
+        start_values=values or {},
+        input=signal,
+        output=outputs,
+        record_events=False,
+    )
 
 
-def case(model, scenario, values: dict, stop: float, step: float, repeats: int,
-         fmpy: Callable[[], object] | None) -> dict:
+def case(
+    model, scenario, values: dict, stop: float, step: float, repeats: int, fmpy: Callable[[], object] | None
+) -> dict:
     def ours(loop: str) -> Callable[[], object]:
         return lambda: simulate(model, scenario, values, stop_time=stop, step=step, loop=loop)
 
@@ -98,8 +114,15 @@ def main() -> None:
         ball = folder / "ball.fmu"
         ball.write_bytes(build_fmu(BALL).read_bytes())
         results = {
-            "msd_pushed": case(msd, pushed, {"msd.k": 14.0}, 10.0, 0.025, args.repeats,
-                               fmpy_run(msd_fmu, 10.0, 0.025, ["x"], {"k": 14.0}, force=True)),
+            "msd_pushed": case(
+                msd,
+                pushed,
+                {"msd.k": 14.0},
+                10.0,
+                0.025,
+                args.repeats,
+                fmpy_run(msd_fmu, 10.0, 0.025, ["x"], {"k": 14.0}, force=True),
+            ),
             "ball": case(as_plan(ball), None, {}, 2.0, 0.01, args.repeats, fmpy_run(ball, 2.0, 0.01, ["h"])),
             "msd_terms": case(msd, pushed, {"msd.k": 14.0, **TERMS}, 10.0, 0.025, args.repeats, None),
         }
@@ -107,13 +130,17 @@ def main() -> None:
         print(json.dumps({"cases": results, "repeats": args.repeats}, indent=2))
         return
     print(f"model exchange under CVode, median wall time per simulation ({args.repeats} repeats)")
-    print(f"{'case':<12} {'steps':>6} {'native':>10} {'python':>10} {'simulate_fmu':>13} {'python/native':>14} "
-          f"{'fmpy/native':>12} {'identical':>10}")
+    print(
+        f"{'case':<12} {'steps':>6} {'native':>10} {'python':>10} {'simulate_fmu':>13} {'python/native':>14} "
+        f"{'fmpy/native':>12} {'identical':>10}"
+    )
     for name, f in results.items():
         fmpy = f"{f['simulate_fmu'] * 1e3:10.2f} ms" if "simulate_fmu" in f else f"{'-':>13}"
         ratio = f"{f['simulate_fmu_over_native']:11.1f}x" if "simulate_fmu" in f else f"{'-':>12}"
-        print(f"{name:<12} {f['steps']:>6} {f['native'] * 1e3:7.2f} ms {f['python'] * 1e3:7.2f} ms {fmpy} "
-              f"{f['python_over_native']:13.1f}x {ratio} {str(f['bit_identical']):>10}")
+        print(
+            f"{name:<12} {f['steps']:>6} {f['native'] * 1e3:7.2f} ms {f['python'] * 1e3:7.2f} ms {fmpy} "
+            f"{f['python_over_native']:13.1f}x {ratio} {str(f['bit_identical']):>10}"
+        )
 
 
 if __name__ == "__main__":

@@ -45,16 +45,33 @@ def pairwise_front(costs: np.ndarray) -> np.ndarray:
 def write_store(folder: Path, values: np.ndarray) -> None:
     """A sweep of len(values) points, objectives f0.. as given, one scenario."""
     objectives = {f"f{k}": Reduce(signal=f"p.y{k}", reduce="final") for k in range(values.shape[1])}
-    spec = SpaceSpec(name="front", multimodel="unused.yaml", parameters={"p.a": [0.0], "p.b": [0.0]},
-                     objectives=objectives, ranking={"objective": "f0", "pareto": list(objectives)})
+    spec = SpaceSpec(
+        name="front",
+        multimodel="unused.yaml",
+        parameters={"p.a": [0.0], "p.b": [0.0]},
+        objectives=objectives,
+        ranking={"objective": "f0", "pareto": list(objectives)},
+    )
     save_sweep_spec(folder, spec, "model")
     schema = store.results_schema({"p.a": [0.0], "p.b": [0.0]}, objectives)
     rng = np.random.default_rng(1)
     for start in range(0, len(values), CHUNK):
-        rows = [{"task_id": f"t{i}", "model": "model", "scenario": "s", "group": "g",
-                 "p.a": float(rng.random()), "p.b": float(i), **dict(zip(objectives, map(float, values[i]))),
-                 "status": "ok", "error": None, "wall_time": 0.0, "worker": "w"}
-                for i in range(start, min(start + CHUNK, len(values)))]
+        rows = [
+            {
+                "task_id": f"t{i}",
+                "model": "model",
+                "scenario": "s",
+                "group": "g",
+                "p.a": float(rng.random()),
+                "p.b": float(i),
+                **dict(zip(objectives, map(float, values[i]))),
+                "status": "ok",
+                "error": None,
+                "wall_time": 0.0,
+                "worker": "w",
+            }
+            for i in range(start, min(start + CHUNK, len(values)))
+        ]
         store.write_rows(folder, "front", f"c{start}", rows, schema)
 
 
@@ -73,11 +90,17 @@ def measure(points: int, objectives: int) -> dict:
     start = time.perf_counter()
     naive = pairwise_front(sample)
     naive_s = (time.perf_counter() - start) * (points / SUBSAMPLE) ** 2
-    return {"points": points, "objectives": objectives, "front": int(mask.sum()),
-            "front_in_ranking": len(ranking.pareto), "rank_s": round(rank_s, 3), "pareto_mask_s": round(front_s, 3),
-            "pairwise_loop_s_estimated": round(naive_s, 1),
-            "same_front_on_subsample": bool(np.array_equal(naive, pareto_mask(sample, ["min"] * objectives))),
-            "rank_under_5_s": rank_s < 5.0}
+    return {
+        "points": points,
+        "objectives": objectives,
+        "front": int(mask.sum()),
+        "front_in_ranking": len(ranking.pareto),
+        "rank_s": round(rank_s, 3),
+        "pareto_mask_s": round(front_s, 3),
+        "pairwise_loop_s_estimated": round(naive_s, 1),
+        "same_front_on_subsample": bool(np.array_equal(naive, pareto_mask(sample, ["min"] * objectives))),
+        "rank_under_5_s": rank_s < 5.0,
+    }
 
 
 def main() -> None:
@@ -89,12 +112,16 @@ def main() -> None:
     if args.json:
         print(json.dumps(results, indent=1))
         return
-    print(f"{'objectives':>10}{'points':>9}{'front':>7}{'rank s':>9}{'front s':>9}{'O(n²) loop s (est.)':>21}"
-          f"{'ratio':>8}{'same':>6}")
+    print(
+        f"{'objectives':>10}{'points':>9}{'front':>7}{'rank s':>9}{'front s':>9}{'O(n²) loop s (est.)':>21}"
+        f"{'ratio':>8}{'same':>6}"
+    )
     for r in results:
-        print(f"{r['objectives']:>10}{r['points']:>9}{r['front']:>7}{r['rank_s']:>9.2f}{r['pareto_mask_s']:>9.2f}"
-              f"{r['pairwise_loop_s_estimated']:>21.0f}{r['pairwise_loop_s_estimated'] / r['rank_s']:>8.0f}"
-              f"{r['same_front_on_subsample']!s:>6}")
+        print(
+            f"{r['objectives']:>10}{r['points']:>9}{r['front']:>7}{r['rank_s']:>9.2f}{r['pareto_mask_s']:>9.2f}"
+            f"{r['pairwise_loop_s_estimated']:>21.0f}{r['pairwise_loop_s_estimated'] / r['rank_s']:>8.0f}"
+            f"{r['same_front_on_subsample']!s:>6}"
+        )
     print("rank s: the whole reducer from the Parquet store; front s: the non-dominated sort alone;")
     print(f"the loop is timed on {SUBSAMPLE} points and scaled by (n / {SUBSAMPLE})^2")
 

@@ -54,9 +54,12 @@ DASHBOARD_TIMEOUT = 600.0  # seconds from the dashboard command's start after wh
 def space(folder: Path, rows: int) -> Path:
     """The Ishigami Sobol' study of ``rows`` points in ``folder``."""
     spec = yaml.safe_load((ISHIGAMI / "space.yaml").read_text())
-    spec.update(multimodel={"fmus": {"ishigami": str(ISHIGAMI / "fmus" / "ishigami")}},
-                output=str(folder / "out"), cluster={"n_workers": 2},
-                search={**spec.get("search", {}), "strategy": "sobol_indices", "max_points": rows})
+    spec.update(
+        multimodel={"fmus": {"ishigami": str(ISHIGAMI / "fmus" / "ishigami")}},
+        output=str(folder / "out"),
+        cluster={"n_workers": 2},
+        search={**spec.get("search", {}), "strategy": "sobol_indices", "max_points": rows},
+    )
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / "space.yaml"
     path.write_text(yaml.safe_dump(spec, sort_keys=False))
@@ -135,8 +138,9 @@ def chromium(playwright):
     """Debian's Chromium, found and launched as tests/support/pages.py does."""
     path = shutil.which("chromium") or shutil.which("chromium-browser")
     if not path:
-        raise SystemExit("no chromium on PATH: install Debian's (apt-get install chromium), as .ci/install "
-                         "does")
+        raise SystemExit(
+            "no chromium on PATH: install Debian's (apt-get install chromium), as .ci/install does"
+        )
     return playwright.chromium.launch(executable_path=path)
 
 
@@ -180,8 +184,12 @@ def dashboard(out: Path, log: Path) -> dict:
         browser = chromium(playwright)  # started before the command: a user's browser is already open
         page = browser.new_context(viewport={"width": 1400, "height": 1000}).new_page()
         started = time.perf_counter()
-        process = subprocess.Popen(dse_runner("dashboard", str(out), "--address", address),
-                                   stdout=subprocess.PIPE, stderr=errors, text=True)
+        process = subprocess.Popen(
+            dse_runner("dashboard", str(out), "--address", address),
+            stdout=subprocess.PIPE,
+            stderr=errors,
+            text=True,
+        )
         sampler, peak = sampled(process)
         serving = threading.Event()
 
@@ -200,7 +208,9 @@ def dashboard(out: Path, log: Path) -> dict:
                 waiting = "the page"
                 # the server answers once it has built the page's document; the page is looked at from its
                 # first bytes on (its HTML carries the counts, shown as it is parsed, before BokehJS's load)
-                answer = page.goto(url, timeout=max(1.0, deadline - time.perf_counter()) * 1000, wait_until="commit")
+                answer = page.goto(
+                    url, timeout=max(1.0, deadline - time.perf_counter()) * 1000, wait_until="commit"
+                )
                 waiting = "the first number"
                 if answer is not None and not answer.ok:  # the page failed to build (the log says why)
                     failed = f"the page answered HTTP {answer.status}"
@@ -275,8 +285,10 @@ def ratio(value: float | None, first: float | None) -> str:
 
 def table(found: list[dict]) -> None:
     first = found[0]
-    print(f"{'rows':>9} | {'submit (its sweep part)':>26} | {'rank':>15} | {'report':>22} | {'sensitivity':>15} | "
-          f"{'dashboard: first number, all figures':>37} | {'again, indices kept':>29}")
+    print(
+        f"{'rows':>9} | {'submit (its sweep part)':>26} | {'rank':>15} | {'report':>22} | {'sensitivity':>15} | "
+        f"{'dashboard: first number, all figures':>37} | {'again, indices kept':>29}"
+    )
     for f in found:
         cells = [f"{f[c]['seconds']:6.1f} s {f[c]['peak_mb']:5d} MB" for c in ("submit", "rank")]
         cells[0] += f" ({megabytes(f['submit']['phase_peak_mb'])})"
@@ -285,30 +297,42 @@ def table(found: list[dict]) -> None:
         cells.append(f"{f['sensitivity']['seconds']:6.1f} s {f['sensitivity']['peak_mb']:5d} MB")
         for key in ("dashboard", "dashboard_again"):
             shown = f[key]
-            cells.append(f"{seconds(shown['first_number_s']):>9} {seconds(shown['all_figures_s']):>9} "
-                         f"{shown['peak_mb']:5d} MB")
+            cells.append(
+                f"{seconds(shown['first_number_s']):>9} {seconds(shown['all_figures_s']):>9} "
+                f"{shown['peak_mb']:5d} MB"
+            )
         print(f"{f['rows']:>9} | " + " | ".join(cells))
         for key in ("dashboard", "dashboard_again"):
             shown = f[key]
             if "error" in shown:
                 print(f"{'':>9}   {key}: {shown['error']}")
             elif "timeout_waiting_for" in shown:
-                print(f"{'':>9}   {key}: timed out after {DASHBOARD_TIMEOUT:g} s waiting for "
-                      f"{shown['timeout_waiting_for']}")
+                print(
+                    f"{'':>9}   {key}: timed out after {DASHBOARD_TIMEOUT:g} s waiting for "
+                    f"{shown['timeout_waiting_for']}"
+                )
             if shown.get("log"):
                 print(f"{'':>9}   {key}'s stderr ends: {shown['log'].splitlines()[-1]}")
     for f in found[1:]:
-        ratios = [f"{c} {f[c]['seconds'] / first[c]['seconds']:.1f}x time, "
-                  f"{f[c]['peak_mb'] / first[c]['peak_mb']:.1f}x memory"
-                  for c in ("submit", "rank", "report", "sensitivity")]
-        ratios.append(f"submit's sweep part {ratio(f['submit']['phase_peak_mb'], first['submit']['phase_peak_mb'])} "
-                      "memory")
+        ratios = [
+            f"{c} {f[c]['seconds'] / first[c]['seconds']:.1f}x time, "
+            f"{f[c]['peak_mb'] / first[c]['peak_mb']:.1f}x memory"
+            for c in ("submit", "rank", "report", "sensitivity")
+        ]
+        ratios.append(
+            f"submit's sweep part {ratio(f['submit']['phase_peak_mb'], first['submit']['phase_peak_mb'])} "
+            "memory"
+        )
         shown, before = f["dashboard"], first["dashboard"]
-        ratios.append(f"dashboard {ratio(shown['first_number_s'], before['first_number_s'])} to the first "
-                      f"number, {ratio(shown['all_figures_s'], before['all_figures_s'])} to all figures, "
-                      f"{ratio(shown['peak_mb'], before['peak_mb'])} memory")
-        print(f"{f['rows']} against {first['rows']} rows ({f['rows'] / first['rows']:.0f}x): "
-              f"{', '.join(ratios)}")
+        ratios.append(
+            f"dashboard {ratio(shown['first_number_s'], before['first_number_s'])} to the first "
+            f"number, {ratio(shown['all_figures_s'], before['all_figures_s'])} to all figures, "
+            f"{ratio(shown['peak_mb'], before['peak_mb'])} memory"
+        )
+        print(
+            f"{f['rows']} against {first['rows']} rows ({f['rows'] / first['rows']:.0f}x): "
+            f"{', '.join(ratios)}"
+        )
 
 
 def main() -> None:

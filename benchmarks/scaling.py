@@ -64,13 +64,17 @@ PROJECTED_WORKERS = (2, 100, 1000)
 
 # --- step 1: the real sweep on the embedded local cluster ---------------------------------------
 
+
 def subset(paper: Space, output: Path, workers: int, chunk_seconds: float = 2.0) -> Space:
     """The paper's space with fewer mu values, no kept tracks, into a fresh folder."""
     shutil.rmtree(output, ignore_errors=True)
     parameters = {**paper.spec.parameters, "vehicle.mu": MU}
-    spec = paper.spec.model_copy(update={"parameters": parameters, "keep_trajectories": 0,
-                                         "chunk_seconds": chunk_seconds})
-    return Space(spec, paper.path, paper.plan, paper.scenarios).with_overrides(output=output, n_workers=workers)
+    spec = paper.spec.model_copy(
+        update={"parameters": parameters, "keep_trajectories": 0, "chunk_seconds": chunk_seconds}
+    )
+    return Space(spec, paper.path, paper.plan, paper.scenarios).with_overrides(
+        output=output, n_workers=workers
+    )
 
 
 def parquet_files(space: Space) -> int:
@@ -95,26 +99,37 @@ def measured(space: Space, client, sample=None) -> dict:
     startup = first[0] - start if first else 0.0
     files = parquet_files(space)
     return {
-        "workers": w, "ran": report.ran, "failed": report.failed, "chunks": report.chunks,
-        "chunk_size": report.chunk_size, "chunk_seconds": space.spec.chunk_seconds,
-        "wall_s": wall, "tasks_per_s": report.ran / wall,
-        "simulation_s": report.simulation_seconds, "wall_x_workers_s": wall * w,
+        "workers": w,
+        "ran": report.ran,
+        "failed": report.failed,
+        "chunks": report.chunks,
+        "chunk_size": report.chunk_size,
+        "chunk_seconds": space.spec.chunk_seconds,
+        "wall_s": wall,
+        "tasks_per_s": report.ran / wall,
+        "simulation_s": report.simulation_seconds,
+        "wall_x_workers_s": wall * w,
         "busy_fraction": report.simulation_seconds / (wall * w),
         "seconds_per_simulation": report.simulation_seconds / report.ran,
         "overhead_fraction": outside / report.simulation_seconds,
         "per_chunk_overhead_s": outside / report.chunks,
         "startup_s": startup,  # expand, store scan, probe, shipment: until the first chunks launch
         "per_chunk_overhead_after_startup_s": (outside - startup * w) / report.chunks,
-        "parquet_files": files, "files_per_chunk": files / report.chunks,
+        "parquet_files": files,
+        "files_per_chunk": files / report.chunks,
     }
 
 
 def local_sweep(paper: Space, output: Path, workers: int, chunk_seconds: float, repeats: int) -> dict:
     """The run with the median wall time of ``repeats`` runs, each into a fresh folder on a fresh cluster."""
-    runs = sorted((one_local_sweep(subset(paper, output, workers, chunk_seconds)) for _ in range(repeats)),
-                  key=lambda r: r["wall_s"])
-    return runs[len(runs) // 2] | {"repeats_wall_s": [r["wall_s"] for r in runs],
-                                   "repeats_overhead_fraction": [r["overhead_fraction"] for r in runs]}
+    runs = sorted(
+        (one_local_sweep(subset(paper, output, workers, chunk_seconds)) for _ in range(repeats)),
+        key=lambda r: r["wall_s"],
+    )
+    return runs[len(runs) // 2] | {
+        "repeats_wall_s": [r["wall_s"] for r in runs],
+        "repeats_overhead_fraction": [r["overhead_fraction"] for r in runs],
+    }
 
 
 def one_local_sweep(space: Space) -> dict:
@@ -129,6 +144,7 @@ def one_local_sweep(space: Space) -> dict:
 
 # --- step 2: a CLI-started scheduler and workers -------------------------------------------------
 
+
 def noop(x):
     return None
 
@@ -142,8 +158,20 @@ class CliCluster:
             port = s.getsockname()[1]
         self.folder, self.address = folder, f"tcp://127.0.0.1:{port}"
         self.procs: list[subprocess.Popen] = []
-        self.scheduler = self._start([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
-                                      "--port", str(port), "--dashboard-address", "127.0.0.1:0"], "scheduler.log")
+        self.scheduler = self._start(
+            [
+                sys.executable,
+                "-m",
+                "distributed.cli.dask_scheduler",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                str(port),
+                "--dashboard-address",
+                "127.0.0.1:0",
+            ],
+            "scheduler.log",
+        )
         deadline = time.time() + 60
         while socket.socket().connect_ex(("127.0.0.1", port)) != 0:
             if time.time() > deadline:
@@ -154,8 +182,20 @@ class CliCluster:
         self.cpu = psutil.Process(self.scheduler.pid)
 
     def start_worker(self, i: int) -> None:
-        self._start([sys.executable, "-m", "distributed.cli.dask_worker", self.address, "--nthreads", "1",
-                     "--name", f"worker-{i}", "--no-dashboard"], f"worker-{i}.log")
+        self._start(
+            [
+                sys.executable,
+                "-m",
+                "distributed.cli.dask_worker",
+                self.address,
+                "--nthreads",
+                "1",
+                "--name",
+                f"worker-{i}",
+                "--no-dashboard",
+            ],
+            f"worker-{i}.log",
+        )
 
     def _start(self, command: list[str], log: str) -> subprocess.Popen:
         with open(self.folder / log, "ab") as out:
@@ -186,7 +226,9 @@ def own_cpu() -> float:
 def settle(client) -> None:
     """Wait until the scheduler has forgotten every task (released futures are processed)."""
     deadline = time.time() + 30
-    while client.run_on_scheduler(lambda dask_scheduler: len(dask_scheduler.tasks)) and time.time() < deadline:
+    while (
+        client.run_on_scheduler(lambda dask_scheduler: len(dask_scheduler.tasks)) and time.time() < deadline
+    ):
         time.sleep(0.05)
 
 
@@ -231,10 +273,15 @@ def scheduler_cost(cluster: CliCluster, client, n: int, run) -> dict:
     wall = time.perf_counter() - t0
     settle(client)
     cpu = cluster.scheduler_cpu() - cpu0
-    return {"tasks": n, "wall_s": wall, "tasks_per_s": n / wall,
-            "scheduler_cpu_s": cpu, "scheduler_cpu_per_task_ms": cpu / n * 1e3,
-            "scheduler_busy_fraction": cpu / wall,
-            "client_cpu_per_task_ms": (own_cpu() - client0) / n * 1e3}
+    return {
+        "tasks": n,
+        "wall_s": wall,
+        "tasks_per_s": n / wall,
+        "scheduler_cpu_s": cpu,
+        "scheduler_cpu_per_task_ms": cpu / n * 1e3,
+        "scheduler_busy_fraction": cpu / wall,
+        "client_cpu_per_task_ms": (own_cpu() - client0) / n * 1e3,
+    }
 
 
 def idle_scheduler(cluster: CliCluster, seconds: float = 8.0) -> float:
@@ -263,14 +310,18 @@ def cli_sweep(cluster: CliCluster, client, space: Space) -> dict:
 
 # --- step 3 and the client's own per-task work ---------------------------------------------------
 
+
 def shipment_size(space: Space) -> dict:
     shipment = ship.pack(space.plan, space.scenarios)
-    return {"pickle_bytes": len(pickle.dumps(shipment)), "distributed_dumps_bytes": len(dask_dumps(shipment)),
-            "plugin_bytes": len(dask_dumps(ship.ShipmentPlugin(shipment))),
-            "zlib_bytes": len(zlib.compress(pickle.dumps(shipment))),
-            "fmu_bytes": sum(len(b) for b in shipment.fmus.values()),
-            "recording_bytes": sum(len(b) for b in shipment.files.values()),  # the files FMUs read by path
-            "scenarios_bytes": len(pickle.dumps(shipment.scenarios))}  # checked scenarios, their recordings inside
+    return {
+        "pickle_bytes": len(pickle.dumps(shipment)),
+        "distributed_dumps_bytes": len(dask_dumps(shipment)),
+        "plugin_bytes": len(dask_dumps(ship.ShipmentPlugin(shipment))),
+        "zlib_bytes": len(zlib.compress(pickle.dumps(shipment))),
+        "fmu_bytes": sum(len(b) for b in shipment.fmus.values()),
+        "recording_bytes": sum(len(b) for b in shipment.files.values()),  # the files FMUs read by path
+        "scenarios_bytes": len(pickle.dumps(shipment.scenarios)),
+    }  # checked scenarios, their recordings inside
 
 
 def client_per_task(space: Space, repeats: int = 5) -> tuple[float, float]:
@@ -290,21 +341,37 @@ def client_per_task(space: Space, repeats: int = 5) -> tuple[float, float]:
 
 # --- step 4: the projection ----------------------------------------------------------------------
 
-def project(w: int, t: float, o: float, s: float, heartbeat_s: float, client_task: float, client_chunk: float,
-            files_per_chunk: float, shipment: int, s_batched: float) -> dict:
+
+def project(
+    w: int,
+    t: float,
+    o: float,
+    s: float,
+    heartbeat_s: float,
+    client_task: float,
+    client_chunk: float,
+    files_per_chunk: float,
+    shipment: int,
+    s_batched: float,
+) -> dict:
     """Smallest chunk size c with worker-side overhead o/(c t) <= 5% and scheduler utilisation
     W s/(c t) + heartbeats <= SCHEDULER_MAX; throughput W/t / (1 + o/(c t))."""
     heartbeats = w / heartbeat_interval(w) * heartbeat_s  # the scheduler's CPU fraction for heartbeats
     room = SCHEDULER_MAX - heartbeats
     by_overhead = o / (OVERHEAD_TARGET * t)
     by_scheduler = w * s / (room * t) if room > 0 else None  # None: heartbeats alone saturate it
-    p = {"workers": w, "heartbeat_utilisation": heartbeats, "chunk_size_for_overhead": by_overhead,
-         "chunk_size_for_scheduler": by_scheduler,
-         "chunk_size_if_batched": max(1, math.ceil(max(by_overhead, w * s_batched / (room * t))))
-         if room > 0 else None,
-         "default_chunk_size_paper_sweep": chunk_size(t, 2.0, 1500, w),
-         "default_chunk_size_1M_task_sweep": chunk_size(t, 2.0, 1_000_000, w),
-         "shipment_bytes_from_scheduler": w * shipment}
+    p = {
+        "workers": w,
+        "heartbeat_utilisation": heartbeats,
+        "chunk_size_for_overhead": by_overhead,
+        "chunk_size_for_scheduler": by_scheduler,
+        "chunk_size_if_batched": max(1, math.ceil(max(by_overhead, w * s_batched / (room * t))))
+        if room > 0
+        else None,
+        "default_chunk_size_paper_sweep": chunk_size(t, 2.0, 1500, w),
+        "default_chunk_size_1M_task_sweep": chunk_size(t, 2.0, 1_000_000, w),
+        "shipment_bytes_from_scheduler": w * shipment,
+    }
     if room <= 0:
         return p | {"chunk_size": None}
     c = max(1, math.ceil(max(by_overhead, by_scheduler)))
@@ -312,9 +379,13 @@ def project(w: int, t: float, o: float, s: float, heartbeat_s: float, client_tas
     throughput = w / t / (1 + overhead)
     chunks_per_s = throughput / c
     return p | {
-        "chunk_size": c, "chunk_wall_s": c * t, "worker_overhead_fraction": overhead,
+        "chunk_size": c,
+        "chunk_wall_s": c * t,
+        "worker_overhead_fraction": overhead,
         "scheduler_utilisation": chunks_per_s * s + heartbeats,
-        "chunk_tasks_per_s": chunks_per_s, "tasks_per_s": throughput, "ideal_tasks_per_s": w / t,
+        "chunk_tasks_per_s": chunks_per_s,
+        "tasks_per_s": throughput,
+        "ideal_tasks_per_s": w / t,
         "client_utilisation": throughput * client_task + chunks_per_s * client_chunk,
         "parquet_files_per_s": chunks_per_s * files_per_chunk,
         "min_tasks_for_4_chunks_per_worker": 4 * w * c,
@@ -352,19 +423,28 @@ def main() -> None:
     work = Path(tempfile.mkdtemp(prefix="dse-scaling-"))
     atexit.register(shutil.rmtree, work, ignore_errors=True)  # also when a step fails
     paper = load_space(REPO / "jobs" / "robotti" / "space.yaml")
-    f: dict = {"machine": {"cores": os.cpu_count(), "memory_gib": round(psutil.virtual_memory().total / 2**30, 1),
-                           "python": sys.version.split()[0]}}
+    f: dict = {
+        "machine": {
+            "cores": os.cpu_count(),
+            "memory_gib": round(psutil.virtual_memory().total / 2**30, 1),
+            "python": sys.version.split()[0],
+        }
+    }
     f["sin1_ms_at_start"] = machine_speed(paper)
 
     # 1. throughput against workers, and overhead against chunk size
-    say("1. real sweep (600 tasks: the paper's space with mu in {0.3, 0.5}), embedded local cluster; "
-        f"median of {args.repeats} runs each")
+    say(
+        "1. real sweep (600 tasks: the paper's space with mu in {0.3, 0.5}), embedded local cluster; "
+        f"median of {args.repeats} runs each"
+    )
     runs = {}
     for w in (1, 2):
         runs[w] = r = local_sweep(paper, work / f"local-{w}", w, 2.0, args.repeats)
-        say(f"   {w} worker{'s' if w > 1 else ' '}: {r['ran']} tasks in {r['wall_s']:.2f} s = {r['tasks_per_s']:.1f} "
+        say(
+            f"   {w} worker{'s' if w > 1 else ' '}: {r['ran']} tasks in {r['wall_s']:.2f} s = {r['tasks_per_s']:.1f} "
             f"tasks/s; simulation {r['simulation_s']:.2f} s vs wall x workers {r['wall_x_workers_s']:.2f} s "
-            f"(busy {r['busy_fraction']:.1%}); {r['chunks']} chunks of {r['chunk_size']}")
+            f"(busy {r['busy_fraction']:.1%}); {r['chunks']} chunks of {r['chunk_size']}"
+        )
     r2 = runs[2]
     f["local"] = {str(w): r for w, r in runs.items()}
     f["speedup_2_workers"] = r2["tasks_per_s"] / runs[1]["tasks_per_s"]
@@ -375,9 +455,11 @@ def main() -> None:
         by_chunk[cs] = local_sweep(paper, work / f"local-2-{cs}", 2, cs, args.repeats)
     for cs, r in sorted(by_chunk.items()):
         chunk_wall = r["chunk_size"] * r["seconds_per_simulation"]
-        say(f"   chunk_seconds {cs}: {r['chunks']:>3} chunks of {r['chunk_size']:>2} ({chunk_wall:.2f} s), "
+        say(
+            f"   chunk_seconds {cs}: {r['chunks']:>3} chunks of {r['chunk_size']:>2} ({chunk_wall:.2f} s), "
             f"{r['wall_s']:.2f} s, overhead (wall x workers - simulation) / simulation = "
-            f"{r['overhead_fraction']:.1%} (runs: {', '.join(f'{x:.1%}' for x in r['repeats_overhead_fraction'])})")
+            f"{r['overhead_fraction']:.1%} (runs: {', '.join(f'{x:.1%}' for x in r['repeats_overhead_fraction'])})"
+        )
     f["local_2_workers_by_chunk_seconds"] = {str(k): v for k, v in sorted(by_chunk.items())}
     outside = [r["wall_x_workers_s"] - r["simulation_s"] for r in by_chunk.values()]
     f["marginal_overhead_per_chunk_s"] = marginal = slope([r["chunks"] for r in by_chunk.values()], outside)
@@ -393,18 +475,24 @@ def main() -> None:
             f["scheduler_idle_cpu_fraction_2_workers"] = idle2 = idle_scheduler(cluster)
             say(f"   idle scheduler (2 workers, 1 client): {idle2:.2%} of a core")
             f["noop_batched"] = n = noop_tasks(cluster, client, args.noop_tasks, args.batch)
-            say(f"   {n['tasks']} no-op tasks, client.map in batches of {n['batch']}: {n['wall_s']:.2f} s = "
+            say(
+                f"   {n['tasks']} no-op tasks, client.map in batches of {n['batch']}: {n['wall_s']:.2f} s = "
                 f"{n['tasks_per_s']:.0f} tasks/s; scheduler CPU {n['scheduler_cpu_per_task_ms']:.3f} ms per task "
-                f"(scheduler busy {n['scheduler_busy_fraction']:.0%} of a core)")
+                f"(scheduler busy {n['scheduler_busy_fraction']:.0%} of a core)"
+            )
             f["noop_one_by_one"] = m = noop_one_by_one(cluster, client, args.one_by_one_tasks, 6)
-            say(f"   {m['tasks']} no-op tasks, one client.submit per completion (as the sweep submits chunks): "
-                f"{m['tasks_per_s']:.0f} tasks/s; scheduler CPU {m['scheduler_cpu_per_task_ms']:.3f} ms per task")
+            say(
+                f"   {m['tasks']} no-op tasks, one client.submit per completion (as the sweep submits chunks): "
+                f"{m['tasks_per_s']:.0f} tasks/s; scheduler CPU {m['scheduler_cpu_per_task_ms']:.3f} ms per task"
+            )
             cli = {}
             for cs in (0.05, 2.0):
                 cli[cs] = r = cli_sweep(cluster, client, subset(paper, work / f"cli-{cs}", 2, cs))
-                say(f"   real sweep, chunk_seconds {cs}: {r['chunks']} chunks of {r['chunk_size']} in "
+                say(
+                    f"   real sweep, chunk_seconds {cs}: {r['chunks']} chunks of {r['chunk_size']} in "
                     f"{r['wall_s']:.2f} s; scheduler CPU {r['scheduler_cpu_s']:.2f} s, client CPU "
-                    f"{r['client_cpu_s']:.2f} s")
+                    f"{r['client_cpu_s']:.2f} s"
+                )
             f["cli_sweeps"] = {str(k): v for k, v in cli.items()}
             for i in range(2, 10):
                 cluster.start_worker(i)
@@ -420,90 +508,160 @@ def main() -> None:
     f["scheduler_cpu_per_chunk_task_ms"] = s_chunk * 1e3
     f["client_cpu_per_chunk_ms"] = client_chunk * 1e3
     f["scheduler_cpu_per_heartbeat_ms"] = heartbeat_s * 1e3
-    say(f"   real chunk tasks, from the difference of the two sweeps ({small['chunks']} - {big['chunks']} chunks): "
-        f"scheduler CPU {s_chunk * 1e3:.3f} ms per chunk, client CPU {client_chunk * 1e3:.3f} ms per chunk")
-    say(f"   idle scheduler with 10 workers: {idle10:.2%} of a core, so {heartbeat_s * 1e3:.3f} ms per worker "
-        f"heartbeat (2 a second each at <= 10 workers)")
+    say(
+        f"   real chunk tasks, from the difference of the two sweeps ({small['chunks']} - {big['chunks']} chunks): "
+        f"scheduler CPU {s_chunk * 1e3:.3f} ms per chunk, client CPU {client_chunk * 1e3:.3f} ms per chunk"
+    )
+    say(
+        f"   idle scheduler with 10 workers: {idle10:.2%} of a core, so {heartbeat_s * 1e3:.3f} ms per worker "
+        f"heartbeat (2 a second each at <= 10 workers)"
+    )
     t0 = time.perf_counter()
     read_ids = len(store.finished_task_ids(work / "cli-0.05", paper.name))
-    f["read_back"] = {"files": small["parquet_files"], "task_ids": read_ids, "seconds": time.perf_counter() - t0}
-    say(f"   reading the task ids back from the {small['parquet_files']} Parquet files of the chunk-of-1 sweep "
-        f"(what a resume does), local disk: {f['read_back']['seconds']:.2f} s")
+    f["read_back"] = {
+        "files": small["parquet_files"],
+        "task_ids": read_ids,
+        "seconds": time.perf_counter() - t0,
+    }
+    say(
+        f"   reading the task ids back from the {small['parquet_files']} Parquet files of the chunk-of-1 sweep "
+        f"(what a resume does), local disk: {f['read_back']['seconds']:.2f} s"
+    )
     o = r2["per_chunk_overhead_s"]
-    say(f"   worker side, 2-worker sweep of step 1: o = (wall x workers - simulation) / chunks = "
+    say(
+        f"   worker side, 2-worker sweep of step 1: o = (wall x workers - simulation) / chunks = "
         f"({r2['wall_x_workers_s']:.2f} - {r2['simulation_s']:.2f}) / {r2['chunks']} = {o * 1e3:.0f} ms per chunk "
         f"({r2['per_chunk_overhead_after_startup_s'] * 1e3:.0f} ms without the {r2['startup_s']:.2f} s start-up); "
-        f"marginal cost of one more chunk across the three chunk sizes: {marginal * 1e3:.1f} ms")
+        f"marginal cost of one more chunk across the three chunk sizes: {marginal * 1e3:.1f} ms"
+    )
 
     # 3. the shipment
     f["shipment"] = sh = shipment_size(paper)
-    say(f"3. shipment (ship.pack of the Robotti space), sent once to every worker through the scheduler: "
+    say(
+        f"3. shipment (ship.pack of the Robotti space), sent once to every worker through the scheduler: "
         f"{sh['pickle_bytes']:,} bytes pickled ({sh['distributed_dumps_bytes']:,} with distributed's dumps, "
         f"{sh['plugin_bytes']:,} as the plugin, {sh['zlib_bytes']:,} zlib-compressed; "
-        f"FMUs {sh['fmu_bytes']:,}, recorded files {sh['recording_bytes']:,}, scenarios {sh['scenarios_bytes']:,})")
+        f"FMUs {sh['fmu_bytes']:,}, recorded files {sh['recording_bytes']:,}, scenarios {sh['scenarios_bytes']:,})"
+    )
 
     # 4. projection
     t = r2["seconds_per_simulation"]
     s = max(s_chunk, n["scheduler_cpu_per_task_ms"] / 1e3)
     s_batched = n["scheduler_cpu_per_task_ms"] / 1e3
     client_count, client_task = client_per_task(paper)
-    f["client_cpu_per_task_ms"] = {"counting_pass_before_the_sweep": client_count * 1e3,
-                                   "chunk_building_while_it_runs": client_task * 1e3}
-    f["inputs"] = {"t_s": t, "o_s": o, "s_s": s, "s_batched_s": s_batched, "heartbeat_cpu_s": heartbeat_s,
-                   "files_per_chunk": r2["files_per_chunk"], "client_cpu_per_task_s": client_task,
-                   "client_cpu_per_chunk_s": client_chunk, "shipment_bytes": sh["pickle_bytes"],
-                   "overhead_target": OVERHEAD_TARGET, "scheduler_max": SCHEDULER_MAX}
-    f["projection"] = proj = [project(w, t, o, s, heartbeat_s, client_task, client_chunk, r2["files_per_chunk"],
-                                      sh["pickle_bytes"], s_batched) for w in PROJECTED_WORKERS]
+    f["client_cpu_per_task_ms"] = {
+        "counting_pass_before_the_sweep": client_count * 1e3,
+        "chunk_building_while_it_runs": client_task * 1e3,
+    }
+    f["inputs"] = {
+        "t_s": t,
+        "o_s": o,
+        "s_s": s,
+        "s_batched_s": s_batched,
+        "heartbeat_cpu_s": heartbeat_s,
+        "files_per_chunk": r2["files_per_chunk"],
+        "client_cpu_per_task_s": client_task,
+        "client_cpu_per_chunk_s": client_chunk,
+        "shipment_bytes": sh["pickle_bytes"],
+        "overhead_target": OVERHEAD_TARGET,
+        "scheduler_max": SCHEDULER_MAX,
+    }
+    f["projection"] = proj = [
+        project(
+            w,
+            t,
+            o,
+            s,
+            heartbeat_s,
+            client_task,
+            client_chunk,
+            r2["files_per_chunk"],
+            sh["pickle_bytes"],
+            s_batched,
+        )
+        for w in PROJECTED_WORKERS
+    ]
     here = proj[0]
     f["chunk_size_for_5pct_here"] = here["chunk_size"]
-    f["chunk_size_for_5pct_here_marginal"] = math.ceil(marginal / (OVERHEAD_TARGET * t)) if marginal > 0 else 1
-    f["default_chunk_size_here"] = {"this_600_task_sweep": r2["chunk_size"],
-                                    "paper_1500_task_sweep": chunk_size(t, 2.0, 1500, 2)}
+    f["chunk_size_for_5pct_here_marginal"] = (
+        math.ceil(marginal / (OVERHEAD_TARGET * t)) if marginal > 0 else 1
+    )
+    f["default_chunk_size_here"] = {
+        "this_600_task_sweep": r2["chunk_size"],
+        "paper_1500_task_sweep": chunk_size(t, 2.0, 1500, 2),
+    }
     f["sin1_ms_at_end"] = machine_speed(paper)
     if args.json:
         print(json.dumps(f, indent=2))
         return
 
-    print(f"4. PROJECTION, not a measurement: no sweep ran on 100 or 1,000 workers; every input below was "
-          f"measured on this {os.cpu_count()}-core machine (2 working workers; 10 idle ones for the heartbeat)")
-    print(f"   inputs: t = {t * 1e3:.1f} ms per simulation; o = {o * 1e3:.0f} ms worker-side overhead per chunk; "
-          f"s = {s * 1e3:.2f} ms scheduler CPU per chunk task;")
-    print(f"   heartbeat {heartbeat_s * 1e3:.3f} ms scheduler CPU each (W / heartbeat_interval(W) a second); "
-          f"client {client_task * 1e3:.3f} ms CPU per task + {client_chunk * 1e3:.2f} ms per chunk while chunks run "
-          f"(and {client_count * 1e3:.3f} ms per task before: {client_count * 1e6:.0f} s for 1M tasks);")
-    print(f"   {r2['files_per_chunk']:.2f} Parquet files per chunk; "
-          f"shipment {sh['pickle_bytes'] / 1e6:.2f} MB per worker")
-    print(f"   c = smallest chunk with o/(c t) <= {OVERHEAD_TARGET:.0%} and scheduler u = W s/(c t) + heartbeats "
-          f"<= {SCHEDULER_MAX}; tasks/s = W/t / (1 + o/(c t))")
-    print(f"   {'workers':>7} {'c':>5} {'c*t s':>6} {'overh.':>6} {'sched u':>7} {'client u':>8} {'tasks/s':>8} "
-          f"{'chunks/s':>8} {'files/s':>7} {'ship MB':>8} {'c (batched)':>11}")
+    print(
+        f"4. PROJECTION, not a measurement: no sweep ran on 100 or 1,000 workers; every input below was "
+        f"measured on this {os.cpu_count()}-core machine (2 working workers; 10 idle ones for the heartbeat)"
+    )
+    print(
+        f"   inputs: t = {t * 1e3:.1f} ms per simulation; o = {o * 1e3:.0f} ms worker-side overhead per chunk; "
+        f"s = {s * 1e3:.2f} ms scheduler CPU per chunk task;"
+    )
+    print(
+        f"   heartbeat {heartbeat_s * 1e3:.3f} ms scheduler CPU each (W / heartbeat_interval(W) a second); "
+        f"client {client_task * 1e3:.3f} ms CPU per task + {client_chunk * 1e3:.2f} ms per chunk while chunks run "
+        f"(and {client_count * 1e3:.3f} ms per task before: {client_count * 1e6:.0f} s for 1M tasks);"
+    )
+    print(
+        f"   {r2['files_per_chunk']:.2f} Parquet files per chunk; "
+        f"shipment {sh['pickle_bytes'] / 1e6:.2f} MB per worker"
+    )
+    print(
+        f"   c = smallest chunk with o/(c t) <= {OVERHEAD_TARGET:.0%} and scheduler u = W s/(c t) + heartbeats "
+        f"<= {SCHEDULER_MAX}; tasks/s = W/t / (1 + o/(c t))"
+    )
+    print(
+        f"   {'workers':>7} {'c':>5} {'c*t s':>6} {'overh.':>6} {'sched u':>7} {'client u':>8} {'tasks/s':>8} "
+        f"{'chunks/s':>8} {'files/s':>7} {'ship MB':>8} {'c (batched)':>11}"
+    )
     for p in proj:
         if p["chunk_size"] is None:
-            print(f"   {p['workers']:>7}  heartbeats alone use {p['heartbeat_utilisation']:.2f} of the scheduler")
+            print(
+                f"   {p['workers']:>7}  heartbeats alone use {p['heartbeat_utilisation']:.2f} of the scheduler"
+            )
             continue
-        print(f"   {p['workers']:>7} {p['chunk_size']:>5} {p['chunk_wall_s']:>6.2f} "
-              f"{p['worker_overhead_fraction']:>6.1%} "
-              f"{p['scheduler_utilisation']:>7.2f} {p['client_utilisation']:>8.2f} {p['tasks_per_s']:>8.0f} "
-              f"{p['chunk_tasks_per_s']:>8.1f} {p['parquet_files_per_s']:>7.1f} "
-              f"{p['shipment_bytes_from_scheduler'] / 1e6:>8.1f} {p['chunk_size_if_batched']:>11}")
-    print("   (c (batched): the chunk size if chunks were submitted in batches at the batched no-op cost; "
-          f"client u: the client process, which tops out near {1 / client_task:,.0f} tasks/s on task building alone)")
+        print(
+            f"   {p['workers']:>7} {p['chunk_size']:>5} {p['chunk_wall_s']:>6.2f} "
+            f"{p['worker_overhead_fraction']:>6.1%} "
+            f"{p['scheduler_utilisation']:>7.2f} {p['client_utilisation']:>8.2f} {p['tasks_per_s']:>8.0f} "
+            f"{p['chunk_tasks_per_s']:>8.1f} {p['parquet_files_per_s']:>7.1f} "
+            f"{p['shipment_bytes_from_scheduler'] / 1e6:>8.1f} {p['chunk_size_if_batched']:>11}"
+        )
+    print(
+        "   (c (batched): the chunk size if chunks were submitted in batches at the batched no-op cost; "
+        f"client u: the client process, which tops out near {1 / client_task:,.0f} tasks/s on task building alone)"
+    )
     for p in proj:
         if p["chunk_size"] is not None:
-            print(f"   W={p['workers']}: {p['min_tasks_for_4_chunks_per_worker']:,} tasks give every worker 4 chunks of "
-                  f"{p['chunk_size']}; dse-runner's default (chunk_seconds 2.0) would choose "
-                  f"{p['default_chunk_size_paper_sweep']} for the paper's 1500 tasks, "
-                  f"{p['default_chunk_size_1M_task_sweep']} for 1M tasks")
-    print(f"5. this machine: o/(c t) <= 5% needs c >= {here['chunk_size']} tasks ({here['chunk_wall_s']:.2f} s) with "
-          f"o = {o * 1e3:.0f} ms, or c >= {f['chunk_size_for_5pct_here_marginal']} with the marginal "
-          f"{marginal * 1e3:.1f} ms; measured above: "
-          + ", ".join(f"chunk {v['chunk_size']}: {v['overhead_fraction']:.1%}" for _, v in sorted(by_chunk.items())))
-    print(f"   dse-runner chose {r2['chunk_size']} for this 600-task sweep (chunk_seconds 2.0 over the probe's time, "
-          f"capped at pending / (4 x threads)); it would choose {chunk_size(t, 2.0, 1500, 2)} for the paper's 1500 "
-          f"at t = {t * 1e3:.1f} ms")
-    print(f"machine speed: one sin1 simulation took {f['sin1_ms_at_start']:.1f} ms at the start of this run and "
-          f"{f['sin1_ms_at_end']:.1f} ms at the end")
+            print(
+                f"   W={p['workers']}: {p['min_tasks_for_4_chunks_per_worker']:,} tasks give every worker 4 chunks of "
+                f"{p['chunk_size']}; dse-runner's default (chunk_seconds 2.0) would choose "
+                f"{p['default_chunk_size_paper_sweep']} for the paper's 1500 tasks, "
+                f"{p['default_chunk_size_1M_task_sweep']} for 1M tasks"
+            )
+    print(
+        f"5. this machine: o/(c t) <= 5% needs c >= {here['chunk_size']} tasks ({here['chunk_wall_s']:.2f} s) with "
+        f"o = {o * 1e3:.0f} ms, or c >= {f['chunk_size_for_5pct_here_marginal']} with the marginal "
+        f"{marginal * 1e3:.1f} ms; measured above: "
+        + ", ".join(
+            f"chunk {v['chunk_size']}: {v['overhead_fraction']:.1%}" for _, v in sorted(by_chunk.items())
+        )
+    )
+    print(
+        f"   dse-runner chose {r2['chunk_size']} for this 600-task sweep (chunk_seconds 2.0 over the probe's time, "
+        f"capped at pending / (4 x threads)); it would choose {chunk_size(t, 2.0, 1500, 2)} for the paper's 1500 "
+        f"at t = {t * 1e3:.1f} ms"
+    )
+    print(
+        f"machine speed: one sin1 simulation took {f['sin1_ms_at_start']:.1f} ms at the start of this run and "
+        f"{f['sin1_ms_at_end']:.1f} ms at the end"
+    )
 
 
 if __name__ == "__main__":

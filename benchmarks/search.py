@@ -102,6 +102,7 @@ TARGETS = {"points_to_1pct": 25, "speedup": 1.8, "utilisation": 0.9}
 
 # --- the spaces -----------------------------------------------------------------------------------
 
+
 def paper_data() -> dict[str, Any]:
     """jobs/robotti/space.yaml as data, its relative scenario paths made absolute."""
     data = yaml.safe_load(PAPER.read_text())
@@ -140,8 +141,15 @@ def grid_space(base: dict[str, Any], work: Path) -> Space:
     return write_space(data, work / "grid")
 
 
-def search_space(base: dict[str, Any], work: Path, strategy: str, seed: int, points: int,
-                 prefix: str = "", variant: tuple[str, dict[str, Any]] = ("", {})) -> Space:
+def search_space(
+    base: dict[str, Any],
+    work: Path,
+    strategy: str,
+    seed: int,
+    points: int,
+    prefix: str = "",
+    variant: tuple[str, dict[str, Any]] = ("", {}),
+) -> Space:
     data = copy.deepcopy(base)
     data["name"] = f"robotti-{strategy}-s{seed}"
     data["parameters"] = copy.deepcopy(BOUNDS)
@@ -163,11 +171,13 @@ def search_space(base: dict[str, Any], work: Path, strategy: str, seed: int, poi
 
 # --- measuring ------------------------------------------------------------------------------------
 
+
 def best_so_far(history: SearchHistory, objective: str, goal: str) -> list[float]:
     """Best-so-far of ``objective`` after each simulated point, in tell order (infeasible points
     excluded; a failed point counts, without improving anything)."""
-    told = sorted((p for p in history.points if p.told is not None and p.state != "infeasible"),
-                  key=lambda p: p.told)
+    told = sorted(
+        (p for p in history.points if p.told is not None and p.state != "infeasible"), key=lambda p: p.told
+    )
     better = (lambda a, b: a < b) if goal == "min" else (lambda a, b: a > b)
     trace, best = [], math.nan
     for asked in told:
@@ -259,8 +269,9 @@ def plain_optuna(space: Space, points: int) -> dict[str, Any]:
     simulate(plan, scenarios[0], {d.name: d.low for d in dims}, **settings)  # warm-up, off the clock
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-        study = optuna.create_study(sampler=sampler,
-                                    directions=["minimize" if g == "min" else "maximize" for _, g in goals])
+        study = optuna.create_study(
+            sampler=sampler, directions=["minimize" if g == "min" else "maximize" for _, g in goals]
+        )
         cpu = _process_cpu()
         start = time.perf_counter()
         study.optimize(objective, n_trials=points)
@@ -294,33 +305,52 @@ def parallel_ceiling(space: Space, count: int = 10) -> dict[str, float]:
 
     rng = np.random.default_rng(0)
     dims = space.dimensions
-    points = [{d.name: float(d.from_unit(u)) for d, u in zip(dims, row)} for row in rng.random((count, len(dims)))]
+    points = [
+        {d.name: float(d.from_unit(u)) for d, u in zip(dims, row)} for row in rng.random((count, len(dims)))
+    ]
     context = get_context("spawn")
     with ProcessPoolExecutor(1, mp_context=context) as one:
         alone = one.submit(_simulate_points, str(space.path), points).result()
     with ProcessPoolExecutor(2, mp_context=context) as two:
         pair = list(two.map(_simulate_points, [str(space.path)] * 2, [points, points]))
-    return {"one_process_s_per_simulation": alone, "two_processes_s_per_simulation": statistics.mean(pair),
-            "ceiling": 2 * alone / statistics.mean(pair)}
+    return {
+        "one_process_s_per_simulation": alone,
+        "two_processes_s_per_simulation": statistics.mean(pair),
+        "ceiling": 2 * alone / statistics.mean(pair),
+    }
 
 
 # --- the run --------------------------------------------------------------------------------------
 
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true", help="strict JSON only on stdout (progress on stderr)")
-    parser.add_argument("--strategies", default=",".join(STRATEGIES),
-                        help="comma-separated (default: all nine)")
+    parser.add_argument(
+        "--strategies", default=",".join(STRATEGIES), help="comma-separated (default: all nine)"
+    )
     parser.add_argument("--seeds", type=int, default=3, help="seeds 0 .. N-1 per strategy (default 3)")
     parser.add_argument("--points", type=int, default=60, help="simulated points per search (default 60)")
-    parser.add_argument("--baseline", default="tpe",
-                        help=f"strategy run through plain Optuna too: one of {', '.join(OPTUNA_BACKED)}, "
-                             "'best' (the best of those measured) or 'none' (default tpe)")
-    parser.add_argument("--work", type=Path, default=None,
-                        help="keep stores here (the grid is reused when it is there); default: a temp folder")
-    parser.add_argument("--variant", action="append", default=[], metavar="NAME=JSON",
-                        help="also run every strategy and seed with JSON merged into its search: block, "
-                             "e.g. 'async={\"order\": \"asynchronous\"}' (repeatable)")
+    parser.add_argument(
+        "--baseline",
+        default="tpe",
+        help=f"strategy run through plain Optuna too: one of {', '.join(OPTUNA_BACKED)}, "
+        "'best' (the best of those measured) or 'none' (default tpe)",
+    )
+    parser.add_argument(
+        "--work",
+        type=Path,
+        default=None,
+        help="keep stores here (the grid is reused when it is there); default: a temp folder",
+    )
+    parser.add_argument(
+        "--variant",
+        action="append",
+        default=[],
+        metavar="NAME=JSON",
+        help="also run every strategy and seed with JSON merged into its search: block, "
+        'e.g. \'async={"order": "asynchronous"}\' (repeatable)',
+    )
     args = parser.parse_args()
     try:
         args.variants = [("", {})] + [parse_variant(v) for v in args.variant]
@@ -343,12 +373,20 @@ def main() -> None:
     base = paper_data()
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     logging.getLogger("distributed").setLevel(logging.ERROR)
-    figures: dict[str, Any] = {"points": args.points, "seeds": seeds, "workers": 2, "threads_per_worker": 1,
-                               "cluster_startup_in_wall_s": False, "strategies": {}}
+    figures: dict[str, Any] = {
+        "points": args.points,
+        "seeds": seeds,
+        "workers": 2,
+        "threads_per_worker": 1,
+        "cluster_startup_in_wall_s": False,
+        "strategies": {},
+    }
     say(f"work folder {work}; one local cluster of 2 workers x 1 thread, started before any clock")
     with dask.config.set({"distributed.admin.low-level-log-length": MESSAGE_LOG_LENGTH}):
         started = time.perf_counter()
-        cluster = Local().start(ClusterSpec(n_workers=2, threads_per_worker=1), None, None)  # dse-runner's own
+        cluster = Local().start(
+            ClusterSpec(n_workers=2, threads_per_worker=1), None, None
+        )  # dse-runner's own
         client = Client(cluster)
         try:
             client.wait_for_workers(2)
@@ -367,8 +405,16 @@ def main() -> None:
         print_table(figures)
 
 
-def measure(figures: dict[str, Any], client, base: dict[str, Any], work: Path, strategies: list[str],
-            seeds: list[int], args, say) -> None:
+def measure(
+    figures: dict[str, Any],
+    client,
+    base: dict[str, Any],
+    work: Path,
+    strategies: list[str],
+    seeds: list[int],
+    args,
+    say,
+) -> None:
     # 1. the grid: the reference
     grid = grid_space(base, work)
     start = time.perf_counter()
@@ -377,20 +423,31 @@ def measure(figures: dict[str, Any], client, base: dict[str, Any], work: Path, s
     ranking = rank(grid.output, grid.name)
     goal = ranking.goal
     reference = ranking.best_total
-    figures["grid"] = {"points": len(ranking.totals), "tasks": grid_report.total, "ran": grid_report.ran,
-                       "found_in_store": grid_report.skipped,
-                       "wall_s": grid_wall, "best_total": reference, "best_point": ranking.best,
-                       "objective": ranking.objective, "within_1pct_of": reference + WITHIN * abs(reference)}
-    say(f"grid: {len(ranking.totals)} points x {len(grid.scenarios)} runs ({grid_report.ran} simulated now, "
+    figures["grid"] = {
+        "points": len(ranking.totals),
+        "tasks": grid_report.total,
+        "ran": grid_report.ran,
+        "found_in_store": grid_report.skipped,
+        "wall_s": grid_wall,
+        "best_total": reference,
+        "best_point": ranking.best,
+        "objective": ranking.objective,
+        "within_1pct_of": reference + WITHIN * abs(reference),
+    }
+    say(
+        f"grid: {len(ranking.totals)} points x {len(grid.scenarios)} runs ({grid_report.ran} simulated now, "
         f"{grid_report.skipped} found in the store) in {grid_wall:.1f} s; best total {ranking.objective} "
-        f"{reference:.4f} at {ranking.best}")
+        f"{reference:.4f} at {ranking.best}"
+    )
 
     # every worker unpacks the shipment and loads the FMUs before any clock (the grid may have been
     # found in --work's store), as the plain loop's warm-up simulation does for its process
     warm_up = search_space(base, work, "random", 0, 2, "warm-up-")
     submit(warm_up, client=client)
     if "gp" in strategies:  # PyTorch imported and the GP's code run once in this process, off the clock
-        submit(search_space(base, work, "gp", 0, 12, "warm-up-", ("", {"n_startup_trials": 10})), client=client)
+        submit(
+            search_space(base, work, "gp", 0, 12, "warm-up-", ("", {"n_startup_trials": 10})), client=client
+        )
 
     # 2. every strategy, every seed, every variant (a seed's variants one after another: the same load)
     figures["variants"] = {v: options for v, options in args.variants if v}
@@ -411,9 +468,11 @@ def measure(figures: dict[str, Any], client, base: dict[str, Any], work: Path, s
                 run["seed"] = seed
                 runs[row].append(run)
                 util = f"{run['utilisation'] * 100:.0f}%" if run["utilisation"] is not None else "-"
-                say(f"{row} seed {seed}: {run['points']} points in {run['wall_s']:.1f} s, "
+                say(
+                    f"{row} seed {seed}: {run['points']} points in {run['wall_s']:.1f} s, "
                     f"best {run['best_total']}, within 1% after {run['points_to_1pct']}, utilisation {util}, "
-                    f"asks {run['ask_s']:.1f} s, stopped: {run['stopped']}")
+                    f"asks {run['ask_s']:.1f} s, stopped: {run['stopped']}"
+                )
         for row in runs:
             figures["strategies"][row] = summarise(runs[row], errors[row])
     ranked = [n for n, s in figures["strategies"].items() if s["runs"]]
@@ -433,25 +492,36 @@ def measure(figures: dict[str, Any], client, base: dict[str, Any], work: Path, s
         run = plain_optuna(space, args.points)
         run["seed"] = seed
         plain_runs.append(run)
-        say(f"plain Optuna {baseline} seed {seed}: {run['points']} trials in {run['wall_s']:.1f} s "
-            f"in one process, best {run['best_total']:.4f}")
+        say(
+            f"plain Optuna {baseline} seed {seed}: {run['points']} trials in {run['wall_s']:.1f} s "
+            f"in one process, best {run['best_total']:.4f}"
+        )
     dse = figures["strategies"][baseline]
     plain_wall = statistics.median(r["wall_s"] for r in plain_runs)
     figures["plain_optuna"] = {
-        "strategy": baseline, "wall_s": plain_wall, "dse_runner_wall_s": dse["wall_s"],
+        "strategy": baseline,
+        "wall_s": plain_wall,
+        "dse_runner_wall_s": dse["wall_s"],
         # CPU seconds, whatever else ran on the machine: dse-runner's cost over plain Optuna's
-        "cpu_s": statistics.median(r["cpu_s"] for r in plain_runs), "dse_runner_cpu_s": dse["cpu_s"],
+        "cpu_s": statistics.median(r["cpu_s"] for r in plain_runs),
+        "dse_runner_cpu_s": dse["cpu_s"],
         "best_total": statistics.median(r["best_total"] for r in plain_runs),
         "runs": plain_runs,
-        "speedups_by_seed": {d["seed"]: p["wall_s"] / d["wall_s"] for d in dse["runs"] for p in plain_runs
-                             if p["seed"] == d["seed"]},
+        "speedups_by_seed": {
+            d["seed"]: p["wall_s"] / d["wall_s"]
+            for d in dse["runs"]
+            for p in plain_runs
+            if p["seed"] == d["seed"]
+        },
     }
     figures["speedup_vs_plain_optuna"] = plain_wall / dse["wall_s"]
     say(f"speedup vs plain Optuna ({baseline}): {figures['speedup_vs_plain_optuna']:.2f}x")
     ceiling = parallel_ceiling(search_space(base, work, baseline, 0, args.points, "ceiling-"))
     figures["parallel_ceiling"] = ceiling
-    say(f"two processes without Dask: {ceiling['ceiling']:.2f}x one ({1000 * ceiling['one_process_s_per_simulation']:.1f}"
-        f" ms per simulation alone, {1000 * ceiling['two_processes_s_per_simulation']:.1f} ms two at once)")
+    say(
+        f"two processes without Dask: {ceiling['ceiling']:.2f}x one ({1000 * ceiling['one_process_s_per_simulation']:.1f}"
+        f" ms per simulation alone, {1000 * ceiling['two_processes_s_per_simulation']:.1f} ms two at once)"
+    )
 
 
 def parse_variant(text: str) -> tuple[str, dict[str, Any]]:
@@ -469,8 +539,16 @@ def row_name(strategy: str, variant: str) -> str:
 
 def summarise(runs: list[dict[str, Any]], errors: list[str]) -> dict[str, Any]:
     if not runs:
-        return {"points_to_1pct": None, "best_total_60": None, "wall_s": None, "utilisation": None,
-                "ask_s": None, "ask_ms": None, "runs": [], "errors": errors}
+        return {
+            "points_to_1pct": None,
+            "best_total_60": None,
+            "wall_s": None,
+            "utilisation": None,
+            "ask_s": None,
+            "ask_ms": None,
+            "runs": [],
+            "errors": errors,
+        }
     bests = [r["best_total"] for r in runs if r["best_total"] is not None]
     utilisations = [r["utilisation"] for r in runs if r["utilisation"] is not None]
     return {
@@ -506,18 +584,26 @@ def print_table(figures: dict[str, Any]) -> None:
     grid, n = figures["grid"], figures["points"]
     stored = f" ({grid['found_in_store']} tasks found in --work's store)" if grid["found_in_store"] else ""
     print()
-    print(f"reference: the grid's best total {grid['objective']} {grid['best_total']:.4f} at {grid['best_point']}")
-    print(f"  ({grid['points']} points; within 1%: <= {grid['within_1pct_of']:.4f}); "
-          f"grid on 2 workers {grid['wall_s']:.1f} s{stored}")
-    print(f"{len(figures['seeds'])} seed(s) per strategy, {n} points each, medians over seeds; wall_s excludes "
-          f"the cluster's start-up ({figures['cluster_startup_s']:.1f} s, one cluster for all runs); ask_s: the "
-          "client's seconds in ask(), ask_ms per asked point")
+    print(
+        f"reference: the grid's best total {grid['objective']} {grid['best_total']:.4f} at {grid['best_point']}"
+    )
+    print(
+        f"  ({grid['points']} points; within 1%: <= {grid['within_1pct_of']:.4f}); "
+        f"grid on 2 workers {grid['wall_s']:.1f} s{stored}"
+    )
+    print(
+        f"{len(figures['seeds'])} seed(s) per strategy, {n} points each, medians over seeds; wall_s excludes "
+        f"the cluster's start-up ({figures['cluster_startup_s']:.1f} s, one cluster for all runs); ask_s: the "
+        "client's seconds in ask(), ask_ms per asked point"
+    )
     for name, options in figures["variants"].items():
         print(f"[{name}]: {json.dumps(options)} merged into search:")
     print()
     width = max(14, *(len(name) for name in figures["strategies"]))
-    header = (f"{'strategy':<{width}} {'points_to_1pct':>14} {'by seed':>16} {'best_total_' + str(n):>15} "
-              f"{'best of seeds':>13} {'wall_s':>7} {'utilisation':>11} {'ask_s':>6} {'ask_ms':>6}")
+    header = (
+        f"{'strategy':<{width}} {'points_to_1pct':>14} {'by seed':>16} {'best_total_' + str(n):>15} "
+        f"{'best of seeds':>13} {'wall_s':>7} {'utilisation':>11} {'ask_s':>6} {'ask_ms':>6}"
+    )
     print(header)
     print("-" * len(header))
     for name, s in figures["strategies"].items():
@@ -531,40 +617,56 @@ def print_table(figures: dict[str, Any]) -> None:
         util = "-" if s["utilisation"] is None else f"{s['utilisation'] * 100:.0f}%"
         short = "" if all(p >= n for p in s["points_by_seed"]) else f"  (stopped at {s['points_by_seed']})"
         failed = f"  ({len(s['errors'])} seed(s) failed)" if s["errors"] else ""
-        print(f"{name:<{width}} {reach:>14} {by_seed:>16} {best:>15} {best_of:>13} {s['wall_s']:>7.1f} "
-              f"{util:>11} {s['ask_s']:>6.1f} {s['ask_ms']:>6.0f}{short}{failed}")
+        print(
+            f"{name:<{width}} {reach:>14} {by_seed:>16} {best:>15} {best_of:>13} {s['wall_s']:>7.1f} "
+            f"{util:>11} {s['ask_s']:>6.1f} {s['ask_ms']:>6.0f}{short}{failed}"
+        )
     print()
     ranked = {k: v for k, v in figures["strategies"].items() if v["runs"]}
     if ranked:
         best_name = figures["best_strategy"]
         reach, target = ranked[best_name]["points_to_1pct"], TARGETS["points_to_1pct"]
-        print(f"best strategy: {best_name}, within 1% after {reach} points (target <= {target}) "
-              f"{mark(reach is not None and reach <= target)}")
+        print(
+            f"best strategy: {best_name}, within 1% after {reach} points (target <= {target}) "
+            f"{mark(reach is not None and reach <= target)}"
+        )
         totals = {k: v["best_total_60"] for k, v in ranked.items() if v["best_total_60"] is not None}
         if totals:
             lowest = min(totals, key=totals.get)
-            print(f"lowest median best total after {n} points: {totals[lowest]:.4f} ({lowest}; target below the "
-                  f"grid's {grid['best_total']:.4f}) {mark(totals[lowest] < grid['best_total'])}")
+            print(
+                f"lowest median best total after {n} points: {totals[lowest]:.4f} ({lowest}; target below the "
+                f"grid's {grid['best_total']:.4f}) {mark(totals[lowest] < grid['best_total'])}"
+            )
         utils = {k: v["utilisation"] for k, v in ranked.items() if v["utilisation"] is not None}
         if utils:
             low = min(utils, key=utils.get)
-            print(f"lowest median utilisation: {utils[low] * 100:.0f}% ({low}; target >= "
-                  f"{TARGETS['utilisation'] * 100:.0f}% on 2 workers) {mark(utils[low] >= TARGETS['utilisation'])}")
+            print(
+                f"lowest median utilisation: {utils[low] * 100:.0f}% ({low}; target >= "
+                f"{TARGETS['utilisation'] * 100:.0f}% on 2 workers) {mark(utils[low] >= TARGETS['utilisation'])}"
+            )
     plain = figures.get("plain_optuna")
     if plain:
         speedup = figures["speedup_vs_plain_optuna"]
-        print(f"plain Optuna, {plain['strategy']}, in one process: {plain['wall_s']:.1f} s "
-              f"(best total {plain['best_total']:.4f}); dse-runner on 2 workers: {plain['dse_runner_wall_s']:.1f} s")
-        print(f"speedup_vs_plain_optuna {speedup:.2f}x (target >= {TARGETS['speedup']}) "
-              f"{mark(speedup >= TARGETS['speedup'])}")
+        print(
+            f"plain Optuna, {plain['strategy']}, in one process: {plain['wall_s']:.1f} s "
+            f"(best total {plain['best_total']:.4f}); dse-runner on 2 workers: {plain['dse_runner_wall_s']:.1f} s"
+        )
+        print(
+            f"speedup_vs_plain_optuna {speedup:.2f}x (target >= {TARGETS['speedup']}) "
+            f"{mark(speedup >= TARGETS['speedup'])}"
+        )
         ceiling = figures.get("parallel_ceiling")
         if ceiling:
-            print(f"this machine's ceiling for 2 processes (the same simulations, no Dask): {ceiling['ceiling']:.2f}x; "
-                  f"dse-runner reaches {speedup / ceiling['ceiling'] * 100:.0f}% of it")
+            print(
+                f"this machine's ceiling for 2 processes (the same simulations, no Dask): {ceiling['ceiling']:.2f}x; "
+                f"dse-runner reaches {speedup / ceiling['ceiling'] * 100:.0f}% of it"
+            )
         ratio = plain["dse_runner_cpu_s"] / plain["cpu_s"]
-        print(f"CPU seconds: dse-runner {plain['dse_runner_cpu_s']:.1f} s (client, scheduler and workers), plain "
-              f"{plain['cpu_s']:.1f} s; ratio {ratio:.2f}, so at most {2 / ratio:.2f}x on 2 cores (Dask's idle "
-              "CPU grows with wall time: on a busy machine this bound is pessimistic)")
+        print(
+            f"CPU seconds: dse-runner {plain['dse_runner_cpu_s']:.1f} s (client, scheduler and workers), plain "
+            f"{plain['cpu_s']:.1f} s; ratio {ratio:.2f}, so at most {2 / ratio:.2f}x on 2 cores (Dask's idle "
+            "CPU grows with wall time: on a busy machine this bound is pessimistic)"
+        )
 
 
 if __name__ == "__main__":

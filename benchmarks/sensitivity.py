@@ -44,15 +44,20 @@ B_BY_SCENARIO = (0.0, 0.05, 0.1, 0.15, 0.2)  # one scenario per group, each its 
 
 
 def analytic(a: float, b: float) -> dict[str, dict[str, float]]:
-    v1, v2, v13 = (1 + b * PI ** 4 / 5) ** 2 / 2, a ** 2 / 8, b ** 2 * PI ** 8 * (1 / 18 - 1 / 50)
+    v1, v2, v13 = (1 + b * PI**4 / 5) ** 2 / 2, a**2 / 8, b**2 * PI**8 * (1 / 18 - 1 / 50)
     v = v1 + v2 + v13
-    return {"ishigami.x1": {"S1": v1 / v, "ST": (v1 + v13) / v}, "ishigami.x2": {"S1": v2 / v, "ST": v2 / v},
-            "ishigami.x3": {"S1": 0.0, "ST": v13 / v}}
+    return {
+        "ishigami.x1": {"S1": v1 / v, "ST": (v1 + v13) / v},
+        "ishigami.x2": {"S1": v2 / v, "ST": v2 / v},
+        "ishigami.x3": {"S1": 0.0, "ST": v13 / v},
+    }
 
 
 def command(*args: str) -> tuple[float, subprocess.CompletedProcess]:
     started = time.perf_counter()
-    done = subprocess.run([sys.executable, "-m", "dse_runner", *args], capture_output=True, text=True, cwd=REPO)
+    done = subprocess.run(
+        [sys.executable, "-m", "dse_runner", *args], capture_output=True, text=True, cwd=REPO
+    )
     if done.returncode != 0:
         raise SystemExit(f"dse-runner {' '.join(args)} failed:\n{done.stderr}")
     return time.perf_counter() - started, done
@@ -73,11 +78,17 @@ def ishigami_study(folder: Path, points: int) -> dict:
     found = json.loads(done.stdout)["objectives"]["y"]["parameters"]
     truth = analytic(7.0, 0.1)
     error = max(abs(found[p][k] - truth[p][k]) for p in truth for k in ("S1", "ST"))
-    return {"evaluations": report["ok"], "failed": report["failed"], "workers": report["workers"],
-            "submit_seconds": round(submit_seconds, 2), "sweep_seconds": report["seconds"],
-            "sensitivity_seconds": round(analyse_seconds, 2),
-            "total_seconds": round(submit_seconds + analyse_seconds, 2), "largest_error": round(error, 4),
-            "indices": {p: {k: round(found[p][k], 4) for k in ("S1", "S1_conf", "ST", "ST_conf")} for p in found}}
+    return {
+        "evaluations": report["ok"],
+        "failed": report["failed"],
+        "workers": report["workers"],
+        "submit_seconds": round(submit_seconds, 2),
+        "sweep_seconds": report["seconds"],
+        "sensitivity_seconds": round(analyse_seconds, 2),
+        "total_seconds": round(submit_seconds + analyse_seconds, 2),
+        "largest_error": round(error, 4),
+        "indices": {p: {k: round(found[p][k], 4) for k in ("S1", "S1_conf", "ST", "ST_conf")} for p in found},
+    }
 
 
 def write_design_store(folder: Path, rows: int) -> SpaceSpec:
@@ -85,17 +96,34 @@ def write_design_store(folder: Path, rows: int) -> SpaceSpec:
     points = rows // len(B_BY_SCENARIO)
     interval = {"low": -PI, "high": PI}
     objectives = {"y": Reduce(signal="ishigami.y", reduce="final")}
-    spec = SpaceSpec(name="ishigami", multimodel="unused.yaml", parameters={n: interval for n in NAMES},
-                     objectives=objectives, search={"strategy": "sobol_indices", "max_points": points, "seed": 0})
+    spec = SpaceSpec(
+        name="ishigami",
+        multimodel="unused.yaml",
+        parameters={n: interval for n in NAMES},
+        objectives=objectives,
+        search={"strategy": "sobol_indices", "max_points": points, "seed": 0},
+    )
     save_sweep_spec(folder, spec, "model")
     design, dimensions = stored_design(spec)
     x = np.array([[p[n] for n in NAMES] for p in design.points(dimensions)])
     schema = store.results_schema({n: [0.0] for n in NAMES}, objectives)
     for k, b in enumerate(B_BY_SCENARIO):
         y = np.sin(x[:, 0]) + 7.0 * np.sin(x[:, 1]) ** 2 + b * x[:, 2] ** 4 * np.sin(x[:, 0])
-        records = [{"task_id": f"t{k}-{i}", "model": "model", "scenario": f"s{k}", "group": f"g{k}",
-                    **dict(zip(NAMES, map(float, x[i]))), "y": float(y[i]), "status": "ok", "error": None,
-                    "wall_time": 0.0, "worker": "w"} for i in range(len(x))]
+        records = [
+            {
+                "task_id": f"t{k}-{i}",
+                "model": "model",
+                "scenario": f"s{k}",
+                "group": f"g{k}",
+                **dict(zip(NAMES, map(float, x[i]))),
+                "y": float(y[i]),
+                "status": "ok",
+                "error": None,
+                "wall_time": 0.0,
+                "worker": "w",
+            }
+            for i in range(len(x))
+        ]
         store.write_rows(folder, "ishigami", f"s{k}", records, schema)
     return spec
 
@@ -109,8 +137,12 @@ def index_computation(folder: Path, rows: int, repeats: int = 3) -> dict:
         started = time.perf_counter()
         found = sensitivity(folder)
         times.append(time.perf_counter() - started)
-    return {"rows": stored, "groups": len(found.objectives["y"].groups), "seconds": [round(t, 3) for t in times],
-            "median_seconds": round(sorted(times)[len(times) // 2], 3)}
+    return {
+        "rows": stored,
+        "groups": len(found.objectives["y"].groups),
+        "seconds": [round(t, 3) for t in times],
+        "median_seconds": round(sorted(times)[len(times) // 2], 3),
+    }
 
 
 def main() -> None:
@@ -123,18 +155,28 @@ def main() -> None:
         study = ishigami_study(Path(tmp) / "study", args.points)
         indices = index_computation(Path(tmp) / "rows", args.rows)
     load = Path("/proc/loadavg").read_text().split()[:3] if Path("/proc/loadavg").exists() else None
-    result = {"ishigami": study, "index_computation": indices, "load_average": load,
-              "targets": {"ishigami_under_60_s": study["total_seconds"] < 60,
-                          "indices_under_5_s": indices["median_seconds"] < 5}}
+    result = {
+        "ishigami": study,
+        "index_computation": indices,
+        "load_average": load,
+        "targets": {
+            "ishigami_under_60_s": study["total_seconds"] < 60,
+            "indices_under_5_s": indices["median_seconds"] < 5,
+        },
+    }
     if args.json:
         print(json.dumps(result, indent=2))
         return
-    print(f"Ishigami, {study['evaluations']} evaluations on {study['workers']} workers: submit "
-          f"{study['submit_seconds']} s (sweep {study['sweep_seconds']} s) + sensitivity "
-          f"{study['sensitivity_seconds']} s = {study['total_seconds']} s; largest |index - analytic| "
-          f"{study['largest_error']}")
-    print(f"index computation on {indices['rows']} rows ({indices['groups']} groups + the whole): "
-          f"{indices['median_seconds']} s median of {indices['seconds']}")
+    print(
+        f"Ishigami, {study['evaluations']} evaluations on {study['workers']} workers: submit "
+        f"{study['submit_seconds']} s (sweep {study['sweep_seconds']} s) + sensitivity "
+        f"{study['sensitivity_seconds']} s = {study['total_seconds']} s; largest |index - analytic| "
+        f"{study['largest_error']}"
+    )
+    print(
+        f"index computation on {indices['rows']} rows ({indices['groups']} groups + the whole): "
+        f"{indices['median_seconds']} s median of {indices['seconds']}"
+    )
     print(f"load average at the end: {load}")
 
 

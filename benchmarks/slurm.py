@@ -30,7 +30,6 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
 
-
 def sweep(folder: Path, kind: str) -> tuple[float, float]:
     """(command wall seconds, the sweep's own seconds) for the 600-task sweep on ``kind``."""
     import yaml
@@ -44,8 +43,12 @@ def sweep(folder: Path, kind: str) -> tuple[float, float]:
     path = folder / "space.yaml"
     path.write_text(yaml.safe_dump(spec))
     started = time.perf_counter()
-    result = subprocess.run([sys.executable, "-m", "dse_runner", "submit", str(path), "--json", "--no-dashboard"],
-                            capture_output=True, text=True, cwd=folder)
+    result = subprocess.run(
+        [sys.executable, "-m", "dse_runner", "submit", str(path), "--json", "--no-dashboard"],
+        capture_output=True,
+        text=True,
+        cwd=folder,
+    )
     wall = time.perf_counter() - started
     if result.returncode:
         raise SystemExit(result.stderr)

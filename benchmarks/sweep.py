@@ -77,8 +77,12 @@ Figures = dict[str, Any]
 
 def fresh(space: Space, output: Path) -> Space:
     shutil.rmtree(output, ignore_errors=True)
-    return Space(space.spec.model_copy(update={"output": str(output), "keep_trajectories": 0}),
-                 space.path, space.plan, space.scenarios)
+    return Space(
+        space.spec.model_copy(update={"output": str(output), "keep_trajectories": 0}),
+        space.path,
+        space.plan,
+        space.scenarios,
+    )
 
 
 def cpu_seconds() -> float:
@@ -129,14 +133,19 @@ def overhead(wall: float, workers: int, report: SweepReport) -> float:
 def vanderpol_space(folder: Path, n_tasks: int) -> Space:
     """The cheap FMU alone, built from source on first use: the sweep's cost with almost no simulation."""
     spec = folder / "space.yaml"
-    spec.write_text(json.dumps({  # JSON is YAML
-        "name": "vanderpol",
-        "multimodel": {"fmus": {"vanderpol": str(VANDERPOL)}},
-        "experiment": {"stop_time": 20, "step": 0.01},
-        "parameters": {"vanderpol.mu": {"start": 0.5, "stop": 2.5, "num": n_tasks}},
-        "objectives": {"x0_max": {"signal": "vanderpol.x0", "reduce": "max"}},
-        "output": str(folder / "vanderpol-out"), "keep_trajectories": 0,
-    }))
+    spec.write_text(
+        json.dumps(
+            {  # JSON is YAML
+                "name": "vanderpol",
+                "multimodel": {"fmus": {"vanderpol": str(VANDERPOL)}},
+                "experiment": {"stop_time": 20, "step": 0.01},
+                "parameters": {"vanderpol.mu": {"start": 0.5, "stop": 2.5, "num": n_tasks}},
+                "objectives": {"x0_max": {"signal": "vanderpol.x0", "reduce": "max"}},
+                "output": str(folder / "vanderpol-out"),
+                "keep_trajectories": 0,
+            }
+        )
+    )
     return load_space(spec)
 
 
@@ -146,11 +155,15 @@ def paper_figures(work: Path, say: Callable[..., None]) -> Figures:
     loop_seconds, loop_tasks = plain_loop(paper)
     say(f"plain loop: {loop_tasks} simulations in {loop_seconds:.2f} s")
     one, report_one, _ = timed_sweep(fresh(paper, work / "w1"), 1)
-    say(f"sweep, 1 worker:  {one:.2f} s ({report_one.ok} ok, largest chunk {report_one.chunk_size}, "
-        f"{report_one.chunks} chunks)")
+    say(
+        f"sweep, 1 worker:  {one:.2f} s ({report_one.ok} ok, largest chunk {report_one.chunk_size}, "
+        f"{report_one.chunks} chunks)"
+    )
     two, report_two, _ = timed_sweep(fresh(paper, work / "w2"), WORKERS)
-    say(f"sweep, 2 workers: {two:.2f} s ({report_two.ok} ok, largest chunk {report_two.chunk_size}, "
-        f"{report_two.chunks} chunks)")
+    say(
+        f"sweep, 2 workers: {two:.2f} s ({report_two.ok} ok, largest chunk {report_two.chunk_size}, "
+        f"{report_two.chunks} chunks)"
+    )
     return {
         "plain_loop_seconds": loop_seconds,
         "sweep_1_worker_seconds": one,
@@ -177,9 +190,11 @@ def cheap_figures(work: Path, n_tasks: int, loop_tasks: int, say: Callable[..., 
     wall, report, client_cpu = timed_sweep(cheap, WORKERS, on_progress=sample)  # the native loop: the default
     rss.append(process.memory_info().rss)
     ran = report.ran
-    say(f"cheap sweep: {ran} tasks ({report.ok} ok) in {wall:.2f} s on {WORKERS} workers; largest chunk "
+    say(
+        f"cheap sweep: {ran} tasks ({report.ok} ok) in {wall:.2f} s on {WORKERS} workers; largest chunk "
         f"{report.chunk_size}, {report.chunks} chunks; {report.simulation_seconds:.2f} s simulating "
-        f"({report.simulation_seconds / ran * 1e3:.3f} ms a task on the workers)")
+        f"({report.simulation_seconds / ran * 1e3:.3f} ms a task on the workers)"
+    )
     return {
         "loop": loop_in_use(),
         "cheap_tasks": ran,
@@ -194,10 +209,15 @@ def cheap_figures(work: Path, n_tasks: int, loop_tasks: int, say: Callable[..., 
         "cheap_chunk_simulation_seconds": report.simulation_seconds / report.chunks,
         "cheap_dask_overhead_fraction": dask_share(wall, WORKERS, report),
         "cheap_overhead_fraction": overhead(wall, WORKERS, report),
-        "cheap_in_chunk_fraction": (report.chunk_seconds - report.simulation_seconds) / report.simulation_seconds,
+        "cheap_in_chunk_fraction": (report.chunk_seconds - report.simulation_seconds)
+        / report.simulation_seconds,
         "client_cpu_seconds": client_cpu,
-        "client_rss_mb": {"start": rss[0] / 2**20, "peak": max(rss) / 2**20, "end": rss[-1] / 2**20,
-                          "samples": len(rss)},
+        "client_rss_mb": {
+            "start": rss[0] / 2**20,
+            "peak": max(rss) / 2**20,
+            "end": rss[-1] / 2**20,
+            "samples": len(rss),
+        },
     }
 
 
@@ -210,38 +230,74 @@ def print_table(figures: Figures) -> None:
     """Each figure with its target and whether it is met, where it has one."""
     f = figures
     if "speedup_2_workers" in f:
-        line("speedup_2_workers", f"{f['speedup_2_workers']:.2f}x", "(target >= 1.8)",
-             f["speedup_2_workers"] >= 1.8)
-        line("overhead_vs_plain_loop", f"{f['overhead_vs_plain_loop'] * 100:+.1f}%", "(target <= 10%)",
-             f["overhead_vs_plain_loop"] <= 0.10)
-        line("dask_overhead_fraction", f"{f['dask_overhead_fraction'] * 100:.1f}%",
-             "(target < 5%; 2 workers, time outside chunks incl. the start and end of the sweep)",
-             f["dask_overhead_fraction"] < MAX_DASK_SHARE)
+        line(
+            "speedup_2_workers",
+            f"{f['speedup_2_workers']:.2f}x",
+            "(target >= 1.8)",
+            f["speedup_2_workers"] >= 1.8,
+        )
+        line(
+            "overhead_vs_plain_loop",
+            f"{f['overhead_vs_plain_loop'] * 100:+.1f}%",
+            "(target <= 10%)",
+            f["overhead_vs_plain_loop"] <= 0.10,
+        )
+        line(
+            "dask_overhead_fraction",
+            f"{f['dask_overhead_fraction'] * 100:.1f}%",
+            "(target < 5%; 2 workers, time outside chunks incl. the start and end of the sweep)",
+            f["dask_overhead_fraction"] < MAX_DASK_SHARE,
+        )
         line("overhead_fraction", f"{f['overhead_fraction'] * 100:.1f}%", "(all time not simulating)")
     line("loop", f["loop"])
     line("cheap_tasks", str(f["cheap_tasks"]))
     line("cheap_sweep_seconds", f"{f['cheap_sweep_seconds']:.2f} s", f"({WORKERS} workers)")
     line("cheap_tasks_per_second", f"{f['cheap_tasks_per_second']:.0f}")
     line("cheap_plain_loop_ms_per_task", f"{f['cheap_plain_loop_ms_per_task']:.3f} ms")
-    line("cheap_worker_ms_per_task", f"{f['cheap_worker_ms_per_task']:.3f} ms",
-         "(simulation time on the workers)")
-    line("per_task_overhead_ms", f"{f['per_task_overhead_ms']:.3f} ms",
-         f"(wall x {WORKERS} workers - plain loop, per task)")
+    line(
+        "cheap_worker_ms_per_task",
+        f"{f['cheap_worker_ms_per_task']:.3f} ms",
+        "(simulation time on the workers)",
+    )
+    line(
+        "per_task_overhead_ms",
+        f"{f['per_task_overhead_ms']:.3f} ms",
+        f"(wall x {WORKERS} workers - plain loop, per task)",
+    )
     line("cheap_chunk_size", str(f["cheap_chunk_size"]), f"(the largest; {f['cheap_chunks']} chunks)")
-    line("cheap_chunk_simulation_seconds", f"{f['cheap_chunk_simulation_seconds']:.3f} s",
-         f"(chunk_seconds: {f['chunk_seconds']:g} s)")
-    line("cheap_dask_overhead_fraction", f"{f['cheap_dask_overhead_fraction'] * 100:.1f}%",
-         "(target < 5%; time outside chunks / time in chunks)", f["cheap_dask_overhead_fraction"] < MAX_DASK_SHARE)
-    line("cheap_in_chunk_fraction", f"{f['cheap_in_chunk_fraction'] * 100:.1f}%",
-         "(inside chunks, not simulating: rows and Parquet, ours)")
-    line("cheap_overhead_fraction", f"{f['cheap_overhead_fraction'] * 100:.1f}%",
-         "(all time not simulating / time simulating)")
-    line("client_cpu_seconds", f"{f['client_cpu_seconds']:.2f} s",
-         f"(client and scheduler during the cheap sweep: {f['client_cpu_seconds'] / f['cheap_sweep_seconds'] * 100:.0f}%"
-         " of a core, taken from the workers' 2 cores here)")
+    line(
+        "cheap_chunk_simulation_seconds",
+        f"{f['cheap_chunk_simulation_seconds']:.3f} s",
+        f"(chunk_seconds: {f['chunk_seconds']:g} s)",
+    )
+    line(
+        "cheap_dask_overhead_fraction",
+        f"{f['cheap_dask_overhead_fraction'] * 100:.1f}%",
+        "(target < 5%; time outside chunks / time in chunks)",
+        f["cheap_dask_overhead_fraction"] < MAX_DASK_SHARE,
+    )
+    line(
+        "cheap_in_chunk_fraction",
+        f"{f['cheap_in_chunk_fraction'] * 100:.1f}%",
+        "(inside chunks, not simulating: rows and Parquet, ours)",
+    )
+    line(
+        "cheap_overhead_fraction",
+        f"{f['cheap_overhead_fraction'] * 100:.1f}%",
+        "(all time not simulating / time simulating)",
+    )
+    line(
+        "client_cpu_seconds",
+        f"{f['client_cpu_seconds']:.2f} s",
+        f"(client and scheduler during the cheap sweep: {f['client_cpu_seconds'] / f['cheap_sweep_seconds'] * 100:.0f}%"
+        " of a core, taken from the workers' 2 cores here)",
+    )
     m = f["client_rss_mb"]
-    line("client_rss_mb", f"{m['peak']:.0f} MB", f"(peak; start {m['start']:.0f} MB, end {m['end']:.0f} MB, "
-         f"{m['samples']} samples)")
+    line(
+        "client_rss_mb",
+        f"{m['peak']:.0f} MB",
+        f"(peak; start {m['start']:.0f} MB, end {m['end']:.0f} MB, {m['samples']} samples)",
+    )
 
 
 def main() -> None:

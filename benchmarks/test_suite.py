@@ -91,7 +91,9 @@ def group_cpu(group: Path | None) -> float | None:
     return int((group / "cpuacct.usage").read_text()) / 1e9 if group else None
 
 
-PROBE_ROUNDS = 200  # 5.4 CPU s here at 17:05 on 2026-11-26, when 200 runs of the Robotti took 5.2 (half speed)
+PROBE_ROUNDS = (
+    200  # 5.4 CPU s here at 17:05 on 2026-11-26, when 200 runs of the Robotti took 5.2 (half speed)
+)
 PROBE = f"""
 import json, random, time
 rng = random.Random(0)
@@ -108,8 +110,10 @@ print(time.process_time() - started)
 def speed_probe(python: str, cores: int) -> float:
     """CPU seconds of the probe's PROBE_ROUNDS rounds, the mean of one probe per core run at once: the machine's
     speed now, which on a shared machine drifts by half with nothing else of ours running (docs/performance.md)."""
-    probes = [subprocess.Popen([python, "-c", PROBE], cwd=REPO, stdout=subprocess.PIPE, text=True)
-              for _ in range(cores)]
+    probes = [
+        subprocess.Popen([python, "-c", PROBE], cwd=REPO, stdout=subprocess.PIPE, text=True)
+        for _ in range(cores)
+    ]
     return sum(float(p.communicate()[0]) for p in probes) / cores
 
 
@@ -169,7 +173,7 @@ class ProcessSampler(threading.Thread):
         for pid in filter(str.isdigit, os.listdir("/proc")):
             try:
                 stat = Path(f"/proc/{pid}/stat").read_text()
-                fields = stat[stat.rfind(")") + 2:].split()  # after the command name, which may hold spaces
+                fields = stat[stat.rfind(")") + 2 :].split()  # after the command name, which may hold spaces
                 cpu, start, parent = (int(fields[11]) + int(fields[12])) / tick, int(fields[19]), fields[1]
                 if start < self.since:
                     continue
@@ -258,13 +262,17 @@ def timeline(folder: Path, started: float, shares: list[float], cores: int, long
             start, end, nodeid = line.split(" ", 2)
             span = spans.setdefault(nodeid.split("::")[0], [float(start), float(end)])
             span[0], span[1] = min(span[0], float(start)), max(span[1], float(end))
-        processes[path.stem] = [{"file": name, "start_s": round(a - started, 1), "end_s": round(b - started, 1)}
-                                for name, (a, b) in sorted(spans.items(), key=lambda kv: kv[1][0])
-                                if b - a > longest]
-    windows = [shares[i:i + 30] for i in range(0, len(shares), 30)]
-    return {"processes": processes,
-            "busy_per_30_s": [round(sum(w) / len(w), 2) for w in windows],
-            "idle_core_s": round(sum((1 - share) * cores for share in shares), 1)}
+        processes[path.stem] = [
+            {"file": name, "start_s": round(a - started, 1), "end_s": round(b - started, 1)}
+            for name, (a, b) in sorted(spans.items(), key=lambda kv: kv[1][0])
+            if b - a > longest
+        ]
+    windows = [shares[i : i + 30] for i in range(0, len(shares), 30)]
+    return {
+        "processes": processes,
+        "busy_per_30_s": [round(sum(w) / len(w), 2) for w in windows],
+        "idle_core_s": round(sum((1 - share) * cores for share in shares), 1),
+    }
 
 
 def by_file(rows: list[list]) -> list[dict]:
@@ -283,14 +291,31 @@ def by_file(rows: list[list]) -> list[dict]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true")
-    parser.add_argument("--by-file", type=int, default=0, metavar="N",
-                        help="one test process; list the N test files that cost the most CPU")
-    parser.add_argument("--timeline", action="store_true",
-                        help="which test files ran side by side, and how busy the machine was meanwhile")
-    parser.add_argument("--by-process", type=int, default=0, metavar="N",
-                        help="the N kinds of process that used the most CPU (workers, schedulers, commands)")
-    parser.add_argument("--no-probe", action="store_true", help="skip the speed probes before and after the run")
-    parser.add_argument("--log", type=Path, help="keep pytest's whole output here (on a failure it is always kept)")
+    parser.add_argument(
+        "--by-file",
+        type=int,
+        default=0,
+        metavar="N",
+        help="one test process; list the N test files that cost the most CPU",
+    )
+    parser.add_argument(
+        "--timeline",
+        action="store_true",
+        help="which test files ran side by side, and how busy the machine was meanwhile",
+    )
+    parser.add_argument(
+        "--by-process",
+        type=int,
+        default=0,
+        metavar="N",
+        help="the N kinds of process that used the most CPU (workers, schedulers, commands)",
+    )
+    parser.add_argument(
+        "--no-probe", action="store_true", help="skip the speed probes before and after the run"
+    )
+    parser.add_argument(
+        "--log", type=Path, help="keep pytest's whole output here (on a failure it is always kept)"
+    )
     parser.add_argument("pytest_args", nargs="*", help="after --: arguments added to pytest -q")
     args = parser.parse_args()
     python = REPO / ".venv" / "bin" / "python"
@@ -319,8 +344,9 @@ def main() -> None:
         sampler.start()
     if processes:
         processes.start()
-    done = subprocess.run(command, cwd=REPO, capture_output=True, text=True, check=False, env=env,
-                          preexec_fn=join)
+    done = subprocess.run(
+        command, cwd=REPO, capture_output=True, text=True, check=False, env=env, preexec_fn=join
+    )
     wall = time.perf_counter() - started
     if sampler:
         sampler.stopping.set()
@@ -336,22 +362,30 @@ def main() -> None:
     if probes:
         probes.append(speed_probe(command[0], cores))
     figures = {
-        "command": " ".join(command[1:]), "exit_code": done.returncode,
+        "command": " ".join(command[1:]),
+        "exit_code": done.returncode,
         "summary": (done.stdout.strip().splitlines() or [""])[-1],
         "failures": [line for line in done.stdout.splitlines() if line.startswith(("FAILED ", "ERROR "))],
-        "wall_s": round(wall, 1), "cpu_s": round(cpu, 1),
-        "cpu_own_s": round(own, 1) if own is not None else None, "cpu_waited_s": round(waited, 1), "cores": cores,
+        "wall_s": round(wall, 1),
+        "cpu_s": round(cpu, 1),
+        "cpu_own_s": round(own, 1) if own is not None else None,
+        "cpu_waited_s": round(waited, 1),
+        "cores": cores,
         "machine_busy": round((busy1 - busy0) / max(total1 - total0, 1), 3),
-        "floor_s": round(cpu / cores, 1), "target_s": TARGET, "floor_over_target": round(cpu / cores / TARGET, 2),
+        "floor_s": round(cpu / cores, 1),
+        "target_s": TARGET,
+        "floor_over_target": round(cpu / cores / TARGET, 2),
         "wall_over_floor": round(wall / (cpu / cores), 2) if cpu else None,
         "probe_s": [round(p, 2) for p in probes],
-        "cpu_in_probes": round((own if own is not None else cpu) / (sum(probes) / len(probes)), 1) if probes else None,
+        "cpu_in_probes": round((own if own is not None else cpu) / (sum(probes) / len(probes)), 1)
+        if probes
+        else None,
     }
     if per_test and per_test.exists():
-        figures["by_file"] = by_file(json.loads(per_test.read_text()))[:args.by_file]
+        figures["by_file"] = by_file(json.loads(per_test.read_text()))[: args.by_file]
         shutil.rmtree(per_test.parent)
     if processes:
-        figures["by_process"] = processes.by_kind()[:args.by_process]
+        figures["by_process"] = processes.by_kind()[: args.by_process]
     if lines:
         figures["timeline"] = timeline(lines, started_at, sampler.shares, cores)
         shutil.rmtree(lines)
@@ -364,28 +398,41 @@ def main() -> None:
     else:
         print(f"{figures['command']}: {figures['summary']} (exit {done.returncode})")
         mine = f"{own:.0f} s in its own processes, " if own is not None else ""
-        print(f"wall {wall:.0f} s; CPU {cpu:.0f} s busy on {cores} cores (machine {figures['machine_busy']:.0%} busy; "
-              f"{mine}{waited:.0f} s in processes it waited for): floor {cpu / cores:.0f} s = "
-              f"{figures['floor_over_target']}x the {TARGET / 60:.0f}-minute target; wall = "
-              f"{figures['wall_over_floor']}x the floor")
+        print(
+            f"wall {wall:.0f} s; CPU {cpu:.0f} s busy on {cores} cores (machine {figures['machine_busy']:.0%} busy; "
+            f"{mine}{waited:.0f} s in processes it waited for): floor {cpu / cores:.0f} s = "
+            f"{figures['floor_over_target']}x the {TARGET / 60:.0f}-minute target; wall = "
+            f"{figures['wall_over_floor']}x the floor"
+        )
         if probes:
-            print(f"speed probe ({PROBE_ROUNDS} rounds, one per core at once): {probes[0]:.2f} CPU s before, "
-                  f"{probes[1]:.2f} after; the run's {'own ' if own is not None else ''}CPU = "
-                  f"{figures['cpu_in_probes']} probes")
+            print(
+                f"speed probe ({PROBE_ROUNDS} rounds, one per core at once): {probes[0]:.2f} CPU s before, "
+                f"{probes[1]:.2f} after; the run's {'own ' if own is not None else ''}CPU = "
+                f"{figures['cpu_in_probes']} probes"
+            )
         for line in figures["failures"]:
             print(line)
         if "log" in figures:
             print(f"pytest's whole output: {figures['log']}")
         if "timeline" in figures:
             for process, files in figures["timeline"]["processes"].items():
-                print(f"{process}: " + ("; ".join(f"{f['start_s']:.0f}-{f['end_s']:.0f} s {f['file']}" for f in files)
-                                        or "no file over 10 s"))
-            print("machine busy per 30 s: " + " ".join(f"{b:.2f}" for b in figures["timeline"]["busy_per_30_s"]))
+                print(
+                    f"{process}: "
+                    + (
+                        "; ".join(f"{f['start_s']:.0f}-{f['end_s']:.0f} s {f['file']}" for f in files)
+                        or "no file over 10 s"
+                    )
+                )
+            print(
+                "machine busy per 30 s: " + " ".join(f"{b:.2f}" for b in figures["timeline"]["busy_per_30_s"])
+            )
             print(f"idle over the run: {figures['timeline']['idle_core_s']:.0f} core-seconds")
         for row in figures.get("by_process", []):
             print(f"{row['cpu_s']:8.1f} CPU s {row['processes']:6d} processes  {row['kind']}")
         for row in figures.get("by_file", []):
-            print(f"{row['cpu_s']:8.1f} CPU s {row['wall_s']:8.1f} s wall {row['tests']:5d} tests  {row['file']}")
+            print(
+                f"{row['cpu_s']:8.1f} CPU s {row['wall_s']:8.1f} s wall {row['tests']:5d} tests  {row['file']}"
+            )
     sys.exit(0 if done.returncode == 0 else 1)
 
 

@@ -49,19 +49,33 @@ def one_run(tree: Path, case: str, out: Path) -> dict:
         blind.run_case("none", out / "warm-up", client)
         client0, workers0, started = time.process_time(), workers_cpu(), time.perf_counter()
         _, _, result = blind.run_case(case, out / case, client)
-        figures = {"wall_s": time.perf_counter() - started, "client_cpu_s": time.process_time() - client0,
-                   "workers_cpu_s": workers_cpu() - workers0}
+        figures = {
+            "wall_s": time.perf_counter() - started,
+            "client_cpu_s": time.process_time() - client0,
+            "workers_cpu_s": workers_cpu() - workers0,
+        }
     answer = json.dumps(result.to_json(), sort_keys=True, default=str).replace(str(out), "<out>")
-    return {**{k: round(v, 2) for k, v in figures.items()}, "answer": hashlib.sha256(answer.encode()).hexdigest()[:16]}
+    return {
+        **{k: round(v, 2) for k, v in figures.items()},
+        "answer": hashlib.sha256(answer.encode()).hexdigest()[:16],
+    }
 
 
 def measured(tree: Path, case: str, folder: Path) -> dict:
     """One run in a fresh process that imports the code of ``tree``."""
     out = folder / "out"
     shutil.rmtree(out, ignore_errors=True)
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tree), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep)}
-    done = subprocess.run([sys.executable, __file__, "--run", str(tree), "--case", case, "--out", str(out)],
-                          env=env, capture_output=True, text=True, cwd=folder)
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(tree), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep),
+    }
+    done = subprocess.run(
+        [sys.executable, __file__, "--run", str(tree), "--case", case, "--out", str(out)],
+        env=env,
+        capture_output=True,
+        text=True,
+        cwd=folder,
+    )
     if done.returncode != 0:
         sys.exit(f"the run with {tree} failed:\n{done.stderr[-3000:]}")
     return json.loads(done.stdout.splitlines()[-1])
@@ -83,7 +97,9 @@ def main() -> None:
         parser.error("--base is required")
     folder = Path(tempfile.mkdtemp(prefix="versions-"))
     base = folder / "base"
-    subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", "-q", str(base), args.base], check=True)
+    subprocess.run(
+        ["git", "-C", str(REPO), "worktree", "add", "--detach", "-q", str(base), args.base], check=True
+    )
     trees = {"base": base, "checkout": REPO}
     runs: dict[str, list[dict]] = {name: [] for name in trees}
     try:
@@ -92,17 +108,34 @@ def main() -> None:
                 row = measured(tree, args.case, folder)
                 runs[name].append(row)
                 if not args.json:
-                    print(f"round {k + 1} {name:8s}: " + ", ".join(f"{f} {row[f]}" for f in FIGURES)
-                          + f", answer {row['answer']}", flush=True)
+                    print(
+                        f"round {k + 1} {name:8s}: "
+                        + ", ".join(f"{f} {row[f]}" for f in FIGURES)
+                        + f", answer {row['answer']}",
+                        flush=True,
+                    )
     finally:
         subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(base)], check=False)
         shutil.rmtree(folder, ignore_errors=True)
-    means = {name: {f: round(statistics.mean(r[f] for r in rows), 2) for f in FIGURES} for name, rows in runs.items()}
+    means = {
+        name: {f: round(statistics.mean(r[f] for r in rows), 2) for f in FIGURES}
+        for name, rows in runs.items()
+    }
     ratios = {f: round(means["checkout"][f] / means["base"][f], 2) for f in FIGURES}
     same = len({r["answer"] for rows in runs.values() for r in rows}) == 1
     if args.json:
-        print(json.dumps({"base": args.base, "case": args.case, "runs": runs, "means": means,
-                          "checkout/base": ratios, "same_answer": same}))
+        print(
+            json.dumps(
+                {
+                    "base": args.base,
+                    "case": args.case,
+                    "runs": runs,
+                    "means": means,
+                    "checkout/base": ratios,
+                    "same_answer": same,
+                }
+            )
+        )
         return
     for name, figures in means.items():
         print(f"{name:8s} mean: " + ", ".join(f"{f} {v}" for f, v in figures.items()))

@@ -37,10 +37,19 @@ def space(folder: Path, workers: int) -> Path:
     """A sweep of 3 points × 2 recorded runs on a local cluster of ``workers``."""
     runs = [str(REPO / "scenarios" / "robotti" / name) for name in ("sin1", "sin2")]
     path = folder / f"space-{workers}.yaml"
-    path.write_text(json.dumps({
-        "name": "worker-start", "multimodel": "bundled:robotti/multimodel.yaml", "scenarios": runs,
-        "parameters": {"vehicle.mass": [1000, 2000, 3000]}, "objectives": ["cross_track_error"],
-        "output": str(folder / f"out-{workers}"), "cluster": {"n_workers": workers}}))
+    path.write_text(
+        json.dumps(
+            {
+                "name": "worker-start",
+                "multimodel": "bundled:robotti/multimodel.yaml",
+                "scenarios": runs,
+                "parameters": {"vehicle.mass": [1000, 2000, 3000]},
+                "objectives": ["cross_track_error"],
+                "output": str(folder / f"out-{workers}"),
+                "cluster": {"n_workers": workers},
+            }
+        )
+    )
     return path
 
 
@@ -72,32 +81,58 @@ def main() -> None:
                 for method in METHODS:  # in turns: the machine's drift falls on both alike
                     shutil.rmtree(folder / f"out-{workers}", ignore_errors=True)
                     env = {key: value for key, value in os.environ.items() if key != VARIABLE}
-                    wall, cpu = measured([dse_runner, "submit", str(spec)],
-                                         {**env, VARIABLE: method} if method == "spawn" else env,
-                                         f"{workers}-{method}-{k}")
-                    rows.append({"workers": workers, "method": method, "wall_s": round(wall, 2),
-                                 "cpu_s": None if cpu is None else round(cpu, 2)})
+                    wall, cpu = measured(
+                        [dse_runner, "submit", str(spec)],
+                        {**env, VARIABLE: method} if method == "spawn" else env,
+                        f"{workers}-{method}-{k}",
+                    )
+                    rows.append(
+                        {
+                            "workers": workers,
+                            "method": method,
+                            "wall_s": round(wall, 2),
+                            "cpu_s": None if cpu is None else round(cpu, 2),
+                        }
+                    )
                     if not args.json:
-                        print(f"{workers} workers, {method:10s}: {wall:5.2f} s wall, "
-                              f"{'-' if cpu is None else f'{cpu:.2f}'} CPU s", flush=True)
+                        print(
+                            f"{workers} workers, {method:10s}: {wall:5.2f} s wall, "
+                            f"{'-' if cpu is None else f'{cpu:.2f}'} CPU s",
+                            flush=True,
+                        )
     finally:
         shutil.rmtree(folder, ignore_errors=True)
     summary = []
     for workers in sorted({r["workers"] for r in rows}):
-        mean = {m: {key: _mean([r[key] for r in rows if r["workers"] == workers and r["method"] == m])
-                    for key in ("wall_s", "cpu_s")} for m in METHODS}
-        ratio = {key: round(mean["forkserver"][key] / mean["spawn"][key], 2) if mean["spawn"][key] else None
-                 for key in ("wall_s", "cpu_s")}
-        summary.append({"workers": workers, "spawn": mean["spawn"], "forkserver": mean["forkserver"],
-                        "forkserver/spawn": ratio})
+        mean = {
+            m: {
+                key: _mean([r[key] for r in rows if r["workers"] == workers and r["method"] == m])
+                for key in ("wall_s", "cpu_s")
+            }
+            for m in METHODS
+        }
+        ratio = {
+            key: round(mean["forkserver"][key] / mean["spawn"][key], 2) if mean["spawn"][key] else None
+            for key in ("wall_s", "cpu_s")
+        }
+        summary.append(
+            {
+                "workers": workers,
+                "spawn": mean["spawn"],
+                "forkserver": mean["forkserver"],
+                "forkserver/spawn": ratio,
+            }
+        )
     if args.json:
         print(json.dumps({"runs": rows, "summary": summary}))
         return
     for s in summary:
         spawn, fork, ratio = s["spawn"], s["forkserver"], s["forkserver/spawn"]
-        print(f"{s['workers']} workers: spawn {spawn['wall_s']} s wall, {spawn['cpu_s']} CPU s; "
-              f"forkserver {fork['wall_s']} s, {fork['cpu_s']} CPU s; "
-              f"forkserver/spawn: wall {ratio['wall_s']}, CPU {ratio['cpu_s']}")
+        print(
+            f"{s['workers']} workers: spawn {spawn['wall_s']} s wall, {spawn['cpu_s']} CPU s; "
+            f"forkserver {fork['wall_s']} s, {fork['cpu_s']} CPU s; "
+            f"forkserver/spawn: wall {ratio['wall_s']}, CPU {ratio['cpu_s']}"
+        )
 
 
 def _mean(values: list[float | None]) -> float | None:

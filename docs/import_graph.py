@@ -29,9 +29,20 @@ TARGET = ROOT / "docs" / "architecture.md"
 START, END = "<!-- import-graph: start (docs/import_graph.py) -->", "<!-- import-graph: end -->"
 
 LAYERS = ("simulation", "sweeps", "analysis", "interfaces", "cases")  # in the order they may import
-COLLAPSED = ("sweeps.strategies", "analysis.diagnose", "interfaces.dashboard", "interfaces.intocps",
-             "cases.robotti_diagnosis")
-SHARED = ("errors", "plugins", "schema", "strict_json", "yamlfile")  # imported from everywhere: drawn without arrows
+COLLAPSED = (
+    "sweeps.strategies",
+    "analysis.diagnose",
+    "interfaces.dashboard",
+    "interfaces.intocps",
+    "cases.robotti_diagnosis",
+)
+SHARED = (
+    "errors",
+    "plugins",
+    "schema",
+    "strict_json",
+    "yamlfile",
+)  # imported from everywhere: drawn without arrows
 LEFT_OUT = ("__main__", "bundled")  # the entry point (imports cli) and the data package (imports nothing)
 
 
@@ -51,20 +62,25 @@ def deferred_nodes(tree: ast.Module) -> set[int]:
     found = set()
     for node in ast.walk(tree):
         inside = isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) or (
-            isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test))
+            isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test)
+        )
         if inside:
             found.update(id(n) for n in ast.walk(node) if isinstance(n, (ast.Import, ast.ImportFrom)))
     return found
 
 
-def targets(statement: ast.Import | ast.ImportFrom, importer: str, is_package: bool, modules: set[str]) -> set[str]:
+def targets(
+    statement: ast.Import | ast.ImportFrom, importer: str, is_package: bool, modules: set[str]
+) -> set[str]:
     """The package's modules one import statement names (``from . import x`` names module ``x``)."""
     if isinstance(statement, ast.Import):
-        names = [a.name.removeprefix("dse_runner.") for a in statement.names if a.name.startswith("dse_runner.")]
+        names = [
+            a.name.removeprefix("dse_runner.") for a in statement.names if a.name.startswith("dse_runner.")
+        ]
         return {n for n in names if n in modules}
     if statement.level:
         base = importer.split(".") if is_package else importer.split(".")[:-1]
-        base = base[:len(base) - (statement.level - 1)] if statement.level > 1 else base
+        base = base[: len(base) - (statement.level - 1)] if statement.level > 1 else base
         module = ".".join(base + ([statement.module] if statement.module else []))
     elif statement.module and statement.module.startswith("dse_runner"):
         module = statement.module.removeprefix("dse_runner").removeprefix(".")
@@ -209,8 +225,10 @@ def modules_mermaid(nodes: set[str], graph: dict[tuple[str, str], bool]) -> str:
 def mermaid() -> str:
     """What goes between the markers: the layers, then every module (folded, as it is large)."""
     nodes, graph = edges()
-    return (f"{layers_mermaid(graph)}\n<details><summary>Every module ({len(nodes)} nodes, {len(graph)} "
-            f"imports)</summary>\n\n{modules_mermaid(nodes, graph)}\n</details>\n")
+    return (
+        f"{layers_mermaid(graph)}\n<details><summary>Every module ({len(nodes)} nodes, {len(graph)} "
+        f"imports)</summary>\n\n{modules_mermaid(nodes, graph)}\n</details>\n"
+    )
 
 
 def replaced(text: str, diagram: str) -> str:
@@ -223,8 +241,11 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     action = parser.add_mutually_exclusive_group()
     action.add_argument("--print", action="store_true", help="print the diagram instead of writing it")
-    action.add_argument("--check", action="store_true",
-                        help="exit code 1 if architecture.md's diagram is stale or the package has an import circle")
+    action.add_argument(
+        "--check",
+        action="store_true",
+        help="exit code 1 if architecture.md's diagram is stale or the package has an import circle",
+    )
     args = parser.parse_args()
     tied = circles(module_edges())
     for circle in tied:
@@ -237,7 +258,10 @@ def main() -> int:
     new = replaced(text, diagram)
     if args.check:
         if new != text:
-            print(f"{TARGET}: the import graph is not the code's; run python docs/import_graph.py", file=sys.stderr)
+            print(
+                f"{TARGET}: the import graph is not the code's; run python docs/import_graph.py",
+                file=sys.stderr,
+            )
             return 1
         return 1 if tied else 0
     TARGET.write_text(new)

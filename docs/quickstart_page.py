@@ -88,8 +88,10 @@ def same(shown: str, printed: str) -> bool:
     """The same words, and numbers within ``RELATIVE`` (or 1e-3) of each other."""
     if NUMBER.sub("#", shown) != NUMBER.sub("#", printed):
         return False
-    return all(abs(float(a) - float(b)) <= max(1e-3, RELATIVE * abs(float(b)))
-               for a, b in zip(NUMBER.findall(shown), NUMBER.findall(printed)))
+    return all(
+        abs(float(a) - float(b)) <= max(1e-3, RELATIVE * abs(float(b)))
+        for a, b in zip(NUMBER.findall(shown), NUMBER.findall(printed))
+    )
 
 
 def differences(shown: list[str], printed: list[str]) -> list[str]:
@@ -101,8 +103,11 @@ def differences(shown: list[str], printed: list[str]) -> list[str]:
         if line.strip() == SKIP:
             skipping = True
             continue
-        match = next((k for k in range(at, len(printed)) if same(line, printed[k])), None) if skipping else (
-            at if at < len(printed) and same(line, printed[at]) else None)
+        match = (
+            next((k for k in range(at, len(printed)) if same(line, printed[k])), None)
+            if skipping
+            else (at if at < len(printed) and same(line, printed[at]) else None)
+        )
         if match is None:
             instead = printed[at] if at < len(printed) else "(nothing more)"
             problems.append(f"shown {line!r}, printed {instead!r}")
@@ -131,8 +136,11 @@ def run(command: str, root: Path) -> subprocess.CompletedProcess:
 
 def check(text: str, root: Path) -> list[str]:
     """Every difference between the page and a fresh run of its commands; the shown files too."""
-    problems = [f"{path}: the page shows another text than the file"
-                for path, body in shown_files(text).items() if (REPO / path).read_text() != body]
+    problems = [
+        f"{path}: the page shows another text than the file"
+        for path, body in shown_files(text).items()
+        if (REPO / path).read_text() != body
+    ]
     for step in steps(text):
         done = run(step.command, root)
         if done.returncode != 0:
@@ -140,8 +148,10 @@ def check(text: str, root: Path) -> list[str]:
             problems.append(f"line {step.line}: {step.command}: exit {done.returncode}: {said}")
             continue
         printed = [normal(line, root) for line in done.stdout.splitlines()]
-        problems.extend(f"line {step.line}: {step.command}: {p}"
-                        for p in differences([normal(s, root) for s in step.shown], printed))
+        problems.extend(
+            f"line {step.line}: {step.command}: {p}"
+            for p in differences([normal(s, root) for s in step.shown], printed)
+        )
     return problems
 
 

@@ -36,12 +36,15 @@ def main() -> None:
     shutil.rmtree(out, ignore_errors=True)
     space = load_space(REPO / "jobs" / "robotti" / "space.yaml").with_overrides(output=out)
     server = serve(space.output, space.name, "127.0.0.1:0", space)
-    sweep = threading.Thread(target=submit, args=(space,),
-                             kwargs={"on_connect": lambda client: link_from_dask(client, server.url)})
+    sweep = threading.Thread(
+        target=submit, args=(space,), kwargs={"on_connect": lambda client: link_from_dask(client, server.url)}
+    )
     IMAGES.mkdir(parents=True, exist_ok=True)
     with sync_playwright() as playwright:
         browser = playwright.chromium.launch(executable_path=shutil.which("chromium"))
-        page = browser.new_page(viewport={"width": 1400, "height": 1000})  # the width the pages are made to fit
+        page = browser.new_page(
+            viewport={"width": 1400, "height": 1000}
+        )  # the width the pages are made to fit
         page.goto(server.url)
         page.wait_for_selector("#dse-first", state="detached")  # BokehJS has drawn the document
         page.wait_for_selector("#dse-done")

@@ -10,4 +10,6 @@ from __future__ import annotations
 from pydantic import ConfigDict
 
 Strict = ConfigDict(extra="forbid", allow_inf_nan=False)  # unknown keys, NaN and infinity are errors
-Extensible = ConfigDict(extra="allow", allow_inf_nan=False)  # keys besides the model's go to a plug-in's own model
+Extensible = ConfigDict(
+    extra="allow", allow_inf_nan=False
+)  # keys besides the model's go to a plug-in's own model

@@ -67,10 +67,16 @@ def as_format(data: Any, shape: type[T], path: Path, what: str = "file", empty: 
     """The data of the YAML file ``path`` validated as ``shape``. A file that is not a YAML mapping where one
     is expected (a CSV, a list) is one line saying so, not a validation error."""
     if data is not None and not isinstance(data, Mapping) and _wants_mapping(shape):
-        found = "a list" if isinstance(data, list) else "text that is not a YAML mapping (a CSV file?)" if (
-            isinstance(data, str)) else f"the single value {data!r:.40}"
-        raise DseError(f"{path}: not a {what}: a {what} is a YAML mapping of keys to values, this file "
-                       f"holds {found}")
+        found = (
+            "a list"
+            if isinstance(data, list)
+            else "text that is not a YAML mapping (a CSV file?)"
+            if (isinstance(data, str))
+            else f"the single value {data!r:.40}"
+        )
+        raise DseError(
+            f"{path}: not a {what}: a {what} is a YAML mapping of keys to values, this file holds {found}"
+        )
     return validated(empty if data is None else data, shape, str(path))
 
 

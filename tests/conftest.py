@@ -75,11 +75,15 @@ def sleeper_multimodel(folder: Path, sleeper: Path | str = SLEEPER) -> Path:
     import yaml
 
     path = folder / "sleeper.yaml"
-    path.write_text(yaml.safe_dump({
-        "fmus": {"controller": "bundled:fmus/replay_controller", "sleeper": str(sleeper)},
-        "connections": {"controller.velocity": ["sleeper.velocity"]},
-        "scenario": {"controller.file": "steering_inputs"},
-    }))
+    path.write_text(
+        yaml.safe_dump(
+            {
+                "fmus": {"controller": "bundled:fmus/replay_controller", "sleeper": str(sleeper)},
+                "connections": {"controller.velocity": ["sleeper.velocity"]},
+                "scenario": {"controller.file": "steering_inputs"},
+            }
+        )
+    )
     return path
 
 
@@ -98,8 +102,9 @@ def dse_runner(*args, cwd=REPO):
     import subprocess
     import sys
 
-    return subprocess.run([sys.executable, "-m", "dse_runner", *map(str, args)],
-                          capture_output=True, text=True, cwd=cwd)
+    return subprocess.run(
+        [sys.executable, "-m", "dse_runner", *map(str, args)], capture_output=True, text=True, cwd=cwd
+    )
 
 
 def all_scenarios() -> list[str]:
@@ -124,7 +129,10 @@ def write_space(folder: Path, **changes) -> Path:
         "name": "small",
         "multimodel": str(MULTIMODEL),
         "scenarios": [str(SCENARIOS / "sin1"), str(SCENARIOS / "speed_step2")],
-        "parameters": {"vehicle.cAlphaF": [20000, 38000], "vehicle.mass": {"start": 1000, "stop": 3000, "num": 3}},
+        "parameters": {
+            "vehicle.cAlphaF": [20000, 38000],
+            "vehicle.mass": {"start": 1000, "stop": 3000, "num": 3},
+        },
         "output": str(folder / "out"),
         "keep_trajectories": 1,
         "chunk_seconds": 0.1,
@@ -145,10 +153,14 @@ def write_msd_search(folder: Path, search: dict, **changes) -> Path:
         "name": "msd-search",
         "multimodel": str(MSD / "multimodel.yaml"),
         "experiment": {"step": 0.05},
-        "scenarios": [{"name": "ringdown", "recorded": str(MSD / "recording" / "position.csv"), "stop_time": 10}],
+        "scenarios": [
+            {"name": "ringdown", "recorded": str(MSD / "recording" / "position.csv"), "stop_time": 10}
+        ],
         "parameters": {"msd.k": {"low": 5, "high": 25}, "msd.c": {"low": 0.2, "high": 2.0}},
-        "objectives": {"position_rmse": {"signal": "msd.x", "recorded": "x", "metric": "rmse"},
-                       "position_residuals": {"signal": "msd.x", "recorded": "x", "metric": "residuals"}},
+        "objectives": {
+            "position_rmse": {"signal": "msd.x", "recorded": "x", "metric": "rmse"},
+            "position_residuals": {"signal": "msd.x", "recorded": "x", "metric": "residuals"},
+        },
         "search": search,
         "output": str(folder / "out"),
         "keep_trajectories": 0,

@@ -50,10 +50,14 @@ from ..sweeps.strategies.designs import Design, SensitivityDesign, interval_valu
 CONFIDENCE = 0.95  # bootstrap interval level
 RESAMPLES = 100  # bootstrap resamples (SALib's default)
 WIDE = 0.1  # a Sobol' index known only to +/- this is too loose to tell parameters apart
-NEGLIGIBLE = 0.01  # factor fixing (Saltelli et al. 2008): a total index surely below this may be fixed anywhere
+NEGLIGIBLE = (
+    0.01  # factor fixing (Saltelli et al. 2008): a total index surely below this may be fixed anywhere
+)
 FLAT = 1e-6  # an objective whose std is below this fraction of its mean barely varies: its indices share out noise
-FAST_INTERVALS = ("eFAST's intervals are SALib's bootstrap of each search curve, which SALib itself calls "
-                  "indicative only (SALib issue 649): judge the indices by their values, not by these intervals")
+FAST_INTERVALS = (
+    "eFAST's intervals are SALib's bootstrap of each search curve, which SALib itself calls "
+    "indicative only (SALib issue 649): judge the indices by their values, not by these intervals"
+)
 # From this many rows SALib's Sobol' bootstrap runs a process per parameter (its ``parallel``, the same numbers):
 # 14 s alone at a million rows on 2 cores, 7 s in two; below, it takes under a second, less than starting them.
 PARALLEL_ROWS = 100_000
@@ -73,8 +77,14 @@ class Scope:
     note: str | None = None  # why there are no indices, or why they are all zero
 
     def to_json(self) -> dict[str, Any]:
-        data: dict[str, Any] = {"scenarios": self.scenarios, "blocks": self.blocks, "left_out": self.left_out,
-                                "spread": self.spread, "parameters": self.parameters, "note": self.note}
+        data: dict[str, Any] = {
+            "scenarios": self.scenarios,
+            "blocks": self.blocks,
+            "left_out": self.left_out,
+            "spread": self.spread,
+            "parameters": self.parameters,
+            "note": self.note,
+        }
         if self.second_order:
             data["second_order"] = self.second_order
         return data
@@ -120,34 +130,61 @@ class Sensitivity:
         """Scenario groups by how little the objective varies over the sample (its coefficient of
         variation), least first: the indices say which parameter moves an objective, this says whether
         the objective moves at all."""
-        groups = [(name, scope.spread["cv"]) for name, scope in self.objectives[objective].groups.items()
-                  if scope.spread.get("cv") is not None]
+        groups = [
+            (name, scope.spread["cv"])
+            for name, scope in self.objectives[objective].groups.items()
+            if scope.spread.get("cv") is not None
+        ]
         return sorted(groups, key=lambda item: item[1])
 
     def to_json(self) -> dict[str, Any]:
         objectives = {}
         for name, found in self.objectives.items():
-            objectives[name] = {**found.overall.to_json(), "negligible": self.negligible(name),
-                                "groups": {g: {**s.to_json(), "negligible": self.negligible(name, g)}
-                                           for g, s in found.groups.items()},
-                                "least_responsive_groups": [g for g, _ in self.least_responsive(name)]}
-        return {"sweep": self.sweep, "method": self.method, "parameters": self.parameters, "reduced": self.reduced,
-                "design": self.design, "confidence": self.confidence, "objectives": objectives,
-                "warnings": self.warnings}
+            objectives[name] = {
+                **found.overall.to_json(),
+                "negligible": self.negligible(name),
+                "groups": {
+                    g: {**s.to_json(), "negligible": self.negligible(name, g)}
+                    for g, s in found.groups.items()
+                },
+                "least_responsive_groups": [g for g, _ in self.least_responsive(name)],
+            }
+        return {
+            "sweep": self.sweep,
+            "method": self.method,
+            "parameters": self.parameters,
+            "reduced": self.reduced,
+            "design": self.design,
+            "confidence": self.confidence,
+            "objectives": objectives,
+            "warnings": self.warnings,
+        }
 
 
 def stored_design(spec: SpaceSpec) -> tuple[Design, tuple[Dimension, ...]]:
     """The design a sweep ran, drawn again from its saved spec."""
     kind = strategy(spec.search.strategy)
     if not issubclass(kind, SensitivityDesign):
-        raise DseError(f"sweep {spec.name!r} was sampled by {spec.search.strategy!r}; sensitivity reads a "
-                       "sweep sampled for it: search.strategy sobol_indices, morris or fast (docs/sensitivity.md)")
+        raise DseError(
+            f"sweep {spec.name!r} was sampled by {spec.search.strategy!r}; sensitivity reads a "
+            "sweep sampled for it: search.strategy sobol_indices, morris or fast (docs/sensitivity.md)"
+        )
     dimensions = tuple(dimension(name, values) for name, values in spec.parameters.items())
     checks = [compile_constraint(text, {d.name for d in dimensions}) for text in spec.constraints]
-    problem = Problem(label=spec.name, dimensions=dimensions, objective=(spec.ranking.objective, spec.ranking.goal),
-                      pareto=(), scenarios=(), vectors=(), max_points=spec.search.max_points,
-                      seed=spec.search.seed, batch=1, options=spec.search.options,
-                      admits=lambda p: all(check(p) for check in checks), constrained=bool(checks))
+    problem = Problem(
+        label=spec.name,
+        dimensions=dimensions,
+        objective=(spec.ranking.objective, spec.ranking.goal),
+        pareto=(),
+        scenarios=(),
+        vectors=(),
+        max_points=spec.search.max_points,
+        seed=spec.search.seed,
+        batch=1,
+        options=spec.search.options,
+        admits=lambda p: all(check(p) for check in checks),
+        constrained=bool(checks),
+    )
     return kind(problem).design, dimensions
 
 
@@ -162,8 +199,13 @@ class Cached(BaseModel):
     found: Sensitivity
 
 
-def sensitivity(output: Any, sweep: str | None = None, objectives: list[str] | None = None,
-                confidence: float = CONFIDENCE, resamples: int = RESAMPLES) -> Sensitivity:
+def sensitivity(
+    output: Any,
+    sweep: str | None = None,
+    objectives: list[str] | None = None,
+    confidence: float = CONFIDENCE,
+    resamples: int = RESAMPLES,
+) -> Sensitivity:
     """Indices of every scalar objective (or those named) of ``sweep``, overall and per scenario group;
     computed once per version of the store and kept in it: the bootstrap of a million-row design takes
     its time, and the report, the dashboard and this command all show the same indices."""
@@ -189,23 +231,35 @@ def sensitivity(output: Any, sweep: str | None = None, objectives: list[str] | N
     return found
 
 
-def _cache_key(output: Any, sweep: str, objectives: list[str] | None, confidence: float, resamples: int) -> str:
+def _cache_key(
+    output: Any, sweep: str, objectives: list[str] | None, confidence: float, resamples: int
+) -> str:
     """What the indices depend on: the rows (the store's version and the current model), the spec the sweep
     ran with (its design), the options and the estimator's version."""
     from importlib.metadata import version
 
-    parts = [store.version(output, sweep), current_model(output, sweep), store.read_text(output, f"{sweep}.{SWEEP_FILE}"),
-             objectives, confidence, resamples, version("SALib")]
+    parts = [
+        store.version(output, sweep),
+        current_model(output, sweep),
+        store.read_text(output, f"{sweep}.{SWEEP_FILE}"),
+        objectives,
+        confidence,
+        resamples,
+        version("SALib"),
+    ]
     return hashlib.sha256(repr(parts).encode()).hexdigest()[:32]
 
 
-def _computed(output: Any, sweep: str, objectives: list[str] | None, confidence: float,
-              resamples: int) -> Sensitivity:
+def _computed(
+    output: Any, sweep: str, objectives: list[str] | None, confidence: float, resamples: int
+) -> Sensitivity:
     spec = load_sweep_spec(output, sweep)
     if spec.uncertain is not None:
-        raise DseError(f"sweep {sweep!r} runs each point over uncertain draws; sensitivity reads a sweep without "
-                       "an uncertain block (its parameters' indices would mix in the draws' spread): sample the "
-                       "uncertain parameters as parameters of a sobol_indices sweep instead")
+        raise DseError(
+            f"sweep {sweep!r} runs each point over uncertain draws; sensitivity reads a sweep without "
+            "an uncertain block (its parameters' indices would mix in the draws' spread): sample the "
+            "uncertain parameters as parameters of a sobol_indices sweep instead"
+        )
     design, dimensions = stored_design(spec)
     parameters = [d.name for d in dimensions]
     scalar = scalar_objectives(spec, output, sweep)
@@ -220,17 +274,30 @@ def _computed(output: Any, sweep: str, objectives: list[str] | None, confidence:
     points = pd.DataFrame(fast if fast is not None else design.points(dimensions), columns=parameters)
     over = spec.ranking.over_scenarios
     groups = aggregate.statistics(rows, ["group"], "scenario", ["count_distinct"])["group"].tolist()
-    scopes = [(None, rows), *(((str(g), rows.filter(pc.equal(rows["group"], g))) for g in groups)
-                              if len(groups) > 1 else ())]
+    scopes = [
+        (None, rows),
+        *(((str(g), rows.filter(pc.equal(rows["group"], g))) for g in groups) if len(groups) > 1 else ()),
+    ]
     found = {name: ObjectiveIndices(overall=None, groups={}) for name in chosen}
     notes: list[str] = []
-    wide: dict[str, list[str]] = {name: [] for name in chosen}  # per objective, the groups whose intervals are wide
+    wide: dict[str, list[str]] = {
+        name: [] for name in chosen
+    }  # per objective, the groups whose intervals are wide
     for group, members in scopes:
         n_scenarios = aggregate.distinct(members, "scenario")
-        values = aggregate.aligned(points, _reduced(members, parameters, chosen, over, n_scenarios), parameters, chosen)
+        values = aggregate.aligned(
+            points, _reduced(members, parameters, chosen, over, n_scenarios), parameters, chosen
+        )
         for name in chosen:
-            scope = _scope(design, values[name].to_numpy(float), parameters, n_scenarios, confidence, resamples,
-                           spec.search.seed + 1)
+            scope = _scope(
+                design,
+                values[name].to_numpy(float),
+                parameters,
+                n_scenarios,
+                confidence,
+                resamples,
+                spec.search.seed + 1,
+            )
             if group is None:
                 found[name].overall = scope
                 notes.extend(_warnings(design, scope, f"{name} (all scenarios)"))
@@ -240,24 +307,50 @@ def _computed(output: Any, sweep: str, objectives: list[str] | None, confidence:
                 notes.extend(_warnings(design, scope, f"{name} (group {group})"))
             elif _widest(scope) > WIDE:  # one line per objective for all its wide groups, below
                 wide[name].append(f"{group} +/-{_widest(scope):.2f}")
-    notes.extend(f"{name}: intervals wider than +/-{WIDE} in groups {', '.join(listed)}"
-                 for name, listed in wide.items() if listed)
+    notes.extend(
+        f"{name}: intervals wider than +/-{WIDE} in groups {', '.join(listed)}"
+        for name, listed in wide.items()
+        if listed
+    )
     if design.method == "fast":
         notes.append(FAST_INTERVALS)
-    return Sensitivity(sweep, design.method, parameters, REDUCED[over],
-                       {"strategy": spec.search.strategy, "rows": len(design.units), "blocks": design.blocks,
-                        "block": design.block, "seed": spec.search.seed, "second_order": design.second_order,
-                        "levels": design.levels or None, "harmonics": design.harmonics or None},
-                       confidence, found, notes)
+    return Sensitivity(
+        sweep,
+        design.method,
+        parameters,
+        REDUCED[over],
+        {
+            "strategy": spec.search.strategy,
+            "rows": len(design.units),
+            "blocks": design.blocks,
+            "block": design.block,
+            "seed": spec.search.seed,
+            "second_order": design.second_order,
+            "levels": design.levels or None,
+            "harmonics": design.harmonics or None,
+        },
+        confidence,
+        found,
+        notes,
+    )
 
 
-def _reduced(rows: pa.Table, parameters: list[str], objectives: list[str], over: str, scenarios: int) -> pd.DataFrame:
+def _reduced(
+    rows: pa.Table, parameters: list[str], objectives: list[str], over: str, scenarios: int
+) -> pd.DataFrame:
     """Each point's objectives reduced over the ``scenarios`` of ``rows``; only points ok on every one of them."""
     return complete_totals(aggregate.ok_rows(rows), parameters, objectives, over, scenarios)
 
 
-def _scope(design: Design, y: np.ndarray, parameters: list[str], scenarios: int, confidence: float,
-           resamples: int, seed: int) -> Scope:
+def _scope(
+    design: Design,
+    y: np.ndarray,
+    parameters: list[str],
+    scenarios: int,
+    confidence: float,
+    resamples: int,
+    seed: int,
+) -> Scope:
     """Indices from the design's whole blocks: each block is one estimator term, so leaving one out
     leaves the estimate unbiased over the rest (though no longer quasi-random)."""
     whole = ~np.isnan(y.reshape(design.blocks, design.block)).any(axis=1)
@@ -271,27 +364,47 @@ def _scope(design: Design, y: np.ndarray, parameters: list[str], scenarios: int,
     empty = {name: dict.fromkeys(_keys(design.method)) for name in parameters}
     least = 1 if design.method == "fast" else 2  # an eFAST curve is one parameter's whole estimate
     if used < least:
-        return Scope(scenarios, used, left_out, empty, spread, note=f"{used} whole block(s): too few to estimate")
+        return Scope(
+            scenarios, used, left_out, empty, spread, note=f"{used} whole block(s): too few to estimate"
+        )
     if np.ptp(y) == 0.0:  # no variance to share out: no parameter has an effect
         zero = {name: dict.fromkeys(_keys(design.method), 0.0) for name in parameters}
-        return Scope(scenarios, used, left_out, zero, spread, note="constant over the sample: no parameter moves it")
-    found = _estimate(design, full if design.method == "fast" else y, x, parameters, confidence, resamples, seed)
-    indices = {name: {key: float(found[key][i]) if design.method != "fast" or whole[i] else None
-                      for key in _keys(design.method)} for i, name in enumerate(parameters)}
+        return Scope(
+            scenarios, used, left_out, zero, spread, note="constant over the sample: no parameter moves it"
+        )
+    found = _estimate(
+        design, full if design.method == "fast" else y, x, parameters, confidence, resamples, seed
+    )
+    indices = {
+        name: {
+            key: float(found[key][i]) if design.method != "fast" or whole[i] else None
+            for key in _keys(design.method)
+        }
+        for i, name in enumerate(parameters)
+    }
     pairs = {}
     if design.method == "sobol" and design.second_order:
         for i, a in enumerate(parameters):
             for j in range(i + 1, len(parameters)):
-                pairs[f"{a} x {parameters[j]}"] = {"S2": float(found["S2"][i, j]),
-                                                   "S2_conf": float(found["S2_conf"][i, j])}
+                pairs[f"{a} x {parameters[j]}"] = {
+                    "S2": float(found["S2"][i, j]),
+                    "S2_conf": float(found["S2_conf"][i, j]),
+                }
     note = None
     if cv is not None and cv < FLAT:
         note = f"varies by only {cv:.1g} of its mean over the sample: the indices share out what may be rounding noise"
     return Scope(scenarios, used, left_out, indices, spread, pairs, note)
 
 
-def _estimate(design: Design, y: np.ndarray, x: np.ndarray, parameters: list[str], confidence: float,
-              resamples: int, seed: int) -> dict[str, Any]:
+def _estimate(
+    design: Design,
+    y: np.ndarray,
+    x: np.ndarray,
+    parameters: list[str],
+    confidence: float,
+    resamples: int,
+    seed: int,
+) -> dict[str, Any]:
     """SALib's estimator of the design's method on its outputs ``y`` (Morris also reads the inputs ``x``)."""
     problem = salib_problem(tuple(Dimension(name) for name in parameters))
     with warnings.catch_warnings():
@@ -300,17 +413,27 @@ def _estimate(design: Design, y: np.ndarray, x: np.ndarray, parameters: list[str
             from SALib.analyze import sobol
 
             processes = bootstrap_processes(len(y), len(parameters))
-            return sobol.analyze(problem, y, calc_second_order=design.second_order, num_resamples=resamples,
-                                 conf_level=confidence, seed=seed, parallel=processes > 1, n_processors=processes)
+            return sobol.analyze(
+                problem,
+                y,
+                calc_second_order=design.second_order,
+                num_resamples=resamples,
+                conf_level=confidence,
+                seed=seed,
+                parallel=processes > 1,
+                n_processors=processes,
+            )
         if design.method == "fast":
             from SALib.analyze import fast
 
-            return fast.analyze(problem, y, M=design.harmonics, num_resamples=resamples, conf_level=confidence,
-                                seed=seed)
+            return fast.analyze(
+                problem, y, M=design.harmonics, num_resamples=resamples, conf_level=confidence, seed=seed
+            )
         from SALib.analyze import morris
 
-        return morris.analyze(problem, x, y, num_resamples=resamples, conf_level=confidence,
-                              num_levels=design.levels, seed=seed)
+        return morris.analyze(
+            problem, x, y, num_resamples=resamples, conf_level=confidence, num_levels=design.levels, seed=seed
+        )
 
 
 def bootstrap_processes(rows: int, parameters: int) -> int:
@@ -320,34 +443,48 @@ def bootstrap_processes(rows: int, parameters: int) -> int:
 
 
 def _keys(method: str) -> tuple[str, ...]:
-    return ("mu", "mu_star", "sigma", "mu_star_conf") if method == "morris" else ("S1", "S1_conf", "ST", "ST_conf")
+    return (
+        ("mu", "mu_star", "sigma", "mu_star_conf")
+        if method == "morris"
+        else ("S1", "S1_conf", "ST", "ST_conf")
+    )
 
 
 def _warnings(design: Design, scope: Scope, label: str) -> list[str]:
     """What makes these indices less than the user asked for: blocks lost, or a sample too small."""
     found = []
     if scope.left_out:
-        found.append(f"{label}: {scope.left_out} of {scope.blocks + scope.left_out} blocks left out (a point failed, "
-                     "has no result yet, or a constraint refused it)")
+        found.append(
+            f"{label}: {scope.left_out} of {scope.blocks + scope.left_out} blocks left out (a point failed, "
+            "has no result yet, or a constraint refused it)"
+        )
     if scope.note and scope.blocks < 2:
         found.append(f"{label}: {scope.note}")
         return found
-    if design.method == "fast":  # a curve's length is fixed by the design (> 4 M^2); its intervals are SALib's caveat
+    if (
+        design.method == "fast"
+    ):  # a curve's length is fixed by the design (> 4 M^2); its intervals are SALib's caveat
         return found
     if design.method == "morris":
         if scope.blocks < MIN_TRAJECTORIES:
-            found.append(f"{label}: {scope.blocks} trajectories; screening wants at least {MIN_TRAJECTORIES} "
-                         f"(max_points >= {MIN_TRAJECTORIES * design.block})")
+            found.append(
+                f"{label}: {scope.blocks} trajectories; screening wants at least {MIN_TRAJECTORIES} "
+                f"(max_points >= {MIN_TRAJECTORIES * design.block})"
+            )
         return found
     widest = _widest(scope)
     if widest > WIDE:
         needed = math.ceil(scope.blocks * (widest / WIDE) ** 2)  # intervals narrow as 1 / sqrt(blocks)
-        found.append(f"{label}: intervals up to +/-{widest:.2f}, too wide to tell parameters apart (over {WIDE}); "
-                     f"about {needed} base rows would narrow them to {WIDE} (max_points >= {needed * design.block})")
+        found.append(
+            f"{label}: intervals up to +/-{widest:.2f}, too wide to tell parameters apart (over {WIDE}); "
+            f"about {needed} base rows would narrow them to {WIDE} (max_points >= {needed * design.block})"
+        )
     return found
 
 
 def _widest(scope: Scope) -> float:
     """The widest half-width among a scope's intervals."""
-    return max((v for p in scope.parameters.values() for k, v in p.items() if k.endswith("_conf") and v is not None),
-               default=0.0)
+    return max(
+        (v for p in scope.parameters.values() for k, v in p.items() if k.endswith("_conf") and v is not None),
+        default=0.0,
+    )

@@ -51,7 +51,11 @@ def bundled_path(reference: str) -> Path:
 def listing() -> list[Path]:
     """The bundled FMU source folders and example files: what an error about a bundled name lists."""
     folder = fmus_root()
-    fmus = [p for p in sorted(folder.iterdir()) if (p / "modelDescription.xml").is_file()] if folder.is_dir() else []
+    fmus = (
+        [p for p in sorted(folder.iterdir()) if (p / "modelDescription.xml").is_file()]
+        if folder.is_dir()
+        else []
+    )
     examples = sorted(p for p in root().glob("*/*.yaml"))
     return fmus + examples
 

@@ -46,6 +46,7 @@ STEERING_FILE = "steering_inputs.csv"
 GPS_FILE = "gps_position.csv"
 KIND = "field_data"
 
+
 class FieldDataOptions(BaseModel):
     """What a space may say about field-data scenarios: ``{path: runs/*, position: {x: .., y: ..}}``."""
 
@@ -66,7 +67,9 @@ class Track:
 def gps(scenario: Scenario) -> Track:
     """The GPS fixes of a field-data scenario."""
     if scenario.kind != KIND or scenario.recorded is None:
-        raise DseError(f"scenario {scenario.name} is a {scenario.kind} scenario, not recorded field data with GPS fixes")
+        raise DseError(
+            f"scenario {scenario.name} is a {scenario.kind} scenario, not recorded field data with GPS fixes"
+        )
     recorded = scenario.recorded
     return Track(recorded.time, recorded.columns["x"], recorded.columns["y"], recorded.missing)
 
@@ -90,17 +93,28 @@ def load_run(folder: str | Path, options: Mapping[str, Any] | None = None) -> Sc
     fixes = read_table(paths[GPS_FILE], ("time", "x", "y"), may_drop=("x", "y"))
     if not fixes.columns[0].size:
         raise DseError(f"{paths[GPS_FILE]}: no GPS fix (every row is empty or a dropout)")
-    recorded = Recording(paths[GPS_FILE], fixes.columns[0], {"x": fixes.columns[1], "y": fixes.columns[2]},
-                         len(fixes.dropped))
+    recorded = Recording(
+        paths[GPS_FILE], fixes.columns[0], {"x": fixes.columns[1], "y": fixes.columns[2]}, len(fixes.dropped)
+    )
     pose = info.initial_pose
     return Scenario(
-        name=info.name, group=info.group, kind=KIND,
-        fields={"duration": info.duration, "initial_pose.x": pose.x, "initial_pose.y": pose.y,
-                "initial_pose.theta": pose.theta},
+        name=info.name,
+        group=info.group,
+        kind=KIND,
+        fields={
+            "duration": info.duration,
+            "initial_pose.x": pose.x,
+            "initial_pose.y": pose.y,
+            "initial_pose.theta": pose.theta,
+        },
         files={"steering_inputs": paths[STEERING_FILE], "gps_position": paths[GPS_FILE]},
-        recorded=recorded, start_time=0.0, stop_time=info.duration,
+        recorded=recorded,
+        start_time=0.0,
+        stop_time=info.duration,
         natural_step=_control_period(paths[STEERING_FILE], log.columns[0]),
-        sources=tuple(paths.values()), options=settings.model_dump(exclude_none=True))
+        sources=tuple(paths.values()),
+        options=settings.model_dump(exclude_none=True),
+    )
 
 
 class FieldData(TrackKind):
@@ -137,6 +151,7 @@ FIELD_DATA = FieldData()
 
 # ---- objectives --------------------------------------------------------------------------------
 
+
 def position_of(names, scenario: Scenario) -> tuple[str, str]:
     """The simulated position among recorded ``names``: the scenario's ``position`` option, or the
     only instance with outputs x and y."""
@@ -148,8 +163,10 @@ def position_of(names, scenario: Scenario) -> tuple[str, str]:
     candidates = [i for i in sorted(instances) if {f"{i}.x", f"{i}.y"} <= names]
     if len(candidates) != 1:
         found = f"instances {', '.join(candidates)} have both" if candidates else "no instance has both"
-        raise DseError(f"scenario {scenario.name}: which outputs are the position compared with GPS? {found} "
-                       "x and y outputs; say it in space.yaml: scenarios: [{path: ..., position: {x: .., y: ..}}]")
+        raise DseError(
+            f"scenario {scenario.name}: which outputs are the position compared with GPS? {found} "
+            "x and y outputs; say it in space.yaml: scenarios: [{path: ..., position: {x: .., y: ..}}]"
+        )
     return f"{candidates[0]}.x", f"{candidates[0]}.y"
 
 
@@ -161,8 +178,9 @@ def fix_offsets(trajectory, scenario: Scenario) -> tuple[np.ndarray, np.ndarray]
     time = trajectory.time
     inside = (fixes.time >= time[0]) & (fixes.time <= time[-1] + 1e-9)
     if not inside.any():
-        raise DseError(f"scenario {scenario.name}: no GPS fix lies within the simulated time "
-                       f"{time[0]:g}..{time[-1]:g} s")
+        raise DseError(
+            f"scenario {scenario.name}: no GPS fix lies within the simulated time {time[0]:g}..{time[-1]:g} s"
+        )
     t = fixes.time[inside]
     return np.interp(t, time, x) - fixes.x[inside], np.interp(t, time, y) - fixes.y[inside]
 

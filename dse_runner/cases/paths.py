@@ -55,6 +55,7 @@ MAX_JUMP = 5.0  # ... and starts within 5 m of path after step_at ...
 MIN_OFFSET = 0.01  # ... and lies more than 1 cm to the side
 SETTLE_FRACTION = 0.1  # settled: within 10% of the step size of the new line
 
+
 class PathInfo(RunInfo):
     """The contents of a path's scenario.yaml: a run's, and where a lateral step starts."""
 
@@ -72,6 +73,7 @@ class PathOptions(BaseModel):
 
 
 # ---- the path ----------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class Polyline:
@@ -92,8 +94,9 @@ class Polyline:
         return np.arctan2(self.direction[:, 1], self.direction[:, 0])
 
     def point_at(self, arc: float) -> np.ndarray:
-        return np.array([np.interp(arc, self.arc, self.points[:, 0]),
-                         np.interp(arc, self.arc, self.points[:, 1])])
+        return np.array(
+            [np.interp(arc, self.arc, self.points[:, 0]), np.interp(arc, self.arc, self.points[:, 1])]
+        )
 
 
 def read_path(path: Path) -> Polyline:
@@ -106,8 +109,10 @@ def read_path(path: Path) -> Polyline:
     negative = np.flatnonzero(speed < 0)
     if negative.size:
         k = negative[0]
-        raise DseError(f"{path} line {table.lines[k]}, column speed: {speed[k]:g} is negative "
-                       "(a target speed is at least 0)")
+        raise DseError(
+            f"{path} line {table.lines[k]}, column speed: {speed[k]:g} is negative "
+            "(a target speed is at least 0)"
+        )
     if not np.any(speed > 0):
         raise DseError(f"{path}: every target speed is 0, so the path is never driven")
     points = np.column_stack([x, y])
@@ -116,8 +121,9 @@ def read_path(path: Path) -> Polyline:
     repeated = np.flatnonzero(lengths == 0)
     if repeated.size:
         k = repeated[0] + 1
-        raise DseError(f"{path} line {table.lines[k]}: waypoint ({x[k]:g}, {y[k]:g}) "
-                       "repeats the previous one")
+        raise DseError(
+            f"{path} line {table.lines[k]}: waypoint ({x[k]:g}, {y[k]:g}) repeats the previous one"
+        )
     return Polyline(points, speed, np.concatenate([[0.0], np.cumsum(lengths)]), steps / lengths[:, None])
 
 
@@ -165,13 +171,16 @@ def lateral_step(path: Polyline, at: float, where: str) -> Step:
     offsets = before[0] * rel[:, 1] - before[1] * rel[:, 0]
     parallel = (path.direction[later] @ before >= PARALLEL) & (np.abs(offsets) > MIN_OFFSET)
     if not parallel.any():
-        raise DseError(f"{where}: step_at: no straight piece parallel to the row before {at:g} m and offset "
-                       f"from it starts within {MAX_JUMP:g} m of path after it")
+        raise DseError(
+            f"{where}: step_at: no straight piece parallel to the row before {at:g} m and offset "
+            f"from it starts within {MAX_JUMP:g} m of path after it"
+        )
     size = float(offsets[np.argmax(parallel)])
     return Step(at, origin, before, size, float((path.points[-1] - origin) @ before))
 
 
 # ---- the kind ----------------------------------------------------------------------------------
+
 
 def read_info(path: Path) -> PathInfo:
     return read_yaml(path, PathInfo, "scenario file")
@@ -189,19 +198,37 @@ def load_path(folder: str | Path, options: Mapping[str, Any] | None = None) -> S
         step = {"step_at": info.step_at}
     pose = info.initial_pose
     return Scenario(
-        name=info.name, group=info.group, kind=KIND,
-        fields={"duration": info.duration, "initial_pose.x": pose.x, "initial_pose.y": pose.y,
-                "initial_pose.theta": pose.theta, "target_speed": float(path.speed.max()), **step},
-        files={"path": path_file}, start_time=0.0, stop_time=info.duration,
-        sources=(info_file, path_file), options=settings.model_dump(exclude_none=True))
+        name=info.name,
+        group=info.group,
+        kind=KIND,
+        fields={
+            "duration": info.duration,
+            "initial_pose.x": pose.x,
+            "initial_pose.y": pose.y,
+            "initial_pose.theta": pose.theta,
+            "target_speed": float(path.speed.max()),
+            **step,
+        },
+        files={"path": path_file},
+        start_time=0.0,
+        stop_time=info.duration,
+        sources=(info_file, path_file),
+        options=settings.model_dump(exclude_none=True),
+    )
 
 
 class PathKind(TrackKind):
     """The kind, as ``dse_runner.simulation.scenario`` finds it."""
 
     name = KIND
-    default_objectives = ("path_error_mean", "path_error_max", "heading_error", "steering_effort",
-                          "overshoot", "settling_distance")
+    default_objectives = (
+        "path_error_mean",
+        "path_error_max",
+        "heading_error",
+        "steering_effort",
+        "overshoot",
+        "settling_distance",
+    )
     reference_style = ("-", {"lw": 1.0, "color": "0.45", "label": "path"})
     title_error = ("path_error_mean", "mean path error")
 
@@ -233,6 +260,7 @@ def step_of(scenario: Scenario) -> Step | None:
 
 # ---- matching the simulated position with the path ---------------------------------------------
 
+
 @dataclass(frozen=True)
 class Projection:
     """Each sample's closest point on the path: its arc length [m], its segment, the distance [m]."""
@@ -248,8 +276,8 @@ def _closest(path: Polyline, xy: np.ndarray, lo: np.ndarray, hi: np.ndarray):
     last_segment = len(path.direction) - 1
     first = min(max(int(np.searchsorted(path.arc, lo.min(), "right")) - 1, 0), last_segment)
     last = min(max(int(np.searchsorted(path.arc, hi.max(), "right")) - 1, first), last_segment)
-    start, end = path.arc[first:last + 1], path.arc[first + 1:last + 2]
-    origin, direction = path.points[first:last + 1], path.direction[first:last + 1]
+    start, end = path.arc[first : last + 1], path.arc[first + 1 : last + 2]
+    origin, direction = path.points[first : last + 1], path.direction[first : last + 1]
     dx = xy[:, :1] - origin[:, 0]
     dy = xy[:, 1:] - origin[:, 1]
     low, high = np.maximum(start, lo[:, None]), np.minimum(end, hi[:, None])
@@ -277,30 +305,34 @@ def project(path: Polyline, xy: np.ndarray, lookahead: float = LOOKAHEAD) -> Pro
 
     def keep(k: int, found) -> None:
         n = len(found[0])
-        arc[k:k + n], segment[k:k + n], distance[k:k + n] = found
+        arc[k : k + n], segment[k : k + n], distance[k : k + n] = found
 
     keep(0, _closest(path, xy[:1], np.zeros(1), np.full(1, path.length)))
     k = 1
     while k < count:
         origin = arc[k - 1]
-        size = max(1, int(np.searchsorted(np.cumsum(moved[k:k + MAX_BLOCK]), lookahead, "right")))
+        size = max(1, int(np.searchsorted(np.cumsum(moved[k : k + MAX_BLOCK]), lookahead, "right")))
         block = slice(k, k + size)
         reach = origin + 2 * lookahead + moved[block].max()
         found = _closest(path, xy[block], np.full(size, origin), np.full(size, reach))
         previous = np.concatenate([[origin], found[0][:-1]])
-        fits = (found[0] >= previous) & (found[0] <= previous + lookahead + moved[block]) \
+        fits = (
+            (found[0] >= previous)
+            & (found[0] <= previous + lookahead + moved[block])
             & (previous - origin <= lookahead)
+        )
         good = size if fits.all() else int(np.argmin(fits))
         keep(k, tuple(a[:good] for a in found))
         k += good
         if good < size:  # sample k alone, in its own window
             lo = arc[k - 1]
-            keep(k, _closest(path, xy[k:k + 1], np.full(1, lo), np.full(1, lo + lookahead + moved[k])))
+            keep(k, _closest(path, xy[k : k + 1], np.full(1, lo), np.full(1, lo + lookahead + moved[k])))
             k += 1
     return Projection(arc, segment, distance)
 
 
 # ---- which outputs are the pose and the steering ------------------------------------------------
+
 
 def pose_of(names, scenario: Scenario) -> tuple[str, str, str]:
     """The simulated x, y and heading among recorded ``names``: the scenario's options, or the only
@@ -313,9 +345,11 @@ def pose_of(names, scenario: Scenario) -> tuple[str, str, str]:
     candidates = [i for i in sorted(instances) if {f"{i}.x", f"{i}.y", f"{i}.theta"} <= names]
     if len(candidates) != 1:
         found = f"instances {', '.join(candidates)} have all" if candidates else "no instance has all"
-        raise DseError(f"scenario {scenario.name}: which outputs are the pose that follows the path? {found} "
-                       "three of x, y and theta; say it in space.yaml: scenarios: [{path: ..., "
-                       "position: {x: .., y: ..}, heading: ..}]")
+        raise DseError(
+            f"scenario {scenario.name}: which outputs are the pose that follows the path? {found} "
+            "three of x, y and theta; say it in space.yaml: scenarios: [{path: ..., "
+            "position: {x: .., y: ..}, heading: ..}]"
+        )
     return f"{candidates[0]}.x", f"{candidates[0]}.y", heading or f"{candidates[0]}.theta"
 
 
@@ -326,8 +360,10 @@ def steering_of(names, scenario: Scenario) -> str:
     found = [n for n in names if n.rpartition(".")[2] == "delta_f"]
     if len(found) != 1:
         which = f"{', '.join(found)} are all" if found else "no output is"
-        raise DseError(f"scenario {scenario.name}: which output is the steering angle? {which} named "
-                       "delta_f; say it in space.yaml: scenarios: [{path: ..., steering: ..}]")
+        raise DseError(
+            f"scenario {scenario.name}: which output is the steering angle? {which} named "
+            "delta_f; say it in space.yaml: scenarios: [{path: ..., steering: ..}]"
+        )
     return found[0]
 
 
@@ -354,6 +390,7 @@ def follow(trajectory, scenario: Scenario) -> Projection:
 
 
 # ---- objectives --------------------------------------------------------------------------------
+
 
 def _time_mean(time: np.ndarray, values: np.ndarray) -> float:
     """Trapezoidal time average over the run, as ``reduce: mean`` computes it (one sample: its value)."""

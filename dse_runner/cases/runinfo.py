@@ -47,8 +47,9 @@ class Position(BaseModel):
 OptionsModel = TypeVar("OptionsModel", bound=BaseModel)
 
 
-def open_folder(folder: str | Path, names: Sequence[str], options: Mapping[str, Any] | None,
-                schema: type[OptionsModel]) -> tuple[dict[str, Path], OptionsModel]:
+def open_folder(
+    folder: str | Path, names: Sequence[str], options: Mapping[str, Any] | None, schema: type[OptionsModel]
+) -> tuple[dict[str, Path], OptionsModel]:
     """A scenario folder's files ``names`` (resolved) by name, each checked present, and the space's
     options for it checked against ``schema``: both kinds refuse a missing folder or file, or a wrong
     option, in the same words, before any FMU reads a file."""

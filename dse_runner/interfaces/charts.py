@@ -50,7 +50,9 @@ LEGEND_PT, LEGEND_CHAR, LEGEND_ITEM = 8, 6.0, 40  # legend font, a label charact
 LEGEND_ROW = 22  # px a row of a legend below the plot takes
 TITLE_PT = 11.0  # a chart title's font size, unless it must shrink to fit
 SMALLEST_TITLE_PT = 7.0
-TITLE_EM = 0.62  # a title character's mean advance in ems, with a margin (our titles measure 0.57 in Chromium)
+TITLE_EM = (
+    0.62  # a title character's mean advance in ems, with a margin (our titles measure 0.57 in Chromium)
+)
 AXIS_ROOM = 80  # px left of the plot frame, where a title starts: the y axis, its tick labels and its label
 
 
@@ -61,8 +63,16 @@ def colours(names: Sequence[str]) -> dict[str, str]:
 
 def _figure(title: str, x_label: str, y_label: str, **options) -> figure:
     """A chart with its toolbar on the right, where it takes no room from the title."""
-    fig = figure(title=title, width=WIDTH, height=HEIGHT, x_axis_label=x_label, y_axis_label=y_label,
-                 tools="pan,wheel_zoom,box_zoom,reset,save", toolbar_location="right", **options)
+    fig = figure(
+        title=title,
+        width=WIDTH,
+        height=HEIGHT,
+        x_axis_label=x_label,
+        y_axis_label=y_label,
+        tools="pan,wheel_zoom,box_zoom,reset,save",
+        toolbar_location="right",
+        **options,
+    )
     fig.title.text_font_size = title_size([title], fig.width)
     return fig
 
@@ -144,7 +154,9 @@ def _empty_lines() -> dict[str, list]:
     return {"xs": [], "ys": [], "scenario": [], "group": [], "colour": []}
 
 
-def lines(ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], by: str = "group") -> dict[str, list]:
+def lines(
+    ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], by: str = "group"
+) -> dict[str, list]:
     """One line per scenario: the mean ``objective`` at each value of column ``x``; coloured by
     ``colour_of[row[by]]``. Columns for a ``multi_line`` glyph."""
     data = _empty_lines()
@@ -162,12 +174,19 @@ def _empty_dots() -> dict[str, list]:
     return {"x": [], "y": [], "scenario": [], "group": [], "colour": [], "legend": []}
 
 
-def dots(ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], by: str = "group") -> dict[str, Any]:
+def dots(
+    ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], by: str = "group"
+) -> dict[str, Any]:
     """Every row a dot at its ``x`` and ``objective``, coloured by ``colour_of[row[by]]``: a search's points,
     each its own x, have no mean over the other parameters to join. Columns for a ``scatter`` glyph."""
-    return {"x": ok[x].to_numpy(float), "y": ok[objective].to_numpy(float), "scenario": ok["scenario"].to_numpy(),
-            "group": ok["group"].to_numpy(), "colour": [colour_of.get(v, "grey") for v in ok[by]],
-            "legend": ok[by].to_numpy()}
+    return {
+        "x": ok[x].to_numpy(float),
+        "y": ok[objective].to_numpy(float),
+        "scenario": ok["scenario"].to_numpy(),
+        "group": ok["group"].to_numpy(),
+        "colour": [colour_of.get(v, "grey") for v in ok[by]],
+        "legend": ok[by].to_numpy(),
+    }
 
 
 MAX_DOTS = 5000  # rows of a sampled design drawn as dots; above, a binned mean and band (megabytes, a blot)
@@ -179,8 +198,9 @@ def _empty_bands() -> dict[str, list]:
     return {"xs": [], "ys": [], "colour": []}
 
 
-def binned(ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], by: str = "group",
-           bins: int = BINS) -> tuple[dict[str, list], dict[str, list]]:
+def binned(
+    ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], by: str = "group", bins: int = BINS
+) -> tuple[dict[str, list], dict[str, list]]:
     """Per scenario, over ``bins`` equal bins of column ``x``: the mean ``objective`` (a line, as ``lines``
     makes them) and the band between its ``BAND`` quantiles (a patch). What a sampled design of 10^5 rows
     shows of its objective against a parameter, in a few kilobytes."""
@@ -216,11 +236,15 @@ class _Sources:
 
     @classmethod
     def empty(cls) -> _Sources:
-        return cls(ColumnDataSource(_empty_lines()), ColumnDataSource(_empty_bands()),
-                   ColumnDataSource(_empty_dots()))
+        return cls(
+            ColumnDataSource(_empty_lines()),
+            ColumnDataSource(_empty_bands()),
+            ColumnDataSource(_empty_dots()),
+        )
 
-    def fill(self, ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], by: str,
-             scattered: bool) -> None:
+    def fill(
+        self, ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], by: str, scattered: bool
+    ) -> None:
         self.show(contents(ok, x, objective, colour_of, by, scattered))
 
     def show(self, drawn: Contents) -> None:
@@ -231,8 +255,9 @@ class _Sources:
 Contents = tuple[dict[str, Any], dict[str, Any], dict[str, Any]]  # a panel's lines, bands and dots
 
 
-def contents(ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], by: str,
-             scattered: bool) -> Contents:
+def contents(
+    ok: pd.DataFrame, x: str, objective: str, colour_of: dict[str, str], by: str, scattered: bool
+) -> Contents:
     """What one panel draws: a grid's lines; a sampled design's dots up to MAX_DOTS rows, its binned means
     and bands above. Computed apart from the Bokeh models, so a server can do it off its event loop."""
     if not scattered:
@@ -250,13 +275,28 @@ def is_binned(ok: pd.DataFrame, scattered: bool) -> bool:
 def _draw(fig: figure, sources: _Sources, legend: str, room: tuple[int, int]) -> None:
     """Lines (a grid's means, or a large design's binned means over their quantile bands), and dots (a
     search's points); the legend below, in ``room``, showing only what has data."""
-    line = fig.multi_line("xs", "ys", line_color="colour", line_width=1.6, line_alpha=0.85,
-                          legend_field=legend, source=sources.lines)
+    line = fig.multi_line(
+        "xs",
+        "ys",
+        line_color="colour",
+        line_width=1.6,
+        line_alpha=0.85,
+        legend_field=legend,
+        source=sources.lines,
+    )
     # its own legend column: Bokeh merges entries of one field name across glyphs, and their sources differ
-    dot = fig.scatter("x", "y", color="colour", size=6, alpha=0.75, legend_field="legend",
-                      source=sources.dots)
-    fig.patches("xs", "ys", fill_color="colour", fill_alpha=0.15, line_alpha=0.0, source=sources.bands,
-                level="underlay")
+    dot = fig.scatter(
+        "x", "y", color="colour", size=6, alpha=0.75, legend_field="legend", source=sources.dots
+    )
+    fig.patches(
+        "xs",
+        "ys",
+        fill_color="colour",
+        fill_alpha=0.15,
+        line_alpha=0.0,
+        source=sources.bands,
+        level="underlay",
+    )
     fig.add_tools(HoverTool(renderers=[line, dot], tooltips=[("scenario", "@scenario"), ("group", "@group")]))
     _legend_below(fig, room)
 
@@ -272,8 +312,9 @@ class ObjectiveByParameter:
         room = legend_room([list(self.colour_of)])  # every panel has a line per group
         self.figures = []
         for name, sources in self.sources.items():
-            fig = _figure(name, name, objective if scattered else f"mean {objective}",
-                          name=f"dse-by-parameter-{name}")
+            fig = _figure(
+                name, name, objective if scattered else f"mean {objective}", name=f"dse-by-parameter-{name}"
+            )
             _draw(fig, sources, "group", room)
             self.figures.append(fig)
         self.layout = grid(self.figures)
@@ -284,16 +325,24 @@ class ObjectiveByParameter:
     def prepare(self, ok: pd.DataFrame) -> tuple[list[Contents], bool]:
         """Each panel's contents, and whether they are binned: all the work of an update, none of it on
         Bokeh's models."""
-        return ([contents(ok, name, self.objective, self.colour_of, "group", self.scattered) for name in self.sources],
-                is_binned(ok, self.scattered))
+        return (
+            [
+                contents(ok, name, self.objective, self.colour_of, "group", self.scattered)
+                for name in self.sources
+            ],
+            is_binned(ok, self.scattered),
+        )
 
     def show(self, prepared: tuple[list[Contents], bool]) -> None:
         drawn, binned_ = prepared
         for (name, sources), fig, panel in zip(self.sources.items(), self.figures, drawn):
             sources.show(panel)
             if self.scattered:  # dots, or above MAX_DOTS rows the binned mean with its band
-                fig.yaxis.axis_label = self.objective if not binned_ else (
-                    f"mean {self.objective}, {round(100 * BAND[0])}-{round(100 * BAND[1])} % band")
+                fig.yaxis.axis_label = (
+                    self.objective
+                    if not binned_
+                    else (f"mean {self.objective}, {round(100 * BAND[0])}-{round(100 * BAND[1])} % band")
+                )
             legend_follows_data(fig)
 
 
@@ -318,8 +367,15 @@ class ErrorByGroup:
     """The paper's Figure 6: one panel per scenario group, the objective at every parameter
     point, a line per scenario of the group; for a search (``scattered``), dots."""
 
-    def __init__(self, parameters: list[str], objective: str, scenarios: dict[str, str], scattered: bool = False):
-        self.parameters, self.objective, self.scenarios, self.scattered = parameters, objective, scenarios, scattered
+    def __init__(
+        self, parameters: list[str], objective: str, scenarios: dict[str, str], scattered: bool = False
+    ):
+        self.parameters, self.objective, self.scenarios, self.scattered = (
+            parameters,
+            objective,
+            scenarios,
+            scattered,
+        )
         self.colour_of = colours(scenarios)  # scenario -> colour; scenarios of a group differ
         self.sources = {g: _Sources.empty() for g in sorted(set(scenarios.values()))}
         room = legend_room([[s for s, of in scenarios.items() if of == g] for g in self.sources])
@@ -336,8 +392,17 @@ class ErrorByGroup:
     def prepare(self, ok: pd.DataFrame) -> list[Contents]:
         """Each panel's contents (see ObjectiveByParameter.prepare)."""
         indexed = ok.assign(point=point_index(ok, self.parameters))
-        return [contents(indexed[indexed["group"] == group], "point", self.objective, self.colour_of, "scenario",
-                         self.scattered) for group in self.sources]
+        return [
+            contents(
+                indexed[indexed["group"] == group],
+                "point",
+                self.objective,
+                self.colour_of,
+                "scenario",
+                self.scattered,
+            )
+            for group in self.sources
+        ]
 
     def show(self, prepared: list[Contents]) -> None:
         for sources, fig, panel in zip(self.sources.values(), self.figures, prepared):
@@ -351,10 +416,18 @@ class TrackChart:
     def __init__(self, title: str = "", width: int = 2 * WIDTH, height: int = int(1.6 * HEIGHT)):
         self.recorded = ColumnDataSource({"x": [], "y": []})
         self.simulated = ColumnDataSource({"x": [], "y": []})
-        self.figure = figure(title=title, width=width, height=height, match_aspect=True,
-                             tools="pan,wheel_zoom,box_zoom,reset,save", toolbar_location="right")
+        self.figure = figure(
+            title=title,
+            width=width,
+            height=height,
+            match_aspect=True,
+            tools="pan,wheel_zoom,box_zoom,reset,save",
+            toolbar_location="right",
+        )
         self.figure.scatter("x", "y", source=self.recorded, size=3, color="#777777", legend_label="recorded")
-        self.figure.line("x", "y", source=self.simulated, line_width=2, color=PALETTE[0], legend_label="simulated")
+        self.figure.line(
+            "x", "y", source=self.simulated, line_width=2, color=PALETTE[0], legend_label="simulated"
+        )
         _legend_below(self.figure)
 
     def update(self, comparison, title: str) -> None:
@@ -387,8 +460,11 @@ class ParetoChart:
 
     def update(self, totals: pd.DataFrame, front: pd.DataFrame) -> None:
         shown = totals if len(totals) <= MAX_DOTS else totals.sample(MAX_DOTS, random_state=0)  # front: whole
-        self.figure.title.text = "Pareto front" if shown is totals else (
-            f"Pareto front; {MAX_DOTS} of the {len(totals)} points, drawn at random")
+        self.figure.title.text = (
+            "Pareto front"
+            if shown is totals
+            else (f"Pareto front; {MAX_DOTS} of the {len(totals)} points, drawn at random")
+        )
         self.points.data = {c: shown[c].to_numpy() for c in (self.x, self.y, *self.parameters)}
         ordered = front.sort_values(self.x)
         self.front.data = {self.x: ordered[self.x].to_numpy(), self.y: ordered[self.y].to_numpy()}
@@ -396,6 +472,7 @@ class ParetoChart:
 
 
 # --- a closed-loop search's history (sweeps/history.py) ------------------------------------------
+
 
 def told_in_order(history: SearchHistory) -> list[Asked]:
     """The points the strategy has been told about, in the order it was told."""
@@ -421,14 +498,24 @@ def best_so_far(history: SearchHistory, objective: str, goal: str, n_scenarios: 
         first_told.setdefault(_key(p.point), p.told)
     rows = [p for p in told if p.state in ("ok", "failed")]
     simulated = np.array([first_told[_key(p.point)] >= p.asked_after for p in rows], dtype=bool)
-    value = np.array([p.values.get(objective, np.nan) if p.state == "ok" else np.nan for p in rows], dtype=float)
+    value = np.array(
+        [p.values.get(objective, np.nan) if p.state == "ok" else np.nan for p in rows], dtype=float
+    )
     sign = 1.0 if goal == "min" else -1.0
-    best = sign * np.minimum.accumulate(np.where(np.isnan(value), np.inf, sign * value)) if rows else np.zeros(0)
-    return pd.DataFrame({"told": np.array([p.told for p in rows], dtype=int),
-                         "number": np.array([p.number for p in rows], dtype=int),
-                         "state": [p.state for p in rows], "simulated": simulated,
-                         "simulations": np.cumsum(simulated) * max(1, n_scenarios),
-                         "value": value, "best": np.where(np.isinf(best), np.nan, best)})
+    best = (
+        sign * np.minimum.accumulate(np.where(np.isnan(value), np.inf, sign * value)) if rows else np.zeros(0)
+    )
+    return pd.DataFrame(
+        {
+            "told": np.array([p.told for p in rows], dtype=int),
+            "number": np.array([p.number for p in rows], dtype=int),
+            "state": [p.state for p in rows],
+            "simulated": simulated,
+            "simulations": np.cumsum(simulated) * max(1, n_scenarios),
+            "value": value,
+            "best": np.where(np.isinf(best), np.nan, best),
+        }
+    )
 
 
 STAGES = (0.25, 0.5, 0.75, 1.0)  # shares of the told points after which the growing front is drawn
@@ -438,16 +525,25 @@ STAGE_COLOURS = ("#c6dbef", "#6baed6", "#2171b5", "#08306b")  # light (early) to
 def search_points(history: SearchHistory, objectives: Sequence[str]) -> pd.DataFrame:
     """The told ok points with every one of ``objectives``, in tell order: ``order`` (0, 1, ...: their
     place among these points), ``told``, ``number``, the objectives and the point's parameters."""
-    rows = [p for p in told_in_order(history)
-            if p.state == "ok" and all(np.isfinite(p.values.get(o, np.nan)) for o in objectives)]
-    frame = pd.DataFrame([{"told": p.told, "number": p.number, **{o: p.values[o] for o in objectives}, **p.point}
-                          for p in rows], columns=None if rows else ["told", "number", *objectives])
+    rows = [
+        p
+        for p in told_in_order(history)
+        if p.state == "ok" and all(np.isfinite(p.values.get(o, np.nan)) for o in objectives)
+    ]
+    frame = pd.DataFrame(
+        [
+            {"told": p.told, "number": p.number, **{o: p.values[o] for o in objectives}, **p.point}
+            for p in rows
+        ],
+        columns=None if rows else ["told", "number", *objectives],
+    )
     frame.insert(0, "order", np.arange(len(frame), dtype=int))
     return frame
 
 
-def pareto_stages(points: pd.DataFrame, goals: Sequence[tuple[str, str]],
-                  stages: Sequence[float] = STAGES) -> list[tuple[int, pd.DataFrame]]:
+def pareto_stages(
+    points: pd.DataFrame, goals: Sequence[tuple[str, str]], stages: Sequence[float] = STAGES
+) -> list[tuple[int, pd.DataFrame]]:
     """The front as it grew: for each share in ``stages``, (n, the non-dominated rows among the first
     n of ``points``), n = ceil(share * len(points)); fronts sorted by the first objective. ``points``
     in tell order, as :func:`search_points` gives them; ``goals`` (objective, "min" | "max")."""
@@ -467,24 +563,47 @@ class BestSoFarChart:
     def __init__(self, objective: str, goal: str, n_scenarios: int):
         self.objective, self.goal, self.n_scenarios = objective, goal, n_scenarios
         self.best = ColumnDataSource({"simulations": [], "best": []}, name="dse-best-so-far-line")
-        self.points = ColumnDataSource({"simulations": [], "value": [], "number": []}, name="dse-best-so-far-points")
-        self.figure = _figure(f"best {objective} so far", "simulations", f"{objective} ({goal})",
-                              name="dse-best-so-far")
+        self.points = ColumnDataSource(
+            {"simulations": [], "value": [], "number": []}, name="dse-best-so-far-points"
+        )
+        self.figure = _figure(
+            f"best {objective} so far", "simulations", f"{objective} ({goal})", name="dse-best-so-far"
+        )
         self.figure.width = int(1.4 * WIDTH)
-        dots = self.figure.scatter("simulations", "value", source=self.points, size=5, color=PALETTE[0], alpha=0.3,
-                                   legend_label="each point")
-        self.figure.step("simulations", "best", source=self.best, mode="after", line_width=2, color=PALETTE[3],
-                         legend_label="best so far")
-        self.figure.add_tools(HoverTool(renderers=[dots], tooltips=[("point #", "@number"),
-                                                                    ("simulations", "@simulations"),
-                                                                    (objective, "@value")]))
+        dots = self.figure.scatter(
+            "simulations",
+            "value",
+            source=self.points,
+            size=5,
+            color=PALETTE[0],
+            alpha=0.3,
+            legend_label="each point",
+        )
+        self.figure.step(
+            "simulations",
+            "best",
+            source=self.best,
+            mode="after",
+            line_width=2,
+            color=PALETTE[3],
+            legend_label="best so far",
+        )
+        self.figure.add_tools(
+            HoverTool(
+                renderers=[dots],
+                tooltips=[("point #", "@number"), ("simulations", "@simulations"), (objective, "@value")],
+            )
+        )
         _legend_below(self.figure)
 
     def update(self, history: SearchHistory) -> pd.DataFrame:
         progress = best_so_far(history, self.objective, self.goal, self.n_scenarios)
         ok = progress[progress["state"] == "ok"]
-        self.points.data = {"simulations": ok["simulations"].to_numpy(), "value": ok["value"].to_numpy(),
-                            "number": ok["number"].to_numpy()}
+        self.points.data = {
+            "simulations": ok["simulations"].to_numpy(),
+            "value": ok["value"].to_numpy(),
+            "number": ok["number"].to_numpy(),
+        }
         shown = progress[progress["best"].notna()]
         self.best.data = {"simulations": shown["simulations"].to_numpy(), "best": shown["best"].to_numpy()}
         legend_follows_data(self.figure)
@@ -499,36 +618,64 @@ class ParetoGrowthChart:
         self.goals = list(goals[:2])
         (x, x_goal), (y, y_goal) = self.goals
         self.x, self.y, self.parameters = x, y, parameters
-        self.points = ColumnDataSource({"x": [], "y": [], "order": [], **{p: [] for p in parameters}},
-                                       name="dse-front-growth-points")
+        self.points = ColumnDataSource(
+            {"x": [], "y": [], "order": [], **{p: [] for p in parameters}}, name="dse-front-growth-points"
+        )
         self.mapper = LinearColorMapper(palette=Viridis256, low=0, high=1)
-        self.figure = _figure("Pareto front as the search went", f"{x} ({x_goal})", f"{y} ({y_goal})",
-                              name="dse-front-growth")
+        self.figure = _figure(
+            "Pareto front as the search went", f"{x} ({x_goal})", f"{y} ({y_goal})", name="dse-front-growth"
+        )
         self.figure.x_range.range_padding = self.figure.y_range.range_padding = PAD
         self.figure.width = int(1.4 * WIDTH)
-        dots = self.figure.scatter("x", "y", source=self.points, size=6, alpha=0.8,
-                                   color={"field": "order", "transform": self.mapper})
-        self.figure.add_tools(HoverTool(renderers=[dots], tooltips=[("told #", "@order"),
-                                                                    *((p, f"@{{{p}}}") for p in parameters)]))
+        dots = self.figure.scatter(
+            "x",
+            "y",
+            source=self.points,
+            size=6,
+            alpha=0.8,
+            color={"field": "order", "transform": self.mapper},
+        )
+        self.figure.add_tools(
+            HoverTool(
+                renderers=[dots], tooltips=[("told #", "@order"), *((p, f"@{{{p}}}") for p in parameters)]
+            )
+        )
         # sorted by x, the front holds each y until the next point: rightwards if x is minimised
         mode = "after" if x_goal == "min" else "before"
         self.fronts = []
         for share, colour in zip(STAGES, STAGE_COLOURS):
             source = ColumnDataSource({"x": [], "y": []}, name=f"dse-front-growth-{share:.0%}".rstrip("%"))
-            label = f"front after {share:.0%}" if share == STAGES[0] else f"{share:.0%} of points" if share == 1 \
+            label = (
+                f"front after {share:.0%}"
+                if share == STAGES[0]
+                else f"{share:.0%} of points"
+                if share == 1
                 else f"{share:.0%}"
-            self.figure.step("x", "y", source=source, mode=mode, line_width=2 if share == 1 else 1.5,
-                             color=colour, legend_label=label)
+            )
+            self.figure.step(
+                "x",
+                "y",
+                source=source,
+                mode=mode,
+                line_width=2 if share == 1 else 1.5,
+                color=colour,
+                legend_label=label,
+            )
             self.fronts.append(source)
         self.figure.add_layout(ColorBar(color_mapper=self.mapper, title="tell order", width=8), "right")
         _legend_below(self.figure)
 
     def update(self, history: SearchHistory) -> list[tuple[int, pd.DataFrame]]:
         points = search_points(history, [self.x, self.y])
-        self.points.data = {"x": points[self.x].to_numpy(float), "y": points[self.y].to_numpy(float),
-                            "order": points["order"].to_numpy(),
-                            **{p: points[p].to_numpy() if p in points else np.full(len(points), np.nan)
-                               for p in self.parameters}}
+        self.points.data = {
+            "x": points[self.x].to_numpy(float),
+            "y": points[self.y].to_numpy(float),
+            "order": points["order"].to_numpy(),
+            **{
+                p: points[p].to_numpy() if p in points else np.full(len(points), np.nan)
+                for p in self.parameters
+            },
+        }
         self.mapper.high = max(1, len(points) - 1)
         stages = pareto_stages(points, self.goals)
         for source, (_, front) in zip(self.fronts, stages):
@@ -537,12 +684,20 @@ class ParetoGrowthChart:
         return stages
 
 
-def html_table(frame: pd.DataFrame, table_id: str | None = None,
-               formats: dict[str, Callable[[Any], str]] | None = None) -> str:
+def html_table(
+    frame: pd.DataFrame, table_id: str | None = None, formats: dict[str, Callable[[Any], str]] | None = None
+) -> str:
     """``frame`` as a plain HTML table (class ``frame``): what the report prints and the dashboard
     refreshes (Bokeh 3.9's DataTable does not redraw rows whose data were replaced)."""
-    return frame.to_html(index=False, border=0, classes="frame", table_id=table_id, formatters=formats,
-                         float_format=lambda v: f"{v:.6g}", na_rep="–")
+    return frame.to_html(
+        index=False,
+        border=0,
+        classes="frame",
+        table_id=table_id,
+        formatters=formats,
+        float_format=lambda v: f"{v:.6g}",
+        na_rep="–",
+    )
 
 
 TABLE_STYLE = """<style>

@@ -34,9 +34,13 @@ app = typer.Typer(
 )
 
 JsonFlag = Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout, nothing else.")]
-DashboardAddress = Annotated[str, typer.Option(
-    help="host:port the dashboard listens on (port 0: any free one). Loopback by default: the page has no "
-         "login; reach it from elsewhere through an SSH tunnel.")]
+DashboardAddress = Annotated[
+    str,
+    typer.Option(
+        help="host:port the dashboard listens on (port 0: any free one). Loopback by default: the page has no "
+        "login; reach it from elsewhere through an SSH tunnel."
+    ),
+]
 
 
 class CommandOptions:
@@ -46,8 +50,11 @@ class CommandOptions:
 
 
 @app.callback()
-def options(debug: Annotated[bool, typer.Option(
-        "--debug", help="Show the traceback behind an error message.")] = False) -> None:
+def options(
+    debug: Annotated[
+        bool, typer.Option("--debug", help="Show the traceback behind an error message.")
+    ] = False,
+) -> None:
     """Design-space exploration for FMI co-simulation."""
     CommandOptions.debug = debug
     warnings.showwarning = _one_line_warning
@@ -109,8 +116,12 @@ def parse_assignment(text: str) -> tuple[str, Any]:
 
 @app.command("build-fmus")
 def build_fmus(
-    sources: Annotated[Path | None, typer.Argument(metavar="SOURCES",
-        help="Folder of FMU source folders. Default: the FMUs bundled with dse-runner.")] = None,
+    sources: Annotated[
+        Path | None,
+        typer.Argument(
+            metavar="SOURCES", help="Folder of FMU source folders. Default: the FMUs bundled with dse-runner."
+        ),
+    ] = None,
     out: Annotated[Path | None, typer.Option(help="Copy the built .fmu files here.")] = None,
     as_json: JsonFlag = False,
 ) -> None:
@@ -122,7 +133,9 @@ def build_fmus(
     try:
         built = {d.name: build_fmu(d) for d in find_source_dirs(sources)}
         if not built:
-            raise DseError(f"no FMU source folders (modelDescription.xml + *.c) under {sources or 'the bundle'}")
+            raise DseError(
+                f"no FMU source folders (modelDescription.xml + *.c) under {sources or 'the bundle'}"
+            )
         if out is not None:
             out.mkdir(parents=True, exist_ok=True)
             built = {name: Path(shutil.copy(path, out / f"{name}.fmu")) for name, path in built.items()}
@@ -137,9 +150,13 @@ def build_fmus(
 
 @app.command()
 def describe(
-    model: Annotated[Path, typer.Argument(
-        metavar="MODEL", help="An .fmu file, an FMU source folder, a multi-model file, or a space.yaml "
-                              "(its model).")],
+    model: Annotated[
+        Path,
+        typer.Argument(
+            metavar="MODEL",
+            help="An .fmu file, an FMU source folder, a multi-model file, or a space.yaml (its model).",
+        ),
+    ],
     every: Annotated[bool, typer.Option("--all", help="Every variable, locals too.")] = False,
     as_json: JsonFlag = False,
 ) -> None:
@@ -160,48 +177,101 @@ def describe(
         emit_json({"instances": [i.model_dump(mode="json") for i in found]})
         return
     for instance in found:
-        times = ", ".join(f"{label} {value:g}" for label, value in (
-            ("start", instance.start_time), ("stop", instance.stop_time), ("step", instance.step))
-            if value is not None)
-        typer.echo(f"{instance.instance}: {instance.model_name}, FMI {instance.fmi_version}, "
-                   f"{'co-simulation' if instance.interface == 'cs' else 'model exchange'}"
-                   f"{f'; default experiment {times}' if times else ''}")
+        times = ", ".join(
+            f"{label} {value:g}"
+            for label, value in (
+                ("start", instance.start_time),
+                ("stop", instance.stop_time),
+                ("step", instance.step),
+            )
+            if value is not None
+        )
+        typer.echo(
+            f"{instance.instance}: {instance.model_name}, FMI {instance.fmi_version}, "
+            f"{'co-simulation' if instance.interface == 'cs' else 'model exchange'}"
+            f"{f'; default experiment {times}' if times else ''}"
+        )
         width = max((len(v.name) for v in instance.variables), default=0)
         for v in instance.variables:
             start = "" if v.start is None else v.start
-            typer.echo(f"  {v.name:<{width}}  {v.causality:<10} {start:>10} {v.unit or '':<8} "
-                       f"{'settable ' if v.settable else '         '}{v.description or ''}".rstrip())
-    typer.echo("set a value: --set NAME=VALUE (one .fmu: also the bare variable name); in a space: "
-               "parameters: {NAME: [values]}")
+            typer.echo(
+                f"  {v.name:<{width}}  {v.causality:<10} {start:>10} {v.unit or '':<8} "
+                f"{'settable ' if v.settable else '         '}{v.description or ''}".rstrip()
+            )
+    typer.echo(
+        "set a value: --set NAME=VALUE (one .fmu: also the bare variable name); in a space: "
+        "parameters: {NAME: [values]}"
+    )
 
 
 @app.command()
 def simulate(
-    model: Annotated[Path, typer.Argument(metavar="MODEL", help="An .fmu file, an FMU source folder, a multi-model "
-                                                                "file (YAML, or INTO-CPS mm.json), or a space.yaml: "
-                                                                "its model, experiment and objectives.")],
-    scenario: Annotated[Path | None, typer.Option(
-        "--scenario", "-s", help="Scenario folder (scenario.yaml, or a kind's format such as field data); for a "
-                                 "space, also one of its scenarios by name.")] = None,
-    set_: Annotated[list[str] | None, typer.Option(
-        "--set", help="instance.variable=value (for one .fmu: variable=value); repeatable.")] = None,
-    values_file: Annotated[Path | None, typer.Option(
-        "--values", help="A YAML file of instance.variable: value lines (e.g. rank --best-values); --set "
-                         "overrides it.")] = None,
-    best: Annotated[bool, typer.Option(
-        "--best", help="A space only: run the best point of its sweep (its output folder), as rank ranks it; "
-                       "--values and --set override it.")] = False,
-    start_time: Annotated[float | None, typer.Option(help="Start time [s]. Default: the scenario's, the FMU's, 0.")] = None,
-    stop_time: Annotated[float | None, typer.Option(help="Stop time [s]. Default: the scenario's or the FMU's.")] = None,
-    step: Annotated[float | None, typer.Option(help="Communication step [s]. Default: see docs/space.md.")] = None,
-    interface: Annotated[str | None, typer.Option(
-        help="cs or me: run every FMU through this interface. Default: co-simulation when offered.")] = None,
-    objective: Annotated[list[str] | None, typer.Option(
-        "--objective", help="A registered objective, module:function, or a spec as space.yaml writes one: "
-                            "'{signal: inst.var, recorded: column, metric: rmse}'; repeatable. Default: the "
-                            "scenario kind's (field data: the GPS objectives), or each recorded column named "
-                            "like an output, by its RMS error.")] = None,
-    csv: Annotated[Path | None, typer.Option(help="Write every output here: time, then one column per output.")] = None,
+    model: Annotated[
+        Path,
+        typer.Argument(
+            metavar="MODEL",
+            help="An .fmu file, an FMU source folder, a multi-model "
+            "file (YAML, or INTO-CPS mm.json), or a space.yaml: "
+            "its model, experiment and objectives.",
+        ),
+    ],
+    scenario: Annotated[
+        Path | None,
+        typer.Option(
+            "--scenario",
+            "-s",
+            help="Scenario folder (scenario.yaml, or a kind's format such as field data); for a "
+            "space, also one of its scenarios by name.",
+        ),
+    ] = None,
+    set_: Annotated[
+        list[str] | None,
+        typer.Option("--set", help="instance.variable=value (for one .fmu: variable=value); repeatable."),
+    ] = None,
+    values_file: Annotated[
+        Path | None,
+        typer.Option(
+            "--values",
+            help="A YAML file of instance.variable: value lines (e.g. rank --best-values); --set "
+            "overrides it.",
+        ),
+    ] = None,
+    best: Annotated[
+        bool,
+        typer.Option(
+            "--best",
+            help="A space only: run the best point of its sweep (its output folder), as rank ranks it; "
+            "--values and --set override it.",
+        ),
+    ] = False,
+    start_time: Annotated[
+        float | None, typer.Option(help="Start time [s]. Default: the scenario's, the FMU's, 0.")
+    ] = None,
+    stop_time: Annotated[
+        float | None, typer.Option(help="Stop time [s]. Default: the scenario's or the FMU's.")
+    ] = None,
+    step: Annotated[
+        float | None, typer.Option(help="Communication step [s]. Default: see docs/space.md.")
+    ] = None,
+    interface: Annotated[
+        str | None,
+        typer.Option(
+            help="cs or me: run every FMU through this interface. Default: co-simulation when offered."
+        ),
+    ] = None,
+    objective: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--objective",
+            help="A registered objective, module:function, or a spec as space.yaml writes one: "
+            "'{signal: inst.var, recorded: column, metric: rmse}'; repeatable. Default: the "
+            "scenario kind's (field data: the GPS objectives), or each recorded column named "
+            "like an output, by its RMS error.",
+        ),
+    ] = None,
+    csv: Annotated[
+        Path | None, typer.Option(help="Write every output here: time, then one column per output.")
+    ] = None,
     out: Annotated[Path | None, typer.Option(help="Folder for trajectory.csv and a plot (plot.png).")] = None,
     as_json: JsonFlag = False,
 ) -> None:
@@ -218,8 +288,10 @@ def simulate(
     try:
         if interface not in (None, "cs", "me"):
             raise DseError(f"--interface {interface!r}: use cs (co-simulation) or me (model exchange)")
-        values = {**(read_values(values_file) if values_file is not None else {}),
-                  **dict(parse_assignment(a) for a in set_ or [])}
+        values = {
+            **(read_values(values_file) if values_file is not None else {}),
+            **dict(parse_assignment(a) for a in set_ or []),
+        }
         asked = objs.from_command_line(objective) if objective else None
         if asked:  # module:function with the module a file here, as a script finds its neighbours
             import_beside(asked.values(), Path.cwd())
@@ -230,8 +302,9 @@ def simulate(
         elif best:
             raise DseError(f"--best: {model} is not a space.yaml; the best point is that of a space's sweep")
         else:
-            result = run_simulation(model, scenario, values, start_time, stop_time, step, objectives=asked,
-                                    interface=interface)
+            result = run_simulation(
+                model, scenario, values, start_time, stop_time, step, objectives=asked, interface=interface
+            )
         bare = model.suffix.lower() == ".fmu"  # one FMU: its variables' own names
         if csv is not None:
             files["csv"] = write_csv(result, csv, bare)
@@ -249,11 +322,15 @@ def simulate(
     if as_json:
         emit_json({**final, **{name: str(path) for name, path in files.items()}})
         return
-    typer.echo(f"scenario {result.scenario.name}  ({result.scenario.group}, {result.times.start:g}..{result.times.stop:g} s, "
-               f"step {result.step:g} s)")
+    typer.echo(
+        f"scenario {result.scenario.name}  ({result.scenario.group}, {result.times.start:g}..{result.times.stop:g} s, "
+        f"step {result.step:g} s)"
+    )
     if best or values:
-        shown = [f"{name} = {value:g}" if isinstance(value, float) else f"{name} = {value!r}"
-                 for name, value in result.values.items()]
+        shown = [
+            f"{name} = {value:g}" if isinstance(value, float) else f"{name} = {value!r}"
+            for name, value in result.values.items()
+        ]
         typer.echo(f"values: {', '.join(shown[:MAX_PRINTED])}{' ...' if len(shown) > MAX_PRINTED else ''}")
     for name, verdict in result.lifecycle.items():
         if verdict.mode == "process":
@@ -286,8 +363,10 @@ def _print_table1(ranking) -> None:
     figures = "".join(f"{heads[c]:>9}" for c in ("min_error", "max_error", "average_error", "computed"))
     typer.echo(f"  {'scenario':<{width}}{figures}{heads['difference']:>12}")
     for row in ranking.table1.itertuples():
-        typer.echo(f"  {row.scenario:<{width}}{row.min_error:9.3f}{row.max_error:9.3f}{row.average_error:9.3f}"
-                   f"{row.computed:9.3f}{row.difference:+12.3f}")
+        typer.echo(
+            f"  {row.scenario:<{width}}{row.min_error:9.3f}{row.max_error:9.3f}{row.average_error:9.3f}"
+            f"{row.computed:9.3f}{row.difference:+12.3f}"
+        )
     typer.echo(f"best: {format_point(ranking.best)}  ({ranking.ranked_label} {ranking.best_total:.3f})")
     if ranking.uncertainty is not None:
         _print_draws(ranking)
@@ -300,42 +379,75 @@ def _print_draws(ranking) -> None:
 
     name, about = ranking.objective, ranking.uncertainty
     quantiles = [f"{name}_{label(q)}" for q in about["quantiles"]]
-    typer.echo(f"{name} over {about['samples']} draws ({about['sampling']}, seed {about['seed']}), best first by "
-               f"{about['ranked_by']}:")
+    typer.echo(
+        f"{name} over {about['samples']} draws ({about['sampling']}, seed {about['seed']}), best first by "
+        f"{about['ranked_by']}:"
+    )
     for row in ranking.totals.head(5).to_dict("records"):
         spread = ", ".join(f"{c.rsplit('_', 1)[1]} {row[c]:.4g}" for c in quantiles)
         robust = f", {about['ranked_by']} {row[ranking.ranked_by]:.4g}" if ranking.ranked_by != name else ""
-        typer.echo(f"  {format_point({p: row[p] for p in ranking.parameters}, 4)}: mean {row[name]:.4g}, "
-                   f"std {row[f'{name}_std']:.4g}, {spread}{robust}")
+        typer.echo(
+            f"  {format_point({p: row[p] for p in ranking.parameters}, 4)}: mean {row[name]:.4g}, "
+            f"std {row[f'{name}_std']:.4g}, {spread}{robust}"
+        )
 
 
 @app.command()
 def submit(
-    spec: Annotated[Path, typer.Argument(metavar="SPEC", help="Design-space spec (space.yaml), or an INTO-CPS DSE "
-                                                              "config (NAME.dse.json) run as it is.")],
-    multimodel: Annotated[Path | None, typer.Option(
-        "--multimodel", help="INTO-CPS only: the mm.json (default: the co-simulation config's).")] = None,
-    coe: Annotated[Path | None, typer.Option(
-        "--coe", help="INTO-CPS only: the coe.json (default: found in the project's Multi-models folder).")] = None,
-    out: Annotated[str | None, typer.Option(help="Results folder or fsspec URL (overrides the spec's 'output').")] = None,
+    spec: Annotated[
+        Path,
+        typer.Argument(
+            metavar="SPEC",
+            help="Design-space spec (space.yaml), or an INTO-CPS DSE config (NAME.dse.json) run as it is.",
+        ),
+    ],
+    multimodel: Annotated[
+        Path | None,
+        typer.Option(
+            "--multimodel", help="INTO-CPS only: the mm.json (default: the co-simulation config's)."
+        ),
+    ] = None,
+    coe: Annotated[
+        Path | None,
+        typer.Option(
+            "--coe", help="INTO-CPS only: the coe.json (default: found in the project's Multi-models folder)."
+        ),
+    ] = None,
+    out: Annotated[
+        str | None, typer.Option(help="Results folder or fsspec URL (overrides the spec's 'output').")
+    ] = None,
     workers: Annotated[int | None, typer.Option(help="Workers to start (overrides the spec).")] = None,
-    scheduler: Annotated[str | None, typer.Option(help="Address of an existing Dask scheduler (tcp:// or tls://).")] = None,
-    cluster: Annotated[str | None, typer.Option(help="Start a cluster of this kind: local, slurm, htcondor, kubernetes "
-                                                     "or a plugin's (overrides the spec).")] = None,
+    scheduler: Annotated[
+        str | None, typer.Option(help="Address of an existing Dask scheduler (tcp:// or tls://).")
+    ] = None,
+    cluster: Annotated[
+        str | None,
+        typer.Option(
+            help="Start a cluster of this kind: local, slurm, htcondor, kubernetes "
+            "or a plugin's (overrides the spec)."
+        ),
+    ] = None,
     dashboard: Annotated[bool, typer.Option(help="Serve the live dashboard while the sweep runs.")] = True,
     dashboard_address: DashboardAddress = "127.0.0.1:0",
-    max_points: Annotated[int | None, typer.Option(min=1, help="A search's budget of points (overrides the "
-                                                              "spec's search.max_points).")] = None,
-    max_seconds: Annotated[float | None, typer.Option(min=0.001, help="Stop asking for points after this long "
-                                                                      "(overrides search.max_seconds).")] = None,
+    max_points: Annotated[
+        int | None,
+        typer.Option(min=1, help="A search's budget of points (overrides the spec's search.max_points)."),
+    ] = None,
+    max_seconds: Annotated[
+        float | None,
+        typer.Option(
+            min=0.001, help="Stop asking for points after this long (overrides search.max_seconds)."
+        ),
+    ] = None,
     as_json: JsonFlag = False,
 ) -> None:
     """Run SPEC on Dask: every (point, scenario) task of a grid, or a search until its budget; resume if
     run again (a search goes on from where it stopped); rank."""
     board = space = None
     try:
-        space = _load(spec, multimodel, coe).with_overrides(out, scheduler, workers, cluster, max_points,
-                                                            max_seconds)
+        space = _load(spec, multimodel, coe).with_overrides(
+            out, scheduler, workers, cluster, max_points, max_seconds
+        )
         # after the spec is read: a bad one is named without waiting on Dask's and pandas' imports
         from ..simulation.scenario import dropouts, dropouts_line
         from ..sweeps.rank import rank, write_ranking
@@ -358,16 +470,26 @@ def submit(
     if report.interrupted:
         _interrupted(space)
     summary = {
-        "sweep": report.sweep, "output": str(report.output), "tasks": report.total,
-        "skipped": report.skipped, "ran": report.ran, "ok": report.ok, "failed": report.failed,
-        "seconds": round(report.seconds, 3), "workers": report.workers, "chunk_size": report.chunk_size,
-        "errors": report.errors, "dropouts": dropouts(space.scenarios),
+        "sweep": report.sweep,
+        "output": str(report.output),
+        "tasks": report.total,
+        "skipped": report.skipped,
+        "ran": report.ran,
+        "ok": report.ok,
+        "failed": report.failed,
+        "seconds": round(report.seconds, 3),
+        "workers": report.workers,
+        "chunk_size": report.chunk_size,
+        "errors": report.errors,
+        "dropouts": dropouts(space.scenarios),
         "search": report.search.model_dump(mode="json") if report.search else None,
     }
     if not as_json:
         done = "" if report.search else f"{report.total} tasks, {report.skipped} already done, "
-        typer.echo(f"{report.sweep}: {done}ran {report.ran} simulations "
-                   f"({report.failed} failed) in {report.seconds:.1f} s on {report.workers} workers")
+        typer.echo(
+            f"{report.sweep}: {done}ran {report.ran} simulations "
+            f"({report.failed} failed) in {report.seconds:.1f} s on {report.workers} workers"
+        )
         for error in report.errors:
             typer.echo(f"  failed: {error.splitlines()[0]}")
         if report.search is not None:
@@ -385,12 +507,16 @@ def submit(
     except KeyboardInterrupt:
         _interrupted(space)
     if as_json:
-        emit_json({**summary, "ranking": str(files["json"]), "best": ranking.best, "best_total": ranking.best_total})
+        emit_json(
+            {**summary, "ranking": str(files["json"]), "best": ranking.best, "best_total": ranking.best_total}
+        )
         return
     _print_table1(ranking)
     typer.echo(f"ranking: {files['json'].rsplit('/', 1)[0]}")
-    typer.echo(f"report: dse-runner report {report.output} -o report.html; "
-               f"dashboard: dse-runner dashboard {report.output}")
+    typer.echo(
+        f"report: dse-runner report {report.output} -o report.html; "
+        f"dashboard: dse-runner dashboard {report.output}"
+    )
 
 
 def _interrupted(space) -> NoReturn:
@@ -405,11 +531,17 @@ def _interrupted(space) -> NoReturn:
     try:
         done, total = tasks_done(space)
     except DseError:  # the store cannot be read now: the line still says where the results are
-        typer.echo(f"interrupted: finished chunks are in {space.output}; run the same command again to "
-                   "finish the rest", err=True)
+        typer.echo(
+            f"interrupted: finished chunks are in {space.output}; run the same command again to "
+            "finish the rest",
+            err=True,
+        )
         raise typer.Exit(130) from None
-    typer.echo(f"interrupted: {done} of {total} tasks have results in {space.output}; run the same command "
-               "again to finish the rest", err=True)
+    typer.echo(
+        f"interrupted: {done} of {total} tasks have results in {space.output}; run the same command "
+        "again to finish the rest",
+        err=True,
+    )
     raise typer.Exit(130)
 
 
@@ -427,12 +559,19 @@ def _load(spec: Path, multimodel: Path | None, coe: Path | None):
 
 @app.command("convert-intocps")
 def convert_intocps(
-    dse: Annotated[Path, typer.Argument(metavar="DSE", help="An INTO-CPS DSE config (NAME.dse.json) in its project.")],
-    output: Annotated[Path, typer.Option("-o", "--output", help="The space.yaml to write.")] = Path("space.yaml"),
-    multimodel: Annotated[Path | None, typer.Option(
-        "--multimodel", help="The mm.json (default: the co-simulation config's).")] = None,
-    coe: Annotated[Path | None, typer.Option(
-        "--coe", help="The coe.json (default: found in the project's Multi-models folder).")] = None,
+    dse: Annotated[
+        Path, typer.Argument(metavar="DSE", help="An INTO-CPS DSE config (NAME.dse.json) in its project.")
+    ],
+    output: Annotated[Path, typer.Option("-o", "--output", help="The space.yaml to write.")] = Path(
+        "space.yaml"
+    ),
+    multimodel: Annotated[
+        Path | None, typer.Option("--multimodel", help="The mm.json (default: the co-simulation config's).")
+    ] = None,
+    coe: Annotated[
+        Path | None,
+        typer.Option("--coe", help="The coe.json (default: found in the project's Multi-models folder)."),
+    ] = None,
     as_json: JsonFlag = False,
 ) -> None:
     """Write the space.yaml equivalent to an INTO-CPS DSE config, paths relative to where it is written."""
@@ -451,9 +590,11 @@ def convert_intocps(
 def _print_search(search) -> None:
     from ..sweeps.rank import format_point
 
-    typer.echo(f"  search {search.strategy}: {search.points} of {search.max_points} points "
-               f"({search.reused} told from the store, {search.infeasible} infeasible, {search.failed} failed); "
-               f"stopped: {search.stopped or '-'}")
+    typer.echo(
+        f"  search {search.strategy}: {search.points} of {search.max_points} points "
+        f"({search.reused} told from the store, {search.infeasible} infeasible, {search.failed} failed); "
+        f"stopped: {search.stopped or '-'}"
+    )
     if search.best is not None:
         typer.echo(f"  best {search.objective} {search.best:.6g} at {format_point(search.best_point)}")
     if search.utilisation is not None:
@@ -513,7 +654,9 @@ def dashboard_command(
 @app.command("report")
 def report_command(
     results: Annotated[str, typer.Argument(metavar="RESULTS", help="A sweep's store: output folder or URL.")],
-    output: Annotated[Path, typer.Option("-o", "--output", help="The HTML file to write.")] = Path("report.html"),
+    output: Annotated[Path, typer.Option("-o", "--output", help="The HTML file to write.")] = Path(
+        "report.html"
+    ),
     sweep: Annotated[str | None, typer.Option(help="Which sweep, if the folder holds several.")] = None,
     as_json: JsonFlag = False,
 ) -> None:
@@ -533,12 +676,15 @@ def report_command(
     except DseError as e:
         fail(e)
     if as_json:
-        emit_json({"report": str(path), "bytes": path.stat().st_size,
-                   "intocps": str(folder) if legacy else None})
+        emit_json(
+            {"report": str(path), "bytes": path.stat().st_size, "intocps": str(folder) if legacy else None}
+        )
         return
     typer.echo(f"report: {path} ({path.stat().st_size / 1e6:.1f} MB)")
     if legacy:
-        typer.echo(f"INTO-CPS results: {folder} (dseResults.csv, results.html, ranking.json, graphs/pareto.png)")
+        typer.echo(
+            f"INTO-CPS results: {folder} (dseResults.csv, results.html, ranking.json, graphs/pareto.png)"
+        )
 
 
 class SweepProgressBar:
@@ -556,10 +702,18 @@ class SweepProgressBar:
             TimeRemainingColumn,
         )
 
-        self.bar = Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-                            TextColumn("{task.fields[rate]} sim/s"), TextColumn("{task.fields[failed]} failed"),
-                            TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
-                            console=Console(stderr=True), transient=False)
+        self.bar = Progress(
+            TextColumn("[bold]{task.description}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("{task.fields[rate]} sim/s"),
+            TextColumn("{task.fields[failed]} failed"),
+            TimeElapsedColumn(),
+            TextColumn("ETA"),
+            TimeRemainingColumn(),
+            console=Console(stderr=True),
+            transient=False,
+        )
         self.task = None
 
     def __enter__(self):
@@ -573,26 +727,44 @@ class SweepProgressBar:
         if self.task is None:
             if report.dashboard:
                 self.bar.console.print(f"Dask dashboard: {report.dashboard}")
-            self.task = self.bar.add_task(report.sweep, total=report.total - report.skipped,
-                                          rate="-", failed=0)
+            self.task = self.bar.add_task(
+                report.sweep, total=report.total - report.skipped, rate="-", failed=0
+            )
         rate = report.ran / report.seconds if report.seconds > 0 else 0.0
         search = report.search
         if search is not None:  # a search counts points, and shows the best so far
             best = f"best {search.best:.6g}" if search.best is not None else "no result yet"
-            self.bar.update(self.task, total=search.max_points, completed=search.points, rate=f"{rate:.1f}",
-                            failed=search.failed, description=report.waiting or f"{report.sweep} ({best})")
+            self.bar.update(
+                self.task,
+                total=search.max_points,
+                completed=search.points,
+                rate=f"{rate:.1f}",
+                failed=search.failed,
+                description=report.waiting or f"{report.sweep} ({best})",
+            )
             return
-        self.bar.update(self.task, completed=report.ran, rate=f"{rate:.1f}", failed=report.failed,
-                        description=report.waiting or report.sweep)
+        self.bar.update(
+            self.task,
+            completed=report.ran,
+            rate=f"{rate:.1f}",
+            failed=report.failed,
+            description=report.waiting or report.sweep,
+        )
 
 
 @app.command("rank")
 def rank_command(
     results: Annotated[str, typer.Argument(metavar="RESULTS", help="A sweep's store: output folder or URL.")],
     sweep: Annotated[str | None, typer.Option(help="Which sweep, if the folder holds several.")] = None,
-    objective: Annotated[str | None, typer.Option(help="Rank by this objective instead of the spec's.")] = None,
-    best_values: Annotated[Path | None, typer.Option(
-        help="Also write the best point here as a values file (instance.variable: value), for simulate --values.")] = None,
+    objective: Annotated[
+        str | None, typer.Option(help="Rank by this objective instead of the spec's.")
+    ] = None,
+    best_values: Annotated[
+        Path | None,
+        typer.Option(
+            help="Also write the best point here as a values file (instance.variable: value), for simulate --values."
+        ),
+    ] = None,
     as_json: JsonFlag = False,
 ) -> None:
     """Aggregate a sweep's results: totals, Table 1, Pareto front, group and weighted rankings."""
@@ -610,9 +782,14 @@ def rank_command(
         ranking = rank(results, sweep, settings)
         files = write_ranking(ranking, results, ranking.sweep)
         if best_values is not None:
-            files["best_values"] = write_values(best_values, ranking.best, (
-                f"The best point of sweep {ranking.sweep} by {ranking.objective} ({ranking.goal}imised "
-                f"{ranking.best_total:.6g}), written by dse-runner rank."))
+            files["best_values"] = write_values(
+                best_values,
+                ranking.best,
+                (
+                    f"The best point of sweep {ranking.sweep} by {ranking.objective} ({ranking.goal}imised "
+                    f"{ranking.best_total:.6g}), written by dse-runner rank."
+                ),
+            )
     except DseError as e:
         fail(e)
     except OSError as e:
@@ -623,14 +800,18 @@ def rank_command(
     _print_table1(ranking)
     if len(ranking.pareto):
         typer.echo(f"Pareto front: {len(ranking.pareto)} points (pareto.csv)")
-    if ranking.uncertainty and len(ranking.groups):  # the groups rank by the mean, whatever the ranking's figure
+    if ranking.uncertainty and len(
+        ranking.groups
+    ):  # the groups rank by the mean, whatever the ranking's figure
         typer.echo(f"best per group, by the mean over the draws of total {ranking.objective}:")
     for row in ranking.groups.to_dict("records"):
         point = ", ".join(f"{p}={row[p]:g}" for p in ranking.parameters)
         typer.echo(f"  best in {row['group']:<12} {point}  ({row[f'{ranking.objective}_total']:.3f})")
     if ranking.incomplete_points or ranking.failed_rows:
-        typer.echo(f"not ranked: {ranking.incomplete_points} points without an ok row for every scenario "
-                   f"({ranking.failed_rows} failed rows)")
+        typer.echo(
+            f"not ranked: {ranking.incomplete_points} points without an ok row for every scenario "
+            f"({ranking.failed_rows} failed rows)"
+        )
     typer.echo(f"written: {files['json'].rsplit('/', 1)[0]}")
     if best_values is not None:
         typer.echo(f"best values: {files['best_values']}")
@@ -640,13 +821,21 @@ def rank_command(
 def sensitivity_command(
     results: Annotated[str, typer.Argument(metavar="RESULTS", help="A sweep's store: output folder or URL.")],
     sweep: Annotated[str | None, typer.Option(help="Which sweep, if the folder holds several.")] = None,
-    objective: Annotated[list[str] | None, typer.Option(
-        "--objective", help="Only this objective (repeatable). Default: every scalar objective.")] = None,
+    objective: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--objective", help="Only this objective (repeatable). Default: every scalar objective."
+        ),
+    ] = None,
     confidence: Annotated[float, typer.Option(help="Level of the bootstrap confidence intervals.")] = 0.95,
     resamples: Annotated[int, typer.Option(help="Bootstrap resamples.")] = 100,
-    figures: Annotated[Path | None, typer.Option(
-        help="Write a figure per objective here (sensitivity-NAME.png): index bars with their intervals, "
-             "or Morris' mu*-sigma plane, overall and per group.")] = None,
+    figures: Annotated[
+        Path | None,
+        typer.Option(
+            help="Write a figure per objective here (sensitivity-NAME.png): index bars with their intervals, "
+            "or Morris' mu*-sigma plane, overall and per group."
+        ),
+    ] = None,
     as_json: JsonFlag = False,
 ) -> None:
     """Which parameters move each objective: Sobol' or eFAST S1/ST, or Morris mu*/sigma, with bootstrap intervals,
@@ -655,7 +844,9 @@ def sensitivity_command(
     from ..analysis.sensitivity import sensitivity
 
     try:
-        with warnings.catch_warnings(record=True) as caught:  # SALib's own, e.g. on few samples: ours say more
+        with warnings.catch_warnings(
+            record=True
+        ) as caught:  # SALib's own, e.g. on few samples: ours say more
             warnings.simplefilter("always")
             found = sensitivity(results, sweep, list(objective) if objective else None, confidence, resamples)
         written = {}
@@ -682,18 +873,24 @@ def _print_sensitivity(found) -> None:
     """Per objective: each parameter's indices with their intervals, then the groups, least responsive first."""
     sobol = found.indices  # S1 and ST (Sobol' or eFAST), else Morris' mu*, sigma
     design = found.design
-    kind = {"sobol": "Sobol' indices (Saltelli)", "fast": f"eFAST indices ({design['harmonics']} harmonics)"}.get(
-        found.method, f"Morris elementary effects ({design['levels']} levels)")
+    kind = {
+        "sobol": "Sobol' indices (Saltelli)",
+        "fast": f"eFAST indices ({design['harmonics']} harmonics)",
+    }.get(found.method, f"Morris elementary effects ({design['levels']} levels)")
     blocks = "curves" if found.method == "fast" else "blocks"
     level = f"{100 * found.confidence:g}%"
-    typer.echo(f"{found.sweep}: {kind}, {design['blocks']} {blocks} of {design['block']} rows; +/- {level} "
-               "bootstrap intervals")
+    typer.echo(
+        f"{found.sweep}: {kind}, {design['blocks']} {blocks} of {design['block']} rows; +/- {level} "
+        "bootstrap intervals"
+    )
     width = max(len(p) for p in found.parameters) + 2
     heads = ("S1", "ST") if sobol else ("mu*", "sigma")
     for name, objective in found.objectives.items():
         overall = objective.overall
         spread = overall.spread
-        stats = f"mean {spread['mean']:.4g}, std {spread['std']:.4g}" if spread["mean"] is not None else "no rows"
+        stats = (
+            f"mean {spread['mean']:.4g}, std {spread['std']:.4g}" if spread["mean"] is not None else "no rows"
+        )
         over = f"{overall.scenarios} scenarios" if overall.scenarios > 1 else "its one scenario"
         typer.echo(f"\n{name} ({found.reduced} over {over}; {stats})")
         typer.echo(f"  {'parameter':<{width}}{heads[0]:>18}{heads[1]:>18}")
@@ -709,12 +906,16 @@ def _print_sensitivity(found) -> None:
             typer.echo(f"  negligible ({what}: fix it anywhere in its range): {', '.join(negligible)}")
         groups = found.least_responsive(name)
         if groups:
-            typer.echo("  groups, least responsive first (coefficient of variation over the sample; "
-                       f"{heads[1] if sobol else heads[0]} per parameter):")
+            typer.echo(
+                "  groups, least responsive first (coefficient of variation over the sample; "
+                f"{heads[1] if sobol else heads[0]} per parameter):"
+            )
             key = "ST" if sobol else "mu_star"
             for group, cv in groups:
-                figures = ", ".join(f"{p.rsplit('.', 1)[-1]} {_number(v[key])}"
-                                    for p, v in objective.groups[group].parameters.items())
+                figures = ", ".join(
+                    f"{p.rsplit('.', 1)[-1]} {_number(v[key])}"
+                    for p, v in objective.groups[group].parameters.items()
+                )
                 flat = "  (barely varies)" if objective.groups[group].note else ""
                 typer.echo(f"    {group:<14} cv {cv:.3g}  {figures}{flat}")
 
@@ -734,27 +935,59 @@ def _pm(values: dict, head: str, sobol: bool) -> str:
 
 @app.command()
 def diagnose(
-    scenarios: Annotated[Path | None, typer.Option(
-        "--scenarios", help="Folder of recorded runs, in place of the space's scenarios. Without --space, a "
-                            "library's own calibration space reads them (the Robotti's, for field data).")] = None,
-    multimodel: Annotated[Path | None, typer.Option(help="Multi-model to diagnose (default: the space's).")] = None,
-    space: Annotated[Path | None, typer.Option(
-        help="The space to diagnose: its scenarios give inputs and recordings, its objectives what is compared, "
-             "its parameters the calibration. The first installed hypothesis library that serves it runs "
-             "(the Robotti's for field data), else the built-in signal effects.")] = None,
-    out: Annotated[Path, typer.Option(help="Folder for results, the new model and the report.")] = Path("out/diagnosis"),
-    folds: Annotated[int, typer.Option(help="Cross-validation folds across runs; with one record, blocks of its "
-                                            "time held out (the first, where the unknown initial state shows, is "
-                                            "always fitted).")] = 3,
-    hypothesis: Annotated[list[str] | None, typer.Option(
-        "--hypothesis", help="Try only this hypothesis of the library that serves the space, e.g. wheel_slip or "
-                             "'input_delay(msd.F)' (repeatable). Default: every one.")] = None,
-    noise_factor: Annotated[float, typer.Option(
-        help="Held-out error above this many noise floors (estimated from the recordings alone) is a residual "
-             "the library leaves unexplained: verdict partial or unexplained.")] = 2.0,
-    discovery: Annotated[bool, typer.Option(
-        "--discovery/--no-discovery", help="Above that, seek a sparse data-driven correction (PySINDy) and prove "
-                                           "it by the same fits and held-out runs as the library's effects.")] = True,
+    scenarios: Annotated[
+        Path | None,
+        typer.Option(
+            "--scenarios",
+            help="Folder of recorded runs, in place of the space's scenarios. Without --space, a "
+            "library's own calibration space reads them (the Robotti's, for field data).",
+        ),
+    ] = None,
+    multimodel: Annotated[
+        Path | None, typer.Option(help="Multi-model to diagnose (default: the space's).")
+    ] = None,
+    space: Annotated[
+        Path | None,
+        typer.Option(
+            help="The space to diagnose: its scenarios give inputs and recordings, its objectives what is compared, "
+            "its parameters the calibration. The first installed hypothesis library that serves it runs "
+            "(the Robotti's for field data), else the built-in signal effects."
+        ),
+    ] = None,
+    out: Annotated[Path, typer.Option(help="Folder for results, the new model and the report.")] = Path(
+        "out/diagnosis"
+    ),
+    folds: Annotated[
+        int,
+        typer.Option(
+            help="Cross-validation folds across runs; with one record, blocks of its "
+            "time held out (the first, where the unknown initial state shows, is "
+            "always fitted)."
+        ),
+    ] = 3,
+    hypothesis: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--hypothesis",
+            help="Try only this hypothesis of the library that serves the space, e.g. wheel_slip or "
+            "'input_delay(msd.F)' (repeatable). Default: every one.",
+        ),
+    ] = None,
+    noise_factor: Annotated[
+        float,
+        typer.Option(
+            help="Held-out error above this many noise floors (estimated from the recordings alone) is a residual "
+            "the library leaves unexplained: verdict partial or unexplained."
+        ),
+    ] = 2.0,
+    discovery: Annotated[
+        bool,
+        typer.Option(
+            "--discovery/--no-discovery",
+            help="Above that, seek a sparse data-driven correction (PySINDy) and prove "
+            "it by the same fits and held-out runs as the library's effects.",
+        ),
+    ] = True,
     workers: Annotated[int | None, typer.Option(help="Local cluster workers (overrides the space).")] = None,
     scheduler: Annotated[str | None, typer.Option(help="Address of an existing Dask scheduler.")] = None,
     as_json: JsonFlag = False,
@@ -764,10 +997,16 @@ def diagnose(
     from ..analysis.diagnose import diagnose as run_diagnosis
 
     try:
-        request = Request(out=out, folds=folds, noise_factor=noise_factor, hypotheses=tuple(hypothesis or ()),
-                          discovery=discovery)
-        result = run_diagnosis(space, scenarios, request, lambda m: typer.echo(m, err=True), multimodel, workers,
-                               scheduler)
+        request = Request(
+            out=out,
+            folds=folds,
+            noise_factor=noise_factor,
+            hypotheses=tuple(hypothesis or ()),
+            discovery=discovery,
+        )
+        result = run_diagnosis(
+            space, scenarios, request, lambda m: typer.echo(m, err=True), multimodel, workers, scheduler
+        )
     except DseError as e:
         fail(e)
     except KeyboardInterrupt:
@@ -800,7 +1039,9 @@ def main() -> None:
     except Exception as e:  # anything the commands did not turn into a DseError
         if CommandOptions.debug:
             raise
-        typer.echo(f"error: unexpected {type(e).__name__}: {e} (run with --debug for the traceback)", err=True)
+        typer.echo(
+            f"error: unexpected {type(e).__name__}: {e} (run with --debug for the traceback)", err=True
+        )
         sys.exit(1)
 
 

@@ -152,49 +152,77 @@ def tracks_caption(compared: list[Comparison], objective: str, best: str) -> tup
     recorded = sum(c.recorded is not None and len(c.recorded[0]) > 0 for c in compared)
     drawn = "; ".join(sorted({f"{c.y_label} against {c.x_label}" for c in compared})) or "nothing"
     heading = "The best point " + ("against each scenario's recording" if recorded else "on each scenario")
-    over = ("" if not recorded else ", over its recording (grey dots)" if recorded == len(compared) else
-            f", over its recording (grey dots) on the {recorded} of {len(compared)} scenarios that have one")
-    return heading, (f"The best point ({best}) simulated on each scenario: {drawn}{over}; each title gives "
-                     f"the scenario's {objective}.")
+    over = (
+        ""
+        if not recorded
+        else ", over its recording (grey dots)"
+        if recorded == len(compared)
+        else f", over its recording (grey dots) on the {recorded} of {len(compared)} scenarios that have one"
+    )
+    return heading, (
+        f"The best point ({best}) simulated on each scenario: {drawn}{over}; each title gives "
+        f"the scenario's {objective}."
+    )
 
 
-def figure_notes(objective: str, parameters: list[str], scattered: bool,
-                 binned: bool = False) -> dict[str, str]:
+def figure_notes(
+    objective: str, parameters: list[str], scattered: bool, binned: bool = False
+) -> dict[str, str]:
     """What each figure and table shows, in the study's own objective and parameter names (``binned``: a
     sampled design too large for dots, charts.is_binned)."""
     named = ", ".join(parameters)
     band = f"{round(100 * charts.BAND[0])} % and {round(100 * charts.BAND[1])} %"
     if binned:
-        by_parameter = (f"Each point the sweep simulated lies off any grid, and there are more than "
-                        f"{charts.MAX_DOTS}: per scenario, the mean {objective} in {charts.BINS} equal bins "
-                        f"of each parameter ({named}), drawn as a line over the band between its rows' "
-                        f"{band} quantiles, coloured by group.")
+        by_parameter = (
+            f"Each point the sweep simulated lies off any grid, and there are more than "
+            f"{charts.MAX_DOTS}: per scenario, the mean {objective} in {charts.BINS} equal bins "
+            f"of each parameter ({named}), drawn as a line over the band between its rows' "
+            f"{band} quantiles, coloured by group."
+        )
     elif scattered:
-        by_parameter = (f"Every point the sweep simulated, at its value of each parameter ({named}): a "
-                        "dot per scenario, coloured by its group. Sampled or searched points lie off any "
-                        "grid, so there is no mean over the other parameters to join with lines.")
+        by_parameter = (
+            f"Every point the sweep simulated, at its value of each parameter ({named}): a "
+            "dot per scenario, coloured by its group. Sampled or searched points lie off any "
+            "grid, so there is no mean over the other parameters to join with lines."
+        )
     elif len(parameters) > 1:
-        by_parameter = (f"One panel per parameter: the mean {objective} at each of its values, over every "
-                        f"value of the others (for {parameters[0]}: over {', '.join(parameters[1:])}); a "
-                        "line per scenario, coloured by its group.")
+        by_parameter = (
+            f"One panel per parameter: the mean {objective} at each of its values, over every "
+            f"value of the others (for {parameters[0]}: over {', '.join(parameters[1:])}); a "
+            "line per scenario, coloured by its group."
+        )
     else:
         by_parameter = f"{objective} at each value of {named}; a line per scenario, coloured by its group."
-    drawn = ("per scenario, the mean in bins of consecutive points inside its quantile band" if binned else
-             "a dot per point and scenario" if scattered else "a line per scenario of the group")
-    by_group = (f"One panel per scenario group: {objective} at every parameter point, {drawn}. The points "
-                f"are numbered in the order of their values of {named}.")
-    table1 = (f"Per scenario: the min, max and average {objective} over the ranked points; \"best\" is the "
-              f"best point's {objective} and \"difference\" best minus average.")
+    drawn = (
+        "per scenario, the mean in bins of consecutive points inside its quantile band"
+        if binned
+        else "a dot per point and scenario"
+        if scattered
+        else "a line per scenario of the group"
+    )
+    by_group = (
+        f"One panel per scenario group: {objective} at every parameter point, {drawn}. The points "
+        f"are numbered in the order of their values of {named}."
+    )
+    table1 = (
+        f'Per scenario: the min, max and average {objective} over the ranked points; "best" is the '
+        f'best point\'s {objective} and "difference" best minus average.'
+    )
     return {"table1": table1, "by_parameter": by_parameter, "by_group": by_group}
 
 
 def pareto_note(goals: list[tuple[str, str]], reduced: str) -> str:
     """The Pareto chart's caption: its axes, and which objectives the front is over."""
     named = [f"{reduced} {name} ({'lower' if goal == 'min' else 'higher'} is better)" for name, goal in goals]
-    over = "both" if len(goals) == 2 else \
-        f"all {len(goals)} Pareto objectives ({', '.join(name for name, _ in goals)})"
-    return (f"Every ranked point on {named[0]} against {named[1]}; the front, the points no other point "
-            f"beats on {over}, in red, listed in the table below.")
+    over = (
+        "both"
+        if len(goals) == 2
+        else f"all {len(goals)} Pareto objectives ({', '.join(name for name, _ in goals)})"
+    )
+    return (
+        f"Every ranked point on {named[0]} against {named[1]}; the front, the points no other point "
+        f"beats on {over}, in red, listed in the table below."
+    )
 
 
 SEARCH_SETTINGS = ("strategy", "max_points", "seed")  # what chose a search's or a design's points
@@ -223,8 +251,11 @@ def shown_spec(spec: SpaceSpec) -> dict:
 def spec_note(spec: SpaceSpec) -> str:
     """The spec's caption: what is left out of it, and what stays."""
     said = "As the sweep stored it, without the keys left at their defaults (docs/space.md lists them)"
-    return said + ("; the search's strategy, max_points and seed stay, as they chose its points."
-                   if budgeted(spec) else "; a grid has no budget or seed to show.")
+    return said + (
+        "; the search's strategy, max_points and seed stay, as they chose its points."
+        if budgeted(spec)
+        else "; a grid has no budget or seed to show."
+    )
 
 
 def _ranked_columns(ranking: Ranking) -> pd.DataFrame:
@@ -240,7 +271,10 @@ def submission_line(status: SweepReport) -> tuple[str, str]:
     """The summary's line on the submission that ran the sweep's tasks: a later one that found them all done
     leaves the status file as it was (sweep.submit), so the figures are the run that made the rows."""
     name = "last submission that ran tasks" if status.ran else "last submission"
-    return name, f"{status.state}: ran {status.ran} tasks in {status.seconds:.1f} s on {status.workers} workers"
+    return (
+        name,
+        f"{status.state}: ran {status.ran} tasks in {status.seconds:.1f} s on {status.workers} workers",
+    )
 
 
 def build_report(output: store.Root, sweep: str | None = None) -> str:
@@ -266,16 +300,19 @@ def _page(output: store.Root, sweep: str, ranking: Ranking, studied: Callable[[]
     scattered = feed.sampled(snap)  # a search's or a design's points lie off any grid: dots, not lines
 
     figures: dict[str, object] = {}
-    by_parameter = charts.ObjectiveByParameter(parameters, ranking.objective, sorted(set(scenarios.values())),
-                                               scattered)
+    by_parameter = charts.ObjectiveByParameter(
+        parameters, ranking.objective, sorted(set(scenarios.values())), scattered
+    )
     by_parameter.update(ok)
     figures["by_parameter"] = charts.fill_width(by_parameter.layout)
     by_group = charts.ErrorByGroup(parameters, ranking.objective, scenarios, scattered)
     by_group.update(ok)
     figures["by_group"] = charts.fill_width(by_group.layout)
     goals = spec.ranking.pareto_goals()
-    notes = {**figure_notes(ranking.objective, parameters, scattered, charts.is_binned(ok, scattered)),
-             "spec": spec_note(spec)}
+    notes = {
+        **figure_notes(ranking.objective, parameters, scattered, charts.is_binned(ok, scattered)),
+        "spec": spec_note(spec),
+    }
     if len(goals) >= 2 and not ranking.pareto.empty:
         pareto = charts.ParetoChart(goals[0][0], goals[1][0], parameters, ranking.reduced)
         pareto.update(ranking.totals, ranking.pareto)
@@ -284,8 +321,14 @@ def _page(output: store.Root, sweep: str, ranking: Ranking, studied: Callable[[]
     history = load_history(output, sweep)
     search: list[tuple[str, str]] = []
     if history is not None:
-        search = search_summary(status.search if status else None, history, ranking.objective, ranking.goal,
-                                spec.search.max_points, spec.search.strategy)
+        search = search_summary(
+            status.search if status else None,
+            history,
+            ranking.objective,
+            ranking.goal,
+            spec.search.max_points,
+            spec.search.strategy,
+        )
         best = charts.BestSoFarChart(ranking.objective, ranking.goal, len(scenarios))
         best.update(history)
         progress = [best.figure]
@@ -300,27 +343,45 @@ def _page(output: store.Root, sweep: str, ranking: Ranking, studied: Callable[[]
     script, divs = components(figures)
 
     studies = [section_html(section) for section in studied()]
-    summary = [("best point", format_point(ranking.best)), (ranking.ranked_label, f"{ranking.best_total:.4f}"),
-               ("points ranked", str(len(ranking.totals))), ("incomplete points", str(ranking.incomplete_points)),
-               ("failed tasks", str(ranking.failed_rows)), ("scenarios", str(len(scenarios)))]
+    summary = [
+        ("best point", format_point(ranking.best)),
+        (ranking.ranked_label, f"{ranking.best_total:.4f}"),
+        ("points ranked", str(len(ranking.totals))),
+        ("incomplete points", str(ranking.incomplete_points)),
+        ("failed tasks", str(ranking.failed_rows)),
+        ("scenarios", str(len(scenarios))),
+    ]
     if status is not None:
         summary.append(submission_line(status))
     return PAGE.render(
-        sweep=sweep, output=html.escape(str(output)), generated=time.strftime("%Y-%m-%d %H:%M %Z"),
-        summary=[(name, html.escape(value)) for name, value in summary], objective=ranking.objective, top=TOP,
-        points=len(ranking.totals), table1=charts.html_table(ranking.table1.rename(columns=TABLE1_HEADINGS)),
+        sweep=sweep,
+        output=html.escape(str(output)),
+        generated=time.strftime("%Y-%m-%d %H:%M %Z"),
+        summary=[(name, html.escape(value)) for name, value in summary],
+        objective=ranking.objective,
+        top=TOP,
+        points=len(ranking.totals),
+        table1=charts.html_table(ranking.table1.rename(columns=TABLE1_HEADINGS)),
         table1_scope=html.escape(table1_scope(ranking)),
         totals=charts.html_table(_ranked_columns(ranking).head(TOP)),
         pareto=charts.html_table(ranking.pareto) if not ranking.pareto.empty else "",
         groups=charts.html_table(ranking.groups) if not ranking.groups.empty else "",
         weighted=charts.html_table(ranking.weighted.head(10)) if not ranking.weighted.empty else "",
-        plots=divs, notes={name: html.escape(note) for name, note in notes.items()}, studies=studies,
-        tracks_heading=html.escape(tracks.heading), tracks_note=html.escape(tracks.note),
-        front_growth=len(goals) >= 2, over=spec.ranking.over_scenarios,
+        plots=divs,
+        notes={name: html.escape(note) for name, note in notes.items()},
+        studies=studies,
+        tracks_heading=html.escape(tracks.heading),
+        tracks_note=html.escape(tracks.note),
+        front_growth=len(goals) >= 2,
+        over=spec.ranking.over_scenarios,
         ranked_label=html.escape(ranking.ranked_label),
         search=[(name, html.escape(value)) for name, value in search],
-        spec=html.escape(yaml.safe_dump(shown_spec(spec), sort_keys=False)), table_style=charts.TABLE_STYLE,
-        bokeh_resources=Resources(mode="inline", components=["bokeh"]).render(), bokeh_script=script)
+        spec=html.escape(yaml.safe_dump(shown_spec(spec), sort_keys=False)),
+        table_style=charts.TABLE_STYLE,
+        bokeh_resources=Resources(mode="inline", components=["bokeh"]).render(),
+        bokeh_script=script,
+    )
+
 
 def write_report(output: store.Root, path: Path, sweep: str | None = None) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)

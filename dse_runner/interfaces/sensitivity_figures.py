@@ -42,14 +42,15 @@ def figure(found: Sensitivity, name: str, largest: int | None = None):
     """One objective's panels: over all scenarios, then each group, least responsive first."""
     objective = found.objectives[name]
     groups = [g for g, _ in found.least_responsive(name)]
-    groups = groups if largest is None else groups[:max(0, largest - 1)]
+    groups = groups if largest is None else groups[: max(0, largest - 1)]
     scopes = {"all scenarios": objective.overall, **{f"group {g}": objective.groups[g] for g in groups}}
     draw = _sobol if found.indices else _morris
     columns = min(PER_ROW, len(scopes))
     rows = math.ceil(len(scopes) / columns)
-    fig, axes = plt.subplots(rows, columns, figsize=(PAGE_INCHES, 0.6 + 3.0 * rows), dpi=DPI, squeeze=False,
-                             sharey=found.indices)
-    for ax in axes.flat[len(scopes):]:
+    fig, axes = plt.subplots(
+        rows, columns, figsize=(PAGE_INCHES, 0.6 + 3.0 * rows), dpi=DPI, squeeze=False, sharey=found.indices
+    )
+    for ax in axes.flat[len(scopes) :]:
         ax.set_visible(False)  # the last row's empty places
     for ax, (label, scope) in zip(axes.flat, scopes.items()):
         draw(ax, scope, found.parameters)
@@ -95,7 +96,9 @@ def _morris(ax, scope: Scope, parameters: list[str]) -> None:
         if v["mu_star"] is None:
             continue
         ax.errorbar(v["mu_star"], v["sigma"], xerr=v["mu_star_conf"], fmt="o", capsize=3)
-        ax.annotate(_short(p), (v["mu_star"], v["sigma"]), fontsize=8, xytext=(4, 4), textcoords="offset points")
+        ax.annotate(
+            _short(p), (v["mu_star"], v["sigma"]), fontsize=8, xytext=(4, 4), textcoords="offset points"
+        )
     ax.set_xlabel("mu*", fontsize=8)
     ax.set_ylabel("sigma", fontsize=8)
     ax.grid(alpha=0.3)

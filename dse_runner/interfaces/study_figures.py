@@ -32,8 +32,10 @@ def image(png: bytes, alt: str, ident: str) -> str:
     """An inline PNG as wide as the page (drawn at least as wide: sensitivity_figures.PAGE_INCHES), so it is
     read at the size of the charts around it."""
     data = base64.b64encode(png).decode()
-    return (f'<img id="{html.escape(ident)}" alt="{html.escape(alt)}" style="width:100%;height:auto" '
-            f'src="data:image/png;base64,{data}">')
+    return (
+        f'<img id="{html.escape(ident)}" alt="{html.escape(alt)}" style="width:100%;height:auto" '
+        f'src="data:image/png;base64,{data}">'
+    )
 
 
 def is_sensitivity(output: store.Root, sweep: str) -> bool:
@@ -54,16 +56,28 @@ def sensitivity_section(output: store.Root, sweep: str) -> Section:
             warnings.simplefilter("ignore")
             found = sensitivity(output, sweep)
     except DseError as e:
-        return Section("sensitivity", "Sensitivity", "", f'<p class="note" id="sensitivity-note">{html.escape(str(e))}</p>')
+        return Section(
+            "sensitivity",
+            "Sensitivity",
+            "",
+            f'<p class="note" id="sensitivity-note">{html.escape(str(e))}</p>',
+        )
     sobol = found.indices  # S1 and ST (Sobol' or eFAST), else Morris' mu*, sigma
     level = f"{100 * found.confidence:g} %"
     named = "eFAST" if found.method == "fast" else "Sobol'"
-    note = (f"{named} first-order (S1) and total (ST) indices with {level} bootstrap intervals" if sobol else
-            f"Morris' mu* (how much) against sigma (how non-linearly or through interactions), mu* with its {level} "
-            "interval") + (f", over all scenarios ({found.reduced}) and per scenario group, least responsive first"
-                           f"; {found.design['blocks']} blocks of {found.design['block']} points.")
-    figures = "".join(image(png, f"sensitivity of {name}", f"sensitivity-{name}")
-                      for name, png in pngs(found, PANELS).items())
+    note = (
+        f"{named} first-order (S1) and total (ST) indices with {level} bootstrap intervals"
+        if sobol
+        else f"Morris' mu* (how much) against sigma (how non-linearly or through interactions), mu* with its {level} "
+        "interval"
+    ) + (
+        f", over all scenarios ({found.reduced}) and per scenario group, least responsive first"
+        f"; {found.design['blocks']} blocks of {found.design['block']} points."
+    )
+    figures = "".join(
+        image(png, f"sensitivity of {name}", f"sensitivity-{name}")
+        for name, png in pngs(found, PANELS).items()
+    )
     warned = "".join(f"<li>{html.escape(w)}</li>" for w in found.warnings)
     body = figures + (f'<ul class="note" id="sensitivity-warnings">{warned}</ul>' if warned else "")
     return Section("sensitivity", "Sensitivity: which parameters move each objective", note, body)
@@ -75,12 +89,18 @@ def uncertainty_section(ranking: Ranking) -> Section:
 
     about = ranking.uncertainty
     described = "; ".join(f"{name}: {_described(d)}" for name, d in about["parameters"].items())
-    note = (f"Each point ran on {about['samples']} draws ({about['sampling']}, seed {about['seed']}) of {described}. "
-            f"Per draw the objective is reduced over the scenarios; the points are ranked by its {about['ranked_by']} "
-            "over the draws.")
+    note = (
+        f"Each point ran on {about['samples']} draws ({about['sampling']}, seed {about['seed']}) of {described}. "
+        f"Per draw the objective is reduced over the scenarios; the points are ranked by its {about['ranked_by']} "
+        "over the draws."
+    )
     png = distributions_png(ranking)
-    return Section("uncertainty", f"Uncertainty: {ranking.objective} over the draws at the best points", note,
-                   image(png, f"{ranking.objective} over the draws", "uncertainty-distributions"))
+    return Section(
+        "uncertainty",
+        f"Uncertainty: {ranking.objective} over the draws at the best points",
+        note,
+        image(png, f"{ranking.objective} over the draws", "uncertainty-distributions"),
+    )
 
 
 def _described(d: dict) -> str:
@@ -110,5 +130,7 @@ def uncertainty_sections(ranking: Ranking | None) -> list[Section]:
 
 def section_html(section: Section, heading: str = "h2") -> str:
     note = f'<p class="note">{html.escape(section.note)}</p>' if section.note else ""
-    return (f'<{heading} id="{section.key}">{html.escape(section.title)}</{heading}>{note}'
-            f'<div id="{section.key}-figures">{section.body}</div>')
+    return (
+        f'<{heading} id="{section.key}">{html.escape(section.title)}</{heading}>{note}'
+        f'<div id="{section.key}-figures">{section.body}</div>'
+    )

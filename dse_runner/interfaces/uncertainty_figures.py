@@ -22,8 +22,15 @@ def distributions_png(ranking: Ranking, shown: int = SHOWN) -> bytes:
     labels = [format_point(dict(zip(ranking.parameters, key)), 4) for key in keys]
     fig, ax = plt.subplots(figsize=(PAGE_INCHES, 1.2 + 0.45 * len(keys)), dpi=DPI)
     y = np.arange(len(keys))[::-1]
-    ax.boxplot(values, positions=y, orientation="horizontal", whis=(5, 95), widths=0.5, showfliers=False,
-               medianprops={"color": "tab:blue"})
+    ax.boxplot(
+        values,
+        positions=y,
+        orientation="horizontal",
+        whis=(5, 95),
+        widths=0.5,
+        showfliers=False,
+        medianprops={"color": "tab:blue"},
+    )
     ax.plot(top[name].to_numpy(float), y, "o", color="black", label="mean")
     if ranking.ranked_by != name:
         ax.plot(top[ranking.ranked_by].to_numpy(float), y, "D", color="tab:red", label=about["ranked_by"])
@@ -31,7 +38,10 @@ def distributions_png(ranking: Ranking, shown: int = SHOWN) -> bytes:
     ax.set_xlabel(f"{ranking.reduced} {name} over the scenarios, per draw", fontsize=8)
     ax.grid(axis="x", alpha=0.3)
     ax.legend(fontsize=7, loc="best")
-    ax.set_title(f"{ranking.sweep}: {name} over {about['samples']} uncertain draws, best first by "
-                 f"{about['ranked_by']} (boxes: quartiles, whiskers 5-95 %)", fontsize=9)
+    ax.set_title(
+        f"{ranking.sweep}: {name} over {about['samples']} uncertain draws, best first by "
+        f"{about['ranked_by']} (boxes: quartiles, whiskers 5-95 %)",
+        fontsize=9,
+    )
     fig.tight_layout()
     return png_bytes(fig)

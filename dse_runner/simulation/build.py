@@ -44,7 +44,9 @@ class Layer:
     stem: str
     interface: str  # the description's element the layer implements: CoSimulation or ModelExchange
     platform_dir: str
-    shared: tuple[str, ...]  # stems of the .c/.h it builds with: its FMI version's common part, then every layer's
+    shared: tuple[
+        str, ...
+    ]  # stems of the .c/.h it builds with: its FMI version's common part, then every layer's
 
 
 FMI2_SHARED = ("fmi2_common", "fmi_common")
@@ -86,8 +88,11 @@ def read_description(source_dir: Path):
 
 def real_parameters(source_dir: Path) -> dict[str, float]:
     """The start values of the real parameters of the FMU built from ``source_dir``."""
-    return {v.name: float(v.start) for v in read_description(source_dir).modelVariables
-            if v.causality == "parameter" and v.type == "Real" and v.start is not None}
+    return {
+        v.name: float(v.start)
+        for v in read_description(source_dir).modelVariables
+        if v.causality == "parameter" and v.type == "Real" and v.start is not None
+    }
 
 
 def layer_of(source_dir: Path) -> Layer:
@@ -95,11 +100,13 @@ def layer_of(source_dir: Path) -> Layer:
     declares only <ModelExchange>, else its co-simulation layer (slave, slave3)."""
     md = read_description(source_dir)
     if md.fmiVersion not in ("2.0", "3.0"):
-        raise BuildError(f"{source_dir}/modelDescription.xml: fmiVersion {md.fmiVersion!r} is not built here"
-                         " (2.0 or 3.0)")
+        raise BuildError(
+            f"{source_dir}/modelDescription.xml: fmiVersion {md.fmiVersion!r} is not built here (2.0 or 3.0)"
+        )
     if md.coSimulation is None and md.modelExchange is None:
-        raise BuildError(f"{source_dir}/modelDescription.xml declares neither <CoSimulation>"
-                         " nor <ModelExchange>")
+        raise BuildError(
+            f"{source_dir}/modelDescription.xml declares neither <CoSimulation> nor <ModelExchange>"
+        )
     co_simulation, model_exchange = (CS3, ME3) if md.fmiVersion == "3.0" else (CS2, ME2)
     return co_simulation if md.coSimulation is not None else model_exchange
 
@@ -125,8 +132,10 @@ def source_files(source_dir: Path, layer: Layer | None = None) -> list[Path]:
     layer = layer or layer_of(source_dir)
     common = common_dir(source_dir, layer)
     if not (common / f"{layer.stem}.c").is_file():
-        raise BuildError(f"{source_dir}: the shared FMI layer {common}/{layer.stem}.c is missing"
-                         f" (it implements {layer.interface} for this modelDescription.xml)")
+        raise BuildError(
+            f"{source_dir}: the shared FMI layer {common}/{layer.stem}.c is missing"
+            f" (it implements {layer.interface} for this modelDescription.xml)"
+        )
     own = sorted(source_dir.glob("*.c")) + sorted(source_dir.glob("*.h"))
     stems = (layer.stem, *layer.shared)
     chosen = [p for stem in stems for p in (common / f"{stem}.c", common / f"{stem}.h") if p.is_file()]
@@ -175,9 +184,14 @@ def build_fmu(source_dir: str | Path, cache_dir: Path | None = None) -> Path:
         library = Path(tmp) / f"{identifier}.so"
         sources = source_files(source_dir, layer)
         command = [
-            compiler(), *CFLAGS,
-            f"-I{fmi_headers_dir()}", f"-I{common_dir(source_dir, layer)}",
-            "-o", str(library), *[str(p) for p in sources if p.suffix == ".c"], "-lm",
+            compiler(),
+            *CFLAGS,
+            f"-I{fmi_headers_dir()}",
+            f"-I{common_dir(source_dir, layer)}",
+            "-o",
+            str(library),
+            *[str(p) for p in sources if p.suffix == ".c"],
+            "-lm",
         ]
         done = subprocess.run(command, capture_output=True, text=True)
         if done.returncode != 0:

@@ -46,6 +46,7 @@ from .variables import (
 
 # ---- running -------------------------------------------------------------------------------------
 
+
 @dataclass
 class _Read:
     """One group of outputs of one C type, read after each step into ``signals``."""
@@ -96,7 +97,9 @@ class _Unit:
 
 
 def _buffer_view(buffer, ctype) -> np.ndarray:
-    return np.ctypeslib.as_array(buffer) if ctype is not ctypes.c_bool else np.frombuffer(buffer, dtype=np.bool_)
+    return (
+        np.ctypeslib.as_array(buffer) if ctype is not ctypes.c_bool else np.frombuffer(buffer, dtype=np.bool_)
+    )
 
 
 def _reads(step: Stepper, variables: tuple[Variable, ...], signals: np.ndarray, offset: int) -> list[_Read]:
@@ -115,7 +118,9 @@ def _reads(step: Stepper, variables: tuple[Variable, ...], signals: np.ndarray, 
             buffer = (access.ctype * n)()
             view, where = _buffer_view(buffer, access.ctype), np.array(columns, dtype=np.int64)
             copy = lambda view=view, where=where: signals.__setitem__(where, view)  # noqa: E731
-        reads.append(_Read(access.get, step.args(access, vrs, n, buffer), access.name, copy, access.ctype, where))
+        reads.append(
+            _Read(access.get, step.args(access, vrs, n, buffer), access.name, copy, access.ctype, where)
+        )
     return reads
 
 
@@ -140,8 +145,18 @@ def _feeds(step: Stepper, links: list[tuple[Variable, int, Conversion]], signals
         buffer = (access.ctype * n)()
         view, gather = _buffer_view(buffer, access.ctype), np.array([i for _, i in members], dtype=np.int64)
         targets = tuple(t for t, _ in members)
-        feeds.append(_Feed(access.set, step.args(access, vrs, n, buffer), access.name.replace("Get", "Set"),
-                           _filler(signals, gather, view, conv, list(targets)), access.ctype, gather, conv, targets))
+        feeds.append(
+            _Feed(
+                access.set,
+                step.args(access, vrs, n, buffer),
+                access.name.replace("Get", "Set"),
+                _filler(signals, gather, view, conv, list(targets)),
+                access.ctype,
+                gather,
+                conv,
+                targets,
+            )
+        )
     return feeds
 
 
@@ -149,8 +164,9 @@ class _Unfit(Exception):
     """A rounded value its integer target's C type cannot hold; the caller adds the time."""
 
 
-def _filler(signals: np.ndarray, gather: np.ndarray, view: np.ndarray, conv: Conversion,
-            targets: list[Variable]) -> Callable[[], Any]:
+def _filler(
+    signals: np.ndarray, gather: np.ndarray, view: np.ndarray, conv: Conversion, targets: list[Variable]
+) -> Callable[[], Any]:
     """The cheapest way to move the sources' values into the buffer with the conversion asked for."""
     if conv.kind == "round":
         return _rounder(signals, gather, view, targets)
@@ -161,8 +177,9 @@ def _filler(signals: np.ndarray, gather: np.ndarray, view: np.ndarray, conv: Con
     return lambda: view.__setitem__(slice(None), signals[gather])
 
 
-def _rounder(signals: np.ndarray, gather: np.ndarray, view: np.ndarray,
-             targets: list[Variable]) -> Callable[[], None]:
+def _rounder(
+    signals: np.ndarray, gather: np.ndarray, view: np.ndarray, targets: list[Variable]
+) -> Callable[[], None]:
     """Round into an integer buffer, refusing what its C type cannot hold: numpy would wrap it (or
     NaN) into a wrong value silently."""
     limits = np.iinfo(view.dtype)
@@ -183,9 +200,16 @@ def unfit_message(target: Variable, value: float) -> str:
     return f"{target.ref} is fed {value:g}, which rounded does not fit {with_article(target.type)}"
 
 
-def run(plan: Plan, values: Mapping[str, Value], start: float, stop: float, step: float,
-        timeout: float | None = None, inputs: Mapping[str, Series] | None = None,
-        loop: str | None = None) -> Trajectory:
+def run(
+    plan: Plan,
+    values: Mapping[str, Value],
+    start: float,
+    stop: float,
+    step: float,
+    timeout: float | None = None,
+    inputs: Mapping[str, Series] | None = None,
+    loop: str | None = None,
+) -> Trajectory:
     """Co-simulate ``plan`` from ``start`` to ``stop`` with communication step ``step``.
 
     ``values`` are set before initialization; ``inputs`` are signals fed to
@@ -198,8 +222,9 @@ def run(plan: Plan, values: Mapping[str, Value], start: float, stop: float, step
     return prepare(plan, start, stop, step, inputs).run(values, timeout, loop)
 
 
-def prepare(plan: Plan, start: float, stop: float, step: float,
-            inputs: Mapping[str, Series] | None = None) -> Runner:
+def prepare(
+    plan: Plan, start: float, stop: float, step: float, inputs: Mapping[str, Series] | None = None
+) -> Runner:
     """``plan`` on one time grid with its input signals sampled and checked: ready to run with any values."""
     times = _time_grid(start, stop, step)
     series = _resolve_inputs(plan, inputs or {}, times)
@@ -236,8 +261,13 @@ class Runner:
         """Every value named, settable and of its variable's type: an error names it before anything runs."""
         _resolve_values(self.plan, values)
 
-    def run(self, values: Mapping[str, Value], timeout: float | None = None, loop: str | None = None,
-            fresh_process: bool = False) -> Trajectory:
+    def run(
+        self,
+        values: Mapping[str, Value],
+        timeout: float | None = None,
+        loop: str | None = None,
+        fresh_process: bool = False,
+    ) -> Trajectory:
         """Co-simulate with ``values`` set before initialization (see :func:`run`): here, its instances reused
         through reset, or with ``fresh_process`` in a process of its own (an instance that cannot be trusted
         with a second run in one: lifecycle.py decides, and the caller keeps its verdict)."""
@@ -251,14 +281,18 @@ class Runner:
         return isolation.run(_run_here, self, values, timeout, loop, preload=fmus_used, kill_after=kill_after)
 
 
-def _run_here(runner: Runner, values: Mapping[str, Value], timeout: float | None, loop: str | None) -> Trajectory:
+def _run_here(
+    runner: Runner, values: Mapping[str, Value], timeout: float | None, loop: str | None
+) -> Trajectory:
     """One run in this process, its instances reused through reset; in the order FMPy and the standard
     call an FMU: set-up with the times, values, initialization, steps, termination."""
     plan, times, external = runner.plan, runner.times, runner.external
     settings = _resolve_values(plan, values)
     names = plan.recorded
-    instances = {name: fmus.acquire(name, fmus.load(path, plan.interfaces[name]))
-                 for name, path in plan.fmu_paths.items()}
+    instances = {
+        name: fmus.acquire(name, fmus.load(path, plan.interfaces[name]))
+        for name, path in plan.fmu_paths.items()
+    }
     use_native = _native(loop) and _integrable(plan, instances)
     prepared = _prepare(plan, instances, runner.series, use_native, runner.terms)
     units, signals, program = prepared.units, prepared.signals, prepared.program
@@ -327,8 +361,11 @@ def _integrable(plan: Plan, instances: dict[str, fmus.Instance]) -> bool:
     """Whether C integrates every model-exchange instance exactly as FMPy's solvers would (native_me.py):
     a plan with one it cannot runs in the Python loop."""
     settings = plan.multimodel.settings
-    return all(native_me.eligible(instance.fmu.description, settings(name).solver if settings(name) else "cvode")
-               for name, instance in instances.items() if plan.interfaces[name] == "me")
+    return all(
+        native_me.eligible(instance.fmu.description, settings(name).solver if settings(name) else "cvode")
+        for name, instance in instances.items()
+        if plan.interfaces[name] == "me"
+    )
 
 
 @dataclass
@@ -346,8 +383,13 @@ _PREPARED: dict[tuple, _Prepared] = {}
 KEEP_PREPARED = 16  # plans x instance sets a process keeps laid out
 
 
-def _prepare(plan: Plan, instances: dict[str, fmus.Instance], series: dict[str, np.ndarray],
-             use_native: bool, terms: Mapping[str, Mapping] | None = None) -> _Prepared:
+def _prepare(
+    plan: Plan,
+    instances: dict[str, fmus.Instance],
+    series: dict[str, np.ndarray],
+    use_native: bool,
+    terms: Mapping[str, Mapping] | None = None,
+) -> _Prepared:
     """The units of this plan and these instances: laid out once for the native loop and reused while
     the instances are (a sweep runs one plan thousands of times), so a cheap run costs little Python. With
     derivative terms, the same terms (a fit's runs) reuse the layout with this run's coefficients."""
@@ -367,17 +409,27 @@ def _prepare(plan: Plan, instances: dict[str, fmus.Instance], series: dict[str, 
     sources.update({ref: len(names) + j for j, ref in enumerate(series)})
     signals = np.zeros(len(names) + len(series))
     units = _units(plan, instances, signals, sources, series, terms, use_native)
-    prepared = _Prepared(plan, chosen, units, signals,
-                         native.Program(units, signals, len(names)) if use_native else None)
-    if use_native:  # the Python loop's model-exchange steppers hold FMPy's solver: those are made anew each run
+    prepared = _Prepared(
+        plan, chosen, units, signals, native.Program(units, signals, len(names)) if use_native else None
+    )
+    if (
+        use_native
+    ):  # the Python loop's model-exchange steppers hold FMPy's solver: those are made anew each run
         while len(_PREPARED) >= KEEP_PREPARED:
             _PREPARED.pop(next(iter(_PREPARED)))
         _PREPARED[key] = prepared
     return prepared
 
 
-def _raise_where_stopped(outcome, program, units: list[_Unit], times: np.ndarray, names: tuple[str, ...],
-                         record: np.ndarray, texts: dict[str, list[str]]) -> None:
+def _raise_where_stopped(
+    outcome,
+    program,
+    units: list[_Unit],
+    times: np.ndarray,
+    names: tuple[str, ...],
+    record: np.ndarray,
+    texts: dict[str, list[str]],
+) -> None:
     """The error the Python loop raises where the C loop stopped, if it stopped early."""
     code, k, t = outcome.code, outcome.k, outcome.t
     if code == native.TIMEOUT:
@@ -397,7 +449,9 @@ def _raise_where_stopped(outcome, program, units: list[_Unit], times: np.ndarray
         raise step.step_failure() or units[outcome.unit].fail(step.step_name, t)
     if code == native.TERMINATE:
         step = units[outcome.unit].stepper
-        raise CosimError(step.instance.explain(f"the FMU asked to terminate the simulation at t={t:.6g}"), step.name)
+        raise CosimError(
+            step.instance.explain(f"the FMU asked to terminate the simulation at t={t:.6g}"), step.name
+        )
     if code == native.TEXT_READ_FAILED:
         raise units[outcome.unit].fail("getString", t)
     if code == native.TEXT_FEED_FAILED:
@@ -451,12 +505,21 @@ def _step_sizes(start: float, stop: float, step: float, told: str = "difference"
     return steps
 
 
-def _units(plan: Plan, instances: dict[str, fmus.Instance], signals: np.ndarray, sources: dict[str, int],
-           series: dict[str, np.ndarray], terms: Mapping[str, Mapping], use_native: bool = False) -> list[_Unit]:
+def _units(
+    plan: Plan,
+    instances: dict[str, fmus.Instance],
+    signals: np.ndarray,
+    sources: dict[str, int],
+    series: dict[str, np.ndarray],
+    terms: Mapping[str, Mapping],
+    use_native: bool = False,
+) -> list[_Unit]:
     """Every instance's stepper with its prepared reads and feeds (and, model exchange, its derivative terms,
     or with ``use_native`` its integrator in C)."""
-    steppers = {name: stepper(instance, plan.multimodel.settings(name), terms.get(name), use_native)
-                for name, instance in instances.items()}
+    steppers = {
+        name: stepper(instance, plan.multimodel.settings(name), terms.get(name), use_native)
+        for name, instance in instances.items()
+    }
     feeds: dict[str, list[tuple[Variable, int, Conversion]]] = {name: [] for name in instances}
     for link in plan.links:
         if link.source.family != "string":
@@ -482,13 +545,23 @@ def _text_unit(step: Stepper, plan: Plan, steppers: dict[str, Stepper]) -> _Text
     n = len(outputs)
     vrs = (ctypes.c_uint32 * n)(*[v.vr for v in outputs])
     buffer = (ctypes.c_char_p * n)()
-    feeds = [(steppers[link.target.instance], link.target, outputs.index(link.source))
-             for link in plan.links if link.source in outputs]
+    feeds = [
+        (steppers[link.target.instance], link.target, outputs.index(link.source))
+        for link in plan.links
+        if link.source in outputs
+    ]
     return _Texts(access.get, step.args(access, vrs, n, buffer), buffer, [v.ref for v in outputs], feeds)
 
 
-def _exchange(units: list[_Unit], signals: np.ndarray, external: np.ndarray | None, k: int,
-              texts: dict[str, list[str]], t: float, feed: bool) -> None:
+def _exchange(
+    units: list[_Unit],
+    signals: np.ndarray,
+    external: np.ndarray | None,
+    k: int,
+    texts: dict[str, list[str]],
+    t: float,
+    feed: bool,
+) -> None:
     """Outside the loop: read every output, and with ``feed`` also set every connected input."""
     for unit in units:
         _read(unit, t, texts if not feed else None)
@@ -529,9 +602,16 @@ def _feed_texts(texts: _Texts, t: float) -> None:
             raise CosimError(target.instance.explain(f"{e} at t={t:.6g}"), target.name) from None
 
 
-def _step_loop(units: list[_Unit], times: np.ndarray, steps: np.ndarray, signals: np.ndarray,
-               external: np.ndarray | None, record: np.ndarray, texts: dict[str, list[str]],
-               deadline: float) -> None:
+def _step_loop(
+    units: list[_Unit],
+    times: np.ndarray,
+    steps: np.ndarray,
+    signals: np.ndarray,
+    external: np.ndarray | None,
+    record: np.ndarray,
+    texts: dict[str, list[str]],
+    deadline: float,
+) -> None:
     """The hot loop: no buffer is created here, only FMI calls through prepared ones, read from flat
     lists so that a step costs no Python call beyond the FMI calls and the fills that need one."""
     n = record.shape[1]
@@ -576,7 +656,7 @@ def _step_loop(units: list[_Unit], times: np.ndarray, steps: np.ndarray, signals
 
 def _feed_all(units: list[_Unit], signals: np.ndarray, external: np.ndarray | None, k: int, t: float) -> None:
     if external is not None:
-        signals[-external.shape[1]:] = external[k]
+        signals[-external.shape[1] :] = external[k]
     for unit in units:
         _feed(unit, t)
         if unit.texts is not None:
@@ -602,8 +682,10 @@ def _resolve_inputs(plan: Plan, inputs: Mapping[str, Series], times: np.ndarray)
     for ref, series in inputs.items():
         variable = plan.variable(ref, "scenario input")
         if variable.causality != "input":
-            raise DseError(f"scenario input {ref!r} is {with_article(variable.causality)}, not an input: give it as a "
-                           "parameter instead")
+            raise DseError(
+                f"scenario input {ref!r} is {with_article(variable.causality)}, not an input: give it as a "
+                "parameter instead"
+            )
         values = series.at(times)
         if variable.family == "string":
             raise DseError(f"scenario input {ref!r} is a String; a CSV signal can feed numbers only")
@@ -613,8 +695,9 @@ def _resolve_inputs(plan: Plan, inputs: Mapping[str, Series], times: np.ndarray)
         sampled[ref] = values
     for link in plan.links:
         if link.target.ref in sampled:
-            raise DseError(f"scenario input {link.target.ref!r} is already fed by the connection from "
-                           f"{link.source.ref}")
+            raise DseError(
+                f"scenario input {link.target.ref!r} is already fed by the connection from {link.source.ref}"
+            )
     return sampled
 
 

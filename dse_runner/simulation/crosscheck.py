@@ -24,8 +24,9 @@ def _libcosim():
         from libcosimpy.CosimObserver import CosimObserver
         from libcosimpy.CosimSlave import CosimLocalSlave
     except (ImportError, OSError) as e:
-        raise DseError(f"libcosim is not available ({e}): pip install libcosimpy; "
-                       "apt-get install libtbb12") from None
+        raise DseError(
+            f"libcosim is not available ({e}): pip install libcosimpy; apt-get install libtbb12"
+        ) from None
     CosimLogging.log_output_level(CosimLogging.CosimLogLevel.ERROR)
     return CosimExecution, CosimLocalSlave, CosimObserver, CosimVariableType
 
@@ -41,13 +42,18 @@ def run_libcosim(plan: Plan, values: dict[str, Value], stop: float, step: float)
     step_ns = int(round(step * 1e9))
     n_steps = int(np.floor(stop / step + 1e-9))
     execution = execution_type.from_step_size(step_ns)
-    index = {name: execution.add_local_slave(slave_type(fmu_path=str(path), instance_name=name))
-             for name, path in plan.fmu_paths.items()}
+    index = {
+        name: execution.add_local_slave(slave_type(fmu_path=str(path), instance_name=name))
+        for name, path in plan.fmu_paths.items()
+    }
     for ref, value in values.items():
         variable = plan.variable(ref, "setting")
         slave = index[variable.instance]
-        ok = (execution.string_initial_value(slave, variable.vr, str(value)) if variable.type == "String"
-              else execution.real_initial_value(slave, variable.vr, float(value)))
+        ok = (
+            execution.string_initial_value(slave, variable.vr, str(value))
+            if variable.type == "String"
+            else execution.real_initial_value(slave, variable.vr, float(value))
+        )
         if not ok:
             raise DseError(f"libcosim refused the initial value {ref}={value!r}")
     for source, target in plan.connections:

@@ -33,11 +33,18 @@ from .values import split_named
 
 PREFIX = "derivative_term"
 FUNCTIONS = {"abs": np.abs, "tanh": np.tanh, "sin": np.sin, "cos": np.cos}
-_SCALAR = {"abs": abs, "tanh": math.tanh, "sin": math.sin, "cos": math.cos}  # the same on a float, without numpy's cost
+_SCALAR = {
+    "abs": abs,
+    "tanh": math.tanh,
+    "sin": math.sin,
+    "cos": math.cos,
+}  # the same on a float, without numpy's cost
 _NAME = re.compile(r"^derivative_term\(\s*(?:([^\s.()]+)\.)?der\((.+)\)\s*,\s*(.+?)\s*\)$")
 _VARIABLE = r"[A-Za-z_][A-Za-z0-9_.\[\]]*"
-_FACTOR = re.compile(rf"^(?:({_VARIABLE})|({'|'.join(FUNCTIONS)})\(\s*({_VARIABLE})\s*(?:/\s*([0-9.eE+-]+)\s*)?\))"
-                     r"(?:\^(\d+))?$")
+_FACTOR = re.compile(
+    rf"^(?:({_VARIABLE})|({'|'.join(FUNCTIONS)})\(\s*({_VARIABLE})\s*(?:/\s*([0-9.eE+-]+)\s*)?\))"
+    r"(?:\^(\d+))?$"
+)
 
 
 @dataclass(frozen=True, order=True)
@@ -51,16 +58,24 @@ class Factor:
 
     @property
     def text(self) -> str:
-        inner = self.variable if self.function is None else (
-            f"{self.function}({self.variable})" if self.width == 1.0 else
-            f"{self.function}({self.variable}/{self.width!r})")
+        inner = (
+            self.variable
+            if self.function is None
+            else (
+                f"{self.function}({self.variable})"
+                if self.width == 1.0
+                else f"{self.function}({self.variable}/{self.width!r})"
+            )
+        )
         return inner if self.power == 1 else f"{inner}^{self.power}"
 
     def value(self, values: Mapping[str, Any]) -> Any:
         v = values[self.variable]
         if self.function is not None:
-            v = (_SCALAR if isinstance(v, float) else FUNCTIONS)[self.function](v / self.width if self.width != 1.0 else v)
-        return v if self.power == 1 else v ** self.power
+            v = (_SCALAR if isinstance(v, float) else FUNCTIONS)[self.function](
+                v / self.width if self.width != 1.0 else v
+            )
+        return v if self.power == 1 else v**self.power
 
 
 @dataclass(frozen=True)
@@ -94,9 +109,11 @@ def parse_term(text: str) -> Term:
     for part in text.split("*"):
         match = _FACTOR.match(part.strip())
         if match is None:
-            raise DseError(f"term {text!r}: cannot read the factor {part.strip()!r}; a factor is a state or input "
-                           f"(x), a power of one (x^3), or {', '.join(FUNCTIONS)} of one, optionally over a width "
-                           "(tanh(v/0.05))")
+            raise DseError(
+                f"term {text!r}: cannot read the factor {part.strip()!r}; a factor is a state or input "
+                f"(x), a power of one (x^3), or {', '.join(FUNCTIONS)} of one, optionally over a width "
+                "(tanh(v/0.05))"
+            )
         plain, function, inside, width, power = match.groups()
         try:
             width_value = float(width) if width else 1.0
@@ -133,8 +150,10 @@ def parse(name: str) -> DerivativeTerm | None:
     match = _NAME.match(name)
     if match is None:
         if name.startswith(f"{PREFIX}("):
-            raise DseError(f"{name}: a derivative term is named derivative_term(INSTANCE.der(STATE), TERM), "
-                           "e.g. derivative_term(msd.der(v), x^3)")
+            raise DseError(
+                f"{name}: a derivative term is named derivative_term(INSTANCE.der(STATE), TERM), "
+                "e.g. derivative_term(msd.der(v), x^3)"
+            )
         return None
     instance, state, term = match.groups()
     try:
@@ -156,6 +175,7 @@ def split(values: Mapping[str, object]) -> tuple[dict[str, object], dict[Derivat
 
 # ---- what an instance offers: its states and its real inputs ------------------------------------------------
 
+
 def states_of(description: Any) -> list[str]:
     """The continuous states' names, in the order of the state vector (the derivatives' order in the model
     description, FMI 2 and 3 alike)."""
@@ -164,29 +184,39 @@ def states_of(description: Any) -> list[str]:
 
 def real_inputs_of(description: Any) -> dict[str, int]:
     """The instance's real (FMI 3: Float64) inputs by name -> value reference: what a term may read besides states."""
-    return {v.name: v.valueReference for v in description.modelVariables
-            if v.causality == "input" and v.type in ("Real", "Float64") and not getattr(v, "dimensions", None)}
+    return {
+        v.name: v.valueReference
+        for v in description.modelVariables
+        if v.causality == "input" and v.type in ("Real", "Float64") and not getattr(v, "dimensions", None)
+    }
 
 
 def check(term: DerivativeTerm, instance: str, interface: str, description: Any) -> None:
     """That the master can apply ``term`` to ``instance``: a model-exchange one, with that state, and every
     variable of the term one of its states or real inputs."""
     if interface != "me":
-        raise DseError(f"{term.name}: instance {instance!r} is run as co-simulation: it integrates its own states, "
-                       "so the master cannot add to their derivatives (give the instance interface: me in the "
-                       "multi-model, if its FMU offers model exchange)")
+        raise DseError(
+            f"{term.name}: instance {instance!r} is run as co-simulation: it integrates its own states, "
+            "so the master cannot add to their derivatives (give the instance interface: me in the "
+            "multi-model, if its FMU offers model exchange)"
+        )
     states = states_of(description)
     if term.state not in states:
-        raise DseError(f"{term.name}: instance {instance!r} has no continuous state {term.state!r} "
-                       f"(its states: {', '.join(states) or 'none'})")
+        raise DseError(
+            f"{term.name}: instance {instance!r} has no continuous state {term.state!r} "
+            f"(its states: {', '.join(states) or 'none'})"
+        )
     readable = [*states, *real_inputs_of(description)]
     for variable in term.term.variables:
         if variable not in readable:
-            raise DseError(f"{term.name}: {variable!r} is not a state or real input of instance {instance!r} "
-                           f"(a term may read {', '.join(readable)})")
+            raise DseError(
+                f"{term.name}: {variable!r} is not a state or real input of instance {instance!r} "
+                f"(a term may read {', '.join(readable)})"
+            )
 
 
 # ---- what the stepper applies -------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class Corrector:
@@ -199,7 +229,9 @@ class Corrector:
     limits: tuple[state_limits.Row, ...] = ()
 
     @classmethod
-    def of(cls, description: Any, corrections: Mapping[DerivativeTerm | state_limits.StateLimit, float]) -> Corrector:
+    def of(
+        cls, description: Any, corrections: Mapping[DerivativeTerm | state_limits.StateLimit, float]
+    ) -> Corrector:
         """``corrections``: derivative terms and state limits, each with its value."""
         states = states_of(description)
         terms = {t: a for t, a in corrections.items() if isinstance(t, DerivativeTerm)}

@@ -53,8 +53,14 @@ def _first(*candidates: float | None) -> float | None:
     return next((c for c in candidates if c is not None), None)
 
 
-def resolve_times(plan, scenario, experiment: Experiment | None = None, start: float | None = None,
-                  stop: float | None = None, step: float | None = None) -> Times:
+def resolve_times(
+    plan,
+    scenario,
+    experiment: Experiment | None = None,
+    start: float | None = None,
+    stop: float | None = None,
+    step: float | None = None,
+) -> Times:
     """The start, stop and step of one simulation of ``plan`` on ``scenario``."""
     experiment = experiment or Experiment()
     single = len(plan.fmu_paths) == 1
@@ -62,14 +68,18 @@ def resolve_times(plan, scenario, experiment: Experiment | None = None, start: f
     start = _first(start, scenario.start_time, experiment.start_time, fmu_start, 0.0)
     stop = _first(stop, scenario.stop_time, experiment.stop_time, fmu_stop, start + 1.0 if single else None)
     if stop is None:
-        raise DseError(f"no stop time for scenario {scenario.name}: give experiment: {{stop_time: ...}} in "
-                       "space.yaml, --stop-time, or the scenario's stop_time")
+        raise DseError(
+            f"no stop time for scenario {scenario.name}: give experiment: {{stop_time: ...}} in "
+            "space.yaml, --stop-time, or the scenario's stop_time"
+        )
     if stop <= start:
         raise DseError(f"stop time {stop:g} must be after start time {start:g} (scenario {scenario.name})")
     step = _first(step, scenario.step, experiment.step, plan.multimodel.step, scenario.natural_step, fmu_step)
     if step is None:
         if not single:
-            raise DseError(f"no communication step for scenario {scenario.name}: give experiment: {{step: ...}} "
-                           "in space.yaml, --step, or the multi-model's step")
+            raise DseError(
+                f"no communication step for scenario {scenario.name}: give experiment: {{step: ...}} "
+                "in space.yaml, --step, or the multi-model's step"
+            )
         step = float(auto_interval(stop - start))
     return Times(float(start), float(stop), float(step))

@@ -66,6 +66,7 @@ def content_hash(path: Path) -> str:
 
 # ---- describing ----------------------------------------------------------------------------------
 
+
 @lru_cache(maxsize=256)
 def _description(path: str, sha: str) -> ModelDescription:
     if not zipfile.is_zipfile(path):
@@ -82,8 +83,13 @@ def _description(path: str, sha: str) -> ModelDescription:
     if problems:
         more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
         first = " ".join(str(problems[0]).split()).rstrip(".")  # one line, whatever FMPy's text
-        warnings.warn(FmuWarning(f"{Path(path).name}: modelDescription.xml breaks the FMI standard: "
-                                 f"{first}{more}; loaded anyway"), stacklevel=2)
+        warnings.warn(
+            FmuWarning(
+                f"{Path(path).name}: modelDescription.xml breaks the FMI standard: "
+                f"{first}{more}; loaded anyway"
+            ),
+            stacklevel=2,
+        )
     return description
 
 
@@ -103,8 +109,10 @@ def check_version(path, version: str | None) -> None:
     """FMI 2.0 and 3.0 only: FMI 1.0's API differs and FMPy's 1.0 support is not wired in."""
     version = version or "?"
     if not version.startswith(("2.", "3.")):
-        raise DseError(f"{path}: FMI {version}: dse-runner runs FMI 2.0 and 3.0 FMUs; export this model "
-                       "as FMI 2.0 or 3.0")
+        raise DseError(
+            f"{path}: FMI {version}: dse-runner runs FMI 2.0 and 3.0 FMUs; export this model "
+            "as FMI 2.0 or 3.0"
+        )
 
 
 def describe(path: Path) -> ModelDescription:
@@ -136,8 +144,10 @@ def choose_interface(path: Path, description: ModelDescription, wanted: Interfac
     if wanted is None:
         return offered[0]
     if wanted not in offered:
-        raise DseError(f"{path}: {INTERFACE_NAMES[wanted]} was asked for, but the FMU offers only "
-                       f"{INTERFACE_NAMES[offered[0]]}")
+        raise DseError(
+            f"{path}: {INTERFACE_NAMES[wanted]} was asked for, but the FMU offers only "
+            f"{INTERFACE_NAMES[offered[0]]}"
+        )
     return wanted
 
 
@@ -160,20 +170,36 @@ def binary_in_archive(path: Path, description: ModelDescription, interface: Inte
         names = archive.namelist()
     if expected in names:
         return expected
-    here = [n for n in names if n.startswith(folder + "/") and n.endswith(sharedLibraryExtension)
-            and n.count("/") == 2]
+    here = [
+        n
+        for n in names
+        if n.startswith(folder + "/") and n.endswith(sharedLibraryExtension) and n.count("/") == 2
+    ]
     if len(here) == 1:
-        warnings.warn(FmuWarning(f"{path.name}: no {expected}; using {here[0]}, the only binary for this "
-                                 "platform"), stacklevel=2)
+        warnings.warn(
+            FmuWarning(f"{path.name}: no {expected}; using {here[0]}, the only binary for this platform"),
+            stacklevel=2,
+        )
         return here[0]
-    platforms = sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") >= 2
-                        and not n.endswith("/")})
-    has = (f"it has {', '.join(here)}" if here else
-           f"it has binaries for {', '.join(platforms)}" if platforms else "it has no binaries")
+    platforms = sorted(
+        {
+            n.split("/")[1]
+            for n in names
+            if n.startswith("binaries/") and n.count("/") >= 2 and not n.endswith("/")
+        }
+    )
+    has = (
+        f"it has {', '.join(here)}"
+        if here
+        else f"it has binaries for {', '.join(platforms)}"
+        if platforms
+        else "it has no binaries"
+    )
     raise DseError(f"{path}: no binary for this platform: {expected} is missing ({has})")
 
 
 # ---- loading -------------------------------------------------------------------------------------
+
 
 @dataclass
 class LoadedFmu:
@@ -267,6 +293,7 @@ def _extract(path: Path, unzip_dir: Path) -> None:
 
 # ---- instances -----------------------------------------------------------------------------------
 
+
 @dataclass(eq=False)
 class Instance:
     """One instantiated FMU, reused across runs with reset."""
@@ -313,8 +340,11 @@ _CLASSES = {(2, "cs"): FMU2Slave, (2, "me"): FMU2Model, (3, "cs"): FMU3Slave, (3
 
 def _instantiate(name: str, fmu: LoadedFmu) -> Instance:
     slave = _CLASSES[(fmu.version, fmu.interface)](
-        guid=fmu.description.guid, unzipDirectory=str(fmu.unzip_dir),
-        modelIdentifier=fmu.identifier, instanceName=name)
+        guid=fmu.description.guid,
+        unzipDirectory=str(fmu.unzip_dir),
+        modelIdentifier=fmu.identifier,
+        instanceName=name,
+    )
     instance = Instance(name, fmu, slave)
     try:
         if fmu.version == 2:

@@ -40,7 +40,9 @@ from .trajectory import CosimError
 
 _HEADER = struct.Struct("!Q")
 _LOCAL = threading.local()
-KILL_GRACE = 10.0  # seconds past a run's own timeout before its fresh process is killed (it stops itself first)
+KILL_GRACE = (
+    10.0  # seconds past a run's own timeout before its fresh process is killed (it stops itself first)
+)
 _IN_CHILD = False  # true in a forked child: the run happens here, not in yet another process
 
 
@@ -49,8 +51,12 @@ def in_child() -> bool:
     return _IN_CHILD
 
 
-def run(function: Callable[..., Any], *args: Any, preload: Iterable[tuple[Path, str]] = (),
-        kill_after: float | None = None) -> Any:
+def run(
+    function: Callable[..., Any],
+    *args: Any,
+    preload: Iterable[tuple[Path, str]] = (),
+    kill_after: float | None = None,
+) -> Any:
     """``function(*args)`` in a fresh process; its result, or its exception raised here. ``preload``:
     the FMUs (path, interface) the zygote describes and extracts once, so a child only loads them.
     ``kill_after``: seconds after which the child is killed, for a run hung inside an FMU call, where
@@ -73,14 +79,24 @@ class _Zygote:
         from .fmu import extract_root
 
         package_parent = str(Path(__file__).resolve().parents[2])
-        env = {**os.environ, "LIBC_FATAL_STDERR_": "1", "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
-               "PYTHONPATH": os.pathsep.join(filter(None, (package_parent, os.environ.get("PYTHONPATH"))))}
-        self.process = subprocess.Popen([sys.executable, "-m", __name__, str(extract_root())],
-                                        stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
+        env = {
+            **os.environ,
+            "LIBC_FATAL_STDERR_": "1",
+            "OPENBLAS_NUM_THREADS": "1",
+            "OMP_NUM_THREADS": "1",
+            "PYTHONPATH": os.pathsep.join(filter(None, (package_parent, os.environ.get("PYTHONPATH")))),
+        }
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", __name__, str(extract_root())],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            env=env,
+        )
         weakref.finalize(self, _close, self.process)  # at exit too: the zygote ends with its pipe
 
-    def call(self, function: Callable[..., Any], args: tuple, preload: list,
-             kill_after: float | None = None) -> tuple[bool, Any]:
+    def call(
+        self, function: Callable[..., Any], args: tuple, preload: list, kill_after: float | None = None
+    ) -> tuple[bool, Any]:
         try:
             request = (function, args, preload, kill_after)
             _send(self.process.stdin, pickle.dumps(request, protocol=pickle.HIGHEST_PROTOCOL))
@@ -89,8 +105,10 @@ class _Zygote:
             reply = None
         if reply is None:
             self.process.kill()
-            raise DseError(f"the process that starts fresh processes for FMU runs ended (exit code "
-                           f"{self.process.wait()}); see the worker's log")
+            raise DseError(
+                f"the process that starts fresh processes for FMU runs ended (exit code "
+                f"{self.process.wait()}); see the worker's log"
+            )
         return pickle.loads(reply)
 
 
@@ -122,6 +140,7 @@ def _receive(stream: BinaryIO) -> bytes | None:
 
 
 # ---- the zygote's side ---------------------------------------------------------------------------
+
 
 def _serve(extract_root: str) -> None:
     """Answer requests until the parent closes the pipe. Frames travel on a copy of stdout; fd 1 then
@@ -172,8 +191,15 @@ def _fork(function: Callable[..., Any], args: tuple, kill_after: float | None = 
         sys.stderr.write(said)
         sys.stderr.flush()
     if hung:
-        return pickle.dumps((False, CosimError(f"timeout: the simulation did not end within {kill_after:g} s "
-                                               "(hung inside an FMU call); its fresh process was killed")))
+        return pickle.dumps(
+            (
+                False,
+                CosimError(
+                    f"timeout: the simulation did not end within {kill_after:g} s "
+                    "(hung inside an FMU call); its fresh process was killed"
+                ),
+            )
+        )
     if data and os.WIFEXITED(status):
         return data
     return pickle.dumps((False, _death(status, said)))
@@ -224,8 +250,9 @@ def _death(status: int, said: str) -> Exception:
     else:
         how = f"exited with code {os.WEXITSTATUS(status)}"
     last = next((line.strip() for line in reversed(said.splitlines()) if line.strip()), "")
-    return CosimError(f"the fresh process running this simulation {how}: the FMU crashed"
-                      + (f" ({last})" if last else ""))
+    return CosimError(
+        f"the fresh process running this simulation {how}: the FMU crashed" + (f" ({last})" if last else "")
+    )
 
 
 if __name__ == "__main__":  # run as a script, this is a copy of the module: serve from the real one

@@ -66,22 +66,35 @@ def plan_verdicts(runner: Runner, values: Mapping[str, Any]) -> dict[str, Verdic
     verdicts: dict[str, Verdict | str] = {}
     for name, path in plan.fmu_paths.items():
         interface, asked = plan.interfaces[name], plan.multimodel.settings(name).lifecycle
-        verdicts[name] = declared(path, interface, asked) or _known(path, interface) or _measured_alone(path, interface)
+        verdicts[name] = (
+            declared(path, interface, asked) or _known(path, interface) or _measured_alone(path, interface)
+        )
     alone = {name: why for name, why in verdicts.items() if isinstance(why, str)}
     decided = {name: v for name, v in verdicts.items() if isinstance(v, Verdict)}
     if not alone:
         return decided
     others = [name for name, v in decided.items() if v.mode == "process"]
     if others:
-        return {**decided, **{name: Verdict("process", f"not measured ({why}); the run needs a fresh process for "
-                                                       f"{others[0]} anyway") for name, why in alone.items()}}
+        return {
+            **decided,
+            **{
+                name: Verdict(
+                    "process", f"not measured ({why}); the run needs a fresh process for {others[0]} anyway"
+                )
+                for name, why in alone.items()
+            },
+        }
     together = probe(runner, dict(values), [plan.fmu_paths[name] for name in alone])
     if isinstance(together, str):  # this run fails in a fresh process too: nothing measured, nothing kept
-        return {**decided, **dict.fromkeys(alone, Verdict("process", f"not measured ({together}), so run the "
-                                                                     "safe way"))}
+        return {
+            **decided,
+            **dict.fromkeys(alone, Verdict("process", f"not measured ({together}), so run the safe way")),
+        }
     if len(plan.fmu_paths) > 1:
-        together = Verdict(together.mode, f"{together.reason}, in this multi-model (it cannot run alone: "
-                                          f"{next(iter(alone.values()))})")
+        together = Verdict(
+            together.mode,
+            f"{together.reason}, in this multi-model (it cannot run alone: {next(iter(alone.values()))})",
+        )
     for name in alone:
         _keep(plan.fmu_paths[name], plan.interfaces[name], together)
     return {**decided, **dict.fromkeys(alone, together)}
@@ -128,8 +141,10 @@ def _measured_alone(path: Path, interface: str) -> Verdict | str:
 
 # ---- measuring -----------------------------------------------------------------------------------
 
-def probe(runner: Runner, values: dict[str, Any], changing: list[Path], fresh: list[tuple] | None = None
-          ) -> Verdict | str:
+
+def probe(
+    runner: Runner, values: dict[str, Any], changing: list[Path], fresh: list[tuple] | None = None
+) -> Verdict | str:
     """Run ``runner`` in fresh processes and several times in one, and compare every output bit for bit:
     first with the parameters of the FMUs at ``changing`` changed, then with ``values`` twice. What a
     reset forgets to reset shows. ``fresh``: the run with ``values`` in a fresh process, if made already.
@@ -147,10 +162,16 @@ def probe(runner: Runner, values: dict[str, Any], changing: list[Path], fresh: l
     for k, (got, want) in enumerate(zip(reused, expected)):
         difference = _difference(runner, got, want)
         if difference:
-            return Verdict("process", f"measured: run {k + 1} of {len(sequence)} in one process differed from a "
-                                      f"fresh process's ({difference})")
-    return Verdict("reset", f"measured: {len(sequence)} runs in one process (reset between them) were "
-                            "bit-identical to runs in fresh processes")
+            return Verdict(
+                "process",
+                f"measured: run {k + 1} of {len(sequence)} in one process differed from a "
+                f"fresh process's ({difference})",
+            )
+    return Verdict(
+        "reset",
+        f"measured: {len(sequence)} runs in one process (reset between them) were "
+        "bit-identical to runs in fresh processes",
+    )
 
 
 def _alone(plan: Plan) -> tuple[Runner | None, list[tuple] | str]:
@@ -182,8 +203,9 @@ def _excitation(plan: Plan, start: float, stop: float) -> dict[str, Series]:
             if v.family == "float":
                 driven[v.ref] = Series(np.array([start, middle, stop]), np.array([0.0, 1.0, 0.0]))
             else:
-                driven[v.ref] = Series(np.array([start, start + third, start + 2 * third]), np.array([0.0, 1.0, 0.0]),
-                                       "hold")
+                driven[v.ref] = Series(
+                    np.array([start, start + third, start + 2 * third]), np.array([0.0, 1.0, 0.0]), "hold"
+                )
     return driven
 
 
@@ -199,9 +221,13 @@ def _probe_times(plan: Plan) -> tuple[float, float, float]:
 def _fresh_runs(runner: Runner, values: list[dict[str, Any]]) -> list[tuple] | str:
     """The runs in one fresh process, each as (values, texts); a message if any failed or the process died."""
     try:
-        return isolation.run(_runs_here, runner, values,
-                             preload=[(p, runner.plan.interfaces[n]) for n, p in runner.plan.fmu_paths.items()],
-                             kill_after=len(values) * PROBE_SECONDS + isolation.KILL_GRACE)
+        return isolation.run(
+            _runs_here,
+            runner,
+            values,
+            preload=[(p, runner.plan.interfaces[n]) for n, p in runner.plan.fmu_paths.items()],
+            kill_after=len(values) * PROBE_SECONDS + isolation.KILL_GRACE,
+        )
     except DseError as e:
         return str(e)
 
@@ -225,8 +251,13 @@ def _changed_parameters(plan: Plan, changing: list[Path], values: Mapping[str, A
             continue
         for v in fmus.describe(path).modelVariables:
             variable = plan.variables[name].get(v.name)
-            if variable is None or v.causality != "parameter" or variable.family != "float" or v.start is None \
-                    or variable.ref in values:
+            if (
+                variable is None
+                or v.causality != "parameter"
+                or variable.family != "float"
+                or v.start is None
+                or variable.ref in values
+            ):
                 continue
             try:
                 start = float(v.start)
@@ -234,8 +265,10 @@ def _changed_parameters(plan: Plan, changing: list[Path], values: Mapping[str, A
                 continue
             if not start:
                 continue
-            value = min(max(start * 1.25, variable.low if variable.low is not None else -math.inf),
-                        variable.high if variable.high is not None else math.inf)
+            value = min(
+                max(start * 1.25, variable.low if variable.low is not None else -math.inf),
+                variable.high if variable.high is not None else math.inf,
+            )
             if value != start and math.isfinite(value):
                 changed[variable.ref] = value
     return changed
@@ -247,8 +280,10 @@ def _difference(runner: Runner, got: tuple, want: tuple) -> str | None:
     same = (values == expected) | (np.isnan(values) & np.isnan(expected))
     if not same.all():
         row, column = np.argwhere(~same)[0]
-        return (f"{runner.plan.recorded[column]} at t={runner.times[row]:.6g}: {float(values[row, column])!r} against "
-                f"{float(expected[row, column])!r}")
+        return (
+            f"{runner.plan.recorded[column]} at t={runner.times[row]:.6g}: {float(values[row, column])!r} against "
+            f"{float(expected[row, column])!r}"
+        )
     for name, series in texts.items():
         if series != expected_texts.get(name):
             return f"{name} differs"
@@ -256,6 +291,7 @@ def _difference(runner: Runner, got: tuple, want: tuple) -> str | None:
 
 
 # ---- keeping verdicts ----------------------------------------------------------------------------
+
 
 def _kept_path(sha: str, interface: str) -> Path:
     from .build import default_cache_dir

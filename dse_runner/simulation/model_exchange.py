@@ -48,8 +48,9 @@ class _HeldInputs:
     """The input object FMPy's solvers call ``apply`` on. The master sets inputs itself
     before each step and they are held over it, so there is nothing to apply."""
 
-    def apply(self, time: float, continuous: bool = True, discrete: bool = True,
-              after_event: bool = False) -> None:
+    def apply(
+        self, time: float, continuous: bool = True, discrete: bool = True, after_event: bool = False
+    ) -> None:
         pass
 
 
@@ -102,8 +103,11 @@ def input_groups(description: Any) -> list[tuple[str, list[int]]] | None:
             continue
         if variable.type in ("Binary", "Clock") or getattr(variable, "dimensions", None):
             return None
-        getter = {"Real": "getReal", "Integer": "getInteger",
-                  "Enumeration": "getInteger" if fmi2 else "getInt64"}.get(variable.type, f"get{variable.type}")
+        getter = {
+            "Real": "getReal",
+            "Integer": "getInteger",
+            "Enumeration": "getInteger" if fmi2 else "getInt64",
+        }.get(variable.type, f"get{variable.type}")
         groups.setdefault(getter, []).append(variable.valueReference)
     return list(groups.items())
 
@@ -115,9 +119,16 @@ def _reason(error: Exception) -> str:
 class ModelExchangeStepper:
     """Drives one ME instance from communication point to communication point."""
 
-    def __init__(self, model: Any, description: Any, solver: str = "cvode",
-                 tolerance: float | None = None, euler_step: float | None = None, set_stop_time: bool = True,
-                 corrector: Corrector | None = None):
+    def __init__(
+        self,
+        model: Any,
+        description: Any,
+        solver: str = "cvode",
+        tolerance: float | None = None,
+        euler_step: float | None = None,
+        set_stop_time: bool = True,
+        corrector: Corrector | None = None,
+    ):
         """``model``: an instantiated fmpy FMU2Model or FMU3Model whose start values the
         caller has set; ``description``: its fmpy ModelDescription. ``tolerance`` is
         CVode's relative tolerance (FMPy's default 1e-5); ``euler_step`` the fixed
@@ -165,8 +176,9 @@ class ModelExchangeStepper:
         self.time, self.stop = start, stop
         if not self.fmi3:
             with self._reported("setting up the experiment"):
-                self.model.setupExperiment(tolerance=self.tolerance, startTime=start,
-                                           stopTime=stop if self.set_stop_time else None)
+                self.model.setupExperiment(
+                    tolerance=self.tolerance, startTime=start, stopTime=stop if self.set_stop_time else None
+                )
 
     def enter_initialization(self, start: float, stop: float) -> None:
         """Start the experiment (after :meth:`setup` and the start values); parameters may still
@@ -174,8 +186,9 @@ class ModelExchangeStepper:
         self.time, self.stop = start, stop
         with self._reported("entering initialization mode"):
             if self.fmi3:
-                self.model.enterInitializationMode(tolerance=self.tolerance, startTime=start,
-                                                   stopTime=stop if self.set_stop_time else None)
+                self.model.enterInitializationMode(
+                    tolerance=self.tolerance, startTime=start, stopTime=stop if self.set_stop_time else None
+                )
             else:
                 self.model.enterInitializationMode()
 
@@ -292,10 +305,11 @@ class ModelExchangeStepper:
             failure = getattr(self._solver, "failure", None)
             if failure is not None:
                 raise ModelExchangeError(
-                    f"{_reason(failure)} while integrating from t={start:.9g} to t={target:.9g}") from e
+                    f"{_reason(failure)} while integrating from t={start:.9g} to t={target:.9g}"
+                ) from e
             raise ModelExchangeError(
-                f"the {self.solver_name} solver failed between t={start:.9g} and t={target:.9g}: "
-                f"{_reason(e)}") from e
+                f"the {self.solver_name} solver failed between t={start:.9g} and t={target:.9g}: {_reason(e)}"
+            ) from e
         return bool(state_event)
 
     def _completed_integrator_step(self) -> bool:
@@ -335,7 +349,8 @@ class ModelExchangeStepper:
                 self.next_event = next_time if defined else None
                 return
         raise ModelExchangeError(
-            f"the event iteration at t={self.time:.9g} did not settle in {MAX_EVENT_ITERATIONS} rounds")
+            f"the event iteration at t={self.time:.9g} did not settle in {MAX_EVENT_ITERATIONS} rounds"
+        )
 
     @contextmanager
     def _reported(self, doing: str) -> Iterator[None]:

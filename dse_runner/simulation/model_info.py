@@ -56,16 +56,31 @@ def model_info(model: str | Path | Plan, every: bool = False) -> list[InstanceIn
         description = describe(Path(path))
         experiment = description.defaultExperiment
         variables = [
-            VariableInfo(name=f"{instance}.{v.name}", causality=v.causality, type=v.type,
-                         start=None if v.start is None else str(v.start), unit=_unit(v),
-                         description=v.description or None,
-                         settable=_settable(plan.variables[instance].get(v.name)))
-            for v in description.modelVariables if every or v.causality in SHOWN]
-        found.append(InstanceInfo(
-            instance=instance, fmu=str(path), model_name=description.modelName,
-            fmi_version=description.fmiVersion, interface=plan.interfaces[instance],
-            start_time=_number(experiment, "startTime"), stop_time=_number(experiment, "stopTime"),
-            step=_number(experiment, "stepSize"), variables=variables))
+            VariableInfo(
+                name=f"{instance}.{v.name}",
+                causality=v.causality,
+                type=v.type,
+                start=None if v.start is None else str(v.start),
+                unit=_unit(v),
+                description=v.description or None,
+                settable=_settable(plan.variables[instance].get(v.name)),
+            )
+            for v in description.modelVariables
+            if every or v.causality in SHOWN
+        ]
+        found.append(
+            InstanceInfo(
+                instance=instance,
+                fmu=str(path),
+                model_name=description.modelName,
+                fmi_version=description.fmiVersion,
+                interface=plan.interfaces[instance],
+                start_time=_number(experiment, "startTime"),
+                stop_time=_number(experiment, "stopTime"),
+                step=_number(experiment, "stepSize"),
+                variables=variables,
+            )
+        )
     return found
 
 

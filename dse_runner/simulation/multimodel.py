@@ -69,9 +69,14 @@ class Target(BaseModel):
 
 
 # An input's name, or {input, round | threshold}: a wrong mapping gets Target's messages only.
-ConnectionTarget = Annotated[Annotated[Target, Tag("mapping")] | Annotated[str, Tag("scalar")],
-                             Discriminator(shape, custom_error_type="connection_target",
-                                           custom_error_message="expected an input's name or {input, ...}")]
+ConnectionTarget = Annotated[
+    Annotated[Target, Tag("mapping")] | Annotated[str, Tag("scalar")],
+    Discriminator(
+        shape,
+        custom_error_type="connection_target",
+        custom_error_message="expected an input's name or {input, ...}",
+    ),
+]
 
 
 class InstanceSettings(BaseModel):
@@ -83,7 +88,9 @@ class InstanceSettings(BaseModel):
     solver: Literal["cvode", "euler"] = "cvode"  # model exchange: FMPy's CVode, or forward Euler
     tolerance: PositiveFloat | None = None  # relative tolerance (CVode; co-simulation FMUs get it too)
     euler_step: PositiveFloat | None = None  # euler: the integration step; default: the communication step
-    set_stop_time: bool = True  # tell the FMU when the experiment stops (FMPy's default); false: leave it open
+    set_stop_time: bool = (
+        True  # tell the FMU when the experiment stops (FMPy's default); false: leave it open
+    )
     lifecycle: Literal["auto", "process"] = "auto"  # process: a fresh process per run (lifecycle.py)
 
 
@@ -132,7 +139,9 @@ class MultiModel(BaseModel):
 
     @field_validator("instances")
     @classmethod
-    def _settings_name_instances(cls, instances: dict[str, InstanceSettings], info) -> dict[str, InstanceSettings]:
+    def _settings_name_instances(
+        cls, instances: dict[str, InstanceSettings], info
+    ) -> dict[str, InstanceSettings]:
         unknown = sorted(set(instances) - set(info.data.get("fmus", {})))
         if unknown:
             raise ValueError(f"{', '.join(unknown)} is not an instance of 'fmus'")
@@ -143,8 +152,11 @@ class MultiModel(BaseModel):
 
     def targets(self) -> list[tuple[str, Target]]:
         """Every connection as (source, target with its conversion options)."""
-        return [(source, Target(input=t) if isinstance(t, str) else t)
-                for source, targets in self.connections.items() for t in targets]
+        return [
+            (source, Target(input=t) if isinstance(t, str) else t)
+            for source, targets in self.connections.items()
+            for t in targets
+        ]
 
     def settings(self, instance: str) -> InstanceSettings:
         return self.instances.get(instance) or InstanceSettings()
@@ -166,8 +178,11 @@ def into_cps_instances(data: dict[str, Any]) -> dict[str, str]:
     """instance -> the ``{fmu}`` key it is named under, for every id of an mm.json. Our names drop the
     key (``instance.variable``), so an instance name may belong to one FMU key only."""
     keys: dict[str, str] = {}
-    refs = [*data.get("connections", {}), *(t for ts in data.get("connections", {}).values() for t in ts),
-            *data.get("parameters", {})]
+    refs = [
+        *data.get("connections", {}),
+        *(t for ts in data.get("connections", {}).values() for t in ts),
+        *data.get("parameters", {}),
+    ]
     for ref in refs:
         try:
             fmu_key, instance, _ = split_into_cps_id(ref)
@@ -177,8 +192,10 @@ def into_cps_instances(data: dict[str, Any]) -> dict[str, str]:
             raise DseError(f"mm.json: {ref!r} names FMU {fmu_key}, which 'fmus' does not list")
         known = keys.setdefault(instance, fmu_key)
         if known != fmu_key:
-            raise DseError(f"mm.json: instance {instance!r} belongs to two FMUs, {known} and {fmu_key}; "
-                           "dse-runner names variables instance.variable, so rename one instance")
+            raise DseError(
+                f"mm.json: instance {instance!r} belongs to two FMUs, {known} and {fmu_key}; "
+                "dse-runner names variables instance.variable, so rename one instance"
+            )
     return keys
 
 
@@ -195,26 +212,35 @@ def _into_cps_fmu(path: str, base_dir: Path) -> str:
     path = portable(path)
     if Path(path).is_absolute():
         return path
-    folders = [folder / "FMUs" for folder in (base_dir, *list(base_dir.parents)[:3]) if (folder / "FMUs").is_dir()]
+    folders = [
+        folder / "FMUs" for folder in (base_dir, *list(base_dir.parents)[:3]) if (folder / "FMUs").is_dir()
+    ]
     for folder in folders:
         if (folder / path).exists():
             return str((folder / path).resolve())
     for folder in folders[:1]:
         renamed = _renamed(folder, Path(path).stem)
         if renamed is not None:
-            warnings.warn(FmuWarning(f"{path}: no such FMU in {folder}; using {renamed.relative_to(folder)}, "
-                                     "the one FMU there of that name or model identifier"), stacklevel=2)
+            warnings.warn(
+                FmuWarning(
+                    f"{path}: no such FMU in {folder}; using {renamed.relative_to(folder)}, "
+                    "the one FMU there of that name or model identifier"
+                ),
+                stacklevel=2,
+            )
             return str(renamed.resolve())
     return path
 
 
 def _renamed(folder: Path, stem: str) -> Path | None:
     """The one FMU under ``folder`` whose file name or model identifier is ``stem`` written otherwise."""
+
     def key(name: str) -> str:
         return name.lower().replace("-", "").replace("_", "").replace(" ", "")
 
-    found = {fmu for fmu in folder.rglob("*.fmu")
-             if key(fmu.stem) == key(stem) or stem in model_identifiers(fmu)}
+    found = {
+        fmu for fmu in folder.rglob("*.fmu") if key(fmu.stem) == key(stem) or stem in model_identifiers(fmu)
+    }
     return found.pop() if len(found) == 1 else None
 
 
@@ -226,11 +252,18 @@ def from_into_cps(data: dict[str, Any], base_dir: Path = Path(".")) -> dict[str,
         return ".".join(split_into_cps_id(ref)[1:])
 
     instances = {instance: _into_cps_fmu(data["fmus"][key], base_dir) for instance, key in keys.items()}
-    connections = {local(src): [local(dst) for dst in dsts] for src, dsts in data.get("connections", {}).items()}
+    connections = {
+        local(src): [local(dst) for dst in dsts] for src, dsts in data.get("connections", {}).items()
+    }
     parameters = {local(ref): v for ref, v in data.get("parameters", {}).items()}
     ours = {k: v for k, v in data.items() if k in ("scenario", "instances", "step", "step_sizes")}
-    return {"fmus": instances, "connections": connections, "parameters": parameters, "step_sizes": "nominal",
-            **ours}
+    return {
+        "fmus": instances,
+        "connections": connections,
+        "parameters": parameters,
+        "step_sizes": "nominal",
+        **ours,
+    }
 
 
 def is_into_cps(data: dict[str, Any]) -> bool:
@@ -257,12 +290,16 @@ def load_multimodel(path: str | Path) -> MultiModel:
     except OSError as e:
         raise DseError(f"cannot read multi-model {path}: {e.strerror}") from None
     except UnicodeDecodeError:
-        raise DseError(f"{path}: not a multi-model: it is not text (a model is an .fmu file, an FMU source folder, "
-                       "a multi-model YAML file or INTO-CPS's mm.json)") from None
+        raise DseError(
+            f"{path}: not a multi-model: it is not text (a model is an .fmu file, an FMU source folder, "
+            "a multi-model YAML file or INTO-CPS's mm.json)"
+        ) from None
     try:
         data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
     except (json.JSONDecodeError, yaml.YAMLError) as e:
-        raise DseError(format_syntax_error(str(path), "JSON" if path.suffix == ".json" else "YAML", e)) from None
+        raise DseError(
+            format_syntax_error(str(path), "JSON" if path.suffix == ".json" else "YAML", e)
+        ) from None
     return parse_multimodel(data, str(path), path.parent.resolve())
 
 

@@ -26,32 +26,84 @@ from .native import library
 
 # native_me.c's FMU functions (its enum), by FMI version: FMPy's names, which its messages use.
 FUNCTIONS = {
-    2: ("fmi2SetTime", "fmi2SetContinuousStates", "fmi2GetContinuousStates", "fmi2GetDerivatives",
-        "fmi2GetEventIndicators", "fmi2GetNominalsOfContinuousStates", "fmi2CompletedIntegratorStep",
-        "fmi2EnterEventMode", "fmi2NewDiscreteStates", "fmi2EnterContinuousTimeMode"),
-    3: ("fmi3SetTime", "fmi3SetContinuousStates", "fmi3GetContinuousStates", "fmi3GetContinuousStateDerivatives",
-        "fmi3GetEventIndicators", "fmi3GetNominalsOfContinuousStates", "fmi3CompletedIntegratorStep",
-        "fmi3EnterEventMode", "fmi3UpdateDiscreteStates", "fmi3EnterContinuousTimeMode"),
+    2: (
+        "fmi2SetTime",
+        "fmi2SetContinuousStates",
+        "fmi2GetContinuousStates",
+        "fmi2GetDerivatives",
+        "fmi2GetEventIndicators",
+        "fmi2GetNominalsOfContinuousStates",
+        "fmi2CompletedIntegratorStep",
+        "fmi2EnterEventMode",
+        "fmi2NewDiscreteStates",
+        "fmi2EnterContinuousTimeMode",
+    ),
+    3: (
+        "fmi3SetTime",
+        "fmi3SetContinuousStates",
+        "fmi3GetContinuousStates",
+        "fmi3GetContinuousStateDerivatives",
+        "fmi3GetEventIndicators",
+        "fmi3GetNominalsOfContinuousStates",
+        "fmi3CompletedIntegratorStep",
+        "fmi3EnterEventMode",
+        "fmi3UpdateDiscreteStates",
+        "fmi3EnterContinuousTimeMode",
+    ),
 }
 # The C type an input getter fills (model_exchange.input_groups names FMPy's getters), and whether its
 # values compare as numbers; a getter not here (strings) keeps the instance in Python.
 GETTERS = {
-    2: {"getReal": (ctypes.c_double, True), "getInteger": (ctypes.c_int, False), "getBoolean": (ctypes.c_int, False)},
-    3: {"getFloat64": (ctypes.c_double, True), "getFloat32": (ctypes.c_float, True), "getBoolean": (ctypes.c_bool, False),
-        **{f"get{t}": (getattr(ctypes, f"c_{t.lower()}"), False)
-           for t in ("Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64")}},
+    2: {
+        "getReal": (ctypes.c_double, True),
+        "getInteger": (ctypes.c_int, False),
+        "getBoolean": (ctypes.c_int, False),
+    },
+    3: {
+        "getFloat64": (ctypes.c_double, True),
+        "getFloat32": (ctypes.c_float, True),
+        "getBoolean": (ctypes.c_bool, False),
+        **{
+            f"get{t}": (getattr(ctypes, f"c_{t.lower()}"), False)
+            for t in ("Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64")
+        },
+    },
 }
 TERM_INPUTS = {2: "fmi2GetReal", 3: "fmi3GetFloat64"}  # what reads the real inputs derivative terms use
 (OK, FMU_CALL, CALLBACK_CALL, SOLVER, TERMINATE_ASKED, UNSETTLED, OFF_GRID, BAD_STEP, NO_MEMORY) = range(9)
-STAGES = ("exiting initialization mode", "handling an input change", "integrating", "completing an integrator step")
+STAGES = (
+    "exiting initialization mode",
+    "handling an input change",
+    "integrating",
+    "completing an integrator step",
+)
 INTEGRATING = 2
 # The SUNDIALS functions native_me.c calls, in its Sundials structure's order.
-SUNDIALS = ("SUNContext_Create", "SUNContext_Free", "SUNContext_PushErrHandler", "SUNContext_ClearErrHandlers",
-            "N_VNew_Serial", "N_VDestroy_Serial",
-            "N_VGetArrayPointer", "CVodeCreate", "CVodeInit", "CVodeSVtolerances", "CVodeRootInit", "SUNDenseMatrix",
-            "SUNLinSol_Dense", "CVodeSetLinearSolver", "CVodeSetMaxStep", "CVodeSetMaxNumSteps",
-            "CVodeSetNoInactiveRootWarn", "CVodeSetUserData", "CVode", "CVodeReInit", "CVodeFree", "SUNLinSolFree",
-            "SUNMatDestroy")
+SUNDIALS = (
+    "SUNContext_Create",
+    "SUNContext_Free",
+    "SUNContext_PushErrHandler",
+    "SUNContext_ClearErrHandlers",
+    "N_VNew_Serial",
+    "N_VDestroy_Serial",
+    "N_VGetArrayPointer",
+    "CVodeCreate",
+    "CVodeInit",
+    "CVodeSVtolerances",
+    "CVodeRootInit",
+    "SUNDenseMatrix",
+    "SUNLinSol_Dense",
+    "CVodeSetLinearSolver",
+    "CVodeSetMaxStep",
+    "CVodeSetMaxNumSteps",
+    "CVodeSetNoInactiveRootWarn",
+    "CVodeSetUserData",
+    "CVode",
+    "CVodeReInit",
+    "CVodeFree",
+    "SUNLinSolFree",
+    "SUNMatDestroy",
+)
 
 
 def _fields(*groups: tuple[Any, str]) -> list[tuple[str, Any]]:
@@ -71,16 +123,27 @@ class Inputs(ctypes.Structure):
 
 
 class Failure(ctypes.Structure):
-    _fields_ = _fields((I32, "code stage function status"), (F64, "start to"), (I32, "solver_code"),
-                       (ctypes.c_char * 64, "solver_module solver_file"), (ctypes.c_char * 256, "solver_message"))
+    _fields_ = _fields(
+        (I32, "code stage function status"),
+        (F64, "start to"),
+        (I32, "solver_code"),
+        (ctypes.c_char * 64, "solver_module solver_file"),
+        (ctypes.c_char * 256, "solver_message"),
+    )
 
 
 class MeUnit(ctypes.Structure):
-    _fields_ = _fields((P, "sun"), (P * len(FUNCTIONS[2]), "fn"),
-                       (P, "component inputs terms factors limits term_inputs term_states"),
-                       (I32, "n_terms n_limits n_inputs version needs_completed discrete"), (I64, "nx nz"),
-                       (F64, "tolerance max_step time next_event"), (I32, "next_defined"),
-                       (P * 6, "solver"), (Failure, "failure"))  # solver: CVode's, which only C touches
+    _fields_ = _fields(
+        (P, "sun"),
+        (P * len(FUNCTIONS[2]), "fn"),
+        (P, "component inputs terms factors limits term_inputs term_states"),
+        (I32, "n_terms n_limits n_inputs version needs_completed discrete"),
+        (I64, "nx nz"),
+        (F64, "tolerance max_step time next_event"),
+        (I32, "next_defined"),
+        (P * 6, "solver"),
+        (Failure, "failure"),
+    )  # solver: CVode's, which only C touches
 
 
 def _limit_rows(corrector: Corrector) -> np.ndarray:
@@ -100,8 +163,13 @@ def _sundials() -> Sundials | None:
         from fmpy.sundials import libraries
     except (ImportError, OSError):
         return None
-    libs = [libraries.sundials_core, libraries.sundials_nvecserial, libraries.sundials_sunmatrixdense,
-            libraries.sundials_sunlinsoldense, libraries.sundials_cvode]
+    libs = [
+        libraries.sundials_core,
+        libraries.sundials_nvecserial,
+        libraries.sundials_sunmatrixdense,
+        libraries.sundials_sunlinsoldense,
+        libraries.sundials_cvode,
+    ]
 
     def found(name: str) -> int | None:
         return next((_address(getattr(lib, name)) for lib in libs if hasattr(lib, name)), None)
@@ -129,24 +197,36 @@ def eligible(description: Any, solver: str) -> bool:
 class NativeIntegrator:
     """One ME instance's C integrator: its functions and buffers, laid out once and started every run."""
 
-    def __init__(self, model: Any, description: Any, tolerance: float | None,
-                 corrector: Corrector | None = None) -> None:
+    def __init__(
+        self, model: Any, description: Any, tolerance: float | None, corrector: Corrector | None = None
+    ) -> None:
         self.version = 3 if description.fmiVersion.startswith("3.") else 2
         self.dll = model.dll
         groups = _inputs(description, self.version)
         # the C getters, in native_me.c's order after its FMU functions: each input group's, then the terms'
-        self.getters = [f"fmi{self.version}G{getter[1:]}" for getter, *_ in groups] + [TERM_INPUTS[self.version]]
+        self.getters = [f"fmi{self.version}G{getter[1:]}" for getter, *_ in groups] + [
+            TERM_INPUTS[self.version]
+        ]
         self._buffers: list = []  # kept alive while C points at them
-        inputs = [self._group(name, vrs, ctype, floating)
-                  for name, (_, vrs, ctype, floating) in zip(self.getters, groups)]
+        inputs = [
+            self._group(name, vrs, ctype, floating)
+            for name, (_, vrs, ctype, floating) in zip(self.getters, groups)
+        ]
         self.inputs = (Inputs * len(inputs))(*inputs)
         self.sundials = _sundials()
         states = description.numberOfContinuousStates
-        self.unit = MeUnit(sun=ctypes.addressof(self.sundials), component=model.component,
-                         inputs=ctypes.addressof(self.inputs), n_inputs=len(inputs), version=self.version,
-                         needs_completed=bool(description.modelExchange.needsCompletedIntegratorStep),
-                         discrete=states == 0, nx=max(states, 1), nz=description.numberOfEventIndicators,
-                         tolerance=tolerance or DEFAULT_TOLERANCE)
+        self.unit = MeUnit(
+            sun=ctypes.addressof(self.sundials),
+            component=model.component,
+            inputs=ctypes.addressof(self.inputs),
+            n_inputs=len(inputs),
+            version=self.version,
+            needs_completed=bool(description.modelExchange.needsCompletedIntegratorStep),
+            discrete=states == 0,
+            nx=max(states, 1),
+            nz=description.numberOfEventIndicators,
+            tolerance=tolerance or DEFAULT_TOLERANCE,
+        )
         for i, name in enumerate(FUNCTIONS[self.version]):
             self.unit.fn[i] = _address(getattr(self.dll, name))
         self.address = ctypes.addressof(self.unit)
@@ -159,9 +239,15 @@ class NativeIntegrator:
         n = len(vrs)
         held = [(ctypes.c_uint32 * n)(*vrs), (ctype * n)(), (ctype * n)()]
         self._buffers.append(held)
-        return Inputs(fn=_address(getattr(self.dll, getter)), n=n, vrs=ctypes.addressof(held[0]),
-                      now=ctypes.addressof(held[1]), before=ctypes.addressof(held[2]), size=ctypes.sizeof(ctype),
-                      floating=floating)
+        return Inputs(
+            fn=_address(getattr(self.dll, getter)),
+            n=n,
+            vrs=ctypes.addressof(held[0]),
+            now=ctypes.addressof(held[1]),
+            before=ctypes.addressof(held[2]),
+            size=ctypes.sizeof(ctype),
+            floating=floating,
+        )
 
     def _terms(self, corrector: Corrector, states: int) -> None:
         """The corrector's terms as C rows of factors, and the real inputs they read."""
@@ -170,9 +256,18 @@ class NativeIntegrator:
         factors, rows = [], []  # native_me.c's rows: (state, first factor, factors, coefficient) and factors
         for state, term, coefficient in corrector.rows:
             rows.append((state, len(factors), len(term.factors), coefficient))
-            factors += [(f.variable not in corrector.states, corrector.states.index(f.variable)
-                         if f.variable in corrector.states else inputs.index(f.variable), codes[f.function], f.power,
-                         f.width) for f in term.factors]
+            factors += [
+                (
+                    f.variable not in corrector.states,
+                    corrector.states.index(f.variable)
+                    if f.variable in corrector.states
+                    else inputs.index(f.variable),
+                    codes[f.function],
+                    f.power,
+                    f.width,
+                )
+                for f in term.factors
+            ]
         self.terms = np.array(rows, dtype=float).reshape(-1, 4)
         self.factors = np.array(factors or [(0, 0, 0, 1, 1.0)], dtype=float).reshape(-1, 5)
         self.limits = _limit_rows(corrector)
@@ -182,7 +277,9 @@ class NativeIntegrator:
         unit.limits, unit.n_limits = self.limits.ctypes.data, len(corrector.limits)
         unit.term_states = self.term_states.ctypes.data
         if inputs:
-            self.term_inputs = self._group(TERM_INPUTS[self.version], [vr for _, vr in corrector.inputs], ctypes.c_double)
+            self.term_inputs = self._group(
+                TERM_INPUTS[self.version], [vr for _, vr in corrector.inputs], ctypes.c_double
+            )
             unit.term_inputs = ctypes.addressof(self.term_inputs)
 
     def coefficients(self, corrector: Corrector) -> None:
@@ -210,21 +307,28 @@ class NativeIntegrator:
         name = [*FUNCTIONS[self.version], *self.getters][f.function]
         called = _fmu_failure(name, f.status)
         if f.code in (TERMINATE_ASKED, UNSETTLED, OFF_GRID, BAD_STEP):
-            return ModelExchangeError({
-                TERMINATE_ASKED: f"the FMU requested termination at t={f.start:.9g}",
-                UNSETTLED: f"the event iteration at t={f.start:.9g} did not settle in {MAX_EVENT_ITERATIONS} rounds",
-                OFF_GRID: f"do_step at t={f.to:.9g} but the instance is at t={f.start:.9g}",
-                BAD_STEP: f"communication step must be > 0, got {f.to} at t={f.start:.9g}"}[f.code])
+            return ModelExchangeError(
+                {
+                    TERMINATE_ASKED: f"the FMU requested termination at t={f.start:.9g}",
+                    UNSETTLED: f"the event iteration at t={f.start:.9g} did not settle in {MAX_EVENT_ITERATIONS} rounds",
+                    OFF_GRID: f"do_step at t={f.to:.9g} but the instance is at t={f.start:.9g}",
+                    BAD_STEP: f"communication step must be > 0, got {f.to} at t={f.start:.9g}",
+                }[f.code]
+            )
         if f.code == CALLBACK_CALL:
             return ModelExchangeError(f"{called} while integrating from t={f.start:.9g} to t={f.to:.9g}")
         if f.code == SOLVER and f.stage == INTEGRATING:
-            reason = (f"CVode error (code {f.solver_code}) in module {f.solver_module.decode()}, function "
-                      f"{f.solver_file.decode()}: {f.solver_message.decode()}")
+            reason = (
+                f"CVode error (code {f.solver_code}) in module {f.solver_module.decode()}, function "
+                f"{f.solver_file.decode()}: {f.solver_message.decode()}"
+            )
         else:
             reason = {SOLVER: "Call to CVode failed", NO_MEMORY: "out of memory"}.get(f.code, called)
         reason = " ".join(reason.split()).rstrip(".")
         if f.stage == INTEGRATING:
-            return ModelExchangeError(f"the cvode solver failed between t={f.start:.9g} and t={f.to:.9g}: {reason}")
+            return ModelExchangeError(
+                f"the cvode solver failed between t={f.start:.9g} and t={f.to:.9g}: {reason}"
+            )
         return ModelExchangeError(f"{STAGES[f.stage]} at t={f.start:.9g}: {reason}")
 
 

@@ -55,8 +55,19 @@ if TYPE_CHECKING:
     from .trajectory import Trajectory
 
 
-Reduction = Literal["final", "min", "max", "mean", "sample_mean", "integral", "rms", "changes",
-                    "time_above", "time_below", "settling_time"]
+Reduction = Literal[
+    "final",
+    "min",
+    "max",
+    "mean",
+    "sample_mean",
+    "integral",
+    "rms",
+    "changes",
+    "time_above",
+    "time_below",
+    "settling_time",
+]
 
 
 class Reduce(BaseModel):
@@ -108,14 +119,22 @@ def _objective_kind(value: Any) -> str | None:
 # A registered name or module:function, or one of the three mappings; a wrong entry gives the messages of the
 # form its keys choose, not one per form.
 ObjectiveSpec = Annotated[
-    Annotated[Reduce, Tag("reduce")] | Annotated[Fit, Tag("fit")] | Annotated[Script, Tag("script")]
+    Annotated[Reduce, Tag("reduce")]
+    | Annotated[Fit, Tag("fit")]
+    | Annotated[Script, Tag("script")]
     | Annotated[str, Tag("name")],
-    Discriminator(_objective_kind, custom_error_type="objective",
-                  custom_error_message="expected a name, {signal, reduce}, {signal, recorded, metric} "
-                                       "or {script, args}")]
+    Discriminator(
+        _objective_kind,
+        custom_error_type="objective",
+        custom_error_message="expected a name, {signal, reduce}, {signal, recorded, metric} "
+        "or {script, args}",
+    ),
+]
 
 
-def normalise(objectives: list[str] | Mapping[str, ObjectiveSpec | Mapping[str, Any]]) -> dict[str, ObjectiveSpec]:
+def normalise(
+    objectives: list[str] | Mapping[str, ObjectiveSpec | Mapping[str, Any]],
+) -> dict[str, ObjectiveSpec]:
     """name -> spec; a plain list names registered objectives or import paths by themselves. A spec given
     as a plain mapping (``simulate(objectives={"peak": {"signal": ..., "reduce": "max"}})``, as space.yaml
     writes it) is read as space.yaml's would be."""
@@ -141,10 +160,12 @@ def from_command_line(items: Sequence[str]) -> dict[str, ObjectiveSpec]:
         except yaml.YAMLError as e:
             raise DseError(f"--objective {item!r}: not a YAML mapping: {str(e).splitlines()[0]}") from None
         if not isinstance(data, dict):
-            raise DseError(f"--objective {item!r}: give a name, module:function, or a mapping such as "
-                           "'{signal: inst.var, recorded: column, metric: rmse}'")
+            raise DseError(
+                f"--objective {item!r}: give a name, module:function, or a mapping such as "
+                "'{signal: inst.var, recorded: column, metric: rmse}'"
+            )
         if len(data) == 1 and isinstance(next(iter(data.values())), dict):  # {name: {...}}
-            (name, spec), = data.items()
+            ((name, spec),) = data.items()
             found[str(name)] = _parsed(str(name), spec)
             continue
         try:
@@ -174,6 +195,7 @@ def _parsed(name: str, spec: ObjectiveSpec | Mapping[str, Any]) -> ObjectiveSpec
 
 
 # ---- reductions ----------------------------------------------------------------------------------
+
 
 def _span(time: np.ndarray) -> float:
     return float(time[-1] - time[0])
@@ -235,13 +257,16 @@ def fit(spec: Fit, trajectory, scenario) -> float:
     time = trajectory.time
     inside = (t >= time[0]) & (t <= time[-1] + 1e-9)
     if not inside.any():
-        raise DseError(f"scenario {scenario.name}: no recorded {spec.recorded} sample lies within the "
-                       f"simulated time {time[0]:g}..{time[-1]:g} s")
+        raise DseError(
+            f"scenario {scenario.name}: no recorded {spec.recorded} sample lies within the "
+            f"simulated time {time[0]:g}..{time[-1]:g} s"
+        )
     errors = np.interp(t[inside], time, trajectory.column(spec.signal)) - recorded[inside]
     return METRICS[spec.metric](errors)
 
 
 # ---- named objectives: plug-ins and import paths --------------------------------------------------
+
 
 class Objective(ABC):
     """A named objective: the contract of the entry-point group ``dse_runner.objectives`` (whose entries
@@ -306,8 +331,10 @@ def function(name: str) -> Objective:
     module_name, colon, function_name = name.partition(":")
     if not colon:
         available = ", ".join(registered()) or "none installed"
-        raise DseError(f"unknown objective {name!r}: use {{signal, reduce}}, {{signal, recorded, metric}}, "
-                       f"a registered name ({available}) or an import path 'module:function'")
+        raise DseError(
+            f"unknown objective {name!r}: use {{signal, reduce}}, {{signal, recorded, metric}}, "
+            f"a registered name ({available}) or an import path 'module:function'"
+        )
     try:
         module = importlib.import_module(module_name)
     except ImportError as e:
@@ -331,10 +358,14 @@ def signals(spec: ObjectiveSpec) -> tuple[str, ...]:
     return (spec.signal,) if isinstance(spec, (Reduce, Fit)) else ()
 
 
-def load_scripts(objectives: Mapping[str, ObjectiveSpec], base: Path, source: str) -> dict[str, ObjectiveSpec]:
+def load_scripts(
+    objectives: Mapping[str, ObjectiveSpec], base: Path, source: str
+) -> dict[str, ObjectiveSpec]:
     """The objectives with every script read (relative to ``base``), so that they travel to workers."""
-    return {name: spec.loaded(base, f"{source}: objectives.{name}") if isinstance(spec, Script) else spec
-            for name, spec in objectives.items()}
+    return {
+        name: spec.loaded(base, f"{source}: objectives.{name}") if isinstance(spec, Script) else spec
+        for name, spec in objectives.items()
+    }
 
 
 def compute(spec: ObjectiveSpec, trajectory, scenario) -> Any:
@@ -363,8 +394,9 @@ def evaluate(objectives: Mapping[str, ObjectiveSpec], trajectory, scenario) -> d
         except (TypeError, ValueError):
             raise DseError(f"objective {name!r} returned {value!r}, not a number") from None
         if not (np.all(np.isfinite(number)) if vector else math.isfinite(number)):
-            raise DseError(f"objective {name!r} is not a finite number on scenario {scenario.name} "
-                           f"({value!r:.80})")
+            raise DseError(
+                f"objective {name!r} is not a finite number on scenario {scenario.name} ({value!r:.80})"
+            )
         results[name] = number.tolist() if vector else number
     if scripts:
         results.update(run_scripts(scripts, trajectory, scenario.data, results))

@@ -73,31 +73,38 @@ class Plan:
         for ref in refs:
             variable = self.variable(ref, purpose)
             if variable.family == "string" or not variable.numeric:
-                raise DseError(f"{purpose}: {ref!r} is {with_article(variable.type)}, not a number one can "
-                               "score")
+                raise DseError(
+                    f"{purpose}: {ref!r} is {with_article(variable.type)}, not a number one can score"
+                )
             if variable not in outputs[variable.instance]:
                 outputs[variable.instance].append(variable)
         return replace(self, outputs={name: tuple(vs) for name, vs in outputs.items()})
 
 
-def lookup(variables: dict[str, dict[str, Variable]], models: dict[str, str], ref: str,
-           purpose: str) -> Variable:
+def lookup(
+    variables: dict[str, dict[str, Variable]], models: dict[str, str], ref: str, purpose: str
+) -> Variable:
     """Resolve ``instance.variable``; the error names it and suggests near names."""
     try:
         instance, name = split_ref(ref)
     except ValueError as e:
         raise DseError(f"{purpose}: {e}") from None
     if instance not in variables:
-        raise DseError(f"{purpose}: {ref!r} names instance {instance!r}, but the multi-model has "
-                       f"{', '.join(sorted(variables))}{did_you_mean(instance, variables)}")
+        raise DseError(
+            f"{purpose}: {ref!r} names instance {instance!r}, but the multi-model has "
+            f"{', '.join(sorted(variables))}{did_you_mean(instance, variables)}"
+        )
     variable = variables[instance].get(name)
     if variable is None:
-        raise DseError(f"{purpose}: unknown variable {ref!r}: instance {instance!r} ({models[instance]}) "
-                       f"has no variable {name!r}{did_you_mean(name, variables[instance])}")
+        raise DseError(
+            f"{purpose}: unknown variable {ref!r}: instance {instance!r} ({models[instance]}) "
+            f"has no variable {name!r}{did_you_mean(name, variables[instance])}"
+        )
     return variable
 
 
 # ---- planning ------------------------------------------------------------------------------------
+
 
 def _fmu_file(multimodel: MultiModel, name: str) -> Path:
     """The FMU an instance names, built if it is a source folder; an error names the instance."""
@@ -112,15 +119,23 @@ def make_plan(multimodel: MultiModel, interface: str | None = None) -> Plan:
     overrides every instance's."""
     fmu_paths = {name: _fmu_file(multimodel, name) for name in multimodel.fmus}
     descriptions = {name: fmus.describe(path) for name, path in fmu_paths.items()}
-    interfaces = {name: fmus.choose_interface(fmu_paths[name], d, interface or multimodel.settings(name).interface)
-                  for name, d in descriptions.items()}
-    variables = {name: {v.name: describe_variable(name, v) for v in d.modelVariables}
-                 for name, d in descriptions.items()}
+    interfaces = {
+        name: fmus.choose_interface(fmu_paths[name], d, interface or multimodel.settings(name).interface)
+        for name, d in descriptions.items()
+    }
+    variables = {
+        name: {v.name: describe_variable(name, v) for v in d.modelVariables}
+        for name, d in descriptions.items()
+    }
     models = {name: d.modelName for name, d in descriptions.items()}
-    outputs = {name: tuple(v for v in vs.values() if v.causality == "output" and v.numeric)
-               for name, vs in variables.items()}
-    texts = {name: tuple(v for v in vs.values() if v.causality == "output" and v.family == "string")
-             for name, vs in variables.items()}
+    outputs = {
+        name: tuple(v for v in vs.values() if v.causality == "output" and v.numeric)
+        for name, vs in variables.items()
+    }
+    texts = {
+        name: tuple(v for v in vs.values() if v.causality == "output" and v.family == "string")
+        for name, vs in variables.items()
+    }
     links = _links(multimodel, variables, models)
     for ref in multimodel.scenario:
         check_settable(lookup(variables, models, ref, "scenario"))
@@ -135,13 +150,19 @@ def _links(multimodel: MultiModel, variables, models) -> tuple[Link, ...]:
     for source_ref, target in multimodel.targets():
         source = lookup(variables, models, source_ref, "connection")
         if source.causality != "output":
-            raise DseError(f"connection: {source_ref!r} must be an output (it is {with_article(source.causality)})")
+            raise DseError(
+                f"connection: {source_ref!r} must be an output (it is {with_article(source.causality)})"
+            )
         sink = lookup(variables, models, target.input, "connection")
         if sink.causality != "input":
-            raise DseError(f"connection {source_ref} -> {target.input}: the target must be an input "
-                           f"(it is {with_article(sink.causality)})")
+            raise DseError(
+                f"connection {source_ref} -> {target.input}: the target must be an input "
+                f"(it is {with_article(sink.causality)})"
+            )
         if target.input in fed:
-            raise DseError(f"connection: input {target.input!r} is fed by both {fed[target.input]} and {source_ref}")
+            raise DseError(
+                f"connection: input {target.input!r} is fed by both {fed[target.input]} and {source_ref}"
+            )
         fed[target.input] = source_ref
         links.append(Link(source, sink, conversion(source, sink, target.round, target.threshold)))
     return tuple(links)

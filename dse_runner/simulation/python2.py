@@ -39,11 +39,39 @@ LINES = [
     (re.compile(r"\bur['\"]"), "a ur'...' string"),
 ]
 # Builtins and modules Python 3 no longer has: such a script compiles, then fails when it gets there.
-BUILTINS = {"unicode", "xrange", "basestring", "raw_input", "unichr", "long", "execfile", "reduce", "cmp",
-            "reload", "apply", "buffer", "intern", "coerce"}
+BUILTINS = {
+    "unicode",
+    "xrange",
+    "basestring",
+    "raw_input",
+    "unichr",
+    "long",
+    "execfile",
+    "reduce",
+    "cmp",
+    "reload",
+    "apply",
+    "buffer",
+    "intern",
+    "coerce",
+}
 METHODS = {"has_key", "iteritems", "iterkeys", "itervalues"}
-MODULES = {"urllib2", "urlparse", "ConfigParser", "StringIO", "cStringIO", "cPickle", "Queue", "Tkinter",
-           "__builtin__", "httplib", "HTMLParser", "SocketServer", "commands", "exceptions"}
+MODULES = {
+    "urllib2",
+    "urlparse",
+    "ConfigParser",
+    "StringIO",
+    "cStringIO",
+    "cPickle",
+    "Queue",
+    "Tkinter",
+    "__builtin__",
+    "httplib",
+    "HTMLParser",
+    "SocketServer",
+    "commands",
+    "exceptions",
+}
 
 
 def as_python3(code: str, path: Path) -> tuple[str, str | None]:
@@ -58,8 +86,9 @@ def as_python3(code: str, path: Path) -> tuple[str, str | None]:
         try:
             check(ported, path)
         except DseError as still:
-            raise DseError(f"{refused}; ported by fissix it is still not Python 3: "
-                           f"{str(still).removeprefix(f'{path} ')}") from None
+            raise DseError(
+                f"{refused}; ported by fissix it is still not Python 3: {str(still).removeprefix(f'{path} ')}"
+            ) from None
         return ported, str(refused).removeprefix(f"{path} ").split(";")[0]
 
 
@@ -121,8 +150,11 @@ def python2_names(tree: ast.Module) -> tuple[int, str] | None:
             found.append((node.lineno, f".{node.attr}(), a dict method Python 3 does not have"))
         elif isinstance(node, (ast.Import, ast.ImportFrom)):
             names = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""]
-            found += [(node.lineno, f"module {n}, which Python 3 renamed or removed") for n in names
-                      if n.split(".")[0] in MODULES]
+            found += [
+                (node.lineno, f"module {n}, which Python 3 renamed or removed")
+                for n in names
+                if n.split(".")[0] in MODULES
+            ]
         elif isinstance(node, ast.Expr) and _is_print_statement(node.value):
             found.append((node.lineno, "print statement"))
     return min(found) if found else None

@@ -78,8 +78,10 @@ def _is_one_fmu(path: Path) -> bool:
     """An ``.fmu`` file or an FMU's C sources; a missing ``.fmu`` is an error that says how one is made."""
     if path.suffix.lower() == ".fmu":
         if not path.exists():
-            raise DseError(f"FMU not found: {path} (`dse-runner build-fmus SOURCES --out DIR` makes .fmu files "
-                           "from FMU source folders, and a source folder can be given instead of an .fmu)")
+            raise DseError(
+                f"FMU not found: {path} (`dse-runner build-fmus SOURCES --out DIR` makes .fmu files "
+                "from FMU source folders, and a source folder can be given instead of an .fmu)"
+            )
         return True
     return path.is_dir() and is_source_dir(path)
 
@@ -97,7 +99,9 @@ def qualify(plan: Plan, ref: str) -> str:
     return ref
 
 
-Correction = derivative_terms.DerivativeTerm | state_limits.StateLimit  # what the master changes in ME equations
+Correction = (
+    derivative_terms.DerivativeTerm | state_limits.StateLimit
+)  # what the master changes in ME equations
 
 
 def checked_term(plan: Plan, term: Correction) -> Correction:
@@ -110,8 +114,10 @@ def checked_term(plan: Plan, term: Correction) -> Correction:
             raise DseError(f"{term.name}: name the instance, e.g. {named.name}")
         instance = next(iter(plan.variables))
     if instance not in plan.variables:
-        raise DseError(f"{term.name}: the multi-model has no instance {instance!r} "
-                       f"(it has {', '.join(sorted(plan.variables))})")
+        raise DseError(
+            f"{term.name}: the multi-model has no instance {instance!r} "
+            f"(it has {', '.join(sorted(plan.variables))})"
+        )
     term = replace(term, instance=instance)
     description = describe(plan.fmu_paths[instance])
     if isinstance(term, state_limits.StateLimit):
@@ -204,10 +210,17 @@ def simulate(
     verdicts = recipe.lifecycle(runner, values)
     trajectory = runner.run(values, timeout, loop, fresh_process=needs_process(verdicts))
     if effects:
-        trajectory = trajectory.with_columns(signal_effects.on_outputs(trajectory.time, trajectory.column, effects))
-    return SimulationResult(recipe.scenario, {**values, **{e.name: v for e, v in effects.items()},
-                                              **{t.name: v for t, v in terms.items()}}, recipe.times,
-                            trajectory, objs.evaluate(recipe.specs, trajectory, recipe.scenario), verdicts)
+        trajectory = trajectory.with_columns(
+            signal_effects.on_outputs(trajectory.time, trajectory.column, effects)
+        )
+    return SimulationResult(
+        recipe.scenario,
+        {**values, **{e.name: v for e, v in effects.items()}, **{t.name: v for t, v in terms.items()}},
+        recipe.times,
+        trajectory,
+        objs.evaluate(recipe.specs, trajectory, recipe.scenario),
+        verdicts,
+    )
 
 
 @dataclass
@@ -241,7 +254,9 @@ class _Recipe:
         """The scenario's input signals, by the names the runner feeds them under."""
         return {ref: s for ref, s in self.scenario.inputs.items() if isinstance(s, Series)}
 
-    def qualified_effects(self, effects: Mapping[signal_effects.Effect, float]) -> dict[signal_effects.Effect, float]:
+    def qualified_effects(
+        self, effects: Mapping[signal_effects.Effect, float]
+    ) -> dict[signal_effects.Effect, float]:
         """Effects with their targets as the plan and the scenario name them (one FMU's may be written bare)."""
         plan = self.runner.plan
         fed = {qualify(plan, ref): ref for ref in self.signals}
@@ -293,8 +308,9 @@ def _recipe(model, scenario, objectives, experiment: Experiment | None, times: t
     resolved = resolve_times(plan, scenario, experiment, *times)
     inputs = {ref: s for ref, s in scenario.inputs.items() if isinstance(s, Series)}
     runner = prepare(plan, resolved.start, resolved.stop, resolved.step, inputs)
-    recipe = _Recipe(given, copy.deepcopy(objectives), copy.deepcopy(experiment), scenario, specs, base, resolved,
-                     runner)
+    recipe = _Recipe(
+        given, copy.deepcopy(objectives), copy.deepcopy(experiment), scenario, specs, base, resolved, runner
+    )
     if reusable:
         while len(_RECIPES) >= KEEP_RECIPES:
             _RECIPES.pop(next(iter(_RECIPES)))

@@ -49,8 +49,8 @@ DEFAULT_GROUP = "all"
 NOMINAL = "nominal"  # the one scenario of a space that names none
 
 
-
 # ---- recorded tables ---------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class Table:
@@ -84,8 +84,13 @@ def _lines(path: Path) -> list[str]:
     return lines
 
 
-def read_table(path: Path, names: tuple[str, ...], may_drop: tuple[str, ...] = (),
-               drop_rows: bool = True, ordered: bool = True) -> Table:
+def read_table(
+    path: Path,
+    names: tuple[str, ...],
+    may_drop: tuple[str, ...] = (),
+    drop_rows: bool = True,
+    ordered: bool = True,
+) -> Table:
     """Named numeric columns of a headed CSV whose first named column is time (if ``ordered``).
 
     Every value must be a finite number; a ``may_drop`` value that is empty or NaN is a dropout:
@@ -107,7 +112,9 @@ def read_table(path: Path, names: tuple[str, ...], may_drop: tuple[str, ...] = (
             raise DseError(f"{path} line {number}: expected {len(header)} fields, got {line!r}")
         texts = {name: fields[i].strip() for name, i in zip(names, index)}
         gaps = {n for n in may_drop if is_dropout_text(texts[n])}
-        values = [math.nan if name in gaps else _number(path, number, name, text) for name, text in texts.items()]
+        values = [
+            math.nan if name in gaps else _number(path, number, name, text) for name, text in texts.items()
+        ]
         times.append((values[0], number))
         if gaps:
             dropped.append(number)
@@ -135,11 +142,14 @@ def _check_increasing(path: Path, column: str, times: list[tuple[float, int]]) -
     """Times (of every row, dropouts included) must increase: interpolation and the step loop rely on it."""
     for (previous, _), (time, line) in zip(times, times[1:]):
         if not time > previous:
-            raise DseError(f"{path} line {line}, column {column}: {time:g} does not increase on the "
-                           f"previous row's {previous:g}")
+            raise DseError(
+                f"{path} line {line}, column {column}: {time:g} does not increase on the "
+                f"previous row's {previous:g}"
+            )
 
 
 # ---- what a scenario holds ---------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class Recording:
@@ -170,7 +180,9 @@ class Scenario:
     parameters: Mapping[str, Value] = field(default_factory=dict)  # instance.variable -> value
     fields: Mapping[str, Value] = field(default_factory=dict)  # what a multi-model's `scenario:` binds
     files: Mapping[str, Path] = field(default_factory=dict)  # fields that are files FMUs read by path
-    data: Mapping[str, Path] = field(default_factory=dict)  # a data folder's files by relative name, for scripts
+    data: Mapping[str, Path] = field(
+        default_factory=dict
+    )  # a data folder's files by relative name, for scripts
     recorded: Recording | None = None
     start_time: float | None = None
     stop_time: float | None = None
@@ -190,8 +202,10 @@ class Scenario:
         if name in self.fields:
             return self.fields[name]
         have = sorted({*self.fields, *self.files})
-        raise DseError(f"scenario {self.name}: no field {name!r}"
-                       + (f"; it has {', '.join(have)}" if have else f" (a {self.kind} scenario has no fields)"))
+        raise DseError(
+            f"scenario {self.name}: no field {name!r}"
+            + (f"; it has {', '.join(have)}" if have else f" (a {self.kind} scenario has no fields)")
+        )
 
     def with_files(self, files: Mapping[str, Path]) -> Scenario:
         """The same scenario reading its files from elsewhere (a worker's copies)."""
@@ -217,10 +231,13 @@ def dropouts(scenarios: list[Scenario]) -> dict[str, int]:
 
 def dropouts_line(counts: dict[str, int]) -> str:
     """The dropouts per scenario as one line, as every command prints them."""
-    return "recorded values skipped as dropouts (empty or NaN): " + ", ".join(f"{name} {n}" for name, n in counts.items())
+    return "recorded values skipped as dropouts (empty or NaN): " + ", ".join(
+        f"{name} {n}" for name, n in counts.items()
+    )
 
 
 # ---- the general file format (kind "signals") --------------------------------------------------
+
 
 class SeriesSpec(BaseModel):
     """An input from a CSV: ``{csv: inflow.csv, column: q, interpolation: hold}``."""
@@ -242,12 +259,18 @@ class RecordedSpec(BaseModel):
 
 # A mapping is a CSV series or recording, anything else a constant or a CSV's path: a wrong mapping gets that
 # model's messages only, not one per kind of value.
-InputSpec = Annotated[Annotated[SeriesSpec, Tag("mapping")] | Annotated[FiniteValue, Tag("scalar")],
-                      Discriminator(shape, custom_error_type="input",
-                                    custom_error_message="expected a value or {csv, column, ...}")]
-RecordedEntry = Annotated[Annotated[RecordedSpec, Tag("mapping")] | Annotated[str, Tag("scalar")],
-                          Discriminator(shape, custom_error_type="recorded",
-                                        custom_error_message="expected a CSV's path or {csv, time}")]
+InputSpec = Annotated[
+    Annotated[SeriesSpec, Tag("mapping")] | Annotated[FiniteValue, Tag("scalar")],
+    Discriminator(
+        shape, custom_error_type="input", custom_error_message="expected a value or {csv, column, ...}"
+    ),
+]
+RecordedEntry = Annotated[
+    Annotated[RecordedSpec, Tag("mapping")] | Annotated[str, Tag("scalar")],
+    Discriminator(
+        shape, custom_error_type="recorded", custom_error_message="expected a CSV's path or {csv, time}"
+    ),
+]
 
 
 class ScenarioSpec(BaseModel):
@@ -262,7 +285,9 @@ class ScenarioSpec(BaseModel):
     start_time: float | None = None
     stop_time: PositiveFloat | None = None
     step: PositiveFloat | None = None
-    data: str | None = None  # a folder of files script objectives read (INTO-CPS: userMetricScripts/<scenario>)
+    data: str | None = (
+        None  # a folder of files script objectives read (INTO-CPS: userMetricScripts/<scenario>)
+    )
 
 
 def read_data_folder(folder: Path, where: str) -> dict[str, Path]:
@@ -299,12 +324,23 @@ def from_spec(spec: ScenarioSpec, base: Path, source: str) -> Scenario:
         sources.append(path)
     data = {}
     if spec.data is not None:
-        data = read_data_folder(Path(spec.data) if Path(spec.data).is_absolute() else base / spec.data,
-                                f"{source}: data")
+        data = read_data_folder(
+            Path(spec.data) if Path(spec.data).is_absolute() else base / spec.data, f"{source}: data"
+        )
         sources.extend(data.values())
-    return Scenario(spec.name, spec.group, "signals", inputs, dict(spec.parameters), recorded=recorded,
-                    start_time=spec.start_time, stop_time=spec.stop_time, step=spec.step, sources=tuple(sources),
-                    data=data)
+    return Scenario(
+        spec.name,
+        spec.group,
+        "signals",
+        inputs,
+        dict(spec.parameters),
+        recorded=recorded,
+        start_time=spec.start_time,
+        stop_time=spec.stop_time,
+        step=spec.step,
+        sources=tuple(sources),
+        data=data,
+    )
 
 
 def read_recording(path: Path, time: str = "time") -> Recording:
@@ -334,6 +370,7 @@ def parse_scenario(data: Any, source: str, base: Path) -> Scenario:
 
 
 # ---- kinds: plug-ins that read other formats ----------------------------------------------------
+
 
 class Simulated(Protocol):
     """What a kind's views read of one simulated result (run.SimulationResult is one)."""
@@ -425,16 +462,20 @@ def _checked(entry: EntryPoint) -> ScenarioKind:
     not found out by a missing method halfway through a sweep."""
     found = plugins.loaded(entry, f"scenario kind {entry.name!r}")
     if not isinstance(found, ScenarioKind):
-        raise DseError(f"scenario kind {entry.name!r} ({entry.value}) is not an instance of "
-                       "dse_runner.simulation.scenario.ScenarioKind")
+        raise DseError(
+            f"scenario kind {entry.name!r} ({entry.value}) is not an instance of "
+            "dse_runner.simulation.scenario.ScenarioKind"
+        )
     return found
 
 
 def kinds() -> dict[str, ScenarioKind]:
     """Installed kinds (entry-point group ``dse_runner.scenarios``) in the order they are tried on a folder:
     by name, the general ones (the built-in ``signals``, whose scenario.yaml any folder may hold) last."""
-    found = sorted(((name, _checked(entry)) for name, entry in plugins.entries(GROUP).items()),
-                   key=lambda named: (named[1].general, named[0]))
+    found = sorted(
+        ((name, _checked(entry)) for name, entry in plugins.entries(GROUP).items()),
+        key=lambda named: (named[1].general, named[0]),
+    )
     return dict(found)
 
 
@@ -446,8 +487,9 @@ def kind(name: str) -> ScenarioKind:
     return _checked(entry)
 
 
-def load_scenario(folder: str | Path, kind_name: str | None = None,
-                  options: Mapping[str, Any] | None = None) -> Scenario:
+def load_scenario(
+    folder: str | Path, kind_name: str | None = None, options: Mapping[str, Any] | None = None
+) -> Scenario:
     """Read a scenario folder with the named kind, or the first kind that recognises it; ``options``
     are the kind's own settings (e.g. field data's ``position``)."""
     folder = Path(folder)
@@ -458,5 +500,7 @@ def load_scenario(folder: str | Path, kind_name: str | None = None,
     for candidate in kinds().values():
         if candidate.detect(folder):
             return candidate.load(folder, options)
-    raise DseError(f"scenario {folder}: no scenario.yaml, and no installed kind "
-                   f"({', '.join(kinds())}) recognises the folder")
+    raise DseError(
+        f"scenario {folder}: no scenario.yaml, and no installed kind "
+        f"({', '.join(kinds())}) recognises the folder"
+    )

@@ -21,7 +21,9 @@ from pathlib import Path
 
 OWNER = ".owner"  # the lock file, locked by the folder's process for its whole life
 _HELD: dict[Path, int] = {}  # this process's folders -> the open lock file that holds the lock
-_CLAIMING = threading.Lock()  # a worker's threads extract FMUs at once; two claims of one folder would deadlock
+_CLAIMING = (
+    threading.Lock()
+)  # a worker's threads extract FMUs at once; two claims of one folder would deadlock
 
 
 def _unlock_in_child() -> None:

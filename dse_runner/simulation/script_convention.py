@@ -35,8 +35,12 @@ def highest_index(tree: ast.Module) -> int | None:
         index = node.slice
         if isinstance(index, ast.Constant) and isinstance(index.value, int) and index.value >= 0:
             found.append(index.value)
-        elif isinstance(index, ast.Slice) and isinstance(index.upper, ast.Constant) and isinstance(
-                index.upper.value, int) and index.step is None:
+        elif (
+            isinstance(index, ast.Slice)
+            and isinstance(index.upper, ast.Constant)
+            and isinstance(index.upper.value, int)
+            and index.step is None
+        ):
             found.append(index.upper.value - 1)
         else:
             return None
@@ -61,6 +65,9 @@ def convention(code: str, arguments: int, name: str) -> Convention:
     if highest == 2 + arguments:
         return Convention(arguments == 0)  # with no parameters the data folder is harmless, and INTO-CPS's
     read = "reads no fixed sys.argv index" if highest is None else f"reads sys.argv up to [{highest}]"
-    return Convention(True, f"{name} {read}, which fits neither command line for its {arguments} parameters: "
-                            "passing the scenario's data folder as its third argument, as INTO-CPS's DSE "
-                            "scripts do (data_folder: false leaves it out)")
+    return Convention(
+        True,
+        f"{name} {read}, which fits neither command line for its {arguments} parameters: "
+        "passing the scenario's data folder as its third argument, as INTO-CPS's DSE "
+        "scripts do (data_folder: false leaves it out)",
+    )

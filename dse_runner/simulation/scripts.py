@@ -78,16 +78,24 @@ class Script(BaseModel):
         except DseError as e:
             raise DseError(f"{where}: {e}") from None
         if python2_because is not None:
-            _say(path, code, f"{path} {python2_because}; ported to Python 3 with fissix for this run, the "
-                             "file unchanged")
+            _say(
+                path,
+                code,
+                f"{path} {python2_because}; ported to Python 3 with fissix for this run, the file unchanged",
+            )
         data_folder = self.data_folder
         if data_folder is None:
             chosen = convention(runs, len(self.args), str(path))
             if chosen.note is not None:
                 _say(path, code, chosen.note)
             data_folder = chosen.data_folder
-        loaded = self.model_copy(update={"script": str(path), "data_folder": data_folder,
-                                         "digest": hashlib.sha256(code.encode()).hexdigest()[:16]})
+        loaded = self.model_copy(
+            update={
+                "script": str(path),
+                "data_folder": data_folder,
+                "digest": hashlib.sha256(code.encode()).hexdigest()[:16],
+            }
+        )
         loaded._code = runs
         return loaded
 
@@ -126,8 +134,9 @@ def write_results(path: Path, trajectory, columns: Mapping[str, str]) -> None:
     time = trajectory.time
     steps = np.diff(time, prepend=time[:1])
     names = [*trajectory.names, *columns]
-    data = np.column_stack([time, steps, trajectory.values,
-                            *(trajectory.column(signal) for signal in columns.values())])
+    data = np.column_stack(
+        [time, steps, trajectory.values, *(trajectory.column(signal) for signal in columns.values())]
+    )
     with open(path, "w", newline="") as f:
         writer = csv.writer(f, lineterminator="\n")
         writer.writerow(["time", "step-size", *names])
@@ -187,8 +196,9 @@ def _value(name: str, spec: Script, objectives: Path, result: subprocess.Complet
     return float(value)
 
 
-def run_scripts(scripts: Mapping[str, Script], trajectory, data: Mapping[str, Path],
-                known: Mapping[str, Any]) -> dict[str, float]:
+def run_scripts(
+    scripts: Mapping[str, Script], trajectory, data: Mapping[str, Path], known: Mapping[str, Any]
+) -> dict[str, float]:
     """Run every script objective of one simulation in one folder; ``known``: the values computed so far."""
     columns = {header: signal for spec in scripts.values() for header, signal in spec.columns.items()}
     values: dict[str, float] = {}
@@ -205,10 +215,18 @@ def run_scripts(scripts: Mapping[str, Script], trajectory, data: Mapping[str, Pa
             argv = [sys.executable, script, str(folder), name, *passed, *spec.args]
             try:
                 own = Path(spec.script).parent  # INTO-CPS runs scripts from their folder (a ported one's too)
-                result = subprocess.run(argv, capture_output=True, text=True, timeout=spec.timeout, check=False,
-                                        cwd=own if own.is_dir() else Path(argv[1]).parent)
+                result = subprocess.run(
+                    argv,
+                    capture_output=True,
+                    text=True,
+                    timeout=spec.timeout,
+                    check=False,
+                    cwd=own if own.is_dir() else Path(argv[1]).parent,
+                )
             except subprocess.TimeoutExpired:
-                raise DseError(f"objective {name!r}: script {Path(spec.script).name} ran past its timeout of "
-                               f"{spec.timeout:g} s") from None
+                raise DseError(
+                    f"objective {name!r}: script {Path(spec.script).name} ran past its timeout of "
+                    f"{spec.timeout:g} s"
+                ) from None
             values[name] = _value(name, spec, objectives, result)
     return values

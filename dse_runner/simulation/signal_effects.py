@@ -51,12 +51,30 @@ from .values import split_named
 
 Kind = Literal["delay", "lag", "backlash", "deadzone", "rate", "square", "gain", "offset", "max", "min"]
 NEUTRAL: dict[str, float] = {  # also the order they apply in
-    "delay": 0.0, "lag": 0.0, "backlash": 0.0, "deadzone": 0.0, "rate": math.inf, "square": 0.0, "gain": 1.0,
-    "offset": 0.0, "max": math.inf, "min": -math.inf}
+    "delay": 0.0,
+    "lag": 0.0,
+    "backlash": 0.0,
+    "deadzone": 0.0,
+    "rate": math.inf,
+    "square": 0.0,
+    "gain": 1.0,
+    "offset": 0.0,
+    "max": math.inf,
+    "min": -math.inf,
+}
 EFFECTS = tuple(f"{side}_{kind}" for side in ("input", "output") for kind in NEUTRAL)  # input_delay, ...
-UNITS = {"delay": "s", "lag": "s", "backlash": "the signal's unit", "deadzone": "the signal's unit",
-         "rate": "the signal's unit per s", "square": "1 / the signal's unit", "gain": "1",
-         "offset": "the signal's unit", "max": "the signal's unit", "min": "the signal's unit"}
+UNITS = {
+    "delay": "s",
+    "lag": "s",
+    "backlash": "the signal's unit",
+    "deadzone": "the signal's unit",
+    "rate": "the signal's unit per s",
+    "square": "1 / the signal's unit",
+    "gain": "1",
+    "offset": "the signal's unit",
+    "max": "the signal's unit",
+    "min": "the signal's unit",
+}
 NON_NEGATIVE = ("delay", "lag", "backlash", "deadzone", "rate")
 _NAME = re.compile(rf"^(input|output)_({'|'.join(NEUTRAL)})\((.+)\)$")
 
@@ -96,7 +114,9 @@ def split(values: Mapping[str, object]) -> tuple[dict[str, object], dict[Effect,
     plain, effects = split_named(values, parse, "an effect", allow=lambda e, v: v == NEUTRAL[e.kind])
     for effect, value in effects.items():
         if effect.kind in NON_NEGATIVE and value < 0:
-            raise DseError(f"{effect.name}: a {effect.kind} cannot be negative ({value:g} {UNITS[effect.kind]})")
+            raise DseError(
+                f"{effect.name}: a {effect.kind} cannot be negative ({value:g} {UNITS[effect.kind]})"
+            )
     return plain, {effect: value for effect, value in effects.items() if value != NEUTRAL[effect.kind]}
 
 
@@ -260,8 +280,9 @@ def in_order(effects: Mapping[Effect, float]) -> list[tuple[Effect, float]]:
     return sorted(effects.items(), key=lambda item: order.index(item[0].kind))
 
 
-def on_inputs(series: Mapping[str, Signal], times: np.ndarray, effects: Mapping[Effect, float]
-              ) -> dict[str, np.ndarray]:
+def on_inputs(
+    series: Mapping[str, Signal], times: np.ndarray, effects: Mapping[Effect, float]
+) -> dict[str, np.ndarray]:
     """The input signals the input ``effects`` change, sampled at ``times``: what the FMUs receive
     instead of the scenario's own signals."""
     changed: dict[str, Signal] = {}
@@ -270,8 +291,9 @@ def on_inputs(series: Mapping[str, Signal], times: np.ndarray, effects: Mapping[
             continue
         if effect.target not in series:
             driven = ", ".join(series) or "none"
-            raise DseError(f"{effect.name}: {effect.target} is not an input the scenario drives "
-                           f"(driven: {driven})")
+            raise DseError(
+                f"{effect.name}: {effect.target} is not an input the scenario drives (driven: {driven})"
+            )
         changed[effect.target] = apply(changed.get(effect.target, series[effect.target]), effect.kind, value)
     return {ref: signal.at(times) for ref, signal in changed.items()}
 

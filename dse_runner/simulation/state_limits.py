@@ -65,8 +65,10 @@ def parse(name: str) -> StateLimit | None:
     if match := _OVERFLOW.match(name):
         return StateLimit("overflow", match[1], match[2], match[3])
     if name.startswith(("state_max(", "state_min(", "state_overflow(")):
-        raise DseError(f"{name}: a state limit is named state_max(INSTANCE.STATE), state_min(INSTANCE.STATE) or "
-                       "state_overflow(INSTANCE.STATE, OTHER_STATE), e.g. state_max(tanks.x1)")
+        raise DseError(
+            f"{name}: a state limit is named state_max(INSTANCE.STATE), state_min(INSTANCE.STATE) or "
+            "state_overflow(INSTANCE.STATE, OTHER_STATE), e.g. state_max(tanks.x1)"
+        )
     return None
 
 
@@ -80,8 +82,10 @@ def split(values: Mapping[str, object]) -> tuple[dict[str, object], dict[StateLi
     plain, limits = split_named(values, parse, "a state limit's value", allow=_neutral)
     for limit, value in limits.items():
         if limit.kind == "overflow" and not 0.0 <= value <= 1.0:
-            raise DseError(f"{limit.name}: an overflow is the fraction of the rate passed on, from 0 to 1 "
-                           f"(got {value:g})")
+            raise DseError(
+                f"{limit.name}: an overflow is the fraction of the rate passed on, from 0 to 1 "
+                f"(got {value:g})"
+            )
     return plain, {limit: value for limit, value in limits.items() if value != NEUTRAL[limit.kind]}
 
 
@@ -94,13 +98,17 @@ def check(limit: StateLimit, instance: str, interface: str, states: Sequence[str
     """That the master can apply ``limit`` to ``instance``: a model-exchange one, with the states it names
     (``states``: the instance's, derivative_terms.states_of)."""
     if interface != "me":
-        raise DseError(f"{limit.name}: instance {instance!r} is run as co-simulation: it integrates its own states, "
-                       "so the master cannot hold them at a bound (give the instance interface: me in the "
-                       "multi-model, if its FMU offers model exchange)")
+        raise DseError(
+            f"{limit.name}: instance {instance!r} is run as co-simulation: it integrates its own states, "
+            "so the master cannot hold them at a bound (give the instance interface: me in the "
+            "multi-model, if its FMU offers model exchange)"
+        )
     for state in (limit.state, limit.to):
         if state is not None and state not in states:
-            raise DseError(f"{limit.name}: instance {instance!r} has no continuous state {state!r} "
-                           f"(its states: {', '.join(states) or 'none'})")
+            raise DseError(
+                f"{limit.name}: instance {instance!r} has no continuous state {state!r} "
+                f"(its states: {', '.join(states) or 'none'})"
+            )
     if limit.to == limit.state:
         raise DseError(f"{limit.name}: an overflow passes into another state than its own")
 
@@ -125,8 +133,11 @@ def rows(states: Sequence[str], limits: Mapping[StateLimit, float]) -> tuple[Row
             entry.update(to=states.index(limit.to), fraction=value)  # type: ignore[arg-type]
         else:
             entry["high" if limit.kind == "max" else "low"] = value
-    return tuple(Row(index, **entry) for index, entry in sorted(found.items())  # type: ignore[arg-type]
-                 if "low" in entry or "high" in entry)
+    return tuple(
+        Row(index, **entry)
+        for index, entry in sorted(found.items())  # type: ignore[arg-type]
+        if "low" in entry or "high" in entry
+    )
 
 
 def hold(rows: Sequence[Row], x: Sequence[float], dx: Any) -> None:

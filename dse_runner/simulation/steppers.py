@@ -32,14 +32,28 @@ from .variables import Value, Variable
 FMI_WARNING = 1  # statuses above this are failures, in FMI 2 and 3 alike
 
 # FMI 2 reads and writes one C type per family.
-_FMI2 = {"float": ("Real", ctypes.c_double), "integer": ("Integer", ctypes.c_int),
-         "boolean": ("Boolean", ctypes.c_int), "string": ("String", ctypes.c_char_p)}
+_FMI2 = {
+    "float": ("Real", ctypes.c_double),
+    "integer": ("Integer", ctypes.c_int),
+    "boolean": ("Boolean", ctypes.c_int),
+    "string": ("String", ctypes.c_char_p),
+}
 
 # FMI 3 has a function and a C type per type; enumerations travel as Int64.
-_FMI3 = {"Float64": ctypes.c_double, "Float32": ctypes.c_float, "Int8": ctypes.c_int8,
-         "UInt8": ctypes.c_uint8, "Int16": ctypes.c_int16, "UInt16": ctypes.c_uint16,
-         "Int32": ctypes.c_int32, "UInt32": ctypes.c_uint32, "Int64": ctypes.c_int64,
-         "UInt64": ctypes.c_uint64, "Boolean": ctypes.c_bool, "String": ctypes.c_char_p}
+_FMI3 = {
+    "Float64": ctypes.c_double,
+    "Float32": ctypes.c_float,
+    "Int8": ctypes.c_int8,
+    "UInt8": ctypes.c_uint8,
+    "Int16": ctypes.c_int16,
+    "UInt16": ctypes.c_uint16,
+    "Int32": ctypes.c_int32,
+    "UInt32": ctypes.c_uint32,
+    "Int64": ctypes.c_int64,
+    "UInt64": ctypes.c_uint64,
+    "Boolean": ctypes.c_bool,
+    "String": ctypes.c_char_p,
+}
 
 
 @dataclass(frozen=True)
@@ -89,7 +103,9 @@ class Stepper:
             access, buffer, args = self._setter(variable)
             buffer[0] = str(value).encode("utf-8") if access.ctype is ctypes.c_char_p else value
             if access.set(*args) > FMI_WARNING:
-                raise RuntimeError(f"{access.name.replace('Get', 'Set')} of {variable.name} = {value!r} failed")
+                raise RuntimeError(
+                    f"{access.name.replace('Get', 'Set')} of {variable.name} = {value!r} failed"
+                )
 
     def _setter(self, variable: Variable) -> tuple[Access, Any, tuple]:
         """A variable's access, one-value buffer and call arguments, made once: a sweep sets the same
@@ -99,8 +115,11 @@ class Stepper:
         if found is None:
             access = self.access(variable)
             buffer = (access.ctype * 1)()
-            found = setters[variable] = (access, buffer, self.args(access, (ctypes.c_uint32 * 1)(variable.vr), 1,
-                                                                   buffer))
+            found = setters[variable] = (
+                access,
+                buffer,
+                self.args(access, (ctypes.c_uint32 * 1)(variable.vr), 1, buffer),
+            )
         return found
 
     def setup(self, start: float, stop: float) -> None:
@@ -142,7 +161,9 @@ class CoSimulation2(Stepper):
         return Access(getattr(dll, f"fmi2Get{kind}"), getattr(dll, f"fmi2Set{kind}"), ctype, f"fmi2Get{kind}")
 
     def setup(self, start: float, stop: float) -> None:
-        self.instance.slave.setupExperiment(tolerance=self.tolerance, startTime=start, stopTime=self.stop_time(stop))
+        self.instance.slave.setupExperiment(
+            tolerance=self.tolerance, startTime=start, stopTime=self.stop_time(stop)
+        )
 
     def enter_initialization(self, start: float, stop: float) -> None:
         self.instance.slave.enterInitializationMode()
@@ -165,14 +186,17 @@ class CoSimulation3(Stepper):
     def access(self, variable: Variable) -> Access:
         kind = "Int64" if variable.type == "Enumeration" else variable.type
         dll = self.instance.slave.dll
-        return Access(getattr(dll, f"fmi3Get{kind}"), getattr(dll, f"fmi3Set{kind}"), _FMI3[kind], f"fmi3Get{kind}")
+        return Access(
+            getattr(dll, f"fmi3Get{kind}"), getattr(dll, f"fmi3Set{kind}"), _FMI3[kind], f"fmi3Get{kind}"
+        )
 
     def args(self, access: Access, vrs, n: int, buffer) -> tuple:
         return (self.handle(), vrs, n, buffer, n)  # FMI 3 also counts values (arrays)
 
     def enter_initialization(self, start: float, stop: float) -> None:
-        self.instance.slave.enterInitializationMode(tolerance=self.tolerance, startTime=start,
-                                                    stopTime=self.stop_time(stop))
+        self.instance.slave.enterInitializationMode(
+            tolerance=self.tolerance, startTime=start, stopTime=self.stop_time(stop)
+        )
 
     def check_step(self, t: float) -> str | None:
         return "the FMU asked to terminate the simulation" if self.flags[1].value else None
@@ -184,28 +208,43 @@ class ModelExchange(Stepper):
 
     integrates = True
 
-    def __init__(self, instance: Instance, tolerance: float | None = None, set_stop_time: bool = True,
-                 solver: str = "cvode", euler_step: float | None = None, terms: Mapping | None = None,
-                 native: bool = False):
+    def __init__(
+        self,
+        instance: Instance,
+        tolerance: float | None = None,
+        set_stop_time: bool = True,
+        solver: str = "cvode",
+        euler_step: float | None = None,
+        terms: Mapping | None = None,
+        native: bool = False,
+    ):
         super().__init__(instance, tolerance, set_stop_time)
         from .derivative_terms import Corrector
         from .model_exchange import ModelExchangeStepper
 
         description = instance.fmu.description
-        self.integrator = ModelExchangeStepper(instance.slave, description, solver=solver,
-                                               tolerance=tolerance, euler_step=euler_step,
-                                               set_stop_time=set_stop_time,
-                                               corrector=Corrector.of(description, terms) if terms else None)
+        self.integrator = ModelExchangeStepper(
+            instance.slave,
+            description,
+            solver=solver,
+            tolerance=tolerance,
+            euler_step=euler_step,
+            set_stop_time=set_stop_time,
+            corrector=Corrector.of(description, terms) if terms else None,
+        )
         if native:
             from .native_me import NativeIntegrator
 
-            self.integrator.native = NativeIntegrator(instance.slave, description, tolerance,
-                                                      self.integrator.corrector)
+            self.integrator.native = NativeIntegrator(
+                instance.slave, description, tolerance, self.integrator.corrector
+            )
         self.fmi_version = instance.fmu.version  # of its getters and setters; its step is ours
         self.step_name = "the integration"
         self._typed = CoSimulation2 if instance.fmu.version == 2 else CoSimulation3
         c = self.integrator.native
-        self.call, self.before, self.after = (c.function, (c.address,), (1,)) if c else (self._do_step, (), ())
+        self.call, self.before, self.after = (
+            (c.function, (c.address,), (1,)) if c else (self._do_step, (), ())
+        )
 
     def _do_step(self, t: float, h: float) -> int:
         self.integrator.do_step(t, h)  # raises ModelExchangeError with what went wrong
@@ -250,5 +289,7 @@ def stepper(instance: Instance, settings, terms: Mapping | None = None, native: 
         euler_step = settings.euler_step if settings is not None else None
         return ModelExchange(instance, tolerance, set_stop_time, solver, euler_step, terms, native)
     if terms:
-        raise ValueError(f"instance {instance.name} is co-simulation: the master cannot add to its derivatives")
+        raise ValueError(
+            f"instance {instance.name} is co-simulation: the master cannot add to its derivatives"
+        )
     return (CoSimulation2 if instance.fmu.version == 2 else CoSimulation3)(instance, tolerance, set_stop_time)

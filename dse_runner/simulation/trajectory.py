@@ -59,14 +59,17 @@ class Trajectory:
             if name in self.texts:
                 return np.array(self.texts[name], dtype=object)
             have = ", ".join((*self.names, *self.texts))
-            raise DseError(f"no recorded signal {name!r}{did_you_mean(name, self.names)}; "
-                           f"recorded are {have}") from None
+            raise DseError(
+                f"no recorded signal {name!r}{did_you_mean(name, self.names)}; recorded are {have}"
+            ) from None
 
     @property
     def outputs(self) -> dict[str, np.ndarray]:
         """Every recorded signal by name."""
-        return {**{n: self.values[:, j] for j, n in enumerate(self.names)},
-                **{n: np.array(v, dtype=object) for n, v in self.texts.items()}}
+        return {
+            **{n: self.values[:, j] for j, n in enumerate(self.names)},
+            **{n: np.array(v, dtype=object) for n, v in self.texts.items()},
+        }
 
     def final(self) -> dict[str, Value]:
         """Every recorded signal's last value."""
@@ -84,8 +87,12 @@ class Trajectory:
         return Trajectory(self.time, self.names, values, self.texts)
 
     def renamed(self, rename: Callable[[str], str]) -> Trajectory:
-        return Trajectory(self.time, tuple(map(rename, self.names)), self.values,
-                          {rename(n): v for n, v in self.texts.items()})
+        return Trajectory(
+            self.time,
+            tuple(map(rename, self.names)),
+            self.values,
+            {rename(n): v for n, v in self.texts.items()},
+        )
 
     def to_csv(self, path: Path) -> None:
         """``time`` then one column per signal; text values are quoted. Sixteen significant digits

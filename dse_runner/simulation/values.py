@@ -26,8 +26,12 @@ class ValuesFile(RootModel[dict[str, FiniteValue]]):
     """``{instance.variable: value}``: numbers, booleans or strings, every number finite."""
 
 
-def split_named(values: Mapping[str, object], parse: Callable[[str], K | None], what: str,
-                allow: Callable[[K, float], bool] = lambda key, value: False) -> tuple[dict[str, object], dict[K, float]]:
+def split_named(
+    values: Mapping[str, object],
+    parse: Callable[[str], K | None],
+    what: str,
+    allow: Callable[[K, float], bool] = lambda key, value: False,
+) -> tuple[dict[str, object], dict[K, float]]:
     """A run's values split by name: those ``parse`` reads as master-side parameters (signal effects,
     derivative terms, state limits), each a finite number or one ``allow`` admits (``what`` names the kind
     in errors), and all the others."""
@@ -37,8 +41,11 @@ def split_named(values: Mapping[str, object], parse: Callable[[str], K | None], 
         key = parse(name)
         if key is None:
             plain[name] = value
-        elif not isinstance(value, (int, float)) or isinstance(value, bool) or not (
-                math.isfinite(value) or allow(key, float(value))):
+        elif (
+            not isinstance(value, (int, float))
+            or isinstance(value, bool)
+            or not (math.isfinite(value) or allow(key, float(value)))
+        ):
             raise DseError(f"{name}: {what} is a finite number, not {value!r}")
         else:
             parsed[key] = float(value)
@@ -49,9 +56,11 @@ def read_values(path: str | Path) -> dict[str, Value]:
     """The values of a values file; errors name the file and the key."""
     data = load_yaml(Path(path), "values file")
     if isinstance(data, dict) and "multimodel" in data:
-        raise DseError(f"{path}: a space.yaml, not a values file: a values file holds instance.variable: "
-                       "value lines (rank --best-values and diagnose write them); run a space with "
-                       "simulate SPACE.yaml")
+        raise DseError(
+            f"{path}: a space.yaml, not a values file: a values file holds instance.variable: "
+            "value lines (rank --best-values and diagnose write them); run a space with "
+            "simulate SPACE.yaml"
+        )
     return as_format(data, ValuesFile, Path(path), "values file").root
 
 

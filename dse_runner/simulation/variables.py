@@ -37,8 +37,11 @@ from ..errors import DseError
 Value = float | int | bool | str
 
 FAMILIES = {
-    "Real": "float", "Float32": "float", "Float64": "float",
-    "Integer": "integer", "Enumeration": "integer",
+    "Real": "float",
+    "Float32": "float",
+    "Float64": "float",
+    "Integer": "integer",
+    "Enumeration": "integer",
     **{f"{sign}Int{bits}": "integer" for sign in ("", "U") for bits in (8, 16, 32, 64)},
     "Boolean": "boolean",
     "String": "string",
@@ -48,8 +51,9 @@ SETTABLE = ("parameter", "input")
 # What the C type of each integer type holds: ctypes would silently wrap anything else. FMI 2's
 # Integer is 32-bit; enumerations are taken as FMI 3's Int64.
 RANGES = {
-    "Integer": (-2**31, 2**31 - 1), "Enumeration": (-2**63, 2**63 - 1),
-    **{f"Int{bits}": (-2**(bits - 1), 2**(bits - 1) - 1) for bits in (8, 16, 32, 64)},
+    "Integer": (-(2**31), 2**31 - 1),
+    "Enumeration": (-(2**63), 2**63 - 1),
+    **{f"Int{bits}": (-(2 ** (bits - 1)), 2 ** (bits - 1) - 1) for bits in (8, 16, 32, 64)},
     **{f"UInt{bits}": (0, 2**bits - 1) for bits in (8, 16, 32, 64)},
 }
 
@@ -126,22 +130,36 @@ def describe_variable(instance: str, v) -> Variable:
             return None
 
     scalar = not getattr(v, "dimensions", None)
-    return Variable(instance, v.name, v.valueReference, v.type, v.causality,
-                    bound("min"), bound("max"), scalar, start_settable(v))
+    return Variable(
+        instance,
+        v.name,
+        v.valueReference,
+        v.type,
+        v.causality,
+        bound("min"),
+        bound("max"),
+        scalar,
+        start_settable(v),
+    )
 
 
 def start_settable(v) -> bool:
     """Whether FMI lets an importer set this output or local before initialisation: its start value is
     ``exact`` or ``approx`` and it is not a constant (a model-exchange state's initial value, for one). The
     master sets every value before initialisation, so it may set these too."""
-    return (v.causality in ("output", "local") and getattr(v, "initial", None) in ("exact", "approx")
-            and v.variability != "constant")
+    return (
+        v.causality in ("output", "local")
+        and getattr(v, "initial", None) in ("exact", "approx")
+        and v.variability != "constant"
+    )
 
 
 def check_settable(variable: Variable) -> None:
     if variable.causality not in SETTABLE and not variable.start:
-        raise DseError(f"{variable.ref!r} is {with_article(variable.causality)}, not a parameter or input, and "
-                       "its start value is not exact or approx: it cannot be set")
+        raise DseError(
+            f"{variable.ref!r} is {with_article(variable.causality)}, not a parameter or input, and "
+            "its start value is not exact or approx: it cannot be set"
+        )
     if variable.family is None:
         what = "an array" if not variable.scalar else with_article(variable.type)
         raise DseError(f"{variable.ref!r} is {what}, which dse-runner cannot set")
@@ -176,13 +194,15 @@ def coerce(variable: Variable, value: Value) -> Value:
     if family == "float":
         return float(value)
     if isinstance(value, float) and not value.is_integer():  # an int stays exact: Int64 goes past 2^53
-        raise DseError(f"{variable.ref}: {value!r} is not a whole number, as "
-                       f"{with_article(variable.type)} must be")
+        raise DseError(
+            f"{variable.ref}: {value!r} is not a whole number, as {with_article(variable.type)} must be"
+        )
     value = int(value)
     low, high = RANGES.get(variable.type, (value, value))
     if not low <= value <= high:
-        raise DseError(f"{variable.ref} = {value} does not fit {with_article(variable.type)} "
-                       f"({low} to {high})")
+        raise DseError(
+            f"{variable.ref} = {value} does not fit {with_article(variable.type)} ({low} to {high})"
+        )
     return value
 
 
@@ -206,37 +226,48 @@ class Conversion:
     threshold: float = 0.0
 
 
-def conversion(source: Variable, target: Variable, round_: bool = False,
-               threshold: float | None = None) -> Conversion:
+def conversion(
+    source: Variable, target: Variable, round_: bool = False, threshold: float | None = None
+) -> Conversion:
     """The conversion the rules allow for ``source -> target``, or an error saying which option would."""
     s, t = source.family, target.family
     where = f"connection {source.ref} -> {target.ref}"
     if s is None or t is None:
         bad = source if s is None else target
-        raise DseError(f"{where}: {bad.ref} is {'an array' if not bad.scalar else with_article(bad.type)}, "
-                       "which dse-runner cannot connect")
+        raise DseError(
+            f"{where}: {bad.ref} is {'an array' if not bad.scalar else with_article(bad.type)}, "
+            "which dse-runner cannot connect"
+        )
     if round_ and threshold is not None:
         raise DseError(f"{where}: give either 'round' or 'threshold', not both")
     if "string" in (s, t):
         if s != t:
-            raise DseError(f"{where}: {with_article(source.type)} cannot feed {with_article(target.type)}: "
-                           "strings connect only to strings")
+            raise DseError(
+                f"{where}: {with_article(source.type)} cannot feed {with_article(target.type)}: "
+                "strings connect only to strings"
+            )
         return _no_option(where, round_, threshold)
     if t == "boolean" and s != "boolean":
         if threshold is None:
-            raise DseError(f"{where}: {with_article(source.type)} feeds a Boolean only through a threshold: "
-                           "write {input: " + target.ref + ", threshold: 0.5} (true above it)")
+            raise DseError(
+                f"{where}: {with_article(source.type)} feeds a Boolean only through a threshold: "
+                "write {input: " + target.ref + ", threshold: 0.5} (true above it)"
+            )
         return Conversion("threshold", float(threshold))
     if t == "integer" and s == "float":
         if not round_:
-            raise DseError(f"{where}: {with_article(source.type)} feeds {with_article(target.type)} only "
-                           "when rounded: write {input: " + target.ref + ", round: true}")
+            raise DseError(
+                f"{where}: {with_article(source.type)} feeds {with_article(target.type)} only "
+                "when rounded: write {input: " + target.ref + ", round: true}"
+            )
         return Conversion("round")
     return _no_option(where, round_, threshold)
 
 
 def _no_option(where: str, round_: bool, threshold: float | None) -> Conversion:
     if round_ or threshold is not None:
-        raise DseError(f"{where}: 'round' and 'threshold' apply only to a number feeding an integer "
-                       "or a Boolean; this connection needs neither")
+        raise DseError(
+            f"{where}: 'round' and 'threshold' apply only to a number feeding an integer "
+            "or a Boolean; this connection needs neither"
+        )
     return Conversion()

@@ -87,13 +87,16 @@ def statistics(rows: Rows, keys: Sequence[str], column: str, reductions: Sequenc
     rows = arrow(rows)
     keys = list(keys)
     grouped = rows.group_by(keys).aggregate([(column, how) for how in reductions])
-    grouped = grouped.rename_columns([c.removeprefix(f"{column}_") if c not in keys else c
-                                      for c in grouped.column_names])
+    grouped = grouped.rename_columns(
+        [c.removeprefix(f"{column}_") if c not in keys else c for c in grouped.column_names]
+    )
     order = pc.sort_indices(grouped, sort_keys=[(key, "ascending") for key in keys])
     return grouped.take(order).select([*keys, *reductions]).to_pandas()
 
 
-def aligned(points: pd.DataFrame, values: pd.DataFrame, keys: Sequence[str], columns: Sequence[str]) -> pd.DataFrame:
+def aligned(
+    points: pd.DataFrame, values: pd.DataFrame, keys: Sequence[str], columns: Sequence[str]
+) -> pd.DataFrame:
     """``values``' ``columns`` for each row of ``points`` (matched on ``keys``; NaN where a point has none), in
     the order of ``points``: a design's rows looked up in per-point results, as a hash join."""
     keys = list(keys)

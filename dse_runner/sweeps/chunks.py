@@ -51,7 +51,9 @@ class ChunkJob:
     experiment: Experiment | None = None
     crashes: int = 0  # times Dask gave up on this chunk because workers died running it
     with_scores: bool = False  # return every task's objectives in the summary (a search tells them)
-    point: int | None = None  # a search's point number (closed_loop.py); kept by the halves of a crashed chunk
+    point: int | None = (
+        None  # a search's point number (closed_loop.py); kept by the halves of a crashed chunk
+    )
 
     @property
     def key(self) -> str:
@@ -63,8 +65,10 @@ class ChunkJob:
         if len(tasks) == 1:
             return [replace(self, crashes=self.crashes + 1)] if self.crashes + 1 < CRASH_ATTEMPTS else []
         middle = len(tasks) // 2
-        return [replace(self, chunk_id=chunk_id_of(part), tasks=part, crashes=0)
-                for part in (tasks[:middle], tasks[middle:])]
+        return [
+            replace(self, chunk_id=chunk_id_of(part), tasks=part, crashes=0)
+            for part in (tasks[:middle], tasks[middle:])
+        ]
 
 
 @dataclass(frozen=True)
@@ -97,15 +101,21 @@ def _worker_name() -> str:
         return f"{socket.gethostname()}:{os.getpid()}"
 
 
-def run_task(plan: Plan, point: Point, scenario: Scenario, objectives: dict[str, ObjectiveSpec],
-             timeout: float, experiment: Experiment | None = None
-             ) -> tuple[dict[str, float] | None, str | None, str | None]:
+def run_task(
+    plan: Plan,
+    point: Point,
+    scenario: Scenario,
+    objectives: dict[str, ObjectiveSpec],
+    timeout: float,
+    experiment: Experiment | None = None,
+) -> tuple[dict[str, float] | None, str | None, str | None]:
     """Objectives, or the error message after the retry; and how the run lived (reset or process)."""
     error = None
     for _ in range(ATTEMPTS):
         try:
-            result = simulate(plan, scenario, point, objectives=objectives, timeout=timeout,
-                              experiment=experiment)
+            result = simulate(
+                plan, scenario, point, objectives=objectives, timeout=timeout, experiment=experiment
+            )
             return result.objectives, None, "process" if result.fresh_process else "reset"
         except DseError as e:
             error = str(e)
@@ -127,8 +137,9 @@ def run_chunk(job: ChunkJob) -> ChunkSummary:
     started = time.perf_counter()
     for scenario, point in job.tasks.points():
         t0 = time.perf_counter()
-        result, error, life = run_task(unpacked.plan, point, unpacked.scenarios[scenario], job.objectives,
-                                       job.timeout, job.experiment)
+        result, error, life = run_task(
+            unpacked.plan, point, unpacked.scenarios[scenario], job.objectives, job.timeout, job.experiment
+        )
         walls.append(time.perf_counter() - t0)
         lives.append(life)
         scores.append(result)
@@ -136,20 +147,33 @@ def run_chunk(job: ChunkJob) -> ChunkSummary:
         if error and len(messages) < 3:
             messages.append(f"{scenario} {point}: {error}")
     if job.with_scores:
-        told = [TaskScores(task.task_id, task.scenario, result, error)
-                for task, result, error in zip(job.tasks, scores, errors)]
+        told = [
+            TaskScores(task.task_id, task.scenario, result, error)
+            for task, result, error in zip(job.tasks, scores, errors)
+        ]
     seconds = time.perf_counter() - started
     groups = {name: scenario.group for name, scenario in unpacked.scenarios.items()}
-    store.write_results(job.output, job.sweep, job.chunk_id,
-                        *results_table(job, groups, scores, errors, walls, _worker_name(), lives))
+    store.write_results(
+        job.output,
+        job.sweep,
+        job.chunk_id,
+        *results_table(job, groups, scores, errors, walls, _worker_name(), lives),
+    )
     failed = len(errors) - errors.count(None)
-    return ChunkSummary(job.chunk_id, len(errors) - failed, failed, seconds, messages, told,
-                        busy=time.perf_counter() - began)
+    return ChunkSummary(
+        job.chunk_id, len(errors) - failed, failed, seconds, messages, told, busy=time.perf_counter() - began
+    )
 
 
-def results_table(job: ChunkJob, groups: dict[str, str], scores: list[dict[str, Any] | None],
-                  errors: list[str | None], walls: list[float], worker: str,
-                  lives: list[str | None] | None = None) -> tuple[pa.Table, list[str]]:
+def results_table(
+    job: ChunkJob,
+    groups: dict[str, str],
+    scores: list[dict[str, Any] | None],
+    errors: list[str | None],
+    walls: list[float],
+    worker: str,
+    lives: list[str | None] | None = None,
+) -> tuple[pa.Table, list[str]]:
     """The chunk's rows (one per task, in order) as a table of ``job.schema``, and each row's scenario (the
     partition). Built column by column: a dict per row cost more than a cheap FMU's simulation."""
     batch, n = job.tasks, len(job.tasks)
@@ -158,27 +182,47 @@ def results_table(job: ChunkJob, groups: dict[str, str], scores: list[dict[str, 
 
     def parameter(k: int) -> Any:
         column = batch.values[:, k]
-        return np.ascontiguousarray(column) if numeric else [v.item() if hasattr(v, "item") else v for v in column]
+        return (
+            np.ascontiguousarray(column)
+            if numeric
+            else [v.item() if hasattr(v, "item") else v for v in column]
+        )
 
     columns = {
-        "task_id": batch.ids(), "model": [job.model_key] * n,
+        "task_id": batch.ids(),
+        "model": [job.model_key] * n,
         "group": [groups[name] for name in scenarios],
         **{name: parameter(k) for k, name in enumerate(batch.parameters)},
         **{name: [None if s is None else s.get(name) for s in scores] for name in job.objectives},
-        "status": ["ok" if e is None else "failed" for e in errors], "error": errors,
-        "wall_time": walls, "worker": [worker] * n, "lifecycle": lives or [None] * n,
+        "status": ["ok" if e is None else "failed" for e in errors],
+        "error": errors,
+        "wall_time": walls,
+        "worker": [worker] * n,
+        "lifecycle": lives or [None] * n,
     }
-    return pa.Table.from_pydict({name: columns[name] for name in job.schema.names}, schema=job.schema), scenarios
+    return pa.Table.from_pydict(
+        {name: columns[name] for name in job.schema.names}, schema=job.schema
+    ), scenarios
 
 
 def record_crash(job: ChunkJob, groups: dict[str, str], reason: str) -> ChunkSummary:
     """The failed row of a task that kept killing its worker; written by the client."""
     (task,) = job.tasks
-    error = (f"the worker process died each time it ran this task ({reason}): the FMU crashed "
-             "(e.g. a segmentation fault) or the process ran out of memory")
-    store.write_results(job.output, job.sweep, job.chunk_id, *results_table(job, groups, [None], [error], [0.0], ""))
-    return ChunkSummary(job.chunk_id, 0, 1, 0.0, [f"{task.scenario} {dict(task.point)}: {error}"],
-                        [TaskScores(task.task_id, task.scenario, None, error)])
+    error = (
+        f"the worker process died each time it ran this task ({reason}): the FMU crashed "
+        "(e.g. a segmentation fault) or the process ran out of memory"
+    )
+    store.write_results(
+        job.output, job.sweep, job.chunk_id, *results_table(job, groups, [None], [error], [0.0], "")
+    )
+    return ChunkSummary(
+        job.chunk_id,
+        0,
+        1,
+        0.0,
+        [f"{task.scenario} {dict(task.point)}: {error}"],
+        [TaskScores(task.task_id, task.scenario, None, error)],
+    )
 
 
 def chunk_id_of(tasks: TaskBatch) -> str:
@@ -188,8 +232,14 @@ def chunk_id_of(tasks: TaskBatch) -> str:
 WARM_PROBE_SECONDS = 1.0  # a first simulation shorter than this is run again, warm, to be timed
 
 
-def probe(shipment: str, scenario: str, point: Point, objectives: dict[str, ObjectiveSpec], timeout: float,
-          experiment: Experiment | None = None) -> float | None:
+def probe(
+    shipment: str,
+    scenario: str,
+    point: Point,
+    objectives: dict[str, ObjectiveSpec],
+    timeout: float,
+    experiment: Experiment | None = None,
+) -> float | None:
     """Seconds one warm simulation takes on a worker, to size the first chunks; None if it failed (that
     point will fail in its chunk too and become a failed row, which must not stop the sweep). It runs on a
     worker, not in the client, so that an FMU that crashes its process takes down a worker, not the user's
@@ -198,8 +248,14 @@ def probe(shipment: str, scenario: str, point: Point, objectives: dict[str, Obje
 
     def timed() -> float:
         start = time.perf_counter()
-        simulate(unpacked.plan, unpacked.scenarios[scenario], point, objectives=objectives, timeout=timeout,
-                 experiment=experiment)
+        simulate(
+            unpacked.plan,
+            unpacked.scenarios[scenario],
+            point,
+            objectives=objectives,
+            timeout=timeout,
+            experiment=experiment,
+        )
         return time.perf_counter() - start
 
     try:

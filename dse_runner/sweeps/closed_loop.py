@@ -64,8 +64,12 @@ def reduce_over_scenarios(values: Iterable[float], how: str) -> float:
 Check = tuple[str, Callable[[Mapping[str, float]], bool]]  # a ranking constraint's text and its test
 
 
-def over_draws(per: Mapping[str, Mapping[str, float]], scalar: list[str], how: str,
-               ranked: tuple[str, str, Robust | None]) -> dict[str, float]:
+def over_draws(
+    per: Mapping[str, Mapping[str, float]],
+    scalar: list[str],
+    how: str,
+    ranked: tuple[str, str, Robust | None],
+) -> dict[str, float]:
     """A point's values from its sampled scenarios' (uncertainty.py): each draw reduced over the scenarios,
     then each objective's mean over the draws; the ranking objective ``ranked`` (name, goal, robust) its robust
     figure when the ranking asks for one, so a search optimises what the ranking ranks by."""
@@ -74,13 +78,23 @@ def over_draws(per: Mapping[str, Mapping[str, float]], scalar: list[str], how: s
         k = uncertainty.split_name(scenario)[1]
         for name in scalar:
             draws.setdefault(k, {}).setdefault(name, []).append(objectives[name])
-    values = {name: np.array([reduce_over_scenarios(d[name], how) for d in draws.values()]) for name in scalar}
+    values = {
+        name: np.array([reduce_over_scenarios(d[name], how) for d in draws.values()]) for name in scalar
+    }
     objective, goal, robust = ranked
-    return {name: uncertainty.robust_of(v, robust if name == objective else None, goal) for name, v in values.items()}
+    return {
+        name: uncertainty.robust_of(v, robust if name == objective else None, goal)
+        for name, v in values.items()
+    }
 
 
-def evaluation_of(scores: list[TaskScores], scalar: list[str], how: str, checks: Sequence[Check] = (),
-                  ranked: tuple[str, str, Robust | None] | None = None) -> Evaluation:
+def evaluation_of(
+    scores: list[TaskScores],
+    scalar: list[str],
+    how: str,
+    checks: Sequence[Check] = (),
+    ranked: tuple[str, str, Robust | None] | None = None,
+) -> Evaluation:
     """A point's evaluation from its tasks: failed if any task failed, else each objective reduced, and
     the ranking constraints (``checks``) those values break, which constrained strategies learn from.
     Reduced in scenario-name order, whatever order the tasks came in: a sum's last bit depends on the order,
@@ -92,10 +106,16 @@ def evaluation_of(scores: list[TaskScores], scalar: list[str], how: str, checks:
     per = {s.scenario: s.objectives for s in scores}
     if ranked is not None:  # sampled scenarios: statistics over the draws
         values = over_draws(per, scalar, how, ranked)
-        means = over_draws(per, scalar, how, (ranked[0], ranked[1], None))  # constraints act on the means, as in rank
+        means = over_draws(
+            per, scalar, how, (ranked[0], ranked[1], None)
+        )  # constraints act on the means, as in rank
     else:
-        values = means = {name: reduce_over_scenarios((o[name] for o in per.values()), how) for name in scalar}
-    return Evaluation("ok", values=values, scores=per, breaks=tuple(text for text, holds in checks if not holds(means)))
+        values = means = {
+            name: reduce_over_scenarios((o[name] for o in per.values()), how) for name in scalar
+        }
+    return Evaluation(
+        "ok", values=values, scores=per, breaks=tuple(text for text, holds in checks if not holds(means))
+    )
 
 
 class SearchSource:
@@ -108,8 +128,10 @@ class SearchSource:
         self.scalar = [n for n, o in space.objectives.items() if not is_vector(o)]
         ranking = space.spec.ranking
         self.ranked = (ranking.objective, ranking.goal, ranking.robust) if space.draws is not None else None
-        self.checks: list[Check] = [(text, compile_constraint(text, set(self.scalar), "objective"))
-                                    for text in space.spec.ranking.constraints]
+        self.checks: list[Check] = [
+            (text, compile_constraint(text, set(self.scalar), "objective"))
+            for text in space.spec.ranking.constraints
+        ]
         self.schema = store.results_schema(space.parameters, space.objectives)
         self.hashes = {s.name: scenario_hash(s) for s in space.scenarios}
         self.strategy: Strategy | None = None
@@ -117,11 +139,17 @@ class SearchSource:
         self.stored: dict[str, TaskScores] = {}
         self.requeue: deque[int] = deque()  # points to (re)submit before asking for new ones
         self.running: dict[int, dict[str, TaskScores]] = {}  # point number -> its task results so far
-        self.followers: dict[int, list[int]] = {}  # a running point -> later asks of the same point, told with it
+        self.followers: dict[
+            int, list[int]
+        ] = {}  # a running point -> later asks of the same point, told with it
         self.reproducible = space.spec.search.order == "reproducible"
         self.waiting: deque[int] = deque()  # reproducible: points asked and not yet told, in ask order
-        self.ready: dict[int, tuple[Evaluation, bool]] = {}  # ... of which these have their result (and reused)
-        self.earlier: SearchHistory | None = None  # reproducible: the last submission's, which it should repeat
+        self.ready: dict[
+            int, tuple[Evaluation, bool]
+        ] = {}  # ... of which these have their result (and reused)
+        self.earlier: SearchHistory | None = (
+            None  # reproducible: the last submission's, which it should repeat
+        )
         self.wants_results = False  # reproducible: the strategy asked nothing until told more
         self.started = self.first_sent = 0.0
         self.saved = 0.0
@@ -149,15 +177,20 @@ class SearchSource:
         self.batch = self.strategy.problem.batch
         settings = self._settings()
         old = load_history(self.space.output, self.space.name)
-        self.history = SearchHistory(sweep=self.space.name, strategy=self.space.spec.search.strategy,
-                                     settings=settings)
+        self.history = SearchHistory(
+            sweep=self.space.name, strategy=self.space.spec.search.strategy, settings=settings
+        )
         if self.reproducible and self.space.spec.search.batch is None and self.batch < threads:
-            self.status.notes.append(f"a reproducible search asks {self.batch} points ahead unless search.batch says "
-                                     f"otherwise, fewer than the cluster's {threads} worker threads: set search.batch "
-                                     f"to {threads} or more to use them all (another batch asks other points)")
+            self.status.notes.append(
+                f"a reproducible search asks {self.batch} points ahead unless search.batch says "
+                f"otherwise, fewer than the cluster's {threads} worker threads: set search.batch "
+                f"to {threads} or more to use them all (another batch asks other points)"
+            )
         if old is not None and old.settings != settings:
-            self.status.notes.append("the search settings changed since the last submission: a new search; "
-                                     "points already simulated are reused when asked again")
+            self.status.notes.append(
+                "the search settings changed since the last submission: a new search; "
+                "points already simulated are reused when asked again"
+            )
         elif old is not None and old.points and self.reproducible:
             self.earlier, self.status.replayed = old, True  # asked again from the start, told from the store
         elif old is not None and old.points:
@@ -167,10 +200,18 @@ class SearchSource:
         """What the points depend on; a reproducible search's also on its batch (the points asked ahead)."""
         spec = self.space.spec
         batch = self.batch if self.reproducible else None
-        return settings_digest(spec.search.strategy, spec.search.seed, spec.search.options,
-                               [d.__dict__ for d in self.space.dimensions], spec.constraints,
-                               spec.ranking.model_dump(), self.space.model_key, sorted(self.hashes.values()),
-                               spec.search.order, batch)
+        return settings_digest(
+            spec.search.strategy,
+            spec.search.seed,
+            spec.search.options,
+            [d.__dict__ for d in self.space.dimensions],
+            spec.constraints,
+            spec.ranking.model_dump(),
+            self.space.model_key,
+            sorted(self.hashes.values()),
+            spec.search.order,
+            batch,
+        )
 
     def _replay(self, old: SearchHistory, threads: int) -> None:
         """Ask and tell a fresh strategy in the recorded order, with stored results; on any mismatch
@@ -186,10 +227,14 @@ class SearchSource:
             if kind == "ask":
                 point = self._strategy_ask()
                 if point != asked.point or self.history.ask(point) != asked.number:
-                    return self._afresh(threads, f"replaying the history, the strategy asked {point} where it "
-                                                 f"had asked {asked.point}")
+                    return self._afresh(
+                        threads,
+                        f"replaying the history, the strategy asked {point} where it had asked {asked.point}",
+                    )
                 continue
-            evaluation = self._from_store(asked.point) if asked.state != "infeasible" else Evaluation("infeasible")
+            evaluation = (
+                self._from_store(asked.point) if asked.state != "infeasible" else Evaluation("infeasible")
+            )
             if evaluation is None:
                 return self._afresh(threads, f"the results of {asked.point} are no longer in the store")
             self._tell(asked.number, evaluation, reused=True)
@@ -197,11 +242,14 @@ class SearchSource:
         self.status.replayed = True
 
     def _afresh(self, threads: int, why: str) -> None:
-        self.status.notes.append(f"could not replay the search ({why}): a new search; points already "
-                                 "simulated are reused when asked again")
+        self.status.notes.append(
+            f"could not replay the search ({why}): a new search; points already "
+            "simulated are reused when asked again"
+        )
         self.strategy = self.space.strategy(threads)
-        self.history = SearchHistory(sweep=self.space.name, strategy=self.history.strategy,
-                                     settings=self.history.settings)
+        self.history = SearchHistory(
+            sweep=self.space.name, strategy=self.history.strategy, settings=self.history.settings
+        )
         self.status.points = self.status.failed = self.status.infeasible = self.status.repeats = 0
         self.status.best = self.status.best_point = None
         self.told.clear()
@@ -212,10 +260,15 @@ class SearchSource:
         rows = store.read_results(self.space.output, self.space.name, columns)
         rows = rows[rows["model"] == self.space.model_key]
         names = list(self.space.objectives)
-        return {r["task_id"]: TaskScores(r["task_id"], r["scenario"],
-                                         {n: _plain(r[n]) for n in names} if r["status"] == "ok" else None,
-                                         r["error"])
-                for r in rows.to_dict("records")}
+        return {
+            r["task_id"]: TaskScores(
+                r["task_id"],
+                r["scenario"],
+                {n: _plain(r[n]) for n in names} if r["status"] == "ok" else None,
+                r["error"],
+            )
+            for r in rows.to_dict("records")
+        }
 
     # ---- the run's side: next chunk, finished chunk -----------------------------------------------
 
@@ -289,8 +342,10 @@ class SearchSource:
             self.rejected_in_a_row += 1
             if self.rejected_in_a_row >= MAX_REJECTED:
                 self.status.stopped = "infeasible"
-                self.status.notes.append(f"the strategy proposed {MAX_REJECTED} points in a row that the "
-                                         "constraints reject; loosen them or narrow the parameters' ranges")
+                self.status.notes.append(
+                    f"the strategy proposed {MAX_REJECTED} points in a row that the "
+                    "constraints reject; loosen them or narrow the parameters' ranges"
+                )
                 self.stopping = True
         return None
 
@@ -308,9 +363,11 @@ class SearchSource:
         earlier = self.earlier
         if earlier is None or number >= len(earlier.points) or earlier.points[number].point == point:
             return
-        self.status.notes.append(f"asked {point} as point {number} where the last submission asked "
-                                 f"{earlier.points[number].point}: the strategy is not reproducible here; points "
-                                 "already simulated are reused when asked again")
+        self.status.notes.append(
+            f"asked {point} as point {number} where the last submission asked "
+            f"{earlier.points[number].point}: the strategy is not reproducible here; points "
+            "already simulated are reused when asked again"
+        )
         self.earlier = None
 
     def _should_stop(self) -> bool:
@@ -338,8 +395,10 @@ class SearchSource:
 
     def tasks(self, point: Point) -> list[Task]:
         ordered = tuple(sorted(point.items()))
-        return [Task(task_id(self.space.model_key, point, self.hashes[s.name]), s.name, ordered)
-                for s in self.space.scenarios]
+        return [
+            Task(task_id(self.space.model_key, point, self.hashes[s.name]), s.name, ordered)
+            for s in self.space.scenarios
+        ]
 
     def _job(self, number: int) -> ChunkJob | None:
         """The chunk of a point's tasks that have no row yet; None (and told now) if all have one."""
@@ -348,7 +407,11 @@ class SearchSource:
         known = {t.task_id: self.stored[t.task_id] for t in tasks if t.task_id in self.stored}
         missing = [t for t in tasks if t.task_id not in known]
         if not missing:
-            self._done(number, evaluation_of(list(known.values()), self.scalar, self._how(), self.checks, self.ranked), reused=True)
+            self._done(
+                number,
+                evaluation_of(list(known.values()), self.scalar, self._how(), self.checks, self.ranked),
+                reused=True,
+            )
             return None
         leader = next((n for n in self.running if self.history.points[n].point == point), None)
         if leader is not None:  # asked again while it runs (a discrete space): told when it finishes
@@ -358,9 +421,20 @@ class SearchSource:
         if not self.first_sent:
             self.first_sent = time.monotonic()
         space, batch = self.space, TaskBatch.of(missing)
-        return ChunkJob(space.name, chunk_id_of(batch), self.shipment, space.model_key, batch,
-                        space.objectives, space.output, self.schema, space.spec.timeout, space.experiment,
-                        with_scores=True, point=number)
+        return ChunkJob(
+            space.name,
+            chunk_id_of(batch),
+            self.shipment,
+            space.model_key,
+            batch,
+            space.objectives,
+            space.output,
+            self.schema,
+            space.spec.timeout,
+            space.experiment,
+            with_scores=True,
+            point=number,
+        )
 
     def finished(self, job: ChunkJob, summary: ChunkSummary) -> None:
         self.status.busy_seconds += summary.busy
@@ -373,8 +447,11 @@ class SearchSource:
             self.stored[scores.task_id] = scores
         if len(results) == len(self.space.scenarios):
             del self.running[job.point]
-            self._done(job.point, evaluation_of(list(results.values()), self.scalar, self._how(), self.checks, self.ranked),
-                       reused=False)
+            self._done(
+                job.point,
+                evaluation_of(list(results.values()), self.scalar, self._how(), self.checks, self.ranked),
+                reused=False,
+            )
 
     def _how(self) -> str:
         return self.space.spec.ranking.over_scenarios
@@ -383,8 +460,9 @@ class SearchSource:
         tasks = self.tasks(point)
         if not all(t.task_id in self.stored for t in tasks):
             return None
-        return evaluation_of([self.stored[t.task_id] for t in tasks], self.scalar, self._how(), self.checks,
-                             self.ranked)
+        return evaluation_of(
+            [self.stored[t.task_id] for t in tasks], self.scalar, self._how(), self.checks, self.ranked
+        )
 
     def _done(self, number: int, evaluation: Evaluation, reused: bool) -> None:
         """A point's result (and so its followers'): told now if asynchronous; if reproducible, kept until its
@@ -414,7 +492,9 @@ class SearchSource:
             status.failed += state == "failed"
         if evaluation.feasible:  # the best the ranking may choose
             value = evaluation.values[status.objective]
-            better = status.best is None or (value < status.best if status.goal == "min" else value > status.best)
+            better = status.best is None or (
+                value < status.best if status.goal == "min" else value > status.best
+            )
             if better or (value == status.best and _sorts_first(point, status.best_point)):
                 status.best, status.best_point = value, dict(point)
         self.save(force=False)

@@ -71,9 +71,16 @@ def security(spec: Cluster, base: Path | None = None) -> Any:
         if not path.is_file():
             raise DseError(f"cluster.tls.{name}: no file {path}")
         files[name] = str(path)
-    return Security(tls_ca_file=files["ca_file"], tls_client_cert=files["cert"], tls_client_key=files["key"],
-                    tls_scheduler_cert=files["cert"], tls_scheduler_key=files["key"],
-                    tls_worker_cert=files["cert"], tls_worker_key=files["key"], require_encryption=True)
+    return Security(
+        tls_ca_file=files["ca_file"],
+        tls_client_cert=files["cert"],
+        tls_client_key=files["key"],
+        tls_scheduler_cert=files["cert"],
+        tls_scheduler_key=files["key"],
+        tls_worker_cert=files["cert"],
+        tls_worker_key=files["key"],
+        require_encryption=True,
+    )
 
 
 @contextmanager
@@ -192,8 +199,9 @@ def quiet_once_interrupted() -> Iterator[None]:
 
 
 @contextmanager
-def _client(target: Any, sec: Any, timeout: float, wait: float,
-            failure: Callable[[], str | None] = lambda: None) -> Iterator[Any]:
+def _client(
+    target: Any, sec: Any, timeout: float, wait: float, failure: Callable[[], str | None] = lambda: None
+) -> Iterator[Any]:
     """A connected client, after waiting up to ``wait`` seconds for the first worker; a ``failure`` (a
     refused job) meanwhile ends the wait at once."""
     from distributed import Client
@@ -202,7 +210,11 @@ def _client(target: Any, sec: Any, timeout: float, wait: float,
     try:
         client = Client(target, security=sec, timeout=f"{timeout}s")
     except (OSError, TimeoutError, TypeError) as e:  # TypeError: distributed's word for "tls:// without TLS"
-        hint = " (a tls:// scheduler needs cluster.tls)" if str(target).startswith("tls://") and sec is None else ""
+        hint = (
+            " (a tls:// scheduler needs cluster.tls)"
+            if str(target).startswith("tls://") and sec is None
+            else ""
+        )
         raise DseError(f"cannot reach the Dask scheduler at {where}{hint}: {e}") from None
     try:
         if wait:
@@ -224,9 +236,11 @@ def _first_worker(client: Any, wait: float, failure: Callable[[], str | None]) -
             return
         except TimeoutError:
             if time.monotonic() >= deadline:
-                raise DseError(f"no worker joined the scheduler at {client.scheduler.address} within {wait:g} s "
-                               "(for Slurm, HTCondor or Kubernetes: are the jobs or pods queued? squeue, condor_q, "
-                               "kubectl get pods)") from None
+                raise DseError(
+                    f"no worker joined the scheduler at {client.scheduler.address} within {wait:g} s "
+                    "(for Slurm, HTCondor or Kubernetes: are the jobs or pods queued? squeue, condor_q, "
+                    "kubectl get pods)"
+                ) from None
 
 
 def worker_grace(spec: Cluster) -> float:
@@ -268,7 +282,9 @@ class WorkerWatch:
                 self.client.cancel(self.in_flight())
                 return
             try:
-                workers = len(self.client.scheduler_info(n_workers=1)["workers"])  # is there one? no more asked
+                workers = len(
+                    self.client.scheduler_info(n_workers=1)["workers"]
+                )  # is there one? no more asked
             except Exception:  # noqa: BLE001 - the scheduler itself went: the sweep's reconnection deals with it
                 alone_since = None
                 continue
@@ -279,8 +295,10 @@ class WorkerWatch:
                 continue
             alone_since = alone_since or time.monotonic()
             if time.monotonic() - alone_since >= self.grace:
-                self.stranded = (f"the Dask scheduler at {self.client.scheduler.address} has had no worker for "
-                                 f"{self.grace:g} s: its workers died or were lost and none came back")
+                self.stranded = (
+                    f"the Dask scheduler at {self.client.scheduler.address} has had no worker for "
+                    f"{self.grace:g} s: its workers died or were lost and none came back"
+                )
                 self.client.cancel(self.in_flight())
                 return
 

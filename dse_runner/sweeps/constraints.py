@@ -19,12 +19,24 @@ from ..errors import DseError
 Values = Mapping[str, float]  # named numbers: a design point's (domain.Point), or a result's objectives
 Evaluate = Callable[[Values], object]
 
-_BINARY = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
-           ast.Div: operator.truediv, ast.Pow: operator.pow, ast.Mod: operator.mod,
-           ast.FloorDiv: operator.floordiv}
+_BINARY = {
+    ast.Add: operator.add,
+    ast.Sub: operator.sub,
+    ast.Mult: operator.mul,
+    ast.Div: operator.truediv,
+    ast.Pow: operator.pow,
+    ast.Mod: operator.mod,
+    ast.FloorDiv: operator.floordiv,
+}
 _UNARY = {ast.USub: operator.neg, ast.UAdd: operator.pos, ast.Not: operator.not_}
-_COMPARE = {ast.Lt: operator.lt, ast.LtE: operator.le, ast.Gt: operator.gt, ast.GtE: operator.ge,
-            ast.Eq: operator.eq, ast.NotEq: operator.ne}
+_COMPARE = {
+    ast.Lt: operator.lt,
+    ast.LtE: operator.le,
+    ast.Gt: operator.gt,
+    ast.GtE: operator.ge,
+    ast.Eq: operator.eq,
+    ast.NotEq: operator.ne,
+}
 _FUNCTIONS = {"abs": abs, "min": min, "max": max}
 
 
@@ -44,15 +56,21 @@ def _compile(node: ast.AST, names: set[str], text: str, what: str = "parameter")
 
     if isinstance(node, ast.Expression):
         return _compile(node.body, names, text, what)
-    if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) and not isinstance(node.value, bool):
+    if (
+        isinstance(node, ast.Constant)
+        and isinstance(node.value, (int, float))
+        and not isinstance(node.value, bool)
+    ):
         value = node.value
         return lambda p: value
     if isinstance(node, (ast.Name, ast.Attribute)):
         name = _dotted(node)
         if name not in names:
             kind = "swept parameter" if what == "parameter" else what
-            raise DseError(f"constraint {text!r}: {name or ast.unparse(node)!r} is not a {kind} "
-                           f"({what}s: {', '.join(sorted(names))})")
+            raise DseError(
+                f"constraint {text!r}: {name or ast.unparse(node)!r} is not a {kind} "
+                f"({what}s: {', '.join(sorted(names))})"
+            )
         return lambda p: p[name]
     if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
         op = _BINARY[type(node.op)]
@@ -67,7 +85,9 @@ def _compile(node: ast.AST, names: set[str], text: str, what: str = "parameter")
             return lambda p: all(part(p) for part in parts)
         return lambda p: any(part(p) for part in parts)
     if isinstance(node, ast.Compare) and all(type(op) in _COMPARE for op in node.ops):
-        terms = [_compile(node.left, names, text, what)] + [_compile(c, names, text, what) for c in node.comparators]
+        terms = [_compile(node.left, names, text, what)] + [
+            _compile(c, names, text, what) for c in node.comparators
+        ]
         ops = [_COMPARE[type(op)] for op in node.ops]
 
         def compare(p: Values) -> bool:
@@ -75,8 +95,12 @@ def _compile(node: ast.AST, names: set[str], text: str, what: str = "parameter")
             return all(op(a, b) for op, a, b in zip(ops, values, values[1:]))
 
         return compare
-    if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in _FUNCTIONS
-            and not node.keywords):
+    if (
+        isinstance(node, ast.Call)
+        and isinstance(node.func, ast.Name)
+        and node.func.id in _FUNCTIONS
+        and not node.keywords
+    ):
         function, args = _FUNCTIONS[node.func.id], [_compile(a, names, text, what) for a in node.args]
         return lambda p: function(*(arg(p) for arg in args))
     raise reject(f"{type(node).__name__} ({ast.unparse(node)!r})")

@@ -138,11 +138,16 @@ def _parameter_kind(value: Any) -> str | None:
 
 # A list of values, a grid or an interval; the discriminator makes a wrong one give one message, not one per kind.
 ParameterValues = Annotated[
-    Annotated[Annotated[list[FiniteValue], Field(min_length=1)], Tag("values")] | Annotated[Range, Tag("range")]
+    Annotated[Annotated[list[FiniteValue], Field(min_length=1)], Tag("values")]
+    | Annotated[Range, Tag("range")]
     | Annotated[Interval, Tag("interval")],
-    Discriminator(_parameter_kind, custom_error_type="parameter_values",
-                  custom_error_message="expected a list of values, a grid {start, stop, step or num} "
-                                       "or an interval {low, high}")]
+    Discriminator(
+        _parameter_kind,
+        custom_error_type="parameter_values",
+        custom_error_message="expected a list of values, a grid {start, stop, step or num} "
+        "or an interval {low, high}",
+    ),
+]
 
 
 def _normal(value: Any) -> Any:

@@ -38,15 +38,22 @@ class Task:
     point: tuple[tuple[str, Any], ...]  # sorted (name, value) pairs: hashable and picklable
 
 
-_CANONICAL = json.JSONEncoder(sort_keys=True, default=str, separators=(",", ":"))  # made once: ids of 100,000s
+_CANONICAL = json.JSONEncoder(
+    sort_keys=True, default=str, separators=(",", ":")
+)  # made once: ids of 100,000s
 
 
 def _digest(*parts: Any) -> str:
     return hashlib.sha256(_CANONICAL.encode(parts).encode()).hexdigest()
 
 
-def model_hash(plan: Plan, objectives: dict[str, objs.ObjectiveSpec], experiment: Any = None,
-               uncertain: dict[str, Any] | None = None, modules: dict[str, bytes] | None = None) -> str:
+def model_hash(
+    plan: Plan,
+    objectives: dict[str, objs.ObjectiveSpec],
+    experiment: Any = None,
+    uncertain: dict[str, Any] | None = None,
+    modules: dict[str, bytes] | None = None,
+) -> str:
     """What the model is, independent of where its files lie: FMUs, wiring, experiment, objectives (the
     sources of a user's objective modules too: an edited one scores anew), and what fixes an uncertain
     sample's draws (uncertainty.identity)."""
@@ -54,18 +61,30 @@ def model_hash(plan: Plan, objectives: dict[str, objs.ObjectiveSpec], experiment
     if mm.get("step_sizes") == "difference":  # the default, as before the key existed: older stores resume
         del mm["step_sizes"]
     fmus = {name: content_hash(path) for name, path in sorted(plan.fmu_paths.items())}
-    scored = {name: spec if isinstance(spec, str) else spec.model_dump(mode="json") for name, spec in objectives.items()}
+    scored = {
+        name: spec if isinstance(spec, str) else spec.model_dump(mode="json")
+        for name, spec in objectives.items()
+    }
     times = experiment.model_dump(mode="json", exclude_none=True) if experiment is not None else {}
     sources = {name: hashlib.sha256(source).hexdigest() for name, source in sorted((modules or {}).items())}
-    return _digest(fmus, mm, scored, *([times] if times else []), *([uncertain] if uncertain else []),
-                   *([sources] if sources else []))[:32]
+    return _digest(
+        fmus,
+        mm,
+        scored,
+        *([times] if times else []),
+        *([uncertain] if uncertain else []),
+        *([sources] if sources else []),
+    )[:32]
 
 
 def scenario_hash(scenario: Scenario) -> str:
     """What a scenario is: its settings and the contents of every file it was read from."""
     settings = {
-        "kind": scenario.kind, "group": scenario.group, "parameters": dict(scenario.parameters),
-        "fields": dict(scenario.fields), "options": dict(scenario.options),
+        "kind": scenario.kind,
+        "group": scenario.group,
+        "parameters": dict(scenario.parameters),
+        "fields": dict(scenario.fields),
+        "options": dict(scenario.options),
         "inputs": {ref: "series" if isinstance(v, Series) else v for ref, v in scenario.inputs.items()},
         "times": [scenario.start_time, scenario.stop_time, scenario.step, scenario.natural_step],
     }
@@ -78,8 +97,15 @@ def task_id(model: str, point: Point, scenario: str) -> str:
 
 
 _NUMBERS: dict[type, Callable[[Any], str]] = {  # plain numbers as the json module writes them
-    float: lambda v: float.__repr__(v) if math.isfinite(v) else "NaN" if math.isnan(v) else "Infinity" if v > 0
-    else "-Infinity",
+    float: lambda v: (
+        float.__repr__(v)
+        if math.isfinite(v)
+        else "NaN"
+        if math.isnan(v)
+        else "Infinity"
+        if v > 0
+        else "-Infinity"
+    ),
     int: int.__repr__,
     bool: lambda v: "true" if v else "false",
 }
@@ -107,8 +133,9 @@ def points_of(space, points: list[Point] | None = None) -> Callable[[Any], Itera
     return (lambda s: search_points(s.strategy)) if points is None else (lambda _: points)
 
 
-def expand(space, points: list[Point] | None = None,
-           only: list[Collection[str]] | None = None) -> Iterator[Task]:
+def expand(
+    space, points: list[Point] | None = None, only: list[Collection[str]] | None = None
+) -> Iterator[Task]:
     """Tasks scenario by scenario, so a chunk of consecutive tasks mostly shares one scenario.
 
     ``only`` (with ``points``) names, for each point, the scenarios it is wanted on: an
@@ -139,7 +166,9 @@ def wanted(requests: Iterable[tuple[Point, Iterable[str]]]) -> tuple[list[Point]
     return [p for p, _ in by_key.values()], [s for _, s in by_key.values()]
 
 
-def distinct(points: list[Point], only: list[Collection[str]] | None) -> tuple[list[Point], list[Collection[str]] | None]:
+def distinct(
+    points: list[Point], only: list[Collection[str]] | None
+) -> tuple[list[Point], list[Collection[str]] | None]:
     """The given points less repeats (with the union of the scenarios asked of each): a point asked twice
     is simulated once and answers both asks, whose rows are found by the point."""
     if only is None:
@@ -150,8 +179,12 @@ def distinct(points: list[Point], only: list[Collection[str]] | None) -> tuple[l
     return wanted(zip(points, only))
 
 
-def blocks(space, points: list[Point] | None = None, only: list[Collection[str]] | None = None,
-           done: TaskIds | None = None) -> Iterator[TaskBatch]:
+def blocks(
+    space,
+    points: list[Point] | None = None,
+    only: list[Collection[str]] | None = None,
+    done: TaskIds | None = None,
+) -> Iterator[TaskBatch]:
     """expand()'s tasks in batches of up to BLOCK, less those in ``done``. A sweep makes its chunks from
     these: ids are written a column at a time, so a 100,000-task sweep's client keeps up with its workers."""
     if only is not None and (points is None or len(only) != len(points)):
@@ -160,11 +193,16 @@ def blocks(space, points: list[Point] | None = None, only: list[Collection[str]]
     visit = points_of(space, points)
     for scenario in space.scenarios:
         data = scenario_hash(scenario)
-        wanted = iter((p for k, p in enumerate(visit(space)) if scenario.name in only[k]) if only is not None
-                      else visit(space))  # regenerated per scenario: no list of all points is kept
+        wanted = iter(
+            (p for k, p in enumerate(visit(space)) if scenario.name in only[k])
+            if only is not None
+            else visit(space)
+        )  # regenerated per scenario: no list of all points is kept
         while block := list(itertools.islice(wanted, BLOCK)):
-            batches = (TaskBatch.of_points(model, same, scenario.name, data)
-                       for same in (_alike(block) if points is not None else (block,)))  # a grid's are alike
+            batches = (
+                TaskBatch.of_points(model, same, scenario.name, data)
+                for same in (_alike(block) if points is not None else (block,))
+            )  # a grid's are alike
             yield from undone(batches, done)
 
 
@@ -197,8 +235,9 @@ def _alike(points: list[Point]) -> Iterator[list[Point]]:
         yield list(run)
 
 
-def count(space, done: TaskIds | None, points: list[Point] | None = None,
-          only: list[Collection[str]] | None = None) -> tuple[int, int]:
+def count(
+    space, done: TaskIds | None, points: list[Point] | None = None, only: list[Collection[str]] | None = None
+) -> tuple[int, int]:
     """(tasks, tasks with a row in ``done``): ids are computed only if some tasks are done, since
     hashing every task of a large fresh sweep would keep the workers waiting for the client."""
     if done:
@@ -227,9 +266,13 @@ class TaskBatch:
         parameters = tuple(name for name, _ in tasks[0].point)
         scenarios = tuple(dict.fromkeys(t.scenario for t in tasks))
         index = {name: k for k, name in enumerate(scenarios)}
-        return cls(parameters, scenarios, np.array([t.task_id.encode() for t in tasks]),
-                   np.array([index[t.scenario] for t in tasks], dtype=np.int32),
-                   _values([value for t in tasks for _, value in t.point], len(tasks), len(parameters)))
+        return cls(
+            parameters,
+            scenarios,
+            np.array([t.task_id.encode() for t in tasks]),
+            np.array([index[t.scenario] for t in tasks], dtype=np.int32),
+            _values([value for t in tasks for _, value in t.point], len(tasks), len(parameters)),
+        )
 
     @classmethod
     def of_points(cls, model: str, points: list[Point], scenario: str, data: str) -> TaskBatch:
@@ -238,8 +281,13 @@ class TaskBatch:
         names = tuple(sorted(points[0]))
         rows = [[point[name] for name in names] for point in points]
         ids = _ids(model, names, rows, data)
-        return cls(names, (scenario,), np.array([i.encode() for i in ids]), np.zeros(len(rows), dtype=np.int32),
-                   _values([v for row in rows for v in row], len(rows), len(names)))
+        return cls(
+            names,
+            (scenario,),
+            np.array([i.encode() for i in ids]),
+            np.zeros(len(rows), dtype=np.int32),
+            _values([v for row in rows for v in row], len(rows), len(names)),
+        )
 
     @classmethod
     def concat(cls, batches: list[TaskBatch]) -> TaskBatch:
@@ -248,16 +296,28 @@ class TaskBatch:
             return batches[0]
         scenarios = tuple(dict.fromkeys(name for b in batches for name in b.scenarios))
         index = {name: k for k, name in enumerate(scenarios)}
-        remap = [np.array([index[name] for name in b.scenarios], dtype=np.int32)[b.scenario_index] for b in batches]
+        remap = [
+            np.array([index[name] for name in b.scenarios], dtype=np.int32)[b.scenario_index] for b in batches
+        ]
         values = [b.values for b in batches]
         kind = np.float64 if all(v.dtype == np.float64 for v in values) else object
-        return cls(batches[0].parameters, scenarios, np.concatenate([b.task_ids for b in batches]),
-                   np.concatenate(remap), np.concatenate([v.astype(kind) for v in values]))
+        return cls(
+            batches[0].parameters,
+            scenarios,
+            np.concatenate([b.task_ids for b in batches]),
+            np.concatenate(remap),
+            np.concatenate([v.astype(kind) for v in values]),
+        )
 
     def __getitem__(self, which: slice | np.ndarray) -> TaskBatch:
         """Some of the tasks: a slice, or a boolean mask."""
-        return TaskBatch(self.parameters, self.scenarios, self.task_ids[which], self.scenario_index[which],
-                         self.values[which])
+        return TaskBatch(
+            self.parameters,
+            self.scenarios,
+            self.task_ids[which],
+            self.scenario_index[which],
+            self.values[which],
+        )
 
     def ids(self) -> list[str]:
         return self.task_ids.astype(str).tolist()
@@ -302,7 +362,7 @@ def chunked(batches: Iterable[TaskBatch], size: int | Callable[[], int]) -> Iter
             yield TaskBatch.concat(parts)
             parts, have, wanted = [], 0, size_now()
         while len(batch):
-            part, batch = batch[:wanted - have], batch[wanted - have:]
+            part, batch = batch[: wanted - have], batch[wanted - have :]
             parts.append(part)
             have += len(part)
             if have >= wanted:

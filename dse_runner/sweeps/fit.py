@@ -77,8 +77,10 @@ class FitResult:
 
     def interval(self, z: float = 1.96) -> dict[str, tuple[float, float]]:
         """About 95 % intervals, clipped to nothing: an unbounded side stays infinite."""
-        return {n: (self.values[n] - z * self.standard_error[n], self.values[n] + z * self.standard_error[n])
-                for n in self.names}
+        return {
+            n: (self.values[n] - z * self.standard_error[n], self.values[n] + z * self.standard_error[n])
+            for n in self.names
+        }
 
 
 Residuals = Callable[[Point, str], np.ndarray | None]  # (point, scenario) -> residual vector, None if failed
@@ -141,7 +143,9 @@ class LevenbergMarquardt:
         scenarios = self.problem.scenarios
         found = [residuals(self.point(self.candidate), s) for s in scenarios]
         if any(r is None for r in found):
-            if self.x is None:  # nothing to fit from: the fit ends, failed, and its caller rejects what it stood for
+            if (
+                self.x is None
+            ):  # nothing to fit from: the fit ends, failed, and its caller rejects what it stood for
                 failed = [s for s, r in zip(scenarios, found) if r is None]
                 self.error = f"its start point fails to simulate on {', '.join(failed)}"
                 self._finish(converged=False)
@@ -176,7 +180,9 @@ class LevenbergMarquardt:
             i = int(np.flatnonzero(delta)[0])
             for k, scenario in enumerate(self.problem.scenarios):
                 moved = residuals(self.point(y), scenario)
-                columns[k].append(np.zeros_like(self.r[k]) if moved is None else (moved - self.r[k]) / delta[i])
+                columns[k].append(
+                    np.zeros_like(self.r[k]) if moved is None else (moved - self.r[k]) / delta[i]
+                )
         return [np.column_stack(c) if c else np.zeros((len(r), 0)) for c, r in zip(columns, self.r)]
 
     def _reject(self) -> None:
@@ -225,16 +231,41 @@ class LevenbergMarquardt:
         names = [p.name for p in self.params]
         if self.error is not None:
             start = {n: float(v) for n, v in zip(names, self.candidate)}
-            return FitResult(self.problem.label, names, start, np.inf, 0, 0, False, {n: np.inf for n in names}, [],
-                             self.point(self.candidate), error=self.error)
+            return FitResult(
+                self.problem.label,
+                names,
+                start,
+                np.inf,
+                0,
+                0,
+                False,
+                {n: np.inf for n in names},
+                [],
+                self.point(self.candidate),
+                error=self.error,
+            )
         if self.x is None:
             raise DseError(f"fit {self.problem.label} has not started")
         error = robust_standard_errors(self.jacobian, self.r)
-        at_bound = [n for n, v, lo, hi, st, e in zip(names, self.x, self.lower, self.upper, self.steps, error)
-                    if (v - lo < 1e-3 * st or hi - v < 1e-3 * st) and np.isfinite(e)]
-        return FitResult(self.problem.label, names, {n: float(v) for n, v in zip(names, self.x)}, self.sse,
-                         int(sum(len(r) for r in self.r)), self.iterations, self.converged,
-                         dict(zip(names, error)), at_bound, self.point(self.x), list(self.jacobian), list(self.r))
+        at_bound = [
+            n
+            for n, v, lo, hi, st, e in zip(names, self.x, self.lower, self.upper, self.steps, error)
+            if (v - lo < 1e-3 * st or hi - v < 1e-3 * st) and np.isfinite(e)
+        ]
+        return FitResult(
+            self.problem.label,
+            names,
+            {n: float(v) for n, v in zip(names, self.x)},
+            self.sse,
+            int(sum(len(r) for r in self.r)),
+            self.iterations,
+            self.converged,
+            dict(zip(names, error)),
+            at_bound,
+            self.point(self.x),
+            list(self.jacobian),
+            list(self.r),
+        )
 
 
 def robust_standard_errors(jacobian: list[np.ndarray], residuals: list[np.ndarray]) -> np.ndarray:
@@ -248,7 +279,10 @@ def robust_standard_errors(jacobian: list[np.ndarray], residuals: list[np.ndarra
     if not identifiable.any():
         return errors
     inverse = np.linalg.pinv(bread[np.ix_(identifiable, identifiable)])
-    meat = sum(np.outer(Js[:, identifiable].T @ rs, Js[:, identifiable].T @ rs) for Js, rs in zip(jacobian, residuals))
+    meat = sum(
+        np.outer(Js[:, identifiable].T @ rs, Js[:, identifiable].T @ rs)
+        for Js, rs in zip(jacobian, residuals)
+    )
     clusters = len(jacobian)
     correction = clusters / (clusters - 1) if clusters > 1 else 1.0
     covariance = correction * inverse @ meat @ inverse

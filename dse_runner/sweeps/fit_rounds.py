@@ -24,11 +24,18 @@ from .fit import FitProblem, FitResult, LevenbergMarquardt, Residuals
 from .spec import Space
 from .sweep import submit
 
-FitRoundProgress = Callable[[int, int, int, int], None]  # (round, active fits, points, simulations this round)
+FitRoundProgress = Callable[
+    [int, int, int, int], None
+]  # (round, active fits, points, simulations this round)
 
 
-def fit_all(space: Space, problems: list[FitProblem], client, residuals: str | Mapping[str, float],
-            progress: FitRoundProgress | None = None) -> dict[str, FitResult]:
+def fit_all(
+    space: Space,
+    problems: list[FitProblem],
+    client,
+    residuals: str | Mapping[str, float],
+    progress: FitRoundProgress | None = None,
+) -> dict[str, FitResult]:
     """Run fits in lockstep, each round one sweep of ``space`` over the union of the points the fits
     ask for, minimising the vector objective named ``residuals`` (one of the space's), or several, each
     multiplied by its scale and joined (``{name: scale}``: residuals in different units made alike)."""
@@ -47,16 +54,18 @@ def fit_all(space: Space, problems: list[FitProblem], client, residuals: str | M
         round_ += 1
         if progress:
             progress(round_, len(asked), len(points), sum(len(s) for s in only))
-        rows, cost = evaluate_points(space, points, client, [residuals] if isinstance(residuals, str)
-                                     else list(residuals), only, cost)
+        rows, cost = evaluate_points(
+            space, points, client, [residuals] if isinstance(residuals, str) else list(residuals), only, cost
+        )
         for solver in solvers:
             if id(solver) in asked:
                 solver.tell(residuals_in(rows, residuals))
     return {s.problem.label: s.result() for s in solvers}
 
 
-def asks(solvers: list[LevenbergMarquardt], eager: bool
-         ) -> tuple[dict[int, list[Point]], list[Point], list[set[str]]]:
+def asks(
+    solvers: list[LevenbergMarquardt], eager: bool
+) -> tuple[dict[int, list[Point]], list[Point], list[set[str]]]:
     """What the unfinished fits ask for next, by fit, and as the round's distinct points with the scenarios
     wanted of each (see :func:`wanted`)."""
     asked = {id(s): s.ask(eager=eager) for s in solvers if not s.done}
@@ -77,12 +86,18 @@ def residuals_in(rows: Rows, columns: str | Mapping[str, float]) -> Residuals:
             return None
         parts = [np.asarray(row[c], dtype=float) * s for c, s in scales.items()]
         return parts[0] if len(parts) == 1 and scales[next(iter(scales))] == 1.0 else np.concatenate(parts)
+
     return residuals
 
 
-def evaluate_points(space: Space, points: list[Point], client, columns: list[str],
-                    only: list[Collection[str]] | None = None, seconds_per_task: float | None = None
-                    ) -> tuple[Rows, float | None]:
+def evaluate_points(
+    space: Space,
+    points: list[Point],
+    client,
+    columns: list[str],
+    only: list[Collection[str]] | None = None,
+    seconds_per_task: float | None = None,
+) -> tuple[Rows, float | None]:
     """Run ``points`` on every scenario of ``space`` (or, with ``only``, each point on the scenarios
     named for it) as one sweep, skipping finished tasks. Returns their rows with ``status`` and
     ``columns``, and what a task cost (for the next round's ``seconds_per_task``, see sweep.submit).
@@ -90,8 +105,15 @@ def evaluate_points(space: Space, points: list[Point], client, columns: list[str
     told: list[TaskScores] = []
     points, only = distinct(points, only)  # a point asked twice is simulated once; both find its rows
     tasks = list(blocks(space, points, only))  # made once: the sweep counts and sends these
-    report = submit(space, client=client, points=points, only=only, seconds_per_task=seconds_per_task, told=told,
-                    tasks=tasks)
+    report = submit(
+        space,
+        client=client,
+        points=points,
+        only=only,
+        seconds_per_task=seconds_per_task,
+        told=told,
+        tasks=tasks,
+    )
     ids = {task.task_id: (task.point, task.scenario) for batch in tasks for task in batch}
     rows = {ids[t.task_id]: told_row(t, columns) for t in told if t.task_id in ids}
     earlier = [task_id for task_id, key in ids.items() if key not in rows]
@@ -104,5 +126,7 @@ def evaluate_points(space: Space, points: list[Point], client, columns: list[str
 def told_row(scores: TaskScores, columns: list[str]) -> dict[str, Any]:
     """A task's row as a fit reads it: its status and ``columns`` (None when it failed)."""
     objectives = scores.objectives
-    return {"status": "ok" if scores.error is None else "failed",
-            **{c: None if objectives is None else objectives.get(c) for c in columns}}
+    return {
+        "status": "ok" if scores.error is None else "failed",
+        **{c: None if objectives is None else objectives.get(c) for c in columns},
+    }

@@ -82,7 +82,9 @@ class JobKeeper:
         self.joined: set[str] = set()  # jobs whose workers have been seen on the scheduler
         self.absent: dict[str, float] = {}  # such jobs with no worker now: since when (monotonic)
         self.replaced = 0
-        self.closing: set[asyncio.Future] = set()  # ended jobs being cancelled: held, so none is collected mid-way
+        self.closing: set[asyncio.Future] = (
+            set()
+        )  # ended jobs being cancelled: held, so none is collected mid-way
         self._busy = False
         self._callback = PeriodicCallback(self._tick, KEEP_EVERY * 1000)
         cluster.loop.add_callback(self._callback.start)
@@ -124,7 +126,9 @@ class JobKeeper:
         present = {str(w.get("name")) for w in self.cluster.scheduler_info.get("workers", {}).values()}
         now = time.monotonic()
         for name, job in list(self.cluster.workers.items()):
-            if any(worker == name or worker.startswith(f"{name}-") for worker in present):  # groups: name-0, …
+            if any(
+                worker == name or worker.startswith(f"{name}-") for worker in present
+            ):  # groups: name-0, …
                 self.joined.add(name)
                 self.absent.pop(name, None)
                 continue
@@ -136,7 +140,9 @@ class JobKeeper:
                 self.joined.discard(name)
                 self.absent.pop(name, None)
                 self.replaced += 1
-                closing = asyncio.ensure_future(self._close(job))  # scancel / condor_rm: harmless if it has ended
+                closing = asyncio.ensure_future(
+                    self._close(job)
+                )  # scancel / condor_rm: harmless if it has ended
                 self.closing.add(closing)
                 closing.add_done_callback(self.closing.discard)
                 log.warning("worker job %s (%s) ended; submitting another", name, job.job_id)
@@ -161,15 +167,20 @@ class JobQueueMaker(ClusterMaker):
         try:
             cls = getattr(import_module("dask_jobqueue"), self.cluster_name)
         except ImportError:
-            raise DseError(f"cluster.kind {spec.kind} needs dask-jobqueue: "
-                           f"pip install 'dse-runner[{self.extra}]'") from None
+            raise DseError(
+                f"cluster.kind {spec.kind} needs dask-jobqueue: pip install 'dse-runner[{self.extra}]'"
+            ) from None
         import dask
 
         lost_after = dask.config.get("distributed.deploy.lost-worker-timeout")
-        cluster = cls(job_cls=refusable(cls.job_cls), security=security,
-                      protocol="tls://" if security else None,
-                      scheduler_options={"dashboard_address": spec.dashboard_address},
-                      silence_logs="error", **self.arguments(spec, options))
+        cluster = cls(
+            job_cls=refusable(cls.job_cls),
+            security=security,
+            protocol="tls://" if security else None,
+            scheduler_options={"dashboard_address": spec.dashboard_address},
+            silence_logs="error",
+            **self.arguments(spec, options),
+        )
         from dask.utils import parse_timedelta
 
         self._keepers[id(cluster)] = JobKeeper(cluster, parse_timedelta(lost_after))
@@ -189,8 +200,10 @@ class JobQueueMaker(ClusterMaker):
         script (``cluster.job_script()``)."""
         command = cluster.job_cls.submit_command.split()[0]
         if shutil.which(command) is None:
-            raise DseError(f"cluster.kind {self.system.lower()}: {command} is not on PATH: run dse-runner where "
-                           f"{self.system}'s commands are (a login or submit node), or install them")
+            raise DseError(
+                f"cluster.kind {self.system.lower()}: {command} is not on PATH: run dse-runner where "
+                f"{self.system}'s commands are (a login or submit node), or install them"
+            )
 
     def failure(self, cluster: Any) -> str | None:
         keeper = self._keepers.get(id(cluster))
@@ -211,6 +224,7 @@ class JobQueueMaker(ClusterMaker):
 
 # ---- the kinds ----------------------------------------------------------------------------------
 
+
 class SlurmOptions(BaseModel):
     """``cluster.slurm``: dask-jobqueue's SLURMCluster, one ``sbatch`` job per ``cores`` single-threaded
     workers. The names and meanings are dask-jobqueue's; None leaves an option to its defaults (and to
@@ -223,7 +237,9 @@ class SlurmOptions(BaseModel):
     memory: str = "2GiB"  # per job (sbatch --mem), split evenly between its workers
     walltime: str | None = None  # sbatch -t, e.g. "04:00:00"; dask-jobqueue's default is 00:30:00
     job_extra_directives: list[str] = []  # more #SBATCH lines, e.g. ["--qos=short", "--constraint=avx2"]
-    job_script_prologue: list[str] = []  # shell lines before the worker starts, e.g. activating an environment
+    job_script_prologue: list[
+        str
+    ] = []  # shell lines before the worker starts, e.g. activating an environment
     python: str | None = None  # the worker's Python on the compute nodes; default: this one's path
     interface: str | None = None  # network interface the scheduler and workers use, e.g. ib0
     log_directory: str | None = None  # the jobs' stdout and stderr files; default: sbatch's (where you run)
@@ -236,11 +252,19 @@ class Slurm(JobQueueMaker):
     system, extra, cluster_name = "Slurm", "slurm", "SLURMCluster"
 
     def arguments(self, spec: Cluster, options: SlurmOptions) -> dict[str, Any]:
-        return dict(cores=options.cores, processes=options.cores, memory=options.memory, queue=options.queue,
-                    account=options.account, walltime=options.walltime,
-                    job_extra_directives=list(options.job_extra_directives),
-                    job_script_prologue=list(options.job_script_prologue), python=options.python,
-                    interface=options.interface, log_directory=options.log_directory)
+        return dict(
+            cores=options.cores,
+            processes=options.cores,
+            memory=options.memory,
+            queue=options.queue,
+            account=options.account,
+            walltime=options.walltime,
+            job_extra_directives=list(options.job_extra_directives),
+            job_script_prologue=list(options.job_script_prologue),
+            python=options.python,
+            interface=options.interface,
+            log_directory=options.log_directory,
+        )
 
 
 class HTCondorOptions(BaseModel):
@@ -263,6 +287,13 @@ class HTCondor(JobQueueMaker):
     system, extra, cluster_name = "HTCondor", "htcondor", "HTCondorCluster"
 
     def arguments(self, spec: Cluster, options: HTCondorOptions) -> dict[str, Any]:
-        return dict(cores=options.cores, processes=options.cores, memory=options.memory, disk=options.disk,
-                    job_extra_directives=dict(options.job_extra), job_script_prologue=list(options.prologue),
-                    python=options.python, interface=options.interface)
+        return dict(
+            cores=options.cores,
+            processes=options.cores,
+            memory=options.memory,
+            disk=options.disk,
+            job_extra_directives=dict(options.job_extra),
+            job_script_prologue=list(options.prologue),
+            python=options.python,
+            interface=options.interface,
+        )

@@ -41,7 +41,6 @@ GROUP = "dse_runner.clusters"
 QUEUE_WAIT = 30 * 60.0  # seconds a started cluster's first job or pod may wait in the queue
 
 
-
 class NoOptions(BaseModel):
     """A maker's block when it declares none: it must be empty."""
 
@@ -102,8 +101,10 @@ class ClusterMaker(ABC):
         except ValidationError as e:
             problem = e.errors()[0]
             where = ".".join(str(p) for p in (kind, *problem["loc"]))
-            raise DseError(f"{where}: {problem['msg'][:1].lower()}{problem['msg'][1:]} "
-                           f"(an option of cluster kind {kind})") from None
+            raise DseError(
+                f"{where}: {problem['msg'][:1].lower()}{problem['msg'][1:]} "
+                f"(an option of cluster kind {kind})"
+            ) from None
 
 
 # ---- the built-in makers ------------------------------------------------------------------------
@@ -136,7 +137,9 @@ class Local(ClusterMaker):
         # chunk (sweep.py): a segfaulting FMU then costs two worker restarts per level, not four.
         with dask.config.set({"distributed.scheduler.allowed-failures": 1, **QUIET}):
             return LocalCluster(
-                n_workers=(spec.min_workers or 0) if spec.max_workers else spec.n_workers or os.cpu_count() or 1,
+                n_workers=(spec.min_workers or 0)
+                if spec.max_workers
+                else spec.n_workers or os.cpu_count() or 1,
                 threads_per_worker=spec.threads_per_worker,
                 processes=True,
                 host="127.0.0.1",
@@ -160,8 +163,10 @@ class KubernetesOptions(BaseModel):
     model_config = Strict
     image: str = "ghcr.io/dse-runner/dse-runner:latest"  # see deploy/Dockerfile
     namespace: str | None = None  # default: the current kube context's
-    resources: dict[str, dict[str, str]] = {"requests": {"cpu": "1", "memory": "2Gi"},
-                                             "limits": {"cpu": "1", "memory": "2Gi"}}
+    resources: dict[str, dict[str, str]] = {
+        "requests": {"cpu": "1", "memory": "2Gi"},
+        "limits": {"cpu": "1", "memory": "2Gi"},
+    }
     env: dict[str, str] = {}
 
 
@@ -169,9 +174,15 @@ def kubernetes_cluster_spec(spec: Cluster, options: KubernetesOptions, name: str
     """The DaskCluster resource for the operator: our image, one single-threaded worker per pod."""
     from dask_kubernetes.operator import make_cluster_spec
 
-    resource = make_cluster_spec(name=name, image=options.image, n_workers=0, resources=options.resources,
-                                 env=dict(options.env), idle_timeout=KUBERNETES_IDLE_TIMEOUT,
-                                 worker_command=["dask", "worker", "--nthreads", str(spec.threads_per_worker)])
+    resource = make_cluster_spec(
+        name=name,
+        image=options.image,
+        n_workers=0,
+        resources=options.resources,
+        env=dict(options.env),
+        idle_timeout=KUBERNETES_IDLE_TIMEOUT,
+        worker_command=["dask", "worker", "--nthreads", str(spec.threads_per_worker)],
+    )
     # make_cluster_spec still starts the scheduler with `dask-scheduler`, a command distributed
     # removed in 2026.6; `dask scheduler` is the same program under its current name.
     (scheduler,) = resource["spec"]["scheduler"]["spec"]["containers"]
@@ -188,17 +199,22 @@ class Kubernetes(ClusterMaker):
         try:
             from dask_kubernetes.operator import KubeCluster
         except ImportError:
-            raise DseError("cluster.kind kubernetes needs dask-kubernetes: "
-                           "pip install 'dse-runner[kubernetes]'") from None
+            raise DseError(
+                "cluster.kind kubernetes needs dask-kubernetes: pip install 'dse-runner[kubernetes]'"
+            ) from None
         if security is not None:
-            raise DseError("cluster.tls: the dask-kubernetes operator does not set up TLS; keep the scheduler "
-                           "inside the cluster network and reach it by port-forward (deploy/kubernetes/README.md)")
+            raise DseError(
+                "cluster.tls: the dask-kubernetes operator does not set up TLS; keep the scheduler "
+                "inside the cluster network and reach it by port-forward (deploy/kubernetes/README.md)"
+            )
         name = f"dse-runner-{uuid.uuid4().hex[:8]}"  # two sweeps in one namespace get two clusters
-        return KubeCluster(custom_cluster_spec=kubernetes_cluster_spec(spec, options, name),
-                           namespace=options.namespace)
+        return KubeCluster(
+            custom_cluster_spec=kubernetes_cluster_spec(spec, options, name), namespace=options.namespace
+        )
 
 
 # ---- finding a kind's maker: the built-in kinds are the group's entries too (pyproject.toml) -------------
+
 
 def installed() -> list[str]:
     """Every kind: the built-in ones and those installed packages declare."""
@@ -208,7 +224,9 @@ def installed() -> list[str]:
 def find(kind: str) -> ClusterMaker | None:
     """The maker of ``kind``, or None if no installed package declares it."""
     entry = plugins.entries(GROUP).get(kind)
-    return None if entry is None else plugins.instance_of_subclass(entry, ClusterMaker, f"cluster.kind {kind!r}")
+    return (
+        None if entry is None else plugins.instance_of_subclass(entry, ClusterMaker, f"cluster.kind {kind!r}")
+    )
 
 
 def maker(kind: str) -> ClusterMaker:
@@ -226,8 +244,10 @@ def check_block(key: str, block: Any, kind: str) -> None:
     if found is None:
         if key == kind:
             return
-        raise DseError(f"unknown key {key!r}: besides its own keys, cluster takes a block named by a cluster "
-                       f"kind (installed: {', '.join(installed())})")
+        raise DseError(
+            f"unknown key {key!r}: besides its own keys, cluster takes a block named by a cluster "
+            f"kind (installed: {', '.join(installed())})"
+        )
     found.options(block, key)
 
 
@@ -260,8 +280,12 @@ class Cluster(BaseModel):
     @model_validator(mode="after")
     def _address_or_kind(self) -> Cluster:
         if self.address is not None and self.kind != "local":
-            raise ValueError(f"give either 'address' (an existing scheduler) or 'kind: {self.kind}', not both")
-        if self.address is not None and not self.address.startswith(("tcp://", "tls://", "ucx://", "inproc://")):
+            raise ValueError(
+                f"give either 'address' (an existing scheduler) or 'kind: {self.kind}', not both"
+            )
+        if self.address is not None and not self.address.startswith(
+            ("tcp://", "tls://", "ucx://", "inproc://")
+        ):
             raise ValueError(f"address {self.address!r} needs a protocol: tcp://host:port or tls://host:port")
         return self
 
@@ -273,11 +297,17 @@ class Cluster(BaseModel):
         if self.max_workers is None:
             return self
         if self.n_workers is not None:
-            raise ValueError("give either n_workers (a fixed count) or min_workers/max_workers (adaptive), not both")
+            raise ValueError(
+                "give either n_workers (a fixed count) or min_workers/max_workers (adaptive), not both"
+            )
         if self.address is not None:
-            raise ValueError("min_workers/max_workers scale a cluster dse-runner starts, not one at 'address'")
+            raise ValueError(
+                "min_workers/max_workers scale a cluster dse-runner starts, not one at 'address'"
+            )
         if (self.min_workers or 0) > self.max_workers:
-            raise ValueError(f"min_workers ({self.min_workers}) is more than max_workers ({self.max_workers})")
+            raise ValueError(
+                f"min_workers ({self.min_workers}) is more than max_workers ({self.max_workers})"
+            )
         return self
 
     @model_validator(mode="after")

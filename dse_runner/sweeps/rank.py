@@ -60,8 +60,12 @@ class Ranking:
     over_scenarios: str = "sum"  # how each objective was reduced over the scenarios
     constraints: tuple[str, ...] = ()  # the ranking's constraints on objectives, as written
     ranked_by: str = ""  # the totals' column the points are ranked by: the objective, or its robust figure
-    uncertainty: dict[str, Any] | None = None  # with an uncertain block: samples, quantiles, robust, distributions
-    draws: pd.DataFrame | None = None  # per ranked point and draw: the drawn values, the objectives over scenarios
+    uncertainty: dict[str, Any] | None = (
+        None  # with an uncertain block: samples, quantiles, robust, distributions
+    )
+    draws: pd.DataFrame | None = (
+        None  # per ranked point and draw: the drawn values, the objectives over scenarios
+    )
 
     @property
     def reduced(self) -> str:
@@ -73,35 +77,52 @@ class Ranking:
         """What ``best_total`` is, in words: ``total y``, or ``mean+1sd of total y over 64 draws``."""
         if self.uncertainty is None:
             return figure_label(self.objective, self.reduced, None)
-        return (f"{figure_label(self.objective, self.reduced, self.uncertainty['ranked_by'])} "
-                f"over {self.uncertainty['samples']} draws")
+        return (
+            f"{figure_label(self.objective, self.reduced, self.uncertainty['ranked_by'])} "
+            f"over {self.uncertainty['samples']} draws"
+        )
 
     def to_json(self) -> dict[str, Any]:
         def records(frame: pd.DataFrame, limit: int | None = None) -> list[dict[str, Any]]:
-            return json.loads(frame.head(limit).to_json(orient="records")) if limit else \
-                json.loads(frame.to_json(orient="records"))
+            return (
+                json.loads(frame.head(limit).to_json(orient="records"))
+                if limit
+                else json.loads(frame.to_json(orient="records"))
+            )
 
         return {
-            "sweep": self.sweep, "objective": self.objective, "goal": self.goal,
-            "best": self.best, "best_total": self.best_total,
-            "points": len(self.totals), "incomplete_points": self.incomplete_points,
-            "excluded_points": self.excluded_points, "failed_rows": self.failed_rows,
-            "table1": records(self.table1), "pareto": records(self.pareto),
-            "groups": records(self.groups), "weighted": records(self.weighted, 10),
+            "sweep": self.sweep,
+            "objective": self.objective,
+            "goal": self.goal,
+            "best": self.best,
+            "best_total": self.best_total,
+            "points": len(self.totals),
+            "incomplete_points": self.incomplete_points,
+            "excluded_points": self.excluded_points,
+            "failed_rows": self.failed_rows,
+            "table1": records(self.table1),
+            "pareto": records(self.pareto),
+            "groups": records(self.groups),
+            "weighted": records(self.weighted, 10),
             "top": records(self.totals, 10),
             **({"ranked_by": self.ranked_by, "uncertainty": self.uncertainty} if self.uncertainty else {}),
         }
 
 
-def save_sweep_spec(output: store.Root, spec: SpaceSpec, model: str, sample: pd.DataFrame | None = None) -> None:
+def save_sweep_spec(
+    output: store.Root, spec: SpaceSpec, model: str, sample: pd.DataFrame | None = None
+) -> None:
     """The spec a sweep runs with, the hash of its model, whose rows rankings use, and with uncertain
     parameters its sample: the rows name a draw only by its number (``<scenario>~u<k>``), and the spec
     alone may not remake the values (a diagnosis's file it read can be gone)."""
     store.write_text(output, f"{spec.name}.{SWEEP_FILE}", spec.model_dump_json(indent=2))
     store.write_text(output, f"{spec.name}.{MODEL_FILE}", model + "\n")
     if sample is not None:
-        store.write_text(output, f"{spec.name}.{SAMPLE_FILE}",
-                         sample.rename_axis("sample").reset_index().to_csv(index=False))
+        store.write_text(
+            output,
+            f"{spec.name}.{SAMPLE_FILE}",
+            sample.rename_axis("sample").reset_index().to_csv(index=False),
+        )
 
 
 def with_drawn_values(draws: pd.DataFrame, output: store.Root, sweep: str) -> pd.DataFrame:
@@ -125,7 +146,9 @@ def current_model(output: store.Root, sweep: str) -> str | None:
 def load_sweep_spec(output: store.Root, sweep: str) -> SpaceSpec:
     text = store.read_text(output, f"{sweep}.{SWEEP_FILE}")
     if text is None:
-        raise DseError(f"{output}: no {sweep}.{SWEEP_FILE}; is this the output folder of a dse-runner submit?")
+        raise DseError(
+            f"{output}: no {sweep}.{SWEEP_FILE}; is this the output folder of a dse-runner submit?"
+        )
     return SpaceSpec.model_validate_json(text)
 
 
@@ -218,17 +241,23 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
         n_points = len(points)
         complete = _complete(points, n_scenarios)
         if complete.empty:
-            raise DseError(f"sweep {sweep!r}: no parameter point has an ok result for all {n_scenarios} scenarios")
+            raise DseError(
+                f"sweep {sweep!r}: no parameter point has an ok result for all {n_scenarios} scenarios"
+            )
     admitted = admits(complete, settings.constraints, objectives)
     excluded = int((~admitted).sum())
     complete = complete[admitted]
     if complete.empty:
-        raise DseError(f"sweep {sweep!r}: every complete point breaks a ranking constraint "
-                       f"({'; '.join(settings.constraints)})")
+        raise DseError(
+            f"sweep {sweep!r}: every complete point breaks a ranking constraint "
+            f"({'; '.join(settings.constraints)})"
+        )
     complete = _best_first(complete, ranked_by, settings.goal)
     best = {p: plain(complete.loc[0, p]) for p in parameters}
     if draws is not None:
-        draws = with_drawn_values(draws[_of_points(draws, complete, parameters)].reset_index(drop=True), output, sweep)
+        draws = with_drawn_values(
+            draws[_of_points(draws, complete, parameters)].reset_index(drop=True), output, sweep
+        )
 
     ranked_ok = ok if len(complete) == n_points else aggregate.of_points(ok, complete, parameters)
     table1 = _table1(ranked_ok, settings.objective, best)
@@ -244,16 +273,32 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
         score = sum(weight * complete[name] for name, weight in settings.weights.items())
         weighted = _best_first(complete.assign(weighted=score), "weighted", settings.goal)
 
-    return Ranking(sweep, parameters, settings.objective, settings.goal, best,
-                   float(complete.loc[0, ranked_by]), complete, table1, front, groups, weighted,
-                   incomplete_points=n_points - len(complete) - excluded,
-                   failed_rows=failed, excluded_points=excluded,
-                   over_scenarios=settings.over_scenarios, constraints=tuple(settings.constraints),
-                   ranked_by=ranked_by, uncertainty=about, draws=draws)
+    return Ranking(
+        sweep,
+        parameters,
+        settings.objective,
+        settings.goal,
+        best,
+        float(complete.loc[0, ranked_by]),
+        complete,
+        table1,
+        front,
+        groups,
+        weighted,
+        incomplete_points=n_points - len(complete) - excluded,
+        failed_rows=failed,
+        excluded_points=excluded,
+        over_scenarios=settings.over_scenarios,
+        constraints=tuple(settings.constraints),
+        ranked_by=ranked_by,
+        uncertainty=about,
+        draws=draws,
+    )
 
 
-def _over_draws(rows: pd.DataFrame, parameters: list[str], objectives: list[str], settings: RankingSpec,
-                spec: SpaceSpec) -> tuple[pd.DataFrame, pd.DataFrame, int]:
+def _over_draws(
+    rows: pd.DataFrame, parameters: list[str], objectives: list[str], settings: RankingSpec, spec: SpaceSpec
+) -> tuple[pd.DataFrame, pd.DataFrame, int]:
     """(complete points with each objective's mean, std and quantiles over the draws and, if asked, the robust
     figure; every draw of them; how many points have any ok row): ``rows`` of sampled scenarios."""
     uncertain = spec.uncertain
@@ -262,12 +307,18 @@ def _over_draws(rows: pd.DataFrame, parameters: list[str], objectives: list[str]
     draws = uncertainty.per_draw(ok, parameters, objectives, settings.over_scenarios, n_scenarios)
     complete = uncertainty.summarise(draws, parameters, objectives, uncertain.quantiles, uncertain.samples)
     if complete.empty:
-        raise DseError(f"sweep {spec.name!r}: no parameter point has an ok result for all {n_scenarios} scenarios "
-                       f"in each of its {uncertain.samples} uncertain draws")
+        raise DseError(
+            f"sweep {spec.name!r}: no parameter point has an ok result for all {n_scenarios} scenarios "
+            f"in each of its {uncertain.samples} uncertain draws"
+        )
     complete = complete.drop(columns="draws")
     if settings.robust is not None:
-        figure = uncertainty.robust_values(draws, parameters, settings.objective, settings.robust, settings.goal)
-        keys = pd.MultiIndex.from_frame(complete[parameters]) if len(parameters) > 1 else complete[parameters[0]]
+        figure = uncertainty.robust_values(
+            draws, parameters, settings.objective, settings.robust, settings.goal
+        )
+        keys = (
+            pd.MultiIndex.from_frame(complete[parameters]) if len(parameters) > 1 else complete[parameters[0]]
+        )
         complete[uncertainty.robust_column(settings.objective)] = figure.reindex(keys).to_numpy()
     return complete, draws, ok.groupby(parameters, dropna=False).ngroups
 
@@ -276,13 +327,19 @@ def _about(spec: SpaceSpec, settings: RankingSpec) -> dict[str, Any]:
     """The ranking JSON's ``uncertainty``: how the draws were made and how points are ranked over them."""
     uncertain = spec.uncertain
     robust = settings.robust
-    return {"samples": uncertain.samples, "sampling": uncertain.sampling, "seed": uncertain.seed,
-            "quantiles": list(uncertain.quantiles),
-            "ranked_by": robust.label(settings.goal) if robust is not None else "mean",
-            "robust": robust.model_dump(exclude_none=True) if robust is not None else None,
-            "parameters": {n: d.model_dump(mode="json", exclude_none=True) for n, d in uncertain.parameters.items()},
-            "columns": "each objective's column is its mean over the draws; <objective>_std the standard deviation "
-                       "(ddof 1), <objective>_q<percent> its quantiles, <objective>_robust the ranked figure"}
+    return {
+        "samples": uncertain.samples,
+        "sampling": uncertain.sampling,
+        "seed": uncertain.seed,
+        "quantiles": list(uncertain.quantiles),
+        "ranked_by": robust.label(settings.goal) if robust is not None else "mean",
+        "robust": robust.model_dump(exclude_none=True) if robust is not None else None,
+        "parameters": {
+            n: d.model_dump(mode="json", exclude_none=True) for n, d in uncertain.parameters.items()
+        },
+        "columns": "each objective's column is its mean over the draws; <objective>_std the standard deviation "
+        "(ddof 1), <objective>_q<percent> its quantiles, <objective>_robust the ranked figure",
+    }
 
 
 def scalar_objectives(spec: SpaceSpec, output: store.Root, sweep: str) -> list[str]:
@@ -296,8 +353,9 @@ def scalar_objectives(spec: SpaceSpec, output: store.Root, sweep: str) -> list[s
     return [name for name in declared if name not in vectors]
 
 
-def complete_totals(ok: aggregate.Rows, parameters: list[str], objectives: list[str], over: str,
-                    scenarios: int) -> pd.DataFrame:
+def complete_totals(
+    ok: aggregate.Rows, parameters: list[str], objectives: list[str], over: str, scenarios: int
+) -> pd.DataFrame:
     """Each point with an ok row on all ``scenarios``: its ``objectives`` reduced over them (``over``: the
     ranking's ``over_scenarios``). Only these are ranked: a point's total over fewer scenarios is not its total."""
     return _complete(aggregate.per_point(ok, parameters, objectives, over), scenarios)
@@ -308,8 +366,15 @@ def _complete(points: pd.DataFrame, scenarios: int) -> pd.DataFrame:
     return points[points[aggregate.COUNT] == scenarios].drop(columns=aggregate.COUNT).reset_index(drop=True)
 
 
-def without_excluded(table: pd.DataFrame, ok: pd.DataFrame, parameters: list[str], objectives: list[str],
-                     settings: RankingSpec, scenarios: int, samples: int | None = None) -> pd.DataFrame:
+def without_excluded(
+    table: pd.DataFrame,
+    ok: pd.DataFrame,
+    parameters: list[str],
+    objectives: list[str],
+    settings: RankingSpec,
+    scenarios: int,
+    samples: int | None = None,
+) -> pd.DataFrame:
     """A running sweep's standings (``table``: :func:`standings` or :func:`draw_standings`) without the points
     :func:`rank` leaves out for breaking a ranking constraint, so that the dashboard never names as best a point
     the rank command excludes. ``ok``: the ok rows with ``objectives`` (with uncertain draws, ``with_draws``'
@@ -348,8 +413,9 @@ def ranked_figure_label(settings: RankingSpec, uncertain: bool) -> str:
     return figure_label(settings.objective, REDUCED[settings.over_scenarios], over_draws)
 
 
-def standings(ok: aggregate.Rows, parameters: list[str], objective: str, goal: str,
-              over: str = "sum") -> pd.DataFrame:
+def standings(
+    ok: aggregate.Rows, parameters: list[str], objective: str, goal: str, over: str = "sum"
+) -> pd.DataFrame:
     """The best-so-far ranking of a running sweep: the points that have finished the most scenarios
     first (tasks run scenario by scenario, so these have finished the same ones and compare like with
     like), each group by ``objective`` reduced over its scenarios as the ranking's ``over_scenarios`` says
@@ -359,12 +425,14 @@ def standings(ok: aggregate.Rows, parameters: list[str], objective: str, goal: s
         return pd.DataFrame(columns=[*parameters, "scenarios", "mean", "ranked"])
     found = aggregate.statistics(ok, parameters, objective, list(dict.fromkeys([over, "mean", "count"])))
     table = found[parameters].assign(scenarios=found["count"], mean=found["mean"], ranked=found[over])
-    return table.sort_values(["scenarios", "ranked"], ascending=[False, goal == "min"],
-                             kind="stable").reset_index(drop=True)
+    return table.sort_values(
+        ["scenarios", "ranked"], ascending=[False, goal == "min"], kind="stable"
+    ).reset_index(drop=True)
 
 
-def draw_standings(ok: pd.DataFrame, parameters: list[str], objective: str, settings: RankingSpec,
-                   scenarios: int) -> pd.DataFrame:
+def draw_standings(
+    ok: pd.DataFrame, parameters: list[str], objective: str, settings: RankingSpec, scenarios: int
+) -> pd.DataFrame:
     """The best-so-far ranking of a running sweep with uncertain draws (``ok`` with_draws' rows): per point the
     draws finished on all ``scenarios``, ``mean`` the mean over them of ``objective`` reduced over the scenarios,
     and ``ranked`` the figure rank() ranks by (the robust one if the ranking is robust, else that mean). Points
@@ -376,12 +444,20 @@ def draw_standings(ok: pd.DataFrame, parameters: list[str], objective: str, sett
     started = ok.groupby(parameters, dropna=False).size().index
     grouped = draws.groupby(parameters, dropna=False)[objective]
     mean = grouped.mean()
-    ranked = mean if settings.robust is None else \
-        uncertainty.robust_values(draws, parameters, objective, settings.robust, settings.goal)
+    ranked = (
+        mean
+        if settings.robust is None
+        else uncertainty.robust_values(draws, parameters, objective, settings.robust, settings.goal)
+    )
     table = pd.DataFrame({"draws": grouped.size(), "mean": mean, "ranked": ranked}).reindex(started)
     table["draws"] = table["draws"].fillna(0).astype(int)
-    return table.reset_index().sort_values(["draws", "ranked"], ascending=[False, settings.goal == "min"],
-                                           na_position="last", kind="stable").reset_index(drop=True)
+    return (
+        table.reset_index()
+        .sort_values(
+            ["draws", "ranked"], ascending=[False, settings.goal == "min"], na_position="last", kind="stable"
+        )
+        .reset_index(drop=True)
+    )
 
 
 def plain(value: Any) -> Any:
@@ -391,8 +467,10 @@ def plain(value: Any) -> Any:
 def format_point(point: Point, digits: int = 6) -> str:
     """``vehicle.mass = 3000, vehicle.mu = 0.3``: a point as people read it, numbers to ``digits``
     significant digits."""
-    return ", ".join(f"{k} = {v:.{digits}g}" if isinstance(v, float) else f"{k} = {v}"
-                     for k, v in ((k, plain(v)) for k, v in point.items()))
+    return ", ".join(
+        f"{k} = {v:.{digits}g}" if isinstance(v, float) else f"{k} = {v}"
+        for k, v in ((k, plain(v)) for k, v in point.items())
+    )
 
 
 def _of_points(rows: pd.DataFrame, points: pd.DataFrame, parameters: list[str]) -> np.ndarray:
@@ -401,8 +479,13 @@ def _of_points(rows: pd.DataFrame, points: pd.DataFrame, parameters: list[str]) 
     return pd.MultiIndex.from_frame(rows[parameters]).isin(pd.MultiIndex.from_frame(points[parameters]))
 
 
-TABLE1_HEADINGS = {"min_error": "min", "max_error": "max", "average_error": "average", "computed": "best",
-                   "difference": "difference"}  # Table 1's columns as the CLI and the report head them
+TABLE1_HEADINGS = {
+    "min_error": "min",
+    "max_error": "max",
+    "average_error": "average",
+    "computed": "best",
+    "difference": "difference",
+}  # Table 1's columns as the CLI and the report head them
 
 
 def table1_scope(ranking: Ranking) -> str:
@@ -424,13 +507,16 @@ def _table1(ok: aggregate.Rows, objective: str, best: dict[str, Any]) -> pd.Data
     stats = aggregate.statistics(ok, ["scenario", "group"], objective, ["min", "max", "mean"])
     stats = stats.rename(columns={"min": "min_error", "max": "max_error", "mean": "average_error"})
     computed = aggregate.at_point(ok, best).select(["scenario", "group", objective]).to_pandas()
-    table = stats.merge(computed.rename(columns={objective: "computed"}), on=["scenario", "group"], how="left")
+    table = stats.merge(
+        computed.rename(columns={objective: "computed"}), on=["scenario", "group"], how="left"
+    )
     table["difference"] = table["computed"] - table["average_error"]
     return table
 
 
-def _groups(ok: aggregate.Rows, parameters: list[str], objective: str, goal: str,
-            rows: aggregate.Rows) -> pd.DataFrame:
+def _groups(
+    ok: aggregate.Rows, parameters: list[str], objective: str, goal: str, rows: aggregate.Rows
+) -> pd.DataFrame:
     """The best point within each scenario group, by the group's total."""
     scenarios = aggregate.statistics(rows, ["group"], "scenario", ["count_distinct"])
     per_point = aggregate.per_point(ok, ["group", *parameters], [objective], "sum")
@@ -440,16 +526,31 @@ def _groups(ok: aggregate.Rows, parameters: list[str], objective: str, goal: str
         if members.empty:
             continue
         top = _best_first(members, objective, goal).iloc[0]
-        result.append({"group": group, "scenarios": int(n), **{p: plain(top[p]) for p in parameters},
-                       f"{objective}_total": float(top[objective])})
+        result.append(
+            {
+                "group": group,
+                "scenarios": int(n),
+                **{p: plain(top[p]) for p in parameters},
+                f"{objective}_total": float(top[objective]),
+            }
+        )
     return pd.DataFrame(result)
 
 
 def write_ranking(ranking: Ranking, output: store.Root, sweep: str) -> dict[str, str]:
     """CSV files and one JSON file in ``<output>/ranking/<sweep>/``, for people and for scripts."""
     paths = {}
-    tables = ["totals", "table1", "pareto", "groups", "weighted", *(["draws"] if ranking.draws is not None else [])]
+    tables = [
+        "totals",
+        "table1",
+        "pareto",
+        "groups",
+        "weighted",
+        *(["draws"] if ranking.draws is not None else []),
+    ]
     for name in tables:
         paths[name] = store.write_csv(getattr(ranking, name), output, f"ranking/{sweep}/{name}.csv")
-    paths["json"] = store.write_text(output, f"ranking/{sweep}/ranking.json", strict_json.dumps(ranking.to_json()))
+    paths["json"] = store.write_text(
+        output, f"ranking/{sweep}/ranking.json", strict_json.dumps(ranking.to_json())
+    )
     return paths

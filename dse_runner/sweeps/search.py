@@ -62,7 +62,9 @@ class Evaluation:
 
     state: Literal["ok", "failed", "infeasible"]  # infeasible: the constraints reject it; never simulated
     values: Mapping[str, float] = field(default_factory=dict)  # each scalar objective reduced over scenarios
-    scores: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)  # scenario -> objective -> value (ok tasks)
+    scores: Mapping[str, Mapping[str, Any]] = field(
+        default_factory=dict
+    )  # scenario -> objective -> value (ok tasks)
     error: str | None = None
     breaks: tuple[str, ...] = ()  # ok, but these ranking constraints on its objectives fail: ranked never
 
@@ -145,8 +147,9 @@ def parse_options(kind: type[Strategy], options: Mapping[str, Any]) -> BaseModel
     except ValidationError as e:
         problem = e.errors()[0]
         where = ".".join(str(p) for p in problem["loc"])
-        raise DseError(f"search.{where}: {problem['msg'][:1].lower()}{problem['msg'][1:]} "
-                       f"(an option of {kind.__name__})") from None
+        raise DseError(
+            f"search.{where}: {problem['msg'][:1].lower()}{problem['msg'][1:]} (an option of {kind.__name__})"
+        ) from None
 
 
 class Exhaustive(Strategy):
@@ -158,9 +161,11 @@ class Exhaustive(Strategy):
         super().__init__(problem)
         continuous = [d.name for d in problem.dimensions if d.grid() is None]
         if continuous:
-            raise DseError(f"search: exhaustive needs a list or a grid {{start, stop, step}} for every parameter; "
-                           f"{', '.join(continuous)} is an interval {{low, high}}: give a grid, or a search "
-                           "strategy such as tpe")
+            raise DseError(
+                f"search: exhaustive needs a list or a grid {{start, stop, step}} for every parameter; "
+                f"{', '.join(continuous)} is an interval {{low, high}}: give a grid, or a search "
+                "strategy such as tpe"
+            )
         names = [d.name for d in problem.dimensions]
         grids = [d.grid() for d in problem.dimensions]
         combinations = itertools.product(*grids)
@@ -216,7 +221,9 @@ def count(make: Callable[[], Strategy]) -> int:
     return chosen.size if chosen.size is not None else sum(1 for _ in iter(chosen.ask, None))
 
 
-BATCH = 4  # a reproducible search's points asked ahead: fixed, so that the points do not depend on the cluster
+BATCH = (
+    4  # a reproducible search's points asked ahead: fixed, so that the points do not depend on the cluster
+)
 
 
 class Search(BaseModel):
@@ -231,7 +238,9 @@ class Search(BaseModel):
     # asked only while fewer than ``batch`` points wait for theirs: the points depend on no worker's timing.
     # asynchronous: each result is told as it comes (closed_loop.py).
     order: Literal["reproducible", "asynchronous"] = "reproducible"
-    batch: PositiveInt | None = None  # points asked ahead of their results; default BATCH, or threads + 1 if asynchronous
+    batch: PositiveInt | None = (
+        None  # points asked ahead of their results; default BATCH, or threads + 1 if asynchronous
+    )
 
     @property
     def options(self) -> dict[str, Any]:

@@ -43,7 +43,9 @@ class Shipment:
     multimodel: MultiModel  # its ``fmus`` name content hashes, not paths
     fmus: dict[str, bytes]  # content hash -> .fmu archive
     scenarios: dict[str, Scenario]  # read and checked on the client; their data travel with them
-    files: dict[str, bytes]  # content hash -> a file an FMU or a script reads (a scenario's ``files``, ``data``)
+    files: dict[
+        str, bytes
+    ]  # content hash -> a file an FMU or a script reads (a scenario's ``files``, ``data``)
     modules: dict[str, bytes] = field(default_factory=dict)  # name -> source: objective modules by the spec
     names: dict[str, str] = field(default_factory=dict)  # content hash -> the FMU's file name, for messages
 
@@ -65,7 +67,9 @@ def pack(plan: Plan, scenarios: list[Scenario], modules: dict[str, bytes] | None
     archives = {name: Path(path).read_bytes() for name, path in plan.fmu_paths.items()}
     fmus = {_sha(data): data for data in archives.values()}
     names = {_sha(archives[name]): Path(path).name for name, path in plan.fmu_paths.items()}
-    multimodel = plan.multimodel.model_copy(update={"fmus": {name: _sha(data) for name, data in archives.items()}})
+    multimodel = plan.multimodel.model_copy(
+        update={"fmus": {name: _sha(data) for name, data in archives.items()}}
+    )
     files: dict[str, bytes] = {}
     packed = {}
     for scenario in scenarios:
@@ -73,8 +77,9 @@ def pack(plan: Plan, scenarios: list[Scenario], modules: dict[str, bytes] | None
         data = {name: _read(scenario, path) for name, path in scenario.data.items()}
         files.update({_sha(content): content for content in (*contents.values(), *data.values())})
         # the scenario's files become content hashes, as the multi-model's FMUs do
-        packed[scenario.name] = (scenario.with_files({name: Path(_sha(c)) for name, c in contents.items()})
-                                 .with_data({name: Path(_sha(c)) for name, c in data.items()}))
+        packed[scenario.name] = scenario.with_files(
+            {name: Path(_sha(c)) for name, c in contents.items()}
+        ).with_data({name: Path(_sha(c)) for name, c in data.items()})
     digest = hashlib.sha256()
     digest.update(multimodel.model_dump_json().encode())
     for sha in sorted(fmus) + sorted(files):
@@ -120,17 +125,23 @@ def unpack(shipment: Shipment) -> Unpacked:
         return done
     root = local_root()
     # under their own file names (in a folder named by content), so a worker's messages name the user's FMU
-    paths = {sha: _write_once(root / "fmus" / sha / shipment.names.get(sha, f"{sha}.fmu"), data)
-             for sha, data in shipment.fmus.items()}
+    paths = {
+        sha: _write_once(root / "fmus" / sha / shipment.names.get(sha, f"{sha}.fmu"), data)
+        for sha, data in shipment.fmus.items()
+    }
     multimodel = shipment.multimodel.model_copy(
-        update={"fmus": {name: str(paths[sha]) for name, sha in shipment.multimodel.fmus.items()}})
+        update={"fmus": {name: str(paths[sha]) for name, sha in shipment.multimodel.fmus.items()}}
+    )
     files = {sha: _write_once(root / "files" / sha, data) for sha, data in shipment.files.items()}
     for name, source in shipment.modules.items():  # named by hash: two versions of one module never mix
         path = _write_once(root / "modules" / user_modules.digest(source) / f"{name}.py", source)
         user_modules.load(name, path, source)
-    scenarios = {name: s.with_files({field: files[str(sha)] for field, sha in s.files.items()})
-                 .with_data({file: files[str(sha)] for file, sha in s.data.items()})
-                 for name, s in shipment.scenarios.items()}
+    scenarios = {
+        name: s.with_files({field: files[str(sha)] for field, sha in s.files.items()}).with_data(
+            {file: files[str(sha)] for file, sha in s.data.items()}
+        )
+        for name, s in shipment.scenarios.items()
+    }
     done = _UNPACKED[shipment.key] = Unpacked(make_plan(multimodel), scenarios)
     return done
 
@@ -142,8 +153,10 @@ def received(key: str) -> Unpacked:
     try:
         return _UNPACKED[key]
     except KeyError:
-        raise DseError(f"this worker has no shipment {key}: its plugin was not registered with the "
-                       "scheduler (was the scheduler restarted? submitting again registers it)") from None
+        raise DseError(
+            f"this worker has no shipment {key}: its plugin was not registered with the "
+            "scheduler (was the scheduler restarted? submitting again registers it)"
+        ) from None
 
 
 class ShipmentPlugin(WorkerPlugin):
@@ -187,5 +200,7 @@ def send(client, shipment: Shipment) -> None:
     except Exception as e:  # noqa: BLE001 - distributed re-raises the worker's error, whatever it was
         if "dse_runner" not in str(e):
             raise
-        raise DseError(f"the Dask workers of {client.scheduler.address} cannot import dse_runner ({e}): "
-                       "install dse-runner, the same version as here, where the workers run") from None
+        raise DseError(
+            f"the Dask workers of {client.scheduler.address} cannot import dse_runner ({e}): "
+            "install dse-runner, the same version as here, where the workers run"
+        ) from None

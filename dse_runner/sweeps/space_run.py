@@ -32,10 +32,16 @@ def is_space_file(path: Path) -> bool:
     return isinstance(data, dict) and "multimodel" in data
 
 
-def simulate_space(path: Path, scenario: str | Path | None, values: Mapping[str, Any],
-                   objectives: Mapping[str, objs.ObjectiveSpec] | None = None, start_time: float | None = None,
-                   stop_time: float | None = None, step: float | None = None,
-                   best: bool = False) -> SimulationResult:
+def simulate_space(
+    path: Path,
+    scenario: str | Path | None,
+    values: Mapping[str, Any],
+    objectives: Mapping[str, objs.ObjectiveSpec] | None = None,
+    start_time: float | None = None,
+    stop_time: float | None = None,
+    step: float | None = None,
+    best: bool = False,
+) -> SimulationResult:
     """The space's model run once on one of its scenarios (its only one, or the one named; a scenario folder
     also serves), with its single-valued parameters, then its sweep's best point if ``best``, then
     ``values``, scored by its objectives unless others are given. Its search strategy plays no part:
@@ -47,18 +53,30 @@ def simulate_space(path: Path, scenario: str | Path | None, values: Mapping[str,
     by_name = {s.name: s for s in space.scenarios}
     if scenario is None:
         if len(by_name) != 1:
-            raise DseError(f"{path}: the space has {len(by_name)} scenarios ({', '.join(by_name)}): name one with "
-                           "--scenario")
+            raise DseError(
+                f"{path}: the space has {len(by_name)} scenarios ({', '.join(by_name)}): name one with "
+                "--scenario"
+            )
         chosen: Any = next(iter(by_name.values()))
     elif str(scenario) in by_name:
         chosen = by_name[str(scenario)]
     elif Path(scenario).is_dir():
         chosen = Path(scenario)
     else:
-        raise DseError(f"--scenario {scenario}: neither a scenario of {path} ({', '.join(by_name)}) nor a folder")
+        raise DseError(
+            f"--scenario {scenario}: neither a scenario of {path} ({', '.join(by_name)}) nor a folder"
+        )
     fixed = {name: points[0] for name, points in space.parameters.items() if len(points) == 1}
-    return simulate(space.plan, chosen, {**fixed, **values}, start_time, stop_time, step,
-                    objectives=dict(objectives) if objectives else space.objectives, experiment=space.experiment)
+    return simulate(
+        space.plan,
+        chosen,
+        {**fixed, **values},
+        start_time,
+        stop_time,
+        step,
+        objectives=dict(objectives) if objectives else space.objectives,
+        experiment=space.experiment,
+    )
 
 
 def best_point(output: Any, sweep: str) -> dict[str, Any]:

@@ -74,8 +74,12 @@ class ScenarioSource(BaseModel):
     # A string is a YAML file holding the list, relative to the spec.
     variants: Annotated[
         Annotated[list[Variant], Tag("list")] | Annotated[str, Tag("scalar")],
-        Discriminator(shape, custom_error_type="variants",
-                      custom_error_message="expected a list of {name, parameters} or a YAML file holding one")] = []
+        Discriminator(
+            shape,
+            custom_error_type="variants",
+            custom_error_message="expected a list of {name, parameters} or a YAML file holding one",
+        ),
+    ] = []
 
 
 def read_variants(path: Path) -> list[Variant]:
@@ -85,8 +89,11 @@ def read_variants(path: Path) -> list[Variant]:
 
 def varied(scenario: Scenario, variant: Variant) -> Scenario:
     """``scenario`` with ``variant``'s parameters, named for both."""
-    return replace(scenario, name=f"{scenario.name}-{variant.name}",
-                   parameters={**scenario.parameters, **variant.parameters})
+    return replace(
+        scenario,
+        name=f"{scenario.name}-{variant.name}",
+        parameters={**scenario.parameters, **variant.parameters},
+    )
 
 
 def _source_or_inline(value: Any) -> str | None:
@@ -99,9 +106,15 @@ def _source_or_inline(value: Any) -> str | None:
 
 # A folder (or glob), {path: ...} with options, or a scenario written inline ({name: ..., inputs: ...}).
 ScenarioEntry = Annotated[
-    Annotated[str, Tag("folder")] | Annotated[ScenarioSource, Tag("source")] | Annotated[ScenarioSpec, Tag("inline")],
-    Discriminator(_source_or_inline, custom_error_type="scenario_entry",
-                  custom_error_message="expected a folder or glob, {path: ...}, or an inline scenario {name: ...}")]
+    Annotated[str, Tag("folder")]
+    | Annotated[ScenarioSource, Tag("source")]
+    | Annotated[ScenarioSpec, Tag("inline")],
+    Discriminator(
+        _source_or_inline,
+        custom_error_type="scenario_entry",
+        custom_error_message="expected a folder or glob, {path: ...}, or an inline scenario {name: ...}",
+    ),
+]
 
 
 class Direction(BaseModel):
@@ -112,15 +125,25 @@ class Direction(BaseModel):
 
 class RankingSpec(BaseModel):
     model_config = Strict
-    objective: str | None = None  # reduced over scenarios (by default summed: the paper's Equation 2); default: the first
+    objective: str | None = (
+        None  # reduced over scenarios (by default summed: the paper's Equation 2); default: the first
+    )
     goal: Literal["min", "max"] = "min"
-    over_scenarios: Literal["sum", "mean", "max", "min"] = "sum"  # max: the worst case of a minimised objective
-    pareto: list[Annotated[  # objectives of the Pareto front, each "name" or {objective, goal}
-        Annotated[Direction, Tag("mapping")] | Annotated[str, Tag("scalar")],
-        Discriminator(shape, custom_error_type="pareto", custom_error_message="expected a name or {objective, goal}")
-    ]] = []
+    over_scenarios: Literal["sum", "mean", "max", "min"] = (
+        "sum"  # max: the worst case of a minimised objective
+    )
+    pareto: list[
+        Annotated[  # objectives of the Pareto front, each "name" or {objective, goal}
+            Annotated[Direction, Tag("mapping")] | Annotated[str, Tag("scalar")],
+            Discriminator(
+                shape, custom_error_type="pareto", custom_error_message="expected a name or {objective, goal}"
+            ),
+        ]
+    ] = []
     weights: dict[str, float] = {}  # weighted sum of per-point totals
-    constraints: list[str] = []  # on objective totals, e.g. "level_max < 2.4": points breaking one are not ranked
+    constraints: list[
+        str
+    ] = []  # on objective totals, e.g. "level_max < 2.4": points breaking one are not ranked
     robust: Robust | None = None  # with an uncertain block: rank by mean + k std or a quantile, not the mean
 
     def pareto_goals(self) -> list[tuple[str, str]]:
@@ -133,14 +156,23 @@ class RankingSpec(BaseModel):
 
 # A list of names or a mapping name -> objective (simulation/objectives.py's forms); an entry with options in a
 # list is the likely slip, so its message says where options go.
-ObjectiveName = Annotated[Annotated[str, Tag("scalar")], Discriminator(
-    shape, custom_error_type="objective_name",
-    custom_error_message="a list holds names only (an objective with options goes in a mapping, "
-                         "objectives: {name: {signal: ..., reduce: ...}})")]
+ObjectiveName = Annotated[
+    Annotated[str, Tag("scalar")],
+    Discriminator(
+        shape,
+        custom_error_type="objective_name",
+        custom_error_message="a list holds names only (an objective with options goes in a mapping, "
+        "objectives: {name: {signal: ..., reduce: ...}})",
+    ),
+]
 Objectives = Annotated[
     Annotated[list[ObjectiveName], Tag("list")] | Annotated[dict[str, objs.ObjectiveSpec], Tag("mapping")],
-    Discriminator(shape, custom_error_type="objectives",
-                  custom_error_message="expected a list of names or a mapping name: objective")]
+    Discriminator(
+        shape,
+        custom_error_type="objectives",
+        custom_error_message="expected a list of names or a mapping name: objective",
+    ),
+]
 
 
 class Origin(BaseModel):
@@ -174,18 +206,33 @@ class SpaceSpec(BaseModel):
     @model_validator(mode="after")
     def _robust_needs_uncertain(self) -> SpaceSpec:
         if self.ranking.robust is not None and self.uncertain is None:
-            raise ValueError("ranking.robust ranks over uncertain samples: add an 'uncertain' block "
-                             "(docs/space.md#uncertain-parameters)")
-        if self.ranking.robust is not None and self.ranking.robust.sigmas is not None and self.uncertain.samples < 2:
-            raise ValueError("ranking.robust.sigmas needs a standard deviation: give uncertain.samples 2 or more")
+            raise ValueError(
+                "ranking.robust ranks over uncertain samples: add an 'uncertain' block "
+                "(docs/space.md#uncertain-parameters)"
+            )
+        if (
+            self.ranking.robust is not None
+            and self.ranking.robust.sigmas is not None
+            and self.uncertain.samples < 2
+        ):
+            raise ValueError(
+                "ranking.robust.sigmas needs a standard deviation: give uncertain.samples 2 or more"
+            )
         return self
 
 
 class Space:
     """A loaded, checked spec with everything resolved: the unit the rest of the tool works on."""
 
-    def __init__(self, spec: SpaceSpec, path: Path, plan: Plan, scenarios: list[Scenario],
-                 distributions: dict[str, Any] | None = None, draws: pd.DataFrame | None = None):
+    def __init__(
+        self,
+        spec: SpaceSpec,
+        path: Path,
+        plan: Plan,
+        scenarios: list[Scenario],
+        distributions: dict[str, Any] | None = None,
+        draws: pd.DataFrame | None = None,
+    ):
         self.spec = spec
         self.path = path
         self.plan = plan  # the multi-model with every name checked against its FMUs
@@ -240,13 +287,21 @@ class Space:
         out = Path(self.spec.output)
         return out if out.is_absolute() else (self.path.parent / out).resolve()
 
-    def with_overrides(self, output: str | Path | None = None, address: str | None = None,
-                       n_workers: int | None = None, kind: str | None = None, max_points: int | None = None,
-                       max_seconds: float | None = None) -> Space:
+    def with_overrides(
+        self,
+        output: str | Path | None = None,
+        address: str | None = None,
+        n_workers: int | None = None,
+        kind: str | None = None,
+        max_points: int | None = None,
+        max_seconds: float | None = None,
+    ) -> Space:
         """The same space with the CLI's --out, --scheduler, --cluster, --workers, --max-points or
         --max-seconds applied."""
         update: dict[str, Any] = {}
-        budget = {k: v for k, v in (("max_points", max_points), ("max_seconds", max_seconds)) if v is not None}
+        budget = {
+            k: v for k, v in (("max_points", max_points), ("max_seconds", max_seconds)) if v is not None
+        }
         if budget:
             update["search"] = Search.model_validate({**self.spec.search.model_dump(), **budget})
         if output is not None:
@@ -259,11 +314,19 @@ class Space:
         if kind is not None:
             cluster.update(kind=kind, address=None)
         if n_workers is not None:
-            cluster.update(n_workers=n_workers, min_workers=None, max_workers=None)  # --workers: a fixed count
+            cluster.update(
+                n_workers=n_workers, min_workers=None, max_workers=None
+            )  # --workers: a fixed count
         if cluster:
             update["cluster"] = Cluster.model_validate({**self.spec.cluster.model_dump(), **cluster})
-        return Space(self.spec.model_copy(update=update), self.path, self.plan, self.scenarios, self.distributions,
-                     self.draws)
+        return Space(
+            self.spec.model_copy(update=update),
+            self.path,
+            self.plan,
+            self.scenarios,
+            self.distributions,
+            self.draws,
+        )
 
     def admits(self, point: Point) -> bool:
         for check in self.constraints:  # a loop, not all(...): a large grid asks this of every point
@@ -274,12 +337,20 @@ class Space:
     def problem(self, threads: int = 1) -> Problem:
         """What the search strategy is told (search.py); ``threads``: the cluster's, for the default batch."""
         search, ranking = self.spec.search, self.spec.ranking
-        return Problem(label=self.name, dimensions=tuple(self.dimensions),
-                       objective=(ranking.objective, ranking.goal), pareto=tuple(ranking.pareto_goals()),
-                       scenarios=tuple(s.name for s in self.scenarios),
-                       vectors=tuple(n for n, o in self.objectives.items() if objs.is_vector(o)),
-                       max_points=search.max_points, seed=search.seed, batch=batch_of(search, threads),
-                       options=search.options, admits=self.admits, constrained=bool(self.constraints))
+        return Problem(
+            label=self.name,
+            dimensions=tuple(self.dimensions),
+            objective=(ranking.objective, ranking.goal),
+            pareto=tuple(ranking.pareto_goals()),
+            scenarios=tuple(s.name for s in self.scenarios),
+            vectors=tuple(n for n, o in self.objectives.items() if objs.is_vector(o)),
+            max_points=search.max_points,
+            seed=search.seed,
+            batch=batch_of(search, threads),
+            options=search.options,
+            admits=self.admits,
+            constrained=bool(self.constraints),
+        )
 
     def strategy(self, threads: int = 1) -> Strategy:
         return strategy(self.spec.search.strategy)(self.problem(threads))
@@ -318,8 +389,10 @@ def _resolved(spec: SpaceSpec, scenarios: list[Scenario], source: str) -> SpaceS
     if objectives is None:
         defaults = {name: None for s in scenarios for name in kind(s.kind).default_objectives}
         if not defaults:
-            raise DseError(f"{source}: objectives: name at least one, e.g. "
-                           "{level_max: {signal: tank.level, reduce: max}}")
+            raise DseError(
+                f"{source}: objectives: name at least one, e.g. "
+                "{level_max: {signal: tank.level, reduce: max}}"
+            )
         objectives = list(defaults)
     scalar = [name for name, o in objs.normalise(objectives).items() if not objs.is_vector(o)]
     ranking = spec.ranking
@@ -364,10 +437,14 @@ def _check_names(space: Space, source: str) -> None:
     _check_search(space, source)
     for name in space.spec.ranking.objectives_used():
         if name not in space.objectives:
-            raise DseError(f"{source}: ranking uses objective {name!r}, which 'objectives' does not list "
-                           f"({', '.join(space.objectives)})")
+            raise DseError(
+                f"{source}: ranking uses objective {name!r}, which 'objectives' does not list "
+                f"({', '.join(space.objectives)})"
+            )
         if objs.is_vector(space.objectives[name]):
-            raise DseError(f"{source}: ranking uses {name!r}, a vector objective; rankings need one number per task")
+            raise DseError(
+                f"{source}: ranking uses {name!r}, a vector objective; rankings need one number per task"
+            )
     for index, text in enumerate(space.spec.ranking.constraints):
         try:
             compile_constraint(text, set(space.objectives), "objective")
@@ -390,9 +467,11 @@ def _check_effect(space: Space, effect: signal_effects.Effect, values: list[Any]
         for scenario in space.scenarios:
             driven = {qualify(space.plan, ref) for ref, v in scenario.inputs.items() if isinstance(v, Series)}
             if target not in driven:
-                raise DseError(f"{where}: scenario {scenario.name} does not drive {effect.target} with a signal "
-                               f"(it drives {', '.join(sorted(driven)) or 'none'}); an input effect acts on a "
-                               "scenario's input signal")
+                raise DseError(
+                    f"{where}: scenario {scenario.name} does not drive {effect.target} with a signal "
+                    f"(it drives {', '.join(sorted(driven)) or 'none'}); an input effect acts on a "
+                    "scenario's input signal"
+                )
 
 
 def _parsed_term(ref: str, source: str) -> derivative_terms.DerivativeTerm | state_limits.StateLimit | None:
@@ -403,8 +482,12 @@ def _parsed_term(ref: str, source: str) -> derivative_terms.DerivativeTerm | sta
         raise DseError(f"{source}: parameters.{e}") from None
 
 
-def _check_term(space: Space, term: derivative_terms.DerivativeTerm | state_limits.StateLimit, values: list[Any],
-                source: str) -> None:
+def _check_term(
+    space: Space,
+    term: derivative_terms.DerivativeTerm | state_limits.StateLimit,
+    values: list[Any],
+    source: str,
+) -> None:
     """A derivative term's values are coefficients, a state limit's bounds or fractions, on a model-exchange
     instance that has the states and the variables the term reads (derivative_terms.check, state_limits.check)."""
     split = state_limits.split if isinstance(term, state_limits.StateLimit) else derivative_terms.split
@@ -423,8 +506,10 @@ def _check_search(space: Space, source: str) -> None:
         kind = strategy(search.strategy)
         parse_options(kind, search.options)
         if kind.multi_objective and len(space.spec.ranking.pareto) < 2:
-            raise DseError(f"search: {search.strategy} optimises several objectives: list two or more "
-                           "under ranking.pareto")
+            raise DseError(
+                f"search: {search.strategy} optimises several objectives: list two or more "
+                "under ranking.pareto"
+            )
         # Built once here, so what only its constructor checks fails now, not after the cluster starts:
         # a grid needs every parameter on a grid, Optuna's samplers take only their own keyword
         # arguments, least squares needs a vector objective.
@@ -446,11 +531,15 @@ def _check_objective(space: Space, name: str, objective: objs.ObjectiveSpec, sou
     if isinstance(objective, objs.Fit):
         for scenario in space.scenarios:
             if scenario.recorded is None:
-                raise DseError(f"{where}: compares with recorded {objective.recorded!r}, but scenario "
-                               f"{scenario.name} has no recording")
+                raise DseError(
+                    f"{where}: compares with recorded {objective.recorded!r}, but scenario "
+                    f"{scenario.name} has no recording"
+                )
             if objective.recorded not in scenario.recorded.columns:
-                raise DseError(f"{where}: scenario {scenario.name}'s recording {scenario.recorded.path} has no "
-                               f"column {objective.recorded!r} (it has {', '.join(scenario.recorded.columns)})")
+                raise DseError(
+                    f"{where}: scenario {scenario.name}'s recording {scenario.recorded.path} has no "
+                    f"column {objective.recorded!r} (it has {', '.join(scenario.recorded.columns)})"
+                )
 
 
 def derived_space(space: Space, **update: Any) -> Space:
@@ -458,7 +547,9 @@ def derived_space(space: Space, **update: Any) -> Space:
     and checked again, keeping its scenarios as they are: a diagnosis's views of its runs (a record's
     validation blocks) exist only there."""
     resolved = resolve_space(space.spec.model_copy(update=update), space.path)
-    return Space(resolved.spec, resolved.path, resolved.plan, space.scenarios, resolved.distributions, resolved.draws)
+    return Space(
+        resolved.spec, resolved.path, resolved.plan, space.scenarios, resolved.distributions, resolved.draws
+    )
 
 
 def load_space(path: str | Path) -> Space:
@@ -498,36 +589,52 @@ def resolve_space(spec: SpaceSpec, path: Path) -> Space:
     return space
 
 
-def _check_uncertain(spec: SpaceSpec, plan: Plan, scenarios: list[Scenario], draws: pd.DataFrame,
-                     source: str) -> None:
+def _check_uncertain(
+    spec: SpaceSpec, plan: Plan, scenarios: list[Scenario], draws: pd.DataFrame, source: str
+) -> None:
     """Uncertain parameters are FMU parameters that nothing else sets, and every drawn value suits them."""
-    swept = {qualify(plan, ref): ref for ref in spec.parameters if signal_effects.parse(ref) is None
-             and _parsed_term(ref, source) is None}
+    swept = {
+        qualify(plan, ref): ref
+        for ref in spec.parameters
+        if signal_effects.parse(ref) is None and _parsed_term(ref, source) is None
+    }
     taken = {"sample", *(spec.objectives or ())}  # columns of the draws' table (rank.with_drawn_values)
     for ref in draws.columns:
         where = f"{source}: uncertain.parameters.{ref}"
         if ref in taken:
-            raise DseError(f"{where}: the name is a column of the ranking's draws already (the draw's number, or "
-                           "an objective); write the parameter as instance.variable")
+            raise DseError(
+                f"{where}: the name is a column of the ranking's draws already (the draw's number, or "
+                "an objective); write the parameter as instance.variable"
+            )
         if signal_effects.parse(ref) is not None or _parsed_term(ref, source) is not None:
-            raise DseError(f"{where}: uncertain parameters are FMU variables; a signal effect or derivative "
-                           "term can be swept, not sampled")
+            raise DseError(
+                f"{where}: uncertain parameters are FMU variables; a signal effect or derivative "
+                "term can be swept, not sampled"
+            )
         name = qualify(plan, ref)
         variable = plan.variable(name, f"{source}: uncertain.parameters")
         if name in swept:
-            raise DseError(f"{where}: {swept[name]!r} is also under 'parameters'; a parameter is either swept "
-                           "(a design choice) or uncertain (a distribution), not both")
+            raise DseError(
+                f"{where}: {swept[name]!r} is also under 'parameters'; a parameter is either swept "
+                "(a design choice) or uncertain (a distribution), not both"
+            )
         for scenario in scenarios:
             if name in {qualify(plan, r) for r in scenario.parameters}:
-                raise DseError(f"{where}: scenario {scenario.name} sets it too; an uncertain parameter takes "
-                               "its value from the draws only")
+                raise DseError(
+                    f"{where}: scenario {scenario.name} sets it too; an uncertain parameter takes "
+                    "its value from the draws only"
+                )
         for k, value in enumerate(draws[ref].tolist()):
             try:
                 check_value(variable, value)
             except DseError as e:
-                raise DseError(f"{where}: draw {k} ({value:.6g}): {e}; narrow its distribution, or give a bounded "
-                               "one (uniform, triangular)") from None
+                raise DseError(
+                    f"{where}: draw {k} ({value:.6g}): {e}; narrow its distribution, or give a bounded "
+                    "one (uniform, triangular)"
+                ) from None
     for scenario in scenarios:
         if uncertainty.SEPARATOR in scenario.name:
-            raise DseError(f"{source}: scenario {scenario.name!r}: with an uncertain block scenario names may not "
-                           f"hold {uncertainty.SEPARATOR!r}, which names each draw")
+            raise DseError(
+                f"{source}: scenario {scenario.name!r}: with an uncertain block scenario names may not "
+                f"hold {uncertainty.SEPARATOR!r}, which names each draw"
+            )

@@ -33,7 +33,9 @@ class SearchStatus(BaseModel):
     threads: int = 0
     busy_seconds: float = 0.0  # time the workers spent on this submission's chunks (simulating, writing rows)
     window_seconds: float = 0.0  # from the first point sent to the last result
-    ask_seconds: float = 0.0  # the client's time in the strategy's ask() in this submission (told points included)
+    ask_seconds: float = (
+        0.0  # the client's time in the strategy's ask() in this submission (told points included)
+    )
     replayed: bool = False  # went on from an earlier submission's points (told from the store)
     stopped: str | None = None  # why the search ended: budget, time, strategy, interrupted
     notes: list[str] = []
@@ -75,7 +77,9 @@ class SweepReport(BaseModel):
     failed: int = 0
     seconds: float = 0.0  # wall time of this submission
     simulation_seconds: float = 0.0  # summed on the workers
-    chunk_seconds: float = 0.0  # the chunks' whole time on the workers, summed: simulations, unpacking, writing rows
+    chunk_seconds: float = (
+        0.0  # the chunks' whole time on the workers, summed: simulations, unpacking, writing rows
+    )
     chunk_size: int = 0  # tasks in the largest chunk handed out (chunks adapt, and shrink towards the end)
     chunks: int = 0
     workers: int = 0

@@ -169,15 +169,27 @@ def results_schema(parameters: dict[str, list[Any]], objectives: dict[str, Objec
     return pa.schema(
         [("task_id", pa.string()), ("model", pa.string()), ("group", pa.string())]
         + [(name, kind(values)) for name, values in parameters.items()]
-        + [(name, pa.list_(pa.float64()) if is_vector(spec) else pa.float64()) for name, spec in objectives.items()]
-        + [("status", pa.string()), ("error", pa.string()), ("wall_time", pa.float64()), ("worker", pa.string()),
-           ("lifecycle", pa.string())]
+        + [
+            (name, pa.list_(pa.float64()) if is_vector(spec) else pa.float64())
+            for name, spec in objectives.items()
+        ]
+        + [
+            ("status", pa.string()),
+            ("error", pa.string()),
+            ("wall_time", pa.float64()),
+            ("worker", pa.string()),
+            ("lifecycle", pa.string()),
+        ]
     )
 
 
-def write_rows(root: Root, sweep: str, chunk: str, rows: list[dict[str, Any]], schema: pa.Schema) -> list[str]:
+def write_rows(
+    root: Root, sweep: str, chunk: str, rows: list[dict[str, Any]], schema: pa.Schema
+) -> list[str]:
     """Write one chunk's rows given as dicts (each with its "scenario"), one file per scenario partition."""
-    return write_results(root, sweep, chunk, pa.Table.from_pylist(rows, schema=schema), [r["scenario"] for r in rows])
+    return write_results(
+        root, sweep, chunk, pa.Table.from_pylist(rows, schema=schema), [r["scenario"] for r in rows]
+    )
 
 
 def write_results(root: Root, sweep: str, chunk: str, table: pa.Table, scenarios: list[str]) -> list[str]:
@@ -189,8 +201,10 @@ def write_results(root: Root, sweep: str, chunk: str, table: pa.Table, scenarios
     else:
         each = np.array(scenarios)
         parts = {name: table.filter(pa.array(each == name)) for name in names}
-    return [write_table(part, root, f"{_partition(RESULTS, sweep, name)}/part-{chunk}.parquet")
-            for name, part in parts.items()]
+    return [
+        write_table(part, root, f"{_partition(RESULTS, sweep, name)}/part-{chunk}.parquet")
+        for name, part in parts.items()
+    ]
 
 
 def remove_chunk(root: Root, sweep: str, chunk: str) -> int:
@@ -208,7 +222,9 @@ def _files(fs: fsspec.AbstractFileSystem, path: str, kind: str, sweep: str | Non
     """The finished files of one sweep (sweeps of one store may have different columns), or of all."""
     folder = _join(path, kind)
     where = _join(folder, f"sweep={sweep}") if sweep is not None else folder
-    if isinstance(fs, LocalFileSystem):  # fsspec's find stats every file, and an optimiser lists the store each round
+    if isinstance(
+        fs, LocalFileSystem
+    ):  # fsspec's find stats every file, and an optimiser lists the store each round
         found = [os.path.join(parent, name) for parent, _, names in os.walk(where) for name in names]
     else:
         found = fs.find(where)
@@ -221,23 +237,35 @@ def version(root: Root, sweep: str) -> str:
     fs, path = _fs(root)
     where = _join(path, RESULTS, f"sweep={sweep}")
     if isinstance(fs, LocalFileSystem):
-        listing = [(name, stat.st_size, stat.st_mtime_ns)
-                   for name, stat in ((name, os.stat(name)) for name in _files(fs, path, RESULTS, sweep))]
+        listing = [
+            (name, stat.st_size, stat.st_mtime_ns)
+            for name, stat in ((name, os.stat(name)) for name in _files(fs, path, RESULTS, sweep))
+        ]
     else:
         found = fs.find(where, detail=True) if fs.exists(where) else {}
-        listing = [(name, info.get("size"), str(info.get("mtime", info.get("LastModified", ""))))
-                   for name, info in found.items() if name.endswith(".parquet")]
+        listing = [
+            (name, info.get("size"), str(info.get("mtime", info.get("LastModified", ""))))
+            for name, info in found.items()
+            if name.endswith(".parquet")
+        ]
     return hashlib.sha256(repr(sorted(listing)).encode()).hexdigest()[:24]
 
 
-def _dataset(root: Root, kind: str, sweep: str | None = None, files: list[str] | None = None) -> ds.Dataset | None:
+def _dataset(
+    root: Root, kind: str, sweep: str | None = None, files: list[str] | None = None
+) -> ds.Dataset | None:
     """A dataset of ``files`` (default: every file of the sweep, or of all sweeps)."""
     fs, path = _fs(root)
     files = _files(fs, path, kind, sweep) if files is None else files
     if not files:
         return None
-    return ds.dataset(files, format="parquet", partitioning=PARTITIONING, partition_base_dir=_join(path, kind),
-                      filesystem=_arrow_fs(fs))
+    return ds.dataset(
+        files,
+        format="parquet",
+        partitioning=PARTITIONING,
+        partition_base_dir=_join(path, kind),
+        filesystem=_arrow_fs(fs),
+    )
 
 
 def _id_bytes(column: pa.ChunkedArray | pa.Array) -> np.ndarray:
@@ -306,12 +334,23 @@ def _with_every_column(dataset: ds.Dataset, root: Root, kind: str) -> ds.Dataset
     fs, path = _fs(root)
     schemas = [pq.read_schema(f, filesystem=_arrow_fs(fs)) for f in dataset.files]
     schema = pa.unify_schemas(schemas + [PARTITIONING.schema])
-    return ds.dataset(dataset.files, schema=schema, format="parquet", partitioning=PARTITIONING,
-                      partition_base_dir=_join(path, kind), filesystem=_arrow_fs(fs))
+    return ds.dataset(
+        dataset.files,
+        schema=schema,
+        format="parquet",
+        partitioning=PARTITIONING,
+        partition_base_dir=_join(path, kind),
+        filesystem=_arrow_fs(fs),
+    )
 
 
-def read_table(root: Root, sweep: str | None = None, columns: list[str] | None = None,
-               task_ids: list[str] | None = None, model: str | None = None) -> pa.Table:
+def read_table(
+    root: Root,
+    sweep: str | None = None,
+    columns: list[str] | None = None,
+    task_ids: list[str] | None = None,
+    model: str | None = None,
+) -> pa.Table:
     """Rows of finished tasks as an Arrow table, each task once: only ``columns`` (plus the keys) are read,
     and only the rows of ``model`` (a filter the scan applies file by file, so rows of other models are
     never held) and of ``task_ids`` if given (what an optimiser reads back after each round, from only the
@@ -327,7 +366,9 @@ def read_table(root: Root, sweep: str | None = None, columns: list[str] | None =
     keys = ["task_id", "sweep", "scenario"]
     dataset = _dataset(root, RESULTS, sweep, files)
     if dataset is None:
-        return pa.table({name: pa.array([], pa.string()) for name in dict.fromkeys([*keys, *(columns or [])])})
+        return pa.table(
+            {name: pa.array([], pa.string()) for name in dict.fromkeys([*keys, *(columns or [])])}
+        )
     wanted = None
     if columns is not None:
         wanted = list(dict.fromkeys([*keys, *columns]))
@@ -335,11 +376,14 @@ def read_table(root: Root, sweep: str | None = None, columns: list[str] | None =
             dataset = _with_every_column(dataset, root, RESULTS)
         missing = [c for c in wanted if c not in dataset.schema.names]
         if missing:
-            raise DseError(f"{root}: the results have no column {', '.join(missing)} "
-                           f"(columns: {', '.join(dataset.schema.names)})")
+            raise DseError(
+                f"{root}: the results have no column {', '.join(missing)} "
+                f"(columns: {', '.join(dataset.schema.names)})"
+            )
     where = (ds.field("sweep") == sweep) if sweep is not None else None
-    for chosen in ([ds.field("task_id").isin(task_ids)] if task_ids is not None else []) + \
-            ([ds.field("model") == model] if model is not None else []):
+    for chosen in ([ds.field("task_id").isin(task_ids)] if task_ids is not None else []) + (
+        [ds.field("model") == model] if model is not None else []
+    ):
         where = chosen if where is None else where & chosen
     return each_task_once(dataset.to_table(columns=wanted, filter=where))
 
@@ -354,8 +398,13 @@ def each_task_once(table: pa.Table) -> pa.Table:
     return table.take(np.sort(first.to_numpy()))
 
 
-def read_results(root: Root, sweep: str | None = None, columns: list[str] | None = None,
-                 task_ids: list[str] | None = None, model: str | None = None) -> pd.DataFrame:
+def read_results(
+    root: Root,
+    sweep: str | None = None,
+    columns: list[str] | None = None,
+    task_ids: list[str] | None = None,
+    model: str | None = None,
+) -> pd.DataFrame:
     """read_table's rows as a DataFrame, indexed 0..n-1."""
     return read_table(root, sweep, columns, task_ids, model).to_pandas()
 
@@ -416,7 +465,9 @@ def _trajectory_file(sweep: str, scenario: str, rank: int) -> str:
 
 
 def write_trajectory(root: Root, sweep: str, scenario: str, rank: int, frame: pd.DataFrame) -> str:
-    return write_table(pa.Table.from_pandas(frame, preserve_index=False), root, _trajectory_file(sweep, scenario, rank))
+    return write_table(
+        pa.Table.from_pandas(frame, preserve_index=False), root, _trajectory_file(sweep, scenario, rank)
+    )
 
 
 def has_trajectory(root: Root, sweep: str, scenario: str, rank: int) -> bool:

@@ -55,10 +55,16 @@ from .status import STATUS_SECONDS, SearchStatus, SweepReport, WorkerActivity, l
 
 def worker_activity(client) -> list[WorkerActivity]:
     workers = client.scheduler_info()["workers"].values()
-    return [WorkerActivity(name=str(w.get("name", w.get("id", "?"))), threads=w["nthreads"],
-                           executing=w["metrics"].get("task_counts", {}).get("executing", 0),
-                           cpu=w["metrics"].get("cpu", 0.0), memory=w["metrics"].get("memory", 0))
-            for w in workers]
+    return [
+        WorkerActivity(
+            name=str(w.get("name", w.get("id", "?"))),
+            threads=w["nthreads"],
+            executing=w["metrics"].get("task_counts", {}).get("executing", 0),
+            cpu=w["metrics"].get("cpu", 0.0),
+            memory=w["metrics"].get("memory", 0),
+        )
+        for w in workers
+    ]
 
 
 SweepProgress = Callable[[SweepReport], None]  # told the sweep's counts each time they change (the CLI's bar)
@@ -75,8 +81,13 @@ UNKNOWN_TASK_SECONDS = 0.1  # when the probe failed: a guess that keeps chunks s
 SMALLEST_CHUNK_PART = 20  # the smallest chunk holds this part of chunk_seconds of work
 
 
-def chunk_size(seconds_per_task: float | None, target_seconds: float, pending: int, threads: int,
-               round_: int | None = None) -> int:
+def chunk_size(
+    seconds_per_task: float | None,
+    target_seconds: float,
+    pending: int,
+    threads: int,
+    round_: int | None = None,
+) -> int:
     """Tasks per chunk: long enough that Dask's per-task cost (~ms) is under 1-5% of the
     chunk, short enough that every thread gets several chunks to balance the load. Chunks of
     the ``round_`` (0, 1, ...) since the sweep (re)started ramp up from the smallest size,
@@ -90,10 +101,17 @@ def chunk_size(seconds_per_task: float | None, target_seconds: float, pending: i
     return min(by_time, by_balance, ramp)
 
 
-def submit(space: Space, progress: SweepProgress | None = None, client=None,
-           points: list[Point] | None = None, on_connect: Callable[[Any], None] | None = None,
-           only: list[Collection[str]] | None = None, seconds_per_task: float | None = None,
-           told: list[TaskScores] | None = None, tasks: list[TaskBatch] | None = None) -> SweepReport:
+def submit(
+    space: Space,
+    progress: SweepProgress | None = None,
+    client=None,
+    points: list[Point] | None = None,
+    on_connect: Callable[[Any], None] | None = None,
+    only: list[Collection[str]] | None = None,
+    seconds_per_task: float | None = None,
+    told: list[TaskScores] | None = None,
+    tasks: list[TaskBatch] | None = None,
+) -> SweepReport:
     """Run ``space``: every task of a grid strategy that has no row yet, or a closed-loop search
     (closed_loop.py) until its budget; returns counts, never raises on failed tasks.
 
@@ -115,13 +133,23 @@ def submit(space: Space, progress: SweepProgress | None = None, client=None,
     done = store.finished_task_ids(output, space.name)
     kept = load_status(output, space.name)  # a submission that finds nothing to run leaves it as it is
     shipment = ship.pack(space.plan, space.scenarios, space.modules)
-    report = SweepReport(sweep=space.name, output=output, total=0, skipped=0, spec=str(space.path),
-                         scenarios={s.name: s.group for s in space.scenarios})
+    report = SweepReport(
+        sweep=space.name,
+        output=output,
+        total=0,
+        skipped=0,
+        spec=str(space.path),
+        scenarios={s.name: s.group for s in space.scenarios},
+    )
     if points is None and strategy(space.spec.search.strategy).closed_loop:
         search = space.spec.search
-        report.search = SearchStatus(strategy=search.strategy, objective=space.spec.ranking.objective,
-                                     goal=space.spec.ranking.goal, max_points=search.max_points,
-                                     max_seconds=search.max_seconds)
+        report.search = SearchStatus(
+            strategy=search.strategy,
+            objective=space.spec.ranking.objective,
+            goal=space.spec.ranking.goal,
+            max_points=search.max_points,
+            max_seconds=search.max_seconds,
+        )
         report.total = search.max_points * len(space.scenarios)
         source: JobSource = SearchSource(space, shipment.key, report.search)
     else:
@@ -130,7 +158,9 @@ def submit(space: Space, progress: SweepProgress | None = None, client=None,
         if points is not None and tasks is None:
             points, only = distinct(points, only)  # a repeat would be a second chunk of the same tasks
             tasks = list(blocks(space, points, only))  # a given list of points: its tasks fit in memory
-        report.total, report.skipped = count(space, done, points, only) if tasks is None else tally(tasks, done)
+        report.total, report.skipped = (
+            count(space, done, points, only) if tasks is None else tally(tasks, done)
+        )
         if report.total == report.skipped and _trajectories_kept(space):
             report.seconds = time.perf_counter() - started
             report.state = "finished"
@@ -169,7 +199,9 @@ def tasks_done(space: Space) -> tuple[int, int]:
 
 def _trajectories_kept(space: Space) -> bool:
     wanted = space.spec.keep_trajectories
-    return not wanted or all(store.has_trajectory(space.output, space.name, s.name, wanted) for s in space.scenarios)
+    return not wanted or all(
+        store.has_trajectory(space.output, space.name, s.name, wanted) for s in space.scenarios
+    )
 
 
 class SchedulerLost(Exception):
@@ -217,8 +249,16 @@ class GridSource:
         self.unassigned = self.report.remaining
         if self.seconds_per_task is None:
             self.warm_up(client, first_point(self.space, self.points))
-        self.jobs = _jobs(self.space, self.shipment, done, self._size, self.points, self.only,
-                          with_scores=self.told is not None, tasks=self.tasks)  # while they run
+        self.jobs = _jobs(
+            self.space,
+            self.shipment,
+            done,
+            self._size,
+            self.points,
+            self.only,
+            with_scores=self.told is not None,
+            tasks=self.tasks,
+        )  # while they run
         self.seconds_per_task = self.seconds_per_task or self.probed(client)
         self.capacity = 2 * self.threads + 2
         self.sent = 0
@@ -243,8 +283,13 @@ class GridSource:
     def _size(self) -> int:
         """The next chunk's size: by the latest cost per task, and by the tasks not yet handed out, so
         chunks shrink towards the end and no worker idles long while another finishes a big one."""
-        size = chunk_size(self.seconds_per_task, self.space.spec.chunk_seconds, self.unassigned, self.threads,
-                          self.sent // self.threads)
+        size = chunk_size(
+            self.seconds_per_task,
+            self.space.spec.chunk_seconds,
+            self.unassigned,
+            self.threads,
+            self.sent // self.threads,
+        )
         self.sent += 1
         self.report.chunk_size = max(self.report.chunk_size, size)
         return size
@@ -258,10 +303,21 @@ class GridSource:
         spec = self.space.spec
         # none yet (an adaptive cluster starts from no worker): one probe anywhere, which asks for the first
         workers = [[address] for address in client.scheduler_info()["workers"]] or [None]
-        self.warm_ups = [client.submit(probe, self.shipment, self.space.scenarios[0].name, point,
-                                       self.space.objectives, spec.timeout, self.space.experiment,
-                                       workers=where, allow_other_workers=True if where else None, pure=False)
-                         for where in workers]
+        self.warm_ups = [
+            client.submit(
+                probe,
+                self.shipment,
+                self.space.scenarios[0].name,
+                point,
+                self.space.objectives,
+                spec.timeout,
+                self.space.experiment,
+                workers=where,
+                allow_other_workers=True if where else None,
+                pure=False,
+            )
+            for where in workers
+        ]
 
     def probed(self, client) -> float | None:
         """The first probe's answer (the others go on, as warm-ups); None if it failed. Watched like the
@@ -278,9 +334,11 @@ class GridSource:
                     return None
                 except CancelledError:
                     if watch.stranded:
-                        raise DseError(f"while the sweep timed its first simulation, {watch.stranded}; every "
-                                       f"finished chunk is in {self.space.output}: start workers and submit "
-                                       "again") from None
+                        raise DseError(
+                            f"while the sweep timed its first simulation, {watch.stranded}; every "
+                            f"finished chunk is in {self.space.output}: start workers and submit "
+                            "again"
+                        ) from None
                     raise
         return None
 
@@ -349,7 +407,9 @@ class Run:
         # A chunk as_completed has handed over is no longer in flight, but its result may still be on its
         # worker: if every worker dies before it arrives, the watch must cancel that one too
         fetching: list = []
-        watch = WorkerWatch(client, worker_grace(self.space.spec.cluster), lambda: [*in_flight.futures, *fetching])
+        watch = WorkerWatch(
+            client, worker_grace(self.space.spec.cluster), lambda: [*in_flight.futures, *fetching]
+        )
         try:
             with watch:
                 self._wait(client, in_flight, launched, again, fill, watch, fetching)
@@ -361,8 +421,16 @@ class Run:
             client.cancel(running)  # those not started never will
             wait_until_ended(client, [future.key for future in running])  # those started write their rows
 
-    def _wait(self, client, in_flight, launched: dict[str, ChunkJob], again: deque[ChunkJob],
-              fill: Callable[[], None], watch: WorkerWatch, fetching: list) -> None:
+    def _wait(
+        self,
+        client,
+        in_flight,
+        launched: dict[str, ChunkJob],
+        again: deque[ChunkJob],
+        fill: Callable[[], None],
+        watch: WorkerWatch,
+        fetching: list,
+    ) -> None:
         """Count each chunk as it finishes and send the next; split crashed chunks."""
         from distributed.comm.core import CommClosedError
         from distributed.scheduler import KilledWorker
@@ -377,21 +445,29 @@ class Run:
                 self._count(job, future.result())
             except KilledWorker as e:
                 report.crashed_chunks += 1
-                store.remove_chunk(job.output, job.sweep, job.chunk_id)  # if it finished before its worker died
+                store.remove_chunk(
+                    job.output, job.sweep, job.chunk_id
+                )  # if it finished before its worker died
                 retry = job.after_crash()
                 again.extend(retry)
                 if not retry:  # a lone task, out of attempts
-                    self._count(job, record_crash(job, {s.name: s.group for s in self.space.scenarios}, str(e)))
+                    self._count(
+                        job, record_crash(job, {s.name: s.group for s in self.space.scenarios}, str(e))
+                    )
             except CommClosedError:  # the scheduler went while we fetched this chunk's result
                 raise SchedulerLost from None
             except CancelledError:
                 if watch.stranded:
-                    raise DseError(f"{watch.stranded}; every finished chunk is in {report.output}: start "
-                                   "workers (or mend what killed them) and submit again to run the rest") from None
+                    raise DseError(
+                        f"{watch.stranded}; every finished chunk is in {report.output}: start "
+                        "workers (or mend what killed them) and submit again to run the rest"
+                    ) from None
                 if client.status != "running":  # the connection to the scheduler broke
                     raise SchedulerLost from None
-                raise DseError(f"chunk {job.chunk_id} was cancelled on the scheduler {client.scheduler.address}"
-                               " by someone else; submit again to finish the sweep") from None
+                raise DseError(
+                    f"chunk {job.chunk_id} was cancelled on the scheduler {client.scheduler.address}"
+                    " by someone else; submit again to finish the sweep"
+                ) from None
             fill()  # a split chunk's halves go first
             self._tell(client)
 
@@ -442,17 +518,29 @@ class Run:
                     pass
             time.sleep(0.2)
         else:
-            raise DseError(f"lost the Dask scheduler at {address} and it did not come back with a worker within "
-                           f"{2 * timeout:g} s (twice cluster.connect_timeout); every finished chunk is in "
-                           f"{self.report.output}: submit again to run the rest")
+            raise DseError(
+                f"lost the Dask scheduler at {address} and it did not come back with a worker within "
+                f"{2 * timeout:g} s (twice cluster.connect_timeout); every finished chunk is in "
+                f"{self.report.output}: submit again to run the rest"
+            )
         self.report.reconnects += 1
         self.report.waiting = None
 
 
-def _trajectory(shipment: str, model_key: str, scenario: str, point: Point, output: store.Root,
-                sweep: str, place: int, experiment: Experiment | None = None) -> str:
+def _trajectory(
+    shipment: str,
+    model_key: str,
+    scenario: str,
+    point: Point,
+    output: store.Root,
+    sweep: str,
+    place: int,
+    experiment: Experiment | None = None,
+) -> str:
     unpacked = ship.received(shipment)
-    result = simulate(unpacked.plan, unpacked.scenarios[scenario], point, objectives={}, experiment=experiment)
+    result = simulate(
+        unpacked.plan, unpacked.scenarios[scenario], point, objectives={}, experiment=experiment
+    )
     frame = pd.DataFrame(result.trajectory.values, columns=list(result.trajectory.names))
     frame.insert(0, "time", result.trajectory.time)
     for name, value in point.items():
@@ -467,17 +555,32 @@ def keep_trajectories(space: Space, client, count: int, shipment: ship.Shipment)
     except DseError:
         return []  # nothing complete to rank: no best points
     best = ranking.totals.head(count)[ranking.parameters].to_dict("records")
-    return _trajectories(space, client, shipment, [(place, point) for place, point in enumerate(best, start=1)],
-                         space.name)
+    return _trajectories(
+        space, client, shipment, [(place, point) for place, point in enumerate(best, start=1)], space.name
+    )
 
 
-def _trajectories(space: Space, client, shipment: ship.Shipment, places: list[tuple[int, Point]],
-                  sweep: str) -> list[str]:
+def _trajectories(
+    space: Space, client, shipment: ship.Shipment, places: list[tuple[int, Point]], sweep: str
+) -> list[str]:
     ship.send(client, shipment)
     key = space.model_key
-    futures = [client.submit(_trajectory, shipment.key, key, scenario.name, point, space.output, sweep, place,
-                             space.experiment, pure=False)
-               for place, point in places for scenario in space.scenarios]
+    futures = [
+        client.submit(
+            _trajectory,
+            shipment.key,
+            key,
+            scenario.name,
+            point,
+            space.output,
+            sweep,
+            place,
+            space.experiment,
+            pure=False,
+        )
+        for place, point in places
+        for scenario in space.scenarios
+    ]
     return client.gather(futures)
 
 
@@ -488,14 +591,34 @@ def trajectories_of(space: Space, client, point: Point, sweep: str) -> dict[str,
     return {s.name: store.read_trajectory(space.output, sweep, s.name) for s in space.scenarios}
 
 
-def _jobs(space: Space, shipment: str, done: store.TaskIds, size: Callable[[], int], points: list[Point] | None,
-          only: list[Collection[str]] | None = None, with_scores: bool = False,
-          tasks: list[TaskBatch] | None = None) -> Iterator[ChunkJob]:
+def _jobs(
+    space: Space,
+    shipment: str,
+    done: store.TaskIds,
+    size: Callable[[], int],
+    points: list[Point] | None,
+    only: list[Collection[str]] | None = None,
+    with_scores: bool = False,
+    tasks: list[TaskBatch] | None = None,
+) -> Iterator[ChunkJob]:
     """The chunks, made as they are asked for (of ``tasks`` when they are made already); the results' schema
     (a walk over every value of a large grid) is made now, and ``size`` is first asked when the first chunk is."""
     key = space.model_key
     schema = store.results_schema(space.parameters, space.objectives)
     batches = blocks(space, points, only, done) if tasks is None else undone(tasks, done)
-    return (ChunkJob(space.name, chunk_id_of(chunk), shipment, key, chunk, space.objectives, space.output, schema,
-                     space.spec.timeout, space.experiment, with_scores=with_scores)
-            for chunk in chunked(batches, size))
+    return (
+        ChunkJob(
+            space.name,
+            chunk_id_of(chunk),
+            shipment,
+            key,
+            chunk,
+            space.objectives,
+            space.output,
+            schema,
+            space.spec.timeout,
+            space.experiment,
+            with_scores=with_scores,
+        )
+        for chunk in chunked(batches, size)
+    )

@@ -57,7 +57,9 @@ def frozen(spec: Any) -> Any:
         return stats.norm(loc=spec.mean, scale=spec.std)
     if kind == "lognormal":
         return stats.lognorm(s=spec.std_log, scale=spec.median)
-    return stats.triang(c=(spec.mode - spec.low) / (spec.high - spec.low), loc=spec.low, scale=spec.high - spec.low)
+    return stats.triang(
+        c=(spec.mode - spec.low) / (spec.high - spec.low), loc=spec.low, scale=spec.high - spec.low
+    )
 
 
 def from_diagnosis(entry: FromDiagnosis, name: str, base: Path, source: str) -> Normal:
@@ -72,17 +74,24 @@ def from_diagnosis(entry: FromDiagnosis, name: str, base: Path, source: str) -> 
     except (OSError, ValueError) as e:
         raise DseError(f"{where}: from_diagnosis {path}: not a diagnosis's JSON ({e})") from None
     holder, label = _holder(found, entry, where, path)
-    values, intervals = holder.get("parameters") or {}, holder.get("interval") or holder.get("intervals") or {}
+    values, intervals = (
+        holder.get("parameters") or {},
+        holder.get("interval") or holder.get("intervals") or {},
+    )
     key = entry.parameter or (next(iter(values)) if entry.effect is not None and len(values) == 1 else name)
     if key not in values or key not in intervals:
         short = name.rsplit(".", 1)[-1]
         key = short if entry.parameter is None and short in values and short in intervals else key
     if key not in values or key not in intervals:
-        raise DseError(f"{where}: {label} in {path} has no fitted {key!r} with an interval (it has "
-                       f"{', '.join(values) or 'none'}); name one with 'parameter'")
+        raise DseError(
+            f"{where}: {label} in {path} has no fitted {key!r} with an interval (it has "
+            f"{', '.join(values) or 'none'}); name one with 'parameter'"
+        )
     value, (low, high) = float(values[key]), map(float, intervals[key])
     if not (math.isfinite(low) and math.isfinite(high) and high > low):
-        raise DseError(f"{where}: {label} in {path}: {key}'s interval [{low}, {high}] is not a finite interval")
+        raise DseError(
+            f"{where}: {label} in {path}: {key}'s interval [{low}, {high}] is not a finite interval"
+        )
     return Normal(distribution="normal", mean=value, std=(high - low) / 2 / Z95)
 
 
@@ -93,20 +102,26 @@ def _holder(found: Any, entry: FromDiagnosis, where: str, path: Path) -> tuple[d
     if entry.effect is None:
         fitted = found.get("fitted")
         if not isinstance(fitted, dict):
-            raise DseError(f"{where}: {path} has no 'fitted' calibration; name one of its effects with 'effect'")
+            raise DseError(
+                f"{where}: {path} has no 'fitted' calibration; name one of its effects with 'effect'"
+            )
         return fitted, "its fitted calibration"
     effects = [e for e in found.get("effects", []) if isinstance(e, dict)]
     for effect in effects:
         if effect.get("id") == entry.effect:
             return effect, f"effect {entry.effect!r}"
-    raise DseError(f"{where}: {path} has no effect {entry.effect!r} (it has "
-                   f"{', '.join(str(e.get('id')) for e in effects) or 'none'})")
+    raise DseError(
+        f"{where}: {path} has no effect {entry.effect!r} (it has "
+        f"{', '.join(str(e.get('id')) for e in effects) or 'none'})"
+    )
 
 
 def resolved(uncertain: Uncertain, base: Path, source: str) -> dict[str, Any]:
     """Each uncertain parameter's distribution spec, a diagnosis's read as its normal."""
-    return {name: from_diagnosis(d, name, base, source) if isinstance(d, FromDiagnosis) else d
-            for name, d in uncertain.parameters.items()}
+    return {
+        name: from_diagnosis(d, name, base, source) if isinstance(d, FromDiagnosis) else d
+        for name, d in uncertain.parameters.items()
+    }
 
 
 def unit_sample(n: int, d: int, sampling: str, seed: int) -> np.ndarray:
@@ -116,9 +131,13 @@ def unit_sample(n: int, d: int, sampling: str, seed: int) -> np.ndarray:
         return np.random.default_rng(seed).random((n, d))
     from scipy.stats import qmc  # on first use, as in frozen()
 
-    engine = qmc.Sobol(d, scramble=True, seed=seed) if sampling == "sobol" else qmc.LatinHypercube(d, seed=seed)
+    engine = (
+        qmc.Sobol(d, scramble=True, seed=seed) if sampling == "sobol" else qmc.LatinHypercube(d, seed=seed)
+    )
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)  # Sobol' at n not a power of 2: balanced less well, still fine
+        warnings.simplefilter(
+            "ignore", UserWarning
+        )  # Sobol' at n not a power of 2: balanced less well, still fine
         return engine.random(n)
 
 
@@ -138,21 +157,32 @@ def draw(uncertain: Uncertain, distributions: dict[str, Any]) -> pd.DataFrame:
 def sampled(scenarios: list[Scenario], table: pd.DataFrame) -> list[Scenario]:
     """Every scenario once per draw, the draw's values on top of its own parameters, in its own group."""
     draws = table.to_dict("records")
-    return [replace(s, name=sample_name(s.name, k), parameters={**s.parameters, **{p: float(v) for p, v in row.items()}})
-            for s in scenarios for k, row in enumerate(draws)]
+    return [
+        replace(
+            s,
+            name=sample_name(s.name, k),
+            parameters={**s.parameters, **{p: float(v) for p, v in row.items()}},
+        )
+        for s in scenarios
+        for k, row in enumerate(draws)
+    ]
 
 
 def identity(uncertain: Uncertain, distributions: dict[str, Any]) -> dict[str, Any]:
     """What determines each draw's values besides its index: part of the model's hash, so that rows of another
     seed or distribution, whose scenarios bear the same names, are never ranked with these."""
-    found = {"sampling": uncertain.sampling, "seed": uncertain.seed,
-             "parameters": {n: d.model_dump(mode="json") for n, d in distributions.items()}}
+    found = {
+        "sampling": uncertain.sampling,
+        "seed": uncertain.seed,
+        "parameters": {n: d.model_dump(mode="json") for n, d in distributions.items()},
+    }
     if uncertain.sampling == "latin_hypercube":
         found["samples"] = uncertain.samples
     return found
 
 
 # --- statistics over the draws (the reducer's) ---------------------------------------------------------------
+
 
 def label(q: float) -> str:
     """A quantile's column suffix: 0.05 -> q5, 0.5 -> q50, 0.975 -> q97.5."""
@@ -167,8 +197,9 @@ def with_draws(rows: pd.DataFrame, samples: int) -> pd.DataFrame:
     return rows[(rows["sample"] >= 0) & (rows["sample"] < samples)]
 
 
-def per_draw(ok: pd.DataFrame, parameters: list[str], objectives: list[str], over: str,
-             scenarios: int) -> pd.DataFrame:
+def per_draw(
+    ok: pd.DataFrame, parameters: list[str], objectives: list[str], over: str, scenarios: int
+) -> pd.DataFrame:
     """Each (point, draw)'s objectives reduced over the scenarios as the ranking says; only draws with an ok
     row on all ``scenarios``."""
     grouped = ok.groupby([*parameters, "sample"], dropna=False)
@@ -176,8 +207,9 @@ def per_draw(ok: pd.DataFrame, parameters: list[str], objectives: list[str], ove
     return reduced[grouped.size() == scenarios].reset_index()
 
 
-def summarise(draws: pd.DataFrame, parameters: list[str], objectives: list[str], quantiles: list[float],
-              samples: int) -> pd.DataFrame:
+def summarise(
+    draws: pd.DataFrame, parameters: list[str], objectives: list[str], quantiles: list[float], samples: int
+) -> pd.DataFrame:
     """Per point with all ``samples`` draws: each objective's mean (the objective's own column), std (sample,
     ddof 1) and quantiles over the draws, and ``draws``."""
     grouped = draws.groupby(parameters, dropna=False)
@@ -194,8 +226,9 @@ def robust_column(objective: str) -> str:
     return f"{objective}_robust"
 
 
-def robust_values(draws: pd.DataFrame, parameters: list[str], objective: str, robust: Robust,
-                  goal: str) -> pd.Series:
+def robust_values(
+    draws: pd.DataFrame, parameters: list[str], objective: str, robust: Robust, goal: str
+) -> pd.Series:
     """The robust figure of ``objective`` per point: mean +/- k std towards the worse side, or a quantile."""
     grouped = draws.groupby(parameters, dropna=False)[objective]
     if robust.quantile is not None:
@@ -271,8 +304,9 @@ class Triangular(BaseModel):
     @model_validator(mode="after")
     def _ordered(self) -> Triangular:
         if not (self.low <= self.mode <= self.high and self.high > self.low):
-            raise ValueError(f"needs low <= mode <= high and low < high (got {self.low:g}, {self.mode:g}, "
-                             f"{self.high:g})")
+            raise ValueError(
+                f"needs low <= mode <= high and low < high (got {self.low:g}, {self.mode:g}, {self.high:g})"
+            )
         return self
 
 
@@ -300,11 +334,18 @@ def _distribution_kind(value: Any) -> str | None:
 
 # One of the distributions, by its ``distribution`` key, or {from_diagnosis: ...}: a wrong one gives one message.
 UncertainValue = Annotated[
-    Annotated[Uniform, Tag("uniform")] | Annotated[Normal, Tag("normal")] | Annotated[LogNormal, Tag("lognormal")]
-    | Annotated[Triangular, Tag("triangular")] | Annotated[FromDiagnosis, Tag("diagnosis")],
-    Discriminator(_distribution_kind, custom_error_type="distribution",
-                  custom_error_message="expected {distribution: uniform | normal | lognormal | triangular, ...} "
-                                       "or {from_diagnosis: FILE, effect: ...}")]
+    Annotated[Uniform, Tag("uniform")]
+    | Annotated[Normal, Tag("normal")]
+    | Annotated[LogNormal, Tag("lognormal")]
+    | Annotated[Triangular, Tag("triangular")]
+    | Annotated[FromDiagnosis, Tag("diagnosis")],
+    Discriminator(
+        _distribution_kind,
+        custom_error_type="distribution",
+        custom_error_message="expected {distribution: uniform | normal | lognormal | triangular, ...} "
+        "or {from_diagnosis: FILE, effect: ...}",
+    ),
+]
 
 
 class Uncertain(BaseModel):

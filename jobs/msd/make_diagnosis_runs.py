@@ -73,8 +73,9 @@ RUNS: dict[str, tuple[Callable[[np.ndarray], np.ndarray], float]] = {
 }
 
 
-def record(name: str, case: Mapping[str, float], rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray,
-                                                                                    np.ndarray]:
+def record(
+    name: str, case: Mapping[str, float], rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One run: the log's times, the logged force, and the position the sensor recorded."""
     shape, x0 = RUNS[name]
     t = np.round(np.arange(0.0, DURATION + 1e-9, LOG_INTERVAL), 10)
@@ -86,23 +87,42 @@ def record(name: str, case: Mapping[str, float], rng: np.random.Generator) -> tu
         for k in range(1, applied.size):
             applied[k] = applied[k - 1] + np.clip(applied[k] - applied[k - 1], -step, step)
     received = Series(t + case.get("force_delay", 0.0), applied, "hold")  # held before it starts
-    run = simulate(MODEL, Scenario(name, inputs={"msd.F": received}, stop_time=DURATION, step=TRUTH_STEP),
-                   {"msd.x0": x0, **PLANT})
+    run = simulate(
+        MODEL,
+        Scenario(name, inputs={"msd.F": received}, stop_time=DURATION, step=TRUTH_STEP),
+        {"msd.x0": x0, **PLANT},
+    )
     x = np.interp(t, run.time, run.outputs["msd.x"])
-    sensed = case.get("sensor_gain", 1.0) * x + case.get("sensor_offset", 0.0) + rng.normal(0.0, NOISE, t.size)
-    measured = np.minimum(sensed, case.get("sensor_max", np.inf))  # a saturated reading is flat: its noise too
+    sensed = (
+        case.get("sensor_gain", 1.0) * x + case.get("sensor_offset", 0.0) + rng.normal(0.0, NOISE, t.size)
+    )
+    measured = np.minimum(
+        sensed, case.get("sensor_max", np.inf)
+    )  # a saturated reading is flat: its noise too
     return t, force, measured
 
 
 def space(folder: Path) -> dict:
     """The study a user would write: the runs, a grid over k and c, the position compared."""
-    scenarios = [{"name": name, "inputs": {"msd.F": {"csv": f"{name}-force.csv", "interpolation": "hold"}},
-                  "parameters": {"msd.x0": x0}, "recorded": f"{name}-x.csv"} for name, (_, x0) in RUNS.items()]
-    return {"name": "msd-blind", "multimodel": os.path.relpath(MODEL, folder),
-            "experiment": {"stop_time": DURATION, "step": SPACE_STEP}, "scenarios": scenarios,
-            "parameters": {"msd.k": {"start": 8, "stop": 16, "step": 2}, "msd.c": [0.4, 0.8, 1.2]},
-            "objectives": {"position": {"signal": "msd.x", "recorded": "x", "metric": "rmse"}},
-            "output": "out", "cluster": {"n_workers": 2}}
+    scenarios = [
+        {
+            "name": name,
+            "inputs": {"msd.F": {"csv": f"{name}-force.csv", "interpolation": "hold"}},
+            "parameters": {"msd.x0": x0},
+            "recorded": f"{name}-x.csv",
+        }
+        for name, (_, x0) in RUNS.items()
+    ]
+    return {
+        "name": "msd-blind",
+        "multimodel": os.path.relpath(MODEL, folder),
+        "experiment": {"stop_time": DURATION, "step": SPACE_STEP},
+        "scenarios": scenarios,
+        "parameters": {"msd.k": {"start": 8, "stop": 16, "step": 2}, "msd.c": [0.4, 0.8, 1.2]},
+        "objectives": {"position": {"signal": "msd.x", "recorded": "x", "metric": "rmse"}},
+        "output": "out",
+        "cluster": {"n_workers": 2},
+    }
 
 
 def make(case: str, folder: Path, seed: int = 1) -> Path:
@@ -113,10 +133,22 @@ def make(case: str, folder: Path, seed: int = 1) -> Path:
     rng = np.random.default_rng(seed)
     for name in RUNS:
         t, force, x = record(name, CASES[case], rng)
-        np.savetxt(folder / f"{name}-force.csv", np.column_stack([t, force]), delimiter=",", header="time,F",
-                   comments="", fmt="%.6g")
-        np.savetxt(folder / f"{name}-x.csv", np.column_stack([t, x]), delimiter=",", header="time,x", comments="",
-                   fmt="%.6g")
+        np.savetxt(
+            folder / f"{name}-force.csv",
+            np.column_stack([t, force]),
+            delimiter=",",
+            header="time,F",
+            comments="",
+            fmt="%.6g",
+        )
+        np.savetxt(
+            folder / f"{name}-x.csv",
+            np.column_stack([t, x]),
+            delimiter=",",
+            header="time,x",
+            comments="",
+            fmt="%.6g",
+        )
     path = folder / "space.yaml"
     path.write_text(yaml.safe_dump(space(folder), sort_keys=False))
     return path
@@ -133,14 +165,34 @@ def make_folders(case: str, folder: Path, seed: int = 1) -> list[Path]:
         t, force, x = record(name, CASES[case], rng)
         run = folder / name
         run.mkdir(parents=True, exist_ok=True)
-        np.savetxt(run / "force.csv", np.column_stack([t, force]), delimiter=",", header="time,F",
-                   comments="", fmt="%.6g")
-        np.savetxt(run / "position.csv", np.column_stack([t, x]), delimiter=",", header="time,x", comments="",
-                   fmt="%.6g")
-        (run / "scenario.yaml").write_text(yaml.safe_dump({
-            "name": name, "inputs": {"msd.F": {"csv": "force.csv", "interpolation": "hold"}},
-            "parameters": {"msd.x0": x0}, "recorded": "position.csv", "stop_time": DURATION},
-            sort_keys=False))
+        np.savetxt(
+            run / "force.csv",
+            np.column_stack([t, force]),
+            delimiter=",",
+            header="time,F",
+            comments="",
+            fmt="%.6g",
+        )
+        np.savetxt(
+            run / "position.csv",
+            np.column_stack([t, x]),
+            delimiter=",",
+            header="time,x",
+            comments="",
+            fmt="%.6g",
+        )
+        (run / "scenario.yaml").write_text(
+            yaml.safe_dump(
+                {
+                    "name": name,
+                    "inputs": {"msd.F": {"csv": "force.csv", "interpolation": "hold"}},
+                    "parameters": {"msd.x0": x0},
+                    "recorded": "position.csv",
+                    "stop_time": DURATION,
+                },
+                sort_keys=False,
+            )
+        )
         made.append(run)
     return made
 
@@ -150,8 +202,9 @@ def main() -> None:
     parser.add_argument("case", choices=list(CASES))
     parser.add_argument("--out", type=Path, default=None, help="folder (default out/msd-blind/CASE)")
     parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--folders", action="store_true",
-                        help="one scenario folder per run, and no space.yaml")
+    parser.add_argument(
+        "--folders", action="store_true", help="one scenario folder per run, and no space.yaml"
+    )
     args = parser.parse_args()
     folder = (args.out or Path("out") / "msd-blind" / args.case).resolve()
     if args.folders:

@@ -33,7 +33,7 @@ from scipy.integrate import solve_ivp
 HERE = Path(__file__).resolve().parent
 TRUTH = {"m": 1.0, "k": 12.0, "c": 0.6}
 CASES: dict[str, Callable[[float, float], float]] = {
-    "cubic": lambda x, v: -60.0 * x ** 3,
+    "cubic": lambda x, v: -60.0 * x**3,
     "coulomb": lambda x, v: -0.3 * np.tanh(v / 0.01),
     "none": lambda x, v: 0.0,
 }
@@ -48,7 +48,10 @@ def forces() -> dict[str, tuple[Callable[[np.ndarray], np.ndarray], float]]:
     return {
         "push": (lambda t: np.where((t >= 1.0) & (t < 5.0), 3.0, 0.0), 0.0),
         "sweep": (lambda t: 1.0 * np.sin(2 * np.pi * (0.2 + 0.05 * t) * t), 0.0),
-        "sines": (lambda t: 2.5 * np.sin(2 * np.pi * 0.4 * t) + 1.0 * np.sin(2 * np.pi * 0.9 * t + 1.0), 0.05),
+        "sines": (
+            lambda t: 2.5 * np.sin(2 * np.pi * 0.4 * t) + 1.0 * np.sin(2 * np.pi * 0.9 * t + 1.0),
+            0.05,
+        ),
         "release": (lambda t: np.where((t >= 6.0) & (t < 7.0), -2.5, 0.0), 0.3),
     }
 
@@ -68,8 +71,10 @@ def truth(force_at_points: np.ndarray, x0: float, concealed: Callable[[float, fl
     times = grid()
     state, xs = np.array([x0, 0.0]), [x0]
     for t0, t1, f in zip(times[:-1], times[1:], force_at_points[:-1]):
+
         def rhs(t, s, f=f):
             return [s[1], (f - k * s[0] - c * s[1] + concealed(s[0], s[1])) / m]
+
         state = solve_ivp(rhs, (t0, t1), state, rtol=1e-10, atol=1e-12, method="LSODA").y[:, -1]
         xs.append(state[0])
     return np.array(xs)
@@ -83,27 +88,52 @@ def make(case: str, folder: Path, seed: int = SEED) -> Path:
     scenarios = []
     for name, (force, x0) in forces().items():
         logged = np.arange(0.0, DURATION + 1e-9, 0.01)
-        np.savetxt(folder / f"{name}-force.csv", np.column_stack([logged, force(logged)]), delimiter=",",
-                   header="time,F", comments="", fmt="%.10g")
-        back = np.loadtxt(folder / f"{name}-force.csv", delimiter=",", skiprows=1)  # what the master will read
+        np.savetxt(
+            folder / f"{name}-force.csv",
+            np.column_stack([logged, force(logged)]),
+            delimiter=",",
+            header="time,F",
+            comments="",
+            fmt="%.10g",
+        )
+        back = np.loadtxt(
+            folder / f"{name}-force.csv", delimiter=",", skiprows=1
+        )  # what the master will read
         x = truth(np.interp(times, back[:, 0], back[:, 1]), x0, CASES[case])
         every = int(round(SAMPLE / STEP))  # a sample at every few communication points
         noisy = x[::every] + rng.normal(0.0, NOISE_SIGMA, x[::every].size)
-        np.savetxt(folder / f"{name}-x.csv", np.column_stack([times[::every], noisy]), delimiter=",",
-                   header="time,x", comments="", fmt="%.6f")
-        scenarios.append({"name": name, "inputs": {"msd.F": {"csv": f"{name}-force.csv", "interpolation": "linear"}},
-                          "parameters": {"msd.x0": x0}, "recorded": f"{name}-x.csv"})
+        np.savetxt(
+            folder / f"{name}-x.csv",
+            np.column_stack([times[::every], noisy]),
+            delimiter=",",
+            header="time,x",
+            comments="",
+            fmt="%.6f",
+        )
+        scenarios.append(
+            {
+                "name": name,
+                "inputs": {"msd.F": {"csv": f"{name}-force.csv", "interpolation": "linear"}},
+                "parameters": {"msd.x0": x0},
+                "recorded": f"{name}-x.csv",
+            }
+        )
     spec = {
         "name": f"msd-discovery-{case}",
         "multimodel": os.path.relpath(HERE / "multimodel.yaml", folder),
         "experiment": {"stop_time": DURATION, "step": STEP},
         "scenarios": scenarios,
         "parameters": {"msd.k": {"start": 6, "stop": 20, "step": 2}, "msd.c": [0.2, 0.6, 1.0, 1.4]},
-        "objectives": {"position_rmse": {"signal": "msd.x", "recorded": "x", "metric": "rmse"},
-                       "position": {"signal": "msd.x", "recorded": "x", "metric": "residuals"}},
-        "output": "out", "cluster": {"n_workers": 2},
+        "objectives": {
+            "position_rmse": {"signal": "msd.x", "recorded": "x", "metric": "rmse"},
+            "position": {"signal": "msd.x", "recorded": "x", "metric": "residuals"},
+        },
+        "output": "out",
+        "cluster": {"n_workers": 2},
     }
-    header = f"# msd recordings, concealed: {CONCEALED[case]} (made by make_discovery_runs.py; truth {TRUTH})\n"
+    header = (
+        f"# msd recordings, concealed: {CONCEALED[case]} (made by make_discovery_runs.py; truth {TRUTH})\n"
+    )
     (folder / "space.yaml").write_text(header + yaml.safe_dump(spec, sort_keys=False))
     return folder / "space.yaml"
 
@@ -111,7 +141,9 @@ def make(case: str, folder: Path, seed: int = SEED) -> Path:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("cases", nargs="*", choices=[*CASES, []], help="default: every case")
-    parser.add_argument("--out", type=Path, default=HERE / "discovery", help="one folder per case is made here")
+    parser.add_argument(
+        "--out", type=Path, default=HERE / "discovery", help="one folder per case is made here"
+    )
     args = parser.parse_args()
     for case in args.cases or list(CASES):
         print(f"wrote {make(case, args.out / case)}: concealed {CONCEALED[case]}, noise σ {NOISE_SIGMA} m")

@@ -32,8 +32,15 @@ SEED = 20240611
 def simulate_truth() -> tuple[np.ndarray, np.ndarray]:
     """The noise-free position at the sample times, solved far tighter than the noise."""
     fmu = build_fmu(HERE / "fmus" / "msd")
-    result = simulate_fmu(str(fmu), stop_time=DURATION, solver="CVode", relative_tolerance=1e-9,
-                          output_interval=SAMPLE_INTERVAL, start_values=TRUTH, output=["x"])
+    result = simulate_fmu(
+        str(fmu),
+        stop_time=DURATION,
+        solver="CVode",
+        relative_tolerance=1e-9,
+        output_interval=SAMPLE_INTERVAL,
+        start_values=TRUTH,
+        output=["x"],
+    )
     return result["time"], result["x"]
 
 

@@ -62,8 +62,10 @@ def truth(torque_at_points: np.ndarray, theta0: float, concealed: Callable[[floa
     times = grid()
     state, angles = np.array([theta0, 0.0]), [theta0]
     for t0, t1, tau in zip(times[:-1], times[1:], torque_at_points[:-1]):
+
         def rhs(t, s, tau=tau):
             return [s[1], (tau - m * g * l * np.sin(s[0]) - b * s[1] - concealed(s[1])) / (m * l * l)]
+
         state = solve_ivp(rhs, (t0, t1), state, rtol=1e-10, atol=1e-12, method="LSODA").y[:, -1]
         angles.append(state[0])
     return np.array(angles)
@@ -78,25 +80,48 @@ def make(case: str, folder: Path, seed: int = SEED) -> Path:
     scenarios = []
     for name, (torque, theta0) in torques().items():
         logged = np.arange(0.0, DURATION + 1e-9, 0.01)
-        np.savetxt(folder / f"{name}-tau.csv", np.column_stack([logged, torque(logged)]), delimiter=",",
-                   header="time,tau", comments="", fmt="%.10g")
+        np.savetxt(
+            folder / f"{name}-tau.csv",
+            np.column_stack([logged, torque(logged)]),
+            delimiter=",",
+            header="time,tau",
+            comments="",
+            fmt="%.10g",
+        )
         back = np.loadtxt(folder / f"{name}-tau.csv", delimiter=",", skiprows=1)  # what the master will read
         theta = truth(np.interp(times, back[:, 0], back[:, 1]), theta0, CASES[case])
         noisy = theta[::every] + rng.normal(0.0, NOISE_SIGMA, theta[::every].size)
-        np.savetxt(folder / f"{name}-theta.csv", np.column_stack([times[::every], noisy]), delimiter=",",
-                   header="time,theta", comments="", fmt="%.6f")
-        scenarios.append({"name": name,
-                          "inputs": {"pendulum.tau": {"csv": f"{name}-tau.csv", "interpolation": "linear"}},
-                          "parameters": {"pendulum.theta0": theta0}, "recorded": f"{name}-theta.csv"})
+        np.savetxt(
+            folder / f"{name}-theta.csv",
+            np.column_stack([times[::every], noisy]),
+            delimiter=",",
+            header="time,theta",
+            comments="",
+            fmt="%.6f",
+        )
+        scenarios.append(
+            {
+                "name": name,
+                "inputs": {"pendulum.tau": {"csv": f"{name}-tau.csv", "interpolation": "linear"}},
+                "parameters": {"pendulum.theta0": theta0},
+                "recorded": f"{name}-theta.csv",
+            }
+        )
     spec = {
         "name": f"pendulum-discovery-{case}",
         "multimodel": os.path.relpath(HERE / "multimodel.yaml", folder),
         "experiment": {"stop_time": DURATION, "step": STEP},
         "scenarios": scenarios,
-        "parameters": {"pendulum.l": {"start": 0.5, "stop": 1.2, "step": 0.1}, "pendulum.b": [0.0, 0.1, 0.2, 0.3]},
-        "objectives": {"angle_rmse": {"signal": "pendulum.theta", "recorded": "theta", "metric": "rmse"},
-                       "angle": {"signal": "pendulum.theta", "recorded": "theta", "metric": "residuals"}},
-        "output": "out", "cluster": {"n_workers": 2},
+        "parameters": {
+            "pendulum.l": {"start": 0.5, "stop": 1.2, "step": 0.1},
+            "pendulum.b": [0.0, 0.1, 0.2, 0.3],
+        },
+        "objectives": {
+            "angle_rmse": {"signal": "pendulum.theta", "recorded": "theta", "metric": "rmse"},
+            "angle": {"signal": "pendulum.theta", "recorded": "theta", "metric": "residuals"},
+        },
+        "output": "out",
+        "cluster": {"n_workers": 2},
     }
     header = f"# pendulum recordings, concealed: {CONCEALED[case]} (made by make_discovery_runs.py; truth {TRUTH})\n"
     (folder / "space.yaml").write_text(header + yaml.safe_dump(spec, sort_keys=False))
@@ -106,7 +131,9 @@ def make(case: str, folder: Path, seed: int = SEED) -> Path:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("cases", nargs="*", choices=[*CASES, []], help="default: every case")
-    parser.add_argument("--out", type=Path, default=HERE / "discovery", help="one folder per case is made here")
+    parser.add_argument(
+        "--out", type=Path, default=HERE / "discovery", help="one folder per case is made here"
+    )
     args = parser.parse_args()
     for case in args.cases or list(CASES):
         print(f"wrote {make(case, args.out / case)}: concealed {CONCEALED[case]}, noise σ {NOISE_SIGMA} rad")

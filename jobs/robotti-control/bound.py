@@ -67,7 +67,10 @@ class Plant:
         m, iz, lf, lr, caf, car = self.m, self.iz, self.lf, self.lr, self.caf, self.car
         z = np.zeros((6, 6))
         z[0, :2] = [-fade * (caf + car) / (m * vs), -fade * (caf * lf - car * lr) / (m * vs) - v]
-        z[1, :2] = [-fade * (lf * caf - lr * car) / (iz * vs), -fade * (lf * lf * caf + lr * lr * car) / (iz * vs)]
+        z[1, :2] = [
+            -fade * (lf * caf - lr * car) / (iz * vs),
+            -fade * (lf * lf * caf + lr * lr * car) / (iz * vs),
+        ]
         z[2, 1] = 1.0
         z[3, 0], z[3, 2] = 1.0, v
         z[:4, 4] = [fade * caf / m, lf * fade * caf / iz, 0.0, 0.0]
@@ -97,7 +100,9 @@ class Frame:
         stepped row, whose straight pieces have none)."""
         if self.step is not None or len(self.middle) < 2:
             return np.zeros_like(arc)
-        return np.gradient(self.heading, self.middle)[np.clip(np.searchsorted(self.middle, arc), 0, len(self.middle) - 1)]
+        return np.gradient(self.heading, self.middle)[
+            np.clip(np.searchsorted(self.middle, arc), 0, len(self.middle) - 1)
+        ]
 
     def states(self, trajectory) -> np.ndarray:
         """The model's states along a simulated run, and each sample's arc length."""
@@ -114,7 +119,9 @@ class Frame:
             e = d[:, 0] * rel[:, 1] - d[:, 1] * rel[:, 0]
             psi = theta - np.interp(found.arc, self.middle, self.heading)
         psi = np.angle(np.exp(1j * psi))
-        return np.column_stack([trajectory.column("vehicle.vy"), trajectory.column("vehicle.yaw_rate"), psi, e])
+        return np.column_stack(
+            [trajectory.column("vehicle.vy"), trajectory.column("vehicle.yaw_rate"), psi, e]
+        )
 
     def reference(self, trajectory) -> tuple[np.ndarray, np.ndarray]:
         """Per sample: the offset e the path is at (0, or the step's size past it), and a lower bound on the
@@ -155,8 +162,15 @@ def least_error(models, x0, time, budget, max_steer, max_step, reference, cap):
 
     for k in range(n):
         for i in range(4):
-            add([(ix + 4 * (k + 1) + i, 1.0), *((ix + 4 * k + j, -ad[k][i, j]) for j in range(4) if ad[k][i, j]),
-                 (iu + k, -bd[k][i])], c[k][i], c[k][i])
+            add(
+                [
+                    (ix + 4 * (k + 1) + i, 1.0),
+                    *((ix + 4 * k + j, -ad[k][i, j]) for j in range(4) if ad[k][i, j]),
+                    (iu + k, -bd[k][i]),
+                ],
+                c[k][i],
+                c[k][i],
+            )
     for k in range(n - 1):
         add([(iu + k + 1, 1.0), (iu + k, -1.0), (ip + k, -1.0), (iq + k, 1.0)], 0.0, 0.0)
     add([(ip + k, 1.0) for k in range(n - 1)] + [(iq + k, 1.0) for k in range(n - 1)], -np.inf, budget)
@@ -172,7 +186,7 @@ def least_error(models, x0, time, budget, max_steer, max_step, reference, cap):
     matrix = sp.csr_matrix((vals, (rows, cols)), shape=(len(lo), count))
     low, high = np.full(count, -np.inf), np.full(count, np.inf)
     low[:4] = high[:4] = x0
-    low[iu:iu + n], high[iu:iu + n] = -max_steer, max_steer
+    low[iu : iu + n], high[iu : iu + n] = -max_steer, max_steer
     low[iu] = high[iu] = 0.0  # the wheels start straight
     low[ip:i_s], high[ip:i_s] = 0.0, max_step
     low[i_s:] = 0.0
@@ -181,20 +195,34 @@ def least_error(models, x0, time, budget, max_steer, max_step, reference, cap):
     weights[:-1] += np.diff(time) / 2
     weights[1:] += np.diff(time) / 2
     cost = np.zeros(count)
-    cost[i_s:i_s + n + 1] = weights / (time[-1] - time[0])
+    cost[i_s : i_s + n + 1] = weights / (time[-1] - time[0])
     integrality = np.zeros(count)
     integrality[ib:] = 1
     lo, hi = np.array(lo), np.array(hi)
-    found = milp(cost, constraints=LinearConstraint(matrix, lo, hi), bounds=Bounds(low, high),
-                 integrality=integrality, options={"time_limit": 60})
-    if found.x is None and not len(choose):  # HiGHS's simplex can stall on these long, thin LPs: interior point
+    found = milp(
+        cost,
+        constraints=LinearConstraint(matrix, lo, hi),
+        bounds=Bounds(low, high),
+        integrality=integrality,
+        options={"time_limit": 60},
+    )
+    if found.x is None and not len(
+        choose
+    ):  # HiGHS's simplex can stall on these long, thin LPs: interior point
         eq = lo == hi
         upper, lower = ~eq & np.isfinite(hi), ~eq & np.isfinite(lo)
-        found = linprog(cost, A_ub=sp.vstack([matrix[upper], -matrix[lower]]), b_ub=np.concatenate([hi[upper], -lo[lower]]),
-                        A_eq=matrix[eq], b_eq=lo[eq], bounds=list(zip(low, high)), method="highs-ipm")
+        found = linprog(
+            cost,
+            A_ub=sp.vstack([matrix[upper], -matrix[lower]]),
+            b_ub=np.concatenate([hi[upper], -lo[lower]]),
+            A_eq=matrix[eq],
+            b_eq=lo[eq],
+            bounds=list(zip(low, high)),
+            method="highs-ipm",
+        )
     if found.x is None:
         raise RuntimeError(f"the bound's program failed: {found.message}")
-    return float(found.fun), found.x[iu:iu + n]
+    return float(found.fun), found.x[iu : iu + n]
 
 
 def replay(steering: np.ndarray, defaults, scenario_folder: Path, work: Path):
@@ -202,11 +230,20 @@ def replay(steering: np.ndarray, defaults, scenario_folder: Path, work: Path):
     trajectory = defaults.trajectory
     delta_f = -np.concatenate([steering, steering[-1:]])
     table = work / "steering_inputs.csv"
-    np.savetxt(table, np.column_stack([trajectory.time, trajectory.column("controller.velocity"), delta_f]),
-               delimiter=",", header="time,velocity,delta_f", comments="", fmt="%.10g")
+    np.savetxt(
+        table,
+        np.column_stack([trajectory.time, trajectory.column("controller.velocity"), delta_f]),
+        delimiter=",",
+        header="time,velocity,delta_f",
+        comments="",
+        fmt="%.10g",
+    )
     spec = yaml.safe_load(MODEL.read_text())
     spec["fmus"]["controller"] = "bundled:fmus/replay_controller"
-    spec["connections"] = {"controller.velocity": ["vehicle.velocity"], "controller.delta_f": ["vehicle.delta_f"]}
+    spec["connections"] = {
+        "controller.velocity": ["vehicle.velocity"],
+        "controller.delta_f": ["vehicle.delta_f"],
+    }
     spec["scenario"] = {k: v for k, v in spec["scenario"].items() if not k.startswith("controller.")}
     spec["parameters"]["controller.file"] = str(table)
     (work / "multimodel.yaml").write_text(yaml.safe_dump(spec))
@@ -220,10 +257,17 @@ def bound(folder: Path, budget: float, rounds: int, work: Path) -> dict:
     time, speed = trajectory.time, trajectory.column("vehicle.vx")
     h = np.diff(time)
     limits = real_parameters(FMUS / "path_controller")
-    plant = Plant({k.split(".", 1)[1]: v for k, v in yaml.safe_load(MODEL.read_text())["parameters"].items()
-                   if k.startswith("vehicle.")})
+    plant = Plant(
+        {
+            k.split(".", 1)[1]: v
+            for k, v in yaml.safe_load(MODEL.read_text())["parameters"].items()
+            if k.startswith("vehicle.")
+        }
+    )
     frame = Frame(scenario)
-    arc = P.project(frame.path, np.column_stack([trajectory.column("vehicle.x"), trajectory.column("vehicle.y")])).arc
+    arc = P.project(
+        frame.path, np.column_stack([trajectory.column("vehicle.x"), trajectory.column("vehicle.y")])
+    ).arc
     curvature = frame.curvature(0.5 * (arc[1:] + arc[:-1]))
     steps = [plant.step(0.5 * (speed[k] + speed[k + 1]), curvature[k], h[k]) for k in range(len(h))]
     ad, bd, c = (np.array([s[i] for s in steps]) for i in range(3))
@@ -235,23 +279,46 @@ def bound(folder: Path, budget: float, rounds: int, work: Path) -> dict:
         x = frame.states(run)
         residual = x[1:] - np.einsum("kij,kj->ki", ad, x[:-1]) - bd * steering[:, None] - c
         x0 = frame.states(trajectory)[0]
-        error, steering = least_error((ad, bd, c + residual), x0, time, budget * effort, limits["max_steer"],
-                                      limits["max_steer_rate"] * float(h.max()), reference, cap)
+        error, steering = least_error(
+            (ad, bd, c + residual),
+            x0,
+            time,
+            budget * effort,
+            limits["max_steer"],
+            limits["max_steer_rate"] * float(h.max()),
+            reference,
+            cap,
+        )
         replayed = replay(steering, defaults, folder, work)
         run = replayed.trajectory
-        history.append({"bound": error, "replayed_error": replayed.objectives[ERROR],
-                        "replayed_effort": replayed.objectives[EFFORT]})
-    best = min(history, key=lambda r: r["replayed_error"] if r["replayed_effort"] <= effort * budget * 1.001
-               else np.inf)
-    return {"defaults_error": defaults.objectives[ERROR], "defaults_effort": effort, "budget": budget * effort,
-            "bound": history[-1]["bound"], "replayed_error": best["replayed_error"],
-            "replayed_effort": best["replayed_effort"], "rounds": history}
+        history.append(
+            {
+                "bound": error,
+                "replayed_error": replayed.objectives[ERROR],
+                "replayed_effort": replayed.objectives[EFFORT],
+            }
+        )
+    best = min(
+        history,
+        key=lambda r: r["replayed_error"] if r["replayed_effort"] <= effort * budget * 1.001 else np.inf,
+    )
+    return {
+        "defaults_error": defaults.objectives[ERROR],
+        "defaults_effort": effort,
+        "budget": budget * effort,
+        "bound": history[-1]["bound"],
+        "replayed_error": best["replayed_error"],
+        "replayed_effort": best["replayed_effort"],
+        "rounds": history,
+    }
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--budget", type=float, default=1.0, help="effort allowed, times the defaults'")
-    parser.add_argument("--rounds", type=int, default=2, help="corrections of the linear model by the real plant")
+    parser.add_argument(
+        "--rounds", type=int, default=2, help="corrections of the linear model by the real plant"
+    )
     parser.add_argument("--out", type=Path, default=HERE / "bound.json")
     args = parser.parse_args()
     folders = sorted(p for p in PATHS.iterdir() if (p / P.PATH_FILE).is_file())
@@ -259,10 +326,13 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as work:
         for folder in folders:
             r = results[folder.name] = bound(folder, args.budget, args.rounds, Path(work))
-            print(f"{folder.name}: defaults {r['defaults_error']:.4f} m at {r['defaults_effort']:.3f} rad; least error "
-                  f"at <= {r['budget']:.3f} rad: {r['bound']:.4f} m (linear model), {r['replayed_error']:.4f} m "
-                  f"replayed on the plant ({r['replayed_error'] / r['defaults_error']:.2f} x the defaults', "
-                  f"effort {r['replayed_effort']:.3f})", flush=True)
+            print(
+                f"{folder.name}: defaults {r['defaults_error']:.4f} m at {r['defaults_effort']:.3f} rad; least error "
+                f"at <= {r['budget']:.3f} rad: {r['bound']:.4f} m (linear model), {r['replayed_error']:.4f} m "
+                f"replayed on the plant ({r['replayed_error'] / r['defaults_error']:.2f} x the defaults', "
+                f"effort {r['replayed_effort']:.3f})",
+                flush=True,
+            )
     args.out.write_text(json.dumps({"budget": args.budget, "paths": results}, indent=1) + "\n")
 
 

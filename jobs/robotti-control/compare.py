@@ -37,7 +37,10 @@ from dse_runner.sweeps.rank import rank  # noqa: E402
 HERE = Path(__file__).resolve().parent
 PATHS = HERE.parents[1] / "scenarios" / "robotti-paths"
 ERROR, EFFORT = "path_error_mean", "steering_effort"
-PLANTS = {"diagnosed (wheel slip)": HERE / "multimodel.yaml", "baseline (no slip)": HERE / "multimodel-baseline.yaml"}
+PLANTS = {
+    "diagnosed (wheel slip)": HERE / "multimodel.yaml",
+    "baseline (no slip)": HERE / "multimodel-baseline.yaml",
+}
 
 
 def per_path(out: Path, sweep: str, parameters: list[str]) -> pd.DataFrame:
@@ -59,24 +62,35 @@ def point_of(row: pd.Series, parameters: list[str]) -> dict[str, float]:
 
 def table(defaults: pd.DataFrame, tuned: pd.DataFrame) -> str:
     """Markdown: per path, defaults against tuned, and whether the target holds there."""
-    lines = ["| path | error, defaults [m] | error, tuned [m] | ratio | effort, defaults [rad] | effort, tuned [rad] "
-             "| ratio | half the error at no more effort |", "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| path | error, defaults [m] | error, tuned [m] | ratio | effort, defaults [rad] | effort, tuned [rad] "
+        "| ratio | half the error at no more effort |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for path in defaults.index:
         d, t = defaults.loc[path], tuned.loc[path]
         met = t[ERROR] <= 0.5 * d[ERROR] and t[EFFORT] <= d[EFFORT]
-        lines.append(f"| {path} | {d[ERROR]:.4f} | {t[ERROR]:.4f} | {t[ERROR] / d[ERROR]:.2f} | {d[EFFORT]:.3f} "
-                     f"| {t[EFFORT]:.3f} | {t[EFFORT] / d[EFFORT]:.2f} | {'yes' if met else 'no'} |")
+        lines.append(
+            f"| {path} | {d[ERROR]:.4f} | {t[ERROR]:.4f} | {t[ERROR] / d[ERROR]:.2f} | {d[EFFORT]:.3f} "
+            f"| {t[EFFORT]:.3f} | {t[EFFORT] / d[EFFORT]:.2f} | {'yes' if met else 'no'} |"
+        )
     return "\n".join(lines)
 
 
-def pareto_figure(totals: pd.DataFrame, front: pd.DataFrame, defaults: pd.Series, tuned: pd.Series, path: Path) -> None:
+def pareto_figure(
+    totals: pd.DataFrame, front: pd.DataFrame, defaults: pd.Series, tuned: pd.Series, path: Path
+) -> None:
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     ax.scatter(totals[EFFORT], totals[ERROR], s=8, c="0.75", label="every point")
     ax.plot(front[EFFORT], front[ERROR], "o-", c="tab:blue", ms=4, label="Pareto front")
     ax.plot(defaults[EFFORT], defaults[ERROR], "s", c="tab:red", ms=8, label="default gains")
     ax.plot(tuned[EFFORT], tuned[ERROR], "*", c="tab:green", ms=13, label="tuned (tuned.yaml)")
-    ax.set(xlabel="steering effort, mean over paths and plants [rad]", yscale="log",
-           ylabel="path error, mean over paths and plants [m]", title="Path following: accuracy against steering")
+    ax.set(
+        xlabel="steering effort, mean over paths and plants [rad]",
+        yscale="log",
+        ylabel="path error, mean over paths and plants [m]",
+        title="Path following: accuracy against steering",
+    )
     ax.set_xlim(0, max(3.0, float(tuned[EFFORT]) * 1.5))
     ax.legend()
     fig.tight_layout()
@@ -109,16 +123,22 @@ def tracks_figure(runs: dict[str, dict[str, object]], path: Path) -> None:
 def fidelity(gains: dict[str, dict[str, float]]) -> tuple[str, dict[str, dict[str, object]]]:
     """Each gain set on each plant, every path: mean path error and effort over the paths (markdown), and the
     diagnosed plant's runs for the tracks figure."""
-    lines = ["| gains | plant | mean path error [m] | mean steering effort [rad] | worst path error [m] |",
-             "|---|---|---|---|---|"]
-    runs: dict[str, dict[str, object]] = {p.name: {} for p in sorted(PATHS.iterdir()) if (p / "path.csv").is_file()}
+    lines = [
+        "| gains | plant | mean path error [m] | mean steering effort [rad] | worst path error [m] |",
+        "|---|---|---|---|---|",
+    ]
+    runs: dict[str, dict[str, object]] = {
+        p.name: {} for p in sorted(PATHS.iterdir()) if (p / "path.csv").is_file()
+    }
     for label, values in gains.items():
         for plant, model in PLANTS.items():
             results = {name: simulate(model, PATHS / name, values) for name in runs}
             errors = [r.objectives[ERROR] for r in results.values()]
             efforts = [r.objectives[EFFORT] for r in results.values()]
-            lines.append(f"| {label} | {plant} | {sum(errors) / len(errors):.4f} | {sum(efforts) / len(efforts):.3f} "
-                         f"| {max(errors):.4f} |")
+            lines.append(
+                f"| {label} | {plant} | {sum(errors) / len(errors):.4f} | {sum(efforts) / len(efforts):.3f} "
+                f"| {max(errors):.4f} |"
+            )
             if model == PLANTS["diagnosed (wheel slip)"]:
                 for name, result in results.items():
                     runs[name][label] = result
@@ -131,19 +151,24 @@ def bound_section(path: Path) -> str | None:
     if not path.is_file():
         return None
     found = json.loads(path.read_text())
-    lines = ["### What any controller could reach at the defaults' effort (bound.py, nominal plant)",
-             "The least mean path error of any steering sequence, knowing the whole path in advance, with no more "
-             f"steering effort than {found['budget']:g} x the defaults' and within their steering limits, at their "
-             "speed: a linear (mixed-integer near the step) program on the linearised plant, corrected by replaying "
-             "its solution through the real plant FMU (bound.py). Where the program is solved to optimality and its "
-             "replay agrees, no controller of any structure or gains does better, so a value above half the defaults' "
-             "error rules the target out on that path; a replayed value below half shows a steering that meets it.",
-             "| path | defaults: error [m] | effort [rad] | least error, linear model [m] | replayed on the plant [m] "
-             "| ratio to the defaults | half the error reachable |", "|---|---|---|---|---|---|---|"]
+    lines = [
+        "### What any controller could reach at the defaults' effort (bound.py, nominal plant)",
+        "The least mean path error of any steering sequence, knowing the whole path in advance, with no more "
+        f"steering effort than {found['budget']:g} x the defaults' and within their steering limits, at their "
+        "speed: a linear (mixed-integer near the step) program on the linearised plant, corrected by replaying "
+        "its solution through the real plant FMU (bound.py). Where the program is solved to optimality and its "
+        "replay agrees, no controller of any structure or gains does better, so a value above half the defaults' "
+        "error rules the target out on that path; a replayed value below half shows a steering that meets it.",
+        "| path | defaults: error [m] | effort [rad] | least error, linear model [m] | replayed on the plant [m] "
+        "| ratio to the defaults | half the error reachable |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for name, r in sorted(found["paths"].items()):
         ratio = r["replayed_error"] / r["defaults_error"]
-        lines.append(f"| {name} | {r['defaults_error']:.4f} | {r['defaults_effort']:.3f} | {r['bound']:.4f} "
-                     f"| {r['replayed_error']:.4f} | {ratio:.2f} | {'yes' if ratio <= 0.5 else 'no'} |")
+        lines.append(
+            f"| {name} | {r['defaults_error']:.4f} | {r['defaults_effort']:.3f} | {r['bound']:.4f} "
+            f"| {r['replayed_error']:.4f} | {ratio:.2f} | {'yes' if ratio <= 0.5 else 'no'} |"
+        )
     return "\n".join(lines[:2]) + "\n\n" + "\n".join(lines[2:])
 
 
@@ -160,34 +185,59 @@ def main() -> None:
     defaults_total = defaults_ranking.totals.iloc[0]
     tuned = pick(ranking.pareto, 0.5 * defaults_total[ERROR])
     tuned_point = point_of(tuned, parameters)
-    write_values(HERE / "tuned.yaml", tuned_point,
-                 "Tuned path-controller gains on the diagnosed plant (jobs/robotti-control/compare.py): the\n"
-                 "least-effort point of pareto.yaml's front that at least halves the defaults' mean path error.")
-    baseline_pick = point_of(pick(rank(args.out, "robotti-control-pareto-baseline").pareto,
-                                  0.5 * defaults_total[ERROR]), parameters)
+    write_values(
+        HERE / "tuned.yaml",
+        tuned_point,
+        "Tuned path-controller gains on the diagnosed plant (jobs/robotti-control/compare.py): the\n"
+        "least-effort point of pareto.yaml's front that at least halves the defaults' mean path error.",
+    )
+    baseline_pick = point_of(
+        pick(rank(args.out, "robotti-control-pareto-baseline").pareto, 0.5 * defaults_total[ERROR]),
+        parameters,
+    )
 
     by_path = per_path(args.out, "robotti-control-pareto", parameters)
     tuned_by_path = by_path[(by_path[parameters] == pd.Series(tuned_point)).all(axis=1)].set_index("path")
     defaults_by_path = per_path(args.out, "robotti-control-defaults", parameters).set_index("path")
-    pareto_figure(ranking.totals, ranking.pareto.sort_values(EFFORT), defaults_total, tuned, figures / "pareto.png")
-    checked, runs = fidelity({"defaults": point_of(defaults_total, parameters), "tuned (tuned.yaml)": read_values(
-        HERE / "tuned.yaml"), "tuned on the baseline plant": baseline_pick})
-    tracks_figure({name: {k: v for k, v in r.items() if k != "tuned on the baseline plant"} for name, r in runs.items()},
-                  figures / "tracks.png")
+    pareto_figure(
+        ranking.totals, ranking.pareto.sort_values(EFFORT), defaults_total, tuned, figures / "pareto.png"
+    )
+    checked, runs = fidelity(
+        {
+            "defaults": point_of(defaults_total, parameters),
+            "tuned (tuned.yaml)": read_values(HERE / "tuned.yaml"),
+            "tuned on the baseline plant": baseline_pick,
+        }
+    )
+    tracks_figure(
+        {
+            name: {k: v for k, v in r.items() if k != "tuned on the baseline plant"}
+            for name, r in runs.items()
+        },
+        figures / "tracks.png",
+    )
 
-    gains = "\n".join(f"| `{p}` | {defaults_total[p]:g} | {tuned_point[p]:.4g} | {baseline_pick[p]:.4g} |"
-                      for p in parameters)
-    text = "\n\n".join([
-        "### Defaults against tuned, per path (mean over the 5 plants)",
-        table(defaults_by_path, tuned_by_path),
-        f"Over all paths and plants: defaults {defaults_total[ERROR]:.4f} m at {defaults_total[EFFORT]:.3f} rad; "
-        f"tuned {tuned[ERROR]:.4f} m at {tuned[EFFORT]:.3f} rad. Front: {len(ranking.pareto)} of {len(ranking.totals)} "
-        "points (figures/pareto.png); tracks on the diagnosed plant: figures/tracks.png.",
-        "### Gains\n\n| parameter | defaults | tuned | tuned on the baseline plant |\n|---|---|---|---|\n" + gains,
-        "### Fidelity: each gain set on both plants (nominal plant, no variants)", checked,
-    ] + [section for section in [bound_section(HERE / "bound.json")] if section])
-    (HERE / "results.md").write_text("<!-- Written by compare.py from the sweeps in out/; run it again to update. -->\n\n"
-                                     + text + "\n")
+    gains = "\n".join(
+        f"| `{p}` | {defaults_total[p]:g} | {tuned_point[p]:.4g} | {baseline_pick[p]:.4g} |"
+        for p in parameters
+    )
+    text = "\n\n".join(
+        [
+            "### Defaults against tuned, per path (mean over the 5 plants)",
+            table(defaults_by_path, tuned_by_path),
+            f"Over all paths and plants: defaults {defaults_total[ERROR]:.4f} m at {defaults_total[EFFORT]:.3f} rad; "
+            f"tuned {tuned[ERROR]:.4f} m at {tuned[EFFORT]:.3f} rad. Front: {len(ranking.pareto)} of {len(ranking.totals)} "
+            "points (figures/pareto.png); tracks on the diagnosed plant: figures/tracks.png.",
+            "### Gains\n\n| parameter | defaults | tuned | tuned on the baseline plant |\n|---|---|---|---|\n"
+            + gains,
+            "### Fidelity: each gain set on both plants (nominal plant, no variants)",
+            checked,
+        ]
+        + [section for section in [bound_section(HERE / "bound.json")] if section]
+    )
+    (HERE / "results.md").write_text(
+        "<!-- Written by compare.py from the sweeps in out/; run it again to update. -->\n\n" + text + "\n"
+    )
     print(text)
 
 

@@ -28,20 +28,28 @@ def plants(fitted: dict, n: int) -> list[dict]:
     lows = [fitted["interval"][ref][0] for ref in VARIED]
     highs = [fitted["interval"][ref][1] for ref in VARIED]
     samples = qmc.scale(qmc.LatinHypercube(d=len(VARIED), seed=SEED).random(n), lows, highs)
-    return [{"name": f"plant{i + 1}", "parameters": {ref: float(f"{v:.6g}") for ref, v in zip(VARIED, row)}}
-            for i, row in enumerate(samples)]
+    return [
+        {"name": f"plant{i + 1}", "parameters": {ref: float(f"{v:.6g}") for ref, v in zip(VARIED, row)}}
+        for i, row in enumerate(samples)
+    ]
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--diagnosis", type=Path, default=HERE.parents[1] / "docs" / "diagnosis-robotti" / "diagnosis.json")
+    parser.add_argument(
+        "--diagnosis", type=Path, default=HERE.parents[1] / "docs" / "diagnosis-robotti" / "diagnosis.json"
+    )
     parser.add_argument("--plants", type=int, default=5)
     args = parser.parse_args()
     fitted = json.loads(args.diagnosis.read_text())["fitted"]
-    header = (f"# Written by make_plants.py: {args.plants} plants, mass and wheel slip drawn (Latin hypercube, seed "
-              f"{SEED}) from the\n# ~95 % intervals of {args.diagnosis.name}: "
-              + ", ".join(f"{ref} [{fitted['interval'][ref][0]:.6g}, {fitted['interval'][ref][1]:.6g}]"
-                          for ref in VARIED) + "\n")
+    header = (
+        f"# Written by make_plants.py: {args.plants} plants, mass and wheel slip drawn (Latin hypercube, seed "
+        f"{SEED}) from the\n# ~95 % intervals of {args.diagnosis.name}: "
+        + ", ".join(
+            f"{ref} [{fitted['interval'][ref][0]:.6g}, {fitted['interval'][ref][1]:.6g}]" for ref in VARIED
+        )
+        + "\n"
+    )
     (HERE / "plants.yaml").write_text(header + yaml.safe_dump(plants(fitted, args.plants), sort_keys=False))
 
 

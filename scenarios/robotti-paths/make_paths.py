@@ -58,8 +58,14 @@ def duration(arc: np.ndarray, speed: np.ndarray) -> float:
     return 5.0 * math.ceil((1.2 * drive + 10.0) / 5.0)
 
 
-def write(name: str, group: str, points: np.ndarray, knots: list[tuple[float, float]],
-          pose: tuple[float, float, float], step_at: float | None = None) -> None:
+def write(
+    name: str,
+    group: str,
+    points: np.ndarray,
+    knots: list[tuple[float, float]],
+    pose: tuple[float, float, float],
+    step_at: float | None = None,
+) -> None:
     """One folder: path.csv (x, y to 0.1 mm, speed to 1 cm/s) and scenario.yaml."""
     folder = HERE / name
     folder.mkdir(exist_ok=True)
@@ -68,8 +74,10 @@ def write(name: str, group: str, points: np.ndarray, knots: list[tuple[float, fl
     rows = "".join(f"{x:.4f},{y:.4f},{v:.2f}\n" for (x, y), v in zip(points, speed))
     (folder / "path.csv").write_text("x,y,speed\n" + rows)
     x, y, theta = pose
-    text = (f"name: {name}\ngroup: {group}\nduration: {duration(arc_length(points), speed):.1f}\n"
-            f"initial_pose: {{x: {x:.4f}, y: {y:.4f}, theta: {theta:.6f}}}\n")
+    text = (
+        f"name: {name}\ngroup: {group}\nduration: {duration(arc_length(points), speed):.1f}\n"
+        f"initial_pose: {{x: {x:.4f}, y: {y:.4f}, theta: {theta:.6f}}}\n"
+    )
     if step_at is not None:
         text += f"step_at: {step_at:.4f}  # m of path: the row moves sideways here (docs/paths.md)\n"
     (folder / "scenario.yaml").write_text(text)
@@ -101,8 +109,14 @@ def headland_turn() -> None:
     back = straight(turn[-1], math.pi, row)
     points = np.vstack([first, turn, back])
     bend = math.pi * radius
-    knots = [(0, 1.4), (row - 3, 1.4), (row, 1.0), (row + bend, 1.0), (row + bend + 3, 1.4),
-             (2 * row + bend, 1.4)]
+    knots = [
+        (0, 1.4),
+        (row - 3, 1.4),
+        (row, 1.0),
+        (row + bend, 1.0),
+        (row + bend + 3, 1.4),
+        (2 * row + bend, 1.4),
+    ]
     write("headland_turn", "headland", points, knots, (0.0, 0.0, 0.0))
 
 

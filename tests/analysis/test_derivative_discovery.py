@@ -34,7 +34,9 @@ from dse_runner.sweeps.spec import load_space
 
 def _generator(job: str):
     """A job's make_discovery_runs.py, imported from its file."""
-    spec = importlib.util.spec_from_file_location(f"{job}_discovery", REPO / "jobs" / job / "make_discovery_runs.py")
+    spec = importlib.util.spec_from_file_location(
+        f"{job}_discovery", REPO / "jobs" / job / "make_discovery_runs.py"
+    )
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -42,16 +44,24 @@ def _generator(job: str):
 
 def _noise(space, column: str) -> float:
     """σ of the recordings' noise from their fourth differences (the signals are smooth at the sampling step)."""
-    return float(np.median([sigma_from_differences(np.diff(s.recorded.samples(column)[1], n=4), 4)
-                            for s in space.scenarios]))
+    return float(
+        np.median(
+            [sigma_from_differences(np.diff(s.recorded.samples(column)[1], n=4), 4) for s in space.scenarios]
+        )
+    )
 
 
-def _diagnose(space_path: Path, address: str, column: str, objective: str, ranges: dict[str, tuple[float, float]]):
+def _diagnose(
+    space_path: Path, address: str, column: str, objective: str, ranges: dict[str, tuple[float, float]]
+):
     """What a diagnosis would hand over: the calibration fitted from the middle of its ranges and
     cross-validated (one scenario per fold), then discovery on top of it. Reads only the recordings."""
     space = load_space(space_path).with_overrides(output=space_path.parent / "out", address=address)
     scales = {objective: 1.0 / _noise(space, column)}
-    freed = [Parameter(name, 0.5 * (low + high), low, high, 0.01 * (high - low)) for name, (low, high) in ranges.items()]
+    freed = [
+        Parameter(name, 0.5 * (low + high), low, high, 0.01 * (high - low))
+        for name, (low, high) in ranges.items()
+    ]
     folds = explain.folds(space.scenarios, len(space.scenarios))
     base = {name: values[0] for name, values in space.parameters.items() if name not in ranges}
     base.update({p.name: p.start for p in freed})
@@ -60,8 +70,10 @@ def _diagnose(space_path: Path, address: str, column: str, objective: str, range
         chosen = baseline_candidate(space, client, freed, base, scales, folds)
         calibrated = time.perf_counter()
         found = discover_derivatives(space, client, chosen, freed, scales, folds)
-        print(f"{space_path.parent.name}: calibration {calibrated - started:.0f} s, discovery "
-              f"{time.perf_counter() - calibrated:.0f} s {found.seconds}: {found.to_json()}")
+        print(
+            f"{space_path.parent.name}: calibration {calibrated - started:.0f} s, discovery "
+            f"{time.perf_counter() - calibrated:.0f} s {found.seconds}: {found.to_json()}"
+        )
     return found
 
 
@@ -106,13 +118,20 @@ def test_recordings_with_nothing_concealed_discover_nothing(tmp_path, dask_sched
 
 # ---- the parts, without a cluster ------------------------------------------------------------------------------
 
+
 def test_the_library_offers_terms_on_physics_not_on_kinematics(tmp_path):
     space = load_space(_generator("msd").make("none", tmp_path / "none"))
     (instance,) = model_exchange_instances(space.plan)
-    assert (instance.states, instance.derivatives, instance.inputs) == (("x", "v"), ("der(x)", "der(v)"), ("F",))
+    assert (instance.states, instance.derivatives, instance.inputs) == (
+        ("x", "v"),
+        ("der(x)", "der(v)"),
+        ("F",),
+    )
     plan = space.plan.recording(instance.recorded)
-    runs = [simulate(plan, s, {"msd.k": 12.0}, objectives={}, experiment=space.experiment).outputs
-            for s in space.scenarios]
+    runs = [
+        simulate(plan, s, {"msd.k": 12.0}, objectives={}, experiment=space.experiment).outputs
+        for s in space.scenarios
+    ]
     terms = candidate_terms(instance, runs)
     assert {t.target for t in terms} == {"msd.der(v)"}  # der(x) = v on every run: a definition
     texts = {t.term.text for t in terms}
@@ -130,9 +149,13 @@ def test_the_proposal_finds_the_sparse_columns_and_ignores_what_the_fit_already_
     terms[:, 4] = 2.0 * fitted[:, 0]  # a term that only repeats the fitted parameter
     target = 3.0 * terms[:, 1] - 1.5 * terms[:, 3] + 0.7 * fitted[:, 0] + rng.normal(0.0, 0.1, rows * runs)
     names = tuple(f"t{k}" for k in range(5))
-    proposal = propose(Regression(target, terms, fitted, run, names), max_terms=3, bootstrap=20, inclusion=0.7, seed=0)
+    proposal = propose(
+        Regression(target, terms, fitted, run, names), max_terms=3, bootstrap=20, inclusion=0.7, seed=0
+    )
     assert set(proposal.terms) == {"t1", "t3"} and "t4" in proposal.dropped
-    assert proposal.terms["t1"] == pytest.approx(3.0, rel=0.05) and proposal.terms["t3"] == pytest.approx(-1.5, rel=0.05)
+    assert proposal.terms["t1"] == pytest.approx(3.0, rel=0.05) and proposal.terms["t3"] == pytest.approx(
+        -1.5, rel=0.05
+    )
     noise_only = propose(Regression(rng.normal(size=rows * runs), terms, fitted, run, names), 3, 20, 0.7, 0)
     assert noise_only.empty
 
@@ -154,13 +177,20 @@ def test_diagnose_space_discovers_the_cubic_spring_the_library_cannot_explain(tm
     from dse_runner.simulation.values import read_values
 
     space = _generator("msd").make("cubic", tmp_path / "cubic")
-    result = diagnose_space(space, out=tmp_path / "out", address=dask_scheduler, only=["output_offset(msd.x)"])
+    result = diagnose_space(
+        space, out=tmp_path / "out", address=dask_scheduler, only=["output_offset(msd.x)"]
+    )
     found = result.to_json()
     discovered = [e for e in found["effects"] if e["id"] == "discovered"]
-    assert [(e["target"], list(e["terms"])) for e in discovered] == [("msd.der(v)", ["x^3"])], found["discovery"]
+    assert [(e["target"], list(e["terms"])) for e in discovered] == [("msd.der(v)", ["x^3"])], found[
+        "discovery"
+    ]
     low, high = discovered[0]["intervals"]["x^3"]
     assert low <= -60.0 <= high
-    assert found["verdict"] in ("discovered", "partial") and found["held_out_after"] < 0.2 * found["held_out_before"]
+    assert (
+        found["verdict"] in ("discovered", "partial")
+        and found["held_out_after"] < 0.2 * found["held_out_before"]
+    )
     assert found["validation"] == {"by": "scenarios", "folds": 3}
     values = read_values(found["files"]["values"])
     assert values["derivative_term(msd.der(v), x^3)"] == pytest.approx(discovered[0]["terms"]["x^3"])

@@ -68,8 +68,15 @@ def test_field_data_goes_to_the_robotti_library_and_any_other_recording_to_the_s
 def test_the_robotti_library_lists_its_physics():
     robotti = next(lib for lib in libraries() if lib.name == "robotti")
     ids = {h.id for h in robotti.hypotheses(None)}
-    assert {"wheel_slip", "steering_lag", "speed_lag", "steering_offset", "time_offset", "antenna_offset",
-            "terrain_slope"} == ids
+    assert {
+        "wheel_slip",
+        "steering_lag",
+        "speed_lag",
+        "steering_offset",
+        "time_offset",
+        "antenna_offset",
+        "terrain_slope",
+    } == ids
 
 
 def test_the_signal_effects_list_every_effect_on_every_driven_input_and_compared_signal(tmp_path):
@@ -78,14 +85,22 @@ def test_the_signal_effects_list_every_effect_on_every_driven_input_and_compared
     ids = {h.id for h in signals.hypotheses(msd)}
     # the ring-down scenario drives no input: only the compared position has effects, those a sensor has;
     # the model-exchange instance's two states have bounds, and each an overflow into the other
-    assert ids == {*(f"output_{kind}(msd.x)" for kind in ("delay", "lag", "gain", "offset", "max", "min", "square")),
-                   *(f"state_{kind}(msd.{s})" for kind in ("max", "min") for s in ("x", "v")),
-                   "state_overflow(msd.x, v)", "state_overflow(msd.v, x)"}
+    assert ids == {
+        *(f"output_{kind}(msd.x)" for kind in ("delay", "lag", "gain", "offset", "max", "min", "square")),
+        *(f"state_{kind}(msd.{s})" for kind in ("max", "min") for s in ("x", "v")),
+        "state_overflow(msd.x, v)",
+        "state_overflow(msd.v, x)",
+    }
 
 
 def test_an_installed_library_is_asked_before_the_built_in_one(tmp_path, monkeypatch):
-    register(monkeypatch, tmp_path / "plugin", "always_library", ALWAYS,
-             {"dse_runner.hypotheses": {"always": "always_library:Always"}})
+    register(
+        monkeypatch,
+        tmp_path / "plugin",
+        "always_library",
+        ALWAYS,
+        {"dse_runner.hypotheses": {"always": "always_library:Always"}},
+    )
     said = []
     result = diagnose(MSD / "space.yaml", request=Request(out=tmp_path / "out"), say=said.append)
     assert result.to_json() == {"verdict": "none", "space": str((MSD / "space.yaml").resolve())}
@@ -93,24 +108,35 @@ def test_an_installed_library_is_asked_before_the_built_in_one(tmp_path, monkeyp
 
 
 def test_a_library_that_is_not_a_subclass_is_named(tmp_path, monkeypatch):
-    register(monkeypatch, tmp_path / "plugin", "duck_library", ALWAYS,
-             {"dse_runner.hypotheses": {"duck": "duck_library:Duck"}})
+    register(
+        monkeypatch,
+        tmp_path / "plugin",
+        "duck_library",
+        ALWAYS,
+        {"dse_runner.hypotheses": {"duck": "duck_library:Duck"}},
+    )
     with pytest.raises(DseError, match=r"hypothesis library 'duck' \(duck_library:Duck\) is not a subclass"):
         libraries()
 
 
 def test_a_space_no_library_serves_is_named_with_what_would_serve_it(tmp_path):
     space = space_with(REPO / "jobs" / "watertank" / "space.yaml", None, tmp_path)
-    with pytest.raises(DseError, match=r"space.yaml: no hypothesis library serves this space.*\{signal: inst.var, "
-                                       r"recorded: column"):
+    with pytest.raises(
+        DseError,
+        match=r"space.yaml: no hypothesis library serves this space.*\{signal: inst.var, "
+        r"recorded: column",
+    ):
         diagnose(space.path, request=Request(out=tmp_path))
 
 
 def test_runs_no_library_calibrates_are_refused_with_each_librarys_reason(tmp_path):
     folder = tmp_path / "runs"
     (folder / "one").mkdir(parents=True)
-    with pytest.raises(DseError, match=r"--scenarios .*runs: no installed hypothesis library has a calibration "
-                                       r"space for these runs \(robotti: "):
+    with pytest.raises(
+        DseError,
+        match=r"--scenarios .*runs: no installed hypothesis library has a calibration "
+        r"space for these runs \(robotti: ",
+    ):
         diagnose(scenarios=folder, request=Request(out=tmp_path / "out"))
 
 
@@ -128,15 +154,20 @@ def test_nothing_to_diagnose_is_named():
 
 
 def test_a_hypothesis_the_library_lacks_is_named_before_anything_runs(tmp_path):
-    with pytest.raises(DseError, match=r"--hypothesis wheel_slip: the signals library has no such hypothesis \(it "
-                                       r"has output_delay\(msd.x\), "):
+    with pytest.raises(
+        DseError,
+        match=r"--hypothesis wheel_slip: the signals library has no such hypothesis \(it "
+        r"has output_delay\(msd.x\), ",
+    ):
         diagnose(MSD / "space.yaml", request=Request(out=tmp_path, hypotheses=("wheel_slip",)))
     with pytest.raises(DseError, match="--hypothesis slip: the robotti library has no such hypothesis"):
         diagnose(ROBOTTI_CALIBRATION, SCENARIOS, Request(out=tmp_path, hypotheses=("slip",)))
     assert not list(tmp_path.rglob("*.parquet"))  # nothing ran
 
 
-@pytest.mark.parametrize("bad, named", [({"folds": 1}, "--folds 1"), ({"noise_factor": 0.0}, "--noise-factor 0.0")])
+@pytest.mark.parametrize(
+    "bad, named", [({"folds": 1}, "--folds 1"), ({"noise_factor": 0.0}, "--noise-factor 0.0")]
+)
 def test_a_request_no_diagnosis_can_honour_is_refused(bad, named):
     with pytest.raises(DseError, match=named):
         Request(**bad)
@@ -148,12 +179,17 @@ def test_a_space_of_intervals_is_calibrated_by_a_search_and_a_grid_stays_a_grid(
     import yaml
 
     spec = yaml.safe_load((MSD / "space.yaml").read_text())
-    spec.update(multimodel=str(MSD / "multimodel.yaml"), output=str(tmp_path / "out"),
-                parameters={"msd.k": {"low": 8, "high": 20}, "msd.c": {"low": 0.4, "high": 1.2}})
+    spec.update(
+        multimodel=str(MSD / "multimodel.yaml"),
+        output=str(tmp_path / "out"),
+        parameters={"msd.k": {"low": 8, "high": 20}, "msd.c": {"low": 0.4, "high": 1.2}},
+    )
     spec["scenarios"][0]["recorded"] = str(MSD / "recording" / "position.csv")
     (tmp_path / "intervals.yaml").write_text(yaml.safe_dump(spec))
     sampled = space_with(tmp_path / "intervals.yaml", None, tmp_path / "a")
     assert (sampled.spec.search.strategy, sampled.spec.search.max_points) == ("sobol", 64)
-    (tmp_path / "named.yaml").write_text(yaml.safe_dump({**spec, "search": {"strategy": "tpe", "max_points": 20}}))
+    (tmp_path / "named.yaml").write_text(
+        yaml.safe_dump({**spec, "search": {"strategy": "tpe", "max_points": 20}})
+    )
     assert space_with(tmp_path / "named.yaml", None, tmp_path / "b").spec.search.strategy == "tpe"
     assert space_with(MSD / "space.yaml", None, tmp_path / "c").spec.search.strategy == "exhaustive"

@@ -15,7 +15,9 @@ from dse_runner.analysis.diagnose.noise import estimate_noise, flat_extremes, qu
 RNG = np.random.default_rng(20261128)
 N = 2000
 T = np.arange(N) * 0.05
-SMOOTH = 0.3 * np.sin(2 * np.pi * 0.05 * T) + 0.1 * np.sin(2 * np.pi * 0.13 * T + 1.0)  # slow at the sampling step
+SMOOTH = 0.3 * np.sin(2 * np.pi * 0.05 * T) + 0.1 * np.sin(
+    2 * np.pi * 0.13 * T + 1.0
+)  # slow at the sampling step
 
 
 def ar1(rho: float, sigma: float, n: int = N) -> np.ndarray:
@@ -68,7 +70,7 @@ def test_coloured_noise_reads_low_and_says_so_and_whiteness_catches_it():
     coloured = ar1(0.9, 0.002)
     found = estimate_noise(SMOOTH + coloured)
     assert found.sigma < 0.6 * 0.002 and "coloured" in found.assumptions
-    verdict = whiteness([coloured[:N // 2], coloured[N // 2:]])
+    verdict = whiteness([coloured[: N // 2], coloured[N // 2 :]])
     assert not verdict.white and verdict.rho1 == pytest.approx(0.9, abs=0.05)
     assert whiteness([RNG.normal(0.0, 1.0, N // 2), RNG.normal(0.0, 1.0, N // 2)]).white
 

@@ -24,13 +24,16 @@ def test_the_job_holds_the_published_files_unchanged():
 
 @pytest.mark.slow
 def test_the_tanks_overflow_is_found_on_blocks_of_the_one_record_and_the_diagnosed_model_predicts_better(
-        tmp_path, dask_scheduler):
+    tmp_path, dask_scheduler
+):
     """The space as the job gives it (intervals, calibrated by a Sobol' design and least squares), three of
     the library's effects tried (--hypothesis, to keep the test short): one record, so held out by blocks of
     time; the overflow of the upper tank into the lower one is named; the values file replays the diagnosed
     model with ``simulate``, whose error on the record is the fit's."""
     only = ["state_overflow(tanks.x1, x2)", "output_max(tanks.y)", "input_offset(tanks.u)"]
-    found = diagnose_space(JOB / "space.yaml", out=tmp_path / "out", address=dask_scheduler, only=only).to_json()
+    found = diagnose_space(
+        JOB / "space.yaml", out=tmp_path / "out", address=dask_scheduler, only=only
+    ).to_json()
     assert found["validation"] == {"by": "time blocks", "folds": 3, "record": "estimation"}
     named = {e["id"] for e in found["effects"]}
     assert "state_overflow" in named, found["candidates"]
@@ -42,4 +45,7 @@ def test_the_tanks_overflow_is_found_on_blocks_of_the_one_record_and_the_diagnos
     assert after.objectives["y_rmse"] < 0.8 * before.objectives["y_rmse"]
     assert [Path(f).name for f in found["files"]["figures"]] == ["estimation-tanks.y.png"]
     report = Path(found["files"]["report"]).read_text()
-    assert "Validated by time blocks" in report and "![estimation-tanks.y](figures/estimation-tanks.y.png)" in report
+    assert (
+        "Validated by time blocks" in report
+        and "![estimation-tanks.y](figures/estimation-tanks.y.png)" in report
+    )

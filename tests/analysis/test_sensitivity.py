@@ -35,12 +35,15 @@ POINTS = 8192  # the job's budget: 1638 Saltelli base rows of 5
 
 def analytic(a: float, b: float) -> dict[str, dict[str, float]]:
     """First- and total-order indices of the Ishigami function from its closed-form partial variances."""
-    v1 = (1 + b * math.pi ** 4 / 5) ** 2 / 2
-    v2 = a ** 2 / 8
-    v13 = b ** 2 * math.pi ** 8 * (1 / 18 - 1 / 50)
+    v1 = (1 + b * math.pi**4 / 5) ** 2 / 2
+    v2 = a**2 / 8
+    v13 = b**2 * math.pi**8 * (1 / 18 - 1 / 50)
     v = v1 + v2 + v13
-    return {"ishigami.x1": {"S1": v1 / v, "ST": (v1 + v13) / v}, "ishigami.x2": {"S1": v2 / v, "ST": v2 / v},
-            "ishigami.x3": {"S1": 0.0, "ST": v13 / v}}
+    return {
+        "ishigami.x1": {"S1": v1 / v, "ST": (v1 + v13) / v},
+        "ishigami.x2": {"S1": v2 / v, "ST": v2 / v},
+        "ishigami.x3": {"S1": 0.0, "ST": v13 / v},
+    }
 
 
 def ishigami(x: np.ndarray, a: float = A, b: float = B) -> np.ndarray:
@@ -58,8 +61,12 @@ def job(folder, address: str, **changes):
 
 
 def assert_near(found: dict, truth: dict, label: str) -> None:
-    misses = {f"{p} {k}": (round(found[p][k], 4), round(truth[p][k], 4)) for p in truth for k in ("S1", "ST")
-              if abs(found[p][k] - truth[p][k]) > TOLERANCE}
+    misses = {
+        f"{p} {k}": (round(found[p][k], 4), round(truth[p][k], 4))
+        for p in truth
+        for k in ("S1", "ST")
+        if abs(found[p][k] - truth[p][k]) > TOLERANCE
+    }
     assert not misses, f"{label}: (estimate, analytic) beyond {TOLERANCE}: {misses}"
 
 
@@ -75,7 +82,9 @@ def plain(tmp_path_factory, dask_scheduler):
 def test_ishigami_indices_are_within_0_05_of_the_analytic_ones_at_8192_points(plain):
     found = sensitivity(plain.output)
     overall = found.objectives["y"].overall
-    assert found.design["rows"] == (POINTS // 5) * 5 and overall.blocks == POINTS // 5 and overall.left_out == 0
+    assert (
+        found.design["rows"] == (POINTS // 5) * 5 and overall.blocks == POINTS // 5 and overall.left_out == 0
+    )
     assert_near(overall.parameters, analytic(A, B), "ishigami")
     assert not found.objectives["y"].groups  # one scenario: no groups beside the whole
     # x3 acts only with x1: its first-order interval covers 0, its total one does not
@@ -98,9 +107,14 @@ def test_indices_per_scenario_group_reduced_as_the_ranking_says(tmp_path, dask_s
     """Two groups of one scenario each: b = 0 (x3 does nothing) and b = 0.1. The sum over both scenarios is
     2 sin x1 + 2a sin^2 x2 + b x3^4 sin x1: the Ishigami function with (a, b / 2), scaled. Each group has its
     own closed form; the group where x3 does nothing names it negligible, and responds less."""
-    space = job(tmp_path, dask_scheduler, scenarios=[
-        {"name": "flat", "group": "sine", "parameters": {"ishigami.b": 0.0}},
-        {"name": "steep", "group": "quartic", "parameters": {"ishigami.b": B}}])
+    space = job(
+        tmp_path,
+        dask_scheduler,
+        scenarios=[
+            {"name": "flat", "group": "sine", "parameters": {"ishigami.b": 0.0}},
+            {"name": "steep", "group": "quartic", "parameters": {"ishigami.b": B}},
+        ],
+    )
     report = submit(space)
     assert report.failed == 0
     found = sensitivity(space.output)
@@ -109,7 +123,9 @@ def test_indices_per_scenario_group_reduced_as_the_ranking_says(tmp_path, dask_s
     assert_near(y.overall.parameters, analytic(A, B / 2), "sum over both groups")
     assert_near(y.groups["sine"].parameters, analytic(A, 0.0), "group sine")
     assert_near(y.groups["quartic"].parameters, analytic(A, B), "group quartic")
-    assert found.negligible("y", "sine") == ["ishigami.x3"]  # exactly no effect: every cross row equals its base row
+    assert found.negligible("y", "sine") == [
+        "ishigami.x3"
+    ]  # exactly no effect: every cross row equals its base row
     assert y.groups["sine"].parameters["ishigami.x3"]["ST"] == 0.0
     assert [g for g, _ in found.least_responsive("y")] == ["sine", "quartic"]
 
@@ -120,7 +136,9 @@ def test_morris_screening_matches_salib_on_the_formula(tmp_path, dask_scheduler)
     exceeds their mean mu."""
     from SALib.analyze import morris
 
-    space = job(tmp_path, dask_scheduler, search={"strategy": "morris", "max_points": 400, "seed": 2, "levels": 6})
+    space = job(
+        tmp_path, dask_scheduler, search={"strategy": "morris", "max_points": 400, "seed": 2, "levels": 6}
+    )
     submit(space)
     found = sensitivity(space.output)
     design, dimensions = stored_design(load_sweep_spec(space.output, space.name))
@@ -149,8 +167,11 @@ def test_fast_indices_are_within_0_05_of_the_analytic_ones_at_3000_points(tmp_pa
     overall = found.objectives["y"].overall
     assert found.method == "fast" and found.design["rows"] == FAST_POINTS and overall.blocks == 3
     assert_near(overall.parameters, analytic(A, B), "ishigami, eFAST")
-    assert all(overall.parameters[n][k] is not None and overall.parameters[n][k] >= 0
-               for n in NAMES for k in ("S1_conf", "ST_conf"))
+    assert all(
+        overall.parameters[n][k] is not None and overall.parameters[n][k] >= 0
+        for n in NAMES
+        for k in ("S1_conf", "ST_conf")
+    )
     design, dimensions = stored_design(load_sweep_spec(space.output, space.name))
     x = np.array([[p[n] for n in NAMES] for p in design.points(dimensions)])
     problem = {"num_vars": 3, "names": list(NAMES), "bounds": [[0.0, 1.0]] * 3}
@@ -163,11 +184,18 @@ def test_fast_indices_are_within_0_05_of_the_analytic_ones_at_3000_points(tmp_pa
 
 
 def test_a_sweep_not_sampled_for_sensitivity_is_refused_naming_its_strategy(tmp_path, dask_scheduler):
-    space = job(tmp_path, dask_scheduler, search={"strategy": "sobol", "max_points": 6},
-                parameters={n: {"low": -1, "high": 1} for n in NAMES})
+    space = job(
+        tmp_path,
+        dask_scheduler,
+        search={"strategy": "sobol", "max_points": 6},
+        parameters={n: {"low": -1, "high": 1} for n in NAMES},
+    )
     submit(space)
-    with pytest.raises(DseError, match=r"sampled by 'sobol'; sensitivity reads a sweep sampled for it: "
-                                       r"search.strategy sobol_indices, morris or fast"):
+    with pytest.raises(
+        DseError,
+        match=r"sampled by 'sobol'; sensitivity reads a sweep sampled for it: "
+        r"search.strategy sobol_indices, morris or fast",
+    ):
         sensitivity(space.output)
 
 
@@ -186,12 +214,19 @@ def test_sensitivity_equals_salib_on_the_plainly_read_store(tmp_path, dask_sched
     points = pd.DataFrame(list(design.points(dimensions)), columns=list(space.parameters))
     y = values.reindex(pd.MultiIndex.from_frame(points)).to_numpy()
     assert not np.isnan(y).any()
-    expected = sobol.analyze(salib_problem(tuple(Dimension(name) for name in space.parameters)), y, calc_second_order=design.second_order,
-                             num_resamples=100, conf_level=0.95, seed=space.spec.search.seed + 1)
+    expected = sobol.analyze(
+        salib_problem(tuple(Dimension(name) for name in space.parameters)),
+        y,
+        calc_second_order=design.second_order,
+        num_resamples=100,
+        conf_level=0.95,
+        seed=space.spec.search.seed + 1,
+    )
     for i, name in enumerate(space.parameters):
         shown = found.objectives["y"].overall.parameters[name]
-        assert [shown[k] for k in ("S1", "S1_conf", "ST", "ST_conf")] == \
-            [float(expected[k][i]) for k in ("S1", "S1_conf", "ST", "ST_conf")]
+        assert [shown[k] for k in ("S1", "S1_conf", "ST", "ST_conf")] == [
+            float(expected[k][i]) for k in ("S1", "S1_conf", "ST", "ST_conf")
+        ]
     # computed once per version of the store: the kept file answers until a chunk writes
     kept = space.output / f"{space.name}.sensitivity.json"
     marked = kept.read_text().replace('"S1":', '"S1":7.0,"was":', 1)
@@ -199,8 +234,9 @@ def test_sensitivity_equals_salib_on_the_plainly_read_store(tmp_path, dask_sched
     assert sensitivity(space.output).objectives["y"].overall.parameters["ishigami.x1"]["S1"] == 7.0
     first = min((space.output / "results").rglob("*.parquet"))
     first.write_bytes(first.read_bytes())  # written again: a new version of the store
-    assert sensitivity(space.output).objectives["y"].overall.parameters["ishigami.x1"]["S1"] == \
-        float(expected["S1"][0])
+    assert sensitivity(space.output).objectives["y"].overall.parameters["ishigami.x1"]["S1"] == float(
+        expected["S1"][0]
+    )
 
 
 def test_a_large_designs_bootstrap_runs_in_processes_to_the_same_numbers():
@@ -219,7 +255,13 @@ def test_a_large_designs_bootstrap_runs_in_processes_to_the_same_numbers():
     units = rng.random((rows, 3))
     y = ishigami(units * 2 * math.pi - math.pi)
     found = _estimate(Design("sobol", units, 5), y, units, list(NAMES), 0.95, 20, 7)
-    alone = sobol.analyze(salib_problem(tuple(Dimension(n) for n in NAMES)), y, calc_second_order=False,
-                          num_resamples=20, conf_level=0.95, seed=7)
+    alone = sobol.analyze(
+        salib_problem(tuple(Dimension(n) for n in NAMES)),
+        y,
+        calc_second_order=False,
+        num_resamples=20,
+        conf_level=0.95,
+        seed=7,
+    )
     for key in ("S1", "S1_conf", "ST", "ST_conf"):
         assert np.array_equal(found[key], alone[key]), key

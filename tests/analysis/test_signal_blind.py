@@ -13,12 +13,17 @@ from dse_runner.simulation.run import simulate
 from dse_runner.simulation.values import read_values
 from dse_runner.sweeps.spec import load_space
 
-PARAMETER = {"force_delay": ("input_delay", "msd.F", "delay"), "sensor_gain": ("output_gain", "msd.x", "gain"),
-             "sensor_offset": ("output_offset", "msd.x", "offset")}
+PARAMETER = {
+    "force_delay": ("input_delay", "msd.F", "delay"),
+    "sensor_gain": ("output_gain", "msd.x", "gain"),
+    "sensor_offset": ("output_offset", "msd.x", "offset"),
+}
 
 
 def _generator():
-    spec = importlib.util.spec_from_file_location("make_diagnosis_runs", REPO / "jobs" / "msd" / "make_diagnosis_runs.py")
+    spec = importlib.util.spec_from_file_location(
+        "make_diagnosis_runs", REPO / "jobs" / "msd" / "make_diagnosis_runs.py"
+    )
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -36,7 +41,9 @@ def _diagnose(case: str, folder, address: str) -> dict:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("case", ["force-late", "sensor-gain-offset"])
-def test_a_concealed_effect_or_pair_is_named_with_intervals_covering_the_truth(case, tmp_path, dask_scheduler):
+def test_a_concealed_effect_or_pair_is_named_with_intervals_covering_the_truth(
+    case, tmp_path, dask_scheduler
+):
     found = _diagnose(case, tmp_path, dask_scheduler)
     truth = _concealed(case)
     assert found["verdict"] == "explained", found["verdict_text"]

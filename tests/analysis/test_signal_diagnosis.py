@@ -16,8 +16,12 @@ from dse_runner.simulation.trajectory import Series
 
 # cannot tell a late force from a late sensor (its response merely starts later); one released away from
 # rest can: the sensor delays the release as well, the force does not.
-PUSHES = {"early": (1.0, 3.0, 2.0, 0.05), "long": (0.5, 5.0, 1.0, 0.0), "late": (3.0, 4.0, 3.0, -0.05),
-          "twice": (1.0, 2.0, -2.0, 0.1)}
+PUSHES = {
+    "early": (1.0, 3.0, 2.0, 0.05),
+    "long": (0.5, 5.0, 1.0, 0.0),
+    "late": (3.0, 4.0, 3.0, -0.05),
+    "twice": (1.0, 2.0, -2.0, 0.1),
+}
 STOP, STEP = 8.0, 0.02
 
 
@@ -36,20 +40,44 @@ def _recorded_study(folder, truth: dict[str, float], noise: float, seed: int):
     scenarios = []
     for name, push in PUSHES.items():
         t, force = _force(*push)
-        np.savetxt(folder / f"{name}-force.csv", np.column_stack([t, force]), delimiter=",", header="time,F",
-                   comments="")
-        run = simulate(model, Scenario(name, inputs={"msd.F": Series(t, force, "hold")}, stop_time=STOP, step=STEP),
-                       {"msd.x0": push[3], **truth})
+        np.savetxt(
+            folder / f"{name}-force.csv",
+            np.column_stack([t, force]),
+            delimiter=",",
+            header="time,F",
+            comments="",
+        )
+        run = simulate(
+            model,
+            Scenario(name, inputs={"msd.F": Series(t, force, "hold")}, stop_time=STOP, step=STEP),
+            {"msd.x0": push[3], **truth},
+        )
         x = run.outputs["msd.x"][::5] + rng.normal(0.0, noise, run.time[::5].size)
-        np.savetxt(folder / f"{name}-x.csv", np.column_stack([run.time[::5], x]), delimiter=",", header="time,x",
-                   comments="")
-        scenarios.append({"name": name, "inputs": {"msd.F": {"csv": f"{name}-force.csv", "interpolation": "hold"}},
-                          "parameters": {"msd.x0": push[3]}, "recorded": f"{name}-x.csv"})
-    spec = {"name": "msd-pushed", "multimodel": str(model), "experiment": {"stop_time": STOP, "step": STEP},
-            "scenarios": scenarios,
-            "parameters": {"msd.k": {"start": 8, "stop": 16, "step": 2}, "msd.c": [0.4, 0.8, 1.2]},
-            "objectives": {"position": {"signal": "msd.x", "recorded": "x", "metric": "rmse"}},
-            "output": str(folder / "out"), "cluster": {"n_workers": 2}}
+        np.savetxt(
+            folder / f"{name}-x.csv",
+            np.column_stack([run.time[::5], x]),
+            delimiter=",",
+            header="time,x",
+            comments="",
+        )
+        scenarios.append(
+            {
+                "name": name,
+                "inputs": {"msd.F": {"csv": f"{name}-force.csv", "interpolation": "hold"}},
+                "parameters": {"msd.x0": push[3]},
+                "recorded": f"{name}-x.csv",
+            }
+        )
+    spec = {
+        "name": "msd-pushed",
+        "multimodel": str(model),
+        "experiment": {"stop_time": STOP, "step": STEP},
+        "scenarios": scenarios,
+        "parameters": {"msd.k": {"start": 8, "stop": 16, "step": 2}, "msd.c": [0.4, 0.8, 1.2]},
+        "objectives": {"position": {"signal": "msd.x", "recorded": "x", "metric": "rmse"}},
+        "output": str(folder / "out"),
+        "cluster": {"n_workers": 2},
+    }
     (folder / "space.yaml").write_text(yaml.safe_dump(spec))
     return folder / "space.yaml"
 
@@ -79,15 +107,17 @@ def test_the_command_gives_strict_json_and_resumes_from_the_store(tmp_path, dask
     from conftest import dse_runner, strict_loads
 
     space = _recorded_study(tmp_path, {"msd.k": 12.5, "msd.c": 0.7, "output_offset(msd.x)": 0.01}, 0.002, 3)
-    first = dse_runner("diagnose", "--space", space, "--out", tmp_path / "diag", "--scheduler", dask_scheduler,
-                       "--json")
+    first = dse_runner(
+        "diagnose", "--space", space, "--out", tmp_path / "diag", "--scheduler", dask_scheduler, "--json"
+    )
     assert first.returncode == 0, first.stderr
     found = strict_loads(first.stdout)
     assert [(e["id"], e["target"]) for e in found["effects"]] == [("output_offset", "msd.x")]
     written = sorted((tmp_path / "diag").rglob("*.parquet"))  # each chunk of simulations writes a file
     assert written
-    again = dse_runner("diagnose", "--space", space, "--out", tmp_path / "diag", "--scheduler", dask_scheduler,
-                       "--json")
+    again = dse_runner(
+        "diagnose", "--space", space, "--out", tmp_path / "diag", "--scheduler", dask_scheduler, "--json"
+    )
     assert strict_loads(again.stdout) == found
     assert sorted((tmp_path / "diag").rglob("*.parquet")) == written  # nothing simulated again
 

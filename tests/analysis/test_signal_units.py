@@ -14,16 +14,31 @@ from dse_runner.simulation.trajectory import Series
 from dse_runner.sweeps.fit import FitResult
 
 
-def _fit(label: str, residuals: list[np.ndarray], point: dict[str, float], names=(), jacobian=None) -> FitResult:
+def _fit(
+    label: str, residuals: list[np.ndarray], point: dict[str, float], names=(), jacobian=None
+) -> FitResult:
     sse = float(sum(r @ r for r in residuals))
-    return FitResult(label, list(names), {n: point[n] for n in names}, sse, sum(map(len, residuals)), 1, True,
-                     {n: 0.1 for n in names}, [], point, jacobian or [np.zeros((len(r), len(names))) for r in residuals],
-                     residuals)
+    return FitResult(
+        label,
+        list(names),
+        {n: point[n] for n in names},
+        sse,
+        sum(map(len, residuals)),
+        1,
+        True,
+        {n: 0.1 for n in names},
+        [],
+        point,
+        jacobian or [np.zeros((len(r), len(names))) for r in residuals],
+        residuals,
+    )
 
 
 def test_windows_are_labelled_by_what_the_inputs_do():
     t = np.linspace(0.0, 10.0, 201)
-    pushed = Scenario("pushed", inputs={"m.F": Series(np.array([0.0, 2.0, 4.0]), np.array([0.0, 1.0, 0.0]), "hold")})
+    pushed = Scenario(
+        "pushed", inputs={"m.F": Series(np.array([0.0, 2.0, 4.0]), np.array([0.0, 1.0, 0.0]), "hold")}
+    )
     edges = signal_locate.windows(t)
     assert len(edges) == signal_locate.WINDOWS + 1
     labels = [signal_locate.activity(pushed, a, b) for a, b in zip(edges[:-1], edges[1:])]
@@ -76,10 +91,14 @@ def test_a_member_that_changes_the_fit_by_less_than_the_noise_is_not_claimed():
 
 def test_a_remaining_error_points_inside_the_fmus_and_says_which_can_take_a_correction():
     chosen = _candidate(("input_gain(p.u)",), {"r": 4.0})
-    text = signal_claims.verdict_text(explain.PARTIAL, 4.0, chosen, {"plant": "cs", "sensor": "me"}, [], [], 2.0)
+    text = signal_claims.verdict_text(
+        explain.PARTIAL, 4.0, chosen, {"plant": "cs", "sensor": "me"}, [], [], 2.0
+    )
     assert "co-simulation FMU plant, which cannot be augmented from outside" in text
     assert "model-exchange FMU sensor" in text
-    assert "inside" not in signal_claims.verdict_text(explain.EXPLAINED, 1.0, chosen, {"plant": "cs"}, [], [], 2.0)
+    assert "inside" not in signal_claims.verdict_text(
+        explain.EXPLAINED, 1.0, chosen, {"plant": "cs"}, [], [], 2.0
+    )
 
 
 def test_look_alikes_are_told_apart_only_where_their_residuals_differ_by_more_than_the_noise():
@@ -103,8 +122,11 @@ def test_a_selection_keeps_only_the_named_effects_and_names_an_unknown_one():
     found = {"input_delay(msd.F)": "delay", "output_gain(msd.x)": "gain"}
     assert restricted(found, ()) == found
     assert restricted(found, ("output_gain(msd.x)",)) == {"output_gain(msd.x)": "gain"}
-    with pytest.raises(DseError, match=r"--hypothesis input_lag\(msd.F\): not a signal effect of this space; it has "
-                                       r"input_delay\(msd.F\), output_gain\(msd.x\)"):
+    with pytest.raises(
+        DseError,
+        match=r"--hypothesis input_lag\(msd.F\): not a signal effect of this space; it has "
+        r"input_delay\(msd.F\), output_gain\(msd.x\)",
+    ):
         restricted(found, ("input_lag(msd.F)",))
 
 
@@ -117,18 +139,35 @@ def test_discovered_terms_face_the_noise_rule_as_library_effects_do():
 
     proposal = Proposal({}, {}, 0.1)
     without = _candidate(("input_gain(p.u)",), {"r1": 1.30, "r2": 1.30})
-    small = Discovered({}, _candidate(("input_gain(p.u)", "discovered"), {"r1": 1.0, "r2": 1.0}), without, proposal)
+    small = Discovered(
+        {}, _candidate(("input_gain(p.u)", "discovered"), {"r1": 1.0, "r2": 1.0}), without, proposal
+    )
     ruled = noise_ruled(small)  # 1.69 - 1.00 = 0.69 noise variance
-    assert isinstance(ruled, NotDiscovered) and "0.69 noise variances, less than 1: within the noise" in ruled.reason
-    large = Discovered({}, _candidate(("input_gain(p.u)", "discovered"), {"r1": 1.0, "r2": 1.0}),
-                       _candidate(("input_gain(p.u)",), {"r1": 3.0, "r2": 3.0}), proposal)
+    assert (
+        isinstance(ruled, NotDiscovered)
+        and "0.69 noise variances, less than 1: within the noise" in ruled.reason
+    )
+    large = Discovered(
+        {},
+        _candidate(("input_gain(p.u)", "discovered"), {"r1": 1.0, "r2": 1.0}),
+        _candidate(("input_gain(p.u)",), {"r1": 3.0, "r2": 3.0}),
+        proposal,
+    )
     assert noise_ruled(large) is large
 
 
 def test_a_verdict_made_partial_by_coloured_residuals_does_not_claim_error_above_the_floor():
     chosen = _candidate(("input_rate(p.u)",), {"r": 1.6})
-    text = signal_claims.verdict_text(explain.unless_white(explain.EXPLAINED, False), 1.6, chosen, {"plant": "me"},
-                                      [], [], 2.0, coloured={"p.y": _white(0.33, 1e-69)})
+    text = signal_claims.verdict_text(
+        explain.unless_white(explain.EXPLAINED, False),
+        1.6,
+        chosen,
+        {"plant": "me"},
+        [],
+        [],
+        2.0,
+        coloured={"p.y": _white(0.33, 1e-69)},
+    )
     assert text.startswith("partial: input_rate(p.u)") and "residuals of p.y are not white" in text
     assert "more than 2 noise floors remain" not in text
     assert explain.unless_white(explain.NONE, False) == explain.UNEXPLAINED

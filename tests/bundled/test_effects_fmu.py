@@ -50,12 +50,16 @@ def test_speed_lag_slows_the_approach_to_the_commanded_speed(effects):
     quick, slow = drive(effects, 3.0, velocity=2.0), drive(effects, 3.0, velocity=2.0, speed_lag=1.0)
     t = quick.time.searchsorted(1.0)
     assert slow.column("vehicle.vx")[t] < 0.7 * quick.column("vehicle.vx")[t]
-    assert drive(effects, 30.0, velocity=2.0, speed_lag=1.0).column("vehicle.vx")[-1] == pytest.approx(2.0, rel=1e-6)
+    assert drive(effects, 30.0, velocity=2.0, speed_lag=1.0).column("vehicle.vx")[-1] == pytest.approx(
+        2.0, rel=1e-6
+    )
 
 
 def test_time_offset_delays_everything(effects):
-    direct, late = drive(effects, 20.0, velocity=2.0, delta_f=0.1), drive(effects, 20.0, velocity=2.0, delta_f=0.1,
-                                                                        time_offset=0.5)
+    direct, late = (
+        drive(effects, 20.0, velocity=2.0, delta_f=0.1),
+        drive(effects, 20.0, velocity=2.0, delta_f=0.1, time_offset=0.5),
+    )
     shift = 10  # 0.5 s at 0.05 s per step
     # Equal but for the instant of the switch, which the delayed run already sees at the end of the
     # step before it: under a millimetre, against the metre the vehicle covers in those 0.5 s.
@@ -69,11 +73,15 @@ def test_steering_offset_turns_a_straight_command(effects):
 
 
 def test_steering_lag_delays_the_turn_but_not_the_circle(effects):
-    direct, lagged = drive(effects, 40.0, velocity=2.0, delta_f=-0.1), drive(effects, 40.0, velocity=2.0,
-                                                                           delta_f=-0.1, steering_lag=0.5)
+    direct, lagged = (
+        drive(effects, 40.0, velocity=2.0, delta_f=-0.1),
+        drive(effects, 40.0, velocity=2.0, delta_f=-0.1, steering_lag=0.5),
+    )
     t = direct.time.searchsorted(2.0)
     assert lagged.column("vehicle.theta")[t] < direct.column("vehicle.theta")[t]
-    assert lagged.column("vehicle.yaw_rate")[-1] == pytest.approx(direct.column("vehicle.yaw_rate")[-1], rel=1e-6)
+    assert lagged.column("vehicle.yaw_rate")[-1] == pytest.approx(
+        direct.column("vehicle.yaw_rate")[-1], rel=1e-6
+    )
 
 
 def test_antenna_rotates_with_the_heading(effects):
@@ -94,8 +102,6 @@ def test_impossible_effect_values_are_refused_by_name(effects, name, value):
         drive(effects, 1.0, **{name: value})
 
 
-
-
 # The correction block (docs/research/diagnosis-beyond-library.md §4.3): corr_* coefficients, zero = off.
 
 EFFECTS_SOURCE = FMU_SOURCES / "robotti_vehicle_effects"
@@ -110,18 +116,27 @@ def test_every_correction_term_is_a_parameter_of_the_fmu_in_order():
     from dse_runner.cases.robotti_diagnosis import correction
 
     root = ET.parse(EFFECTS_SOURCE / "modelDescription.xml").getroot()
-    described = [(v.get("name"), int(v.get("valueReference")), v.get("causality"), v.find("Real").get("start"))
-                 for v in root.iter("ScalarVariable")]
+    described = [
+        (v.get("name"), int(v.get("valueReference")), v.get("causality"), v.find("Real").get("start"))
+        for v in root.iter("ScalarVariable")
+    ]
     gps_y = next(vr for name, vr, *_ in described if name == "gps_y")
     shapes = [s.variable for s in correction.SHAPES.values()]
-    corr = [(name, vr, causality, start) for name, vr, causality, start in described
-            if name.startswith("corr_") and name not in shapes]
+    corr = [
+        (name, vr, causality, start)
+        for name, vr, causality, start in described
+        if name.startswith("corr_") and name not in shapes
+    ]
     assert [name for name, *_ in corr] == correction.variables()
     assert [vr for _, vr, *_ in corr] == list(range(gps_y + 1, gps_y + 1 + len(correction.TERMS)))
     assert {(causality, float(start)) for *_, causality, start in corr} == {("parameter", 0.0)}
-    after = [(name, vr, causality, float(start)) for name, vr, causality, start in described if name in shapes]
-    assert after == [(s.variable, gps_y + 1 + len(correction.TERMS) + k, "parameter", s.default)
-                     for k, s in enumerate(correction.SHAPES.values())]  # after the coefficients, at their defaults
+    after = [
+        (name, vr, causality, float(start)) for name, vr, causality, start in described if name in shapes
+    ]
+    assert after == [
+        (s.variable, gps_y + 1 + len(correction.TERMS) + k, "parameter", s.default)
+        for k, s in enumerate(correction.SHAPES.values())
+    ]  # after the coefficients, at their defaults
     assert [vr for _, vr, *_ in described] == list(range(len(described)))  # no existing reference moved
     in_c = re.findall(r'X\(\w+, "(corr_\w+)"\)', (EFFECTS_SOURCE / "model.c").read_text())
     assert in_c == correction.variables()
@@ -168,8 +183,9 @@ def test_an_onset_term_is_off_before_its_time_and_its_feature_after(effects):
     # After 3 s the speed leaves the baseline's, towards the doubled gain's: closer to it at the end.
     assert not np.array_equal(base.column("vehicle.vx")[~before], late.column("vehicle.vx")[~before])
     end = -1
-    assert abs(late.column("vehicle.vx")[end] - doubled.column("vehicle.vx")[end]) < \
-        abs(base.column("vehicle.vx")[end] - doubled.column("vehicle.vx")[end])
+    assert abs(late.column("vehicle.vx")[end] - doubled.column("vehicle.vx")[end]) < abs(
+        base.column("vehicle.vx")[end] - doubled.column("vehicle.vx")[end]
+    )
 
 
 def test_a_resistance_against_the_motion_lowers_the_cruise_by_its_force_over_the_drive_gain(effects):
@@ -179,7 +195,9 @@ def test_a_resistance_against_the_motion_lowers_the_cruise_by_its_force_over_the
     traj = drive(effects, 15.0, velocity=u, corr_acc_sgnv=c, Kv=kv, mass=mass)
     assert traj.column("vehicle.vx")[-1] == pytest.approx(u + c * mass / kv, abs=1e-9)
     standing = drive(effects, 3.0, velocity=0.0, corr_acc_sgnv=c)
-    assert np.all(standing.column("vehicle.vx") == 0.0)  # no motion, no force: a standing vehicle is not pushed
+    assert np.all(
+        standing.column("vehicle.vx") == 0.0
+    )  # no motion, no force: a standing vehicle is not pushed
 
 
 def test_the_rate_limiter_ramps_at_its_limit_then_closes_exponentially():
@@ -212,7 +230,7 @@ def test_a_rate_limited_steering_term_turns_as_the_limited_angle_would(effects):
     loose = drive(effects, 5.0, corr_steer_ratelim=1.0, corr_rate_limit=100.0, **inputs)
     t, vx = limited.time, limited.column("vehicle.vx")
     mass, lf, lr, c = 1500.0, 0.9, 0.9, 30000.0
-    gain = -vx / (lf + lr + mass / (lf + lr) * (lr / c - lf / c) * vx ** 2)
+    gain = -vx / (lf + lr + mass / (lf + lr) * (lr / c - lf / c) * vx**2)
     delta = correction.rate_limited(t, np.full(len(t), 0.1), 0.02)
     rate = gain * delta
     heading = np.concatenate([[0.0], np.cumsum(np.diff(t) * 0.5 * (rate[1:] + rate[:-1]))])
@@ -250,8 +268,11 @@ def test_antenna_terms_use_the_heading_and_speed_as_correction_py_does(effects):
     traj = drive(effects, 10.0, velocity=2.0, delta_f=-0.2, **values)
     theta, vx = traj.column("vehicle.theta"), traj.column("vehicle.vx")
     zero = np.zeros_like(theta)
-    cols = correction.features(correction.FeatureInputs(v=vx, psi=theta, r=zero, s=zero, v_cmd=zero, a_cmd=zero,
-                                                        delta=zero, delta_rate=zero, f_drive=zero))
+    cols = correction.features(
+        correction.FeatureInputs(
+            v=vx, psi=theta, r=zero, s=zero, v_cmd=zero, a_cmd=zero, delta=zero, delta_rate=zero, f_drive=zero
+        )
+    )
     along = sum(v * cols[k] for k, v in values.items() if "along" in k)
     cross = sum(v * cols[k] for k, v in values.items() if "cross" in k)
     gx = traj.column("vehicle.x") + along * np.cos(theta) - cross * np.sin(theta)
@@ -269,17 +290,23 @@ def test_correction_terms_read_as_equations():
     from dse_runner.cases.robotti_diagnosis import correction
 
     assert correction.readable({"vehicle.corr_acc_v": -0.31}) == ["d(v)/dt += -0.31·v"]
-    assert correction.readable({"corr_steer_ddelta": -0.4, "corr_steer_1": 0.012, "corr_acc_v": 0.0,
-                                "vehicle.mass": 1500.0}) == ["δ += 0.012 - 0.4·δ̇"]
-    assert correction.readable({"corr_gps_cross_sinpsi": 0.12, "corr_acc_acmd": 0.05, "corr_acc_v2": -0.02}) == [
-        "d(v)/dt += -0.02·v² + 0.05·a_cmd", "gps_cross += 0.12·sin ψ"]
-    assert correction.readable_term(correction.term("corr_acc_v"), -0.31, (-0.34, -0.28)) == \
-        "d(v)/dt += -0.31·v [-0.34, -0.28]"
+    assert correction.readable(
+        {"corr_steer_ddelta": -0.4, "corr_steer_1": 0.012, "corr_acc_v": 0.0, "vehicle.mass": 1500.0}
+    ) == ["δ += 0.012 - 0.4·δ̇"]
+    assert correction.readable(
+        {"corr_gps_cross_sinpsi": 0.12, "corr_acc_acmd": 0.05, "corr_acc_v2": -0.02}
+    ) == ["d(v)/dt += -0.02·v² + 0.05·a_cmd", "gps_cross += 0.12·sin ψ"]
+    assert (
+        correction.readable_term(correction.term("corr_acc_v"), -0.31, (-0.34, -0.28))
+        == "d(v)/dt += -0.31·v [-0.34, -0.28]"
+    )
     assert correction.readable({"vehicle.corr_acc_onset_sgnv": -0.59, "vehicle.corr_onset_time": 10.05}) == [
-        "d(v)/dt += -0.59·[t ≥ 10.05 s]·sgn v"]
+        "d(v)/dt += -0.59·[t ≥ 10.05 s]·sgn v"
+    ]
     assert correction.readable({"corr_acc_onset_fdrive": -0.2}) == ["d(v)/dt += -0.2·[t ≥ t₀]·F_drive/m"]
     assert correction.readable({"corr_steer_ratelim": 1.02, "corr_rate_limit": 0.08}) == [
-        "δ += 1.02·(lim(δ, 0.08 rad/s) − δ)"]
+        "δ += 1.02·(lim(δ, 0.08 rad/s) − δ)"
+    ]
     with pytest.raises(DseError, match="not a correction term"):
         correction.term("corr_acc_w")
 
@@ -304,11 +331,19 @@ def test_filtered_rate_of_a_piecewise_constant_command():
     t = np.linspace(-0.2, 2.0, 221)
     w, rate = correction.filtered_rate(t_cmd, u, t)
     fine = np.arange(-0.2, 2.0 + 1e-12, 1e-5)
-    held = np.where(fine < 0, 0.0, u[np.clip(np.searchsorted(t_cmd, fine + 1e-12, side="right") - 1, 0, None)])
+    held = np.where(
+        fine < 0, 0.0, u[np.clip(np.searchsorted(t_cmd, fine + 1e-12, side="right") - 1, 0, None)]
+    )
     wf = np.zeros_like(fine)
     for i in range(1, len(fine)):  # exact for a constant input over each step
         wf[i] = held[i] + (wf[i - 1] - held[i]) * np.exp(-1e-5 / correction.TAU_F)
     assert np.abs(w - np.interp(t, fine, wf)).max() < 1e-4
     assert np.all(w[t < 0] == 0.0) and np.all(rate[t < 0] == 0.0)
-    assert rate[np.searchsorted(t, 0.5)] == pytest.approx((-0.2 - w[np.searchsorted(t, 0.5)]) / correction.TAU_F)
-    assert correction.distance(np.array([0.0, 1.0, 2.0]), np.array([1.0, -1.0, 3.0])).tolist() == [0.0, 1.0, 3.0]
+    assert rate[np.searchsorted(t, 0.5)] == pytest.approx(
+        (-0.2 - w[np.searchsorted(t, 0.5)]) / correction.TAU_F
+    )
+    assert correction.distance(np.array([0.0, 1.0, 2.0]), np.array([1.0, -1.0, 3.0])).tolist() == [
+        0.0,
+        1.0,
+        3.0,
+    ]

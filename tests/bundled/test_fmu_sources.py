@@ -40,8 +40,12 @@ class Instance:
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
         unzipped = extract(str(path), unzipdir=str(tmp_path / f"{path.stem}-{len(list(tmp_path.iterdir()))}"))
         kind = FMU2Slave if self.md.fmiVersion == "2.0" else FMU3Slave
-        self.fmu = kind(guid=self.md.guid, unzipDirectory=unzipped,
-                        modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName="test")
+        self.fmu = kind(
+            guid=self.md.guid,
+            unzipDirectory=unzipped,
+            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            instanceName="test",
+        )
         if kind is FMU3Slave and log is not None:
             self.fmu.instantiate(logMessage=lambda env, status, category, text: log.append(text.decode()))
         else:
@@ -77,8 +81,10 @@ def built(tmp_path_factory):
     return {p.name: build_fmu(p, cache) for p in (TYPES2, TYPES3, TANK, CONTROLLER)}
 
 
-@pytest.mark.parametrize("name, platform", [("types2", "linux64"), ("types3", "x86_64-linux"),
-                                            ("tank", "linux64"), ("controller", "linux64")])
+@pytest.mark.parametrize(
+    "name, platform",
+    [("types2", "linux64"), ("types3", "x86_64-linux"), ("tank", "linux64"), ("controller", "linux64")],
+)
 def test_fmu_builds_valid(built, name, platform):
     path = built[name]
     assert validate_fmu(str(path)) == []
@@ -86,19 +92,33 @@ def test_fmu_builds_valid(built, name, platform):
         assert f"binaries/{platform}/{name}.so" in fmu.namelist()
 
 
-@pytest.mark.parametrize("name, bounds", [
-    ("types2", {"real_gain": ("0", "10"), "int_offset": ("-100", "100"), "enum_in": ("1", "3")}),
-    ("types3", {"float64_gain": ("0", "10"), "int32_offset": ("-100", "100"), "enum_in": ("1", "3")}),
-])
+@pytest.mark.parametrize(
+    "name, bounds",
+    [
+        ("types2", {"real_gain": ("0", "10"), "int_offset": ("-100", "100"), "enum_in": ("1", "3")}),
+        ("types3", {"float64_gain": ("0", "10"), "int32_offset": ("-100", "100"), "enum_in": ("1", "3")}),
+    ],
+)
 def test_types_declare_bounds(built, name, bounds):
     variables = {v.name: v for v in read_model_description(str(built[name])).modelVariables}
     assert {n: (variables[n].min, variables[n].max) for n in bounds} == bounds
 
 
 def test_types2_outputs(built):
-    result = simulate_fmu(str(built["types2"]), stop_time=1.0, output_interval=STEP, start_values={
-        "real_in": 1.5, "real_gain": 3.0, "int_in": 3, "int_offset": 10, "enum_in": 2,
-        "bool_in": True, "string_in": "ab"})
+    result = simulate_fmu(
+        str(built["types2"]),
+        stop_time=1.0,
+        output_interval=STEP,
+        start_values={
+            "real_in": 1.5,
+            "real_gain": 3.0,
+            "int_in": 3,
+            "int_offset": 10,
+            "enum_in": 2,
+            "bool_in": True,
+            "string_in": "ab",
+        },
+    )
     n = np.arange(len(TIMES))
     assert np.allclose(result["time"], TIMES)
     assert np.allclose(result["real_out"], 3.0 * 1.5 + TIMES, rtol=0, atol=1e-12)
@@ -139,9 +159,23 @@ def test_types2_rejects_unknown_references(built, tmp_path):
 
 
 def test_types3_outputs(built):
-    result = simulate_fmu(str(built["types3"]), stop_time=1.0, output_interval=STEP, start_values={
-        "float64_in": 1.5, "float64_gain": 3.0, "float32_in": 3.0, "int32_in": 3, "int32_offset": 10,
-        "int64_in": 2**40, "uint16_in": 65535, "bool_in": True, "string_in": "ab", "enum_in": 2})
+    result = simulate_fmu(
+        str(built["types3"]),
+        stop_time=1.0,
+        output_interval=STEP,
+        start_values={
+            "float64_in": 1.5,
+            "float64_gain": 3.0,
+            "float32_in": 3.0,
+            "int32_in": 3,
+            "int32_offset": 10,
+            "int64_in": 2**40,
+            "uint16_in": 65535,
+            "bool_in": True,
+            "string_in": "ab",
+            "enum_in": 2,
+        },
+    )
     n = np.arange(len(TIMES))
     assert np.allclose(result["time"], TIMES)
     assert np.allclose(result["float64_out"], 3.0 * 1.5 + TIMES, rtol=0, atol=1e-12)
@@ -172,13 +206,16 @@ def test_types3_strings_time_and_reset(built, tmp_path):
         fmu.close()
 
 
-@pytest.mark.parametrize("call, message", [
-    (lambda f: f.fmu.getInt32([1]), "fmi3GetInt32: value reference 1 is a Float64 variable"),
-    (lambda f: f.fmu.getFloat64([99]), "fmi3GetFloat64: unknown value reference 99"),
-    (lambda f: f.fmu.setFloat64([0], [1.0]), "value reference 0 is the independent variable (time)"),
-    (lambda f: f.fmu.enterEventMode(), "fmi3EnterEventMode is not supported by this FMU"),
-    (lambda f: f.fmu.getBinary([1]), "fmi3GetBinary is not supported by this FMU"),
-])
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda f: f.fmu.getInt32([1]), "fmi3GetInt32: value reference 1 is a Float64 variable"),
+        (lambda f: f.fmu.getFloat64([99]), "fmi3GetFloat64: unknown value reference 99"),
+        (lambda f: f.fmu.setFloat64([0], [1.0]), "value reference 0 is the independent variable (time)"),
+        (lambda f: f.fmu.enterEventMode(), "fmi3EnterEventMode is not supported by this FMU"),
+        (lambda f: f.fmu.getBinary([1]), "fmi3GetBinary is not supported by this FMU"),
+    ],
+)
 def test_types3_refuses_with_a_message(built, tmp_path, call, message):
     log: list[str] = []
     fmu = Instance(built["types3"], tmp_path, log)
@@ -194,14 +231,19 @@ def test_types3_refuses_with_a_message(built, tmp_path, call, message):
 
 
 def test_tank_fills_with_the_valve_closed(built):
-    result = simulate_fmu(str(built["tank"]), stop_time=10.0, output_interval=0.5,
-                          start_values={"valvecontrol": 0.0})
+    result = simulate_fmu(
+        str(built["tank"]), stop_time=10.0, output_interval=0.5, start_values={"valvecontrol": 0.0}
+    )
     assert np.allclose(result["level"], 0.5 + 0.2 * result["time"], rtol=0, atol=1e-9)
 
 
 def test_tank_drains_exponentially_with_the_valve_open(built):
-    result = simulate_fmu(str(built["tank"]), stop_time=10.0, output_interval=0.5,
-                          start_values={"valvecontrol": 1.0, "initial_level": 2.0})
+    result = simulate_fmu(
+        str(built["tank"]),
+        stop_time=10.0,
+        output_interval=0.5,
+        start_values={"valvecontrol": 1.0, "initial_level": 2.0},
+    )
     # area * dl/dt = inflow - k * l: relaxes towards inflow / k = 0.5 m at rate k / area = 0.4 / s
     expected = 0.5 + 1.5 * np.exp(-0.4 * result["time"])
     assert np.allclose(result["level"], expected, rtol=0, atol=1e-9)
@@ -209,10 +251,12 @@ def test_tank_drains_exponentially_with_the_valve_open(built):
 
 def test_controller_switches_with_hysteresis(built):
     # a level going 0.05 -> 3.05 -> 0.05 -> 3.05 m, so no communication point lands on a threshold
-    ramp = np.array([(0.0, 0.05), (3.0, 3.05), (6.0, 0.05), (9.0, 3.05)],
-                    dtype=[("time", float), ("level", float)])
-    result = simulate_fmu(str(built["controller"]), stop_time=9.0, output_interval=0.1, input=ramp,
-                          output=["valve"])
+    ramp = np.array(
+        [(0.0, 0.05), (3.0, 3.05), (6.0, 0.05), (9.0, 3.05)], dtype=[("time", float), ("level", float)]
+    )
+    result = simulate_fmu(
+        str(built["controller"]), stop_time=9.0, output_interval=0.1, input=ramp, output=["valve"]
+    )
     valve = [bool(v) for v in result["valve"]]
     assert not valve[0]  # starts closed
     # The level read at the start of a step decides the valve at its end.
@@ -244,7 +288,7 @@ def test_tank_and_controller_oscillate_between_the_thresholds(built, tmp_path):
         controller.close()
     openings = sum(1 for a, b in itertools.pairwise(valves) if b and not a)
     assert openings >= 3
-    after_first_fill = levels[levels.index(next(x for x in levels if x >= 2.0)):]
+    after_first_fill = levels[levels.index(next(x for x in levels if x >= 2.0)) :]
     # one step of controller delay lets the level pass a threshold by at most a step's change
     assert 1.0 - 0.1 < min(after_first_fill) and max(after_first_fill) < 2.0 + 0.05
     assert math.isclose(levels[0], 0.5)
@@ -261,8 +305,19 @@ def test_pythonfmu_slave_runs_in_process(tmp_path):
 
     path = build_pythonfmu(tmp_path / "built")
     assert validate_fmu(str(path)) == []
-    result = simulate_fmu(str(path), stop_time=1.0, output_interval=STEP, start_values={
-        "real_in": 1.5, "gain": 3.0, "int_in": 3, "offset": 10, "bool_in": True, "string_in": "ab"})
+    result = simulate_fmu(
+        str(path),
+        stop_time=1.0,
+        output_interval=STEP,
+        start_values={
+            "real_in": 1.5,
+            "gain": 3.0,
+            "int_in": 3,
+            "offset": 10,
+            "bool_in": True,
+            "string_in": "ab",
+        },
+    )
     n = np.arange(len(TIMES))
     # outputs keep their start values until the first step
     assert np.allclose(result["real_out"], np.where(n > 0, 4.5 + TIMES, 0.0), rtol=0, atol=1e-12)

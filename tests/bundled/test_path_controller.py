@@ -32,12 +32,16 @@ VEHICLE_MASS, VEHICLE_KV = 1500.0, 8000.0  # the baseline vehicle's defaults (do
 
 def write_multimodel(folder: Path, vehicle: str = "robotti_vehicle") -> Path:
     path = folder / f"path-following-{vehicle}.yaml"
-    path.write_text(yaml.safe_dump({
-        "fmus": {"controller": "bundled:fmus/path_controller", "vehicle": f"bundled:fmus/{vehicle}"},
-        "connections": CONNECTIONS,
-        "parameters": {"vehicle.rk4_step": 0.001},
-        "step": STEP,
-    }))
+    path.write_text(
+        yaml.safe_dump(
+            {
+                "fmus": {"controller": "bundled:fmus/path_controller", "vehicle": f"bundled:fmus/{vehicle}"},
+                "connections": CONNECTIONS,
+                "parameters": {"vehicle.rk4_step": 0.001},
+                "step": STEP,
+            }
+        )
+    )
     return path
 
 
@@ -57,13 +61,16 @@ def defaults():
     from fmpy.model_description import read_model_description
 
     md = read_model_description(str(FMU_SOURCES / "path_controller" / "modelDescription.xml"), validate=False)
-    return {v.name: float(v.start) for v in md.modelVariables
-            if v.causality == "parameter" and v.type == "Real"}
+    return {
+        v.name: float(v.start) for v in md.modelVariables if v.causality == "parameter" and v.type == "Real"
+    }
 
 
 def write_path(folder: Path, points, name: str = "path.csv") -> Path:
     path = folder / name
-    path.write_text("x,y,speed\n" + "".join(f"{float(x)!r},{float(y)!r},{float(v)!r}\n" for x, y, v in points))
+    path.write_text(
+        "x,y,speed\n" + "".join(f"{float(x)!r},{float(y)!r},{float(v)!r}\n" for x, y, v in points)
+    )
     return path
 
 
@@ -125,15 +132,22 @@ def test_offset_from_a_straight_row_decays(plan, tmp_path, defaults, speed):
 @pytest.mark.parametrize("max_steer, max_steer_rate", [(0.05, 0.3), (0.3, 0.02)])
 def test_steering_stays_within_its_angle_and_rate_limits(plan, tmp_path, max_steer, max_steer_rate):
     row = write_path(tmp_path, [(0.0, 0.0, 1.0), (100.0, 0.0, 1.0)])
-    traj = drive(plan, row, 20.0, vehicle__y0=4.0, controller__max_steer=max_steer,
-                 controller__max_steer_rate=max_steer_rate)
+    traj = drive(
+        plan,
+        row,
+        20.0,
+        vehicle__y0=4.0,
+        controller__max_steer=max_steer,
+        controller__max_steer_rate=max_steer_rate,
+    )
     delta = traj.column("controller.delta_f")
     rate = np.diff(delta) / np.diff(traj.time)
     assert np.abs(delta).max() <= max_steer * (1 + 1e-12)
     assert np.abs(rate).max() <= max_steer_rate * (1 + 1e-9)
     # The limits are reached, so the checks above are not vacuous...
     assert np.abs(delta).max() == pytest.approx(max_steer, rel=1e-9) or np.abs(rate).max() == pytest.approx(
-        max_steer_rate, rel=1e-9)
+        max_steer_rate, rel=1e-9
+    )
     # ...and the reported steering rate is the one applied.
     assert np.allclose(traj.column("controller.steering_rate")[1:], rate, atol=1e-9)
 
@@ -141,8 +155,11 @@ def test_steering_stays_within_its_angle_and_rate_limits(plan, tmp_path, max_ste
 # ---- 3. sign conventions ------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("heading, side", [(0.0, +1), (0.0, -1), (math.pi, +1), (math.pi, -1)],
-                         ids=["east-left", "east-right", "west-left", "west-right"])
+@pytest.mark.parametrize(
+    "heading, side",
+    [(0.0, +1), (0.0, -1), (math.pi, +1), (math.pi, -1)],
+    ids=["east-left", "east-right", "west-left", "west-right"],
+)
 def test_a_vehicle_left_of_the_row_is_steered_right(plan, tmp_path, heading, side):
     """side +1: the vehicle starts 1 m to the LEFT of the row in the direction of travel."""
     direction = math.cos(heading)  # +1 east, -1 west
@@ -206,7 +223,7 @@ def test_target_speed_is_linear_in_arc_length_and_the_vehicle_stops_past_the_end
     # Once the controller is given a pose past the last waypoint its command is 0, for good (it is given
     # the pose at t - step), and the vehicle comes to rest.
     past = np.flatnonzero(x > length)[0]
-    assert np.all(velocity[past + 1:] == 0.0) and velocity[past] > 0.0
+    assert np.all(velocity[past + 1 :] == 0.0) and velocity[past] > 0.0
     assert progress[-1] == pytest.approx(length)
     assert abs(traj.column("vehicle.vx")[-1]) < 1e-3
     assert x[-1] - length < 0.5
@@ -220,8 +237,11 @@ BAD_PATHS = [
     ("bad header", "x,y,velocity\n0,0,1\n5,0,1\n", "{path} line 1: header has no 'speed' column"),
     ("not a number", "x,y,speed\n0,0,1\n5,abc,1\n", "{path} line 3: field 2 is not a number"),
     ("one point", "x,y,speed\n0,0,1\n", "{path} line 2: the path needs at least 2 waypoints"),
-    ("repeated point", "x,y,speed\n0,0,1\n5,0,1\n5,0,2\n",
-     "{path} line 4: waypoint (5, 0) equals the previous one (line 3)"),
+    (
+        "repeated point",
+        "x,y,speed\n0,0,1\n5,0,1\n5,0,2\n",
+        "{path} line 4: waypoint (5, 0) equals the previous one (line 3)",
+    ),
     ("too few fields", "x,y,speed\n0,0,1\n5,0\n", "{path} line 3: expected 3 fields, got 2"),
     ("negative speed", "speed,x,y\n1,0,0\n-1,5,0\n", "{path} line 3: speed -1 is negative"),
 ]
@@ -248,8 +268,10 @@ def test_a_bad_parameter_fails_naming_it(plan, tmp_path):
 def u_turn(radius: float, row: float, speed: float, spacing: float = 0.25):
     """Out along y = 0, a left half circle, back along y = 2 radius: a path that folds back."""
     out = [(x, 0.0, speed) for x in np.arange(0.0, row, spacing)]
-    turn = [(row + radius * math.sin(a), radius - radius * math.cos(a), speed)
-            for a in np.arange(0.0, math.pi, spacing / radius)]
+    turn = [
+        (row + radius * math.sin(a), radius - radius * math.cos(a), speed)
+        for a in np.arange(0.0, math.pi, spacing / radius)
+    ]
     back = [(x, 2 * radius, speed) for x in np.arange(row, -1e-9, -spacing)]
     return out + turn + back
 
@@ -306,21 +328,34 @@ def test_runs_repeat_exactly_and_instances_share_nothing(tmp_path, plan):
     drive(plan, row, 10.0, vehicle__y0=-2.0, controller__omega_c=1.0)
     assert np.array_equal(near.values, drive(plan, row, 10.0, vehicle__y0=0.5).values)
     far = drive(plan, row, 10.0, vehicle__y0=-2.0)
+
     # Two controller-vehicle pairs in one co-simulation run as each does alone.
     def renamed(ref: str, pair: str) -> str:
         return ref.replace("controller.", f"{pair}_ctrl.").replace("vehicle.", f"{pair}_veh.")
 
     pairs = {"fmus": {}, "connections": {}, "step": STEP}
     for name in ("a", "b"):
-        pairs["fmus"].update({f"{name}_ctrl": "bundled:fmus/path_controller",
-                              f"{name}_veh": "bundled:fmus/robotti_vehicle"})
+        pairs["fmus"].update(
+            {f"{name}_ctrl": "bundled:fmus/path_controller", f"{name}_veh": "bundled:fmus/robotti_vehicle"}
+        )
         for source, targets in CONNECTIONS.items():
             pairs["connections"][renamed(source, name)] = [renamed(t, name) for t in targets]
     mm = tmp_path / "pairs.yaml"
     mm.write_text(yaml.safe_dump(pairs))
-    both = simulate(mm, values={"a_ctrl.file": str(row), "b_ctrl.file": str(row), "a_veh.y0": 0.5,
-                                "b_veh.y0": -2.0, "a_veh.rk4_step": 0.001, "b_veh.rk4_step": 0.001},
-                    stop_time=10.0, step=STEP, objectives=[]).trajectory
+    both = simulate(
+        mm,
+        values={
+            "a_ctrl.file": str(row),
+            "b_ctrl.file": str(row),
+            "a_veh.y0": 0.5,
+            "b_veh.y0": -2.0,
+            "a_veh.rk4_step": 0.001,
+            "b_veh.rk4_step": 0.001,
+        },
+        stop_time=10.0,
+        step=STEP,
+        objectives=[],
+    ).trajectory
     for name, alone in (("a", near), ("b", far)):
         for signal in ("controller.delta_f", "controller.cross_track", "vehicle.y"):
             assert np.array_equal(both.column(renamed(signal, name)), alone.column(signal)), signal

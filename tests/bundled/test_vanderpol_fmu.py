@@ -48,8 +48,14 @@ def ours(fmu: Path, mu: float) -> np.ndarray:
 
 
 def fmpy_trajectory(fmu: Path, mu: float) -> np.ndarray:
-    result = simulate_fmu(str(fmu), stop_time=STOP, step_size=STEP, output_interval=STEP,
-                          start_values={"mu": mu}, output=["x0", "x1"])
+    result = simulate_fmu(
+        str(fmu),
+        stop_time=STOP,
+        step_size=STEP,
+        output_interval=STEP,
+        start_values={"mu": mu},
+        output=["x0", "x1"],
+    )
     return np.column_stack([result["x0"], result["x1"]])
 
 

@@ -17,7 +17,9 @@ from dse_runner.simulation.scenario import load_scenario
 
 def test_every_pair_of_library_effects_is_a_case():
     effects = [h for h in LIBRARY if h != "none"]
-    assert {frozenset(blind.CASES[p].effects) for p in blind.PAIRS} == {frozenset(c) for c in combinations(effects, 2)}
+    assert {frozenset(blind.CASES[p].effects) for p in blind.PAIRS} == {
+        frozenset(c) for c in combinations(effects, 2)
+    }
     for pair in blind.PAIRS:
         case = blind.CASES[pair]
         assert case.truth == {k: v for e in case.effects for k, v in blind.EFFECTS[e].items()}
@@ -31,7 +33,9 @@ def test_steer_steps_steps_the_steering_while_moving():
     assert t[-1] == pytest.approx(info["duration"])
     assert set(np.round(steer, 4)) == {0.0, 0.1, -0.1}
     jumps = t[1:][np.diff(steer) != 0]
-    assert np.allclose(np.diff(jumps), 5.0) and np.all(speed[steer != 0] > 0)  # a step every 5 s, never at rest
+    assert np.allclose(np.diff(jumps), 5.0) and np.all(
+        speed[steer != 0] > 0
+    )  # a step every 5 s, never at rest
 
 
 def test_a_recorded_synthetic_run_is_a_field_data_scenario(tmp_path):
@@ -48,10 +52,12 @@ def test_a_recorded_synthetic_run_is_a_field_data_scenario(tmp_path):
 def antenna(folder, name: str, case: blind.Case, values: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
     """A recorded run's fixes (t, x, y) and the truth's antenna simulated with ``values`` at the fix times."""
     fixes = np.loadtxt(folder / name / "gps_position.csv", delimiter=",", skiprows=1)
-    traj = simulate(blind.truth_plan(case.vehicle), load_scenario(folder / name), values, objectives=(),
-                    step=blind.STEP).trajectory
-    track = np.column_stack([np.interp(fixes[:, 0], traj.time, traj.column(f"vehicle.gps_{a}"))
-                             for a in "xy"])
+    traj = simulate(
+        blind.truth_plan(case.vehicle), load_scenario(folder / name), values, objectives=(), step=blind.STEP
+    ).trajectory
+    track = np.column_stack(
+        [np.interp(fixes[:, 0], traj.time, traj.column(f"vehicle.gps_{a}")) for a in "xy"]
+    )
     return fixes, track
 
 
@@ -74,8 +80,9 @@ def test_cases_outside_the_library_are_recorded_by_the_truth_with_their_effect(t
 
 
 def test_the_new_synthetic_runs_vary_what_their_effects_depend_on():
-    slow, fast = (np.loadtxt(blind.synthetic_run(n, 20.0)[1][1:], delimiter=",")
-                  for n in ("slalom_slow", "slalom_fast"))
+    slow, fast = (
+        np.loadtxt(blind.synthetic_run(n, 20.0)[1][1:], delimiter=",") for n in ("slalom_slow", "slalom_fast")
+    )
     assert np.array_equal(slow[:, 2], fast[:, 2])  # the same steering
     assert set(slow[slow[:, 0] >= 1, 1]) == {0.8} and set(fast[fast[:, 0] >= 1, 1]) == {2.0}
     info, lines = blind.synthetic_run("loop", blind.SECONDS)

@@ -27,6 +27,7 @@ def cases(tmp_path_factory, dask_scheduler):
 
     made: dict = {}
     with Client(dask_scheduler) as client:
+
         def case(effect: str):
             if effect not in made:
                 root = tmp_path_factory.mktemp(effect)
@@ -54,8 +55,13 @@ def test_a_concealed_effect_is_named_sized_and_fixed(cases, effect):
 # concealed together in steering (a delay and a lag, which the synthetic steering steps tell apart) and in
 # speed (slip attenuates, a lag delays); and an input effect with an output one (a steering offset drifts on
 # straights, the antenna's lever arm is a constant offset in the vehicle frame).
-CI_PAIRS = ["wheel_slip+steering_lag", "steering_lag+time_offset", "wheel_slip+speed_lag",
-            "steering_offset+antenna_offset"]
+CI_PAIRS = [
+    "wheel_slip+steering_lag",
+    "steering_lag+time_offset",
+    "wheel_slip+speed_lag",
+    "steering_offset+antenna_offset",
+]
+
 
 @pytest.mark.parametrize("pair", CI_PAIRS)
 def test_concealed_pairs_are_both_named(cases, pair):
@@ -64,7 +70,8 @@ def test_concealed_pairs_are_both_named(cases, pair):
     _, _, _, result = cases(pair)
     named = blind.top_two(result)
     assert set(blind.CASES[pair].effects) <= set(named), (
-        f"named {named}, candidates {[(c.label, round(c.cross_validated, 4)) for c in result.candidates]}")
+        f"named {named}, candidates {[(c.label, round(c.cross_validated, 4)) for c in result.candidates]}"
+    )
     assert result.cross_track_after <= 0.5 * result.cross_track_before
     assert result.verdict == "explained"
 
@@ -78,7 +85,11 @@ def test_an_effect_outside_the_library_is_discovered(cases):
     assert found, f"verdict {result.verdict}, discovery {result.to_json()['discovery']}"
     assert found[0]["held_out_with"] <= 0.5 * found[0]["held_out_without"]
     assert all(e["partial"] for e in result.effects if e["id"] != "discovered")
-    assert result.verdict == "discovered" and found[0]["terms"] and found[0]["terms"][0]["text"].startswith("δ += ")
+    assert (
+        result.verdict == "discovered"
+        and found[0]["terms"]
+        and found[0]["terms"][0]["text"].startswith("δ += ")
+    )
     assert "**Verdict: discovered.**" in result.files["report"].read_text()
     assert any(k.startswith("vehicle.corr_") for k in load_space(result.files["space"]).parameters)
 
@@ -181,8 +192,20 @@ def test_report_and_figures_are_written(cases):
 
 def test_cli_json_resumes_from_the_store(cases, dask_scheduler):
     root, runs, space, result = cases("time_offset")
-    done = dse_runner("diagnose", "--scenarios", runs, "--space", space, "--out", root / "out", "--folds", "2",
-                      "--scheduler", dask_scheduler, "--json")
+    done = dse_runner(
+        "diagnose",
+        "--scenarios",
+        runs,
+        "--space",
+        space,
+        "--out",
+        root / "out",
+        "--folds",
+        "2",
+        "--scheduler",
+        dask_scheduler,
+        "--json",
+    )
     assert done.returncode == 0, done.stderr
     printed = strict_loads(done.stdout)
     assert [e["id"] for e in printed["effects"]] == [e["id"] for e in result.effects]

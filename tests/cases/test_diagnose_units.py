@@ -37,9 +37,19 @@ def truth(t: np.ndarray, cmd_t: np.ndarray, cmd_v: np.ndarray) -> tuple[np.ndarr
     return 12.0 * np.sin(s / 12.0), 12.0 * (1 - np.cos(s / 12.0))
 
 
-def write_run(folder: Path, name: str, sigma: float, seed: int, dropout: float = 0.1, outage: float = 5.0,
-              duration: float = 60.0, rest_start: float = 2.0, rest_end: float = 6.0, colour: float = 0.0,
-              creep: float = 0.0) -> Path:
+def write_run(
+    folder: Path,
+    name: str,
+    sigma: float,
+    seed: int,
+    dropout: float = 0.1,
+    outage: float = 5.0,
+    duration: float = 60.0,
+    rest_start: float = 2.0,
+    rest_end: float = 6.0,
+    colour: float = 0.0,
+    creep: float = 0.0,
+) -> Path:
     """A run in the field-data format: noisy fixes at 10 Hz with random dropouts and one outage.
     ``colour`` makes the noise AR(1) with that coefficient (same marginal σ); ``creep`` [m/s] moves the
     vehicle along x while its speed command is 0, as a slope does against the drive's hold."""
@@ -48,10 +58,18 @@ def write_run(folder: Path, name: str, sigma: float, seed: int, dropout: float =
     run.mkdir(parents=True)
     cmd_t, cmd_v = commands(duration, rest_start, rest_end)
     (run / "steering_inputs.csv").write_text(
-        "time,velocity,delta_f\n" + "".join(f"{t:.2f},{v:.3f},0.0000\n" for t, v in zip(cmd_t, cmd_v)))
-    (run / "scenario.yaml").write_text(yaml.safe_dump({
-        "name": name, "group": "synthetic", "duration": duration,
-        "initial_pose": {"x": 0.0, "y": 0.0, "theta": 0.0}}))
+        "time,velocity,delta_f\n" + "".join(f"{t:.2f},{v:.3f},0.0000\n" for t, v in zip(cmd_t, cmd_v))
+    )
+    (run / "scenario.yaml").write_text(
+        yaml.safe_dump(
+            {
+                "name": name,
+                "group": "synthetic",
+                "duration": duration,
+                "initial_pose": {"x": 0.0, "y": 0.0, "theta": 0.0},
+            }
+        )
+    )
     t = np.round(np.arange(0.0, duration + 1e-9, PERIOD), 2)
     x, y = truth(t, cmd_t, cmd_v)
     still = np.interp(t, cmd_t, cmd_v) == 0
@@ -61,11 +79,11 @@ def write_run(folder: Path, name: str, sigma: float, seed: int, dropout: float =
         noise_xy = np.empty_like(white)
         noise_xy[:, 0] = white[:, 0]
         for k in range(1, t.size):
-            noise_xy[:, k] = colour * noise_xy[:, k - 1] + math.sqrt(1 - colour ** 2) * white[:, k]
+            noise_xy[:, k] = colour * noise_xy[:, k - 1] + math.sqrt(1 - colour**2) * white[:, k]
         white = noise_xy
     keep = rng.random(t.size) >= dropout
     start = int(rng.integers(t.size // 4, t.size // 2))
-    keep[start:start + int(round(outage / PERIOD))] = False
+    keep[start : start + int(round(outage / PERIOD))] = False
     keep[0] = True
     rows = []
     for k in range(t.size):  # a dropout is a missing row or an empty row: both occur in the field
@@ -78,8 +96,10 @@ def write_run(folder: Path, name: str, sigma: float, seed: int, dropout: float =
 
 
 def scenarios(folder: Path, sigma: float, runs: int = 4, **options) -> list:
-    return [load_run(write_run(folder, f"run{k}", sigma, seed=100 * k + int(sigma * 1000), **options))
-            for k in range(runs)]
+    return [
+        load_run(write_run(folder, f"run{k}", sigma, seed=100 * k + int(sigma * 1000), **options))
+        for k in range(runs)
+    ]
 
 
 @pytest.mark.parametrize("sigma", [0.02, 0.05])
@@ -137,7 +157,9 @@ def test_rest_windows():
     v[(t >= 12.0) & (t < 13.0)] = 1.0  # a 2 s stop from 10 to 12 s
     windows = noise.rest_windows(t, v, end=20.0)
     assert windows == [(pytest.approx(10.5), pytest.approx(12.0)), (pytest.approx(13.5), pytest.approx(20.0))]
-    assert noise.rest_windows(t, np.zeros_like(t), end=20.0) == [(0.0, 20.0)]  # at rest from the start: no settling
+    assert noise.rest_windows(t, np.zeros_like(t), end=20.0) == [
+        (0.0, 20.0)
+    ]  # at rest from the start: no settling
 
 
 def test_no_estimate_without_usable_fixes():
@@ -149,14 +171,18 @@ def test_no_estimate_without_usable_fixes():
 
 # ---- verdicts, partial and runner-up on constructed candidates ---------------------------------------
 
-@pytest.mark.parametrize("held_out, floor, chosen, expected", [
-    (0.03, 0.02, False, "none"),
-    (0.05, 0.02, False, "unexplained"),
-    (0.04, 0.02, True, "explained"),  # exactly at 2x: still noise
-    (0.041, 0.02, True, "partial"),
-    (0.5, None, True, "explained"),  # no floor: claim no more than the library's rule
-    (0.5, None, False, "none"),
-])
+
+@pytest.mark.parametrize(
+    "held_out, floor, chosen, expected",
+    [
+        (0.03, 0.02, False, "none"),
+        (0.05, 0.02, False, "unexplained"),
+        (0.04, 0.02, True, "explained"),  # exactly at 2x: still noise
+        (0.041, 0.02, True, "partial"),
+        (0.5, None, True, "explained"),  # no floor: claim no more than the library's rule
+        (0.5, None, False, "none"),
+    ],
+)
 def test_verdict(held_out, floor, chosen, expected):
     assert explain.verdict(held_out, floor, 2.0, chosen) == expected
 
@@ -168,22 +194,31 @@ def test_a_discovered_correction_is_the_answer_only_down_to_the_noise(chosen):
     assert explain.verdict(0.041, 0.02, 2.0, chosen, discovered=True) == "partial"
 
 
-def candidate(ids: tuple[str, ...], held_out: list[float], sse: float, values: dict[str, float] | None = None
-              ) -> Candidate:
+def candidate(
+    ids: tuple[str, ...], held_out: list[float], sse: float, values: dict[str, float] | None = None
+) -> Candidate:
     names = ["vehicle.mass", *(values or {})]
     allv = {"vehicle.mass": 1800.0, **(values or {})}
-    fit = FitResult("+".join(ids) or "none", names, allv, sse, 1000, 5, True, {n: 0.001 for n in names}, [], {})
+    fit = FitResult(
+        "+".join(ids) or "none", names, allv, sse, 1000, 5, True, {n: 0.001 for n in names}, [], {}
+    )
     return Candidate(ids, fit, held_out={f"run{k}": v for k, v in enumerate(held_out)})
 
 
 def table() -> list[Candidate]:
-    return explain.ranked([
-        candidate((), [1.0, 1.2, 0.9, 1.1], 400.0),
-        candidate(("wheel_slip",), [0.12, 0.13, 0.11, 0.12], 20.0, {"vehicle.wheel_slip": 0.08}),
-        candidate(("time_offset",), [0.30, 0.35, 0.10, 0.31], 60.0, {"vehicle.time_offset": 0.3}),
-        candidate(("wheel_slip", "antenna_offset"), [0.118, 0.129, 0.112, 0.119], 19.0,
-                  {"vehicle.wheel_slip": 0.08, "vehicle.antenna_x": 0.01, "vehicle.antenna_y": 0.0}),
-    ])
+    return explain.ranked(
+        [
+            candidate((), [1.0, 1.2, 0.9, 1.1], 400.0),
+            candidate(("wheel_slip",), [0.12, 0.13, 0.11, 0.12], 20.0, {"vehicle.wheel_slip": 0.08}),
+            candidate(("time_offset",), [0.30, 0.35, 0.10, 0.31], 60.0, {"vehicle.time_offset": 0.3}),
+            candidate(
+                ("wheel_slip", "antenna_offset"),
+                [0.118, 0.129, 0.112, 0.119],
+                19.0,
+                {"vehicle.wheel_slip": 0.08, "vehicle.antenna_x": 0.01, "vehicle.antenna_y": 0.0},
+            ),
+        ]
+    )
 
 
 def test_runner_up_is_the_best_candidate_that_is_no_subset_of_the_chosen():
@@ -215,10 +250,24 @@ def diagnosis(chosen_ids: tuple[str, ...], floor: float, factor: float = 2.0) ->
     chosen = next(c for c in cands if c.ids == chosen_ids)
     baseline = next(c for c in cands if not c.ids)
     sigma = floor / noise.MEAN_DISTANCE
-    nf = noise.NoiseFloor(sigma, floor, noise.CLOSE_FIXES, 5000, {"run0": sigma},
-                          {noise.CLOSE_FIXES: noise.Estimate(sigma, 5000)}, 0.02)
-    return Diagnosis(Path("/nowhere"), {"vehicle": "vehicle"}, cands, chosen, baseline, DiagnosisSettings(noise_factor=factor),
-                     floor=nf)
+    nf = noise.NoiseFloor(
+        sigma,
+        floor,
+        noise.CLOSE_FIXES,
+        5000,
+        {"run0": sigma},
+        {noise.CLOSE_FIXES: noise.Estimate(sigma, 5000)},
+        0.02,
+    )
+    return Diagnosis(
+        Path("/nowhere"),
+        {"vehicle": "vehicle"},
+        cands,
+        chosen,
+        baseline,
+        DiagnosisSettings(noise_factor=factor),
+        floor=nf,
+    )
 
 
 def test_json_verdict_partial_and_runner_up():
@@ -227,8 +276,16 @@ def test_json_verdict_partial_and_runner_up():
     assert [e["partial"] for e in explained["effects"]] == [False]
     assert explained["cross_track_after"] == pytest.approx(0.12)  # the existing keys keep their meaning
     assert explained["noise_floor"] | {"per_run": None, "estimates": None} == {
-        "sigma": pytest.approx(0.1 / noise.MEAN_DISTANCE), "cross_track": 0.1, "method": "close_fixes",
-        "fixes": 5000, "rho1": 0.02, "factor": 2.0, "ratio": pytest.approx(1.2), "per_run": None, "estimates": None}
+        "sigma": pytest.approx(0.1 / noise.MEAN_DISTANCE),
+        "cross_track": 0.1,
+        "method": "close_fixes",
+        "fixes": 5000,
+        "rho1": 0.02,
+        "factor": 2.0,
+        "ratio": pytest.approx(1.2),
+        "per_run": None,
+        "estimates": None,
+    }
     assert explained["runner_up"]["id"] == "wheel_slip+antenna_offset"
     assert explained["runner_up"]["runs_better"] == "1/4"  # run2 only: the pair is a hair better elsewhere
     assert explained["runner_up"]["delta_held_out"] < 0
@@ -239,8 +296,15 @@ def test_json_verdict_partial_and_runner_up():
 
     unexplained = diagnosis((), floor=0.025).to_json()
     assert unexplained["verdict"] == "unexplained"
-    assert unexplained["effects"] == [{"id": "none", "name": unexplained["effects"][0]["name"], "parameters": {},
-                                       "interval": {}, "partial": False}]
+    assert unexplained["effects"] == [
+        {
+            "id": "none",
+            "name": unexplained["effects"][0]["name"],
+            "parameters": {},
+            "interval": {},
+            "partial": False,
+        }
+    ]
 
 
 def test_report_words(tmp_path):
@@ -276,10 +340,17 @@ def test_an_effect_fitted_to_nothing_ties_rather_than_wins_runs():
 
 # ---- the screen and the selection --------------------------------------------------------------------------
 
-BASE = (Parameter("vehicle.mass", 2400.0, 1000.0, 3000.0, 20.0),
-        Parameter("vehicle.cAlphaF", 30000.0, 20000.0, 38000.0, 180.0))
+BASE = (
+    Parameter("vehicle.mass", 2400.0, 1000.0, 3000.0, 20.0),
+    Parameter("vehicle.cAlphaF", 30000.0, 20000.0, 38000.0, 180.0),
+)
 SCREENED = ("wheel_slip", "steering_lag", "speed_lag", "steering_offset", "time_offset")
-TRUTH = {"vehicle.mass": 1800.0, "vehicle.cAlphaF": 26000.0, "vehicle.wheel_slip": 0.08, "vehicle.steering_lag": 0.4}
+TRUTH = {
+    "vehicle.mass": 1800.0,
+    "vehicle.cAlphaF": 26000.0,
+    "vehicle.wheel_slip": 0.08,
+    "vehicle.steering_lag": 0.4,
+}
 
 
 def masked_residuals(runs: int = 3, fixes: int = 150, seed: int = 7):
@@ -309,10 +380,12 @@ def masked_residuals(runs: int = 3, fixes: int = 150, seed: int = 7):
 
 def fitted(ids: tuple[str, ...], residuals, scenarios) -> FitResult:
     """A real Levenberg-Marquardt fit (fit.py's ask/tell machine), told the synthetic residuals."""
-    params = BASE + tuple(Parameter(f"vehicle.{p.variable}", 0.0, p.lower, p.upper, p.step)
-                          for h in ids for p in LIBRARY[h].parameters)
-    fixed = {f"vehicle.{v}": 0.0 for h in SCREENED for v in LIBRARY[h].variables
-             if h not in ids}
+    params = BASE + tuple(
+        Parameter(f"vehicle.{p.variable}", 0.0, p.lower, p.upper, p.step)
+        for h in ids
+        for p in LIBRARY[h].parameters
+    )
+    fixed = {f"vehicle.{v}": 0.0 for h in SCREENED for v in LIBRARY[h].variables if h not in ids}
     solver = LevenbergMarquardt(FitProblem("+".join(ids) or "none", params, fixed, scenarios, 30))
     while not solver.done:
         solver.ask()
@@ -329,7 +402,9 @@ def test_the_screen_finds_a_masked_pair_neither_effect_of_which_passes_alone():
     # the fit exposes its final Jacobian: on linear residuals, exactly the model's columns
     assert len(none.jacobian) == len(scenarios) and none.jacobian[0].shape == (300, len(BASE))
     moved = dict(none.point, **{"vehicle.mass": none.point["vehicle.mass"] + 1.0})
-    assert np.allclose(none.jacobian[0][:, 0], residuals(moved, scenarios[0]) - residuals(none.point, scenarios[0]))
+    assert np.allclose(
+        none.jacobian[0][:, 0], residuals(moved, scenarios[0]) - residuals(none.point, scenarios[0])
+    )
     assert np.allclose(np.concatenate(none.residuals) @ np.concatenate(none.residuals), none.sse)
 
     asked: list[int] = []
@@ -346,7 +421,9 @@ def test_the_screen_finds_a_masked_pair_neither_effect_of_which_passes_alone():
     assert {x.ids for x in seen if len(x.ids) == 2} == set(screen.pairs_of(SCREENED))  # every pair
     best = seen[0]
     assert best.ids == ("wheel_slip", "steering_lag")
-    assert best.sse == pytest.approx(best.predicted_sse, rel=1e-6)  # linear: the check confirms the prediction
+    assert best.sse == pytest.approx(
+        best.predicted_sse, rel=1e-6
+    )  # linear: the check confirms the prediction
     assert best.start["vehicle.wheel_slip"] == pytest.approx(0.08, rel=0.02)
     assert best.start["vehicle.steering_lag"] == pytest.approx(0.4, rel=0.02)
     assert best.sse < 0.2 * none.sse and best.bic < explain.bic(none) - explain.BIC_MARGIN
@@ -365,7 +442,9 @@ def test_the_prediction_keeps_to_the_bounds():
     negative = dict(lin.point, **{"vehicle.wheel_slip": 0.0})
     flipped = screen.Linearisation(lin.anchor, negative, lin.names, lin.owners, -lin.jacobian, lin.residuals)
     delta, _ = screen.predict(flipped, ("wheel_slip", "steering_lag"), entries)
-    assert delta["vehicle.wheel_slip"] >= 0.0 and delta["vehicle.steering_lag"] >= 0.0  # slip and lag are >= 0
+    assert (
+        delta["vehicle.wheel_slip"] >= 0.0 and delta["vehicle.steering_lag"] >= 0.0
+    )  # slip and lag are >= 0
     assert all(entries[n][1].lower <= lin.point[n] + d <= entries[n][1].upper for n, d in delta.items())
 
 
@@ -405,8 +484,19 @@ def test_the_bic_gate_and_the_order_of_effects():
 def test_fitted_error_is_equation_1_on_the_fitted_runs():
     from dse_runner.cases.robotti_diagnosis.workflow import fitted_error
 
-    fit = FitResult("x", [], {}, 0.0, 4, 1, True, {}, [], {},
-                    residuals=[np.array([3.0, 0.0, 4.0, 1.0]), np.array([0.0, 2.0])])
+    fit = FitResult(
+        "x",
+        [],
+        {},
+        0.0,
+        4,
+        1,
+        True,
+        {},
+        [],
+        {},
+        residuals=[np.array([3.0, 0.0, 4.0, 1.0]), np.array([0.0, 2.0])],
+    )
     assert fitted_error(fit) == pytest.approx(((5.0 + 1.0) / 2 + 2.0) / 2)
 
 
@@ -414,7 +504,9 @@ def test_the_stop_rule_screens_only_when_a_fit_leaves_more_than_noise():
     from dse_runner.cases.robotti_diagnosis import worth_screening
 
     def fitted_to(error: float) -> Candidate:  # every fix off by ``error`` along x
-        fit = FitResult("x", [], {}, 0.0, 4, 1, True, {}, [], {}, residuals=[np.array([error, error, 0.0, 0.0])])
+        fit = FitResult(
+            "x", [], {}, 0.0, 4, 1, True, {}, [], {}, residuals=[np.array([error, error, 0.0, 0.0])]
+        )
         return Candidate((), fit)
 
     floor, settings = 0.025, DiagnosisSettings()
@@ -440,10 +532,23 @@ def command_log() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return t, speed, steering
 
 
-@pytest.mark.parametrize("time, kind", [(0.5, "rest"), (2.0, "speed_step"), (4.5, "cruise"), (6.0, "steer_step"),
-                                        (9.0, "steer_hold"), (11.0, "steer_step"), (14.0, "cruise"),
-                                        (17.0, "steer_ramp"), (24.0, "steer_hold"), (26.0, "steer_step"),
-                                        (29.0, "speed_ramp"), (38.0, "cruise")])
+@pytest.mark.parametrize(
+    "time, kind",
+    [
+        (0.5, "rest"),
+        (2.0, "speed_step"),
+        (4.5, "cruise"),
+        (6.0, "steer_step"),
+        (9.0, "steer_hold"),
+        (11.0, "steer_step"),
+        (14.0, "cruise"),
+        (17.0, "steer_ramp"),
+        (24.0, "steer_hold"),
+        (26.0, "steer_step"),
+        (29.0, "speed_ramp"),
+        (38.0, "cruise"),
+    ],
+)
 def test_segments_come_from_the_command_log(time, kind):
     t, speed, steering = command_log()
     table = segments.command_segments(t, speed, steering)
@@ -488,7 +593,7 @@ def test_a_derivative_operator_is_made_afresh_from_the_windows_it_keeps():
     assert np.isnan(first[np.searchsorted(t, 10.0) - 1]).all() and np.isfinite(first[len(t) // 4]).all()
     first[:] = 0.0
     again = kinematics.derivative_operator(t, kinematics.ACCELERATION_WINDOW, 2, 2)
-    x = 0.5 * t ** 2  # a constant acceleration of 1: its second derivative wherever there is a window
+    x = 0.5 * t**2  # a constant acceleration of 1: its second derivative wherever there is a window
     assert np.nanmax(np.abs(again @ x - 1.0)) < 1e-9 and np.isnan(again @ x).any()
 
 
@@ -545,13 +650,21 @@ def test_the_response_fit_tells_a_delay_from_a_lag(form):
 
 def look(decision: str, llr: float, kinds: dict[str, float]) -> lookalike.LookAlike:
     e = lookalike.SegmentEvidence(llr, kinds, {k: 100 for k in kinds}, 1.3, 0.015)
-    return lookalike.LookAlike(("steering_lag", "time_offset"), ("steering_lag", "time_offset"), e, decision,
-                               "steering_lag", lookalike.telling("steering_lag", "time_offset"))
+    return lookalike.LookAlike(
+        ("steering_lag", "time_offset"),
+        ("steering_lag", "time_offset"),
+        e,
+        decision,
+        "steering_lag",
+        lookalike.telling("steering_lag", "time_offset"),
+    )
 
 
 def test_twins_are_found_by_a_swap_of_look_alikes():
     assert lookalike.swapped(("wheel_slip", "steering_lag"), ("wheel_slip", "time_offset")) == (
-        "steering_lag", "time_offset")
+        "steering_lag",
+        "time_offset",
+    )
     assert lookalike.swapped(("wheel_slip",), ("speed_lag",)) == ("wheel_slip", "speed_lag")
     assert lookalike.swapped(("wheel_slip",), ("steering_lag",)) is None
     assert lookalike.swapped(("wheel_slip", "steering_lag"), ("speed_lag", "time_offset")) is None
@@ -568,15 +681,19 @@ def test_lookalikes_in_json_and_words():
     words = report.twins_sentence(d.lookalikes[0])
     assert "`steering_lag` or its look-alike `time_offset`" in words
     assert "cannot tell on these runs" in words and "a run with steering steps would" in words
-    decided = report.twins_sentence(look(lookalike.DECIDED_BY_LLR, -7.5, {"steer_step": -7.0, "cruise": -0.5}))
+    decided = report.twins_sentence(
+        look(lookalike.DECIDED_BY_LLR, -7.5, {"steer_step": -7.0, "cruise": -0.5})
+    )
     assert decided.startswith("**Look-alikes:** `time_offset` rather than its look-alike `steering_lag`")
     assert "steering steps" in decided
 
 
 # ---- discovery: PySINDy's STLSQ on equation error, the rule, the words ------------------------------------
 
-def acc_regression(seed: int, runs: int = 6, rows: int = 200, coefficient: float | None = -0.31,
-                   noise_rms: float = 0.03) -> dict:
+
+def acc_regression(
+    seed: int, runs: int = 6, rows: int = 200, coefficient: float | None = -0.31, noise_rms: float = 0.03
+) -> dict:
     """The acc channel's regression over synthetic runs, each at its own speeds (0.4 to 2.4 m/s, so that 1, v
     and v² differ): the target is
     ``coefficient``·v (a drag the model lacks) plus white noise, or noise alone when ``coefficient`` is None."""
@@ -589,9 +706,19 @@ def acc_regression(seed: int, runs: int = 6, rows: int = 200, coefficient: float
         t = np.arange(rows) * 0.1
         v = 0.4 + 0.35 * k + 0.6 * np.sin(2 * np.pi * t / (8.0 + 3 * k)) ** 2  # slow runs and fast
         v_cmd = v + 0.05 * np.sin(t)
-        inputs = correction.FeatureInputs(v=v, psi=0.3 * t, r=0.1 * np.sin(0.37 * t + k), s=correction.distance(t, v),
-                                          v_cmd=v_cmd, a_cmd=np.gradient(v_cmd, t), delta=np.zeros(rows),
-                                          delta_rate=np.zeros(rows), f_drive=4.4 * (v_cmd - v), t=t, onset=10.0)
+        inputs = correction.FeatureInputs(
+            v=v,
+            psi=0.3 * t,
+            r=0.1 * np.sin(0.37 * t + k),
+            s=correction.distance(t, v),
+            v_cmd=v_cmd,
+            a_cmd=np.gradient(v_cmd, t),
+            delta=np.zeros(rows),
+            delta_rate=np.zeros(rows),
+            f_drive=4.4 * (v_cmd - v),
+            t=t,
+            onset=10.0,
+        )
         columns = correction.features(inputs, terms)
         theta = np.column_stack([columns[tm.variable] for tm in terms])
         y = rng.normal(0.0, noise_rms, rows) + (coefficient * v if coefficient is not None else 0.0)
@@ -617,7 +744,9 @@ def test_stlsq_recovers_a_known_speed_term():
     column = {t.variable: reg.theta[:, k] for k, t in enumerate(reg.terms)}
     proposed = sum(c * column[v] for v, c in proposal.terms.items())
     truth = -0.31 * column["corr_acc_v"]
-    assert np.corrcoef(proposed, truth)[0, 1] >= 0.99  # the same correction, shrunk by the ridge: a start only
+    assert (
+        np.corrcoef(proposed, truth)[0, 1] >= 0.99
+    )  # the same correction, shrunk by the ridge: a start only
     assert 0.5 <= np.linalg.norm(proposed) / np.linalg.norm(truth) <= 1.1
     assert correction.readable(proposal.terms)[0].startswith("d(v)/dt += -")
     assert discover.propose(acc_regression(seed=1)).terms == proposal.terms  # seeded: a re-run asks the same
@@ -643,8 +772,15 @@ def loop_run(name: str, seconds: float, turn: float, speed: float = 1.6) -> tupl
     psi = np.where(fine >= 2.0, turn * (fine - 2.0), 0.0)
     x = np.concatenate([[0.0], np.cumsum(np.diff(fine) * v[1:] * np.cos(psi[1:]))])
     y = np.concatenate([[0.0], np.cumsum(np.diff(fine) * v[1:] * np.sin(psi[1:]))])
-    observed = discover.Observed(name, t, np.interp(t, fine, x), np.interp(t, fine, y), log_t,
-                                 np.where(log_t >= 1.0, speed, 0.0), np.where(log_t >= 2.0, 0.25, 0.0))
+    observed = discover.Observed(
+        name,
+        t,
+        np.interp(t, fine, x),
+        np.interp(t, fine, y),
+        log_t,
+        np.where(log_t >= 1.0, speed, 0.0),
+        np.where(log_t >= 2.0, 0.25, 0.0),
+    )
     return observed, np.interp(t, fine, psi)
 
 
@@ -667,20 +803,23 @@ def test_antenna_channels_are_proposed_from_the_fix_residuals_in_body_axes():
         # fix_residuals: simulated minus recorded, x then y; the recorded antenna is moved left by ``shift``
         leaning[run.name] = np.concatenate([shift * np.sin(psi) - noise[0], -shift * np.cos(psi) - noise[1]])
         noisy[run.name] = -np.concatenate(noise)
-    proposal = discover.propose({c: r for c, r in discover.regressions(runs, values, leaning).items()
-                                 if c in discover.OUTPUT})
+    proposal = discover.propose(
+        {c: r for c, r in discover.regressions(runs, values, leaning).items() if c in discover.OUTPUT}
+    )
     assert set(proposal.terms) == {"corr_gps_cross_cospsi", "corr_gps_cross_sinpsi"}, proposal.terms
     assert proposal.terms["corr_gps_cross_sinpsi"] == pytest.approx(h * np.cos(heading), rel=0.1)
     assert proposal.terms["corr_gps_cross_cospsi"] == pytest.approx(-h * np.sin(heading), rel=0.1)
     assert correction.readable(proposal.terms)[0].startswith("gps_cross += ")
-    quiet = discover.propose({c: r for c, r in discover.regressions(runs, values, noisy).items()
-                              if c in discover.OUTPUT})
+    quiet = discover.propose(
+        {c: r for c, r in discover.regressions(runs, values, noisy).items() if c in discover.OUTPUT}
+    )
     assert quiet.empty, quiet.terms
     assert "gps_cross" not in discover.regressions(runs, values)  # no residuals, no antenna channel
 
 
-def straight_run(name: str, seconds: float, speed: float, deceleration: float, onset: float,
-                 values: dict) -> object:
+def straight_run(
+    name: str, seconds: float, speed: float, deceleration: float, onset: float, values: dict
+) -> object:
     """A straight synthetic run at a constant speed command, its speed integrated here (1 ms Euler) with the
     drive of ``values`` and, from ``onset`` on, a force against the motion: d(v)/dt += deceleration·clamp(v/v_min,
     −1, 1); exact fixes at 10 Hz."""
@@ -691,13 +830,22 @@ def straight_run(name: str, seconds: float, speed: float, deceleration: float, o
     v = np.zeros(len(fine))
     tau = values["mass"] / values["Kv"]
     for k in range(1, len(fine)):
-        resist = deceleration * min(max(v[k - 1] / values["v_min"], -1.0), 1.0) if fine[k - 1] >= onset else 0.0
+        resist = (
+            deceleration * min(max(v[k - 1] / values["v_min"], -1.0), 1.0) if fine[k - 1] >= onset else 0.0
+        )
         v[k] = v[k - 1] + dt * ((speed - v[k - 1]) / tau + resist)
     x = np.concatenate([[0.0], np.cumsum(dt * 0.5 * (v[1:] + v[:-1]))])
     t = np.round(np.arange(0.0, seconds + 1e-9, 0.1), 2)
     log_t = np.round(np.arange(0.0, seconds + 1e-9, 0.05), 2)
-    return discover.Observed(name, t, np.interp(t, fine, x), np.zeros(len(t)), log_t, np.full(len(log_t), speed),
-                             np.zeros(len(log_t)))
+    return discover.Observed(
+        name,
+        t,
+        np.interp(t, fine, x),
+        np.zeros(len(t)),
+        log_t,
+        np.full(len(log_t), speed),
+        np.zeros(len(log_t)),
+    )
 
 
 def test_a_change_mid_run_is_found_at_its_time_and_proposed_as_an_onset_term():
@@ -713,11 +861,15 @@ def test_a_change_mid_run_is_found_at_its_time_and_proposed_as_an_onset_term():
     assert regs["acc"].shapes["corr_onset_time"] == pytest.approx(8.0, abs=0.3)
     proposal = discover.propose(regs)
     assert proposal.shapes["corr_onset_time"] == regs["acc"].shapes["corr_onset_time"]
-    assert any(correction.shape_of(correction.term(v)) == correction.SHAPES["onset"] for v in proposal.terms), proposal.terms
+    assert any(
+        correction.shape_of(correction.term(v)) == correction.SHAPES["onset"] for v in proposal.terms
+    ), proposal.terms
     assert any("[t ≥ " in line and " s]" in line for line in proposal.readable())
     clean = [straight_run(f"run{k}", 16.0, u, 0.0, 8.0, values) for k, u in enumerate(speeds)]
     quiet = discover.propose(discover.regressions(clean, values))
-    assert not any(correction.shape_of(correction.term(v)) == correction.SHAPES["onset"] for v in quiet.terms), quiet.terms
+    assert not any(
+        correction.shape_of(correction.term(v)) == correction.SHAPES["onset"] for v in quiet.terms
+    ), quiet.terms
 
 
 def test_rate_limits_that_bind_most_of_the_time_are_not_scanned():
@@ -730,8 +882,18 @@ def test_rate_limits_that_bind_most_of_the_time_are_not_scanned():
     t = np.round(np.arange(0.0, 40.0 + 1e-9, 0.05), 2)
     delta = 0.2 * np.sin(2 * np.pi * t / 8.0)
     zero = np.zeros(len(t))
-    inputs = correction.FeatureInputs(v=zero + 1.0, psi=zero, r=zero, s=zero, v_cmd=zero + 1.0, a_cmd=zero,
-                                      delta=delta, delta_rate=zero, f_drive=zero, t=t)
+    inputs = correction.FeatureInputs(
+        v=zero + 1.0,
+        psi=zero,
+        r=zero,
+        s=zero,
+        v_cmd=zero + 1.0,
+        a_cmd=zero,
+        delta=delta,
+        delta_rate=zero,
+        f_drive=zero,
+        t=t,
+    )
     refs = [SimpleNamespace(inputs=inputs)]
     assert discover.binding(refs, 0.2) == 0.0
     assert discover.binding(refs, 0.01) > 0.9
@@ -763,12 +925,16 @@ def test_a_discovered_term_must_pay_like_an_effect():
     none = candidate((), [1.0, 1.0], 400.0)
     lag = candidate(("steering_lag",), [0.3, 0.3], 100.0, {"vehicle.steering_lag": 0.4})
     term = {"vehicle.corr_steer_vdelta": -0.12}
-    good = with_terms(("steering_lag", "discovered"), [0.05, 0.05], 10.0, {"vehicle.steering_lag": 0.0, **term})
+    good = with_terms(
+        ("steering_lag", "discovered"), [0.05, 0.05], 10.0, {"vehicle.steering_lag": 0.0, **term}
+    )
     alone = with_terms(("discovered",), [0.04, 0.04], 9.0, term)
     everything = [none, lag, good, alone]
     assert discover.accept([good, alone], lag, everything, 0.05, 10.0) is alone  # a tie goes to fewer ids
     small = with_terms(("discovered",), [0.29, 0.29], 99.0, term)
-    assert discover.accept([small], lag, [none, lag, small], 0.05, 10.0) is None  # < 5 % better than the library
+    assert (
+        discover.accept([small], lag, [none, lag, small], 0.05, 10.0) is None
+    )  # < 5 % better than the library
     vague = with_terms(("discovered",), [0.04, 0.04], 9.0, term, se=0.1)
     assert discover.accept([vague], lag, [none, lag, vague], 0.05, 10.0) is None  # within 2 se of zero
 
@@ -777,10 +943,16 @@ def test_resemblance_in_words_and_cosine():
     from dse_runner.cases.robotti_diagnosis import discover
 
     change = np.array([1.0, 2.0, 0.0, -1.0])
-    assert discover.similarity(change, change[:, None] * 0.1, np.array([0.0]), np.array([10.0])) == pytest.approx(1.0)
-    assert discover.similarity(change, -change[:, None], np.array([0.0]), np.array([10.0])) == 0.0  # wrong sign only
+    assert discover.similarity(
+        change, change[:, None] * 0.1, np.array([0.0]), np.array([10.0])
+    ) == pytest.approx(1.0)
+    assert (
+        discover.similarity(change, -change[:, None], np.array([0.0]), np.array([10.0])) == 0.0
+    )  # wrong sign only
     other = np.array([[2.0], [-1.0], [0.0], [0.0]])
-    assert discover.similarity(change, other, np.array([-5.0]), np.array([5.0])) == pytest.approx(0.0, abs=1e-12)
+    assert discover.similarity(change, other, np.array([-5.0]), np.array([5.0])) == pytest.approx(
+        0.0, abs=1e-12
+    )
     assert discover.resemblance_words([("wheel_slip", 0.96)]) == "resembles `wheel_slip` (0.96)"
     assert discover.resemblance_words([("steering_lag", 0.72)]) == "is partly like `steering_lag` (0.72)"
     assert discover.resemblance_words([("time_offset", 0.2)]).startswith("is unlike any library effect")
@@ -792,10 +964,17 @@ def test_discovered_terms_in_json_and_verdict(tmp_path):
     none = candidate((), [1.0, 1.0], 400.0)
     term = {"vehicle.corr_acc_v": -0.31}
     found = with_terms(("discovered",), [0.04, 0.04], 9.0, term)
-    d = Diagnosis(tmp_path, {"vehicle": "vehicle"}, [found, none], found, none,
-                  floor=noise.NoiseFloor(0.02, 0.025, noise.CLOSE_FIXES, 100),
-                  discovery=discover.Discovery(none, candidates=[found], chosen=found,
-                                               resembles=[("wheel_slip", 0.95), ("speed_lag", 0.4)]))
+    d = Diagnosis(
+        tmp_path,
+        {"vehicle": "vehicle"},
+        [found, none],
+        found,
+        none,
+        floor=noise.NoiseFloor(0.02, 0.025, noise.CLOSE_FIXES, 100),
+        discovery=discover.Discovery(
+            none, candidates=[found], chosen=found, resembles=[("wheel_slip", 0.95), ("speed_lag", 0.4)]
+        ),
+    )
     assert d.verdict == "discovered" and d.discovered
     [entry] = d.effects
     assert entry["id"] == "discovered" and entry["held_out_without"] == 1.0 and entry["held_out_with"] == 0.04
@@ -812,9 +991,15 @@ def test_a_correction_that_leaves_a_residual_is_partial(tmp_path):
 
     none = candidate((), [1.0, 1.0], 400.0)
     found = with_terms(("discovered",), [0.3, 0.3], 90.0, {"vehicle.corr_acc_s": -0.05})
-    d = Diagnosis(tmp_path, {"vehicle": "vehicle"}, [found, none], found, none,
-                  floor=noise.NoiseFloor(0.02, 0.025, noise.CLOSE_FIXES, 100),
-                  discovery=discover.Discovery(none, candidates=[found], chosen=found, resembles=[("wheel_slip", 0.6)]))
+    d = Diagnosis(
+        tmp_path,
+        {"vehicle": "vehicle"},
+        [found, none],
+        found,
+        none,
+        floor=noise.NoiseFloor(0.02, 0.025, noise.CLOSE_FIXES, 100),
+        discovery=discover.Discovery(none, candidates=[found], chosen=found, resembles=[("wheel_slip", 0.6)]),
+    )
     assert d.verdict == "partial" and d.discovered
     [entry] = d.effects
     assert entry["id"] == "discovered" and entry["partial"]
@@ -828,8 +1013,13 @@ def test_pruned_slots_go_to_the_next_proposed_terms():
     the next term the proposal ranked, never one already tried; the kept terms restart at zero."""
     from dse_runner.cases.robotti_diagnosis import discover
 
-    ranked = (("corr_steer_ddeltav", 0.3), ("corr_steer_ddelta", 0.2), ("corr_gps_cross_sinpsi", 0.1),
-              ("corr_gps_cross_cospsi", -0.1), ("corr_acc_s", 0.01))
+    ranked = (
+        ("corr_steer_ddeltav", 0.3),
+        ("corr_steer_ddelta", 0.2),
+        ("corr_gps_cross_sinpsi", 0.1),
+        ("corr_gps_cross_cospsi", -0.1),
+        ("corr_acc_s", 0.01),
+    )
     proposal = discover.CorrectionProposal(dict(ranked[:3]), {}, {}, {}, ranked)
     kept = {"corr_gps_cross_sinpsi": 0.15}
     refill = discover.refilled(kept, proposal, set(proposal.terms), 3)
@@ -847,8 +1037,13 @@ def test_terms_are_ranked_by_what_they_do_to_positions():
     psi = np.linspace(0.0, 4 * np.pi, 2000)
     sin, cos = np.sin(psi), np.cos(psi)
     wobble = rng.normal(size=psi.size)
-    columns = {"corr_steer_ddelta": cos + 3.0 * wobble, "corr_steer_ddeltav": -3.0 * wobble,  # their sum is cos ψ
-               "corr_gps_cross_sinpsi": sin, "corr_gps_cross_cospsi": cos, "corr_acc_s": rng.normal(size=psi.size)}
+    columns = {
+        "corr_steer_ddelta": cos + 3.0 * wobble,
+        "corr_steer_ddeltav": -3.0 * wobble,  # their sum is cos ψ
+        "corr_gps_cross_sinpsi": sin,
+        "corr_gps_cross_cospsi": cos,
+        "corr_acc_s": rng.normal(size=psi.size),
+    }
     bounds = dict.fromkeys(columns, 10.0)
     base = np.ones((psi.size, 1))  # a calibrated parameter: an offset, refitted with every set
     noise = 0.02 * rng.normal(size=psi.size)

@@ -21,7 +21,8 @@ def recorded(tmp_path):
     folder = tmp_path / "line"
     folder.mkdir()
     (folder / "scenario.yaml").write_text(
-        "name: line\ngroup: test\nduration: 4.0\ninitial_pose: {x: 0, y: 0, theta: 0}\n")
+        "name: line\ngroup: test\nduration: 4.0\ninitial_pose: {x: 0, y: 0, theta: 0}\n"
+    )
     (folder / "steering_inputs.csv").write_text("time,velocity,delta_f\n0,1,0\n0.5,1,0\n")
     (folder / "gps_position.csv").write_text("time,x,y\n0,0,0\n1,1,0\n3,3,0\n4,4,0\n")
     return load_scenario(folder)
@@ -41,8 +42,9 @@ def test_constant_offset(recorded):
     t = np.linspace(0, 4, 9)
     traj = track(t, t + 3.0, np.full_like(t, 4.0))  # 5 m from every fix
     scores = objs.evaluate(objs.normalise(list(fielddata.FieldData.default_objectives)), traj, recorded)
-    assert scores == pytest.approx({"cross_track_error": 5.0, "max_error": 5.0,
-                                    "rms_error": 5.0, "final_error": 5.0})
+    assert scores == pytest.approx(
+        {"cross_track_error": 5.0, "max_error": 5.0, "rms_error": 5.0, "final_error": 5.0}
+    )
 
 
 def test_distances_interpolate_between_communication_points(recorded):
@@ -62,21 +64,28 @@ def test_fixes_after_the_simulation_are_not_counted(recorded):
 
 
 def test_user_objective_by_import_path(tmp_path, monkeypatch, recorded):
-    (tmp_path / "my_objectives.py").write_text(textwrap.dedent("""
+    (tmp_path / "my_objectives.py").write_text(
+        textwrap.dedent("""
         def final_x(trajectory, scenario):
             return trajectory.column("v.x")[-1]
-    """))
+    """)
+    )
     monkeypatch.syspath_prepend(str(tmp_path))
     traj = track([0.0, 4.0], [0.0, 7.5], [0.0, 0.0])
-    assert objs.evaluate(objs.normalise(["my_objectives:final_x"]), traj, recorded) == {"my_objectives:final_x": 7.5}
+    assert objs.evaluate(objs.normalise(["my_objectives:final_x"]), traj, recorded) == {
+        "my_objectives:final_x": 7.5
+    }
     sys.modules.pop("my_objectives", None)
 
 
-@pytest.mark.parametrize("name, message", [
-    ("cross_trak_error", "unknown objective 'cross_trak_error'"),
-    ("no_such_module:f", "cannot import 'no_such_module'"),
-    ("json:no_such_function", "json has no function 'no_such_function'"),
-])
+@pytest.mark.parametrize(
+    "name, message",
+    [
+        ("cross_trak_error", "unknown objective 'cross_trak_error'"),
+        ("no_such_module:f", "cannot import 'no_such_module'"),
+        ("json:no_such_function", "json has no function 'no_such_function'"),
+    ],
+)
 def test_bad_objective_names(name, message, recorded):
     with pytest.raises(DseError, match=message):
         objs.function(name)

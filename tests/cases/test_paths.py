@@ -29,8 +29,11 @@ def trajectory(time, x, y, theta=None, delta_f=None) -> Trajectory:
     if theta is None:
         theta = np.unwrap(np.arctan2(np.gradient(y), np.gradient(x)))
     delta_f = np.zeros_like(x) if delta_f is None else delta_f
-    return Trajectory(np.asarray(time, float), ("vehicle.x", "vehicle.y", "vehicle.theta", "ctrl.delta_f"),
-                      np.column_stack([x, y, theta, delta_f]))
+    return Trajectory(
+        np.asarray(time, float),
+        ("vehicle.x", "vehicle.y", "vehicle.theta", "ctrl.delta_f"),
+        np.column_stack([x, y, theta, delta_f]),
+    )
 
 
 def scores(traj: Trajectory, scenario) -> dict[str, float]:
@@ -38,11 +41,13 @@ def scores(traj: Trajectory, scenario) -> dict[str, float]:
 
 
 def on_path(path: paths.Polyline, arc: np.ndarray) -> np.ndarray:
-    return np.column_stack([np.interp(arc, path.arc, path.points[:, 0]),
-                            np.interp(arc, path.arc, path.points[:, 1])])
+    return np.column_stack(
+        [np.interp(arc, path.arc, path.points[:, 0]), np.interp(arc, path.arc, path.points[:, 1])]
+    )
 
 
 # ---- the four reference paths ------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("name", NAMES)
 def test_the_kind_reads_each_reference_path(name):
@@ -54,7 +59,9 @@ def test_the_kind_reads_each_reference_path(name):
     assert bound <= set(scenario.fields)
     path = paths.path_of(scenario)
     assert len(path.points) <= 500
-    assert np.count_nonzero(np.diff(path.arc) > 0.2501) == (name == "lateral_step")  # the step's sideways jump
+    assert np.count_nonzero(np.diff(path.arc) > 0.2501) == (
+        name == "lateral_step"
+    )  # the step's sideways jump
     assert 1.0 <= scenario.fields["target_speed"] <= 1.6
     assert path.speed[0] > 0 and path.speed[-1] == 0  # drive off at once, stop at the end
     assert scenario.fields["duration"] > path.length / scenario.fields["target_speed"]
@@ -81,10 +88,13 @@ def test_make_paths_writes_the_committed_files(tmp_path):
     for name in NAMES:
         getattr(module, name)()
         for file in ("path.csv", "scenario.yaml"):
-            assert (tmp_path / name / file).read_bytes() == (PATHS / name / file).read_bytes(), f"{name}/{file}"
+            assert (tmp_path / name / file).read_bytes() == (PATHS / name / file).read_bytes(), (
+                f"{name}/{file}"
+            )
 
 
 # ---- objectives with closed-form answers ---------------------------------------------------------
+
 
 @pytest.mark.parametrize("d", [0.0, 0.4, -1.0])  # negative: to the right
 def test_parallel_to_a_straight_path_at_offset_d(d):
@@ -95,8 +105,17 @@ def test_parallel_to_a_straight_path_at_offset_d(d):
     xy = on_path(path, arc) + d * np.array([-math.sin(heading), math.cos(heading)])
     got = scores(trajectory(arc / 1.5, xy[:, 0], xy[:, 1], np.full(arc.size, heading)), scenario)
     # the file's coordinates are rounded to 0.1 mm, so the row is straight to 0.05 mm
-    assert got == pytest.approx({"path_error_mean": abs(d), "path_error_max": abs(d), "heading_error": 0.0,
-                                 "steering_effort": 0.0, "overshoot": 0.0, "settling_distance": 0.0}, abs=1e-3)
+    assert got == pytest.approx(
+        {
+            "path_error_mean": abs(d),
+            "path_error_max": abs(d),
+            "heading_error": 0.0,
+            "steering_effort": 0.0,
+            "overshoot": 0.0,
+            "settling_distance": 0.0,
+        },
+        abs=1e-3,
+    )
 
 
 def test_heading_error_is_the_time_mean_of_the_wrapped_difference():
@@ -114,8 +133,9 @@ def test_steering_effort_is_the_integral_of_the_steering_rate():
     time = np.linspace(0, 12, 2401)
     delta_f = 0.2 * np.sin(2 * math.pi * time / 4)  # three periods: 4 x 0.2 rad each
     xy = on_path(paths.path_of(scenario), 1.5 * time)
-    assert paths.steering_effort(trajectory(time, xy[:, 0], xy[:, 1], delta_f=delta_f), scenario) \
-        == pytest.approx(3 * 4 * 0.2, rel=1e-6)
+    assert paths.steering_effort(
+        trajectory(time, xy[:, 0], xy[:, 1], delta_f=delta_f), scenario
+    ) == pytest.approx(3 * 4 * 0.2, rel=1e-6)
 
 
 def test_a_u_turn_on_the_path_has_no_error():
@@ -154,11 +174,15 @@ def test_the_match_never_jumps_to_the_next_leg(tmp_path):
     folder = tmp_path / "hairpin"
     folder.mkdir()
     s = np.linspace(0, math.pi, 13)[1:-1]
-    points = [(x, 0.0) for x in np.arange(0, 20.25, 0.25)] + [(20 + np.sin(a), 1 - np.cos(a)) for a in s] \
+    points = (
+        [(x, 0.0) for x in np.arange(0, 20.25, 0.25)]
+        + [(20 + np.sin(a), 1 - np.cos(a)) for a in s]
         + [(x, 2.0) for x in np.arange(20, -0.25, -0.25)]
+    )
     (folder / "path.csv").write_text("x,y,speed\n" + "".join(f"{x},{y},1\n" for x, y in points))
     (folder / "scenario.yaml").write_text(
-        "name: hairpin\ngroup: g\nduration: 60\ninitial_pose: {x: 0, y: 0, theta: 0}\n")
+        "name: hairpin\ngroup: g\nduration: 60\ninitial_pose: {x: 0, y: 0, theta: 0}\n"
+    )
     scenario = load_scenario(folder)
     x = np.linspace(0, 15, 301)
     y = np.minimum(x / 5, 1.4)  # off the first leg by 1.4 m, 0.6 m from the second
@@ -189,8 +213,14 @@ def test_the_block_search_is_the_sample_by_sample_search(jitter):
     """Weaving, stopping, going backwards, jittering: the vectorised search gives the definition's answer."""
     path = paths.path_of(load_scenario(PATHS / "headland_turn"))
     rng = np.random.default_rng(7)
-    arc = np.concatenate([np.linspace(0, 40, 500), np.full(100, 40.0), np.linspace(40, 35, 100),
-                          np.linspace(35, path.length + 3, 700)])
+    arc = np.concatenate(
+        [
+            np.linspace(0, 40, 500),
+            np.full(100, 40.0),
+            np.linspace(40, 35, 100),
+            np.linspace(35, path.length + 3, 700),
+        ]
+    )
     xy = on_path(path, arc) + 0.8 * np.sin(arc / 4)[:, None] + rng.normal(0, jitter, (arc.size, 2))
     projection = paths.project(path, xy)
     expected_arc, expected_distance = naive_projection(path, xy)
@@ -225,11 +255,14 @@ def test_a_step_to_the_right(tmp_path):
     assert got["settling_distance"] == pytest.approx(6.0, abs=0.02)
 
 
-@pytest.mark.parametrize("knots_x, knots_y, overshoot, settling", [
-    ([0, 30, 36, 60], [0, 0, 1.0, 1.0], 0.0, 6.0 * 0.9),      # no overshoot: within 0.1 m from y = 0.9
-    ([0, 60], [0, 0], 0.0, 30.0),                              # ignores the step: never settles
-    ([0, 30, 34, 60], [0, 0, 1.3, 1.3], 0.3, 30.0),            # stays 0.3 m beyond: never settles
-])
+@pytest.mark.parametrize(
+    "knots_x, knots_y, overshoot, settling",
+    [
+        ([0, 30, 36, 60], [0, 0, 1.0, 1.0], 0.0, 6.0 * 0.9),  # no overshoot: within 0.1 m from y = 0.9
+        ([0, 60], [0, 0], 0.0, 30.0),  # ignores the step: never settles
+        ([0, 30, 34, 60], [0, 0, 1.3, 1.3], 0.3, 30.0),  # stays 0.3 m beyond: never settles
+    ],
+)
 def test_step_responses(knots_x, knots_y, overshoot, settling):
     scenario = load_scenario(PATHS / "lateral_step")
     got = scores(step_response(scenario, knots_x, knots_y), scenario)
@@ -245,24 +278,45 @@ def test_a_run_that_stops_before_the_step_never_settles():
 
 # ---- which outputs ------------------------------------------------------------------------------
 
+
 def test_the_pose_and_steering_may_be_named(tmp_path):
-    scenario = load_scenario(PATHS / "straight_offset", options={
-        "position": {"x": "car.px", "y": "car.py"}, "heading": "car.yaw", "steering": "ctrl.steer"})
+    scenario = load_scenario(
+        PATHS / "straight_offset",
+        options={"position": {"x": "car.px", "y": "car.py"}, "heading": "car.yaw", "steering": "ctrl.steer"},
+    )
     path = paths.path_of(scenario)
     arc = np.linspace(0, 50, 101)
     xy = on_path(path, arc)
-    names = ("car.px", "car.py", "car.yaw", "ctrl.steer", "other.x", "other.y", "other.theta", "a.delta_f", "b.delta_f")
-    values = np.column_stack([xy[:, 0], xy[:, 1] + 0.5, np.full(arc.size, path.heading[0]), np.linspace(0, 1, 101)]
-                             + [np.zeros(arc.size)] * 5)
+    names = (
+        "car.px",
+        "car.py",
+        "car.yaw",
+        "ctrl.steer",
+        "other.x",
+        "other.y",
+        "other.theta",
+        "a.delta_f",
+        "b.delta_f",
+    )
+    values = np.column_stack(
+        [xy[:, 0], xy[:, 1] + 0.5, np.full(arc.size, path.heading[0]), np.linspace(0, 1, 101)]
+        + [np.zeros(arc.size)] * 5
+    )
     got = scores(Trajectory(arc, names, values), scenario)
     assert got["path_error_max"] == pytest.approx(0.5 * math.cos(path.heading[0]), abs=1e-3)
     assert got["steering_effort"] == pytest.approx(1.0)
 
 
-@pytest.mark.parametrize("names, message", [
-    (("a.x", "a.y", "a.theta", "b.x", "b.y", "b.theta", "c.delta_f"), r"instances a, b have all three of x, y and theta"),
-    (("a.x", "a.y", "c.delta_f"), r"no instance has all three of x, y and theta; say it in space\.yaml"),
-])
+@pytest.mark.parametrize(
+    "names, message",
+    [
+        (
+            ("a.x", "a.y", "a.theta", "b.x", "b.y", "b.theta", "c.delta_f"),
+            r"instances a, b have all three of x, y and theta",
+        ),
+        (("a.x", "a.y", "c.delta_f"), r"no instance has all three of x, y and theta; say it in space\.yaml"),
+    ],
+)
 def test_an_ambiguous_pose_asks_for_the_option(names, message):
     scenario = load_scenario(PATHS / "straight_offset")
     with pytest.raises(DseError, match=message):
@@ -272,11 +326,14 @@ def test_an_ambiguous_pose_asks_for_the_option(names, message):
 def test_an_ambiguous_steering_angle_asks_for_the_option():
     scenario = load_scenario(PATHS / "straight_offset")
     names = ("v.x", "v.y", "v.theta", "a.delta_f", "b.delta_f")
-    with pytest.raises(DseError, match=r"a\.delta_f, b\.delta_f are all named delta_f; say it in space\.yaml"):
+    with pytest.raises(
+        DseError, match=r"a\.delta_f, b\.delta_f are all named delta_f; say it in space\.yaml"
+    ):
         paths.steering_effort(Trajectory(np.arange(3.0), names, np.zeros((3, 5))), scenario)
 
 
 # ---- bad files ----------------------------------------------------------------------------------
+
 
 @pytest.fixture
 def path_copy(tmp_path):
@@ -285,30 +342,45 @@ def path_copy(tmp_path):
     return target
 
 
-@pytest.mark.parametrize("content, message", [
-    ("x,y,v\n0,0,1\n1,0,1\n", r"path\.csv line 1: no column speed \(header: 'x,y,v'\)"),
-    ("x,y,speed\n0,0,1\n1,nan,1\n", r"path\.csv line 3, column y: 'nan' is not a finite number"),
-    ("x,y,speed\n0,0,1\n1,,1\n", r"path\.csv line 3, column y: is empty"),
-    ("x,y,speed\n0,0,1\n", r"path\.csv: a path needs at least 2 waypoints, it has 1"),
-    ("x,y,speed\n", r"path\.csv: a path needs at least 2 waypoints, it has 0"),
-    ("x,y,speed\n0,0,1\n1,0,1\n\n1,0,1\n2,0,1\n", r"path\.csv line 5: waypoint \(1, 0\) repeats the previous one"),
-    ("x,y,speed\n0,0,1\n1,0,-1\n", r"path\.csv line 3, column speed: -1 is negative"),
-    ("x,y,speed\n0,0,0\n1,0,0\n", r"path\.csv: every target speed is 0"),
-    ("x,y,speed\n0,0,1\n1,0\n", r"path\.csv line 3: expected 3 fields"),
-])
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        ("x,y,v\n0,0,1\n1,0,1\n", r"path\.csv line 1: no column speed \(header: 'x,y,v'\)"),
+        ("x,y,speed\n0,0,1\n1,nan,1\n", r"path\.csv line 3, column y: 'nan' is not a finite number"),
+        ("x,y,speed\n0,0,1\n1,,1\n", r"path\.csv line 3, column y: is empty"),
+        ("x,y,speed\n0,0,1\n", r"path\.csv: a path needs at least 2 waypoints, it has 1"),
+        ("x,y,speed\n", r"path\.csv: a path needs at least 2 waypoints, it has 0"),
+        (
+            "x,y,speed\n0,0,1\n1,0,1\n\n1,0,1\n2,0,1\n",
+            r"path\.csv line 5: waypoint \(1, 0\) repeats the previous one",
+        ),
+        ("x,y,speed\n0,0,1\n1,0,-1\n", r"path\.csv line 3, column speed: -1 is negative"),
+        ("x,y,speed\n0,0,0\n1,0,0\n", r"path\.csv: every target speed is 0"),
+        ("x,y,speed\n0,0,1\n1,0\n", r"path\.csv line 3: expected 3 fields"),
+    ],
+)
 def test_a_bad_path_file_is_named(path_copy, content, message):
     (path_copy / "path.csv").write_text(content)
     with pytest.raises(DseError, match=re.escape(f"{path_copy}/") + message):
         load_scenario(path_copy)
 
 
-@pytest.mark.parametrize("line, message", [
-    ("duration: -5", r"scenario\.yaml: duration: Input should be greater than 0"),
-    ("step_at: 70", r"scenario\.yaml: step_at: 70 m is not inside the path \(0 to 60 m\)"),
-    ("step_at: 30", r"scenario\.yaml: step_at: no straight piece parallel to the row before 30 m and offset"),
-    ("initial_pose: {x: 0, y: .nan, theta: 0}", r"scenario\.yaml: initial_pose\.y: Input should be a finite number"),
-    ("colour: red", r"scenario\.yaml: colour: Extra inputs are not permitted"),
-])
+@pytest.mark.parametrize(
+    "line, message",
+    [
+        ("duration: -5", r"scenario\.yaml: duration: Input should be greater than 0"),
+        ("step_at: 70", r"scenario\.yaml: step_at: 70 m is not inside the path \(0 to 60 m\)"),
+        (
+            "step_at: 30",
+            r"scenario\.yaml: step_at: no straight piece parallel to the row before 30 m and offset",
+        ),
+        (
+            "initial_pose: {x: 0, y: .nan, theta: 0}",
+            r"scenario\.yaml: initial_pose\.y: Input should be a finite number",
+        ),
+        ("colour: red", r"scenario\.yaml: colour: Extra inputs are not permitted"),
+    ],
+)
 def test_a_bad_scenario_yaml_is_named(path_copy, line, message):
     info = yaml.safe_load((path_copy / "scenario.yaml").read_text())
     info.update(yaml.safe_load(line))
@@ -337,6 +409,7 @@ def test_path_objectives_on_another_kind_of_scenario_say_so(tmp_path):
 
 # ---- the real vehicle ---------------------------------------------------------------------------
 
+
 def test_the_vehicle_fmu_driving_straight_from_the_offset_start(tmp_path):
     """No controller FMU yet: the replay controller drives the vehicle straight at 1.5 m/s from the
     path's initial pose, 1 m beside the row, so it stays 1 m beside it and never steers."""
@@ -345,15 +418,36 @@ def test_the_vehicle_fmu_driving_straight_from_the_offset_start(tmp_path):
     log = tmp_path / "straight.csv"
     log.write_text("time,velocity,delta_f\n0,1.5,0\n")
     multimodel = tmp_path / "multimodel.yaml"
-    multimodel.write_text(yaml.safe_dump({
-        "fmus": {"controller": "bundled:fmus/replay_controller", "vehicle": "bundled:fmus/robotti_vehicle"},
-        "connections": {"controller.velocity": ["vehicle.velocity"], "controller.delta_f": ["vehicle.delta_f"]},
-        "parameters": {"controller.file": str(log)},
-        "scenario": {"vehicle.x0": "initial_pose.x", "vehicle.y0": "initial_pose.y",
-                     "vehicle.theta0": "initial_pose.theta"},
-        "step": 0.05,
-    }))
+    multimodel.write_text(
+        yaml.safe_dump(
+            {
+                "fmus": {
+                    "controller": "bundled:fmus/replay_controller",
+                    "vehicle": "bundled:fmus/robotti_vehicle",
+                },
+                "connections": {
+                    "controller.velocity": ["vehicle.velocity"],
+                    "controller.delta_f": ["vehicle.delta_f"],
+                },
+                "parameters": {"controller.file": str(log)},
+                "scenario": {
+                    "vehicle.x0": "initial_pose.x",
+                    "vehicle.y0": "initial_pose.y",
+                    "vehicle.theta0": "initial_pose.theta",
+                },
+                "step": 0.05,
+            }
+        )
+    )
     result = simulate(multimodel, PATHS / "straight_offset", stop_time=20)
-    assert result.objectives == pytest.approx({"path_error_mean": 1.0, "path_error_max": 1.0, "heading_error": 0.0,
-                                               "steering_effort": 0.0, "overshoot": 0.0, "settling_distance": 0.0},
-                                              abs=1e-3)
+    assert result.objectives == pytest.approx(
+        {
+            "path_error_mean": 1.0,
+            "path_error_max": 1.0,
+            "heading_error": 0.0,
+            "steering_effort": 0.0,
+            "overshoot": 0.0,
+            "settling_distance": 0.0,
+        },
+        abs=1e-3,
+    )

@@ -74,8 +74,9 @@ def test_payload_adds_mass_and_a_draft_at_its_time(truth):
     """Before t_p the commanded speed; after it, a first-order approach (time constant (m + dm) / Kv) to the
     speed at which the drive pulls the draft: a deficit of draft * (m + dm) * g / Kv."""
     mass, extra, when, draft, kv, speed, g = 1500.0, 400.0, 10.0, 0.06, 8000.0, 2.0, 9.81
-    traj = drive(truth, 30.0, velocity=speed, mass=mass, Kv=kv, payload=extra, payload_time=when,
-                 payload_draft=draft)
+    traj = drive(
+        truth, 30.0, velocity=speed, mass=mass, Kv=kv, payload=extra, payload_time=when, payload_draft=draft
+    )
     deficit = draft * (mass + extra) * g / kv
     assert at(traj, "vx", when - 0.05) == pytest.approx(speed, rel=1e-9)
     assert traj.column("vehicle.vx")[-1] == pytest.approx(speed - deficit, rel=1e-9)
@@ -88,10 +89,20 @@ def test_payload_adds_mass_and_a_draft_at_its_time(truth):
 def test_payload_draft_is_pulled_through_slipping_wheels(truth):
     """On soil the drive regulates wheel speed: ground speed = (1 - slip) * (v - F / Kv)."""
     mass, extra, draft, kv, slip, speed = 1500.0, 400.0, 0.06, 8000.0, 0.05, 2.0
-    traj = drive(truth, 30.0, velocity=speed, mass=mass, Kv=kv, payload=extra, payload_time=1.0,
-                 payload_draft=draft, wheel_slip=slip)
+    traj = drive(
+        truth,
+        30.0,
+        velocity=speed,
+        mass=mass,
+        Kv=kv,
+        payload=extra,
+        payload_time=1.0,
+        payload_draft=draft,
+        wheel_slip=slip,
+    )
     assert traj.column("vehicle.vx")[-1] == pytest.approx(
-        (1 - slip) * (speed - draft * (mass + extra) * 9.81 / kv), rel=1e-9)
+        (1 - slip) * (speed - draft * (mass + extra) * 9.81 / kv), rel=1e-9
+    )
 
 
 @pytest.mark.parametrize("speed", [0.8, 2.0])
@@ -99,8 +110,9 @@ def test_rolling_resistance_slows_every_speed_by_the_same_deficit(truth, speed):
     """The drive, Kv (v - vx), pulls c m g at a deficit of c m g / Kv, whatever the speed (wheel slip's grows
     with it); m is the current mass, so lowering a payload deepens it to c (m + dm) g / Kv."""
     c, mass, extra, when, kv, g = 0.05, 1500.0, 400.0, 10.0, 8000.0, 9.81
-    traj = drive(truth, 30.0, velocity=speed, mass=mass, Kv=kv, payload=extra, payload_time=when,
-                 rolling_resistance=c)
+    traj = drive(
+        truth, 30.0, velocity=speed, mass=mass, Kv=kv, payload=extra, payload_time=when, rolling_resistance=c
+    )
     assert at(traj, "vx", when - 0.05) == pytest.approx(speed - c * mass * g / kv, rel=1e-9)
     assert traj.column("vehicle.vx")[-1] == pytest.approx(speed - c * (mass + extra) * g / kv, rel=1e-9)
 
@@ -160,7 +172,8 @@ def test_steering_loses_authority_with_speed(truth, speed):
     full = drive(truth, 40.0, velocity=speed, delta_f=delta)
     assert lost.column("vehicle.yaw_rate")[-1] == pytest.approx(same.column("vehicle.yaw_rate")[-1], rel=1e-6)
     assert lost.column("vehicle.yaw_rate")[-1] / full.column("vehicle.yaw_rate")[-1] == pytest.approx(
-        1 - k * speed, rel=2e-3)
+        1 - k * speed, rel=2e-3
+    )
 
 
 def test_slip_grows_with_the_pull(truth):
@@ -177,8 +190,9 @@ def test_slip_grows_with_the_pull(truth):
     assert hill.column("vehicle.vx")[-1] == pytest.approx((1 - slip) * (speed - pull / kv), rel=1e-9)
 
 
-@pytest.mark.parametrize("name", ["relaxation", "payload", "payload_draft", "slip_pull", "steer_rate_limit",
-                                  "rolling_resistance"])
+@pytest.mark.parametrize(
+    "name", ["relaxation", "payload", "payload_draft", "slip_pull", "steer_rate_limit", "rolling_resistance"]
+)
 def test_impossible_effect_values_are_refused_by_name(truth, name):
     with pytest.raises(DseError, match=name):
         drive(truth, 1.0, **{name: -0.1})

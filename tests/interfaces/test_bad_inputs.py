@@ -48,6 +48,7 @@ def one_line_error(code: int, err: str) -> str:
 
 # ---- recordings -----------------------------------------------------------------------------
 
+
 def edit(folder: Path, file: str, line: int, text: str) -> Path:
     path = folder / file
     lines = path.read_text().splitlines()
@@ -56,25 +57,87 @@ def edit(folder: Path, file: str, line: int, text: str) -> Path:
     return path
 
 
-@pytest.mark.parametrize("file, line, text, message", [
-    ("gps_position.csv", 5, "0.30,abc,1.0", r"gps_position\.csv line 5, column x: 'abc' is not a finite number"),
-    ("gps_position.csv", 6, "0.40,inf,1.0", r"gps_position\.csv line 6, column x: 'inf' is not a finite number"),
-    ("gps_position.csv", 7, "nan,1.0,1.0", r"gps_position\.csv line 7, column time: 'nan' is not a finite number"),
-    ("gps_position.csv", 8, ",1.0,1.0", r"gps_position\.csv line 8, column time: is empty"),
-    ("gps_position.csv", 9, "0.7,1.0", r"gps_position\.csv line 9: expected 3 fields"),
-    ("gps_position.csv", 11, "0.90,nan,abc", r"gps_position\.csv line 11, column y: 'abc' is not a finite number"),
-    ("gps_position.csv", 12, "nan,nan,nan", r"gps_position\.csv line 12, column time: 'nan' is not a finite number"),
-    ("gps_position.csv", 10, "0.1,1.0,1.0", r"gps_position\.csv line 10, column time: 0\.1 does not increase"),
-    ("steering_inputs.csv", 5, "0.15,nan,0.0", r"steering_inputs\.csv line 5, column velocity: 'nan' is not a finite"),
-    ("steering_inputs.csv", 6, "0.20,1.0,-inf", r"steering_inputs\.csv line 6, column delta_f: '-inf' is not a finite"),
-    ("steering_inputs.csv", 7, "0.25,,0.0", r"steering_inputs\.csv line 7, column velocity: is empty"),
-    ("scenario.yaml", 3, "duration: .nan", r"scenario\.yaml: duration: Input should be a finite number"),
-    ("scenario.yaml", 4, "initial_pose: {x: 0.0, y: .inf, theta: 0}",
-     r"scenario\.yaml: initial_pose\.y: Input should be a finite number"),
-], ids=["gps-text", "gps-inf", "gps-time-nan", "gps-time-empty", "gps-fields", "gps-dropout-with-text",
-        "gps-dropout-time-nan", "gps-time-order",
-        "steering-nan", "steering-inf", "steering-empty", "yaml-duration-nan", "yaml-pose-inf"])
-def test_a_wrong_recorded_value_names_file_line_and_column(scenario_copy, tmp_path, file, line, text, message):
+@pytest.mark.parametrize(
+    "file, line, text, message",
+    [
+        (
+            "gps_position.csv",
+            5,
+            "0.30,abc,1.0",
+            r"gps_position\.csv line 5, column x: 'abc' is not a finite number",
+        ),
+        (
+            "gps_position.csv",
+            6,
+            "0.40,inf,1.0",
+            r"gps_position\.csv line 6, column x: 'inf' is not a finite number",
+        ),
+        (
+            "gps_position.csv",
+            7,
+            "nan,1.0,1.0",
+            r"gps_position\.csv line 7, column time: 'nan' is not a finite number",
+        ),
+        ("gps_position.csv", 8, ",1.0,1.0", r"gps_position\.csv line 8, column time: is empty"),
+        ("gps_position.csv", 9, "0.7,1.0", r"gps_position\.csv line 9: expected 3 fields"),
+        (
+            "gps_position.csv",
+            11,
+            "0.90,nan,abc",
+            r"gps_position\.csv line 11, column y: 'abc' is not a finite number",
+        ),
+        (
+            "gps_position.csv",
+            12,
+            "nan,nan,nan",
+            r"gps_position\.csv line 12, column time: 'nan' is not a finite number",
+        ),
+        (
+            "gps_position.csv",
+            10,
+            "0.1,1.0,1.0",
+            r"gps_position\.csv line 10, column time: 0\.1 does not increase",
+        ),
+        (
+            "steering_inputs.csv",
+            5,
+            "0.15,nan,0.0",
+            r"steering_inputs\.csv line 5, column velocity: 'nan' is not a finite",
+        ),
+        (
+            "steering_inputs.csv",
+            6,
+            "0.20,1.0,-inf",
+            r"steering_inputs\.csv line 6, column delta_f: '-inf' is not a finite",
+        ),
+        ("steering_inputs.csv", 7, "0.25,,0.0", r"steering_inputs\.csv line 7, column velocity: is empty"),
+        ("scenario.yaml", 3, "duration: .nan", r"scenario\.yaml: duration: Input should be a finite number"),
+        (
+            "scenario.yaml",
+            4,
+            "initial_pose: {x: 0.0, y: .inf, theta: 0}",
+            r"scenario\.yaml: initial_pose\.y: Input should be a finite number",
+        ),
+    ],
+    ids=[
+        "gps-text",
+        "gps-inf",
+        "gps-time-nan",
+        "gps-time-empty",
+        "gps-fields",
+        "gps-dropout-with-text",
+        "gps-dropout-time-nan",
+        "gps-time-order",
+        "steering-nan",
+        "steering-inf",
+        "steering-empty",
+        "yaml-duration-nan",
+        "yaml-pose-inf",
+    ],
+)
+def test_a_wrong_recorded_value_names_file_line_and_column(
+    scenario_copy, tmp_path, file, line, text, message
+):
     folder = scenario_copy("sin1")
     edit(folder, file, line, text)
     code, out, err = run("simulate", MULTIMODEL, "-s", folder, "--out", tmp_path / "out")
@@ -90,7 +153,9 @@ def test_gps_dropouts_are_skipped_like_missing_rows_and_counted(scenario_copy, t
     deleted = tmp_path / "deleted"
     shutil.copytree(SCENARIOS / "sin1", deleted)
     lines = (deleted / "gps_position.csv").read_text().splitlines()
-    (deleted / "gps_position.csv").write_text("\n".join(t for i, t in enumerate(lines, 1) if i not in (5, 9, 12, 20)))
+    (deleted / "gps_position.csv").write_text(
+        "\n".join(t for i, t in enumerate(lines, 1) if i not in (5, 9, 12, 20))
+    )
 
     code, out, err = run("simulate", MULTIMODEL, "-s", dropped, "--out", tmp_path / "a", "--json")
     assert code == 0, err
@@ -113,16 +178,34 @@ def test_a_recording_of_only_dropouts_is_an_error(scenario_copy, tmp_path):
 def test_an_objective_that_is_not_finite_fails_its_row_with_a_message(tmp_path):
     """A user's objective returning NaN: simulate refuses it, naming the objective."""
     (tmp_path / "nan_objective.py").write_text("def score(trajectory, scenario):\n    return float('nan')\n")
-    done = subprocess.run([sys.executable, "-m", "dse_runner", "simulate", str(MULTIMODEL), "-s",
-                           str(SCENARIOS / "sin1"), "--objective", "nan_objective:score", "--out",
-                           str(tmp_path / "out"), "--json"], capture_output=True, text=True, cwd=tmp_path,
-                          env={**os.environ, "PYTHONPATH": str(tmp_path)})
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "dse_runner",
+            "simulate",
+            str(MULTIMODEL),
+            "-s",
+            str(SCENARIOS / "sin1"),
+            "--objective",
+            "nan_objective:score",
+            "--out",
+            str(tmp_path / "out"),
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        env={**os.environ, "PYTHONPATH": str(tmp_path)},
+    )
     assert done.stdout == ""
-    assert "objective 'nan_objective:score' is not a finite number on scenario sin1" in \
-        one_line_error(done.returncode, done.stderr)
+    assert "objective 'nan_objective:score' is not a finite number on scenario sin1" in one_line_error(
+        done.returncode, done.stderr
+    )
 
 
 # ---- FMUs -------------------------------------------------------------------------------------
+
 
 def test_an_fmu_that_is_not_a_zip(tmp_path):
     fake = tmp_path / "model.fmu"
@@ -140,7 +223,10 @@ def test_an_fmu_without_a_binary_for_this_platform(tmp_path):
             target.writestr(name, source.read(item))
     code, _, err = run("simulate", sleeper_multimodel(tmp_path, foreign), "-s", SCENARIOS / "sin1")
     line = one_line_error(code, err)
-    assert "no binary for this platform: binaries/linux64/sleeper.so is missing (it has binaries for win64)" in line
+    assert (
+        "no binary for this platform: binaries/linux64/sleeper.so is missing (it has binaries for win64)"
+        in line
+    )
 
 
 def test_an_fmu_whose_instantiate_returns_null(tmp_path):
@@ -152,8 +238,11 @@ def test_an_fmu_whose_instantiate_returns_null(tmp_path):
     description.write_text(description.read_text().replace("{0b7d8f3e", "{ffffffff"))
     code, _, err = run("simulate", sleeper_multimodel(tmp_path, sources), "-s", SCENARIOS / "sin1")
     line = one_line_error(code, err)
-    assert re.search(r"^error: sleeper \(sleeper\): fmi2Instantiate failed \(sleeper-[0-9a-f]+\.fmu\): "
-                     r"GUID does not match this FMU's modelDescription\.xml$", line), line
+    assert re.search(
+        r"^error: sleeper \(sleeper\): fmi2Instantiate failed \(sleeper-[0-9a-f]+\.fmu\): "
+        r"GUID does not match this FMU's modelDescription\.xml$",
+        line,
+    ), line
 
 
 def test_a_value_outside_its_declared_min_or_max(tmp_path):
@@ -162,56 +251,110 @@ def test_a_value_outside_its_declared_min_or_max(tmp_path):
     assert "sleeper.pause = 20 is above its declared max 10" in one_line_error(code, err)
     space = write_space(tmp_path, multimodel=str(mm), parameters={"sleeper.pause": [0, -1]})
     code, _, err = run("submit", space, "--no-dashboard")
-    assert "space.yaml: parameters.sleeper.pause: sleeper.pause = -1 is below its declared min 0" in \
-        one_line_error(code, err)
+    assert (
+        "space.yaml: parameters.sleeper.pause: sleeper.pause = -1 is below its declared min 0"
+        in one_line_error(code, err)
+    )
 
 
 # ---- specs and multi-models -------------------------------------------------------------------
 
-@pytest.mark.parametrize("changes, message", [
-    ({"parameters": {"vehicle.mass": {"start": float("nan"), "stop": 2, "num": 2}}},
-     r"space\.yaml: parameters\.vehicle\.mass\.range\.start: Input should be a finite number"),
-    ({"parameters": {"vehicle.mass": [1000, float("inf")]}},
-     r"space\.yaml: parameters\.vehicle\.mass\.values\.1: inf is not a finite number"),
-    ({"timeout": -1}, r"space\.yaml: timeout: Input should be greater than 0"),
-    ({"chunk_seconds": "fast"}, r"space\.yaml: chunk_seconds: Input should be a valid number"),
-    ({"parameters": {"vehicle.mass": "heavy"}},
-     r"space\.yaml: parameters\.vehicle\.mass: expected a list of values, a grid \{start, stop, step or num\} "
-     r"or an interval \{low, high\}"),
-    ({"parameters": {"vehicle.mass": ["heavy"]}}, r"parameters\.vehicle\.mass: vehicle\.mass: 'heavy' is not a valid Real"),
-    # no scenarios: the one scenario "nominal", which has no kind's default objectives ...
-    ({"scenarios": []}, r"space\.yaml: objectives: name at least one, e\.g\. "),
-    # ... nor the fields the multi-model binds: checked when the space loads
-    ({"scenarios": [], "objectives": {"x_final": {"signal": "vehicle.x", "reduce": "final"}}},
-     r"space\.yaml: the multi-model binds controller\.file to 'steering_inputs': scenario nominal: "
-     r"no field 'steering_inputs' \(a signals scenario has no fields\)"),
-    ({"multimodel": {**yaml.safe_load(MULTIMODEL.read_text()), "scenario": {"controller.file": "steering"}}},
-     r"space\.yaml: the multi-model binds controller\.file to 'steering': scenario sin1: no field 'steering'; "
-     r"it has duration, gps_position, initial_pose\.theta, initial_pose\.x, initial_pose\.y, steering_inputs"),
-    ({"multimodel": "nowhere.yaml"}, r"cannot read multi-model .*nowhere\.yaml"),
-    ({"multimodel": "bundled:nothing.yaml"}, r"'bundled:nothing\.yaml': dse-runner bundles no such file"),
-], ids=["range-nan", "list-inf", "timeout-negative", "chunk-text", "values-not-list", "value-type",
-        "no-scenarios", "no-scenarios-bound-field", "scenario-field", "multimodel-missing", "bundled-missing"])
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        (
+            {"parameters": {"vehicle.mass": {"start": float("nan"), "stop": 2, "num": 2}}},
+            r"space\.yaml: parameters\.vehicle\.mass\.range\.start: Input should be a finite number",
+        ),
+        (
+            {"parameters": {"vehicle.mass": [1000, float("inf")]}},
+            r"space\.yaml: parameters\.vehicle\.mass\.values\.1: inf is not a finite number",
+        ),
+        ({"timeout": -1}, r"space\.yaml: timeout: Input should be greater than 0"),
+        ({"chunk_seconds": "fast"}, r"space\.yaml: chunk_seconds: Input should be a valid number"),
+        (
+            {"parameters": {"vehicle.mass": "heavy"}},
+            r"space\.yaml: parameters\.vehicle\.mass: expected a list of values, a grid \{start, stop, step or num\} "
+            r"or an interval \{low, high\}",
+        ),
+        (
+            {"parameters": {"vehicle.mass": ["heavy"]}},
+            r"parameters\.vehicle\.mass: vehicle\.mass: 'heavy' is not a valid Real",
+        ),
+        # no scenarios: the one scenario "nominal", which has no kind's default objectives ...
+        ({"scenarios": []}, r"space\.yaml: objectives: name at least one, e\.g\. "),
+        # ... nor the fields the multi-model binds: checked when the space loads
+        (
+            {"scenarios": [], "objectives": {"x_final": {"signal": "vehicle.x", "reduce": "final"}}},
+            r"space\.yaml: the multi-model binds controller\.file to 'steering_inputs': scenario nominal: "
+            r"no field 'steering_inputs' \(a signals scenario has no fields\)",
+        ),
+        (
+            {
+                "multimodel": {
+                    **yaml.safe_load(MULTIMODEL.read_text()),
+                    "scenario": {"controller.file": "steering"},
+                }
+            },
+            r"space\.yaml: the multi-model binds controller\.file to 'steering': scenario sin1: no field 'steering'; "
+            r"it has duration, gps_position, initial_pose\.theta, initial_pose\.x, initial_pose\.y, steering_inputs",
+        ),
+        ({"multimodel": "nowhere.yaml"}, r"cannot read multi-model .*nowhere\.yaml"),
+        ({"multimodel": "bundled:nothing.yaml"}, r"'bundled:nothing\.yaml': dse-runner bundles no such file"),
+    ],
+    ids=[
+        "range-nan",
+        "list-inf",
+        "timeout-negative",
+        "chunk-text",
+        "values-not-list",
+        "value-type",
+        "no-scenarios",
+        "no-scenarios-bound-field",
+        "scenario-field",
+        "multimodel-missing",
+        "bundled-missing",
+    ],
+)
 def test_a_bad_spec_value(tmp_path, changes, message):
     code, out, err = run("submit", write_space(tmp_path, **changes), "--no-dashboard", "--json")
     assert out == ""
     assert re.search(message, one_line_error(code, err)), err
 
 
-@pytest.mark.parametrize("changes, message", [
-    ({"parameters": {"vehicle.mass": float("nan")}}, r"mm\.yaml: parameters\.vehicle\.mass.*finite number"),
-    ({"parameters": {"vehicle.mass": -1e400}}, r"mm\.yaml: parameters\.vehicle\.mass.*finite number"),
-    ({"fmus": {}}, r"mm\.yaml: fmus: Dictionary should have at least 1 item"),
-    ({"connections": {"controller.velocity": "vehicle.velocity"}},
-     r"mm\.yaml: connections\.controller\.velocity: Input should be a valid list"),
-    ({"step": 0}, r"mm\.yaml: step: Input should be greater than 0"),
-    # a binding to a field no scenario has: checked against the scenario at simulate
-    ({"scenario": {"controller.file": "steering"}},
-     r"error: the multi-model binds controller\.file to 'steering': scenario sin1: no field 'steering'; it has "
-     r"duration, gps_position, initial_pose\.theta, initial_pose\.x, initial_pose\.y, steering_inputs$"),
-    ({"parameters": {"vehicle": 1}}, r"mm\.yaml: parameters: 'vehicle' is not of the form"),
-], ids=["parameter-nan", "parameter-inf", "no-fmus", "connection-not-list", "step-zero", "scenario-field",
-        "parameter-ref"])
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        (
+            {"parameters": {"vehicle.mass": float("nan")}},
+            r"mm\.yaml: parameters\.vehicle\.mass.*finite number",
+        ),
+        ({"parameters": {"vehicle.mass": -1e400}}, r"mm\.yaml: parameters\.vehicle\.mass.*finite number"),
+        ({"fmus": {}}, r"mm\.yaml: fmus: Dictionary should have at least 1 item"),
+        (
+            {"connections": {"controller.velocity": "vehicle.velocity"}},
+            r"mm\.yaml: connections\.controller\.velocity: Input should be a valid list",
+        ),
+        ({"step": 0}, r"mm\.yaml: step: Input should be greater than 0"),
+        # a binding to a field no scenario has: checked against the scenario at simulate
+        (
+            {"scenario": {"controller.file": "steering"}},
+            r"error: the multi-model binds controller\.file to 'steering': scenario sin1: no field 'steering'; it has "
+            r"duration, gps_position, initial_pose\.theta, initial_pose\.x, initial_pose\.y, steering_inputs$",
+        ),
+        ({"parameters": {"vehicle": 1}}, r"mm\.yaml: parameters: 'vehicle' is not of the form"),
+    ],
+    ids=[
+        "parameter-nan",
+        "parameter-inf",
+        "no-fmus",
+        "connection-not-list",
+        "step-zero",
+        "scenario-field",
+        "parameter-ref",
+    ],
+)
 def test_a_bad_multimodel_value(tmp_path, changes, message):
     data = yaml.safe_load(MULTIMODEL.read_text())
     data.update(changes)
@@ -236,27 +379,51 @@ def test_a_multimodel_that_is_not_yaml(tmp_path):
 
 # ---- the real command: exit code, one line, --debug ---------------------------------------------
 
+
 def test_the_installed_command_prints_one_line_and_the_traceback_only_with_debug(tmp_path):
     fake = tmp_path / "model.fmu"
     fake.write_text("not a zip")
     mm = sleeper_multimodel(tmp_path, fake)
     command = [sys.executable, "-m", "dse_runner"]
-    quiet = subprocess.run([*command, "simulate", str(mm), "-s", str(SCENARIOS / "sin1")], capture_output=True,
-                           text=True)
+    quiet = subprocess.run(
+        [*command, "simulate", str(mm), "-s", str(SCENARIOS / "sin1")], capture_output=True, text=True
+    )
     assert "not an FMU" in one_line_error(quiet.returncode, quiet.stderr)
-    loud = subprocess.run([*command, "--debug", "simulate", str(mm), "-s", str(SCENARIOS / "sin1")],
-                          capture_output=True, text=True)
-    assert loud.returncode == 2 and "Traceback" in loud.stderr and loud.stderr.strip().endswith(
-        quiet.stderr.strip())
+    loud = subprocess.run(
+        [*command, "--debug", "simulate", str(mm), "-s", str(SCENARIOS / "sin1")],
+        capture_output=True,
+        text=True,
+    )
+    assert (
+        loud.returncode == 2
+        and "Traceback" in loud.stderr
+        and loud.stderr.strip().endswith(quiet.stderr.strip())
+    )
 
 
 def test_json_we_write_has_null_where_python_would_write_nan():
     """Missing numbers of every kind we hold (float, numpy, pandas, 0-d arrays) become null."""
-    data = {"nan": float("nan"), "inf": -math.inf, "numpy": np.float32("nan"), "array": np.array([1.0, np.inf]),
-            "scalar": np.array(2.5), "na": pd.NA, "frame": pd.Series([1.0, None]).to_list(), "ok": np.int64(3)}
+    data = {
+        "nan": float("nan"),
+        "inf": -math.inf,
+        "numpy": np.float32("nan"),
+        "array": np.array([1.0, np.inf]),
+        "scalar": np.array(2.5),
+        "na": pd.NA,
+        "frame": pd.Series([1.0, None]).to_list(),
+        "ok": np.int64(3),
+    }
     assert "NaN" in json.dumps(data, default=str)  # what Python's json would print
-    assert strict_loads(strict_json.dumps(data)) == {"nan": None, "inf": None, "numpy": None, "array": [1.0, None],
-                                                      "scalar": 2.5, "na": None, "frame": [1.0, None], "ok": 3}
+    assert strict_loads(strict_json.dumps(data)) == {
+        "nan": None,
+        "inf": None,
+        "numpy": None,
+        "array": [1.0, None],
+        "scalar": 2.5,
+        "na": None,
+        "frame": [1.0, None],
+        "ok": 3,
+    }
     with pytest.raises(ValueError):
         strict_loads('{"a": NaN}')  # and the check every --json test uses refuses NaN
 
@@ -266,11 +433,17 @@ def test_a_sweep_row_whose_objective_is_not_finite_fails_with_its_message(tmp_pa
     """On real workers (started with the user's module on their path): the row is failed with the
     message, never ok with NaN; the other objective's rows are ok."""
     (tmp_path / "nan_objective.py").write_text(
-        "def score(trajectory, scenario):\n    return float('nan') if scenario.name == 'sin1' else 1.0\n")
+        "def score(trajectory, scenario):\n    return float('nan') if scenario.name == 'sin1' else 1.0\n"
+    )
     monkeypatch.setenv("PYTHONPATH", str(tmp_path))
     monkeypatch.syspath_prepend(str(tmp_path))
-    space = write_space(tmp_path, objectives=["cross_track_error", "nan_objective:score"], cluster={"n_workers": 1},
-                        parameters={"vehicle.mass": [1500]}, keep_trajectories=0)
+    space = write_space(
+        tmp_path,
+        objectives=["cross_track_error", "nan_objective:score"],
+        cluster={"n_workers": 1},
+        parameters={"vehicle.mass": [1500]},
+        keep_trajectories=0,
+    )
     code, out, err = run("submit", space, "--no-dashboard", "--json")
     report = strict_loads(out)
     assert (report["ok"], report["failed"]) == (1, 1), err
@@ -285,8 +458,12 @@ def test_submit_counts_dropouts_and_keeps_its_json_strict(scenario_copy, tmp_pat
     folder = scenario_copy("sin1")
     for line, text in [(5, "0.30,nan,1.0"), (9, "0.70,,")]:
         edit(folder, "gps_position.csv", line, text)
-    space = write_space(tmp_path, scenarios=[str(folder)], cluster={"address": dask_scheduler},
-                        parameters={"vehicle.mass": [1000, 3000]})
+    space = write_space(
+        tmp_path,
+        scenarios=[str(folder)],
+        cluster={"address": dask_scheduler},
+        parameters={"vehicle.mass": [1000, 3000]},
+    )
     code, out, err = run("submit", space, "--no-dashboard", "--json")
     assert code == 0, err
     report = strict_loads(out)

@@ -14,8 +14,14 @@ def sampled(rows: int, seed: int = 0) -> pd.DataFrame:
     """A sampled design's ok rows on two scenarios: y = x^2 plus noise of known spread."""
     rng = np.random.default_rng(seed)
     x = rng.uniform(-1, 1, rows)
-    return pd.DataFrame({"m.x": np.tile(x, 2), "y": np.tile(x**2, 2) + rng.normal(0, 0.1, 2 * rows),
-                         "scenario": np.repeat(["a", "b"], rows), "group": "all"})
+    return pd.DataFrame(
+        {
+            "m.x": np.tile(x, 2),
+            "y": np.tile(x**2, 2) + rng.normal(0, 0.1, 2 * rows),
+            "scenario": np.repeat(["a", "b"], rows),
+            "group": "all",
+        }
+    )
 
 
 def test_the_binned_mean_and_band_are_the_rows_statistics_in_each_bin():
@@ -24,7 +30,7 @@ def test_the_binned_mean_and_band_are_the_rows_statistics_in_each_bin():
     assert means["scenario"] == ["a", "b"] and len(means["xs"][0]) == charts.BINS
     centres, mean = means["xs"][0], means["ys"][0]
     assert np.allclose(mean, centres**2, atol=0.01)  # the mean of x^2 + noise over a narrow bin
-    low, high = bands["ys"][0][: charts.BINS], bands["ys"][0][charts.BINS:][::-1]
+    low, high = bands["ys"][0][: charts.BINS], bands["ys"][0][charts.BINS :][::-1]
     spread = 0.1 * 1.2816  # the noise's 10 % and 90 % quantiles around the mean
     assert np.allclose(high - mean, spread, atol=0.02) and np.allclose(mean - low, spread, atol=0.02)
 
@@ -42,8 +48,15 @@ def test_a_sampled_design_draws_dots_up_to_max_dots_and_its_binned_view_above(ro
 
 
 def test_a_grid_keeps_its_lines_of_means():
-    ok = pd.DataFrame({"m.x": [0.0, 0.0, 1.0, 1.0], "m.z": [0, 1, 0, 1], "y": [1.0, 3.0, 5.0, 7.0],
-                       "scenario": "a", "group": "all"})
+    ok = pd.DataFrame(
+        {
+            "m.x": [0.0, 0.0, 1.0, 1.0],
+            "m.z": [0, 1, 0, 1],
+            "y": [1.0, 3.0, 5.0, 7.0],
+            "scenario": "a",
+            "group": "all",
+        }
+    )
     sources = charts._Sources.empty()
     sources.fill(ok, "m.x", "y", {"all": "#000"}, "group", scattered=False)
     assert sources.lines.data["ys"][0].tolist() == [2.0, 6.0] and charts.source_rows(sources.dots) == 0

@@ -10,8 +10,17 @@ from conftest import MULTIMODEL, REPO, SCENARIOS, dse_runner, strict_loads
 
 
 def test_simulate_json_prints_only_json_and_writes_track(tmp_path):
-    done = dse_runner("simulate", MULTIMODEL, "--scenario", SCENARIOS / "sin1",
-                      "--set", "vehicle.mass=1500", "--out", tmp_path, "--json")
+    done = dse_runner(
+        "simulate",
+        MULTIMODEL,
+        "--scenario",
+        SCENARIOS / "sin1",
+        "--set",
+        "vehicle.mass=1500",
+        "--out",
+        tmp_path,
+        "--json",
+    )
     assert done.returncode == 0, done.stderr
     report = strict_loads(done.stdout)
     assert set(report["objectives"]) == {"cross_track_error", "max_error", "rms_error", "final_error"}
@@ -20,7 +29,10 @@ def test_simulate_json_prints_only_json_and_writes_track(tmp_path):
     header = (tmp_path / "trajectory.csv").read_text().splitlines()[0]
     assert header.startswith("time,") and "vehicle.x" in header
     assert (tmp_path / "plot.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"  # field data: the track
-    assert (report["trajectory"], report["plot"]) == (str(tmp_path / "trajectory.csv"), str(tmp_path / "plot.png"))
+    assert (report["trajectory"], report["plot"]) == (
+        str(tmp_path / "trajectory.csv"),
+        str(tmp_path / "plot.png"),
+    )
     assert report["scenario"] == "sin1" and report["dropouts"] == 0 and "vehicle.x" in report["final"]
 
 
@@ -31,8 +43,17 @@ def test_simulate_prints_objectives(tmp_path):
 
 
 def test_unknown_set_variable_exits_2_naming_it(tmp_path):
-    done = dse_runner("simulate", MULTIMODEL, "-s", SCENARIOS / "sin1", "--set", "vehicle.cAlpha=1",
-                      "--out", tmp_path, "--json")
+    done = dse_runner(
+        "simulate",
+        MULTIMODEL,
+        "-s",
+        SCENARIOS / "sin1",
+        "--set",
+        "vehicle.cAlpha=1",
+        "--out",
+        tmp_path,
+        "--json",
+    )
     assert done.returncode == 2
     assert done.stdout == ""
     assert "unknown variable 'vehicle.cAlpha'" in done.stderr and "cAlphaF" in done.stderr
@@ -47,7 +68,12 @@ def test_build_fmus_json(tmp_path):
     done = dse_runner("build-fmus", "--out", tmp_path, "--json")
     assert done.returncode == 0, done.stderr
     built = strict_loads(done.stdout)["fmus"]
-    assert set(built) == {"robotti_vehicle", "robotti_vehicle_effects", "replay_controller", "path_controller"}
+    assert set(built) == {
+        "robotti_vehicle",
+        "robotti_vehicle_effects",
+        "replay_controller",
+        "path_controller",
+    }
     assert all((tmp_path / f"{name}.fmu").is_file() for name in built)
 
 
@@ -56,10 +82,24 @@ def test_every_commands_help_fits_80_columns_and_names_its_flags_plainly():
     import os
 
     helps = {}
-    for command in ("submit", "rank", "dashboard", "report", "diagnose", "simulate", "build-fmus", "convert-intocps",
-                    "sensitivity"):
-        done = subprocess.run([sys.executable, "-m", "dse_runner", command, "--help"], capture_output=True, text=True,
-                              cwd=REPO, env={**os.environ, "COLUMNS": "80"})
+    for command in (
+        "submit",
+        "rank",
+        "dashboard",
+        "report",
+        "diagnose",
+        "simulate",
+        "build-fmus",
+        "convert-intocps",
+        "sensitivity",
+    ):
+        done = subprocess.run(
+            [sys.executable, "-m", "dse_runner", command, "--help"],
+            capture_output=True,
+            text=True,
+            cwd=REPO,
+            env={**os.environ, "COLUMNS": "80"},
+        )
         assert done.returncode == 0, done.stderr
         helps[command] = done.stdout
     for command, text in helps.items():
@@ -76,8 +116,12 @@ def ishigami_space(folder, address: str, **changes):
     import yaml
 
     spec = yaml.safe_load((ISHIGAMI / "space.yaml").read_text())
-    spec.update(multimodel={"fmus": {"ishigami": str(ISHIGAMI / "fmus" / "ishigami")}}, output=str(folder / "out"),
-                cluster={"address": address}, **changes)
+    spec.update(
+        multimodel={"fmus": {"ishigami": str(ISHIGAMI / "fmus" / "ishigami")}},
+        output=str(folder / "out"),
+        cluster={"address": address},
+        **changes,
+    )
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "space.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
     return folder / "space.yaml"
@@ -96,43 +140,73 @@ def test_sensitivity_json_is_strict_and_warns_of_a_small_sample_on_stderr(tmp_pa
     assert found["objectives"]["y"]["groups"] == {}  # one scenario
     assert "warning: y (all scenarios): intervals up to +/-" in done.stderr and "max_points >=" in done.stderr
     text = dse_runner("sensitivity", tmp_path / "out")
-    assert text.returncode == 0 and "ishigami.x3" in text.stdout and "S1" in text.stdout and "+/-" in text.stdout
+    assert (
+        text.returncode == 0 and "ishigami.x3" in text.stdout and "S1" in text.stdout and "+/-" in text.stdout
+    )
 
 
 def test_sensitivity_errors_name_the_culprit(tmp_path, dask_scheduler):
     """A grid sweep, an objective the sweep lacks, too small a budget, text values: each one line, exit 2."""
-    grid = ishigami_space(tmp_path / "grid", dask_scheduler, search={"strategy": "exhaustive"},
-                          parameters={"ishigami.x1": [0, 1], "ishigami.x2": [0, 1], "ishigami.x3": [0, 1]})
+    grid = ishigami_space(
+        tmp_path / "grid",
+        dask_scheduler,
+        search={"strategy": "exhaustive"},
+        parameters={"ishigami.x1": [0, 1], "ishigami.x2": [0, 1], "ishigami.x3": [0, 1]},
+    )
     assert dse_runner("submit", grid, "--no-dashboard", "--json").returncode == 0
     done = dse_runner("sensitivity", tmp_path / "grid" / "out")
     assert done.returncode == 2 and done.stdout == ""
     assert "sampled by 'exhaustive'; sensitivity reads a sweep sampled for it" in done.stderr
 
-    small = ishigami_space(tmp_path / "small", dask_scheduler, search={"strategy": "sobol_indices", "max_points": 20})
+    small = ishigami_space(
+        tmp_path / "small", dask_scheduler, search={"strategy": "sobol_indices", "max_points": 20}
+    )
     assert dse_runner("submit", small, "--no-dashboard", "--json").returncode == 0
     done = dse_runner("sensitivity", tmp_path / "small" / "out", "--objective", "z")
     assert done.returncode == 2 and "objective 'z' is not among sweep 'ishigami''s (y)" in done.stderr
 
-    few = ishigami_space(tmp_path / "few", dask_scheduler, search={"strategy": "sobol_indices", "max_points": 4})
+    few = ishigami_space(
+        tmp_path / "few", dask_scheduler, search={"strategy": "sobol_indices", "max_points": 4}
+    )
     done = dse_runner("submit", few, "--no-dashboard")
-    assert done.returncode == 2 and "search: sobol_indices needs at least 5 points for 3 parameters" in done.stderr
+    assert (
+        done.returncode == 2
+        and "search: sobol_indices needs at least 5 points for 3 parameters" in done.stderr
+    )
 
-    spent = ishigami_space(tmp_path / "spent", dask_scheduler, search={"strategy": "morris", "max_points": 60},
-                           parameters={"ishigami.x1": {"low": -1, "high": 1}, "ishigami.x2": {"low": -1, "high": 1}})
-    done = dse_runner("submit", spent, "--no-dashboard", "--json")  # the budget's line on stderr: JSON stays strict
+    spent = ishigami_space(
+        tmp_path / "spent",
+        dask_scheduler,
+        search={"strategy": "morris", "max_points": 60},
+        parameters={"ishigami.x1": {"low": -1, "high": 1}, "ishigami.x2": {"low": -1, "high": 1}},
+    )
+    done = dse_runner(
+        "submit", spent, "--no-dashboard", "--json"
+    )  # the budget's line on stderr: JSON stays strict
     assert done.returncode == 0 and strict_loads(done.stdout)["tasks"] == 16
     assert "warning: search: morris runs 16 distinct points of max_points 60" in done.stderr
 
-    text = ishigami_space(tmp_path / "text", dask_scheduler, search={"strategy": "morris", "max_points": 40},
-                          parameters={"ishigami.x1": {"low": -1, "high": 1}, "ishigami.a": [7, "seven"]})
+    text = ishigami_space(
+        tmp_path / "text",
+        dask_scheduler,
+        search={"strategy": "morris", "max_points": 40},
+        parameters={"ishigami.x1": {"low": -1, "high": 1}, "ishigami.a": [7, "seven"]},
+    )
     done = dse_runner("submit", text, "--no-dashboard")
     assert done.returncode == 2 and "ishigami.a" in done.stderr
 
 
-@pytest.mark.parametrize("option, named", [(["--folds", "1"], "--folds 1: cross-validation needs 2 folds or more"),
-                                           (["--noise-factor", "0"], "--noise-factor 0.0: must be a positive number")])
+@pytest.mark.parametrize(
+    "option, named",
+    [
+        (["--folds", "1"], "--folds 1: cross-validation needs 2 folds or more"),
+        (["--noise-factor", "0"], "--noise-factor 0.0: must be a positive number"),
+    ],
+)
 def test_diagnose_refuses_what_no_diagnosis_can_honour_in_one_line(tmp_path, option, named):
-    done = dse_runner("diagnose", "--space", str(REPO / "jobs" / "msd" / "space.yaml"), "--out", str(tmp_path), *option)
+    done = dse_runner(
+        "diagnose", "--space", str(REPO / "jobs" / "msd" / "space.yaml"), "--out", str(tmp_path), *option
+    )
     assert done.returncode == 2
     (line,) = done.stderr.strip().splitlines()  # one line, no traceback
     assert line.startswith(f"error: {named}"), done.stderr
@@ -145,10 +219,21 @@ def test_simulate_on_a_new_record_prints_its_error_against_the_recording(tmp_pat
 
     tanks = REPO / "jobs" / "cascaded_tanks"
     values = tmp_path / "values.yaml"
-    values.write_text("tanks.k1: 0.046\ntanks.k2: 0.063\ntanks.k3: 0.09\ntanks.k4: 0.055\ntanks.x1_0: 10.4\n"
-                      "tanks.x2_0: 5.13\nstate_max(tanks.x2): 10.0\n")
-    done = dse_runner("simulate", tanks / "multimodel.yaml", "-s", tanks / "estimation", "--values", values,
-                      "--csv", tmp_path / "predicted.csv", "--json")
+    values.write_text(
+        "tanks.k1: 0.046\ntanks.k2: 0.063\ntanks.k3: 0.09\ntanks.k4: 0.055\ntanks.x1_0: 10.4\n"
+        "tanks.x2_0: 5.13\nstate_max(tanks.x2): 10.0\n"
+    )
+    done = dse_runner(
+        "simulate",
+        tanks / "multimodel.yaml",
+        "-s",
+        tanks / "estimation",
+        "--values",
+        values,
+        "--csv",
+        tmp_path / "predicted.csv",
+        "--json",
+    )
     assert done.returncode == 0, done.stderr
     found = strict_loads(done.stdout)
     predicted = np.genfromtxt(tmp_path / "predicted.csv", delimiter=",", names=True)
@@ -164,16 +249,35 @@ def test_simulate_takes_objectives_written_as_a_space_writes_them():
     """--objective takes a spec in YAML's flow form, as the error text and space.yaml write them (it used to
     answer "cannot import '{signal'"): unnamed, it is named for what it reads and how; a misspelt key is named."""
     tanks = REPO / "jobs" / "cascaded_tanks"
-    done = dse_runner("simulate", tanks / "multimodel.yaml", "-s", tanks / "estimation", "--json",
-                      "--objective", "{signal: tanks.y, recorded: y, metric: max_abs}",
-                      "--objective", "{peak: {signal: tanks.x1, reduce: max}}", "--objective", "{signal: tanks.y, reduce: min}")
+    done = dse_runner(
+        "simulate",
+        tanks / "multimodel.yaml",
+        "-s",
+        tanks / "estimation",
+        "--json",
+        "--objective",
+        "{signal: tanks.y, recorded: y, metric: max_abs}",
+        "--objective",
+        "{peak: {signal: tanks.x1, reduce: max}}",
+        "--objective",
+        "{signal: tanks.y, reduce: min}",
+    )
     assert done.returncode == 0, done.stderr
     found = strict_loads(done.stdout)["objectives"]
     assert set(found) == {"y_max_abs", "peak", "y_min"} and found["peak"] > found["y_min"] > 0
-    bad = dse_runner("simulate", tanks / "multimodel.yaml", "-s", tanks / "estimation",
-                     "--objective", "{signal: tanks.y, recorded: y, metrc: rmse}")
+    bad = dse_runner(
+        "simulate",
+        tanks / "multimodel.yaml",
+        "-s",
+        tanks / "estimation",
+        "--objective",
+        "{signal: tanks.y, recorded: y, metrc: rmse}",
+    )
     assert bad.returncode != 0
-    assert "--objective {signal: tanks.y, recorded: y, metrc: rmse}: fit.metrc: Extra inputs are not permitted" in bad.stderr
+    assert (
+        "--objective {signal: tanks.y, recorded: y, metrc: rmse}: fit.metrc: Extra inputs are not permitted"
+        in bad.stderr
+    )
 
 
 def test_simulate_a_space_runs_its_own_model_so_values_named_as_the_space_names_them_replay(tmp_path):
@@ -183,11 +287,18 @@ def test_simulate_a_space_runs_its_own_model_so_values_named_as_the_space_names_
     import yaml
 
     vdp = REPO / "tests" / "fmus" / "vdp_me"
-    spec = {"name": "inline", "multimodel": {"fmus": {"vdp": str(vdp)}, "instances": {"vdp": {"interface": "me"}}},
-            "experiment": {"stop_time": 2.0, "step": 0.1},
-            "scenarios": [{"name": "low", "parameters": {"vdp.x0": 0.5}}, {"name": "high", "parameters": {"vdp.x0": 2.5}}],
-            "parameters": {"vdp.mu": {"low": 0.5, "high": 2.0}},
-            "objectives": {"x_end": {"signal": "vdp.x0", "reduce": "final"}}, "output": str(tmp_path / "out")}
+    spec = {
+        "name": "inline",
+        "multimodel": {"fmus": {"vdp": str(vdp)}, "instances": {"vdp": {"interface": "me"}}},
+        "experiment": {"stop_time": 2.0, "step": 0.1},
+        "scenarios": [
+            {"name": "low", "parameters": {"vdp.x0": 0.5}},
+            {"name": "high", "parameters": {"vdp.x0": 2.5}},
+        ],
+        "parameters": {"vdp.mu": {"low": 0.5, "high": 2.0}},
+        "objectives": {"x_end": {"signal": "vdp.x0", "reduce": "final"}},
+        "output": str(tmp_path / "out"),
+    }
     space = tmp_path / "space.yaml"
     space.write_text(yaml.safe_dump(spec))
     values = tmp_path / "values.yaml"
@@ -196,11 +307,29 @@ def test_simulate_a_space_runs_its_own_model_so_values_named_as_the_space_names_
     assert done.returncode == 0, done.stderr
     found = strict_loads(done.stdout)
     assert found["scenario"] == "high" and found["values"]["vdp.mu"] == 1.5 and found["stop_time"] == 2.0
-    direct = dse_runner("simulate", vdp, "--set", "mu=1.5", "--set", "x0=2.5", "--stop-time", "2", "--step", "0.1",
-                        "--interface", "me", "--objective", "{x_end: {signal: x0, reduce: final}}", "--json")
+    direct = dse_runner(
+        "simulate",
+        vdp,
+        "--set",
+        "mu=1.5",
+        "--set",
+        "x0=2.5",
+        "--stop-time",
+        "2",
+        "--step",
+        "0.1",
+        "--interface",
+        "me",
+        "--objective",
+        "{x_end: {signal: x0, reduce: final}}",
+        "--json",
+    )
     assert strict_loads(direct.stdout)["objectives"]["x_end"] == found["objectives"]["x_end"]
     both = dse_runner("simulate", space, "--values", values)
-    assert both.returncode != 0 and "the space has 2 scenarios (low, high): name one with --scenario" in both.stderr
+    assert (
+        both.returncode != 0
+        and "the space has 2 scenarios (low, high): name one with --scenario" in both.stderr
+    )
 
 
 def test_simulate_a_space_at_its_best_point_replays_what_rank_writes(tmp_path, dask_scheduler):
@@ -209,17 +338,23 @@ def test_simulate_a_space_at_its_best_point_replays_what_rank_writes(tmp_path, d
     import yaml
 
     vdp = REPO / "tests" / "fmus" / "vdp_me"
-    spec = {"name": "best", "multimodel": {"fmus": {"vdp": str(vdp)}, "instances": {"vdp": {"interface": "me"}}},
-            "experiment": {"stop_time": 2.0, "step": 0.1}, "parameters": {"vdp.mu": [0.5, 1.0, 2.0]},
-            "objectives": {"x_end": {"signal": "vdp.x0", "reduce": "final"}}, "output": str(tmp_path / "out"),
-            "cluster": {"address": dask_scheduler}}
+    spec = {
+        "name": "best",
+        "multimodel": {"fmus": {"vdp": str(vdp)}, "instances": {"vdp": {"interface": "me"}}},
+        "experiment": {"stop_time": 2.0, "step": 0.1},
+        "parameters": {"vdp.mu": [0.5, 1.0, 2.0]},
+        "objectives": {"x_end": {"signal": "vdp.x0", "reduce": "final"}},
+        "output": str(tmp_path / "out"),
+        "cluster": {"address": dask_scheduler},
+    }
     space = tmp_path / "space.yaml"
     space.write_text(yaml.safe_dump(spec))
     early = dse_runner("simulate", space, "--best")
     assert early.returncode == 2 and "--best:" in early.stderr and "submit the space first" in early.stderr
     assert dse_runner("submit", space, "--no-dashboard", "--json").returncode == 0
-    ranked = strict_loads(dse_runner("rank", tmp_path / "out", "--best-values", tmp_path / "best.yaml",
-                                     "--json").stdout)
+    ranked = strict_loads(
+        dse_runner("rank", tmp_path / "out", "--best-values", tmp_path / "best.yaml", "--json").stdout
+    )
     best = strict_loads(dse_runner("simulate", space, "--best", "--json").stdout)
     replay = strict_loads(dse_runner("simulate", space, "--values", tmp_path / "best.yaml", "--json").stdout)
     assert best["values"] == replay["values"] == ranked["best"]
@@ -237,14 +372,25 @@ def test_describe_lists_what_a_model_offers_by_the_names_every_command_uses(tmp_
     (instance,) = strict_loads(done.stdout)["instances"]
     assert (instance["instance"], instance["interface"], instance["stop_time"]) == ("msd", "me", 10.0)
     by_name = {v["name"]: v for v in instance["variables"]}
-    assert by_name["msd.k"] == {"name": "msd.k", "causality": "parameter", "type": "Real", "start": "10",
-                                "unit": "N/m", "description": "spring stiffness [N/m]", "settable": True}
+    assert by_name["msd.k"] == {
+        "name": "msd.k",
+        "causality": "parameter",
+        "type": "Real",
+        "start": "10",
+        "unit": "N/m",
+        "description": "spring stiffness [N/m]",
+        "settable": True,
+    }
     assert by_name["msd.F"]["settable"] and not by_name["msd.x"]["settable"]
     text = dse_runner("describe", msd).stdout.splitlines()
     assert text[0] == "msd: msd, FMI 2.0, model exchange; default experiment start 0, stop 10"
     assert any(line.split()[:3] == ["msd.k", "parameter", "10"] for line in text)
-    ran = dse_runner("simulate", msd, *[f"--set={v['name']}={v['start']}" for v in by_name.values() if v["settable"]],
-                     "--json")
+    ran = dse_runner(
+        "simulate",
+        msd,
+        *[f"--set={v['name']}={v['start']}" for v in by_name.values() if v["settable"]],
+        "--json",
+    )
     assert ran.returncode == 0, ran.stderr
     missing = dse_runner("describe", tmp_path / "nowhere.fmu")
     assert missing.returncode == 2 and "nowhere.fmu" in missing.stderr
@@ -260,8 +406,10 @@ def test_a_file_that_is_not_what_its_place_expects_is_one_line_naming_it(tmp_pat
     listed = tmp_path / "list.yaml"
     listed.write_text("- a\n- b\n")
     space = tmp_path / "space.yaml"
-    space.write_text(f"name: s\nmultimodel: {REPO / 'jobs' / 'msd' / 'fmus' / 'msd'}\n"
-                     "parameters: {msd.k: [10]}\nobjectives: {x: {signal: msd.x, reduce: final}}\n")
+    space.write_text(
+        f"name: s\nmultimodel: {REPO / 'jobs' / 'msd' / 'fmus' / 'msd'}\n"
+        "parameters: {msd.k: [10]}\nobjectives: {x: {signal: msd.x, reduce: final}}\n"
+    )
     msd = REPO / "jobs" / "msd" / "fmus" / "msd"
     for args, named in [
         (["simulate", msd, "--values", fmu], f"{fmu}: not a values file: it is not text (an FMU archive;"),
@@ -269,8 +417,11 @@ def test_a_file_that_is_not_what_its_place_expects_is_one_line_naming_it(tmp_pat
         (["simulate", msd, "--values", listed], "this file holds a list"),
         (["simulate", msd, "--values", space], f"{space}: a space.yaml, not a values file"),
         (["submit", fmu], "not a space.yaml: it is not text (an FMU archive; a space.yaml is YAML)"),
-        (["submit", csv], "not a space.yaml: a space.yaml is a YAML mapping of keys to values, this file holds "
-                          "text that is not a YAML mapping (a CSV file?)"),
+        (
+            ["submit", csv],
+            "not a space.yaml: a space.yaml is a YAML mapping of keys to values, this file holds "
+            "text that is not a YAML mapping (a CSV file?)",
+        ),
         (["diagnose", "--space", fmu], "not a space.yaml: it is not text"),
     ]:
         done = dse_runner(*args)

@@ -22,9 +22,11 @@ from conftest import REPO, SCENARIOS, strict_loads, write_space
 from support.pages import browser_page, glyphs, measure, open_dashboard, watch_errors
 
 SWEEP_SCENARIOS = ["sin1", "speed_ramp1", "speed_step1", "turn_ramp1"]
-PARAMETERS = {"vehicle.cAlphaF": [20000, 38000],
-              "vehicle.mass": {"start": 1000, "stop": 3000, "num": 3},
-              "vehicle.mu": [0.3, 0.7]}
+PARAMETERS = {
+    "vehicle.cAlphaF": [20000, 38000],
+    "vehicle.mass": {"start": 1000, "stop": 3000, "num": 3},
+    "vehicle.mu": [0.3, 0.7],
+}
 POINTS = 2 * 3 * 2
 TASKS = 4 * POINTS
 
@@ -66,8 +68,15 @@ def watched(tmp_path_factory, dask_scheduler) -> Watched:
     folder = tmp_path_factory.mktemp("dashboard")
     # Chunks of one task (a simulation takes more than 0.02 s): the sweep keeps 2 * 2 + 2 chunks in flight,
     # fewer than the POINTS tasks of each scenario.
-    space = load_space(write_space(folder, name="watched", scenarios=[str(SCENARIOS / s) for s in SWEEP_SCENARIOS],
-                                   parameters=PARAMETERS, chunk_seconds=0.01))
+    space = load_space(
+        write_space(
+            folder,
+            name="watched",
+            scenarios=[str(SCENARIOS / s) for s in SWEEP_SCENARIOS],
+            parameters=PARAMETERS,
+            chunk_seconds=0.01,
+        )
+    )
     server = serve(space.output, space.name, "127.0.0.1:0", space)
     seen = Watched(Path(space.output), server.url)
     client = Client(dask_scheduler)
@@ -90,8 +99,12 @@ def watched(tmp_path_factory, dask_scheduler) -> Watched:
 
     def run() -> None:
         try:
-            outcome["report"] = submit(space, progress=pace, client=client, on_connect=lambda c: links.append(
-                link_from_dask(c, server.url)))
+            outcome["report"] = submit(
+                space,
+                progress=pace,
+                client=client,
+                on_connect=lambda c: links.append(link_from_dask(c, server.url)),
+            )
         except BaseException as e:  # noqa: BLE001 - reported by the test
             outcome["error"] = e
 
@@ -105,8 +118,10 @@ def watched(tmp_path_factory, dask_scheduler) -> Watched:
             if match and (not seen.done or int(match[1]) != seen.done[-1]):
                 seen.done.append(int(match[1]))
                 seen.total = int(match[2])
-            for shown, now in ((seen.best, _text(page, "best")),
-                               (seen.top_rows, page.locator("#dse-ranking tbody tr").first.inner_text())):
+            for shown, now in (
+                (seen.best, _text(page, "best")),
+                (seen.top_rows, page.locator("#dse-ranking tbody tr").first.inner_text()),
+            ):
                 if not shown or now != shown[-1]:
                     shown.append(now)
             with looked:
@@ -156,7 +171,9 @@ def test_the_best_so_far_ranking_updates(watched):
     shown = [b for b in watched.best if b.startswith("best so far")]
     assert len(set(shown)) >= 2, watched.best
     assert "over 4 of 4 scenarios" in watched.best[-1]
-    assert len(set(watched.top_rows)) >= 3, watched.top_rows  # the table refreshes, not only the line above it
+    assert len(set(watched.top_rows)) >= 3, (
+        watched.top_rows
+    )  # the table refreshes, not only the line above it
 
 
 def test_the_page_has_no_console_errors(watched):
@@ -169,7 +186,9 @@ def test_the_best_track_is_drawn_for_the_chosen_scenario(watched):
     assert watched.track_title.startswith("sin1: best point so far")
     assert watched.chosen_track.startswith("turn_ramp1: best point so far")
     table1 = rank(watched.output, "watched").table1.set_index("scenario")
-    assert watched.chosen_track.endswith(f"{table1.loc['turn_ramp1', 'computed']:.4f}")  # the sweep's own figure
+    assert watched.chosen_track.endswith(
+        f"{table1.loc['turn_ramp1', 'computed']:.4f}"
+    )  # the sweep's own figure
 
 
 def test_dask_dashboard_links_to_it(watched):
@@ -194,8 +213,12 @@ def test_the_report_opens_offline(watched, tmp_path):
     from dse_runner.sweeps.rank import rank
 
     report = tmp_path / "report.html"
-    done = subprocess.run([sys.executable, "-m", "dse_runner", "report", str(watched.output), "-o", str(report)],
-                          capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [sys.executable, "-m", "dse_runner", "report", str(watched.output), "-o", str(report)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stderr
     ranking = rank(watched.output, "watched")
     errors: list[str] = []
@@ -215,7 +238,9 @@ def test_the_report_opens_offline(watched, tmp_path):
     assert canvases >= figures
     for scenario in SWEEP_SCENARIOS:  # Table 1 has every scenario with the rank command's figures
         row = ranking.table1.set_index("scenario").loc[scenario]
-        assert re.search(rf"{scenario}\s+\S+\s+{row['min_error']:.6g}\s+{row['max_error']:.6g}", text), scenario
+        assert re.search(rf"{scenario}\s+\S+\s+{row['min_error']:.6g}\s+{row['max_error']:.6g}", text), (
+            scenario
+        )
     assert "name: watched" in text and "vehicle.cAlphaF" in text  # the spec
     assert f"{ranking.best_total:.4f}" in text
 
@@ -240,9 +265,12 @@ def test_the_report_and_the_dashboard_fit_a_1400_px_page(watched, tmp_path):
             on_report, report_lines = measure(page), glyphs(page, "dse-by-parameter-vehicle.mass")
             page.screenshot(path=tmp_path / "report-1400.png", full_page=True)
             page.goto(server.url)
-            page.wait_for_function("() => window.Bokeh && Bokeh.documents.some(d => "
-                                   "d.get_model_by_name('dse-by-parameter-vehicle.mass')?.renderers[0]"
-                                   ".data_source.get_length() > 0)", timeout=30_000)
+            page.wait_for_function(
+                "() => window.Bokeh && Bokeh.documents.some(d => "
+                "d.get_model_by_name('dse-by-parameter-vehicle.mass')?.renderers[0]"
+                ".data_source.get_length() > 0)",
+                timeout=30_000,
+            )
             page.wait_for_function(DRAWN, timeout=30_000)
             on_dashboard, dashboard_lines = measure(page), glyphs(page, "dse-by-parameter-vehicle.mass")
             page.screenshot(path=tmp_path / "dashboard-1400.png", full_page=True)
@@ -264,8 +292,15 @@ def test_a_long_title_is_set_small_enough_to_fit_its_chart(tmp_path):
     from dse_runner.interfaces import charts
 
     names = ["controller.proportional_gain_of_the_outer_loop", "controller.k"]
-    ok = pd.DataFrame({names[0]: [1.0, 2.0, 3.0] * 2, names[1]: [0.5] * 6, "scenario": ["a"] * 3 + ["b"] * 3,
-                       "group": ["g"] * 6, "settling_time": [-123456.5, 2.5e5, 3.1e5, 1.2e5, 2.2e5, 3.3e5]})
+    ok = pd.DataFrame(
+        {
+            names[0]: [1.0, 2.0, 3.0] * 2,
+            names[1]: [0.5] * 6,
+            "scenario": ["a"] * 3 + ["b"] * 3,
+            "group": ["g"] * 6,
+            "settling_time": [-123456.5, 2.5e5, 3.1e5, 1.2e5, 2.2e5, 3.3e5],
+        }
+    )
     figure5 = charts.ObjectiveByParameter(names, "settling_time", ["g"])
     figure5.update(ok)
     page_file = tmp_path / "long.html"
@@ -282,9 +317,11 @@ def test_the_page_shows_the_sweeps_end_when_submit_stops_its_server(watched):
     """Submit stops the dashboard it served as it ends: the open page shows the finished state, then says the
     server has stopped and how to open the results again."""
     assert watched.farewell_state == "finished"
-    assert watched.farewell == ("The sweep's submit has ended, and its dashboard server with it. This page shows "
-                                f"the final state, and no longer updates. To open the results again: dse-runner "
-                                f"dashboard {watched.output}")
+    assert watched.farewell == (
+        "The sweep's submit has ended, and its dashboard server with it. This page shows "
+        f"the final state, and no longer updates. To open the results again: dse-runner "
+        f"dashboard {watched.output}"
+    )
 
 
 def test_dashboard_command_serves_a_finished_sweep_and_its_page_outlives_it_without_error(watched):
@@ -295,8 +332,12 @@ def test_dashboard_command_serves_a_finished_sweep_and_its_page_outlives_it_with
 
     lost: list[str] = []
     for ending in (signal.SIGINT, signal.SIGKILL):
-        server = subprocess.Popen([sys.executable, "-m", "dse_runner", "dashboard", str(watched.output)],
-                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        server = subprocess.Popen(
+            [sys.executable, "-m", "dse_runner", "dashboard", str(watched.output)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         try:
             line = server.stdout.readline()
             match = re.search(r"http://127\.0\.0\.1:\d+/", line)
@@ -321,7 +362,9 @@ def test_dashboard_command_serves_a_finished_sweep_and_its_page_outlives_it_with
         assert len(lost) > noticed, "the browser never noticed the server's end"
         if ending == signal.SIGINT:
             assert (errors, banner) == ([], 0)
-            assert said.startswith("This dashboard server was stopped (Ctrl-C).") and str(watched.output) in said
+            assert (
+                said.startswith("This dashboard server was stopped (Ctrl-C).") and str(watched.output) in said
+            )
         else:  # the control: a server killed without a word, as before
             assert banner == 1 and said == ""
 
@@ -340,15 +383,20 @@ def test_the_pages_html_shows_the_counts_before_any_script(watched):
     finally:
         server.stop()
     first = page.index('id="dse-first"')
-    assert f'id="dse-done">{TASKS} of {TASKS}<' in page[first:page.index("<script", first)]
+    assert f'id="dse-done">{TASKS} of {TASKS}<' in page[first : page.index("<script", first)]
     assert 'id="dse-state">finished<' in page and "<script" not in page[:first]
 
 
 def test_standings_put_the_furthest_points_first():
     from dse_runner.sweeps.rank import standings
 
-    ok = pd.DataFrame({"a": [1.0, 1.0, 2.0, 3.0, 3.0], "scenario": ["s", "t", "s", "s", "t"],
-                       "e": [5.0, 1.0, 0.5, 2.0, 2.0]})
+    ok = pd.DataFrame(
+        {
+            "a": [1.0, 1.0, 2.0, 3.0, 3.0],
+            "scenario": ["s", "t", "s", "s", "t"],
+            "e": [5.0, 1.0, 0.5, 2.0, 2.0],
+        }
+    )
     table = standings(ok, ["a"], "e", "min")
     assert table["a"].tolist() == [3.0, 1.0, 2.0]  # a=3 (mean 2) and a=1 (mean 3) have 2 scenarios
     assert table["scenarios"].tolist() == [2, 2, 1]
@@ -358,7 +406,9 @@ def test_standings_rank_as_the_ranking_reduces_over_scenarios():
     """over_scenarios: max ranks by the worst scenario, which here names another best than the mean."""
     from dse_runner.sweeps.rank import standings
 
-    ok = pd.DataFrame({"a": [1.0, 1.0, 2.0, 2.0], "scenario": ["s", "t", "s", "t"], "e": [0.0, 3.0, 2.0, 2.0]})
+    ok = pd.DataFrame(
+        {"a": [1.0, 1.0, 2.0, 2.0], "scenario": ["s", "t", "s", "t"], "e": [0.0, 3.0, 2.0, 2.0]}
+    )
     assert standings(ok, ["a"], "e", "min")["a"].tolist() == [1.0, 2.0]
     table = standings(ok, ["a"], "e", "min", "max")
     assert table["a"].tolist() == [2.0, 1.0] and table["ranked"].tolist() == [2.0, 3.0]
@@ -370,13 +420,23 @@ def test_draw_standings_rank_by_the_robust_figure_over_finished_draws():
     from dse_runner.sweeps.spec import RankingSpec
 
     draws = {1.0: [1.0, 1.0, 1.0, 1.0], 2.0: [0.0, 0.0, 0.0, 3.0]}  # a=2 has the better mean, the worse q90
-    ok = pd.DataFrame([{"a": a, "sample": k, "base": "s", "e": v} for a, values in draws.items()
-                       for k, v in enumerate(values)] + [{"a": 3.0, "sample": 0, "base": "s", "e": -9.0}])
+    ok = pd.DataFrame(
+        [
+            {"a": a, "sample": k, "base": "s", "e": v}
+            for a, values in draws.items()
+            for k, v in enumerate(values)
+        ]
+        + [{"a": 3.0, "sample": 0, "base": "s", "e": -9.0}]
+    )
     robust = RankingSpec(objective="e", robust={"quantile": 0.9})
     table = draw_standings(ok, ["a"], "e", robust, scenarios=1)
     assert table["a"].tolist() == [1.0, 2.0, 3.0] and table["draws"].tolist() == [4, 4, 1]
     assert table["ranked"].iloc[1] == pytest.approx(np.quantile(draws[2.0], 0.9))
-    assert draw_standings(ok, ["a"], "e", RankingSpec(objective="e"), scenarios=1)["a"].tolist() == [2.0, 1.0, 3.0]
+    assert draw_standings(ok, ["a"], "e", RankingSpec(objective="e"), scenarios=1)["a"].tolist() == [
+        2.0,
+        1.0,
+        3.0,
+    ]
     unfinished = draw_standings(ok, ["a"], "e", robust, scenarios=2)  # no draw has run on both scenarios
     assert unfinished["draws"].tolist() == [0, 0, 0] and unfinished["ranked"].isna().all()
 
@@ -387,16 +447,28 @@ def test_standings_leave_out_finished_points_that_break_a_ranking_constraint():
     from dse_runner.sweeps.rank import draw_standings, standings, without_excluded
     from dse_runner.sweeps.spec import RankingSpec
 
-    ok = pd.DataFrame({"a": [1.0, 1.0, 2.0, 2.0, 3.0], "scenario": ["s", "t", "s", "t", "s"],
-                       "e": [0.0, 0.5, 1.0, 1.0, 0.1], "f": [9.0, 9.0, 1.0, 1.0, 9.0]})
+    ok = pd.DataFrame(
+        {
+            "a": [1.0, 1.0, 2.0, 2.0, 3.0],
+            "scenario": ["s", "t", "s", "t", "s"],
+            "e": [0.0, 0.5, 1.0, 1.0, 0.1],
+            "f": [9.0, 9.0, 1.0, 1.0, 9.0],
+        }
+    )
     kept = RankingSpec(objective="e", constraints=["f < 10"])  # a=1's total f is 18
     table = without_excluded(standings(ok, ["a"], "e", "min"), ok, ["a"], ["e", "f"], kept, scenarios=2)
     assert table["a"].tolist() == [2.0, 3.0]  # a=3 has finished one scenario of two: not judged yet
-    assert without_excluded(standings(ok, ["a"], "e", "min"), ok, ["a"], ["e", "f"], RankingSpec(objective="e"),
-                            scenarios=2)["a"].tolist() == [1.0, 2.0, 3.0]
+    assert without_excluded(
+        standings(ok, ["a"], "e", "min"), ok, ["a"], ["e", "f"], RankingSpec(objective="e"), scenarios=2
+    )["a"].tolist() == [1.0, 2.0, 3.0]
 
-    drawn = pd.DataFrame([{"a": a, "sample": k, "base": "s", "e": e, "f": f}
-                          for a, e, f in ((1.0, 0.0, 12.0), (2.0, 1.0, 8.0)) for k in range(2)])
+    drawn = pd.DataFrame(
+        [
+            {"a": a, "sample": k, "base": "s", "e": e, "f": f}
+            for a, e, f in ((1.0, 0.0, 12.0), (2.0, 1.0, 8.0))
+            for k in range(2)
+        ]
+    )
     table = draw_standings(drawn, ["a"], "e", kept, scenarios=1)
     assert without_excluded(table, drawn, ["a"], ["e", "f"], kept, 1, samples=2)["a"].tolist() == [2.0]
     assert without_excluded(table, drawn, ["a"], ["e", "f"], kept, 1, samples=3)["a"].tolist() == [1.0, 2.0]
@@ -414,11 +486,16 @@ def test_the_dashboard_names_the_best_point_the_ranking_constraints_keep(tmp_pat
     from dse_runner.sweeps.spec import load_space
     from dse_runner.sweeps.sweep import submit
 
-    spec = {"name": "kept", "multimodel": {"fmus": {"cliff": str(REPO / "tests" / "fmus" / "cliff")}},
-            "parameters": {"cliff.a": [1, 2.2, 3, 3.5, 5], "cliff.b": [0, 1, 1.5]},  # y = (a - 3)^2 + (b - 1)^2
-            "objectives": {"y": {"signal": "cliff.y", "reduce": "final"}},
-            "ranking": {"objective": "y", "constraints": ["y >= 0.7"]},
-            "output": str(tmp_path / "out"), "cluster": {"address": dask_scheduler}, "keep_trajectories": 0}
+    spec = {
+        "name": "kept",
+        "multimodel": {"fmus": {"cliff": str(REPO / "tests" / "fmus" / "cliff")}},
+        "parameters": {"cliff.a": [1, 2.2, 3, 3.5, 5], "cliff.b": [0, 1, 1.5]},  # y = (a - 3)^2 + (b - 1)^2
+        "objectives": {"y": {"signal": "cliff.y", "reduce": "final"}},
+        "ranking": {"objective": "y", "constraints": ["y >= 0.7"]},
+        "output": str(tmp_path / "out"),
+        "cluster": {"address": dask_scheduler},
+        "keep_trajectories": 0,
+    }
     (tmp_path / "space.yaml").write_text(yaml.safe_dump(spec))
     space = load_space(tmp_path / "space.yaml")
     assert submit(space).ok == 15
@@ -443,8 +520,12 @@ def test_dashboard_address_errors_name_the_address():
 
 
 def test_report_of_a_folder_without_results_names_it(tmp_path):
-    done = subprocess.run([sys.executable, "-m", "dse_runner", "report", str(tmp_path), "-o",
-                           str(tmp_path / "r.html")], capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [sys.executable, "-m", "dse_runner", "report", str(tmp_path), "-o", str(tmp_path / "r.html")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == 2
     assert str(tmp_path) in done.stderr and "no results" in done.stderr
     assert not (tmp_path / "r.html").exists()
@@ -452,8 +533,16 @@ def test_report_of_a_folder_without_results_names_it(tmp_path):
 
 def test_submit_prints_the_dashboard_url_and_its_dask_link(tmp_path, dask_scheduler):
 
-    command = [sys.executable, "-m", "dse_runner", "submit", str(write_space(tmp_path, keep_trajectories=0)),
-               "--scheduler", dask_scheduler, "--json"]
+    command = [
+        sys.executable,
+        "-m",
+        "dse_runner",
+        "submit",
+        str(write_space(tmp_path, keep_trajectories=0)),
+        "--scheduler",
+        dask_scheduler,
+        "--json",
+    ]
     shown = subprocess.run(command, capture_output=True, text=True, timeout=300)
     assert shown.returncode == 0, shown.stderr
     assert strict_loads(shown.stdout)["ok"] == 12  # stdout stays one JSON object

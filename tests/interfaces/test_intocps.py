@@ -28,13 +28,19 @@ from dse_runner.sweeps.spec import load_space
 PROJECT = REPO / "jobs" / "intocps-watertank"
 DSE = Path("DSEs/levels/levels.dse.json")
 WILD = REPO.parent / "shared" / "fmus-wild"  # INTO-CPS's own example projects
-needs_wild = pytest.mark.skipif(not WILD.is_dir(), reason=f"INTO-CPS's example projects are not beside the "
-                                                          f"checkout ({WILD}); CI has them")
+needs_wild = pytest.mark.skipif(
+    not WILD.is_dir(), reason=f"INTO-CPS's example projects are not beside the checkout ({WILD}); CI has them"
+)
 
 
 def dse_runner(*args, cwd=REPO):
-    return subprocess.run([sys.executable, "-m", "dse_runner", *map(str, args)],
-                          capture_output=True, text=True, cwd=cwd, check=False)
+    return subprocess.run(
+        [sys.executable, "-m", "dse_runner", *map(str, args)],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        check=False,
+    )
 
 
 def copy_project(folder: Path) -> Path:
@@ -51,7 +57,9 @@ def edit_json(path: Path, change) -> None:
 
 
 def submit(spec: Path, out: Path, scheduler: str, *more) -> dict:
-    done = dse_runner("submit", spec, "--out", out, "--scheduler", scheduler, "--no-dashboard", "--json", *more)
+    done = dse_runner(
+        "submit", spec, "--out", out, "--scheduler", scheduler, "--no-dashboard", "--json", *more
+    )
     assert done.returncode in (0, 1), done.stderr
     return strict_loads(done.stdout)
 
@@ -115,11 +123,19 @@ def test_table1_is_over_the_points_the_constraints_admit_and_says_so(both):
     assert excluded > 0 and title == f"Table 1: switches per scenario ({scope})"
     figures = [float(v) for v in target.split()[1:]]  # min, max, average, best, difference
     switches = ranked["switches"]  # one scenario: a point's total is its value on it
-    assert figures == pytest.approx([switches.min(), switches.max(), switches.mean(), switches.iloc[0],
-                                     switches.iloc[0] - switches.mean()], abs=5e-4)
+    assert figures == pytest.approx(
+        [
+            switches.min(),
+            switches.max(),
+            switches.mean(),
+            switches.iloc[0],
+            switches.iloc[0] - switches.mean(),
+        ],
+        abs=5e-4,
+    )
     page = build_report(dse["output"])
     assert f"<h2>Table 1: switches per scenario ({scope})</h2>" in html.unescape(page)
-    table = page[page.index("<h2>Table 1"):].split("<h2>")[1]
+    table = page[page.index("<h2>Table 1") :].split("<h2>")[1]
     columns = [c for c in re.findall(r"<th>([^<]*)</th>", table) if c != "group"]
     assert columns == header.split()  # the CLI and the report head the columns alike
 
@@ -128,9 +144,13 @@ def test_internal_functions_and_scripts_compute_what_intocps_would(project):
     """INTO-CPS's mean is that of the samples; the scripts read results.csv by INTO-CPS's column ids."""
     space = intocps.load_space(project / DSE)
     point = {"controller.minlevel": 0.8, "controller.maxlevel": 1.8}
-    result = simulate(space.plan, space.scenarios[0], point, objectives={
-        **space.objectives, "changes": Reduce(signal="controller.valve", reduce="changes")},
-        experiment=space.experiment)
+    result = simulate(
+        space.plan,
+        space.scenarios[0],
+        point,
+        objectives={**space.objectives, "changes": Reduce(signal="controller.valve", reduce="changes")},
+        experiment=space.experiment,
+    )
     level = result.trajectory.column("tank.level")
     scores = result.objectives
     assert scores["levelMean"] == pytest.approx(np.mean(level), rel=1e-12)
@@ -149,8 +169,10 @@ def test_convert_writes_a_space_yaml_that_runs_where_it_is_written(project, tmp_
     assert converted.spec.constraints == ["controller.maxlevel - controller.minlevel >= 0.6"]
     assert converted.spec.ranking == original.spec.ranking
     point = {"controller.minlevel": 1.0, "controller.maxlevel": 2.0}
-    runs = [simulate(s.plan, s.scenarios[0], point, objectives=s.objectives, experiment=s.experiment)
-            for s in (converted, original)]
+    runs = [
+        simulate(s.plan, s.scenarios[0], point, objectives=s.objectives, experiment=s.experiment)
+        for s in (converted, original)
+    ]
     assert runs[0].objectives == runs[1].objectives
 
 
@@ -173,36 +195,56 @@ def test_report_writes_intocps_result_files(both, tmp_path):
 def test_a_failing_script_gives_failed_rows_with_its_stderr(tmp_path, dask_scheduler):
     project = copy_project(tmp_path)
     (project / "userMetricScripts" / "switches.py").write_text(
-        "import sys\nsys.exit('switches.py: no valve column in ' + sys.argv[1])\n")
+        "import sys\nsys.exit('switches.py: no valve column in ' + sys.argv[1])\n"
+    )
     summary = submit(project / DSE, tmp_path / "out", dask_scheduler)
     assert summary["failed"] == summary["ran"] > 0 and summary["ranking"] is None
     errors = store.read_results(summary["output"], "levels")["error"]
-    assert errors.str.contains(r"objective 'switches': script switches.py failed \(exit code 1\): "
-                               r"switches.py: no valve column in").all()
+    assert errors.str.contains(
+        r"objective 'switches': script switches.py failed \(exit code 1\): "
+        r"switches.py: no valve column in"
+    ).all()
 
 
 def test_a_script_that_writes_no_value_fails_its_task(project):
     space = intocps.load_space(project / DSE)
     script = space.objectives["switches"].model_copy(update={"script": str(project / "FMUs" / "README.md")})
     script._code = "print('forgot to write objectives.json')\n"
-    with pytest.raises(DseError, match=r"objective 'switches': script README.md wrote no value for 'switches'"):
-        simulate(space.plan, space.scenarios[0], {}, objectives={"switches": script}, experiment=space.experiment)
+    with pytest.raises(
+        DseError, match=r"objective 'switches': script README.md wrote no value for 'switches'"
+    ):
+        simulate(
+            space.plan, space.scenarios[0], {}, objectives={"switches": script}, experiment=space.experiment
+        )
 
 
-@pytest.mark.parametrize(("change", "message"), [
-    (lambda d: d.update(algorithm={"type": "simulated-annealing"}),
-     r"algorithm 'simulated-annealing' is not one INTO-CPS or dse-runner runs \(exhaustive, genetic\)"),
-    (lambda d: d["objectiveDefinitions"]["externalScripts"]["switches"].update(scriptFile="gone.py"),
-     r"objectiveDefinitions\.externalScripts\.switches: script not found: .*userMetricScripts/gone\.py"),
-    (lambda d: d["parameters"].update({"{controllerFMU}.controller.minlevle": [1]}),
-     r"parameters: unknown variable 'controller\.minlevle': .* \(did you mean minlevel"),
-    (lambda d: d.update(parameterConstraints=["math.sqrt({controllerFMU}.controller.maxlevel) > 1"]),
-     r"parameterConstraints\.0: cannot translate 'math\.sqrt\(\{controllerFMU\}\.controller\.maxlevel\) > 1'"),
-    (lambda d: d.update(objectiveConstraints=["levelMax < __import__('os').getpid()"]),
-     r"objectiveConstraints\.0: cannot translate \"levelMax < __import__\('os'\)\.getpid\(\)\""),
-    (lambda d: d.update(ranking={"weighted": {"levelMax": "-"}}), r"ranking 'weighted' is not a ranking"),
-    (lambda d: d.update(ranking={"pareto": {"lapTime": "-"}}), r"ranking\.pareto names 'lapTime'"),
-])
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (
+            lambda d: d.update(algorithm={"type": "simulated-annealing"}),
+            r"algorithm 'simulated-annealing' is not one INTO-CPS or dse-runner runs \(exhaustive, genetic\)",
+        ),
+        (
+            lambda d: d["objectiveDefinitions"]["externalScripts"]["switches"].update(scriptFile="gone.py"),
+            r"objectiveDefinitions\.externalScripts\.switches: script not found: .*userMetricScripts/gone\.py",
+        ),
+        (
+            lambda d: d["parameters"].update({"{controllerFMU}.controller.minlevle": [1]}),
+            r"parameters: unknown variable 'controller\.minlevle': .* \(did you mean minlevel",
+        ),
+        (
+            lambda d: d.update(parameterConstraints=["math.sqrt({controllerFMU}.controller.maxlevel) > 1"]),
+            r"parameterConstraints\.0: cannot translate 'math\.sqrt\(\{controllerFMU\}\.controller\.maxlevel\) > 1'",
+        ),
+        (
+            lambda d: d.update(objectiveConstraints=["levelMax < __import__('os').getpid()"]),
+            r"objectiveConstraints\.0: cannot translate \"levelMax < __import__\('os'\)\.getpid\(\)\"",
+        ),
+        (lambda d: d.update(ranking={"weighted": {"levelMax": "-"}}), r"ranking 'weighted' is not a ranking"),
+        (lambda d: d.update(ranking={"pareto": {"lapTime": "-"}}), r"ranking\.pareto names 'lapTime'"),
+    ],
+)
 def test_bad_intocps_input_gives_one_line_naming_it(tmp_path, change, message):
     project = copy_project(tmp_path)
     edit_json(project / DSE, change)
@@ -221,19 +263,30 @@ def test_the_coe_json_is_found_as_the_application_finds_it(tmp_path):
     # a results copy (R_<date>/coe.json) is not a candidate; an old coe without multimodel_path is
     # associated by its folder
     (mm_folder / "experiment" / "R_2026_11_23-10_00_00_000").mkdir()
-    shutil.copy(mm_folder / "experiment" / "experiment.coe.json", mm_folder / "experiment" / "R_2026_11_23-10_00_00_000")
+    shutil.copy(
+        mm_folder / "experiment" / "experiment.coe.json",
+        mm_folder / "experiment" / "R_2026_11_23-10_00_00_000",
+    )
     edit_json(mm_folder / "experiment" / "experiment.coe.json", lambda d: d.pop("multimodel_path"))
     assert intocps.project.locate(project / DSE).multimodel == (mm_folder / "watertank.mm.json").resolve()
     # a second multi-model whose FMUs the DSE does not name is passed over
     other = project / "Multi-models" / "other"
     (other / "run").mkdir(parents=True)
     (other / "other.mm.json").write_text(json.dumps({"fmus": {"{x}": "x.fmu"}}))
-    (other / "run" / "coe.json").write_text(json.dumps({"endTime": 1, "algorithm": {"type": "fixed-step", "size": 1}}))
-    assert intocps.project.locate(project / DSE).coe == (mm_folder / "experiment" / "experiment.coe.json").resolve()
+    (other / "run" / "coe.json").write_text(
+        json.dumps({"endTime": 1, "algorithm": {"type": "fixed-step", "size": 1}})
+    )
+    assert (
+        intocps.project.locate(project / DSE).coe
+        == (mm_folder / "experiment" / "experiment.coe.json").resolve()
+    )
     # two that both fit: the error lists them, and --coe chooses
     shutil.copytree(mm_folder / "experiment", mm_folder / "fast", ignore=shutil.ignore_patterns("R_*"))
-    with pytest.raises(DseError, match=r"several co-simulation configs could run this DSE \(.*experiment.coe.json, "
-                                       r".*fast/experiment.coe.json\); choose one with --coe"):
+    with pytest.raises(
+        DseError,
+        match=r"several co-simulation configs could run this DSE \(.*experiment.coe.json, "
+        r".*fast/experiment.coe.json\); choose one with --coe",
+    ):
         intocps.project.locate(project / DSE)
     chosen = intocps.project.locate(project / DSE, coe=mm_folder / "fast" / "experiment.coe.json")
     assert chosen.multimodel == (mm_folder / "watertank.mm.json").resolve()
@@ -242,21 +295,43 @@ def test_the_coe_json_is_found_as_the_application_finds_it(tmp_path):
 def test_a_variable_step_config_runs_at_its_initial_step_with_a_warning(tmp_path):
     project = copy_project(tmp_path)
     coe = project / "Multi-models/watertank/experiment/experiment.coe.json"
-    edit_json(coe, lambda d: d.update(algorithm={"type": "var-step", "initsize": 0.05, "size": [0.1, 1],
-                                                 "constraints": {"max": {"type": "fmumaxstepsize"}}}))
+    edit_json(
+        coe,
+        lambda d: d.update(
+            algorithm={
+                "type": "var-step",
+                "initsize": 0.05,
+                "size": [0.1, 1],
+                "constraints": {"max": {"type": "fmumaxstepsize"}},
+            }
+        ),
+    )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         space = intocps.load_space(project / DSE)
     assert space.experiment.step == 0.1  # the initial size, clamped into the size range
-    assert any("variable-step algorithm becomes a fixed step of 0.1 s" in str(w.message)
-               and "constraints (max)" in str(w.message) for w in caught)
+    assert any(
+        "variable-step algorithm becomes a fixed step of 0.1 s" in str(w.message)
+        and "constraints (max)" in str(w.message)
+        for w in caught
+    )
 
 
 def test_genetic_becomes_nsga2_for_a_pareto_ranking_and_genetic_for_one_objective(tmp_path, dask_scheduler):
     project = copy_project(tmp_path)
-    edit_json(project / DSE, lambda d: d.update(algorithm={
-        "type": "genetic", "initialPopulation": 4, "initialPopulationDistribution": "random",
-        "mutationProbability": 20, "parentSelectionStrategy": "random", "maxGenerationsWithoutImprovement": 3}))
+    edit_json(
+        project / DSE,
+        lambda d: d.update(
+            algorithm={
+                "type": "genetic",
+                "initialPopulation": 4,
+                "initialPopulationDistribution": "random",
+                "mutationProbability": 20,
+                "parentSelectionStrategy": "random",
+                "maxGenerationsWithoutImprovement": 3,
+            }
+        ),
+    )
     search = intocps.load_space(project / DSE).spec.search
     assert search.strategy == "nsga2" and search.options == {"population_size": 4, "mutation_prob": 0.2}
     summary = submit(project / DSE, tmp_path / "out", dask_scheduler, "--max-points", "8")
@@ -264,26 +339,42 @@ def test_genetic_becomes_nsga2_for_a_pareto_ranking_and_genetic_for_one_objectiv
     edit_json(project / DSE, lambda d: d.update(ranking={"pareto": {"deviation": "-"}}))
     search = intocps.load_space(project / DSE).spec.search
     assert search.strategy == "genetic" and search.options == {
-        "population": 4, "mutation_probability": 0.2, "max_generations_without_improvement": 3}
+        "population": 4,
+        "mutation_probability": 0.2,
+        "max_generations_without_improvement": 3,
+    }
 
 
 def test_mm_json_connections_of_every_type(tmp_path):
     """Integer and Boolean connections as INTO-CPS writes them, through an FMU with every FMI 2 type."""
     types2 = REPO / "tests" / "fmus" / "types2"
     mm = tmp_path / "types.mm.json"
-    mm.write_text(json.dumps({
-        "fmus": {"{t}": str(types2)},
-        "connections": {"{t}.a.int_out": ["{t}.b.int_in"], "{t}.a.bool_out": ["{t}.b.bool_in"],
-                        "{t}.a.real_out": ["{t}.b.real_in"]},
-        "parameters": {"{t}.a.int_offset": 3, "{t}.b.int_offset": 4, "{t}.b.invert": True},
-    }))
+    mm.write_text(
+        json.dumps(
+            {
+                "fmus": {"{t}": str(types2)},
+                "connections": {
+                    "{t}.a.int_out": ["{t}.b.int_in"],
+                    "{t}.a.bool_out": ["{t}.b.bool_in"],
+                    "{t}.a.real_out": ["{t}.b.real_in"],
+                },
+                "parameters": {"{t}.a.int_offset": 3, "{t}.b.int_offset": 4, "{t}.b.invert": True},
+            }
+        )
+    )
     out = simulate(mm, stop_time=1, step=0.5).trajectory.outputs  # int_out = int_in + int_offset + steps
     assert (out["a.int_out"] == 3 + out["a.steps"]).all()
     # b's inputs are a's outputs of the communication point before
     assert (out["b.int_out"][1:] == out["a.int_out"][:-1] + 4 + out["b.steps"][1:]).all()
     assert (out["b.bool_out"][1:] == 1 - out["a.bool_out"][:-1]).all()  # bool_out = bool_in XOR invert
-    mm.write_text(json.dumps({"fmus": {"{t}": str(types2), "{u}": str(types2)},
-                              "connections": {"{t}.a.int_out": ["{u}.a.int_in"]}}))
+    mm.write_text(
+        json.dumps(
+            {
+                "fmus": {"{t}": str(types2), "{u}": str(types2)},
+                "connections": {"{t}.a.int_out": ["{u}.a.int_in"]},
+            }
+        )
+    )
     with pytest.raises(DseError, match=r"instance 'a' belongs to two FMUs, \{t\} and \{u\}"):
         simulate(mm, stop_time=1, step=0.5)
 
@@ -297,12 +388,18 @@ def test_a_failing_script_is_reported_by_its_exception_line(tmp_path, dask_sched
     """submit prints each failure's first line: the script's exception, not 'Traceback (most recent call last):'."""
     project = copy_project(tmp_path)
     failing_script(project)
-    done = dse_runner("submit", project / DSE, "--out", tmp_path / "out", "--scheduler", dask_scheduler,
-                      "--no-dashboard")
+    done = dse_runner(
+        "submit", project / DSE, "--out", tmp_path / "out", "--scheduler", dask_scheduler, "--no-dashboard"
+    )
     failed = [line for line in done.stdout.splitlines() if line.startswith("  failed: ")]
     assert failed and "Traceback" not in done.stdout, done.stdout
-    assert all(line.endswith("objective 'switches': script switches.py failed (exit code 1) at line 3: "
-                             "ZeroDivisionError: division by zero") for line in failed), failed
+    assert all(
+        line.endswith(
+            "objective 'switches': script switches.py failed (exit code 1) at line 3: "
+            "ZeroDivisionError: division by zero"
+        )
+        for line in failed
+    ), failed
     error = store.read_results(tmp_path / "out", "levels")["error"].iloc[0]
     assert "Traceback (most recent call last):" in error.splitlines()[1]  # the traceback follows
 
@@ -310,12 +407,26 @@ def test_a_failing_script_is_reported_by_its_exception_line(tmp_path, dask_sched
 def test_submit_exits_1_alike_with_and_without_json_when_nothing_is_ranked(tmp_path, dask_scheduler):
     project = copy_project(tmp_path)
     failing_script(project)
-    runs = {flags: dse_runner("submit", project / DSE, "--out", tmp_path / f"out{len(flags)}", "--scheduler",
-                              dask_scheduler, "--no-dashboard", *flags) for flags in ((), ("--json",))}
+    runs = {
+        flags: dse_runner(
+            "submit",
+            project / DSE,
+            "--out",
+            tmp_path / f"out{len(flags)}",
+            "--scheduler",
+            dask_scheduler,
+            "--no-dashboard",
+            *flags,
+        )
+        for flags in ((), ("--json",))
+    }
     assert [done.returncode for done in runs.values()] == [1, 1], [done.stderr for done in runs.values()]
     for done in runs.values():
-        assert done.stderr.strip().splitlines()[-1].startswith("error: no ranking: sweep 'levels': no parameter "
-                                                              "point has an ok result")
+        assert (
+            done.stderr.strip()
+            .splitlines()[-1]
+            .startswith("error: no ranking: sweep 'levels': no parameter point has an ok result")
+        )
     summary = strict_loads(runs[("--json",)].stdout)  # nothing but the JSON on stdout
     assert summary["ranking"] is None and summary["failed"] == summary["ran"] > 0
 
@@ -324,10 +435,13 @@ def test_a_dse_naming_instances_no_multimodel_defines_names_them(tmp_path):
     project = copy_project(tmp_path)
     other = project / "Multi-models" / "other"
     (other / "run").mkdir(parents=True)
-    (other / "run" / "coe.json").write_text(json.dumps({"endTime": 1, "algorithm": {"type": "fixed-step",
-                                                                                     "size": 1}}))
-    mm = {"fmus": {"{controller}": "c.fmu", "{tankFMU}": "t.fmu"},
-          "connections": {"{controller}.controller.valve": ["{tankFMU}.tanks.valvecontrol"]}}
+    (other / "run" / "coe.json").write_text(
+        json.dumps({"endTime": 1, "algorithm": {"type": "fixed-step", "size": 1}})
+    )
+    mm = {
+        "fmus": {"{controller}": "c.fmu", "{tankFMU}": "t.fmu"},
+        "connections": {"{controller}.controller.valve": ["{tankFMU}.tanks.valvecontrol"]},
+    }
     (other / "other.mm.json").write_text(json.dumps(mm))
     dse = project / DSE
     dse.write_text(dse.read_text().replace("{controllerFMU}", "{controller}"))
@@ -336,7 +450,8 @@ def test_a_dse_naming_instances_no_multimodel_defines_names_them(tmp_path):
     assert str(error.value) == (
         "no multi-model of the project defines every {fmu}.instance this DSE names: "
         "Multi-models/other/other.mm.json lacks {tankFMU}.tank; "
-        "Multi-models/watertank/watertank.mm.json lacks {controller}.controller")
+        "Multi-models/watertank/watertank.mm.json lacks {controller}.controller"
+    )
     mm["connections"] = {"{ctrl}.controller.valve": ["{tankFMU}.tank.valvecontrol"]}
     mm["fmus"]["{ctrl}"] = mm["fmus"].pop("{controller}")
     (other / "other.mm.json").write_text(json.dumps(mm))
@@ -344,9 +459,13 @@ def test_a_dse_naming_instances_no_multimodel_defines_names_them(tmp_path):
     assert done.returncode == 2 and done.stderr.strip() == (
         "error: this DSE names {controller}.controller, which no multi-model of the project defines (looked at "
         "Multi-models/other/other.mm.json, Multi-models/watertank/watertank.mm.json; a multi-model defines "
-        "the {fmu}.instance its connections and parameters name)")
-    with pytest.raises(DseError, match=r"^this DSE names \{controller\}\.controller, .*\(looked at "
-                                       r"Multi-models/watertank/watertank\.mm\.json;"):
+        "the {fmu}.instance its connections and parameters name)"
+    )
+    with pytest.raises(
+        DseError,
+        match=r"^this DSE names \{controller\}\.controller, .*\(looked at "
+        r"Multi-models/watertank/watertank\.mm\.json;",
+    ):
         intocps.project.locate(dse, multimodel=project / "Multi-models/watertank/watertank.mm.json")
 
 
@@ -376,22 +495,30 @@ def test_a_python2_script_that_does_not_port_is_refused_with_its_line(tmp_path):
     reasons, and nothing runs."""
     project = copy_project(tmp_path)
     (project / "userMetricScripts" / "switches.py").write_text(
-        "import sys\n\nif len(sys.argv) > 2:\n        x = 1\n\ty = 2\nprint sys.argv[2]\n")
+        "import sys\n\nif len(sys.argv) > 2:\n        x = 1\n\ty = 2\nprint sys.argv[2]\n"
+    )
     done = dse_runner("submit", project / DSE, "--out", tmp_path / "out", "--no-dashboard")
     assert done.returncode == 2 and not (tmp_path / "out").exists()
     (line,) = done.stderr.strip().splitlines()
     script = str((project / "userMetricScripts" / "switches.py").resolve())
     assert line.startswith(f"error: {project / DSE}: objectives.switches: {script} line 5: ") and (
         "ported by fissix it is still not Python 3: line 5: not valid Python 3: inconsistent use of tabs"
-        in line)
+        in line
+    )
 
 
 def switches_and_changes(space) -> tuple[float, float]:
     """The DSE's switches script's value at one point, and what {signal: valve, reduce: changes} gives there."""
-    result = simulate(space.plan, space.scenarios[0], {"controller.minlevel": 0.8, "controller.maxlevel": 1.8},
-                      objectives={"switches": space.objectives["switches"],
-                                  "changes": Reduce(signal="controller.valve", reduce="changes")},
-                      experiment=space.experiment)
+    result = simulate(
+        space.plan,
+        space.scenarios[0],
+        {"controller.minlevel": 0.8, "controller.maxlevel": 1.8},
+        objectives={
+            "switches": space.objectives["switches"],
+            "changes": Reduce(signal="controller.valve", reduce="changes"),
+        },
+        experiment=space.experiment,
+    )
     return result.objectives["switches"], result.objectives["changes"]
 
 
@@ -400,8 +527,11 @@ def test_a_python2_script_is_ported_for_the_run_once_and_the_file_left_unchanged
     user's file is byte for byte as it was, and the value is what the declared objective computes."""
     project = copy_project(tmp_path)
     script = project / "userMetricScripts" / "switches.py"
-    script.write_text(script.read_text().replace(
-        'objectives[name] = switches\n', 'objectives[name] = switches\nprint "%d switches" % switches\n'))
+    script.write_text(
+        script.read_text().replace(
+            "objectives[name] = switches\n", 'objectives[name] = switches\nprint "%d switches" % switches\n'
+        )
+    )
     before = script.read_bytes()
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always")
@@ -409,48 +539,58 @@ def test_a_python2_script_is_ported_for_the_run_once_and_the_file_left_unchanged
         intocps.load_space(project / DSE)  # loaded again (a resubmission): said once
     ported = [str(w.message) for w in said if "ported to Python 3 with fissix" in str(w.message)]
     line = script.read_text().splitlines().index('print "%d switches" % switches') + 1
-    assert ported == [f"{script.resolve()} line {line}: a Python 2 script (print statement); ported to "
-                      "Python 3 with fissix for this run, the file unchanged"]
+    assert ported == [
+        f"{script.resolve()} line {line}: a Python 2 script (print statement); ported to "
+        "Python 3 with fissix for this run, the file unchanged"
+    ]
     switches, changes = switches_and_changes(space)
     assert switches == changes > 0
     assert script.read_bytes() == before
 
 
-@pytest.mark.parametrize(("code", "line", "what"), [
-    ("import sys\nprint sys.argv\n", 2, "print statement"),
-    ("import sys\nprint >>sys.stderr, 'x'\n", 2, "print statement"),
-    ("x = 1\nprint\n", 2, "print statement"),
-    ("exec 'x = 1'\n", 1, "exec statement"),
-    ("try:\n    pass\nexcept IOError, e:\n    pass\n", 3, "except X, e"),
-    ("raise ValueError, 'no'\n", 1, "raise X, message"),
-    ("if 1 <> 2:\n    pass\n", 1, "the <> operator"),
-    ("x = 10L\n", 1, "a long literal such as 10L"),
-    ("x = 0777\n", 1, "an octal literal such as 0777"),
-    ("x = `1`\n", 1, "backquotes for repr"),
-    ("x = 1\ny = unicode(x)\n", 2, "unicode(), which Python 3 does not have"),
-    ("for i in xrange(3):\n    pass\n", 1, "xrange(), which Python 3 does not have"),
-    ("d = {}\nif d.has_key('a'):\n    pass\n", 2, ".has_key(), a dict method Python 3 does not have"),
-    ("import urllib2\n", 1, "module urllib2, which Python 3 renamed or removed"),
-    ("from StringIO import StringIO\n", 1, "module StringIO, which Python 3 renamed or removed"),
-])
+@pytest.mark.parametrize(
+    ("code", "line", "what"),
+    [
+        ("import sys\nprint sys.argv\n", 2, "print statement"),
+        ("import sys\nprint >>sys.stderr, 'x'\n", 2, "print statement"),
+        ("x = 1\nprint\n", 2, "print statement"),
+        ("exec 'x = 1'\n", 1, "exec statement"),
+        ("try:\n    pass\nexcept IOError, e:\n    pass\n", 3, "except X, e"),
+        ("raise ValueError, 'no'\n", 1, "raise X, message"),
+        ("if 1 <> 2:\n    pass\n", 1, "the <> operator"),
+        ("x = 10L\n", 1, "a long literal such as 10L"),
+        ("x = 0777\n", 1, "an octal literal such as 0777"),
+        ("x = `1`\n", 1, "backquotes for repr"),
+        ("x = 1\ny = unicode(x)\n", 2, "unicode(), which Python 3 does not have"),
+        ("for i in xrange(3):\n    pass\n", 1, "xrange(), which Python 3 does not have"),
+        ("d = {}\nif d.has_key('a'):\n    pass\n", 2, ".has_key(), a dict method Python 3 does not have"),
+        ("import urllib2\n", 1, "module urllib2, which Python 3 renamed or removed"),
+        ("from StringIO import StringIO\n", 1, "module StringIO, which Python 3 renamed or removed"),
+    ],
+)
 def test_python2_is_told_from_python3(code, line, what):
     with pytest.raises(DseError) as error:
         python2.check(code, Path("/scripts/metric.py"))
-    assert str(error.value) == (f"/scripts/metric.py line {line}: a Python 2 script ({what}); dse-runner runs "
-                                "scripts with Python 3 (docs/intocps.md)")
+    assert str(error.value) == (
+        f"/scripts/metric.py line {line}: a Python 2 script ({what}); dse-runner runs "
+        "scripts with Python 3 (docs/intocps.md)"
+    )
     ported, because = python2.as_python3(code, Path("/scripts/metric.py"))
     assert because == f"line {line}: a Python 2 script ({what})"
     python2.check(ported, Path("/scripts/metric.py"))  # what runs is Python 3
 
 
-@pytest.mark.parametrize(("code", "message"), [
-    ("x = 1\ndef f(:\n    pass\n", "line 2: not valid Python 3: invalid syntax"),
-    ("x = 1\nreturn x\n", "line 2: not valid Python 3: 'return' outside function"),
-    ("import sys\nprint('x', file=sys.stderr)\nprinter = print\n", None),
-    ("try:\n    unicode\nexcept NameError:\n    unicode = str\nprint(unicode(1))\n", None),  # for both
-    ("try:\n    from StringIO import StringIO\nexcept ImportError:\n    from io import StringIO\n", None),
-    ("from functools import reduce\nlong = int\nprint(reduce(max, [long(1)]))\n", None),
-])
+@pytest.mark.parametrize(
+    ("code", "message"),
+    [
+        ("x = 1\ndef f(:\n    pass\n", "line 2: not valid Python 3: invalid syntax"),
+        ("x = 1\nreturn x\n", "line 2: not valid Python 3: 'return' outside function"),
+        ("import sys\nprint('x', file=sys.stderr)\nprinter = print\n", None),
+        ("try:\n    unicode\nexcept NameError:\n    unicode = str\nprint(unicode(1))\n", None),  # for both
+        ("try:\n    from StringIO import StringIO\nexcept ImportError:\n    from io import StringIO\n", None),
+        ("from functools import reduce\nlong = int\nprint(reduce(max, [long(1)]))\n", None),
+    ],
+)
 def test_python3_scripts_pass_and_other_syntax_errors_are_named(code, message):
     if message is None:
         python2.check(code, Path("/scripts/metric.py"))
@@ -473,35 +613,61 @@ def test_the_scripts_of_docs_intocps_run_as_written(tmp_path):
             warnings.simplefilter("always")
             space = intocps.load_space(project / DSE)
         ported = [str(w.message) for w in said if "ported" in str(w.message)]
-        assert ported == ([f"{script.resolve()} {python2_line}; ported to Python 3 with fissix for this run, "
-                           "the file unchanged"] if python2_line else [])
+        assert ported == (
+            [
+                f"{script.resolve()} {python2_line}; ported to Python 3 with fissix for this run, "
+                "the file unchanged"
+            ]
+            if python2_line
+            else []
+        )
         assert space.objectives["switches"].data_folder is (python2_line is None)
         switches, changes = switches_and_changes(space)
         assert switches == changes > 0
 
 
-@pytest.mark.parametrize(("code", "arguments", "takes"), [
-    ("import sys\ncolumn, target = sys.argv[3], float(sys.argv[4])\n", 2, False),  # INTO-CPS's published ones
-    ("import sys\ndata, column, target = sys.argv[3], sys.argv[4], sys.argv[5]\n", 2, True),  # example-fcu's
-    ("import sys\nfolder, name, data, a, b, c = sys.argv[1:7]\n", 3, True),  # a fixed slice
-    ("from sys import argv\nfolder, name, column = argv[1], argv[2], argv[3]\n", 1, False),
-    ("import sys\nname = sys.argv[2]\n", 0, True),  # no parameters: the data folder harms nothing
-])
+@pytest.mark.parametrize(
+    ("code", "arguments", "takes"),
+    [
+        (
+            "import sys\ncolumn, target = sys.argv[3], float(sys.argv[4])\n",
+            2,
+            False,
+        ),  # INTO-CPS's published ones
+        (
+            "import sys\ndata, column, target = sys.argv[3], sys.argv[4], sys.argv[5]\n",
+            2,
+            True,
+        ),  # example-fcu's
+        ("import sys\nfolder, name, data, a, b, c = sys.argv[1:7]\n", 3, True),  # a fixed slice
+        ("from sys import argv\nfolder, name, column = argv[1], argv[2], argv[3]\n", 1, False),
+        ("import sys\nname = sys.argv[2]\n", 0, True),  # no parameters: the data folder harms nothing
+    ],
+)
 def test_the_command_line_a_script_expects_is_read_from_it(code, arguments, takes):
     from dse_runner.simulation.script_convention import convention
 
     assert convention(code, arguments, "s.py") == (convention(code, arguments, "s.py").__class__(takes))
 
 
-@pytest.mark.parametrize("code", ["import sys\nrest = sys.argv[3:]\n", "import sys\nx = sys.argv[7]\n",
-                                  "import sys\ni = 3\nx = sys.argv[i]\n", "print('no arguments read')\n"])
+@pytest.mark.parametrize(
+    "code",
+    [
+        "import sys\nrest = sys.argv[3:]\n",
+        "import sys\nx = sys.argv[7]\n",
+        "import sys\ni = 3\nx = sys.argv[i]\n",
+        "print('no arguments read')\n",
+    ],
+)
 def test_a_script_whose_command_line_cannot_be_read_gets_the_data_folder_and_a_line_saying_so(code):
     from dse_runner.simulation.script_convention import convention
 
     chosen = convention(code, 1, "s.py")
     assert chosen.data_folder and chosen.note.startswith("s.py reads ")
-    assert chosen.note.endswith("passing the scenario's data folder as its third argument, as INTO-CPS's DSE "
-                                "scripts do (data_folder: false leaves it out)")
+    assert chosen.note.endswith(
+        "passing the scenario's data folder as its third argument, as INTO-CPS's DSE "
+        "scripts do (data_folder: false leaves it out)"
+    )
 
 
 def test_results_csv_has_the_step_size_column_intocps_writes(tmp_path):

@@ -20,12 +20,15 @@ OBJECTIVES = ["time", "energy"]  # not alphabetical either
 
 # (time, energy), both minimised: A, B, C and D (B's twin) are non-dominated; E is dominated by B and D;
 # F only by E and those before it. simDirs are gain_area (ids sorted: {ctrl} before {tank}).
-POINTS = pd.DataFrame({
-    "tank.area": [2.0, 1.5, 1.0, 0.5, 2.5, 3.0],
-    "ctrl.gain": [0.1, 0.2, 0.3, 0.4, 0.5, 0.6],
-    "time": [1.0, 2.0, 3.0, 2.0, 3.0, 4.0],
-    "energy": [5.0, 3.0, 1.0, 3.0, 4.0, 5.0],
-}, index=list("ABCDEF"))
+POINTS = pd.DataFrame(
+    {
+        "tank.area": [2.0, 1.5, 1.0, 0.5, 2.5, 3.0],
+        "ctrl.gain": [0.1, 0.2, 0.3, 0.4, 0.5, 0.6],
+        "time": [1.0, 2.0, 3.0, 2.0, 3.0, 4.0],
+        "energy": [5.0, 3.0, 1.0, 3.0, 4.0, 5.0],
+    },
+    index=list("ABCDEF"),
+)
 DIR = {"A": "0.1_2.0", "B": "0.2_1.5", "C": "0.3_1.0", "D": "0.4_0.5", "E": "0.5_2.5", "F": "0.6_3.0"}
 
 
@@ -53,8 +56,11 @@ def test_ranking_json_and_csv_of_two_minimised_objectives(tmp_path):
     with paths["ranking"].open() as file:
         ranking = json.load(file)
     # Within a front, best time first; B and D tie, and keep the order they came in.
-    assert ranking == {"pareto": {"1": dirs("ABDC"), "2": dirs("E"), "3": dirs("F")},
-                       "simulations": dirs("ABCDEF"), "unrankable": []}
+    assert ranking == {
+        "pareto": {"1": dirs("ABDC"), "2": dirs("E"), "3": dirs("F")},
+        "simulations": dirs("ABCDEF"),
+        "unrankable": [],
+    }
     assert paths["ranking"].read_text() == json.dumps(ranking, sort_keys=True, indent=4)
 
     text = paths["csv"].read_text()
@@ -66,8 +72,14 @@ def test_ranking_json_and_csv_of_two_minimised_objectives(tmp_path):
     assert reader.fieldnames == ["Rank", "energy", "time", "ctrl.gain", "plant.mass", "tank.area"]
     assert [r["Rank"] for r in rows] == ["1", "1", "1", "1", "2", "3"]
     assert [r["ctrl.gain"] for r in rows] == ["0.1", "0.2", "0.4", "0.3", "0.5", "0.6"]
-    assert rows[0] == {"Rank": "1", "energy": "5.0", "time": "1.0", "ctrl.gain": "0.1",
-                       "plant.mass": "3000", "tank.area": "2.0"}
+    assert rows[0] == {
+        "Rank": "1",
+        "energy": "5.0",
+        "time": "1.0",
+        "ctrl.gain": "0.1",
+        "plant.mass": "3000",
+        "tank.area": "2.0",
+    }
 
 
 def test_maximising_both_objectives_turns_the_fronts_round(tmp_path):
@@ -79,7 +91,9 @@ def test_maximising_both_objectives_turns_the_fronts_round(tmp_path):
 
 def test_the_html_table_is_the_csv(tmp_path):
     fixed = {**FIXED, "{plant}.plant.label": "heavy <A&B>"}  # a String parameter: text to escape
-    paths = write_results(tmp_path, POINTS, PARAMETERS, OBJECTIVES, [("time", "min"), ("energy", "min")], fixed)
+    paths = write_results(
+        tmp_path, POINTS, PARAMETERS, OBJECTIVES, [("time", "min"), ("energy", "min")], fixed
+    )
     text = paths["html"].read_text()
     assert text.startswith('<!DOCTYPE html PUBLIC "-//W3C//DTD XHTML 1.0 Strict//EN"')
     page = ET.fromstring(text)  # well-formed XHTML, so every row is closed

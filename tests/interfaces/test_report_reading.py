@@ -66,21 +66,32 @@ def reports(tmp_path_factory, dask_scheduler) -> dict:
     root = tmp_path_factory.mktemp("reading")
     tank = root / "tank"
     tank.mkdir()
-    tank_spec = write_yaml(tank, {
-        "name": "tank", "multimodel": str(REPO / "jobs" / "watertank" / "multimodel.yaml"),
-        "experiment": {"start_time": 0, "stop_time": 100, "step": 0.1},
-        "parameters": {"controller.minlevel": [0.5, 1.0, 1.5], "controller.maxlevel": [1.6, 2.0, 2.4]},
-        "objectives": {"level_deviation": {"signal": "tank.level", "target": 1.5, "reduce": "rms"},
-                       "switches": {"signal": "controller.valve", "reduce": "changes"}},
-        "ranking": {"objective": "level_deviation", "pareto": ["level_deviation", "switches"]},
-        "output": str(tank / "out"), "cluster": {"address": dask_scheduler}})
+    tank_spec = write_yaml(
+        tank,
+        {
+            "name": "tank",
+            "multimodel": str(REPO / "jobs" / "watertank" / "multimodel.yaml"),
+            "experiment": {"start_time": 0, "stop_time": 100, "step": 0.1},
+            "parameters": {"controller.minlevel": [0.5, 1.0, 1.5], "controller.maxlevel": [1.6, 2.0, 2.4]},
+            "objectives": {
+                "level_deviation": {"signal": "tank.level", "target": 1.5, "reduce": "rms"},
+                "switches": {"signal": "controller.valve", "reduce": "changes"},
+            },
+            "ranking": {"objective": "level_deviation", "pareto": ["level_deviation", "switches"]},
+            "output": str(tank / "out"),
+            "cluster": {"address": dask_scheduler},
+        },
+    )
     robotti = root / "robotti"
     robotti.mkdir()
-    robotti_spec = write_space(robotti, name="field", cluster={"address": dask_scheduler},
-                               scenarios=[str(SCENARIOS / s) for s in ("sin1", "speed_step1", "turn_ramp1")],
-                               objectives=["cross_track_error", "max_error"],
-                               ranking={"objective": "cross_track_error",
-                                        "pareto": ["cross_track_error", "max_error"]})
+    robotti_spec = write_space(
+        robotti,
+        name="field",
+        cluster={"address": dask_scheduler},
+        scenarios=[str(SCENARIOS / s) for s in ("sin1", "speed_step1", "turn_ramp1")],
+        objectives=["cross_track_error", "max_error"],
+        ranking={"objective": "cross_track_error", "pareto": ["cross_track_error", "max_error"]},
+    )
     made = {}
     for name, path in (("tank", tank_spec), ("robotti", robotti_spec)):
         space = load_space(path)
@@ -96,8 +107,13 @@ def _read(report, width: int) -> dict:
     with browser_page(errors, offline=True, viewport={"width": width, "height": 1000}) as page:
         page.goto(report.as_uri())
         page.wait_for_function(DRAWN, timeout=60_000)
-        seen = {"layout": page.evaluate(LAYOUT), "legends": page.evaluate(LEGENDS), "fit": measure(page),
-                "text": page.locator("body").inner_text(), "spec": page.locator("pre").inner_text()}
+        seen = {
+            "layout": page.evaluate(LAYOUT),
+            "legends": page.evaluate(LEGENDS),
+            "fit": measure(page),
+            "text": page.locator("body").inner_text(),
+            "spec": page.locator("pre").inner_text(),
+        }
     return {**seen, "errors": errors}
 
 
@@ -137,8 +153,13 @@ def test_legends_stand_outside_the_data_and_list_only_what_is_drawn(seen, study)
             shown = [item for item in legend["items"] if item["visible"] and legend["visible"]]
             assert shown, chart["name"]
             assert all(max(item["rows"]) > 0 for item in shown), (chart["name"], shown)
-    labels = {item["label"] for chart in charts_seen for legend in chart["legends"]
-              for item in legend["items"] if item["visible"]}
+    labels = {
+        item["label"]
+        for chart in charts_seen
+        for legend in chart["legends"]
+        for item in legend["items"]
+        if item["visible"]
+    }
     assert ('{"value":"recorded"}' in labels) == (study == "robotti")
 
 
@@ -174,12 +195,16 @@ def test_the_spec_shown_is_the_one_that_ran(seen, reports, study):
 
 # --- the pure parts, without a sweep ---------------------------------------------------------------
 
+
 def test_a_searchs_budget_and_seed_stay_in_the_spec_even_at_their_defaults():
     base = {"name": "s", "multimodel": "m.yaml", "parameters": {"a": {"low": 0, "high": 1}}}
     search = shown_spec(SpaceSpec.model_validate({**base, "search": {"strategy": "tpe"}}))["search"]
     assert search == {"strategy": "tpe", "max_points": 100, "seed": 0}
-    grid = shown_spec(SpaceSpec.model_validate({**base, "parameters": {"a": [0, 1]},
-                                                "search": {"strategy": "exhaustive", "max_points": 7}}))
+    grid = shown_spec(
+        SpaceSpec.model_validate(
+            {**base, "parameters": {"a": [0, 1]}, "search": {"strategy": "exhaustive", "max_points": 7}}
+        )
+    )
     assert "search" not in grid
 
 
@@ -198,8 +223,10 @@ def test_a_track_without_a_recording_has_no_recorded_entry():
 
     chart = charts.TrackChart()
     chart.update(Comparison(None, (np.arange(3.0), np.ones(3)), "time [s]", "level"), "nominal")
-    assert [(item.label.value, item.visible) for item in chart.figure.legend[0].items] == \
-        [("recorded", False), ("simulated", True)]
+    assert [(item.label.value, item.visible) for item in chart.figure.legend[0].items] == [
+        ("recorded", False),
+        ("simulated", True),
+    ]
     chart.update(Comparison((np.arange(2.0), np.ones(2)), (np.arange(3.0), np.ones(3)), "x", "y"), "sin1")
     assert all(item.visible for item in chart.figure.legend[0].items)
 

@@ -28,6 +28,7 @@ POINTS = 24
 
 # --- the pure functions, on hand-made histories ---------------------------------------------------
 
+
 def told(history: SearchHistory, number: int, state: str = "ok", **values: float) -> None:
     history.tell(number, state, values)
 
@@ -129,7 +130,12 @@ def test_charts_fill_from_a_history():
     assert list(best.best.data["best"]) == [5.0, 5.0, 5.0, 5.0, 3.0]
     growth = charts.ParetoGrowthChart([("rmse", "min"), ("peak", "min")], ["k"])
     stages = growth.update(h)
-    assert list(growth.points.data["order"]) == [0, 1, 2, 3] and list(growth.points.data["k"]) == [2.0, 1.0, 2.0, 5.0]
+    assert list(growth.points.data["order"]) == [0, 1, 2, 3] and list(growth.points.data["k"]) == [
+        2.0,
+        1.0,
+        2.0,
+        5.0,
+    ]
     assert [n for n, _ in stages] == [1, 2, 3, 4]
     assert sorted(growth.fronts[-1].data["x"]) == [3.0, 5.0, 5.0, 7.0]  # 5.0 twice: the point asked again
     growth.update(SearchHistory(sweep="s", strategy="tpe", settings="x"))  # an empty history empties it
@@ -137,12 +143,26 @@ def test_charts_fill_from_a_history():
 
 
 def test_search_line_from_the_status_or_else_the_history():
-    status = SearchStatus(strategy="tpe", objective="rmse", goal="min", max_points=30, points=12, infeasible=2,
-                          failed=1, best=0.0123456, threads=2, busy_seconds=9.0, window_seconds=5.0,
-                          stopped="budget")
+    status = SearchStatus(
+        strategy="tpe",
+        objective="rmse",
+        goal="min",
+        max_points=30,
+        points=12,
+        infeasible=2,
+        failed=1,
+        best=0.0123456,
+        threads=2,
+        busy_seconds=9.0,
+        window_seconds=5.0,
+        stopped="budget",
+    )
     line = search_html(search_summary(status, None, "rmse", "min", 30))
-    assert re.search(r'id="dse-search">tpe · 12 of 30 points · best rmse 0.0123456 · 2 infeasible · 1 failed · '
-                     r"utilisation 90% · stopped budget<", line), line
+    assert re.search(
+        r'id="dse-search">tpe · 12 of 30 points · best rmse 0.0123456 · 2 infeasible · 1 failed · '
+        r"utilisation 90% · stopped budget<",
+        line,
+    ), line
     cells = dict(search_summary(None, hand_made(), "rmse", "min", 30))  # no status: counted from the history
     assert cells["strategy"] == "tpe" and cells["points"] == "5 of 30" and cells["best rmse"] == "3"
     assert (cells["infeasible"], cells["failed"]) == ("1", "1")
@@ -150,20 +170,29 @@ def test_search_line_from_the_status_or_else_the_history():
 
 # --- a real search, watched in Chromium ------------------------------------------------------------
 
+
 def write_search(folder: Path) -> Path:
     """The mass-spring-damper calibration as a tpe search over continuous k and c, two objectives."""
     return write_msd_search(
-        folder, {"strategy": "tpe", "max_points": POINTS, "seed": 1}, keep_trajectories=1,
-        objectives={"position_rmse": {"signal": "msd.x", "recorded": "x", "metric": "rmse"},
-                    "position_max": {"signal": "msd.x", "recorded": "x", "metric": "max_abs"}},
-        ranking={"objective": "position_rmse", "pareto": ["position_rmse", "position_max"]})
+        folder,
+        {"strategy": "tpe", "max_points": POINTS, "seed": 1},
+        keep_trajectories=1,
+        objectives={
+            "position_rmse": {"signal": "msd.x", "recorded": "x", "metric": "rmse"},
+            "position_max": {"signal": "msd.x", "recorded": "x", "metric": "max_abs"},
+        },
+        ranking={"objective": "position_rmse", "pareto": ["position_rmse", "position_max"]},
+    )
 
 
 def drawn(page, name: str, column: str) -> int:
     """How many rows the browser's copy of the Bokeh data source ``name`` holds."""
-    return page.evaluate("([name, column]) => { for (const doc of Bokeh.documents) {"
-                         " const model = doc.get_model_by_name(name); if (model) return model.data[column].length; }"
-                         " return -1 }", [name, column])
+    return page.evaluate(
+        "([name, column]) => { for (const doc of Bokeh.documents) {"
+        " const model = doc.get_model_by_name(name); if (model) return model.data[column].length; }"
+        " return -1 }",
+        [name, column],
+    )
 
 
 @dataclass
@@ -225,14 +254,16 @@ def searched(tmp_path_factory, dask_scheduler) -> Seen:
         search.join()
         deadline = time.monotonic() + 20
         while time.monotonic() < deadline and (
-                f"{POINTS} of {POINTS} points" not in page.locator("#dse-search").inner_text()
-                or drawn(page, "dse-best-so-far-points", "value") < POINTS):
+            f"{POINTS} of {POINTS} points" not in page.locator("#dse-search").inner_text()
+            or drawn(page, "dse-best-so-far-points", "value") < POINTS
+        ):
             time.sleep(0.25)
         seen.final_line = page.locator("#dse-search").inner_text()
         seen.final_points = drawn(page, "dse-best-so-far-points", "value")
         seen.final_fronts = [drawn(page, f"dse-front-growth-{share}", "x") for share in (25, 50, 75, 100)]
         seen.headings = page.get_by_text(
-            "Search: best position_rmse against simulations, and the Pareto front as it grew").count()
+            "Search: best position_rmse against simulations, and the Pareto front as it grew"
+        ).count()
         seen.canvases = page.locator("canvas").count()
         page.set_viewport_size({"width": 1400, "height": 1600})
         page.wait_for_function("() => Bokeh.index.roots.every(v => v.has_finished())", timeout=30_000)
@@ -261,8 +292,11 @@ def test_dashboard_shows_the_search_as_it_runs(searched):
     assert searched.errors == []
     assert 0 < searched.mid_points < POINTS, searched.mid_points  # seen mid-search
     assert searched.mid_line.startswith("tpe · ") and f"of {POINTS} points" in searched.mid_line
-    assert re.fullmatch(rf"tpe · {POINTS} of {POINTS} points · best position_rmse [\d.e-]+ · 0 infeasible · "
-                        r"0 failed · utilisation \d+% · stopped budget", searched.final_line), searched.final_line
+    assert re.fullmatch(
+        rf"tpe · {POINTS} of {POINTS} points · best position_rmse [\d.e-]+ · 0 infeasible · "
+        r"0 failed · utilisation \d+% · stopped budget",
+        searched.final_line,
+    ), searched.final_line
     assert searched.final_points == POINTS
     assert searched.headings == 1
     assert 0 < searched.final_fronts[0] and all(n > 0 for n in searched.final_fronts)
@@ -301,7 +335,10 @@ def test_report_has_the_search(searched, tmp_path):
     with browser_page(errors, offline=True) as page:
         page.goto(report.as_uri())
         page.wait_for_function("() => window.Bokeh && Bokeh.documents.length > 0", timeout=30_000)
-        dots, line = drawn(page, "dse-best-so-far-points", "value"), drawn(page, "dse-best-so-far-line", "best")
+        dots, line = (
+            drawn(page, "dse-best-so-far-points", "value"),
+            drawn(page, "dse-best-so-far-line", "best"),
+        )
         front = drawn(page, "dse-front-growth-100", "x")
         search = page.locator("#search").inner_text()
     assert errors == []
@@ -317,8 +354,11 @@ def test_report_draws_the_searchs_points_as_dots_on_a_page_that_fits_1400_px(sea
     report = write_report(searched.output, tmp_path / "report.html")
     with browser_page(offline=True, viewport={"width": 1400, "height": 1000}) as page:
         page.goto(report.as_uri())
-        page.wait_for_function("() => window.Bokeh && Bokeh.index.roots.length > 0 && "
-                               "Bokeh.index.roots.every(v => v.has_finished())", timeout=30_000)
+        page.wait_for_function(
+            "() => window.Bokeh && Bokeh.index.roots.length > 0 && "
+            "Bokeh.index.roots.every(v => v.has_finished())",
+            timeout=30_000,
+        )
         fit = measure(page)
         drawn = {name: glyphs(page, f"dse-by-parameter-{name}") for name in ("msd.k", "msd.c")}
         page.screenshot(path=tmp_path / "report-1400.png", full_page=True)

@@ -35,16 +35,34 @@ def sweeps(tmp_path_factory, dask_scheduler):
     root = tmp_path_factory.mktemp("studies")
     uniform = {"distribution": "uniform", "low": -PI, "high": PI}
     made = {
-        "sobol": (_job(root / "sobol", dask_scheduler, search={"strategy": "sobol_indices", "max_points": 1000}),
-                  "sensitivity-y"),
-        "morris": (_job(root / "morris", dask_scheduler, name="morris",
-                        search={"strategy": "morris", "max_points": 200, "levels": 4}), "sensitivity-y"),
-        "uncertain": (_job(root / "uncertain", dask_scheduler, name="robust",
-                           parameters={"ishigami.a": [-4.0, -2.0], "ishigami.b": [0.0, 0.2]},
-                           search={"strategy": "exhaustive"},
-                           uncertain={"samples": 64, "parameters": {x: uniform for x in
-                                                                    ("ishigami.x1", "ishigami.x2", "ishigami.x3")}},
-                           ranking={"robust": {"quantile": 0.9}}), "uncertainty-distributions"),
+        "sobol": (
+            _job(root / "sobol", dask_scheduler, search={"strategy": "sobol_indices", "max_points": 1000}),
+            "sensitivity-y",
+        ),
+        "morris": (
+            _job(
+                root / "morris",
+                dask_scheduler,
+                name="morris",
+                search={"strategy": "morris", "max_points": 200, "levels": 4},
+            ),
+            "sensitivity-y",
+        ),
+        "uncertain": (
+            _job(
+                root / "uncertain",
+                dask_scheduler,
+                name="robust",
+                parameters={"ishigami.a": [-4.0, -2.0], "ishigami.b": [0.0, 0.2]},
+                search={"strategy": "exhaustive"},
+                uncertain={
+                    "samples": 64,
+                    "parameters": {x: uniform for x in ("ishigami.x1", "ishigami.x2", "ishigami.x3")},
+                },
+                ranking={"robust": {"quantile": 0.9}},
+            ),
+            "uncertainty-distributions",
+        ),
     }
     for space, _ in made.values():
         assert submit(space).failed == 0
@@ -58,24 +76,45 @@ def _look(url: str, ident: str) -> dict:
         page.goto(url)
         figure = page.locator(f"#{ident}")
         figure.wait_for(state="attached", timeout=60_000)
-        page.wait_for_function("() => window.Bokeh && Bokeh.index.roots.length > 0 && "
-                               "Bokeh.index.roots.every(v => v.has_finished())", timeout=60_000)
+        page.wait_for_function(
+            "() => window.Bokeh && Bokeh.index.roots.length > 0 && "
+            "Bokeh.index.roots.every(v => v.has_finished())",
+            timeout=60_000,
+        )
         size = figure.evaluate("e => [e.complete, e.naturalWidth, e.getBoundingClientRect().right]")
         fit = measure(page)
         text = page.locator("body").inner_text()
         table = page.locator("#dse-ranking")  # the dashboard's best-so-far table
-        ranking = {"best": page.locator("#dse-best").inner_text(), "headings": table.locator("th").all_inner_texts(),
-                   "top": table.locator("tbody tr").first.locator("td").all_inner_texts()} if table.count() else {}
-    return {"loaded": size[0], "width": size[1], "right": size[2], "errors": errors, "misfits": fit.misfits,
-            "text": text, **ranking}
+        ranking = (
+            {
+                "best": page.locator("#dse-best").inner_text(),
+                "headings": table.locator("th").all_inner_texts(),
+                "top": table.locator("tbody tr").first.locator("td").all_inner_texts(),
+            }
+            if table.count()
+            else {}
+        )
+    return {
+        "loaded": size[0],
+        "width": size[1],
+        "right": size[2],
+        "errors": errors,
+        "misfits": fit.misfits,
+        "text": text,
+        **ranking,
+    }
 
 
 @pytest.mark.parametrize("kind", ["sobol", "morris", "uncertain"])
 def test_the_report_shows_the_figure(sweeps, tmp_path, kind):
     output, _, ident = sweeps[kind]
     report = tmp_path / "report.html"
-    done = subprocess.run([sys.executable, "-m", "dse_runner", "report", str(output), "-o", str(report)],
-                          capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [sys.executable, "-m", "dse_runner", "report", str(output), "-o", str(report)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stderr
     seen = _look(report.as_uri(), ident)
     assert seen["loaded"] and seen["width"] > 300, seen
@@ -121,14 +160,18 @@ def test_the_dashboard_names_the_robust_best_as_rank_does(sweeps):
     output, sweep, ident = sweeps["uncertain"]
     ranking = rank(output, sweep)
     by_mean = ranking.totals.sort_values("y", kind="stable").iloc[0]
-    assert {p: by_mean[p] for p in ranking.parameters} != ranking.best  # else the test could not tell them apart
+    assert {
+        p: by_mean[p] for p in ranking.parameters
+    } != ranking.best  # else the test could not tell them apart
     server = serve(output, sweep, "127.0.0.1:0")
     try:
         seen = _look(server.url, ident)
     finally:
         server.stop()
-    assert f"best so far: {format_point(ranking.best)}; q90 of total y {ranking.best_total:.4f} over 64 of 64 draws" \
+    assert (
+        f"best so far: {format_point(ranking.best)}; q90 of total y {ranking.best_total:.4f} over 64 of 64 draws"
         == seen["best"]
+    )
     assert seen["headings"][-1] == "ranked by: q90 of total y"
     assert [float(v) for v in seen["top"][1:3]] == list(ranking.best.values())
     assert float(seen["top"][-1]) == pytest.approx(ranking.best_total, abs=1e-4)

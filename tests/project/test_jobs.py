@@ -54,8 +54,13 @@ WATERTANK_GRID = {"controller.minlevel": [0.8, 1.0, 1.2], "controller.maxlevel":
 def watertank(tmp_path_factory, dask_scheduler):
     """The water-tank job on a small grid, run once on the real cluster for the tests below."""
     folder = tmp_path_factory.mktemp("watertank")
-    path = _job_space(WATERTANK, folder, output=str(folder / "out"), parameters=WATERTANK_GRID,
-                      cluster={"address": dask_scheduler})
+    path = _job_space(
+        WATERTANK,
+        folder,
+        output=str(folder / "out"),
+        parameters=WATERTANK_GRID,
+        cluster={"address": dask_scheduler},
+    )
     try:
         space = load_space(path)
         yield space, submit(space)
@@ -67,7 +72,9 @@ def test_watertank_sweeps_the_levels_under_its_constraint_and_ranks_a_pareto_fro
     space, report = watertank
     assert [s.name for s in space.scenarios] == ["nominal"]  # no scenarios: the experiment alone
     assert (report.total, report.failed) == (7, 0)  # 9 points, 2 excluded by maxlevel > minlevel
-    rows = store.read_results(space.output, space.name, columns=[*WATERTANK_GRID, "level_deviation", "switches"])
+    rows = store.read_results(
+        space.output, space.name, columns=[*WATERTANK_GRID, "level_deviation", "switches"]
+    )
     assert (rows["controller.maxlevel"] > rows["controller.minlevel"]).all()
 
     # Each row is what a direct simulation of its point gives: the Boolean valve drives the tank.
@@ -79,7 +86,8 @@ def test_watertank_sweeps_the_levels_under_its_constraint_and_ranks_a_pareto_fro
     assert row["switches"] == np.count_nonzero(np.diff(valve)) == direct.objectives["switches"]
     level = direct.trajectory.column("tank.level")
     assert row["level_deviation"] == pytest.approx(
-        np.sqrt(np.trapezoid((level - 1.5) ** 2, direct.time) / 100.0), rel=1e-12)
+        np.sqrt(np.trapezoid((level - 1.5) ** 2, direct.time) / 100.0), rel=1e-12
+    )
 
     ranking = rank(space.output, space.name)
     assert list(ranking.table1["scenario"]) == ["nominal"]  # Table 1 has a single row
@@ -100,14 +108,20 @@ def test_watertank_report_and_dashboard_show_the_one_scenario(watertank, tmp_pat
     ranking = rank(space.output, space.name)
     page_file = write_report(space.output, tmp_path / "report.html", space.name)
     errors: list[str] = []
-    server = subprocess.Popen([sys.executable, "-m", "dse_runner", "dashboard", str(space.output)],
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    server = subprocess.Popen(
+        [sys.executable, "-m", "dse_runner", "dashboard", str(space.output)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         match = re.search(r"http://127\.0\.0\.1:\d+/", server.stdout.readline())
         assert match, server.stderr.read()
         with browser_page(errors, viewport={"width": 1300, "height": 1600}) as page:
             open_dashboard(page, match[0])
-            expect(page.locator("#dse-track")).to_have_text(re.compile(r"^nominal: best point"), timeout=60_000)
+            expect(page.locator("#dse-track")).to_have_text(
+                re.compile(r"^nominal: best point"), timeout=60_000
+            )
             done, track = page.locator("#dse-done").inner_text(), page.locator("#dse-track").inner_text()
             page.goto(page_file.as_uri())
             text = page.locator("body").inner_text()
@@ -131,8 +145,10 @@ def _recording_script():
 def test_msd_model_exchange_calibration_finds_the_recordings_truth(job_space, dask_scheduler):
     script = _recording_script()
     truth = script.TRUTH
-    grid = {"msd.k": [truth["k"] - 2, truth["k"], truth["k"] + 2],
-            "msd.c": [truth["c"] - 0.3, truth["c"], truth["c"] + 0.3]}
+    grid = {
+        "msd.k": [truth["k"] - 2, truth["k"], truth["k"] + 2],
+        "msd.c": [truth["c"] - 0.3, truth["c"], truth["c"] + 0.3],
+    }
     space = job_space(MSD, parameters=grid, cluster={"address": dask_scheduler})
     assert space.plan.interfaces == {"msd": "me"}
     report = submit(space)
@@ -140,7 +156,9 @@ def test_msd_model_exchange_calibration_finds_the_recordings_truth(job_space, da
     best = rank(space.output, space.name).best
     assert best == {"msd.k": truth["k"], "msd.c": truth["c"]}
     # The recording is the truth plus sensor noise: the best fit's error is the noise's size.
-    fit = simulate(space.plan, space.scenarios[0], best, objectives=space.objectives, experiment=space.experiment)
+    fit = simulate(
+        space.plan, space.scenarios[0], best, objectives=space.objectives, experiment=space.experiment
+    )
     assert 0.5 * script.NOISE_SIGMA < fit.objectives["position_rmse"] < 1.5 * script.NOISE_SIGMA
 
 
@@ -149,11 +167,16 @@ def test_the_jobs_run_from_the_cli_as_their_readme_says(tmp_path, dask_scheduler
 
     from dse_runner.interfaces.cli import app
 
-    path = _job_space(WATERTANK, tmp_path, output=str(tmp_path / "out"),
-                      parameters={"controller.minlevel": [1.0], "controller.maxlevel": [2.0, 2.2]})
+    path = _job_space(
+        WATERTANK,
+        tmp_path,
+        output=str(tmp_path / "out"),
+        parameters={"controller.minlevel": [1.0], "controller.maxlevel": [2.0, 2.2]},
+    )
     try:
-        result = CliRunner().invoke(app, ["submit", str(path), "--scheduler", dask_scheduler, "--no-dashboard",
-                                          "--json"])
+        result = CliRunner().invoke(
+            app, ["submit", str(path), "--scheduler", dask_scheduler, "--no-dashboard", "--json"]
+        )
     finally:
         path.unlink()
     assert result.exit_code == 0, result.output

@@ -37,9 +37,12 @@ def imported_modules(path: Path) -> set[str]:
 
 
 def test_no_core_module_imports_a_case():
-    offenders = [f"{path.relative_to(PACKAGE)}: {name}" for path in core_modules()
-                 for name in sorted(imported_modules(path)) if name == "dse_runner.cases"
-                 or name.startswith("dse_runner.cases.")]
+    offenders = [
+        f"{path.relative_to(PACKAGE)}: {name}"
+        for path in core_modules()
+        for name in sorted(imported_modules(path))
+        if name == "dse_runner.cases" or name.startswith("dse_runner.cases.")
+    ]
     assert offenders == []
 
 
@@ -49,8 +52,12 @@ def test_gps_words_stay_in_the_case():
     for path in core_modules():
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, (ast.Name, ast.Attribute, ast.FunctionDef, ast.arg)):
-                word = getattr(node, "id", None) or getattr(node, "attr", None) or getattr(node, "name", None) \
+                word = (
+                    getattr(node, "id", None)
+                    or getattr(node, "attr", None)
+                    or getattr(node, "name", None)
                     or getattr(node, "arg", "")
+                )
                 words = [w.lower() for w in re.findall(r"[A-Z]+(?=[A-Z][a-z])|[A-Z]?[a-z]+|[A-Z]+|\d+", word)]
                 if "gps" in words or "cross_track" in word.lower():  # Optuna's GPSampler is GP + Sampler
                     offenders.append(f"{path.relative_to(PACKAGE)}: {word}")
@@ -64,7 +71,7 @@ def test_a_plain_fmu_study_runs_without_loading_the_case(tmp_path):
     script = f"""
 import sys
 from dse_runner.simulation.run import simulate
-result = simulate({str(REPO / 'jobs' / 'watertank' / 'multimodel.yaml')!r}, stop_time=5, step=0.1)
+result = simulate({str(REPO / "jobs" / "watertank" / "multimodel.yaml")!r}, stop_time=5, step=0.1)
 print(sorted(m for m in sys.modules if m.startswith("dse_runner")))
 """
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
@@ -78,7 +85,7 @@ LAYERS = ["simulation", "sweeps", "analysis", "interfaces"]
 def test_each_layer_imports_only_the_layers_before_it():
     offenders = []
     for position, layer in enumerate(LAYERS):
-        later = set(LAYERS[position + 1:]) | {"cases"}
+        later = set(LAYERS[position + 1 :]) | {"cases"}
         for path in (PACKAGE / layer).rglob("*.py"):
             for node in ast.walk(ast.parse(path.read_text())):
                 if isinstance(node, ast.ImportFrom) and node.level and node.module:
@@ -93,8 +100,12 @@ def test_the_import_graph_in_architecture_md_is_the_codes():
     may import one another round a loop (the check fails on a circle, deferred imports included)."""
     from conftest import REPO
 
-    done = subprocess.run([sys.executable, str(REPO / "docs" / "import_graph.py"), "--check"],
-                          capture_output=True, text=True, timeout=60)
+    done = subprocess.run(
+        [sys.executable, str(REPO / "docs" / "import_graph.py"), "--check"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert done.returncode == 0, done.stdout + done.stderr
 
 
@@ -108,8 +119,12 @@ def test_the_graph_check_finds_a_circle_however_its_imports_are_deferred():
     loaded = importlib.util.spec_from_file_location("import_graph", REPO / "docs" / "import_graph.py")
     graph = importlib.util.module_from_spec(loaded)
     loaded.loader.exec_module(graph)
-    deferred = {("sweeps.spec", "sweeps.makers"): True, ("sweeps.makers", "sweeps.uncertainty"): True,
-                ("sweeps.uncertainty", "sweeps.spec"): False, ("sweeps.rank", "sweeps.spec"): True}
+    deferred = {
+        ("sweeps.spec", "sweeps.makers"): True,
+        ("sweeps.makers", "sweeps.uncertainty"): True,
+        ("sweeps.uncertainty", "sweeps.spec"): False,
+        ("sweeps.rank", "sweeps.spec"): True,
+    }
     assert graph.circles(deferred) == [["sweeps.makers", "sweeps.spec", "sweeps.uncertainty"]]
     assert graph.circles({k: v for k, v in deferred.items() if k[0] != "sweeps.uncertainty"}) == []
 

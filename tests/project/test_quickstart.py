@@ -25,8 +25,14 @@ def test_the_quickstart_page_prints_what_it_shows():
     page = page_module()
     text = page.PAGE.read_text()
     commands = [step.command.split()[:2] for step in page.steps(text)]
-    for needed in (["dse-runner", "describe"], ["dse-runner", "simulate"], ["dse-runner", "submit"],
-                   ["dse-runner", "sensitivity"], ["dse-runner", "diagnose"], ["dse-runner", "report"]):
+    for needed in (
+        ["dse-runner", "describe"],
+        ["dse-runner", "simulate"],
+        ["dse-runner", "submit"],
+        ["dse-runner", "sensitivity"],
+        ["dse-runner", "diagnose"],
+        ["dse-runner", "report"],
+    ):
         assert needed in commands, f"the page lost its {needed[1]} step"
     root = page.fresh_folder()
     try:
@@ -41,13 +47,18 @@ def test_the_comparison_catches_a_changed_number_or_word_and_lets_timings_differ
     a run time or a size does not."""
     page = page_module()
     ran = "quickstart-sweep: 40 tasks, 0 already done, ran 40 simulations (0 failed)"
-    shown = [f"{ran} in 2.7 s on 2 workers",
-             "...", "best: msd.k = 16, msd.c = 6  (total settle 0.790)"]
-    printed = [f"{ran} in 9.1 s on 2 workers", "Table 1: settle per scenario (40 points)",
-               "best: msd.k = 16, msd.c = 6  (total settle 0.791)"]
+    shown = [f"{ran} in 2.7 s on 2 workers", "...", "best: msd.k = 16, msd.c = 6  (total settle 0.790)"]
+    printed = [
+        f"{ran} in 9.1 s on 2 workers",
+        "Table 1: settle per scenario (40 points)",
+        "best: msd.k = 16, msd.c = 6  (total settle 0.791)",
+    ]
+
     def differences(shown_lines, printed_lines):
-        return page.differences([page.normal(line, tmp_path) for line in shown_lines],
-                                [page.normal(line, tmp_path) for line in printed_lines])
+        return page.differences(
+            [page.normal(line, tmp_path) for line in shown_lines],
+            [page.normal(line, tmp_path) for line in printed_lines],
+        )
 
     assert differences(shown, printed) == []
     assert differences([shown[0], shown[2]], printed) != []  # a line printed but neither shown nor skipped

@@ -28,20 +28,28 @@ def job_space(name: str, tmp_path, **changes):
 
 
 def cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "dse_runner", *args], capture_output=True, text=True, cwd=REPO,
-                          check=False)
+    return subprocess.run(
+        [sys.executable, "-m", "dse_runner", *args], capture_output=True, text=True, cwd=REPO, check=False
+    )
 
 
 def test_the_pareto_search_runs_every_path_on_every_plant_and_ranks_a_front(tmp_path, dask_scheduler):
-    path = job_space("pareto.yaml", tmp_path, output=str(tmp_path / "out"), cluster={"address": dask_scheduler},
-                     search={"strategy": "nsga2", "max_points": 8, "seed": 1, "population_size": 4})
+    path = job_space(
+        "pareto.yaml",
+        tmp_path,
+        output=str(tmp_path / "out"),
+        cluster={"address": dask_scheduler},
+        search={"strategy": "nsga2", "max_points": 8, "seed": 1, "population_size": 4},
+    )
     try:
         space = load_space(path)
     finally:
         path.unlink()
     plants = yaml.safe_load((JOB / "plants.yaml").read_text())
     paths = sorted(p.name for p in PATHS.iterdir() if (p / "path.csv").is_file())
-    assert sorted(s.name for s in space.scenarios) == sorted(f"{p}-{v['name']}" for p in paths for v in plants)
+    assert sorted(s.name for s in space.scenarios) == sorted(
+        f"{p}-{v['name']}" for p in paths for v in plants
+    )
     report = submit(space)
     assert (report.search.points, report.failed) == (8, 0) and report.ok == 8 * len(space.scenarios)
     ranking = rank(space.output, space.name)
@@ -51,7 +59,9 @@ def test_the_pareto_search_runs_every_path_on_every_plant_and_ranks_a_front(tmp_
 
 
 def test_the_defaults_written_as_best_values_run_again_from_the_cli(tmp_path, dask_scheduler):
-    path = job_space("defaults.yaml", tmp_path, output=str(tmp_path / "out"), cluster={"address": dask_scheduler})
+    path = job_space(
+        "defaults.yaml", tmp_path, output=str(tmp_path / "out"), cluster={"address": dask_scheduler}
+    )
     try:
         space = load_space(path)
     finally:
@@ -63,12 +73,20 @@ def test_the_defaults_written_as_best_values_run_again_from_the_cli(tmp_path, da
     assert read_values(tmp_path / "best.yaml") == {ref: values[0] for ref, values in space.parameters.items()}
     runs = []
     for values in ([], ["--values", str(tmp_path / "best.yaml")], ["--values", str(JOB / "tuned.yaml")]):
-        done = cli("simulate", str(JOB / "multimodel.yaml"), "--scenario", str(PATHS / "straight_offset"), *values,
-                   "--json")
+        done = cli(
+            "simulate",
+            str(JOB / "multimodel.yaml"),
+            "--scenario",
+            str(PATHS / "straight_offset"),
+            *values,
+            "--json",
+        )
         assert done.returncode == 0, done.stderr
         runs.append(json.loads(done.stdout))
     no_values, defaults, tuned = runs
     assert {"path_error_mean", "steering_effort"} <= set(tuned["objectives"])
     assert defaults["objectives"] == no_values["objectives"]  # the FMU's defaults are the defaults.yaml point
     assert tuned["objectives"] != defaults["objectives"]
-    assert {ref: tuned["values"][ref] for ref in read_values(JOB / "tuned.yaml")} == read_values(JOB / "tuned.yaml")
+    assert {ref: tuned["values"][ref] for ref in read_values(JOB / "tuned.yaml")} == read_values(
+        JOB / "tuned.yaml"
+    )

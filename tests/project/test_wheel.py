@@ -32,41 +32,91 @@ def installed(tmp_path_factory) -> dict:
         shutil.copy(REPO / name, source / name)
     for folder in ("dse_runner", "fmus"):  # the package, and the FMU sources pyproject.toml maps into it
         shutil.copytree(REPO / folder, source / folder, ignore=shutil.ignore_patterns("__pycache__"))
-    subprocess.run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "--no-build-isolation", "-w",
-                    str(root / "dist"), str(source)], check=True, capture_output=True, text=True)
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            "--quiet",
+            "--no-deps",
+            "--no-build-isolation",
+            "-w",
+            str(root / "dist"),
+            str(source),
+        ],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
     (wheel,) = (root / "dist").glob("dse_runner-*.whl")
     # The dependencies come from this interpreter's site-packages (named in a .pth file, whose own .pth files,
     # this checkout's editable install among them, are then not read); dse-runner itself only from the wheel.
     # (--system-site-packages would give the base interpreter's, not those of the environment the tests run in.)
     venv = root / "venv"
     subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
-    target = subprocess.run([venv / "bin" / "python", "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"],
-                            check=True, capture_output=True, text=True).stdout.strip()
+    target = subprocess.run(
+        [venv / "bin" / "python", "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout.strip()
     ours = dict.fromkeys([sysconfig.get_path("purelib"), sysconfig.get_path("platlib")])
     (Path(target) / "dependencies.pth").write_text("".join(f"{path}\n" for path in ours))
-    subprocess.run([venv / "bin" / "python", "-m", "pip", "install", "--quiet", "--no-deps", "--ignore-installed",
-                    str(wheel)],
-                   check=True, capture_output=True, text=True)
+    subprocess.run(
+        [
+            venv / "bin" / "python",
+            "-m",
+            "pip",
+            "install",
+            "--quiet",
+            "--no-deps",
+            "--ignore-installed",
+            str(wheel),
+        ],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
     work = root / "empty"  # the user's folder: nothing of the checkout in it
     work.mkdir()
-    env = {**os.environ, "DSE_RUNNER_CACHE": str(root / "cache"), "PATH": f"{venv / 'bin'}:{os.environ['PATH']}"}
+    env = {
+        **os.environ,
+        "DSE_RUNNER_CACHE": str(root / "cache"),
+        "PATH": f"{venv / 'bin'}:{os.environ['PATH']}",
+    }
     env.pop("PYTHONPATH", None)
     return {"venv": venv, "work": work, "env": env, "wheel": wheel}
 
 
 def command(installed: dict, *args, timeout: float = 600) -> subprocess.CompletedProcess:
-    return subprocess.run([str(installed["venv"] / "bin" / "dse-runner"), *map(str, args)], cwd=installed["work"],
-                          env=installed["env"], capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(
+        [str(installed["venv"] / "bin" / "dse-runner"), *map(str, args)],
+        cwd=installed["work"],
+        env=installed["env"],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
 
 
 def test_the_wheel_carries_the_fmu_sources_and_examples(installed):
-    located = subprocess.run([installed["venv"] / "bin" / "python", "-c",
-                              "import dse_runner.bundled as b; print(b.root())"],
-                             cwd=installed["work"], env=installed["env"], capture_output=True, text=True, check=True)
+    located = subprocess.run(
+        [installed["venv"] / "bin" / "python", "-c", "import dse_runner.bundled as b; print(b.root())"],
+        cwd=installed["work"],
+        env=installed["env"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     root = Path(located.stdout.strip())
     assert root.is_relative_to(installed["venv"]) and not root.is_relative_to(REPO)
-    for name in ("fmus/common/slave.c", "fmus/robotti_vehicle_effects/model.c", "robotti/multimodel.yaml",
-                 "robotti/calibration.yaml"):
+    for name in (
+        "fmus/common/slave.c",
+        "fmus/robotti_vehicle_effects/model.c",
+        "robotti/multimodel.yaml",
+        "robotti/calibration.yaml",
+    ):
         assert (root / name).is_file(), name
 
 
@@ -79,8 +129,18 @@ def test_simulate_a_multimodel_of_its_own_fmus(installed):
     model = yaml.safe_load(MULTIMODEL.read_text())
     model["fmus"] = {"controller": "fmus/replay_controller.fmu", "vehicle": "fmus/robotti_vehicle.fmu"}
     (installed["work"] / "mm.yaml").write_text(yaml.safe_dump(model))
-    done = command(installed, "simulate", "mm.yaml", "--scenario", "sin1", "--set", "vehicle.mass=1500", "--json",
-                   "--out", "out/sin1")
+    done = command(
+        installed,
+        "simulate",
+        "mm.yaml",
+        "--scenario",
+        "sin1",
+        "--set",
+        "vehicle.mass=1500",
+        "--json",
+        "--out",
+        "out/sin1",
+    )
     assert done.returncode == 0, done.stderr
     printed = strict_loads(done.stdout)
     here = simulate(MULTIMODEL, SCENARIOS / "sin1", {"vehicle.mass": 1500})
@@ -88,21 +148,42 @@ def test_simulate_a_multimodel_of_its_own_fmus(installed):
     assert set(printed["objectives"]) == {"cross_track_error", "max_error", "rms_error", "final_error"}
     assert printed["objectives"] == pytest.approx(here.objectives, rel=1e-12)
     assert (installed["work"] / "out" / "sin1" / "trajectory.csv").is_file()
-    assert (installed["work"] / printed["trajectory"]).samefile(installed["work"] / "out" / "sin1" / "trajectory.csv")
+    assert (installed["work"] / printed["trajectory"]).samefile(
+        installed["work"] / "out" / "sin1" / "trajectory.csv"
+    )
 
 
 def test_diagnose_three_bundled_runs_with_a_small_grid(installed):
     runs = installed["work"] / "runs"
     for name in RUNS:
         shutil.copytree(SCENARIOS / name, runs / name)
-    (installed["work"] / "grid.yaml").write_text(yaml.safe_dump({
-        "name": "small-grid", "multimodel": "bundled:robotti/multimodel.yaml",
-        "parameters": {"vehicle.cAlphaF": [20000, 38000], "vehicle.mass": [1000, 3000]},
-        "objectives": ["cross_track_error"], "cluster": {"n_workers": 2},
-    }))
+    (installed["work"] / "grid.yaml").write_text(
+        yaml.safe_dump(
+            {
+                "name": "small-grid",
+                "multimodel": "bundled:robotti/multimodel.yaml",
+                "parameters": {"vehicle.cAlphaF": [20000, 38000], "vehicle.mass": [1000, 3000]},
+                "objectives": ["cross_track_error"],
+                "cluster": {"n_workers": 2},
+            }
+        )
+    )
     # Two hypotheses keep it short; which ones win is test_diagnose's business, not this test's.
-    done = command(installed, "diagnose", "--scenarios", "runs", "--space", "grid.yaml", "--out", "diagnosis",
-                   "--hypothesis", "wheel_slip", "--hypothesis", "steering_lag", "--json")
+    done = command(
+        installed,
+        "diagnose",
+        "--scenarios",
+        "runs",
+        "--space",
+        "grid.yaml",
+        "--out",
+        "diagnosis",
+        "--hypothesis",
+        "wheel_slip",
+        "--hypothesis",
+        "steering_lag",
+        "--json",
+    )
     assert done.returncode == 0, done.stderr
     result = strict_loads(done.stdout)
     tried = {c["id"] for c in result["candidates"]}

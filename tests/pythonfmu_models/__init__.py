@@ -22,8 +22,12 @@ def build_pythonfmu(tmp_dir: str | Path, script: Path = TYPES_SLAVE) -> Path:
     """
     target = Path(tmp_dir) / f"{script.stem}.fmu"
     target.parent.mkdir(parents=True, exist_ok=True)
-    done = subprocess.run([sys.executable, "-m", "pythonfmu", "build", "-f", str(script), "-d", str(target)],
-                          capture_output=True, text=True, check=False)
+    done = subprocess.run(
+        [sys.executable, "-m", "pythonfmu", "build", "-f", str(script), "-d", str(target)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     if done.returncode != 0 or not target.is_file():
         raise RuntimeError(f"pythonfmu build of {script.name} failed:\n{done.stdout}{done.stderr}")
     return target

@@ -33,15 +33,23 @@ class TypesSlave(Fmi2Slave):
         self.steps = 0
         kinds = {"real": Real, "int": Integer, "bool": Boolean, "string": String}
         for prefix, kind in kinds.items():
-            self.register_variable(kind(f"{prefix}_in", causality=Fmi2Causality.input,
-                                        variability=Fmi2Variability.discrete))
+            self.register_variable(
+                kind(f"{prefix}_in", causality=Fmi2Causality.input, variability=Fmi2Variability.discrete)
+            )
         for name, kind in [("gain", Real), ("offset", Integer), ("invert", Boolean), ("suffix", String)]:
-            self.register_variable(kind(name, causality=Fmi2Causality.parameter,
-                                        variability=Fmi2Variability.tunable))
+            self.register_variable(
+                kind(name, causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable)
+            )
         for prefix, kind in kinds.items():
             # initial="exact": the outputs start at their declared values (no initial-unknown to compute)
-            self.register_variable(kind(f"{prefix}_out", causality=Fmi2Causality.output,
-                                        variability=Fmi2Variability.discrete, initial=Fmi2Initial.exact))
+            self.register_variable(
+                kind(
+                    f"{prefix}_out",
+                    causality=Fmi2Causality.output,
+                    variability=Fmi2Variability.discrete,
+                    initial=Fmi2Initial.exact,
+                )
+            )
 
     def do_step(self, current_time, step_size):
         self.steps += 1

@@ -19,11 +19,24 @@ def test_built_fmu_is_valid_and_carries_its_sources(name):
     assert validate_fmu(str(path)) == []
     with zipfile.ZipFile(path) as fmu:
         names = set(fmu.namelist())
-    assert {"modelDescription.xml", f"binaries/linux64/{name}.so", "sources/model.c",
-            "sources/slave.c", "sources/slave.h", "sources/fmi2_common.c", "sources/fmi_common.c"} <= names
+    assert {
+        "modelDescription.xml",
+        f"binaries/linux64/{name}.so",
+        "sources/model.c",
+        "sources/slave.c",
+        "sources/slave.h",
+        "sources/fmi2_common.c",
+        "sources/fmi_common.c",
+    } <= names
     # only the FMI 2.0 co-simulation layer and what it shares: the other layers are neither compiled nor shipped
-    assert not names & {"sources/slave3.c", "sources/slave3.h", "sources/me2.c", "sources/me2.h",
-                        "sources/fmi3_common.c", "sources/fmi3_common.h"}
+    assert not names & {
+        "sources/slave3.c",
+        "sources/slave3.h",
+        "sources/me2.c",
+        "sources/me2.h",
+        "sources/fmi3_common.c",
+        "sources/fmi3_common.h",
+    }
 
 
 def test_fmi3_description_builds_with_the_fmi3_layer():
@@ -31,9 +44,20 @@ def test_fmi3_description_builds_with_the_fmi3_layer():
     assert validate_fmu(str(path)) == []
     with zipfile.ZipFile(path) as fmu:
         names = set(fmu.namelist())
-    assert {"binaries/x86_64-linux/types3.so", "sources/model.c",
-            "sources/slave3.c", "sources/slave3.h", "sources/fmi3_common.c", "sources/fmi_common.c"} <= names
-    assert not names & {"binaries/linux64/types3.so", "sources/slave.c", "sources/me2.c", "sources/fmi2_common.c"}
+    assert {
+        "binaries/x86_64-linux/types3.so",
+        "sources/model.c",
+        "sources/slave3.c",
+        "sources/slave3.h",
+        "sources/fmi3_common.c",
+        "sources/fmi_common.c",
+    } <= names
+    assert not names & {
+        "binaries/linux64/types3.so",
+        "sources/slave.c",
+        "sources/me2.c",
+        "sources/fmi2_common.c",
+    }
 
 
 ME_ONLY = """<?xml version="1.0" encoding="UTF-8"?>
@@ -102,5 +126,9 @@ def test_compile_error_is_reported(tmp_path):
 
 
 def test_source_folders_are_found():
-    assert [p.name for p in find_source_dirs(FMU_SOURCES)] == ["path_controller", "replay_controller", "robotti_vehicle",
-                                                                "robotti_vehicle_effects"]
+    assert [p.name for p in find_source_dirs(FMU_SOURCES)] == [
+        "path_controller",
+        "replay_controller",
+        "robotti_vehicle",
+        "robotti_vehicle_effects",
+    ]

@@ -66,7 +66,10 @@ def test_replayed_commands_are_held_from_their_row_time(plan):
 
 def test_into_cps_mm_json_gives_the_same_result(tmp_path, plan):
     mm = {
-        "fmus": {"{ctrl}": str(FMU_SOURCES / "replay_controller"), "{veh}": str(FMU_SOURCES / "robotti_vehicle")},
+        "fmus": {
+            "{ctrl}": str(FMU_SOURCES / "replay_controller"),
+            "{veh}": str(FMU_SOURCES / "robotti_vehicle"),
+        },
         "connections": {
             "{ctrl}.controller.velocity": ["{veh}.vehicle.velocity"],
             "{ctrl}.controller.delta_f": ["{veh}.vehicle.delta_f"],
@@ -81,8 +84,11 @@ def test_into_cps_mm_json_gives_the_same_result(tmp_path, plan):
     from_yaml = simulate(plan, SCENARIOS / "sin3", {"vehicle.mass": 1800})
     # the position compared with GPS: the only instance with outputs x and y, found without being named
     assert position_of(from_json.trajectory.names, from_json.scenario) == ("vehicle.x", "vehicle.y")
-    assert np.allclose(simulated_xy(from_json.trajectory, from_json.scenario),
-                       simulated_xy(from_yaml.trajectory, from_yaml.scenario), atol=1e-12)
+    assert np.allclose(
+        simulated_xy(from_json.trajectory, from_json.scenario),
+        simulated_xy(from_yaml.trajectory, from_yaml.scenario),
+        atol=1e-12,
+    )
     assert from_json.objectives == pytest.approx(from_yaml.objectives, abs=1e-12)
 
 
@@ -101,10 +107,15 @@ def test_three_fmus_two_instances_of_one(tmp_path, plan):
     """One controller drives two vehicles, a light and a heavy one, in the same co-simulation."""
     fmus_dir = FMU_SOURCES
     mm = {
-        "fmus": {"controller": str(fmus_dir / "replay_controller"),
-                 "light": str(fmus_dir / "robotti_vehicle"), "heavy": str(fmus_dir / "robotti_vehicle")},
-        "connections": {"controller.velocity": ["light.velocity", "heavy.velocity"],
-                        "controller.delta_f": ["light.delta_f", "heavy.delta_f"]},
+        "fmus": {
+            "controller": str(fmus_dir / "replay_controller"),
+            "light": str(fmus_dir / "robotti_vehicle"),
+            "heavy": str(fmus_dir / "robotti_vehicle"),
+        },
+        "connections": {
+            "controller.velocity": ["light.velocity", "heavy.velocity"],
+            "controller.delta_f": ["light.delta_f", "heavy.delta_f"],
+        },
         "parameters": {"light.mass": 1000, "heavy.mass": 3000, "light.mu": 0.3, "heavy.mu": 0.3},
         "scenario": {"controller.file": "steering_inputs"},
     }
@@ -115,11 +126,15 @@ def test_three_fmus_two_instances_of_one(tmp_path, plan):
     tracked = load_scenario(SCENARIOS / "sin1", options={"position": {"x": "heavy.x", "y": "heavy.y"}})
     both = simulate(path, tracked)
     for name, mass in (("light", 1000.0), ("heavy", 3000.0)):
-        alone = simulate(plan, SCENARIOS / "sin1", {"vehicle.mass": mass, "vehicle.mu": 0.3,
-                                                    "vehicle.theta0": 0.0})
+        alone = simulate(
+            plan, SCENARIOS / "sin1", {"vehicle.mass": mass, "vehicle.mu": 0.3, "vehicle.theta0": 0.0}
+        )
         for axis in ("x", "y"):
-            assert np.allclose(both.trajectory.column(f"{name}.{axis}"),
-                               alone.trajectory.column(f"vehicle.{axis}"), atol=1e-12)
+            assert np.allclose(
+                both.trajectory.column(f"{name}.{axis}"),
+                alone.trajectory.column(f"vehicle.{axis}"),
+                atol=1e-12,
+            )
         if name == "heavy":  # the objectives compare the named position
             assert both.objectives == pytest.approx(alone.objectives, abs=1e-9)
     assert not np.allclose(both.trajectory.column("light.x"), both.trajectory.column("heavy.x"))

@@ -19,10 +19,14 @@ def write_multimodel(tmp_path, **changes):
 
 
 def test_missing_fmu(tmp_path):
-    path = write_multimodel(tmp_path, fmus={"controller": "nowhere/replay.fmu",
-                                            "vehicle": "bundled:fmus/robotti_vehicle"})
-    with pytest.raises(DseError, match=r"^instance 'controller' of the multi-model names 'nowhere/replay\.fmu': "
-                                       r"FMU not found: .*nowhere/replay\.fmu$"):
+    path = write_multimodel(
+        tmp_path, fmus={"controller": "nowhere/replay.fmu", "vehicle": "bundled:fmus/robotti_vehicle"}
+    )
+    with pytest.raises(
+        DseError,
+        match=r"^instance 'controller' of the multi-model names 'nowhere/replay\.fmu': "
+        r"FMU not found: .*nowhere/replay\.fmu$",
+    ):
         simulate(path, SCENARIOS / "sin1")
 
 
@@ -45,7 +49,9 @@ def test_unknown_variable_in_connection(tmp_path):
 
 def test_unknown_instance_in_connection(tmp_path):
     path = write_multimodel(tmp_path, connections={"controler.velocity": ["vehicle.velocity"]})
-    with pytest.raises(DseError, match=r"'controler\.velocity' names instance 'controler'.*did you mean controller"):
+    with pytest.raises(
+        DseError, match=r"'controler\.velocity' names instance 'controler'.*did you mean controller"
+    ):
         simulate(path, SCENARIOS / "sin1")
 
 
@@ -83,8 +89,11 @@ def test_malformed_csv_read_by_the_controller_fmu(plan, scenario_copy, tmp_path)
     loading) is read by the FMU alone: its error reaches the user."""
     folder = scenario_copy("sin1")
     path = damage(folder, 7, "0.30,fast,0.0").rename(tmp_path / "steer.csv")
-    with pytest.raises(DseError, match=rf"controller \(.*\): fmi2EnterInitializationMode failed.*"
-                                       rf"{path} line 7: field 2 is not a number"):
+    with pytest.raises(
+        DseError,
+        match=rf"controller \(.*\): fmi2EnterInitializationMode failed.*"
+        rf"{path} line 7: field 2 is not a number",
+    ):
         simulate(plan, SCENARIOS / "sin1", {"controller.file": str(path)}, step=0.05)
 
 
@@ -117,8 +126,16 @@ def test_missing_scenario_file(plan, scenario_copy):
 
 def test_diverging_fmu_is_reported_and_instance_recovers(plan):
     with pytest.raises(DseError, match=r"vehicle .*diverged"):
-        simulate(plan, SCENARIOS / "sin1", {"vehicle.rk4_step": 0.05, "vehicle.r_gyr": 0.001,
-                                            "vehicle.cAlphaF": 1e9, "vehicle.cAlphaR": 1e9,
-                                            "vehicle.mu": 1e6})
+        simulate(
+            plan,
+            SCENARIOS / "sin1",
+            {
+                "vehicle.rk4_step": 0.05,
+                "vehicle.r_gyr": 0.001,
+                "vehicle.cAlphaF": 1e9,
+                "vehicle.cAlphaR": 1e9,
+                "vehicle.mu": 1e6,
+            },
+        )
     # The failed instance was replaced: the next run is normal.
     assert simulate(plan, SCENARIOS / "sin1").objectives["cross_track_error"] < 100

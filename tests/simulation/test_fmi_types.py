@@ -94,13 +94,15 @@ def bare(result) -> dict[str, np.ndarray]:
 
 def write_multimodel(folder: Path, fmus: dict[str, Path], connections: dict, **more) -> Path:
     path = folder / "multimodel.yaml"
-    path.write_text(yaml.safe_dump({"fmus": {k: str(v) for k, v in fmus.items()},
-                                    "connections": connections, **more}))
+    path.write_text(
+        yaml.safe_dump({"fmus": {k: str(v) for k, v in fmus.items()}, "connections": connections, **more})
+    )
     return path
 
 
-def rewrite(source: Path, target: Path, rename: dict | None = None, add: dict | None = None,
-            edit=None) -> Path:
+def rewrite(
+    source: Path, target: Path, rename: dict | None = None, add: dict | None = None, edit=None
+) -> Path:
     """A copy of an FMU with members renamed, added, or its modelDescription.xml edited."""
     rename = rename or {}
     with zipfile.ZipFile(source) as a, zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as b:
@@ -117,11 +119,35 @@ def rewrite(source: Path, target: Path, rename: dict | None = None, add: dict | 
 # ---- 1. the same numbers as FMPy ---------------------------------------------------------------
 
 CS_CASES = {
-    "types2": ({"real_in": 1.5, "real_gain": 3.0, "int_in": 3, "int_offset": 10, "enum_in": 2,
-                "bool_in": True, "string_in": "ab"}, 3.0, 0.1),
-    "types3": ({"float64_in": 1.5, "float64_gain": 3.0, "float32_in": 3.0, "int32_in": 3, "int32_offset": 10,
-                "int64_in": 2**40, "uint16_in": 65530, "bool_in": True, "string_in": "ab", "enum_in": 2},
-               3.0, 0.1),
+    "types2": (
+        {
+            "real_in": 1.5,
+            "real_gain": 3.0,
+            "int_in": 3,
+            "int_offset": 10,
+            "enum_in": 2,
+            "bool_in": True,
+            "string_in": "ab",
+        },
+        3.0,
+        0.1,
+    ),
+    "types3": (
+        {
+            "float64_in": 1.5,
+            "float64_gain": 3.0,
+            "float32_in": 3.0,
+            "int32_in": 3,
+            "int32_offset": 10,
+            "int64_in": 2**40,
+            "uint16_in": 65530,
+            "bool_in": True,
+            "string_in": "ab",
+            "enum_in": 2,
+        },
+        3.0,
+        0.1,
+    ),
     "tank": ({"valvecontrol": 1.0, "initial_level": 2.0, "inflow": 0.3}, 10.0, 0.05),
 }
 
@@ -166,8 +192,9 @@ MSD_VALUES = {"k": 14.0, "c": 0.8}
 
 
 def test_model_exchange_with_cvode_agrees_with_fmpy_within_its_tolerance(fmus):
-    theirs = simulate_fmu(str(fmus["msd"]), solver="CVode", stop_time=5.0, output_interval=0.01,
-                          start_values=MSD_VALUES)
+    theirs = simulate_fmu(
+        str(fmus["msd"]), solver="CVode", stop_time=5.0, output_interval=0.01, start_values=MSD_VALUES
+    )
     result = simulate(fmus["msd"], values=MSD_VALUES, stop_time=5.0, step=0.01)
     assert result.trajectory.names == ("msd.x", "msd.v")
     # the same solver at the same (default) relative tolerance 1e-5, on an amplitude of 0.1 m
@@ -176,18 +203,34 @@ def test_model_exchange_with_cvode_agrees_with_fmpy_within_its_tolerance(fmus):
 
 def test_model_exchange_with_euler_agrees_with_fmpy_exactly(fmus):
     model = MultiModel(fmus={"msd": str(fmus["msd"])}, instances={"msd": {"solver": "euler"}})
-    theirs = simulate_fmu(str(fmus["msd"]), solver="Euler", step_size=0.01, stop_time=5.0,
-                          output_interval=0.01, start_values=MSD_VALUES)
+    theirs = simulate_fmu(
+        str(fmus["msd"]),
+        solver="Euler",
+        step_size=0.01,
+        stop_time=5.0,
+        output_interval=0.01,
+        start_values=MSD_VALUES,
+    )
     result = simulate(model, values={f"msd.{k}": v for k, v in MSD_VALUES.items()}, stop_time=5.0, step=0.01)
     assert_agrees_with_fmpy(result, theirs, 1e-12)
 
 
 # ---- 2. every type in and out ------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("bool_in, invert", [(True, False), (False, False), (True, True), (False, True)])
 def test_every_fmi2_type_round_trips(fmus, bool_in, invert):
-    values = {"real_in": -2.5, "real_gain": 4.0, "int_in": -7, "int_offset": 100, "enum_in": 3,
-              "bool_in": bool_in, "invert": invert, "string_in": "héllo", "suffix": "?"}
+    values = {
+        "real_in": -2.5,
+        "real_gain": 4.0,
+        "int_in": -7,
+        "int_offset": 100,
+        "enum_in": 3,
+        "bool_in": bool_in,
+        "invert": invert,
+        "string_in": "héllo",
+        "suffix": "?",
+    }
     result = simulate(fmus["types2"], values=values, stop_time=1.0, step=0.25)
     out, t, n = bare(result), result.time, np.arange(5)
     assert np.array_equal(out["real_out"], -10.0 + t)
@@ -201,9 +244,20 @@ def test_every_fmi2_type_round_trips(fmus, bool_in, invert):
 
 @pytest.mark.parametrize("as_text", [False, True], ids=["values", "text"])
 def test_every_fmi3_type_round_trips(fmus, as_text):
-    values = {"float64_in": 0.1, "float64_gain": 10.0, "float32_in": 0.75, "int32_in": -3,
-              "int32_offset": -100, "int64_in": 2**40 + 1, "uint16_in": 65534, "bool_in": True,
-              "invert": False, "string_in": "abc", "suffix": "", "enum_in": 2}
+    values = {
+        "float64_in": 0.1,
+        "float64_gain": 10.0,
+        "float32_in": 0.75,
+        "int32_in": -3,
+        "int32_offset": -100,
+        "int64_in": 2**40 + 1,
+        "uint16_in": 65534,
+        "bool_in": True,
+        "invert": False,
+        "string_in": "abc",
+        "suffix": "",
+        "enum_in": 2,
+    }
     if as_text:  # as the command line's --set gives them
         values = {k: str(v).lower() if isinstance(v, bool) else str(v) for k, v in values.items()}
     result = simulate(fmus["types3"], values=values, stop_time=1.0, step=0.25)
@@ -219,18 +273,21 @@ def test_every_fmi3_type_round_trips(fmus, as_text):
     assert result.trajectory.texts == {"types3.string_out": ["abc"] * 5}
 
 
-@pytest.mark.parametrize("name, variable, value, message", [
-    ("types3", "int32_in", 2**40, "types3.int32_in = 1099511627776 does not fit an Int32"),
-    ("types3", "uint16_in", -1, "types3.uint16_in = -1 does not fit a UInt16 (0 to 65535)"),
-    ("types3", "uint16_in", 65536, "does not fit a UInt16"),
-    ("types2", "int_in", 2**31, "types2.int_in = 2147483648 does not fit an Integer"),
-    ("types2", "enum_in", 4, "types2.enum_in = 4 is above its declared max 3"),
-    ("types2", "int_in", 1.5, "types2.int_in: 1.5 is not a whole number"),
-    ("types2", "bool_in", 2, "types2.bool_in: 2 is not a Boolean"),
-    ("types2", "bool_in", "yes", "types2.bool_in: 'yes' is not a valid Boolean"),
-    ("types2", "real_gain", 11, "types2.real_gain = 11 is above its declared max 10"),
-    ("types2", "real_out", 1.0, "'types2.real_out' is an output, not a parameter or input"),
-])
+@pytest.mark.parametrize(
+    "name, variable, value, message",
+    [
+        ("types3", "int32_in", 2**40, "types3.int32_in = 1099511627776 does not fit an Int32"),
+        ("types3", "uint16_in", -1, "types3.uint16_in = -1 does not fit a UInt16 (0 to 65535)"),
+        ("types3", "uint16_in", 65536, "does not fit a UInt16"),
+        ("types2", "int_in", 2**31, "types2.int_in = 2147483648 does not fit an Integer"),
+        ("types2", "enum_in", 4, "types2.enum_in = 4 is above its declared max 3"),
+        ("types2", "int_in", 1.5, "types2.int_in: 1.5 is not a whole number"),
+        ("types2", "bool_in", 2, "types2.bool_in: 2 is not a Boolean"),
+        ("types2", "bool_in", "yes", "types2.bool_in: 'yes' is not a valid Boolean"),
+        ("types2", "real_gain", 11, "types2.real_gain = 11 is above its declared max 10"),
+        ("types2", "real_out", 1.0, "'types2.real_out' is an output, not a parameter or input"),
+    ],
+)
 def test_a_value_its_type_cannot_hold_is_refused(fmus, name, variable, value, message):
     with pytest.raises(DseError, match=re.escape(message)):
         simulate(fmus[name], values={variable: value}, stop_time=1.0, step=0.25)
@@ -245,14 +302,19 @@ def test_int64_values_stay_exact_beyond_float_precision(fmus):
 
 # ---- 3. connections between types --------------------------------------------------------------
 
+
 def hand_coupled_watertank(fmus, tmp_path, stop: float, step: float) -> tuple[np.ndarray, np.ndarray]:
     """The tank and controller coupled by hand through FMPy, Jacobi as our master: read both outputs,
     set both inputs (the Boolean valve as 0.0/1.0), step both."""
     instances = {}
     for name in ("tank", "controller"):
         md = read_model_description(str(fmus[name]))
-        slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmus[name]), str(tmp_path / name)),
-                          modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+        slave = FMU2Slave(
+            guid=md.guid,
+            unzipDirectory=extract(str(fmus[name]), str(tmp_path / name)),
+            modelIdentifier=md.coSimulation.modelIdentifier,
+            instanceName=name,
+        )
         slave.instantiate()
         slave.setupExperiment(startTime=0.0)
         slave.enterInitializationMode()
@@ -280,8 +342,11 @@ def hand_coupled_watertank(fmus, tmp_path, stop: float, step: float) -> tuple[np
 
 
 def test_boolean_valve_drives_real_valvecontrol_as_fmpy_by_hand(fmus, tmp_path):
-    path = write_multimodel(tmp_path, {"tank": fmus["tank"], "controller": fmus["controller"]},
-                            {"tank.level": ["controller.level"], "controller.valve": ["tank.valvecontrol"]})
+    path = write_multimodel(
+        tmp_path,
+        {"tank": fmus["tank"], "controller": fmus["controller"]},
+        {"tank.level": ["controller.level"], "controller.valve": ["tank.valvecontrol"]},
+    )
     result = simulate(path, stop_time=30.0, step=0.1)
     levels, valves = hand_coupled_watertank(fmus, tmp_path, 30.0, 0.1)
     assert np.abs(result.trajectory.column("tank.level") - levels).max() < 1e-12
@@ -292,19 +357,25 @@ def test_boolean_valve_drives_real_valvecontrol_as_fmpy_by_hand(fmus, tmp_path):
 @pytest.fixture
 def pair(fmus, tmp_path):
     """A multi-model of two types2 instances and a types3, with the given connections."""
+
     def make(connections: dict) -> Path:
-        return write_multimodel(tmp_path, {"a": fmus["types2"], "b": fmus["types2"], "c": fmus["types3"]},
-                                connections)
+        return write_multimodel(
+            tmp_path, {"a": fmus["types2"], "b": fmus["types2"], "c": fmus["types3"]}, connections
+        )
+
     return make
 
 
-@pytest.mark.parametrize("target, needs", [
-    ({"input": "b.int_in"}, "round: true"),
-    ({"input": "b.bool_in"}, "threshold: 0.5"),
-    ({"input": "c.int64_in"}, "round: true"),
-    ({"input": "c.enum_in"}, "round: true"),
-    ({"input": "c.bool_in"}, "threshold: 0.5"),
-])
+@pytest.mark.parametrize(
+    "target, needs",
+    [
+        ({"input": "b.int_in"}, "round: true"),
+        ({"input": "b.bool_in"}, "threshold: 0.5"),
+        ({"input": "c.int64_in"}, "round: true"),
+        ({"input": "c.enum_in"}, "round: true"),
+        ({"input": "c.bool_in"}, "threshold: 0.5"),
+    ],
+)
 def test_a_real_feeds_an_integer_or_boolean_only_when_told_how(pair, target, needs):
     with pytest.raises(DseError) as caught:
         as_plan(pair({"a.real_out": [target]}))
@@ -313,12 +384,15 @@ def test_a_real_feeds_an_integer_or_boolean_only_when_told_how(pair, target, nee
     assert "\n" not in message
 
 
-@pytest.mark.parametrize("source, target, message", [
-    ("a.string_out", "b.real_in", "a String cannot feed a Real: strings connect only to strings"),
-    ("a.real_out", "b.string_in", "a Real cannot feed a String"),
-    ("a.string_out", "c.int32_in", "a String cannot feed an Int32"),
-    ("a.int_out", "b.bool_in", "an Integer feeds a Boolean only through a threshold"),
-])
+@pytest.mark.parametrize(
+    "source, target, message",
+    [
+        ("a.string_out", "b.real_in", "a String cannot feed a Real: strings connect only to strings"),
+        ("a.real_out", "b.string_in", "a Real cannot feed a String"),
+        ("a.string_out", "c.int32_in", "a String cannot feed an Int32"),
+        ("a.int_out", "b.bool_in", "an Integer feeds a Boolean only through a threshold"),
+    ],
+)
 def test_strings_connect_only_to_strings(pair, source, target, message):
     with pytest.raises(DseError) as caught:
         as_plan(pair({source: [target]}))
@@ -329,7 +403,10 @@ def test_a_misspelt_connection_option_gets_one_message(pair):
     """A target mapping with a typo is judged as a mapping only: not also as an input's name."""
     with pytest.raises(DseError) as caught:
         as_plan(pair({"a.real_out": [{"input": "c.bool_in", "treshold": 0.5}]}))
-    assert str(caught.value).split(": ", 1)[1] == "connections.a.real_out.0.mapping.treshold: Extra inputs are not permitted"
+    assert (
+        str(caught.value).split(": ", 1)[1]
+        == "connections.a.real_out.0.mapping.treshold: Extra inputs are not permitted"
+    )
 
 
 def test_an_option_a_connection_does_not_need_is_refused(pair):
@@ -342,15 +419,20 @@ def test_an_option_a_connection_does_not_need_is_refused(pair):
 def test_conversions_round_threshold_and_widen(pair):
     """a.real_out = 1.3 + t feeds b's Integer rounded, b's Boolean through a threshold and c's UInt16
     rounded; Boolean, Integer, Int64 and String outputs feed their own or wider types as they are."""
-    path = pair({
-        "a.real_out": [{"input": "b.int_in", "round": True}, {"input": "b.bool_in", "threshold": 1.5},
-                       {"input": "c.uint16_in", "round": True}],
-        "a.bool_out": ["c.bool_in"],   # FMI 2 Boolean -> FMI 3 Boolean
-        "a.int_out": ["c.float64_in"],  # Integer -> Float64, exact
-        "c.int64_out": ["b.real_in"],   # Int64 -> Real
-        "a.enum_out": ["c.int32_in"],   # an enumeration is an integer
-        "a.string_out": ["b.string_in"],
-    })
+    path = pair(
+        {
+            "a.real_out": [
+                {"input": "b.int_in", "round": True},
+                {"input": "b.bool_in", "threshold": 1.5},
+                {"input": "c.uint16_in", "round": True},
+            ],
+            "a.bool_out": ["c.bool_in"],  # FMI 2 Boolean -> FMI 3 Boolean
+            "a.int_out": ["c.float64_in"],  # Integer -> Float64, exact
+            "c.int64_out": ["b.real_in"],  # Int64 -> Real
+            "a.enum_out": ["c.int32_in"],  # an enumeration is an integer
+            "a.string_out": ["b.string_in"],
+        }
+    )
     values = {"a.real_in": 1.3, "a.real_gain": 1.0, "a.string_in": "x", "c.int64_in": 5}
     result = simulate(path, values=values, stop_time=2.0, step=0.25)
     col = result.trajectory.column
@@ -367,8 +449,9 @@ def test_conversions_round_threshold_and_widen(pair):
     assert result.trajectory.texts["b.string_out"][1:] == ["x!!"] * (len(t) - 1)
 
 
-@pytest.mark.parametrize("real_in, target, type_name", [(1e12, "b.int_in", "Integer"),
-                                                        (-5.0, "c.uint16_in", "UInt16")])
+@pytest.mark.parametrize(
+    "real_in, target, type_name", [(1e12, "b.int_in", "Integer"), (-5.0, "c.uint16_in", "UInt16")]
+)
 def test_a_rounded_value_the_target_cannot_hold_stops_the_run(pair, real_in, target, type_name):
     path = pair({"a.real_out": [{"input": target, "round": True}]})
     expected = rf"{re.escape(target)} is fed .* which rounded does not fit an? {type_name} at t=0\b"
@@ -378,12 +461,14 @@ def test_a_rounded_value_the_target_cannot_hold_stops_the_run(pair, real_in, tar
 
 # ---- 4. which interface ------------------------------------------------------------------------
 
+
 def test_an_me_only_fmu_runs_through_model_exchange_and_refuses_co_simulation(fmus):
     assert as_plan(fmus["msd"]).interfaces == {"msd": "me"}
     with pytest.raises(DseError) as caught:
         simulate(fmus["msd"], interface="cs", stop_time=1.0, step=0.1)
-    assert str(caught.value) == (f"{fmus['msd']}: co-simulation was asked for, but the FMU offers only "
-                                 "model exchange")
+    assert str(caught.value) == (
+        f"{fmus['msd']}: co-simulation was asked for, but the FMU offers only model exchange"
+    )
 
 
 def test_a_dual_interface_fmu_uses_co_simulation_unless_model_exchange_is_asked(fmus, tmp_path):
@@ -404,21 +489,29 @@ def test_a_dual_interface_fmu_uses_co_simulation_unless_model_exchange_is_asked(
 
 # ---- 5. FMUs from the wild ---------------------------------------------------------------------
 
+
 def fmu_warnings(caught) -> list[str]:
     return [str(w.message) for w in caught if issubclass(w.category, FmuWarning)]
 
 
 def test_a_binary_named_otherwise_loads_with_one_warning_and_the_same_results(fmus, tmp_path):
-    wild = rewrite(fmus["types2"], tmp_path / "types2.fmu",
-                   rename={"binaries/linux64/types2.so": "binaries/linux64/libtypes2-1.0.so"},
-                   add={"documentation/test.txt": str(tmp_path)})  # its own content: warned once per process
+    wild = rewrite(
+        fmus["types2"],
+        tmp_path / "types2.fmu",
+        rename={"binaries/linux64/types2.so": "binaries/linux64/libtypes2-1.0.so"},
+        add={"documentation/test.txt": str(tmp_path)},
+    )  # its own content: warned once per process
     values = {"real_in": 1.5, "bool_in": True, "string_in": "ab", "enum_in": 2}
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = simulate(wild, values=values)
         again = simulate(wild, values=values)
-    assert fmu_warnings(caught) == [("types2.fmu: no binaries/linux64/types2.so; using "
-                                     "binaries/linux64/libtypes2-1.0.so, the only binary for this platform")]
+    assert fmu_warnings(caught) == [
+        (
+            "types2.fmu: no binaries/linux64/types2.so; using "
+            "binaries/linux64/libtypes2-1.0.so, the only binary for this platform"
+        )
+    ]
     reference = simulate(fmus["types2"], values=values)
     for run in (result, again):
         assert np.array_equal(run.trajectory.values, reference.trajectory.values)
@@ -428,19 +521,28 @@ def test_a_binary_named_otherwise_loads_with_one_warning_and_the_same_results(fm
 def test_two_binaries_named_otherwise_are_an_error_naming_them(fmus, tmp_path):
     with zipfile.ZipFile(fmus["types2"]) as z:
         binary = z.read("binaries/linux64/types2.so")
-    wild = rewrite(fmus["types2"], tmp_path / "two.fmu",
-                   rename={"binaries/linux64/types2.so": "binaries/linux64/a.so"},
-                   add={"binaries/linux64/b.so": binary})
+    wild = rewrite(
+        fmus["types2"],
+        tmp_path / "two.fmu",
+        rename={"binaries/linux64/types2.so": "binaries/linux64/a.so"},
+        add={"binaries/linux64/b.so": binary},
+    )
     with pytest.raises(DseError) as caught:
         simulate(wild)
-    assert str(caught.value) == (f"{wild}: no binary for this platform: binaries/linux64/types2.so is "
-                                 "missing (it has binaries/linux64/a.so, binaries/linux64/b.so)")
+    assert str(caught.value) == (
+        f"{wild}: no binary for this platform: binaries/linux64/types2.so is "
+        "missing (it has binaries/linux64/a.so, binaries/linux64/b.so)"
+    )
 
 
 def test_a_start_value_on_a_calculated_output_warns_and_runs(fmus, tmp_path):
-    wild = rewrite(fmus["types2"], tmp_path / "started.fmu",
-                   edit=lambda xml: xml.replace('initial="calculated">\n      <Real/>',
-                                                'initial="calculated">\n      <Real start="7"/>'))
+    wild = rewrite(
+        fmus["types2"],
+        tmp_path / "started.fmu",
+        edit=lambda xml: xml.replace(
+            'initial="calculated">\n      <Real/>', 'initial="calculated">\n      <Real start="7"/>'
+        ),
+    )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = simulate(wild, values={"real_in": 1.0})
@@ -450,14 +552,24 @@ def test_a_start_value_on_a_calculated_output_warns_and_runs(fmus, tmp_path):
     assert np.array_equal(result.trajectory.column("started.real_out"), 2.0 + result.time)
 
 
-@pytest.mark.parametrize("change, message", [
-    ({"edit": lambda xml: xml.replace('fmiVersion="2.0"', 'fmiVersion="1.0"')},
-     "FMI 1.0: dse-runner runs FMI 2.0 and 3.0 FMUs; export this model as FMI 2.0 or 3.0"),
-    ({"rename": {"binaries/linux64/types2.so": "binaries/win64/types2.dll"}},
-     "no binary for this platform: binaries/linux64/types2.so is missing (it has binaries for win64)"),
-    ({"edit": lambda xml: re.sub(r"<CoSimulation.*?</CoSimulation>", "", xml, flags=re.DOTALL)},
-     "offers neither co-simulation nor model exchange"),
-], ids=["fmi1", "win64-only", "no-interface"])
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (
+            {"edit": lambda xml: xml.replace('fmiVersion="2.0"', 'fmiVersion="1.0"')},
+            "FMI 1.0: dse-runner runs FMI 2.0 and 3.0 FMUs; export this model as FMI 2.0 or 3.0",
+        ),
+        (
+            {"rename": {"binaries/linux64/types2.so": "binaries/win64/types2.dll"}},
+            "no binary for this platform: binaries/linux64/types2.so is missing (it has binaries for win64)",
+        ),
+        (
+            {"edit": lambda xml: re.sub(r"<CoSimulation.*?</CoSimulation>", "", xml, flags=re.DOTALL)},
+            "offers neither co-simulation nor model exchange",
+        ),
+    ],
+    ids=["fmi1", "win64-only", "no-interface"],
+)
 def test_what_cannot_run_is_a_one_line_error(fmus, tmp_path, change, message):
     wild = rewrite(fmus["types2"], tmp_path / "wild.fmu", **change)
     with warnings.catch_warnings():
@@ -468,16 +580,30 @@ def test_what_cannot_run_is_a_one_line_error(fmus, tmp_path, change, message):
 
 
 def test_the_command_line_prints_an_fmu_warning_as_one_line(fmus, tmp_path):
-    wild = rewrite(fmus["types2"], tmp_path / "renamed.fmu",
-                   rename={"binaries/linux64/types2.so": "binaries/linux64/other.so"},
-                   add={"documentation/test.txt": str(tmp_path)})
+    wild = rewrite(
+        fmus["types2"],
+        tmp_path / "renamed.fmu",
+        rename={"binaries/linux64/types2.so": "binaries/linux64/other.so"},
+        add={"documentation/test.txt": str(tmp_path)},
+    )
     done = CliRunner().invoke(app, ["simulate", str(wild), "--json"])
     assert done.exit_code == 0, done.output
-    assert done.stderr == ("warning: renamed.fmu: no binaries/linux64/types2.so; using "
-                           "binaries/linux64/other.so, the only binary for this platform\n")
+    assert done.stderr == (
+        "warning: renamed.fmu: no binaries/linux64/types2.so; using "
+        "binaries/linux64/other.so, the only binary for this platform\n"
+    )
     strict_loads(done.stdout)
-    failed = CliRunner().invoke(app, ["simulate", str(rewrite(fmus["types2"], tmp_path / "old.fmu",
-                                      edit=lambda xml: xml.replace('"2.0"', '"1.0"', 1)))])
+    failed = CliRunner().invoke(
+        app,
+        [
+            "simulate",
+            str(
+                rewrite(
+                    fmus["types2"], tmp_path / "old.fmu", edit=lambda xml: xml.replace('"2.0"', '"1.0"', 1)
+                )
+            ),
+        ],
+    )
     assert failed.exit_code == 2 and failed.stderr.startswith("error: ") and failed.stderr.count("\n") == 1
 
 
@@ -486,8 +612,12 @@ def test_fmpys_own_instances_still_print_their_messages_after_ours(fmus, tmp_pat
     instances FMPy made with its default callbacks must still be printed (on stderr: stdout may carry JSON)."""
     simulate(fmus["types2"])
     md = read_model_description(str(fmus["types2"]))
-    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmus["types2"]), str(tmp_path / "x")),
-                      modelIdentifier="types2", instanceName="plain")
+    slave = FMU2Slave(
+        guid=md.guid,
+        unzipDirectory=extract(str(fmus["types2"]), str(tmp_path / "x")),
+        modelIdentifier="types2",
+        instanceName="plain",
+    )
     slave.instantiate()
     try:
         with pytest.raises(FMICallException):
@@ -500,27 +630,67 @@ def test_fmpys_own_instances_still_print_their_messages_after_ours(fmus, tmp_pat
 
 # ---- 6. simulate model.fmu --csv --json ---------------------------------------------------------
 
+
 def test_simulate_an_fmu_writes_bare_names_and_strict_json(fmus, tmp_path):
     csv_path = tmp_path / "out.csv"
-    done = CliRunner().invoke(app, ["simulate", str(fmus["types3"]), "--set", "int64_in=1099511627776",
-                                    "--set", "bool_in=true", "--set", "string_in=a,b", "--set", "enum_in=3",
-                                    "--stop-time", "0.5", "--step", "0.25", "--csv", str(csv_path), "--json"])
+    done = CliRunner().invoke(
+        app,
+        [
+            "simulate",
+            str(fmus["types3"]),
+            "--set",
+            "int64_in=1099511627776",
+            "--set",
+            "bool_in=true",
+            "--set",
+            "string_in=a,b",
+            "--set",
+            "enum_in=3",
+            "--stop-time",
+            "0.5",
+            "--step",
+            "0.25",
+            "--csv",
+            str(csv_path),
+            "--json",
+        ],
+    )
     assert done.exit_code == 0, done.output
     lines = csv_path.read_text().splitlines()
-    names = ["float64_out", "float32_out", "int32_out", "steps", "int64_out", "uint16_out", "bool_out",
-             "enum_out", "string_out"]
+    names = [
+        "float64_out",
+        "float32_out",
+        "int32_out",
+        "steps",
+        "int64_out",
+        "uint16_out",
+        "bool_out",
+        "enum_out",
+        "string_out",
+    ]
     assert lines[0].split(",") == ["time", *names]
-    assert lines[1:] == [f"{t:g},{t},0,{n},{n},{2**41 + n},{n},0,{(2 + n) % 3 + 1},\"a,b!\""  # exact
-                         for n, t in enumerate((0, 0.25, 0.5))]
+    assert lines[1:] == [
+        f'{t:g},{t},0,{n},{n},{2**41 + n},{n},0,{(2 + n) % 3 + 1},"a,b!"'  # exact
+        for n, t in enumerate((0, 0.25, 0.5))
+    ]
     summary = strict_loads(done.stdout)
-    assert summary["final"] == {"float64_out": 0.5, "float32_out": 0.0, "int32_out": 2.0, "steps": 2.0,
-                                "int64_out": 2.0**41 + 2, "uint16_out": 2.0, "bool_out": 0.0, "enum_out": 2.0,
-                                "string_out": "a,b!"}
+    assert summary["final"] == {
+        "float64_out": 0.5,
+        "float32_out": 0.0,
+        "int32_out": 2.0,
+        "steps": 2.0,
+        "int64_out": 2.0**41 + 2,
+        "uint16_out": 2.0,
+        "bool_out": 0.0,
+        "enum_out": 2.0,
+        "string_out": "a,b!",
+    }
     assert summary["values"]["types3.int64_in"] == 2**40 and summary["stop_time"] == 0.5
     assert json.loads(done.stdout) == summary
 
 
 # ---- 7. conversions cost only where a connection needs them -------------------------------------
+
 
 def captured_units(monkeypatch, path, **kwargs) -> dict[str, cosim._Unit]:
     """The prepared units the Python step loop gets, by instance (the native loop takes the same units)."""
@@ -539,13 +709,19 @@ def captured_units(monkeypatch, path, **kwargs) -> dict[str, cosim._Unit]:
 def is_direct(feed) -> bool:
     """The direct filler: the signals array's own take straight into the ctypes buffer, no Python in between."""
     fill = feed.fill
-    return (isinstance(fill, functools.partial) and getattr(fill.func, "__name__", "") == "take"
-            and isinstance(getattr(fill.func, "__self__", None), np.ndarray))
+    return (
+        isinstance(fill, functools.partial)
+        and getattr(fill.func, "__name__", "") == "take"
+        and isinstance(getattr(fill.func, "__self__", None), np.ndarray)
+    )
 
 
 def test_real_and_boolean_to_real_feeds_are_a_direct_take(fmus, tmp_path, monkeypatch):
-    path = write_multimodel(tmp_path, {"tank": fmus["tank"], "controller": fmus["controller"]},
-                            {"tank.level": ["controller.level"], "controller.valve": ["tank.valvecontrol"]})
+    path = write_multimodel(
+        tmp_path,
+        {"tank": fmus["tank"], "controller": fmus["controller"]},
+        {"tank.level": ["controller.level"], "controller.valve": ["tank.valvecontrol"]},
+    )
     units = captured_units(monkeypatch, path, stop_time=1.0, step=0.1)
     for name in ("tank", "controller"):
         (feed,) = units[name].feeds
@@ -554,9 +730,16 @@ def test_real_and_boolean_to_real_feeds_are_a_direct_take(fmus, tmp_path, monkey
 
 
 def test_only_the_converting_feeds_do_more_than_a_take(pair, monkeypatch):
-    path = pair({"a.real_out": [{"input": "b.int_in", "round": True},
-                                {"input": "b.bool_in", "threshold": 1.5}, "b.real_in"],
-                 "a.int_out": ["c.float64_in"]})
+    path = pair(
+        {
+            "a.real_out": [
+                {"input": "b.int_in", "round": True},
+                {"input": "b.bool_in", "threshold": 1.5},
+                "b.real_in",
+            ],
+            "a.int_out": ["c.float64_in"],
+        }
+    )
     units = captured_units(monkeypatch, path, stop_time=1.0, step=0.25)
     feeds = {feed.name: feed for feed in units["b"].feeds}
     assert set(feeds) == {"fmi2SetReal", "fmi2SetInteger", "fmi2SetBoolean"}

@@ -19,8 +19,10 @@ CALIBRATED = {"vehicle.mass": 1000.0, "vehicle.cAlphaF": 38000.0, "vehicle.mu": 
 
 def in_fresh_processes(folder, source=MULTIMODEL, **more) -> str:
     data = yaml.safe_load(source.read_text())
-    data["fmus"] = {name: (path if path.startswith("bundled:") else str((source.parent / path).resolve()))
-                    for name, path in data["fmus"].items()}
+    data["fmus"] = {
+        name: (path if path.startswith("bundled:") else str((source.parent / path).resolve()))
+        for name, path in data["fmus"].items()
+    }
     data["instances"] = {name: {"lifecycle": "process"} for name in data["fmus"]}
     data.update(more)
     path = folder / "multimodel.yaml"
@@ -42,30 +44,44 @@ def test_a_fresh_process_per_run_gives_the_numbers_of_a_reused_instance(tmp_path
 
 def test_a_crash_in_a_fresh_process_is_one_error_and_the_next_run_goes_on(tmp_path):
     multimodel = tmp_path / "crasher.yaml"
-    multimodel.write_text(yaml.safe_dump({"fmus": {"crasher": str(REPO / "tests" / "fmus" / "crasher")},
-                                          "parameters": {"crasher.crash_at": 1.0},
-                                          "instances": {"crasher": {"lifecycle": "process"}}}))
+    multimodel.write_text(
+        yaml.safe_dump(
+            {
+                "fmus": {"crasher": str(REPO / "tests" / "fmus" / "crasher")},
+                "parameters": {"crasher.crash_at": 1.0},
+                "instances": {"crasher": {"lifecycle": "process"}},
+            }
+        )
+    )
     plan = as_plan(multimodel)
     with pytest.raises(CosimError, match="SIGSEGV"):
         simulate(plan, values={"crasher.k": 1.0}, stop_time=1, step=0.1)
-    assert simulate(plan, values={"crasher.k": 0.0, "crasher.velocity": 2.0}, stop_time=1,
-                    step=0.1).outputs["crasher.x"][-1] == pytest.approx(2.0)
+    assert simulate(plan, values={"crasher.k": 0.0, "crasher.velocity": 2.0}, stop_time=1, step=0.1).outputs[
+        "crasher.x"
+    ][-1] == pytest.approx(2.0)
 
 
 def test_a_run_hung_inside_an_fmu_call_in_a_fresh_process_is_killed_after_its_timeout(tmp_path, monkeypatch):
     """The step loop checks its timeout between steps; a step that never returns is stopped by killing the
     fresh process (here a step sleeps 10 s, and the timeout is 1 s plus a grace of 1 s)."""
     multimodel = tmp_path / "sleeper.yaml"
-    multimodel.write_text(yaml.safe_dump({"fmus": {"sleeper": str(REPO / "tests" / "fmus" / "sleeper")},
-                                          "instances": {"sleeper": {"lifecycle": "process"}}}))
+    multimodel.write_text(
+        yaml.safe_dump(
+            {
+                "fmus": {"sleeper": str(REPO / "tests" / "fmus" / "sleeper")},
+                "instances": {"sleeper": {"lifecycle": "process"}},
+            }
+        )
+    )
     plan = as_plan(multimodel)
     monkeypatch.setattr(isolation, "KILL_GRACE", 1.0)
     began = time.monotonic()
     with pytest.raises(CosimError, match=r"did not end within 2 s \(hung inside an FMU call\)"):
         simulate(plan, values={"sleeper.pause": 10.0}, stop_time=1, step=0.5, timeout=1.0)
     assert time.monotonic() - began < 9  # killed at 2 s, not waited for to the first step's end at 10 s
-    assert simulate(plan, values={"sleeper.velocity": 2.0}, stop_time=1, step=0.5,
-                    timeout=1.0).outputs["sleeper.x"][-1] == pytest.approx(2.0)
+    assert simulate(plan, values={"sleeper.velocity": 2.0}, stop_time=1, step=0.5, timeout=1.0).outputs[
+        "sleeper.x"
+    ][-1] == pytest.approx(2.0)
 
 
 def test_the_probe_finds_a_reset_that_changes_the_next_run():

@@ -30,13 +30,20 @@ STEP, STOP = 0.01, 5.0
 def msd(tmp_path_factory):
     """The built msd FMU, its description and an extracted copy to instantiate from."""
     path = build_fmu(MSD)
-    return SimpleNamespace(path=str(path), md=read_model_description(str(path)),
-                           unzipped=extract(str(path), str(tmp_path_factory.mktemp("msd"))))
+    return SimpleNamespace(
+        path=str(path),
+        md=read_model_description(str(path)),
+        unzipped=extract(str(path), str(tmp_path_factory.mktemp("msd"))),
+    )
 
 
 def instantiate(fmu, name="msd"):
-    model = FMU2Model(guid=fmu.md.guid, unzipDirectory=fmu.unzipped,
-                      modelIdentifier=fmu.md.modelExchange.modelIdentifier, instanceName=name)
+    model = FMU2Model(
+        guid=fmu.md.guid,
+        unzipDirectory=fmu.unzipped,
+        modelIdentifier=fmu.md.modelExchange.modelIdentifier,
+        instanceName=name,
+    )
     model.instantiate()
     return model
 
@@ -110,7 +117,9 @@ def test_calls_outside_their_mode_fail(msd, capsys):
     model = instantiate(msd)
     with pytest.raises(FMICallException, match="fmi2SetContinuousStates"):
         model.setContinuousStates(cast((c_double * 2)(), POINTER(c_double)), 2)
-    assert "fmi2SetContinuousStates is not allowed in instantiated" in "".join(capsys.readouterr())  # FMPy prints on stdout, ours on stderr
+    assert "fmi2SetContinuousStates is not allowed in instantiated" in "".join(
+        capsys.readouterr()
+    )  # FMPy prints on stdout, ours on stderr
     model.freeInstance()
 
 
@@ -121,8 +130,15 @@ def test_cvode_agrees_with_fmpy_and_the_exact_solution(msd):
     model = instantiate(msd)
     ours = run(msd, model, tolerance=1e-6)
     model.freeInstance()
-    theirs = simulate_fmu(msd.path, solver="CVode", stop_time=STOP, output_interval=STEP,
-                          relative_tolerance=1e-6, start_values=TRUE, output=["x"])
+    theirs = simulate_fmu(
+        msd.path,
+        solver="CVode",
+        stop_time=STOP,
+        output_interval=STEP,
+        relative_tolerance=1e-6,
+        start_values=TRUE,
+        output=["x"],
+    )
     assert len(ours) == len(theirs)
     amplitude = 0.1
     assert np.abs(ours - theirs["x"]).max() < 1e-4 * amplitude
@@ -135,8 +151,15 @@ def test_euler_agrees_with_fmpy_and_by_hand(msd):
     model.reset()
     fine = run(msd, model, solver="euler", euler_step=0.001)
     model.freeInstance()
-    theirs = simulate_fmu(msd.path, solver="Euler", stop_time=STOP, step_size=STEP,
-                          output_interval=STEP, start_values=TRUE, output=["x"])
+    theirs = simulate_fmu(
+        msd.path,
+        solver="Euler",
+        stop_time=STOP,
+        step_size=STEP,
+        output_interval=STEP,
+        start_values=TRUE,
+        output=["x"],
+    )
     n = round(STOP / STEP)
     assert np.abs(ours - theirs["x"]).max() < 1e-9
     assert np.abs(ours - euler(STEP, n)).max() < 1e-9
@@ -149,11 +172,21 @@ def test_input_changes_restart_the_solver_like_fmpy_input_events(msd):
     model = instantiate(msd)
     ours = run(msd, model, force=lambda t: 2.0 if 1.0 <= t + 1e-9 < 3.0 else 0.0, tolerance=1e-6)
     model.freeInstance()
-    signal = np.array([(0.0, 0.0), (1.0, 0.0), (1.0, 2.0), (3.0, 2.0), (3.0, 0.0), (STOP, 0.0)],
-                      dtype=[("time", float), ("F", float)])
-    theirs = simulate_fmu(msd.path, solver="CVode", stop_time=STOP, output_interval=STEP,
-                          relative_tolerance=1e-6, start_values=TRUE, input=signal, output=["x"],
-                          record_events=False)
+    signal = np.array(
+        [(0.0, 0.0), (1.0, 0.0), (1.0, 2.0), (3.0, 2.0), (3.0, 0.0), (STOP, 0.0)],
+        dtype=[("time", float), ("F", float)],
+    )
+    theirs = simulate_fmu(
+        msd.path,
+        solver="CVode",
+        stop_time=STOP,
+        output_interval=STEP,
+        relative_tolerance=1e-6,
+        start_values=TRUE,
+        input=signal,
+        output=["x"],
+        record_events=False,
+    )
     assert np.abs(ours - theirs["x"]).max() < 1e-5
     assert ours[100:300].mean() > 0.1  # the force moved the mass (to oscillate about F / k = 0.14 m)
 
@@ -164,19 +197,30 @@ def test_input_changes_restart_the_solver_like_fmpy_input_events(msd):
 @pytest.fixture(scope="module")
 def ball(tmp_path_factory):
     path = build_fmu(BALL)
-    return SimpleNamespace(path=str(path), md=read_model_description(str(path)),
-                           unzipped=extract(str(path), str(tmp_path_factory.mktemp("ball"))))
+    return SimpleNamespace(
+        path=str(path),
+        md=read_model_description(str(path)),
+        unzipped=extract(str(path), str(tmp_path_factory.mktemp("ball"))),
+    )
 
 
 def test_state_and_time_events_agree_with_fmpy(ball):
     assert validate_fmu(ball.path) == []
-    model = FMU2Model(guid=ball.md.guid, unzipDirectory=ball.unzipped, modelIdentifier="ball",
-                      instanceName="ball")
+    model = FMU2Model(
+        guid=ball.md.guid, unzipDirectory=ball.unzipped, modelIdentifier="ball", instanceName="ball"
+    )
     model.instantiate()
     ours = run(ball, model, params={}, output="h", stop=2.0, tolerance=1e-6)
     model.freeInstance()
-    theirs = simulate_fmu(ball.path, solver="CVode", stop_time=2.0, output_interval=STEP,
-                          relative_tolerance=1e-6, output=["h"], record_events=False)
+    theirs = simulate_fmu(
+        ball.path,
+        solver="CVode",
+        stop_time=2.0,
+        output_interval=STEP,
+        relative_tolerance=1e-6,
+        output=["h"],
+        record_events=False,
+    )
     assert np.abs(ours - theirs["h"]).max() < 1e-6
     bounce = round(math.sqrt(2 / 9.81) / STEP)  # at 0.45 s, before the kick at 0.9 s
     assert ours[bounce + 5] > ours[bounce]  # it bounced
@@ -188,17 +232,25 @@ def test_state_and_time_events_agree_with_fmpy(ball):
 
 def test_a_bad_parameter_fails_initialization_with_the_fmus_reason(msd, capsys):
     model = instantiate(msd)
-    with pytest.raises(ModelExchangeError, match=r"^exiting initialization mode at t=0: "
-                                                 r"fmi2ExitInitializationMode failed"):
+    with pytest.raises(
+        ModelExchangeError,
+        match=r"^exiting initialization mode at t=0: "
+        r"fmi2ExitInitializationMode failed",
+    ):
         run(msd, model, params={"m": 0.0})
-    assert "mass m must be finite and > 0, got 0" in "".join(capsys.readouterr())  # FMPy prints on stdout, ours on stderr
+    assert "mass m must be finite and > 0, got 0" in "".join(
+        capsys.readouterr()
+    )  # FMPy prints on stdout, ours on stderr
     model.freeInstance()
 
 
 def test_derivatives_blowing_up_inside_cvode_name_the_fmu_error_and_time(msd, capsys):
     model = instantiate(msd)
-    with pytest.raises(ModelExchangeError, match=r"^fmi2GetDerivatives failed with status 3 \(error\) "
-                                                 r"while integrating from t=0\.\d+ to t=0\.\d+$"):
+    with pytest.raises(
+        ModelExchangeError,
+        match=r"^fmi2GetDerivatives failed with status 3 \(error\) "
+        r"while integrating from t=0\.\d+ to t=0\.\d+$",
+    ):
         run(msd, model, params={"k": -1e6})  # grows as exp(1000 t) until der(v) overflows
     assert "der(v) is inf at t=0.6" in "".join(capsys.readouterr())  # FMPy prints on stdout, ours on stderr
     model.freeInstance()
@@ -279,12 +331,17 @@ class FakeMsd3:
 def test_fmi3_path_drives_fmpys_fmu3model_calls(msd):
     for name, method in inspect.getmembers(FakeMsd3, inspect.isfunction):
         if name != "__init__":
-            assert list(inspect.signature(method).parameters) == \
-                list(inspect.signature(getattr(FMU3Model, name)).parameters), name
+            assert list(inspect.signature(method).parameters) == list(
+                inspect.signature(getattr(FMU3Model, name)).parameters
+            ), name
     description = SimpleNamespace(
-        fmiVersion="3.0", modelName="msd3", numberOfContinuousStates=2, numberOfEventIndicators=0,
+        fmiVersion="3.0",
+        modelName="msd3",
+        numberOfContinuousStates=2,
+        numberOfEventIndicators=0,
         modelExchange=SimpleNamespace(needsCompletedIntegratorStep=True),
-        modelVariables=[SimpleNamespace(name="F", causality="input", type="Float64", valueReference=5)])
+        modelVariables=[SimpleNamespace(name="F", causality="input", type="Float64", valueReference=5)],
+    )
     fake = FakeMsd3(**TRUE)
     stepper = ModelExchangeStepper(fake, description, tolerance=1e-6)
     stepper.setup(0.0, STOP)
@@ -295,8 +352,16 @@ def test_fmi3_path_drives_fmpys_fmu3model_calls(msd):
         stepper.do_step(i * STEP, STEP)
         xs.append(fake.x[0])
     stepper.terminate()
-    assert fake.calls[:4] == ["enterInitializationMode", "exitInitializationMode", "updateDiscreteStates",
-                              "enterContinuousTimeMode"] and fake.calls[-1] == "terminate"
+    assert (
+        fake.calls[:4]
+        == [
+            "enterInitializationMode",
+            "exitInitializationMode",
+            "updateDiscreteStates",
+            "enterContinuousTimeMode",
+        ]
+        and fake.calls[-1] == "terminate"
+    )
     model = instantiate(msd)
     fmi2 = run(msd, model, tolerance=1e-6)
     model.freeInstance()
@@ -316,17 +381,32 @@ def test_a_state_with_an_exact_start_value_is_set_as_fmi_allows_and_calibrates_l
 
     vdp = REPO / "tests" / "fmus" / "vdp_me"
     run = simulate(vdp, None, {"x0": 0.5}, stop_time=2.0, step=0.1, interface="me")
-    expected = solve_ivp(lambda t, s: [s[1], (1 - s[0] ** 2) * s[1] - s[0]], (0.0, 2.0), [0.5, 0.0],
-                         t_eval=run.time, rtol=1e-10, atol=1e-12).y
+    expected = solve_ivp(
+        lambda t, s: [s[1], (1 - s[0] ** 2) * s[1] - s[0]],
+        (0.0, 2.0),
+        [0.5, 0.0],
+        t_eval=run.time,
+        rtol=1e-10,
+        atol=1e-12,
+    ).y
     assert run.trajectory.column("vdp_me.x0")[0] == 0.5
-    assert np.max(np.abs(run.trajectory.column("vdp_me.x0") - expected[0])) < 1e-3  # CVode at its default tolerance
-    spec = {"name": "start", "multimodel": {"fmus": {"vdp": str(vdp)}, "instances": {"vdp": {"interface": "me"}}},
-            "experiment": {"stop_time": 2.0, "step": 0.1},
-            "parameters": {"vdp.x0": {"low": -1.0, "high": 1.0}, "vdp.mu": [1.0]},
-            "objectives": {"x_end": {"signal": "vdp.x0", "reduce": "final"}}, "search": {"strategy": "random"},
-            "output": str(tmp_path / "out")}
+    assert (
+        np.max(np.abs(run.trajectory.column("vdp_me.x0") - expected[0])) < 1e-3
+    )  # CVode at its default tolerance
+    spec = {
+        "name": "start",
+        "multimodel": {"fmus": {"vdp": str(vdp)}, "instances": {"vdp": {"interface": "me"}}},
+        "experiment": {"stop_time": 2.0, "step": 0.1},
+        "parameters": {"vdp.x0": {"low": -1.0, "high": 1.0}, "vdp.mu": [1.0]},
+        "objectives": {"x_end": {"signal": "vdp.x0", "reduce": "final"}},
+        "search": {"strategy": "random"},
+        "output": str(tmp_path / "out"),
+    }
     (tmp_path / "space.yaml").write_text(yaml.safe_dump(spec))
     assert load_space(tmp_path / "space.yaml").parameters["vdp.x0"] == [-1.0, 1.0]
-    with pytest.raises(DseError, match=r"'vdp_me.der\(x0\)' is a local, not a parameter or input, and its start "
-                                       r"value is not exact or approx"):
+    with pytest.raises(
+        DseError,
+        match=r"'vdp_me.der\(x0\)' is a local, not a parameter or input, and its start "
+        r"value is not exact or approx",
+    ):
         simulate(vdp, None, {"der(x0)": 0.5}, stop_time=1.0, step=0.1, interface="me")

@@ -60,12 +60,17 @@ def write_multimodel(folder: Path, fmus: dict, connections: dict) -> Path:
 
 @pytest.mark.parametrize("scenario", all_scenarios())
 def test_robotti_runs_are_bit_identical(scenario):
-    assert_identical(*both(MULTIMODEL, SCENARIOS / scenario, {"vehicle.mass": 2000.0, "vehicle.cAlphaF": 29000}))
+    assert_identical(
+        *both(MULTIMODEL, SCENARIOS / scenario, {"vehicle.mass": 2000.0, "vehicle.cAlphaF": 29000})
+    )
 
 
 def test_a_boolean_driving_a_real_is_bit_identical(tmp_path):
-    path = write_multimodel(tmp_path, {"tank": WATERTANK / "tank", "controller": WATERTANK / "controller"},
-                            {"tank.level": ["controller.level"], "controller.valve": ["tank.valvecontrol"]})
+    path = write_multimodel(
+        tmp_path,
+        {"tank": WATERTANK / "tank", "controller": WATERTANK / "controller"},
+        {"tank.level": ["controller.level"], "controller.valve": ["tank.valvecontrol"]},
+    )
     runs = both(path, values={"controller.maxlevel": 1.8}, stop_time=60, step=0.1)
     assert_identical(*runs)
     assert np.count_nonzero(np.diff(runs[1].trajectory.column("controller.valve"))) > 2  # it switched
@@ -73,13 +78,23 @@ def test_a_boolean_driving_a_real_is_bit_identical(tmp_path):
 
 def test_every_type_conversion_and_string_is_bit_identical(tmp_path):
     """FMI 2 and FMI 3 instances with every type: rounding, thresholds, widening, enumerations, strings."""
-    path = write_multimodel(tmp_path, {"a": TYPES2, "b": TYPES2, "c": TYPES3}, {
-        "a.real_out": [{"input": "b.int_in", "round": True}, {"input": "b.bool_in", "threshold": 1.5},
-                       {"input": "c.uint16_in", "round": True}],
-        "a.bool_out": ["c.bool_in"], "a.int_out": ["c.float64_in", "c.float32_in"],
-        "c.int64_out": ["b.real_in"], "a.enum_out": ["c.int32_in"],
-        "a.string_out": ["b.string_in"], "c.string_out": ["a.string_in"],
-    })
+    path = write_multimodel(
+        tmp_path,
+        {"a": TYPES2, "b": TYPES2, "c": TYPES3},
+        {
+            "a.real_out": [
+                {"input": "b.int_in", "round": True},
+                {"input": "b.bool_in", "threshold": 1.5},
+                {"input": "c.uint16_in", "round": True},
+            ],
+            "a.bool_out": ["c.bool_in"],
+            "a.int_out": ["c.float64_in", "c.float32_in"],
+            "c.int64_out": ["b.real_in"],
+            "a.enum_out": ["c.int32_in"],
+            "a.string_out": ["b.string_in"],
+            "c.string_out": ["a.string_in"],
+        },
+    )
     values = {"a.real_in": 1.3, "a.real_gain": 1.0, "c.int64_in": 5, "c.string_in": "y"}
     python, ours = both(path, values=values, stop_time=3.0, step=0.125)
     assert_identical(python, ours)
@@ -93,7 +108,8 @@ def test_input_signals_from_a_scenario_are_bit_identical(tmp_path):
     scenario.mkdir()
     (scenario / "scenario.yaml").write_text(
         "name: signals\ninputs:\n  types2.real_in: {csv: ../inputs.csv}\n"
-        "  types2.int_in: {csv: ../inputs.csv, interpolation: hold}\n")
+        "  types2.int_in: {csv: ../inputs.csv, interpolation: hold}\n"
+    )
     fmu = tmp_path / "types2.fmu"
     shutil.copyfile(build_fmu(TYPES2), fmu)
     python, ours = both(fmu, scenario, stop_time=1.0, step=0.05)
@@ -104,8 +120,14 @@ def test_input_signals_from_a_scenario_are_bit_identical(tmp_path):
 def test_a_cheap_fmu_is_bit_identical():
     fmu = build_fmu(VANDERPOL)
     plan = as_plan(fmu)
-    assert_identical(*both(plan, values={"vanderpol.mu": 1.5} if "vanderpol" in plan.variables else
-                           {f"{next(iter(plan.variables))}.mu": 1.5}))
+    assert_identical(
+        *both(
+            plan,
+            values={"vanderpol.mu": 1.5}
+            if "vanderpol" in plan.variables
+            else {f"{next(iter(plan.variables))}.mu": 1.5},
+        )
+    )
 
 
 def test_a_repeated_simulation_notices_objectives_or_an_experiment_changed_in_place():
@@ -146,25 +168,33 @@ def test_an_fmu_refusing_to_initialise_gives_the_same_message_and_the_next_run_w
     it left half set up is replaced for the next run."""
     messages = failures(MULTIMODEL, SCENARIOS / "sin1", {"vehicle.mass": 0.0})
     assert messages[0] == messages[1]
-    assert messages[1] == ("vehicle (robotti_vehicle): fmi2ExitInitializationMode failed with status 3 (error): "
-                           "parameter mass must be > 0, got 0")
+    assert messages[1] == (
+        "vehicle (robotti_vehicle): fmi2ExitInitializationMode failed with status 3 (error): "
+        "parameter mass must be > 0, got 0"
+    )
     assert_identical(*both(MULTIMODEL, SCENARIOS / "sin1", {"vehicle.mass": 1000.0}))
 
 
 def test_a_rounded_value_that_stops_fitting_mid_run_gives_the_same_message(tmp_path):
-    path = write_multimodel(tmp_path, {"a": TYPES2, "b": TYPES2}, {"a.real_out": [{"input": "b.int_in", "round": True}]})
-    messages = failures(path, values={"a.real_in": 2147483646.0, "a.real_gain": 1.0}, stop_time=3.0, step=0.25)
+    path = write_multimodel(
+        tmp_path, {"a": TYPES2, "b": TYPES2}, {"a.real_out": [{"input": "b.int_in", "round": True}]}
+    )
+    messages = failures(
+        path, values={"a.real_in": 2147483646.0, "a.real_gain": 1.0}, stop_time=3.0, step=0.25
+    )
     assert messages[0] == messages[1]
-    assert re.fullmatch(r"b\.int_in is fed 2\.14748e\+09, which rounded does not fit an Integer at t=1\.5", messages[1])
+    assert re.fullmatch(
+        r"b\.int_in is fed 2\.14748e\+09, which rounded does not fit an Integer at t=1\.5", messages[1]
+    )
 
 
 def test_a_diverging_simulation_gives_the_same_message(tmp_path):
     """Two gains of 10 in a loop (real_out = 10 real_in + t) overflow to infinity after about 300 steps, with
     no FMU error."""
-    path = write_multimodel(tmp_path, {"a": TYPES2, "b": TYPES2}, {"a.real_out": ["b.real_in"],
-                                                                    "b.real_out": ["a.real_in"]})
-    messages = failures(path, values={"a.real_gain": 10.0, "b.real_gain": 10.0},
-                        stop_time=400.0, step=0.5)
+    path = write_multimodel(
+        tmp_path, {"a": TYPES2, "b": TYPES2}, {"a.real_out": ["b.real_in"], "b.real_out": ["a.real_in"]}
+    )
+    messages = failures(path, values={"a.real_gain": 10.0, "b.real_gain": 10.0}, stop_time=400.0, step=0.5)
     assert messages[0] == messages[1]
     assert re.fullmatch(r"[ab]\.real_out became non-finite at t=\S+: the simulation diverged", messages[1])
     assert not messages[1].endswith("t=0: the simulation diverged")  # in the loop, not at the start
@@ -204,12 +234,25 @@ def test_the_loop_is_chosen_by_argument_or_environment(monkeypatch):
         simulate(MULTIMODEL, SCENARIOS / "sin1")
 
 
-@pytest.mark.parametrize(("env", "notice"), [
-    ({"CC": "/nonexistent/cc"}, (r"warning: the native co-simulation loop could not be built \(.*\): the master "
-                                 r"runs its Python loop")),
-    ({"PATH": "/nonexistent"}, (r"warning: no C compiler \(cc\) found: the co-simulation master runs its Python "
-                                r"loop, .*")),
-])
+@pytest.mark.parametrize(
+    ("env", "notice"),
+    [
+        (
+            {"CC": "/nonexistent/cc"},
+            (
+                r"warning: the native co-simulation loop could not be built \(.*\): the master "
+                r"runs its Python loop"
+            ),
+        ),
+        (
+            {"PATH": "/nonexistent"},
+            (
+                r"warning: no C compiler \(cc\) found: the co-simulation master runs its Python "
+                r"loop, .*"
+            ),
+        ),
+    ],
+)
 @pytest.mark.slow  # builds and runs in fresh processes without a compiler
 def test_without_a_compiler_the_python_loop_runs_after_one_notice(tmp_path, env, notice):
     fmu = tmp_path / "vanderpol.fmu"
@@ -228,7 +271,9 @@ def test_without_a_compiler_the_python_loop_runs_after_one_notice(tmp_path, env,
 
 
 MSD = REPO / "jobs" / "msd" / "multimodel.yaml"  # the msd (model exchange) under CVode at 1e-6
-BALL = REPO / "tests" / "fmus" / "ball"  # model exchange with a state event (bounces) and a time event (a kick)
+BALL = (
+    REPO / "tests" / "fmus" / "ball"
+)  # model exchange with a state event (bounces) and a time event (a kick)
 MSD3 = REPO / "tests" / "fmus" / "msd3"  # FMI 3.0 model exchange
 
 
@@ -254,7 +299,8 @@ def force_scenario(folder: Path, target: str = "msd.F", log: str = "0,0\n1,2\n2.
     scenario = folder / "pushed"
     scenario.mkdir()
     (scenario / "scenario.yaml").write_text(
-        f"name: pushed\ninputs:\n  {target}: {{csv: ../force.csv, interpolation: hold}}\n")
+        f"name: pushed\ninputs:\n  {target}: {{csv: ../force.csv, interpolation: hold}}\n"
+    )
     return scenario
 
 
@@ -265,12 +311,23 @@ def test_model_exchange_integrated_in_c_is_bit_identical(tmp_path, monkeypatch):
     pushed = both(MSD, force_scenario(tmp_path), {"msd.k": 14.0}, stop_time=5.0, step=0.05)
     bounced = both(named(BALL, tmp_path), stop_time=2.0, step=0.01)
     (tmp_path / "fmi3").mkdir()
-    fmi3 = both(named(MSD3, tmp_path), force_scenario(tmp_path / "fmi3", "msd3.F"), {"msd3.k": 14.0, "msd3.c": 0.8},
-                stop_time=5.0, step=0.01)
+    fmi3 = both(
+        named(MSD3, tmp_path),
+        force_scenario(tmp_path / "fmi3", "msd3.F"),
+        {"msd3.k": 14.0, "msd3.c": 0.8},
+        stop_time=5.0,
+        step=0.01,
+    )
     mixed = tmp_path / "mixed.json"
-    mixed.write_text(json.dumps({"fmus": {"source": str(TYPES2), "msd": str(REPO / "jobs" / "msd" / "fmus" / "msd")},
-                                 "connections": {"source.real_out": ["msd.F"]},
-                                 "instances": {"msd": {"interface": "me", "tolerance": 1e-6}}}))
+    mixed.write_text(
+        json.dumps(
+            {
+                "fmus": {"source": str(TYPES2), "msd": str(REPO / "jobs" / "msd" / "fmus" / "msd")},
+                "connections": {"source.real_out": ["msd.F"]},
+                "instances": {"msd": {"interface": "me", "tolerance": 1e-6}},
+            }
+        )
+    )
     fed = both(mixed, values={"source.real_in": 0.5, "source.real_gain": 1.0}, stop_time=3.0, step=0.1)
     for python, ours in (pushed, bounced, fmi3, fed):
         assert_identical(python, ours)
@@ -285,10 +342,15 @@ def test_derivative_terms_added_in_c_are_bit_identical(tmp_path):
     """Terms on states and on an input, through every function, added in the right-hand side in C as
     Corrector.add adds them; a second run of the same terms (a fit's next point) takes its own coefficients."""
     pushed = force_scenario(tmp_path)
-    names = ["derivative_term(msd.der(v), x^3)", "derivative_term(msd.der(v), F*tanh(v/0.1))",
-             "derivative_term(msd.der(x), sin(x/0.5)*abs(v)^2*cos(v))"]
-    runs = [both(MSD, pushed, {"msd.k": 14.0, **dict(zip(names, coefficients))}, stop_time=5.0, step=0.05)
-            for coefficients in ([-40.0, 0.3, 0.05], [-20.0, 0.6, -0.05])]
+    names = [
+        "derivative_term(msd.der(v), x^3)",
+        "derivative_term(msd.der(v), F*tanh(v/0.1))",
+        "derivative_term(msd.der(x), sin(x/0.5)*abs(v)^2*cos(v))",
+    ]
+    runs = [
+        both(MSD, pushed, {"msd.k": 14.0, **dict(zip(names, coefficients))}, stop_time=5.0, step=0.05)
+        for coefficients in ([-40.0, 0.3, 0.05], [-20.0, 0.6, -0.05])
+    ]
     for python, ours in runs:
         assert_identical(python, ours)
     assert not np.array_equal(runs[0][1].trajectory.values, runs[1][1].trajectory.values)
@@ -297,8 +359,10 @@ def test_derivative_terms_added_in_c_are_bit_identical(tmp_path):
 def test_forward_euler_keeps_the_python_loop(monkeypatch):
     """FMPy's forward Euler is integrated in Python: a plan with it runs the Python loop."""
     ran = python_loop_runs(monkeypatch)
-    euler = MultiModel(fmus={"msd": str(REPO / "jobs" / "msd" / "fmus" / "msd")},
-                       instances={"msd": {"interface": "me", "solver": "euler"}})
+    euler = MultiModel(
+        fmus={"msd": str(REPO / "jobs" / "msd" / "fmus" / "msd")},
+        instances={"msd": {"interface": "me", "solver": "euler"}},
+    )
     simulate(euler, stop_time=1.0, step=0.05, loop="native")
     assert ran == [True]
     simulate(MSD, stop_time=1.0, step=0.05, loop="native")
@@ -311,7 +375,14 @@ def test_model_exchange_failing_inside_cvode_gives_the_same_message(tmp_path):
     call failed, and when."""
     messages = failures(named(BALL, tmp_path), values={"ball.g": -1.7e308}, stop_time=3.0, step=0.05)
     assert messages[0] == messages[1]
-    assert messages[1] == "fmi2GetDerivatives failed with status 3 (error) while integrating from t=0 to t=0.05"
-    messages = failures(MSD, force_scenario(tmp_path, log="0,0\n1,1.7e308\n"), {"msd.m": 0.5}, stop_time=2.0,
-                        step=0.05)
-    assert messages[0] == messages[1] == "handling an input change at t=1: fmi2GetReal failed with status 3 (error)"
+    assert (
+        messages[1] == "fmi2GetDerivatives failed with status 3 (error) while integrating from t=0 to t=0.05"
+    )
+    messages = failures(
+        MSD, force_scenario(tmp_path, log="0,0\n1,1.7e308\n"), {"msd.m": 0.5}, stop_time=2.0, step=0.05
+    )
+    assert (
+        messages[0]
+        == messages[1]
+        == "handling an input change at t=1: fmi2GetReal failed with status 3 (error)"
+    )

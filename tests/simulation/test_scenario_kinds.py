@@ -60,8 +60,13 @@ def test_every_installed_kind_holds_to_the_contract():
 
 
 def test_a_kind_with_only_detect_and_load_gets_the_general_views(tmp_path, monkeypatch):
-    register(monkeypatch, tmp_path / "plugin", "minimal_kind_plugin", MINIMAL,
-             {"dse_runner.scenarios": {"minimal": "minimal_kind_plugin:MINIMAL"}})
+    register(
+        monkeypatch,
+        tmp_path / "plugin",
+        "minimal_kind_plugin",
+        MINIMAL,
+        {"dse_runner.scenarios": {"minimal": "minimal_kind_plugin:MINIMAL"}},
+    )
     folder = tmp_path / "run1"
     folder.mkdir()
     (folder / "stop.txt").write_text("4.0")
@@ -79,8 +84,16 @@ def test_a_kind_with_only_detect_and_load_gets_the_general_views(tmp_path, monke
 
 
 def test_a_kind_that_is_not_a_scenario_kind_is_named(tmp_path, monkeypatch):
-    register(monkeypatch, tmp_path / "plugin", "duck_kind_plugin", MINIMAL,
-             {"dse_runner.scenarios": {"duck": "duck_kind_plugin:DUCK"}})
-    with pytest.raises(DseError, match=r"^scenario kind 'duck' \(duck_kind_plugin:DUCK\) is not an instance of "
-                                       r"dse_runner\.simulation\.scenario\.ScenarioKind"):
+    register(
+        monkeypatch,
+        tmp_path / "plugin",
+        "duck_kind_plugin",
+        MINIMAL,
+        {"dse_runner.scenarios": {"duck": "duck_kind_plugin:DUCK"}},
+    )
+    with pytest.raises(
+        DseError,
+        match=r"^scenario kind 'duck' \(duck_kind_plugin:DUCK\) is not an instance of "
+        r"dse_runner\.simulation\.scenario\.ScenarioKind",
+    ):
         scenario.kind("duck")

@@ -24,8 +24,13 @@ print(folder, folder.is_dir())
 
 
 def test_a_process_folder_outlives_a_forked_child_and_goes_at_its_own_exit(tmp_path):
-    done = subprocess.run([sys.executable, "-c", FORK_THEN_EXIT], capture_output=True, text=True,
-                          env={**os.environ, "TMPDIR": str(tmp_path)}, timeout=120)
+    done = subprocess.run(
+        [sys.executable, "-c", FORK_THEN_EXIT],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "TMPDIR": str(tmp_path)},
+        timeout=120,
+    )
     assert done.returncode == 0, done.stderr
     folder, after_child = done.stdout.split()
     assert Path(folder).parent == tmp_path and after_child == "True"
@@ -55,8 +60,13 @@ def test_a_multiprocessing_child_removes_its_folder_as_it_ends(tmp_path, method)
     such a child leaves by os._exit, past the exit hooks, yet its folder goes."""
     script = tmp_path / "child.py"
     script.write_text(IN_A_CHILD)
-    done = subprocess.run([sys.executable, str(script), method], capture_output=True, text=True,
-                          env={**os.environ, "TMPDIR": str(tmp_path)}, timeout=120)
+    done = subprocess.run(
+        [sys.executable, str(script), method],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "TMPDIR": str(tmp_path)},
+        timeout=120,
+    )
     assert done.returncode == 0, done.stderr
     folder = Path(done.stdout.strip())
     assert folder.parent == tmp_path and not folder.exists()
@@ -75,8 +85,13 @@ sys.stdin.readline()  # "wait": lives until told
 
 def make(tmp_path: Path, how: str) -> subprocess.Popen:
     """A process that makes its folder, then ends by ``os._exit`` or waits for a line on stdin."""
-    return subprocess.Popen([sys.executable, "-c", MAKE, how], stdout=subprocess.PIPE, stdin=subprocess.PIPE,
-                            text=True, env={**os.environ, "TMPDIR": str(tmp_path)})
+    return subprocess.Popen(
+        [sys.executable, "-c", MAKE, how],
+        stdout=subprocess.PIPE,
+        stdin=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "TMPDIR": str(tmp_path)},
+    )
 
 
 def test_a_folder_its_process_could_not_remove_goes_when_the_next_process_makes_one(tmp_path):
@@ -91,7 +106,9 @@ def test_a_folder_its_process_could_not_remove_goes_when_the_next_process_makes_
         assert own.is_dir() and not left.exists()  # the next process of the kind removed the orphan
         later = make(tmp_path, "os._exit")
         assert later.wait(timeout=120) == 0
-        assert own.is_dir() and older.is_dir()  # a live process's folder stays, and so does one without a lock
+        assert (
+            own.is_dir() and older.is_dir()
+        )  # a live process's folder stays, and so does one without a lock
     finally:
         alive.communicate("\n", timeout=120)
     assert not own.exists()  # removed at its normal exit
@@ -113,7 +130,12 @@ claiming.join()
 
 
 def test_a_child_forked_while_another_thread_makes_a_folder_makes_its_own(tmp_path):
-    done = subprocess.run([sys.executable, "-W", "ignore", "-c", FORK_MID_CLAIM], capture_output=True, text=True,
-                          env={**os.environ, "TMPDIR": str(tmp_path)}, timeout=120)
+    done = subprocess.run(
+        [sys.executable, "-W", "ignore", "-c", FORK_MID_CLAIM],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "TMPDIR": str(tmp_path)},
+        timeout=120,
+    )
     assert done.returncode == 0, done.stderr
     assert Path(done.stdout.strip()).parent == tmp_path

@@ -38,7 +38,9 @@ def test_a_lagged_sine_has_the_gain_and_phase_of_a_first_order_filter():
     y = apply(Series(t, np.sin(omega * t)), "lag", tau).at(t)
     steady = t > 20 * tau  # the start-up transient (from rest) has died away: exp(-20)
     expected = np.sin(omega * t - np.arctan(omega * tau)) / np.hypot(1, omega * tau)
-    chord = (omega * 0.001) ** 2 / 8  # the input is linear between its samples, a sine bows off the chord by this
+    chord = (
+        omega * 0.001
+    ) ** 2 / 8  # the input is linear between its samples, a sine bows off the chord by this
     assert np.max(np.abs(y[steady] - expected[steady])) < chord
 
 
@@ -56,17 +58,20 @@ def test_gain_and_offset_compose_in_the_order_applied():
 
 def test_an_output_effect_is_the_sensor_view_at_the_simulation_times():
     t = np.linspace(0, 5, 501)
-    values = t ** 2
+    values = t**2
     late = on_output(t, values, "delay", 0.2)
     assert late[0] == 0.0 and np.allclose(late[t >= 0.2], (t[t >= 0.2] - 0.2) ** 2, atol=1e-4)
 
 
 # ---- as parameters of a run: simulate() applies them ---------------------------------------------
 
+
 def _pushed(delay: float = 0.0) -> Scenario:
     """The mass-spring-damper at rest, pushed by a force switched on at 1 s (later by ``delay``)."""
     t = np.array([0.0, 1.0 + delay, 6.0])
-    return Scenario("push", inputs={"msd.F": Series(t, np.array([0.0, 2.0, 2.0]), "hold")}, stop_time=6.0, step=0.01)
+    return Scenario(
+        "push", inputs={"msd.F": Series(t, np.array([0.0, 2.0, 2.0]), "hold")}, stop_time=6.0, step=0.01
+    )
 
 
 def test_an_input_delay_is_the_same_run_as_a_recording_that_late():
@@ -86,10 +91,17 @@ def test_an_output_effect_changes_what_the_objectives_compare_not_the_model():
     from conftest import REPO
 
     model = REPO / "jobs" / "msd" / "multimodel.yaml"
-    objectives = {"x_end": Reduce(signal="msd.x", reduce="final"), "v_end": Reduce(signal="msd.v", reduce="final")}
+    objectives = {
+        "x_end": Reduce(signal="msd.x", reduce="final"),
+        "v_end": Reduce(signal="msd.v", reduce="final"),
+    }
     plain = simulate(model, _pushed(), {"msd.x0": 0.0}, objectives=objectives)
-    biased = simulate(model, _pushed(), {"msd.x0": 0.0, "output_offset(msd.x)": 0.05, "output_gain(msd.x)": 2.0},
-                      objectives=objectives)
+    biased = simulate(
+        model,
+        _pushed(),
+        {"msd.x0": 0.0, "output_offset(msd.x)": 0.05, "output_gain(msd.x)": 2.0},
+        objectives=objectives,
+    )
     assert biased.objectives["x_end"] == pytest.approx(2.0 * plain.objectives["x_end"] + 0.05, abs=1e-12)
     assert biased.objectives["v_end"] == plain.objectives["v_end"]  # the model itself ran alike
 
@@ -105,7 +117,12 @@ def test_an_input_effect_on_a_signal_no_scenario_drives_is_named():
 
 def test_effect_names_parse_back_to_what_they_say():
     effect = parse("output_lag(tank.level)")
-    assert (effect.side, effect.kind, effect.target, effect.id) == ("output", "lag", "tank.level", "output_lag")
+    assert (effect.side, effect.kind, effect.target, effect.id) == (
+        "output",
+        "lag",
+        "tank.level",
+        "output_lag",
+    )
     assert parse("tank.level") is None and parse("input_speed(tank.level)") is None
     assert {parse(f"{e}(a.b)").name for e in EFFECTS} == {f"{e}(a.b)" for e in EFFECTS}
 
@@ -116,14 +133,18 @@ def test_saturation_dead_zone_and_square_map_each_value():
     assert apply(series, "max", 1.5).at(t).tolist() == [-3.0, -0.5, 0.0, 0.4, 1.5, 1.5]
     assert apply(series, "min", -1.0).at(t).tolist() == [-1.0, -0.5, 0.0, 0.4, 2.0, 5.0]
     assert apply(series, "deadzone", 1.0).at(t).tolist() == [-2.0, 0.0, 0.0, 0.0, 1.0, 4.0]
-    assert np.allclose(apply(series, "square", 0.5).at(t), [1.5, -0.375, 0.0, 0.48, 4.0, 17.5], rtol=0, atol=1e-15)
+    assert np.allclose(
+        apply(series, "square", 0.5).at(t), [1.5, -0.375, 0.0, 0.48, 4.0, 17.5], rtol=0, atol=1e-15
+    )
 
 
 def test_backlash_follows_only_past_its_play_and_a_rate_limit_only_so_fast():
     t = np.arange(8.0)
     u = np.array([0.0, 0.3, 1.0, 2.0, 1.8, 1.2, 0.5, 0.5])
     # play 1: the output waits until the input is half of it away, then is dragged half of it behind
-    assert np.allclose(apply(Series(t, u, "hold"), "backlash", 1.0).at(t), [0.0, 0.0, 0.5, 1.5, 1.5, 1.5, 1.0, 1.0])
+    assert np.allclose(
+        apply(Series(t, u, "hold"), "backlash", 1.0).at(t), [0.0, 0.0, 0.5, 1.5, 1.5, 1.5, 1.0, 1.0]
+    )
     steps = Series(t, np.array([0.0, 3.0, 3.0, 3.0, -1.0, -1.0, -1.0, -1.0]), "hold")
     assert np.allclose(apply(steps, "rate", 1.5).at(t), [0.0, 1.5, 3.0, 3.0, 1.5, 0.0, -1.0, -1.0])
 
@@ -135,4 +156,7 @@ def test_hard_effects_refuse_negative_sizes_and_keep_their_neutral_out():
         split({"input_deadzone(msd.F)": -0.1})
     with pytest.raises(DseError, match=r"an effect is a finite number, not -inf"):
         split({"output_max(msd.x)": -np.inf})
-    assert split({"output_max(msd.x)": np.inf, "input_rate(msd.F)": np.inf, "msd.k": 2.0}) == ({"msd.k": 2.0}, {})
+    assert split({"output_max(msd.x)": np.inf, "input_rate(msd.F)": np.inf, "msd.k": 2.0}) == (
+        {"msd.k": 2.0},
+        {},
+    )

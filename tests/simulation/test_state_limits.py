@@ -17,7 +17,14 @@ from dse_runner.simulation.state_limits import StateLimit, parse, split
 from dse_runner.simulation.trajectory import Series
 
 TANKS = REPO / "jobs" / "cascaded_tanks" / "multimodel.yaml"
-K = {"tanks.k1": 0.05, "tanks.k2": 0.06, "tanks.k3": 0.08, "tanks.k4": 0.06, "tanks.x1_0": 4.0, "tanks.x2_0": 3.0}
+K = {
+    "tanks.k1": 0.05,
+    "tanks.k2": 0.06,
+    "tanks.k3": 0.08,
+    "tanks.k4": 0.06,
+    "tanks.x1_0": 4.0,
+    "tanks.x2_0": 3.0,
+}
 T = np.arange(0.0, 1200.0 + 4.0, 4.0)
 PUMP = np.where((T >= 100.0) & (T < 700.0), 9.0, 2.0)  # a long push fills the upper tank past 12
 STOP, STEP = 1200.0, 4.0
@@ -40,18 +47,33 @@ def test_names_read_back_as_written():
 
 def test_values_are_numbers_and_neutral_ones_are_left_out():
     assert split({"state_max(tanks.x1)": math.inf, "state_overflow(tanks.x1, x2)": 0.0, "tanks.k1": 1.0}) == (
-        {"tanks.k1": 1.0}, {})
-    with pytest.raises(DseError, match=r"state_min\(tanks.x1\): a state limit's value is a finite number, not inf"):
+        {"tanks.k1": 1.0},
+        {},
+    )
+    with pytest.raises(
+        DseError, match=r"state_min\(tanks.x1\): a state limit's value is a finite number, not inf"
+    ):
         split({"state_min(tanks.x1)": math.inf})
-    with pytest.raises(DseError, match=r"an overflow is the fraction of the rate passed on, from 0 to 1 \(got 1.5\)"):
+    with pytest.raises(
+        DseError, match=r"an overflow is the fraction of the rate passed on, from 0 to 1 \(got 1.5\)"
+    ):
         split({"state_overflow(tanks.x1, x2)": 1.5})
 
 
 @pytest.mark.parametrize("loop", ["native", "python"])
 def test_a_limit_at_its_neutral_value_changes_nothing_bit_for_bit(loop):
     plain = simulate(TANKS, _scenario(), K, loop=loop)
-    neutral = simulate(TANKS, _scenario(), {**K, "state_max(tanks.x1)": math.inf, "state_min(tanks.x2)": -math.inf,
-                                            "state_overflow(tanks.x1, x2)": 0.0}, loop=loop)
+    neutral = simulate(
+        TANKS,
+        _scenario(),
+        {
+            **K,
+            "state_max(tanks.x1)": math.inf,
+            "state_min(tanks.x2)": -math.inf,
+            "state_overflow(tanks.x1, x2)": 0.0,
+        },
+        loop=loop,
+    )
     assert plain.trajectory.values.tobytes() == neutral.trajectory.values.tobytes()
 
 
@@ -59,8 +81,16 @@ def test_the_master_integrates_the_limited_equations():
     """Upper tank held at 12 with 40 % of its overflow falling into the lower one, held at 9: against scipy's
     own integration of the same equations, the pump held over each communication step as the master holds it."""
     high1, fraction, high2 = 12.0, 0.4, 9.0
-    run = simulate(TANKS, _scenario(), {**K, "state_max(tanks.x1)": high1, "state_overflow(tanks.x1, x2)": fraction,
-                                        "state_max(tanks.x2)": high2})
+    run = simulate(
+        TANKS,
+        _scenario(),
+        {
+            **K,
+            "state_max(tanks.x1)": high1,
+            "state_overflow(tanks.x1, x2)": fraction,
+            "state_max(tanks.x2)": high2,
+        },
+    )
     k1, k2, k3, k4 = (K[f"tanks.k{i}"] for i in range(1, 5))
 
     def rhs(u: float):
@@ -72,6 +102,7 @@ def test_the_master_integrates_the_limited_equations():
             if s[1] >= high2 and d2 > 0:
                 d2 = 0.0
             return [d1, d2]
+
         return f
 
     y, levels = [K["tanks.x1_0"], K["tanks.x2_0"]], [[K["tanks.x1_0"], K["tanks.x2_0"]]]
@@ -81,7 +112,9 @@ def test_the_master_integrates_the_limited_equations():
         levels.append(list(y))
     expected = np.array(levels)
     x1, x2 = run.trajectory.column("tanks.x1"), run.trajectory.column("tanks.x2")
-    assert x1.max() == pytest.approx(high1, abs=1e-3) and x2.max() == pytest.approx(high2, abs=1e-3)  # both held
+    assert x1.max() == pytest.approx(high1, abs=1e-3) and x2.max() == pytest.approx(
+        high2, abs=1e-3
+    )  # both held
     assert np.sum(x1 >= high1 - 1e-3) > 20 and np.sum(x2 >= high2 - 1e-3) > 20  # for a while, not a touch
     assert np.max(np.abs(x1 - expected[:, 0])) < 2e-3 and np.max(np.abs(x2 - expected[:, 1])) < 2e-3
     without = simulate(TANKS, _scenario(), {**K, "state_max(tanks.x1)": high1, "state_max(tanks.x2)": high2})
@@ -93,19 +126,30 @@ def test_the_master_integrates_the_limited_equations():
 def test_limits_applied_in_c_are_bit_identical_to_python():
     """The C right-hand side holds and passes on exactly as state_limits.hold does; a second run of the same
     limits at other values (a fit's next point) takes its own values."""
-    names = ["state_max(tanks.x1)", "state_overflow(tanks.x1, x2)", "state_max(tanks.x2)", "state_min(tanks.x2)"]
+    names = [
+        "state_max(tanks.x1)",
+        "state_overflow(tanks.x1, x2)",
+        "state_max(tanks.x2)",
+        "state_min(tanks.x2)",
+    ]
     for values in ([12.0, 0.4, 9.0, 3.5], [11.0, 0.9, 8.0, 3.8]):
-        python, ours = (simulate(TANKS, _scenario(), {**K, **dict(zip(names, values))}, loop=loop)
-                        for loop in ("python", "native"))
+        python, ours = (
+            simulate(TANKS, _scenario(), {**K, **dict(zip(names, values))}, loop=loop)
+            for loop in ("python", "native")
+        )
         assert python.trajectory.values.tobytes() == ours.trajectory.values.tobytes()
         assert ours.trajectory.column("tanks.x1").max() == pytest.approx(values[0], abs=1e-3)
 
 
 def test_what_cannot_be_limited_is_refused_by_name():
-    with pytest.raises(DseError, match=r"instance 'tanks' has no continuous state 'x3' \(its states: x1, x2\)"):
+    with pytest.raises(
+        DseError, match=r"instance 'tanks' has no continuous state 'x3' \(its states: x1, x2\)"
+    ):
         simulate(TANKS, _scenario(), {"state_max(tanks.x3)": 1.0})
     with pytest.raises(DseError, match=r"an overflow passes into another state than its own"):
         simulate(TANKS, _scenario(), {"state_max(tanks.x1)": 9.0, "state_overflow(tanks.x1, x1)": 0.5})
     watertank = REPO / "jobs" / "watertank" / "multimodel.yaml"
-    with pytest.raises(DseError, match=r"instance 'tank' is run as co-simulation: it integrates its own states"):
+    with pytest.raises(
+        DseError, match=r"instance 'tank' is run as co-simulation: it integrates its own states"
+    ):
         simulate(watertank, None, {"state_max(tank.level)": 0.1}, stop_time=1.0, step=0.1)

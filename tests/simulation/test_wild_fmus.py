@@ -22,14 +22,18 @@ from support.wild import ALONE, WILD
 
 from dse_runner.simulation.run import simulate
 
-pytestmark = [pytest.mark.skipif(not WILD.is_dir(), reason=f"{WILD} (shared/fmus-wild) is not beside the checkout"),
-              pytest.mark.slow]  # other tools' FMUs, each also run in fresh processes: 1-3 s a test
+pytestmark = [
+    pytest.mark.skipif(not WILD.is_dir(), reason=f"{WILD} (shared/fmus-wild) is not beside the checkout"),
+    pytest.mark.slow,
+]  # other tools' FMUs, each also run in fresh processes: 1-3 s a test
 
 FMUS = sorted(ALONE)
 TOLERANCE = 1e-9
 
 
-def assert_same_outputs(got: dict[str, np.ndarray], want: dict[str, np.ndarray], tolerance: float = TOLERANCE):
+def assert_same_outputs(
+    got: dict[str, np.ndarray], want: dict[str, np.ndarray], tolerance: float = TOLERANCE
+):
     assert set(got) == set(want), (sorted(got), sorted(want))
     for name in want:
         np.testing.assert_allclose(got[name], want[name], rtol=tolerance, atol=tolerance, err_msg=name)
@@ -54,15 +58,19 @@ def test_changed_parameters_reach_the_fmu_as_in_fmpy(fmu, tmp_path):
     reference = wild.fresh(wild.fmpy_outputs, copy, stop, step, changed, True)
     defaults = wild.fresh(wild.fmpy_outputs, copy, stop, step, {}, True)
     assert_same_outputs(wild.ours(str(path), stop, step, changed, True), reference)
-    assert any(not np.array_equal(reference[n], defaults[n]) for n in reference if n != "time"), \
+    assert any(not np.array_equal(reference[n], defaults[n]) for n in reference if n != "time"), (
         "the changed parameters change no output: this test would not see them lost"
+    )
 
 
 @pytest.mark.parametrize("fmu", FMUS)
 def test_ten_runs_in_one_process_are_bit_identical_to_fresh_processes(fmu):
     path = WILD / fmu
     stop, step = ALONE[fmu]
-    runs = [{name: value for name, value in wild.changed_parameters(path, 1.0 + k / 100).items()} for k in range(10)]
+    runs = [
+        {name: value for name, value in wild.changed_parameters(path, 1.0 + k / 100).items()}
+        for k in range(10)
+    ]
     fresh = wild.fresh_all(wild.ours_here, [(str(path), stop, step, values, True) for values in runs])
     for k, values in enumerate(runs):
         here = wild.ours(str(path), stop, step, values, True)
@@ -77,18 +85,25 @@ def test_describe_lists_every_parameter_and_output_of_the_fmu_by_the_name_simula
     from fmpy import read_model_description
 
     path = WILD / fmu
-    done = subprocess.run([sys.executable, "-m", "dse_runner", "describe", str(path), "--json"], capture_output=True,
-                          text=True)
+    done = subprocess.run(
+        [sys.executable, "-m", "dse_runner", "describe", str(path), "--json"], capture_output=True, text=True
+    )
     assert done.returncode == 0, done.stderr
     (instance,) = strict_loads(done.stdout)["instances"]
     listed = {v["name"]: v for v in instance["variables"]}
     prefix = f"{instance['instance']}."
     assert instance["instance"] == re.sub(r"[^A-Za-z0-9_]", "_", path.stem)
-    wanted = {prefix + v.name: v for v in read_model_description(str(path)).modelVariables
-              if v.causality in ("parameter", "calculatedParameter", "input", "output")}
+    wanted = {
+        prefix + v.name: v
+        for v in read_model_description(str(path)).modelVariables
+        if v.causality in ("parameter", "calculatedParameter", "input", "output")
+    }
     assert set(listed) == set(wanted)
-    assert all(listed[n]["causality"] == v.causality and listed[n]["start"] == (None if v.start is None else
-               str(v.start)) for n, v in wanted.items())
+    assert all(
+        listed[n]["causality"] == v.causality
+        and listed[n]["start"] == (None if v.start is None else str(v.start))
+        for n, v in wanted.items()
+    )
 
 
 def test_an_fmu_that_declares_one_instance_per_process_runs_in_a_fresh_process():
@@ -99,7 +114,9 @@ def test_an_fmu_that_declares_one_instance_per_process_runs_in_a_fresh_process()
 
 
 def test_simulate_json_says_how_each_instance_lived():
-    done = cli("simulate", WILD / "three_tank_watertank/FMUs/threewatertank2.fmu", "--stop-time", "25", "--json")
+    done = cli(
+        "simulate", WILD / "three_tank_watertank/FMUs/threewatertank2.fmu", "--stop-time", "25", "--json"
+    )
     assert done.returncode == 0, done.stderr
     lifecycle = strict_loads(done.stdout)["lifecycle"]
     assert lifecycle["threewatertank2"]["mode"] == "process"
@@ -144,7 +161,9 @@ def test_a_parameter_reaches_a_20sim_fmu_by_every_door(door, tmp_path):
     for column in reference:
         if column != "time":
             ours = got[column] if column in got else got[f"tank.{column}"]
-            np.testing.assert_allclose(ours, reference[column], rtol=TOLERANCE, atol=TOLERANCE, err_msg=column)
+            np.testing.assert_allclose(
+                ours, reference[column], rtol=TOLERANCE, atol=TOLERANCE, err_msg=column
+            )
 
 
 def test_set_stop_time_false_leaves_the_fmu_its_own_stop_time(tmp_path):
@@ -160,8 +179,7 @@ def test_set_stop_time_false_leaves_the_fmu_its_own_stop_time(tmp_path):
 
 PUBLISHED = {
     "single_watertank/Multi-models/2018may7/fixed/coe.json": "single_watertank-2018may7-fixed.outputs.csv",
-    "three_tank_watertank/Multi-models/Non-3D/Experiment1/Non-3D.coe.json":
-        "three_tank_watertank-Non-3D-Experiment1.outputs.csv",
+    "three_tank_watertank/Multi-models/Non-3D/Experiment1/Non-3D.coe.json": "three_tank_watertank-Non-3D-Experiment1.outputs.csv",
 }
 
 
@@ -177,7 +195,9 @@ def test_published_multimodels_agree_with_intocps_to_one_internal_step(coe):
     config = read(config_path, CoeConfig)
     multimodel = multimodel_of(config_path, project_root(config_path))
     published = pd.read_csv(WILD / "published-outputs" / PUBLISHED[coe])
-    result = simulate(multimodel, start_time=config.startTime, stop_time=config.endTime, step=config.algorithm.size)
+    result = simulate(
+        multimodel, start_time=config.startTime, stop_time=config.endTime, step=config.algorithm.size
+    )
     internal = max(float(wild.default_step(p)) for p in result_fmus(multimodel))
     times = published["time"].to_numpy()
     assert np.allclose(result.time[: len(times)], times, atol=1e-9)  # the same communication points
@@ -230,8 +250,10 @@ def test_a_published_dse_runs_unchanged_and_its_scripts_get_intocps_numbers(name
     assert done.stderr.count("ported to Python 3 with fissix for this run") == len(scripts)
     assert {p: p.read_bytes() for p in scripts} == scripts  # the user's files are never changed
     if coe is None:
-        assert ("set aside, their FMUs absent from the project: Multi-models/mm-OM/cosim/cosim.coe.json"
-                in done.stderr)
+        assert (
+            "set aside, their FMUs absent from the project: Multi-models/mm-OM/cosim/cosim.coe.json"
+            in done.stderr
+        )
     assert not re.search(r"\b[0-9a-f]{16}\.fmu", done.stderr)  # workers name the user's FMU, not a hash
     if coe is None:  # and in one line, as the command's own warnings
         assert "\nwarning: singlewatertank-20sim.fmu: no binaries/linux64/SingleWatertank.so" in done.stderr
@@ -243,8 +265,10 @@ def test_a_published_dse_runs_unchanged_and_its_scripts_get_intocps_numbers(name
     assert len(rows) == 45 and (rows["status"] == "ok").all(), rows["error"].dropna().head()
     assert (rows["lifecycle"] == "process").all()  # every FMU here declares one instance per process
     points = [{p: float(row[p]) for p in parameters} for _, row in rows.iterrows()]
-    checked = wild.fresh_all(wild.as_intocps_scripts_compute,
-                             [(str(dse), coe and str(coe), point, level, 1.0, valve) for point in points])
+    checked = wild.fresh_all(
+        wild.as_intocps_scripts_compute,
+        [(str(dse), coe and str(coe), point, level, 1.0, valve) for point in points],
+    )
     for (_, row), (fresh, recomputed) in zip(rows.iterrows(), checked):
         for objective in ("cumulativeDeviation", "vCount"):
             assert row[objective] == fresh[objective], (dict(zip(parameters, row[parameters])), objective)
@@ -253,5 +277,6 @@ def test_a_published_dse_runs_unchanged_and_its_scripts_get_intocps_numbers(name
 
 
 def cli(*args, timeout: float = 300) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "dse_runner", *map(str, args)], capture_output=True, text=True,
-                          timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "dse_runner", *map(str, args)], capture_output=True, text=True, timeout=timeout
+    )

@@ -49,8 +49,9 @@ EFFECTS = {
 
 # Every pair of library effects concealed together, each at its single size, named "a+b" in library order.
 # The issue's case (slip and a steering lag) comes first, so it keeps the seed it had alone.
-PAIRS = {f"{a}+{b}": {**EFFECTS[a], **EFFECTS[b]}
-         for a, b in combinations([e for e in EFFECTS if e != "none"], 2)}
+PAIRS = {
+    f"{a}+{b}": {**EFFECTS[a], **EFFECTS[b]} for a, b in combinations([e for e in EFFECTS if e != "none"], 2)
+}
 
 # Synthetic manoeuvres (synthetic_run): the bundled steering is sines and ramps, on which a delay, a lag and
 # a lower gain all look like a phase shift; a step shows a delay as a late jump and a lag as a slow rise.
@@ -78,13 +79,17 @@ OUTSIDE = {
     # prove only what each fold's training runs show: the steps, the slaloms (peak rate 0.16 rad/s) and the loops'
     # turn-in (a 0.25 rad step), one loop in each fold (with the slaloms and steps alone, one fold trained on a
     # single run that shows the limit and proposed no term)
-    "steer_rate_limit": ({"steer_rate_limit": 0.08},
-                         ("steer_steps", "slalom_slow", "slalom_fast", "loop", "loop_left")),
+    "steer_rate_limit": (
+        {"steer_rate_limit": 0.08},
+        ("steer_steps", "slalom_slow", "slalom_fast", "loop", "loop_left"),
+    ),
     # one manoeuvre at two speeds: a constant resisting force slows both by the same, wheel slip in proportion
     "rolling_resistance": ({"rolling_resistance": 0.05}, ("slalom_slow", "slalom_fast")),
 }
 OUTSIDE_BENCHMARK = ("slip_pull", "steer_rate_limit")  # not meant for CI: one more look-alike of each kind
-OUTSIDE_BEFORE_NOISE = 6  # the first cases of OUTSIDE, which came before the noise cases (their seeds: _cases)
+OUTSIDE_BEFORE_NOISE = (
+    6  # the first cases of OUTSIDE, which came before the noise cases (their seeds: _cases)
+)
 
 # Noise only, heavier than the singles' "none": a worse receiver, or a coloured one (multipath wanders).
 NOISE_CASES = {
@@ -92,14 +97,17 @@ NOISE_CASES = {
     "noise_coloured": {"colour": 0.9},  # the benchmark's only
 }
 FIX_PERIOD = 0.1  # s, the receiver's
-VEHICLES = {"effects": "bundled:fmus/robotti_vehicle_effects",
-            "truth": str(REPO / "tests" / "fmus" / "robotti_truth")}
+VEHICLES = {
+    "effects": "bundled:fmus/robotti_vehicle_effects",
+    "truth": str(REPO / "tests" / "fmus" / "robotti_truth"),
+}
 
 
 @dataclass(frozen=True)
 class Case:
     """A blind case's truth: the library effects concealed, their parameters' values, the vehicle that
     records them, the runs recorded, and the receiver (its noise, its seed, its dropouts and outages)."""
+
     name: str
     effects: tuple[str, ...]  # library ids; () for noise only and for effects outside the library
     truth: dict[str, float]  # effect parameters of the truth (variables of the vehicle below)
@@ -118,17 +126,26 @@ def _cases() -> dict[str, Case]:
     """Singles keep the seeds they always had (sorted names); pairs take the next ones, in PAIRS' order,
     then the effects outside the library and the noise cases, then the effects outside the library added
     since (after OUTSIDE_BEFORE_NOISE): adding a case never moves an older case's noise."""
-    singles = {e: Case(e, (e,) if e != "none" else (), EFFECTS[e], tuple(RUNS), sorted(EFFECTS).index(e))
-               for e in EFFECTS}
-    pairs = {p: Case(p, tuple(p.split("+")), truth, tuple(PAIR_RUNS), len(EFFECTS) + k)
-             for k, (p, truth) in enumerate(PAIRS.items())}
+    singles = {
+        e: Case(e, (e,) if e != "none" else (), EFFECTS[e], tuple(RUNS), sorted(EFFECTS).index(e))
+        for e in EFFECTS
+    }
+    pairs = {
+        p: Case(p, tuple(p.split("+")), truth, tuple(PAIR_RUNS), len(EFFECTS) + k)
+        for k, (p, truth) in enumerate(PAIRS.items())
+    }
     later = list(OUTSIDE)[:OUTSIDE_BEFORE_NOISE] + list(NOISE_CASES) + list(OUTSIDE)[OUTSIDE_BEFORE_NOISE:]
     seed = {name: len(singles) + len(pairs) + k for k, name in enumerate(later)}
-    outside = {o: Case(o, (), truth, (*RUNS, *synthetic), seed[o], vehicle="truth",
-                       benchmark_only=o in OUTSIDE_BENCHMARK)
-               for o, (truth, synthetic) in OUTSIDE.items()}
-    noise = {n: Case(n, (), {}, tuple(RUNS), seed[n], benchmark_only=n == "noise_coloured", **receiver)
-             for n, receiver in NOISE_CASES.items()}
+    outside = {
+        o: Case(
+            o, (), truth, (*RUNS, *synthetic), seed[o], vehicle="truth", benchmark_only=o in OUTSIDE_BENCHMARK
+        )
+        for o, (truth, synthetic) in OUTSIDE.items()
+    }
+    noise = {
+        n: Case(n, (), {}, tuple(RUNS), seed[n], benchmark_only=n == "noise_coloured", **receiver)
+        for n, receiver in NOISE_CASES.items()
+    }
     return singles | pairs | outside | noise
 
 
@@ -182,9 +199,15 @@ def synthetic_run(name: str, seconds: float) -> tuple[dict, list[str]]:
     duration = synthetic_length(name, seconds)
     times = np.round(np.arange(0.0, duration + 1e-9, STEP), 2)
     speed, steering = synthetic_commands(name, times)
-    lines = ["time,velocity,delta_f"] + [f"{t:.2f},{v:.3f},{d:.4f}" for t, v, d in zip(times, speed, steering)]
-    info = {"name": name, "group": "loop" if name in LOOPS else name, "duration": float(duration),
-            "initial_pose": {"x": 0.0, "y": 0.0, "theta": 0.0}}
+    lines = ["time,velocity,delta_f"] + [
+        f"{t:.2f},{v:.3f},{d:.4f}" for t, v, d in zip(times, speed, steering)
+    ]
+    info = {
+        "name": name,
+        "group": "loop" if name in LOOPS else name,
+        "duration": float(duration),
+        "initial_pose": {"x": 0.0, "y": 0.0, "theta": 0.0},
+    }
     return info, lines
 
 
@@ -226,7 +249,7 @@ def receiver(case: Case, fixes: int, rng: np.random.Generator) -> tuple[np.ndarr
     share, length = fixes // max(case.outages, 1), round(case.outage_s / FIX_PERIOD)
     for k in range(case.outages):
         start = k * share + rng.integers(share // 4, share // 2)
-        keep[start:start + length] = False
+        keep[start : start + length] = False
     keep[0] = True
     return ex, ey, keep
 
@@ -242,14 +265,24 @@ def ar1(white: np.ndarray, rho: float) -> np.ndarray:
     return out
 
 
-def record(folder: Path, effect: str | Case, runs: list[str] | tuple[str, ...], seconds: float,
-           noise: float | None = None, dropout: float | None = None, seed: int = 0) -> Path:
+def record(
+    folder: Path,
+    effect: str | Case,
+    runs: list[str] | tuple[str, ...],
+    seconds: float,
+    noise: float | None = None,
+    dropout: float | None = None,
+    seed: int = 0,
+) -> Path:
     """Write ``runs`` (names of bundled or synthetic runs, cut to ``seconds``) as recorded by the truth with
     ``effect`` (a name of CASES, or a Case), on its receiver; ``noise`` and ``dropout`` override the
     case's."""
     case = effect if isinstance(effect, Case) else CASES[effect]
-    case = replace(case, noise=case.noise if noise is None else noise,
-                   dropout=case.dropout if dropout is None else dropout)
+    case = replace(
+        case,
+        noise=case.noise if noise is None else noise,
+        dropout=case.dropout if dropout is None else dropout,
+    )
     rng = np.random.default_rng(seed)
     plan = truth_plan(case.vehicle)
     overrides = truth_values(case)
@@ -275,18 +308,33 @@ def record(folder: Path, effect: str | Case, runs: list[str] | tuple[str, ...], 
 def calibration_space(folder: Path) -> Path:
     """The paper's design space, coarser: cAlphaF x mass, 4 x 3 points (the truth lies between them)."""
     path = folder / "calibration.yaml"
-    path.write_text(yaml.safe_dump({
-        "name": "blind-calibration", "multimodel": "bundled:robotti/multimodel.yaml",
-        "scenarios": [str(SOURCES / "sin1")],  # replaced by the recordings under test
-        "parameters": {"vehicle.cAlphaF": {"start": 20000, "stop": 38000, "step": 6000},
-                       "vehicle.mass": {"start": 1000, "stop": 3000, "step": 1000}},
-        "objectives": ["cross_track_error"],
-    }))
+    path.write_text(
+        yaml.safe_dump(
+            {
+                "name": "blind-calibration",
+                "multimodel": "bundled:robotti/multimodel.yaml",
+                "scenarios": [str(SOURCES / "sin1")],  # replaced by the recordings under test
+                "parameters": {
+                    "vehicle.cAlphaF": {"start": 20000, "stop": 38000, "step": 6000},
+                    "vehicle.mass": {"start": 1000, "stop": 3000, "step": 1000},
+                },
+                "objectives": ["cross_track_error"],
+            }
+        )
+    )
     return path
 
 
-def run_case(effect: str, root: Path, client=None, address: str | None = None, seconds: float = SECONDS,
-             seed: int = 0, runs: list[str] | tuple[str, ...] | None = None, settings=None):
+def run_case(
+    effect: str,
+    root: Path,
+    client=None,
+    address: str | None = None,
+    seconds: float = SECONDS,
+    seed: int = 0,
+    runs: list[str] | tuple[str, ...] | None = None,
+    settings=None,
+):
     """Record case ``effect`` on ``runs`` (default: the case's own) under ``root`` and diagnose it with
     ``settings`` (default: two folds); returns (runs folder, calibration space, Diagnosis). ``seed`` shifts
     every case's noise, to check that a pass is not luck."""
@@ -295,8 +343,14 @@ def run_case(effect: str, root: Path, client=None, address: str | None = None, s
     case = CASES[effect]
     runs = record(root / "runs", effect, case.runs if runs is None else runs, seconds, seed=case.seed + seed)
     space = calibration_space(root)
-    result = diagnose(runs, space=space, out=root / "out", settings=settings or DiagnosisSettings(folds=2), client=client,
-                      address=address)
+    result = diagnose(
+        runs,
+        space=space,
+        out=root / "out",
+        settings=settings or DiagnosisSettings(folds=2),
+        client=client,
+        address=address,
+    )
     return runs, space, result
 
 
@@ -332,5 +386,9 @@ def outside_target(result) -> bool:
 def noise_target(result, sigma: float) -> bool:
     """The issue's target on noise only: nothing named or discovered, and the noise, estimated from the files
     alone, within 20 % of the receiver's ``sigma``."""
-    return ([e["id"] for e in result.effects] == ["none"] and discovered_entry(result) is None
-            and result.floor.available and abs(result.floor.sigma / sigma - 1.0) <= 0.20)
+    return (
+        [e["id"] for e in result.effects] == ["none"]
+        and discovered_entry(result) is None
+        and result.floor.available
+        and abs(result.floor.sigma / sigma - 1.0) <= 0.20
+    )

@@ -53,15 +53,23 @@ def make_certs(folder: Path) -> Certs:
     window = (now - datetime.timedelta(days=1), now + datetime.timedelta(days=2))
 
     def certificate(subject: str, key, issuer: str, issuer_key, ca: bool) -> x509.Certificate:
-        builder = (x509.CertificateBuilder()
-                   .subject_name(x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, subject)]))
-                   .issuer_name(x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, issuer)]))
-                   .public_key(key.public_key()).serial_number(x509.random_serial_number())
-                   .not_valid_before(window[0]).not_valid_after(window[1])
-                   .add_extension(x509.BasicConstraints(ca=ca, path_length=None), critical=True))
+        builder = (
+            x509.CertificateBuilder()
+            .subject_name(x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, subject)]))
+            .issuer_name(x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, issuer)]))
+            .public_key(key.public_key())
+            .serial_number(x509.random_serial_number())
+            .not_valid_before(window[0])
+            .not_valid_after(window[1])
+            .add_extension(x509.BasicConstraints(ca=ca, path_length=None), critical=True)
+        )
         if not ca:
-            builder = builder.add_extension(x509.SubjectAlternativeName(
-                [x509.DNSName("localhost"), x509.IPAddress(ipaddress.ip_address("127.0.0.1"))]), critical=False)
+            builder = builder.add_extension(
+                x509.SubjectAlternativeName(
+                    [x509.DNSName("localhost"), x509.IPAddress(ipaddress.ip_address("127.0.0.1"))]
+                ),
+                critical=False,
+            )
         return builder.sign(issuer_key, hashes.SHA256())
 
     ca_key, key = ec.generate_private_key(ec.SECP256R1()), ec.generate_private_key(ec.SECP256R1())
@@ -71,8 +79,11 @@ def make_certs(folder: Path) -> Certs:
     certs = Certs(folder / "ca.pem", folder / "cert.pem", folder / "key.pem")
     certs.ca_file.write_bytes(ca.public_bytes(serialization.Encoding.PEM))
     certs.cert.write_bytes(leaf.public_bytes(serialization.Encoding.PEM))
-    certs.key.write_bytes(key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8,
-                                            serialization.NoEncryption()))
+    certs.key.write_bytes(
+        key.private_bytes(
+            serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8, serialization.NoEncryption()
+        )
+    )
     return certs
 
 
@@ -115,14 +126,18 @@ def quiet_environment() -> dict[str, str]:
     beside the whole suite, and with Dask's defaults each cost 0.12-0.19 of a core (docs/testing.md)."""
     from dse_runner.sweeps.makers import QUIET
 
-    return {"DASK_" + "__".join(part.upper().replace("-", "_") for part in key.split(".")): str(value)
-            for key, value in QUIET.items()}
+    return {
+        "DASK_" + "__".join(part.upper().replace("-", "_") for part in key.split(".")): str(value)
+        for key, value in QUIET.items()
+    }
 
 
 class CliCluster:
     """A scheduler and ``workers`` single-threaded workers on loopback, each its own process."""
 
-    def __init__(self, folder: Path, workers: int = 2, certs: Certs | None = None, hide: tuple[Path, ...] = ()):
+    def __init__(
+        self, folder: Path, workers: int = 2, certs: Certs | None = None, hide: tuple[Path, ...] = ()
+    ):
         self.folder, self.certs, self.hide = folder, certs, hide
         self.port = free_port()
         self.protocol = "tls" if certs else "tcp"
@@ -139,14 +154,33 @@ class CliCluster:
         with open(self.folder / log, "ab") as out:
             # Each process leads its own process group, so that close() can kill a nanny and its worker at once;
             # and is told to end when pytest does, even killed (no teardown then), so no daemon outlives a run.
-            return subprocess.Popen(command, env=self.env, cwd=self.folder, stdout=out, stderr=subprocess.STDOUT,
-                                    start_new_session=True, preexec_fn=_end_with_parent)
+            return subprocess.Popen(
+                command,
+                env=self.env,
+                cwd=self.folder,
+                stdout=out,
+                stderr=subprocess.STDOUT,
+                start_new_session=True,
+                preexec_fn=_end_with_parent,
+            )
 
     def start_scheduler(self) -> None:
         tls = self.certs.flags() if self.certs else []
-        self.scheduler = self._popen([*DASK_SCHEDULER, "--protocol", self.protocol, "--host", "127.0.0.1",
-                                      "--port", str(self.port), "--dashboard-address", "127.0.0.1:0", *tls],
-                                     "scheduler.log")
+        self.scheduler = self._popen(
+            [
+                *DASK_SCHEDULER,
+                "--protocol",
+                self.protocol,
+                "--host",
+                "127.0.0.1",
+                "--port",
+                str(self.port),
+                "--dashboard-address",
+                "127.0.0.1:0",
+                *tls,
+            ],
+            "scheduler.log",
+        )
         deadline = time.time() + 60
         while time.time() < deadline:
             with socket.socket() as s:
@@ -158,7 +192,16 @@ class CliCluster:
     def start_worker(self) -> None:
         index = len(self.workers)
         tls = self.certs.flags() if self.certs else []
-        command = [*DASK_WORKER, self.address, "--nthreads", "1", "--name", f"worker-{index}", "--no-dashboard", *tls]
+        command = [
+            *DASK_WORKER,
+            self.address,
+            "--nthreads",
+            "1",
+            "--name",
+            f"worker-{index}",
+            "--no-dashboard",
+            *tls,
+        ]
         if self.hide:
             mounts = " && ".join(f"mount -t tmpfs none '{p}'" for p in self.hide)
             command = ["unshare", "-m", "sh", "-c", f'{mounts} && exec "$@"', "sh", *command]
@@ -171,8 +214,12 @@ class CliCluster:
         security = None
         if self.certs:
             c = self.certs
-            security = Security(tls_ca_file=str(c.ca_file), tls_client_cert=str(c.cert), tls_client_key=str(c.key),
-                                require_encryption=True)
+            security = Security(
+                tls_ca_file=str(c.ca_file),
+                tls_client_cert=str(c.cert),
+                tls_client_key=str(c.key),
+                require_encryption=True,
+            )
         return Client(self.address, security=security, timeout=timeout)
 
     def wait_for_workers(self, n: int) -> None:

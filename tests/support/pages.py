@@ -62,16 +62,24 @@ def measure(page) -> Fit:
     for chart in found["charts"]:
         name = chart["title"] or chart["name"] or "a chart"
         if chart["right"] > chart["page"] + 0.5:
-            misfits.append(f"{name}: right edge at {chart['right']:.0f} px, past the page's {chart['page']:.0f}")
+            misfits.append(
+                f"{name}: right edge at {chart['right']:.0f} px, past the page's {chart['page']:.0f}"
+            )
         if chart["title"] and chart["title_right"] > chart["canvas_right"] + 0.5:
-            misfits.append(f"title {name!r} ends at {chart['title_right']:.0f} px, past its canvas "
-                           f"({chart['canvas_right']:.0f})")
+            misfits.append(
+                f"title {name!r} ends at {chart['title_right']:.0f} px, past its canvas "
+                f"({chart['canvas_right']:.0f})"
+            )
         if chart["toolbar_left"] is not None and chart["title_right"] > chart["toolbar_left"] + 0.5:
-            misfits.append(f"title {name!r} runs under its toolbar ({chart['title_right']:.0f} > "
-                           f"{chart['toolbar_left']:.0f} px)")
+            misfits.append(
+                f"title {name!r} runs under its toolbar ({chart['title_right']:.0f} > "
+                f"{chart['toolbar_left']:.0f} px)"
+            )
     if found["scroll_width"] > found["client_width"]:
-        misfits.append(f"the page scrolls sideways: {found['scroll_width']} px wide in a "
-                       f"{found['client_width']} px window")
+        misfits.append(
+            f"the page scrolls sideways: {found['scroll_width']} px wide in a "
+            f"{found['client_width']} px window"
+        )
     return Fit(len(found["charts"]), sum(bool(c["title"]) for c in found["charts"]), misfits)
 
 

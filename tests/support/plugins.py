@@ -14,8 +14,13 @@ import pytest
 from dse_runner import plugins
 
 
-def register(monkeypatch: pytest.MonkeyPatch, folder: Path, module: str, source: str,
-             entries: dict[str, dict[str, str]]) -> None:
+def register(
+    monkeypatch: pytest.MonkeyPatch,
+    folder: Path,
+    module: str,
+    source: str,
+    entries: dict[str, dict[str, str]],
+) -> None:
     """Write ``module`` (its ``source``) into ``folder`` with a distribution declaring ``entries``
     (group -> name -> ``module:attribute``), and put the folder first on sys.path for this test."""
     folder.mkdir(parents=True, exist_ok=True)
@@ -23,9 +28,12 @@ def register(monkeypatch: pytest.MonkeyPatch, folder: Path, module: str, source:
     info = folder / f"{module}-0.1.dist-info"
     info.mkdir()
     (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {module}\nVersion: 0.1\n")
-    (info / "entry_points.txt").write_text("".join(
-        f"[{group}]\n" + "".join(f"{name} = {target}\n" for name, target in names.items()) + "\n"
-        for group, names in entries.items()))
+    (info / "entry_points.txt").write_text(
+        "".join(
+            f"[{group}]\n" + "".join(f"{name} = {target}\n" for name, target in names.items()) + "\n"
+            for group, names in entries.items()
+        )
+    )
     monkeypatch.syspath_prepend(str(folder))  # also invalidates the import system's caches
     monkeypatch.delitem(sys.modules, module, raising=False)
     # the registry reads the entry points once per process: this test reads them afresh, and the tests after

@@ -34,8 +34,10 @@ def why_not() -> str | None:
     missing = [name for name, path in DAEMONS.items() if not os.access(path, os.X_OK)]
     missing += [name for name in CLIENTS if shutil.which(name) is None]
     if missing or not shutil.which("mungekey"):
-        return (f"no {', '.join(missing or ['mungekey'])}: needs Debian's slurmctld, slurmd, slurm-client and munge "
-                "(.ci/install adds them as root)")
+        return (
+            f"no {', '.join(missing or ['mungekey'])}: needs Debian's slurmctld, slurmd, slurm-client and munge "
+            "(.ci/install adds them as root)"
+        )
     return None
 
 
@@ -71,40 +73,70 @@ class SingleNodeSlurm:
         key = self.folder / "munge.key"
         subprocess.run(["mungekey", "--create", f"--keyfile={key}"], check=True, capture_output=True)
         key.chmod(0o400)
-        self._start("munged", [DAEMONS["munged"], "--foreground", "--force", f"--socket={self.socket}",
-                               f"--key-file={key}", f"--pid-file={self.folder / 'munged.pid'}",
-                               f"--log-file={self.folder / 'log' / 'munged.log'}",
-                               f"--seed-file={self.folder / 'munged.seed'}"])
+        self._start(
+            "munged",
+            [
+                DAEMONS["munged"],
+                "--foreground",
+                "--force",
+                f"--socket={self.socket}",
+                f"--key-file={key}",
+                f"--pid-file={self.folder / 'munged.pid'}",
+                f"--log-file={self.folder / 'log' / 'munged.log'}",
+                f"--seed-file={self.folder / 'munged.seed'}",
+            ],
+        )
         self._until(lambda: self.socket.exists(), 30, "munged made no socket")
 
     def _write_conf(self) -> None:
         d = self.folder
         auth = f"socket={self.socket}"
-        self.conf.write_text("\n".join([
-            "ClusterName=dsetest",
-            "SlurmctldHost=localhost(127.0.0.1)",
-            f"SlurmctldPort={free_port()}",
-            f"SlurmdPort={free_port()}",
-            "SlurmUser=root",
-            "AuthType=auth/munge", "CredType=cred/munge", f"AuthInfo={auth}",
-            f"StateSaveLocation={d / 'state'}", f"SlurmdSpoolDir={d / 'spool'}",
-            f"SlurmctldPidFile={d / 'slurmctld.pid'}", f"SlurmdPidFile={d / 'slurmd.pid'}",
-            f"SlurmctldLogFile={d / 'log' / 'slurmctld.log'}", f"SlurmdLogFile={d / 'log' / 'slurmd.log'}",
-            "ProctrackType=proctrack/linuxproc", "TaskPlugin=task/none",
-            "JobAcctGatherType=jobacct_gather/none", "AccountingStorageType=accounting_storage/none",
-            "SchedulerType=sched/backfill", "SelectType=select/cons_tres", "SelectTypeParameters=CR_Core_Memory",
-            "MpiDefault=none", "MailProg=/bin/true", "ReturnToService=2",
-            "KillWait=5",  # seconds between a cancelled job's SIGTERM and SIGKILL
-            f"NodeName=localhost NodeAddr=127.0.0.1 CPUs={os.cpu_count()} RealMemory={node_memory_mb()} "
-            "State=UNKNOWN",
-            f"PartitionName={PARTITION} Nodes=localhost Default=YES MaxTime=INFINITE State=UP",
-            "",
-        ]))
+        self.conf.write_text(
+            "\n".join(
+                [
+                    "ClusterName=dsetest",
+                    "SlurmctldHost=localhost(127.0.0.1)",
+                    f"SlurmctldPort={free_port()}",
+                    f"SlurmdPort={free_port()}",
+                    "SlurmUser=root",
+                    "AuthType=auth/munge",
+                    "CredType=cred/munge",
+                    f"AuthInfo={auth}",
+                    f"StateSaveLocation={d / 'state'}",
+                    f"SlurmdSpoolDir={d / 'spool'}",
+                    f"SlurmctldPidFile={d / 'slurmctld.pid'}",
+                    f"SlurmdPidFile={d / 'slurmd.pid'}",
+                    f"SlurmctldLogFile={d / 'log' / 'slurmctld.log'}",
+                    f"SlurmdLogFile={d / 'log' / 'slurmd.log'}",
+                    "ProctrackType=proctrack/linuxproc",
+                    "TaskPlugin=task/none",
+                    "JobAcctGatherType=jobacct_gather/none",
+                    "AccountingStorageType=accounting_storage/none",
+                    "SchedulerType=sched/backfill",
+                    "SelectType=select/cons_tres",
+                    "SelectTypeParameters=CR_Core_Memory",
+                    "MpiDefault=none",
+                    "MailProg=/bin/true",
+                    "ReturnToService=2",
+                    "KillWait=5",  # seconds between a cancelled job's SIGTERM and SIGKILL
+                    f"NodeName=localhost NodeAddr=127.0.0.1 CPUs={os.cpu_count()} RealMemory={node_memory_mb()} "
+                    "State=UNKNOWN",
+                    f"PartitionName={PARTITION} Nodes=localhost Default=YES MaxTime=INFINITE State=UP",
+                    "",
+                ]
+            )
+        )
 
     def _start(self, name: str, command: list[str]) -> None:
         with open(self.folder / "log" / f"{name}.out", "ab") as out:
-            self.daemons[name] = subprocess.Popen(command, env=self.env, stdout=out, stderr=subprocess.STDOUT,
-                                                  start_new_session=True, preexec_fn=_end_with_parent)
+            self.daemons[name] = subprocess.Popen(
+                command,
+                env=self.env,
+                stdout=out,
+                stderr=subprocess.STDOUT,
+                start_new_session=True,
+                preexec_fn=_end_with_parent,
+            )
 
     def _until(self, done, timeout: float, failure: str) -> None:
         deadline = time.monotonic() + timeout
@@ -125,7 +157,9 @@ class SingleNodeSlurm:
 
     def run(self, *command: str, check: bool = True) -> subprocess.CompletedProcess:
         """A Slurm command against this cluster."""
-        return subprocess.run(list(command), env=self.env, capture_output=True, text=True, check=check, timeout=60)
+        return subprocess.run(
+            list(command), env=self.env, capture_output=True, text=True, check=check, timeout=60
+        )
 
     def jobs(self, states: str = "PENDING,RUNNING,CONFIGURING,COMPLETING") -> list[str]:
         """Ids of the jobs in those states."""

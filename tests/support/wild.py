@@ -29,7 +29,10 @@ ALONE = {
     "mass_spring_damper/FMUs/20-Sim/MassSpringDamper2.fmu": (10.0, 0.01),
     "single_watertank/FMUs/watertankcontroller-c.fmu": (10.0, 0.1),
     "single_watertank/FMUs/singlewatertank-20sim.fmu": (30.0, 0.1),
-    "single_watertank/FMUs/watertankController-Standalone.fmu": (10.0, 0.5),  # a step exact in binary (see below)
+    "single_watertank/FMUs/watertankController-Standalone.fmu": (
+        10.0,
+        0.5,
+    ),  # a step exact in binary (see below)
     "single_watertank/FMUs/watertankController_Standalone.fmu": (10.0, 0.1),
     "three_tank_watertank/FMUs/threewatertank1.fmu": (30.0, 0.05),
     "three_tank_watertank/FMUs/threewatertank2.fmu": (30.0, 0.05),
@@ -75,11 +78,15 @@ def driven_inputs(path: Path, stop: float) -> dict[str, tuple[np.ndarray, np.nda
     from fmpy import read_model_description
 
     times = np.array([0.0, stop / 2, stop])  # on the communication grid: FMPy would step to an input event
-    return {v.name: (times, np.array([0.0, 2.0, 0.0]), "linear" if v.variability == "continuous" else "hold")
-            for v in read_model_description(str(path)).modelVariables if v.causality == "input" and v.type == "Real"}
+    return {
+        v.name: (times, np.array([0.0, 2.0, 0.0]), "linear" if v.variability == "continuous" else "hold")
+        for v in read_model_description(str(path)).modelVariables
+        if v.causality == "input" and v.type == "Real"
+    }
 
 
 # ---- fresh processes ---------------------------------------------------------------------------------
+
 
 @cache
 def pool() -> ProcessPoolExecutor:
@@ -100,8 +107,9 @@ def fresh_all(function, calls: list[tuple]) -> list[Any]:
     return [f.result(timeout=600) for f in futures]
 
 
-def fmpy_outputs(path: str, stop: float, step: float, values: dict[str, float], driven: bool = False
-                 ) -> dict[str, np.ndarray]:
+def fmpy_outputs(
+    path: str, stop: float, step: float, values: dict[str, float], driven: bool = False
+) -> dict[str, np.ndarray]:
     """FMPy's simulate_fmu as a user calls it: every output, by name, with time; ``driven``: with
     :func:`driven_inputs`."""
     from fmpy import simulate_fmu
@@ -110,30 +118,47 @@ def fmpy_outputs(path: str, stop: float, step: float, values: dict[str, float], 
     signals = None
     if inputs:
         times = next(iter(inputs.values()))[0]
-        signals = np.array(list(zip(times, *(v for _, v, _ in inputs.values()))),
-                           dtype=[("time", float), *((name, float) for name in inputs)])
-    result = simulate_fmu(path, stop_time=stop, output_interval=step, start_values=values,
-                          fmi_type="CoSimulation", input=signals)
+        signals = np.array(
+            list(zip(times, *(v for _, v, _ in inputs.values()))),
+            dtype=[("time", float), *((name, float) for name in inputs)],
+        )
+    result = simulate_fmu(
+        path,
+        stop_time=stop,
+        output_interval=step,
+        start_values=values,
+        fmi_type="CoSimulation",
+        input=signals,
+    )
     return {name: np.asarray(result[name], dtype=float) for name in result.dtype.names}
 
 
-def ours(model: str, stop: float, step: float, values: dict[str, Any], driven: bool = False
-         ) -> dict[str, np.ndarray]:
+def ours(
+    model: str, stop: float, step: float, values: dict[str, Any], driven: bool = False
+) -> dict[str, np.ndarray]:
     """dse-runner's simulate: every output by name (instance prefix dropped for one FMU), with time;
     ``driven``: a single FMU's inputs as :func:`driven_inputs` drives them."""
     from dse_runner.simulation.multimodel import single_fmu
     from dse_runner.simulation.run import simulate
     from dse_runner.simulation.scenario import Scenario
     from dse_runner.simulation.trajectory import Series
+
     scenario = None
     if driven:
         instance = next(iter(single_fmu(model).fmus))
-        scenario = Scenario("driven", inputs={f"{instance}.{name}": Series(t, v, how)
-                                              for name, (t, v, how) in driven_inputs(Path(model), stop).items()})
+        scenario = Scenario(
+            "driven",
+            inputs={
+                f"{instance}.{name}": Series(t, v, how)
+                for name, (t, v, how) in driven_inputs(Path(model), stop).items()
+            },
+        )
     result = simulate(model, scenario, stop_time=stop, step=step, values=values)
     single = str(model).endswith(".fmu")
-    outputs = {(name.partition(".")[2] if single else name): np.asarray(v, dtype=float)
-               for name, v in result.outputs.items()}
+    outputs = {
+        (name.partition(".")[2] if single else name): np.asarray(v, dtype=float)
+        for name, v in result.outputs.items()
+    }
     return {"time": np.asarray(result.time), **outputs}
 
 
@@ -145,8 +170,9 @@ def run_here() -> None:
     isolation._IN_CHILD = True
 
 
-def ours_here(model: str, stop: float, step: float, values: dict[str, Any], driven: bool = False
-              ) -> dict[str, np.ndarray]:
+def ours_here(
+    model: str, stop: float, step: float, values: dict[str, Any], driven: bool = False
+) -> dict[str, np.ndarray]:
     """:func:`ours`, in this (fresh) process."""
     run_here()
     return ours(model, stop, step, values, driven)
@@ -167,12 +193,15 @@ def point_objectives(dse: str, coe: str, point: dict[str, Any]) -> dict[str, Any
 
     run_here()
     space = load_space(dse, coe=coe)
-    result = simulate(space.plan, space.scenarios[0], point, objectives=space.objectives, experiment=space.experiment)
+    result = simulate(
+        space.plan, space.scenarios[0], point, objectives=space.objectives, experiment=space.experiment
+    )
     return result.objectives
 
 
-def as_intocps_scripts_compute(dse: str, coe: str | None, point: dict[str, Any], level: str, target: float,
-                               valve: str) -> tuple[dict[str, Any], dict[str, float]]:
+def as_intocps_scripts_compute(
+    dse: str, coe: str | None, point: dict[str, Any], level: str, target: float, valve: str
+) -> tuple[dict[str, Any], dict[str, float]]:
     """One point of a DSE, scored as a sweep scores it, beside what INTO-CPS's published scripts compute from
     the run's own trajectory read as INTO-CPS writes results.csv: ``cumulativeDeviation`` sums
     |level - target| times the step-size column (0 on the first row, then time[i] - time[i-1]); ``vCount``
@@ -182,10 +211,13 @@ def as_intocps_scripts_compute(dse: str, coe: str | None, point: dict[str, Any],
 
     run_here()
     space = load_space(dse, coe=coe)
-    result = simulate(space.plan, space.scenarios[0], point, objectives=space.objectives,
-                      experiment=space.experiment)
+    result = simulate(
+        space.plan, space.scenarios[0], point, objectives=space.objectives, experiment=space.experiment
+    )
     time = result.trajectory.time
     steps = np.concatenate([[0.0], time[1:] - time[:-1]])
     levels, valves = result.trajectory.column(level), result.trajectory.column(valve)
-    return result.objectives, {"cumulativeDeviation": float(np.sum(np.abs(levels - target) * steps)),
-                               "vCount": float(np.count_nonzero(valves[1:] != valves[:-1]))}
+    return result.objectives, {
+        "cumulativeDeviation": float(np.sum(np.abs(levels - target) * steps)),
+        "vCount": float(np.count_nonzero(valves[1:] != valves[:-1])),
+    }

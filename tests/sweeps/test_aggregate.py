@@ -29,7 +29,9 @@ def plain_rows(output, sweep: str) -> pd.DataFrame:
     """Every file read on its own, the scenario from its folder, each task once (the first file's row, files
     in name order), the current model's rows only: what the pandas readers did."""
     files = sorted((output / "results" / f"sweep={sweep}").rglob("*.parquet"), key=str)
-    rows = pd.concat(pd.read_parquet(p).assign(scenario=p.parent.name.removeprefix("scenario=")) for p in files)
+    rows = pd.concat(
+        pd.read_parquet(p).assign(scenario=p.parent.name.removeprefix("scenario=")) for p in files
+    )
     rows = rows.drop_duplicates("task_id", keep="first")
     return rows[rows["model"] == current_model(output, sweep)].reset_index(drop=True)
 
@@ -46,13 +48,22 @@ def untidy(tmp_path_factory, dask_scheduler):
     """A grid on three scenarios in two groups, ranked by the mean over them with a constraint; then one chunk
     file copied under a second name and one point's row on one scenario taken out."""
     folder = tmp_path_factory.mktemp("untidy")
-    path = write_space(folder, cluster={"address": dask_scheduler},
-                       scenarios=[str(SCENARIOS / name) for name in ("sin1", "sin2", "speed_step2")],
-                       parameters={"vehicle.cAlphaF": [20000, 29000, 38000],
-                                   "vehicle.mass": {"start": 1000, "stop": 3000, "num": 3}},
-                       ranking={"objective": "cross_track_error", "over_scenarios": "mean",
-                                "constraints": ["max_error < 1e9"], "weights": {"cross_track_error": 1.0}},
-                       keep_trajectories=0)
+    path = write_space(
+        folder,
+        cluster={"address": dask_scheduler},
+        scenarios=[str(SCENARIOS / name) for name in ("sin1", "sin2", "speed_step2")],
+        parameters={
+            "vehicle.cAlphaF": [20000, 29000, 38000],
+            "vehicle.mass": {"start": 1000, "stop": 3000, "num": 3},
+        },
+        ranking={
+            "objective": "cross_track_error",
+            "over_scenarios": "mean",
+            "constraints": ["max_error < 1e9"],
+            "weights": {"cross_track_error": 1.0},
+        },
+        keep_trajectories=0,
+    )
     space = load_space(path)
     submit(space)
     results = space.output / "results" / "sweep=small"
@@ -73,22 +84,30 @@ def test_rank_equals_the_plain_computation_on_an_untidy_store(untidy):
     admitted = totals[totals["max_error"] < 1e9]
     expected = admitted.sort_values("cross_track_error", kind="stable").reset_index(drop=True)
     assert ranking.incomplete_points == 1 and len(ranking.totals) == 8
-    pd.testing.assert_frame_equal(ranking.totals[[*parameters, *OBJECTIVES]], expected, rtol=1e-12, atol=0,
-                                  check_dtype=False)
+    pd.testing.assert_frame_equal(
+        ranking.totals[[*parameters, *OBJECTIVES]], expected, rtol=1e-12, atol=0, check_dtype=False
+    )
 
     ranked = rows[rows["status"] == "ok"].merge(expected[parameters], on=parameters)
-    stats = ranked.groupby(["scenario", "group"])["cross_track_error"].agg(["min", "max", "mean"]).reset_index()
+    stats = (
+        ranked.groupby(["scenario", "group"])["cross_track_error"].agg(["min", "max", "mean"]).reset_index()
+    )
     table1 = ranking.table1
     assert table1[["scenario", "group"]].values.tolist() == stats[["scenario", "group"]].values.tolist()
-    np.testing.assert_array_equal(table1[["min_error", "max_error"]].to_numpy(), stats[["min", "max"]].to_numpy())
+    np.testing.assert_array_equal(
+        table1[["min_error", "max_error"]].to_numpy(), stats[["min", "max"]].to_numpy()
+    )
     np.testing.assert_allclose(table1["average_error"], stats["mean"], rtol=1e-12)
     at_best = ranked[np.logical_and.reduce([ranked[p] == v for p, v in ranking.best.items()])]
-    np.testing.assert_array_equal(table1["computed"], at_best.set_index("scenario").loc[table1["scenario"],
-                                                                                        "cross_track_error"])
+    np.testing.assert_array_equal(
+        table1["computed"], at_best.set_index("scenario").loc[table1["scenario"], "cross_track_error"]
+    )
 
     for group, members in rows.groupby("group"):
         n = members["scenario"].nunique()
-        sums = members[members["status"] == "ok"].groupby(parameters)["cross_track_error"].agg(["sum", "size"])
+        sums = (
+            members[members["status"] == "ok"].groupby(parameters)["cross_track_error"].agg(["sum", "size"])
+        )
         sums = sums[sums["size"] == n]
         shown = ranking.groups.set_index("group").loc[group]
         assert shown["scenarios"] == n

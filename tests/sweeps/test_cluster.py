@@ -91,23 +91,37 @@ def test_workers_need_no_shared_file_system(tmp_path, cli_cluster, fresh_fmu_cac
 
 
 @pytest.mark.skipif(not can_hide_folders(), reason="needs mount namespaces (unshare -m as root)")
-@pytest.mark.skipif(not Path(dse_runner.__file__).is_relative_to(REPO), reason="dse_runner is installed, not this folder")
+@pytest.mark.skipif(
+    not Path(dse_runner.__file__).is_relative_to(REPO), reason="dse_runner is installed, not this folder"
+)
 def test_workers_without_dse_runner_are_named_as_the_cause(tmp_path, cli_cluster):
     """A scheduler whose workers lack the package: one clear line at once, and the sweep marked failed."""
     cluster = cli_cluster(workers=1, hide=(Path(dse_runner.__file__).parent,))
     space = load_space(write_space(tmp_path, cluster={"address": cluster.address}))
-    with pytest.raises(DseError, match=rf"^the Dask workers of {re.escape(cluster.address)} cannot import "
-                                       r"dse_runner \(.*No module named 'dse_runner'.*\): install dse-runner"):
+    with pytest.raises(
+        DseError,
+        match=rf"^the Dask workers of {re.escape(cluster.address)} cannot import "
+        r"dse_runner \(.*No module named 'dse_runner'.*\): install dse-runner",
+    ):
         submit(space)
     assert load_status(space.output, "small").state == "failed"
 
 
 def test_sigkilled_worker_loses_no_task_and_repeats_none(tmp_path, cli_cluster):
     cluster = cli_cluster()
-    space = load_space(write_space(tmp_path, scenarios=[str(SCENARIOS / "*")], parameters=SLOW, chunk_seconds=0.5,
-                                   keep_trajectories=0, cluster={"address": cluster.address}))
+    space = load_space(
+        write_space(
+            tmp_path,
+            scenarios=[str(SCENARIOS / "*")],
+            parameters=SLOW,
+            chunk_seconds=0.5,
+            keep_trajectories=0,
+            cluster={"address": cluster.address},
+        )
+    )
     killed: list[str] = []
     with cluster.client() as client:
+
         def kill_a_busy_worker(report) -> None:
             if killed or report.chunks < 1:
                 return
@@ -128,8 +142,14 @@ def test_a_sweep_whose_workers_all_die_stops_with_its_finished_rows(tmp_path, cl
     """Every worker killed with its nanny, none restarted: the sweep says so and stops (it used to wait for
     ever), keeps the rows of finished chunks, and a resubmission on new workers runs only the rest."""
     cluster = cli_cluster()
-    spec = write_space(tmp_path, scenarios=[str(SCENARIOS / "*")], parameters=SLOW, chunk_seconds=0.5,
-                       keep_trajectories=0, cluster={"address": cluster.address, "connect_timeout": 2})
+    spec = write_space(
+        tmp_path,
+        scenarios=[str(SCENARIOS / "*")],
+        parameters=SLOW,
+        chunk_seconds=0.5,
+        keep_trajectories=0,
+        cluster={"address": cluster.address, "connect_timeout": 2},
+    )
     space = load_space(spec)
 
     def kill_every_worker(report) -> None:
@@ -143,7 +163,9 @@ def test_a_sweep_whose_workers_all_die_stops_with_its_finished_rows(tmp_path, cl
     kept = raw_task_ids(space.output)
     assert 0 < len(kept) < SLOW_TASKS and kept.is_unique
     cluster.start_worker()
-    cluster.wait_for_workers(1)  # the spec gives a worker 2 s to join: a slow machine takes longer to start one
+    cluster.wait_for_workers(
+        1
+    )  # the spec gives a worker 2 s to join: a slow machine takes longer to start one
     report = submit(load_space(spec))
     assert (report.skipped, report.ok + report.skipped) == (len(kept), SLOW_TASKS)
 
@@ -155,9 +177,14 @@ def test_a_sweep_whose_workers_all_die_while_it_probes_stops(tmp_path, cli_clust
 
     cluster = cli_cluster()
     # sin1 is 1680 steps: at 5 ms of sleep a step, one simulation takes 8 s, and the probe runs two
-    spec = write_space(tmp_path, multimodel=str(sleeper_multimodel(tmp_path)), scenarios=[str(SCENARIOS / "sin1")],
-                       parameters={"sleeper.pause": [0.005]}, keep_trajectories=0,
-                       cluster={"address": cluster.address, "connect_timeout": 2})
+    spec = write_space(
+        tmp_path,
+        multimodel=str(sleeper_multimodel(tmp_path)),
+        scenarios=[str(SCENARIOS / "sin1")],
+        parameters={"sleeper.pause": [0.005]},
+        keep_trajectories=0,
+        cluster={"address": cluster.address, "connect_timeout": 2},
+    )
 
     def kill_when_probing() -> None:
         with Client(cluster.address, timeout="30s") as client:
@@ -170,7 +197,9 @@ def test_a_sweep_whose_workers_all_die_while_it_probes_stops(tmp_path, cli_clust
     killer = threading.Thread(target=kill_when_probing, daemon=True)
     killer.start()
     started = time.monotonic()
-    with pytest.raises(DseError, match=r"timed its first simulation, the Dask scheduler .* has had no worker for 4 s"):
+    with pytest.raises(
+        DseError, match=r"timed its first simulation, the Dask scheduler .* has had no worker for 4 s"
+    ):
         submit(load_space(spec))
     assert time.monotonic() - started < 120
     killer.join(timeout=30)
@@ -183,21 +212,34 @@ def wait_until_idle(address: str, timeout: float = 120) -> None:
 
     with Client(address, timeout="30s") as client:
         deadline = time.time() + timeout
-        while (client.run_on_scheduler(lambda dask_scheduler: len(dask_scheduler.tasks))
-               or any(client.run(lambda dask_worker: len(dask_worker.active_threads)).values())):
+        while client.run_on_scheduler(lambda dask_scheduler: len(dask_scheduler.tasks)) or any(
+            client.run(lambda dask_worker: len(dask_worker.active_threads)).values()
+        ):
             assert time.time() < deadline, f"workers still busy after {timeout} s"
             time.sleep(0.1)
 
 
 def test_killed_client_resumes_on_submit(tmp_path, dask_scheduler):
-    path = write_space(tmp_path, scenarios=[str(SCENARIOS / "*")], parameters=SLOW, chunk_seconds=0.5,
-                       keep_trajectories=0)
-    command = [sys.executable, "-m", "dse_runner", "submit", str(path), "--scheduler", dask_scheduler, "--json"]
+    path = write_space(
+        tmp_path, scenarios=[str(SCENARIOS / "*")], parameters=SLOW, chunk_seconds=0.5, keep_trajectories=0
+    )
+    command = [
+        sys.executable,
+        "-m",
+        "dse_runner",
+        "submit",
+        str(path),
+        "--scheduler",
+        dask_scheduler,
+        "--json",
+    ]
     first = subprocess.Popen(command, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     wait_for_files(tmp_path / "out", 3)
     first.send_signal(signal.SIGKILL)
     first.wait(timeout=30)
-    wait_until_idle(dask_scheduler)  # chunks running on workers finish and write; the scheduler forgets the rest
+    wait_until_idle(
+        dask_scheduler
+    )  # chunks running on workers finish and write; the scheduler forgets the rest
     before = len(store.read_results(tmp_path / "out", "small", columns=[]))
     assert 0 < before < SLOW_TASKS  # the client died mid-sweep
     second = subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=600)
@@ -210,9 +252,16 @@ def test_killed_client_resumes_on_submit(tmp_path, dask_scheduler):
 
 def test_scheduler_restart_resumes_from_the_store(tmp_path, cli_cluster):
     cluster = cli_cluster()
-    space = load_space(write_space(tmp_path, scenarios=[str(SCENARIOS / "*")], parameters=SLOW, chunk_seconds=0.5,
-                                   keep_trajectories=0,
-                                   cluster={"address": cluster.address, "connect_timeout": 120}))
+    space = load_space(
+        write_space(
+            tmp_path,
+            scenarios=[str(SCENARIOS / "*")],
+            parameters=SLOW,
+            chunk_seconds=0.5,
+            keep_trajectories=0,
+            cluster={"address": cluster.address, "connect_timeout": 120},
+        )
+    )
     outcome: dict = {}
 
     def run() -> None:
@@ -255,9 +304,15 @@ def crasher_space(tmp_path: Path) -> Path:
         "scenario": {"controller.file": "steering_inputs"},
     }
     (tmp_path / "crasher.yaml").write_text(yaml.safe_dump(multimodel))
-    return write_space(tmp_path, multimodel=str(tmp_path / "crasher.yaml"), scenarios=[str(SCENARIOS / "sin1")],
-                       parameters={"crasher.k": {"start": 0, "stop": 15, "step": 1}}, chunk_seconds=100,
-                       keep_trajectories=0, cluster={"n_workers": 2})
+    return write_space(
+        tmp_path,
+        multimodel=str(tmp_path / "crasher.yaml"),
+        scenarios=[str(SCENARIOS / "sin1")],
+        parameters={"crasher.k": {"start": 0, "stop": 15, "step": 1}},
+        chunk_seconds=100,
+        keep_trajectories=0,
+        cluster={"n_workers": 2},
+    )
 
 
 @pytest.mark.slow  # a sweep on a local cluster
@@ -278,7 +333,11 @@ def test_tls_scheduler(tmp_path, cli_cluster):
     certs = make_certs(tmp_path / "certs")
     cluster = cli_cluster(certs=certs)
     assert cluster.address.startswith("tls://")
-    tls = {"ca_file": "certs/ca.pem", "cert": "certs/cert.pem", "key": "certs/key.pem"}  # relative to the spec
+    tls = {
+        "ca_file": "certs/ca.pem",
+        "cert": "certs/cert.pem",
+        "key": "certs/key.pem",
+    }  # relative to the spec
     space = load_space(write_space(tmp_path, cluster={"address": cluster.address, "tls": tls}))
     report = submit(space)
     assert (report.ok, report.failed, report.workers) == (12, 0, 2)
@@ -289,15 +348,26 @@ def test_tls_scheduler(tmp_path, cli_cluster):
 
 def test_htcondor_job_script(tmp_path):
     """No HTCondor pool exists here: check the submit description dask-jobqueue renders from our spec."""
-    spec = Cluster.model_validate({"kind": "htcondor", "htcondor": {
-        "cores": 4, "memory": "8GiB", "disk": "2GiB", "job_extra": {"+ProjectName": '"robotti"'},
-        "prologue": ["source /opt/venvs/dse/bin/activate"], "python": "/opt/venvs/dse/bin/python"}})
+    spec = Cluster.model_validate(
+        {
+            "kind": "htcondor",
+            "htcondor": {
+                "cores": 4,
+                "memory": "8GiB",
+                "disk": "2GiB",
+                "job_extra": {"+ProjectName": '"robotti"'},
+                "prologue": ["source /opt/venvs/dse/bin/activate"],
+                "python": "/opt/venvs/dse/bin/python",
+            },
+        }
+    )
     cluster = HTCondor().started(spec, None)
     try:
         script = cluster.job_script()
         link = urlparse(cluster.dashboard_link)  # named by the host's address, but bound to loopback only
-        assert reachable("127.0.0.1", link.port) and (link.hostname == "127.0.0.1" or not reachable(link.hostname,
-                                                                                                   link.port))
+        assert reachable("127.0.0.1", link.port) and (
+            link.hostname == "127.0.0.1" or not reachable(link.hostname, link.port)
+        )
     finally:
         cluster.close()
     assert "RequestCpus = MY.DaskWorkerCores" in script and "MY.DaskWorkerCores = 4" in script
@@ -311,9 +381,19 @@ def test_htcondor_job_script(tmp_path):
 def test_kubernetes_cluster_resource():
     """No Kubernetes cluster exists here: check the DaskCluster resource the operator would be given."""
     pytest.importorskip("dask_kubernetes")
-    spec = Cluster.model_validate({"kind": "kubernetes", "threads_per_worker": 1, "kubernetes": {
-        "image": "registry.example/dse-runner:1", "env": {"AWS_ENDPOINT_URL": "http://minio:9000"}}})
-    resource = kubernetes_cluster_spec(spec, KubernetesOptions.model_validate(spec.block("kubernetes")), "dse-runner-test")
+    spec = Cluster.model_validate(
+        {
+            "kind": "kubernetes",
+            "threads_per_worker": 1,
+            "kubernetes": {
+                "image": "registry.example/dse-runner:1",
+                "env": {"AWS_ENDPOINT_URL": "http://minio:9000"},
+            },
+        }
+    )
+    resource = kubernetes_cluster_spec(
+        spec, KubernetesOptions.model_validate(spec.block("kubernetes")), "dse-runner-test"
+    )
     (scheduler,) = resource["spec"]["scheduler"]["spec"]["containers"]
     (worker,) = resource["spec"]["worker"]["spec"]["containers"]
     assert scheduler["args"][:2] == ["dask", "scheduler"]  # the command distributed still has
@@ -330,22 +410,36 @@ def test_cluster_choice_errors(tmp_path):
     with pytest.raises(DseError, match="needs a protocol"):
         load_space(write_space(tmp_path, cluster={"address": "127.0.0.1:8786"}))
     space = load_space(write_space(tmp_path, cluster={"kind": "lsf"}))
-    with pytest.raises(DseError, match=r"cluster.kind 'lsf' is unknown \(known: htcondor, kubernetes, local, slurm"):
+    with pytest.raises(
+        DseError, match=r"cluster.kind 'lsf' is unknown \(known: htcondor, kubernetes, local, slurm"
+    ):
         submit(space)
-    space = load_space(write_space(tmp_path, cluster={"address": "tls://127.0.0.1:1",
-                                                      "tls": {"ca_file": "x", "cert": "y", "key": "z"}}))
+    space = load_space(
+        write_space(
+            tmp_path,
+            cluster={"address": "tls://127.0.0.1:1", "tls": {"ca_file": "x", "cert": "y", "key": "z"}},
+        )
+    )
     with pytest.raises(DseError, match="cluster.tls.ca_file: no file"):
         submit(space)
     overridden = load_space(write_space(tmp_path, cluster={"kind": "htcondor"})).with_overrides(
-        address="tcp://127.0.0.1:8786")
-    assert (overridden.spec.cluster.kind, overridden.spec.cluster.address) == ("local", "tcp://127.0.0.1:8786")
+        address="tcp://127.0.0.1:8786"
+    )
+    assert (overridden.spec.cluster.kind, overridden.spec.cluster.address) == (
+        "local",
+        "tcp://127.0.0.1:8786",
+    )
 
 
 @pytest.mark.slow  # the command retries the address for its 3 s connect timeout
 def test_unreachable_scheduler_names_it(tmp_path):
     spec = write_space(tmp_path, cluster={"connect_timeout": 3})  # refused at once, retried for 3 s, not 30
-    result = subprocess.run([sys.executable, "-m", "dse_runner", "submit", str(spec),
-                             "--scheduler", "tcp://127.0.0.1:9"], capture_output=True, text=True, timeout=120)
+    result = subprocess.run(
+        [sys.executable, "-m", "dse_runner", "submit", str(spec), "--scheduler", "tcp://127.0.0.1:9"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert result.returncode == 2
     assert "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in result.stderr
     assert load_status(tmp_path / "out", "small").state == "failed"  # a dashboard must not wait for it
@@ -362,17 +456,27 @@ def test_store_at_an_s3_url(tmp_path, monkeypatch):
     try:
         host, port = server.get_host_and_port()
         endpoint = f"http://{host}:{port}"
-        for name, value in {"AWS_ACCESS_KEY_ID": "test", "AWS_SECRET_ACCESS_KEY": "test",
-                            "AWS_DEFAULT_REGION": "us-east-1", "AWS_ENDPOINT_URL": endpoint}.items():
+        for name, value in {
+            "AWS_ACCESS_KEY_ID": "test",
+            "AWS_SECRET_ACCESS_KEY": "test",
+            "AWS_DEFAULT_REGION": "us-east-1",
+            "AWS_ENDPOINT_URL": endpoint,
+        }.items():
             monkeypatch.setenv(name, value)  # the local cluster's workers inherit these
         boto3.client("s3", endpoint_url=endpoint).create_bucket(Bucket="sweeps")
         space = load_space(write_space(tmp_path, output="s3://sweeps/robotti", cluster={"n_workers": 2}))
         report = submit(space)
         assert (report.ok, report.failed) == (12, 0), report.errors
-        keys = [o["Key"] for o in boto3.client("s3", endpoint_url=endpoint).list_objects_v2(
-            Bucket="sweeps", Prefix="robotti/results/")["Contents"]]
+        keys = [
+            o["Key"]
+            for o in boto3.client("s3", endpoint_url=endpoint).list_objects_v2(
+                Bucket="sweeps", Prefix="robotti/results/"
+            )["Contents"]
+        ]
         assert keys and all(k.endswith(".parquet") for k in keys)
-        assert not (tmp_path / "s3:").exists() and not (tmp_path / "sweeps").exists()  # nothing landed locally
+        assert (
+            not (tmp_path / "s3:").exists() and not (tmp_path / "sweeps").exists()
+        )  # nothing landed locally
         ranking = rank("s3://sweeps/robotti")
         assert len(ranking.totals) == 6
         assert store.read_trajectory("s3://sweeps/robotti", "small", "sin1", 1)["time"].size > 0
@@ -388,13 +492,19 @@ def test_htcondor_without_condor_submit_is_one_line_at_once(tmp_path):
         pytest.skip("HTCondor is installed here")
     spec = write_space(tmp_path)
     started = time.monotonic()
-    result = subprocess.run([sys.executable, "-m", "dse_runner", "submit", str(spec), "--cluster", "htcondor",
-                             "--no-dashboard"], capture_output=True, text=True, timeout=120, cwd=REPO)
+    result = subprocess.run(
+        [sys.executable, "-m", "dse_runner", "submit", str(spec), "--cluster", "htcondor", "--no-dashboard"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=REPO,
+    )
     assert time.monotonic() - started < 30
     assert result.returncode == 2
     assert result.stderr.strip().splitlines() == [
         "error: cluster.kind htcondor: condor_submit is not on PATH: run dse-runner where HTCondor's commands "
-        "are (a login or submit node), or install them"], result.stderr
+        "are (a login or submit node), or install them"
+    ], result.stderr
 
 
 @pytest.mark.slow  # a sweep's cluster started and stopped
@@ -403,41 +513,52 @@ def test_a_refused_htcondor_job_stops_the_sweep_with_its_words(tmp_path, monkeyp
     (no pool can run here) stops the sweep with its stderr in one line, not a 30-minute wait."""
     bin_ = tmp_path / "bin"
     bin_.mkdir()
-    (bin_ / "condor_submit").write_text("#!/bin/sh\necho 'ERROR: Can'\"'\"'t find address of local schedd' >&2\n"
-                                        "exit 1\n")
+    (bin_ / "condor_submit").write_text(
+        "#!/bin/sh\necho 'ERROR: Can'\"'\"'t find address of local schedd' >&2\nexit 1\n"
+    )
     (bin_ / "condor_submit").chmod(0o755)
     monkeypatch.setenv("PATH", f"{bin_}:{os.environ['PATH']}")
     space = load_space(write_space(tmp_path, cluster={"kind": "htcondor"}))
     started = time.monotonic()
-    with pytest.raises(DseError, match=r"^HTCondor refused a worker job: ERROR: Can't find address of local schedd$"):
+    with pytest.raises(
+        DseError, match=r"^HTCondor refused a worker job: ERROR: Can't find address of local schedd$"
+    ):
         submit(space)
     assert time.monotonic() - started < 60
     assert load_status(space.output, "small").state == "failed"
 
 
-@pytest.mark.parametrize("address, template", [
-    ("127.0.0.1:0", "{scheme}://127.0.0.1:{port}/status"),
-    ("192.0.2.7:8787", "{scheme}://192.0.2.7:{port}/status"),
-    ("0.0.0.0:8787", None),  # every interface: distributed's link, naming the scheduler's host, is right
-    (":8787", None),
-    ("8787", None),  # a bare port: every interface too
-])
+@pytest.mark.parametrize(
+    "address, template",
+    [
+        ("127.0.0.1:0", "{scheme}://127.0.0.1:{port}/status"),
+        ("192.0.2.7:8787", "{scheme}://192.0.2.7:{port}/status"),
+        ("0.0.0.0:8787", None),  # every interface: distributed's link, naming the scheduler's host, is right
+        (":8787", None),
+        ("8787", None),  # a bare port: every interface too
+    ],
+)
 def test_dashboard_links_name_the_host_the_dashboard_listens_on(address, template):
     from dse_runner.sweeps.cluster import dashboard_link_template
 
     assert dashboard_link_template(address) == template
 
 
-@pytest.mark.parametrize("cluster, message", [
-    ({"min_workers": 1}, "min_workers needs max_workers"),
-    ({"n_workers": 2, "max_workers": 4}, "give either n_workers .* or min_workers/max_workers"),
-    ({"min_workers": 3, "max_workers": 2}, r"min_workers \(3\) is more than max_workers \(2\)"),
-    ({"address": "tcp://127.0.0.1:8786", "max_workers": 2}, "scale a cluster dse-runner starts"),
-])
+@pytest.mark.parametrize(
+    "cluster, message",
+    [
+        ({"min_workers": 1}, "min_workers needs max_workers"),
+        ({"n_workers": 2, "max_workers": 4}, "give either n_workers .* or min_workers/max_workers"),
+        ({"min_workers": 3, "max_workers": 2}, r"min_workers \(3\) is more than max_workers \(2\)"),
+        ({"address": "tcp://127.0.0.1:8786", "max_workers": 2}, "scale a cluster dse-runner starts"),
+    ],
+)
 def test_adaptive_bounds_are_checked(tmp_path, cluster, message):
     with pytest.raises(DseError, match=message):
         load_space(write_space(tmp_path, cluster=cluster))
-    adaptive = load_space(write_space(tmp_path, cluster={"kind": "slurm", "min_workers": 0, "max_workers": 4}))
+    adaptive = load_space(
+        write_space(tmp_path, cluster={"kind": "slurm", "min_workers": 0, "max_workers": 4})
+    )
     fixed = adaptive.with_overrides(n_workers=3).spec.cluster  # --workers: a fixed count instead
     assert (fixed.n_workers, fixed.min_workers, fixed.max_workers) == (3, None, None)
 
@@ -446,17 +567,37 @@ def test_slurm_job_script():
     """The sbatch script dask-jobqueue renders from cluster.slurm, with dask-jobqueue's names and meanings."""
     from dse_runner.sweeps.jobqueue import Slurm
 
-    spec = Cluster.model_validate({"kind": "slurm", "slurm": {
-        "queue": "short", "account": "proj42", "cores": 4, "memory": "8GiB", "walltime": "02:00:00",
-        "job_extra_directives": ["--qos=low"], "job_script_prologue": ["source /opt/venvs/dse/bin/activate"],
-        "python": "/opt/venvs/dse/bin/python", "log_directory": "/tmp/dse-logs"}})
+    spec = Cluster.model_validate(
+        {
+            "kind": "slurm",
+            "slurm": {
+                "queue": "short",
+                "account": "proj42",
+                "cores": 4,
+                "memory": "8GiB",
+                "walltime": "02:00:00",
+                "job_extra_directives": ["--qos=low"],
+                "job_script_prologue": ["source /opt/venvs/dse/bin/activate"],
+                "python": "/opt/venvs/dse/bin/python",
+                "log_directory": "/tmp/dse-logs",
+            },
+        }
+    )
     cluster = Slurm().started(spec, None)
     try:
         script = cluster.job_script()
     finally:
         cluster.close()
-    for line in ("#SBATCH -p short", "#SBATCH -A proj42", "#SBATCH --cpus-per-task=4", "#SBATCH --mem=8G",
-                 "#SBATCH -t 02:00:00", "#SBATCH --qos=low", "#SBATCH -e /tmp/dse-logs/dask-worker-%J.err",
-                 "source /opt/venvs/dse/bin/activate", "/opt/venvs/dse/bin/python -m distributed.cli.dask_worker"):
+    for line in (
+        "#SBATCH -p short",
+        "#SBATCH -A proj42",
+        "#SBATCH --cpus-per-task=4",
+        "#SBATCH --mem=8G",
+        "#SBATCH -t 02:00:00",
+        "#SBATCH --qos=low",
+        "#SBATCH -e /tmp/dse-logs/dask-worker-%J.err",
+        "source /opt/venvs/dse/bin/activate",
+        "/opt/venvs/dse/bin/python -m distributed.cli.dask_worker",
+    ):
         assert line in script, line
     assert "--nworkers 4" in script and "--nthreads 1" in script  # four single-threaded workers per job

@@ -94,7 +94,9 @@ def test_every_built_in_kind_holds_to_the_contract():
 
 def test_a_maker_with_only_start_runs_a_sweep(tmp_path, plugin):
     space = load_space(write_space(tmp_path, cluster={"kind": "bare", "n_workers": 2}))
-    assert makers.maker("bare").first_worker_wait == makers.QUEUE_WAIT  # the defaults: a queue may be slow ...
+    assert (
+        makers.maker("bare").first_worker_wait == makers.QUEUE_WAIT
+    )  # the defaults: a queue may be slow ...
     report = submit(space)
     assert (report.ok, report.failed, report.workers) == (12, 0, 2)  # ... and it scaled to n_workers
     [cluster] = plugin.STARTED
@@ -110,18 +112,35 @@ def test_a_makers_own_block_reaches_it(tmp_path, plugin):
     assert cluster.status.name == "closed"
 
 
-@pytest.mark.parametrize("cluster, message", [
-    ({"kind": "tagged", "tagged": {"resource": "x", "amount": -1}},
-     r"cluster: tagged\.amount: input should be greater than 0 \(an option of cluster kind tagged\)"),
-    ({"kind": "tagged"}, r"cluster: tagged\.resource: field required"),  # the spec's block, though not given
-    ({"kind": "tagged", "taged": {"resource": "x"}}, r"cluster: unknown key 'taged': besides its own keys, cluster "
-                                                     r"takes a block named by a cluster kind \(installed: bare, "
-                                                     r"function, htcondor, kubernetes, local, slurm, tagged\)"),
-    ({"kind": "bare", "bare": {"cores": 4}}, r"cluster: bare\.cores: extra inputs are not permitted"),
-    ({"kind": "htcondor", "htcondor": {"cores": 0}}, r"cluster: htcondor\.cores: input should be greater than 0"),
-    ({"kind": "function"}, r"cluster: cluster\.kind 'function' \(maker_plugin:Function\) is not a subclass of "
-                           r"dse_runner\.sweeps\.makers\.ClusterMaker"),
-])
+@pytest.mark.parametrize(
+    "cluster, message",
+    [
+        (
+            {"kind": "tagged", "tagged": {"resource": "x", "amount": -1}},
+            r"cluster: tagged\.amount: input should be greater than 0 \(an option of cluster kind tagged\)",
+        ),
+        (
+            {"kind": "tagged"},
+            r"cluster: tagged\.resource: field required",
+        ),  # the spec's block, though not given
+        (
+            {"kind": "tagged", "taged": {"resource": "x"}},
+            r"cluster: unknown key 'taged': besides its own keys, cluster "
+            r"takes a block named by a cluster kind \(installed: bare, "
+            r"function, htcondor, kubernetes, local, slurm, tagged\)",
+        ),
+        ({"kind": "bare", "bare": {"cores": 4}}, r"cluster: bare\.cores: extra inputs are not permitted"),
+        (
+            {"kind": "htcondor", "htcondor": {"cores": 0}},
+            r"cluster: htcondor\.cores: input should be greater than 0",
+        ),
+        (
+            {"kind": "function"},
+            r"cluster: cluster\.kind 'function' \(maker_plugin:Function\) is not a subclass of "
+            r"dse_runner\.sweeps\.makers\.ClusterMaker",
+        ),
+    ],
+)
 def test_cluster_blocks_are_checked_when_the_spec_loads(tmp_path, plugin, cluster, message):
     with pytest.raises(DseError, match=message):
         load_space(write_space(tmp_path, cluster=cluster))
@@ -133,7 +152,9 @@ def test_a_block_for_a_kind_not_installed_here_waits_for_the_sweep(tmp_path):
     assert spec.block("lsf") == {"queue": "short"}
     with pytest.raises(ValidationError, match="unknown key 'lsf'"):
         Cluster.model_validate({"kind": "local", "lsf": {"queue": "short"}})
-    with pytest.raises(DseError, match=r"cluster.kind 'lsf' is unknown \(known: htcondor, kubernetes, local, slurm"):
+    with pytest.raises(
+        DseError, match=r"cluster.kind 'lsf' is unknown \(known: htcondor, kubernetes, local, slurm"
+    ):
         with connect(spec):
             pass
 
@@ -160,8 +181,9 @@ def test_the_command_lines_workers_fork_unless_dasks_variable_chooses(method, fo
     env = {key: value for key, value in os.environ.items() if key != start_method.START_METHOD_VARIABLE}
     if method:
         env[start_method.START_METHOD_VARIABLE] = method
-    done = subprocess.run([sys.executable, "-c", LOCAL_PARENTS], env=env, capture_output=True, text=True,
-                          timeout=300)
+    done = subprocess.run(
+        [sys.executable, "-c", LOCAL_PARENTS], env=env, capture_output=True, text=True, timeout=300
+    )
     assert done.returncode == 0, done.stderr
     seen = json.loads(done.stdout.splitlines()[-1])
     assert len(seen["parents"]) == 2, seen

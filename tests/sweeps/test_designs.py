@@ -19,18 +19,33 @@ Z = Dimension("m.z", low=0.0, high=4.0)
 GRID = Dimension("m.g", low=0.0, high=1.0, step=0.5)
 
 
-def problem(*dimensions: Dimension, max_points: int = 100, seed: int = 3, options=None, admits=None) -> Problem:
-    return Problem(label="designs", dimensions=dimensions, objective=("f", "min"), pareto=(), scenarios=("s",),
-                   vectors=(), max_points=max_points, seed=seed, batch=4, options=options or {},
-                   admits=admits or (lambda p: True), constrained=admits is not None)
+def problem(
+    *dimensions: Dimension, max_points: int = 100, seed: int = 3, options=None, admits=None
+) -> Problem:
+    return Problem(
+        label="designs",
+        dimensions=dimensions,
+        objective=("f", "min"),
+        pareto=(),
+        scenarios=("s",),
+        vectors=(),
+        max_points=max_points,
+        seed=seed,
+        batch=4,
+        options=options or {},
+        admits=admits or (lambda p: True),
+        constrained=admits is not None,
+    )
 
 
 def asked(name: str, p: Problem) -> list[dict]:
     return list(iter(search.strategy(name)(p).ask, None))
 
 
-@pytest.mark.parametrize(("name", "options", "block"), [
-    ("sobol_indices", {}, 5), ("sobol_indices", {"second_order": True}, 8), ("morris", {}, 4)])
+@pytest.mark.parametrize(
+    ("name", "options", "block"),
+    [("sobol_indices", {}, 5), ("sobol_indices", {"second_order": True}, 8), ("morris", {}, 4)],
+)
 def test_the_budget_buys_whole_blocks_and_a_larger_one_extends_the_same_design(name, options, block):
     small = search.strategy(name)(problem(X, Y, Z, max_points=101, options=options))
     rows = len(small.design.units)
@@ -41,7 +56,7 @@ def test_the_budget_buys_whole_blocks_and_a_larger_one_extends_the_same_design(n
         assert rows >= (101 // block) * block
     assert small.size == len(asked(name, problem(X, Y, Z, max_points=101, options=options))) <= 101
     large = search.strategy(name)(problem(X, Y, Z, max_points=400, options=options))
-    assert np.array_equal(large.design.units[:len(small.design.units)], small.design.units)
+    assert np.array_equal(large.design.units[: len(small.design.units)], small.design.units)
 
 
 def test_saltelli_blocks_cross_one_parameter_at_a_time():
@@ -70,12 +85,15 @@ def test_a_design_that_cannot_spend_its_budget_says_how_many_points_it_runs_and_
     points; a design that spends its budget says nothing."""
     morris = search.strategy("morris")(problem(X, Z, max_points=60))
     assert morris.size == 16
-    assert morris.spending() == ("search: morris runs 16 distinct points of max_points 60: 4 levels over 2 "
-                                 "parameters give at most 16 points; more levels (search: {levels: 8}) give more")
+    assert morris.spending() == (
+        "search: morris runs 16 distinct points of max_points 60: 4 levels over 2 "
+        "parameters give at most 16 points; more levels (search: {levels: 8}) give more"
+    )
     finer = search.strategy("morris")(problem(X, Z, max_points=60, options={"levels": 8}))
     assert finer.size > 50 and finer.spending() is None
-    grids = search.strategy("sobol_indices")(problem(GRID, Dimension("m.h", low=0.0, high=1.0, step=0.5),
-                                                     max_points=60))
+    grids = search.strategy("sobol_indices")(
+        problem(GRID, Dimension("m.h", low=0.0, high=1.0, step=0.5), max_points=60)
+    )
     assert grids.size == 9 and "grids and choices hold 9 points" in grids.spending()
     assert search.strategy("sobol_indices")(problem(X, Y, Z, max_points=101)).spending() is None
 
@@ -93,14 +111,23 @@ def test_points_the_constraints_refuse_are_not_asked():
     assert points and all(p["m.x"] < 0.5 for p in points)
 
 
-@pytest.mark.parametrize(("name", "options", "message"), [
-    ("sobol_indices", {}, r"search: sobol_indices needs at least 5 points for 3 parameters .*max_points is 4"),
-    ("sobol_indices", {"second_order": True}, r"needs at least 8 points for 3 parameters"),
-    ("morris", {}, r"search: morris needs at least 4 points for 3 parameters .*max_points is 3"),
-])
+@pytest.mark.parametrize(
+    ("name", "options", "message"),
+    [
+        (
+            "sobol_indices",
+            {},
+            r"search: sobol_indices needs at least 5 points for 3 parameters .*max_points is 4",
+        ),
+        ("sobol_indices", {"second_order": True}, r"needs at least 8 points for 3 parameters"),
+        ("morris", {}, r"search: morris needs at least 4 points for 3 parameters .*max_points is 3"),
+    ],
+)
 def test_too_few_points_for_one_block_is_an_error_naming_the_budget(name, options, message):
     with pytest.raises(DseError, match=message):
-        search.strategy(name)(problem(X, Y, Z, max_points=4 if name == "sobol_indices" else 3, options=options))
+        search.strategy(name)(
+            problem(X, Y, Z, max_points=4 if name == "sobol_indices" else 3, options=options)
+        )
 
 
 def test_text_values_and_bad_options_are_errors_naming_them():
@@ -120,24 +147,41 @@ def test_fast_buys_one_curve_per_parameter_each_running_its_parameter_fastest():
     assert (design.method, design.block, design.blocks, design.harmonics) == ("fast", 133, 3, 4)
     assert len(asked("fast", problem(X, Y, Z, max_points=400))) <= 399
     for i in range(3):  # the parameter at the highest frequency crosses the cube's middle most often
-        curve = design.units[i * design.block:(i + 1) * design.block]
+        curve = design.units[i * design.block : (i + 1) * design.block]
         crossings = np.count_nonzero(np.diff(np.sign(curve - 0.5), axis=0), axis=0)
         assert crossings.argmax() == i, (i, crossings)
-    assert asked("fast", problem(X, Y, seed=5, max_points=200)) == asked("fast", problem(X, Y, seed=5, max_points=200))
-    with pytest.raises(DseError, match=r"search: fast needs at least 195 points for 3 parameters .*max_points is 194"):
+    assert asked("fast", problem(X, Y, seed=5, max_points=200)) == asked(
+        "fast", problem(X, Y, seed=5, max_points=200)
+    )
+    with pytest.raises(
+        DseError, match=r"search: fast needs at least 195 points for 3 parameters .*max_points is 194"
+    ):
         search.strategy("fast")(problem(X, Y, Z, max_points=194))
-    assert search.strategy("fast")(problem(X, Y, Z, max_points=15, options={"harmonics": 1})).design.block == 5
+    assert (
+        search.strategy("fast")(problem(X, Y, Z, max_points=15, options={"harmonics": 1})).design.block == 5
+    )
 
 
-@pytest.mark.parametrize(("name", "options"), [("sobol_indices", {}), ("sobol_indices", {"second_order": True}),
-                                               ("morris", {}), ("morris", {"levels": 6})])
+@pytest.mark.parametrize(
+    ("name", "options"),
+    [
+        ("sobol_indices", {}),
+        ("sobol_indices", {"second_order": True}),
+        ("morris", {}),
+        ("morris", {"levels": 6}),
+    ],
+)
 def test_a_design_over_intervals_is_computed_on_whole_columns_to_the_same_points(name, options):
     """The column-wise path (no Python object per row, for designs of a million points) asks the very points,
     in the very order, that mapping each row and keeping its first occurrence gives, with the same budget."""
     from dse_runner.sweeps.domain import from_units
     from dse_runner.sweeps.strategies import designs
 
-    x, z, w = Dimension("m.x", low=-1, high=1), Dimension("m.z", low=0.0, high=4.0), Dimension("m.w", low=2, high=3)
+    x, z, w = (
+        Dimension("m.x", low=-1, high=1),
+        Dimension("m.z", low=0.0, high=4.0),
+        Dimension("m.w", low=2, high=3),
+    )
     p = problem(x, z, w, max_points=203, options=options)
     fast = search.strategy(name)(p)
     assert isinstance(designs._budgeted_intervals(fast.design, p)[1], np.ndarray)  # the fast path served
@@ -169,7 +213,9 @@ def test_a_design_is_drawn_when_first_needed_and_once_for_the_same_problem():
 
 
 @pytest.mark.parametrize("options", [{}, {"second_order": True}])
-def test_a_saltelli_design_over_intervals_streams_the_whole_draws_points_without_holding_them(monkeypatch, options):
+def test_a_saltelli_design_over_intervals_streams_the_whole_draws_points_without_holding_them(
+    monkeypatch, options
+):
     """A million-row study must not cost the client the design: over plain intervals the points are drawn a
     few blocks at a time (here 7, so parts start at blocks that are no power of two) and are the very points
     of the whole draw the sensitivity command reads back, in order; counting and asking leave no design
@@ -192,6 +238,7 @@ def test_a_saltelli_design_over_intervals_streams_the_whole_draws_points_without
 def test_a_design_streams_only_where_no_two_blocks_can_share_a_point():
     """Grids, log axes, a single parameter (its crossed row is its B row) and constraints keep the whole
     draw and its global dedup."""
+
     def streams(*dimensions, admits=None):
         return search.strategy("sobol_indices")(problem(*dimensions, max_points=60, admits=admits)).streams()
 
@@ -215,6 +262,12 @@ def test_saltelli_rows_are_salib_s_to_the_bit(second_order, n, skip):
     ours = search.strategy("sobol_indices")(p).draw_part(p, n, skip).units
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
-        theirs = sobol.sample(designs.salib_problem(p.dimensions), n, calc_second_order=second_order,
-                              scramble=True, seed=9, skip_values=skip)
+        theirs = sobol.sample(
+            designs.salib_problem(p.dimensions),
+            n,
+            calc_second_order=second_order,
+            scramble=True,
+            seed=9,
+            skip_values=skip,
+        )
     assert ours.shape == theirs.shape and np.array_equal(ours, theirs)

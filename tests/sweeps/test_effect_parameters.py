@@ -25,19 +25,34 @@ def _study(folder, delays, cluster) -> object:
     t = np.arange(0.0, 8.0, 0.1)
     force = np.where((t >= 1.0) & (t < 4.0), 2.0, 0.0)
     np.savetxt(folder / "force.csv", np.column_stack([t, force]), delimiter=",", header="time,F", comments="")
-    truth = simulate(REPO / "jobs" / "msd" / "multimodel.yaml",
-                     Scenario("push", inputs={"msd.F": Series(t, force, "hold")}, stop_time=8.0, step=0.02),
-                     {"msd.x0": 0.0, DELAY: 0.3})
-    np.savetxt(folder / "recorded.csv", np.column_stack([truth.time, truth.outputs["msd.x"]]), delimiter=",",
-               header="time,x", comments="")
+    truth = simulate(
+        REPO / "jobs" / "msd" / "multimodel.yaml",
+        Scenario("push", inputs={"msd.F": Series(t, force, "hold")}, stop_time=8.0, step=0.02),
+        {"msd.x0": 0.0, DELAY: 0.3},
+    )
+    np.savetxt(
+        folder / "recorded.csv",
+        np.column_stack([truth.time, truth.outputs["msd.x"]]),
+        delimiter=",",
+        header="time,x",
+        comments="",
+    )
     spec = {
-        "name": "delay-sweep", "multimodel": str(REPO / "jobs" / "msd" / "multimodel.yaml"),
+        "name": "delay-sweep",
+        "multimodel": str(REPO / "jobs" / "msd" / "multimodel.yaml"),
         "experiment": {"step": 0.02, "stop_time": 8.0},
-        "scenarios": [{"name": "push", "inputs": {"msd.F": {"csv": "force.csv", "interpolation": "hold"}},
-                       "parameters": {"msd.x0": 0.0}, "recorded": "recorded.csv"}],
+        "scenarios": [
+            {
+                "name": "push",
+                "inputs": {"msd.F": {"csv": "force.csv", "interpolation": "hold"}},
+                "parameters": {"msd.x0": 0.0},
+                "recorded": "recorded.csv",
+            }
+        ],
         "parameters": {DELAY: delays},
         "objectives": {"position_rmse": {"signal": "msd.x", "recorded": "x", "metric": "rmse"}},
-        "output": str(folder / "out"), "cluster": cluster,
+        "output": str(folder / "out"),
+        "cluster": cluster,
     }
     (folder / "space.yaml").write_text(yaml.safe_dump(spec))
     return folder / "space.yaml"
@@ -58,7 +73,9 @@ def test_an_effect_on_an_input_no_scenario_drives_fails_when_the_spec_loads(tmp_
     spec = yaml.safe_load(path.read_text())
     spec["parameters"] = {"input_lag(msd.k)": [0.0, 0.1]}
     path.write_text(yaml.safe_dump(spec))
-    with pytest.raises(DseError, match=r"parameters\.input_lag\(msd\.k\): scenario push does not drive msd\.k"):
+    with pytest.raises(
+        DseError, match=r"parameters\.input_lag\(msd\.k\): scenario push does not drive msd\.k"
+    ):
         load_space(path)
     spec["parameters"] = {DELAY: [-0.1, 0.1]}
     path.write_text(yaml.safe_dump(spec))

@@ -38,8 +38,11 @@ STEPPED = Dimension("plant.s", low=0.0, high=2.0, step=0.5)
 CHOICES = Dimension("plant.mode", choices=(0.1, 0.4, "off"))
 # The spaces tried in turn until a strategy takes one (its constructor raises DseError for what it cannot
 # search: exhaustive needs grids, least_squares continuous intervals); each strategy must take one.
-DOMAINS = {"mixed": (INTERVAL, LOG, INTEGER, STEPPED, CHOICES), "continuous": (INTERVAL, LOG),
-           "grid": (INTEGER, STEPPED, CHOICES)}
+DOMAINS = {
+    "mixed": (INTERVAL, LOG, INTEGER, STEPPED, CHOICES),
+    "continuous": (INTERVAL, LOG),
+    "grid": (INTEGER, STEPPED, CHOICES),
+}
 SCENARIOS = ("first", "second")
 OBJECTIVE = ("f", "min")
 PARETO = (("f", "min"), ("g", "min"))
@@ -97,8 +100,14 @@ def evaluate(dimensions: tuple[Dimension, ...], point: Point, number: int) -> Ev
     residuals = [ui - 0.3 for ui in u]
     half = len(residuals) // 2
     per = {"first": residuals[:half], "second": residuals[half:]}
-    scores = {s: {"f": sum(r * r for r in per[s]), "g": sum((1 - ui) ** 2 for ui in u) / len(SCENARIOS),
-                  "residuals": per[s]} for s in SCENARIOS}
+    scores = {
+        s: {
+            "f": sum(r * r for r in per[s]),
+            "g": sum((1 - ui) ** 2 for ui in u) / len(SCENARIOS),
+            "residuals": per[s],
+        }
+        for s in SCENARIOS
+    }
     values = {name: sum(scores[s][name] for s in SCENARIOS) for name in ("f", "g")}  # over_scenarios: sum
     limit = len(dimensions) / 3  # the mean of (1 - u)² for u uniform in [0, 1] is 1/3
     breaks = (f"g <= {limit}",) if values["g"] > limit else ()
@@ -159,17 +168,29 @@ def drive(make: Callable[[], Strategy], problem: Problem) -> Run:
     return run
 
 
-def problem_for(name: str, seed: int = 7, max_points: int = 14,
-                pareto=PARETO) -> tuple[type[Strategy], Problem]:
+def problem_for(
+    name: str, seed: int = 7, max_points: int = 14, pareto=PARETO
+) -> tuple[type[Strategy], Problem]:
     """The strategy class of ``name`` and the first of DOMAINS it takes, as a Problem (as spec.py makes
     it)."""
     kind = search.strategy(name)
     options, least = SMALLEST.get(name, ({}, 0))
     refused = []
     for domain, dimensions in DOMAINS.items():
-        problem = Problem(label="contract", dimensions=dimensions, objective=OBJECTIVE, pareto=pareto,
-                          scenarios=SCENARIOS, vectors=("residuals",), max_points=max(max_points, least), seed=seed,
-                          batch=BATCH, admits=admits, constrained=True, options=options)
+        problem = Problem(
+            label="contract",
+            dimensions=dimensions,
+            objective=OBJECTIVE,
+            pareto=pareto,
+            scenarios=SCENARIOS,
+            vectors=("residuals",),
+            max_points=max(max_points, least),
+            seed=seed,
+            batch=BATCH,
+            admits=admits,
+            constrained=True,
+            options=options,
+        )
         try:
             kind(problem)
         except DseError as e:
@@ -198,7 +219,8 @@ def test_every_strategy_asks_in_the_domain_the_same_points_for_its_seed_and_take
         if state in states:
             asked_after = len(run.asked) - run.asks_at_tell[states.index(state)]
             assert asked_after > 0 or run.stopped == "budget", (
-                f"{name} asked nothing after a point told {state}: {run.points} of {problem.max_points}")
+                f"{name} asked nothing after a point told {state}: {run.points} of {problem.max_points}"
+            )
 
     again = drive(lambda: kind(problem), problem)
     assert again.asked == run.asked, f"{name} asked other points for the same seed and the same results"
@@ -211,7 +233,7 @@ def test_every_strategy_stops_within_its_budget_and_an_open_loop_one_asks_its_si
     assert run.points <= problem.max_points and run.stopped in ("budget", "strategy")
     if not kind.closed_loop:  # a grid: every point known without results, as many as its size (when it knows)
         asked = list(iter(kind(problem).ask, None))
-        assert asked[:len(run.asked)] == run.asked
+        assert asked[: len(run.asked)] == run.asked
         assert kind(problem).size in (None, len(asked))
         assert all(problem.admits(p) for p in asked)  # the grid leaves out what the constraints reject
 

@@ -29,8 +29,14 @@ def residuals(point: dict[str, float], scenario: str) -> np.ndarray:
 def run(schedule) -> tuple[LevenbergMarquardt, list[tuple], int, int]:
     """Fit from far away, each round asked ``eager=schedule(round)``; returns the solver, its accepted points
     in order, how many distinct points it asked for, and in how many rounds."""
-    problem = FitProblem("decay", (Parameter("a", 0.5, 0.0, 10.0, 1e-4), Parameter("b", 6.0, 0.01, 10.0, 1e-4)),
-                         {}, tuple(TIMES), max_iterations=40, tolerance=1e-10)
+    problem = FitProblem(
+        "decay",
+        (Parameter("a", 0.5, 0.0, 10.0, 1e-4), Parameter("b", 6.0, 0.01, 10.0, 1e-4)),
+        {},
+        tuple(TIMES),
+        max_iterations=40,
+        tolerance=1e-10,
+    )
     solver = LevenbergMarquardt(problem)
     asked: set = set()
     accepted: list[tuple] = []
@@ -44,7 +50,11 @@ def run(schedule) -> tuple[LevenbergMarquardt, list[tuple], int, int]:
     return solver, accepted, len(asked), round_
 
 
-SCHEDULES = {"lazy": lambda r: False, "alternating": lambda r: r % 2 == 0, "every-third": lambda r: r % 3 == 1}
+SCHEDULES = {
+    "lazy": lambda r: False,
+    "alternating": lambda r: r % 2 == 0,
+    "every-third": lambda r: r % 3 == 1,
+}
 
 
 @pytest.mark.parametrize("name", SCHEDULES)
@@ -69,12 +79,20 @@ def test_asking_perturbations_later_changes_no_step_and_saves_the_rejected_ones(
 def test_a_point_asked_twice_in_one_sweep_runs_once_and_answers_both(tmp_path, dask_scheduler):
     """A fit or a screen may ask for one point twice in a round (the pair screen did, and the sweep raised
     KeyError on the chunk's key coming back twice): it is simulated once and both asks find its rows."""
-    space = load_space(write_msd_search(tmp_path, {"strategy": "given"}, cluster={"address": dask_scheduler},
-                                         chunk_seconds=0.001))  # a chunk per task
+    space = load_space(
+        write_msd_search(
+            tmp_path, {"strategy": "given"}, cluster={"address": dask_scheduler}, chunk_seconds=0.001
+        )
+    )  # a chunk per task
     p, q = {"msd.k": 12.0, "msd.c": 0.7}, {"msd.k": 14.0, "msd.c": 0.7}
     rows, _ = evaluate_points(space, [p, q, dict(p), p], None, ["position_rmse"], seconds_per_task=0.001)
-    assert {k: r["status"] for k, r in rows.items()} == {(key_of(p), "ringdown"): "ok", (key_of(q), "ringdown"): "ok"}
-    report = submit(space, points=[q, p, q], only=[{"ringdown"}] * 3)  # each in a chunk of its own, as a fit's rounds are
+    assert {k: r["status"] for k, r in rows.items()} == {
+        (key_of(p), "ringdown"): "ok",
+        (key_of(q), "ringdown"): "ok",
+    }
+    report = submit(
+        space, points=[q, p, q], only=[{"ringdown"}] * 3
+    )  # each in a chunk of its own, as a fit's rounds are
     assert (report.total, report.skipped) == (2, 2)
     stored = store.read_results(space.output, space.name, ["msd.k", "status"])
     assert sorted(stored["msd.k"]) == [12.0, 14.0] and stored["task_id"].is_unique

@@ -36,36 +36,51 @@ NOT_THE_LINE = ("dse-runner dashboard: ", "linked from Dask's dashboard: ", "Das
 
 def grid(folder: Path) -> Path:
     """Eight points of the sleeper on sin1, a task a chunk, on a local cluster of two workers."""
-    return write_space(folder, multimodel=str(sleeper_multimodel(folder)),
-                       scenarios=[str(SCENARIOS / "sin1")],
-                       parameters={"sleeper.pause": [PAUSE + k * 1e-5 for k in range(TASKS)]},
-                       keep_trajectories=0, chunk_seconds=0.05, cluster={"n_workers": 2})
+    return write_space(
+        folder,
+        multimodel=str(sleeper_multimodel(folder)),
+        scenarios=[str(SCENARIOS / "sin1")],
+        parameters={"sleeper.pause": [PAUSE + k * 1e-5 for k in range(TASKS)]},
+        keep_trajectories=0,
+        chunk_seconds=0.05,
+        cluster={"n_workers": 2},
+    )
 
 
 def search(folder: Path) -> Path:
     """A seeded random search of eight points over the sleeper's pause, on the same cluster."""
-    return write_yaml(folder, {
-        "name": "small",
-        "multimodel": str(sleeper_multimodel(folder)),
-        "scenarios": [str(SCENARIOS / "sin1")],
-        "parameters": {"sleeper.pause": {"low": PAUSE, "high": 1.1 * PAUSE}},
-        "search": {"strategy": "random", "max_points": TASKS, "seed": 1},
-        "output": str(folder / "out"),
-        "keep_trajectories": 0,
-        "cluster": {"n_workers": 2},
-    })
+    return write_yaml(
+        folder,
+        {
+            "name": "small",
+            "multimodel": str(sleeper_multimodel(folder)),
+            "scenarios": [str(SCENARIOS / "sin1")],
+            "parameters": {"sleeper.pause": {"low": PAUSE, "high": 1.1 * PAUSE}},
+            "search": {"strategy": "random", "max_points": TASKS, "seed": 1},
+            "output": str(folder / "out"),
+            "keep_trajectories": 0,
+            "cluster": {"n_workers": 2},
+        },
+    )
 
 
 def start(spec: Path, *options: str) -> subprocess.Popen:
     """``dse-runner submit`` in a session of its own: a process group of its own, as in a terminal, with Ctrl-C's
     signal at its default (a test runner's worker may ignore it, and an ignored SIGINT is inherited)."""
-    return subprocess.Popen([sys.executable, "-m", "dse_runner", "submit", str(spec), *options], cwd=REPO,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    return subprocess.Popen(
+        [sys.executable, "-m", "dse_runner", "submit", str(spec), *options],
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
 
 
-def ctrl_c_when(process: subprocess.Popen, ready: Callable[[], bool],
-                timeout: float = 300) -> tuple[str, str]:
+def ctrl_c_when(
+    process: subprocess.Popen, ready: Callable[[], bool], timeout: float = 300
+) -> tuple[str, str]:
     """Once ``ready()``, SIGINT to the process group, as Ctrl-C in a terminal; then its stdout and stderr."""
     deadline = time.monotonic() + timeout
     while not ready():
@@ -84,15 +99,21 @@ def the_one_line(stderr: str) -> str:
     """Ctrl-C's line. Besides it, stderr holds only the dashboards' addresses and the progress bar: no
     traceback and no error, from the client, a worker process or Dask's logging."""
     assert not re.search(r"traceback|error|exception|warning", stderr, re.IGNORECASE), stderr
-    lines = [line for line in stderr.splitlines()
-             if line.strip() and not line.startswith(NOT_THE_LINE) and "sim/s" not in line]
+    lines = [
+        line
+        for line in stderr.splitlines()
+        if line.strip() and not line.startswith(NOT_THE_LINE) and "sim/s" not in line
+    ]
     assert len(lines) == 1, stderr
     return lines[0]
 
 
 def counted(line: str) -> tuple[int, int]:
-    match = re.fullmatch(r"interrupted: (\d+) of (\d+) tasks have results in (.+); "
-                         r"run the same command again to finish the rest", line)
+    match = re.fullmatch(
+        r"interrupted: (\d+) of (\d+) tasks have results in (.+); "
+        r"run the same command again to finish the rest",
+        line,
+    )
     assert match, line
     return int(match[1]), int(match[2])
 
@@ -137,8 +158,14 @@ def interrupted(tmp_path_factory) -> Interrupted:
     kept = {p: p.stat().st_mtime_ns for p in results.rglob("part-*.parquet")}
     scratch = folder / "tmp"  # the second submission's temporary folder, and its workers'
     scratch.mkdir()
-    again = subprocess.run([sys.executable, "-m", "dse_runner", "submit", str(spec), "--json"], cwd=REPO,
-                           capture_output=True, text=True, timeout=600, env={**os.environ, "TMPDIR": str(scratch)})
+    again = subprocess.run(
+        [sys.executable, "-m", "dse_runner", "submit", str(spec), "--json"],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env={**os.environ, "TMPDIR": str(scratch)},
+    )
     return Interrupted(folder, first.returncode, out, err, on_disk, partial, kept, again, scratch)
 
 
@@ -209,8 +236,13 @@ def test_ctrl_c_mid_search_says_one_line_with_the_count_on_disk_and_a_rerun_goes
     done, budget = counted(the_one_line(err))
     assert done == rows(tmp_path) and 0 < done < budget == TASKS
 
-    second = subprocess.run([sys.executable, "-m", "dse_runner", "submit", str(spec), "--json"], cwd=REPO,
-                            capture_output=True, text=True, timeout=600)
+    second = subprocess.run(
+        [sys.executable, "-m", "dse_runner", "submit", str(spec), "--json"],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert second.returncode == 0, second.stderr
     found = strict_loads(second.stdout)["search"]
     assert (found["points"], found["reused"], found["stopped"]) == (TASKS, done, "budget")

@@ -87,8 +87,12 @@ STRATEGIES = [
 
 
 @pytest.mark.parametrize("name, budget, options, tolerance", STRATEGIES, ids=[s[0] for s in STRATEGIES])
-def test_each_strategy_finds_the_calibrations_optimum(tmp_path, dask_scheduler, name, budget, options, tolerance):
-    space = load_space(msd_space(tmp_path, {"strategy": name, "max_points": budget, **options}, dask_scheduler))
+def test_each_strategy_finds_the_calibrations_optimum(
+    tmp_path, dask_scheduler, name, budget, options, tolerance
+):
+    space = load_space(
+        msd_space(tmp_path, {"strategy": name, "max_points": budget, **options}, dask_scheduler)
+    )
     report = submit(space)
     search = report.search
     assert (search.failed, search.infeasible, report.failed) == (0, 0, 0), report.errors
@@ -120,12 +124,19 @@ def test_each_strategy_finds_the_calibrations_optimum(tmp_path, dask_scheduler, 
 
 # ---- several objectives -----------------------------------------------------------------------------
 
+
 def test_nsga2_returns_a_pareto_front_of_the_two_objectives(tmp_path, dask_scheduler):
     """Fitting the recording (c near 0.8) and ringing little (c high) conflict: the front trades them."""
-    path = msd_space(tmp_path, {"strategy": "nsga2", "max_points": 40, "population_size": 10}, dask_scheduler,
-                     objectives={"position_rmse": {"signal": "msd.x", "recorded": "x", "metric": "rmse"},
-                                 "ringing": {"signal": "msd.x", "reduce": "rms"}},
-                     ranking={"pareto": ["position_rmse", "ringing"]})
+    path = msd_space(
+        tmp_path,
+        {"strategy": "nsga2", "max_points": 40, "population_size": 10},
+        dask_scheduler,
+        objectives={
+            "position_rmse": {"signal": "msd.x", "recorded": "x", "metric": "rmse"},
+            "ringing": {"signal": "msd.x", "reduce": "rms"},
+        },
+        ranking={"pareto": ["position_rmse", "ringing"]},
+    )
     space = load_space(path)
     report = submit(space)
     assert (report.search.points, report.search.stopped, report.failed) == (40, "budget", 0)
@@ -144,6 +155,7 @@ def test_nsga2_returns_a_pareto_front_of_the_two_objectives(tmp_path, dask_sched
 
 # ---- resume -----------------------------------------------------------------------------------------
 
+
 def asked_points(space) -> list[tuple[float, float]]:
     history = load_history(space.output, space.name)
     return [(p.point["msd.k"], p.point["msd.c"]) for p in history.points]
@@ -151,18 +163,33 @@ def asked_points(space) -> list[tuple[float, float]]:
 
 # Reproducible (the default, 4 points asked ahead): the same points whatever the timing. Asynchronous: only with
 # batch 1 is there one ask/tell order, so that the search in one go asks the same points.
-@pytest.mark.parametrize("order, batch", [("reproducible", {}), ("asynchronous", {"batch": 1})],
-                         ids=["reproducible", "asynchronous"])
-def test_a_larger_budget_replays_the_search_and_simulates_only_new_points(tmp_path, dask_scheduler, order, batch):
+@pytest.mark.parametrize(
+    "order, batch",
+    [("reproducible", {}), ("asynchronous", {"batch": 1})],
+    ids=["reproducible", "asynchronous"],
+)
+def test_a_larger_budget_replays_the_search_and_simulates_only_new_points(
+    tmp_path, dask_scheduler, order, batch
+):
     search = {"strategy": "tpe", "seed": 7, "order": order, **batch, "n_startup_trials": 5}
     first = load_space(msd_space(tmp_path / "resumed", {**search, "max_points": 8}, dask_scheduler))
     report = submit(first)
-    assert (report.ran, report.search.points, report.search.reused, report.search.replayed) == (8, 8, 0, False)
+    assert (report.ran, report.search.points, report.search.reused, report.search.replayed) == (
+        8,
+        8,
+        0,
+        False,
+    )
 
     more = load_space(msd_space(tmp_path / "resumed", {**search, "max_points": 20}, dask_scheduler))
     report = submit(more)
     assert report.search.replayed and not report.search.notes
-    assert (report.ran, report.search.points, report.search.reused, report.search.stopped) == (12, 20, 8, "budget")
+    assert (report.ran, report.search.points, report.search.reused, report.search.stopped) == (
+        12,
+        20,
+        8,
+        "budget",
+    )
     assert len(results(more)) == 20
 
     # The same search in one go, in another store, asks the very same points in the same order.
@@ -172,8 +199,10 @@ def test_a_larger_budget_replays_the_search_and_simulates_only_new_points(tmp_pa
     assert asked_points(more) == asked_points(fresh)
     resumed_rows = results(more, "position_rmse").sort_values("task_id").reset_index(drop=True)
     fresh_rows = results(fresh, "position_rmse").sort_values("task_id").reset_index(drop=True)
-    pd.testing.assert_frame_equal(resumed_rows[["task_id", "msd.k", "msd.c", "position_rmse"]],
-                                  fresh_rows[["task_id", "msd.k", "msd.c", "position_rmse"]])
+    pd.testing.assert_frame_equal(
+        resumed_rows[["task_id", "msd.k", "msd.c", "position_rmse"]],
+        fresh_rows[["task_id", "msd.k", "msd.c", "position_rmse"]],
+    )
     assert (report.search.best, report.search.best_point) == (once.search.best, once.search.best_point)
 
     # The same budget again: everything is replayed, nothing simulated, no row written, and the status (what
@@ -200,8 +229,11 @@ def timed_space(folder: Path, search: dict, cluster: dict) -> Path:
         "name": "timed",
         "multimodel": {"fmus": {"cliff": str(CLIFF), "sleeper": str(SLEEPER)}},
         "experiment": {"stop_time": 1, "step": 0.1},
-        "parameters": {"cliff.a": {"low": 0, "high": 6}, "cliff.b": {"low": 0, "high": 2},
-                       "sleeper.pause": {"low": 0, "high": 0.05}},
+        "parameters": {
+            "cliff.a": {"low": 0, "high": 6},
+            "cliff.b": {"low": 0, "high": 2},
+            "sleeper.pause": {"low": 0, "high": 0.05},
+        },
         "objectives": {"y": {"signal": "cliff.y", "reduce": "final"}},
         "search": {"seed": 11, "max_points": 20, **search},
         "output": str(folder / "out"),
@@ -217,11 +249,15 @@ def test_a_seeded_search_asks_the_same_points_whatever_the_workers_timing(tmp_pa
     0 .. n - BATCH: on the test cluster's two workers and on a local cluster of three that the spec starts, whose
     points finish in other orders, the same seed and spec ask the same points and are told the same results."""
     search = {"strategy": name, "n_startup_trials": 4, "max_points": 14}
-    spaces = [load_space(timed_space(tmp_path / "two", search, {"address": dask_scheduler})),
-              load_space(timed_space(tmp_path / "three", search, {"n_workers": 3}))]
+    spaces = [
+        load_space(timed_space(tmp_path / "two", search, {"address": dask_scheduler})),
+        load_space(timed_space(tmp_path / "three", search, {"n_workers": 3})),
+    ]
     reports = [submit(space) for space in spaces]
     assert [(r.workers, r.search.points, r.search.stopped, r.failed) for r in reports] == [
-        (2, 14, "budget", 0), (3, 14, "budget", 0)]
+        (2, 14, "budget", 0),
+        (3, 14, "budget", 0),
+    ]
 
     histories = [load_history(space.output, space.name).points for space in spaces]
     for history in histories:
@@ -238,7 +274,9 @@ def test_a_seeded_search_asks_the_same_points_whatever_the_workers_timing(tmp_pa
 def test_the_asynchronous_order_tells_each_result_as_it_comes(tmp_path, dask_scheduler):
     """order: asynchronous keeps the cluster's threads + 1 points in flight and tells each result when it comes:
     points that take less time are told before points asked earlier."""
-    space = load_space(timed_space(tmp_path, {"strategy": "tpe", "order": "asynchronous"}, {"address": dask_scheduler}))
+    space = load_space(
+        timed_space(tmp_path, {"strategy": "tpe", "order": "asynchronous"}, {"address": dask_scheduler})
+    )
     report = submit(space)
     assert (report.search.points, report.search.stopped, report.failed) == (20, "budget", 0)
     history = load_history(space.output, space.name).points
@@ -260,8 +298,9 @@ CONSTRAINT = "msd.k * msd.c <= 15"  # cuts off about half the box; the truth (11
 
 @pytest.mark.parametrize("name", ["tpe", "random"])
 def test_constraints_are_never_violated(tmp_path, dask_scheduler, name):
-    space = load_space(msd_space(tmp_path, {"strategy": name, "max_points": 30}, dask_scheduler,
-                                 constraints=[CONSTRAINT]))
+    space = load_space(
+        msd_space(tmp_path, {"strategy": name, "max_points": 30}, dask_scheduler, constraints=[CONSTRAINT])
+    )
     report = submit(space)
     search = report.search
     rows = results(space)
@@ -283,22 +322,30 @@ def test_objective_constraints_steer_the_search_and_its_best(tmp_path, dask_sche
     """A ranking constraint on the objectives (here: keep out of a disc of radius 1 around the free optimum
     y = 0) is told to constrained strategies, and the search's best is the best point that keeps it."""
     options = {"population": 10} if name == "genetic" else {}
-    space = load_space(cliff_space(tmp_path, {"strategy": name, "max_points": 40, "seed": 3, **options},
-                                   dask_scheduler, parameters={"cliff.a": {"low": 0, "high": 6},
-                                                               "cliff.b": {"low": 0, "high": 2}},
-                                   ranking={"objective": "y", "constraints": ["y >= 1"]}))
+    space = load_space(
+        cliff_space(
+            tmp_path,
+            {"strategy": name, "max_points": 40, "seed": 3, **options},
+            dask_scheduler,
+            parameters={"cliff.a": {"low": 0, "high": 6}, "cliff.b": {"low": 0, "high": 2}},
+            ranking={"objective": "y", "constraints": ["y >= 1"]},
+        )
+    )
     search = submit(space).search
     rows = results(space, "y")
     kept = rows[rows["y"] >= 1]
     assert search.best == kept["y"].min() and search.best >= 1  # never the free optimum
     assert (rows["y"] < 1).any() or name == "genetic"  # TPE does try inside the disc ...
-    told = sorted((p for p in load_history(space.output, space.name).points if p.state == "ok"), key=lambda p: p.told)
-    late = told[len(told) // 2:]
+    told = sorted(
+        (p for p in load_history(space.output, space.name).points if p.state == "ok"), key=lambda p: p.told
+    )
+    late = told[len(told) // 2 :]
     assert sum(p.values["y"] >= 1 for p in late) >= 0.6 * len(late)  # ... and learns to keep out of it
     assert search.best < 1.6  # near the disc's edge: the constrained optimum is 1
 
 
 # ---- failed simulations -----------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("name", ["tpe", "genetic", "random"])
 def test_failed_simulations_are_told_and_the_search_goes_on(tmp_path, dask_scheduler, name):
@@ -325,8 +372,14 @@ def test_points_asked_again_are_simulated_once_even_while_they_run(tmp_path, das
     """On a list of three values TPE keeps asking the same points, also while an equal one is in flight
     (three at a time): each is simulated once, the repeats are told its result and do not use the budget,
     and the search stops once it has had as many repeats as its budget."""
-    space = load_space(cliff_space(tmp_path, {"strategy": "tpe", "max_points": 12, "batch": 3}, dask_scheduler,
-                                   parameters={"cliff.a": [2.0, 3.0, 8.0], "cliff.b": [1.0]}))
+    space = load_space(
+        cliff_space(
+            tmp_path,
+            {"strategy": "tpe", "max_points": 12, "batch": 3},
+            dask_scheduler,
+            parameters={"cliff.a": [2.0, 3.0, 8.0], "cliff.b": [1.0]},
+        )
+    )
     report = submit(space)
     search = report.search
     assert (search.points, search.failed, search.stopped) == (3, 1, "repeats") and search.repeats >= 12
@@ -340,18 +393,45 @@ def test_points_asked_again_are_simulated_once_even_while_they_run(tmp_path, das
 
 # ---- spec errors ------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("search, changes, message", [
-    ({"strategy": "genetic", "populaton": 10}, {}, r"search\.populaton: extra inputs are not permitted"),
-    ({"strategy": "nsga2"}, {}, r"search: nsga2 optimises several objectives: list two or more under ranking\.pareto"),
-    ({"strategy": "gp", "acquisition_samples": 0}, {},
-     r"search: GPSampler refuses the options acquisition_samples=0: acquisition_samples and local_searches must be"),
-    ({"strategy": "least_squares"}, {"objectives": {"position_rmse": {"signal": "msd.x", "recorded": "x"}}},
-     r"search: least_squares fits a vector objective"),
-    ({"strategy": "least_squares"}, {"parameters": {"msd.k": {"low": 5, "high": 25, "integer": True},
-                                                    "msd.c": {"start": 0.2, "stop": 2.0, "step": 0.2}}},
-     r"search: least_squares moves every parameter continuously; msd\.k, msd\.c takes only whole numbers"),
-], ids=["genetic-option", "nsga2-without-pareto", "gp-effort", "least-squares-without-residuals",
-        "least-squares-on-steps"])
+
+@pytest.mark.parametrize(
+    "search, changes, message",
+    [
+        ({"strategy": "genetic", "populaton": 10}, {}, r"search\.populaton: extra inputs are not permitted"),
+        (
+            {"strategy": "nsga2"},
+            {},
+            r"search: nsga2 optimises several objectives: list two or more under ranking\.pareto",
+        ),
+        (
+            {"strategy": "gp", "acquisition_samples": 0},
+            {},
+            r"search: GPSampler refuses the options acquisition_samples=0: acquisition_samples and local_searches must be",
+        ),
+        (
+            {"strategy": "least_squares"},
+            {"objectives": {"position_rmse": {"signal": "msd.x", "recorded": "x"}}},
+            r"search: least_squares fits a vector objective",
+        ),
+        (
+            {"strategy": "least_squares"},
+            {
+                "parameters": {
+                    "msd.k": {"low": 5, "high": 25, "integer": True},
+                    "msd.c": {"start": 0.2, "stop": 2.0, "step": 0.2},
+                }
+            },
+            r"search: least_squares moves every parameter continuously; msd\.k, msd\.c takes only whole numbers",
+        ),
+    ],
+    ids=[
+        "genetic-option",
+        "nsga2-without-pareto",
+        "gp-effort",
+        "least-squares-without-residuals",
+        "least-squares-on-steps",
+    ],
+)
 def test_search_spec_errors_are_found_when_the_spec_loads(tmp_path, search, changes, message):
     path = msd_space(tmp_path, search, "tcp://127.0.0.1:1", **changes)  # no cluster is reached
     with pytest.raises(DseError, match=message) as error:
@@ -361,10 +441,16 @@ def test_search_spec_errors_are_found_when_the_spec_loads(tmp_path, search, chan
 
 # ---- the command line -------------------------------------------------------------------------------
 
+
 def test_submit_json_reports_the_search(tmp_path, dask_scheduler):
     path = msd_space(tmp_path, {"strategy": "least_squares", "max_points": 40}, dask_scheduler)
-    done = subprocess.run([sys.executable, "-m", "dse_runner", "submit", str(path), "--no-dashboard", "--json"],
-                          check=False, capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [sys.executable, "-m", "dse_runner", "submit", str(path), "--no-dashboard", "--json"],
+        check=False,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stderr
     summary = strict_loads(done.stdout)
     search = summary["search"]

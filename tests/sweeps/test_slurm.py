@@ -87,10 +87,17 @@ def test_a_cancelled_worker_job_is_replaced(tmp_path, slurm, no_job_left):
     """scancel of one of two worker jobs mid-sweep: another job is submitted in its place, its worker
     joins, and the sweep ends with every row exactly once."""
     # a sleeper FMU: ~1 s a simulation that sleeps rather than computes, 36 of them in one-task chunks
-    space = load_space(write_space(
-        tmp_path, multimodel=str(sleeper_multimodel(tmp_path)), scenarios=[str(SCENARIOS / "*")],
-        parameters={"sleeper.pause": [0.0005, 0.0006, 0.0007]}, keep_trajectories=0, chunk_seconds=0.5,
-        cluster={"kind": "slurm", "n_workers": 2, "slurm": slurm_block(tmp_path)}))
+    space = load_space(
+        write_space(
+            tmp_path,
+            multimodel=str(sleeper_multimodel(tmp_path)),
+            scenarios=[str(SCENARIOS / "*")],
+            parameters={"sleeper.pause": [0.0005, 0.0006, 0.0007]},
+            keep_trajectories=0,
+            chunk_seconds=0.5,
+            cluster={"kind": "slurm", "n_workers": 2, "slurm": slurm_block(tmp_path)},
+        )
+    )
     before = set(slurm.ever())
     cancelled: list[str] = []
 
@@ -100,7 +107,9 @@ def test_a_cancelled_worker_job_is_replaced(tmp_path, slurm, no_job_left):
             slurm.cancel(running[0])
             cancelled.append(running[0])
 
-    with dask.config.set({"distributed.deploy.lost-worker-timeout": "2s"}):  # how long a job's workers may be gone
+    with dask.config.set(
+        {"distributed.deploy.lost-worker-timeout": "2s"}
+    ):  # how long a job's workers may be gone
         report = submit(space, progress=cancel_one)
     assert cancelled, "the sweep ended before a job could be cancelled"
     assert (report.ok, report.failed) == (36, 0), report.errors
@@ -117,19 +126,28 @@ def test_a_cancelled_worker_job_is_replaced(tmp_path, slurm, no_job_left):
 def test_a_job_slurm_refuses_stops_the_submit_with_slurms_reason(tmp_path, slurm, no_job_left):
     """More memory than the node has: sbatch refuses the job, and `submit` says so in one line within a
     minute (not after its 30-minute queue wait), exits non-zero, and keeps the rows it had."""
-    done = load_space(write_space(tmp_path, parameters={"vehicle.cAlphaF": [20000], "vehicle.mass": [1000, 2000]},
-                                  cluster={"n_workers": 1}))
+    done = load_space(
+        write_space(
+            tmp_path,
+            parameters={"vehicle.cAlphaF": [20000], "vehicle.mass": [1000, 2000]},
+            cluster={"n_workers": 1},
+        )
+    )
     assert submit(done).ok == 4  # finished earlier on the local cluster
     kept = set(raw_task_ids(done.output))
-    spec = write_space(tmp_path, cluster={"kind": "slurm", "n_workers": 2,
-                                          "slurm": slurm_block(tmp_path, memory="100000GiB")})
+    spec = write_space(
+        tmp_path,
+        cluster={"kind": "slurm", "n_workers": 2, "slurm": slurm_block(tmp_path, memory="100000GiB")},
+    )
     started = time.monotonic()
     result = dse_runner("submit", spec, "--no-dashboard")
     assert time.monotonic() - started < 60
     assert result.returncode == 2, result.stderr
     errors = [line for line in result.stderr.splitlines() if line.startswith("error:")]
-    assert errors == ["error: Slurm refused a worker job: Memory specification can not be satisfied; Batch job "
-                      "submission failed: Requested node configuration is not available"], result.stderr
+    assert errors == [
+        "error: Slurm refused a worker job: Memory specification can not be satisfied; Batch job "
+        "submission failed: Requested node configuration is not available"
+    ], result.stderr
     assert "Traceback" not in result.stderr
     assert set(raw_task_ids(done.output)) == kept  # nothing lost, nothing added
     assert load_status(done.output, "small").state == "failed"
@@ -138,10 +156,17 @@ def test_a_job_slurm_refuses_stops_the_submit_with_slurms_reason(tmp_path, slurm
 def test_a_refused_replacement_stops_the_sweep_and_keeps_its_rows(tmp_path, slurm, no_job_left):
     """Mid-sweep, a job ends and Slurm refuses its replacement (the partition was made inactive): the sweep
     stops with Slurm's words, and every chunk that finished is in the store, once."""
-    space = load_space(write_space(
-        tmp_path, multimodel=str(sleeper_multimodel(tmp_path)), scenarios=[str(SCENARIOS / "*")],
-        parameters={"sleeper.pause": [0.0005, 0.0006, 0.0007]}, keep_trajectories=0, chunk_seconds=0.5,
-        cluster={"kind": "slurm", "n_workers": 2, "slurm": slurm_block(tmp_path)}))
+    space = load_space(
+        write_space(
+            tmp_path,
+            multimodel=str(sleeper_multimodel(tmp_path)),
+            scenarios=[str(SCENARIOS / "*")],
+            parameters={"sleeper.pause": [0.0005, 0.0006, 0.0007]},
+            keep_trajectories=0,
+            chunk_seconds=0.5,
+            cluster={"kind": "slurm", "n_workers": 2, "slurm": slurm_block(tmp_path)},
+        )
+    )
     closed: list[str] = []
 
     def close_the_partition(report) -> None:
@@ -153,7 +178,9 @@ def test_a_refused_replacement_stops_the_sweep_and_keeps_its_rows(tmp_path, slur
 
     try:
         with dask.config.set({"distributed.deploy.lost-worker-timeout": "2s"}):
-            with pytest.raises(DseError, match=r"^Slurm refused a worker job: .*Required partition not available"):
+            with pytest.raises(
+                DseError, match=r"^Slurm refused a worker job: .*Required partition not available"
+            ):
                 submit(space, progress=close_the_partition)
     finally:
         slurm.run("scontrol", "update", "PartitionName=debug", "State=UP")
@@ -184,6 +211,8 @@ def test_adaptive_scaling_starts_jobs_for_waiting_tasks_and_gives_them_back(tmp_
         del futures  # Dask keeps a worker that holds results the client still refers to
         deadline = time.monotonic() + 60
         while slurm.jobs():  # the queue is empty: adapt retires the workers and their jobs are cancelled
-            assert time.monotonic() < deadline, f"jobs still held 60 s after the queue emptied: {slurm.jobs()}"
+            assert time.monotonic() < deadline, (
+                f"jobs still held 60 s after the queue emptied: {slurm.jobs()}"
+            )
             time.sleep(0.5)
         assert not client.scheduler_info()["workers"]

@@ -26,16 +26,24 @@ def test_the_papers_grid():
 
 
 def test_ranges_counts_and_logs(tmp_path):
-    space = load_space(write_space(tmp_path, parameters={
-        "vehicle.mass": {"start": 1000, "stop": 2000, "num": 3},
-        "vehicle.cAlphaF": {"start": 1000, "stop": 100000, "num": 3, "log": True},
-        "vehicle.mu": [0.5]}))
+    space = load_space(
+        write_space(
+            tmp_path,
+            parameters={
+                "vehicle.mass": {"start": 1000, "stop": 2000, "num": 3},
+                "vehicle.cAlphaF": {"start": 1000, "stop": 100000, "num": 3, "log": True},
+                "vehicle.mu": [0.5],
+            },
+        )
+    )
     assert space.parameters["vehicle.mass"] == [1000.0, 1500.0, 2000.0]
     assert space.parameters["vehicle.cAlphaF"] == pytest.approx([1000.0, 10000.0, 100000.0])
 
 
 def test_constraints_filter_points(tmp_path):
-    space = load_space(write_space(tmp_path, constraints=["vehicle.mass / 1000 < 2.5 and vehicle.cAlphaF > 20000"]))
+    space = load_space(
+        write_space(tmp_path, constraints=["vehicle.mass / 1000 < 2.5 and vehicle.cAlphaF > 20000"])
+    )
     points = {dict(t.point)["vehicle.mass"] for t in expand(space)}
     assert points == {1000.0, 2000.0}
     assert sum(1 for _ in expand(space)) == 4  # 2 points x 2 scenarios
@@ -64,9 +72,13 @@ def test_task_ids_are_stable_and_follow_the_data(tmp_path):
 
 
 def test_variants_run_each_folder_once_per_parameter_set(tmp_path):
-    plants = [{"name": "light", "parameters": {"vehicle.mass": 1200}},
-              {"name": "heavy", "parameters": {"vehicle.mass": 2500, "vehicle.mu": 0.4}}]
-    space = load_space(write_space(tmp_path, scenarios=[{"path": str(SCENARIOS / "sin1"), "variants": plants}]))
+    plants = [
+        {"name": "light", "parameters": {"vehicle.mass": 1200}},
+        {"name": "heavy", "parameters": {"vehicle.mass": 2500, "vehicle.mu": 0.4}},
+    ]
+    space = load_space(
+        write_space(tmp_path, scenarios=[{"path": str(SCENARIOS / "sin1"), "variants": plants}])
+    )
     by_name = {s.name: s for s in space.scenarios}
     assert sorted(by_name) == ["sin1-heavy", "sin1-light"]
     assert by_name["sin1-heavy"].parameters == {"vehicle.mass": 2500, "vehicle.mu": 0.4}
@@ -78,46 +90,87 @@ def test_variants_run_each_folder_once_per_parameter_set(tmp_path):
 
 def test_a_variant_naming_an_unknown_variable_names_it(tmp_path):
     plants = [{"name": "typo", "parameters": {"vehicle.mas": 1200}}]
-    with pytest.raises(DseError, match=r"scenario sin1-typo: parameters: unknown variable 'vehicle\.mas'.*did you mean mass"):
+    with pytest.raises(
+        DseError, match=r"scenario sin1-typo: parameters: unknown variable 'vehicle\.mas'.*did you mean mass"
+    ):
         load_space(write_space(tmp_path, scenarios=[{"path": str(SCENARIOS / "sin1"), "variants": plants}]))
 
 
-@pytest.mark.parametrize("changes, message", [
-    ({"paramters": {}}, r"space\.yaml: paramters: Extra inputs are not permitted"),
-    ({"parameters": {"vehicle.mass": {"start": 1, "stop": 2, "step": 1, "num": 2}}},
-     r"space\.yaml: parameters\.vehicle\.mass\..*exactly one of 'step' or 'num'"),
-    ({"parameters": {"vehicle.mass": {"start": 3, "stop": 2, "num": 2}}}, r"'stop' must not be below 'start'"),
-    ({"scenarios": ["nowhere/*"]}, r"space\.yaml: scenarios\.0\.path: 'nowhere/\*' matches no folder"),
-    ({"parameters": {"vehicle.masss": [1]}}, r"space\.yaml: parameters: unknown variable 'vehicle\.masss'.*mass"),
-    ({"parameters": {"vehicle.x": [1]}}, r"'vehicle\.x' is an output"),
-    ({"constraints": ["__import__('os').system('true')"]}, r"constraints\.0: .*Call .* is not allowed"),
-    ({"constraints": ["vehicle.mu > 0.3"]}, r"'vehicle\.mu' is not a swept parameter"),
-    ({"objectives": ["cross_track_eror"]}, r"unknown objective 'cross_track_eror'"),
-    ({"ranking": {"objective": "max_error"}, "objectives": ["cross_track_error"]},
-     r"ranking uses objective 'max_error', which 'objectives' does not list"),
-    ({"search": {"strategy": "simulated_annealing"}},
-     r"unknown search strategy 'simulated_annealing': available are cmaes, exhaustive, fast, genetic"),
-    ({"parameters": {"vehicle.mass": {"low": 1000, "high": 3000}}},
-     r"search: exhaustive needs a list or a grid .* vehicle\.mass is an interval"),
-    ({"search": {"strategy": "tpe", "n_startup": 3}},
-     r"search\.n_startup: TPESampler has no option 'n_startup' \(it takes .*n_startup_trials"),
-    ({"parameters": {"vehicle.mass": {"low": 3000, "high": 1000}}},
-     r"parameters\.vehicle\.mass\.interval: 'high' must be above 'low'"),
-    ({"name": "a b"}, r"space\.yaml: name: String should match pattern"),
-    # a union's wrong value is judged by the member its shape picks: that member's messages only
-    ({"ranking": {"pareto": [{"objective": "max_error", "goal": "maxx"}]}},
-     r"space\.yaml: ranking\.pareto\.0\.mapping\.goal: Input should be 'min' or 'max'$"),
-    ({"scenarios": [{"path": "runs/*", "variants": [{"name": "a", "parametrs": {}}]}]},
-     r"space\.yaml: scenarios\.0\.source\.variants\.list\.0\.parameters: Field required; "
-     r"scenarios\.0\.source\.variants\.list\.0\.parametrs: Extra inputs are not permitted$"),
-    ({"parameters": {"vehicle.mass": [1800, {"kg": 2000}]}},
-     r"space\.yaml: parameters\.vehicle\.mass\.values\.1: expected a number, a Boolean or a string, not a mapping$"),
-    ({"parameters": {"vehicle.mass": [None]}}, r"space\.yaml: parameters\.vehicle\.mass\.values\.0: no value given$"),
-    ({"scenarios": [{"name": "s", "inputs": {"controller.steering": {"csv": "a.csv", "colum": "q"}},
-                     "recorded": {"csv": "r.csv", "tme": "t"}}]},
-     r"space\.yaml: scenarios\.0\.inline\.inputs\.controller\.steering\.mapping\.colum: Extra inputs are not "
-     r"permitted; scenarios\.0\.inline\.recorded\.mapping\.tme: Extra inputs are not permitted$"),
-])
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        ({"paramters": {}}, r"space\.yaml: paramters: Extra inputs are not permitted"),
+        (
+            {"parameters": {"vehicle.mass": {"start": 1, "stop": 2, "step": 1, "num": 2}}},
+            r"space\.yaml: parameters\.vehicle\.mass\..*exactly one of 'step' or 'num'",
+        ),
+        (
+            {"parameters": {"vehicle.mass": {"start": 3, "stop": 2, "num": 2}}},
+            r"'stop' must not be below 'start'",
+        ),
+        ({"scenarios": ["nowhere/*"]}, r"space\.yaml: scenarios\.0\.path: 'nowhere/\*' matches no folder"),
+        (
+            {"parameters": {"vehicle.masss": [1]}},
+            r"space\.yaml: parameters: unknown variable 'vehicle\.masss'.*mass",
+        ),
+        ({"parameters": {"vehicle.x": [1]}}, r"'vehicle\.x' is an output"),
+        ({"constraints": ["__import__('os').system('true')"]}, r"constraints\.0: .*Call .* is not allowed"),
+        ({"constraints": ["vehicle.mu > 0.3"]}, r"'vehicle\.mu' is not a swept parameter"),
+        ({"objectives": ["cross_track_eror"]}, r"unknown objective 'cross_track_eror'"),
+        (
+            {"ranking": {"objective": "max_error"}, "objectives": ["cross_track_error"]},
+            r"ranking uses objective 'max_error', which 'objectives' does not list",
+        ),
+        (
+            {"search": {"strategy": "simulated_annealing"}},
+            r"unknown search strategy 'simulated_annealing': available are cmaes, exhaustive, fast, genetic",
+        ),
+        (
+            {"parameters": {"vehicle.mass": {"low": 1000, "high": 3000}}},
+            r"search: exhaustive needs a list or a grid .* vehicle\.mass is an interval",
+        ),
+        (
+            {"search": {"strategy": "tpe", "n_startup": 3}},
+            r"search\.n_startup: TPESampler has no option 'n_startup' \(it takes .*n_startup_trials",
+        ),
+        (
+            {"parameters": {"vehicle.mass": {"low": 3000, "high": 1000}}},
+            r"parameters\.vehicle\.mass\.interval: 'high' must be above 'low'",
+        ),
+        ({"name": "a b"}, r"space\.yaml: name: String should match pattern"),
+        # a union's wrong value is judged by the member its shape picks: that member's messages only
+        (
+            {"ranking": {"pareto": [{"objective": "max_error", "goal": "maxx"}]}},
+            r"space\.yaml: ranking\.pareto\.0\.mapping\.goal: Input should be 'min' or 'max'$",
+        ),
+        (
+            {"scenarios": [{"path": "runs/*", "variants": [{"name": "a", "parametrs": {}}]}]},
+            r"space\.yaml: scenarios\.0\.source\.variants\.list\.0\.parameters: Field required; "
+            r"scenarios\.0\.source\.variants\.list\.0\.parametrs: Extra inputs are not permitted$",
+        ),
+        (
+            {"parameters": {"vehicle.mass": [1800, {"kg": 2000}]}},
+            r"space\.yaml: parameters\.vehicle\.mass\.values\.1: expected a number, a Boolean or a string, not a mapping$",
+        ),
+        (
+            {"parameters": {"vehicle.mass": [None]}},
+            r"space\.yaml: parameters\.vehicle\.mass\.values\.0: no value given$",
+        ),
+        (
+            {
+                "scenarios": [
+                    {
+                        "name": "s",
+                        "inputs": {"controller.steering": {"csv": "a.csv", "colum": "q"}},
+                        "recorded": {"csv": "r.csv", "tme": "t"},
+                    }
+                ]
+            },
+            r"space\.yaml: scenarios\.0\.inline\.inputs\.controller\.steering\.mapping\.colum: Extra inputs are not "
+            r"permitted; scenarios\.0\.inline\.recorded\.mapping\.tme: Extra inputs are not permitted$",
+        ),
+    ],
+)
 def test_bad_specs_name_file_key_and_reason(tmp_path, changes, message):
     with pytest.raises(DseError, match=message):
         load_space(write_space(tmp_path, **changes))
@@ -153,9 +206,13 @@ def test_a_space_names_an_fmu_as_simulate_does_and_a_file_that_is_no_model_is_na
 
     fmu = tmp_path / "VanDerPol.fmu"
     shutil.copyfile(build_fmu(REPO / "tests" / "fmus" / "vdp_me"), fmu)
-    spec = {"name": "vdp", "multimodel": "VanDerPol.fmu", "experiment": {"stop_time": 2.0, "step": 0.1},
-            "parameters": {"VanDerPol.mu": [0.5, 1.5]}, "objectives": {"x_end": {"signal": "VanDerPol.x0",
-                                                                                   "reduce": "final"}}}
+    spec = {
+        "name": "vdp",
+        "multimodel": "VanDerPol.fmu",
+        "experiment": {"stop_time": 2.0, "step": 0.1},
+        "parameters": {"VanDerPol.mu": [0.5, 1.5]},
+        "objectives": {"x_end": {"signal": "VanDerPol.x0", "reduce": "final"}},
+    }
     (tmp_path / "space.yaml").write_text(yaml.safe_dump(spec))
     space = load_space(tmp_path / "space.yaml")
     assert list(space.plan.variables) == ["VanDerPol"] and space.parameters["VanDerPol.mu"] == [0.5, 1.5]
@@ -163,5 +220,7 @@ def test_a_space_names_an_fmu_as_simulate_does_and_a_file_that_is_no_model_is_na
     assert direct.values["VanDerPol.mu"] == 1.5  # the space's names are simulate's
     (tmp_path / "binary.yaml").write_bytes(fmu.read_bytes())
     (tmp_path / "space.yaml").write_text(yaml.safe_dump({**spec, "multimodel": "binary.yaml"}))
-    with pytest.raises(DseError, match=r"binary.yaml: not a multi-model: it is not text \(a model is an .fmu file"):
+    with pytest.raises(
+        DseError, match=r"binary.yaml: not a multi-model: it is not text \(a model is an .fmu file"
+    ):
         load_space(tmp_path / "space.yaml")

@@ -40,14 +40,27 @@ def test_every_available_strategy_holds_to_the_contract():
 
 
 def test_a_strategy_with_only_ask_runs_a_search(tmp_path, monkeypatch, dask_scheduler):
-    register(monkeypatch, tmp_path / "plugin", "fixed_strategy_plugin", FIXED,
-             {"dse_runner.search": {"fixed": "fixed_strategy_plugin:Fixed"}})
-    space = load_space(write_msd_search(tmp_path / "run", {"strategy": "fixed", "max_points": 10},
-                                        cluster={"address": dask_scheduler}))
+    register(
+        monkeypatch,
+        tmp_path / "plugin",
+        "fixed_strategy_plugin",
+        FIXED,
+        {"dse_runner.search": {"fixed": "fixed_strategy_plugin:Fixed"}},
+    )
+    space = load_space(
+        write_msd_search(
+            tmp_path / "run", {"strategy": "fixed", "max_points": 10}, cluster={"address": dask_scheduler}
+        )
+    )
     report = submit(space)
-    assert (report.search.points, report.search.stopped) == (3, "strategy")  # None with nothing in flight: done
+    assert (report.search.points, report.search.stopped) == (
+        3,
+        "strategy",
+    )  # None with nothing in flight: done
     assert (report.ok, report.failed) == (3, 0)
     assert report.search.best_point == {"msd.k": 14.0, "msd.c": 0.8}  # the truth is among them
 
-    with pytest.raises(DseError, match=r"search\.population: extra inputs are not permitted \(an option of Fixed\)"):
+    with pytest.raises(
+        DseError, match=r"search\.population: extra inputs are not permitted \(an option of Fixed\)"
+    ):
         load_space(write_msd_search(tmp_path / "bad", {"strategy": "fixed", "population": 4}))

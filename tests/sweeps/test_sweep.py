@@ -23,8 +23,10 @@ def test_rows_equal_direct_simulations(tmp_path, dask_scheduler, plan):
     space = load_space(write_space(tmp_path, cluster={"address": dask_scheduler}))
     # Every worker loads the model first (a sweep probes on each), so that neither is still busy loading when
     # the chunks go out: a worker of a fresh cluster could take longer to do so than the other takes for all 12.
-    submit(space.with_overrides(output=tmp_path / "warm-up"), points=[{name: values[0] for name, values in
-                                                                      space.parameters.items()}])
+    submit(
+        space.with_overrides(output=tmp_path / "warm-up"),
+        points=[{name: values[0] for name, values in space.parameters.items()}],
+    )
     report = submit(space)
     assert (report.total, report.ok, report.failed, report.workers) == (12, 12, 0, 2)
     rows = store.read_results(space.output, "small", columns=[*space.parameters, *space.objectives, "worker"])
@@ -38,12 +40,15 @@ def test_rows_equal_direct_simulations(tmp_path, dask_scheduler, plan):
     # The best point's tracks were kept for plotting, one per scenario.
     best = rank(space.output).best
     track = store.read_trajectory(space.output, "small", "sin1", 1)
-    assert {f"point:{k}": v for k, v in best.items()} == {c: track[c].iloc[0] for c in track if c.startswith("point:")}
+    assert {f"point:{k}": v for k, v in best.items()} == {
+        c: track[c].iloc[0] for c in track if c.startswith("point:")
+    }
     assert len(track) == 1681 and {"time", "vehicle.x", "vehicle.y"} <= set(track.columns)
 
 
-def test_resubmitting_a_finished_sweep_runs_nothing_and_keeps_the_status_of_the_run_that_did(tmp_path,
-                                                                                             dask_scheduler):
+def test_resubmitting_a_finished_sweep_runs_nothing_and_keeps_the_status_of_the_run_that_did(
+    tmp_path, dask_scheduler
+):
     from dse_runner.interfaces.report import build_report
     from dse_runner.sweeps.sweep import load_status
 
@@ -56,17 +61,22 @@ def test_resubmitting_a_finished_sweep_runs_nothing_and_keeps_the_status_of_the_
     assert {p: p.stat().st_mtime_ns for p in (space.output / "results").rglob("*.parquet")} == files
     assert load_status(space.output, "small") == status and (status.ran, status.workers) == (12, 2)
     page = build_report(space.output)  # a user saw "ran 0 tasks in 0.2 s on 0 workers" here
-    assert re.search(r"last submission that ran tasks</td><td[^>]*>finished: ran 12 tasks in [\d.]+ s on 2 workers<",
-                     page), re.findall(r"last submission.*", page)
+    assert re.search(
+        r"last submission that ran tasks</td><td[^>]*>finished: ran 12 tasks in [\d.]+ s on 2 workers<", page
+    ), re.findall(r"last submission.*", page)
 
 
 def test_failing_simulations_become_failed_rows(tmp_path, dask_scheduler):
-    path = write_space(tmp_path, cluster={"address": dask_scheduler},
-                       parameters={"vehicle.mass": [1500, -5], "vehicle.rk4_step": [0.001]})
+    path = write_space(
+        tmp_path,
+        cluster={"address": dask_scheduler},
+        parameters={"vehicle.mass": [1500, -5], "vehicle.rk4_step": [0.001]},
+    )
     report = submit(load_space(path))
     assert (report.ok, report.failed) == (2, 2)
-    rows = store.read_results(tmp_path / "out", "small", columns=["vehicle.mass", "status", "error",
-                                                                  "cross_track_error"])
+    rows = store.read_results(
+        tmp_path / "out", "small", columns=["vehicle.mass", "status", "error", "cross_track_error"]
+    )
     failed = rows[rows["status"] == "failed"]
     assert set(failed["vehicle.mass"]) == {-5.0}
     assert failed["error"].str.contains(r"vehicle \(robotti_vehicle\).*parameter mass must be > 0").all()
@@ -75,8 +85,14 @@ def test_failing_simulations_become_failed_rows(tmp_path, dask_scheduler):
 
 
 def sleeper_space(tmp_path, pauses: list[float], timeout: float):
-    return write_space(tmp_path, multimodel=str(sleeper_multimodel(tmp_path)), scenarios=[str(SCENARIOS / "sin1")],
-                       parameters={"sleeper.pause": pauses}, timeout=timeout, keep_trajectories=0)
+    return write_space(
+        tmp_path,
+        multimodel=str(sleeper_multimodel(tmp_path)),
+        scenarios=[str(SCENARIOS / "sin1")],
+        parameters={"sleeper.pause": pauses},
+        timeout=timeout,
+        keep_trajectories=0,
+    )
 
 
 def test_timeout_becomes_a_failed_row(tmp_path, dask_scheduler):
@@ -87,7 +103,9 @@ def test_timeout_becomes_a_failed_row(tmp_path, dask_scheduler):
     assert (report.ok, report.failed) == (1, 1), report.errors
     rows = store.read_results(tmp_path / "out", "small", columns=["sleeper.pause", "status", "error"])
     slow = rows[rows["sleeper.pause"] == 0.02].iloc[0]
-    assert slow["status"] == "failed" and slow["error"].startswith("timeout: the simulation was stopped at t=")
+    assert slow["status"] == "failed" and slow["error"].startswith(
+        "timeout: the simulation was stopped at t="
+    )
     stopped_at = float(re.match(r"timeout: the simulation was stopped at t=(\S+) of 84 s", slow["error"])[1])
     assert 0 < stopped_at < 84
     fast = rows[rows["sleeper.pause"] == 0].iloc[0]
@@ -95,14 +113,23 @@ def test_timeout_becomes_a_failed_row(tmp_path, dask_scheduler):
 
 
 def test_rank_matches_a_plain_pandas_computation(tmp_path, dask_scheduler):
-    space = load_space(write_space(tmp_path, cluster={"address": dask_scheduler},
-                                   ranking={"objective": "cross_track_error",
-                                            "pareto": ["cross_track_error", {"objective": "final_error"}],
-                                            "weights": {"cross_track_error": 1.0, "max_error": 0.5}}))
+    space = load_space(
+        write_space(
+            tmp_path,
+            cluster={"address": dask_scheduler},
+            ranking={
+                "objective": "cross_track_error",
+                "pareto": ["cross_track_error", {"objective": "final_error"}],
+                "weights": {"cross_track_error": 1.0, "max_error": 0.5},
+            },
+        )
+    )
     submit(space)
     ranking = rank(space.output)
-    rows = pd.concat(pd.read_parquet(p).assign(scenario=p.parent.name.removeprefix("scenario="))
-                     for p in (space.output / "results").rglob("*.parquet"))
+    rows = pd.concat(
+        pd.read_parquet(p).assign(scenario=p.parent.name.removeprefix("scenario="))
+        for p in (space.output / "results").rglob("*.parquet")
+    )
     params = list(space.parameters)
     totals = rows.groupby(params)[["cross_track_error", "max_error", "final_error"]].sum()
     best = totals["cross_track_error"].idxmin()
@@ -123,20 +150,41 @@ def test_rank_matches_a_plain_pandas_computation(tmp_path, dask_scheduler):
     assert len(ranking.groups) == 2 and set(ranking.groups["group"]) == {"sin", "speed_step"}
 
 
-@pytest.mark.parametrize("excluded, incomplete, scope", [
-    (0, 0, "3 points"),
-    (2, 0, "3 of 5 points meet e < 1 and f > 0; min/max/average over the 3"),
-    (0, 4, "4 points without an ok result on every scenario left out; min/max/average over the 3"),
-    (2, 4, "3 of 5 points meet e < 1 and f > 0; 4 points without an ok result on every scenario left out; "
-           "min/max/average over the 3"),
-])
+@pytest.mark.parametrize(
+    "excluded, incomplete, scope",
+    [
+        (0, 0, "3 points"),
+        (2, 0, "3 of 5 points meet e < 1 and f > 0; min/max/average over the 3"),
+        (0, 4, "4 points without an ok result on every scenario left out; min/max/average over the 3"),
+        (
+            2,
+            4,
+            "3 of 5 points meet e < 1 and f > 0; 4 points without an ok result on every scenario left out; "
+            "min/max/average over the 3",
+        ),
+    ],
+)
 def test_table1_says_which_points_it_is_over(excluded, incomplete, scope):
     from dse_runner.sweeps.rank import Ranking, table1_scope
 
     none = pd.DataFrame()
-    ranking = Ranking("s", ["k"], "e", "min", {"k": 1.0}, 1.0, pd.DataFrame({"k": [1.0, 2.0, 3.0]}), none, none,
-                      none, none, incomplete_points=incomplete, failed_rows=0, excluded_points=excluded,
-                      constraints=("e < 1", "f > 0"))
+    ranking = Ranking(
+        "s",
+        ["k"],
+        "e",
+        "min",
+        {"k": 1.0},
+        1.0,
+        pd.DataFrame({"k": [1.0, 2.0, 3.0]}),
+        none,
+        none,
+        none,
+        none,
+        incomplete_points=incomplete,
+        failed_rows=0,
+        excluded_points=excluded,
+        constraints=("e < 1", "f > 0"),
+    )
     assert table1_scope(ranking) == scope
 
 
@@ -153,17 +201,31 @@ def test_a_transient_failure_is_retried_once(tmp_path, monkeypatch):
         "        raise RuntimeError('transient failure')\n"
         "    return 1.0\n"
         "def broken(trajectory, scenario):\n"
-        "    raise RuntimeError('always broken')\n")
+        "    raise RuntimeError('always broken')\n"
+    )
     monkeypatch.setenv("PYTHONPATH", str(tmp_path))  # the local cluster's workers import it
     monkeypatch.syspath_prepend(str(tmp_path))
-    space = load_space(write_space(tmp_path, objectives=["flaky_objectives:flaky"],
-                                   ranking={"objective": "flaky_objectives:flaky"},
-                                   cluster={"n_workers": 1}, keep_trajectories=0))
+    space = load_space(
+        write_space(
+            tmp_path,
+            objectives=["flaky_objectives:flaky"],
+            ranking={"objective": "flaky_objectives:flaky"},
+            cluster={"n_workers": 1},
+            keep_trajectories=0,
+        )
+    )
     report = submit(space)
     assert (report.ok, report.failed) == (12, 0)
-    broken = load_space(write_space(tmp_path, name="broken", objectives=["flaky_objectives:broken"],
-                                    ranking={"objective": "flaky_objectives:broken"},
-                                    cluster={"n_workers": 1}, keep_trajectories=0))
+    broken = load_space(
+        write_space(
+            tmp_path,
+            name="broken",
+            objectives=["flaky_objectives:broken"],
+            ranking={"objective": "flaky_objectives:broken"},
+            cluster={"n_workers": 1},
+            keep_trajectories=0,
+        )
+    )
     report = submit(broken)
     assert (report.ok, report.failed) == (0, 12)
     rows = store.read_results(broken.output, "broken", columns=["status", "error"])
@@ -173,8 +235,12 @@ def test_a_transient_failure_is_retried_once(tmp_path, monkeypatch):
 def test_rank_command_json(tmp_path, dask_scheduler):
     space = load_space(write_space(tmp_path, cluster={"address": dask_scheduler}))
     submit(space)
-    done = subprocess.run([sys.executable, "-m", "dse_runner", "rank", str(space.output), "--json"],
-                          capture_output=True, text=True, cwd=REPO)
+    done = subprocess.run(
+        [sys.executable, "-m", "dse_runner", "rank", str(space.output), "--json"],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+    )
     assert done.returncode == 0, done.stderr
     report = strict_loads(done.stdout)
     assert set(report["best"]) == set(space.parameters)
@@ -186,10 +252,13 @@ def test_rank_command_json(tmp_path, dask_scheduler):
 def test_a_changed_model_is_ranked_on_its_own_rows(tmp_path, dask_scheduler):
     """Re-running a sweep after its model changed (here its objectives; equally a rebuilt FMU) adds the new
     model's rows beside the old; the ranking uses only the new ones."""
-    first = load_space(write_space(tmp_path, objectives=["cross_track_error"])).with_overrides(address=dask_scheduler)
+    first = load_space(write_space(tmp_path, objectives=["cross_track_error"])).with_overrides(
+        address=dask_scheduler
+    )
     submit(first)
-    second = load_space(write_space(tmp_path, objectives=["cross_track_error", "max_error"])
-                        ).with_overrides(address=dask_scheduler)
+    second = load_space(write_space(tmp_path, objectives=["cross_track_error", "max_error"])).with_overrides(
+        address=dask_scheduler
+    )
     report = submit(second)
     assert report.skipped == 0 and report.ran == report.total
     assert len(store.read_results(second.output, "small", columns=[])) == 2 * report.total
@@ -199,10 +268,13 @@ def test_a_changed_model_is_ranked_on_its_own_rows(tmp_path, dask_scheduler):
 
 def test_an_optimisers_read_back_finds_columns_only_newer_files_have(tmp_path, dask_scheduler):
     """What fit.py reads after each round: just the round's task ids, and a column the first run's files lack."""
-    first = load_space(write_space(tmp_path, objectives=["cross_track_error"])).with_overrides(address=dask_scheduler)
+    first = load_space(write_space(tmp_path, objectives=["cross_track_error"])).with_overrides(
+        address=dask_scheduler
+    )
     submit(first)
-    second = load_space(write_space(tmp_path, objectives=["cross_track_error", "max_error"])
-                        ).with_overrides(address=dask_scheduler)
+    second = load_space(write_space(tmp_path, objectives=["cross_track_error", "max_error"])).with_overrides(
+        address=dask_scheduler
+    )
     submit(second)
     ids = [task.task_id for task in expand(second)][:3]
     rows = store.read_results(second.output, "small", ["max_error"], task_ids=ids)
@@ -216,8 +288,17 @@ def test_a_chunk_given_up_on_loses_the_rows_it_wrote_and_only_those(tmp_path):
     schema = store.results_schema({"vehicle.mass": [1000.0]}, {"cross_track_error": None})
 
     def rows(ids, scenario):
-        return [{"task_id": i, "scenario": scenario, "status": "ok", "error": None, "vehicle.mass": 1000.0,
-                 "cross_track_error": 1.0} for i in ids]
+        return [
+            {
+                "task_id": i,
+                "scenario": scenario,
+                "status": "ok",
+                "error": None,
+                "vehicle.mass": 1000.0,
+                "cross_track_error": 1.0,
+            }
+            for i in ids
+        ]
 
     store.write_rows(tmp_path, "s", "gone", rows(["a", "b"], "sin1") + rows(["c"], "sin2"), schema)
     store.write_rows(tmp_path, "s", "kept", rows(["d"], "sin1"), schema)
@@ -226,24 +307,45 @@ def test_a_chunk_given_up_on_loses_the_rows_it_wrote_and_only_those(tmp_path):
     assert set(store.finished_task_ids(tmp_path, "s")) == {"d"}
 
 
-@pytest.mark.parametrize("value", [0.5, -0.0, 1e300, 5e-324, 1 / 3, float("nan"), float("inf"), -float("inf"),
-                                   3, -7, 2**70, True, False, np.float64(0.25), "fast", None])
+@pytest.mark.parametrize(
+    "value",
+    [
+        0.5,
+        -0.0,
+        1e300,
+        5e-324,
+        1 / 3,
+        float("nan"),
+        float("inf"),
+        -float("inf"),
+        3,
+        -7,
+        2**70,
+        True,
+        False,
+        np.float64(0.25),
+        "fast",
+        None,
+    ],
+)
 def test_task_ids_do_not_depend_on_how_they_are_written(value):
     """Plain numbers have their JSON written directly (fast); every value must give the id the json
     module gives, or a re-run would not find the rows of an earlier run."""
     from dse_runner.sweeps.expand import _digest, task_id
 
-    point = {"b.x": value, "a.ü \"q\"": 1.5}
+    point = {"b.x": value, 'a.ü "q"': 1.5}
     assert task_id("m" * 32, point, "s" * 32) == _digest("m" * 32, sorted(point.items()), "s" * 32)[:24]
 
 
-@pytest.mark.parametrize("values", [[0.5, 1 / 3, float("nan"), -0.0], [3, True, 2.5, -7], ["fast", 1.0, None, 2.0]])
+@pytest.mark.parametrize(
+    "values", [[0.5, 1 / 3, float("nan"), -0.0], [3, True, 2.5, -7], ["fast", 1.0, None, 2.0]]
+)
 def test_tasks_hashed_a_block_at_a_time_keep_their_ids(values):
     """A sweep hashes points a block at a time, a column at a time; the ids must be task_id's, whatever
     the values (plain numbers, mixed types, strings), and the values must come back as given."""
     from dse_runner.sweeps.expand import TaskBatch, task_id
 
-    points = [{"b.x": v, "a.ü \"q\"": float(k)} for k, v in enumerate(values)]
+    points = [{"b.x": v, 'a.ü "q"': float(k)} for k, v in enumerate(values)]
     batch = TaskBatch.of_points("m" * 32, points, "sin1", "s" * 32)
     tasks = list(batch)
     assert [t.task_id for t in tasks] == [task_id("m" * 32, p, "s" * 32) for p in points]
@@ -260,14 +362,20 @@ def test_points_of_differing_parameters_in_one_sweep_keep_their_ids_and_values(t
     space = load_space(write_space(tmp_path))
     base = dict(next(iter(expand(space))).point)
     extra = next(iter(base))
-    points = [base, {**base, "vehicle.corr_onset_time": 3.0}, {k: v for k, v in base.items() if k != extra},
-              {**base, extra: 0.25}]
+    points = [
+        base,
+        {**base, "vehicle.corr_onset_time": 3.0},
+        {k: v for k, v in base.items() if k != extra},
+        {**base, extra: 0.25},
+    ]
     tasks = [t for chunk in chunked(blocks(space, points), 3) for t in chunk]  # a sweep's chunks
     assert len(tasks) == len(points) * len(space.scenarios)
     for scenario in space.scenarios:
         mine = [t for t in tasks if t.scenario == scenario.name]
         assert [dict(t.point) for t in mine] == points
-        assert [t.task_id for t in mine] == [task_id(space.model_key, p, scenario_hash(scenario)) for p in points]
+        assert [t.task_id for t in mine] == [
+            task_id(space.model_key, p, scenario_hash(scenario)) for p in points
+        ]
 
 
 def test_chunks_hold_the_tasks_in_order_at_the_asked_sizes_less_the_done(tmp_path):
@@ -292,5 +400,7 @@ def test_chunks_ramp_up_from_the_smallest_then_follow_the_work_left():
     smallest = round(target / SMALLEST_CHUNK_PART / per_task)
     sizes = [chunk_size(per_task, target, pending, threads, r) for r in range(8)]
     assert sizes[0] == smallest and sizes[1] == 2 * smallest  # each round doubles ...
-    assert max(sizes) == chunk_size(per_task, target, pending, threads) == pending // (4 * threads)  # ... up to this
+    assert (
+        max(sizes) == chunk_size(per_task, target, pending, threads) == pending // (4 * threads)
+    )  # ... up to this
     assert chunk_size(per_task, target, 10, threads, 0) == smallest  # the last chunks keep the smallest size

@@ -33,8 +33,10 @@ XS = ("ishigami.x1", "ishigami.x2", "ishigami.x3")
 SAMPLES = 256
 # Three designs on a line through (a, b): the lowest mean has the widest spread, so the robust ranking
 # (mean + 1 std) must pick another than the mean's.
-DESIGN = {"parameters": {"ishigami.a": [-4.0, -3.0, -2.0], "ishigami.b": [0.0, 0.1, 0.2]},
-          "constraints": ["ishigami.a + 10 * ishigami.b == -2"]}
+DESIGN = {
+    "parameters": {"ishigami.a": [-4.0, -3.0, -2.0], "ishigami.b": [0.0, 0.1, 0.2]},
+    "constraints": ["ishigami.a + 10 * ishigami.b == -2"],
+}
 
 
 def mean(a: float, b: float) -> float:
@@ -42,7 +44,7 @@ def mean(a: float, b: float) -> float:
 
 
 def variance(a: float, b: float) -> float:
-    return a ** 2 / 8 + b * PI ** 4 / 5 + b ** 2 * PI ** 8 / 18 + 1 / 2
+    return a**2 / 8 + b * PI**4 / 5 + b**2 * PI**8 / 18 + 1 / 2
 
 
 def ishigami(x: np.ndarray, a: float, b: float) -> np.ndarray:
@@ -64,6 +66,7 @@ def write(folder, address: str | None = None, **changes):
 
 # --- the spec, without a cluster ------------------------------------------------------------------------------
 
+
 def test_each_scenario_runs_once_per_draw_with_stable_task_ids(tmp_path):
     space = load_space(write(tmp_path))
     assert [s.name for s in space.scenarios][:3] == ["nominal~u0", "nominal~u1", "nominal~u2"]
@@ -77,26 +80,42 @@ def test_each_scenario_runs_once_per_draw_with_stable_task_ids(tmp_path):
 
 
 def test_more_sobol_samples_keep_the_first_draws_and_the_model(tmp_path):
-    small, large = load_space(write(tmp_path / "a")), load_space(write(tmp_path / "b", uncertain={
-        "samples": 2 * SAMPLES, "parameters": {x: UNIFORM for x in XS}}))
+    small, large = (
+        load_space(write(tmp_path / "a")),
+        load_space(
+            write(tmp_path / "b", uncertain={"samples": 2 * SAMPLES, "parameters": {x: UNIFORM for x in XS}})
+        ),
+    )
     assert np.array_equal(large.draws.head(SAMPLES).to_numpy(), small.draws.to_numpy())
     assert small.model_key == large.model_key
-    other = load_space(write(tmp_path / "c", uncertain={"samples": SAMPLES, "seed": 1,
-                                                        "parameters": {x: UNIFORM for x in XS}}))
+    other = load_space(
+        write(
+            tmp_path / "c", uncertain={"samples": SAMPLES, "seed": 1, "parameters": {x: UNIFORM for x in XS}}
+        )
+    )
     assert other.model_key != small.model_key  # another seed: other values under the same scenario names
 
 
 def test_distributions_are_scipys_at_the_drawn_quantiles(tmp_path):
     from scipy import stats
 
-    parameters = {"ishigami.x1": {"distribution": "normal", "mean": 0.5, "std": 0.2},
-                  "ishigami.x2": {"distribution": "lognormal", "median": 1.5, "std_log": 0.1},
-                  "ishigami.x3": {"distribution": "triangular", "low": -1, "mode": 0.5, "high": 2}}
-    space = load_space(write(tmp_path, uncertain={"samples": 512, "sampling": "latin_hypercube", "seed": 3,
-                                                  "parameters": parameters}))
+    parameters = {
+        "ishigami.x1": {"distribution": "normal", "mean": 0.5, "std": 0.2},
+        "ishigami.x2": {"distribution": "lognormal", "median": 1.5, "std_log": 0.1},
+        "ishigami.x3": {"distribution": "triangular", "low": -1, "mode": 0.5, "high": 2},
+    }
+    space = load_space(
+        write(
+            tmp_path,
+            uncertain={"samples": 512, "sampling": "latin_hypercube", "seed": 3, "parameters": parameters},
+        )
+    )
     units = uncertainty.unit_sample(512, 3, "latin_hypercube", 3)
-    expected = [stats.norm(0.5, 0.2).ppf(units[:, 0]), stats.lognorm(s=0.1, scale=1.5).ppf(units[:, 1]),
-                stats.triang(c=1.5 / 3, loc=-1, scale=3).ppf(units[:, 2])]
+    expected = [
+        stats.norm(0.5, 0.2).ppf(units[:, 0]),
+        stats.lognorm(s=0.1, scale=1.5).ppf(units[:, 1]),
+        stats.triang(c=1.5 / 3, loc=-1, scale=3).ppf(units[:, 2]),
+    ]
     for x, values in zip(XS, expected):
         assert np.allclose(space.draws[x].to_numpy(), values, rtol=0, atol=1e-12)
     # a Latin hypercube puts one draw in each of the 512 equal-probability strata of each parameter
@@ -107,42 +126,87 @@ def test_distributions_are_scipys_at_the_drawn_quantiles(tmp_path):
 def test_a_diagnosis_interval_is_read_as_a_normal_of_half_width_1_96_sigma(tmp_path):
     """Both shapes a diagnosis writes: the fitted calibration (qualified names) and an effect (bare names);
     and the repository's Robotti diagnosis, read as the file says."""
-    found = {"fitted": {"parameters": {"ishigami.x1": 0.5}, "interval": {"ishigami.x1": [0.3, 0.7]}},
-             "effects": [{"id": "quartic", "parameters": {"x3": 1.0}, "interval": {"x3": [0.9, 1.3]}},
-                         {"id": "lag", "target": "ishigami.x2", "parameters": {"delay": 0.2},
-                          "intervals": {"delay": [0.1, 0.3]}}]}
+    found = {
+        "fitted": {"parameters": {"ishigami.x1": 0.5}, "interval": {"ishigami.x1": [0.3, 0.7]}},
+        "effects": [
+            {"id": "quartic", "parameters": {"x3": 1.0}, "interval": {"x3": [0.9, 1.3]}},
+            {
+                "id": "lag",
+                "target": "ishigami.x2",
+                "parameters": {"delay": 0.2},
+                "intervals": {"delay": [0.1, 0.3]},
+            },
+        ],
+    }
     (tmp_path / "diagnosis.json").write_text(json.dumps(found))
-    space = load_space(write(tmp_path, uncertain={"samples": 8, "parameters": {
-        "ishigami.x1": {"from_diagnosis": "diagnosis.json"},
-        "ishigami.x2": {"from_diagnosis": "diagnosis.json", "effect": "lag"},
-        "ishigami.x3": {"from_diagnosis": "diagnosis.json", "effect": "quartic"}}}))
-    for name, (value, low, high) in {"ishigami.x1": (0.5, 0.3, 0.7), "ishigami.x2": (0.2, 0.1, 0.3),
-                                     "ishigami.x3": (1.0, 0.9, 1.3)}.items():
+    space = load_space(
+        write(
+            tmp_path,
+            uncertain={
+                "samples": 8,
+                "parameters": {
+                    "ishigami.x1": {"from_diagnosis": "diagnosis.json"},
+                    "ishigami.x2": {"from_diagnosis": "diagnosis.json", "effect": "lag"},
+                    "ishigami.x3": {"from_diagnosis": "diagnosis.json", "effect": "quartic"},
+                },
+            },
+        )
+    )
+    for name, (value, low, high) in {
+        "ishigami.x1": (0.5, 0.3, 0.7),
+        "ishigami.x2": (0.2, 0.1, 0.3),
+        "ishigami.x3": (1.0, 0.9, 1.3),
+    }.items():
         d = space.distributions[name]
         assert d.distribution == "normal" and d.mean == value
         assert math.isclose(d.std * 1.959963984540054, (high - low) / 2)
     robotti = REPO / "docs" / "diagnosis-robotti" / "diagnosis.json"
     effect = json.loads(robotti.read_text())["effects"][0]
-    entry = load_space(write(tmp_path / "r", uncertain={"samples": 4, "parameters": {
-        "ishigami.x1": {"from_diagnosis": str(robotti), "effect": effect["id"]}}})).distributions["ishigami.x1"]
-    (low, high), = effect["interval"].values()
+    entry = load_space(
+        write(
+            tmp_path / "r",
+            uncertain={
+                "samples": 4,
+                "parameters": {"ishigami.x1": {"from_diagnosis": str(robotti), "effect": effect["id"]}},
+            },
+        )
+    ).distributions["ishigami.x1"]
+    ((low, high),) = effect["interval"].values()
     assert entry.mean == next(iter(effect["parameters"].values()))
     assert math.isclose(entry.std, (high - low) / 2 / 1.959963984540054)
 
 
-@pytest.mark.parametrize("uncertain, message", [
-    ({"parameters": {"ishigami.x9": UNIFORM}}, "x9"),
-    ({"parameters": {"ishigami.x1": {"distribution": "normal", "mean": 0, "std": -1}}}, "std"),
-    ({"parameters": {"ishigami.x1": {"distribution": "triangular", "low": 0, "mode": 3, "high": 2}}}, "mode"),
-    ({"parameters": {"ishigami.x1": {"distribution": "uniform", "low": 1, "high": 1}}}, "'high' (1) must be above"),
-    ({"parameters": {"ishigami.x1": {"distribution": "weibull", "k": 1}}}, "uniform | normal | lognormal"),
-    ({"parameters": {"ishigami.a": UNIFORM}}, "either swept"),
-    ({"parameters": {"ishigami.x1": {"from_diagnosis": "nowhere.json"}}}, "no such file"),
-    ({"samples": 0, "parameters": {"ishigami.x1": UNIFORM}}, "samples"),
-    ({"quantiles": [1.5], "parameters": {"ishigami.x1": UNIFORM}}, "quantiles"),
-    ({"parameters": {"sample": UNIFORM}}, "uncertain.parameters.sample: the name is a column of the ranking's draws"),
-    ({"parameters": {"y": UNIFORM}}, "uncertain.parameters.y: the name is a column of the ranking's draws"),
-])
+@pytest.mark.parametrize(
+    "uncertain, message",
+    [
+        ({"parameters": {"ishigami.x9": UNIFORM}}, "x9"),
+        ({"parameters": {"ishigami.x1": {"distribution": "normal", "mean": 0, "std": -1}}}, "std"),
+        (
+            {"parameters": {"ishigami.x1": {"distribution": "triangular", "low": 0, "mode": 3, "high": 2}}},
+            "mode",
+        ),
+        (
+            {"parameters": {"ishigami.x1": {"distribution": "uniform", "low": 1, "high": 1}}},
+            "'high' (1) must be above",
+        ),
+        (
+            {"parameters": {"ishigami.x1": {"distribution": "weibull", "k": 1}}},
+            "uniform | normal | lognormal",
+        ),
+        ({"parameters": {"ishigami.a": UNIFORM}}, "either swept"),
+        ({"parameters": {"ishigami.x1": {"from_diagnosis": "nowhere.json"}}}, "no such file"),
+        ({"samples": 0, "parameters": {"ishigami.x1": UNIFORM}}, "samples"),
+        ({"quantiles": [1.5], "parameters": {"ishigami.x1": UNIFORM}}, "quantiles"),
+        (
+            {"parameters": {"sample": UNIFORM}},
+            "uncertain.parameters.sample: the name is a column of the ranking's draws",
+        ),
+        (
+            {"parameters": {"y": UNIFORM}},
+            "uncertain.parameters.y: the name is a column of the ranking's draws",
+        ),
+    ],
+)
 def test_bad_uncertain_blocks_name_the_culprit(tmp_path, uncertain, message):
     with pytest.raises(DseError) as caught:
         load_space(write(tmp_path, uncertain=uncertain))
@@ -151,11 +215,18 @@ def test_bad_uncertain_blocks_name_the_culprit(tmp_path, uncertain, message):
 
 
 def test_a_diagnosis_without_the_effect_lists_what_it_has(tmp_path):
-    (tmp_path / "d.json").write_text(json.dumps({"effects": [{"id": "slip", "parameters": {"s": 1},
-                                                               "interval": {"s": [0, 2]}}]}))
-    with pytest.raises(DseError, match=r"uncertain.parameters.ishigami.x1: .* no effect 'drag' \(it has slip\)"):
-        load_space(write(tmp_path, uncertain={"parameters": {"ishigami.x1": {"from_diagnosis": "d.json",
-                                                                             "effect": "drag"}}}))
+    (tmp_path / "d.json").write_text(
+        json.dumps({"effects": [{"id": "slip", "parameters": {"s": 1}, "interval": {"s": [0, 2]}}]})
+    )
+    with pytest.raises(
+        DseError, match=r"uncertain.parameters.ishigami.x1: .* no effect 'drag' \(it has slip\)"
+    ):
+        load_space(
+            write(
+                tmp_path,
+                uncertain={"parameters": {"ishigami.x1": {"from_diagnosis": "d.json", "effect": "drag"}}},
+            )
+        )
 
 
 def test_robust_ranking_needs_draws_and_one_figure(tmp_path):
@@ -167,10 +238,15 @@ def test_robust_ranking_needs_draws_and_one_figure(tmp_path):
 
 def test_a_draw_outside_the_variables_bounds_names_the_draw(tmp_path):
     """msd.k is declared min 0: a normal reaching below it is refused before anything runs."""
-    path = write_msd_search(tmp_path, {"strategy": "exhaustive"}, parameters={"msd.c": [0.5, 1.0]},
-                            uncertain={"samples": 16, "parameters": {"msd.k": {"distribution": "normal", "mean": 1,
-                                                                               "std": 5}}})
-    with pytest.raises(DseError, match=r"uncertain.parameters.msd.k: draw \d+ \(-[\d.]+\): .*narrow its distribution"):
+    path = write_msd_search(
+        tmp_path,
+        {"strategy": "exhaustive"},
+        parameters={"msd.c": [0.5, 1.0]},
+        uncertain={"samples": 16, "parameters": {"msd.k": {"distribution": "normal", "mean": 1, "std": 5}}},
+    )
+    with pytest.raises(
+        DseError, match=r"uncertain.parameters.msd.k: draw \d+ \(-[\d.]+\): .*narrow its distribution"
+    ):
         load_space(path)
 
 
@@ -180,11 +256,14 @@ def test_a_search_is_told_the_draws_mean_or_robust_figure():
     told = over_draws(per, ["y"], "sum", ("y", "min", Robust(sigmas=2)))
     assert math.isclose(told["y"], totals.mean() + 2 * totals.std(ddof=1))
     assert math.isclose(over_draws(per, ["y"], "sum", ("y", "min", None))["y"], totals.mean())
-    assert math.isclose(over_draws(per, ["y"], "sum", ("y", "max", Robust(quantile=0.25)))["y"],
-                        float(np.quantile(totals, 0.25)))
+    assert math.isclose(
+        over_draws(per, ["y"], "sum", ("y", "max", Robust(quantile=0.25)))["y"],
+        float(np.quantile(totals, 0.25)),
+    )
 
 
 # --- on the real cluster --------------------------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def study(tmp_path_factory, dask_scheduler):

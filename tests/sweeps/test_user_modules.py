@@ -27,17 +27,22 @@ def study(folder, address: str, source: str = SCORES):
     """A space in ``folder`` scored by ``scores:overshoot``, scores.py beside it, on the test's cluster."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "scores.py").write_text(source)
-    spec = {"name": "own", "multimodel": {"fmus": {"msd": str(MSD / "fmus" / "msd")}},
-            "experiment": {"stop_time": 10, "step": 0.05},
-            "parameters": {"msd.k": [10, 14], "msd.c": [0.4, 0.8]},
-            "objectives": {"overshoot": "scores:overshoot", "x_max": {"signal": "msd.x", "reduce": "max"}},
-            "output": str(folder / "out"), "cluster": {"address": address}}
+    spec = {
+        "name": "own",
+        "multimodel": {"fmus": {"msd": str(MSD / "fmus" / "msd")}},
+        "experiment": {"stop_time": 10, "step": 0.05},
+        "parameters": {"msd.k": [10, 14], "msd.c": [0.4, 0.8]},
+        "objectives": {"overshoot": "scores:overshoot", "x_max": {"signal": "msd.x", "reduce": "max"}},
+        "output": str(folder / "out"),
+        "cluster": {"address": address},
+    }
     (folder / "space.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
     return folder / "space.yaml"
 
 
-def test_a_module_beside_the_spec_scores_on_the_workers_and_rank_and_report_do_not_import_it(tmp_path,
-                                                                                             dask_scheduler):
+def test_a_module_beside_the_spec_scores_on_the_workers_and_rank_and_report_do_not_import_it(
+    tmp_path, dask_scheduler
+):
     """Submitted from another folder (no PYTHONPATH, the workers in other processes), the function scores
     every task; with the module gone, rank and report still read the stored values. An edited module
     scores anew on the next submit."""
@@ -60,14 +65,18 @@ def test_a_module_beside_the_spec_scores_on_the_workers_and_rank_and_report_do_n
     assert again.returncode == 0, again.stderr
     assert strict_loads(again.stdout)["ran"] == 4  # the edited module is another model: every task anew
     assert strict_loads(dse_runner("rank", tmp_path / "study" / "out", "--json").stdout)["best_total"] == (
-        pytest.approx(2 * strict_loads(ranked.stdout)["best_total"]))
+        pytest.approx(2 * strict_loads(ranked.stdout)["best_total"])
+    )
 
 
-@pytest.mark.parametrize("source, named", [
-    ("def overshoot(trajectory, scenario)\n    return 1\n", "scores.py: line 1: SyntaxError"),
-    ("import numpy\n\nraise RuntimeError('no licence')\n", "scores.py: line 3: RuntimeError: no licence"),
-    ("def other(trajectory, scenario):\n    return 1\n", "scores has no function 'overshoot'"),
-])
+@pytest.mark.parametrize(
+    "source, named",
+    [
+        ("def overshoot(trajectory, scenario)\n    return 1\n", "scores.py: line 1: SyntaxError"),
+        ("import numpy\n\nraise RuntimeError('no licence')\n", "scores.py: line 3: RuntimeError: no licence"),
+        ("def other(trajectory, scenario):\n    return 1\n", "scores has no function 'overshoot'"),
+    ],
+)
 def test_a_module_that_cannot_serve_is_one_line_naming_the_file(tmp_path, source, named):
     space = study(tmp_path, "tcp://127.0.0.1:1", source)  # refused before any cluster is reached
     done = dse_runner("submit", space, "--no-dashboard")
@@ -81,7 +90,11 @@ def test_simulate_finds_a_module_in_the_current_folder(tmp_path):
     (tmp_path / "scores.py").write_text(SCORES)
     shutil.copytree(MSD / "fmus" / "msd", tmp_path / "msd")
     command = Path(sys.executable).with_name("dse-runner")  # installed: -m would put the folder on sys.path
-    done = subprocess.run([str(command), "simulate", "msd", "--objective", "scores:overshoot", "--json"],
-                          capture_output=True, text=True, cwd=tmp_path)
+    done = subprocess.run(
+        [str(command), "simulate", "msd", "--objective", "scores:overshoot", "--json"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
     assert done.returncode == 0, done.stderr
     assert 0 < strict_loads(done.stdout)["objectives"]["scores:overshoot"] < 0.1

@@ -13,5 +13,14 @@ cases add their libraries by entry point, as the Robotti does (dse_runner/cases/
 from .hypotheses import EffectParameter, Hypothesis
 from .library import HypothesisLibrary, Request, Result, diagnose, libraries, serving, space_with
 
-__all__ = ["EffectParameter", "Hypothesis", "HypothesisLibrary", "Request", "Result", "diagnose", "libraries",
-           "serving", "space_with"]
+__all__ = [
+    "EffectParameter",
+    "Hypothesis",
+    "HypothesisLibrary",
+    "Request",
+    "Result",
+    "diagnose",
+    "libraries",
+    "serving",
+    "space_with",
+]

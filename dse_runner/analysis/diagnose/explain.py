@@ -62,7 +62,9 @@ class Candidate:
     ids: tuple[str, ...]  # () is the calibrated baseline (hypothesis "none")
     full: FitResult  # fitted on every run
     folds: list[FitResult] = field(default_factory=list)
-    held_out: dict[str, float] = field(default_factory=dict)  # scenario -> Equation 1 of the fit that did not see it
+    held_out: dict[str, float] = field(
+        default_factory=dict
+    )  # scenario -> Equation 1 of the fit that did not see it
 
     @property
     def label(self) -> str:
@@ -82,11 +84,14 @@ class Candidate:
         return bic(self.full)
 
 
-def beats(candidate: Candidate, reference: Candidate, min_gain: float = MIN_GAIN,
-          bic_margin: float = BIC_MARGIN) -> bool:
+def beats(
+    candidate: Candidate, reference: Candidate, min_gain: float = MIN_GAIN, bic_margin: float = BIC_MARGIN
+) -> bool:
     """Whether ``candidate`` explains clearly more than ``reference`` on runs it was not fitted to."""
-    return (candidate.cross_validated <= (1.0 - min_gain) * reference.cross_validated
-            and candidate.bic <= reference.bic - bic_margin)
+    return (
+        candidate.cross_validated <= (1.0 - min_gain) * reference.cross_validated
+        and candidate.bic <= reference.bic - bic_margin
+    )
 
 
 def ranked(candidates: list[Candidate]) -> list[Candidate]:
@@ -100,20 +105,34 @@ def subsets(candidate: Candidate, candidates: list[Candidate]) -> list[Candidate
     return [c for c in candidates if set(c.ids) < inside]
 
 
-def beats_subsets(candidate: Candidate, candidates: list[Candidate], min_gain: float = MIN_GAIN,
-                  bic_margin: float = BIC_MARGIN) -> bool:
+def beats_subsets(
+    candidate: Candidate,
+    candidates: list[Candidate],
+    min_gain: float = MIN_GAIN,
+    bic_margin: float = BIC_MARGIN,
+) -> bool:
     """Whether ``candidate`` beats every fitted proper subset of it: every member pays its way. A subset
     that was not cross-validated (it failed the BIC gate) is beaten on BIC alone."""
     return all(beats(candidate, s, min_gain, bic_margin) for s in subsets(candidate, candidates))
 
 
-def select(candidates: list[Candidate], baseline: Candidate, min_gain: float = MIN_GAIN,
-           bic_margin: float = BIC_MARGIN) -> Candidate:
+def select(
+    candidates: list[Candidate],
+    baseline: Candidate,
+    min_gain: float = MIN_GAIN,
+    bic_margin: float = BIC_MARGIN,
+) -> Candidate:
     """The answer: of the cross-validated candidates that beat ``none`` and every fitted part of
     themselves, the lowest held-out error, except that one within ``min_gain`` of it with fewer effects
     wins (no test could tell them apart, and the simpler claim is the one to make). ``baseline`` if none."""
-    eligible = [c for c in candidates if c.ids and c.validated and beats(c, baseline, min_gain, bic_margin)
-                and beats_subsets(c, candidates, min_gain, bic_margin)]
+    eligible = [
+        c
+        for c in candidates
+        if c.ids
+        and c.validated
+        and beats(c, baseline, min_gain, bic_margin)
+        and beats_subsets(c, candidates, min_gain, bic_margin)
+    ]
     return simplest_best(eligible, min_gain) if eligible else baseline
 
 
@@ -125,13 +144,22 @@ def simplest_best(eligible: list[Candidate], min_gain: float) -> Candidate:
     return min(tied, key=lambda c: (len(c.ids), c.cross_validated, c.bic))
 
 
-def bic_gate(combinations: list[Candidate], candidates: list[Candidate], reference: Candidate, bic_margin: float,
-             count: int) -> list[Candidate]:
+def bic_gate(
+    combinations: list[Candidate],
+    candidates: list[Candidate],
+    reference: Candidate,
+    bic_margin: float,
+    count: int,
+) -> list[Candidate]:
     """The combinations worth cross-validating, at most ``count``, best BIC first: those whose BIC is
     ``bic_margin`` below the current answer's and below every fitted part of them. No other one could be
     chosen over the answer (the choice demands the BIC margin too), so their folds would be wasted."""
-    passing = [c for c in combinations if c.bic <= reference.bic - bic_margin
-               and all(c.bic <= s.bic - bic_margin for s in subsets(c, candidates))]
+    passing = [
+        c
+        for c in combinations
+        if c.bic <= reference.bic - bic_margin
+        and all(c.bic <= s.bic - bic_margin for s in subsets(c, candidates))
+    ]
     return sorted(passing, key=lambda c: c.bic)[:count]
 
 
@@ -149,17 +177,24 @@ def removal_order(chosen: Candidate, candidates: list[Candidate]) -> tuple[str, 
             return chosen.ids
         without[hid] = part
     use_held_out = all(c.validated for c in without.values())
-    return tuple(sorted(chosen.ids, key=lambda h: -(without[h].cross_validated if use_held_out
-                                                    else without[h].full.sse)))
+    return tuple(
+        sorted(
+            chosen.ids, key=lambda h: -(without[h].cross_validated if use_held_out else without[h].full.sse)
+        )
+    )
 
 
 # ---- verdicts: the answer judged against the noise floor ----------------------------------------
 
 NONE, EXPLAINED, PARTIAL, UNEXPLAINED = "none", "explained", "partial", "unexplained"
-DISCOVERED = "discovered"  # a data-driven correction (discover/) passed the rule and left only noise (else partial)
+DISCOVERED = (
+    "discovered"  # a data-driven correction (discover/) passed the rule and left only noise (else partial)
+)
 NOISE_FACTOR = 2.0  # held-out error above this many noise floors is a residual the model leaves unexplained
 FLOOR_STOP = 1.25  # a fit within this many noise floors leaves nothing a combination could clearly explain
-TIE = 1e-4  # m: held-out errors of one run closer than this are equal (an effect fitted to ~0 changes nothing)
+TIE = (
+    1e-4  # m: held-out errors of one run closer than this are equal (an effect fitted to ~0 changes nothing)
+)
 
 
 def above_floor(held_out: float, floor: float | None, factor: float = NOISE_FACTOR) -> bool:
@@ -168,7 +203,9 @@ def above_floor(held_out: float, floor: float | None, factor: float = NOISE_FACT
     return floor is not None and math.isfinite(floor) and floor > 0 and held_out > factor * floor
 
 
-def verdict(held_out: float, floor: float | None, factor: float, chosen: bool, discovered: bool = False) -> str:
+def verdict(
+    held_out: float, floor: float | None, factor: float, chosen: bool, discovered: bool = False
+) -> str:
     """The diagnosis in one word. ``chosen``: whether any library effect was chosen; ``discovered``: whether
     a discovered correction was accepted (it is only sought when the library leaves a residual).
 
@@ -224,9 +261,15 @@ class Evidence:
 
     def to_json(self, held_out_key: str = "held_out") -> dict[str, object]:
         """``held_out_key`` names the other's held-out error as its library's JSON does."""
-        return {"id": self.other, held_out_key: self.other_held_out, "delta_bic": self.delta_bic,
-                "delta_held_out": self.delta_held_out, "delta_held_out_percent": self.delta_held_out_percent,
-                "runs_better": self.runs_better_text, "runs_tied": self.runs_tied}
+        return {
+            "id": self.other,
+            held_out_key: self.other_held_out,
+            "delta_bic": self.delta_bic,
+            "delta_held_out": self.delta_held_out,
+            "delta_held_out_percent": self.delta_held_out_percent,
+            "runs_better": self.runs_better_text,
+            "runs_tied": self.runs_tied,
+        }
 
 
 def evidence(chosen: Candidate, other: Candidate) -> Evidence:
@@ -236,8 +279,16 @@ def evidence(chosen: Candidate, other: Candidate) -> Evidence:
     base = chosen.cross_validated
     percent = 100.0 * delta / base if math.isfinite(delta) and base > 0 and math.isfinite(base) else math.nan
     margins = [other.held_out[s] - chosen.held_out[s] for s in runs]
-    return Evidence(other.label, other.cross_validated, other.bic - chosen.bic, delta, percent,
-                    sum(m > TIE for m in margins), len(runs), sum(abs(m) <= TIE for m in margins))
+    return Evidence(
+        other.label,
+        other.cross_validated,
+        other.bic - chosen.bic,
+        delta,
+        percent,
+        sum(m > TIE for m in margins),
+        len(runs),
+        sum(abs(m) <= TIE for m in margins),
+    )
 
 
 # ---- the noise rule ------------------------------------------------------------------------------
@@ -257,12 +308,15 @@ def mean_square(candidate: Candidate, unit: float = 1.0) -> float:
     return float(np.mean(values)) if values else math.inf
 
 
-def worth(member: str, chosen: Candidate, candidates: Sequence[Candidate], baseline: Candidate,
-          unit: float = 1.0) -> float:
+def worth(
+    member: str, chosen: Candidate, candidates: Sequence[Candidate], baseline: Candidate, unit: float = 1.0
+) -> float:
     """What removing ``member`` from ``chosen`` adds to the held-out mean square, in noise variances; inf
     when the set without it was never cross-validated (it could not be judged, so it is kept)."""
     rest = set(chosen.ids) - {member}
-    without = baseline if not rest else next((c for c in candidates if set(c.ids) == rest and c.validated), None)
+    without = (
+        baseline if not rest else next((c for c in candidates if set(c.ids) == rest and c.validated), None)
+    )
     if without is None or not without.validated:
         return math.inf
     return mean_square(without, unit) - mean_square(chosen, unit)
@@ -280,8 +334,13 @@ class Dropped:
         return {"id": self.id, "worth": self.worth, "rule": f"removal adds < {NOISE_RULE:g} noise variance"}
 
 
-def claimed(chosen: Candidate, candidates: Sequence[Candidate], baseline: Candidate, unit: float = 1.0,
-            rule: float = NOISE_RULE) -> tuple[Candidate, list[Dropped]]:
+def claimed(
+    chosen: Candidate,
+    candidates: Sequence[Candidate],
+    baseline: Candidate,
+    unit: float = 1.0,
+    rule: float = NOISE_RULE,
+) -> tuple[Candidate, list[Dropped]]:
     """``chosen`` without every member whose removal changes the held-out error by less than the noise,
     the least worthy first, each time judged again on what is left. ``unit``: the held-out error the
     noise alone makes (1 where residuals are already in noise floors)."""

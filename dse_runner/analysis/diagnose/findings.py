@@ -25,13 +25,21 @@ class NamedEffect:
 
     def to_json(self) -> dict[str, Any]:
         size = {} if self.magnitude is None else {"magnitude": self.magnitude}
-        return {"id": self.id, "name": self.name, "parameters": self.parameters, "interval": self.interval,
-                **size, "partial": self.partial}
+        return {
+            "id": self.id,
+            "name": self.name,
+            "parameters": self.parameters,
+            "interval": self.interval,
+            **size,
+            "partial": self.partial,
+        }
 
     def described(self) -> str:
         """Its parameters with their intervals, as the CLI and the report's finding print them."""
-        return ", ".join(f"{k} = {v:.4g} [{self.interval[k][0]:.4g}, {self.interval[k][1]:.4g}]"
-                         for k, v in self.parameters.items())
+        return ", ".join(
+            f"{k} = {v:.4g} [{self.interval[k][0]:.4g}, {self.interval[k][1]:.4g}]"
+            for k, v in self.parameters.items()
+        )
 
 
 @dataclass(frozen=True)
@@ -45,7 +53,9 @@ class DiscoveredCorrection:
     readable: list[str]  # one line per channel, its terms summed (correction.readable)
     parameters: dict[str, float]
     interval: dict[str, list[float]]
-    resembles: dict[str, Any] | None  # {id, similarity, text}: the most similar library effect; None if not compared
+    resembles: (
+        dict[str, Any] | None
+    )  # {id, similarity, text}: the most similar library effect; None if not compared
     similarities: dict[str, float] = field(default_factory=dict)
     held_out_without: float = 0.0  # the library's best held-out error
     held_out_with: float = 0.0

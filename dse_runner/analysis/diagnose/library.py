@@ -49,8 +49,10 @@ class Request:
         if not (isinstance(self.folds, int) and self.folds >= 2):
             raise DseError(f"--folds {self.folds!r}: cross-validation needs 2 folds or more")
         if not (math.isfinite(self.noise_factor) and self.noise_factor > 0):
-            raise DseError(f"--noise-factor {self.noise_factor!r}: must be a positive number (default "
-                           f"{NOISE_FACTOR:g}: held-out error above twice the noise floor is a residual)")
+            raise DseError(
+                f"--noise-factor {self.noise_factor!r}: must be a positive number (default "
+                f"{NOISE_FACTOR:g}: held-out error above twice the noise floor is a residual)"
+            )
 
 
 class Result(Protocol):
@@ -104,16 +106,20 @@ def checked(library: HypothesisLibrary, space: Space, request: Request) -> Hypot
     known = [h.id for h in library.hypotheses(space)]
     unknown = [h for h in request.hypotheses if known and h not in known]
     if unknown:
-        raise DseError(f"--hypothesis {', '.join(unknown)}: the {library.name} library has no such hypothesis "
-                       f"(it has {', '.join(known)})")
+        raise DseError(
+            f"--hypothesis {', '.join(unknown)}: the {library.name} library has no such hypothesis "
+            f"(it has {', '.join(known)})"
+        )
     return library
 
 
 def libraries() -> list[HypothesisLibrary]:
     """Installed libraries (entry-point group ``dse_runner.hypotheses``) in the order they are asked: those of
     a model in name order, then the general ones (the built-in signal effects, which serve any model)."""
-    found = [plugins.instance_of_subclass(entry, HypothesisLibrary, f"hypothesis library {name!r}")
-             for name, entry in sorted(plugins.entries(GROUP).items())]
+    found = [
+        plugins.instance_of_subclass(entry, HypothesisLibrary, f"hypothesis library {name!r}")
+        for name, entry in sorted(plugins.entries(GROUP).items())
+    ]
     return sorted(found, key=lambda library: library.general)  # stable: name order within each
 
 
@@ -126,8 +132,14 @@ def runs_folder(scenarios: str | Path) -> Path:
     return folder
 
 
-def space_with(space: str | Path, scenarios: str | Path | None, out: Path | None, multimodel: str | Path | None = None,
-               n_workers: int | None = None, address: str | None = None) -> Space:
+def space_with(
+    space: str | Path,
+    scenarios: str | Path | None,
+    out: Path | None,
+    multimodel: str | Path | None = None,
+    n_workers: int | None = None,
+    address: str | None = None,
+) -> Space:
     """The space to diagnose: ``space`` (a file or ``bundled:…``), with every run in ``scenarios`` as
     its scenarios when given, ``multimodel`` in place of its own, results in ``out`` (None: its own)."""
     path = bundled.resolve(space, Path.cwd())
@@ -161,14 +173,22 @@ def serving(space: Space, found: list[HypothesisLibrary] | None = None) -> Hypot
     for library in found:
         if library.serves(space):
             return library
-    raise DseError(f"{space.path}: no hypothesis library serves this space (installed: "
-                   f"{', '.join(lib.name for lib in found)}); the built-in signal effects need an objective "
-                   "{signal: inst.var, recorded: column, metric: rmse} comparing a signal with a recording")
+    raise DseError(
+        f"{space.path}: no hypothesis library serves this space (installed: "
+        f"{', '.join(lib.name for lib in found)}); the built-in signal effects need an objective "
+        "{signal: inst.var, recorded: column, metric: rmse} comparing a signal with a recording"
+    )
 
 
-def diagnose(space: str | Path | None = None, scenarios: str | Path | None = None, request: Request = Request(),
-             say: Messages | None = None, multimodel: str | Path | None = None, n_workers: int | None = None,
-             address: str | None = None) -> Result:
+def diagnose(
+    space: str | Path | None = None,
+    scenarios: str | Path | None = None,
+    request: Request = Request(),
+    say: Messages | None = None,
+    multimodel: str | Path | None = None,
+    n_workers: int | None = None,
+    address: str | None = None,
+) -> Result:
     """Diagnose a space (with ``scenarios`` as its runs, if given) with the first library that serves it.
 
     With ``scenarios`` and no ``space``, the runs go into each library's own calibration space in
@@ -183,8 +203,10 @@ def diagnose(space: str | Path | None = None, scenarios: str | Path | None = Non
         target = space_with(space, scenarios, out, multimodel, n_workers, address)
         return checked(serving(target, found), target, request).diagnose(target, request, say)
     if scenarios is None:
-        raise DseError("diagnose: give --space SPACE.yaml (any model with recordings), or --scenarios DIR "
-                       "(runs a library's own calibration space reads, such as the Robotti's field data)")
+        raise DseError(
+            "diagnose: give --space SPACE.yaml (any model with recordings), or --scenarios DIR "
+            "(runs a library's own calibration space reads, such as the Robotti's field data)"
+        )
     reasons = []
     for library in found:
         if library.calibration is None:
@@ -197,5 +219,7 @@ def diagnose(space: str | Path | None = None, scenarios: str | Path | None = Non
         if library.serves(target):
             return checked(library, target, request).diagnose(target, request, say)
         reasons.append(f"{library.name}: its calibration does not serve these runs")
-    raise DseError(f"--scenarios {scenarios}: no installed hypothesis library has a calibration space for these "
-                   f"runs ({'; '.join(reasons) or 'none has one'}); give --space SPACE.yaml whose scenarios they are")
+    raise DseError(
+        f"--scenarios {scenarios}: no installed hypothesis library has a calibration space for these "
+        f"runs ({'; '.join(reasons) or 'none has one'}); give --space SPACE.yaml whose scenarios they are"
+    )

@@ -27,7 +27,13 @@ def sigma_from_differences(d: np.ndarray, order: int) -> float:
 
 # ---- a recording's noise, with what the estimate assumes ----------------------------------------------------
 
-ORDERS = (2, 3, 4, 5, 6)  # differences of these orders; the smallest estimate is the least swollen by the signal
+ORDERS = (
+    2,
+    3,
+    4,
+    5,
+    6,
+)  # differences of these orders; the smallest estimate is the least swollen by the signal
 FLAT = 3  # a value repeated at the record's extreme this many times in a row is a flat (saturated) stretch
 DECIMALS = 12  # a recording written with more decimals than this is read as unrounded
 
@@ -51,12 +57,16 @@ class NoiseEstimate:
     @property
     def assumptions(self) -> str:
         """What a user must know to trust the floor, in one sentence."""
-        said = ("the noise is white (independent from sample to sample) and the signal smooth at the sampling "
-                "step; noise correlated over several samples (coloured) is counted as signal, so the floor "
-                "reads low: the residuals' whiteness tells")
+        said = (
+            "the noise is white (independent from sample to sample) and the signal smooth at the sampling "
+            "step; noise correlated over several samples (coloured) is counted as signal, so the floor "
+            "reads low: the residuals' whiteness tells"
+        )
         if self.method == "resolution":
-            said = (f"no noise above the recording's resolution was found, so the floor is the rounding to its "
-                    f"step {self.quantum:.3g} (σ = step/√12)")
+            said = (
+                f"no noise above the recording's resolution was found, so the floor is the rounding to its "
+                f"step {self.quantum:.3g} (σ = step/√12)"
+            )
         elif self.quantum > 0:
             said += f"; the floor is at least the rounding to the recording's step {self.quantum:.3g}"
         if self.flat:
@@ -64,9 +74,15 @@ class NoiseEstimate:
         return said
 
     def to_json(self) -> dict[str, Any]:
-        return {"sigma": self.sigma, "method": self.method, "differences": self.differences,
-                "quantum": self.quantum, "flat": self.flat, "samples": self.samples,
-                "assumptions": self.assumptions}
+        return {
+            "sigma": self.sigma,
+            "method": self.method,
+            "differences": self.differences,
+            "quantum": self.quantum,
+            "flat": self.flat,
+            "samples": self.samples,
+            "assumptions": self.assumptions,
+        }
 
 
 def quantum_of(values: np.ndarray) -> float:
@@ -77,10 +93,10 @@ def quantum_of(values: np.ndarray) -> float:
     if distinct.size < 2:
         return 0.0
     for decimals in range(DECIMALS + 1):
-        scaled = distinct * 10.0 ** decimals
+        scaled = distinct * 10.0**decimals
         if np.all(np.abs(scaled - np.round(scaled)) <= 1e-9 * np.maximum(1.0, np.abs(scaled))):
             steps = np.diff(np.round(scaled)).astype(np.int64)
-            return float(np.gcd.reduce(steps[steps > 0])) / 10.0 ** decimals
+            return float(np.gcd.reduce(steps[steps > 0])) / 10.0**decimals
     return 0.0
 
 
@@ -111,7 +127,9 @@ def estimate_noise(values: np.ndarray, orders: Sequence[int] = ORDERS) -> NoiseE
     for k in orders:
         if v.size <= k + 2:
             continue
-        touched = np.convolve(flat.astype(float), np.ones(k + 1), mode="valid") > 0  # a difference's k+1 samples
+        touched = (
+            np.convolve(flat.astype(float), np.ones(k + 1), mode="valid") > 0
+        )  # a difference's k+1 samples
         d = np.diff(v, n=k)[~touched]
         if d.size > 2:
             estimates.append(sigma_from_differences(d, k))
@@ -144,8 +162,15 @@ class Whiteness:
         return not self.p < WHITE_P
 
     def to_json(self) -> dict[str, Any]:
-        return {"rho1": self.rho1, "ljung_box_q": self.q, "p": self.p, "lags": self.lags, "samples": self.samples,
-                "white": self.white, "rule": f"white unless Ljung-Box p < {WHITE_P:g}"}
+        return {
+            "rho1": self.rho1,
+            "ljung_box_q": self.q,
+            "p": self.p,
+            "lags": self.lags,
+            "samples": self.samples,
+            "white": self.white,
+            "rule": f"white unless Ljung-Box p < {WHITE_P:g}",
+        }
 
 
 def whiteness(runs: Sequence[np.ndarray], lags: int = WHITE_LAGS) -> Whiteness:
@@ -169,5 +194,5 @@ def whiteness(runs: Sequence[np.ndarray], lags: int = WHITE_LAGS) -> Whiteness:
         return Whiteness(math.nan, math.nan, math.nan, lags, 0)
     rho = rhos / weights
     n = weights
-    q = float(n * (n + 2) * np.sum(rho ** 2 / (n - np.arange(1, lags + 1))))
+    q = float(n * (n + 2) * np.sum(rho**2 / (n - np.arange(1, lags + 1))))
     return Whiteness(float(rho[0]), q, float(chi2.sf(q, lags)), lags, int(n))

@@ -27,15 +27,24 @@ TELLING = 1.0  # a window tells two fits apart when their mean squares there dif
 
 # ---- look-alikes ---------------------------------------------------------------------------------
 
-def alike(chosen: Candidate, candidates: Sequence[Candidate], min_gain: float = explain.MIN_GAIN
-          ) -> list[Candidate]:
+
+def alike(
+    chosen: Candidate, candidates: Sequence[Candidate], min_gain: float = explain.MIN_GAIN
+) -> list[Candidate]:
     """The cross-validated candidates that fit as well as the chosen one on held-out runs (neither is
     ``min_gain`` better) and are a different explanation (neither a part nor a superset of it)."""
     if not chosen.ids:
         return []
     inside = set(chosen.ids)
-    found = [c for c in explain.ranked(list(candidates)) if c.validated and c.ids and not set(c.ids) <= inside
-             and not inside <= set(c.ids) and c.cross_validated * (1.0 - min_gain) <= chosen.cross_validated]
+    found = [
+        c
+        for c in explain.ranked(list(candidates))
+        if c.validated
+        and c.ids
+        and not set(c.ids) <= inside
+        and not inside <= set(c.ids)
+        and c.cross_validated * (1.0 - min_gain) <= chosen.cross_validated
+    ]
     return found[:LOOKALIKES]
 
 
@@ -56,13 +65,27 @@ class FitsAlike:
 
     def to_json(self) -> dict[str, Any]:
         e = self.evidence
-        return {"chosen": self.chosen, "id": self.other, "held_out": e.other_held_out, "delta_held_out": e.delta_held_out,
-                "delta_bic": e.delta_bic, "runs_better": e.runs_better_text, "runs_tied": e.runs_tied,
-                "told_apart": self.told_apart, "favours_chosen": self.favours_chosen, "telling_windows": self.telling}
+        return {
+            "chosen": self.chosen,
+            "id": self.other,
+            "held_out": e.other_held_out,
+            "delta_held_out": e.delta_held_out,
+            "delta_bic": e.delta_bic,
+            "runs_better": e.runs_better_text,
+            "runs_tied": e.runs_tied,
+            "told_apart": self.told_apart,
+            "favours_chosen": self.favours_chosen,
+            "telling_windows": self.telling,
+        }
 
 
-def telling_windows(chosen: Sequence[Residual], other: Sequence[Residual], noise: Mapping[str, float],
-                    scenarios: Mapping[str, Any], count: int = 5) -> list[dict[str, Any]]:
+def telling_windows(
+    chosen: Sequence[Residual],
+    other: Sequence[Residual],
+    noise: Mapping[str, float],
+    scenarios: Mapping[str, Any],
+    count: int = 5,
+) -> list[dict[str, Any]]:
     """The windows (signal_locate.windows) where the two fits' mean squares differ by at least ``TELLING``
     noise variances, largest first: where a run tells the two apart."""
     theirs = {(r.signal, r.scenario): r for r in other}
@@ -80,42 +103,73 @@ def telling_windows(chosen: Sequence[Residual], other: Sequence[Residual], noise
                 continue
             delta = float(np.mean(twin.values[inside] ** 2) - np.mean(mine.values[inside] ** 2)) / sigma2
             if abs(delta) >= TELLING:
-                found.append({"signal": mine.signal, "scenario": mine.scenario, "start": float(edges[k]),
-                              "stop": float(edges[k + 1]), "input": activity(scenarios[mine.scenario], edges[k],
-                                                                             edges[k + 1]),
-                              "delta_mean_square": delta})
+                found.append(
+                    {
+                        "signal": mine.signal,
+                        "scenario": mine.scenario,
+                        "start": float(edges[k]),
+                        "stop": float(edges[k + 1]),
+                        "input": activity(scenarios[mine.scenario], edges[k], edges[k + 1]),
+                        "delta_mean_square": delta,
+                    }
+                )
     return sorted(found, key=lambda w: -abs(w["delta_mean_square"]))[:count]
 
 
-def weigh(chosen: Candidate, other: Candidate, residuals: Mapping[str, Sequence[Residual]],
-          noise: Mapping[str, float], scenarios: Mapping[str, Any]) -> FitsAlike:
+def weigh(
+    chosen: Candidate,
+    other: Candidate,
+    residuals: Mapping[str, Sequence[Residual]],
+    noise: Mapping[str, float],
+    scenarios: Mapping[str, Any],
+) -> FitsAlike:
     """The evidence between the chosen set and a look-alike, from their held-out errors and from their
     full fits' residuals window by window."""
     telling = telling_windows(residuals[chosen.label], residuals[other.label], noise, scenarios)
-    return FitsAlike(chosen.label, other.label, explain.evidence(chosen, other), telling,
-                     float(sum(w["delta_mean_square"] for w in telling)))
+    return FitsAlike(
+        chosen.label,
+        other.label,
+        explain.evidence(chosen, other),
+        telling,
+        float(sum(w["delta_mean_square"] for w in telling)),
+    )
 
 
 # ---- what the verdict says -----------------------------------------------------------------------
 
-def verdict_text(verdict: str, held_out: float, chosen: Candidate, interfaces: Mapping[str, str],
-                 looks: Sequence[FitsAlike], dropped: Sequence[explain.Dropped], factor: float,
-                 discovered: Sequence[str] = (), coloured: Mapping[str, Whiteness] | None = None) -> str:
+
+def verdict_text(
+    verdict: str,
+    held_out: float,
+    chosen: Candidate,
+    interfaces: Mapping[str, str],
+    looks: Sequence[FitsAlike],
+    dropped: Sequence[explain.Dropped],
+    factor: float,
+    discovered: Sequence[str] = (),
+    coloured: Mapping[str, Whiteness] | None = None,
+) -> str:
     """The verdict in a sentence: what was named (a discovered correction as its formula), what was not
     claimed, which twins cannot be told apart, whose residuals are not white, and, when an error well above
     the noise remains, where it must lie."""
     named = ", ".join([*(i for i in chosen.ids if i != DISCOVERED), *discovered]) or "no effect"
     parts = [f"{verdict}: {named}; held-out error {held_out:.3g} noise floors"]
     for signal, w in (coloured or {}).items():
-        parts.append(f"the residuals of {signal} are not white (lag-1 autocorrelation {w.rho1:.2f}, Ljung-Box p "
-                     f"{w.p:.2g}): either the model still misses something there, or the recording's noise is "
-                     "coloured and its floor reads low")
+        parts.append(
+            f"the residuals of {signal} are not white (lag-1 autocorrelation {w.rho1:.2f}, Ljung-Box p "
+            f"{w.p:.2g}): either the model still misses something there, or the recording's noise is "
+            "coloured and its floor reads low"
+        )
     if dropped:
-        parts.append("not claimed (changes the fit by less than the noise): " + ", ".join(d.id for d in dropped))
+        parts.append(
+            "not claimed (changes the fit by less than the noise): " + ", ".join(d.id for d in dropped)
+        )
     twins = [x.other for x in looks if not x.told_apart]
     if twins:
-        parts.append(f"the recordings cannot tell {named} from {', '.join(twins)}: a run that moves the inputs "
-                     "differently (another shape or timing, or a release away from rest) would")
+        parts.append(
+            f"the recordings cannot tell {named} from {', '.join(twins)}: a run that moves the inputs "
+            "differently (another shape or timing, or a release away from rest) would"
+        )
     if verdict in (explain.PARTIAL, explain.UNEXPLAINED) and explain.above_floor(held_out, 1.0, factor):
         parts.append(interior(interfaces, factor))  # not when only the residuals' colour made it partial
     return "; ".join(parts)
@@ -125,12 +179,18 @@ def interior(interfaces: Mapping[str, str], factor: float) -> str:
     """Where an error the signal effects leave must lie: inside the FMUs, and whether that can be corrected."""
     cs = sorted(name for name, kind in interfaces.items() if kind == "cs")
     me = sorted(name for name, kind in interfaces.items() if kind == "me")
-    said = [f"more than {factor:g} noise floors remain after every effect on the inputs and outputs, so the "
-            "missing part lies inside the model"]
+    said = [
+        f"more than {factor:g} noise floors remain after every effect on the inputs and outputs, so the "
+        "missing part lies inside the model"
+    ]
     if cs:
-        said.append(f"inside the co-simulation FMU{'s' * (len(cs) > 1)} {', '.join(cs)}, which cannot be augmented "
-                    "from outside: only its inputs and outputs can be corrected, and the FMU itself has to change")
+        said.append(
+            f"inside the co-simulation FMU{'s' * (len(cs) > 1)} {', '.join(cs)}, which cannot be augmented "
+            "from outside: only its inputs and outputs can be corrected, and the FMU itself has to change"
+        )
     if me:
-        said.append(f"the model-exchange FMU{'s' * (len(me) > 1)} {', '.join(me)} could take a correction of "
-                    "their state derivatives, integrated by the master")
+        said.append(
+            f"the model-exchange FMU{'s' * (len(me) > 1)} {', '.join(me)} could take a correction of "
+            "their state derivatives, integrated by the master"
+        )
     return ": ".join(said[:1]) + ("; " + "; ".join(said[1:]) if len(said) > 1 else "")

@@ -24,9 +24,15 @@ def file_name(signal: str, scenario: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", f"{scenario}-{signal}") + ".png"
 
 
-def draw(before: Sequence[Residual], after: Sequence[Residual], scenarios: Mapping[str, Scenario],
-         recorded: Mapping[str, str], worst: Sequence[Mapping[str, Any]], folder: Path,
-         labels: tuple[str, str] = ("calibrated", "diagnosed")) -> list[Path]:
+def draw(
+    before: Sequence[Residual],
+    after: Sequence[Residual],
+    scenarios: Mapping[str, Scenario],
+    recorded: Mapping[str, str],
+    worst: Sequence[Mapping[str, Any]],
+    folder: Path,
+    labels: tuple[str, str] = ("calibrated", "diagnosed"),
+) -> list[Path]:
     """One figure per compared signal and run, into ``folder``/figures; their paths. ``recorded``: the
     recorded column of each compared signal; ``worst``: the located windows to mark (signal, scenario, start,
     stop)."""
@@ -47,16 +53,32 @@ def draw(before: Sequence[Residual], after: Sequence[Residual], scenarios: Mappi
         time, values = scenario.recorded.samples(recorded[first.signal])
         figure, axes = plt.subplots(figsize=(WIDTH, HEIGHT), dpi=100)
         axes.plot(time, values, color="black", linewidth=1.0, label="recorded")
-        axes.plot(first.time, values[: first.values.size] + first.values, color="tab:grey", linewidth=1.0,
-                  linestyle="--", label=labels[0])
+        axes.plot(
+            first.time,
+            values[: first.values.size] + first.values,
+            color="tab:grey",
+            linewidth=1.0,
+            linestyle="--",
+            label=labels[0],
+        )
         second = later.get((first.signal, first.scenario))
         if second is not None:
-            axes.plot(second.time, values[: second.values.size] + second.values, color="tab:blue", linewidth=1.2,
-                      label=labels[1])
+            axes.plot(
+                second.time,
+                values[: second.values.size] + second.values,
+                color="tab:blue",
+                linewidth=1.2,
+                label=labels[1],
+            )
         marked = [w for w in worst if w["signal"] == first.signal and w["scenario"] == first.scenario]
         for k, w in enumerate(marked):
-            axes.axvspan(w["start"], w["stop"], color="tab:orange", alpha=0.15,
-                         label="worst windows before" if k == 0 else None)
+            axes.axvspan(
+                w["start"],
+                w["stop"],
+                color="tab:orange",
+                alpha=0.15,
+                label="worst windows before" if k == 0 else None,
+            )
         axes.set_xlabel("time [s]")
         axes.set_ylabel(first.signal)
         axes.set_title(f"{first.signal} on {first.scenario}")

@@ -42,37 +42,62 @@ BOUND_STARTS = (0.1, 0.3, 0.5)  # a bound's fits start this share of its state's
 BOUND_REACH = 1.0  # a bound is sought over this share of the span, from the edge it limits
 SQUARE = 3.0  # a square term is sought up to where it adds this many times the signal at its largest
 PHYSICS = {  # what each kind of effect stands for, and the residual it leaves
-    "delay": ("the signal arrives late: a transport or processing delay, a late actuator or a late time stamp",
-              "residuals grow with the signal's rate of change; the simulation leads the recording"),
-    "lag": ("the signal is smoothed on its way: a first-order actuator or sensor response (a filter)",
-            "residuals at steps and fast changes, decaying with the lag's time constant; peaks are lower"),
-    "gain": ("the signal is scaled: a miscalibrated actuator or sensor, or a unit error",
-             "residuals proportional to the signal itself"),
-    "offset": ("the signal is shifted: an actuator's or a sensor's bias",
-               "a constant residual, whatever the signal does"),
-    "deadzone": ("nothing passes until the signal exceeds a threshold: a valve or a pump that needs some drive "
-                 "before it moves",
-                 "the simulation responds to small inputs that the process ignores"),
-    "backlash": ("play between the signal and what it moves: a gear or linkage that must take up slack first",
-                 "residuals after every reversal of the signal, the size of the play"),
-    "rate": ("the signal can change only so fast: a slew-limited actuator",
-             "residuals at steps and steep changes, growing with their size, the simulation ahead of the recording"),
-    "square": ("the signal passes through a curved characteristic: an uncalibrated sensor or a nonlinear "
-               "actuator (with gain and offset, a polynomial map)",
-               "residuals that grow with the square of the signal: too low at one end, too high at the other"),
-    "max": ("the signal saturates at a maximum: an actuator at its limit, a sensor at the end of its range",
-            "the recording stays flat at its highest values where the simulation goes on"),
-    "min": ("the signal saturates at a minimum: an actuator at its limit, a sensor at the end of its range",
-            "the recording stays flat at its lowest values where the simulation goes on"),
-    "state_max": ("the state cannot rise above a bound: a store that is full, a tank at its brim, an end stop",
-                  "the simulation overshoots where the recording stays flat at its highest values, and "
-                  "falls back too late"),
-    "state_min": ("the state cannot fall below a bound: a store that is empty, an end stop",
-                  "the simulation undershoots where the recording stays flat at its lowest values"),
-    "state_overflow": ("the state overflows at a bound, and part of what overflows reaches another state (a "
-                       "tank spilling into the one below)",
-                       "the first state stays flat at its highest values while the other rises faster than "
-                       "modelled"),
+    "delay": (
+        "the signal arrives late: a transport or processing delay, a late actuator or a late time stamp",
+        "residuals grow with the signal's rate of change; the simulation leads the recording",
+    ),
+    "lag": (
+        "the signal is smoothed on its way: a first-order actuator or sensor response (a filter)",
+        "residuals at steps and fast changes, decaying with the lag's time constant; peaks are lower",
+    ),
+    "gain": (
+        "the signal is scaled: a miscalibrated actuator or sensor, or a unit error",
+        "residuals proportional to the signal itself",
+    ),
+    "offset": (
+        "the signal is shifted: an actuator's or a sensor's bias",
+        "a constant residual, whatever the signal does",
+    ),
+    "deadzone": (
+        "nothing passes until the signal exceeds a threshold: a valve or a pump that needs some drive "
+        "before it moves",
+        "the simulation responds to small inputs that the process ignores",
+    ),
+    "backlash": (
+        "play between the signal and what it moves: a gear or linkage that must take up slack first",
+        "residuals after every reversal of the signal, the size of the play",
+    ),
+    "rate": (
+        "the signal can change only so fast: a slew-limited actuator",
+        "residuals at steps and steep changes, growing with their size, the simulation ahead of the recording",
+    ),
+    "square": (
+        "the signal passes through a curved characteristic: an uncalibrated sensor or a nonlinear "
+        "actuator (with gain and offset, a polynomial map)",
+        "residuals that grow with the square of the signal: too low at one end, too high at the other",
+    ),
+    "max": (
+        "the signal saturates at a maximum: an actuator at its limit, a sensor at the end of its range",
+        "the recording stays flat at its highest values where the simulation goes on",
+    ),
+    "min": (
+        "the signal saturates at a minimum: an actuator at its limit, a sensor at the end of its range",
+        "the recording stays flat at its lowest values where the simulation goes on",
+    ),
+    "state_max": (
+        "the state cannot rise above a bound: a store that is full, a tank at its brim, an end stop",
+        "the simulation overshoots where the recording stays flat at its highest values, and "
+        "falls back too late",
+    ),
+    "state_min": (
+        "the state cannot fall below a bound: a store that is empty, an end stop",
+        "the simulation undershoots where the recording stays flat at its lowest values",
+    ),
+    "state_overflow": (
+        "the state overflows at a bound, and part of what overflows reaches another state (a "
+        "tank spilling into the one below)",
+        "the first state stays flat at its highest values while the other rises faster than modelled",
+    ),
 }
 
 
@@ -87,7 +112,9 @@ class SignalHypothesis:
     kinds: tuple[str, ...]
     neutral: tuple[float, ...]
     starts: tuple[tuple[float, ...], ...]
-    resolution: float = 0.0  # the finest change of its first value a run can show (a delay: one communication step)
+    resolution: float = (
+        0.0  # the finest change of its first value a run can show (a delay: one communication step)
+    )
     into: str | None = None  # an overflow's receiving state
 
     @property
@@ -113,8 +140,10 @@ class SignalHypothesis:
 def signal_hypotheses(space: Space, compared_signals: Sequence[str]) -> dict[str, SignalHypothesis]:
     """Every signal effect on every input all scenarios drive and every compared signal, with its range."""
     experiment = space.spec.experiment
-    lengths = [float(s.stop_time or experiment.stop_time or 0) - float(s.start_time or experiment.start_time or 0)
-               for s in space.scenarios]
+    lengths = [
+        float(s.stop_time or experiment.stop_time or 0) - float(s.start_time or experiment.start_time or 0)
+        for s in space.scenarios
+    ]
     span = min((length for length in lengths if length > 0), default=math.inf)
     span = span if math.isfinite(span) else 10.0
     # The master feeds inputs at its communication points, so a run responds to a delay in steps of one
@@ -126,25 +155,42 @@ def signal_hypotheses(space: Space, compared_signals: Sequence[str]) -> dict[str
             if isinstance(signal, Series):
                 inputs.setdefault(qualify(space.plan, ref), []).append(signal.values)
     driven = [ref for ref, values in inputs.items() if len(values) == len(space.scenarios)]
-    outputs = {signal: [s.recorded.samples(recorded)[1] for s in space.scenarios if s.recorded]
-               for signal, recorded in compared_signals}
+    outputs = {
+        signal: [s.recorded.samples(recorded)[1] for s in space.scenarios if s.recorded]
+        for signal, recorded in compared_signals
+    }
     found = {}
     for side, signals in (("input", {r: inputs[r] for r in driven}), ("output", outputs)):
         for target, samples in signals.items():
             for kind, (low, high, starts, difference) in signal_ranges(side, samples, span, step).items():
                 effect = signal_effects.Effect(side, kind, target)  # type: ignore[arg-type]
                 neutral = signal_effects.NEUTRAL[kind]
-                found[effect.name] = SignalHypothesis(effect.id, target, (Parameter(effect.name, starts[0], low, high, difference),),
-                                                (kind,), (neutral,), tuple((v,) for v in starts),
-                                                step if kind == "delay" else 0.0)
+                found[effect.name] = SignalHypothesis(
+                    effect.id,
+                    target,
+                    (Parameter(effect.name, starts[0], low, high, difference),),
+                    (kind,),
+                    (neutral,),
+                    tuple((v,) for v in starts),
+                    step if kind == "delay" else 0.0,
+                )
     return found
 
 
-OUTPUT_KINDS = ("delay", "lag", "gain", "offset", "max", "min", "square")  # a sensor's; an actuator may have any
+OUTPUT_KINDS = (
+    "delay",
+    "lag",
+    "gain",
+    "offset",
+    "max",
+    "min",
+    "square",
+)  # a sensor's; an actuator may have any
 
 
-def signal_ranges(side: str, samples: Sequence[np.ndarray], span: float, step: float
-                  ) -> dict[str, tuple[float, float, list[float], float]]:
+def signal_ranges(
+    side: str, samples: Sequence[np.ndarray], span: float, step: float
+) -> dict[str, tuple[float, float, list[float], float]]:
     """Each kind of effect on one signal: its range, where its fits start, its finite-difference step; from the
     signal's values (``samples``: a driven input's, or a compared signal's recordings), the shortest scenario's
     length ``span`` and the communication ``step``."""
@@ -155,7 +201,9 @@ def signal_ranges(side: str, samples: Sequence[np.ndarray], span: float, step: f
     largest = float(np.max(np.abs(values))) if values.size else 1.0
     largest = largest or 1.0
     rates = [np.max(np.abs(np.diff(v))) for v in samples if len(v) > 1]
-    fastest = max(float(max(rates, default=0.0)) / (step or 1.0), 1e-9)  # per second, at the fastest sample change
+    fastest = max(
+        float(max(rates, default=0.0)) / (step or 1.0), 1e-9
+    )  # per second, at the fastest sample change
     reach = SPAN_SHARE * span
 
     def multistart(lo: float, hi: float, first: float) -> list[float]:
@@ -178,8 +226,9 @@ def signal_ranges(side: str, samples: Sequence[np.ndarray], span: float, step: f
     return {k: v for k, v in kinds.items() if side == "input" or k in OUTPUT_KINDS}
 
 
-def state_hypotheses(instances: Mapping[str, Sequence[str]], observed: Sequence[Mapping[str, np.ndarray]]
-                     ) -> dict[str, SignalHypothesis]:
+def state_hypotheses(
+    instances: Mapping[str, Sequence[str]], observed: Sequence[Mapping[str, np.ndarray]]
+) -> dict[str, SignalHypothesis]:
     """Every bound on every state of the model-exchange ``instances`` (name -> states), ranged over the span
     each state covers in the ``observed`` runs (``instance.state`` -> values); a state that does not move
     gets none."""
@@ -187,7 +236,11 @@ def state_hypotheses(instances: Mapping[str, Sequence[str]], observed: Sequence[
     for instance, states in instances.items():
         spans = {}
         for state in states:
-            values = [np.asarray(run[f"{instance}.{state}"], float) for run in observed if f"{instance}.{state}" in run]
+            values = [
+                np.asarray(run[f"{instance}.{state}"], float)
+                for run in observed
+                if f"{instance}.{state}" in run
+            ]
             values = [v[np.isfinite(v)] for v in values]
             joined = np.concatenate(values) if values else np.zeros(0)
             if joined.size and np.ptp(joined) > 0:
@@ -195,24 +248,49 @@ def state_hypotheses(instances: Mapping[str, Sequence[str]], observed: Sequence[
         for state, (low, high) in spans.items():
             width = high - low
             bounds = {
-                "max": Parameter(state_limits.limit_name("max", instance, state), high,
-                                 high - BOUND_REACH * width, high, 0.01 * width),
-                "min": Parameter(state_limits.limit_name("min", instance, state), low,
-                                 low, low + BOUND_REACH * width, 0.01 * width),
+                "max": Parameter(
+                    state_limits.limit_name("max", instance, state),
+                    high,
+                    high - BOUND_REACH * width,
+                    high,
+                    0.01 * width,
+                ),
+                "min": Parameter(
+                    state_limits.limit_name("min", instance, state),
+                    low,
+                    low,
+                    low + BOUND_REACH * width,
+                    0.01 * width,
+                ),
             }
-            starts = {"max": [high - f * width for f in BOUND_STARTS], "min": [low + f * width for f in BOUND_STARTS]}
+            starts = {
+                "max": [high - f * width for f in BOUND_STARTS],
+                "min": [low + f * width for f in BOUND_STARTS],
+            }
             target = f"{instance}.{state}"
             for kind, bound in bounds.items():
-                found[bound.name] = SignalHypothesis(f"state_{kind}", target, (bound,), (kind,),
-                                               (state_limits.NEUTRAL[kind],), tuple((v,) for v in starts[kind]))
+                found[bound.name] = SignalHypothesis(
+                    f"state_{kind}",
+                    target,
+                    (bound,),
+                    (kind,),
+                    (state_limits.NEUTRAL[kind],),
+                    tuple((v,) for v in starts[kind]),
+                )
             for other in spans:
                 if other == state:
                     continue
                 name = state_limits.limit_name("overflow", instance, state, other)
                 fraction = Parameter(name, 0.5, 0.0, 1.0, 0.02)
-                found[name] = SignalHypothesis("state_overflow", target, (fraction, bounds["max"]), ("overflow", "max"),
-                                         (0.0, state_limits.NEUTRAL["max"]), tuple((0.5, v) for v in starts["max"]),
-                                         into=f"{instance}.{other}")
+                found[name] = SignalHypothesis(
+                    "state_overflow",
+                    target,
+                    (fraction, bounds["max"]),
+                    ("overflow", "max"),
+                    (0.0, state_limits.NEUTRAL["max"]),
+                    tuple((0.5, v) for v in starts["max"]),
+                    into=f"{instance}.{other}",
+                )
     return found
 
 

@@ -69,7 +69,9 @@ class Compared:
     signal: str
     recorded: str
     noise: float  # σ of the recording's noise, in the signal's units (the median over the scenarios)
-    estimate: NoiseEstimate | None = None  # how the scenario nearest that median was estimated, and what it assumes
+    estimate: NoiseEstimate | None = (
+        None  # how the scenario nearest that median was estimated, and what it assumes
+    )
 
     @property
     def residuals(self) -> str:
@@ -91,21 +93,35 @@ class SignalDiagnosis:
     dropped: list[explain.Dropped] = field(default_factory=list)
     located: dict[str, Any] = field(default_factory=dict)
     verdict_text: str = ""
-    discovery: Discovered | NotDiscovered | None = None  # sought when the library leaves error above the noise
+    discovery: Discovered | NotDiscovered | None = (
+        None  # sought when the library leaves error above the noise
+    )
     files: dict[str, str] = field(default_factory=dict)
-    figures: list[str] = field(default_factory=list)  # recorded against simulated, per compared signal and run
+    figures: list[str] = field(
+        default_factory=list
+    )  # recorded against simulated, per compared signal and run
     growth: list[dict[str, Any]] = field(default_factory=list)  # each round of one more effect: what it tried
     validation: Validation | None = None  # what held-out means here
-    whiteness: dict[str, Whiteness] = field(default_factory=dict)  # the chosen fit's residuals, per compared signal
+    whiteness: dict[str, Whiteness] = field(
+        default_factory=dict
+    )  # the chosen fit's residuals, per compared signal
 
     def to_json(self) -> dict[str, Any]:
         runner = explain.runner_up(self.chosen, self.candidates)
         return {
-            "compared": [{"objective": c.objective, "signal": c.signal, "recorded": c.recorded, "noise": c.noise,
-                          "noise_estimate": c.estimate.to_json() if c.estimate else None} for c in self.compared],
+            "compared": [
+                {
+                    "objective": c.objective,
+                    "signal": c.signal,
+                    "recorded": c.recorded,
+                    "noise": c.noise,
+                    "noise_estimate": c.estimate.to_json() if c.estimate else None,
+                }
+                for c in self.compared
+            ],
             "whiteness": {signal: w.to_json() for signal, w in self.whiteness.items()},
-            "effects": [self._effect(name) for name in self.chosen.ids if name != DISCOVERED] + (
-                self.discovery.effects() if isinstance(self.discovery, Discovered) else []),
+            "effects": [self._effect(name) for name in self.chosen.ids if name != DISCOVERED]
+            + (self.discovery.effects() if isinstance(self.discovery, Discovered) else []),
             "verdict": self.verdict,
             "verdict_text": self.verdict_text,
             "held_out_before": self.baseline.cross_validated,
@@ -113,8 +129,15 @@ class SignalDiagnosis:
             "held_out_unit": "noise floors (RMS of each compared signal's residuals over its recording's noise)",
             "noise_floor": 1.0,
             "runner_up": runner.label if runner is not None else None,
-            "candidates": [{"id": c.label, "held_out": c.cross_validated if c.validated else None, "bic": c.bic,
-                            **({"error": c.full.error} if c.full.error else {})} for c in explain.ranked(self.candidates)],
+            "candidates": [
+                {
+                    "id": c.label,
+                    "held_out": c.cross_validated if c.validated else None,
+                    "bic": c.bic,
+                    **({"error": c.full.error} if c.full.error else {}),
+                }
+                for c in explain.ranked(self.candidates)
+            ],
             "validation": self.validation.to_json() if self.validation is not None else None,
             "pairs": self.pairs.to_json() if self.pairs is not None else None,
             "growth": self.growth,
@@ -122,10 +145,14 @@ class SignalDiagnosis:
             "dropped": [d.to_json() for d in self.dropped],
             "discovery": self.discovery.to_json() if self.discovery is not None else None,
             "located": self.located,
-            "calibrated": {"parameters": dict(self.baseline.full.values)},  # the model before: none refitted alone
-            "fitted": {"parameters": dict(self.chosen.full.values),  # every value the chosen answer fitted
-                       "interval": {k: list(v) for k, v in self.chosen.full.interval().items()},
-                       "at_bound": list(self.chosen.full.at_bound)},
+            "calibrated": {
+                "parameters": dict(self.baseline.full.values)
+            },  # the model before: none refitted alone
+            "fitted": {
+                "parameters": dict(self.chosen.full.values),  # every value the chosen answer fitted
+                "interval": {k: list(v) for k, v in self.chosen.full.interval().items()},
+                "at_bound": list(self.chosen.full.at_bound),
+            },
             "files": {**self.files, "figures": self.figures} if self.files else {},
         }
 
@@ -137,8 +164,14 @@ class SignalDiagnosis:
             if parameter is hypothesis.parameters[0]:  # its resolution widens the interval
                 low, high = min(low, value - hypothesis.resolution), max(high, value + hypothesis.resolution)
             values[kind], intervals[kind] = value, [low, high]
-        found = {"id": hypothesis.id, "target": hypothesis.target, "parameters": values, "intervals": intervals,
-                 "resolution": hypothesis.resolution, "partial": self.verdict == explain.PARTIAL}
+        found = {
+            "id": hypothesis.id,
+            "target": hypothesis.target,
+            "parameters": values,
+            "intervals": intervals,
+            "resolution": hypothesis.resolution,
+            "partial": self.verdict == explain.PARTIAL,
+        }
         return {**found, "into": hypothesis.into} if hypothesis.into else found
 
     def summary(self) -> list[str]:
@@ -149,27 +182,44 @@ class SignalDiagnosis:
             if effect["id"] == DISCOVERED:  # its terms as an engineer writes them
                 lines.append(f"{effect['id']}({effect['target']}): {effect['readable']}")
                 continue
-            told = [f"{kind} {value:.4g} (95 % {effect['intervals'][kind][0]:.4g} to {effect['intervals'][kind][1]:.4g})"
-                    for kind, value in effect["parameters"].items()]
+            told = [
+                f"{kind} {value:.4g} (95 % {effect['intervals'][kind][0]:.4g} to {effect['intervals'][kind][1]:.4g})"
+                for kind, value in effect["parameters"].items()
+            ]
             into = f" into {effect['into']}" if effect.get("into") else ""
             lines.append(f"{effect['id']}({effect['target']}){into}: {', '.join(told)}")
         alone = (found.get("calibrated") or {}).get("parameters") or {}
         fitted = (found.get("fitted") or {}).get("parameters") or {}
         together = {name: value for name, value in fitted.items() if name in alone}
         if alone:  # what the missing physics did to the calibration: it bent the parameters to make up for it
-            lines.append("calibrated: " + ", ".join(f"{name} = {value:.4g}" for name, value in alone.items())
-                         + ("; with the effects: " + ", ".join(f"{n} = {v:.4g}" for n, v in together.items())
-                            if found["effects"] and together else ""))
-        judged = "error on the samples fitted (nothing could be held out)" if (
-            self.validation is not None and not self.validation.folds) else "held-out error"
-        lines.append(f"{judged}: {found['held_out_before']:.2f} before, {found['held_out_after']:.2f} after, "
-                     "in noise floors (each compared signal's residuals over its recording's noise)")
+            lines.append(
+                "calibrated: "
+                + ", ".join(f"{name} = {value:.4g}" for name, value in alone.items())
+                + (
+                    "; with the effects: " + ", ".join(f"{n} = {v:.4g}" for n, v in together.items())
+                    if found["effects"] and together
+                    else ""
+                )
+            )
+        judged = (
+            "error on the samples fitted (nothing could be held out)"
+            if (self.validation is not None and not self.validation.folds)
+            else "held-out error"
+        )
+        lines.append(
+            f"{judged}: {found['held_out_before']:.2f} before, {found['held_out_after']:.2f} after, "
+            "in noise floors (each compared signal's residuals over its recording's noise)"
+        )
         if self.validation is not None:
             lines.append(self.validation.text)
-        lines.append(f"verdict: {found['verdict_text']}"
-                     + (f"; runner-up {found['runner_up']}" if found["runner_up"] else ""))
+        lines.append(
+            f"verdict: {found['verdict_text']}"
+            + (f"; runner-up {found['runner_up']}" if found["runner_up"] else "")
+        )
         if found["files"]:
-            lines.extend(f"{name}: {found['files'][name]}" for name in ("report", "values") if name in found["files"])
+            lines.extend(
+                f"{name}: {found['files'][name]}" for name in ("report", "values") if name in found["files"]
+            )
         return lines
 
 
@@ -180,20 +230,28 @@ def compared_signals(space: Space) -> list[Compared]:
     for name, spec in space.objectives.items():
         if not isinstance(spec, objs.Fit):
             continue
-        estimates = [estimate_noise(s.recorded.samples(spec.recorded)[1]) for s in space.scenarios if s.recorded]
+        estimates = [
+            estimate_noise(s.recorded.samples(spec.recorded)[1]) for s in space.scenarios if s.recorded
+        ]
         sigmas = [e.sigma for e in estimates]
         noise = float(np.nanmedian(sigmas)) if sigmas and np.isfinite(sigmas).any() else math.nan
         if not noise > 0:
-            raise DseError(f"objective {name}: no noise could be estimated from the recorded {spec.recorded!r}")
+            raise DseError(
+                f"objective {name}: no noise could be estimated from the recorded {spec.recorded!r}"
+            )
         typical = min(estimates, key=lambda e: abs(e.sigma - noise) if math.isfinite(e.sigma) else math.inf)
         found.append(Compared(name, qualify(space.plan, spec.signal), spec.recorded, noise, typical))
     if not found:
-        raise DseError(f"{space.path}: diagnosis compares signals with recordings: give an objective "
-                       "{signal: inst.var, recorded: column, metric: rmse}")
+        raise DseError(
+            f"{space.path}: diagnosis compares signals with recordings: give an objective "
+            "{signal: inst.var, recorded: column, metric: rmse}"
+        )
     return found
 
 
-def library_of(space: Space, compared: Sequence[Compared], point: Mapping[str, Any] | None) -> dict[str, SignalHypothesis]:
+def library_of(
+    space: Space, compared: Sequence[Compared], point: Mapping[str, Any] | None
+) -> dict[str, SignalHypothesis]:
     """The hypotheses for ``space``: signal effects on its driven inputs and compared signals, and state limits
     on its model-exchange instances' states, ranged over what the states do at ``point`` (the calibration's
     start; simulated here on every scenario). Without a point (a listing), every state's limits by name."""
@@ -212,8 +270,9 @@ def restricted(found: dict[str, SignalHypothesis], only: Sequence[str]) -> dict[
     """The effects ``only`` names (all when it names none); an unknown name is an error listing them."""
     unknown = [name for name in only if name not in found]
     if unknown:
-        raise DseError(f"--hypothesis {', '.join(unknown)}: not a signal effect of this space; it has "
-                       f"{', '.join(found)}")
+        raise DseError(
+            f"--hypothesis {', '.join(unknown)}: not a signal effect of this space; it has {', '.join(found)}"
+        )
     return {name: h for name, h in found.items() if not only or name in only}
 
 
@@ -230,18 +289,27 @@ def calibration(space: Space, best: Mapping[str, Any]) -> tuple[Parameter, ...]:
     return tuple(params)
 
 
-def fits_space(space: Space, compared: Sequence[Compared], hypotheses: Mapping[str, SignalHypothesis], name: str = FITS
-               ) -> Space:
+def fits_space(
+    space: Space, compared: Sequence[Compared], hypotheses: Mapping[str, SignalHypothesis], name: str = FITS
+) -> Space:
     """The space the fits run in (its scenarios as they are: a record's blocks stay blocks): its own
     parameters and every effect's (each at its neutral value unless a fit frees it), scored by the residuals
     of each compared signal."""
     parameters = dict(space.spec.parameters)
     parameters.update({name: [value] for h in hypotheses.values() for name, value in h.absent().items()})
-    objectives = {**space.objectives,
-                  **{c.residuals: objs.Fit(signal=c.signal, recorded=c.recorded, metric="residuals") for c in compared}}
-    return derived_space(space, name=name, parameters=parameters, objectives=objectives,
-                         search=space.spec.search.model_copy(update={"strategy": "given"}), constraints=[],
-                         keep_trajectories=0)
+    objectives = {
+        **space.objectives,
+        **{c.residuals: objs.Fit(signal=c.signal, recorded=c.recorded, metric="residuals") for c in compared},
+    }
+    return derived_space(
+        space,
+        name=name,
+        parameters=parameters,
+        objectives=objectives,
+        search=space.spec.search.model_copy(update={"strategy": "given"}),
+        constraints=[],
+        keep_trajectories=0,
+    )
 
 
 SURVIVORS = 2  # pairs that pass the BIC gate and are cross-validated, at most
@@ -253,8 +321,12 @@ def worth_pairing(singles: Sequence[FitResult], floor_stop: float = explain.FLOO
     return len(singles) >= 2 and min(explain.fitted_rms(f) for f in singles) > floor_stop
 
 
-def gated_early(short: Sequence[signal_screen.ScreenedPair], full: Mapping[tuple[str, ...], FitResult], count: int,
-                margin: float = explain.BIC_MARGIN) -> list[signal_screen.ScreenedPair]:
+def gated_early(
+    short: Sequence[signal_screen.ScreenedPair],
+    full: Mapping[tuple[str, ...], FitResult],
+    count: int,
+    margin: float = explain.BIC_MARGIN,
+) -> list[signal_screen.ScreenedPair]:
     """The screened pairs sure to pass explain.bic_gate whatever the singles' cross-validation chooses:
     their checked BIC (which their fit can only lower) is ``margin`` below every single's and none's."""
     lowest = min(explain.bic(f) for f in full.values())
@@ -272,26 +344,48 @@ class Pairs:
     reason: str = ""
 
     def to_json(self) -> dict[str, Any]:
-        return {"predicted": self.predicted, "screened": [s.to_json() for s in self.screened],
-                "fitted": self.fitted, "reason": self.reason}
+        return {
+            "predicted": self.predicted,
+            "screened": [s.to_json() for s in self.screened],
+            "fitted": self.fitted,
+            "reason": self.reason,
+        }
 
-def diagnose_space(path: str | Path | Space, out: str | Path | None = None, folds: int = 3, noise_factor: float =
-                   explain.NOISE_FACTOR, say: Messages | None = None, n_workers: int | None = None,
-                   address: str | None = None, discover: bool = True, only: Sequence[str] = ()) -> SignalDiagnosis:
+
+def diagnose_space(
+    path: str | Path | Space,
+    out: str | Path | None = None,
+    folds: int = 3,
+    noise_factor: float = explain.NOISE_FACTOR,
+    say: Messages | None = None,
+    n_workers: int | None = None,
+    address: str | None = None,
+    discover: bool = True,
+    only: Sequence[str] = (),
+) -> SignalDiagnosis:
     """Calibrate the space (a file, or a Space as the library contract gives it), fit each signal effect with
     it (``only`` these, when given), screen pairs when no single explains to the noise, choose what the
     recordings support, seek a derivative correction when they leave error above the noise (unless not
     ``discover``), and locate the misfit before and after."""
     say = say or (lambda message: None)
-    space = path if isinstance(path, Space) else space_with(path, None, Path(out) if out else None,
-                                                            n_workers=n_workers, address=address)
+    space = (
+        path
+        if isinstance(path, Space)
+        else space_with(path, None, Path(out) if out else None, n_workers=n_workers, address=address)
+    )
     compared = compared_signals(space)
     with connect(space.spec.cluster, space.path.parent) as client:
         best: dict[str, Any] = {}
         if space.dimensions and space.spec.search.strategy != "given":
             search = space.spec.search
-            say(f"calibrating: {space.name}, " + ("the space's grid" if search.strategy == "exhaustive" else
-                                                   f"{search.strategy} over its intervals, {search.max_points} points"))
+            say(
+                f"calibrating: {space.name}, "
+                + (
+                    "the space's grid"
+                    if search.strategy == "exhaustive"
+                    else f"{search.strategy} over its intervals, {search.max_points} points"
+                )
+            )
             submit(space, client=client)
             best = rank(space.output, space.name).best
         base = calibration(space, best)
@@ -306,50 +400,79 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
             say("calibrating: least squares from the best point")
             plain = fits_space(space, compared, {}, CALIBRATION_FITS)
             names = tuple(s.name for s in space.scenarios)
-            refined = fit_all(plain, [FitProblem("calibration", base, held, names, MAX_ITERATIONS)], client, scales,
-                              report)["calibration"]
+            refined = fit_all(
+                plain, [FitProblem("calibration", base, held, names, MAX_ITERATIONS)], client, scales, report
+            )["calibration"]
             if refined.error is None:
                 base = tuple(replace(p, start=refined.values[p.name]) for p in base)
         library = restricted(library_of(space, compared, {**held, **{p.name: p.start for p in base}}), only)
         space, validation = validated(space, folds, sorted({c.recorded for c in compared}))
         say(f"validation: {validation.text}")
-        scenarios = validation.fitted  # what a fit on everything fits: a record's views are only for its folds
+        scenarios = (
+            validation.fitted
+        )  # what a fit on everything fits: a record's views are only for its folds
         parts = validation.tests
         fits = fits_space(space, compared, library)
         # what a fit does not free: the space's single-valued parameters, and every other effect at neutral
         unfreed = {**held, **{k: v for h in library.values() for k, v in h.absent().items()}}
         bounds = {p.name: p for p in (*base, *(p for h in library.values() for p in h.parameters))}
 
-        def problem(label: str, names: tuple[str, ...], on: tuple[str, ...], start: Mapping[str, float] = {},
-                    iterations: int = MAX_ITERATIONS) -> FitProblem:
-            freed = tuple(replace(p, start=start.get(p.name, p.start)) for p in
-                          (*base, *(p for n in names for p in library[n].parameters)))
+        def problem(
+            label: str,
+            names: tuple[str, ...],
+            on: tuple[str, ...],
+            start: Mapping[str, float] = {},
+            iterations: int = MAX_ITERATIONS,
+        ) -> FitProblem:
+            freed = tuple(
+                replace(p, start=start.get(p.name, p.start))
+                for p in (*base, *(p for n in names for p in library[n].parameters))
+            )
             fixed = {k: v for k, v in unfreed.items() if k not in {p.name for p in freed}}
             return FitProblem(label, freed, fixed, on, iterations)
 
         def by_fold(ids: tuple[str, ...], start: Mapping[str, float]) -> list[FitProblem]:
             label = "+".join(ids) or "none"
-            return [problem(f"{label}/fold{k}", ids, fold.train, start) for k, fold in enumerate(validation.folds)]
+            return [
+                problem(f"{label}/fold{k}", ids, fold.train, start) for k, fold in enumerate(validation.folds)
+            ]
 
         sets = [(), *((name,) for name in library)]
-        starts = {s: [library[s[0]].start(i) for i in range(len(library[s[0]].starts))] if s else [{}] for s in sets}
-        tries = [problem(f"{'+'.join(s) or 'none'}#{i}", s, scenarios, v, SCOUTING)
-                 for s in sets for i, v in enumerate(starts[s])]
-        say(f"fitting {len(sets) - 1} effects and none on every scenario: {len(tries)} fits, "
-            f"{SCOUTING} iterations from every start")
+        starts = {
+            s: [library[s[0]].start(i) for i in range(len(library[s[0]].starts))] if s else [{}] for s in sets
+        }
+        tries = [
+            problem(f"{'+'.join(s) or 'none'}#{i}", s, scenarios, v, SCOUTING)
+            for s in sets
+            for i, v in enumerate(starts[s])
+        ]
+        say(
+            f"fitting {len(sets) - 1} effects and none on every scenario: {len(tries)} fits, "
+            f"{SCOUTING} iterations from every start"
+        )
         tried = fit_all(fits, tries, client, scales, report)
-        scouted = {s: min((tried[f"{'+'.join(s) or 'none'}#{i}"] for i in range(len(starts[s]))), key=lambda f: f.sse)
-                   for s in sets}
+        scouted = {
+            s: min(
+                (tried[f"{'+'.join(s) or 'none'}#{i}"] for i in range(len(starts[s]))), key=lambda f: f.sse
+            )
+            for s in sets
+        }
         # only the best start of each effect goes on: after a few iterations each start is in its basin
-        going = [problem("+".join(s) or "none", s, scenarios, f.values, MAX_ITERATIONS - SCOUTING)
-                 for s, f in scouted.items() if not f.converged]
+        going = [
+            problem("+".join(s) or "none", s, scenarios, f.values, MAX_ITERATIONS - SCOUTING)
+            for s, f in scouted.items()
+            if not f.converged
+        ]
         say(f"going on from the best start: {len(going)} fits")
         went = fit_all(fits, going, client, scales, report) if going else {}
         full = {s: went.get("+".join(s) or "none", f) for s, f in scouted.items()}
 
         pairs = Pairs()
-        singles = {s[0]: full[s] for s in sets if s and full[s].error is None}  # a failed one has no direction
+        singles = {
+            s[0]: full[s] for s in sets if s and full[s].error is None
+        }  # a failed one has no direction
         if worth_pairing(list(singles.values())):
+
             def real_sse(points: list[Point]) -> list[float]:
                 rows, _ = evaluate_points(fits, points, client, list(scales))
                 found = residuals_in(rows, scales)
@@ -367,23 +490,33 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
         folded = [p for s in sets for p in by_fold(s, full[s].values)]
         folded += [p for x in early for p in by_fold(x.ids, x.start)]
         combos = [problem(x.label, x.ids, scenarios, x.start) for x in short]
-        say(f"cross-validating: {len(parts)} folds, {len(folded)} fits"
-            + (f"; fitting {len(combos)} pairs" if combos else ""))
+        say(
+            f"cross-validating: {len(parts)} folds, {len(folded)} fits"
+            + (f"; fitting {len(combos)} pairs" if combos else "")
+        )
         results = fit_all(fits, folded + combos, client, scales, report) if folded or combos else {}
         candidates = [Candidate(s, full[s]) for s in sets]
         combinations = [Candidate(x.ids, results[x.label]) for x in short]
         first = {x.label for x in early}
-        held_out(fits, client, candidates + [c for c in combinations if c.label in first], results, parts, scales)
+        held_out(
+            fits, client, candidates + [c for c in combinations if c.label in first], results, parts, scales
+        )
         if not parts:  # one run: judged on its fit alone, as every candidate is
             held_out(fits, client, combinations, {}, parts, scales)
         baseline = candidates[0]
         current = explain.select(candidates[1:], baseline)
         everything = candidates + combinations
-        survivors = explain.bic_gate(combinations, everything, current, explain.BIC_MARGIN, SURVIVORS) if parts else []
+        survivors = (
+            explain.bic_gate(combinations, everything, current, explain.BIC_MARGIN, SURVIVORS)
+            if parts
+            else []
+        )
         late = [c for c in survivors if not c.validated]
         if late:
             say(f"cross-validating {', '.join(c.label for c in late)}")
-            more = fit_all(fits, [p for c in late for p in by_fold(c.ids, c.full.values)], client, scales, report)
+            more = fit_all(
+                fits, [p for c in late for p in by_fold(c.ids, c.full.values)], client, scales, report
+            )
             held_out(fits, client, late, more, parts, scales)
         selected = explain.select(everything[1:], baseline)
 
@@ -401,19 +534,35 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
             single fit, the best few fitted on), cross-validated: it, if it beats ``current`` and every
             fitted part of itself; else None."""
             known = {frozenset(c.ids) for c in everything}
-            sets = [tuple(sorted((*current.ids, h))) for h in library if h not in current.ids
-                    and not any(shares(library[h], library[i]) for i in current.ids)]
+            sets = [
+                tuple(sorted((*current.ids, h)))
+                for h in library
+                if h not in current.ids and not any(shares(library[h], library[i]) for i in current.ids)
+            ]
             sets = [x for x in sets if frozenset(x) not in known]
             if not sets:
                 return None
-            starts = {x: {**current.full.values, **{k: v for h in x if h not in current.ids
-                                                    for k, v in joining(h).items()}} for x in sets}
+            starts = {
+                x: {
+                    **current.full.values,
+                    **{k: v for h in x if h not in current.ids for k, v in joining(h).items()},
+                }
+                for x in sets
+            }
             say(f"growing {current.label}: {len(sets)} sets with one more effect, {SCOUTING} iterations each")
-            scouted = fit_all(fits, [problem("+".join(x), x, scenarios, starts[x], SCOUTING) for x in sets], client,
-                              scales, report)
+            scouted = fit_all(
+                fits,
+                [problem("+".join(x), x, scenarios, starts[x], SCOUTING) for x in sets],
+                client,
+                scales,
+                report,
+            )
             finalists = sorted(sets, key=lambda x: scouted["+".join(x)].sse)[:GROW_FINALISTS]
-            going = [problem("+".join(x), x, scenarios, scouted["+".join(x)].values, MAX_ITERATIONS - SCOUTING)
-                     for x in finalists if not scouted["+".join(x)].converged]
+            going = [
+                problem("+".join(x), x, scenarios, scouted["+".join(x)].values, MAX_ITERATIONS - SCOUTING)
+                for x in finalists
+                if not scouted["+".join(x)].converged
+            ]
             fitted = {**scouted, **(fit_all(fits, going, client, scales, report) if going else {})}
             tried = [Candidate(x, fitted["+".join(x)]) for x in sets]
             everything.extend(tried)
@@ -440,18 +589,30 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
             missing = [x for x in missing if frozenset(x) not in known]
             if not missing or not parts:
                 return
-            say(f"judging each member of {answer.label}: {len(missing)} sets without one, fitted and cross-validated")
+            say(
+                f"judging each member of {answer.label}: {len(missing)} sets without one, fitted and cross-validated"
+            )
             start = dict(answer.full.values)
-            fitted = fit_all(fits, [problem("+".join(x), x, scenarios, start) for x in missing], client, scales, report)
-            folded = fit_all(fits, [p for x in missing for p in by_fold(x, fitted["+".join(x)].values)], client,
-                             scales, report)
+            fitted = fit_all(
+                fits, [problem("+".join(x), x, scenarios, start) for x in missing], client, scales, report
+            )
+            folded = fit_all(
+                fits,
+                [p for x in missing for p in by_fold(x, fitted["+".join(x)].values)],
+                client,
+                scales,
+                report,
+            )
             judged = [Candidate(x, fitted["+".join(x)]) for x in missing]
             held_out(fits, client, judged, folded, parts, scales)
             everything.extend(judged)
 
         growth: list[dict[str, Any]] = []
-        while selected.ids and len(selected.ids) < MAX_EFFECTS and explain.above_floor(
-                selected.cross_validated, 1.0, noise_factor):
+        while (
+            selected.ids
+            and len(selected.ids) < MAX_EFFECTS
+            and explain.above_floor(selected.cross_validated, 1.0, noise_factor)
+        ):
             grown = extended(selected)
             if grown is None:
                 break
@@ -464,17 +625,35 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
         interfaces = dict(space.plan.interfaces)
         discovery: Discovered | NotDiscovered | None = None
         if discover and verdict in (explain.PARTIAL, explain.UNEXPLAINED):
-            say(f"the library leaves {chosen.cross_validated:.3g} noise floors held-out: seeking a correction of "
-                "the model-exchange FMUs' state derivatives")
+            say(
+                f"the library leaves {chosen.cross_validated:.3g} noise floors held-out: seeking a correction of "
+                "the model-exchange FMUs' state derivatives"
+            )
             freed = (*base, *(p for n in chosen.ids for p in library[n].parameters))
-            discovery = noise_ruled(discover_derivatives(fits, client, chosen, freed, scales, validation.folds,
-                                                         say=say, fitted=validation.fitted, pieces=validation.pieces))
-            say(f"discovered {'; '.join(e['readable'] for e in discovery.effects())}"
-                if isinstance(discovery, Discovered) else f"nothing discovered: {discovery.reason}")
+            discovery = noise_ruled(
+                discover_derivatives(
+                    fits,
+                    client,
+                    chosen,
+                    freed,
+                    scales,
+                    validation.folds,
+                    say=say,
+                    fitted=validation.fitted,
+                    pieces=validation.pieces,
+                )
+            )
+            say(
+                f"discovered {'; '.join(e['readable'] for e in discovery.effects())}"
+                if isinstance(discovery, Discovered)
+                else f"nothing discovered: {discovery.reason}"
+            )
         twins = signal_claims.alike(chosen, everything)
         residuals = located_residuals(fits, client, [baseline, chosen, *twins], compared, scenarios)
         answer = chosen  # the library's: its look-alikes are among the library's candidates
-        if isinstance(discovery, Discovered):  # the model the recordings support: the library's answer and the terms
+        if isinstance(
+            discovery, Discovered
+        ):  # the model the recordings support: the library's answer and the terms
             chosen = discovery.candidate
             everything.append(chosen)
             verdict = explain.verdict(chosen.cross_validated, floor, noise_factor, True, discovered=True)
@@ -485,19 +664,44 @@ def diagnose_space(path: str | Path | Space, out: str | Path | None = None, fold
     looks = [signal_claims.weigh(answer, t, residuals, noise, by_name) for t in twins]
     located = signal_locate.located(residuals[baseline.label], residuals[chosen.label], noise, by_name)
     formulas = [e["readable"] for e in discovery.effects()] if isinstance(discovery, Discovered) else []
-    white = {c.signal: whiteness([r.values for r in residuals[chosen.label] if r.signal == c.signal]) for c in compared}
+    white = {
+        c.signal: whiteness([r.values for r in residuals[chosen.label] if r.signal == c.signal])
+        for c in compared
+    }
     coloured = {signal: w for signal, w in white.items() if not w.white}
     verdict = explain.unless_white(verdict, not coloured)
-    text = signal_claims.verdict_text(verdict, chosen.cross_validated, chosen, interfaces, looks, dropped, noise_factor,
-                                      formulas, coloured)
-    diagnosis = SignalDiagnosis(compared, baseline, chosen, everything, verdict, library, pairs=pairs, growth=growth,
-                                validation=validation, whiteness=white,
-                                lookalikes=looks, dropped=dropped, located=located, verdict_text=text,
-                                discovery=discovery)
-    figures = signal_figures.draw(residuals[baseline.label], residuals[chosen.label], by_name,
-                                  {c.signal: c.recorded for c in compared}, located.get("worst", []), Path(space.output))
-    diagnosis.files = {k: str(v) for k, v in
-                       signal_report.write(diagnosis.to_json(), Path(space.output), space.name, figures).items()}
+    text = signal_claims.verdict_text(
+        verdict, chosen.cross_validated, chosen, interfaces, looks, dropped, noise_factor, formulas, coloured
+    )
+    diagnosis = SignalDiagnosis(
+        compared,
+        baseline,
+        chosen,
+        everything,
+        verdict,
+        library,
+        pairs=pairs,
+        growth=growth,
+        validation=validation,
+        whiteness=white,
+        lookalikes=looks,
+        dropped=dropped,
+        located=located,
+        verdict_text=text,
+        discovery=discovery,
+    )
+    figures = signal_figures.draw(
+        residuals[baseline.label],
+        residuals[chosen.label],
+        by_name,
+        {c.signal: c.recorded for c in compared},
+        located.get("worst", []),
+        Path(space.output),
+    )
+    diagnosis.files = {
+        k: str(v)
+        for k, v in signal_report.write(diagnosis.to_json(), Path(space.output), space.name, figures).items()
+    }
     diagnosis.figures = [str(f) for f in figures]
     return diagnosis
 
@@ -511,9 +715,15 @@ def noise_ruled(found: Discovered | NotDiscovered) -> Discovered | NotDiscovered
     worth = explain.mean_square(found.baseline) - explain.mean_square(found.candidate)
     if worth >= explain.NOISE_RULE:
         return found
-    return NotDiscovered(f"{', '.join(e['readable'] for e in found.effects())} changes the held-out mean square by "
-                         f"{worth:.3g} noise variances, less than {explain.NOISE_RULE:g}: within the noise",
-                         found.proposal, found.candidate, found.baseline, found.seconds, found.rejected)
+    return NotDiscovered(
+        f"{', '.join(e['readable'] for e in found.effects())} changes the held-out mean square by "
+        f"{worth:.3g} noise variances, less than {explain.NOISE_RULE:g}: within the noise",
+        found.proposal,
+        found.candidate,
+        found.baseline,
+        found.seconds,
+        found.rejected,
+    )
 
 
 def screen_sse(point: Point, scenarios: Sequence[str], residuals) -> float:
@@ -522,12 +732,15 @@ def screen_sse(point: Point, scenarios: Sequence[str], residuals) -> float:
     return math.inf if any(r is None for r in found) else float(sum(r @ r for r in found))
 
 
-def located_residuals(space: Space, client, shown: Sequence[Candidate], compared: Sequence[Compared],
-                      fitted: Sequence[str]) -> dict[str, list[signal_locate.Residual]]:
+def located_residuals(
+    space: Space, client, shown: Sequence[Candidate], compared: Sequence[Compared], fitted: Sequence[str]
+) -> dict[str, list[signal_locate.Residual]]:
     """Each shown candidate's residuals (in the signals' units) per compared signal and run it was ``fitted``
     on, from its fit on every run: already in the store, so read rather than simulated again."""
     points = [c.full.point for c in shown]
-    rows, _ = evaluate_points(space, points, client, [c.residuals for c in compared], [set(fitted)] * len(points))
+    rows, _ = evaluate_points(
+        space, points, client, [c.residuals for c in compared], [set(fitted)] * len(points)
+    )
     scenarios = {s.name: s for s in space.scenarios if s.name in fitted}
     found: dict[str, list[signal_locate.Residual]] = {}
     for candidate in shown:
@@ -538,20 +751,34 @@ def located_residuals(space: Space, client, shown: Sequence[Candidate], compared
                 continue
             for c in compared:
                 values = np.asarray(row[c.residuals], dtype=float)
-                found[candidate.label].append(signal_locate.Residual(
-                    c.signal, name, signal_locate.residual_times(scenario, c.recorded, values.size), values))
+                found[candidate.label].append(
+                    signal_locate.Residual(
+                        c.signal,
+                        name,
+                        signal_locate.residual_times(scenario, c.recorded, values.size),
+                        values,
+                    )
+                )
     return found
 
 
-def held_out(space: Space, client, candidates: list[Candidate], results: Mapping[str, FitResult],
-             parts: list[list[str]], scales: Mapping[str, float]) -> None:
+def held_out(
+    space: Space,
+    client,
+    candidates: list[Candidate],
+    results: Mapping[str, FitResult],
+    parts: list[list[str]],
+    scales: Mapping[str, float],
+) -> None:
     """Each candidate's error on every scenario its fold's fit did not see (all in one sweep), as the RMS of
     the noise-scaled residuals; with one scenario, its fitted error (no cross-validation possible)."""
     if not parts:
         for c in candidates:
             c.held_out = {"fitted": explain.fitted_rms(c.full)}
         return
-    requests = [(results[f"{c.label}/fold{k}"].point, fold) for c in candidates for k, fold in enumerate(parts)]
+    requests = [
+        (results[f"{c.label}/fold{k}"].point, fold) for c in candidates for k, fold in enumerate(parts)
+    ]
     points, only = wanted(requests)
     rows, _ = evaluate_points(space, points, client, list(scales), only)
     for c in candidates:
@@ -561,8 +788,12 @@ def held_out(space: Space, client, candidates: list[Candidate], results: Mapping
             for scenario in fold:
                 row = rows.get((key_of(fit.point), scenario))
                 ok = row is not None and row["status"] == "ok"
-                r = np.concatenate([np.asarray(row[col], float) * s for col, s in scales.items()]) if ok else None
-                c.held_out[scenario] = float(np.sqrt(np.mean(r ** 2))) if r is not None and r.size else math.inf
+                r = (
+                    np.concatenate([np.asarray(row[col], float) * s for col, s in scales.items()])
+                    if ok
+                    else None
+                )
+                c.held_out[scenario] = float(np.sqrt(np.mean(r**2))) if r is not None and r.size else math.inf
 
 
 class SignalEffects(HypothesisLibrary):
@@ -575,15 +806,30 @@ class SignalEffects(HypothesisLibrary):
         return any(isinstance(spec, objs.Fit) for spec in space.objectives.values())
 
     def diagnose(self, space: Space, request: Request, say: Messages) -> SignalDiagnosis:
-        return diagnose_space(space, folds=request.folds, noise_factor=request.noise_factor, say=say,
-                              discover=request.discovery, only=request.hypotheses)
+        return diagnose_space(
+            space,
+            folds=request.folds,
+            noise_factor=request.noise_factor,
+            say=say,
+            discover=request.discovery,
+            only=request.hypotheses,
+        )
 
     def hypotheses(self, space: Space) -> list[LibraryHypothesis]:
         """Every hypothesis by name; a state limit's range is known only once the calibrated model has run."""
         units = {**signal_effects.UNITS, **state_limits.UNITS}
-        return [LibraryHypothesis(
-            id=name, name=f"{h.id.replace('_', ' ')} of {h.target}" + (f" into {h.into}" if h.into else ""),
-            explanation=h.physics[0], signature=h.physics[1],
-            parameters=tuple(EffectParameter(variable=p.name, unit=units[kind], lower=p.lower, upper=p.upper,
-                                             step=p.step) for kind, p in zip(h.kinds, h.parameters)))
-            for name, h in library_of(space, compared_signals(space), None).items()]
+        return [
+            LibraryHypothesis(
+                id=name,
+                name=f"{h.id.replace('_', ' ')} of {h.target}" + (f" into {h.into}" if h.into else ""),
+                explanation=h.physics[0],
+                signature=h.physics[1],
+                parameters=tuple(
+                    EffectParameter(
+                        variable=p.name, unit=units[kind], lower=p.lower, upper=p.upper, step=p.step
+                    )
+                    for kind, p in zip(h.kinds, h.parameters)
+                ),
+            )
+            for name, h in library_of(space, compared_signals(space), None).items()
+        ]

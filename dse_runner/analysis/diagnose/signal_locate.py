@@ -28,11 +28,13 @@ WINDOWS = 10  # stretches per run
 MIN_SAMPLES = 8  # recorded samples a stretch needs for its RMS to mean anything
 CHANGING, STEADY, NO_INPUT = "changing", "steady", "no input"
 STILL = 1e-9  # an input whose range within a stretch is below this share of its whole range is steady
-METHOD = (f"each run cut into up to {WINDOWS} equal windows of time (at least {MIN_SAMPLES} recorded samples "
-          "each), labelled 'changing' where a driven input moves within the window, 'steady' where none does; "
-          "per compared signal, run and window the RMS of simulated minus recorded, and that over the "
-          "recording's noise sigma (1 = the noise itself), for the calibrated model (before) and the chosen "
-          "one (after)")
+METHOD = (
+    f"each run cut into up to {WINDOWS} equal windows of time (at least {MIN_SAMPLES} recorded samples "
+    "each), labelled 'changing' where a driven input moves within the window, 'steady' where none does; "
+    "per compared signal, run and window the RMS of simulated minus recorded, and that over the "
+    "recording's noise sigma (1 = the noise itself), for the calibrated model (before) and the chosen "
+    "one (after)"
+)
 
 
 @dataclass(frozen=True)
@@ -86,11 +88,15 @@ def activity(scenario: Scenario, start: float, stop: float) -> str:
 
 
 def rms(values: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(values ** 2))) if values.size else math.nan
+    return float(np.sqrt(np.mean(values**2))) if values.size else math.nan
 
 
-def table(before: Sequence[Residual], after: Sequence[Residual], noise: Mapping[str, float],
-          scenarios: Mapping[str, Scenario]) -> pd.DataFrame:
+def table(
+    before: Sequence[Residual],
+    after: Sequence[Residual],
+    noise: Mapping[str, float],
+    scenarios: Mapping[str, Scenario],
+) -> pd.DataFrame:
     """One row per compared signal, run and window: its RMS residual before and after, in the signal's
     units and in noise floors."""
     later = {(r.signal, r.scenario): r for r in after}
@@ -104,25 +110,47 @@ def table(before: Sequence[Residual], after: Sequence[Residual], noise: Mapping[
         for k in range(len(edges) - 1):
             rb = b.values[index_b == k]
             ra = a.values[index_a == k] if a is not None else np.array([])
-            rows.append({"signal": b.signal, "scenario": b.scenario, "window": k, "start": float(edges[k]),
-                         "stop": float(edges[k + 1]), "input": activity(scenarios[b.scenario], edges[k], edges[k + 1]),
-                         "samples": int(rb.size), "rms_before": rms(rb), "rms_after": rms(ra),
-                         "floors_before": rms(rb) / sigma, "floors_after": rms(ra) / sigma})
+            rows.append(
+                {
+                    "signal": b.signal,
+                    "scenario": b.scenario,
+                    "window": k,
+                    "start": float(edges[k]),
+                    "stop": float(edges[k + 1]),
+                    "input": activity(scenarios[b.scenario], edges[k], edges[k + 1]),
+                    "samples": int(rb.size),
+                    "rms_before": rms(rb),
+                    "rms_after": rms(ra),
+                    "floors_before": rms(rb) / sigma,
+                    "floors_after": rms(ra) / sigma,
+                }
+            )
     return pd.DataFrame(rows)
 
 
 def summary(frame: pd.DataFrame, by: list[str]) -> pd.DataFrame:
     """The RMS over whole groups of windows (weighted by their samples), in noise floors."""
+
     def pooled(group: pd.DataFrame, column: str) -> float:
         weights = group["samples"].to_numpy()
         values = group[column].to_numpy()
         ok = np.isfinite(values) & (weights > 0)
-        return float(np.sqrt(np.sum(weights[ok] * values[ok] ** 2) / np.sum(weights[ok]))) if ok.any() else math.nan
+        return (
+            float(np.sqrt(np.sum(weights[ok] * values[ok] ** 2) / np.sum(weights[ok])))
+            if ok.any()
+            else math.nan
+        )
 
-    rows = [{**dict(zip(by, key if isinstance(key, tuple) else (key,))), "windows": len(group),
-             "samples": int(group["samples"].sum()), "floors_before": pooled(group, "floors_before"),
-             "floors_after": pooled(group, "floors_after")}
-            for key, group in frame.groupby(by, sort=False)]
+    rows = [
+        {
+            **dict(zip(by, key if isinstance(key, tuple) else (key,))),
+            "windows": len(group),
+            "samples": int(group["samples"].sum()),
+            "floors_before": pooled(group, "floors_before"),
+            "floors_after": pooled(group, "floors_after"),
+        }
+        for key, group in frame.groupby(by, sort=False)
+    ]
     return pd.DataFrame(rows)
 
 
@@ -131,11 +159,21 @@ def worst(frame: pd.DataFrame, count: int = 3) -> pd.DataFrame:
     return frame.sort_values("floors_before", ascending=False).head(count)
 
 
-def located(before: Sequence[Residual], after: Sequence[Residual], noise: Mapping[str, float],
-            scenarios: Mapping[str, Scenario]) -> dict[str, Any]:
+def located(
+    before: Sequence[Residual],
+    after: Sequence[Residual],
+    noise: Mapping[str, float],
+    scenarios: Mapping[str, Scenario],
+) -> dict[str, Any]:
     """The JSON's ``located``: the method, every window, and the summaries by run and by input activity."""
     frame = table(before, after, noise, scenarios)
     records = lambda f: f.to_dict("records")  # noqa: E731
-    return {"method": METHOD, "noise": dict(noise), "unit": "noise floors (RMS residual over the recording's sigma)",
-            "windows": records(frame), "by_scenario": records(summary(frame, ["signal", "scenario"])),
-            "by_input": records(summary(frame, ["signal", "input"])), "worst": records(worst(frame))}
+    return {
+        "method": METHOD,
+        "noise": dict(noise),
+        "unit": "noise floors (RMS residual over the recording's sigma)",
+        "windows": records(frame),
+        "by_scenario": records(summary(frame, ["signal", "scenario"])),
+        "by_input": records(summary(frame, ["signal", "input"])),
+        "worst": records(worst(frame)),
+    }

@@ -34,12 +34,21 @@ def effect_rows(effects: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     """One row per fitted value: a library effect's parameter, or a discovered correction's term."""
     rows = []
     for e in effects:
-        values = e["terms"] if e["id"] == DISCOVERED else e["parameters"]  # a term's interval is keyed by its text
+        values = (
+            e["terms"] if e["id"] == DISCOVERED else e["parameters"]
+        )  # a term's interval is keyed by its text
         for kind, value in values.items():
             low, high = e["intervals"][kind]
             into = f" into {e['into']}" if e.get("into") else ""
-            rows.append({"effect": f"{e['id']}({e['target']}){into}", "parameter": kind, "value": value,
-                         "95 % interval": f"{_number(low)} to {_number(high)}", "partial": e.get("partial", "")})
+            rows.append(
+                {
+                    "effect": f"{e['id']}({e['target']}){into}",
+                    "parameter": kind,
+                    "value": value,
+                    "95 % interval": f"{_number(low)} to {_number(high)}",
+                    "partial": e.get("partial", ""),
+                }
+            )
     return rows
 
 
@@ -47,89 +56,160 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
     """The report's text from the diagnosis' JSON."""
     located = found.get("located") or {}
     pairs = found.get("pairs") or {}
-    lines = [f"# Diagnosis of {title}", "", f"**Verdict** {found.get('verdict_text') or found['verdict']}.", "",
-             ("Error on the samples fitted (nothing could be held out) " if (found.get("validation") or {}).get(
-                 "by") == "in sample" else "Held-out error ") +
-             f"{found['held_out_before']:.3g} noise floors before (the calibrated model), "
-             f"{found['held_out_after']:.3g} after; 1 is the recordings' own noise.", "",
-             "## Compared signals", ""]
+    lines = [
+        f"# Diagnosis of {title}",
+        "",
+        f"**Verdict** {found.get('verdict_text') or found['verdict']}.",
+        "",
+        (
+            "Error on the samples fitted (nothing could be held out) "
+            if (found.get("validation") or {}).get("by") == "in sample"
+            else "Held-out error "
+        )
+        + f"{found['held_out_before']:.3g} noise floors before (the calibrated model), "
+        f"{found['held_out_after']:.3g} after; 1 is the recordings' own noise.",
+        "",
+        "## Compared signals",
+        "",
+    ]
     validation = found.get("validation") or {}
     if validation:
-        lines[-2:-2] = [f"Validated by {validation['by']}" + (f" ({validation['folds']} folds"
-                                                               + (f" of the record {validation['record']}" if
-                                                                  validation.get("record") else "") + ")"
-                                                               if validation.get("folds") else "") + ".", ""]
+        lines[-2:-2] = [
+            f"Validated by {validation['by']}"
+            + (
+                f" ({validation['folds']} folds"
+                + (f" of the record {validation['record']}" if validation.get("record") else "")
+                + ")"
+                if validation.get("folds")
+                else ""
+            )
+            + ".",
+            "",
+        ]
     lines += markdown_table(found["compared"], ["objective", "signal", "recorded", "noise"])
     for c in found["compared"]:
         estimate = c.get("noise_estimate") or {}
         if estimate:
-            lines += ["", f"Noise of {c['recorded']}: σ {estimate['sigma']:.4g} by {estimate['method']}; it assumes "
-                      f"{estimate['assumptions']}."]
+            lines += [
+                "",
+                f"Noise of {c['recorded']}: σ {estimate['sigma']:.4g} by {estimate['method']}; it assumes "
+                f"{estimate['assumptions']}.",
+            ]
     for signal, w in (found.get("whiteness") or {}).items():
-        lines += ["", f"Residuals of {signal} after: lag-1 autocorrelation {_number(w['rho1'])}, Ljung-Box p "
-                  f"{_number(w['p'])} over {w['lags']} lags: " + ("white." if w["white"] else "not white.")]
-    lines += ["", "## Named effects", ""] + markdown_table(effect_rows(found["effects"]),
-                                                           ["effect", "parameter", "value", "95 % interval", "partial"])
+        lines += [
+            "",
+            f"Residuals of {signal} after: lag-1 autocorrelation {_number(w['rho1'])}, Ljung-Box p "
+            f"{_number(w['p'])} over {w['lags']} lags: " + ("white." if w["white"] else "not white."),
+        ]
+    lines += ["", "## Named effects", ""] + markdown_table(
+        effect_rows(found["effects"]), ["effect", "parameter", "value", "95 % interval", "partial"]
+    )
     if found.get("dropped"):
-        lines += ["", "Not claimed (removing it changed the held-out error by less than the noise): "
-                  + ", ".join(d["id"] for d in found["dropped"]) + "."]
+        lines += [
+            "",
+            "Not claimed (removing it changed the held-out error by less than the noise): "
+            + ", ".join(d["id"] for d in found["dropped"])
+            + ".",
+        ]
     lines += ["", "## Candidates (best held-out first)", ""]
     lines += markdown_table(found["candidates"][:8], ["id", "held_out", "bic"])
     failed = [c for c in found["candidates"] if c.get("error")]
-    rejected = {**{c["id"]: c["error"] for c in failed}, **((found.get("discovery") or {}).get("rejected") or {})}
+    rejected = {
+        **{c["id"]: c["error"] for c in failed},
+        **((found.get("discovery") or {}).get("rejected") or {}),
+    }
     if rejected:
-        lines += ["", "Rejected, their fits could not start: " + "; ".join(f"{k} ({v})" for k, v in rejected.items())
-                  + "."]
+        lines += [
+            "",
+            "Rejected, their fits could not start: "
+            + "; ".join(f"{k} ({v})" for k, v in rejected.items())
+            + ".",
+        ]
     lines += ["", f"Runner-up: {found.get('runner_up') or 'none'}.", ""]
     for step in found.get("growth") or []:
-        lines += [f"Grown from {step['from']}: {step['tried']} sets with one more effect tried, the best "
-                  f"{step['best']}" + (f", held-out {step['held_out']:.3g}" if "held_out" in step else "")
-                  + (": accepted." if step.get("accepted") else ": not accepted."), ""]
+        lines += [
+            f"Grown from {step['from']}: {step['tried']} sets with one more effect tried, the best "
+            f"{step['best']}"
+            + (f", held-out {step['held_out']:.3g}" if "held_out" in step else "")
+            + (": accepted." if step.get("accepted") else ": not accepted."),
+            "",
+        ]
     if pairs.get("screened"):
-        lines += [f"Pairs: {pairs['predicted']} predicted from the single fits, {len(pairs['screened'])} checked by "
-                  f"simulation, {len(pairs['fitted'])} fitted for real ({', '.join(pairs['fitted']) or 'none'}).", ""]
+        lines += [
+            f"Pairs: {pairs['predicted']} predicted from the single fits, {len(pairs['screened'])} checked by "
+            f"simulation, {len(pairs['fitted'])} fitted for real ({', '.join(pairs['fitted']) or 'none'}).",
+            "",
+        ]
     elif pairs:
         lines += [f"Pairs: not screened ({pairs.get('reason', '')}).", ""]
     looks = found.get("lookalikes") or []
     if looks:
         lines += ["## Look-alikes", ""]
         for x in looks:
-            where = "; ".join(f"{w['scenario']} {w['start']:.3g}-{w['stop']:.3g} s ({w['input']}, "
-                              f"{w['delta_mean_square']:+.3g})" for w in x["telling_windows"][:3])
-            lines.append(f"- {x['id']} fits alike ({x['held_out']:.3g} held-out, {x['runs_better']} runs better "
-                         f"for the chosen); " + (f"told apart in {where}" if where else
-                                                 "no window tells them apart by more than the noise"))
+            where = "; ".join(
+                f"{w['scenario']} {w['start']:.3g}-{w['stop']:.3g} s ({w['input']}, "
+                f"{w['delta_mean_square']:+.3g})"
+                for w in x["telling_windows"][:3]
+            )
+            lines.append(
+                f"- {x['id']} fits alike ({x['held_out']:.3g} held-out, {x['runs_better']} runs better "
+                f"for the chosen); "
+                + (f"told apart in {where}" if where else "no window tells them apart by more than the noise")
+            )
         lines.append("")
     if located:
-        lines += ["## Where the model misses", "", located["method"][:1].upper() + located["method"][1:] + ".", "", "By run (noise floors):", ""]
-        lines += markdown_table(located["by_scenario"], ["signal", "scenario", "samples", "floors_before",
-                                                         "floors_after"])
+        lines += [
+            "## Where the model misses",
+            "",
+            located["method"][:1].upper() + located["method"][1:] + ".",
+            "",
+            "By run (noise floors):",
+            "",
+        ]
+        lines += markdown_table(
+            located["by_scenario"], ["signal", "scenario", "samples", "floors_before", "floors_after"]
+        )
         lines += ["", "By what the inputs do:", ""]
-        lines += markdown_table(located["by_input"], ["signal", "input", "windows", "floors_before", "floors_after"])
+        lines += markdown_table(
+            located["by_input"], ["signal", "input", "windows", "floors_before", "floors_after"]
+        )
         lines += ["", "Worst windows before:", ""]
-        lines += markdown_table(located["worst"], ["signal", "scenario", "start", "stop", "input", "floors_before",
-                                                   "floors_after"])
+        lines += markdown_table(
+            located["worst"],
+            ["signal", "scenario", "start", "stop", "input", "floors_before", "floors_after"],
+        )
     return "\n".join(lines) + "\n"
 
 
-def write(found: Mapping[str, Any], folder: Path, title: str, figures: Sequence[Path] = ()) -> dict[str, Path]:
+def write(
+    found: Mapping[str, Any], folder: Path, title: str, figures: Sequence[Path] = ()
+) -> dict[str, Path]:
     """Write the report, the strict JSON summary and the diagnosed model's values into ``folder``; their
     paths. The values file is the model the recordings support, ready to run again:
     ``dse-runner simulate MODEL --scenario … --values diagnosed-values.yaml``. ``figures`` (inside ``folder``)
     are shown in the report and listed in the JSON."""
     folder.mkdir(parents=True, exist_ok=True)
     files = {"report": folder / REPORT, "json": folder / SUMMARY, "values": folder / VALUES}
-    found = {**found, "files": {**{k: str(v) for k, v in files.items()},  # the file says where its siblings are
-                                "figures": [str(f) for f in figures]}}
+    found = {
+        **found,
+        "files": {
+            **{k: str(v) for k, v in files.items()},  # the file says where its siblings are
+            "figures": [str(f) for f in figures],
+        },
+    }
     text = markdown(found, title)
     if figures:
         text += "\n## Recorded against simulated\n\n" + "".join(
-            f"![{f.stem}]({f.relative_to(folder).as_posix()})\n\n" for f in figures)
+            f"![{f.stem}]({f.relative_to(folder).as_posix()})\n\n" for f in figures
+        )
     files["report"].write_text(text)
     files["json"].write_text(strict_json.dumps(found))
-    write_values(files["values"], found["fitted"]["parameters"],
-                          f"The diagnosed model of {title}: its calibrated parameters, and the effects and derivative\n"
-                          f"terms the recordings support ({found['verdict']}), as fitted together. Run it again with\n"
-                          f"dse-runner simulate SPACE.yaml --scenario NAME --values {VALUES}, or put it in a "
-                          "space's parameters.")
+    write_values(
+        files["values"],
+        found["fitted"]["parameters"],
+        f"The diagnosed model of {title}: its calibrated parameters, and the effects and derivative\n"
+        f"terms the recordings support ({found['verdict']}), as fitted together. Run it again with\n"
+        f"dse-runner simulate SPACE.yaml --scenario NAME --values {VALUES}, or put it in a "
+        "space's parameters.",
+    )
     return files

@@ -47,8 +47,13 @@ class ScreenedPair:
         return "+".join(self.ids)
 
     def to_json(self) -> dict[str, object]:
-        return {"id": self.label, "weights": list(self.weights), "predicted_sse": self.predicted_sse,
-                "sse": self.sse, "bic": self.bic}
+        return {
+            "id": self.label,
+            "weights": list(self.weights),
+            "predicted_sse": self.predicted_sse,
+            "sse": self.sse,
+            "bic": self.bic,
+        }
 
 
 def stacked(fit: FitResult) -> np.ndarray:
@@ -71,8 +76,13 @@ def prediction(none: FitResult, a: FitResult, b: FitResult) -> tuple[np.ndarray,
     return coefficients, float(predicted @ predicted)
 
 
-def mixed(none: FitResult, a: FitResult, b: FitResult, coefficients: Sequence[float],
-          bounds: Mapping[str, Parameter]) -> Point:
+def mixed(
+    none: FitResult,
+    a: FitResult,
+    b: FitResult,
+    coefficients: Sequence[float],
+    bounds: Mapping[str, Parameter],
+) -> Point:
     """The point a prediction stands for: ``none``'s plus each single's change by its weight, plus the
     calibrated change, held within every parameter's bounds."""
     *calibrated, wa, wb = coefficients
@@ -80,7 +90,9 @@ def mixed(none: FitResult, a: FitResult, b: FitResult, coefficients: Sequence[fl
     for name in {*a.point, *b.point}:
         base = none.point.get(name, 0.0)
         value_a, value_b = a.point.get(name, base), b.point.get(name, base)
-        if not math.isfinite(base):  # a bound absent from none (state_max at inf) is the single's own, unweighted
+        if not math.isfinite(
+            base
+        ):  # a bound absent from none (state_max at inf) is the single's own, unweighted
             point[name] = float(value_a if value_a != base else value_b)
             continue
         point[name] = float(base + wa * (value_a - base) + wb * (value_b - base))
@@ -90,11 +102,17 @@ def mixed(none: FitResult, a: FitResult, b: FitResult, coefficients: Sequence[fl
 
 
 def clipped(point: Point, bounds: Mapping[str, Parameter]) -> Point:
-    return {n: float(np.clip(v, bounds[n].lower, bounds[n].upper)) if n in bounds else v for n, v in point.items()}
+    return {
+        n: float(np.clip(v, bounds[n].lower, bounds[n].upper)) if n in bounds else v for n, v in point.items()
+    }
 
 
-def to_check(singles: Mapping[str, FitResult], predicted: Mapping[tuple[str, str], float],
-             parameters: Callable[[tuple[str, str]], int], n: int) -> list[tuple[str, str]]:
+def to_check(
+    singles: Mapping[str, FitResult],
+    predicted: Mapping[tuple[str, str], float],
+    parameters: Callable[[tuple[str, str]], int],
+    n: int,
+) -> list[tuple[str, str]]:
     """The pairs checked by simulation: every pair of the best singles, and the best predicted ones."""
     best = sorted(singles, key=lambda h: singles[h].sse)[:BEST_SINGLES]
     chosen = [tuple(sorted(p)) for p in itertools.combinations(best, 2) if tuple(sorted(p)) in predicted]
@@ -105,8 +123,9 @@ def to_check(singles: Mapping[str, FitResult], predicted: Mapping[tuple[str, str
     return chosen  # type: ignore[return-value]
 
 
-def screen(none: FitResult, singles: Mapping[str, FitResult], bounds: Mapping[str, Parameter],
-           real_sse: RealSse) -> tuple[list[ScreenedPair], int]:
+def screen(
+    none: FitResult, singles: Mapping[str, FitResult], bounds: Mapping[str, Parameter], real_sse: RealSse
+) -> tuple[list[ScreenedPair], int]:
     """Every pair of ``singles`` that fit no parameter in common predicted, the best checked in one sweep:
     the checked pairs, best real BIC first, and how many pairs were predicted."""
     n = len(stacked(none))
@@ -124,12 +143,20 @@ def screen(none: FitResult, singles: Mapping[str, FitResult], bounds: Mapping[st
     sses = real_sse([p for points in trials.values() for p in points])
     found, k = [], 0
     for pair in checked:
-        tried = list(zip(sses[k:k + 2], trials[pair]))
+        tried = list(zip(sses[k : k + 2], trials[pair]))
         k += 2
         sse, start = min(tried, key=lambda t: t[0])
         weights = tuple(float(w) for w in solved[pair][0][-2:])
-        found.append(ScreenedPair(pair, weights, solved[pair][1], sse,  # type: ignore[arg-type]
-                              explain.bic_of(sse, n, parameters(pair)), start))
+        found.append(
+            ScreenedPair(
+                pair,
+                weights,
+                solved[pair][1],
+                sse,  # type: ignore[arg-type]
+                explain.bic_of(sse, n, parameters(pair)),
+                start,
+            )
+        )
     return sorted(found, key=lambda s: s.bic), len(pairs)
 
 

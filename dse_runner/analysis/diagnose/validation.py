@@ -67,9 +67,11 @@ class Validation:
     @property
     def text(self) -> str:
         if self.by == "time blocks":
-            return (f"held out: {len(self.folds)} contiguous blocks of time of the one record {self.record}, each "
-                    "predicted free-running by a fit on the rest (the first block, where the unknown initial "
-                    "state shows, is always fitted)")
+            return (
+                f"held out: {len(self.folds)} contiguous blocks of time of the one record {self.record}, each "
+                "predicted free-running by a fit on the rest (the first block, where the unknown initial "
+                "state shows, is always fitted)"
+            )
         if self.by == "scenarios":
             return f"held out: {len(self.folds)} folds of scenarios, each predicted by a fit on the others"
         return "in sample: one record too short to cut into blocks; every error is on the samples fitted"
@@ -96,8 +98,13 @@ def blocks(scenario: Scenario, count: int, columns: list[str]) -> list[tuple[Sce
     views = []
     for k, part in enumerate(parts[1:], start=1):
         keep = np.zeros(recording.time.size, dtype=bool)
-        keep[part[0]:part[-1] + 1] = True
-        views.append((view(scenario, recording, ~keep, f"train{k + 1}"), view(scenario, recording, keep, f"block{k + 1}")))
+        keep[part[0] : part[-1] + 1] = True
+        views.append(
+            (
+                view(scenario, recording, ~keep, f"train{k + 1}"),
+                view(scenario, recording, keep, f"block{k + 1}"),
+            )
+        )
     return views
 
 
@@ -106,8 +113,12 @@ def view(scenario: Scenario, recording: Recording, keep: np.ndarray, label: str)
     own, so that its tasks are its own (a task's id hashes the scenario's settings, options included)."""
     columns = {name: np.where(keep, values, np.nan) for name, values in recording.columns.items()}
     missing = int(sum(np.count_nonzero(~np.isfinite(v)) for v in columns.values()))
-    return replace(scenario, name=f"{scenario.name}~{label}", recorded=replace(recording, columns=columns, missing=missing),
-                   options={**scenario.options, "validation_view": label})
+    return replace(
+        scenario,
+        name=f"{scenario.name}~{label}",
+        recorded=replace(recording, columns=columns, missing=missing),
+        options={**scenario.options, "validation_view": label},
+    )
 
 
 def validated(space: Space, count: int, columns: list[str]) -> tuple[Space, Validation]:
@@ -115,7 +126,9 @@ def validated(space: Space, count: int, columns: list[str]) -> tuple[Space, Vali
     are; one record is cut into ``count`` blocks of time, each a fold, its views added to the scenarios."""
     names = tuple(s.name for s in space.scenarios)
     if len(space.scenarios) > 1:
-        return space, Validation("scenarios", names, complements(explain.folds(space.scenarios, count), names), names)
+        return space, Validation(
+            "scenarios", names, complements(explain.folds(space.scenarios, count), names), names
+        )
     record = space.scenarios[0]
     views = blocks(record, count, columns)
     if not views:

@@ -20,5 +20,14 @@ from .library import RobottiLibrary
 from .outcome import Diagnosis, DiagnosisSettings
 from .workflow import DEFAULT_SPACE, diagnose, diagnose_calibration, worth_screening
 
-__all__ = ["Chain", "DEFAULT_SPACE", "Diagnosis", "DiagnosisMessages", "RobottiLibrary", "DiagnosisSettings", "diagnose",
-           "diagnose_calibration", "worth_screening"]
+__all__ = [
+    "Chain",
+    "DEFAULT_SPACE",
+    "Diagnosis",
+    "DiagnosisMessages",
+    "RobottiLibrary",
+    "DiagnosisSettings",
+    "diagnose",
+    "diagnose_calibration",
+    "worth_screening",
+]

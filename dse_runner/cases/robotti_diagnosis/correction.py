@@ -68,10 +68,20 @@ class Shape(BaseModel):
     key: str  # the name of its value in a discovered term's JSON
 
 
-SHAPES: dict[str, Shape] = {s.name: s for s in [
-    Shape(name="onset", variable="corr_onset_time", symbol="t₀", unit="s", default=0.0, key="onset_time"),
-    Shape(name="rate_limit", variable="corr_rate_limit", symbol="L", unit="rad/s", default=1.0, key="rate_limit"),
-]}
+SHAPES: dict[str, Shape] = {
+    s.name: s
+    for s in [
+        Shape(name="onset", variable="corr_onset_time", symbol="t₀", unit="s", default=0.0, key="onset_time"),
+        Shape(
+            name="rate_limit",
+            variable="corr_rate_limit",
+            symbol="L",
+            unit="rad/s",
+            default=1.0,
+            key="rate_limit",
+        ),
+    ]
+}
 
 
 class CorrectionChannel(BaseModel):
@@ -93,7 +103,9 @@ class Feature(BaseModel):
     name: str  # the suffix of the parameter's name
     symbol: str  # in readable text; "1" for the constant; "{}" where its shape's value goes
     unit: str
-    typical: float  # an RMS size on Robotti manoeuvres (estimate): bounds a coefficient when no runs are given
+    typical: (
+        float  # an RMS size on Robotti manoeuvres (estimate): bounds a coefficient when no runs are given
+    )
     shape: str | None = None  # the SHAPES entry its column depends on
 
 
@@ -122,49 +134,94 @@ def _f(name: str, symbol: str, unit: str, typical: float, shape: str | None = No
     return Feature(name=name, symbol=symbol, unit=unit, typical=typical, shape=shape)
 
 
-FEATURES: dict[str, Feature] = {f.name: f for f in [
-    _f("1", "1", "1", 1.0),
-    _f("v", "v", "m/s", 1.5),
-    _f("v2", "v²", "m²/s²", 2.5),
-    _f("verr", "(v_cmd − v)", "m/s", 0.1),
-    _f("acmd", "a_cmd", "m/s²", 0.2),
-    _f("cospsi", "cos ψ", "1", 0.7),
-    _f("sinpsi", "sin ψ", "1", 0.7),
-    _f("cos2psi", "cos 2ψ", "1", 0.7),
-    _f("sin2psi", "sin 2ψ", "1", 0.7),
-    _f("s", "s", "m", 60.0),
-    _f("absvr", "|v·r|", "m/s²", 0.2),
-    _f("fdrive", "F_drive/m", "m/s²", 0.3),
-    _f("sgnv", "sgn v", "1", 0.8),
-    _f("onset_sgnv", "[t ≥ {}]·sgn v", "1", 0.5, "onset"),
-    _f("onset_fdrive", "[t ≥ {}]·F_drive/m", "m/s²", 0.2, "onset"),
-    _f("delta", "δ", "rad", 0.1),
-    _f("ddelta", "δ̇", "rad/s", 0.03),
-    _f("ddeltav", "δ̇/max(v, v_min)", "rad/m", 0.03),
-    _f("vdelta", "v·δ", "m·rad/s", 0.15),
-    _f("r", "r", "rad/s", 0.1),
-    _f("ratelim", "(lim(δ, {}) − δ)", "rad", 0.02, "rate_limit"),
-    _f("vr", "v·r", "m·rad/s²", 0.15),
-]}
+FEATURES: dict[str, Feature] = {
+    f.name: f
+    for f in [
+        _f("1", "1", "1", 1.0),
+        _f("v", "v", "m/s", 1.5),
+        _f("v2", "v²", "m²/s²", 2.5),
+        _f("verr", "(v_cmd − v)", "m/s", 0.1),
+        _f("acmd", "a_cmd", "m/s²", 0.2),
+        _f("cospsi", "cos ψ", "1", 0.7),
+        _f("sinpsi", "sin ψ", "1", 0.7),
+        _f("cos2psi", "cos 2ψ", "1", 0.7),
+        _f("sin2psi", "sin 2ψ", "1", 0.7),
+        _f("s", "s", "m", 60.0),
+        _f("absvr", "|v·r|", "m/s²", 0.2),
+        _f("fdrive", "F_drive/m", "m/s²", 0.3),
+        _f("sgnv", "sgn v", "1", 0.8),
+        _f("onset_sgnv", "[t ≥ {}]·sgn v", "1", 0.5, "onset"),
+        _f("onset_fdrive", "[t ≥ {}]·F_drive/m", "m/s²", 0.2, "onset"),
+        _f("delta", "δ", "rad", 0.1),
+        _f("ddelta", "δ̇", "rad/s", 0.03),
+        _f("ddeltav", "δ̇/max(v, v_min)", "rad/m", 0.03),
+        _f("vdelta", "v·δ", "m·rad/s", 0.15),
+        _f("r", "r", "rad/s", 0.1),
+        _f("ratelim", "(lim(δ, {}) − δ)", "rad", 0.02, "rate_limit"),
+        _f("vr", "v·r", "m·rad/s²", 0.15),
+    ]
+}
 
-CHANNELS: dict[str, CorrectionChannel] = {c.name: c for c in [
-    CorrectionChannel(name="acc", target="d(v)/dt", unit="m/s²", scale=2.0,
-            description="added to the longitudinal acceleration d(vx)/dt"),
-    CorrectionChannel(name="steer", target="δ", unit="rad", scale=0.2,
-            description="added to the steering angle after the actuators, positive = right, like steering_offset"),
-    CorrectionChannel(name="yaw", target="d(r)/dt", unit="rad/s²", scale=1.0, searched=False,
+CHANNELS: dict[str, CorrectionChannel] = {
+    c.name: c
+    for c in [
+        CorrectionChannel(
+            name="acc",
+            target="d(v)/dt",
+            unit="m/s²",
+            scale=2.0,
+            description="added to the longitudinal acceleration d(vx)/dt",
+        ),
+        CorrectionChannel(
+            name="steer",
+            target="δ",
+            unit="rad",
+            scale=0.2,
+            description="added to the steering angle after the actuators, positive = right, like steering_offset",
+        ),
+        CorrectionChannel(
+            name="yaw",
+            target="d(r)/dt",
+            unit="rad/s²",
+            scale=1.0,
+            searched=False,
             description="added to the yaw acceleration (quasi-statically it cannot be told from steer, "
-                        "so discovery leaves it out by default)"),
-    CorrectionChannel(name="gps_along", target="gps_along", unit="m", scale=2.0,
-            description="added to the antenna's position forward of the reference point, like antenna_x"),
-    CorrectionChannel(name="gps_cross", target="gps_cross", unit="m", scale=2.0,
-            description="added to the antenna's position left of the reference point, like antenna_y"),
-]}
+            "so discovery leaves it out by default)",
+        ),
+        CorrectionChannel(
+            name="gps_along",
+            target="gps_along",
+            unit="m",
+            scale=2.0,
+            description="added to the antenna's position forward of the reference point, like antenna_x",
+        ),
+        CorrectionChannel(
+            name="gps_cross",
+            target="gps_cross",
+            unit="m",
+            scale=2.0,
+            description="added to the antenna's position left of the reference point, like antenna_y",
+        ),
+    ]
+}
 
 _GPS = ("1", "cospsi", "sinpsi", "cos2psi", "sin2psi", "v")
 _BY_CHANNEL: dict[str, tuple[str, ...]] = {
-    "acc": ("1", "v", "v2", "verr", "acmd", "cospsi", "sinpsi", "s", "absvr", "fdrive", "sgnv", "onset_sgnv",
-            "onset_fdrive"),
+    "acc": (
+        "1",
+        "v",
+        "v2",
+        "verr",
+        "acmd",
+        "cospsi",
+        "sinpsi",
+        "s",
+        "absvr",
+        "fdrive",
+        "sgnv",
+        "onset_sgnv",
+        "onset_fdrive",
+    ),
     "steer": ("1", "delta", "ddelta", "ddeltav", "vdelta", "v", "r", "ratelim"),
     "yaw": ("1", "delta", "vdelta", "r", "vr"),
     "gps_along": _GPS,
@@ -172,7 +229,9 @@ _BY_CHANNEL: dict[str, tuple[str, ...]] = {
 }
 
 # Every term, in the FMU's order (value references follow gps_y's: model.c's CORR_TERMS, the description).
-TERMS: tuple[CorrectionTerm, ...] = tuple(CorrectionTerm(channel=c, feature=f) for c, fs in _BY_CHANNEL.items() for f in fs)
+TERMS: tuple[CorrectionTerm, ...] = tuple(
+    CorrectionTerm(channel=c, feature=f) for c, fs in _BY_CHANNEL.items() for f in fs
+)
 _BY_VARIABLE: dict[str, CorrectionTerm] = {t.variable: t for t in TERMS}
 
 
@@ -238,8 +297,12 @@ def _symbol(t: CorrectionTerm, shapes: Mapping[str, float]) -> str:
     return t.feature_info.symbol.format(shape.symbol if value is None else f"{value:.4g} {shape.unit}")
 
 
-def readable_term(t: CorrectionTerm, value: float, interval: tuple[float, float] | None = None,
-                  shapes: Mapping[str, float] = {}) -> str:
+def readable_term(
+    t: CorrectionTerm,
+    value: float,
+    interval: tuple[float, float] | None = None,
+    shapes: Mapping[str, float] = {},
+) -> str:
     """``d(v)/dt += -0.31·v [-0.34, -0.28]``: one term as an engineer writes it (``shapes``: their values)."""
     symbol = _symbol(t, shapes)
     text = f"{t.channel_info.target} += {_number(value)}" + ("" if symbol == "1" else f"·{symbol}")
@@ -261,7 +324,9 @@ def readable(values: Mapping[str, float]) -> list[str]:
         value, symbol = chosen[t.variable], _symbol(t, shapes)
         factor = _number(abs(value)) + ("" if symbol == "1" else f"·{symbol}")
         parts = by_channel.setdefault(t.channel, [])
-        parts.append(("-" if value < 0 else "") + factor if not parts else ("- " if value < 0 else "+ ") + factor)
+        parts.append(
+            ("-" if value < 0 else "") + factor if not parts else ("- " if value < 0 else "+ ") + factor
+        )
     return [f"{CHANNELS[c].target} += {' '.join(parts)}" for c, parts in by_channel.items()]
 
 
@@ -279,7 +344,9 @@ class FeatureInputs:
     delta_rate: np.ndarray  # its filtered derivative [rad/s]
     f_drive: np.ndarray  # drive force over mass [m/s²]
     v_min: float = 0.5  # the vehicle's v_min: floor of the speed that divides delta_rate
-    t: np.ndarray | None = None  # time since the run's start [s]; None: onset features on throughout, no rate limit
+    t: np.ndarray | None = (
+        None  # time since the run's start [s]; None: onset features on throughout, no rate limit
+    )
     onset: float = SHAPES["onset"].default  # t₀ [s], when the onset_* features switch on
     rate_limit: float = SHAPES["rate_limit"].default  # L [rad/s], the ratelim feature's limit
 
@@ -321,28 +388,50 @@ def rate_limited(t: np.ndarray, u: np.ndarray, limit: float, tau: float = TAU_TR
 def _feature(name: str, x: FeatureInputs) -> np.ndarray:
     v = np.asarray(x.v, dtype=float)
     match name:
-        case "1": return np.ones_like(v)
-        case "v": return v
-        case "v2": return v * v
-        case "verr": return np.asarray(x.v_cmd, dtype=float) - v
-        case "acmd": return np.asarray(x.a_cmd, dtype=float)
-        case "cospsi": return np.cos(x.psi)
-        case "sinpsi": return np.sin(x.psi)
-        case "cos2psi": return np.cos(2.0 * np.asarray(x.psi, dtype=float))
-        case "sin2psi": return np.sin(2.0 * np.asarray(x.psi, dtype=float))
-        case "s": return np.asarray(x.s, dtype=float)
-        case "absvr": return np.abs(v * x.r)
-        case "fdrive": return np.asarray(x.f_drive, dtype=float)
-        case "sgnv": return np.clip(v / x.v_min, -1.0, 1.0)
-        case "onset_sgnv": return _after(x) * np.clip(v / x.v_min, -1.0, 1.0)
-        case "onset_fdrive": return _after(x) * np.asarray(x.f_drive, dtype=float)
-        case "delta": return np.asarray(x.delta, dtype=float)
-        case "ddelta": return np.asarray(x.delta_rate, dtype=float)
-        case "ddeltav": return np.asarray(x.delta_rate, dtype=float) / np.maximum(v, x.v_min)
-        case "vdelta": return v * x.delta
-        case "r": return np.asarray(x.r, dtype=float)
-        case "ratelim": return _rate_limited(x) - np.asarray(x.delta, dtype=float)
-        case "vr": return v * x.r
+        case "1":
+            return np.ones_like(v)
+        case "v":
+            return v
+        case "v2":
+            return v * v
+        case "verr":
+            return np.asarray(x.v_cmd, dtype=float) - v
+        case "acmd":
+            return np.asarray(x.a_cmd, dtype=float)
+        case "cospsi":
+            return np.cos(x.psi)
+        case "sinpsi":
+            return np.sin(x.psi)
+        case "cos2psi":
+            return np.cos(2.0 * np.asarray(x.psi, dtype=float))
+        case "sin2psi":
+            return np.sin(2.0 * np.asarray(x.psi, dtype=float))
+        case "s":
+            return np.asarray(x.s, dtype=float)
+        case "absvr":
+            return np.abs(v * x.r)
+        case "fdrive":
+            return np.asarray(x.f_drive, dtype=float)
+        case "sgnv":
+            return np.clip(v / x.v_min, -1.0, 1.0)
+        case "onset_sgnv":
+            return _after(x) * np.clip(v / x.v_min, -1.0, 1.0)
+        case "onset_fdrive":
+            return _after(x) * np.asarray(x.f_drive, dtype=float)
+        case "delta":
+            return np.asarray(x.delta, dtype=float)
+        case "ddelta":
+            return np.asarray(x.delta_rate, dtype=float)
+        case "ddeltav":
+            return np.asarray(x.delta_rate, dtype=float) / np.maximum(v, x.v_min)
+        case "vdelta":
+            return v * x.delta
+        case "r":
+            return np.asarray(x.r, dtype=float)
+        case "ratelim":
+            return _rate_limited(x) - np.asarray(x.delta, dtype=float)
+        case "vr":
+            return v * x.r
     raise DseError(f"unknown correction feature {name!r}")
 
 
@@ -351,8 +440,9 @@ def features(x: FeatureInputs, terms: Iterable[CorrectionTerm] = TERMS) -> dict[
     return {t.variable: _feature(t.feature, x) for t in terms}
 
 
-def filtered_rate(t_cmd: np.ndarray, u: np.ndarray, t: np.ndarray, tau: float = TAU_F
-                  ) -> tuple[np.ndarray, np.ndarray]:
+def filtered_rate(
+    t_cmd: np.ndarray, u: np.ndarray, t: np.ndarray, tau: float = TAU_F
+) -> tuple[np.ndarray, np.ndarray]:
     """The C block's filtered derivative of a piecewise-constant command, in closed form.
 
     The command is ``u[k]`` from ``t_cmd[k]`` on and 0 before the first (as the vehicle holds it); the

@@ -45,7 +45,7 @@ def derivative_operator(time: np.ndarray, window: float, degree: int, order: int
     out = np.full((n, n), np.nan)
     for i, start, coefficients in _windows(time.tobytes(), window, degree):
         out[i, :] = 0.0
-        out[i, start:start + coefficients.shape[1]] = coefficients[order]
+        out[i, start : start + coefficients.shape[1]] = coefficients[order]
     return out
 
 
@@ -67,7 +67,7 @@ def _windows(fix_times: bytes, window: float, degree: int) -> tuple[tuple[int, i
     scale = factorial / half ** np.arange(degree + 1)
     out = []
     for i in range(n):
-        dt = time[lo[i]:hi[i]] - time[i]
+        dt = time[lo[i] : hi[i]] - time[i]
         before, after = int(np.sum(dt < 0)), int(np.sum(dt > 0))
         if dt.size < MIN_SHARE * expected or before < MIN_SIDE or after < MIN_SIDE:
             continue
@@ -106,13 +106,14 @@ def gps_kinematics(time: np.ndarray, x: np.ndarray, y: np.ndarray) -> Kinematics
     if finite.any():
         course[finite] = np.unwrap(course[finite])
     with np.errstate(invalid="ignore", divide="ignore"):
-        yaw_rate = np.where(speed >= MIN_SPEED, (vx * ay - vy * ax) / speed ** 2, np.nan)
+        yaw_rate = np.where(speed >= MIN_SPEED, (vx * ay - vy * ax) / speed**2, np.nan)
         acceleration = np.where(speed > 0, (vx * ax + vy * ay) / speed, np.nan)
     return Kinematics(time, speed, course, yaw_rate, acceleration)
 
 
-def smoothed_like(operator: np.ndarray, order: int, time: np.ndarray, signal: np.ndarray,
-                  at: np.ndarray) -> np.ndarray:
+def smoothed_like(
+    operator: np.ndarray, order: int, time: np.ndarray, signal: np.ndarray, at: np.ndarray
+) -> np.ndarray:
     """A model's ``signal`` (on its own ``time`` grid) seen as GPS would see it: integrated ``order``
     times, sampled at the fix times ``at`` and differentiated back by ``operator`` (the
     :func:`derivative_operator` of that order). Speed is order 1 (from positions by the velocity

@@ -28,8 +28,12 @@ class RobottiLibrary(HypothesisLibrary):
         return bool(space.scenarios) and all(s.kind == fielddata.KIND for s in space.scenarios)
 
     def diagnose(self, space: Space, request: Request, say: Messages) -> Diagnosis:
-        settings = DiagnosisSettings(folds=request.folds, hypotheses=request.hypotheses, noise_factor=request.noise_factor,
-                            discovery=request.discovery)
+        settings = DiagnosisSettings(
+            folds=request.folds,
+            hypotheses=request.hypotheses,
+            noise_factor=request.noise_factor,
+            discovery=request.discovery,
+        )
         return diagnose_calibration(space, settings, progress=say)
 
     def hypotheses(self, space: Space) -> list[Hypothesis]:

@@ -18,8 +18,16 @@ import pandas as pd
 from ...simulation.scenario import Scenario
 from .. import fielddata
 
-FEATURES = ["speed", "acceleration", "steering", "steering_rate", "lateral_acceleration",
-            "heading_cos", "heading_sin", "distance"]
+FEATURES = [
+    "speed",
+    "acceleration",
+    "steering",
+    "steering_rate",
+    "lateral_acceleration",
+    "heading_cos",
+    "heading_sin",
+    "distance",
+]
 COMPONENTS = ["along", "cross", "along_growth", "cross_growth"]
 TURNING_YAW_RATE = 0.05  # rad/s
 ACCELERATING = 0.05  # m/s^2
@@ -78,30 +86,41 @@ def residual_frame(trajectory: pd.DataFrame, scenario: Scenario, signals: Signal
     acceleration = np.interp(ft, t, np.gradient(speed_series, t))
     yaw_rate = at(signals.yaw_rate)
     travelled = np.concatenate([[0.0], np.cumsum(np.abs(speed_series[1:]) * np.diff(t))])
-    return pd.DataFrame({
-        "scenario": scenario.name, "group": scenario.group, "time": ft,
-        "along": along, "cross": cross, "distance_error": np.hypot(ex, ey),
-        "along_growth": _growth(ft, along), "cross_growth": _growth(ft, cross),
-        "speed": speed, "acceleration": acceleration,
-        "steering": np.interp(ft, t, steering_series),
-        "steering_rate": np.interp(ft, t, np.gradient(steering_series, t)),
-        "lateral_acceleration": speed * yaw_rate,
-        "heading_cos": c, "heading_sin": s,
-        "distance": np.interp(ft, t, travelled),
-        "segment": segment_of(speed, acceleration, yaw_rate),
-    })
+    return pd.DataFrame(
+        {
+            "scenario": scenario.name,
+            "group": scenario.group,
+            "time": ft,
+            "along": along,
+            "cross": cross,
+            "distance_error": np.hypot(ex, ey),
+            "along_growth": _growth(ft, along),
+            "cross_growth": _growth(ft, cross),
+            "speed": speed,
+            "acceleration": acceleration,
+            "steering": np.interp(ft, t, steering_series),
+            "steering_rate": np.interp(ft, t, np.gradient(steering_series, t)),
+            "lateral_acceleration": speed * yaw_rate,
+            "heading_cos": c,
+            "heading_sin": s,
+            "distance": np.interp(ft, t, travelled),
+            "segment": segment_of(speed, acceleration, yaw_rate),
+        }
+    )
 
 
 def _magnitudes(frame: pd.DataFrame, by: str) -> pd.DataFrame:
     grouped = frame.groupby(by)
-    table = pd.DataFrame({
-        "fixes": grouped.size(),
-        "cross_track_error": grouped["distance_error"].mean(),
-        "along_rms": grouped["along"].apply(lambda v: float(np.sqrt(np.mean(v ** 2)))),
-        "cross_rms": grouped["cross"].apply(lambda v: float(np.sqrt(np.mean(v ** 2)))),
-        "along_growth_rms": grouped["along_growth"].apply(lambda v: float(np.sqrt(np.mean(v ** 2)))),
-        "cross_growth_rms": grouped["cross_growth"].apply(lambda v: float(np.sqrt(np.mean(v ** 2)))),
-    })
+    table = pd.DataFrame(
+        {
+            "fixes": grouped.size(),
+            "cross_track_error": grouped["distance_error"].mean(),
+            "along_rms": grouped["along"].apply(lambda v: float(np.sqrt(np.mean(v**2)))),
+            "cross_rms": grouped["cross"].apply(lambda v: float(np.sqrt(np.mean(v**2)))),
+            "along_growth_rms": grouped["along_growth"].apply(lambda v: float(np.sqrt(np.mean(v**2)))),
+            "cross_growth_rms": grouped["cross_growth"].apply(lambda v: float(np.sqrt(np.mean(v**2)))),
+        }
+    )
     return table.reset_index()
 
 
@@ -123,8 +142,9 @@ def correlations(frame: pd.DataFrame) -> pd.DataFrame:
     for component in COMPONENTS:
         for feature in FEATURES:
             a, b = frame[component].to_numpy(), frame[feature].to_numpy()
-            table.loc[component, feature] = (float(np.corrcoef(a, b)[0, 1])
-                                             if np.std(a) > 0 and np.std(b) > 0 else 0.0)
+            table.loc[component, feature] = (
+                float(np.corrcoef(a, b)[0, 1]) if np.std(a) > 0 and np.std(b) > 0 else 0.0
+            )
     return table
 
 

@@ -66,11 +66,14 @@ class Telling:
 # the answer to a step; slip (a gain) against a speed lag (a phase) in the steady state after a speed change.
 TELLING: dict[frozenset[str], Telling] = {
     frozenset({"steering_lag", "time_offset"}): Telling(
-        COURSE, (segments.STEER_STEP, segments.SPEED_STEP), "a run with steering steps"),
+        COURSE, (segments.STEER_STEP, segments.SPEED_STEP), "a run with steering steps"
+    ),
     frozenset({"wheel_slip", "speed_lag"}): Telling(
-        SPEED, (segments.SPEED_STEP, segments.CRUISE), "a run with speed steps, each held for several seconds"),
+        SPEED, (segments.SPEED_STEP, segments.CRUISE), "a run with speed steps, each held for several seconds"
+    ),
     frozenset({"time_offset", "speed_lag"}): Telling(
-        SPEED, (segments.SPEED_STEP, segments.STEER_STEP), "a run with speed steps and steering steps"),
+        SPEED, (segments.SPEED_STEP, segments.STEER_STEP), "a run with speed steps and steering steps"
+    ),
 }
 FALLBACK = Telling(COURSE, (segments.STEER_STEP, segments.SPEED_STEP), "a run with steering and speed steps")
 
@@ -103,6 +106,7 @@ def twin_pairs(chosen: Candidate, candidates: Sequence[Candidate]) -> list[tuple
 
 
 # ---- the evidence ----------------------------------------------------------------------------------
+
 
 def fix_times(scenario: Scenario, count: int) -> np.ndarray:
     """The times of the first ``count`` fixes within the simulated span: those a fit's residuals are at
@@ -142,8 +146,9 @@ class SegmentEvidence:
     sigma: float
 
 
-def segment_evidence(a: Sequence[np.ndarray], b: Sequence[np.ndarray], kinds: Sequence[np.ndarray],
-                     sigma: float) -> SegmentEvidence:
+def segment_evidence(
+    a: Sequence[np.ndarray], b: Sequence[np.ndarray], kinds: Sequence[np.ndarray], sigma: float
+) -> SegmentEvidence:
     """The evidence for residuals ``a`` over ``b`` (per run: every fix's x offset, then its y offset, as
     fielddata.fix_residuals) at fixes of segment ``kinds`` (per run, one per fix). τ comes from the
     better set's residuals: under the right model they are the receiver's noise, and how correlated
@@ -161,18 +166,24 @@ def segment_evidence(a: Sequence[np.ndarray], b: Sequence[np.ndarray], kinds: Se
     by_kind: dict[str, float] = {}
     fixes: dict[str, int] = {}
     for fa, fb, k in zip(per_fix_a, per_fix_b, kinds):
-        contribution = (fb - fa) / (2.0 * sigma ** 2 * tau)
+        contribution = (fb - fa) / (2.0 * sigma**2 * tau)
         for kind in np.unique(k):
             inside = k == kind
             name = str(kind) or "unlabelled"
             by_kind[name] = by_kind.get(name, 0.0) + float(contribution[inside].sum())
             fixes[name] = fixes.get(name, 0) + int(inside.sum())
     ordered = [k for k in (*segments.KINDS, "unlabelled") if k in by_kind]
-    return SegmentEvidence(float(sum(by_kind.values())), {k: by_kind[k] for k in ordered},
-                           {k: fixes[k] for k in ordered}, tau, sigma)
+    return SegmentEvidence(
+        float(sum(by_kind.values())),
+        {k: by_kind[k] for k in ordered},
+        {k: fixes[k] for k in ordered},
+        tau,
+        sigma,
+    )
 
 
 # ---- the response, as a control engineer reads it -----------------------------------------------
+
 
 @dataclass(frozen=True)
 class SignalAtFixes:
@@ -187,7 +198,9 @@ class SignalAtFixes:
     model_time: np.ndarray  # uniform
     model: np.ndarray
     free_offset: bool = False  # compare about each run's mean difference (a course, known up to a constant)
-    valid: np.ndarray | None = None  # rows of ``operator`` that are estimates (None: every row that is finite)
+    valid: np.ndarray | None = (
+        None  # rows of ``operator`` that are estimates (None: every row that is finite)
+    )
 
 
 def delayed(time: np.ndarray, signal: np.ndarray, delay: float) -> np.ndarray:
@@ -205,7 +218,9 @@ def lagged(time: np.ndarray, signal: np.ndarray, tau: float) -> np.ndarray:
 
 
 def _seen(channel: SignalAtFixes, model: np.ndarray) -> np.ndarray:
-    seen = kinematics.smoothed_like(channel.operator, channel.order, channel.model_time, model, channel.fix_time)
+    seen = kinematics.smoothed_like(
+        channel.operator, channel.order, channel.model_time, model, channel.fix_time
+    )
     return seen if channel.valid is None else np.where(channel.valid, seen, np.nan)
 
 
@@ -234,10 +249,12 @@ def _sse(channels: Sequence[SignalAtFixes], transform) -> dict[str, tuple[float,
     return out
 
 
-def _best(channels: Sequence[SignalAtFixes], kinds: Sequence[str], transform, grid: np.ndarray
-          ) -> dict[str, tuple[float, float]]:
+def _best(
+    channels: Sequence[SignalAtFixes], kinds: Sequence[str], transform, grid: np.ndarray
+) -> dict[str, tuple[float, float]]:
     """Per kind, the transform's parameter on ``grid``'s span with the least SSE, and that SSE: a coarse
     grid shared by the kinds (the transform acts on whole runs), then a bounded search about each kind's best."""
+
     def sse(s: float) -> dict[str, tuple[float, int]]:
         return _sse(channels, lambda t, u: transform(t, u, s))
 
@@ -247,9 +264,15 @@ def _best(channels: Sequence[SignalAtFixes], kinds: Sequence[str], transform, gr
         values = np.array([c.get(kind, (math.inf, 0))[0] for c in coarse])
         k = int(np.argmin(values))
         low, high = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
-        fine = minimize_scalar(lambda s, kind=kind: sse(s).get(kind, (math.inf, 0))[0], bounds=(low, high),
-                               method="bounded", options={"xatol": 1e-3})
-        out[kind] = (float(fine.x), float(fine.fun)) if fine.fun < values[k] else (float(grid[k]), float(values[k]))
+        fine = minimize_scalar(
+            lambda s, kind=kind: sse(s).get(kind, (math.inf, 0))[0],
+            bounds=(low, high),
+            method="bounded",
+            options={"xatol": 1e-3},
+        )
+        out[kind] = (
+            (float(fine.x), float(fine.fun)) if fine.fun < values[k] else (float(grid[k]), float(values[k]))
+        )
     return out
 
 
@@ -278,16 +301,27 @@ class ResponseFit:
         return name if forms[name] < (1 - explain.MIN_GAIN) * self.sse else "none"
 
     def to_json(self) -> dict[str, Any]:
-        return {"channel": self.channel, "segment": self.kind, "fixes": self.fixes, "sse": self.sse,
-                "delay": self.delay, "delay_sse": self.delay_sse, "lag": self.lag, "lag_sse": self.lag_sse,
-                "gain": self.gain, "gain_sse": self.gain_sse, "best": self.best}
+        return {
+            "channel": self.channel,
+            "segment": self.kind,
+            "fixes": self.fixes,
+            "sse": self.sse,
+            "delay": self.delay,
+            "delay_sse": self.delay_sse,
+            "lag": self.lag,
+            "lag_sse": self.lag_sse,
+            "gain": self.gain,
+            "gain_sse": self.gain_sse,
+            "best": self.best,
+        }
 
 
 MOVING_KINDS = tuple(k for k in segments.KINDS if k != segments.REST)  # a standing vehicle has no response
 
 
-def response_fit(channels: Sequence[SignalAtFixes], name: str, kinds: Sequence[str] = MOVING_KINDS,
-                 min_fixes: int = 20) -> list[ResponseFit]:
+def response_fit(
+    channels: Sequence[SignalAtFixes], name: str, kinds: Sequence[str] = MOVING_KINDS, min_fixes: int = 20
+) -> list[ResponseFit]:
     """Per segment kind with at least ``min_fixes`` usable fixes: the delay, lag and gain that best carry
     the model's signal onto the recorded one (pooled over runs). Standing is left out: there the fits only
     reach their bounds."""
@@ -298,8 +332,10 @@ def response_fit(channels: Sequence[SignalAtFixes], name: str, kinds: Sequence[s
     shifts = np.arange(0.0, MAX_SHIFT + 1e-9, SHIFT_GRID)
     delays, lags = _best(channels, kinds, delayed, shifts), _best(channels, kinds, lagged, shifts)
     gains = _best(channels, kinds, lambda t, u, g: g * u, np.arange(GAINS[0], GAINS[1] + 1e-9, GAINS[2]))
-    return [ResponseFit(name, kind, as_is[kind][1], as_is[kind][0], *delays[kind], *lags[kind], *gains[kind])
-            for kind in kinds]
+    return [
+        ResponseFit(name, kind, as_is[kind][1], as_is[kind][0], *delays[kind], *lags[kind], *gains[kind])
+        for kind in kinds
+    ]
 
 
 def model_signal(track: Any, name: str, columns: Mapping[str, str]) -> np.ndarray:
@@ -312,8 +348,13 @@ def model_signal(track: Any, name: str, columns: Mapping[str, str]) -> np.ndarra
     return np.hypot(vx, vy)
 
 
-def channels_of(scenarios: Sequence[Scenario], tracks: Mapping[str, Any], columns: Mapping[str, str], name: str,
-                labels: Mapping[str, Any]) -> list[SignalAtFixes]:
+def channels_of(
+    scenarios: Sequence[Scenario],
+    tracks: Mapping[str, Any],
+    columns: Mapping[str, str],
+    name: str,
+    labels: Mapping[str, Any],
+) -> list[SignalAtFixes]:
     """Each run's recorded ``name`` (COURSE where the vehicle moves faster than kinematics.MIN_SPEED, or
     SPEED) beside the model's (:func:`model_signal` of its track in ``tracks``), with the fixes' segment
     kinds from ``labels`` (segments per run). A course, differentiated once from the fixes, shows the shape
@@ -325,17 +366,31 @@ def channels_of(scenarios: Sequence[Scenario], tracks: Mapping[str, Any], column
         fixes = fielddata.gps(s)
         kin = kinematics.gps_kinematics(fixes.time, fixes.x, fixes.y)
         velocity = kinematics.derivative_operator(fixes.time, kinematics.VELOCITY_WINDOW, 1, 1)
-        recorded = np.where(kin.speed >= kinematics.MIN_SPEED, kin.course, np.nan) if name == COURSE else kin.speed
+        recorded = (
+            np.where(kin.speed >= kinematics.MIN_SPEED, kin.course, np.nan) if name == COURSE else kin.speed
+        )
         track = tracks[s.name]
         model_time = track["time"].to_numpy(float)
         recorded = np.where(fixes.time <= model_time[-1] + 1e-9, recorded, np.nan)
         operator, valid = sparse_operator(velocity)
-        out.append(SignalAtFixes(fixes.time, recorded, segments.kinds_at(labels[s.name], fixes.time), operator, 1,
-                           model_time, model_signal(track, name, columns), free_offset=name == COURSE, valid=valid))
+        out.append(
+            SignalAtFixes(
+                fixes.time,
+                recorded,
+                segments.kinds_at(labels[s.name], fixes.time),
+                operator,
+                1,
+                model_time,
+                model_signal(track, name, columns),
+                free_offset=name == COURSE,
+                valid=valid,
+            )
+        )
     return out
 
 
 # ---- the verdict between twins ----------------------------------------------------------------------
+
 
 @dataclass
 class LookAlike:
@@ -379,35 +434,69 @@ class LookAlike:
 
     def to_json(self) -> dict[str, Any]:
         e = self.evidence
-        return {"pair": list(self.pair), "effects": list(self.members), "chosen": self.chosen,
-                "llr": e.llr, "favours": self.favoured, "decision": self.decision,
-                "by_segment": {k: {"llr": v, "fixes": e.fixes[k]} for k, v in e.by_kind.items()},
-                "autocorrelation_fixes": e.tau, "sigma": e.sigma, "telling_segments": list(self.telling.kinds),
-                "telling_fixes": self.telling_fixes, "would_tell": self.telling.advice, "shape": self.shape,
-                "response_fit": [r.to_json() for r in self.response]}
+        return {
+            "pair": list(self.pair),
+            "effects": list(self.members),
+            "chosen": self.chosen,
+            "llr": e.llr,
+            "favours": self.favoured,
+            "decision": self.decision,
+            "by_segment": {k: {"llr": v, "fixes": e.fixes[k]} for k, v in e.by_kind.items()},
+            "autocorrelation_fixes": e.tau,
+            "sigma": e.sigma,
+            "telling_segments": list(self.telling.kinds),
+            "telling_fixes": self.telling_fixes,
+            "would_tell": self.telling.advice,
+            "shape": self.shape,
+            "response_fit": [r.to_json() for r in self.response],
+        }
 
 
-def decision(a: Candidate, b: Candidate, llr: float, min_gain: float = explain.MIN_GAIN,
-             bic_margin: float = explain.BIC_MARGIN, decisive: float = DECISIVE) -> str:
+def decision(
+    a: Candidate,
+    b: Candidate,
+    llr: float,
+    min_gain: float = explain.MIN_GAIN,
+    bic_margin: float = explain.BIC_MARGIN,
+    decisive: float = DECISIVE,
+) -> str:
     """held_out when held-out error and BIC already separate the two (one beats the other); else llr when
     |llr| ≥ ``decisive``; else cannot_tell."""
-    if a.validated and b.validated and (explain.beats(a, b, min_gain, bic_margin)
-                                        or explain.beats(b, a, min_gain, bic_margin)):
+    if (
+        a.validated
+        and b.validated
+        and (explain.beats(a, b, min_gain, bic_margin) or explain.beats(b, a, min_gain, bic_margin))
+    ):
         return DECIDED_BY_FIT
     return DECIDED_BY_LLR if abs(llr) >= decisive else CANNOT_TELL
 
 
-def eligible(candidate: Candidate, candidates: Sequence[Candidate], baseline: Candidate, min_gain: float,
-             bic_margin: float) -> bool:
+def eligible(
+    candidate: Candidate,
+    candidates: Sequence[Candidate],
+    baseline: Candidate,
+    min_gain: float,
+    bic_margin: float,
+) -> bool:
     """Whether ``candidate`` could be the answer (explain.select's rule): cross-validated, better than none
     and than every fitted part of it."""
-    return (candidate.validated and explain.beats(candidate, baseline, min_gain, bic_margin)
-            and explain.beats_subsets(candidate, candidates, min_gain, bic_margin))
+    return (
+        candidate.validated
+        and explain.beats(candidate, baseline, min_gain, bic_margin)
+        and explain.beats_subsets(candidate, candidates, min_gain, bic_margin)
+    )
 
 
-def weigh(chosen: Candidate, candidates: Sequence[Candidate], baseline: Candidate, scenarios: Sequence[Scenario],
-          sigma: float | None, min_gain: float = explain.MIN_GAIN, bic_margin: float = explain.BIC_MARGIN,
-          decisive: float = DECISIVE) -> tuple[Candidate, list[LookAlike]]:
+def weigh(
+    chosen: Candidate,
+    candidates: Sequence[Candidate],
+    baseline: Candidate,
+    scenarios: Sequence[Scenario],
+    sigma: float | None,
+    min_gain: float = explain.MIN_GAIN,
+    bic_margin: float = explain.BIC_MARGIN,
+    decisive: float = DECISIVE,
+) -> tuple[Candidate, list[LookAlike]]:
     """The evidence between the chosen set and each fitted twin of it; where held-out error and BIC cannot
     separate them and the LLR can, the LLR's favourite is the answer (if it could be chosen at all).
     ``sigma``: the GPS noise per axis; without it, the better fit's own residual scatter. Costs no
@@ -419,17 +508,27 @@ def weigh(chosen: Candidate, candidates: Sequence[Candidate], baseline: Candidat
     for a, b in twin_pairs(chosen, candidates):
         if len(a.full.residuals) != len(names) or len(b.full.residuals) != len(names):
             continue  # fitted on other runs than these
-        kinds = [segments.kinds_at(labels[n], fix_times(s, len(r) // 2))
-                 for n, s, r in zip(names, scenarios, a.full.residuals)]
+        kinds = [
+            segments.kinds_at(labels[n], fix_times(s, len(r) // 2))
+            for n, s, r in zip(names, scenarios, a.full.residuals)
+        ]
         if any(len(ra) != len(rb) for ra, rb in zip(a.full.residuals, b.full.residuals)):
             continue
-        scale = sigma if sigma and math.isfinite(sigma) and sigma > 0 else math.sqrt(
-            min(a.full.sse, b.full.sse) / max(a.full.residual_count, 1))
+        scale = (
+            sigma
+            if sigma and math.isfinite(sigma) and sigma > 0
+            else math.sqrt(min(a.full.sse, b.full.sse) / max(a.full.residual_count, 1))
+        )
         evidence = segment_evidence(a.full.residuals, b.full.residuals, kinds, scale)
         how = decision(a, b, evidence.llr, min_gain, bic_margin, decisive)
         members = swapped(a.ids, b.ids) or ("", "")
-        if how == DECIDED_BY_LLR and chosen.ids and evidence.llr < 0 and a is answer and eligible(
-                b, candidates, baseline, min_gain, bic_margin):
+        if (
+            how == DECIDED_BY_LLR
+            and chosen.ids
+            and evidence.llr < 0
+            and a is answer
+            and eligible(b, candidates, baseline, min_gain, bic_margin)
+        ):
             answer = b
         looks.append(LookAlike((a.label, b.label), members, evidence, how, None, telling(*members)))
     for look in looks:
@@ -437,8 +536,12 @@ def weigh(chosen: Candidate, candidates: Sequence[Candidate], baseline: Candidat
     return answer, looks
 
 
-def attach_responses(looks: Sequence[LookAlike], scenarios: Sequence[Scenario], tracks: Mapping[str, Any],
-                     columns: Mapping[str, str]) -> None:
+def attach_responses(
+    looks: Sequence[LookAlike],
+    scenarios: Sequence[Scenario],
+    tracks: Mapping[str, Any],
+    columns: Mapping[str, str],
+) -> None:
     """Each look-alike's response fit, in its telling channel, against the model whose ``tracks`` are given
     (the calibrated baseline: the model without either twin); ``columns`` names the tracks' ``heading``,
     ``vx`` and ``vy``."""

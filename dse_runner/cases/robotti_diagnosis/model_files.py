@@ -36,8 +36,10 @@ def vehicle_of(calibration: Space) -> str:
 def at_antenna(entries: list[Any], vehicle: str) -> list[dict[str, Any]]:
     """Scenario entries whose runs are compared with GPS at the antenna's outputs (gps_x, gps_y)."""
     position = {"x": f"{vehicle}.gps_x", "y": f"{vehicle}.gps_y"}
-    return [{"path": e, "position": position} if isinstance(e, str) else {**e, "position": position}
-            for e in entries]
+    return [
+        {"path": e, "position": position} if isinstance(e, str) else {**e, "position": position}
+        for e in entries
+    ]
 
 
 def effects_multimodel(multimodel: MultiModel, vehicle: str, folder: Path) -> dict[str, Any]:
@@ -45,8 +47,10 @@ def effects_multimodel(multimodel: MultiModel, vehicle: str, folder: Path) -> di
     (FMU paths relative to it, bundled ones as ``bundled:``)."""
     bundled.bundled_path(EFFECTS_FMU)  # it ships with the package; an error names it if not
     data = multimodel.model_dump(mode="json")
-    data["fmus"] = {name: ref if bundled.is_bundled(ref) else _relative(multimodel.fmu_path(name), folder)
-                    for name, ref in multimodel.fmus.items()}
+    data["fmus"] = {
+        name: ref if bundled.is_bundled(ref) else _relative(multimodel.fmu_path(name), folder)
+        for name, ref in multimodel.fmus.items()
+    }
     data["fmus"][vehicle] = EFFECTS_FMU
     return data
 
@@ -81,17 +85,32 @@ def base_parameters(calibration: Space, best: dict[str, Any]) -> tuple[Parameter
 
 def fits_space(calibration: Space, vehicle: str, out: Path) -> Space:
     """A space over the effects multi-model whose rounds are given points (fit.py)."""
-    mm_path = _write_yaml(out / "effects-multimodel.yaml", effects_multimodel(calibration.multimodel, vehicle, out),
-                          "# The multi-model diagnosis fits: the vehicle replaced by its effects variant.\n")
+    mm_path = _write_yaml(
+        out / "effects-multimodel.yaml",
+        effects_multimodel(calibration.multimodel, vehicle, out),
+        "# The multi-model diagnosis fits: the vehicle replaced by its effects variant.\n",
+    )
     parameters = {name: values for name, values in calibration.parameters.items()}
     parameters.update({f"{vehicle}.{v}": [0.0] for v in effect_variables()})
-    parameters.update({f"{vehicle}.{v}": [0.0] for v in correction_variables()})  # off until discovery frees them
-    parameters.update({f"{vehicle}.{s.variable}": [s.default] for s in correction.SHAPES.values()})  # held by discovery
+    parameters.update(
+        {f"{vehicle}.{v}": [0.0] for v in correction_variables()}
+    )  # off until discovery frees them
+    parameters.update(
+        {f"{vehicle}.{s.variable}": [s.default] for s in correction.SHAPES.values()}
+    )  # held by discovery
     entries = [e if isinstance(e, str) else e.model_dump() for e in calibration.spec.scenarios]
-    spec = SpaceSpec(name=FITS, multimodel=str(mm_path), scenarios=at_antenna(entries, vehicle),
-                     parameters=parameters, objectives=["cross_track_error", "fix_residuals"],
-                     output=str(out), cluster=calibration.spec.cluster, keep_trajectories=0,
-                     timeout=calibration.spec.timeout, chunk_seconds=calibration.spec.chunk_seconds)
+    spec = SpaceSpec(
+        name=FITS,
+        multimodel=str(mm_path),
+        scenarios=at_antenna(entries, vehicle),
+        parameters=parameters,
+        objectives=["cross_track_error", "fix_residuals"],
+        output=str(out),
+        cluster=calibration.spec.cluster,
+        keep_trajectories=0,
+        timeout=calibration.spec.timeout,
+        chunk_seconds=calibration.spec.chunk_seconds,
+    )
     return resolve_space(spec, out / f"{FITS}.yaml")
 
 
@@ -101,10 +120,14 @@ def write_model(diagnosis: Diagnosis, calibration: Space) -> dict[str, Path]:
         return {}
     out, vehicle = diagnosis.out, diagnosis.calibration["vehicle"]
     names = ", ".join(diagnosis.chosen.ids)
-    mm_path = _write_yaml(out / "augmented-multimodel.yaml",
-                          effects_multimodel(calibration.multimodel, vehicle, out),
-                          f"# Written by dse-runner diagnose: the vehicle's effects variant, for {names}.\n")
-    spec = calibration.spec.model_dump(mode="json", exclude={"output", "keep_trajectories"}, exclude_defaults=True)
+    mm_path = _write_yaml(
+        out / "augmented-multimodel.yaml",
+        effects_multimodel(calibration.multimodel, vehicle, out),
+        f"# Written by dse-runner diagnose: the vehicle's effects variant, for {names}.\n",
+    )
+    spec = calibration.spec.model_dump(
+        mode="json", exclude={"output", "keep_trajectories"}, exclude_defaults=True
+    )
     parameters = dict(spec["parameters"])
     fit = diagnosis.chosen.full
     interval = fit.interval()
@@ -113,7 +136,9 @@ def write_model(diagnosis: Diagnosis, calibration: Space) -> dict[str, Path]:
             low, high = sorted(interval[name])
             if not (math.isfinite(low) and math.isfinite(high)) or high <= low:
                 low, high = sorted((0.0, 2.0 * fit.values[name]))
-            parameters[name] = Range(start=round(low, 9), stop=round(high, 9), num=3).model_dump(exclude_none=True)
+            parameters[name] = Range(start=round(low, 9), stop=round(high, 9), num=3).model_dump(
+                exclude_none=True
+            )
             shape = correction.shape_of(correction.term(name))
             if shape is not None:  # what shapes the term (when it switches on, ...), as the fits held it
                 parameters[f"{vehicle}.{shape.variable}"] = [fit.point[f"{vehicle}.{shape.variable}"]]
@@ -123,14 +148,25 @@ def write_model(diagnosis: Diagnosis, calibration: Space) -> dict[str, Path]:
             low, high = (max(p.lower, interval[ref][0]), min(p.upper, interval[ref][1]))
             if not (math.isfinite(low) and math.isfinite(high)) or high <= low:
                 low, high = p.lower, p.upper
-            parameters[ref] = Range(start=round(low, 6), stop=round(high, 6), num=3).model_dump(exclude_none=True)
-    scenarios = at_antenna([_relative(Path(s), out) if isinstance(s, str) else s for s in spec["scenarios"]],
-                           vehicle)
-    spec.update(name=f"{calibration.name}-with-{'-'.join(diagnosis.chosen.ids)}", multimodel=mm_path.name,
-                scenarios=scenarios, parameters=parameters, output="recalibration")
-    space_path = _write_yaml(out / "space.yaml", spec,
-                             f"# Written by dse-runner diagnose: the calibration with {names} added,\n"
-                             "# each effect parameter over its fitted ~95 % interval. Run: dse-runner submit space.yaml\n")
+            parameters[ref] = Range(start=round(low, 6), stop=round(high, 6), num=3).model_dump(
+                exclude_none=True
+            )
+    scenarios = at_antenna(
+        [_relative(Path(s), out) if isinstance(s, str) else s for s in spec["scenarios"]], vehicle
+    )
+    spec.update(
+        name=f"{calibration.name}-with-{'-'.join(diagnosis.chosen.ids)}",
+        multimodel=mm_path.name,
+        scenarios=scenarios,
+        parameters=parameters,
+        output="recalibration",
+    )
+    space_path = _write_yaml(
+        out / "space.yaml",
+        spec,
+        f"# Written by dse-runner diagnose: the calibration with {names} added,\n"
+        "# each effect parameter over its fitted ~95 % interval. Run: dse-runner submit space.yaml\n",
+    )
     return {"multimodel": mm_path, "space": space_path}
 
 

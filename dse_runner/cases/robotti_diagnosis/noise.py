@@ -75,10 +75,15 @@ class NoiseFloor:
         return self.method != UNAVAILABLE and math.isfinite(self.cross_track) and self.cross_track > 0
 
     def to_json(self) -> dict[str, Any]:
-        return {"sigma": self.sigma if self.available else None,
-                "cross_track": self.cross_track if self.available else None,
-                "method": self.method, "fixes": self.fixes, "per_run": self.per_run, "rho1": self.rho1,
-                "estimates": {k: {"sigma": e.sigma, "fixes": e.fixes} for k, e in self.estimates.items()}}
+        return {
+            "sigma": self.sigma if self.available else None,
+            "cross_track": self.cross_track if self.available else None,
+            "method": self.method,
+            "fixes": self.fixes,
+            "per_run": self.per_run,
+            "rho1": self.rho1,
+            "estimates": {k: {"sigma": e.sigma, "fixes": e.fixes} for k, e in self.estimates.items()},
+        }
 
 
 UNKNOWN = NoiseFloor(math.nan, math.nan, UNAVAILABLE, 0)
@@ -95,8 +100,9 @@ class RecordedRun:
     command_speed: np.ndarray  # m/s, the commanded speed, held until the next row
 
 
-def second_differences(time: np.ndarray, x: np.ndarray, y: np.ndarray, max_spacing: float = MAX_SPACING
-                       ) -> np.ndarray:
+def second_differences(
+    time: np.ndarray, x: np.ndarray, y: np.ndarray, max_spacing: float = MAX_SPACING
+) -> np.ndarray:
     """d2 of x, then of y, at every fix whose neighbours both lie one nominal period away.
 
     The nominal period is the median spacing: a triple spanning a dropout has a gap of two
@@ -110,7 +116,10 @@ def second_differences(time: np.ndarray, x: np.ndarray, y: np.ndarray, max_spaci
         return np.empty(0)
     regular = np.abs(gaps - period) <= SPACING_TOLERANCE
     middle = regular[:-1] & regular[1:]  # triple (i, i+1, i+2) around fix i+1
-    d2 = [p[2:][middle] - 2 * p[1:-1][middle] + p[:-2][middle] for p in (np.asarray(x, float), np.asarray(y, float))]
+    d2 = [
+        p[2:][middle] - 2 * p[1:-1][middle] + p[:-2][middle]
+        for p in (np.asarray(x, float), np.asarray(y, float))
+    ]
     return np.concatenate(d2)
 
 
@@ -119,9 +128,13 @@ def sigma_from_second_differences(d2: np.ndarray) -> float:
     return sigma_from_differences(d2, 2)
 
 
-def rest_windows(command_time: np.ndarray, command_speed: np.ndarray, end: float,
-                 min_seconds: float = REST_MIN_SECONDS, settle: float = REST_SETTLE_SECONDS
-                 ) -> list[tuple[float, float]]:
+def rest_windows(
+    command_time: np.ndarray,
+    command_speed: np.ndarray,
+    end: float,
+    min_seconds: float = REST_MIN_SECONDS,
+    settle: float = REST_SETTLE_SECONDS,
+) -> list[tuple[float, float]]:
     """Spans [start, stop) in which the vehicle stands still: the commanded speed is 0 for at least
     ``min_seconds``, counted from ``settle`` after the last moving command (a run starts at rest, so
     a stop at its beginning needs no settling). Commands hold until the next row; the last until ``end``."""
@@ -143,8 +156,13 @@ def rest_windows(command_time: np.ndarray, command_speed: np.ndarray, end: float
     return windows
 
 
-def rest_deviations(time: np.ndarray, x: np.ndarray, y: np.ndarray, windows: Iterable[tuple[float, float]],
-                    min_fixes: int = REST_MIN_FIXES) -> list[np.ndarray]:
+def rest_deviations(
+    time: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    windows: Iterable[tuple[float, float]],
+    min_fixes: int = REST_MIN_FIXES,
+) -> list[np.ndarray]:
     """The fixes of each stop with at least ``min_fixes``, about a straight line in time fitted to them
     (position and a steady creep): an (n, 2) array each."""
     time = np.asarray(time, float)
@@ -161,7 +179,7 @@ def rest_deviations(time: np.ndarray, x: np.ndarray, y: np.ndarray, windows: Ite
 
 def sigma_at_rest(deviations: list[np.ndarray]) -> float:
     """Pooled within-stop standard deviation per axis (each stop's line costs two degrees of freedom an axis)."""
-    squares = sum(float(np.sum(d ** 2)) for d in deviations)
+    squares = sum(float(np.sum(d**2)) for d in deviations)
     dof = sum(2 * (len(d) - 2) for d in deviations)
     return math.sqrt(squares / dof) if dof > 0 else math.nan
 
@@ -169,7 +187,7 @@ def sigma_at_rest(deviations: list[np.ndarray]) -> float:
 def lag1_autocorrelation(deviations: list[np.ndarray]) -> float | None:
     """Pooled lag-1 autocorrelation of the fixes at rest: white noise gives about 0."""
     num = sum(float(np.sum(d[1:] * d[:-1])) for d in deviations if len(d) > 1)
-    den = sum(float(np.sum(d ** 2)) for d in deviations)
+    den = sum(float(np.sum(d**2)) for d in deviations)
     return num / den if den > 0 else None
 
 
@@ -182,26 +200,44 @@ def _end(run: RecordedRun) -> float:
 def estimate(runs: Mapping[str, RecordedRun]) -> NoiseFloor:
     """The noise floor of ``runs``: each estimator pooled over runs, σ̂ the larger of those available."""
     d2 = {name: second_differences(r.time, r.x, r.y) for name, r in runs.items()}
-    rest = {name: rest_deviations(r.time, r.x, r.y, rest_windows(r.command_time, r.command_speed, _end(r)))
-            for name, r in runs.items()}
+    rest = {
+        name: rest_deviations(r.time, r.x, r.y, rest_windows(r.command_time, r.command_speed, _end(r)))
+        for name, r in runs.items()
+    }
     pooled = np.concatenate([v for v in d2.values()]) if d2 else np.empty(0)
     estimates: dict[str, Estimate] = {}
     if pooled.size:
-        estimates[CLOSE_FIXES] = Estimate(sigma_from_second_differences(pooled), pooled.size // 2,
-                                          {n: sigma_from_second_differences(v) for n, v in d2.items() if v.size})
+        estimates[CLOSE_FIXES] = Estimate(
+            sigma_from_second_differences(pooled),
+            pooled.size // 2,
+            {n: sigma_from_second_differences(v) for n, v in d2.items() if v.size},
+        )
     all_rest = [d for stops in rest.values() for d in stops]
     if all_rest:
-        estimates[AT_REST] = Estimate(sigma_at_rest(all_rest), sum(len(d) for d in all_rest),
-                                      {n: sigma_at_rest(v) for n, v in rest.items() if v})
+        estimates[AT_REST] = Estimate(
+            sigma_at_rest(all_rest),
+            sum(len(d) for d in all_rest),
+            {n: sigma_at_rest(v) for n, v in rest.items() if v},
+        )
     usable = {k: e for k, e in estimates.items() if math.isfinite(e.sigma) and e.sigma > 0}
     if not usable:
         return NoiseFloor(math.nan, math.nan, UNAVAILABLE, 0, estimates=estimates)
     method = max(usable, key=lambda k: usable[k].sigma)
-    per_run = {n: max(e.per_run[n] for e in usable.values() if n in e.per_run)
-               for n in runs if any(n in e.per_run for e in usable.values())}
+    per_run = {
+        n: max(e.per_run[n] for e in usable.values() if n in e.per_run)
+        for n in runs
+        if any(n in e.per_run for e in usable.values())
+    }
     sigma = usable[method].sigma
-    return NoiseFloor(sigma, sigma * MEAN_DISTANCE, method, usable[method].fixes, per_run, estimates,
-                      lag1_autocorrelation(all_rest))
+    return NoiseFloor(
+        sigma,
+        sigma * MEAN_DISTANCE,
+        method,
+        usable[method].fixes,
+        per_run,
+        estimates,
+        lag1_autocorrelation(all_rest),
+    )
 
 
 def run_of(scenario: Scenario) -> RecordedRun:

@@ -24,7 +24,9 @@ class DiagnosisSettings:
     max_effects: int = 3
     pairs: int = 4  # best screened pairs fitted for real
     triples: int = 2  # best screened triples fitted for real
-    shortlist: int = 10  # most sets fitted for real after the screen: those pairs and triples, then look-alikes
+    shortlist: int = (
+        10  # most sets fitted for real after the screen: those pairs and triples, then look-alikes
+    )
     survivors: int = 3  # most combinations cross-validated: the best by BIC of those passing its gate
     min_gain: float = explain.MIN_GAIN
     bic_margin: float = explain.BIC_MARGIN
@@ -37,13 +39,22 @@ class DiagnosisSettings:
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.noise_factor) and self.noise_factor > 0):
-            raise DseError(f"noise factor {self.noise_factor!r}: must be a positive number (default "
-                           f"{explain.NOISE_FACTOR:g}: held-out error above twice the noise floor is a residual)")
+            raise DseError(
+                f"noise factor {self.noise_factor!r}: must be a positive number (default "
+                f"{explain.NOISE_FACTOR:g}: held-out error above twice the noise floor is a residual)"
+            )
         if not (math.isfinite(self.floor_stop) and self.floor_stop > 0):
-            raise DseError(f"floor stop {self.floor_stop!r}: must be a positive number (default "
-                           f"{explain.FLOOR_STOP:g})")
-        counts = {"pairs": self.pairs, "triples": self.triples, "shortlist": self.shortlist,
-                  "survivors": self.survivors, "max_effects": self.max_effects, "max_terms": self.max_terms}
+            raise DseError(
+                f"floor stop {self.floor_stop!r}: must be a positive number (default {explain.FLOOR_STOP:g})"
+            )
+        counts = {
+            "pairs": self.pairs,
+            "triples": self.triples,
+            "shortlist": self.shortlist,
+            "survivors": self.survivors,
+            "max_effects": self.max_effects,
+            "max_terms": self.max_terms,
+        }
         bad = [f"{k} = {v!r}" for k, v in counts.items() if not (isinstance(v, int) and v >= 0)]
         if bad:
             raise DseError(f"diagnosis settings {', '.join(bad)}: each must be a whole number, 0 or more")
@@ -52,8 +63,10 @@ class DiagnosisSettings:
         """The hypotheses fitted alone: the chosen ids of the library, each checked."""
         unknown = [h for h in self.hypotheses if h not in LIBRARY]
         if unknown:
-            raise DseError(f"unknown hypothesis {', '.join(map(repr, unknown))}: the library has "
-                           f"{', '.join(h for h in LIBRARY if h != 'none')} (and none, always tried)")
+            raise DseError(
+                f"unknown hypothesis {', '.join(map(repr, unknown))}: the library has "
+                f"{', '.join(h for h in LIBRARY if h != 'none')} (and none, always tried)"
+            )
         return [(hid,) for hid in dict.fromkeys(self.hypotheses or LIBRARY) if hid != "none"]
 
 
@@ -69,7 +82,9 @@ class Diagnosis:
     files: dict[str, Path] = field(default_factory=dict)
     dropouts: dict[str, int] = field(default_factory=dict)  # GPS fixes skipped per run (scenario.dropouts)
     floor: NoiseFloor = noise.UNKNOWN  # the GPS noise floor, estimated from the recordings alone
-    screened: list[screen.Screened] = field(default_factory=list)  # every combination the screen tried, best first
+    screened: list[screen.Screened] = field(
+        default_factory=list
+    )  # every combination the screen tried, best first
     shortlisted: list[str] = field(default_factory=list)  # the labels of those then fitted for real
     lookalikes: list[lookalike.LookAlike] = field(default_factory=list)  # the evidence between twin sets
     discovery: discover.Discovery | None = None  # what was sought beyond the library; None if nothing was
@@ -91,8 +106,13 @@ class Diagnosis:
         noise floor; a discovered correction that passed the rule gives discovered when it leaves only noise,
         partial when it does not."""
         floor = self.floor.cross_track if self.floor.available else None
-        return explain.verdict(self.cross_track_after, floor, self.settings.noise_factor,
-                               bool(discover.library_ids(self.chosen.ids)), self.discovered)
+        return explain.verdict(
+            self.cross_track_after,
+            floor,
+            self.settings.noise_factor,
+            bool(discover.library_ids(self.chosen.ids)),
+            self.discovered,
+        )
 
     @property
     def partial(self) -> bool:
@@ -138,23 +158,42 @@ class Diagnosis:
         terms = discover.terms_json(fit)
         similar = self.discovery.resembles if self.discovery is not None else []
         return DiscoveredCorrection(
-            id=discover.DISCOVERED, name="a data-driven correction of the model (discovered)",
-            terms=terms, readable=correction.readable(fit.point),
+            id=discover.DISCOVERED,
+            name="a data-driven correction of the model (discovered)",
+            terms=terms,
+            readable=correction.readable(fit.point),
             parameters={t["variable"]: t["value"] for t in terms},
-            interval={n.rsplit(".", 1)[-1]: list(interval[n]) for n in fit.values if correction.is_correction(n)},
-            resembles=({"id": similar[0][0], "similarity": similar[0][1],
-                        "text": discover.resemblance_words(similar)} if similar else None),
+            interval={
+                n.rsplit(".", 1)[-1]: list(interval[n]) for n in fit.values if correction.is_correction(n)
+            },
+            resembles=(
+                {
+                    "id": similar[0][0],
+                    "similarity": similar[0][1],
+                    "text": discover.resemblance_words(similar),
+                }
+                if similar
+                else None
+            ),
             similarities=dict(similar),
-            held_out_without=self.library.cross_validated, held_out_with=self.chosen.cross_validated,
-            partial=self.verdict == explain.PARTIAL)  # it too leaves a residual above the noise
+            held_out_without=self.library.cross_validated,
+            held_out_with=self.chosen.cross_validated,
+            partial=self.verdict == explain.PARTIAL,
+        )  # it too leaves a residual above the noise
 
     def _effect(self, hid: str) -> NamedEffect:
         h, fit = LIBRARY[hid], self.chosen.full
         refs = {v: f"{self.calibration['vehicle']}.{v}" for v in h.variables}
         values = {v: fit.values[ref] for v, ref in refs.items()}
         interval = fit.interval()
-        return NamedEffect(hid, h.name, values, {v: list(interval[ref]) for v, ref in refs.items()},
-                           magnitude=h.magnitude(values), partial=self.partial)
+        return NamedEffect(
+            hid,
+            h.name,
+            values,
+            {v: list(interval[ref]) for v, ref in refs.items()},
+            magnitude=h.magnitude(values),
+            partial=self.partial,
+        )
 
     @property
     def cross_track_before(self) -> float:
@@ -169,8 +208,11 @@ class Diagnosis:
         """Every parameter of the chosen model as fitted jointly (calibrated ones and effects), with ~95 %
         intervals: what a later study on the diagnosed plant starts from, e.g. plants drawn for robustness."""
         fit = self.chosen.full
-        return {"parameters": dict(fit.values), "interval": {k: list(v) for k, v in fit.interval().items()},
-                "at_bound": list(fit.at_bound)}
+        return {
+            "parameters": dict(fit.values),
+            "interval": {k: list(v) for k, v in fit.interval().items()},
+            "at_bound": list(fit.at_bound),
+        }
 
     def summary(self) -> list[str]:
         """What was named (a discovered correction's terms as an engineer writes them), the held-out error
@@ -178,21 +220,29 @@ class Diagnosis:
         lines = []
         for finding in self.findings:
             if isinstance(finding, DiscoveredCorrection):
-                lines.append(f"{finding.id}: {finding.described()}"
-                             + (f" ({finding.resembles['text']})" if finding.resembles else ""))
+                lines.append(
+                    f"{finding.id}: {finding.described()}"
+                    + (f" ({finding.resembles['text']})" if finding.resembles else "")
+                )
                 continue
             values = finding.described()
             lines.append(f"{finding.id}: {finding.name}" + (f": {values}" if values else ""))
-        lines.append(f"held-out mean cross-track error: {self.cross_track_before:.3f} m before, "
-                     f"{self.cross_track_after:.3f} m after")
+        lines.append(
+            f"held-out mean cross-track error: {self.cross_track_before:.3f} m before, "
+            f"{self.cross_track_after:.3f} m after"
+        )
         if self.floor_ratio is not None:
-            lines.append(f"verdict: {self.verdict} ({self.floor_ratio:.1f}× the noise floor of "
-                         f"{self.floor.cross_track:.3f} m, {self.floor.method})")
+            lines.append(
+                f"verdict: {self.verdict} ({self.floor_ratio:.1f}× the noise floor of "
+                f"{self.floor.cross_track:.3f} m, {self.floor.method})"
+            )
         else:
             lines.append(f"verdict: {self.verdict} (no noise floor could be estimated)")
         if self.dropouts:
             lines.append(dropouts_line(self.dropouts))
-        lines.extend(f"{name}: {self.files[name]}" for name in ("multimodel", "space", "report") if name in self.files)
+        lines.extend(
+            f"{name}: {self.files[name]}" for name in ("multimodel", "space", "report") if name in self.files
+        )
         return lines
 
     def to_json(self) -> dict[str, Any]:
@@ -210,14 +260,32 @@ class Diagnosis:
             "lookalikes": [look.to_json() for look in self.lookalikes],
             "dropped": [d.to_json() for d in self.dropped],
             "discovery": self.discovery.to_json() if self.discovery is not None else None,
-            "held_out": [{"scenario": s, "before": self.baseline.held_out[s], "after": self.chosen.held_out[s]}
-                         for s in sorted(self.baseline.held_out)],
-            "candidates": [{"id": c.label, "cross_track_held_out": c.cross_validated, "bic": c.bic,
-                            "cross_validated": c.validated, "parameters": c.full.values, "at_bound": c.full.at_bound}
-                           for c in self.candidates],
-            "screen": [{"id": x.label, "from": "+".join(x.anchor) or "none", "predicted_sse": x.predicted_sse,
-                        "sse": x.sse, "bic": x.bic, "shortlisted": x.label in self.shortlisted}
-                       for x in self.screened],
+            "held_out": [
+                {"scenario": s, "before": self.baseline.held_out[s], "after": self.chosen.held_out[s]}
+                for s in sorted(self.baseline.held_out)
+            ],
+            "candidates": [
+                {
+                    "id": c.label,
+                    "cross_track_held_out": c.cross_validated,
+                    "bic": c.bic,
+                    "cross_validated": c.validated,
+                    "parameters": c.full.values,
+                    "at_bound": c.full.at_bound,
+                }
+                for c in self.candidates
+            ],
+            "screen": [
+                {
+                    "id": x.label,
+                    "from": "+".join(x.anchor) or "none",
+                    "predicted_sse": x.predicted_sse,
+                    "sse": x.sse,
+                    "bic": x.bic,
+                    "shortlisted": x.label in self.shortlisted,
+                }
+                for x in self.screened
+            ],
             "fitted": self.fitted,
             "calibration": self.calibration,
             "dropouts": self.dropouts,

@@ -1,8 +1,8 @@
 """Show: the diagnosis as a Markdown report with figures and a JSON twin.
 
-    <out>/report/report.md        locate, explain, model, show (held-out Table 1)
-    <out>/report/diagnosis.json   what ``dse-runner diagnose --json`` prints
-    <out>/report/figures/*.png    residual signatures, tracks, held-out errors
+<out>/report/report.md        locate, explain, model, show (held-out Table 1)
+<out>/report/diagnosis.json   what ``dse-runner diagnose --json`` prints
+<out>/report/figures/*.png    residual signatures, tracks, held-out errors
 """
 
 from __future__ import annotations
@@ -32,9 +32,16 @@ if TYPE_CHECKING:
 
 def _table(frame: pd.DataFrame, digits: int = 3) -> str:
     """A DataFrame as a Markdown table (pandas' to_markdown needs tabulate, which we do not ship)."""
+
     def cell(v: Any) -> str:
         if isinstance(v, float):
-            return "inf" if math.isinf(v) else f"{v:.{digits}g}" if abs(v) < 1e-3 and v != 0 else f"{v:.{digits}f}"
+            return (
+                "inf"
+                if math.isinf(v)
+                else f"{v:.{digits}g}"
+                if abs(v) < 1e-3 and v != 0
+                else f"{v:.{digits}f}"
+            )
         return str(v)
 
     head = "| " + " | ".join(map(str, frame.columns)) + " |"
@@ -47,25 +54,42 @@ def _candidates(diagnosis: Diagnosis) -> pd.DataFrame:
     base = diagnosis.baseline
     rows = []
     for c in diagnosis.candidates:
-        effect = {k.split(".", 1)[1]: v for k, v in c.full.values.items()
-                  if k.split(".", 1)[1] in {p for hid in discover.library_ids(c.ids) for p in LIBRARY[hid].variables}
-                  or correction.is_correction(k)}
+        effect = {
+            k.split(".", 1)[1]: v
+            for k, v in c.full.values.items()
+            if k.split(".", 1)[1]
+            in {p for hid in discover.library_ids(c.ids) for p in LIBRARY[hid].variables}
+            or correction.is_correction(k)
+        }
         validated = c.validated and math.isfinite(c.cross_validated)
-        rows.append({"candidate": c.label,
-                     "held-out error [m]": c.cross_validated if validated else "not cross-validated",
-                     "vs none": f"{(c.cross_validated / base.cross_validated - 1) * 100:+.1f} %" if validated else "-",
-                     "ΔBIC vs none": c.bic - base.bic,
-                     "effect parameters": ", ".join(f"{k} = {v:.4g}" for k, v in effect.items()) or "-",
-                     "chosen": "yes" if c is diagnosis.chosen else ""})
+        rows.append(
+            {
+                "candidate": c.label,
+                "held-out error [m]": c.cross_validated if validated else "not cross-validated",
+                "vs none": f"{(c.cross_validated / base.cross_validated - 1) * 100:+.1f} %"
+                if validated
+                else "-",
+                "ΔBIC vs none": c.bic - base.bic,
+                "effect parameters": ", ".join(f"{k} = {v:.4g}" for k, v in effect.items()) or "-",
+                "chosen": "yes" if c is diagnosis.chosen else "",
+            }
+        )
     return pd.DataFrame(rows)
 
 
 def held_out_table(baseline: Candidate, chosen: Candidate, space: Space) -> pd.DataFrame:
     """The paper's Table 1 style, on runs each fit did not see: before and after per scenario."""
     groups = {s.name: s.group for s in space.scenarios}
-    rows = [{"scenario": s, "group": groups[s], "before [m]": baseline.held_out[s], "after [m]": chosen.held_out[s],
-             "change": f"{(chosen.held_out[s] / baseline.held_out[s] - 1) * 100:+.1f} %"}
-            for s in sorted(baseline.held_out, key=lambda n: (groups[n], n))]
+    rows = [
+        {
+            "scenario": s,
+            "group": groups[s],
+            "before [m]": baseline.held_out[s],
+            "after [m]": chosen.held_out[s],
+            "change": f"{(chosen.held_out[s] / baseline.held_out[s] - 1) * 100:+.1f} %",
+        }
+        for s in sorted(baseline.held_out, key=lambda n: (groups[n], n))
+    ]
     return pd.DataFrame(rows)
 
 
@@ -75,13 +99,25 @@ def signature(frames: dict[str, pd.DataFrame]) -> dict[str, Any]:
     columns = ["along_rms", "cross_rms", "along_growth_rms", "cross_growth_rms"]
     drop = (before[columns] - after[columns].reindex(before.index)).stack()
     (segment, component), amount = drop.idxmax(), float(drop.max())
-    return {"segment": segment, "component": component, "before": float(before.loc[segment, component]),
-            "after": float(before.loc[segment, component] - amount),
-            "correlations": locate.strongest(locate.correlations(frames["before"]))}
+    return {
+        "segment": segment,
+        "component": component,
+        "before": float(before.loc[segment, component]),
+        "after": float(before.loc[segment, component] - amount),
+        "correlations": locate.strongest(locate.correlations(frames["before"])),
+    }
 
 
-def _figures(folder: Path, space: Space, frames: dict[str, pd.DataFrame], tracks: dict[str, dict[str, pd.DataFrame]],
-             x: str, y: str, held_out: pd.DataFrame, chosen_label: str) -> dict[str, Path]:
+def _figures(
+    folder: Path,
+    space: Space,
+    frames: dict[str, pd.DataFrame],
+    tracks: dict[str, dict[str, pd.DataFrame]],
+    x: str,
+    y: str,
+    held_out: pd.DataFrame,
+    chosen_label: str,
+) -> dict[str, Path]:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -119,12 +155,17 @@ def _figures(folder: Path, space: Space, frames: dict[str, pd.DataFrame], tracks
         ax.plot(gps.x, gps.y, ".", color="k", ms=1.5, label="GPS")
         for key, colour in (("before", "tab:red"), ("after", "tab:blue")):
             frame = tracks[key][scenario.name]
-            ax.plot(frame[x], frame[y], color=colour, lw=1,
-                    label="calibrated baseline" if key == "before" else chosen_label)
+            ax.plot(
+                frame[x],
+                frame[y],
+                color=colour,
+                lw=1,
+                label="calibrated baseline" if key == "before" else chosen_label,
+            )
         ax.set_title(scenario.name, fontsize=9)
         ax.set_aspect("equal", adjustable="datalim")
         ax.tick_params(labelsize=7)
-    for ax in list(axes.flat)[len(names):]:
+    for ax in list(axes.flat)[len(names) :]:
         ax.axis("off")
     axes[0][0].legend(fontsize=7)
     fig.tight_layout()
@@ -146,22 +187,41 @@ def _figures(folder: Path, space: Space, frames: dict[str, pd.DataFrame], tracks
     return files
 
 
-def write(diagnosis: Diagnosis, space: Space, frames: dict[str, pd.DataFrame], before: dict[str, pd.DataFrame],
-          after: dict[str, pd.DataFrame]) -> dict[str, Path]:
+def write(
+    diagnosis: Diagnosis,
+    space: Space,
+    frames: dict[str, pd.DataFrame],
+    before: dict[str, pd.DataFrame],
+    after: dict[str, pd.DataFrame],
+) -> dict[str, Path]:
     folder = diagnosis.out / "report"
     vehicle = diagnosis.calibration["vehicle"]
     held_out = held_out_table(diagnosis.baseline, diagnosis.chosen, space)
-    chosen_label = "with " + diagnosis.chosen.label if diagnosis.chosen.ids else "calibrated baseline (no effect)"
-    figures = _figures(folder / "figures", space, frames, {"before": before, "after": after},
-                       f"{vehicle}.gps_x", f"{vehicle}.gps_y", held_out, chosen_label)
+    chosen_label = (
+        "with " + diagnosis.chosen.label if diagnosis.chosen.ids else "calibrated baseline (no effect)"
+    )
+    figures = _figures(
+        folder / "figures",
+        space,
+        frames,
+        {"before": before, "after": after},
+        f"{vehicle}.gps_x",
+        f"{vehicle}.gps_y",
+        held_out,
+        chosen_label,
+    )
     sig = signature(frames)
     located = {
-        "by_group": locate.by_group(frames["before"]), "by_segment": locate.by_segment(frames["before"]),
-        "by_scenario": locate.by_scenario(frames["before"]), "correlations": locate.correlations(frames["before"]),
+        "by_group": locate.by_group(frames["before"]),
+        "by_segment": locate.by_segment(frames["before"]),
+        "by_scenario": locate.by_scenario(frames["before"]),
+        "correlations": locate.correlations(frames["before"]),
     }
     diagnosis.located = {k: json.loads(v.to_json(orient="split")) for k, v in located.items()}
     diagnosis.located["signature"] = sig
-    text = _markdown(diagnosis, located, sig, held_out, {k: p.relative_to(folder) for k, p in figures.items()})
+    text = _markdown(
+        diagnosis, located, sig, held_out, {k: p.relative_to(folder) for k, p in figures.items()}
+    )
     report = folder / "report.md"
     report.write_text(text)
     files = {"report": report, **{f"figure_{k}": p for k, p in figures.items()}}
@@ -171,60 +231,110 @@ def write(diagnosis: Diagnosis, space: Space, frames: dict[str, pd.DataFrame], b
     return {**files, "json": summary}
 
 
-def _markdown(diagnosis: Diagnosis, located: dict[str, pd.DataFrame], sig: dict[str, Any],
-              held_out: pd.DataFrame, figures: dict[str, Path]) -> str:
+def _markdown(
+    diagnosis: Diagnosis,
+    located: dict[str, pd.DataFrame],
+    sig: dict[str, Any],
+    held_out: pd.DataFrame,
+    figures: dict[str, Path],
+) -> str:
     cal = diagnosis.calibration
     chosen = diagnosis.chosen
-    lines = [f"# Discrepancy diagnosis: {cal['sweep']}", "",
-             f"Runs: {len(held_out)} in {held_out['group'].nunique()} groups; cross-validation folds: "
-             + "; ".join(", ".join(f) for f in cal["folds"]) + ".", ""]
+    lines = [
+        f"# Discrepancy diagnosis: {cal['sweep']}",
+        "",
+        f"Runs: {len(held_out)} in {held_out['group'].nunique()} groups; cross-validation folds: "
+        + "; ".join(", ".join(f) for f in cal["folds"])
+        + ".",
+        "",
+    ]
     if chosen.ids:
-        lines += ["**Finding:** " + "; ".join(
-            f"`{f.id}` ({f.name}): " + (", ".join(t["text"] for t in f.terms) if isinstance(f, DiscoveredCorrection)
-                                        else f.described()) for f in diagnosis.findings)
+        lines += [
+            "**Finding:** "
+            + "; ".join(
+                f"`{f.id}` ({f.name}): "
+                + (
+                    ", ".join(t["text"] for t in f.terms)
+                    if isinstance(f, DiscoveredCorrection)
+                    else f.described()
+                )
+                for f in diagnosis.findings
+            )
             + f". Held-out mean cross-track error {diagnosis.cross_track_before:.3f} m → "
-            f"{diagnosis.cross_track_after:.3f} m.", ""]
+            f"{diagnosis.cross_track_after:.3f} m.",
+            "",
+        ]
     else:
-        lines += [f"**Finding:** `none`: no hypothesis of the library passes the test against the calibrated "
-                  f"model (held-out mean cross-track error {diagnosis.cross_track_before:.3f} m). Nothing is added.", ""]
+        lines += [
+            f"**Finding:** `none`: no hypothesis of the library passes the test against the calibrated "
+            f"model (held-out mean cross-track error {diagnosis.cross_track_before:.3f} m). Nothing is added.",
+            "",
+        ]
     lines += [verdict_text(diagnosis), ""]
-    lines += [line for look in diagnosis.lookalikes if look.decision != lookalike.DECIDED_BY_FIT
-              for line in (twins_sentence(look), "")]
+    lines += [
+        line
+        for look in diagnosis.lookalikes
+        if look.decision != lookalike.DECIDED_BY_FIT
+        for line in (twins_sentence(look), "")
+    ]
 
-    lines += ["## 1. Locate", "",
-              f"Calibration grid best point: {format_point(cal['grid_best'], 5)}; parameters at a bound of the design space: "
-              f"{', '.join(cal['grid_at_bound']) or 'none'}.",
-              f"Refined by least squares within the design space: {format_point(cal['refined'], 5)}; at a bound: "
-              f"{', '.join(cal['refined_at_bound']) or 'none'}.",
-              "Parameters no run responds to (any value fits equally well): "
-              f"{', '.join(cal['no_effect']) or 'none'}.",
-              "Runs no tuned parameter can improve (every grid point within 5 % of the calibrated error): "
-              f"{', '.join(cal['insensitive_scenarios']) or 'none'}.", "",
-              "Residuals of the calibrated model, by scenario group:", "", _table(located["by_group"]), "",
-              "By segment of the motion:", "", _table(located["by_segment"]), "",
-              "Correlation of the residuals and of their growth rates with the motion:", "",
-              _table(located["correlations"].reset_index().rename(columns={"index": "residual"}), 2), "",
-              "Strongest: " + "; ".join(f"{c} with {f} (r = {r:+.2f})" for c, f, r in sig["correlations"]) + ".", "",
-              f"![residual signatures]({figures['residuals']})", "",
-              "## 2. Explain", "",
-              "Every hypothesis of the library fitted jointly with the calibrated parameters; held-out error is the "
-              "mean Equation 1 error of each run predicted by the fit on the other folds. A candidate is chosen "
-              "only if it lowers the held-out error by at least "
-              f"{diagnosis.settings.min_gain:.0%} and the BIC by at least {diagnosis.settings.bic_margin:g} "
-              "against `none` and against every fitted part of it (each member has to pay its way); of those, the "
-              f"lowest held-out error wins, and one within {diagnosis.settings.min_gain:.0%} of it with fewer "
-              "effects wins over it. Combinations fitted on every run but not cross-validated failed the BIC gate: "
-              f"their BIC was not {diagnosis.settings.bic_margin:g} below the best single answer's and each "
-              "fitted part's, so they could not be chosen.", "",
-              _table(_candidates(diagnosis)), ""]
+    lines += [
+        "## 1. Locate",
+        "",
+        f"Calibration grid best point: {format_point(cal['grid_best'], 5)}; parameters at a bound of the design space: "
+        f"{', '.join(cal['grid_at_bound']) or 'none'}.",
+        f"Refined by least squares within the design space: {format_point(cal['refined'], 5)}; at a bound: "
+        f"{', '.join(cal['refined_at_bound']) or 'none'}.",
+        "Parameters no run responds to (any value fits equally well): "
+        f"{', '.join(cal['no_effect']) or 'none'}.",
+        "Runs no tuned parameter can improve (every grid point within 5 % of the calibrated error): "
+        f"{', '.join(cal['insensitive_scenarios']) or 'none'}.",
+        "",
+        "Residuals of the calibrated model, by scenario group:",
+        "",
+        _table(located["by_group"]),
+        "",
+        "By segment of the motion:",
+        "",
+        _table(located["by_segment"]),
+        "",
+        "Correlation of the residuals and of their growth rates with the motion:",
+        "",
+        _table(located["correlations"].reset_index().rename(columns={"index": "residual"}), 2),
+        "",
+        "Strongest: " + "; ".join(f"{c} with {f} (r = {r:+.2f})" for c, f, r in sig["correlations"]) + ".",
+        "",
+        f"![residual signatures]({figures['residuals']})",
+        "",
+        "## 2. Explain",
+        "",
+        "Every hypothesis of the library fitted jointly with the calibrated parameters; held-out error is the "
+        "mean Equation 1 error of each run predicted by the fit on the other folds. A candidate is chosen "
+        "only if it lowers the held-out error by at least "
+        f"{diagnosis.settings.min_gain:.0%} and the BIC by at least {diagnosis.settings.bic_margin:g} "
+        "against `none` and against every fitted part of it (each member has to pay its way); of those, the "
+        f"lowest held-out error wins, and one within {diagnosis.settings.min_gain:.0%} of it with fewer "
+        "effects wins over it. Combinations fitted on every run but not cross-validated failed the BIC gate: "
+        f"their BIC was not {diagnosis.settings.bic_margin:g} below the best single answer's and each "
+        "fitted part's, so they could not be chosen.",
+        "",
+        _table(_candidates(diagnosis)),
+        "",
+    ]
     lines += ["### Screen of combinations", "", screen_text(diagnosis), ""]
     if diagnosis.screened:
         lines += [_table(_screened(diagnosis)), ""]
     lines += ["### Noise floor", "", noise_text(diagnosis), ""]
     lines += ["### Discovery beyond the library", "", discovery_text(diagnosis), ""]
     up = diagnosis.runner_up
-    lines += ["### Runner-up", "", runner_up_text(up, diagnosis.chosen.label, diagnosis.settings) if up else
-              "No other candidate was fitted that is not part of the chosen one.", ""]
+    lines += [
+        "### Runner-up",
+        "",
+        runner_up_text(up, diagnosis.chosen.label, diagnosis.settings)
+        if up
+        else "No other candidate was fitted that is not part of the chosen one.",
+        "",
+    ]
     if diagnosis.lookalikes:
         lines += ["### Look-alikes", "", LOOKALIKE_INTRO, ""]
         for look in diagnosis.lookalikes:
@@ -237,48 +347,78 @@ def _markdown(diagnosis: Diagnosis, located: dict[str, pd.DataFrame], sig: dict[
         h = LIBRARY[e["id"]]
         lines += [f"### `{h.id}`: {h.name}", "", h.explanation, "", f"Expected signature: {h.signature}.", ""]
     if chosen.ids:
-        lines += [f"Observed: the residual fell most in {sig['component']} on {sig['segment']} segments, "
-                  f"from {sig['before']:.3f} to {sig['after']:.3f} (rms).", "",
-                  "## 3. Model", "",
-                  f"The chosen effect is part of the vehicle's effects variant (`bundled:fmus/robotti_vehicle_effects`: the checkout's top-level `fmus/`, shipped inside the package). "
-                  f"Written: `{diagnosis.files['multimodel'].name}` and `{diagnosis.files['space'].name}` "
-                  "(the calibration with the effect's parameters added); `dse-runner submit space.yaml` "
-                  "re-calibrates with it."
-                  + (" The discovered terms are coefficients `corr_*` of the same variant's correction block, "
-                     "written over their ~95 % intervals like the effects' parameters." if diagnosis.discovered else ""),
-                  ""]
-    lines += ["## 4. Show: held-out runs before and after", "", _table(held_out), "",
-              f"![held-out errors]({figures['held_out']})", "", f"![tracks]({figures['tracks']})", ""]
+        lines += [
+            f"Observed: the residual fell most in {sig['component']} on {sig['segment']} segments, "
+            f"from {sig['before']:.3f} to {sig['after']:.3f} (rms).",
+            "",
+            "## 3. Model",
+            "",
+            f"The chosen effect is part of the vehicle's effects variant (`bundled:fmus/robotti_vehicle_effects`: the checkout's top-level `fmus/`, shipped inside the package). "
+            f"Written: `{diagnosis.files['multimodel'].name}` and `{diagnosis.files['space'].name}` "
+            "(the calibration with the effect's parameters added); `dse-runner submit space.yaml` "
+            "re-calibrates with it."
+            + (
+                " The discovered terms are coefficients `corr_*` of the same variant's correction block, "
+                "written over their ~95 % intervals like the effects' parameters."
+                if diagnosis.discovered
+                else ""
+            ),
+            "",
+        ]
+    lines += [
+        "## 4. Show: held-out runs before and after",
+        "",
+        _table(held_out),
+        "",
+        f"![held-out errors]({figures['held_out']})",
+        "",
+        f"![tracks]({figures['tracks']})",
+        "",
+    ]
     return "\n".join(lines)
-
 
 
 def _screened(diagnosis: Diagnosis, rows: int = 12) -> pd.DataFrame:
     """The best screened sets, and every shortlisted one: predicted against simulated SSE."""
     shown = [x for k, x in enumerate(diagnosis.screened) if k < rows or x.label in diagnosis.shortlisted]
-    return pd.DataFrame([{"set": x.label, "linearised at": "+".join(x.anchor) or "none",
-                          "predicted SSE [m²]": x.predicted_sse, "simulated SSE [m²]": x.sse, "BIC": x.bic,
-                          "fitted": "yes" if x.label in diagnosis.shortlisted else ""} for x in shown])
+    return pd.DataFrame(
+        [
+            {
+                "set": x.label,
+                "linearised at": "+".join(x.anchor) or "none",
+                "predicted SSE [m²]": x.predicted_sse,
+                "simulated SSE [m²]": x.sse,
+                "BIC": x.bic,
+                "fitted": "yes" if x.label in diagnosis.shortlisted else "",
+            }
+            for x in shown
+        ]
+    )
 
 
 def screen_text(diagnosis: Diagnosis) -> str:
     """What the screen did, or why it did not run."""
     settings = diagnosis.settings
     if not diagnosis.screened:
-        return ("No combination was screened: a fit of none or of one effect already left at most "
-                f"{settings.floor_stop:g}× the noise floor of error on the runs it was fitted to (nothing a "
-                "combination could clearly add), or the settings allow one effect at a time.")
+        return (
+            "No combination was screened: a fit of none or of one effect already left at most "
+            f"{settings.floor_stop:g}× the noise floor of error on the runs it was fitted to (nothing a "
+            "combination could clearly add), or the settings allow one effect at a time."
+        )
     pairs = sum(len(x.ids) == 2 for x in diagnosis.screened)
     triples = len(diagnosis.screened) - pairs
-    return (f"{pairs} pairs and {triples} triples (those extending the best predicted pairs) were screened without "
-            "fitting them: from the Jacobian of the fix residuals at `none` and at the two best single fits (taken "
-            "whether or not they passed alone, as masked effects do not), the bounded linear least-squares step "
-            "for each set, calibrated parameters free too, predicts its SSE; simulating that step and half of it "
-            "gives the SSE it really reaches. Ranked by the BIC of that SSE, the best "
-            f"{settings.pairs} pairs and {settings.triples} triples, and the sets in which a member is swapped for "
-            f"its look-alike, were fitted for real (at most {settings.shortlist}; two more pairs when the best set's "
-            "simulated SSE was over twice its prediction): "
-            + ", ".join(f"`{label}`" for label in diagnosis.shortlisted) + ".")
+    return (
+        f"{pairs} pairs and {triples} triples (those extending the best predicted pairs) were screened without "
+        "fitting them: from the Jacobian of the fix residuals at `none` and at the two best single fits (taken "
+        "whether or not they passed alone, as masked effects do not), the bounded linear least-squares step "
+        "for each set, calibrated parameters free too, predicts its SSE; simulating that step and half of it "
+        "gives the SSE it really reaches. Ranked by the BIC of that SSE, the best "
+        f"{settings.pairs} pairs and {settings.triples} triples, and the sets in which a member is swapped for "
+        f"its look-alike, were fitted for real (at most {settings.shortlist}; two more pairs when the best set's "
+        "simulated SSE was over twice its prediction): "
+        + ", ".join(f"`{label}`" for label in diagnosis.shortlisted)
+        + "."
+    )
 
 
 def _ids(label: str) -> str:
@@ -292,27 +432,37 @@ def verdict_text(diagnosis: Diagnosis) -> str:
     factor = diagnosis.settings.noise_factor
     chosen = _ids(diagnosis.chosen.label) if diagnosis.chosen.ids else ""
     if not floor.available:
-        return (f"**Verdict: {verdict}.** The GPS noise could not be estimated from these recordings (no three "
-                "consecutive close fixes and no stop), so the residual is not weighed against it: read the "
-                "finding as the best of the library, not as proof that nothing else is missing.")
-    level = (f"{after:.3f} m, {diagnosis.floor_ratio:.1f}× the noise floor of {floor.cross_track:.3f} m")
+        return (
+            f"**Verdict: {verdict}.** The GPS noise could not be estimated from these recordings (no three "
+            "consecutive close fixes and no stop), so the residual is not weighed against it: read the "
+            "finding as the best of the library, not as proof that nothing else is missing."
+        )
+    level = f"{after:.3f} m, {diagnosis.floor_ratio:.1f}× the noise floor of {floor.cross_track:.3f} m"
     remains = after - floor.cross_track
     if diagnosis.discovered:
         return discovered_text(diagnosis)
     if verdict == explain.EXPLAINED:
-        return (f"**Verdict: explained.** With {chosen} the held-out error is {level}; up to {factor:g}× counts "
-                "as noise, so what remains is receiver noise or too close to it to tell apart.")
+        return (
+            f"**Verdict: explained.** With {chosen} the held-out error is {level}; up to {factor:g}× counts "
+            "as noise, so what remains is receiver noise or too close to it to tell apart."
+        )
     if verdict == explain.PARTIAL:
-        return (f"**Verdict: partial.** The runs support {chosen}, but it is not the whole story: after it the "
-                f"held-out error is {level}, above the {factor:g}× that counts as noise. The library does not "
-                f"explain the residual: about {remains:.3f} m of mean cross-track error remains above the noise. "
-                "Read the effect as part of the cause, not as the cause.")
+        return (
+            f"**Verdict: partial.** The runs support {chosen}, but it is not the whole story: after it the "
+            f"held-out error is {level}, above the {factor:g}× that counts as noise. The library does not "
+            f"explain the residual: about {remains:.3f} m of mean cross-track error remains above the noise. "
+            "Read the effect as part of the cause, not as the cause."
+        )
     if verdict == explain.UNEXPLAINED:
-        return (f"**Verdict: unexplained.** No hypothesis of the library explains the residual, and it is not noise: "
-                f"the calibrated model's held-out error is {level}, above the {factor:g}× that counts as noise; "
-                f"about {remains:.3f} m of mean cross-track error remains unexplained.")
-    return (f"**Verdict: none.** Nothing is missing: the calibrated model's held-out error is {level}, within "
-            f"the {factor:g}× that counts as noise.")
+        return (
+            f"**Verdict: unexplained.** No hypothesis of the library explains the residual, and it is not noise: "
+            f"the calibrated model's held-out error is {level}, above the {factor:g}× that counts as noise; "
+            f"about {remains:.3f} m of mean cross-track error remains unexplained."
+        )
+    return (
+        f"**Verdict: none.** Nothing is missing: the calibrated model's held-out error is {level}, within "
+        f"the {factor:g}× that counts as noise."
+    )
 
 
 def _without(diagnosis: Diagnosis) -> str:
@@ -329,45 +479,61 @@ def discovered_text(diagnosis: Diagnosis) -> str:
     gain = 100.0 * (1.0 - chosen.cross_validated / library.cross_validated)
     named = [e for e in diagnosis.effects if e["id"] != discover.DISCOVERED]
     whole = diagnosis.verdict == explain.DISCOVERED
-    part = (" Read " + ", ".join(f"`{e['id']}`" for e in named) + " as part of the cause, not as the cause."
-            if named else "")
+    part = (
+        " Read " + ", ".join(f"`{e['id']}`" for e in named) + " as part of the cause, not as the cause."
+        if named
+        else ""
+    )
     resembles = entry["resembles"]["text"] if entry["resembles"] else "was not compared with the library"
-    left = (f" It is not the whole story either: about {chosen.cross_validated - floor.cross_track:.3f} m of mean "
-            f"cross-track error remains above the noise, which the correction block's terms do not express; "
-            f"read the correction as part of the cause."
-            if not whole else "")
-    return (f"**Verdict: {diagnosis.verdict}.** The library does not explain the residual: {_without(diagnosis)} the "
-            f"held-out error is {library.cross_validated:.3f} m, {library.cross_validated / floor.cross_track:.1f}× "
-            f"the noise floor of {floor.cross_track:.3f} m, so about {remains:.3f} m of mean cross-track error remains "
-            f"above the noise. A data-driven correction explains {'most' if whole else 'part'} of it: "
-            + "; ".join(f"`{t}`" for t in entry["readable"])
-            + f". With it the held-out error is {chosen.cross_validated:.3f} m ({gain:.0f} % lower, "
-            f"{chosen.cross_validated / floor.cross_track:.1f}× the floor), on runs the fits did not see, and it "
-            f"passed the same rule as the library's effects. It {resembles}.{part}{left}")
+    left = (
+        f" It is not the whole story either: about {chosen.cross_validated - floor.cross_track:.3f} m of mean "
+        f"cross-track error remains above the noise, which the correction block's terms do not express; "
+        f"read the correction as part of the cause."
+        if not whole
+        else ""
+    )
+    return (
+        f"**Verdict: {diagnosis.verdict}.** The library does not explain the residual: {_without(diagnosis)} the "
+        f"held-out error is {library.cross_validated:.3f} m, {library.cross_validated / floor.cross_track:.1f}× "
+        f"the noise floor of {floor.cross_track:.3f} m, so about {remains:.3f} m of mean cross-track error remains "
+        f"above the noise. A data-driven correction explains {'most' if whole else 'part'} of it: "
+        + "; ".join(f"`{t}`" for t in entry["readable"])
+        + f". With it the held-out error is {chosen.cross_validated:.3f} m ({gain:.0f} % lower, "
+        f"{chosen.cross_validated / floor.cross_track:.1f}× the floor), on runs the fits did not see, and it "
+        f"passed the same rule as the library's effects. It {resembles}.{part}{left}"
+    )
 
 
 def discovery_text(diagnosis: Diagnosis) -> str:
     """What discovery did, or why it did not run."""
     found, settings = diagnosis.discovery, diagnosis.settings
     if found is None:
-        why = ("it is switched off (`--no-discovery`)" if not settings.discovery else
-               f"the library's answer is within {settings.noise_factor:g}× the noise floor (or no floor could be "
-               "estimated), so there is nothing a correction could claim but noise")
+        why = (
+            "it is switched off (`--no-discovery`)"
+            if not settings.discovery
+            else f"the library's answer is within {settings.noise_factor:g}× the noise floor (or no floor could be "
+            "estimated), so there is nothing a correction could claim but noise"
+        )
         return f"No correction was sought: {why}."
-    intro = ("The library's best answer left held-out error well above the noise, so a sparse correction was sought "
-             "among the terms of the effects variant's correction block: the equation error of the recorded "
-             "speed and yaw rate (from the fixes alone) against the reference's quasi-static answer, regressed on "
-             "the block's features at the reference's state by PySINDy's STLSQ, with the threshold chosen by leave-one-run-out error and each term "
-             f"kept only if a seeded bootstrap over runs picks it in {discover.INCLUSION:.0%} of the resamples. "
-             "The proposed terms were then fitted on positions with the calibrated parameters, pruned to those two "
-             "standard errors from zero, re-proposed inside each fold on its training runs only, and judged by the "
-             f"library's rule, the BIC margin raised to {found.margin:.1f} for the search (extended BIC).")
+    intro = (
+        "The library's best answer left held-out error well above the noise, so a sparse correction was sought "
+        "among the terms of the effects variant's correction block: the equation error of the recorded "
+        "speed and yaw rate (from the fixes alone) against the reference's quasi-static answer, regressed on "
+        "the block's features at the reference's state by PySINDy's STLSQ, with the threshold chosen by leave-one-run-out error and each term "
+        f"kept only if a seeded bootstrap over runs picks it in {discover.INCLUSION:.0%} of the resamples. "
+        "The proposed terms were then fitted on positions with the calibrated parameters, pruned to those two "
+        "standard errors from zero, re-proposed inside each fold on its training runs only, and judged by the "
+        f"library's rule, the BIC margin raised to {found.margin:.1f} for the search (extended BIC)."
+    )
     proposed = "; ".join(found.proposal.readable()) if found.proposal else ""
     lines = [intro, f" Proposed from every run: {('`' + proposed + '`') if proposed else 'nothing'}."]
     for c in found.candidates:
-        lines.append(f" `{c.label}`: " + "; ".join(correction.readable(c.full.point))
-                     + f", held-out {c.cross_validated:.4f} m, ΔBIC {c.bic - found.reference.bic:+.1f} against "
-                     f"`{found.reference.label}` ({found.reference.cross_validated:.4f} m).")
+        lines.append(
+            f" `{c.label}`: "
+            + "; ".join(correction.readable(c.full.point))
+            + f", held-out {c.cross_validated:.4f} m, ΔBIC {c.bic - found.reference.bic:+.1f} against "
+            f"`{found.reference.label}` ({found.reference.cross_validated:.4f} m)."
+        )
     if found.chosen is None:
         lines.append(f" Nothing was accepted: {found.reason}.")
     else:
@@ -379,31 +545,45 @@ def noise_text(diagnosis: Diagnosis) -> str:
     """How the floor was estimated, from the recordings alone."""
     floor = diagnosis.floor
     if not floor.available:
-        return ("Not available: no run has three consecutive fixes at most "
-                f"{MAX_SPACING:g} s apart, nor a stop with enough fixes.")
+        return (
+            "Not available: no run has three consecutive fixes at most "
+            f"{MAX_SPACING:g} s apart, nor a stop with enough fixes."
+        )
     parts = []
     close, rest = floor.estimates.get(CLOSE_FIXES), floor.estimates.get(AT_REST)
     if close:
-        parts.append(f"σ = {close.sigma:.4f} m per axis from the second differences at {close.fixes} fixes whose "
-                     "neighbours are equally close with no dropout between them (robust median absolute deviation, "
-                     "pooled over x, y and runs; speed cancels, and acceleration adds at most millimetres)")
+        parts.append(
+            f"σ = {close.sigma:.4f} m per axis from the second differences at {close.fixes} fixes whose "
+            "neighbours are equally close with no dropout between them (robust median absolute deviation, "
+            "pooled over x, y and runs; speed cancels, and acceleration adds at most millimetres)"
+        )
     if rest:
-        colour = ("" if floor.rho1 is None else
-                  f"; lag-1 autocorrelation {floor.rho1:.2f}, " + ("coloured noise, which second differences "
-                                                                   "under-estimate" if floor.rho1 > 0.3 else "white"))
-        parts.append(f"σ = {rest.sigma:.4f} m from the spread of {rest.fixes} fixes while the commanded speed was 0 "
-                     f"and the vehicle stood still (or crept at a steady speed: the spread is taken about a straight line "
-                     f"in time){colour}")
+        colour = (
+            ""
+            if floor.rho1 is None
+            else f"; lag-1 autocorrelation {floor.rho1:.2f}, "
+            + ("coloured noise, which second differences under-estimate" if floor.rho1 > 0.3 else "white")
+        )
+        parts.append(
+            f"σ = {rest.sigma:.4f} m from the spread of {rest.fixes} fixes while the commanded speed was 0 "
+            f"and the vehicle stood still (or crept at a steady speed: the spread is taken about a straight line "
+            f"in time){colour}"
+        )
     per_run = list(floor.per_run.values())
     spread = f" Per run, σ lies between {min(per_run):.4f} and {max(per_run):.4f} m." if per_run else ""
     method = {CLOSE_FIXES: "close fixes", AT_REST: "fixes at rest"}.get(floor.method, floor.method)
     ratio = diagnosis.floor_ratio
-    return ("The GPS noise, estimated from the recordings alone, never from a model: " + "; and ".join(parts) + ". "
-            f"The larger, from {method}, sets the floor: a perfect model would still show a mean cross-track error "
-            f"of σ·√(π/2) = {floor.cross_track:.3f} m." + spread
-            + f" The chosen model's held-out error, {diagnosis.cross_track_after:.3f} m, is {ratio:.1f}× that floor; "
-            f"above {diagnosis.settings.noise_factor:g}× (`--noise-factor`) a residual counts as more than noise "
-            "(verdict partial, or unexplained when nothing was chosen).")
+    return (
+        "The GPS noise, estimated from the recordings alone, never from a model: "
+        + "; and ".join(parts)
+        + ". "
+        f"The larger, from {method}, sets the floor: a perfect model would still show a mean cross-track error "
+        f"of σ·√(π/2) = {floor.cross_track:.3f} m."
+        + spread
+        + f" The chosen model's held-out error, {diagnosis.cross_track_after:.3f} m, is {ratio:.1f}× that floor; "
+        f"above {diagnosis.settings.noise_factor:g}× (`--noise-factor`) a residual counts as more than noise "
+        "(verdict partial, or unexplained when nothing was chosen)."
+    )
 
 
 def runner_up_text(up: explain.Evidence, chosen: str, settings: Any) -> str:
@@ -411,24 +591,37 @@ def runner_up_text(up: explain.Evidence, chosen: str, settings: Any) -> str:
     if math.isfinite(up.delta_held_out) and abs(up.delta_held_out) <= explain.TIE:
         held = f"its held-out error, {up.other_held_out:.4f} m, is the chosen model's (within 0.1 mm)"
     elif math.isfinite(up.delta_held_out) and up.delta_held_out > 0:
-        held = (f"its held-out error, {up.other_held_out:.4f} m, is {up.delta_held_out:.4f} m "
-                f"({up.delta_held_out_percent:+.1f} %) above the chosen model's")
+        held = (
+            f"its held-out error, {up.other_held_out:.4f} m, is {up.delta_held_out:.4f} m "
+            f"({up.delta_held_out_percent:+.1f} %) above the chosen model's"
+        )
     else:
-        held = (f"its held-out error, {up.other_held_out:.4f} m, is {-up.delta_held_out:.4f} m lower, "
-                f"yet it did not pass the rule (at least {settings.min_gain:.0%} lower held-out error and "
-                f"{settings.bic_margin:g} lower BIC than the simpler model)")
+        held = (
+            f"its held-out error, {up.other_held_out:.4f} m, is {-up.delta_held_out:.4f} m lower, "
+            f"yet it did not pass the rule (at least {settings.min_gain:.0%} lower held-out error and "
+            f"{settings.bic_margin:g} lower BIC than the simpler model)"
+        )
     tied = f" ({up.runs_tied} equal within 0.1 mm)" if up.runs_tied else ""
-    return (f"{_ids(up.other)}: {held}; the chosen model (`{chosen}`) predicts {up.runs_better_text} held-out "
-            f"runs better{tied}; ΔBIC = {up.delta_bic:+.1f} (positive favours the chosen model). ΔBIC treats every fix "
-            "as independent, but successive fixes are strongly correlated, so it overstates the evidence: the "
-            "held-out difference and the count of runs are the figures to weigh.")
+    return (
+        f"{_ids(up.other)}: {held}; the chosen model (`{chosen}`) predicts {up.runs_better_text} held-out "
+        f"runs better{tied}; ΔBIC = {up.delta_bic:+.1f} (positive favours the chosen model). ΔBIC treats every fix "
+        "as independent, but successive fixes are strongly correlated, so it overstates the evidence: the "
+        "held-out difference and the count of runs are the figures to weigh."
+    )
 
 
 # ---- look-alikes ----------------------------------------------------------------------------------
 
-SEGMENT_WORDS = {"steer_step": "steering steps", "steer_ramp": "steering ramps and sines", "steer_hold": "held turns",
-                 "speed_step": "speed steps", "speed_ramp": "speed ramps", "cruise": "cruising straight",
-                 "rest": "standing", "unlabelled": "outside the command log"}
+SEGMENT_WORDS = {
+    "steer_step": "steering steps",
+    "steer_ramp": "steering ramps and sines",
+    "steer_hold": "held turns",
+    "speed_step": "speed steps",
+    "speed_ramp": "speed ramps",
+    "cruise": "cruising straight",
+    "rest": "standing",
+    "unlabelled": "outside the command log",
+}
 LOOKALIKE_INTRO = (
     "Twin effects (a delay of every command and a steering lag; slip and a speed lag; a delay and a speed lag) "
     "leave nearly the same residual on ordinary manoeuvres. Both sets were fitted on every run, and their fix "
@@ -436,7 +629,8 @@ LOOKALIKE_INTRO = (
     "ratio (LLR) is the difference of their squared residuals over 2σ² (σ the GPS noise floor), divided by the "
     "residuals' autocorrelation time in fixes, since successive fixes of a smooth residual are not independent "
     f"evidence. Positive favours the first set. When held-out error and BIC cannot separate the two, |LLR| ≥ "
-    f"{lookalike.DECISIVE:g} (about 150 to 1) decides; below it the diagnosis names both.")
+    f"{lookalike.DECISIVE:g} (about 150 to 1) decides; below it the diagnosis names both."
+)
 
 
 def _words(kind: str) -> str:
@@ -458,67 +652,109 @@ def twins_sentence(look: lookalike.LookAlike) -> str:
     llr = look.evidence.llr
     if look.decision == lookalike.DECIDED_BY_LLR:
         loser = b if look.favoured == a else a
-        return (f"**Look-alikes:** {_ids(look.favoured)} rather than its look-alike {_ids(loser)}: held-out error "
-                f"and BIC cannot separate them, but the fixes can (LLR {abs(llr):.1f} in its favour, "
-                f"{_strongest(look)}).")
-    missing = "" if look.telling_fixes else (
-        " these runs have no " + " and no ".join(_words(k) for k in look.telling.kinds) + ";")
-    return (f"**Look-alikes:** {_ids(a)} or its look-alike {_ids(b)}: cannot tell on these runs (LLR {llr:+.1f}, "
-            f"below the {lookalike.DECISIVE:g} that decides);{missing} {look.telling.advice} would.")
+        return (
+            f"**Look-alikes:** {_ids(look.favoured)} rather than its look-alike {_ids(loser)}: held-out error "
+            f"and BIC cannot separate them, but the fixes can (LLR {abs(llr):.1f} in its favour, "
+            f"{_strongest(look)})."
+        )
+    missing = (
+        ""
+        if look.telling_fixes
+        else (" these runs have no " + " and no ".join(_words(k) for k in look.telling.kinds) + ";")
+    )
+    return (
+        f"**Look-alikes:** {_ids(a)} or its look-alike {_ids(b)}: cannot tell on these runs (LLR {llr:+.1f}, "
+        f"below the {lookalike.DECISIVE:g} that decides);{missing} {look.telling.advice} would."
+    )
 
 
 def lookalike_text(look: lookalike.LookAlike) -> str:
     """The evidence between one pair of twins and how it was used."""
     a, b = look.pair
     e = look.evidence
-    how = {lookalike.DECIDED_BY_FIT: "held-out error and BIC already separate them, and the LLR is reported "
-                                     "as a check",
-           lookalike.DECIDED_BY_LLR: f"held-out error and BIC do not separate them; the LLR does "
-                                     f"(|LLR| ≥ {lookalike.DECISIVE:g})",
-           lookalike.CANNOT_TELL: f"neither held-out error and BIC nor the LLR (below {lookalike.DECISIVE:g}) "
-                                  "separates them: cannot tell on these runs"}[look.decision]
-    return (f"{_ids(a)} against {_ids(b)} (swapping `{look.members[0]}` for `{look.members[1]}`): LLR {e.llr:+.1f}, "
-            f"in favour of {_ids(look.favoured)}, {_strongest(look)}; {how}. σ = {e.sigma:.4f} m, autocorrelation "
-            f"time {e.tau:.1f} fixes. What tells them apart best: {', '.join(_words(k) for k in look.telling.kinds)} "
-            f"({look.telling_fixes} fixes here); {look.telling.advice} would add the most.")
+    how = {
+        lookalike.DECIDED_BY_FIT: "held-out error and BIC already separate them, and the LLR is reported "
+        "as a check",
+        lookalike.DECIDED_BY_LLR: f"held-out error and BIC do not separate them; the LLR does "
+        f"(|LLR| ≥ {lookalike.DECISIVE:g})",
+        lookalike.CANNOT_TELL: f"neither held-out error and BIC nor the LLR (below {lookalike.DECISIVE:g}) "
+        "separates them: cannot tell on these runs",
+    }[look.decision]
+    return (
+        f"{_ids(a)} against {_ids(b)} (swapping `{look.members[0]}` for `{look.members[1]}`): LLR {e.llr:+.1f}, "
+        f"in favour of {_ids(look.favoured)}, {_strongest(look)}; {how}. σ = {e.sigma:.4f} m, autocorrelation "
+        f"time {e.tau:.1f} fixes. What tells them apart best: {', '.join(_words(k) for k in look.telling.kinds)} "
+        f"({look.telling_fixes} fixes here); {look.telling.advice} would add the most."
+    )
 
 
 def _by_segment(look: lookalike.LookAlike) -> pd.DataFrame:
     e = look.evidence
-    return pd.DataFrame([{"segment": _words(k), "fixes": e.fixes[k], f"LLR ({look.pair[0]} over {look.pair[1]})": v}
-                         for k, v in e.by_kind.items()])
+    return pd.DataFrame(
+        [
+            {"segment": _words(k), "fixes": e.fixes[k], f"LLR ({look.pair[0]} over {look.pair[1]})": v}
+            for k, v in e.by_kind.items()
+        ]
+    )
 
 
 def response_text(look: lookalike.LookAlike) -> str:
     """What the response fits say, in a control engineer's terms."""
-    channel = "course (direction of travel)" if look.telling.channel == lookalike.COURSE else "speed over ground"
+    channel = (
+        "course (direction of travel)" if look.telling.channel == lookalike.COURSE else "speed over ground"
+    )
     telling = [r for r in look.response if r.kind in look.telling.kinds] or look.response
-    said = "; ".join(f"on {_words(r.kind)}, " + ({"delay": f"a delay of {r.delay:.2f} s fits best (lag "
-                                                            f"{r.lag:.2f} s fits a little worse)",
-                                                   "lag": f"a first-order lag of {r.lag:.2f} s fits best (delay "
-                                                          f"{r.delay:.2f} s fits a little worse)",
-                                                   "gain": f"a gain of {r.gain:.3f} fits best: an attenuation, not a "
-                                                           "phase",
-                                                   "none": "the calibrated model's answer fits as it is"}[r.best])
-                     for r in telling)
+    said = "; ".join(
+        f"on {_words(r.kind)}, "
+        + (
+            {
+                "delay": f"a delay of {r.delay:.2f} s fits best (lag {r.lag:.2f} s fits a little worse)",
+                "lag": f"a first-order lag of {r.lag:.2f} s fits best (delay "
+                f"{r.delay:.2f} s fits a little worse)",
+                "gain": f"a gain of {r.gain:.3f} fits best: an attenuation, not a phase",
+                "none": "the calibrated model's answer fits as it is",
+            }[r.best]
+        )
+        for r in telling
+    )
     shape = look.shape
     segment = _words(shape["segment"])
     if shape["favours"]:
-        verdict = (f"On {segment} the shape alone favours `{shape['favours']}` (LLR {abs(shape['llr']):.1f} over "
-                   f"{shape['fixes']} fixes).")
+        verdict = (
+            f"On {segment} the shape alone favours `{shape['favours']}` (LLR {abs(shape['llr']):.1f} over "
+            f"{shape['fixes']} fixes)."
+        )
     elif shape["fixes"]:
-        verdict = (f"On {segment} the shape alone cannot tell them apart (LLR {shape['llr']:+.1f} over "
-                   f"{shape['fixes']} fixes); more of them would.")
+        verdict = (
+            f"On {segment} the shape alone cannot tell them apart (LLR {shape['llr']:+.1f} over "
+            f"{shape['fixes']} fixes); more of them would."
+        )
     else:
         verdict = f"These runs have no {segment}, so the shape alone cannot tell them apart: {look.telling.advice} would."
-    return (f"The recorded {channel}, estimated from the fixes by local polynomial fits (no interpolation across "
-            "dropouts), against the calibrated model's without either effect, seen through the same window, fitted "
-            f"per segment as a pure delay, a first-order lag and a gain (no simulation): {said}. A delay and a lag "
-            "of the same size shift a slow answer alike; only a step's shape, or a steady deficit while cruising, "
-            f"tells them apart. {verdict}")
+    return (
+        f"The recorded {channel}, estimated from the fixes by local polynomial fits (no interpolation across "
+        "dropouts), against the calibrated model's without either effect, seen through the same window, fitted "
+        f"per segment as a pure delay, a first-order lag and a gain (no simulation): {said}. A delay and a lag "
+        "of the same size shift a slow answer alike; only a step's shape, or a steady deficit while cruising, "
+        f"tells them apart. {verdict}"
+    )
 
 
 def _responses(look: lookalike.LookAlike) -> pd.DataFrame:
-    return pd.DataFrame([{"segment": _words(r.kind), "fixes": r.fixes, "SSE as modelled": r.sse,
-                          "delay [s]": r.delay, "SSE delay": r.delay_sse, "lag [s]": r.lag, "SSE lag": r.lag_sse,
-                          "gain": r.gain, "SSE gain": r.gain_sse, "best": r.best} for r in look.response])
+    return pd.DataFrame(
+        [
+            {
+                "segment": _words(r.kind),
+                "fixes": r.fixes,
+                "SSE as modelled": r.sse,
+                "delay [s]": r.delay,
+                "SSE delay": r.delay_sse,
+                "lag [s]": r.lag,
+                "SSE lag": r.lag_sse,
+                "gain": r.gain,
+                "SSE gain": r.gain_sse,
+                "best": r.best,
+            }
+            for r in look.response
+        ]
+    )

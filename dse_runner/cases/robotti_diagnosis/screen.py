@@ -33,7 +33,9 @@ from .hypotheses import LOOK_ALIKES, hypothesis
 ANCHORS = 2  # best single effects (by full-fit SSE) linearised at, besides none
 EXTENDED = 3  # best pairs (by predicted BIC) extended by one effect into triples
 Evaluate = Callable[[list[Point]], Residuals]  # run the points on every run in one sweep; their residuals
-Catalogue = dict[str, tuple[str, Parameter]]  # parameter name -> (hypothesis id, "" if calibrated; its bounds)
+Catalogue = dict[
+    str, tuple[str, Parameter]
+]  # parameter name -> (hypothesis id, "" if calibrated; its bounds)
 
 
 def catalogue(base: Sequence[Parameter], vehicle: str, ids: Sequence[str]) -> Catalogue:
@@ -111,8 +113,9 @@ def extra_parameters(anchor: Anchor, entries: Catalogue) -> list[Parameter]:
     return [p for name, (owner, p) in entries.items() if owner and name not in anchor.fit.names]
 
 
-def linearise(anchor: Anchor, entries: Catalogue, scenarios: Sequence[str], residuals: Residuals
-              ) -> Linearisation:
+def linearise(
+    anchor: Anchor, entries: Catalogue, scenarios: Sequence[str], residuals: Residuals
+) -> Linearisation:
     """The anchor's own Jacobian with a column for every other effect parameter, from the residuals of
     :func:`probes` (a probe that failed to simulate gives a zero column, as in the fits)."""
     fit = anchor.fit
@@ -125,8 +128,14 @@ def linearise(anchor: Anchor, entries: Catalogue, scenarios: Sequence[str], resi
         column = [np.zeros_like(r) if m is None else (m - r) / delta for m, r in zip(moved, base)]
         columns.append(np.concatenate(column)[:, None])
     names = (*fit.names, *(p.name for p in extra))
-    return Linearisation(anchor.ids, dict(fit.point), names, tuple(entries[n][0] for n in names),
-                         np.hstack(columns), np.concatenate(base))
+    return Linearisation(
+        anchor.ids,
+        dict(fit.point),
+        names,
+        tuple(entries[n][0] for n in names),
+        np.hstack(columns),
+        np.concatenate(base),
+    )
 
 
 def predict(lin: Linearisation, ids: tuple[str, ...], entries: Catalogue) -> tuple[dict[str, float], float]:
@@ -175,8 +184,14 @@ def real_sse(point: Point, scenarios: Sequence[str], residuals: Residuals) -> fl
     return math.inf if any(r is None for r in found) else float(sum(r @ r for r in found))
 
 
-def screen(anchors: Sequence[Anchor], ids: Sequence[str], entries: Catalogue, scenarios: Sequence[str],
-           evaluate: Evaluate, triples: bool = True) -> list[Screened]:
+def screen(
+    anchors: Sequence[Anchor],
+    ids: Sequence[str],
+    entries: Catalogue,
+    scenarios: Sequence[str],
+    evaluate: Evaluate,
+    triples: bool = True,
+) -> list[Screened]:
     """Every pair of ``ids``, and (with ``triples``) the triples extending the best predicted pairs, each
     predicted from its anchor and checked by simulation: best verified BIC first. Two sweeps in all."""
     extra = {a.ids: extra_parameters(a, entries) for a in anchors}
@@ -196,8 +211,11 @@ def screen(anchors: Sequence[Anchor], ids: Sequence[str], entries: Catalogue, sc
         lin = lins[anchor_of(s, anchors).ids]
         tried = [(lin.sse, lin.point)] + [(real_sse(p, scenarios, checked), p) for p in trials[s]]
         sse, start = min(tried, key=lambda t: t[0])
-        result.append(Screened(s, lin.anchor, sse_predicted, sse, explain.bic_of(sse, n, _parameters(s, entries)),
-                               start))
+        result.append(
+            Screened(
+                s, lin.anchor, sse_predicted, sse, explain.bic_of(sse, n, _parameters(s, entries)), start
+            )
+        )
     return sorted(result, key=lambda x: x.bic)
 
 
@@ -216,7 +234,9 @@ def shortlist(screened: Sequence[Screened], pairs: int, triples: int, limit: int
     top = screened[0]
     if top.sse > 2.0 * top.predicted_sse:
         pairs += 2
-    chosen = [s for s in screened if len(s.ids) == 2][:pairs] + [s for s in screened if len(s.ids) == 3][:triples]
+    chosen = [s for s in screened if len(s.ids) == 2][:pairs] + [s for s in screened if len(s.ids) == 3][
+        :triples
+    ]
     by_ids = {frozenset(s.ids): s for s in screened}
     twins = [by_ids[swap] for s in chosen for swap in swaps(s.ids) if swap in by_ids]
     result: list[Screened] = []

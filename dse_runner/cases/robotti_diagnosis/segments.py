@@ -52,7 +52,9 @@ def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1))
 
 
-def jumps(time: np.ndarray, command: np.ndarray, jump: float, span: float = STEP_SPAN) -> list[tuple[float, float]]:
+def jumps(
+    time: np.ndarray, command: np.ndarray, jump: float, span: float = STEP_SPAN
+) -> list[tuple[float, float]]:
     """[start, end] of each jump: consecutive log intervals changing faster than ``jump / span`` that
     together last at most ``span`` and change the command by at least ``jump``. A steep but long
     change (a fast sine) is not a jump: it lasts longer than ``span``."""
@@ -68,8 +70,9 @@ def jumps(time: np.ndarray, command: np.ndarray, jump: float, span: float = STEP
     return out
 
 
-def ramps(time: np.ndarray, command: np.ndarray, rate: float, seconds: float,
-          window: float = RATE_WINDOW) -> list[tuple[float, float]]:
+def ramps(
+    time: np.ndarray, command: np.ndarray, rate: float, seconds: float, window: float = RATE_WINDOW
+) -> list[tuple[float, float]]:
     """[start, end] of each stretch of at least ``seconds`` over which the command's rate, taken over
     ``window`` (so that a rounded log does not break a ramp into pieces), exceeds ``rate``."""
     half = window / 2
@@ -77,17 +80,27 @@ def ramps(time: np.ndarray, command: np.ndarray, rate: float, seconds: float,
     behind = np.interp(time - half, time, command)
     span = np.interp(time + half, time, time) - np.interp(time - half, time, time)
     slope = np.divide(ahead - behind, span, out=np.zeros_like(command, dtype=float), where=span > 0)
-    return [(float(time[a]), float(time[b])) for a, b in _runs(np.abs(slope) > rate) if time[b] - time[a] >= seconds]
+    return [
+        (float(time[a]), float(time[b]))
+        for a, b in _runs(np.abs(slope) > rate)
+        if time[b] - time[a] >= seconds
+    ]
 
 
-def _mark(label: np.ndarray, time: np.ndarray, windows: Sequence[tuple[float, float]], kind: str,
-          settle: float) -> None:
+def _mark(
+    label: np.ndarray, time: np.ndarray, windows: Sequence[tuple[float, float]], kind: str, settle: float
+) -> None:
     for start, end in windows:
         label[(time >= start) & (time < end + settle)] = kind
 
 
-def command_segments(time: np.ndarray, speed: np.ndarray, steering: np.ndarray, end: float | None = None,
-                     settle: float = SETTLE) -> pd.DataFrame:
+def command_segments(
+    time: np.ndarray,
+    speed: np.ndarray,
+    steering: np.ndarray,
+    end: float | None = None,
+    settle: float = SETTLE,
+) -> pd.DataFrame:
     """The run cut into segments [start, end) of one kind each (``KINDS``), from its command log alone:
     columns start, end, kind. Commands hold until the next row; the last segment ends at ``end``
     (default: the log's last time)."""
@@ -95,7 +108,9 @@ def command_segments(time: np.ndarray, speed: np.ndarray, steering: np.ndarray, 
     speed, steering = np.asarray(speed, float), np.asarray(steering, float)
     if time.size == 0:
         return pd.DataFrame({"start": [], "end": [], "kind": []})
-    label = np.where(speed == 0, REST, np.where(np.abs(steering) > HOLD_ANGLE, STEER_HOLD, CRUISE)).astype(object)
+    label = np.where(speed == 0, REST, np.where(np.abs(steering) > HOLD_ANGLE, STEER_HOLD, CRUISE)).astype(
+        object
+    )
     steer_jumps = jumps(time, steering, STEER_JUMP)
     speed_jumps = jumps(time, speed, SPEED_JUMP)
     layers = [  # least telling first: each overwrites the ones before
@@ -109,8 +124,13 @@ def command_segments(time: np.ndarray, speed: np.ndarray, steering: np.ndarray, 
     changes = np.flatnonzero(label[1:] != label[:-1]) + 1
     starts = np.concatenate([[0], changes])
     stops = [*time[changes], float(time[-1] if end is None else max(end, time[-1]))]
-    return pd.DataFrame({"start": time[starts].astype(float), "end": np.asarray(stops, float),
-                         "kind": label[starts].astype(str)})
+    return pd.DataFrame(
+        {
+            "start": time[starts].astype(float),
+            "end": np.asarray(stops, float),
+            "kind": label[starts].astype(str),
+        }
+    )
 
 
 def of_scenario(scenario: Scenario) -> pd.DataFrame:

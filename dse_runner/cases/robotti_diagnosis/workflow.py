@@ -79,13 +79,18 @@ def choose(chain: Chain, start: dict[str, float], floor: float | None = None) ->
     screened, short = [], []
     if worth_screening(candidates, floor, settings):
         screened = screen_combinations(chain, candidates)
-        short = screen.shortlist(screened, settings.pairs, settings.triples if settings.max_effects >= 3 else 0,
-                                 settings.shortlist)
+        short = screen.shortlist(
+            screened, settings.pairs, settings.triples if settings.max_effects >= 3 else 0, settings.shortlist
+        )
     else:
-        chain.say("no combination screened: a fit is already within "
-                  f"{settings.floor_stop:g}x the noise floor, or the settings allow one effect at a time")
+        chain.say(
+            "no combination screened: a fit is already within "
+            f"{settings.floor_stop:g}x the noise floor, or the settings allow one effect at a time"
+        )
     problems = [p for c in candidates for p in chain.by_fold(c)] + [chain.full(x.ids, x.start) for x in short]
-    fits = chain.fit(problems, "cross-validating" + (f" and fitting {len(short)} combinations" if short else ""))
+    fits = chain.fit(
+        problems, "cross-validating" + (f" and fitting {len(short)} combinations" if short else "")
+    )
     chain.score(candidates, fits)
     baseline = next(c for c in candidates if not c.ids)
     current = explain.select(candidates, baseline, settings.min_gain, settings.bic_margin)
@@ -93,47 +98,77 @@ def choose(chain: Chain, start: dict[str, float], floor: float | None = None) ->
     everything = candidates + combinations
     survivors = explain.bic_gate(combinations, everything, current, settings.bic_margin, settings.survivors)
     if survivors:
-        chain.score(survivors, chain.fit([p for c in survivors for p in chain.by_fold(c)],
-                                         f"cross-validating {', '.join(c.label for c in survivors)}"))
-    return Choice(explain.select(everything, baseline, settings.min_gain, settings.bic_margin), everything,
-                  screened, short)
+        chain.score(
+            survivors,
+            chain.fit(
+                [p for c in survivors for p in chain.by_fold(c)],
+                f"cross-validating {', '.join(c.label for c in survivors)}",
+            ),
+        )
+    return Choice(
+        explain.select(everything, baseline, settings.min_gain, settings.bic_margin),
+        everything,
+        screened,
+        short,
+    )
 
 
 def _locate(space: Space, vehicle: str, tracks: dict[str, Any]) -> Any:
     import pandas as pd
 
-    signals = locate.Signals(f"{vehicle}.gps_x", f"{vehicle}.gps_y", f"{vehicle}.theta", f"{vehicle}.vx",
-                             f"{vehicle}.yaw_rate", steering_source(space.multimodel, vehicle))
-    return pd.concat([locate.residual_frame(tracks[s.name], s, signals) for s in space.scenarios],
-                     ignore_index=True)
+    signals = locate.Signals(
+        f"{vehicle}.gps_x",
+        f"{vehicle}.gps_y",
+        f"{vehicle}.theta",
+        f"{vehicle}.vx",
+        f"{vehicle}.yaw_rate",
+        steering_source(space.multimodel, vehicle),
+    )
+    return pd.concat(
+        [locate.residual_frame(tracks[s.name], s, signals) for s in space.scenarios], ignore_index=True
+    )
 
 
-def seek(chain: Chain, reference: Candidate, candidates: list[Candidate], floor: NoiseFloor, space: Space
-         ) -> discover.Discovery | None:
+def seek(
+    chain: Chain, reference: Candidate, candidates: list[Candidate], floor: NoiseFloor, space: Space
+) -> discover.Discovery | None:
     """Discovery (discover/) on top of the library's answer, only when that answer leaves held-out error
     above ``noise_factor`` noise floors: below it there is nothing a correction could claim but noise.
     Without a floor nothing counts as above it, so nothing is sought."""
     settings = chain.settings
-    if not (floor.available and explain.above_floor(reference.cross_validated, floor.cross_track,
-                                                    settings.noise_factor)):
+    if not (
+        floor.available
+        and explain.above_floor(reference.cross_validated, floor.cross_track, settings.noise_factor)
+    ):
         return None
-    chain.say(f"the library leaves {reference.cross_validated:.4f} m held-out "
-              f"({reference.cross_validated / floor.cross_track:.1f}x the noise floor): seeking a correction")
+    chain.say(
+        f"the library leaves {reference.cross_validated:.4f} m held-out "
+        f"({reference.cross_validated / floor.cross_track:.1f}x the noise floor): seeking a correction"
+    )
     runs = [discover.observe(s) for s in space.scenarios]
     found = discover.discover(chain, reference, candidates, runs, space.multimodel.parameters)
     if found.chosen is not None:
         found.resembles = discover.resembles(chain, found.chosen)
-        chain.say(f"discovered {'; '.join(correction.readable(found.chosen.full.point))}: held-out "
-                  f"{reference.cross_validated:.4f} -> {found.chosen.cross_validated:.4f} m")
+        chain.say(
+            f"discovered {'; '.join(correction.readable(found.chosen.full.point))}: held-out "
+            f"{reference.cross_validated:.4f} -> {found.chosen.cross_validated:.4f} m"
+        )
     else:
         chain.say(f"nothing discovered: {found.reason}")
     return found
 
 
-def diagnose(scenarios: str | Path, multimodel: str | Path | None = None, space: str | Path | None = None,
-             out: str | Path | None = None, settings: DiagnosisSettings = DiagnosisSettings(), client=None,
-             progress: DiagnosisMessages | None = None, n_workers: int | None = None,
-             address: str | None = None) -> Diagnosis:
+def diagnose(
+    scenarios: str | Path,
+    multimodel: str | Path | None = None,
+    space: str | Path | None = None,
+    out: str | Path | None = None,
+    settings: DiagnosisSettings = DiagnosisSettings(),
+    client=None,
+    progress: DiagnosisMessages | None = None,
+    n_workers: int | None = None,
+    address: str | None = None,
+) -> Diagnosis:
     """Calibrate -> locate -> explain -> model -> re-calibrate on a folder of recorded runs.
 
     ``space`` gives the calibration's parameters and ranges (default: the bundled Robotti
@@ -144,8 +179,12 @@ def diagnose(scenarios: str | Path, multimodel: str | Path | None = None, space:
     return diagnose_calibration(calibration, settings, client, progress)
 
 
-def diagnose_calibration(calibration: Space, settings: DiagnosisSettings = DiagnosisSettings(), client=None,
-                         progress: DiagnosisMessages | None = None) -> Diagnosis:
+def diagnose_calibration(
+    calibration: Space,
+    settings: DiagnosisSettings = DiagnosisSettings(),
+    client=None,
+    progress: DiagnosisMessages | None = None,
+) -> Diagnosis:
     """The whole chain on a calibration space whose scenarios are recorded runs in the field-data format,
     its results (and the new model and report) in the space's output folder."""
     settings.singles()
@@ -157,13 +196,17 @@ def diagnose_calibration(calibration: Space, settings: DiagnosisSettings = Diagn
     return _diagnose(calibration, out, settings, client, say)
 
 
-def _diagnose(calibration: Space, out: Path, settings: DiagnosisSettings, client, say: DiagnosisMessages) -> Diagnosis:
+def _diagnose(
+    calibration: Space, out: Path, settings: DiagnosisSettings, client, say: DiagnosisMessages
+) -> Diagnosis:
     from . import report
 
     floor = noise.estimate_noise(calibration.scenarios)  # from the files alone, before any model is fitted
     if floor.available:
-        say(f"noise floor: GPS sigma {floor.sigma:.4f} m ({floor.method}, {floor.fixes} fixes), "
-            f"{floor.cross_track:.4f} m of cross-track error")
+        say(
+            f"noise floor: GPS sigma {floor.sigma:.4f} m ({floor.method}, {floor.fixes} fixes), "
+            f"{floor.cross_track:.4f} m of cross-track error"
+        )
     say(f"calibrating: the {calibration.name} grid on {len(calibration.scenarios)} runs")
     submit(calibration, client=client)
     grid = rank(out, calibration.name)
@@ -173,31 +216,65 @@ def _diagnose(calibration: Space, out: Path, settings: DiagnosisSettings, client
     chain = Chain(space, vehicle, base, client, settings, say)
     choice = choose(chain, {p.name: p.start for p in base}, floor.cross_track if floor.available else None)
     baseline = next(c for c in choice.candidates if not c.ids)
-    chosen, looks = lookalike.weigh(choice.chosen, choice.candidates, baseline, space.scenarios,
-                                    floor.sigma if floor.available else None, settings.min_gain, settings.bic_margin)
+    chosen, looks = lookalike.weigh(
+        choice.chosen,
+        choice.candidates,
+        baseline,
+        space.scenarios,
+        floor.sigma if floor.available else None,
+        settings.min_gain,
+        settings.bic_margin,
+    )
     # the noise rule: a member is claimed only if it changes the held-out error by more than the noise does
-    chosen, dropped = explain.claimed(chosen, choice.candidates, baseline, floor.cross_track) if floor.available \
+    chosen, dropped = (
+        explain.claimed(chosen, choice.candidates, baseline, floor.cross_track)
+        if floor.available
         else (chosen, [])
+    )
     if dropped:
-        say(f"not claimed (each changes the held-out error by less than the noise): {', '.join(d.id for d in dropped)}")
+        say(
+            f"not claimed (each changes the held-out error by less than the noise): {', '.join(d.id for d in dropped)}"
+        )
     found = seek(chain, chosen, choice.candidates, floor, space) if settings.discovery else None
     if found is not None and found.chosen is not None:
         chosen = found.chosen
-    diagnosis = Diagnosis(out, {
-        "sweep": calibration.name, "vehicle": vehicle, "grid_best": grid.best,
-        "grid_at_bound": [p.name for p in base if grid.best[p.name] in (p.lower, p.upper)
-                          and p.name not in baseline.full.undetermined],
-        "refined": baseline.full.values, "refined_at_bound": baseline.full.at_bound,
-        "no_effect": baseline.full.undetermined,
-        "insensitive_scenarios": locate.insensitive_scenarios(grid.table1),
-        "folds": chain.folds,
-    }, explain.ranked(choice.candidates + (found.candidates if found else [])), chosen, baseline, settings,
-        dropouts=dropouts(calibration.scenarios), floor=floor, screened=choice.screened,
-        shortlisted=[x.label for x in choice.shortlisted], lookalikes=looks, discovery=found, dropped=dropped)
+    diagnosis = Diagnosis(
+        out,
+        {
+            "sweep": calibration.name,
+            "vehicle": vehicle,
+            "grid_best": grid.best,
+            "grid_at_bound": [
+                p.name
+                for p in base
+                if grid.best[p.name] in (p.lower, p.upper) and p.name not in baseline.full.undetermined
+            ],
+            "refined": baseline.full.values,
+            "refined_at_bound": baseline.full.at_bound,
+            "no_effect": baseline.full.undetermined,
+            "insensitive_scenarios": locate.insensitive_scenarios(grid.table1),
+            "folds": chain.folds,
+        },
+        explain.ranked(choice.candidates + (found.candidates if found else [])),
+        chosen,
+        baseline,
+        settings,
+        dropouts=dropouts(calibration.scenarios),
+        floor=floor,
+        screened=choice.screened,
+        shortlisted=[x.label for x in choice.shortlisted],
+        lookalikes=looks,
+        discovery=found,
+        dropped=dropped,
+    )
     say("locating: the residuals of the calibrated model and of the chosen one")
     before = trajectories_of(space, client, baseline.full.point, BEFORE)
-    lookalike.attach_responses(looks, space.scenarios, before, {"heading": f"{vehicle}.theta", "vx": f"{vehicle}.vx",
-                                                                "vy": f"{vehicle}.vy"})
+    lookalike.attach_responses(
+        looks,
+        space.scenarios,
+        before,
+        {"heading": f"{vehicle}.theta", "vx": f"{vehicle}.vx", "vy": f"{vehicle}.vy"},
+    )
     after = trajectories_of(space, client, chosen.full.point, AFTER)
     frames = {"before": _locate(space, vehicle, before), "after": _locate(space, vehicle, after)}
     diagnosis.files.update(write_model(diagnosis, calibration))

@@ -66,7 +66,9 @@ class Feed:
         self.output, self.sweep = output, sweep
         self.parameters = list(spec.parameters)
         self.objective, self.goal = spec.ranking.objective, spec.ranking.goal
-        self.settings = spec.ranking  # the best point is named as rank() names it: over_scenarios, robust, constraints
+        self.settings = (
+            spec.ranking
+        )  # the best point is named as rank() names it: over_scenarios, robust, constraints
         # the objectives read: the ranked one, and every one when constraints may name others (as rank() reads them)
         every = spec.ranking.constraints
         self.objectives = scalar_objectives(spec, output, sweep) if every else [self.objective]
@@ -88,7 +90,9 @@ class Feed:
         self._studies: tuple[tuple, str] = ((), "")  # ((store version, model), the study sections' HTML)
         self._tracks: dict[tuple, tuple] = {}
         self._track_lock = threading.Lock()
-        self.pages: weakref.WeakSet[Any] = weakref.WeakSet()  # the open tabs (page.Page), told when the server stops
+        self.pages: weakref.WeakSet[Any] = (
+            weakref.WeakSet()
+        )  # the open tabs (page.Page), told when the server stops
 
     def latest(self) -> Snapshot | None:
         """The last snapshot taken, without waiting for one: what a page shows while the next is read."""
@@ -100,8 +104,15 @@ class Feed:
         status = load_status(self.output, self.sweep)
         done = status.skipped + status.ran if status is not None else 0
         empty = pd.DataFrame(columns=[*self.parameters, "scenario", "group", self.objective])
-        return Snapshot(status, empty, done, status.failed if status is not None else 0, empty.iloc[0:0], None,
-                        provisional=True)
+        return Snapshot(
+            status,
+            empty,
+            done,
+            status.failed if status is not None else 0,
+            empty.iloc[0:0],
+            None,
+            provisional=True,
+        )
 
     def warm(self) -> None:
         """Read the first snapshot in the background, so the first page finds it ready or under way. (The
@@ -121,8 +132,11 @@ class Feed:
                 status = load_status(self.output, self.sweep)
                 version = f"{store.version(self.output, self.sweep)} {current_model(self.output, self.sweep)}"
                 if last is not None and version == self._version:
-                    history = load_history(self.output, self.sweep) \
-                        if self.closed_loop or last.history is not None else None
+                    history = (
+                        load_history(self.output, self.sweep)
+                        if self.closed_loop or last.history is not None
+                        else None
+                    )
                     self._snapshot = replace(last, status=status, history=history, taken=time.monotonic())
                 else:
                     self._snapshot, self._version = self._read(status), version
@@ -133,18 +147,31 @@ class Feed:
         ok = rows[rows["status"] == "ok"]
         last = self._snapshot
         if self.uncertain is not None:  # ranked over the draws; the charts get a row per point and scenario,
-            drawn = uncertainty.with_draws(ok, self.uncertain.samples)  # its objective the mean over the draws
+            drawn = uncertainty.with_draws(
+                ok, self.uncertain.samples
+            )  # its objective the mean over the draws
             ok = uncertainty.collapse(drawn, self.parameters, [self.objective])
             scenarios = _scenario_count(status, drawn, "base")
             table = draw_standings(drawn, self.parameters, self.objective, self.settings, scenarios)
-            table = without_excluded(table, drawn, self.parameters, self.objectives, self.settings, scenarios,
-                                     self.uncertain.samples)
+            table = without_excluded(
+                table,
+                drawn,
+                self.parameters,
+                self.objectives,
+                self.settings,
+                scenarios,
+                self.uncertain.samples,
+            )
         else:
             table = standings(ok, self.parameters, self.objective, self.goal, self.settings.over_scenarios)
-            table = without_excluded(table, ok, self.parameters, self.objectives, self.settings,
-                                     _scenario_count(status, rows))
-        history = load_history(self.output, self.sweep) \
-            if self.closed_loop or (last is not None and last.history is not None) else None
+            table = without_excluded(
+                table, ok, self.parameters, self.objectives, self.settings, _scenario_count(status, rows)
+            )
+        history = (
+            load_history(self.output, self.sweep)
+            if self.closed_loop or (last is not None and last.history is not None)
+            else None
+        )
         return Snapshot(status, ok, len(rows), int((rows["status"] != "ok").sum()), table, history)
 
     def counted(self, scenarios: int) -> tuple[str, int]:
@@ -173,8 +200,11 @@ class Feed:
             return None
         else:
             return dict(zip(snap.ok["scenario"], snap.ok["group"]))
-        return {uncertainty.split_name(name)[0]: group for name, group in found.items()} \
-            if self.uncertain is not None else found
+        return (
+            {uncertainty.split_name(name)[0]: group for name, group in found.items()}
+            if self.uncertain is not None
+            else found
+        )
 
     def space(self) -> tuple[Space | None, str]:
         """The sweep's space, to simulate tracks; or None and why not."""
@@ -218,8 +248,14 @@ class Feed:
             ranking = rank(self.output, self.sweep) if self.uncertain is not None else None
         except DseError as e:
             note = f"<p id='uncertainty-note' class='note'>{html.escape(str(e))}</p>"
-            return STUDY_STYLE + note + "".join(section_html(s, "h3") for s in sections(self.output, self.sweep, None))
-        return STUDY_STYLE + "".join(section_html(s, "h3") for s in sections(self.output, self.sweep, ranking))
+            return (
+                STUDY_STYLE
+                + note
+                + "".join(section_html(s, "h3") for s in sections(self.output, self.sweep, None))
+            )
+        return STUDY_STYLE + "".join(
+            section_html(s, "h3") for s in sections(self.output, self.sweep, ranking)
+        )
 
     def track(self, scenario: str, point: dict[str, Any]) -> tuple[Comparison, float]:
         """``point`` simulated on ``scenario`` next to its recording (comparison.py), and the objective. One
@@ -233,11 +269,19 @@ class Feed:
                 space, note = self.space()
                 if space is None:
                     raise DseError(note)
-                names = {s.name: s for s in space.scenarios}  # a scenario of uncertain draws: its first draw's
+                names = {
+                    s.name: s for s in space.scenarios
+                }  # a scenario of uncertain draws: its first draw's
                 recording = names.get(scenario) or names[uncertainty.sample_name(scenario, 0)]
                 objective = space.objectives[self.objective]
-                result = simulate(space.plan, recording, point, objectives={self.objective: objective},
-                                  timeout=space.spec.timeout, experiment=space.experiment)
+                result = simulate(
+                    space.plan,
+                    recording,
+                    point,
+                    objectives={self.objective: objective},
+                    timeout=space.spec.timeout,
+                    experiment=space.experiment,
+                )
                 self._tracks[key] = (compare(result, objective), result.objectives[self.objective])
             return self._tracks[key]
 
@@ -250,17 +294,26 @@ def _scenario_count(status: SweepReport | None, rows: pd.DataFrame, column: str 
     return int(rows[column].nunique())
 
 
-
-def search_summary(search: SearchStatus | None, history: SearchHistory | None, objective: str, goal: str,
-                   max_points: int, strategy_name: str = "–") -> list[tuple[str, str]]:
+def search_summary(
+    search: SearchStatus | None,
+    history: SearchHistory | None,
+    objective: str,
+    goal: str,
+    max_points: int,
+    strategy_name: str = "–",
+) -> list[tuple[str, str]]:
     """A closed-loop search's figures as (name, text): from the status the submitting process saves
     (``search``) if it has them, else counted from the history."""
     if search is not None:
         best = search.best
-        cells = [("strategy", search.strategy), ("points", f"{search.points} of {search.max_points}"),
-                 (f"best {objective}", "–" if best is None else f"{best:.6g}"),
-                 ("infeasible", str(search.infeasible)), ("failed", str(search.failed)),
-                 ("utilisation", "–" if search.utilisation is None else f"{search.utilisation:.0%}")]
+        cells = [
+            ("strategy", search.strategy),
+            ("points", f"{search.points} of {search.max_points}"),
+            (f"best {objective}", "–" if best is None else f"{best:.6g}"),
+            ("infeasible", str(search.infeasible)),
+            ("failed", str(search.failed)),
+            ("utilisation", "–" if search.utilisation is None else f"{search.utilisation:.0%}"),
+        ]
         if search.reused:
             cells.append(("reused", str(search.reused)))
         if search.stopped:
@@ -270,8 +323,11 @@ def search_summary(search: SearchStatus | None, history: SearchHistory | None, o
         return [("strategy", strategy_name), ("points", f"0 of {max_points}")]
     values = [p.values[objective] for p in history.points if p.state == "ok" and objective in p.values]
     best = (min if goal == "min" else max)(values) if values else None
-    return [("strategy", history.strategy), ("points", f"{history.simulated()} of {max_points}"),
-            (f"best {objective}", "–" if best is None else f"{best:.6g}"),
-            ("infeasible", str(sum(p.state == "infeasible" for p in history.points))),
-            ("failed", str(sum(p.state == "failed" for p in history.points))), ("utilisation", "–")]
-
+    return [
+        ("strategy", history.strategy),
+        ("points", f"{history.simulated()} of {max_points}"),
+        (f"best {objective}", "–" if best is None else f"{best:.6g}"),
+        ("infeasible", str(sum(p.state == "infeasible" for p in history.points))),
+        ("failed", str(sum(p.state == "failed" for p in history.points))),
+        ("utilisation", "–"),
+    ]

@@ -38,7 +38,13 @@ def _duration(seconds: float | None) -> str:
         return "–"
     seconds = round(seconds)
     hours, rest = divmod(seconds, 3600)
-    return f"{hours}h {rest // 60:02d}m" if hours else f"{rest // 60}m {rest % 60:02d}s" if rest >= 60 else f"{rest}s"
+    return (
+        f"{hours}h {rest // 60:02d}m"
+        if hours
+        else f"{rest // 60}m {rest % 60:02d}s"
+        if rest >= 60
+        else f"{rest}s"
+    )
 
 
 def progress_html(snap: Snapshot, now: float) -> str:
@@ -54,16 +60,23 @@ def progress_html(snap: Snapshot, now: float) -> str:
     elif status and status.waiting:
         state = status.waiting
     share = 100.0 * (total - remaining) / total if total and remaining is not None else 0.0
-    cells = [("done", f"{snap.done}" + (f" of {total}" if total is not None else "")),
-             ("failed", str(snap.failed)),
-             ("remaining", "–" if remaining is None else str(remaining)),
-             ("rate", f"{status.rate:.1f} simulations/s" if status else "–"),
-             ("eta", _duration(status.eta_seconds) if status and status.state == "running" else "–"),
-             ("state", state)]
-    items = "".join(f'<div class="cell"><div class="label">{name}</div>'
-                    f'<div class="value" id="dse-{name}">{html.escape(value)}</div></div>' for name, value in cells)
-    return (f'<div class="bar"><div class="fill" style="width:{share:.1f}%"></div></div>'
-            f'<div class="cells">{items}</div>')
+    cells = [
+        ("done", f"{snap.done}" + (f" of {total}" if total is not None else "")),
+        ("failed", str(snap.failed)),
+        ("remaining", "–" if remaining is None else str(remaining)),
+        ("rate", f"{status.rate:.1f} simulations/s" if status else "–"),
+        ("eta", _duration(status.eta_seconds) if status and status.state == "running" else "–"),
+        ("state", state),
+    ]
+    items = "".join(
+        f'<div class="cell"><div class="label">{name}</div>'
+        f'<div class="value" id="dse-{name}">{html.escape(value)}</div></div>'
+        for name, value in cells
+    )
+    return (
+        f'<div class="bar"><div class="fill" style="width:{share:.1f}%"></div></div>'
+        f'<div class="cells">{items}</div>'
+    )
 
 
 def best_html(snap: Snapshot, parameters: list[str], ranked_by: str, counted: tuple[str, int]) -> str:
@@ -76,26 +89,37 @@ def best_html(snap: Snapshot, parameters: list[str], ranked_by: str, counted: tu
     if unit == "draws" and not top["draws"]:
         return '<span id="dse-best">no point has finished an uncertain draw on every scenario yet</span>'
     values = format_point({p: top[p] for p in parameters})
-    return (f'<span id="dse-best">best so far: {html.escape(values)}; {html.escape(ranked_by)} '
-            f'{top["ranked"]:.4f} over {int(top[unit])} of {total or "?"} {unit}</span>')
-
+    return (
+        f'<span id="dse-best">best so far: {html.escape(values)}; {html.escape(ranked_by)} '
+        f"{top['ranked']:.4f} over {int(top[unit])} of {total or '?'} {unit}</span>"
+    )
 
 
 def search_html(cells: list[tuple[str, str]]) -> str:
     """The search line: ``tpe · 23 of 30 points · best rmse 0.0092 · ...``, one span with id dse-search."""
-    parts = [value if name == "strategy" else
-             f"{value} points" if name == "points" else
-             f"{name} {value}" if name.startswith("best") or name in ("utilisation", "stopped") else
-             f"{value} {name}" for name, value in cells]
-    return (f'<div style="font-family:sans-serif;font-size:15px;margin:6px 0">search: '
-            f'<span id="dse-search">{html.escape(" · ".join(parts))}</span></div>')
+    parts = [
+        value
+        if name == "strategy"
+        else f"{value} points"
+        if name == "points"
+        else f"{name} {value}"
+        if name.startswith("best") or name in ("utilisation", "stopped")
+        else f"{value} {name}"
+        for name, value in cells
+    ]
+    return (
+        f'<div style="font-family:sans-serif;font-size:15px;margin:6px 0">search: '
+        f'<span id="dse-search">{html.escape(" · ".join(parts))}</span></div>'
+    )
 
 
 def title_html(feed: Feed, status: SweepReport | None) -> str:
     dask = status.dashboard if status else None
     link = f' · <a href="{html.escape(dask)}" target="_blank">Dask dashboard</a>' if dask else ""
-    return (f"<h2 style='font-family:sans-serif;margin:0'>{html.escape(feed.sweep)}</h2>"
-            f"<div style='font-family:sans-serif'>results in {html.escape(str(feed.output))}{link}</div>")
+    return (
+        f"<h2 style='font-family:sans-serif;margin:0'>{html.escape(feed.sweep)}</h2>"
+        f"<div style='font-family:sans-serif'>results in {html.escape(str(feed.output))}{link}</div>"
+    )
 
 
 def ranking_html(top: pd.DataFrame, objective: str, ranked_by: str, uncertain: bool = False) -> str:
@@ -108,13 +132,24 @@ def ranking_html(top: pd.DataFrame, objective: str, ranked_by: str, uncertain: b
 
     def four(value: float) -> str:
         return "–" if pd.isna(value) else f"{value:.4f}"
+
     return charts.html_table(table, "dse-ranking", {mean: four, heading: four})
 
 
 def workers_html(status: SweepReport) -> str:
-    table = pd.DataFrame([{"worker": w.name, "threads": w.threads, "running": w.executing, "CPU %": round(w.cpu),
-                           "memory [MB]": round(w.memory / 2**20)} for w in status.activity],
-                         columns=["worker", "threads", "running", "CPU %", "memory [MB]"])
+    table = pd.DataFrame(
+        [
+            {
+                "worker": w.name,
+                "threads": w.threads,
+                "running": w.executing,
+                "CPU %": round(w.cpu),
+                "memory [MB]": round(w.memory / 2**20),
+            }
+            for w in status.activity
+        ],
+        columns=["worker", "threads", "running", "CPU %", "memory [MB]"],
+    )
     return charts.html_table(table, "dse-workers")
 
 
@@ -170,8 +205,9 @@ class Page:
         # once it has said so, the end of the connection is expected: no "connection was lost" banner (a Bokeh
         # 3.8+ setting, read in the browser; a change made on the server does not reach the browser's copy)
         quiet = "config.setv({notify_connection_status: false}, {sync: false})"
-        self.farewell.js_on_change("text", CustomJS(
-            code=f"const config = cb_obj.document.config; if (config) {quiet}"))
+        self.farewell.js_on_change(
+            "text", CustomJS(code=f"const config = cb_obj.document.config; if (config) {quiet}")
+        )
         self.scenarios = scenarios
         p, objective = feed.parameters, feed.objective
         self.title = Div(width=800)
@@ -206,24 +242,44 @@ class Page:
         doc.title = f"dse-runner: {feed.sweep}"
         if getattr(doc, "config", None) is not None:  # Bokeh 3.8+: a page reconnects to a new, empty session
             doc.config.reconnect_session = False  # and shows nothing of it; a lost connection is said once
-        search = [] if not searching else [
-            heading(f"Search: best {objective} against simulations"
-                    + (", and the Pareto front as it grew" if self.front_chart else "")),
-            row(*(c.figure for c in (self.search_chart, self.front_chart) if c is not None))]
-        doc.add_root(column(
-            self.farewell, self.title, self.progress, *([self.search] if self.search else []), self.best,
-            row(column(heading(f"Best so far, ranked by {html.escape(feed.ranked_by)}"), self.ranking),
-                column(heading("Workers"), self.workers)),
-            *([self.studies] if self.studies is not None else []),
-            *search,
-            heading(f"{objective} against each parameter"
-                    + ("" if sampled else ", the mean over the others")),
-            self.fig5.layout,
-            heading(f"{objective} per scenario group at each parameter point, points sorted by "
-                    f"{', '.join(p)}"),
-            self.fig6.layout,
-            heading("Best candidate on the chosen scenario, over its recording if it has one"), self.select,
-            self.track_note, self.track.figure))
+        search = (
+            []
+            if not searching
+            else [
+                heading(
+                    f"Search: best {objective} against simulations"
+                    + (", and the Pareto front as it grew" if self.front_chart else "")
+                ),
+                row(*(c.figure for c in (self.search_chart, self.front_chart) if c is not None)),
+            ]
+        )
+        doc.add_root(
+            column(
+                self.farewell,
+                self.title,
+                self.progress,
+                *([self.search] if self.search else []),
+                self.best,
+                row(
+                    column(heading(f"Best so far, ranked by {html.escape(feed.ranked_by)}"), self.ranking),
+                    column(heading("Workers"), self.workers),
+                ),
+                *([self.studies] if self.studies is not None else []),
+                *search,
+                heading(
+                    f"{objective} against each parameter" + ("" if sampled else ", the mean over the others")
+                ),
+                self.fig5.layout,
+                heading(
+                    f"{objective} per scenario group at each parameter point, points sorted by {', '.join(p)}"
+                ),
+                self.fig6.layout,
+                heading("Best candidate on the chosen scenario, over its recording if it has one"),
+                self.select,
+                self.track_note,
+                self.track.figure,
+            )
+        )
         first = snap or feed.provisional()
         self._counts(first)
         # the counts in the page's HTML as well, shown before BokehJS has loaded, pulled and drawn the document
@@ -241,8 +297,10 @@ class Page:
         try:
             snap = self.feed.snapshot(fresh=True)
             self._show(snap, self._view(snap), self._studies_due(snap, final=True))
-            self.farewell.text = (f"<div id='dse-farewell' style='font-family:sans-serif;background:#fff4d6;"
-                                  f"border:1px solid #e0c060;padding:8px 12px'>{html.escape(note)}</div>")
+            self.farewell.text = (
+                f"<div id='dse-farewell' style='font-family:sans-serif;background:#fff4d6;"
+                f"border:1px solid #e0c060;padding:8px 12px'>{html.escape(note)}</div>"
+            )
         finally:
             said.set()
 
@@ -288,10 +346,16 @@ class Page:
     def _view(self, snap: Snapshot) -> View:
         feed = self.feed
         self.shown = snap.done
-        return View(best_html(snap, feed.parameters, feed.ranked_by, feed.counted(len(self.scenarios))),
-                    charts.TABLE_STYLE + ranking_html(snap.standings.head(TOP), feed.objective, feed.ranked_by,
-                                                      feed.uncertain is not None),
-                    self.fig5.prepare(snap.ok), self.fig6.prepare(snap.ok), self._best_track(snap))
+        return View(
+            best_html(snap, feed.parameters, feed.ranked_by, feed.counted(len(self.scenarios))),
+            charts.TABLE_STYLE
+            + ranking_html(
+                snap.standings.head(TOP), feed.objective, feed.ranked_by, feed.uncertain is not None
+            ),
+            self.fig5.prepare(snap.ok),
+            self.fig6.prepare(snap.ok),
+            self._best_track(snap),
+        )
 
     def _studies_due(self, snap: Snapshot, final: bool = False) -> str | None:
         """Whether the sensitivity or uncertainty figures are due again, when rows or the sweep's state changed:
@@ -325,14 +389,24 @@ class Page:
         if found is None:
             return
         comparison, caption = found
-        self.track_note.text = f"<span id='dse-track'>{html.escape(caption) if comparison else caption}</span>"
+        self.track_note.text = (
+            f"<span id='dse-track'>{html.escape(caption) if comparison else caption}</span>"
+        )
         if comparison is not None:
             self.track.update(comparison, caption)
 
     def _search(self, snap: Snapshot) -> None:
         feed, history = self.feed, snap.history
-        self.search.text = search_html(search_summary(snap.status.search if snap.status else None, history,
-                                                      feed.objective, feed.goal, feed.max_points, feed.strategy))
+        self.search.text = search_html(
+            search_summary(
+                snap.status.search if snap.status else None,
+                history,
+                feed.objective,
+                feed.goal,
+                feed.max_points,
+                feed.strategy,
+            )
+        )
         shown = None if history is None else (history.settings, history.tells, len(history.points))
         if history is None or shown == self.search_shown:
             return  # nothing told since the last refill
@@ -361,4 +435,3 @@ class Page:
         """Another scenario chosen: its track, at once."""
         snap = self.feed.latest()
         self._show_track(self._best_track(snap, force=True) if snap is not None else None)
-

@@ -27,7 +27,9 @@ def parse_address(text: str) -> tuple[str, int]:
     """``host:port`` (port 0 for any free one) -> (host, port)."""
     host, colon, port = text.rpartition(":")
     if not colon or not host or not port.isdigit():
-        raise DseError(f"dashboard address {text!r}: expected host:port, e.g. 127.0.0.1:8790 (port 0 for any)")
+        raise DseError(
+            f"dashboard address {text!r}: expected host:port, e.g. 127.0.0.1:8790 (port 0 for any)"
+        )
     return host, int(port)
 
 
@@ -74,7 +76,9 @@ class DashboardServer:
         self._thread.join(timeout=10)
 
 
-def serve(output: store.Root, sweep: str, address: str = "127.0.0.1:0", space: Space | None = None) -> DashboardServer:
+def serve(
+    output: store.Root, sweep: str, address: str = "127.0.0.1:0", space: Space | None = None
+) -> DashboardServer:
     """Serve the dashboard of ``sweep`` in ``output`` at ``address`` (loopback by default: the page
     shows file paths and has no login) from a daemon thread."""
     from bokeh.application import Application
@@ -96,8 +100,13 @@ def serve(output: store.Root, sweep: str, address: str = "127.0.0.1:0", space: S
         asyncio.set_event_loop(asyncio.new_event_loop())
         loop = IOLoop.current()
         try:
-            server = Server({"/": Application(FunctionHandler(partial(Page, feed)))}, io_loop=loop,
-                            address=host, port=port, allow_websocket_origin=_origins(host, port))
+            server = Server(
+                {"/": Application(FunctionHandler(partial(Page, feed)))},
+                io_loop=loop,
+                address=host,
+                port=port,
+                allow_websocket_origin=_origins(host, port),
+            )
             server.start()
         except OSError as e:
             ready["error"] = e
@@ -119,5 +128,7 @@ def serve(output: store.Root, sweep: str, address: str = "127.0.0.1:0", space: S
 
 def farewell(output: store.Root, how: str) -> str:
     """What a page says when its server stops: how, and how to see the results again."""
-    return (f"{how} This page shows the final state, and no longer updates. To open the results again: "
-            f"dse-runner dashboard {output}")
+    return (
+        f"{how} This page shows the final state, and no longer updates. To open the results again: "
+        f"dse-runner dashboard {output}"
+    )

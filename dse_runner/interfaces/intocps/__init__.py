@@ -39,8 +39,9 @@ def load_space(dse: str | Path, multimodel: str | Path | None = None, coe: str |
     return resolve_space(to_spec(located, located.dse.parent), located.dse)
 
 
-def convert(dse: str | Path, output: str | Path, multimodel: str | Path | None = None,
-            coe: str | Path | None = None) -> Path:
+def convert(
+    dse: str | Path, output: str | Path, multimodel: str | Path | None = None, coe: str | Path | None = None
+) -> Path:
     """Write the space.yaml equivalent to an INTO-CPS DSE config; it is loaded once to check it."""
     output = Path(output).resolve()
     output.parent.mkdir(parents=True, exist_ok=True)
@@ -48,8 +49,10 @@ def convert(dse: str | Path, output: str | Path, multimodel: str | Path | None =
     spec = to_spec(located, output.parent)
     resolve_space(spec, output)
     data = spec.model_dump(mode="json", exclude_none=True, exclude_defaults=True)
-    header = (f"# Converted from the INTO-CPS DSE config {located.dse.name} by dse-runner convert-intocps\n"
-              f"# (multi-model {located.multimodel.name}, co-simulation config {located.coe.name}).\n")
+    header = (
+        f"# Converted from the INTO-CPS DSE config {located.dse.name} by dse-runner convert-intocps\n"
+        f"# (multi-model {located.multimodel.name}, co-simulation config {located.coe.name}).\n"
+    )
     output.write_text(header + yaml.safe_dump(data, sort_keys=False, width=110))
     return output
 
@@ -66,15 +69,26 @@ def write_result_files(output: store.Root, folder: Path, sweep: str | None = Non
     sweep = pick_sweep(output, sweep)
     spec = load_sweep_spec(output, sweep)
     if spec.origin is None or spec.origin.format != "intocps":
-        raise DseError(f"sweep {sweep!r} was not converted from an INTO-CPS DSE config: no INTO-CPS result files")
+        raise DseError(
+            f"sweep {sweep!r} was not converted from an INTO-CPS DSE config: no INTO-CPS result files"
+        )
     ranking = rank(output, sweep)
     ids = _ids(spec)
     objectives = scalar_objectives(spec, output, sweep)
     rows = current_rows(output, sweep, ["status", *spec.parameters])
     failed = rows.loc[rows["status"] != "ok", list(spec.parameters)].drop_duplicates()
-    fixed = {ids(ref): value for ref, value in _multimodel_parameters(spec).items() if ref not in spec.parameters}
-    return write_results(Path(folder), ranking.totals, {ref: ids(ref) for ref in spec.parameters}, objectives,
-                         spec.ranking.pareto_goals() or [(ranking.objective, ranking.goal)], fixed, failed)
+    fixed = {
+        ids(ref): value for ref, value in _multimodel_parameters(spec).items() if ref not in spec.parameters
+    }
+    return write_results(
+        Path(folder),
+        ranking.totals,
+        {ref: ids(ref) for ref in spec.parameters},
+        objectives,
+        spec.ranking.pareto_goals() or [(ranking.objective, ranking.goal)],
+        fixed,
+        failed,
+    )
 
 
 def _ids(spec: SpaceSpec):

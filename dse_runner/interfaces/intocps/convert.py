@@ -62,8 +62,10 @@ def translate_expression(text: str, names: set[str], what: str, where: str) -> s
     try:
         compile_constraint(ours, names, what)
     except DseError as e:
-        raise DseError(f"{where}: cannot translate {text!r} into dse-runner's constraint language: "
-                       f"{str(e).removeprefix(f'constraint {ours!r}: ')}") from None
+        raise DseError(
+            f"{where}: cannot translate {text!r} into dse-runner's constraint language: "
+            f"{str(e).removeprefix(f'constraint {ours!r}: ')}"
+        ) from None
     return ours
 
 
@@ -77,8 +79,12 @@ def _fixed(algorithm: VariableStep, path: Path) -> float:
     low, high = algorithm.size
     step = min(max(algorithm.initsize, low), high)
     dropped = f" and its constraints ({', '.join(algorithm.constraints)})" if algorithm.constraints else ""
-    warnings.warn(f"{path}: the variable-step algorithm becomes a fixed step of {step:g} s (its initsize); "
-                  f"its size range [{low:g}, {high:g}]{dropped} are not applied", IntoCpsWarning, stacklevel=2)
+    warnings.warn(
+        f"{path}: the variable-step algorithm becomes a fixed step of {step:g} s (its initsize); "
+        f"its size range [{low:g}, {high:g}]{dropped} are not applied",
+        IntoCpsWarning,
+        stacklevel=2,
+    )
     return step
 
 
@@ -89,8 +95,11 @@ def multimodel(path: Path, base: Path) -> tuple[dict[str, Any], dict[str, str]]:
         raise DseError(f"{path}: not an INTO-CPS multi-model (no 'fmus')")
     unknown = sorted(set(data) - MM_KEYS)
     if unknown:
-        warnings.warn(f"{path}: {', '.join(unknown)} ignored (co-simulation engine settings)", IntoCpsWarning,
-                      stacklevel=2)
+        warnings.warn(
+            f"{path}: {', '.join(unknown)} ignored (co-simulation engine settings)",
+            IntoCpsWarning,
+            stacklevel=2,
+        )
     try:
         ours = from_into_cps({k: data[k] for k in MM_KEYS if k in data}, path.parent)
     except DseError as e:
@@ -98,8 +107,9 @@ def multimodel(path: Path, base: Path) -> tuple[dict[str, Any], dict[str, str]]:
     for instance, fmu in ours["fmus"].items():
         found = Path(fmu) if Path(fmu).is_absolute() else path.parent / fmu
         if not found.exists():
-            raise DseError(f"{path}: FMU of {instance} not found: {fmu} (INTO-CPS looks in the project's FMUs "
-                           "folder)")
+            raise DseError(
+                f"{path}: FMU of {instance} not found: {fmu} (INTO-CPS looks in the project's FMUs folder)"
+            )
         ours["fmus"][instance] = _relative(found, base)
     return ours, into_cps_instances(data)
 
@@ -111,18 +121,25 @@ def objectives(dse: DseConfig, located: Located, base: Path, logged: list[str]) 
     found: dict[str, dict[str, Any]] = {}
     for name, function in dse.objectiveDefinitions.internalFunctions.items():
         if not function.columnID.startswith("{"):
-            raise DseError(f"{where}.internalFunctions.{name}: column {function.columnID!r} is not a model "
-                           "variable; dse-runner reduces {fmu}.instance.variable columns")
-        found[name] = {"signal": _ours(function.columnID, f"{where}.internalFunctions.{name}"),
-                       "reduce": INTERNAL[function.objectiveType]}
+            raise DseError(
+                f"{where}.internalFunctions.{name}: column {function.columnID!r} is not a model "
+                "variable; dse-runner reduces {fmu}.instance.variable columns"
+            )
+        found[name] = {
+            "signal": _ours(function.columnID, f"{where}.internalFunctions.{name}"),
+            "reduce": INTERNAL[function.objectiveType],
+        }
     for name, script in dse.objectiveDefinitions.externalScripts.items():
         path = located.scripts / script.scriptFile
         if not path.is_file():
             raise DseError(f"{where}.externalScripts.{name}: script not found: {path}")
         args = [script.scriptParameters[key] for key in sorted(script.scriptParameters)]  # INTO-CPS's order
         ids = dict.fromkeys([*logged, *(a for a in args if a.startswith("{"))])
-        found[name] = {"script": _relative(path, base), "args": args,
-                       "columns": {i: _ours(i, f"{where}.externalScripts.{name}") for i in ids}}
+        found[name] = {
+            "script": _relative(path, base),
+            "args": args,
+            "columns": {i: _ours(i, f"{where}.externalScripts.{name}") for i in ids},
+        }
     if not found:
         raise DseError(f"{where}: define at least one objective (internalFunctions or externalScripts)")
     return found
@@ -132,18 +149,29 @@ def ranking(dse: DseConfig, names: list[str], path: Path) -> dict[str, Any]:
     """INTO-CPS ranks by a Pareto front of at most two objectives, ``-`` minimised and ``+`` maximised."""
     unknown = sorted(set(dse.ranking) - {"pareto"})
     if unknown:
-        raise DseError(f"{path}: ranking {unknown[0]!r} is not a ranking INTO-CPS or dse-runner knows (pareto)")
-    pareto = [{"objective": n, "goal": "min" if sign == "-" else "max"}
-              for n, sign in dse.ranking.get("pareto", {}).items()]
+        raise DseError(
+            f"{path}: ranking {unknown[0]!r} is not a ranking INTO-CPS or dse-runner knows (pareto)"
+        )
+    pareto = [
+        {"objective": n, "goal": "min" if sign == "-" else "max"}
+        for n, sign in dse.ranking.get("pareto", {}).items()
+    ]
     for entry in pareto:
         if entry["objective"] not in names:
-            raise DseError(f"{path}: ranking.pareto names {entry['objective']!r}, which objectiveDefinitions "
-                           f"does not define ({', '.join(names)})")
-    constraints = [translate_expression(text, set(names), "objective", f"{path}: objectiveConstraints.{i}")
-                   for i, text in enumerate(dse.objectiveConstraints)]
+            raise DseError(
+                f"{path}: ranking.pareto names {entry['objective']!r}, which objectiveDefinitions "
+                f"does not define ({', '.join(names)})"
+            )
+    constraints = [
+        translate_expression(text, set(names), "objective", f"{path}: objectiveConstraints.{i}")
+        for i, text in enumerate(dse.objectiveConstraints)
+    ]
     first = pareto[0] if pareto else {"objective": names[0], "goal": "min"}
-    return {**first, **({"pareto": pareto} if len(pareto) > 1 else {}),
-            **({"constraints": constraints} if constraints else {})}
+    return {
+        **first,
+        **({"pareto": pareto} if len(pareto) > 1 else {}),
+        **({"constraints": constraints} if constraints else {}),
+    }
 
 
 def scenarios(dse: DseConfig, located: Located, base: Path, scripted: bool) -> list[dict[str, Any]]:
@@ -156,8 +184,11 @@ def scenarios(dse: DseConfig, located: Located, base: Path, scripted: bool) -> l
         if scripted and data.is_dir():
             scenario["data"] = _relative(data, base)
         elif scripted and name:
-            warnings.warn(f"{located.dse}: scenario {name!r} has no data folder {data}; its scripts get an empty "
-                          "one", IntoCpsWarning, stacklevel=2)
+            warnings.warn(
+                f"{located.dse}: scenario {name!r} has no data folder {data}; its scripts get an empty one",
+                IntoCpsWarning,
+                stacklevel=2,
+            )
         found.append(scenario)
     return found
 
@@ -166,7 +197,9 @@ def search(dse: DseConfig, pareto: bool, path: Path, points: int) -> dict[str, A
     """exhaustive: the grid; genetic: ``genetic``, or ``nsga2`` for a Pareto ranking, with INTO-CPS's options."""
     kind = dse.algorithm.type
     if kind not in ALGORITHMS:
-        raise DseError(f"{path}: algorithm {kind!r} is not one INTO-CPS or dse-runner runs ({', '.join(ALGORITHMS)})")
+        raise DseError(
+            f"{path}: algorithm {kind!r} is not one INTO-CPS or dse-runner runs ({', '.join(ALGORITHMS)})"
+        )
     if kind == "exhaustive":
         return {}
     options = {**dse.algorithm.options, **(dse.geneticArguments or {})}
@@ -177,27 +210,48 @@ def search(dse: DseConfig, pareto: bool, path: Path, points: int) -> dict[str, A
     generations = int(options.get("maxGenerations") or GENERATIONS)
     settings: dict[str, Any] = {"max_points": min(population * generations, points)}
     if pareto:
-        settings.update(strategy="nsga2", population_size=population,
-                        **({"mutation_prob": mutation} if mutation is not None else {}))
+        settings.update(
+            strategy="nsga2",
+            population_size=population,
+            **({"mutation_prob": mutation} if mutation is not None else {}),
+        )
     else:
-        settings.update(strategy="genetic", population=population,
-                        **({"mutation_probability": mutation} if mutation is not None else {}))
+        settings.update(
+            strategy="genetic",
+            population=population,
+            **({"mutation_probability": mutation} if mutation is not None else {}),
+        )
         without = options.get("maxGenerationsWithoutImprovement")
         if without:
             settings["max_generations_without_improvement"] = int(without)
-    used = {"initialPopulation", "popSize", "mutationChance", "mutationProbability", "maxGenerations",
-            "maxGenerationsWithoutImprovement", "initialPopulationDistribution", "parentSelectionStrategy"}
+    used = {
+        "initialPopulation",
+        "popSize",
+        "mutationChance",
+        "mutationProbability",
+        "maxGenerations",
+        "maxGenerationsWithoutImprovement",
+        "initialPopulationDistribution",
+        "parentSelectionStrategy",
+    }
     ignored = sorted(set(options) - used)
     if ignored:
-        warnings.warn(f"{path}: genetic options {', '.join(ignored)} have no counterpart in {settings['strategy']}; "
-                      "ignored", IntoCpsWarning, stacklevel=2)
+        warnings.warn(
+            f"{path}: genetic options {', '.join(ignored)} have no counterpart in {settings['strategy']}; "
+            "ignored",
+            IntoCpsWarning,
+            stacklevel=2,
+        )
     return settings
 
 
 def _values(values: list[Any], dse: DseConfig) -> list[Any] | dict[str, float]:
     """A list of choices; in the Python 3 scripts' genetic format (``geneticArguments``), ``[min, max]``."""
-    if dse.geneticArguments is not None and len(values) == 2 and all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+    if (
+        dse.geneticArguments is not None
+        and len(values) == 2
+        and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
+    ):
         return {"low": min(values), "high": max(values)}
     return values
 
@@ -216,18 +270,29 @@ def to_spec(located: Located, base: Path) -> SpaceSpec:
     coe = read(located.coe, CoeConfig)
     model, fmu_keys = multimodel(located.multimodel, base)
     where = located.dse
-    parameters = {_ours(ref, f"{where}: parameters"): _values(values, dse) for ref, values in dse.parameters.items()}
-    constraints = [translate_expression(text, set(parameters), "parameter", f"{where}: parameterConstraints.{i}")
-                   for i, text in enumerate(dse.parameterConstraints)]
+    parameters = {
+        _ours(ref, f"{where}: parameters"): _values(values, dse) for ref, values in dse.parameters.items()
+    }
+    constraints = [
+        translate_expression(text, set(parameters), "parameter", f"{where}: parameterConstraints.{i}")
+        for i, text in enumerate(dse.parameterConstraints)
+    ]
     logged = [f"{fmu_keys[s.split('.')[0]]}.{s}" for s in model["connections"] if s.split(".")[0] in fmu_keys]
     scored = objectives(dse, located, base, logged)
     ranked = ranking(dse, list(scored), where)
     scripted = bool(dse.objectiveDefinitions.externalScripts)
     name = re.sub(r"[^A-Za-z0-9_.-]", "_", located.dse.name.removesuffix(".json").removesuffix(".dse"))
-    return SpaceSpec.model_validate({
-        "name": name, "multimodel": model, "experiment": experiment(coe, located.coe),
-        "scenarios": scenarios(dse, located, base, scripted), "parameters": parameters,
-        "constraints": constraints, "objectives": scored, "ranking": ranked,
-        "search": search(dse, "pareto" in ranked, where, _points(parameters)),
-        "origin": {"format": "intocps", "path": _relative(located.dse, base), "fmu_keys": fmu_keys},
-    })
+    return SpaceSpec.model_validate(
+        {
+            "name": name,
+            "multimodel": model,
+            "experiment": experiment(coe, located.coe),
+            "scenarios": scenarios(dse, located, base, scripted),
+            "parameters": parameters,
+            "constraints": constraints,
+            "objectives": scored,
+            "ranking": ranked,
+            "search": search(dse, "pareto" in ranked, where, _points(parameters)),
+            "origin": {"format": "intocps", "path": _relative(located.dse, base), "fmu_keys": fmu_keys},
+        }
+    )

@@ -41,6 +41,7 @@ class IntoCpsWarning(UserWarning):
 
 # ---- *.dse.json ------------------------------------------------------------------------------------
 
+
 class Algorithm(BaseModel):
     """``{"type": "exhaustive"}`` or ``{"type": "genetic", ...options}``; missing or ``{}`` is exhaustive."""
 
@@ -112,6 +113,7 @@ class DseConfig(BaseModel):
 
 # ---- *.coe.json ------------------------------------------------------------------------------------
 
+
 class FixedStep(BaseModel):
     model_config = Loose
     type: Literal["fixed-step"]
@@ -135,8 +137,12 @@ def _step_kind(value: Any) -> str | None:
 
 StepAlgorithm = Annotated[
     Annotated[FixedStep, Tag("fixed-step")] | Annotated[VariableStep, Tag("var-step")],
-    Discriminator(_step_kind, custom_error_type="algorithm",
-                  custom_error_message="expected {type: fixed-step, size} or {type: var-step, initsize, size}")]
+    Discriminator(
+        _step_kind,
+        custom_error_type="algorithm",
+        custom_error_message="expected {type: fixed-step, size} or {type: var-step, initsize, size}",
+    ),
+]
 
 
 class CoeConfig(BaseModel):

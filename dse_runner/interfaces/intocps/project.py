@@ -55,8 +55,10 @@ def project_root(dse: Path) -> Path:
     for folder in dse.resolve().parents:
         if folder.name == "DSEs":
             return folder.parent
-    raise DseError(f"{dse}: not inside an INTO-CPS project (no {PROJECT_FILE} above it, and it is not under "
-                   "a DSEs folder)")
+    raise DseError(
+        f"{dse}: not inside an INTO-CPS project (no {PROJECT_FILE} above it, and it is not under "
+        "a DSEs folder)"
+    )
 
 
 def _is_result_copy(path: Path, root: Path) -> bool:
@@ -66,8 +68,12 @@ def _is_result_copy(path: Path, root: Path) -> bool:
 
 def coe_candidates(root: Path) -> list[Path]:
     """Every co-simulation config of the project, as the application lists them."""
-    found = [path for name in MULTI_MODEL_FOLDERS for path in (root / name).rglob("*coe.json")
-             if path.is_file() and not _is_result_copy(path, root)]
+    found = [
+        path
+        for name in MULTI_MODEL_FOLDERS
+        for path in (root / name).rglob("*coe.json")
+        if path.is_file() and not _is_result_copy(path, root)
+    ]
     return sorted(set(found))
 
 
@@ -82,16 +88,24 @@ def multimodel_of(coe: Path, root: Path) -> Path:
     given = read(coe, CoeConfig).multimodel_path
     if given is not None and (root / given).is_file():
         return root / given
-    raise DseError(f"{coe}: no multi-model found for it: no mm.json in {folder}"
-                   + (f" and its multimodel_path {given!r} is not a file" if given else
-                      " and it has no multimodel_path; give --multimodel"))
+    raise DseError(
+        f"{coe}: no multi-model found for it: no mm.json in {folder}"
+        + (
+            f" and its multimodel_path {given!r} is not a file"
+            if given
+            else " and it has no multimodel_path; give --multimodel"
+        )
+    )
 
 
 def instances_used(dse: DseConfig) -> set[str]:
     """The ``{fmu}.instance`` of every id the DSE config names (an id of another shape is named by
     convert.py's checks, later)."""
-    ids = [*dse.parameters, *(f.columnID for f in dse.objectiveDefinitions.internalFunctions.values()),
-           *(v for s in dse.objectiveDefinitions.externalScripts.values() for v in s.scriptParameters.values())]
+    ids = [
+        *dse.parameters,
+        *(f.columnID for f in dse.objectiveDefinitions.internalFunctions.values()),
+        *(v for s in dse.objectiveDefinitions.externalScripts.values() for v in s.scriptParameters.values()),
+    ]
     return {f"{key}.{instance}" for key, instance, _ in filter(None, map(_split, ids))}
 
 
@@ -134,8 +148,11 @@ def _pick_coe(root: Path, dse: DseConfig, multimodel: Path | None) -> Path:
         candidates = [c for c in candidates if _multimodel_or_none(c, root) == multimodel.resolve()]
     where = f"{root}/{'|'.join(MULTI_MODEL_FOLDERS)}"
     if not candidates:
-        raise DseError(f"no co-simulation config (*coe.json) under {where}"
-                       + (f" runs {multimodel}" if multimodel else "") + "; give --coe")
+        raise DseError(
+            f"no co-simulation config (*coe.json) under {where}"
+            + (f" runs {multimodel}" if multimodel else "")
+            + "; give --coe"
+        )
     used = instances_used(dse)
     lacking = {c: _lacking(c, root, used) for c in candidates}
     fitting = [c for c in candidates if not lacking[c]]
@@ -145,11 +162,21 @@ def _pick_coe(root: Path, dse: DseConfig, multimodel: Path | None) -> Path:
     if absent and any(absent.values()):
         runnable = [c for c in fitting if not absent[c]]
         if not runnable:
-            raise DseError("every co-simulation config that could run this DSE lacks FMUs: " + "; ".join(
-                f"{_shown(c, root)} needs {', '.join(missing)}" for c, missing in absent.items()))
-        warnings.warn(IntoCpsWarning("set aside, their FMUs absent from the project: " + "; ".join(
-            f"{_shown(c, root)} (needs {', '.join(missing)})" for c, missing in absent.items() if missing)),
-            stacklevel=3)
+            raise DseError(
+                "every co-simulation config that could run this DSE lacks FMUs: "
+                + "; ".join(f"{_shown(c, root)} needs {', '.join(missing)}" for c, missing in absent.items())
+            )
+        warnings.warn(
+            IntoCpsWarning(
+                "set aside, their FMUs absent from the project: "
+                + "; ".join(
+                    f"{_shown(c, root)} (needs {', '.join(missing)})"
+                    for c, missing in absent.items()
+                    if missing
+                )
+            ),
+            stacklevel=3,
+        )
         fitting = runnable
     if len(fitting) == 1:
         return fitting[0]
@@ -181,8 +208,13 @@ def absent_fmus(coe: Path, root: Path) -> list[str]:
         warnings.simplefilter("ignore")
         found = from_into_cps(data, multimodel.parent)["fmus"]
     named = {instance: data["fmus"][key] for instance, key in into_cps_instances(data).items()}
-    return sorted({portable(named[instance]) for instance, path in found.items()
-                   if not (Path(path).is_absolute() and Path(path).exists())})  # one not found stays relative
+    return sorted(
+        {
+            portable(named[instance])
+            for instance, path in found.items()
+            if not (Path(path).is_absolute() and Path(path).exists())
+        }
+    )  # one not found stays relative
 
 
 def _shown(path: Path, root: Path) -> str:
@@ -198,8 +230,11 @@ def _none_fits(root: Path, lacking: dict[Path, list[str]]) -> str:
         looked.setdefault(name, missing)
     if len({tuple(m) for m in looked.values()}) == 1:
         missing = ", ".join(next(iter(looked.values())))
-        return (f"this DSE names {missing}, which no multi-model of the project defines (looked at "
-                f"{', '.join(looked)}; a multi-model defines the {{fmu}}.instance its connections and "
-                "parameters name)")
-    return ("no multi-model of the project defines every {fmu}.instance this DSE names: "
-            + "; ".join(f"{name} lacks {', '.join(missing)}" for name, missing in looked.items()))
+        return (
+            f"this DSE names {missing}, which no multi-model of the project defines (looked at "
+            f"{', '.join(looked)}; a multi-model defines the {{fmu}}.instance its connections and "
+            "parameters name)"
+        )
+    return "no multi-model of the project defines every {fmu}.instance this DSE names: " + "; ".join(
+        f"{name} lacks {', '.join(missing)}" for name, missing in looked.items()
+    )

@@ -23,10 +23,14 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-STYLE = ("body { font-family: sans-serif; } table { border-collapse: collapse; } "
-         "th, td { border: 1px solid #999; padding: 2px 8px; text-align: right; } th { background: #ddd; }")
-DOCTYPE = ('<!DOCTYPE html PUBLIC "-//W3C//DTD XHTML 1.0 Strict//EN" '
-           '"http://www.w3.org/TR/xhtml1/DTD/xhtml1-strict.dtd">')
+STYLE = (
+    "body { font-family: sans-serif; } table { border-collapse: collapse; } "
+    "th, td { border: 1px solid #999; padding: 2px 8px; text-align: right; } th { background: #ddd; }"
+)
+DOCTYPE = (
+    '<!DOCTYPE html PUBLIC "-//W3C//DTD XHTML 1.0 Strict//EN" '
+    '"http://www.w3.org/TR/xhtml1/DTD/xhtml1-strict.dtd">'
+)
 
 
 def _plain(value: Any) -> Any:
@@ -55,8 +59,9 @@ def fronts(values: np.ndarray, goals: list[str]) -> list[np.ndarray]:
     return list(NonDominatedSorting().do(costs)) if len(costs) else []
 
 
-def _check(points: pd.DataFrame, parameters: dict[str, str], objectives: list[str],
-           pareto: list[tuple[str, str]]) -> None:
+def _check(
+    points: pd.DataFrame, parameters: dict[str, str], objectives: list[str], pareto: list[tuple[str, str]]
+) -> None:
     """A NaN would be written as ``nan`` and ranked anywhere: callers pass only complete points."""
     missing = [c for c in [*parameters, *objectives] if c not in points.columns]
     if missing:
@@ -73,8 +78,9 @@ def _ranks(points: pd.DataFrame, pareto: list[tuple[str, str]]) -> tuple[np.ndar
     """Each point's rank, and the table's row order: rank by rank, within a rank best first by the first
     pareto objective (stable, so equal designs keep the caller's order)."""
     rank = np.zeros(len(points), dtype=int)
-    for number, members in enumerate(fronts(points[[n for n, _ in pareto]].to_numpy(float),
-                                            [g for _, g in pareto]), start=1):
+    for number, members in enumerate(
+        fronts(points[[n for n, _ in pareto]].to_numpy(float), [g for _, g in pareto]), start=1
+    ):
         rank[members] = number
     first, goal = pareto[0]
     key = points[first].to_numpy(float) * (1.0 if goal == "min" else -1.0)
@@ -83,18 +89,29 @@ def _ranks(points: pd.DataFrame, pareto: list[tuple[str, str]]) -> tuple[np.ndar
 
 def _html_page(header: list[str], rows: list[list[str]]) -> str:
     """Output_HTML's page: one heading, the graph, one table (its rows closed with ``</tr>``)."""
+
     def row(tag: str, cells: list[str]) -> str:
         return "<tr>" + "".join(f"<{tag}>{html.escape(c)}</{tag}>" for c in cells) + "</tr>"
 
-    return "\n".join([
-        DOCTYPE, '<html xmlns="http://www.w3.org/1999/xhtml" xml:lang="en" lang="en"><head>',
-        f'<title>DSE Results Page</title><style type="text/css">{STYLE}</style></head><body>',
-        "<h1>pareto</h1>", '<p><img src="graphs/pareto.png" alt="pareto" /></p>',
-        "<table>", row("th", header), *(row("td", r) for r in rows), "</table></body></html>", ""])
+    return "\n".join(
+        [
+            DOCTYPE,
+            '<html xmlns="http://www.w3.org/1999/xhtml" xml:lang="en" lang="en"><head>',
+            f'<title>DSE Results Page</title><style type="text/css">{STYLE}</style></head><body>',
+            "<h1>pareto</h1>",
+            '<p><img src="graphs/pareto.png" alt="pareto" /></p>',
+            "<table>",
+            row("th", header),
+            *(row("td", r) for r in rows),
+            "</table></body></html>",
+            "",
+        ]
+    )
 
 
-def _graph(path: Path, points: pd.DataFrame, pareto: list[tuple[str, str]], rank: np.ndarray,
-           order: np.ndarray) -> None:
+def _graph(
+    path: Path, points: pd.DataFrame, pareto: list[tuple[str, str]], rank: np.ndarray, order: np.ndarray
+) -> None:
     """Ranking_pareto's graph: rank 1 a green line with markers, later ranks markers in red and yellow.
     With one pareto objective, that objective against the design's place in the table."""
     import matplotlib
@@ -122,9 +139,15 @@ def _graph(path: Path, points: pd.DataFrame, pareto: list[tuple[str, str]], rank
     plt.close(fig)
 
 
-def write_results(folder: Path, points: pd.DataFrame, parameters: dict[str, str], objectives: list[str],
-                  pareto: list[tuple[str, str]], fixed: dict[str, Any] | None = None,
-                  unrankable: pd.DataFrame | None = None) -> dict[str, Path]:
+def write_results(
+    folder: Path,
+    points: pd.DataFrame,
+    parameters: dict[str, str],
+    objectives: list[str],
+    pareto: list[tuple[str, str]],
+    fixed: dict[str, Any] | None = None,
+    unrankable: pd.DataFrame | None = None,
+) -> dict[str, Path]:
     """INTO-CPS's ranking.json, dseResults.csv, results.html and graphs/pareto.png in ``folder``.
 
     ``points``: one complete row per design, with a column per parameter (``parameters`` maps each to its
@@ -157,13 +180,26 @@ def write_results(folder: Path, points: pd.DataFrame, parameters: dict[str, str]
     names = dirs(points)
     failed = dirs(unrankable) if unrankable is not None else []
     header = ["Rank", *sorted(objectives), *map(trimmed, ids)]
-    rows = [[str(rank[i]), *(str(_plain(columns[o][i])) for o in sorted(objectives)),
-             *(value(pid, i) for pid in ids)] for i in order]
+    rows = [
+        [
+            str(rank[i]),
+            *(str(_plain(columns[o][i])) for o in sorted(objectives)),
+            *(value(pid, i) for pid in ids),
+        ]
+        for i in order
+    ]
 
-    paths = {"csv": folder / "dseResults.csv", "html": folder / "results.html",
-             "ranking": folder / "ranking.json", "graph": folder / "graphs" / "pareto.png"}
-    ranking = {"pareto": {n: [names[i] for i in order if rank[i] == n] for n in sorted(set(rank.tolist()))},
-               "simulations": names + failed, "unrankable": failed}
+    paths = {
+        "csv": folder / "dseResults.csv",
+        "html": folder / "results.html",
+        "ranking": folder / "ranking.json",
+        "graph": folder / "graphs" / "pareto.png",
+    }
+    ranking = {
+        "pareto": {n: [names[i] for i in order if rank[i] == n] for n in sorted(set(rank.tolist()))},
+        "simulations": names + failed,
+        "unrankable": failed,
+    }
     paths["ranking"].write_text(json.dumps(ranking, sort_keys=True, indent=4))  # int ranks: "2" before "10"
     with paths["csv"].open("w", newline="") as file:
         csv.writer(file, lineterminator="\n").writerows([header, *rows])

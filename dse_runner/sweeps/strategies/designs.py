@@ -62,8 +62,10 @@ class Design:
 def plain_intervals(dimensions: tuple[Dimension, ...]) -> bool:
     """Whether every parameter is an interval without log, integer, step or choices: a design's rows then
     never meet the same point twice."""
-    return bool(dimensions) and all(d.choices is None and d.step is None and not d.integer and not d.log
-                                    and d.low is not None for d in dimensions)
+    return bool(dimensions) and all(
+        d.choices is None and d.step is None and not d.integer and not d.log and d.low is not None
+        for d in dimensions
+    )
 
 
 def interval_values(dimensions: tuple[Dimension, ...], units: np.ndarray) -> np.ndarray | None:
@@ -79,16 +81,25 @@ def interval_values(dimensions: tuple[Dimension, ...], units: np.ndarray) -> np.
 
 def salib_problem(dimensions: tuple[Dimension, ...]) -> dict[str, Any]:
     """SALib's problem: every parameter on [0, 1]; domain.py maps units to values (log, grids, choices)."""
-    return {"num_vars": len(dimensions), "names": [d.name for d in dimensions], "bounds": [[0.0, 1.0]] * len(dimensions)}
+    return {
+        "num_vars": len(dimensions),
+        "names": [d.name for d in dimensions],
+        "bounds": [[0.0, 1.0]] * len(dimensions),
+    }
 
 
 def numeric(dimensions: tuple[Dimension, ...]) -> None:
     """Indices move each parameter along its axis: text choices have no order to move along."""
-    text = [d.name for d in dimensions if d.choices is not None
-            and any(isinstance(v, (str, bool)) for v in d.choices)]
+    text = [
+        d.name
+        for d in dimensions
+        if d.choices is not None and any(isinstance(v, (str, bool)) for v in d.choices)
+    ]
     if text:
-        raise DseError(f"search: sensitivity designs need numeric parameters; {', '.join(text)} "
-                       "lists text values (a design moves each parameter along a numeric axis)")
+        raise DseError(
+            f"search: sensitivity designs need numeric parameters; {', '.join(text)} "
+            "lists text values (a design moves each parameter along a numeric axis)"
+        )
 
 
 class SensitivityDesign(Strategy):
@@ -105,7 +116,9 @@ class SensitivityDesign(Strategy):
         numeric(problem.dimensions)
         self.check_budget(problem)
         self._asking: Any = None  # the points' iterator, from the first ask
-        self._own: tuple[Design, list[Point] | np.ndarray | None] | None = None  # a constrained design, drawn for this one
+        self._own: tuple[Design, list[Point] | np.ndarray | None] | None = (
+            None  # a constrained design, drawn for this one
+        )
 
     @property
     def design(self) -> Design:
@@ -128,14 +141,22 @@ class SensitivityDesign(Strategy):
         problem = self.problem
         if problem.constrained:
             return None
-        return type(self), self.options.model_dump_json(), problem.dimensions, problem.max_points, problem.seed
+        return (
+            type(self),
+            self.options.model_dump_json(),
+            problem.dimensions,
+            problem.max_points,
+            problem.seed,
+        )
 
     def check_budget(self, problem: Problem) -> None:
         """The budget buys at least one block."""
         block = self.block_of(len(problem.dimensions), self.options)
         if problem.max_points < block:
-            raise DseError(f"search: {self.label} needs at least {block} points for {len(problem.dimensions)} "
-                           f"parameters (one block of {self.rows_in_words()}); max_points is {problem.max_points}")
+            raise DseError(
+                f"search: {self.label} needs at least {block} points for {len(problem.dimensions)} "
+                f"parameters (one block of {self.rows_in_words()}); max_points is {problem.max_points}"
+            )
 
     def fit(self, problem: Problem) -> tuple[Design, list[Point] | np.ndarray | None]:
         """The longest prefix of whole blocks whose distinct admitted points fit the budget. Repeats are
@@ -153,7 +174,7 @@ class SensitivityDesign(Strategy):
             if plain_intervals(problem.dimensions) and problem.max_points - len(points) < block:
                 break  # rows that never repeat: no further block fits (drawing it would cost as much again)
             n, found = 2 * n, len(points)
-        units = design.units[:blocks * design.block]
+        units = design.units[: blocks * design.block]
         return replace(design, units=units), points
 
     @classmethod
@@ -197,21 +218,28 @@ class SensitivityDesign(Strategy):
         left = self.problem.max_points - self.size
         if left < self.block_of(len(self.problem.dimensions), self.options):
             return None
-        return (f"search: {self.label} runs {self.size} distinct points of max_points "
-                f"{self.problem.max_points}: {self.more()}")
+        return (
+            f"search: {self.label} runs {self.size} distinct points of max_points "
+            f"{self.problem.max_points}: {self.more()}"
+        )
 
     def more(self) -> str:
         """How to get more distinct points out of the design."""
         finite = distinct_points(self.problem.dimensions)
         if finite is not None:
-            return (f"the parameters' grids and choices hold {finite} points; finer grids or intervals give "
-                    "more")
+            return (
+                f"the parameters' grids and choices hold {finite} points; finer grids or intervals give more"
+            )
         return "the constraints leave few points; widen them, or lower max_points"
 
 
-_DRAWN: dict[tuple, tuple[Design, list[Point] | np.ndarray | None]] = {}  # the last designs drawn, by identity()
+_DRAWN: dict[
+    tuple, tuple[Design, list[Point] | np.ndarray | None]
+] = {}  # the last designs drawn, by identity()
 DRAWN_KEPT = 2
-STREAM_BLOCKS = 8192  # blocks drawn at a time by a design that streams: about 1 MB of rows for a few parameters
+STREAM_BLOCKS = (
+    8192  # blocks drawn at a time by a design that streams: about 1 MB of rows for a few parameters
+)
 _COUNTED: dict[tuple, int] = {}  # the points of designs that stream, by identity(): counting draws them all
 
 
@@ -276,7 +304,7 @@ def _budgeted(design: Design, problem: Problem) -> tuple[int, list[Point]]:
     rows = design.points(problem.dimensions)
     for b in range(design.blocks):
         new: dict[tuple, Point] = {}
-        for point in rows[b * design.block:(b + 1) * design.block]:
+        for point in rows[b * design.block : (b + 1) * design.block]:
             key = tuple(point.values())
             if key not in seen and key not in new and problem.admits(point):
                 new[key] = point
@@ -324,7 +352,9 @@ class SobolIndices(SensitivityDesign):
         Sobol' sequence coincide by chance (odds near blocks^2 * 2^-60; one coordinate never repeats), which at
         worst simulates a point twice. So every block is kept, and its points are known a part at a time."""
         problem = self.problem
-        return not problem.constrained and len(problem.dimensions) >= 2 and plain_intervals(problem.dimensions)
+        return (
+            not problem.constrained and len(problem.dimensions) >= 2 and plain_intervals(problem.dimensions)
+        )
 
     def draw(self, problem: Problem, n: int) -> Design:
         return self.draw_part(problem, n, 0)
@@ -337,15 +367,23 @@ class SobolIndices(SensitivityDesign):
         engine = qmc.Sobol(2 * len(problem.dimensions), scramble=True, seed=problem.seed)
         if skip:  # (scipy refuses to fast-forward by nothing)
             engine.fast_forward(skip)
-        with warnings.catch_warnings():  # balance is best at powers of two; any other N or skip still estimates
+        with (
+            warnings.catch_warnings()
+        ):  # balance is best at powers of two; any other N or skip still estimates
             warnings.simplefilter("ignore", UserWarning)
             units = saltelli_rows(engine.random(n), self.options.second_order)
-        return Design("sobol", units, self.block_of(len(problem.dimensions), self.options),
-                      second_order=self.options.second_order)
+        return Design(
+            "sobol",
+            units,
+            self.block_of(len(problem.dimensions), self.options),
+            second_order=self.options.second_order,
+        )
 
 
 class MorrisOptions(Options):
-    levels: PositiveInt = Field(4, ge=2, multiple_of=2)  # grid levels of each parameter; even, as Morris' design needs
+    levels: PositiveInt = Field(
+        4, ge=2, multiple_of=2
+    )  # grid levels of each parameter; even, as Morris' design needs
 
 
 class Morris(SensitivityDesign):
@@ -367,19 +405,26 @@ class Morris(SensitivityDesign):
     def draw(self, problem: Problem, n: int) -> Design:
         from SALib.sample import morris
 
-        units = morris.sample(salib_problem(problem.dimensions), n, num_levels=self.options.levels, seed=problem.seed)
-        return Design("morris", units, self.block_of(len(problem.dimensions), self.options),
-                      levels=self.options.levels)
+        units = morris.sample(
+            salib_problem(problem.dimensions), n, num_levels=self.options.levels, seed=problem.seed
+        )
+        return Design(
+            "morris", units, self.block_of(len(problem.dimensions), self.options), levels=self.options.levels
+        )
 
     def more(self) -> str:
         """Morris moves on a grid of ``levels`` per parameter, which holds levels^D points at most."""
         levels, d = self.options.levels, len(self.problem.dimensions)
-        return (f"{levels} levels over {d} parameters give at most {levels ** d} points; more levels "
-                f"(search: {{levels: {2 * levels}}}) give more")
+        return (
+            f"{levels} levels over {d} parameters give at most {levels**d} points; more levels "
+            f"(search: {{levels: {2 * levels}}}) give more"
+        )
 
 
 class FastOptions(Options):
-    harmonics: PositiveInt = 4  # M, the Fourier harmonics summed per frequency (SALib's default); curves need > 4 M^2 rows
+    harmonics: PositiveInt = (
+        4  # M, the Fourier harmonics summed per frequency (SALib's default); curves need > 4 M^2 rows
+    )
 
 
 class Fast(SensitivityDesign):
@@ -394,7 +439,7 @@ class Fast(SensitivityDesign):
     @classmethod
     def block_of(cls, dimensions: int, options: FastOptions) -> int:
         """The shortest curve SALib accepts: N > 4 M^2."""
-        return 4 * options.harmonics ** 2 + 1
+        return 4 * options.harmonics**2 + 1
 
     @classmethod
     def rows_in_words(cls) -> str:
@@ -405,9 +450,11 @@ class Fast(SensitivityDesign):
         dimensions = len(problem.dimensions)
         shortest = self.block_of(dimensions, self.options)
         if problem.max_points < shortest * dimensions:
-            raise DseError(f"search: fast needs at least {shortest * dimensions} points for {dimensions} parameters "
-                           f"({self.rows_in_words()}: {shortest} rows at harmonics {self.options.harmonics}); "
-                           f"max_points is {problem.max_points}")
+            raise DseError(
+                f"search: fast needs at least {shortest * dimensions} points for {dimensions} parameters "
+                f"({self.rows_in_words()}: {shortest} rows at harmonics {self.options.harmonics}); "
+                f"max_points is {problem.max_points}"
+            )
 
     def fit(self, problem: Problem) -> tuple[Design, list[Point]]:
         """D curves of ``max_points // D`` rows; the design's distinct admitted points, asked once each."""
@@ -423,5 +470,7 @@ class Fast(SensitivityDesign):
         """``n`` rows per curve."""
         from SALib.sample import fast_sampler
 
-        units = fast_sampler.sample(salib_problem(problem.dimensions), n, M=self.options.harmonics, seed=problem.seed)
+        units = fast_sampler.sample(
+            salib_problem(problem.dimensions), n, M=self.options.harmonics, seed=problem.seed
+        )
         return Design("fast", units, n, harmonics=self.options.harmonics)

@@ -40,21 +40,35 @@ from ..search import Evaluation, Options, Problem, Strategy
 
 
 class GeneticOptions(Options):
-    population: PositiveInt = Field(20, validation_alias=AliasChoices("population", "initialPopulation", "popSize"))
-    distribution: Literal["random", "uniform"] = Field(  # uniform: a Latin hypercube spreads the first generation
-        "random", validation_alias=AliasChoices("distribution", "initialPopulationDistribution"))
+    population: PositiveInt = Field(
+        20, validation_alias=AliasChoices("population", "initialPopulation", "popSize")
+    )
+    distribution: Literal["random", "uniform"] = (
+        Field(  # uniform: a Latin hypercube spreads the first generation
+            "random", validation_alias=AliasChoices("distribution", "initialPopulationDistribution")
+        )
+    )
     mutation_probability: float | None = Field(  # per gene; default 1 / number of parameters
-        None, ge=0, le=1, validation_alias=AliasChoices("mutation_probability", "mutationProbability",
-                                                        "mutationChance"))
+        None,
+        ge=0,
+        le=1,
+        validation_alias=AliasChoices("mutation_probability", "mutationProbability", "mutationChance"),
+    )
     parent_selection: Literal["algorithmObjectiveSpace", "tournament", "random"] = Field(
-        "tournament", validation_alias=AliasChoices("parent_selection", "parentSelectionStrategy"))
+        "tournament", validation_alias=AliasChoices("parent_selection", "parentSelectionStrategy")
+    )
     crossover: Literal["SBX", "UniformCrossing", "NPointCrossing"] = Field(
-        "SBX", validation_alias=AliasChoices("crossover", "crossingFunction"))
-    max_generations: PositiveInt | None = Field(None, validation_alias=AliasChoices("max_generations",
-                                                                                    "maxGenerations"))
+        "SBX", validation_alias=AliasChoices("crossover", "crossingFunction")
+    )
+    max_generations: PositiveInt | None = Field(
+        None, validation_alias=AliasChoices("max_generations", "maxGenerations")
+    )
     max_generations_without_improvement: PositiveInt | None = Field(
-        None, validation_alias=AliasChoices("max_generations_without_improvement",
-                                            "maxGenerationsWithoutImprovement"))
+        None,
+        validation_alias=AliasChoices(
+            "max_generations_without_improvement", "maxGenerationsWithoutImprovement"
+        ),
+    )
 
 
 def _binary_tournament(pop, P, **kwargs):
@@ -65,8 +79,9 @@ def _binary_tournament(pop, P, **kwargs):
         if cv_a > 0 or cv_b > 0:
             winners[i] = compare(a, cv_a, b, cv_b, method="smaller_is_better", return_random_if_equal=True)
         else:
-            winners[i] = compare(a, pop[a].F[0], b, pop[b].F[0], method="smaller_is_better",
-                                 return_random_if_equal=True)
+            winners[i] = compare(
+                a, pop[a].F[0], b, pop[b].F[0], method="smaller_is_better", return_random_if_equal=True
+            )
     return winners[:, None]
 
 
@@ -81,16 +96,24 @@ class Genetic(Strategy):
         self.dimensions = list(problem.dimensions)
         self.sign = 1.0 if problem.objective[1] == "min" else -1.0
         self.pymoo_problem = PymooProblem(n_var=len(self.dimensions), n_obj=1, n_ieq_constr=1, xl=0.0, xu=1.0)
-        crossover = {"SBX": SBX(), "UniformCrossing": UniformCrossover(), "NPointCrossing": TwoPointCrossover()}
+        crossover = {
+            "SBX": SBX(),
+            "UniformCrossing": UniformCrossover(),
+            "NPointCrossing": TwoPointCrossover(),
+        }
         self.algorithm = GA(
             pop_size=o.population,
             sampling=LHS() if o.distribution == "uniform" else FloatRandomSampling(),
-            selection=RandomSelection() if o.parent_selection == "random"
+            selection=RandomSelection()
+            if o.parent_selection == "random"
             else TournamentSelection(func_comp=_binary_tournament),
             crossover=crossover[o.crossover],
             mutation=PM(prob_var=o.mutation_probability) if o.mutation_probability is not None else PM(),
-            eliminate_duplicates=True)
-        self.algorithm.setup(self.pymoo_problem, termination=("n_gen", 10**9), seed=problem.seed, verbose=False)
+            eliminate_duplicates=True,
+        )
+        self.algorithm.setup(
+            self.pymoo_problem, termination=("n_gen", 10**9), seed=problem.seed, verbose=False
+        )
         self.generation = 0
         self.best = np.inf
         self.stale = 0  # generations without improvement
@@ -117,7 +140,9 @@ class Genetic(Strategy):
         index = self.waiting[tuple(sorted(point.items()))].popleft()
         if evaluation.state == "ok":
             self.F[index, 0] = self.sign * evaluation.value(self.problem.objective[0])
-            self.G[index, 0] = float(len(evaluation.breaks))  # ranking constraints broken: not selected over one that keeps them
+            self.G[index, 0] = float(
+                len(evaluation.breaks)
+            )  # ranking constraints broken: not selected over one that keeps them
         else:
             self.G[index, 0] = 1.0  # infeasible or failed: never selected over a feasible point
         self.told += 1
@@ -138,6 +163,7 @@ class Genetic(Strategy):
 
     def _finished(self) -> bool:
         o: GeneticOptions = self.options
-        return ((o.max_generations is not None and self.generation >= o.max_generations)
-                or (o.max_generations_without_improvement is not None
-                    and self.stale >= o.max_generations_without_improvement))
+        return (o.max_generations is not None and self.generation >= o.max_generations) or (
+            o.max_generations_without_improvement is not None
+            and self.stale >= o.max_generations_without_improvement
+        )

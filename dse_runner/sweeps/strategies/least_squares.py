@@ -39,23 +39,38 @@ class LeastSquares(Strategy):
         o: LeastSquaresOptions = self.options
         self.residuals = o.residuals or (problem.vectors[0] if problem.vectors else None)
         if self.residuals is None or self.residuals not in problem.vectors:
-            raise DseError(f"search: least_squares fits a vector objective (one residual per recorded sample), e.g. "
-                           f"{{signal: ..., recorded: ..., metric: residuals}}; "
-                           f"the space has {', '.join(problem.vectors) or 'none'}")
+            raise DseError(
+                f"search: least_squares fits a vector objective (one residual per recorded sample), e.g. "
+                f"{{signal: ..., recorded: ..., metric: residuals}}; "
+                f"the space has {', '.join(problem.vectors) or 'none'}"
+            )
         discrete = [d.name for d in problem.dimensions if d.choices is not None]
         if discrete:
-            raise DseError(f"search: least_squares needs numeric ranges; {', '.join(discrete)} is a list of choices")
+            raise DseError(
+                f"search: least_squares needs numeric ranges; {', '.join(discrete)} is a list of choices"
+            )
         stepped = [d.name for d in problem.dimensions if d.integer or d.step is not None]
         if stepped:  # its steps and finite differences move each parameter by fractions of its range
-            raise DseError(f"search: least_squares moves every parameter continuously; {', '.join(stepped)} takes "
-                           "only whole numbers or a grid's steps: give it an interval {low, high}")
+            raise DseError(
+                f"search: least_squares moves every parameter continuously; {', '.join(stepped)} takes "
+                "only whole numbers or a grid's steps: give it an interval {low, high}"
+            )
         unknown = set(o.start) - {d.name for d in problem.dimensions}
         if unknown:
             raise DseError(f"search.start: {', '.join(sorted(unknown))} is not a swept parameter")
-        parameters = tuple(Parameter(d.name, o.start.get(d.name, (d.low + d.high) / 2), d.low, d.high,
-                                     o.relative_step * (d.high - d.low)) for d in problem.dimensions)
-        self.solver = LevenbergMarquardt(FitProblem(problem.label, parameters, {}, problem.scenarios,
-                                                    o.max_iterations, o.tolerance))
+        parameters = tuple(
+            Parameter(
+                d.name,
+                o.start.get(d.name, (d.low + d.high) / 2),
+                d.low,
+                d.high,
+                o.relative_step * (d.high - d.low),
+            )
+            for d in problem.dimensions
+        )
+        self.solver = LevenbergMarquardt(
+            FitProblem(problem.label, parameters, {}, problem.scenarios, o.max_iterations, o.tolerance)
+        )
         self._round()
 
     def _round(self) -> None:
@@ -80,6 +95,8 @@ class LeastSquares(Strategy):
 
         self.solver.tell(residuals)
         if self.solver.error is not None:
-            raise DseError(f"search: least_squares cannot start: {self.solver.error} (give search.start a point "
-                           "that simulates)")
+            raise DseError(
+                f"search: least_squares cannot start: {self.solver.error} (give search.start a point "
+                "that simulates)"
+            )
         self._round()

@@ -32,9 +32,20 @@ from ...schema import Extensible
 from ..domain import Dimension, Point
 from ..search import Evaluation, Problem, Strategy
 
-NOT_OPTIONS = {"self", "seed", "constraints_func", "independent_sampler", "source_trials", "gamma", "weights",
-               "mutation", "crossover", "elite_population_selection_strategy", "child_generation_strategy",
-               "after_trial_strategy"}  # set by us, or not expressible in YAML
+NOT_OPTIONS = {
+    "self",
+    "seed",
+    "constraints_func",
+    "independent_sampler",
+    "source_trials",
+    "gamma",
+    "weights",
+    "mutation",
+    "crossover",
+    "elite_population_selection_strategy",
+    "child_generation_strategy",
+    "after_trial_strategy",
+}  # set by us, or not expressible in YAML
 
 
 class SamplerOptions(BaseModel):
@@ -61,7 +72,9 @@ def keyword_options(kind: type) -> set[str]:
     return names
 
 
-VIOLATION = "space.yaml constraints"  # the trial's constraint value: > 0 where the constraints reject the point
+VIOLATION = (
+    "space.yaml constraints"  # the trial's constraint value: > 0 where the constraints reject the point
+)
 
 
 def _key(point: Point) -> tuple:
@@ -81,22 +94,29 @@ class OptunaStrategy(Strategy):
         options = dict(self.options.model_extra or {})
         for name in options:
             if name not in accepted:
-                raise DseError(f"search.{name}: {self.sampler.__name__} has no option {name!r} "
-                               f"(it takes {', '.join(sorted(accepted))})")
+                raise DseError(
+                    f"search.{name}: {self.sampler.__name__} has no option {name!r} "
+                    f"(it takes {', '.join(sorted(accepted))})"
+                )
         optuna.logging.set_verbosity(optuna.logging.WARNING)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
             try:
                 sampler = self.sampler(seed=problem.seed, **{**self.defaults(), **options})
             except (TypeError, ValueError) as e:  # a value of the wrong type or range, as Optuna says
-                raise DseError(f"search: {self.sampler.__name__} refuses the options "
-                               f"{', '.join(f'{k}={v!r}' for k, v in options.items())}: {e}") from None
+                raise DseError(
+                    f"search: {self.sampler.__name__} refuses the options "
+                    f"{', '.join(f'{k}={v!r}' for k, v in options.items())}: {e}"
+                ) from None
         self.goals = list(problem.pareto) if self.multi_objective else [problem.objective]
         self.study = optuna.create_study(
-            sampler=sampler, directions=["minimize" if g == "min" else "maximize" for _, g in self.goals])
+            sampler=sampler, directions=["minimize" if g == "min" else "maximize" for _, g in self.goals]
+        )
         self.distributions = {d.name: distribution(d) for d in problem.dimensions}
         self.trials: defaultdict[tuple, deque[optuna.Trial]] = defaultdict(deque)
-        self.worst: list[float] | None = None  # the worst value of each objective so far: an infeasible point's
+        self.worst: list[float] | None = (
+            None  # the worst value of each objective so far: an infeasible point's
+        )
 
     def defaults(self) -> dict[str, Any]:
         """Keyword arguments of ours that the user's options may override."""
@@ -109,10 +129,14 @@ class OptunaStrategy(Strategy):
                 trial = self.study.ask(self.distributions)
             except (TypeError, ValueError) as e:  # an option Optuna took but cannot use, e.g. a text sigma0
                 options = ", ".join(f"{k}={v!r}" for k, v in (self.options.model_extra or {}).items())
-                raise DseError(f"search: {self.sampler.__name__} failed to propose a point with the options "
-                               f"{options or '(none)'}: {type(e).__name__}: {e}") from None
-        point = {name: float(v) if isinstance(v, int) and not isinstance(v, bool) else v
-                 for name, v in trial.params.items()}
+                raise DseError(
+                    f"search: {self.sampler.__name__} failed to propose a point with the options "
+                    f"{options or '(none)'}: {type(e).__name__}: {e}"
+                ) from None
+        point = {
+            name: float(v) if isinstance(v, int) and not isinstance(v, bool) else v
+            for name, v in trial.params.items()
+        }
         self.trials[_key(point)].append(trial)
         return point
 
@@ -165,8 +189,10 @@ class GPSampler(optuna.samplers.GPSampler):
         effort = {"_n_preliminary_samples": acquisition_samples, "_n_local_search": local_searches}
         for name, value in effort.items():
             if not hasattr(self, name):  # another Optuna: say so rather than set what it no longer reads
-                raise ValueError(f"this Optuna's GPSampler has no {name}: acquisition_samples and "
-                                 "local_searches do not apply")
+                raise ValueError(
+                    f"this Optuna's GPSampler has no {name}: acquisition_samples and "
+                    "local_searches do not apply"
+                )
             setattr(self, name, value)
 
 

@@ -54,7 +54,9 @@ class Sobol(UnitCubeSampling):
 
         engine = qmc.Sobol(dimensions, scramble=True, seed=seed)
         while True:
-            with warnings.catch_warnings():  # balance is best at powers of two; any prefix is still low-discrepancy
+            with (
+                warnings.catch_warnings()
+            ):  # balance is best at powers of two; any prefix is still low-discrepancy
                 warnings.simplefilter("ignore", UserWarning)
                 yield from engine.random(64)
 

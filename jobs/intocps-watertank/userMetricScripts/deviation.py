@@ -5,6 +5,7 @@ INTO-CPS's calling convention: python deviation.py RESULTS_FOLDER OBJECTIVE_NAME
 TIME_COLUMN LEVEL_COLUMN TARGET_FILE. The value goes into RESULTS_FOLDER/objectives.json under
 OBJECTIVE_NAME.
 """
+
 import csv
 import json
 import math

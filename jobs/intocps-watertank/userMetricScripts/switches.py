@@ -2,6 +2,7 @@
 
 python switches.py RESULTS_FOLDER OBJECTIVE_NAME SCENARIO_FOLDER VALVE_COLUMN
 """
+
 import csv
 import json
 import os

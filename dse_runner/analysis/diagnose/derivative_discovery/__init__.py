@@ -102,19 +102,32 @@ class Discovered:
         targets: dict[str, list[str]] = {}
         for name, term in self.terms.items():
             targets.setdefault(term.target, []).append(name)
-        return [{"id": DISCOVERED, "target": target,
-                 "terms": {self.terms[n].term.text: coefficients[n] for n in names},
-                 "intervals": {self.terms[n].term.text: [float(v) for v in intervals[n]] for n in names},
-                 "parameters": {n: coefficients[n] for n in names},
-                 "readable": readable(self.terms[names[0]].state, {self.terms[n].term.text: coefficients[n]
-                                                                    for n in names})}
-                for target, names in targets.items()]
+        return [
+            {
+                "id": DISCOVERED,
+                "target": target,
+                "terms": {self.terms[n].term.text: coefficients[n] for n in names},
+                "intervals": {self.terms[n].term.text: [float(v) for v in intervals[n]] for n in names},
+                "parameters": {n: coefficients[n] for n in names},
+                "readable": readable(
+                    self.terms[names[0]].state, {self.terms[n].term.text: coefficients[n] for n in names}
+                ),
+            }
+            for target, names in targets.items()
+        ]
 
     def to_json(self) -> dict[str, Any]:
         before, after = self.held_out
-        return {"effects": self.effects(), "held_out_before": before, "held_out_after": after,
-                "bic_before": self.baseline.bic, "bic_after": self.candidate.bic, "proposed": self.proposal.terms,
-                "rejected": self.rejected, "seconds": self.seconds}
+        return {
+            "effects": self.effects(),
+            "held_out_before": before,
+            "held_out_after": after,
+            "bic_before": self.baseline.bic,
+            "bic_after": self.candidate.bic,
+            "proposed": self.proposal.terms,
+            "rejected": self.rejected,
+            "seconds": self.seconds,
+        }
 
 
 @dataclass
@@ -129,11 +142,15 @@ class NotDiscovered:
     rejected: dict[str, str] = field(default_factory=dict)  # sets of terms that could not be fitted, and why
 
     def to_json(self) -> dict[str, Any]:
-        return {"effects": [], "reason": self.reason, "rejected": self.rejected,
-                "proposed": self.proposal.terms if self.proposal else {},
-                "held_out_before": self.baseline.cross_validated if self.baseline else None,
-                "held_out_tried": self.tried.cross_validated if self.tried else None,
-                "seconds": self.seconds}
+        return {
+            "effects": [],
+            "reason": self.reason,
+            "rejected": self.rejected,
+            "proposed": self.proposal.terms if self.proposal else {},
+            "held_out_before": self.baseline.cross_validated if self.baseline else None,
+            "held_out_tried": self.tried.cross_validated if self.tried else None,
+            "seconds": self.seconds,
+        }
 
 
 def readable(state: str, terms: Mapping[str, float]) -> str:
@@ -142,13 +159,17 @@ def readable(state: str, terms: Mapping[str, float]) -> str:
     return f"der({state}) += " + " + ".join(parts).replace("+ -", "- ")
 
 
-def observe(space: Space, point: Point, instances: Sequence[ModelExchangeInstance], names: Sequence[str] | None = None
-            ) -> list[dict[str, np.ndarray]]:
+def observe(
+    space: Space, point: Point, instances: Sequence[ModelExchangeInstance], names: Sequence[str] | None = None
+) -> list[dict[str, np.ndarray]]:
     """Every scenario (of ``names``, when given) simulated here at ``point``, recording each instance's states,
     derivatives and real inputs: what the library sizes its terms on."""
     plan = space.plan.recording([ref for i in instances for ref in i.recorded], "derivative discovery")
-    return [simulate(plan, scenario, point, objectives={}, experiment=space.experiment).outputs
-            for scenario in space.scenarios if names is None or scenario.name in names]
+    return [
+        simulate(plan, scenario, point, objectives={}, experiment=space.experiment).outputs
+        for scenario in space.scenarios
+        if names is None or scenario.name in names
+    ]
 
 
 def fitted_error(fit: FitResult) -> dict[str, float]:
@@ -156,13 +177,30 @@ def fitted_error(fit: FitResult) -> dict[str, float]:
     return {"fitted": explain.fitted_rms(fit)}
 
 
-__all__ = ["DISCOVERED", "Discovered", "NotDiscovered", "Settings", "baseline_candidate", "discover_derivatives"]
+__all__ = [
+    "DISCOVERED",
+    "Discovered",
+    "NotDiscovered",
+    "Settings",
+    "baseline_candidate",
+    "discover_derivatives",
+]
 
 
-def forward(space: Space, client, freed: Sequence[Parameter], screened: Mapping[str, CandidateTerm],
-            start: Mapping[str, float], base: Point, scenarios: Sequence[str], scales: Mapping[str, float],
-            reference: FitResult, settings: Settings, report: Callable | None,
-            rejected: dict[str, str]) -> tuple[FitResult | None, list[str]]:
+def forward(
+    space: Space,
+    client,
+    freed: Sequence[Parameter],
+    screened: Mapping[str, CandidateTerm],
+    start: Mapping[str, float],
+    base: Point,
+    scenarios: Sequence[str],
+    scales: Mapping[str, float],
+    reference: FitResult,
+    settings: Settings,
+    report: Callable | None,
+    rejected: dict[str, str],
+) -> tuple[FitResult | None, list[str]]:
     """Forward selection: fit the terms chosen so far plus each other screened term (in lockstep); the set of
     least BIC is kept if it lowers the BIC by ``settings.bic_margin`` and its every term stands PRUNE_SE
     standard errors from zero; repeat up to ``settings.max_terms``. None when no term joins. A set whose fit
@@ -173,24 +211,39 @@ def forward(space: Space, client, freed: Sequence[Parameter], screened: Mapping[
         options = {f"{DISCOVERED}:{'+'.join([*names, n])}": [*names, n] for n in screened if n not in names}
         if not options:
             break
-        sets = {label: (*(replace(p, start=current.values.get(p.name, p.start)) for p in freed),
-                        *(term_parameter(screened[n], start[n], settings.bound, settings.trial) for n in terms))
-                for label, terms in options.items()}
+        sets = {
+            label: (
+                *(replace(p, start=current.values.get(p.name, p.start)) for p in freed),
+                *(term_parameter(screened[n], start[n], settings.bound, settings.trial) for n in terms),
+            )
+            for label, terms in options.items()
+        }
         results = fit_sets(space, client, sets, base, scenarios, scales, settings.max_iterations, report)
         rejected.update({key: r.error for key, r in results.items() if r.error})
         label = min(results, key=lambda key: explain.bic(results[key]))
         best = results[label]
-        if explain.bic(best) > explain.bic(current) - settings.bic_margin or pruned(best, options[label]) != options[label]:
+        if (
+            explain.bic(best) > explain.bic(current) - settings.bic_margin
+            or pruned(best, options[label]) != options[label]
+        ):
             break
         names, current = options[label], best
         start.update({n: best.values[n] for n in names})
     return (current if names else None), names
 
 
-def discover_derivatives(space: Space, client, chosen: Candidate, freed: Sequence[Parameter],
-                         scales: Mapping[str, float], folds: Sequence[Sequence[str] | Fold],
-                         settings: Settings = Settings(), say: Say | None = None, fitted: Sequence[str] | None = None,
-                         pieces: Sequence[str] | None = None) -> Discovered | NotDiscovered:
+def discover_derivatives(
+    space: Space,
+    client,
+    chosen: Candidate,
+    freed: Sequence[Parameter],
+    scales: Mapping[str, float],
+    folds: Sequence[Sequence[str] | Fold],
+    settings: Settings = Settings(),
+    say: Say | None = None,
+    fitted: Sequence[str] | None = None,
+    pieces: Sequence[str] | None = None,
+) -> Discovered | NotDiscovered:
     """Terms for the model-exchange instances' derivatives that the recordings support beyond ``chosen``.
 
     ``space``: the space ``chosen`` was fitted in (its objectives hold the residuals named in ``scales``, each
@@ -211,50 +264,89 @@ def discover_derivatives(space: Space, client, chosen: Candidate, freed: Sequenc
 
     instances = model_exchange_instances(space.plan)
     if not instances:
-        return NotDiscovered("no model-exchange instance: co-simulation FMUs integrate their own states, so the "
-                             "master cannot add to their derivatives; what remains points inside them",
-                             baseline=chosen)
+        return NotDiscovered(
+            "no model-exchange instance: co-simulation FMUs integrate their own states, so the "
+            "master cannot add to their derivatives; what remains points inside them",
+            baseline=chosen,
+        )
     scenarios = tuple(fitted) if fitted is not None else tuple(s.name for s in space.scenarios)
     folds = as_folds(folds, scenarios)
     runs = observe(space, chosen.full.point, instances, scenarios)
     library = [t for i in instances for t in candidate_terms(i, runs, settings.degree)]
     lap("observe")
     if not library:
-        return NotDiscovered("no candidate term: every state's derivative is kinematic or nothing varies",
-                             baseline=chosen, seconds=seconds)
+        return NotDiscovered(
+            "no candidate term: every state's derivative is kinematic or nothing varies",
+            baseline=chosen,
+            seconds=seconds,
+        )
     by_name = {t.name: t for t in library}
     work = terms_space(space, library)
     base = {**chosen.full.point, **{t.name: 0.0 for t in library}}
     freed = tuple(replace(p, start=chosen.full.values.get(p.name, p.start)) for p in freed)
-    say(f"derivative discovery: {len(library)} candidate terms on "
-        f"{', '.join(sorted({t.target for t in library}))}: one sweep of their sensitivities")
-    proposal = propose(regression(work, client, base, freed, library, scales, tuple(pieces or scenarios),
-                                  settings.trial),
-                       settings.max_terms, settings.bootstrap, settings.inclusion, settings.seed)
+    say(
+        f"derivative discovery: {len(library)} candidate terms on "
+        f"{', '.join(sorted({t.target for t in library}))}: one sweep of their sensitivities"
+    )
+    proposal = propose(
+        regression(work, client, base, freed, library, scales, tuple(pieces or scenarios), settings.trial),
+        settings.max_terms,
+        settings.bootstrap,
+        settings.inclusion,
+        settings.seed,
+    )
     lap("propose")
     if proposal.empty:
-        return NotDiscovered("no candidate term predicts the residuals of held-out scenarios better than none "
-                             "(STLSQ, leave one scenario out)", proposal, baseline=chosen, seconds=seconds)
+        return NotDiscovered(
+            "no candidate term predicts the residuals of held-out scenarios better than none "
+            "(STLSQ, leave one scenario out)",
+            proposal,
+            baseline=chosen,
+            seconds=seconds,
+        )
 
     def report(round_: int, active: int, points: int, simulations: int) -> None:
         say(f"discovery fits: round {round_}, {active} active, {points} points, {simulations} simulations")
 
-    screened = [name for name, _ in proposal.ranked][:settings.screen]
-    say(f"derivative discovery: ranked first {', '.join(screened)}; forward selection, each fitted with "
-        f"{', '.join(p.name for p in freed) or 'nothing else'}")
+    screened = [name for name, _ in proposal.ranked][: settings.screen]
+    say(
+        f"derivative discovery: ranked first {', '.join(screened)}; forward selection, each fitted with "
+        f"{', '.join(p.name for p in freed) or 'nothing else'}"
+    )
     rejected: dict[str, str] = {}
-    result, names = forward(work, client, freed, {n: by_name[n] for n in screened}, dict(proposal.ranked), base,
-                            scenarios, scales, chosen.full, settings, report, rejected)
+    result, names = forward(
+        work,
+        client,
+        freed,
+        {n: by_name[n] for n in screened},
+        dict(proposal.ranked),
+        base,
+        scenarios,
+        scales,
+        chosen.full,
+        settings,
+        report,
+        rejected,
+    )
     if rejected:
-        say(f"derivative discovery: rejected {len(rejected)} sets of terms whose fit could not start "
-            f"({next(iter(rejected.values()))})")
+        say(
+            f"derivative discovery: rejected {len(rejected)} sets of terms whose fit could not start "
+            f"({next(iter(rejected.values()))})"
+        )
     if result is None:
         lap("fit")
-        return NotDiscovered(f"no proposed term ({', '.join(screened)}), fitted, lowered the BIC by "
-                             f"{settings.bic_margin:g} and stood {PRUNE_SE:g} standard errors from zero", proposal,
-                             baseline=chosen, seconds=seconds, rejected=rejected)
-    parameters = (*(replace(p, start=result.values[p.name]) for p in freed),
-                  *(term_parameter(by_name[n], result.values[n], settings.bound, settings.trial) for n in names))
+        return NotDiscovered(
+            f"no proposed term ({', '.join(screened)}), fitted, lowered the BIC by "
+            f"{settings.bic_margin:g} and stood {PRUNE_SE:g} standard errors from zero",
+            proposal,
+            baseline=chosen,
+            seconds=seconds,
+            rejected=rejected,
+        )
+    parameters = (
+        *(replace(p, start=result.values[p.name]) for p in freed),
+        *(term_parameter(by_name[n], result.values[n], settings.bound, settings.trial) for n in names),
+    )
     lap("fit")
     found = Candidate((*chosen.ids, DISCOVERED), result)
     baseline = chosen if chosen.held_out else Candidate(chosen.ids, chosen.full)
@@ -272,4 +364,9 @@ def discover_derivatives(space: Space, client, chosen: Candidate, freed: Sequenc
         f"{' + '.join(by_name[n].term.text for n in names)} did not beat the answer without it: held-out "
         f"{baseline.cross_validated:.3g} -> {found.cross_validated:.3g} noise floors (needs {settings.min_gain:.0%} "
         f"lower), BIC {baseline.bic:.1f} -> {found.bic:.1f} (needs {settings.bic_margin:g} lower)",
-        proposal, found, baseline, seconds, rejected)
+        proposal,
+        found,
+        baseline,
+        seconds,
+        rejected,
+    )

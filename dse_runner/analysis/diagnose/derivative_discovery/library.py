@@ -47,7 +47,9 @@ class CandidateTerm:
     instance: str
     state: str
     term: dt.Term
-    scale: float  # RMS of the derivative over RMS of the term: a coefficient that adds as much as the derivative
+    scale: (
+        float  # RMS of the derivative over RMS of the term: a coefficient that adds as much as the derivative
+    )
 
     @property
     def name(self) -> str:
@@ -67,13 +69,17 @@ def model_exchange_instances(plan: Plan) -> list[ModelExchangeInstance]:
         description = describe(plan.fmu_paths[name])
         states = dt.states_of(description)
         derivatives = [d.variable.name for d in description.derivatives if d.variable.derivative is not None]
-        found.append(ModelExchangeInstance(name, tuple(states), tuple(derivatives), tuple(dt.real_inputs_of(description))))
+        found.append(
+            ModelExchangeInstance(
+                name, tuple(states), tuple(derivatives), tuple(dt.real_inputs_of(description))
+            )
+        )
     return found
 
 
 def rms(values: Sequence[np.ndarray]) -> float:
     joined = np.concatenate([np.asarray(v, float) for v in values]) if values else np.zeros(0)
-    return float(np.sqrt(np.mean(joined ** 2))) if joined.size else 0.0
+    return float(np.sqrt(np.mean(joined**2))) if joined.size else 0.0
 
 
 def kinematic(instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.ndarray]]) -> set[str]:
@@ -82,8 +88,11 @@ def kinematic(instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.nd
     for state, derivative in zip(instance.states, instance.derivatives):
         for other in instance.states:
             size = max(max(float(np.max(np.abs(r[f"{instance.name}.{other}"]))) for r in runs), 1.0)
-            if all(np.max(np.abs(r[f"{instance.name}.{derivative}"] - r[f"{instance.name}.{other}"]))
-                   <= KINEMATIC * size for r in runs):
+            if all(
+                np.max(np.abs(r[f"{instance.name}.{derivative}"] - r[f"{instance.name}.{other}"]))
+                <= KINEMATIC * size
+                for r in runs
+            ):
                 found.add(state)
     return found
 
@@ -95,7 +104,9 @@ def width(values: Sequence[np.ndarray], share: float = SMOOTH) -> float:
     return float(f"{size:.2g}") if size > 0 else 1.0
 
 
-def terms(variables: Sequence[str], states: Sequence[str], widths: Mapping[str, float], degree: int) -> list[dt.Term]:
+def terms(
+    variables: Sequence[str], states: Sequence[str], widths: Mapping[str, float], degree: int
+) -> list[dt.Term]:
     """1; every monomial of ``variables`` up to ``degree``; z·|z| for each variable; tanh(s/w) for each state."""
     found = [dt.Term()]
     for order in range(1, degree + 1):
@@ -107,10 +118,12 @@ def terms(variables: Sequence[str], states: Sequence[str], widths: Mapping[str, 
     return found
 
 
-def candidate_terms(instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.ndarray]], degree: int = 3
-                    ) -> list[CandidateTerm]:
+def candidate_terms(
+    instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.ndarray]], degree: int = 3
+) -> list[CandidateTerm]:
     """Every library term on every non-kinematic state's derivative, for the variables that vary on some run,
     sized over ``runs`` (each a recorded run: signal name -> values). A term that is zero on every run is left out."""
+
     def values(name: str) -> list[np.ndarray]:
         return [np.asarray(r[f"{instance.name}.{name}"], float) for r in runs]
 
@@ -125,8 +138,15 @@ def candidate_terms(instance: ModelExchangeInstance, runs: Sequence[Mapping[str,
             continue
         size = rms(values(derivative))
         for term in library:
-            feature = rms([np.broadcast_to(term.value({v: r[f"{instance.name}.{v}"] for v in varying}),
-                                           r[f"{instance.name}.{state}"].shape) for r in runs])
+            feature = rms(
+                [
+                    np.broadcast_to(
+                        term.value({v: r[f"{instance.name}.{v}"] for v in varying}),
+                        r[f"{instance.name}.{state}"].shape,
+                    )
+                    for r in runs
+                ]
+            )
             if feature > 0 and size > 0 and math.isfinite(feature):
                 found.append(CandidateTerm(instance.name, state, term, size / feature))
     return found

@@ -42,8 +42,7 @@ class Regression:
         if self.fitted.shape[1] == 0:
             return self.target, self.terms
         basis = np.linalg.qr(self.fitted)[0]
-        return (self.target - basis @ (basis.T @ self.target),
-                self.terms - basis @ (basis.T @ self.terms))
+        return (self.target - basis @ (basis.T @ self.target), self.terms - basis @ (basis.T @ self.terms))
 
 
 @dataclass(frozen=True)
@@ -69,12 +68,15 @@ def stlsq(theta: np.ndarray, y: np.ndarray, threshold: float, unbias: bool = Tru
 
     if len(y) == 0:
         return np.zeros(theta.shape[1])
-    optimizer = ps.STLSQ(threshold=threshold, alpha=RIDGE * len(y), max_iter=20, normalize_columns=False,
-                         unbias=unbias)
+    optimizer = ps.STLSQ(
+        threshold=threshold, alpha=RIDGE * len(y), max_iter=20, normalize_columns=False, unbias=unbias
+    )
     # sklearn checks the options of every fit (STLSQ's, ridge_regression's); ours are fixed and valid, and in
     # the test suite's blind diagnoses the check took 5.0 of STLSQ's 11.2 CPU s (docs/performance.md)
     with warnings.catch_warnings(), sklearn.config_context(skip_parameter_validation=True):
-        warnings.filterwarnings("ignore", category=UserWarning)  # "eliminated all coefficients" is an answer here
+        warnings.filterwarnings(
+            "ignore", category=UserWarning
+        )  # "eliminated all coefficients" is an answer here
         optimizer.fit(theta, y)
     return np.asarray(optimizer.coef_, float).reshape(-1)
 
@@ -82,15 +84,20 @@ def stlsq(theta: np.ndarray, y: np.ndarray, threshold: float, unbias: bool = Tru
 def unit_columns(theta: np.ndarray, before: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Columns scaled to unit RMS, their scales, and which are kept: a column that lost all but COLLINEAR of
     its size to the projection repeats a fitted parameter and is zeroed."""
-    scale = np.sqrt(np.mean(theta ** 2, axis=0)) if len(theta) else np.ones(theta.shape[1])
-    size = np.sqrt(np.mean(before ** 2, axis=0)) if len(before) else np.ones(theta.shape[1])
+    scale = np.sqrt(np.mean(theta**2, axis=0)) if len(theta) else np.ones(theta.shape[1])
+    size = np.sqrt(np.mean(before**2, axis=0)) if len(before) else np.ones(theta.shape[1])
     kept = np.isfinite(scale) & (scale > COLLINEAR * size) & (size > 0)
     scale = np.where(kept, scale, 1.0)
     return np.where(kept, theta / scale, 0.0), scale, kept
 
 
-def held_out_error(z: np.ndarray, y: np.ndarray, run: np.ndarray, threshold: float,
-                   solve: Callable[[np.ndarray, np.ndarray, float], np.ndarray] = stlsq) -> float:
+def held_out_error(
+    z: np.ndarray,
+    y: np.ndarray,
+    run: np.ndarray,
+    threshold: float,
+    solve: Callable[[np.ndarray, np.ndarray, float], np.ndarray] = stlsq,
+) -> float:
     """Leave-one-scenario-out squared error of a sparse regression (``solve``, STLSQ as set up here unless a
     caller brings its own) at ``threshold`` (inf threshold: the empty model)."""
     total = 0.0
@@ -101,18 +108,22 @@ def held_out_error(z: np.ndarray, y: np.ndarray, run: np.ndarray, threshold: flo
     return total
 
 
-def choose_threshold(z: np.ndarray, y: np.ndarray, run: np.ndarray,
-                     solve: Callable[[np.ndarray, np.ndarray, float], np.ndarray] = stlsq) -> float:
+def choose_threshold(
+    z: np.ndarray,
+    y: np.ndarray,
+    run: np.ndarray,
+    solve: Callable[[np.ndarray, np.ndarray, float], np.ndarray] = stlsq,
+) -> float:
     """The threshold of THRESHOLDS (shares of the target's RMS) of least leave-one-run-out error (the largest
     of those that tie with it), or inf when none predicts held-out runs better than no term at all.
     ``solve``: the sparse regression (STLSQ as set up here unless a caller, such as the Robotti's
     discovery, brings its own)."""
-    size = float(np.sqrt(np.mean(y ** 2))) if len(y) else 0.0
+    size = float(np.sqrt(np.mean(y**2))) if len(y) else 0.0
     if size == 0.0 or len(np.unique(run)) < 2:
         return math.inf
     errors = {share * size: held_out_error(z, y, run, share * size, solve) for share in THRESHOLDS}
     best = min(errors.values())
-    if best >= float(np.sum(y ** 2)):
+    if best >= float(np.sum(y**2)):
         return math.inf
     return max(th for th, e in errors.items() if e <= TIE * best)
 
@@ -136,8 +147,15 @@ def propose(regression: Regression, max_terms: int, bootstrap: int, inclusion: f
     share = picked / bootstrap
     coef = stlsq(z, target, threshold) / scale
     size = np.abs(coef) * scale
-    ranked = sorted((k for k in range(z.shape[1]) if share[k] >= inclusion and coef[k] != 0),
-                    key=lambda k: (-share[k], -size[k]))
+    ranked = sorted(
+        (k for k in range(z.shape[1]) if share[k] >= inclusion and coef[k] != 0),
+        key=lambda k: (-share[k], -size[k]),
+    )
     order = tuple((regression.names[k], float(coef[k])) for k in ranked)
-    return Proposal(dict(order[:max_terms]), {regression.names[k]: float(share[k]) for k in np.flatnonzero(share)},
-                    threshold, order, dropped)
+    return Proposal(
+        dict(order[:max_terms]),
+        {regression.names[k]: float(share[k]) for k in np.flatnonzero(share)},
+        threshold,
+        order,
+        dropped,
+    )

@@ -19,7 +19,10 @@ from ..correction import CorrectionTerm, FeatureInputs
 from ..hypotheses import EFFECTS_FMU
 
 DYNAMIC = ("acc", "steer")  # the channels equation error can see
-OUTPUT = ("gps_along", "gps_cross")  # the antenna's: outputs, not dynamics, so proposed from the fix residuals
+OUTPUT = (
+    "gps_along",
+    "gps_cross",
+)  # the antenna's: outputs, not dynamics, so proposed from the fix residuals
 MIN_ACC_SPEED = 0.3  # m/s: below this the recorded acceleration is mostly the start from rest
 
 
@@ -43,8 +46,15 @@ def observe(scenario: Scenario) -> Observed:
     fixes = fielddata.gps(scenario)
     log = read_table(scenario.files["steering_inputs"], ("time", "velocity", "delta_f"))
     t, v, d = (np.asarray(c, float) for c in log.columns)
-    return Observed(scenario.name, np.asarray(fixes.time, float), np.asarray(fixes.x, float),
-                    np.asarray(fixes.y, float), t, v, d)
+    return Observed(
+        scenario.name,
+        np.asarray(fixes.time, float),
+        np.asarray(fixes.x, float),
+        np.asarray(fixes.y, float),
+        t,
+        v,
+        d,
+    )
 
 
 @lru_cache(maxsize=4)
@@ -53,14 +63,21 @@ def _defaults(fmu: str) -> dict[str, float]:
     return real_parameters(bundled.bundled_path(fmu))
 
 
-def vehicle_values(point: Mapping[str, float], vehicle: str, fixed: Mapping[str, Any] = {}) -> dict[str, float]:
+def vehicle_values(
+    point: Mapping[str, float], vehicle: str, fixed: Mapping[str, Any] = {}
+) -> dict[str, float]:
     """Every parameter of the effects vehicle as a model at ``point`` uses it (local names): the FMU's
     defaults, then the multi-model's fixed values ``fixed``, then the point's."""
     values = dict(_defaults(EFFECTS_FMU))
     prefix = f"{vehicle}."
     for source in (fixed, point):
-        values.update({k[len(prefix):]: float(v) for k, v in source.items()
-                       if k.startswith(prefix) and isinstance(v, (int, float))})
+        values.update(
+            {
+                k[len(prefix) :]: float(v)
+                for k, v in source.items()
+                if k.startswith(prefix) and isinstance(v, (int, float))
+            }
+        )
     return values
 
 
@@ -70,8 +87,9 @@ def held(log_time: np.ndarray, command: np.ndarray, t: np.ndarray) -> np.ndarray
     return np.where(k < 0, 0.0, command[np.clip(k, 0, None)]) if len(command) else np.zeros_like(t)
 
 
-def acted(log_time: np.ndarray, command: np.ndarray, t: np.ndarray, delay: float, lag: float
-          ) -> tuple[np.ndarray, np.ndarray]:
+def acted(
+    log_time: np.ndarray, command: np.ndarray, t: np.ndarray, delay: float, lag: float
+) -> tuple[np.ndarray, np.ndarray]:
     """A command as the vehicle acts on it at ``t``: delayed, through its actuator's first-order lag, and
     its rate through the correction block's filter (correction.TAU_F). Returns (value, filtered rate)."""
     shifted = np.asarray(t, float) - delay
@@ -93,17 +111,30 @@ class ChannelRegression:
     y: np.ndarray
     run: np.ndarray  # run index per row
     rms: dict[str, float]  # each term's raw feature RMS over the rows: bounds its coefficient
-    shapes: dict[str, float] = field(default_factory=dict)  # shape variable -> the value its terms' columns used
+    shapes: dict[str, float] = field(
+        default_factory=dict
+    )  # shape variable -> the value its terms' columns used
 
     @staticmethod
     def join(parts: Sequence[ChannelRegression]) -> ChannelRegression:
         """The rows of several runs' regressions of one channel, runs numbered in order."""
         first = parts[0]
         theta = np.vstack([p.theta for p in parts])
-        rms = {t.variable: math.sqrt(sum(p.rms[t.variable] ** 2 * len(p.y) for p in parts)
-                                     / max(sum(len(p.y) for p in parts), 1)) for t in first.terms}
-        return ChannelRegression(first.channel, first.terms, theta, np.concatenate([p.y for p in parts]),
-                          np.concatenate([np.full(len(p.y), k) for k, p in enumerate(parts)]), rms, first.shapes)
+        rms = {
+            t.variable: math.sqrt(
+                sum(p.rms[t.variable] ** 2 * len(p.y) for p in parts) / max(sum(len(p.y) for p in parts), 1)
+            )
+            for t in first.terms
+        }
+        return ChannelRegression(
+            first.channel,
+            first.terms,
+            theta,
+            np.concatenate([p.y for p in parts]),
+            np.concatenate([np.full(len(p.y), k) for k, p in enumerate(parts)]),
+            rms,
+            first.shapes,
+        )
 
 
 def _filled(time: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -160,19 +191,36 @@ def reference_state(run: Observed, values: Mapping[str, float]) -> Reference:
     gain = -v / (L + understeer * v * v)  # quasi-static yaw rate per rad of steering to the right
     r = gain * (delta + values.get("steering_offset", 0.0))
     f_drive = np.clip(kv * (v_cmd - v / (1.0 - slip)), -mu * m * g, mu * m * g) / m
-    inputs = FeatureInputs(v=v, psi=psi, r=r, s=correction.distance(grid, v), v_cmd=v_cmd, a_cmd=a_cmd, delta=delta,
-                           delta_rate=delta_rate, f_drive=f_drive, v_min=values["v_min"], t=grid)
-    operators = {"acc": (kinematics.derivative_operator(t, kinematics.VELOCITY_WINDOW, 1, 1), 1),
-                 "steer": (kinematics.derivative_operator(t, kinematics.ACCELERATION_WINDOW, 2, 2), 2)}
+    inputs = FeatureInputs(
+        v=v,
+        psi=psi,
+        r=r,
+        s=correction.distance(grid, v),
+        v_cmd=v_cmd,
+        a_cmd=a_cmd,
+        delta=delta,
+        delta_rate=delta_rate,
+        f_drive=f_drive,
+        v_min=values["v_min"],
+        t=grid,
+    )
+    operators = {
+        "acc": (kinematics.derivative_operator(t, kinematics.VELOCITY_WINDOW, 1, 1), 1),
+        "steer": (kinematics.derivative_operator(t, kinematics.ACCELERATION_WINDOW, 2, 2), 2),
+    }
     recorded, model = {"acc": kin.speed, "steer": kin.yaw_rate}, {"acc": v, "steer": r}
     targets = {c: recorded[c] - kinematics.smoothed_like(*operators[c], grid, model[c], t) for c in DYNAMIC}
     return Reference(run, kin, grid, inputs, gain, m * (1.0 - slip) / kv, operators, targets)
 
 
-def _rms(columns: Mapping[str, np.ndarray], terms: Sequence[CorrectionTerm], moving: np.ndarray) -> dict[str, float]:
+def _rms(
+    columns: Mapping[str, np.ndarray], terms: Sequence[CorrectionTerm], moving: np.ndarray
+) -> dict[str, float]:
     """Each term's raw feature RMS while the vehicle is commanded to move: bounds its coefficient."""
-    return {tm.variable: float(np.sqrt(np.mean(columns[tm.variable][moving] ** 2))) if moving.any() else math.nan
-            for tm in terms}
+    return {
+        tm.variable: float(np.sqrt(np.mean(columns[tm.variable][moving] ** 2))) if moving.any() else math.nan
+        for tm in terms
+    }
 
 
 @dataclass(frozen=True)
@@ -198,13 +246,17 @@ def term_columns(ref: Reference, terms: Sequence[CorrectionTerm]) -> dict[str, C
     for tm in dynamic:
         operator, order = ref.operators[tm.channel]
         raw = raws[tm.variable]
-        out[tm.variable] = Column(raw, kinematics.smoothed_like(operator, order, grid, effect[tm.channel](raw), t),
-                                  rms[tm.variable])
+        out[tm.variable] = Column(
+            raw, kinematics.smoothed_like(operator, order, grid, effect[tm.channel](raw), t), rms[tm.variable]
+        )
     return out
 
 
-def equation_error(ref: Reference, terms: Sequence[CorrectionTerm] = (), known: Mapping[str, Column] | None = None,
-                   ) -> dict[str, ChannelRegression]:
+def equation_error(
+    ref: Reference,
+    terms: Sequence[CorrectionTerm] = (),
+    known: Mapping[str, Column] | None = None,
+) -> dict[str, ChannelRegression]:
     """Each dynamic channel's equation error on one run: what the fixes show minus what the reference model
     predicts, and what each term would add, both seen through the fixes' window; ``known`` holds columns
     already computed on this run (:func:`term_columns`), keyed by variable.
@@ -229,8 +281,15 @@ def equation_error(ref: Reference, terms: Sequence[CorrectionTerm] = (), known: 
         if channel == "acc":
             rows &= kin.speed >= MIN_ACC_SPEED
         shapes = {sh.variable: getattr(inputs, sh.name) for tm in mine if (sh := correction.shape_of(tm))}
-        out[channel] = ChannelRegression(channel, tuple(mine), theta[rows], target[rows], np.zeros(int(rows.sum()), int),
-                                  {tm.variable: columns[tm.variable].rms for tm in mine}, shapes)
+        out[channel] = ChannelRegression(
+            channel,
+            tuple(mine),
+            theta[rows],
+            target[rows],
+            np.zeros(int(rows.sum()), int),
+            {tm.variable: columns[tm.variable].rms for tm in mine},
+            shapes,
+        )
     return out
 
 
@@ -240,7 +299,9 @@ def body_axes(dx: np.ndarray, dy: np.ndarray, psi: np.ndarray) -> tuple[np.ndarr
     return dx * c + dy * s, -dx * s + dy * c
 
 
-def output_error(ref: Reference, residuals: np.ndarray | None, terms: Sequence[CorrectionTerm] = ()) -> dict[str, ChannelRegression]:
+def output_error(
+    ref: Reference, residuals: np.ndarray | None, terms: Sequence[CorrectionTerm] = ()
+) -> dict[str, ChannelRegression]:
     """The antenna channels' error on one run: the reference's fix residuals (fielddata.fix_residuals,
     simulated minus recorded, x then y) turned into recorded minus simulated in the vehicle's axes, forward
     and left.
@@ -266,13 +327,20 @@ def output_error(ref: Reference, residuals: np.ndarray | None, terms: Sequence[C
             continue
         theta = np.column_stack([np.interp(t, ref.grid, grid_columns[tm.variable]) for tm in mine])
         rows = np.isfinite(target) & np.isfinite(theta).all(axis=1)
-        out[channel] = ChannelRegression(channel, tuple(mine), theta[rows], target[rows], np.zeros(int(rows.sum()), int),
-                                  _rms(grid_columns, mine, moving))
+        out[channel] = ChannelRegression(
+            channel,
+            tuple(mine),
+            theta[rows],
+            target[rows],
+            np.zeros(int(rows.sum()), int),
+            _rms(grid_columns, mine, moving),
+        )
     return out
 
 
-def speed_response(grid: np.ndarray, v_cmd: np.ndarray, slope: np.ndarray, values: Mapping[str, float],
-                   substeps: int = 10) -> np.ndarray:
+def speed_response(
+    grid: np.ndarray, v_cmd: np.ndarray, slope: np.ndarray, values: Mapping[str, float], substeps: int = 10
+) -> np.ndarray:
     """The reference's speed on a uniform ``grid``: d(v)/dt = clamp(Kv·(v_cmd − v/(1 − i)), ±mu·m·g)/m + slope
     from rest, by explicit Euler in ``substeps`` per grid step (the drive's time constant m/Kv is several
     grid steps), the lateral coupling left out (it cancels to first order in a steady turn)."""
@@ -283,7 +351,9 @@ def speed_response(grid: np.ndarray, v_cmd: np.ndarray, slope: np.ndarray, value
     v = 0.0
     for k in range(1, len(grid)):
         for _ in range(substeps):
-            v += dt * (min(max(kv * (v_cmd[k - 1] - v / (1.0 - slip)), -mu * m * g), mu * m * g) / m + slope[k - 1])
+            v += dt * (
+                min(max(kv * (v_cmd[k - 1] - v / (1.0 - slip)), -mu * m * g), mu * m * g) / m + slope[k - 1]
+            )
         out[k] = v
     return out
 

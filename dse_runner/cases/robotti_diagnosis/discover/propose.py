@@ -35,9 +35,16 @@ NEGLIGIBLE = 1e-9  # a column this small against its feature's typical size is e
 SCANNED = 40  # values of each shape scanned (onset times, rate limits); the extended BIC charges for them
 ONSET_MARGIN = 0.15  # onset times are scanned inside the moving span less this share at each end: a change
 # nearer the start than that is the start-up itself, and one nearer the end has too little run after it
-RATE_LIMITS = (0.01, 1.0)  # rad/s: the rate limits scanned, geometrically; the Robotti steers at most ~0.2 rad/s
-MAX_BINDING = 0.5  # a rate limit binding for more of the moving time than this is a gain, not a limit: not scanned
-SHAPE_GAIN = 0.10  # a shape's terms are offered only if, at its best value, they cut the channel's leave-one-run-out
+RATE_LIMITS = (
+    0.01,
+    1.0,
+)  # rad/s: the rate limits scanned, geometrically; the Robotti steers at most ~0.2 rad/s
+MAX_BINDING = (
+    0.5  # a rate limit binding for more of the moving time than this is a gain, not a limit: not scanned
+)
+SHAPE_GAIN = (
+    0.10  # a shape's terms are offered only if, at its best value, they cut the channel's leave-one-run-out
+)
 # error by this much: twice the library's min_gain, since the value was the best of a scan
 
 
@@ -86,19 +93,28 @@ def _channel(shape: correction.Shape) -> str:
 def _channel_terms(shape: correction.Shape, with_shape: bool) -> list[CorrectionTerm]:
     """The searched terms of ``shape``'s channel, with or without the shaped ones."""
     channel = _channel(shape)
-    return [t for t in correction.searched_terms()
-            if t.channel == channel and (with_shape or correction.shape_of(t) != shape)]
+    return [
+        t
+        for t in correction.searched_terms()
+        if t.channel == channel and (with_shape or correction.shape_of(t) != shape)
+    ]
 
 
-def _shaped_rows(refs: Sequence[Reference], shape: correction.Shape, value: float | None,
-                 known: Sequence[Mapping[str, Column]] | None = None) -> tuple[ChannelRegression, ...]:
+def _shaped_rows(
+    refs: Sequence[Reference],
+    shape: correction.Shape,
+    value: float | None,
+    known: Sequence[Mapping[str, Column]] | None = None,
+) -> tuple[ChannelRegression, ...]:
     """The equation error of the channel ``shape``'s terms belong to, run by run: on all that channel's terms
     with the shaped ones made at ``value``, or without them when ``value`` is None. ``known`` holds, per run,
     columns of the other terms already computed (they do not change with ``value``)."""
     terms = _channel_terms(shape, value is not None)
     known = known or [{}] * len(refs)
-    made = (equation_error(shaped(ref, shape, value) if value is not None else ref, terms, columns)
-            for ref, columns in zip(refs, known))
+    made = (
+        equation_error(shaped(ref, shape, value) if value is not None else ref, terms, columns)
+        for ref, columns in zip(refs, known)
+    )
     channel = _channel(shape)
     return tuple(r[channel] for r in made if channel in r)
 
@@ -153,25 +169,39 @@ def searched_shapes() -> list[correction.Shape]:
     return list({sh.name: sh for t in correction.searched_terms() if (sh := correction.shape_of(t))}.values())
 
 
-def regressions(runs: Sequence[Observed], values: Mapping[str, Mapping[str, float]] | Mapping[str, float],
-                residuals: Mapping[str, np.ndarray | None] | None = None) -> dict[str, ChannelRegression]:
+def regressions(
+    runs: Sequence[Observed],
+    values: Mapping[str, Mapping[str, float]] | Mapping[str, float],
+    residuals: Mapping[str, np.ndarray | None] | None = None,
+) -> dict[str, ChannelRegression]:
     """Each channel's error over ``runs``; ``values`` is one parameter set, or one per run name; ``residuals``
     the reference's fix residuals per run name (the antenna channels; none without them)."""
     refs = [reference_state(run, values.get(run.name, values)) for run in runs]
     dropped = set()
-    for shape in searched_shapes():  # each shape at its best value, or its terms left out when they do not pay
+    for (
+        shape
+    ) in searched_shapes():  # each shape at its best value, or its terms left out when they do not pay
         value = find_shape(refs, shape)
         if shape_gain(refs, shape, value) >= SHAPE_GAIN:
             refs = [shaped(ref, shape, value) for ref in refs]
         else:
             dropped.add(shape.name)
-    terms = [t for t in correction.searched_terms() if not ((s := correction.shape_of(t)) and s.name in dropped)]
+    terms = [
+        t for t in correction.searched_terms() if not ((s := correction.shape_of(t)) and s.name in dropped)
+    ]
     dynamic, output = [t for t in terms if t.channel in DYNAMIC], [t for t in terms if t.channel in OUTPUT]
-    per_run = [{**equation_error(ref, dynamic),
-                **(output_error(ref, residuals.get(ref.run.name), output) if residuals is not None else {})}
-               for ref in refs]
-    return {c: ChannelRegression.join([p[c] for p in per_run if c in p]) for c in CHANNELS
-            if any(c in p for p in per_run)}
+    per_run = [
+        {
+            **equation_error(ref, dynamic),
+            **(output_error(ref, residuals.get(ref.run.name), output) if residuals is not None else {}),
+        }
+        for ref in refs
+    ]
+    return {
+        c: ChannelRegression.join([p[c] for p in per_run if c in p])
+        for c in CHANNELS
+        if any(c in p for p in per_run)
+    }
 
 
 @dataclass(frozen=True)
@@ -180,9 +210,13 @@ class CorrectionProposal:
 
     terms: dict[str, float]  # parameter name (corr_*) -> coefficient
     inclusion: dict[str, float]  # every term picked at least once -> share of resamples picking it
-    threshold: dict[str, float]  # channel -> STLSQ threshold chosen (in the target's units per unit-RMS column)
+    threshold: dict[
+        str, float
+    ]  # channel -> STLSQ threshold chosen (in the target's units per unit-RMS column)
     rms: dict[str, float]  # every term's feature RMS over the runs
-    ranked: tuple[tuple[str, float], ...] = ()  # every term that passed the bootstrap, best first (terms: the first)
+    ranked: tuple[
+        tuple[str, float], ...
+    ] = ()  # every term that passed the bootstrap, best first (terms: the first)
     shapes: dict[str, float] = field(default_factory=dict)  # shape variable -> the value the columns used
 
     def readable(self) -> list[str]:
@@ -207,7 +241,7 @@ def _scaled(reg: ChannelRegression) -> tuple[np.ndarray, np.ndarray]:
     """The columns scaled to unit RMS, and the scales. A column far below its feature's typical size (the
     drive's force once the speed has settled, to rounding) carries no information, only rounding: it is
     zeroed rather than blown up to unit size."""
-    scale = np.sqrt(np.mean(reg.theta ** 2, axis=0)) if len(reg.y) else np.ones(reg.theta.shape[1])
+    scale = np.sqrt(np.mean(reg.theta**2, axis=0)) if len(reg.y) else np.ones(reg.theta.shape[1])
     typical = np.array([t.feature_info.typical for t in reg.terms])
     empty = scale <= NEGLIGIBLE * typical
     scale = np.where(empty, 1.0, scale)
@@ -219,8 +253,9 @@ def choose_threshold(z: np.ndarray, y: np.ndarray, run: np.ndarray) -> float:
     return generic_threshold(z, y, run, stlsq)
 
 
-def propose(regs: Mapping[str, ChannelRegression], max_terms: int = 3, seed: int = SEED,
-            bootstrap: int = BOOTSTRAP) -> CorrectionProposal:
+def propose(
+    regs: Mapping[str, ChannelRegression], max_terms: int = 3, seed: int = SEED, bootstrap: int = BOOTSTRAP
+) -> CorrectionProposal:
     """The few terms the error of every channel supports: per channel the STLSQ threshold of least
     leave-one-run-out error, then a seeded bootstrap over runs; terms picked in at least ``INCLUSION`` of the
     resamples, at most ``max_terms`` in all (the order only until :func:`screened` re-ranks them on
@@ -247,13 +282,26 @@ def propose(regs: Mapping[str, ChannelRegression], max_terms: int = 3, seed: int
             picked += stlsq(z[rows], reg.y[rows], threshold) != 0
         share = picked / bootstrap
         coef = stlsq(z, reg.y, threshold) / scale
-        size = float(np.sqrt(np.mean(reg.y ** 2)))
+        size = float(np.sqrt(np.mean(reg.y**2)))
         for k, tm in enumerate(reg.terms):
             if share[k] > 0:
                 inclusion[tm.variable] = float(share[k])
             if share[k] >= INCLUSION and coef[k] != 0:
-                ranked.append((channel in DYNAMIC, float(share[k]), abs(coef[k]) * scale[k] / size, tm.variable,
-                               float(coef[k])))
+                ranked.append(
+                    (
+                        channel in DYNAMIC,
+                        float(share[k]),
+                        abs(coef[k]) * scale[k] / size,
+                        tm.variable,
+                        float(coef[k]),
+                    )
+                )
     order = tuple((v, c) for *_, v, c in sorted(ranked, reverse=True))
-    return CorrectionProposal(dict(order[:max_terms]), inclusion, thresholds, rms, order,
-                    {k: v for reg in regs.values() for k, v in reg.shapes.items()})
+    return CorrectionProposal(
+        dict(order[:max_terms]),
+        inclusion,
+        thresholds,
+        rms,
+        order,
+        {k: v for reg in regs.values() for k, v in reg.shapes.items()},
+    )

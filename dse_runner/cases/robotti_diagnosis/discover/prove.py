@@ -19,20 +19,32 @@ from .propose import CorrectionProposal, propose, regressions
 from .rank_terms import DISCOVERED, Fitter, Screen, extended_margin, held_shapes, library_ids, screened
 
 
-def with_terms(problem: FitProblem, vehicle: str, terms: Mapping[str, float], start: Mapping[str, float],
-               rms: Mapping[str, float], shapes: Mapping[str, float] = {}) -> FitProblem:
+def with_terms(
+    problem: FitProblem,
+    vehicle: str,
+    terms: Mapping[str, float],
+    start: Mapping[str, float],
+    rms: Mapping[str, float],
+    shapes: Mapping[str, float] = {},
+) -> FitProblem:
     """``problem`` with the correction terms freed: each bounded by correction.bound over the runs' feature
     RMS, starting from ``start`` (a fitted point) where it has the term, else from the proposal; the shapes
     the terms depend on held at their values in ``shapes``."""
     extra = []
     for variable, value in terms.items():
         name = f"{vehicle}.{variable}"
-        extra.append(correction.parameter(correction.term(variable), vehicle, rms.get(variable),
-                                          start.get(name, value)))
+        extra.append(
+            correction.parameter(
+                correction.term(variable), vehicle, rms.get(variable), start.get(name, value)
+            )
+        )
     names = {p.name for p in extra}
     held = held_shapes(shapes, vehicle, list(terms))
-    return replace(problem, parameters=problem.parameters + tuple(extra),
-                   fixed={**{k: v for k, v in problem.fixed.items() if k not in names}, **held})
+    return replace(
+        problem,
+        parameters=problem.parameters + tuple(extra),
+        fixed={**{k: v for k, v in problem.fixed.items() if k not in names}, **held},
+    )
 
 
 def fitted_terms(fit: FitResult) -> dict[str, float]:
@@ -47,7 +59,9 @@ def pruned(fit: FitResult, factor: float = PRUNE_SE) -> dict[str, float]:
     return {name.rsplit(".", 1)[-1]: fit.values[name] for name in kept}
 
 
-def refilled(kept: Mapping[str, float], proposal: CorrectionProposal, tried: set[str], max_terms: int) -> dict[str, float]:
+def refilled(
+    kept: Mapping[str, float], proposal: CorrectionProposal, tried: set[str], max_terms: int
+) -> dict[str, float]:
     """The kept terms (at zero: the dropped ones may have balanced them) and, in the slots pruning freed, the
     next terms the proposal ranked that were not tried yet (at their proposed values). Equation error sees
     more than dynamics (the model's own misfit shows in it too), so a term it ranks high may fall on
@@ -61,8 +75,11 @@ def refilled(kept: Mapping[str, float], proposal: CorrectionProposal, tried: set
     return out
 
 
-def settle(chain: Fitter, jobs: Mapping[str, tuple[Callable[[Mapping[str, float]], FitProblem], CorrectionProposal]],
-           what: str) -> dict[str, FitResult | None]:
+def settle(
+    chain: Fitter,
+    jobs: Mapping[str, tuple[Callable[[Mapping[str, float]], FitProblem], CorrectionProposal]],
+    what: str,
+) -> dict[str, FitResult | None]:
     """Fit each job's proposed terms, prune those within PRUNE_SE standard errors of zero, refit with the freed
     slots refilled (:func:`refilled`; all of them when no term survived), then prune and refit without
     refilling until every term stands; lockstep batches throughout. ``jobs``: label -> (problem for given
@@ -101,7 +118,9 @@ class Discovery:
     candidates: list[Candidate] = field(default_factory=list)  # fitted with terms: R + D, and D alone
     chosen: Candidate | None = None  # the accepted one; None if no term paid its way
     folds: list[dict[str, Any]] = field(default_factory=list)  # each set's and fold's own proposal
-    resembles: list[tuple[str, float]] = field(default_factory=list)  # library effects by similarity, best first
+    resembles: list[tuple[str, float]] = field(
+        default_factory=list
+    )  # library effects by similarity, best first
     margin: float = math.nan  # the BIC margin the terms had to beat (extended)
     reason: str = ""
 
@@ -111,13 +130,26 @@ class Discovery:
 
     def to_json(self) -> dict[str, Any]:
         best = min(self.candidates, key=lambda c: c.cross_validated, default=None)
-        return {"reference": self.reference.label, "held_out_reference": self.reference.cross_validated,
-                "proposed": dict(self.proposal.terms) if self.proposal else {},
-                "inclusion": dict(self.proposal.inclusion) if self.proposal else {},
-                "folds": self.folds, "bic_margin": self.margin, "accepted": self.chosen is not None,
-                "tried": [{"id": c.label, "terms": fitted_terms(c.full), "cross_track_held_out": c.cross_validated,
-                           "bic": c.bic} for c in self.candidates],
-                "best_held_out": best.cross_validated if best is not None else None, "reason": self.reason}
+        return {
+            "reference": self.reference.label,
+            "held_out_reference": self.reference.cross_validated,
+            "proposed": dict(self.proposal.terms) if self.proposal else {},
+            "inclusion": dict(self.proposal.inclusion) if self.proposal else {},
+            "folds": self.folds,
+            "bic_margin": self.margin,
+            "accepted": self.chosen is not None,
+            "tried": [
+                {
+                    "id": c.label,
+                    "terms": fitted_terms(c.full),
+                    "cross_track_held_out": c.cross_validated,
+                    "bic": c.bic,
+                }
+                for c in self.candidates
+            ],
+            "best_held_out": best.cross_validated if best is not None else None,
+            "reason": self.reason,
+        }
 
 
 def _sets(reference: Candidate) -> list[tuple[str, ...]]:
@@ -125,8 +157,13 @@ def _sets(reference: Candidate) -> list[tuple[str, ...]]:
     return [(*reference.ids, DISCOVERED)] + ([(DISCOVERED,)] if reference.ids else [])
 
 
-def discover(chain: Fitter, reference: Candidate, candidates: Sequence[Candidate], runs: Sequence[Observed],
-             fixed: Mapping[str, Any] = {}) -> Discovery:
+def discover(
+    chain: Fitter,
+    reference: Candidate,
+    candidates: Sequence[Candidate],
+    runs: Sequence[Observed],
+    fixed: Mapping[str, Any] = {},
+) -> Discovery:
     """Propose terms on top of ``reference`` (R + D) and of the calibrated model alone (D alone, when R has
     effects: a term may explain what R only looked like), each from every run; fit them on every run and
     prune them; re-propose and fit inside each fold on its training runs; score the held-out runs; accept by
@@ -145,8 +182,10 @@ def discover(chain: Fitter, reference: Candidate, candidates: Sequence[Candidate
     def proposal(parent: FitResult, names: Sequence[str]) -> CorrectionProposal:
         values = vehicle_values(parent.point, vehicle, fixed)
         mine = [by_name[n] for n in names if n in by_name]
-        return propose(regressions(mine, values, {r.name: residuals(parent.point, r.name) for r in mine}),
-                       settings.max_terms)
+        return propose(
+            regressions(mine, values, {r.name: residuals(parent.point, r.name) for r in mine}),
+            settings.max_terms,
+        )
 
     def training(k: int) -> tuple[str, ...]:
         return tuple(s for s in chain.all if s not in chain.folds[k])
@@ -158,10 +197,16 @@ def discover(chain: Fitter, reference: Candidate, candidates: Sequence[Candidate
     # leak the choice of terms), then ranked on positions at its parent, all in one sweep.
     raw = {ids: proposal(parent.full, chain.all) for ids, parent in parents.items()}
     rms = {k: v for p in raw.values() for k, v in p.rms.items()}
-    bounds = {ids: {p.name: (p.lower, p.upper) for p in chain.problem("", library_ids(ids), {}, chain.all).parameters}
-              for ids in parents}
-    jobs_ = {("+".join(ids), -1): Screen(parent.full, chain.all, raw[ids], bounds[ids])
-             for ids, parent in parents.items()}
+    bounds = {
+        ids: {
+            p.name: (p.lower, p.upper) for p in chain.problem("", library_ids(ids), {}, chain.all).parameters
+        }
+        for ids in parents
+    }
+    jobs_ = {
+        ("+".join(ids), -1): Screen(parent.full, chain.all, raw[ids], bounds[ids])
+        for ids, parent in parents.items()
+    }
     for ids in parents:
         for k in range(len(chain.folds)):
             fold_proposal = proposal(parent_fold(ids, k), training(k))
@@ -172,8 +217,11 @@ def discover(chain: Fitter, reference: Candidate, candidates: Sequence[Candidate
     result.proposal = proposals[_sets(reference)[0]]
     sets = [ids for ids in parents if not proposals[ids].empty]
     if not sets:
-        result.reason = ("the equation error supports no term" if all(p.empty for p in raw.values())
-                         else "no proposed term moves the fix residuals enough to pay its way, linearised")
+        result.reason = (
+            "the equation error supports no term"
+            if all(p.empty for p in raw.values())
+            else "no proposed term moves the fix residuals enough to pay its way, linearised"
+        )
         return result
     for ids in sets:
         chain.say(f"discovery: proposed for {'+'.join(ids)}: " + "; ".join(proposals[ids].readable()))
@@ -182,14 +230,19 @@ def discover(chain: Fitter, reference: Candidate, candidates: Sequence[Candidate
         base = chain.problem("+".join(ids), library_ids(ids), dict(parents[ids].full.values), chain.all)
         return with_terms(base, vehicle, terms, {}, rms, proposals[ids].shapes)
 
-    settled = settle(chain, {"+".join(ids): (lambda terms, ids=ids: full_problem(ids, terms), proposals[ids])
-                             for ids in sets}, "discovery: fitting the correction")
+    settled = settle(
+        chain,
+        {"+".join(ids): (lambda terms, ids=ids: full_problem(ids, terms), proposals[ids]) for ids in sets},
+        "discovery: fitting the correction",
+    )
     fitted = [Candidate(ids, settled["+".join(ids)]) for ids in sets if settled["+".join(ids)] is not None]
     if not fitted:
         result.reason = "no proposed term is two standard errors from zero when fitted on positions"
         return result
     jobs, copies = {}, {}
-    for c in fitted:  # fold-honest: each fold's own proposal, on its training runs, ranked at its parent's fold fit
+    for c in (
+        fitted
+    ):  # fold-honest: each fold's own proposal, on its training runs, ranked at its parent's fold fit
         for k in range(len(chain.folds)):
             label = f"{c.label}/fold{k}"
             mine = ranked[f"{c.label}/{k}"]
@@ -198,18 +251,30 @@ def discover(chain: Fitter, reference: Candidate, candidates: Sequence[Candidate
             if mine.empty:
                 continue
 
-            def make(terms: Mapping[str, float], label: str = label, c: Candidate = c, k: int = k,
-                     shapes: Mapping[str, float] = mine.shapes) -> FitProblem:
-                base = chain.problem(label, library_ids(c.ids), {**parent_fold(c.ids, k).values, **c.full.values},
-                                     training(k))
+            def make(
+                terms: Mapping[str, float],
+                label: str = label,
+                c: Candidate = c,
+                k: int = k,
+                shapes: Mapping[str, float] = mine.shapes,
+            ) -> FitProblem:
+                base = chain.problem(
+                    label, library_ids(c.ids), {**parent_fold(c.ids, k).values, **c.full.values}, training(k)
+                )
                 return with_terms(base, vehicle, terms, c.full.values, rms, shapes)
 
             jobs[label] = (make, mine)
     # Each fold's proposal is fitted and scored as ranked: the ranking on positions already leaves out the
     # terms that would only stand in for others, and pruning inside a fold (fewer runs, so wider
     # cluster-robust intervals) can leave it with no term where the full fit keeps one.
-    fold_fits = chain.fit([make(dict(mine.terms)) for make, mine in jobs.values()],
-                          "discovery: cross-validating the correction") if jobs else {}
+    fold_fits = (
+        chain.fit(
+            [make(dict(mine.terms)) for make, mine in jobs.values()],
+            "discovery: cross-validating the correction",
+        )
+        if jobs
+        else {}
+    )
     for entry in result.folds:
         fit = fold_fits.get(f"{entry['set']}/fold{entry['fold']}")
         entry["kept"] = fitted_terms(fit) if fit is not None else {}
@@ -219,10 +284,12 @@ def discover(chain: Fitter, reference: Candidate, candidates: Sequence[Candidate
     result.chosen = accept(fitted, reference, [*candidates, *fitted], settings.min_gain, settings.bic_margin)
     if result.chosen is None:
         best = min(fitted, key=lambda c: c.cross_validated)
-        result.reason = (f"no correction pays its way: held-out {reference.cross_validated:.4f} m at best → "
-                         f"{best.cross_validated:.4f} m, ΔBIC {best.bic - reference.bic:+.1f} (the rule: "
-                         f"{settings.min_gain:.0%} lower held-out error and {result.margin:.1f} lower BIC, every "
-                         "term two standard errors from zero)")
+        result.reason = (
+            f"no correction pays its way: held-out {reference.cross_validated:.4f} m at best → "
+            f"{best.cross_validated:.4f} m, ΔBIC {best.bic - reference.bic:+.1f} (the rule: "
+            f"{settings.min_gain:.0%} lower held-out error and {result.margin:.1f} lower BIC, every "
+            "term two standard errors from zero)"
+        )
     return result
 
 
@@ -237,13 +304,23 @@ def pays(candidate: Candidate, candidates: Sequence[Candidate], min_gain: float,
     return True
 
 
-def accept(fitted: Sequence[Candidate], reference: Candidate, candidates: Sequence[Candidate], min_gain: float,
-           bic_margin: float) -> Candidate | None:
+def accept(
+    fitted: Sequence[Candidate],
+    reference: Candidate,
+    candidates: Sequence[Candidate],
+    min_gain: float,
+    bic_margin: float,
+) -> Candidate | None:
     """The accepted candidate with terms, or None: cross-validated, beating the reference by the extended
     margin and every fitted part of itself; the lowest held-out error, fewer ids winning a tie within
     ``min_gain``."""
-    eligible = [c for c in fitted if c.validated and math.isfinite(c.cross_validated)
-                and pruned(c.full) == fitted_terms(c.full)  # every term still two standard errors from zero
-                and explain.beats(c, reference, min_gain, extended_margin(bic_margin, len(fitted_terms(c.full))))
-                and pays(c, candidates, min_gain, bic_margin)]
+    eligible = [
+        c
+        for c in fitted
+        if c.validated
+        and math.isfinite(c.cross_validated)
+        and pruned(c.full) == fitted_terms(c.full)  # every term still two standard errors from zero
+        and explain.beats(c, reference, min_gain, extended_margin(bic_margin, len(fitted_terms(c.full))))
+        and pays(c, candidates, min_gain, bic_margin)
+    ]
     return explain.simplest_best(eligible, min_gain) if eligible else None

@@ -28,8 +28,9 @@ class Fitter(Protocol):
     settings: Any
     say: Callable[[str], None]
 
-    def problem(self, label: str, ids: tuple[str, ...], start: dict[str, float], scenarios: tuple[str, ...]
-                ) -> FitProblem: ...
+    def problem(
+        self, label: str, ids: tuple[str, ...], start: dict[str, float], scenarios: tuple[str, ...]
+    ) -> FitProblem: ...
 
     def fit(self, problems: list[FitProblem], what: str) -> dict[str, FitResult]: ...
 
@@ -41,7 +42,9 @@ class Fitter(Protocol):
 def searched_count() -> int:
     """How many terms the proposal chooses among: the extended BIC charges for the search. A shaped term
     counts once per value scanned (a step at each onset time is a term of its own)."""
-    return sum(SCANNED if correction.shape_of(t) else 1 for t in correction.searched_terms() if t.channel in CHANNELS)
+    return sum(
+        SCANNED if correction.shape_of(t) else 1 for t in correction.searched_terms() if t.channel in CHANNELS
+    )
 
 
 def extended_margin(bic_margin: float, terms: int, searched: int | None = None) -> float:
@@ -93,13 +96,23 @@ def screen_probes(job: Screen, parameters: Mapping[str, Parameter]) -> list[Poin
     out = [point]
     for variable, _ in job.proposal.ranked:
         p = parameters[variable]
-        out.append({**point, p.name: point.get(p.name, 0.0) + p.step,
-                    **held_shapes(job.proposal.shapes, p.name.rsplit(".", 1)[0], [variable])})
+        out.append(
+            {
+                **point,
+                p.name: point.get(p.name, 0.0) + p.step,
+                **held_shapes(job.proposal.shapes, p.name.rsplit(".", 1)[0], [variable]),
+            }
+        )
     return out
 
 
-def linear_sse(r: np.ndarray, base: np.ndarray, columns: np.ndarray, bounds: np.ndarray,
-               moves: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[float, np.ndarray]:
+def linear_sse(
+    r: np.ndarray,
+    base: np.ndarray,
+    columns: np.ndarray,
+    bounds: np.ndarray,
+    moves: tuple[np.ndarray, np.ndarray] | None = None,
+) -> tuple[float, np.ndarray]:
     """The least SSE of r + base·a + columns·c with the parent's parameters ``a`` refitted within ``moves``
     (down, up; free without) and the terms' coefficients ``c`` within ±``bounds``; returns (SSE, c)."""
     from scipy.optimize import lsq_linear
@@ -117,10 +130,15 @@ def linear_sse(r: np.ndarray, base: np.ndarray, columns: np.ndarray, bounds: np.
     return float(fitted @ fitted), x[k:]
 
 
-def rank_on_positions(r: np.ndarray, base: np.ndarray, columns: Mapping[str, np.ndarray],
-                      bounds: Mapping[str, float], max_terms: int, bic_margin: float,
-                      moves: tuple[np.ndarray, np.ndarray] | None = None
-                      ) -> tuple[list[tuple[str, float]], list[str]]:
+def rank_on_positions(
+    r: np.ndarray,
+    base: np.ndarray,
+    columns: Mapping[str, np.ndarray],
+    bounds: Mapping[str, float],
+    max_terms: int,
+    bic_margin: float,
+    moves: tuple[np.ndarray, np.ndarray] | None = None,
+) -> tuple[list[tuple[str, float]], list[str]]:
     """Forward selection of terms by what they do to the fix residuals, linearised at the parent fit: each
     step adds the term that lowers the SSE most with the terms already chosen and the parent's parameters
     refitted, while the predicted BIC falls by the extended margin's share of that term (so the chosen set
@@ -139,8 +157,13 @@ def rank_on_positions(r: np.ndarray, base: np.ndarray, columns: Mapping[str, np.
             if v in chosen:
                 continue
             names = [*chosen, v]
-            sse, c = linear_sse(r, base, np.column_stack([columns[x] for x in names]),
-                                np.array([bounds[x] for x in names]), moves)
+            sse, c = linear_sse(
+                r,
+                base,
+                np.column_stack([columns[x] for x in names]),
+                np.array([bounds[x] for x in names]),
+                moves,
+            )
             trials[v], solutions[v] = sse, c
         if not trials:
             break
@@ -156,7 +179,9 @@ def rank_on_positions(r: np.ndarray, base: np.ndarray, columns: Mapping[str, np.
     return [(v, float(c)) for v, c in zip(chosen, coefficients)], rest
 
 
-def screened(chain: Fitter, jobs: Mapping[str, Screen], rms: Mapping[str, float]) -> dict[str, CorrectionProposal]:
+def screened(
+    chain: Fitter, jobs: Mapping[str, Screen], rms: Mapping[str, float]
+) -> dict[str, CorrectionProposal]:
     """Each job's proposal re-ranked on positions (:func:`rank_on_positions`) at its parent fit, on the
     parent's runs only, all in one sweep of probes (one per proposed term and parent; the parents' own
     points are in the store). Equation error says *which* terms the data carry; this says which of them
@@ -164,8 +189,10 @@ def screened(chain: Fitter, jobs: Mapping[str, Screen], rms: Mapping[str, float]
     variables = {v for job in jobs.values() for v, _ in job.proposal.ranked}
     parameters = term_parameters(sorted(variables), chain.vehicle, rms)
     probes = {label: screen_probes(job, parameters) for label, job in jobs.items()}
-    residuals = chain.evaluate([p for points in probes.values() for p in points],
-                               [jobs[label].scenarios for label, points in probes.items() for _ in points])
+    residuals = chain.evaluate(
+        [p for points in probes.values() for p in points],
+        [jobs[label].scenarios for label, points in probes.items() for _ in points],
+    )
     out = {}
     for label, job in jobs.items():
         if job.proposal.empty:
@@ -178,7 +205,9 @@ def screened(chain: Fitter, jobs: Mapping[str, Screen], rms: Mapping[str, float]
 
         point, *moved = probes[label]
         r = stacked(point)
-        if r is None:  # the parent does not simulate (cannot happen for a fitted point): keep the proposal's order
+        if (
+            r is None
+        ):  # the parent does not simulate (cannot happen for a fitted point): keep the proposal's order
             out[label] = job.proposal
             continue
         whole = job.fit.jacobian and sum(len(j) for j in job.fit.jacobian) == len(r)
@@ -190,8 +219,9 @@ def screened(chain: Fitter, jobs: Mapping[str, Screen], rms: Mapping[str, float]
             if m is not None:
                 columns[variable] = (m - r) / parameters[variable].step
                 bounds[variable] = parameters[variable].upper
-        chosen, rest = rank_on_positions(r, base, columns, bounds, chain.settings.max_terms,
-                                         chain.settings.bic_margin, moves)
+        chosen, rest = rank_on_positions(
+            r, base, columns, bounds, chain.settings.max_terms, chain.settings.bic_margin, moves
+        )
         proposed = dict(job.proposal.ranked)
         order = (*chosen, *((v, proposed[v]) for v in rest))
         out[label] = replace(job.proposal, terms=dict(chosen), ranked=order)

@@ -14,12 +14,18 @@ from .. import correction
 from ..hypotheses import LIBRARY
 from .rank_terms import Fitter
 
-RESEMBLES, PARTLY = 0.9, 0.5  # cosine similarity above which a term resembles, partly resembles, a library effect
+RESEMBLES, PARTLY = (
+    0.9,
+    0.5,
+)  # cosine similarity above which a term resembles, partly resembles, a library effect
 
 
 def _library_parameters(vehicle: str) -> list[tuple[str, Parameter]]:
-    return [(h.id, Parameter(f"{vehicle}.{p.variable}", 0.0, p.lower, p.upper, p.step))
-            for h in LIBRARY.values() for p in h.parameters]
+    return [
+        (h.id, Parameter(f"{vehicle}.{p.variable}", 0.0, p.lower, p.upper, p.step))
+        for h in LIBRARY.values()
+        for p in h.parameters
+    ]
 
 
 def similarity(change: np.ndarray, columns: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> float:
@@ -71,7 +77,9 @@ def resembles(chain: Fitter, chosen: Candidate) -> list[tuple[str, float]]:
             cols.append(np.zeros_like(without) if moved is None else (moved - without) / delta)
             lows.append(p.lower - off.get(p.name, 0.0))
             highs.append(p.upper - off.get(p.name, 0.0))
-        out.append((hid, similarity(change, np.column_stack(cols), np.minimum(lows, 0.0), np.maximum(highs, 0.0))))
+        out.append(
+            (hid, similarity(change, np.column_stack(cols), np.minimum(lows, 0.0), np.maximum(highs, 0.0)))
+        )
     return sorted(out, key=lambda item: -item[1])
 
 
@@ -98,7 +106,13 @@ def terms_json(fit: FitResult) -> list[dict[str, Any]]:
             t = correction.term(name)
             low, high = interval[name]
             shape = correction.shape_of(t)
-            out.append({"text": correction.readable_term(t, value, (low, high), shapes), "variable": t.variable,
-                        "value": value, "interval": [low, high]}
-                       | ({shape.key: shapes[shape.variable]} if shape and shape.variable in shapes else {}))
+            out.append(
+                {
+                    "text": correction.readable_term(t, value, (low, high), shapes),
+                    "variable": t.variable,
+                    "value": value,
+                    "interval": [low, high],
+                }
+                | ({shape.key: shapes[shape.variable]} if shape and shape.variable in shapes else {})
+            )
     return out
