@@ -34,7 +34,8 @@ N, DT, DECIMALS = 2000, 0.05, 6
 
 
 def ar1(rng: np.random.Generator, rho: float, sigma: float, n: int) -> np.ndarray:
-    """AR(1) of stationary σ ``sigma`` and lag-1 correlation ``rho``: the Ornstein-Uhlenbeck process sampled."""
+    """AR(1) of stationary σ ``sigma`` and lag-1 correlation ``rho``: the
+    Ornstein-Uhlenbeck process sampled."""
     w = rng.normal(0.0, sigma * math.sqrt(1 - rho**2), n)
     e = np.empty(n)
     e[0] = rng.normal(0.0, sigma)

@@ -352,7 +352,8 @@ FLOOR_PROCESSES = (
 
 
 def cost_split(short: float, long: float, short_steps: int, long_steps: int) -> dict[str, float]:
-    """A master's fixed cost per simulation and marginal cost per step, from its fastest runs of two lengths."""
+    """A master's fixed cost per simulation and marginal cost per step, from
+    its fastest runs of two lengths."""
     per_step = (long - short) / (long_steps - short_steps)
     return {"fixed_seconds": short - per_step * short_steps, "seconds_per_step": per_step}
 
@@ -411,8 +412,9 @@ def print_case(name: str, case: Case, case_ratios: dict[str, float], title: str)
     )
     for master, cost in (case.split or {}).items():
         print(
-            f"  {master:<14} fixed {cost['fixed_seconds'] * 1e6:7.1f} µs per simulation,"
-            f" {cost['seconds_per_step'] * 1e9:6.1f} ns per step (runs of {case.steps} and {LONGER * case.steps} steps)"
+            f"  {master:<14} fixed {cost['fixed_seconds'] * 1e6:7.1f} µs "
+            f"per simulation, {cost['seconds_per_step'] * 1e9:6.1f} ns per "
+            f"step (runs of {case.steps} and {LONGER * case.steps} steps)"
         )
 
 

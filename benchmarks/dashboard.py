@@ -87,8 +87,8 @@ def main() -> None:
         print(json.dumps(figures, indent=2))
         return
     print(
-        f"sweep of 1500 tasks, median of {args.repeats}: {figures['sweep_without_dashboard_s']:.1f} s without a "
-        f"dashboard, {figures['sweep_with_dashboard_page_open_s']:.1f} s with one open "
+        f"sweep of 1500 tasks, median of {args.repeats}: {figures['sweep_without_dashboard_s']:.1f} "
+        f"s without a dashboard, {figures['sweep_with_dashboard_page_open_s']:.1f} s with one open "
         f"(ratio {figures['ratio']:.3f})"
     )
     print(f"one dashboard refresh reads the store in {figures['refresh_read_ms']:.1f} ms (1500 rows)")

@@ -125,8 +125,9 @@ def outside_row(name: str, result, seconds: float) -> str:
     resembles = found["resembles"]["text"] if found and found.get("resembles") else "-"
     return (
         f"{name:<17} {truth:<48} {named:<40} {result.verdict:<11} {partial:>7} "
-        f"{result.cross_track_before:>10.3f} {best:>11.3f} {result.cross_track_after:>10.3f} {floor_of(result)} "
-        f"{'yes' if blind.outside_target(result) else 'no':>4} {seconds:>8.1f}  {discovered(result)} | {resembles}"
+        f"{result.cross_track_before:>10.3f} {best:>11.3f} {result.cross_track_after:>10.3f} "
+        f"{floor_of(result)} {'yes' if blind.outside_target(result) else 'no':>4} "
+        f"{seconds:>8.1f}  {discovered(result)} | {resembles}"
     )
 
 

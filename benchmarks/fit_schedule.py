@@ -2,11 +2,11 @@
 
 sweeps/fit_rounds.py's ``fit_all`` asks for a candidate's perturbations (its Jacobian) with it only when the
 cluster has a free thread for every simulation of the round; otherwise a round later, once the candidate is
-accepted, so a rejected candidate costs one point instead of one per parameter more. This runs blind
-diagnosis cases of tests/support/blind.py (the test suite's form) both ways, side by side, each in a store of its
-own on the same local cluster, and prints per case and schedule: the simulations run, the wall time, the CPU
-seconds of this process (the diagnosis' client, and the local cluster's scheduler, which runs in it) and of
-the worker processes, and whether the diagnosis came out the same to the last digit.
+accepted, so a rejected candidate costs one point instead of one per parameter more. This runs blind diagnosis
+cases of tests/support/blind.py (the test suite's form) both ways, side by side, each in a store of its own on
+the same local cluster, and prints per case and schedule: the simulations run, the wall time, the CPU seconds
+of this process (the diagnosis' client, and the local cluster's scheduler, which runs in it) and of the worker
+processes, and whether the diagnosis came out the same to the last digit.
 
     python3 benchmarks/fit_schedule.py [--cases rolling_resistance,steering_offset,wheel_slip+speed_lag]
                                        [--workers 2] [--out out/fit-schedule]
@@ -99,8 +99,9 @@ def main() -> None:
                     rows[schedule] = run(case, args.out / case / schedule.replace(" ", "-"), client)
             for schedule, row in rows.items():
                 print(
-                    f"{case:<22} {schedule:<11} {row['simulations']:>11} {row['wall']:>7.1f} {row['client']:>12.1f} "
-                    f"{row['cluster']:>13.1f} {row['client'] + row['cluster']:>11.1f}  {', '.join(row['named'])}"
+                    f"{case:<22} {schedule:<11} {row['simulations']:>11} "
+                    f"{row['wall']:>7.1f} {row['client']:>12.1f} {row['cluster']:>13.1f} "
+                    f"{row['client'] + row['cluster']:>11.1f}  {', '.join(row['named'])}"
                 )
             first, second = rows.values()
             same = (
@@ -109,8 +110,8 @@ def main() -> None:
                 else "DIFFERENT answers"
             )
             print(
-                f"{case:<22} shipped/eager: simulations {second['simulations'] / first['simulations']:.2f}, CPU "
-                f"{(second['client'] + second['cluster']) / (first['client'] + first['cluster']):.2f}, "
+                f"{case:<22} shipped/eager: simulations {second['simulations'] / first['simulations']:.2f}, "
+                f"CPU {(second['client'] + second['cluster']) / (first['client'] + first['cluster']):.2f}, "
                 f"wall {second['wall'] / first['wall']:.2f}; {same}"
             )
 

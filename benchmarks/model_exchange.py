@@ -6,7 +6,8 @@ Three cases, each a model-exchange FMU under CVode:
 
 * ``msd_pushed``: the mass-spring-damper (jobs/msd, tolerance 1e-6) pushed by a force log with steps, held
   between samples (each step an input event), 10 s at a 0.025 s step: the shape of the blind diagnosis runs;
-* ``ball``: the bouncing ball (tests/fmus/ball): state events (bounces) and a time event (a kick), 2 s at 0.01 s;
+* ``ball``: the bouncing ball (tests/fmus/ball): state events (bounces) and a time
+  event (a kick), 2 s at 0.01 s;
 * ``msd_terms``: ``msd_pushed`` with two derivative terms (x^3 and F·tanh(v/0.1)), as derivative discovery's
   fits run it.
 
@@ -14,7 +15,8 @@ Per case, the median wall time per simulation of:
 
 * ``native``: ``simulate(..., loop="native")``, the plan, scenario and instances made once and reused across
   runs, as a sweep's worker does;
-* ``python``: the same master with ``loop="python"``: FMPy's CVodeSolver, its right-hand side a Python callback;
+* ``python``: the same master with ``loop="python"``: FMPy's CVodeSolver, its
+  right-hand side a Python callback;
 * ``simulate_fmu``: FMPy's ``simulate_fmu`` per run as a user would write it, CVode at the same tolerance and
   output interval, the force as an input table (not for the terms, which are ours).
 

@@ -13,13 +13,14 @@ prints when the sweep has ended and before it ranks (the sweep part: what issue 
 For the report, its size.
 
 The dashboard: once submit has finished, ``dse-runner dashboard OUT --address 127.0.0.1:PORT`` is started
-while a headless Chromium (Debian's, launched as tests/support/pages.py launches it, before the command) waits; from
-the command's start (wall clock) to the page showing its first number (the progress line's "done" count,
-#dse-done, which the page's HTML carries before BokehJS draws the document; looked for from the answer's
-first bytes on), and to all figures drawn: every visible Bokeh plot with a non-empty data source as BokehJS's
-documents hold them, every Bokeh view finished rendering, and the sensitivity section's images loaded (or
-its note saying why there are none). The page is polled every 100 ms for at most 600 s; a figure not reached
-by then is reported as a timeout (null in --json). Its peak resident memory is the dashboard process's.
+while a headless Chromium (Debian's, launched as tests/support/pages.py launches it, before the command)
+waits; from the command's start (wall clock) to the page showing its first number (the progress line's
+"done" count, #dse-done, which the page's HTML carries before BokehJS draws the document; looked for from
+the answer's first bytes on), and to all figures drawn: every visible Bokeh plot with a non-empty data
+source as BokehJS's documents hold them, every Bokeh view finished rendering, and the sensitivity
+section's images loaded (or its note saying why there are none). The page is polled every 100 ms for at
+most 600 s; a figure not reached by then is reported as a timeout (null in --json). Its peak resident
+memory is the dashboard process's.
 
 The ratios to the smallest study show what grows with the rows; issue 52's targets at 10^6 rows are a client
 peak of 1 GB, rank 10 s, report 20 s and 8 MB, and the dashboard's first number within 5 s and all its
@@ -286,8 +287,8 @@ def ratio(value: float | None, first: float | None) -> str:
 def table(found: list[dict]) -> None:
     first = found[0]
     print(
-        f"{'rows':>9} | {'submit (its sweep part)':>26} | {'rank':>15} | {'report':>22} | {'sensitivity':>15} | "
-        f"{'dashboard: first number, all figures':>37} | {'again, indices kept':>29}"
+        f"{'rows':>9} | {'submit (its sweep part)':>26} | {'rank':>15} | {'report':>22} | "
+        f"{'sensitivity':>15} | {'dashboard: first number, all figures':>37} | {'again, indices kept':>29}"
     )
     for f in found:
         cells = [f"{f[c]['seconds']:6.1f} s {f[c]['peak_mb']:5d} MB" for c in ("submit", "rank")]

@@ -441,8 +441,9 @@ def main() -> None:
     for w in (1, 2):
         runs[w] = r = local_sweep(paper, work / f"local-{w}", w, 2.0, args.repeats)
         say(
-            f"   {w} worker{'s' if w > 1 else ' '}: {r['ran']} tasks in {r['wall_s']:.2f} s = {r['tasks_per_s']:.1f} "
-            f"tasks/s; simulation {r['simulation_s']:.2f} s vs wall x workers {r['wall_x_workers_s']:.2f} s "
+            f"   {w} worker{'s' if w > 1 else ' '}: {r['ran']} tasks in "
+            f"{r['wall_s']:.2f} s = {r['tasks_per_s']:.1f} tasks/s; simulation "
+            f"{r['simulation_s']:.2f} s vs wall x workers {r['wall_x_workers_s']:.2f} s "
             f"(busy {r['busy_fraction']:.1%}); {r['chunks']} chunks of {r['chunk_size']}"
         )
     r2 = runs[2]
@@ -456,9 +457,10 @@ def main() -> None:
     for cs, r in sorted(by_chunk.items()):
         chunk_wall = r["chunk_size"] * r["seconds_per_simulation"]
         say(
-            f"   chunk_seconds {cs}: {r['chunks']:>3} chunks of {r['chunk_size']:>2} ({chunk_wall:.2f} s), "
-            f"{r['wall_s']:.2f} s, overhead (wall x workers - simulation) / simulation = "
-            f"{r['overhead_fraction']:.1%} (runs: {', '.join(f'{x:.1%}' for x in r['repeats_overhead_fraction'])})"
+            f"   chunk_seconds {cs}: {r['chunks']:>3} chunks of {r['chunk_size']:>2} "
+            f"({chunk_wall:.2f} s), {r['wall_s']:.2f} s, overhead (wall x workers - "
+            f"simulation) / simulation = {r['overhead_fraction']:.1%} (runs: "
+            f"{', '.join(f'{x:.1%}' for x in r['repeats_overhead_fraction'])})"
         )
     f["local_2_workers_by_chunk_seconds"] = {str(k): v for k, v in sorted(by_chunk.items())}
     outside = [r["wall_x_workers_s"] - r["simulation_s"] for r in by_chunk.values()]
@@ -476,14 +478,15 @@ def main() -> None:
             say(f"   idle scheduler (2 workers, 1 client): {idle2:.2%} of a core")
             f["noop_batched"] = n = noop_tasks(cluster, client, args.noop_tasks, args.batch)
             say(
-                f"   {n['tasks']} no-op tasks, client.map in batches of {n['batch']}: {n['wall_s']:.2f} s = "
-                f"{n['tasks_per_s']:.0f} tasks/s; scheduler CPU {n['scheduler_cpu_per_task_ms']:.3f} ms per task "
-                f"(scheduler busy {n['scheduler_busy_fraction']:.0%} of a core)"
+                f"   {n['tasks']} no-op tasks, client.map in batches of {n['batch']}: {n['wall_s']:.2f} "
+                f"s = {n['tasks_per_s']:.0f} tasks/s; scheduler CPU {n['scheduler_cpu_per_task_ms']:.3f} "
+                f"ms per task (scheduler busy {n['scheduler_busy_fraction']:.0%} of a core)"
             )
             f["noop_one_by_one"] = m = noop_one_by_one(cluster, client, args.one_by_one_tasks, 6)
             say(
-                f"   {m['tasks']} no-op tasks, one client.submit per completion (as the sweep submits chunks): "
-                f"{m['tasks_per_s']:.0f} tasks/s; scheduler CPU {m['scheduler_cpu_per_task_ms']:.3f} ms per task"
+                f"   {m['tasks']} no-op tasks, one client.submit per completion "
+                f"(as the sweep submits chunks): {m['tasks_per_s']:.0f} tasks/s; "
+                f"scheduler CPU {m['scheduler_cpu_per_task_ms']:.3f} ms per task"
             )
             cli = {}
             for cs in (0.05, 2.0):
@@ -509,12 +512,13 @@ def main() -> None:
     f["client_cpu_per_chunk_ms"] = client_chunk * 1e3
     f["scheduler_cpu_per_heartbeat_ms"] = heartbeat_s * 1e3
     say(
-        f"   real chunk tasks, from the difference of the two sweeps ({small['chunks']} - {big['chunks']} chunks): "
-        f"scheduler CPU {s_chunk * 1e3:.3f} ms per chunk, client CPU {client_chunk * 1e3:.3f} ms per chunk"
+        f"   real chunk tasks, from the difference of the two sweeps ({small['chunks']} "
+        f"- {big['chunks']} chunks): scheduler CPU {s_chunk * 1e3:.3f} ms per chunk, "
+        f"client CPU {client_chunk * 1e3:.3f} ms per chunk"
     )
     say(
-        f"   idle scheduler with 10 workers: {idle10:.2%} of a core, so {heartbeat_s * 1e3:.3f} ms per worker "
-        f"heartbeat (2 a second each at <= 10 workers)"
+        f"   idle scheduler with 10 workers: {idle10:.2%} of a core, so "
+        f"{heartbeat_s * 1e3:.3f} ms per worker heartbeat (2 a second each at <= 10 workers)"
     )
     t0 = time.perf_counter()
     read_ids = len(store.finished_task_ids(work / "cli-0.05", paper.name))
@@ -524,24 +528,24 @@ def main() -> None:
         "seconds": time.perf_counter() - t0,
     }
     say(
-        f"   reading the task ids back from the {small['parquet_files']} Parquet files of the chunk-of-1 sweep "
-        f"(what a resume does), local disk: {f['read_back']['seconds']:.2f} s"
+        f"   reading the task ids back from the {small['parquet_files']} Parquet files of the "
+        f"chunk-of-1 sweep (what a resume does), local disk: {f['read_back']['seconds']:.2f} s"
     )
     o = r2["per_chunk_overhead_s"]
     say(
-        f"   worker side, 2-worker sweep of step 1: o = (wall x workers - simulation) / chunks = "
-        f"({r2['wall_x_workers_s']:.2f} - {r2['simulation_s']:.2f}) / {r2['chunks']} = {o * 1e3:.0f} ms per chunk "
-        f"({r2['per_chunk_overhead_after_startup_s'] * 1e3:.0f} ms without the {r2['startup_s']:.2f} s start-up); "
-        f"marginal cost of one more chunk across the three chunk sizes: {marginal * 1e3:.1f} ms"
+        "   worker side, 2-worker sweep of step 1: o = (wall x workers - simulation) / chunks = "
+        f"({r2['wall_x_workers_s']:.2f} - {r2['simulation_s']:.2f}) / {r2['chunks']} = {o * 1e3:.0f} ms per "
+        f"chunk ({r2['per_chunk_overhead_after_startup_s'] * 1e3:.0f} ms without the {r2['startup_s']:.2f} "
+        f"s start-up); marginal cost of one more chunk across the three chunk sizes: {marginal * 1e3:.1f} ms"
     )
 
     # 3. the shipment
     f["shipment"] = sh = shipment_size(paper)
     say(
-        f"3. shipment (ship.pack of the Robotti space), sent once to every worker through the scheduler: "
+        "3. shipment (ship.pack of the Robotti space), sent once to every worker through the scheduler: "
         f"{sh['pickle_bytes']:,} bytes pickled ({sh['distributed_dumps_bytes']:,} with distributed's dumps, "
-        f"{sh['plugin_bytes']:,} as the plugin, {sh['zlib_bytes']:,} zlib-compressed; "
-        f"FMUs {sh['fmu_bytes']:,}, recorded files {sh['recording_bytes']:,}, scenarios {sh['scenarios_bytes']:,})"
+        f"{sh['plugin_bytes']:,} as the plugin, {sh['zlib_bytes']:,} zlib-compressed; FMUs "
+        f"{sh['fmu_bytes']:,}, recorded files {sh['recording_bytes']:,}, scenarios {sh['scenarios_bytes']:,})"
     )
 
     # 4. projection
@@ -600,30 +604,32 @@ def main() -> None:
         f"measured on this {os.cpu_count()}-core machine (2 working workers; 10 idle ones for the heartbeat)"
     )
     print(
-        f"   inputs: t = {t * 1e3:.1f} ms per simulation; o = {o * 1e3:.0f} ms worker-side overhead per chunk; "
-        f"s = {s * 1e3:.2f} ms scheduler CPU per chunk task;"
+        f"   inputs: t = {t * 1e3:.1f} ms per simulation; o = {o * 1e3:.0f} ms worker-side "
+        f"overhead per chunk; s = {s * 1e3:.2f} ms scheduler CPU per chunk task;"
     )
     print(
-        f"   heartbeat {heartbeat_s * 1e3:.3f} ms scheduler CPU each (W / heartbeat_interval(W) a second); "
-        f"client {client_task * 1e3:.3f} ms CPU per task + {client_chunk * 1e3:.2f} ms per chunk while chunks run "
-        f"(and {client_count * 1e3:.3f} ms per task before: {client_count * 1e6:.0f} s for 1M tasks);"
+        f"   heartbeat {heartbeat_s * 1e3:.3f} ms scheduler CPU each (W / "
+        f"heartbeat_interval(W) a second); client {client_task * 1e3:.3f} ms CPU per task + "
+        f"{client_chunk * 1e3:.2f} ms per chunk while chunks run (and {client_count * 1e3:.3f} "
+        f"ms per task before: {client_count * 1e6:.0f} s for 1M tasks);"
     )
     print(
         f"   {r2['files_per_chunk']:.2f} Parquet files per chunk; "
         f"shipment {sh['pickle_bytes'] / 1e6:.2f} MB per worker"
     )
     print(
-        f"   c = smallest chunk with o/(c t) <= {OVERHEAD_TARGET:.0%} and scheduler u = W s/(c t) + heartbeats "
-        f"<= {SCHEDULER_MAX}; tasks/s = W/t / (1 + o/(c t))"
+        f"   c = smallest chunk with o/(c t) <= {OVERHEAD_TARGET:.0%} and scheduler u "
+        f"= W s/(c t) + heartbeats <= {SCHEDULER_MAX}; tasks/s = W/t / (1 + o/(c t))"
     )
     print(
-        f"   {'workers':>7} {'c':>5} {'c*t s':>6} {'overh.':>6} {'sched u':>7} {'client u':>8} {'tasks/s':>8} "
-        f"{'chunks/s':>8} {'files/s':>7} {'ship MB':>8} {'c (batched)':>11}"
+        f"   {'workers':>7} {'c':>5} {'c*t s':>6} {'overh.':>6} {'sched u':>7} {'client u':>8} "
+        f"{'tasks/s':>8} {'chunks/s':>8} {'files/s':>7} {'ship MB':>8} {'c (batched)':>11}"
     )
     for p in proj:
         if p["chunk_size"] is None:
             print(
-                f"   {p['workers']:>7}  heartbeats alone use {p['heartbeat_utilisation']:.2f} of the scheduler"
+                f"   {p['workers']:>7}  heartbeats alone use "
+                f"{p['heartbeat_utilisation']:.2f} of the scheduler"
             )
             continue
         print(
@@ -634,33 +640,34 @@ def main() -> None:
             f"{p['shipment_bytes_from_scheduler'] / 1e6:>8.1f} {p['chunk_size_if_batched']:>11}"
         )
     print(
-        "   (c (batched): the chunk size if chunks were submitted in batches at the batched no-op cost; "
-        f"client u: the client process, which tops out near {1 / client_task:,.0f} tasks/s on task building alone)"
+        "   (c (batched): the chunk size if chunks were submitted in batches "
+        "at the batched no-op cost; client u: the client process, which tops "
+        f"out near {1 / client_task:,.0f} tasks/s on task building alone)"
     )
     for p in proj:
         if p["chunk_size"] is not None:
             print(
-                f"   W={p['workers']}: {p['min_tasks_for_4_chunks_per_worker']:,} tasks give every worker 4 chunks of "
-                f"{p['chunk_size']}; dse-runner's default (chunk_seconds 2.0) would choose "
-                f"{p['default_chunk_size_paper_sweep']} for the paper's 1500 tasks, "
-                f"{p['default_chunk_size_1M_task_sweep']} for 1M tasks"
+                f"   W={p['workers']}: {p['min_tasks_for_4_chunks_per_worker']:,} tasks give "
+                f"every worker 4 chunks of {p['chunk_size']}; dse-runner's default "
+                f"(chunk_seconds 2.0) would choose {p['default_chunk_size_paper_sweep']} for "
+                f"the paper's 1500 tasks, {p['default_chunk_size_1M_task_sweep']} for 1M tasks"
             )
     print(
-        f"5. this machine: o/(c t) <= 5% needs c >= {here['chunk_size']} tasks ({here['chunk_wall_s']:.2f} s) with "
-        f"o = {o * 1e3:.0f} ms, or c >= {f['chunk_size_for_5pct_here_marginal']} with the marginal "
+        f"5. this machine: o/(c t) <= 5% needs c >= {here['chunk_size']} tasks ({here['chunk_wall_s']:.2f} "
+        f"s) with o = {o * 1e3:.0f} ms, or c >= {f['chunk_size_for_5pct_here_marginal']} with the marginal "
         f"{marginal * 1e3:.1f} ms; measured above: "
         + ", ".join(
             f"chunk {v['chunk_size']}: {v['overhead_fraction']:.1%}" for _, v in sorted(by_chunk.items())
         )
     )
     print(
-        f"   dse-runner chose {r2['chunk_size']} for this 600-task sweep (chunk_seconds 2.0 over the probe's time, "
-        f"capped at pending / (4 x threads)); it would choose {chunk_size(t, 2.0, 1500, 2)} for the paper's 1500 "
-        f"at t = {t * 1e3:.1f} ms"
+        f"   dse-runner chose {r2['chunk_size']} for this 600-task sweep (chunk_seconds "
+        "2.0 over the probe's time, capped at pending / (4 x threads)); it would choose "
+        f"{chunk_size(t, 2.0, 1500, 2)} for the paper's 1500 at t = {t * 1e3:.1f} ms"
     )
     print(
-        f"machine speed: one sin1 simulation took {f['sin1_ms_at_start']:.1f} ms at the start of this run and "
-        f"{f['sin1_ms_at_end']:.1f} ms at the end"
+        f"machine speed: one sin1 simulation took {f['sin1_ms_at_start']:.1f} ms "
+        f"at the start of this run and {f['sin1_ms_at_end']:.1f} ms at the end"
     )
 
 

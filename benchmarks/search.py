@@ -519,8 +519,9 @@ def measure(
     ceiling = parallel_ceiling(search_space(base, work, baseline, 0, args.points, "ceiling-"))
     figures["parallel_ceiling"] = ceiling
     say(
-        f"two processes without Dask: {ceiling['ceiling']:.2f}x one ({1000 * ceiling['one_process_s_per_simulation']:.1f}"
-        f" ms per simulation alone, {1000 * ceiling['two_processes_s_per_simulation']:.1f} ms two at once)"
+        f"two processes without Dask: {ceiling['ceiling']:.2f}x one "
+        f"({1000 * ceiling['one_process_s_per_simulation']:.1f} ms per simulation "
+        f"alone, {1000 * ceiling['two_processes_s_per_simulation']:.1f} ms two at once)"
     )
 
 
@@ -585,16 +586,17 @@ def print_table(figures: dict[str, Any]) -> None:
     stored = f" ({grid['found_in_store']} tasks found in --work's store)" if grid["found_in_store"] else ""
     print()
     print(
-        f"reference: the grid's best total {grid['objective']} {grid['best_total']:.4f} at {grid['best_point']}"
+        f"reference: the grid's best total {grid['objective']} "
+        f"{grid['best_total']:.4f} at {grid['best_point']}"
     )
     print(
         f"  ({grid['points']} points; within 1%: <= {grid['within_1pct_of']:.4f}); "
         f"grid on 2 workers {grid['wall_s']:.1f} s{stored}"
     )
     print(
-        f"{len(figures['seeds'])} seed(s) per strategy, {n} points each, medians over seeds; wall_s excludes "
-        f"the cluster's start-up ({figures['cluster_startup_s']:.1f} s, one cluster for all runs); ask_s: the "
-        "client's seconds in ask(), ask_ms per asked point"
+        f"{len(figures['seeds'])} seed(s) per strategy, {n} points each, medians over seeds; "
+        f"wall_s excludes the cluster's start-up ({figures['cluster_startup_s']:.1f} s, one "
+        "cluster for all runs); ask_s: the client's seconds in ask(), ask_ms per asked point"
     )
     for name, options in figures["variants"].items():
         print(f"[{name}]: {json.dumps(options)} merged into search:")
@@ -634,22 +636,23 @@ def print_table(figures: dict[str, Any]) -> None:
         if totals:
             lowest = min(totals, key=totals.get)
             print(
-                f"lowest median best total after {n} points: {totals[lowest]:.4f} ({lowest}; target below the "
-                f"grid's {grid['best_total']:.4f}) {mark(totals[lowest] < grid['best_total'])}"
+                f"lowest median best total after {n} points: {totals[lowest]:.4f} ({lowest}; target "
+                f"below the grid's {grid['best_total']:.4f}) {mark(totals[lowest] < grid['best_total'])}"
             )
         utils = {k: v["utilisation"] for k, v in ranked.items() if v["utilisation"] is not None}
         if utils:
             low = min(utils, key=utils.get)
             print(
-                f"lowest median utilisation: {utils[low] * 100:.0f}% ({low}; target >= "
-                f"{TARGETS['utilisation'] * 100:.0f}% on 2 workers) {mark(utils[low] >= TARGETS['utilisation'])}"
+                f"lowest median utilisation: {utils[low] * 100:.0f}% "
+                f"({low}; target >= {TARGETS['utilisation'] * 100:.0f}% on "
+                f"2 workers) {mark(utils[low] >= TARGETS['utilisation'])}"
             )
     plain = figures.get("plain_optuna")
     if plain:
         speedup = figures["speedup_vs_plain_optuna"]
         print(
-            f"plain Optuna, {plain['strategy']}, in one process: {plain['wall_s']:.1f} s "
-            f"(best total {plain['best_total']:.4f}); dse-runner on 2 workers: {plain['dse_runner_wall_s']:.1f} s"
+            f"plain Optuna, {plain['strategy']}, in one process: {plain['wall_s']:.1f} s (best total "
+            f"{plain['best_total']:.4f}); dse-runner on 2 workers: {plain['dse_runner_wall_s']:.1f} s"
         )
         print(
             f"speedup_vs_plain_optuna {speedup:.2f}x (target >= {TARGETS['speedup']}) "
@@ -658,14 +661,15 @@ def print_table(figures: dict[str, Any]) -> None:
         ceiling = figures.get("parallel_ceiling")
         if ceiling:
             print(
-                f"this machine's ceiling for 2 processes (the same simulations, no Dask): {ceiling['ceiling']:.2f}x; "
-                f"dse-runner reaches {speedup / ceiling['ceiling'] * 100:.0f}% of it"
+                "this machine's ceiling for 2 processes (the same "
+                f"simulations, no Dask): {ceiling['ceiling']:.2f}x; dse-runner "
+                f"reaches {speedup / ceiling['ceiling'] * 100:.0f}% of it"
             )
         ratio = plain["dse_runner_cpu_s"] / plain["cpu_s"]
         print(
-            f"CPU seconds: dse-runner {plain['dse_runner_cpu_s']:.1f} s (client, scheduler and workers), plain "
-            f"{plain['cpu_s']:.1f} s; ratio {ratio:.2f}, so at most {2 / ratio:.2f}x on 2 cores (Dask's idle "
-            "CPU grows with wall time: on a busy machine this bound is pessimistic)"
+            f"CPU seconds: dse-runner {plain['dse_runner_cpu_s']:.1f} s (client, scheduler and workers), "
+            f"plain {plain['cpu_s']:.1f} s; ratio {ratio:.2f}, so at most {2 / ratio:.2f}x on 2 cores "
+            "(Dask's idle CPU grows with wall time: on a busy machine this bound is pessimistic)"
         )
 
 

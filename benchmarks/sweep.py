@@ -28,8 +28,8 @@ strict JSON instead of the table.
      Python around each simulation, the client expanding the space);
    - ``cheap_worker_ms_per_task``: simulation time per task on the workers (the chunks' loop
      around each simulation included), against the plain loop's;
-   - ``cheap_chunk_size``, ``cheap_chunks`` and ``cheap_chunk_simulation_seconds`` (simulation
-     time per chunk): what the sweep's adaptive chunking chose (the largest chunk), against ``chunk_seconds`` (2 s);
+   - ``cheap_chunk_size``, ``cheap_chunks`` and ``cheap_chunk_simulation_seconds`` (simulation time per
+     chunk): what the sweep's adaptive chunking chose (the largest chunk), against ``chunk_seconds`` (2 s);
    - ``cheap_dask_overhead_fraction`` and ``cheap_overhead_fraction``: as ``dask_overhead_fraction``
      (target < 0.05) and ``overhead_fraction``;
    - ``cheap_in_chunk_fraction``: the workers' time inside chunks but not simulating (unpacking,
@@ -91,7 +91,8 @@ def cpu_seconds() -> float:
 
 
 def timed_sweep(space: Space, workers: int, on_progress=None) -> tuple[float, SweepReport, float]:
-    """Wall time of the sweep, its report, and the client's CPU time during it (not while the cluster starts)."""
+    """Wall time of the sweep, its report, and the client's CPU time during it
+    (not while the cluster starts)."""
     with connect(Cluster(n_workers=workers)) as client:  # the cluster `submit` makes by default
         client.run(lambda: None)  # workers up and connected before the clock starts
         start, cpu = time.perf_counter(), cpu_seconds()
@@ -126,7 +127,8 @@ def dask_share(wall: float, workers: int, report: SweepReport) -> float:
 
 
 def overhead(wall: float, workers: int, report: SweepReport) -> float:
-    """Workers' wall time not simulating (Dask's share and our own work in chunks) over the time simulating."""
+    """Workers' wall time not simulating (Dask's share and our own work in
+    chunks) over the time simulating."""
     return (wall * workers - report.simulation_seconds) / report.simulation_seconds
 
 
@@ -289,8 +291,9 @@ def print_table(figures: Figures) -> None:
     line(
         "client_cpu_seconds",
         f"{f['client_cpu_seconds']:.2f} s",
-        f"(client and scheduler during the cheap sweep: {f['client_cpu_seconds'] / f['cheap_sweep_seconds'] * 100:.0f}%"
-        " of a core, taken from the workers' 2 cores here)",
+        "(client and scheduler during the cheap sweep: "
+        f"{f['client_cpu_seconds'] / f['cheap_sweep_seconds'] * 100:.0f}% "
+        "of a core, taken from the workers' 2 cores here)",
     )
     m = f["client_rss_mb"]
     line(

@@ -11,9 +11,10 @@ Runs the tests as the README does (``.venv``'s python, ``-m pytest -q`` plus any
 * ``cpu``: the CPU seconds the machine spent busy over the run (``/proc/stat``, every core): the tests'
   processes, their Dask schedulers and workers, the commands they run, the browser, the Slurm daemons and
   jobs; other work counts too, so run it on a quiet machine;
-* ``cpu_own``: the CPU seconds of the run's own processes and everything they started, counted by the kernel
-  in a cpuacct control group of its own (cgroup v1, as root; absent elsewhere): the machine's background
-  (kernel threads reclaiming memory, other work) left out; on a quiet machine it is a few seconds under ``cpu``;
+* ``cpu_own``: the CPU seconds of the run's own processes and everything they started, counted by
+  the kernel in a cpuacct control group of its own (cgroup v1, as root; absent elsewhere): the
+  machine's background (kernel threads reclaiming memory, other work) left out; on a quiet machine it
+  is a few seconds under ``cpu``;
 * ``cpu_waited``: the CPU seconds of the processes the run started and waited for (``getrusage``), a lower
   bound: processes that end otherwise (killed, reaped by others) are not counted;
 * ``floor``: ``cpu`` spread over every core, the least wall time this CPU work can take here, and its
@@ -77,7 +78,8 @@ CPUACCT = Path("/sys/fs/cgroup/cpuacct")
 
 
 def own_group(name: str = "dse-test-suite") -> Path | None:
-    """A cpuacct control group ``name``-PID for the run, or None where this machine does not let us make one."""
+    """A cpuacct control group ``name``-PID for the run, or None where this
+    machine does not let us make one."""
     group = CPUACCT / f"{name}-{os.getpid()}"
     try:
         group.mkdir()
@@ -108,8 +110,9 @@ print(time.process_time() - started)
 
 
 def speed_probe(python: str, cores: int) -> float:
-    """CPU seconds of the probe's PROBE_ROUNDS rounds, the mean of one probe per core run at once: the machine's
-    speed now, which on a shared machine drifts by half with nothing else of ours running (docs/performance.md)."""
+    """CPU seconds of the probe's PROBE_ROUNDS rounds, the mean of one probe per core run at once:
+    the machine's speed now, which on a shared machine drifts by half with nothing else of ours
+    running (docs/performance.md)."""
     probes = [
         subprocess.Popen([python, "-c", PROBE], cwd=REPO, stdout=subprocess.PIPE, text=True)
         for _ in range(cores)
@@ -399,10 +402,10 @@ def main() -> None:
         print(f"{figures['command']}: {figures['summary']} (exit {done.returncode})")
         mine = f"{own:.0f} s in its own processes, " if own is not None else ""
         print(
-            f"wall {wall:.0f} s; CPU {cpu:.0f} s busy on {cores} cores (machine {figures['machine_busy']:.0%} busy; "
-            f"{mine}{waited:.0f} s in processes it waited for): floor {cpu / cores:.0f} s = "
-            f"{figures['floor_over_target']}x the {TARGET / 60:.0f}-minute target; wall = "
-            f"{figures['wall_over_floor']}x the floor"
+            f"wall {wall:.0f} s; CPU {cpu:.0f} s busy on {cores} cores (machine "
+            f"{figures['machine_busy']:.0%} busy; {mine}{waited:.0f} s in processes it "
+            f"waited for): floor {cpu / cores:.0f} s = {figures['floor_over_target']}x the "
+            f"{TARGET / 60:.0f}-minute target; wall = {figures['wall_over_floor']}x the floor"
         )
         if probes:
             print(
@@ -431,7 +434,8 @@ def main() -> None:
             print(f"{row['cpu_s']:8.1f} CPU s {row['processes']:6d} processes  {row['kind']}")
         for row in figures.get("by_file", []):
             print(
-                f"{row['cpu_s']:8.1f} CPU s {row['wall_s']:8.1f} s wall {row['tests']:5d} tests  {row['file']}"
+                f"{row['cpu_s']:8.1f} CPU s {row['wall_s']:8.1f} "
+                f"s wall {row['tests']:5d} tests  {row['file']}"
             )
     sys.exit(0 if done.returncode == 0 else 1)
 

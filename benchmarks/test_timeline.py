@@ -1,4 +1,5 @@
-"""A pytest plugin for benchmarks/test_suite.py ``--timeline``: when each test started and ended, per test process.
+"""A pytest plugin for benchmarks/test_suite.py ``--timeline``: when each test
+started and ended, per test process.
 
 Loaded with ``-p test_timeline`` in the usual run (every core, pytest-xdist): each test process (``gw0``,
 ``gw1``, ...) appends ``start end nodeid`` lines (Unix times) to ``$TEST_TIMELINE_DIR/<process>.txt``. Beside

@@ -1,10 +1,10 @@
 """One blind diagnosis on two versions of the code, in turns: its CPU, and whether it gave the same answer.
 
 For a change meant to save work and change no answer. It checks ``--base`` (a git revision) out into a
-temporary worktree and runs the same case of tests/support/blind.py (the test suite's form) with each version in
-turns, each in a process of its own with that version first on PYTHONPATH (its local cluster's workers
-import the same version; checked). Per run it prints the case's wall time, the CPU seconds of the client
-(the diagnosis itself, and the local cluster's scheduler, which runs in its process), of the 2 workers, and a
+temporary worktree and runs the same case of tests/support/blind.py (the test suite's form) with each version
+in turns, each in a process of its own with that version first on PYTHONPATH (its local cluster's workers
+import the same version; checked). Per run it prints the case's wall time, the CPU seconds of the client (the
+diagnosis itself, and the local cluster's scheduler, which runs in its process), of the 2 workers, and a
 digest of the diagnosis's JSON (its own folder's paths left out); then the means and their ratios.
 
     python3 benchmarks/versions.py --base HEAD~1 [--case steering_lag+time_offset] [--rounds 3] [--json]

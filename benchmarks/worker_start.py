@@ -1,13 +1,13 @@
 """What starting a local cluster's workers costs the command line: spawned, or forked from a forkserver.
 
 ``dse-runner`` forks its local cluster's workers from a forkserver that imported Dask, pandas, pyarrow, FMPy
-and dse-runner once (sweeps/start_method.py, ``fork_local_workers``); spawned, each worker imports them itself.
-This submits the same small sweep (3 points of the Robotti on 2 recorded runs) both ways, in turns, with 2 and
-with 4 workers, and prints per run the wall time and the CPU seconds of the command and every process it
-started (a cpuacct control group per command, as root), then the mean of each and their ratio. Spawn is
-chosen with ``DASK_DISTRIBUTED__WORKER__MULTIPROCESSING_METHOD``, which the command then leaves alone (with
-that variable at ``forkserver`` it would use Dask's own server, which imports less); the forkserver is the
-command's default.
+and dse-runner once (sweeps/start_method.py, ``fork_local_workers``); spawned, each worker imports them
+itself. This submits the same small sweep (3 points of the Robotti on 2 recorded runs) both ways, in turns,
+with 2 and with 4 workers, and prints per run the wall time and the CPU seconds of the command and every
+process it started (a cpuacct control group per command, as root), then the mean of each and their ratio.
+Spawn is chosen with ``DASK_DISTRIBUTED__WORKER__MULTIPROCESSING_METHOD``, which the command then leaves
+alone (with that variable at ``forkserver`` it would use Dask's own server, which imports less); the
+forkserver is the command's default.
 
     python3 benchmarks/worker_start.py [--rounds 4] [--workers 2,4] [--json]
 """

@@ -20,7 +20,8 @@ T = TypeVar("T")
 
 
 def load_yaml(path: Path, what: str = "file") -> Any:
-    """The file's YAML data (None for an empty file); ``what`` names it in the error for an unreadable file."""
+    """The file's YAML data (None for an empty file); ``what`` names it in
+    the error for an unreadable file."""
     try:
         return yaml.safe_load(Path(path).read_text())
     except OSError as e:

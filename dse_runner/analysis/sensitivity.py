@@ -53,13 +53,15 @@ WIDE = 0.1  # a Sobol' index known only to +/- this is too loose to tell paramet
 NEGLIGIBLE = (
     0.01  # factor fixing (Saltelli et al. 2008): a total index surely below this may be fixed anywhere
 )
-FLAT = 1e-6  # an objective whose std is below this fraction of its mean barely varies: its indices share out noise
+# An objective whose std is below this fraction of its mean barely varies: its indices share out noise.
+FLAT = 1e-6
 FAST_INTERVALS = (
     "eFAST's intervals are SALib's bootstrap of each search curve, which SALib itself calls "
     "indicative only (SALib issue 649): judge the indices by their values, not by these intervals"
 )
-# From this many rows SALib's Sobol' bootstrap runs a process per parameter (its ``parallel``, the same numbers):
-# 14 s alone at a million rows on 2 cores, 7 s in two; below, it takes under a second, less than starting them.
+# From this many rows SALib's Sobol' bootstrap runs a process per parameter (its ``parallel``, the
+# same numbers): 14 s alone at a million rows on 2 cores, 7 s in two; below, it takes under a
+# second, less than starting them.
 PARALLEL_ROWS = 100_000
 MIN_TRAJECTORIES = 10  # Morris: fewer trajectories than this screen poorly (Campolongo et al. 2007 use 10-20)
 
@@ -92,7 +94,8 @@ class Scope:
 
 @dataclass
 class ObjectiveIndices:
-    """One objective's indices over every scenario, and within each scenario group (when there are several)."""
+    """One objective's indices over every scenario, and within each scenario
+    group (when there are several)."""
 
     overall: Scope | None
     groups: dict[str, Scope]
@@ -111,7 +114,8 @@ class Sensitivity:
 
     @property
     def indices(self) -> bool:
-        """Whether the method gives first-order and total indices (Sobol', eFAST) rather than Morris' mu*, sigma."""
+        """Whether the method gives first-order and total indices (Sobol', eFAST)
+        rather than Morris' mu*, sigma."""
         return self.method != "morris"
 
     def negligible(self, objective: str, group: str | None = None) -> list[str]:
@@ -338,7 +342,8 @@ def _computed(
 def _reduced(
     rows: pa.Table, parameters: list[str], objectives: list[str], over: str, scenarios: int
 ) -> pd.DataFrame:
-    """Each point's objectives reduced over the ``scenarios`` of ``rows``; only points ok on every one of them."""
+    """Each point's objectives reduced over the ``scenarios`` of ``rows``; only
+    points ok on every one of them."""
     return complete_totals(aggregate.ok_rows(rows), parameters, objectives, over, scenarios)
 
 
@@ -392,7 +397,10 @@ def _scope(
                 }
     note = None
     if cv is not None and cv < FLAT:
-        note = f"varies by only {cv:.1g} of its mean over the sample: the indices share out what may be rounding noise"
+        note = (
+            f"varies by only {cv:.1g} of its mean over the sample: "
+            "the indices share out what may be rounding noise"
+        )
     return Scope(scenarios, used, left_out, indices, spread, pairs, note)
 
 

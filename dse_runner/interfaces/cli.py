@@ -37,8 +37,8 @@ JsonFlag = Annotated[bool, typer.Option("--json", help="Print one JSON object on
 DashboardAddress = Annotated[
     str,
     typer.Option(
-        help="host:port the dashboard listens on (port 0: any free one). Loopback by default: the page has no "
-        "login; reach it from elsewhere through an SSH tunnel."
+        help="host:port the dashboard listens on (port 0: any free one). Loopback by default: the page "
+        "has no login; reach it from elsewhere through an SSH tunnel."
     ),
 ]
 
@@ -323,8 +323,8 @@ def simulate(
         emit_json({**final, **{name: str(path) for name, path in files.items()}})
         return
     typer.echo(
-        f"scenario {result.scenario.name}  ({result.scenario.group}, {result.times.start:g}..{result.times.stop:g} s, "
-        f"step {result.step:g} s)"
+        f"scenario {result.scenario.name}  ({result.scenario.group}, "
+        f"{result.times.start:g}..{result.times.stop:g} s, step {result.step:g} s)"
     )
     if best or values:
         shown = [
@@ -762,7 +762,10 @@ def rank_command(
     best_values: Annotated[
         Path | None,
         typer.Option(
-            help="Also write the best point here as a values file (instance.variable: value), for simulate --values."
+            help=(
+                "Also write the best point here as a values file "
+                "(instance.variable: value), for simulate --values."
+            )
         ),
     ] = None,
     as_json: JsonFlag = False,
@@ -838,9 +841,9 @@ def sensitivity_command(
     ] = None,
     as_json: JsonFlag = False,
 ) -> None:
-    """Which parameters move each objective: Sobol' or eFAST S1/ST, or Morris mu*/sigma, with bootstrap intervals,
-    over all scenarios (reduced as the ranking says) and per scenario group. The sweep must have been sampled by
-    search.strategy sobol_indices, morris or fast."""
+    """Which parameters move each objective: Sobol' or eFAST S1/ST, or Morris mu*/sigma, with bootstrap
+    intervals, over all scenarios (reduced as the ranking says) and per scenario group. The sweep must
+    have been sampled by search.strategy sobol_indices, morris or fast."""
     from ..analysis.sensitivity import sensitivity
 
     try:
@@ -870,7 +873,8 @@ def sensitivity_command(
 
 
 def _print_sensitivity(found) -> None:
-    """Per objective: each parameter's indices with their intervals, then the groups, least responsive first."""
+    """Per objective: each parameter's indices with their intervals, then the
+    groups, least responsive first."""
     sobol = found.indices  # S1 and ST (Sobol' or eFAST), else Morris' mu*, sigma
     design = found.design
     kind = {
@@ -949,9 +953,9 @@ def diagnose(
     space: Annotated[
         Path | None,
         typer.Option(
-            help="The space to diagnose: its scenarios give inputs and recordings, its objectives what is compared, "
-            "its parameters the calibration. The first installed hypothesis library that serves it runs "
-            "(the Robotti's for field data), else the built-in signal effects."
+            help="The space to diagnose: its scenarios give inputs and recordings, its objectives what is "
+            "compared, its parameters the calibration. The first installed hypothesis library that serves "
+            "it runs (the Robotti's for field data), else the built-in signal effects."
         ),
     ] = None,
     out: Annotated[Path, typer.Option(help="Folder for results, the new model and the report.")] = Path(
@@ -976,8 +980,8 @@ def diagnose(
     noise_factor: Annotated[
         float,
         typer.Option(
-            help="Held-out error above this many noise floors (estimated from the recordings alone) is a residual "
-            "the library leaves unexplained: verdict partial or unexplained."
+            help="Held-out error above this many noise floors (estimated from the recordings alone) is a "
+            "residual the library leaves unexplained: verdict partial or unexplained."
         ),
     ] = 2.0,
     discovery: Annotated[
@@ -1030,8 +1034,9 @@ def main() -> None:
     from ..sweeps.start_method import fork_local_workers
 
     fork_local_workers()  # one cluster per command: its workers start from a forkserver
-    # Arrow's jemalloc pool gives back what a large scan freed, where its default (mimalloc) keeps it: a rank of
-    # a million rows peaks 200 MB lower (docs/performance.md). Linux wheels carry it; a user's own setting stands.
+    # Arrow's jemalloc pool gives back what a large scan freed, where its default (mimalloc) keeps
+    # it: a rank of a million rows peaks 200 MB lower (docs/performance.md). Linux wheels carry
+    # it; a user's own setting stands.
     if sys.platform.startswith("linux"):
         os.environ.setdefault("ARROW_DEFAULT_MEMORY_POOL", "jemalloc")
     try:

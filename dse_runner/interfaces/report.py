@@ -259,8 +259,8 @@ def spec_note(spec: SpaceSpec) -> str:
 
 
 def _ranked_columns(ranking: Ranking) -> pd.DataFrame:
-    """The ranking's points with a robust figure's column headed by what it is (``ranked by: q90 of total y``),
-    not by its CSV name ``y_robust``."""
+    """The ranking's points with a robust figure's column headed by what it is (``ranked by: q90 of total
+    y``), not by its CSV name ``y_robust``."""
     if ranking.ranked_by == ranking.objective:
         return ranking.totals
     figure = figure_label(ranking.objective, ranking.reduced, ranking.uncertainty["ranked_by"])

@@ -1,6 +1,7 @@
-"""Figures of a sensitivity analysis (analysis/sensitivity.py), one PNG per objective: Sobol' (or eFAST) S1 and ST bars
-with their confidence intervals, over all scenarios and in each scenario group; or Morris' mu*-sigma plane,
-where a point far right matters and a point high up acts non-linearly or through interactions."""
+"""Figures of a sensitivity analysis (analysis/sensitivity.py), one PNG per objective: Sobol' (or
+eFAST) S1 and ST bars with their confidence intervals, over all scenarios and in each scenario
+group; or Morris' mu*-sigma plane, where a point far right matters and a point high up acts
+non-linearly or through interactions."""
 
 from __future__ import annotations
 

@@ -68,8 +68,8 @@ def sensitivity_section(output: store.Root, sweep: str) -> Section:
     note = (
         f"{named} first-order (S1) and total (ST) indices with {level} bootstrap intervals"
         if sobol
-        else f"Morris' mu* (how much) against sigma (how non-linearly or through interactions), mu* with its {level} "
-        "interval"
+        else "Morris' mu* (how much) against sigma (how non-linearly or through interactions), "
+        f"mu* with its {level} interval"
     ) + (
         f", over all scenarios ({found.reduced}) and per scenario group, least responsive first"
         f"; {found.design['blocks']} blocks of {found.design['block']} points."
@@ -90,9 +90,9 @@ def uncertainty_section(ranking: Ranking) -> Section:
     about = ranking.uncertainty
     described = "; ".join(f"{name}: {_described(d)}" for name, d in about["parameters"].items())
     note = (
-        f"Each point ran on {about['samples']} draws ({about['sampling']}, seed {about['seed']}) of {described}. "
-        f"Per draw the objective is reduced over the scenarios; the points are ranked by its {about['ranked_by']} "
-        "over the draws."
+        f"Each point ran on {about['samples']} draws ({about['sampling']}, seed "
+        f"{about['seed']}) of {described}. Per draw the objective is reduced over the "
+        f"scenarios; the points are ranked by its {about['ranked_by']} over the draws."
     )
     png = distributions_png(ranking)
     return Section(

@@ -253,8 +253,8 @@ class Runner:
         return replace(self, series=series, external=np.column_stack(list(series.values())))
 
     def with_terms(self, terms: Mapping[str, Mapping]) -> Runner:
-        """The same runner adding derivative terms to model-exchange instances (instance -> term -> coefficient);
-        derivative_terms.check has checked each against its instance."""
+        """The same runner adding derivative terms to model-exchange instances (instance -> term ->
+        coefficient); derivative_terms.check has checked each against its instance."""
         return replace(self, terms={**self.terms, **terms}) if terms else self
 
     def check(self, values: Mapping[str, Value]) -> None:

@@ -1,4 +1,5 @@
-"""Terms the master adds to a model-exchange instance's state derivatives: ``derivative_term(msd.der(v), x^3)``.
+"""Terms the master adds to a model-exchange instance's state derivatives:
+``derivative_term(msd.der(v), x^3)``.
 
 Why: the master integrates a model-exchange (ME) FMU itself, so it can add to the derivatives the FMU
 returns before the solver uses them. A term missing from a model's equations (a hardening spring, a
@@ -130,7 +131,8 @@ def parse_term(text: str) -> Term:
 
 @dataclass(frozen=True)
 class DerivativeTerm:
-    """One term parameter, parsed from its name. ``instance`` is None when the name leaves it out (one FMU)."""
+    """One term parameter, parsed from its name. ``instance`` is None when
+    the name leaves it out (one FMU)."""
 
     instance: str | None
     state: str
@@ -173,7 +175,7 @@ def split(values: Mapping[str, object]) -> tuple[dict[str, object], dict[Derivat
     return plain, {term: value for term, value in terms.items() if value != 0.0}
 
 
-# ---- what an instance offers: its states and its real inputs ------------------------------------------------
+# ---- what an instance offers: its states and its real inputs -----------------------------------------------
 
 
 def states_of(description: Any) -> list[str]:
@@ -183,7 +185,8 @@ def states_of(description: Any) -> list[str]:
 
 
 def real_inputs_of(description: Any) -> dict[str, int]:
-    """The instance's real (FMI 3: Float64) inputs by name -> value reference: what a term may read besides states."""
+    """The instance's real (FMI 3: Float64) inputs by name -> value reference: what
+    a term may read besides states."""
     return {
         v.name: v.valueReference
         for v in description.modelVariables
@@ -215,7 +218,7 @@ def check(term: DerivativeTerm, instance: str, interface: str, description: Any)
             )
 
 
-# ---- what the stepper applies -------------------------------------------------------------------------------
+# ---- what the stepper applies ------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -246,8 +249,8 @@ class Corrector:
         return not (self.rows or self.limits)
 
     def add(self, x: Sequence[float], inputs: Sequence[float], dx: Any) -> None:
-        """dx[i] += each coefficient · its term at states ``x`` and ``inputs`` (in :attr:`inputs`' order), then
-        the limits; ``dx`` anything indexable in place (the solver's ctypes pointer, an array)."""
+        """dx[i] += each coefficient · its term at states ``x`` and ``inputs`` (in :attr:`inputs`' order),
+        then the limits; ``dx`` anything indexable in place (the solver's ctypes pointer, an array)."""
         values = dict(zip(self.states, x))
         values.update(zip((name for name, _ in self.inputs), inputs))
         for index, term, coefficient in self.rows:

@@ -235,7 +235,8 @@ def extract_root() -> Path:
 
 
 def use_extract_root(root: Path) -> None:
-    """Extract into ``root`` from now on: the fresh processes of isolation.py find their parent's FMUs there."""
+    """Extract into ``root`` from now on: the fresh processes of isolation.py
+    find their parent's FMUs there."""
     global _EXTRACT_ROOT
     _EXTRACT_ROOT = root
 

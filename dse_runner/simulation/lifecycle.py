@@ -1,4 +1,5 @@
-"""How an FMU lives across the runs of one process: one instance reset between runs, or a fresh process each run.
+"""How an FMU lives across the runs of one process: one instance reset between
+runs, or a fresh process each run.
 
 The reference is a fresh process per run: that is how FMPy's ``simulate_fmu``
 and INTO-CPS's engine meet an FMU. A sweep runs thousands of simulations per
@@ -281,8 +282,8 @@ def _difference(runner: Runner, got: tuple, want: tuple) -> str | None:
     if not same.all():
         row, column = np.argwhere(~same)[0]
         return (
-            f"{runner.plan.recorded[column]} at t={runner.times[row]:.6g}: {float(values[row, column])!r} against "
-            f"{float(expected[row, column])!r}"
+            f"{runner.plan.recorded[column]} at t={runner.times[row]:.6g}: "
+            f"{float(values[row, column])!r} against {float(expected[row, column])!r}"
         )
     for name, series in texts.items():
         if series != expected_texts.get(name):

@@ -156,8 +156,9 @@ class ModelExchangeStepper:
         self.corrector = corrector if corrector is not None and not corrector.empty else None
         self._term_inputs: list[float] = []  # the inputs the terms read, held over the step as the FMU's are
         self._states = np.zeros(description.numberOfContinuousStates)
-        # Its integrator in C (a native_me.NativeIntegrator, set by steppers.ModelExchange for the native loop),
-        # which the loop steps instead of do_step: this stepper then initialises, starts it and terminates.
+        # Its integrator in C (a native_me.NativeIntegrator, set by steppers.ModelExchange for
+        # the native loop), which the loop steps instead of do_step: this stepper then
+        # initialises, starts it and terminates.
         self.native: Any = None
 
     def use_coefficients(self, corrector: Corrector) -> None:

@@ -163,7 +163,8 @@ class MultiModel(BaseModel):
 
 
 def split_into_cps_id(ref: str) -> tuple[str, str, str]:
-    """INTO-CPS's ``{fmu}.instance.variable`` -> (``{fmu}``, instance, variable); the variable may hold dots."""
+    """INTO-CPS's ``{fmu}.instance.variable`` -> (``{fmu}``, instance,
+    variable); the variable may hold dots."""
     key, dot, rest = ref.partition("}.")
     try:
         if not ref.startswith("{") or not dot:

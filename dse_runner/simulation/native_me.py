@@ -235,7 +235,8 @@ class NativeIntegrator:
             self._terms(corrector, states)
 
     def _group(self, getter: str, vrs: list[int], ctype: Any, floating: bool = True) -> Inputs:
-        """A group of inputs read back through ``getter``, with buffers for this step's and the last values."""
+        """A group of inputs read back through ``getter``, with buffers for
+        this step's and the last values."""
         n = len(vrs)
         held = [(ctypes.c_uint32 * n)(*vrs), (ctype * n)(), (ctype * n)()]
         self._buffers.append(held)
@@ -283,7 +284,8 @@ class NativeIntegrator:
             unit.term_inputs = ctypes.addressof(self.term_inputs)
 
     def coefficients(self, corrector: Corrector) -> None:
-        """A run's coefficients and limits for the same terms and bounded states (a fit changes only those)."""
+        """A run's coefficients and limits for the same terms and bounded
+        states (a fit changes only those)."""
         self.terms[:, 3] = [coefficient for _, _, coefficient in corrector.rows]
         self.limits[: len(corrector.limits)] = _limit_rows(corrector)[: len(corrector.limits)]
 
@@ -310,7 +312,10 @@ class NativeIntegrator:
             return ModelExchangeError(
                 {
                     TERMINATE_ASKED: f"the FMU requested termination at t={f.start:.9g}",
-                    UNSETTLED: f"the event iteration at t={f.start:.9g} did not settle in {MAX_EVENT_ITERATIONS} rounds",
+                    UNSETTLED: (
+                        f"the event iteration at t={f.start:.9g} did "
+                        f"not settle in {MAX_EVENT_ITERATIONS} rounds"
+                    ),
                     OFF_GRID: f"do_step at t={f.to:.9g} but the instance is at t={f.start:.9g}",
                     BAD_STEP: f"communication step must be > 0, got {f.to} at t={f.start:.9g}",
                 }[f.code]

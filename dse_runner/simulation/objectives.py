@@ -104,7 +104,8 @@ class Fit(BaseModel):
 
 
 def _objective_kind(value: Any) -> str | None:
-    """Which form an objective's entry has, by its keys: a wrong entry is then judged against that form only."""
+    """Which form an objective's entry has, by its keys: a wrong entry is then
+    judged against that form only."""
     if isinstance(value, str):
         return "name"
     if isinstance(value, Script) or (isinstance(value, Mapping) and "script" in value):
@@ -211,7 +212,8 @@ def _time_where(time: np.ndarray, holds: np.ndarray) -> float:
 
 
 def _settling_time(time: np.ndarray, values: np.ndarray, spec: Reduce) -> float:
-    """Time from the start until the signal last enters its band and stays; the whole span if it never does."""
+    """Time from the start until the signal last enters its band and stays;
+    the whole span if it never does."""
     target = values[-1] if spec.target is None else spec.target
     band = spec.band if spec.band is not None else spec.tolerance * abs(target - values[0])
     outside = np.flatnonzero(np.abs(values - target) > band)

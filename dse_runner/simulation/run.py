@@ -257,7 +257,8 @@ class _Recipe:
     def qualified_effects(
         self, effects: Mapping[signal_effects.Effect, float]
     ) -> dict[signal_effects.Effect, float]:
-        """Effects with their targets as the plan and the scenario name them (one FMU's may be written bare)."""
+        """Effects with their targets as the plan and the scenario name them
+        (one FMU's may be written bare)."""
         plan = self.runner.plan
         fed = {qualify(plan, ref): ref for ref in self.signals}
         out = {}

@@ -27,7 +27,8 @@ _CLAIMING = (
 
 
 def _unlock_in_child() -> None:
-    """A child forked while another thread claimed a folder gets the lock as it was, held by no thread of its own."""
+    """A child forked while another thread claimed a folder gets the lock as it
+    was, held by no thread of its own."""
     global _CLAIMING
     _CLAIMING = threading.Lock()
 
@@ -36,7 +37,8 @@ os.register_at_fork(after_in_child=_unlock_in_child)
 
 
 def own_folder(prefix: str) -> Path:
-    """``<tmp>/<prefix><pid>``, made once per process (again if something cleared it) and removed at its exit."""
+    """``<tmp>/<prefix><pid>``, made once per process (again if something
+    cleared it) and removed at its exit."""
     with _CLAIMING:
         folder = _folder(prefix, os.getpid())
         if not (folder / OWNER).exists():

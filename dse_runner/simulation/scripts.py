@@ -54,7 +54,8 @@ FRAME = re.compile(r'^\s*File "(.+)", line (\d+)', re.MULTILINE)  # a traceback'
 
 
 class Script(BaseModel):
-    """``{script: metrics/settle.py, args: [...], columns: {header: signal}}`` (paths relative to the spec)."""
+    """``{script: metrics/settle.py, args: [...], columns: {header:
+    signal}}`` (paths relative to the spec)."""
 
     model_config = Strict
     script: str
@@ -145,8 +146,8 @@ def write_results(path: Path, trajectory, columns: Mapping[str, str]) -> None:
 
 @cache
 def _data_folder(files: tuple[tuple[str, Path], ...]) -> Path:
-    """A scenario's data files laid out under their own names, once per process, in its scratch folder (removed
-    at its exit)."""
+    """A scenario's data files laid out under their own names, once per process, in its
+    scratch folder (removed at its exit)."""
     folder = Path(tempfile.mkdtemp(dir=scratch.own_folder("dse-runner-data-")))
     for name, source in files:
         target = folder / name

@@ -97,8 +97,8 @@ def statistics(rows: Rows, keys: Sequence[str], column: str, reductions: Sequenc
 def aligned(
     points: pd.DataFrame, values: pd.DataFrame, keys: Sequence[str], columns: Sequence[str]
 ) -> pd.DataFrame:
-    """``values``' ``columns`` for each row of ``points`` (matched on ``keys``; NaN where a point has none), in
-    the order of ``points``: a design's rows looked up in per-point results, as a hash join."""
+    """``values``' ``columns`` for each row of ``points`` (matched on ``keys``; NaN where a point has
+    none), in the order of ``points``: a design's rows looked up in per-point results, as a hash join."""
     keys = list(keys)
     right = pa.Table.from_pandas(values[[*keys, *columns]], preserve_index=False)
     kinds = pa.schema([right.schema.field(key) for key in keys])  # a design's 1 is a stored 1.0

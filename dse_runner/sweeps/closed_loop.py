@@ -71,8 +71,8 @@ def over_draws(
     ranked: tuple[str, str, Robust | None],
 ) -> dict[str, float]:
     """A point's values from its sampled scenarios' (uncertainty.py): each draw reduced over the scenarios,
-    then each objective's mean over the draws; the ranking objective ``ranked`` (name, goal, robust) its robust
-    figure when the ranking asks for one, so a search optimises what the ranking ranks by."""
+    then each objective's mean over the draws; the ranking objective ``ranked`` (name, goal, robust) its
+    robust figure when the ranking asks for one, so a search optimises what the ranking ranks by."""
     draws: dict[int, dict[str, list[float]]] = {}
     for scenario, objectives in per.items():
         k = uncertainty.split_name(scenario)[1]
@@ -280,7 +280,8 @@ class SearchSource:
         return self._next_in_order() if self.reproducible else self._next_as_they_come(in_flight)
 
     def _next_as_they_come(self, in_flight: int) -> ChunkJob | None:
-        """Asynchronous: ask while fewer than ``batch`` points are in flight (results are told as they come)."""
+        """Asynchronous: ask while fewer than ``batch`` points are in flight
+        (results are told as they come)."""
         while in_flight < self.batch and not self._should_stop():
             number = self._ask()
             if number is None:
@@ -292,10 +293,10 @@ class SearchSource:
         return None
 
     def _next_in_order(self) -> ChunkJob | None:
-        """Reproducible: before asking, tell the oldest waiting point if ``batch`` points wait, or if the strategy
-        asked for results (it asked nothing); its result not in yet, wait for it. So point n is always asked
-        right after the tells of points 0 .. n - batch, whichever finished first. When the search stops, the
-        rest is told in order as it comes."""
+        """Reproducible: before asking, tell the oldest waiting point if ``batch`` points wait, or if the
+        strategy asked for results (it asked nothing); its result not in yet, wait for it. So point n is
+        always asked right after the tells of points 0 .. n - batch, whichever finished first. When the
+        search stops, the rest is told in order as it comes."""
         while not self._should_stop():
             if len(self.waiting) >= self.batch or self.wants_results:
                 if not self._tell_oldest():

@@ -39,7 +39,8 @@ _FAILURES: weakref.WeakKeyDictionary[Any, Callable[[], str | None]] = weakref.We
 
 
 def failure_of(client: Any) -> str | None:
-    """Why the cluster behind ``client`` cannot get workers any more, or None (also for one we did not start)."""
+    """Why the cluster behind ``client`` cannot get workers any more, or None
+    (also for one we did not start)."""
     check = _FAILURES.get(client)
     return check() if check else None
 

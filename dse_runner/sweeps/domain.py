@@ -136,7 +136,8 @@ def _parameter_kind(value: Any) -> str | None:
     return "range" if isinstance(value, (dict, Range)) else "values" if isinstance(value, list) else None
 
 
-# A list of values, a grid or an interval; the discriminator makes a wrong one give one message, not one per kind.
+# A list of values, a grid or an interval; the discriminator makes a wrong one give
+# one message, not one per kind.
 ParameterValues = Annotated[
     Annotated[Annotated[list[FiniteValue], Field(min_length=1)], Tag("values")]
     | Annotated[Range, Tag("range")]

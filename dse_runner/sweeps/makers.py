@@ -52,16 +52,16 @@ class ClusterMaker(ABC):
     in the entry-point group ``dse_runner.clusters``, which name a subclass (built with no arguments).
 
     Lifecycle (cluster.connect, on the client). When the space is read, the kind's own block
-    ``cluster.<kind>`` is validated with ``Options`` (a plug-in that is not installed there is named
-    when the sweep starts). When a sweep that names no ``address`` starts, :meth:`start` is called
-    once with the spec, the validated block and distributed's Security (None without ``cluster.tls``),
-    the terminal's Ctrl-C held off until it returns; it returns a ``distributed`` deploy cluster
-    (what a ``distributed.Client`` connects to). Then :meth:`scale` is called once with
-    ``cluster.n_workers`` (or :meth:`adapt` with ``min_workers`` and ``max_workers``, when given), a
-    client connects and waits up to ``first_worker_wait`` seconds for a first worker, and the sweep
-    runs; :meth:`failure` is asked meanwhile, every 2 s, and a reason stops the sweep at once; a cluster that loses every worker mid-sweep gets as long to get one
-    back (twice ``connect_timeout`` when it is 0). :meth:`close` is called once when the sweep ends,
-    fails or is interrupted, after the client has cancelled its tasks.
+    ``cluster.<kind>`` is validated with ``Options`` (a plug-in that is not installed there is named when the
+    sweep starts). When a sweep that names no ``address`` starts, :meth:`start` is called once with the spec,
+    the validated block and distributed's Security (None without ``cluster.tls``), the terminal's Ctrl-C held
+    off until it returns; it returns a ``distributed`` deploy cluster (what a ``distributed.Client`` connects
+    to). Then :meth:`scale` is called once with ``cluster.n_workers`` (or :meth:`adapt` with ``min_workers``
+    and ``max_workers``, when given), a client connects and waits up to ``first_worker_wait`` seconds for a
+    first worker, and the sweep runs; :meth:`failure` is asked meanwhile, every 2 s, and a reason stops the
+    sweep at once; a cluster that loses every worker mid-sweep gets as long to get one back (twice
+    ``connect_timeout`` when it is 0). :meth:`close` is called once when the sweep ends, fails or is
+    interrupted, after the client has cancelled its tasks.
 
     Optional parts, with defaults: ``Options`` (none: the block, if given, must be empty), :meth:`scale`
     (``cluster.scale(n_workers or 1)``: a batch system starts with no job), :meth:`adapt`

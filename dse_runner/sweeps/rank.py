@@ -69,7 +69,8 @@ class Ranking:
 
     @property
     def reduced(self) -> str:
-        """How the ranked figures came from the scenarios, for labels: 'total', 'mean', 'largest', 'smallest'."""
+        """How the ranked figures came from the scenarios, for labels: 'total',
+        'mean', 'largest', 'smallest'."""
         return REDUCED[self.over_scenarios]
 
     @property
@@ -337,8 +338,8 @@ def _about(spec: SpaceSpec, settings: RankingSpec) -> dict[str, Any]:
         "parameters": {
             n: d.model_dump(mode="json", exclude_none=True) for n, d in uncertain.parameters.items()
         },
-        "columns": "each objective's column is its mean over the draws; <objective>_std the standard deviation "
-        "(ddof 1), <objective>_q<percent> its quantiles, <objective>_robust the ranked figure",
+        "columns": "each objective's column is its mean over the draws; <objective>_std the standard "
+        "deviation (ddof 1), <objective>_q<percent> its quantiles, <objective>_robust the ranked figure",
     }
 
 
@@ -356,8 +357,9 @@ def scalar_objectives(spec: SpaceSpec, output: store.Root, sweep: str) -> list[s
 def complete_totals(
     ok: aggregate.Rows, parameters: list[str], objectives: list[str], over: str, scenarios: int
 ) -> pd.DataFrame:
-    """Each point with an ok row on all ``scenarios``: its ``objectives`` reduced over them (``over``: the
-    ranking's ``over_scenarios``). Only these are ranked: a point's total over fewer scenarios is not its total."""
+    """Each point with an ok row on all ``scenarios``: its ``objectives`` reduced over them
+    (``over``: the ranking's ``over_scenarios``). Only these are ranked: a point's total over
+    fewer scenarios is not its total."""
     return _complete(aggregate.per_point(ok, parameters, objectives, over), scenarios)
 
 
@@ -375,11 +377,12 @@ def without_excluded(
     scenarios: int,
     samples: int | None = None,
 ) -> pd.DataFrame:
-    """A running sweep's standings (``table``: :func:`standings` or :func:`draw_standings`) without the points
-    :func:`rank` leaves out for breaking a ranking constraint, so that the dashboard never names as best a point
-    the rank command excludes. ``ok``: the ok rows with ``objectives`` (with uncertain draws, ``with_draws``'
-    rows and the ``samples`` drawn). A point is judged once it has finished every scenario (every draw on every
-    scenario), as rank() judges it; until then it stays, ranked by what it has."""
+    """A running sweep's standings (``table``: :func:`standings` or :func:`draw_standings`) without
+    the points :func:`rank` leaves out for breaking a ranking constraint, so that the dashboard
+    never names as best a point the rank command excludes. ``ok``: the ok rows with ``objectives``
+    (with uncertain draws, ``with_draws``' rows and the ``samples`` drawn). A point is judged once
+    it has finished every scenario (every draw on every scenario), as rank() judges it; until then
+    it stays, ranked by what it has."""
     if not settings.constraints or table.empty:
         return table
     if samples is None:
@@ -433,11 +436,12 @@ def standings(
 def draw_standings(
     ok: pd.DataFrame, parameters: list[str], objective: str, settings: RankingSpec, scenarios: int
 ) -> pd.DataFrame:
-    """The best-so-far ranking of a running sweep with uncertain draws (``ok`` with_draws' rows): per point the
-    draws finished on all ``scenarios``, ``mean`` the mean over them of ``objective`` reduced over the scenarios,
-    and ``ranked`` the figure rank() ranks by (the robust one if the ranking is robust, else that mean). Points
-    with the most finished draws first, each group by ``ranked``; points with none yet last, ranked blank:
-    a draw's figure needs every scenario, and ranking the mean alone would name another best than rank()."""
+    """The best-so-far ranking of a running sweep with uncertain draws (``ok`` with_draws' rows): per point
+    the draws finished on all ``scenarios``, ``mean`` the mean over them of ``objective`` reduced over
+    the scenarios, and ``ranked`` the figure rank() ranks by (the robust one if the ranking is robust,
+    else that mean). Points with the most finished draws first, each group by ``ranked``; points with
+    none yet last, ranked blank: a draw's figure needs every scenario, and ranking the mean alone would
+    name another best than rank()."""
     if ok.empty:
         return pd.DataFrame(columns=[*parameters, "draws", "mean", "ranked"])
     draws = uncertainty.per_draw(ok, parameters, [objective], settings.over_scenarios, scenarios)

@@ -1,4 +1,5 @@
-"""One run of a space's model: ``dse-runner simulate SPACE.yaml`` runs what a sweep of the space runs, at one point.
+"""One run of a space's model: ``dse-runner simulate SPACE.yaml`` runs what a sweep
+of the space runs, at one point.
 
 Why: a study's model is often written only in its space (an inline multi-model, instances named as the user
 chose), so the values a sweep, a fit or a diagnosis writes (``rank --best-values``, ``diagnosed-values.yaml``)

@@ -63,15 +63,16 @@ class Variant(BaseModel):
 
 
 class ScenarioSource(BaseModel):
-    """Scenario folders: ``{path: runs/*, group: .., kind: .., variants: [..]}`` plus the kind's own options."""
+    """Scenario folders: ``{path: runs/*, group: .., kind: .., variants:
+    [..]}`` plus the kind's own options."""
 
     model_config = Extensible  # the rest goes to the kind
     path: str  # a folder or a glob of folders, relative to the spec
     group: str | None = None  # overrides the scenario's own group
     kind: str | None = None  # default: the first installed kind that recognises the folder
     # Each folder runs once per variant, as scenario <name>-<variant> with the variant's parameters on top of
-    # its own: a design evaluated over several plants (a robust objective: ranking.over_scenarios max or mean).
-    # A string is a YAML file holding the list, relative to the spec.
+    # its own: a design evaluated over several plants (a robust objective: ranking.over_scenarios max or
+    # mean). A string is a YAML file holding the list, relative to the spec.
     variants: Annotated[
         Annotated[list[Variant], Tag("list")] | Annotated[str, Tag("scalar")],
         Discriminator(
@@ -154,8 +155,8 @@ class RankingSpec(BaseModel):
         return [self.objective, *(name for name, _ in self.pareto_goals()), *self.weights]
 
 
-# A list of names or a mapping name -> objective (simulation/objectives.py's forms); an entry with options in a
-# list is the likely slip, so its message says where options go.
+# A list of names or a mapping name -> objective (simulation/objectives.py's forms); an entry with options in
+# a list is the likely slip, so its message says where options go.
 ObjectiveName = Annotated[
     Annotated[str, Tag("scalar")],
     Discriminator(
@@ -475,7 +476,8 @@ def _check_effect(space: Space, effect: signal_effects.Effect, values: list[Any]
 
 
 def _parsed_term(ref: str, source: str) -> derivative_terms.DerivativeTerm | state_limits.StateLimit | None:
-    """A derivative term or a state limit: what the master changes in a model-exchange instance's equations."""
+    """A derivative term or a state limit: what the master changes in a
+    model-exchange instance's equations."""
     try:
         return derivative_terms.parse(ref) or state_limits.parse(ref)
     except DseError as e:
@@ -488,8 +490,9 @@ def _check_term(
     values: list[Any],
     source: str,
 ) -> None:
-    """A derivative term's values are coefficients, a state limit's bounds or fractions, on a model-exchange
-    instance that has the states and the variables the term reads (derivative_terms.check, state_limits.check)."""
+    """A derivative term's values are coefficients, a state limit's bounds or fractions, on a
+    model-exchange instance that has the states and the variables the term reads
+    (derivative_terms.check, state_limits.check)."""
     split = state_limits.split if isinstance(term, state_limits.StateLimit) else derivative_terms.split
     try:
         for value in values:

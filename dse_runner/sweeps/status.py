@@ -16,7 +16,8 @@ from . import store
 
 
 class SearchStatus(BaseModel):
-    """How a search is going: part of the sweep's status (``<sweep>.status.json``) and of ``submit --json``."""
+    """How a search is going: part of the sweep's status
+    (``<sweep>.status.json``) and of ``submit --json``."""
 
     strategy: str
     objective: str
@@ -120,9 +121,10 @@ STATUS_SECONDS = 1.0  # how often a running sweep saves its status
 
 
 def save_status(report: SweepReport, kept: SweepReport | None = None) -> None:
-    """Save ``report`` as the sweep's status; or, if it finished without running a task (every task was done),
-    ``kept``, the status found when it started, if that finished submission ran tasks: the status, and the
-    report's summary, stay those of the run that made the rows, not of a resubmission that had nothing to do."""
+    """Save ``report`` as the sweep's status; or, if it finished without running a task (every task was
+    done), ``kept``, the status found when it started, if that finished submission ran tasks: the
+    status, and the report's summary, stay those of the run that made the rows, not of a
+    resubmission that had nothing to do."""
     report.updated_at = time.time()
     noop = report.state == "finished" and not report.ran
     shown = kept if noop and kept is not None and kept.state == "finished" and kept.ran else report

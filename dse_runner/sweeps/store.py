@@ -410,9 +410,9 @@ def read_results(
 
 
 class TaskIds:
-    """Ids of the tasks with a row: one sorted array of fixed-width bytes, about 24 bytes a task where a set of
-    strings costs 200, so that resuming a sweep of millions holds tens of megabytes. Asked a batch at a time
-    (``among``), as expand.py walks the space."""
+    """Ids of the tasks with a row: one sorted array of fixed-width bytes, about 24 bytes a task where a
+    set of strings costs 200, so that resuming a sweep of millions holds tens of megabytes. Asked a
+    batch at a time (``among``), as expand.py walks the space."""
 
     def __init__(self, ids: np.ndarray | None = None):
         self.ids = np.unique(ids) if ids is not None and len(ids) else np.array([], dtype="S24")

@@ -345,7 +345,8 @@ class GridSource:
 
 @dataclass
 class Run:
-    """One submission: keeps chunks in flight, handles crashed chunks, and resumes after a scheduler restart."""
+    """One submission: keeps chunks in flight, handles crashed chunks, and
+    resumes after a scheduler restart."""
 
     space: Space
     shipment: ship.Shipment
@@ -601,8 +602,9 @@ def _jobs(
     with_scores: bool = False,
     tasks: list[TaskBatch] | None = None,
 ) -> Iterator[ChunkJob]:
-    """The chunks, made as they are asked for (of ``tasks`` when they are made already); the results' schema
-    (a walk over every value of a large grid) is made now, and ``size`` is first asked when the first chunk is."""
+    """The chunks, made as they are asked for (of ``tasks`` when they are made already); the
+    results' schema (a walk over every value of a large grid) is made now, and ``size`` is first
+    asked when the first chunk is."""
     key = space.model_key
     schema = store.results_schema(space.parameters, space.objectives)
     batches = blocks(space, points, only, done) if tasks is None else undone(tasks, done)

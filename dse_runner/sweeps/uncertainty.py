@@ -181,7 +181,7 @@ def identity(uncertain: Uncertain, distributions: dict[str, Any]) -> dict[str, A
     return found
 
 
-# --- statistics over the draws (the reducer's) ---------------------------------------------------------------
+# --- statistics over the draws (the reducer's) --------------------------------------------------------------
 
 
 def label(q: float) -> str:
@@ -283,8 +283,8 @@ class Normal(BaseModel):
 
 
 class LogNormal(BaseModel):
-    """A value whose natural logarithm is normal: ``median`` (the value's) and ``std_log`` (the logarithm's std);
-    for a positive quantity known to a few percent, std_log is about its relative spread."""
+    """A value whose natural logarithm is normal: ``median`` (the value's) and ``std_log`` (the logarithm's
+    std); for a positive quantity known to a few percent, std_log is about its relative spread."""
 
     model_config = Strict
     distribution: Literal["lognormal"]
@@ -311,10 +311,10 @@ class Triangular(BaseModel):
 
 
 class FromDiagnosis(BaseModel):
-    """A diagnosis's fitted value and ~95 % interval (``dse-runner diagnose --json``'s file), read as a normal
-    whose mean is the fitted value and whose 1.96 sigma is the interval's half-width. ``effect``: the id of one
-    of its ``effects`` (default: its ``fitted`` calibration, by the parameter's own name); ``parameter``: the
-    name within that effect, when it has several."""
+    """A diagnosis's fitted value and ~95 % interval (``dse-runner diagnose --json``'s file), read as a
+    normal whose mean is the fitted value and whose 1.96 sigma is the interval's half-width. ``effect``:
+    the id of one of its ``effects`` (default: its ``fitted`` calibration, by the parameter's own name);
+    ``parameter``: the name within that effect, when it has several."""
 
     model_config = Strict
     from_diagnosis: str  # relative to the spec
@@ -332,7 +332,8 @@ def _distribution_kind(value: Any) -> str | None:
     return kind if kind in DISTRIBUTIONS else None
 
 
-# One of the distributions, by its ``distribution`` key, or {from_diagnosis: ...}: a wrong one gives one message.
+# One of the distributions, by its ``distribution`` key, or {from_diagnosis: ...}:
+# a wrong one gives one message.
 UncertainValue = Annotated[
     Annotated[Uniform, Tag("uniform")]
     | Annotated[Normal, Tag("normal")]

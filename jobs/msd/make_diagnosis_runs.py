@@ -16,11 +16,11 @@ Each case conceals something the model does not know (CASES):
 * ``force-rate-limited``: the actuator's force changes by at most 3 N/s (at the log's sampling);
 * ``sensor-saturated``: the position sensor reads at most 0.08 m.
 
-The effects are made here, not with the master's signal effects the diagnosis fits: the force's log is
-shifted in time or clipped before the plant sees it, and the sensor's gain and offset are applied to the simulated
-position, which is solved at a finer step than the diagnosis uses (0.01 s against 0.025 s). Written into the folder: each run's
-``<run>-force.csv`` and ``<run>-x.csv``, and a ``space.yaml`` that calibrates k and c on them and
-compares the position (nothing of the truth); with ``--folders``, one scenario folder per run instead
+The effects are made here, not with the master's signal effects the diagnosis fits: the force's log is shifted
+in time or clipped before the plant sees it, and the sensor's gain and offset are applied to the simulated
+position, which is solved at a finer step than the diagnosis uses (0.01 s against 0.025 s). Written into the
+folder: each run's ``<run>-force.csv`` and ``<run>-x.csv``, and a ``space.yaml`` that calibrates k and c on
+them and compares the position (nothing of the truth); with ``--folders``, one scenario folder per run instead
 (jobs/quickstart/rig was made so, with ``force-deadzone --seed 7``). Run from the repository:
 
     PYTHONPATH=. python jobs/msd/make_diagnosis_runs.py sensor-gain-offset --out out/msd-blind

@@ -11,9 +11,9 @@ with m = 1 kg, l = 0.8 m, g = 9.81 m/s², b = 0.05 N m s and, per case, the conc
 * ``none``: nothing.
 
 The truth is integrated by scipy (not by dse-runner's master), with the torque held over each 0.02 s
-communication step as the master feeds it. Four runs of 10 s (two releases, a push, a sine torque); the
-angle is recorded every 0.04 s with white noise of σ 2 mrad (seeded). Each case folder gets the torque
-and angle CSVs and a space.yaml that calibrates l and b (a grid: the calibration) against the angle. Run from the
+communication step as the master feeds it. Four runs of 10 s (two releases, a push, a sine torque); the angle
+is recorded every 0.04 s with white noise of σ 2 mrad (seeded). Each case folder gets the torque and angle
+CSVs and a space.yaml that calibrates l and b (a grid: the calibration) against the angle. Run from the
 repository: ``PYTHONPATH=. python jobs/pendulum/make_discovery_runs.py [CASE ...] [--out DIR]``.
 """
 
@@ -123,7 +123,10 @@ def make(case: str, folder: Path, seed: int = SEED) -> Path:
         "output": "out",
         "cluster": {"n_workers": 2},
     }
-    header = f"# pendulum recordings, concealed: {CONCEALED[case]} (made by make_discovery_runs.py; truth {TRUTH})\n"
+    header = (
+        f"# pendulum recordings, concealed: {CONCEALED[case]} "
+        f"(made by make_discovery_runs.py; truth {TRUTH})\n"
+    )
     (folder / "space.yaml").write_text(header + yaml.safe_dump(spec, sort_keys=False))
     return folder / "space.yaml"
 

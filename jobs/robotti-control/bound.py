@@ -327,10 +327,11 @@ def main() -> None:
         for folder in folders:
             r = results[folder.name] = bound(folder, args.budget, args.rounds, Path(work))
             print(
-                f"{folder.name}: defaults {r['defaults_error']:.4f} m at {r['defaults_effort']:.3f} rad; least error "
-                f"at <= {r['budget']:.3f} rad: {r['bound']:.4f} m (linear model), {r['replayed_error']:.4f} m "
-                f"replayed on the plant ({r['replayed_error'] / r['defaults_error']:.2f} x the defaults', "
-                f"effort {r['replayed_effort']:.3f})",
+                f"{folder.name}: defaults {r['defaults_error']:.4f} m at "
+                f"{r['defaults_effort']:.3f} rad; least error at <= {r['budget']:.3f} "
+                f"rad: {r['bound']:.4f} m (linear model), {r['replayed_error']:.4f} m "
+                f"replayed on the plant ({r['replayed_error'] / r['defaults_error']:.2f} "
+                f"x the defaults', effort {r['replayed_effort']:.3f})",
                 flush=True,
             )
     args.out.write_text(json.dumps({"budget": args.budget, "paths": results}, indent=1) + "\n")

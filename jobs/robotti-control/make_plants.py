@@ -1,6 +1,7 @@
 """Writes plants.yaml: the robustness set of the control study, drawn from the diagnosis.
 
-    python jobs/robotti-control/make_plants.py [--diagnosis docs/diagnosis-robotti/diagnosis.json] [--plants 5]
+    python jobs/robotti-control/make_plants.py [--plants 5]
+        [--diagnosis docs/diagnosis-robotti/diagnosis.json]
 
 Each controller point is scored on every path over a few plants: vehicles whose mass and wheel
 slip are drawn, by a Latin hypercube with a fixed seed, from the ~95 % intervals that
@@ -43,8 +44,8 @@ def main() -> None:
     args = parser.parse_args()
     fitted = json.loads(args.diagnosis.read_text())["fitted"]
     header = (
-        f"# Written by make_plants.py: {args.plants} plants, mass and wheel slip drawn (Latin hypercube, seed "
-        f"{SEED}) from the\n# ~95 % intervals of {args.diagnosis.name}: "
+        f"# Written by make_plants.py: {args.plants} plants, mass and wheel slip drawn (Latin "
+        f"hypercube, seed {SEED}) from the\n# ~95 % intervals of {args.diagnosis.name}: "
         + ", ".join(
             f"{ref} [{fitted['interval'][ref][0]:.6g}, {fitted['interval'][ref][1]:.6g}]" for ref in VARIED
         )

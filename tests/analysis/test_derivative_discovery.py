@@ -43,7 +43,8 @@ def _generator(job: str):
 
 
 def _noise(space, column: str) -> float:
-    """σ of the recordings' noise from their fourth differences (the signals are smooth at the sampling step)."""
+    """σ of the recordings' noise from their fourth differences (the signals
+    are smooth at the sampling step)."""
     return float(
         np.median(
             [sigma_from_differences(np.diff(s.recorded.samples(column)[1], n=4), 4) for s in space.scenarios]
@@ -116,7 +117,7 @@ def test_recordings_with_nothing_concealed_discover_nothing(tmp_path, dask_sched
     assert found.to_json()["effects"] == [] and found.reason
 
 
-# ---- the parts, without a cluster ------------------------------------------------------------------------------
+# ---- the parts, without a cluster --------------------------------------------------------------------------
 
 
 def test_the_library_offers_terms_on_physics_not_on_kinematics(tmp_path):
@@ -170,9 +171,10 @@ def test_cosimulation_models_are_told_that_only_their_signals_can_be_corrected()
 
 @pytest.mark.slow
 def test_diagnose_space_discovers_the_cubic_spring_the_library_cannot_explain(tmp_path, dask_scheduler):
-    """The whole command's path: the space (a grid calibration), its library of effects, then discovery because
-    none of them explains the hardening spring; the answer carries the term, and the diagnosed values replay
-    it. Only one library effect is tried (--hypothesis), so that the library's part stays short."""
+    """The whole command's path: the space (a grid calibration), its library of effects, then
+    discovery because none of them explains the hardening spring; the answer carries the term,
+    and the diagnosed values replay it. Only one library effect is tried (--hypothesis), so that
+    the library's part stays short."""
     from dse_runner.analysis.diagnose.signal_library import diagnose_space
     from dse_runner.simulation.values import read_values
 

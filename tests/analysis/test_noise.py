@@ -45,7 +45,8 @@ def test_a_quantised_recording_keeps_a_floor_at_its_resolution():
 
 
 def test_a_noise_free_recording_has_the_floor_of_the_decimals_it_was_written_with():
-    """Simulated data written with 6 decimals: not 1e-8, which would count every error as millions of floors."""
+    """Simulated data written with 6 decimals: not 1e-8, which would count
+    every error as millions of floors."""
     written = np.round(SMOOTH, 6)
     found = estimate_noise(written)
     assert found.method == "resolution" and found.sigma == pytest.approx(1e-6 / math.sqrt(12))

@@ -1,6 +1,6 @@
-"""Sensitivity analysis (analysis/sensitivity.py) proved on the Ishigami function, whose Sobol' indices are known
-in closed form, run as an FMU (jobs/ishigami, C built on first use) on the real cluster: a Dask scheduler and
-two worker processes, results through the Parquet store.
+"""Sensitivity analysis (analysis/sensitivity.py) proved on the Ishigami function, whose Sobol' indices are
+known in closed form, run as an FMU (jobs/ishigami, C built on first use) on the real cluster: a Dask
+scheduler and two worker processes, results through the Parquet store.
 
 The analytic indices are computed here from the function's variance decomposition (Sobol' and Levitan 1999),
 never pasted: with x1, x2, x3 uniform on [-pi, pi] and y = sin x1 + a sin^2 x2 + b x3^4 sin x1,
@@ -131,9 +131,9 @@ def test_indices_per_scenario_group_reduced_as_the_ranking_says(tmp_path, dask_s
 
 
 def test_morris_screening_matches_salib_on_the_formula(tmp_path, dask_scheduler):
-    """Morris' mu*, sigma through the cluster and the store equal SALib's own on the formula at the same design,
-    and see x3's effect as interaction: its elementary effects change sign with sin x1, so their spread sigma
-    exceeds their mean mu."""
+    """Morris' mu*, sigma through the cluster and the store equal SALib's own on the formula at the same
+    design, and see x3's effect as interaction: its elementary effects change sign with sin x1, so their
+    spread sigma exceeds their mean mu."""
     from SALib.analyze import morris
 
     space = job(
@@ -156,8 +156,9 @@ FAST_POINTS = 3000  # eFAST: 3 search curves of 1000 rows, M = 4 harmonics
 
 
 def test_fast_indices_are_within_0_05_of_the_analytic_ones_at_3000_points(tmp_path, dask_scheduler):
-    """eFAST (search.strategy fast) through the cluster and the store: S1 and ST within 0.05 of the closed form,
-    each with the interval SALib gives, and equal to SALib's own estimate on the formula at the same design."""
+    """eFAST (search.strategy fast) through the cluster and the store: S1 and ST within 0.05 of
+    the closed form, each with the interval SALib gives, and equal to SALib's own estimate on
+    the formula at the same design."""
     from SALib.analyze import fast
 
     space = job(tmp_path, dask_scheduler, search={"strategy": "fast", "max_points": FAST_POINTS, "seed": 0})
@@ -240,8 +241,8 @@ def test_sensitivity_equals_salib_on_the_plainly_read_store(tmp_path, dask_sched
 
 
 def test_a_large_designs_bootstrap_runs_in_processes_to_the_same_numbers():
-    """From PARALLEL_ROWS rows the Sobol' estimator runs SALib's bootstrap a process per parameter: the indices
-    and intervals are those of the one-process run, to the last digit."""
+    """From PARALLEL_ROWS rows the Sobol' estimator runs SALib's bootstrap a process per parameter: the
+    indices and intervals are those of the one-process run, to the last digit."""
     from SALib.analyze import sobol
 
     from dse_runner.analysis.sensitivity import PARALLEL_ROWS, _estimate, bootstrap_processes

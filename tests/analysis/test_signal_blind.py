@@ -86,9 +86,9 @@ def test_recordings_of_a_model_that_misses_nothing_name_nothing(tmp_path, dask_s
 @pytest.mark.slow
 def test_an_actuator_that_clips_is_named_as_its_two_bounds_not_imitated(tmp_path, dask_scheduler):
     """The force clipped to ±1.2 N before the plant sees it (made by the generator with numpy, not by the
-    master's effects). Alone, neither bound explains it (the calibration absorbs a one-sided clip), so the answer
-    grows from the best pair to both sides; a gain fitted to 1 on the way is not claimed (the noise rule), and
-    nothing is imitated by a polynomial."""
+    master's effects). Alone, neither bound explains it (the calibration absorbs a one-sided clip), so
+    the answer grows from the best pair to both sides; a gain fitted to 1 on the way is not claimed (the
+    noise rule), and nothing is imitated by a polynomial."""
     found = _diagnose("force-clipped", tmp_path, dask_scheduler)
     assert found["verdict"] == "explained", found["verdict_text"]
     named = {(e["id"], e["target"]): e for e in found["effects"]}

@@ -131,8 +131,8 @@ def test_a_selection_keeps_only_the_named_effects_and_names_an_unknown_one():
 
 
 def test_discovered_terms_face_the_noise_rule_as_library_effects_do():
-    """A discovered term that beats the answer without it by 5 % and 10 BIC, but changes the held-out mean square
-    by less than one noise variance, is not claimed; one that changes it by more is."""
+    """A discovered term that beats the answer without it by 5 % and 10 BIC, but changes the held-out mean
+    square by less than one noise variance, is not claimed; one that changes it by more is."""
     from dse_runner.analysis.diagnose.derivative_discovery import Discovered, NotDiscovered
     from dse_runner.analysis.diagnose.derivative_discovery.propose import Proposal
     from dse_runner.analysis.diagnose.signal_library import noise_ruled

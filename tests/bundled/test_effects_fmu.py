@@ -144,7 +144,8 @@ def test_every_correction_term_is_a_parameter_of_the_fmu_in_order():
 
 
 def test_a_steering_term_of_one_is_the_steering_offset_bit_for_bit(effects):
-    """corr_steer_1 adds to the steering angle where steering_offset does: (δ + 0) + c and (δ + c) + 0 round alike."""
+    """corr_steer_1 adds to the steering angle where steering_offset does: (δ + 0) +
+    c and (δ + c) + 0 round alike."""
     inputs = {"velocity": 2.0, "delta_f": 0.1, "steering_lag": 0.3, "wheel_slip": 0.05, "theta0": 0.4}
     offset = drive(effects, 20.0, steering_offset=0.03, **inputs)
     corrected = drive(effects, 20.0, corr_steer_1=0.03, **inputs)
@@ -161,8 +162,8 @@ def test_antenna_terms_of_one_are_the_antenna_offset_bit_for_bit(effects):
 
 
 def test_a_drive_force_term_of_one_doubles_the_drive_gain_bit_for_bit(effects):
-    """d(vx)/dt += 1·F_drive/m on a straight line, below the friction limit, is Kv doubled: 2F/m rounds as F/m + F/m.
-    This pins model.c's copy of the drive force to bicycle.h's."""
+    """d(vx)/dt += 1·F_drive/m on a straight line, below the friction limit, is Kv doubled: 2F/m rounds as
+    F/m + F/m. This pins model.c's copy of the drive force to bicycle.h's."""
     doubled = drive(effects, 10.0, velocity=0.3, Kv=16000.0)
     corrected = drive(effects, 10.0, velocity=0.3, Kv=8000.0, corr_acc_fdrive=1.0)
     assert np.array_equal(doubled.column("vehicle.vx"), corrected.column("vehicle.vx"))
@@ -218,10 +219,10 @@ def test_the_rate_limiter_ramps_at_its_limit_then_closes_exponentially():
 
 
 def test_a_rate_limited_steering_term_turns_as_the_limited_angle_would(effects):
-    """corr_steer_ratelim = 1 makes the steering lim(δ, L): with a step of 0.1 rad at 2 m/s and L = 0.02 rad/s the
-    heading follows ∫ G(v)·lim(δ, L) dt (G the steady yaw gain; the yaw mode settles in hundredths of a
-    second), half the unlimited turn after 5 s (the ramp reaches the step at 5 s); with L far above the step's needs it is the unlimited
-    turn but for the limiter's 0.01 s of tracking."""
+    """corr_steer_ratelim = 1 makes the steering lim(δ, L): with a step of 0.1 rad at 2 m/s and L = 0.02
+    rad/s the heading follows ∫ G(v)·lim(δ, L) dt (G the steady yaw gain; the yaw mode settles in
+    hundredths of a second), half the unlimited turn after 5 s (the ramp reaches the step at 5 s); with
+    L far above the step's needs it is the unlimited turn but for the limiter's 0.01 s of tracking."""
     from dse_runner.cases.robotti_diagnosis import correction
 
     inputs = {"velocity": 2.0, "delta_f": 0.1}
@@ -261,7 +262,8 @@ def test_the_filtered_command_rate_matches_correction_py(effects):
 
 
 def test_antenna_terms_use_the_heading_and_speed_as_correction_py_does(effects):
-    """gps_along += c1·cos 2ψ + c2·v and gps_cross += c3·sin ψ, checked from the FMU's own heading and speed."""
+    """gps_along += c1·cos 2ψ + c2·v and gps_cross += c3·sin ψ, checked from
+    the FMU's own heading and speed."""
     from dse_runner.cases.robotti_diagnosis import correction
 
     values = {"corr_gps_along_cos2psi": 0.2, "corr_gps_along_v": 0.1, "corr_gps_cross_sinpsi": -0.3}

@@ -1,6 +1,6 @@
-"""The blind cases themselves (tests/support/blind.py): every pair of library effects is a case with its own noise,
-the synthetic runs are what the recordings replay, the cases outside the library are recorded by the truth
-FMU with their effect, and the noise cases' receivers are as heavy as they say."""
+"""The blind cases themselves (tests/support/blind.py): every pair of library effects is a case with its
+own noise, the synthetic runs are what the recordings replay, the cases outside the library are recorded
+by the truth FMU with their effect, and the noise cases' receivers are as heavy as they say."""
 
 from __future__ import annotations
 

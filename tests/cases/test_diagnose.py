@@ -77,9 +77,10 @@ def test_concealed_pairs_are_both_named(cases, pair):
 
 
 def test_an_effect_outside_the_library_is_discovered(cases):
-    """A steering gain that falls with speed (tests/fmus/robotti_truth) is in no hypothesis' form: the library's
-    best leaves a residual well above the noise, and discovery proposes, fits and proves a correction that at
-    least halves the held-out error; any library effect named beside it is only partial."""
+    """A steering gain that falls with speed (tests/fmus/robotti_truth) is in no hypothesis'
+    form: the library's best leaves a residual well above the noise, and discovery proposes,
+    fits and proves a correction that at least halves the held-out error; any library effect
+    named beside it is only partial."""
     _, _, _, result = cases("steer_gain_speed")
     found = [e for e in result.effects if e["id"] == "discovered"]
     assert found, f"verdict {result.verdict}, discovery {result.to_json()['discovery']}"
@@ -95,11 +96,11 @@ def test_an_effect_outside_the_library_is_discovered(cases):
 
 
 def test_a_heading_dependent_antenna_offset_is_discovered(cases):
-    """An antenna on a rolling mast (tests/fmus/robotti_truth): a body-lateral offset that changes with heading,
-    which no library effect has (antenna_offset is constant). Equation error also finds structure in the
-    steering on the loops, but ranked on positions the antenna's heading terms come first, in the full fit and
-    in every fold: the correction is sized near the truth (0.2·sin(ψ − 0.7)) and at least halves the held-out
-    error; any library effect named beside it is only partial."""
+    """An antenna on a rolling mast (tests/fmus/robotti_truth): a body-lateral offset that changes with
+    heading, which no library effect has (antenna_offset is constant). Equation error also finds
+    structure in the steering on the loops, but ranked on positions the antenna's heading terms come
+    first, in the full fit and in every fold: the correction is sized near the truth (0.2·sin(ψ − 0.7))
+    and at least halves the held-out error; any library effect named beside it is only partial."""
     _, _, _, result = cases("mast_roll")
     found = blind.discovered_entry(result)
     assert found, f"verdict {result.verdict}, discovery {result.to_json()['discovery']}"
@@ -114,10 +115,10 @@ def test_a_heading_dependent_antenna_offset_is_discovered(cases):
 
 
 def test_a_change_mid_run_is_discovered_at_its_time(cases):
-    """A payload lowered 10 s into every run (tests/fmus/robotti_truth: 400 kg more and a draft of 0.06·m·g from
-    then on) is in no time-invariant form: discovery finds when it happens from the equation error, and a
-    correction switched on then at least halves the held-out error; any library effect named beside it is
-    only partial, and the space it writes holds the time its terms switch on."""
+    """A payload lowered 10 s into every run (tests/fmus/robotti_truth: 400 kg more and a draft of 0.06·m·g
+    from then on) is in no time-invariant form: discovery finds when it happens from the equation error,
+    and a correction switched on then at least halves the held-out error; any library effect named
+    beside it is only partial, and the space it writes holds the time its terms switch on."""
     _, _, _, result = cases("payload")
     found = blind.discovered_entry(result)
     assert found, f"verdict {result.verdict}, discovery {result.to_json()['discovery']}"
@@ -145,8 +146,8 @@ def test_a_resistance_against_the_motion_is_discovered(cases):
 
 
 def test_heavy_noise_and_long_outages_claim_nothing(cases):
-    """5 cm of receiver noise, 10 % dropouts and two 5 s outages per run: nothing is named or discovered, and the
-    noise is estimated from the files alone within 20 %."""
+    """5 cm of receiver noise, 10 % dropouts and two 5 s outages per run: nothing is named or discovered,
+    and the noise is estimated from the files alone within 20 %."""
     _, _, _, result = cases("noise_heavy")
     assert [e["id"] for e in result.effects] == ["none"] and result.verdict == "none"
     assert blind.discovered_entry(result) is None
@@ -218,9 +219,9 @@ def test_cli_json_resumes_from_the_store(cases, dask_scheduler):
 
 
 def test_look_alikes_are_weighed_where_they_differ(cases):
-    """The steering lag's twin (a delay of every command) is weighed segment by segment at no extra simulation:
-    the evidence favours the concealed lag, and the answer's shape alone cannot tell a lag from a delay
-    without steering steps (the bundled manoeuvres have none)."""
+    """The steering lag's twin (a delay of every command) is weighed segment by segment at no extra
+    simulation: the evidence favours the concealed lag, and the answer's shape alone cannot tell a lag
+    from a delay without steering steps (the bundled manoeuvres have none)."""
     _, _, _, result = cases("steering_lag")
     look = next(x for x in result.lookalikes if set(x.members) == {"steering_lag", "time_offset"})
     assert look.favoured == "steering_lag" and abs(look.evidence.llr) >= 5

@@ -189,7 +189,8 @@ def test_verdict(held_out, floor, chosen, expected):
 
 @pytest.mark.parametrize("chosen", [False, True])
 def test_a_discovered_correction_is_the_answer_only_down_to_the_noise(chosen):
-    """A correction that passed the rule but leaves a residual above the noise is part of the cause: partial."""
+    """A correction that passed the rule but leaves a residual above the noise
+    is part of the cause: partial."""
     assert explain.verdict(0.04, 0.02, 2.0, chosen, discovered=True) == "discovered"
     assert explain.verdict(0.041, 0.02, 2.0, chosen, discovered=True) == "partial"
 
@@ -626,7 +627,8 @@ def test_correlated_residuals_count_for_fewer_fixes():
 
 
 def speed_channel(form: str, size: float, seed: int) -> lookalike.SignalAtFixes:
-    """Recorded speed = the model's speed steps through a delay or a lag of ``size`` s, as GPS would show it."""
+    """Recorded speed = the model's speed steps through a delay or a lag of
+    ``size`` s, as GPS would show it."""
     t, speed, steering = command_log()
     truth = lookalike.delayed(t, speed, size) if form == "delay" else lookalike.lagged(t, speed, size)
     rng = np.random.default_rng(seed)
@@ -694,9 +696,9 @@ def test_lookalikes_in_json_and_words():
 def acc_regression(
     seed: int, runs: int = 6, rows: int = 200, coefficient: float | None = -0.31, noise_rms: float = 0.03
 ) -> dict:
-    """The acc channel's regression over synthetic runs, each at its own speeds (0.4 to 2.4 m/s, so that 1, v
-    and v² differ): the target is
-    ``coefficient``·v (a drag the model lacks) plus white noise, or noise alone when ``coefficient`` is None."""
+    """The acc channel's regression over synthetic runs, each at its own speeds (0.4 to 2.4 m/s, so that 1,
+    v and v² differ): the target is ``coefficient``·v (a drag the model lacks) plus white noise, or
+    noise alone when ``coefficient`` is None."""
     from dse_runner.cases.robotti_diagnosis import correction, discover
 
     rng = np.random.default_rng(seed)
@@ -729,10 +731,10 @@ def acc_regression(
 
 def test_stlsq_recovers_a_known_speed_term():
     """The exact PySINDy calls discovery makes (STLSQ, threshold by leave-one-run-out, bootstrap over runs)
-    find d(v)/dt += -0.31·v among the acc channel's features: v among the proposed terms, and the proposed
-    correction is that term (shrunk: equation-error coefficients are starting values, the fits size them). The
-    ridge shares it with v's look-alikes (1, v² and sgn v, which is 1 above v_min); ranking on positions orders
-    them and the fits prune the ones that only stand in."""
+    find d(v)/dt += -0.31·v among the acc channel's features: v among the proposed terms, and the
+    proposed correction is that term (shrunk: equation-error coefficients are starting values, the fits
+    size them). The ridge shares it with v's look-alikes (1, v² and sgn v, which is 1 above v_min);
+    ranking on positions orders them and the fits prune the ones that only stand in."""
     from dse_runner.cases.robotti_diagnosis import correction, discover
 
     regs = acc_regression(seed=1)
@@ -786,9 +788,10 @@ def loop_run(name: str, seconds: float, turn: float, speed: float = 1.6) -> tupl
 
 @pytest.mark.slow  # discovery's regressions over four long runs
 def test_antenna_channels_are_proposed_from_the_fix_residuals_in_body_axes():
-    """A mast that leans by h·sin(ψ − ψ_s) to the left is an output effect, invisible to equation error: the
-    residuals of a model without it, turned into body axes, propose gps_cross += −h·sin ψ_s·cos ψ + h·cos ψ_s·sin ψ
-    (sin(ψ − ψ_s) expanded) and nothing along the track; white receiver noise alone proposes nothing."""
+    """A mast that leans by h·sin(ψ − ψ_s) to the left is an output effect, invisible to equation
+    error: the residuals of a model without it, turned into body axes, propose gps_cross += −h·sin
+    ψ_s·cos ψ + h·cos ψ_s·sin ψ (sin(ψ − ψ_s) expanded) and nothing along the track; white
+    receiver noise alone proposes nothing."""
     from dse_runner.cases.robotti_diagnosis import correction, discover
 
     values = discover.vehicle_values({}, "vehicle")
@@ -820,9 +823,9 @@ def test_antenna_channels_are_proposed_from_the_fix_residuals_in_body_axes():
 def straight_run(
     name: str, seconds: float, speed: float, deceleration: float, onset: float, values: dict
 ) -> object:
-    """A straight synthetic run at a constant speed command, its speed integrated here (1 ms Euler) with the
-    drive of ``values`` and, from ``onset`` on, a force against the motion: d(v)/dt += deceleration·clamp(v/v_min,
-    −1, 1); exact fixes at 10 Hz."""
+    """A straight synthetic run at a constant speed command, its speed integrated here (1 ms Euler) with
+    the drive of ``values`` and, from ``onset`` on, a force against the motion: d(v)/dt +=
+    deceleration·clamp(v/v_min, −1, 1); exact fixes at 10 Hz."""
     from dse_runner.cases.robotti_diagnosis import discover
 
     dt = 0.001
@@ -985,8 +988,9 @@ def test_discovered_terms_in_json_and_verdict(tmp_path):
 
 
 def test_a_correction_that_leaves_a_residual_is_partial(tmp_path):
-    """Accepted, yet still well above the noise (a payload lowered mid-run, which no time-invariant term
-    expresses): verdict partial, the correction itself flagged partial, and the report says how much remains."""
+    """Accepted, yet still well above the noise (a payload lowered mid-run, which no
+    time-invariant term expresses): verdict partial, the correction itself flagged partial, and
+    the report says how much remains."""
     from dse_runner.cases.robotti_diagnosis import discover, report
 
     none = candidate((), [1.0, 1.0], 400.0)
@@ -1009,8 +1013,8 @@ def test_a_correction_that_leaves_a_residual_is_partial(tmp_path):
 
 
 def test_pruned_slots_go_to_the_next_proposed_terms():
-    """A term equation error ranked high but the fits put within two standard errors of zero frees its slot for
-    the next term the proposal ranked, never one already tried; the kept terms restart at zero."""
+    """A term equation error ranked high but the fits put within two standard errors of zero frees its slot
+    for the next term the proposal ranked, never one already tried; the kept terms restart at zero."""
     from dse_runner.cases.robotti_diagnosis import discover
 
     ranked = (
@@ -1028,9 +1032,10 @@ def test_pruned_slots_go_to_the_next_proposed_terms():
 
 
 def test_terms_are_ranked_by_what_they_do_to_positions():
-    """Forward selection on the fix residuals, linearised: an antenna's heading terms win over a pair of steering
-    terms that only stand in for one of them (each alone barely moves the residuals), a term that explains nothing
-    is left out however many slots remain, and on noise alone no term pays the BIC margin."""
+    """Forward selection on the fix residuals, linearised: an antenna's heading terms win over a
+    pair of steering terms that only stand in for one of them (each alone barely moves the
+    residuals), a term that explains nothing is left out however many slots remain, and on noise
+    alone no term pays the BIC margin."""
     from dse_runner.cases.robotti_diagnosis import discover
 
     rng = np.random.default_rng(3)

@@ -119,9 +119,9 @@ def test_rolling_resistance_slows_every_speed_by_the_same_deficit(truth, speed):
 
 def test_rolling_resistance_from_rest_is_the_closed_form(truth):
     """From rest at u = 0.8 m/s (Kv u < mu m g: the drive never saturates), m dv/dt = Kv (u - v) - c m g s,
-    s = min(v / v_min, 1). Below v_min it is linear with rate k = Kv + c m g / v_min: v = v_a (1 - exp(-k t / m)),
-    v_a = Kv u / k, reaching v_min at t1 = -(m / k) ln(1 - v_min / v_a); from there the exponential of time
-    constant m / Kv to v_ss = u - c m g / Kv."""
+    s = min(v / v_min, 1). Below v_min it is linear with rate k = Kv + c m g / v_min: v = v_a (1 -
+    exp(-k t / m)), v_a = Kv u / k, reaching v_min at t1 = -(m / k) ln(1 - v_min / v_a); from there the
+    exponential of time constant m / Kv to v_ss = u - c m g / Kv."""
     c, mass, kv, v_min, g, u = 0.05, 1500.0, 8000.0, 0.5, 9.81, 0.8
     assert kv * u < 0.5 * mass * g and u - c * mass * g / kv > v_min
     traj = drive(truth, 10.0, velocity=u, mass=mass, Kv=kv, v_min=v_min, rolling_resistance=c)

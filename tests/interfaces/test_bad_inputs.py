@@ -275,8 +275,8 @@ def test_a_value_outside_its_declared_min_or_max(tmp_path):
         ({"chunk_seconds": "fast"}, r"space\.yaml: chunk_seconds: Input should be a valid number"),
         (
             {"parameters": {"vehicle.mass": "heavy"}},
-            r"space\.yaml: parameters\.vehicle\.mass: expected a list of values, a grid \{start, stop, step or num\} "
-            r"or an interval \{low, high\}",
+            r"space\.yaml: parameters\.vehicle\.mass: expected a list of values, "
+            r"a grid \{start, stop, step or num\} or an interval \{low, high\}",
         ),
         (
             {"parameters": {"vehicle.mass": ["heavy"]}},
@@ -297,8 +297,9 @@ def test_a_value_outside_its_declared_min_or_max(tmp_path):
                     "scenario": {"controller.file": "steering"},
                 }
             },
-            r"space\.yaml: the multi-model binds controller\.file to 'steering': scenario sin1: no field 'steering'; "
-            r"it has duration, gps_position, initial_pose\.theta, initial_pose\.x, initial_pose\.y, steering_inputs",
+            r"space\.yaml: the multi-model binds controller\.file to 'steering': "
+            r"scenario sin1: no field 'steering'; it has duration, gps_position, "
+            r"initial_pose\.theta, initial_pose\.x, initial_pose\.y, steering_inputs",
         ),
         ({"multimodel": "nowhere.yaml"}, r"cannot read multi-model .*nowhere\.yaml"),
         ({"multimodel": "bundled:nothing.yaml"}, r"'bundled:nothing\.yaml': dse-runner bundles no such file"),
@@ -340,8 +341,9 @@ def test_a_bad_spec_value(tmp_path, changes, message):
         # a binding to a field no scenario has: checked against the scenario at simulate
         (
             {"scenario": {"controller.file": "steering"}},
-            r"error: the multi-model binds controller\.file to 'steering': scenario sin1: no field 'steering'; it has "
-            r"duration, gps_position, initial_pose\.theta, initial_pose\.x, initial_pose\.y, steering_inputs$",
+            r"error: the multi-model binds controller\.file to 'steering': scenario "
+            r"sin1: no field 'steering'; it has duration, gps_position, "
+            r"initial_pose\.theta, initial_pose\.x, initial_pose\.y, steering_inputs$",
         ),
         ({"parameters": {"vehicle": 1}}, r"mm\.yaml: parameters: 'vehicle' is not of the form"),
     ],

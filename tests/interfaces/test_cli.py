@@ -246,8 +246,9 @@ def test_simulate_on_a_new_record_prints_its_error_against_the_recording(tmp_pat
 
 
 def test_simulate_takes_objectives_written_as_a_space_writes_them():
-    """--objective takes a spec in YAML's flow form, as the error text and space.yaml write them (it used to
-    answer "cannot import '{signal'"): unnamed, it is named for what it reads and how; a misspelt key is named."""
+    """--objective takes a spec in YAML's flow form, as the error text and space.yaml write
+    them (it used to answer "cannot import '{signal'"): unnamed, it is named for what it
+    reads and how; a misspelt key is named."""
     tanks = REPO / "jobs" / "cascaded_tanks"
     done = dse_runner(
         "simulate",
@@ -281,9 +282,9 @@ def test_simulate_takes_objectives_written_as_a_space_writes_them():
 
 
 def test_simulate_a_space_runs_its_own_model_so_values_named_as_the_space_names_them_replay(tmp_path):
-    """A space whose model is inline (instance ``vdp`` of an FMU file named otherwise): its values, as a fit or
-    a diagnosis writes them, replay with ``simulate SPACE.yaml`` on its experiment and objectives; a scenario is
-    chosen by name; several without one is one line listing them."""
+    """A space whose model is inline (instance ``vdp`` of an FMU file named otherwise): its values, as a
+    fit or a diagnosis writes them, replay with ``simulate SPACE.yaml`` on its experiment and
+    objectives; a scenario is chosen by name; several without one is one line listing them."""
     import yaml
 
     vdp = REPO / "tests" / "fmus" / "vdp_me"

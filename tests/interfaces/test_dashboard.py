@@ -227,7 +227,8 @@ def test_the_report_opens_offline(watched, tmp_path):
         page.on("request", lambda r: requests.append(r.url))
         page.goto(report.as_uri())
         figures = 3 + 4 + 1 + len(SWEEP_SCENARIOS)  # Figure 5, Figure 6, Pareto, a track per scenario
-        try:  # the figures draw themselves (in Bokeh's shadow roots, which locators see into) after the page loads
+        # the figures draw themselves (in Bokeh's shadow roots, which locators see into) after the page loads
+        try:
             page.locator("canvas").nth(figures - 1).wait_for(state="attached", timeout=30_000)
         except PlaywrightTimeout:
             pass  # the count below says how many there were
@@ -370,8 +371,9 @@ def test_dashboard_command_serves_a_finished_sweep_and_its_page_outlives_it_with
 
 
 def test_the_pages_html_shows_the_counts_before_any_script(watched):
-    """A large study's page takes seconds to draw (BokehJS loads, pulls the document, draws it): the counts are
-    in the HTML the server answers with, ahead of BokehJS's scripts, so a browser shows them as it parses."""
+    """A large study's page takes seconds to draw (BokehJS loads, pulls the document, draws it):
+    the counts are in the HTML the server answers with, ahead of BokehJS's scripts, so a
+    browser shows them as it parses."""
     from urllib.request import urlopen
 
     from dse_runner.interfaces.dashboard.server import serve
@@ -415,7 +417,8 @@ def test_standings_rank_as_the_ranking_reduces_over_scenarios():
 
 
 def test_draw_standings_rank_by_the_robust_figure_over_finished_draws():
-    """Uncertain draws: a point's figure is over the draws finished on every scenario; the robust one ranks."""
+    """Uncertain draws: a point's figure is over the draws finished on every
+    scenario; the robust one ranks."""
     from dse_runner.sweeps.rank import draw_standings
     from dse_runner.sweeps.spec import RankingSpec
 

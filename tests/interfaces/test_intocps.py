@@ -227,7 +227,8 @@ def test_a_script_that_writes_no_value_fails_its_task(project):
         ),
         (
             lambda d: d["objectiveDefinitions"]["externalScripts"]["switches"].update(scriptFile="gone.py"),
-            r"objectiveDefinitions\.externalScripts\.switches: script not found: .*userMetricScripts/gone\.py",
+            r"objectiveDefinitions\.externalScripts\.switches: "
+            r"script not found: .*userMetricScripts/gone\.py",
         ),
         (
             lambda d: d["parameters"].update({"{controllerFMU}.controller.minlevle": [1]}),
@@ -235,7 +236,8 @@ def test_a_script_that_writes_no_value_fails_its_task(project):
         ),
         (
             lambda d: d.update(parameterConstraints=["math.sqrt({controllerFMU}.controller.maxlevel) > 1"]),
-            r"parameterConstraints\.0: cannot translate 'math\.sqrt\(\{controllerFMU\}\.controller\.maxlevel\) > 1'",
+            r"parameterConstraints\.0: cannot translate "
+            r"'math\.sqrt\(\{controllerFMU\}\.controller\.maxlevel\) > 1'",
         ),
         (
             lambda d: d.update(objectiveConstraints=["levelMax < __import__('os').getpid()"]),
@@ -385,7 +387,8 @@ def failing_script(project: Path) -> None:
 
 
 def test_a_failing_script_is_reported_by_its_exception_line(tmp_path, dask_scheduler):
-    """submit prints each failure's first line: the script's exception, not 'Traceback (most recent call last):'."""
+    """submit prints each failure's first line: the script's exception, not
+    'Traceback (most recent call last):'."""
     project = copy_project(tmp_path)
     failing_script(project)
     done = dse_runner(
@@ -457,9 +460,9 @@ def test_a_dse_naming_instances_no_multimodel_defines_names_them(tmp_path):
     (other / "other.mm.json").write_text(json.dumps(mm))
     done = dse_runner("submit", dse, "--no-dashboard")  # the same from the command, with what both lack
     assert done.returncode == 2 and done.stderr.strip() == (
-        "error: this DSE names {controller}.controller, which no multi-model of the project defines (looked at "
-        "Multi-models/other/other.mm.json, Multi-models/watertank/watertank.mm.json; a multi-model defines "
-        "the {fmu}.instance its connections and parameters name)"
+        "error: this DSE names {controller}.controller, which no multi-model of the project defines "
+        "(looked at Multi-models/other/other.mm.json, Multi-models/watertank/watertank.mm.json; a "
+        "multi-model defines the {fmu}.instance its connections and parameters name)"
     )
     with pytest.raises(
         DseError,
@@ -508,7 +511,8 @@ def test_a_python2_script_that_does_not_port_is_refused_with_its_line(tmp_path):
 
 
 def switches_and_changes(space) -> tuple[float, float]:
-    """The DSE's switches script's value at one point, and what {signal: valve, reduce: changes} gives there."""
+    """The DSE's switches script's value at one point, and what {signal:
+    valve, reduce: changes} gives there."""
     result = simulate(
         space.plan,
         space.scenarios[0],

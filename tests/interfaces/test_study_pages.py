@@ -151,9 +151,9 @@ def test_the_uncertain_figure_is_of_the_ranked_points(sweeps):
 
 
 def test_the_dashboard_names_the_robust_best_as_rank_does(sweeps):
-    """With ``ranking: {robust: {quantile: 0.9}}`` the best-so-far line and table rank by the q90 over the draws,
-    as the rank command does and as the uncertainty section below them says, not by the mean; the table's last
-    column says so. On this sweep the best q90 and the best mean are different points."""
+    """With ``ranking: {robust: {quantile: 0.9}}`` the best-so-far line and table rank by the q90 over the
+    draws, as the rank command does and as the uncertainty section below them says, not by the mean; the
+    table's last column says so. On this sweep the best q90 and the best mean are different points."""
     from dse_runner.interfaces.dashboard.server import serve
     from dse_runner.sweeps.rank import format_point, rank
 
@@ -169,8 +169,8 @@ def test_the_dashboard_names_the_robust_best_as_rank_does(sweeps):
     finally:
         server.stop()
     assert (
-        f"best so far: {format_point(ranking.best)}; q90 of total y {ranking.best_total:.4f} over 64 of 64 draws"
-        == seen["best"]
+        f"best so far: {format_point(ranking.best)}; q90 of "
+        f"total y {ranking.best_total:.4f} over 64 of 64 draws" == seen["best"]
     )
     assert seen["headings"][-1] == "ranked by: q90 of total y"
     assert [float(v) for v in seen["top"][1:3]] == list(ranking.best.values())

@@ -14,8 +14,8 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 def _clone(folder: Path) -> Path:
-    """The checkout's tracked tests, jobs, scenarios and pytest settings, as they are in the working tree, copied
-    into ``folder`` (whose parent has no shared/)."""
+    """The checkout's tracked tests, jobs, scenarios and pytest settings, as they are in the working tree,
+    copied into ``folder`` (whose parent has no shared/)."""
     listed = subprocess.run(
         ["git", "ls-files", "tests", "jobs", "scenarios", "pyproject.toml"],
         cwd=REPO,

@@ -18,7 +18,8 @@ def python_blocks(text: str) -> list[str]:
 @pytest.mark.slow  # the README's calibration, on a local cluster
 def test_the_readmes_python_example_runs_as_written(tmp_path):
     (block,) = python_blocks((REPO / "README.md").read_text())
-    # The files it names, its results kept out of the checkout: the space copied (its output is relative to it).
+    # The files it names, its results kept out of the checkout: the space copied
+    # (its output is relative to it).
     (tmp_path / "jobs" / "robotti").mkdir(parents=True)
     shutil.copy(REPO / "jobs" / "robotti" / "space.yaml", tmp_path / "jobs" / "robotti")
     (tmp_path / "jobs" / "watertank").symlink_to(REPO / "jobs" / "watertank")

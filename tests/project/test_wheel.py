@@ -50,9 +50,10 @@ def installed(tmp_path_factory) -> dict:
         text=True,
     )
     (wheel,) = (root / "dist").glob("dse_runner-*.whl")
-    # The dependencies come from this interpreter's site-packages (named in a .pth file, whose own .pth files,
-    # this checkout's editable install among them, are then not read); dse-runner itself only from the wheel.
-    # (--system-site-packages would give the base interpreter's, not those of the environment the tests run in.)
+    # The dependencies come from this interpreter's site-packages (named in a .pth file, whose own .pth
+    # files, this checkout's editable install among them, are then not read); dse-runner itself only
+    # from the wheel. (--system-site-packages would give the base interpreter's, not those of the
+    # environment the tests run in.)
     venv = root / "venv"
     subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
     target = subprocess.run(

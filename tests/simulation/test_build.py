@@ -28,7 +28,8 @@ def test_built_fmu_is_valid_and_carries_its_sources(name):
         "sources/fmi2_common.c",
         "sources/fmi_common.c",
     } <= names
-    # only the FMI 2.0 co-simulation layer and what it shares: the other layers are neither compiled nor shipped
+    # only the FMI 2.0 co-simulation layer and what it shares: the other layers
+    # are neither compiled nor shipped
     assert not names & {
         "sources/slave3.c",
         "sources/slave3.h",

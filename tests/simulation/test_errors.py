@@ -36,7 +36,8 @@ def test_a_missing_fmu_file_given_alone_says_how_one_is_made(tmp_path):
 
 
 def test_an_fmu_source_folder_is_simulated_as_its_fmu():
-    """The README's Python example: C sources are built on first use and the instance is named after the folder."""
+    """The README's Python example: C sources are built on first use and the
+    instance is named after the folder."""
     tank = simulate(REPO / "jobs" / "watertank" / "fmus" / "tank", stop_time=50, values={"valvecontrol": 1.0})
     assert list(tank.outputs) == ["tank.level"] and tank.time[-1] == 50
 

@@ -608,8 +608,9 @@ def test_the_command_line_prints_an_fmu_warning_as_one_line(fmus, tmp_path):
 
 
 def test_fmpys_own_instances_still_print_their_messages_after_ours(fmus, tmp_path, capsys):
-    """FMPy's varargs logger proxy has one target per process, and our instances take it: messages of
-    instances FMPy made with its default callbacks must still be printed (on stderr: stdout may carry JSON)."""
+    """FMPy's varargs logger proxy has one target per process, and our instances take it:
+    messages of instances FMPy made with its default callbacks must still be printed (on
+    stderr: stdout may carry JSON)."""
     simulate(fmus["types2"])
     md = read_model_description(str(fmus["types2"]))
     slave = FMU2Slave(
@@ -707,7 +708,8 @@ def captured_units(monkeypatch, path, **kwargs) -> dict[str, cosim._Unit]:
 
 
 def is_direct(feed) -> bool:
-    """The direct filler: the signals array's own take straight into the ctypes buffer, no Python in between."""
+    """The direct filler: the signals array's own take straight into the
+    ctypes buffer, no Python in between."""
     fill = feed.fill
     return (
         isinstance(fill, functools.partial)

@@ -369,9 +369,10 @@ def test_fmi3_path_drives_fmpys_fmu3model_calls(msd):
 
 
 def test_a_state_with_an_exact_start_value_is_set_as_fmi_allows_and_calibrates_like_a_parameter(tmp_path):
-    """The Reference FMUs' VanDerPol declares its states x0, x1 as outputs with exact start values: FMI lets an
-    importer set those before initialisation, so --set, values files and a space's parameters take them (an
-    unknown initial state is calibrated like any parameter). The run starts there: against scipy from (0.5, 0)."""
+    """The Reference FMUs' VanDerPol declares its states x0, x1 as outputs with exact start values: FMI
+    lets an importer set those before initialisation, so --set, values files and a space's
+    parameters take them (an unknown initial state is calibrated like any parameter). The run starts
+    there: against scipy from (0.5, 0)."""
     import yaml
     from scipy.integrate import solve_ivp
 

@@ -339,8 +339,9 @@ def test_model_exchange_integrated_in_c_is_bit_identical(tmp_path, monkeypatch):
 
 
 def test_derivative_terms_added_in_c_are_bit_identical(tmp_path):
-    """Terms on states and on an input, through every function, added in the right-hand side in C as
-    Corrector.add adds them; a second run of the same terms (a fit's next point) takes its own coefficients."""
+    """Terms on states and on an input, through every function, added in the right-hand
+    side in C as Corrector.add adds them; a second run of the same terms (a fit's next
+    point) takes its own coefficients."""
     pushed = force_scenario(tmp_path)
     names = [
         "derivative_term(msd.der(v), x^3)",

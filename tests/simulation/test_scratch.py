@@ -117,7 +117,10 @@ def test_a_folder_its_process_could_not_remove_goes_when_the_next_process_makes_
 FORK_MID_CLAIM = """
 import os, threading, time
 from dse_runner.simulation import scratch
-claiming = threading.Thread(target=lambda: (scratch._CLAIMING.acquire(), time.sleep(1), scratch._CLAIMING.release()))
+def claim():
+    with scratch._CLAIMING:
+        time.sleep(1)
+claiming = threading.Thread(target=claim)
 claiming.start()
 time.sleep(0.2)  # another thread is making a folder when the process forks
 child = os.fork()

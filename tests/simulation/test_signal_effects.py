@@ -1,4 +1,5 @@
-"""Signal effects (delay, lag, gain, offset) do what their names promise, and nothing at their neutral values."""
+"""Signal effects (delay, lag, gain, offset) do what their names promise, and
+nothing at their neutral values."""
 
 from __future__ import annotations
 

@@ -190,7 +190,8 @@ def test_a_space_names_an_objectives_unknown_signal(tmp_path):
         (
             {"peak": {"sgnal": "msd.x"}},
             [
-                "objectives.mapping.peak: expected a name, {signal, reduce}, {signal, recorded, metric} or {script, args}"
+                "objectives.mapping.peak: expected a name, {signal, "
+                "reduce}, {signal, recorded, metric} or {script, args}"
             ],
         ),
     ],
@@ -228,7 +229,8 @@ def test_a_space_names_a_recorded_column_its_recording_lacks(tmp_path):
 
 
 def test_simulate_reads_objectives_written_as_space_yaml_writes_them():
-    """simulate(objectives=...) takes plain mappings, as a user copies them from space.yaml, and names a bad one."""
+    """simulate(objectives=...) takes plain mappings, as a user copies them from
+    space.yaml, and names a bad one."""
     from conftest import REPO
 
     from dse_runner.simulation.run import simulate

@@ -78,8 +78,9 @@ def test_a_limit_at_its_neutral_value_changes_nothing_bit_for_bit(loop):
 
 
 def test_the_master_integrates_the_limited_equations():
-    """Upper tank held at 12 with 40 % of its overflow falling into the lower one, held at 9: against scipy's
-    own integration of the same equations, the pump held over each communication step as the master holds it."""
+    """Upper tank held at 12 with 40 % of its overflow falling into the lower one, held at 9:
+    against scipy's own integration of the same equations, the pump held over each
+    communication step as the master holds it."""
     high1, fraction, high2 = 12.0, 0.4, 9.0
     run = simulate(
         TANKS,

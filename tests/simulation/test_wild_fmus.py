@@ -167,7 +167,8 @@ def test_a_parameter_reaches_a_20sim_fmu_by_every_door(door, tmp_path):
 
 
 def test_set_stop_time_false_leaves_the_fmu_its_own_stop_time(tmp_path):
-    """FMPy's set_stop_time=False: the 20-sim tank then ends at its DefaultExperiment's stop time, and says so."""
+    """FMPy's set_stop_time=False: the 20-sim tank then ends at its
+    DefaultExperiment's stop time, and says so."""
     model = tmp_path / "mm.yaml"
     model.write_text(f"fmus: {{tank: {TANK}}}\ninstances: {{tank: {{set_stop_time: false}}}}\n")
     done = cli("simulate", model, "--stop-time", "20", "--step", "0.1")
@@ -179,7 +180,9 @@ def test_set_stop_time_false_leaves_the_fmu_its_own_stop_time(tmp_path):
 
 PUBLISHED = {
     "single_watertank/Multi-models/2018may7/fixed/coe.json": "single_watertank-2018may7-fixed.outputs.csv",
-    "three_tank_watertank/Multi-models/Non-3D/Experiment1/Non-3D.coe.json": "three_tank_watertank-Non-3D-Experiment1.outputs.csv",
+    "three_tank_watertank/Multi-models/Non-3D/Experiment1/Non-3D.coe.json": (
+        "three_tank_watertank-Non-3D-Experiment1.outputs.csv"
+    ),
 }
 
 

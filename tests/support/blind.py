@@ -76,9 +76,9 @@ OUTSIDE = {
     "mast_roll": ({"mast_roll": 0.2, "mast_roll_heading": 0.7}, ("loop", "loop_left")),
     "slip_pull": ({"wheel_slip": 0.03, "slip_pull": 0.3}, ()),  # the benchmark's only
     # the benchmark's only; a limit shows only where the steering moves faster than it, and held-out error can
-    # prove only what each fold's training runs show: the steps, the slaloms (peak rate 0.16 rad/s) and the loops'
-    # turn-in (a 0.25 rad step), one loop in each fold (with the slaloms and steps alone, one fold trained on a
-    # single run that shows the limit and proposed no term)
+    # prove only what each fold's training runs show: the steps, the slaloms (peak rate 0.16 rad/s) and the
+    # loops' turn-in (a 0.25 rad step), one loop in each fold (with the slaloms and steps alone, one fold
+    # trained on a single run that shows the limit and proposed no term)
     "steer_rate_limit": (
         {"steer_rate_limit": 0.08},
         ("steer_steps", "slalom_slow", "slalom_fast", "loop", "loop_left"),
@@ -355,7 +355,8 @@ def run_case(
 
 
 def benchmark_runs(effect: str) -> list[str]:
-    """The benchmark's runs for a case: every bundled manoeuvre (BENCHMARK_RUNS) and the case's synthetic ones."""
+    """The benchmark's runs for a case: every bundled manoeuvre (BENCHMARK_RUNS)
+    and the case's synthetic ones."""
     return [*BENCHMARK_RUNS, *(r for r in CASES[effect].runs if r in SYNTHETIC)]
 
 

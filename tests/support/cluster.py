@@ -152,8 +152,9 @@ class CliCluster:
 
     def _popen(self, command: list[str], log: str) -> subprocess.Popen:
         with open(self.folder / log, "ab") as out:
-            # Each process leads its own process group, so that close() can kill a nanny and its worker at once;
-            # and is told to end when pytest does, even killed (no teardown then), so no daemon outlives a run.
+            # Each process leads its own process group, so that close() can kill a nanny and its
+            # worker at once; and is told to end when pytest does, even killed (no teardown
+            # then), so no daemon outlives a run.
             return subprocess.Popen(
                 command,
                 env=self.env,

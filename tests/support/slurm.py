@@ -35,8 +35,8 @@ def why_not() -> str | None:
     missing += [name for name in CLIENTS if shutil.which(name) is None]
     if missing or not shutil.which("mungekey"):
         return (
-            f"no {', '.join(missing or ['mungekey'])}: needs Debian's slurmctld, slurmd, slurm-client and munge "
-            "(.ci/install adds them as root)"
+            f"no {', '.join(missing or ['mungekey'])}: needs Debian's slurmctld, "
+            "slurmd, slurm-client and munge (.ci/install adds them as root)"
         )
     return None
 
@@ -119,8 +119,8 @@ class SingleNodeSlurm:
                     "MailProg=/bin/true",
                     "ReturnToService=2",
                     "KillWait=5",  # seconds between a cancelled job's SIGTERM and SIGKILL
-                    f"NodeName=localhost NodeAddr=127.0.0.1 CPUs={os.cpu_count()} RealMemory={node_memory_mb()} "
-                    "State=UNKNOWN",
+                    f"NodeName=localhost NodeAddr=127.0.0.1 CPUs={os.cpu_count()} "
+                    f"RealMemory={node_memory_mb()} State=UNKNOWN",
                     f"PartitionName={PARTITION} Nodes=localhost Default=YES MaxTime=INFINITE State=UP",
                     "",
                 ]

@@ -1,6 +1,7 @@
-"""Rank (and sensitivity: tests/analysis/test_sensitivity.py) aggregate the store in Arrow (sweeps/aggregate.py); nothing may be lost on the way:
-on the same real store, their totals, Table 1, groups and indices equal those of the plain pandas
-computation they replaced, written out here from the Parquet files read one by one.
+"""Rank (and sensitivity: tests/analysis/test_sensitivity.py) aggregate the store in Arrow
+(sweeps/aggregate.py); nothing may be lost on the way: on the same real store, their totals, Table 1,
+groups and indices equal those of the plain pandas computation they replaced, written out here from the
+Parquet files read one by one.
 
 The stores are real sweeps on the real cluster, with the untidy parts a long study meets added the way
 they arise: a chunk's file written twice under two names (each task must count once), and a point missing a

@@ -447,7 +447,8 @@ def test_unreachable_scheduler_names_it(tmp_path):
 
 @pytest.mark.slow  # a sweep on a local cluster, into a moto S3 server
 def test_store_at_an_s3_url(tmp_path, monkeypatch):
-    """Results written by the workers straight to an S3 bucket (moto's S3 server on loopback), ranked from there."""
+    """Results written by the workers straight to an S3 bucket (moto's S3 server
+    on loopback), ranked from there."""
     boto3 = pytest.importorskip("boto3")
     from moto.server import ThreadedMotoServer
 
@@ -502,8 +503,8 @@ def test_htcondor_without_condor_submit_is_one_line_at_once(tmp_path):
     assert time.monotonic() - started < 30
     assert result.returncode == 2
     assert result.stderr.strip().splitlines() == [
-        "error: cluster.kind htcondor: condor_submit is not on PATH: run dse-runner where HTCondor's commands "
-        "are (a login or submit node), or install them"
+        "error: cluster.kind htcondor: condor_submit is not on PATH: run dse-runner "
+        "where HTCondor's commands are (a login or submit node), or install them"
     ], result.stderr
 
 

@@ -147,7 +147,8 @@ def test_cluster_blocks_are_checked_when_the_spec_loads(tmp_path, plugin, cluste
 
 
 def test_a_block_for_a_kind_not_installed_here_waits_for_the_sweep(tmp_path):
-    """A space may name a plug-in kind this machine lacks (to be ranked or viewed here): the sweep names it."""
+    """A space may name a plug-in kind this machine lacks (to be ranked or
+    viewed here): the sweep names it."""
     spec = Cluster.model_validate({"kind": "lsf", "lsf": {"queue": "short"}})
     assert spec.block("lsf") == {"queue": "short"}
     with pytest.raises(ValidationError, match="unknown key 'lsf'"):
@@ -159,8 +160,9 @@ def test_a_block_for_a_kind_not_installed_here_waits_for_the_sweep(tmp_path):
             pass
 
 
-# A process like the command line's: it asks for forked workers, makes its local cluster and reports each
-# worker's parent. A spawned worker's parent is this process (its nanny lives here), a forked one's the server.
+# A process like the command line's: it asks for forked workers, makes its local cluster and
+# reports each worker's parent. A spawned worker's parent is this process (its nanny lives
+# here), a forked one's the server.
 LOCAL_PARENTS = """
 import json, os
 from dse_runner.sweeps import start_method

@@ -1,7 +1,7 @@
-"""Sensitivity designs (sweeps/strategies/designs.py) without a cluster: the budget buys whole blocks, a larger
-budget extends the same design, repeats are asked once, constraints are honoured, and bad input names its
-culprit. The contract every strategy keeps is tests/sweeps/test_every_strategy.py's; these runs on the
-real cluster are tests/analysis/test_sensitivity.py's."""
+"""Sensitivity designs (sweeps/strategies/designs.py) without a cluster: the budget buys whole blocks, a
+larger budget extends the same design, repeats are asked once, constraints are honoured, and bad input
+names its culprit. The contract every strategy keeps is tests/sweeps/test_every_strategy.py's; these
+runs on the real cluster are tests/analysis/test_sensitivity.py's."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""A signal effect is a parameter like any other: a sweep varies it, the store keeps it, the ranking finds it."""
+"""A signal effect is a parameter like any other: a sweep varies it, the store
+keeps it, the ranking finds it."""
 
 from __future__ import annotations
 

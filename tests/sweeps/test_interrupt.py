@@ -65,8 +65,9 @@ def search(folder: Path) -> Path:
 
 
 def start(spec: Path, *options: str) -> subprocess.Popen:
-    """``dse-runner submit`` in a session of its own: a process group of its own, as in a terminal, with Ctrl-C's
-    signal at its default (a test runner's worker may ignore it, and an ignored SIGINT is inherited)."""
+    """``dse-runner submit`` in a session of its own: a process group of its own, as in a
+    terminal, with Ctrl-C's signal at its default (a test runner's worker may ignore it, and
+    an ignored SIGINT is inherited)."""
     return subprocess.Popen(
         [sys.executable, "-m", "dse_runner", "submit", str(spec), *options],
         cwd=REPO,

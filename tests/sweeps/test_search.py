@@ -61,13 +61,14 @@ def results(space, *columns: str) -> pd.DataFrame:
 # ---- each strategy finds the optimum ----------------------------------------------------------------
 
 # Tolerances on the best point, (best rmse [m], |k - 14| [N/m], |c - 0.8| [N s/m]), set from runs of every
-# strategy over 40-80 seeds against this landscape (3 points in flight, as on this cluster): each band passes
-# for every seed measured. Measured again over seeds 0-29 with results told in ask order, 4 points asked ahead
-# (the default since): tpe and cmaes pass for all 30, gp for 29 (seed 18 ends at c = 1.00, rmse 4.5 mm, also
-# with Optuna's own GP settings; told as they come, 3 in flight, it passes). Strategies that learn from results come within 2 noise sigmas; space-filling samples
-# (and the GA, which with 10 generations of 10 does little better) within 4 sigmas and about 1 N/m. A
-# sample of 5 random points fails the space-filling band for 7 of 8 seeds, and 60 random points fail the
-# model-based band for about half the seeds, so neither band passes whatever is asked.
+# strategy over 40-80 seeds against this landscape (3 points in flight, as on this cluster): each band
+# passes for every seed measured. Measured again over seeds 0-29 with results told in ask order, 4 points
+# asked ahead (the default since): tpe and cmaes pass for all 30, gp for 29 (seed 18 ends at c = 1.00, rmse
+# 4.5 mm, also with Optuna's own GP settings; told as they come, 3 in flight, it passes). Strategies that
+# learn from results come within 2 noise sigmas; space-filling samples (and the GA, which with 10
+# generations of 10 does little better) within 4 sigmas and about 1 N/m. A sample of 5 random points fails
+# the space-filling band for 7 of 8 seeds, and 60 random points fail the model-based band for about half the
+# seeds, so neither band passes whatever is asked.
 SPACE_FILLING = (4 * NOISE, 1.5, 0.4)
 MODEL_BASED = (2 * NOISE, 0.6, 0.2)
 CALIBRATION = (0.9 * NOISE, 0.1, 0.03)  # least squares reaches the noise floor: its fit is 14.03, 0.793
@@ -161,8 +162,8 @@ def asked_points(space) -> list[tuple[float, float]]:
     return [(p.point["msd.k"], p.point["msd.c"]) for p in history.points]
 
 
-# Reproducible (the default, 4 points asked ahead): the same points whatever the timing. Asynchronous: only with
-# batch 1 is there one ask/tell order, so that the search in one go asks the same points.
+# Reproducible (the default, 4 points asked ahead): the same points whatever the timing. Asynchronous: only
+# with batch 1 is there one ask/tell order, so that the search in one go asks the same points.
 @pytest.mark.parametrize(
     "order, batch",
     [("reproducible", {}), ("asynchronous", {"batch": 1})],
@@ -222,9 +223,9 @@ SLEEPER = REPO / "tests" / "fmus" / "sleeper"
 
 
 def timed_space(folder: Path, search: dict, cluster: dict) -> Path:
-    """tests/fmus/cliff beside tests/fmus/sleeper, whose ``pause`` is swept too (0-50 ms in each of 10 steps): each
-    point takes its own wall time, 0-0.5 s, so points finish in another order than they were asked (with seed 11
-    the first six take 0.23, 0.24, 0.47, 0.05, 0.08 and 0.06 s)."""
+    """tests/fmus/cliff beside tests/fmus/sleeper, whose ``pause`` is swept too (0-50 ms in each of 10
+    steps): each point takes its own wall time, 0-0.5 s, so points finish in another order than they
+    were asked (with seed 11 the first six take 0.23, 0.24, 0.47, 0.05, 0.08 and 0.06 s)."""
     spec = {
         "name": "timed",
         "multimodel": {"fmus": {"cliff": str(CLIFF), "sleeper": str(SLEEPER)}},
@@ -245,9 +246,10 @@ def timed_space(folder: Path, search: dict, cluster: dict) -> Path:
 
 @pytest.mark.parametrize("name", ["gp", "tpe"])
 def test_a_seeded_search_asks_the_same_points_whatever_the_workers_timing(tmp_path, dask_scheduler, name):
-    """Results are told in the order the points were asked, and point n is asked right after the tells of points
-    0 .. n - BATCH: on the test cluster's two workers and on a local cluster of three that the spec starts, whose
-    points finish in other orders, the same seed and spec ask the same points and are told the same results."""
+    """Results are told in the order the points were asked, and point n is asked right after the tells
+    of points 0 .. n - BATCH: on the test cluster's two workers and on a local cluster of three that
+    the spec starts, whose points finish in other orders, the same seed and spec ask the same points
+    and are told the same results."""
     search = {"strategy": name, "n_startup_trials": 4, "max_points": 14}
     spaces = [
         load_space(timed_space(tmp_path / "two", search, {"address": dask_scheduler})),
@@ -272,8 +274,8 @@ def test_a_seeded_search_asks_the_same_points_whatever_the_workers_timing(tmp_pa
 
 
 def test_the_asynchronous_order_tells_each_result_as_it_comes(tmp_path, dask_scheduler):
-    """order: asynchronous keeps the cluster's threads + 1 points in flight and tells each result when it comes:
-    points that take less time are told before points asked earlier."""
+    """order: asynchronous keeps the cluster's threads + 1 points in flight and tells each result when it
+    comes: points that take less time are told before points asked earlier."""
     space = load_space(
         timed_space(tmp_path, {"strategy": "tpe", "order": "asynchronous"}, {"address": dask_scheduler})
     )
@@ -406,7 +408,8 @@ def test_points_asked_again_are_simulated_once_even_while_they_run(tmp_path, das
         (
             {"strategy": "gp", "acquisition_samples": 0},
             {},
-            r"search: GPSampler refuses the options acquisition_samples=0: acquisition_samples and local_searches must be",
+            r"search: GPSampler refuses the options acquisition_samples=0: "
+            r"acquisition_samples and local_searches must be",
         ),
         (
             {"strategy": "least_squares"},
@@ -421,7 +424,8 @@ def test_points_asked_again_are_simulated_once_even_while_they_run(tmp_path, das
                     "msd.c": {"start": 0.2, "stop": 2.0, "step": 0.2},
                 }
             },
-            r"search: least_squares moves every parameter continuously; msd\.k, msd\.c takes only whole numbers",
+            r"search: least_squares moves every parameter "
+            r"continuously; msd\.k, msd\.c takes only whole numbers",
         ),
     ],
     ids=[

@@ -1,6 +1,7 @@
-"""Sweeps through a real single-node Slurm (tests/support/slurm.py): workers go out as sbatch jobs, a cancelled job
-is replaced, a job Slurm refuses stops the submit with Slurm's own words, and ``min_workers``/``max_workers``
-scale the jobs through Dask's adapt. Real Slurm, real Dask, real Parquet: nothing is mocked.
+"""Sweeps through a real single-node Slurm (tests/support/slurm.py): workers go out as sbatch
+jobs, a cancelled job is replaced, a job Slurm refuses stops the submit with Slurm's own words,
+and ``min_workers``/``max_workers`` scale the jobs through Dask's adapt. Real Slurm, real Dask,
+real Parquet: nothing is mocked.
 
 Skipped, with the reason, where Slurm cannot start (not root, or Debian's packages absent: .ci/install adds
 them). The module shares one Slurm; each test leaves no job behind."""

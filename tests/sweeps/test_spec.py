@@ -150,7 +150,8 @@ def test_a_variant_naming_an_unknown_variable_names_it(tmp_path):
         ),
         (
             {"parameters": {"vehicle.mass": [1800, {"kg": 2000}]}},
-            r"space\.yaml: parameters\.vehicle\.mass\.values\.1: expected a number, a Boolean or a string, not a mapping$",
+            r"space\.yaml: parameters\.vehicle\.mass\.values\.1: "
+            r"expected a number, a Boolean or a string, not a mapping$",
         ),
         (
             {"parameters": {"vehicle.mass": [None]}},
@@ -166,8 +167,9 @@ def test_a_variant_naming_an_unknown_variable_names_it(tmp_path):
                     }
                 ]
             },
-            r"space\.yaml: scenarios\.0\.inline\.inputs\.controller\.steering\.mapping\.colum: Extra inputs are not "
-            r"permitted; scenarios\.0\.inline\.recorded\.mapping\.tme: Extra inputs are not permitted$",
+            r"space\.yaml: scenarios\.0\.inline\.inputs\.controller\.steering\.mapping\.colum: "
+            r"Extra inputs are not permitted; scenarios\.0\.inline\.recorded\.mapping\.tme: "
+            r"Extra inputs are not permitted$",
         ),
     ],
 )
@@ -195,8 +197,8 @@ def test_pareto_mask_min_and_max():
 
 def test_a_space_names_an_fmu_as_simulate_does_and_a_file_that_is_no_model_is_named(tmp_path):
     """``multimodel: VanDerPol.fmu`` (one FMU, no multi-model file) was read as YAML and failed with an
-    unexpected UnicodeDecodeError. The instance is named after the file, as ``simulate VanDerPol.fmu`` names it,
-    so a values file of one replays in the other."""
+    unexpected UnicodeDecodeError. The instance is named after the file, as ``simulate VanDerPol.fmu``
+    names it, so a values file of one replays in the other."""
     import shutil
 
     import yaml

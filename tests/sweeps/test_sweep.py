@@ -21,8 +21,9 @@ from dse_runner.sweeps.sweep import submit
 
 def test_rows_equal_direct_simulations(tmp_path, dask_scheduler, plan):
     space = load_space(write_space(tmp_path, cluster={"address": dask_scheduler}))
-    # Every worker loads the model first (a sweep probes on each), so that neither is still busy loading when
-    # the chunks go out: a worker of a fresh cluster could take longer to do so than the other takes for all 12.
+    # Every worker loads the model first (a sweep probes on each), so that neither is still busy
+    # loading when the chunks go out: a worker of a fresh cluster could take longer to do so
+    # than the other takes for all 12.
     submit(
         space.with_overrides(output=tmp_path / "warm-up"),
         points=[{name: values[0] for name, values in space.parameters.items()}],
@@ -96,8 +97,9 @@ def sleeper_space(tmp_path, pauses: list[float], timeout: float):
 
 
 def test_timeout_becomes_a_failed_row(tmp_path, dask_scheduler):
-    """sin1 is 1680 steps of 0.05 s: at pause 0.02 a run would take 34 s of wall time, 34 times its limit, and it
-    is stopped at the first check past the limit (every 64 steps: 1.3 s); at pause 0 it takes milliseconds."""
+    """sin1 is 1680 steps of 0.05 s: at pause 0.02 a run would take 34 s of wall time, 34 times
+    its limit, and it is stopped at the first check past the limit (every 64 steps: 1.3 s); at
+    pause 0 it takes milliseconds."""
     path = sleeper_space(tmp_path, pauses=[0, 0.02], timeout=1.0)
     report = submit(load_space(path).with_overrides(address=dask_scheduler))
     assert (report.ok, report.failed) == (1, 1), report.errors
@@ -195,7 +197,8 @@ def test_a_transient_failure_is_retried_once(tmp_path, monkeypatch):
     (tmp_path / "flaky_objectives.py").write_text(
         "import os\n"
         "def flaky(trajectory, scenario):\n"
-        "    marker = os.path.join(os.path.dirname(__file__), f'seen-{os.getpid()}-{trajectory.values.sum()}')\n"
+        "    marker = os.path.join(os.path.dirname(__file__), "
+        "f'seen-{os.getpid()}-{trajectory.values.sum()}')\n"
         "    if not os.path.exists(marker):\n"
         "        open(marker, 'w').close()\n"
         "        raise RuntimeError('transient failure')\n"
@@ -267,7 +270,8 @@ def test_a_changed_model_is_ranked_on_its_own_rows(tmp_path, dask_scheduler):
 
 
 def test_an_optimisers_read_back_finds_columns_only_newer_files_have(tmp_path, dask_scheduler):
-    """What fit.py reads after each round: just the round's task ids, and a column the first run's files lack."""
+    """What fit.py reads after each round: just the round's task ids, and a
+    column the first run's files lack."""
     first = load_space(write_space(tmp_path, objectives=["cross_track_error"])).with_overrides(
         address=dask_scheduler
     )

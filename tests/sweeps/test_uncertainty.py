@@ -1,6 +1,6 @@
-"""Uncertainty propagation (sweeps/uncertainty.py, the spec's ``uncertain:`` block, rank.py's statistics over the
-draws and robust ranking), proved on the Ishigami function as an FMU (jobs/ishigami, C built on first use) on
-the real cluster: a Dask scheduler and two worker processes, results through the Parquet store.
+"""Uncertainty propagation (sweeps/uncertainty.py, the spec's ``uncertain:`` block, rank.py's statistics over
+the draws and robust ranking), proved on the Ishigami function as an FMU (jobs/ishigami, C built on first
+use) on the real cluster: a Dask scheduler and two worker processes, results through the Parquet store.
 
 With x1, x2, x3 uniform on [-pi, pi] and y = sin x1 + a sin^2 x2 + b x3^4 sin x1, the mean and variance are
 known in closed form (computed below, never pasted): E y = a / 2 and
@@ -64,7 +64,7 @@ def write(folder, address: str | None = None, **changes):
     return path
 
 
-# --- the spec, without a cluster ------------------------------------------------------------------------------
+# --- the spec, without a cluster ----------------------------------------------------------------------------
 
 
 def test_each_scenario_runs_once_per_draw_with_stable_task_ids(tmp_path):
@@ -262,7 +262,7 @@ def test_a_search_is_told_the_draws_mean_or_robust_figure():
     )
 
 
-# --- on the real cluster --------------------------------------------------------------------------------------
+# --- on the real cluster ------------------------------------------------------------------------------------
 
 
 @pytest.fixture(scope="module")

@@ -72,7 +72,8 @@ class Candidate:
 
     @property
     def validated(self) -> bool:
-        """Whether it was cross-validated: a combination that fails the BIC gate is fitted on all runs only."""
+        """Whether it was cross-validated: a combination that fails the BIC
+        gate is fitted on all runs only."""
         return bool(self.held_out)
 
     @property

@@ -1,4 +1,5 @@
-"""Hypothesis libraries: the plug-in contract of ``diagnose``, and how a space finds the library that serves it.
+"""Hypothesis libraries: the plug-in contract of ``diagnose``, and how a space
+finds the library that serves it.
 
 A library knows a family of effects a model may miss, and the diagnosis that fits them to recordings.
 One is built in: the signal effects (signal_library.py), late, sluggish, scaled or biased inputs and
@@ -95,12 +96,14 @@ class HypothesisLibrary(ABC):
         """Calibrate, fit the hypotheses, choose what the recordings support, write the report."""
 
     def hypotheses(self, space: Space) -> list[Hypothesis]:
-        """The hypotheses it would try on ``space``: ``--hypothesis`` may name only these (none listed: any)."""
+        """The hypotheses it would try on ``space``: ``--hypothesis`` may name
+        only these (none listed: any)."""
         return []
 
 
 def checked(library: HypothesisLibrary, space: Space, request: Request) -> HypothesisLibrary:
-    """The library, once every ``--hypothesis`` is one it has: an unknown one is named before anything runs."""
+    """The library, once every ``--hypothesis`` is one it has: an unknown one
+    is named before anything runs."""
     if not request.hypotheses:  # nothing to check: listing them (reading the recordings) would be wasted
         return library
     known = [h.id for h in library.hypotheses(space)]

@@ -25,7 +25,7 @@ def sigma_from_differences(d: np.ndarray, order: int) -> float:
     return float(MAD_TO_SIGMA * np.median(np.abs(d - np.median(d))) / math.sqrt(math.comb(2 * order, order)))
 
 
-# ---- a recording's noise, with what the estimate assumes ----------------------------------------------------
+# ---- a recording's noise, with what the estimate assumes ---------------------------------------------------
 
 ORDERS = (
     2,
@@ -101,8 +101,8 @@ def quantum_of(values: np.ndarray) -> float:
 
 
 def flat_extremes(values: np.ndarray, run: int = FLAT) -> np.ndarray:
-    """Samples in stretches of at least ``run`` equal values at the record's maximum or minimum: a sensor or an
-    actuator at its limit, whose zero differences are not an absence of noise."""
+    """Samples in stretches of at least ``run`` equal values at the record's maximum or minimum: a sensor
+    or an actuator at its limit, whose zero differences are not an absence of noise."""
     flat = np.zeros(values.size, dtype=bool)
     for extreme in (np.max(values), np.min(values)):
         at = values == extreme

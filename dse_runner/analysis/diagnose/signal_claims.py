@@ -176,7 +176,8 @@ def verdict_text(
 
 
 def interior(interfaces: Mapping[str, str], factor: float) -> str:
-    """Where an error the signal effects leave must lie: inside the FMUs, and whether that can be corrected."""
+    """Where an error the signal effects leave must lie: inside the FMUs, and
+    whether that can be corrected."""
     cs = sorted(name for name, kind in interfaces.items() if kind == "cs")
     me = sorted(name for name, kind in interfaces.items() if kind == "me")
     said = [

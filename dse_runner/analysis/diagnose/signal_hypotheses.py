@@ -69,7 +69,8 @@ PHYSICS = {  # what each kind of effect stands for, and the residual it leaves
     ),
     "rate": (
         "the signal can change only so fast: a slew-limited actuator",
-        "residuals at steps and steep changes, growing with their size, the simulation ahead of the recording",
+        "residuals at steps and steep changes, growing with "
+        "their size, the simulation ahead of the recording",
     ),
     "square": (
         "the signal passes through a curved characteristic: an uncalibrated sensor or a nonlinear "
@@ -191,9 +192,9 @@ OUTPUT_KINDS = (
 def signal_ranges(
     side: str, samples: Sequence[np.ndarray], span: float, step: float
 ) -> dict[str, tuple[float, float, list[float], float]]:
-    """Each kind of effect on one signal: its range, where its fits start, its finite-difference step; from the
-    signal's values (``samples``: a driven input's, or a compared signal's recordings), the shortest scenario's
-    length ``span`` and the communication ``step``."""
+    """Each kind of effect on one signal: its range, where its fits start, its finite-difference step; from
+    the signal's values (``samples``: a driven input's, or a compared signal's recordings), the shortest
+    scenario's length ``span`` and the communication ``step``."""
     values = np.concatenate([np.asarray(v, float) for v in samples])
     values = values[np.isfinite(values)]
     low, high = (float(values.min()), float(values.max())) if values.size else (0.0, 1.0)
@@ -215,7 +216,8 @@ def signal_ranges(
         "lag": (0.0, reach, multistart(0.0, reach, 0.0), max(0.01 * reach, step)),
         "gain": (*GAIN_RANGE, [1.0], 0.01 * (GAIN_RANGE[1] - GAIN_RANGE[0])),
         "offset": (-size, size, [0.0], 0.02 * size),
-        # a bound starts inside the signal's span: at its edge it would clip nothing, and a fit there sees no slope
+        # a bound starts inside the signal's span: at its edge it would clip
+        # nothing, and a fit there sees no slope
         "max": (high - BOUND_REACH * size, high, [high - f * size for f in BOUND_STARTS], 0.01 * size),
         "min": (low, low + BOUND_REACH * size, [low + f * size for f in BOUND_STARTS], 0.01 * size),
         "deadzone": (0.0, 0.5 * largest, [0.1 * largest, 0.3 * largest], 0.01 * largest),
@@ -295,5 +297,6 @@ def state_hypotheses(
 
 
 def shares(a: SignalHypothesis, b: SignalHypothesis) -> bool:
-    """Whether two hypotheses fit a parameter in common (an overflow and its bound): they cannot be combined."""
+    """Whether two hypotheses fit a parameter in common (an overflow and its
+    bound): they cannot be combined."""
     return bool(set(a.names) & set(b.names))

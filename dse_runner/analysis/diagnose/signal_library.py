@@ -126,7 +126,9 @@ class SignalDiagnosis:
             "verdict_text": self.verdict_text,
             "held_out_before": self.baseline.cross_validated,
             "held_out_after": self.chosen.cross_validated,
-            "held_out_unit": "noise floors (RMS of each compared signal's residuals over its recording's noise)",
+            "held_out_unit": (
+                "noise floors (RMS of each compared signal's residuals over its recording's noise)"
+            ),
             "noise_floor": 1.0,
             "runner_up": runner.label if runner is not None else None,
             "candidates": [
@@ -183,7 +185,8 @@ class SignalDiagnosis:
                 lines.append(f"{effect['id']}({effect['target']}): {effect['readable']}")
                 continue
             told = [
-                f"{kind} {value:.4g} (95 % {effect['intervals'][kind][0]:.4g} to {effect['intervals'][kind][1]:.4g})"
+                f"{kind} {value:.4g} (95 % {effect['intervals'][kind][0]:.4g} "
+                f"to {effect['intervals'][kind][1]:.4g})"
                 for kind, value in effect["parameters"].items()
             ]
             into = f" into {effect['into']}" if effect.get("into") else ""
@@ -252,9 +255,10 @@ def compared_signals(space: Space) -> list[Compared]:
 def library_of(
     space: Space, compared: Sequence[Compared], point: Mapping[str, Any] | None
 ) -> dict[str, SignalHypothesis]:
-    """The hypotheses for ``space``: signal effects on its driven inputs and compared signals, and state limits
-    on its model-exchange instances' states, ranged over what the states do at ``point`` (the calibration's
-    start; simulated here on every scenario). Without a point (a listing), every state's limits by name."""
+    """The hypotheses for ``space``: signal effects on its driven inputs and compared signals, and
+    state limits on its model-exchange instances' states, ranged over what the states do at
+    ``point`` (the calibration's start; simulated here on every scenario). Without a point (a
+    listing), every state's limits by name."""
     found = signal_hypotheses(space, [(c.signal, c.recorded) for c in compared])
     instances = model_exchange_instances(space.plan)
     if not instances:
@@ -582,15 +586,16 @@ def diagnose_space(
             return None
 
         def judge_members(answer: Candidate) -> None:
-            """Each set of the answer without one member, fitted and cross-validated if it was not yet: the noise
-            rule weighs every member by what taking it out costs, and keeps one it cannot weigh."""
+            """Each set of the answer without one member, fitted and cross-validated if it was not yet: the
+            noise rule weighs every member by what taking it out costs, and keeps one it cannot weigh."""
             known = {frozenset(c.ids): c for c in everything if c.validated}
             missing = [tuple(i for i in answer.ids if i != m) for m in answer.ids if len(answer.ids) > 1]
             missing = [x for x in missing if frozenset(x) not in known]
             if not missing or not parts:
                 return
             say(
-                f"judging each member of {answer.label}: {len(missing)} sets without one, fitted and cross-validated"
+                f"judging each member of {answer.label}: {len(missing)} "
+                "sets without one, fitted and cross-validated"
             )
             start = dict(answer.full.values)
             fitted = fit_all(
@@ -626,8 +631,8 @@ def diagnose_space(
         discovery: Discovered | NotDiscovered | None = None
         if discover and verdict in (explain.PARTIAL, explain.UNEXPLAINED):
             say(
-                f"the library leaves {chosen.cross_validated:.3g} noise floors held-out: seeking a correction of "
-                "the model-exchange FMUs' state derivatives"
+                f"the library leaves {chosen.cross_validated:.3g} noise floors held-out: "
+                "seeking a correction of the model-exchange FMUs' state derivatives"
             )
             freed = (*base, *(p for n in chosen.ids for p in library[n].parameters))
             discovery = noise_ruled(

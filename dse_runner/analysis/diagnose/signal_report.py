@@ -136,8 +136,9 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
         ]
     if pairs.get("screened"):
         lines += [
-            f"Pairs: {pairs['predicted']} predicted from the single fits, {len(pairs['screened'])} checked by "
-            f"simulation, {len(pairs['fitted'])} fitted for real ({', '.join(pairs['fitted']) or 'none'}).",
+            f"Pairs: {pairs['predicted']} predicted from the single fits, "
+            f"{len(pairs['screened'])} checked by simulation, {len(pairs['fitted'])} "
+            f"fitted for real ({', '.join(pairs['fitted']) or 'none'}).",
             "",
         ]
     elif pairs:

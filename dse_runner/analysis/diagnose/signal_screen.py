@@ -1,15 +1,15 @@
 """Pairs of signal effects, screened from the single fits before any pair is fitted.
 
 Why: a space has four effects per signal, so 8 effects and 28 pairs for a model with one input and one
-compared output, and many more with more signals; fitting each for real (a fit on every run and one per fold) would cost ten times the
-singles. Instead each single's fit is taken as a direction: how its fitted effect, with the calibration
-refitted alongside, changed the residuals from those of ``none``. A pair is predicted as the best
-mixture of its two directions plus a small change of the calibrated parameters (``none``'s own
-Jacobian), a least-squares problem of a few columns that costs microseconds: every pair is predicted,
-no simulation needed. That is exact when the two effects superpose, and only a guide when they do not
-(a delay's direction is far from linear), so the best predicted pairs, and every pair of the best
-singles, are checked by simulating their mixed point and the plain sum of both singles' changes, in one
-sweep; the best by the BIC of that real error are fitted for real, from the better point.
+compared output, and many more with more signals; fitting each for real (a fit on every run and one per fold)
+would cost ten times the singles. Instead each single's fit is taken as a direction: how its fitted effect,
+with the calibration refitted alongside, changed the residuals from those of ``none``. A pair is predicted as
+the best mixture of its two directions plus a small change of the calibrated parameters (``none``'s own
+Jacobian), a least-squares problem of a few columns that costs microseconds: every pair is predicted, no
+simulation needed. That is exact when the two effects superpose, and only a guide when they do not (a delay's
+direction is far from linear), so the best predicted pairs, and every pair of the best singles, are checked by
+simulating their mixed point and the plain sum of both singles' changes, in one sweep; the best by the BIC of
+that real error are fitted for real, from the better point.
 """
 
 from __future__ import annotations

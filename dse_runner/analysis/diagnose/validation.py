@@ -45,8 +45,9 @@ def as_folds(folds: Sequence[Sequence[str] | Fold], scenarios: Sequence[str]) ->
 
 @dataclass(frozen=True)
 class Validation:
-    """What held-out means in a diagnosis: what a fit on everything is fitted on, the folds, the pieces that
-    partition the data (scenarios, or a record's blocks: what a regression groups by), and how they were made."""
+    """What held-out means in a diagnosis: what a fit on everything is fitted on, the folds,
+    the pieces that partition the data (scenarios, or a record's blocks: what a regression
+    groups by), and how they were made."""
 
     by: str  # "scenarios", "time blocks", or "in sample" (one record too short to cut)
     fitted: tuple[str, ...]
@@ -68,9 +69,9 @@ class Validation:
     def text(self) -> str:
         if self.by == "time blocks":
             return (
-                f"held out: {len(self.folds)} contiguous blocks of time of the one record {self.record}, each "
-                "predicted free-running by a fit on the rest (the first block, where the unknown initial "
-                "state shows, is always fitted)"
+                f"held out: {len(self.folds)} contiguous blocks of time of the one record "
+                f"{self.record}, each predicted free-running by a fit on the rest (the "
+                "first block, where the unknown initial state shows, is always fitted)"
             )
         if self.by == "scenarios":
             return f"held out: {len(self.folds)} folds of scenarios, each predicted by a fit on the others"

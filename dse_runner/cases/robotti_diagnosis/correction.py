@@ -177,7 +177,9 @@ CHANNELS: dict[str, CorrectionChannel] = {
             target="δ",
             unit="rad",
             scale=0.2,
-            description="added to the steering angle after the actuators, positive = right, like steering_offset",
+            description=(
+                "added to the steering angle after the actuators, positive = right, like steering_offset"
+            ),
         ),
         CorrectionChannel(
             name="yaw",
@@ -436,7 +438,8 @@ def _feature(name: str, x: FeatureInputs) -> np.ndarray:
 
 
 def features(x: FeatureInputs, terms: Iterable[CorrectionTerm] = TERMS) -> dict[str, np.ndarray]:
-    """Each term's feature column, keyed by its parameter name: the regression's Θ, with model.c's definitions."""
+    """Each term's feature column, keyed by its parameter name: the regression's
+    Θ, with model.c's definitions."""
     return {t.variable: _feature(t.feature, x) for t in terms}
 
 

@@ -45,7 +45,10 @@ LIBRARY: dict[str, Hypothesis] = {
                 "with time constant tau between the commanded and the actual wheel angle. The vehicle "
                 "turns later and less sharply than commanded whenever the steering command changes."
             ),
-            signature="cross-track error that grows while the steering angle changes (correlates with steering rate)",
+            signature=(
+                "cross-track error that grows while the steering "
+                "angle changes (correlates with steering rate)"
+            ),
             parameters=(_p("steering_lag", "s", 0.0, 3.0, 0.02),),
             magnitude_unit="s",
         ),
@@ -57,7 +60,10 @@ LIBRARY: dict[str, Hypothesis] = {
                 "of time constant tau on top of the speed controller, so the vehicle reaches a new speed "
                 "later than the model."
             ),
-            signature="along-track error that grows during acceleration and braking and stops growing at constant speed",
+            signature=(
+                "along-track error that grows during acceleration "
+                "and braking and stops growing at constant speed"
+            ),
             parameters=(_p("speed_lag", "s", 0.0, 5.0, 0.02),),
             magnitude_unit="s",
         ),
@@ -80,7 +86,10 @@ LIBRARY: dict[str, Hypothesis] = {
                 "to act on each command some time after the control log says. Modelled as a pure delay of "
                 "the replayed commands (the vehicle is at rest before the first one)."
             ),
-            signature="errors at every change of speed or steering, in both along- and cross-track, as if the run were shifted in time",
+            signature=(
+                "errors at every change of speed or steering, in both "
+                "along- and cross-track, as if the run were shifted in time"
+            ),
             parameters=(_p("time_offset", "s", 0.0, 3.0, 0.02),),
             magnitude_unit="s",
         ),
@@ -92,7 +101,10 @@ LIBRARY: dict[str, Hypothesis] = {
                 "lever arm (forward, left) from it, so the recorded track is the reference point's track "
                 "displaced by the lever arm rotated with the heading."
             ),
-            signature="an offset constant in the vehicle frame from the first fix on: along-track bias, cross-track bias",
+            signature=(
+                "an offset constant in the vehicle frame from the "
+                "first fix on: along-track bias, cross-track bias"
+            ),
             parameters=(_p("antenna_x", "m", -3.0, 3.0, 0.02), _p("antenna_y", "m", -3.0, 3.0, 0.02)),
             magnitude_unit="m",
         ),

@@ -35,11 +35,11 @@ def tricube(u: np.ndarray) -> np.ndarray:
 
 
 def derivative_operator(time: np.ndarray, window: float, degree: int, order: int) -> np.ndarray:
-    """The matrix D (n, n): D @ values is the ``order``-th derivative at each fix of the weighted polynomial of
-    ``degree`` fitted over ``window`` seconds centred there. Rows are NaN where the window has too few fixes
-    (``MIN_SHARE``, ``MIN_SIDE``). The windows' fits are made once per run's fix times and kept
-    (:func:`_windows`): a diagnosis asks for the same runs' operators at every reference point it observes,
-    and the fits, one small solve per fix, cost far more than laying them out."""
+    """The matrix D (n, n): D @ values is the ``order``-th derivative at each fix of the weighted
+    polynomial of ``degree`` fitted over ``window`` seconds centred there. Rows are NaN where the window
+    has too few fixes (``MIN_SHARE``, ``MIN_SIDE``). The windows' fits are made once per run's fix times
+    and kept (:func:`_windows`): a diagnosis asks for the same runs' operators at every reference point
+    it observes, and the fits, one small solve per fix, cost far more than laying them out."""
     time = np.asarray(time, float)
     n = time.size
     out = np.full((n, n), np.nan)

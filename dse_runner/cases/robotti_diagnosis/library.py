@@ -1,4 +1,5 @@
-"""The Robotti's hypothesis library as a plug-in of ``diagnose`` (entry-point group ``dse_runner.hypotheses``).
+"""The Robotti's hypothesis library as a plug-in of ``diagnose`` (entry-point
+group ``dse_runner.hypotheses``).
 
 Why a plug-in: the field robot's effects (wheel slip, actuator lags, steering and time offsets, the
 antenna lever arm, terrain slope, and the correction block discovery fits) live in its own effects FMU

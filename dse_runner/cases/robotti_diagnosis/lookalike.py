@@ -62,8 +62,9 @@ class Telling:
     advice: str
 
 
-# From the table of docs/research/diagnosis-beyond-library.md §2.4: a delay against a lag shows in the shape of
-# the answer to a step; slip (a gain) against a speed lag (a phase) in the steady state after a speed change.
+# From the table of docs/research/diagnosis-beyond-library.md §2.4: a delay against a lag shows
+# in the shape of the answer to a step; slip (a gain) against a speed lag (a phase) in the
+# steady state after a speed change.
 TELLING: dict[frozenset[str], Telling] = {
     frozenset({"steering_lag", "time_offset"}): Telling(
         COURSE, (segments.STEER_STEP, segments.SPEED_STEP), "a run with steering steps"
@@ -252,8 +253,9 @@ def _sse(channels: Sequence[SignalAtFixes], transform) -> dict[str, tuple[float,
 def _best(
     channels: Sequence[SignalAtFixes], kinds: Sequence[str], transform, grid: np.ndarray
 ) -> dict[str, tuple[float, float]]:
-    """Per kind, the transform's parameter on ``grid``'s span with the least SSE, and that SSE: a coarse
-    grid shared by the kinds (the transform acts on whole runs), then a bounded search about each kind's best."""
+    """Per kind, the transform's parameter on ``grid``'s span with the least SSE, and that SSE:
+    a coarse grid shared by the kinds (the transform acts on whole runs), then a bounded
+    search about each kind's best."""
 
     def sse(s: float) -> dict[str, tuple[float, int]]:
         return _sse(channels, lambda t, u: transform(t, u, s))
@@ -295,7 +297,8 @@ class ResponseFit:
 
     @property
     def best(self) -> str:
-        """Which form fits best: delay, lag or gain ("none" when none improves on the model as it is by 5 %)."""
+        """Which form fits best: delay, lag or gain ("none" when none improves
+        on the model as it is by 5 %)."""
         forms = {"delay": self.delay_sse, "lag": self.lag_sse, "gain": self.gain_sse}
         name = min(forms, key=forms.get)
         return name if forms[name] < (1 - explain.MIN_GAIN) * self.sse else "none"

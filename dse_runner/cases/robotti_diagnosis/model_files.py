@@ -56,7 +56,8 @@ def effects_multimodel(multimodel: MultiModel, vehicle: str, folder: Path) -> di
 
 
 def _relative(path: Path, folder: Path) -> str:
-    """``path`` relative to ``folder`` where that is possible, so written files can move with the repository."""
+    """``path`` relative to ``folder`` where that is possible, so written
+    files can move with the repository."""
     try:
         return os.path.relpath(path, folder)
     except ValueError:  # another drive

@@ -178,7 +178,8 @@ def rest_deviations(
 
 
 def sigma_at_rest(deviations: list[np.ndarray]) -> float:
-    """Pooled within-stop standard deviation per axis (each stop's line costs two degrees of freedom an axis)."""
+    """Pooled within-stop standard deviation per axis (each stop's line costs
+    two degrees of freedom an axis)."""
     squares = sum(float(np.sum(d**2)) for d in deviations)
     dof = sum(2 * (len(d) - 2) for d in deviations)
     return math.sqrt(squares / dof) if dof > 0 else math.nan

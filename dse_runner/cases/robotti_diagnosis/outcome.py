@@ -1,5 +1,5 @@
-"""What a diagnosis is asked (DiagnosisSettings) and what it answers (Diagnosis): the JSON and the report are drawn
-from it."""
+"""What a diagnosis is asked (DiagnosisSettings) and what it answers (Diagnosis): the JSON
+and the report are drawn from it."""
 
 from __future__ import annotations
 

@@ -266,8 +266,9 @@ def _markdown(
         ]
     else:
         lines += [
-            f"**Finding:** `none`: no hypothesis of the library passes the test against the calibrated "
-            f"model (held-out mean cross-track error {diagnosis.cross_track_before:.3f} m). Nothing is added.",
+            "**Finding:** `none`: no hypothesis of the library passes the "
+            "test against the calibrated model (held-out mean cross-track "
+            f"error {diagnosis.cross_track_before:.3f} m). Nothing is added.",
             "",
         ]
     lines += [verdict_text(diagnosis), ""]
@@ -281,8 +282,8 @@ def _markdown(
     lines += [
         "## 1. Locate",
         "",
-        f"Calibration grid best point: {format_point(cal['grid_best'], 5)}; parameters at a bound of the design space: "
-        f"{', '.join(cal['grid_at_bound']) or 'none'}.",
+        f"Calibration grid best point: {format_point(cal['grid_best'], 5)}; parameters "
+        f"at a bound of the design space: {', '.join(cal['grid_at_bound']) or 'none'}.",
         f"Refined by least squares within the design space: {format_point(cal['refined'], 5)}; at a bound: "
         f"{', '.join(cal['refined_at_bound']) or 'none'}.",
         "Parameters no run responds to (any value fits equally well): "
@@ -308,15 +309,15 @@ def _markdown(
         "",
         "## 2. Explain",
         "",
-        "Every hypothesis of the library fitted jointly with the calibrated parameters; held-out error is the "
-        "mean Equation 1 error of each run predicted by the fit on the other folds. A candidate is chosen "
-        "only if it lowers the held-out error by at least "
+        "Every hypothesis of the library fitted jointly with the calibrated parameters; held-out "
+        "error is the mean Equation 1 error of each run predicted by the fit on the other folds. A "
+        "candidate is chosen only if it lowers the held-out error by at least "
         f"{diagnosis.settings.min_gain:.0%} and the BIC by at least {diagnosis.settings.bic_margin:g} "
-        "against `none` and against every fitted part of it (each member has to pay its way); of those, the "
-        f"lowest held-out error wins, and one within {diagnosis.settings.min_gain:.0%} of it with fewer "
-        "effects wins over it. Combinations fitted on every run but not cross-validated failed the BIC gate: "
-        f"their BIC was not {diagnosis.settings.bic_margin:g} below the best single answer's and each "
-        "fitted part's, so they could not be chosen.",
+        "against `none` and against every fitted part of it (each member has to pay its way); of "
+        f"those, the lowest held-out error wins, and one within {diagnosis.settings.min_gain:.0%} of "
+        "it with fewer effects wins over it. Combinations fitted on every run but not "
+        f"cross-validated failed the BIC gate: their BIC was not {diagnosis.settings.bic_margin:g} "
+        "below the best single answer's and each fitted part's, so they could not be chosen.",
         "",
         _table(_candidates(diagnosis)),
         "",
@@ -353,10 +354,11 @@ def _markdown(
             "",
             "## 3. Model",
             "",
-            f"The chosen effect is part of the vehicle's effects variant (`bundled:fmus/robotti_vehicle_effects`: the checkout's top-level `fmus/`, shipped inside the package). "
-            f"Written: `{diagnosis.files['multimodel'].name}` and `{diagnosis.files['space'].name}` "
-            "(the calibration with the effect's parameters added); `dse-runner submit space.yaml` "
-            "re-calibrates with it."
+            "The chosen effect is part of the vehicle's effects variant "
+            "(`bundled:fmus/robotti_vehicle_effects`: the checkout's top-level `fmus/`, "
+            f"shipped inside the package). Written: `{diagnosis.files['multimodel'].name}` "
+            f"and `{diagnosis.files['space'].name}` (the calibration with the effect's "
+            "parameters added); `dse-runner submit space.yaml` re-calibrates with it."
             + (
                 " The discovered terms are coefficients `corr_*` of the same variant's correction block, "
                 "written over their ~95 % intervals like the effects' parameters."
@@ -408,14 +410,14 @@ def screen_text(diagnosis: Diagnosis) -> str:
     pairs = sum(len(x.ids) == 2 for x in diagnosis.screened)
     triples = len(diagnosis.screened) - pairs
     return (
-        f"{pairs} pairs and {triples} triples (those extending the best predicted pairs) were screened without "
-        "fitting them: from the Jacobian of the fix residuals at `none` and at the two best single fits (taken "
-        "whether or not they passed alone, as masked effects do not), the bounded linear least-squares step "
-        "for each set, calibrated parameters free too, predicts its SSE; simulating that step and half of it "
-        "gives the SSE it really reaches. Ranked by the BIC of that SSE, the best "
-        f"{settings.pairs} pairs and {settings.triples} triples, and the sets in which a member is swapped for "
-        f"its look-alike, were fitted for real (at most {settings.shortlist}; two more pairs when the best set's "
-        "simulated SSE was over twice its prediction): "
+        f"{pairs} pairs and {triples} triples (those extending the best predicted pairs) were screened "
+        "without fitting them: from the Jacobian of the fix residuals at `none` and at the two best "
+        "single fits (taken whether or not they passed alone, as masked effects do not), the bounded "
+        "linear least-squares step for each set, calibrated parameters free too, predicts its SSE; "
+        "simulating that step and half of it gives the SSE it really reaches. Ranked by the BIC of that "
+        f"SSE, the best {settings.pairs} pairs and {settings.triples} triples, and the sets in which a "
+        f"member is swapped for its look-alike, were fitted for real (at most {settings.shortlist}; two "
+        "more pairs when the best set's simulated SSE was over twice its prediction): "
         + ", ".join(f"`{label}`" for label in diagnosis.shortlisted)
         + "."
     )
@@ -455,9 +457,9 @@ def verdict_text(diagnosis: Diagnosis) -> str:
         )
     if verdict == explain.UNEXPLAINED:
         return (
-            f"**Verdict: unexplained.** No hypothesis of the library explains the residual, and it is not noise: "
-            f"the calibrated model's held-out error is {level}, above the {factor:g}× that counts as noise; "
-            f"about {remains:.3f} m of mean cross-track error remains unexplained."
+            "**Verdict: unexplained.** No hypothesis of the library explains the residual, and it is "
+            f"not noise: the calibrated model's held-out error is {level}, above the {factor:g}× that "
+            f"counts as noise; about {remains:.3f} m of mean cross-track error remains unexplained."
         )
     return (
         f"**Verdict: none.** Nothing is missing: the calibrated model's held-out error is {level}, within "
@@ -486,16 +488,17 @@ def discovered_text(diagnosis: Diagnosis) -> str:
     )
     resembles = entry["resembles"]["text"] if entry["resembles"] else "was not compared with the library"
     left = (
-        f" It is not the whole story either: about {chosen.cross_validated - floor.cross_track:.3f} m of mean "
-        f"cross-track error remains above the noise, which the correction block's terms do not express; "
-        f"read the correction as part of the cause."
+        f" It is not the whole story either: about {chosen.cross_validated - floor.cross_track:.3f} "
+        "m of mean cross-track error remains above the noise, which the correction block's terms "
+        "do not express; read the correction as part of the cause."
         if not whole
         else ""
     )
     return (
-        f"**Verdict: {diagnosis.verdict}.** The library does not explain the residual: {_without(diagnosis)} the "
-        f"held-out error is {library.cross_validated:.3f} m, {library.cross_validated / floor.cross_track:.1f}× "
-        f"the noise floor of {floor.cross_track:.3f} m, so about {remains:.3f} m of mean cross-track error remains "
+        f"**Verdict: {diagnosis.verdict}.** The library does not explain the residual: "
+        f"{_without(diagnosis)} the held-out error is {library.cross_validated:.3f} m, "
+        f"{library.cross_validated / floor.cross_track:.1f}× the noise floor of "
+        f"{floor.cross_track:.3f} m, so about {remains:.3f} m of mean cross-track error remains "
         f"above the noise. A data-driven correction explains {'most' if whole else 'part'} of it: "
         + "; ".join(f"`{t}`" for t in entry["readable"])
         + f". With it the held-out error is {chosen.cross_validated:.3f} m ({gain:.0f} % lower, "
@@ -511,19 +514,20 @@ def discovery_text(diagnosis: Diagnosis) -> str:
         why = (
             "it is switched off (`--no-discovery`)"
             if not settings.discovery
-            else f"the library's answer is within {settings.noise_factor:g}× the noise floor (or no floor could be "
-            "estimated), so there is nothing a correction could claim but noise"
+            else f"the library's answer is within {settings.noise_factor:g}× the noise floor (or no floor "
+            "could be estimated), so there is nothing a correction could claim but noise"
         )
         return f"No correction was sought: {why}."
     intro = (
-        "The library's best answer left held-out error well above the noise, so a sparse correction was sought "
-        "among the terms of the effects variant's correction block: the equation error of the recorded "
-        "speed and yaw rate (from the fixes alone) against the reference's quasi-static answer, regressed on "
-        "the block's features at the reference's state by PySINDy's STLSQ, with the threshold chosen by leave-one-run-out error and each term "
-        f"kept only if a seeded bootstrap over runs picks it in {discover.INCLUSION:.0%} of the resamples. "
-        "The proposed terms were then fitted on positions with the calibrated parameters, pruned to those two "
-        "standard errors from zero, re-proposed inside each fold on its training runs only, and judged by the "
-        f"library's rule, the BIC margin raised to {found.margin:.1f} for the search (extended BIC)."
+        "The library's best answer left held-out error well above the noise, so a sparse correction "
+        "was sought among the terms of the effects variant's correction block: the equation error of "
+        "the recorded speed and yaw rate (from the fixes alone) against the reference's quasi-static "
+        "answer, regressed on the block's features at the reference's state by PySINDy's STLSQ, with "
+        "the threshold chosen by leave-one-run-out error and each term kept only if a seeded bootstrap "
+        f"over runs picks it in {discover.INCLUSION:.0%} of the resamples. The proposed terms were then "
+        "fitted on positions with the calibrated parameters, pruned to those two standard errors from "
+        "zero, re-proposed inside each fold on its training runs only, and judged by the library's "
+        f"rule, the BIC margin raised to {found.margin:.1f} for the search (extended BIC)."
     )
     proposed = "; ".join(found.proposal.readable()) if found.proposal else ""
     lines = [intro, f" Proposed from every run: {('`' + proposed + '`') if proposed else 'nothing'}."]
@@ -565,9 +569,9 @@ def noise_text(diagnosis: Diagnosis) -> str:
             + ("coloured noise, which second differences under-estimate" if floor.rho1 > 0.3 else "white")
         )
         parts.append(
-            f"σ = {rest.sigma:.4f} m from the spread of {rest.fixes} fixes while the commanded speed was 0 "
-            f"and the vehicle stood still (or crept at a steady speed: the spread is taken about a straight line "
-            f"in time){colour}"
+            f"σ = {rest.sigma:.4f} m from the spread of {rest.fixes} fixes while the "
+            "commanded speed was 0 and the vehicle stood still (or crept at a steady "
+            f"speed: the spread is taken about a straight line in time){colour}"
         )
     per_run = list(floor.per_run.values())
     spread = f" Per run, σ lies between {min(per_run):.4f} and {max(per_run):.4f} m." if per_run else ""
@@ -577,12 +581,12 @@ def noise_text(diagnosis: Diagnosis) -> str:
         "The GPS noise, estimated from the recordings alone, never from a model: "
         + "; and ".join(parts)
         + ". "
-        f"The larger, from {method}, sets the floor: a perfect model would still show a mean cross-track error "
-        f"of σ·√(π/2) = {floor.cross_track:.3f} m."
+        f"The larger, from {method}, sets the floor: a perfect model would still "
+        f"show a mean cross-track error of σ·√(π/2) = {floor.cross_track:.3f} m."
         + spread
-        + f" The chosen model's held-out error, {diagnosis.cross_track_after:.3f} m, is {ratio:.1f}× that floor; "
-        f"above {diagnosis.settings.noise_factor:g}× (`--noise-factor`) a residual counts as more than noise "
-        "(verdict partial, or unexplained when nothing was chosen)."
+        + f" The chosen model's held-out error, {diagnosis.cross_track_after:.3f} m, is {ratio:.1f}× that "
+        f"floor; above {diagnosis.settings.noise_factor:g}× (`--noise-factor`) a residual counts as more "
+        "than noise (verdict partial, or unexplained when nothing was chosen)."
     )
 
 
@@ -604,9 +608,9 @@ def runner_up_text(up: explain.Evidence, chosen: str, settings: Any) -> str:
     tied = f" ({up.runs_tied} equal within 0.1 mm)" if up.runs_tied else ""
     return (
         f"{_ids(up.other)}: {held}; the chosen model (`{chosen}`) predicts {up.runs_better_text} held-out "
-        f"runs better{tied}; ΔBIC = {up.delta_bic:+.1f} (positive favours the chosen model). ΔBIC treats every fix "
-        "as independent, but successive fixes are strongly correlated, so it overstates the evidence: the "
-        "held-out difference and the count of runs are the figures to weigh."
+        f"runs better{tied}; ΔBIC = {up.delta_bic:+.1f} (positive favours the chosen model). ΔBIC treats "
+        "every fix as independent, but successive fixes are strongly correlated, so it overstates the "
+        "evidence: the held-out difference and the count of runs are the figures to weigh."
     )
 
 
@@ -623,12 +627,13 @@ SEGMENT_WORDS = {
     "unlabelled": "outside the command log",
 }
 LOOKALIKE_INTRO = (
-    "Twin effects (a delay of every command and a steering lag; slip and a speed lag; a delay and a speed lag) "
-    "leave nearly the same residual on ordinary manoeuvres. Both sets were fitted on every run, and their fix "
-    "residuals compared segment by segment, the segments read from the command log alone: the log-likelihood "
-    "ratio (LLR) is the difference of their squared residuals over 2σ² (σ the GPS noise floor), divided by the "
-    "residuals' autocorrelation time in fixes, since successive fixes of a smooth residual are not independent "
-    f"evidence. Positive favours the first set. When held-out error and BIC cannot separate the two, |LLR| ≥ "
+    "Twin effects (a delay of every command and a steering lag; slip and a speed lag; a delay and "
+    "a speed lag) leave nearly the same residual on ordinary manoeuvres. Both sets were fitted on "
+    "every run, and their fix residuals compared segment by segment, the segments read from the "
+    "command log alone: the log-likelihood ratio (LLR) is the difference of their squared "
+    "residuals over 2σ² (σ the GPS noise floor), divided by the residuals' autocorrelation time "
+    "in fixes, since successive fixes of a smooth residual are not independent evidence. Positive "
+    "favours the first set. When held-out error and BIC cannot separate the two, |LLR| ≥ "
     f"{lookalike.DECISIVE:g} (about 150 to 1) decides; below it the diagnosis names both."
 )
 
@@ -653,9 +658,9 @@ def twins_sentence(look: lookalike.LookAlike) -> str:
     if look.decision == lookalike.DECIDED_BY_LLR:
         loser = b if look.favoured == a else a
         return (
-            f"**Look-alikes:** {_ids(look.favoured)} rather than its look-alike {_ids(loser)}: held-out error "
-            f"and BIC cannot separate them, but the fixes can (LLR {abs(llr):.1f} in its favour, "
-            f"{_strongest(look)})."
+            f"**Look-alikes:** {_ids(look.favoured)} rather than its look-alike "
+            f"{_ids(loser)}: held-out error and BIC cannot separate them, but the "
+            f"fixes can (LLR {abs(llr):.1f} in its favour, {_strongest(look)})."
         )
     missing = (
         ""
@@ -681,10 +686,11 @@ def lookalike_text(look: lookalike.LookAlike) -> str:
         "separates them: cannot tell on these runs",
     }[look.decision]
     return (
-        f"{_ids(a)} against {_ids(b)} (swapping `{look.members[0]}` for `{look.members[1]}`): LLR {e.llr:+.1f}, "
-        f"in favour of {_ids(look.favoured)}, {_strongest(look)}; {how}. σ = {e.sigma:.4f} m, autocorrelation "
-        f"time {e.tau:.1f} fixes. What tells them apart best: {', '.join(_words(k) for k in look.telling.kinds)} "
-        f"({look.telling_fixes} fixes here); {look.telling.advice} would add the most."
+        f"{_ids(a)} against {_ids(b)} (swapping `{look.members[0]}` for `{look.members[1]}`): "
+        f"LLR {e.llr:+.1f}, in favour of {_ids(look.favoured)}, {_strongest(look)}; {how}. σ "
+        f"= {e.sigma:.4f} m, autocorrelation time {e.tau:.1f} fixes. What tells them apart "
+        f"best: {', '.join(_words(k) for k in look.telling.kinds)} ({look.telling_fixes} "
+        f"fixes here); {look.telling.advice} would add the most."
     )
 
 
@@ -730,13 +736,16 @@ def response_text(look: lookalike.LookAlike) -> str:
             f"{shape['fixes']} fixes); more of them would."
         )
     else:
-        verdict = f"These runs have no {segment}, so the shape alone cannot tell them apart: {look.telling.advice} would."
+        verdict = (
+            f"These runs have no {segment}, so the shape alone "
+            f"cannot tell them apart: {look.telling.advice} would."
+        )
     return (
-        f"The recorded {channel}, estimated from the fixes by local polynomial fits (no interpolation across "
-        "dropouts), against the calibrated model's without either effect, seen through the same window, fitted "
-        f"per segment as a pure delay, a first-order lag and a gain (no simulation): {said}. A delay and a lag "
-        "of the same size shift a slow answer alike; only a step's shape, or a steady deficit while cruising, "
-        f"tells them apart. {verdict}"
+        f"The recorded {channel}, estimated from the fixes by local polynomial fits (no "
+        "interpolation across dropouts), against the calibrated model's without either effect, seen "
+        "through the same window, fitted per segment as a pure delay, a first-order lag and a gain "
+        f"(no simulation): {said}. A delay and a lag of the same size shift a slow answer alike; "
+        f"only a step's shape, or a steady deficit while cruising, tells them apart. {verdict}"
     )
 
 

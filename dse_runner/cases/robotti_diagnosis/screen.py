@@ -157,7 +157,8 @@ def predict(lin: Linearisation, ids: tuple[str, ...], entries: Catalogue) -> tup
 
 
 def anchor_of(ids: tuple[str, ...], anchors: Sequence[Anchor]) -> Anchor:
-    """The largest fitted anchor inside ``ids``, the better fitting one of equals (none is inside every set)."""
+    """The largest fitted anchor inside ``ids``, the better fitting one of
+    equals (none is inside every set)."""
     inside = [a for a in anchors if set(a.ids) <= set(ids)]
     return min(inside, key=lambda a: (-len(a.ids), a.fit.sse))
 

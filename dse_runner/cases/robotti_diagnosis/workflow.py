@@ -233,7 +233,8 @@ def _diagnose(
     )
     if dropped:
         say(
-            f"not claimed (each changes the held-out error by less than the noise): {', '.join(d.id for d in dropped)}"
+            "not claimed (each changes the held-out error by less "
+            f"than the noise): {', '.join(d.id for d in dropped)}"
         )
     found = seek(chain, chosen, choice.candidates, floor, space) if settings.discovery else None
     if found is not None and found.chosen is not None:

@@ -40,7 +40,10 @@ from ...sweeps.strategies.designs import SensitivityDesign
 from ..study_figures import is_sensitivity, section_html, sections
 
 REFRESH_SECONDS = 1.0  # how often pages refresh, and how stale the shared snapshot may be
-STUDY_STYLE = "<style>.note {font-family: sans-serif; color: #666; font-size: 13px} h3 {font-family: sans-serif}</style>"
+STUDY_STYLE = (
+    "<style>.note {font-family: sans-serif; color: #666; "
+    "font-size: 13px} h3 {font-family: sans-serif}</style>"
+)
 
 
 @dataclass
@@ -69,7 +72,8 @@ class Feed:
         self.settings = (
             spec.ranking
         )  # the best point is named as rank() names it: over_scenarios, robust, constraints
-        # the objectives read: the ranked one, and every one when constraints may name others (as rank() reads them)
+        # the objectives read: the ranked one, and every one when constraints may
+        # name others (as rank() reads them)
         every = spec.ranking.constraints
         self.objectives = scalar_objectives(spec, output, sweep) if every else [self.objective]
         self.ranked_by = ranked_figure_label(spec.ranking, spec.uncertain is not None)
@@ -127,8 +131,8 @@ class Feed:
             last = self._snapshot
             if fresh or last is None or time.monotonic() - last.taken >= REFRESH_SECONDS:
                 # The status first: a sweep saves "finished" after its last rows, so rows read after it are at
-                # least as new. Read the other way round, a sweep ending between the two reads showed "finished"
-                # over the rows of before its last chunks until the next refresh.
+                # least as new. Read the other way round, a sweep ending between the two reads showed
+                # "finished" over the rows of before its last chunks until the next refresh.
                 status = load_status(self.output, self.sweep)
                 version = f"{store.version(self.output, self.sweep)} {current_model(self.output, self.sweep)}"
                 if last is not None and version == self._version:

@@ -123,7 +123,8 @@ def title_html(feed: Feed, status: SweepReport | None) -> str:
 
 
 def ranking_html(top: pd.DataFrame, objective: str, ranked_by: str, uncertain: bool = False) -> str:
-    """The best-so-far table; its last column, headed by what it is, is the figure the points are ranked by."""
+    """The best-so-far table; its last column, headed by what it is, is the
+    figure the points are ranked by."""
     mean = f"mean of {ranked_by.split(' of ', 1)[-1]}" if uncertain else f"mean {objective}"
     heading = f"ranked by: {ranked_by}"
     table = top.drop(columns="mean") if mean == ranked_by else top  # ranked by that mean: shown once
@@ -282,8 +283,8 @@ class Page:
         )
         first = snap or feed.provisional()
         self._counts(first)
-        # the counts in the page's HTML as well, shown before BokehJS has loaded, pulled and drawn the document
-        # (a second or two); gone once it has, where the progress Div shows the same
+        # the counts in the page's HTML as well, shown before BokehJS has loaded, pulled and drawn the
+        # document (a second or two); gone once it has, where the progress Div shows the same
         doc.template = FIRST_COUNTS
         doc.template_variables["first"] = self.progress.text
         doc.js_on_event("document_ready", CustomJS(code="document.getElementById('dse-first')?.remove()"))
@@ -312,8 +313,8 @@ class Page:
         if not self.busy:
             self.busy = True
             threading.Thread(target=self._prepare, name="dse-runner-page", daemon=True).start()
-        # from the first update: the counts are in the page's HTML already, and a large design's bootstrap takes
-        # longest of all
+        # from the first update: the counts are in the page's HTML already, and a large design's
+        # bootstrap takes longest of all
         if not self.studying and self._studies_due(snap) is not None:
             self.studying = True
             threading.Thread(target=self._prepare_studies, name="dse-runner-studies", daemon=True).start()
@@ -358,10 +359,10 @@ class Page:
         )
 
     def _studies_due(self, snap: Snapshot, final: bool = False) -> str | None:
-        """Whether the sensitivity or uncertainty figures are due again, when rows or the sweep's state changed:
-        at most every STUDY_SECONDS while the sweep runs (the bootstrap takes a while on a large design), and
-        once more when it has stopped, whenever the last rows came. None when they stand; else, ``final``
-        (the server stops), their HTML now, or "" (a worker thread draws them)."""
+        """Whether the sensitivity or uncertainty figures are due again, when rows or the sweep's state
+        changed: at most every STUDY_SECONDS while the sweep runs (the bootstrap takes a while on a
+        large design), and once more when it has stopped, whenever the last rows came. None when they
+        stand; else, ``final`` (the server stops), their HTML now, or "" (a worker thread draws them)."""
         state = snap.status.state if snap.status is not None else None
         if self.studies is None or (snap.done, state) == self.studies_drawn:
             return None

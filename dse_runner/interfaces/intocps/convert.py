@@ -194,7 +194,8 @@ def scenarios(dse: DseConfig, located: Located, base: Path, scripted: bool) -> l
 
 
 def search(dse: DseConfig, pareto: bool, path: Path, points: int) -> dict[str, Any]:
-    """exhaustive: the grid; genetic: ``genetic``, or ``nsga2`` for a Pareto ranking, with INTO-CPS's options."""
+    """exhaustive: the grid; genetic: ``genetic``, or ``nsga2`` for a Pareto
+    ranking, with INTO-CPS's options."""
     kind = dse.algorithm.type
     if kind not in ALGORITHMS:
         raise DseError(

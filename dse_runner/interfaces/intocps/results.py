@@ -45,7 +45,8 @@ def sim_dir(values: dict[str, Any]) -> str:
 
 
 def trimmed(param_id: str) -> str:
-    """``{fmu}.instance.variable`` -> ``instance.variable``, INTO-CPS's column header (``trimmedParamName``)."""
+    """``{fmu}.instance.variable`` -> ``instance.variable``, INTO-CPS's column
+    header (``trimmedParamName``)."""
     return param_id.split("}", 1)[1][1:] if param_id.startswith("{") else param_id
 
 

@@ -110,8 +110,9 @@ class SensitivityDesign(Strategy):
     label: ClassVar[str]  # its name under search.strategy, for messages
 
     def __init__(self, problem: Problem):
-        """Checks what can be checked without drawing; the design is drawn when first asked for (a spec's check
-        builds the strategy, and a million-row design takes seconds), once per process for the same problem."""
+        """Checks what can be checked without drawing; the design is drawn when first asked for
+        (a spec's check builds the strategy, and a million-row design takes seconds), once
+        per process for the same problem."""
         super().__init__(problem)
         numeric(problem.dimensions)
         self.check_budget(problem)
@@ -131,8 +132,9 @@ class SensitivityDesign(Strategy):
         return len(_fitted(self)[1])
 
     def streams(self) -> bool:
-        """Whether the points are drawn a part at a time as they are asked, never held whole: the client's
-        memory then stays flat in the design's size. A design that can start drawing at any block says when."""
+        """Whether the points are drawn a part at a time as they are asked, never held whole:
+        the client's memory then stays flat in the design's size. A design that can start
+        drawing at any block says when."""
         return False
 
     def identity(self) -> tuple | None:
@@ -315,10 +317,10 @@ def _budgeted(design: Design, problem: Problem) -> tuple[int, list[Point]]:
 
 
 def saltelli_rows(base: np.ndarray, second_order: bool) -> np.ndarray:
-    """Saltelli's rows of Sobol' base rows (A | B, 2D columns) in SALib.sample.sobol's order: for each base row
-    A, A with its column j taken from B for each j, with second order B with its column j taken from A, then B.
-    Built on whole columns where SALib loops over the rows in Python (2 s at a million rows, drawn by both
-    submit and the sensitivity command); test_designs.py checks the two agree to the bit."""
+    """Saltelli's rows of Sobol' base rows (A | B, 2D columns) in SALib.sample.sobol's order: for each base
+    row A, A with its column j taken from B for each j, with second order B with its column j taken from
+    A, then B. Built on whole columns where SALib loops over the rows in Python (2 s at a million rows,
+    drawn by both submit and the sensitivity command); test_designs.py checks the two agree to the bit."""
     d = base.shape[1] // 2
     a, b, column = base[:, :d], base[:, d:], np.arange(d)
     crossed = [np.where(column == j, b, a) for j in range(d)]
@@ -347,10 +349,11 @@ class SobolIndices(SensitivityDesign):
         return "D + 2 rows, 2D + 2 with second_order"
 
     def streams(self) -> bool:
-        """Without constraints, over two or more plain intervals: rows repeat inside a block (a cross-sampled
-        row that draws its base row's value), and rows of two blocks meet only if two coordinates of the
-        Sobol' sequence coincide by chance (odds near blocks^2 * 2^-60; one coordinate never repeats), which at
-        worst simulates a point twice. So every block is kept, and its points are known a part at a time."""
+        """Without constraints, over two or more plain intervals: rows repeat inside a block (a
+        cross-sampled row that draws its base row's value), and rows of two blocks meet only if two
+        coordinates of the Sobol' sequence coincide by chance (odds near blocks^2 * 2^-60; one
+        coordinate never repeats), which at worst simulates a point twice. So every block is kept, and
+        its points are known a part at a time."""
         problem = self.problem
         return (
             not problem.constrained and len(problem.dimensions) >= 2 and plain_intervals(problem.dimensions)
@@ -428,10 +431,11 @@ class FastOptions(Options):
 
 
 class Fast(SensitivityDesign):
-    """The extended Fourier amplitude sensitivity test (Saltelli, Tarantola and Chan 1999; SALib.sample.fast_sampler):
-    one search curve per parameter, that parameter oscillating at the highest frequency and the others at low ones,
-    for first-order and total indices at D curves of N rows. A curve's frequencies depend on N, so a longer design
-    is another design: the budget buys N = max_points // D rows per curve, drawn once."""
+    """The extended Fourier amplitude sensitivity test (Saltelli, Tarantola and Chan 1999;
+    SALib.sample.fast_sampler): one search curve per parameter, that parameter oscillating at the
+    highest frequency and the others at low ones, for first-order and total indices at D curves of N
+    rows. A curve's frequencies depend on N, so a longer design is another design: the budget buys N =
+    max_points // D rows per curve, drawn once."""
 
     Options = FastOptions
     method, label = "fast", "fast"

@@ -71,7 +71,8 @@ class Settings:
 
 @dataclass
 class Discovered:
-    """Terms the recordings support, fitted jointly with the chosen answer's parameters and proven on folds."""
+    """Terms the recordings support, fitted jointly with the chosen answer's
+    parameters and proven on folds."""
 
     terms: dict[str, CandidateTerm]  # parameter name -> term
     candidate: Candidate  # the chosen answer with the terms: its full fit, folds and held-out errors
@@ -96,8 +97,8 @@ class Discovered:
         return self.baseline.cross_validated, self.candidate.cross_validated
 
     def effects(self) -> list[dict[str, Any]]:
-        """One entry per corrected derivative: ``{"id": "discovered", "target": "msd.der(v)", "terms": {"x^3": -60.1},
-        "intervals": ..., "parameters": ..., "readable": "der(v) += -60.1·x^3"}``."""
+        """One entry per corrected derivative: ``{"id": "discovered", "target": "msd.der(v)", "terms":
+        {"x^3": -60.1}, "intervals": ..., "parameters": ..., "readable": "der(v) += -60.1·x^3"}``."""
         coefficients, intervals = self.coefficients, self.intervals
         targets: dict[str, list[str]] = {}
         for name, term in self.terms.items():
@@ -162,8 +163,8 @@ def readable(state: str, terms: Mapping[str, float]) -> str:
 def observe(
     space: Space, point: Point, instances: Sequence[ModelExchangeInstance], names: Sequence[str] | None = None
 ) -> list[dict[str, np.ndarray]]:
-    """Every scenario (of ``names``, when given) simulated here at ``point``, recording each instance's states,
-    derivatives and real inputs: what the library sizes its terms on."""
+    """Every scenario (of ``names``, when given) simulated here at ``point``, recording each instance's
+    states, derivatives and real inputs: what the library sizes its terms on."""
     plan = space.plan.recording([ref for i in instances for ref in i.recorded], "derivative discovery")
     return [
         simulate(plan, scenario, point, objectives={}, experiment=space.experiment).outputs
@@ -361,9 +362,10 @@ def discover_derivatives(
     if explain.beats(found, baseline, settings.min_gain, settings.bic_margin):
         return Discovered({n: by_name[n] for n in names}, found, baseline, proposal, seconds, rejected)
     return NotDiscovered(
-        f"{' + '.join(by_name[n].term.text for n in names)} did not beat the answer without it: held-out "
-        f"{baseline.cross_validated:.3g} -> {found.cross_validated:.3g} noise floors (needs {settings.min_gain:.0%} "
-        f"lower), BIC {baseline.bic:.1f} -> {found.bic:.1f} (needs {settings.bic_margin:g} lower)",
+        f"{' + '.join(by_name[n].term.text for n in names)} did not beat the answer "
+        f"without it: held-out {baseline.cross_validated:.3g} -> "
+        f"{found.cross_validated:.3g} noise floors (needs {settings.min_gain:.0%} lower), "
+        f"BIC {baseline.bic:.1f} -> {found.bic:.1f} (needs {settings.bic_margin:g} lower)",
         proposal,
         found,
         baseline,

@@ -27,7 +27,8 @@ KINEMATIC = 1e-9  # a derivative within this share of a state's size from that s
 
 @dataclass(frozen=True)
 class ModelExchangeInstance:
-    """A model-exchange instance as the library sees it: its states, their derivative variables, its real inputs."""
+    """A model-exchange instance as the library sees it: its states, their
+    derivative variables, its real inputs."""
 
     name: str
     states: tuple[str, ...]
@@ -107,7 +108,8 @@ def width(values: Sequence[np.ndarray], share: float = SMOOTH) -> float:
 def terms(
     variables: Sequence[str], states: Sequence[str], widths: Mapping[str, float], degree: int
 ) -> list[dt.Term]:
-    """1; every monomial of ``variables`` up to ``degree``; z·|z| for each variable; tanh(s/w) for each state."""
+    """1; every monomial of ``variables`` up to ``degree``; z·|z| for each
+    variable; tanh(s/w) for each state."""
     found = [dt.Term()]
     for order in range(1, degree + 1):
         for combination in itertools.combinations_with_replacement(variables, order):
@@ -121,8 +123,9 @@ def terms(
 def candidate_terms(
     instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.ndarray]], degree: int = 3
 ) -> list[CandidateTerm]:
-    """Every library term on every non-kinematic state's derivative, for the variables that vary on some run,
-    sized over ``runs`` (each a recorded run: signal name -> values). A term that is zero on every run is left out."""
+    """Every library term on every non-kinematic state's derivative, for the variables that vary on
+    some run, sized over ``runs`` (each a recorded run: signal name -> values). A term that is
+    zero on every run is left out."""
 
     def values(name: str) -> list[np.ndarray]:
         return [np.asarray(r[f"{instance.name}.{name}"], float) for r in runs]

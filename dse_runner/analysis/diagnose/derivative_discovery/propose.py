@@ -22,7 +22,8 @@ import numpy as np
 THRESHOLDS = (0.02, 0.05, 0.1, 0.2, 0.35, 0.5)  # STLSQ thresholds tried, as shares of the target's RMS
 RIDGE = 0.05  # STLSQ's ridge weight per row on unit-RMS columns: keeps look-alike columns from cancelling
 COLLINEAR = 0.05  # a sensitivity left with less than this share of its size after projection repeats a fitted
-# parameter: what is left is the forward differences' curvature (of the order of their relative step), not signal
+# parameter: what is left is the forward differences' curvature (of the order of
+# their relative step), not signal
 TIE = 1.02  # thresholds within this factor of the least held-out error tie; the largest (sparsest) wins
 
 

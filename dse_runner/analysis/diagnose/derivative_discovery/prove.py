@@ -45,7 +45,8 @@ def terms_space(space: Space, terms: Sequence[CandidateTerm]) -> Space:
 
 
 def inward(parameter: Parameter, value: float) -> float:
-    """A finite-difference step of ``parameter`` from ``value``, turned inward at its upper bound (as fit.py's)."""
+    """A finite-difference step of ``parameter`` from ``value``, turned inward at
+    its upper bound (as fit.py's)."""
     return parameter.step if value + parameter.step <= parameter.upper else -parameter.step
 
 
@@ -96,8 +97,8 @@ def regression(
 
 
 def term_parameter(term: CandidateTerm, start: float, bound: float, trial: float) -> Parameter:
-    """A term's coefficient as a fitted parameter: within ±``bound`` times what adds as much as its derivative,
-    differenced at ``trial`` of that."""
+    """A term's coefficient as a fitted parameter: within ±``bound`` times what adds as much as its
+    derivative, differenced at ``trial`` of that."""
     limit = bound * term.scale
     return Parameter(term.name, float(np.clip(start, -limit, limit)), -limit, limit, trial * term.scale)
 
@@ -166,8 +167,8 @@ def cross_validate(
     report: Report | None,
 ) -> None:
     """Each candidate refitted on each fold's training scenarios (from its full fit) and scored on its test
-    scenarios: the RMS of its noise-scaled residuals per held-out scenario, into its ``held_out``. One lockstep
-    of fits for all candidates and folds, one sweep for all held-out runs."""
+    scenarios: the RMS of its noise-scaled residuals per held-out scenario, into its ``held_out``. One
+    lockstep of fits for all candidates and folds, one sweep for all held-out runs."""
     problems, owners = [], []
     for c, parameters in jobs:
         names = {p.name for p in parameters}

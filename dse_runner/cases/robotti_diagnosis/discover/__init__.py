@@ -1,4 +1,5 @@
-"""Discover: a sparse correction for what no effect of the library explains, proposed from the GPS and proven by the fits.
+"""Discover: a sparse correction for what no effect of the library explains, proposed from
+the GPS and proven by the fits.
 
 When the chosen library set R (possibly ``none``) leaves held-out error well above the noise floor, the
 missing physics is sought among the correction block's terms (correction.py), in two stages

@@ -82,7 +82,8 @@ def vehicle_values(
 
 
 def held(log_time: np.ndarray, command: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """The command in force at ``t`` (the last logged at or before it; 0 before the first), as the FMU holds it."""
+    """The command in force at ``t`` (the last logged at or before it; 0 before
+    the first), as the FMU holds it."""
     k = np.searchsorted(log_time, t + 1e-9 * (1.0 + np.abs(t)), side="right") - 1
     return np.where(k < 0, 0.0, command[np.clip(k, 0, None)]) if len(command) else np.zeros_like(t)
 
@@ -138,7 +139,8 @@ class ChannelRegression:
 
 
 def _filled(time: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """NaNs replaced by linear interpolation (held at the ends): model-side signals must be finite everywhere."""
+    """NaNs replaced by linear interpolation (held at the ends): model-side
+    signals must be finite everywhere."""
     ok = np.isfinite(values)
     if ok.all() or not ok.any():
         return np.where(ok, values, 0.0)
@@ -147,18 +149,21 @@ def _filled(time: np.ndarray, values: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Reference:
-    """One run as the reference model (parameters ``values``) sees it, quasi-statically on the command log's
-    grid, next to the fixes' own kinematics: what both kinds of proposal (equation error, output error) need."""
+    """One run as the reference model (parameters ``values``) sees it, quasi-statically on the
+    command log's grid, next to the fixes' own kinematics: what both kinds of proposal
+    (equation error, output error) need."""
 
     run: Observed
-    kin: Any  # kinematics.gps_kinematics of the fixes (moved to the reference point when R has an antenna offset)
+    # kinematics.gps_kinematics of the fixes (moved to the reference point when R has an antenna offset)
+    kin: Any
     grid: np.ndarray
     inputs: FeatureInputs  # the reference's state on the grid, as the correction block's features see it
     gain: np.ndarray  # steady-state yaw rate per rad of steering to the right, on the grid
     tau: float  # the drive's speed response time [s]
     operators: Mapping[str, tuple[np.ndarray, int]]  # channel -> the fixes' derivative operator and its order
-    # channel -> the equation error's target: the recorded speed or yaw rate less the reference's, seen through
-    # the fixes' window. A shape's value changes none of it, so a scan over it reuses these (propose.find_shape).
+    # channel -> the equation error's target: the recorded speed or yaw rate less the
+    # reference's, seen through the fixes' window. A shape's value changes none of it, so a scan
+    # over it reuses these (propose.find_shape).
     targets: Mapping[str, np.ndarray]
 
 
@@ -359,7 +364,8 @@ def speed_response(
 
 
 def lagged(time: np.ndarray, signal: np.ndarray, tau: float) -> np.ndarray:
-    """``signal`` (on a uniform grid) through a first-order lag of time constant ``tau`` from rest (scipy's lfilter)."""
+    """``signal`` (on a uniform grid) through a first-order lag of time constant
+    ``tau`` from rest (scipy's lfilter)."""
     from scipy.signal import lfilter
 
     if tau <= 0:

@@ -69,9 +69,9 @@ def candidates(refs: Sequence[Reference], shape: correction.Shape, count: int = 
 
 
 def binding(refs: Sequence[Reference], limit: float) -> float:
-    """The share of the moving time a steering rate limit of ``limit`` binds (the limited angle still more than
-    limit·τ from the angle at the end of a log step), over ``refs``' runs. Where it binds most of the time,
-    lim(δ, L) − δ is mostly −δ, a gain the other steering terms already have."""
+    """The share of the moving time a steering rate limit of ``limit`` binds (the limited angle still more
+    than limit·τ from the angle at the end of a log step), over ``refs``' runs. Where it binds most of
+    the time, lim(δ, L) − δ is mostly −δ, a gain the other steering terms already have."""
     bound = moving = 0
     for ref in refs:
         x = ref.inputs
@@ -145,10 +145,11 @@ def shape_gain(refs: Sequence[Reference], shape: correction.Shape, value: float)
 
 
 def find_shape(refs: Sequence[Reference], shape: correction.Shape) -> float:
-    """The value of ``shape`` at which every term of its channel together explains that channel's equation error
-    best, pooled over ``refs``' runs: a coarse scan (:func:`candidates`), then 20 steps between the best's
-    neighbours. A change mid-run is a step in the acc error, a rate limit a lag of the yaw rate while the
-    steering turns fast; least squares finds where (and :func:`shape_gain` whether it is worth it)."""
+    """The value of ``shape`` at which every term of its channel together explains that channel's
+    equation error best, pooled over ``refs``' runs: a coarse scan (:func:`candidates`), then 20
+    steps between the best's neighbours. A change mid-run is a step in the acc error, a rate limit a
+    lag of the yaw rate while the steering turns fast; least squares finds where (and
+    :func:`shape_gain` whether it is worth it)."""
     coarse = candidates(refs, shape)
     if len(coarse) == 0:
         return shape.default

@@ -53,8 +53,8 @@ def fitted_terms(fit: FitResult) -> dict[str, float]:
 
 
 def pruned(fit: FitResult, factor: float = PRUNE_SE) -> dict[str, float]:
-    """The fitted correction terms at least ``factor`` cluster-robust standard errors from zero (an undetermined
-    one is dropped; derivative_discovery.prove.pruned), local names -> values."""
+    """The fitted correction terms at least ``factor`` cluster-robust standard errors from zero (an
+    undetermined one is dropped; derivative_discovery.prove.pruned), local names -> values."""
     kept = generic_pruned(fit, [n for n in fit.values if correction.is_correction(n)], factor)
     return {name.rsplit(".", 1)[-1]: fit.values[name] for name in kept}
 
@@ -80,10 +80,10 @@ def settle(
     jobs: Mapping[str, tuple[Callable[[Mapping[str, float]], FitProblem], CorrectionProposal]],
     what: str,
 ) -> dict[str, FitResult | None]:
-    """Fit each job's proposed terms, prune those within PRUNE_SE standard errors of zero, refit with the freed
-    slots refilled (:func:`refilled`; all of them when no term survived), then prune and refit without
-    refilling until every term stands; lockstep batches throughout. ``jobs``: label -> (problem for given
-    terms, proposal). None where no term survives."""
+    """Fit each job's proposed terms, prune those within PRUNE_SE standard errors of zero, refit with the
+    freed slots refilled (:func:`refilled`; all of them when no term survived), then prune and refit
+    without refilling until every term stands; lockstep batches throughout. ``jobs``: label -> (problem
+    for given terms, proposal). None where no term survives."""
     max_terms = chain.settings.max_terms
     fits = chain.fit([make(dict(proposal.terms)) for make, proposal in jobs.values()], what)
     tried = {label: set(proposal.terms) for label, (_, proposal) in jobs.items()}

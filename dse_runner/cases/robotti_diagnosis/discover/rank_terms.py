@@ -20,7 +20,8 @@ DISCOVERED = "discovered"  # the id a discovered correction takes among a candid
 
 
 class Fitter(Protocol):
-    """What discovery needs from the chain (diagnose.Chain): problems, lockstep fits, held-out scoring, residuals."""
+    """What discovery needs from the chain (diagnose.Chain): problems, lockstep
+    fits, held-out scoring, residuals."""
 
     vehicle: str
     folds: list[list[str]]
@@ -72,7 +73,8 @@ def held_shapes(shapes: Mapping[str, float], vehicle: str, variables: Sequence[s
 
 @dataclass(frozen=True)
 class Screen:
-    """What ranking on positions needs of one parent fit: where it stands, on which runs, and what was proposed."""
+    """What ranking on positions needs of one parent fit: where it stands, on
+    which runs, and what was proposed."""
 
     fit: FitResult  # the parent (R, or the calibrated model) fitted on ``scenarios``
     scenarios: tuple[str, ...]
@@ -80,7 +82,8 @@ class Screen:
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)  # the parent's parameters' bounds
 
     def moves(self) -> tuple[np.ndarray, np.ndarray]:
-        """How far each of the parent's parameters (``fit.names``) may move from its fitted value, down and up."""
+        """How far each of the parent's parameters (``fit.names``) may move from
+        its fitted value, down and up."""
         low = [self.bounds.get(n, (-math.inf, math.inf))[0] - self.fit.values[n] for n in self.fit.names]
         high = [self.bounds.get(n, (-math.inf, math.inf))[1] - self.fit.values[n] for n in self.fit.names]
         return np.minimum(low, 0.0), np.maximum(high, 0.0)

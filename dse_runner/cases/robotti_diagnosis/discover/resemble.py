@@ -97,7 +97,8 @@ def resemblance_words(similar: Sequence[tuple[str, float]]) -> str:
 
 
 def terms_json(fit: FitResult) -> list[dict[str, Any]]:
-    """The discovered terms of a fit as the JSON's ``terms``: readable text, parameter, value, ~95 % interval."""
+    """The discovered terms of a fit as the JSON's ``terms``: readable text,
+    parameter, value, ~95 % interval."""
     interval = fit.interval()
     shapes = correction.shape_values(fit.point)
     out = []
