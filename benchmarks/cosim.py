@@ -57,16 +57,17 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's dse_runner
 
-from dse_runner import bundled  # noqa: E402
-from dse_runner.simulation.build import build_fmu, fmi_headers_dir  # noqa: E402
-from dse_runner.simulation.crosscheck import run_libcosim  # noqa: E402
-from dse_runner.simulation.fmu import describe  # noqa: E402
-from dse_runner.simulation.plan import Plan  # noqa: E402
-from dse_runner.simulation.run import SimulationResult, as_plan, simulate  # noqa: E402
-from dse_runner.simulation.scenario import Scenario, load_scenario  # noqa: E402
+from dse_runner import bundled
+from dse_runner.simulation.build import build_fmu, fmi_headers_dir
+from dse_runner.simulation.crosscheck import run_libcosim
+from dse_runner.simulation.fmu import describe
+from dse_runner.simulation.plan import Plan
+from dse_runner.simulation.run import SimulationResult, as_plan, simulate
+from dse_runner.simulation.scenario import Scenario, load_scenario
+
+REPO = Path(__file__).resolve().parents[1]
 
 CALIBRATED = {"vehicle.mass": 1000.0, "vehicle.cAlphaF": 38000.0, "vehicle.mu": 0.3}
 CHEAP_FMU = REPO / "benchmarks" / "fmus" / "vanderpol"
@@ -429,7 +430,10 @@ def profile_cheap() -> None:
 
     plan = as_plan(build_fmu(CHEAP_FMU))
     times = simulate(plan, values=CHEAP_VALUES, loop="native").times
-    run = lambda: simulate(plan, values=CHEAP_VALUES, stop_time=times.stop, step=times.step, loop="native")  # noqa: E731
+
+    def run() -> SimulationResult:
+        return simulate(plan, values=CHEAP_VALUES, stop_time=times.stop, step=times.step, loop="native")
+
     for _ in range(200):
         run()
     profiler = cProfile.Profile()

@@ -32,11 +32,11 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from support import blind  # noqa: E402
+from support import blind
 
-from dse_runner.cases.robotti_diagnosis.hypotheses import LIBRARY  # noqa: E402
-from dse_runner.sweeps.cluster import connect  # noqa: E402
-from dse_runner.sweeps.makers import Cluster  # noqa: E402
+from dse_runner.cases.robotti_diagnosis.hypotheses import LIBRARY
+from dse_runner.sweeps.cluster import connect
+from dse_runner.sweeps.makers import Cluster
 
 SINGLES_HEADER = (
     f"{'concealed':<16} {'truth':>8} {'named first':<16} {'estimate':>9} {'error':>7} "

@@ -29,11 +29,11 @@ import psutil
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from support import blind  # noqa: E402
+from support import blind
 
-from dse_runner.sweeps import fit_rounds, store  # noqa: E402
-from dse_runner.sweeps.cluster import connect  # noqa: E402
-from dse_runner.sweeps.makers import Cluster  # noqa: E402
+from dse_runner.sweeps import fit_rounds, store
+from dse_runner.sweeps.cluster import connect
+from dse_runner.sweeps.makers import Cluster
 
 
 def cluster_cpu() -> float:

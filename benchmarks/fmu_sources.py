@@ -23,15 +23,16 @@ import tempfile
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's dse_runner
 
-from dse_runner import bundled  # noqa: E402
-from dse_runner.simulation.build import build_fmu  # noqa: E402
-from dse_runner.simulation.multimodel import load_multimodel  # noqa: E402
-from dse_runner.simulation.plan import make_plan  # noqa: E402
-from dse_runner.simulation.run import simulate  # noqa: E402
-from dse_runner.simulation.scenario import load_scenario  # noqa: E402
+from dse_runner import bundled
+from dse_runner.simulation.build import build_fmu
+from dse_runner.simulation.multimodel import load_multimodel
+from dse_runner.simulation.plan import make_plan
+from dse_runner.simulation.run import simulate
+from dse_runner.simulation.scenario import load_scenario
+
+REPO = Path(__file__).resolve().parents[1]
 
 FMUS = "fmus"
 FORMERLY = "dse_runner/bundled/fmus"  # where they were before 2026-11-28
@@ -54,7 +55,7 @@ def sources_at(rev: str, into: Path) -> Path:
     folder = (
         FMUS
         if subprocess.run(
-            ["git", "-C", str(REPO), "cat-file", "-e", f"{rev}:{FMUS}"], capture_output=True
+            ["git", "-C", str(REPO), "cat-file", "-e", f"{rev}:{FMUS}"], check=False, capture_output=True
         ).returncode
         == 0
         else FORMERLY

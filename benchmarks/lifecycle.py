@@ -27,15 +27,16 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's dse_runner
 
-from dse_runner import bundled  # noqa: E402
-from dse_runner.simulation import isolation  # noqa: E402
-from dse_runner.simulation.build import build_fmu  # noqa: E402
-from dse_runner.simulation.multimodel import MultiModel, load_multimodel, single_fmu  # noqa: E402
-from dse_runner.simulation.run import as_plan, simulate  # noqa: E402
-from dse_runner.simulation.scenario import load_scenario  # noqa: E402
+from dse_runner import bundled
+from dse_runner.simulation import isolation
+from dse_runner.simulation.build import build_fmu
+from dse_runner.simulation.multimodel import MultiModel, load_multimodel, single_fmu
+from dse_runner.simulation.run import as_plan, simulate
+from dse_runner.simulation.scenario import load_scenario
+
+REPO = Path(__file__).resolve().parents[1]
 
 WILD = REPO.parent / "shared" / "fmus-wild"
 THREE_TANK = WILD / "three_tank_watertank" / "Multi-models" / "Non-3D" / "Non-3D.mm.json"

@@ -35,14 +35,15 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's dse_runner
+
+from cosim import median_time  # benchmarks/cosim.py: a warm-up, then the median
+
+from dse_runner.simulation.build import build_fmu
+from dse_runner.simulation.run import as_plan, simulate
+from dse_runner.simulation.scenario import load_scenario
+
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from cosim import median_time  # noqa: E402  (benchmarks/cosim.py: a warm-up, then the median)
-
-from dse_runner.simulation.build import build_fmu  # noqa: E402
-from dse_runner.simulation.run import as_plan, simulate  # noqa: E402
-from dse_runner.simulation.scenario import load_scenario  # noqa: E402
 
 MSD = REPO / "jobs" / "msd" / "multimodel.yaml"
 BALL = REPO / "tests" / "fmus" / "ball"
@@ -141,7 +142,7 @@ def main() -> None:
         ratio = f"{f['simulate_fmu_over_native']:11.1f}x" if "simulate_fmu" in f else f"{'-':>12}"
         print(
             f"{name:<12} {f['steps']:>6} {f['native'] * 1e3:7.2f} ms {f['python'] * 1e3:7.2f} ms {fmpy} "
-            f"{f['python_over_native']:13.1f}x {ratio} {str(f['bit_identical']):>10}"
+            f"{f['python_over_native']:13.1f}x {ratio} {f['bit_identical']!s:>10}"
         )
 
 

@@ -44,17 +44,18 @@ from pathlib import Path
 
 import psutil
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's dse_runner
+
+from distributed.protocol.pickle import dumps as dask_dumps
+from distributed.scheduler import heartbeat_interval
+
+from dse_runner import ship, store
+from dse_runner.sweeps.cluster import connect
+from dse_runner.sweeps.expand import expand
+from dse_runner.sweeps.spec import Space, load_space
+from dse_runner.sweeps.sweep import _jobs, chunk_size, submit
+
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from distributed.protocol.pickle import dumps as dask_dumps  # noqa: E402
-from distributed.scheduler import heartbeat_interval  # noqa: E402
-
-from dse_runner import ship, store  # noqa: E402
-from dse_runner.sweeps.cluster import connect  # noqa: E402
-from dse_runner.sweeps.expand import expand  # noqa: E402
-from dse_runner.sweeps.spec import Space, load_space  # noqa: E402
-from dse_runner.sweeps.sweep import _jobs, chunk_size, submit  # noqa: E402
 
 MU = [0.3, 0.5]  # of the paper's five: 5 x 5 x 2 points x 12 scenarios = 600 tasks
 OVERHEAD_TARGET = 0.05  # worker-side overhead, as a fraction of simulation time

@@ -68,8 +68,7 @@ from typing import Any
 import psutil
 import yaml
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import dask
 import numpy as np
@@ -85,6 +84,7 @@ from dse_runner.sweeps.rank import rank
 from dse_runner.sweeps.spec import Space, load_space
 from dse_runner.sweeps.sweep import submit
 
+REPO = Path(__file__).resolve().parents[1]
 PAPER = REPO / "jobs" / "robotti" / "space.yaml"
 BOUNDS = {  # issue 14: the grid's extent, made continuous
     "vehicle.cAlphaF": {"low": 20000, "high": 38000},
@@ -473,8 +473,8 @@ def measure(
                     f"best {run['best_total']}, within 1% after {run['points_to_1pct']}, utilisation {util}, "
                     f"asks {run['ask_s']:.1f} s, stopped: {run['stopped']}"
                 )
-        for row in runs:
-            figures["strategies"][row] = summarise(runs[row], errors[row])
+        for row, done in runs.items():
+            figures["strategies"][row] = summarise(done, errors[row])
     ranked = [n for n, s in figures["strategies"].items() if s["runs"]]
     figures["best_strategy"] = min(ranked, key=lambda n: order_key(figures["strategies"][n]), default=None)
 

@@ -27,15 +27,16 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's dse_runner
 
-from dse_runner.analysis.sensitivity import sensitivity, stored_design  # noqa: E402
-from dse_runner.simulation.build import build_fmu  # noqa: E402
-from dse_runner.simulation.objectives import Reduce  # noqa: E402
-from dse_runner.sweeps import store  # noqa: E402
-from dse_runner.sweeps.rank import save_sweep_spec  # noqa: E402
-from dse_runner.sweeps.spec import SpaceSpec  # noqa: E402
+from dse_runner.analysis.sensitivity import sensitivity, stored_design
+from dse_runner.simulation.build import build_fmu
+from dse_runner.simulation.objectives import Reduce
+from dse_runner.sweeps import store
+from dse_runner.sweeps.rank import save_sweep_spec
+from dse_runner.sweeps.spec import SpaceSpec
+
+REPO = Path(__file__).resolve().parents[1]
 
 ISHIGAMI = REPO / "jobs" / "ishigami"
 NAMES = ["ishigami.x1", "ishigami.x2", "ishigami.x3"]
@@ -56,7 +57,7 @@ def analytic(a: float, b: float) -> dict[str, dict[str, float]]:
 def command(*args: str) -> tuple[float, subprocess.CompletedProcess]:
     started = time.perf_counter()
     done = subprocess.run(
-        [sys.executable, "-m", "dse_runner", *args], capture_output=True, text=True, cwd=REPO
+        [sys.executable, "-m", "dse_runner", *args], check=False, capture_output=True, text=True, cwd=REPO
     )
     if done.returncode != 0:
         raise SystemExit(f"dse-runner {' '.join(args)} failed:\n{done.stderr}")

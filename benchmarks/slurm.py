@@ -45,6 +45,7 @@ def sweep(folder: Path, kind: str) -> tuple[float, float]:
     started = time.perf_counter()
     result = subprocess.run(
         [sys.executable, "-m", "dse_runner", "submit", str(path), "--json", "--no-dashboard"],
+        check=False,
         capture_output=True,
         text=True,
         cwd=folder,

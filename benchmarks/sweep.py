@@ -57,16 +57,17 @@ from typing import Any
 
 import psutil
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's dse_runner
 
-from dse_runner.simulation import native  # noqa: E402
-from dse_runner.simulation.run import simulate  # noqa: E402
-from dse_runner.sweeps.cluster import connect  # noqa: E402
-from dse_runner.sweeps.expand import expand  # noqa: E402
-from dse_runner.sweeps.makers import Cluster  # noqa: E402
-from dse_runner.sweeps.spec import Space, load_space  # noqa: E402
-from dse_runner.sweeps.sweep import SweepReport, submit  # noqa: E402
+from dse_runner.simulation import native
+from dse_runner.simulation.run import simulate
+from dse_runner.sweeps.cluster import connect
+from dse_runner.sweeps.expand import expand
+from dse_runner.sweeps.makers import Cluster
+from dse_runner.sweeps.spec import Space, load_space
+from dse_runner.sweeps.sweep import SweepReport, submit
+
+REPO = Path(__file__).resolve().parents[1]
 
 VANDERPOL = REPO / "benchmarks" / "fmus" / "vanderpol"
 WORKERS = 2  # of the cheap sweep and of the paper's second sweep

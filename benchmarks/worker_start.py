@@ -58,7 +58,7 @@ def measured(command: list[str], env: dict[str, str], label: str) -> tuple[float
     group = own_group(f"dse-worker-start-{label}")
     started = time.perf_counter()
     join = (lambda: (group / "tasks").write_text(str(os.getpid()))) if group else None  # run in the child
-    done = subprocess.run(command, env=env, capture_output=True, text=True, preexec_fn=join)
+    done = subprocess.run(command, check=False, env=env, capture_output=True, text=True, preexec_fn=join)
     wall = time.perf_counter() - started
     if done.returncode != 0:
         sys.exit(f"{' '.join(command)} failed:\n{done.stderr}")

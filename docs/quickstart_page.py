@@ -63,7 +63,7 @@ def steps(text: str) -> list[Step]:
     return found
 
 
-FILE_BLOCK = re.compile(r"(```(?:yaml|python)\n# (jobs/\S+)\n)(.*?)(```)", flags=re.S)
+FILE_BLOCK = re.compile(r"(```(?:yaml|python)\n# (jobs/\S+)\n)(.*?)(```)", flags=re.DOTALL)
 
 
 def shown_files(text: str) -> dict[str, str]:
@@ -131,7 +131,7 @@ def run(command: str, root: Path) -> subprocess.CompletedProcess:
     words = shlex.split(command)
     if words[0] == "dse-runner":
         words[0] = str(Path(sys.executable).with_name("dse-runner"))
-    return subprocess.run(words, cwd=root, capture_output=True, text=True)
+    return subprocess.run(words, check=False, cwd=root, capture_output=True, text=True)
 
 
 def check(text: str, root: Path) -> list[str]:
@@ -170,7 +170,7 @@ def rewritten(text: str, root: Path) -> str:
             out.extend(printed.replace(f"{root}/", "").rstrip() for printed in done.stdout.splitlines())
             skipping_until_next = True
             continue
-        if skipping_until_next and (line.startswith("$ ") or line.startswith("```")):
+        if skipping_until_next and (line.startswith(("$ ", "```"))):
             skipping_until_next = False
         if not skipping_until_next:
             out.append(line)

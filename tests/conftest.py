@@ -103,7 +103,11 @@ def dse_runner(*args, cwd=REPO):
     import sys
 
     return subprocess.run(
-        [sys.executable, "-m", "dse_runner", *map(str, args)], capture_output=True, text=True, cwd=cwd
+        [sys.executable, "-m", "dse_runner", *map(str, args)],
+        check=False,
+        capture_output=True,
+        text=True,
+        cwd=cwd,
     )
 
 

@@ -48,7 +48,7 @@ def link_from_dask(client, url: str) -> str | None:
     scheduler cannot take the plugin (no dse-runner installed beside it, say)."""
     try:
         client.register_plugin(DaskLink(url))
-    except Exception:  # the scheduler could not unpickle or start it: the link is a convenience
+    except Exception:  # noqa: BLE001  (the scheduler could not take it: the link is a convenience)
         return None
     dask = client.dashboard_link
     return dask.rsplit("/", 1)[0] + f"/{DASK_PAGE}" if dask else None

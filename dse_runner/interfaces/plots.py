@@ -8,10 +8,10 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")  # files only; workers and CI have no display
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
-from ..simulation.run import SimulationResult  # noqa: E402
-from ..simulation.scenario import kind  # noqa: E402
+from ..simulation.run import SimulationResult
+from ..simulation.scenario import kind
 
 MAX_SIGNALS = 8  # a page of small panels; the CSV has every signal
 

@@ -12,10 +12,10 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")  # files only
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from ..analysis.sensitivity import Scope, Sensitivity  # noqa: E402
+from ..analysis.sensitivity import Scope, Sensitivity
 
 DPI = 110
 PAGE_INCHES = 12.0  # a figure's width: 1320 px at DPI, as wide as the report's page, which it fills unblurred

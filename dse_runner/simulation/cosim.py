@@ -117,7 +117,7 @@ def _reads(step: Stepper, variables: tuple[Variable, ...], signals: np.ndarray, 
         else:
             buffer = (access.ctype * n)()
             view, where = _buffer_view(buffer, access.ctype), np.array(columns, dtype=np.int64)
-            copy = lambda view=view, where=where: signals.__setitem__(where, view)  # noqa: E731
+            copy = functools.partial(signals.__setitem__, where, view)
         reads.append(
             _Read(access.get, step.args(access, vrs, n, buffer), access.name, copy, access.ctype, where)
         )

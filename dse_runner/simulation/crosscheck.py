@@ -39,7 +39,7 @@ def run_libcosim(plan: Plan, values: dict[str, Value], stop: float, step: float)
     (libcosimpy's sample reader cannot return step 0 together with the rest).
     """
     execution_type, slave_type, observer_type, variable_type = _libcosim()
-    step_ns = int(round(step * 1e9))
+    step_ns = round(step * 1e9)
     n_steps = int(np.floor(stop / step + 1e-9))
     execution = execution_type.from_step_size(step_ns)
     index = {

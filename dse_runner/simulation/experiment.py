@@ -36,7 +36,7 @@ class Experiment(BaseModel):
     step: PositiveFloat | None = None
 
     @model_validator(mode="after")
-    def _ordered(self) -> "Experiment":
+    def _ordered(self) -> Experiment:
         if self.stop_time is not None and self.stop_time <= (self.start_time or 0.0):
             raise ValueError(f"stop_time {self.stop_time} must be after start_time {self.start_time or 0.0}")
         return self

@@ -74,11 +74,11 @@ def _description(path: str, sha: str) -> ModelDescription:
     check_version(path, _declared_version(path))  # first: FMPy's reader fails obscurely on other layouts
     try:
         return read_model_description(path, validate=True)
-    except Exception as strict:  # FMPy's ValidationError, or a plain exception for broken XML
+    except Exception as strict:  # noqa: BLE001  (FMPy's ValidationError, or any exception for broken XML)
         problems = getattr(strict, "problems", None)
     try:
         description = read_model_description(path, validate=False)
-    except Exception as e:
+    except Exception as e:  # noqa: BLE001  (FMPy's reader raises what its XML parser does)
         raise DseError(f"{path}: cannot read modelDescription.xml: {e}") from None
     if problems:
         more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
@@ -353,7 +353,7 @@ def _instantiate(name: str, fmu: LoadedFmu) -> Instance:
         else:
             instance.keep = lambda env, status, category, message: instance.note(status, message)
             slave.instantiate(logMessage=instance.keep)
-    except Exception:
+    except Exception:  # noqa: BLE001  (whatever FMPy raised, the FMU's own log says why)
         raise DseError(instance.explain(f"fmi{fmu.version}Instantiate failed ({fmu.path.name})")) from None
     return instance
 
@@ -384,7 +384,7 @@ def acquire(name: str, fmu: LoadedFmu) -> Instance:
         instance.messages.clear()
         try:
             instance.slave.reset()
-        except Exception:
+        except Exception:  # noqa: BLE001  (an FMU that cannot reset gets a fresh instance)
             discard(instance)
             return acquire(name, fmu)
     instance.used = True
@@ -396,6 +396,6 @@ def discard(instance: Instance) -> None:
     _INSTANCES.pop((instance.fmu.sha, instance.name, instance.fmu.interface), None)
     try:
         instance.slave.freeInstance()
-    except Exception:
+    except Exception:  # noqa: BLE001, S110  (it is being thrown away: a failing free changes nothing)
         pass
     _BY_ENVIRONMENT.pop(instance.environment, None)  # after: what it logs while freed is not printed

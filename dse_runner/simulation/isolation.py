@@ -158,7 +158,7 @@ def _serve(extract_root: str) -> None:
     while (request := _receive(requests)) is not None:
         try:
             function, args, preload, kill_after = pickle.loads(request)
-        except Exception as e:  # a function this process cannot import, say: the caller's error, not ours
+        except Exception as e:  # noqa: BLE001  (a function this process cannot import: the caller's error)
             _send(frames_out, pickle.dumps((False, DseError(f"cannot run this in a fresh process: {e}"))))
             continue
         for path, interface in preload:
@@ -230,7 +230,7 @@ def _child(function: Callable[..., Any], args: tuple, write_end: int) -> None:
         reply = (False, e)
     try:
         data = pickle.dumps(reply, protocol=pickle.HIGHEST_PROTOCOL)
-    except Exception as e:  # an exception or result that does not pickle
+    except Exception as e:  # noqa: BLE001  (an exception or result that does not pickle)
         data = pickle.dumps((False, DseError(f"{type(reply[1]).__name__}: {reply[1]} ({e})")))
     with os.fdopen(write_end, "wb") as out:
         out.write(data)
@@ -256,6 +256,6 @@ def _death(status: int, said: str) -> Exception:
 
 
 if __name__ == "__main__":  # run as a script, this is a copy of the module: serve from the real one
-    from dse_runner.simulation import isolation
+    from dse_runner.simulation import isolation  # noqa: PLW0406  (the module, not this script's copy)
 
     isolation._serve(sys.argv[1])

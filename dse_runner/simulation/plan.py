@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Iterable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ..errors import DseError, did_you_mean
@@ -35,7 +35,7 @@ class Link:
 
     source: Variable
     target: Variable
-    conversion: Conversion = Conversion()
+    conversion: Conversion = field(default_factory=Conversion)
 
 
 @dataclass(frozen=True)

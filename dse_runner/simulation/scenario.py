@@ -28,6 +28,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from importlib.metadata import EntryPoint
+from itertools import pairwise
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, Protocol
 
@@ -140,7 +141,7 @@ def _number(path: Path, line: int, column: str, text: str) -> float:
 
 def _check_increasing(path: Path, column: str, times: list[tuple[float, int]]) -> None:
     """Times (of every row, dropouts included) must increase: interpolation and the step loop rely on it."""
-    for (previous, _), (time, line) in zip(times, times[1:]):
+    for (previous, _), (time, line) in pairwise(times):
         if not time > previous:
             raise DseError(
                 f"{path} line {line}, column {column}: {time:g} does not increase on the "

@@ -72,7 +72,7 @@ def _plain_finite(value: Any) -> Any:
         raise ValueError("no value given")
     if isinstance(value, (dict, list)):
         given = "mapping" if isinstance(value, dict) else "list"
-        raise ValueError(f"expected a number, a Boolean or a string, not a {given}")
+        raise ValueError(f"expected a number, a Boolean or a string, not a {given}")  # noqa: TRY004  (pydantic)
     return value
 
 

@@ -24,10 +24,13 @@ import weakref
 from collections.abc import Callable, Collection, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Self
+from typing import TYPE_CHECKING, Any, Self
 
 from ..errors import DseError
 from .makers import Cluster, maker
+
+if TYPE_CHECKING:  # distributed is imported when a sweep connects, not when the CLI starts
+    import distributed
 
 # distributed keeps the last N messages each connection sent, for debugging; a sweep's
 # messages carry chunks of tasks, so the default (1000) would hold a large sweep's tasks in
@@ -85,7 +88,7 @@ def security(spec: Cluster, base: Path | None = None) -> Any:
 
 
 @contextmanager
-def connect(spec: Cluster, base: Path | None = None) -> Iterator[distributed.Client]:  # noqa: F821
+def connect(spec: Cluster, base: Path | None = None) -> Iterator[distributed.Client]:
     """A client of the spec's scheduler, with at least one worker; the cluster is closed afterwards
     if we started it. ``base`` is the folder relative certificate paths start from."""
     import dask

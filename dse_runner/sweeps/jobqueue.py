@@ -115,7 +115,7 @@ class JobKeeper:
             self._forget_ended_jobs()
             if set(self.cluster.worker_spec) - set(self.cluster.workers) and not self.refused():
                 await self.cluster._correct_state()  # submits the jobs SpecCluster is missing
-        except Exception:  # noqa: BLE001 - one failed look must not stop the keeper; the next one retries
+        except Exception:
             log.exception("dse-runner's job keeper")
         finally:
             self._busy = False
@@ -252,19 +252,19 @@ class Slurm(JobQueueMaker):
     system, extra, cluster_name = "Slurm", "slurm", "SLURMCluster"
 
     def arguments(self, spec: Cluster, options: SlurmOptions) -> dict[str, Any]:
-        return dict(
-            cores=options.cores,
-            processes=options.cores,
-            memory=options.memory,
-            queue=options.queue,
-            account=options.account,
-            walltime=options.walltime,
-            job_extra_directives=list(options.job_extra_directives),
-            job_script_prologue=list(options.job_script_prologue),
-            python=options.python,
-            interface=options.interface,
-            log_directory=options.log_directory,
-        )
+        return {
+            "cores": options.cores,
+            "processes": options.cores,
+            "memory": options.memory,
+            "queue": options.queue,
+            "account": options.account,
+            "walltime": options.walltime,
+            "job_extra_directives": list(options.job_extra_directives),
+            "job_script_prologue": list(options.job_script_prologue),
+            "python": options.python,
+            "interface": options.interface,
+            "log_directory": options.log_directory,
+        }
 
 
 class HTCondorOptions(BaseModel):
@@ -287,13 +287,13 @@ class HTCondor(JobQueueMaker):
     system, extra, cluster_name = "HTCondor", "htcondor", "HTCondorCluster"
 
     def arguments(self, spec: Cluster, options: HTCondorOptions) -> dict[str, Any]:
-        return dict(
-            cores=options.cores,
-            processes=options.cores,
-            memory=options.memory,
-            disk=options.disk,
-            job_extra_directives=dict(options.job_extra),
-            job_script_prologue=list(options.prologue),
-            python=options.python,
-            interface=options.interface,
-        )
+        return {
+            "cores": options.cores,
+            "processes": options.cores,
+            "memory": options.memory,
+            "disk": options.disk,
+            "job_extra_directives": dict(options.job_extra),
+            "job_script_prologue": list(options.prologue),
+            "python": options.python,
+            "interface": options.interface,
+        }

@@ -197,7 +197,7 @@ def send(client, shipment: Shipment) -> None:
     workers unpickle it first thing: one that cannot import dse_runner fails here, and says so."""
     try:
         client.register_plugin(ShipmentPlugin(shipment), name=plugin_name(shipment.key))
-    except Exception as e:  # noqa: BLE001 - distributed re-raises the worker's error, whatever it was
+    except Exception as e:
         if "dse_runner" not in str(e):
             raise
         raise DseError(

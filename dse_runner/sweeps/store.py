@@ -94,7 +94,7 @@ def check_reachable(root: Root) -> None:
         probe = _join(path, f".probe-{uuid.uuid4().hex}")
         fs.pipe_file(probe, b"")
         fs.rm_file(probe)
-    except Exception as e:  # each file system raises its own errors
+    except Exception as e:  # noqa: BLE001  (each file system raises its own errors)
         raise DseError(f"cannot write to the store {root}: {type(e).__name__}: {e}") from None
 
 

@@ -58,7 +58,7 @@ def forces() -> dict[str, tuple[Callable[[np.ndarray], np.ndarray], float]]:
 
 def grid() -> np.ndarray:
     """The master's communication points (cosim._time_grid): start + step · k."""
-    n = int(round(DURATION / STEP))
+    n = round(DURATION / STEP)
     times = STEP * np.arange(n + 1)
     times[-1] = DURATION
     return times
@@ -100,7 +100,7 @@ def make(case: str, folder: Path, seed: int = SEED) -> Path:
             folder / f"{name}-force.csv", delimiter=",", skiprows=1
         )  # what the master will read
         x = truth(np.interp(times, back[:, 0], back[:, 1]), x0, CASES[case])
-        every = int(round(SAMPLE / STEP))  # a sample at every few communication points
+        every = round(SAMPLE / STEP)  # a sample at every few communication points
         noisy = x[::every] + rng.normal(0.0, NOISE_SIGMA, x[::every].size)
         np.savetxt(
             folder / f"{name}-x.csv",

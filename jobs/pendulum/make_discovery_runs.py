@@ -49,7 +49,7 @@ def torques() -> dict[str, tuple[Callable[[np.ndarray], np.ndarray], float]]:
 
 def grid() -> np.ndarray:
     """The master's communication points (cosim._time_grid): start + step · k."""
-    n = int(round(DURATION / STEP))
+    n = round(DURATION / STEP)
     times = STEP * np.arange(n + 1)
     times[-1] = DURATION
     return times
@@ -76,7 +76,7 @@ def make(case: str, folder: Path, seed: int = SEED) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
     times = grid()
-    every = int(round(SAMPLE / STEP))
+    every = round(SAMPLE / STEP)
     scenarios = []
     for name, (torque, theta0) in torques().items():
         logged = np.arange(0.0, DURATION + 1e-9, 0.01)

@@ -26,13 +26,13 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import pandas as pd  # noqa: E402
+import matplotlib.pyplot as plt
+import pandas as pd
 
-from dse_runner import simulate  # noqa: E402
-from dse_runner.simulation.values import read_values, write_values  # noqa: E402
-from dse_runner.sweeps import store  # noqa: E402
-from dse_runner.sweeps.rank import rank  # noqa: E402
+from dse_runner import simulate
+from dse_runner.simulation.values import read_values, write_values
+from dse_runner.sweeps import store
+from dse_runner.sweeps.rank import rank
 
 HERE = Path(__file__).resolve().parent
 PATHS = HERE.parents[1] / "scenarios" / "robotti-paths"
@@ -63,8 +63,10 @@ def point_of(row: pd.Series, parameters: list[str]) -> dict[str, float]:
 def table(defaults: pd.DataFrame, tuned: pd.DataFrame) -> str:
     """Markdown: per path, defaults against tuned, and whether the target holds there."""
     lines = [
-        "| path | error, defaults [m] | error, tuned [m] | ratio | effort, defaults "
-        "[rad] | effort, tuned [rad] | ratio | half the error at no more effort |",
+        (
+            "| path | error, defaults [m] | error, tuned [m] | ratio | effort, defaults "
+            "[rad] | effort, tuned [rad] | ratio | half the error at no more effort |"
+        ),
         "|---|---|---|---|---|---|---|---|",
     ]
     for path in defaults.index:
@@ -153,15 +155,19 @@ def bound_section(path: Path) -> str | None:
     found = json.loads(path.read_text())
     lines = [
         "### What any controller could reach at the defaults' effort (bound.py, nominal plant)",
-        "The least mean path error of any steering sequence, knowing the whole path in advance, "
-        f"with no more steering effort than {found['budget']:g} x the defaults' and within their "
-        "steering limits, at their speed: a linear (mixed-integer near the step) program on the "
-        "linearised plant, corrected by replaying its solution through the real plant FMU "
-        "(bound.py). Where the program is solved to optimality and its replay agrees, no controller "
-        "of any structure or gains does better, so a value above half the defaults' error rules the "
-        "target out on that path; a replayed value below half shows a steering that meets it.",
-        "| path | defaults: error [m] | effort [rad] | least error, linear model [m] | "
-        "replayed on the plant [m] | ratio to the defaults | half the error reachable |",
+        (
+            "The least mean path error of any steering sequence, knowing the whole path in advance, "
+            f"with no more steering effort than {found['budget']:g} x the defaults' and within their "
+            "steering limits, at their speed: a linear (mixed-integer near the step) program on the "
+            "linearised plant, corrected by replaying its solution through the real plant FMU "
+            "(bound.py). Where the program is solved to optimality and its replay agrees, no controller "
+            "of any structure or gains does better, so a value above half the defaults' error rules the "
+            "target out on that path; a replayed value below half shows a steering that meets it."
+        ),
+        (
+            "| path | defaults: error [m] | effort [rad] | least error, linear model [m] | "
+            "replayed on the plant [m] | ratio to the defaults | half the error reachable |"
+        ),
         "|---|---|---|---|---|---|---|",
     ]
     for name, r in sorted(found["paths"].items()):
@@ -226,10 +232,12 @@ def main() -> None:
         [
             "### Defaults against tuned, per path (mean over the 5 plants)",
             table(defaults_by_path, tuned_by_path),
-            f"Over all paths and plants: defaults {defaults_total[ERROR]:.4f} m at "
-            f"{defaults_total[EFFORT]:.3f} rad; tuned {tuned[ERROR]:.4f} m at "
-            f"{tuned[EFFORT]:.3f} rad. Front: {len(ranking.pareto)} of {len(ranking.totals)} "
-            "points (figures/pareto.png); tracks on the diagnosed plant: figures/tracks.png.",
+            (
+                f"Over all paths and plants: defaults {defaults_total[ERROR]:.4f} m at "
+                f"{defaults_total[EFFORT]:.3f} rad; tuned {tuned[ERROR]:.4f} m at "
+                f"{tuned[EFFORT]:.3f} rad. Front: {len(ranking.pareto)} of {len(ranking.totals)} "
+                "points (figures/pareto.png); tracks on the diagnosed plant: figures/tracks.png."
+            ),
             "### Gains\n\n| parameter | defaults | tuned | tuned on the baseline plant |\n|---|---|---|---|\n"
             + gains,
             "### Fidelity: each gain set on both plants (nominal plant, no variants)",

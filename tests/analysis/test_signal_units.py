@@ -3,6 +3,8 @@ prediction, the noise rule and the verdict's words."""
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 import numpy as np
 import pytest
 
@@ -41,7 +43,7 @@ def test_windows_are_labelled_by_what_the_inputs_do():
     )
     edges = signal_locate.windows(t)
     assert len(edges) == signal_locate.WINDOWS + 1
-    labels = [signal_locate.activity(pushed, a, b) for a, b in zip(edges[:-1], edges[1:])]
+    labels = [signal_locate.activity(pushed, a, b) for a, b in pairwise(edges)]
     assert labels[0] == signal_locate.STEADY and labels[1] == labels[3] == signal_locate.CHANGING
     assert labels[5] == signal_locate.STEADY
     assert signal_locate.activity(Scenario("free"), 0.0, 1.0) == signal_locate.NO_INPUT

@@ -34,7 +34,7 @@ def drive(plan, stop: float, **values: float):
 
 
 def test_effects_off_is_the_baseline_bit_for_bit(baseline, effects):
-    inputs = dict(velocity=2.0, delta_f=0.15, mass=1700.0, cAlphaF=25000.0, theta0=0.4)
+    inputs = {"velocity": 2.0, "delta_f": 0.15, "mass": 1700.0, "cAlphaF": 25000.0, "theta0": 0.4}
     a, b = drive(baseline, 20.0, **inputs), drive(effects, 20.0, **inputs)
     for name in ("x", "y", "theta", "vx", "vy", "yaw_rate"):
         assert np.array_equal(a.column(f"vehicle.{name}"), b.column(f"vehicle.{name}"))

@@ -165,7 +165,7 @@ def test_noise_only_reports_nothing_missing(cases):
 
 
 def test_written_space_recalibrates_with_the_effect(cases, dask_scheduler):
-    root, runs, _, result = cases("steering_lag")
+    _, _, _, result = cases("steering_lag")
     space = load_space(result.files["space"]).with_overrides(address=dask_scheduler)
     assert "vehicle.steering_lag" in space.parameters
     assert sorted(s.name for s in space.scenarios) == sorted(blind.RUNS)

@@ -15,7 +15,15 @@ from dse_runner import strict_json
 from dse_runner.analysis.diagnose import explain
 from dse_runner.analysis.diagnose.explain import Candidate
 from dse_runner.cases.fielddata import load_run
-from dse_runner.cases.robotti_diagnosis import Diagnosis, DiagnosisSettings, noise, screen
+from dse_runner.cases.robotti_diagnosis import (
+    Diagnosis,
+    DiagnosisSettings,
+    kinematics,
+    lookalike,
+    noise,
+    screen,
+    segments,
+)
 from dse_runner.cases.robotti_diagnosis.hypotheses import LIBRARY
 from dse_runner.errors import DseError
 from dse_runner.sweeps.fit import FitProblem, FitResult, LevenbergMarquardt, Parameter
@@ -83,7 +91,7 @@ def write_run(
         white = noise_xy
     keep = rng.random(t.size) >= dropout
     start = int(rng.integers(t.size // 4, t.size // 2))
-    keep[start : start + int(round(outage / PERIOD))] = False
+    keep[start : start + round(outage / PERIOD)] = False
     keep[0] = True
     rows = []
     for k in range(t.size):  # a dropout is a missing row or an empty row: both occur in the field
@@ -519,8 +527,6 @@ def test_the_stop_rule_screens_only_when_a_fit_leaves_more_than_noise():
 
 
 # ---- look-alikes: segments, kinematics, the LLR between twins, response fits -------------------------
-
-from dse_runner.cases.robotti_diagnosis import kinematics, lookalike, segments
 
 
 def command_log() -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -196,7 +196,7 @@ def naive_projection(path: paths.Polyline, xy: np.ndarray) -> tuple[np.ndarray, 
     arcs, distances = [], []
     for k, p in enumerate(xy):
         lo = 0.0 if k == 0 else arcs[-1]
-        hi = path.length if k == 0 else lo + paths.LOOKAHEAD + np.linalg.norm(xy[k] - xy[k - 1])
+        hi = path.length if k == 0 else lo + paths.LOOKAHEAD + np.linalg.norm(p - xy[k - 1])
         start, end = path.arc[:-1], path.arc[1:]
         low, high = np.maximum(start, lo), np.minimum(end, hi)
         arc = np.clip(start + np.sum((p - path.points[:-1]) * path.direction, 1), low, high)

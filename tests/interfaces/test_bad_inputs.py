@@ -193,6 +193,7 @@ def test_an_objective_that_is_not_finite_fails_its_row_with_a_message(tmp_path):
             str(tmp_path / "out"),
             "--json",
         ],
+        check=False,
         capture_output=True,
         text=True,
         cwd=tmp_path,
@@ -275,8 +276,10 @@ def test_a_value_outside_its_declared_min_or_max(tmp_path):
         ({"chunk_seconds": "fast"}, r"space\.yaml: chunk_seconds: Input should be a valid number"),
         (
             {"parameters": {"vehicle.mass": "heavy"}},
-            r"space\.yaml: parameters\.vehicle\.mass: expected a list of values, "
-            r"a grid \{start, stop, step or num\} or an interval \{low, high\}",
+            (
+                r"space\.yaml: parameters\.vehicle\.mass: expected a list of values, "
+                r"a grid \{start, stop, step or num\} or an interval \{low, high\}"
+            ),
         ),
         (
             {"parameters": {"vehicle.mass": ["heavy"]}},
@@ -287,8 +290,10 @@ def test_a_value_outside_its_declared_min_or_max(tmp_path):
         # ... nor the fields the multi-model binds: checked when the space loads
         (
             {"scenarios": [], "objectives": {"x_final": {"signal": "vehicle.x", "reduce": "final"}}},
-            r"space\.yaml: the multi-model binds controller\.file to 'steering_inputs': scenario nominal: "
-            r"no field 'steering_inputs' \(a signals scenario has no fields\)",
+            (
+                r"space\.yaml: the multi-model binds controller\.file to 'steering_inputs': "
+                r"scenario nominal: no field 'steering_inputs' \(a signals scenario has no fields\)"
+            ),
         ),
         (
             {
@@ -297,9 +302,11 @@ def test_a_value_outside_its_declared_min_or_max(tmp_path):
                     "scenario": {"controller.file": "steering"},
                 }
             },
-            r"space\.yaml: the multi-model binds controller\.file to 'steering': "
-            r"scenario sin1: no field 'steering'; it has duration, gps_position, "
-            r"initial_pose\.theta, initial_pose\.x, initial_pose\.y, steering_inputs",
+            (
+                r"space\.yaml: the multi-model binds controller\.file to 'steering': "
+                r"scenario sin1: no field 'steering'; it has duration, gps_position, "
+                r"initial_pose\.theta, initial_pose\.x, initial_pose\.y, steering_inputs"
+            ),
         ),
         ({"multimodel": "nowhere.yaml"}, r"cannot read multi-model .*nowhere\.yaml"),
         ({"multimodel": "bundled:nothing.yaml"}, r"'bundled:nothing\.yaml': dse-runner bundles no such file"),
@@ -341,9 +348,11 @@ def test_a_bad_spec_value(tmp_path, changes, message):
         # a binding to a field no scenario has: checked against the scenario at simulate
         (
             {"scenario": {"controller.file": "steering"}},
-            r"error: the multi-model binds controller\.file to 'steering': scenario "
-            r"sin1: no field 'steering'; it has duration, gps_position, "
-            r"initial_pose\.theta, initial_pose\.x, initial_pose\.y, steering_inputs$",
+            (
+                r"error: the multi-model binds controller\.file to 'steering': scenario "
+                r"sin1: no field 'steering'; it has duration, gps_position, "
+                r"initial_pose\.theta, initial_pose\.x, initial_pose\.y, steering_inputs$"
+            ),
         ),
         ({"parameters": {"vehicle": 1}}, r"mm\.yaml: parameters: 'vehicle' is not of the form"),
     ],
@@ -388,11 +397,15 @@ def test_the_installed_command_prints_one_line_and_the_traceback_only_with_debug
     mm = sleeper_multimodel(tmp_path, fake)
     command = [sys.executable, "-m", "dse_runner"]
     quiet = subprocess.run(
-        [*command, "simulate", str(mm), "-s", str(SCENARIOS / "sin1")], capture_output=True, text=True
+        [*command, "simulate", str(mm), "-s", str(SCENARIOS / "sin1")],
+        check=False,
+        capture_output=True,
+        text=True,
     )
     assert "not an FMU" in one_line_error(quiet.returncode, quiet.stderr)
     loud = subprocess.run(
         [*command, "--debug", "simulate", str(mm), "-s", str(SCENARIOS / "sin1")],
+        check=False,
         capture_output=True,
         text=True,
     )
@@ -446,7 +459,7 @@ def test_a_sweep_row_whose_objective_is_not_finite_fails_with_its_message(tmp_pa
         parameters={"vehicle.mass": [1500]},
         keep_trajectories=0,
     )
-    code, out, err = run("submit", space, "--no-dashboard", "--json")
+    _, out, err = run("submit", space, "--no-dashboard", "--json")
     report = strict_loads(out)
     assert (report["ok"], report["failed"]) == (1, 1), err
     rows = store.read_results(tmp_path / "out", "small", columns=["status", "error", "nan_objective:score"])

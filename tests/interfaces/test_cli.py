@@ -95,6 +95,7 @@ def test_every_commands_help_fits_80_columns_and_names_its_flags_plainly():
     ):
         done = subprocess.run(
             [sys.executable, "-m", "dse_runner", command, "--help"],
+            check=False,
             capture_output=True,
             text=True,
             cwd=REPO,
@@ -420,8 +421,10 @@ def test_a_file_that_is_not_what_its_place_expects_is_one_line_naming_it(tmp_pat
         (["submit", fmu], "not a space.yaml: it is not text (an FMU archive; a space.yaml is YAML)"),
         (
             ["submit", csv],
-            "not a space.yaml: a space.yaml is a YAML mapping of keys to values, this file holds "
-            "text that is not a YAML mapping (a CSV file?)",
+            (
+                "not a space.yaml: a space.yaml is a YAML mapping of keys to values, this file holds "
+                "text that is not a YAML mapping (a CSV file?)"
+            ),
         ),
         (["diagnose", "--space", fmu], "not a space.yaml: it is not text"),
     ]:

@@ -227,8 +227,10 @@ def test_a_script_that_writes_no_value_fails_its_task(project):
         ),
         (
             lambda d: d["objectiveDefinitions"]["externalScripts"]["switches"].update(scriptFile="gone.py"),
-            r"objectiveDefinitions\.externalScripts\.switches: "
-            r"script not found: .*userMetricScripts/gone\.py",
+            (
+                r"objectiveDefinitions\.externalScripts\.switches: "
+                r"script not found: .*userMetricScripts/gone\.py"
+            ),
         ),
         (
             lambda d: d["parameters"].update({"{controllerFMU}.controller.minlevle": [1]}),
@@ -236,8 +238,10 @@ def test_a_script_that_writes_no_value_fails_its_task(project):
         ),
         (
             lambda d: d.update(parameterConstraints=["math.sqrt({controllerFMU}.controller.maxlevel) > 1"]),
-            r"parameterConstraints\.0: cannot translate "
-            r"'math\.sqrt\(\{controllerFMU\}\.controller\.maxlevel\) > 1'",
+            (
+                r"parameterConstraints\.0: cannot translate "
+                r"'math\.sqrt\(\{controllerFMU\}\.controller\.maxlevel\) > 1'"
+            ),
         ),
         (
             lambda d: d.update(objectiveConstraints=["levelMax < __import__('os').getpid()"]),
@@ -544,8 +548,10 @@ def test_a_python2_script_is_ported_for_the_run_once_and_the_file_left_unchanged
     ported = [str(w.message) for w in said if "ported to Python 3 with fissix" in str(w.message)]
     line = script.read_text().splitlines().index('print "%d switches" % switches') + 1
     assert ported == [
-        f"{script.resolve()} line {line}: a Python 2 script (print statement); ported to "
-        "Python 3 with fissix for this run, the file unchanged"
+        (
+            f"{script.resolve()} line {line}: a Python 2 script (print statement); ported to "
+            "Python 3 with fissix for this run, the file unchanged"
+        )
     ]
     switches, changes = switches_and_changes(space)
     assert switches == changes > 0
@@ -619,8 +625,10 @@ def test_the_scripts_of_docs_intocps_run_as_written(tmp_path):
         ported = [str(w.message) for w in said if "ported" in str(w.message)]
         assert ported == (
             [
-                f"{script.resolve()} {python2_line}; ported to Python 3 with fissix for this run, "
-                "the file unchanged"
+                (
+                    f"{script.resolve()} {python2_line}; ported to Python 3 with fissix for this run, "
+                    "the file unchanged"
+                )
             ]
             if python2_line
             else []
@@ -684,6 +692,7 @@ def test_results_csv_has_the_step_size_column_intocps_writes(tmp_path):
     time = np.array([0.0, 0.05, 0.1, 0.15000000000000002, 0.2])
     trajectory = Trajectory(time, ["a.x"], np.arange(5.0)[:, None], {})
     write_results(tmp_path / "results.csv", trajectory, {"{a}.a.x": "a.x"})
-    rows = list(csv.reader(open(tmp_path / "results.csv")))
+    with open(tmp_path / "results.csv") as written:
+        rows = list(csv.reader(written))
     assert rows[0] == ["time", "step-size", "a.x", "{a}.a.x"]
     assert [float(r[1]) for r in rows[1:]] == [0.0, *np.diff(time)]

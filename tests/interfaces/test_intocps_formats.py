@@ -130,8 +130,10 @@ def test_ids_split_into_fmu_instance_and_variable():
             "bad.dse.json",
             {"parameters": {"{a}.a.k": [1, {"value": 2}]}},
             DseConfig,
-            r"bad\.dse\.json: parameters\.\{a\}\.a\.k\.1: expected "
-            r"a number, a Boolean or a string, not a mapping$",
+            (
+                r"bad\.dse\.json: parameters\.\{a\}\.a\.k\.1: expected "
+                r"a number, a Boolean or a string, not a mapping$"
+            ),
         ),
         (
             "bad.dse.json",

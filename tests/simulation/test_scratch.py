@@ -26,6 +26,7 @@ print(folder, folder.is_dir())
 def test_a_process_folder_outlives_a_forked_child_and_goes_at_its_own_exit(tmp_path):
     done = subprocess.run(
         [sys.executable, "-c", FORK_THEN_EXIT],
+        check=False,
         capture_output=True,
         text=True,
         env={**os.environ, "TMPDIR": str(tmp_path)},
@@ -62,6 +63,7 @@ def test_a_multiprocessing_child_removes_its_folder_as_it_ends(tmp_path, method)
     script.write_text(IN_A_CHILD)
     done = subprocess.run(
         [sys.executable, str(script), method],
+        check=False,
         capture_output=True,
         text=True,
         env={**os.environ, "TMPDIR": str(tmp_path)},
@@ -135,6 +137,7 @@ claiming.join()
 def test_a_child_forked_while_another_thread_makes_a_folder_makes_its_own(tmp_path):
     done = subprocess.run(
         [sys.executable, "-W", "ignore", "-c", FORK_MID_CLAIM],
+        check=False,
         capture_output=True,
         text=True,
         env={**os.environ, "TMPDIR": str(tmp_path)},

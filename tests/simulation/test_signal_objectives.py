@@ -165,8 +165,10 @@ def test_a_space_names_an_objectives_unknown_signal(tmp_path):
         (
             ["max_error", {"peak": {"signal": "msd.x", "reduce": "max"}}],
             [
-                "objectives.list.1: a list holds names only (an objective with options goes in a mapping, "
-                "objectives: {name: {signal: ..., reduce: ...}})"
+                (
+                    "objectives.list.1: a list holds names only (an objective with options goes in a "
+                    "mapping, objectives: {name: {signal: ..., reduce: ...}})"
+                )
             ],
         ),
         (
@@ -190,8 +192,10 @@ def test_a_space_names_an_objectives_unknown_signal(tmp_path):
         (
             {"peak": {"sgnal": "msd.x"}},
             [
-                "objectives.mapping.peak: expected a name, {signal, "
-                "reduce}, {signal, recorded, metric} or {script, args}"
+                (
+                    "objectives.mapping.peak: expected a name, {signal, "
+                    "reduce}, {signal, recorded, metric} or {script, args}"
+                )
             ],
         ),
     ],

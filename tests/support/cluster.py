@@ -49,7 +49,7 @@ def make_certs(folder: Path) -> Certs:
     from cryptography.hazmat.primitives.asymmetric import ec
     from cryptography.x509.oid import NameOID
 
-    now = datetime.datetime.now(datetime.timezone.utc)
+    now = datetime.datetime.now(datetime.UTC)
     window = (now - datetime.timedelta(days=1), now + datetime.timedelta(days=2))
 
     def certificate(subject: str, key, issuer: str, issuer_key, ca: bool) -> x509.Certificate:
@@ -116,7 +116,9 @@ def can_hide_folders() -> bool:
     """Whether this machine lets us start a process in its own mount namespace (needs root)."""
     if shutil.which("unshare") is None:
         return False
-    probe = subprocess.run(["unshare", "-m", "sh", "-c", "mount -t tmpfs none /mnt"], capture_output=True)
+    probe = subprocess.run(
+        ["unshare", "-m", "sh", "-c", "mount -t tmpfs none /mnt"], check=False, capture_output=True
+    )
     return probe.returncode == 0
 
 
@@ -162,7 +164,7 @@ class CliCluster:
                 stdout=out,
                 stderr=subprocess.STDOUT,
                 start_new_session=True,
-                preexec_fn=_end_with_parent,
+                preexec_fn=_end_with_parent,  # noqa: PLW1509  (a parent-death signal is set in the child)
             )
 
     def start_scheduler(self) -> None:

@@ -119,8 +119,10 @@ class SingleNodeSlurm:
                     "MailProg=/bin/true",
                     "ReturnToService=2",
                     "KillWait=5",  # seconds between a cancelled job's SIGTERM and SIGKILL
-                    f"NodeName=localhost NodeAddr=127.0.0.1 CPUs={os.cpu_count()} "
-                    f"RealMemory={node_memory_mb()} State=UNKNOWN",
+                    (
+                        f"NodeName=localhost NodeAddr=127.0.0.1 CPUs={os.cpu_count()} "
+                        f"RealMemory={node_memory_mb()} State=UNKNOWN"
+                    ),
                     f"PartitionName={PARTITION} Nodes=localhost Default=YES MaxTime=INFINITE State=UP",
                     "",
                 ]
@@ -135,7 +137,7 @@ class SingleNodeSlurm:
                 stdout=out,
                 stderr=subprocess.STDOUT,
                 start_new_session=True,
-                preexec_fn=_end_with_parent,
+                preexec_fn=_end_with_parent,  # noqa: PLW1509  (a parent-death signal is set in the child)
             )
 
     def _until(self, done, timeout: float, failure: str) -> None:

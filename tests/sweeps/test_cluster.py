@@ -242,7 +242,7 @@ def test_killed_client_resumes_on_submit(tmp_path, dask_scheduler):
     )  # chunks running on workers finish and write; the scheduler forgets the rest
     before = len(store.read_results(tmp_path / "out", "small", columns=[]))
     assert 0 < before < SLOW_TASKS  # the client died mid-sweep
-    second = subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=600)
+    second = subprocess.run(command, check=False, cwd=REPO, capture_output=True, text=True, timeout=600)
     assert second.returncode == 0, second.stderr
     report = strict_loads(second.stdout)
     assert report["skipped"] >= before and report["skipped"] + report["ran"] == SLOW_TASKS
@@ -341,9 +341,11 @@ def test_tls_scheduler(tmp_path, cli_cluster):
     space = load_space(write_space(tmp_path, cluster={"address": cluster.address, "tls": tls}))
     report = submit(space)
     assert (report.ok, report.failed, report.workers) == (12, 0, 2)
-    with pytest.raises(DseError, match="needs cluster.tls"):
-        with connect(Cluster(address=cluster.address, connect_timeout=5)):
-            pass
+    with (
+        pytest.raises(DseError, match="needs cluster.tls"),
+        connect(Cluster(address=cluster.address, connect_timeout=5)),
+    ):
+        pass
 
 
 def test_htcondor_job_script(tmp_path):
@@ -436,6 +438,7 @@ def test_unreachable_scheduler_names_it(tmp_path):
     spec = write_space(tmp_path, cluster={"connect_timeout": 3})  # refused at once, retried for 3 s, not 30
     result = subprocess.run(
         [sys.executable, "-m", "dse_runner", "submit", str(spec), "--scheduler", "tcp://127.0.0.1:9"],
+        check=False,
         capture_output=True,
         text=True,
         timeout=120,
@@ -495,6 +498,7 @@ def test_htcondor_without_condor_submit_is_one_line_at_once(tmp_path):
     started = time.monotonic()
     result = subprocess.run(
         [sys.executable, "-m", "dse_runner", "submit", str(spec), "--cluster", "htcondor", "--no-dashboard"],
+        check=False,
         capture_output=True,
         text=True,
         timeout=120,
@@ -503,8 +507,10 @@ def test_htcondor_without_condor_submit_is_one_line_at_once(tmp_path):
     assert time.monotonic() - started < 30
     assert result.returncode == 2
     assert result.stderr.strip().splitlines() == [
-        "error: cluster.kind htcondor: condor_submit is not on PATH: run dse-runner "
-        "where HTCondor's commands are (a login or submit node), or install them"
+        (
+            "error: cluster.kind htcondor: condor_submit is not on PATH: run dse-runner "
+            "where HTCondor's commands are (a login or submit node), or install them"
+        )
     ], result.stderr
 
 

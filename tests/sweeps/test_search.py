@@ -408,8 +408,10 @@ def test_points_asked_again_are_simulated_once_even_while_they_run(tmp_path, das
         (
             {"strategy": "gp", "acquisition_samples": 0},
             {},
-            r"search: GPSampler refuses the options acquisition_samples=0: "
-            r"acquisition_samples and local_searches must be",
+            (
+                r"search: GPSampler refuses the options acquisition_samples=0: "
+                r"acquisition_samples and local_searches must be"
+            ),
         ),
         (
             {"strategy": "least_squares"},
@@ -424,8 +426,10 @@ def test_points_asked_again_are_simulated_once_even_while_they_run(tmp_path, das
                     "msd.c": {"start": 0.2, "stop": 2.0, "step": 0.2},
                 }
             },
-            r"search: least_squares moves every parameter "
-            r"continuously; msd\.k, msd\.c takes only whole numbers",
+            (
+                r"search: least_squares moves every parameter "
+                r"continuously; msd\.k, msd\.c takes only whole numbers"
+            ),
         ),
     ],
     ids=[

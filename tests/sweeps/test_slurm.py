@@ -146,8 +146,10 @@ def test_a_job_slurm_refuses_stops_the_submit_with_slurms_reason(tmp_path, slurm
     assert result.returncode == 2, result.stderr
     errors = [line for line in result.stderr.splitlines() if line.startswith("error:")]
     assert errors == [
-        "error: Slurm refused a worker job: Memory specification can not be satisfied; Batch job "
-        "submission failed: Requested node configuration is not available"
+        (
+            "error: Slurm refused a worker job: Memory specification can not be satisfied; Batch job "
+            "submission failed: Requested node configuration is not available"
+        )
     ], result.stderr
     assert "Traceback" not in result.stderr
     assert set(raw_task_ids(done.output)) == kept  # nothing lost, nothing added
@@ -178,11 +180,11 @@ def test_a_refused_replacement_stops_the_sweep_and_keeps_its_rows(tmp_path, slur
             closed.append(running[0])
 
     try:
-        with dask.config.set({"distributed.deploy.lost-worker-timeout": "2s"}):
-            with pytest.raises(
-                DseError, match=r"^Slurm refused a worker job: .*Required partition not available"
-            ):
-                submit(space, progress=close_the_partition)
+        with (
+            dask.config.set({"distributed.deploy.lost-worker-timeout": "2s"}),
+            pytest.raises(DseError, match=r"^Slurm refused a worker job: .*Required partition not available"),
+        ):
+            submit(space, progress=close_the_partition)
     finally:
         slurm.run("scontrol", "update", "PartitionName=debug", "State=UP")
     ids = raw_task_ids(space.output)

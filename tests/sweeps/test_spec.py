@@ -145,13 +145,17 @@ def test_a_variant_naming_an_unknown_variable_names_it(tmp_path):
         ),
         (
             {"scenarios": [{"path": "runs/*", "variants": [{"name": "a", "parametrs": {}}]}]},
-            r"space\.yaml: scenarios\.0\.source\.variants\.list\.0\.parameters: Field required; "
-            r"scenarios\.0\.source\.variants\.list\.0\.parametrs: Extra inputs are not permitted$",
+            (
+                r"space\.yaml: scenarios\.0\.source\.variants\.list\.0\.parameters: Field required; "
+                r"scenarios\.0\.source\.variants\.list\.0\.parametrs: Extra inputs are not permitted$"
+            ),
         ),
         (
             {"parameters": {"vehicle.mass": [1800, {"kg": 2000}]}},
-            r"space\.yaml: parameters\.vehicle\.mass\.values\.1: "
-            r"expected a number, a Boolean or a string, not a mapping$",
+            (
+                r"space\.yaml: parameters\.vehicle\.mass\.values\.1: "
+                r"expected a number, a Boolean or a string, not a mapping$"
+            ),
         ),
         (
             {"parameters": {"vehicle.mass": [None]}},
@@ -167,9 +171,11 @@ def test_a_variant_naming_an_unknown_variable_names_it(tmp_path):
                     }
                 ]
             },
-            r"space\.yaml: scenarios\.0\.inline\.inputs\.controller\.steering\.mapping\.colum: "
-            r"Extra inputs are not permitted; scenarios\.0\.inline\.recorded\.mapping\.tme: "
-            r"Extra inputs are not permitted$",
+            (
+                r"space\.yaml: scenarios\.0\.inline\.inputs\.controller\.steering\.mapping\.colum: "
+                r"Extra inputs are not permitted; scenarios\.0\.inline\.recorded\.mapping\.tme: "
+                r"Extra inputs are not permitted$"
+            ),
         ),
     ],
 )

@@ -181,8 +181,10 @@ def interior(interfaces: Mapping[str, str], factor: float) -> str:
     cs = sorted(name for name, kind in interfaces.items() if kind == "cs")
     me = sorted(name for name, kind in interfaces.items() if kind == "me")
     said = [
-        f"more than {factor:g} noise floors remain after every effect on the inputs and outputs, so the "
-        "missing part lies inside the model"
+        (
+            f"more than {factor:g} noise floors remain after every effect on the inputs and outputs, so the "
+            "missing part lies inside the model"
+        )
     ]
     if cs:
         said.append(

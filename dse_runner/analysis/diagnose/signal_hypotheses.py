@@ -59,8 +59,10 @@ PHYSICS = {  # what each kind of effect stands for, and the residual it leaves
         "a constant residual, whatever the signal does",
     ),
     "deadzone": (
-        "nothing passes until the signal exceeds a threshold: a valve or a pump that needs some drive "
-        "before it moves",
+        (
+            "nothing passes until the signal exceeds a threshold: a valve or a pump that needs some drive "
+            "before it moves"
+        ),
         "the simulation responds to small inputs that the process ignores",
     ),
     "backlash": (
@@ -69,12 +71,16 @@ PHYSICS = {  # what each kind of effect stands for, and the residual it leaves
     ),
     "rate": (
         "the signal can change only so fast: a slew-limited actuator",
-        "residuals at steps and steep changes, growing with "
-        "their size, the simulation ahead of the recording",
+        (
+            "residuals at steps and steep changes, growing with "
+            "their size, the simulation ahead of the recording"
+        ),
     ),
     "square": (
-        "the signal passes through a curved characteristic: an uncalibrated sensor or a nonlinear "
-        "actuator (with gain and offset, a polynomial map)",
+        (
+            "the signal passes through a curved characteristic: an uncalibrated sensor or a nonlinear "
+            "actuator (with gain and offset, a polynomial map)"
+        ),
         "residuals that grow with the square of the signal: too low at one end, too high at the other",
     ),
     "max": (
@@ -87,16 +93,20 @@ PHYSICS = {  # what each kind of effect stands for, and the residual it leaves
     ),
     "state_max": (
         "the state cannot rise above a bound: a store that is full, a tank at its brim, an end stop",
-        "the simulation overshoots where the recording stays flat at its highest values, and "
-        "falls back too late",
+        (
+            "the simulation overshoots where the recording stays flat at its highest values, and "
+            "falls back too late"
+        ),
     ),
     "state_min": (
         "the state cannot fall below a bound: a store that is empty, an end stop",
         "the simulation undershoots where the recording stays flat at its lowest values",
     ),
     "state_overflow": (
-        "the state overflows at a bound, and part of what overflows reaches another state (a "
-        "tank spilling into the one below)",
+        (
+            "the state overflows at a bound, and part of what overflows reaches another state (a "
+            "tank spilling into the one below)"
+        ),
         "the first state stays flat at its highest values while the other rises faster than modelled",
     ),
 }

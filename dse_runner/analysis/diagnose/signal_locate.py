@@ -167,7 +167,10 @@ def located(
 ) -> dict[str, Any]:
     """The JSON's ``located``: the method, every window, and the summaries by run and by input activity."""
     frame = table(before, after, noise, scenarios)
-    records = lambda f: f.to_dict("records")  # noqa: E731
+
+    def records(f: Any) -> list[dict[str, Any]]:
+        return f.to_dict("records")
+
     return {
         "method": METHOD,
         "noise": dict(noise),

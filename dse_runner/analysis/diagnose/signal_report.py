@@ -92,8 +92,10 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
         if estimate:
             lines += [
                 "",
-                f"Noise of {c['recorded']}: σ {estimate['sigma']:.4g} by {estimate['method']}; it assumes "
-                f"{estimate['assumptions']}.",
+                (
+                    f"Noise of {c['recorded']}: σ {estimate['sigma']:.4g} by {estimate['method']}; "
+                    f"it assumes {estimate['assumptions']}."
+                ),
             ]
     for signal, w in (found.get("whiteness") or {}).items():
         lines += [
@@ -136,9 +138,11 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
         ]
     if pairs.get("screened"):
         lines += [
-            f"Pairs: {pairs['predicted']} predicted from the single fits, "
-            f"{len(pairs['screened'])} checked by simulation, {len(pairs['fitted'])} "
-            f"fitted for real ({', '.join(pairs['fitted']) or 'none'}).",
+            (
+                f"Pairs: {pairs['predicted']} predicted from the single fits, "
+                f"{len(pairs['screened'])} checked by simulation, {len(pairs['fitted'])} "
+                f"fitted for real ({', '.join(pairs['fitted']) or 'none'})."
+            ),
             "",
         ]
     elif pairs:

@@ -131,7 +131,10 @@ def screen(
     n = len(stacked(none))
     calibrated = len(none.names)
     own = {h: set(f.names) - set(none.names) for h, f in singles.items()}  # each effect's own parameters
-    parameters = lambda pair: calibrated + len(own[pair[0]] | own[pair[1]])  # noqa: E731
+
+    def parameters(pair: tuple[str, str]) -> int:
+        return calibrated + len(own[pair[0]] | own[pair[1]])
+
     pairs = [tuple(sorted(p)) for p in itertools.combinations(singles, 2) if not own[p[0]] & own[p[1]]]
     solved = {p: prediction(none, singles[p[0]], singles[p[1]]) for p in pairs}
     checked = to_check(singles, {p: s for p, (_, s) in solved.items()}, parameters, n)

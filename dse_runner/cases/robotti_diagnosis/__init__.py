@@ -21,12 +21,12 @@ from .outcome import Diagnosis, DiagnosisSettings
 from .workflow import DEFAULT_SPACE, diagnose, diagnose_calibration, worth_screening
 
 __all__ = [
-    "Chain",
     "DEFAULT_SPACE",
+    "Chain",
     "Diagnosis",
     "DiagnosisMessages",
-    "RobottiLibrary",
     "DiagnosisSettings",
+    "RobottiLibrary",
     "diagnose",
     "diagnose_calibration",
     "worth_screening",

@@ -266,9 +266,11 @@ def _markdown(
         ]
     else:
         lines += [
-            "**Finding:** `none`: no hypothesis of the library passes the "
-            "test against the calibrated model (held-out mean cross-track "
-            f"error {diagnosis.cross_track_before:.3f} m). Nothing is added.",
+            (
+                "**Finding:** `none`: no hypothesis of the library passes the "
+                "test against the calibrated model (held-out mean cross-track "
+                f"error {diagnosis.cross_track_before:.3f} m). Nothing is added."
+            ),
             "",
         ]
     lines += [verdict_text(diagnosis), ""]
@@ -282,14 +284,22 @@ def _markdown(
     lines += [
         "## 1. Locate",
         "",
-        f"Calibration grid best point: {format_point(cal['grid_best'], 5)}; parameters "
-        f"at a bound of the design space: {', '.join(cal['grid_at_bound']) or 'none'}.",
-        f"Refined by least squares within the design space: {format_point(cal['refined'], 5)}; at a bound: "
-        f"{', '.join(cal['refined_at_bound']) or 'none'}.",
-        "Parameters no run responds to (any value fits equally well): "
-        f"{', '.join(cal['no_effect']) or 'none'}.",
-        "Runs no tuned parameter can improve (every grid point within 5 % of the calibrated error): "
-        f"{', '.join(cal['insensitive_scenarios']) or 'none'}.",
+        (
+            f"Calibration grid best point: {format_point(cal['grid_best'], 5)}; parameters "
+            f"at a bound of the design space: {', '.join(cal['grid_at_bound']) or 'none'}."
+        ),
+        (
+            f"Refined by least squares within the design space: {format_point(cal['refined'], 5)}; "
+            f"at a bound: {', '.join(cal['refined_at_bound']) or 'none'}."
+        ),
+        (
+            "Parameters no run responds to (any value fits equally well): "
+            f"{', '.join(cal['no_effect']) or 'none'}."
+        ),
+        (
+            "Runs no tuned parameter can improve (every grid point within 5 % of the calibrated error): "
+            f"{', '.join(cal['insensitive_scenarios']) or 'none'}."
+        ),
         "",
         "Residuals of the calibrated model, by scenario group:",
         "",
@@ -309,15 +319,17 @@ def _markdown(
         "",
         "## 2. Explain",
         "",
-        "Every hypothesis of the library fitted jointly with the calibrated parameters; held-out "
-        "error is the mean Equation 1 error of each run predicted by the fit on the other folds. A "
-        "candidate is chosen only if it lowers the held-out error by at least "
-        f"{diagnosis.settings.min_gain:.0%} and the BIC by at least {diagnosis.settings.bic_margin:g} "
-        "against `none` and against every fitted part of it (each member has to pay its way); of "
-        f"those, the lowest held-out error wins, and one within {diagnosis.settings.min_gain:.0%} of "
-        "it with fewer effects wins over it. Combinations fitted on every run but not "
-        f"cross-validated failed the BIC gate: their BIC was not {diagnosis.settings.bic_margin:g} "
-        "below the best single answer's and each fitted part's, so they could not be chosen.",
+        (
+            "Every hypothesis of the library fitted jointly with the calibrated parameters; held-out "
+            "error is the mean Equation 1 error of each run predicted by the fit on the other folds. A "
+            "candidate is chosen only if it lowers the held-out error by at least "
+            f"{diagnosis.settings.min_gain:.0%} and the BIC by at least {diagnosis.settings.bic_margin:g} "
+            "against `none` and against every fitted part of it (each member has to pay its way); of "
+            f"those, the lowest held-out error wins, and one within {diagnosis.settings.min_gain:.0%} of "
+            "it with fewer effects wins over it. Combinations fitted on every run but not "
+            f"cross-validated failed the BIC gate: their BIC was not {diagnosis.settings.bic_margin:g} "
+            "below the best single answer's and each fitted part's, so they could not be chosen."
+        ),
         "",
         _table(_candidates(diagnosis)),
         "",
@@ -349,8 +361,10 @@ def _markdown(
         lines += [f"### `{h.id}`: {h.name}", "", h.explanation, "", f"Expected signature: {h.signature}.", ""]
     if chosen.ids:
         lines += [
-            f"Observed: the residual fell most in {sig['component']} on {sig['segment']} segments, "
-            f"from {sig['before']:.3f} to {sig['after']:.3f} (rms).",
+            (
+                f"Observed: the residual fell most in {sig['component']} on {sig['segment']} segments, "
+                f"from {sig['before']:.3f} to {sig['after']:.3f} (rms)."
+            ),
             "",
             "## 3. Model",
             "",

@@ -26,6 +26,7 @@ from .noise import NoiseFloor
 from .outcome import Diagnosis, DiagnosisSettings
 
 DEFAULT_SPACE = "bundled:robotti/calibration.yaml"  # the Robotti baseline's calibration grid
+DEFAULT_SETTINGS = DiagnosisSettings()  # frozen, so one instance serves every call
 BEFORE, AFTER = "diagnosis-before", "diagnosis-after"  # sweeps holding the tracks of the report
 
 
@@ -163,7 +164,7 @@ def diagnose(
     multimodel: str | Path | None = None,
     space: str | Path | None = None,
     out: str | Path | None = None,
-    settings: DiagnosisSettings = DiagnosisSettings(),
+    settings: DiagnosisSettings = DEFAULT_SETTINGS,
     client=None,
     progress: DiagnosisMessages | None = None,
     n_workers: int | None = None,
@@ -181,7 +182,7 @@ def diagnose(
 
 def diagnose_calibration(
     calibration: Space,
-    settings: DiagnosisSettings = DiagnosisSettings(),
+    settings: DiagnosisSettings = DEFAULT_SETTINGS,
     client=None,
     progress: DiagnosisMessages | None = None,
 ) -> Diagnosis:

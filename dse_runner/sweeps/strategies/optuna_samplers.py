@@ -203,7 +203,7 @@ class GaussianProcess(OptunaStrategy):
 
     def __init__(self, problem: Problem):
         try:
-            import torch  # noqa: F401
+            import torch  # noqa: F401  (only whether it is installed)
         except ImportError:
             raise DseError("search strategy 'gp' needs PyTorch: pip install 'dse-runner[gp]'") from None
         super().__init__(problem)

@@ -7,11 +7,12 @@ import csv
 import json
 import os
 import sys
+from itertools import pairwise
 
 folder, name, _scenario_folder, valve_column = sys.argv[1:5]
 with open(os.path.join(folder, "results.csv")) as f:
     valve = [float(row[valve_column]) for row in csv.DictReader(f)]
-switches = sum(1 for before, after in zip(valve, valve[1:]) if before != after)
+switches = sum(1 for before, after in pairwise(valve) if before != after)
 
 path = os.path.join(folder, "objectives.json")
 with open(path) as f:

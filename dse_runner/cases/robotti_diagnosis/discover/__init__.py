@@ -61,14 +61,14 @@ from .resemble import resemblance_words, resembles, similarity, terms_json
 
 __all__ = [
     "DISCOVERED",
-    "Discovery",
     "INCLUSION",
     "MAX_BINDING",
     "OUTPUT",
-    "Observed",
-    "CorrectionProposal",
     "RATE_LIMITS",
     "ChannelRegression",
+    "CorrectionProposal",
+    "Discovery",
+    "Observed",
     "accept",
     "binding",
     "candidates",
