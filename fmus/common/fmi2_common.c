@@ -10,58 +10,43 @@
 #include "fmi2_common.h"
 #include "fmi_common.h"
 
-void fmi2_log(Fmi2Instance *s, fmi2Status status, const char *category, const char *fmt, ...) {
+/* FMI 2.0's logger takes its message as a printf format: every '%' is doubled. */
+static void emit(FmiCore *c, int status, const char *category, const char *message) {
+    Fmi2Instance *s = (Fmi2Instance *)c;
     if (!s->cb || !s->cb->logger) return;
-    if (status == fmi2OK && !s->logging_on) return;
-    char msg[1024], escaped[2048];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
-    /* The logger's message is itself a printf format: double every '%'. */
+    char escaped[2048];
     size_t j = 0;
-    for (size_t i = 0; msg[i] && j + 2 < sizeof escaped; i++) {
-        if (msg[i] == '%') escaped[j++] = '%';
-        escaped[j++] = msg[i];
+    for (size_t i = 0; message[i] && j + 2 < sizeof escaped; i++) {
+        if (message[i] == '%') escaped[j++] = '%';
+        escaped[j++] = message[i];
     }
     escaped[j] = '\0';
-    s->cb->logger(s->cb->componentEnvironment, s->instance_name, status, category, escaped);
+    s->cb->logger(s->cb->componentEnvironment, s->instance_name, (fmi2Status)status, category, escaped);
 }
 
-int fmi2_allowed(Fmi2Instance *s, const char *function, unsigned phases) {
-    if (!s) return 0;
-    if (phases & BIT(s->phase)) return 1;
-    fmi2_log(s, fmi2Error, "logStatusError", "%s is not allowed in %s", function, fmi_phase_names[s->phase]);
-    s->phase = FAILED;
-    return 0;
+static int refresh(FmiCore *c) { return fmi2_refresh((Fmi2Instance *)c); }
+
+static int enter_initialization(FmiCore *c) {
+    Fmi2Instance *s = (Fmi2Instance *)c;
+    return s->model.enter_initialization ? s->model.enter_initialization(s) : 0;
 }
 
-fmi2Status fmi2_fail(Fmi2Instance *s) {
-    s->phase = FAILED;
-    return fmi2Error;
+static int exit_initialization(FmiCore *c) {
+    Fmi2Instance *s = (Fmi2Instance *)c;
+    return s->model.exit_initialization ? s->model.exit_initialization(s) : 0;
 }
 
-fmi2Status fmi2_error(Fmi2Instance *s, const char *fmt, ...) {
-    char msg[1024];
+static const FmiCalls CALLS = {emit, refresh, enter_initialization, exit_initialization};
+
+_Static_assert((int)fmi2OK == FMI_OK && (int)fmi2Warning == FMI_WARNING && (int)fmi2Discard == FMI_DISCARD &&
+                   (int)fmi2Error == FMI_ERROR && (int)fmi2Fatal == FMI_FATAL,
+               "fmi_common.h numbers the statuses as FMI 2.0 does");
+
+void fmi2_log(Fmi2Instance *s, fmi2Status status, const char *category, const char *fmt, ...) {
     va_list ap;
     va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
+    fmi_vlog(&s->core, status, category, fmt, ap);
     va_end(ap);
-    fmi2_log(s, fmi2Error, "logStatusError", "%s", msg);
-    return fmi2_fail(s);
-}
-
-fmi2Status fmi2_enter(fmi2Component c, const char *function, unsigned phases, int to) {
-    Fmi2Instance *s = c;
-    if (!fmi2_allowed(s, function, phases)) return fmi2Error;
-    s->phase = to;
-    return fmi2OK;
-}
-
-fmi2Status fmi2_unsupported(fmi2Component c, const char *function) {
-    Fmi2Instance *s = c;
-    if (s) fmi2_log(s, fmi2Error, "logStatusError", "%s is not supported by this FMU", function);
-    return fmi2Error;
 }
 
 /* Back to the start values, as after instantiation. */
@@ -90,10 +75,7 @@ const char *fmi2GetVersion(void) { return fmi2Version; }
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String cats[]) {
     (void)n;
     (void)cats;
-    Fmi2Instance *s = c;
-    if (!s) return fmi2Error;
-    s->logging_on = on;
-    return fmi2OK;
+    return (fmi2Status)fmi_set_debug_logging(fmi2_core(c), on);
 }
 
 fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String resources,
@@ -119,6 +101,8 @@ Fmi2Instance *fmi2_instantiate(fmi2String name, fmi2Type type, fmi2String guid,
     Fmi2Instance *s = calloc(1, sizeof *s);
     if (!s) return NULL;
     s->model = *model;
+    s->calls = &CALLS;
+    s->co_simulation = model->co_simulation;
     s->cb = cb;
     s->logging_on = logging_on;
     s->instance_name = fmi_copy_text(name);
@@ -165,32 +149,15 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tol_defined, fmi2Rea
 }
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
-    Fmi2Instance *s = c;
-    if (!fmi2_allowed(s, "fmi2EnterInitializationMode", BIT(INSTANTIATED))) return fmi2Error;
-    s->phase = INITIALIZATION;
-    s->stale = 1;
-    if (s->model.enter_initialization && s->model.enter_initialization(s) != 0) return fmi2_fail(s);
-    return fmi2OK;
+    FmiCore *core = fmi2_core(c);
+    return (fmi2Status)fmi_enter_initialization(core, "fmi2EnterInitializationMode", core ? core->time : 0.0);
 }
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
-    Fmi2Instance *s = c;
-    if (!fmi2_allowed(s, "fmi2ExitInitializationMode", BIT(INITIALIZATION))) return fmi2Error;
-    s->stale = 1; /* model exchange: the initial states are final now, compute them one last time */
-    if (!fmi2_refresh(s)) return fmi2_fail(s);
-    if (s->model.exit_initialization && s->model.exit_initialization(s) != 0) return fmi2_fail(s);
-    s->phase = s->model.co_simulation ? STEP_MODE : EVENT_MODE;
-    return fmi2OK;
+    return (fmi2Status)fmi_exit_initialization(fmi2_core(c), "fmi2ExitInitializationMode");
 }
 
-fmi2Status fmi2Terminate(fmi2Component c) {
-    Fmi2Instance *s = c;
-    if (!fmi2_allowed(s, "fmi2Terminate", BIT(STEP_MODE) | BIT(EVENT_MODE) | BIT(CONTINUOUS_TIME_MODE)))
-        return fmi2Error;
-    if (!fmi2_refresh(s)) return fmi2_fail(s);
-    s->phase = TERMINATED;
-    return fmi2OK;
-}
+fmi2Status fmi2Terminate(fmi2Component c) { return (fmi2Status)fmi_terminate(fmi2_core(c), "fmi2Terminate"); }
 
 fmi2Status fmi2Reset(fmi2Component c) {
     Fmi2Instance *s = c;

@@ -6,7 +6,9 @@
  * fmi2_common.c implements once every fmi2* function whose meaning does not
  * depend on the interface: logging, value access by type, the life cycle up
  * to termination and reset, and the optional capabilities the descriptions
- * declare absent.  Real,
+ * declare absent.  What does not depend on the FMI version either (the guard,
+ * logging, the life cycle's phases, steps) is fmi_common.c's, on the core the
+ * instance starts with; the fmi2* functions wrap it in FMI 2.0's types.  Real,
  * Integer, Boolean and String variables each use value references 0..n-1
  * (FMI 2.0 scopes a value reference to its type), in the order of the model's
  * default arrays; modelDescription.xml lists the same order.  An enumeration
@@ -17,6 +19,7 @@
 
 #include <stddef.h>
 #include "fmi2Functions.h"
+#include "fmi_common.h"
 
 typedef struct Fmi2Instance Fmi2Instance;
 
@@ -40,19 +43,18 @@ typedef struct {
 } Fmi2Model;
 
 struct Fmi2Instance {
+    FMI_CORE; /* name, phase, time, ... (fmi_common.h): s->time, and &s->core for its calls */
     Fmi2Model model;
     const fmi2CallbackFunctions *cb;
-    char *instance_name;
-    int logging_on;
-    int phase;                          /* see fmi_common.h */
-    int stale;                          /* model exchange: the equations must run before values are read */
-    double time;
     double *r;                          /* real variables */
     char **str;                         /* string variables (owned copies) */
     fmi2Integer *i;                     /* integer variables */
     fmi2Boolean *b;                     /* boolean variables, always fmi2False or fmi2True */
     void *state;                        /* model-private, state_size bytes, zeroed on reset */
 };
+
+/* The core of an instance, which fmi_common.h's calls take; NULL for none. */
+static inline FmiCore *fmi2_core(fmi2Component c) { return c ? &((Fmi2Instance *)c)->core : NULL; }
 
 /* Reports through the importer's logger; printf-style.  slave_log and me_log name it too. */
 void fmi2_log(Fmi2Instance *s, fmi2Status status, const char *category, const char *fmt, ...)
@@ -66,28 +68,17 @@ Fmi2Instance *fmi2_instantiate(fmi2String name, fmi2Type type, fmi2String guid,
                                const fmi2CallbackFunctions *cb, fmi2Boolean logging_on,
                                const char *model_guid, const Fmi2Model *model);
 
-/* Guards a call: 1 if the instance's phase is one of `phases` (bits of
- * fmi_common.h's phases); else 0, after logging and failing the instance. */
-int fmi2_allowed(Fmi2Instance *s, const char *function, unsigned phases);
-
-/* Marks the instance failed: its use ends until a reset. */
-fmi2Status fmi2_fail(Fmi2Instance *s);
-
-/* Logs an error (printf-style) and fails the instance, for a call that must not go on (a refused step). */
-fmi2Status fmi2_error(Fmi2Instance *s, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-
-/* A call that only changes the phase: to `to` if the instance's phase is one of `phases`
- * (fmi2_allowed's guard). */
-fmi2Status fmi2_enter(fmi2Component c, const char *function, unsigned phases, int to);
-
-/* An error for a function the FMU does not implement, logged. */
-fmi2Status fmi2_unsupported(fmi2Component c, const char *function);
+/* fmi_common.h's guard and failures, on an FMI 2.0 instance. */
+#define fmi2_allowed(s, function, phases) fmi_allowed(fmi2_core(s), function, phases)
+#define fmi2_fail(s) ((fmi2Status)fmi_fail(fmi2_core(s)))
 
 /* Defines an fmi2* function the FMU does not have, with the standard's
  * signature (fmi2Functions.h checks it): it logs and returns fmi2Error. */
-#define FMI2_UNSUPPORTED(function, ...)                                                           \
-    _Pragma("GCC diagnostic push") _Pragma("GCC diagnostic ignored \"-Wunused-parameter\"")     \
-    fmi2Status function(fmi2Component c, __VA_ARGS__) { return fmi2_unsupported(c, #function); } \
+#define FMI2_UNSUPPORTED(function, ...)                                                            \
+    _Pragma("GCC diagnostic push") _Pragma("GCC diagnostic ignored \"-Wunused-parameter\"")      \
+    fmi2Status function(fmi2Component c, __VA_ARGS__) {                                                  \
+        return (fmi2Status)fmi_unsupported(fmi2_core(c), #function);                         \
+    }                                                                                           \
     _Pragma("GCC diagnostic pop")
 
 /* Each interface file defines these two. */

@@ -22,52 +22,35 @@ static const char *const TYPE_NAMES[V3_N_TYPES] = {
     "Float64", "Float32", "Int8",    "UInt8",  "Int16",  "UInt16", "Int32",
     "UInt32",  "Int64",   "UInt64",  "Boolean", "String", "Float64 (time)"};
 
+/* Unlike FMI 2.0, FMI 3.0's message is plain text: no '%' escaping. */
+static void emit(FmiCore *c, int status, const char *category, const char *message) {
+    Fmi3Instance *s = (Fmi3Instance *)c;
+    if (s->logger) s->logger(s->environment, (fmi3Status)status, category, message);
+}
+
+static int refresh(FmiCore *c) { return fmi3_refresh((Fmi3Instance *)c); }
+
+static int enter_initialization(FmiCore *c) {
+    Fmi3Instance *s = (Fmi3Instance *)c;
+    return s->model.enter_initialization ? s->model.enter_initialization(s) : 0;
+}
+
+static int exit_initialization(FmiCore *c) {
+    Fmi3Instance *s = (Fmi3Instance *)c;
+    return s->model.exit_initialization ? s->model.exit_initialization(s) : 0;
+}
+
+static const FmiCalls CALLS = {emit, refresh, enter_initialization, exit_initialization};
+
+_Static_assert((int)fmi3OK == FMI_OK && (int)fmi3Warning == FMI_WARNING && (int)fmi3Discard == FMI_DISCARD &&
+                   (int)fmi3Error == FMI_ERROR && (int)fmi3Fatal == FMI_FATAL,
+               "fmi_common.h numbers the statuses as FMI 3.0 does");
+
 void fmi3_log(Fmi3Instance *s, fmi3Status status, const char *category, const char *fmt, ...) {
-    if (!s->logger) return;
-    if (status == fmi3OK && !s->logging_on) return;
-    /* Unlike FMI 2.0, FMI 3.0's message is plain text: no '%' escaping. */
-    char msg[1024];
     va_list ap;
     va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
+    fmi_vlog(&s->core, status, category, fmt, ap);
     va_end(ap);
-    s->logger(s->environment, status, category, msg);
-}
-
-int fmi3_allowed(Fmi3Instance *s, const char *function, unsigned phases) {
-    if (!s) return 0;
-    if (phases & BIT(s->phase)) return 1;
-    fmi3_log(s, fmi3Error, "logStatusError", "%s is not allowed in %s", function, fmi_phase_names[s->phase]);
-    s->phase = FAILED;
-    return 0;
-}
-
-fmi3Status fmi3_fail(Fmi3Instance *s) {
-    s->phase = FAILED;
-    return fmi3Error;
-}
-
-fmi3Status fmi3_error(Fmi3Instance *s, const char *fmt, ...) {
-    char msg[1024];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
-    fmi3_log(s, fmi3Error, "logStatusError", "%s", msg);
-    return fmi3_fail(s);
-}
-
-fmi3Status fmi3_enter(fmi3Instance c, const char *function, unsigned phases, int to) {
-    Fmi3Instance *s = c;
-    if (!fmi3_allowed(s, function, phases)) return fmi3Error;
-    s->phase = to;
-    return fmi3OK;
-}
-
-fmi3Status fmi3_unsupported(fmi3Instance c, const char *function) {
-    Fmi3Instance *s = c;
-    if (s) fmi3_log(s, fmi3Error, "logStatusError", "%s is not supported by this FMU", function);
-    return fmi3Error;
 }
 
 /* Back to the start values, as after instantiation; 1 if out of memory. */
@@ -183,10 +166,7 @@ const char *fmi3GetVersion(void) { return fmi3Version; }
 fmi3Status fmi3SetDebugLogging(fmi3Instance c, fmi3Boolean on, size_t n, const fmi3String cats[]) {
     (void)n;
     (void)cats;
-    Fmi3Instance *s = c;
-    if (!s) return fmi3Error;
-    s->logging_on = on;
-    return fmi3OK;
+    return (fmi3Status)fmi_set_debug_logging(fmi3_core(c), on);
 }
 
 void fmi3FreeInstance(fmi3Instance c) {
@@ -243,6 +223,8 @@ Fmi3Instance *fmi3_instantiate(fmi3String name, fmi3String token, const char *mo
     Fmi3Instance *s = calloc(1, sizeof *s);
     if (!s) return NULL;
     s->model = *model;
+    s->calls = &CALLS;
+    s->co_simulation = model->co_simulation;
     s->environment = environment;
     s->logger = logger;
     s->logging_on = logging_on;
@@ -266,40 +248,20 @@ Fmi3Instance *fmi3_instantiate(fmi3String name, fmi3String token, const char *mo
 }
 
 fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean tol_defined, fmi3Float64 tol,
-                                       fmi3Float64 start, fmi3Boolean stop_defined,
-                                       fmi3Float64 stop) {
+                                       fmi3Float64 start, fmi3Boolean stop_defined, fmi3Float64 stop) {
     (void)tol_defined;
     (void)tol;
     (void)stop_defined;
     (void)stop;
-    Fmi3Instance *s = c;
-    if (!fmi3_allowed(s, "fmi3EnterInitializationMode", BIT(INSTANTIATED))) return fmi3Error;
-    s->time = start;
-    s->phase = INITIALIZATION;
-    s->stale = 1;
-    if (s->model.enter_initialization && s->model.enter_initialization(s) != 0) return fmi3_fail(s);
-    return fmi3OK;
+    return (fmi3Status)fmi_enter_initialization(fmi3_core(c), "fmi3EnterInitializationMode", start);
 }
 
 /* Co-simulation without event mode goes straight to step mode; model exchange starts in event mode. */
 fmi3Status fmi3ExitInitializationMode(fmi3Instance c) {
-    Fmi3Instance *s = c;
-    if (!fmi3_allowed(s, "fmi3ExitInitializationMode", BIT(INITIALIZATION))) return fmi3Error;
-    s->stale = 1; /* model exchange: the initial states are final now, compute them one last time */
-    if (!fmi3_refresh(s)) return fmi3_fail(s);
-    if (s->model.exit_initialization && s->model.exit_initialization(s) != 0) return fmi3_fail(s);
-    s->phase = s->model.co_simulation ? STEP_MODE : EVENT_MODE;
-    return fmi3OK;
+    return (fmi3Status)fmi_exit_initialization(fmi3_core(c), "fmi3ExitInitializationMode");
 }
 
-fmi3Status fmi3Terminate(fmi3Instance c) {
-    Fmi3Instance *s = c;
-    if (!fmi3_allowed(s, "fmi3Terminate", BIT(STEP_MODE) | BIT(EVENT_MODE) | BIT(CONTINUOUS_TIME_MODE)))
-        return fmi3Error;
-    if (!fmi3_refresh(s)) return fmi3_fail(s);
-    s->phase = TERMINATED;
-    return fmi3OK;
-}
+fmi3Status fmi3Terminate(fmi3Instance c) { return (fmi3Status)fmi_terminate(fmi3_core(c), "fmi3Terminate"); }
 
 fmi3Status fmi3Reset(fmi3Instance c) {
     Fmi3Instance *s = c;
@@ -412,13 +374,13 @@ fmi3Instance fmi3InstantiateScheduledExecution(
 }
 
 fmi3Status fmi3EnterConfigurationMode(fmi3Instance c) {
-    return fmi3_unsupported(c, "fmi3EnterConfigurationMode");
+    return (fmi3Status)fmi_unsupported(fmi3_core(c), "fmi3EnterConfigurationMode");
 }
 fmi3Status fmi3ExitConfigurationMode(fmi3Instance c) {
-    return fmi3_unsupported(c, "fmi3ExitConfigurationMode");
+    return (fmi3Status)fmi_unsupported(fmi3_core(c), "fmi3ExitConfigurationMode");
 }
 fmi3Status fmi3EvaluateDiscreteStates(fmi3Instance c) {
-    return fmi3_unsupported(c, "fmi3EvaluateDiscreteStates");
+    return (fmi3Status)fmi_unsupported(fmi3_core(c), "fmi3EvaluateDiscreteStates");
 }
 
 FMI3_UNSUPPORTED(fmi3GetBinary, const fmi3ValueReference vr[], size_t n_vrs, size_t sizes[],

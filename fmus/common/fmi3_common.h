@@ -8,7 +8,9 @@
  * up to termination and reset, and everything neither layer has (arrays, Binary and Clock variables,
  * scheduled execution, configuration mode, FMU state, derivatives), which
  * returns fmi3Error with a log message; FMPy binds every fmi3* function at
- * load, so all must exist.
+ * load, so all must exist.  What does not depend on the FMI version either
+ * (the guard, logging, the life cycle's phases, steps) is fmi_common.c's, on
+ * the core the instance starts with; the fmi3* functions wrap it.
  *
  * FMI 3.0 value references are unique across all types (unlike FMI 2.0), so
  * a model is one table: for each variable its value reference, its type and
@@ -22,6 +24,7 @@
 
 #include <stddef.h>
 #include "fmi3Functions.h"
+#include "fmi_common.h"
 
 typedef struct Fmi3Instance Fmi3Instance;
 
@@ -64,14 +67,10 @@ typedef struct {
 } Fmi3Model;
 
 struct Fmi3Instance {
+    FMI_CORE; /* name, phase, time, ... (fmi_common.h): s->time, and &s->core for its calls */
     Fmi3Model model;
     fmi3InstanceEnvironment environment;
     fmi3LogMessageCallback logger;
-    char *instance_name;
-    int logging_on;
-    int phase;                          /* see fmi_common.h */
-    int stale;                          /* model exchange: the equations must run before values are read */
-    double time;
     /* One array per type, indexed by Variable3.index. */
     union {
         fmi3Float64 *f64;
@@ -94,6 +93,9 @@ struct Fmi3Instance {
     void *state;                        /* model-private, state_size bytes, zeroed on reset */
 };
 
+/* The core of an instance, which fmi_common.h's calls take; NULL for none. */
+static inline FmiCore *fmi3_core(fmi3Instance c) { return c ? &((Fmi3Instance *)c)->core : NULL; }
+
 /* Reports through the importer's logger; printf-style.  slave3_log and me3_log name it too. */
 void fmi3_log(Fmi3Instance *s, fmi3Status status, const char *category, const char *fmt, ...)
     __attribute__((format(printf, 4, 5)));
@@ -109,28 +111,17 @@ Fmi3Instance *fmi3_instantiate(fmi3String name, fmi3String token, const char *mo
                                fmi3InstanceEnvironment environment, fmi3LogMessageCallback logger,
                                const Fmi3Model *model);
 
-/* Guards a call: 1 if the instance's phase is one of `phases` (bits of
- * fmi_common.h's phases); else 0, after logging and failing the instance. */
-int fmi3_allowed(Fmi3Instance *s, const char *function, unsigned phases);
-
-/* Marks the instance failed: its use ends until a reset. */
-fmi3Status fmi3_fail(Fmi3Instance *s);
-
-/* Logs an error (printf-style) and fails the instance, for a call that must not go on (a refused step). */
-fmi3Status fmi3_error(Fmi3Instance *s, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-
-/* A call that only changes the phase: to `to` if the instance's phase is one of `phases`
- * (fmi3_allowed's guard). */
-fmi3Status fmi3_enter(fmi3Instance c, const char *function, unsigned phases, int to);
-
-/* An error for a function the FMU does not implement, logged. */
-fmi3Status fmi3_unsupported(fmi3Instance c, const char *function);
+/* fmi_common.h's guard and failures, on an FMI 3.0 instance. */
+#define fmi3_allowed(s, function, phases) fmi_allowed(fmi3_core(s), function, phases)
+#define fmi3_fail(s) ((fmi3Status)fmi_fail(fmi3_core(s)))
 
 /* Defines an fmi3* function the FMU does not have, with the standard's
  * signature (fmi3Functions.h checks it): it logs and returns fmi3Error. */
-#define FMI3_UNSUPPORTED(function, ...)                                                           \
-    _Pragma("GCC diagnostic push") _Pragma("GCC diagnostic ignored \"-Wunused-parameter\"")     \
-    fmi3Status function(fmi3Instance c, __VA_ARGS__) { return fmi3_unsupported(c, #function); } \
+#define FMI3_UNSUPPORTED(function, ...)                                                            \
+    _Pragma("GCC diagnostic push") _Pragma("GCC diagnostic ignored \"-Wunused-parameter\"")      \
+    fmi3Status function(fmi3Instance c, __VA_ARGS__) {                                                  \
+        return (fmi3Status)fmi_unsupported(fmi3_core(c), #function);                         \
+    }                                                                                           \
     _Pragma("GCC diagnostic pop")
 
 /* Each interface file defines these two. */

@@ -19,24 +19,10 @@
 #include "fmi_common.h"
 #include "me3.h"
 
-static void name_of(fmi3ValueReference vr, char *out, size_t size) {
-    if (ME3_MODEL.real_names)
-        snprintf(out, size, "%s", ME3_MODEL.real_names[vr]);
-    else
-        snprintf(out, size, "value reference %u", vr);
-}
-
-/* A non-finite derivative would only make the solver fail later and obscurely. */
-static int derivatives_finite(Me3Instance *m) {
-    for (size_t i = 0; i < ME3_MODEL.n_states; i++) {
-        fmi3ValueReference vr = ME3_MODEL.derivatives[i];
-        if (isfinite(m->r[vr])) continue;
-        char name[128];
-        name_of(vr, name, sizeof name);
-        me3_log(m, fmi3Error, "logStatusError", "%s is %g at t=%.9g", name, m->r[vr], m->time);
-        return 0;
-    }
-    return 1;
+/* The model's states, as fmi_common.h's model-exchange calls take them. */
+static FmiStates states(void) {
+    return (FmiStates){ME3_MODEL.n_states, ME3_MODEL.states, ME3_MODEL.derivatives, ME3_MODEL.nominals,
+                       ME3_MODEL.real_names};
 }
 
 /* Brings every computed value up to date with time, states and inputs. */
@@ -45,17 +31,9 @@ int fmi3_refresh(Me3Instance *m) {
     m->r[ME3_MODEL.time_vr] = m->time;
     if (m->phase == INITIALIZATION && ME3_MODEL.initial && ME3_MODEL.initial(m) != 0) return 0;
     if (ME3_MODEL.equations && ME3_MODEL.equations(m) != 0) return 0;
-    if (!derivatives_finite(m)) return 0;
+    if (!fmi_derivatives_finite(&m->core, m->r, states())) return 0;
     m->stale = 0;
     return 1;
-}
-
-/* The array length an importer passes must match the model's. */
-static int check_length(Me3Instance *m, const char *function, size_t given, size_t expected) {
-    if (given == expected) return 1;
-    me3_log(m, fmi3Error, "logStatusError", "%s: %zu values given, the model has %zu", function,
-            given, expected);
-    return 0;
 }
 
 /* The table fmi3_common.c works from: value reference = index, all Float64.
@@ -90,11 +68,13 @@ Fmi3Instance *fmi3_create(int co_simulation, fmi3String name, fmi3String token, 
 /* ---- event mode and continuous-time mode ------------------------------- */
 
 fmi3Status fmi3EnterEventMode(fmi3Instance c) {
-    return fmi3_enter(c, "fmi3EnterEventMode", BIT(EVENT_MODE) | BIT(CONTINUOUS_TIME_MODE), EVENT_MODE);
+    unsigned from = BIT(EVENT_MODE) | BIT(CONTINUOUS_TIME_MODE);
+    return (fmi3Status)fmi_enter(fmi3_core(c), "fmi3EnterEventMode", from, EVENT_MODE);
 }
 
 fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance c) {
-    return fmi3_enter(c, "fmi3EnterContinuousTimeMode", BIT(EVENT_MODE), CONTINUOUS_TIME_MODE);
+    return (fmi3Status)fmi_enter(fmi3_core(c), "fmi3EnterContinuousTimeMode", BIT(EVENT_MODE),
+                                 CONTINUOUS_TIME_MODE);
 }
 
 fmi3Status fmi3CompletedIntegratorStep(fmi3Instance c, fmi3Boolean no_set_prior,
@@ -108,47 +88,30 @@ fmi3Status fmi3CompletedIntegratorStep(fmi3Instance c, fmi3Boolean no_set_prior,
 }
 
 fmi3Status fmi3SetTime(fmi3Instance c, fmi3Float64 time) {
-    Me3Instance *m = c;
-    if (!fmi3_allowed(m, "fmi3SetTime", BIT(EVENT_MODE) | BIT(CONTINUOUS_TIME_MODE))) return fmi3Error;
-    m->time = time;
-    m->stale = 1;
-    return fmi3OK;
+    return (fmi3Status)fmi_set_time(fmi3_core(c), "fmi3SetTime", time);
 }
 
 fmi3Status fmi3SetContinuousStates(fmi3Instance c, const fmi3Float64 x[], size_t nx) {
     Me3Instance *m = c;
-    if (!fmi3_allowed(m, "fmi3SetContinuousStates", BIT(CONTINUOUS_TIME_MODE))) return fmi3Error;
-    if (!check_length(m, "fmi3SetContinuousStates", nx, ME3_MODEL.n_states)) return fmi3_fail(m);
-    for (size_t i = 0; i < nx; i++) m->r[ME3_MODEL.states[i]] = x[i];
-    m->stale = 1;
-    return fmi3OK;
-}
-
-/* Reads the model's variables at refs (its states or their derivatives) into x, up to date. */
-static fmi3Status read_at(Me3Instance *m, const char *function, fmi3Float64 x[], size_t nx,
-                          const fmi3ValueReference refs[]) {
-    if (!fmi3_allowed(m, function, READABLE)) return fmi3Error;
-    if (!check_length(m, function, nx, ME3_MODEL.n_states)) return fmi3_fail(m);
-    if (!fmi3_refresh(m)) return fmi3_fail(m);
-    for (size_t i = 0; i < nx; i++) x[i] = m->r[refs[i]];
-    return fmi3OK;
+    return (fmi3Status)fmi_set_states(fmi3_core(c), "fmi3SetContinuousStates", m ? m->r : NULL, states(), x,
+                                      nx);
 }
 
 fmi3Status fmi3GetContinuousStates(fmi3Instance c, fmi3Float64 x[], size_t nx) {
-    return read_at(c, "fmi3GetContinuousStates", x, nx, ME3_MODEL.states);
+    Me3Instance *m = c;
+    return (fmi3Status)fmi_read_states(fmi3_core(c), "fmi3GetContinuousStates", m ? m->r : NULL, states(),
+                                       ME3_MODEL.states, x, nx);
 }
 
 fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance c, fmi3Float64 dx[], size_t nx) {
-    return read_at(c, "fmi3GetContinuousStateDerivatives", dx, nx, ME3_MODEL.derivatives);
+    Me3Instance *m = c;
+    return (fmi3Status)fmi_read_states(fmi3_core(c), "fmi3GetContinuousStateDerivatives", m ? m->r : NULL,
+                                       states(), ME3_MODEL.derivatives, dx, nx);
 }
 
 fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance c, fmi3Float64 nominals[], size_t nx) {
-    Me3Instance *m = c;
-    if (!fmi3_allowed(m, "fmi3GetNominalsOfContinuousStates", BIT(INSTANTIATED) | READABLE))
-        return fmi3Error;
-    if (!check_length(m, "fmi3GetNominalsOfContinuousStates", nx, ME3_MODEL.n_states)) return fmi3_fail(m);
-    for (size_t i = 0; i < nx; i++) nominals[i] = ME3_MODEL.nominals ? ME3_MODEL.nominals[i] : 1.0;
-    return fmi3OK;
+    return (fmi3Status)fmi_nominals(fmi3_core(c), "fmi3GetNominalsOfContinuousStates", states(), nominals,
+                                    nx);
 }
 
 fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean *update, fmi3Boolean *terminate,
@@ -170,7 +133,7 @@ fmi3Status fmi3GetEventIndicators(fmi3Instance c, fmi3Float64 z[], size_t n) {
     (void)z;
     Me3Instance *m = c;
     if (!fmi3_allowed(m, "fmi3GetEventIndicators", READABLE)) return fmi3Error;
-    if (!check_length(m, "fmi3GetEventIndicators", n, 0)) return fmi3_fail(m);
+    if (!fmi_check_length(&m->core, "fmi3GetEventIndicators", n, 0)) return fmi3_fail(m);
     return fmi3OK;
 }
 
@@ -190,7 +153,9 @@ fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance c, size_t *n) {
 
 /* ---- what model exchange does not have --------------------------------- */
 
-fmi3Status fmi3EnterStepMode(fmi3Instance c) { return fmi3_unsupported(c, "fmi3EnterStepMode"); }
+fmi3Status fmi3EnterStepMode(fmi3Instance c) {
+    return (fmi3Status)fmi_unsupported(fmi3_core(c), "fmi3EnterStepMode");
+}
 
 FMI3_UNSUPPORTED(fmi3DoStep, fmi3Float64 t, fmi3Float64 h, fmi3Boolean no_set_prior,
                  fmi3Boolean *event_handling_needed, fmi3Boolean *terminate_simulation,

@@ -33,15 +33,11 @@ Fmi2Instance *fmi2_create(fmi2String name, fmi2Type type, fmi2String guid, const
 
 /* ---- steps ----------------------------------------------------------- */
 
+static int step(FmiCore *c, double t, double h) { return MODEL.do_step((Slave *)c, t, h); }
+
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_set_prior) {
     (void)no_set_prior;
-    Slave *s = c;
-    if (!fmi2_allowed(s, "fmi2DoStep", BIT(STEP_MODE))) return fmi2Error;
-    char why[256];
-    if (fmi_step_refused(why, sizeof why, "fmi2DoStep", s->time, t, h)) return fmi2_error(s, "%s", why);
-    if (MODEL.do_step(s, t, h) != 0) return fmi2_fail(s);
-    s->time = t + h;
-    return fmi2OK;
+    return (fmi2Status)fmi_do_step(fmi2_core(c), "fmi2DoStep", t, h, step);
 }
 
 fmi2Status fmi2CancelStep(fmi2Component c) {
@@ -62,7 +58,8 @@ fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind k, fmi2Status *v)
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind k, fmi2Real *v) {
     Slave *s = c;
     if (!s) return fmi2Error;
-    if (k != fmi2LastSuccessfulTime) return fmi2_unsupported(c, "fmi2GetRealStatus for this kind");
+    if (k != fmi2LastSuccessfulTime)
+        return (fmi2Status)fmi_unsupported(fmi2_core(c), "fmi2GetRealStatus for this kind");
     *v = s->time;
     return fmi2OK;
 }

@@ -36,6 +36,8 @@ Fmi3Instance *fmi3_create(int co_simulation, fmi3String name, fmi3String token, 
 
 /* ---- steps ----------------------------------------------------------- */
 
+static int step(FmiCore *c, double t, double h) { return MODEL.do_step((Slave3 *)c, t, h); }
+
 fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean no_set_prior,
                       fmi3Boolean *event_handling_needed, fmi3Boolean *terminate_simulation,
                       fmi3Boolean *early_return, fmi3Float64 *last_successful_time) {
@@ -46,21 +48,21 @@ fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean 
     if (event_handling_needed) *event_handling_needed = fmi3False;
     if (terminate_simulation) *terminate_simulation = fmi3False;
     if (early_return) *early_return = fmi3False;
+    fmi3Status status = (fmi3Status)fmi_do_step(&s->core, "fmi3DoStep", t, h, step);
     if (last_successful_time) *last_successful_time = s->time;
-    char why[256];
-    if (fmi_step_refused(why, sizeof why, "fmi3DoStep", s->time, t, h)) return fmi3_error(s, "%s", why);
-    if (MODEL.do_step(s, t, h) != 0) return fmi3_fail(s);
-    s->time = t + h;
-    if (last_successful_time) *last_successful_time = s->time;
-    return fmi3OK;
+    return status;
 }
 
 /* ---- what co-simulation without event mode does not have --------------- */
 
-fmi3Status fmi3EnterEventMode(fmi3Instance c) { return fmi3_unsupported(c, "fmi3EnterEventMode"); }
-fmi3Status fmi3EnterStepMode(fmi3Instance c) { return fmi3_unsupported(c, "fmi3EnterStepMode"); }
+fmi3Status fmi3EnterEventMode(fmi3Instance c) {
+    return (fmi3Status)fmi_unsupported(fmi3_core(c), "fmi3EnterEventMode");
+}
+fmi3Status fmi3EnterStepMode(fmi3Instance c) {
+    return (fmi3Status)fmi_unsupported(fmi3_core(c), "fmi3EnterStepMode");
+}
 fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance c) {
-    return fmi3_unsupported(c, "fmi3EnterContinuousTimeMode");
+    return (fmi3Status)fmi_unsupported(fmi3_core(c), "fmi3EnterContinuousTimeMode");
 }
 
 FMI3_UNSUPPORTED(fmi3UpdateDiscreteStates, fmi3Boolean *update, fmi3Boolean *terminate,
