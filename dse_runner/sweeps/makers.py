@@ -41,6 +41,89 @@ GROUP = "dse_runner.clusters"
 QUEUE_WAIT = 30 * 60.0  # seconds a started cluster's first job or pod may wait in the queue
 
 
+# ---- the spec's cluster block -------------------------------------------------------------------
+
+
+class Tls(BaseModel):
+    """Certificates for a TLS scheduler (distributed's Security); paths relative to the spec."""
+
+    model_config = Strict
+    ca_file: str  # the authority that signed the scheduler's and workers' certificates
+    cert: str  # this client's certificate
+    key: str  # its private key
+
+
+class Cluster(BaseModel):
+    """Where tasks run: ``address`` of an existing scheduler, or a cluster of ``kind`` started for the sweep.
+    Keys besides these are cluster kinds' own blocks, each named by its kind (``htcondor: {cores: 4}``)
+    and validated by that kind's maker (makers.py)."""
+
+    model_config = Extensible
+    kind: str = "local"  # local, slurm, htcondor, kubernetes, or a plug-in's (see makers.py)
+    address: str | None = None  # tcp://host:8786 or tls://host:8786: use this scheduler, start nothing
+    n_workers: PositiveInt | None = None  # workers to start; local default: the number of cores
+    min_workers: NonNegativeInt | None = None  # with max_workers: Dask's adaptive scaling between the two,
+    max_workers: PositiveInt | None = None  # workers (jobs) started as tasks wait and given back when idle
+    threads_per_worker: PositiveInt = 1
+    tls: Tls | None = None
+    dashboard_address: str = "127.0.0.1:0"  # of a scheduler we start; loopback unless asked otherwise
+    connect_timeout: PositiveFloat = 30.0  # seconds to reach a scheduler, or get it back after a restart; a
+    # sweep whose local or addressed cluster has had no worker for twice this stops (cluster.worker_grace)
+
+    @model_validator(mode="after")
+    def _address_or_kind(self) -> Cluster:
+        if self.address is not None and self.kind != "local":
+            raise ValueError(
+                f"give either 'address' (an existing scheduler) or 'kind: {self.kind}', not both"
+            )
+        if self.address is not None and not self.address.startswith(
+            ("tcp://", "tls://", "ucx://", "inproc://")
+        ):
+            raise ValueError(f"address {self.address!r} needs a protocol: tcp://host:port or tls://host:port")
+        return self
+
+    @model_validator(mode="after")
+    def _fixed_or_adaptive(self) -> Cluster:
+        """A fixed ``n_workers``, or ``min_workers`` to ``max_workers`` for Dask's adapt: not both."""
+        if self.min_workers is not None and self.max_workers is None:
+            raise ValueError("min_workers needs max_workers (adaptive scaling between the two)")
+        if self.max_workers is None:
+            return self
+        if self.n_workers is not None:
+            raise ValueError(
+                "give either n_workers (a fixed count) or min_workers/max_workers (adaptive), not both"
+            )
+        if self.address is not None:
+            raise ValueError(
+                "min_workers/max_workers scale a cluster dse-runner starts, not one at 'address'"
+            )
+        if (self.min_workers or 0) > self.max_workers:
+            raise ValueError(
+                f"min_workers ({self.min_workers}) is more than max_workers ({self.max_workers})"
+            )
+        return self
+
+    @model_validator(mode="after")
+    def _kind_blocks(self) -> Cluster:
+        """Every block, and the chosen kind's even when absent (its required options), if installed here."""
+        blocks = dict(self.model_extra or {})
+        if self.address is None:
+            blocks.setdefault(self.kind, None)
+        for key, block in blocks.items():
+            try:
+                check_block(key, block, self.kind)
+            except DseError as e:
+                raise ValueError(str(e)) from None
+        return self
+
+    def block(self, kind: str) -> Any:
+        """The block ``cluster.<kind>`` as written; None if the spec has none (the maker's defaults)."""
+        return (self.model_extra or {}).get(kind)
+
+
+# ---- the plug-in contract -----------------------------------------------------------------------
+
+
 class NoOptions(BaseModel):
     """A maker's block when it declares none: it must be empty."""
 
@@ -213,7 +296,7 @@ class Kubernetes(ClusterMaker):
         )
 
 
-# ---- finding a kind's maker: the built-in kinds are the group's entries too (pyproject.toml) -------------
+# ---- finding a kind's maker: the built-in kinds are the group's entries too (pyproject.toml) ----
 
 
 def installed() -> list[str]:
@@ -249,80 +332,3 @@ def check_block(key: str, block: Any, kind: str) -> None:
             f"kind (installed: {', '.join(installed())})"
         )
     found.options(block, key)
-
-
-class Tls(BaseModel):
-    """Certificates for a TLS scheduler (distributed's Security); paths relative to the spec."""
-
-    model_config = Strict
-    ca_file: str  # the authority that signed the scheduler's and workers' certificates
-    cert: str  # this client's certificate
-    key: str  # its private key
-
-
-class Cluster(BaseModel):
-    """Where tasks run: ``address`` of an existing scheduler, or a cluster of ``kind`` started for the sweep.
-    Keys besides these are cluster kinds' own blocks, each named by its kind (``htcondor: {cores: 4}``)
-    and validated by that kind's maker (makers.py)."""
-
-    model_config = Extensible
-    kind: str = "local"  # local, slurm, htcondor, kubernetes, or a plug-in's (see makers.py)
-    address: str | None = None  # tcp://host:8786 or tls://host:8786: use this scheduler, start nothing
-    n_workers: PositiveInt | None = None  # workers to start; local default: the number of cores
-    min_workers: NonNegativeInt | None = None  # with max_workers: Dask's adaptive scaling between the two,
-    max_workers: PositiveInt | None = None  # workers (jobs) started as tasks wait and given back when idle
-    threads_per_worker: PositiveInt = 1
-    tls: Tls | None = None
-    dashboard_address: str = "127.0.0.1:0"  # of a scheduler we start; loopback unless asked otherwise
-    connect_timeout: PositiveFloat = 30.0  # seconds to reach a scheduler, or get it back after a restart; a
-    # sweep whose local or addressed cluster has had no worker for twice this stops (cluster.worker_grace)
-
-    @model_validator(mode="after")
-    def _address_or_kind(self) -> Cluster:
-        if self.address is not None and self.kind != "local":
-            raise ValueError(
-                f"give either 'address' (an existing scheduler) or 'kind: {self.kind}', not both"
-            )
-        if self.address is not None and not self.address.startswith(
-            ("tcp://", "tls://", "ucx://", "inproc://")
-        ):
-            raise ValueError(f"address {self.address!r} needs a protocol: tcp://host:port or tls://host:port")
-        return self
-
-    @model_validator(mode="after")
-    def _fixed_or_adaptive(self) -> Cluster:
-        """A fixed ``n_workers``, or ``min_workers`` to ``max_workers`` for Dask's adapt: not both."""
-        if self.min_workers is not None and self.max_workers is None:
-            raise ValueError("min_workers needs max_workers (adaptive scaling between the two)")
-        if self.max_workers is None:
-            return self
-        if self.n_workers is not None:
-            raise ValueError(
-                "give either n_workers (a fixed count) or min_workers/max_workers (adaptive), not both"
-            )
-        if self.address is not None:
-            raise ValueError(
-                "min_workers/max_workers scale a cluster dse-runner starts, not one at 'address'"
-            )
-        if (self.min_workers or 0) > self.max_workers:
-            raise ValueError(
-                f"min_workers ({self.min_workers}) is more than max_workers ({self.max_workers})"
-            )
-        return self
-
-    @model_validator(mode="after")
-    def _kind_blocks(self) -> Cluster:
-        """Every block, and the chosen kind's even when absent (its required options), if installed here."""
-        blocks = dict(self.model_extra or {})
-        if self.address is None:
-            blocks.setdefault(self.kind, None)
-        for key, block in blocks.items():
-            try:
-                check_block(key, block, self.kind)
-            except DseError as e:
-                raise ValueError(str(e)) from None
-        return self
-
-    def block(self, kind: str) -> Any:
-        """The block ``cluster.<kind>`` as written; None if the spec has none (the maker's defaults)."""
-        return (self.model_extra or {}).get(kind)

@@ -36,6 +36,140 @@ SEPARATOR = "~u"  # <scenario>~u<k>: the k-th draw of the scenario
 Z95 = 1.959963984540054  # a ~95 % interval is mean +/- this many std (the diagnosis's intervals)
 
 
+# ---- the spec's blocks: uncertain (the distributions) and ranking.robust --------------------------------
+
+
+class Uniform(BaseModel):
+    """Every value between ``low`` and ``high`` equally likely."""
+
+    model_config = Strict
+    distribution: Literal["uniform"]
+    low: float
+    high: float
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Uniform:
+        if not self.high > self.low:
+            raise ValueError(f"'high' ({self.high:g}) must be above 'low' ({self.low:g})")
+        return self
+
+
+class Normal(BaseModel):
+    """Gaussian with ``mean`` and standard deviation ``std``."""
+
+    model_config = Strict
+    distribution: Literal["normal"]
+    mean: float
+    std: PositiveFloat
+
+
+class LogNormal(BaseModel):
+    """A value whose natural logarithm is normal: ``median`` (the value's) and ``std_log`` (the logarithm's
+    std); for a positive quantity known to a few percent, std_log is about its relative spread."""
+
+    model_config = Strict
+    distribution: Literal["lognormal"]
+    median: PositiveFloat
+    std_log: PositiveFloat
+
+
+class Triangular(BaseModel):
+    """Between ``low`` and ``high``, most likely at ``mode``."""
+
+    model_config = Strict
+    distribution: Literal["triangular"]
+    low: float
+    mode: float
+    high: float
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Triangular:
+        if not (self.low <= self.mode <= self.high and self.high > self.low):
+            raise ValueError(
+                f"needs low <= mode <= high and low < high (got {self.low:g}, {self.mode:g}, {self.high:g})"
+            )
+        return self
+
+
+class FromDiagnosis(BaseModel):
+    """A diagnosis's fitted value and ~95 % interval (``dse-runner diagnose --json``'s file), read as a
+    normal whose mean is the fitted value and whose 1.96 sigma is the interval's half-width. ``effect``:
+    the id of one of its ``effects`` (default: its ``fitted`` calibration, by the parameter's own name);
+    ``parameter``: the name within that effect, when it has several."""
+
+    model_config = Strict
+    from_diagnosis: str  # relative to the spec
+    effect: str | None = None
+    parameter: str | None = None
+
+
+DISTRIBUTIONS = {"uniform": Uniform, "normal": Normal, "lognormal": LogNormal, "triangular": Triangular}
+
+
+def _distribution_kind(value: Any) -> str | None:
+    if isinstance(value, FromDiagnosis) or (isinstance(value, dict) and "from_diagnosis" in value):
+        return "diagnosis"
+    kind = value.get("distribution") if isinstance(value, dict) else getattr(value, "distribution", None)
+    return kind if kind in DISTRIBUTIONS else None
+
+
+# One of the distributions, by its ``distribution`` key, or {from_diagnosis: ...}:
+# a wrong one gives one message.
+UncertainValue = Annotated[
+    Annotated[Uniform, Tag("uniform")]
+    | Annotated[Normal, Tag("normal")]
+    | Annotated[LogNormal, Tag("lognormal")]
+    | Annotated[Triangular, Tag("triangular")]
+    | Annotated[FromDiagnosis, Tag("diagnosis")],
+    Discriminator(
+        _distribution_kind,
+        custom_error_type="distribution",
+        custom_error_message="expected {distribution: uniform | normal | lognormal | triangular, ...} "
+        "or {from_diagnosis: FILE, effect: ...}",
+    ),
+]
+
+
+class Uncertain(BaseModel):
+    """Parameters known only as distributions: every design point runs on ``samples`` draws of them, each draw
+    a copy of every scenario (sweeps/uncertainty.py); objectives get their mean, std and quantiles."""
+
+    model_config = Strict
+    parameters: dict[str, UncertainValue] = Field(min_length=1)  # instance.variable -> distribution
+    samples: PositiveInt = 64
+    seed: int = 0
+    # sobol: scrambled Sobol' points (quasi-random, best at powers of 2; more samples keep the first ones);
+    # latin_hypercube: one draw per stratum of each parameter; random: plain pseudo-random draws
+    sampling: Literal["sobol", "latin_hypercube", "random"] = "sobol"
+    quantiles: list[Annotated[float, Field(gt=0, lt=1)]] = [0.05, 0.5, 0.95]
+
+
+class Robust(BaseModel):
+    """Rank by a pessimistic figure of the ranking objective's distribution over the uncertain samples:
+    ``sigmas: k``, the mean k standard deviations towards the worse side (mean + k std when minimising,
+    mean - k std when maximising); or ``quantile: q``, its q-quantile as written (0.9 when minimising,
+    0.1 when maximising is the worse tenth)."""
+
+    model_config = Strict
+    sigmas: Annotated[float, Field(ge=0)] | None = None
+    quantile: Annotated[float, Field(gt=0, lt=1)] | None = None
+
+    @model_validator(mode="after")
+    def _one(self) -> Robust:
+        if (self.sigmas is None) == (self.quantile is None):
+            raise ValueError("give exactly one of 'sigmas' (mean + k std) or 'quantile' (e.g. 0.9)")
+        return self
+
+    def label(self, goal: str) -> str:
+        """How the ranked figure is named in tables and reports."""
+        if self.quantile is not None:
+            return f"q{100 * self.quantile:g}"
+        return f"mean{'+' if goal == 'min' else '-'}{self.sigmas:g}sd"
+
+
+# ---- drawing, running and summarising the draws ---------------------------------------------------------
+
+
 def sample_name(scenario: str, k: int) -> str:
     return f"{scenario}{SEPARATOR}{k}"
 
@@ -256,131 +390,3 @@ def collapse(ok: pd.DataFrame, parameters: list[str], objectives: list[str]) -> 
     keys = [*parameters, "base", "group"]
     merged = ok.groupby(keys, dropna=False)[objectives].mean().reset_index()
     return merged.rename(columns={"base": "scenario"})
-
-
-class Uniform(BaseModel):
-    """Every value between ``low`` and ``high`` equally likely."""
-
-    model_config = Strict
-    distribution: Literal["uniform"]
-    low: float
-    high: float
-
-    @model_validator(mode="after")
-    def _ordered(self) -> Uniform:
-        if not self.high > self.low:
-            raise ValueError(f"'high' ({self.high:g}) must be above 'low' ({self.low:g})")
-        return self
-
-
-class Normal(BaseModel):
-    """Gaussian with ``mean`` and standard deviation ``std``."""
-
-    model_config = Strict
-    distribution: Literal["normal"]
-    mean: float
-    std: PositiveFloat
-
-
-class LogNormal(BaseModel):
-    """A value whose natural logarithm is normal: ``median`` (the value's) and ``std_log`` (the logarithm's
-    std); for a positive quantity known to a few percent, std_log is about its relative spread."""
-
-    model_config = Strict
-    distribution: Literal["lognormal"]
-    median: PositiveFloat
-    std_log: PositiveFloat
-
-
-class Triangular(BaseModel):
-    """Between ``low`` and ``high``, most likely at ``mode``."""
-
-    model_config = Strict
-    distribution: Literal["triangular"]
-    low: float
-    mode: float
-    high: float
-
-    @model_validator(mode="after")
-    def _ordered(self) -> Triangular:
-        if not (self.low <= self.mode <= self.high and self.high > self.low):
-            raise ValueError(
-                f"needs low <= mode <= high and low < high (got {self.low:g}, {self.mode:g}, {self.high:g})"
-            )
-        return self
-
-
-class FromDiagnosis(BaseModel):
-    """A diagnosis's fitted value and ~95 % interval (``dse-runner diagnose --json``'s file), read as a
-    normal whose mean is the fitted value and whose 1.96 sigma is the interval's half-width. ``effect``:
-    the id of one of its ``effects`` (default: its ``fitted`` calibration, by the parameter's own name);
-    ``parameter``: the name within that effect, when it has several."""
-
-    model_config = Strict
-    from_diagnosis: str  # relative to the spec
-    effect: str | None = None
-    parameter: str | None = None
-
-
-DISTRIBUTIONS = {"uniform": Uniform, "normal": Normal, "lognormal": LogNormal, "triangular": Triangular}
-
-
-def _distribution_kind(value: Any) -> str | None:
-    if isinstance(value, FromDiagnosis) or (isinstance(value, dict) and "from_diagnosis" in value):
-        return "diagnosis"
-    kind = value.get("distribution") if isinstance(value, dict) else getattr(value, "distribution", None)
-    return kind if kind in DISTRIBUTIONS else None
-
-
-# One of the distributions, by its ``distribution`` key, or {from_diagnosis: ...}:
-# a wrong one gives one message.
-UncertainValue = Annotated[
-    Annotated[Uniform, Tag("uniform")]
-    | Annotated[Normal, Tag("normal")]
-    | Annotated[LogNormal, Tag("lognormal")]
-    | Annotated[Triangular, Tag("triangular")]
-    | Annotated[FromDiagnosis, Tag("diagnosis")],
-    Discriminator(
-        _distribution_kind,
-        custom_error_type="distribution",
-        custom_error_message="expected {distribution: uniform | normal | lognormal | triangular, ...} "
-        "or {from_diagnosis: FILE, effect: ...}",
-    ),
-]
-
-
-class Uncertain(BaseModel):
-    """Parameters known only as distributions: every design point runs on ``samples`` draws of them, each draw
-    a copy of every scenario (sweeps/uncertainty.py); objectives get their mean, std and quantiles."""
-
-    model_config = Strict
-    parameters: dict[str, UncertainValue] = Field(min_length=1)  # instance.variable -> distribution
-    samples: PositiveInt = 64
-    seed: int = 0
-    # sobol: scrambled Sobol' points (quasi-random, best at powers of 2; more samples keep the first ones);
-    # latin_hypercube: one draw per stratum of each parameter; random: plain pseudo-random draws
-    sampling: Literal["sobol", "latin_hypercube", "random"] = "sobol"
-    quantiles: list[Annotated[float, Field(gt=0, lt=1)]] = [0.05, 0.5, 0.95]
-
-
-class Robust(BaseModel):
-    """Rank by a pessimistic figure of the ranking objective's distribution over the uncertain samples:
-    ``sigmas: k``, the mean k standard deviations towards the worse side (mean + k std when minimising,
-    mean - k std when maximising); or ``quantile: q``, its q-quantile as written (0.9 when minimising,
-    0.1 when maximising is the worse tenth)."""
-
-    model_config = Strict
-    sigmas: Annotated[float, Field(ge=0)] | None = None
-    quantile: Annotated[float, Field(gt=0, lt=1)] | None = None
-
-    @model_validator(mode="after")
-    def _one(self) -> Robust:
-        if (self.sigmas is None) == (self.quantile is None):
-            raise ValueError("give exactly one of 'sigmas' (mean + k std) or 'quantile' (e.g. 0.9)")
-        return self
-
-    def label(self, goal: str) -> str:
-        """How the ranked figure is named in tables and reports."""
-        if self.quantile is not None:
-            return f"q{100 * self.quantile:g}"
-        return f"mean{'+' if goal == 'min' else '-'}{self.sigmas:g}sd"

@@ -373,15 +373,9 @@ fmi3Instance fmi3InstantiateScheduledExecution(
     return NULL;
 }
 
-fmi3Status fmi3EnterConfigurationMode(fmi3Instance c) {
-    return (fmi3Status)fmi_unsupported(fmi3_core(c), "fmi3EnterConfigurationMode");
-}
-fmi3Status fmi3ExitConfigurationMode(fmi3Instance c) {
-    return (fmi3Status)fmi_unsupported(fmi3_core(c), "fmi3ExitConfigurationMode");
-}
-fmi3Status fmi3EvaluateDiscreteStates(fmi3Instance c) {
-    return (fmi3Status)fmi_unsupported(fmi3_core(c), "fmi3EvaluateDiscreteStates");
-}
+FMI3_UNSUPPORTED_CALL(fmi3EnterConfigurationMode)
+FMI3_UNSUPPORTED_CALL(fmi3ExitConfigurationMode)
+FMI3_UNSUPPORTED_CALL(fmi3EvaluateDiscreteStates)
 
 FMI3_UNSUPPORTED(fmi3GetBinary, const fmi3ValueReference vr[], size_t n_vrs, size_t sizes[],
                  fmi3Binary v[], size_t n_values)

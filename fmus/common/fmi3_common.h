@@ -124,6 +124,10 @@ Fmi3Instance *fmi3_instantiate(fmi3String name, fmi3String token, const char *mo
     }                                                                                           \
     _Pragma("GCC diagnostic pop")
 
+/* The same for an fmi3* function whose only argument is the instance. */
+#define FMI3_UNSUPPORTED_CALL(function) \
+    fmi3Status function(fmi3Instance c) { return (fmi3Status)fmi_unsupported(fmi3_core(c), #function); }
+
 /* Each interface file defines these two. */
 
 /* fmi3InstantiateCoSimulation's (co_simulation 1) or fmi3InstantiateModelExchange's

@@ -153,9 +153,7 @@ fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance c, size_t *n) {
 
 /* ---- what model exchange does not have --------------------------------- */
 
-fmi3Status fmi3EnterStepMode(fmi3Instance c) {
-    return (fmi3Status)fmi_unsupported(fmi3_core(c), "fmi3EnterStepMode");
-}
+FMI3_UNSUPPORTED_CALL(fmi3EnterStepMode)
 
 FMI3_UNSUPPORTED(fmi3DoStep, fmi3Float64 t, fmi3Float64 h, fmi3Boolean no_set_prior,
                  fmi3Boolean *event_handling_needed, fmi3Boolean *terminate_simulation,

@@ -55,15 +55,9 @@ fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean 
 
 /* ---- what co-simulation without event mode does not have --------------- */
 
-fmi3Status fmi3EnterEventMode(fmi3Instance c) {
-    return (fmi3Status)fmi_unsupported(fmi3_core(c), "fmi3EnterEventMode");
-}
-fmi3Status fmi3EnterStepMode(fmi3Instance c) {
-    return (fmi3Status)fmi_unsupported(fmi3_core(c), "fmi3EnterStepMode");
-}
-fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance c) {
-    return (fmi3Status)fmi_unsupported(fmi3_core(c), "fmi3EnterContinuousTimeMode");
-}
+FMI3_UNSUPPORTED_CALL(fmi3EnterEventMode)
+FMI3_UNSUPPORTED_CALL(fmi3EnterStepMode)
+FMI3_UNSUPPORTED_CALL(fmi3EnterContinuousTimeMode)
 
 FMI3_UNSUPPORTED(fmi3UpdateDiscreteStates, fmi3Boolean *update, fmi3Boolean *terminate,
                  fmi3Boolean *nominals, fmi3Boolean *values, fmi3Boolean *next_defined, fmi3Float64 *next)
