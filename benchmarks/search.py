@@ -460,7 +460,7 @@ def measure(
                 try:
                     space = search_space(base, work, name, seed, args.points, variant=variant)
                     run = run_search(space, client, reference, goal, args.points)
-                except Exception as e:  # noqa: BLE001 -- a strategy that breaks must not sink the others' figures
+                except Exception as e:  # noqa: BLE001  (a strategy that breaks must not sink the others' figures)
                     errors[row].append(f"seed {seed}: {type(e).__name__}: {e}")
                     say(f"{row} seed {seed}: FAILED {type(e).__name__}: {e}")
                     traceback.print_exc(file=sys.stderr)

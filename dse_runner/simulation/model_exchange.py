@@ -78,7 +78,7 @@ def _guarded_cvode() -> type:
         def _guard(self, callback, *args) -> int:
             try:
                 return callback(*args)
-            except Exception as e:  # noqa: BLE001 - handed back to the stepper
+            except Exception as e:  # noqa: BLE001  (handed back to the stepper)
                 self.failure = self.failure or e
                 return -1
 

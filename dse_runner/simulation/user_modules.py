@@ -59,7 +59,7 @@ def load(name: str, path: Path, source: bytes | None = None) -> None:
     sys.modules[name] = module
     try:
         spec.loader.exec_module(module)
-    except Exception as e:  # noqa: BLE001 - a user's module may raise anything while it is imported
+    except Exception as e:  # noqa: BLE001  (a user's module may raise anything while it is imported)
         if previous is None:
             sys.modules.pop(name, None)
         else:

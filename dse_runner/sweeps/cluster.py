@@ -289,7 +289,7 @@ class WorkerWatch:
                 workers = len(
                     self.client.scheduler_info(n_workers=1)["workers"]
                 )  # is there one? no more asked
-            except Exception:  # noqa: BLE001 - the scheduler itself went: the sweep's reconnection deals with it
+            except Exception:  # noqa: BLE001  (the scheduler itself went: the sweep's reconnection deals with it)
                 alone_since = None
                 continue
             if self._stop.is_set():
@@ -338,7 +338,7 @@ def settle(client) -> None:
         client.cancel([Future(key, client) for key in list(client.futures)])
         wait_until_ended(client)
         client.run(_closing, on_error="ignore")
-    except Exception:  # noqa: BLE001 - at worst the close is noisy: this must not hide why the sweep stopped
+    except Exception:  # noqa: BLE001  (at worst the close is noisy: this must not hide why the sweep stopped)
         return
 
 

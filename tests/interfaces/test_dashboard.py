@@ -105,7 +105,7 @@ def watched(tmp_path_factory, dask_scheduler) -> Watched:
                 client=client,
                 on_connect=lambda c: links.append(link_from_dask(c, server.url)),
             )
-        except BaseException as e:  # noqa: BLE001 - reported by the test
+        except BaseException as e:  # noqa: BLE001  (reported by the test)
             outcome["error"] = e
 
     with browser_page(seen.errors, viewport={"width": 1300, "height": 1600}) as page:

@@ -237,7 +237,7 @@ def searched(tmp_path_factory, dask_scheduler) -> Seen:
         try:
             with Client(dask_scheduler) as client:
                 outcome["report"] = submit(space, progress=pace, client=client)
-        except BaseException as e:  # noqa: BLE001 - reported by the test
+        except BaseException as e:  # noqa: BLE001  (reported by the test)
             outcome["error"] = e
 
     with browser_page(seen.errors, viewport={"width": 1300, "height": 1600}) as page:

@@ -267,7 +267,7 @@ def test_scheduler_restart_resumes_from_the_store(tmp_path, cli_cluster):
     def run() -> None:
         try:
             outcome["report"] = submit(space)
-        except BaseException as e:  # noqa: BLE001 - raised by the test below
+        except BaseException as e:  # noqa: BLE001  (raised by the test below)
             outcome["error"] = e
 
     thread = threading.Thread(target=run, daemon=True)
