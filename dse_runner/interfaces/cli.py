@@ -194,9 +194,11 @@ def describe(
         width = max((len(v.name) for v in instance.variables), default=0)
         for v in instance.variables:
             start = "" if v.start is None else v.start
+            column = "settable " if v.settable else "connected" if v.fed_by else ""
+            fed = f" (set from {v.fed_by} at every step)" if v.fed_by else ""
             typer.echo(
                 f"  {v.name:<{width}}  {v.causality:<10} {start:>10} {v.unit or '':<8} "
-                f"{'settable ' if v.settable else '         '}{v.description or ''}".rstrip()
+                f"{column:<9} {v.description or ''}{fed}".rstrip()
             )
     typer.echo(
         "set a value: --set NAME=VALUE (one .fmu: also the bare variable name); in a space: "

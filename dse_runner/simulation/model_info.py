@@ -4,7 +4,8 @@ Why: first contact with an FMU is the question "what can I set and what can I sc
 ``fmpy info`` answers it for one archive with the FMU's own names; a study needs the names a space, a
 values file and ``--set`` use (``instance.variable``, the instance named after the file), for an
 ``.fmu``, a source folder or a multi-model alike, with what the master may set (parameters, inputs,
-outputs whose start is settable) told apart from what it records.
+outputs whose start is settable) told apart from what it records, and from the inputs a connection
+sets at every step, whatever a value set before would say.
 """
 
 from __future__ import annotations
@@ -28,7 +29,8 @@ class VariableInfo(BaseModel):
     start: str | None = None
     unit: str | None = None
     description: str | None = None
-    settable: bool  # the master may set it before initialisation (a parameter, an input, a settable start)
+    settable: bool  # the master may set it before initialisation (a parameter, an unconnected input, a start)
+    fed_by: str | None = None  # a connected input: the output the master sets it from at every step
 
 
 class InstanceInfo(BaseModel):
@@ -51,6 +53,7 @@ SHOWN = ("parameter", "calculatedParameter", "input", "output")  # locals and in
 def model_info(model: str | Path | Plan, every: bool = False) -> list[InstanceInfo]:
     """Each instance's parameters, inputs and outputs (``every``: all its variables)."""
     plan = as_plan(model)
+    fed = {link.target.ref: link.source.ref for link in plan.links}
     found = []
     for instance, path in plan.fmu_paths.items():
         description = describe(Path(path))
@@ -63,7 +66,9 @@ def model_info(model: str | Path | Plan, every: bool = False) -> list[InstanceIn
                 start=None if v.start is None else str(v.start),
                 unit=_unit(v),
                 description=v.description or None,
-                settable=_settable(plan.variables[instance].get(v.name)),
+                settable=_settable(plan.variables[instance].get(v.name))
+                and f"{instance}.{v.name}" not in fed,
+                fed_by=fed.get(f"{instance}.{v.name}"),
             )
             for v in description.modelVariables
             if every or v.causality in SHOWN

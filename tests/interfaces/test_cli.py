@@ -382,6 +382,7 @@ def test_describe_lists_what_a_model_offers_by_the_names_every_command_uses(tmp_
         "unit": "N/m",
         "description": "spring stiffness [N/m]",
         "settable": True,
+        "fed_by": None,
     }
     assert by_name["msd.F"]["settable"] and not by_name["msd.x"]["settable"]
     text = dse_runner("describe", msd).stdout.splitlines()
@@ -396,6 +397,27 @@ def test_describe_lists_what_a_model_offers_by_the_names_every_command_uses(tmp_
     assert ran.returncode == 0, ran.stderr
     missing = dse_runner("describe", tmp_path / "nowhere.fmu")
     assert missing.returncode == 2 and "nowhere.fmu" in missing.stderr
+
+
+def test_describe_names_the_output_a_connected_input_is_set_from():
+    """An input a connection feeds is not offered as settable (the master sets it from its output at every
+    step, whatever a value given before would say): describe names that output instead."""
+    space = REPO / "jobs" / "robotti" / "space.yaml"
+    done = dse_runner("describe", space, "--json")
+    assert done.returncode == 0, done.stderr
+    by_name = {v["name"]: v for i in strict_loads(done.stdout)["instances"] for v in i["variables"]}
+    steering = by_name["vehicle.delta_f"]
+    assert (steering["causality"], steering["settable"], steering["fed_by"]) == (
+        "input",
+        False,
+        "controller.delta_f",
+    )
+    assert by_name["vehicle.mass"]["settable"] and by_name["vehicle.mass"]["fed_by"] is None
+    (line,) = [
+        line for line in dse_runner("describe", space).stdout.splitlines() if "vehicle.delta_f" in line
+    ]
+    assert line.split()[:4] == ["vehicle.delta_f", "input", "0", "connected"]
+    assert line.endswith("(set from controller.delta_f at every step)")
 
 
 def test_a_file_that_is_not_what_its_place_expects_is_one_line_naming_it(tmp_path):
