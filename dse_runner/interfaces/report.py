@@ -35,7 +35,7 @@ from ..sweeps.rank import (
     rank,
     table1_scope,
 )
-from ..sweeps.search import Search
+from ..sweeps.search import Search, strategy
 from ..sweeps.spec import SpaceSpec
 from ..sweeps.status import SweepReport, load_status
 from . import charts
@@ -226,12 +226,15 @@ def pareto_note(goals: list[tuple[str, str]], reduced: str) -> str:
 
 
 SEARCH_SETTINGS = ("strategy", "max_points", "seed")  # what chose a search's or a design's points
-UNBUDGETED = ("exhaustive", "given")  # strategies whose points no budget or seed chose: a grid, a caller's
 
 
 def budgeted(spec: SpaceSpec) -> bool:
-    """Whether a budget and a seed chose the sweep's points: any strategy but a grid or given points."""
-    return spec.search.strategy not in UNBUDGETED
+    """Whether a budget and a seed chose the sweep's points, as its strategy says (a grid and given points
+    say not). A strategy whose plug-in is not installed here is taken to have spent one, as most do."""
+    try:
+        return strategy(spec.search.strategy).budgeted
+    except DseError:
+        return True
 
 
 def shown_spec(spec: SpaceSpec) -> dict:

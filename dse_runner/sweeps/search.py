@@ -115,10 +115,12 @@ class Strategy(ABC):
     Optional parts, with defaults that do nothing: :meth:`tell` (ignored: a strategy that learns
     nothing from results), ``Options`` (no options of its own), ``size`` (unknown), :meth:`spending` (silent),
     ``closed_loop`` (True; False: a grid, whose points are all known without results and which the
-    sweep runs in large chunks), ``multi_objective`` (False; True: it optimises the ranking's
+    sweep runs in large chunks), ``budgeted`` (True; False: ``max_points`` and ``seed`` chose none of its
+    points, so a report leaves them out), ``multi_objective`` (False; True: it optimises the ranking's
     Pareto objectives, and the space must list two or more)."""
 
     closed_loop: ClassVar[bool] = True  # False: every point is known without results (a grid)
+    budgeted: ClassVar[bool] = True  # False: no budget or seed chose its points (a grid, a caller's points)
     multi_objective: ClassVar[bool] = False  # optimises the ranking's Pareto objectives
     Options: ClassVar[type[BaseModel]] = Options
 
@@ -156,6 +158,7 @@ class Exhaustive(Strategy):
     """Every combination of the parameters' values that satisfies the constraints."""
 
     closed_loop = False
+    budgeted = False
 
     def __init__(self, problem: Problem):
         super().__init__(problem)
@@ -185,6 +188,7 @@ class Given(Strategy):
     parameters may take any form, intervals included. Submitted without points, it runs nothing."""
 
     closed_loop = False
+    budgeted = False
     size = 0
 
     def ask(self) -> Point | None:

@@ -11,6 +11,7 @@ import pytest
 import yaml
 from conftest import REPO, SCENARIOS, write_space, write_yaml
 from support.pages import browser_page, measure
+from support.plugins import register
 
 from dse_runner.interfaces import charts
 from dse_runner.interfaces.report import figure_notes, pareto_note, shown_spec, write_report
@@ -206,6 +207,30 @@ def test_a_searchs_budget_and_seed_stay_in_the_spec_even_at_their_defaults():
         )
     )
     assert "search" not in grid
+
+
+def test_a_plug_in_strategy_says_whether_a_budget_chose_its_points(tmp_path, monkeypatch):
+    """The report asks the strategy, not a list of names: a plug-in that walks its own points keeps the
+    budget out of the spec shown, as exhaustive does."""
+    register(
+        monkeypatch,
+        tmp_path,
+        "corners",
+        """
+        from dse_runner.sweeps.search import Strategy
+
+        class Corners(Strategy):
+            closed_loop = False
+            budgeted = False
+
+            def ask(self):
+                return None
+        """,
+        {"dse_runner.search": {"corners": "corners:Corners"}},
+    )
+    base = {"name": "s", "multimodel": "m.yaml", "parameters": {"a": {"low": 0, "high": 1}}}
+    shown = shown_spec(SpaceSpec.model_validate({**base, "search": {"strategy": "corners", "max_points": 7}}))
+    assert shown["search"] == {"strategy": "corners"}  # max_points chose nothing
 
 
 def test_captions_say_what_a_search_draws():
