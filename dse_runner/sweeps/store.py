@@ -99,11 +99,16 @@ def check_reachable(root: Root) -> None:
 
 
 def _replace_whole(target: str, write: Callable[[Path], object]) -> None:
-    """Write a local file beside ``target`` and rename it into place: readers never see half of it."""
+    """Write a local file beside ``target`` and rename it into place: readers never see half of it, and
+    a write cut short (a full disk, or Ctrl-C, which raises wherever the client is) leaves nothing behind."""
     Path(target).parent.mkdir(parents=True, exist_ok=True)
     partial = Path(target).with_name(f".{Path(target).name}.{uuid.uuid4().hex}.partial")
-    write(partial)
-    os.replace(partial, target)
+    try:
+        write(partial)
+        os.replace(partial, target)
+    except BaseException:
+        partial.unlink(missing_ok=True)
+        raise
 
 
 def write_text(root: Root, name: str, text: str) -> str:
