@@ -668,10 +668,12 @@ def _fail_step(units: list[_Unit], s: Stepper, t: float) -> CosimError:
 
 
 def _resolve_values(plan: Plan, values: Mapping[str, Value]) -> dict[str, list[tuple[Variable, Value]]]:
-    """Group values by instance, each checked against its variable's type."""
+    """Group values by instance, each checked against its variable's type. An input a connection feeds
+    takes no value: the connection would overwrite it before the first step."""
     grouped: dict[str, list[tuple[Variable, Value]]] = {}
     for ref, value in values.items():
         variable = plan.variable(ref, "setting")
+        plan.check_not_fed(variable)
         grouped.setdefault(variable.instance, []).append((variable, check_value(variable, value)))
     return grouped
 

@@ -53,7 +53,7 @@ SHOWN = ("parameter", "calculatedParameter", "input", "output")  # locals and in
 def model_info(model: str | Path | Plan, every: bool = False) -> list[InstanceInfo]:
     """Each instance's parameters, inputs and outputs (``every``: all its variables)."""
     plan = as_plan(model)
-    fed = {link.target.ref: link.source.ref for link in plan.links}
+    fed = plan.fed_by
     found = []
     for instance, path in plan.fmu_paths.items():
         description = describe(Path(path))

@@ -67,6 +67,20 @@ class Plan:
             variable = found[ref] = lookup(self.variables, self.models, ref, purpose)
         return variable
 
+    @functools.cached_property
+    def fed_by(self) -> dict[str, str]:
+        """Input -> the output a connection sets it from at every step (``instance.variable`` both)."""
+        return {link.target.ref: link.source.ref for link in self.links}
+
+    def check_not_fed(self, variable: Variable) -> None:
+        """An input a connection feeds takes no value: the connection overwrites it before the first step."""
+        source = self.fed_by.get(variable.ref)
+        if source is not None:
+            raise DseError(
+                f"{variable.ref} is fed by the connection from {source}, which overwrites a value given to "
+                "it; give one to what feeds it instead"
+            )
+
     def recording(self, refs: Iterable[str], purpose: str = "objective") -> Plan:
         """The plan also recording ``refs`` (e.g. a local variable an objective reads)."""
         outputs = {name: list(vs) for name, vs in self.outputs.items()}

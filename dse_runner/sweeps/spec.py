@@ -418,6 +418,7 @@ def _check_names(space: Space, source: str) -> None:
         variable = space.plan.variable(ref, f"{source}: parameters")
         for value in values:
             try:
+                space.plan.check_not_fed(variable)
                 check_value(variable, value)
             except DseError as e:
                 raise DseError(f"{source}: parameters.{ref}: {e}") from None
@@ -430,6 +431,7 @@ def _check_names(space: Space, source: str) -> None:
         for ref, value in scenario.parameters.items():
             variable = space.plan.variable(qualify(space.plan, ref), where)
             try:
+                space.plan.check_not_fed(variable)
                 check_value(variable, value)
             except DseError as e:
                 raise DseError(f"{where}.{ref}: {e}") from None
@@ -616,6 +618,10 @@ def _check_uncertain(
             )
         name = qualify(plan, ref)
         variable = plan.variable(name, f"{source}: uncertain.parameters")
+        try:
+            plan.check_not_fed(variable)
+        except DseError as e:
+            raise DseError(f"{where}: {e}") from None
         if name in swept:
             raise DseError(
                 f"{where}: {swept[name]!r} is also under 'parameters'; a parameter is either swept "

@@ -258,6 +258,18 @@ def test_a_value_outside_its_declared_min_or_max(tmp_path):
     )
 
 
+def test_a_value_for_an_input_a_connection_feeds(tmp_path):
+    """The connection would overwrite it before the first step, so the value would do nothing: one line
+    names the input and what feeds it, from --set and from a space (before anything runs)."""
+    fed = "vehicle.delta_f is fed by the connection from controller.delta_f"
+    code, _, err = run("simulate", MULTIMODEL, "-s", SCENARIOS / "sin1", "--set", "vehicle.delta_f=0.1")
+    assert fed in one_line_error(code, err)
+    space = write_space(tmp_path, parameters={"vehicle.delta_f": [0.1, 0.2]})
+    code, _, err = run("submit", space, "--no-dashboard")
+    assert f"space.yaml: parameters.vehicle.delta_f: {fed}" in one_line_error(code, err)
+    assert not (tmp_path / "out").exists()  # refused before anything ran
+
+
 # ---- specs and multi-models -------------------------------------------------------------------
 
 
