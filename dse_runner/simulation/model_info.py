@@ -10,6 +10,7 @@ sets at every step, whatever a value set before would say.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 from pydantic import BaseModel
@@ -66,8 +67,7 @@ def model_info(model: str | Path | Plan, every: bool = False) -> list[InstanceIn
                 start=None if v.start is None else str(v.start),
                 unit=_unit(v),
                 description=v.description or None,
-                settable=_settable(plan.variables[instance].get(v.name))
-                and f"{instance}.{v.name}" not in fed,
+                settable=_settable(plan.variables[instance].get(v.name), fed),
                 fed_by=fed.get(f"{instance}.{v.name}"),
             )
             for v in description.modelVariables
@@ -89,8 +89,11 @@ def model_info(model: str | Path | Plan, every: bool = False) -> list[InstanceIn
     return found
 
 
-def _settable(variable: Variable | None) -> bool:
-    return variable is not None and (variable.causality in ("parameter", "input") or variable.start)
+def _settable(variable: Variable | None, fed: Mapping[str, str]) -> bool:
+    """A parameter, an input no connection feeds, or a variable whose start may be set."""
+    if variable is None or variable.ref in fed:
+        return False
+    return variable.causality in ("parameter", "input") or variable.start
 
 
 def _unit(variable) -> str | None:

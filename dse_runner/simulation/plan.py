@@ -73,8 +73,9 @@ class Plan:
         return {link.target.ref: link.source.ref for link in self.links}
 
     def check_not_fed(self, variable: Variable) -> None:
-        """An input a connection feeds takes no value: the connection overwrites it before the first step."""
-        source = self.fed_by.get(variable.ref)
+        """An input a connection feeds takes no value: the connection overwrites it before the first step.
+        (Checked at every run's values: anything but an input is passed at once.)"""
+        source = self.fed_by.get(variable.ref) if variable.causality == "input" else None
         if source is not None:
             raise DseError(
                 f"{variable.ref} is fed by the connection from {source}, which overwrites a value given to "
