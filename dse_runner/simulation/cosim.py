@@ -688,6 +688,10 @@ def _resolve_inputs(plan: Plan, inputs: Mapping[str, Series], times: np.ndarray)
                 f"scenario input {ref!r} is {with_article(variable.causality)}, not an input: give it as a "
                 "parameter instead"
             )
+        try:
+            plan.check_not_fed(variable)  # a space has said so before anything ran; a caller's own plan not
+        except DseError as e:
+            raise DseError(f"scenario input {ref!r}: {e}") from None
         values = series.at(times)
         if variable.family == "string":
             raise DseError(f"scenario input {ref!r} is a String; a CSV signal can feed numbers only")
@@ -695,11 +699,6 @@ def _resolve_inputs(plan: Plan, inputs: Mapping[str, Series], times: np.ndarray)
             for value in np.unique(values):
                 check_value(variable, float(value))
         sampled[ref] = values
-    for link in plan.links:
-        if link.target.ref in sampled:
-            raise DseError(
-                f"scenario input {link.target.ref!r} is already fed by the connection from {link.source.ref}"
-            )
     return sampled
 
 

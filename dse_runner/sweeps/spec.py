@@ -435,6 +435,12 @@ def _check_names(space: Space, source: str) -> None:
                 check_value(variable, value)
             except DseError as e:
                 raise DseError(f"{where}.{ref}: {e}") from None
+        for ref in scenario.inputs:  # an input signal there would be overwritten as a value would
+            variable = space.plan.variable(qualify(space.plan, ref), f"{source}: scenario {scenario.name}")
+            try:
+                space.plan.check_not_fed(variable)
+            except DseError as e:
+                raise DseError(f"{source}: scenario {scenario.name}: inputs.{ref}: {e}") from None
     for name, objective in space.objectives.items():
         _check_objective(space, name, objective, source)
     _check_search(space, source)

@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
-from conftest import MULTIMODEL, SCENARIOS, SLEEPER, sleeper_multimodel, strict_loads, write_space
+from conftest import MULTIMODEL, REPO, SCENARIOS, SLEEPER, sleeper_multimodel, strict_loads, write_space
 from typer.testing import CliRunner
 
 from dse_runner import strict_json
@@ -260,7 +260,8 @@ def test_a_value_outside_its_declared_min_or_max(tmp_path):
 
 def test_a_value_for_an_input_a_connection_feeds(tmp_path):
     """The connection would overwrite it before the first step, so the value would do nothing: one line
-    names the input and what feeds it, from --set and from a space (before anything runs)."""
+    names the input and what feeds it, from --set, and from a space's parameters or a scenario's input
+    signal (before anything runs)."""
     fed = "vehicle.delta_f is fed by the connection from controller.delta_f"
     code, _, err = run("simulate", MULTIMODEL, "-s", SCENARIOS / "sin1", "--set", "vehicle.delta_f=0.1")
     assert fed in one_line_error(code, err)
@@ -268,6 +269,22 @@ def test_a_value_for_an_input_a_connection_feeds(tmp_path):
     code, _, err = run("submit", space, "--no-dashboard")
     assert f"space.yaml: parameters.vehicle.delta_f: {fed}" in one_line_error(code, err)
     assert not (tmp_path / "out").exists()  # refused before anything ran
+    # a scenario's input signal there was refused already, by the same rule
+    (tmp_path / "valve.csv").write_text("time,valvecontrol\n0,0.0\n10,1.0\n")
+    code, _, err = run(
+        "submit",
+        write_space(
+            tmp_path,
+            multimodel=str(REPO / "jobs" / "watertank" / "multimodel.yaml"),
+            scenarios=[{"name": "s", "inputs": {"tank.valvecontrol": {"csv": str(tmp_path / "valve.csv")}}}],
+            parameters={"tank.inflow": [1.0]},
+            objectives={"level_max": {"signal": "tank.level", "reduce": "max"}},
+        ),
+        "--no-dashboard",
+    )
+    said = "scenario s: inputs.tank.valvecontrol: tank.valvecontrol is fed by the connection from "
+    said += "controller.valve"
+    assert said in one_line_error(code, err)
 
 
 # ---- specs and multi-models -------------------------------------------------------------------
