@@ -187,11 +187,14 @@ def simulate(
     experiment: Experiment | None = None,
     interface: str | None = None,
     loop: str | None = None,
+    fresh_process: bool = False,
 ) -> SimulationResult:
     """Co-simulate ``model`` on ``scenario`` (none: the nominal one) with ``values`` and score it.
 
     ``objectives`` default to those of the scenario's kind (none for a plain scenario); ``loop``
-    chooses the master's step loop (cosim.run: native C, or the Python reference). Called again with
+    chooses the master's step loop (cosim.run: native C, or the Python reference); ``fresh_process``
+    runs it in a process of its own whatever lifecycle.py says of its FMUs, so that an FMU that crashes
+    takes only that process down (a sweep's task that workers died under runs so). Called again with
     the same plan, scenario, objectives and experiment (a sweep), it reuses what it worked out from
     them: plans and scenarios are immutable; objectives and the experiment are compared by value."""
     recipe = _recipe(model, scenario, objectives, experiment, (start_time, stop_time, step), interface)
@@ -208,6 +211,8 @@ def simulate(
         effects = recipe.qualified_effects(effects)
         runner = runner.with_inputs(signal_effects.on_inputs(recipe.signals, runner.times, effects))
     verdicts = recipe.lifecycle(runner, values)
+    if fresh_process:
+        verdicts = dict.fromkeys(verdicts, Verdict("process", "asked for a process of its own"))
     trajectory = runner.run(values, timeout, loop, fresh_process=needs_process(verdicts))
     if effects:
         trajectory = trajectory.with_columns(

@@ -32,7 +32,7 @@ from .domain import Point
 from .expand import TaskBatch
 
 ATTEMPTS = 2  # a failing simulation is retried once
-CRASH_ATTEMPTS = 2  # a lone task whose worker died under it this often (beyond Dask's own retries) has failed
+CRASH_ATTEMPTS = 3  # a lone task whose worker died under it this often (beyond Dask's own retries) has failed
 
 
 @dataclass(frozen=True)
@@ -50,6 +50,7 @@ class ChunkJob:
     timeout: float
     experiment: Experiment | None = None
     crashes: int = 0  # times Dask gave up on this chunk because workers died running it
+    fresh_process: bool = False  # each task in a process of its own: a lone task from a crashed chunk
     with_scores: bool = False  # return every task's objectives in the summary (a search tells them)
     point: int | None = (
         None  # a search's point number (closed_loop.py); kept by the halves of a crashed chunk
@@ -60,13 +61,19 @@ class ChunkJob:
         return f"chunk-{self.chunk_id}-{self.crashes}"
 
     def after_crash(self) -> list[ChunkJob]:
-        """What to run after workers kept dying under this chunk: its halves, or the lone task again."""
+        """What to run after workers kept dying under this chunk: its halves, or the lone task again.
+
+        A task alone runs in a process of its own. Dask blames a dead worker on every task it had been
+        given, running or waiting, so a lone task may be innocent: alone in its process, the culprit
+        fails its own row (its process killed by the signal) and an innocent one runs. One that workers
+        still die under was not what killed them, or exhausts the machine's memory."""
         tasks = self.tasks
         if len(tasks) == 1:
-            return [replace(self, crashes=self.crashes + 1)] if self.crashes + 1 < CRASH_ATTEMPTS else []
+            again = replace(self, crashes=self.crashes + 1, fresh_process=True)
+            return [again] if again.crashes < CRASH_ATTEMPTS else []
         middle = len(tasks) // 2
         return [
-            replace(self, chunk_id=chunk_id_of(part), tasks=part, crashes=0)
+            replace(self, chunk_id=chunk_id_of(part), tasks=part, crashes=0, fresh_process=len(part) == 1)
             for part in (tasks[:middle], tasks[middle:])
         ]
 
@@ -108,13 +115,20 @@ def run_task(
     objectives: dict[str, ObjectiveSpec],
     timeout: float,
     experiment: Experiment | None = None,
+    fresh_process: bool = False,
 ) -> tuple[dict[str, float] | None, str | None, str | None]:
     """Objectives, or the error message after the retry; and how the run lived (reset or process)."""
     error = None
     for _ in range(ATTEMPTS):
         try:
             result = simulate(
-                plan, scenario, point, objectives=objectives, timeout=timeout, experiment=experiment
+                plan,
+                scenario,
+                point,
+                objectives=objectives,
+                timeout=timeout,
+                experiment=experiment,
+                fresh_process=fresh_process,
             )
             return result.objectives, None, "process" if result.fresh_process else "reset"
         except DseError as e:
@@ -138,7 +152,13 @@ def run_chunk(job: ChunkJob) -> ChunkSummary:
     for scenario, point in job.tasks.points():
         t0 = time.perf_counter()
         result, error, life = run_task(
-            unpacked.plan, point, unpacked.scenarios[scenario], job.objectives, job.timeout, job.experiment
+            unpacked.plan,
+            point,
+            unpacked.scenarios[scenario],
+            job.objectives,
+            job.timeout,
+            job.experiment,
+            job.fresh_process,
         )
         walls.append(time.perf_counter() - t0)
         lives.append(life)
@@ -209,8 +229,9 @@ def record_crash(job: ChunkJob, groups: dict[str, str], reason: str) -> ChunkSum
     """The failed row of a task that kept killing its worker; written by the client."""
     (task,) = job.tasks
     error = (
-        f"the worker process died each time it ran this task ({reason}): the FMU crashed "
-        "(e.g. a segmentation fault) or the process ran out of memory"
+        f"workers died under this task {CRASH_ATTEMPTS} times, also while it ran in a process of its own, "
+        f"where an FMU's crash would have failed the run alone ({reason}): the machine ran out of memory, or "
+        "something else kills the workers"
     )
     store.write_results(
         job.output, job.sweep, job.chunk_id, *results_table(job, groups, [None], [error], [0.0], "")

@@ -99,12 +99,14 @@ def connect(spec: Cluster, base: Path | None = None) -> Iterator[distributed.Cli
     link = None if spec.address else dashboard_link_template(spec.dashboard_address)
     if link:
         settings["distributed.dashboard.link"] = link
+    chosen = None if spec.address else maker(spec.kind)
+    if chosen:
+        settings.update(chosen.settings)  # held until the cluster is closed
     with dask.config.set(settings), quiet_once_interrupted():
-        if spec.address:
+        if chosen is None:
             with _client(spec.address, sec, spec.connect_timeout, wait=spec.connect_timeout) as client:
                 yield client
             return
-        chosen = maker(spec.kind)
         cluster = None
         try:
             with sigint_held():  # a Ctrl-C meanwhile is raised once the cluster exists, and it is closed

@@ -21,6 +21,7 @@ import logging
 import os
 import uuid
 from abc import ABC, abstractmethod
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 from pydantic import (
@@ -149,11 +150,14 @@ class ClusterMaker(ABC):
     Optional parts, with defaults: ``Options`` (none: the block, if given, must be empty), :meth:`scale`
     (``cluster.scale(n_workers or 1)``: a batch system starts with no job), :meth:`adapt`
     (``cluster.adapt(minimum=, maximum=)``, Dask's adaptive scaling), :meth:`failure` (None), :meth:`close`
-    (``cluster.close()``), ``first_worker_wait`` (30 minutes: a job may wait in its queue).
+    (``cluster.close()``), ``first_worker_wait`` (30 minutes: a job may wait in its queue), ``settings``
+    (none: Dask configuration held from before :meth:`start` until after :meth:`close`, for what
+    distributed's objects read while the cluster runs, not only when it is built).
     """
 
     Options: ClassVar[type[BaseModel]] = NoOptions
     first_worker_wait: ClassVar[float] = QUEUE_WAIT
+    settings: ClassVar[Mapping[str, Any]] = {}
 
     @abstractmethod
     def start(self, spec: Cluster, options: Any, security: Any) -> Any:
@@ -210,27 +214,32 @@ class Local(ClusterMaker):
     one simulation per core keeps every core busy without contention."""
 
     first_worker_wait = 0.0  # its workers exist when it returns
+    settings: ClassVar[Mapping[str, Any]] = {
+        # A worker that died under a chunk gets one rerun elsewhere before the sweep splits the
+        # chunk (sweep.py): a segfaulting FMU then costs two worker restarts per level, not four.
+        "distributed.scheduler.allowed-failures": 1,
+        **QUIET,
+        # A worker process that dies is restarted by its nanny, here in the client's process. distributed
+        # also closes, for good, the nanny of a worker that has not come back after this long, judged at
+        # one instant: under an FMU that kills worker after worker, that instant may fall between two
+        # lives of the same worker, and the cluster lost it for the rest of the sweep.
+        "distributed.deploy.lost-worker-timeout": "3650 days",
+    }
 
     def start(self, spec: Cluster, options: Any, security: Any) -> Any:
-        import dask
         from distributed import LocalCluster
 
         start_method.choose()
-        # A worker that died under a chunk gets one rerun elsewhere before the sweep splits the
-        # chunk (sweep.py): a segfaulting FMU then costs two worker restarts per level, not four.
-        with dask.config.set({"distributed.scheduler.allowed-failures": 1, **QUIET}):
-            return LocalCluster(
-                n_workers=(spec.min_workers or 0)
-                if spec.max_workers
-                else spec.n_workers or os.cpu_count() or 1,
-                threads_per_worker=spec.threads_per_worker,
-                processes=True,
-                host="127.0.0.1",
-                protocol="tls://" if security else None,
-                security=security,
-                dashboard_address=spec.dashboard_address,
-                silence_logs=logging.ERROR,
-            )
+        return LocalCluster(
+            n_workers=(spec.min_workers or 0) if spec.max_workers else spec.n_workers or os.cpu_count() or 1,
+            threads_per_worker=spec.threads_per_worker,
+            processes=True,
+            host="127.0.0.1",
+            protocol="tls://" if security else None,
+            security=security,
+            dashboard_address=spec.dashboard_address,
+            silence_logs=logging.ERROR,
+        )
 
     def scale(self, cluster: Any, n_workers: int | None) -> None:
         """Nothing: it started with its workers."""

@@ -14,7 +14,9 @@ What can go wrong, and what happens:
 - a simulation fails or diverges: a failed row after one retry; the sweep goes on;
 - a worker dies (killed, out of memory): Dask runs its chunk again elsewhere;
 - a chunk keeps killing workers (an FMU that segfaults): it is split in halves
-  until the task that crashes is alone, and that task gets a failed row;
+  until each task is alone; alone, a task runs in a process of its own, so the
+  one that crashes gets a failed row, and one that only waited on the same
+  worker (Dask blames them all) runs;
 - the scheduler restarts: the client reconnects, re-reads the store and runs
   what is missing;
 - the client is interrupted (Ctrl-C): chunks not started are cancelled, and

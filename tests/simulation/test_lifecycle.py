@@ -61,6 +61,29 @@ def test_a_crash_in_a_fresh_process_is_one_error_and_the_next_run_goes_on(tmp_pa
     ][-1] == pytest.approx(2.0)
 
 
+def test_a_run_asked_for_a_fresh_process_crashes_only_that_process(tmp_path):
+    """What a sweep does with a task its workers died under: the FMU is trusted with reuse, yet this run
+    goes to a process of its own, whose death is the run's error; this process goes on."""
+    multimodel = tmp_path / "crasher.yaml"
+    multimodel.write_text(
+        yaml.safe_dump(
+            {
+                "fmus": {"crasher": str(REPO / "tests" / "fmus" / "crasher")},
+                "parameters": {"crasher.crash_at": 1.0},
+            }
+        )
+    )
+    plan = as_plan(multimodel)
+    innocent = {"crasher.k": 0.0, "crasher.velocity": 2.0}
+    here = simulate(plan, values=innocent, stop_time=1, step=0.1)
+    assert not here.fresh_process
+    with pytest.raises(CosimError, match="SIGSEGV"):
+        simulate(plan, values={"crasher.k": 1.0}, stop_time=1, step=0.1, fresh_process=True)
+    alone = simulate(plan, values=innocent, stop_time=1, step=0.1, fresh_process=True)
+    assert alone.fresh_process and alone.lifecycle["crasher"].mode == "process"
+    assert np.array_equal(alone.trajectory.values, here.trajectory.values)
+
+
 def test_a_run_hung_inside_an_fmu_call_in_a_fresh_process_is_killed_after_its_timeout(tmp_path, monkeypatch):
     """The step loop checks its timeout between steps; a step that never returns is stopped by killing the
     fresh process (here a step sleeps 10 s, and the timeout is 1 s plus a grace of 1 s)."""

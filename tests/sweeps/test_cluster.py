@@ -291,7 +291,7 @@ def test_scheduler_restart_resumes_from_the_store(tmp_path, cli_cluster):
 CRASH_AT = 13.0
 
 
-def crasher_space(tmp_path: Path) -> Path:
+def crasher_space(tmp_path: Path, n_workers: int = 2) -> Path:
     """A multi-model whose FMU segfaults for one parameter point of sixteen: with two workers, chunks of two
     points, so the culprit's chunk is split once and the culprit then runs alone."""
     sources = tmp_path / "fmus"
@@ -311,20 +311,24 @@ def crasher_space(tmp_path: Path) -> Path:
         parameters={"crasher.k": {"start": 0, "stop": 15, "step": 1}},
         chunk_seconds=100,
         keep_trajectories=0,
-        cluster={"n_workers": 2},
+        cluster={"n_workers": n_workers},
     )
 
 
+# One worker: every task Dask had given it is blamed for its death, and the worker is down most of the
+# time, between lives; distributed's local cluster used to close its nanny for good at such a moment.
 @pytest.mark.slow  # a sweep on a local cluster
-def test_segfaulting_fmu_fails_only_its_point(tmp_path):
-    space = load_space(crasher_space(tmp_path))
+@pytest.mark.parametrize("n_workers", [2, 1])
+def test_segfaulting_fmu_fails_only_its_point(tmp_path, n_workers):
+    space = load_space(crasher_space(tmp_path, n_workers))
     report = submit(space)
-    assert report.chunk_size > 1 and report.crashed_chunks >= 2  # a chunk was split down to the culprit
+    assert report.chunk_size > 1 and report.crashed_chunks >= 1  # a chunk was split down to the culprit
     assert (report.ok, report.failed) == (15, 1)
-    rows = store.read_results(space.output, "small", columns=["crasher.k", "status", "error"])
+    rows = store.read_results(space.output, "small", columns=["crasher.k", "status", "error", "lifecycle"])
     failed = rows[rows["status"] == "failed"]
     assert list(failed["crasher.k"]) == [CRASH_AT]
-    assert "worker process died" in failed["error"].iloc[0]
+    # alone, it ran in a process of its own: that process died, not another worker
+    assert "fresh process running this simulation was killed by SIGSEGV" in failed["error"].iloc[0]
     ids = raw_task_ids(space.output)
     assert len(ids) == 16 and ids.is_unique
 
