@@ -102,13 +102,6 @@ def parse(name: str) -> Effect | None:
     return Effect(match[1], match[2], match[3]) if match else None  # type: ignore[arg-type]
 
 
-def effect_name(effect_id: str, target: str) -> str:
-    """``input_delay``, ``vehicle.delta_f`` -> ``input_delay(vehicle.delta_f)``."""
-    if effect_id not in EFFECTS:
-        raise DseError(f"no signal effect {effect_id!r}; there are {', '.join(EFFECTS)}")
-    return f"{effect_id}({target})"
-
-
 def split(values: Mapping[str, object]) -> tuple[dict[str, object], dict[Effect, float]]:
     """A run's values: those for FMU variables, and the effects (only those away from neutral)."""
     plain, effects = split_named(values, parse, "an effect", allow=lambda e, v: v == NEUTRAL[e.kind])

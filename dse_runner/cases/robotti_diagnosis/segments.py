@@ -31,8 +31,6 @@ from ...simulation.scenario import Scenario, read_table
 STEER_STEP, STEER_RAMP, STEER_HOLD = "steer_step", "steer_ramp", "steer_hold"
 SPEED_STEP, SPEED_RAMP, CRUISE, REST = "speed_step", "speed_ramp", "cruise", "rest"
 KINDS = (STEER_STEP, SPEED_STEP, STEER_RAMP, SPEED_RAMP, STEER_HOLD, CRUISE, REST)  # most telling first
-STEERING_KINDS = (STEER_STEP, STEER_RAMP, STEER_HOLD)
-SPEED_KINDS = (SPEED_STEP, SPEED_RAMP, CRUISE)
 
 STEP_SPAN = 0.2  # s: a jump happens within this
 STEER_JUMP = 0.02  # rad
