@@ -382,7 +382,8 @@ def main() -> None:
         "strategies": {},
     }
     say(f"work folder {work}; one local cluster of 2 workers x 1 thread, started before any clock")
-    with dask.config.set({"distributed.admin.low-level-log-length": MESSAGE_LOG_LENGTH}):
+    # as a sweep's connect holds them: the local cluster's own settings for as long as it lives
+    with dask.config.set({"distributed.admin.low-level-log-length": MESSAGE_LOG_LENGTH, **Local.settings}):
         started = time.perf_counter()
         cluster = Local().start(
             ClusterSpec(n_workers=2, threads_per_worker=1), None, None
