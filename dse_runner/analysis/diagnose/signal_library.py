@@ -22,7 +22,7 @@ report from signal_report.py.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -379,291 +379,37 @@ def diagnose_space(
     )
     compared = compared_signals(space)
     with connect(space.spec.cluster, space.path.parent) as client:
-        best: dict[str, Any] = {}
-        if space.dimensions and space.spec.search.strategy != "given":
-            search = space.spec.search
-            say(
-                f"calibrating: {space.name}, "
-                + (
-                    "the space's grid"
-                    if search.strategy == "exhaustive"
-                    else f"{search.strategy} over its intervals, {search.max_points} points"
-                )
-            )
-            submit(space, client=client)
-            best = rank(space.output, space.name).best
-        base = calibration(space, best)
-        calibrated = {p.name for p in base}
-        held = {name: values[0] for name, values in space.parameters.items() if name not in calibrated}
-        scales = {c.residuals: 1.0 / c.noise for c in compared}
-
-        def report(round_: int, active: int, points: int, simulations: int) -> None:
-            say(f"fits: round {round_}, {active} active, {points} points, {simulations} simulations")
-
-        if base:  # the search's best refined by least squares: where every effect's fit starts
-            say("calibrating: least squares from the best point")
-            plain = fits_space(space, compared, {}, CALIBRATION_FITS)
-            names = tuple(s.name for s in space.scenarios)
-            refined = fit_all(
-                plain, [FitProblem("calibration", base, held, names, MAX_ITERATIONS)], client, scales, report
-            )["calibration"]
-            if refined.error is None:
-                base = tuple(replace(p, start=refined.values[p.name]) for p in base)
+        base, held = _calibrated(space, compared, client, say)
         library = restricted(library_of(space, compared, {**held, **{p.name: p.start for p in base}}), only)
         space, validation = validated(space, folds, sorted({c.recorded for c in compared}))
         say(f"validation: {validation.text}")
-        scenarios = (
-            validation.fitted
-        )  # what a fit on everything fits: a record's views are only for its folds
-        parts = validation.tests
-        fits = fits_space(space, compared, library)
         # what a fit does not free: the space's single-valued parameters, and every other effect at neutral
         unfreed = {**held, **{k: v for h in library.values() for k, v in h.absent().items()}}
-        bounds = {p.name: p for p in (*base, *(p for h in library.values() for p in h.parameters))}
-
-        def problem(
-            label: str,
-            names: tuple[str, ...],
-            on: tuple[str, ...],
-            start: Mapping[str, float] = {},
-            iterations: int = MAX_ITERATIONS,
-        ) -> FitProblem:
-            freed = tuple(
-                replace(p, start=start.get(p.name, p.start))
-                for p in (*base, *(p for n in names for p in library[n].parameters))
-            )
-            fixed = {k: v for k, v in unfreed.items() if k not in {p.name for p in freed}}
-            return FitProblem(label, freed, fixed, on, iterations)
-
-        def by_fold(ids: tuple[str, ...], start: Mapping[str, float]) -> list[FitProblem]:
-            label = "+".join(ids) or "none"
-            return [
-                problem(f"{label}/fold{k}", ids, fold.train, start) for k, fold in enumerate(validation.folds)
-            ]
-
-        sets = [(), *((name,) for name in library)]
-        starts = {
-            s: [library[s[0]].start(i) for i in range(len(library[s[0]].starts))] if s else [{}] for s in sets
-        }
-        tries = [
-            problem(f"{'+'.join(s) or 'none'}#{i}", s, scenarios, v, SCOUTING)
-            for s in sets
-            for i, v in enumerate(starts[s])
-        ]
-        say(
-            f"fitting {len(sets) - 1} effects and none on every scenario: {len(tries)} fits, "
-            f"{SCOUTING} iterations from every start"
+        scales = {c.residuals: 1.0 / c.noise for c in compared}
+        f = _Fits(
+            fits_space(space, compared, library), client, scales, library, base, unfreed, validation, say
         )
-        tried = fit_all(fits, tries, client, scales, report)
-        scouted = {
-            s: min(
-                (tried[f"{'+'.join(s) or 'none'}#{i}"] for i in range(len(starts[s]))), key=lambda f: f.sse
-            )
-            for s in sets
-        }
-        # only the best start of each effect goes on: after a few iterations each start is in its basin
-        going = [
-            problem("+".join(s) or "none", s, scenarios, f.values, MAX_ITERATIONS - SCOUTING)
-            for s, f in scouted.items()
-            if not f.converged
-        ]
-        say(f"going on from the best start: {len(going)} fits")
-        went = fit_all(fits, going, client, scales, report) if going else {}
-        full = {s: went.get("+".join(s) or "none", f) for s, f in scouted.items()}
-
-        pairs = Pairs()
-        singles = {
-            s[0]: full[s] for s in sets if s and full[s].error is None
-        }  # a failed one has no direction
-        if worth_pairing(list(singles.values())):
-
-            def real_sse(points: list[Point]) -> list[float]:
-                rows, _ = evaluate_points(fits, points, client, list(scales))
-                found = residuals_in(rows, scales)
-                return [screen_sse(p, scenarios, found) for p in points]
-
-            pairs.screened, pairs.predicted = signal_screen.screen(full[()], singles, bounds, real_sse)
-            say(f"pairs: {pairs.predicted} predicted from the single fits, {len(pairs.screened)} checked")
-        else:
-            pairs.reason = f"a single effect already fits within {explain.FLOOR_STOP:g} noise floors"
-        short = signal_screen.shortlist(pairs.screened)
-        pairs.fitted = [s.label for s in short]
-        # pairs whose checked point alone already passes the BIC gate (a fit only lowers the SSE) are
-        # cross-validated beside their full fits, saving the rounds of a batch of their own
-        early = gated_early(short, full, SURVIVORS) if parts else []
-        folded = [p for s in sets for p in by_fold(s, full[s].values)]
-        folded += [p for x in early for p in by_fold(x.ids, x.start)]
-        combos = [problem(x.label, x.ids, scenarios, x.start) for x in short]
-        say(
-            f"cross-validating: {len(parts)} folds, {len(folded)} fits"
-            + (f"; fitting {len(combos)} pairs" if combos else "")
-        )
-        results = fit_all(fits, folded + combos, client, scales, report) if folded or combos else {}
-        candidates = [Candidate(s, full[s]) for s in sets]
-        combinations = [Candidate(x.ids, results[x.label]) for x in short]
-        first = {x.label for x in early}
-        held_out(
-            fits, client, candidates + [c for c in combinations if c.label in first], results, parts, scales
-        )
-        if not parts:  # one run: judged on its fit alone, as every candidate is
-            held_out(fits, client, combinations, {}, parts, scales)
-        baseline = candidates[0]
-        current = explain.select(candidates[1:], baseline)
-        everything = candidates + combinations
-        survivors = (
-            explain.bic_gate(combinations, everything, current, explain.BIC_MARGIN, SURVIVORS)
-            if parts
-            else []
-        )
-        late = [c for c in survivors if not c.validated]
-        if late:
-            say(f"cross-validating {', '.join(c.label for c in late)}")
-            more = fit_all(
-                fits, [p for c in late for p in by_fold(c.ids, c.full.values)], client, scales, report
-            )
-            held_out(fits, client, late, more, parts, scales)
-        selected = explain.select(everything[1:], baseline)
-
-        def joining(h: str) -> dict[str, float]:
-            """Where an effect joining a set starts: its single fit, unless that did no better than none (an
-            effect another masks, such as the second side of a clip: alone it fitted to nothing), then its
-            own first start."""
-            single = full[(h,)]
-            if single.error is None and explain.bic(single) < explain.bic(full[()]):
-                return {n: single.values[n] for n in library[h].names}
-            return library[h].start(0)
-
-        def extended(current: Candidate) -> Candidate | None:
-            """The best of ``current`` with one more effect (scouted from ``current``'s fit and the effect's
-            single fit, the best few fitted on), cross-validated: it, if it beats ``current`` and every
-            fitted part of itself; else None."""
-            known = {frozenset(c.ids) for c in everything}
-            sets = [
-                tuple(sorted((*current.ids, h)))
-                for h in library
-                if h not in current.ids and not any(shares(library[h], library[i]) for i in current.ids)
-            ]
-            sets = [x for x in sets if frozenset(x) not in known]
-            if not sets:
-                return None
-            starts = {
-                x: {
-                    **current.full.values,
-                    **{k: v for h in x if h not in current.ids for k, v in joining(h).items()},
-                }
-                for x in sets
-            }
-            say(f"growing {current.label}: {len(sets)} sets with one more effect, {SCOUTING} iterations each")
-            scouted = fit_all(
-                fits,
-                [problem("+".join(x), x, scenarios, starts[x], SCOUTING) for x in sets],
-                client,
-                scales,
-                report,
-            )
-            finalists = sorted(sets, key=lambda x: scouted["+".join(x)].sse)[:GROW_FINALISTS]
-            going = [
-                problem("+".join(x), x, scenarios, scouted["+".join(x)].values, MAX_ITERATIONS - SCOUTING)
-                for x in finalists
-                if not scouted["+".join(x)].converged
-            ]
-            fitted = {**scouted, **(fit_all(fits, going, client, scales, report) if going else {})}
-            tried = [Candidate(x, fitted["+".join(x)]) for x in sets]
-            everything.extend(tried)
-            best = min(tried, key=lambda c: c.bic)
-            growth.append({"from": current.label, "tried": len(tried), "best": best.label, "bic": best.bic})
-            if best.bic > current.bic - explain.BIC_MARGIN:
-                return None
-            if parts:
-                folded_fits = fit_all(fits, by_fold(best.ids, best.full.values), client, scales, report)
-                held_out(fits, client, [best], folded_fits, parts, scales)
-            else:
-                held_out(fits, client, [best], {}, parts, scales)
-            growth[-1]["held_out"] = best.cross_validated
-            if explain.beats(best, current) and explain.beats_subsets(best, everything):
-                growth[-1]["accepted"] = True
-                return best
-            return None
-
-        def judge_members(answer: Candidate) -> None:
-            """Each set of the answer without one member, fitted and cross-validated if it was not yet: the
-            noise rule weighs every member by what taking it out costs, and keeps one it cannot weigh."""
-            known = {frozenset(c.ids): c for c in everything if c.validated}
-            missing = [tuple(i for i in answer.ids if i != m) for m in answer.ids if len(answer.ids) > 1]
-            missing = [x for x in missing if frozenset(x) not in known]
-            if not missing or not parts:
-                return
-            say(
-                f"judging each member of {answer.label}: {len(missing)} "
-                "sets without one, fitted and cross-validated"
-            )
-            start = dict(answer.full.values)
-            fitted = fit_all(
-                fits, [problem("+".join(x), x, scenarios, start) for x in missing], client, scales, report
-            )
-            folded = fit_all(
-                fits,
-                [p for x in missing for p in by_fold(x, fitted["+".join(x)].values)],
-                client,
-                scales,
-                report,
-            )
-            judged = [Candidate(x, fitted["+".join(x)]) for x in missing]
-            held_out(fits, client, judged, folded, parts, scales)
-            everything.extend(judged)
-
-        growth: list[dict[str, Any]] = []
-        while (
-            selected.ids
-            and len(selected.ids) < MAX_EFFECTS
-            and explain.above_floor(selected.cross_validated, 1.0, noise_factor)
-        ):
-            grown = extended(selected)
-            if grown is None:
-                break
-            say(f"grown: {grown.label}, held-out {grown.cross_validated:.3g} noise floors")
-            selected = grown
-        judge_members(selected)
+        sets, full = _singles(f)
+        pairs, short = _screened_pairs(f, sets, full)
+        baseline, everything = _cross_validated(f, sets, full, short)
+        selected, growth = _grown(f, explain.select(everything[1:], baseline), full, everything, noise_factor)
         chosen, dropped = explain.claimed(selected, everything, baseline)
         floor = 1.0  # residuals are in units of each recording's noise
         verdict = explain.verdict(chosen.cross_validated, floor, noise_factor, chosen is not baseline)
         interfaces = dict(space.plan.interfaces)
         discovery: Discovered | NotDiscovered | None = None
         if discover and verdict in (explain.PARTIAL, explain.UNEXPLAINED):
-            say(
-                f"the library leaves {chosen.cross_validated:.3g} noise floors held-out: "
-                "seeking a correction of the model-exchange FMUs' state derivatives"
-            )
-            freed = (*base, *(p for n in chosen.ids for p in library[n].parameters))
-            discovery = noise_ruled(
-                discover_derivatives(
-                    fits,
-                    client,
-                    chosen,
-                    freed,
-                    scales,
-                    validation.folds,
-                    say=say,
-                    fitted=validation.fitted,
-                    pieces=validation.pieces,
-                )
-            )
-            say(
-                f"discovered {'; '.join(e['readable'] for e in discovery.effects())}"
-                if isinstance(discovery, Discovered)
-                else f"nothing discovered: {discovery.reason}"
-            )
+            discovery = _sought(f, chosen)
         twins = signal_claims.alike(chosen, everything)
-        residuals = located_residuals(fits, client, [baseline, chosen, *twins], compared, scenarios)
+        residuals = located_residuals(f.space, client, [baseline, chosen, *twins], compared, f.scenarios)
         answer = chosen  # the library's: its look-alikes are among the library's candidates
-        if isinstance(
-            discovery, Discovered
-        ):  # the model the recordings support: the library's answer and the terms
+        if isinstance(discovery, Discovered):
+            # the model the recordings support: the library's answer and the terms
             chosen = discovery.candidate
             everything.append(chosen)
             verdict = explain.verdict(chosen.cross_validated, floor, noise_factor, True, discovered=True)
-            work = terms_space(fits, list(discovery.terms.values()))
-            residuals.update(located_residuals(work, client, [chosen], compared, scenarios))
+            work = terms_space(f.space, list(discovery.terms.values()))
+            residuals.update(located_residuals(work, client, [chosen], compared, f.scenarios))
     noise = {c.signal: c.noise for c in compared}
     by_name = {s.name: s for s in space.scenarios}
     looks = [signal_claims.weigh(answer, t, residuals, noise, by_name) for t in twins]
@@ -709,6 +455,340 @@ def diagnose_space(
     }
     diagnosis.figures = [str(f) for f in figures]
     return diagnosis
+
+
+def _fit_report(say: Messages) -> Callable[[int, int, int, int], None]:
+    """The progress line of every round of a batch of fits."""
+
+    def report(round_: int, active: int, points: int, simulations: int) -> None:
+        say(f"fits: round {round_}, {active} active, {points} points, {simulations} simulations")
+
+    return report
+
+
+def _calibrated(
+    space: Space, compared: Sequence[Compared], client, say: Messages
+) -> tuple[tuple[Parameter, ...], dict[str, Any]]:
+    """Where every effect's fit starts: the space's calibration (its own search's best point, refined by
+    least squares), and the parameters it gives one value, held there."""
+    best: dict[str, Any] = {}
+    if space.dimensions and space.spec.search.strategy != "given":
+        search = space.spec.search
+        say(
+            f"calibrating: {space.name}, "
+            + (
+                "the space's grid"
+                if search.strategy == "exhaustive"
+                else f"{search.strategy} over its intervals, {search.max_points} points"
+            )
+        )
+        submit(space, client=client)
+        best = rank(space.output, space.name).best
+    base = calibration(space, best)
+    calibrated = {p.name for p in base}
+    held = {name: values[0] for name, values in space.parameters.items() if name not in calibrated}
+    if base:
+        say("calibrating: least squares from the best point")
+        plain = fits_space(space, compared, {}, CALIBRATION_FITS)
+        names = tuple(s.name for s in space.scenarios)
+        scales = {c.residuals: 1.0 / c.noise for c in compared}
+        problem = FitProblem("calibration", base, held, names, MAX_ITERATIONS)
+        refined = fit_all(plain, [problem], client, scales, _fit_report(say))["calibration"]
+        if refined.error is None:
+            base = tuple(replace(p, start=refined.values[p.name]) for p in base)
+    return base, held
+
+
+@dataclass
+class _Fits:
+    """What every fit of one diagnosis shares: the space the fits run in, its cluster and scales, the
+    library, the calibrated parameters each fit frees beside its effects', what it leaves fixed, and the
+    validation's folds. Each stage below asks it for its problems and their fits."""
+
+    space: Space
+    client: Any
+    scales: dict[str, float]
+    library: dict[str, SignalHypothesis]
+    base: tuple[Parameter, ...]
+    unfreed: dict[str, Any]  # the space's single-valued parameters, and every effect at neutral
+    validation: Validation
+    say: Messages
+
+    @property
+    def scenarios(self) -> tuple[str, ...]:
+        """What a fit on everything fits: a record's views are only for its folds."""
+        return self.validation.fitted
+
+    @property
+    def parts(self) -> list[list[str]]:
+        return self.validation.tests
+
+    def problem(
+        self,
+        label: str,
+        names: tuple[str, ...],
+        on: tuple[str, ...],
+        start: Mapping[str, float] = {},
+        iterations: int = MAX_ITERATIONS,
+    ) -> FitProblem:
+        """The calibrated parameters and the effects ``names`` freed (from ``start`` where it says), fitted on
+        the scenarios ``on``."""
+        freed = tuple(
+            replace(p, start=start.get(p.name, p.start))
+            for p in (*self.base, *(p for n in names for p in self.library[n].parameters))
+        )
+        fixed = {k: v for k, v in self.unfreed.items() if k not in {p.name for p in freed}}
+        return FitProblem(label, freed, fixed, on, iterations)
+
+    def by_fold(self, ids: tuple[str, ...], start: Mapping[str, float]) -> list[FitProblem]:
+        return [
+            self.problem(f"{_label(ids)}/fold{k}", ids, fold.train, start)
+            for k, fold in enumerate(self.validation.folds)
+        ]
+
+    def fit(self, problems: list[FitProblem]) -> dict[str, FitResult]:
+        """Every problem fitted, all in the same rounds; by label."""
+        if not problems:
+            return {}
+        return fit_all(self.space, problems, self.client, self.scales, _fit_report(self.say))
+
+    def hold_out(self, candidates: list[Candidate], results: Mapping[str, FitResult]) -> None:
+        held_out(self.space, self.client, candidates, results, self.parts, self.scales)
+
+
+def _label(ids: tuple[str, ...]) -> str:
+    """A set of effects as its fits are named: ``none`` for the empty set."""
+    return "+".join(ids) or "none"
+
+
+def _singles(f: _Fits) -> tuple[list[tuple[str, ...]], dict[tuple[str, ...], FitResult]]:
+    """No effect and each effect alone, fitted on every scenario: every start of an effect scouted for a few
+    iterations, then only the best start of each fitted on (after a few iterations each start is in its
+    basin)."""
+    library = f.library
+    sets = [(), *((name,) for name in library)]
+    starts = {
+        s: [library[s[0]].start(i) for i in range(len(library[s[0]].starts))] if s else [{}] for s in sets
+    }
+    tries = [
+        f.problem(f"{_label(s)}#{i}", s, f.scenarios, v, SCOUTING)
+        for s in sets
+        for i, v in enumerate(starts[s])
+    ]
+    f.say(
+        f"fitting {len(sets) - 1} effects and none on every scenario: {len(tries)} fits, "
+        f"{SCOUTING} iterations from every start"
+    )
+    tried = f.fit(tries)
+    scouted = {
+        s: min((tried[f"{_label(s)}#{i}"] for i in range(len(starts[s]))), key=lambda fit: fit.sse)
+        for s in sets
+    }
+    going = [
+        f.problem(_label(s), s, f.scenarios, fit.values, MAX_ITERATIONS - SCOUTING)
+        for s, fit in scouted.items()
+        if not fit.converged
+    ]
+    f.say(f"going on from the best start: {len(going)} fits")
+    went = f.fit(going)
+    return sets, {s: went.get(_label(s), fit) for s, fit in scouted.items()}
+
+
+def _screened_pairs(
+    f: _Fits, sets: list[tuple[str, ...]], full: Mapping[tuple[str, ...], FitResult]
+) -> tuple[Pairs, list[signal_screen.ScreenedPair]]:
+    """The pairs predicted from the singles' fits and checked by simulation, when no single fits to within
+    the noise; and the shortlist of them to fit for real."""
+    pairs = Pairs()
+    singles = {s[0]: full[s] for s in sets if s and full[s].error is None}  # a failed one has no direction
+    if worth_pairing(list(singles.values())):
+        bounds = {p.name: p for p in (*f.base, *(p for h in f.library.values() for p in h.parameters))}
+
+        def real_sse(points: list[Point]) -> list[float]:
+            rows, _ = evaluate_points(f.space, points, f.client, list(f.scales))
+            found = residuals_in(rows, f.scales)
+            return [screen_sse(p, f.scenarios, found) for p in points]
+
+        pairs.screened, pairs.predicted = signal_screen.screen(full[()], singles, bounds, real_sse)
+        f.say(f"pairs: {pairs.predicted} predicted from the single fits, {len(pairs.screened)} checked")
+    else:
+        pairs.reason = f"a single effect already fits within {explain.FLOOR_STOP:g} noise floors"
+    short = signal_screen.shortlist(pairs.screened)
+    pairs.fitted = [s.label for s in short]
+    return pairs, short
+
+
+def _cross_validated(
+    f: _Fits,
+    sets: list[tuple[str, ...]],
+    full: Mapping[tuple[str, ...], FitResult],
+    short: list[signal_screen.ScreenedPair],
+) -> tuple[Candidate, list[Candidate]]:
+    """None, each single and the shortlisted pairs as candidates, judged on held-out error: the pairs fitted
+    on every scenario, and cross-validated where they may pass the BIC gate. The baseline (no effect), and
+    every candidate."""
+    parts = f.parts
+    # pairs whose checked point alone already passes the BIC gate (a fit only lowers the SSE) are
+    # cross-validated beside their full fits, saving the rounds of a batch of their own
+    early = gated_early(short, full, SURVIVORS) if parts else []
+    folded = [p for s in sets for p in f.by_fold(s, full[s].values)]
+    folded += [p for x in early for p in f.by_fold(x.ids, x.start)]
+    combos = [f.problem(x.label, x.ids, f.scenarios, x.start) for x in short]
+    f.say(
+        f"cross-validating: {len(parts)} folds, {len(folded)} fits"
+        + (f"; fitting {len(combos)} pairs" if combos else "")
+    )
+    results = f.fit(folded + combos)
+    candidates = [Candidate(s, full[s]) for s in sets]
+    combinations = [Candidate(x.ids, results[x.label]) for x in short]
+    first = {x.label for x in early}
+    f.hold_out(candidates + [c for c in combinations if c.label in first], results)
+    if not parts:  # one run: judged on its fit alone, as every candidate is
+        f.hold_out(combinations, {})
+    baseline = candidates[0]
+    current = explain.select(candidates[1:], baseline)
+    everything = candidates + combinations
+    survivors = (
+        explain.bic_gate(combinations, everything, current, explain.BIC_MARGIN, SURVIVORS) if parts else []
+    )
+    late = [c for c in survivors if not c.validated]
+    if late:
+        f.say(f"cross-validating {', '.join(c.label for c in late)}")
+        more = f.fit([p for c in late for p in f.by_fold(c.ids, c.full.values)])
+        f.hold_out(late, more)
+    return baseline, everything
+
+
+def _grown(
+    f: _Fits,
+    selected: Candidate,
+    full: Mapping[tuple[str, ...], FitResult],
+    everything: list[Candidate],
+    noise_factor: float,
+) -> tuple[Candidate, list[dict[str, Any]]]:
+    """``selected`` grown one effect at a time while each pays its way and error stays above the noise, then
+    each member of the answer judged; the answer, and what each round of growth tried. Every candidate fitted
+    joins ``everything``."""
+    growth: list[dict[str, Any]] = []
+    while (
+        selected.ids
+        and len(selected.ids) < MAX_EFFECTS
+        and explain.above_floor(selected.cross_validated, 1.0, noise_factor)
+    ):
+        grown = _extended(f, selected, full, everything, growth)
+        if grown is None:
+            break
+        f.say(f"grown: {grown.label}, held-out {grown.cross_validated:.3g} noise floors")
+        selected = grown
+    _judge_members(f, selected, everything)
+    return selected, growth
+
+
+def _joining(f: _Fits, full: Mapping[tuple[str, ...], FitResult], h: str) -> dict[str, float]:
+    """Where an effect joining a set starts: its single fit, unless that did no better than none (an effect
+    another masks, such as the second side of a clip: alone it fitted to nothing), then its own first
+    start."""
+    single = full[(h,)]
+    if single.error is None and explain.bic(single) < explain.bic(full[()]):
+        return {n: single.values[n] for n in f.library[h].names}
+    return f.library[h].start(0)
+
+
+def _extended(
+    f: _Fits,
+    current: Candidate,
+    full: Mapping[tuple[str, ...], FitResult],
+    everything: list[Candidate],
+    growth: list[dict[str, Any]],
+) -> Candidate | None:
+    """The best of ``current`` with one more effect (scouted from ``current``'s fit and the effect's single
+    fit, the best few fitted on), cross-validated: it, if it beats ``current`` and every fitted part of
+    itself; else None. What it tried joins ``everything``, and a line on it ``growth``."""
+    library = f.library
+    known = {frozenset(c.ids) for c in everything}
+    sets = [
+        tuple(sorted((*current.ids, h)))
+        for h in library
+        if h not in current.ids and not any(shares(library[h], library[i]) for i in current.ids)
+    ]
+    sets = [x for x in sets if frozenset(x) not in known]
+    if not sets:
+        return None
+    starts = {
+        x: {
+            **current.full.values,
+            **{k: v for h in x if h not in current.ids for k, v in _joining(f, full, h).items()},
+        }
+        for x in sets
+    }
+    f.say(f"growing {current.label}: {len(sets)} sets with one more effect, {SCOUTING} iterations each")
+    scouted = f.fit([f.problem("+".join(x), x, f.scenarios, starts[x], SCOUTING) for x in sets])
+    finalists = sorted(sets, key=lambda x: scouted["+".join(x)].sse)[:GROW_FINALISTS]
+    going = [
+        f.problem("+".join(x), x, f.scenarios, scouted["+".join(x)].values, MAX_ITERATIONS - SCOUTING)
+        for x in finalists
+        if not scouted["+".join(x)].converged
+    ]
+    fitted = {**scouted, **f.fit(going)}
+    tried = [Candidate(x, fitted["+".join(x)]) for x in sets]
+    everything.extend(tried)
+    best = min(tried, key=lambda c: c.bic)
+    growth.append({"from": current.label, "tried": len(tried), "best": best.label, "bic": best.bic})
+    if best.bic > current.bic - explain.BIC_MARGIN:
+        return None
+    f.hold_out([best], f.fit(f.by_fold(best.ids, best.full.values)) if f.parts else {})
+    growth[-1]["held_out"] = best.cross_validated
+    if explain.beats(best, current) and explain.beats_subsets(best, everything):
+        growth[-1]["accepted"] = True
+        return best
+    return None
+
+
+def _judge_members(f: _Fits, answer: Candidate, everything: list[Candidate]) -> None:
+    """Each set of the answer without one member, fitted and cross-validated if it was not yet: the noise
+    rule weighs every member by what taking it out costs, and keeps one it cannot weigh."""
+    known = {frozenset(c.ids): c for c in everything if c.validated}
+    missing = [tuple(i for i in answer.ids if i != m) for m in answer.ids if len(answer.ids) > 1]
+    missing = [x for x in missing if frozenset(x) not in known]
+    if not missing or not f.parts:
+        return
+    f.say(
+        f"judging each member of {answer.label}: {len(missing)} sets without one, fitted and cross-validated"
+    )
+    fitted = f.fit([f.problem("+".join(x), x, f.scenarios, dict(answer.full.values)) for x in missing])
+    folded = f.fit([p for x in missing for p in f.by_fold(x, fitted["+".join(x)].values)])
+    judged = [Candidate(x, fitted["+".join(x)]) for x in missing]
+    f.hold_out(judged, folded)
+    everything.extend(judged)
+
+
+def _sought(f: _Fits, chosen: Candidate) -> Discovered | NotDiscovered:
+    """A correction of the model-exchange FMUs' state derivatives, sought where the library's answer leaves
+    error above the noise, and judged by the library's noise rule."""
+    f.say(
+        f"the library leaves {chosen.cross_validated:.3g} noise floors held-out: "
+        "seeking a correction of the model-exchange FMUs' state derivatives"
+    )
+    freed = (*f.base, *(p for n in chosen.ids for p in f.library[n].parameters))
+    discovery = noise_ruled(
+        discover_derivatives(
+            f.space,
+            f.client,
+            chosen,
+            freed,
+            f.scales,
+            f.validation.folds,
+            say=f.say,
+            fitted=f.validation.fitted,
+            pieces=f.validation.pieces,
+        )
+    )
+    f.say(
+        f"discovered {'; '.join(e['readable'] for e in discovery.effects())}"
+        if isinstance(discovery, Discovered)
+        else f"nothing discovered: {discovery.reason}"
+    )
+    return discovery
 
 
 def noise_ruled(found: Discovered | NotDiscovered) -> Discovered | NotDiscovered:
