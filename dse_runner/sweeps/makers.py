@@ -220,9 +220,10 @@ class Local(ClusterMaker):
         "distributed.scheduler.allowed-failures": 1,
         **QUIET,
         # A worker process that dies is restarted by its nanny, here in the client's process. distributed
-        # also closes, for good, the nanny of a worker that has not come back after this long, judged at
-        # one instant: under an FMU that kills worker after worker, that instant may fall between two
-        # lives of the same worker, and the cluster lost it for the rest of the sweep.
+        # also closes, for good, the nanny of a worker that has not come back this long after a death,
+        # judged at one instant: under an FMU that kills worker after worker (or a restart slower than
+        # that on a loaded machine) the instant may fall between two lives of the same worker, and the
+        # cluster lost the worker for the rest of the sweep.
         "distributed.deploy.lost-worker-timeout": "3650 days",
     }
 
