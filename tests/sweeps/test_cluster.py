@@ -329,6 +329,7 @@ def test_segfaulting_fmu_fails_only_its_point(tmp_path, n_workers):
     assert list(failed["crasher.k"]) == [CRASH_AT]
     # alone, it ran in a process of its own: that process died, not another worker
     assert "fresh process running this simulation was killed by SIGSEGV" in failed["error"].iloc[0]
+    assert "process" in set(rows.loc[rows["status"] == "ok", "lifecycle"])  # its last half's sibling, alone
     ids = raw_task_ids(space.output)
     assert len(ids) == 16 and ids.is_unique
 
