@@ -98,6 +98,22 @@ def check_reachable(root: Root) -> None:
         raise DseError(f"cannot write to the store {root}: {type(e).__name__}: {e}") from None
 
 
+def _write_whole(
+    root: Root, name: str, local: Callable[[Path], object], remote: Callable[[Any, str], object]
+) -> str:
+    """Write ``name`` under ``root`` so that readers see all of it or the old one; returns where it went.
+    On a local disk ``local(partial)`` writes a file beside the target, renamed into place; on an object
+    store, which replaces an object whole, ``remote(fs, target)`` writes it there."""
+    fs, path = _fs(root)
+    target = _join(path, name)
+    if isinstance(fs, LocalFileSystem):
+        _replace_whole(target, local)
+    else:
+        fs.makedirs(target.rsplit("/", 1)[0], exist_ok=True)
+        remote(fs, target)
+    return _where(fs, target)
+
+
 def _replace_whole(target: str, write: Callable[[Path], object]) -> None:
     """Write a local file beside ``target`` and rename it into place: readers never see half of it, and
     a write cut short (a full disk, or Ctrl-C, which raises wherever the client is) leaves nothing behind."""
@@ -112,16 +128,12 @@ def _replace_whole(target: str, write: Callable[[Path], object]) -> None:
 
 
 def write_text(root: Root, name: str, text: str) -> str:
-    """Write a small file (``name`` may hold folders) so that readers see all of it or the old one
-    (a dashboard reads status and history files while a sweep rewrites them); returns where it went."""
-    fs, path = _fs(root)
-    target = _join(path, name)
-    if isinstance(fs, LocalFileSystem):
-        _replace_whole(target, lambda partial: partial.write_bytes(text.encode()))
-    else:  # object stores replace an object whole
-        fs.makedirs(target.rsplit("/", 1)[0], exist_ok=True)
-        fs.pipe_file(target, text.encode())
-    return _where(fs, target)
+    """Write a small file (``name`` may hold folders) whole (a dashboard reads status and history files
+    while a sweep rewrites them); returns where it went."""
+    data = text.encode()
+    return _write_whole(
+        root, name, lambda partial: partial.write_bytes(data), lambda fs, to: fs.pipe_file(to, data)
+    )
 
 
 def read_text(root: Root, name: str) -> str | None:
@@ -135,28 +147,25 @@ def read_text(root: Root, name: str) -> str | None:
 
 def write_csv(frame: pd.DataFrame, root: Root, name: str) -> str:
     """``frame`` as CSV (no index), written whole like write_text. Arrow's writer: a million-row ranking in a
-    second, where pandas' takes ten."""
+    second, where pandas' takes ten. On a local disk it streams to the file, not held: a million rows are
+    70 MB of text."""
     table = pa.Table.from_pandas(frame, preserve_index=False)
-    fs, path = _fs(root)
-    target = _join(path, name)
-    if isinstance(fs, LocalFileSystem):  # streamed to the file, not held: a million rows are 70 MB of text
-        _replace_whole(target, lambda partial: pa_csv.write_csv(table, str(partial)))
-    else:
-        fs.makedirs(target.rsplit("/", 1)[0], exist_ok=True)
+
+    def remote(fs: Any, target: str) -> None:
         with fs.open(target, "wb") as sink:
             pa_csv.write_csv(table, sink)
-    return _where(fs, target)
+
+    return _write_whole(root, name, lambda partial: pa_csv.write_csv(table, str(partial)), remote)
 
 
 def write_table(table: pa.Table, root: Root, relative: str) -> str:
     """Write ``table`` so that readers see all of it or nothing."""
-    fs, path = _fs(root)
-    target = _join(path, relative)
-    if isinstance(fs, LocalFileSystem):
-        _replace_whole(target, lambda partial: pq.write_table(table, partial))
-    else:
-        pq.write_table(table, target, filesystem=fs)
-    return _where(fs, target)
+    return _write_whole(
+        root,
+        relative,
+        lambda partial: pq.write_table(table, partial),
+        lambda fs, target: pq.write_table(table, target, filesystem=fs),
+    )
 
 
 def results_schema(parameters: dict[str, list[Any]], objectives: dict[str, ObjectiveSpec]) -> pa.Schema:
