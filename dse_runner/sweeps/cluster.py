@@ -100,7 +100,7 @@ def connect(spec: Cluster, base: Path | None = None) -> Iterator[distributed.Cli
     if link:
         settings["distributed.dashboard.link"] = link
     chosen = None if spec.address else maker(spec.kind)
-    if chosen:
+    if chosen is not None:
         settings.update(chosen.settings)  # held until the cluster is closed
     with dask.config.set(settings), quiet_once_interrupted():
         if chosen is None:

@@ -416,12 +416,12 @@ def _check_names(space: Space, source: str) -> None:
             _check_term(space, term, values, source)
             continue
         variable = space.plan.variable(ref, f"{source}: parameters")
-        for value in values:
-            try:
-                space.plan.check_not_fed(variable)
+        try:
+            space.plan.check_not_fed(variable)  # once per variable, not per value: a grid may hold thousands
+            for value in values:
                 check_value(variable, value)
-            except DseError as e:
-                raise DseError(f"{source}: parameters.{ref}: {e}") from None
+        except DseError as e:
+            raise DseError(f"{source}: parameters.{ref}: {e}") from None
     for scenario in space.scenarios:
         try:
             bound_fields(space.multimodel, scenario)
