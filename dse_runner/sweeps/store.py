@@ -109,9 +109,15 @@ def _write_whole(
     if isinstance(fs, LocalFileSystem):
         _replace_whole(target, local)
     else:
-        fs.makedirs(target.rsplit("/", 1)[0], exist_ok=True)
         remote(fs, target)
     return _where(fs, target)
+
+
+def _into_folder(fs: Any, target: str) -> str:
+    """``target``, its folder made on a remote store (s3fs asks whether the bucket exists: a request, so not
+    for every results file)."""
+    fs.makedirs(target.rsplit("/", 1)[0], exist_ok=True)
+    return target
 
 
 def _replace_whole(target: str, write: Callable[[Path], object]) -> None:
@@ -132,7 +138,10 @@ def write_text(root: Root, name: str, text: str) -> str:
     while a sweep rewrites them); returns where it went."""
     data = text.encode()
     return _write_whole(
-        root, name, lambda partial: partial.write_bytes(data), lambda fs, to: fs.pipe_file(to, data)
+        root,
+        name,
+        lambda partial: partial.write_bytes(data),
+        lambda fs, to: fs.pipe_file(_into_folder(fs, to), data),
     )
 
 
@@ -152,7 +161,7 @@ def write_csv(frame: pd.DataFrame, root: Root, name: str) -> str:
     table = pa.Table.from_pandas(frame, preserve_index=False)
 
     def remote(fs: Any, target: str) -> None:
-        with fs.open(target, "wb") as sink:
+        with fs.open(_into_folder(fs, target), "wb") as sink:
             pa_csv.write_csv(table, sink)
 
     return _write_whole(root, name, lambda partial: pa_csv.write_csv(table, str(partial)), remote)
