@@ -51,6 +51,9 @@ class Plan:
     texts: dict[str, tuple[Variable, ...]]  # string outputs recorded, per instance
     links: tuple[Link, ...]
     defaults: tuple[float | None, float | None, float | None] = (None, None, None)  # one FMU's experiment
+    # the variables looked up so far: a sweep looks up the same names at every run (a mutable cache, not
+    # part of what the plan is: each copy starts its own)
+    _found: dict[str, Variable] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @functools.cached_property
     def recorded(self) -> tuple[str, ...]:
@@ -61,10 +64,9 @@ class Plan:
         return tuple((link.source, link.target) for link in self.links)
 
     def variable(self, ref: str, purpose: str) -> Variable:
-        found = self.__dict__.setdefault("_found", {})  # a sweep looks up the same names every run
-        variable = found.get(ref)
+        variable = self._found.get(ref)
         if variable is None:
-            variable = found[ref] = lookup(self.variables, self.models, ref, purpose)
+            variable = self._found[ref] = lookup(self.variables, self.models, ref, purpose)
         return variable
 
     @functools.cached_property
