@@ -96,17 +96,11 @@ def load_run(folder: str | Path, options: Mapping[str, Any] | None = None) -> Sc
     recorded = Recording(
         paths[GPS_FILE], fixes.columns[0], {"x": fixes.columns[1], "y": fixes.columns[2]}, len(fixes.dropped)
     )
-    pose = info.initial_pose
     return Scenario(
         name=info.name,
         group=info.group,
         kind=KIND,
-        fields={
-            "duration": info.duration,
-            "initial_pose.x": pose.x,
-            "initial_pose.y": pose.y,
-            "initial_pose.theta": pose.theta,
-        },
+        fields=info.fields,
         files={"steering_inputs": paths[STEERING_FILE], "gps_position": paths[GPS_FILE]},
         recorded=recorded,
         start_time=0.0,

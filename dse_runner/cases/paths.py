@@ -196,16 +196,12 @@ def load_path(folder: str | Path, options: Mapping[str, Any] | None = None) -> S
     if info.step_at is not None:
         lateral_step(path, info.step_at, str(info_file))
         step = {"step_at": info.step_at}
-    pose = info.initial_pose
     return Scenario(
         name=info.name,
         group=info.group,
         kind=KIND,
         fields={
-            "duration": info.duration,
-            "initial_pose.x": pose.x,
-            "initial_pose.y": pose.y,
-            "initial_pose.theta": pose.theta,
+            **info.fields,
             "target_speed": float(path.speed.max()),
             **step,
         },

@@ -35,6 +35,17 @@ class RunInfo(BaseModel):
     duration: PositiveFloat
     initial_pose: Pose
 
+    @property
+    def fields(self) -> dict[str, float]:
+        """The scenario fields both kinds set from it: the run's length and where the vehicle starts."""
+        pose = self.initial_pose
+        return {
+            "duration": self.duration,
+            "initial_pose.x": pose.x,
+            "initial_pose.y": pose.y,
+            "initial_pose.theta": pose.theta,
+        }
+
 
 class Position(BaseModel):
     """The outputs that are the simulated position: ``{x: vehicle.x, y: vehicle.y}``."""
