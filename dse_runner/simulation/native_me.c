@@ -90,7 +90,8 @@ typedef struct {          /* one group of inputs, read back to see whether the m
 
 /* A term, der(states[STATE]) += COEFFICIENT * the product of its factors, is a row of TERM_COLUMNS doubles;
  * a factor, FUNCTION(value / WIDTH) ^ POWER of the term inputs' (INPUT != 0) or the states' [INDEX], a row of
- * FACTOR_COLUMNS. FUNCTION: 0 none, then derivative_terms.FUNCTIONS' order: abs, tanh, sin, cos. */
+ * FACTOR_COLUMNS. FUNCTION: 0 none, then derivative_terms.FUNCTIONS' order: 1 abs, 2 tanh, 3 sin, 4 cos,
+ * 5 sign (-1, 0, +1; NaN stays NaN, as np.sign), 6 sqrt (signed: sqrt(|x|) with the sign of x). */
 enum { STATE, FIRST, COUNT, COEFFICIENT, TERM_COLUMNS };
 enum { INPUT, INDEX, FUNCTION, POWER, WIDTH, FACTOR_COLUMNS };
 /* A bounded state (state_limits.Row) is a row of LIMIT_COLUMNS doubles: its index, bounds, the state its
@@ -148,7 +149,14 @@ static double factor(const double *f, const double *states, const double *inputs
     int function = (int)f[FUNCTION];
     if (function) {
         double x = f[WIDTH] != 1.0 ? v / f[WIDTH] : v;
-        v = function == 1 ? fabs(x) : function == 2 ? tanh(x) : function == 3 ? sin(x) : cos(x);
+        switch (function) {
+            case 1: v = fabs(x); break;
+            case 2: v = tanh(x); break;
+            case 3: v = sin(x); break;
+            case 4: v = cos(x); break;
+            case 5: v = x > 0.0 ? 1.0 : x < 0.0 ? -1.0 : x == 0.0 ? 0.0 : x; break;
+            default: v = copysign(sqrt(fabs(x)), x); break;
+        }
     }
     return f[POWER] == 1.0 ? v : pow(v, f[POWER]);
 }

@@ -284,9 +284,12 @@ class NativeIntegrator:
             unit.term_inputs = ctypes.addressof(self.term_inputs)
 
     def coefficients(self, corrector: Corrector) -> None:
-        """A run's coefficients and limits for the same terms and bounded
+        """A run's coefficients, widths and limits for the same terms and bounded
         states (a fit changes only those)."""
         self.terms[:, 3] = [coefficient for _, _, coefficient in corrector.rows]
+        # a factor's width is a run's too (derivative_width), though cosim keys a layout by the terms' names,
+        # which write it
+        self.factors[:, 4] = [f.width for _, term, _ in corrector.rows for f in term.factors] or [1.0]
         self.limits[: len(corrector.limits)] = _limit_rows(corrector)[: len(corrector.limits)]
 
     def start(self, time: float, stop: float, next_event: float | None) -> None:

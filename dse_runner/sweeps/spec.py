@@ -483,29 +483,48 @@ def _check_effect(space: Space, effect: signal_effects.Effect, values: list[Any]
                 )
 
 
-def _parsed_term(ref: str, source: str) -> derivative_terms.DerivativeTerm | state_limits.StateLimit | None:
-    """A derivative term or a state limit: what the master changes in a
+Correction = derivative_terms.DerivativeTerm | derivative_terms.DerivativeWidth | state_limits.StateLimit
+
+
+def _parsed_term(ref: str, source: str) -> Correction | None:
+    """A derivative term, its companion width or a state limit: what the master changes in a
     model-exchange instance's equations."""
     try:
-        return derivative_terms.parse(ref) or state_limits.parse(ref)
+        return derivative_terms.parse(ref) or derivative_terms.parse_width(ref) or state_limits.parse(ref)
     except DseError as e:
         raise DseError(f"{source}: parameters.{e}") from None
 
 
-def _check_term(
-    space: Space,
-    term: derivative_terms.DerivativeTerm | state_limits.StateLimit,
-    values: list[Any],
-    source: str,
-) -> None:
+def _check_term(space: Space, term: Correction, values: list[Any], source: str) -> None:
     """A derivative term's values are coefficients, a state limit's bounds or fractions, on a
     model-exchange instance that has the states and the variables the term reads
     (derivative_terms.check, state_limits.check)."""
+    if isinstance(term, derivative_terms.DerivativeWidth):
+        _check_width(space, term, values, source)
+        return
     split = state_limits.split if isinstance(term, state_limits.StateLimit) else derivative_terms.split
     try:
         for value in values:
             split({term.name: value})
         checked_term(space.plan, term)
+    except DseError as e:
+        raise DseError(f"{source}: parameters.{e}") from None
+
+
+def _check_width(
+    space: Space, width: derivative_terms.DerivativeWidth, values: list[Any], source: str
+) -> None:
+    """A derivative term's companion width: its values are widths (finite, > 0), and its term is a parameter
+    of the space as well (derivative_terms.split asks the same of every run's values), checked."""
+    try:
+        for value in values:
+            derivative_terms.split({width.term.name: 1.0, width.name: value})
+        if not any(derivative_terms.parse(ref) == width.term for ref in space.parameters):
+            raise DseError(
+                f"{width.name}: the parameters have no {width.term.name}, whose width it fits; "
+                "sweep or fit the coefficient too"
+            )
+        checked_term(space.plan, width.term)
     except DseError as e:
         raise DseError(f"{source}: parameters.{e}") from None
 

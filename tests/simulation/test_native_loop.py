@@ -22,6 +22,7 @@ from dse_runner.simulation import cosim, native
 from dse_runner.simulation.build import build_fmu
 from dse_runner.simulation.multimodel import MultiModel
 from dse_runner.simulation.run import as_plan, simulate
+from dse_runner.simulation.scenario import load_scenario
 
 TYPES2, TYPES3 = REPO / "tests" / "fmus" / "types2", REPO / "tests" / "fmus" / "types3"
 WATERTANK = REPO / "jobs" / "watertank" / "fmus"
@@ -387,3 +388,26 @@ def test_model_exchange_failing_inside_cvode_gives_the_same_message(tmp_path):
         == messages[1]
         == "handling an input change at t=1: fmi2GetReal failed with status 3 (error)"
     )
+
+
+def test_sign_sqrt_and_fitted_widths_added_in_c_are_bit_identical(tmp_path):
+    """sign and the signed sqrt, of states and of an input that is exactly 0 at times, and a term whose width
+    a companion derivative_width gives, in C as in Corrector.add; the next run's other width (a fit's next
+    point, on the same plan and scenario objects, so that the native loop keeps its layouts) is its own, and
+    a width run again is the same run."""
+    plan, pushed = as_plan(MSD), load_scenario(force_scenario(tmp_path))
+    tanh = "derivative_term(msd.der(v), tanh(v/0.05))"
+    width = "derivative_width(msd.der(v), tanh(v/0.05))"
+    fixed = {
+        "msd.k": 14.0,
+        "derivative_term(msd.der(v), sign(x))": -0.4,
+        "derivative_term(msd.der(v), sign(F)*sqrt(x/0.2))": 0.3,
+        "derivative_term(msd.der(x), sqrt(v)^3)": -0.05,
+        tanh: -0.3,
+    }
+    runs = [both(plan, pushed, {**fixed, width: w}, stop_time=5.0, step=0.05) for w in (0.01, 0.2, 0.01)]
+    for python, ours in runs:
+        assert_identical(python, ours)
+    assert not np.array_equal(runs[0][1].trajectory.values, runs[1][1].trajectory.values)
+    assert runs[0][1].trajectory.values.tobytes() == runs[2][1].trajectory.values.tobytes()
+    assert "derivative_term(msd.der(v), tanh(v/0.2))" in runs[1][1].values  # the term as it was run
