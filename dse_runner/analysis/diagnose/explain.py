@@ -52,6 +52,18 @@ def bic(fit: FitResult) -> float:
     return bic_of(fit.sse, fit.residual_count, len(fit.names))
 
 
+def search_charge(offered: int, chosen: int, gamma: float = 1.0) -> float:
+    """What choosing ``chosen`` members out of ``offered`` costs beyond the BIC: the extended BIC's
+    2·γ·ln C(offered, chosen) (Chen and Chen, 2008). Why: the BIC charges a fitted parameter, not the
+    search; among many candidate terms one fits the noise best by chance, and the more there are, the
+    likelier, so a term found by searching P of them must pay ln P more than one named beforehand."""
+    if chosen <= 0 or offered <= chosen:
+        return 0.0
+    return (
+        2.0 * gamma * (math.lgamma(offered + 1) - math.lgamma(chosen + 1) - math.lgamma(offered - chosen + 1))
+    )
+
+
 def fitted_rms(fit: FitResult) -> float:
     """The RMS of a fit's residuals on the runs it saw: optimistic beside held-out error, but free."""
     return math.sqrt(fit.sse / fit.residual_count) if fit.residual_count else math.inf
@@ -65,6 +77,7 @@ class Candidate:
     held_out: dict[str, float] = field(
         default_factory=dict
     )  # scenario -> Equation 1 of the fit that did not see it
+    charge: float = 0.0  # added to the BIC for the search that chose its members (search_charge)
 
     @property
     def label(self) -> str:
@@ -82,7 +95,7 @@ class Candidate:
 
     @property
     def bic(self) -> float:
-        return bic(self.full)
+        return bic(self.full) + self.charge
 
 
 def beats(
@@ -330,9 +343,11 @@ class Dropped:
 
     id: str
     worth: float
+    reason: str = ""  # another rule's (a limit the recordings never reach), when not the noise rule
 
     def to_json(self) -> dict[str, Any]:
-        return {"id": self.id, "worth": self.worth, "rule": f"removal adds < {NOISE_RULE:g} noise variance"}
+        rule = self.reason or f"removal adds < {NOISE_RULE:g} noise variance"
+        return {"id": self.id, "worth": self.worth, "rule": rule}
 
 
 def claimed(

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from ...simulation import derivative_terms
 from . import explain
 from .derivative_discovery import DISCOVERED
 from .explain import Candidate
@@ -23,6 +24,52 @@ from .signal_locate import Residual, activity, window_of, windows
 
 LOOKALIKES = 3  # at most this many look-alikes are weighed
 TELLING = 1.0  # a window tells two fits apart when their mean squares there differ by a noise variance
+
+
+# ---- limits the recordings reach ----------------------------------------------------------------------
+
+LIMITS = ("output_max", "output_min", "state_max", "state_min", "state_overflow")
+REACHED = 3.0  # the recording is at a bound where it lies within this many noise σ of it
+HELD = 0.1  # the fit holds a signal at its bound where it lies within this share of a noise σ of it
+AT_BOUND = 0.5  # share of the samples the fit holds at a bound where the recording must be there too
+
+
+def unreached(
+    chosen: Candidate,
+    library: Mapping[str, Any],
+    residuals: Sequence[Residual],
+    recorded: Mapping[str, Mapping[str, np.ndarray]],
+    noise: Mapping[str, float],
+) -> dict[str, str]:
+    """The limits of ``chosen`` on a measured signal that the recordings do not reach, each with its reason:
+    a bound is physics (a sensor's end of range, a store that is full) only if, where the fit holds the signal
+    at it, the recording is there too. A clamp the fit holds while the recording is elsewhere only stops the
+    simulation's drift. ``residuals``: the chosen fit's, in the signals' units; ``recorded``: each compared
+    signal's recorded values per scenario, at the residuals' samples; a limit on a state no signal measures
+    cannot be judged here and is kept."""
+    found = {}
+    for member in chosen.ids:
+        h = library[member]
+        if h.id not in LIMITS or h.target not in noise:
+            continue
+        kind = "min" if h.id.endswith("min") else "max"
+        bound = chosen.full.values[h.parameters[h.kinds.index(kind)].name]
+        sigma = noise[h.target]
+        held = there = 0
+        for r in residuals:
+            if r.signal != h.target or r.scenario not in recorded.get(h.target, {}):
+                continue
+            values = np.asarray(recorded[h.target][r.scenario], float)[: r.values.size]
+            simulated = values + r.values[: values.size]
+            at = np.abs(simulated - bound) <= HELD * sigma
+            held += int(at.sum())
+            there += int(np.sum(np.abs(values[at] - bound) <= REACHED * sigma))
+        if held and there < AT_BOUND * held:
+            found[member] = (
+                f"while the fit holds {h.target} at {bound:.4g}, the recording is there on {there} of its "
+                f"{held} samples: the bound stops the simulation's drift, not a limit the process reaches"
+            )
+    return found
 
 
 # ---- look-alikes ---------------------------------------------------------------------------------
@@ -148,11 +195,13 @@ def verdict_text(
     factor: float,
     discovered: Sequence[str] = (),
     coloured: Mapping[str, Whiteness] | None = None,
+    terms: bool = False,
 ) -> str:
     """The verdict in a sentence: what was named (a discovered correction as its formula), what was not
     claimed, which twins cannot be told apart, whose residuals are not white, and, when an error well above
     the noise remains, where it must lie."""
-    named = ", ".join([*(i for i in chosen.ids if i != DISCOVERED), *discovered]) or "no effect"
+    written = [i for i in chosen.ids if i != DISCOVERED and not i.startswith(f"{derivative_terms.PREFIX}(")]
+    named = ", ".join([*written, *discovered]) or "no effect"  # a term inside the model as its formula
     parts = [f"{verdict}: {named}; held-out error {held_out:.3g} noise floors"]
     for signal, w in (coloured or {}).items():
         parts.append(
@@ -171,19 +220,29 @@ def verdict_text(
             "differently (another shape or timing, or a release away from rest) would"
         )
     if verdict in (explain.PARTIAL, explain.UNEXPLAINED) and explain.above_floor(held_out, 1.0, factor):
-        parts.append(interior(interfaces, factor))  # not when only the residuals' colour made it partial
+        parts.append(
+            interior(interfaces, factor, terms)
+        )  # not when only the residuals' colour made it partial
     return "; ".join(parts)
 
 
-def interior(interfaces: Mapping[str, str], factor: float) -> str:
-    """Where an error the signal effects leave must lie: inside the FMUs, and
-    whether that can be corrected."""
+def interior(interfaces: Mapping[str, str], factor: float, terms: bool = False) -> str:
+    """Where an error the signal effects leave must lie: inside the FMUs, and whether that can be corrected;
+    ``terms``: whether the physical terms inside the model-exchange FMUs were tried too."""
     cs = sorted(name for name, kind in interfaces.items() if kind == "cs")
     me = sorted(name for name, kind in interfaces.items() if kind == "me")
+    tried = "every effect on the inputs and outputs" + (
+        " and every physical term offered inside" if terms else ""
+    )
     said = [
         (
-            f"more than {factor:g} noise floors remain after every effect on the inputs and outputs, so the "
-            "missing part lies inside the model"
+            f"more than {factor:g} noise floors remain after {tried}, so the missing part lies inside the "
+            "model"
+            + (
+                ", beyond the terms offered (or the noise is coloured and its floor reads low)"
+                if terms
+                else ""
+            )
         )
     ]
     if cs:
@@ -191,7 +250,7 @@ def interior(interfaces: Mapping[str, str], factor: float) -> str:
             f"inside the co-simulation FMU{'s' * (len(cs) > 1)} {', '.join(cs)}, which cannot be augmented "
             "from outside: only its inputs and outputs can be corrected, and the FMU itself has to change"
         )
-    if me:
+    if me and not terms:
         said.append(
             f"the model-exchange FMU{'s' * (len(me) > 1)} {', '.join(me)} could take a correction of "
             "their state derivatives, integrated by the master"

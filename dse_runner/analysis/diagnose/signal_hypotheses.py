@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -109,6 +110,35 @@ PHYSICS = {  # what each kind of effect stands for, and the residual it leaves
         ),
         "the first state stays flat at its highest values while the other rises faster than modelled",
     ),
+    # terms inside the model (term_hypotheses.py), by their law
+    "term_constant": (
+        "a constant inflow, outflow or force the equations leave out: a bias",
+        "a residual that grows steadily, as an integrated constant does",
+    ),
+    "term_linear": (
+        "a linear leak, damping, spring or coupling the equations leave out",
+        "residuals in proportion to a state or an input, integrated",
+    ),
+    "term_cubic": (
+        "a response that steepens with the cube of a state: a spring that hardens (or softens)",
+        "too slow an oscillation at large amplitudes only; small ones fit",
+    ),
+    "term_square": (
+        "a loss growing with a state's square, its sign kept: quadratic drag, turbulent flow",
+        "large excursions damped more than small ones",
+    ),
+    "term_sqrt": (
+        "a flow through an opening, growing with the square root of a level (Torricelli)",
+        "low levels drain too slowly, high ones too fast",
+    ),
+    "term_friction": (
+        "dry (Coulomb) friction: a force of nearly constant size opposing a velocity, smoothed over a width",
+        "the simulation moves where the process sticks, and overshoots after every reversal",
+    ),
+    "term_product": (
+        "an input whose effect scales with a state (a flow that depends on a level, a force on a position)",
+        "residuals where the input acts, growing with the state",
+    ),
 }
 
 
@@ -127,6 +157,8 @@ class SignalHypothesis:
         0.0  # the finest change of its first value a run can show (a delay: one communication step)
     )
     into: str | None = None  # an overflow's receiving state
+    law: str = ""  # a term's physical law (term_hypotheses.py): cubic, sqrt, friction, ...
+    term: Any = None  # a term's PhysicalTerm: what it reads and adds to, and how it is sized
 
     @property
     def name(self) -> str:
@@ -138,6 +170,8 @@ class SignalHypothesis:
 
     @property
     def physics(self) -> tuple[str, str]:
+        if self.law:
+            return PHYSICS[f"term_{self.law}"]
         return PHYSICS[self.id if self.id.startswith("state_") else self.kinds[0]]
 
     def absent(self) -> dict[str, float]:

@@ -42,15 +42,16 @@ from ...sweeps.rank import rank
 from ...sweeps.spec import Space, derived_space
 from ...sweeps.sweep import submit
 from . import explain, signal_claims, signal_figures, signal_locate, signal_report, signal_screen
-from .derivative_discovery import DISCOVERED, Discovered, NotDiscovered, discover_derivatives, observe
+from .derivative_discovery import observe
 from .derivative_discovery.library import model_exchange_instances
-from .derivative_discovery.prove import terms_space
 from .explain import Candidate
 from .hypotheses import EffectParameter
 from .hypotheses import Hypothesis as LibraryHypothesis
 from .library import HypothesisLibrary, Messages, Request, space_with
 from .noise import NoiseEstimate, Whiteness, estimate_noise, whiteness
 from .signal_hypotheses import SignalHypothesis, shares, signal_hypotheses, state_hypotheses
+from .term_hypotheses import readable as term_readable
+from .term_hypotheses import rivals, term_hypotheses
 from .validation import Validation, validated
 
 FITS = "diagnosis-signal-fits"  # the sweep every fit's rounds go to
@@ -59,6 +60,7 @@ MAX_ITERATIONS = 30
 SCOUTING = 6  # iterations every start of a fit gets before only the best start of each effect goes on
 MAX_EFFECTS = 6  # the answer grows one effect at a time, while each pays its way, up to this many
 GROW_FINALISTS = 2  # sets of one more effect fitted on after scouting
+LOWER = 1e-3  # a refit replaces an earlier fit of the same set when its SSE is lower by this share
 
 
 @dataclass(frozen=True)
@@ -90,12 +92,10 @@ class SignalDiagnosis:
     hypotheses: dict[str, SignalHypothesis] = field(default_factory=dict)
     pairs: Any = None  # Pairs: what the pair screen did
     lookalikes: list[signal_claims.FitsAlike] = field(default_factory=list)
+    decided: list[Decided] = field(default_factory=list)  # members against their look-alikes across the skin
     dropped: list[explain.Dropped] = field(default_factory=list)
     located: dict[str, Any] = field(default_factory=dict)
     verdict_text: str = ""
-    discovery: Discovered | NotDiscovered | None = (
-        None  # sought when the library leaves error above the noise
-    )
     files: dict[str, str] = field(default_factory=dict)
     figures: list[str] = field(
         default_factory=list
@@ -120,8 +120,7 @@ class SignalDiagnosis:
                 for c in self.compared
             ],
             "whiteness": {signal: w.to_json() for signal, w in self.whiteness.items()},
-            "effects": [self._effect(name) for name in self.chosen.ids if name != DISCOVERED]
-            + (self.discovery.effects() if isinstance(self.discovery, Discovered) else []),
+            "effects": [self._effect(name) for name in self.chosen.ids],
             "verdict": self.verdict,
             "verdict_text": self.verdict_text,
             "held_out_before": self.baseline.cross_validated,
@@ -144,8 +143,8 @@ class SignalDiagnosis:
             "pairs": self.pairs.to_json() if self.pairs is not None else None,
             "growth": self.growth,
             "lookalikes": [x.to_json() for x in self.lookalikes],
+            "decided": [d.to_json() for d in self.decided],
             "dropped": [d.to_json() for d in self.dropped],
-            "discovery": self.discovery.to_json() if self.discovery is not None else None,
             "located": self.located,
             "calibrated": {
                 "parameters": dict(self.baseline.full.values)
@@ -173,7 +172,15 @@ class SignalDiagnosis:
             "intervals": intervals,
             "resolution": hypothesis.resolution,
             "partial": self.verdict == explain.PARTIAL,
+            # pinned at an end of its range: the data push it past, so the value is no estimate
+            "at_bound": [
+                k for k, p in zip(hypothesis.kinds, hypothesis.parameters) if p.name in fit.at_bound
+            ],
         }
+        if hypothesis.term is not None:  # a term inside the model: what it is and means
+            found["term"] = hypothesis.term.term.text
+            found["law"] = hypothesis.law
+            found["readable"] = term_readable(hypothesis.term, fit.values)
         return {**found, "into": hypothesis.into} if hypothesis.into else found
 
     def summary(self) -> list[str]:
@@ -181,8 +188,9 @@ class SignalDiagnosis:
         found = self.to_json()
         lines = []
         for effect in found["effects"]:
-            if effect["id"] == DISCOVERED:  # its terms as an engineer writes them
-                lines.append(f"{effect['id']}({effect['target']}): {effect['readable']}")
+            if "readable" in effect:  # a term inside the model, and its coefficient's interval
+                low, high = effect["intervals"]["coefficient"]
+                lines.append(f"{effect['readable']} (coefficient 95 % {low:.4g} to {high:.4g})")
                 continue
             told = [
                 f"{kind} {value:.4g} (95 % {effect['intervals'][kind][0]:.4g} "
@@ -204,6 +212,9 @@ class SignalDiagnosis:
                     else ""
                 )
             )
+        pinned = (found.get("fitted") or {}).get("at_bound") or []
+        if pinned:
+            lines.append(f"at a bound of its interval, not an estimate: {', '.join(pinned)}")
         judged = (
             "error on the samples fitted (nothing could be held out)"
             if (self.validation is not None and not self.validation.folds)
@@ -253,21 +264,26 @@ def compared_signals(space: Space) -> list[Compared]:
 
 
 def library_of(
-    space: Space, compared: Sequence[Compared], point: Mapping[str, Any] | None
+    space: Space, compared: Sequence[Compared], point: Mapping[str, Any] | None, terms: bool = True
 ) -> dict[str, SignalHypothesis]:
-    """The hypotheses for ``space``: signal effects on its driven inputs and compared signals, and
-    state limits on its model-exchange instances' states, ranged over what the states do at
-    ``point`` (the calibration's start; simulated here on every scenario). Without a point (a
-    listing), every state's limits by name."""
+    """The hypotheses for ``space``: signal effects on its driven inputs and compared signals, and on its
+    model-exchange instances state limits and physical terms inside their derivatives, ranged and sized
+    over what the states do at ``point`` (the calibration's start; simulated here on every scenario).
+    Without a point (a listing), every state's limits by name, and no terms (they are known once sized);
+    nor without ``terms``."""
     found = signal_hypotheses(space, [(c.signal, c.recorded) for c in compared])
     instances = model_exchange_instances(space.plan)
     if not instances:
         return found
     if point is None:
         runs = [{f"{i.name}.{s}": np.array([0.0, 1.0]) for i in instances for s in i.states}]
-    else:
-        runs = observe(space, dict(point), instances)
-    return {**found, **state_hypotheses({i.name: i.states for i in instances}, runs)}
+        return {**found, **state_hypotheses({i.name: i.states for i in instances}, runs)}
+    runs = observe(space, dict(point), instances)
+    return {
+        **found,
+        **state_hypotheses({i.name: i.states for i in instances}, runs),
+        **(term_hypotheses(instances, runs) if terms else {}),
+    }
 
 
 def restricted(found: dict[str, SignalHypothesis], only: Sequence[str]) -> dict[str, SignalHypothesis]:
@@ -367,10 +383,11 @@ def diagnose_space(
     discover: bool = True,
     only: Sequence[str] = (),
 ) -> SignalDiagnosis:
-    """Calibrate the space (a file, or a Space as the library contract gives it), fit each signal effect with
-    it (``only`` these, when given), screen pairs when no single explains to the noise, choose what the
-    recordings support, seek a derivative correction when they leave error above the noise (unless not
-    ``discover``), and locate the misfit before and after."""
+    """Calibrate the space (a file, or a Space as the library contract gives it), fit each hypothesis with
+    it (``only`` these, when given): the signal effects and state limits, and the physical terms inside its
+    model-exchange FMUs (unless not ``discover``); screen pairs when no single explains to the noise, grow
+    the answer, keep what the recordings support and reach, decide each member against its look-alike across
+    the model's skin, and locate the misfit before and after."""
     say = say or (lambda message: None)
     space = (
         path
@@ -380,7 +397,8 @@ def diagnose_space(
     compared = compared_signals(space)
     with connect(space.spec.cluster, space.path.parent) as client:
         base, held = _calibrated(space, compared, client, say)
-        library = restricted(library_of(space, compared, {**held, **{p.name: p.start for p in base}}), only)
+        start = {**held, **{p.name: p.start for p in base}}
+        library = restricted(library_of(space, compared, start, terms=discover), only)
         space, validation = validated(space, folds, sorted({c.recorded for c in compared}))
         say(f"validation: {validation.text}")
         # what a fit does not free: the space's single-valued parameters, and every other effect at neutral
@@ -394,35 +412,37 @@ def diagnose_space(
         baseline, everything = _cross_validated(f, sets, full, short)
         selected, growth = _grown(f, explain.select(everything[1:], baseline), full, everything, noise_factor)
         chosen, dropped = explain.claimed(selected, everything, baseline)
+        chosen = _reached(f, chosen, everything, compared, dropped)
+        chosen, decided = _decided(f, chosen, full, everything)
         floor = 1.0  # residuals are in units of each recording's noise
-        verdict = explain.verdict(chosen.cross_validated, floor, noise_factor, chosen is not baseline)
+        inside = any(library[i].term is not None for i in chosen.ids)
+        verdict = explain.verdict(chosen.cross_validated, floor, noise_factor, bool(chosen.ids), inside)
         interfaces = dict(space.plan.interfaces)
-        discovery: Discovered | NotDiscovered | None = None
-        if discover and verdict in (explain.PARTIAL, explain.UNEXPLAINED):
-            discovery = _sought(f, chosen)
         twins = signal_claims.alike(chosen, everything)
         residuals = located_residuals(f.space, client, [baseline, chosen, *twins], compared, f.scenarios)
-        answer = chosen  # the library's: its look-alikes are among the library's candidates
-        if isinstance(discovery, Discovered):
-            # the model the recordings support: the library's answer and the terms
-            chosen = discovery.candidate
-            everything.append(chosen)
-            verdict = explain.verdict(chosen.cross_validated, floor, noise_factor, True, discovered=True)
-            work = terms_space(f.space, list(discovery.terms.values()))
-            residuals.update(located_residuals(work, client, [chosen], compared, f.scenarios))
     noise = {c.signal: c.noise for c in compared}
     by_name = {s.name: s for s in space.scenarios}
-    looks = [signal_claims.weigh(answer, t, residuals, noise, by_name) for t in twins]
+    looks = [signal_claims.weigh(chosen, t, residuals, noise, by_name) for t in twins]
     located = signal_locate.located(residuals[baseline.label], residuals[chosen.label], noise, by_name)
-    formulas = [e["readable"] for e in discovery.effects()] if isinstance(discovery, Discovered) else []
+    formulas = [term_readable(library[i].term, chosen.full.values) for i in chosen.ids if library[i].term]
     white = {
         c.signal: whiteness([r.values for r in residuals[chosen.label] if r.signal == c.signal])
         for c in compared
     }
     coloured = {signal: w for signal, w in white.items() if not w.white}
     verdict = explain.unless_white(verdict, not coloured)
+    offered = any(h.term is not None for h in library.values())
     text = signal_claims.verdict_text(
-        verdict, chosen.cross_validated, chosen, interfaces, looks, dropped, noise_factor, formulas, coloured
+        verdict,
+        chosen.cross_validated,
+        chosen,
+        interfaces,
+        looks,
+        dropped,
+        noise_factor,
+        formulas,
+        coloured,
+        offered,
     )
     diagnosis = SignalDiagnosis(
         compared,
@@ -436,10 +456,10 @@ def diagnose_space(
         validation=validation,
         whiteness=white,
         lookalikes=looks,
+        decided=decided,
         dropped=dropped,
         located=located,
         verdict_text=text,
-        discovery=discovery,
     )
     figures = signal_figures.draw(
         residuals[baseline.label],
@@ -552,6 +572,13 @@ class _Fits:
             return {}
         return fit_all(self.space, problems, self.client, self.scales, _fit_report(self.say))
 
+    def candidate(self, ids: tuple[str, ...], fit: FitResult) -> Candidate:
+        """A fitted set as a candidate, charged for the search of the terms inside the model it chose among
+        every term offered (explain.search_charge); the signal effects are a short list named beforehand."""
+        offered = [name for name, h in self.library.items() if h.term is not None]
+        chosen = sum(1 for name in ids if self.library[name].term is not None)
+        return Candidate(ids, fit, charge=explain.search_charge(len(offered), chosen))
+
     def hold_out(self, candidates: list[Candidate], results: Mapping[str, FitResult]) -> None:
         held_out(self.space, self.client, candidates, results, self.parts, self.scales)
 
@@ -639,8 +666,8 @@ def _cross_validated(
         + (f"; fitting {len(combos)} pairs" if combos else "")
     )
     results = f.fit(folded + combos)
-    candidates = [Candidate(s, full[s]) for s in sets]
-    combinations = [Candidate(x.ids, results[x.label]) for x in short]
+    candidates = [f.candidate(s, full[s]) for s in sets]
+    combinations = [f.candidate(x.ids, results[x.label]) for x in short]
     first = {x.label for x in early}
     f.hold_out(candidates + [c for c in combinations if c.label in first], results)
     if not parts:  # one run: judged on its fit alone, as every candidate is
@@ -730,7 +757,7 @@ def _extended(
         if not scouted["+".join(x)].converged
     ]
     fitted = {**scouted, **f.fit(going)}
-    tried = [Candidate(x, fitted["+".join(x)]) for x in sets]
+    tried = [f.candidate(x, fitted["+".join(x)]) for x in sets]
     everything.extend(tried)
     best = min(tried, key=lambda c: c.bic)
     growth.append({"from": current.label, "tried": len(tried), "best": best.label, "bic": best.bic})
@@ -745,70 +772,129 @@ def _extended(
 
 
 def _judge_members(f: _Fits, answer: Candidate, everything: list[Candidate]) -> None:
-    """Each set of the answer without one member, fitted and cross-validated if it was not yet: the noise
-    rule weighs every member by what taking it out costs, and keeps one it cannot weigh."""
-    known = {frozenset(c.ids): c for c in everything if c.validated}
-    missing = [tuple(i for i in answer.ids if i != m) for m in answer.ids if len(answer.ids) > 1]
-    missing = [x for x in missing if frozenset(x) not in known]
-    if not missing or not f.parts:
+    """Each set of the answer without one member, fitted from the answer's fit and cross-validated: the noise
+    rule weighs every member by what taking it out costs, and keeps one it cannot weigh. A set fitted before
+    (from its own starts) is replaced when the answer's fit leads it lower: else a member that only made up
+    for a part's poor optimum (a term beside the one that fits, at a coefficient near 0) would be claimed."""
+    if len(answer.ids) < 2 or not f.parts:
         return
-    f.say(
-        f"judging each member of {answer.label}: {len(missing)} sets without one, fitted and cross-validated"
+    known = {frozenset(c.ids): c for c in everything}
+    missing = [tuple(i for i in answer.ids if i != m) for m in answer.ids]
+    f.say(f"judging each member of {answer.label}: {len(missing)} sets without one, fitted from its fit")
+    fitted = f.fit(
+        [f.problem(f"{_label(x)}/judged", x, f.scenarios, dict(answer.full.values)) for x in missing]
     )
-    fitted = f.fit([f.problem("+".join(x), x, f.scenarios, dict(answer.full.values)) for x in missing])
-    folded = f.fit([p for x in missing for p in f.by_fold(x, fitted["+".join(x)].values)])
-    judged = [Candidate(x, fitted["+".join(x)]) for x in missing]
+    better = [
+        x
+        for x in missing
+        if frozenset(x) not in known
+        or not known[frozenset(x)].validated
+        or fitted[f"{_label(x)}/judged"].sse < known[frozenset(x)].full.sse * (1.0 - LOWER)
+    ]
+    if not better:
+        return
+    folded = f.fit([p for x in better for p in f.by_fold(x, fitted[f"{_label(x)}/judged"].values)])
+    judged = [f.candidate(x, fitted[f"{_label(x)}/judged"]) for x in better]
     f.hold_out(judged, folded)
-    everything.extend(judged)
+    replaced = {frozenset(x) for x in better}
+    everything[:] = [c for c in everything if frozenset(c.ids) not in replaced] + judged
 
 
-def _sought(f: _Fits, chosen: Candidate) -> Discovered | NotDiscovered:
-    """A correction of the model-exchange FMUs' state derivatives, sought where the library's answer leaves
-    error above the noise, and judged by the library's noise rule."""
-    f.say(
-        f"the library leaves {chosen.cross_validated:.3g} noise floors held-out: "
-        "seeking a correction of the model-exchange FMUs' state derivatives"
-    )
-    freed = (*f.base, *(p for n in chosen.ids for p in f.library[n].parameters))
-    discovery = noise_ruled(
-        discover_derivatives(
-            f.space,
-            f.client,
-            chosen,
-            freed,
-            f.scales,
-            f.validation.folds,
-            say=f.say,
-            fitted=f.validation.fitted,
-            pieces=f.validation.pieces,
+@dataclass(frozen=True)
+class Decided:
+    """A member of the answer against its look-alike on the other side of the model's skin (an input's dead
+    zone against dry friction): both fitted with the rest of the answer and cross-validated; the loser is
+    named a look-alike, with both held-out errors."""
+
+    member: str
+    rival: str
+    held_out: tuple[float, float]  # the answer with the member, and with the rival in its place
+    winner: str
+
+    def to_json(self) -> dict[str, Any]:
+        loser = self.rival if self.winner == self.member else self.member
+        return {
+            "member": self.member,
+            "rival": self.rival,
+            "held_out": {self.member: self.held_out[0], self.rival: self.held_out[1]},
+            "winner": self.winner,
+            "lookalike": loser,
+        }
+
+
+def _decided(
+    f: _Fits, chosen: Candidate, full: Mapping[tuple[str, ...], FitResult], everything: list[Candidate]
+) -> tuple[Candidate, list[Decided]]:
+    """Each member of ``chosen`` that has a look-alike across the model's skin (term_hypotheses.rivals)
+    against the best of them by its single fit: the answer with the rival in the member's place, fitted from
+    the answer's fit and cross-validated. The rival takes the place if it beats the answer (explain.beats);
+    the answer, and what was decided."""
+    decided: list[Decided] = []
+    if not f.parts:
+        return chosen, decided
+    for member in list(chosen.ids):
+        options = [r for r in rivals(member, f.library) if r not in chosen.ids and (r,) in full]
+        options = [r for r in options if not any(shares(f.library[r], f.library[i]) for i in chosen.ids)]
+        if not options or member not in chosen.ids:
+            continue
+        rival = min(options, key=lambda r: explain.bic(full[(r,)]))
+        ids = tuple(sorted((*(i for i in chosen.ids if i != member), rival)))
+        known = next((c for c in everything if set(c.ids) == set(ids) and c.validated), None)
+        if known is None:
+            f.say(f"deciding {member} against its look-alike {rival}")
+            start = {**chosen.full.values, **_joining(f, full, rival)}
+            fit = f.fit([f.problem(_label(ids), ids, f.scenarios, start)])[_label(ids)]
+            known = f.candidate(ids, fit)
+            f.hold_out([known], f.fit(f.by_fold(ids, fit.values)))
+            everything.append(known)
+        wins = explain.beats(known, chosen)
+        decided.append(
+            Decided(member, rival, (chosen.cross_validated, known.cross_validated), rival if wins else member)
         )
-    )
-    f.say(
-        f"discovered {'; '.join(e['readable'] for e in discovery.effects())}"
-        if isinstance(discovery, Discovered)
-        else f"nothing discovered: {discovery.reason}"
-    )
-    return discovery
+        if wins:
+            chosen = known
+    return chosen, decided
 
 
-def noise_ruled(found: Discovered | NotDiscovered) -> Discovered | NotDiscovered:
-    """Discovered terms face the library's noise rule: taking them out must raise the held-out mean square by
-    at least one noise variance (explain.NOISE_RULE), or they change the prediction by less than the noise and
-    are not claimed."""
-    if not isinstance(found, Discovered):
-        return found
-    worth = explain.mean_square(found.baseline) - explain.mean_square(found.candidate)
-    if worth >= explain.NOISE_RULE:
-        return found
-    return NotDiscovered(
-        f"{', '.join(e['readable'] for e in found.effects())} changes the held-out mean square by "
-        f"{worth:.3g} noise variances, less than {explain.NOISE_RULE:g}: within the noise",
-        found.proposal,
-        found.candidate,
-        found.baseline,
-        found.seconds,
-        found.rejected,
-    )
+def _reached(
+    f: _Fits,
+    chosen: Candidate,
+    everything: Sequence[Candidate],
+    compared: Sequence[Compared],
+    dropped: list[explain.Dropped],
+) -> Candidate:
+    """``chosen`` without the limits the recordings never reach (signal_claims.unreached), one at a time, each
+    into ``dropped`` with its reason, while the set without it was fitted and cross-validated (judged)."""
+    noise = {c.signal: c.noise for c in compared}
+    recorded = {
+        c.signal: {s.name: _recorded_after_start(s, c.recorded) for s in f.space.scenarios if s.recorded}
+        for c in compared
+    }
+    while chosen.ids:
+        shown = located_residuals(f.space, f.client, [chosen], compared, f.scenarios)[chosen.label]
+        reasons = signal_claims.unreached(chosen, f.library, shown, recorded, noise)
+        rest = next(
+            (
+                c
+                for member in reasons
+                for c in everything
+                if set(c.ids) == set(chosen.ids) - {member} and c.validated
+            ),
+            None,
+        )
+        if rest is None:
+            return chosen
+        member = next(iter(set(chosen.ids) - set(rest.ids)))
+        f.say(f"not claimed: {member}: {reasons[member]}")
+        dropped.append(explain.Dropped(member, math.nan, reasons[member]))
+        chosen = rest
+    return chosen
+
+
+def _recorded_after_start(scenario, column: str) -> np.ndarray:
+    """A recorded column's values from the run's start on: the samples its residuals are taken at."""
+    t, values = scenario.recorded.samples(column)
+    return np.asarray(values, float)[t >= (scenario.start_time or 0.0) - 1e-9]
 
 
 def screen_sse(point: Point, scenarios: Sequence[str], residuals) -> float:

@@ -106,6 +106,28 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
     lines += ["", "## Named effects", ""] + markdown_table(
         effect_rows(found["effects"]), ["effect", "parameter", "value", "95 % interval", "partial"]
     )
+    terms = [e["readable"] for e in found["effects"] if e.get("readable") and e["id"] != DISCOVERED]
+    if terms:
+        lines += ["", "Inside the model:", ""] + [f"- {t}" for t in terms]
+    pinned = (found.get("fitted") or {}).get("at_bound") or []
+    if pinned:
+        lines += [
+            "",
+            (
+                "At a bound of its interval, not an estimate (the recordings push it further; widen the "
+                f"interval or doubt the model): {', '.join(pinned)}."
+            ),
+        ]
+    for d in found.get("decided") or []:
+        errors = d["held_out"]
+        lines += [
+            "",
+            (
+                f"Look-alike: {d['lookalike']} (held-out {errors[d['lookalike']]:.3g} noise floors) lost to "
+                f"{d['winner']} ({errors[d['winner']]:.3g}); each fitted in the other's place with the rest "
+                "of the answer."
+            ),
+        ]
     if found.get("dropped"):
         lines += [
             "",

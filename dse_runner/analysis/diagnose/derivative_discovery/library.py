@@ -83,19 +83,28 @@ def rms(values: Sequence[np.ndarray]) -> float:
     return float(np.sqrt(np.mean(joined**2))) if joined.size else 0.0
 
 
-def kinematic(instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.ndarray]]) -> set[str]:
-    """The states whose derivative is another state on every run (der(x) = v): definitions, not physics."""
-    found = set()
+def kinematic_pairs(
+    instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.ndarray]]
+) -> dict[str, str]:
+    """Each state whose derivative is another state on every run (der(x) = v), with that state: a position
+    and its velocity. The first is a definition, not physics; the second is what moves (and what friction
+    opposes)."""
+    found = {}
     for state, derivative in zip(instance.states, instance.derivatives):
         for other in instance.states:
             size = max(max(float(np.max(np.abs(r[f"{instance.name}.{other}"]))) for r in runs), 1.0)
-            if all(
+            if other != state and all(
                 np.max(np.abs(r[f"{instance.name}.{derivative}"] - r[f"{instance.name}.{other}"]))
                 <= KINEMATIC * size
                 for r in runs
             ):
-                found.add(state)
+                found[state] = other
     return found
+
+
+def kinematic(instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.ndarray]]) -> set[str]:
+    """The states whose derivative is another state on every run (der(x) = v): definitions, not physics."""
+    return set(kinematic_pairs(instance, runs))
 
 
 def width(values: Sequence[np.ndarray], share: float = SMOOTH) -> float:

@@ -1,0 +1,252 @@
+"""Hypotheses inside the model: a physical term missing from a model-exchange state's derivative, each fitted
+by simulating the whole model, as the library's effects are.
+
+Why: what a first model leaves out inside its equations is most often one of a few physical laws: a spring
+that hardens (x³), a drag or a turbulent flow (x·|x|), an outflow through an opening (√|x|, signed), dry
+friction (a smoothed sign of a velocity, with a fitted width), a linear leak or coupling, a constant push,
+an input whose effect scales with a state (x·u). Offered as hypotheses beside the signal effects, each is
+fitted with the calibrated parameters by least squares against the recordings: the master integrates the
+whole model with the term, so an unmeasured state (an upper tank) or a noisy derivative does not matter,
+and a term competes with the effects that only imitate it from outside (a dead zone on a force against dry
+friction) on held-out error.
+
+Each term is sized along the calibrated model's runs (derivative_discovery/library.py): its coefficient's
+range is ±BOUND times what makes it add as much as its derivative does, and 0 is the model without it.
+Each term says what it means in the user's words, given the sign its fit takes (:func:`meaning`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...simulation import derivative_terms as dt
+from ...sweeps.fit import Parameter
+from .derivative_discovery.library import ModelExchangeInstance, kinematic_pairs, rms
+from .signal_hypotheses import SignalHypothesis
+
+BOUND = 3.0  # a coefficient adds at most this many times its derivative's RMS
+STEP = 0.01  # a coefficient's finite-difference step, as a share of what adds as much as its derivative
+WIDTHS = (0.1, 0.01, 0.001)  # a friction's width starts at these shares of its velocity's RMS
+WIDTH_RANGE = (1e-4, 1.0)  # ... and is sought between these shares
+KIND = "term"  # the hypotheses' id
+
+
+@dataclass(frozen=True)
+class PhysicalTerm:
+    """One term on one state's derivative, what kind of law it is and how large a coefficient matters."""
+
+    instance: str
+    state: str  # whose derivative it adds to
+    term: dt.Term
+    law: str  # constant, linear, cubic, square, sqrt, friction, product
+    variable: str  # the state or input it reads ("" for a constant)
+    scale: float  # the coefficient that makes it add as much as the derivative, in RMS over the runs
+    position: str = ""  # the variable is the position whose rate is ``state`` (der(position) = state)
+    velocity: float = 0.0  # a friction's velocity RMS: its width's scale
+
+    @property
+    def name(self) -> str:
+        return dt.term_name(self.instance, self.state, self.term)
+
+    @property
+    def target(self) -> str:
+        return f"{self.instance}.der({self.state})"
+
+
+def laws(instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.ndarray]]) -> list[PhysicalTerm]:
+    """Every physical term on every non-kinematic state's derivative of ``instance``, sized over ``runs``
+    (each a run of the calibrated model recording the instance's states, derivatives and real inputs). A
+    term that is zero on every run, or whose derivative never moves, is left out."""
+
+    def values(name: str) -> list[np.ndarray]:
+        return [np.asarray(r[f"{instance.name}.{name}"], float) for r in runs]
+
+    varying = {v for v in (*instance.states, *instance.inputs) if any(np.ptp(x) > 0 for x in values(v))}
+    states = [s for s in instance.states if s in varying]
+    inputs = [u for u in instance.inputs if u in varying]
+    pairs = kinematic_pairs(instance, runs)  # position -> velocity
+    positions = {velocity: position for position, velocity in pairs.items()}
+    found = []
+    for state, derivative in zip(instance.states, instance.derivatives):
+        if state in pairs:  # der(x) = v is a definition: no term belongs there
+            continue
+        size = rms(values(derivative))
+        if not size > 0:
+            continue
+        shapes: list[tuple[str, str, dt.Term]] = [("constant", "", dt.Term())]
+        shapes += [("linear", v, dt.Term((dt.Factor(v),))) for v in (*states, *inputs)]
+        for v in states:
+            shapes += [
+                ("cubic", v, dt.Term((dt.Factor(v, power=3),))),
+                ("square", v, dt.Term((dt.Factor(v), dt.Factor(v, "abs")))),
+                ("sqrt", v, dt.Term((dt.Factor(v, "sqrt"),))),
+            ]
+            shapes += [("product", v, dt.Term((dt.Factor(v), dt.Factor(u)))) for u in inputs]
+        speed = rms(values(state))
+        if state in positions and speed > 0:  # a velocity: dry friction opposes it
+            shapes.append(("friction", state, dt.Term((dt.Factor(state, "tanh", _width(speed)),))))
+        for law, variable, term in shapes:
+            feature = rms([_feature(term, instance, r, state) for r in runs])
+            if feature > 0 and math.isfinite(feature):
+                found.append(
+                    PhysicalTerm(
+                        instance.name,
+                        state,
+                        term,
+                        law,
+                        variable,
+                        size / feature,
+                        positions.get(state, "") if variable == positions.get(state) else "",
+                        speed if law == "friction" else 0.0,
+                    )
+                )
+    return found
+
+
+def _width(speed: float) -> float:
+    """A friction term's width as written in its name (its fit's first start): WIDTHS[0] of the velocity's
+    RMS, to two significant digits."""
+    return float(f"{WIDTHS[0] * speed:.2g}")
+
+
+def _feature(
+    term: dt.Term, instance: ModelExchangeInstance, run: Mapping[str, np.ndarray], state: str
+) -> np.ndarray:
+    """The term's values along one run."""
+    values = {v: np.asarray(run[f"{instance.name}.{v}"], float) for v in (*instance.states, *instance.inputs)}
+    return np.broadcast_to(term.value(values), values[state].shape)
+
+
+def hypothesis(term: PhysicalTerm) -> SignalHypothesis:
+    """A term as a hypothesis of the library: its coefficient (and a friction's width) with their ranges,
+    neutral at 0, fitted from 0 (a friction from two widths, pushing against the motion)."""
+    limit = BOUND * term.scale
+    coefficient = Parameter(term.name, 0.0, -limit, limit, STEP * term.scale)
+    if term.law != "friction":
+        return SignalHypothesis(
+            KIND, term.target, (coefficient,), ("coefficient",), (0.0,), ((0.0,),), law=term.law, term=term
+        )
+    low, high = (share * term.velocity for share in WIDTH_RANGE)
+    width = Parameter(
+        dt.width_name(term.instance, term.state, term.term), _width(term.velocity), low, high, 0.01 * low
+    )
+    push = -0.3 * term.scale  # against the motion, a third of what adds as much as the derivative
+    starts = tuple((push, _width(term.velocity * share / WIDTHS[0])) for share in WIDTHS)
+    return SignalHypothesis(
+        KIND,
+        term.target,
+        (coefficient, width),
+        ("coefficient", "width"),
+        (0.0, _width(term.velocity)),
+        starts,
+        law=term.law,
+        term=term,
+    )
+
+
+def term_hypotheses(
+    instances: Sequence[ModelExchangeInstance], runs: Sequence[Mapping[str, np.ndarray]]
+) -> dict[str, SignalHypothesis]:
+    """Every physical term of every model-exchange instance, as hypotheses by name."""
+    return {t.name: hypothesis(t) for i in instances for t in laws(i, runs)}
+
+
+# ---- what a term means ---------------------------------------------------------------------------------
+
+
+def meaning(term: PhysicalTerm, coefficient: float) -> str:
+    """What the term says of the process, in an engineer's words, given the sign its fit took."""
+    v, s = term.variable, term.state
+    against = coefficient < 0
+    if term.law == "constant":
+        return f"a constant {'outflow or force against' if against else 'inflow or push on'} {s}: a bias"
+    if term.law == "linear":
+        if v == s:
+            return (
+                f"a loss in proportion to {s}: a linear leak or damping" if against else f"{s} feeds itself"
+            )
+        if term.position:
+            return (
+                f"a restoring force in proportion to {v}: a linear spring" if against else "a negative spring"
+            )
+        return f"{s} driven in proportion to {v}: a linear coupling"
+    if term.law == "cubic":
+        if term.position:
+            return "a spring that hardens" if against else "a spring that softens"
+        return f"a response to {v} that steepens with its cube"
+    if term.law == "square":
+        if v == s:
+            return f"a loss growing with the square of {s}: quadratic drag or turbulent flow"
+        return f"a force or flow growing with the square of {v}, its sign kept: a progressive spring or drag"
+    if term.law == "sqrt":
+        return (
+            f"{'an outflow' if v == s else 'a flow'} through an opening, growing with the square root of {v} "
+            "(Torricelli)"
+        )
+    if term.law == "friction":
+        return f"dry (Coulomb) friction opposing {s}" if against else f"a push along {s}: not friction"
+    return f"the input {term.term.factors[1].variable} acting in proportion to {v}"
+
+
+SYMBOLS = {
+    "constant": "b",
+    "linear": "a",
+    "cubic": "k3",
+    "square": "d",
+    "sqrt": "q",
+    "friction": "Fc",
+    "product": "g",
+}
+
+
+def readable(term: PhysicalTerm, values: Mapping[str, float]) -> str:
+    """``der(msd.v) += −k3·x^3: a spring that hardens, k3 = 60.01``, from the fitted ``values``."""
+    coefficient = float(values[term.name])
+    symbol = SYMBOLS[term.law]
+    shown = term.term.text
+    if term.law == "friction":
+        width = values.get(dt.width_name(term.instance, term.state, term.term), term.term.factors[0].width)
+        shown = f"tanh({term.state}/w)"
+        told = f"{symbol} = {abs(coefficient):.4g}, w = {width:.3g}"
+    else:
+        told = f"{symbol} = {abs(coefficient):.4g}"
+    written = ("−" if coefficient < 0 else "") + (symbol if shown == "1" else f"{symbol}·{shown}")
+    return f"der({term.instance}.{term.state}) += {written}: {meaning(term, coefficient)}, {told}"
+
+
+# ---- look-alikes: what outside the model imitates a term inside ---------------------------------------
+
+IMITATED = {  # an effect's kind -> the laws of the terms it imitates from outside
+    "deadzone": ("friction",),  # a force that must exceed a threshold, as against dry friction
+    "backlash": ("friction",),
+    "max": ("linear", "cubic"),  # a clamp on a state, as against a force that restores it
+    "min": ("linear", "cubic"),
+    "overflow": ("linear", "sqrt"),  # a spill into another state, as against a flow between them
+}
+
+
+def rivals(name: str, library: Mapping[str, SignalHypothesis]) -> list[str]:
+    """The hypotheses that explain what ``name`` does the other way round, inside or outside the model: an
+    input's dead zone and dry friction in the instance it drives; a state's clamp or overflow and a
+    restoring force or flow of that state. Each pair is fitted and decided on held-out error."""
+    h = library[name]
+    if h.term is not None:
+        return [other for other, g in library.items() if g.term is None and name in rivals(other, library)]
+    laws = IMITATED.get(h.kinds[0], ())
+    if not laws:
+        return []
+    instance = h.target.split(".", 1)[0]
+    state = h.target.split(".", 1)[1] if h.id.startswith("state_") else None
+    return [
+        other
+        for other, g in library.items()
+        if g.term is not None
+        and g.law in laws
+        and g.term.instance == instance
+        and (state is None or g.term.variable == state)
+        and (h.id.startswith("state_") or h.id.startswith("input_"))
+    ]
