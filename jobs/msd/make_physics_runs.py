@@ -225,8 +225,12 @@ def write_csv(path: Path, column: str, t: np.ndarray, values: np.ndarray, fmt: s
     )
 
 
-def record(case: str, force: Force, folder: Path, stem: str, rng: np.random.Generator) -> dict[str, float]:
-    """Write ``stem``force.csv and ``stem``x.csv of one record into ``folder``; a few figures of its truth."""
+def record(
+    case: str, force: Force, folder: Path, stem: str, rng: np.random.Generator, judged: bool = False
+) -> dict[str, float]:
+    """Write ``stem``force.csv and ``stem``x.csv of one record into ``folder``; a few figures of its truth.
+    ``judged`` (the held-back record): also the true velocity, noise-free, in ``velocity.csv``, which no
+    diagnosis reads: a benchmark judges the predicted velocity by it (the held-back stage is judged so)."""
     t = samples()
     force_csv, x_csv = folder / f"{stem}force.csv", folder / f"{stem}x.csv"
     write_csv(force_csv, "F", t, force(t), "%.6g")
@@ -234,6 +238,8 @@ def record(case: str, force: Force, folder: Path, stem: str, rng: np.random.Gene
     x, v = simulate_truth(truth, fed(force_csv))
     every = round(SAMPLE / STEP)
     write_csv(x_csv, "x", t, unkind(x[::every], rng), "%.4f")
+    if judged:
+        write_csv(folder / f"{stem}velocity.csv", "v", t, v[::every], "%.8g")
     peak = float(np.max(np.abs(x)))
     if truth.fc == 0:  # the cubic force's share of the linear one at the peak
         return {"peak_x": peak, "cubic_share": truth.k3 * peak**2 / truth.k}
@@ -253,7 +259,7 @@ def make(case: str, folder: Path, seed: int = SEED) -> Path:
     for name, force in forces(case).items():
         where, stem = (folder / "test", "") if name == "test" else (folder, f"{name}-")
         where.mkdir(exist_ok=True)
-        figures = record(case, force, where, stem, rng)
+        figures = record(case, force, where, stem, rng, judged=name == "test")
         print(f"  {case}/{name}: " + ", ".join(f"{k} {v:.4g}" for k, v in figures.items()))
         inputs = {"msd.F": {"csv": f"{stem}force.csv", "column": "F", "interpolation": "hold"}}
         if name == "test":

@@ -170,30 +170,32 @@ def test_cosimulation_models_are_told_that_only_their_signals_can_be_corrected()
 
 
 @pytest.mark.slow
-def test_diagnose_space_discovers_the_cubic_spring_the_library_cannot_explain(tmp_path, dask_scheduler):
-    """The whole command's path: the space (a grid calibration), its library of effects, then
-    discovery because none of them explains the hardening spring; the answer carries the term,
-    and the diagnosed values replay it. Only one library effect is tried (--hypothesis), so that
-    the library's part stays short."""
+def test_diagnose_space_names_the_cubic_spring_inside_the_model_over_its_look_alike(tmp_path, dask_scheduler):
+    """The whole command's path: the space (a grid calibration), a signal effect and two terms inside the
+    model that both stiffen a spring (x³ and x·|x|), each fitted by simulating the whole model; the answer
+    carries the cubic, in words, and the diagnosed values replay it. Only those three hypotheses are tried
+    (--hypothesis), so that the test stays short."""
     from dse_runner.analysis.diagnose.signal_library import diagnose_space
     from dse_runner.simulation.values import read_values
 
     space = _generator("msd").make("cubic", tmp_path / "cubic")
+    cubic, square = "derivative_term(msd.der(v), x^3)", "derivative_term(msd.der(v), x*abs(x))"
     result = diagnose_space(
-        space, out=tmp_path / "out", address=dask_scheduler, only=["output_offset(msd.x)"]
+        space, out=tmp_path / "out", address=dask_scheduler, only=["output_offset(msd.x)", cubic, square]
     )
     found = result.to_json()
-    discovered = [e for e in found["effects"] if e["id"] == "discovered"]
-    assert [(e["target"], list(e["terms"])) for e in discovered] == [("msd.der(v)", ["x^3"])], found[
-        "discovery"
+    terms = [e for e in found["effects"] if e.get("term")]
+    assert [(e["target"], e["term"], e["law"]) for e in terms] == [("msd.der(v)", "x^3", "cubic")], found[
+        "candidates"
     ]
-    low, high = discovered[0]["intervals"]["x^3"]
+    low, high = terms[0]["intervals"]["coefficient"]
     assert low <= -60.0 <= high
+    assert terms[0]["readable"].startswith("der(msd.v) += −k3·x^3: a spring that hardens, k3 = ")
     assert (
         found["verdict"] in ("discovered", "partial")
         and found["held_out_after"] < 0.2 * found["held_out_before"]
     )
     assert found["validation"] == {"by": "scenarios", "folds": 3}
     values = read_values(found["files"]["values"])
-    assert values["derivative_term(msd.der(v), x^3)"] == pytest.approx(discovered[0]["terms"]["x^3"])
+    assert values[cubic] == pytest.approx(terms[0]["parameters"]["coefficient"])
     assert all(Path(f).is_file() for f in found["files"]["figures"]) and len(found["files"]["figures"]) == 4

@@ -132,32 +132,6 @@ def test_a_selection_keeps_only_the_named_effects_and_names_an_unknown_one():
         restricted(found, ("input_lag(msd.F)",))
 
 
-def test_discovered_terms_face_the_noise_rule_as_library_effects_do():
-    """A discovered term that beats the answer without it by 5 % and 10 BIC, but changes the held-out mean
-    square by less than one noise variance, is not claimed; one that changes it by more is."""
-    from dse_runner.analysis.diagnose.derivative_discovery import Discovered, NotDiscovered
-    from dse_runner.analysis.diagnose.derivative_discovery.propose import Proposal
-    from dse_runner.analysis.diagnose.signal_library import noise_ruled
-
-    proposal = Proposal({}, {}, 0.1)
-    without = _candidate(("input_gain(p.u)",), {"r1": 1.30, "r2": 1.30})
-    small = Discovered(
-        {}, _candidate(("input_gain(p.u)", "discovered"), {"r1": 1.0, "r2": 1.0}), without, proposal
-    )
-    ruled = noise_ruled(small)  # 1.69 - 1.00 = 0.69 noise variance
-    assert (
-        isinstance(ruled, NotDiscovered)
-        and "0.69 noise variances, less than 1: within the noise" in ruled.reason
-    )
-    large = Discovered(
-        {},
-        _candidate(("input_gain(p.u)", "discovered"), {"r1": 1.0, "r2": 1.0}),
-        _candidate(("input_gain(p.u)",), {"r1": 3.0, "r2": 3.0}),
-        proposal,
-    )
-    assert noise_ruled(large) is large
-
-
 def test_a_verdict_made_partial_by_coloured_residuals_does_not_claim_error_above_the_floor():
     chosen = _candidate(("input_rate(p.u)",), {"r": 1.6})
     text = signal_claims.verdict_text(

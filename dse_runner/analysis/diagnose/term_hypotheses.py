@@ -47,6 +47,7 @@ class PhysicalTerm:
     scale: float  # the coefficient that makes it add as much as the derivative, in RMS over the runs
     position: str = ""  # the variable is the position whose rate is ``state`` (der(position) = state)
     velocity: float = 0.0  # a friction's velocity RMS: its width's scale
+    moving: bool = False  # ``state`` is a velocity (the rate of another state)
 
     @property
     def name(self) -> str:
@@ -102,6 +103,7 @@ def laws(instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.ndarray
                         size / feature,
                         positions.get(state, "") if variable == positions.get(state) else "",
                         speed if law == "friction" else 0.0,
+                        state in positions,
                     )
                 )
     return found
@@ -131,8 +133,10 @@ def hypothesis(term: PhysicalTerm) -> SignalHypothesis:
             KIND, term.target, (coefficient,), ("coefficient",), (0.0,), ((0.0,),), law=term.law, term=term
         )
     low, high = (share * term.velocity for share in WIDTH_RANGE)
+    # differenced at a tenth of the narrowest start: a step much finer drowns in the solver's own error
+    narrow = WIDTHS[-1] * term.velocity
     width = Parameter(
-        dt.width_name(term.instance, term.state, term.term), _width(term.velocity), low, high, 0.01 * low
+        dt.width_name(term.instance, term.state, term.term), _width(term.velocity), low, high, 0.1 * narrow
     )
     push = -0.3 * term.scale  # against the motion, a third of what adds as much as the derivative
     starts = tuple((push, _width(term.velocity * share / WIDTHS[0])) for share in WIDTHS)
@@ -180,8 +184,10 @@ def meaning(term: PhysicalTerm, coefficient: float) -> str:
         return f"a response to {v} that steepens with its cube"
     if term.law == "square":
         if v == s:
-            return f"a loss growing with the square of {s}: quadratic drag or turbulent flow"
-        return f"a force or flow growing with the square of {v}, its sign kept: a progressive spring or drag"
+            return f"quadratic drag on {s}" if term.moving else f"a loss growing with the square of {s}"
+        if term.position:
+            return "a progressive spring, its force growing with the square of the position"
+        return f"a flow or force from {v} growing with its square, its sign kept"
     if term.law == "sqrt":
         return (
             f"{'an outflow' if v == s else 'a flow'} through an opening, growing with the square root of {v} "
