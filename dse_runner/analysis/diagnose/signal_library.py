@@ -21,6 +21,7 @@ report from signal_report.py.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -722,30 +723,45 @@ def _grown(
     return selected, growth
 
 
-def _recalibrated(f: _Fits, answer: Candidate, everything: list[Candidate]) -> Candidate:
-    """The answer with its calibrated parameters sought again, the effects in place: a Sobol' design of
-    RESTARTS points over their ranges, with the effects as fitted and each from its own starts, the best
-    REFITTED fitted. Why: the calibration was made with the model that
-    lacked them, and bent its parameters to make up (a mass at its bound, an initial state a slide away from
-    the true one); a fit from there can stay in that basin. The refit replaces the answer's fit, and is
-    cross-validated, when it reaches a lower SSE on every scenario."""
-    if not answer.ids or not f.base:
-        return answer
-    sample = qmc.Sobol(len(f.base), scramble=True, seed=0).random(RESTARTS)
-    # the effects as fitted, and each member from each of its own starts (a friction's narrower widths)
+def _restarts(f: _Fits, answer: Candidate) -> list[Point]:
+    """Where the answer's recalibration starts: a Sobol' design of RESTARTS points over every calibrated
+    parameter's range, for the effects as fitted and for each member from each of its own starts (a
+    friction's narrower widths); and for each pair of calibrated parameters a design over the two alone, the
+    rest as fitted (an initial position and velocity a slide apart, which the full design seldom meets)."""
+    spread = [p.upper - p.lower for p in f.base]
     effects = [dict(answer.full.point)] + [
         {**answer.full.point, **f.library[member].start(k)}
         for member in answer.ids
         for k in range(len(f.library[member].starts))
     ]
+    whole = qmc.Sobol(len(f.base), scramble=True, seed=0).random(RESTARTS)
     points = [
-        {**effect, **{p.name: p.lower + u * (p.upper - p.lower) for p, u in zip(f.base, row)}}
+        {**effect, **{p.name: p.lower + u * w for p, u, w in zip(f.base, row, spread)}}
         for effect in effects
-        for row in sample
+        for row in whole
     ]
+    two = qmc.Sobol(2, scramble=True, seed=0).random(RESTARTS)
+    for i, j in itertools.combinations(range(len(f.base)), 2):
+        a, b = f.base[i], f.base[j]
+        points += [
+            {**answer.full.point, a.name: a.lower + u * spread[i], b.name: b.lower + v * spread[j]}
+            for u, v in two
+        ]
+    return points
+
+
+def _recalibrated(f: _Fits, answer: Candidate, everything: list[Candidate]) -> Candidate:
+    """The answer with its calibrated parameters sought again, the effects in place: from every start of
+    :func:`_restarts`, the best REFITTED by their misfit fitted. Why: the calibration was made with the
+    model that lacked them, and bent its parameters to make up (a mass at its bound, an initial state a
+    slide away from the true one); a fit from there can stay in that basin. The refit replaces the answer's
+    fit, and is cross-validated, when it reaches a lower SSE on every scenario."""
+    if not answer.ids or not f.base:
+        return answer
+    points = _restarts(f, answer)
     f.say(
-        f"recalibrating {answer.label}: {RESTARTS} starts of the calibrated parameters for each of "
-        f"{len(effects)} settings of its effects"
+        f"recalibrating {answer.label}: {len(points)} starts of the calibrated parameters, "
+        "the effects in place"
     )
     rows, _ = evaluate_points(f.space, points, f.client, list(f.scales))
     found = residuals_in(rows, f.scales)
