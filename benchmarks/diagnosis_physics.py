@@ -44,7 +44,8 @@ def named(found: dict) -> list[str]:
     lines = []
     for e in found["effects"]:
         if e.get("readable"):
-            lines.append(e["readable"])
+            low, high = e["intervals"]["coefficient"]
+            lines.append(f"{e['readable']} (coefficient 95 % {low:.4g} to {high:.4g})")
             continue
         into = f" into {e['into']}" if e.get("into") else ""
         values = ", ".join(f"{k} {v:.4g}" for k, v in e["parameters"].items())
@@ -70,12 +71,15 @@ def predicted(folder: Path, values: dict) -> dict[str, float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("cases", nargs="*", default=list(CASES), choices=list(CASES))
+    parser.add_argument("cases", nargs="*", metavar="CASE", help=f"of {', '.join(CASES)} (default: all)")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("out/diagnosis-physics"))
     parser.add_argument("--verbose", action="store_true", help="the diagnosis' progress on stderr")
     args = parser.parse_args()
-    for case in args.cases:
+    unknown = [c for c in args.cases if c not in CASES]
+    if unknown:
+        parser.error(f"unknown case {', '.join(unknown)}: the cases are {', '.join(CASES)}")
+    for case in args.cases or list(CASES):
         out = (args.out / case).resolve()
         shutil.rmtree(out, ignore_errors=True)  # a fresh store: the time is the whole diagnosis's
         started = time.perf_counter()

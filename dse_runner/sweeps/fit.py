@@ -75,12 +75,16 @@ class FitResult:
         """Parameters no residual responds to: any value fits equally well."""
         return [n for n in self.names if math.isinf(self.standard_error[n])]
 
-    def interval(self, z: float = 1.96) -> dict[str, tuple[float, float]]:
-        """About 95 % intervals, clipped to nothing: an unbounded side stays infinite."""
-        return {
-            n: (self.values[n] - z * self.standard_error[n], self.values[n] + z * self.standard_error[n])
-            for n in self.names
-        }
+    def interval(self, z: float = 1.96, serial: bool = False) -> dict[str, tuple[float, float]]:
+        """About 95 % intervals, clipped to nothing: an unbounded side stays infinite. ``serial``: at least as
+        wide as the residuals' serial correlation inside each scenario makes them (serial_standard_errors):
+        with few scenarios the cluster-robust error is itself a guess from a few numbers, and coloured noise
+        then reads as more evidence than it is."""
+        error = dict(self.standard_error)
+        if serial and self.jacobian:
+            within = serial_standard_errors(self.jacobian, self.residuals)
+            error = {n: max(error[n], float(e)) for n, e in zip(self.names, within)}
+        return {n: (self.values[n] - z * error[n], self.values[n] + z * error[n]) for n in self.names}
 
 
 Residuals = Callable[[Point, str], np.ndarray | None]  # (point, scenario) -> residual vector, None if failed
@@ -286,5 +290,39 @@ def robust_standard_errors(jacobian: list[np.ndarray], residuals: list[np.ndarra
     clusters = len(jacobian)
     correction = clusters / (clusters - 1) if clusters > 1 else 1.0
     covariance = correction * inverse @ meat @ inverse
+    errors[identifiable] = np.sqrt(np.maximum(np.diag(covariance), 0.0))
+    return errors
+
+
+def serial_standard_errors(jacobian: list[np.ndarray], residuals: list[np.ndarray]) -> np.ndarray:
+    """Newey and West's sandwich (1987): each scenario's scores J_t' r_t summed with those up to L samples
+    apart, weighted 1 − l/(L + 1), so that residuals correlated over neighbouring samples (coloured noise,
+    an unmodelled slow wobble) count for what they are worth. L: twice the residuals' integrated
+    autocorrelation time as an AR(1) reads it, (1 + ρ)/(1 − ρ) from their lag-1 correlation ρ, at least
+    Newey and West's 4·(n/100)^(2/9) and at most a quarter of the shortest scenario."""
+    if not jacobian or jacobian[0].shape[1] == 0:
+        return np.zeros(0)
+    J = np.vstack(jacobian)
+    r = np.concatenate(residuals)
+    bread = J.T @ J
+    identifiable = np.diag(bread) > 1e-12 * max(float(np.diag(bread).max()), 1e-300)
+    errors = np.full(J.shape[1], np.inf)
+    if not identifiable.any() or r.size < 3:
+        return errors
+    rho = float(sum(float(x[1:] @ x[:-1]) for x in residuals if x.size > 1) / max(float(r @ r), 1e-300))
+    rho = min(max(rho, 0.0), 0.99)
+    shortest = min(x.size for x in residuals)
+    lags = int(min(max(math.ceil(2 * (1 + rho) / (1 - rho)), 4 * (r.size / 100) ** (2 / 9)), shortest // 4))
+    meat = np.zeros((int(identifiable.sum()),) * 2)
+    for Js, rs in zip(jacobian, residuals):
+        scores = Js[:, identifiable] * rs[:, None]
+        meat += scores.T @ scores
+        for lag in range(1, lags + 1):
+            if lag >= len(rs):
+                break
+            cross = scores[lag:].T @ scores[:-lag]
+            meat += (1.0 - lag / (lags + 1)) * (cross + cross.T)
+    inverse = np.linalg.pinv(bread[np.ix_(identifiable, identifiable)])
+    covariance = inverse @ meat @ inverse
     errors[identifiable] = np.sqrt(np.maximum(np.diag(covariance), 0.0))
     return errors

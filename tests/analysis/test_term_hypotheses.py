@@ -114,6 +114,15 @@ def test_look_alikes_pair_a_dead_zone_with_friction_and_a_clamp_with_a_restoring
     clamp = {library[name].term.term.text for name in rivals("state_max(msd.x)", library)}
     assert clamp == {"x", "x^3"}  # a spring or a hardening one holds the position back
     assert rivals("derivative_term(msd.der(v), x*F)", library) == []
+    saturation = SignalHypothesis(
+        "input_min",
+        "msd.F",
+        (Parameter("input_min(msd.F)", -1, -2, 0, 0.01),),
+        ("min",),
+        (-math.inf,),
+        ((-1,),),
+    )
+    assert rivals(saturation.name, {**library, saturation.name: saturation}) == []  # not a clamp on a state
 
 
 def test_the_search_among_many_terms_pays_more_than_one_named_beforehand():

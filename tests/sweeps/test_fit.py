@@ -5,6 +5,8 @@ parameter more."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from conftest import write_msd_search
@@ -109,3 +111,31 @@ def test_a_fit_whose_start_fails_to_simulate_ends_failed_and_says_why_instead_of
     result = solver.result()
     assert result.error == "its start point fails to simulate on run2"
     assert result.sse == np.inf and result.point == {"a": 1.0, "b": 3.0} and not result.converged
+
+
+def test_serially_correlated_residuals_widen_an_interval_as_much_as_they_are_worth():
+    """A slope fitted to a line with AR(1) noise (ρ 0.8) on each of three runs: the serial (Newey-West)
+    error is the white error times about √((1 + ρ)/(1 − ρ)) = 3, and so is the spread of the slope over
+    many noise draws; on white noise both stay the white error. The cluster-robust error of three runs is
+    a guess from three numbers, which an interval with ``serial`` never falls below."""
+    from dse_runner.sweeps.fit import serial_standard_errors
+
+    rng = np.random.default_rng(7)
+    t = np.linspace(-1.0, 1.0, 400)
+    jacobian = [t[:, None]] * 3  # d residual / d slope
+
+    def noise(rho: float) -> np.ndarray:
+        e = np.empty(t.size)
+        e[0] = rng.normal()
+        for i in range(1, t.size):
+            e[i] = rho * e[i - 1] + math.sqrt(1 - rho**2) * rng.normal()
+        return e
+
+    white = 1.0 / math.sqrt(3 * float(t @ t))  # σ = 1
+    for rho, factor in ((0.0, 1.0), (0.8, 3.0)):
+        draws = [[noise(rho) for _ in range(3)] for _ in range(200)]
+        slopes = [sum(float(t @ e) for e in runs) / (3 * float(t @ t)) for runs in draws]
+        spread = float(np.std(slopes))
+        errors = [serial_standard_errors(jacobian, runs)[0] for runs in draws[:40]]
+        assert spread == pytest.approx(factor * white, rel=0.25)
+        assert float(np.median(errors)) == pytest.approx(spread, rel=0.3)

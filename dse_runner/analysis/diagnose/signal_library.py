@@ -64,8 +64,10 @@ MAX_EFFECTS = 6  # the answer grows one effect at a time, while each pays its wa
 GROW_FINALISTS = 2  # sets of one more effect fitted on after scouting
 LOWER = 1e-3  # a refit replaces an earlier fit of the same set when its SSE is lower by this share
 RESTARTS = 64  # starts of the calibrated parameters the answer is refitted from (the calibration's design)
-REFITTED = 4  # ... of which the best few are fitted: in a rugged misfit (an open-loop drift) the best start
-# by its misfit alone is often not in the deepest basin
+DIFFERENCE = 0.001  # a calibrated parameter's finite-difference step, as a share of its range: over a long
+# record of an oscillation a step of a percent moves the phase by a good part of a cycle, and the Jacobian
+# it measures is no slope at all
+REFITTED = 16  # ... of which the best few by their misfit are fitted, SCOUTING iterations each
 
 
 @dataclass(frozen=True)
@@ -159,7 +161,7 @@ class SignalDiagnosis:
             },
             "fitted": {
                 "parameters": dict(self.chosen.full.values),  # every value the chosen answer fitted
-                "interval": {k: list(v) for k, v in self.chosen.full.interval().items()},
+                "interval": {k: list(v) for k, v in self.chosen.full.interval(serial=True).items()},
                 "at_bound": list(self.chosen.full.at_bound),
             },
             "files": {**self.files, "figures": self.figures} if self.files else {},
@@ -169,12 +171,13 @@ class SignalDiagnosis:
         hypothesis, fit = self.hypotheses[name], self.chosen.full
         values, intervals = {}, {}
         for kind, parameter in zip(hypothesis.kinds, hypothesis.parameters):
-            value, (low, high) = fit.values[parameter.name], fit.interval()[parameter.name]
+            value, (low, high) = fit.values[parameter.name], fit.interval(serial=True)[parameter.name]
             if parameter is hypothesis.parameters[0]:  # its resolution widens the interval
                 low, high = min(low, value - hypothesis.resolution), max(high, value + hypothesis.resolution)
             values[kind], intervals[kind] = value, [low, high]
         found = {
             "id": hypothesis.id,
+            "hypothesis": name,  # as candidates, dropped and decided name it
             "target": hypothesis.target,
             "parameters": values,
             "intervals": intervals,
@@ -313,7 +316,7 @@ def calibration(space: Space, best: Mapping[str, Any]) -> tuple[Parameter, ...]:
         if len(numbers) == len(values) and len(set(numbers)) > 1:
             low, high = min(numbers), max(numbers)
             start = float(best.get(name, 0.5 * (low + high)))
-            params.append(Parameter(name, start, low, high, 0.01 * (high - low)))
+            params.append(Parameter(name, start, low, high, DIFFERENCE * (high - low)))
     return tuple(params)
 
 
@@ -526,6 +529,17 @@ def _calibrated(
         problem = FitProblem("calibration", base, held, names, MAX_ITERATIONS)
         refined = fit_all(plain, [problem], client, scales, _fit_report(say))["calibration"]
         if refined.error is None:
+            # from the designs around it too: every hypothesis is judged against this model at its best, so
+            # that none wins only by shaking a stuck calibration loose (a gain standing in for a mass)
+            points = restarts(base, refined.point)
+            say(f"calibrating: {len(points)} more starts, the best {REFITTED} fitted")
+
+            def problem_at(tag: str, start: Mapping[str, float], iterations: int) -> FitProblem:
+                starts = tuple(replace(p, start=start[p.name]) for p in base)
+                return FitProblem(f"calibration{tag}", starts, held, names, iterations)
+
+            again = best_of(plain, client, scales, points, problem_at, names, say)
+            refined = again if again.sse < refined.sse else refined
             base = tuple(replace(p, start=refined.values[p.name]) for p in base)
     return base, held
 
@@ -723,52 +737,85 @@ def _grown(
     return selected, growth
 
 
-def _restarts(f: _Fits, answer: Candidate) -> list[Point]:
-    """Where the answer's recalibration starts: a Sobol' design of RESTARTS points over every calibrated
-    parameter's range, for the effects as fitted and for each member from each of its own starts (a
-    friction's narrower widths); and for each pair of calibrated parameters a design over the two alone, the
-    rest as fitted (an initial position and velocity a slide apart, which the full design seldom meets)."""
-    spread = [p.upper - p.lower for p in f.base]
-    effects = [dict(answer.full.point)] + [
-        {**answer.full.point, **f.library[member].start(k)}
-        for member in answer.ids
-        for k in range(len(f.library[member].starts))
-    ]
-    whole = qmc.Sobol(len(f.base), scramble=True, seed=0).random(RESTARTS)
+def restarts(base: Sequence[Parameter], point: Point, settings: Sequence[Point] = ()) -> list[Point]:
+    """Where a fit of the calibrated parameters ``base`` restarts from, around ``point``: a Sobol' design of
+    RESTARTS points over every calibrated parameter's range, for ``point`` and for each of ``settings`` (its
+    effects from their own starts: a friction's narrower widths); and for each pair of calibrated parameters
+    a design over the two alone, the rest as at ``point`` (an initial position and velocity a slide apart,
+    which the full design seldom meets)."""
+    spread = [p.upper - p.lower for p in base]
+    whole = qmc.Sobol(len(base), scramble=True, seed=0).random(RESTARTS)
     points = [
-        {**effect, **{p.name: p.lower + u * w for p, u, w in zip(f.base, row, spread)}}
-        for effect in effects
+        {**setting, **{p.name: p.lower + u * w for p, u, w in zip(base, row, spread)}}
+        for setting in (point, *settings)
         for row in whole
     ]
     two = qmc.Sobol(2, scramble=True, seed=0).random(RESTARTS)
-    for i, j in itertools.combinations(range(len(f.base)), 2):
-        a, b = f.base[i], f.base[j]
+    for i, j in itertools.combinations(range(len(base)), 2):
+        a, b = base[i], base[j]
         points += [
-            {**answer.full.point, a.name: a.lower + u * spread[i], b.name: b.lower + v * spread[j]}
-            for u, v in two
+            {**point, a.name: a.lower + u * spread[i], b.name: b.lower + v * spread[j]} for u, v in two
         ]
     return points
 
 
+def best_of(
+    space: Space,
+    client,
+    scales: Mapping[str, float],
+    points: Sequence[Point],
+    problem: Callable[[str, Mapping[str, float], int], FitProblem],
+    scenarios: Sequence[str],
+    say: Messages,
+) -> FitResult:
+    """The lowest fit from ``points``: the REFITTED of least misfit (one sweep simulates them all) each fitted
+    for SCOUTING iterations, the best GROW_FINALISTS of those fitted on; ``problem(label, start, iterations)``
+    makes each fit. Why: in a rugged misfit (an oscillator's frequency, an open-loop drift) the best start by
+    its misfit alone is often not in the deepest basin, and a few iterations tell which are."""
+    rows, _ = evaluate_points(space, list(points), client, list(scales))
+    found = residuals_in(rows, scales)
+    best = sorted(points, key=lambda point: screen_sse(point, scenarios, found))[:REFITTED]
+    report = _fit_report(say)
+    scouted = fit_all(
+        space, [problem(f"#{k}", p, SCOUTING) for k, p in enumerate(best)], client, dict(scales), report
+    )
+    finalists = sorted(scouted.values(), key=lambda fit: fit.sse)[:GROW_FINALISTS]
+    going = [problem(f"#{k}+", fit.values, MAX_ITERATIONS - SCOUTING) for k, fit in enumerate(finalists)]
+    went = fit_all(
+        space, [g for g, fit in zip(going, finalists) if not fit.converged], client, dict(scales), report
+    )
+    return min([*scouted.values(), *went.values()], key=lambda fit: fit.sse)
+
+
 def _recalibrated(f: _Fits, answer: Candidate, everything: list[Candidate]) -> Candidate:
     """The answer with its calibrated parameters sought again, the effects in place: from every start of
-    :func:`_restarts`, the best REFITTED by their misfit fitted. Why: the calibration was made with the
-    model that lacked them, and bent its parameters to make up (a mass at its bound, an initial state a
-    slide away from the true one); a fit from there can stay in that basin. The refit replaces the answer's
-    fit, and is cross-validated, when it reaches a lower SSE on every scenario."""
+    :func:`restarts` (the effects as fitted, and each member from its own starts), by :func:`best_of`.
+    Why: the calibration was made with the model that lacked them, and bent its parameters to make up (a
+    mass at its bound, an initial state a slide away from the true one); a fit from there can stay in that
+    basin. The refit replaces the answer's fit, and is cross-validated, when it reaches a lower SSE on every
+    scenario."""
     if not answer.ids or not f.base:
         return answer
-    points = _restarts(f, answer)
+    settings = [
+        {**answer.full.point, **f.library[member].start(k)}
+        for member in answer.ids
+        for k in range(len(f.library[member].starts))
+    ]
+    points = restarts(f.base, answer.full.point, settings)
     f.say(
         f"recalibrating {answer.label}: {len(points)} starts of the calibrated parameters, "
         "the effects in place"
     )
-    rows, _ = evaluate_points(f.space, points, f.client, list(f.scales))
-    found = residuals_in(rows, f.scales)
-    best = sorted(points, key=lambda point: screen_sse(point, f.scenarios, found))[:REFITTED]
     label = f"{answer.label}/recalibrated"
-    fits = f.fit([f.problem(f"{label}#{k}", answer.ids, f.scenarios, p) for k, p in enumerate(best)])
-    fit = min(fits.values(), key=lambda x: x.sse)
+    fit = best_of(
+        f.space,
+        f.client,
+        f.scales,
+        points,
+        lambda tag, start, iterations: f.problem(f"{label}{tag}", answer.ids, f.scenarios, start, iterations),
+        f.scenarios,
+        f.say,
+    )
     if not fit.sse < answer.full.sse * (1.0 - LOWER):
         return answer
     again = f.candidate(answer.ids, fit)

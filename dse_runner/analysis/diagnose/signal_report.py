@@ -40,9 +40,10 @@ def effect_rows(effects: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
         for kind, value in values.items():
             low, high = e["intervals"][kind]
             into = f" into {e['into']}" if e.get("into") else ""
+            label = f"{e['target']} += {e['term']}" if e.get("term") else f"{e['id']}({e['target']}){into}"
             rows.append(
                 {
-                    "effect": f"{e['id']}({e['target']}){into}",
+                    "effect": label,
                     "parameter": kind,
                     "value": value,
                     "95 % interval": f"{_number(low)} to {_number(high)}",

@@ -226,27 +226,25 @@ def readable(term: PhysicalTerm, values: Mapping[str, float]) -> str:
 
 # ---- look-alikes: what outside the model imitates a term inside ---------------------------------------
 
-IMITATED = {  # an effect's kind -> the laws of the terms it imitates from outside
-    "deadzone": ("friction",),  # a force that must exceed a threshold, as against dry friction
-    "backlash": ("friction",),
-    "max": ("linear", "cubic"),  # a clamp on a state, as against a force that restores it
-    "min": ("linear", "cubic"),
-    "overflow": ("linear", "sqrt"),  # a spill into another state, as against a flow between them
+IMITATED = {  # an effect (its id) -> the laws of the terms it imitates from outside
+    "input_deadzone": ("friction",),  # a force that must exceed a threshold, as against dry friction
+    "input_backlash": ("friction",),
+    "state_max": ("linear", "cubic"),  # a clamp on a state, as against a force that restores it
+    "state_min": ("linear", "cubic"),
+    "state_overflow": ("linear", "sqrt"),  # a spill into another state, as against a flow between them
 }
 
 
 def rivals(name: str, library: Mapping[str, SignalHypothesis]) -> list[str]:
     """The hypotheses that explain what ``name`` does the other way round, inside or outside the model: an
-    input's dead zone and dry friction in the instance it drives; a state's clamp or overflow and a
-    restoring force or flow of that state. Each pair is fitted and decided on held-out error."""
+    input's dead zone or backlash and dry friction in the instance it drives; a state's clamp or overflow
+    and a restoring force or flow of that state. Each pair is fitted and decided on held-out error."""
     h = library[name]
     if h.term is not None:
         return [other for other, g in library.items() if g.term is None and name in rivals(other, library)]
-    laws = IMITATED.get(h.kinds[0], ())
-    if not laws:
-        return []
-    instance = h.target.split(".", 1)[0]
-    state = h.target.split(".", 1)[1] if h.id.startswith("state_") else None
+    laws = IMITATED.get(h.id, ())
+    instance, _, variable = h.target.partition(".")
+    state = variable if h.id.startswith("state_") else None
     return [
         other
         for other, g in library.items()
@@ -254,5 +252,4 @@ def rivals(name: str, library: Mapping[str, SignalHypothesis]) -> list[str]:
         and g.law in laws
         and g.term.instance == instance
         and (state is None or g.term.variable == state)
-        and (h.id.startswith("state_") or h.id.startswith("input_"))
     ]
