@@ -990,8 +990,9 @@ def diagnose(
         bool,
         typer.Option(
             "--discovery/--no-discovery",
-            help="Above that, seek a sparse data-driven correction (PySINDy) and prove "
-            "it by the same fits and held-out runs as the library's effects.",
+            help="Seek what is missing inside the model too: with --space, physical terms in the "
+            "model-exchange FMUs' state derivatives, fitted beside the effects; with field data, the "
+            "Robotti's sparse correction (PySINDy), proven by the same fits and held-out runs.",
         ),
     ] = True,
     workers: Annotated[int | None, typer.Option(help="Local cluster workers (overrides the space).")] = None,

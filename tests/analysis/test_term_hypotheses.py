@@ -19,6 +19,7 @@ from dse_runner.analysis.diagnose.signal_claims import unreached
 from dse_runner.analysis.diagnose.signal_hypotheses import SignalHypothesis, state_hypotheses
 from dse_runner.analysis.diagnose.signal_locate import Residual
 from dse_runner.analysis.diagnose.term_hypotheses import (
+    PhysicalTerm,
     hypothesis,
     laws,
     meaning,
@@ -26,6 +27,7 @@ from dse_runner.analysis.diagnose.term_hypotheses import (
     rivals,
     term_hypotheses,
 )
+from dse_runner.simulation.derivative_terms import parse_term
 from dse_runner.simulation.run import simulate
 from dse_runner.sweeps.fit import FitResult, Parameter
 from dse_runner.sweeps.spec import load_space
@@ -90,7 +92,11 @@ def test_each_term_says_what_it_means_given_its_sign(msd):
     friction = next(t for t in found.values() if t.law == "friction")
     assert meaning(friction, -0.3).startswith("dry (Coulomb) friction opposing v")
     assert "not friction" in meaning(friction, 0.3)
-    assert "Torricelli" in meaning(found["sqrt(x)"], -1.0)
+    outflow = PhysicalTerm("tanks", "x2", parse_term("sqrt(x2)"), "sqrt", "x2", 1.0)
+    assert "Torricelli" in meaning(outflow, -1.0) and "not an outflow" in meaning(outflow, 1.0)
+    assert "restoring force" in meaning(found["sqrt(x)"], -1.0)  # a position: no opening to flow through
+    assert meaning(found["v*abs(v)"], -0.1) == "quadratic drag on v"
+    assert "not a loss" in meaning(found["v*abs(v)"], 0.1)
     said = readable(found["x^3"], {found["x^3"].name: -60.01})
     assert said == "der(msd.v) += −k3·x^3: a spring that hardens, k3 = 60.01"
 

@@ -5,9 +5,11 @@ The core reads in this order: ``library`` (the plug-in contract and :func:`diagn
 the library that serves a space), ``hypotheses`` (what a hypothesis is), ``explain`` (how candidates
 are judged: folds, BIC, the noise floor, the verdict), ``noise`` (noise from a recording alone) and
 ``findings`` (what is named). The built-in library is ``signal_library`` (late, sluggish, scaled or
-biased inputs and outputs of any FMU), with its steps ``signal_screen``, ``signal_claims``,
-``signal_locate`` and ``signal_report``, and ``derivative_discovery`` beyond it for model-exchange FMUs;
-cases add their libraries by entry point, as the Robotti does (dse_runner/cases/robotti_diagnosis).
+biased inputs and outputs of any FMU, limits of its states, and physical terms inside its model-exchange
+FMUs: ``signal_hypotheses`` and ``term_hypotheses``), with its steps ``signal_screen``, ``signal_claims``,
+``signal_locate`` and ``signal_report``; ``derivative_discovery`` holds the earlier linearised proposal of
+terms, whose regression the Robotti's discovery borrows. Cases add their libraries by entry point, as the
+Robotti does (dse_runner/cases/robotti_diagnosis).
 """
 
 from .hypotheses import EffectParameter, Hypothesis

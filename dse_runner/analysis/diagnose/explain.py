@@ -56,7 +56,7 @@ def search_charge(offered: int, chosen: int, gamma: float = 1.0) -> float:
     """What choosing ``chosen`` members out of ``offered`` costs beyond the BIC: the extended BIC's
     2·γ·ln C(offered, chosen) (Chen and Chen, 2008). Why: the BIC charges a fitted parameter, not the
     search; among many candidate terms one fits the noise best by chance, and the more there are, the
-    likelier, so a term found by searching P of them must pay ln P more than one named beforehand."""
+    likelier, so a term found by searching P of them pays about 2·ln P more than one named beforehand."""
     if chosen <= 0 or offered <= chosen:
         return 0.0
     return (
@@ -221,7 +221,7 @@ def verdict(
     held_out: float, floor: float | None, factor: float, chosen: bool, discovered: bool = False
 ) -> str:
     """The diagnosis in one word. ``chosen``: whether any library effect was chosen; ``discovered``: whether
-    a discovered correction was accepted (it is only sought when the library leaves a residual).
+    a correction inside the model was accepted (a term in its equations, or the Robotti's discovered block).
 
     none: nothing chosen, and the residual is noise; explained: effects chosen, and what remains is
     noise; discovered: a discovered correction brings what remains down to the noise; partial: effects
@@ -338,15 +338,16 @@ def worth(
 
 @dataclass(frozen=True)
 class Dropped:
-    """An effect the choice had named but the noise rule took away: removing it added ``worth`` noise
-    variances (below ``NOISE_RULE``) to the held-out mean square."""
+    """An effect the choice had named but a rule took away: the noise rule (removing it added ``worth`` noise
+    variances, below ``NOISE_RULE``, to the held-out mean square), or another rule that gives its
+    ``reason`` (a limit the recordings never reach, terms their proof did not bear out)."""
 
     id: str
     worth: float
     reason: str = ""  # another rule's (a limit the recordings never reach), when not the noise rule
 
     def to_json(self) -> dict[str, Any]:
-        rule = self.reason or f"removal adds < {NOISE_RULE:g} noise variance"
+        rule = self.reason or f"removal adds < {NOISE_RULE:g} noise variance to the held-out mean square"
         return {"id": self.id, "worth": self.worth, "rule": rule}
 
 

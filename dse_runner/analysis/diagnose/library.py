@@ -44,7 +44,7 @@ class Request:
     folds: int = 3  # cross-validation folds across scenarios
     noise_factor: float = NOISE_FACTOR  # held-out error above this many noise floors is unexplained
     hypotheses: tuple[str, ...] = ()  # the library's ids to try; () tries them all
-    discovery: bool = True  # seek a correction beyond the library when it leaves error above the noise
+    discovery: bool = True  # seek what is missing inside the model too (terms in its derivatives)
 
     def __post_init__(self) -> None:
         if not (isinstance(self.folds, int) and self.folds >= 2):

@@ -209,10 +209,10 @@ def verdict_text(
             f"{w.p:.2g}): either the model still misses something there, or the recording's noise is "
             "coloured and its floor reads low"
         )
-    if dropped:
-        parts.append(
-            "not claimed (changes the fit by less than the noise): " + ", ".join(d.id for d in dropped)
-        )
+    noise = [d.id for d in dropped if not d.reason]
+    if noise:
+        parts.append("not claimed (changes the fit by less than the noise): " + ", ".join(noise))
+    parts += [f"not claimed: {d.id} ({d.reason})" for d in dropped if d.reason]
     twins = [x.other for x in looks if not x.told_apart]
     if twins:
         parts.append(

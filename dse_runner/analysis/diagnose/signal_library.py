@@ -1,22 +1,25 @@
-"""Diagnosis for any model with recordings: which signal effect, if any, the recordings support.
+"""Diagnosis for any model with recordings: which effects outside the model, and which physical terms
+inside it, the recordings support.
 
 Why: a user with an FMU and recordings, and no hypothesis library of their own, still wants to know
-whether what the model misses is a late, sluggish, scaled or biased input or sensor. The signal effects
-(simulation/signal_effects.py) are that library: they apply to every input a scenario drives and every
-signal an objective compares with a recording, without changing any FMU.
+whether what the model misses is a late, sluggish, scaled or biased input or sensor, a limit of a state,
+or a law its equations leave out (a spring that hardens, dry friction, a leak). The signal effects and
+state limits (signal_hypotheses.py) act outside any FMU; the terms (term_hypotheses.py) are added to a
+model-exchange FMU's state derivatives by the master that integrates it.
 
 The space says everything: its scenarios give the inputs and recordings, its objectives
-``{signal, recorded, metric}`` what is compared, its parameters the calibration. Each hypothesis is one
-effect fitted jointly with the calibrated parameters (fit.py's Levenberg-Marquardt, every round a sweep),
-judged as the field-data diagnosis judges its library (explain.py): held-out error across scenarios, the
-BIC, the simplest of the equally good, a verdict against the noise floor. Residuals of each compared
-signal are divided by its noise (estimated from its recording alone), so signals in different units
-weigh alike and an error of 1 is the noise itself.
+``{signal, recorded, metric}`` what is compared, its parameters the calibration. Each hypothesis is fitted
+jointly with the calibrated parameters by simulating the whole model (fit.py's Levenberg-Marquardt, every
+round a sweep), judged as the field-data diagnosis judges its library (explain.py): held-out error, the
+BIC (charged for the search among terms), the simplest of the equally good, a verdict against the noise
+floor. Residuals of each compared signal are divided by its noise (estimated from its recording alone), so
+signals in different units weigh alike and an error of 1 is the noise itself.
 
-When no single effect fits to the noise, pairs are predicted from the singles' fits and the best
-fitted for real (signal_screen.py); what may be claimed, the look-alikes and the verdict's sentence
-come from signal_claims.py; where the model misses, before and after, from signal_locate.py; the
-report from signal_report.py.
+The stages, in diagnose_space's order: calibrate (from many starts), fit every single, screen pairs
+(signal_screen.py), cross-validate, grow, recalibrate the answer with its effects in place, decide each
+member against its look-alike across the model's skin, the noise rule and the limits the recordings reach
+(signal_claims.py), prove the answer's terms by choosing them again on each fold; then locate
+(signal_locate.py) and report (signal_report.py).
 """
 
 from __future__ import annotations
@@ -53,7 +56,7 @@ from .library import HypothesisLibrary, Messages, Request, space_with
 from .noise import NoiseEstimate, Whiteness, estimate_noise, whiteness
 from .signal_hypotheses import SignalHypothesis, shares, signal_hypotheses, state_hypotheses
 from .term_hypotheses import readable as term_readable
-from .term_hypotheses import rivals, term_hypotheses
+from .term_hypotheses import rivals, shown, term_hypotheses
 from .validation import Validation, validated
 
 FITS = "diagnosis-signal-fits"  # the sweep every fit's rounds go to
@@ -132,7 +135,7 @@ class SignalDiagnosis:
             "verdict": self.verdict,
             "verdict_text": self.verdict_text,
             "held_out_before": self.baseline.cross_validated,
-            "held_out_after": self.chosen.cross_validated,
+            "held_out_after": honest(self.chosen, self.proof),
             "held_out_unit": (
                 "noise floors (RMS of each compared signal's residuals over its recording's noise)"
             ),
@@ -189,7 +192,7 @@ class SignalDiagnosis:
             ],
         }
         if hypothesis.term is not None:  # a term inside the model: what it is and means
-            found["term"] = hypothesis.term.term.text
+            found["term"] = shown(hypothesis.term)
             found["law"] = hypothesis.law
             found["readable"] = term_readable(hypothesis.term, fit.values)
         return {**found, "into": hypothesis.into} if hypothesis.into else found
@@ -422,14 +425,19 @@ def diagnose_space(
         pairs, short = _screened_pairs(f, sets, full)
         baseline, everything = _cross_validated(f, sets, full, short)
         selected, growth = _grown(f, explain.select(everything[1:], baseline), full, everything, noise_factor)
+        selected, decided = _decided(f, selected, full, everything)
         chosen, dropped = explain.claimed(selected, everything, baseline)
         chosen = _reached(f, chosen, everything, compared, dropped)
-        chosen, decided = _decided(f, chosen, full, everything)
         proof = _proven(f, chosen, full)
-        chosen = _held_to_proof(chosen, proof, everything, baseline, dropped)
+        chosen = _held_to_proof(f, chosen, proof, everything, baseline, dropped)
+        proof = proof if proof is not None and set(proof.terms) <= set(chosen.ids) else None
+        decided = [
+            d for d in decided if d.winner in chosen.ids
+        ]  # a winner the rules then dropped is no answer
         floor = 1.0  # residuals are in units of each recording's noise
         inside = any(library[i].term is not None for i in chosen.ids)
-        verdict = explain.verdict(chosen.cross_validated, floor, noise_factor, bool(chosen.ids), inside)
+        after = honest(chosen, proof)
+        verdict = explain.verdict(after, floor, noise_factor, bool(chosen.ids), inside)
         interfaces = dict(space.plan.interfaces)
         twins = signal_claims.alike(chosen, everything)
         residuals = located_residuals(f.space, client, [baseline, chosen, *twins], compared, f.scenarios)
@@ -447,7 +455,7 @@ def diagnose_space(
     offered = any(h.term is not None for h in library.values())
     text = signal_claims.verdict_text(
         verdict,
-        chosen.cross_validated,
+        after,
         chosen,
         interfaces,
         looks,
@@ -657,7 +665,8 @@ def _screened_pairs(
         bounds = {p.name: p for p in (*f.base, *(p for h in f.library.values() for p in h.parameters))}
 
         def real_sse(points: list[Point]) -> list[float]:
-            rows, _ = evaluate_points(f.space, points, f.client, list(f.scales))
+            only = [set(f.scenarios)] * len(points)  # a record's views are only for its folds
+            rows, _ = evaluate_points(f.space, points, f.client, list(f.scales), only)
             found = residuals_in(rows, f.scales)
             return [screen_sse(p, f.scenarios, found) for p in points]
 
@@ -772,7 +781,7 @@ def best_of(
     for SCOUTING iterations, the best GROW_FINALISTS of those fitted on; ``problem(label, start, iterations)``
     makes each fit. Why: in a rugged misfit (an oscillator's frequency, an open-loop drift) the best start by
     its misfit alone is often not in the deepest basin, and a few iterations tell which are."""
-    rows, _ = evaluate_points(space, list(points), client, list(scales))
+    rows, _ = evaluate_points(space, list(points), client, list(scales), [set(scenarios)] * len(points))
     found = residuals_in(rows, scales)
     best = sorted(points, key=lambda point: screen_sse(point, scenarios, found))[:REFITTED]
     report = _fit_report(say)
@@ -792,8 +801,8 @@ def _recalibrated(f: _Fits, answer: Candidate, everything: list[Candidate]) -> C
     :func:`restarts` (the effects as fitted, and each member from its own starts), by :func:`best_of`.
     Why: the calibration was made with the model that lacked them, and bent its parameters to make up (a
     mass at its bound, an initial state a slide away from the true one); a fit from there can stay in that
-    basin. The refit replaces the answer's fit, and is cross-validated, when it reaches a lower SSE on every
-    scenario."""
+    basin. The refit replaces the answer's fit, and is cross-validated, when its SSE over every scenario is
+    lower by LOWER."""
     if not answer.ids or not f.base:
         return answer
     settings = [
@@ -1016,21 +1025,28 @@ def _proven(f: _Fits, answer: Candidate, full: Mapping[tuple[str, ...], FitResul
 
 
 def _held_to_proof(
+    f: _Fits,
     chosen: Candidate,
     proof: Proof | None,
-    everything: Sequence[Candidate],
+    everything: list[Candidate],
     baseline: Candidate,
     dropped: list[explain.Dropped],
 ) -> Candidate:
-    """``chosen`` judged by its proof: its held-out error becomes that of the choice each fold made, and its
-    terms go (into ``dropped``) unless that still beats the answer without them by explain.MIN_GAIN."""
+    """``chosen``, or without its terms (into ``dropped``) unless the choice each fold made of them (the
+    proof) still beats the answer without them by explain.MIN_GAIN; that set is fitted from the answer's
+    fit and cross-validated if no stage did yet."""
     if proof is None:
         return chosen
-    rest = set(chosen.ids) - set(proof.terms)
-    without = (
-        baseline if not rest else next((c for c in everything if set(c.ids) == rest and c.validated), None)
-    )
-    if without is not None and proof.error > (1.0 - explain.MIN_GAIN) * without.cross_validated:
+    rest = tuple(i for i in chosen.ids if i not in proof.terms)
+    without = baseline if not rest else _validated(everything, rest)
+    if without is None:
+        f.say(f"judging {', '.join(proof.terms)}: the answer without them, fitted from its fit")
+        label = f"{_label(rest)}/judged"
+        fit = f.fit([f.problem(label, rest, f.scenarios, dict(chosen.full.values))])[label]
+        without = f.candidate(rest, fit)
+        f.hold_out([without], f.fit(f.by_fold(rest, fit.values)))
+        everything.append(without)
+    if proof.error > (1.0 - explain.MIN_GAIN) * without.cross_validated:
         reason = (
             "chosen again on each fold's fitting part, the terms predicted held-out scenarios with "
             f"{proof.error:.3g} noise floors, not clearly better than {without.cross_validated:.3g} "
@@ -1038,8 +1054,20 @@ def _held_to_proof(
         )
         dropped.extend(explain.Dropped(t, math.nan, reason) for t in proof.terms)
         return without
-    chosen.held_out = dict(proof.held_out)
     return chosen
+
+
+def honest(chosen: Candidate, proof: Proof | None) -> float:
+    """The held-out error to claim for ``chosen``: its folds', or the proof's when its terms were chosen again
+    on each fold and that did worse (a choice made on all the data has seen the held-out scenarios)."""
+    if proof is None:
+        return chosen.cross_validated
+    return max(chosen.cross_validated, proof.error)
+
+
+def _validated(candidates: Sequence[Candidate], ids: Sequence[str]) -> Candidate | None:
+    """The cross-validated candidate of exactly the effects ``ids``, if one was fitted."""
+    return next((c for c in candidates if set(c.ids) == set(ids) and c.validated), None)
 
 
 @dataclass(frozen=True)
@@ -1081,7 +1109,7 @@ def _decided(
             continue
         rival = min(options, key=lambda r: explain.bic(full[(r,)]))
         ids = tuple(sorted((*(i for i in chosen.ids if i != member), rival)))
-        known = next((c for c in everything if set(c.ids) == set(ids) and c.validated), None)
+        known = _validated(everything, ids)
         if known is None:
             f.say(f"deciding {member} against its look-alike {rival}")
             start = {**chosen.full.values, **_joining(f, full, rival)}
@@ -1095,6 +1123,8 @@ def _decided(
         )
         if wins:
             chosen = known
+    if any(d.winner != d.member for d in decided):
+        _judge_members(f, chosen, everything)  # the noise rule weighs the rival as it weighed the member
     return chosen, decided
 
 
@@ -1117,10 +1147,9 @@ def _reached(
         reasons = signal_claims.unreached(chosen, f.library, shown, recorded, noise)
         rest = next(
             (
-                c
+                found
                 for member in reasons
-                for c in everything
-                if set(c.ids) == set(chosen.ids) - {member} and c.validated
+                if (found := _validated(everything, [i for i in chosen.ids if i != member])) is not None
             ),
             None,
         )

@@ -129,13 +129,11 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
                 "of the answer."
             ),
         ]
-    if found.get("dropped"):
-        lines += [
-            "",
-            "Not claimed (removing it changed the held-out error by less than the noise): "
-            + ", ".join(d["id"] for d in found["dropped"])
-            + ".",
-        ]
+    by_rule: dict[str, list[str]] = {}
+    for d in found.get("dropped") or []:
+        by_rule.setdefault(d["rule"], []).append(d["id"])
+    for rule, ids in by_rule.items():
+        lines += ["", f"Not claimed ({rule}): {', '.join(ids)}."]
     lines += ["", "## Candidates (best held-out first)", ""]
     lines += markdown_table(found["candidates"][:8], ["id", "held_out", "bic"])
     failed = [c for c in found["candidates"] if c.get("error")]

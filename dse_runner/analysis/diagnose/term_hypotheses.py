@@ -10,8 +10,8 @@ whole model with the term, so an unmeasured state (an upper tank) or a noisy der
 and a term competes with the effects that only imitate it from outside (a dead zone on a force against dry
 friction) on held-out error.
 
-Each term is sized along the calibrated model's runs (derivative_discovery/library.py): its coefficient's
-range is ±BOUND times what makes it add as much as its derivative does, and 0 is the model without it.
+Each term is sized along the calibrated model's runs (:func:`laws`): its coefficient's range is ±BOUND
+times what makes it add as much as its derivative does, and 0 is the model without it.
 Each term says what it means in the user's words, given the sign its fit takes (:func:`meaning`).
 """
 
@@ -184,14 +184,29 @@ def meaning(term: PhysicalTerm, coefficient: float) -> str:
         return f"a response to {v} that steepens with its cube"
     if term.law == "square":
         if v == s:
+            if not against:
+                return f"a gain growing with the square of {s}: not a loss"
             return f"quadratic drag on {s}" if term.moving else f"a loss growing with the square of {s}"
         if term.position:
-            return "a progressive spring, its force growing with the square of the position"
+            return (
+                "a progressive spring" if against else "a spring that weakens with the square of the position"
+            )
         return f"a flow or force from {v} growing with its square, its sign kept"
     if term.law == "sqrt":
+        if term.moving and v == s:
+            return f"a drag growing with the square root of {s}" if against else f"a push growing with √{s}"
+        if term.position:
+            return (
+                f"a restoring force growing with the square root of {v}" if against else f"a push with √{v}"
+            )
+        if v == s:
+            return (
+                f"an outflow of {s} through an opening, growing with its square root (Torricelli)"
+                if against
+                else f"an inflow growing with the square root of {s}: not an outflow"
+            )
         return (
-            f"{'an outflow' if v == s else 'a flow'} through an opening, growing with the square root of {v} "
-            "(Torricelli)"
+            f"a flow {'out of' if against else 'from'} {v} through an opening, growing with its square root"
         )
     if term.law == "friction":
         return f"dry (Coulomb) friction opposing {s}" if against else f"a push along {s}: not friction"
@@ -209,18 +224,21 @@ SYMBOLS = {
 }
 
 
+def shown(term: PhysicalTerm) -> str:
+    """The term as the user reads it: a friction's width as ``w`` (it is fitted; its name holds the start)."""
+    return f"tanh({term.state}/w)" if term.law == "friction" else term.term.text
+
+
 def readable(term: PhysicalTerm, values: Mapping[str, float]) -> str:
     """``der(msd.v) += −k3·x^3: a spring that hardens, k3 = 60.01``, from the fitted ``values``."""
     coefficient = float(values[term.name])
     symbol = SYMBOLS[term.law]
-    shown = term.term.text
+    told = f"{symbol} = {abs(coefficient):.4g}"
     if term.law == "friction":
         width = values.get(dt.width_name(term.instance, term.state, term.term), term.term.factors[0].width)
-        shown = f"tanh({term.state}/w)"
-        told = f"{symbol} = {abs(coefficient):.4g}, w = {width:.3g}"
-    else:
-        told = f"{symbol} = {abs(coefficient):.4g}"
-    written = ("−" if coefficient < 0 else "") + (symbol if shown == "1" else f"{symbol}·{shown}")
+        told += f", w = {width:.3g}"
+    text = shown(term)
+    written = ("−" if coefficient < 0 else "") + (symbol if text == "1" else f"{symbol}·{text}")
     return f"der({term.instance}.{term.state}) += {written}: {meaning(term, coefficient)}, {told}"
 
 
