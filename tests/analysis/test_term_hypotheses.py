@@ -92,7 +92,7 @@ def test_each_term_says_what_it_means_given_its_sign(msd):
     friction = next(t for t in found.values() if t.law == "friction")
     assert meaning(friction, -0.3).startswith("dry (Coulomb) friction opposing v")
     assert "not friction" in meaning(friction, 0.3)
-    outflow = PhysicalTerm("tanks", "x2", parse_term("sqrt(x2)"), "sqrt", "x2", 1.0)
+    outflow = PhysicalTerm("tanks", "x2", parse_term("sqrt(x2)"), 1.0, law="sqrt", variable="x2")
     assert "Torricelli" in meaning(outflow, -1.0) and "not an outflow" in meaning(outflow, 1.0)
     assert "restoring force" in meaning(found["sqrt(x)"], -1.0)  # a position: no opening to flow through
     assert meaning(found["v*abs(v)"], -0.1) == "quadratic drag on v"

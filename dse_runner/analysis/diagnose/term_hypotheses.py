@@ -25,7 +25,7 @@ import numpy as np
 
 from ...simulation import derivative_terms as dt
 from ...sweeps.fit import Parameter
-from .derivative_discovery.library import ModelExchangeInstance, kinematic_pairs, rms
+from .derivative_discovery.library import CandidateTerm, ModelExchangeInstance, kinematic_pairs, rms
 from .signal_hypotheses import SignalHypothesis
 
 BOUND = 3.0  # a coefficient adds at most this many times its derivative's RMS
@@ -36,26 +36,15 @@ KIND = "term"  # the hypotheses' id
 
 
 @dataclass(frozen=True)
-class PhysicalTerm:
-    """One term on one state's derivative, what kind of law it is and how large a coefficient matters."""
+class PhysicalTerm(CandidateTerm):
+    """A candidate term (its instance, state, term and size) with the law it stands for and how it reads
+    the instance's motion: what :func:`meaning` needs to say it in an engineer's words."""
 
-    instance: str
-    state: str  # whose derivative it adds to
-    term: dt.Term
-    law: str  # constant, linear, cubic, square, sqrt, friction, product
-    variable: str  # the state or input it reads ("" for a constant)
-    scale: float  # the coefficient that makes it add as much as the derivative, in RMS over the runs
+    law: str = ""  # constant, linear, cubic, square, sqrt, friction, product
+    variable: str = ""  # the state or input it reads ("" for a constant)
     position: str = ""  # the variable is the position whose rate is ``state`` (der(position) = state)
     velocity: float = 0.0  # a friction's velocity RMS: its width's scale
     moving: bool = False  # ``state`` is a velocity (the rate of another state)
-
-    @property
-    def name(self) -> str:
-        return dt.term_name(self.instance, self.state, self.term)
-
-    @property
-    def target(self) -> str:
-        return f"{self.instance}.der({self.state})"
 
 
 def laws(instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.ndarray]]) -> list[PhysicalTerm]:
@@ -98,12 +87,12 @@ def laws(instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.ndarray
                         instance.name,
                         state,
                         term,
-                        law,
-                        variable,
                         size / feature,
-                        positions.get(state, "") if variable == positions.get(state) else "",
-                        speed if law == "friction" else 0.0,
-                        state in positions,
+                        law=law,
+                        variable=variable,
+                        position=variable if variable and variable == positions.get(state) else "",
+                        velocity=speed if law == "friction" else 0.0,
+                        moving=state in positions,
                     )
                 )
     return found
