@@ -50,7 +50,7 @@ def test_terms_are_offered_on_physics_with_friction_on_the_velocity_alone(msd):
     assert {t.target for t in found.values()} == {"msd.der(v)"}  # der(x) = v on every run: a definition
     assert {"1", "x", "v", "F", "x^3", "x*abs(x)", "v*abs(v)", "sqrt(x)", "x*F"} <= set(found)
     frictions = [t for t in found.values() if t.law == "friction"]
-    assert len(frictions) == 1 and frictions[0].term.text.startswith("tanh(v/")
+    assert len(frictions) == 1 and frictions[0].term.text == "tanh(v)"  # its width is a parameter
     assert found["x^3"].position == "x" and found["v"].position == ""  # x is the position whose rate is v
     assert all(t.scale > 0 and math.isfinite(t.scale) for t in found.values())
 
@@ -173,3 +173,19 @@ def test_a_clamp_the_recording_sits_at_is_a_limit_and_one_that_only_stops_a_drif
     assert "stops the simulation's drift" in found["state_max(p.x)"]
     unmeasured = unreached(chosen, library, [], {}, {"p.y": noise})  # no signal measures p.x: kept
     assert unmeasured == {}
+
+
+def test_a_term_may_be_named_with_hypothesis_before_any_run_sizes_it():
+    """``--hypothesis`` is checked against the library's listing before anything runs: the terms are
+    listed by name (a friction's without a width, which is a parameter of its own), and a name the model
+    cannot have is refused with the list."""
+    from dse_runner.analysis.diagnose.library import Request, checked
+    from dse_runner.analysis.diagnose.signal_library import SignalEffects
+    from dse_runner.errors import DseError
+
+    space = load_space(PLAIN)
+    library = SignalEffects()
+    for name in ("derivative_term(msd.der(v), x^3)", "derivative_term(msd.der(v), tanh(v))"):
+        assert checked(library, space, Request(hypotheses=(name,))) is library
+    with pytest.raises(DseError, match=r"derivative_term\(msd.der\(v\), y\^3\).*no such hypothesis"):
+        checked(library, space, Request(hypotheses=("derivative_term(msd.der(v), y^3)",)))

@@ -54,9 +54,9 @@ from .hypotheses import EffectParameter
 from .hypotheses import Hypothesis as LibraryHypothesis
 from .library import HypothesisLibrary, Messages, Request, space_with
 from .noise import NoiseEstimate, Whiteness, estimate_noise, whiteness
-from .signal_hypotheses import SignalHypothesis, shares, signal_hypotheses, state_hypotheses
+from .signal_hypotheses import PHYSICS, SignalHypothesis, shares, signal_hypotheses, state_hypotheses
 from .term_hypotheses import readable as term_readable
-from .term_hypotheses import rivals, shown, term_hypotheses
+from .term_hypotheses import rivals, shown, term_hypotheses, term_names
 from .validation import Validation, validated
 
 FITS = "diagnosis-signal-fits"  # the sweep every fit's rounds go to
@@ -1258,9 +1258,10 @@ class SignalEffects(HypothesisLibrary):
         )
 
     def hypotheses(self, space: Space) -> list[LibraryHypothesis]:
-        """Every hypothesis by name; a state limit's range is known only once the calibrated model has run."""
+        """Every hypothesis by name; a state limit's range is known only once the calibrated model has run,
+        and a term's range (and whether its derivative is physics at all) once the runs size it."""
         units = {**signal_effects.UNITS, **state_limits.UNITS}
-        return [
+        effects = [
             LibraryHypothesis(
                 id=name,
                 name=f"{h.id.replace('_', ' ')} of {h.target}" + (f" into {h.into}" if h.into else ""),
@@ -1275,3 +1276,14 @@ class SignalEffects(HypothesisLibrary):
             )
             for name, h in library_of(space, compared_signals(space), None).items()
         ]
+        terms = [
+            LibraryHypothesis(
+                id=name,
+                name=f"a {law} term: {name}",
+                explanation=PHYSICS[f"term_{law}"][0],
+                signature=PHYSICS[f"term_{law}"][1],
+            )
+            for instance in model_exchange_instances(space.plan)
+            for name, law in term_names(instance).items()
+        ]
+        return effects + terms

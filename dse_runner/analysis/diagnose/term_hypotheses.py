@@ -47,6 +47,37 @@ class PhysicalTerm(CandidateTerm):
     moving: bool = False  # ``state`` is a velocity (the rate of another state)
 
 
+def _shapes(
+    state: str, states: Sequence[str], inputs: Sequence[str], moving: bool
+) -> list[tuple[str, str, dt.Term]]:
+    """Every law's term on der(``state``) over the instance's ``states`` and ``inputs``: (law, the variable
+    it reads, the term). A friction (``moving``: ``state`` is a velocity) is written without a width: its
+    width is a parameter of its own (derivative_width), so its name does not depend on the data."""
+    found: list[tuple[str, str, dt.Term]] = [("constant", "", dt.Term())]
+    found += [("linear", v, dt.Term((dt.Factor(v),))) for v in (*states, *inputs)]
+    for v in states:
+        found += [
+            ("cubic", v, dt.Term((dt.Factor(v, power=3),))),
+            ("square", v, dt.Term((dt.Factor(v), dt.Factor(v, "abs")))),
+            ("sqrt", v, dt.Term((dt.Factor(v, "sqrt"),))),
+        ]
+        found += [("product", v, dt.Term((dt.Factor(v), dt.Factor(u)))) for u in inputs]
+    if moving:
+        found.append(("friction", state, dt.Term((dt.Factor(state, "tanh"),))))
+    return found
+
+
+def term_names(instance: ModelExchangeInstance) -> dict[str, str]:
+    """Every term the library could offer ``instance``, by name with its law, before any run sizes them
+    (what ``--hypothesis`` may name): on every state's derivative, each state possibly a velocity. A
+    diagnosis offers those of them its runs show to be physics."""
+    return {
+        dt.term_name(instance.name, state, term): law
+        for state in instance.states
+        for law, _, term in _shapes(state, instance.states, instance.inputs, True)
+    }
+
+
 def laws(instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.ndarray]]) -> list[PhysicalTerm]:
     """Every physical term on every non-kinematic state's derivative of ``instance``, sized over ``runs``
     (each a run of the calibrated model recording the instance's states, derivatives and real inputs). A
@@ -67,18 +98,9 @@ def laws(instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.ndarray
         size = rms(values(derivative))
         if not size > 0:
             continue
-        shapes: list[tuple[str, str, dt.Term]] = [("constant", "", dt.Term())]
-        shapes += [("linear", v, dt.Term((dt.Factor(v),))) for v in (*states, *inputs)]
-        for v in states:
-            shapes += [
-                ("cubic", v, dt.Term((dt.Factor(v, power=3),))),
-                ("square", v, dt.Term((dt.Factor(v), dt.Factor(v, "abs")))),
-                ("sqrt", v, dt.Term((dt.Factor(v, "sqrt"),))),
-            ]
-            shapes += [("product", v, dt.Term((dt.Factor(v), dt.Factor(u)))) for u in inputs]
         speed = rms(values(state))
-        if state in positions and speed > 0:  # a velocity: dry friction opposes it
-            shapes.append(("friction", state, dt.Term((dt.Factor(state, "tanh", _width(speed)),))))
+        moving = state in positions and speed > 0  # a velocity: dry friction opposes it
+        shapes = _shapes(state, states, inputs, moving)
         for law, variable, term in shapes:
             feature = rms([_feature(term, instance, r, state) for r in runs])
             if feature > 0 and math.isfinite(feature):
@@ -92,16 +114,15 @@ def laws(instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.ndarray
                         variable=variable,
                         position=variable if variable and variable == positions.get(state) else "",
                         velocity=speed if law == "friction" else 0.0,
-                        moving=state in positions,
+                        moving=moving,
                     )
                 )
     return found
 
 
-def _width(speed: float) -> float:
-    """A friction term's width as written in its name (its fit's first start): WIDTHS[0] of the velocity's
-    RMS, to two significant digits."""
-    return float(f"{WIDTHS[0] * speed:.2g}")
+def _width(speed: float, share: float = WIDTHS[0]) -> float:
+    """A friction's width at ``share`` of its velocity's RMS ``speed``, to two significant digits."""
+    return float(f"{share * speed:.2g}")
 
 
 def _feature(
@@ -128,7 +149,7 @@ def hypothesis(term: PhysicalTerm) -> SignalHypothesis:
         dt.width_name(term.instance, term.state, term.term), _width(term.velocity), low, high, 0.1 * narrow
     )
     push = -0.3 * term.scale  # against the motion, a third of what adds as much as the derivative
-    starts = tuple((push, _width(term.velocity * share / WIDTHS[0])) for share in WIDTHS)
+    starts = tuple((push, _width(term.velocity, share)) for share in WIDTHS)
     return SignalHypothesis(
         KIND,
         term.target,
