@@ -102,7 +102,9 @@ def laws(instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.ndarray
         moving = state in positions and speed > 0  # a velocity: dry friction opposes it
         shapes = _shapes(state, states, inputs, moving)
         for law, variable, term in shapes:
-            feature = rms([_feature(term, instance, r, state) for r in runs])
+            # a friction sized as the nearly sharp sign its first start is, not as tanh(v) over a width of 1
+            sized = dt.Term((dt.Factor(state, "tanh", _width(speed)),)) if law == "friction" else term
+            feature = rms([_feature(sized, instance, r, state) for r in runs])
             if feature > 0 and math.isfinite(feature):
                 found.append(
                     PhysicalTerm(
@@ -135,7 +137,7 @@ def _feature(
 
 def hypothesis(term: PhysicalTerm) -> SignalHypothesis:
     """A term as a hypothesis of the library: its coefficient (and a friction's width) with their ranges,
-    neutral at 0, fitted from 0 (a friction from two widths, pushing against the motion)."""
+    neutral at 0, fitted from 0 (a friction from each of WIDTHS, pushing against the motion)."""
     limit = BOUND * term.scale
     coefficient = Parameter(term.name, 0.0, -limit, limit, STEP * term.scale)
     if term.law != "friction":
