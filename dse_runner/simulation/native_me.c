@@ -77,6 +77,7 @@ typedef struct {          /* the SUNDIALS functions, from the libraries FMPy loa
     void (*cvode_free)(void **);
     int (*solver_free)(void *);
     void (*matrix_destroy)(void *);
+    int (*set_max_hnil_warns)(void *, int);
 } Sundials;
 
 typedef struct {          /* one group of inputs, read back to see whether the master changed them */
@@ -404,6 +405,9 @@ int dse_me_start(ModelExchangeUnit *m) {
         && s->set_max_step(m->memory, m->max_step) == 0
         && s->set_max_num_steps(m->memory, MAX_NUM_STEPS) == 0
         && s->no_inactive_root_warn(m->memory) == 0
+        /* ours alone: CVode's "t + h = t" warnings go to the worker's standard output, which a local cluster
+         * shares with the command's (and --json's); the step goes on, and a run that cannot is a failure */
+        && s->set_max_hnil_warns(m->memory, -1) == 0
         /* ours alone: SUNDIALS's own handler would print every failure of a trial run to the worker's stderr */
         && s->clear_err_handlers(m->context) == 0
         && s->push_err_handler(m->context, on_error, m) == 0

@@ -103,6 +103,7 @@ SUNDIALS = (
     "CVodeFree",
     "SUNLinSolFree",
     "SUNMatDestroy",
+    "CVodeSetMaxHnilWarns",
 )
 
 

@@ -84,13 +84,18 @@ def test_the_signal_effects_list_every_effect_on_every_driven_input_and_compared
     signals = libraries()[-1]
     ids = {h.id for h in signals.hypotheses(msd)}
     # the ring-down scenario drives no input: only the compared position has effects, those a sensor has;
-    # the model-exchange instance's two states have bounds, and each an overflow into the other
-    assert ids == {
+    # the model-exchange instance's two states have bounds, and each an overflow into the other; and every
+    # physical term on each state's derivative, listed by name before a run tells which are physics
+    effects = {i for i in ids if not i.startswith("derivative_term(")}
+    assert effects == {
         *(f"output_{kind}(msd.x)" for kind in ("delay", "lag", "gain", "offset", "max", "min", "square")),
         *(f"state_{kind}(msd.{s})" for kind in ("max", "min") for s in ("x", "v")),
         "state_overflow(msd.x, v)",
         "state_overflow(msd.v, x)",
     }
+    terms = ids - effects
+    assert {"derivative_term(msd.der(v), x^3)", "derivative_term(msd.der(v), tanh(v))"} <= terms
+    assert {"derivative_term(msd.der(x), 1)", "derivative_term(msd.der(v), x*F)"} <= terms
 
 
 def test_an_installed_library_is_asked_before_the_built_in_one(tmp_path, monkeypatch):

@@ -18,7 +18,7 @@ Each term says what it means in the user's words, given the sign its fit takes (
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -48,19 +48,26 @@ class PhysicalTerm(CandidateTerm):
 
 
 def _shapes(
-    state: str, states: Sequence[str], inputs: Sequence[str], moving: bool
+    state: str,
+    states: Sequence[str],
+    inputs: Sequence[str],
+    moving: bool,
+    signed: Collection[str] | None = None,
 ) -> list[tuple[str, str, dt.Term]]:
     """Every law's term on der(``state``) over the instance's ``states`` and ``inputs``: (law, the variable
     it reads, the term). A friction (``moving``: ``state`` is a velocity) is written without a width: its
-    width is a parameter of its own (derivative_width), so its name does not depend on the data."""
+    width is a parameter of its own (derivative_width), so its name does not depend on the data. A square
+    root only of a state that keeps one sign (``signed``; None: any), as a level or a pressure does: where a
+    state crosses zero, √ is no law of it, and its infinite slope there stalls the solver."""
     found: list[tuple[str, str, dt.Term]] = [("constant", "", dt.Term())]
     found += [("linear", v, dt.Term((dt.Factor(v),))) for v in (*states, *inputs)]
     for v in states:
         found += [
             ("cubic", v, dt.Term((dt.Factor(v, power=3),))),
             ("square", v, dt.Term((dt.Factor(v), dt.Factor(v, "abs")))),
-            ("sqrt", v, dt.Term((dt.Factor(v, "sqrt"),))),
         ]
+        if signed is None or v in signed:
+            found.append(("sqrt", v, dt.Term((dt.Factor(v, "sqrt"),))))
         found += [("product", v, dt.Term((dt.Factor(v), dt.Factor(u)))) for u in inputs]
     if moving:
         found.append(("friction", state, dt.Term((dt.Factor(state, "tanh"),))))
@@ -89,6 +96,11 @@ def laws(instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.ndarray
     varying = {v for v in (*instance.states, *instance.inputs) if any(np.ptp(x) > 0 for x in values(v))}
     states = [s for s in instance.states if s in varying]
     inputs = [u for u in instance.inputs if u in varying]
+    signed = {
+        v
+        for v in states
+        if min(float(np.min(x)) for x in values(v)) >= 0 or max(float(np.max(x)) for x in values(v)) <= 0
+    }
     pairs = kinematic_pairs(instance, runs)  # position -> velocity
     positions = {velocity: position for position, velocity in pairs.items()}
     found = []
@@ -100,7 +112,7 @@ def laws(instance: ModelExchangeInstance, runs: Sequence[Mapping[str, np.ndarray
             continue
         speed = rms(values(state))
         moving = state in positions and speed > 0  # a velocity: dry friction opposes it
-        shapes = _shapes(state, states, inputs, moving)
+        shapes = _shapes(state, states, inputs, moving, signed)
         for law, variable, term in shapes:
             # a friction sized as the nearly sharp sign its first start is, not as tanh(v) over a width of 1
             sized = dt.Term((dt.Factor(state, "tanh", _width(speed)),)) if law == "friction" else term
