@@ -17,7 +17,6 @@ import numpy as np
 
 from ...simulation import derivative_terms
 from . import explain
-from .derivative_discovery import DISCOVERED
 from .explain import Candidate
 from .noise import Whiteness
 from .signal_locate import Residual, activity, window_of, windows
@@ -193,15 +192,15 @@ def verdict_text(
     looks: Sequence[FitsAlike],
     dropped: Sequence[explain.Dropped],
     factor: float,
-    discovered: Sequence[str] = (),
+    formulas: Sequence[str] = (),
     coloured: Mapping[str, Whiteness] | None = None,
     terms: bool = False,
 ) -> str:
-    """The verdict in a sentence: what was named (a discovered correction as its formula), what was not
-    claimed, which twins cannot be told apart, whose residuals are not white, and, when an error well above
-    the noise remains, where it must lie."""
-    written = [i for i in chosen.ids if i != DISCOVERED and not i.startswith(f"{derivative_terms.PREFIX}(")]
-    named = ", ".join([*written, *discovered]) or "no effect"  # a term inside the model as its formula
+    """The verdict in a sentence: what was named (a term inside the model as its ``formulas``' sentence), what
+    was not claimed, which twins cannot be told apart, whose residuals are not white, and, when an error well
+    above the noise remains, where it must lie (``terms``: whether terms inside were offered)."""
+    written = [i for i in chosen.ids if not i.startswith(f"{derivative_terms.PREFIX}(")]
+    named = ", ".join([*written, *formulas]) or "no effect"
     parts = [f"{verdict}: {named}; held-out error {held_out:.3g} noise floors"]
     for signal, w in (coloured or {}).items():
         parts.append(

@@ -605,12 +605,16 @@ class _Fits:
             return {}
         return fit_all(self.space, problems, self.client, self.scales, _fit_report(self.say))
 
+    @property
+    def terms(self) -> list[str]:
+        """The terms inside the model the library offers, by name."""
+        return [name for name, h in self.library.items() if h.term is not None]
+
     def candidate(self, ids: tuple[str, ...], fit: FitResult) -> Candidate:
         """A fitted set as a candidate, charged for the search of the terms inside the model it chose among
         every term offered (explain.search_charge); the signal effects are a short list named beforehand."""
-        offered = [name for name, h in self.library.items() if h.term is not None]
         chosen = sum(1 for name in ids if self.library[name].term is not None)
-        return Candidate(ids, fit, charge=explain.search_charge(len(offered), chosen))
+        return Candidate(ids, fit, charge=explain.search_charge(len(self.terms), chosen))
 
     def hold_out(self, candidates: list[Candidate], results: Mapping[str, FitResult]) -> None:
         held_out(self.space, self.client, candidates, results, self.parts, self.scales)
@@ -962,7 +966,7 @@ def _proven(f: _Fits, answer: Candidate, full: Mapping[tuple[str, ...], FitResul
     terms = tuple(i for i in answer.ids if f.library[i].term is not None)
     if not terms or not f.parts or len(answer.folds) != len(f.validation.folds):
         return None
-    offered = [n for n, h in f.library.items() if h.term is not None]
+    offered = f.terms
     proof = Proof(terms, offered=len(offered))
     f.say(f"proving {', '.join(terms)}: chosen again among {len(offered)} terms on each fold's fitting part")
     sets = [tuple(answer.ids) for _ in f.validation.folds]
@@ -1009,14 +1013,7 @@ def _proven(f: _Fits, answer: Candidate, full: Mapping[tuple[str, ...], FitResul
     rows, _ = evaluate_points(f.space, points, f.client, list(f.scales), only)
     for fit, fold in zip(fits, f.validation.folds):
         for scenario in fold.test:
-            row = rows.get((key_of(fit.point), scenario))
-            ok = row is not None and row["status"] == "ok"
-            r = (
-                np.concatenate([np.asarray(row[col], float) * sc for col, sc in f.scales.items()])
-                if ok
-                else np.zeros(0)
-            )
-            proof.held_out[scenario] = float(np.sqrt(np.mean(r**2))) if r.size else math.inf
+            proof.held_out[scenario] = scaled_rms(rows.get((key_of(fit.point), scenario)), f.scales)
     f.say(
         f"proven: {proof.agree} of {len(fits)} folds chose {', '.join(terms)} again; held-out "
         f"{answer.cross_validated:.3g} as chosen on all data, {proof.error:.3g} as each fold chose"
@@ -1229,13 +1226,16 @@ def held_out(
             c.folds.append(fit)
             for scenario in fold:
                 row = rows.get((key_of(fit.point), scenario))
-                ok = row is not None and row["status"] == "ok"
-                r = (
-                    np.concatenate([np.asarray(row[col], float) * s for col, s in scales.items()])
-                    if ok
-                    else None
-                )
-                c.held_out[scenario] = float(np.sqrt(np.mean(r**2))) if r is not None and r.size else math.inf
+                c.held_out[scenario] = scaled_rms(row, scales)
+
+
+def scaled_rms(row: Mapping[str, Any] | None, scales: Mapping[str, float]) -> float:
+    """The RMS of a run's residuals, each column times its scale (noise floors); infinite for a run that
+    failed or was never made."""
+    if row is None or row["status"] != "ok":
+        return math.inf
+    r = np.concatenate([np.asarray(row[col], float) * scale for col, scale in scales.items()])
+    return float(np.sqrt(np.mean(r**2))) if r.size else math.inf
 
 
 class SignalEffects(HypothesisLibrary):

@@ -12,7 +12,6 @@ from typing import Any
 
 from ... import strict_json
 from ...simulation.values import write_values
-from .derivative_discovery import DISCOVERED
 
 REPORT, SUMMARY, VALUES = "diagnosis-report.md", "diagnosis.json", "diagnosed-values.yaml"
 
@@ -31,13 +30,10 @@ def markdown_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[str]) ->
 
 
 def effect_rows(effects: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
-    """One row per fitted value: a library effect's parameter, or a discovered correction's term."""
+    """One row per fitted value: an effect's parameter, or a term's coefficient (and a friction's width)."""
     rows = []
     for e in effects:
-        values = (
-            e["terms"] if e["id"] == DISCOVERED else e["parameters"]
-        )  # a term's interval is keyed by its text
-        for kind, value in values.items():
+        for kind, value in e["parameters"].items():
             low, high = e["intervals"][kind]
             into = f" into {e['into']}" if e.get("into") else ""
             label = f"{e['target']} += {e['term']}" if e.get("term") else f"{e['id']}({e['target']}){into}"
@@ -107,7 +103,7 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
     lines += ["", "## Named effects", ""] + markdown_table(
         effect_rows(found["effects"]), ["effect", "parameter", "value", "95 % interval", "partial"]
     )
-    terms = [e["readable"] for e in found["effects"] if e.get("readable") and e["id"] != DISCOVERED]
+    terms = [e["readable"] for e in found["effects"] if e.get("readable")]
     if terms:
         lines += ["", "Inside the model:", ""] + [f"- {t}" for t in terms]
     pinned = (found.get("fitted") or {}).get("at_bound") or []
@@ -137,10 +133,7 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
     lines += ["", "## Candidates (best held-out first)", ""]
     lines += markdown_table(found["candidates"][:8], ["id", "held_out", "bic"])
     failed = [c for c in found["candidates"] if c.get("error")]
-    rejected = {
-        **{c["id"]: c["error"] for c in failed},
-        **((found.get("discovery") or {}).get("rejected") or {}),
-    }
+    rejected = {c["id"]: c["error"] for c in failed}
     if rejected:
         lines += [
             "",
