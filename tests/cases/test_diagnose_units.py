@@ -912,12 +912,13 @@ def test_rate_limits_that_bind_most_of_the_time_are_not_scanned():
 
 
 def test_extended_bic_charges_the_search():
+    from dse_runner.analysis.diagnose.proof import extended_margin
     from dse_runner.cases.robotti_diagnosis import discover
 
-    assert discover.extended_margin(10.0, 0) == pytest.approx(10.0)
     p = discover.searched_count()
-    assert discover.extended_margin(10.0, 2) == pytest.approx(10.0 + 2 * math.log(math.comb(p, 2)))
-    assert discover.extended_margin(10.0, 2, searched=38) == pytest.approx(10.0 + 2 * math.log(703))  # +13.1
+    assert extended_margin(10.0, p, 0) == pytest.approx(10.0)
+    assert extended_margin(10.0, p, 2) == pytest.approx(10.0 + 2 * math.log(math.comb(p, 2)))
+    assert extended_margin(10.0, 38, 2) == pytest.approx(10.0 + 2 * math.log(703))  # +13.1
 
 
 def with_terms(ids, held_out, sse, values, se=0.001):
@@ -926,9 +927,22 @@ def with_terms(ids, held_out, sse, values, se=0.001):
     return c
 
 
+def proofs(*candidates, worse=1.0):
+    """Each candidate's proof as discover builds it, its folds' held-out errors scaled by ``worse``."""
+    from dse_runner.cases.robotti_diagnosis import discover
+
+    out = {}
+    for c in candidates:
+        proof = discover.proof_of(c, [])
+        proof.held_out = {run: e * worse for run, e in proof.held_out.items()}
+        out[c.label] = proof
+    return out
+
+
 def test_a_discovered_term_must_pay_like_an_effect():
     """Accepted only when it cuts held-out error by min_gain and BIC by the extended margin against the
-    library's answer and every fitted part, with every term two standard errors from zero."""
+    library's answer and every fitted part, with every term two standard errors from zero, and its proof
+    (the terms each fold chose for itself) bears it out against the same effects without the terms."""
     from dse_runner.cases.robotti_diagnosis import discover
 
     none = candidate((), [1.0, 1.0], 400.0)
@@ -939,13 +953,18 @@ def test_a_discovered_term_must_pay_like_an_effect():
     )
     alone = with_terms(("discovered",), [0.04, 0.04], 9.0, term)
     everything = [none, lag, good, alone]
-    assert discover.accept([good, alone], lag, everything, 0.05, 10.0) is alone  # a tie goes to fewer ids
+    assert (
+        discover.accept([good, alone], lag, everything, proofs(good, alone), 0.05, 10.0) is alone
+    )  # a tie: fewer ids
+    # the folds' own choices predicted no better than the library's lag alone: the terms are not proven
+    assert discover.accept([good], lag, everything, proofs(good, worse=6.0), 0.05, 10.0) is None
+    assert discover.proof_of(good, []).error == pytest.approx(good.cross_validated)
     small = with_terms(("discovered",), [0.29, 0.29], 99.0, term)
     assert (
-        discover.accept([small], lag, [none, lag, small], 0.05, 10.0) is None
+        discover.accept([small], lag, [none, lag, small], proofs(small), 0.05, 10.0) is None
     )  # < 5 % better than the library
     vague = with_terms(("discovered",), [0.04, 0.04], 9.0, term, se=0.1)
-    assert discover.accept([vague], lag, [none, lag, vague], 0.05, 10.0) is None  # within 2 se of zero
+    assert discover.accept([vague], lag, [none, lag, vague], proofs(vague), 0.05, 10.0) is None  # within 2 se
 
 
 def test_resemblance_in_words_and_cosine():

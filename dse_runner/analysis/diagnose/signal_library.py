@@ -54,6 +54,7 @@ from .hypotheses import EffectParameter
 from .hypotheses import Hypothesis as LibraryHypothesis
 from .library import HypothesisLibrary, Messages, Request, space_with
 from .noise import NoiseEstimate, Whiteness, estimate_noise, whiteness
+from .proof import Proof, honest
 from .signal_hypotheses import PHYSICS, SignalHypothesis, shares, signal_hypotheses, state_hypotheses
 from .term_hypotheses import readable as term_readable
 from .term_hypotheses import rivals, shown, term_hypotheses, term_names
@@ -135,7 +136,7 @@ class SignalDiagnosis:
             "verdict": self.verdict,
             "verdict_text": self.verdict_text,
             "held_out_before": self.baseline.cross_validated,
-            "held_out_after": honest(self.chosen, self.proof),
+            "held_out_after": honest(self.chosen.cross_validated, self.proof),
             "held_out_unit": (
                 "noise floors (RMS of each compared signal's residuals over its recording's noise)"
             ),
@@ -436,7 +437,7 @@ def diagnose_space(
         ]  # a winner the rules then dropped is no answer
         floor = 1.0  # residuals are in units of each recording's noise
         inside = any(library[i].term is not None for i in chosen.ids)
-        after = honest(chosen, proof)
+        after = honest(chosen.cross_validated, proof)
         verdict = explain.verdict(after, floor, noise_factor, bool(chosen.ids), inside)
         interfaces = dict(space.plan.interfaces)
         twins = signal_claims.alike(chosen, everything)
@@ -927,36 +928,6 @@ def _judge_members(f: _Fits, answer: Candidate, everything: list[Candidate]) -> 
     everything[:] = [c for c in everything if frozenset(c.ids) not in replaced] + judged
 
 
-@dataclass
-class Proof:
-    """The terms of the answer chosen again on each fold's fitting scenarios alone, among every term offered:
-    the held-out error of the procedure that chose them, not of the choice made on all the data."""
-
-    terms: tuple[str, ...]  # the answer's terms, as chosen on all the data
-    chosen: list[tuple[str, ...]] = field(default_factory=list)  # each fold's choice in their place
-    held_out: dict[str, float] = field(default_factory=dict)  # scenario -> error of its fold's choice
-    offered: int = 0
-
-    @property
-    def agree(self) -> int:
-        """How many folds chose the answer's terms themselves."""
-        return sum(1 for c in self.chosen if set(c) == set(self.terms))
-
-    @property
-    def error(self) -> float:
-        return sum(self.held_out.values()) / len(self.held_out) if self.held_out else math.inf
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            "terms": list(self.terms),
-            "offered": self.offered,
-            "folds": [list(c) for c in self.chosen],
-            "agree": self.agree,
-            "held_out": self.error,
-            "rule": "each fold chose its terms among every term offered on its fitting scenarios alone",
-        }
-
-
 def _proven(f: _Fits, answer: Candidate, full: Mapping[tuple[str, ...], FitResult]) -> Proof | None:
     """The answer's terms inside the model chosen again on each fold's fitting scenarios alone: each term in
     turn, every offered term in its place fitted there (SCOUTING iterations, the best fitted on, judged by
@@ -1043,23 +1014,11 @@ def _held_to_proof(
         without = f.candidate(rest, fit)
         f.hold_out([without], f.fit(f.by_fold(rest, fit.values)))
         everything.append(without)
-    if proof.error > (1.0 - explain.MIN_GAIN) * without.cross_validated:
-        reason = (
-            "chosen again on each fold's fitting part, the terms predicted held-out scenarios with "
-            f"{proof.error:.3g} noise floors, not clearly better than {without.cross_validated:.3g} "
-            "without them"
-        )
-        dropped.extend(explain.Dropped(t, math.nan, reason) for t in proof.terms)
-        return without
-    return chosen
-
-
-def honest(chosen: Candidate, proof: Proof | None) -> float:
-    """The held-out error to claim for ``chosen``: its folds', or the proof's when its terms were chosen again
-    on each fold and that did worse (a choice made on all the data has seen the held-out scenarios)."""
-    if proof is None:
-        return chosen.cross_validated
-    return max(chosen.cross_validated, proof.error)
+    if proof.bears_out(without.cross_validated):
+        return chosen
+    reason = proof.failed(without.cross_validated, " noise floors")
+    dropped.extend(explain.Dropped(t, math.nan, reason) for t in proof.terms)
+    return without
 
 
 def _validated(candidates: Sequence[Candidate], ids: Sequence[str]) -> Candidate | None:

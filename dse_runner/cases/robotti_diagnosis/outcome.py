@@ -11,6 +11,7 @@ from typing import Any
 from ...analysis.diagnose import explain
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.findings import DiscoveredCorrection, Finding, NamedEffect
+from ...analysis.diagnose.proof import honest
 from ...errors import DseError
 from ...simulation.scenario import dropouts_line
 from . import correction, discover, lookalike, noise, screen
@@ -201,7 +202,9 @@ class Diagnosis:
 
     @property
     def cross_track_after(self) -> float:
-        return self.chosen.cross_validated
+        """The chosen model's held-out error; with discovered terms, their proof's (proof.honest)."""
+        proof = self.discovery.proof if self.discovered and self.discovery is not None else None
+        return honest(self.chosen.cross_validated, proof)
 
     @property
     def fitted(self) -> dict[str, Any]:

@@ -556,6 +556,13 @@ def discovery_text(diagnosis: Diagnosis) -> str:
         lines.append(f" Nothing was accepted: {found.reason}.")
     else:
         lines.append(f" Accepted: `{found.chosen.label}`; it {discover.resemblance_words(found.resembles)}.")
+    proof = found.proof
+    if proof is not None and proof.chosen:
+        lines.append(
+            f" Proof: {proof.agree} of {len(proof.chosen)} folds, choosing among {proof.offered} terms on "
+            f"their training runs alone, chose these terms again; their own choices predicted the held-out "
+            f"runs with {proof.error:.4f} m."
+        )
     return "".join(lines)
 
 

@@ -238,8 +238,13 @@ def _diagnose(
             f"than the noise): {', '.join(d.id for d in dropped)}"
         )
     found = seek(chain, chosen, choice.candidates, floor, space) if settings.discovery else None
-    if found is not None and found.chosen is not None:
-        chosen = found.chosen
+    if found is not None and found.chosen is not None:  # discovered terms face the noise rule too
+        chosen, more = explain.claimed(
+            found.chosen, [*choice.candidates, *found.candidates], baseline, floor.cross_track
+        )
+        if more:
+            say(f"not claimed (changes the held-out error by less than the noise): {more[0].id}")
+        dropped += more
     diagnosis = Diagnosis(
         out,
         {

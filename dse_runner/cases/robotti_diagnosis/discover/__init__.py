@@ -55,8 +55,8 @@ from .propose import (
     propose,
     regressions,
 )
-from .prove import Discovery, accept, discover, refilled
-from .rank_terms import DISCOVERED, extended_margin, library_ids, rank_on_positions, searched_count
+from .prove import Discovery, accept, discover, proof_of, refilled
+from .rank_terms import DISCOVERED, library_ids, rank_on_positions, searched_count
 from .resemble import resemblance_words, resembles, similarity, terms_json
 
 __all__ = [
@@ -73,10 +73,10 @@ __all__ = [
     "binding",
     "candidates",
     "discover",
-    "extended_margin",
     "find_shape",
     "library_ids",
     "observe",
+    "proof_of",
     "propose",
     "rank_on_positions",
     "refilled",

@@ -12,11 +12,21 @@ from ....analysis.diagnose import explain
 from ....analysis.diagnose.derivative_discovery.prove import PRUNE_SE
 from ....analysis.diagnose.derivative_discovery.prove import pruned as generic_pruned
 from ....analysis.diagnose.explain import Candidate
+from ....analysis.diagnose.proof import Proof
 from ....sweeps.fit import FitProblem, FitResult
 from .. import correction
 from .observe import Observed, vehicle_values
 from .propose import CorrectionProposal, propose, regressions
-from .rank_terms import DISCOVERED, Fitter, Screen, extended_margin, held_shapes, library_ids, screened
+from .rank_terms import (
+    DISCOVERED,
+    Fitter,
+    Screen,
+    charged,
+    held_shapes,
+    library_ids,
+    screened,
+    searched_count,
+)
 
 
 def with_terms(
@@ -122,11 +132,18 @@ class Discovery:
         default_factory=list
     )  # library effects by similarity, best first
     margin: float = math.nan  # the BIC margin the terms had to beat (extended)
+    proofs: dict[str, Proof] = field(default_factory=dict)  # each fitted candidate's, by its label
     reason: str = ""
 
     @property
     def terms(self) -> dict[str, float]:
         return fitted_terms(self.chosen.full) if self.chosen is not None else {}
+
+    @property
+    def proof(self) -> Proof | None:
+        """The accepted candidate's proof (the best tried when none was accepted)."""
+        best = self.chosen or min(self.candidates, key=lambda c: c.cross_validated, default=None)
+        return self.proofs.get(best.label) if best is not None else None
 
     def to_json(self) -> dict[str, Any]:
         best = min(self.candidates, key=lambda c: c.cross_validated, default=None)
@@ -148,8 +165,20 @@ class Discovery:
                 for c in self.candidates
             ],
             "best_held_out": best.cross_validated if best is not None else None,
+            "proof": self.proof.to_json() if self.proof is not None else None,
             "reason": self.reason,
         }
+
+
+def proof_of(candidate: Candidate, folds: Sequence[Mapping[str, Any]]) -> Proof:
+    """A fitted candidate's proof: each fold proposed and ranked its own terms on its training runs, and
+    those terms, fitted there, predicted its held-out runs (the candidate's held-out errors are theirs)."""
+    return Proof(
+        tuple(sorted(fitted_terms(candidate.full))),
+        [tuple(sorted(f["terms"])) for f in folds if f["set"] == candidate.label],
+        dict(candidate.held_out),
+        searched_count(),
+    )
 
 
 def _sets(reference: Candidate) -> list[tuple[str, ...]]:
@@ -280,8 +309,11 @@ def discover(
         entry["kept"] = fitted_terms(fit) if fit is not None else {}
     chain.score(fitted, {**copies, **fold_fits})
     result.candidates = fitted
-    result.margin = extended_margin(settings.bic_margin, max(len(fitted_terms(c.full)) for c in fitted))
-    result.chosen = accept(fitted, reference, [*candidates, *fitted], settings.min_gain, settings.bic_margin)
+    result.proofs = {c.label: proof_of(c, result.folds) for c in fitted}
+    result.margin = charged(settings.bic_margin, max(len(fitted_terms(c.full)) for c in fitted))
+    result.chosen = accept(
+        fitted, reference, [*candidates, *fitted], result.proofs, settings.min_gain, settings.bic_margin
+    )
     if result.chosen is None:
         best = min(fitted, key=lambda c: c.cross_validated)
         result.reason = (
@@ -298,29 +330,44 @@ def pays(candidate: Candidate, candidates: Sequence[Candidate], min_gain: float,
     terms by the extended BIC margin (the terms were searched for), those with them by the library's."""
     terms = len(fitted_terms(candidate.full))
     for part in explain.subsets(candidate, list(candidates)):
-        margin = bic_margin if DISCOVERED in part.ids else extended_margin(bic_margin, terms)
+        margin = bic_margin if DISCOVERED in part.ids else charged(bic_margin, terms)
         if not explain.beats(candidate, part, min_gain, margin):
             return False
     return True
+
+
+def without_terms(candidate: Candidate, candidates: Sequence[Candidate]) -> Candidate | None:
+    """The fitted candidate with ``candidate``'s library effects and no discovered terms."""
+    rest = set(library_ids(candidate.ids))
+    return next((c for c in candidates if set(c.ids) == rest and c.validated), None)
 
 
 def accept(
     fitted: Sequence[Candidate],
     reference: Candidate,
     candidates: Sequence[Candidate],
+    proofs: Mapping[str, Proof],
     min_gain: float,
     bic_margin: float,
 ) -> Candidate | None:
-    """The accepted candidate with terms, or None: cross-validated, beating the reference by the extended
-    margin and every fitted part of itself; the lowest held-out error, fewer ids winning a tie within
-    ``min_gain``."""
+    """The accepted candidate with terms, or None: cross-validated, its proof (``proofs``, by label) bearing
+    the terms out against the same effects without them, beating the reference by the extended margin and
+    every fitted part of itself; the lowest held-out error, fewer ids winning a tie within ``min_gain``."""
+
+    def proven(c: Candidate) -> bool:
+        without = without_terms(c, candidates)
+        return c.label in proofs and (
+            without is None or proofs[c.label].bears_out(without.cross_validated, min_gain)
+        )
+
     eligible = [
         c
         for c in fitted
         if c.validated
         and math.isfinite(c.cross_validated)
         and pruned(c.full) == fitted_terms(c.full)  # every term still two standard errors from zero
-        and explain.beats(c, reference, min_gain, extended_margin(bic_margin, len(fitted_terms(c.full))))
+        and proven(c)
+        and explain.beats(c, reference, min_gain, charged(bic_margin, len(fitted_terms(c.full))))
         and pays(c, candidates, min_gain, bic_margin)
     ]
     return explain.simplest_best(eligible, min_gain) if eligible else None

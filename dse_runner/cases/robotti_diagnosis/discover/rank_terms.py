@@ -11,6 +11,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from ....analysis.diagnose.explain import Candidate
+from ....analysis.diagnose.proof import extended_margin
 from ....sweeps.domain import Point
 from ....sweeps.fit import FitProblem, FitResult, Parameter, Residuals
 from .. import correction
@@ -48,12 +49,10 @@ def searched_count() -> int:
     )
 
 
-def extended_margin(bic_margin: float, terms: int, searched: int | None = None) -> float:
-    """The BIC margin for a set of ``terms`` chosen among ``searched``: bic_margin + 2 ln C(P, k) (extended
-    BIC with γ = 1), since picking the best k of P terms buys a better fit by chance alone."""
-    p = searched_count() if searched is None else searched
-    k = max(0, min(terms, p))
-    return bic_margin + 2.0 * (math.lgamma(p + 1) - math.lgamma(k + 1) - math.lgamma(p - k + 1))
+def charged(bic_margin: float, terms: int) -> float:
+    """The BIC margin ``terms`` discovered terms must beat: the search among every term the proposal
+    offers is charged (proof.extended_margin)."""
+    return extended_margin(bic_margin, searched_count(), terms)
 
 
 def library_ids(ids: Sequence[str]) -> tuple[str, ...]:
@@ -172,7 +171,7 @@ def rank_on_positions(
             break
         best = min(trials, key=trials.get)
         k = len(chosen)
-        charge = extended_margin(bic_margin, k + 1) - (extended_margin(bic_margin, k) if k else 0.0)
+        charge = charged(bic_margin, k + 1) - (charged(bic_margin, k) if k else 0.0)
         if n * math.log(max(trials[best], 1e-300) / max(current, 1e-300)) + math.log(n) > -charge:
             break
         chosen.append(best)
