@@ -93,6 +93,11 @@ def test_an_effect_outside_the_library_is_discovered(cases):
     )
     assert "**Verdict: discovered.**" in result.files["report"].read_text()
     assert any(k.startswith("vehicle.corr_") for k in load_space(result.files["space"]).parameters)
+    # the same proof as every diagnosis: each fold chose its own terms, and their error is what is claimed
+    proof = result.to_json()["discovery"]["proof"]
+    assert len(proof["folds"]) == len(result.calibration["folds"]) and proof["offered"] > 100
+    assert proof["held_out"] == pytest.approx(result.cross_track_after)
+    assert "folds" in result.files["report"].read_text().split("Proof:")[1][:200]
 
 
 def test_a_heading_dependent_antenna_offset_is_discovered(cases):
