@@ -328,6 +328,12 @@ def simulate(
         f"scenario {result.scenario.name}  ({result.scenario.group}, "
         f"{result.times.start:g}..{result.times.stop:g} s, step {result.step:g} s)"
     )
+    if result.trajectory.stopped:
+        stopped = result.trajectory.stopped
+        typer.echo(
+            f"{stopped.instance}: {stopped.message} (of {result.times.stop:g} s): the results and objectives "
+            f"are up to t = {stopped.time:g}"
+        )
     if best or values:
         shown = [
             f"{name} = {value:g}" if isinstance(value, float) else f"{name} = {value!r}"

@@ -14,6 +14,10 @@ Two stages, so that checking is done once and running is cheap:
 Every output of a numeric type (and every other variable an objective asks
 for) is recorded as a float64 column; booleans as 0/1. String outputs are
 recorded as text.
+
+An FMU that asks to end the run early (steppers.py's ``asked_to_stop``) ends it where it says, as FMPy's
+``simulate_fmu`` does: every output is read once more there, the FMUs are terminated, and the trajectory
+holds the run up to that time with its :class:`~.trajectory.Stop`.
 """
 
 from __future__ import annotations
@@ -35,7 +39,7 @@ from . import fmu as fmus
 from . import isolation, native, native_me
 from .plan import Plan
 from .steppers import FMI_WARNING, Stepper, stepper
-from .trajectory import CosimError, Series, Trajectory
+from .trajectory import CosimError, Series, Stop, Trajectory
 from .variables import (
     Conversion,
     Value,
@@ -310,24 +314,28 @@ def _run_here(
         current = None
         if native_setup:  # the C call (sets up and sets the values,) initialises, runs and ends the units
             outcome = native.step_loop(program, times, runner.steps, external, record, texts, timeout)
-            _raise_where_stopped(outcome, program, units, times, names, record, texts)
-            return Trajectory(times, names, record, texts)
-        for unit in units:
-            current = unit
-            unit.stepper.enter_initialization(start, stop)
-        _exchange(units, signals, external, 0, texts, start, feed=True)
-        for unit in units:
-            current = unit
-            unit.stepper.exit_initialization()
-        current = None
-        _exchange(units, signals, external, 0, texts, start, feed=False)
-        record[0] = signals[: len(names)]
-        if program is not None:
-            outcome = native.step_loop(program, times, runner.steps, external, record, texts, timeout)
-            _raise_where_stopped(outcome, program, units, times, names, record, texts)
+            stopped = _where_stopped(outcome, program, units, times, names, record, texts)
+            if stopped is None:
+                return Trajectory(times, names, record, texts)
         else:
-            deadline = time.perf_counter() + timeout if timeout else math.inf
-            _step_loop(units, times, runner.steps, signals, external, record, texts, deadline)
+            for unit in units:
+                current = unit
+                unit.stepper.enter_initialization(start, stop)
+            _exchange(units, signals, external, 0, texts, start, feed=True)
+            for unit in units:
+                current = unit
+                unit.stepper.exit_initialization()
+            current = None
+            _exchange(units, signals, external, 0, texts, start, feed=False)
+            record[0] = signals[: len(names)]
+            if program is not None:
+                outcome = native.step_loop(program, times, runner.steps, external, record, texts, timeout)
+                stopped = _where_stopped(outcome, program, units, times, names, record, texts)
+            else:
+                deadline = time.perf_counter() + timeout if timeout else math.inf
+                stopped = _step_loop(units, times, runner.steps, signals, external, record, texts, deadline)
+        if stopped is not None:  # as FMPy records it: every output once more, where the run stopped
+            _read_row(units, signals, record, texts, *stopped)
         for unit in units:
             current = unit
             unit.stepper.terminate()
@@ -341,9 +349,44 @@ def _run_here(
         message = current.stepper.instance.explain(str(e).rstrip("."))
         fmus.discard(current.stepper.instance)
         raise CosimError(message, current.stepper.name) from None
+    if stopped is not None:
+        trajectory = _up_to(Trajectory(times, names, record, texts), *stopped)
+        _check_finite(names, trajectory.time, trajectory.values)
+        return trajectory
     if program is None:  # the C loop checked every point
         _check_finite(names, times, record)
     return Trajectory(times, names, record, texts)
+
+
+def _read_row(
+    units: list[_Unit],
+    signals: np.ndarray,
+    record: np.ndarray,
+    texts: dict[str, list[str]],
+    k: int,
+    stop: Stop,
+) -> None:
+    """Every output read into row ``k`` of ``record`` (and ``texts``), where an FMU asked to stop."""
+    for unit in units:
+        _read(unit, stop.time, texts)
+    record[k] = signals[: record.shape[1]]
+
+
+def _up_to(trajectory: Trajectory, k: int, stop: Stop) -> Trajectory:
+    """The run up to where an FMU asked to stop, on the way to point ``k``: points 0..k-1, then the values
+    read at the stop, at its time (which may lie between points, as FMI 2's fmi2LastSuccessfulTime
+    does), as FMPy's simulate_fmu keeps them. A stop that got no further than point k-1 ends there: its
+    row is not repeated."""
+    times = trajectory.time
+    at = min(max(stop.time, float(times[k - 1])), float(times[k]))
+    n = k + 1 if at > times[k - 1] else k
+    kept = np.array(times[:n])
+    if n > k:
+        kept[k] = at
+    texts = {name: values[:n] for name, values in trajectory.texts.items()}
+    return Trajectory(
+        kept, trajectory.names, trajectory.values[:n], texts, Stop(stop.instance, float(kept[-1]))
+    )
 
 
 LOOPS = ("native", "python")
@@ -421,7 +464,7 @@ def _prepare(
     return prepared
 
 
-def _raise_where_stopped(
+def _where_stopped(
     outcome,
     program,
     units: list[_Unit],
@@ -429,9 +472,18 @@ def _raise_where_stopped(
     names: tuple[str, ...],
     record: np.ndarray,
     texts: dict[str, list[str]],
-) -> None:
-    """The error the Python loop raises where the C loop stopped, if it stopped early."""
+) -> tuple[int, Stop] | None:
+    """Where the C loop stopped early: an FMU that asked to stop (the point it was stepping to, and the
+    stop), as the Python loop returns it; else the error the Python loop raises there. None: it ran to
+    the end."""
     code, k, t = outcome.code, outcome.k, outcome.t
+    if code == native.TERMINATE:
+        return k, Stop(units[outcome.unit].stepper.name, t)
+    if code == native.STEP_FAILED:
+        step = units[outcome.unit].stepper
+        at = step.asked_to_stop(outcome.element, t, float(times[k]))
+        if at is not None:
+            return k, Stop(step.name, at)
     if code == native.TIMEOUT:
         raise CosimError(f"timeout: the simulation was stopped at t={t:.6g} of {times[-1]:.6g} s")
     if code == native.DIVERGED:
@@ -447,11 +499,6 @@ def _raise_where_stopped(
     if code == native.STEP_FAILED:
         step = units[outcome.unit].stepper
         raise step.step_failure() or units[outcome.unit].fail(step.step_name, t)
-    if code == native.TERMINATE:
-        step = units[outcome.unit].stepper
-        raise CosimError(
-            step.instance.explain(f"the FMU asked to terminate the simulation at t={t:.6g}"), step.name
-        )
     if code == native.TEXT_READ_FAILED:
         raise units[outcome.unit].fail("getString", t)
     if code == native.TEXT_FEED_FAILED:
@@ -473,6 +520,7 @@ def _raise_where_stopped(
         raise CosimError(step.instance.explain(failed), step.name)
     if code != native.DONE:
         raise CosimError(f"the native loop ran out of memory at t={t:.6g}")
+    return None
 
 
 @functools.lru_cache(maxsize=64)
@@ -611,12 +659,13 @@ def _step_loop(
     record: np.ndarray,
     texts: dict[str, list[str]],
     deadline: float,
-) -> None:
+) -> tuple[int, Stop] | None:
     """The hot loop: no buffer is created here, only FMI calls through prepared ones, read from flat
-    lists so that a step costs no Python call beyond the FMI calls and the fills that need one."""
+    lists so that a step costs no Python call beyond the FMI calls and the fills that need one. Returns
+    where an FMU asked to stop (the point the run was stepping to, and the stop), or None at the end."""
     n = record.shape[1]
     steppers = [u.stepper for u in units]
-    watched = [s for s in steppers if type(s).check_step is not Stepper.check_step]
+    watched = [s for s in steppers if s.watches_steps]
     plain = external is None and all(u.texts is None for u in units)  # only numeric connections to feed
     feeds = [(f.fill, f.call, f.args, unit, f.name) for unit in units for f in unit.feeds]
     reads = [(r.call, r.args, r.copy, unit, r.name) for unit in units for r in unit.reads]
@@ -636,12 +685,16 @@ def _step_loop(
         else:
             _feed_all(units, signals, external, k - 1, t)
         for s in steppers:
-            if s.call(*s.before, t, h, *s.after) > FMI_WARNING:
-                raise _fail_step(units, s, t)
-        for s in watched:
-            reason = s.check_step(t)
-            if reason:
-                raise CosimError(s.instance.explain(f"{reason} at t={t_next:.6g}"), s.name)
+            status = s.call(*s.before, t, h, *s.after)
+            if status > FMI_WARNING:
+                at = s.asked_to_stop(status, t, t_next)
+                if at is None:
+                    raise _fail_step(units, s, t)
+                return k, Stop(s.name, at)
+        for s in watched:  # after every unit has stepped, as the C loop checks
+            at = s.asked_to_stop(0, t, t_next)
+            if at is not None:
+                return k, Stop(s.name, at)
         if plain:
             for call, args, copy, unit, name in reads:
                 if call(*args) > FMI_WARNING:
@@ -652,6 +705,7 @@ def _step_loop(
             for unit in units:
                 _read(unit, t_next, texts)
         record[k] = signals[:n]
+    return None
 
 
 def _feed_all(units: list[_Unit], signals: np.ndarray, external: np.ndarray | None, k: int, t: float) -> None:

@@ -44,6 +44,15 @@ class ModelExchangeError(DseError):
     """An ME instance failed: an FMU error status, a solver failure, or the FMU asked to stop."""
 
 
+class TerminationAsked(ModelExchangeError):
+    """The FMU asked to end the run at ``time`` (terminateSimulation): a failure in initialization, and in a
+    step the end of the run there (steppers.ModelExchange)."""
+
+    def __init__(self, time: float):
+        super().__init__(f"the FMU requested termination at t={time:.9g}")
+        self.time = time
+
+
 class _HeldInputs:
     """The input object FMPy's solvers call ``apply`` on. The master sets inputs itself
     before each step and they are held over it, so there is nothing to apply."""
@@ -320,7 +329,7 @@ class ModelExchangeStepper:
             return False
         step_event, terminate = self.model.completedIntegratorStep()
         if terminate:
-            raise ModelExchangeError(f"the FMU requested termination at t={self.time:.9g}")
+            raise TerminationAsked(self.time)
         return bool(step_event)
 
     def _read_inputs(self) -> tuple | None:
@@ -345,7 +354,7 @@ class ModelExchangeStepper:
         for _ in range(MAX_EVENT_ITERATIONS):
             needed, terminate, _nominals, _values, defined, next_time = update()
             if terminate:
-                raise ModelExchangeError(f"the FMU requested termination at t={self.time:.9g}")
+                raise TerminationAsked(self.time)
             if not needed:
                 self.next_event = next_time if defined else None
                 return

@@ -11,7 +11,8 @@
  *   2. per unit: its input groups gathered from the signals (converted: copy,
  *      round half to even, threshold), set; then the string outputs it feeds;
  *   3. every unit steps from t to t + h (fmi2DoStep / fmi3DoStep);
- *   4. an FMI 3.0 unit that asked to terminate stops the loop;
+ *   4. an FMI 3.0 unit that asked to terminate stops the loop (TERMINATE); a step that failed stops it
+ *      with its status (STEP_FAILED), where an FMI 2.0 unit's fmi2Discard may be its asking to stop;
  *   5. per unit: its output groups got and scattered into the signals; its
  *      string outputs got and copied into an arena;
  *   6. the recorded signals of this point are stored, and checked finite.
@@ -135,6 +136,13 @@ static inline int step_unit(const Unit *s, double t, double h, bool *asked) {
     double last_time;
     return s->version == 3 ? ((Step3)s->step)(s->component, t, h, true, &event, asked, &early, &last_time)
                            : ((Step2)s->step)(s->component, t, h, 1);
+}
+
+/* A step's status above FMI_WARNING: STEP_FAILED, the status kept as the outcome's element, for Python to
+ * ask whether the unit asked to stop (fmi2Discard and fmi2Terminated) or failed. */
+static int step_failed(Outcome *out, int status) {
+    out->element = status;
+    return STEP_FAILED;
 }
 
 /* Stores x into element i of a buffer of C type ctype, as numpy's assignment does. */
@@ -280,8 +288,10 @@ __attribute__((noinline)) static int plain_loop(const Unit *units, int32_t n_uni
             int code = feed(&feeds[f], signals, out);
             if (code != DONE) return stop(out, arena, code, k, t, feeds[f].unit, f);
         }
-        for (int32_t u = 0; u < n_units; u++)
-            if (step_unit(&units[u], t, h, &asked[u]) > FMI_WARNING) return stop(out, arena, STEP_FAILED, k, t, u, -1);
+        for (int32_t u = 0; u < n_units; u++) {
+            int status = step_unit(&units[u], t, h, &asked[u]);
+            if (status > FMI_WARNING) return stop(out, arena, step_failed(out, status), k, t, u, -1);
+        }
         if (fmi3)
             for (int32_t u = 0; u < n_units; u++)
                 if (asked[u]) return stop(out, arena, TERMINATE, k, t_next, u, -1);
@@ -365,9 +375,11 @@ __attribute__((noinline)) static int direct_loop(const Unit *units, int32_t n_un
         const double t = times[k - 1], t_next = times[k], h = steps[k];
         int code = checkpoint(out, arena, record, times, n_recorded, &checked, k, deadline);
         if (code != DONE) return code;
-        for (int32_t u = 0; u < n_units; u++)
-            if (step_unit(&units[u], t, h, &asked[u]) > FMI_WARNING)
-                return halt(out, arena, record, times, n_recorded, checked, STEP_FAILED, k, t, u, -1);
+        for (int32_t u = 0; u < n_units; u++) {
+            int status = step_unit(&units[u], t, h, &asked[u]);
+            if (status > FMI_WARNING)
+                return halt(out, arena, record, times, n_recorded, checked, step_failed(out, status), k, t, u, -1);
+        }
         if (fmi3)
             for (int32_t u = 0; u < n_units; u++)
                 if (asked[u]) return halt(out, arena, record, times, n_recorded, checked, TERMINATE, k, t_next, u, -1);
@@ -408,7 +420,8 @@ static inline __attribute__((always_inline)) int single_steps(
         int code = checkpoint(out, arena, record, times, n_recorded, &checked, k, deadline);
         if (code != DONE) return code;
         int status = fmi3 ? step3(component, t, h, true, &event, &asked, &early, &last_time) : step2(component, t, h, 1);
-        if (status > FMI_WARNING) return halt(out, arena, record, times, n_recorded, checked, STEP_FAILED, k, t, 0, -1);
+        if (status > FMI_WARNING)
+            return halt(out, arena, record, times, n_recorded, checked, step_failed(out, status), k, t, 0, -1);
         if (asked) return halt(out, arena, record, times, n_recorded, checked, TERMINATE, k, t_next, 0, -1);
         double *into = record + k * n_recorded + offset;
         status = fmi3 ? get3(reader, vrs, n, into, n) : get2(reader, vrs, n, into);
@@ -486,11 +499,13 @@ int dse_loop(const Unit *units, int32_t n_units, const Group *feeds, int32_t n_f
                 }
             }
         }
-        for (int32_t u = 0; u < n_units; u++)
-            if (step_unit(&units[u], t, h, &asked[u]) > FMI_WARNING) {
-                code = stop(out, &arena, STEP_FAILED, k, t, u, -1);
+        for (int32_t u = 0; u < n_units; u++) {
+            int status = step_unit(&units[u], t, h, &asked[u]);
+            if (status > FMI_WARNING) {
+                code = stop(out, &arena, step_failed(out, status), k, t, u, -1);
                 goto done;
             }
+        }
         for (int32_t u = 0; u < n_units; u++)  /* after every unit has stepped, as the Python loop checks */
             if (asked[u]) { code = stop(out, &arena, TERMINATE, k, t_next, u, -1); goto done; }
         int32_t r = 0, tr = 0;

@@ -307,6 +307,11 @@ class NativeIntegrator:
     def __del__(self) -> None:  # a run that failed, or an instance discarded, leaves its solver to free here
         self.end()
 
+    def asked_to_stop(self) -> float | None:
+        """After a failed step: the time of the event where the FMU asked to end the run, if that was why."""
+        f = self.unit.failure
+        return f.start if f.code == TERMINATE_ASKED else None
+
     def failure(self) -> ModelExchangeError:
         """What went wrong in C, worded as ModelExchangeStepper words it."""
         f = self.unit.failure

@@ -349,6 +349,8 @@ def write_csv(result: SimulationResult, path: Path, bare: bool = False) -> Path:
 def summary(result: SimulationResult, bare: bool = False) -> dict:
     """What ``simulate --json`` prints: the run's settings, objectives and every output's final value."""
     final = result.trajectory.final()
+    stop = result.trajectory.stopped  # an FMU asked to end the run early: which, when, the message
+    stopped = stop and {"instance": stop.instance, "time": stop.time, "message": stop.message}
     if bare:
         final = {name.partition(".")[2]: value for name, value in final.items()}
     return {
@@ -356,6 +358,8 @@ def summary(result: SimulationResult, bare: bool = False) -> dict:
         "start_time": result.times.start,
         "stop_time": result.times.stop,
         "step": result.times.step,
+        "end_time": result.trajectory.end,  # what objectives and final values cover: stop_time, or the stop
+        "stopped": stopped,
         "values": result.values,
         "objectives": result.objectives,
         "final": final,

@@ -15,6 +15,11 @@ as FMPy keeps ``simulateCS`` and ``simulateME``:
 The hot loop calls ``step.call(*step.before, t, h, *step.after)`` and the
 typed accessors' ctypes functions directly: no Python method sits between
 the loop and the FMU for co-simulation.
+
+An FMU may ask to end the run early, each version its own way (FMI 2.0: fmi2DoStep returns fmi2Discard
+and fmi2Terminated reads true; FMI 3.0: fmi3DoStep's terminateSimulation; model exchange: the event
+update's terminateSimulation); ``asked_to_stop`` says whether it did and the time the run reached, as
+FMPy's ``simulate_fmu`` reads them, and the master ends the run there (cosim.py).
 """
 
 from __future__ import annotations
@@ -24,12 +29,13 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from fmpy.fmi2 import fmi2True
+from fmpy.fmi2 import fmi2LastSuccessfulTime, fmi2Terminated, fmi2True
 
 from .fmu import Instance
 from .variables import Value, Variable
 
 FMI_WARNING = 1  # statuses above this are failures, in FMI 2 and 3 alike
+FMI_DISCARD = 2  # a step not taken whole: how an FMI 2.0 FMU asks to stop, when fmi2Terminated says so
 
 # FMI 2 reads and writes one C type per family.
 _FMI2 = {
@@ -73,6 +79,7 @@ class Stepper:
     fmi_version = 2  # the calling convention of its functions (the native loop calls them)
     step_convention = 2  # that of ``call``: fmi2DoStep's or fmi3DoStep's shape
     integrates = False  # the master integrates it (model exchange), and initialises it in Python
+    watches_steps = False  # asked_to_stop is asked after every step, not only after one above FMI_WARNING
     before: tuple = ()
     after: tuple = ()
     step_name = "doStep"
@@ -133,8 +140,9 @@ class Stepper:
     def exit_initialization(self) -> None:
         self.instance.slave.exitInitializationMode()
 
-    def check_step(self, t: float) -> str | None:
-        """After a step that returned OK: a reason to stop, if the FMU gave one another way."""
+    def asked_to_stop(self, status: int, t: float, t_next: float) -> float | None:
+        """After a step from ``t`` to ``t_next`` that returned ``status``: the time the run reached if the FMU
+        asked to end it, else None (and a status above FMI_WARNING is then a failure)."""
         return None
 
     def step_failure(self) -> Exception | None:
@@ -168,11 +176,28 @@ class CoSimulation2(Stepper):
     def enter_initialization(self, start: float, stop: float) -> None:
         self.instance.slave.enterInitializationMode()
 
+    def asked_to_stop(self, status: int, t: float, t_next: float) -> float | None:
+        """fmi2Discard with fmi2Terminated true, as FMPy's simulate_fmu reads it: the run reached
+        fmi2LastSuccessfulTime (``t`` where the FMU cannot say). Any other Discard is a failure."""
+        if status != FMI_DISCARD:
+            return None
+        slave = self.instance.slave
+        try:
+            if not slave.getBooleanStatus(fmi2Terminated):
+                return None
+        except Exception:  # noqa: BLE001  (FMPy's FMICallException: the FMU has no such status)
+            return None
+        try:
+            return float(slave.getRealStatus(fmi2LastSuccessfulTime))
+        except Exception:  # noqa: BLE001  (as above)
+            return t
+
 
 class CoSimulation3(Stepper):
     """FMI 3.0 co-simulation: typed access per type, and doStep reports a request to terminate."""
 
     fmi_version = step_convention = 3
+    watches_steps = True
 
     def __init__(self, instance: Instance, tolerance: float | None = None, set_stop_time: bool = True):
         super().__init__(instance, tolerance, set_stop_time)
@@ -198,8 +223,10 @@ class CoSimulation3(Stepper):
             tolerance=self.tolerance, startTime=start, stopTime=self.stop_time(stop)
         )
 
-    def check_step(self, t: float) -> str | None:
-        return "the FMU asked to terminate the simulation" if self.flags[1].value else None
+    def asked_to_stop(self, status: int, t: float, t_next: float) -> float | None:
+        """terminateSimulation after a step that succeeded, as FMPy's simulate_fmu reads it: the run reached
+        ``t_next`` (early return is not allowed, as in FMPy)."""
+        return t_next if status <= FMI_WARNING and self.flags[1].value else None
 
 
 class ModelExchange(Stepper):
@@ -239,6 +266,7 @@ class ModelExchange(Stepper):
                 instance.slave, description, tolerance, self.integrator.corrector
             )
         self.fmi_version = instance.fmu.version  # of its getters and setters; its step is ours
+        self.stopped_at: float | None = None  # where the FMU asked to stop, in the Python integrator
         self.step_name = "the integration"
         self._typed = CoSimulation2 if instance.fmu.version == 2 else CoSimulation3
         c = self.integrator.native
@@ -247,8 +275,24 @@ class ModelExchange(Stepper):
         )
 
     def _do_step(self, t: float, h: float) -> int:
-        self.integrator.do_step(t, h)  # raises ModelExchangeError with what went wrong
+        """Integrate from ``t`` by ``h``: 0, or FMI_DISCARD where the FMU asked to stop (at ``stopped_at``);
+        any failure raises ModelExchangeError with what went wrong."""
+        from .model_exchange import TerminationAsked
+
+        try:
+            self.integrator.do_step(t, h)
+        except TerminationAsked as e:
+            self.stopped_at = e.time
+            return FMI_DISCARD
         return 0
+
+    def asked_to_stop(self, status: int, t: float, t_next: float) -> float | None:
+        """The event update's (or completedIntegratorStep's) terminateSimulation: the run reached the time
+        of that event."""
+        native = self.integrator.native
+        if native is not None:
+            return native.asked_to_stop() if status > FMI_WARNING else None
+        return self.stopped_at if status == FMI_DISCARD else None
 
     def access(self, variable: Variable) -> Access:
         return self._typed.access(self, variable)  # the same get/set functions as co-simulation

@@ -1,5 +1,6 @@
 """What a co-simulation takes and gives, apart from how it runs: input signals (:class:`Series`), the recorded
-:class:`Trajectory`, and :class:`CosimError` when an FMU fails.
+:class:`Trajectory` (with the :class:`Stop` of a run an FMU ended early), and :class:`CosimError` when an FMU
+fails.
 
 Why a module of their own: the master (cosim.py), the scenarios that feed it (scenario.py), the
 objectives that read its output (objectives.py) and the fresh processes that carry a failure back
@@ -44,13 +45,35 @@ class Series:
 
 
 @dataclass(frozen=True)
+class Stop:
+    """An FMU asked to end the run before the experiment's stop time (FMI 2.0: fmi2DoStep returned
+    fmi2Discard and fmi2Terminated is true; FMI 3.0: fmi3DoStep's terminateSimulation; model exchange: the
+    event update's): which instance, and the time the run reached. Not a failure: the trajectory holds the
+    run up to that time, as FMPy's ``simulate_fmu`` keeps it, and is scored over that span."""
+
+    instance: str
+    time: float
+
+    @property
+    def message(self) -> str:
+        return f"the FMU asked to stop at t = {self.time:g}"
+
+
+@dataclass(frozen=True)
 class Trajectory:
-    """Recorded values at the communication points: ``values[k, j]`` is ``names[j]`` at ``time[k]``."""
+    """Recorded values at the communication points: ``values[k, j]`` is ``names[j]`` at ``time[k]``. A run an
+    FMU ended early (``stopped``) ends at its stop time, which may lie between two communication points."""
 
     time: np.ndarray
     names: tuple[str, ...]
     values: np.ndarray
     texts: dict[str, list[str]] = field(default_factory=dict)  # string outputs, one value per point
+    stopped: Stop | None = None  # an FMU asked to end the run at stopped.time, the trajectory's last time
+
+    @property
+    def end(self) -> float:
+        """The time the run reached: the experiment's stop time, or an early stop's."""
+        return float(self.time[-1])
 
     def column(self, name: str) -> np.ndarray:
         try:
@@ -84,7 +107,7 @@ class Trajectory:
         for name, column in changed.items():
             self.column(name)  # names the signal if it is not recorded
             values[:, self.names.index(name)] = column
-        return Trajectory(self.time, self.names, values, self.texts)
+        return Trajectory(self.time, self.names, values, self.texts, self.stopped)
 
     def renamed(self, rename: Callable[[str], str]) -> Trajectory:
         return Trajectory(
@@ -92,6 +115,7 @@ class Trajectory:
             tuple(map(rename, self.names)),
             self.values,
             {rename(n): v for n, v in self.texts.items()},
+            self.stopped,
         )
 
     def to_csv(self, path: Path) -> None:

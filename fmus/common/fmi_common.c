@@ -85,6 +85,7 @@ int fmi_enter_initialization(FmiCore *c, const char *function, double start) {
     c->time = start;
     c->phase = INITIALIZATION;
     c->stale = 1;
+    c->stop_asked = 0;
     if (c->calls->enter_initialization(c) != 0) return fmi_fail(c);
     return FMI_OK;
 }
@@ -112,9 +113,15 @@ int fmi_do_step(FmiCore *c, const char *function, double t, double h,
     if (!(h > 0.0)) return fmi_error(c, "communication step size must be > 0, got %g", h);
     if (fabs(t - c->time) > 1e-9 * (1.0 + fabs(t)))
         return fmi_error(c, "%s at t=%.9g but the FMU is at t=%.9g (no rollback)", function, t, c->time);
+    if (c->stop_asked) return fmi_error(c, "%s after the FMU asked to stop at t=%.9g", function, c->stop_time);
     if (step(c, t, h) != 0) return fmi_fail(c);
-    c->time = t + h;
+    c->time = c->stop_asked ? c->stop_time : t + h;
     return FMI_OK;
+}
+
+void fmi_ask_to_stop(FmiCore *c, double at) {
+    c->stop_asked = 1;
+    c->stop_time = at;
 }
 
 /* ---- model exchange ------------------------------------------------------ */

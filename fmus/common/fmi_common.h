@@ -65,6 +65,8 @@ typedef struct {
     int logging_on;                                                                                \
     int phase;         /* see the phases above */                                                  \
     int stale;         /* model exchange: the equations must run before values are read */         \
+    int stop_asked;    /* co-simulation: the model asked to end the run (fmi_ask_to_stop) */       \
+    double stop_time;  /* ... having reached this time */                                          \
     double time;
 
 struct FmiCore {
@@ -127,6 +129,12 @@ int fmi_terminate(FmiCore *c, const char *function);
  * after logging otherwise. The instance's time is then t + h. */
 int fmi_do_step(FmiCore *c, const char *function, double t, double h,
                 int (*step)(FmiCore *c, double t, double h));
+
+/* Called by a model's step: it asks to end the simulation, having reached time `at` (t < at <= t + h).
+ * The step then ends at `at`, and each version says so its own way: FMI 2.0's fmi2DoStep returns
+ * fmi2Discard with fmi2Terminated true, FMI 3.0's sets terminateSimulation. Cleared on entering
+ * initialization, so a reset instance runs again. */
+void fmi_ask_to_stop(FmiCore *c, double at);
 
 /* ---- model exchange: time, and states held in the Real variables ------------- */
 

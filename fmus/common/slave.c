@@ -35,9 +35,12 @@ Fmi2Instance *fmi2_create(fmi2String name, fmi2Type type, fmi2String guid, const
 
 static int step(FmiCore *c, double t, double h) { return MODEL.do_step((Slave *)c, t, h); }
 
+/* A model that asks to stop (fmi_ask_to_stop) makes the step fmi2Discard: fmi2Terminated then reads
+ * true and fmi2LastSuccessfulTime the time it reached, as FMI 2.0 says and FMPy reads them. */
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_set_prior) {
     (void)no_set_prior;
-    return (fmi2Status)fmi_do_step(fmi2_core(c), "fmi2DoStep", t, h, step);
+    fmi2Status status = (fmi2Status)fmi_do_step(fmi2_core(c), "fmi2DoStep", t, h, step);
+    return status == fmi2OK && ((Slave *)c)->stop_asked ? fmi2Discard : status;
 }
 
 fmi2Status fmi2CancelStep(fmi2Component c) {
@@ -64,10 +67,18 @@ fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind k, fmi2Real *
     return fmi2OK;
 }
 
+fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind k, fmi2Boolean *v) {
+    Slave *s = c;
+    if (!s) return fmi2Error;
+    if (k != fmi2Terminated)
+        return (fmi2Status)fmi_unsupported(fmi2_core(c), "fmi2GetBooleanStatus for this kind");
+    *v = s->stop_asked ? fmi2True : fmi2False;
+    return fmi2OK;
+}
+
 /* ---- optional capabilities this FMU declares it does not have ---------- */
 
 FMI2_UNSUPPORTED(fmi2GetIntegerStatus, const fmi2StatusKind k, fmi2Integer *v)
-FMI2_UNSUPPORTED(fmi2GetBooleanStatus, const fmi2StatusKind k, fmi2Boolean *v)
 FMI2_UNSUPPORTED(fmi2GetStringStatus, const fmi2StatusKind k, fmi2String *v)
 FMI2_UNSUPPORTED(fmi2SetRealInputDerivatives, const fmi2ValueReference vr[], size_t n,
                  const fmi2Integer order[], const fmi2Real v[])

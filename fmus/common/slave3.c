@@ -49,6 +49,7 @@ fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean 
     if (terminate_simulation) *terminate_simulation = fmi3False;
     if (early_return) *early_return = fmi3False;
     fmi3Status status = (fmi3Status)fmi_do_step(&s->core, "fmi3DoStep", t, h, step);
+    if (terminate_simulation && status == fmi3OK) *terminate_simulation = s->stop_asked ? fmi3True : fmi3False;
     if (last_successful_time) *last_successful_time = s->time;
     return status;
 }
