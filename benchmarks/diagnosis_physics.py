@@ -44,8 +44,8 @@ def named(found: dict) -> list[str]:
     lines = []
     for e in found["effects"]:
         if e.get("readable"):
-            low, high = e["intervals"]["coefficient"]
-            lines.append(f"{e['readable']} (coefficient 95 % {low:.4g} to {high:.4g})")
+            low, high = e["interval"]["coefficient"]
+            lines.append(f"{e['readable'][0]} (coefficient 95 % {low:.4g} to {high:.4g})")
             continue
         into = f" into {e['into']}" if e.get("into") else ""
         values = ", ".join(f"{k} {v:.4g}" for k, v in e["parameters"].items())
@@ -91,14 +91,14 @@ def main() -> None:
             CASES[case] / "space.yaml", out=out, n_workers=args.workers, say=say if args.verbose else None
         ).to_json()
         seconds = time.perf_counter() - started
-        noise = found["compared"][0]["noise"]
+        noise = found["case"]["compared"][0]["noise"]
         before = predicted(CASES[case], found["calibrated"]["parameters"])
         after = predicted(CASES[case], found["fitted"]["parameters"])
         print(f"== {case}: {seconds:.0f} s on {args.workers} workers; noise floor {noise:.3g}")
         print("  named: " + "\n         ".join(named(found)))
         for d in found["dropped"]:
             print(f"  not claimed: {d['id']} ({d['rule']})")
-        for d in found["decided"]:
+        for d in found["case"]["decided"]:
             print(f"  decided: {d['winner']} over its look-alike {d['lookalike']}, held-out {d['held_out']}")
         if found["fitted"]["at_bound"]:
             print(f"  at a bound, not an estimate: {', '.join(found['fitted']['at_bound'])}")

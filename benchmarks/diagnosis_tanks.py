@@ -66,7 +66,7 @@ def main() -> None:
     found = diagnose_space(JOB / "space.yaml", out=out, folds=args.folds, n_workers=args.workers).to_json()
     seconds = time.perf_counter() - started
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # MB (Linux reports kB)
-    noise = found["compared"][0]["noise"]
+    noise = found["case"]["compared"][0]["noise"]
     rows = [
         (
             "plain model, calibrated",

@@ -171,6 +171,7 @@ def fix_offsets(trajectory, scenario: Scenario) -> tuple[np.ndarray, np.ndarray]
     x, y = trajectory.column(x_ref), trajectory.column(y_ref)
     time = trajectory.time
     inside = (fixes.time >= time[0]) & (fixes.time <= time[-1] + 1e-9)
+    inside &= np.isfinite(fixes.x) & np.isfinite(fixes.y)  # a dropout (a validation view's held-out fix)
     if not inside.any():
         raise DseError(
             f"scenario {scenario.name}: no GPS fix lies within the simulated time {time[0]:g}..{time[-1]:g} s"

@@ -188,9 +188,9 @@ def test_diagnose_space_names_the_cubic_spring_inside_the_model_over_its_look_al
     assert [(e["target"], e["term"], e["law"]) for e in terms] == [("msd.der(v)", "x^3", "cubic")], found[
         "candidates"
     ]
-    low, high = terms[0]["intervals"]["coefficient"]
+    low, high = terms[0]["interval"]["coefficient"]
     assert low <= -60.0 <= high
-    assert terms[0]["readable"].startswith("der(msd.v) += −k3·x^3: a spring that hardens, k3 = ")
+    assert terms[0]["readable"][0].startswith("der(msd.v) += −k3·x^3: a spring that hardens, k3 = ")
     assert (
         found["verdict"] in ("discovered", "partial")
         and found["held_out_after"] < 0.2 * found["held_out_before"]

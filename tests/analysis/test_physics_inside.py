@@ -63,12 +63,12 @@ def test_a_stage_is_found_to_have_dry_friction_against_its_velocity_not_a_dead_z
     (within the 8 mm/s the held-back real stage is judged by)."""
     (term,) = [e for e in friction["effects"] if e.get("term")]
     assert term["law"] == "friction" and term["target"] == "msd.der(v)", friction["effects"]
-    assert term["readable"].startswith("der(msd.v) += −Fc·tanh(v/w): dry (Coulomb) friction opposing v")
+    assert term["readable"][0].startswith("der(msd.v) += −Fc·tanh(v/w): dry (Coulomb) friction opposing v")
     mass = friction["fitted"]["parameters"]["msd.m"]
     force = -term["parameters"]["coefficient"] * mass  # der(v) += -Fc/m·sign(v): the friction force
     assert 0.8 < force < 1.2  # the truth: 1.0 N (read only to judge)
     assert term["parameters"]["width"] < 0.01  # a nearly sharp sign (the truth's is sharp)
-    (decided,) = friction["decided"]
+    (decided,) = friction["case"]["decided"]
     assert (decided["winner"], decided["lookalike"]) == (term["hypothesis"], "input_deadzone(msd.F)")
     assert decided["held_out"][decided["lookalike"]] > 3 * decided["held_out"][decided["winner"]]
     assert friction["proof"]["agree"] == len(friction["proof"]["folds"]) == 3
@@ -84,7 +84,7 @@ def test_an_oscillator_whose_spring_hardens_is_named_a_hardening_spring(hardenin
     within a few times the encoder's noise."""
     terms = [e for e in hardening["effects"] if e.get("term")]
     assert [e["term"] for e in terms] == ["x^3"], hardening["effects"]
-    assert "a spring that hardens" in terms[0]["readable"]
+    assert "a spring that hardens" in terms[0]["readable"][0]
     assert -120 < terms[0]["parameters"]["coefficient"] < -50  # the truth: k3 = 80 N/m³ on 1 kg
     assert hardening["held_out_after"] < hardening["held_out_before"] / 3
     assert hardening["proof"]["agree"] >= 2

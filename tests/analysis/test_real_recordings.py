@@ -38,7 +38,7 @@ def test_the_tanks_overflow_is_found_on_blocks_of_the_one_record_and_the_diagnos
     named = {e["id"] for e in found["effects"]}
     assert "state_overflow" in named, found["candidates"]
     assert found["held_out_after"] < 0.7 * found["held_out_before"]
-    estimate = found["compared"][0]["noise_estimate"]
+    estimate = found["case"]["compared"][0]["noise_estimate"]
     assert estimate["flat"] > 0 and estimate["quantum"] == pytest.approx(1e-4)  # stuck at 10 V; 4 decimals
     before = simulate(JOB / "multimodel.yaml", JOB / "estimation", found["calibrated"]["parameters"])
     after = simulate(JOB / "multimodel.yaml", JOB / "estimation", read_values(found["files"]["values"]))

@@ -50,14 +50,15 @@ def test_a_concealed_effect_or_pair_is_named_with_intervals_covering_the_truth(
     assert {(e["id"], e["target"]) for e in found["effects"]} == set(truth)
     for effect in found["effects"]:
         kind, value = truth[(effect["id"], effect["target"])]
-        low, high = effect["intervals"][kind]
+        low, high = effect["interval"][kind]
         assert low <= value <= high, (effect, value)
     assert found["held_out_after"] < 2.0 < found["held_out_before"]
-    located = found["located"]
+    located = found["case"]["located"]
     assert located["method"] and located["windows"]
     assert all(r["floors_after"] < r["floors_before"] for r in located["by_scenario"])
     if len(truth) > 1:  # a pair is found through the screen, not by fitting every pair
-        assert found["pairs"]["predicted"] > len(found["pairs"]["screened"]) >= len(found["pairs"]["fitted"])
+        pairs = found["case"]["pairs"]
+        assert pairs["predicted"] > len(pairs["screened"]) >= len(pairs["fitted"])
     assert (tmp_path / "out" / "diagnosis-report.md").is_file()
     _replays(found, tmp_path)
 
@@ -68,7 +69,7 @@ def _replays(found: dict, folder) -> None:
     space = load_space(folder / "space.yaml")
     values = read_values(found["files"]["values"])
     assert values == found["fitted"]["parameters"]
-    noise = found["compared"][0]["noise"]
+    noise = found["case"]["compared"][0]["noise"]
     for scenario in space.scenarios:
         rmse = {"rmse": {"signal": "msd.x", "recorded": "x", "metric": "rmse"}}
         result = simulate(space.plan, scenario, values=values, experiment=space.experiment, objectives=rmse)
@@ -94,7 +95,7 @@ def test_an_actuator_that_clips_is_named_as_its_two_bounds_not_imitated(tmp_path
     named = {(e["id"], e["target"]): e for e in found["effects"]}
     assert set(named) == {("input_max", "msd.F"), ("input_min", "msd.F")}, found["verdict_text"]
     for effect, bound in (("input_max", 1.2), ("input_min", -1.2)):
-        low, high = named[(effect, "msd.F")]["intervals"][effect.split("_")[1]]
+        low, high = named[(effect, "msd.F")]["interval"][effect.split("_")[1]]
         assert low <= bound <= high
-    assert found["held_out_after"] < 1.5 and found["growth"][0]["accepted"]
+    assert found["held_out_after"] < 1.5 and found["case"]["growth"][0]["accepted"]
     _replays(found, tmp_path)

@@ -89,7 +89,7 @@ def test_a_concealed_actuator_delay_is_named_and_sized(tmp_path, dask_scheduler)
     assert found["verdict"] == "explained", found
     (effect,) = found["effects"]
     assert (effect["id"], effect["target"]) == ("input_delay", "msd.F")
-    low, high = effect["intervals"]["delay"]  # at least one communication step either side: its resolution
+    low, high = effect["interval"]["delay"]  # at least one communication step either side: its resolution
     assert low <= 0.35 <= high and high - low < 0.1 and effect["resolution"] == STEP
     assert found["held_out_after"] < 2.0 < found["held_out_before"]
 

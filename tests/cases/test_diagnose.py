@@ -12,6 +12,7 @@ import pytest
 from conftest import dse_runner, strict_loads
 from support import blind
 
+from dse_runner.analysis.diagnose.answer import Answer
 from dse_runner.cases.robotti_diagnosis.hypotheses import LIBRARY
 from dse_runner.sweeps.rank import rank
 from dse_runner.sweeps.spec import load_space
@@ -83,7 +84,7 @@ def test_an_effect_outside_the_library_is_discovered(cases):
     named beside it is only partial."""
     _, _, _, result = cases("steer_gain_speed")
     found = [e for e in result.effects if e["id"] == "discovered"]
-    assert found, f"verdict {result.verdict}, discovery {result.to_json()['discovery']}"
+    assert found, f"verdict {result.verdict}, discovery {result.to_json()['case']['discovery']}"
     assert found[0]["held_out_with"] <= 0.5 * found[0]["held_out_without"]
     assert all(e["partial"] for e in result.effects if e["id"] != "discovered")
     assert (
@@ -94,7 +95,7 @@ def test_an_effect_outside_the_library_is_discovered(cases):
     assert "**Verdict: discovered.**" in result.files["report"].read_text()
     assert any(k.startswith("vehicle.corr_") for k in load_space(result.files["space"]).parameters)
     # the same proof as every diagnosis: each fold chose its own terms, and their error is what is claimed
-    proof = result.to_json()["discovery"]["proof"]
+    proof = result.to_json()["case"]["discovery"]["proof"]
     assert len(proof["folds"]) == len(result.calibration["folds"]) and proof["offered"] > 100
     assert proof["held_out"] == pytest.approx(result.cross_track_after)
     assert "folds" in result.files["report"].read_text().split("Proof:")[1][:200]
@@ -108,8 +109,8 @@ def test_a_heading_dependent_antenna_offset_is_discovered(cases):
     and at least halves the held-out error; any library effect named beside it is only partial."""
     _, _, _, result = cases("mast_roll")
     found = blind.discovered_entry(result)
-    assert found, f"verdict {result.verdict}, discovery {result.to_json()['discovery']}"
-    assert blind.outside_target(result), result.to_json()["discovery"]
+    assert found, f"verdict {result.verdict}, discovery {result.to_json()['case']['discovery']}"
+    assert blind.outside_target(result), result.to_json()["case"]["discovery"]
     assert found["held_out_with"] <= 0.5 * found["held_out_without"]
     assert all(e["partial"] for e in result.effects if e["id"] != "discovered")
     values = {t["variable"]: t["value"] for t in found["terms"]}
@@ -126,8 +127,8 @@ def test_a_change_mid_run_is_discovered_at_its_time(cases):
     beside it is only partial, and the space it writes holds the time its terms switch on."""
     _, _, _, result = cases("payload")
     found = blind.discovered_entry(result)
-    assert found, f"verdict {result.verdict}, discovery {result.to_json()['discovery']}"
-    assert blind.outside_target(result), result.to_json()["discovery"]
+    assert found, f"verdict {result.verdict}, discovery {result.to_json()['case']['discovery']}"
+    assert blind.outside_target(result), result.to_json()["case"]["discovery"]
     onset = [t for t in found["terms"] if "onset_time" in t]
     assert onset, found["terms"]
     truth = blind.OUTSIDE["payload"][0]["payload_time"]
@@ -143,8 +144,8 @@ def test_a_resistance_against_the_motion_is_discovered(cases):
     halves the held-out error; any library effect named beside it is only partial."""
     _, _, _, result = cases("rolling_resistance")
     found = blind.discovered_entry(result)
-    assert found, f"verdict {result.verdict}, discovery {result.to_json()['discovery']}"
-    assert blind.outside_target(result), result.to_json()["discovery"]
+    assert found, f"verdict {result.verdict}, discovery {result.to_json()['case']['discovery']}"
+    assert blind.outside_target(result), result.to_json()["case"]["discovery"]
     values = {t["variable"]: t["value"] for t in found["terms"]}
     truth = blind.OUTSIDE["rolling_resistance"][0]["rolling_resistance"] * 9.81
     assert values.get("corr_acc_sgnv") == pytest.approx(-truth, rel=0.1), found["terms"]
@@ -194,6 +195,7 @@ def test_report_and_figures_are_written(cases):
     assert saved["effects"][0]["id"] == "antenna_offset"
     assert "**Verdict: explained.**" in text and "### Noise floor" in text and "overstates" in text
     assert saved["verdict"] == "explained" and saved["noise_floor"]["method"] in ("close_fixes", "at_rest")
+    assert Answer.model_validate(saved).library == "robotti"  # the one shape every diagnosis answers in
 
 
 def test_cli_json_resumes_from_the_store(cases, dask_scheduler):
@@ -215,11 +217,11 @@ def test_cli_json_resumes_from_the_store(cases, dask_scheduler):
     assert done.returncode == 0, done.stderr
     printed = strict_loads(done.stdout)
     assert [e["id"] for e in printed["effects"]] == [e["id"] for e in result.effects]
-    assert printed["cross_track_before"] == pytest.approx(result.cross_track_before)
-    assert printed["cross_track_after"] == pytest.approx(result.cross_track_after)
+    assert printed["held_out_before"] == pytest.approx(result.cross_track_before)
+    assert printed["held_out_after"] == pytest.approx(result.cross_track_after)
     assert set(printed["effects"][0]) >= {"id", "parameters", "interval", "partial"}
     assert printed["verdict"] == result.verdict
-    assert printed["noise_floor"]["cross_track"] == pytest.approx(result.floor.cross_track)
+    assert printed["noise_floor"]["held_out"] == pytest.approx(result.floor.cross_track)
     assert printed["runner_up"]["runs_better"].endswith("/6")
 
 

@@ -280,18 +280,25 @@ def diagnosis(chosen_ids: tuple[str, ...], floor: float, factor: float = 2.0) ->
 
 
 def test_json_verdict_partial_and_runner_up():
+    from dse_runner.analysis.diagnose.answer import Answer
+
     explained = strict_loads(strict_json.dumps(diagnosis(("wheel_slip",), floor=0.1).to_json()))
     assert explained["verdict"] == "explained"
     assert [e["partial"] for e in explained["effects"]] == [False]
-    assert explained["cross_track_after"] == pytest.approx(0.12)  # the existing keys keep their meaning
-    assert explained["noise_floor"] | {"per_run": None, "estimates": None} == {
+    assert explained["held_out_after"] == pytest.approx(0.12)
+    floor = explained["noise_floor"]
+    assert (floor["held_out"], floor["factor"], floor["ratio"], floor["method"]) == (
+        0.1,
+        2.0,
+        pytest.approx(1.2),
+        "close_fixes",
+    )
+    assert floor["details"] | {"per_run": None, "estimates": None} == {
         "sigma": pytest.approx(0.1 / noise.MEAN_DISTANCE),
         "cross_track": 0.1,
         "method": "close_fixes",
         "fixes": 5000,
         "rho1": 0.02,
-        "factor": 2.0,
-        "ratio": pytest.approx(1.2),
         "per_run": None,
         "estimates": None,
     }
@@ -305,15 +312,11 @@ def test_json_verdict_partial_and_runner_up():
 
     unexplained = diagnosis((), floor=0.025).to_json()
     assert unexplained["verdict"] == "unexplained"
-    assert unexplained["effects"] == [
-        {
-            "id": "none",
-            "name": unexplained["effects"][0]["name"],
-            "parameters": {},
-            "interval": {},
-            "partial": False,
-        }
-    ]
+    (none,) = unexplained["effects"]
+    assert (none["id"], none["parameters"], none["interval"], none["partial"]) == ("none", {}, {}, False)
+    # one shape for every library: the same keys as the signal library's answer, the case's own under "case"
+    assert set(unexplained) == set(Answer.model_fields)
+    assert Answer.model_validate(unexplained).case["dropouts"] == {}
 
 
 def test_report_words(tmp_path):
@@ -1009,7 +1012,8 @@ def test_discovered_terms_in_json_and_verdict(tmp_path):
     assert entry["terms"][0]["text"].startswith("d(v)/dt += -0.31·v [")
     assert entry["resembles"]["id"] == "wheel_slip"
     saved = strict_loads(strict_json.dumps(d.to_json()))
-    assert saved["discovery"]["accepted"] and saved["effects"][0]["terms"][0]["variable"] == "corr_acc_v"
+    assert saved["case"]["discovery"]["accepted"]
+    assert saved["effects"][0]["terms"][0]["variable"] == "corr_acc_v"
 
 
 def test_a_correction_that_leaves_a_residual_is_partial(tmp_path):

@@ -191,7 +191,7 @@ def test_diagnose_three_bundled_runs_with_a_small_grid(installed):
     tried = {c["id"] for c in result["candidates"]}
     assert {"none", "wheel_slip", "steering_lag"} <= tried
     assert all(set(label.split("+")) <= {"wheel_slip", "steering_lag"} for label in tried - {"none"})
-    assert result["effects"] and result["cross_track_after"] <= result["cross_track_before"]
+    assert result["effects"] and result["held_out_after"] <= result["held_out_before"]
     written = installed["work"] / "diagnosis"
     assert (written / "report" / "report.md").is_file()
     if result["effects"][0]["id"] != "none":  # the model it writes names the bundled effects vehicle

@@ -273,11 +273,10 @@ class Evidence:
     def runs_better_text(self) -> str:
         return f"{self.runs_better}/{self.runs}"
 
-    def to_json(self, held_out_key: str = "held_out") -> dict[str, object]:
-        """``held_out_key`` names the other's held-out error as its library's JSON does."""
+    def to_json(self) -> dict[str, object]:
         return {
             "id": self.other,
-            held_out_key: self.other_held_out,
+            "held_out": self.other_held_out,
             "delta_bic": self.delta_bic,
             "delta_held_out": self.delta_held_out,
             "delta_held_out_percent": self.delta_held_out_percent,

@@ -46,6 +46,7 @@ from ...sweeps.fit_rounds import evaluate_points, fit_all, residuals_in
 from ...sweeps.rank import rank
 from ...sweeps.spec import Space, derived_space
 from ...sweeps.sweep import submit
+from . import answer as answer_
 from . import explain, signal_claims, signal_figures, signal_locate, signal_report, signal_screen
 from .derivative_discovery import observe
 from .derivative_discovery.library import model_exchange_instances
@@ -101,6 +102,7 @@ class SignalDiagnosis:
     candidates: list[Candidate]
     verdict: str
     hypotheses: dict[str, SignalHypothesis] = field(default_factory=dict)
+    noise_factor: float = explain.NOISE_FACTOR  # held-out error above this many floors is unexplained
     pairs: Any = None  # Pairs: what the pair screen did
     lookalikes: list[signal_claims.FitsAlike] = field(default_factory=list)
     decided: list[Decided] = field(default_factory=list)  # members against their look-alikes across the skin
@@ -118,60 +120,76 @@ class SignalDiagnosis:
         default_factory=dict
     )  # the chosen fit's residuals, per compared signal
 
-    def to_json(self) -> dict[str, Any]:
+    def answer(self) -> answer_.Answer:
+        """The diagnosis in the one shape every library answers in (answer.py)."""
         runner = explain.runner_up(self.chosen, self.candidates)
-        return {
-            "compared": [
-                {
-                    "objective": c.objective,
-                    "signal": c.signal,
-                    "recorded": c.recorded,
-                    "noise": c.noise,
-                    "noise_estimate": c.estimate.to_json() if c.estimate else None,
-                }
-                for c in self.compared
-            ],
-            "whiteness": {signal: w.to_json() for signal, w in self.whiteness.items()},
-            "effects": [self._effect(name) for name in self.chosen.ids],
-            "verdict": self.verdict,
-            "verdict_text": self.verdict_text,
-            "held_out_before": self.baseline.cross_validated,
-            "held_out_after": honest(self.chosen.cross_validated, self.proof),
-            "held_out_unit": (
-                "noise floors (RMS of each compared signal's residuals over its recording's noise)"
+        after = honest(self.chosen.cross_validated, self.proof)
+        return answer_.Answer(
+            library=SignalEffects.name,
+            verdict=self.verdict,
+            verdict_text=self.verdict_text,
+            held_out_before=self.baseline.cross_validated,
+            held_out_after=after,
+            held_out_unit="noise floors (RMS of each compared signal's residuals over its recording's noise)",
+            noise_floor=answer_.NoiseFloor(
+                held_out=1.0,  # residuals are divided by each recording's noise
+                factor=self.noise_factor,
+                ratio=after,
+                method="each compared signal's noise, estimated from its recording alone",
+                details={c.signal: c.noise for c in self.compared},
             ),
-            "noise_floor": 1.0,
-            "runner_up": runner.label if runner is not None else None,
-            "candidates": [
-                {
-                    "id": c.label,
-                    "held_out": c.cross_validated if c.validated else None,
-                    "bic": c.bic,
-                    **({"error": c.full.error} if c.full.error else {}),
-                }
+            effects=[self._effect(name) for name in self.chosen.ids],
+            runner_up=explain.evidence(self.chosen, runner).to_json() if runner is not None else None,
+            candidates=[
+                answer_.CandidateEntry(
+                    id=c.label,
+                    held_out=c.cross_validated if c.validated else None,
+                    bic=c.bic,
+                    validated=c.validated,
+                    error=c.full.error or None,
+                )
                 for c in explain.ranked(self.candidates)
             ],
-            "validation": self.validation.to_json() if self.validation is not None else None,
-            "pairs": self.pairs.to_json() if self.pairs is not None else None,
-            "growth": self.growth,
-            "lookalikes": [x.to_json() for x in self.lookalikes],
-            "decided": [d.to_json() for d in self.decided],
-            "proof": self.proof.to_json() if self.proof is not None else None,
-            "dropped": [d.to_json() for d in self.dropped],
-            "located": self.located,
-            "calibrated": {  # the model before: none refitted alone
-                "parameters": dict(self.baseline.full.values),
-                "at_bound": list(self.baseline.full.at_bound),
+            dropped=[d.to_json() for d in self.dropped],
+            proof=self.proof.to_json() if self.proof is not None else None,
+            validation=self.validation.to_json() if self.validation is not None else None,
+            held_out=[
+                answer_.HeldOut(scenario=s, before=before, after=self.chosen.held_out.get(s))
+                for s, before in sorted(self.baseline.held_out.items())
+            ],
+            lookalikes=[x.to_json() for x in self.lookalikes],
+            calibrated=answer_.Fitted(  # the model before: none refitted alone
+                parameters=dict(self.baseline.full.values), at_bound=list(self.baseline.full.at_bound)
+            ),
+            fitted=answer_.Fitted(  # every value the chosen answer fitted
+                parameters=dict(self.chosen.full.values),
+                interval={k: list(v) for k, v in self.chosen.full.interval(serial=True).items()},
+                at_bound=list(self.chosen.full.at_bound),
+            ),
+            files={**self.files, "figures": self.figures} if self.files else {},
+            case={
+                "compared": [
+                    {
+                        "objective": c.objective,
+                        "signal": c.signal,
+                        "recorded": c.recorded,
+                        "noise": c.noise,
+                        "noise_estimate": c.estimate.to_json() if c.estimate else None,
+                    }
+                    for c in self.compared
+                ],
+                "whiteness": {signal: w.to_json() for signal, w in self.whiteness.items()},
+                "pairs": self.pairs.to_json() if self.pairs is not None else None,
+                "growth": self.growth,
+                "decided": [d.to_json() for d in self.decided],
+                "located": self.located,
             },
-            "fitted": {
-                "parameters": dict(self.chosen.full.values),  # every value the chosen answer fitted
-                "interval": {k: list(v) for k, v in self.chosen.full.interval(serial=True).items()},
-                "at_bound": list(self.chosen.full.at_bound),
-            },
-            "files": {**self.files, "figures": self.figures} if self.files else {},
-        }
+        )
 
-    def _effect(self, name: str) -> dict[str, Any]:
+    def to_json(self) -> dict[str, Any]:
+        return self.answer().json_dict()
+
+    def _effect(self, name: str) -> answer_.Effect:
         hypothesis, fit = self.hypotheses[name], self.chosen.full
         values, intervals = {}, {}
         for kind, parameter in zip(hypothesis.kinds, hypothesis.parameters):
@@ -179,37 +197,36 @@ class SignalDiagnosis:
             if parameter is hypothesis.parameters[0]:  # its resolution widens the interval
                 low, high = min(low, value - hypothesis.resolution), max(high, value + hypothesis.resolution)
             values[kind], intervals[kind] = value, [low, high]
-        found = {
-            "id": hypothesis.id,
-            "hypothesis": name,  # as candidates, dropped and decided name it
-            "target": hypothesis.target,
-            "parameters": values,
-            "intervals": intervals,
-            "resolution": hypothesis.resolution,
-            "partial": self.verdict == explain.PARTIAL,
+        term = hypothesis.term
+        return answer_.Effect(
+            id=hypothesis.id,
+            name=hypothesis.physics[0],
+            parameters=values,
+            interval=intervals,
+            partial=self.verdict == explain.PARTIAL,
             # pinned at an end of its range: the data push it past, so the value is no estimate
-            "at_bound": [
-                k for k, p in zip(hypothesis.kinds, hypothesis.parameters) if p.name in fit.at_bound
-            ],
-        }
-        if hypothesis.term is not None:  # a term inside the model: what it is and means
-            found["term"] = shown(hypothesis.term)
-            found["law"] = hypothesis.law
-            found["readable"] = term_readable(hypothesis.term, fit.values)
-        return {**found, "into": hypothesis.into} if hypothesis.into else found
+            at_bound=[k for k, p in zip(hypothesis.kinds, hypothesis.parameters) if p.name in fit.at_bound],
+            hypothesis=name,  # as candidates, dropped and decided name it
+            target=hypothesis.target,
+            into=hypothesis.into,
+            resolution=hypothesis.resolution,
+            term=shown(term) if term is not None else None,  # a term inside the model: what it is and means
+            law=hypothesis.law or None,
+            readable=[term_readable(term, fit.values)] if term is not None else [],
+        )
 
     def summary(self) -> list[str]:
         """The effects named, the held-out error before and after, and the verdict, as the CLI prints them."""
         found = self.to_json()
         lines = []
         for effect in found["effects"]:
-            if "readable" in effect:  # a term inside the model, and its coefficient's interval
-                low, high = effect["intervals"]["coefficient"]
-                lines.append(f"{effect['readable']} (coefficient 95 % {low:.4g} to {high:.4g})")
+            if effect["readable"]:  # a term inside the model, and its coefficient's interval
+                low, high = effect["interval"]["coefficient"]
+                lines.append(f"{effect['readable'][0]} (coefficient 95 % {low:.4g} to {high:.4g})")
                 continue
             told = [
-                f"{kind} {value:.4g} (95 % {effect['intervals'][kind][0]:.4g} "
-                f"to {effect['intervals'][kind][1]:.4g})"
+                f"{kind} {value:.4g} (95 % {effect['interval'][kind][0]:.4g} "
+                f"to {effect['interval'][kind][1]:.4g})"
                 for kind, value in effect["parameters"].items()
             ]
             into = f" into {effect['into']}" if effect.get("into") else ""
@@ -243,7 +260,7 @@ class SignalDiagnosis:
             lines.append(self.validation.text)
         lines.append(
             f"verdict: {found['verdict_text']}"
-            + (f"; runner-up {found['runner_up']}" if found["runner_up"] else "")
+            + (f"; runner-up {found['runner_up']['id']}" if found["runner_up"] else "")
         )
         if found["files"]:
             lines.extend(
@@ -473,6 +490,7 @@ def diagnose_space(
         everything,
         verdict,
         library,
+        noise_factor=noise_factor,
         pairs=pairs,
         growth=growth,
         validation=validation,

@@ -34,7 +34,7 @@ def effect_rows(effects: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     rows = []
     for e in effects:
         for kind, value in e["parameters"].items():
-            low, high = e["intervals"][kind]
+            low, high = e["interval"][kind]
             into = f" into {e['into']}" if e.get("into") else ""
             label = f"{e['target']} += {e['term']}" if e.get("term") else f"{e['id']}({e['target']}){into}"
             rows.append(
@@ -51,8 +51,9 @@ def effect_rows(effects: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
 
 def markdown(found: Mapping[str, Any], title: str) -> str:
     """The report's text from the diagnosis' JSON."""
-    located = found.get("located") or {}
-    pairs = found.get("pairs") or {}
+    case = found.get("case") or {}  # the signal library's own fields
+    located = case.get("located") or {}
+    pairs = case.get("pairs") or {}
     lines = [
         f"# Diagnosis of {title}",
         "",
@@ -83,8 +84,8 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
             + ".",
             "",
         ]
-    lines += markdown_table(found["compared"], ["objective", "signal", "recorded", "noise"])
-    for c in found["compared"]:
+    lines += markdown_table(case["compared"], ["objective", "signal", "recorded", "noise"])
+    for c in case["compared"]:
         estimate = c.get("noise_estimate") or {}
         if estimate:
             lines += [
@@ -94,7 +95,7 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
                     f"it assumes {estimate['assumptions']}."
                 ),
             ]
-    for signal, w in (found.get("whiteness") or {}).items():
+    for signal, w in (case.get("whiteness") or {}).items():
         lines += [
             "",
             f"Residuals of {signal} after: lag-1 autocorrelation {_number(w['rho1'])}, Ljung-Box p "
@@ -103,7 +104,7 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
     lines += ["", "## Named effects", ""] + markdown_table(
         effect_rows(found["effects"]), ["effect", "parameter", "value", "95 % interval", "partial"]
     )
-    terms = [e["readable"] for e in found["effects"] if e.get("readable")]
+    terms = [line for e in found["effects"] for line in e.get("readable") or []]
     if terms:
         lines += ["", "Inside the model:", ""] + [f"- {t}" for t in terms]
     pinned = (found.get("fitted") or {}).get("at_bound") or []
@@ -115,7 +116,7 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
                 f"interval or doubt the model): {', '.join(pinned)}."
             ),
         ]
-    for d in found.get("decided") or []:
+    for d in case.get("decided") or []:
         errors = d["held_out"]
         lines += [
             "",
@@ -141,8 +142,8 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
             + "; ".join(f"{k} ({v})" for k, v in rejected.items())
             + ".",
         ]
-    lines += ["", f"Runner-up: {found.get('runner_up') or 'none'}.", ""]
-    for step in found.get("growth") or []:
+    lines += ["", f"Runner-up: {(found.get('runner_up') or {}).get('id') or 'none'}.", ""]
+    for step in case.get("growth") or []:
         lines += [
             f"Grown from {step['from']}: {step['tried']} sets with one more effect tried, the best "
             f"{step['best']}"

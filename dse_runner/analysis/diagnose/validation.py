@@ -109,6 +109,14 @@ def blocks(scenario: Scenario, count: int, columns: list[str]) -> list[tuple[Sce
     return views
 
 
+VIEW = "~"  # a view's name is its scenario's, this, and its label
+
+
+def record_of(name: str) -> str:
+    """The scenario a view (or the scenario itself) was cut from, by name."""
+    return name.split(VIEW, 1)[0]
+
+
 def view(scenario: Scenario, recording: Recording, keep: np.ndarray, label: str) -> Scenario:
     """The scenario with only the ``keep`` samples recorded, named ``<scenario>~<label>``; its identity its
     own, so that its tasks are its own (a task's id hashes the scenario's settings, options included)."""
@@ -116,7 +124,7 @@ def view(scenario: Scenario, recording: Recording, keep: np.ndarray, label: str)
     missing = int(sum(np.count_nonzero(~np.isfinite(v)) for v in columns.values()))
     return replace(
         scenario,
-        name=f"{scenario.name}~{label}",
+        name=f"{scenario.name}{VIEW}{label}",
         recorded=replace(recording, columns=columns, missing=missing),
         options={**scenario.options, "validation_view": label},
     )

@@ -6,8 +6,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 
-from ...analysis.diagnose import explain
 from ...analysis.diagnose.explain import Candidate
+from ...analysis.diagnose.validation import Validation
 from ...sweeps.domain import Point
 from ...sweeps.expand import key_of, wanted
 from ...sweeps.fit import FitProblem, FitResult, Parameter, Residuals
@@ -43,12 +43,14 @@ class Chain:
         client,
         settings: DiagnosisSettings,
         progress: DiagnosisMessages,
+        validation: Validation,
     ):
         self.space, self.vehicle, self.base, self.client = space, vehicle, base, client
         self.settings, self.say = settings, progress
         self.fixed = {name: values[0] for name, values in space.parameters.items()}
-        self.folds = explain.folds(space.scenarios, settings.folds)
-        self.all = tuple(s.name for s in space.scenarios)
+        self.validation = validation  # the engine's: folds of runs, or time blocks of one run
+        self.folds = validation.folds
+        self.all = validation.fitted
 
     def problem(
         self, label: str, ids: tuple[str, ...], start: dict[str, float], scenarios: tuple[str, ...]
@@ -66,14 +68,9 @@ class Chain:
         return self.problem("+".join(ids) or "none", ids, start, self.all)
 
     def by_fold(self, candidate: Candidate) -> list[FitProblem]:
-        """The fits of a set on the runs outside each fold, each from the set's fit on every run."""
+        """The fits of a set on each fold's fitting part, each from the set's fit on every run."""
         return [
-            self.problem(
-                f"{candidate.label}/fold{k}",
-                candidate.ids,
-                candidate.full.values,
-                tuple(s for s in self.all if s not in fold),
-            )
+            self.problem(f"{candidate.label}/fold{k}", candidate.ids, candidate.full.values, fold.train)
             for k, fold in enumerate(self.folds)
         ]
 
@@ -86,17 +83,19 @@ class Chain:
         return fit_all(self.space, problems, self.client, RESIDUALS, report) if problems else {}
 
     def score(self, candidates: list[Candidate], fits: dict[str, FitResult]) -> None:
-        """Attach each candidate's fold fits and predict every run it held out with the fit that did not
-        see it, all in one sweep."""
+        """Attach each candidate's fold fits and predict every run (or block) it held out with the fit that
+        did not see it, all in one sweep."""
         points, only = wanted(
-            (fits[f"{c.label}/fold{k}"].point, fold) for c in candidates for k, fold in enumerate(self.folds)
+            (fits[f"{c.label}/fold{k}"].point, fold.test)
+            for c in candidates
+            for k, fold in enumerate(self.folds)
         )
         rows, _ = evaluate_points(self.space, points, self.client, ["cross_track_error"], only)
         for c in candidates:
             for k, fold in enumerate(self.folds):
                 fit = fits[f"{c.label}/fold{k}"]
                 c.folds.append(fit)
-                for scenario in fold:
+                for scenario in fold.test:
                     row = rows.get((key_of(fit.point), scenario))
                     c.held_out[scenario] = (
                         float(row["cross_track_error"]) if row and row["status"] == "ok" else math.inf

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ...analysis.diagnose import answer as answer_
 from ...analysis.diagnose import explain
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.findings import DiscoveredCorrection, Finding, NamedEffect
@@ -113,6 +114,16 @@ class Diagnosis:
             self.settings.noise_factor,
             bool(discover.library_ids(self.chosen.ids)),
             self.discovered,
+        )
+
+    @property
+    def verdict_line(self) -> str:
+        """The verdict with the noise floor it was judged against, as the summary prints it."""
+        if self.floor_ratio is None:
+            return f"{self.verdict} (no noise floor could be estimated)"
+        return (
+            f"{self.verdict} ({self.floor_ratio:.1f}× the noise floor of {self.floor.cross_track:.3f} m, "
+            f"{self.floor.method})"
         )
 
     @property
@@ -234,13 +245,7 @@ class Diagnosis:
             f"held-out mean cross-track error: {self.cross_track_before:.3f} m before, "
             f"{self.cross_track_after:.3f} m after"
         )
-        if self.floor_ratio is not None:
-            lines.append(
-                f"verdict: {self.verdict} ({self.floor_ratio:.1f}× the noise floor of "
-                f"{self.floor.cross_track:.3f} m, {self.floor.method})"
-            )
-        else:
-            lines.append(f"verdict: {self.verdict} (no noise floor could be estimated)")
+        lines.append(f"verdict: {self.verdict_line}")
         if self.dropouts:
             lines.append(dropouts_line(self.dropouts))
         lines.extend(
@@ -248,49 +253,70 @@ class Diagnosis:
         )
         return lines
 
-    def to_json(self) -> dict[str, Any]:
-        up = self.runner_up
-        return {
-            "effects": self.effects,
-            "cross_track_before": self.cross_track_before,
-            "cross_track_after": self.cross_track_after,
-            "held_out_before": self.cross_track_before,  # every library's keys: here in metres of cross-track
-            "held_out_after": self.cross_track_after,
-            "held_out_unit": "m (mean cross-track error on held-out runs, Equation 1)",
-            "verdict": self.verdict,
-            "noise_floor": self.noise_floor,
-            "runner_up": up.to_json("cross_track_held_out") if up is not None else None,
-            "lookalikes": [look.to_json() for look in self.lookalikes],
-            "dropped": [d.to_json() for d in self.dropped],
-            "discovery": self.discovery.to_json() if self.discovery is not None else None,
-            "held_out": [
-                {"scenario": s, "before": self.baseline.held_out[s], "after": self.chosen.held_out[s]}
-                for s in sorted(self.baseline.held_out)
-            ],
-            "candidates": [
-                {
-                    "id": c.label,
-                    "cross_track_held_out": c.cross_validated,
-                    "bic": c.bic,
-                    "cross_validated": c.validated,
-                    "parameters": c.full.values,
-                    "at_bound": c.full.at_bound,
-                }
+    def answer(self) -> answer_.Answer:
+        """The diagnosis in the one shape every library answers in (analysis/diagnose/answer.py); what only
+        the Robotti has (its calibration grid, screen and equation-error discovery) under ``case``."""
+        up, floor = self.runner_up, self.floor
+        discovery = self.discovery
+        return answer_.Answer(
+            library="robotti",
+            verdict=self.verdict,
+            verdict_text=self.verdict_line,
+            held_out_before=self.cross_track_before,
+            held_out_after=self.cross_track_after,
+            held_out_unit="m (mean cross-track error on held-out runs, Equation 1)",
+            noise_floor=answer_.NoiseFloor(
+                held_out=floor.cross_track if floor.available else None,
+                factor=self.settings.noise_factor,
+                ratio=self.floor_ratio,
+                method=floor.method,
+                details=floor.to_json(),
+            ),
+            effects=[answer_.Effect(**finding.to_json()) for finding in self.findings],
+            runner_up=up.to_json() if up is not None else None,
+            candidates=[
+                answer_.CandidateEntry(
+                    id=c.label,
+                    held_out=c.cross_validated if c.validated else None,
+                    bic=c.bic,
+                    validated=c.validated,
+                    parameters=c.full.values,
+                    at_bound=c.full.at_bound,
+                )
                 for c in self.candidates
             ],
-            "screen": [
-                {
-                    "id": x.label,
-                    "from": "+".join(x.anchor) or "none",
-                    "predicted_sse": x.predicted_sse,
-                    "sse": x.sse,
-                    "bic": x.bic,
-                    "shortlisted": x.label in self.shortlisted,
-                }
-                for x in self.screened
+            dropped=[d.to_json() for d in self.dropped],
+            proof=discovery.proof.to_json() if self.discovered and discovery and discovery.proof else None,
+            validation=self.calibration.get("validation"),
+            held_out=[
+                answer_.HeldOut(scenario=s, before=before, after=self.chosen.held_out.get(s))
+                for s, before in sorted(self.baseline.held_out.items())
             ],
-            "fitted": self.fitted,
-            "calibration": self.calibration,
-            "dropouts": self.dropouts,
-            "files": {k: str(v) for k, v in self.files.items()},
-        }
+            lookalikes=[look.to_json() for look in self.lookalikes],
+            calibrated=answer_.Fitted(
+                parameters=dict(self.baseline.full.values),
+                interval={k: list(v) for k, v in self.baseline.full.interval().items()},
+                at_bound=list(self.baseline.full.at_bound),
+            ),
+            fitted=self.fitted,
+            files={k: str(v) for k, v in self.files.items()},
+            case={
+                "calibration": self.calibration,
+                "screen": [
+                    {
+                        "id": x.label,
+                        "from": "+".join(x.anchor) or "none",
+                        "predicted_sse": x.predicted_sse,
+                        "sse": x.sse,
+                        "bic": x.bic,
+                        "shortlisted": x.label in self.shortlisted,
+                    }
+                    for x in self.screened
+                ],
+                "discovery": discovery.to_json() if discovery is not None else None,
+                "dropouts": self.dropouts,
+            },
+        )
+
+    def to_json(self) -> dict[str, Any]:
+        return self.answer().json_dict()

@@ -19,6 +19,7 @@ from ... import strict_json
 from ...analysis.diagnose import explain
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.findings import DiscoveredCorrection
+from ...analysis.diagnose.validation import record_of
 from ...sweeps.rank import format_point
 from ...sweeps.spec import Space
 from .. import fielddata
@@ -80,15 +81,16 @@ def _candidates(diagnosis: Diagnosis) -> pd.DataFrame:
 def held_out_table(baseline: Candidate, chosen: Candidate, space: Space) -> pd.DataFrame:
     """The paper's Table 1 style, on runs each fit did not see: before and after per scenario."""
     groups = {s.name: s.group for s in space.scenarios}
+    group = {s: groups[record_of(s)] for s in baseline.held_out}  # a time block: its run's
     rows = [
         {
             "scenario": s,
-            "group": groups[s],
+            "group": group[s],
             "before [m]": baseline.held_out[s],
             "after [m]": chosen.held_out[s],
             "change": f"{(chosen.held_out[s] / baseline.held_out[s] - 1) * 100:+.1f} %",
         }
-        for s in sorted(baseline.held_out, key=lambda n: (groups[n], n))
+        for s in sorted(baseline.held_out, key=lambda n: (group[n], n))
     ]
     return pd.DataFrame(rows)
 

@@ -13,6 +13,7 @@ import numpy as np
 from ...analysis.diagnose import explain
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.library import space_with
+from ...analysis.diagnose.validation import Validation, validated
 from ...simulation.scenario import dropouts
 from ...sweeps.cluster import connect
 from ...sweeps.fit import FitResult
@@ -28,6 +29,16 @@ from .outcome import Diagnosis, DiagnosisSettings
 DEFAULT_SPACE = "bundled:robotti/calibration.yaml"  # the Robotti baseline's calibration grid
 DEFAULT_SETTINGS = DiagnosisSettings()  # frozen, so one instance serves every call
 BEFORE, AFTER = "diagnosis-before", "diagnosis-after"  # sweeps holding the tracks of the report
+
+
+FIX_COLUMNS = ("x", "y")  # a run's recorded GPS fixes (fielddata.py): what a time block holds out
+
+
+def recorded(space: Space, validation: Validation) -> Space:
+    """``space`` with only the recorded runs, without the views a time-block validation adds: what the
+    residuals are located on, look-alikes weighed on and discovery observes."""
+    runs = [s for s in space.scenarios if s.name in validation.fitted]
+    return Space(space.spec, space.path, space.plan, runs, space.distributions, space.draws)
 
 
 def fitted_error(fit: FitResult) -> float:
@@ -213,8 +224,10 @@ def _diagnose(
     grid = rank(out, calibration.name)
     vehicle = vehicle_of(calibration)
     base = base_parameters(calibration, grid.best)
-    space = fits_space(calibration, vehicle, out)
-    chain = Chain(space, vehicle, base, client, settings, say)
+    space, validation = validated(fits_space(calibration, vehicle, out), settings.folds, list(FIX_COLUMNS))
+    say(validation.text)
+    chain = Chain(space, vehicle, base, client, settings, say, validation)
+    space = recorded(space, validation)  # the runs themselves: what is located, weighed and observed
     choice = choose(chain, {p.name: p.start for p in base}, floor.cross_track if floor.available else None)
     baseline = next(c for c in choice.candidates if not c.ids)
     chosen, looks = lookalike.weigh(
@@ -260,7 +273,8 @@ def _diagnose(
             "refined_at_bound": baseline.full.at_bound,
             "no_effect": baseline.full.undetermined,
             "insensitive_scenarios": locate.insensitive_scenarios(grid.table1),
-            "folds": chain.folds,
+            "folds": validation.tests,
+            "validation": validation.to_json(),
         },
         explain.ranked(choice.candidates + (found.candidates if found else [])),
         chosen,

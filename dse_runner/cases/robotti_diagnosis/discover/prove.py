@@ -159,7 +159,7 @@ class Discovery:
                 {
                     "id": c.label,
                     "terms": fitted_terms(c.full),
-                    "cross_track_held_out": c.cross_validated,
+                    "held_out": c.cross_validated,
                     "bic": c.bic,
                 }
                 for c in self.candidates
@@ -217,7 +217,7 @@ def discover(
         )
 
     def training(k: int) -> tuple[str, ...]:
-        return tuple(s for s in chain.all if s not in chain.folds[k])
+        return chain.folds[k].train
 
     def parent_fold(ids: tuple[str, ...], k: int) -> FitResult:
         return parents[ids].folds[k] if k < len(parents[ids].folds) else parents[ids].full

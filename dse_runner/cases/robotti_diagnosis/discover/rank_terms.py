@@ -12,6 +12,7 @@ import numpy as np
 
 from ....analysis.diagnose.explain import Candidate
 from ....analysis.diagnose.proof import extended_margin
+from ....analysis.diagnose.validation import Fold
 from ....sweeps.domain import Point
 from ....sweeps.fit import FitProblem, FitResult, Parameter, Residuals
 from .. import correction
@@ -25,7 +26,7 @@ class Fitter(Protocol):
     fits, held-out scoring, residuals."""
 
     vehicle: str
-    folds: list[list[str]]
+    folds: list[Fold]
     all: tuple[str, ...]
     settings: Any
     say: Callable[[str], None]

@@ -1,0 +1,148 @@
+"""The answer every diagnosis gives, as one pydantic model: the JSON that ``diagnose --json`` prints and
+``diagnosis.json`` holds, whichever library diagnosed.
+
+Why: a user (or a notebook, or a later study) reads one shape, whether the Robotti's library or the
+built-in signal effects answered. What every diagnosis has is typed here; what only one library has sits
+under ``case``, a key of its own (the Robotti's calibration grid, equation-error proposal and screen; the
+signal library's compared signals and growth rounds).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+Verdict = Literal["none", "explained", "partial", "discovered", "unexplained"]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class NoiseFloor(_Strict):
+    """What the recordings' noise alone leaves of held-out error: the yardstick of the verdict."""
+
+    held_out: float | None  # in held_out_unit; None when it could not be estimated
+    factor: float  # held-out error above factor × held_out is left unexplained
+    ratio: float | None  # the answer's held-out error over held_out
+    method: str  # how it was estimated
+    details: dict[str, Any] = Field(default_factory=dict)  # the library's own figures (per run, per signal)
+
+
+class Effect(_Strict):
+    """One member of the answer: a hypothesis of the library, a term inside the model, or a correction
+    discovered beyond the library; ``none`` when nothing is named."""
+
+    id: str
+    name: str  # in words
+    parameters: dict[str, float]
+    interval: dict[str, list[float]]  # parameter -> [low, high], ~95 %
+    partial: bool  # named, but leaving a residual well above the noise
+    at_bound: list[str] = Field(default_factory=list)  # parameters pinned at their range's end: no estimate
+    magnitude: float | None = None  # the norm of its parameters, where the library defines one
+    hypothesis: str | None = None  # as candidates, dropped and decided name it (its target included)
+    target: str | None = None  # the signal, state or derivative it acts on
+    into: str | None = None  # an overflow's receiving state
+    resolution: float | None = None  # the finest change of its first parameter the runs can tell
+    term: str | None = None  # a term inside the model, as written
+    law: str | None = None  # the physics it stands for
+    readable: list[str] = Field(default_factory=list)  # sentences as an engineer writes them
+    terms: list[dict[str, Any]] = Field(default_factory=list)  # a discovered correction's, with intervals
+    resembles: dict[str, Any] | None = None  # the library effect a discovered correction is most like
+    similarities: dict[str, float] = Field(default_factory=dict)
+    held_out_without: float | None = None  # a discovered correction's gain: the library's best ...
+    held_out_with: float | None = None  # ... and with the correction
+
+
+class Evidence(_Strict):
+    """The best alternative to the answer, and what tells them apart."""
+
+    id: str
+    held_out: float | None
+    delta_bic: float | None
+    delta_held_out: float | None
+    delta_held_out_percent: float | None
+    runs_better: str  # on how many held-out runs the answer did better, "k/n"
+    runs_tied: int
+
+
+class CandidateEntry(_Strict):
+    """A set of hypotheses fitted on the way to the answer."""
+
+    id: str
+    held_out: float | None  # None when it was never cross-validated
+    bic: float | None
+    validated: bool
+    error: str | None = None  # why its fit failed
+    parameters: dict[str, float] = Field(default_factory=dict)
+    at_bound: list[str] = Field(default_factory=list)
+
+
+class Dropped(_Strict):
+    """A member the choice had named and a rule took away."""
+
+    id: str
+    worth: float | None  # noise variances its removal adds to the held-out mean square (the noise rule)
+    rule: str
+
+
+class Proof(_Strict):
+    """Terms found by searching, chosen again on each fold (proof.py)."""
+
+    terms: list[str]
+    offered: int
+    folds: list[list[str]]
+    agree: int
+    held_out: float | None
+    rule: str
+
+
+class HeldOut(_Strict):
+    """One held-out run or block: the calibrated model's error and the answer's."""
+
+    scenario: str
+    before: float | None
+    after: float | None
+
+
+class Fitted(_Strict):
+    """Parameters as fitted, with ~95 % intervals where known."""
+
+    parameters: dict[str, float]
+    interval: dict[str, list[float]] = Field(default_factory=dict)
+    at_bound: list[str] = Field(default_factory=list)
+
+
+class Validation(_Strict):
+    by: str  # "scenarios", "time blocks" or "in sample"
+    folds: int
+    record: str | None = None
+
+
+class Answer(_Strict):
+    """What every diagnosis answers (``diagnose --json``, ``diagnosis.json``)."""
+
+    library: str  # the hypothesis library that diagnosed
+    verdict: Verdict
+    verdict_text: str
+    held_out_before: float | None  # the calibrated model's held-out error
+    held_out_after: float | None  # the answer's (with searched terms: their proof's, if worse)
+    held_out_unit: str
+    noise_floor: NoiseFloor
+    effects: list[Effect]
+    runner_up: Evidence | None
+    candidates: list[CandidateEntry]
+    dropped: list[Dropped] = Field(default_factory=list)
+    proof: Proof | None = None
+    validation: Validation | None = None
+    held_out: list[HeldOut] = Field(default_factory=list)
+    lookalikes: list[dict[str, Any]] = Field(default_factory=list)  # each library's evidence between twins
+    calibrated: Fitted  # the model before: calibrated, no effect
+    fitted: Fitted  # the answer: every parameter fitted jointly
+    files: dict[str, Any] = Field(default_factory=dict)  # what was written: report, values, space, figures
+    case: dict[str, Any] = Field(default_factory=dict)  # the library's own fields
+
+    def json_dict(self) -> dict[str, Any]:
+        """As the JSON prints it (None as null)."""
+        return self.model_dump(mode="json")
