@@ -376,6 +376,11 @@ def _print_table1(ranking) -> None:
             f"{row.computed:9.3f}{row.difference:+12.3f}"
         )
     typer.echo(f"best: {format_point(ranking.best)}  ({ranking.ranked_label} {ranking.best_total:.3f})")
+    if ranking.stopped_points:
+        typer.echo(
+            f"ranked last: {ranking.stopped_points} points with a run an FMU stopped early (their objectives "
+            "cover a shorter span; column stopped)"
+        )
     if ranking.uncertainty is not None:
         _print_draws(ranking)
 

@@ -354,6 +354,8 @@ def _page(output: store.Root, sweep: str, ranking: Ranking, studied: Callable[[]
         ("failed tasks", str(ranking.failed_rows)),
         ("scenarios", str(len(scenarios))),
     ]
+    if ranking.stopped_points:  # rank.py's rule: after the complete points
+        summary.insert(3, ("ranked last: a run an FMU stopped early", str(ranking.stopped_points)))
     if status is not None:
         summary.append(submission_line(status))
     return PAGE.render(

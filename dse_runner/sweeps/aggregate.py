@@ -41,6 +41,15 @@ def ok_rows(rows: Rows) -> pa.Table:
     return rows if every else rows.filter(ok)  # all ok, the usual case: no copy
 
 
+def scored_rows(rows: Rows) -> pa.Table:
+    """The rows with objectives: those whose task succeeded, and those whose FMU asked to stop early
+    (status ``stopped``, objectives over a shorter span: rank.py ranks their points after the others)."""
+    rows = arrow(rows)
+    scored = pc.is_in(rows["status"], pa.array(["ok", "stopped"]))
+    every = scored.null_count == 0 and pc.all(scored).as_py()
+    return rows if every else rows.filter(scored)
+
+
 def distinct(rows: Rows, column: str) -> int:
     """How many distinct values ``column`` holds."""
     rows = arrow(rows)

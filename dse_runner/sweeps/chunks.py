@@ -6,6 +6,10 @@ its tasks with the worker's cached FMU instances, writes the rows to the
 store itself and returns only a :class:`ChunkSummary`, so the client's memory
 does not grow with the sweep. A search (closed_loop.py) also wants each
 task's objective values back, to tell its strategy.
+
+A task whose FMU asked to stop early (:class:`~dse_runner.simulation.trajectory.Stop`) has a row of status
+``stopped``, its objectives over the span it reached (``span_end``); a search is told it as a failure: a
+strategy compares numbers alone, and objectives over a shorter span would mislead it.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from ..simulation.objectives import ObjectiveSpec
 from ..simulation.plan import Plan
 from ..simulation.run import simulate
 from ..simulation.scenario import Scenario
+from ..simulation.trajectory import Stop
 from . import ship, store
 from .domain import Point
 from .expand import TaskBatch
@@ -108,6 +113,34 @@ def _worker_name() -> str:
         return f"{socket.gethostname()}:{os.getpid()}"
 
 
+@dataclass(frozen=True)
+class TaskRun:
+    """One task's outcome on the worker: its objectives, or the error after the retry; how its run lived
+    (reset or process); and, where an FMU asked to stop early, the stop. ``end``: the time the objectives
+    are computed up to (the experiment's stop time, or the stop's), None for a failure."""
+
+    objectives: dict[str, Any] | None
+    error: str | None = None
+    life: str | None = None
+    stopped: Stop | None = None
+    end: float | None = None
+
+    @property
+    def status(self) -> str:
+        """The row's status: ok, stopped (an FMU asked to stop early; objectives over ``end``) or failed."""
+        return "failed" if self.error is not None else "stopped" if self.stopped is not None else "ok"
+
+    @property
+    def note(self) -> str | None:
+        """The row's ``error``: the failure, or which FMU asked to stop and when."""
+        return self.error or (f"{self.stopped.instance}: {self.stopped.message}" if self.stopped else None)
+
+    @property
+    def told(self) -> dict[str, Any] | None:
+        """The objectives a search is told: none for a run that stopped early, as for a failure."""
+        return self.objectives if self.status == "ok" else None
+
+
 def run_task(
     plan: Plan,
     point: Point,
@@ -116,8 +149,8 @@ def run_task(
     timeout: float,
     experiment: Experiment | None = None,
     fresh_process: bool = False,
-) -> tuple[dict[str, float] | None, str | None, str | None]:
-    """Objectives, or the error message after the retry; and how the run lived (reset or process)."""
+) -> TaskRun:
+    """Objectives, or the error message after the retry; how the run lived; where it stopped early, if so."""
     error = None
     for _ in range(ATTEMPTS):
         try:
@@ -130,28 +163,28 @@ def run_task(
                 experiment=experiment,
                 fresh_process=fresh_process,
             )
-            return result.objectives, None, "process" if result.fresh_process else "reset"
+            life = "process" if result.fresh_process else "reset"
+            trajectory = result.trajectory
+            return TaskRun(result.objectives, None, life, trajectory.stopped, trajectory.end)
         except DseError as e:
             error = str(e)
         except Exception as e:  # noqa: BLE001  (a bug, or an FMU misbehaving unforeseen: the row says)
             error = f"{type(e).__name__}: {e}\n{traceback.format_exc(limit=3)}"
-    return None, error, None
+    return TaskRun(None, error)
 
 
 def run_chunk(job: ChunkJob) -> ChunkSummary:
     """Simulate a chunk on a worker and write its rows; return only counts."""
     began = time.perf_counter()
     unpacked = ship.received(job.shipment)
-    scores: list[dict[str, Any] | None] = []
-    errors: list[str | None] = []
+    runs: list[TaskRun] = []
     walls: list[float] = []
-    lives: list[str | None] = []
     messages: list[str] = []
     told: list[TaskScores] = []
     started = time.perf_counter()
     for scenario, point in job.tasks.points():
         t0 = time.perf_counter()
-        result, error, life = run_task(
+        run = run_task(
             unpacked.plan,
             point,
             unpacked.scenarios[scenario],
@@ -161,38 +194,26 @@ def run_chunk(job: ChunkJob) -> ChunkSummary:
             job.fresh_process,
         )
         walls.append(time.perf_counter() - t0)
-        lives.append(life)
-        scores.append(result)
-        errors.append(error)
-        if error and len(messages) < 3:
-            messages.append(f"{scenario} {point}: {error}")
+        runs.append(run)
+        if run.error and len(messages) < 3:
+            messages.append(f"{scenario} {point}: {run.error}")
     if job.with_scores:
         told = [
-            TaskScores(task.task_id, task.scenario, result, error)
-            for task, result, error in zip(job.tasks, scores, errors)
+            TaskScores(task.task_id, task.scenario, run.told, run.note) for task, run in zip(job.tasks, runs)
         ]
     seconds = time.perf_counter() - started
     groups = {name: scenario.group for name, scenario in unpacked.scenarios.items()}
     store.write_results(
-        job.output,
-        job.sweep,
-        job.chunk_id,
-        *results_table(job, groups, scores, errors, walls, _worker_name(), lives),
+        job.output, job.sweep, job.chunk_id, *results_table(job, groups, runs, walls, _worker_name())
     )
-    failed = len(errors) - errors.count(None)
+    failed = sum(run.error is not None for run in runs)
     return ChunkSummary(
-        job.chunk_id, len(errors) - failed, failed, seconds, messages, told, busy=time.perf_counter() - began
+        job.chunk_id, len(runs) - failed, failed, seconds, messages, told, busy=time.perf_counter() - began
     )
 
 
 def results_table(
-    job: ChunkJob,
-    groups: dict[str, str],
-    scores: list[dict[str, Any] | None],
-    errors: list[str | None],
-    walls: list[float],
-    worker: str,
-    lives: list[str | None] | None = None,
+    job: ChunkJob, groups: dict[str, str], runs: list[TaskRun], walls: list[float], worker: str
 ) -> tuple[pa.Table, list[str]]:
     """The chunk's rows (one per task, in order) as a table of ``job.schema``, and each row's scenario (the
     partition). Built column by column: a dict per row cost more than a cheap FMU's simulation."""
@@ -213,12 +234,16 @@ def results_table(
         "model": [job.model_key] * n,
         "group": [groups[name] for name in scenarios],
         **{name: parameter(k) for k, name in enumerate(batch.parameters)},
-        **{name: [None if s is None else s.get(name) for s in scores] for name in job.objectives},
-        "status": ["ok" if e is None else "failed" for e in errors],
-        "error": errors,
+        **{
+            name: [None if run.objectives is None else run.objectives.get(name) for run in runs]
+            for name in job.objectives
+        },
+        "status": [run.status for run in runs],
+        "span_end": [run.end for run in runs],
+        "error": [run.note for run in runs],
         "wall_time": walls,
         "worker": [worker] * n,
-        "lifecycle": lives or [None] * n,
+        "lifecycle": [run.life for run in runs],
     }
     return pa.Table.from_pydict(
         {name: columns[name] for name in job.schema.names}, schema=job.schema
@@ -234,7 +259,7 @@ def record_crash(job: ChunkJob, groups: dict[str, str], reason: str) -> ChunkSum
         "something else kills the workers"
     )
     store.write_results(
-        job.output, job.sweep, job.chunk_id, *results_table(job, groups, [None], [error], [0.0], "")
+        job.output, job.sweep, job.chunk_id, *results_table(job, groups, [TaskRun(None, error)], [0.0], "")
     )
     return ChunkSummary(
         job.chunk_id,

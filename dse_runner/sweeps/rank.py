@@ -5,6 +5,12 @@
   ``ranking.over_scenarios`` says; the best point minimises (or maximises) the
   ranking objective's total. Only points with an ok row for every scenario
   are ranked; the others are counted as incomplete.
+* runs an FMU ended early (status ``stopped``, objectives over the span the
+  run reached, ``span_end``): a point with one is ranked, after every point
+  whose runs all reached the stop time (its ``stopped`` column counts them), so
+  the best point is a complete one whenever there is one; the Pareto front and
+  the best per group are over complete points only. With uncertain draws, a
+  stopped draw leaves its point incomplete.
 * Table 1 (the paper's): per scenario, min, max and average over the ranked
   points, and the value at the best point with its difference from the average.
 * the Pareto front over any number of objectives, each minimised or maximised;
@@ -24,6 +30,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import pyarrow as pa
+import pyarrow.compute as pc
 
 from .. import strict_json
 from ..errors import DseError
@@ -57,6 +64,7 @@ class Ranking:
     incomplete_points: int
     failed_rows: int
     excluded_points: int = 0  # complete points that break one of the ranking's constraints
+    stopped_points: int = 0  # ranked points with a run an FMU ended early: ranked after the others
     over_scenarios: str = "sum"  # how each objective was reduced over the scenarios
     constraints: tuple[str, ...] = ()  # the ranking's constraints on objectives, as written
     ranked_by: str = ""  # the totals' column the points are ranked by: the objective, or its robust figure
@@ -101,6 +109,7 @@ class Ranking:
             "incomplete_points": self.incomplete_points,
             "excluded_points": self.excluded_points,
             "failed_rows": self.failed_rows,
+            "stopped_points": self.stopped_points,
             "table1": records(self.table1),
             "pareto": records(self.pareto),
             "groups": records(self.groups),
@@ -235,12 +244,12 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
         about = _about(spec, settings)
         ranked_by = uncertainty.robust_column(settings.objective) if settings.robust else settings.objective
     else:
-        ok = aggregate.ok_rows(rows)
+        ok = aggregate.scored_rows(rows)  # ok, and stopped early: ranked after the complete points
         failed = rows.num_rows - ok.num_rows
         n_scenarios = aggregate.distinct(rows, "scenario")
         points = aggregate.per_point(ok, parameters, objectives, settings.over_scenarios)
         n_points = len(points)
-        complete = _complete(points, n_scenarios)
+        complete = with_stopped(_complete(points, n_scenarios), ok, parameters)
         if complete.empty:
             raise DseError(
                 f"sweep {sweep!r}: no parameter point has an ok result for all {n_scenarios} scenarios"
@@ -253,7 +262,8 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
             f"sweep {sweep!r}: every complete point breaks a ranking constraint "
             f"({'; '.join(settings.constraints)})"
         )
-    complete = _best_first(complete, ranked_by, settings.goal)
+    complete = _stopped_last(_best_first(complete, ranked_by, settings.goal))
+    whole = complete[complete[STOPPED] == 0] if STOPPED in complete else complete  # every run to the end
     best = {p: plain(complete.loc[0, p]) for p in parameters}
     if draws is not None:
         draws = with_drawn_values(
@@ -264,15 +274,16 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
     table1 = _table1(ranked_ok, settings.objective, best)
     if pareto:
         cols = [n for n, _ in pareto]
-        front = complete[pareto_mask(complete[cols].to_numpy(float), [g for _, g in pareto])]
+        front = whole[pareto_mask(whole[cols].to_numpy(float), [g for _, g in pareto])]
         front = front.sort_values(cols[0], ascending=pareto[0][1] == "min").reset_index(drop=True)
     else:
         front = complete.iloc[0:0]
-    groups = _groups(ok, parameters, settings.objective, settings.goal, rows)
+    full = ok if whole is complete else aggregate.ok_rows(ok)  # a group's best: of complete runs too
+    groups = _groups(full, parameters, settings.objective, settings.goal, rows)
     weighted = complete.iloc[0:0].assign(weighted=pd.Series(dtype=float))
     if settings.weights:
         score = sum(weight * complete[name] for name, weight in settings.weights.items())
-        weighted = _best_first(complete.assign(weighted=score), "weighted", settings.goal)
+        weighted = _stopped_last(_best_first(complete.assign(weighted=score), "weighted", settings.goal))
 
     return Ranking(
         sweep,
@@ -289,6 +300,7 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
         incomplete_points=n_points - len(complete) - excluded,
         failed_rows=failed,
         excluded_points=excluded,
+        stopped_points=len(complete) - len(whole),
         over_scenarios=settings.over_scenarios,
         constraints=tuple(settings.constraints),
         ranked_by=ranked_by,
@@ -361,6 +373,29 @@ def complete_totals(
     (``over``: the ranking's ``over_scenarios``). Only these are ranked: a point's total over
     fewer scenarios is not its total."""
     return _complete(aggregate.per_point(ok, parameters, objectives, over), scenarios)
+
+
+STOPPED = "stopped"  # the totals' column counting a point's runs an FMU ended early (only when there are any)
+
+
+def with_stopped(complete: pd.DataFrame, scored: aggregate.Rows, parameters: list[str]) -> pd.DataFrame:
+    """``complete`` with a STOPPED column (how many of each point's runs an FMU ended early), where any run
+    did; else as it is, so that a sweep without early stops ranks and writes what it always did."""
+    scored = aggregate.arrow(scored)
+    stopped = pc.equal(scored["status"], "stopped")
+    if not pc.any(stopped).as_py():
+        return complete
+    flags = scored.append_column(STOPPED, pc.cast(stopped, pa.int64()))
+    counts = aggregate.per_point(flags, parameters, [STOPPED], "sum").drop(columns=aggregate.COUNT)
+    return complete.merge(counts, on=parameters, how="left")
+
+
+def _stopped_last(frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame`` (best first) with the points that have a run an FMU ended early after the others, each
+    part in its order: their objectives are over a shorter span, not comparable with a whole run's."""
+    if STOPPED not in frame:
+        return frame
+    return frame.sort_values(STOPPED, key=lambda n: n > 0, kind="stable").reset_index(drop=True)
 
 
 def _complete(points: pd.DataFrame, scenarios: int) -> pd.DataFrame:

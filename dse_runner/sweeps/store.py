@@ -13,8 +13,10 @@ write their chunks' files themselves, so the client never holds a sweep's rows.
 One row per task: ``task_id``, ``model`` (the hash of the model that produced
 it: a changed FMU gives new rows beside the old, and rankings use the current
 model's), the parameter values (one column each, named
-``instance.variable``), ``group``, every objective, ``status`` (ok/failed),
-``error``, ``wall_time``, ``worker`` and ``lifecycle`` (``reset``: the worker's instances were
+``instance.variable``), ``group``, every objective, ``status`` (ok, failed, or stopped: an FMU asked
+to stop early), ``span_end`` (the time the objectives are computed up to: the experiment's stop time, or
+where a stopped run ended; empty for a failed row), ``error`` (a failure's message, or which FMU asked to
+stop and when), ``wall_time``, ``worker`` and ``lifecycle`` (``reset``: the worker's instances were
 reused; ``process``: a fresh process ran it, lifecycle.py); ``sweep`` and ``scenario`` come from
 the folder names. A chunk's file appears whole or not at all (a local file is
 written under a temporary name and renamed; an object store's PUT is atomic),
@@ -198,6 +200,7 @@ def results_schema(parameters: dict[str, list[Any]], objectives: dict[str, Objec
         ]
         + [
             ("status", pa.string()),
+            ("span_end", pa.float64()),
             ("error", pa.string()),
             ("wall_time", pa.float64()),
             ("worker", pa.string()),

@@ -176,7 +176,7 @@ class Feed:
             if self.closed_loop or (last is not None and last.history is not None)
             else None
         )
-        return Snapshot(status, ok, len(rows), int((rows["status"] != "ok").sum()), table, history)
+        return Snapshot(status, ok, len(rows), int((rows["status"] == "failed").sum()), table, history)
 
     def counted(self, scenarios: int) -> tuple[str, int]:
         """What the standings count per point and of how many: (``draws``, samples) with uncertain draws (a
