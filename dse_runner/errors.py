@@ -32,7 +32,19 @@ def format_syntax_error(source: str, kind: str, error: Exception) -> str:
     return f"{source}: not valid {kind}: {' '.join(str(error).split())}"
 
 
+def close_names(name: str, options: Iterable[str], n: int = 3) -> list[str]:
+    """The options closest to ``name``, those that differ from it only in case first: difflib alone finds
+    ``UA`` no match for ``Ua`` (half their letters differ), though it is the likeliest meant."""
+    options = [o for o in dict.fromkeys(options) if o != name]
+    same = [o for o in options if o.casefold() == name.casefold()]
+    folded: dict[str, list[str]] = {}
+    for option in options:
+        folded.setdefault(option.casefold(), []).append(option)
+    near = difflib.get_close_matches(name.casefold(), list(folded), n=n)
+    return list(dict.fromkeys([*same, *(o for f in near for o in folded[f])]))[:n]
+
+
 def did_you_mean(name: str, options: Iterable[str]) -> str:
     """`` (did you mean a, b?)`` with the options closest to ``name``, or nothing if none is close."""
-    close = difflib.get_close_matches(name, list(options), n=3)
+    close = close_names(name, options)
     return f" (did you mean {', '.join(close)}?)" if close else ""

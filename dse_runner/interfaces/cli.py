@@ -321,6 +321,8 @@ def simulate(
     except OSError as e:  # an output file: not writable, or a folder of that name
         fail(DseError(f"cannot write {e.filename}: {e.strerror}"))
     final = summary(result, bare)
+    for note in result.notes:  # stderr, as every warning: --json's stdout stays one object (it has them too)
+        typer.echo(f"warning: {note}", err=True)
     if as_json:
         emit_json({**final, **{name: str(path) for name, path in files.items()}})
         return

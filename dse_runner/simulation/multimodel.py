@@ -271,6 +271,54 @@ def is_into_cps(data: dict[str, Any]) -> bool:
     return any(str(k).startswith("{") for k in data.get("fmus", {}))
 
 
+MODELS = "a model is an .fmu file, an FMU source folder, a multi-model YAML file or INTO-CPS's mm.json"
+
+
+def not_a_model(path: Path, data: Any = None) -> str | None:
+    """What ``path``, given where a model goes, is instead, when it is recognisably one of the other files
+    a study has (a recording or signal CSV, a values file, a space, a scenario, INTO-CPS's other configs):
+    one line saying what it is, what was expected, and where it goes. None for what may be a multi-model
+    with mistakes in it, which validation words better."""
+    if path.is_dir():
+        if (path / "scenario.yaml").is_file():
+            return f"{path}: a scenario folder, not a model ({MODELS}); give it with --scenario"
+        return (
+            f"{path}: a folder, not a model: no FMU source folder (modelDescription.xml beside C sources); "
+            f"{MODELS}"
+        )
+    if path.suffix.lower() in (".csv", ".tsv") or (isinstance(data, str) and "," in data.partition(" ")[0]):
+        header = _first_line(path)
+        return (
+            f"{path}: a CSV file (columns {header}), not a model ({MODELS}); a recording or input signals "
+            "go in a scenario (recorded:, inputs:), given with --scenario"
+        )
+    if not isinstance(data, dict) or "fmus" in data:
+        return None
+    keys = set(map(str, data))
+    if "multimodel" in keys:
+        return f"{path}: a space.yaml, not a model ({MODELS}); its model is the one its 'multimodel' names"
+    if "objectiveDefinitions" in keys or "parameterConstraints" in keys:
+        return f"{path}: INTO-CPS's DSE config (dse.json), not a model ({MODELS}); dse-runner submit runs it"
+    if "algorithm" in keys or "startTime" in keys or "multimodel_path" in keys:
+        return f"{path}: INTO-CPS's co-simulation config (coe.json), not a model ({MODELS}); its mm.json is"
+    if keys & {"recorded", "inputs", "stop_time", "kind"}:
+        return f"{path}: a scenario.yaml, not a model ({MODELS}); give its folder with --scenario"
+    if data and all("." in key and not isinstance(v, (dict, list)) for key, v in data.items()):
+        return (
+            f"{path}: a values file (instance.variable: value lines), not a model ({MODELS}); give it with "
+            "--values beside the model"
+        )
+    return None
+
+
+def _first_line(path: Path) -> str:
+    try:
+        with path.open(errors="replace") as file:
+            return file.readline().strip()[:80]
+    except OSError:
+        return "unreadable"
+
+
 def parse_multimodel(data: Any, source: str, base_dir: Path) -> MultiModel:
     """Validate already-parsed multi-model data; errors name ``source`` and the key path."""
     if not isinstance(data, dict):
@@ -286,6 +334,8 @@ def parse_multimodel(data: Any, source: str, base_dir: Path) -> MultiModel:
 def load_multimodel(path: str | Path) -> MultiModel:
     """Read a multi-model file: a path, or ``bundled:robotti/multimodel.yaml`` for one that ships with us."""
     path = bundled.bundled_path(str(path)) if bundled.is_bundled(path) else Path(path)
+    if path.is_dir() or path.suffix.lower() in (".csv", ".tsv"):
+        raise DseError(not_a_model(path))
     try:
         text = path.read_text()
     except OSError as e:
@@ -301,6 +351,9 @@ def load_multimodel(path: str | Path) -> MultiModel:
         raise DseError(
             format_syntax_error(str(path), "JSON" if path.suffix == ".json" else "YAML", e)
         ) from None
+    other = not_a_model(path, data)
+    if other is not None:
+        raise DseError(other)
     return parse_multimodel(data, str(path), path.parent.resolve())
 
 

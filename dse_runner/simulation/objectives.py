@@ -12,7 +12,8 @@ In space.yaml an objective is one of (docs/space.md):
   the rms deviation); settling_time's target is by default the final value;
 * ``{signal: msd.x, recorded: x, metric: rmse}``: a signal against a column
   of the scenario's recording, at the recorded sample times: rmse, mae,
-  max_abs, or residuals (every error, a vector: what least squares fits);
+  max_abs, sum_squares, or residuals (every error, a vector: what least squares fits; a space whose
+  only objective it is ranks by its sum of squares, added as ``<name>_sum_squares``);
 * ``{script: metrics/settle.py, args: [...]}``: a Python 3 script run in a
   subprocess with INTO-CPS's calling convention (scripts.py);
 * a name: an objective a plug-in registers in the entry-point group
@@ -34,6 +35,7 @@ from __future__ import annotations
 
 import functools
 import importlib
+import inspect
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
@@ -100,7 +102,7 @@ class Fit(BaseModel):
     model_config = Strict
     signal: str
     recorded: str
-    metric: Literal["rmse", "mae", "max_abs", "residuals"] = "rmse"  # residuals: every error, a vector
+    metric: Literal["rmse", "mae", "max_abs", "sum_squares", "residuals"] = "rmse"  # residuals: a vector
 
 
 def _objective_kind(value: Any) -> str | None:
@@ -241,6 +243,7 @@ METRICS: dict[str, Callable[[np.ndarray], float]] = {
     "rmse": lambda e: float(np.sqrt(np.mean(e * e))),
     "mae": lambda e: float(np.mean(np.abs(e))),
     "max_abs": lambda e: float(np.max(np.abs(e))),
+    "sum_squares": lambda e: float(np.sum(e * e)),  # what least squares minimises, summed over scenarios
     "residuals": lambda e: e,  # simulated minus recorded at each sample: what least squares fits
 }
 
@@ -345,6 +348,27 @@ def function(name: str) -> Objective:
     if not callable(found):
         raise DseError(f"objective {name!r}: {module_name} has no function {function_name!r}")
     return as_objective(found, repr(name))
+
+
+def checked(name: str) -> Objective:
+    """A named objective that can be called as the contract calls it, ``objective(trajectory, scenario)``:
+    a function with another signature is an error now (when a space loads, when a run is prepared), not a
+    TypeError in every task of a sweep."""
+    found = function(name)
+    call = found.function if isinstance(found, FunctionObjective) else found.__call__
+    try:
+        signature = inspect.signature(call)
+    except (TypeError, ValueError):  # a builtin without one: it will speak for itself
+        return found
+    try:
+        signature.bind(None, None)
+    except TypeError as e:
+        label = getattr(call, "__qualname__", name)
+        raise DseError(
+            f"objective {name!r}: {label}{signature} cannot be called as an objective is, with "
+            f"(trajectory, scenario): {e}"
+        ) from None
+    return found
 
 
 def is_vector(spec: ObjectiveSpec) -> bool:

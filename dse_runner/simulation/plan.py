@@ -13,7 +13,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from ..errors import DseError, did_you_mean
+from ..errors import DseError, close_names, did_you_mean
 from . import fmu as fmus
 from .build import resolve_fmu
 from .multimodel import MultiModel
@@ -105,7 +105,7 @@ def lookup(
     try:
         instance, name = split_ref(ref)
     except ValueError as e:
-        raise DseError(f"{purpose}: {e}") from None
+        raise DseError(f"{purpose}: {e}{_instance_hint(variables, ref)}") from None
     if instance not in variables:
         raise DseError(
             f"{purpose}: {ref!r} names instance {instance!r}, but the multi-model has "
@@ -118,6 +118,16 @@ def lookup(
             f"has no variable {name!r}{did_you_mean(name, variables[instance])}"
         )
     return variable
+
+
+def _instance_hint(variables: dict[str, dict[str, Variable]], name: str) -> str:
+    """For a variable named without its instance: the instances' variables it may mean."""
+    refs = [f"{instance}.{v}" for instance, vs in variables.items() for v in vs]
+    exact = [ref for ref in refs if ref.split(".", 1)[1] == name]
+    if exact:
+        return f" (did you mean {', '.join(exact[:3])}?)"
+    close = [f"{instance}.{v}" for instance, vs in variables.items() for v in close_names(name, vs, 1)]
+    return f" (did you mean {', '.join(close[:3])}?)" if close else ""
 
 
 # ---- planning ------------------------------------------------------------------------------------

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import DseError
+from ..errors import DseError, did_you_mean
 from . import derivative_terms, signal_effects, state_limits
 from . import objectives as objs
 from .build import is_source_dir
@@ -39,6 +39,7 @@ class SimulationResult:
     trajectory: Trajectory
     objectives: dict[str, float | list[float]]
     lifecycle: dict[str, Verdict] = field(default_factory=dict)  # how each instance was run (lifecycle.py)
+    notes: tuple[str, ...] = ()  # what of the scenario's recording was left uncompared (recording_notes)
 
     @property
     def fresh_process(self) -> bool:
@@ -87,14 +88,16 @@ def _is_one_fmu(path: Path) -> bool:
 
 
 def qualify(plan: Plan, ref: str) -> str:
-    """``mass`` -> ``model.mass`` when the plan has one instance and ``ref`` names none of its."""
+    """``mass`` -> ``model.mass`` when the plan has one instance and ``ref`` names none of its; ``Model.mass``
+    stays as it is, for the lookup to say that the instance is ``model`` (a variable's name may hold dots)."""
     if len(plan.variables) == 1:
-        instance = next(iter(plan.variables))
+        instance, variables = next(iter(plan.variables.items()))
         try:
             named = split_ref(ref)[0]
         except ValueError:
             named = None
-        if named != instance:
+        misspelt = named is not None and named.casefold() == instance.casefold() and ref not in variables
+        if named != instance and not misspelt:
             return f"{instance}.{ref}"
     return ref
 
@@ -145,16 +148,115 @@ def default_objectives(scenario: Scenario, plan: Plan | None = None) -> dict[str
     """What a scenario's kind scores when nothing is asked (field data: the GPS objectives); a kind that
     scores nothing of its own, with a recording, compares every recorded column that names an output of
     ``plan`` (``tanks.y``, or ``y`` when exactly one instance outputs a ``y``): ``<column>_rmse``. So a
-    model simulated on a new record says at once how well it predicts it."""
+    model simulated on a new record says at once how well it predicts it. A recording none of whose
+    columns names an output is an error saying what it has and what was looked for: a run that compares
+    nothing must not pass for one that compared (issue 63)."""
     found = objs.normalise(list(kind(scenario.kind).default_objectives))
     if found or scenario.recorded is None or plan is None:
         return found
-    outputs = {f"{instance}.{v.name}": v for instance, vs in plan.outputs.items() for v in vs}
+    matched, _ = recorded_outputs(scenario, plan)
+    if not matched:
+        raise DseError(_compared_nothing(scenario, plan))
+    return {
+        f"{column}_rmse": objs.Fit(signal=ref, recorded=column, metric="rmse")
+        for column, ref in matched.items()
+    }
+
+
+def recorded_outputs(scenario: Scenario, plan: Plan) -> tuple[dict[str, str], dict[str, list[str]]]:
+    """The recorded columns that name one output of ``plan`` (``instance.variable``, or the variable alone
+    when one instance outputs it), each with that output; and those whose bare name several instances
+    output, with theirs."""
+    matched: dict[str, str] = {}
+    several: dict[str, list[str]] = {}
+    if scenario.recorded is None:
+        return matched, several
     for column in scenario.recorded.columns:
-        named = [ref for ref in outputs if ref == column or ref.split(".", 1)[1] == column]
+        named = [ref for ref in plan.recorded if ref == column or ref.split(".", 1)[1] == column]
         if len(named) == 1:
-            found[f"{column}_rmse"] = objs.Fit(signal=named[0], recorded=column, metric="rmse")
-    return found
+            matched[column] = named[0]
+        elif named:
+            several[column] = named
+    return matched, several
+
+
+def output_names(plan: Plan) -> list[str]:
+    """The outputs as a recorded column may name them: one FMU's by the variable alone."""
+    bare = len(plan.variables) == 1
+    return [ref.split(".", 1)[1] if bare else ref for ref in plan.recorded]
+
+
+MAX_LISTED = 12  # outputs listed in a message; describe lists them all
+
+
+def _listed(names: list[str]) -> str:
+    shown = ", ".join(names[:MAX_LISTED]) or "none"
+    return shown + (
+        f", ... ({len(names)} in all: dse-runner describe lists them)" if len(names) > MAX_LISTED else ""
+    )
+
+
+def _columns_said(scenario: Scenario, plan: Plan, columns: list[str]) -> str:
+    """Columns, each with the outputs it may have meant, or the instances' outputs it cannot choose from."""
+    _, several = recorded_outputs(scenario, plan)
+    options = output_names(plan) if len(plan.variables) == 1 else [*plan.recorded, *output_names(plan)]
+    said = []
+    for column in columns:
+        if column in several:
+            said.append(f"{column} (output by {' and '.join(several[column])}: name which)")
+        else:
+            said.append(column + did_you_mean(column, options))
+    return ", ".join(said)
+
+
+def _compared_nothing(scenario: Scenario, plan: Plan) -> str:
+    """Why a recording compares with no output, and how to make it compare."""
+    recording = scenario.recorded
+    columns = list(recording.columns)
+    example = f"{{signal: {plan.recorded[0]}, recorded: {columns[0]}, metric: rmse}}" if plan.recorded else ""
+    how = (
+        f"; rename a column as the output it records, or name the comparison: --objective '{example}' "
+        "(objectives= in Python)"
+        if example
+        else "; the model has no numeric output to compare"
+    )
+    return (
+        f"scenario {scenario.name}: no column of its recording {recording.path.name} names an output of the "
+        f"model, so nothing would be compared: it has {_columns_said(scenario, plan, columns)}; the outputs "
+        f"looked for are {_listed(output_names(plan))}{how}"
+    )
+
+
+def recording_notes(
+    scenario: Scenario, specs: Mapping[str, objs.ObjectiveSpec], plan: Plan, asked: bool
+) -> tuple[str, ...]:
+    """What of a scenario's recording the run leaves uncompared, said as warnings: with the default
+    comparison, the columns that name no output (the others were compared); with objectives ``asked`` for
+    (or a space's), a recording none of them reads. A kind that scores its own recording (field data), and
+    an objective that is a function or a script, which may read the recording itself, leave nothing to say."""
+    recording = scenario.recorded
+    if recording is None or kind(scenario.kind).default_objectives:
+        return ()
+    outputs = _listed(output_names(plan))
+    if not asked:
+        matched, _ = recorded_outputs(scenario, plan)
+        unread = [column for column in recording.columns if column not in matched]
+        if not unread:
+            return ()
+        said = (
+            f"scenario {scenario.name}: recorded {_columns_said(scenario, plan, unread)} named no output of "
+            f"the model, so {'it was' if len(unread) == 1 else 'they were'} not compared (the outputs are "
+            f"{outputs})"
+        )
+        return (said,)
+    if not all(isinstance(spec, objs.Reduce) for spec in specs.values()):
+        return ()
+    said = (
+        f"scenario {scenario.name}: its recording {recording.path.name} is compared by no objective (those "
+        f"that ran, {', '.join(specs) or 'none'}, read no recorded column); it has "
+        f"{_columns_said(scenario, plan, list(recording.columns))}, the outputs are {outputs}"
+    )
+    return (said,)
 
 
 def bound_fields(multimodel: MultiModel, scenario: Scenario) -> dict[str, Value]:
@@ -225,6 +327,7 @@ def simulate(
         trajectory,
         objs.evaluate(recipe.specs, trajectory, recipe.scenario),
         verdicts,
+        recipe.notes,
     )
 
 
@@ -243,6 +346,7 @@ class _Recipe:
     names: dict[str, str] = field(default_factory=dict)  # a value's name as given -> as the plan has it
     checked: dict = field(default_factory=dict)  # a derivative term as given -> checked, its instance named
     verdicts: dict[str, Verdict] | None = None  # how each instance lives across runs, found at the first
+    notes: tuple[str, ...] = ()  # what of the recording the objectives leave uncompared (recording_notes)
 
     def lifecycle(self, runner: Runner, values: Mapping[str, Value]) -> dict[str, Verdict]:
         """How each instance lives across the runs of this process (lifecycle.py): reset between runs, or
@@ -309,13 +413,25 @@ def _recipe(model, scenario, objectives, experiment: Experiment | None, times: t
     scenario = as_scenario(scenario)
     specs = objs.normalise(objectives) if objectives is not None else default_objectives(scenario, plan)
     specs = {name: _qualified(plan, spec) for name, spec in specs.items()}
+    for spec in specs.values():
+        if isinstance(spec, str):
+            objs.checked(spec)  # a function that cannot take (trajectory, scenario) fails here, once
+    notes = recording_notes(scenario, specs, plan, asked=objectives is not None)
     plan = _recording(plan, specs)
     base = {**plan.multimodel.parameters, **scenario_values(plan, scenario)}
     resolved = resolve_times(plan, scenario, experiment, *times)
     inputs = {ref: s for ref, s in scenario.inputs.items() if isinstance(s, Series)}
     runner = prepare(plan, resolved.start, resolved.stop, resolved.step, inputs)
     recipe = _Recipe(
-        given, copy.deepcopy(objectives), copy.deepcopy(experiment), scenario, specs, base, resolved, runner
+        given,
+        copy.deepcopy(objectives),
+        copy.deepcopy(experiment),
+        scenario,
+        specs,
+        base,
+        resolved,
+        runner,
+        notes=notes,
     )
     if reusable:
         while len(_RECIPES) >= KEEP_RECIPES:
@@ -347,7 +463,8 @@ def write_csv(result: SimulationResult, path: Path, bare: bool = False) -> Path:
 
 
 def summary(result: SimulationResult, bare: bool = False) -> dict:
-    """What ``simulate --json`` prints: the run's settings, objectives and every output's final value."""
+    """What ``simulate --json`` prints: the run's settings, objectives, every output's final value, and
+    the warnings the text prints on stderr (what of the recording was left uncompared)."""
     final = result.trajectory.final()
     stop = result.trajectory.stopped  # an FMU asked to end the run early: which, when, the message
     stopped = stop and {"instance": stop.instance, "time": stop.time, "message": stop.message}
@@ -365,4 +482,5 @@ def summary(result: SimulationResult, bare: bool = False) -> dict:
         "final": final,
         "dropouts": result.scenario.dropouts,
         "lifecycle": {name: {"mode": v.mode, "reason": v.reason} for name, v in result.lifecycle.items()},
+        "warnings": list(result.notes),
     }

@@ -36,7 +36,7 @@ import numpy as np
 from pydantic import BaseModel, Discriminator, Field, PositiveFloat, Tag, ValidationError
 
 from .. import plugins
-from ..errors import DseError, format_validation_error
+from ..errors import DseError, did_you_mean, format_validation_error
 from ..schema import Strict
 from ..yamlfile import load_yaml, shape
 from .trajectory import Series
@@ -164,7 +164,10 @@ class Recording:
     def samples(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """The times and values of column ``name`` where it has a value."""
         if name not in self.columns:
-            raise DseError(f"{self.path}: no recorded column {name!r}; it has {', '.join(self.columns)}")
+            raise DseError(
+                f"{self.path}: no recorded column {name!r}{did_you_mean(name, self.columns)}; it has "
+                f"{', '.join(self.columns)}"
+            )
         values = self.columns[name]
         present = np.isfinite(values)
         return self.time[present], values[present]
@@ -204,7 +207,7 @@ class Scenario:
             return self.fields[name]
         have = sorted({*self.fields, *self.files})
         raise DseError(
-            f"scenario {self.name}: no field {name!r}"
+            f"scenario {self.name}: no field {name!r}{did_you_mean(name, have)}"
             + (f"; it has {', '.join(have)}" if have else f" (a {self.kind} scenario has no fields)")
         )
 
@@ -484,7 +487,10 @@ def kind(name: str) -> ScenarioKind:
     """One kind by name, loading only its plug-in (a plain study never imports field data's)."""
     entry = plugins.entries(GROUP).get(name)
     if entry is None:
-        raise DseError(f"unknown scenario kind {name!r}: installed are {', '.join(plugins.names(GROUP))}")
+        raise DseError(
+            f"unknown scenario kind {name!r}{did_you_mean(name, plugins.names(GROUP))}: installed are "
+            f"{', '.join(plugins.names(GROUP))}"
+        )
     return _checked(entry)
 
 

@@ -34,7 +34,7 @@ from pydantic import (
 )
 
 from .. import plugins
-from ..errors import DseError
+from ..errors import DseError, did_you_mean
 from ..schema import Extensible, Strict
 from . import start_method
 
@@ -326,7 +326,10 @@ def maker(kind: str) -> ClusterMaker:
     """The maker of ``kind``; an unknown kind is an error naming the known ones."""
     found = find(kind)
     if found is None:
-        raise DseError(f"cluster.kind {kind!r} is unknown (known: {', '.join(installed())})")
+        known = installed()
+        raise DseError(
+            f"cluster.kind {kind!r} is unknown{did_you_mean(kind, known)} (known: {', '.join(known)})"
+        )
     return found
 
 

@@ -33,7 +33,7 @@ from typing import Any, ClassVar, Literal
 from pydantic import BaseModel, ConfigDict, PositiveFloat, PositiveInt, ValidationError
 
 from .. import plugins
-from ..errors import DseError
+from ..errors import DseError, did_you_mean
 from ..schema import Extensible, Strict
 from .domain import Dimension, Point
 
@@ -209,7 +209,10 @@ def strategy(name: str) -> type[Strategy]:
     label = f"search strategy {name!r}"
     found = plugins.load(GROUP, name, label)
     if found is None:
-        raise DseError(f"unknown search strategy {name!r}: available are {', '.join(plugins.names(GROUP))}")
+        raise DseError(
+            f"unknown search strategy {name!r}{did_you_mean(name, plugins.names(GROUP))}: available are "
+            f"{', '.join(plugins.names(GROUP))}"
+        )
     return plugins.subclass_of(found, Strategy, label, plugins.entries(GROUP)[name].value)
 
 

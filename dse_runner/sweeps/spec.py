@@ -31,7 +31,7 @@ from pydantic import (
 )
 
 from .. import bundled
-from ..errors import DseError
+from ..errors import DseError, close_names
 from ..schema import Extensible, Strict
 from ..simulation import derivative_terms, signal_effects, state_limits, user_modules
 from ..simulation import objectives as objs
@@ -385,27 +385,50 @@ def _entry(entry: ScenarioSpec | ScenarioSource | str, index: int, base: Path, s
 
 
 def _resolved(spec: SpaceSpec, scenarios: list[Scenario], source: str) -> SpaceSpec:
-    """The spec with its default objectives and ranking objective filled in."""
+    """The spec with its default objectives and ranking objective filled in: the first scalar objective, or
+    for a space whose objectives are all vectors, the sum of squares of its residuals, added."""
     objectives = spec.objectives
     if objectives is None:
         defaults = {name: None for s in scenarios for name in kind(s.kind).default_objectives}
         if not defaults:
-            raise DseError(
-                f"{source}: objectives: name at least one, e.g. "
-                "{level_max: {signal: tank.level, reduce: max}}"
-            )
+            raise DseError(f"{source}: objectives: name at least one, e.g. {EXAMPLE_OBJECTIVE}")
         objectives = list(defaults)
-    scalar = [name for name, o in objs.normalise(objectives).items() if not objs.is_vector(o)]
+    if not objectives:
+        raise DseError(f"{source}: objectives is empty: name at least one, e.g. {EXAMPLE_OBJECTIVE}")
+    named = objs.normalise(objectives)
+    scalar = [name for name, o in named.items() if not objs.is_vector(o)]
     ranking = spec.ranking
     if ranking.objective is None:
         if not scalar:
-            raise DseError(f"{source}: ranking needs an objective with one number per task")
+            added, fit = _sum_of_squares(named, source)
+            objectives, scalar = {**named, added: fit}, [added]
         ranking = ranking.model_copy(update={"objective": scalar[0]})
     return spec.model_copy(update={"objectives": objectives, "ranking": ranking})
 
 
+EXAMPLE_OBJECTIVE = "{level_max: {signal: tank.level, reduce: max}}"
+
+
+def _sum_of_squares(vectors: dict[str, objs.ObjectiveSpec], source: str) -> tuple[str, objs.Fit]:
+    """What a space whose every objective is a vector ranks by: the sum of squares of its first residuals
+    fit (``<name>_sum_squares``), which is what least squares minimises, summed over the scenarios. Vectors
+    of functions have no such counterpart: the message names what to add."""
+    for name, spec in vectors.items():
+        if isinstance(spec, objs.Fit):
+            return f"{name}_sum_squares", spec.model_copy(update={"metric": "sum_squares"})
+    names = ", ".join(vectors)
+    raise DseError(
+        f"{source}: ranking needs an objective with one number per task, and {names} "
+        f"{'is a vector' if len(vectors) == 1 else 'are vectors'} (a number per sample): add a scalar "
+        "objective beside it, e.g. {fit: {signal: inst.var, recorded: column, metric: rmse}}, which the "
+        "ranking then uses (or name it in ranking.objective)"
+    )
+
+
 def _check_names(space: Space, source: str) -> None:
-    """Every name the spec uses must exist: FMU variables, objectives, the strategy."""
+    """Every name the spec uses must exist: FMU variables (one FMU's also by the bare name, as ``simulate
+    --set`` takes them), objectives, the strategy."""
+    named: dict[str, str] = {}
     for ref, values in space.parameters.items():
         effect = signal_effects.parse(ref)
         if effect is not None:
@@ -415,7 +438,13 @@ def _check_names(space: Space, source: str) -> None:
         if term is not None:
             _check_term(space, term, values, source)
             continue
-        variable = space.plan.variable(ref, f"{source}: parameters")
+        variable = space.plan.variable(qualify(space.plan, ref), f"{source}: parameters")
+        if variable.ref in named:
+            raise DseError(
+                f"{source}: parameters: {named[variable.ref]!r} and {ref!r} name the same variable, "
+                f"{variable.ref}; list it once"
+            )
+        named[variable.ref] = ref
         try:
             space.plan.check_not_fed(variable)  # once per variable, not per value: a grid may hold thousands
             for value in values:
@@ -448,12 +477,10 @@ def _check_names(space: Space, source: str) -> None:
         if name not in space.objectives:
             raise DseError(
                 f"{source}: ranking uses objective {name!r}, which 'objectives' does not list "
-                f"({', '.join(space.objectives)})"
+                f"({', '.join(space.objectives)}{_meant(name, space.objectives)})"
             )
         if objs.is_vector(space.objectives[name]):
-            raise DseError(
-                f"{source}: ranking uses {name!r}, a vector objective; rankings need one number per task"
-            )
+            raise DseError(f"{source}: ranking uses {name!r}, {_vector_hint(name, space.objectives[name])}")
     for index, text in enumerate(space.spec.ranking.constraints):
         try:
             compile_constraint(text, set(space.objectives), "objective")
@@ -552,7 +579,10 @@ def _check_objective(space: Space, name: str, objective: objs.ObjectiveSpec, sou
     """A declared objective's signals must exist and its recorded column be in every scenario."""
     where = f"{source}: objectives.{name}"
     if isinstance(objective, str):
-        objs.function(objective)
+        try:
+            objs.checked(objective)
+        except DseError as e:
+            raise DseError(f"{where}: {e}") from None
         return
     for signal in objs.signals(objective):
         variable = space.plan.variable(qualify(space.plan, signal), where)
@@ -568,8 +598,26 @@ def _check_objective(space: Space, name: str, objective: objs.ObjectiveSpec, sou
             if objective.recorded not in scenario.recorded.columns:
                 raise DseError(
                     f"{where}: scenario {scenario.name}'s recording {scenario.recorded.path} has no "
-                    f"column {objective.recorded!r} (it has {', '.join(scenario.recorded.columns)})"
+                    f"column {objective.recorded!r} (it has {', '.join(scenario.recorded.columns)}"
+                    f"{_meant(objective.recorded, scenario.recorded.columns)})"
                 )
+
+
+def _vector_hint(name: str, spec: objs.ObjectiveSpec) -> str:
+    """Why a vector cannot rank, and what would."""
+    said = "a vector objective (a number per sample); rankings need one number per task"
+    if isinstance(spec, objs.Fit):
+        return (
+            f"{said}: rank by its sum of squares, {{{name}_sum_squares: {{signal: {spec.signal}, recorded: "
+            f"{spec.recorded}, metric: sum_squares}}}}, or leave ranking.objective out, which adds that one"
+        )
+    return f"{said}: add a scalar objective, e.g. {{signal: inst.var, recorded: column, metric: rmse}}"
+
+
+def _meant(name: str, options) -> str:
+    """``; did you mean a?`` inside a parenthesis that lists the options, or nothing."""
+    close = close_names(name, options)
+    return f"; did you mean {', '.join(close)}?" if close else ""
 
 
 def derived_space(space: Space, **update: Any) -> Space:

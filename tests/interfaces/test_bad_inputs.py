@@ -333,8 +333,8 @@ def test_a_value_for_an_input_a_connection_feeds(tmp_path):
             },
             (
                 r"space\.yaml: the multi-model binds controller\.file to 'steering': "
-                r"scenario sin1: no field 'steering'; it has duration, gps_position, "
-                r"initial_pose\.theta, initial_pose\.x, initial_pose\.y, steering_inputs"
+                r"scenario sin1: no field 'steering' \(did you mean steering_inputs\?\); it has duration, "
+                r"gps_position, initial_pose\.theta, initial_pose\.x, initial_pose\.y, steering_inputs"
             ),
         ),
         ({"multimodel": "nowhere.yaml"}, r"cannot read multi-model .*nowhere\.yaml"),
@@ -379,8 +379,8 @@ def test_a_bad_spec_value(tmp_path, changes, message):
             {"scenario": {"controller.file": "steering"}},
             (
                 r"error: the multi-model binds controller\.file to 'steering': scenario "
-                r"sin1: no field 'steering'; it has duration, gps_position, "
-                r"initial_pose\.theta, initial_pose\.x, initial_pose\.y, steering_inputs$"
+                r"sin1: no field 'steering' \(did you mean steering_inputs\?\); it has duration, "
+                r"gps_position, initial_pose\.theta, initial_pose\.x, initial_pose\.y, steering_inputs$"
             ),
         ),
         ({"parameters": {"vehicle": 1}}, r"mm\.yaml: parameters: 'vehicle' is not of the form"),
@@ -415,6 +415,211 @@ def test_a_multimodel_that_is_not_yaml(tmp_path):
     path.write_text("fmus: [unclosed\n")
     code, _, err = run("simulate", path, "-s", SCENARIOS / "sin1")
     assert f"{path} line 2, column 1: not valid YAML: expected ',' or ']'" in one_line_error(code, err)
+
+
+# ---- a recording compared with nothing, and names (issue 63) ------------------------------------
+
+
+def room(folder: Path) -> Path:
+    """A model whose output is ``T``: the mass-spring-damper's sources, its position renamed (the C code
+    knows value references, not names), as a user's room model outputs its temperature."""
+    source = folder / "room"
+    shutil.copytree(REPO / "jobs" / "msd" / "fmus" / "msd", source)
+    description = source / "modelDescription.xml"
+    description.write_text(description.read_text().replace('name="x"', 'name="T"'))
+    return source
+
+
+def recorded(folder: Path, header: str, name: str = "rec") -> Path:
+    """A scenario folder whose recording has ``header``'s columns, three rows of numbers."""
+    folder = folder / name
+    folder.mkdir()
+    columns = header.count(",")
+    rows = "".join(f"{t}," + ",".join(["0.05"] * columns) + "\n" for t in (0, 1, 2))
+    (folder / "measured.csv").write_text(f"{header}\n{rows}")
+    (folder / "scenario.yaml").write_text(f"name: {name}\nrecorded: measured.csv\nstop_time: 2\n")
+    return folder
+
+
+@pytest.mark.parametrize(
+    "header, has",
+    [("time,t", r"it has t \(did you mean T\?\)"), ("time,humidity", r"it has humidity;")],
+    ids=["typo", "other-signal"],
+)
+def test_a_recording_that_names_no_output_is_refused_saying_what_it_has_and_looked_for(tmp_path, header, has):
+    """``simulate MODEL --scenario REC`` compares every recorded column named like an output; a recording
+    none of whose columns is one compared nothing and exited 0 with ``"objectives": {}`` (issue 63). Now it
+    is refused, with --json too (nothing on stdout), saying what the recording has and what was looked for."""
+    model, scenario = room(tmp_path), recorded(tmp_path, header)
+    column = header.split(",")[1]
+    for json_flag in ([], ["--json"]):
+        code, out, err = run("simulate", model, "--scenario", scenario, *json_flag)
+        line = one_line_error(code, err)
+        assert out == ""
+        assert re.search(
+            r"scenario rec: no column of its recording measured\.csv names an output of the model, so "
+            rf"nothing would be compared: {has}.* the outputs looked for are T, v; rename a column as the "
+            r"output it records, or name the comparison: --objective "
+            rf"'\{{signal: room\.T, recorded: {column}, metric: rmse\}}'",
+            line,
+        ), line
+
+
+def test_objectives_asked_for_run_and_warn_of_a_recording_none_of_them_reads(tmp_path):
+    """With objectives asked for, the run is what was asked: it runs, and a warning (stderr, and --json's
+    ``warnings``) says that the recording was compared by none of them."""
+    model, scenario = room(tmp_path), recorded(tmp_path, "time,humidity")
+    code, out, err = run(
+        "simulate", model, "--scenario", scenario, "--objective", "{signal: T, reduce: max}", "--json"
+    )
+    assert code == 0, err
+    found = strict_loads(out)
+    note = (
+        "scenario rec: its recording measured.csv is compared by no objective (those that ran, T_max, read "
+        "no recorded column); it has humidity, the outputs are T, v"
+    )
+    assert found["objectives"] == {"T_max": pytest.approx(0.1)} and found["warnings"] == [note]
+    assert err.strip() == f"warning: {note}"
+
+
+def test_a_recording_compares_the_columns_named_like_outputs_and_warns_of_the_others(tmp_path):
+    model, scenario = room(tmp_path), recorded(tmp_path, "time,T,humidity,t_room")
+    code, out, err = run("simulate", model, "--scenario", scenario, "--json")
+    assert code == 0, err
+    assert list(strict_loads(out)["objectives"]) == ["T_rmse"]
+    assert err.strip() == (
+        "warning: scenario rec: recorded humidity, t_room named no output of the model, so "
+        "they were not compared (the outputs are T, v)"
+    )
+
+
+def test_a_fit_to_a_column_differing_in_case_suggests_it(tmp_path):
+    """An objective naming the column ``T`` of a recording headed ``t``: the message says which it has, and
+    suggests it (here, the case alone differs: difflib alone finds no match)."""
+    model, scenario = room(tmp_path), recorded(tmp_path, "time,t")
+    code, _, err = run("simulate", model, "--scenario", scenario, "--objective", "{signal: T, recorded: T}")
+    assert "measured.csv: no recorded column 'T' (did you mean t?); it has t" in one_line_error(code, err)
+
+
+def test_a_column_that_several_instances_output_is_refused_naming_them(tmp_path):
+    """Two instances with an output ``x``: a column ``x`` cannot say which; it was dropped without a word."""
+    msd = REPO / "jobs" / "msd" / "fmus" / "msd"
+    path = tmp_path / "mm.yaml"
+    path.write_text(yaml.safe_dump({"fmus": {"a": str(msd), "b": str(msd)}}))
+    code, _, err = run("simulate", path, "--scenario", recorded(tmp_path, "time,x"))
+    line = one_line_error(code, err)
+    assert "it has x (output by a.x and b.x: name which); the outputs looked for are a.x, a.v, b.x, b.v" in (
+        line
+    )
+
+
+def test_a_space_whose_objectives_read_no_recording_warns_when_simulated(tmp_path):
+    """``simulate SPACE --scenario FOLDER``: the space's objectives are the ones asked for."""
+    model, scenario = room(tmp_path), recorded(tmp_path, "time,T")
+    space = tmp_path / "space.yaml"
+    peak = {"peak": {"signal": "T", "reduce": "max"}}
+    space.write_text(
+        yaml.safe_dump({"name": "s", "multimodel": str(model), "parameters": {"k": [12]}, "objectives": peak})
+    )
+    code, _, err = run("simulate", space, "--scenario", scenario)
+    assert code == 0, err
+    assert err.strip().startswith(
+        "warning: scenario rec: its recording measured.csv is compared by no objective"
+    )
+
+
+@pytest.mark.parametrize(
+    "given, message",
+    [
+        (
+            "set K=3",
+            r"setting: unknown variable 'room\.K': instance 'room' \(msd\) has no variable 'K' "
+            + r"\(did you mean k\?\)",
+        ),
+        ("set Room.k=3", r"names instance 'Room', but the multi-model has room \(did you mean room\?\)"),
+        ("set t=3", r"has no variable 't' \(did you mean T\?\)"),
+        ("pair k=3", r"setting: 'k' is not of the form instance\.variable \(did you mean a\.k, b\.k\?\)"),
+        ("pair a.K=3", r"instance 'a' \(msd\) has no variable 'K' \(did you mean k\?\)"),
+    ],
+    ids=["case", "instance-case", "output-case", "no-instance", "pair-case"],
+)
+def test_a_name_that_differs_in_case_or_lacks_its_instance_suggests_the_right_one(tmp_path, given, message):
+    """``--set``: difflib alone finds ``K`` no match for ``k``; a multi-model's bare name suggests each
+    instance that has it."""
+    kind, assignment = given.split()
+    model = room(tmp_path)
+    if kind == "pair":
+        model = tmp_path / "mm.yaml"
+        msd = str(REPO / "jobs" / "msd" / "fmus" / "msd")
+        model.write_text(yaml.safe_dump({"fmus": {"a": msd, "b": msd}}))
+    code, _, err = run("simulate", model, "--set", assignment, "--stop-time", "1", "--step", "0.1")
+    assert re.search(message, one_line_error(code, err)), err
+
+
+@pytest.mark.parametrize(
+    "name, content, message",
+    [
+        (
+            "measured.csv",
+            "time,T\n0,1\n",
+            (
+                r"measured\.csv: a CSV file \(columns time,T\), not a model \(a model is an \.fmu file, an "
+                r"FMU source folder, a multi-model YAML file or INTO-CPS's mm\.json\); a recording or input "
+                r"signals go in a scenario \(recorded:, inputs:\), given with --scenario"
+            ),
+        ),
+        (
+            "tuned.yaml",
+            "room.k: 12\nroom.c: 0.7\n",
+            r"tuned\.yaml: a values file \(instance\.variable: value lines\), not a model \(.*\); give it "
+            + r"with --values beside the model",
+        ),
+        (
+            "other.yaml",
+            "name: s\nmultimodel: room\nparameters: {k: [1]}\n",
+            r"other\.yaml: a space\.yaml, not a model \(.*\); its model is the one its 'multimodel' names",
+        ),
+        (
+            "rec/scenario.yaml",
+            "name: rec\nrecorded: measured.csv\n",
+            r"scenario\.yaml: a scenario\.yaml, not a model \(.*\); give its folder with --scenario",
+        ),
+        ("rec", None, r"rec: a scenario folder, not a model \(.*\); give it with --scenario"),
+    ],
+    ids=["csv", "values", "space-in-a-space", "scenario-file", "scenario-folder"],
+)
+def test_a_file_given_where_a_model_goes_is_named_for_what_it_is(tmp_path, name, content, message):
+    """A CSV given as the model said "expected a mapping with 'fmus', 'connections', 'parameters'" (issue 63):
+    now one line says what it is, what was expected, and where it goes; in ``simulate``, ``describe`` and a
+    space's ``multimodel:`` alike."""
+    room(tmp_path)
+    recorded(tmp_path, "time,T")
+    path = tmp_path / name
+    if content is not None:
+        path.write_text(content)
+    for command in (["simulate", path], ["describe", path]) if name != "other.yaml" else ():  # a space runs
+        code, _, err = run(*command)
+        assert re.search(message, one_line_error(code, err)), err
+    space = tmp_path / "space.yaml"
+    peak = {"p": {"signal": "T", "reduce": "max"}}
+    space.write_text(
+        yaml.safe_dump({"name": "s", "multimodel": str(path), "parameters": {"k": [1]}, "objectives": peak})
+    )
+    code, _, err = run("submit", space, "--no-dashboard")
+    assert re.search(message, one_line_error(code, err)), err
+
+
+def test_an_objective_function_with_another_signature_is_refused_before_it_runs(tmp_path, monkeypatch):
+    """An objective is called as ``f(trajectory, scenario)``: one that cannot take that failed every task
+    with a TypeError; now ``simulate`` (and a space, before any cluster: test_user_modules.py) says so."""
+    (tmp_path / "mine.py").write_text("def peak(trajectory):\n    return 1.0\n")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    code, _, err = run("simulate", room(tmp_path), "--objective", "mine:peak", "--stop-time", "1")
+    assert (
+        "objective 'mine:peak': peak(trajectory) cannot be called as an objective is, with (trajectory, "
+        "scenario): too many positional arguments"
+    ) in one_line_error(code, err)
 
 
 # ---- the real command: exit code, one line, --debug ---------------------------------------------

@@ -180,7 +180,10 @@ def test_a_space_names_an_objectives_unknown_signal(tmp_path):
         ),
         (
             {"fit": {"signal": "msd.x", "recorded": "x", "metric": "rms"}},
-            ["objectives.mapping.fit.fit.metric: Input should be 'rmse', 'mae', 'max_abs' or 'residuals'"],
+            [
+                "objectives.mapping.fit.fit.metric: Input should be 'rmse', 'mae', 'max_abs', 'sum_squares' "
+                + "or 'residuals'"
+            ],
         ),
         (
             {"peak": {"signal": "msd.x", "reduc": "max"}},

@@ -123,6 +123,25 @@ def test_each_strategy_finds_the_calibrations_optimum(
             assert strata.nunique() == budget
 
 
+def test_least_squares_on_a_residuals_objective_alone_ranks_by_its_sum_of_squares(tmp_path, dask_scheduler):
+    """A calibration written as a newcomer writes it, the residuals and nothing else (issue 63): the space
+    adds their sum of squares, ranks by it, and the ranking's best is the fit's own point, at the truth."""
+    residuals = {"position": {"signal": "msd.x", "recorded": "x", "metric": "residuals"}}
+    path = msd_space(tmp_path, {"strategy": "least_squares"}, dask_scheduler, objectives=residuals)
+    space = load_space(path)
+    assert space.spec.ranking.objective == "position_sum_squares"
+    report = submit(space)
+    assert report.search.stopped == "strategy" and report.failed == 0
+    ranking = rank(space.output, space.name)
+    assert ranking.objective == "position_sum_squares"
+    assert ranking.best == pytest.approx(report.search.best_point, rel=1e-12)
+    assert abs(ranking.best["msd.k"] - TRUTH["msd.k"]) <= 0.1
+    assert abs(ranking.best["msd.c"] - TRUTH["msd.c"]) <= 0.03
+    rows = results(space, "position", "position_sum_squares")
+    squares = rows["position"].map(lambda r: float(np.sum(np.square(r))))
+    assert np.allclose(squares, rows["position_sum_squares"], rtol=1e-12)  # it ranks what LM minimises
+
+
 # ---- several objectives -----------------------------------------------------------------------------
 
 

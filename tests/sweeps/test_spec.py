@@ -177,6 +177,20 @@ def test_a_variant_naming_an_unknown_variable_names_it(tmp_path):
                 r"Extra inputs are not permitted$"
             ),
         ),
+        # misspelt names suggest the nearest (issue 63)
+        (
+            {"search": {"strategy": "sobl"}},
+            r"unknown search strategy 'sobl' \(did you mean sobol\?\): available",
+        ),
+        (
+            {"ranking": {"objective": "cross_track_eror"}},
+            r"ranking uses objective 'cross_track_eror', which 'objectives' does not list \(.*; did you mean "
+            + r"cross_track_error\?\)",
+        ),
+        (
+            {"scenarios": [{"path": str(SCENARIOS / "sin1"), "kind": "fielddata"}]},
+            r"unknown scenario kind 'fielddata' \(did you mean field_data\?\): installed are",
+        ),
     ],
 )
 def test_bad_specs_name_file_key_and_reason(tmp_path, changes, message):
@@ -232,3 +246,98 @@ def test_a_space_names_an_fmu_as_simulate_does_and_a_file_that_is_no_model_is_na
         DseError, match=r"binary.yaml: not a multi-model: it is not text \(a model is an .fmu file"
     ):
         load_space(tmp_path / "space.yaml")
+
+
+# ---- first contact (issue 63): a calibration that ranks, names as simulate takes them -----------------
+
+
+def test_a_residuals_objective_alone_ranks_by_its_sum_of_squares_and_other_vectors_say_what_to_add(tmp_path):
+    """A least-squares calibration needs a vector objective, a ranking a number: the residuals alone rank by
+    their sum of squares, added beside them; a vector function alone, or a ranking that names the residuals,
+    gets a message naming what to add."""
+    from conftest import write_msd_search
+
+    from dse_runner.simulation.objectives import Fit
+
+    residuals = {"position": {"signal": "msd.x", "recorded": "x", "metric": "residuals"}}
+    space = load_space(write_msd_search(tmp_path / "a", {"strategy": "least_squares"}, objectives=residuals))
+    assert space.spec.ranking.objective == "position_sum_squares"
+    assert space.objectives["position_sum_squares"] == Fit(signal="msd.x", recorded="x", metric="sum_squares")
+    assert list(space.spec.objectives) == ["position", "position_sum_squares"]  # the saved spec says what ran
+
+    folder = tmp_path / "b"
+    folder.mkdir()
+    (folder / "fits.py").write_text(
+        "def errors(trajectory, scenario):\n    return trajectory.column('msd.x')\n\nerrors.vector = True\n"
+    )
+    with pytest.raises(
+        DseError,
+        match=r"ranking needs an objective with one number per task, and errors is a vector \(a number per "
+        r"sample\): add a scalar objective beside it, e\.g\. \{fit: \{signal: inst\.var, recorded: column, "
+        r"metric: rmse\}\}",
+    ):
+        load_space(write_msd_search(folder, {"strategy": "random"}, objectives={"errors": "fits:errors"}))
+
+    ranked = {"objective": "position"}
+    with pytest.raises(
+        DseError,
+        match=r"ranking uses 'position', a vector objective \(a number per sample\); rankings need one "
+        r"number per task: rank by its sum of squares, \{position_sum_squares: \{signal: msd\.x, recorded: "
+        r"x, metric: sum_squares\}\}, or leave ranking\.objective out",
+    ):
+        load_space(
+            write_msd_search(tmp_path / "c", {"strategy": "random"}, objectives=residuals, ranking=ranked)
+        )
+
+
+def test_the_sum_of_squares_is_that_of_the_residuals():
+    from dse_runner.simulation.run import simulate
+
+    scenario = REPO / "jobs" / "quickstart" / "rig" / "steps"
+    metrics = ("residuals", "sum_squares", "rmse")
+    fits = {name: {"signal": "msd.x", "recorded": "x", "metric": name} for name in metrics}
+    found = simulate(REPO / "jobs" / "msd" / "fmus" / "msd", scenario, {"k": 13}, objectives=fits).objectives
+    squares = sum(e * e for e in found["residuals"])
+    assert found["sum_squares"] == pytest.approx(squares, rel=1e-12)
+    assert found["rmse"] == pytest.approx((squares / len(found["residuals"])) ** 0.5, rel=1e-12)
+
+
+def test_a_single_fmus_space_takes_bare_names_as_simulate_does(tmp_path):
+    """``simulate vdp.fmu --set mu=…`` takes the bare name; so does a space on that FMU (issue 63), and the
+    run it makes is the same. Names that cannot be right suggest the ones that can, also when only the case
+    differs, and a variable listed under both names is one variable listed twice."""
+    import yaml
+
+    from dse_runner.simulation.build import build_fmu
+    from dse_runner.sweeps.space_run import simulate_space
+
+    fmu = tmp_path / "vdp.fmu"
+    shutil.copyfile(build_fmu(REPO / "tests" / "fmus" / "vdp_me"), fmu)
+    spec = {
+        "name": "vdp",
+        "multimodel": "vdp.fmu",
+        "experiment": {"stop_time": 2.0, "step": 0.1},
+        "parameters": {"mu": [1.5]},
+        "objectives": {"x_end": {"signal": "x0", "reduce": "final"}},
+    }
+    path = tmp_path / "space.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    assert load_space(path).parameters == {"mu": [1.5]}
+    from dse_runner.simulation.run import simulate
+
+    bare = simulate_space(path, None, {})
+    direct = simulate(fmu, None, {"mu": 1.5}, stop_time=2.0, step=0.1, objectives=spec["objectives"])
+    assert bare.values["vdp.mu"] == 1.5 and bare.objectives == direct.objectives
+
+    for parameters, message in [
+        (
+            {"MU": [1.5]},
+            r"parameters: unknown variable 'vdp\.MU': instance 'vdp' \(\w+\) has no variable 'MU' \("
+            + r"did you mean mu\?\)",
+        ),
+        ({"Vdp.mu": [1.5]}, r"names instance 'Vdp', but the multi-model has vdp \(did you mean vdp\?\)"),
+        ({"mu": [1.5], "vdp.mu": [1.0]}, r"parameters: 'mu' and 'vdp\.mu' name the same variable, vdp\.mu"),
+    ]:
+        path.write_text(yaml.safe_dump({**spec, "parameters": parameters}))
+        with pytest.raises(DseError, match=message):
+            load_space(path)

@@ -75,7 +75,18 @@ def test_a_module_beside_the_spec_scores_on_the_workers_and_rank_and_report_do_n
         ("def overshoot(trajectory, scenario)\n    return 1\n", "scores.py: line 1: SyntaxError"),
         ("import numpy\n\nraise RuntimeError('no licence')\n", "scores.py: line 3: RuntimeError: no licence"),
         ("def other(trajectory, scenario):\n    return 1\n", "scores has no function 'overshoot'"),
+        (  # a signature the contract cannot call: refused as the spec loads, not in every task (issue 63)
+            "def overshoot(trajectory):\n    return 1\n",
+            "objectives.overshoot: objective 'scores:overshoot': overshoot(trajectory) cannot be called as "
+            + "an objective is, with (trajectory, scenario): too many positional arguments",
+        ),
+        (
+            "def overshoot(trajectory, scenario, limit):\n    return 1\n",
+            "overshoot(trajectory, scenario, limit) cannot be called as an objective is, with (trajectory, "
+            + "scenario): missing a required argument: 'limit'",
+        ),
     ],
+    ids=["syntax", "raises", "no-function", "one-argument", "three-arguments"],
 )
 def test_a_module_that_cannot_serve_is_one_line_naming_the_file(tmp_path, source, named):
     space = study(tmp_path, "tcp://127.0.0.1:1", source)  # refused before any cluster is reached
