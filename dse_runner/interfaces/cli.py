@@ -463,6 +463,7 @@ def submit(
         space = _load(spec, multimodel, coe).with_overrides(
             out, scheduler, workers, cluster, max_points, max_seconds
         )
+        _warn_unread_recordings(space)
         # after the spec is read: a bad one is named without waiting on Dask's and pandas' imports
         from ..simulation.scenario import dropouts, dropouts_line
         from ..sweeps.rank import rank, write_ranking
@@ -570,6 +571,15 @@ def _load(spec: Path, multimodel: Path | None, coe: Path | None):
     if multimodel is not None or coe is not None:
         raise DseError(f"--multimodel and --coe go with an INTO-CPS DSE config (NAME.dse.json), not {spec}")
     return load_space(spec)
+
+
+def _warn_unread_recordings(space) -> None:
+    """A space whose recordings no objective compares with: one warning line before the sweep starts."""
+    from ..sweeps.spec import unread_recordings
+
+    note = unread_recordings(space)
+    if note is not None:
+        typer.echo(f"warning: {note}", err=True)
 
 
 @app.command("convert-intocps")

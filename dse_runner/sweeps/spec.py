@@ -620,6 +620,23 @@ def _meant(name: str, options) -> str:
     return f"; did you mean {', '.join(close)}?" if close else ""
 
 
+def unread_recordings(space: Space) -> str | None:
+    """A warning for a space whose scenarios have recordings that none of its objectives reads (only
+    reductions): a comparison its author likely meant, which would otherwise be dropped without a word. A
+    kind that scores its own recording (field data) is left out, and so is a space with a function or a
+    script objective, which may read the recording itself."""
+    recorded = [s for s in space.scenarios if s.recorded is not None and not kind(s.kind).default_objectives]
+    if not recorded or not all(isinstance(o, objs.Reduce) for o in space.objectives.values()):
+        return None
+    names = ", ".join(s.name for s in recorded[:5]) + (f" and {len(recorded) - 5} more" * (len(recorded) > 5))
+    column = next(iter(recorded[0].recorded.columns))
+    return (
+        f"{space.path}: the recordings of scenario {names} are compared by no objective (the objectives, "
+        f"{', '.join(space.objectives)}, only reduce signals); compare a column with "
+        f"{{signal: inst.var, recorded: {column}, metric: rmse}}"
+    )
+
+
 def derived_space(space: Space, **update: Any) -> Space:
     """``space`` with its spec changed by ``update`` (another sweep's name, parameters, objectives), resolved
     and checked again, keeping its scenarios as they are: a diagnosis's views of its runs (a record's

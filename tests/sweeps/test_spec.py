@@ -341,3 +341,19 @@ def test_a_single_fmus_space_takes_bare_names_as_simulate_does(tmp_path):
         path.write_text(yaml.safe_dump({**spec, "parameters": parameters}))
         with pytest.raises(DseError, match=message):
             load_space(path)
+
+
+def test_a_space_whose_recordings_no_objective_reads_is_warned_of(tmp_path):
+    """``submit`` warns (one line, before the sweep) of recordings its objectives never compare with: a
+    comparison the author likely meant. A fit to one of them, or a function that may read it, silences it."""
+    from conftest import write_msd_search
+
+    from dse_runner.sweeps.spec import unread_recordings
+
+    peak = {"peak": {"signal": "msd.x", "reduce": "max"}}
+    space = load_space(write_msd_search(tmp_path / "a", {"strategy": "random"}, objectives=peak))
+    assert unread_recordings(space) == (
+        f"{space.path}: the recordings of scenario ringdown are compared by no objective (the objectives, "
+        "peak, only reduce signals); compare a column with {signal: inst.var, recorded: x, metric: rmse}"
+    )
+    assert unread_recordings(load_space(write_msd_search(tmp_path / "b", {"strategy": "random"}))) is None
