@@ -494,7 +494,7 @@ def test_the_bic_gate_and_the_order_of_effects():
 
 
 def test_fitted_error_is_equation_1_on_the_fitted_runs():
-    from dse_runner.cases.robotti_diagnosis.workflow import fitted_error
+    from dse_runner.cases.robotti_diagnosis.chain import fitted_error
 
     fit = FitResult(
         "x",

@@ -40,7 +40,7 @@ from ...simulation import signal_effects, state_limits
 from ...simulation.run import qualify
 from ...sweeps.cluster import connect
 from ...sweeps.domain import Point
-from ...sweeps.expand import key_of, wanted
+from ...sweeps.expand import key_of
 from ...sweeps.fit import FitProblem, FitResult, Parameter
 from ...sweeps.fit_rounds import evaluate_points, fit_all, residuals_in
 from ...sweeps.rank import rank
@@ -51,6 +51,7 @@ from . import explain, signal_claims, signal_figures, signal_locate, signal_repo
 from .derivative_discovery import observe
 from .derivative_discovery.library import model_exchange_instances
 from .explain import Candidate
+from .fitter import MAX_ITERATIONS, Fitter, label, round_report
 from .hypotheses import EffectParameter
 from .hypotheses import Hypothesis as LibraryHypothesis
 from .library import HypothesisLibrary, Messages, Request, space_with
@@ -63,7 +64,6 @@ from .validation import Validation, validated
 
 FITS = "diagnosis-signal-fits"  # the sweep every fit's rounds go to
 CALIBRATION_FITS = "diagnosis-calibration"  # the sweep the calibration's least squares goes to
-MAX_ITERATIONS = 30
 SCOUTING = 6  # iterations every start of a fit gets before only the best start of each effect goes on
 MAX_EFFECTS = 6  # the answer grows one effect at a time, while each pays its way, up to this many
 GROW_FINALISTS = 2  # sets of one more effect fitted on after scouting
@@ -437,7 +437,17 @@ def diagnose_space(
         unfreed = {**held, **{k: v for h in library.values() for k, v in h.absent().items()}}
         scales = {c.residuals: 1.0 / c.noise for c in compared}
         f = _Fits(
-            fits_space(space, compared, library), client, scales, library, base, unfreed, validation, say
+            space=fits_space(space, compared, library),
+            client=client,
+            base=base,
+            parameters=lambda h: library[h].parameters,
+            unfreed=unfreed,
+            validation=validation,
+            residuals=scales,
+            scored=list(scales),
+            score=lambda row: scaled_rms(row, scales),
+            say=say,
+            library=library,
         )
         sets, full = _singles(f)
         pairs, short = _screened_pairs(f, sets, full)
@@ -518,15 +528,6 @@ def diagnose_space(
     return diagnosis
 
 
-def _fit_report(say: Messages) -> Callable[[int, int, int, int], None]:
-    """The progress line of every round of a batch of fits."""
-
-    def report(round_: int, active: int, points: int, simulations: int) -> None:
-        say(f"fits: round {round_}, {active} active, {points} points, {simulations} simulations")
-
-    return report
-
-
 def _calibrated(
     space: Space, compared: Sequence[Compared], client, say: Messages
 ) -> tuple[tuple[Parameter, ...], dict[str, Any]]:
@@ -554,7 +555,7 @@ def _calibrated(
         names = tuple(s.name for s in space.scenarios)
         scales = {c.residuals: 1.0 / c.noise for c in compared}
         problem = FitProblem("calibration", base, held, names, MAX_ITERATIONS)
-        refined = fit_all(plain, [problem], client, scales, _fit_report(say))["calibration"]
+        refined = fit_all(plain, [problem], client, scales, round_report(say))["calibration"]
         if refined.error is None:
             # from the designs around it too: every hypothesis is judged against this model at its best, so
             # that none wins only by shaking a stuck calibration loose (a gain standing in for a mass)
@@ -572,57 +573,21 @@ def _calibrated(
 
 
 @dataclass
-class _Fits:
-    """What every fit of one diagnosis shares: the space the fits run in, its cluster and scales, the
-    library, the calibrated parameters each fit frees beside its effects', what it leaves fixed, and the
-    validation's folds. Each stage below asks it for its problems and their fits."""
+class _Fits(Fitter):
+    """The engine's fitter (fitter.py) with the signal library's hypotheses: their parameters, their terms
+    and the search charge a set of terms pays. Each stage below asks it for its problems and their fits."""
 
-    space: Space
-    client: Any
-    scales: dict[str, float]
-    library: dict[str, SignalHypothesis]
-    base: tuple[Parameter, ...]
-    unfreed: dict[str, Any]  # the space's single-valued parameters, and every effect at neutral
-    validation: Validation
-    say: Messages
+    library: dict[str, SignalHypothesis] = field(default_factory=dict)
 
     @property
-    def scenarios(self) -> tuple[str, ...]:
-        """What a fit on everything fits: a record's views are only for its folds."""
-        return self.validation.fitted
+    def scales(self) -> Mapping[str, float]:
+        """Each compared signal's residual column and its scale (1 over its recording's noise)."""
+        assert not isinstance(self.residuals, str)
+        return self.residuals
 
     @property
     def parts(self) -> list[list[str]]:
         return self.validation.tests
-
-    def problem(
-        self,
-        label: str,
-        names: tuple[str, ...],
-        on: tuple[str, ...],
-        start: Mapping[str, float] = {},
-        iterations: int = MAX_ITERATIONS,
-    ) -> FitProblem:
-        """The calibrated parameters and the effects ``names`` freed (from ``start`` where it says), fitted on
-        the scenarios ``on``."""
-        freed = tuple(
-            replace(p, start=start.get(p.name, p.start))
-            for p in (*self.base, *(p for n in names for p in self.library[n].parameters))
-        )
-        fixed = {k: v for k, v in self.unfreed.items() if k not in {p.name for p in freed}}
-        return FitProblem(label, freed, fixed, on, iterations)
-
-    def by_fold(self, ids: tuple[str, ...], start: Mapping[str, float]) -> list[FitProblem]:
-        return [
-            self.problem(f"{_label(ids)}/fold{k}", ids, fold.train, start)
-            for k, fold in enumerate(self.validation.folds)
-        ]
-
-    def fit(self, problems: list[FitProblem]) -> dict[str, FitResult]:
-        """Every problem fitted, all in the same rounds; by label."""
-        if not problems:
-            return {}
-        return fit_all(self.space, problems, self.client, self.scales, _fit_report(self.say))
 
     @property
     def terms(self) -> list[str]:
@@ -635,14 +600,6 @@ class _Fits:
         chosen = sum(1 for name in ids if self.library[name].term is not None)
         return Candidate(ids, fit, charge=explain.search_charge(len(self.terms), chosen))
 
-    def hold_out(self, candidates: list[Candidate], results: Mapping[str, FitResult]) -> None:
-        held_out(self.space, self.client, candidates, results, self.parts, self.scales)
-
-
-def _label(ids: tuple[str, ...]) -> str:
-    """A set of effects as its fits are named: ``none`` for the empty set."""
-    return "+".join(ids) or "none"
-
 
 def _singles(f: _Fits) -> tuple[list[tuple[str, ...]], dict[tuple[str, ...], FitResult]]:
     """No effect and each effect alone, fitted on every scenario: every start of an effect scouted for a few
@@ -654,7 +611,7 @@ def _singles(f: _Fits) -> tuple[list[tuple[str, ...]], dict[tuple[str, ...], Fit
         s: [library[s[0]].start(i) for i in range(len(library[s[0]].starts))] if s else [{}] for s in sets
     }
     tries = [
-        f.problem(f"{_label(s)}#{i}", s, f.scenarios, v, SCOUTING)
+        f.problem(f"{label(s)}#{i}", s, f.scenarios, v, SCOUTING)
         for s in sets
         for i, v in enumerate(starts[s])
     ]
@@ -664,17 +621,17 @@ def _singles(f: _Fits) -> tuple[list[tuple[str, ...]], dict[tuple[str, ...], Fit
     )
     tried = f.fit(tries)
     scouted = {
-        s: min((tried[f"{_label(s)}#{i}"] for i in range(len(starts[s]))), key=lambda fit: fit.sse)
+        s: min((tried[f"{label(s)}#{i}"] for i in range(len(starts[s]))), key=lambda fit: fit.sse)
         for s in sets
     }
     going = [
-        f.problem(_label(s), s, f.scenarios, fit.values, MAX_ITERATIONS - SCOUTING)
+        f.problem(label(s), s, f.scenarios, fit.values, MAX_ITERATIONS - SCOUTING)
         for s, fit in scouted.items()
         if not fit.converged
     ]
     f.say(f"going on from the best start: {len(going)} fits")
     went = f.fit(going)
-    return sets, {s: went.get(_label(s), fit) for s, fit in scouted.items()}
+    return sets, {s: went.get(label(s), fit) for s, fit in scouted.items()}
 
 
 def _screened_pairs(
@@ -688,8 +645,7 @@ def _screened_pairs(
         bounds = {p.name: p for p in (*f.base, *(p for h in f.library.values() for p in h.parameters))}
 
         def real_sse(points: list[Point]) -> list[float]:
-            only = [set(f.scenarios)] * len(points)  # a record's views are only for its folds
-            rows, _ = evaluate_points(f.space, points, f.client, list(f.scales), only)
+            rows = f.rows([(p, f.scenarios) for p in points])  # a record's views are only for its folds
             found = residuals_in(rows, f.scales)
             return [screen_sse(p, f.scenarios, found) for p in points]
 
@@ -807,7 +763,7 @@ def best_of(
     rows, _ = evaluate_points(space, list(points), client, list(scales), [set(scenarios)] * len(points))
     found = residuals_in(rows, scales)
     best = sorted(points, key=lambda point: screen_sse(point, scenarios, found))[:REFITTED]
-    report = _fit_report(say)
+    report = round_report(say)
     scouted = fit_all(
         space, [problem(f"#{k}", p, SCOUTING) for k, p in enumerate(best)], client, dict(scales), report
     )
@@ -838,13 +794,13 @@ def _recalibrated(f: _Fits, answer: Candidate, everything: list[Candidate]) -> C
         f"recalibrating {answer.label}: {len(points)} starts of the calibrated parameters, "
         "the effects in place"
     )
-    label = f"{answer.label}/recalibrated"
+    name = f"{answer.label}/recalibrated"
     fit = best_of(
         f.space,
         f.client,
         f.scales,
         points,
-        lambda tag, start, iterations: f.problem(f"{label}{tag}", answer.ids, f.scenarios, start, iterations),
+        lambda tag, start, iterations: f.problem(f"{name}{tag}", answer.ids, f.scenarios, start, iterations),
         f.scenarios,
         f.say,
     )
@@ -928,19 +884,19 @@ def _judge_members(f: _Fits, answer: Candidate, everything: list[Candidate]) -> 
     missing = [tuple(i for i in answer.ids if i != m) for m in answer.ids]
     f.say(f"judging each member of {answer.label}: {len(missing)} sets without one, fitted from its fit")
     fitted = f.fit(
-        [f.problem(f"{_label(x)}/judged", x, f.scenarios, dict(answer.full.values)) for x in missing]
+        [f.problem(f"{label(x)}/judged", x, f.scenarios, dict(answer.full.values)) for x in missing]
     )
     better = [
         x
         for x in missing
         if frozenset(x) not in known
         or not known[frozenset(x)].validated
-        or fitted[f"{_label(x)}/judged"].sse < known[frozenset(x)].full.sse * (1.0 - LOWER)
+        or fitted[f"{label(x)}/judged"].sse < known[frozenset(x)].full.sse * (1.0 - LOWER)
     ]
     if not better:
         return
-    folded = f.fit([p for x in better for p in f.by_fold(x, fitted[f"{_label(x)}/judged"].values)])
-    judged = [f.candidate(x, fitted[f"{_label(x)}/judged"]) for x in better]
+    folded = f.fit([p for x in better for p in f.by_fold(x, fitted[f"{label(x)}/judged"].values)])
+    judged = [f.candidate(x, fitted[f"{label(x)}/judged"]) for x in better]
     f.hold_out(judged, folded)
     replaced = {frozenset(x) for x in better}
     everything[:] = [c for c in everything if frozenset(c.ids) not in replaced] + judged
@@ -973,20 +929,20 @@ def _proven(f: _Fits, answer: Candidate, full: Mapping[tuple[str, ...], FitResul
             start = dict(fits[k].values)
             problems += [
                 f.problem(
-                    f"{_label(ids)}/proof{k}", ids, fold.train, {**start, **_joining(f, full, o)}, SCOUTING
+                    f"{label(ids)}/proof{k}", ids, fold.train, {**start, **_joining(f, full, o)}, SCOUTING
                 )
                 for o, ids in options[k].items()
             ]
         scouted = f.fit(problems)
         going = []
         for k in range(len(f.validation.folds)):
-            best = min(options[k].values(), key=lambda ids: explain.bic(scouted[f"{_label(ids)}/proof{k}"]))
+            best = min(options[k].values(), key=lambda ids: explain.bic(scouted[f"{label(ids)}/proof{k}"]))
             sets[k] = best
-            fit = scouted[f"{_label(best)}/proof{k}"]
+            fit = scouted[f"{label(best)}/proof{k}"]
             if not fit.converged:
                 going.append(
                     f.problem(
-                        f"{_label(best)}/proof{k}",
+                        f"{label(best)}/proof{k}",
                         best,
                         f.validation.folds[k].train,
                         fit.values,
@@ -995,14 +951,12 @@ def _proven(f: _Fits, answer: Candidate, full: Mapping[tuple[str, ...], FitResul
                 )
             fits[k] = fit
         went = f.fit(going)
-        fits = [went.get(f"{_label(sets[k])}/proof{k}", fit) for k, fit in enumerate(fits)]
+        fits = [went.get(f"{label(sets[k])}/proof{k}", fit) for k, fit in enumerate(fits)]
     proof.chosen = [tuple(i for i in ids if f.library[i].term is not None) for ids in sets]
-    requests = [(fit.point, fold.test) for fit, fold in zip(fits, f.validation.folds)]
-    points, only = wanted(requests)
-    rows, _ = evaluate_points(f.space, points, f.client, list(f.scales), only)
-    for fit, fold in zip(fits, f.validation.folds):
+    rows = f.rows([(fit.point, fold.test) for fit, fold in zip(fits, f.folds)])
+    for fit, fold in zip(fits, f.folds):
         for scenario in fold.test:
-            proof.held_out[scenario] = scaled_rms(rows.get((key_of(fit.point), scenario)), f.scales)
+            proof.held_out[scenario] = f.score(rows.get((key_of(fit.point), scenario)))
     f.say(
         f"proven: {proof.agree} of {len(fits)} folds chose {', '.join(terms)} again; held-out "
         f"{answer.cross_validated:.3g} as chosen on all data, {proof.error:.3g} as each fold chose"
@@ -1027,8 +981,8 @@ def _held_to_proof(
     without = baseline if not rest else _validated(everything, rest)
     if without is None:
         f.say(f"judging {', '.join(proof.terms)}: the answer without them, fitted from its fit")
-        label = f"{_label(rest)}/judged"
-        fit = f.fit([f.problem(label, rest, f.scenarios, dict(chosen.full.values))])[label]
+        name = f"{label(rest)}/judged"
+        fit = f.fit([f.problem(name, rest, f.scenarios, dict(chosen.full.values))])[name]
         without = f.candidate(rest, fit)
         f.hold_out([without], f.fit(f.by_fold(rest, fit.values)))
         everything.append(without)
@@ -1087,7 +1041,7 @@ def _decided(
         if known is None:
             f.say(f"deciding {member} against its look-alike {rival}")
             start = {**chosen.full.values, **_joining(f, full, rival)}
-            fit = f.fit([f.problem(_label(ids), ids, f.scenarios, start)])[_label(ids)]
+            fit = f.fit([f.problem(label(ids), ids, f.scenarios, start)])[label(ids)]
             known = f.candidate(ids, fit)
             f.hold_out([known], f.fit(f.by_fold(ids, fit.values)))
             everything.append(known)
@@ -1176,34 +1130,6 @@ def located_residuals(
                     )
                 )
     return found
-
-
-def held_out(
-    space: Space,
-    client,
-    candidates: list[Candidate],
-    results: Mapping[str, FitResult],
-    parts: list[list[str]],
-    scales: Mapping[str, float],
-) -> None:
-    """Each candidate's error on every scenario its fold's fit did not see (all in one sweep), as the RMS of
-    the noise-scaled residuals; with one scenario, its fitted error (no cross-validation possible)."""
-    if not parts:
-        for c in candidates:
-            c.held_out = {"fitted": explain.fitted_rms(c.full)}
-        return
-    requests = [
-        (results[f"{c.label}/fold{k}"].point, fold) for c in candidates for k, fold in enumerate(parts)
-    ]
-    points, only = wanted(requests)
-    rows, _ = evaluate_points(space, points, client, list(scales), only)
-    for c in candidates:
-        for k, fold in enumerate(parts):
-            fit = results[f"{c.label}/fold{k}"]
-            c.folds.append(fit)
-            for scenario in fold:
-                row = rows.get((key_of(fit.point), scenario))
-                c.held_out[scenario] = scaled_rms(row, scales)
 
 
 def scaled_rms(row: Mapping[str, Any] | None, scales: Mapping[str, float]) -> float:

@@ -8,20 +8,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from ...analysis.diagnose import explain
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.library import space_with
 from ...analysis.diagnose.validation import Validation, validated
 from ...simulation.scenario import dropouts
 from ...sweeps.cluster import connect
-from ...sweeps.fit import FitResult
 from ...sweeps.rank import rank
 from ...sweeps.spec import Space
 from ...sweeps.sweep import submit, trajectories_of
 from . import correction, discover, locate, lookalike, noise, screen
-from .chain import Chain, DiagnosisMessages
+from .chain import Chain, DiagnosisMessages, fitted_error
 from .model_files import base_parameters, fits_space, steering_source, vehicle_of, write_model
 from .noise import NoiseFloor
 from .outcome import Diagnosis, DiagnosisSettings
@@ -39,14 +36,6 @@ def recorded(space: Space, validation: Validation) -> Space:
     residuals are located on, look-alikes weighed on and discovery observes."""
     runs = [s for s in space.scenarios if s.name in validation.fitted]
     return Space(space.spec, space.path, space.plan, runs, space.distributions, space.draws)
-
-
-def fitted_error(fit: FitResult) -> float:
-    """Equation 1 on the runs the fit saw (the mean distance at each run's fixes, averaged over runs), from
-    its residuals (x offsets, then y offsets: fielddata.fix_residuals). The same units as held-out error
-    and the noise floor, at no cost: optimistic, but by little with a few parameters and many fixes."""
-    runs = [np.hypot(*np.split(r, 2)).mean() for r in fit.residuals if len(r) >= 2 and len(r) % 2 == 0]
-    return float(np.mean(runs)) if runs else math.inf
 
 
 def worth_screening(candidates: list[Candidate], floor: float | None, settings: DiagnosisSettings) -> bool:
@@ -69,7 +58,8 @@ def screen_combinations(chain: Chain, candidates: list[Candidate]) -> list[scree
     entries = screen.catalogue(chain.base, chain.vehicle, ids)
     pairs = len(ids) * (len(ids) - 1) // 2
     chain.say(f"screening {pairs} pair{'s' * (pairs != 1)} from {', '.join(a.fit.label for a in anchors)}")
-    return screen.screen(anchors, ids, entries, chain.all, chain.evaluate, triples=settings.max_effects >= 3)
+    triples = settings.max_effects >= 3
+    return screen.screen(anchors, ids, entries, chain.scenarios, chain.evaluate, triples=triples)
 
 
 @dataclass
@@ -99,21 +89,22 @@ def choose(chain: Chain, start: dict[str, float], floor: float | None = None) ->
             "no combination screened: a fit is already within "
             f"{settings.floor_stop:g}x the noise floor, or the settings allow one effect at a time"
         )
-    problems = [p for c in candidates for p in chain.by_fold(c)] + [chain.full(x.ids, x.start) for x in short]
+    folds = [p for c in candidates for p in chain.by_fold(c.ids, c.full.values)]
+    problems = folds + [chain.full(x.ids, x.start) for x in short]
     fits = chain.fit(
         problems, "cross-validating" + (f" and fitting {len(short)} combinations" if short else "")
     )
-    chain.score(candidates, fits)
+    chain.hold_out(candidates, fits)
     baseline = next(c for c in candidates if not c.ids)
     current = explain.select(candidates, baseline, settings.min_gain, settings.bic_margin)
     combinations = [Candidate(x.ids, fits[x.label]) for x in short]
     everything = candidates + combinations
     survivors = explain.bic_gate(combinations, everything, current, settings.bic_margin, settings.survivors)
     if survivors:
-        chain.score(
+        chain.hold_out(
             survivors,
             chain.fit(
-                [p for c in survivors for p in chain.by_fold(c)],
+                [p for c in survivors for p in chain.by_fold(c.ids, c.full.values)],
                 f"cross-validating {', '.join(c.label for c in survivors)}",
             ),
         )
@@ -226,7 +217,7 @@ def _diagnose(
     base = base_parameters(calibration, grid.best)
     space, validation = validated(fits_space(calibration, vehicle, out), settings.folds, list(FIX_COLUMNS))
     say(validation.text)
-    chain = Chain(space, vehicle, base, client, settings, say, validation)
+    chain = Chain.for_vehicle(space, vehicle, base, client, settings, say, validation)
     space = recorded(space, validation)  # the runs themselves: what is located, weighed and observed
     choice = choose(chain, {p.name: p.start for p in base}, floor.cross_track if floor.available else None)
     baseline = next(c for c in choice.candidates if not c.ids)

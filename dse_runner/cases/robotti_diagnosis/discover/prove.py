@@ -224,16 +224,17 @@ def discover(
 
     # Every proposal, from every run and from each fold's training runs (so the held-out error does not
     # leak the choice of terms), then ranked on positions at its parent, all in one sweep.
-    raw = {ids: proposal(parent.full, chain.all) for ids, parent in parents.items()}
+    raw = {ids: proposal(parent.full, chain.scenarios) for ids, parent in parents.items()}
     rms = {k: v for p in raw.values() for k, v in p.rms.items()}
     bounds = {
         ids: {
-            p.name: (p.lower, p.upper) for p in chain.problem("", library_ids(ids), {}, chain.all).parameters
+            p.name: (p.lower, p.upper)
+            for p in chain.problem("", library_ids(ids), chain.scenarios).parameters
         }
         for ids in parents
     }
     jobs_ = {
-        ("+".join(ids), -1): Screen(parent.full, chain.all, raw[ids], bounds[ids])
+        ("+".join(ids), -1): Screen(parent.full, chain.scenarios, raw[ids], bounds[ids])
         for ids, parent in parents.items()
     }
     for ids in parents:
@@ -256,7 +257,7 @@ def discover(
         chain.say(f"discovery: proposed for {'+'.join(ids)}: " + "; ".join(proposals[ids].readable()))
 
     def full_problem(ids: tuple[str, ...], terms: Mapping[str, float]) -> FitProblem:
-        base = chain.problem("+".join(ids), library_ids(ids), dict(parents[ids].full.values), chain.all)
+        base = chain.problem("+".join(ids), library_ids(ids), chain.scenarios, dict(parents[ids].full.values))
         return with_terms(base, vehicle, terms, {}, rms, proposals[ids].shapes)
 
     settled = settle(
@@ -288,7 +289,7 @@ def discover(
                 shapes: Mapping[str, float] = mine.shapes,
             ) -> FitProblem:
                 base = chain.problem(
-                    label, library_ids(c.ids), {**parent_fold(c.ids, k).values, **c.full.values}, training(k)
+                    label, library_ids(c.ids), training(k), {**parent_fold(c.ids, k).values, **c.full.values}
                 )
                 return with_terms(base, vehicle, terms, c.full.values, rms, shapes)
 
@@ -307,7 +308,7 @@ def discover(
     for entry in result.folds:
         fit = fold_fits.get(f"{entry['set']}/fold{entry['fold']}")
         entry["kept"] = fitted_terms(fit) if fit is not None else {}
-    chain.score(fitted, {**copies, **fold_fits})
+    chain.hold_out(fitted, {**copies, **fold_fits})
     result.candidates = fitted
     result.proofs = {c.label: proof_of(c, result.folds) for c in fitted}
     result.margin = charged(settings.bic_margin, max(len(fitted_terms(c.full)) for c in fitted))

@@ -22,24 +22,35 @@ DISCOVERED = "discovered"  # the id a discovered correction takes among a candid
 
 
 class Fitter(Protocol):
-    """What discovery needs from the chain (diagnose.Chain): problems, lockstep
-    fits, held-out scoring, residuals."""
+    """What discovery needs from the chain (chain.Chain, the engine's fitter): problems, lockstep fits,
+    held-out scoring, residuals."""
 
     vehicle: str
-    folds: list[Fold]
-    all: tuple[str, ...]
     settings: Any
     say: Callable[[str], None]
 
+    @property
+    def folds(self) -> list[Fold]: ...
+
+    @property
+    def scenarios(self) -> tuple[str, ...]: ...
+
     def problem(
-        self, label: str, ids: tuple[str, ...], start: dict[str, float], scenarios: tuple[str, ...]
+        self,
+        name: str,
+        ids: Sequence[str],
+        on: Sequence[str],
+        start: Mapping[str, float] = {},
+        iterations: int | None = None,
     ) -> FitProblem: ...
 
-    def fit(self, problems: list[FitProblem], what: str) -> dict[str, FitResult]: ...
+    def fit(self, problems: list[FitProblem], what: str = "fits") -> dict[str, FitResult]: ...
 
-    def score(self, candidates: list[Candidate], fits: dict[str, FitResult]) -> None: ...
+    def hold_out(self, candidates: Sequence[Candidate], results: Mapping[str, FitResult]) -> None: ...
 
-    def evaluate(self, points: list[Point]) -> Residuals: ...
+    def evaluate(
+        self, points: list[Point], scenarios: Sequence[Sequence[str]] | None = None
+    ) -> Residuals: ...
 
 
 def searched_count() -> int:

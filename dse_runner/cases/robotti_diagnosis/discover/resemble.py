@@ -59,7 +59,7 @@ def resembles(chain: Fitter, chosen: Candidate) -> list[tuple[str, float]]:
     residuals = chain.evaluate([point, off, *probes])
 
     def stacked(pt: Point) -> np.ndarray | None:
-        found = [residuals(pt, s) for s in chain.all]
+        found = [residuals(pt, s) for s in chain.scenarios]
         return None if any(r is None for r in found) else np.concatenate(found)
 
     with_, without = stacked(point), stacked(off)
