@@ -369,14 +369,8 @@ def _print_table1(ranking) -> None:
     from ..sweeps.rank import format_point, table1_scope
 
     typer.echo(f"Table 1: {ranking.objective} per scenario ({table1_scope(ranking)})")
-    width = max([14, *(len(s) + 1 for s in ranking.table1["scenario"])])  # names of variants run long
-    figures = "".join(f"{heads[c]:>9}" for c in ("min_error", "max_error", "average_error", "computed"))
-    typer.echo(f"  {'scenario':<{width}}{figures}{heads['difference']:>12}")
-    for row in ranking.table1.itertuples():
-        typer.echo(
-            f"  {row.scenario:<{width}}{row.min_error:9.3f}{row.max_error:9.3f}{row.average_error:9.3f}"
-            f"{row.computed:9.3f}{row.difference:+12.3f}"
-        )
+    for line in table1_lines(ranking.table1, heads):
+        typer.echo(f"  {line}")
     typer.echo(f"best: {format_point(ranking.best)}  ({ranking.ranked_label} {ranking.best_total:.3f})")
     if ranking.stopped_points:
         typer.echo(
@@ -385,6 +379,32 @@ def _print_table1(ranking) -> None:
         )
     if ranking.uncertainty is not None:
         _print_draws(ranking)
+
+
+# Table 1's figure columns: each one's format and narrowest width. Values that need more widen their column,
+# so that two never run together (300.000 beside 86400.000).
+TABLE1_FIGURES = {
+    "min_error": (".3f", 9),
+    "max_error": (".3f", 9),
+    "average_error": (".3f", 9),
+    "computed": (".3f", 9),
+    "difference": ("+.3f", 12),
+}
+
+
+def table1_lines(table1, heads: dict[str, str]) -> list[str]:
+    """Table 1 as text, the scenario left and the figures right, each column two spaces wider than its widest
+    value or heading (and no narrower than for the usual values)."""
+    cells = {c: [format(v, spec) for v in table1[c]] for c, (spec, _) in TABLE1_FIGURES.items()}
+    widths = {
+        c: max([least, len(heads[c]) + 2, *(len(text) + 2 for text in cells[c])])
+        for c, (_, least) in TABLE1_FIGURES.items()
+    }
+    width = max([14, *(len(s) + 1 for s in table1["scenario"])])  # names of variants run long
+    lines = ["scenario".ljust(width) + "".join(heads[c].rjust(widths[c]) for c in TABLE1_FIGURES)]
+    for i, scenario in enumerate(table1["scenario"]):
+        lines.append(scenario.ljust(width) + "".join(cells[c][i].rjust(widths[c]) for c in TABLE1_FIGURES))
+    return lines
 
 
 def _print_draws(ranking) -> None:
@@ -442,7 +462,12 @@ def submit(
             "or a plugin's (overrides the spec)."
         ),
     ] = None,
-    dashboard: Annotated[bool, typer.Option(help="Serve the live dashboard while the sweep runs.")] = True,
+    dashboard: Annotated[
+        bool,
+        typer.Option(
+            help="Serve the live dashboard while the sweep runs (--no-dashboard: print no dashboard address)."
+        ),
+    ] = True,
     dashboard_address: DashboardAddress = "127.0.0.1:0",
     max_points: Annotated[
         int | None,
@@ -471,7 +496,7 @@ def submit(
 
         if dashboard:
             board = _start_dashboard(space, dashboard_address)
-        with SweepProgressBar() as progress:
+        with SweepProgressBar(dask_link=dashboard) as progress:
             report = run_sweep(space, progress=progress, on_connect=board.link if board else None)
     except DseError as e:
         fail(e)
@@ -714,9 +739,10 @@ def report_command(
 
 class SweepProgressBar:
     """A sweep's progress (sweep.SweepProgress) as a terminal bar with rate and ETA, on stderr so --json
-    output stays clean."""
+    output stays clean; first the address of Dask's dashboard, unless ``dask_link`` is false (--no-dashboard:
+    no dashboard address is printed)."""
 
-    def __init__(self) -> None:
+    def __init__(self, dask_link: bool = True) -> None:
         from rich.console import Console
         from rich.progress import (
             BarColumn,
@@ -740,6 +766,7 @@ class SweepProgressBar:
             transient=False,
         )
         self.task = None
+        self.dask_link = dask_link
 
     def __enter__(self):
         self.bar.__enter__()
@@ -750,7 +777,7 @@ class SweepProgressBar:
 
     def __call__(self, report: SweepReport) -> None:
         if self.task is None:
-            if report.dashboard:
+            if report.dashboard and self.dask_link:
                 self.bar.console.print(f"Dask dashboard: {report.dashboard}")
             self.task = self.bar.add_task(
                 report.sweep, total=report.total - report.skipped, rate="-", failed=0

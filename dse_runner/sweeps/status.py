@@ -124,8 +124,11 @@ def save_status(report: SweepReport, kept: SweepReport | None = None) -> None:
     """Save ``report`` as the sweep's status; or, if it finished without running a task (every task was
     done), ``kept``, the status found when it started, if that finished submission ran tasks: the
     status, and the report's summary, stay those of the run that made the rows, not of a
-    resubmission that had nothing to do."""
+    resubmission that had nothing to do. A submission that has ended runs nothing: its workers are saved
+    with no task running, whatever the last sample of them, up to a second old, said."""
     report.updated_at = time.time()
+    if report.state != "running":
+        report.activity = [w.model_copy(update={"executing": 0}) for w in report.activity]
     noop = report.state == "finished" and not report.ran
     shown = kept if noop and kept is not None and kept.state == "finished" and kept.ran else report
     store.write_text(report.output, f"{report.sweep}.{STATUS_FILE}", shown.model_dump_json(indent=1))

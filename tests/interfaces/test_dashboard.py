@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import REPO, SCENARIOS, strict_loads, write_space
+from conftest import REPO, SCENARIOS, sleeper_multimodel, strict_loads, write_space
 from support.pages import browser_page, glyphs, measure, open_dashboard, watch_errors
 
 SWEEP_SCENARIOS = ["sin1", "speed_ramp1", "speed_step1", "turn_ramp1"]
@@ -54,6 +54,11 @@ class Watched:
 
 def _text(page, element: str) -> str:
     return page.locator(f"#dse-{element}").inner_text()
+
+
+def _running(page) -> list[str]:
+    """The workers table's "running" column (worker, threads, running, CPU %, memory)."""
+    return page.locator("#dse-workers tbody tr td:nth-child(3)").all_inner_texts()
 
 
 @pytest.fixture(scope="module")
@@ -371,6 +376,51 @@ def test_dashboard_command_serves_a_finished_sweep_and_its_page_outlives_it_with
             assert banner == 1 and said == ""
 
 
+def test_the_workers_table_of_a_finished_sweep_shows_no_running_task(tmp_path, dask_scheduler):
+    """Two tasks of the sleeper (1.7 s of sleep each) start together on the cluster's two workers and end
+    within a second of each other. The workers are sampled at most once a second, so the last sample, taken as
+    the first task ended, still has the other running: the page showed it so while the sweep ran, and, once it
+    has finished, shows both workers with nothing running."""
+    from distributed import Client
+
+    from dse_runner.interfaces.dashboard.server import serve
+    from dse_runner.sweeps.spec import load_space
+    from dse_runner.sweeps.status import load_status
+    from dse_runner.sweeps.sweep import submit
+
+    space = load_space(
+        write_space(
+            tmp_path,
+            multimodel=str(sleeper_multimodel(tmp_path)),
+            scenarios=[str(SCENARIOS / "sin1")],
+            parameters={"sleeper.pause": [0.001, 0.00101]},
+            keep_trajectories=0,
+            chunk_seconds=0.05,
+        )
+    )
+    server = serve(space.output, space.name, "127.0.0.1:0", space)
+    outcome: dict = {}
+    seen: list[list[str]] = []
+    errors: list[str] = []
+    with Client(dask_scheduler) as client, browser_page(errors) as page:
+        open_dashboard(page, server.url)
+        sweep = threading.Thread(target=lambda: outcome.update(report=submit(space, client=client)))
+        sweep.start()
+        while sweep.is_alive():
+            seen.append(_running(page))
+            time.sleep(0.5)
+        sweep.join()
+        deadline = time.monotonic() + 15
+        while time.monotonic() < deadline and _text(page, "state") != "finished":
+            time.sleep(0.25)
+        final = _running(page)
+    server.stop()
+    assert outcome["report"].ok == 2 and errors == []
+    assert any(int(n) > 0 for column in seen for n in column), seen
+    assert final == ["0", "0"], final
+    assert [w.executing for w in load_status(space.output, space.name).activity] == [0, 0]
+
+
 def test_the_pages_html_shows_the_counts_before_any_script(watched):
     """A large study's page takes seconds to draw (BokehJS loads, pulls the document, draws it):
     the counts are in the HTML the server answers with, ahead of BokehJS's scripts, so a
@@ -553,7 +603,42 @@ def test_submit_prints_the_dashboard_url_and_its_dask_link(tmp_path, dask_schedu
     assert strict_loads(shown.stdout)["ok"] == 12  # stdout stays one JSON object
     assert re.search(r"dse-runner dashboard: http://127\.0\.0\.1:\d+/", shown.stderr), shown.stderr
     assert re.search(r"linked from Dask's dashboard: http://\S+/dse-runner", shown.stderr), shown.stderr
-    quiet = subprocess.run(
-        [*command, "--no-dashboard"], check=False, capture_output=True, text=True, timeout=300
+
+
+def test_submit_without_dashboard_prints_no_address_and_keeps_table1s_columns_apart(tmp_path, dask_scheduler):
+    """--no-dashboard: no address of ours or of Dask's, though the sweep runs on a scheduler that serves one.
+    Its objective is the mean distance from x = -100 km, five or six figures before the decimal point:
+    Table 1's columns widen to them, and each row still reads back as six fields."""
+    space = write_space(
+        tmp_path,
+        keep_trajectories=0,
+        objectives={"far": {"signal": "vehicle.x", "reduce": "mean", "target": -100000}},
+        ranking={"objective": "far"},
     )
-    assert quiet.returncode == 0 and "dashboard:" not in quiet.stderr
+    quiet = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "dse_runner",
+            "submit",
+            str(space),
+            "--scheduler",
+            dask_scheduler,
+            "--no-dashboard",
+        ],
+        check=False,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert quiet.returncode == 0, quiet.stderr
+    assert "ran 12 simulations (0 failed)" in quiet.stdout
+    assert "http" not in quiet.stderr + quiet.stdout, quiet.stderr
+    lines = quiet.stdout.splitlines()
+    table = lines[lines.index(next(line for line in lines if line.startswith("Table 1: "))) + 1 :][:3]
+    assert table[0].split() == ["scenario", "min", "max", "average", "best", "difference"]
+    for line in table[1:]:
+        scenario, *figures = line.split()
+        assert scenario in ("sin1", "speed_step2") and len(figures) == 5, line
+        assert all(10000 < float(f) < 1000000 for f in figures[:4]), line
+    assert len({len(line) for line in table}) == 1, table  # right-aligned: every line ends at the same column
