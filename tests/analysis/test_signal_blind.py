@@ -60,6 +60,8 @@ def test_a_concealed_effect_or_pair_is_named_with_intervals_covering_the_truth(
         pairs = found["case"]["pairs"]
         assert pairs["predicted"] > len(pairs["screened"]) >= len(pairs["fitted"])
     assert (tmp_path / "out" / "diagnosis-report.md").is_file()
+    page = (tmp_path / "out" / "diagnosis.html").read_text()  # the same report as one page, figures inside
+    assert page.count("data:image/png;base64,") == len(found["files"]["figures"]) > 0
     _replays(found, tmp_path)
 
 

@@ -191,6 +191,7 @@ def test_report_and_figures_are_written(cases):
     assert "antenna_offset" in text
     for name in ("figure_residuals", "figure_tracks", "figure_held_out"):
         assert result.files[name].stat().st_size > 10_000
+    assert result.files["html"].read_text().count("data:image/png;base64,") >= 3  # one page, figures inside
     saved = strict_loads((result.out / "report" / "diagnosis.json").read_text())
     assert saved["effects"][0]["id"] == "antenna_offset"
     assert "**Verdict: explained.**" in text and "### Noise floor" in text and "overstates" in text

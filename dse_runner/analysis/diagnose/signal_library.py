@@ -264,7 +264,9 @@ class SignalDiagnosis:
         )
         if found["files"]:
             lines.extend(
-                f"{name}: {found['files'][name]}" for name in ("report", "values") if name in found["files"]
+                f"{name}: {found['files'][name]}"
+                for name in ("report", "html", "values")
+                if name in found["files"]
             )
         return lines
 

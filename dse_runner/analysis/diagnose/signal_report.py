@@ -12,6 +12,7 @@ from typing import Any
 
 from ... import strict_json
 from ...simulation.values import write_values
+from . import report_html
 
 REPORT, SUMMARY, VALUES = "diagnosis-report.md", "diagnosis.json", "diagnosed-values.yaml"
 
@@ -209,7 +210,12 @@ def write(
     ``dse-runner simulate MODEL --scenario … --values diagnosed-values.yaml``. ``figures`` (inside ``folder``)
     are shown in the report and listed in the JSON."""
     folder.mkdir(parents=True, exist_ok=True)
-    files = {"report": folder / REPORT, "json": folder / SUMMARY, "values": folder / VALUES}
+    files = {
+        "report": folder / REPORT,
+        "html": folder / report_html.PAGE,
+        "json": folder / SUMMARY,
+        "values": folder / VALUES,
+    }
     found = {
         **found,
         "files": {
@@ -223,6 +229,7 @@ def write(
             f"![{f.stem}]({f.relative_to(folder).as_posix()})\n\n" for f in figures
         )
     files["report"].write_text(text)
+    files["html"] = report_html.write(files["report"], f"Diagnosis of {title}")
     files["json"].write_text(strict_json.dumps(found))
     write_values(
         files["values"],

@@ -249,7 +249,9 @@ class Diagnosis:
         if self.dropouts:
             lines.append(dropouts_line(self.dropouts))
         lines.extend(
-            f"{name}: {self.files[name]}" for name in ("multimodel", "space", "report") if name in self.files
+            f"{name}: {self.files[name]}"
+            for name in ("multimodel", "space", "report", "html")
+            if name in self.files
         )
         return lines
 
@@ -315,6 +317,7 @@ class Diagnosis:
                 ],
                 "discovery": discovery.to_json() if discovery is not None else None,
                 "dropouts": self.dropouts,
+                "located": self.located,  # where the residuals lie, by group, segment and run (report.py)
             },
         )
 

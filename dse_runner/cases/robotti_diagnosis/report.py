@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from ... import strict_json
-from ...analysis.diagnose import explain
+from ...analysis.diagnose import explain, report_html
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.findings import DiscoveredCorrection
 from ...analysis.diagnose.validation import record_of
@@ -226,10 +226,11 @@ def write(
     )
     report = folder / "report.md"
     report.write_text(text)
-    files = {"report": report, **{f"figure_{k}": p for k, p in figures.items()}}
+    page = report_html.write(report, f"Diagnosis of {diagnosis.calibration['sweep']}")
+    files = {"report": report, "html": page, **{f"figure_{k}": p for k, p in figures.items()}}
     diagnosis.files.update(files)
     summary = folder / "diagnosis.json"
-    summary.write_text(strict_json.dumps(diagnosis.to_json() | {"located": diagnosis.located}))
+    summary.write_text(strict_json.dumps(diagnosis.to_json()))
     return {**files, "json": summary}
 
 
