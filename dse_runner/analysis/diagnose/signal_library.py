@@ -24,15 +24,13 @@ member against its look-alike across the model's skin, the noise rule and the li
 
 from __future__ import annotations
 
-import itertools
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.stats import qmc
 
 from ...errors import DseError
 from ...simulation import objectives as objs
@@ -50,8 +48,23 @@ from . import answer as answer_
 from . import explain, signal_claims, signal_figures, signal_locate, signal_report, signal_screen
 from .derivative_discovery import observe
 from .derivative_discovery.library import model_exchange_instances
+from .engine import (
+    REFITTED,
+    Fits,
+    best_of,
+    cross_validated,
+    fitted_set,
+    grown,
+    held_to_proof,
+    joining,
+    judge_members,
+    proven,
+    restarts,
+    screen_sse,
+    singles,
+)
 from .explain import Candidate
-from .fitter import MAX_ITERATIONS, Fitter, label, round_report
+from .fitter import MAX_ITERATIONS, label, round_report
 from .hypotheses import EffectParameter
 from .hypotheses import Hypothesis as LibraryHypothesis
 from .library import HypothesisLibrary, Messages, Request, space_with
@@ -64,15 +77,9 @@ from .validation import Validation, validated
 
 FITS = "diagnosis-signal-fits"  # the sweep every fit's rounds go to
 CALIBRATION_FITS = "diagnosis-calibration"  # the sweep the calibration's least squares goes to
-SCOUTING = 6  # iterations every start of a fit gets before only the best start of each effect goes on
-MAX_EFFECTS = 6  # the answer grows one effect at a time, while each pays its way, up to this many
-GROW_FINALISTS = 2  # sets of one more effect fitted on after scouting
-LOWER = 1e-3  # a refit replaces an earlier fit of the same set when its SSE is lower by this share
-RESTARTS = 64  # starts of the calibrated parameters the answer is refitted from (the calibration's design)
 DIFFERENCE = 0.001  # a calibrated parameter's finite-difference step, as a share of its range: over a long
 # record of an oscillation a step of a percent moves the phase by a good part of a cycle, and the Jacobian
 # it measures is no slope at all
-REFITTED = 16  # ... of which the best few by their misfit are fitted, SCOUTING iterations each
 
 
 @dataclass(frozen=True)
@@ -366,26 +373,10 @@ def fits_space(
     )
 
 
-SURVIVORS = 2  # pairs that pass the BIC gate and are cross-validated, at most
-
-
 def worth_pairing(singles: Sequence[FitResult], floor_stop: float = explain.FLOOR_STOP) -> bool:
     """Whether pairs could still explain something: not when a single already fits to within ``floor_stop``
     noise floors on the runs it saw."""
     return len(singles) >= 2 and min(explain.fitted_rms(f) for f in singles) > floor_stop
-
-
-def gated_early(
-    short: Sequence[signal_screen.ScreenedPair],
-    full: Mapping[tuple[str, ...], FitResult],
-    count: int,
-    margin: float = explain.BIC_MARGIN,
-) -> list[signal_screen.ScreenedPair]:
-    """The screened pairs sure to pass explain.bic_gate whatever the singles' cross-validation chooses:
-    their checked BIC (which their fit can only lower) is ``margin`` below every single's and none's."""
-    lowest = min(explain.bic(f) for f in full.values())
-    sure = [x for x in short if x.bic <= lowest - margin]
-    return sorted(sure, key=lambda x: x.bic)[:count]
 
 
 @dataclass
@@ -438,7 +429,7 @@ def diagnose_space(
         # what a fit does not free: the space's single-valued parameters, and every other effect at neutral
         unfreed = {**held, **{k: v for h in library.values() for k, v in h.absent().items()}}
         scales = {c.residuals: 1.0 / c.noise for c in compared}
-        f = _Fits(
+        f = Fits(
             space=fits_space(space, compared, library),
             client=client,
             base=base,
@@ -450,16 +441,17 @@ def diagnose_space(
             score=lambda row: scaled_rms(row, scales),
             say=say,
             library=library,
+            shares=lambda a, b: shares(library[a], library[b]),
         )
-        sets, full = _singles(f)
+        sets, full = singles(f)
         pairs, short = _screened_pairs(f, sets, full)
-        baseline, everything = _cross_validated(f, sets, full, short)
-        selected, growth = _grown(f, explain.select(everything[1:], baseline), full, everything, noise_factor)
+        baseline, everything = cross_validated(f, sets, full, short)
+        selected, growth = grown(f, explain.select(everything[1:], baseline), full, everything, noise_factor)
         selected, decided = _decided(f, selected, full, everything)
         chosen, dropped = explain.claimed(selected, everything, baseline)
         chosen = _reached(f, chosen, everything, compared, dropped)
-        proof = _proven(f, chosen, full)
-        chosen = _held_to_proof(f, chosen, proof, everything, baseline, dropped)
+        proof = proven(f, chosen, full)
+        chosen = held_to_proof(f, chosen, proof, everything, baseline, dropped)
         proof = proof if proof is not None and set(proof.terms) <= set(chosen.ids) else None
         decided = [
             d for d in decided if d.winner in chosen.ids
@@ -574,70 +566,8 @@ def _calibrated(
     return base, held
 
 
-@dataclass
-class _Fits(Fitter):
-    """The engine's fitter (fitter.py) with the signal library's hypotheses: their parameters, their terms
-    and the search charge a set of terms pays. Each stage below asks it for its problems and their fits."""
-
-    library: dict[str, SignalHypothesis] = field(default_factory=dict)
-
-    @property
-    def scales(self) -> Mapping[str, float]:
-        """Each compared signal's residual column and its scale (1 over its recording's noise)."""
-        assert not isinstance(self.residuals, str)
-        return self.residuals
-
-    @property
-    def parts(self) -> list[list[str]]:
-        return self.validation.tests
-
-    @property
-    def terms(self) -> list[str]:
-        """The terms inside the model the library offers, by name."""
-        return [name for name, h in self.library.items() if h.term is not None]
-
-    def candidate(self, ids: tuple[str, ...], fit: FitResult) -> Candidate:
-        """A fitted set as a candidate, charged for the search of the terms inside the model it chose among
-        every term offered (explain.search_charge); the signal effects are a short list named beforehand."""
-        chosen = sum(1 for name in ids if self.library[name].term is not None)
-        return Candidate(ids, fit, charge=explain.search_charge(len(self.terms), chosen))
-
-
-def _singles(f: _Fits) -> tuple[list[tuple[str, ...]], dict[tuple[str, ...], FitResult]]:
-    """No effect and each effect alone, fitted on every scenario: every start of an effect scouted for a few
-    iterations, then only the best start of each fitted on (after a few iterations each start is in its
-    basin)."""
-    library = f.library
-    sets = [(), *((name,) for name in library)]
-    starts = {
-        s: [library[s[0]].start(i) for i in range(len(library[s[0]].starts))] if s else [{}] for s in sets
-    }
-    tries = [
-        f.problem(f"{label(s)}#{i}", s, f.scenarios, v, SCOUTING)
-        for s in sets
-        for i, v in enumerate(starts[s])
-    ]
-    f.say(
-        f"fitting {len(sets) - 1} effects and none on every scenario: {len(tries)} fits, "
-        f"{SCOUTING} iterations from every start"
-    )
-    tried = f.fit(tries)
-    scouted = {
-        s: min((tried[f"{label(s)}#{i}"] for i in range(len(starts[s]))), key=lambda fit: fit.sse)
-        for s in sets
-    }
-    going = [
-        f.problem(label(s), s, f.scenarios, fit.values, MAX_ITERATIONS - SCOUTING)
-        for s, fit in scouted.items()
-        if not fit.converged
-    ]
-    f.say(f"going on from the best start: {len(going)} fits")
-    went = f.fit(going)
-    return sets, {s: went.get(label(s), fit) for s, fit in scouted.items()}
-
-
 def _screened_pairs(
-    f: _Fits, sets: list[tuple[str, ...]], full: Mapping[tuple[str, ...], FitResult]
+    f: Fits, sets: list[tuple[str, ...]], full: Mapping[tuple[str, ...], FitResult]
 ) -> tuple[Pairs, list[signal_screen.ScreenedPair]]:
     """The pairs predicted from the singles' fits and checked by simulation, when no single fits to within
     the noise; and the shortlist of them to fit for real."""
@@ -658,346 +588,6 @@ def _screened_pairs(
     short = signal_screen.shortlist(pairs.screened)
     pairs.fitted = [s.label for s in short]
     return pairs, short
-
-
-def _cross_validated(
-    f: _Fits,
-    sets: list[tuple[str, ...]],
-    full: Mapping[tuple[str, ...], FitResult],
-    short: list[signal_screen.ScreenedPair],
-) -> tuple[Candidate, list[Candidate]]:
-    """None, each single and the shortlisted pairs as candidates, judged on held-out error: the pairs fitted
-    on every scenario, and cross-validated where they may pass the BIC gate. The baseline (no effect), and
-    every candidate."""
-    parts = f.parts
-    # pairs whose checked point alone already passes the BIC gate (a fit only lowers the SSE) are
-    # cross-validated beside their full fits, saving the rounds of a batch of their own
-    early = gated_early(short, full, SURVIVORS) if parts else []
-    folded = [p for s in sets for p in f.by_fold(s, full[s].values)]
-    folded += [p for x in early for p in f.by_fold(x.ids, x.start)]
-    combos = [f.problem(x.label, x.ids, f.scenarios, x.start) for x in short]
-    f.say(
-        f"cross-validating: {len(parts)} folds, {len(folded)} fits"
-        + (f"; fitting {len(combos)} pairs" if combos else "")
-    )
-    results = f.fit(folded + combos)
-    candidates = [f.candidate(s, full[s]) for s in sets]
-    combinations = [f.candidate(x.ids, results[x.label]) for x in short]
-    first = {x.label for x in early}
-    f.hold_out(candidates + [c for c in combinations if c.label in first], results)
-    if not parts:  # one run: judged on its fit alone, as every candidate is
-        f.hold_out(combinations, {})
-    baseline = candidates[0]
-    current = explain.select(candidates[1:], baseline)
-    everything = candidates + combinations
-    survivors = (
-        explain.bic_gate(combinations, everything, current, explain.BIC_MARGIN, SURVIVORS) if parts else []
-    )
-    late = [c for c in survivors if not c.validated]
-    if late:
-        f.say(f"cross-validating {', '.join(c.label for c in late)}")
-        more = f.fit([p for c in late for p in f.by_fold(c.ids, c.full.values)])
-        f.hold_out(late, more)
-    return baseline, everything
-
-
-def _grown(
-    f: _Fits,
-    selected: Candidate,
-    full: Mapping[tuple[str, ...], FitResult],
-    everything: list[Candidate],
-    noise_factor: float,
-) -> tuple[Candidate, list[dict[str, Any]]]:
-    """``selected`` grown one effect at a time while each pays its way and error stays above the noise, then
-    each member of the answer judged; the answer, and what each round of growth tried. Every candidate fitted
-    joins ``everything``."""
-    growth: list[dict[str, Any]] = []
-    while (
-        selected.ids
-        and len(selected.ids) < MAX_EFFECTS
-        and explain.above_floor(selected.cross_validated, 1.0, noise_factor)
-    ):
-        grown = _extended(f, selected, full, everything, growth)
-        if grown is None:
-            break
-        f.say(f"grown: {grown.label}, held-out {grown.cross_validated:.3g} noise floors")
-        selected = grown
-    selected = _recalibrated(f, selected, everything)
-    _judge_members(f, selected, everything)
-    return selected, growth
-
-
-def restarts(base: Sequence[Parameter], point: Point, settings: Sequence[Point] = ()) -> list[Point]:
-    """Where a fit of the calibrated parameters ``base`` restarts from, around ``point``: a Sobol' design of
-    RESTARTS points over every calibrated parameter's range, for ``point`` and for each of ``settings`` (its
-    effects from their own starts: a friction's narrower widths); and for each pair of calibrated parameters
-    a design over the two alone, the rest as at ``point`` (an initial position and velocity a slide apart,
-    which the full design seldom meets)."""
-    spread = [p.upper - p.lower for p in base]
-    whole = qmc.Sobol(len(base), scramble=True, seed=0).random(RESTARTS)
-    points = [
-        {**setting, **{p.name: p.lower + u * w for p, u, w in zip(base, row, spread)}}
-        for setting in (point, *settings)
-        for row in whole
-    ]
-    two = qmc.Sobol(2, scramble=True, seed=0).random(RESTARTS)
-    for i, j in itertools.combinations(range(len(base)), 2):
-        a, b = base[i], base[j]
-        points += [
-            {**point, a.name: a.lower + u * spread[i], b.name: b.lower + v * spread[j]} for u, v in two
-        ]
-    return points
-
-
-def best_of(
-    space: Space,
-    client,
-    scales: Mapping[str, float],
-    points: Sequence[Point],
-    problem: Callable[[str, Mapping[str, float], int], FitProblem],
-    scenarios: Sequence[str],
-    say: Messages,
-) -> FitResult:
-    """The lowest fit from ``points``: the REFITTED of least misfit (one sweep simulates them all) each fitted
-    for SCOUTING iterations, the best GROW_FINALISTS of those fitted on; ``problem(label, start, iterations)``
-    makes each fit. Why: in a rugged misfit (an oscillator's frequency, an open-loop drift) the best start by
-    its misfit alone is often not in the deepest basin, and a few iterations tell which are."""
-    rows, _ = evaluate_points(space, list(points), client, list(scales), [set(scenarios)] * len(points))
-    found = residuals_in(rows, scales)
-    best = sorted(points, key=lambda point: screen_sse(point, scenarios, found))[:REFITTED]
-    report = round_report(say)
-    scouted = fit_all(
-        space, [problem(f"#{k}", p, SCOUTING) for k, p in enumerate(best)], client, dict(scales), report
-    )
-    finalists = sorted(scouted.values(), key=lambda fit: fit.sse)[:GROW_FINALISTS]
-    going = [problem(f"#{k}+", fit.values, MAX_ITERATIONS - SCOUTING) for k, fit in enumerate(finalists)]
-    went = fit_all(
-        space, [g for g, fit in zip(going, finalists) if not fit.converged], client, dict(scales), report
-    )
-    return min([*scouted.values(), *went.values()], key=lambda fit: fit.sse)
-
-
-def _recalibrated(f: _Fits, answer: Candidate, everything: list[Candidate]) -> Candidate:
-    """The answer with its calibrated parameters sought again, the effects in place: from every start of
-    :func:`restarts` (the effects as fitted, and each member from its own starts), by :func:`best_of`.
-    Why: the calibration was made with the model that lacked them, and bent its parameters to make up (a
-    mass at its bound, an initial state a slide away from the true one); a fit from there can stay in that
-    basin. The refit replaces the answer's fit, and is cross-validated, when its SSE over every scenario is
-    lower by LOWER."""
-    if not answer.ids or not f.base:
-        return answer
-    settings = [
-        {**answer.full.point, **f.library[member].start(k)}
-        for member in answer.ids
-        for k in range(len(f.library[member].starts))
-    ]
-    points = restarts(f.base, answer.full.point, settings)
-    f.say(
-        f"recalibrating {answer.label}: {len(points)} starts of the calibrated parameters, "
-        "the effects in place"
-    )
-    name = f"{answer.label}/recalibrated"
-    fit = best_of(
-        f.space,
-        f.client,
-        f.scales,
-        points,
-        lambda tag, start, iterations: f.problem(f"{name}{tag}", answer.ids, f.scenarios, start, iterations),
-        f.scenarios,
-        f.say,
-    )
-    if not fit.sse < answer.full.sse * (1.0 - LOWER):
-        return answer
-    again = f.candidate(answer.ids, fit)
-    f.hold_out([again], f.fit(f.by_fold(answer.ids, fit.values)) if f.parts else {})
-    f.say(f"recalibrated: held-out {answer.cross_validated:.3g} -> {again.cross_validated:.3g} noise floors")
-    everything[:] = [c for c in everything if c is not answer] + [again]
-    return again
-
-
-def _joining(f: _Fits, full: Mapping[tuple[str, ...], FitResult], h: str) -> dict[str, float]:
-    """Where an effect joining a set starts: its single fit, unless that did no better than none (an effect
-    another masks, such as the second side of a clip: alone it fitted to nothing), then its own first
-    start."""
-    single = full[(h,)]
-    if single.error is None and explain.bic(single) < explain.bic(full[()]):
-        return {n: single.values[n] for n in f.library[h].names}
-    return f.library[h].start(0)
-
-
-def _extended(
-    f: _Fits,
-    current: Candidate,
-    full: Mapping[tuple[str, ...], FitResult],
-    everything: list[Candidate],
-    growth: list[dict[str, Any]],
-) -> Candidate | None:
-    """The best of ``current`` with one more effect (scouted from ``current``'s fit and the effect's single
-    fit, the best few fitted on), cross-validated: it, if it beats ``current`` and every fitted part of
-    itself; else None. What it tried joins ``everything``, and a line on it ``growth``."""
-    library = f.library
-    known = {frozenset(c.ids) for c in everything}
-    sets = [
-        tuple(sorted((*current.ids, h)))
-        for h in library
-        if h not in current.ids and not any(shares(library[h], library[i]) for i in current.ids)
-    ]
-    sets = [x for x in sets if frozenset(x) not in known]
-    if not sets:
-        return None
-    starts = {
-        x: {
-            **current.full.values,
-            **{k: v for h in x if h not in current.ids for k, v in _joining(f, full, h).items()},
-        }
-        for x in sets
-    }
-    f.say(f"growing {current.label}: {len(sets)} sets with one more effect, {SCOUTING} iterations each")
-    scouted = f.fit([f.problem("+".join(x), x, f.scenarios, starts[x], SCOUTING) for x in sets])
-    finalists = sorted(sets, key=lambda x: scouted["+".join(x)].sse)[:GROW_FINALISTS]
-    going = [
-        f.problem("+".join(x), x, f.scenarios, scouted["+".join(x)].values, MAX_ITERATIONS - SCOUTING)
-        for x in finalists
-        if not scouted["+".join(x)].converged
-    ]
-    fitted = {**scouted, **f.fit(going)}
-    tried = [f.candidate(x, fitted["+".join(x)]) for x in sets]
-    everything.extend(tried)
-    best = min(tried, key=lambda c: c.bic)
-    growth.append({"from": current.label, "tried": len(tried), "best": best.label, "bic": best.bic})
-    if best.bic > current.bic - explain.BIC_MARGIN:
-        return None
-    f.hold_out([best], f.fit(f.by_fold(best.ids, best.full.values)) if f.parts else {})
-    growth[-1]["held_out"] = best.cross_validated
-    if explain.beats(best, current) and explain.beats_subsets(best, everything):
-        growth[-1]["accepted"] = True
-        return best
-    return None
-
-
-def _judge_members(f: _Fits, answer: Candidate, everything: list[Candidate]) -> None:
-    """Each set of the answer without one member, fitted from the answer's fit and cross-validated: the noise
-    rule weighs every member by what taking it out costs, and keeps one it cannot weigh. A set fitted before
-    (from its own starts) is replaced when the answer's fit leads it lower: else a member that only made up
-    for a part's poor optimum (a term beside the one that fits, at a coefficient near 0) would be claimed."""
-    if len(answer.ids) < 2 or not f.parts:
-        return
-    known = {frozenset(c.ids): c for c in everything}
-    missing = [tuple(i for i in answer.ids if i != m) for m in answer.ids]
-    f.say(f"judging each member of {answer.label}: {len(missing)} sets without one, fitted from its fit")
-    fitted = f.fit(
-        [f.problem(f"{label(x)}/judged", x, f.scenarios, dict(answer.full.values)) for x in missing]
-    )
-    better = [
-        x
-        for x in missing
-        if frozenset(x) not in known
-        or not known[frozenset(x)].validated
-        or fitted[f"{label(x)}/judged"].sse < known[frozenset(x)].full.sse * (1.0 - LOWER)
-    ]
-    if not better:
-        return
-    folded = f.fit([p for x in better for p in f.by_fold(x, fitted[f"{label(x)}/judged"].values)])
-    judged = [f.candidate(x, fitted[f"{label(x)}/judged"]) for x in better]
-    f.hold_out(judged, folded)
-    replaced = {frozenset(x) for x in better}
-    everything[:] = [c for c in everything if frozenset(c.ids) not in replaced] + judged
-
-
-def _proven(f: _Fits, answer: Candidate, full: Mapping[tuple[str, ...], FitResult]) -> Proof | None:
-    """The answer's terms inside the model chosen again on each fold's fitting scenarios alone: each term in
-    turn, every offered term in its place fitted there (SCOUTING iterations, the best fitted on, judged by
-    the BIC), then the fold's choice predicts the fold's held-out scenarios. Why: a term picked among many on
-    all the data has seen the held-out scenarios; only a choice made without them is proof. None when the
-    answer has no term or nothing can be held out."""
-    terms = tuple(i for i in answer.ids if f.library[i].term is not None)
-    if not terms or not f.parts or len(answer.folds) != len(f.validation.folds):
-        return None
-    offered = f.terms
-    proof = Proof(terms, offered=len(offered))
-    f.say(f"proving {', '.join(terms)}: chosen again among {len(offered)} terms on each fold's fitting part")
-    sets = [tuple(answer.ids) for _ in f.validation.folds]
-    fits = list(answer.folds)
-    for term in terms:
-        problems, options = [], []
-        for k, fold in enumerate(f.validation.folds):
-            others = [i for i in sets[k] if i != term]
-            choices = [
-                o
-                for o in offered
-                if o not in others and not any(shares(f.library[o], f.library[i]) for i in others)
-            ]
-            options.append({o: tuple(sorted((*others, o))) for o in choices})
-            start = dict(fits[k].values)
-            problems += [
-                f.problem(
-                    f"{label(ids)}/proof{k}", ids, fold.train, {**start, **_joining(f, full, o)}, SCOUTING
-                )
-                for o, ids in options[k].items()
-            ]
-        scouted = f.fit(problems)
-        going = []
-        for k in range(len(f.validation.folds)):
-            best = min(options[k].values(), key=lambda ids: explain.bic(scouted[f"{label(ids)}/proof{k}"]))
-            sets[k] = best
-            fit = scouted[f"{label(best)}/proof{k}"]
-            if not fit.converged:
-                going.append(
-                    f.problem(
-                        f"{label(best)}/proof{k}",
-                        best,
-                        f.validation.folds[k].train,
-                        fit.values,
-                        MAX_ITERATIONS - SCOUTING,
-                    )
-                )
-            fits[k] = fit
-        went = f.fit(going)
-        fits = [went.get(f"{label(sets[k])}/proof{k}", fit) for k, fit in enumerate(fits)]
-    proof.chosen = [tuple(i for i in ids if f.library[i].term is not None) for ids in sets]
-    rows = f.rows([(fit.point, fold.test) for fit, fold in zip(fits, f.folds)])
-    for fit, fold in zip(fits, f.folds):
-        for scenario in fold.test:
-            proof.held_out[scenario] = f.score(rows.get((key_of(fit.point), scenario)))
-    f.say(
-        f"proven: {proof.agree} of {len(fits)} folds chose {', '.join(terms)} again; held-out "
-        f"{answer.cross_validated:.3g} as chosen on all data, {proof.error:.3g} as each fold chose"
-    )
-    return proof
-
-
-def _held_to_proof(
-    f: _Fits,
-    chosen: Candidate,
-    proof: Proof | None,
-    everything: list[Candidate],
-    baseline: Candidate,
-    dropped: list[explain.Dropped],
-) -> Candidate:
-    """``chosen``, or without its terms (into ``dropped``) unless the choice each fold made of them (the
-    proof) still beats the answer without them by explain.MIN_GAIN; that set is fitted from the answer's
-    fit and cross-validated if no stage did yet."""
-    if proof is None:
-        return chosen
-    rest = tuple(i for i in chosen.ids if i not in proof.terms)
-    without = baseline if not rest else _validated(everything, rest)
-    if without is None:
-        f.say(f"judging {', '.join(proof.terms)}: the answer without them, fitted from its fit")
-        name = f"{label(rest)}/judged"
-        fit = f.fit([f.problem(name, rest, f.scenarios, dict(chosen.full.values))])[name]
-        without = f.candidate(rest, fit)
-        f.hold_out([without], f.fit(f.by_fold(rest, fit.values)))
-        everything.append(without)
-    if proof.bears_out(without.cross_validated):
-        return chosen
-    reason = proof.failed(without.cross_validated, " noise floors")
-    dropped.extend(explain.Dropped(t, math.nan, reason) for t in proof.terms)
-    return without
-
-
-def _validated(candidates: Sequence[Candidate], ids: Sequence[str]) -> Candidate | None:
-    """The cross-validated candidate of exactly the effects ``ids``, if one was fitted."""
-    return next((c for c in candidates if set(c.ids) == set(ids) and c.validated), None)
 
 
 @dataclass(frozen=True)
@@ -1023,7 +613,7 @@ class Decided:
 
 
 def _decided(
-    f: _Fits, chosen: Candidate, full: Mapping[tuple[str, ...], FitResult], everything: list[Candidate]
+    f: Fits, chosen: Candidate, full: Mapping[tuple[str, ...], FitResult], everything: list[Candidate]
 ) -> tuple[Candidate, list[Decided]]:
     """Each member of ``chosen`` that has a look-alike across the model's skin (term_hypotheses.rivals)
     against the best of them by its single fit: the answer with the rival in the member's place, fitted from
@@ -1039,10 +629,10 @@ def _decided(
             continue
         rival = min(options, key=lambda r: explain.bic(full[(r,)]))
         ids = tuple(sorted((*(i for i in chosen.ids if i != member), rival)))
-        known = _validated(everything, ids)
+        known = fitted_set(everything, ids)
         if known is None:
             f.say(f"deciding {member} against its look-alike {rival}")
-            start = {**chosen.full.values, **_joining(f, full, rival)}
+            start = {**chosen.full.values, **joining(f, full, rival)}
             fit = f.fit([f.problem(label(ids), ids, f.scenarios, start)])[label(ids)]
             known = f.candidate(ids, fit)
             f.hold_out([known], f.fit(f.by_fold(ids, fit.values)))
@@ -1054,12 +644,12 @@ def _decided(
         if wins:
             chosen = known
     if any(d.winner != d.member for d in decided):
-        _judge_members(f, chosen, everything)  # the noise rule weighs the rival as it weighed the member
+        judge_members(f, chosen, everything)  # the noise rule weighs the rival as it weighed the member
     return chosen, decided
 
 
 def _reached(
-    f: _Fits,
+    f: Fits,
     chosen: Candidate,
     everything: Sequence[Candidate],
     compared: Sequence[Compared],
@@ -1079,7 +669,7 @@ def _reached(
             (
                 found
                 for member in reasons
-                if (found := _validated(everything, [i for i in chosen.ids if i != member])) is not None
+                if (found := fitted_set(everything, [i for i in chosen.ids if i != member])) is not None
             ),
             None,
         )
@@ -1096,12 +686,6 @@ def _recorded_after_start(scenario, column: str) -> np.ndarray:
     """A recorded column's values from the run's start on: the samples its residuals are taken at."""
     t, values = scenario.recorded.samples(column)
     return np.asarray(values, float)[t >= (scenario.start_time or 0.0) - 1e-9]
-
-
-def screen_sse(point: Point, scenarios: Sequence[str], residuals) -> float:
-    """The SSE of a simulated point on every run; infinite if any run failed."""
-    found = [residuals(point, s) for s in scenarios]
-    return math.inf if any(r is None for r in found) else float(sum(r @ r for r in found))
 
 
 def located_residuals(
