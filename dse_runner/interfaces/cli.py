@@ -14,15 +14,12 @@ import sys
 import traceback
 import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, NoReturn
+from typing import Annotated, Any, NoReturn
 
 import typer
 
 from .. import __version__
 from ..errors import DseError
-
-if TYPE_CHECKING:  # the commands import what they use when they run: the CLI starts fast
-    from ..sweeps.status import SweepReport
 
 app = typer.Typer(
     name="dse-runner",
@@ -483,33 +480,34 @@ def submit(
 ) -> None:
     """Run SPEC on Dask: every (point, scenario) task of a grid, or a search until its budget; resume if
     run again (a search goes on from where it stopped); rank."""
-    board = space = None
-    try:
-        space = _load(spec, multimodel, coe).with_overrides(
-            out, scheduler, workers, cluster, max_points, max_seconds
-        )
-        _warn_unread_recordings(space)
-        # after the spec is read: a bad one is named without waiting on Dask's and pandas' imports
-        from ..simulation.scenario import dropouts, dropouts_line
-        from ..sweeps.rank import rank, write_ranking
-        from ..sweeps.sweep import submit as run_sweep
+    from . import api
+    from .progress import SweepProgressBar
 
-        if dashboard:
-            board = _start_dashboard(space, dashboard_address)
-        with SweepProgressBar(dask_link=dashboard) as progress:
-            report = run_sweep(space, progress=progress, on_connect=board.link if board else None)
+    try:
+        study = api.submit(
+            spec,
+            multimodel=multimodel,
+            coe=coe,
+            out=out,
+            workers=workers,
+            scheduler=scheduler,
+            cluster=cluster,
+            max_points=max_points,
+            max_seconds=max_seconds,
+            dashboard=dashboard,
+            dashboard_address=dashboard_address,
+            progress=SweepProgressBar(dask_link=dashboard),
+            rank=False,
+            say=lambda line: typer.echo(line, err=True),
+            again=AGAIN,
+        )
     except DseError as e:
         fail(e)
-    except KeyboardInterrupt:
-        _interrupted(space)
-    finally:
-        if board is not None:
-            from .dashboard.server import farewell
+    except KeyboardInterrupt as e:
+        _interrupted(e)
+    from ..simulation.scenario import dropouts, dropouts_line
 
-            ended = "The sweep's submit has ended, and its dashboard server with it."
-            board.server.stop(farewell(space.output, ended))
-    if report.interrupted:
-        _interrupted(space)
+    report, space = study.status, study.space
     summary = {
         "sweep": report.sweep,
         "output": str(report.output),
@@ -538,15 +536,15 @@ def submit(
         if summary["dropouts"]:
             typer.echo(f"  {dropouts_line(summary['dropouts'])}")
     try:
-        ranking = rank(report.output, report.sweep)
-        files = write_ranking(ranking, report.output, report.sweep)
+        ranking = study.rank()
+        files = study.files
     except DseError as e:
         if as_json:
             emit_json({**summary, "ranking": None, "best": None, "best_total": None})
         typer.echo(f"error: no ranking: {e}", err=True)
         raise typer.Exit(1)
     except KeyboardInterrupt:
-        _interrupted(space)
+        _interrupted(api.Interrupted(api.interrupted_line(space, AGAIN)))
     if as_json:
         emit_json(
             {**summary, "ranking": str(files["json"]), "best": ranking.best, "best_total": ranking.best_total}
@@ -560,51 +558,16 @@ def submit(
     )
 
 
-def _interrupted(space) -> NoReturn:
-    """Ctrl-C's one line on stderr, and exit code 130. The count is read from the store after the sweep's
-    last write (its chunks have ended, and a cluster it started is closed), so it is the number that
-    submitting again finds done; what the client itself had counted misses chunks that ended after."""
-    if space is None:
-        typer.echo("interrupted before the sweep started; nothing was lost", err=True)
-        raise typer.Exit(130)
-    from ..sweeps.sweep import tasks_done
+AGAIN = "run the same command again to finish the rest"  # what an interrupted submit's line says to do
 
-    try:
-        done, total = tasks_done(space)
-    except DseError:  # the store cannot be read now: the line still says where the results are
-        typer.echo(
-            f"interrupted: finished chunks are in {space.output}; run the same command again to "
-            "finish the rest",
-            err=True,
-        )
-        raise typer.Exit(130) from None
-    typer.echo(
-        f"interrupted: {done} of {total} tasks have results in {space.output}; run the same command "
-        "again to finish the rest",
-        err=True,
-    )
+
+def _interrupted(interrupt: KeyboardInterrupt) -> NoReturn:
+    """Ctrl-C's one line on stderr (api.interrupted_line: how many tasks have results, read from the store),
+    and exit code 130."""
+    from .api import interrupted_line
+
+    typer.echo(getattr(interrupt, "line", None) or interrupted_line(None), err=True)
     raise typer.Exit(130)
-
-
-def _load(spec: Path, multimodel: Path | None, coe: Path | None):
-    """A space.yaml, or an INTO-CPS DSE config with its multi-model and co-simulation config."""
-    from ..sweeps.spec import load_space
-    from . import intocps
-
-    if intocps.is_dse_config(spec):
-        return intocps.load_space(spec, multimodel, coe)
-    if multimodel is not None or coe is not None:
-        raise DseError(f"--multimodel and --coe go with an INTO-CPS DSE config (NAME.dse.json), not {spec}")
-    return load_space(spec)
-
-
-def _warn_unread_recordings(space) -> None:
-    """A space whose recordings no objective compares with: one warning line before the sweep starts."""
-    from ..sweeps.spec import unread_recordings
-
-    note = unread_recordings(space)
-    if note is not None:
-        typer.echo(f"warning: {note}", err=True)
 
 
 @app.command("convert-intocps")
@@ -653,28 +616,6 @@ def _print_search(search) -> None:
         typer.echo(f"  note: {note}")
 
 
-class _Board:
-    """The dashboard a submit serves, and how it links itself from Dask's dashboard."""
-
-    def __init__(self, server) -> None:
-        self.server = server
-
-    def link(self, client) -> None:
-        from .dask_link import link_from_dask
-
-        page = link_from_dask(client, self.server.url)
-        if page:
-            typer.echo(f"linked from Dask's dashboard: {page}", err=True)
-
-
-def _start_dashboard(space, address: str) -> _Board:
-    from .dashboard.server import serve
-
-    server = serve(space.output, space.name, address, space)
-    typer.echo(f"dse-runner dashboard: {server.url}", err=True)
-    return _Board(server)
-
-
 @app.command("dashboard")
 def dashboard_command(
     results: Annotated[str, typer.Argument(metavar="RESULTS", help="A sweep's store: output folder or URL.")],
@@ -712,95 +653,21 @@ def report_command(
 ) -> None:
     """Write one self-contained HTML file (opens offline): Table 1, rankings, Pareto front, figures, spec.
     A sweep of an INTO-CPS DSE config also gets INTO-CPS's result files, in a folder beside it."""
-    from ..sweeps.rank import load_sweep_spec, pick_sweep
-    from . import intocps
-    from .report import write_report
+    from .api import written_report
 
     try:
-        path = write_report(results, output, sweep)
-        name = pick_sweep(results, sweep)
-        legacy = None
-        if load_sweep_spec(results, name).origin is not None:
-            folder = path.parent / f"{name}-intocps"
-            legacy = intocps.write_result_files(results, folder, name)
+        path, legacy = written_report(results, output, sweep)
     except DseError as e:
         fail(e)
     if as_json:
         emit_json(
-            {"report": str(path), "bytes": path.stat().st_size, "intocps": str(folder) if legacy else None}
+            {"report": str(path), "bytes": path.stat().st_size, "intocps": str(legacy) if legacy else None}
         )
         return
     typer.echo(f"report: {path} ({path.stat().st_size / 1e6:.1f} MB)")
     if legacy:
         typer.echo(
-            f"INTO-CPS results: {folder} (dseResults.csv, results.html, ranking.json, graphs/pareto.png)"
-        )
-
-
-class SweepProgressBar:
-    """A sweep's progress (sweep.SweepProgress) as a terminal bar with rate and ETA, on stderr so --json
-    output stays clean; first the address of Dask's dashboard, unless ``dask_link`` is false (--no-dashboard:
-    no dashboard address is printed)."""
-
-    def __init__(self, dask_link: bool = True) -> None:
-        from rich.console import Console
-        from rich.progress import (
-            BarColumn,
-            MofNCompleteColumn,
-            Progress,
-            TextColumn,
-            TimeElapsedColumn,
-            TimeRemainingColumn,
-        )
-
-        self.bar = Progress(
-            TextColumn("[bold]{task.description}"),
-            BarColumn(),
-            MofNCompleteColumn(),
-            TextColumn("{task.fields[rate]} sim/s"),
-            TextColumn("{task.fields[failed]} failed"),
-            TimeElapsedColumn(),
-            TextColumn("ETA"),
-            TimeRemainingColumn(),
-            console=Console(stderr=True),
-            transient=False,
-        )
-        self.task = None
-        self.dask_link = dask_link
-
-    def __enter__(self):
-        self.bar.__enter__()
-        return self
-
-    def __exit__(self, *exc):
-        return self.bar.__exit__(*exc)
-
-    def __call__(self, report: SweepReport) -> None:
-        if self.task is None:
-            if report.dashboard and self.dask_link:
-                self.bar.console.print(f"Dask dashboard: {report.dashboard}")
-            self.task = self.bar.add_task(
-                report.sweep, total=report.total - report.skipped, rate="-", failed=0
-            )
-        rate = report.ran / report.seconds if report.seconds > 0 else 0.0
-        search = report.search
-        if search is not None:  # a search counts points, and shows the best so far
-            best = f"best {search.best:.6g}" if search.best is not None else "no result yet"
-            self.bar.update(
-                self.task,
-                total=search.max_points,
-                completed=search.points,
-                rate=f"{rate:.1f}",
-                failed=search.failed,
-                description=report.waiting or f"{report.sweep} ({best})",
-            )
-            return
-        self.bar.update(
-            self.task,
-            completed=report.ran,
-            rate=f"{rate:.1f}",
-            failed=report.failed,
-            description=report.waiting or report.sweep,
+            f"INTO-CPS results: {legacy} (dseResults.csv, results.html, ranking.json, graphs/pareto.png)"
         )
 
 
@@ -823,28 +690,10 @@ def rank_command(
     as_json: JsonFlag = False,
 ) -> None:
     """Aggregate a sweep's results: totals, Table 1, Pareto front, group and weighted rankings."""
-    from ..simulation.values import write_values
-    from ..sweeps.rank import load_sweep_spec, rank, write_ranking
-    from ..sweeps.store import sweeps
+    from .api import ranked
 
     try:
-        settings = None
-        if objective is not None:
-            names = [sweep] if sweep else sweeps(results)
-            if not names:
-                raise DseError(f"{results}: no results")
-            settings = load_sweep_spec(results, names[0]).ranking.model_copy(update={"objective": objective})
-        ranking = rank(results, sweep, settings)
-        files = write_ranking(ranking, results, ranking.sweep)
-        if best_values is not None:
-            files["best_values"] = write_values(
-                best_values,
-                ranking.best,
-                (
-                    f"The best point of sweep {ranking.sweep} by {ranking.objective} ({ranking.goal}imised "
-                    f"{ranking.best_total:.6g}), written by dse-runner rank."
-                ),
-            )
+        ranking, files = ranked(results, sweep, objective, best_values)
     except DseError as e:
         fail(e)
     except OSError as e:
@@ -896,24 +745,14 @@ def sensitivity_command(
     """Which parameters move each objective: Sobol' or eFAST S1/ST, or Morris mu*/sigma, with bootstrap
     intervals, over all scenarios (reduced as the ranking says) and per scenario group. The sweep must
     have been sampled by search.strategy sobol_indices, morris or fast."""
-    from ..analysis.sensitivity import sensitivity
+    from .api import sensitivity_figures
 
     try:
-        with warnings.catch_warnings(
-            record=True
-        ) as caught:  # SALib's own, e.g. on few samples: ours say more
-            warnings.simplefilter("always")
-            found = sensitivity(results, sweep, list(objective) if objective else None, confidence, resamples)
-        written = {}
-        if figures is not None:
-            from .sensitivity_figures import write_figures
-
-            written = write_figures(found, figures)
+        found, written = sensitivity_figures(results, sweep, objective, confidence, resamples, figures)
     except DseError as e:
         fail(e)
     except OSError as e:
         fail(DseError(f"cannot write {e.filename}: {e.strerror}"))
-    del caught
     for line in found.warnings:
         typer.echo(f"warning: {line}", err=True)
     if as_json:
@@ -1050,29 +889,31 @@ def diagnose(
     as_json: JsonFlag = False,
 ) -> None:
     """Calibrate, locate the mismatch, name the missing physics, model it and show the fit improve."""
-    from ..analysis.diagnose import Request
-    from ..analysis.diagnose import diagnose as run_diagnosis
+    from . import api
 
     try:
-        request = Request(
+        diagnosis = api.diagnose(
+            space,
+            scenarios,
             out=out,
+            multimodel=multimodel,
             folds=folds,
+            hypotheses=hypothesis or (),
             noise_factor=noise_factor,
-            hypotheses=tuple(hypothesis or ()),
             discovery=discovery,
-        )
-        result = run_diagnosis(
-            space, scenarios, request, lambda m: typer.echo(m, err=True), multimodel, workers, scheduler
+            workers=workers,
+            scheduler=scheduler,
+            progress=lambda m: typer.echo(m, err=True),
+            again="run again to resume",
         )
     except DseError as e:
         fail(e)
-    except KeyboardInterrupt:
-        typer.echo(f"interrupted: finished simulations are kept in {out}; run again to resume", err=True)
-        raise typer.Exit(130)
+    except KeyboardInterrupt as e:
+        _interrupted(e)
     if as_json:
-        emit_json(result.to_json())
+        emit_json(diagnosis.to_json())
         return
-    for line in result.summary():
+    for line in diagnosis.summary():
         typer.echo(line)
 
 
