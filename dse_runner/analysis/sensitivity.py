@@ -29,7 +29,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 from pydantic import BaseModel, ValidationError
 
-from ..errors import DseError
+from ..errors import DseError, did_you_mean
 from ..sweeps import aggregate, store
 from ..sweeps.constraints import compile_constraint
 from ..sweeps.domain import Dimension, dimension
@@ -269,7 +269,10 @@ def _computed(
     scalar = scalar_objectives(spec, output, sweep)
     for name in objectives or []:
         if name not in scalar:
-            raise DseError(f"objective {name!r} is not among sweep {sweep!r}'s ({', '.join(scalar)})")
+            raise DseError(
+                f"objective {name!r} is not among sweep {sweep!r}'s ({', '.join(scalar)})"
+                f"{did_you_mean(name, scalar)}"
+            )
     chosen = list(objectives or scalar)
     rows = current_table(output, sweep, ["group", "status", *parameters, *chosen])
     if rows.num_rows == 0:

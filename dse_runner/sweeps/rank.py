@@ -33,7 +33,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from .. import strict_json
-from ..errors import DseError
+from ..errors import DseError, did_you_mean
 from ..simulation.objectives import Fit, normalise
 from . import aggregate, store, uncertainty
 from .constraints import compile_constraint
@@ -156,6 +156,11 @@ def current_model(output: store.Root, sweep: str) -> str | None:
 def load_sweep_spec(output: store.Root, sweep: str) -> SpaceSpec:
     text = store.read_text(output, f"{sweep}.{SWEEP_FILE}")
     if text is None:
+        held = store.sweeps(output)
+        if held and sweep not in held:  # a misspelt --sweep
+            raise DseError(
+                f"{output}: no sweep {sweep!r}{did_you_mean(sweep, held)}; it holds {', '.join(held)}"
+            )
         raise DseError(
             f"{output}: no {sweep}.{SWEEP_FILE}; is this the output folder of a dse-runner submit?"
         )
@@ -228,7 +233,10 @@ def rank(output: store.Root, sweep: str | None = None, settings: RankingSpec | N
     pareto = settings.pareto_goals()
     for name in settings.objectives_used():
         if name not in objectives:
-            raise DseError(f"ranking: objective {name!r} is not among the sweep's ({', '.join(objectives)})")
+            raise DseError(
+                f"ranking: objective {name!r} is not among the sweep's ({', '.join(objectives)})"
+                f"{did_you_mean(name, objectives)}"
+            )
 
     rows = current_table(output, sweep, ["group", "status", *parameters, *objectives])
     if rows.num_rows == 0:

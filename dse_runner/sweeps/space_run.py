@@ -15,7 +15,7 @@ from typing import Any
 
 import yaml
 
-from ..errors import DseError
+from ..errors import DseError, did_you_mean
 from ..simulation import objectives as objs
 from ..simulation.run import SimulationResult, simulate
 from .search import Search
@@ -66,6 +66,7 @@ def simulate_space(
     else:
         raise DseError(
             f"--scenario {scenario}: neither a scenario of {path} ({', '.join(by_name)}) nor a folder"
+            f"{did_you_mean(str(scenario), by_name)}"
         )
     fixed = {name: points[0] for name, points in space.parameters.items() if len(points) == 1}
     return simulate(

@@ -609,6 +609,13 @@ def test_a_file_given_where_a_model_goes_is_named_for_what_it_is(tmp_path, name,
     assert re.search(message, one_line_error(code, err)), err
 
 
+def test_a_misspelt_scenario_of_a_space_suggests_its_own():
+    code, _, err = run("simulate", REPO / "jobs" / "quickstart" / "calibrate.yaml", "--scenario", "step")
+    assert one_line_error(code, err).endswith(
+        "(pulses, ramp, sine, steps) nor a folder (did you mean steps?)"
+    )
+
+
 def test_an_objective_function_with_another_signature_is_refused_before_it_runs(tmp_path, monkeypatch):
     """An objective is called as ``f(trajectory, scenario)``: one that cannot take that failed every task
     with a TypeError; now ``simulate`` (and a space, before any cluster: test_user_modules.py) says so."""

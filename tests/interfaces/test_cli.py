@@ -165,6 +165,16 @@ def test_sensitivity_errors_name_the_culprit(tmp_path, dask_scheduler):
     assert dse_runner("submit", small, "--no-dashboard", "--json").returncode == 0
     done = dse_runner("sensitivity", tmp_path / "small" / "out", "--objective", "z")
     assert done.returncode == 2 and "objective 'z' is not among sweep 'ishigami''s (y)" in done.stderr
+    # a misspelt name suggests the nearest (issue 63)
+    done = dse_runner("sensitivity", tmp_path / "small" / "out", "--objective", "Y")
+    assert done.returncode == 2 and "is not among sweep 'ishigami''s (y) (did you mean y?)" in done.stderr
+    done = dse_runner("rank", tmp_path / "small" / "out", "--sweep", "ishigam")
+    assert (
+        done.returncode == 2
+        and "no sweep 'ishigam' (did you mean ishigami?); it holds ishigami" in done.stderr
+    )
+    done = dse_runner("rank", tmp_path / "small" / "out", "--objective", "Y")
+    assert done.returncode == 2 and "not among the sweep's (y) (did you mean y?)" in done.stderr
 
     few = ishigami_space(
         tmp_path / "few", dask_scheduler, search={"strategy": "sobol_indices", "max_points": 4}

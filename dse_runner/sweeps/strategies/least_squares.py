@@ -16,7 +16,7 @@ from collections import deque
 import numpy as np
 from pydantic import Field, PositiveFloat, PositiveInt
 
-from ...errors import DseError
+from ...errors import DseError, did_you_mean
 from ..domain import Point
 from ..expand import key_of
 from ..fit import FitProblem, LevenbergMarquardt, Parameter
@@ -55,9 +55,13 @@ class LeastSquares(Strategy):
                 f"search: least_squares moves every parameter continuously; {', '.join(stepped)} takes "
                 "only whole numbers or a grid's steps: give it an interval {low, high}"
             )
-        unknown = set(o.start) - {d.name for d in problem.dimensions}
+        names = [d.name for d in problem.dimensions]
+        unknown = sorted(set(o.start) - set(names))
         if unknown:
-            raise DseError(f"search.start: {', '.join(sorted(unknown))} is not a swept parameter")
+            raise DseError(
+                f"search.start: {', '.join(unknown)} is not a swept parameter"
+                f"{did_you_mean(unknown[0], names)}"
+            )
         parameters = tuple(
             Parameter(
                 d.name,
