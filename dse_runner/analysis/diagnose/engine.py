@@ -74,6 +74,9 @@ class Fits(Fitter):
 
     library: Mapping[str, Any] = field(default_factory=dict)  # id -> names, starts, start(k), term
     shares: Callable[[str, str], bool] = lambda a, b: False  # two hypotheses that act on one thing
+    min_gain: float = explain.MIN_GAIN  # the rule a set must pass: held-out error this much lower ...
+    bic_margin: float = explain.BIC_MARGIN  # ... and the BIC this much lower
+    survivors: int = SURVIVORS  # combinations that pass the BIC gate and are cross-validated, at most
 
     @property
     def scales(self) -> Mapping[str, float]:
@@ -121,7 +124,7 @@ def singles(f: Fits) -> tuple[list[tuple[str, ...]], dict[tuple[str, ...], FitRe
         for s in sets
     }
     going = [
-        f.problem(label(s), s, f.scenarios, fit.values, MAX_ITERATIONS - SCOUTING)
+        f.problem(label(s), s, f.scenarios, fit.values, f.iterations - SCOUTING)
         for s, fit in scouted.items()
         if not fit.converged
     ]
@@ -142,7 +145,7 @@ def cross_validated(
     parts = f.parts
     # pairs whose checked point alone already passes the BIC gate (a fit only lowers the SSE) are
     # cross-validated beside their full fits, saving the rounds of a batch of their own
-    early = gated_early(short, full, SURVIVORS) if parts else []
+    early = gated_early(short, full, f.survivors, f.bic_margin) if parts else []
     folded = [p for s in sets for p in f.by_fold(s, full[s].values)]
     folded += [p for x in early for p in f.by_fold(x.ids, x.start)]
     combos = [f.problem(x.label, x.ids, f.scenarios, x.start) for x in short]
@@ -158,10 +161,10 @@ def cross_validated(
     if not parts:  # one run: judged on its fit alone, as every candidate is
         f.hold_out(combinations, {})
     baseline = candidates[0]
-    current = explain.select(candidates[1:], baseline)
+    current = explain.select(candidates[1:], baseline, f.min_gain, f.bic_margin)
     everything = candidates + combinations
     survivors = (
-        explain.bic_gate(combinations, everything, current, explain.BIC_MARGIN, SURVIVORS) if parts else []
+        explain.bic_gate(combinations, everything, current, f.bic_margin, f.survivors) if parts else []
     )
     late = [c for c in survivors if not c.validated]
     if late:
@@ -326,7 +329,7 @@ def extended(
     scouted = f.fit([f.problem("+".join(x), x, f.scenarios, starts[x], SCOUTING) for x in sets])
     finalists = sorted(sets, key=lambda x: scouted["+".join(x)].sse)[:GROW_FINALISTS]
     going = [
-        f.problem("+".join(x), x, f.scenarios, scouted["+".join(x)].values, MAX_ITERATIONS - SCOUTING)
+        f.problem("+".join(x), x, f.scenarios, scouted["+".join(x)].values, f.iterations - SCOUTING)
         for x in finalists
         if not scouted["+".join(x)].converged
     ]
@@ -335,11 +338,13 @@ def extended(
     everything.extend(tried)
     best = min(tried, key=lambda c: c.bic)
     growth.append({"from": current.label, "tried": len(tried), "best": best.label, "bic": best.bic})
-    if best.bic > current.bic - explain.BIC_MARGIN:
+    if best.bic > current.bic - f.bic_margin:
         return None
     f.hold_out([best], f.fit(f.by_fold(best.ids, best.full.values)) if f.parts else {})
     growth[-1]["held_out"] = best.cross_validated
-    if explain.beats(best, current) and explain.beats_subsets(best, everything):
+    if explain.beats(best, current, f.min_gain, f.bic_margin) and explain.beats_subsets(
+        best, everything, f.min_gain, f.bic_margin
+    ):
         growth[-1]["accepted"] = True
         return best
     return None
@@ -414,7 +419,7 @@ def proven(f: Fits, answer: Candidate, full: Mapping[tuple[str, ...], FitResult]
                         best,
                         f.validation.folds[k].train,
                         fit.values,
-                        MAX_ITERATIONS - SCOUTING,
+                        f.iterations - SCOUTING,
                     )
                 )
             fits[k] = fit

@@ -9,7 +9,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...analysis.diagnose.fitter import Fitter, scored_ok
+from ...analysis.diagnose.engine import Fits
+from ...analysis.diagnose.fitter import scored_ok
 from ...analysis.diagnose.validation import Validation
 from ...sweeps.fit import FitResult, Parameter
 from ...sweeps.spec import Space
@@ -31,10 +32,40 @@ def fitted_error(fit: FitResult) -> float:
     return float(np.mean(runs)) if runs else math.inf
 
 
+@dataclass(frozen=True)
+class VehicleEffect:
+    """A library hypothesis as the engine fits it: its parameters in the vehicle's effects variant, from one
+    start, the effect absent (each parameter 0)."""
+
+    parameters: tuple[Parameter, ...]
+    term: None = None  # no term inside the model: the correction block is discovery's, not a hypothesis
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.parameters)
+
+    @property
+    def starts(self) -> tuple[tuple[float, ...], ...]:
+        return (tuple(0.0 for _ in self.parameters),)
+
+    def start(self, k: int) -> dict[str, float]:
+        return dict(zip(self.names, self.starts[k]))
+
+    @classmethod
+    def of(cls, vehicle: str, hid: str) -> VehicleEffect:
+        """The library's hypothesis ``hid`` on the instance ``vehicle``."""
+        return cls(
+            tuple(
+                Parameter(f"{vehicle}.{p.variable}", 0.0, p.lower, p.upper, p.step)
+                for p in hypothesis(hid).parameters
+            )
+        )
+
+
 @dataclass
-class Chain(Fitter):
-    """The engine's fitter with what the Robotti's steps also read: the vehicle's instance and the
-    diagnosis settings."""
+class Chain(Fits):
+    """The engine's fits (engine.Fits) with the vehicle's effects as its hypotheses, and what the Robotti's
+    steps also read: the vehicle's instance and the diagnosis settings."""
 
     vehicle: str = ""
     settings: DiagnosisSettings = field(default_factory=DiagnosisSettings)
@@ -52,17 +83,13 @@ class Chain(Fitter):
     ) -> Chain:
         """The fits of a diagnosis of ``vehicle``'s effects in ``space``, held out as ``validation`` says."""
 
-        def parameters(hid: str) -> tuple[Parameter, ...]:
-            return tuple(
-                Parameter(f"{vehicle}.{p.variable}", 0.0, p.lower, p.upper, p.step)
-                for p in hypothesis(hid).parameters
-            )
+        library = {hid: VehicleEffect.of(vehicle, hid) for (hid,) in settings.singles()}
 
         return cls(
             space=space,
             client=client,
             base=base,
-            parameters=parameters,
+            parameters=lambda hid: VehicleEffect.of(vehicle, hid).parameters,
             unfreed={name: values[0] for name, values in space.parameters.items()},
             validation=validation,
             residuals=RESIDUALS,
@@ -71,6 +98,10 @@ class Chain(Fitter):
             say=progress,
             in_sample=fitted_error,
             iterations=settings.max_iterations,
+            library=library,
+            min_gain=settings.min_gain,
+            bic_margin=settings.bic_margin,
+            survivors=settings.survivors,
             vehicle=vehicle,
             settings=settings,
         )

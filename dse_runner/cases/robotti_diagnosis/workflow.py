@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ...analysis.diagnose import explain
+from ...analysis.diagnose import engine, explain
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.library import space_with
 from ...analysis.diagnose.validation import Validation, validated
@@ -70,17 +70,17 @@ class Choice:
     shortlisted: list[screen.Screened]  # those fitted for real
 
 
-def choose(chain: Chain, start: dict[str, float], floor: float | None = None) -> Choice:
-    """Fit none and every hypothesis alone; unless one already fits to the noise, screen every combination
-    and fit the short list for real in the same batch as the singles' folds; cross-validate the combinations
-    that pass the BIC gate; choose (explain.select)."""
+def choose(chain: Chain, floor: float | None = None) -> Choice:
+    """The engine's stages on the vehicle's library: none and every hypothesis alone (engine.singles);
+    unless one already fits to the noise, every combination screened (screen.py) and the short list fitted
+    for real in the same batch as the singles' folds, those passing the BIC gate cross-validated
+    (engine.cross_validated); then the choice (explain.select)."""
     settings = chain.settings
-    sets = [(), *settings.singles()]
-    full = chain.fit([chain.full(ids, start) for ids in sets], "fitting none and each hypothesis")
-    candidates = [Candidate(ids, full["+".join(ids) or "none"]) for ids in sets]
+    sets, full = engine.singles(chain)
+    singles = [Candidate(ids, full[ids]) for ids in sets]
     screened, short = [], []
-    if worth_screening(candidates, floor, settings):
-        screened = screen_combinations(chain, candidates)
+    if worth_screening(singles, floor, settings):
+        screened = screen_combinations(chain, singles)
         short = screen.shortlist(
             screened, settings.pairs, settings.triples if settings.max_effects >= 3 else 0, settings.shortlist
         )
@@ -89,25 +89,7 @@ def choose(chain: Chain, start: dict[str, float], floor: float | None = None) ->
             "no combination screened: a fit is already within "
             f"{settings.floor_stop:g}x the noise floor, or the settings allow one effect at a time"
         )
-    folds = [p for c in candidates for p in chain.by_fold(c.ids, c.full.values)]
-    problems = folds + [chain.full(x.ids, x.start) for x in short]
-    fits = chain.fit(
-        problems, "cross-validating" + (f" and fitting {len(short)} combinations" if short else "")
-    )
-    chain.hold_out(candidates, fits)
-    baseline = next(c for c in candidates if not c.ids)
-    current = explain.select(candidates, baseline, settings.min_gain, settings.bic_margin)
-    combinations = [Candidate(x.ids, fits[x.label]) for x in short]
-    everything = candidates + combinations
-    survivors = explain.bic_gate(combinations, everything, current, settings.bic_margin, settings.survivors)
-    if survivors:
-        chain.hold_out(
-            survivors,
-            chain.fit(
-                [p for c in survivors for p in chain.by_fold(c.ids, c.full.values)],
-                f"cross-validating {', '.join(c.label for c in survivors)}",
-            ),
-        )
+    baseline, everything = engine.cross_validated(chain, sets, full, short)
     return Choice(
         explain.select(everything, baseline, settings.min_gain, settings.bic_margin),
         everything,
@@ -219,7 +201,7 @@ def _diagnose(
     say(validation.text)
     chain = Chain.for_vehicle(space, vehicle, base, client, settings, say, validation)
     space = recorded(space, validation)  # the runs themselves: what is located, weighed and observed
-    choice = choose(chain, {p.name: p.start for p in base}, floor.cross_track if floor.available else None)
+    choice = choose(chain, floor.cross_track if floor.available else None)
     baseline = next(c for c in choice.candidates if not c.ids)
     chosen, looks = lookalike.weigh(
         choice.chosen,
