@@ -4,13 +4,18 @@ diagnosis reaches the core only this way."""
 
 from __future__ import annotations
 
+import importlib.util
+import shutil
 from importlib.metadata import entry_points
+from pathlib import Path
 
 import pytest
-from conftest import MSD, REPO, SCENARIOS
+from conftest import MSD, REPO, SCENARIOS, strict_loads
 from support.plugins import register
 
+from dse_runner import strict_json
 from dse_runner.analysis.diagnose import HypothesisLibrary, Request, diagnose, libraries, serving, space_with
+from dse_runner.analysis.diagnose.answer import Answer
 from dse_runner.errors import DseError
 
 ROBOTTI_CALIBRATION = "bundled:robotti/calibration.yaml"
@@ -198,3 +203,43 @@ def test_a_space_of_intervals_is_calibrated_by_a_search_and_a_grid_stays_a_grid(
     )
     assert space_with(tmp_path / "named.yaml", None, tmp_path / "b").spec.search.strategy == "tpe"
     assert space_with(MSD / "space.yaml", None, tmp_path / "c").spec.search.strategy == "exhaustive"
+
+
+def _signals_case(root):
+    """The msd's blind case with nothing concealed (jobs/msd/make_diagnosis_runs.py): a model's recordings."""
+    spec = importlib.util.spec_from_file_location("make_diagnosis_runs", MSD / "make_diagnosis_runs.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.make("clean", root / "msd"), None, ()
+
+
+def _robotti_case(root):
+    """One bundled run in the field-data format, with its own calibration space (held out in time blocks)."""
+    runs = root / "runs"
+    shutil.copytree(SCENARIOS / "sin1", runs / "sin1")
+    return None, runs, ("wheel_slip",)
+
+
+CONTRACT_CASES = {"signals": _signals_case, "robotti": _robotti_case}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", [lib.name for lib in libraries()])
+def test_every_installed_library_diagnoses_a_case_and_answers_in_the_one_shape(
+    name, tmp_path, dask_scheduler
+):
+    """The contract, run: each installed library diagnoses a small case of its own on the cluster and
+    answers in answer.Answer's shape (strict JSON, its own fields under ``case``), with a summary and one
+    HTML page."""
+    assert name in CONTRACT_CASES, f"library {name}: add a small case of its own to CONTRACT_CASES"
+    space, scenarios, only = CONTRACT_CASES[name](tmp_path)
+    said: list[str] = []
+    result = diagnose(
+        space, scenarios, Request(out=tmp_path / "out", hypotheses=only), said.append, address=dask_scheduler
+    )
+    answer = Answer.model_validate(strict_loads(strict_json.dumps(result.to_json())))
+    assert answer.library == name and answer.verdict == result.verdict
+    assert answer.effects and answer.validation is not None and answer.held_out
+    assert answer.held_out_before is not None and answer.held_out_after is not None
+    assert all(isinstance(line, str) for line in result.summary()) and said
+    assert "data:image/png;base64," in Path(answer.files["html"]).read_text()
