@@ -13,6 +13,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from .explain import Candidate
+
 Verdict = Literal["none", "explained", "partial", "discovered", "unexplained"]
 
 
@@ -78,6 +80,18 @@ class CandidateEntry(_Strict):
     parameters: dict[str, float] = Field(default_factory=dict)
     at_bound: list[str] = Field(default_factory=list)
 
+    @classmethod
+    def of(cls, c: Candidate) -> CandidateEntry:
+        return cls(
+            id=c.label,
+            held_out=c.cross_validated if c.validated else None,
+            bic=c.bic,
+            validated=c.validated,
+            error=c.full.error or None,
+            parameters=dict(c.full.values),
+            at_bound=list(c.full.at_bound),
+        )
+
 
 class Dropped(_Strict):
     """A member the choice had named and a rule took away."""
@@ -104,6 +118,14 @@ class HeldOut(_Strict):
     scenario: str
     before: float | None
     after: float | None
+
+    @classmethod
+    def between(cls, baseline: Candidate, chosen: Candidate) -> list[HeldOut]:
+        """Every scenario the calibrated model was held out on, with its error and the answer's."""
+        return [
+            cls(scenario=s, before=e, after=chosen.held_out.get(s))
+            for s, e in sorted(baseline.held_out.items())
+        ]
 
 
 class Fitted(_Strict):

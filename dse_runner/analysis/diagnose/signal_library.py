@@ -147,23 +147,11 @@ class SignalDiagnosis:
             ),
             effects=[self._effect(name) for name in self.chosen.ids],
             runner_up=explain.evidence(self.chosen, runner).to_json() if runner is not None else None,
-            candidates=[
-                answer_.CandidateEntry(
-                    id=c.label,
-                    held_out=c.cross_validated if c.validated else None,
-                    bic=c.bic,
-                    validated=c.validated,
-                    error=c.full.error or None,
-                )
-                for c in explain.ranked(self.candidates)
-            ],
+            candidates=[answer_.CandidateEntry.of(c) for c in explain.ranked(self.candidates)],
             dropped=[d.to_json() for d in self.dropped],
             proof=self.proof.to_json() if self.proof is not None else None,
             validation=self.validation.to_json() if self.validation is not None else None,
-            held_out=[
-                answer_.HeldOut(scenario=s, before=before, after=self.chosen.held_out.get(s))
-                for s, before in sorted(self.baseline.held_out.items())
-            ],
+            held_out=answer_.HeldOut.between(self.baseline, self.chosen),
             lookalikes=[x.to_json() for x in self.lookalikes],
             calibrated=answer_.Fitted(  # the model before: none refitted alone
                 parameters=dict(self.baseline.full.values), at_bound=list(self.baseline.full.at_bound)

@@ -276,24 +276,11 @@ class Diagnosis:
             ),
             effects=[answer_.Effect(**finding.to_json()) for finding in self.findings],
             runner_up=up.to_json() if up is not None else None,
-            candidates=[
-                answer_.CandidateEntry(
-                    id=c.label,
-                    held_out=c.cross_validated if c.validated else None,
-                    bic=c.bic,
-                    validated=c.validated,
-                    parameters=c.full.values,
-                    at_bound=c.full.at_bound,
-                )
-                for c in self.candidates
-            ],
+            candidates=[answer_.CandidateEntry.of(c) for c in self.candidates],
             dropped=[d.to_json() for d in self.dropped],
             proof=discovery.proof.to_json() if self.discovered and discovery and discovery.proof else None,
             validation=self.calibration.get("validation"),
-            held_out=[
-                answer_.HeldOut(scenario=s, before=before, after=self.chosen.held_out.get(s))
-                for s, before in sorted(self.baseline.held_out.items())
-            ],
+            held_out=answer_.HeldOut.between(self.baseline, self.chosen),
             lookalikes=[look.to_json() for look in self.lookalikes],
             calibrated=answer_.Fitted(
                 parameters=dict(self.baseline.full.values),
