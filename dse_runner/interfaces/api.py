@@ -239,7 +239,7 @@ class Study:
 
     def sensitivity(self, objectives: Sequence[str] | None = None, **options: Any) -> Sensitivity:
         """``dse-runner sensitivity`` of this study: see :func:`sensitivity`."""
-        return sensitivity(self.output, self.name, objectives, **options)
+        return _warned(sensitivity_figures(self.output, self.name, objectives, **options)[0])
 
     def trajectory(self, scenario: str | None = None, rank: int = 1) -> pd.DataFrame:
         """The recorded signals of the ``rank``-th best point on ``scenario`` (the only one, if there is
@@ -375,9 +375,14 @@ def sensitivity(
     mu*/sigma, with bootstrap intervals at ``confidence`` from ``resamples``), overall and per scenario
     group, of a sweep sampled by sobol_indices, morris or fast; ``figures``: a folder for a figure per
     objective. Its warnings (a sample too small for narrow intervals) are Python warnings too."""
-    found, _ = sensitivity_figures(*_where(results, sweep), objectives, confidence, resamples, figures)
+    output, sweep = _where(results, sweep)
+    return _warned(sensitivity_figures(output, sweep, objectives, confidence, resamples, figures)[0])
+
+
+def _warned(found: Sensitivity) -> Sensitivity:
+    """The indices, their warnings said as Python warnings, from the line that asked for them."""
     for line in found.warnings:
-        warnings.warn(line, stacklevel=2)
+        warnings.warn(line, stacklevel=3)
     return found
 
 
