@@ -17,6 +17,7 @@ from dse_runner import strict_json
 from dse_runner.analysis.diagnose import HypothesisLibrary, Request, diagnose, libraries, serving, space_with
 from dse_runner.analysis.diagnose.answer import Answer
 from dse_runner.errors import DseError
+from dse_runner.sweeps.spec import load_space
 
 ROBOTTI_CALIBRATION = "bundled:robotti/calibration.yaml"
 
@@ -101,6 +102,16 @@ def test_the_signal_effects_list_every_effect_on_every_driven_input_and_compared
     terms = ids - effects
     assert {"derivative_term(msd.der(v), x^3)", "derivative_term(msd.der(v), tanh(v))"} <= terms
     assert {"derivative_term(msd.der(x), 1)", "derivative_term(msd.der(v), x*F)"} <= terms
+
+
+def test_a_signal_two_objectives_compare_is_diagnosed_once():
+    """A least-squares space compares its signal twice (the residuals and the sum of squares the space adds
+    to rank by): the diagnosis weighs that signal's residuals once, not twice."""
+    from dse_runner.analysis.diagnose.signal_library import compared_signals
+
+    space = load_space(REPO / "jobs" / "quickstart" / "calibrate.yaml")
+    assert len([o for o in space.objectives.values() if getattr(o, "signal", None) == "msd.x"]) == 2
+    assert [(c.signal, c.recorded) for c in compared_signals(space)] == [("msd.x", "x")]
 
 
 def test_an_installed_library_is_asked_before_the_built_in_one(tmp_path, monkeypatch):

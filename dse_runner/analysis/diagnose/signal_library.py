@@ -267,12 +267,15 @@ class SignalDiagnosis:
 
 
 def compared_signals(space: Space) -> list[Compared]:
-    """Every objective that compares a signal with a recording, with the noise of that recording (the
-    median over the scenarios that record it)."""
+    """Every signal an objective compares with a recording, once (a least-squares space compares one signal
+    twice: its residuals and the sum of their squares), with the noise of that recording (the median over
+    the scenarios that record it)."""
     found = []
+    seen = set()
     for name, spec in space.objectives.items():
-        if not isinstance(spec, objs.Fit):
+        if not isinstance(spec, objs.Fit) or (spec.signal, spec.recorded) in seen:
             continue
+        seen.add((spec.signal, spec.recorded))
         estimates = [
             estimate_noise(s.recorded.samples(spec.recorded)[1]) for s in space.scenarios if s.recorded
         ]
