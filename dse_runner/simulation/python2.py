@@ -6,9 +6,14 @@ with Python 3, where such a script fails every task with a traceback that
 does not say why. :func:`check` reads the script when the spec loads and
 names the first line that is Python 2, or the line Python 3 cannot compile.
 :func:`as_python3` then ports a Python 2 script with fissix (the maintained
-fork of lib2to3, 2to3's engine): the run uses the ported text, the user's file
-is never changed, and only a script that still is not Python 3 once ported is
-refused, naming its line, so that no task runs.
+fork of lib2to3, 2to3's engine) and our fixers for what fissix leaves
+(python2_fixers.py: ``open(f, 'rU')``, csv on binary files, the ``string``
+module's functions, Python 2's integer division, ...), so that it runs as
+Python 2 ran it: the run uses the ported text, line for line the user's, the
+user's file is never changed, and only a script that still is not Python 3
+once ported is refused, naming its line, so that no task runs. A Python 3
+script gets only what Python 3.11 refuses of earlier Python 3 (``'rU'``,
+``time.clock()``).
 """
 
 from __future__ import annotations
@@ -17,8 +22,12 @@ import ast
 import re
 import warnings
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..errors import DseError
+
+if TYPE_CHECKING:
+    from .python2_fixers import Fix
 
 PORT = "dse-runner runs scripts with Python 3 (docs/intocps.md)"
 
@@ -54,7 +63,11 @@ BUILTINS = {
     "buffer",
     "intern",
     "coerce",
+    "file",
 }
+# Attributes Python 3 does not have, of a module the script imports as itself, which fissix ports (the string
+# module's, which ours port, are python2_fixers.STRING_REMOVED)
+ATTRIBUTES = {("sys", "maxint"), ("os", "getcwdu")}
 METHODS = {"has_key", "iteritems", "iterkeys", "itervalues"}
 MODULES = {
     "urllib2",
@@ -75,36 +88,67 @@ MODULES = {
 
 
 def as_python3(code: str, path: Path) -> tuple[str, str | None]:
-    """The text to run, and what made it Python 2 if it was ported (None: it is Python 3 already)."""
+    """The text to run, and, if it was ported, what made it need porting and what the port did, as the line
+    that tells the user (None: it runs as written)."""
     try:
         check(code, path)
-        return code, None
     except DseError as refused:
-        ported = _ported(code, path)
+        ported = _ported(code, path, python2=True)
         if ported is None:
             raise
+        text, fixes = ported
         try:
-            check(ported, path)
+            check(text, path)
         except DseError as still:
             raise DseError(
                 f"{refused}; ported by fissix it is still not Python 3: {str(still).removeprefix(f'{path} ')}"
             ) from None
-        return ported, str(refused).removeprefix(f"{path} ").split(";")[0]
+        because = str(refused).removeprefix(f"{path} ").split(";")[0]
+        also = f" (and {_listed(fixes)})" if fixes else ""
+        return text, f"{because}; ported to Python 3 with fissix for this run{also}, the file unchanged"
+    ported = _ported(code, path, python2=False)
+    if ported is None or not ported[1] or _fails(ported[0], path):  # what fissix cannot parse runs as written
+        return code, None
+    return ported[0], f"{_listed(ported[1])}; ported for this run, the file unchanged"
 
 
-def _ported(code: str, path: Path) -> str | None:
-    """``code`` through fissix's fixers (2to3's), or None if it cannot parse it."""
+def _fails(code: str, path: Path) -> bool:
+    """Whether :func:`check` refuses ``code`` (a port of a Python 3 script must not break it)."""
+    try:
+        check(code, path)
+    except DseError:
+        return True
+    return False
+
+
+def _ported(code: str, path: Path, python2: bool) -> tuple[str, list[Fix]] | None:
+    """``code`` through fissix's fixers and ours (python2_fixers.py), or None if fissix cannot parse it.
+    fissix is loaded here, on first use: a space without a script objective never loads it."""
     import logging
 
     from fissix.pgen2.parse import ParseError
-    from fissix.refactor import RefactoringTool, get_fixers_from_package
+    from fissix.pgen2.tokenize import TokenError
+
+    from . import python2_fixers
 
     logging.getLogger("RefactoringTool").setLevel(logging.ERROR)  # it logs each fixer it loads
-    tool = RefactoringTool(get_fixers_from_package("fissix.fixes"))
     try:
-        return str(tool.refactor_string(code if code.endswith("\n") else code + "\n", str(path)))
-    except (ParseError, SyntaxError, IndentationError):
+        return python2_fixers.port(code, str(path), python2)
+    except (ParseError, TokenError, SyntaxError, IndentationError):
         return None
+
+
+LISTED = 3  # kinds of change a port's line names, each by its first change
+
+
+def _listed(fixes: list[Fix]) -> str:
+    """What the port changed: the first change of each kind (fixer), and how many more there are."""
+    first: dict[str, Fix] = {}
+    for fix in fixes:
+        first.setdefault(fix.fixer, fix)
+    shown = list(first.values())[:LISTED]
+    more = len(fixes) - len(shown)
+    return "; ".join(f"line {f.line}: {f.what}" for f in shown) + (f"; {more} more" if more else "")
 
 
 def check(code: str, path: Path) -> None:
@@ -139,7 +183,10 @@ def python2_names(tree: ast.Module) -> tuple[int, str] | None:
     """The first line (and what it uses) that calls on what only Python 2 has: a builtin the script
     does not define itself, a dict method, a module, or ``print`` alone on a line. Code under a
     ``try`` that catches its absence (``except ImportError``) is a script made for both."""
-    bound, guarded = _bound(tree), _guarded(tree)
+    from .python2_fixers import STRING_REMOVED
+
+    attributes = ATTRIBUTES | {("string", name) for name in STRING_REMOVED}
+    bound, guarded, modules = _bound(tree), _guarded(tree), _modules(tree)
     found: list[tuple[int, str]] = []
     for node in ast.walk(tree):
         if id(node) in guarded:
@@ -148,6 +195,13 @@ def python2_names(tree: ast.Module) -> tuple[int, str] | None:
             found.append((node.lineno, f"{node.id}(), which Python 3 does not have"))
         elif isinstance(node, ast.Attribute) and node.attr in METHODS - bound:
             found.append((node.lineno, f".{node.attr}(), a dict method Python 3 does not have"))
+        elif (
+            isinstance(node, ast.Attribute)
+            and isinstance(node.value, ast.Name)
+            and (node.value.id, node.attr) in attributes
+            and node.value.id in modules
+        ):
+            found.append((node.lineno, f"{node.value.id}.{node.attr}, which Python 3 does not have"))
         elif isinstance(node, (ast.Import, ast.ImportFrom)):
             names = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""]
             found += [
@@ -182,6 +236,17 @@ def _bound(tree: ast.Module) -> set[str]:
         elif isinstance(node, ast.alias):
             names.add((node.asname or node.name).split(".")[0])
     return names
+
+
+def _modules(tree: ast.Module) -> set[str]:
+    """The modules the script imports under their own names (``import os, string``)."""
+    return {
+        alias.name.split(".")[0]
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Import)
+        for alias in node.names
+        if alias.asname is None
+    }
 
 
 GUARDS = {"ImportError", "ModuleNotFoundError", "NameError", "AttributeError"}

@@ -75,15 +75,11 @@ class Script(BaseModel):
         except OSError as e:
             raise DseError(f"{where}: cannot read script {path}: {e.strerror}") from None
         try:
-            runs, python2_because = python2.as_python3(code, path)  # before any task runs it
+            runs, ported = python2.as_python3(code, path)  # before any task runs it
         except DseError as e:
             raise DseError(f"{where}: {e}") from None
-        if python2_because is not None:
-            _say(
-                path,
-                code,
-                f"{path} {python2_because}; ported to Python 3 with fissix for this run, the file unchanged",
-            )
+        if ported is not None:
+            _say(path, code, f"{path} {ported}")
         data_folder = self.data_folder
         if data_folder is None:
             chosen = convention(runs, len(self.args), str(path))

@@ -558,6 +558,71 @@ def test_a_python2_script_is_ported_for_the_run_once_and_the_file_left_unchanged
     assert script.read_bytes() == before
 
 
+# A published INTO-CPS script's shape (the line-following robot's userMetricScripts): Python 2, its CSV opened
+# with 'rU', which Python 3.11 refuses; here it counts the valve's switches as switches.py does
+PUBLISHED_PYTHON2 = """import csv, os, sys, json, io
+
+def loadCSV(f):
+  with open(f, 'rU') as infile:
+    reader = csv.DictReader(infile)
+    data = {}
+    for row in reader:
+      for header, value in row.items():
+        try:
+          data[header.strip()].append(float(value))
+        except KeyError:
+          data[header.strip()] = [float(value)]
+    return data
+
+def writeObjectiveToOutfile(key, val):
+  print key, val
+  parsed_json = json.load(open(objectivesFile))
+  parsed_json[key] = val
+  dataString = json.dumps(parsed_json, sort_keys=True, indent=4, separators=(',', ': '))
+  with io.open(objectivesFile, 'w', encoding='utf-8') as f:
+    f.write(unicode(dataString))
+
+objectivesFile = sys.argv[1] + os.path.sep + "objectives.json"
+valve = loadCSV(sys.argv[1] + os.path.sep + "results.csv")[sys.argv[4]]
+writeObjectiveToOutfile(sys.argv[2], len([1 for a, b in zip(valve, valve[1:]) if a != b]))
+"""
+
+
+def test_a_published_python2_script_that_opens_its_csv_with_ru_runs_every_task(
+    both, tmp_path, dask_scheduler
+):
+    """The DSE as INTO-CPS's application submits it, its switches script a published Python 2 one that opens
+    results.csv with mode 'rU': every task runs (each failed with ``ValueError: invalid mode: 'rU'``), each
+    point's value is the Python 3 script's, one warning names the port, and the file is byte for byte as
+    written."""
+    project = copy_project(tmp_path)
+    script = project / "userMetricScripts" / "switches.py"
+    script.write_bytes(PUBLISHED_PYTHON2.encode())
+    done = dse_runner(
+        "submit",
+        project / DSE,
+        "--out",
+        tmp_path / "out",
+        "--scheduler",
+        dask_scheduler,
+        "--no-dashboard",
+        "--json",
+    )
+    assert done.returncode == 0, done.stderr
+    summary = strict_loads(done.stdout)
+    assert summary["ok"] == summary["ran"] == both[0]["ran"] and summary["failed"] == 0, summary["errors"]
+    lines = PUBLISHED_PYTHON2.splitlines()
+    printed, opened = lines.index("  print key, val") + 1, lines.index("  with open(f, 'rU') as infile:") + 1
+    told = (
+        f"{script.resolve()} line {printed}: a Python 2 script (print statement); ported to Python 3 with "
+        f"fissix for this run (and line {opened}: open mode 'rU' -> 'r' (Python 3.11 refuses 'U')), the file "
+        "unchanged"
+    )
+    assert done.stderr.count(told) == 1, done.stderr
+    pd.testing.assert_frame_equal(totals(summary), totals(both[0]))  # the Python 3 script's switches, and all
+    assert script.read_bytes() == PUBLISHED_PYTHON2.encode()
+
+
 @pytest.mark.parametrize(
     ("code", "line", "what"),
     [
@@ -576,6 +641,9 @@ def test_a_python2_script_is_ported_for_the_run_once_and_the_file_left_unchanged
         ("d = {}\nif d.has_key('a'):\n    pass\n", 2, ".has_key(), a dict method Python 3 does not have"),
         ("import urllib2\n", 1, "module urllib2, which Python 3 renamed or removed"),
         ("from StringIO import StringIO\n", 1, "module StringIO, which Python 3 renamed or removed"),
+        ("import string\nx = string.letters\n", 2, "string.letters, which Python 3 does not have"),
+        ("import sys\nx = sys.maxint\n", 2, "sys.maxint, which Python 3 does not have"),
+        ("lines = file('a.csv').readlines()\n", 1, "file(), which Python 3 does not have"),
     ],
 )
 def test_python2_is_told_from_python3(code, line, what):
@@ -585,8 +653,9 @@ def test_python2_is_told_from_python3(code, line, what):
         f"/scripts/metric.py line {line}: a Python 2 script ({what}); dse-runner runs "
         "scripts with Python 3 (docs/intocps.md)"
     )
-    ported, because = python2.as_python3(code, Path("/scripts/metric.py"))
-    assert because == f"line {line}: a Python 2 script ({what})"
+    ported, note = python2.as_python3(code, Path("/scripts/metric.py"))
+    told = f"line {line}: a Python 2 script ({what}); ported to Python 3 with fissix for this run"
+    assert note.startswith(told) and note.endswith(", the file unchanged")
     python2.check(ported, Path("/scripts/metric.py"))  # what runs is Python 3
 
 
