@@ -42,7 +42,7 @@ CASES = {
 def named(found: dict) -> list[str]:
     """Each named effect or term as one line: a term as its formula and meaning."""
     lines = []
-    for e in found["effects"]:
+    for e in (e for e in found["effects"] if e["id"] != "none"):
         if e.get("readable"):
             low, high = e["interval"]["coefficient"]
             lines.append(f"{e['readable'][0]} (coefficient 95 % {low:.4g} to {high:.4g})")

@@ -37,7 +37,7 @@ def generator():
 
 def named(found: dict) -> str:
     parts = []
-    for e in found["effects"]:
+    for e in (e for e in found["effects"] if e["id"] != "none"):
         values = e["terms"] if e["id"] == "discovered" else e["parameters"]
         sized = ", ".join(
             f"{value:.4g} [{e['intervals'][kind][0]:.4g}, {e['intervals'][kind][1]:.4g}]"

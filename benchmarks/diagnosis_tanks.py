@@ -39,7 +39,7 @@ PUBLISHED = {  # test-record e_RMS [V], from the benchmark's README: the yardsti
 
 def effects(found: dict) -> str:
     parts = []
-    for e in found["effects"]:
+    for e in (e for e in found["effects"] if e["id"] != "none"):
         values = e["terms"] if e["id"] == "discovered" else e["parameters"]
         into = f" into {e['into']}" if e.get("into") else ""
         parts.append(

@@ -195,7 +195,7 @@ def test_diagnose_space_names_the_cubic_spring_inside_the_model_over_its_look_al
         found["verdict"] in ("discovered", "partial")
         and found["held_out_after"] < 0.2 * found["held_out_before"]
     )
-    assert found["validation"] == {"by": "scenarios", "folds": 3}
+    assert found["validation"] == {"by": "scenarios", "folds": 3, "record": None}
     values = read_values(found["files"]["values"])
     assert values[cubic] == pytest.approx(terms[0]["parameters"]["coefficient"])
     assert all(Path(f).is_file() for f in found["files"]["figures"]) and len(found["files"]["figures"]) == 4

@@ -39,7 +39,7 @@ class Effect(_Strict):
     id: str
     name: str  # in words
     parameters: dict[str, float]
-    interval: dict[str, list[float]]  # parameter -> [low, high], ~95 %
+    interval: dict[str, list[float | None]]  # parameter -> [low, high], ~95 % (null: undetermined)
     partial: bool  # named, but leaving a residual well above the noise
     at_bound: list[str] = Field(default_factory=list)  # parameters pinned at their range's end: no estimate
     magnitude: float | None = None  # the norm of its parameters, where the library defines one
@@ -55,6 +55,14 @@ class Effect(_Strict):
     similarities: dict[str, float] = Field(default_factory=dict)
     held_out_without: float | None = None  # a discovered correction's gain: the library's best ...
     held_out_with: float | None = None  # ... and with the correction
+
+
+NONE = "none"  # the one effect named when nothing is missing: what is left is the recordings' noise
+
+
+def nothing_missing(name: str) -> Effect:
+    """The answer's only effect when no hypothesis is named (``name``: the library's words for it)."""
+    return Effect(id=NONE, name=name, parameters={}, interval={}, partial=False)
 
 
 class Evidence(_Strict):
@@ -132,7 +140,7 @@ class Fitted(_Strict):
     """Parameters as fitted, with ~95 % intervals where known."""
 
     parameters: dict[str, float]
-    interval: dict[str, list[float]] = Field(default_factory=dict)
+    interval: dict[str, list[float | None]] = Field(default_factory=dict)  # null where undetermined
     at_bound: list[str] = Field(default_factory=list)
 
 

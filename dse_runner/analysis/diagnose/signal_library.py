@@ -145,7 +145,12 @@ class SignalDiagnosis:
                 method="each compared signal's noise, estimated from its recording alone",
                 details={c.signal: c.noise for c in self.compared},
             ),
-            effects=[self._effect(name) for name in self.chosen.ids],
+            effects=[self._effect(name) for name in self.chosen.ids]
+            or [
+                answer_.nothing_missing(
+                    "no effect or term: what is left is the recordings' noise, or unexplained"
+                )
+            ],
             runner_up=explain.evidence(self.chosen, runner).to_json() if runner is not None else None,
             candidates=[answer_.CandidateEntry.of(c) for c in explain.ranked(self.candidates)],
             dropped=[d.to_json() for d in self.dropped],
@@ -215,6 +220,8 @@ class SignalDiagnosis:
         found = self.to_json()
         lines = []
         for effect in found["effects"]:
+            if effect["id"] == answer_.NONE:
+                continue  # the verdict says what nothing named means
             if effect["readable"]:  # a term inside the model, and its coefficient's interval
                 low, high = effect["interval"]["coefficient"]
                 lines.append(f"{effect['readable'][0]} (coefficient 95 % {low:.4g} to {high:.4g})")
@@ -235,7 +242,7 @@ class SignalDiagnosis:
                 + ", ".join(f"{name} = {value:.4g}" for name, value in alone.items())
                 + (
                     "; with the effects: " + ", ".join(f"{n} = {v:.4g}" for n, v in together.items())
-                    if found["effects"] and together
+                    if self.chosen.ids and together
                     else ""
                 )
             )
