@@ -60,9 +60,10 @@ def gated_early(
     margin: float = explain.BIC_MARGIN,
 ) -> list[Screened]:
     """The screened pairs sure to pass explain.bic_gate whatever the singles' cross-validation chooses:
-    their checked BIC (which their fit can only lower) is ``margin`` below every single's and none's."""
+    their checked BIC (which their fit can only lower) is ``margin`` below every single's and none's. Only
+    pairs: a triple's parts include pairs, not fitted yet, which it must beat too."""
     lowest = min(explain.bic(f) for f in full.values())
-    sure = [x for x in short if x.bic <= lowest - margin]
+    sure = [x for x in short if len(x.ids) == 2 and x.bic <= lowest - margin]
     return sorted(sure, key=lambda x: x.bic)[:count]
 
 
