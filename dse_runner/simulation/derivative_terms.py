@@ -5,7 +5,7 @@ Why: the master integrates a model-exchange (ME) FMU itself, so it can add to th
 returns before the solver uses them. A term missing from a model's equations (a hardening spring, a
 friction, a drag) can then be stated, fitted and proven for any ME FMU without changing it, as
 signal_effects.py does for what happens outside the equations. Diagnosis proposes such terms from what the
-recordings leave unexplained (analysis/diagnose/derivative_discovery.py).
+recordings leave unexplained (analysis/diagnose/term_hypotheses.py).
 
 A parameter named ``derivative_term(INSTANCE.der(STATE), TERM)`` is the coefficient ``a`` of TERM in
 

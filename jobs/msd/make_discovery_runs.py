@@ -1,6 +1,6 @@
 """Make recordings of a mass-spring-damper whose truth has physics the msd FMU lacks: discovery/CASE/.
 
-Why: derivative discovery (dse_runner/analysis/diagnose/derivative_discovery.py) should find a term missing
+Why: diagnosis (dse_runner/analysis/diagnose/term_hypotheses.py) should find a term missing
 from a model-exchange FMU's equations from recordings alone. Here the truth is
 
     m x'' = F − k x − c x' + (concealed)

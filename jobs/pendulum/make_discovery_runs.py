@@ -1,7 +1,7 @@
 """Make recordings of a pendulum whose truth has a drag the pendulum FMU lacks: discovery/CASE/.
 
-Why: a second model-exchange model for derivative discovery (dse_runner/analysis/diagnose/
-derivative_discovery.py), with a concealed term of another shape than the msd's. The truth is
+Why: a second model-exchange model for terms inside the model (dse_runner/analysis/diagnose/
+term_hypotheses.py), with a concealed term of another shape than the msd's. The truth is
 
     m l² w' = tau − m g l sin(theta) − b w − (concealed)
 

@@ -12,8 +12,7 @@ import pytest
 from conftest import REPO
 
 from dse_runner.analysis.diagnose import explain
-from dse_runner.analysis.diagnose.derivative_discovery import observe
-from dse_runner.analysis.diagnose.derivative_discovery.library import model_exchange_instances
+from dse_runner.analysis.diagnose.derivatives import model_exchange_instances, observe
 from dse_runner.analysis.diagnose.explain import Candidate
 from dse_runner.analysis.diagnose.signal_claims import unreached
 from dse_runner.analysis.diagnose.signal_hypotheses import SignalHypothesis, state_hypotheses

@@ -46,8 +46,7 @@ from ...sweeps.spec import Space, derived_space
 from ...sweeps.sweep import submit
 from . import answer as answer_
 from . import explain, signal_claims, signal_figures, signal_locate, signal_report, signal_screen
-from .derivative_discovery import observe
-from .derivative_discovery.library import model_exchange_instances
+from .derivatives import model_exchange_instances, observe
 from .engine import (
     REFITTED,
     Fits,

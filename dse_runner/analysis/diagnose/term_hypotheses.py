@@ -25,7 +25,7 @@ import numpy as np
 
 from ...simulation import derivative_terms as dt
 from ...sweeps.fit import Parameter
-from .derivative_discovery.library import CandidateTerm, ModelExchangeInstance, kinematic_pairs, rms
+from .derivatives import CandidateTerm, ModelExchangeInstance, kinematic_pairs, rms
 from .signal_hypotheses import SignalHypothesis
 
 BOUND = 3.0  # a coefficient adds at most this many times its derivative's RMS

@@ -9,9 +9,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ....analysis.diagnose.derivative_discovery.propose import choose_threshold as generic_threshold
-from ....analysis.diagnose.derivative_discovery.propose import held_out_error
-from ....analysis.diagnose.derivative_discovery.propose import stlsq as sparse_regression
+from ....analysis.diagnose.sparse_regression import choose_threshold as generic_threshold
+from ....analysis.diagnose.sparse_regression import held_out_error
+from ....analysis.diagnose.sparse_regression import stlsq as sparse_regression
 from .. import correction
 from ..correction import CorrectionTerm
 from .observe import (
@@ -250,7 +250,7 @@ def _scaled(reg: ChannelRegression) -> tuple[np.ndarray, np.ndarray]:
 
 
 def choose_threshold(z: np.ndarray, y: np.ndarray, run: np.ndarray) -> float:
-    """The generic discovery's threshold (derivative_discovery.propose), with this module's STLSQ."""
+    """The engine's threshold (sparse_regression.choose_threshold), with this module's STLSQ."""
     return generic_threshold(z, y, run, stlsq)
 
 

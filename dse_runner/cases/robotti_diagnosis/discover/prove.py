@@ -9,10 +9,10 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from ....analysis.diagnose import explain
-from ....analysis.diagnose.derivative_discovery.prove import PRUNE_SE
-from ....analysis.diagnose.derivative_discovery.prove import pruned as generic_pruned
 from ....analysis.diagnose.explain import Candidate
 from ....analysis.diagnose.proof import Proof
+from ....analysis.diagnose.sparse_regression import PRUNE_SE
+from ....analysis.diagnose.sparse_regression import pruned as generic_pruned
 from ....sweeps.fit import FitProblem, FitResult
 from .. import correction
 from .observe import Observed, vehicle_values
@@ -64,7 +64,7 @@ def fitted_terms(fit: FitResult) -> dict[str, float]:
 
 def pruned(fit: FitResult, factor: float = PRUNE_SE) -> dict[str, float]:
     """The fitted correction terms at least ``factor`` cluster-robust standard errors from zero (an
-    undetermined one is dropped; derivative_discovery.prove.pruned), local names -> values."""
+    undetermined one is dropped; sparse_regression.pruned), local names -> values."""
     kept = generic_pruned(fit, [n for n in fit.values if correction.is_correction(n)], factor)
     return {name.rsplit(".", 1)[-1]: fit.values[name] for name in kept}
 
