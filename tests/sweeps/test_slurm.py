@@ -73,7 +73,7 @@ def test_a_sweep_through_sbatched_workers_lands_every_row_once(tmp_path, slurm, 
     dashboard link printed on loopback, where the dashboard listens."""
     before = set(slurm.ever())
     spec = write_space(tmp_path, cluster={"kind": "slurm", "n_workers": 2, "slurm": slurm_block(tmp_path)})
-    result = dse_runner("submit", spec, "--no-dashboard", "--json")
+    result = dse_runner("submit", spec, "--json")  # with the dashboard: --no-dashboard prints no address
     assert result.returncode == 0, result.stderr
     ids = raw_task_ids(tmp_path / "out")
     assert len(ids) == TASKS and ids.is_unique
