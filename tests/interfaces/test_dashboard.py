@@ -377,9 +377,10 @@ def test_dashboard_command_serves_a_finished_sweep_and_its_page_outlives_it_with
 
 
 def test_the_workers_table_of_a_finished_sweep_shows_no_running_task(tmp_path, dask_scheduler):
-    """Two tasks of the sleeper (1.7 s of sleep each) start together on the cluster's two workers and end
-    within a second of each other. The workers are sampled at most once a second, so the last sample, taken as
-    the first task ended, still has the other running: the page showed it so while the sweep ran, and, once it
+    """Two tasks of the sleeper (about 7 s of sleep each: long enough that the page, refreshed each second,
+    shows them running on a busy machine too) start together on the cluster's two workers and end within a
+    second of each other. The workers are sampled at most once a second, so the last sample, taken as the
+    first task ended, still has the other running: the page showed it so while the sweep ran, and, once it
     has finished, shows both workers with nothing running."""
     from distributed import Client
 
@@ -393,7 +394,7 @@ def test_the_workers_table_of_a_finished_sweep_shows_no_running_task(tmp_path, d
             tmp_path,
             multimodel=str(sleeper_multimodel(tmp_path)),
             scenarios=[str(SCENARIOS / "sin1")],
-            parameters={"sleeper.pause": [0.001, 0.00101]},
+            parameters={"sleeper.pause": [0.004, 0.00401]},
             keep_trajectories=0,
             chunk_seconds=0.05,
         )
