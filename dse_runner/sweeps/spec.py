@@ -288,6 +288,11 @@ class Space:
         out = Path(self.spec.output)
         return out if out.is_absolute() else (self.path.parent / out).resolve()
 
+    def with_scenarios(self, scenarios: list[Scenario]) -> Space:
+        """The same space run on ``scenarios`` instead of its own (a diagnosis' held-out views, or only
+        its recorded runs)."""
+        return Space(self.spec, self.path, self.plan, scenarios, self.distributions, self.draws)
+
     def with_overrides(
         self,
         output: str | Path | None = None,

@@ -80,12 +80,6 @@ class Fits(Fitter):
     survivors: int = SURVIVORS  # combinations that pass the BIC gate and are cross-validated, at most
 
     @property
-    def scales(self) -> Mapping[str, float]:
-        """Each compared signal's residual column and its scale (1 over its recording's noise)."""
-        assert not isinstance(self.residuals, str)
-        return self.residuals
-
-    @property
     def parts(self) -> list[list[str]]:
         return self.validation.tests
 
@@ -226,7 +220,7 @@ def restarts(base: Sequence[Parameter], point: Point, settings: Sequence[Point] 
 def best_of(
     space: Space,
     client,
-    scales: Mapping[str, float],
+    residuals: str | Mapping[str, float],
     points: Sequence[Point],
     problem: Callable[[str, Mapping[str, float], int], FitProblem],
     scenarios: Sequence[str],
@@ -236,17 +230,18 @@ def best_of(
     for SCOUTING iterations, the best GROW_FINALISTS of those fitted on; ``problem(label, start, iterations)``
     makes each fit. Why: in a rugged misfit (an oscillator's frequency, an open-loop drift) the best start by
     its misfit alone is often not in the deepest basin, and a few iterations tell which are."""
-    rows, _ = evaluate_points(space, list(points), client, list(scales), [set(scenarios)] * len(points))
-    found = residuals_in(rows, scales)
+    columns = [residuals] if isinstance(residuals, str) else list(residuals)
+    rows, _ = evaluate_points(space, list(points), client, columns, [set(scenarios)] * len(points))
+    found = residuals_in(rows, residuals)
     best = sorted(points, key=lambda point: screen_sse(point, scenarios, found))[:REFITTED]
     report = round_report(say)
     scouted = fit_all(
-        space, [problem(f"#{k}", p, SCOUTING) for k, p in enumerate(best)], client, dict(scales), report
+        space, [problem(f"#{k}", p, SCOUTING) for k, p in enumerate(best)], client, residuals, report
     )
     finalists = sorted(scouted.values(), key=lambda fit: fit.sse)[:GROW_FINALISTS]
     going = [problem(f"#{k}+", fit.values, MAX_ITERATIONS - SCOUTING) for k, fit in enumerate(finalists)]
     went = fit_all(
-        space, [g for g, fit in zip(going, finalists) if not fit.converged], client, dict(scales), report
+        space, [g for g, fit in zip(going, finalists) if not fit.converged], client, residuals, report
     )
     return min([*scouted.values(), *went.values()], key=lambda fit: fit.sse)
 
@@ -274,7 +269,7 @@ def recalibrated(f: Fits, answer: Candidate, everything: list[Candidate]) -> Can
     fit = best_of(
         f.space,
         f.client,
-        f.scales,
+        f.residuals,
         points,
         lambda tag, start, iterations: f.problem(f"{name}{tag}", answer.ids, f.scenarios, start, iterations),
         f.scenarios,

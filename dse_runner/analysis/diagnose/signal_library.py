@@ -575,7 +575,7 @@ def _screened_pairs(
 
         def real_sse(points: list[Point]) -> list[float]:
             rows = f.rows([(p, f.scenarios) for p in points])  # a record's views are only for its folds
-            found = residuals_in(rows, f.scales)
+            found = residuals_in(rows, f.residuals)
             return [screen_sse(p, f.scenarios, found) for p in points]
 
         pairs.screened, pairs.predicted = signal_screen.screen(full[()], singles, bounds, real_sse)

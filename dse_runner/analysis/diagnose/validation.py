@@ -143,6 +143,6 @@ def validated(space: Space, count: int, columns: list[str]) -> tuple[Space, Vali
     if not views:
         return space, Validation("in sample", names, [], names)
     scenarios = [record, *(v for pair in views for v in pair)]
-    cut = Space(space.spec, space.path, space.plan, scenarios, space.distributions, space.draws)
+    cut = space.with_scenarios(scenarios)
     folds = [Fold((train.name,), (test.name,)) for train, test in views]
     return cut, Validation("time blocks", names, folds, tuple(test.name for _, test in views), record.name)

@@ -35,7 +35,7 @@ def recorded(space: Space, validation: Validation) -> Space:
     """``space`` with only the recorded runs, without the views a time-block validation adds: what the
     residuals are located on, look-alikes weighed on and discovery observes."""
     runs = [s for s in space.scenarios if s.name in validation.fitted]
-    return Space(space.spec, space.path, space.plan, runs, space.distributions, space.draws)
+    return space.with_scenarios(runs)
 
 
 def worth_screening(candidates: list[Candidate], floor: float | None, settings: DiagnosisSettings) -> bool:
