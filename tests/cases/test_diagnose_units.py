@@ -12,7 +12,7 @@ import yaml
 from conftest import strict_loads
 
 from dse_runner import strict_json
-from dse_runner.analysis.diagnose import explain
+from dse_runner.analysis.diagnose import discovery, explain
 from dse_runner.analysis.diagnose.explain import Candidate
 from dse_runner.cases.fielddata import load_run
 from dse_runner.cases.robotti_diagnosis import (
@@ -930,65 +930,6 @@ def with_terms(ids, held_out, sse, values, se=0.001):
     return c
 
 
-def proofs(*candidates, worse=1.0):
-    """Each candidate's proof as discover builds it, its folds' held-out errors scaled by ``worse``."""
-    from dse_runner.cases.robotti_diagnosis import discover
-
-    out = {}
-    for c in candidates:
-        proof = discover.proof_of(c, [])
-        proof.held_out = {run: e * worse for run, e in proof.held_out.items()}
-        out[c.label] = proof
-    return out
-
-
-def test_a_discovered_term_must_pay_like_an_effect():
-    """Accepted only when it cuts held-out error by min_gain and BIC by the extended margin against the
-    library's answer and every fitted part, with every term two standard errors from zero, and its proof
-    (the terms each fold chose for itself) bears it out against the same effects without the terms."""
-    from dse_runner.cases.robotti_diagnosis import discover
-
-    none = candidate((), [1.0, 1.0], 400.0)
-    lag = candidate(("steering_lag",), [0.3, 0.3], 100.0, {"vehicle.steering_lag": 0.4})
-    term = {"vehicle.corr_steer_vdelta": -0.12}
-    good = with_terms(
-        ("steering_lag", "discovered"), [0.05, 0.05], 10.0, {"vehicle.steering_lag": 0.0, **term}
-    )
-    alone = with_terms(("discovered",), [0.04, 0.04], 9.0, term)
-    everything = [none, lag, good, alone]
-    assert (
-        discover.accept([good, alone], lag, everything, proofs(good, alone), 0.05, 10.0) is alone
-    )  # a tie: fewer ids
-    # the folds' own choices predicted no better than the library's lag alone: the terms are not proven
-    assert discover.accept([good], lag, everything, proofs(good, worse=6.0), 0.05, 10.0) is None
-    assert discover.proof_of(good, []).error == pytest.approx(good.cross_validated)
-    small = with_terms(("discovered",), [0.29, 0.29], 99.0, term)
-    assert (
-        discover.accept([small], lag, [none, lag, small], proofs(small), 0.05, 10.0) is None
-    )  # < 5 % better than the library
-    vague = with_terms(("discovered",), [0.04, 0.04], 9.0, term, se=0.1)
-    assert discover.accept([vague], lag, [none, lag, vague], proofs(vague), 0.05, 10.0) is None  # within 2 se
-
-
-def test_resemblance_in_words_and_cosine():
-    from dse_runner.cases.robotti_diagnosis import discover
-
-    change = np.array([1.0, 2.0, 0.0, -1.0])
-    assert discover.similarity(
-        change, change[:, None] * 0.1, np.array([0.0]), np.array([10.0])
-    ) == pytest.approx(1.0)
-    assert (
-        discover.similarity(change, -change[:, None], np.array([0.0]), np.array([10.0])) == 0.0
-    )  # wrong sign only
-    other = np.array([[2.0], [-1.0], [0.0], [0.0]])
-    assert discover.similarity(change, other, np.array([-5.0]), np.array([5.0])) == pytest.approx(
-        0.0, abs=1e-12
-    )
-    assert discover.resemblance_words([("wheel_slip", 0.96)]) == "resembles `wheel_slip` (0.96)"
-    assert discover.resemblance_words([("steering_lag", 0.72)]) == "is partly like `steering_lag` (0.72)"
-    assert discover.resemblance_words([("time_offset", 0.2)]).startswith("is unlike any library effect")
-
-
 def test_discovered_terms_in_json_and_verdict(tmp_path):
     from dse_runner.cases.robotti_diagnosis import discover
 
@@ -1002,8 +943,12 @@ def test_discovered_terms_in_json_and_verdict(tmp_path):
         found,
         none,
         floor=noise.NoiseFloor(0.02, 0.025, noise.CLOSE_FIXES, 100),
-        discovery=discover.Discovery(
-            none, candidates=[found], chosen=found, resembles=[("wheel_slip", 0.95), ("speed_lag", 0.4)]
+        discovery=discovery.Discovery(
+            none,
+            discover.CorrectionSearch(),
+            candidates=[found],
+            chosen=found,
+            resembles=[("wheel_slip", 0.95), ("speed_lag", 0.4)],
         ),
     )
     assert d.verdict == "discovered" and d.discovered
@@ -1031,7 +976,13 @@ def test_a_correction_that_leaves_a_residual_is_partial(tmp_path):
         found,
         none,
         floor=noise.NoiseFloor(0.02, 0.025, noise.CLOSE_FIXES, 100),
-        discovery=discover.Discovery(none, candidates=[found], chosen=found, resembles=[("wheel_slip", 0.6)]),
+        discovery=discovery.Discovery(
+            none,
+            discover.CorrectionSearch(),
+            candidates=[found],
+            chosen=found,
+            resembles=[("wheel_slip", 0.6)],
+        ),
     )
     assert d.verdict == "partial" and d.discovered
     [entry] = d.effects
@@ -1039,25 +990,6 @@ def test_a_correction_that_leaves_a_residual_is_partial(tmp_path):
     text = report.verdict_text(d)
     assert text.startswith("**Verdict: partial.**") and "explains part of it" in text
     assert "0.275 m of mean cross-track error remains above the noise" in text
-
-
-def test_pruned_slots_go_to_the_next_proposed_terms():
-    """A term equation error ranked high but the fits put within two standard errors of zero frees its slot
-    for the next term the proposal ranked, never one already tried; the kept terms restart at zero."""
-    from dse_runner.cases.robotti_diagnosis import discover
-
-    ranked = (
-        ("corr_steer_ddeltav", 0.3),
-        ("corr_steer_ddelta", 0.2),
-        ("corr_gps_cross_sinpsi", 0.1),
-        ("corr_gps_cross_cospsi", -0.1),
-        ("corr_acc_s", 0.01),
-    )
-    proposal = discover.CorrectionProposal(dict(ranked[:3]), {}, {}, {}, ranked)
-    kept = {"corr_gps_cross_sinpsi": 0.15}
-    refill = discover.refilled(kept, proposal, set(proposal.terms), 3)
-    assert refill == {"corr_gps_cross_sinpsi": 0.0, "corr_gps_cross_cospsi": -0.1, "corr_acc_s": 0.01}
-    assert discover.refilled(kept, proposal, {v for v, _ in ranked}, 3) == {"corr_gps_cross_sinpsi": 0.0}
 
 
 def test_terms_are_ranked_by_what_they_do_to_positions():

@@ -8,7 +8,7 @@ library that runs these stages.
 
 The stages, in a diagnosis' order: :func:`singles` (none and each hypothesis, every start scouted),
 :func:`cross_validated` (the singles and a library's shortlisted combinations held out, the BIC gate),
-:func:`grown` (one more while each pays its way, then :func:`recalibrated` and :func:`judge_members`),
+:func:`grown` (one more while each pays its way), :func:`recalibrated` and :func:`judge_members`,
 :func:`proven` and :func:`held_to_proof` (searched terms chosen again on each fold).
 """
 
@@ -175,23 +175,24 @@ def grown(
     full: Mapping[tuple[str, ...], FitResult],
     everything: list[Candidate],
     noise_factor: float,
+    floor: float = 1.0,
+    most: int = MAX_EFFECTS,
 ) -> tuple[Candidate, list[dict[str, Any]]]:
-    """``selected`` grown one effect at a time while each pays its way and error stays above the noise, then
-    each member of the answer judged; the answer, and what each round of growth tried. Every candidate fitted
-    joins ``everything``."""
+    """``selected`` grown one effect at a time while each pays its way, the held-out error stays above
+    ``noise_factor`` noise floors (``floor``: in the held-out error's units; 1 where the residuals are in
+    noise units) and the answer has fewer than ``most`` effects; the answer, and what each round of growth
+    tried. Every candidate fitted joins ``everything``."""
     growth: list[dict[str, Any]] = []
     while (
         selected.ids
-        and len(selected.ids) < MAX_EFFECTS
-        and explain.above_floor(selected.cross_validated, 1.0, noise_factor)
+        and len(selected.ids) < most
+        and explain.above_floor(selected.cross_validated, floor, noise_factor)
     ):
         grown = extended(f, selected, full, everything, growth)
         if grown is None:
             break
-        f.say(f"grown: {grown.label}, held-out {grown.cross_validated:.3g} noise floors")
+        f.say(f"grown: {grown.label}, held-out {grown.cross_validated:.3g}")
         selected = grown
-    selected = recalibrated(f, selected, everything)
-    judge_members(f, selected, everything)
     return selected, growth
 
 

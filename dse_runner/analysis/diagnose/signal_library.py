@@ -58,6 +58,7 @@ from .engine import (
     joining,
     judge_members,
     proven,
+    recalibrated,
     restarts,
     screen_sse,
     singles,
@@ -444,6 +445,8 @@ def diagnose_space(
         pairs, short = _screened_pairs(f, sets, full)
         baseline, everything = cross_validated(f, sets, full, short)
         selected, growth = grown(f, explain.select(everything[1:], baseline), full, everything, noise_factor)
+        selected = recalibrated(f, selected, everything)
+        judge_members(f, selected, everything)
         selected, decided = _decided(f, selected, full, everything)
         chosen, dropped = explain.claimed(selected, everything, baseline)
         chosen = _reached(f, chosen, everything, compared, dropped)

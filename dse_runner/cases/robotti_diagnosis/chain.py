@@ -32,21 +32,29 @@ def fitted_error(fit: FitResult) -> float:
     return float(np.mean(runs)) if runs else math.inf
 
 
+TIME_STARTS = 3  # a delay's or a lag's fit starts from absent and from this many less one points inside its
+# range: against manoeuvres that repeat (a sine's steering) its misfit has minima a period apart, which a fit
+# from absent alone can miss
+
+
+def time_starts(parameter: Parameter, count: int = TIME_STARTS) -> tuple[float, ...]:
+    """Absent, then ``count`` - 1 points evenly inside the range of a parameter in seconds."""
+    span = parameter.upper - parameter.lower
+    return (0.0, *(parameter.lower + span * k / count for k in range(1, count)))
+
+
 @dataclass(frozen=True)
 class VehicleEffect:
-    """A library hypothesis as the engine fits it: its parameters in the vehicle's effects variant, from one
-    start, the effect absent (each parameter 0)."""
+    """A library hypothesis as the engine fits it: its parameters in the vehicle's effects variant, each
+    starting absent (0); a one-parameter delay or lag (in seconds) from points inside its range too."""
 
     parameters: tuple[Parameter, ...]
+    starts: tuple[tuple[float, ...], ...]
     term: None = None  # no term inside the model: the correction block is discovery's, not a hypothesis
 
     @property
     def names(self) -> tuple[str, ...]:
         return tuple(p.name for p in self.parameters)
-
-    @property
-    def starts(self) -> tuple[tuple[float, ...], ...]:
-        return (tuple(0.0 for _ in self.parameters),)
 
     def start(self, k: int) -> dict[str, float]:
         return dict(zip(self.names, self.starts[k]))
@@ -54,12 +62,15 @@ class VehicleEffect:
     @classmethod
     def of(cls, vehicle: str, hid: str) -> VehicleEffect:
         """The library's hypothesis ``hid`` on the instance ``vehicle``."""
-        return cls(
-            tuple(
-                Parameter(f"{vehicle}.{p.variable}", 0.0, p.lower, p.upper, p.step)
-                for p in hypothesis(hid).parameters
-            )
+        declared = hypothesis(hid).parameters
+        parameters = tuple(
+            Parameter(f"{vehicle}.{p.variable}", 0.0, p.lower, p.upper, p.step) for p in declared
         )
+        timed = len(declared) == 1 and declared[0].unit == "s"
+        starts = (
+            tuple((v,) for v in time_starts(parameters[0])) if timed else (tuple(0.0 for _ in parameters),)
+        )
+        return cls(parameters, starts)
 
 
 @dataclass

@@ -42,12 +42,13 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 from ...errors import DseError
-from ...sweeps.fit import Parameter
+from ...sweeps.fit import FitResult, Parameter
 
 TAU_F = 0.1  # s: time constant of the filtered derivatives a_cmd and delta_rate (model.c's TAU_F)
 TAU_TRACK = 0.01  # s: how fast the rate limiter follows the steering below its limit (model.c's TAU_TRACK)
@@ -474,3 +475,26 @@ def distance(t: np.ndarray, v: np.ndarray) -> np.ndarray:
     a = np.abs(np.asarray(v, dtype=float))
     steps = np.diff(np.asarray(t, dtype=float)) * 0.5 * (a[1:] + a[:-1])
     return np.concatenate([[0.0], np.cumsum(steps)])
+
+
+def terms_json(fit: FitResult) -> list[dict[str, Any]]:
+    """The discovered terms of a fit as the JSON's ``terms``: readable text,
+    parameter, value, ~95 % interval."""
+    interval = fit.interval()
+    shapes = shape_values(fit.point)
+    out = []
+    for name, value in fit.values.items():
+        if is_correction(name):
+            t = term(name)
+            low, high = interval[name]
+            shape = shape_of(t)
+            out.append(
+                {
+                    "text": readable_term(t, value, (low, high), shapes),
+                    "variable": t.variable,
+                    "value": value,
+                    "interval": [low, high],
+                }
+                | ({shape.key: shapes[shape.variable]} if shape and shape.variable in shapes else {})
+            )
+    return out

@@ -11,13 +11,14 @@ from typing import Any
 import yaml
 
 from ... import bundled
+from ...analysis.diagnose import discovery
 from ...errors import DseError
 from ...simulation.multimodel import MultiModel, split_ref
 from ...sweeps.domain import Range
 from ...sweeps.fit import Parameter
 from ...sweeps.spec import Space, SpaceSpec, resolve_space
 from .. import fielddata
-from . import correction, discover
+from . import correction
 from .correction import variables as correction_variables
 from .hypotheses import EFFECTS_FMU, effect_variables, hypothesis
 from .outcome import Diagnosis
@@ -143,7 +144,7 @@ def write_model(diagnosis: Diagnosis, calibration: Space) -> dict[str, Path]:
             shape = correction.shape_of(correction.term(name))
             if shape is not None:  # what shapes the term (when it switches on, ...), as the fits held it
                 parameters[f"{vehicle}.{shape.variable}"] = [fit.point[f"{vehicle}.{shape.variable}"]]
-    for hid in discover.library_ids(diagnosis.chosen.ids):
+    for hid in discovery.library_ids(diagnosis.chosen.ids):
         for p in hypothesis(hid).parameters:
             ref = f"{vehicle}.{p.variable}"
             low, high = (max(p.lower, interval[ref][0]), min(p.upper, interval[ref][1]))

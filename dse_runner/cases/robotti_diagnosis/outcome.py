@@ -9,13 +9,14 @@ from pathlib import Path
 from typing import Any
 
 from ...analysis.diagnose import answer as answer_
-from ...analysis.diagnose import explain
+from ...analysis.diagnose import discovery, explain
+from ...analysis.diagnose.engine import MAX_EFFECTS
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.findings import DiscoveredCorrection, Finding, NamedEffect
 from ...analysis.diagnose.proof import honest
 from ...errors import DseError
 from ...simulation.scenario import dropouts_line
-from . import correction, discover, lookalike, noise, screen
+from . import correction, lookalike, noise, screen
 from .hypotheses import LIBRARY
 from .noise import NoiseFloor
 
@@ -23,7 +24,7 @@ from .noise import NoiseFloor
 @dataclass(frozen=True)
 class DiagnosisSettings:
     folds: int = 3
-    max_effects: int = 3
+    max_effects: int = MAX_EFFECTS  # the answer grows one effect at a time up to this many (engine.grown)
     pairs: int = 4  # best screened pairs fitted for real
     triples: int = 2  # best screened triples fitted for real
     shortlist: int = (
@@ -89,13 +90,13 @@ class Diagnosis:
     )  # every combination the screen tried, best first
     shortlisted: list[str] = field(default_factory=list)  # the labels of those then fitted for real
     lookalikes: list[lookalike.LookAlike] = field(default_factory=list)  # the evidence between twin sets
-    discovery: discover.Discovery | None = None  # what was sought beyond the library; None if nothing was
+    discovery: discovery.Discovery | None = None  # what was sought beyond the library; None if nothing was
     dropped: list[explain.Dropped] = field(default_factory=list)  # members the noise rule took away
 
     @property
     def discovered(self) -> bool:
         """Whether the chosen model carries a discovered correction."""
-        return discover.DISCOVERED in self.chosen.ids
+        return discovery.DISCOVERED in self.chosen.ids
 
     @property
     def library(self) -> Candidate:
@@ -112,7 +113,7 @@ class Diagnosis:
             self.cross_track_after,
             floor,
             self.settings.noise_factor,
-            bool(discover.library_ids(self.chosen.ids)),
+            bool(discovery.library_ids(self.chosen.ids)),
             self.discovered,
         )
 
@@ -155,7 +156,7 @@ class Diagnosis:
         if not self.chosen.ids:
             return [NamedEffect("none", LIBRARY["none"].name, {}, {}, partial=False)]
         order = explain.removal_order(self.chosen, self.candidates)
-        return [self._discovered() if hid == discover.DISCOVERED else self._effect(hid) for hid in order]
+        return [self._discovered() if hid == discovery.DISCOVERED else self._effect(hid) for hid in order]
 
     @property
     def effects(self) -> list[dict[str, Any]]:
@@ -167,10 +168,10 @@ class Diagnosis:
         and the library effect it resembles most."""
         fit = self.chosen.full
         interval = fit.interval()
-        terms = discover.terms_json(fit)
+        terms = correction.terms_json(fit)
         similar = self.discovery.resembles if self.discovery is not None else []
         return DiscoveredCorrection(
-            id=discover.DISCOVERED,
+            id=discovery.DISCOVERED,
             name="a data-driven correction of the model (discovered)",
             terms=terms,
             readable=correction.readable(fit.point),
@@ -182,7 +183,7 @@ class Diagnosis:
                 {
                     "id": similar[0][0],
                     "similarity": similar[0][1],
-                    "text": discover.resemblance_words(similar),
+                    "text": discovery.resemblance_words(similar),
                 }
                 if similar
                 else None

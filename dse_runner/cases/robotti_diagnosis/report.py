@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from ... import strict_json
-from ...analysis.diagnose import explain, report_html
+from ...analysis.diagnose import discovery, explain, report_html
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.findings import DiscoveredCorrection
 from ...analysis.diagnose.validation import record_of
@@ -59,7 +59,7 @@ def _candidates(diagnosis: Diagnosis) -> pd.DataFrame:
             k.split(".", 1)[1]: v
             for k, v in c.full.values.items()
             if k.split(".", 1)[1]
-            in {p for hid in discover.library_ids(c.ids) for p in LIBRARY[hid].variables}
+            in {p for hid in discovery.library_ids(c.ids) for p in LIBRARY[hid].variables}
             or correction.is_correction(k)
         }
         validated = c.validated and math.isfinite(c.cross_validated)
@@ -493,10 +493,10 @@ def discovered_text(diagnosis: Diagnosis) -> str:
     """The verdict when a discovered correction passed: the library falls short, and by how much; the term;
     and, when the correction too leaves a residual above the noise (verdict partial), how much remains."""
     floor, library, chosen = diagnosis.floor, diagnosis.library, diagnosis.chosen
-    entry = next(e for e in diagnosis.effects if e["id"] == discover.DISCOVERED)
+    entry = next(e for e in diagnosis.effects if e["id"] == discovery.DISCOVERED)
     remains = library.cross_validated - floor.cross_track
     gain = 100.0 * (1.0 - chosen.cross_validated / library.cross_validated)
-    named = [e for e in diagnosis.effects if e["id"] != discover.DISCOVERED]
+    named = [e for e in diagnosis.effects if e["id"] != discovery.DISCOVERED]
     whole = diagnosis.verdict == explain.DISCOVERED
     part = (
         " Read " + ", ".join(f"`{e['id']}`" for e in named) + " as part of the cause, not as the cause."
@@ -558,7 +558,7 @@ def discovery_text(diagnosis: Diagnosis) -> str:
     if found.chosen is None:
         lines.append(f" Nothing was accepted: {found.reason}.")
     else:
-        lines.append(f" Accepted: `{found.chosen.label}`; it {discover.resemblance_words(found.resembles)}.")
+        lines.append(f" Accepted: `{found.chosen.label}`; it {discovery.resemblance_words(found.resembles)}.")
     proof = found.proof
     if proof is not None and proof.chosen:
         lines.append(

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ...analysis.diagnose import engine, explain
+from ...analysis.diagnose import discovery, engine, explain
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.library import space_with
 from ...analysis.diagnose.validation import Validation, validated
@@ -18,7 +18,8 @@ from ...sweeps.rank import rank
 from ...sweeps.spec import Space
 from ...sweeps.sweep import submit, trajectories_of
 from . import correction, discover, locate, lookalike, noise, screen
-from .chain import Chain, DiagnosisMessages, fitted_error
+from .chain import Chain, DiagnosisMessages, VehicleEffect, fitted_error
+from .hypotheses import LIBRARY
 from .model_files import base_parameters, fits_space, steering_source, vehicle_of, write_model
 from .noise import NoiseFloor
 from .outcome import Diagnosis, DiagnosisSettings
@@ -65,16 +66,18 @@ def screen_combinations(chain: Chain, candidates: list[Candidate]) -> list[scree
 @dataclass
 class Choice:
     chosen: Candidate  # the baseline when nothing is missing
-    candidates: list[Candidate]  # every set fitted: none, the singles, the shortlisted combinations
+    candidates: list[Candidate]  # every set fitted: none, the singles, the shortlisted combinations, growth's
     screened: list[screen.Screened]  # every combination the screen tried, best first; [] when it did not run
     shortlisted: list[screen.Screened]  # those fitted for real
+    growth: list[dict[str, Any]]  # each round of one more effect: what it tried (engine.grown)
 
 
 def choose(chain: Chain, floor: float | None = None) -> Choice:
     """The engine's stages on the vehicle's library: none and every hypothesis alone (engine.singles);
     unless one already fits to the noise, every combination screened (screen.py) and the short list fitted
     for real in the same batch as the singles' folds, those passing the BIC gate cross-validated
-    (engine.cross_validated); then the choice (explain.select)."""
+    (engine.cross_validated); the choice (explain.select), grown one effect at a time while each pays its
+    way and the held-out error stays above the noise (engine.grown; not without a noise floor)."""
     settings = chain.settings
     sets, full = engine.singles(chain)
     singles = [Candidate(ids, full[ids]) for ids in sets]
@@ -90,12 +93,13 @@ def choose(chain: Chain, floor: float | None = None) -> Choice:
             f"{settings.floor_stop:g}x the noise floor, or the settings allow one effect at a time"
         )
     baseline, everything = engine.cross_validated(chain, sets, full, short)
-    return Choice(
-        explain.select(everything, baseline, settings.min_gain, settings.bic_margin),
-        everything,
-        screened,
-        short,
-    )
+    chosen = explain.select(everything, baseline, settings.min_gain, settings.bic_margin)
+    growth: list[dict[str, Any]] = []
+    if floor is not None and math.isfinite(floor) and floor > 0:
+        chosen, growth = engine.grown(
+            chain, chosen, full, everything, settings.noise_factor, floor, settings.max_effects
+        )
+    return Choice(chosen, everything, screened, short, growth)
 
 
 def _locate(space: Space, vehicle: str, tracks: dict[str, Any]) -> Any:
@@ -116,10 +120,11 @@ def _locate(space: Space, vehicle: str, tracks: dict[str, Any]) -> Any:
 
 def seek(
     chain: Chain, reference: Candidate, candidates: list[Candidate], floor: NoiseFloor, space: Space
-) -> discover.Discovery | None:
-    """Discovery (discover/) on top of the library's answer, only when that answer leaves held-out error
-    above ``noise_factor`` noise floors: below it there is nothing a correction could claim but noise.
-    Without a floor nothing counts as above it, so nothing is sought."""
+) -> discovery.Discovery | None:
+    """The engine's discovery (analysis/diagnose/discovery.py) with the correction block's terms
+    (discover/search.py) on top of the library's answer, only when that answer leaves held-out error above
+    ``noise_factor`` noise floors: below it there is nothing a correction could claim but noise. Without a
+    floor nothing counts as above it, so nothing is sought."""
     settings = chain.settings
     if not (
         floor.available
@@ -130,10 +135,20 @@ def seek(
         f"the library leaves {reference.cross_validated:.4f} m held-out "
         f"({reference.cross_validated / floor.cross_track:.1f}x the noise floor): seeking a correction"
     )
-    runs = [discover.observe(s) for s in space.scenarios]
-    found = discover.discover(chain, reference, candidates, runs, space.multimodel.parameters)
+    search = discover.CorrectionSearch(
+        chain,
+        chain.vehicle,
+        [discover.observe(s) for s in space.scenarios],
+        space.multimodel.parameters,
+        settings.max_terms,
+        settings.bic_margin,
+    )
+    found = discovery.discover(
+        chain, search, reference, candidates, settings.min_gain, settings.bic_margin, unit=" m"
+    )
     if found.chosen is not None:
-        found.resembles = discover.resembles(chain, found.chosen)
+        effects = {hid: VehicleEffect.of(chain.vehicle, hid).parameters for hid in LIBRARY}
+        found.resembles = discovery.resembles(chain, search, found.chosen, effects)
         chain.say(
             f"discovered {'; '.join(correction.readable(found.chosen.full.point))}: held-out "
             f"{reference.cross_validated:.4f} -> {found.chosen.cross_validated:.4f} m"
@@ -247,6 +262,7 @@ def _diagnose(
             "no_effect": baseline.full.undetermined,
             "insensitive_scenarios": locate.insensitive_scenarios(grid.table1),
             "folds": validation.tests,
+            "growth": choice.growth,
             "validation": validation.to_json(),
         },
         explain.ranked(choice.candidates + (found.candidates if found else [])),

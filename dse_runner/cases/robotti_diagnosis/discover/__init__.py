@@ -39,8 +39,10 @@ missing physics is sought among the correction block's terms (correction.py), in
 Equation-error coefficients are biased by noise in the recorded state, so they are only starting values:
 the fits size the terms on positions.
 
-The stages live in their own modules, in the order data flows: observe, propose, rank_terms, prove
-(with resemble afterwards); this package re-exports what the workflow and the tests use.
+The stages live in their own modules, in the order data flows: observe, propose, rank_terms, and search,
+the term search the engine's discovery runs (analysis/diagnose/discovery.py: per-fold proposals, settling,
+the proof, acceptance and the resemblance to library effects are the engine's); this package re-exports
+what the workflow and the tests use.
 """
 
 from .observe import OUTPUT, ChannelRegression, Observed, observe, vehicle_values
@@ -55,36 +57,25 @@ from .propose import (
     propose,
     regressions,
 )
-from .prove import Discovery, accept, discover, proof_of, refilled
-from .rank_terms import DISCOVERED, library_ids, rank_on_positions, searched_count
-from .resemble import resemblance_words, resembles, similarity, terms_json
+from .rank_terms import rank_on_positions, searched_count
+from .search import CorrectionSearch
 
 __all__ = [
-    "DISCOVERED",
     "INCLUSION",
     "MAX_BINDING",
     "OUTPUT",
     "RATE_LIMITS",
     "ChannelRegression",
     "CorrectionProposal",
-    "Discovery",
+    "CorrectionSearch",
     "Observed",
-    "accept",
     "binding",
     "candidates",
-    "discover",
     "find_shape",
-    "library_ids",
     "observe",
-    "proof_of",
     "propose",
     "rank_on_positions",
-    "refilled",
     "regressions",
-    "resemblance_words",
-    "resembles",
     "searched_count",
-    "similarity",
-    "terms_json",
     "vehicle_values",
 ]

@@ -4,53 +4,18 @@ parent fit."""
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
-from typing import Any, Protocol
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
 
 import numpy as np
 
-from ....analysis.diagnose.explain import Candidate
+from ....analysis.diagnose.discovery import Parent
+from ....analysis.diagnose.fitter import Fitter
 from ....analysis.diagnose.proof import extended_margin
-from ....analysis.diagnose.validation import Fold
 from ....sweeps.domain import Point
-from ....sweeps.fit import FitProblem, FitResult, Parameter, Residuals
+from ....sweeps.fit import Parameter
 from .. import correction
 from .propose import CHANNELS, SCANNED, CorrectionProposal
-
-DISCOVERED = "discovered"  # the id a discovered correction takes among a candidate's ids
-
-
-class Fitter(Protocol):
-    """What discovery needs from the chain (chain.Chain, the engine's fitter): problems, lockstep fits,
-    held-out scoring, residuals."""
-
-    vehicle: str
-    settings: Any
-    say: Callable[[str], None]
-
-    @property
-    def folds(self) -> list[Fold]: ...
-
-    @property
-    def scenarios(self) -> tuple[str, ...]: ...
-
-    def problem(
-        self,
-        name: str,
-        ids: Sequence[str],
-        on: Sequence[str],
-        start: Mapping[str, float] = {},
-        iterations: int | None = None,
-    ) -> FitProblem: ...
-
-    def fit(self, problems: list[FitProblem], what: str = "fits") -> dict[str, FitResult]: ...
-
-    def hold_out(self, candidates: Sequence[Candidate], results: Mapping[str, FitResult]) -> None: ...
-
-    def evaluate(
-        self, points: list[Point], scenarios: Sequence[Sequence[str]] | None = None
-    ) -> Residuals: ...
 
 
 def searched_count() -> int:
@@ -67,10 +32,6 @@ def charged(bic_margin: float, terms: int) -> float:
     return extended_margin(bic_margin, searched_count(), terms)
 
 
-def library_ids(ids: Sequence[str]) -> tuple[str, ...]:
-    return tuple(h for h in ids if h != DISCOVERED)
-
-
 def held_shapes(shapes: Mapping[str, float], vehicle: str, variables: Sequence[str]) -> dict[str, float]:
     """The shapes the terms ``variables`` depend on, as the vehicle's parameters at their found values (a
     shape no term uses changes nothing, and leaving it at its default keeps the points the store has)."""
@@ -82,29 +43,11 @@ def held_shapes(shapes: Mapping[str, float], vehicle: str, variables: Sequence[s
     return out
 
 
-@dataclass(frozen=True)
-class Screen:
-    """What ranking on positions needs of one parent fit: where it stands, on
-    which runs, and what was proposed."""
-
-    fit: FitResult  # the parent (R, or the calibrated model) fitted on ``scenarios``
-    scenarios: tuple[str, ...]
-    proposal: CorrectionProposal
-    bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)  # the parent's parameters' bounds
-
-    def moves(self) -> tuple[np.ndarray, np.ndarray]:
-        """How far each of the parent's parameters (``fit.names``) may move from
-        its fitted value, down and up."""
-        low = [self.bounds.get(n, (-math.inf, math.inf))[0] - self.fit.values[n] for n in self.fit.names]
-        high = [self.bounds.get(n, (-math.inf, math.inf))[1] - self.fit.values[n] for n in self.fit.names]
-        return np.minimum(low, 0.0), np.maximum(high, 0.0)
-
-
 def term_parameters(variables: Sequence[str], vehicle: str, rms: Mapping[str, float]) -> dict[str, Parameter]:
     return {v: correction.parameter(correction.term(v), vehicle, rms.get(v)) for v in variables}
 
 
-def screen_probes(job: Screen, parameters: Mapping[str, Parameter]) -> list[Point]:
+def screen_probes(job: Parent, parameters: Mapping[str, Parameter]) -> list[Point]:
     """The parent's point, then the point moved by one step in each proposed term (the missing columns)."""
     point = dict(job.fit.point)
     out = [point]
@@ -194,16 +137,21 @@ def rank_on_positions(
 
 
 def screened(
-    chain: Fitter, jobs: Mapping[str, Screen], rms: Mapping[str, float]
+    fits: Fitter,
+    vehicle: str,
+    jobs: Mapping[str, Parent],
+    rms: Mapping[str, float],
+    max_terms: int,
+    bic_margin: float,
 ) -> dict[str, CorrectionProposal]:
     """Each job's proposal re-ranked on positions (:func:`rank_on_positions`) at its parent fit, on the
     parent's runs only, all in one sweep of probes (one per proposed term and parent; the parents' own
     points are in the store). Equation error says *which* terms the data carry; this says which of them
     the fix residuals want first, so the full fit and every fold choose their terms the same way."""
     variables = {v for job in jobs.values() for v, _ in job.proposal.ranked}
-    parameters = term_parameters(sorted(variables), chain.vehicle, rms)
+    parameters = term_parameters(sorted(variables), vehicle, rms)
     probes = {label: screen_probes(job, parameters) for label, job in jobs.items()}
-    residuals = chain.evaluate(
+    residuals = fits.evaluate(
         [p for points in probes.values() for p in points],
         [jobs[label].scenarios for label, points in probes.items() for _ in points],
     )
@@ -233,9 +181,7 @@ def screened(
             if m is not None:
                 columns[variable] = (m - r) / parameters[variable].step
                 bounds[variable] = parameters[variable].upper
-        chosen, rest = rank_on_positions(
-            r, base, columns, bounds, chain.settings.max_terms, chain.settings.bic_margin, moves
-        )
+        chosen, rest = rank_on_positions(r, base, columns, bounds, max_terms, bic_margin, moves)
         proposed = dict(job.proposal.ranked)
         order = (*chosen, *((v, proposed[v]) for v in rest))
         out[label] = replace(job.proposal, terms=dict(chosen), ranked=order)
