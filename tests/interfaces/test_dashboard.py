@@ -415,10 +415,8 @@ def test_the_workers_table_of_a_finished_sweep_shows_no_running_task(tmp_path, d
         while time.monotonic() < deadline and _text(page, "state") != "finished":
             time.sleep(0.25)
         final = _running(page)
-    server.stop()
-    for thread in threading.enumerate():  # the page's own threads may still simulate the best track of this
-        if thread.name in ("dse-runner-page", "dse-runner-studies"):  # test's sleeper: let them end here,
-            thread.join(timeout=120)  # not in a later test after this one's FMU is gone
+    server.stop()  # waits for the page's own threads too: none outlives this test's FMU
+    assert server.feed.pages and not [t for p in server.feed.pages for t in p.threads if t.is_alive()]
     assert outcome["report"].ok == 2 and errors == []
     assert any(int(n) > 0 for column in seen for n in column), seen
     assert final == ["0", "0"], final

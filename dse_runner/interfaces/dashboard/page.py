@@ -196,6 +196,9 @@ class Page:
         self.shown = -1  # rows shown: they only ever grow, so a count tells news
         self.busy = False  # a worker thread is preparing the next view
         self.studying = False  # one is drawing the study sections
+        self.threads: list[
+            threading.Thread
+        ] = []  # those started, so that a stopping server can wait for them
         feed.pages.add(self)
         snap = feed.latest()
         scenarios = feed.scenarios(snap)
@@ -312,12 +315,26 @@ class Page:
         self._counts(snap)
         if not self.busy:
             self.busy = True
-            threading.Thread(target=self._prepare, name="dse-runner-page", daemon=True).start()
+            self._start(self._prepare, "dse-runner-page")
         # from the first update: the counts are in the page's HTML already, and a large design's
         # bootstrap takes longest of all
         if not self.studying and self._studies_due(snap) is not None:
             self.studying = True
-            threading.Thread(target=self._prepare_studies, name="dse-runner-studies", daemon=True).start()
+            self._start(self._prepare_studies, "dse-runner-studies")
+
+    def _start(self, work, name: str) -> None:
+        """``work`` on a thread of its own, kept until it ends."""
+        self.threads = [t for t in self.threads if t.is_alive()]
+        thread = threading.Thread(target=work, name=name, daemon=True)
+        self.threads.append(thread)
+        thread.start()
+
+    def join(self, timeout: float) -> None:
+        """Wait, at most ``timeout`` seconds in all, for the threads preparing this page's views: one may be
+        reading the store or simulating the best track, which must not outlive the server."""
+        deadline = time.monotonic() + timeout
+        for thread in list(self.threads):
+            thread.join(max(0.0, deadline - time.monotonic()))
 
     def _counts(self, snap: Snapshot) -> None:
         """The title, the progress line and the workers: cheap, from any snapshot."""

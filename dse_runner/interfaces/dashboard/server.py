@@ -48,6 +48,7 @@ def _origins(host: str, port: int) -> list[str]:
 
 
 FAREWELL_SECONDS = 10.0  # at most this long for the open pages to take their last update
+PREPARING_SECONDS = 120.0  # at most this long, when stopping, for the pages' views being prepared to end
 DELIVERY_SECONDS = 2.0  # then this long for it to leave the server (0.5 s lost it under a full machine)
 
 
@@ -74,6 +75,9 @@ class DashboardServer:
                 time.sleep(DELIVERY_SECONDS)
         self._loop.add_callback(self._loop.stop)
         self._thread.join(timeout=10)
+        deadline = time.monotonic() + PREPARING_SECONDS  # a page's view being prepared (the best point's
+        for page in list(self.feed.pages if self.feed is not None else ()):  # track simulated) ends first, so
+            page.join(max(0.0, deadline - time.monotonic()))  # nothing of it outlives the server
 
 
 def serve(
