@@ -27,6 +27,7 @@ from .rank_terms import (
     screened,
     searched_count,
 )
+from .resemble import resemblance_words
 
 
 def with_terms(
@@ -150,15 +151,20 @@ class Discovery:
         return {
             "reference": self.reference.label,
             "held_out_reference": self.reference.cross_validated,
+            "bic_reference": self.reference.bic,
             "proposed": dict(self.proposal.terms) if self.proposal else {},
+            "proposed_text": self.proposal.readable() if self.proposal else [],
             "inclusion": dict(self.proposal.inclusion) if self.proposal else {},
             "folds": self.folds,
             "bic_margin": self.margin,
             "accepted": self.chosen is not None,
+            "chosen": self.chosen.label if self.chosen is not None else None,
+            "resembles": resemblance_words(self.resembles) if self.chosen is not None else None,
             "tried": [
                 {
                     "id": c.label,
                     "terms": fitted_terms(c.full),
+                    "text": correction.readable(c.full.point),
                     "held_out": c.cross_validated,
                     "bic": c.bic,
                 }
