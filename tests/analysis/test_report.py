@@ -155,7 +155,7 @@ def test_a_library_section_is_placed_after_the_part_it_names_and_the_page_rebuil
         Section("Compared signals", "x against x_rec", after="verdict"),
         Section("", "**Look-alikes:** slip or speed_lag: cannot tell.", after="verdict"),
     ]
-    written = report.write(answer, sections)
+    written = report.write(answer, lambda saved: sections)
     text = written["report"].read_text()
     order = [
         "**Verdict: partial.**",

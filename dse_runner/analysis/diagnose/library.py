@@ -82,7 +82,7 @@ class HypothesisLibrary(ABC):
     keeps every simulation in the space's Parquet store, so that running it again resumes.
 
     Its report is the engine's (report.py), drawn from the answer's JSON: the library writes it with
-    ``report.write(answer, self.sections(answer))`` once its answer and figures are made.
+    ``report.write(answer, self.sections)`` once its answer and figures are made.
 
     Optional parts, with defaults: ``calibration`` (None: ``--scenarios`` alone cannot choose this
     library; a library whose case has a standard calibration names it, e.g. ``bundled:…``),
@@ -120,7 +120,7 @@ def report_again(summary: Path) -> dict[str, Path]:
     library = next((lib for lib in libraries() if lib.name == answer.library), None)
     if library is None:
         raise DseError(f"{summary}: diagnosed by the {answer.library} library, which is not installed")
-    return report.write(answer, library.sections(answer))
+    return report.write(answer, library.sections)
 
 
 def checked(library: HypothesisLibrary, space: Space, request: Request) -> HypothesisLibrary:

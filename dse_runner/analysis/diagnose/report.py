@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -35,6 +35,9 @@ class Section:
     heading: str
     body: str
     after: Part = "evidence"
+
+
+Sections = Callable[[Answer], Sequence[Section]]  # a library's sections of an answer (its ``sections``)
 
 
 def number(value: Any) -> str:
@@ -329,14 +332,16 @@ def files_at(report: Path, summary: Path) -> dict[str, str]:
     return {"report": str(report), "html": str(report.with_name(report_html.PAGE)), "json": str(summary)}
 
 
-def write(answer: Answer, sections: Sequence[Section] = ()) -> dict[str, Path]:
-    """The report, its page and the JSON itself, where the answer's ``files`` say (:func:`files_at`);
-    their paths."""
+def write(answer: Answer, sections: Sections = lambda answer: ()) -> dict[str, Path]:
+    """The JSON, the report (the skeleton with the library's ``sections`` of the answer) and its page, where
+    the answer's ``files`` say (:func:`files_at`); their paths. The page is drawn from the JSON as written (a
+    number that is not finite is null there), so drawing it again from ``diagnosis.json`` gives this page."""
     written = {k: Path(answer.files[k]) for k in ("report", "html", "json")}
     written["report"].parent.mkdir(parents=True, exist_ok=True)
-    written["report"].write_text(markdown(answer, sections))
-    report_html.write(written["report"], f"Diagnosis of {answer.space or answer.library}")
     written["json"].write_text(strict_json.dumps(answer.json_dict()))
+    saved = read(written["json"])
+    written["report"].write_text(markdown(saved, sections(saved)))
+    report_html.write(written["report"], f"Diagnosis of {saved.space or saved.library}")
     return written
 
 

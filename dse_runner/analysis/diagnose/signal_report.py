@@ -147,7 +147,7 @@ def write(answer: Answer) -> dict[str, Path]:
     model's values, where the answer's ``files`` say (:func:`files_in`). The values file is the model the
     recordings support, ready to run again: ``dse-runner simulate MODEL --scenario … --values
     diagnosed-values.yaml``."""
-    written = report.write(answer, sections(answer))
+    written = report.write(answer, sections)
     written["values"] = Path(answer.files["values"])
     write_values(
         written["values"],

@@ -63,8 +63,7 @@ def write(
     diagnosis.files.update(
         {k: Path(p) for k, p in report.files_at(folder / "report.md", folder / "diagnosis.json").items()}
     )
-    answer = diagnosis.answer()
-    return {**report.write(answer, sections(answer)), **{f"figure_{k}": p for k, p in figures.items()}}
+    return {**report.write(diagnosis.answer(), sections), **{f"figure_{k}": p for k, p in figures.items()}}
 
 
 def _figures(
