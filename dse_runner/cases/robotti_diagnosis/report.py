@@ -1,5 +1,5 @@
-"""The Robotti's own sections of its diagnosis report, and the figures they show; the engine's report.py lays
-out what every diagnosis has (verdict, effects, evidence, candidates, held-out runs, values, files).
+"""The Robotti's own sections of its diagnosis report (its figures are figures.py's); the engine's report.py
+lays out what every diagnosis has (verdict, effects, evidence, candidates, held-out runs, values, files).
 
 <out>/report/report.md        the page: the engine's skeleton with these sections
 <out>/report/diagnosis.html   the same page as one file, figures inside
@@ -12,22 +12,19 @@ page can be drawn again from ``diagnosis.json``.
 
 from __future__ import annotations
 
-import math
-from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
 import pandas as pd
 
 from ...analysis.diagnose import report
-from ...analysis.diagnose.answer import Answer, HeldOut
+from ...analysis.diagnose.answer import Answer
 from ...analysis.diagnose.report import Section, ids, table
 from ...simulation.scenario import dropouts_line
 from ...sweeps.rank import format_point
 from ...sweeps.spec import Space
-from .. import fielddata
 from . import discover, lookalike
+from . import figures as robotti_figures
 from .hypotheses import LIBRARY
 from .noise import AT_REST, CLOSE_FIXES, MAX_SPACING
 
@@ -50,7 +47,7 @@ def write(
     chosen_label = (
         "with " + diagnosis.chosen.label if diagnosis.chosen.ids else "calibrated baseline (no effect)"
     )
-    figures = _figures(
+    figures = robotti_figures.draw(
         folder / "figures",
         space,
         frames,
@@ -64,80 +61,6 @@ def write(
         {k: Path(p) for k, p in report.files_at(folder / "report.md", folder / "diagnosis.json").items()}
     )
     return {**report.write(diagnosis.answer(), sections), **{f"figure_{k}": p for k, p in figures.items()}}
-
-
-def _figures(
-    folder: Path,
-    space: Space,
-    frames: dict[str, pd.DataFrame],
-    tracks: dict[str, dict[str, pd.DataFrame]],
-    gps: tuple[str, str],
-    held_out: Sequence[HeldOut],
-    chosen_label: str,
-) -> dict[str, Path]:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    folder.mkdir(parents=True, exist_ok=True)
-    names = [s.name for s in space.scenarios]
-    files = {}
-
-    fig, axes = plt.subplots(len(names), 2, figsize=(11, 1.9 * len(names)), sharex="row", squeeze=False)
-    for row, name in enumerate(names):
-        for col, component in enumerate(["along", "cross"]):
-            ax = axes[row][col]
-            for key, colour in (("before", "tab:red"), ("after", "tab:blue")):
-                part = frames[key][frames[key]["scenario"] == name]
-                label = "calibrated baseline" if key == "before" else chosen_label
-                ax.plot(part["time"], part[component], color=colour, lw=1, label=label)
-            ax.axhline(0, color="0.6", lw=0.5)
-            ax.set_ylabel(f"{name}\n{component} [m]", fontsize=8)
-    axes[0][0].set_title("along-track residual (recorded ahead of model > 0)", fontsize=9)
-    axes[0][1].set_title("cross-track residual (recorded left of model > 0)", fontsize=9)
-    axes[0][1].legend(fontsize=7, loc="upper left")
-    for ax in axes[-1]:
-        ax.set_xlabel("time [s]")
-    fig.tight_layout()
-    files["residuals"] = folder / "residuals.png"
-    fig.savefig(files["residuals"], dpi=80)
-    plt.close(fig)
-
-    cols = 4
-    rows = math.ceil(len(names) / cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 3.2 * rows), squeeze=False)
-    for ax, scenario in zip(axes.flat, space.scenarios):
-        fixes = fielddata.gps(scenario)
-        ax.plot(fixes.x, fixes.y, ".", color="k", ms=1.5, label="GPS")
-        for key, colour in (("before", "tab:red"), ("after", "tab:blue")):
-            frame = tracks[key][scenario.name]
-            label = "calibrated baseline" if key == "before" else chosen_label
-            ax.plot(frame[gps[0]], frame[gps[1]], color=colour, lw=1, label=label)
-        ax.set_title(scenario.name, fontsize=9)
-        ax.set_aspect("equal", adjustable="datalim")
-        ax.tick_params(labelsize=7)
-    for ax in list(axes.flat)[len(names) :]:
-        ax.axis("off")
-    axes[0][0].legend(fontsize=7)
-    fig.tight_layout()
-    files["tracks"] = folder / "tracks.png"
-    fig.savefig(files["tracks"], dpi=80)
-    plt.close(fig)
-
-    runs = sorted(held_out, key=lambda h: (h.group or "", h.scenario))
-    fig, ax = plt.subplots(figsize=(max(6, 0.6 * len(runs)), 3.2))
-    index = np.arange(len(runs))
-    ax.bar(index - 0.2, [h.before for h in runs], 0.4, color="tab:red", label="calibrated baseline")
-    ax.bar(index + 0.2, [h.after for h in runs], 0.4, color="tab:blue", label=chosen_label)
-    ax.set_xticks(index, [h.scenario for h in runs], rotation=45, ha="right", fontsize=8)
-    ax.set_ylabel("held-out cross-track error [m]")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    files["held_out"] = folder / "held_out.png"
-    fig.savefig(files["held_out"], dpi=80)
-    plt.close(fig)
-    return files
 
 
 # ---- the sections -----------------------------------------------------------------------------------
@@ -157,7 +80,7 @@ def sections(answer: Answer) -> list[Section]:
         Section("Discovery beyond the library", discovery_text(answer), after="candidates"),
         Section("Where the calibrated model misses", located_text(answer), after="runs"),
         Section(
-            "Tracks",
+            "Held-out errors and tracks",
             "\n\n".join(
                 report.figure(answer, answer.files[f"figure_{k}"], FIGURES[k]) for k in ("held_out", "tracks")
             )
