@@ -14,7 +14,15 @@ from conftest import MSD, REPO, SCENARIOS, strict_loads
 from support.plugins import register
 
 from dse_runner import strict_json
-from dse_runner.analysis.diagnose import HypothesisLibrary, Request, diagnose, libraries, serving, space_with
+from dse_runner.analysis.diagnose import (
+    HypothesisLibrary,
+    Request,
+    diagnose,
+    libraries,
+    report_again,
+    serving,
+    space_with,
+)
 from dse_runner.analysis.diagnose.answer import Answer
 from dse_runner.errors import DseError
 from dse_runner.sweeps.spec import load_space
@@ -254,3 +262,6 @@ def test_every_installed_library_diagnoses_a_case_and_answers_in_the_one_shape(
     assert answer.held_out_before is not None and answer.held_out_after is not None
     assert all(isinstance(line, str) for line in result.summary()) and said
     assert "data:image/png;base64," in Path(answer.files["html"]).read_text()
+    page = Path(answer.files["report"]).read_text()  # the engine's skeleton, with the library's sections
+    assert page.startswith(f"# Diagnosis of {answer.space}\n") and "## Named effects" in page
+    assert report_again(Path(answer.files["json"]))["report"].read_text() == page  # from diagnosis.json alone

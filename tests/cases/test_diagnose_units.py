@@ -320,16 +320,19 @@ def test_json_verdict_partial_and_runner_up():
 
 
 def test_report_words(tmp_path):
+    """The verdict in an engineer's words (the answer's verdict_text, as the report shows it), the runner-up's
+    evidence and the GPS noise floor."""
+    from dse_runner.analysis.diagnose import report as page
     from dse_runner.cases.robotti_diagnosis import report
 
-    text = report.verdict_text(diagnosis(("wheel_slip",), floor=0.025))
-    assert "partial" in text and "does not explain the residual" in text and "4.8×" in text
+    text = page.verdict(diagnosis(("wheel_slip",), floor=0.025).answer())
+    assert "**Verdict: partial.**" in text and "does not explain the residual" in text and "4.8×" in text
     assert "caused by" not in text
     d = diagnosis(("wheel_slip",), floor=0.1)
-    assert "explained" in report.verdict_text(d)
-    words = report.runner_up_text(d.runner_up, d.chosen.label, d.settings)
+    assert "**Verdict: explained.** With `wheel_slip` the held-out error" in page.verdict(d.answer())
+    words = page.runner_up(d.answer().runner_up, "m")
     assert "overstates" in words and "did not pass the rule" in words and "1/4" in words
-    assert "0.100 m" in report.noise_text(d)
+    assert "0.100 m" in report.noise_text(d.answer())
 
 
 def test_a_bad_noise_factor_is_refused():
@@ -689,11 +692,11 @@ def test_lookalikes_in_json_and_words():
     saved = strict_loads(strict_json.dumps(d.to_json()))["lookalikes"][0]
     assert saved["pair"] == ["steering_lag", "time_offset"] and saved["decision"] == "cannot_tell"
     assert saved["by_segment"]["steer_ramp"] == {"llr": 1.0, "fixes": 100} and saved["telling_fixes"] == 0
-    words = report.twins_sentence(d.lookalikes[0])
+    words = report.twins_sentence(d.lookalikes[0].to_json())
     assert "`steering_lag` or its look-alike `time_offset`" in words
     assert "cannot tell on these runs" in words and "a run with steering steps would" in words
     decided = report.twins_sentence(
-        look(lookalike.DECIDED_BY_LLR, -7.5, {"steer_step": -7.0, "cruise": -0.5})
+        look(lookalike.DECIDED_BY_LLR, -7.5, {"steer_step": -7.0, "cruise": -0.5}).to_json()
     )
     assert decided.startswith("**Look-alikes:** `time_offset` rather than its look-alike `steering_lag`")
     assert "steering steps" in decided
@@ -965,7 +968,9 @@ def test_a_correction_that_leaves_a_residual_is_partial(tmp_path):
     """Accepted, yet still well above the noise (a payload lowered mid-run, which no
     time-invariant term expresses): verdict partial, the correction itself flagged partial, and
     the report says how much remains."""
-    from dse_runner.cases.robotti_diagnosis import discover, report
+    from dse_runner.analysis.diagnose import report
+    from dse_runner.cases.robotti_diagnosis import discover
+    from dse_runner.cases.robotti_diagnosis import report as robotti_report
 
     none = candidate((), [1.0, 1.0], 400.0)
     found = with_terms(("discovered",), [0.3, 0.3], 90.0, {"vehicle.corr_acc_s": -0.05})
@@ -987,9 +992,11 @@ def test_a_correction_that_leaves_a_residual_is_partial(tmp_path):
     assert d.verdict == "partial" and d.discovered
     [entry] = d.effects
     assert entry["id"] == "discovered" and entry["partial"]
-    text = report.verdict_text(d)
+    text = report.verdict(d.answer())
     assert text.startswith("**Verdict: partial.**") and "explains part of it" in text
     assert "0.275 m of mean cross-track error remains above the noise" in text
+    said = robotti_report.discovery_text(d.answer())  # from the JSON alone, as the report is drawn
+    assert f"Accepted: `discovered`; it {discovery.resemblance_words([('wheel_slip', 0.6)])}." in said
 
 
 def test_terms_are_ranked_by_what_they_do_to_positions():

@@ -6,16 +6,27 @@ the library that serves a space), ``hypotheses`` (what a hypothesis is), ``valid
 ``fitter`` and ``engine`` (the fits and the stages every library runs), ``explain`` (how candidates are
 judged: BIC, the noise floor, the verdict), ``proof`` (searched terms chosen again on each fold),
 ``noise`` (noise from a recording alone), ``findings`` and ``answer`` (what is named, in the one JSON
-shape) and ``report_html``. The built-in library is ``signal_library`` (late, sluggish, scaled or biased
+shape), ``report`` (the page every diagnosis is read on, drawn from that JSON; a library adds its own
+sections) and ``report_html``. The built-in library is ``signal_library`` (late, sluggish, scaled or biased
 inputs and outputs of any FMU, limits of its states, and physical terms inside its model-exchange FMUs:
 ``signal_hypotheses``, ``term_hypotheses`` over ``derivatives``), with its steps ``signal_screen``,
-``signal_claims``, ``signal_locate`` and ``signal_report``; ``sparse_regression`` is the regression the
-Robotti's discovery proposes its terms with. Cases add their libraries by entry point, as the Robotti does
-(dse_runner/cases/robotti_diagnosis).
+``signal_claims``, ``signal_locate`` and ``signal_report`` (its sections of the report);
+``sparse_regression`` is the regression the Robotti's discovery proposes its terms with. Cases add their
+libraries by entry point, as the Robotti does (dse_runner/cases/robotti_diagnosis).
 """
 
 from .hypotheses import EffectParameter, Hypothesis
-from .library import HypothesisLibrary, Request, Result, diagnose, libraries, serving, space_with
+from .library import (
+    HypothesisLibrary,
+    Request,
+    Result,
+    diagnose,
+    libraries,
+    report_again,
+    serving,
+    space_with,
+)
+from .report import Section
 
 __all__ = [
     "EffectParameter",
@@ -23,8 +34,10 @@ __all__ = [
     "HypothesisLibrary",
     "Request",
     "Result",
+    "Section",
     "diagnose",
     "libraries",
+    "report_again",
     "serving",
     "space_with",
 ]

@@ -9,6 +9,7 @@ signal library's compared signals and growth rounds).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
@@ -126,12 +127,16 @@ class HeldOut(_Strict):
     scenario: str
     before: float | None
     after: float | None
+    group: str | None = None  # the scenario's group (a time block: its record's), where the space gives one
 
     @classmethod
-    def between(cls, baseline: Candidate, chosen: Candidate) -> list[HeldOut]:
-        """Every scenario the calibrated model was held out on, with its error and the answer's."""
+    def between(
+        cls, baseline: Candidate, chosen: Candidate, groups: Mapping[str, str | None] = {}
+    ) -> list[HeldOut]:
+        """Every scenario the calibrated model was held out on, with its error and the answer's (and its
+        group, from ``groups``: scenario -> group)."""
         return [
-            cls(scenario=s, before=e, after=chosen.held_out.get(s))
+            cls(scenario=s, before=e, after=chosen.held_out.get(s), group=groups.get(s))
             for s, e in sorted(baseline.held_out.items())
         ]
 
@@ -154,6 +159,7 @@ class Answer(_Strict):
     """What every diagnosis answers (``diagnose --json``, ``diagnosis.json``)."""
 
     library: str  # the hypothesis library that diagnosed
+    space: str | None = None  # the name of the space diagnosed: the report's title
     verdict: Verdict
     verdict_text: str
     held_out_before: float | None  # the calibrated model's held-out error

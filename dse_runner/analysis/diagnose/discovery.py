@@ -118,6 +118,10 @@ class TermSearch(ABC):
         kept = pruned(fit, [n for n in fit.values if self.is_term(n)], factor)
         return {name.rsplit(".", 1)[-1]: fit.values[name] for name in kept}
 
+    def readable(self, values: Mapping[str, float]) -> list[str]:
+        """The terms among ``values`` as a reader reads them (by default, name = value)."""
+        return [f"{name} = {value:.4g}" for name, value in values.items() if self.is_term(name)]
+
     def charged(self, bic_margin: float, terms: int) -> float:
         """The BIC margin ``terms`` found terms must beat (proof.extended_margin)."""
         return extended_margin(bic_margin, self.offered, terms)
@@ -210,15 +214,20 @@ class Discovery:
         return {
             "reference": self.reference.label,
             "held_out_reference": self.reference.cross_validated,
+            "bic_reference": self.reference.bic,
             "proposed": dict(self.proposal.terms) if self.proposal else {},
+            "proposed_text": self.proposal.readable() if self.proposal else [],
             "inclusion": dict(getattr(self.proposal, "inclusion", {}) or {}),
             "folds": self.folds,
             "bic_margin": self.margin,
             "accepted": self.chosen is not None,
+            "chosen": self.chosen.label if self.chosen is not None else None,
+            "resembles": resemblance_words(self.resembles) if self.chosen is not None else None,
             "tried": [
                 {
                     "id": c.label,
                     "terms": self.search.terms_of(c.full),
+                    "text": self.search.readable(c.full.point),
                     "held_out": c.cross_validated,
                     "bic": c.bic,
                 }

@@ -28,8 +28,11 @@ from ...errors import DseError
 from ...sweeps.domain import Interval
 from ...sweeps.search import Search
 from ...sweeps.spec import Space, SpaceSpec, read_spec, resolve_space
+from . import report
+from .answer import Answer
 from .explain import NOISE_FACTOR
 from .hypotheses import Hypothesis
+from .report import Section
 
 GROUP = "dse_runner.hypotheses"
 
@@ -78,9 +81,12 @@ class HypothesisLibrary(ABC):
     and returns a :class:`Result`. It starts (or reaches, by ``space.spec.cluster``) its own cluster, and
     keeps every simulation in the space's Parquet store, so that running it again resumes.
 
+    Its report is the engine's (report.py), drawn from the answer's JSON: the library writes it with
+    ``report.write(answer, self.sections)`` once its answer and figures are made.
+
     Optional parts, with defaults: ``calibration`` (None: ``--scenarios`` alone cannot choose this
     library; a library whose case has a standard calibration names it, e.g. ``bundled:…``),
-    :meth:`hypotheses` (none listed).
+    :meth:`hypotheses` (none listed), :meth:`sections` (none: the report is the engine's skeleton alone).
     """
 
     name: ClassVar[str]
@@ -99,6 +105,22 @@ class HypothesisLibrary(ABC):
         """The hypotheses it would try on ``space``: ``--hypothesis`` may name
         only these (none listed: any)."""
         return []
+
+    def sections(self, answer: Answer) -> list[Section]:
+        """Its own parts of the report, each placed after a part of the engine's (report.PARTS): what only
+        it has, drawn from ``answer`` alone (its ``case``, its figures in ``files``), so the whole report can
+        be drawn again from ``diagnosis.json`` (:func:`report_again`)."""
+        return []
+
+
+def report_again(summary: Path) -> dict[str, Path]:
+    """A diagnosis' report, page and JSON written again from its ``diagnosis.json`` alone, with the sections
+    of the installed library that diagnosed: what a change to the report's layout needs, not a new fit."""
+    answer = report.read(summary)
+    library = next((lib for lib in libraries() if lib.name == answer.library), None)
+    if library is None:
+        raise DseError(f"{summary}: diagnosed by the {answer.library} library, which is not installed")
+    return report.write(answer, library.sections)
 
 
 def checked(library: HypothesisLibrary, space: Space, request: Request) -> HypothesisLibrary:

@@ -19,7 +19,7 @@ The stages, in diagnose_space's order: calibrate (from many starts), fit every s
 (signal_screen.py), cross-validate, grow, recalibrate the answer with its effects in place, decide each
 member against its look-alike across the model's skin, the noise rule and the limits the recordings reach
 (signal_claims.py), prove the answer's terms by choosing them again on each fold; then locate
-(signal_locate.py) and report (signal_report.py).
+(signal_locate.py) and report (the engine's report.py, with signal_report.py's sections).
 """
 
 from __future__ import annotations
@@ -70,6 +70,7 @@ from .hypotheses import Hypothesis as LibraryHypothesis
 from .library import HypothesisLibrary, Messages, Request, space_with
 from .noise import NoiseEstimate, Whiteness, estimate_noise, whiteness
 from .proof import Proof, honest
+from .report import Section
 from .signal_hypotheses import PHYSICS, SignalHypothesis, shares, signal_hypotheses, state_hypotheses
 from .term_hypotheses import readable as term_readable
 from .term_hypotheses import rivals, shown, term_hypotheses, term_names
@@ -117,6 +118,7 @@ class SignalDiagnosis:
     dropped: list[explain.Dropped] = field(default_factory=list)
     located: dict[str, Any] = field(default_factory=dict)
     verdict_text: str = ""
+    name: str = ""  # the space diagnosed
     files: dict[str, str] = field(default_factory=dict)
     figures: list[str] = field(
         default_factory=list
@@ -133,6 +135,7 @@ class SignalDiagnosis:
         after = honest(self.chosen.cross_validated, self.proof)
         return answer_.Answer(
             library=SignalEffects.name,
+            space=self.name or None,
             verdict=self.verdict,
             verdict_text=self.verdict_text,
             held_out_before=self.baseline.cross_validated,
@@ -505,6 +508,7 @@ def diagnose_space(
         dropped=dropped,
         located=located,
         verdict_text=text,
+        name=space.name,
     )
     figures = signal_figures.draw(
         residuals[baseline.label],
@@ -514,11 +518,8 @@ def diagnose_space(
         located.get("worst", []),
         Path(space.output),
     )
-    diagnosis.files = {
-        k: str(v)
-        for k, v in signal_report.write(diagnosis.to_json(), Path(space.output), space.name, figures).items()
-    }
-    diagnosis.figures = [str(f) for f in figures]
+    diagnosis.files, diagnosis.figures = signal_report.files_in(Path(space.output)), [str(f) for f in figures]
+    signal_report.write(diagnosis.answer())
     return diagnosis
 
 
@@ -745,6 +746,9 @@ class SignalEffects(HypothesisLibrary):
             discover=request.discovery,
             only=request.hypotheses,
         )
+
+    def sections(self, answer: answer_.Answer) -> list[Section]:
+        return signal_report.sections(answer)
 
     def hypotheses(self, space: Space) -> list[LibraryHypothesis]:
         """Every hypothesis by name; a state limit's range is known only once the calibrated model has run,

@@ -10,10 +10,13 @@ DIR`` gives when it fills the bundled calibration space with the runs in DIR.
 
 from __future__ import annotations
 
+from ...analysis.diagnose.answer import Answer
 from ...analysis.diagnose.hypotheses import Hypothesis
 from ...analysis.diagnose.library import HypothesisLibrary, Messages, Request
+from ...analysis.diagnose.report import Section
 from ...sweeps.spec import Space
 from .. import fielddata
+from . import report
 from .hypotheses import LIBRARY
 from .outcome import Diagnosis, DiagnosisSettings
 from .workflow import DEFAULT_SPACE, diagnose_calibration
@@ -36,6 +39,9 @@ class RobottiLibrary(HypothesisLibrary):
             discovery=request.discovery,
         )
         return diagnose_calibration(space, settings, progress=say)
+
+    def sections(self, answer: Answer) -> list[Section]:
+        return report.sections(answer)
 
     def hypotheses(self, space: Space) -> list[Hypothesis]:
         return [h for h in LIBRARY.values() if h.id != "none"]

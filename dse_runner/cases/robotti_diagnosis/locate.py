@@ -10,7 +10,9 @@ signals and summarised by segment (straight, turning, accelerating, braking).
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -152,6 +154,39 @@ def strongest(table: pd.DataFrame, count: int = 3) -> list[tuple[str, str, float
     """The (component, signal, r) pairs with the largest |r|."""
     pairs = [(c, f, float(table.loc[c, f])) for c in table.index for f in table.columns]
     return sorted(pairs, key=lambda p: -abs(p[2]))[:count]
+
+
+def signature(frames: dict[str, pd.DataFrame]) -> dict[str, Any]:
+    """What changed between the calibrated model's residuals (``before``) and the chosen model's (``after``):
+    the segment and component whose rms fell most, and the strongest correlations before."""
+    before, after = (by_segment(frames[k]).set_index("segment") for k in ("before", "after"))
+    columns = ["along_rms", "cross_rms", "along_growth_rms", "cross_growth_rms"]
+    drop = (before[columns] - after[columns].reindex(before.index)).stack()
+    (segment, component), amount = drop.idxmax(), float(drop.max())
+    return {
+        "segment": segment,
+        "component": component,
+        "before": float(before.loc[segment, component]),
+        "after": float(before.loc[segment, component] - amount),
+        "correlations": strongest(correlations(frames["before"])),
+    }
+
+
+def located(frames: dict[str, pd.DataFrame]) -> dict[str, Any]:
+    """Where the calibrated model's residuals lie, as the answer's JSON holds them (pandas' ``split`` tables):
+    by scenario group, segment of the motion and run, their correlations with the motion, and the signature
+    of what the chosen model changed."""
+    before = frames["before"]
+    tables = {
+        "by_group": by_group(before),
+        "by_segment": by_segment(before),
+        "by_scenario": by_scenario(before),
+        "correlations": correlations(before),
+    }
+    return {
+        **{k: json.loads(v.to_json(orient="split")) for k, v in tables.items()},
+        "signature": signature(frames),
+    }
 
 
 def insensitive_scenarios(table1: pd.DataFrame, tolerance: float = 0.05) -> list[str]:

@@ -4,7 +4,7 @@ and the report are drawn from it."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +14,8 @@ from ...analysis.diagnose.engine import MAX_EFFECTS
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.findings import DiscoveredCorrection, Finding, NamedEffect
 from ...analysis.diagnose.proof import honest
+from ...analysis.diagnose.report import ids
+from ...analysis.diagnose.validation import record_of
 from ...errors import DseError
 from ...simulation.scenario import dropouts_line
 from . import correction, lookalike, noise, screen
@@ -81,7 +83,9 @@ class Diagnosis:
     chosen: Candidate  # the baseline when nothing is missing
     baseline: Candidate
     settings: DiagnosisSettings = DiagnosisSettings()
-    located: dict[str, Any] = field(default_factory=dict)  # locate's tables, before and after
+    located: dict[str, Any] = field(
+        default_factory=dict
+    )  # locate.located: the residuals by group, segment, run
     files: dict[str, Path] = field(default_factory=dict)
     dropouts: dict[str, int] = field(default_factory=dict)  # GPS fixes skipped per run (scenario.dropouts)
     floor: NoiseFloor = noise.UNKNOWN  # the GPS noise floor, estimated from the recordings alone
@@ -256,6 +260,14 @@ class Diagnosis:
         )
         return lines
 
+    @property
+    def held_out(self) -> list[answer_.HeldOut]:
+        """Each run (or block of time) held out: the calibrated model's error, the chosen one's, its group."""
+        groups = self.calibration.get("groups") or {}
+        return answer_.HeldOut.between(
+            self.baseline, self.chosen, {s: groups.get(record_of(s)) for s in self.baseline.held_out}
+        )
+
     def answer(self) -> answer_.Answer:
         """The diagnosis in the one shape every library answers in (analysis/diagnose/answer.py); what only
         the Robotti has (its calibration grid, screen and equation-error discovery) under ``case``."""
@@ -263,8 +275,9 @@ class Diagnosis:
         discovery = self.discovery
         return answer_.Answer(
             library="robotti",
+            space=self.calibration.get("sweep"),
             verdict=self.verdict,
-            verdict_text=self.verdict_line,
+            verdict_text=verdict_words(self),
             held_out_before=self.cross_track_before,
             held_out_after=self.cross_track_after,
             held_out_unit="m (mean cross-track error on held-out runs, Equation 1)",
@@ -281,7 +294,7 @@ class Diagnosis:
             dropped=[d.to_json() for d in self.dropped],
             proof=discovery.proof.to_json() if self.discovered and discovery and discovery.proof else None,
             validation=self.calibration.get("validation"),
-            held_out=answer_.HeldOut.between(self.baseline, self.chosen),
+            held_out=self.held_out,
             lookalikes=[look.to_json() for look in self.lookalikes],
             calibrated=answer_.Fitted(
                 parameters=dict(self.baseline.full.values),
@@ -291,6 +304,7 @@ class Diagnosis:
             fitted=self.fitted,
             files={k: str(v) for k, v in self.files.items()},
             case={
+                "settings": asdict(self.settings),
                 "calibration": self.calibration,
                 "screen": [
                     {
@@ -305,9 +319,89 @@ class Diagnosis:
                 ],
                 "discovery": discovery.to_json() if discovery is not None else None,
                 "dropouts": self.dropouts,
-                "located": self.located,  # where the residuals lie, by group, segment and run (report.py)
+                "located": self.located,  # where the residuals lie, by group, segment and run
             },
         )
 
     def to_json(self) -> dict[str, Any]:
         return self.answer().json_dict()
+
+
+# ---- the verdict in an engineer's words: the answer's verdict_text -----------------------------------
+
+
+def verdict_words(diagnosis: Diagnosis) -> str:
+    """The verdict in an engineer's words: the chosen model's held-out error against the noise floor (the
+    report puts the verdict itself before them)."""
+    verdict, floor = diagnosis.verdict, diagnosis.floor
+    after = diagnosis.cross_track_after
+    factor = diagnosis.settings.noise_factor
+    chosen = ids(diagnosis.chosen.label) if diagnosis.chosen.ids else ""
+    if not floor.available:
+        return (
+            "The GPS noise could not be estimated from these recordings (no three consecutive close fixes "
+            "and no stop), so the residual is not weighed against it: read the finding as the best of the "
+            "library, not as proof that nothing else is missing."
+        )
+    level = f"{after:.3f} m, {diagnosis.floor_ratio:.1f}× the noise floor of {floor.cross_track:.3f} m"
+    remains = after - floor.cross_track
+    if diagnosis.discovered:
+        return _discovered_words(diagnosis)
+    if verdict == explain.EXPLAINED:
+        return (
+            f"With {chosen} the held-out error is {level}; up to {factor:g}× counts as noise, so what "
+            "remains is receiver noise or too close to it to tell apart."
+        )
+    if verdict == explain.PARTIAL:
+        return (
+            f"The runs support {chosen}, but it is not the whole story: after it the held-out error is "
+            f"{level}, "
+            f"above the {factor:g}× that counts as noise. The library does not explain the residual: about "
+            f"{remains:.3f} m of mean cross-track error remains above the noise. Read the effect as part of "
+            "the cause, not as the cause."
+        )
+    if verdict == explain.UNEXPLAINED:
+        return (
+            "No hypothesis of the library explains the residual, and it is not noise: the calibrated model's "
+            f"held-out error is {level}, above the {factor:g}× that counts as noise; about {remains:.3f} m "
+            "of mean cross-track error remains unexplained."
+        )
+    return (
+        f"Nothing is missing: the calibrated model's held-out error is {level}, within the {factor:g}× that "
+        "counts as noise."
+    )
+
+
+def _discovered_words(diagnosis: Diagnosis) -> str:
+    """When a discovered correction passed: the library falls short, and by how much; the term; and, when the
+    correction too leaves a residual above the noise (verdict partial), how much remains."""
+    floor, library, chosen = diagnosis.floor, diagnosis.library, diagnosis.chosen
+    entry = next(e for e in diagnosis.effects if e["id"] == discovery.DISCOVERED)
+    remains = library.cross_validated - floor.cross_track
+    gain = 100.0 * (1.0 - chosen.cross_validated / library.cross_validated)
+    named = [e for e in diagnosis.effects if e["id"] != discovery.DISCOVERED]
+    whole = diagnosis.verdict == explain.DISCOVERED
+    part = (
+        " Read " + ", ".join(f"`{e['id']}`" for e in named) + " as part of the cause, not as the cause."
+        if named
+        else ""
+    )
+    resembles = entry["resembles"]["text"] if entry["resembles"] else "was not compared with the library"
+    left = (
+        f" It is not the whole story either: about {chosen.cross_validated - floor.cross_track:.3f} m of "
+        "mean cross-track error remains above the noise, which the correction block's terms do not express; "
+        "read the correction as part of the cause."
+        if not whole
+        else ""
+    )
+    without = f"with {ids(library.label)}" if library.ids else "with the calibrated model alone"
+    return (
+        f"The library does not explain the residual: {without} the held-out error is "
+        f"{library.cross_validated:.3f} m, {library.cross_validated / floor.cross_track:.1f}× the noise "
+        f"{floor.cross_track:.3f} m, so about {remains:.3f} m of mean cross-track error remains above the "
+        f"noise. A data-driven correction explains {'most' if whole else 'part'} of it: "
+        + "; ".join(f"`{t}`" for t in entry["readable"])
+        + f". With it the held-out error is {chosen.cross_validated:.3f} m ({gain:.0f} % lower, "
+        f"{chosen.cross_validated / floor.cross_track:.1f}× the floor), on runs the fits did not see, and it "
+        f"passed the same rule as the library's effects. It {resembles}.{part}{left}"
+    )

@@ -264,6 +264,7 @@ def _diagnose(
             "folds": validation.tests,
             "growth": choice.growth,
             "validation": validation.to_json(),
+            "groups": {s.name: s.group for s in calibration.scenarios},
         },
         explain.ranked(choice.candidates + (found.candidates if found else [])),
         chosen,
@@ -287,6 +288,7 @@ def _diagnose(
     )
     after = trajectories_of(space, client, chosen.full.point, AFTER)
     frames = {"before": _locate(space, vehicle, before), "after": _locate(space, vehicle, after)}
+    diagnosis.located = locate.located(frames)
     diagnosis.files.update(write_model(diagnosis, calibration))
     diagnosis.files.update(report.write(diagnosis, space, frames, before, after))
     return diagnosis
