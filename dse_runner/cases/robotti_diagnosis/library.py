@@ -15,7 +15,7 @@ from ...analysis.diagnose.library import HypothesisLibrary, Messages, Request
 from ...sweeps.spec import Space
 from .. import fielddata
 from .hypotheses import LIBRARY
-from .outcome import Diagnosis, DiagnosisSettings
+from .outcome import SCREEN, Diagnosis, DiagnosisSettings
 from .workflow import DEFAULT_SPACE, diagnose_calibration
 
 
@@ -24,6 +24,7 @@ class RobottiLibrary(HypothesisLibrary):
 
     name = "robotti"
     calibration = DEFAULT_SPACE
+    screen = SCREEN
 
     def serves(self, space: Space) -> bool:
         return bool(space.scenarios) and all(s.kind == fielddata.KIND for s in space.scenarios)
@@ -34,6 +35,7 @@ class RobottiLibrary(HypothesisLibrary):
             hypotheses=request.hypotheses,
             noise_factor=request.noise_factor,
             discovery=request.discovery,
+            screen=self.screen_for(request),
         )
         return diagnose_calibration(space, settings, progress=say)
 
