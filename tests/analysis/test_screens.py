@@ -140,3 +140,44 @@ def test_an_unknown_screen_is_named_with_the_known_ones_before_anything_runs():
         with pytest.raises(DseError, match=r"--screen 'newton'.*known: mixed, linearised"):
             ask()
     assert Request(screen="linearised").screen == "linearised"
+
+
+@pytest.fixture(scope="module")
+def msd_singles(tmp_path_factory, dask_scheduler):
+    """The mass-spring-damper's recordings with a sensor's gain and offset concealed together
+    (jobs/msd/make_diagnosis_runs.py), calibrated and each signal effect fitted alone: one diagnosis' singles,
+    which every strategy then screens."""
+    import importlib.util
+
+    from conftest import REPO
+    from distributed import Client
+
+    from dse_runner.analysis.diagnose.engine import singles
+    from dse_runner.analysis.diagnose.library import space_with
+    from dse_runner.analysis.diagnose.signal_library import calibrated_fits, compared_signals
+
+    spec = importlib.util.spec_from_file_location("runs", REPO / "jobs" / "msd" / "make_diagnosis_runs.py")
+    generator = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(generator)
+    folder = tmp_path_factory.mktemp("sensor-gain-offset")
+    space = space_with(
+        generator.make("sensor-gain-offset", folder), None, folder / "out", address=dask_scheduler
+    )
+    with Client(dask_scheduler) as client:
+        fits, _ = calibrated_fits(space, compared_signals(space), client, lambda line: None, discover=False)
+        _, full = singles(fits)
+        yield fits, full
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(screens.STRATEGIES))
+def test_every_strategy_shortlists_a_concealed_sensor_gain_and_offset_on_a_real_fmu(name, msd_singles):
+    from dse_runner.analysis.diagnose.signal_library import SCREENED
+
+    fits, full = msd_singles
+    found = screens.strategy(name).run(fits, full, SCREENED)
+    assert found.screened and all(set(x.ids) <= set(fits.library) for x in found.screened)
+    assert [x.bic for x in found.screened] == sorted(x.bic for x in found.screened)  # best first
+    assert {len(x.ids) for x in found.screened} == {2, 3}  # the signal library's settings ask for triples
+    concealed = {"output_gain(msd.x)", "output_offset(msd.x)"}
+    assert concealed in [set(x.ids) for x in found.shortlist], [x.label for x in found.shortlist]

@@ -155,14 +155,14 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
     if pairs.get("screened"):
         lines += [
             (
-                f"Pairs: {pairs['predicted']} predicted from the single fits, "
-                f"{len(pairs['screened'])} checked by simulation, {len(pairs['fitted'])} "
-                f"fitted for real ({', '.join(pairs['fitted']) or 'none'})."
+                f"Combinations ({pairs['strategy']} screen): {pairs['predicted']} predicted "
+                f"from the single fits, {len(pairs['screened'])} checked by simulation, "
+                f"{len(pairs['fitted'])} fitted for real ({', '.join(pairs['fitted']) or 'none'})."
             ),
             "",
         ]
     elif pairs:
-        lines += [f"Pairs: not screened ({pairs.get('reason', '')}).", ""]
+        lines += [f"Combinations: not screened ({pairs.get('reason', '')}).", ""]
     looks = found.get("lookalikes") or []
     if looks:
         lines += ["## Look-alikes", ""]
