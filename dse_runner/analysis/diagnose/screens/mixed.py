@@ -16,6 +16,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -102,63 +103,70 @@ def extended(pairs: Sequence[tuple[str, ...]], members: Sequence[str], fits: Fit
     return sorted(t for t in found if combinable(fits, t))
 
 
+Solved = dict[tuple[str, ...], tuple[np.ndarray, float]]  # set -> (its coefficients, the SSE predicted)
+
+
+@dataclass(frozen=True)
+class Directions:
+    """What combinations are mixed from: none's fit and each single's (a failed one has no direction)."""
+
+    fits: Fits
+    none: FitResult
+    members: Mapping[str, FitResult]
+
+    @classmethod
+    def of(cls, fits: Fits, singles: Singles) -> Directions:
+        members = {s[0]: fit for s, fit in singles.items() if s and fit.error is None}
+        return cls(fits, singles[()], members)
+
+    @property
+    def n(self) -> int:
+        return len(stacked(self.none))
+
+    def bic(self, ids: tuple[str, ...], sse: float) -> float:
+        return explain.bic_of(sse, self.n, parameter_count(self.fits, ids))
+
+    def predicted(self, sets: Sequence[tuple[str, ...]]) -> Solved:
+        return {s: prediction(self.none, [self.members[h] for h in s]) for s in sets}
+
+    def checked(self, sets: Sequence[tuple[str, ...]], solved: Solved) -> list[Screened]:
+        """Each set's mixed point and the plain sum of its members' changes, simulated in one sweep: the
+        better one."""
+        fits, none = self.fits, self.none
+        bounds = {p.name: p for p in (*fits.base, *(p for h in fits.library.values() for p in h.parameters))}
+        trials = {}
+        for s in sets:
+            members = [self.members[h] for h in s]
+            plain = [0.0] * len(none.names) + [1.0] * len(s)
+            trials[s] = [mixed(none, members, solved[s][0], bounds), mixed(none, members, plain, bounds)]
+        residuals = fits.evaluate([p for points in trials.values() for p in points])
+        found = []
+        for s in sets:
+            tried = [(screen_sse(p, fits.scenarios, residuals), p) for p in trials[s]]
+            sse, start = min(tried, key=lambda t: t[0])
+            weights = tuple(float(w) for w in solved[s][0][-len(s) :])
+            found.append(Screened(s, (), solved[s][1], sse, self.bic(s, sse), start, weights))
+        return found
+
+
 class Mixed(ScreenStrategy):
     """Combinations as mixtures of their members' single fits (module docstring): the signal library's."""
 
     name = "mixed"
 
     def screened(self, fits: Fits, singles: Singles, settings: ScreenSettings) -> tuple[list[Screened], int]:
-        none = singles[()]
-        members = {
-            s[0]: fit for s, fit in singles.items() if s and fit.error is None
-        }  # a failed one has no direction
-        bounds = {p.name: p for p in (*fits.base, *(p for h in fits.library.values() for p in h.parameters))}
-        n = len(stacked(none))
-
-        def predicted(sets: Sequence[tuple[str, ...]]) -> dict[tuple[str, ...], tuple[np.ndarray, float]]:
-            return {s: prediction(none, [members[h] for h in s]) for s in sets}
-
-        def bic(solved: Mapping[tuple[str, ...], tuple[np.ndarray, float]]) -> dict[tuple[str, ...], float]:
-            return {s: explain.bic_of(sse, n, parameter_count(fits, s)) for s, (_, sse) in solved.items()}
-
-        def checked(sets: Sequence[tuple[str, ...]], solved) -> list[Screened]:
-            """Each set's mixed point and plain sum simulated in one sweep: the better one."""
-            trials = {
-                s: [
-                    mixed(none, [members[h] for h in s], solved[s][0], bounds),
-                    mixed(none, [members[h] for h in s], [0.0] * len(none.names) + [1.0] * len(s), bounds),
-                ]
-                for s in sets
-            }
-            residuals = fits.evaluate([p for points in trials.values() for p in points])
-            found = []
-            for s in sets:
-                sse, start = min(
-                    ((screen_sse(p, fits.scenarios, residuals), p) for p in trials[s]), key=lambda t: t[0]
-                )
-                weights = tuple(float(w) for w in solved[s][0][-len(s) :])
-                found.append(
-                    Screened(
-                        s,
-                        (),
-                        solved[s][1],
-                        sse,
-                        explain.bic_of(sse, n, parameter_count(fits, s)),
-                        start,
-                        weights,
-                    )
-                )
-            return found
-
-        pairs = [tuple(sorted(p)) for p in itertools.combinations(members, 2) if combinable(fits, p)]
-        solved = predicted(pairs)
-        found = checked(to_check(members, {p: s for p, (_, s) in solved.items()}, bic(solved)), solved)
+        """One sweep for the pairs; with triples asked for, one more for them."""
+        d = Directions.of(fits, singles)
+        pairs = [tuple(sorted(p)) for p in itertools.combinations(d.members, 2) if combinable(fits, p)]
+        solved = d.predicted(pairs)
+        bic = {p: d.bic(p, sse) for p, (_, sse) in solved.items()}
+        found = d.checked(to_check(d.members, {p: sse for p, (_, sse) in solved.items()}, bic), solved)
         count = len(pairs)
         if settings.triples:
             best = sorted((s for s in found if math.isfinite(s.sse)), key=lambda s: s.bic)[:EXTENDED]
-            triples = extended([s.ids for s in best], members, fits)
-            solved = predicted(triples)
-            ranks = bic(solved)
-            found += checked(sorted(triples, key=ranks.__getitem__)[:PREDICTED], solved)
+            triples = extended([s.ids for s in best], list(d.members), fits)
+            solved = d.predicted(triples)
+            ranked = sorted(triples, key=lambda t: d.bic(t, solved[t][1]))
+            found += d.checked(ranked[:PREDICTED], solved)
             count += len(triples)
         return sorted(found, key=lambda s: s.bic), count
