@@ -142,6 +142,16 @@ def test_an_unknown_screen_is_named_with_the_known_ones_before_anything_runs():
     assert Request(screen="linearised").screen == "linearised"
 
 
+def test_each_library_screens_with_its_declared_default_unless_the_request_names_another():
+    from dse_runner.analysis.diagnose.signal_library import SignalEffects
+    from dse_runner.cases.robotti_diagnosis import RobottiLibrary
+
+    assert SignalEffects().screen_for(Request()) == "mixed"
+    assert RobottiLibrary().screen_for(Request()) == "linearised" == DiagnosisSettings().screen
+    assert RobottiLibrary().screen_for(Request(screen="mixed")) == "mixed"
+    assert all(library.screen in screens.STRATEGIES for library in (SignalEffects(), RobottiLibrary()))
+
+
 @pytest.fixture(scope="module")
 def msd_singles(tmp_path_factory, dask_scheduler):
     """The mass-spring-damper's recordings with a sensor's gain and offset concealed together
