@@ -182,12 +182,10 @@ def msd_singles(tmp_path_factory, dask_scheduler):
 @pytest.mark.slow
 @pytest.mark.parametrize("name", list(screens.STRATEGIES))
 def test_every_strategy_shortlists_a_concealed_sensor_gain_and_offset_on_a_real_fmu(name, msd_singles):
-    from dse_runner.analysis.diagnose.signal_library import SCREENED
-
     fits, full = msd_singles
-    found = screens.strategy(name).run(fits, full, SCREENED)
+    found = screens.strategy(name).run(fits, full, screens.ScreenSettings(pairs=3, triples=2, limit=5))
     assert found.screened and all(set(x.ids) <= set(fits.library) for x in found.screened)
     assert [x.bic for x in found.screened] == sorted(x.bic for x in found.screened)  # best first
-    assert {len(x.ids) for x in found.screened} == {2, 3}  # the signal library's settings ask for triples
+    assert {len(x.ids) for x in found.screened} == {2, 3}  # the settings ask for triples
     concealed = {"output_gain(msd.x)", "output_offset(msd.x)"}
     assert concealed in [set(x.ids) for x in found.shortlist], [x.label for x in found.shortlist]
