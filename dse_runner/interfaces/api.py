@@ -426,6 +426,7 @@ def diagnose(
     hypotheses: Sequence[str] = (),
     noise_factor: float | None = None,
     discovery: bool | None = None,
+    screen: str | None = None,
     workers: int | None = None,
     scheduler: str | None = None,
     progress: bool | Lines = True,
@@ -433,14 +434,21 @@ def diagnose(
 ) -> Diagnosis:
     """``dse-runner diagnose``: calibrate ``space``, locate the mismatch with its recordings, name what the
     model leaves out and show the held-out fit improve. ``scenarios`` is a folder of recorded runs in
-    place of the space's (alone, a library's own calibration space reads them); the other options are the
+    place of the space's (alone, a library's own calibration space reads them); ``screen`` names the
+    combination screen (``mixed`` or ``linearised``; None: the library's own); the other options are the
     command's, None for its defaults. Progress lines go to stderr, or to one line redrawn in a notebook.
     Raises :class:`Interrupted` on Ctrl-C: finished simulations are kept in ``out``, and a second call
     resumes from them."""
     from ..analysis.diagnose import Request
     from ..analysis.diagnose import diagnose as run_diagnosis
 
-    given = {"out": out, "folds": folds, "noise_factor": noise_factor, "discovery": discovery}
+    given = {
+        "out": out,
+        "folds": folds,
+        "noise_factor": noise_factor,
+        "discovery": discovery,
+        "screen": screen,
+    }
     request = Request(
         **{k: Path(v) if k == "out" else v for k, v in given.items() if v is not None},
         hypotheses=tuple(hypotheses),

@@ -884,6 +884,14 @@ def diagnose(
             "Robotti's sparse correction (PySINDy), proven by the same fits and held-out runs.",
         ),
     ] = True,
+    screen: Annotated[
+        str | None,
+        typer.Option(
+            help="How combinations are screened when no single hypothesis explains the recordings: mixed "
+            "(mixtures of the single fits' changes) or linearised (the residuals linearised at none and the "
+            "best singles). Default: the library's own (signal effects: mixed; the Robotti's: linearised).",
+        ),
+    ] = None,
     workers: Annotated[int | None, typer.Option(help="Local cluster workers (overrides the space).")] = None,
     scheduler: Annotated[str | None, typer.Option(help="Address of an existing Dask scheduler.")] = None,
     as_json: JsonFlag = False,
@@ -901,6 +909,7 @@ def diagnose(
             hypotheses=hypothesis or (),
             noise_factor=noise_factor,
             discovery=discovery,
+            screen=screen,
             workers=workers,
             scheduler=scheduler,
             progress=lambda m: typer.echo(m, err=True),

@@ -1,5 +1,5 @@
-"""The pieces of the diagnosis of any model, without a cluster: locate's windows, the pair screen's
-prediction, the noise rule and the verdict's words."""
+"""The pieces of the diagnosis of any model, without a cluster: locate's windows, the noise rule and the
+verdict's words (the combination screens: test_screens.py)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from itertools import pairwise
 import numpy as np
 import pytest
 
-from dse_runner.analysis.diagnose import explain, signal_claims, signal_locate, signal_screen
+from dse_runner.analysis.diagnose import explain, signal_claims, signal_locate
 from dse_runner.analysis.diagnose.explain import Candidate
 from dse_runner.errors import DseError
 from dse_runner.simulation.scenario import Scenario
@@ -61,18 +61,6 @@ def test_located_gives_each_window_in_noise_floors_before_and_after():
     assert np.isclose(first["floors_after"], 1.0)
     (whole,) = found["by_scenario"]
     assert np.isclose(whole["floors_before"], np.sqrt(8.0)) and found["worst"][0]["floors_before"] == 4.0
-
-
-def test_a_pair_is_predicted_from_the_two_singles_changes():
-    rng = np.random.default_rng(0)
-    u, v = rng.normal(size=50), rng.normal(size=50)
-    point = {"a": 0.0, "b": 0.0}
-    none = _fit("none", [u + v], point)
-    only_a = _fit("a", [v], {"a": 2.0, "b": 0.0})  # a's fit took u away, b's would take v
-    only_b = _fit("b", [u], {"a": 0.0, "b": 3.0})
-    coefficients, predicted = signal_screen.prediction(none, only_a, only_b)
-    assert np.allclose(coefficients, [1.0, 1.0]) and predicted < 1e-20
-    assert signal_screen.mixed(none, only_a, only_b, coefficients, {}) == pytest.approx({"a": 2.0, "b": 3.0})
 
 
 def _candidate(ids, held_out: dict[str, float]) -> Candidate:

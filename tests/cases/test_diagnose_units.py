@@ -4,7 +4,9 @@ synthetic fixes written here, and the verdict, partial flag and runner-up on con
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -14,6 +16,7 @@ from conftest import strict_loads
 from dse_runner import strict_json
 from dse_runner.analysis.diagnose import discovery, explain
 from dse_runner.analysis.diagnose.explain import Candidate
+from dse_runner.analysis.diagnose.screens import ScreenSettings, linearised
 from dse_runner.cases.fielddata import load_run
 from dse_runner.cases.robotti_diagnosis import (
     Diagnosis,
@@ -21,10 +24,10 @@ from dse_runner.cases.robotti_diagnosis import (
     kinematics,
     lookalike,
     noise,
-    screen,
     segments,
 )
-from dse_runner.cases.robotti_diagnosis.hypotheses import LIBRARY
+from dse_runner.cases.robotti_diagnosis.chain import VehicleEffect
+from dse_runner.cases.robotti_diagnosis.hypotheses import LIBRARY, LOOK_ALIKES
 from dse_runner.errors import DseError
 from dse_runner.sweeps.fit import FitProblem, FitResult, LevenbergMarquardt, Parameter
 
@@ -408,6 +411,29 @@ def fitted(ids: tuple[str, ...], residuals, scenarios) -> FitResult:
     return solver.result()
 
 
+@dataclass
+class Synthetic:
+    """What a screen reads of the engine's fits (engine.Fits): the vehicle's library, synthetic residuals."""
+
+    residuals: Any
+    scenarios: tuple[str, ...]
+    ids: tuple[str, ...] = SCREENED
+    base: tuple[Parameter, ...] = BASE
+    asked: list[int] = field(default_factory=list)  # points per sweep
+    look_alikes: Any = field(default_factory=lambda: LOOK_ALIKES)
+
+    @property
+    def library(self) -> dict[str, VehicleEffect]:
+        return {h: VehicleEffect.of("vehicle", h) for h in self.ids}
+
+    def shares(self, a: str, b: str) -> bool:
+        return False
+
+    def evaluate(self, points):
+        self.asked.append(len(points))
+        return self.residuals
+
+
 def test_the_screen_finds_a_masked_pair_neither_effect_of_which_passes_alone():
     residuals, scenarios, _ = masked_residuals()
     fits = {ids: fitted(ids, residuals, scenarios) for ids in [(), *((h,) for h in SCREENED)]}
@@ -422,18 +448,15 @@ def test_the_screen_finds_a_masked_pair_neither_effect_of_which_passes_alone():
     )
     assert np.allclose(np.concatenate(none.residuals) @ np.concatenate(none.residuals), none.sse)
 
-    asked: list[int] = []
-
-    def evaluate(points):
-        asked.append(len(points))
-        return residuals
-
-    anchors = screen.anchors(fits)
-    entries = screen.catalogue(BASE, "vehicle", SCREENED)
-    seen = screen.screen(anchors, SCREENED, entries, scenarios, evaluate)
-    assert len(asked) == 2  # one sweep of probes, one of trials
-    assert asked[0] == sum(len(screen.extra_parameters(a, entries)) for a in anchors)
-    assert {x.ids for x in seen if len(x.ids) == 2} == set(screen.pairs_of(SCREENED))  # every pair
+    chain = Synthetic(residuals, scenarios)
+    found = linearised.Linearised().run(chain, fits, ScreenSettings(pairs=4, triples=2, limit=10))
+    seen, short = found.screened, found.shortlist
+    entries = linearised.catalogue(chain, SCREENED)
+    assert len(chain.asked) == 2  # one sweep of probes, one of trials
+    assert chain.asked[0] == sum(
+        len(linearised.extra_parameters(a, entries)) for a in linearised.anchors(fits)
+    )
+    assert {x.ids for x in seen if len(x.ids) == 2} == set(linearised.pairs_of(SCREENED))  # every pair
     best = seen[0]
     assert best.ids == ("wheel_slip", "steering_lag")
     assert best.sse == pytest.approx(
@@ -442,7 +465,6 @@ def test_the_screen_finds_a_masked_pair_neither_effect_of_which_passes_alone():
     assert best.start["vehicle.wheel_slip"] == pytest.approx(0.08, rel=0.02)
     assert best.start["vehicle.steering_lag"] == pytest.approx(0.4, rel=0.02)
     assert best.sse < 0.2 * none.sse and best.bic < explain.bic(none) - explain.BIC_MARGIN
-    short = screen.shortlist(seen, pairs=4, triples=2, limit=10)
     labels = [x.label for x in short]
     assert labels[0] == "wheel_slip+steering_lag" and len(short) <= 10
     assert "wheel_slip+time_offset" in labels  # the lag's look-alike is fitted beside it
@@ -452,11 +474,13 @@ def test_the_screen_finds_a_masked_pair_neither_effect_of_which_passes_alone():
 def test_the_prediction_keeps_to_the_bounds():
     residuals, scenarios, _ = masked_residuals(seed=3)
     fits = {ids: fitted(ids, residuals, scenarios) for ids in [(), ("wheel_slip",)]}
-    entries = screen.catalogue(BASE, "vehicle", ("wheel_slip", "steering_lag"))
-    lin = screen.linearise(screen.Anchor((), fits[()]), entries, scenarios, residuals)
+    entries = linearised.catalogue(Synthetic(residuals, scenarios), ("wheel_slip", "steering_lag"))
+    lin = linearised.linearise(linearised.Anchor((), fits[()]), entries, scenarios, residuals)
     negative = dict(lin.point, **{"vehicle.wheel_slip": 0.0})
-    flipped = screen.Linearisation(lin.anchor, negative, lin.names, lin.owners, -lin.jacobian, lin.residuals)
-    delta, _ = screen.predict(flipped, ("wheel_slip", "steering_lag"), entries)
+    flipped = linearised.Linearisation(
+        lin.anchor, negative, lin.names, lin.owners, -lin.jacobian, lin.residuals
+    )
+    delta, _ = linearised.predict(flipped, ("wheel_slip", "steering_lag"), entries)
     assert (
         delta["vehicle.wheel_slip"] >= 0.0 and delta["vehicle.steering_lag"] >= 0.0
     )  # slip and lag are >= 0

@@ -3,16 +3,17 @@ name what is missing from a hypothesis library, model it and show the held-out f
 
 The core reads in this order: ``library`` (the plug-in contract and :func:`diagnose`, which finds
 the library that serves a space), ``hypotheses`` (what a hypothesis is), ``validation`` (what is held out),
-``fitter`` and ``engine`` (the fits and the stages every library runs), ``explain`` (how candidates are
+``fitter`` and ``engine`` (the fits and the stages every library runs), ``screens`` (the combination
+screen, a strategy chosen by name), ``explain`` (how candidates are
 judged: BIC, the noise floor, the verdict), ``proof`` (searched terms chosen again on each fold),
 ``noise`` (noise from a recording alone), ``findings`` and ``answer`` (what is named, in the one JSON
 shape), ``report`` (the page every diagnosis is read on, drawn from that JSON; a library adds its own
 sections) and ``report_html``. The built-in library is ``signal_library`` (late, sluggish, scaled or biased
 inputs and outputs of any FMU, limits of its states, and physical terms inside its model-exchange FMUs:
-``signal_hypotheses``, ``term_hypotheses`` over ``derivatives``), with its steps ``signal_screen``,
-``signal_claims``, ``signal_locate`` and ``signal_report`` (its sections of the report);
-``sparse_regression`` is the regression the Robotti's discovery proposes its terms with. Cases add their
-libraries by entry point, as the Robotti does (dse_runner/cases/robotti_diagnosis).
+``signal_hypotheses``, ``term_hypotheses`` over ``derivatives``), with its steps
+``signal_claims``, ``signal_locate`` and ``signal_report`` (its sections of the report); ``sparse_regression``
+is the regression the Robotti's discovery proposes its terms with. Cases add their libraries by entry point,
+as the Robotti does (dse_runner/cases/robotti_diagnosis).
 """
 
 from .hypotheses import EffectParameter, Hypothesis

@@ -3,8 +3,9 @@
 Why one place: fitting each hypothesis alone, cross-validating and gating combinations, growing the answer
 one hypothesis at a time, recalibrating it from many starts, judging each member, and proving searched
 terms are statistics, not physics; a library supplies its hypotheses (their parameters and starts, which
-are terms inside the model, which cannot share a set) and its combination screen. A fix here reaches every
-library that runs these stages.
+are terms inside the model, which cannot share a set, which look alike); the combination screen between
+:func:`singles` and :func:`cross_validated` is a strategy chosen by name (screens/). A fix here reaches
+every library that runs these stages.
 
 The stages, in a diagnosis' order: :func:`singles` (none and each hypothesis, every start scouted),
 :func:`cross_validated` (the singles and a library's shortlisted combinations held out, the BIC gate),
@@ -69,12 +70,16 @@ def gated_early(
 
 @dataclass
 class Fits(Fitter):
-    """The fitter (fitter.py) with the library's hypotheses: their starts, which of them are terms inside
-    the model (and so pay for the search among them), and which pairs cannot be in one set. Each stage
-    below asks it for its problems and their fits."""
+    """The fitter (fitter.py) with the library's hypotheses: their parameters and starts, which of them are
+    terms inside the model (and so pay for the search among them), which pairs cannot be in one set, and
+    which leave residuals alike (a screen fits a shortlisted set's twins beside it). Each stage below asks
+    it for its problems and their fits."""
 
-    library: Mapping[str, Any] = field(default_factory=dict)  # id -> names, starts, start(k), term
+    library: Mapping[str, Any] = field(
+        default_factory=dict
+    )  # id -> parameters, names, starts, start(k), term
     shares: Callable[[str, str], bool] = lambda a, b: False  # two hypotheses that act on one thing
+    look_alikes: Mapping[str, tuple[str, ...]] = field(default_factory=dict)  # id -> its declared twins
     min_gain: float = explain.MIN_GAIN  # the rule a set must pass: held-out error this much lower ...
     bic_margin: float = explain.BIC_MARGIN  # ... and the BIC this much lower
     survivors: int = SURVIVORS  # combinations that pass the BIC gate and are cross-validated, at most

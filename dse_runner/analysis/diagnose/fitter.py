@@ -127,12 +127,11 @@ class Fitter:
         return rows
 
     def evaluate(self, points: list[Point], scenarios: Sequence[Sequence[str]] | None = None) -> Residuals:
-        """The residuals of ``points`` on everything (or each on its ``scenarios``), as one sweep: a
-        screen's probes and trials. Only where the fits minimise one vector objective."""
-        if not isinstance(self.residuals, str):
-            raise TypeError("Fitter.evaluate reads one vector objective; these fits minimise several")
+        """The residuals of ``points`` on everything (or each on its ``scenarios``), as one sweep, as the
+        fits read them (one vector objective, or scaled columns joined): a screen's probes and trials."""
         on = [self.scenarios if scenarios is None else s for s in (scenarios or [None] * len(points))]
-        return residuals_in(self.rows(list(zip(points, on)), [self.residuals]), self.residuals)
+        columns = [self.residuals] if isinstance(self.residuals, str) else list(self.residuals)
+        return residuals_in(self.rows(list(zip(points, on)), columns), self.residuals)
 
 
 def round_report(say: Messages, what: str = "fits") -> Callable[[int, int, int, int], None]:

@@ -28,7 +28,7 @@ from ...errors import DseError
 from ...sweeps.domain import Interval
 from ...sweeps.search import Search
 from ...sweeps.spec import Space, SpaceSpec, read_spec, resolve_space
-from . import report
+from . import report, screens
 from .answer import Answer
 from .explain import NOISE_FACTOR
 from .hypotheses import Hypothesis
@@ -48,8 +48,11 @@ class Request:
     noise_factor: float = NOISE_FACTOR  # held-out error above this many noise floors is unexplained
     hypotheses: tuple[str, ...] = ()  # the library's ids to try; () tries them all
     discovery: bool = True  # seek what is missing inside the model too (terms in its derivatives)
+    screen: str = ""  # the combination screen by name (screens/registry.py); "": the library's own
 
     def __post_init__(self) -> None:
+        if self.screen:
+            screens.known(self.screen)
         if not (isinstance(self.folds, int) and self.folds >= 2):
             raise DseError(f"--folds {self.folds!r}: cross-validation needs 2 folds or more")
         if not (math.isfinite(self.noise_factor) and self.noise_factor > 0):
@@ -86,12 +89,18 @@ class HypothesisLibrary(ABC):
 
     Optional parts, with defaults: ``calibration`` (None: ``--scenarios`` alone cannot choose this
     library; a library whose case has a standard calibration names it, e.g. ``bundled:…``),
+    ``screen`` (the combination screen it runs unless ``--screen`` names another: ``mixed``),
     :meth:`hypotheses` (none listed), :meth:`sections` (none: the report is the engine's skeleton alone).
     """
 
     name: ClassVar[str]
     calibration: ClassVar[str | None] = None  # the space ``--scenarios DIR`` fills when no --space is given
     general: ClassVar[bool] = False  # serves any model: asked after the libraries of a model
+    screen: ClassVar[str] = "mixed"  # its combination screen by name (screens/registry.py), unless asked
+
+    def screen_for(self, request: Request) -> str:
+        """The combination screen ``request`` names, else this library's own."""
+        return request.screen or self.screen
 
     @abstractmethod
     def serves(self, space: Space) -> bool:

@@ -15,11 +15,11 @@ BIC (charged for the search among terms), the simplest of the equally good, a ve
 floor. Residuals of each compared signal are divided by its noise (estimated from its recording alone), so
 signals in different units weigh alike and an error of 1 is the noise itself.
 
-The stages, in diagnose_space's order: calibrate (from many starts), fit every single, screen pairs
-(signal_screen.py), cross-validate, grow, recalibrate the answer with its effects in place, decide each
-member against its look-alike across the model's skin, the noise rule and the limits the recordings reach
-(signal_claims.py), prove the answer's terms by choosing them again on each fold; then locate
-(signal_locate.py) and report (the engine's report.py, with signal_report.py's sections).
+The stages, in diagnose_space's order: calibrate (from many starts), fit every single, screen combinations
+(screens/, the mixed screen unless asked for another), cross-validate, grow, recalibrate the answer with its
+effects in place, decide each member against its look-alike across the model's skin, the noise rule and the
+limits the recordings reach (signal_claims.py), prove the answer's terms by choosing them again on each fold;
+then locate (signal_locate.py) and report (the engine's report.py, with signal_report.py's sections).
 """
 
 from __future__ import annotations
@@ -37,15 +37,14 @@ from ...simulation import objectives as objs
 from ...simulation import signal_effects, state_limits
 from ...simulation.run import qualify
 from ...sweeps.cluster import connect
-from ...sweeps.domain import Point
 from ...sweeps.expand import key_of
 from ...sweeps.fit import FitProblem, FitResult, Parameter
-from ...sweeps.fit_rounds import evaluate_points, fit_all, residuals_in
+from ...sweeps.fit_rounds import evaluate_points, fit_all
 from ...sweeps.rank import rank
 from ...sweeps.spec import Space, derived_space
 from ...sweeps.sweep import submit
 from . import answer as answer_
-from . import explain, signal_claims, signal_figures, signal_locate, signal_report, signal_screen
+from . import explain, screens, signal_claims, signal_figures, signal_locate, signal_report
 from .derivatives import model_exchange_instances, observe
 from .engine import (
     REFITTED,
@@ -60,7 +59,6 @@ from .engine import (
     proven,
     recalibrated,
     restarts,
-    screen_sse,
     singles,
 )
 from .explain import Candidate
@@ -81,6 +79,13 @@ CALIBRATION_FITS = "diagnosis-calibration"  # the sweep the calibration's least 
 DIFFERENCE = 0.001  # a calibrated parameter's finite-difference step, as a share of its range: over a long
 # record of an oscillation a step of a percent moves the phase by a good part of a cycle, and the Jacobian
 # it measures is no slope at all
+SCREEN = "mixed"  # the combination screen this library runs unless asked for another (screens/registry.py)
+# What of a screen is fitted for real: the best pairs and triples, unless the screen is named below. The
+# mixed screen keeps to pairs: extended into triples, it shortlisted a third member the clipped force does
+# not have (input_square beside its two bounds, which the answer then kept; docs/diagnosis.md), and the
+# answer grows one member at a time anyway (engine.grown), each cross-validated.
+SCREENED = screens.ScreenSettings(pairs=3, triples=2, limit=5)
+SCREENED_BY_NAME = {"mixed": screens.ScreenSettings(pairs=3, triples=0, limit=3)}
 
 
 @dataclass(frozen=True)
@@ -111,7 +116,7 @@ class SignalDiagnosis:
     verdict: str
     hypotheses: dict[str, SignalHypothesis] = field(default_factory=dict)
     noise_factor: float = explain.NOISE_FACTOR  # held-out error above this many floors is unexplained
-    pairs: Any = None  # Pairs: what the pair screen did
+    pairs: Any = None  # Combinations: what the combination screen did
     lookalikes: list[signal_claims.FitsAlike] = field(default_factory=list)
     decided: list[Decided] = field(default_factory=list)  # members against their look-alikes across the skin
     proof: Proof | None = None  # the terms inside the model chosen again on each fold
@@ -381,19 +386,19 @@ def worth_pairing(singles: Sequence[FitResult], floor_stop: float = explain.FLOO
 
 
 @dataclass
-class Pairs:
-    """What the pair screen did: how many pairs it predicted, which it checked and which it fitted."""
+class Combinations:
+    """What the combination screen did: its strategy, how many combinations it predicted, which it checked
+    and which it fitted; or why it did not run."""
 
-    predicted: int = 0
-    screened: list[signal_screen.ScreenedPair] = field(default_factory=list)
-    fitted: list[str] = field(default_factory=list)
+    screening: screens.Screening
     reason: str = ""
 
     def to_json(self) -> dict[str, Any]:
         return {
-            "predicted": self.predicted,
-            "screened": [s.to_json() for s in self.screened],
-            "fitted": self.fitted,
+            "strategy": self.screening.strategy,
+            "predicted": self.screening.predicted,
+            "screened": [s.to_json() for s in self.screening.screened],
+            "fitted": [s.label for s in self.screening.shortlist],
             "reason": self.reason,
         }
 
@@ -408,13 +413,15 @@ def diagnose_space(
     address: str | None = None,
     discover: bool = True,
     only: Sequence[str] = (),
+    screen: str = SCREEN,
 ) -> SignalDiagnosis:
     """Calibrate the space (a file, or a Space as the library contract gives it), fit each hypothesis with
     it (``only`` these, when given): the signal effects and state limits, and the physical terms inside its
-    model-exchange FMUs (unless not ``discover``); screen pairs when no single explains to the noise, grow
-    the answer, keep what the recordings support and reach, decide each member against its look-alike across
-    the model's skin, and locate the misfit before and after."""
+    model-exchange FMUs (unless not ``discover``); screen combinations (by the strategy ``screen`` names)
+    when no single explains to the noise, grow the answer, keep what the recordings support and reach, decide
+    each member against its look-alike across the model's skin, and locate the misfit before and after."""
     say = say or (lambda message: None)
+    strategy = screens.strategy(screen)  # an unknown name is told before anything runs
     space = (
         path
         if isinstance(path, Space)
@@ -422,30 +429,11 @@ def diagnose_space(
     )
     compared = compared_signals(space)
     with connect(space.spec.cluster, space.path.parent) as client:
-        base, held = _calibrated(space, compared, client, say)
-        start = {**held, **{p.name: p.start for p in base}}
-        library = restricted(library_of(space, compared, start, terms=discover), only)
-        space, validation = validated(space, folds, sorted({c.recorded for c in compared}))
-        say(f"validation: {validation.text}")
-        # what a fit does not free: the space's single-valued parameters, and every other effect at neutral
-        unfreed = {**held, **{k: v for h in library.values() for k, v in h.absent().items()}}
-        scales = {c.residuals: 1.0 / c.noise for c in compared}
-        f = Fits(
-            space=fits_space(space, compared, library),
-            client=client,
-            base=base,
-            parameters=lambda h: library[h].parameters,
-            unfreed=unfreed,
-            validation=validation,
-            residuals=scales,
-            scored=list(scales),
-            score=lambda row: scaled_rms(row, scales),
-            say=say,
-            library=library,
-            shares=lambda a, b: shares(library[a], library[b]),
-        )
+        f, space = calibrated_fits(space, compared, client, say, folds, discover, only)
+        library, validation = f.library, f.validation
         sets, full = singles(f)
-        pairs, short = _screened_pairs(f, sets, full)
+        pairs = _screened(f, full, strategy)
+        short = pairs.screening.shortlist
         baseline, everything = cross_validated(f, sets, full, short)
         selected, growth = grown(f, explain.select(everything[1:], baseline), full, everything, noise_factor)
         selected = recalibrated(f, selected, everything)
@@ -523,6 +511,43 @@ def diagnose_space(
     return diagnosis
 
 
+def calibrated_fits(
+    space: Space,
+    compared: Sequence[Compared],
+    client,
+    say: Messages,
+    folds: int = 3,
+    discover: bool = True,
+    only: Sequence[str] = (),
+) -> tuple[Fits, Space]:
+    """The engine's fits of this library on ``space``: the calibration (from many starts), the hypotheses
+    sized at its point (``only`` these, when given; no terms unless ``discover``), what is held out; and
+    ``space`` as validated (a record's blocks among its scenarios)."""
+    base, held = _calibrated(space, compared, client, say)
+    start = {**held, **{p.name: p.start for p in base}}
+    library = restricted(library_of(space, compared, start, terms=discover), only)
+    space, validation = validated(space, folds, sorted({c.recorded for c in compared}))
+    say(f"validation: {validation.text}")
+    # what a fit does not free: the space's single-valued parameters, and every other effect at neutral
+    unfreed = {**held, **{k: v for h in library.values() for k, v in h.absent().items()}}
+    scales = {c.residuals: 1.0 / c.noise for c in compared}
+    fits = Fits(
+        space=fits_space(space, compared, library),
+        client=client,
+        base=base,
+        parameters=lambda h: library[h].parameters,
+        unfreed=unfreed,
+        validation=validation,
+        residuals=scales,
+        scored=list(scales),
+        score=lambda row: scaled_rms(row, scales),
+        say=say,
+        library=library,
+        shares=lambda a, b: shares(library[a], library[b]),
+    )
+    return fits, space
+
+
 def _calibrated(
     space: Space, compared: Sequence[Compared], client, say: Messages
 ) -> tuple[tuple[Parameter, ...], dict[str, Any]]:
@@ -567,28 +592,21 @@ def _calibrated(
     return base, held
 
 
-def _screened_pairs(
-    f: Fits, sets: list[tuple[str, ...]], full: Mapping[tuple[str, ...], FitResult]
-) -> tuple[Pairs, list[signal_screen.ScreenedPair]]:
-    """The pairs predicted from the singles' fits and checked by simulation, when no single fits to within
-    the noise; and the shortlist of them to fit for real."""
-    pairs = Pairs()
-    singles = {s[0]: full[s] for s in sets if s and full[s].error is None}  # a failed one has no direction
-    if worth_pairing(list(singles.values())):
-        bounds = {p.name: p for p in (*f.base, *(p for h in f.library.values() for p in h.parameters))}
-
-        def real_sse(points: list[Point]) -> list[float]:
-            rows = f.rows([(p, f.scenarios) for p in points])  # a record's views are only for its folds
-            found = residuals_in(rows, f.residuals)
-            return [screen_sse(p, f.scenarios, found) for p in points]
-
-        pairs.screened, pairs.predicted = signal_screen.screen(full[()], singles, bounds, real_sse)
-        f.say(f"pairs: {pairs.predicted} predicted from the single fits, {len(pairs.screened)} checked")
-    else:
-        pairs.reason = f"a single effect already fits within {explain.FLOOR_STOP:g} noise floors"
-    short = signal_screen.shortlist(pairs.screened)
-    pairs.fitted = [s.label for s in short]
-    return pairs, short
+def _screened(
+    f: Fits, full: Mapping[tuple[str, ...], FitResult], strategy: screens.ScreenStrategy
+) -> Combinations:
+    """The combinations ``strategy`` predicts from the single fits and checks by simulation, and the shortlist
+    of them to fit for real, when no single fits to within the noise."""
+    singles = [fit for ids, fit in full.items() if ids and fit.error is None]  # a failed one: no direction
+    if not worth_pairing(singles):
+        reason = f"a single effect already fits within {explain.FLOOR_STOP:g} noise floors"
+        return Combinations(screens.Screening(strategy.name), reason)
+    found = strategy.run(f, full, SCREENED_BY_NAME.get(strategy.name, SCREENED))
+    f.say(
+        f"combinations ({strategy.name} screen): {found.predicted} predicted from the single fits, "
+        f"{len(found.screened)} checked, {len(found.shortlist)} to fit"
+    )
+    return Combinations(found)
 
 
 @dataclass(frozen=True)
@@ -733,6 +751,7 @@ class SignalEffects(HypothesisLibrary):
 
     name = "signals"
     general = True
+    screen = SCREEN
 
     def serves(self, space: Space) -> bool:
         return any(isinstance(spec, objs.Fit) for spec in space.objectives.values())
@@ -745,6 +764,7 @@ class SignalEffects(HypothesisLibrary):
             say=say,
             discover=request.discovery,
             only=request.hypotheses,
+            screen=self.screen_for(request),
         )
 
     def sections(self, answer: answer_.Answer) -> list[Section]:

@@ -90,11 +90,12 @@ def search(case: dict[str, Any]) -> str:
     pairs = case.get("pairs") or {}
     if pairs.get("screened"):
         lines.append(
-            f"Pairs: {pairs['predicted']} predicted from the single fits, {len(pairs['screened'])} checked "
-            f"by simulation, {len(pairs['fitted'])} fitted for real ({', '.join(pairs['fitted']) or 'none'})."
+            f"Combinations ({pairs['strategy']} screen): {pairs['predicted']} predicted from the single "
+            f"fits, {len(pairs['screened'])} checked by simulation, {len(pairs['fitted'])} fitted for real "
+            f"({', '.join(pairs['fitted']) or 'none'})."
         )
     elif pairs:
-        lines.append(f"Pairs: not screened ({pairs.get('reason', '')}).")
+        lines.append(f"Combinations: not screened ({pairs.get('reason', '')}).")
     return "\n\n".join(lines)
 
 

@@ -10,9 +10,9 @@ library is a parameter that is zero when absent.
 
 The package reads in the order data flows: ``workflow`` (the steps, :func:`diagnose`) over
 ``chain`` (fits as sweeps) and ``model_files`` (what it reads and writes), with the results in
-``outcome``; the steps' own modules are noise, locate, segments, screen, lookalike, discover/ and
-report, with the choice among candidates in the core's explain.py. This module re-exports what users
-import.
+``outcome``; the steps' own modules are noise, locate, segments, lookalike, discover/ and report, with
+the combination screen (linearised unless the settings name another) and the choice among candidates in
+the core (analysis/diagnose/screens/, explain.py). This module re-exports what users import.
 """
 
 from .chain import Chain, DiagnosisMessages

@@ -14,7 +14,7 @@ from ...analysis.diagnose.fitter import scored_ok
 from ...analysis.diagnose.validation import Validation
 from ...sweeps.fit import FitResult, Parameter
 from ...sweeps.spec import Space
-from .hypotheses import hypothesis
+from .hypotheses import LOOK_ALIKES, hypothesis
 from .outcome import DiagnosisSettings
 
 RESIDUALS = (
@@ -110,6 +110,7 @@ class Chain(Fits):
             in_sample=fitted_error,
             iterations=settings.max_iterations,
             library=library,
+            look_alikes=LOOK_ALIKES,
             min_gain=settings.min_gain,
             bic_margin=settings.bic_margin,
             survivors=settings.survivors,

@@ -18,7 +18,7 @@ from ...sweeps.spec import Space
 from .. import fielddata
 from . import report
 from .hypotheses import LIBRARY
-from .outcome import Diagnosis, DiagnosisSettings
+from .outcome import SCREEN, Diagnosis, DiagnosisSettings
 from .workflow import DEFAULT_SPACE, diagnose_calibration
 
 
@@ -27,6 +27,7 @@ class RobottiLibrary(HypothesisLibrary):
 
     name = "robotti"
     calibration = DEFAULT_SPACE
+    screen = SCREEN
 
     def serves(self, space: Space) -> bool:
         return bool(space.scenarios) and all(s.kind == fielddata.KIND for s in space.scenarios)
@@ -37,6 +38,7 @@ class RobottiLibrary(HypothesisLibrary):
             hypotheses=request.hypotheses,
             noise_factor=request.noise_factor,
             discovery=request.discovery,
+            screen=self.screen_for(request),
         )
         return diagnose_calibration(space, settings, progress=say)
 

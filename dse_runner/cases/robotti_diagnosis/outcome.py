@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from ...analysis.diagnose import answer as answer_
-from ...analysis.diagnose import discovery, explain
+from ...analysis.diagnose import discovery, explain, screens
 from ...analysis.diagnose.engine import MAX_EFFECTS
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.findings import DiscoveredCorrection, Finding, NamedEffect
@@ -18,9 +18,13 @@ from ...analysis.diagnose.report import ids
 from ...analysis.diagnose.validation import record_of
 from ...errors import DseError
 from ...simulation.scenario import dropouts_line
-from . import correction, lookalike, noise, screen
+from . import correction, lookalike, noise
 from .hypotheses import LIBRARY
 from .noise import NoiseFloor
+
+SCREEN = (
+    "linearised"  # the combination screen the Robotti runs unless asked for another (screens/registry.py)
+)
 
 
 @dataclass(frozen=True)
@@ -41,8 +45,10 @@ class DiagnosisSettings:
     floor_stop: float = explain.FLOOR_STOP  # no combination is screened when a fit is within this many floors
     discovery: bool = True  # seek a data-driven correction when the library leaves a residual above the noise
     max_terms: int = 3  # most terms a discovered correction may have
+    screen: str = SCREEN  # the combination screen by name (analysis/diagnose/screens/registry.py)
 
     def __post_init__(self) -> None:
+        screens.known(self.screen)
         if not (math.isfinite(self.noise_factor) and self.noise_factor > 0):
             raise DseError(
                 f"noise factor {self.noise_factor!r}: must be a positive number (default "
@@ -63,6 +69,13 @@ class DiagnosisSettings:
         bad = [f"{k} = {v!r}" for k, v in counts.items() if not (isinstance(v, int) and v >= 0)]
         if bad:
             raise DseError(f"diagnosis settings {', '.join(bad)}: each must be a whole number, 0 or more")
+
+    def screen_settings(self) -> screens.ScreenSettings:
+        """What of the combination screen is fitted for real: no triple when one effect more than a pair is
+        not allowed."""
+        return screens.ScreenSettings(
+            self.pairs, self.triples if self.max_effects >= 3 else 0, self.shortlist
+        )
 
     def singles(self) -> list[tuple[str, ...]]:
         """The hypotheses fitted alone: the chosen ids of the library, each checked."""
@@ -89,7 +102,7 @@ class Diagnosis:
     files: dict[str, Path] = field(default_factory=dict)
     dropouts: dict[str, int] = field(default_factory=dict)  # GPS fixes skipped per run (scenario.dropouts)
     floor: NoiseFloor = noise.UNKNOWN  # the GPS noise floor, estimated from the recordings alone
-    screened: list[screen.Screened] = field(
+    screened: list[screens.Screened] = field(
         default_factory=list
     )  # every combination the screen tried, best first
     shortlisted: list[str] = field(default_factory=list)  # the labels of those then fitted for real

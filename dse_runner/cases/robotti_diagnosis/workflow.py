@@ -8,16 +8,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ...analysis.diagnose import discovery, engine, explain
+from ...analysis.diagnose import discovery, engine, explain, screens
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.library import space_with
 from ...analysis.diagnose.validation import Validation, validated
 from ...simulation.scenario import dropouts
 from ...sweeps.cluster import connect
+from ...sweeps.fit import FitResult
 from ...sweeps.rank import rank
 from ...sweeps.spec import Space
 from ...sweeps.sweep import submit, trajectories_of
-from . import correction, discover, locate, lookalike, noise, screen
+from . import correction, discover, locate, lookalike, noise
 from .chain import Chain, DiagnosisMessages, VehicleEffect, fitted_error
 from .hypotheses import LIBRARY
 from .model_files import base_parameters, fits_space, steering_source, vehicle_of, write_model
@@ -50,31 +51,28 @@ def worth_screening(candidates: list[Candidate], floor: float | None, settings: 
     return min(fitted_error(c.full) for c in candidates) > settings.floor_stop * floor
 
 
-def screen_combinations(chain: Chain, candidates: list[Candidate]) -> list[screen.Screened]:
-    """Every pair, and triples of the best pairs, predicted from none and the best single fits, each checked
-    by simulation (screen.py): best verified BIC first."""
+def screen_combinations(chain: Chain, full: dict[tuple[str, ...], FitResult]) -> screens.Screening:
+    """The combinations the settings' screen (analysis/diagnose/screens/) predicts from none and the single
+    fits and checks by simulation, best verified BIC first, and its shortlist."""
     settings = chain.settings
-    ids = [c.ids[0] for c in candidates if len(c.ids) == 1]
-    anchors = screen.anchors({c.ids: c.full for c in candidates})
-    entries = screen.catalogue(chain.base, chain.vehicle, ids)
-    pairs = len(ids) * (len(ids) - 1) // 2
-    chain.say(f"screening {pairs} pair{'s' * (pairs != 1)} from {', '.join(a.fit.label for a in anchors)}")
-    triples = settings.max_effects >= 3
-    return screen.screen(anchors, ids, entries, chain.scenarios, chain.evaluate, triples=triples)
+    singles = len(full) - 1  # none is among the fits
+    pairs = singles * (singles - 1) // 2
+    chain.say(f"screening {pairs} pair{'s' * (pairs != 1)}: the {settings.screen} screen")
+    return screens.strategy(settings.screen).run(chain, full, settings.screen_settings())
 
 
 @dataclass
 class Choice:
     chosen: Candidate  # the baseline when nothing is missing
     candidates: list[Candidate]  # every set fitted: none, the singles, the shortlisted combinations, growth's
-    screened: list[screen.Screened]  # every combination the screen tried, best first; [] when it did not run
-    shortlisted: list[screen.Screened]  # those fitted for real
+    screened: list[screens.Screened]  # every combination the screen tried, best first; [] when it did not run
+    shortlisted: list[screens.Screened]  # those fitted for real
     growth: list[dict[str, Any]]  # each round of one more effect: what it tried (engine.grown)
 
 
 def choose(chain: Chain, floor: float | None = None) -> Choice:
     """The engine's stages on the vehicle's library: none and every hypothesis alone (engine.singles);
-    unless one already fits to the noise, every combination screened (screen.py) and the short list fitted
+    unless one already fits to the noise, every combination screened (screens/) and the short list fitted
     for real in the same batch as the singles' folds, those passing the BIC gate cross-validated
     (engine.cross_validated); the choice (explain.select), grown one effect at a time while each pays its
     way and the held-out error stays above the noise (engine.grown; not without a noise floor)."""
@@ -83,10 +81,8 @@ def choose(chain: Chain, floor: float | None = None) -> Choice:
     singles = [Candidate(ids, full[ids]) for ids in sets]
     screened, short = [], []
     if worth_screening(singles, floor, settings):
-        screened = screen_combinations(chain, singles)
-        short = screen.shortlist(
-            screened, settings.pairs, settings.triples if settings.max_effects >= 3 else 0, settings.shortlist
-        )
+        screening = screen_combinations(chain, full)
+        screened, short = screening.screened, screening.shortlist
     else:
         chain.say(
             "no combination screened: a fit is already within "

@@ -25,7 +25,7 @@ missing physics is sought among the correction block's terms (correction.py), in
 2. **Rank on positions** (one sweep). Equation error sees the model's own misfit too, so the order it
    gives mixes channels unfairly (a pair of steering terms can outrank the antenna terms they stand in
    for). The terms every channel supports compete instead on what each does to the fix residuals,
-   linearised at the parent fit (one probe per term, as screen.py does for library effects): forward
+   linearised at the parent fit (one probe per term, as the linearised screen does for effects): forward
    selection, the parent's parameters refitted within their bounds, while the predicted BIC falls by the
    extended margin's share of each term (:func:`rank_on_positions`).
 3. **Prove** (the same sweeps as the library). The chosen terms are freed as ``corr_*`` parameters of
