@@ -80,12 +80,6 @@ DIFFERENCE = 0.001  # a calibrated parameter's finite-difference step, as a shar
 # record of an oscillation a step of a percent moves the phase by a good part of a cycle, and the Jacobian
 # it measures is no slope at all
 SCREEN = "mixed"  # the combination screen this library runs unless asked for another (screens/registry.py)
-# What of a screen is fitted for real: the best pairs and triples, unless the screen is named below. The
-# mixed screen keeps to pairs: extended into triples, it shortlisted a third member the clipped force does
-# not have (input_square beside its two bounds, which the answer then kept; docs/diagnosis.md), and the
-# answer grows one member at a time anyway (engine.grown), each cross-validated.
-SCREENED = screens.ScreenSettings(pairs=3, triples=2, limit=5)
-SCREENED_BY_NAME = {"mixed": screens.ScreenSettings(pairs=3, triples=0, limit=3)}
 
 
 @dataclass(frozen=True)
@@ -601,7 +595,7 @@ def _screened(
     if not worth_pairing(singles):
         reason = f"a single effect already fits within {explain.FLOOR_STOP:g} noise floors"
         return Combinations(screens.Screening(strategy.name), reason)
-    found = strategy.run(f, full, SCREENED_BY_NAME.get(strategy.name, SCREENED))
+    found = strategy.run(f, full, strategy.shortlisted)
     f.say(
         f"combinations ({strategy.name} screen): {found.predicted} predicted from the single fits, "
         f"{len(found.screened)} checked, {len(found.shortlist)} to fit"

@@ -170,6 +170,7 @@ class Linearised(ScreenStrategy):
     Robotti's."""
 
     name = "linearised"
+    shortlisted = ScreenSettings(pairs=3, triples=2, limit=5)
 
     def screened(self, fits: Fits, singles: Singles, settings: ScreenSettings) -> tuple[list[Screened], int]:
         """Two sweeps in all: the probes of every anchor, then the trial points of every set."""
