@@ -540,20 +540,29 @@ def test_fitted_error_is_equation_1_on_the_fitted_runs():
 
 
 def test_the_stop_rule_screens_only_when_a_fit_leaves_more_than_noise():
-    from dse_runner.cases.robotti_diagnosis import worth_screening
+    """The engine's stop rule (choice.unscreened) with the Robotti's in-sample error, Equation 1 from the
+    fix residuals: combinations are screened only while every single leaves more than 1.25 floors."""
+    from types import SimpleNamespace
 
-    def fitted_to(error: float) -> Candidate:  # every fix off by ``error`` along x
-        fit = FitResult(
+    from dse_runner.analysis.diagnose.choice import unscreened
+    from dse_runner.cases.robotti_diagnosis.chain import fitted_error
+
+    def fitted_to(error: float) -> FitResult:  # every fix off by ``error`` along x
+        return FitResult(
             "x", [], {}, 0.0, 4, 1, True, {}, [], {}, residuals=[np.array([error, error, 0.0, 0.0])]
         )
-        return Candidate((), fit)
 
-    floor, settings = 0.025, DiagnosisSettings()
-    assert not worth_screening([fitted_to(0.09), fitted_to(1.2 * floor)], floor, settings)
-    assert worth_screening([fitted_to(0.09), fitted_to(1.3 * floor)], floor, settings)
-    assert worth_screening([fitted_to(0.0)], None, settings)  # no floor: nothing to stop at
-    assert not worth_screening([fitted_to(0.09)], floor, DiagnosisSettings(max_effects=1))
-    assert not worth_screening([fitted_to(0.09)], floor, DiagnosisSettings(hypotheses=("wheel_slip",)))
+    chain = SimpleNamespace(in_sample=fitted_error)
+    floor, stop = 0.025, DiagnosisSettings().floor_stop
+
+    def singles(*errors: float) -> dict:
+        return {(): fitted_to(1.0), **{(f"h{k}",): fitted_to(e) for k, e in enumerate(errors)}}
+
+    assert unscreened(chain, singles(0.09, 1.2 * floor), floor, stop, 6)
+    assert unscreened(chain, singles(0.09, 1.3 * floor), floor, stop, 6) == ""
+    assert unscreened(chain, singles(0.0, 0.0), None, stop, 6) == ""  # no floor: nothing to stop at
+    assert unscreened(chain, singles(0.09, 0.09), floor, stop, 1)  # one effect at a time
+    assert unscreened(chain, singles(0.09), floor, stop, 6)  # one hypothesis offered
 
 
 # ---- look-alikes: segments, kinematics, the LLR between twins, response fits -------------------------

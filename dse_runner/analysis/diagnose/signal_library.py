@@ -45,21 +45,19 @@ from ...sweeps.spec import Space, derived_space
 from ...sweeps.sweep import submit
 from . import answer as answer_
 from . import explain, screens, signal_claims, signal_figures, signal_locate, signal_report
+from .choice import choose
 from .derivatives import model_exchange_instances, observe
 from .engine import (
     REFITTED,
     Fits,
     best_of,
-    cross_validated,
     fitted_set,
-    grown,
     held_to_proof,
     joining,
     judge_members,
     proven,
     recalibrated,
     restarts,
-    singles,
 )
 from .explain import Candidate
 from .fitter import MAX_ITERATIONS, label, round_report
@@ -373,12 +371,6 @@ def fits_space(
     )
 
 
-def worth_pairing(singles: Sequence[FitResult], floor_stop: float = explain.FLOOR_STOP) -> bool:
-    """Whether pairs could still explain something: not when a single already fits to within ``floor_stop``
-    noise floors on the runs it saw."""
-    return len(singles) >= 2 and min(explain.fitted_rms(f) for f in singles) > floor_stop
-
-
 @dataclass
 class Combinations:
     """What the combination screen did: its strategy, how many combinations it predicted, which it checked
@@ -425,12 +417,10 @@ def diagnose_space(
     with connect(space.spec.cluster, space.path.parent) as client:
         f, space = calibrated_fits(space, compared, client, say, folds, discover, only)
         library, validation = f.library, f.validation
-        sets, full = singles(f)
-        pairs = _screened(f, full, strategy)
-        short = pairs.screening.shortlist
-        baseline, everything = cross_validated(f, sets, full, short)
-        selected, growth = grown(f, explain.select(everything[1:], baseline), full, everything, noise_factor)
-        selected = recalibrated(f, selected, everything)
+        choice = choose(f, strategy, strategy.shortlisted, 1.0, noise_factor)  # residuals in noise units
+        baseline, everything, full, growth = choice.baseline, choice.everything, choice.full, choice.growth
+        pairs = Combinations(choice.screening, choice.unscreened)
+        selected = recalibrated(f, choice.chosen, everything)
         judge_members(f, selected, everything)
         selected, decided = _decided(f, selected, full, everything)
         chosen, dropped = explain.claimed(selected, everything, baseline)
@@ -584,23 +574,6 @@ def _calibrated(
             refined = again if again.sse < refined.sse else refined
             base = tuple(replace(p, start=refined.values[p.name]) for p in base)
     return base, held
-
-
-def _screened(
-    f: Fits, full: Mapping[tuple[str, ...], FitResult], strategy: screens.ScreenStrategy
-) -> Combinations:
-    """The combinations ``strategy`` predicts from the single fits and checks by simulation, and the shortlist
-    of them to fit for real, when no single fits to within the noise."""
-    singles = [fit for ids, fit in full.items() if ids and fit.error is None]  # a failed one: no direction
-    if not worth_pairing(singles):
-        reason = f"a single effect already fits within {explain.FLOOR_STOP:g} noise floors"
-        return Combinations(screens.Screening(strategy.name), reason)
-    found = strategy.run(f, full, strategy.shortlisted)
-    f.say(
-        f"combinations ({strategy.name} screen): {found.predicted} predicted from the single fits, "
-        f"{len(found.screened)} checked, {len(found.shortlist)} to fit"
-    )
-    return Combinations(found)
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ the core (analysis/diagnose/screens/, explain.py). This module re-exports what u
 from .chain import Chain, DiagnosisMessages
 from .library import RobottiLibrary
 from .outcome import Diagnosis, DiagnosisSettings
-from .workflow import DEFAULT_SPACE, diagnose, diagnose_calibration, worth_screening
+from .workflow import DEFAULT_SPACE, diagnose, diagnose_calibration
 
 __all__ = [
     "DEFAULT_SPACE",
@@ -29,5 +29,4 @@ __all__ = [
     "RobottiLibrary",
     "diagnose",
     "diagnose_calibration",
-    "worth_screening",
 ]

@@ -3,23 +3,21 @@ it, and write the model."""
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ...analysis.diagnose import discovery, engine, explain, screens
+from ...analysis.diagnose import discovery, explain, screens
+from ...analysis.diagnose.choice import choose
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.library import space_with
 from ...analysis.diagnose.validation import Validation, validated
 from ...simulation.scenario import dropouts
 from ...sweeps.cluster import connect
-from ...sweeps.fit import FitResult
 from ...sweeps.rank import rank
 from ...sweeps.spec import Space
 from ...sweeps.sweep import submit, trajectories_of
 from . import correction, discover, locate, lookalike, noise
-from .chain import Chain, DiagnosisMessages, VehicleEffect, fitted_error
+from .chain import Chain, DiagnosisMessages, VehicleEffect
 from .hypotheses import LIBRARY
 from .model_files import base_parameters, fits_space, steering_source, vehicle_of, write_model
 from .noise import NoiseFloor
@@ -38,64 +36,6 @@ def recorded(space: Space, validation: Validation) -> Space:
     residuals are located on, look-alikes weighed on and discovery observes."""
     runs = [s for s in space.scenarios if s.name in validation.fitted]
     return space.with_scenarios(runs)
-
-
-def worth_screening(candidates: list[Candidate], floor: float | None, settings: DiagnosisSettings) -> bool:
-    """Whether combinations could still explain something: not when a fit already leaves no more than
-    ``floor_stop`` noise floors of error (on the runs it saw), nor when one effect at a time is the most
-    allowed. Without a floor the screen always runs."""
-    if settings.max_effects < 2 or len(settings.singles()) < 2:
-        return False
-    if floor is None or not (math.isfinite(floor) and floor > 0):
-        return True
-    return min(fitted_error(c.full) for c in candidates) > settings.floor_stop * floor
-
-
-def screen_combinations(chain: Chain, full: dict[tuple[str, ...], FitResult]) -> screens.Screening:
-    """The combinations the settings' screen (analysis/diagnose/screens/) predicts from none and the single
-    fits and checks by simulation, best verified BIC first, and its shortlist."""
-    settings = chain.settings
-    singles = len(full) - 1  # none is among the fits
-    pairs = singles * (singles - 1) // 2
-    chain.say(f"screening {pairs} pair{'s' * (pairs != 1)}: the {settings.screen} screen")
-    return screens.strategy(settings.screen).run(chain, full, settings.screen_settings())
-
-
-@dataclass
-class Choice:
-    chosen: Candidate  # the baseline when nothing is missing
-    candidates: list[Candidate]  # every set fitted: none, the singles, the shortlisted combinations, growth's
-    screened: list[screens.Screened]  # every combination the screen tried, best first; [] when it did not run
-    shortlisted: list[screens.Screened]  # those fitted for real
-    growth: list[dict[str, Any]]  # each round of one more effect: what it tried (engine.grown)
-
-
-def choose(chain: Chain, floor: float | None = None) -> Choice:
-    """The engine's stages on the vehicle's library: none and every hypothesis alone (engine.singles);
-    unless one already fits to the noise, every combination screened (screens/) and the short list fitted
-    for real in the same batch as the singles' folds, those passing the BIC gate cross-validated
-    (engine.cross_validated); the choice (explain.select), grown one effect at a time while each pays its
-    way and the held-out error stays above the noise (engine.grown; not without a noise floor)."""
-    settings = chain.settings
-    sets, full = engine.singles(chain)
-    singles = [Candidate(ids, full[ids]) for ids in sets]
-    screened, short = [], []
-    if worth_screening(singles, floor, settings):
-        screening = screen_combinations(chain, full)
-        screened, short = screening.screened, screening.shortlist
-    else:
-        chain.say(
-            "no combination screened: a fit is already within "
-            f"{settings.floor_stop:g}x the noise floor, or the settings allow one effect at a time"
-        )
-    baseline, everything = engine.cross_validated(chain, sets, full, short)
-    chosen = explain.select(everything, baseline, settings.min_gain, settings.bic_margin)
-    growth: list[dict[str, Any]] = []
-    if floor is not None and math.isfinite(floor) and floor > 0:
-        chosen, growth = engine.grown(
-            chain, chosen, full, everything, settings.noise_factor, floor, settings.max_effects
-        )
-    return Choice(chosen, everything, screened, short, growth)
 
 
 def _locate(space: Space, vehicle: str, tracks: dict[str, Any]) -> Any:
@@ -212,11 +152,19 @@ def _diagnose(
     say(validation.text)
     chain = Chain.for_vehicle(space, vehicle, base, client, settings, say, validation)
     space = recorded(space, validation)  # the runs themselves: what is located, weighed and observed
-    choice = choose(chain, floor.cross_track if floor.available else None)
-    baseline = next(c for c in choice.candidates if not c.ids)
+    choice = choose(
+        chain,
+        screens.strategy(settings.screen),
+        settings.screen_settings(),
+        floor.cross_track if floor.available else None,
+        settings.noise_factor,
+        settings.floor_stop,
+        settings.max_effects,
+    )
+    baseline = choice.baseline
     chosen, looks = lookalike.weigh(
         choice.chosen,
-        choice.candidates,
+        choice.everything,
         baseline,
         space.scenarios,
         floor.sigma if floor.available else None,
@@ -225,7 +173,7 @@ def _diagnose(
     )
     # the noise rule: a member is claimed only if it changes the held-out error by more than the noise does
     chosen, dropped = (
-        explain.claimed(chosen, choice.candidates, baseline, floor.cross_track)
+        explain.claimed(chosen, choice.everything, baseline, floor.cross_track)
         if floor.available
         else (chosen, [])
     )
@@ -234,10 +182,10 @@ def _diagnose(
             "not claimed (each changes the held-out error by less "
             f"than the noise): {', '.join(d.id for d in dropped)}"
         )
-    found = seek(chain, chosen, choice.candidates, floor, space) if settings.discovery else None
+    found = seek(chain, chosen, choice.everything, floor, space) if settings.discovery else None
     if found is not None and found.chosen is not None:  # discovered terms face the noise rule too
         chosen, more = explain.claimed(
-            found.chosen, [*choice.candidates, *found.candidates], baseline, floor.cross_track
+            found.chosen, [*choice.everything, *found.candidates], baseline, floor.cross_track
         )
         if more:
             say(f"not claimed (changes the held-out error by less than the noise): {more[0].id}")
@@ -262,14 +210,14 @@ def _diagnose(
             "validation": validation.to_json(),
             "groups": {s.name: s.group for s in calibration.scenarios},
         },
-        explain.ranked(choice.candidates + (found.candidates if found else [])),
+        explain.ranked(choice.everything + (found.candidates if found else [])),
         chosen,
         baseline,
         settings,
         dropouts=dropouts(calibration.scenarios),
         floor=floor,
-        screened=choice.screened,
-        shortlisted=[x.label for x in choice.shortlisted],
+        screened=choice.screening.screened,
+        shortlisted=[x.label for x in choice.screening.shortlist],
         lookalikes=looks,
         discovery=found,
         dropped=dropped,
