@@ -722,7 +722,7 @@ def _by_segment(look: lookalike.LookAlike) -> pd.DataFrame:
     e = look.evidence
     return pd.DataFrame(
         [
-            {"segment": _words(k), "fixes": e.fixes[k], f"LLR ({look.pair[0]} over {look.pair[1]})": v}
+            {"segment": _words(k), "fixes": e.samples[k], f"LLR ({look.pair[0]} over {look.pair[1]})": v}
             for k, v in e.by_kind.items()
         ]
     )
