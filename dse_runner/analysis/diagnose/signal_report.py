@@ -13,6 +13,7 @@ from typing import Any
 from ... import strict_json
 from ...simulation.values import write_values
 from . import report_html
+from .lookalike import CANNOT_TELL, DECIDED_BY_FIT, DECIDED_BY_LLR, DECISIVE
 
 REPORT, SUMMARY, VALUES = "diagnosis-report.md", "diagnosis.json", "diagnosed-values.yaml"
 
@@ -175,7 +176,12 @@ def markdown(found: Mapping[str, Any], title: str) -> str:
             lines.append(
                 f"- {x['id']} fits alike ({x['held_out']:.3g} held-out, {x['runs_better']} runs better "
                 f"for the chosen); "
-                + (f"told apart in {where}" if where else "no window tells them apart by more than the noise")
+                + _llr_words(x.get("segment_llr"))
+                + (
+                    f"differs most in {where}"
+                    if where
+                    else "no window tells them apart by more than the noise"
+                )
             )
         lines.append("")
     if located:
@@ -240,3 +246,21 @@ def write(
         "space's parameters.",
     )
     return files
+
+
+DECIDED_WORDS = {
+    DECIDED_BY_FIT: "held-out error and BIC already separate them",
+    DECIDED_BY_LLR: f"|LLR| ≥ {DECISIVE:g}: the LLR decides",
+    CANNOT_TELL: f"below the {DECISIVE:g} that decides",
+}
+
+
+def _llr_words(llr: dict[str, Any] | None) -> str:
+    """The engine's evidence between the twins in words: the LLR for the chosen set, corrected for the
+    residuals' autocorrelation, and how it was used."""
+    if not llr:
+        return ""
+    return (
+        f"LLR {llr['llr']:+.1f} for the chosen (autocorrelation time {llr['autocorrelation_samples']:.1f} "
+        f"samples; {DECIDED_WORDS.get(llr['decision'], llr['decision'])}); "
+    )
