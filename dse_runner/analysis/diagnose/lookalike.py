@@ -12,8 +12,8 @@ counting them as such would overstate the ratio by τ. When held-out error and B
 twins and |ΣLLR| ≥ ``DECISIVE``, the ratio decides; below it the diagnosis names both.
 
 The engine owns the statistics and the rule. A library supplies what it alone knows (:class:`Segments`):
-which sets are twins, how a candidate's residuals fall into samples (a GPS fix's x and y offsets add into
-one sample) and which segment each sample lies in. The labels only say *where* the evidence lies: the
+which sets are twins, how a candidate's residuals fall into samples (a position's two coordinates add
+into one sample) and which segment each sample lies in. The labels only say *where* the evidence lies: the
 total, and so the decision, does not depend on them.
 """
 
@@ -41,7 +41,7 @@ Piece = tuple[np.ndarray, np.ndarray]  # (components × samples residuals, one s
 class Segments:
     """What a library supplies for the evidence between twins. ``pieces`` lays a candidate's residuals
     out as pieces (a run, or one signal of a run), each a 2-D array whose rows are the components that
-    add into one sample's squared residual (one row for a plain signal; a fix's x and y offsets) and
+    add into one sample's squared residual (one row for a plain signal; two for a position's x and y) and
     whose columns are the samples, with a segment label per sample; None when that candidate's residuals
     cannot be laid out (fitted on other runs). ``kinds``: the order to report the segment kinds in;
     ``sample``: what one sample is called (the JSON's ``autocorrelation_<sample>``)."""
