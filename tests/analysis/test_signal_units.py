@@ -8,7 +8,7 @@ from itertools import pairwise
 import numpy as np
 import pytest
 
-from dse_runner.analysis.diagnose import explain, signal_claims, signal_locate
+from dse_runner.analysis.diagnose import explain, lookalike, signal_claims, signal_locate
 from dse_runner.analysis.diagnose.explain import Candidate
 from dse_runner.errors import DseError
 from dse_runner.simulation.scenario import Scenario
@@ -104,6 +104,38 @@ def test_look_alikes_are_told_apart_only_where_their_residuals_differ_by_more_th
     c = _candidate(("c",), {"r1": 2.0, "r2": 2.0})
     both = _candidate(("a", "b"), {"r1": 0.99, "r2": 0.99})  # more, not another explanation
     assert signal_claims.alike(a, [a, b, c, both]) == [b]
+
+
+def test_a_look_alike_carries_the_engines_llr_with_segments_from_the_inputs():
+    """The signal library's twins are weighed by the engine: the LLR in noise units (σ 1), over
+    the autocorrelation time, with each sample labelled by what the inputs do in its window; a decisive
+    LLR tells the twins apart even where no window differs by a whole noise variance."""
+    rng = np.random.default_rng(3)
+    t = np.linspace(0.0, 10.0, 401)
+    pushed = Scenario(
+        "run", inputs={"m.F": Series(np.array([0.0, 6.0, 7.0]), np.array([0.0, 1.0, 0.0]), "hold")}
+    )
+    noise = rng.normal(0.0, 0.01, t.size)
+    bump = np.where((t > 5.0) & (t <= 7.0), 0.007, 0.0)  # a fraction of the noise, where the input steps
+    residuals = {
+        "a": [signal_locate.Residual("m.x", "run", t, noise)],
+        "b": [signal_locate.Residual("m.x", "run", t, noise + bump)],
+    }
+    a = _candidate(("a",), {"r1": 1.0, "r2": 1.0})
+    b = _candidate(("b",), {"r1": 1.02, "r2": 1.02})
+    look = signal_claims.weigh(a, b, residuals, {"m.x": 0.01}, {"run": pushed})
+    saved = look.to_json()["segment_llr"]
+    assert look.telling == [] and look.told_apart  # no window differs by a noise variance; the LLR decides
+    assert saved["decision"] == lookalike.DECIDED_BY_LLR and saved["llr"] >= lookalike.DECISIVE
+    assert saved["favours"] == saved["chosen"] == "a" and saved["sigma"] == 1.0
+    assert saved["autocorrelation_samples"] == pytest.approx(1.0, abs=0.3)
+    by = saved["by_segment"]
+    assert set(by) == {"changing", "steady"} and by["changing"]["llr"] > 0.9 * saved["llr"]
+    assert sum(s["samples"] for s in by.values()) == t.size
+    even = signal_claims.weigh(
+        a, b, {"a": residuals["a"], "b": residuals["a"]}, {"m.x": 0.01}, {"run": pushed}
+    )
+    assert even.llr.decision == lookalike.CANNOT_TELL and not even.told_apart
 
 
 def test_a_selection_keeps_only_the_named_effects_and_names_an_unknown_one():

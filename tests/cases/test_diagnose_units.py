@@ -15,7 +15,9 @@ from conftest import strict_loads
 
 from dse_runner import strict_json
 from dse_runner.analysis.diagnose import discovery, explain
+from dse_runner.analysis.diagnose import lookalike as engine_lookalike
 from dse_runner.analysis.diagnose.explain import Candidate
+from dse_runner.analysis.diagnose.lookalike import SegmentEvidence
 from dse_runner.analysis.diagnose.screens import ScreenSettings, linearised
 from dse_runner.cases.fielddata import load_run
 from dse_runner.cases.robotti_diagnosis import (
@@ -643,34 +645,6 @@ def test_a_derivative_operator_is_made_afresh_from_the_windows_it_keeps():
     assert np.nanmax(np.abs(again @ x - 1.0)) < 1e-9 and np.isnan(again @ x).any()
 
 
-def test_the_llr_favours_the_set_whose_residual_is_noise_where_the_twins_differ():
-    rng = np.random.default_rng(2)
-    sigma, m = 0.02, 400
-    kinds = np.array(["cruise"] * 200 + ["steer_step"] * 50 + ["cruise"] * 150, dtype=object)
-    bump = np.where(kinds == "steer_step", 0.03 * np.sin(np.linspace(0, np.pi, m)) + 0.02, 0.0)
-    noise_xy = rng.normal(0, sigma, (3, 2 * m))
-    right = [noise_xy[0], noise_xy[1]]
-    wrong = [noise_xy[0] + np.concatenate([bump, 0 * bump]), noise_xy[1] + np.concatenate([bump, bump])]
-    e = lookalike.segment_evidence(right, wrong, [kinds, kinds], sigma)
-    assert e.llr >= lookalike.DECISIVE and e.tau == pytest.approx(1.0, abs=0.3)
-    assert abs(e.by_kind["steer_step"]) > 0.9 * abs(e.llr)  # where they differ
-    assert lookalike.segment_evidence(wrong, right, [kinds, kinds], sigma).llr == pytest.approx(-e.llr)
-    same = lookalike.segment_evidence(right, [r + 0.0 for r in right], [kinds, kinds], sigma)
-    assert same.llr == 0.0 and lookalike.decision(*table()[:2], same.llr) != lookalike.DECIDED_BY_LLR
-
-
-def test_correlated_residuals_count_for_fewer_fixes():
-    rng = np.random.default_rng(4)
-    white = rng.normal(0, 1, 20000)
-    assert lookalike.autocorrelation_time([white]) == pytest.approx(1.0, abs=0.1)
-    rho = 0.8
-    coloured = np.empty_like(white)
-    coloured[0] = white[0]
-    for k in range(1, white.size):
-        coloured[k] = rho * coloured[k - 1] + white[k]
-    assert lookalike.autocorrelation_time([coloured]) == pytest.approx((1 + rho) / (1 - rho), rel=0.15)
-
-
 def speed_channel(form: str, size: float, seed: int) -> lookalike.SignalAtFixes:
     """Recorded speed = the model's speed steps through a delay or a lag of
     ``size`` s, as GPS would show it."""
@@ -696,7 +670,7 @@ def test_the_response_fit_tells_a_delay_from_a_lag(form):
 
 
 def look(decision: str, llr: float, kinds: dict[str, float]) -> lookalike.LookAlike:
-    e = lookalike.SegmentEvidence(llr, kinds, {k: 100 for k in kinds}, 1.3, 0.015)
+    e = SegmentEvidence(llr, kinds, {k: 100 for k in kinds}, 1.3, 0.015)
     return lookalike.LookAlike(
         ("steering_lag", "time_offset"),
         ("steering_lag", "time_offset"),
@@ -721,7 +695,7 @@ def test_lookalikes_in_json_and_words():
     from dse_runner.cases.robotti_diagnosis import report
 
     d = diagnosis(("wheel_slip",), floor=0.1)
-    d.lookalikes = [look(lookalike.CANNOT_TELL, 1.2, {"steer_ramp": 1.0, "cruise": 0.2})]
+    d.lookalikes = [look(engine_lookalike.CANNOT_TELL, 1.2, {"steer_ramp": 1.0, "cruise": 0.2})]
     saved = strict_loads(strict_json.dumps(d.to_json()))["lookalikes"][0]
     assert saved["pair"] == ["steering_lag", "time_offset"] and saved["decision"] == "cannot_tell"
     assert saved["by_segment"]["steer_ramp"] == {"llr": 1.0, "fixes": 100} and saved["telling_fixes"] == 0
@@ -729,7 +703,7 @@ def test_lookalikes_in_json_and_words():
     assert "`steering_lag` or its look-alike `time_offset`" in words
     assert "cannot tell on these runs" in words and "a run with steering steps would" in words
     decided = report.twins_sentence(
-        look(lookalike.DECIDED_BY_LLR, -7.5, {"steer_step": -7.0, "cruise": -0.5}).to_json()
+        look(engine_lookalike.DECIDED_BY_LLR, -7.5, {"steer_step": -7.0, "cruise": -0.5}).to_json()
     )
     assert decided.startswith("**Look-alikes:** `time_offset` rather than its look-alike `steering_lag`")
     assert "steering steps" in decided

@@ -4,8 +4,9 @@ name what is missing from a hypothesis library, model it and show the held-out f
 The core reads in this order: ``library`` (the plug-in contract and :func:`diagnose`, which finds
 the library that serves a space), ``hypotheses`` (what a hypothesis is), ``validation`` (what is held out),
 ``fitter`` and ``engine`` (the fits and the stages every library runs), ``screens`` (the combination
-screen, a strategy chosen by name), ``explain`` (how candidates are
-judged: BIC, the noise floor, the verdict), ``proof`` (searched terms chosen again on each fold),
+screen, a strategy chosen by name), ``explain`` (how candidates are judged: BIC, the noise floor, the
+verdict), ``lookalike`` (the evidence between twin answers and the rule by which it decides), ``proof``
+(searched terms chosen again on each fold),
 ``noise`` (noise from a recording alone), ``findings`` and ``answer`` (what is named, in the one JSON
 shape), ``report`` (the page every diagnosis is read on, drawn from that JSON; a library adds its own
 sections) and ``report_html``. The built-in library is ``signal_library`` (late, sluggish, scaled or biased

@@ -2,9 +2,11 @@
 and where a remaining error must lie (the noise rule, that a member is claimed only if it changes the fit by
 more than the noise, is every library's: explain.claimed).
 
-Two effects fit alike when neither's held-out error is clearly lower. Then the windows of time where
-their residuals differ by more than the noise are the evidence between them, and where none does the
-diagnosis names both and says so.
+Two effects fit alike when neither's held-out error is clearly lower. The evidence between them is the
+engine's (lookalike.py): the log-likelihood ratio of their residuals, corrected for the residuals'
+autocorrelation, which decides where held-out error and BIC cannot. This library supplies the twins
+(:func:`alike`) and the samples' layout and segments (:func:`segments`); the windows of time where the two
+residuals differ most say where a run tells them apart. Where nothing does, the diagnosis names both.
 """
 
 from __future__ import annotations
@@ -16,10 +18,10 @@ from typing import Any
 import numpy as np
 
 from ...simulation import derivative_terms
-from . import explain
+from . import explain, lookalike
 from .explain import Candidate
 from .noise import Whiteness
-from .signal_locate import Residual, activity, window_of, windows
+from .signal_locate import CHANGING, NO_INPUT, STEADY, Residual, activity, window_of, windows
 
 LOOKALIKES = 3  # at most this many look-alikes are weighed
 TELLING = 1.0  # a window tells two fits apart when their mean squares there differ by a noise variance
@@ -94,20 +96,47 @@ def alike(
     return found[:LOOKALIKES]
 
 
+def segments(
+    residuals: Mapping[str, Sequence[Residual]], noise: Mapping[str, float], scenarios: Mapping[str, Any]
+) -> lookalike.Segments:
+    """The layout the engine weighs twins on: each compared signal of each run a piece of one component
+    (its residual over its recording's noise, so σ is 1), each sample labelled by what the driven inputs do
+    in its window (signal_locate.windows, as the misfit is located): ``changing``, ``steady`` or ``no
+    input``. Why these segments: twins differ in how the model answers its inputs (a delay against a lag,
+    a gain against an offset), which shows where the inputs move, or in what holds while they rest; they
+    come from the inputs alone, never from a fit that would then judge itself. ``residuals``: per
+    candidate label (a candidate missing there cannot be weighed)."""
+
+    def labels(r: Residual) -> np.ndarray:
+        edges = windows(r.time)
+        kinds = [activity(scenarios[r.scenario], edges[k], edges[k + 1]) for k in range(len(edges) - 1)]
+        return np.array(kinds, dtype=object)[window_of(r.time, edges)]
+
+    def pieces(candidate: Candidate) -> list[lookalike.Piece] | None:
+        found = residuals.get(candidate.label)
+        return [(r.values[None, :] / noise[r.signal], labels(r)) for r in found] if found else None
+
+    return lookalike.Segments(pieces, (CHANGING, STEADY, NO_INPUT))
+
+
 @dataclass
 class FitsAlike:
-    """The chosen set against one that fits alike: the scenario-level evidence (explain.evidence) and the
-    windows of time where their residuals differ by more than the noise."""
+    """The chosen set against one that fits alike: the scenario-level evidence (explain.evidence), the
+    engine's LLR between their residuals and its decision (``llr``; None when they could not be laid out
+    alike), and the windows of time where their residuals differ by more than the noise."""
 
     chosen: str
     other: str
     evidence: explain.Evidence
     telling: list[dict[str, Any]] = field(default_factory=list)  # windows, most telling first
     favours_chosen: float = 0.0  # summed difference of mean squares over the telling windows (other - chosen)
+    llr: lookalike.Twins | None = None
 
     @property
     def told_apart(self) -> bool:
-        return bool(self.telling)
+        """Whether the recordings tell the two apart: by the engine's rule (held-out error and BIC, else the
+        LLR); without an LLR, by a window where they differ by more than the noise."""
+        return self.llr.decision != lookalike.CANNOT_TELL if self.llr else bool(self.telling)
 
     def to_json(self) -> dict[str, Any]:
         e = self.evidence
@@ -122,6 +151,7 @@ class FitsAlike:
             "told_apart": self.told_apart,
             "favours_chosen": self.favours_chosen,
             "telling_windows": self.telling,
+            "segment_llr": self.llr.to_json() if self.llr else None,
         }
 
 
@@ -169,15 +199,19 @@ def weigh(
     noise: Mapping[str, float],
     scenarios: Mapping[str, Any],
 ) -> FitsAlike:
-    """The evidence between the chosen set and a look-alike, from their held-out errors and from their
-    full fits' residuals window by window."""
+    """The evidence between the chosen set and a look-alike: their held-out errors, the engine's LLR between
+    their full fits' residuals (and its decision), and the windows where those residuals differ."""
     telling = telling_windows(residuals[chosen.label], residuals[other.label], noise, scenarios)
+    llr = lookalike.weighed(chosen, other, segments(residuals, noise, scenarios), 1.0)
+    if llr is not None:
+        llr.chosen = chosen.label
     return FitsAlike(
         chosen.label,
         other.label,
         explain.evidence(chosen, other),
         telling,
         float(sum(w["delta_mean_square"] for w in telling)),
+        llr,
     )
 
 

@@ -16,8 +16,9 @@ floor. Residuals of each compared signal are divided by its noise (estimated fro
 signals in different units weigh alike and an error of 1 is the noise itself.
 
 The stages, in diagnose_space's order: calibrate (from many starts), fit every single, screen combinations
-(screens/, the mixed screen unless asked for another), cross-validate, grow, recalibrate the answer with its
-effects in place, decide each member against its look-alike across the model's skin, the noise rule and the
+(screens/, the mixed screen unless asked for another), cross-validate, grow (choice.py), recalibrate the
+answer with its effects in place, decide each member against its look-alike across the model's skin, the
+answer against the sets that fit alike (the engine's look-alike rule, lookalike.py), the noise rule and the
 limits the recordings reach (signal_claims.py), prove the answer's terms by choosing them again on each fold;
 then locate (signal_locate.py) and report (the engine's report.py, with signal_report.py's sections).
 """
@@ -44,7 +45,7 @@ from ...sweeps.rank import rank
 from ...sweeps.spec import Space, derived_space
 from ...sweeps.sweep import submit
 from . import answer as answer_
-from . import explain, screens, signal_claims, signal_figures, signal_locate, signal_report
+from . import explain, lookalike, screens, signal_claims, signal_figures, signal_locate, signal_report
 from .choice import choose
 from .derivatives import model_exchange_instances, observe
 from .engine import (
@@ -423,6 +424,7 @@ def diagnose_space(
         selected = recalibrated(f, choice.chosen, everything)
         judge_members(f, selected, everything)
         selected, decided = _decided(f, selected, full, everything)
+        selected = _told_from_twins(f, selected, everything, baseline, compared)
         chosen, dropped = explain.claimed(selected, everything, baseline)
         chosen = _reached(f, chosen, everything, compared, dropped)
         proof = proven(f, chosen, full)
@@ -632,6 +634,32 @@ def _decided(
     if any(d.winner != d.member for d in decided):
         judge_members(f, chosen, everything)  # the noise rule weighs the rival as it weighed the member
     return chosen, decided
+
+
+def _told_from_twins(
+    f: Fits, chosen: Candidate, everything: list[Candidate], baseline: Candidate, compared: Sequence[Compared]
+) -> Candidate:
+    """The engine's rule between the answer and each set that fits alike (signal_claims.alike): where
+    held-out error and BIC cannot separate them and the LLR between their residuals can, the LLR's favourite
+    is the answer, if it could be chosen at all (lookalike.weigh). The residuals are read, not simulated."""
+    twins = signal_claims.alike(chosen, everything)
+    if not twins:
+        return chosen
+    residuals = located_residuals(f.space, f.client, [chosen, *twins], compared, f.scenarios)
+    noise = {c.signal: c.noise for c in compared}
+    segments = signal_claims.segments(residuals, noise, {s.name: s for s in f.space.scenarios})
+    answer, looks = lookalike.weigh(chosen, [(chosen, t) for t in twins], everything, baseline, segments, 1.0)
+    for look in looks:
+        f.say(
+            f"look-alikes: {look.pair[0]} against {look.pair[1]}, "
+            f"LLR {look.evidence.llr:+.1f}: {look.decision}"
+        )
+    if answer is not chosen:
+        f.say(
+            f"look-alikes: {answer.label} rather than {chosen.label}, "
+            "as the LLR between their residuals decides"
+        )
+    return answer
 
 
 def _reached(

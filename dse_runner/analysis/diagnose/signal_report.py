@@ -14,6 +14,7 @@ from typing import Any
 from ...simulation.values import write_values
 from . import report
 from .answer import Answer
+from .lookalike import CANNOT_TELL, DECIDED_BY_FIT, DECIDED_BY_LLR, DECISIVE
 from .report import Section, number, table
 
 REPORT, SUMMARY, VALUES = "diagnosis-report.md", "diagnosis.json", "diagnosed-values.yaml"
@@ -72,7 +73,8 @@ def lookalikes(answer: Answer) -> str:
         lines.append(
             f"- {x['id']} fits alike ({x['held_out']:.3g} held-out, {x['runs_better']} runs better for the "
             "chosen); "
-            + (f"told apart in {where}" if where else "no window tells them apart by more than the noise")
+            + _llr_words(x.get("segment_llr"))
+            + (f"differs most in {where}" if where else "no window tells them apart by more than the noise")
         )
     return "\n".join(lines)
 
@@ -159,3 +161,21 @@ def write(answer: Answer) -> dict[str, Path]:
         "space's parameters.",
     )
     return written
+
+
+DECIDED_WORDS = {
+    DECIDED_BY_FIT: "held-out error and BIC already separate them",
+    DECIDED_BY_LLR: f"|LLR| ≥ {DECISIVE:g}: the LLR decides",
+    CANNOT_TELL: f"below the {DECISIVE:g} that decides",
+}
+
+
+def _llr_words(llr: dict[str, Any] | None) -> str:
+    """The engine's evidence between the twins in words: the LLR for the chosen set, corrected for the
+    residuals' autocorrelation, and how it was used."""
+    if not llr:
+        return ""
+    return (
+        f"LLR {llr['llr']:+.1f} for the chosen (autocorrelation time {llr['autocorrelation_samples']:.1f} "
+        f"samples; {DECIDED_WORDS.get(llr['decision'], llr['decision'])}); "
+    )

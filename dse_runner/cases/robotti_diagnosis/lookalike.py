@@ -8,17 +8,12 @@ to a steering step with its full size, a first-order lag rounds it off; slip lea
 deficit while cruising, a lag none at all once the speed has settled; a delay of every command
 also shows at every speed change, a steering lag does not.
 
-So both twins' sets are fitted in full (the screen shortlists twin swaps), and their fix
-residuals are compared segment by segment (segments.py, from the command log alone):
-
-    LLR = (SSE_twin − SSE_chosen) / (2 σ²) / τ
-
-per segment kind, with σ the GPS noise floor and τ the residuals' integrated autocorrelation
-time in fixes: successive fixes of a smooth residual are not independent pieces of evidence, and
-counting them as such would overstate the ratio by τ. The sum over the kinds (which partition
-the runs) is the evidence. When held-out error and BIC cannot separate the twins (neither beats
-the other by explain.beats) and |ΣLLR| ≥ ``DECISIVE``, the ratio decides; below it the diagnosis
-names both and says which manoeuvre would tell them apart.
+So both twins' sets are fitted in full (the screen shortlists twin swaps), and the engine weighs
+their fix residuals (analysis/diagnose/lookalike.py: the LLR per segment, the autocorrelation time, the
+rule that decides). This module supplies what only the Robotti knows: which sets are twins (a swap of
+hypotheses.LOOK_ALIKES), that a fix's x and y offsets add into one sample, the segment of each fix
+(segments.py, from the command log alone), the manoeuvre that would tell a pair apart, and the forms of
+the answer to a command each twin gives.
 
 :func:`response_fit` explains the verdict in a control engineer's terms, at no cost in
 simulations: the recorded yaw rate or speed (kinematics.py, from the fixes), per segment kind,
@@ -30,26 +25,25 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter, lfilter_zi
 
 from ...analysis.diagnose import explain
+from ...analysis.diagnose import lookalike as engine
 from ...analysis.diagnose.explain import Candidate
+from ...analysis.diagnose.lookalike import DECISIVE
 from ...simulation.scenario import Scenario
 from .. import fielddata
 from . import kinematics, segments
 from .hypotheses import LOOK_ALIKES
 
-DECISIVE = 5.0  # |Σ LLR| at which the evidence between twins decides (e^5 ≈ 150 : 1)
-MAX_LAG = 200  # fixes: the autocorrelation sum stops here at the latest
 MAX_SHIFT = 2.0  # s: the longest delay or lag a response fit tries
 SHIFT_GRID = 0.05  # s: the coarse search before the bounded refinement
 GAINS = (0.5, 1.5, 0.02)  # the gains a response fit tries: from, to, coarse step
 COURSE, SPEED = "course", "speed"  # the recorded channels a response fit compares
-DECIDED_BY_FIT, DECIDED_BY_LLR, CANNOT_TELL = "held_out", "llr", "cannot_tell"
 
 
 @dataclass(frozen=True)
@@ -116,71 +110,20 @@ def fix_times(scenario: Scenario, count: int) -> np.ndarray:
     return t[t >= scenario.start_time - 1e-9][:count]
 
 
-def autocorrelation_time(series: Sequence[np.ndarray], max_lag: int = MAX_LAG) -> float:
-    """1 + 2 Σ ρ_k, the integrated autocorrelation time (in samples) of the pooled series, each about its
-    mean, the sum stopped at the first ρ_k ≤ 0 (Geyer's initial positive sequence, simplified). White
-    noise gives 1; a residual that wanders slowly gives the number of fixes it takes to forget itself."""
-    parts = [np.asarray(s, float) - np.mean(s) for s in series if len(s) > 2]
-    if not parts:
-        return 1.0
-    variance = sum(float(p @ p) for p in parts)
-    if variance <= 0:
-        return 1.0
-    tau = 1.0
-    for k in range(1, min(max_lag, max(len(p) for p in parts) - 1) + 1):
-        rho = sum(float(p[k:] @ p[:-k]) for p in parts if len(p) > k) / variance
-        if rho <= 0:
-            break
-        tau += 2.0 * rho
-    return tau
+def fix_segments(scenarios: Sequence[Scenario]) -> engine.Segments:
+    """The runs' fix residuals as the engine weighs them: per run one piece, a fix's x and y offsets (the
+    two halves of fielddata.fix_residuals) adding into one sample, labelled by the segment kind it lies in."""
+    labels = {s.name: segments.of_scenario(s) for s in scenarios}
 
+    def pieces(candidate: Candidate) -> list[engine.Piece] | None:
+        if len(candidate.full.residuals) != len(scenarios):
+            return None  # fitted on other runs than these
+        return [
+            (r.reshape(2, -1), segments.kinds_at(labels[s.name], fix_times(s, len(r) // 2)))
+            for s, r in zip(scenarios, candidate.full.residuals)
+        ]
 
-@dataclass(frozen=True)
-class SegmentEvidence:
-    """Σ LLR of set a over set b (positive favours a), in total and per segment kind, with the
-    autocorrelation time τ [fixes] and the noise σ [m per axis] it was scaled by."""
-
-    llr: float
-    by_kind: dict[str, float]
-    fixes: dict[str, int]
-    tau: float
-    sigma: float
-
-
-def segment_evidence(
-    a: Sequence[np.ndarray], b: Sequence[np.ndarray], kinds: Sequence[np.ndarray], sigma: float
-) -> SegmentEvidence:
-    """The evidence for residuals ``a`` over ``b`` (per run: every fix's x offset, then its y offset, as
-    fielddata.fix_residuals) at fixes of segment ``kinds`` (per run, one per fix). τ comes from the
-    better set's residuals: under the right model they are the receiver's noise, and how correlated
-    that noise is sets how many independent fixes there are."""
-    per_fix_a, per_fix_b, xy = [], [], []
-    for ra, rb in zip(a, b):
-        m = len(ra) // 2
-        per_fix_a.append(ra[:m] ** 2 + ra[m:] ** 2)
-        per_fix_b.append(rb[:m] ** 2 + rb[m:] ** 2)
-    better = a if sum(map(np.sum, per_fix_a)) <= sum(map(np.sum, per_fix_b)) else b
-    for r in better:
-        m = len(r) // 2
-        xy += [r[:m], r[m:]]
-    tau = autocorrelation_time(xy)
-    by_kind: dict[str, float] = {}
-    fixes: dict[str, int] = {}
-    for fa, fb, k in zip(per_fix_a, per_fix_b, kinds):
-        contribution = (fb - fa) / (2.0 * sigma**2 * tau)
-        for kind in np.unique(k):
-            inside = k == kind
-            name = str(kind) or "unlabelled"
-            by_kind[name] = by_kind.get(name, 0.0) + float(contribution[inside].sum())
-            fixes[name] = fixes.get(name, 0) + int(inside.sum())
-    ordered = [k for k in (*segments.KINDS, "unlabelled") if k in by_kind]
-    return SegmentEvidence(
-        float(sum(by_kind.values())),
-        {k: by_kind[k] for k in ordered},
-        {k: fixes[k] for k in ordered},
-        tau,
-        sigma,
-    )
+    return engine.Segments(pieces, segments.KINDS, "fixes")
 
 
 # ---- the response, as a control engineer reads it -----------------------------------------------
@@ -396,23 +339,13 @@ def channels_of(
 
 
 @dataclass
-class LookAlike:
-    """The evidence between two twin sets: ``pair`` = (first, second) labels, ``members`` the effects
-    swapped between them, ``evidence`` for the first over the second. ``decision`` is how they were told
-    apart: by held-out error and BIC, by the LLR, or not at all (``cannot_tell``); ``chosen`` the label
-    the diagnosis answers with (None when nothing is chosen)."""
+class LookAlike(engine.Twins):
+    """The engine's evidence between two twin sets (``members``: the look-alikes swapped between them), with
+    what tells them apart (``telling``) and the response fits in that channel."""
 
-    pair: tuple[str, str]
-    members: tuple[str, str]
-    evidence: SegmentEvidence
-    decision: str
-    chosen: str | None
     telling: Telling
     response: list[ResponseFit] = field(default_factory=list)
-
-    @property
-    def favoured(self) -> str:
-        return self.pair[0] if self.evidence.llr >= 0 else self.pair[1]
+    sample: ClassVar[str] = "fixes"
 
     @property
     def shape(self) -> dict[str, Any]:
@@ -433,61 +366,17 @@ class LookAlike:
     @property
     def telling_fixes(self) -> int:
         """Fixes in the segments that separate these twins best."""
-        return sum(self.evidence.fixes.get(k, 0) for k in self.telling.kinds)
+        return sum(self.evidence.samples.get(k, 0) for k in self.telling.kinds)
 
     def to_json(self) -> dict[str, Any]:
-        e = self.evidence
         return {
-            "pair": list(self.pair),
-            "effects": list(self.members),
-            "chosen": self.chosen,
-            "llr": e.llr,
-            "favours": self.favoured,
-            "decision": self.decision,
-            "by_segment": {k: {"llr": v, "fixes": e.fixes[k]} for k, v in e.by_kind.items()},
-            "autocorrelation_fixes": e.tau,
-            "sigma": e.sigma,
+            **super().to_json(),
             "telling_segments": list(self.telling.kinds),
             "telling_fixes": self.telling_fixes,
             "would_tell": self.telling.advice,
             "shape": self.shape,
             "response_fit": [r.to_json() for r in self.response],
         }
-
-
-def decision(
-    a: Candidate,
-    b: Candidate,
-    llr: float,
-    min_gain: float = explain.MIN_GAIN,
-    bic_margin: float = explain.BIC_MARGIN,
-    decisive: float = DECISIVE,
-) -> str:
-    """held_out when held-out error and BIC already separate the two (one beats the other); else llr when
-    |llr| ≥ ``decisive``; else cannot_tell."""
-    if (
-        a.validated
-        and b.validated
-        and (explain.beats(a, b, min_gain, bic_margin) or explain.beats(b, a, min_gain, bic_margin))
-    ):
-        return DECIDED_BY_FIT
-    return DECIDED_BY_LLR if abs(llr) >= decisive else CANNOT_TELL
-
-
-def eligible(
-    candidate: Candidate,
-    candidates: Sequence[Candidate],
-    baseline: Candidate,
-    min_gain: float,
-    bic_margin: float,
-) -> bool:
-    """Whether ``candidate`` could be the answer (explain.select's rule): cross-validated, better than none
-    and than every fitted part of it."""
-    return (
-        candidate.validated
-        and explain.beats(candidate, baseline, min_gain, bic_margin)
-        and explain.beats_subsets(candidate, candidates, min_gain, bic_margin)
-    )
 
 
 def weigh(
@@ -500,42 +389,23 @@ def weigh(
     bic_margin: float = explain.BIC_MARGIN,
     decisive: float = DECISIVE,
 ) -> tuple[Candidate, list[LookAlike]]:
-    """The evidence between the chosen set and each fitted twin of it; where held-out error and BIC cannot
-    separate them and the LLR can, the LLR's favourite is the answer (if it could be chosen at all).
-    ``sigma``: the GPS noise per axis; without it, the better fit's own residual scatter. Costs no
-    simulation: the full fits keep their residuals."""
-    labels = {s.name: segments.of_scenario(s) for s in scenarios}
-    names = [s.name for s in scenarios]
-    looks: list[LookAlike] = []
-    answer = chosen
-    for a, b in twin_pairs(chosen, candidates):
-        if len(a.full.residuals) != len(names) or len(b.full.residuals) != len(names):
-            continue  # fitted on other runs than these
-        kinds = [
-            segments.kinds_at(labels[n], fix_times(s, len(r) // 2))
-            for n, s, r in zip(names, scenarios, a.full.residuals)
-        ]
-        if any(len(ra) != len(rb) for ra, rb in zip(a.full.residuals, b.full.residuals)):
-            continue
-        scale = (
-            sigma
-            if sigma and math.isfinite(sigma) and sigma > 0
-            else math.sqrt(min(a.full.sse, b.full.sse) / max(a.full.residual_count, 1))
-        )
-        evidence = segment_evidence(a.full.residuals, b.full.residuals, kinds, scale)
-        how = decision(a, b, evidence.llr, min_gain, bic_margin, decisive)
-        members = swapped(a.ids, b.ids) or ("", "")
-        if (
-            how == DECIDED_BY_LLR
-            and chosen.ids
-            and evidence.llr < 0
-            and a is answer
-            and eligible(b, candidates, baseline, min_gain, bic_margin)
-        ):
-            answer = b
-        looks.append(LookAlike((a.label, b.label), members, evidence, how, None, telling(*members)))
-    for look in looks:
-        look.chosen = answer.label if answer.ids else None
+    """The engine's weighing (lookalike.weigh: the LLR, and the answer where it decides) of each twin pair of
+    the chosen set, on these runs' fixes. ``sigma``: the GPS noise per axis; without it, the better fit's
+    own residual scatter."""
+    answer, twins = engine.weigh(
+        chosen,
+        twin_pairs(chosen, candidates),
+        candidates,
+        baseline,
+        fix_segments(scenarios),
+        sigma,
+        min_gain,
+        bic_margin,
+        decisive,
+    )
+    looks = [
+        LookAlike(t.pair, t.members, t.evidence, t.decision, t.chosen, telling(*t.members)) for t in twins
+    ]
     return answer, looks
 
 
