@@ -92,6 +92,31 @@ def full() -> dict:
             "rule": "each fold chose its terms on its fitting scenarios alone",
         },
         "validation": {"by": "time blocks", "folds": 3, "record": "run1"},
+        "screen": {
+            "strategy": "mixed",
+            "how": "mixtures of the single fits",
+            "predicted": 6,
+            "screened": [
+                {
+                    "id": "lag+slip",
+                    "from": "none",
+                    "predicted_sse": 1.2,
+                    "sse": 1.5,
+                    "bic": -390.0,
+                    "shortlisted": True,
+                },
+                {
+                    "id": "slip+offset",
+                    "from": "none",
+                    "predicted_sse": 2.0,
+                    "sse": 2.5,
+                    "bic": -380.0,
+                    "shortlisted": False,
+                },
+            ],
+            "fitted": ["lag+slip"],
+        },
+        "growth": [{"parent": "lag+slip", "tried": 3, "best": "lag+offset+slip", "bic": -401.0}],
         "held_out": [
             {"scenario": "run1~block3", "before": 0.6, "after": 0.06, "group": "sin"},
             {"scenario": "run1~block2", "before": 0.4, "after": 0.04, "group": "sin"},
@@ -129,6 +154,17 @@ def test_the_page_says_the_verdict_each_effect_with_its_interval_and_the_held_ou
     candidates = part(text, "Candidates (best held-out first)")
     assert "| lag+slip | 0.05 | -90.0 % | -500 | v.tau = 0.8 | yes |" in candidates  # the answer, marked
     assert "| bump | not cross-validated |" in candidates and "bump (its FMU failed)" in candidates
+    search = part(text, "How the combinations were searched")
+    assert "Combinations (mixed screen: mixtures of the single fits): 6 predicted, 2 checked" in search
+    assert (
+        "1 fitted for real (`lag+slip`)" in search
+        and "| lag+slip | none | 1.2 | 1.5 | -390 | yes |" in search
+    )
+    assert (
+        "Grown from `lag+slip`: 3 sets with one more effect tried, the best by BIC `lag+offset+slip`"
+        in search
+    )
+    assert search.rstrip().endswith(": not accepted.")
     runs = part(text, "Held-out runs, before and after")
     assert runs.index("run1~block2") < runs.index("run1~block3")
     assert "| run1~block2 | sin | 0.4 | 0.04 | -90.0 % |" in runs
@@ -144,6 +180,11 @@ def test_a_bare_answer_reads_without_its_optional_parts():
     assert "Runner-up: none" in part(text, "Evidence") and "Proof" not in text and "Validated" not in text
     assert part(text, "Held-out runs, before and after").strip() == "(none)"
     assert part(text, "Files").strip() == "(none)"
+    assert part(text, "How the combinations were searched").strip() == "Only single effects were fitted."
+    skipped = report.markdown(
+        Answer.model_validate({**bare(), "screen": {"strategy": "mixed", "reason": "a fit is at the noise"}})
+    )
+    assert "No combination was screened: a fit is at the noise." in skipped
 
 
 def test_a_library_section_is_placed_after_the_part_it_names_and_the_page_rebuilds_from_the_json(tmp_path):

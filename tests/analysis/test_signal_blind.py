@@ -57,7 +57,7 @@ def test_a_concealed_effect_or_pair_is_named_with_intervals_covering_the_truth(
     assert located["method"] and located["windows"]
     assert all(r["floors_after"] < r["floors_before"] for r in located["by_scenario"])
     if len(truth) > 1:  # a pair is found through the screen, not by fitting every pair
-        pairs = found["case"]["pairs"]
+        pairs = found["screen"]
         assert pairs["predicted"] > len(pairs["screened"]) >= len(pairs["fitted"])
     assert (tmp_path / "out" / "diagnosis-report.md").is_file()
     page = (tmp_path / "out" / "diagnosis.html").read_text()  # the same report as one page, figures inside
@@ -99,5 +99,5 @@ def test_an_actuator_that_clips_is_named_as_its_two_bounds_not_imitated(tmp_path
     for effect, bound in (("input_max", 1.2), ("input_min", -1.2)):
         low, high = named[(effect, "msd.F")]["interval"][effect.split("_")[1]]
         assert low <= bound <= high
-    assert found["held_out_after"] < 1.5 and found["case"]["growth"][0]["accepted"]
+    assert found["held_out_after"] < 1.5 and found["growth"][0]["accepted"]
     _replays(found, tmp_path)

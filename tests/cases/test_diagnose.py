@@ -191,7 +191,7 @@ def test_report_and_figures_are_written(cases):
         "## Evidence",
         "## GPS noise floor",
         "## Candidates",
-        "## Screen of combinations",
+        "## How the combinations were searched",
         "## Held-out runs, before and after",
         "## Where the calibrated model misses",
         "## Calibration",

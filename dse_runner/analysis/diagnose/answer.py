@@ -121,6 +121,31 @@ class Proof(_Strict):
     rule: str
 
 
+class Screen(_Strict):
+    """What the combination screen did (screens/): how it predicts, every set it checked by simulation
+    (best real BIC first: ``id``, ``from``, ``predicted_sse``, ``sse``, ``bic``, ``shortlisted``), those
+    fitted for real; or why nothing was screened (``reason``)."""
+
+    strategy: str
+    how: str = ""
+    predicted: int = 0
+    screened: list[dict[str, Any]] = Field(default_factory=list)
+    fitted: list[str] = Field(default_factory=list)
+    reason: str = ""
+
+
+class Growth(_Strict):
+    """One round of growth (engine.grown): the set grown, how many sets with one more effect were tried, the
+    best by BIC, and its held-out error and acceptance when it passed the BIC gate."""
+
+    parent: str
+    tried: int
+    best: str
+    bic: float | None
+    held_out: float | None = None
+    accepted: bool = False
+
+
 class HeldOut(_Strict):
     """One held-out run or block: the calibrated model's error and the answer's."""
 
@@ -174,6 +199,8 @@ class Answer(_Strict):
     validation: Validation | None = None
     held_out: list[HeldOut] = Field(default_factory=list)
     lookalikes: list[dict[str, Any]] = Field(default_factory=list)  # each library's evidence between twins
+    screen: Screen | None = None  # what the combination screen did (None where no screen ran at all)
+    growth: list[Growth] = Field(default_factory=list)  # each round of one more effect
     calibrated: Fitted  # the model before: calibrated, no effect
     fitted: Fitted  # the answer: every parameter fitted jointly
     files: dict[str, Any] = Field(default_factory=dict)  # what was written: report, values, space, figures

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ...sweeps.fit import FitResult
-from . import engine, explain, screens
+from . import answer, engine, explain, screens
 from .explain import Candidate
 
 Singles = Mapping[tuple[str, ...], FitResult]
@@ -84,3 +84,16 @@ def choose(
     if floor is not None and math.isfinite(floor) and floor > 0:
         chosen, growth = engine.grown(f, chosen, full, everything, noise_factor, floor, most)
     return Choice(baseline, chosen, everything, dict(full), screening, why, growth)
+
+
+def screen_of(choice: Choice) -> answer.Screen:
+    """What the screen did, as the answer says it: its checked sets best first, each marked if fitted."""
+    fitted = [x.label for x in choice.screening.shortlist]
+    return answer.Screen(
+        strategy=choice.screening.strategy,
+        how=screens.strategy(choice.screening.strategy).how,
+        predicted=choice.screening.predicted,
+        screened=[{**x.to_json(), "shortlisted": x.label in fitted} for x in choice.screening.screened],
+        fitted=fitted,
+        reason=choice.unscreened,
+    )

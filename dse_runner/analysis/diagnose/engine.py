@@ -339,7 +339,7 @@ def extended(
     tried = [f.candidate(x, fitted["+".join(x)]) for x in sets]
     everything.extend(tried)
     best = min(tried, key=lambda c: c.bic)
-    growth.append({"from": current.label, "tried": len(tried), "best": best.label, "bic": best.bic})
+    growth.append({"parent": current.label, "tried": len(tried), "best": best.label, "bic": best.bic})
     if best.bic > current.bic - f.bic_margin:
         return None
     f.hold_out([best], f.fit(f.by_fold(best.ids, best.full.values)) if f.parts else {})

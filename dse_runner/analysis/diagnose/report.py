@@ -23,8 +23,17 @@ from . import report_html
 from .answer import Answer, Effect, Evidence, Proof
 from .explain import TIE
 
-Part = Literal["verdict", "effects", "evidence", "candidates", "runs", "values", "files"]
-PARTS: tuple[Part, ...] = ("verdict", "effects", "evidence", "candidates", "runs", "values", "files")
+Part = Literal["verdict", "effects", "evidence", "candidates", "search", "runs", "values", "files"]
+PARTS: tuple[Part, ...] = (
+    "verdict",
+    "effects",
+    "evidence",
+    "candidates",
+    "search",
+    "runs",
+    "values",
+    "files",
+)
 
 
 @dataclass(frozen=True)
@@ -251,6 +260,44 @@ def candidates(answer: Answer) -> str:
     return "\n".join(lines)
 
 
+def search(answer: Answer, rows: int = 12) -> str:
+    """How the sets beyond the singles were found: the combination screen (its way, what it predicted,
+    checked and fitted, its best sets predicted against simulated; or why it did not run), then growth."""
+    lines = []
+    found = answer.screen
+    if found is not None and found.screened:
+        lines.append(
+            f"Combinations ({found.strategy} screen: {found.how}): {found.predicted} predicted, "
+            f"{len(found.screened)} checked by simulation, {len(found.fitted)} fitted for real "
+            f"({', '.join(f'`{x}`' for x in found.fitted) or 'none'})."
+        )
+        shown = [
+            {
+                "set": x["id"],
+                "predicted from": x["from"],
+                "predicted SSE": x["predicted_sse"],
+                "simulated SSE": x["sse"],
+                "BIC": x["bic"],
+                "fitted": "yes" if x["shortlisted"] else "",
+            }
+            for k, x in enumerate(found.screened)
+            if k < rows or x["shortlisted"]
+        ]
+        lines.append(
+            table(shown, ["set", "predicted from", "predicted SSE", "simulated SSE", "BIC", "fitted"])
+        )
+    elif found is not None:
+        lines.append(f"No combination was screened: {found.reason or 'nothing to combine'}.")
+    for step in answer.growth:
+        lines.append(
+            f"Grown from `{step.parent}`: {step.tried} sets with one more effect tried, the best by BIC "
+            f"`{step.best}`"
+            + (f", held-out {number(step.held_out)} {unit(answer)}" if step.held_out is not None else "")
+            + (": accepted." if step.accepted else ": not accepted.")
+        )
+    return "\n\n".join(lines) or "Only single effects were fitted."
+
+
 def runs(answer: Answer) -> str:
     """Each run (or block of time) held out: the calibrated model's error and the answer's."""
     u = unit(answer)
@@ -296,6 +343,7 @@ HEADINGS: dict[Part, str] = {
     "effects": "Named effects",
     "evidence": "Evidence",
     "candidates": "Candidates (best held-out first)",
+    "search": "How the combinations were searched",
     "runs": "Held-out runs, before and after",
     "values": "Calibrated and fitted values",
     "files": "Files",
@@ -305,6 +353,7 @@ DRAWN = {
     "effects": effects,
     "evidence": evidence,
     "candidates": candidates,
+    "search": search,
     "runs": runs,
     "values": values,
     "files": files,

@@ -46,7 +46,7 @@ from ...sweeps.spec import Space, derived_space
 from ...sweeps.sweep import submit
 from . import answer as answer_
 from . import explain, lookalike, screens, signal_claims, signal_figures, signal_locate, signal_report
-from .choice import choose
+from .choice import choose, screen_of
 from .derivatives import model_exchange_instances, observe
 from .engine import (
     REFITTED,
@@ -109,7 +109,7 @@ class SignalDiagnosis:
     verdict: str
     hypotheses: dict[str, SignalHypothesis] = field(default_factory=dict)
     noise_factor: float = explain.NOISE_FACTOR  # held-out error above this many floors is unexplained
-    pairs: Any = None  # Combinations: what the combination screen did
+    screen: answer_.Screen | None = None  # what the combination screen did
     lookalikes: list[signal_claims.FitsAlike] = field(default_factory=list)
     decided: list[Decided] = field(default_factory=list)  # members against their look-alikes across the skin
     proof: Proof | None = None  # the terms inside the model chosen again on each fold
@@ -159,6 +159,8 @@ class SignalDiagnosis:
             validation=self.validation.to_json() if self.validation is not None else None,
             held_out=answer_.HeldOut.between(self.baseline, self.chosen),
             lookalikes=[x.to_json() for x in self.lookalikes],
+            screen=self.screen,
+            growth=[answer_.Growth(**g) for g in self.growth],
             calibrated=answer_.Fitted(  # the model before: none refitted alone
                 parameters=dict(self.baseline.full.values), at_bound=list(self.baseline.full.at_bound)
             ),
@@ -180,8 +182,6 @@ class SignalDiagnosis:
                     for c in self.compared
                 ],
                 "whiteness": {signal: w.to_json() for signal, w in self.whiteness.items()},
-                "pairs": self.pairs.to_json() if self.pairs is not None else None,
-                "growth": self.growth,
                 "decided": [d.to_json() for d in self.decided],
                 "located": self.located,
             },
@@ -372,24 +372,6 @@ def fits_space(
     )
 
 
-@dataclass
-class Combinations:
-    """What the combination screen did: its strategy, how many combinations it predicted, which it checked
-    and which it fitted; or why it did not run."""
-
-    screening: screens.Screening
-    reason: str = ""
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            "strategy": self.screening.strategy,
-            "predicted": self.screening.predicted,
-            "screened": [s.to_json() for s in self.screening.screened],
-            "fitted": [s.label for s in self.screening.shortlist],
-            "reason": self.reason,
-        }
-
-
 def diagnose_space(
     path: str | Path | Space,
     out: str | Path | None = None,
@@ -420,7 +402,6 @@ def diagnose_space(
         library, validation = f.library, f.validation
         choice = choose(f, strategy, strategy.shortlisted, 1.0, noise_factor)  # residuals in noise units
         baseline, everything, full, growth = choice.baseline, choice.everything, choice.full, choice.growth
-        pairs = Combinations(choice.screening, choice.unscreened)
         selected = recalibrated(f, choice.chosen, everything)
         judge_members(f, selected, everything)
         selected, decided = _decided(f, selected, full, everything)
@@ -472,7 +453,7 @@ def diagnose_space(
         verdict,
         library,
         noise_factor=noise_factor,
-        pairs=pairs,
+        screen=screen_of(choice),
         growth=growth,
         validation=validation,
         whiteness=white,

@@ -79,28 +79,6 @@ def lookalikes(answer: Answer) -> str:
     return "\n".join(lines)
 
 
-def search(case: dict[str, Any]) -> str:
-    """How the sets were grown one effect at a time, and what the pair screen did."""
-    lines = []
-    for step in case.get("growth") or []:
-        lines.append(
-            f"Grown from {step['from']}: {step['tried']} sets with one more effect tried, the best "
-            f"{step['best']}"
-            + (f", held-out {step['held_out']:.3g}" if "held_out" in step else "")
-            + (": accepted." if step.get("accepted") else ": not accepted.")
-        )
-    pairs = case.get("pairs") or {}
-    if pairs.get("screened"):
-        lines.append(
-            f"Combinations ({pairs['strategy']} screen): {pairs['predicted']} predicted from the single "
-            f"fits, {len(pairs['screened'])} checked by simulation, {len(pairs['fitted'])} fitted for real "
-            f"({', '.join(pairs['fitted']) or 'none'})."
-        )
-    elif pairs:
-        lines.append(f"Combinations: not screened ({pairs.get('reason', '')}).")
-    return "\n\n".join(lines)
-
-
 def located(case: dict[str, Any]) -> str:
     """Where the model misses: by run, by what the inputs do, and the worst windows of time."""
     found = case["located"]
@@ -134,8 +112,6 @@ def sections(answer: Answer) -> list[Section]:
         found.append(Section("Look-alikes across the model's skin", decided(case), after="evidence"))
     if answer.lookalikes:
         found.append(Section("Look-alikes", lookalikes(answer), after="evidence"))
-    if case.get("growth") or case.get("pairs"):
-        found.append(Section("How the sets were searched", search(case), after="candidates"))
     if case.get("located"):
         found.append(Section("Where the model misses", located(case), after="runs"))
     figures = answer.files.get("figures") or []

@@ -102,10 +102,8 @@ class Diagnosis:
     files: dict[str, Path] = field(default_factory=dict)
     dropouts: dict[str, int] = field(default_factory=dict)  # GPS fixes skipped per run (scenario.dropouts)
     floor: NoiseFloor = noise.UNKNOWN  # the GPS noise floor, estimated from the recordings alone
-    screened: list[screens.Screened] = field(
-        default_factory=list
-    )  # every combination the screen tried, best first
-    shortlisted: list[str] = field(default_factory=list)  # the labels of those then fitted for real
+    screen: answer_.Screen | None = None  # what the combination screen did (choice.screen_of)
+    growth: list[dict[str, Any]] = field(default_factory=list)  # each round of one more effect (engine.grown)
     lookalikes: list[lookalike.LookAlike] = field(default_factory=list)  # the evidence between twin sets
     discovery: discovery.Discovery | None = None  # what was sought beyond the library; None if nothing was
     dropped: list[explain.Dropped] = field(default_factory=list)  # members the noise rule took away
@@ -309,6 +307,8 @@ class Diagnosis:
             validation=self.calibration.get("validation"),
             held_out=self.held_out,
             lookalikes=[look.to_json() for look in self.lookalikes],
+            screen=self.screen,
+            growth=[answer_.Growth(**g) for g in self.growth],
             calibrated=answer_.Fitted(
                 parameters=dict(self.baseline.full.values),
                 interval={k: list(v) for k, v in self.baseline.full.interval().items()},
@@ -319,17 +319,6 @@ class Diagnosis:
             case={
                 "settings": asdict(self.settings),
                 "calibration": self.calibration,
-                "screen": [
-                    {
-                        "id": x.label,
-                        "from": "+".join(x.anchor) or "none",
-                        "predicted_sse": x.predicted_sse,
-                        "sse": x.sse,
-                        "bic": x.bic,
-                        "shortlisted": x.label in self.shortlisted,
-                    }
-                    for x in self.screened
-                ],
                 "discovery": discovery.to_json() if discovery is not None else None,
                 "dropouts": self.dropouts,
                 "located": self.located,  # where the residuals lie, by group, segment and run

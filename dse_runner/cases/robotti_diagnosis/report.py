@@ -77,7 +77,6 @@ def sections(answer: Answer) -> list[Section]:
         Section("GPS noise floor", noise_text(answer), after="evidence"),
         Section("Look-alikes", lookalikes_text(answer), after="evidence"),
         Section("How a candidate is chosen", rule_text(case["settings"]), after="candidates"),
-        Section("Screen of combinations", screen_text(case), after="candidates"),
         Section("Discovery beyond the library", discovery_text(answer), after="candidates"),
         Section("Where the calibrated model misses", located_text(answer), after="runs"),
         Section(
@@ -223,46 +222,6 @@ def rule_text(settings: dict[str, Any]) -> str:
         "Combinations fitted on every run but not cross-validated failed the BIC gate: their BIC was not "
         f"{margin:g} below the best single answer's and each fitted part's, so they could not be chosen."
     )
-
-
-def screen_text(case: dict[str, Any], rows: int = 12) -> str:
-    """What the screen of combinations did (and its best sets, predicted against simulated), or why it did
-    not run."""
-    settings, screened = case["settings"], case.get("screen") or []
-    if not screened:
-        return (
-            "No combination was screened: a fit of none or of one effect already left at most "
-            f"{settings['floor_stop']:g}× the noise floor of error on the runs it was fitted to (nothing a "
-            "combination could clearly add), or the settings allow one effect at a time."
-        )
-    pairs = sum(len(x["id"].split("+")) == 2 for x in screened)
-    shortlisted = [x["id"] for x in screened if x["shortlisted"]]
-    said = (
-        f"{pairs} pairs and {len(screened) - pairs} triples (those extending the best predicted pairs) were "
-        "screened without fitting them: from the Jacobian of the fix residuals at `none` and at the two best "
-        "single fits (taken whether or not they passed alone, as masked effects do not), the bounded linear "
-        "least-squares step for each set, calibrated parameters free too, predicts its SSE; simulating that "
-        "step and half of it gives the SSE it really reaches. Ranked by the BIC of that SSE, the best "
-        f"{settings['pairs']} pairs and {settings['triples']} triples, and the sets in which a member is "
-        f"swapped for its look-alike, were fitted for real (at most {settings['shortlist']}; two more pairs "
-        "when the best set's simulated SSE was over twice its prediction): "
-        + ", ".join(f"`{label}`" for label in shortlisted)
-        + "."
-    )
-    shown = [
-        {
-            "set": x["id"],
-            "linearised at": x["from"],
-            "predicted SSE [m²]": x["predicted_sse"],
-            "simulated SSE [m²]": x["sse"],
-            "BIC": x["bic"],
-            "fitted": "yes" if x["shortlisted"] else "",
-        }
-        for k, x in enumerate(screened)
-        if k < rows or x["shortlisted"]
-    ]
-    columns = ["set", "linearised at", "predicted SSE [m²]", "simulated SSE [m²]", "BIC", "fitted"]
-    return said + "\n\n" + table(shown, columns)
 
 
 def noise_text(answer: Answer) -> str:

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from ...analysis.diagnose import discovery, explain, screens
-from ...analysis.diagnose.choice import choose
+from ...analysis.diagnose.choice import choose, screen_of
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.library import space_with
 from ...analysis.diagnose.validation import Validation, validated
@@ -206,7 +206,6 @@ def _diagnose(
             "no_effect": baseline.full.undetermined,
             "insensitive_scenarios": locate.insensitive_scenarios(grid.table1),
             "folds": validation.tests,
-            "growth": choice.growth,
             "validation": validation.to_json(),
             "groups": {s.name: s.group for s in calibration.scenarios},
         },
@@ -216,8 +215,8 @@ def _diagnose(
         settings,
         dropouts=dropouts(calibration.scenarios),
         floor=floor,
-        screened=choice.screening.screened,
-        shortlisted=[x.label for x in choice.screening.shortlist],
+        screen=screen_of(choice),
+        growth=choice.growth,
         lookalikes=looks,
         discovery=found,
         dropped=dropped,

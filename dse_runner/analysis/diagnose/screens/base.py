@@ -86,6 +86,7 @@ class ScreenStrategy(ABC):
     """One way to screen combinations: the contract of registry.STRATEGIES (the module says the lifecycle)."""
 
     name: ClassVar[str]
+    how: ClassVar[str] = ""  # how it predicts, in a sentence a report can say
     shortlisted: ClassVar[ScreenSettings] = ScreenSettings()  # its own default, where a library sets none
 
     def run(self, fits: Fits, singles: Singles, settings: ScreenSettings) -> Screening:

@@ -170,6 +170,11 @@ class Linearised(ScreenStrategy):
     Robotti's."""
 
     name = "linearised"
+    how = (
+        "the residuals linearised at none and the best single fits, whether or not they passed alone (masked "
+        "effects do not); each combination's bounded least-squares step, the calibrated parameters free too, "
+        "predicts its SSE, and simulating the step and half of it gives the SSE it really reaches"
+    )
     shortlisted = ScreenSettings(pairs=3, triples=2, limit=5)
 
     def screened(self, fits: Fits, singles: Singles, settings: ScreenSettings) -> tuple[list[Screened], int]:

@@ -153,6 +153,10 @@ class Mixed(ScreenStrategy):
     """Combinations as mixtures of their members' single fits (module docstring): the signal library's."""
 
     name = "mixed"
+    how = (
+        "each combination predicted as a mixture of its members' single fits (how much of each member's own "
+        "change of the residuals it takes), the best checked by simulation"
+    )
     # pairs only by default: extended into triples it shortlisted a third member the clipped force of
     # test_signal_blind does not have (input_square beside its two bounds, which the answer then kept), and
     # an answer grows one member at a time anyway (engine.grown), each cross-validated
