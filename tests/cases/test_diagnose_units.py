@@ -707,6 +707,20 @@ def test_lookalikes_in_json_and_words():
     )
     assert decided.startswith("**Look-alikes:** `time_offset` rather than its look-alike `steering_lag`")
     assert "steering steps" in decided
+    # the whole page, drawn from the answer with the Robotti's sections: the twins right under the verdict
+    from dse_runner.analysis.diagnose import report as skeleton
+
+    d.calibration.update(
+        folds=[["run0"], ["run1"]],
+        grid_best={"vehicle.mass": 1800.0},
+        grid_at_bound=[],
+        refined={"vehicle.mass": 1800.0},
+        refined_at_bound=[],
+        no_effect=[],
+        insensitive_scenarios=[],
+    )
+    page = skeleton.markdown(d.answer(), report.sections(d.answer()))
+    assert page.index("**Verdict") < page.index(words) < page.index("## Named effects")
 
 
 # ---- discovery: PySINDy's STLSQ on equation error, the rule, the words ------------------------------------

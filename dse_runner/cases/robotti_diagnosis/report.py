@@ -18,8 +18,8 @@ from typing import TYPE_CHECKING, Any
 import pandas as pd
 
 from ...analysis.diagnose import discovery, report
-from ...analysis.diagnose import lookalike as twins
 from ...analysis.diagnose.answer import Answer
+from ...analysis.diagnose.lookalike import CANNOT_TELL, DECIDED_BY_FIT, DECIDED_BY_LLR, DECISIVE
 from ...analysis.diagnose.report import Section, ids, table
 from ...simulation.scenario import dropouts_line
 from ...sweeps.rank import format_point
@@ -70,7 +70,7 @@ def write(
 def sections(answer: Answer) -> list[Section]:
     """The Robotti's sections of its report, from the answer alone."""
     case, named = answer.case, answer.effects[0].id != "none"
-    twins = [twins_sentence(x) for x in answer.lookalikes if x["decision"] != twins.DECIDED_BY_FIT]
+    twins = [twins_sentence(x) for x in answer.lookalikes if x["decision"] != DECIDED_BY_FIT]
     found = [
         Section("", "\n\n".join(twins), after="verdict"),
         Section("The effects named", effects_text(answer), after="effects"),
@@ -336,7 +336,7 @@ LOOKALIKE_INTRO = (
     "residuals over 2σ² (σ the GPS noise floor), divided by the residuals' autocorrelation time "
     "in fixes, since successive fixes of a smooth residual are not independent evidence. Positive "
     "favours the first set. When held-out error and BIC cannot separate the two, |LLR| ≥ "
-    f"{twins.DECISIVE:g} (about 150 to 1) decides; below it the diagnosis names both."
+    f"{DECISIVE:g} (about 150 to 1) decides; below it the diagnosis names both."
 )
 
 
@@ -358,7 +358,7 @@ def twins_sentence(look: dict[str, Any]) -> str:
     one sentence."""
     a, b = look["pair"]
     llr = look["llr"]
-    if look["decision"] == twins.DECIDED_BY_LLR:
+    if look["decision"] == DECIDED_BY_LLR:
         loser = b if look["favours"] == a else a
         return (
             f"**Look-alikes:** {ids(look['favours'])} rather than its look-alike {ids(loser)}: held-out "
@@ -372,7 +372,7 @@ def twins_sentence(look: dict[str, Any]) -> str:
     )
     return (
         f"**Look-alikes:** {ids(a)} or its look-alike {ids(b)}: cannot tell on these runs (LLR {llr:+.1f}, "
-        f"below the {twins.DECISIVE:g} that decides);{missing} {look['would_tell']} would."
+        f"below the {DECISIVE:g} that decides);{missing} {look['would_tell']} would."
     )
 
 
@@ -380,11 +380,9 @@ def lookalike_text(look: dict[str, Any]) -> str:
     """The evidence between one pair of twins and how it was used."""
     a, b = look["pair"]
     how = {
-        twins.DECIDED_BY_FIT: "held-out error and BIC already separate them, and the LLR is reported "
-        "as a check",
-        twins.DECIDED_BY_LLR: f"held-out error and BIC do not separate them; the LLR does "
-        f"(|LLR| ≥ {twins.DECISIVE:g})",
-        twins.CANNOT_TELL: f"neither held-out error and BIC nor the LLR (below {twins.DECISIVE:g}) "
+        DECIDED_BY_FIT: "held-out error and BIC already separate them, and the LLR is reported as a check",
+        DECIDED_BY_LLR: f"held-out error and BIC do not separate them; the LLR does (|LLR| ≥ {DECISIVE:g})",
+        CANNOT_TELL: f"neither held-out error and BIC nor the LLR (below {DECISIVE:g}) "
         "separates them: cannot tell on these runs",
     }[look["decision"]]
     members = look["effects"]
