@@ -35,15 +35,19 @@ def generator():
     return module
 
 
+def end(value: float | None) -> str:
+    """An interval's end as the JSON holds it: null where the data do not bound it."""
+    return "–" if value is None else f"{value:.4g}"
+
+
 def named(found: dict) -> str:
     parts = []
     for e in (e for e in found["effects"] if e["id"] != "none"):
-        values = e["terms"] if e["id"] == "discovered" else e["parameters"]
         sized = ", ".join(
-            f"{value:.4g} [{e['intervals'][kind][0]:.4g}, {e['intervals'][kind][1]:.4g}]"
-            for kind, value in values.items()
+            f"{value:.4g} [{', '.join(end(x) for x in e['interval'][kind])}]"
+            for kind, value in e["parameters"].items()
         )
-        parts.append(f"{e['id']}({e['target']}) {sized}")
+        parts.append(f"{e['id']}({e.get('target') or ''}) {sized}")
     return "; ".join(parts) or "nothing"
 
 
