@@ -11,6 +11,8 @@ name). The groups:
 - ``dse_runner.objectives``: named objectives (simulation/objectives.py, objectives or functions)
 - ``dse_runner.hypotheses``: hypothesis libraries (analysis/diagnose/library.py, ``HypothesisLibrary``
   subclasses)
+- ``dse_runner.screens``: combination screens of a diagnosis (analysis/diagnose/screens/, ``ScreenStrategy``
+  subclasses)
 
 Why one helper: every group should fail the same way, at once and naming the entry, when a plug-in
 cannot be imported or is not what its group promises, rather than half-way through a sweep or a

@@ -89,7 +89,7 @@ def singles():
     )
 
 
-@pytest.mark.parametrize("name", list(screens.STRATEGIES))
+@pytest.mark.parametrize("name", screens.names())
 @pytest.mark.parametrize("triples", [0, 2])
 def test_every_strategy_shortlists_the_masked_pair_from_the_library_hypotheses(name, triples, singles):
     residuals, scenarios, full = singles
@@ -137,9 +137,43 @@ def test_an_unknown_screen_is_named_with_the_known_ones_before_anything_runs():
         lambda: DiagnosisSettings(screen="newton"),
         lambda: screens.strategy("newton"),
     ):
-        with pytest.raises(DseError, match=r"--screen 'newton'.*known: mixed, linearised"):
+        with pytest.raises(DseError, match=r"--screen 'newton'.*known: linearised, mixed"):
             ask()
     assert Request(screen="linearised").screen == "linearised"
+
+
+PAIRS_ONLY = """
+from dse_runner.analysis.diagnose.screens import ScreenStrategy
+
+
+class NoScreen(ScreenStrategy):
+    name = "nothing"
+
+    def screened(self, fits, singles, settings):
+        return [], 0
+
+
+class Duck:
+    name = "duck"
+"""
+
+
+def test_an_installed_screen_is_chosen_by_name_as_the_built_in_ones_are(tmp_path, monkeypatch):
+    from support.plugins import register
+
+    register(
+        monkeypatch,
+        tmp_path / "plugin",
+        "my_screens",
+        PAIRS_ONLY,
+        {"dse_runner.screens": {"nothing": "my_screens:NoScreen", "duck": "my_screens:Duck"}},
+    )
+    assert screens.names() == ["duck", "linearised", "mixed", "nothing"]
+    assert Request(screen="nothing").screen == "nothing"
+    found = screens.strategy("nothing").run(SimpleNamespace(look_alikes={}), {}, screens.ScreenSettings())
+    assert (found.strategy, found.screened, found.shortlist) == ("nothing", [], [])
+    with pytest.raises(DseError, match=r"screen 'duck' \(my_screens:Duck\) is not a subclass"):
+        screens.strategy("duck")
 
 
 def test_each_library_screens_with_its_declared_default_unless_the_request_names_another():
@@ -149,7 +183,7 @@ def test_each_library_screens_with_its_declared_default_unless_the_request_names
     assert SignalEffects().screen_for(Request()) == "mixed"
     assert RobottiLibrary().screen_for(Request()) == "linearised" == DiagnosisSettings().screen
     assert RobottiLibrary().screen_for(Request(screen="mixed")) == "mixed"
-    assert all(library.screen in screens.STRATEGIES for library in (SignalEffects(), RobottiLibrary()))
+    assert all(library.screen in screens.names() for library in (SignalEffects(), RobottiLibrary()))
 
 
 @pytest.fixture(scope="module")
@@ -180,7 +214,7 @@ def msd_singles(tmp_path_factory, dask_scheduler):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", list(screens.STRATEGIES))
+@pytest.mark.parametrize("name", screens.names())
 def test_every_strategy_shortlists_a_concealed_sensor_gain_and_offset_on_a_real_fmu(name, msd_singles):
     fits, full = msd_singles
     found = screens.strategy(name).run(fits, full, screens.ScreenSettings(pairs=3, triples=2, limit=5))

@@ -6,6 +6,6 @@ the best singles); ``registry`` names them for ``--screen``.
 """
 
 from .base import Screened, Screening, ScreenSettings, ScreenStrategy
-from .registry import STRATEGIES, known, strategy
+from .registry import GROUP, known, names, strategy
 
-__all__ = ["STRATEGIES", "ScreenSettings", "ScreenStrategy", "Screened", "Screening", "known", "strategy"]
+__all__ = ["GROUP", "ScreenSettings", "ScreenStrategy", "Screened", "Screening", "known", "names", "strategy"]

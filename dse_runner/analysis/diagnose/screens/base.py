@@ -83,7 +83,8 @@ class Screening:
 
 
 class ScreenStrategy(ABC):
-    """One way to screen combinations: the contract of registry.STRATEGIES (the module says the lifecycle)."""
+    """One way to screen combinations: the contract of the entry-point group ``dse_runner.screens`` (the
+    module says the lifecycle)."""
 
     name: ClassVar[str]
     how: ClassVar[str] = ""  # how it predicts, in a sentence a report can say
