@@ -1048,3 +1048,17 @@ def test_terms_are_ranked_by_what_they_do_to_positions():
     assert dict(chosen)["corr_gps_cross_cospsi"] == pytest.approx(-0.13, abs=0.01)
     assert set(rest) == {"corr_steer_ddelta", "corr_steer_ddeltav", "corr_acc_s"}
     assert discover.rank_on_positions(noise, base, columns, bounds, 3, 10.0)[0] == []
+
+
+def test_a_delay_or_lag_is_fitted_from_inside_its_range_too():
+    """Against manoeuvres that repeat, a delay's misfit has minima a period apart: a one-parameter effect in
+    seconds starts absent and at a third and two thirds of its range; any other effect starts absent only."""
+    from dse_runner.cases.robotti_diagnosis.chain import VehicleEffect
+
+    for hid in ("steering_lag", "speed_lag", "time_offset"):
+        (p,) = LIBRARY[hid].parameters
+        starts = VehicleEffect.of("vehicle", hid).starts
+        span = p.upper - p.lower
+        assert starts == ((0.0,), (p.lower + span / 3,), (p.lower + 2 * span / 3,)), hid
+    assert VehicleEffect.of("vehicle", "wheel_slip").starts == ((0.0,),)
+    assert VehicleEffect.of("vehicle", "antenna_offset").starts == ((0.0, 0.0),)

@@ -38,9 +38,9 @@ TIME_STARTS = 3  # a delay's or a lag's fit starts from absent and from this man
 
 
 def time_starts(parameter: Parameter, count: int = TIME_STARTS) -> tuple[float, ...]:
-    """Absent, then ``count`` - 1 points evenly inside the range of a parameter in seconds."""
+    """The parameter's own start (the effect absent), then ``count`` - 1 points evenly inside its range."""
     span = parameter.upper - parameter.lower
-    return (0.0, *(parameter.lower + span * k / count for k in range(1, count)))
+    return (parameter.start, *(parameter.lower + span * k / count for k in range(1, count)))
 
 
 @dataclass(frozen=True)
