@@ -889,7 +889,8 @@ def diagnose(
         typer.Option(
             help="How combinations are screened when no single hypothesis explains the recordings: mixed "
             "(mixtures of the single fits' changes) or linearised (the residuals linearised at none and the "
-            "best singles). Default: the library's own (signal effects: mixed; the Robotti's: linearised).",
+            "best singles), or an installed package's (entry-point group dse_runner.screens). Default: the "
+            "library's own (signal effects: mixed; the Robotti's: linearised).",
         ),
     ] = None,
     workers: Annotated[int | None, typer.Option(help="Local cluster workers (overrides the space).")] = None,
