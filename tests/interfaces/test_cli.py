@@ -212,7 +212,7 @@ def test_sensitivity_errors_name_the_culprit(tmp_path, dask_scheduler):
     [
         (["--folds", "1"], "--folds 1: cross-validation needs 2 folds or more"),
         (["--noise-factor", "0"], "--noise-factor 0.0: must be a positive number"),
-        (["--screen", "newton"], "--screen 'newton': no such combination screen (known: mixed, linearised)"),
+        (["--screen", "newton"], "--screen 'newton': no such combination screen (known: linearised, mixed)"),
     ],
 )
 def test_diagnose_refuses_what_no_diagnosis_can_honour_in_one_line(tmp_path, option, named):
