@@ -35,6 +35,7 @@ class Proposed:
         self.ranked = tuple(ranked)
         self.terms = dict(self.ranked[:count])
         self.shapes: Mapping[str, float] = {}
+        self.inclusion: Mapping[str, float] = {}
 
     @property
     def empty(self) -> bool:

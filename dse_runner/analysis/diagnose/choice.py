@@ -70,7 +70,7 @@ def choose(
     sets, full = engine.singles(f)
     why = unscreened(f, full, floor, floor_stop, most)
     if why:
-        screening = screens.Screening(strategy.name)
+        screening = screens.Screening(strategy.name, strategy.how)
         f.say(f"no combination screened: {why}")
     else:
         screening = strategy.run(f, full, shortlisted)
@@ -91,7 +91,7 @@ def screen_of(choice: Choice) -> answer.Screen:
     fitted = [x.label for x in choice.screening.shortlist]
     return answer.Screen(
         strategy=choice.screening.strategy,
-        how=screens.strategy(choice.screening.strategy).how,
+        how=choice.screening.how,
         predicted=choice.screening.predicted,
         screened=[{**x.to_json(), "shortlisted": x.label in fitted} for x in choice.screening.screened],
         fitted=fitted,

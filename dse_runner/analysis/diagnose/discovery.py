@@ -42,12 +42,13 @@ RESEMBLES, PARTLY = 0.9, 0.5  # cosine similarity above which terms resemble, pa
 
 class Proposal(Protocol):
     """What a search proposes for one parent fit: the terms to fit (name -> starting coefficient), every term
-    it would offer best first (the slots pruning frees go to the next of them), and the values of any shape
-    the terms were made at."""
+    it would offer best first (the slots pruning frees go to the next of them), the values of any shape the
+    terms were made at, and how sure it is of each term it picked (a share; {} where it does not say)."""
 
     terms: Mapping[str, float]
     ranked: Sequence[tuple[str, float]]
     shapes: Mapping[str, float]
+    inclusion: Mapping[str, float]
 
     @property
     def empty(self) -> bool: ...
@@ -217,7 +218,7 @@ class Discovery:
             "bic_reference": self.reference.bic,
             "proposed": dict(self.proposal.terms) if self.proposal else {},
             "proposed_text": self.proposal.readable() if self.proposal else [],
-            "inclusion": dict(getattr(self.proposal, "inclusion", {}) or {}),
+            "inclusion": dict(self.proposal.inclusion) if self.proposal else {},
             "folds": self.folds,
             "bic_margin": self.margin,
             "accepted": self.chosen is not None,

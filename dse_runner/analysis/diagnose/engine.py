@@ -75,9 +75,8 @@ class Fits(Fitter):
     which leave residuals alike (a screen fits a shortlisted set's twins beside it). Each stage below asks
     it for its problems and their fits."""
 
-    library: Mapping[str, Any] = field(
-        default_factory=dict
-    )  # id -> parameters, names, starts, start(k), term
+    # id -> parameters, names, starts, start(k), term
+    library: Mapping[str, Any] = field(default_factory=dict)
     shares: Callable[[str, str], bool] = lambda a, b: False  # two hypotheses that act on one thing
     look_alikes: Mapping[str, tuple[str, ...]] = field(default_factory=dict)  # id -> its declared twins
     min_gain: float = explain.MIN_GAIN  # the rule a set must pass: held-out error this much lower ...

@@ -17,8 +17,7 @@ from ...sweeps.rank import rank
 from ...sweeps.spec import Space
 from ...sweeps.sweep import submit, trajectories_of
 from . import correction, discover, locate, lookalike, noise
-from .chain import Chain, DiagnosisMessages, VehicleEffect
-from .hypotheses import LIBRARY
+from .chain import Chain, DiagnosisMessages
 from .model_files import base_parameters, fits_space, steering_source, vehicle_of, write_model
 from .noise import NoiseFloor
 from .outcome import Diagnosis, DiagnosisSettings
@@ -83,7 +82,7 @@ def seek(
         chain, search, reference, candidates, settings.min_gain, settings.bic_margin, unit=" m"
     )
     if found.chosen is not None:
-        effects = {hid: VehicleEffect.of(chain.vehicle, hid).parameters for hid in LIBRARY}
+        effects = {hid: effect.parameters for hid, effect in chain.library.items()}
         found.resembles = discovery.resembles(chain, search, found.chosen, effects)
         chain.say(
             f"discovered {'; '.join(correction.readable(found.chosen.full.point))}: held-out "

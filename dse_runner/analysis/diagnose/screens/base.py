@@ -73,10 +73,11 @@ class Screened:
 
 @dataclass
 class Screening:
-    """What a screen did: its strategy, how many combinations it predicted, those it checked by simulation
-    (best real BIC first) and the shortlist fitted for real."""
+    """What a screen did: its strategy and how it predicts, how many combinations it predicted, those it
+    checked by simulation (best real BIC first) and the shortlist fitted for real."""
 
     strategy: str
+    how: str = ""
     predicted: int = 0
     screened: list[Screened] = field(default_factory=list)
     shortlist: list[Screened] = field(default_factory=list)
@@ -93,7 +94,8 @@ class ScreenStrategy(ABC):
     def run(self, fits: Fits, singles: Singles, settings: ScreenSettings) -> Screening:
         """Screen, then shortlist: what the stages call."""
         screened, predicted = self.screened(fits, singles, settings)
-        return Screening(self.name, predicted, screened, self.shortlist(screened, settings, fits.look_alikes))
+        shortlist = self.shortlist(screened, settings, fits.look_alikes)
+        return Screening(self.name, self.how, predicted, screened, shortlist)
 
     @abstractmethod
     def screened(self, fits: Fits, singles: Singles, settings: ScreenSettings) -> tuple[list[Screened], int]:
