@@ -53,7 +53,11 @@ class Always(HypothesisLibrary):
         return True
 
     def diagnose(self, space, request, say):
+        from threadpoolctl import threadpool_info
+
         say("diagnosed by always")
+        blas = {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
+        say(f"BLAS threads {sorted(blas)}")
         return Answer(space)
 
 
@@ -133,7 +137,33 @@ def test_an_installed_library_is_asked_before_the_built_in_one(tmp_path, monkeyp
     said = []
     result = diagnose(MSD / "space.yaml", request=Request(out=tmp_path / "out"), say=said.append)
     assert result.to_json() == {"verdict": "none", "space": str((MSD / "space.yaml").resolve())}
-    assert said == ["diagnosed by always"]
+    assert said[0] == "diagnosed by always"
+
+
+def test_a_diagnosis_runs_its_client_algebra_on_one_blas_thread_and_gives_the_setting_back(
+    tmp_path, monkeypatch
+):
+    """A diagnosis solves thousands of small least squares in its client, where BLAS threads only spin
+    (benchmarks/blas_threads.py): every library's diagnosis runs with one, and the caller's setting is
+    back after."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    register(
+        monkeypatch,
+        tmp_path / "plugin",
+        "always_library",
+        ALWAYS,
+        {"dse_runner.hypotheses": {"always": "always_library:Always"}},
+    )
+
+    def blas() -> list[int]:
+        return sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
+
+    with threadpool_limits(limits=2, user_api="blas"):  # the caller's own setting, whatever the machine
+        said = []
+        diagnose(MSD / "space.yaml", request=Request(out=tmp_path / "out"), say=said.append)
+        assert said[1] == "BLAS threads [1]"
+        assert blas() == [2]
 
 
 def test_a_library_that_is_not_a_subclass_is_named(tmp_path, monkeypatch):

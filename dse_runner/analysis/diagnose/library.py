@@ -32,6 +32,7 @@ from . import report, screens
 from .answer import Answer
 from .explain import NOISE_FACTOR
 from .hypotheses import Hypothesis
+from .one_thread import one_thread
 from .report import Section
 
 GROUP = "dse_runner.hypotheses"
@@ -214,6 +215,7 @@ def serving(space: Space, found: list[HypothesisLibrary] | None = None) -> Hypot
     )
 
 
+@one_thread
 def diagnose(
     space: str | Path | None = None,
     scenarios: str | Path | None = None,

@@ -66,6 +66,7 @@ from .hypotheses import EffectParameter
 from .hypotheses import Hypothesis as LibraryHypothesis
 from .library import HypothesisLibrary, Messages, Request, space_with
 from .noise import NoiseEstimate, Whiteness, estimate_noise, whiteness
+from .one_thread import one_thread
 from .proof import Proof, honest
 from .report import Section
 from .signal_hypotheses import PHYSICS, SignalHypothesis, shares, signal_hypotheses, state_hypotheses
@@ -372,6 +373,7 @@ def fits_space(
     )
 
 
+@one_thread
 def diagnose_space(
     path: str | Path | Space,
     out: str | Path | None = None,

@@ -10,6 +10,7 @@ from ...analysis.diagnose import discovery, explain, screens
 from ...analysis.diagnose.choice import choose, screen_of
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.library import space_with
+from ...analysis.diagnose.one_thread import one_thread
 from ...analysis.diagnose.validation import Validation, validated
 from ...simulation.scenario import dropouts
 from ...sweeps.cluster import connect
@@ -114,6 +115,7 @@ def diagnose(
     return diagnose_calibration(calibration, settings, client, progress)
 
 
+@one_thread
 def diagnose_calibration(
     calibration: Space,
     settings: DiagnosisSettings = DEFAULT_SETTINGS,
