@@ -8,9 +8,10 @@ gain scales it. A control engineer tells them apart by fitting each form to the 
 from the calibrated model without either twin, is transformed, not simulated again.
 
 A library supplies what only it knows (:class:`Channel`): its recorded signal at its samples, and how the
-model's signal would be *seen* there (a GPS receiver sees a course through a kinematics window, not the
-model's instantaneous value). The forms, their fits and the log-likelihood ratio between two forms are
-the engine's.
+model's signal would be *seen* there (a direction estimated from positions is seen through the
+estimator's window, not as the model's instantaneous value; the model's signal goes through the same
+window, so that the window's smoothing is not mistaken for a lag). The forms, their fits and the
+log-likelihood ratio between two forms are the engine's.
 """
 
 from __future__ import annotations
@@ -164,7 +165,7 @@ def response_fit(
 ) -> list[ResponseFit]:
     """Per segment kind of ``kinds`` with at least ``min_samples`` usable samples: the delay, lag and gain
     that best carry the model's signal onto the recorded one (pooled over runs). Leave out the kinds
-    where the model does not answer at all (a vehicle at rest): there the fits only reach their bounds."""
+    where the model does not answer at all (a machine at rest): there the fits only reach their bounds."""
     as_is = _sse(channels, lambda t, u: u)
     kinds = [k for k in kinds if as_is.get(k, (0.0, 0))[1] >= min_samples]
     if not kinds:
