@@ -1,5 +1,6 @@
 """The engine's look-alike evidence: the autocorrelation time of coloured noise, the segment LLR between two
-twins' residuals, and the rule by which held-out error, BIC and the LLR decide between them."""
+twins' residuals, the rule by which held-out error, BIC and the LLR decide between them, and which sets are
+twins by a library's declared look-alikes."""
 
 from __future__ import annotations
 
@@ -116,3 +117,35 @@ def test_weighing_answers_with_the_twin_the_llr_favours_if_it_could_be_chosen():
         chosen,
         [],
     )
+
+
+# a library's declared look-alikes (id -> its twins)
+TWINS = {"late": ("sluggish",), "sluggish": ("late",), "slip": ("sluggish",)}
+
+
+def test_twins_are_a_swap_of_one_member_for_a_declared_look_alike():
+    assert lookalike.swapped(("grip", "late"), ("grip", "sluggish"), TWINS) == ("late", "sluggish")
+    assert lookalike.swapped(("slip",), ("sluggish",), TWINS) == ("slip", "sluggish")
+    assert lookalike.swapped(("sluggish",), ("slip",), TWINS) is None  # declared one way only
+    assert lookalike.swapped(("grip", "late"), ("grip", "slip"), TWINS) is None  # not a look-alike
+    assert lookalike.swapped(("late", "slip"), ("sluggish", "grip"), TWINS) is None  # two swapped
+    assert lookalike.swapped(("late",), ("late", "sluggish"), TWINS) is None  # one added, none swapped
+    assert lookalike.swapped(("late",), ("sluggish",), {}) is None  # nothing declared, no twins
+
+
+def test_the_pairs_to_weigh_are_the_chosen_set_and_its_fitted_twins_or_the_two_best_if_twins():
+    residual = np.zeros(4)
+    chosen = candidate(("grip", "late"), 0.12, 20.0, residual)
+    twin = candidate(("grip", "sluggish"), 0.13, 21.0, residual)
+    unfitted = candidate(("grip", "sluggish"), 0.13, 21.0)  # no residuals: fitted on other runs
+    other = candidate(("grip", "slip"), 0.125, 20.5, residual)
+    pairs = lookalike.twin_pairs(chosen, [chosen, twin, unfitted, other], TWINS)
+    assert [(a.label, b.label) for a, b in pairs] == [("grip+late", "grip+sluggish")]
+    assert pairs[0][1] is twin
+
+    nothing = candidate((), 1.0, 400.0, residual)
+    late, sluggish = candidate(("late",), 0.5, 90.0, residual), candidate(("sluggish",), 0.4, 80.0, residual)
+    pairs = lookalike.twin_pairs(nothing, [nothing, late, sluggish], TWINS)
+    assert [(a.label, b.label) for a, b in pairs] == [("sluggish", "late")]  # best first
+    grip = candidate(("grip",), 0.3, 70.0, residual)  # now the two best are grip and sluggish: no twins
+    assert lookalike.twin_pairs(nothing, [nothing, late, sluggish, grip], TWINS) == []

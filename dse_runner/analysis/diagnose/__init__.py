@@ -5,7 +5,8 @@ The core reads in this order: ``library`` (the plug-in contract and :func:`diagn
 the library that serves a space), ``hypotheses`` (what a hypothesis is), ``validation`` (what is held out),
 ``fitter`` and ``engine`` (the fits and the stages every library runs), ``screens`` (the combination
 screen, a strategy chosen by name), ``explain`` (how candidates are judged: BIC, the noise floor, the
-verdict), ``lookalike`` (the evidence between twin answers and the rule by which it decides), ``proof``
+verdict), ``lookalike`` (which answers are twins, the evidence between them and the rule by which it
+decides), ``response`` (a response's form: a delay, a lag or a gain, which tells twins apart), ``proof``
 (searched terms chosen again on each fold),
 ``noise`` (noise from a recording alone), ``findings`` and ``answer`` (what is named, in the one JSON
 shape), ``report`` (the page every diagnosis is read on, drawn from that JSON; a library adds its own

@@ -11,16 +11,18 @@ time in samples: successive samples of a smooth residual are not independent pie
 counting them as such would overstate the ratio by τ. When held-out error and BIC cannot separate two
 twins and |ΣLLR| ≥ ``DECISIVE``, the ratio decides; below it the diagnosis names both.
 
-The engine owns the statistics and the rule. A library supplies what it alone knows (:class:`Segments`):
-which sets are twins, how a candidate's residuals fall into samples (a position's two coordinates add
+The engine owns the statistics and the rule, and which sets are twins when a library declares its
+look-alikes (:func:`twin_pairs`: one member swapped for a declared twin). A library supplies what it alone
+knows (:class:`Segments`): how a candidate's residuals fall into samples (a position's two coordinates add
 into one sample) and which segment each sample lies in. The labels only say *where* the evidence lies: the
-total, and so the decision, does not depend on them.
+total, and so the decision, does not depend on them. How each twin answers a command (a delay, a lag, a
+gain) is response.py's.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -180,6 +182,31 @@ class Twins:
             f"autocorrelation_{self.sample}": e.tau,
             "sigma": e.sigma,
         }
+
+
+def swapped(
+    a: Sequence[str], b: Sequence[str], look_alikes: Mapping[str, Sequence[str]]
+) -> tuple[str, str] | None:
+    """(x, y) when set ``b`` is set ``a`` with its member x replaced by y, a declared look-alike of x
+    (``look_alikes``: id -> its twins); else None. The test of what screens.base.swaps generates."""
+    only_a, only_b = set(a) - set(b), set(b) - set(a)
+    if len(only_a) != 1 or len(only_b) != 1:
+        return None
+    x, y = next(iter(only_a)), next(iter(only_b))
+    return (x, y) if y in look_alikes.get(x, ()) else None
+
+
+def twin_pairs(
+    chosen: Candidate, candidates: Sequence[Candidate], look_alikes: Mapping[str, Sequence[str]]
+) -> list[tuple[Candidate, Candidate]]:
+    """The pairs to weigh when a library declares its look-alikes: the chosen set against each fitted set
+    that swaps one of its members for a look-alike (:func:`swapped`); when nothing is chosen, the two
+    best-ranked cross-validated sets if they are twins."""
+    fitted = [c for c in candidates if c.full.residuals]
+    if chosen.ids:
+        return [(chosen, c) for c in fitted if swapped(chosen.ids, c.ids, look_alikes)]
+    top = [c for c in explain.ranked(fitted) if c.ids and c.validated][:2]
+    return [(top[0], top[1])] if len(top) == 2 and swapped(top[0].ids, top[1].ids, look_alikes) else []
 
 
 def members(a: Candidate, b: Candidate) -> tuple[str, str]:

@@ -9,40 +9,37 @@ deficit while cruising, a lag none at all once the speed has settled; a delay of
 also shows at every speed change, a steering lag does not.
 
 So both twins' sets are fitted in full (the screen shortlists twin swaps), and the engine weighs
-their fix residuals (analysis/diagnose/lookalike.py: the LLR per segment, the autocorrelation time, the
-rule that decides). This module supplies what only the Robotti knows: which sets are twins (a swap of
-hypotheses.LOOK_ALIKES), that a fix's x and y offsets add into one sample, the segment of each fix
-(segments.py, from the command log alone), the manoeuvre that would tell a pair apart, and the forms of
+their fix residuals (analysis/diagnose/lookalike.py: which sets are twins by a swap of
+hypotheses.LOOK_ALIKES, the LLR per segment, the autocorrelation time, the rule that decides). This module
+supplies what only the Robotti knows: that a fix's x and y offsets add into one sample, the segment of each
+fix (segments.py, from the command log alone), the manoeuvre that would tell a pair apart, and the forms of
 the answer to a command each twin gives.
 
-:func:`response_fit` explains the verdict in a control engineer's terms, at no cost in
-simulations: the recorded yaw rate or speed (kinematics.py, from the fixes), per segment kind,
-fitted against the calibrated model's own as a pure delay, a first-order lag and a gain.
+The engine's response fit (analysis/diagnose/response.py) explains the verdict in a control engineer's
+terms, at no cost in simulations: the recorded course or speed (kinematics.py, from the fixes), per segment
+kind, fitted against the calibrated model's own as a pure delay, a first-order lag and a gain. What it
+needs of the Robotti is how GPS sees the model's signal (:class:`SignalAtFixes`: the kinematics window at
+the fixes).
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy.optimize import minimize_scalar
-from scipy.signal import lfilter, lfilter_zi
 
 from ...analysis.diagnose import explain
 from ...analysis.diagnose import lookalike as engine
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.lookalike import DECISIVE
+from ...analysis.diagnose.response import ResponseFit, form_llr, response_fit
 from ...simulation.scenario import Scenario
 from .. import fielddata
 from . import kinematics, segments
 from .hypotheses import LOOK_ALIKES
 
-MAX_SHIFT = 2.0  # s: the longest delay or lag a response fit tries
-SHIFT_GRID = 0.05  # s: the coarse search before the bounded refinement
-GAINS = (0.5, 1.5, 0.02)  # the gains a response fit tries: from, to, coarse step
 COURSE, SPEED = "course", "speed"  # the recorded channels a response fit compares
 
 
@@ -73,31 +70,13 @@ TELLING: dict[frozenset[str], Telling] = {
 FALLBACK = Telling(COURSE, (segments.STEER_STEP, segments.SPEED_STEP), "a run with steering and speed steps")
 
 
-# The form each twin gives the answer to a command, in response_fit's terms.
+# The form each twin gives the answer to a command, in response.FORMS' terms.
 FORMS = {"steering_lag": "lag", "time_offset": "delay", "speed_lag": "lag", "wheel_slip": "gain"}
+MOVING_KINDS = tuple(k for k in segments.KINDS if k != segments.REST)  # a standing vehicle has no response
 
 
 def telling(a: str, b: str) -> Telling:
     return TELLING.get(frozenset({a, b}), FALLBACK)
-
-
-def swapped(a: tuple[str, ...], b: tuple[str, ...]) -> tuple[str, str] | None:
-    """(x, y) when set ``b`` is set ``a`` with its member x replaced by y, a look-alike of x; else None."""
-    only_a, only_b = set(a) - set(b), set(b) - set(a)
-    if len(only_a) != 1 or len(only_b) != 1:
-        return None
-    x, y = next(iter(only_a)), next(iter(only_b))
-    return (x, y) if y in LOOK_ALIKES.get(x, ()) else None
-
-
-def twin_pairs(chosen: Candidate, candidates: Sequence[Candidate]) -> list[tuple[Candidate, Candidate]]:
-    """The pairs to weigh: the chosen set against each fitted set that swaps one of its members for a
-    look-alike; when nothing is chosen, the two best-ranked cross-validated sets if they are twins."""
-    fitted = [c for c in candidates if c.full.residuals]
-    if chosen.ids:
-        return [(chosen, c) for c in fitted if swapped(chosen.ids, c.ids)]
-    top = [c for c in explain.ranked(fitted) if c.ids and c.validated][:2]
-    return [(top[0], top[1])] if len(top) == 2 and swapped(top[0].ids, top[1].ids) else []
 
 
 # ---- the evidence ----------------------------------------------------------------------------------
@@ -132,7 +111,7 @@ def fix_segments(scenarios: Sequence[Scenario]) -> engine.Segments:
 @dataclass(frozen=True)
 class SignalAtFixes:
     """One run's recorded signal at its fixes and the model's same signal on the model's grid, with
-    the kinematics operator that turns the model's into what GPS would show."""
+    the kinematics operator that turns the model's into what GPS would show (a response.Channel)."""
 
     fix_time: np.ndarray
     recorded: np.ndarray  # NaN where kinematics had too few fixes
@@ -146,26 +125,11 @@ class SignalAtFixes:
         None  # rows of ``operator`` that are estimates (None: every row that is finite)
     )
 
-
-def delayed(time: np.ndarray, signal: np.ndarray, delay: float) -> np.ndarray:
-    """The signal ``delay`` seconds late, holding its first value before it starts."""
-    return np.interp(time - delay, time, signal, left=signal[0])
-
-
-def lagged(time: np.ndarray, signal: np.ndarray, tau: float) -> np.ndarray:
-    """The signal through a first-order lag of time constant ``tau``, starting settled."""
-    if tau <= 0:
-        return np.asarray(signal, float)
-    a = math.exp(-float(np.median(np.diff(time))) / tau)
-    out, _ = lfilter([1.0 - a], [1.0, -a], signal, zi=lfilter_zi([1.0 - a], [1.0, -a]) * signal[0])
-    return out
-
-
-def _seen(channel: SignalAtFixes, model: np.ndarray) -> np.ndarray:
-    seen = kinematics.smoothed_like(
-        channel.operator, channel.order, channel.model_time, model, channel.fix_time
-    )
-    return seen if channel.valid is None else np.where(channel.valid, seen, np.nan)
+    def seen(self, model: np.ndarray) -> np.ndarray:
+        """A model signal (on ``model_time``) as GPS would show it at the fixes: through the same kinematics
+        window as the recorded one; NaN where the window has no estimate."""
+        seen = kinematics.smoothed_like(self.operator, self.order, self.model_time, model, self.fix_time)
+        return seen if self.valid is None else np.where(self.valid, seen, np.nan)
 
 
 def sparse_operator(operator: np.ndarray) -> tuple[Any, np.ndarray]:
@@ -175,113 +139,6 @@ def sparse_operator(operator: np.ndarray) -> tuple[Any, np.ndarray]:
 
     valid = np.isfinite(operator).all(axis=1)
     return csr_matrix(np.where(valid[:, None], operator, 0.0)), valid
-
-
-def _sse(channels: Sequence[SignalAtFixes], transform) -> dict[str, tuple[float, int]]:
-    """Per segment kind: the SSE of the recorded signal against the model's, transformed and seen through
-    the same kinematics window, and how many fixes count (both finite)."""
-    out: dict[str, tuple[float, int]] = {}
-    for c in channels:
-        error = c.recorded - _seen(c, transform(c.model_time, c.model))
-        usable = np.isfinite(error)
-        if c.free_offset and usable.any():
-            error = error - np.mean(error[usable])
-        for kind in np.unique(c.kinds[usable]):
-            use = usable & (c.kinds == kind)
-            sse, count = out.get(str(kind), (0.0, 0))
-            out[str(kind)] = (sse + float(np.sum(error[use] ** 2)), count + int(use.sum()))
-    return out
-
-
-def _best(
-    channels: Sequence[SignalAtFixes], kinds: Sequence[str], transform, grid: np.ndarray
-) -> dict[str, tuple[float, float]]:
-    """Per kind, the transform's parameter on ``grid``'s span with the least SSE, and that SSE:
-    a coarse grid shared by the kinds (the transform acts on whole runs), then a bounded
-    search about each kind's best."""
-
-    def sse(s: float) -> dict[str, tuple[float, int]]:
-        return _sse(channels, lambda t, u: transform(t, u, s))
-
-    coarse = [sse(s) for s in grid]
-    out = {}
-    for kind in kinds:
-        values = np.array([c.get(kind, (math.inf, 0))[0] for c in coarse])
-        k = int(np.argmin(values))
-        low, high = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
-        fine = minimize_scalar(
-            lambda s, kind=kind: sse(s).get(kind, (math.inf, 0))[0],
-            bounds=(low, high),
-            method="bounded",
-            options={"xatol": 1e-3},
-        )
-        out[kind] = (
-            (float(fine.x), float(fine.fun)) if fine.fun < values[k] else (float(grid[k]), float(values[k]))
-        )
-    return out
-
-
-@dataclass(frozen=True)
-class ResponseFit:
-    """The recorded ``channel`` on segments of ``kind``, against the calibrated model's, as the model's
-    delayed by ``delay`` s, lagged by ``lag`` s, or scaled by ``gain`` (the model's yaw rate or speed), each
-    with its SSE, and the SSE of the model as it is. Units: rad² (course) or (m/s)² (speed)."""
-
-    channel: str
-    kind: str
-    fixes: int
-    sse: float
-    delay: float
-    delay_sse: float
-    lag: float
-    lag_sse: float
-    gain: float
-    gain_sse: float
-
-    @property
-    def best(self) -> str:
-        """Which form fits best: delay, lag or gain ("none" when none improves
-        on the model as it is by 5 %)."""
-        forms = {"delay": self.delay_sse, "lag": self.lag_sse, "gain": self.gain_sse}
-        name = min(forms, key=forms.get)
-        return name if forms[name] < (1 - explain.MIN_GAIN) * self.sse else "none"
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            "channel": self.channel,
-            "segment": self.kind,
-            "fixes": self.fixes,
-            "sse": self.sse,
-            "delay": self.delay,
-            "delay_sse": self.delay_sse,
-            "lag": self.lag,
-            "lag_sse": self.lag_sse,
-            "gain": self.gain,
-            "gain_sse": self.gain_sse,
-            "best": self.best,
-        }
-
-
-MOVING_KINDS = tuple(k for k in segments.KINDS if k != segments.REST)  # a standing vehicle has no response
-
-
-def response_fit(
-    channels: Sequence[SignalAtFixes], name: str, kinds: Sequence[str] = MOVING_KINDS, min_fixes: int = 20
-) -> list[ResponseFit]:
-    """Per segment kind with at least ``min_fixes`` usable fixes: the delay, lag and gain that best carry
-    the model's signal onto the recorded one (pooled over runs). Standing is left out: there the fits only
-    reach their bounds."""
-    as_is = _sse(channels, lambda t, u: u)
-    kinds = [k for k in kinds if as_is.get(k, (0.0, 0))[1] >= min_fixes]
-    if not kinds:
-        return []
-    shifts = np.arange(0.0, MAX_SHIFT + 1e-9, SHIFT_GRID)
-    delays, lags = _best(channels, kinds, delayed, shifts), _best(channels, kinds, lagged, shifts)
-    gains = _best(channels, kinds, lambda t, u, g: g * u, np.arange(GAINS[0], GAINS[1] + 1e-9, GAINS[2]))
-    return [
-        ResponseFit(name, kind, as_is[kind][1], as_is[kind][0], *delays[kind], *lags[kind], *gains[kind])
-        for kind in kinds
-    ]
 
 
 def model_signal(track: Any, name: str, columns: Mapping[str, str]) -> np.ndarray:
@@ -350,18 +207,16 @@ class LookAlike(engine.Twins):
     @property
     def shape(self) -> dict[str, Any]:
         """What the answer's shape alone says on the segments that tell these twins apart: which member's form
-        (FORMS) fits the recorded channel better, by an LLR from the response fits' SSEs (σ² from the better
-        one's SSE per fix), or cannot_tell (below DECISIVE, or no such segment in these runs)."""
+        (FORMS) fits the recorded channel better, by the LLR between the two forms (response.form_llr), or
+        cannot_tell (below DECISIVE, or no such segment in these runs)."""
         forms = [FORMS.get(m, "") for m in self.members]
         fits = [r for r in self.response if r.kind in self.telling.kinds[:1]]
         if not fits or "" in forms or forms[0] == forms[1]:
-            return {"segment": self.telling.kinds[0], "favours": None, "llr": 0.0, "fixes": 0}
+            return {"segment": self.telling.kinds[0], "favours": None, "llr": 0.0, self.sample: 0}
         r = fits[0]
-        sse = {"delay": r.delay_sse, "lag": r.lag_sse, "gain": r.gain_sse}
-        a, b = sse[forms[0]], sse[forms[1]]
-        llr = (b - a) / (2.0 * min(a, b) / r.fixes) if min(a, b) > 0 else 0.0
+        llr = form_llr(r, *forms)
         favours = (self.members[0] if llr > 0 else self.members[1]) if abs(llr) >= DECISIVE else None
-        return {"segment": r.kind, "favours": favours, "llr": llr, "fixes": r.fixes}
+        return {"segment": r.kind, "favours": favours, "llr": llr, self.sample: r.samples}
 
     @property
     def telling_fixes(self) -> int:
@@ -375,7 +230,7 @@ class LookAlike(engine.Twins):
             "telling_fixes": self.telling_fixes,
             "would_tell": self.telling.advice,
             "shape": self.shape,
-            "response_fit": [r.to_json() for r in self.response],
+            "response_fit": [r.to_json(self.sample) for r in self.response],
         }
 
 
@@ -394,7 +249,7 @@ def weigh(
     own residual scatter."""
     answer, twins = engine.weigh(
         chosen,
-        twin_pairs(chosen, candidates),
+        engine.twin_pairs(chosen, candidates, LOOK_ALIKES),
         candidates,
         baseline,
         fix_segments(scenarios),
@@ -424,5 +279,5 @@ def attach_responses(
         name = look.telling.channel
         if name not in cache:
             channels = channels_of(scenarios, tracks, columns, name, labels)
-            cache[name] = response_fit(channels, name)
+            cache[name] = response_fit(channels, name, MOVING_KINDS)
         look.response = cache[name]
