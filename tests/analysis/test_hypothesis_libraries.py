@@ -126,7 +126,9 @@ def test_a_signal_two_objectives_compare_is_diagnosed_once():
     assert [(c.signal, c.recorded) for c in compared_signals(space)] == [("msd.x", "x")]
 
 
-def test_an_installed_library_is_asked_before_the_built_in_one(tmp_path, monkeypatch):
+@pytest.fixture
+def always(tmp_path, monkeypatch) -> None:
+    """An installed library that serves every space and says how it ran."""
     register(
         monkeypatch,
         tmp_path / "plugin",
@@ -134,27 +136,20 @@ def test_an_installed_library_is_asked_before_the_built_in_one(tmp_path, monkeyp
         ALWAYS,
         {"dse_runner.hypotheses": {"always": "always_library:Always"}},
     )
+
+
+def test_an_installed_library_is_asked_before_the_built_in_one(tmp_path, always):
     said = []
     result = diagnose(MSD / "space.yaml", request=Request(out=tmp_path / "out"), say=said.append)
     assert result.to_json() == {"verdict": "none", "space": str((MSD / "space.yaml").resolve())}
     assert said[0] == "diagnosed by always"
 
 
-def test_a_diagnosis_runs_its_client_algebra_on_one_blas_thread_and_gives_the_setting_back(
-    tmp_path, monkeypatch
-):
+def test_a_diagnosis_runs_its_client_algebra_on_one_blas_thread_then_gives_it_back(tmp_path, always):
     """A diagnosis solves thousands of small least squares in its client, where BLAS threads only spin
     (benchmarks/blas_threads.py): every library's diagnosis runs with one, and the caller's setting is
     back after."""
     from threadpoolctl import threadpool_info, threadpool_limits
-
-    register(
-        monkeypatch,
-        tmp_path / "plugin",
-        "always_library",
-        ALWAYS,
-        {"dse_runner.hypotheses": {"always": "always_library:Always"}},
-    )
 
     def blas() -> list[int]:
         return sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
