@@ -57,10 +57,10 @@ def test_a_bounded_step_stops_at_its_bounds_whatever_the_units():
     column = np.linspace(-1.0, 1.0, 50)
     jacobian = column[:, None]
     residuals = -0.5 * column
-    for scale in (np.array([1.0]), np.array([1e-4])):
-        step, sse = bounded_step(jacobian, residuals, np.array([-1.0]), np.array([1.0]), scale)
+    for steps in (None, np.array([1.0]), np.array([1e-4])):
+        step, sse = bounded_step(jacobian, residuals, np.array([-1.0]), np.array([1.0]), steps)
         assert step == pytest.approx([0.5]) and sse == pytest.approx(0.0, abs=1e-20)
-        step, sse = bounded_step(jacobian, residuals, np.array([-1.0]), np.array([0.2]), scale)
+        step, sse = bounded_step(jacobian, residuals, np.array([-1.0]), np.array([0.2]), steps)
         assert step == pytest.approx([0.2]) and sse == pytest.approx(0.09 * float(column @ column))
 
 

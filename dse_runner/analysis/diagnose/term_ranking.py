@@ -35,18 +35,15 @@ def linear_sse(
     moves: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[float, np.ndarray]:
     """The least SSE of r + base·a + columns·c with the parent's parameters ``a`` refitted within ``moves``
-    (down, up; free without) and the terms' coefficients ``c`` within ±``bounds``, each column solved at
-    unit norm; returns (SSE, c)."""
-    matrix = np.hstack([base, columns])
-    norm = np.linalg.norm(matrix, axis=0)
+    (down, up; free without) and the terms' coefficients ``c`` within ±``bounds``, every column solved at
+    unit norm (linear_step.bounded_step); returns (SSE, c)."""
     k = base.shape[1]
     down, up = moves if moves is not None else (np.full(k, -np.inf), np.full(k, np.inf))
     step, sse = bounded_step(
-        matrix,
+        np.hstack([base, columns]),
         r,
         np.concatenate([down, -bounds]),
         np.concatenate([up, bounds]),
-        1.0 / np.where(norm > 0, norm, 1.0),
         method="trf",
     )
     return sse, step[k:]
