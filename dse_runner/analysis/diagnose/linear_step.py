@@ -6,8 +6,8 @@ refitted with it) and discovery's ranking of proposed terms (term_ranking.py: a 
 parameters refitted with them) ask a Jacobian the same question, without simulating: the least SSE of
 r + J·x with lower ≤ x ≤ upper (scipy's lsq_linear). The columns are solved on one scale, so that
 parameters of any units (millimetres of antenna, hundreds of kilograms) weigh alike: each column times its
-parameter's finite-difference step (what one step does: the screen's), or else at unit norm (the ranking's,
-whose coefficients have no step of their own to the parent's parameters).
+parameter's finite-difference step (what one step does: the screen's), or else at unit norm (the
+ranking's). The two agree to rounding; each caller keeps its own so that its answers stay bit for bit.
 """
 
 from __future__ import annotations
