@@ -10,10 +10,11 @@ import pytest
 
 from dse_runner.analysis.diagnose import discovery
 from dse_runner.analysis.diagnose.explain import Candidate
-from dse_runner.sweeps.fit import FitProblem, FitResult
+from dse_runner.analysis.diagnose.term_search import TermSearch
+from dse_runner.sweeps.fit import FitProblem, FitResult, Parameter
 
 
-class Terms(discovery.TermSearch):
+class Terms(TermSearch):
     """A search whose terms are the parameters named ``<instance>.term_*``, chosen among ten."""
 
     offered = 10
@@ -22,6 +23,9 @@ class Terms(discovery.TermSearch):
         return name.rsplit(".", 1)[-1].startswith("term_")
 
     def propose(self, parent, scenarios, residuals):  # not used by the rules
+        raise NotImplementedError
+
+    def parameter(self, variable: str) -> Parameter:
         raise NotImplementedError
 
     def with_terms(self, problem: FitProblem, terms, start, shapes) -> FitProblem:

@@ -1032,36 +1032,6 @@ def test_a_correction_that_leaves_a_residual_is_partial(tmp_path):
     assert f"Accepted: `discovered`; it {discovery.resemblance_words([('wheel_slip', 0.6)])}." in said
 
 
-def test_terms_are_ranked_by_what_they_do_to_positions():
-    """Forward selection on the fix residuals, linearised: an antenna's heading terms win over a
-    pair of steering terms that only stand in for one of them (each alone barely moves the
-    residuals), a term that explains nothing is left out however many slots remain, and on noise
-    alone no term pays the BIC margin."""
-    from dse_runner.cases.robotti_diagnosis import discover
-
-    rng = np.random.default_rng(3)
-    psi = np.linspace(0.0, 4 * np.pi, 2000)
-    sin, cos = np.sin(psi), np.cos(psi)
-    wobble = rng.normal(size=psi.size)
-    columns = {
-        "corr_steer_ddelta": cos + 3.0 * wobble,
-        "corr_steer_ddeltav": -3.0 * wobble,  # their sum is cos ψ
-        "corr_gps_cross_sinpsi": sin,
-        "corr_gps_cross_cospsi": cos,
-        "corr_acc_s": rng.normal(size=psi.size),
-    }
-    bounds = dict.fromkeys(columns, 10.0)
-    base = np.ones((psi.size, 1))  # a calibrated parameter: an offset, refitted with every set
-    noise = 0.02 * rng.normal(size=psi.size)
-    r = -(0.15 * sin - 0.13 * cos) + 0.05 + noise  # the residuals the terms should cancel
-    chosen, rest = discover.rank_on_positions(r, base, columns, bounds, 3, 10.0)
-    assert [v for v, _ in chosen] == ["corr_gps_cross_sinpsi", "corr_gps_cross_cospsi"]
-    assert dict(chosen)["corr_gps_cross_sinpsi"] == pytest.approx(0.15, abs=0.01)
-    assert dict(chosen)["corr_gps_cross_cospsi"] == pytest.approx(-0.13, abs=0.01)
-    assert set(rest) == {"corr_steer_ddelta", "corr_steer_ddeltav", "corr_acc_s"}
-    assert discover.rank_on_positions(noise, base, columns, bounds, 3, 10.0)[0] == []
-
-
 def test_a_delay_or_lag_is_fitted_from_inside_its_range_too():
     """Against manoeuvres that repeat, a delay's misfit has minima a period apart: a one-parameter effect in
     seconds starts absent and at a third and two thirds of its range; any other effect starts absent only."""

@@ -7,7 +7,9 @@ the library that serves a space), ``hypotheses`` (what a hypothesis is), ``valid
 screen, a strategy chosen by name), ``explain`` (how candidates are judged: BIC, the noise floor, the
 verdict), ``lookalike`` (which answers are twins, the evidence between them and the rule by which it
 decides), ``response`` (a response's form: a delay, a lag or a gain, which tells twins apart), ``proof``
-(searched terms chosen again on each fold),
+(searched terms chosen again on each fold), ``discovery`` (terms beyond a library: ``term_search`` the
+contract a case's search implements, ``term_ranking`` which proposed terms the residuals want first, with
+the bounded step of ``linear_step`` the linearised screen uses too),
 ``noise`` (noise from a recording alone), ``findings`` and ``answer`` (what is named, in the one JSON
 shape), ``report`` (the page every diagnosis is read on, drawn from that JSON; a library adds its own
 sections) and ``report_html``. The built-in library is ``signal_library`` (late, sluggish, scaled or biased

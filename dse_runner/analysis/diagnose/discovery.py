@@ -8,11 +8,13 @@ fold proposes and fits its own (proof.Proof); terms within a few standard errors
 are refilled from the proposal's ranking (:func:`settle`); the answer with terms must beat the answer
 without them by the library's rule with the BIC margin raised for the search (:func:`accept`); and what the
 terms do is compared with the library's own effects (:func:`resembles`). A case supplies only the search
-(:class:`TermSearch`): how terms are proposed from a parent fit, ranked, and freed in a fit problem.
+(term_search.TermSearch): how terms are proposed from a parent fit, which parameter each term is, and how
+they are freed in a fit problem.
 
 The procedure (:func:`discover`), on top of the reference answer R:
 1. propose terms for R + D (and D alone when R has effects: a term may explain what R only looked like),
-   from every scenario and from each fold's fitting scenarios, and let the search rank them;
+   from every scenario and from each fold's fitting scenarios, and rank them on the parents' residuals
+   (term_ranking.py);
 2. fit each on every scenario, settle them;
 3. fit each fold's own proposal on its fitting scenarios and score its held-out ones: the proof;
 4. accept the best candidate the rule and the proof bear out, or none.
@@ -21,111 +23,24 @@ The procedure (:func:`discover`), on top of the reference answer R:
 from __future__ import annotations
 
 import math
-from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 from ...sweeps.domain import Point
-from ...sweeps.fit import FitProblem, FitResult, Residuals
+from ...sweeps.fit import FitProblem, FitResult
 from . import explain
 from .explain import Candidate
 from .fitter import Fitter
-from .proof import Proof, extended_margin
-from .sparse_regression import PRUNE_SE, pruned
+from .proof import Proof
+from .sparse_regression import PRUNE_SE
+from .term_ranking import ranked as ranked_on_residuals
+from .term_search import Parent, Proposal, TermSearch
 
 DISCOVERED = "discovered"  # the id discovered terms take among a candidate's ids
 RESEMBLES, PARTLY = 0.9, 0.5  # cosine similarity above which terms resemble, partly resemble, an effect
-
-
-class Proposal(Protocol):
-    """What a search proposes for one parent fit: the terms to fit (name -> starting coefficient), every term
-    it would offer best first (the slots pruning frees go to the next of them), the values of any shape the
-    terms were made at, and how sure it is of each term it picked (a share; {} where it does not say)."""
-
-    terms: Mapping[str, float]
-    ranked: Sequence[tuple[str, float]]
-    shapes: Mapping[str, float]
-    inclusion: Mapping[str, float]
-
-    @property
-    def empty(self) -> bool: ...
-
-    def readable(self) -> list[str]: ...
-
-
-@dataclass(frozen=True)
-class Parent:
-    """A fit discovery proposes on top of: where it stands, on which scenarios, what was proposed there and
-    its parameters' bounds (what a linearised ranking may move them by)."""
-
-    fit: FitResult
-    scenarios: tuple[str, ...]
-    proposal: Proposal
-    bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
-
-    def moves(self) -> tuple[np.ndarray, np.ndarray]:
-        """How far each of the parent's parameters (``fit.names``) may move from its fitted value, down and
-        up."""
-        low = [self.bounds.get(n, (-math.inf, math.inf))[0] - self.fit.values[n] for n in self.fit.names]
-        high = [self.bounds.get(n, (-math.inf, math.inf))[1] - self.fit.values[n] for n in self.fit.names]
-        return np.minimum(low, 0.0), np.maximum(high, 0.0)
-
-
-class TermSearch(ABC):
-    """What a library supplies to search beyond itself; the engine runs the procedure (:func:`discover`).
-
-    Required: :meth:`propose` (terms from a parent fit and its residuals), :meth:`with_terms` (a fit
-    problem with terms freed), :meth:`is_term` (which fitted parameters are terms) and :attr:`offered` (how
-    many terms the search chooses among: the extended BIC charges for it). Optional: :meth:`ranked` (a
-    second look at every proposal at once; by default they stand as proposed)."""
-
-    max_terms: int = 3  # terms a candidate holds at most
-
-    @property
-    @abstractmethod
-    def offered(self) -> int: ...
-
-    @abstractmethod
-    def is_term(self, name: str) -> bool: ...
-
-    @abstractmethod
-    def propose(self, parent: FitResult, scenarios: Sequence[str], residuals: Residuals) -> Proposal:
-        """Terms on top of ``parent`` from ``scenarios`` alone (``residuals``: every parent's, evaluated)."""
-
-    @abstractmethod
-    def with_terms(
-        self,
-        problem: FitProblem,
-        terms: Mapping[str, float],
-        start: Mapping[str, float],
-        shapes: Mapping[str, float],
-    ) -> FitProblem:
-        """``problem`` with ``terms`` freed, each from ``start`` (a fitted point) where it has it, else from
-        its proposed value; the ``shapes`` they were made at held."""
-
-    def ranked(self, parents: Mapping[str, Parent]) -> dict[str, Proposal]:
-        return {label: p.proposal for label, p in parents.items()}
-
-    def terms_of(self, fit: FitResult) -> dict[str, float]:
-        """The terms a fit moved, by local name (the part after the instance)."""
-        return {n.rsplit(".", 1)[-1]: v for n, v in fit.values.items() if self.is_term(n)}
-
-    def standing(self, fit: FitResult, factor: float = PRUNE_SE) -> dict[str, float]:
-        """The fitted terms at least ``factor`` cluster-robust standard errors from zero (sparse_regression
-        .pruned: an undetermined one goes), by local name."""
-        kept = pruned(fit, [n for n in fit.values if self.is_term(n)], factor)
-        return {name.rsplit(".", 1)[-1]: fit.values[name] for name in kept}
-
-    def readable(self, values: Mapping[str, float]) -> list[str]:
-        """The terms among ``values`` as a reader reads them (by default, name = value)."""
-        return [f"{name} = {value:.4g}" for name, value in values.items() if self.is_term(name)]
-
-    def charged(self, bic_margin: float, terms: int) -> float:
-        """The BIC margin ``terms`` found terms must beat (proof.extended_margin)."""
-        return extended_margin(bic_margin, self.offered, terms)
 
 
 def library_ids(ids: Sequence[str]) -> tuple[str, ...]:
@@ -284,7 +199,7 @@ def discover(
         return parents[ids].folds[k] if k < len(parents[ids].folds) else parents[ids].full
 
     # Every proposal, from every scenario and from each fold's fitting scenarios (so the held-out error does
-    # not leak the choice of terms), then ranked by the search, all at once.
+    # not leak the choice of terms), then ranked on the parents' residuals, all at once.
     bounds = {
         ids: {p.name: (p.lower, p.upper) for p in f.problem("", library_ids(ids), f.scenarios).parameters}
         for ids in parents
@@ -301,7 +216,7 @@ def discover(
             jobs[f"{'+'.join(ids)}/{k}"] = Parent(
                 fold, training(k), search.propose(fold, training(k), residuals), bounds[ids]
             )
-    ranked = search.ranked(jobs)
+    ranked = ranked_on_residuals(f, search, jobs, bic_margin)
     proposals = {ids: ranked[f"{'+'.join(ids)}/-1"] for ids in parents}
     result.proposal = proposals[sets_of(reference)[0]]
     sets = [ids for ids in parents if not proposals[ids].empty]

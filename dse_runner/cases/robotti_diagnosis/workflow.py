@@ -77,7 +77,6 @@ def seek(
         [discover.observe(s) for s in space.scenarios],
         space.multimodel.parameters,
         settings.max_terms,
-        settings.bic_margin,
     )
     found = discovery.discover(
         chain, search, reference, candidates, settings.min_gain, settings.bic_margin, unit=" m"

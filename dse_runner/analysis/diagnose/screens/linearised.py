@@ -22,12 +22,12 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import lsq_linear
 
 from ....sweeps.domain import Point
 from ....sweeps.fit import FitResult, Parameter, Residuals
 from .. import explain
 from ..engine import Fits, screen_sse
+from ..linear_step import bounded_step
 from .base import Screened, ScreenSettings, ScreenStrategy, Singles, combinable, parameter_count
 
 ANCHORS = 2  # best single hypotheses (by full-fit SSE) linearised at, besides none
@@ -127,20 +127,17 @@ def linearise(
 
 def predict(lin: Linearisation, ids: tuple[str, ...], entries: Catalogue) -> tuple[dict[str, float], float]:
     """The bounded least-squares step for the set ``ids`` (a superset of the anchor's) with the calibrated
-    parameters free too, and the SSE the linearisation predicts for it. Columns are scaled by their
-    finite-difference steps, so that millimetres of antenna and hundreds of kilograms weigh alike."""
+    parameters free too, and the SSE the linearisation predicts for it (linear_step.bounded_step). Columns
+    are scaled by their finite-difference steps, so that millimetres of antenna and hundreds of kilograms
+    weigh alike."""
     free = [k for k, owner in enumerate(lin.owners) if not owner or owner in ids]
     params = [entries[lin.names[k]][1] for k in free]
     x = np.array([lin.point.get(p.name, 0.0) for p in params])
+    lower = np.minimum(np.array([p.lower for p in params]) - x, 0.0)  # a point just outside stays feasible
+    upper = np.maximum(np.array([p.upper for p in params]) - x, 0.0)
     steps = np.array([p.step for p in params])
-    lower = (np.array([p.lower for p in params]) - x) / steps
-    upper = (np.array([p.upper for p in params]) - x) / steps
-    lower, upper = np.minimum(lower, 0.0), np.maximum(upper, 0.0)  # a point just outside stays feasible
-    scaled = lin.jacobian[:, free] * steps
-    solved = lsq_linear(scaled, -lin.residuals, bounds=(lower, upper), method="bvls")
-    delta = solved.x * steps
-    predicted = lin.residuals + lin.jacobian[:, free] @ delta
-    return {p.name: float(d) for p, d in zip(params, delta)}, float(predicted @ predicted)
+    delta, sse = bounded_step(lin.jacobian[:, free], lin.residuals, lower, upper, steps)
+    return {p.name: float(d) for p, d in zip(params, delta)}, sse
 
 
 def anchor_of(ids: tuple[str, ...], anchors: Sequence[Anchor]) -> Anchor:

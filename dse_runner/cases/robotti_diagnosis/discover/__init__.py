@@ -22,12 +22,13 @@ missing physics is sought among the correction block's terms (correction.py), in
    change mid-run sets in, a steering rate limit): each shape is first scanned for the value at which its
    channel's equation error is least (:func:`find_shape`), and its terms are offered only if they then cut
    that channel's leave-one-run-out error by SHAPE_GAIN (:func:`shape_gain`); the fits hold the value.
-2. **Rank on positions** (one sweep). Equation error sees the model's own misfit too, so the order it
-   gives mixes channels unfairly (a pair of steering terms can outrank the antenna terms they stand in
-   for). The terms every channel supports compete instead on what each does to the fix residuals,
-   linearised at the parent fit (one probe per term, as the linearised screen does for effects): forward
-   selection, the parent's parameters refitted within their bounds, while the predicted BIC falls by the
-   extended margin's share of each term (:func:`rank_on_positions`).
+2. **Rank on positions** (one sweep, the engine's: analysis/diagnose/term_ranking.py). Equation error sees
+   the model's own misfit too, so the order it gives mixes channels unfairly (a pair of steering terms can
+   outrank the antenna terms they stand in for). The terms every channel supports compete instead on what
+   each does to the fix residuals, linearised at the parent fit (one probe per term, as the linearised
+   screen does for effects): forward selection, the parent's parameters refitted within their bounds, while
+   the predicted BIC falls by the extended margin's share of each term. The search says only which
+   parameter a term is and which shapes its probe holds (search.py).
 3. **Prove** (the same sweeps as the library). The chosen terms are freed as ``corr_*`` parameters of
    the effects FMU and fitted on positions jointly with the calibrated parameters and R's effects (R + D),
    and without R (D alone). Terms within two standard errors of zero are pruned, their slots refilled in
@@ -39,10 +40,10 @@ missing physics is sought among the correction block's terms (correction.py), in
 Equation-error coefficients are biased by noise in the recorded state, so they are only starting values:
 the fits size the terms on positions.
 
-The stages live in their own modules, in the order data flows: observe, propose, rank_terms, and search,
-the term search the engine's discovery runs (analysis/diagnose/discovery.py: per-fold proposals, settling,
-the proof, acceptance and the resemblance to library effects are the engine's); this package re-exports
-what the workflow and the tests use.
+The stages live in their own modules, in the order data flows: observe, propose, and search, the term
+search the engine's discovery runs (analysis/diagnose/discovery.py: the ranking on positions, per-fold
+proposals, settling, the proof, acceptance and the resemblance to library effects are the engine's); this
+package re-exports what the workflow and the tests use.
 """
 
 from .observe import OUTPUT, ChannelRegression, Observed, observe, vehicle_values
@@ -56,8 +57,8 @@ from .propose import (
     find_shape,
     propose,
     regressions,
+    searched_count,
 )
-from .rank_terms import rank_on_positions, searched_count
 from .search import CorrectionSearch
 
 __all__ = [
@@ -74,7 +75,6 @@ __all__ = [
     "find_shape",
     "observe",
     "propose",
-    "rank_on_positions",
     "regressions",
     "searched_count",
     "vehicle_values",

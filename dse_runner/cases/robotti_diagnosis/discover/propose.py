@@ -165,6 +165,14 @@ def find_shape(refs: Sequence[Reference], shape: correction.Shape) -> float:
     return float(min([coarse[k], *np.linspace(low, high, 21)], key=sse))
 
 
+def searched_count() -> int:
+    """How many terms the proposal chooses among: the extended BIC charges for the search. A shaped term
+    counts once per value scanned (a step at each onset time is a term of its own)."""
+    return sum(
+        SCANNED if correction.shape_of(t) else 1 for t in correction.searched_terms() if t.channel in CHANNELS
+    )
+
+
 def searched_shapes() -> list[correction.Shape]:
     """The shapes some searched term depends on."""
     return list({sh.name: sh for t in correction.searched_terms() if (sh := correction.shape_of(t))}.values())
@@ -259,8 +267,8 @@ def propose(
 ) -> CorrectionProposal:
     """The few terms the error of every channel supports: per channel the STLSQ threshold of least
     leave-one-run-out error, then a seeded bootstrap over runs; terms picked in at least ``INCLUSION`` of the
-    resamples, at most ``max_terms`` in all (the order only until :func:`screened` re-ranks them on
-    positions), the dynamic channels' before the antenna's (a misfit of the
+    resamples, at most ``max_terms`` in all (the order only until the engine re-ranks them on the fix
+    residuals, analysis/diagnose/term_ranking.py), the dynamic channels' before the antenna's (a misfit of the
     dynamics shows in the fix residuals too, integrated, so the antenna's channels are the fallback: they
     take the slots the fits free, :func:`refilled`), then the most often picked and the largest first."""
     rng = np.random.default_rng(seed)

@@ -1,9 +1,10 @@
-"""Discovery, stage 3: the Robotti's term search as the engine runs it (analysis/diagnose/discovery.py):
-terms proposed from each parent fit's equation error (propose.py), ranked on positions (rank_terms.py) and
-freed as the correction block's ``corr_*`` parameters of the effects FMU (correction.py).
+"""Discovery, stage 2: the Robotti's term search as the engine runs it (analysis/diagnose/discovery.py):
+terms proposed from each parent fit's equation error (propose.py) and freed as the correction block's
+``corr_*`` parameters of the effects FMU (correction.py), their shapes held.
 
-The engine then proposes on every fold's own runs, settles, proves and accepts them with the library's
-rule and the search charged; this module says only what a term of this vehicle is."""
+The engine then ranks the proposals on the fix residuals (analysis/diagnose/term_ranking.py), proposes on
+every fold's own runs, settles, proves and accepts them with the library's rule and the search charged;
+this module says only what a term of this vehicle is."""
 
 from __future__ import annotations
 
@@ -11,26 +12,25 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from ....analysis.diagnose.discovery import Parent, Proposal, TermSearch
 from ....analysis.diagnose.fitter import Fitter
-from ....sweeps.fit import FitProblem, FitResult, Residuals
+from ....analysis.diagnose.term_search import TermSearch
+from ....sweeps.fit import FitProblem, FitResult, Parameter, Residuals
 from .. import correction
 from .observe import Observed, vehicle_values
-from .propose import CorrectionProposal, propose, regressions
-from .rank_terms import held_shapes, screened, searched_count
+from .propose import CorrectionProposal, propose, regressions, searched_count
 
 
 @dataclass
 class CorrectionSearch(TermSearch):
     """The correction block's terms on ``vehicle``, proposed from the recorded ``runs`` (observe.py) at each
-    parent fit's values (the multi-model's ``fixed`` ones under them), ranked at ``fits``."""
+    parent fit's values (the multi-model's ``fixed`` ones under them); ``fits``: the whole diagnosis' (a
+    proposal on all its scenarios sizes the terms)."""
 
     fits: Fitter | None = None
     vehicle: str = "vehicle"
     runs: Sequence[Observed] = ()
     fixed: Mapping[str, Any] = field(default_factory=dict)
     max_terms: int = 3
-    bic_margin: float = 10.0
     rms: dict[str, float] = field(default_factory=dict)  # each term's feature RMS over the runs: its bound
 
     @property
@@ -54,9 +54,19 @@ class CorrectionSearch(TermSearch):
         self.rms.update(found.rms if whole else {v: x for v, x in found.rms.items() if v not in self.rms})
         return found
 
-    def ranked(self, parents: Mapping[str, Parent]) -> dict[str, Proposal]:
-        assert self.fits is not None, "ranking on positions simulates: the search needs the fits"
-        return screened(self.fits, self.vehicle, parents, self.rms, self.max_terms, self.bic_margin)
+    def parameter(self, variable: str, start: float = 0.0) -> Parameter:
+        """The term bounded by correction.bound over the runs' feature RMS, from ``start`` (clipped in)."""
+        return correction.parameter(correction.term(variable), self.vehicle, self.rms.get(variable), start)
+
+    def held(self, shapes: Mapping[str, float], variables: Sequence[str]) -> dict[str, float]:
+        """The shapes the terms ``variables`` depend on, as the vehicle's parameters at their found values (a
+        shape no term uses changes nothing, and leaving it at its default keeps the points the store has)."""
+        out = {}
+        for v in variables:
+            shape = correction.shape_of(correction.term(v))
+            if shape is not None and shape.variable in shapes:
+                out[f"{self.vehicle}.{shape.variable}"] = shapes[shape.variable]
+        return out
 
     def with_terms(
         self,
@@ -68,18 +78,15 @@ class CorrectionSearch(TermSearch):
         """Each term bounded by correction.bound over the runs' feature RMS; the shapes the terms depend on
         held at their values in ``shapes``."""
         extra = tuple(
-            correction.parameter(
-                correction.term(variable),
-                self.vehicle,
-                self.rms.get(variable),
-                start.get(f"{self.vehicle}.{variable}", value),
-            )
+            self.parameter(variable, start.get(f"{self.vehicle}.{variable}", value))
             for variable, value in terms.items()
         )
         names = {p.name for p in extra}
-        held = held_shapes(shapes, self.vehicle, list(terms))
         return replace(
             problem,
             parameters=problem.parameters + extra,
-            fixed={**{k: v for k, v in problem.fixed.items() if k not in names}, **held},
+            fixed={
+                **{k: v for k, v in problem.fixed.items() if k not in names},
+                **self.held(shapes, list(terms)),
+            },
         )
