@@ -8,7 +8,8 @@ screen, a strategy chosen by name), ``explain`` (how candidates are judged: BIC,
 verdict), ``lookalike`` (the evidence between twin answers and the rule by which it decides), ``proof``
 (searched terms chosen again on each fold),
 ``noise`` (noise from a recording alone), ``findings`` and ``answer`` (what is named, in the one JSON
-shape), ``report`` (the page every diagnosis is read on, drawn from that JSON; a library adds its own
+shape), ``outcome`` (what a diagnosis found, which every library's result subclasses and which builds that
+JSON), ``report`` (the page every diagnosis is read on, drawn from that JSON; a library adds its own
 sections) and ``report_html``. The built-in library is ``signal_library`` (late, sluggish, scaled or biased
 inputs and outputs of any FMU, limits of its states, and physical terms inside its model-exchange FMUs:
 ``signal_hypotheses``, ``term_hypotheses`` over ``derivatives``), with its steps
@@ -28,12 +29,14 @@ from .library import (
     serving,
     space_with,
 )
+from .outcome import Outcome
 from .report import Section
 
 __all__ = [
     "EffectParameter",
     "Hypothesis",
     "HypothesisLibrary",
+    "Outcome",
     "Request",
     "Result",
     "Section",

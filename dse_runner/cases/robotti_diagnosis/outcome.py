@@ -136,6 +136,7 @@ class Diagnosis(Outcome):
 
     @property
     def verdict_text(self) -> str:
+        """The verdict in an engineer's words (verdict_words, below)."""
         return verdict_words(self)
 
     @property
