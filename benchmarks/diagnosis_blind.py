@@ -78,10 +78,10 @@ def single_row(effect: str, result, seconds: float) -> str:
     truth = LIBRARY[effect].magnitude(blind.EFFECTS[effect])
     estimate = first.get("magnitude", 0.0)
     error = f"{(estimate / truth - 1) * 100:+.1f}%" if truth else "-"
-    ratio = result.cross_track_after / result.cross_track_before
+    ratio = result.held_out_after / result.held_out_before
     return (
         f"{effect:<16} {truth:>8.4g} {first['id']:<16} {estimate:>9.4g} {error:>7} "
-        f"{result.cross_track_before:>10.3f} {result.cross_track_after:>10.3f} {ratio:>12.3f} {seconds:>8.1f}"
+        f"{result.held_out_before:>10.3f} {result.held_out_after:>10.3f} {ratio:>12.3f} {seconds:>8.1f}"
     )
 
 
@@ -93,7 +93,7 @@ def pair_row(pair: str, result, seconds: float) -> tuple[str, bool]:
     floor = f"{result.floor.cross_track:>9.3f}" if result.floor.available else f"{'-':>9}"
     return (
         f"{pair:<32} {chosen:<32} {up.other if up else '-':<40} {'yes' if passed else 'NO':>7} "
-        f"{result.cross_track_before:>10.3f} {result.cross_track_after:>10.3f} {floor} {result.verdict:<11} "
+        f"{result.held_out_before:>10.3f} {result.held_out_after:>10.3f} {floor} {result.verdict:<11} "
         f"{seconds:>8.1f}"
     ), passed
 
@@ -121,11 +121,11 @@ def outside_row(name: str, result, seconds: float) -> str:
     library = [e for e in result.effects if e["id"] not in ("none", "discovered")]
     partial = "-" if not library else "yes" if all(e.get("partial") for e in library) else "NO"
     found = blind.discovered_entry(result)
-    best = found["held_out_without"] if found else result.cross_track_after
+    best = found["held_out_without"] if found else result.held_out_after
     resembles = found["resembles"]["text"] if found and found.get("resembles") else "-"
     return (
         f"{name:<17} {truth:<48} {named:<40} {result.verdict:<11} {partial:>7} "
-        f"{result.cross_track_before:>10.3f} {best:>11.3f} {result.cross_track_after:>10.3f} "
+        f"{result.held_out_before:>10.3f} {best:>11.3f} {result.held_out_after:>10.3f} "
         f"{floor_of(result)} {'yes' if blind.outside_target(result) else 'no':>4} "
         f"{seconds:>8.1f}  {discovered(result)} | {resembles}"
     )
@@ -142,7 +142,7 @@ def noise_row(name: str, result, seconds: float) -> str:
     estimate = f"{result.floor.sigma:>9.4f}" if result.floor.available else f"{'-':>9}"
     return (
         f"{name:<15} {receiver:<36} {named:<24} {case.noise:>9.4f} {estimate} "
-        f"{result.cross_track_before:>10.3f} {result.cross_track_after:>10.3f} {floor_of(result)} "
+        f"{result.held_out_before:>10.3f} {result.held_out_after:>10.3f} {floor_of(result)} "
         f"{result.verdict:<11} {'yes' if blind.noise_target(result, case.noise) else 'no':>4} {seconds:>8.1f}"
     )
 

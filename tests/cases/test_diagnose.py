@@ -45,7 +45,7 @@ def test_a_concealed_effect_is_named_sized_and_fixed(cases, effect):
     assert named[0] == effect, f"named {named}, candidates {[c.label for c in result.candidates]}"
     truth = LIBRARY[effect].magnitude(blind.EFFECTS[effect])
     assert result.effects[0]["magnitude"] == pytest.approx(truth, rel=0.25)
-    assert result.cross_track_after <= 0.5 * result.cross_track_before
+    assert result.held_out_after <= 0.5 * result.held_out_before
     low, high = zip(*result.effects[0]["interval"].values())
     assert all(lo <= v <= hi for lo, v, hi in zip(low, result.effects[0]["parameters"].values(), high))
     assert result.verdict == "explained" and not result.effects[0]["partial"]  # down to the 2 cm noise
@@ -73,7 +73,7 @@ def test_concealed_pairs_are_both_named(cases, pair):
     assert set(blind.CASES[pair].effects) <= set(named), (
         f"named {named}, candidates {[(c.label, round(c.cross_validated, 4)) for c in result.candidates]}"
     )
-    assert result.cross_track_after <= 0.5 * result.cross_track_before
+    assert result.held_out_after <= 0.5 * result.held_out_before
     assert result.verdict == "explained"
 
 
@@ -97,7 +97,7 @@ def test_an_effect_outside_the_library_is_discovered(cases):
     # the same proof as every diagnosis: each fold chose its own terms, and their error is what is claimed
     proof = result.to_json()["case"]["discovery"]["proof"]
     assert len(proof["folds"]) == len(result.calibration["folds"]) and proof["offered"] > 100
-    assert proof["held_out"] == pytest.approx(result.cross_track_after)
+    assert proof["held_out"] == pytest.approx(result.held_out_after)
     assert "folds" in result.files["report"].read_text().split("Proof:")[1][:200]
 
 
@@ -164,7 +164,7 @@ def test_heavy_noise_and_long_outages_claim_nothing(cases):
 def test_noise_only_reports_nothing_missing(cases):
     _, _, _, result = cases("none")
     assert [e["id"] for e in result.effects] == ["none"]
-    assert result.cross_track_after == result.cross_track_before
+    assert result.held_out_after == result.held_out_before
     assert "multimodel" not in result.files
     assert result.verdict == "none" and result.discovery is None  # nothing above the noise to seek
     assert result.floor.sigma == pytest.approx(blind.NOISE, rel=0.10)  # from the files alone
@@ -228,8 +228,8 @@ def test_cli_json_resumes_from_the_store(cases, dask_scheduler):
     assert done.returncode == 0, done.stderr
     printed = strict_loads(done.stdout)
     assert [e["id"] for e in printed["effects"]] == [e["id"] for e in result.effects]
-    assert printed["held_out_before"] == pytest.approx(result.cross_track_before)
-    assert printed["held_out_after"] == pytest.approx(result.cross_track_after)
+    assert printed["held_out_before"] == pytest.approx(result.held_out_before)
+    assert printed["held_out_after"] == pytest.approx(result.held_out_after)
     assert set(printed["effects"][0]) >= {"id", "parameters", "interval", "partial"}
     assert printed["verdict"] == result.verdict
     assert printed["noise_floor"]["held_out"] == pytest.approx(result.floor.cross_track)

@@ -277,10 +277,10 @@ def diagnosis(chosen_ids: tuple[str, ...], floor: float, factor: float = 2.0) ->
     return Diagnosis(
         Path("/nowhere"),
         {"vehicle": "vehicle"},
-        cands,
-        chosen,
-        baseline,
         DiagnosisSettings(noise_factor=factor),
+        baseline=baseline,
+        chosen=chosen,
+        candidates=cands,
         floor=nf,
     )
 
@@ -975,9 +975,9 @@ def test_discovered_terms_in_json_and_verdict(tmp_path):
     d = Diagnosis(
         tmp_path,
         {"vehicle": "vehicle"},
-        [found, none],
-        found,
-        none,
+        baseline=none,
+        chosen=found,
+        candidates=[found, none],
         floor=noise.NoiseFloor(0.02, 0.025, noise.CLOSE_FIXES, 100),
         discovery=discovery.Discovery(
             none,
@@ -1010,9 +1010,9 @@ def test_a_correction_that_leaves_a_residual_is_partial(tmp_path):
     d = Diagnosis(
         tmp_path,
         {"vehicle": "vehicle"},
-        [found, none],
-        found,
-        none,
+        baseline=none,
+        chosen=found,
+        candidates=[found, none],
         floor=noise.NoiseFloor(0.02, 0.025, noise.CLOSE_FIXES, 100),
         discovery=discovery.Discovery(
             none,

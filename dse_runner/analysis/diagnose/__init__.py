@@ -11,7 +11,8 @@ decides), ``response`` (a response's form: a delay, a lag or a gain, which tells
 contract a case's search implements, ``term_ranking`` which proposed terms the residuals want first, with
 the bounded step of ``linear_step`` the linearised screen uses too),
 ``noise`` (noise from a recording alone), ``findings`` and ``answer`` (what is named, in the one JSON
-shape), ``report`` (the page every diagnosis is read on, drawn from that JSON; a library adds its own
+shape), ``outcome`` (what a diagnosis found, which every library's result subclasses and which builds that
+JSON), ``report`` (the page every diagnosis is read on, drawn from that JSON; a library adds its own
 sections) and ``report_html``. The built-in library is ``signal_library`` (late, sluggish, scaled or biased
 inputs and outputs of any FMU, limits of its states, and physical terms inside its model-exchange FMUs:
 ``signal_hypotheses``, ``term_hypotheses`` over ``derivatives``), with its steps
@@ -31,12 +32,14 @@ from .library import (
     serving,
     space_with,
 )
+from .outcome import Outcome
 from .report import Section
 
 __all__ = [
     "EffectParameter",
     "Hypothesis",
     "HypothesisLibrary",
+    "Outcome",
     "Request",
     "Result",
     "Section",

@@ -67,12 +67,13 @@ from .hypotheses import Hypothesis as LibraryHypothesis
 from .library import HypothesisLibrary, Messages, Request, space_with
 from .noise import NoiseEstimate, Whiteness, estimate_noise, whiteness
 from .one_thread import one_thread
+from .outcome import Outcome
 from .proof import Proof, honest
 from .report import Section
 from .signal_hypotheses import PHYSICS, SignalHypothesis, shares, signal_hypotheses, state_hypotheses
 from .term_hypotheses import readable as term_readable
 from .term_hypotheses import rivals, shown, term_hypotheses, term_names
-from .validation import Validation, validated
+from .validation import validated
 
 FITS = "diagnosis-signal-fits"  # the sweep every fit's rounds go to
 CALIBRATION_FITS = "diagnosis-calibration"  # the sweep the calibration's least squares goes to
@@ -100,102 +101,83 @@ class Compared:
 
 
 @dataclass
-class SignalDiagnosis:
-    """What the library of signal effects explains of the mismatch between a space's model and recordings."""
+class SignalDiagnosis(Outcome):
+    """What the library of signal effects explains of the mismatch between a space's model and recordings
+    (the engine's Outcome), judged in noise floors: each compared signal's residuals over its noise."""
+
+    library_name = "signals"
+    held_out_unit = "noise floors (RMS of each compared signal's residuals over its recording's noise)"
 
     compared: list[Compared]
-    baseline: Candidate
-    chosen: Candidate
-    candidates: list[Candidate]
     verdict: str
+    verdict_text: str = ""
     hypotheses: dict[str, SignalHypothesis] = field(default_factory=dict)
     noise_factor: float = explain.NOISE_FACTOR  # held-out error above this many floors is unexplained
-    screen: answer_.Screen | None = None  # what the combination screen did
-    lookalikes: list[signal_claims.FitsAlike] = field(default_factory=list)
     decided: list[Decided] = field(default_factory=list)  # members against their look-alikes across the skin
     proof: Proof | None = None  # the terms inside the model chosen again on each fold
-    dropped: list[explain.Dropped] = field(default_factory=list)
-    located: dict[str, Any] = field(default_factory=dict)
-    verdict_text: str = ""
-    name: str = ""  # the space diagnosed
-    files: dict[str, str] = field(default_factory=dict)
     figures: list[str] = field(
         default_factory=list
     )  # recorded against simulated, per compared signal and run
-    growth: list[dict[str, Any]] = field(default_factory=list)  # each round of one more effect: what it tried
-    validation: Validation | None = None  # what held-out means here
     whiteness: dict[str, Whiteness] = field(
         default_factory=dict
     )  # the chosen fit's residuals, per compared signal
 
-    def answer(self) -> answer_.Answer:
-        """The diagnosis in the one shape every library answers in (answer.py)."""
-        runner = explain.runner_up(self.chosen, self.candidates)
-        after = honest(self.chosen.cross_validated, self.proof)
-        return answer_.Answer(
-            library=SignalEffects.name,
-            space=self.name or None,
-            verdict=self.verdict,
-            verdict_text=self.verdict_text,
-            held_out_before=self.baseline.cross_validated,
-            held_out_after=after,
-            held_out_unit="noise floors (RMS of each compared signal's residuals over its recording's noise)",
-            noise_floor=answer_.NoiseFloor(
-                held_out=1.0,  # residuals are divided by each recording's noise
-                factor=self.noise_factor,
-                ratio=after,
-                method="each compared signal's noise, estimated from its recording alone",
-                details={c.signal: c.noise for c in self.compared},
-            ),
-            effects=[self._effect(name) for name in self.chosen.ids]
-            or [
-                answer_.nothing_missing(
-                    "no effect or term: what is left is the recordings' noise, or unexplained"
-                )
-            ],
-            runner_up=explain.evidence(self.chosen, runner).to_json() if runner is not None else None,
-            candidates=[answer_.CandidateEntry.of(c) for c in explain.ranked(self.candidates)],
-            dropped=[d.to_json() for d in self.dropped],
-            proof=self.proof.to_json() if self.proof is not None else None,
-            validation=self.validation.to_json() if self.validation is not None else None,
-            held_out=answer_.HeldOut.between(self.baseline, self.chosen),
-            lookalikes=[x.to_json() for x in self.lookalikes],
-            screen=self.screen,
-            growth=[answer_.Growth(**g) for g in self.growth],
-            calibrated=answer_.Fitted(  # the model before: none refitted alone
-                parameters=dict(self.baseline.full.values), at_bound=list(self.baseline.full.at_bound)
-            ),
-            fitted=answer_.Fitted(  # every value the chosen answer fitted
-                parameters=dict(self.chosen.full.values),
-                interval={k: list(v) for k, v in self.chosen.full.interval(serial=True).items()},
-                at_bound=list(self.chosen.full.at_bound),
-            ),
-            files={**self.files, "figures": self.figures} if self.files else {},
-            case={
-                "compared": [
-                    {
-                        "objective": c.objective,
-                        "signal": c.signal,
-                        "recorded": c.recorded,
-                        "noise": c.noise,
-                        "noise_estimate": c.estimate.to_json() if c.estimate else None,
-                    }
-                    for c in self.compared
-                ],
-                "whiteness": {signal: w.to_json() for signal, w in self.whiteness.items()},
-                "decided": [d.to_json() for d in self.decided],
-                "located": self.located,
-            },
+    def interval(self, fit: FitResult) -> dict[str, tuple[float, float]]:
+        """At least as wide as the residuals' serial correlation makes them: a signal's samples are no
+        independent draws (FitResult.interval)."""
+        return fit.interval(serial=True)
+
+    @property
+    def calibrated(self) -> answer_.Fitted:
+        """The model before, as calibrated: its values, with no interval quoted."""
+        return answer_.Fitted(
+            parameters=dict(self.baseline.full.values), at_bound=list(self.baseline.full.at_bound)
         )
 
-    def to_json(self) -> dict[str, Any]:
-        return self.answer().json_dict()
+    def noise_floor_entry(self) -> answer_.NoiseFloor:
+        return answer_.NoiseFloor(
+            held_out=1.0,  # residuals are divided by each recording's noise
+            factor=self.noise_factor,
+            ratio=self.held_out_after,
+            method="each compared signal's noise, estimated from its recording alone",
+            details={c.signal: c.noise for c in self.compared},
+        )
+
+    def effect_entries(self) -> list[answer_.Effect]:
+        return [self._effect(name) for name in self.chosen.ids] or [
+            answer_.nothing_missing(
+                "no effect or term: what is left is the recordings' noise, or unexplained"
+            )
+        ]
+
+    def written(self) -> dict[str, Any]:
+        """The files, and the figures of recorded against simulated per compared signal and run."""
+        return {**super().written(), "figures": self.figures} if self.files else {}
+
+    def case_fields(self) -> dict[str, Any]:
+        """The signals compared and their noise, whether the answer's residuals are white, the members
+        decided against their look-alikes across the model's skin, and where the misfit lies."""
+        return {
+            "compared": [
+                {
+                    "objective": c.objective,
+                    "signal": c.signal,
+                    "recorded": c.recorded,
+                    "noise": c.noise,
+                    "noise_estimate": c.estimate.to_json() if c.estimate else None,
+                }
+                for c in self.compared
+            ],
+            "whiteness": {signal: w.to_json() for signal, w in self.whiteness.items()},
+            "decided": [d.to_json() for d in self.decided],
+            "located": self.located,
+        }
 
     def _effect(self, name: str) -> answer_.Effect:
         hypothesis, fit = self.hypotheses[name], self.chosen.full
         values, intervals = {}, {}
         for kind, parameter in zip(hypothesis.kinds, hypothesis.parameters):
-            value, (low, high) = fit.values[parameter.name], fit.interval(serial=True)[parameter.name]
+            value, (low, high) = fit.values[parameter.name], self.interval(fit)[parameter.name]
             if parameter is hypothesis.parameters[0]:  # its resolution widens the interval
                 low, high = min(low, value - hypothesis.resolution), max(high, value + hypothesis.resolution)
             values[kind], intervals[kind] = value, [low, high]
@@ -266,13 +248,7 @@ class SignalDiagnosis:
             f"verdict: {found['verdict_text']}"
             + (f"; runner-up {found['runner_up']['id']}" if found["runner_up"] else "")
         )
-        if found["files"]:
-            lines.extend(
-                f"{name}: {found['files'][name]}"
-                for name in ("report", "html", "values")
-                if name in found["files"]
-            )
-        return lines
+        return lines + self.files_told(("report", "html", "values"))
 
 
 def compared_signals(space: Space) -> list[Compared]:
@@ -449,12 +425,14 @@ def diagnose_space(
     )
     diagnosis = SignalDiagnosis(
         compared,
-        baseline,
-        chosen,
-        everything,
         verdict,
-        library,
+        verdict_text=text,
+        hypotheses=library,
         noise_factor=noise_factor,
+        baseline=baseline,
+        chosen=chosen,
+        candidates=everything,
+        space=space.name,
         screen=screen_of(choice),
         growth=growth,
         validation=validation,
@@ -464,8 +442,6 @@ def diagnose_space(
         proof=proof,
         dropped=dropped,
         located=located,
-        verdict_text=text,
-        name=space.name,
     )
     figures = signal_figures.draw(
         residuals[baseline.label],
@@ -727,7 +703,7 @@ def scaled_rms(row: Mapping[str, Any] | None, scales: Mapping[str, float]) -> fl
 class SignalEffects(HypothesisLibrary):
     """The built-in library: every signal effect on every driven input and compared output, for any FMU."""
 
-    name = "signals"
+    name = SignalDiagnosis.library_name
     general = True
     screen = SCREEN
 

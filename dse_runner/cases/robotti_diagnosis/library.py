@@ -25,7 +25,7 @@ from .workflow import DEFAULT_SPACE, diagnose_calibration
 class RobottiLibrary(HypothesisLibrary):
     """Wheel slip, actuator lags, offsets, lever arm, slope and the discovered correction, on GPS fixes."""
 
-    name = "robotti"
+    name = Diagnosis.library_name
     calibration = DEFAULT_SPACE
     screen = SCREEN
 

@@ -1,5 +1,6 @@
-"""What a diagnosis is asked (DiagnosisSettings) and what it answers (Diagnosis): the JSON
-and the report are drawn from it."""
+"""What a diagnosis is asked (DiagnosisSettings) and what it found (Diagnosis, the engine's Outcome with the
+Robotti's fields: its calibration grid, GPS noise floor and discovery): the JSON and the report are drawn
+from it; and its verdict in an engineer's words."""
 
 from __future__ import annotations
 
@@ -13,12 +14,13 @@ from ...analysis.diagnose import discovery, explain, screens
 from ...analysis.diagnose.engine import MAX_EFFECTS
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.findings import DiscoveredCorrection, Finding, NamedEffect
-from ...analysis.diagnose.proof import honest
+from ...analysis.diagnose.outcome import Outcome
+from ...analysis.diagnose.proof import Proof
 from ...analysis.diagnose.report import ids
 from ...analysis.diagnose.validation import record_of
 from ...errors import DseError
 from ...simulation.scenario import dropouts_line
-from . import correction, lookalike, noise
+from . import correction, noise
 from .hypotheses import LIBRARY
 from .noise import NoiseFloor
 
@@ -89,24 +91,19 @@ class DiagnosisSettings:
 
 
 @dataclass
-class Diagnosis:
+class Diagnosis(Outcome):
+    """What the Robotti's diagnosis found (the engine's Outcome), judged in metres of cross-track error
+    against the GPS noise floor."""
+
+    library_name = "robotti"
+    held_out_unit = "m (mean cross-track error on held-out runs, Equation 1)"
+
     out: Path
     calibration: dict[str, Any]  # best grid point, parameters at a bound, insensitive scenarios
-    candidates: list[Candidate]  # every candidate fitted, best first
-    chosen: Candidate  # the baseline when nothing is missing
-    baseline: Candidate
     settings: DiagnosisSettings = DiagnosisSettings()
-    located: dict[str, Any] = field(
-        default_factory=dict
-    )  # locate.located: the residuals by group, segment, run
-    files: dict[str, Path] = field(default_factory=dict)
     dropouts: dict[str, int] = field(default_factory=dict)  # GPS fixes skipped per run (scenario.dropouts)
     floor: NoiseFloor = noise.UNKNOWN  # the GPS noise floor, estimated from the recordings alone
-    screen: answer_.Screen | None = None  # what the combination screen did (choice.screen_of)
-    growth: list[dict[str, Any]] = field(default_factory=list)  # each round of one more effect (engine.grown)
-    lookalikes: list[lookalike.LookAlike] = field(default_factory=list)  # the evidence between twin sets
     discovery: discovery.Discovery | None = None  # what was sought beyond the library; None if nothing was
-    dropped: list[explain.Dropped] = field(default_factory=list)  # members the noise rule took away
 
     @property
     def discovered(self) -> bool:
@@ -119,18 +116,28 @@ class Diagnosis:
         return self.discovery.reference if self.discovery is not None else self.chosen
 
     @property
+    def proof(self) -> Proof | None:
+        """The proof of the discovered correction's terms, when the chosen model carries it."""
+        return self.discovery.proof if self.discovered and self.discovery is not None else None
+
+    @property
     def verdict(self) -> str:
         """none, explained, partial, discovered or unexplained: the chosen model's held-out error against the
         noise floor; a discovered correction that passed the rule gives discovered when it leaves only noise,
         partial when it does not."""
         floor = self.floor.cross_track if self.floor.available else None
         return explain.verdict(
-            self.cross_track_after,
+            self.held_out_after,
             floor,
             self.settings.noise_factor,
             bool(discovery.library_ids(self.chosen.ids)),
             self.discovered,
         )
+
+    @property
+    def verdict_text(self) -> str:
+        """The verdict in an engineer's words (verdict_words, below)."""
+        return verdict_words(self)
 
     @property
     def verdict_line(self) -> str:
@@ -151,18 +158,18 @@ class Diagnosis:
     @property
     def floor_ratio(self) -> float | None:
         """The chosen model's held-out error as a multiple of the noise floor (None without a floor)."""
-        return self.cross_track_after / self.floor.cross_track if self.floor.available else None
+        return self.held_out_after / self.floor.cross_track if self.floor.available else None
 
-    @property
-    def runner_up(self) -> explain.Evidence | None:
-        """The best real alternative to the chosen candidate, with the evidence against it."""
-        other = explain.runner_up(self.chosen, self.candidates)
-        return explain.evidence(self.chosen, other) if other is not None else None
-
-    @property
-    def noise_floor(self) -> dict[str, Any]:
-        """The floor as JSON, with the factor the verdict used and the chosen model's ratio to it."""
-        return {**self.floor.to_json(), "factor": self.settings.noise_factor, "ratio": self.floor_ratio}
+    def noise_floor_entry(self) -> answer_.NoiseFloor:
+        """The GPS noise floor, with the factor the verdict used and the chosen model's ratio to it."""
+        floor = self.floor
+        return answer_.NoiseFloor(
+            held_out=floor.cross_track if floor.available else None,
+            factor=self.settings.noise_factor,
+            ratio=self.floor_ratio,
+            method=floor.method,
+            details=floor.to_json(),
+        )
 
     @property
     def findings(self) -> list[Finding]:
@@ -178,11 +185,14 @@ class Diagnosis:
         """The findings as the JSON's ``effects``."""
         return [finding.to_json() for finding in self.findings]
 
+    def effect_entries(self) -> list[answer_.Effect]:
+        return [answer_.Effect(**effect) for effect in self.effects]
+
     def _discovered(self) -> DiscoveredCorrection:
         """The discovered correction: its terms in readable form, its held-out gain over the library's best
         and the library effect it resembles most."""
         fit = self.chosen.full
-        interval = fit.interval()
+        interval = self.interval(fit)
         terms = correction.terms_json(fit)
         similar = self.discovery.resembles if self.discovery is not None else []
         return DiscoveredCorrection(
@@ -213,7 +223,7 @@ class Diagnosis:
         h, fit = LIBRARY[hid], self.chosen.full
         refs = {v: f"{self.calibration['vehicle']}.{v}" for v in h.variables}
         values = {v: fit.values[ref] for v, ref in refs.items()}
-        interval = fit.interval()
+        interval = self.interval(fit)
         return NamedEffect(
             hid,
             h.name,
@@ -223,25 +233,20 @@ class Diagnosis:
             partial=self.partial,
         )
 
-    @property
-    def cross_track_before(self) -> float:
-        return self.baseline.cross_validated
+    def groups(self) -> dict[str, str | None]:
+        """Each held-out run's group (a block of time: its record's)."""
+        groups = self.calibration.get("groups") or {}
+        return {s: groups.get(record_of(s)) for s in self.baseline.held_out}
 
-    @property
-    def cross_track_after(self) -> float:
-        """The chosen model's held-out error; with discovered terms, their proof's (proof.honest)."""
-        proof = self.discovery.proof if self.discovered and self.discovery is not None else None
-        return honest(self.chosen.cross_validated, proof)
-
-    @property
-    def fitted(self) -> dict[str, Any]:
-        """Every parameter of the chosen model as fitted jointly (calibrated ones and effects), with ~95 %
-        intervals: what a later study on the diagnosed plant starts from, e.g. plants drawn for robustness."""
-        fit = self.chosen.full
+    def case_fields(self) -> dict[str, Any]:
+        """What only the Robotti has: its settings, calibration grid, equation-error discovery, GPS dropouts
+        and where the residuals lie (by group, segment and run)."""
         return {
-            "parameters": dict(fit.values),
-            "interval": {k: list(v) for k, v in fit.interval().items()},
-            "at_bound": list(fit.at_bound),
+            "settings": asdict(self.settings),
+            "calibration": self.calibration,
+            "discovery": self.discovery.to_json() if self.discovery is not None else None,
+            "dropouts": self.dropouts,
+            "located": self.located,
         }
 
     def summary(self) -> list[str]:
@@ -258,75 +263,13 @@ class Diagnosis:
             values = finding.described()
             lines.append(f"{finding.id}: {finding.name}" + (f": {values}" if values else ""))
         lines.append(
-            f"held-out mean cross-track error: {self.cross_track_before:.3f} m before, "
-            f"{self.cross_track_after:.3f} m after"
+            f"held-out mean cross-track error: {self.held_out_before:.3f} m before, "
+            f"{self.held_out_after:.3f} m after"
         )
         lines.append(f"verdict: {self.verdict_line}")
         if self.dropouts:
             lines.append(dropouts_line(self.dropouts))
-        lines.extend(
-            f"{name}: {self.files[name]}"
-            for name in ("multimodel", "space", "report", "html")
-            if name in self.files
-        )
-        return lines
-
-    @property
-    def held_out(self) -> list[answer_.HeldOut]:
-        """Each run (or block of time) held out: the calibrated model's error, the chosen one's, its group."""
-        groups = self.calibration.get("groups") or {}
-        return answer_.HeldOut.between(
-            self.baseline, self.chosen, {s: groups.get(record_of(s)) for s in self.baseline.held_out}
-        )
-
-    def answer(self) -> answer_.Answer:
-        """The diagnosis in the one shape every library answers in (analysis/diagnose/answer.py); what only
-        the Robotti has (its calibration grid, screen and equation-error discovery) under ``case``."""
-        up, floor = self.runner_up, self.floor
-        discovery = self.discovery
-        return answer_.Answer(
-            library="robotti",
-            space=self.calibration.get("sweep"),
-            verdict=self.verdict,
-            verdict_text=verdict_words(self),
-            held_out_before=self.cross_track_before,
-            held_out_after=self.cross_track_after,
-            held_out_unit="m (mean cross-track error on held-out runs, Equation 1)",
-            noise_floor=answer_.NoiseFloor(
-                held_out=floor.cross_track if floor.available else None,
-                factor=self.settings.noise_factor,
-                ratio=self.floor_ratio,
-                method=floor.method,
-                details=floor.to_json(),
-            ),
-            effects=[answer_.Effect(**finding.to_json()) for finding in self.findings],
-            runner_up=up.to_json() if up is not None else None,
-            candidates=[answer_.CandidateEntry.of(c) for c in self.candidates],
-            dropped=[d.to_json() for d in self.dropped],
-            proof=discovery.proof.to_json() if self.discovered and discovery and discovery.proof else None,
-            validation=self.calibration.get("validation"),
-            held_out=self.held_out,
-            lookalikes=[look.to_json() for look in self.lookalikes],
-            screen=self.screen,
-            growth=[answer_.Growth(**g) for g in self.growth],
-            calibrated=answer_.Fitted(
-                parameters=dict(self.baseline.full.values),
-                interval={k: list(v) for k, v in self.baseline.full.interval().items()},
-                at_bound=list(self.baseline.full.at_bound),
-            ),
-            fitted=self.fitted,
-            files={k: str(v) for k, v in self.files.items()},
-            case={
-                "settings": asdict(self.settings),
-                "calibration": self.calibration,
-                "discovery": discovery.to_json() if discovery is not None else None,
-                "dropouts": self.dropouts,
-                "located": self.located,  # where the residuals lie, by group, segment and run
-            },
-        )
-
-    def to_json(self) -> dict[str, Any]:
-        return self.answer().json_dict()
+        return lines + self.files_told(("multimodel", "space", "report", "html"))
 
 
 # ---- the verdict in an engineer's words: the answer's verdict_text -----------------------------------
@@ -336,7 +279,7 @@ def verdict_words(diagnosis: Diagnosis) -> str:
     """The verdict in an engineer's words: the chosen model's held-out error against the noise floor (the
     report puts the verdict itself before them)."""
     verdict, floor = diagnosis.verdict, diagnosis.floor
-    after = diagnosis.cross_track_after
+    after = diagnosis.held_out_after
     factor = diagnosis.settings.noise_factor
     chosen = ids(diagnosis.chosen.label) if diagnosis.chosen.ids else ""
     if not floor.available:
