@@ -41,11 +41,10 @@ from ...sweeps.cluster import connect
 from ...sweeps.expand import key_of
 from ...sweeps.fit import FitProblem, FitResult, Parameter
 from ...sweeps.fit_rounds import evaluate_points, fit_all
-from ...sweeps.rank import rank
 from ...sweeps.spec import Space, derived_space
-from ...sweeps.sweep import submit
 from . import answer as answer_
 from . import explain, lookalike, screens, signal_claims, signal_figures, signal_locate, signal_report
+from .calibration import parameters_at, searched
 from .choice import choose, screen_of
 from .derivatives import model_exchange_instances, observe
 from .engine import (
@@ -313,19 +312,6 @@ def restricted(found: dict[str, SignalHypothesis], only: Sequence[str]) -> dict[
     return {name: h for name, h in found.items() if not only or name in only}
 
 
-def calibration(space: Space, best: Mapping[str, Any]) -> tuple[Parameter, ...]:
-    """The space's numeric parameters with a range, from ``best`` (its own sweep's best point, when it is a
-    grid) or else from the middle of each interval."""
-    params = []
-    for name, values in space.parameters.items():  # a grid's values, or an interval's ends
-        numbers = [float(v) for v in values if isinstance(v, (int, float)) and not isinstance(v, bool)]
-        if len(numbers) == len(values) and len(set(numbers)) > 1:
-            low, high = min(numbers), max(numbers)
-            start = float(best.get(name, 0.5 * (low + high)))
-            params.append(Parameter(name, start, low, high, DIFFERENCE * (high - low)))
-    return tuple(params)
-
-
 def fits_space(
     space: Space, compared: Sequence[Compared], hypotheses: Mapping[str, SignalHypothesis], name: str = FITS
 ) -> Space:
@@ -498,20 +484,8 @@ def _calibrated(
 ) -> tuple[tuple[Parameter, ...], dict[str, Any]]:
     """Where every effect's fit starts: the space's calibration (its own search's best point, refined by
     least squares), and the parameters it gives one value, held there."""
-    best: dict[str, Any] = {}
-    if space.dimensions and space.spec.search.strategy != "given":
-        search = space.spec.search
-        say(
-            f"calibrating: {space.name}, "
-            + (
-                "the space's grid"
-                if search.strategy == "exhaustive"
-                else f"{search.strategy} over its intervals, {search.max_points} points"
-            )
-        )
-        submit(space, client=client)
-        best = rank(space.output, space.name).best
-    base = calibration(space, best)
+    ranking = searched(space, client, say)
+    base = parameters_at(space, ranking.best if ranking is not None else {}, DIFFERENCE)
     calibrated = {p.name for p in base}
     held = {name: values[0] for name, values in space.parameters.items() if name not in calibrated}
     if base:

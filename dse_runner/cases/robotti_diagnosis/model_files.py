@@ -12,6 +12,7 @@ import yaml
 
 from ... import bundled
 from ...analysis.diagnose import discovery
+from ...analysis.diagnose.calibration import parameters_at
 from ...errors import DseError
 from ...simulation.multimodel import MultiModel, split_ref
 from ...sweeps.domain import Range
@@ -24,6 +25,7 @@ from .hypotheses import EFFECTS_FMU, effect_variables, hypothesis
 from .outcome import Diagnosis
 
 FITS = "diagnosis-fits"  # the sweep every fit's rounds go to
+STEP = 0.01  # a calibrated parameter's finite-difference step, as a share of its range
 
 
 def vehicle_of(calibration: Space) -> str:
@@ -72,17 +74,12 @@ def _write_yaml(path: Path, data: dict[str, Any], header: str = "") -> Path:
 
 
 def base_parameters(calibration: Space, best: dict[str, Any]) -> tuple[Parameter, ...]:
-    """The calibration's numeric parameters with more than one value, bounded by their range,
-    starting from the grid's best point."""
-    params = []
-    for name, values in calibration.parameters.items():
-        numbers = [v for v in values if isinstance(v, float)]
-        if len(numbers) == len(values) and len(set(numbers)) > 1:
-            lower, upper = min(numbers), max(numbers)
-            params.append(Parameter(name, float(best[name]), lower, upper, 0.01 * (upper - lower)))
+    """The calibration's parameters with a range (calibration.parameters_at), starting from the grid's
+    best point, with a finite-difference step of a hundredth of each range; none is an error."""
+    params = parameters_at(calibration, best, STEP)
     if not params:
         raise DseError(f"{calibration.path}: no numeric parameter with a range to calibrate")
-    return tuple(params)
+    return params
 
 
 def fits_space(calibration: Space, vehicle: str, out: Path) -> Space:

@@ -7,16 +7,17 @@ from pathlib import Path
 from typing import Any
 
 from ...analysis.diagnose import discovery, explain, screens
+from ...analysis.diagnose.calibration import searched
 from ...analysis.diagnose.choice import choose, screen_of
 from ...analysis.diagnose.explain import Candidate
 from ...analysis.diagnose.library import space_with
 from ...analysis.diagnose.one_thread import one_thread
 from ...analysis.diagnose.validation import Validation, validated
+from ...errors import DseError
 from ...simulation.scenario import dropouts
 from ...sweeps.cluster import connect
-from ...sweeps.rank import rank
 from ...sweeps.spec import Space
-from ...sweeps.sweep import submit, trajectories_of
+from ...sweeps.sweep import trajectories_of
 from . import correction, discover, locate, lookalike, noise
 from .chain import Chain, DiagnosisMessages
 from .model_files import base_parameters, fits_space, steering_source, vehicle_of, write_model
@@ -143,9 +144,12 @@ def _diagnose(
             f"noise floor: GPS sigma {floor.sigma:.4f} m ({floor.method}, {floor.fixes} fixes), "
             f"{floor.cross_track:.4f} m of cross-track error"
         )
-    say(f"calibrating: the {calibration.name} grid on {len(calibration.scenarios)} runs")
-    submit(calibration, client=client)
-    grid = rank(out, calibration.name)
+    grid = searched(calibration, client, say)
+    if grid is None:
+        raise DseError(
+            f"{calibration.path}: searches nothing to calibrate from (no parameter with a range, or its "
+            "points given as they are)"
+        )
     vehicle = vehicle_of(calibration)
     base = base_parameters(calibration, grid.best)
     space, validation = validated(fits_space(calibration, vehicle, out), settings.folds, list(FIX_COLUMNS))
