@@ -96,9 +96,6 @@ class Terms(TermSearch):
     def propose(self, parent, scenarios, residuals):  # the proposals are given
         raise NotImplementedError
 
-    def with_terms(self, problem, terms, start, shapes):
-        raise NotImplementedError
-
 
 class Linear:
     """A fitter whose residuals are linear in the terms: the recording is 0.3 of ``wanted``'s column, each
