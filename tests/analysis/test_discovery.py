@@ -11,7 +11,7 @@ import pytest
 from dse_runner.analysis.diagnose import discovery
 from dse_runner.analysis.diagnose.explain import Candidate
 from dse_runner.analysis.diagnose.term_search import TermSearch
-from dse_runner.sweeps.fit import FitProblem, FitResult, Parameter
+from dse_runner.sweeps.fit import FitResult, Parameter
 
 
 class Terms(TermSearch):
@@ -26,9 +26,6 @@ class Terms(TermSearch):
         raise NotImplementedError
 
     def parameter(self, variable: str) -> Parameter:
-        raise NotImplementedError
-
-    def with_terms(self, problem: FitProblem, terms, start, shapes) -> FitProblem:
         raise NotImplementedError
 
 

@@ -123,6 +123,17 @@ def test_weighing_answers_with_the_twin_the_llr_favours_if_it_could_be_chosen():
 TWINS = {"late": ("sluggish",), "sluggish": ("late",), "slip": ("sluggish",)}
 
 
+def test_the_twins_of_a_set_are_each_member_swapped_for_each_of_its_declared_look_alikes():
+    """What the screen shortlists beside a set it chose: one member replaced at a time, by each of its
+    declared look-alikes (declared one way only, and none already in the set), in the set's order."""
+    assert list(lookalike.swaps(("slip", "late"), TWINS).items()) == [
+        (frozenset({"sluggish", "late"}), ("slip", "sluggish")),
+        (frozenset({"slip", "sluggish"}), ("late", "sluggish")),
+    ]
+    assert lookalike.swaps(("late", "sluggish"), TWINS) == {}  # each one's twin is already in the set
+    assert lookalike.swaps(("grip",), TWINS) == {}  # nothing declared
+
+
 def test_twins_are_a_swap_of_one_member_for_a_declared_look_alike():
     assert lookalike.swapped(("grip", "late"), ("grip", "sluggish"), TWINS) == ("late", "sluggish")
     assert lookalike.swapped(("slip",), ("sluggish",), TWINS) == ("slip", "sluggish")

@@ -1,6 +1,7 @@
-"""The engine's ranking of proposed terms on the residuals (analysis/diagnose/term_ranking.py), and the
-bounded least-squares step it shares with the linearised screen (analysis/diagnose/linear_step.py): what
-every case's term search is ranked by, whatever its terms are."""
+"""The engine's ranking of proposed terms on the residuals (analysis/diagnose/term_ranking.py), the
+bounded least-squares step it shares with the linearised screen (analysis/diagnose/linear_step.py), and how
+a fit frees the terms (analysis/diagnose/term_search.py, TermSearch.with_terms): what every case's term
+search is ranked and fitted by, whatever its terms are."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ from dse_runner.analysis.diagnose import term_ranking
 from dse_runner.analysis.diagnose.linear_step import bounded_step
 from dse_runner.analysis.diagnose.proof import extended_margin
 from dse_runner.analysis.diagnose.term_search import Parent, TermSearch
-from dse_runner.sweeps.fit import FitResult, Parameter
+from dse_runner.sweeps.fit import FitProblem, FitResult, Parameter
 
 OFFERED = 150  # terms the search chooses among: the extended BIC charges for them
 
@@ -96,9 +97,6 @@ class Terms(TermSearch):
     def propose(self, parent, scenarios, residuals):  # the proposals are given
         raise NotImplementedError
 
-    def with_terms(self, problem, terms, start, shapes):
-        raise NotImplementedError
-
 
 class Linear:
     """A fitter whose residuals are linear in the terms: the recording is 0.3 of ``wanted``'s column, each
@@ -141,3 +139,29 @@ def test_every_proposal_is_ranked_again_on_its_parents_residuals_in_one_sweep():
     assert out["fold"] is nothing
     [sweep] = f.sweeps
     assert {"m.late": 1e-3, "m.onset": 0.5} in sweep  # the shaped term's probe holds its shape
+
+
+def test_terms_are_freed_from_the_fitted_point_else_their_proposed_value_within_their_range():
+    """A term starts where a fitted point has it, else at its proposed value, clipped into its range (a fit
+    never starts outside its bounds); a term the problem held fixed is freed rather than both fixed and
+    fitted; the shape a term was made at is held; everything else of the problem stays."""
+    mass = Parameter("m.mass", 2.0, 1.0, 3.0, 1e-3)
+    problem = FitProblem("base", (mass,), {"m.late": 0.0, "m.gear": 4.0}, ("run",))
+    freed = Terms().with_terms(
+        problem, {"late": 0.2, "wanted": 5.0}, {"m.late": -0.4, "m.mass": 2.5}, {"onset": 0.5}
+    )
+    assert freed.parameters == (
+        mass,
+        Parameter("m.late", -0.4, -1.0, 1.0, 1e-3),
+        Parameter("m.wanted", 1.0, -1.0, 1.0, 1e-3),
+    )
+    assert freed.fixed == {"m.gear": 4.0, "m.onset": 0.5}
+    assert (freed.label, freed.scenarios) == (problem.label, problem.scenarios)
+
+
+def test_terms_without_a_shape_hold_nothing_more():
+    """A term made at no shape adds no fixed value: the points the store already has stay the same."""
+    problem = FitProblem("base", (), {"m.gear": 4.0}, ("run",))
+    freed = Terms().with_terms(problem, {"wanted": 0.1}, {}, {"onset": 0.5})
+    assert freed.parameters == (Parameter("m.wanted", 0.1, -1.0, 1.0, 1e-3),)
+    assert freed.fixed == {"m.gear": 4.0}

@@ -12,9 +12,10 @@ counting them as such would overstate the ratio by τ. When held-out error and B
 twins and |ΣLLR| ≥ ``DECISIVE``, the ratio decides; below it the diagnosis names both.
 
 The engine owns the statistics and the rule, and which sets are twins when a library declares its
-look-alikes (:func:`twin_pairs`: one member swapped for a declared twin). A library supplies what it alone
-knows (:class:`Segments`): how a candidate's residuals fall into samples (a position's two coordinates add
-into one sample) and which segment each sample lies in. The labels only say *where* the evidence lies: the
+look-alikes (:func:`swaps`: one member swapped for a declared twin; the screen shortlists them, and
+:func:`twin_pairs` says which fitted ones to weigh). A library supplies what it alone knows
+(:class:`Segments`): how a candidate's residuals fall into samples (a position's two coordinates add into
+one sample) and which segment each sample lies in. The labels only say *where* the evidence lies: the
 total, and so the decision, does not depend on them. How each twin answers a command (a delay, a lag, a
 gain) is response.py's.
 """
@@ -184,16 +185,22 @@ class Twins:
         }
 
 
+def swaps(
+    ids: Sequence[str], look_alikes: Mapping[str, Sequence[str]]
+) -> dict[frozenset[str], tuple[str, str]]:
+    """The twins of set ``ids``: each set that is ``ids`` with one member x replaced by y, a declared
+    look-alike of x not already in it (``look_alikes``: id -> its twins), with (x, y), in ``ids``' order.
+    The screen shortlists them beside the sets it chose (screens.base); :func:`twin_pairs` weighs them."""
+    return {
+        frozenset(set(ids) - {x} | {y}): (x, y) for x in ids for y in look_alikes.get(x, ()) if y not in ids
+    }
+
+
 def swapped(
     a: Sequence[str], b: Sequence[str], look_alikes: Mapping[str, Sequence[str]]
 ) -> tuple[str, str] | None:
-    """(x, y) when set ``b`` is set ``a`` with its member x replaced by y, a declared look-alike of x
-    (``look_alikes``: id -> its twins); else None. The test of what screens.base.swaps generates."""
-    only_a, only_b = set(a) - set(b), set(b) - set(a)
-    if len(only_a) != 1 or len(only_b) != 1:
-        return None
-    x, y = next(iter(only_a)), next(iter(only_b))
-    return (x, y) if y in look_alikes.get(x, ()) else None
+    """(x, y) when set ``b`` is one of :func:`swaps` of set ``a``: its member x replaced by y; else None."""
+    return swaps(a, look_alikes).get(frozenset(b))
 
 
 def twin_pairs(

@@ -7,8 +7,9 @@ reads this one file to know its duties, as an Optuna sampler reads ``BaseSampler
 The lifecycle, as :func:`discovery.discover` runs it: :meth:`TermSearch.propose` on each parent fit (the
 reference answer's, each fold's), every proposal ranked on the parents' residuals by the engine
 (term_ranking.py: each term probed as :meth:`TermSearch.parameter` at the shapes :meth:`TermSearch.held`
-holds), then :meth:`TermSearch.with_terms` for every fit of the terms, which :meth:`TermSearch.is_term`
-tells apart from the library's parameters; the extended BIC charges for :attr:`TermSearch.offered`.
+holds), then :meth:`TermSearch.with_terms` (the engine's: each term freed as its parameter, its shapes
+held) for every fit of the terms, which :meth:`TermSearch.is_term` tells apart from the library's
+parameters; the extended BIC charges for :attr:`TermSearch.offered`.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 import numpy as np
@@ -65,11 +66,11 @@ class TermSearch(ABC):
     """What a library supplies to search beyond itself; the engine runs the procedure (discovery.discover).
 
     Required: :meth:`propose` (terms from a parent fit and its residuals), :meth:`parameter` (the fit's
-    parameter a term is: the ranking probes it by its step and bounds it by its range), :meth:`with_terms`
-    (a fit problem with terms freed), :meth:`is_term` (which fitted parameters are terms) and
-    :attr:`offered` (how many terms the search chooses among: the extended BIC charges for it). Optional:
-    :meth:`held` (the shapes a term was made at, held wherever it is simulated; none by default) and
-    :meth:`readable`."""
+    parameter a term is: the ranking probes it by its step and bounds it by its range, every fit of the terms
+    frees it), :meth:`is_term` (which fitted parameters are terms) and :attr:`offered` (how many terms the
+    search chooses among: the extended BIC charges for it). Optional: :meth:`held` (the shapes a term was made
+    at, held wherever it is simulated; none by default) and :meth:`readable`. The engine's own:
+    :meth:`with_terms` (a fit problem with terms freed, from those two)."""
 
     max_terms: int = 3  # terms a candidate holds at most
 
@@ -85,17 +86,6 @@ class TermSearch(ABC):
         """Terms on top of ``parent`` from ``scenarios`` alone (``residuals``: every parent's, evaluated)."""
 
     @abstractmethod
-    def with_terms(
-        self,
-        problem: FitProblem,
-        terms: Mapping[str, float],
-        start: Mapping[str, float],
-        shapes: Mapping[str, float],
-    ) -> FitProblem:
-        """``problem`` with ``terms`` freed, each from ``start`` (a fitted point) where it has it, else from
-        its proposed value; the ``shapes`` they were made at held."""
-
-    @abstractmethod
     def parameter(self, variable: str) -> Parameter:
         """The fit's parameter for the term ``variable`` (its full name, range and finite-difference step)."""
 
@@ -103,6 +93,28 @@ class TermSearch(ABC):
         """The fixed values a point needs for the terms ``variables`` made at ``shapes`` (shape -> value, as
         a proposal holds them): none when terms have no shape."""
         return {}
+
+    def with_terms(
+        self,
+        problem: FitProblem,
+        terms: Mapping[str, float],
+        start: Mapping[str, float],
+        shapes: Mapping[str, float],
+    ) -> FitProblem:
+        """``problem`` with ``terms`` (variable -> proposed value) freed as their :meth:`parameter`, each from
+        ``start`` (a fitted point, by full name) where it has it, else from its proposed value, clipped into
+        its range; a term the problem held fixed is freed, and the ``shapes`` the terms were made at are
+        held (:meth:`held`)."""
+        extra = tuple(started(self.parameter(variable), start, value) for variable, value in terms.items())
+        names = {p.name for p in extra}
+        return replace(
+            problem,
+            parameters=problem.parameters + extra,
+            fixed={
+                **{k: v for k, v in problem.fixed.items() if k not in names},
+                **self.held(shapes, list(terms)),
+            },
+        )
 
     def terms_of(self, fit: FitResult) -> dict[str, float]:
         """The terms a fit moved, by local name (the part after the instance)."""
@@ -121,3 +133,10 @@ class TermSearch(ABC):
     def charged(self, bic_margin: float, terms: int) -> float:
         """The BIC margin ``terms`` found terms must beat (proof.extended_margin)."""
         return extended_margin(bic_margin, self.offered, terms)
+
+
+def started(parameter: Parameter, start: Mapping[str, float], value: float) -> Parameter:
+    """``parameter`` starting from its value in ``start`` (a fitted point) if it has one, else from
+    ``value``, clipped into its range: a fit never starts outside its bounds."""
+    at = start.get(parameter.name, value)
+    return replace(parameter, start=float(np.clip(at, parameter.lower, parameter.upper)))

@@ -31,6 +31,7 @@ from typing import Any, ClassVar
 
 from ....sweeps.fit import FitResult
 from ..engine import Fits
+from ..lookalike import swaps
 
 Singles = Mapping[tuple[str, ...], FitResult]  # none (``()``) and each hypothesis alone, fitted on everything
 
@@ -109,8 +110,8 @@ class ScreenStrategy(ABC):
         look_alikes: Mapping[str, Sequence[str]],
     ) -> list[Screened]:
         """The sets worth a real fit, at most ``settings.limit``: the best pairs and the best triples whose
-        simulation succeeded, then the look-alike swaps of those (one member replaced by its twin, if that set
-        was screened), best real BIC first."""
+        simulation succeeded, then the look-alike swaps of those (lookalike.swaps: one member replaced by its
+        twin, if that set was screened), best real BIC first."""
         good = [s for s in screened if math.isfinite(s.sse)]
         chosen = [s for s in good if len(s.ids) == 2][: settings.pairs]
         chosen += [s for s in good if len(s.ids) == 3][: settings.triples]
@@ -121,11 +122,6 @@ class ScreenStrategy(ABC):
             if s not in result and len(result) < settings.limit:
                 result.append(s)
         return result
-
-
-def swaps(ids: Sequence[str], look_alikes: Mapping[str, Sequence[str]]) -> list[frozenset[str]]:
-    """The sets with one member of ``ids`` replaced by one of its look-alikes."""
-    return [frozenset(set(ids) - {m} | {t}) for m in ids for t in look_alikes.get(m, ()) if t not in ids]
 
 
 def combinable(fits: Fits, ids: Sequence[str]) -> bool:

@@ -1,6 +1,7 @@
 """Discovery, stage 2: the Robotti's term search as the engine runs it (analysis/diagnose/discovery.py):
-terms proposed from each parent fit's equation error (propose.py) and freed as the correction block's
-``corr_*`` parameters of the effects FMU (correction.py), their shapes held.
+terms proposed from each parent fit's equation error (propose.py), each the correction block's ``corr_*``
+parameter of the effects FMU (correction.py) and the shapes it holds; the engine frees them
+(TermSearch.with_terms).
 
 The engine then ranks the proposals on the fix residuals (analysis/diagnose/term_ranking.py), proposes on
 every fold's own runs, settles, proves and accepts them with the library's rule and the search charged;
@@ -9,12 +10,12 @@ this module says only what a term of this vehicle is."""
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 from ....analysis.diagnose.fitter import Fitter
 from ....analysis.diagnose.term_search import TermSearch
-from ....sweeps.fit import FitProblem, FitResult, Parameter, Residuals
+from ....sweeps.fit import FitResult, Parameter, Residuals
 from .. import correction
 from .observe import Observed, vehicle_values
 from .propose import CorrectionProposal, propose, regressions, searched_count
@@ -54,9 +55,9 @@ class CorrectionSearch(TermSearch):
         self.rms.update(found.rms if whole else {v: x for v, x in found.rms.items() if v not in self.rms})
         return found
 
-    def parameter(self, variable: str, start: float = 0.0) -> Parameter:
-        """The term bounded by correction.bound over the runs' feature RMS, from ``start`` (clipped in)."""
-        return correction.parameter(correction.term(variable), self.vehicle, self.rms.get(variable), start)
+    def parameter(self, variable: str) -> Parameter:
+        """The term bounded by correction.bound over the runs' feature RMS."""
+        return correction.parameter(correction.term(variable), self.vehicle, self.rms.get(variable))
 
     def held(self, shapes: Mapping[str, float], variables: Sequence[str]) -> dict[str, float]:
         """The shapes the terms ``variables`` depend on, as the vehicle's parameters at their found values (a
@@ -67,26 +68,3 @@ class CorrectionSearch(TermSearch):
             if shape is not None and shape.variable in shapes:
                 out[f"{self.vehicle}.{shape.variable}"] = shapes[shape.variable]
         return out
-
-    def with_terms(
-        self,
-        problem: FitProblem,
-        terms: Mapping[str, float],
-        start: Mapping[str, float],
-        shapes: Mapping[str, float],
-    ) -> FitProblem:
-        """Each term bounded by correction.bound over the runs' feature RMS; the shapes the terms depend on
-        held at their values in ``shapes``."""
-        extra = tuple(
-            self.parameter(variable, start.get(f"{self.vehicle}.{variable}", value))
-            for variable, value in terms.items()
-        )
-        names = {p.name for p in extra}
-        return replace(
-            problem,
-            parameters=problem.parameters + extra,
-            fixed={
-                **{k: v for k, v in problem.fixed.items() if k not in names},
-                **self.held(shapes, list(terms)),
-            },
-        )
