@@ -2,8 +2,9 @@
 
 Why: the engine's page says what every diagnosis says; only this library compares signals with recordings
 in units of their noise, screens pairs, grows sets one effect at a time, decides twins across the model's
-skin and locates the misfit in windows of time. Each section reads the answer's ``case`` alone, so the page
-can be drawn again from ``diagnosis.json``.
+skin and locates the misfit in windows of time. Its look-alikes are the engine's part (report.lookalikes_part)
+in its words (:class:`Words`). Each section reads the answer alone (its ``case``, ``lookalikes``), so the
+page can be drawn again from ``diagnosis.json``.
 """
 
 from __future__ import annotations

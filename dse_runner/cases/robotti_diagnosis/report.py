@@ -1,5 +1,7 @@
 """The Robotti's own sections of its diagnosis report (its figures are figures.py's); the engine's report.py
-lays out what every diagnosis has (verdict, effects, evidence, candidates, held-out runs, values, files).
+lays out what every diagnosis has (verdict, effects, evidence, candidates, held-out runs, values, files) and
+draws the look-alikes and the search beyond the library, here in the Robotti's words (:class:`Words`,
+:data:`SEARCH`).
 
 <out>/report/report.md        the page: the engine's skeleton with these sections
 <out>/report/diagnosis.html   the same page as one file, figures inside
