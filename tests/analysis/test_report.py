@@ -277,7 +277,7 @@ class Nested(report.LookalikeWords):
 
 
 def test_look_alikes_are_drawn_from_the_engines_evidence_in_the_librarys_words():
-    from dse_runner.analysis.diagnose.lookalike import CANNOT_TELL, DECIDED_BY_LLR
+    from dse_runner.analysis.diagnose.lookalike import CANNOT_TELL, DECIDED_BY_FIT, DECIDED_BY_LLR
 
     assert report.lookalikes_part(Answer.model_validate(full()), Nested()) == ""  # no twins: no part
     looks = [
@@ -302,6 +302,7 @@ def test_look_alikes_are_drawn_from_the_engines_evidence_in_the_librarys_words()
         "**Look-alikes:** `late` or its look-alike `sluggish`: cannot tell on these runs (LLR -1.5, below "
         "the 5 that decides)."
     )
+    assert report.twins_sentence(twins_entry(DECIDED_BY_FIT, 30.0), report.LookalikeWords()) == ""
     decided = report.twins_sentence(twins_entry(DECIDED_BY_LLR, -8.0), report.LookalikeWords())
     assert decided.startswith("**Look-alikes:** `sluggish` rather than its look-alike `late`: held-out")
     assert "but the samples can (LLR 8.0 in its favour, mostly on step (-7.2))." in decided

@@ -400,9 +400,11 @@ def strongest(twins: Mapping[str, Any], words: LookalikeWords) -> str:
 
 
 def twins_sentence(look: Mapping[str, Any], words: LookalikeWords) -> str:
-    """The verdict between twins that held-out error and BIC could not separate, in one sentence: for a
-    library to place under the verdict."""
-    twins = words.twins(look) or {}
+    """The verdict between twins that held-out error and BIC could not separate, in one sentence, for a
+    library to place under the verdict; empty where they could (or the pair was not weighed)."""
+    twins = words.twins(look)
+    if not twins or twins["decision"] == DECIDED_BY_FIT:
+        return ""
     a, b = twins["pair"]
     llr = twins["llr"]
     if twins["decision"] == DECIDED_BY_LLR:

@@ -22,7 +22,6 @@ import pandas as pd
 
 from ...analysis.diagnose import discovery, report
 from ...analysis.diagnose.answer import Answer
-from ...analysis.diagnose.lookalike import DECIDED_BY_FIT
 from ...analysis.diagnose.report import Section, table
 from ...simulation.scenario import dropouts_line
 from ...sweeps.rank import format_point
@@ -73,7 +72,7 @@ def write(
 def sections(answer: Answer) -> list[Section]:
     """The Robotti's sections of its report, from the answer alone."""
     case, named = answer.case, answer.effects[0].id != "none"
-    twins = [report.twins_sentence(x, WORDS) for x in answer.lookalikes if x["decision"] != DECIDED_BY_FIT]
+    twins = [said for said in (report.twins_sentence(x, WORDS) for x in answer.lookalikes) if said]
     found = [
         Section("", "\n\n".join(twins), after="verdict"),
         Section("The effects named", effects_text(answer), after="effects"),
