@@ -4,6 +4,8 @@ one order, with a library's own sections where it places them."""
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
+from typing import ClassVar
 
 import pytest
 
@@ -242,3 +244,108 @@ def test_the_json_it_is_drawn_from_is_the_answer_itself(tmp_path):
     report.write(answer)
     assert json.loads((tmp_path / "r" / "diagnosis.json").read_text()) == answer.json_dict()
     assert (tmp_path / "r" / "diagnosis.html").read_text().startswith("<!DOCTYPE html>")
+
+
+# ---- the parts a library places: look-alikes and discovery, the engine's drawing in its words ---------
+
+
+def twins_entry(decision: str, llr: float) -> dict:
+    """The engine's evidence between two twins, as lookalike.Twins writes it."""
+    from dse_runner.analysis.diagnose.lookalike import SegmentEvidence, Twins
+
+    evidence = SegmentEvidence(
+        llr, {"step": 0.9 * llr, "rest": 0.1 * llr}, {"step": 40, "rest": 60}, 2.5, 0.01
+    )
+    return Twins(("late", "sluggish"), ("late", "sluggish"), evidence, decision, "late").to_json()
+
+
+class Nested(report.LookalikeWords):
+    """A library that keeps the engine's evidence under a key of its own and adds its words on each pair."""
+
+    segments: ClassVar[Mapping[str, str]] = {"step": "steps of the input"}
+    noise = "the sensor's noise"
+    intro = "Sets that fit alike were fitted on every run."
+
+    def twins(self, look):
+        return look["evidence"]
+
+    def about(self, look):
+        return f"It also fits alike ({look['held_out']} held-out)."
+
+    def more(self, look):
+        return "Its own paragraph."
+
+
+def test_look_alikes_are_drawn_from_the_engines_evidence_in_the_librarys_words():
+    from dse_runner.analysis.diagnose.lookalike import CANNOT_TELL, DECIDED_BY_FIT, DECIDED_BY_LLR
+
+    assert report.lookalikes_part(Answer.model_validate(full()), Nested()) == ""  # no twins: no part
+    looks = [
+        {"held_out": 0.06, "evidence": twins_entry(DECIDED_BY_LLR, 8.0)},
+        {"held_out": 0.07, "evidence": None},  # could not be weighed: the library's words alone
+    ]
+    text = report.lookalikes_part(Answer.model_validate({**full(), "lookalikes": looks}), Nested())
+    assert text.startswith("Sets that fit alike were fitted on every run. The log-likelihood ratio (LLR)")
+    assert "(σ the sensor's noise), divided by the residuals' autocorrelation time in samples" in text
+    assert "|LLR| ≥ 5 (about 150 to 1) decides" in text
+    assert (
+        "`late` against `sluggish` (swapping `late` for `sluggish`): LLR +8.0, in favour of `late`, mostly "
+        "on steps of the input (+7.2); held-out error and BIC do not separate them; the LLR does "
+        "(|LLR| ≥ 5). σ = 0.0100 m, autocorrelation time 2.5 samples. It also fits alike (0.06 held-out)."
+        in text
+    )
+    assert "| segment | samples | LLR (late over sluggish) |" in text
+    assert "| steps of the input | 40 | 7.2 |" in text and "| rest | 60 | 0.8 |" in text  # unnamed: as is
+    assert text.count("Its own paragraph.") == 2 and "\nIt also fits alike (0.07 held-out).\n" in text
+    cannot = report.twins_sentence(twins_entry(CANNOT_TELL, -1.5), report.LookalikeWords())
+    assert cannot == (
+        "**Look-alikes:** `late` or its look-alike `sluggish`: cannot tell on these runs (LLR -1.5, below "
+        "the 5 that decides)."
+    )
+    assert report.twins_sentence(twins_entry(DECIDED_BY_FIT, 30.0), report.LookalikeWords()) == ""
+    decided = report.twins_sentence(twins_entry(DECIDED_BY_LLR, -8.0), report.LookalikeWords())
+    assert decided.startswith("**Look-alikes:** `sluggish` rather than its look-alike `late`: held-out")
+    assert "but the samples can (LLR 8.0 in its favour, mostly on step (-7.2))." in decided
+
+
+def found(chosen: str | None) -> dict:
+    """What discovery.Discovery writes of a search beyond the library."""
+    return {
+        "reference": "lag",
+        "held_out_reference": 0.05,
+        "bic_reference": -400.0,
+        "proposed_text": ["d(v)/dt += -0.31·v"],
+        "bic_margin": 14.25,
+        "chosen": chosen,
+        "resembles": "resembles no effect of the library" if chosen else None,
+        "tried": [{"id": "lag+discovered", "text": ["k = -0.31"], "held_out": 0.03, "bic": -430.0}],
+        "proof": {
+            "terms": ["k"],
+            "offered": 12,
+            "folds": [["k"], ["k"], ["j"]],
+            "agree": 2,
+            "held_out": 0.035,
+            "rule": "each fold chose on its own",
+        },
+        "reason": "" if chosen else "no set with terms beat the reference by the rule",
+    }
+
+
+def test_discovery_is_drawn_after_the_librarys_description_of_its_search():
+    answer = Answer.model_validate(full())
+    assert (
+        report.discovery_part(answer, None, "Searched.", "it is off")
+        == "No correction was sought: it is off."
+    )
+    assert report.discovery_part(answer, None, "Searched.", "") == ""
+    text = report.discovery_part(answer, found("lag+discovered"), "A search of mine.", "")
+    assert text.startswith(
+        "A search of mine. The proposed terms were then fitted with the calibrated parameters"
+    )
+    assert "pruned to those 2 standard errors from zero" in text and "the BIC margin raised to 14.2" in text
+    assert "Proposed from every run: `d(v)/dt += -0.31·v`." in text
+    assert "`lag+discovered`: k = -0.31, held-out 0.0300 m, ΔBIC -30.0 against `lag` (0.0500 m)." in text
+    assert "Accepted: `lag+discovered`; it resembles no effect of the library." in text
+    assert "Proof: 2 of 3 folds, choosing among 12 terms" in text and "with 0.035 m" in text
+    rejected = report.discovery_part(answer, found(None), "A search of mine.", "")
+    assert "Nothing was accepted: no set with terms beat the reference by the rule." in rejected

@@ -136,6 +136,33 @@ def test_a_look_alike_carries_the_engines_llr_with_segments_from_the_inputs():
         a, b, {"a": residuals["a"], "b": residuals["a"]}, {"m.x": 0.01}, {"run": pushed}
     )
     assert even.llr.decision == lookalike.CANNOT_TELL and not even.told_apart
+    # the report draws it: the engine's evidence in this library's words, then how alike the two fit
+    from dse_runner.analysis.diagnose import answer, report, signal_report
+    from dse_runner.analysis.diagnose.signal_library import SignalDiagnosis
+
+    drawn = answer.Answer(
+        library="signals",
+        verdict="explained",
+        verdict_text="a",
+        held_out_before=2.0,
+        held_out_after=1.0,
+        held_out_unit=SignalDiagnosis.held_out_unit,
+        noise_floor=answer.NoiseFloor(held_out=1.0, factor=2.0, ratio=1.0, method="samples"),
+        effects=[answer.nothing_missing("nothing")],
+        runner_up=None,
+        candidates=[],
+        calibrated=answer.Fitted(parameters={}),
+        fitted=answer.Fitted(parameters={}),
+        lookalikes=[look.to_json()],
+    )
+    text = report.lookalikes_part(drawn, signal_report.WORDS)
+    assert (
+        f"`a` against `b` (swapping `a` for `b`): LLR {saved['llr']:+.1f}, in favour of `a`, mostly on "
+        "windows where an input changes" in text
+    )
+    assert "σ = 1.0000 noise floors" in text and "samples. `b` fits alike (1.02 held-out" in text
+    assert "2/2 runs better for the chosen); no window tells them apart by more than the noise.\n" in text
+    assert "| segment | samples | LLR (a over b) |" in text and "| windows where the inputs hold |" in text
 
 
 def test_a_selection_keeps_only_the_named_effects_and_names_an_unknown_one():

@@ -711,16 +711,22 @@ def test_lookalikes_in_json_and_words():
     saved = strict_loads(strict_json.dumps(d.to_json()))["lookalikes"][0]
     assert saved["pair"] == ["steering_lag", "time_offset"] and saved["decision"] == "cannot_tell"
     assert saved["by_segment"]["steer_ramp"] == {"llr": 1.0, "fixes": 100} and saved["telling_fixes"] == 0
-    words = report.twins_sentence(d.lookalikes[0].to_json())
+    from dse_runner.analysis.diagnose import report as skeleton
+
+    words = skeleton.twins_sentence(d.lookalikes[0].to_json(), report.WORDS)  # the engine's, in its words
     assert "`steering_lag` or its look-alike `time_offset`" in words
-    assert "cannot tell on these runs" in words and "a run with steering steps would" in words
-    decided = report.twins_sentence(
-        look(engine_lookalike.DECIDED_BY_LLR, -7.5, {"steer_step": -7.0, "cruise": -0.5}).to_json()
+    assert (
+        "cannot tell on these runs" in words
+        and "these runs have no steering steps and no speed steps" in words
+    )
+    assert words.endswith("a run with steering steps would.")
+    decided = skeleton.twins_sentence(
+        look(engine_lookalike.DECIDED_BY_LLR, -7.5, {"steer_step": -7.0, "cruise": -0.5}).to_json(),
+        report.WORDS,
     )
     assert decided.startswith("**Look-alikes:** `time_offset` rather than its look-alike `steering_lag`")
-    assert "steering steps" in decided
+    assert "but the fixes can (LLR 7.5 in its favour, mostly on steering steps (-7.0))" in decided
     # the whole page, drawn from the answer with the Robotti's sections: the twins right under the verdict
-    from dse_runner.analysis.diagnose import report as skeleton
 
     d.calibration.update(
         folds=[["run0"], ["run1"]],
@@ -733,6 +739,21 @@ def test_lookalikes_in_json_and_words():
     )
     page = skeleton.markdown(d.answer(), report.sections(d.answer()))
     assert page.index("**Verdict") < page.index(words) < page.index("## Named effects")
+    # the look-alikes part: the engine's evidence in the Robotti's words, then what tells the twins apart
+    part = page.split("## Look-alikes\n")[1].split("\n## ")[0]
+    assert "divided by the residuals' autocorrelation time in fixes" in part
+    assert (
+        "`steering_lag` against `time_offset` (swapping `steering_lag` for `time_offset`): LLR +1.2, in "
+        "favour of `steering_lag`, mostly on steering ramps and sines (+1.0)" in part
+    )
+    assert (
+        "autocorrelation time 1.3 fixes. What tells them apart best: steering steps, speed steps (0 fixes"
+        in part
+    )
+    assert (
+        "| segment | fixes | LLR (steering_lag over time_offset) |" in part
+        and "| cruising straight | 100 |" in part
+    )
 
 
 # ---- discovery: PySINDy's STLSQ on equation error, the rule, the words ------------------------------------

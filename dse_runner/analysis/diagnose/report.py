@@ -6,6 +6,11 @@ their intervals, the evidence (the runner-up, what was not claimed, the proof of
 candidates, each held-out run, the values calibrated and fitted, the files. A library adds only what is its
 own: :class:`Section` s, each placed after one of those parts (``HypothesisLibrary.sections``), and its
 figures. Reading nothing but the JSON, the page can be drawn again from ``diagnosis.json``.
+
+Two parts whose evidence is the engine's but which a library places among its sections are drawn here too,
+in the library's words: the look-alikes (:func:`lookalikes_part`, lookalike.py's twins in a library's
+:class:`LookalikeWords`) and the search beyond the library (:func:`discovery_part`, discovery.py's, after
+the library's description of its search).
 """
 
 from __future__ import annotations
@@ -16,12 +21,14 @@ import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 from ... import strict_json
 from . import report_html
 from .answer import Answer, Effect, Evidence, Proof
 from .explain import TIE
+from .lookalike import CANNOT_TELL, DECIDED_BY_FIT, DECIDED_BY_LLR, DECISIVE
+from .sparse_regression import PRUNE_SE
 
 Part = Literal["verdict", "effects", "evidence", "candidates", "search", "runs", "values", "files"]
 PARTS: tuple[Part, ...] = (
@@ -336,6 +343,181 @@ def files(answer: Answer) -> str:
     """What was written, as the JSON lists it (figures are shown on the page instead)."""
     listed = [f"- {name}: `{path}`" for name, path in answer.files.items() if isinstance(path, str)]
     return "\n".join(listed) or "(none)"
+
+
+# ---- parts a library places among its sections: look-alikes, discovery -----------------------------
+
+
+class LookalikeWords:
+    """A library's words on its look-alikes (:func:`lookalikes_part`, :func:`twins_sentence`): what its
+    segment kinds are called (a kind not named is shown as it is), what one sample is
+    (lookalike.Twins.sample: the JSON's ``autocorrelation_<sample>`` and the count per segment), what σ is,
+    and its opening (which twins it weighs and how it reads the segments). Optional hooks, each saying
+    nothing by default, add what only the library knows of one pair (an entry of ``Answer.lookalikes``, as
+    the library wrote it)."""
+
+    segments: ClassVar[Mapping[str, str]] = {}
+    sample: ClassVar[str] = "samples"
+    noise: ClassVar[str] = "the noise floor"
+    intro: ClassVar[str] = ""
+
+    def segment(self, kind: str) -> str:
+        return self.segments.get(kind, kind)
+
+    def twins(self, look: Mapping[str, Any]) -> Mapping[str, Any] | None:
+        """The engine's evidence in an entry (lookalike.Twins.to_json): the entry itself, unless the library
+        keeps it under a key of its own; None where the pair could not be weighed."""
+        return look
+
+    def about(self, look: Mapping[str, Any]) -> str:
+        """Its own sentences on a pair, after the engine's (what tells the two apart, in its terms)."""
+        return ""
+
+    def more(self, look: Mapping[str, Any]) -> str:
+        """Its own paragraphs after a pair's table of evidence by segment (the Robotti: its response fits)."""
+        return ""
+
+    def advice(self, look: Mapping[str, Any]) -> str:
+        """What would tell apart twins that cannot be told apart on these runs, for :func:`twins_sentence`."""
+        return ""
+
+
+HOW_DECIDED = {  # lookalike.decision -> how the twins were told apart, in words
+    DECIDED_BY_FIT: "held-out error and BIC already separate them, and the LLR is reported as a check",
+    DECIDED_BY_LLR: f"held-out error and BIC do not separate them; the LLR does (|LLR| ≥ {DECISIVE:g})",
+    CANNOT_TELL: f"neither held-out error and BIC nor the LLR (below {DECISIVE:g}) separates them: cannot "
+    "tell on these runs",
+}
+
+
+def strongest(twins: Mapping[str, Any], words: LookalikeWords) -> str:
+    """The segment kind that carries most of the evidence, in words, with its share of the LLR."""
+    by_kind = twins["by_segment"]
+    if not by_kind:
+        return ""
+    kind = max(by_kind, key=lambda k: abs(by_kind[k]["llr"]))
+    return f"mostly on {words.segment(kind)} ({by_kind[kind]['llr']:+.1f})"
+
+
+def twins_sentence(look: Mapping[str, Any], words: LookalikeWords) -> str:
+    """The verdict between twins that held-out error and BIC could not separate, in one sentence, for a
+    library to place under the verdict; empty where they could (or the pair was not weighed)."""
+    twins = words.twins(look)
+    if not twins or twins["decision"] == DECIDED_BY_FIT:
+        return ""
+    a, b = twins["pair"]
+    llr = twins["llr"]
+    if twins["decision"] == DECIDED_BY_LLR:
+        loser = b if twins["favours"] == a else a
+        return (
+            f"**Look-alikes:** {ids(twins['favours'])} rather than its look-alike {ids(loser)}: held-out "
+            f"error and BIC cannot separate them, but the {words.sample} can (LLR {abs(llr):.1f} in its "
+            f"favour, {strongest(twins, words)})."
+        )
+    advice = words.advice(look)
+    return (
+        f"**Look-alikes:** {ids(a)} or its look-alike {ids(b)}: cannot tell on these runs (LLR {llr:+.1f}, "
+        f"below the {DECISIVE:g} that decides)" + (f";{advice}" if advice else "") + "."
+    )
+
+
+def twins_text(twins: Mapping[str, Any], words: LookalikeWords, u: str) -> str:
+    """The evidence between one pair of twins and how it was used."""
+    a, b = twins["pair"]
+    x, y = twins["effects"]
+    tau = twins[f"autocorrelation_{words.sample}"]
+    return (
+        f"{ids(a)} against {ids(b)} (swapping `{x}` for `{y}`): LLR {twins['llr']:+.1f}, in favour of "
+        f"{ids(twins['favours'])}, {strongest(twins, words)}; {HOW_DECIDED[twins['decision']]}. "
+        f"σ = {twins['sigma']:.4f} {u}, autocorrelation time {tau:.1f} {words.sample}."
+    )
+
+
+def lookalikes_part(answer: Answer, words: LookalikeWords) -> str:
+    """Each pair of twins (``answer.lookalikes``): the evidence between them, segment by segment, with the
+    library's own words on it; empty when there are none."""
+    if not answer.lookalikes:
+        return ""
+    s = words.sample
+    lines = [
+        (
+            f"{words.intro} The log-likelihood ratio (LLR) is the difference of their squared residuals over "
+            f"2σ² (σ {words.noise}), divided by the residuals' autocorrelation time in {s}, since successive "
+            f"{s} of a smooth residual are not independent evidence. Positive favours the first set. When "
+            f"held-out error and BIC cannot separate the two, |LLR| ≥ {DECISIVE:g} (about "
+            f"{round(math.exp(DECISIVE), -1):g} to 1) decides; below it the diagnosis names both."
+        ).strip(),
+        "",
+    ]
+    for look in answer.lookalikes:
+        twins = words.twins(look)
+        said = [twins_text(twins, words, unit(answer))] if twins else []
+        lines += [" ".join([*said, words.about(look)]).strip(), ""]
+        if twins:
+            a, b = twins["pair"]
+            rows = [
+                {"segment": words.segment(k), s: v[s], f"LLR ({a} over {b})": v["llr"]}
+                for k, v in twins["by_segment"].items()
+            ]
+            lines += [table(rows, ["segment", s, f"LLR ({a} over {b})"]), ""]
+        more = words.more(look)
+        if more:
+            lines += [more, ""]
+    return "\n".join(lines)
+
+
+RESPONSE = {  # a response fit's JSON key (response.ResponseFit.to_json) -> its column, after its samples
+    "sse": "SSE as modelled",
+    "delay": "delay [s]",
+    "delay_sse": "SSE delay",
+    "lag": "lag [s]",
+    "lag_sse": "SSE lag",
+    "gain": "gain",
+    "gain_sse": "SSE gain",
+    "best": "best",
+}
+
+
+def response_table(fits: Sequence[Mapping[str, Any]], words: LookalikeWords) -> str:
+    """Response fits (response.py), one row per segment kind: the SSE as modelled, and the delay, lag and
+    gain that fit best with theirs."""
+    s = words.sample
+    rows = [
+        {"segment": words.segment(r["segment"]), s: r[s], **{RESPONSE[k]: r[k] for k in RESPONSE}}
+        for r in fits
+    ]
+    return table(rows, ["segment", s, *RESPONSE.values()])
+
+
+def discovery_part(answer: Answer, found: Mapping[str, Any] | None, search: str, skipped: str) -> str:
+    """What the search beyond the library did (``found``: discovery.Discovery.to_json), after the library's
+    description of its search (``search``); or, when nothing was sought, why (``skipped``)."""
+    if found is None:
+        return f"No correction was sought: {skipped}." if skipped else ""
+    u, proposed = unit(answer), "; ".join(found["proposed_text"])
+    lines = [
+        (
+            f"{search} The proposed terms were then fitted with the calibrated parameters, pruned to "
+            f"those {PRUNE_SE:g} standard errors from zero, re-proposed inside each fold on its training "
+            "runs only, and judged by the library's rule, the BIC margin raised to "
+            f"{found['bic_margin']:.1f} for the search (extended BIC)."
+        ).strip(),
+        f" Proposed from every run: {('`' + proposed + '`') if proposed else 'nothing'}.",
+    ]
+    for c in found["tried"]:
+        lines.append(
+            f" `{c['id']}`: "
+            + "; ".join(c["text"])
+            + f", held-out {c['held_out']:.4f} {u}, ΔBIC {c['bic'] - found['bic_reference']:+.1f} against "
+            f"`{found['reference']}` ({found['held_out_reference']:.4f} {u})."
+        )
+    if found["chosen"] is None:
+        lines.append(f" Nothing was accepted: {found['reason']}.")
+    else:
+        lines.append(f" Accepted: `{found['chosen']}`; it {found['resembles']}.")
+    if found.get("proof") and found["proof"]["folds"]:
+        lines.append(" " + proof(Proof.model_validate(found["proof"]), u))
+    return "".join(lines)
 
 
 HEADINGS: dict[Part, str] = {

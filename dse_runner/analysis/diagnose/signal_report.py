@@ -2,20 +2,22 @@
 
 Why: the engine's page says what every diagnosis says; only this library compares signals with recordings
 in units of their noise, screens pairs, grows sets one effect at a time, decides twins across the model's
-skin and locates the misfit in windows of time. Each section reads the answer's ``case`` alone, so the page
-can be drawn again from ``diagnosis.json``.
+skin and locates the misfit in windows of time. Its look-alikes are the engine's part (report.lookalikes_part)
+in its words (:class:`Words`). Each section reads the answer alone (its ``case``, ``lookalikes``), so the
+page can be drawn again from ``diagnosis.json``.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 from ...simulation.values import write_values
 from . import report
 from .answer import Answer
-from .lookalike import CANNOT_TELL, DECIDED_BY_FIT, DECIDED_BY_LLR, DECISIVE
-from .report import Section, number, table
+from .report import Section, ids, number, table
+from .signal_locate import CHANGING, NO_INPUT, STEADY
 
 REPORT, SUMMARY, VALUES = "diagnosis-report.md", "diagnosis.json", "diagnosed-values.yaml"
 
@@ -61,22 +63,42 @@ def decided(case: dict[str, Any]) -> str:
     return "\n\n".join(lines)
 
 
-def lookalikes(answer: Answer) -> str:
-    """Sets that fit about as well as the answer, and the windows of time that tell them apart."""
-    lines = []
-    for x in answer.lookalikes:
+class Words(report.LookalikeWords):
+    """The signal library's words on its look-alikes: the windows of its segments, its samples in units of
+    their recording's noise; what it adds of a pair (each entry is signal_claims.FitsAlike.to_json, the
+    engine's evidence under ``segment_llr``): how alike the two fit and the windows of time that tell them
+    apart."""
+
+    segments: ClassVar[Mapping[str, str]] = {
+        CHANGING: "windows where an input changes",
+        STEADY: "windows where the inputs hold",
+        NO_INPUT: "runs without a driven input",
+    }
+    noise = "the recording's noise; each residual is in its units, so σ is 1"
+    intro = (
+        "Sets that fit about as well as the answer (neither's held-out error clearly lower) were fitted on "
+        "every run, and their residuals compared segment by segment, each sample labelled by what the driven "
+        "inputs do in its window."
+    )
+
+    def twins(self, look: Mapping[str, Any]) -> Mapping[str, Any] | None:
+        return look.get("segment_llr")
+
+    def about(self, look: Mapping[str, Any]) -> str:
         where = "; ".join(
             f"{w['scenario']} {w['start']:.3g}-{w['stop']:.3g} s "
             f"({w['input']}, {w['delta_mean_square']:+.3g})"
-            for w in x["telling_windows"][:3]
+            for w in look["telling_windows"][:3]
         )
-        lines.append(
-            f"- {x['id']} fits alike ({x['held_out']:.3g} held-out, {x['runs_better']} runs better for the "
-            "chosen); "
-            + _llr_words(x.get("segment_llr"))
+        return (
+            f"{ids(look['id'])} fits alike ({look['held_out']:.3g} held-out, {look['runs_better']} runs "
+            "better for the chosen); "
             + (f"differs most in {where}" if where else "no window tells them apart by more than the noise")
+            + "."
         )
-    return "\n".join(lines)
+
+
+WORDS = Words()
 
 
 def located(case: dict[str, Any]) -> str:
@@ -111,7 +133,7 @@ def sections(answer: Answer) -> list[Section]:
     if case.get("decided"):
         found.append(Section("Look-alikes across the model's skin", decided(case), after="evidence"))
     if answer.lookalikes:
-        found.append(Section("Look-alikes", lookalikes(answer), after="evidence"))
+        found.append(Section("Look-alikes", report.lookalikes_part(answer, WORDS), after="evidence"))
     if case.get("located"):
         found.append(Section("Where the model misses", located(case), after="runs"))
     figures = answer.files.get("figures") or []
@@ -137,21 +159,3 @@ def write(answer: Answer) -> dict[str, Path]:
         "space's parameters.",
     )
     return written
-
-
-DECIDED_WORDS = {
-    DECIDED_BY_FIT: "held-out error and BIC already separate them",
-    DECIDED_BY_LLR: f"|LLR| ≥ {DECISIVE:g}: the LLR decides",
-    CANNOT_TELL: f"below the {DECISIVE:g} that decides",
-}
-
-
-def _llr_words(llr: dict[str, Any] | None) -> str:
-    """The engine's evidence between the twins in words: the LLR for the chosen set, corrected for the
-    residuals' autocorrelation, and how it was used."""
-    if not llr:
-        return ""
-    return (
-        f"LLR {llr['llr']:+.1f} for the chosen (autocorrelation time {llr['autocorrelation_samples']:.1f} "
-        f"samples; {DECIDED_WORDS.get(llr['decision'], llr['decision'])}); "
-    )

@@ -1,5 +1,7 @@
 """The Robotti's own sections of its diagnosis report (its figures are figures.py's); the engine's report.py
-lays out what every diagnosis has (verdict, effects, evidence, candidates, held-out runs, values, files).
+lays out what every diagnosis has (verdict, effects, evidence, candidates, held-out runs, values, files) and
+draws the look-alikes and the search beyond the library, here in the Robotti's words (:class:`Words`,
+:data:`SEARCH`).
 
 <out>/report/report.md        the page: the engine's skeleton with these sections
 <out>/report/diagnosis.html   the same page as one file, figures inside
@@ -12,15 +14,15 @@ page can be drawn again from ``diagnosis.json``.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import pandas as pd
 
 from ...analysis.diagnose import discovery, report
 from ...analysis.diagnose.answer import Answer
-from ...analysis.diagnose.lookalike import CANNOT_TELL, DECIDED_BY_FIT, DECIDED_BY_LLR, DECISIVE
-from ...analysis.diagnose.report import Section, ids, table
+from ...analysis.diagnose.report import Section, table
 from ...simulation.scenario import dropouts_line
 from ...sweeps.rank import format_point
 from ...sweeps.spec import Space
@@ -70,12 +72,12 @@ def write(
 def sections(answer: Answer) -> list[Section]:
     """The Robotti's sections of its report, from the answer alone."""
     case, named = answer.case, answer.effects[0].id != "none"
-    twins = [twins_sentence(x) for x in answer.lookalikes if x["decision"] != DECIDED_BY_FIT]
+    twins = [said for said in (report.twins_sentence(x, WORDS) for x in answer.lookalikes) if said]
     found = [
         Section("", "\n\n".join(twins), after="verdict"),
         Section("The effects named", effects_text(answer), after="effects"),
         Section("GPS noise floor", noise_text(answer), after="evidence"),
-        Section("Look-alikes", lookalikes_text(answer), after="evidence"),
+        Section("Look-alikes", report.lookalikes_part(answer, WORDS), after="evidence"),
         Section("How a candidate is chosen", rule_text(case["settings"]), after="candidates"),
         Section("Discovery beyond the library", discovery_text(answer), after="candidates"),
         Section("Where the calibrated model misses", located_text(answer), after="runs"),
@@ -269,133 +271,83 @@ def noise_text(answer: Answer) -> str:
     )
 
 
-def discovery_text(answer: Answer) -> str:
-    """What discovery did, or why it did not run."""
-    found, settings = answer.case.get("discovery"), answer.case["settings"]
-    if found is None:
-        why = (
-            "it is switched off (`--no-discovery`)"
-            if not settings["discovery"]
-            else f"the library's answer is within {settings['noise_factor']:g}× the noise floor (or no floor "
-            "could be estimated), so there is nothing a correction could claim but noise"
-        )
-        return f"No correction was sought: {why}."
-    proposed = "; ".join(found["proposed_text"])
-    lines = [
-        (
-            "The library's best answer left held-out error well above the noise, so a sparse correction was "
-            "sought among the terms of the effects variant's correction block: the equation error of the "
-            "recorded speed and yaw rate (from the fixes alone) against the reference's quasi-static answer, "
-            "regressed on the block's features at the reference's state by PySINDy's STLSQ, with the "
-            "threshold chosen by leave-one-run-out error and each term kept only if a seeded bootstrap over "
-            f"runs picks it in {discover.INCLUSION:.0%} of the resamples. The proposed terms were then "
-            "fitted on positions with the calibrated parameters, pruned to those two standard errors from "
-            "zero, re-proposed inside each fold on its training runs only, and judged by the library's rule, "
-            f"the BIC margin raised to {found['bic_margin']:.1f} for the search (extended BIC)."
-        ),
-        f" Proposed from every run: {('`' + proposed + '`') if proposed else 'nothing'}.",
-    ]
-    for c in found["tried"]:
-        lines.append(
-            f" `{c['id']}`: "
-            + "; ".join(c["text"])
-            + f", held-out {c['held_out']:.4f} m, ΔBIC {c['bic'] - found['bic_reference']:+.1f} against "
-            f"`{found['reference']}` ({found['held_out_reference']:.4f} m)."
-        )
-    if found["chosen"] is None:
-        lines.append(f" Nothing was accepted: {found['reason']}.")
-    else:
-        lines.append(f" Accepted: `{found['chosen']}`; it {found['resembles']}.")
-    proof = found.get("proof")
-    if proof and proof["folds"]:
-        lines.append(
-            f" Proof: {proof['agree']} of {len(proof['folds'])} folds, choosing among {proof['offered']} "
-            "terms on their training runs alone, chose these terms again; their own choices predicted the "
-            f"held-out runs with {proof['held_out']:.4f} m."
-        )
-    return "".join(lines)
-
-
-# ---- look-alikes ----------------------------------------------------------------------------------
-
-SEGMENT_WORDS = {
-    "steer_step": "steering steps",
-    "steer_ramp": "steering ramps and sines",
-    "steer_hold": "held turns",
-    "speed_step": "speed steps",
-    "speed_ramp": "speed ramps",
-    "cruise": "cruising straight",
-    "rest": "standing",
-    "unlabelled": "outside the command log",
-}
-LOOKALIKE_INTRO = (
-    "Twin effects (a delay of every command and a steering lag; slip and a speed lag; a delay and "
-    "a speed lag) leave nearly the same residual on ordinary manoeuvres. Both sets were fitted on "
-    "every run, and their fix residuals compared segment by segment, the segments read from the "
-    "command log alone: the log-likelihood ratio (LLR) is the difference of their squared "
-    "residuals over 2σ² (σ the GPS noise floor), divided by the residuals' autocorrelation time "
-    "in fixes, since successive fixes of a smooth residual are not independent evidence. Positive "
-    "favours the first set. When held-out error and BIC cannot separate the two, |LLR| ≥ "
-    f"{DECISIVE:g} (about 150 to 1) decides; below it the diagnosis names both."
+SEARCH = (  # the discovery part's opening: the Robotti's search beyond its library (discover/)
+    "The library's best answer left held-out error well above the noise, so a sparse correction was sought "
+    "among the terms of the effects variant's correction block: the equation error of the recorded speed and "
+    "yaw rate (from the fixes alone) against the reference's quasi-static answer, regressed on the block's "
+    "features at the reference's state by PySINDy's STLSQ, with the threshold chosen by leave-one-run-out "
+    "error and each term kept only if a seeded bootstrap over runs picks it in "
+    f"{discover.INCLUSION:.0%} of the resamples."
 )
 
 
-def _words(kind: str) -> str:
-    return SEGMENT_WORDS.get(kind, kind)
+def discovery_text(answer: Answer) -> str:
+    """What discovery did (the engine's part after the Robotti's description of its search), or why it did
+    not run."""
+    settings = answer.case["settings"]
+    skipped = (
+        "it is switched off (`--no-discovery`)"
+        if not settings["discovery"]
+        else f"the library's answer is within {settings['noise_factor']:g}× the noise floor (or no floor "
+        "could be estimated), so there is nothing a correction could claim but noise"
+    )
+    return report.discovery_part(answer, answer.case.get("discovery"), SEARCH, skipped)
 
 
-def _strongest(look: dict[str, Any]) -> str:
-    """The segment kind that carries most of the evidence, in words, with its share of the LLR."""
-    by_kind = look["by_segment"]
-    if not by_kind:
-        return ""
-    kind = max(by_kind, key=lambda k: abs(by_kind[k]["llr"]))
-    return f"mostly on {_words(kind)} ({by_kind[kind]['llr']:+.1f})"
+# ---- look-alikes: the engine's part, in the Robotti's words -------------------------------------------
 
 
-def twins_sentence(look: dict[str, Any]) -> str:
-    """The verdict between twins (as the JSON holds them) that held-out error and BIC could not separate, in
-    one sentence."""
-    a, b = look["pair"]
-    llr = look["llr"]
-    if look["decision"] == DECIDED_BY_LLR:
-        loser = b if look["favours"] == a else a
+class Words(report.LookalikeWords):
+    """The Robotti's words on its look-alikes: its segments of the command log, its fixes, the GPS noise, and
+    what only it knows of a pair (the segments and manoeuvre that tell it apart; the response fits)."""
+
+    segments: ClassVar[Mapping[str, str]] = {
+        "steer_step": "steering steps",
+        "steer_ramp": "steering ramps and sines",
+        "steer_hold": "held turns",
+        "speed_step": "speed steps",
+        "speed_ramp": "speed ramps",
+        "cruise": "cruising straight",
+        "rest": "standing",
+        "unlabelled": "outside the command log",
+    }
+    sample = lookalike.LookAlike.sample
+    noise = "the GPS noise floor"
+    intro = (
+        "Twin effects (a delay of every command and a steering lag; slip and a speed lag; a delay and a "
+        "speed lag) leave nearly the same residual on ordinary manoeuvres. Both sets were fitted on every "
+        "run, and their fix residuals compared segment by segment, the segments read from the command log "
+        "alone."
+    )
+
+    def about(self, look: Mapping[str, Any]) -> str:
         return (
-            f"**Look-alikes:** {ids(look['favours'])} rather than its look-alike {ids(loser)}: held-out "
-            f"error and BIC cannot separate them, but the fixes can (LLR {abs(llr):.1f} in its favour, "
-            f"{_strongest(look)})."
+            f"What tells them apart best: {', '.join(self.segment(k) for k in look['telling_segments'])} "
+            f"({look['telling_fixes']} fixes here); {look['would_tell']} would add the most."
         )
-    missing = (
-        ""
-        if look["telling_fixes"]
-        else (" these runs have no " + " and no ".join(_words(k) for k in look["telling_segments"]) + ";")
-    )
-    return (
-        f"**Look-alikes:** {ids(a)} or its look-alike {ids(b)}: cannot tell on these runs (LLR {llr:+.1f}, "
-        f"below the {DECISIVE:g} that decides);{missing} {look['would_tell']} would."
-    )
+
+    def more(self, look: Mapping[str, Any]) -> str:
+        if not look["response_fit"]:
+            return ""
+        return response_text(look, self) + "\n\n" + report.response_table(look["response_fit"], self)
+
+    def advice(self, look: Mapping[str, Any]) -> str:
+        missing = (
+            ""
+            if look["telling_fixes"]
+            else (
+                " these runs have no "
+                + " and no ".join(self.segment(k) for k in look["telling_segments"])
+                + ";"
+            )
+        )
+        return f"{missing} {look['would_tell']} would"
 
 
-def lookalike_text(look: dict[str, Any]) -> str:
-    """The evidence between one pair of twins and how it was used."""
-    a, b = look["pair"]
-    how = {
-        DECIDED_BY_FIT: "held-out error and BIC already separate them, and the LLR is reported as a check",
-        DECIDED_BY_LLR: f"held-out error and BIC do not separate them; the LLR does (|LLR| ≥ {DECISIVE:g})",
-        CANNOT_TELL: f"neither held-out error and BIC nor the LLR (below {DECISIVE:g}) "
-        "separates them: cannot tell on these runs",
-    }[look["decision"]]
-    members = look["effects"]
-    return (
-        f"{ids(a)} against {ids(b)} (swapping `{members[0]}` for `{members[1]}`): LLR {look['llr']:+.1f}, in "
-        f"favour of {ids(look['favours'])}, {_strongest(look)}; {how}. σ = {look['sigma']:.4f} m, "
-        f"autocorrelation time {look['autocorrelation_fixes']:.1f} fixes. What tells them apart best: "
-        f"{', '.join(_words(k) for k in look['telling_segments'])} ({look['telling_fixes']} fixes here); "
-        f"{look['would_tell']} would add the most."
-    )
+WORDS = Words()
 
 
-def response_text(look: dict[str, Any]) -> str:
+def response_text(look: Mapping[str, Any], words: report.LookalikeWords) -> str:
     """What the response fits say, in a control engineer's terms."""
     responses = look["response_fit"]
     channel = (
@@ -403,7 +355,7 @@ def response_text(look: dict[str, Any]) -> str:
     )
     telling = [r for r in responses if r["segment"] in look["telling_segments"]] or responses
     said = "; ".join(
-        f"on {_words(r['segment'])}, "
+        f"on {words.segment(r['segment'])}, "
         + {
             "delay": f"a delay of {r['delay']:.2f} s fits best (lag {r['lag']:.2f} s fits a little worse)",
             "lag": f"a first-order lag of {r['lag']:.2f} s fits best (delay {r['delay']:.2f} s fits a little "
@@ -414,7 +366,7 @@ def response_text(look: dict[str, Any]) -> str:
         for r in telling
     )
     shape = look["shape"]
-    segment = _words(shape["segment"])
+    segment = words.segment(shape["segment"])
     if shape["favours"]:
         verdict = (
             f"On {segment} the shape alone favours `{shape['favours']}` (LLR {abs(shape['llr']):.1f} over "
@@ -437,42 +389,3 @@ def response_text(look: dict[str, Any]) -> str:
         f"{said}. A delay and a lag of the same size shift a slow answer alike; only a step's shape, or a "
         f"steady deficit while cruising, tells them apart. {verdict}"
     )
-
-
-RESPONSE = {  # a response fit's JSON key -> its column
-    "fixes": "fixes",
-    "sse": "SSE as modelled",
-    "delay": "delay [s]",
-    "delay_sse": "SSE delay",
-    "lag": "lag [s]",
-    "lag_sse": "SSE lag",
-    "gain": "gain",
-    "gain_sse": "SSE gain",
-    "best": "best",
-}
-
-
-def lookalikes_text(answer: Answer) -> str:
-    """Each pair of twins: the evidence between them segment by segment, and the response fits."""
-    if not answer.lookalikes:
-        return ""
-    lines = [LOOKALIKE_INTRO, ""]
-    for look in answer.lookalikes:
-        a, b = look["pair"]
-        by_segment = [
-            {"segment": _words(k), "fixes": v["fixes"], f"LLR ({a} over {b})": v["llr"]}
-            for k, v in look["by_segment"].items()
-        ]
-        lines += [
-            lookalike_text(look),
-            "",
-            table(by_segment, ["segment", "fixes", f"LLR ({a} over {b})"]),
-            "",
-        ]
-        if look["response_fit"]:
-            rows = [
-                {"segment": _words(r["segment"]), **{RESPONSE[k]: r[k] for k in RESPONSE}}
-                for r in look["response_fit"]
-            ]
-            lines += [response_text(look), "", table(rows, ["segment", *RESPONSE.values()]), ""]
-    return "\n".join(lines)
