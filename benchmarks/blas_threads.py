@@ -85,7 +85,10 @@ def cases(names: list[str], out: Path) -> None:
             rows = {}
             for label, threads in (("as they come", None), ("one thread", 1)):
                 one_thread.BLAS_THREADS = threads
-                rows[label] = run(case, out / case / label.replace(" ", "-"), client)
+                try:
+                    rows[label] = run(case, out / case / label.replace(" ", "-"), client)
+                finally:
+                    one_thread.BLAS_THREADS = 1
             for label, row in rows.items():
                 print(
                     f"{case:<22} {label:<13} wall {row['wall']:6.1f} s, client CPU {row['client']:5.1f} s, "
@@ -97,7 +100,6 @@ def cases(names: list[str], out: Path) -> None:
                 f"{case:<22} one/as they come: client CPU {b['client'] / a['client']:.2f}, "
                 f"wall {b['wall'] / a['wall']:.2f}; {same}"
             )
-    one_thread.BLAS_THREADS = 1
 
 
 def main() -> None:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 from conftest import REPO
 
-from dse_runner.analysis.diagnose.calibration import parameters_at, searched
+from dse_runner.analysis.diagnose.calibration import held_at, parameters_at, searched
 from dse_runner.analysis.diagnose.library import space_with
 from dse_runner.sweeps.spec import derived_space
 
@@ -32,6 +32,9 @@ def test_a_single_value_and_a_whole_number_are_not_refined(tmp_path):
         parameters={"msd.k": [14.0], "msd.c": Interval(low=1, high=4, integer=True)},
     )
     assert parameters_at(space, {}, 0.01) == ()
+    # held where the search put them, not at the low end of the range; the one value where it set nothing
+    assert held_at(space, {"msd.c": 3.0}) == {"msd.k": 14.0, "msd.c": 3.0}
+    assert held_at(space, {}) == {"msd.k": 14.0, "msd.c": 1.0}
 
 
 def test_points_given_as_they_are_search_nothing(tmp_path):

@@ -87,3 +87,23 @@ def test_searched_terms_claim_the_proofs_error_when_it_is_worse():
     assert _found(
         Proof(("term",), [("term",)] * 2, {"run0": 0.01, "run1": 0.01})
     ).held_out_after == pytest.approx(0.11)
+
+
+def test_an_outcome_that_leaves_a_hook_unfilled_is_refused_when_it_is_defined():
+    """Refused at import, not after a whole diagnosis has run and before its JSON is written."""
+    with pytest.raises(TypeError, match=r"Half subclasses Outcome but fills no held_out_unit, proof"):
+
+        @dataclass
+        class Half(Outcome):
+            library_name = "half"
+            verdict: str = "none"
+            verdict_text: str = ""
+
+            def effect_entries(self) -> list[answer.Effect]:
+                return []
+
+            def noise_floor_entry(self) -> answer.NoiseFloor:
+                return answer.NoiseFloor(held_out=None, factor=2.0, ratio=None, method="none")
+
+            def case_fields(self) -> dict[str, Any]:
+                return {}

@@ -6,7 +6,10 @@ point starts the least squares of the calibrated parameters: each parameter give
 bounded by them (an integer parameter is a choice, not a quantity least squares can move). A library
 chooses only the finite-difference step, as a share of each range (over a long record of an oscillation a
 step of a percent moves the phase by a good part of a cycle), and what it refines further: the signal
-library from many starts, the Robotti with its baseline's fit among its hypotheses.
+library from many starts; another may fit its baseline among its hypotheses instead.
+
+What least squares does not refine is held where the search found it best (:func:`held_at`): a parameter
+given one value at that value, a whole-numbered one at the search's best choice.
 """
 
 from __future__ import annotations
@@ -21,10 +24,10 @@ from ...sweeps.sweep import submit
 
 
 def searched(space: Space, client, say: Callable[[str], None]) -> Ranking | None:
-    """The space's own search run on its scenarios and ranked; None when it searches nothing (no parameter
-    with more than one value, or points given as they are)."""
+    """The space's own search run on its scenarios and ranked; None when its points are given as they are
+    (search strategy ``given``), which leaves nothing to search."""
     search = space.spec.search
-    if not space.dimensions or search.strategy == "given":
+    if search.strategy == "given":
         return None
     how = (
         "the space's grid"
@@ -49,3 +52,9 @@ def parameters_at(space: Space, best: Mapping[str, Any], step: float) -> tuple[P
             start = float(best.get(name, 0.5 * (low + high)))
             params.append(Parameter(name, start, low, high, step * (high - low)))
     return tuple(params)
+
+
+def held_at(space: Space, best: Mapping[str, Any]) -> dict[str, Any]:
+    """Every parameter of the space where the search found it best (``best``), or at its first value where
+    the search did not set it: what a fit holds of the parameters it does not free."""
+    return {name: best.get(name, values[0]) for name, values in space.parameters.items()}

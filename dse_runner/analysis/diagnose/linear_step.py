@@ -5,7 +5,7 @@ Why one function: the linearised screen (screens/linearised.py: a set of effects
 refitted with it) and discovery's ranking of proposed terms (term_ranking.py: a set of terms, the parent's
 parameters refitted with them) ask a Jacobian the same question, without simulating: the least SSE of
 r + J·x with lower ≤ x ≤ upper (scipy's lsq_linear). The columns are solved on one scale, so that
-parameters of any units (millimetres of antenna, hundreds of kilograms) weigh alike: each column times its
+parameters of any units (millimetres, hundreds of kilograms) weigh alike: each column times its
 parameter's finite-difference step (what one step does: the screen's), or else at unit norm (the
 ranking's). The two agree to rounding; each caller keeps its own so that its answers stay bit for bit.
 """

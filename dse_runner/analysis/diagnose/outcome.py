@@ -1,11 +1,12 @@
 """What a diagnosis found, before it is written as JSON: the calibrated model, the answer, every set fitted on
 the way, and what the rules and screens did; the one place the Answer (answer.py) is built from them.
 
-Why: every library ends a diagnosis with the same things under its own names (the Robotti's cross-track
-error, the signal library's noise floors) and wrote the same JSON from them twice: runner-up evidence,
-candidates ranked, held-out error before and after (after made honest by the proof of searched terms), per
-held-out run, calibrated and fitted values with intervals. A library subclasses :class:`Outcome` with its
-own fields and fills its hooks, as an Optuna sampler fills BaseSampler's:
+Why: every library ends a diagnosis with the same things under its own names (its held-out error in a unit
+of its own: metres of a track, noise floors of a signal), and the libraries wrote the same JSON from them
+twice: runner-up evidence, candidates ranked, held-out error before and after (after made honest by the
+proof of searched terms), per held-out run, calibrated and fitted values with intervals. A library
+subclasses :class:`Outcome` with its own fields and fills its hooks, as an Optuna sampler fills
+BaseSampler's (a subclass that leaves one unfilled is refused where it is defined):
 
 - ``library_name`` and ``held_out_unit`` (class attributes): who answers, in what unit it judges;
 - ``verdict``, ``verdict_text`` and ``proof`` (fields or properties): the verdict, in its own words, and
@@ -43,6 +44,23 @@ class Outcome(ABC):
 
     library_name: ClassVar[str]  # the hypothesis library that answers
     held_out_unit: ClassVar[str]  # what its held-out error is measured in
+    FILLED: ClassVar[tuple[str, ...]] = ("verdict", "verdict_text", "proof")  # a field or a property each
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """A library's outcome that leaves a hook unfilled is refused when its module is imported, not after
+        a whole diagnosis has run and before its JSON is written."""
+        super().__init_subclass__(**kwargs)
+        if ABC in cls.__bases__:
+            return  # an abstract step between: its subclasses fill the hooks
+        own = [k for k in cls.__mro__ if k not in (Outcome, ABC, object)]
+        declared = {name for k in own for name in (*vars(k), *vars(k).get("__annotations__", {}))}
+        missing = [n for n in ("library_name", "held_out_unit") if not isinstance(getattr(cls, n, None), str)]
+        missing += [n for n in cls.FILLED if n not in declared]
+        if missing:
+            raise TypeError(
+                f"{cls.__qualname__} subclasses Outcome but fills no {', '.join(missing)} (outcome.py: "
+                "a library's outcome names its library and unit, and gives its verdict, words and proof)"
+            )
 
     baseline: Candidate  # the calibrated model: no effect
     chosen: Candidate  # the answer; the baseline when nothing is missing

@@ -374,7 +374,7 @@ class LookalikeWords:
         return ""
 
     def more(self, look: Mapping[str, Any]) -> str:
-        """Its own paragraphs after a pair's table of evidence by segment (the Robotti: its response fits)."""
+        """Its own paragraphs after a pair's table of evidence by segment (response fits, say)."""
         return ""
 
     def advice(self, look: Mapping[str, Any]) -> str:
@@ -426,9 +426,10 @@ def twins_text(twins: Mapping[str, Any], words: LookalikeWords, u: str) -> str:
     a, b = twins["pair"]
     x, y = twins["effects"]
     tau = twins[f"autocorrelation_{words.sample}"]
+    how = HOW_DECIDED.get(twins["decision"], twins["decision"])
     return (
         f"{ids(a)} against {ids(b)} (swapping `{x}` for `{y}`): LLR {twins['llr']:+.1f}, in favour of "
-        f"{ids(twins['favours'])}, {strongest(twins, words)}; {HOW_DECIDED[twins['decision']]}. "
+        f"{ids(twins['favours'])}, {strongest(twins, words)}; {how}. "
         f"σ = {twins['sigma']:.4f} {u}, autocorrelation time {tau:.1f} {words.sample}."
     )
 

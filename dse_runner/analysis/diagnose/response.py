@@ -8,7 +8,7 @@ gain scales it. A control engineer tells them apart by fitting each form to the 
 from the calibrated model without either twin, is transformed, not simulated again.
 
 A library supplies what only it knows (:class:`Channel`): its recorded signal at its samples, and how the
-model's signal would be *seen* there (a direction estimated from positions is seen through the
+model's signal would be *seen* there (a signal estimated from other measurements is seen through the
 estimator's window, not as the model's instantaneous value; the model's signal goes through the same
 window, so that the window's smoothing is not mistaken for a lag). The forms, their fits and the
 log-likelihood ratio between two forms are the engine's.
@@ -39,7 +39,7 @@ class Channel(Protocol):
     """One run's recorded signal beside the model's, as a library lays it out. ``recorded`` and ``kinds``
     are per sample (NaN where the recording has no estimate; the segment kind each sample lies in);
     ``model`` is on ``model_time`` (uniform). ``free_offset``: compare about the run's mean difference (a
-    signal known up to a constant, as a course). :meth:`seen` turns a model signal into what the recording
+    signal known up to a constant). :meth:`seen` turns a model signal into what the recording
     would show at its samples (NaN where it would show nothing)."""
 
     recorded: np.ndarray

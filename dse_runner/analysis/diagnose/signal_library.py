@@ -44,7 +44,7 @@ from ...sweeps.fit_rounds import evaluate_points, fit_all
 from ...sweeps.spec import Space, derived_space
 from . import answer as answer_
 from . import explain, lookalike, screens, signal_claims, signal_figures, signal_locate, signal_report
-from .calibration import parameters_at, searched
+from .calibration import held_at, parameters_at, searched
 from .choice import choose, screen_of
 from .derivatives import model_exchange_instances, observe
 from .engine import (
@@ -483,11 +483,12 @@ def _calibrated(
     space: Space, compared: Sequence[Compared], client, say: Messages
 ) -> tuple[tuple[Parameter, ...], dict[str, Any]]:
     """Where every effect's fit starts: the space's calibration (its own search's best point, refined by
-    least squares), and the parameters it gives one value, held there."""
+    least squares), and the parameters least squares does not refine, held where the search put them."""
     ranking = searched(space, client, say)
-    base = parameters_at(space, ranking.best if ranking is not None else {}, DIFFERENCE)
+    best = ranking.best if ranking is not None else {}
+    base = parameters_at(space, best, DIFFERENCE)
     calibrated = {p.name for p in base}
-    held = {name: values[0] for name, values in space.parameters.items() if name not in calibrated}
+    held = {k: v for k, v in held_at(space, best).items() if k not in calibrated}
     if base:
         say("calibrating: least squares from the best point")
         plain = fits_space(space, compared, {}, CALIBRATION_FITS)

@@ -1,7 +1,7 @@
 """Which proposed terms the residuals want first: every proposal of a term search ranked again on what each
 term does to its parent fit's residuals, linearised there.
 
-Why: a search proposes terms by its own measure (the Robotti's, equation error channel by channel), and that
+Why: a search proposes terms by its own measure (equation error channel by channel, say), and that
 measure may see the model's own misfit too, or weigh channels unfairly (a pair of terms can outrank the one
 term they stand in for). The fits judge terms by the residuals, so the ranking does too, on one scale for
 every term: at each parent fit, one probe per proposed term (one step of its parameter, its shapes held)

@@ -66,7 +66,8 @@ class TermSearch(ABC):
     """What a library supplies to search beyond itself; the engine runs the procedure (discovery.discover).
 
     Required: :meth:`propose` (terms from a parent fit and its residuals), :meth:`parameter` (the fit's
-    parameter a term is: the ranking probes it by its step and bounds it by its range, every fit of the terms
+    parameter a term is: a term is absent at 0, its range symmetric about it; the ranking probes it by its
+    step from its parent's value and bounds its coefficient by ± its upper end, and every fit of the terms
     frees it), :meth:`is_term` (which fitted parameters are terms) and :attr:`offered` (how many terms the
     search chooses among: the extended BIC charges for it). Optional: :meth:`held` (the shapes a term was made
     at, held wherever it is simulated; none by default) and :meth:`readable`. The engine's own:

@@ -4,11 +4,13 @@ parameters, the fix residuals it minimises and Equation 1 as a held-out run's er
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
+from ...analysis.diagnose.calibration import held_at
 from ...analysis.diagnose.engine import Fits
 from ...analysis.diagnose.fitter import scored_ok
 from ...analysis.diagnose.validation import Validation
@@ -91,8 +93,10 @@ class Chain(Fits):
         settings: DiagnosisSettings,
         progress: DiagnosisMessages,
         validation: Validation,
+        best: Mapping[str, Any],
     ) -> Chain:
-        """The fits of a diagnosis of ``vehicle``'s effects in ``space``, held out as ``validation`` says."""
+        """The fits of a diagnosis of ``vehicle``'s effects in ``space``, held out as ``validation`` says,
+        what no fit frees held where the calibration's search found it best (``best``)."""
 
         library = {hid: VehicleEffect.of(vehicle, hid) for (hid,) in settings.singles()}
 
@@ -101,7 +105,7 @@ class Chain(Fits):
             client=client,
             base=base,
             parameters=lambda hid: VehicleEffect.of(vehicle, hid).parameters,
-            unfreed={name: values[0] for name, values in space.parameters.items()},
+            unfreed=held_at(space, best),
             validation=validation,
             residuals=RESIDUALS,
             scored=[SCORED],

@@ -154,7 +154,7 @@ def _diagnose(
     base = base_parameters(calibration, grid.best)
     space, validation = validated(fits_space(calibration, vehicle, out), settings.folds, list(FIX_COLUMNS))
     say(validation.text)
-    chain = Chain.for_vehicle(space, vehicle, base, client, settings, say, validation)
+    chain = Chain.for_vehicle(space, vehicle, base, client, settings, say, validation, grid.best)
     space = recorded(space, validation)  # the runs themselves: what is located, weighed and observed
     choice = choose(
         chain,

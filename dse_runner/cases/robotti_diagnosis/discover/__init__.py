@@ -2,7 +2,7 @@
 the GPS and proven by the fits.
 
 When the chosen library set R (possibly ``none``) leaves held-out error well above the noise floor, the
-missing physics is sought among the correction block's terms (correction.py), in two stages
+missing physics is sought among the correction block's terms (correction.py), in three stages
 (docs/research/diagnosis-beyond-library.md, §4):
 
 1. **Propose** (no simulation). The recorded state comes from the fixes alone (kinematics.py): speed,
