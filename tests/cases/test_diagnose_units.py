@@ -670,6 +670,8 @@ def test_the_response_fit_tells_a_delay_from_a_lag_through_the_gps_window(form):
     step = fits["speed_step"]
     assert step.best == form
     assert (step.delay if form == "delay" else step.lag) == pytest.approx(0.5, abs=0.05)
+    assert step.gain_sse > min(step.delay_sse, step.lag_sse)
+    assert fits["cruise"].gain == pytest.approx(1.0, abs=0.02)  # a phase, no attenuation, through the window
 
 
 def look(decision: str, llr: float, kinds: dict[str, float]) -> lookalike.LookAlike:
