@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from ...errors import DseError
 from ...simulation.scenario import Scenario
 from ...sweeps.fit import FitResult
 
@@ -209,6 +210,17 @@ FLOOR_STOP = 1.25  # a fit within this many noise floors leaves nothing a combin
 TIE = (
     1e-4  # m: held-out errors of one run closer than this are equal (an effect fitted to ~0 changes nothing)
 )
+
+
+def floors(value: float, option: str, default: float) -> float:
+    """``value``, a count of noise floors (``--noise-factor``, a floor stop) as the user gave it under the
+    name ``option``: a positive number, or an error that names it and the default."""
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise DseError(
+            f"{option} {value!r}: must be a positive number of noise floors (default {default:g}; held-out "
+            f"error above {NOISE_FACTOR:g} floors is a residual)"
+        )
+    return float(value)
 
 
 def above_floor(held_out: float, floor: float | None, factor: float = NOISE_FACTOR) -> bool:

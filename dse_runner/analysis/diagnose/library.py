@@ -16,7 +16,6 @@ applies and the generic library serves everything else.
 
 from __future__ import annotations
 
-import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -30,7 +29,7 @@ from ...sweeps.search import Search
 from ...sweeps.spec import Space, SpaceSpec, read_spec, resolve_space
 from . import report, screens
 from .answer import Answer
-from .explain import NOISE_FACTOR
+from .explain import NOISE_FACTOR, floors
 from .hypotheses import Hypothesis
 from .one_thread import one_thread
 from .report import Section
@@ -56,11 +55,7 @@ class Request:
             screens.known(self.screen)
         if not (isinstance(self.folds, int) and self.folds >= 2):
             raise DseError(f"--folds {self.folds!r}: cross-validation needs 2 folds or more")
-        if not (math.isfinite(self.noise_factor) and self.noise_factor > 0):
-            raise DseError(
-                f"--noise-factor {self.noise_factor!r}: must be a positive number (default "
-                f"{NOISE_FACTOR:g}: held-out error above twice the noise floor is a residual)"
-            )
+        floors(self.noise_factor, "--noise-factor", NOISE_FACTOR)
 
 
 class Result(Protocol):

@@ -4,7 +4,6 @@ from it; and its verdict in an engineer's words."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -51,15 +50,8 @@ class DiagnosisSettings:
 
     def __post_init__(self) -> None:
         screens.known(self.screen)
-        if not (math.isfinite(self.noise_factor) and self.noise_factor > 0):
-            raise DseError(
-                f"noise factor {self.noise_factor!r}: must be a positive number (default "
-                f"{explain.NOISE_FACTOR:g}: held-out error above twice the noise floor is a residual)"
-            )
-        if not (math.isfinite(self.floor_stop) and self.floor_stop > 0):
-            raise DseError(
-                f"floor stop {self.floor_stop!r}: must be a positive number (default {explain.FLOOR_STOP:g})"
-            )
+        explain.floors(self.noise_factor, "noise factor", explain.NOISE_FACTOR)
+        explain.floors(self.floor_stop, "floor stop", explain.FLOOR_STOP)
         counts = {
             "pairs": self.pairs,
             "triples": self.triples,
