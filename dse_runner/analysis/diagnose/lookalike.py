@@ -228,7 +228,6 @@ def weighed(
     sigma: float | None,
     min_gain: float = explain.MIN_GAIN,
     bic_margin: float = explain.BIC_MARGIN,
-    decisive: float = DECISIVE,
 ) -> Twins | None:
     """The evidence between ``a`` and ``b`` and how it decides; None when their residuals cannot be laid
     out alike. ``sigma``: the noise per component; without it, the better fit's own residual scatter."""
@@ -243,7 +242,7 @@ def weighed(
         else math.sqrt(min(a.full.sse, b.full.sse) / max(a.full.residual_count, 1))
     )
     evidence = segment_evidence(pieces_a, pieces_b, scale, segments.kinds)
-    how = decision(a, b, evidence.llr, min_gain, bic_margin, decisive)
+    how = decision(a, b, evidence.llr, min_gain, bic_margin)
     return Twins((a.label, b.label), members(a, b), evidence, how, None)
 
 
@@ -256,7 +255,6 @@ def weigh(
     sigma: float | None,
     min_gain: float = explain.MIN_GAIN,
     bic_margin: float = explain.BIC_MARGIN,
-    decisive: float = DECISIVE,
 ) -> tuple[Candidate, list[Twins]]:
     """The evidence between each pair of twins the library found (the chosen set first, or, when nothing
     is chosen, the two best); where held-out error and BIC cannot separate the chosen set from its twin
@@ -265,7 +263,7 @@ def weigh(
     looks: list[Twins] = []
     answer = chosen
     for a, b in pairs:
-        look = weighed(a, b, segments, sigma, min_gain, bic_margin, decisive)
+        look = weighed(a, b, segments, sigma, min_gain, bic_margin)
         if look is None:
             continue
         if (

@@ -242,7 +242,6 @@ def weigh(
     sigma: float | None,
     min_gain: float = explain.MIN_GAIN,
     bic_margin: float = explain.BIC_MARGIN,
-    decisive: float = DECISIVE,
 ) -> tuple[Candidate, list[LookAlike]]:
     """The engine's weighing (lookalike.weigh: the LLR, and the answer where it decides) of each twin pair of
     the chosen set, on these runs' fixes. ``sigma``: the GPS noise per axis; without it, the better fit's
@@ -256,7 +255,6 @@ def weigh(
         sigma,
         min_gain,
         bic_margin,
-        decisive,
     )
     looks = [
         LookAlike(t.pair, t.members, t.evidence, t.decision, t.chosen, telling(*t.members)) for t in twins
