@@ -24,10 +24,10 @@ from ...sweeps.sweep import submit
 
 
 def searched(space: Space, client, say: Callable[[str], None]) -> Ranking | None:
-    """The space's own search run on its scenarios and ranked; None when its points are given as they are
-    (search strategy ``given``), which leaves nothing to search."""
+    """The space's own search run on its scenarios and ranked; None when there is nothing to search: no
+    parameter, or its points given as they are (search strategy ``given``)."""
     search = space.spec.search
-    if search.strategy == "given":
+    if not space.dimensions or search.strategy == "given":
         return None
     how = (
         "the space's grid"

@@ -147,8 +147,8 @@ def _diagnose(
     grid = searched(calibration, client, say)
     if grid is None:
         raise DseError(
-            f"{calibration.path}: its search gives its points as they are (strategy given); the Robotti's "
-            "diagnosis calibrates from a search of its parameters' ranges, such as a grid"
+            f"{calibration.path}: nothing to search (no parameter, or its points given as they are); the "
+            "Robotti's diagnosis calibrates from a search of its parameters' ranges, such as a grid"
         )
     vehicle = vehicle_of(calibration)
     base = base_parameters(calibration, grid.best)
