@@ -319,7 +319,9 @@ def test_correction_bounds_scale_with_the_feature():
     acc_v = correction.term("corr_acc_v")
     assert correction.bound(acc_v, rms=2.0) == pytest.approx(1.0)  # 2 m/s² over an RMS speed of 2 m/s
     assert correction.bound(acc_v) == pytest.approx(2.0 / 1.5)  # the typical speed when no runs are given
-    p = correction.parameter(acc_v, "vehicle", rms=2.0, start=-5.0)
+    from dse_runner.analysis.diagnose.term_search import started
+
+    p = started(correction.parameter(acc_v, "vehicle", rms=2.0), {}, -5.0)  # as discovery starts a term
     assert (p.name, p.start, p.lower, p.upper, p.step) == ("vehicle.corr_acc_v", -1.0, -1.0, 1.0, 1e-3)
     assert "yaw" not in {t.channel for t in correction.searched_terms()}
     assert len(correction.TERMS) == 38

@@ -281,10 +281,11 @@ def bound(t: CorrectionTerm, rms: float | None = None) -> float:
     return t.channel_info.scale / size
 
 
-def parameter(t: CorrectionTerm, vehicle: str, rms: float | None = None, start: float = 0.0) -> Parameter:
-    """The fit's parameter for a term: symmetric bounds, a step of 1e-3 of the bound, start clipped in."""
+def parameter(t: CorrectionTerm, vehicle: str, rms: float | None = None) -> Parameter:
+    """The fit's parameter for a term: absent (0) within symmetric bounds, a step of 1e-3 of the bound (where
+    a fit starts it is the engine's: term_search.started)."""
     b = bound(t, rms)
-    return Parameter(f"{vehicle}.{t.variable}", float(np.clip(start, -b, b)), -b, b, STEP_FRACTION * b)
+    return Parameter(f"{vehicle}.{t.variable}", 0.0, -b, b, STEP_FRACTION * b)
 
 
 def _number(value: float) -> str:
